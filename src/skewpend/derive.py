@@ -1,0 +1,404 @@
+"""Equations of motion by the specification's method: rotation tensors and Lagrange's equations.
+
+The derivation follows the specification step by step:
+
+1. ``P1 = P(phi, k)``; ``e = P1 . e0``; ``P = P1 . P(psi, e0)`` (Rodrigues' formula);
+2. ``omega2 = phi' k + psi' e``; the rod vectors ``a = P1 . a j``, ``b = P . b j``;
+   the second rod's centre-of-mass velocity ``v_c = omega1 x a + omega2 x (P . c2)``;
+   its inertia tensor turned with the rod, ``Theta2 = P . Theta2_body . P^T``;
+3. ``T = T1 + T2``, ``Pi = Pi1 + Pi2`` and Lagrange's equations
+   ``d/dt dT/dq' - dT/dq = -dPi/dq + Q``.
+
+Compactness comes from structure, not from one large ``simplify()``: ``T`` is built in
+the first rod's frame (it does not depend on ``phi``); ``M(q)`` is the Hessian of ``T``
+in the speeds; the velocity terms come from derivatives of ``M``
+(Christoffel symbols); the gravity terms from ``Pi``; each entry is then reduced with
+``cos^2 + sin^2 = 1`` in its shortest form (:func:`skewpend.kinematics.compact`).
+
+The result is ``M(q) q'' = f(q, q')`` with ``f`` containing the generalised
+non-potential forces ``Q_i = tau_i - c_i q_i'`` (joint torques and viscous damping).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import sympy as sp
+
+from .errors import EquilibriumError
+from .kinematics import Algebra, Relation
+from .model import SCALAR_NAMES, Parameters
+
+__all__ = ["derive", "EquationsOfMotion", "LinearEquations", "SYMBOLS"]
+
+_ASSUMPTIONS = {
+    "a": dict(positive=True),
+    "b": dict(positive=True),
+    "m1": dict(positive=True),
+    "m2": dict(positive=True),
+    "alpha": dict(real=True),
+    "g": dict(nonnegative=True),
+    "c1": dict(nonnegative=True),
+    "c2": dict(nonnegative=True),
+    "tau1": dict(real=True),
+    "tau2": dict(real=True),
+}
+
+#: The symbols used in derived expressions, by name: the scalar parameters, the
+#: coordinates ``phi, psi``, the speeds ``dphi, dpsi`` and the accelerations ``ddphi, ddpsi``.
+SYMBOLS: Dict[str, sp.Symbol] = {n: sp.Symbol(n, **_ASSUMPTIONS[n]) for n in SCALAR_NAMES}
+SYMBOLS.update({n: sp.Symbol(n, real=True) for n in ("phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi")})
+
+_SPEEDS = ("dphi", "dpsi")
+_BIG_DENOMINATOR = 10**9
+
+
+def _number(x: float) -> sp.Rational:
+    """Exact rational for a user's float: short decimals as typed (0.8 -> 4/5), others exactly."""
+    x = float(x)
+    if x.is_integer():
+        return sp.Integer(int(x))
+    text = repr(x)
+    if "e" not in text and len(text.replace("-", "").replace(".", "").lstrip("0")) <= 8:
+        return sp.Rational(text)
+    return sp.Rational(x)
+
+
+def _angle_value(x: float) -> sp.Expr:
+    """A numeric angle; a whole number of degrees is kept exact (``pi*n/180``) when its cosine
+    and sine are algebraic numbers SymPy writes without trigonometric functions."""
+    deg = math.degrees(x)
+    if abs(deg - round(deg)) < 1e-9:
+        exact = sp.pi * sp.Integer(round(deg)) / 180
+        if not (sp.cos(exact).has(sp.cos) or sp.sin(exact).has(sp.sin)):
+            return exact
+    return sp.Float(x)
+
+
+def _display(expr: sp.Expr) -> sp.Expr:
+    """Show exact binary fractions of user floats as floats again."""
+    big = {r: sp.Float(r, 15) for r in expr.atoms(sp.Rational) if r.q > _BIG_DENOMINATOR}
+    return expr.xreplace(big) if big else expr
+
+
+@dataclass(frozen=True)
+class LinearEquations:
+    """Linearisation about the hanging equilibrium: ``M0 q'' + C0 q' + K0 q = 0``.
+
+    ``M0`` (mass), ``C0`` (damping) and ``K0`` (stiffness) are 2x2 SymPy matrices in
+    the coordinates ``q = (phi, psi)``; SI units.
+    """
+
+    M: sp.Matrix
+    C: sp.Matrix
+    K: sp.Matrix
+    params: Parameters
+
+    def equations(self) -> Tuple[sp.Expr, sp.Expr]:
+        """The two left-hand sides ``(M0 q'' + C0 q' + K0 q)_i`` (each ``= 0``)."""
+        s = SYMBOLS
+        q = sp.Matrix([s["phi"], s["psi"]])
+        dq = sp.Matrix([s["dphi"], s["dpsi"]])
+        ddq = sp.Matrix([s["ddphi"], s["ddpsi"]])
+        lhs = self.M * ddq + self.C * dq + self.K * q
+        return (sp.expand(lhs[0]), sp.expand(lhs[1]))
+
+
+@dataclass(frozen=True)
+class EquationsOfMotion:
+    """The equations of motion ``M(q) q'' = f(q, q')`` of a skewed double pendulum.
+
+    Attributes (SymPy, in the symbols of :data:`SYMBOLS`):
+
+    * ``mass_matrix`` -- 2x2 ``M(q)`` [kg m^2];
+    * ``forcing`` -- 2x1 ``f(q, q')`` [N m], velocity, gravity, damping and torque terms;
+    * ``kinetic_energy`` ``T`` and ``potential_energy`` ``Pi`` [J] (``Pi = 0`` with both
+      rods hanging vertically, ``phi = psi = 0``);
+    * ``params`` -- the :class:`~skewpend.Parameters` it was derived for.
+
+    :attr:`steps` holds the specification's intermediate results; :meth:`linearize`
+    the small-angle equations.
+    """
+
+    params: Parameters
+    mass_matrix: sp.Matrix
+    forcing: sp.Matrix
+    kinetic_energy: sp.Expr
+    potential_energy: sp.Expr
+    _ctx: "_Context" = field(repr=False, compare=False)
+
+    # -- names ---------------------------------------------------------------------
+    coordinates = ("phi", "psi")
+    speeds = ("dphi", "dpsi")
+
+    @property
+    def parameter_names(self) -> Tuple[str, ...]:
+        """Names of the parameters left symbolic."""
+        return self.params.symbolic_names
+
+    @property
+    def q(self) -> sp.Matrix:
+        return sp.Matrix([SYMBOLS["phi"], SYMBOLS["psi"]])
+
+    @property
+    def dq(self) -> sp.Matrix:
+        return sp.Matrix([SYMBOLS["dphi"], SYMBOLS["dpsi"]])
+
+    @property
+    def ddq(self) -> sp.Matrix:
+        return sp.Matrix([SYMBOLS["ddphi"], SYMBOLS["ddpsi"]])
+
+    def equations(self) -> Tuple[sp.Eq, sp.Eq]:
+        """The two equations ``(M q'')_i = f_i`` as SymPy ``Eq`` objects."""
+        lhs = self.mass_matrix * self.ddq
+        return tuple(sp.Eq(lhs[i], self.forcing[i]) for i in range(2))  # type: ignore[return-value]
+
+    @cached_property
+    def steps(self) -> Dict[str, sp.Basic]:
+        """The specification's intermediate results, in its order (world frame ``i, j, k``).
+
+        Keys: ``P1``, ``e``, ``P``, ``omega2``, ``v_c``, ``Theta2``, ``T``, ``Pi``, and the
+        equations ``M``, ``f``.
+        """
+        return self._ctx.steps(self)
+
+    def linearize(self) -> LinearEquations:
+        """Linearise about ``phi = psi = 0`` (both rods hanging): ``M0 q'' + C0 q' + K0 q = 0``.
+
+        Raises :class:`~skewpend.errors.EquilibriumError` if ``q = 0`` is not an
+        equilibrium (e.g. constant torques, or centres of mass off the vertical).
+        """
+        return self._ctx.linearize(self)
+
+    def _repr_latex_(self) -> str:
+        from .render import to_latex
+
+        return "$\\displaystyle " + to_latex(self, display=True) + "$"
+
+    def __str__(self) -> str:
+        from .render import to_text
+
+        return to_text(self)
+
+
+class _Context:
+    """The derivation, in the polynomial algebra of :mod:`skewpend.kinematics`.
+
+    Generators: the symbolic scalar parameters; ``c_x, s_x`` (cosine, sine) for the
+    angles ``phi, psi`` and, with the default second axis, ``alpha``; the components of a
+    hinge axis given by the user; the speeds.  Numeric values of ``alpha`` and user axes
+    are substituted only after reduction (:meth:`finish`).
+    """
+
+    def __init__(self, params: Parameters):
+        self.params = params
+        S = SYMBOLS
+        gens: List[sp.Symbol] = []
+        self.relations: List[Relation] = []
+        const: Dict[str, sp.Rational] = {}
+        for name in SCALAR_NAMES:
+            x = getattr(params, name)
+            if name == "alpha":
+                continue
+            if x is None:
+                gens.append(S[name])
+            else:
+                const[name] = _number(x)
+        unit_pairs: List[Tuple[str, ...]] = []
+        # values substituted after reduction: exact (ring) and non-rational (expression)
+        self.late_exact: Dict[str, sp.Rational] = {}
+        self.late_expr: Dict[sp.Symbol, sp.Expr] = {}
+        self.restore: Dict[sp.Symbol, sp.Expr] = {}
+        for ang in ("phi", "psi") + (("alpha",) if params.uses_alpha else ()):
+            c, s = sp.Symbol(f"c_{ang}", real=True), sp.Symbol(f"s_{ang}", real=True)
+            gens += [c, s]
+            unit_pairs.append((c.name, s.name))
+            if ang == "alpha" and params.alpha is not None:
+                theta = _angle_value(params.alpha)
+                for sym, val in ((c, sp.cos(theta)), (s, sp.sin(theta))):
+                    if val.is_Rational:
+                        self.late_exact[sym.name] = val
+                    else:
+                        self.late_expr[sym] = val
+            else:
+                self.restore.update({c: sp.cos(S[ang]), s: sp.sin(S[ang])})
+        for name in ("axis1", "axis2"):
+            vec = getattr(params, name)
+            if vec is None:
+                continue
+            comps = [sp.Symbol(f"{name}_{x}", real=True) for x in "xyz"]
+            gens += comps
+            unit_pairs.append(tuple(c.name for c in comps))
+            for sym, val in zip(comps, vec):
+                r = _number(val)
+                if r.q <= 10**8:
+                    self.late_exact[sym.name] = r
+                else:
+                    self.late_expr[sym] = sp.Float(val)
+        gens += [S["dphi"], S["dpsi"]]
+        self.alg = alg = Algebra(gens)
+        self.relations = [Relation(tuple(alg.index[n] for n in pair)) for pair in unit_pairs]
+        G = alg.gens
+        self.val = {n: (G[n] if n in G else alg.const(const[n])) for n in SCALAR_NAMES if n != "alpha"}
+        self.cs = {ang: (G[f"c_{ang}"], G[f"s_{ang}"]) for ang in ("phi", "psi", "alpha") if f"c_{ang}" in G}
+
+        a, b, m1, m2 = (self.val[n] for n in ("a", "b", "m1", "m2"))
+        I_, J_, K_ = alg.vec([1, 0, 0]), alg.vec([0, 1, 0]), alg.vec([0, 0, 1])
+        self.J = J_
+        self.n1 = K_ if params.axis1 is None else [G[f"axis1_{x}"] for x in "xyz"]
+        if params.axis2 is None:
+            ca, sa = self.cs["alpha"]
+            self.e0 = alg.add(alg.scale(ca, K_), alg.scale(sa, I_))  # cos(alpha) k + sin(alpha) i
+        else:
+            self.e0 = [G[f"axis2_{x}"] for x in "xyz"]
+        self.h = alg.scale(a, J_)  # the second hinge, at the end of rod 1
+        self.c1 = alg.scale(a / 2, J_) if params.com1 is None else alg.vec(map(_number, params.com1))
+        self.c2 = alg.scale(b / 2, J_) if params.com2 is None else alg.vec(map(_number, params.com2))
+
+        def inertia(given, m, length):
+            if given is None:  # thin rod along j: m l^2/12 (E - j j)
+                k = m * length**2 / 12
+                return [[k, 0 * k, 0 * k], [0 * k, 0 * k, 0 * k], [0 * k, 0 * k, k]]
+            return [alg.vec(map(_number, row)) for row in given]
+
+        self.I1 = inertia(params.inertia1, m1, a)
+        self.I2 = inertia(params.inertia2, m2, b)
+        self.P1 = alg.rotation(*self.cs["phi"], self.n1)  # P1 = P(phi, n1)
+        self.R2 = alg.rotation(*self.cs["psi"], self.e0)  # P(psi, e0)
+
+    # -- reduction and output ------------------------------------------------------------------
+    def finish(self, p, keys: Sequence[str] = ()) -> sp.Expr:
+        """Reduce ``p`` to its shortest form, substitute late values, return a tidy expression."""
+        alg = self.alg
+        p = alg.shortest(p, self.relations)
+        if self.late_exact:
+            p = p.subs([(alg.gens[n], v) for n, v in self.late_exact.items()])
+            p = alg.shortest(p, self.relations)
+        expr = alg.to_expr(p, keys=keys, subs=self.late_expr)
+        return _display(expr.xreplace(self.restore))
+
+    def finish_matrix(self, m, keys: Sequence[str] = ()) -> sp.Matrix:
+        if isinstance(m[0], list):
+            return sp.Matrix([[self.finish(x, keys) for x in row] for row in m])
+        return sp.Matrix([self.finish(x, keys) for x in m])
+
+    def d_dq(self, p, i: int):
+        ang = ("phi", "psi")[i]
+        return self.alg.d_dangle(p, f"c_{ang}", f"s_{ang}")
+
+    # -- the derivation ----------------------------------------------------------------
+    def derive(self) -> EquationsOfMotion:
+        alg, v = self.alg, self.val
+        dphi, dpsi = alg.gens["dphi"], alg.gens["dpsi"]
+        speeds = (dphi, dpsi)
+        n1, e0 = self.n1, self.e0
+
+        # Kinetic energy, in the frame of rod 1 (T is invariant; there it depends on psi only).
+        #   rod 1: omega1 = phi' n1,  v_c1 = omega1 x c1
+        #   rod 2: omega2 = phi' n1 + psi' e0,  v_c2 = omega1 x (h + R2 c2) + psi' e0 x R2 c2
+        arm = alg.matvec(self.R2, self.c2)
+        v_c1 = alg.scale(dphi, alg.cross(n1, self.c1))
+        v_c2 = alg.add(
+            alg.scale(dphi, alg.cross(n1, alg.add(self.h, arm))),
+            alg.scale(dpsi, alg.cross(e0, arm)),
+        )
+        omega2_body = alg.matvec(alg.transpose(self.R2), alg.add(alg.scale(dphi, n1), alg.scale(dpsi, e0)))
+        T = (
+            v["m1"] * alg.dot(v_c1, v_c1)
+            + dphi**2 * alg.dot(n1, alg.matvec(self.I1, n1))
+            + v["m2"] * alg.dot(v_c2, v_c2)
+            + alg.dot(omega2_body, alg.matvec(self.I2, omega2_body))
+        ) / 2
+
+        # Potential energy: Pi = -g sum m j . r_c, zero with both rods hanging (phi = psi = 0).
+        #   j . (P1 x) = (P1^T j) . x
+        down = alg.matvec(alg.transpose(self.P1), self.J)
+        Pi = -v["g"] * (v["m1"] * alg.dot(down, self.c1) + v["m2"] * alg.dot(down, alg.add(self.h, arm)))
+        Pi = Pi - Pi.subs(self._zero())
+
+        # Mass matrix: Hessian of T in the speeds.
+        M = [[T.diff(speeds[i]).diff(speeds[j]) for j in range(2)] for i in range(2)]
+
+        # Lagrange: M q'' = -sum_jk (dM_ij/dq_k - 1/2 dM_jk/dq_i) q'_j q'_k - dPi/dq_i + Q_i,
+        # Q_i = tau_i - c_i q'_i.
+        dM = [[[self.d_dq(M[i][j], k) for k in range(2)] for j in range(2)] for i in range(2)]
+        forcing = []
+        for i in range(2):
+            vel = alg.R.zero
+            for j in range(2):
+                for k in range(2):
+                    vel += (dM[i][j][k] - dM[j][k][i] / 2) * speeds[j] * speeds[k]
+            Q = v[f"tau{i + 1}"] - v[f"c{i + 1}"] * speeds[i]
+            forcing.append(-vel - self.d_dq(Pi, i) + Q)
+
+        self.T, self.Pi, self.M, self.f = T, Pi, M, forcing
+        return EquationsOfMotion(
+            params=self.params,
+            mass_matrix=self.finish_matrix(M),
+            forcing=self.finish_matrix(forcing, keys=_SPEEDS),
+            kinetic_energy=self.finish(T, keys=_SPEEDS),
+            potential_energy=self.finish(Pi, keys=[n for n in ("m1", "m2") if n in alg.gens]),
+            _ctx=self,
+        )
+
+    def _zero(self):
+        G = self.alg.gens
+        return [(G["c_phi"], 1), (G["s_phi"], 0), (G["c_psi"], 1), (G["s_psi"], 0)]
+
+    # -- intermediate results, world frame -------------------------------------------------------
+    def steps(self, eom: EquationsOfMotion) -> Dict[str, sp.Basic]:
+        alg = self.alg
+        dphi, dpsi = alg.gens["dphi"], alg.gens["dpsi"]
+        P1 = self.P1
+        e = alg.matvec(P1, self.e0)
+        P = alg.matmul(P1, self.R2)
+        omega1 = alg.scale(dphi, self.n1)
+        omega2 = alg.add(omega1, alg.scale(dpsi, e))
+        a_vec = alg.matvec(P1, self.h)
+        c2_world = alg.matvec(P, self.c2)
+        v_c = alg.add(alg.cross(omega1, a_vec), alg.cross(omega2, c2_world))
+        Theta2 = alg.matmul(alg.matmul(P, self.I2), alg.transpose(P))
+        fin = self.finish_matrix
+        return {
+            "P1": fin(P1),
+            "e": fin(e),
+            "P": fin(P),
+            "omega2": fin(omega2, keys=_SPEEDS),
+            "v_c": fin(v_c, keys=_SPEEDS),
+            "Theta2": fin(Theta2),
+            "T": eom.kinetic_energy,
+            "Pi": eom.potential_energy,
+            "M": eom.mass_matrix,
+            "f": eom.forcing,
+        }
+
+    # -- linearisation -----------------------------------------------------------------------------
+    def linearize(self, eom: EquationsOfMotion) -> LinearEquations:
+        zero = self._zero()
+        v = self.val
+        grad = [self.d_dq(self.Pi, i) for i in range(2)]
+        static = [self.finish(v[f"tau{i + 1}"] - grad[i].subs(zero)) for i in range(2)]
+        if any(sp.simplify(x) != 0 for x in static):
+            raise EquilibriumError(
+                "phi = psi = 0 is not an equilibrium of this model (static generalised forces "
+                f"{[str(x) for x in static]}); linearisation needs zero joint torques and centres "
+                "of mass hanging straight below their hinges"
+            )
+        M0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.M[i][j].subs(zero)))
+        K0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.d_dq(grad[i], j).subs(zero)))
+        C0 = sp.Matrix(2, 2, lambda i, j: self.finish(v[f"c{i + 1}"]) if i == j else sp.S.Zero)
+        return LinearEquations(M=M0, C=C0, K=K0, params=self.params)
+
+
+def derive(params: Optional[Parameters] = None) -> EquationsOfMotion:
+    """Derive the equations of motion ``M(q) q'' = f(q, q')`` for ``params``.
+
+    ``params`` defaults to ``Parameters()``: the specification's thin rods with every
+    parameter symbolic (``a, b, m1, m2, alpha, g``) and no damping or torques.
+    """
+    if params is None:
+        params = Parameters()
+    return _Context(params).derive()

@@ -1,0 +1,223 @@
+"""Model parameters of the skewed double pendulum.
+
+Geometry (the specification's notation): basis ``i, j, k`` with ``j`` pointing
+**down**; the first (roof) hinge turns about ``k`` at the origin, the first rod
+hangs along ``j`` and carries the second hinge at its end ``a j``; the second
+hinge axis, with both rods vertical, is ``e0 = cos(alpha) k + sin(alpha) i``;
+the second rod hangs from it along ``j``.  ``phi`` and ``psi`` are the rotation
+angles in the first and second hinge, zero with both rods vertical.
+
+Every quantity is in SI units (m, kg, s, rad, N m, N m s).  A scalar parameter
+is either a real number or ``None``, which leaves it **symbolic** (a SymPy
+symbol of the same name in the derived equations).  This module does not
+import SymPy or NumPy at import time.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any, Mapping, Optional, Tuple
+
+from .errors import ParameterError
+
+__all__ = ["Parameters", "SCALAR_NAMES", "Vec3", "Mat3"]
+
+Scalar = Optional[float]
+Vec3 = Tuple[float, float, float]
+Mat3 = Tuple[Vec3, Vec3, Vec3]
+
+#: The scalar parameters, in the order used by generated code and JSON.
+SCALAR_NAMES = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
+
+_POSITIVE = ("a", "b", "m1", "m2")
+_NONNEGATIVE = ("g", "c1", "c2")
+
+
+def _as_real(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} must be a real number or None (symbolic), got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ParameterError(f"{name} must be finite, got {x}")
+    return x
+
+
+def _as_vec3(name: str, value: Any) -> Vec3:
+    try:
+        items = list(value)
+    except TypeError:
+        raise ParameterError(f"{name} must be a sequence of 3 real numbers, got {value!r}") from None
+    if len(items) != 3:
+        raise ParameterError(f"{name} must have 3 components, got {len(items)}")
+    return tuple(_as_real(f"{name}[{i}]", v) for i, v in enumerate(items))  # type: ignore[return-value]
+
+
+def _as_mat3(name: str, value: Any) -> Mat3:
+    try:
+        rows = list(value)
+    except TypeError:
+        raise ParameterError(f"{name} must be a 3x3 matrix of real numbers, got {value!r}") from None
+    if len(rows) != 3:
+        raise ParameterError(f"{name} must be a 3x3 matrix, got {len(rows)} rows")
+    return tuple(_as_vec3(f"{name}[{i}]", r) for i, r in enumerate(rows))  # type: ignore[return-value]
+
+
+def _check_inertia(name: str, mat: Mat3) -> None:
+    """An inertia tensor about the centre of mass: symmetric, PSD, triangle inequality."""
+    import numpy as np
+
+    m = np.array(mat, dtype=float)
+    scale = max(float(np.abs(m).max()), 1e-300)
+    tol = 1e-9 * scale
+    if not np.allclose(m, m.T, rtol=0.0, atol=tol):
+        raise ParameterError(f"{name} must be symmetric, got {mat}")
+    lam = np.linalg.eigvalsh(0.5 * (m + m.T))
+    if lam.min() < -tol:
+        raise ParameterError(
+            f"{name} must be positive semi-definite; its principal moments are {lam.tolist()}"
+        )
+    for i in range(3):
+        if lam[i] > lam[(i + 1) % 3] + lam[(i + 2) % 3] + tol:
+            raise ParameterError(
+                f"{name} breaks the triangle inequality of principal moments "
+                f"(each at most the sum of the other two): {lam.tolist()}"
+            )
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Parameters of the skewed double pendulum (immutable, validated when built).
+
+    Scalars (``None`` = symbolic):
+
+    * ``a``, ``b`` -- rod lengths [m], > 0; the second hinge sits at ``a j`` on rod 1.
+    * ``m1``, ``m2`` -- masses [kg], > 0.
+    * ``alpha`` -- skew angle between the hinge axes [rad]; ``e0 = cos(alpha) k + sin(alpha) i``.
+    * ``g`` -- gravitational acceleration [m/s^2] along ``+j`` (down), >= 0.
+    * ``c1``, ``c2`` -- viscous joint damping [N m s/rad], >= 0 (default 0).
+    * ``tau1``, ``tau2`` -- constant joint torques [N m] (default 0).
+
+    Rigid-body generalisations (numeric only; ``None`` = the specification's thin rods):
+
+    * ``com1``, ``com2`` -- centres of mass in the body frames [m].  Body 1's frame has
+      its origin at the roof hinge, body 2's at the second hinge; both coincide in
+      orientation with ``i, j, k`` when the rods hang vertically.  Default: rod
+      midpoints ``(0, a/2, 0)`` and ``(0, b/2, 0)``.
+    * ``inertia1``, ``inertia2`` -- 3x3 inertia tensors about the centres of mass, body
+      frame [kg m^2].  Default: thin rods ``m l^2/12 (E - j j)``.
+    * ``axis1`` -- first hinge axis (default ``k``); ``axis2`` -- second hinge axis in the
+      vertical configuration (default ``e0(alpha)``; when given, ``alpha`` is not used).
+      Any non-zero vectors; they are normalised.
+    """
+
+    a: Scalar = None
+    b: Scalar = None
+    m1: Scalar = None
+    m2: Scalar = None
+    alpha: Scalar = None
+    g: Scalar = None
+    c1: Scalar = 0.0
+    c2: Scalar = 0.0
+    tau1: Scalar = 0.0
+    tau2: Scalar = 0.0
+    com1: Optional[Vec3] = field(default=None)
+    com2: Optional[Vec3] = field(default=None)
+    inertia1: Optional[Mat3] = field(default=None)
+    inertia2: Optional[Mat3] = field(default=None)
+    axis1: Optional[Vec3] = field(default=None)
+    axis2: Optional[Vec3] = field(default=None)
+
+    def __post_init__(self) -> None:
+        for name in SCALAR_NAMES:
+            value = getattr(self, name)
+            if value is None:
+                continue
+            x = _as_real(name, value)
+            if name in _POSITIVE and not x > 0:
+                raise ParameterError(f"{name} must be > 0, got {x:g}")
+            if name in _NONNEGATIVE and x < 0:
+                raise ParameterError(f"{name} must be >= 0, got {x:g}")
+            object.__setattr__(self, name, x)
+        for name in ("com1", "com2"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, _as_vec3(name, value))
+        for name in ("axis1", "axis2"):
+            value = getattr(self, name)
+            if value is not None:
+                v = _as_vec3(name, value)
+                norm = math.sqrt(sum(x * x for x in v))
+                if not norm > 1e-12:
+                    raise ParameterError(f"{name} must be a non-zero vector, got {v}")
+                object.__setattr__(self, name, tuple(x / norm for x in v))
+        for name in ("inertia1", "inertia2"):
+            value = getattr(self, name)
+            if value is not None:
+                mat = _as_mat3(name, value)
+                _check_inertia(name, mat)
+                object.__setattr__(self, name, mat)
+
+    # -- queries -------------------------------------------------------------------
+    @property
+    def uses_alpha(self) -> bool:
+        """Whether ``alpha`` enters the model (it does unless ``axis2`` is given)."""
+        return self.axis2 is None
+
+    @property
+    def symbolic_names(self) -> Tuple[str, ...]:
+        """Names of the scalar parameters left symbolic that enter the model."""
+        return tuple(
+            n for n in SCALAR_NAMES if getattr(self, n) is None and (n != "alpha" or self.uses_alpha)
+        )
+
+    @property
+    def is_numeric(self) -> bool:
+        """True when every parameter that enters the model has a value."""
+        return not self.symbolic_names
+
+    @property
+    def is_thin_rods(self) -> bool:
+        """True for the specification's model: thin uniform rods, default hinge axes."""
+        return all(
+            getattr(self, n) is None
+            for n in ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
+        )
+
+    def replace(self, **changes: Any) -> "Parameters":
+        """A copy with some fields changed (validated again)."""
+        unknown = set(changes) - {f.name for f in fields(self)}
+        if unknown:
+            raise ParameterError(
+                f"unknown parameter(s) {sorted(unknown)}; allowed: {[f.name for f in fields(self)]}"
+            )
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        """Plain-data form (JSON/TOML friendly); ``None`` marks a symbolic parameter."""
+        d = asdict(self)
+        for k, v in d.items():
+            if isinstance(v, tuple):
+                d[k] = [list(r) if isinstance(r, tuple) else r for r in v]
+        return d
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any]) -> "Parameters":
+        """Build from a mapping (e.g. a TOML table); unknown keys are an error."""
+        allowed = [f.name for f in fields(cls)]
+        unknown = sorted(set(data) - set(allowed))
+        if unknown:
+            raise ParameterError(f"unknown parameter(s) {unknown}; allowed: {allowed}")
+        return cls(**dict(data))
+
+    def require_numeric(self, what: str = "this operation") -> "Parameters":
+        """Return self, or raise :class:`NotNumericError` naming the symbolic parameters."""
+        from .errors import NotNumericError
+
+        if not self.is_numeric:
+            raise NotNumericError(
+                f"{what} needs numeric values; symbolic: {', '.join(self.symbolic_names)}"
+            )
+        return self
+

@@ -1,0 +1,251 @@
+"""Text, LaTeX and JSON forms of derived equations.
+
+The JSON form is a contract (see README): every expression is a string that
+``sympy.sympify`` parses back, in the symbols ``phi, psi, dphi, dpsi`` and the
+parameter names.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Dict, List, Optional
+
+import sympy as sp
+
+from . import __version__
+from .derive import SYMBOLS, EquationsOfMotion, LinearEquations
+
+__all__ = ["to_text", "to_latex", "to_json", "STEP_TITLES"]
+
+#: What each intermediate result of the derivation is, in the specification's words.
+STEP_TITLES = {
+    "P1": "rotation tensor of rod 1, P1 = P(phi, k) (Rodrigues' formula)",
+    "e": "current axis of the second hinge, e = P1 . e0",
+    "P": "rotation tensor of rod 2, P = P1 . P(psi, e0)",
+    "omega2": "angular velocity of rod 2, omega2 = phi' k + psi' e",
+    "v_c": "velocity of rod 2's centre of mass, v_c = omega1 x a + omega2 x (P . c2)",
+    "Theta2": "inertia tensor of rod 2 about its centre of mass, Theta2 = P . Theta2_0 . P^T",
+    "T": "kinetic energy, T = T1 + T2",
+    "Pi": "potential energy, Pi = Pi1 + Pi2 (zero with both rods hanging)",
+    "M": "mass matrix, M = Hessian of T in the speeds",
+    "f": "forcing: Lagrange's equations give M q'' = f(q, q')",
+}
+
+_S = SYMBOLS
+_UNICODE = {
+    _S["dphi"]: sp.Symbol("φ̇"),
+    _S["dpsi"]: sp.Symbol("ψ̇"),
+    _S["ddphi"]: sp.Symbol("φ̈"),
+    _S["ddpsi"]: sp.Symbol("ψ̈"),
+    _S["m1"]: sp.Symbol("m₁"),
+    _S["m2"]: sp.Symbol("m₂"),
+    _S["c1"]: sp.Symbol("c₁"),
+    _S["c2"]: sp.Symbol("c₂"),
+    _S["tau1"]: sp.Symbol("τ₁"),
+    _S["tau2"]: sp.Symbol("τ₂"),
+}
+_LATEX_NAMES = {
+    _S["phi"]: r"\varphi",
+    _S["psi"]: r"\psi",
+    _S["dphi"]: r"\dot{\varphi}",
+    _S["dpsi"]: r"\dot{\psi}",
+    _S["ddphi"]: r"\ddot{\varphi}",
+    _S["ddpsi"]: r"\ddot{\psi}",
+    _S["alpha"]: r"\alpha",
+    _S["m1"]: "m_1",
+    _S["m2"]: "m_2",
+    _S["c1"]: "c_1",
+    _S["c2"]: "c_2",
+    _S["tau1"]: r"\tau_1",
+    _S["tau2"]: r"\tau_2",
+}
+_TEXT_LABELS = {
+    "P1": "P₁",
+    "e": "e",
+    "P": "P",
+    "omega2": "ω₂",
+    "v_c": "ϑc",
+    "Theta2": "Θ₂",
+    "T": "T",
+    "Pi": "Π",
+    "M": "M",
+    "f": "f",
+}
+_LATEX_LABELS = {
+    "P1": r"\underline{\underline{P}}_1",
+    "e": r"\underline{e}",
+    "P": r"\underline{\underline{P}}",
+    "omega2": r"\underline{\omega}_2",
+    "v_c": r"\underline{\vartheta}_c",
+    "Theta2": r"\underline{\underline{\Theta}}_2",
+    "T": "T",
+    "Pi": r"\Pi",
+    "M": "M",
+    "f": "f",
+}
+
+
+# -- text ----------------------------------------------------------------------------------
+def _pretty(label: str, expr: Any, width: int) -> str:
+    if isinstance(expr, sp.MatrixBase):
+        expr = expr.xreplace(_UNICODE)
+    else:
+        expr = sp.sympify(expr).xreplace(_UNICODE)
+    return sp.pretty(sp.Eq(sp.Symbol(label), expr, evaluate=False), use_unicode=True, num_columns=width)
+
+
+def _params_line(eom: EquationsOfMotion) -> str:
+    p = eom.params
+    names = eom.parameter_names
+    values = {
+        k: v
+        for k, v in p.to_dict().items()
+        if v is not None and k in _S and not (k in ("c1", "c2", "tau1", "tau2") and v == 0)
+    }
+    if not p.uses_alpha:
+        values.pop("alpha", None)
+    parts = [f"symbolic: {', '.join(names) if names else 'none'}"]
+    if values:
+        parts.append("values: " + ", ".join(f"{k}={v:g}" for k, v in values.items()))
+    if not p.is_thin_rods:
+        general = [k for k in ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2") if getattr(p, k) is not None]
+        parts.append("general bodies/axes: " + ", ".join(general))
+    return "parameters -- " + "; ".join(parts)
+
+
+def _linear_lhs(lin: LinearEquations) -> List[sp.Expr]:
+    keys = [_S[n] for n in ("ddphi", "ddpsi", "dphi", "dpsi", "phi", "psi")]
+    return [sp.collect(e, keys) for e in lin.equations()]
+
+
+def to_text(
+    eom: EquationsOfMotion,
+    *,
+    linear: Optional[LinearEquations] = None,
+    steps: bool = False,
+    width: Optional[int] = None,
+) -> str:
+    """Readable Unicode form of the equations (and optionally the steps and linearisation).
+
+    ``width`` is the line width for SymPy's pretty printer (default: the terminal's, at
+    least 100 columns).
+    """
+    if width is None:
+        import shutil
+
+        width = max(100, shutil.get_terminal_size((160, 24)).columns)
+    out = [
+        "Skewed double pendulum -- equations of motion  M(q) q̈ = f(q, q̇),  q = (φ, ψ)",
+        _params_line(eom),
+        "",
+    ]
+    if steps:
+        out.append("Derivation, step by step (world basis i, j, k; j points down):")
+        for i, (key, value) in enumerate(eom.steps.items(), 1):
+            if key in ("M", "f"):
+                continue
+            out.append(f"{i}. {STEP_TITLES[key]}")
+            out.append(_pretty(_TEXT_LABELS[key], value, width))
+            out.append("")
+        out.append("Lagrange's equations  d/dt ∂T/∂q̇ − ∂T/∂q = −∂Π/∂q + Q,  Q = τ − c q̇:")
+    M, f = eom.mass_matrix, eom.forcing
+    out.append(_pretty("M₁₁", M[0, 0], width))
+    out.append(_pretty("M₁₂ = M₂₁", M[0, 1], width))
+    out.append(_pretty("M₂₂", M[1, 1], width))
+    out.append(_pretty("f₁", f[0], width))
+    out.append(_pretty("f₂", f[1], width))
+    out.append("")
+    out.append(_pretty("T", eom.kinetic_energy, width))
+    out.append(_pretty("Π", eom.potential_energy, width))
+    if linear is not None:
+        out.append("")
+        out.append("Linearised about φ = ψ = 0:  M₀ q̈ + C₀ q̇ + K₀ q = 0")
+        out.append(_pretty("M₀", linear.M, width))
+        if linear.C != sp.zeros(2, 2):
+            out.append(_pretty("C₀", linear.C, width))
+        out.append(_pretty("K₀", linear.K, width))
+        for i, lhs in enumerate(_linear_lhs(linear), 1):
+            out.append(sp.pretty(sp.Eq(lhs.xreplace(_UNICODE), 0, evaluate=False), num_columns=width))
+    return "\n".join(out) + "\n"
+
+
+# -- LaTeX -------------------------------------------------------------------------------------
+def _tex(expr: Any) -> str:
+    return sp.latex(expr, symbol_names=_LATEX_NAMES)
+
+
+def to_latex(
+    eom: EquationsOfMotion,
+    *,
+    linear: Optional[LinearEquations] = None,
+    steps: bool = False,
+    display: bool = False,
+) -> str:
+    """LaTeX (an ``aligned`` block; ``display`` gives the body only, for Jupyter)."""
+    M, f = eom.mass_matrix, eom.forcing
+    ddphi, ddpsi = _S["ddphi"], _S["ddpsi"]
+    rows = []
+    if steps:
+        for key, value in eom.steps.items():
+            if key in ("M", "f"):
+                continue
+            rows.append(f"{_LATEX_LABELS[key]} &= {_tex(value)}")
+    for i in range(2):
+        rows.append(
+            r"\left(" + _tex(M[i, 0]) + r"\right)" + _tex(ddphi) + " + "
+            + r"\left(" + _tex(M[i, 1]) + r"\right)" + _tex(ddpsi) + " &= " + _tex(f[i])
+        )
+    rows.append(f"T &= {_tex(eom.kinetic_energy)}")
+    rows.append(rf"\Pi &= {_tex(eom.potential_energy)}")
+    if linear is not None:
+        for lhs in _linear_lhs(linear):
+            rows.append(f"{_tex(lhs)} &= 0")
+    body = "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
+    if display:
+        return body
+    return "\\[\n" + body + "\n\\]\n"
+
+
+# -- JSON -----------------------------------------------------------------------------------------
+def _s(expr: Any) -> str:
+    return str(expr)
+
+
+def _matrix(m: sp.MatrixBase) -> List[List[str]]:
+    return [[_s(m[i, j]) for j in range(m.cols)] for i in range(m.rows)]
+
+
+def to_json(
+    eom: EquationsOfMotion,
+    *,
+    linear: Optional[LinearEquations] = None,
+    steps: bool = False,
+) -> Dict[str, Any]:
+    """The JSON contract: a dict of strings that ``sympy.sympify`` parses.
+
+    Keys: ``coordinates``, ``speeds``, ``parameters`` (names of the symbolic parameters),
+    ``values`` (the numeric ones), ``mass_matrix`` (2x2), ``forcing`` (2) with
+    ``mass_matrix . [phi'', psi''] = forcing``, ``kinetic_energy``, ``potential_energy``;
+    with ``linear`` a ``linearized`` object with ``M``, ``C``, ``K`` (2x2); with ``steps``
+    a ``steps`` object; ``skewpend_version``.
+    """
+    params = eom.params.to_dict()
+    if not eom.params.uses_alpha:
+        params.pop("alpha")
+    data: Dict[str, Any] = {
+        "coordinates": list(eom.coordinates),
+        "speeds": list(eom.speeds),
+        "parameters": list(eom.parameter_names),
+        "values": {k: v for k, v in params.items() if v is not None},
+        "mass_matrix": _matrix(eom.mass_matrix),
+        "forcing": [_s(x) for x in eom.forcing],
+        "kinetic_energy": _s(eom.kinetic_energy),
+        "potential_energy": _s(eom.potential_energy),
+    }
+    if linear is not None:
+        data["linearized"] = {"M": _matrix(linear.M), "C": _matrix(linear.C), "K": _matrix(linear.K)}
+    if steps:
+        data["steps"] = {
+            k: (_matrix(v) if isinstance(v, sp.MatrixBase) else _s(v)) for k, v in eom.steps.items()
+        }
+    data["skewpend_version"] = __version__
+    return data
