@@ -1,9 +1,50 @@
-"""skewpend: the double pendulum with skewed hinge axes."""
-__version__ = "0.1.0"
+"""skewpend: the double pendulum with skewed hinge axes.
+
+Derive its equations of motion by the specification's method (rotation tensors,
+Lagrange's equations), for any skew angle ``alpha`` and general rigid bodies.
+
+Heavy parts (SymPy) are imported on first use, so ``import skewpend`` is cheap.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+from .errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
 from .model import Parameters
-from .errors import SkewpendError, ParameterError, NotNumericError, EquilibriumError
-def __getattr__(name):
-    if name in ("derive", "EquationsOfMotion", "LinearEquations"):
-        from . import derive as _d
-        return getattr(_d, name)
-    raise AttributeError(name)
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "derive": "derivation",
+    "EquationsOfMotion": "derivation",
+    "LinearEquations": "derivation",
+}
+
+__all__ = [
+    "Parameters",
+    "derive",
+    "EquationsOfMotion",
+    "LinearEquations",
+    "SkewpendError",
+    "ParameterError",
+    "NotNumericError",
+    "EquilibriumError",
+    "__version__",
+]
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .derivation import EquationsOfMotion, LinearEquations, derive
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list:
+    return sorted(set(globals()) | set(__all__))

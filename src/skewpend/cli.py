@@ -178,7 +178,7 @@ def derive(
 ) -> None:
     """Derive the equations of motion M(q) q'' = f(q, q') by the specification's method."""
     params = build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, inertia1, inertia2, axis1, axis2)
-    from .derive import derive as derive_eom
+    from .derivation import derive as derive_eom
     from . import render
 
     eom = derive_eom(params)

@@ -12,7 +12,7 @@ from typing import Any, Dict, List, Optional
 import sympy as sp
 
 from . import __version__
-from .derive import SYMBOLS, EquationsOfMotion, LinearEquations
+from .derivation import SYMBOLS, EquationsOfMotion, LinearEquations
 
 __all__ = ["to_text", "to_latex", "to_json", "STEP_TITLES"]
 
