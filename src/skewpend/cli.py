@@ -152,6 +152,9 @@ class DeriveFormat(str, Enum):
     text = "text"
     latex = "latex"
     json = "json"
+    python = "python"
+    c = "c"
+    javascript = "javascript"
 
 
 @app.command()
@@ -174,10 +177,17 @@ def derive(
     axis2: AX2 = None,
     linear: Annotated[bool, typer.Option("--linear", help="add the equations linearised about phi = psi = 0")] = False,
     steps: Annotated[bool, typer.Option("--steps", help="print the derivation step by step (P1, e, P, omega2, v_c, Theta2, T, Pi)")] = False,
-    fmt: Annotated[DeriveFormat, typer.Option("--format", "-f", help="output format")] = DeriveFormat.text,
+    fmt: Annotated[DeriveFormat, typer.Option("--format", "-f", help="output format: equations (text, latex, json) or generated code (python, c, javascript)")] = DeriveFormat.text,
 ) -> None:
     """Derive the equations of motion M(q) q'' = f(q, q') by the specification's method."""
     params = build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, inertia1, inertia2, axis1, axis2)
+    if fmt in (DeriveFormat.python, DeriveFormat.c, DeriveFormat.javascript):
+        from .codegen import generate
+
+        if linear or steps:
+            raise UsageError("--linear and --steps go with --format text|latex|json, not with generated code")
+        sys.stdout.write(generate(params, fmt.value))
+        return
     from .derivation import derive as derive_eom
     from . import render
 
@@ -192,6 +202,142 @@ def derive(
     else:
         text = render.to_text(eom, linear=lin, steps=steps)
     sys.stdout.write(text)
+
+
+# -- simulate -------------------------------------------------------------------------------------------
+#: The run ``skewpend simulate`` does with no options (the benchmark case of the README).
+DEFAULT_RUN = {
+    "parameters": {"a": 1.0, "b": 0.8, "m1": 1.0, "m2": 0.7, "alpha": 0.6, "g": 9.81},
+    "initial": {"phi0": 1.2, "psi0": -0.8, "dphi0": 0.0, "dpsi0": 0.0},
+    "simulation": {"t_end": 20.0, "method": "dop853", "rtol": 1e-10, "atol": 1e-10},
+}
+
+
+def _as_text(value) -> Optional[str]:
+    """A config value in the command line's spelling (numbers, '30deg', vectors, matrices)."""
+    if value is None:
+        return None
+    if isinstance(value, bool):
+        raise UsageError(f"expected a number, got {value!r}")
+    if isinstance(value, (list, tuple)):
+        flat = []
+        for v in value:
+            flat.extend(v if isinstance(v, (list, tuple)) else [v])
+        return ",".join(repr(float(x)) if isinstance(x, (int, float)) else str(x) for x in flat)
+    return value if isinstance(value, str) else repr(value)
+
+
+class Method(str, Enum):
+    dop853 = "dop853"
+    rk4 = "rk4"
+    gauss = "gauss"
+
+
+_R = "Initial state and run"
+
+
+@app.command()
+def simulate(
+    a: A = None,
+    b: B = None,
+    m1: M1 = None,
+    m2: M2 = None,
+    alpha: ALPHA = None,
+    g: GRAV = None,
+    c1: Annotated[Optional[str], typer.Option("--c1", help="viscous damping in hinge 1 [N m s] (default 0)", rich_help_panel=_P)] = None,
+    c2: Annotated[Optional[str], typer.Option("--c2", help="viscous damping in hinge 2 [N m s] (default 0)", rich_help_panel=_P)] = None,
+    tau1: Annotated[Optional[str], typer.Option("--tau1", help="constant torque in hinge 1 [N m] (default 0)", rich_help_panel=_P)] = None,
+    tau2: Annotated[Optional[str], typer.Option("--tau2", help="constant torque in hinge 2 [N m] (default 0)", rich_help_panel=_P)] = None,
+    com1: COM1 = None,
+    com2: COM2 = None,
+    inertia1: IN1 = None,
+    inertia2: IN2 = None,
+    axis1: AX1 = None,
+    axis2: AX2 = None,
+    phi0: Annotated[Optional[str], typer.Option("--phi0", help="initial phi [rad, or e.g. 60deg] (default 1.2)", rich_help_panel=_R)] = None,
+    psi0: Annotated[Optional[str], typer.Option("--psi0", help="initial psi [rad, or deg] (default -0.8)", rich_help_panel=_R)] = None,
+    dphi0: Annotated[Optional[str], typer.Option("--dphi0", help="initial dphi/dt [rad/s] (default 0)", rich_help_panel=_R)] = None,
+    dpsi0: Annotated[Optional[str], typer.Option("--dpsi0", help="initial dpsi/dt [rad/s] (default 0)", rich_help_panel=_R)] = None,
+    t_end: Annotated[Optional[str], typer.Option("--t-end", help="duration [s] (default 20)", rich_help_panel=_R)] = None,
+    dt_out: Annotated[Optional[str], typer.Option("--dt-out", help="output interval [s] (default: the integrator's own steps)", rich_help_panel=_R)] = None,
+    method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 (default 1e-10)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 (default 1e-10)", rich_help_panel=_R)] = None,
+    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s] for rk4 and gauss (default 1e-3)", rich_help_panel=_R)] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the trajectory to FILE (.csv or .nc)", rich_help_panel=_R)] = None,
+    config: Annotated[Optional[str], typer.Option("--config", help="TOML file with [parameters], [initial], [simulation]; options override it", rich_help_panel=_R)] = None,
+) -> None:
+    """Simulate the nonlinear equations of motion; print a summary or write a trajectory file."""
+    from .io import read_config
+
+    run = {k: dict(v) for k, v in DEFAULT_RUN.items()}
+    if config is not None:
+        for section, values in read_config(config).items():
+            run[section].update(values)
+    cli = {
+        "parameters": dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2,
+                           com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2),
+        "initial": dict(phi0=phi0, psi0=psi0, dphi0=dphi0, dpsi0=dpsi0),
+        "simulation": dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt, out=out),
+    }
+    for section, values in cli.items():
+        run[section].update({k: v for k, v in values.items() if v is not None})
+    P, I, S = (run[k] for k in ("parameters", "initial", "simulation"))
+    t = {k: _as_text(v) for k, v in P.items()}
+    zero = "0"
+    params = build_parameters(
+        t.get("a"), t.get("b"), t.get("m1"), t.get("m2"), t.get("alpha"), t.get("g"),
+        t.get("c1", zero), t.get("c2", zero), t.get("tau1", zero), t.get("tau2", zero),
+        t.get("com1"), t.get("com2"), t.get("inertia1"), t.get("inertia2"), t.get("axis1"), t.get("axis2"),
+    )
+    y0 = [
+        parse_scalar(_as_text(I["phi0"]), "--phi0", angle=True),
+        parse_scalar(_as_text(I["psi0"]), "--psi0", angle=True),
+        parse_scalar(_as_text(I["dphi0"]), "--dphi0"),
+        parse_scalar(_as_text(I["dpsi0"]), "--dpsi0"),
+    ]
+    if any(v is None for v in y0):
+        raise UsageError("the initial state must be numeric (not 'sym')")
+    number = lambda key, opt: None if S.get(key) is None else parse_scalar(_as_text(S[key]), opt)
+    method_name = str(S.get("method", "dop853"))
+    from .integrate import METHODS, simulate as run_simulation
+
+    if method_name not in METHODS:
+        raise UsageError(f"--method: expected one of {', '.join(METHODS)}, got {method_name!r}")
+    out_path = S.get("out")
+    if out_path is not None and not str(out_path).lower().endswith((".csv", ".nc")):
+        raise UsageError(f"--out: expected a file name ending in .csv or .nc, got {out_path!r}")
+    traj = run_simulation(
+        params, y0, number("t_end", "--t-end"),
+        dt_out=number("dt_out", "--dt-out"), method=method_name,
+        rtol=number("rtol", "--rtol") or 1e-10, atol=number("atol", "--atol") or 1e-10,
+        dt=number("dt", "--dt"),
+    )
+    if not traj.success:
+        sys.stderr.write(f"skewpend: simulation {traj.message} at t = {traj.t[-1]:.6g} s; no file written\n")
+        sys.exit(1)
+    if out_path is not None:
+        from .io import write_trajectory
+
+        write_trajectory(traj, out_path)
+    _summary(traj, out_path)
+
+
+def _summary(traj, out_path) -> None:
+    y = traj.final_state
+    st = traj.stats
+    lines = [
+        f"method        {traj.method}  ({', '.join(f'{k}={v:g}' for k, v in traj.settings.items() if isinstance(v, float))})",
+        f"status        {traj.message}",
+        f"final state   t={traj.t[-1]:.6g} s  phi={y[0]:.12g}  psi={y[1]:.12g}  dphi={y[2]:.12g}  dpsi={y[3]:.12g}",
+        f"energy        E0={traj.energy[0]:.12g} J  E={traj.energy[-1]:.12g} J  work of Q={traj.work[-1]:.6g} J",
+        f"energy drift  {traj.energy_drift:.3e} (max |E - W - E0| / max |E|)",
+        f"steps         {st['steps']} accepted, {st['rejected']} rejected, {st['nfev']} evaluations",
+        f"wall time     {st['wall_time'] * 1e3:.2f} ms (integration, compiled)",
+    ]
+    if out_path is not None:
+        lines.append(f"written       {out_path} ({traj.t.size} rows)")
+    sys.stdout.write("\n".join(lines) + "\n")
 
 
 def _fail(message: str) -> None:

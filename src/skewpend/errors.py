@@ -11,6 +11,7 @@ __all__ = [
     "ParameterError",
     "NotNumericError",
     "EquilibriumError",
+    "IntegrationError",
 ]
 
 
@@ -28,3 +29,7 @@ class NotNumericError(SkewpendError, ValueError):
 
 class EquilibriumError(SkewpendError, ValueError):
     """The requested linearisation point is not an equilibrium of the model."""
+
+
+class IntegrationError(SkewpendError, RuntimeError):
+    """A simulation stopped early (non-finite state, step size underflow, too many steps)."""
