@@ -29,7 +29,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import sympy as sp
 
 from .errors import EquilibriumError
-from .kinematics import Algebra, Relation
+from .kinematics import Algebra, Relation, floats_for_long_rationals
 from .model import SCALAR_NAMES, Parameters
 
 __all__ = ["derive", "EquationsOfMotion", "LinearEquations", "SYMBOLS"]
@@ -53,7 +53,6 @@ SYMBOLS: Dict[str, sp.Symbol] = {n: sp.Symbol(n, **_ASSUMPTIONS[n]) for n in SCA
 SYMBOLS.update({n: sp.Symbol(n, real=True) for n in ("phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi")})
 
 _SPEEDS = ("dphi", "dpsi")
-_BIG_DENOMINATOR = 10**9
 
 
 def _number(x: float) -> sp.Rational:
@@ -76,12 +75,6 @@ def _angle_value(x: float) -> sp.Expr:
         if not (sp.cos(exact).has(sp.cos) or sp.sin(exact).has(sp.sin)):
             return exact
     return sp.Float(x)
-
-
-def _display(expr: sp.Expr) -> sp.Expr:
-    """Show exact binary fractions of user floats as floats again."""
-    big = {r: sp.Float(r, 15) for r in expr.atoms(sp.Rational) if r.q > _BIG_DENOMINATOR}
-    return expr.xreplace(big) if big else expr
 
 
 @dataclass(frozen=True)
@@ -188,9 +181,9 @@ class _Context:
     """The derivation, in the polynomial algebra of :mod:`skewpend.kinematics`.
 
     Generators: the symbolic scalar parameters; ``c_x, s_x`` (cosine, sine) for the
-    angles ``phi, psi`` and, with the default second axis, ``alpha``; the components of a
-    hinge axis given by the user; the speeds.  Numeric values of ``alpha`` and user axes
-    are substituted only after reduction (:meth:`finish`).
+    angles ``phi, psi`` and, with the default second axis, ``alpha``; ``1/|v|`` for a
+    hinge axis ``v`` given by the user; the speeds.  Numeric values of ``alpha`` and of
+    ``1/|v|`` are substituted only after reduction (:meth:`finish`).
     """
 
     def __init__(self, params: Parameters):
@@ -225,35 +218,45 @@ class _Context:
                         self.late_expr[sym] = val
             else:
                 self.restore.update({c: sp.cos(S[ang]), s: sp.sin(S[ang])})
+        # A user's axis n = r v: v holds the exact rationals of the given (normalised)
+        # floats and r = 1/|v| is a generator reduced by r**2 = 1/|v|**2, so the
+        # Rodrigues products stay exact although |v| is 1 only to rounding.
+        axis_dirs: Dict[str, List[sp.Rational]] = {}
+        fixed_names: List[Tuple[str, sp.Rational]] = []
         for name in ("axis1", "axis2"):
             vec = getattr(params, name)
             if vec is None:
                 continue
-            comps = [sp.Symbol(f"{name}_{x}", real=True) for x in "xyz"]
-            gens += comps
-            unit_pairs.append(tuple(c.name for c in comps))
-            for sym, val in zip(comps, vec):
-                r = _number(val)
-                if r.q <= 10**8:
-                    self.late_exact[sym.name] = r
-                else:
-                    self.late_expr[sym] = sp.Float(val)
+            v = [_number(x) for x in vec]
+            axis_dirs[name] = v
+            norm2 = sum(x * x for x in v)
+            if norm2 != 1:
+                r = sp.Symbol(f"{name}_r", positive=True)
+                gens.append(r)
+                fixed_names.append((r.name, 1 / norm2))
+                self.late_expr[r] = sp.Float(1 / math.sqrt(float(norm2)))
         gens += [S["dphi"], S["dpsi"]]
         self.alg = alg = Algebra(gens)
         self.relations = [Relation(tuple(alg.index[n] for n in pair)) for pair in unit_pairs]
+        self.fixed = [(alg.index[n], v) for n, v in fixed_names]
         G = alg.gens
+
+        def axis(name):
+            v = alg.vec(axis_dirs[name])
+            return alg.scale(G[f"{name}_r"], v) if f"{name}_r" in G else v
+
         self.val = {n: (G[n] if n in G else alg.const(const[n])) for n in SCALAR_NAMES if n != "alpha"}
         self.cs = {ang: (G[f"c_{ang}"], G[f"s_{ang}"]) for ang in ("phi", "psi", "alpha") if f"c_{ang}" in G}
 
         a, b, m1, m2 = (self.val[n] for n in ("a", "b", "m1", "m2"))
         I_, J_, K_ = alg.vec([1, 0, 0]), alg.vec([0, 1, 0]), alg.vec([0, 0, 1])
         self.J = J_
-        self.n1 = K_ if params.axis1 is None else [G[f"axis1_{x}"] for x in "xyz"]
+        self.n1 = K_ if params.axis1 is None else axis("axis1")
         if params.axis2 is None:
             ca, sa = self.cs["alpha"]
             self.e0 = alg.add(alg.scale(ca, K_), alg.scale(sa, I_))  # cos(alpha) k + sin(alpha) i
         else:
-            self.e0 = [G[f"axis2_{x}"] for x in "xyz"]
+            self.e0 = axis("axis2")
         self.h = alg.scale(a, J_)  # the second hinge, at the end of rod 1
         self.c1 = alg.scale(a / 2, J_) if params.com1 is None else alg.vec(map(_number, params.com1))
         self.c2 = alg.scale(b / 2, J_) if params.com2 is None else alg.vec(map(_number, params.com2))
@@ -273,12 +276,12 @@ class _Context:
     def finish(self, p, keys: Sequence[str] = ()) -> sp.Expr:
         """Reduce ``p`` to its shortest form, substitute late values, return a tidy expression."""
         alg = self.alg
-        p = alg.shortest(p, self.relations)
+        p = alg.shortest(p, self.relations, self.fixed)
         if self.late_exact:
             p = p.subs([(alg.gens[n], v) for n, v in self.late_exact.items()])
             p = alg.shortest(p, self.relations)
         expr = alg.to_expr(p, keys=keys, subs=self.late_expr)
-        return _display(expr.xreplace(self.restore))
+        return floats_for_long_rationals(expr.xreplace(self.restore))
 
     def finish_matrix(self, m, keys: Sequence[str] = ()) -> sp.Matrix:
         if isinstance(m[0], list):

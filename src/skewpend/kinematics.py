@@ -23,7 +23,7 @@ from typing import Dict, Iterable, List, Mapping, Sequence, Tuple
 import sympy as sp
 from sympy.polys.rings import PolyElement, ring
 
-__all__ = ["Relation", "Algebra", "Vec", "Mat"]
+__all__ = ["Relation", "Algebra", "Vec", "Mat", "floats_for_long_rationals"]
 
 Vec = List[PolyElement]
 Mat = List[List[PolyElement]]
@@ -38,6 +38,16 @@ class Relation:
     """
 
     gens: Tuple[int, ...]  # generator indices
+
+
+_LONG = 10**9
+
+
+def floats_for_long_rationals(expr: sp.Expr) -> sp.Expr:
+    """Show exact fractions with long numerators or denominators (the exact binary values
+    of a user's floats, and their products) as floats again."""
+    big = {r: sp.Float(r, 15) for r in expr.atoms(sp.Rational) if abs(r.p) > _LONG or r.q > _LONG}
+    return expr.xreplace(big) if big else expr
 
 
 class Algebra:
@@ -130,13 +140,32 @@ class Algebra:
             result += self.R.from_dict({tuple(base): coeff}) * powers[half]
         return result + self.R.from_dict({m: c for m, c in out.items() if c})
 
-    def shortest(self, p: PolyElement, relations: Sequence[Relation]) -> PolyElement:
+    def _fix(self, p: PolyElement, idx: int, value) -> PolyElement:
+        """Replace ``v_idx**2`` by the constant ``value`` throughout ``p``."""
+        if not any(m[idx] >= 2 for m in p.monoms()):
+            return p
+        out: Dict[tuple, object] = {}
+        for monom, coeff in p.terms():
+            k = monom[idx]
+            base = list(monom)
+            base[idx] = k % 2
+            key = tuple(base)
+            out[key] = out.get(key, 0) + coeff * value ** (k // 2)
+        return self.R.from_dict({m: c for m, c in out.items() if c})
+
+    def shortest(
+        self, p: PolyElement, relations: Sequence[Relation], fixed: Sequence[Tuple[int, object]] = ()
+    ) -> PolyElement:
         """The reduction of ``p`` by ``relations`` with the fewest terms.
+
+        ``fixed`` relations ``v**2 = value`` (``value`` a rational) are applied first.
 
         Every relation whose generators appear is tried with each choice of generator
         to eliminate (ties keep the earlier choice: for angles, the sine is eliminated
         first, so cosines are preferred).
         """
+        for idx, value in fixed:
+            p = self._fix(p, idx, self.R.domain.convert(value))
         used = set()
         for monom in p.monoms():
             used.update(i for i, e in enumerate(monom) if e >= 2)
@@ -170,7 +199,7 @@ class Algebra:
         total = sp.S.Zero
         for key, terms in groups.items():
             mono = sp.Mul(*(self.symbols[i] ** e for i, e in zip(key_idx, key)))
-            coeff = self.R.from_dict(terms).as_expr()
+            coeff = floats_for_long_rationals(self.R.from_dict(terms).as_expr())
             if subs:
                 coeff = sp.expand(coeff.xreplace(subs))
             total += sp.factor_terms(coeff) * mono

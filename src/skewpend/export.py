@@ -1,0 +1,513 @@
+"""Export the skewed double pendulum to MuJoCo (MJCF) and URDF, and simulate it in MuJoCo.
+
+The exported models are the system skewpend derives its equations for (see
+:class:`~skewpend.Parameters`): basis ``i, j, k`` = ``x, y, z`` with ``j = +y`` pointing
+**down**, gravity ``g`` along ``+y``; rod 1 turns about ``axis1`` through the origin, rod 2
+about ``axis2`` (fixed in rod 1) through ``a j`` on rod 1; each body frame has its origin at
+its hinge and is aligned with ``x, y, z`` when both rods hang (``phi = psi = 0``).  Joint
+angles are right-handed about the axes, as in skewpend and MuJoCo.
+
+Functions:
+
+* :func:`mujoco_compatible` -- the parameters with explicit centres of mass and inertia
+  tensors, including the tiny inertia MuJoCo needs (below); simulate *these* in skewpend to
+  compare with MuJoCo;
+* :func:`to_mjcf` -- MuJoCo MJCF XML (self-contained: gravity, damping and constant torques
+  are all in the file);
+* :func:`to_urdf` -- URDF (gravity and constant torques are not part of URDF; see there);
+* :func:`write_model` -- either of them to a file, atomically;
+* :func:`mujoco_trajectory` -- load the MJCF in MuJoCo and step it (``mujoco`` is an
+  optional dependency, imported only there: ``pip install skewpend[validate]``).
+
+The tiny inertia
+----------------
+MuJoCo refuses a body whose inertia tensor is not positive definite ("inertia must have
+positive eigenvalues") and checks the triangle inequality of the principal moments
+``A + B >= C`` exactly (no tolerance).  A thin rod has zero moment about its own axis, so
+skewpend's default bodies cannot be exported as they are.  :func:`mujoco_compatible` adds
+``eps`` = ``axial_inertia`` [kg m^2] (default ``1e-9 m l^2`` per body, ``l = a`` for rod 1,
+``b`` for rod 2) along the principal axes that need it:
+
+* every principal moment below ``eps / 2`` is raised by ``eps`` (the thin rod's axial
+  moment ``0 -> eps``; a point mass gets ``eps`` about every axis);
+* if the principal moments then satisfy the triangle inequality with a margin below
+  ``eps / 2`` (a flat plate, ``C = A + B``), the smallest one is raised by ``eps`` again,
+  so rounding in MuJoCo's eigen-decomposition cannot break the check.
+
+Bodies that need none of this are exported unchanged.  The change is of relative size
+``~1e-8`` and only matters when rod 2 spins about its own axis (skewed hinges): over 2 s of
+large swings it moves the state by a few 1e-9.  A comparison to round-off precision must
+nevertheless simulate the identical system, ``derive(mujoco_compatible(params))`` -- which
+is what the exported files contain.  (With ``m l^2`` below ~1e-6 kg m^2 the default ``eps``
+falls under MuJoCo's minimum inertia of about 1e-15: pass a larger ``axial_inertia``.)
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Optional, Sequence, Tuple, Union
+
+from .errors import IntegrationError, ParameterError, SkewpendError
+from .model import Parameters
+
+__all__ = [
+    "FORMATS",
+    "INTEGRATORS",
+    "MujocoMissingError",
+    "mujoco_compatible",
+    "to_mjcf",
+    "to_urdf",
+    "write_model",
+    "mujoco_trajectory",
+]
+
+#: Export formats accepted by :func:`write_model`, and the file suffixes that imply them.
+FORMATS = ("mjcf", "urdf")
+_SUFFIXES = {".xml": "mjcf", ".mjcf": "mjcf", ".urdf": "urdf"}
+
+#: MuJoCo integrators accepted by :func:`to_mjcf` and :func:`mujoco_trajectory`.
+INTEGRATORS = ("RK4", "Euler", "implicit", "implicitfast")
+
+#: Default tiny inertia, relative to ``m l^2`` of each body.
+AXIAL_INERTIA_FACTOR = 1e-9
+
+
+class MujocoMissingError(SkewpendError, ImportError):
+    """The optional dependency ``mujoco`` is needed but not installed."""
+
+
+# -- helpers -----------------------------------------------------------------------------------
+def _num(x: float) -> str:
+    """A float as text that reads back to the same double (shortest round-trip form)."""
+    x = float(x)
+    if x == 0.0:
+        return "0"
+    if x.is_integer() and abs(x) < 1e15:
+        return str(int(x))
+    return repr(x)
+
+
+def _vec(v: Sequence[float]) -> str:
+    return " ".join(_num(x) for x in v)
+
+
+def _comment(text: str) -> str:
+    """XML comment body: ``--`` is not allowed inside comments."""
+    while "--" in text:
+        text = text.replace("--", "- -")
+    return text
+
+
+def _positive(name: str, value, *, allow_none: bool = False) -> Optional[float]:
+    if value is None and allow_none:
+        return None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a positive number, got {value!r}") from None
+    if isinstance(value, bool) or not math.isfinite(x) or not x > 0:
+        raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+    return x
+
+
+def _integrator(name: str) -> str:
+    for allowed in INTEGRATORS:
+        if isinstance(name, str) and name.lower() == allowed.lower():
+            return allowed
+    raise ParameterError(f"unknown MuJoCo integrator {name!r}; allowed: {', '.join(INTEGRATORS)}")
+
+
+def _axes(params: Parameters) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]:
+    axis1 = params.axis1 if params.axis1 is not None else (0.0, 0.0, 1.0)
+    if params.axis2 is not None:
+        axis2 = params.axis2
+    else:
+        alpha = float(params.alpha)
+        axis2 = (math.sin(alpha), 0.0, math.cos(alpha))  # e0 = cos(alpha) k + sin(alpha) i
+    return tuple(map(float, axis1)), tuple(map(float, axis2))  # type: ignore[return-value]
+
+
+def _regularised_inertia(inertia, eps: float):
+    """``inertia`` (3x3) plus ``eps`` along the principal axes that MuJoCo would reject."""
+    import numpy as np
+
+    orig = np.array(inertia, dtype=float)
+    m = 0.5 * (orig + orig.T)
+    lam, vec = np.linalg.eigh(m)  # ascending
+    add = np.where(lam < 0.5 * eps, eps, 0.0)
+    lam2 = lam + add
+    margin = float(np.min(lam2.sum() - 2.0 * lam2))  # min over i of (sum of the others - lam_i)
+    if margin < 0.5 * eps:
+        add[0] += eps
+    if not np.any(add):
+        return tuple(tuple(float(x) for x in row) for row in orig)
+    out = m + (vec * add) @ vec.T
+    out = 0.5 * (out + out.T)
+    # entries that were exactly zero and moved by round-off only stay exactly zero
+    # (a thin rod along y: only the yy entry changes)
+    out[(orig == 0.0) & (np.abs(out) < 1e-3 * eps)] = 0.0
+    return tuple(tuple(float(x) for x in row) for row in out)
+
+
+def _default_bodies(params: Parameters):
+    a, b, m1, m2 = (float(getattr(params, n)) for n in ("a", "b", "m1", "m2"))
+    com1 = params.com1 if params.com1 is not None else (0.0, a / 2, 0.0)
+    com2 = params.com2 if params.com2 is not None else (0.0, b / 2, 0.0)
+
+    def rod(m, length):
+        k = m * length**2 / 12
+        return ((k, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, k))
+
+    inertia1 = params.inertia1 if params.inertia1 is not None else rod(m1, a)
+    inertia2 = params.inertia2 if params.inertia2 is not None else rod(m2, b)
+    return com1, com2, inertia1, inertia2
+
+
+# -- public API --------------------------------------------------------------------------------
+def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None) -> Parameters:
+    """``params`` with explicit ``com1, com2, inertia1, inertia2`` that MuJoCo accepts.
+
+    The thin-rod defaults are written out, and each body gets the tiny inertia described
+    in the module docstring: ``axial_inertia`` [kg m^2] for both bodies if given, otherwise
+    ``1e-9 m1 a^2`` for rod 1 and ``1e-9 m2 b^2`` for rod 2.  Everything else (scalars,
+    axes, ``alpha``) is unchanged.  This is exactly the system :func:`to_mjcf` and
+    :func:`to_urdf` export; ``derive(mujoco_compatible(p))`` is the reference for comparing
+    skewpend with MuJoCo.  Idempotent for the default ``axial_inertia``.
+    """
+    params.require_numeric("export")
+    eps = _positive("axial_inertia", axial_inertia, allow_none=True)
+    a, b, m1, m2 = (float(getattr(params, n)) for n in ("a", "b", "m1", "m2"))
+    eps1 = eps if eps is not None else AXIAL_INERTIA_FACTOR * m1 * a * a
+    eps2 = eps if eps is not None else AXIAL_INERTIA_FACTOR * m2 * b * b
+    com1, com2, inertia1, inertia2 = _default_bodies(params)
+    return params.replace(
+        com1=tuple(map(float, com1)),
+        com2=tuple(map(float, com2)),
+        inertia1=_regularised_inertia(inertia1, eps1),
+        inertia2=_regularised_inertia(inertia2, eps2),
+    )
+
+
+def _fullinertia(m) -> str:
+    """MuJoCo's ``fullinertia`` order: Ixx Iyy Izz Ixy Ixz Iyz."""
+    return _vec((m[0][0], m[1][1], m[2][2], m[0][1], m[0][2], m[1][2]))
+
+
+def _header(params: Parameters, fmt: str) -> str:
+    from . import __version__
+
+    values = ", ".join(
+        f"{n}={_num(getattr(params, n))}"
+        for n in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
+        if getattr(params, n) is not None
+    )
+    return _comment(
+        f"Skewed double pendulum exported by skewpend {__version__} ({fmt}). "
+        f"Parameters: {values}. Frame: x, y, z = i, j, k of skewpend with y pointing DOWN; "
+        "gravity g acts along +y. Joint angles hinge1 = phi, hinge2 = psi (right-handed, "
+        "zero with both rods hanging along +y). Inertias include skewpend's tiny axial "
+        "inertia (skewpend.export.mujoco_compatible)."
+    )
+
+
+def to_mjcf(
+    params: Parameters,
+    *,
+    timestep: float = 1e-4,
+    integrator: str = "RK4",
+    axial_inertia: Optional[float] = None,
+) -> str:
+    """A MuJoCo MJCF model (XML text) of the pendulum ``params`` (all numeric).
+
+    * ``<option gravity="0 g 0">`` -- gravity along **+y** (skewpend's ``j`` points down);
+      ``timestep`` [s] and ``integrator`` (``RK4`` default; ``Euler``, ``implicit``,
+      ``implicitfast``); contacts disabled (``<flag contact="disable"/>``), energy enabled.
+    * Bodies ``rod1`` (child of the world, origin at the roof hinge) and ``rod2`` (at
+      ``0 a 0`` in rod1), each with an explicit ``<inertial pos=com mass=m
+      fullinertia="Ixx Iyy Izz Ixy Ixz Iyz"/>`` from :func:`mujoco_compatible` (so
+      including the tiny ``axial_inertia``; see the module docstring) and
+      ``<compiler inertiafromgeom="false">``: the capsules drawn along the rods
+      (``contype=conaffinity=0``) are for viewing only and carry no mass.
+    * Hinge joints ``hinge1`` (axis ``axis1``, default ``0 0 1``) and ``hinge2`` (axis
+      ``axis2``, default ``sin(alpha) 0 cos(alpha)``) at the body origins, ``damping`` =
+      ``c1``, ``c2`` (passive torque ``-c qdot``), ``limited="false"``, ``armature=0``,
+      ``frictionloss=0``, ``stiffness=0``.
+    * Constant joint torques: two ``<general>`` actuators ``tau1``, ``tau2`` on the hinges
+      with ``biastype="affine" biasprm="tau_i 0 0"`` and ``gainprm="1"``, unlimited: the
+      actuator force is ``ctrl + tau_i``, and ``ctrl`` is 0 unless set.  So the file is
+      self-contained: loading it and calling ``mj_step`` reproduces skewpend's model,
+      torques included, with nothing to set at run time (``data.ctrl`` stays free for an
+      extra torque on top).
+
+    Numbers are written in shortest round-trip form, so MuJoCo reads exactly the doubles
+    of :func:`mujoco_compatible`.  Raises :class:`~skewpend.errors.NotNumericError` for
+    symbolic parameters and :class:`~skewpend.errors.ParameterError` for a bad
+    ``timestep``, ``integrator`` or ``axial_inertia``.
+    """
+    p = mujoco_compatible(params, axial_inertia)
+    timestep = _positive("timestep", timestep)
+    integrator = _integrator(integrator)
+    axis1, axis2 = _axes(p)
+    a, b = float(p.a), float(p.b)
+    radius = 0.01 * (a + b)
+    lines = [
+        '<mujoco model="skewpend">',
+        f"  <!-- {_header(p, 'MJCF')} -->",
+        "  <!-- Constant joint torques: actuators tau1, tau2 with force = ctrl + tau_i "
+        "(affine bias); ctrl defaults to 0. -->",
+        '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
+        f'  <option gravity="0 {_num(p.g)} 0" timestep="{_num(timestep)}" integrator="{integrator}">',
+        '    <flag contact="disable" energy="enable"/>',
+        "  </option>",
+        "  <worldbody>",
+        '    <body name="rod1" pos="0 0 0">',
+        f'      <joint name="hinge1" type="hinge" pos="0 0 0" axis="{_vec(axis1)}" '
+        f'damping="{_num(p.c1)}" limited="false" armature="0" frictionloss="0" stiffness="0"/>',
+        f'      <inertial pos="{_vec(p.com1)}" mass="{_num(p.m1)}" fullinertia="{_fullinertia(p.inertia1)}"/>',
+        f'      <geom name="rod1" type="capsule" fromto="0 0 0 0 {_num(a)} 0" size="{_num(radius)}" '
+        'contype="0" conaffinity="0" rgba="0.2 0.4 0.8 1"/>',
+        f'      <body name="rod2" pos="0 {_num(a)} 0">',
+        f'        <joint name="hinge2" type="hinge" pos="0 0 0" axis="{_vec(axis2)}" '
+        f'damping="{_num(p.c2)}" limited="false" armature="0" frictionloss="0" stiffness="0"/>',
+        f'        <inertial pos="{_vec(p.com2)}" mass="{_num(p.m2)}" fullinertia="{_fullinertia(p.inertia2)}"/>',
+        f'        <geom name="rod2" type="capsule" fromto="0 0 0 0 {_num(b)} 0" size="{_num(radius)}" '
+        'contype="0" conaffinity="0" rgba="0.8 0.3 0.2 1"/>',
+        "      </body>",
+        "    </body>",
+        "  </worldbody>",
+        "  <actuator>",
+        f'    <general name="tau1" joint="hinge1" gainprm="1" biastype="affine" biasprm="{_num(p.tau1)} 0 0" '
+        'ctrllimited="false" forcelimited="false"/>',
+        f'    <general name="tau2" joint="hinge2" gainprm="1" biastype="affine" biasprm="{_num(p.tau2)} 0 0" '
+        'ctrllimited="false" forcelimited="false"/>',
+        "  </actuator>",
+        "</mujoco>",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: bool = False) -> str:
+    """A URDF model (XML text) of the pendulum ``params`` (all numeric).
+
+    Links ``world`` (fixed), ``rod1``, ``rod2``; ``continuous`` (unlimited revolute) joints
+    ``hinge1`` (``world -> rod1``, origin 0, axis ``axis1``) and ``hinge2`` (``rod1 ->
+    rod2``, origin ``0 a 0``, axis ``axis2``) with ``<dynamics damping=c_i friction=0>``.
+    Inertials: ``<origin xyz=com rpy="0 0 0">``, mass, and the full tensor about the centre
+    of mass in link axes, from :func:`mujoco_compatible` (tiny ``axial_inertia`` included).
+
+    **Gravity** is not part of URDF.  With ``z_up=False`` (default) the URDF's frame is
+    skewpend's, ``y`` pointing down: the simulator must apply gravity ``(0, +g, 0)``.
+    With ``z_up=True`` a massless link ``roof`` is fixed to ``world`` with ``rpy="-pi/2 0
+    0"`` (skewpend's ``+y`` becomes the world's ``-z``), for simulators with the usual
+    gravity ``(0, 0, -g)``; joint angles are the same either way.  A ``<mujoco>`` block
+    (MuJoCo's URDF extension, ignored by other tools) sets MuJoCo's ``<option gravity>``
+    accordingly, with ``RK4``, ``timestep=1e-4`` and contacts disabled.
+
+    **Constant torques** ``tau1, tau2`` have no place in URDF: they are listed in a comment
+    and must be applied by the simulator (e.g. MuJoCo ``data.qfrc_applied``).
+    """
+    p = mujoco_compatible(params, axial_inertia)
+    axis1, axis2 = _axes(p)
+    a, b = float(p.a), float(p.b)
+    radius = 0.01 * (a + b)
+    gravity = f"0 0 {_num(-p.g)}" if z_up else f"0 {_num(p.g)} 0"
+    root = "roof" if z_up else "world"
+
+    def inertial(com, mass, m) -> list:
+        return [
+            "    <inertial>",
+            f'      <origin xyz="{_vec(com)}" rpy="0 0 0"/>',
+            f'      <mass value="{_num(mass)}"/>',
+            f'      <inertia ixx="{_num(m[0][0])}" ixy="{_num(m[0][1])}" ixz="{_num(m[0][2])}" '
+            f'iyy="{_num(m[1][1])}" iyz="{_num(m[1][2])}" izz="{_num(m[2][2])}"/>',
+            "    </inertial>",
+        ]
+
+    def visual(length) -> list:
+        # a URDF cylinder lies along its z axis; turn it onto y, centred on the rod
+        return [
+            "    <visual>",
+            f'      <origin xyz="0 {_num(length / 2)} 0" rpy="{_num(math.pi / 2)} 0 0"/>',
+            f'      <geometry><cylinder radius="{_num(radius)}" length="{_num(length)}"/></geometry>',
+            "    </visual>",
+        ]
+
+    def joint(name, parent, child, xyz, axis, damping) -> list:
+        return [
+            f'  <joint name="{name}" type="continuous">',
+            f'    <parent link="{parent}"/>',
+            f'    <child link="{child}"/>',
+            f'    <origin xyz="{xyz}" rpy="0 0 0"/>',
+            f'    <axis xyz="{_vec(axis)}"/>',
+            f'    <dynamics damping="{_num(damping)}" friction="0"/>',
+            "  </joint>",
+        ]
+
+    frame_note = (
+        "Frame z_up: link roof carries skewpend's frame (y down) turned so that +y is the world's -z; "
+        "apply gravity (0, 0, -g)."
+        if z_up
+        else "Apply gravity (0, +g, 0): this URDF uses skewpend's frame, y pointing DOWN."
+    )
+    lines = [
+        '<?xml version="1.0"?>',
+        '<robot name="skewpend">',
+        f"  <!-- {_header(p, 'URDF')} -->",
+        f"  <!-- {_comment(frame_note)} -->",
+        f"  <!-- {_comment(f'Constant joint torques (not representable in URDF; apply them in the simulator): hinge1 {_num(p.tau1)} N m, hinge2 {_num(p.tau2)} N m.')} -->",
+        "  <mujoco>",
+        '    <compiler angle="radian" discardvisual="true" fusestatic="true"/>',
+        f'    <option gravity="{gravity}" timestep="0.0001" integrator="RK4">',
+        '      <flag contact="disable"/>',
+        "    </option>",
+        "  </mujoco>",
+        '  <link name="world"/>',
+    ]
+    if z_up:
+        lines += [
+            '  <link name="roof"/>',
+            '  <joint name="roof_fixed" type="fixed">',
+            '    <parent link="world"/>',
+            '    <child link="roof"/>',
+            f'    <origin xyz="0 0 0" rpy="{_num(-math.pi / 2)} 0 0"/>',
+            "  </joint>",
+        ]
+    lines += ['  <link name="rod1">', *inertial(p.com1, p.m1, p.inertia1), *visual(a), "  </link>"]
+    lines += ['  <link name="rod2">', *inertial(p.com2, p.m2, p.inertia2), *visual(b), "  </link>"]
+    lines += joint("hinge1", root, "rod1", "0 0 0", axis1, p.c1)
+    lines += joint("hinge2", "rod1", "rod2", f"0 {_num(a)} 0", axis2, p.c2)
+    lines += ["</robot>", ""]
+    return "\n".join(lines)
+
+
+def _format_for(path: Path, fmt: Optional[str]) -> str:
+    if fmt is None:
+        guess = _SUFFIXES.get(path.suffix.lower())
+        if guess is None:
+            raise ParameterError(
+                f"cannot tell the export format from {path.name!r}; give format= one of: "
+                f"{', '.join(FORMATS)} (or use a .xml/.mjcf/.urdf file name)"
+            )
+        return guess
+    if not isinstance(fmt, str) or fmt.lower() not in FORMATS:
+        raise ParameterError(f"unknown export format {fmt!r}; allowed: {', '.join(FORMATS)}")
+    return fmt.lower()
+
+
+def write_model(
+    params: Parameters,
+    path: Union[str, os.PathLike],
+    format: Optional[str] = None,
+    **options,
+) -> Path:
+    """Write :func:`to_mjcf` or :func:`to_urdf` of ``params`` to ``path``; return the path.
+
+    ``format``: ``"mjcf"`` or ``"urdf"``; ``None`` infers it from the suffix (``.xml``,
+    ``.mjcf`` -> MJCF; ``.urdf`` -> URDF).  ``options`` go to the exporter (``timestep``,
+    ``integrator``, ``axial_inertia`` for MJCF; ``axial_inertia``, ``z_up`` for URDF).
+    The text is built first, then written to a temporary file in the same directory and
+    moved into place (``os.replace``): an existing file is either replaced whole or left
+    untouched.  Errors: :class:`~skewpend.errors.ParameterError` (unknown format, missing
+    directory, bad option), :class:`~skewpend.errors.NotNumericError`.
+    """
+    from .io import atomic_path
+
+    path = Path(path)
+    fmt = _format_for(path, format)
+    exporter = to_mjcf if fmt == "mjcf" else to_urdf
+    try:
+        text = exporter(params, **options)
+    except TypeError as exc:  # an option the exporter does not take
+        raise ParameterError(f"{fmt} export: {exc}") from None
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+    return path
+
+
+def _import_mujoco():
+    try:
+        import mujoco  # noqa: F401
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise MujocoMissingError(
+            f"this needs the optional dependency 'mujoco' ({exc}); install it with "
+            "pip install 'skewpend[validate]' or pip install mujoco"
+        ) from None
+    return mujoco
+
+
+def mujoco_trajectory(
+    params: Parameters,
+    y0: Sequence[float],
+    t_end: float,
+    *,
+    dt: float = 1e-4,
+    integrator: str = "RK4",
+    n_out: Optional[int] = None,
+    axial_inertia: Optional[float] = None,
+):
+    """Simulate the exported MJCF in MuJoCo from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``.
+
+    Builds :func:`to_mjcf` (``timestep=dt``, ``integrator``), loads it with
+    ``mujoco.MjModel.from_xml_string``, sets ``qpos = (phi, psi)``, ``qvel = (dphi, dpsi)``
+    and steps with ``mj_step``.  The constant torques are in the model (actuators with an
+    affine bias, see :func:`to_mjcf`); ``ctrl`` and ``qfrc_applied`` stay zero.  ``t_end``
+    must be a whole number of steps ``dt``.
+
+    Returns ``(t, y)``: times [s], shape (n,), and states ``(phi, psi, dphi, dpsi)``, shape
+    (n, 4), starting with ``t = 0, y0``.  ``n_out=None`` returns every step
+    (``n = t_end/dt + 1``); otherwise ``n_out >= 2`` samples at the steps nearest to
+    ``linspace(0, t_end, n_out)`` (``t`` holds the exact step times).
+
+    The system simulated is :func:`mujoco_compatible` ``(params, axial_inertia)``.  Raises
+    :class:`MujocoMissingError` (a ``SkewpendError`` and ``ImportError``) without
+    ``mujoco``, :class:`~skewpend.errors.ParameterError` for bad arguments, and
+    :class:`~skewpend.errors.IntegrationError` if the state becomes non-finite or MuJoCo
+    reports an unstable simulation.
+    """
+    import numpy as np
+
+    params.require_numeric("export")
+    try:
+        y = np.array(y0, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y0!r}") from None
+    if y.shape != (4,) or not np.all(np.isfinite(y)):
+        raise ParameterError(f"y0 must be 4 finite numbers (phi, psi, dphi, dpsi), got {y0!r}")
+    t_end = _positive("t_end", t_end)
+    dt = _positive("dt", dt)
+    nsteps = int(round(t_end / dt))
+    if nsteps < 1 or abs(nsteps * dt - t_end) > 1e-9 * t_end:
+        raise ParameterError(f"t_end ({t_end:g}) must be a whole number of steps dt ({dt:g})")
+    if n_out is None:
+        marks = np.arange(nsteps + 1)
+    else:
+        if isinstance(n_out, bool) or int(n_out) != n_out or n_out < 2:
+            raise ParameterError(f"n_out must be an integer >= 2 or None, got {n_out!r}")
+        marks = np.unique(np.rint(np.linspace(0, nsteps, int(n_out))).astype(np.int64))
+
+    mujoco = _import_mujoco()
+    xml = to_mjcf(params, timestep=dt, integrator=integrator, axial_inertia=axial_inertia)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qpos[:] = y[:2]
+    data.qvel[:] = y[2:]
+    mujoco.mj_forward(model, data)
+
+    out = np.empty((marks.size, 4))
+    out[0] = y
+    done = 0
+    bad = mujoco.mjtWarning.mjWARN_BADQACC
+    for row, mark in enumerate(marks[1:], start=1):
+        mujoco.mj_step(model, data, nstep=int(mark - done))
+        done = int(mark)
+        out[row, :2] = data.qpos
+        out[row, 2:] = data.qvel
+        if data.warning[bad].number > 0 or not np.all(np.isfinite(out[row])):
+            raise IntegrationError(
+                f"MuJoCo ({integrator}): the simulation became unstable or non-finite near t = {done * dt:.6g} s"
+            )
+    return marks * dt, out
