@@ -25,8 +25,9 @@ MuJoCo refuses a body whose inertia tensor is not positive definite ("inertia mu
 positive eigenvalues") and checks the triangle inequality of the principal moments
 ``A + B >= C`` exactly (no tolerance).  A thin rod has zero moment about its own axis, so
 skewpend's default bodies cannot be exported as they are.  :func:`mujoco_compatible` adds
-``eps`` = ``axial_inertia`` [kg m^2] (default ``1e-9 m l^2`` per body, ``l = a`` for rod 1,
-``b`` for rod 2) along the principal axes that need it:
+``eps`` = ``axial_inertia`` [kg m^2] (default ``max(1e-9 m l^2, 1e-12)`` per body, ``l = a``
+for rod 1, ``b`` for rod 2; the floor keeps ``eps`` above MuJoCo's smallest accepted principal
+moment, about 1e-14) along the principal axes that need it:
 
 * every principal moment below ``eps / 2`` is raised by ``eps`` (the thin rod's axial
   moment ``0 -> eps``; a point mass gets ``eps`` about every axis);
@@ -38,8 +39,7 @@ Bodies that need none of this are exported unchanged.  The change is of relative
 ``~1e-8`` and only matters when rod 2 spins about its own axis (skewed hinges): over 2 s of
 large swings it moves the state by a few 1e-9.  A comparison to round-off precision must
 nevertheless simulate the identical system, ``derive(mujoco_compatible(params))`` -- which
-is what the exported files contain.  (With ``m l^2`` below ~1e-6 kg m^2 the default ``eps``
-falls under MuJoCo's minimum inertia of about 1e-15: pass a larger ``axial_inertia``.)
+is what the exported files contain.
 """
 
 from __future__ import annotations
@@ -72,6 +72,8 @@ INTEGRATORS = ("RK4", "Euler", "implicit", "implicitfast")
 
 #: Default tiny inertia, relative to ``m l^2`` of each body.
 AXIAL_INERTIA_FACTOR = 1e-9
+#: Floor of the default tiny inertia [kg m^2] (MuJoCo rejects principal moments below ~1e-14).
+AXIAL_INERTIA_FLOOR = 1e-12
 
 
 class MujocoMissingError(SkewpendError, ImportError):
@@ -171,7 +173,7 @@ def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None)
 
     The thin-rod defaults are written out, and each body gets the tiny inertia described
     in the module docstring: ``axial_inertia`` [kg m^2] for both bodies if given, otherwise
-    ``1e-9 m1 a^2`` for rod 1 and ``1e-9 m2 b^2`` for rod 2.  Everything else (scalars,
+    ``max(1e-9 m1 a^2, 1e-12)`` for rod 1 and ``max(1e-9 m2 b^2, 1e-12)`` for rod 2.  Everything else (scalars,
     axes, ``alpha``) is unchanged.  This is exactly the system :func:`to_mjcf` and
     :func:`to_urdf` export; ``derive(mujoco_compatible(p))`` is the reference for comparing
     skewpend with MuJoCo.  Idempotent for the default ``axial_inertia``.
@@ -179,8 +181,8 @@ def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None)
     params.require_numeric("export")
     eps = _positive("axial_inertia", axial_inertia, allow_none=True)
     a, b, m1, m2 = (float(getattr(params, n)) for n in ("a", "b", "m1", "m2"))
-    eps1 = eps if eps is not None else AXIAL_INERTIA_FACTOR * m1 * a * a
-    eps2 = eps if eps is not None else AXIAL_INERTIA_FACTOR * m2 * b * b
+    eps1 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m1 * a * a, AXIAL_INERTIA_FLOOR)
+    eps2 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m2 * b * b, AXIAL_INERTIA_FLOOR)
     com1, com2, inertia1, inertia2 = _default_bodies(params)
     return params.replace(
         com1=tuple(map(float, com1)),
