@@ -162,7 +162,7 @@ def test_parameter_order_is_documented_in_generated_code():
 
 
 def test_kernel_is_cached_on_disk(tmp_path, monkeypatch):
-    import skewpend.codegen as cg
+    import skewpend.compiled as cg
 
     monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(cg, "_LOADED", {})

@@ -11,7 +11,7 @@ from __future__ import annotations
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
-from .errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
+from .errors import EquilibriumError, IntegrationError, NotNumericError, ParameterError, SkewpendError
 from .model import Parameters
 
 __version__ = "0.1.0"
@@ -20,6 +20,8 @@ _LAZY = {
     "derive": "derivation",
     "EquationsOfMotion": "derivation",
     "LinearEquations": "derivation",
+    "simulate": "integrate",
+    "Trajectory": "integrate",
 }
 
 __all__ = [
@@ -27,15 +29,19 @@ __all__ = [
     "derive",
     "EquationsOfMotion",
     "LinearEquations",
+    "simulate",
+    "Trajectory",
     "SkewpendError",
     "ParameterError",
     "NotNumericError",
     "EquilibriumError",
+    "IntegrationError",
     "__version__",
 ]
 
 if TYPE_CHECKING:  # pragma: no cover
     from .derivation import EquationsOfMotion, LinearEquations, derive
+    from .integrate import Trajectory, simulate
 
 
 def __getattr__(name: str) -> Any:

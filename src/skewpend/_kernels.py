@@ -94,6 +94,13 @@ def _all_finite(x):
 
 
 @nb.njit(cache=True)
+def _put_row(a, r, x):
+    # an explicit loop: numba's a[r] = x compiles a shape check that costs seconds
+    for i in range(x.shape[0]):
+        a[r, i] = x[i]
+
+
+@nb.njit(cache=True)
 def _rms(x, scale):
     s = 0.0
     for i in range(x.shape[0]):
@@ -244,7 +251,7 @@ def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
     if dense:
         while m < nout and t_out[m] <= t0:
             ts[m] = t_out[m]
-            ys[m] = y
+            _put_row(ys, m, y)
             m += 1
     else:
         ts[0] = t0
@@ -258,7 +265,7 @@ def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
     if span == 0.0:
         while m < nout:
             ts[m] = t_out[m]
-            ys[m] = y
+            _put_row(ys, m, y)
             m += 1
         return ts[:m].copy(), ys[:m].copy(), 0, nfev, nacc, nrej
 
@@ -340,7 +347,7 @@ def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
             have_coeffs = False
             while m < nout and t_out[m] <= t_new:
                 if t_out[m] == t_new:
-                    ys[m] = ynew
+                    _put_row(ys, m, ynew)
                 else:
                     if not have_coeffs:
                         nfev += _dop853_dense_coeffs(y, ynew, h, p, K, F, ytmp)
@@ -357,13 +364,14 @@ def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
                 cap2 = min(2 * cap, max_steps + 1)
                 ts2 = np.empty(cap2)
                 ys2 = np.empty((cap2, n))
-                ts2[:m] = ts[:m]
-                ys2[:m] = ys[:m]
+                for r in range(m):
+                    ts2[r] = ts[r]
+                    _put_row(ys2, r, ys[r])
                 ts = ts2
                 ys = ys2
                 cap = cap2
             ts[m] = t_new
-            ys[m] = ynew
+            _put_row(ys, m, ynew)
             m += 1
 
         # advance (FSAL: K[12] = f(t_new, y_new) becomes K[0])
@@ -376,7 +384,7 @@ def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
         # output times within rounding beyond t_end
         while m < nout:
             ts[m] = t_out[m]
-            ys[m] = y
+            _put_row(ys, m, y)
             m += 1
     return ts[:m].copy(), ys[:m].copy(), status, nfev, nacc, nrej
 
@@ -446,12 +454,12 @@ def rk4(y0, t0, dt, nsteps, p, stride):
             y[i] = tmp[i]
         if step % stride == 0 or step == nsteps:
             ts[m] = t0 + step * dt
-            ys[m] = y
+            _put_row(ys, m, y)
             m += 1
             last = step
     if status != 0 and last != step:
         ts[m] = t0 + step * dt
-        ys[m] = y
+        _put_row(ys, m, y)
         m += 1
     return ts[:m].copy(), ys[:m].copy(), status, nfev
 
@@ -577,11 +585,11 @@ def gauss_legendre(z0, t0, dt, nsteps, p, stride, tol, max_iter):
             k2[i] = a + w2 * d
         if step % stride == 0 or step == nsteps:
             ts[m] = t0 + step * dt
-            zs[m] = z
+            _put_row(zs, m, z)
             m += 1
             last = step
     if status != 0 and last != step:
         ts[m] = t0 + step * dt
-        zs[m] = z
+        _put_row(zs, m, z)
         m += 1
     return ts[:m].copy(), zs[:m].copy(), status, nfev

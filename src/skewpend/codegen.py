@@ -16,48 +16,25 @@ Conventions shared by every generated routine:
 
 from __future__ import annotations
 
-import hashlib
-import importlib.util
-import os
-import sys
-import tempfile
-import threading
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable, Dict, List, Sequence, Tuple
+from typing import Callable, List, Sequence, Tuple
 
 import sympy as sp
 
 from . import __version__
 from .derivation import SYMBOLS, derive
-from .model import SCALAR_NAMES, Parameters
+from .model import Parameters
 
 __all__ = [
     "PARAMETER_ORDER",
     "STATE_ORDER",
     "generate",
+    "kernel_source",
     "kernel_module",
     "parameter_vector",
 ]
 
-PARAMETER_ORDER: Tuple[str, ...] = SCALAR_NAMES
-STATE_ORDER: Tuple[str, ...] = ("phi", "psi", "dphi", "dpsi")
-_GEOMETRY = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
-
-
-def geometry_of(params: Parameters) -> Parameters:
-    """The same bodies and axes with every scalar parameter symbolic (a runtime input)."""
-    return Parameters(**{k: getattr(params, k) for k in _GEOMETRY}, **{k: None for k in SCALAR_NAMES})
-
-
-def parameter_vector(params: Parameters):
-    """The float64 parameter array ``p`` in :data:`PARAMETER_ORDER` (``alpha`` = 0 when unused)."""
-    import numpy as np
-
-    params.require_numeric("numeric evaluation")
-    return np.array(
-        [0.0 if (n == "alpha" and not params.uses_alpha) else float(getattr(params, n)) for n in PARAMETER_ORDER]
-    )
+from .compiled import PARAMETER_ORDER, STATE_ORDER, geometry_of, kernel_module, parameter_vector
 
 
 # -- the expressions to print -------------------------------------------------------------------
@@ -169,6 +146,12 @@ def _used_names(exprs: Sequence[sp.Expr]) -> set:
 _NJIT = "@nb.njit(cache=True)"
 
 
+def kernel_source(geometry: Parameters) -> str:
+    """Source of the numba kernel module for ``geometry`` (scalars symbolic), without the
+    integrator template that :func:`skewpend.compiled.kernel_module` appends."""
+    return _kernel_source(_expressions(geometry), geometry)
+
+
 def _kernel_source(ex: _Expressions, geometry: Parameters) -> str:
     py = _Lang("python", _py_printer(), "", "")
     I = "    "
@@ -238,15 +221,16 @@ def _kernel_source(ex: _Expressions, geometry: Parameters) -> str:
         f"{I}        out[r, c] = 0.0",
         f"{I}out[0, 2] = 1.0",
         f"{I}out[1, 3] = 1.0",
-        f"{I}dMs = ((dM0_11, dM0_12, dM0_22), (dM1_11, dM1_12, dM1_22))",
-        f"{I}dfs = ((df00, df01, df02, df03), (df10, df11, df12, df13))",
+        f"{I}dMs = np.empty((2, 3))",
+        *[f"{I}dMs[{k}, {n}] = dM{k}_{e}" for k in range(2) for n, e in enumerate(("11", "12", "22"))],
+        f"{I}dfs = np.empty((2, 4))",
+        *[f"{I}dfs[{r}, {c}] = df{r}{c}" for r in range(2) for c in range(4)],
         f"{I}for c in range(4):",
-        f"{I}    r1 = dfs[0][c]",
-        f"{I}    r2 = dfs[1][c]",
+        f"{I}    r1 = dfs[0, c]",
+        f"{I}    r2 = dfs[1, c]",
         f"{I}    if c < 2:",
-        f"{I}        d11, d12, d22 = dMs[c]",
-        f"{I}        r1 -= d11 * ddphi + d12 * ddpsi",
-        f"{I}        r2 -= d12 * ddphi + d22 * ddpsi",
+        f"{I}        r1 -= dMs[c, 0] * ddphi + dMs[c, 1] * ddpsi",
+        f"{I}        r2 -= dMs[c, 1] * ddphi + dMs[c, 2] * ddpsi",
         f"{I}    out[2, c] = (M22 * r1 - M12 * r2) / det",
         f"{I}    out[3, c] = (M11 * r2 - M12 * r1) / det",
         f"{I}out[4, 2] = Q1 + dQ1_1 * y[2] + dQ2_1 * y[3]",
@@ -341,67 +325,6 @@ def _kernel_source(ex: _Expressions, geometry: Parameters) -> str:
         "",
     ]
     return "\n".join(out) + "\n"
-
-
-def _template_text() -> str:
-    return (Path(__file__).with_name("_kernels.py")).read_text()
-
-
-def cache_dir() -> Path:
-    """Where generated kernels are kept: ``$SKEWPEND_CACHE_DIR`` or the user cache directory."""
-    env = os.environ.get("SKEWPEND_CACHE_DIR")
-    if env:
-        return Path(env)
-    import platformdirs
-
-    return Path(platformdirs.user_cache_dir("skewpend"))
-
-
-_LOCK = threading.Lock()
-_LOADED: Dict[str, object] = {}
-
-
-def _key(geometry: Parameters) -> str:
-    h = hashlib.sha256()
-    h.update(__version__.encode())
-    h.update(repr(geometry.to_dict()).encode())
-    h.update(Path(__file__).read_bytes())
-    h.update(_template_text().encode())
-    h.update(Path(__file__).with_name("derivation.py").read_bytes())
-    h.update(Path(__file__).with_name("kinematics.py").read_bytes())
-    return h.hexdigest()[:20]
-
-
-def kernel_module(params: Parameters):
-    """The compiled kernel module for the bodies and axes of ``params``.
-
-    Generated on first use (derivation + code generation, well under a second), written to
-    :func:`cache_dir` atomically, and imported; numba caches its machine code next to it,
-    so later processes start without deriving or compiling.  The module holds ``rhs``,
-    ``jac``, ``energy``, ``momenta``, ``velocities``, ``ham_rhs`` and the integrators of
-    :mod:`skewpend._kernels`.
-    """
-    geometry = geometry_of(params)
-    key = _key(geometry)
-    with _LOCK:
-        if key in _LOADED:
-            return _LOADED[key]
-        directory = cache_dir() / "kernels"
-        directory.mkdir(parents=True, exist_ok=True)
-        path = directory / f"skewpend_model_{key}.py"
-        if not path.exists():
-            source = _kernel_source(_expressions(geometry), geometry) + "\n" + _template_text()
-            fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
-            with os.fdopen(fd, "w") as fh:
-                fh.write(source)
-            os.replace(tmp, path)
-        name = f"skewpend_model_{key}"
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-        _LOADED[key] = module
-        return module
 
 
 # -- standalone source for users -------------------------------------------------------------------------

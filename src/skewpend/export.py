@@ -66,6 +66,7 @@ __all__ = [
 #: Export formats accepted by :func:`write_model`, and the file suffixes that imply them.
 FORMATS = ("mjcf", "urdf")
 _SUFFIXES = {".xml": "mjcf", ".mjcf": "mjcf", ".urdf": "urdf"}
+_OPTIONS = {"mjcf": ("timestep", "integrator", "axial_inertia"), "urdf": ("axial_inertia", "z_up")}
 
 #: MuJoCo integrators accepted by :func:`to_mjcf` and :func:`mujoco_trajectory`.
 INTEGRATORS = ("RK4", "Euler", "implicit", "implicitfast")
@@ -390,8 +391,8 @@ def _format_for(path: Path, fmt: Optional[str]) -> str:
         guess = _SUFFIXES.get(path.suffix.lower())
         if guess is None:
             raise ParameterError(
-                f"cannot tell the export format from {path.name!r}; give format= one of: "
-                f"{', '.join(FORMATS)} (or use a .xml/.mjcf/.urdf file name)"
+                f"cannot tell the export format from the file name {path.name!r} "
+                f"(.xml/.mjcf: mjcf, .urdf: urdf); allowed: {', '.join(FORMATS)}"
             )
         return guess
     if not isinstance(fmt, str) or fmt.lower() not in FORMATS:
@@ -420,10 +421,12 @@ def write_model(
     path = Path(path)
     fmt = _format_for(path, format)
     exporter = to_mjcf if fmt == "mjcf" else to_urdf
-    try:
-        text = exporter(params, **options)
-    except TypeError as exc:  # an option the exporter does not take
-        raise ParameterError(f"{fmt} export: {exc}") from None
+    unknown = sorted(set(options) - set(_OPTIONS[fmt]))
+    if unknown:
+        raise ParameterError(
+            f"unknown {fmt} export option(s) {', '.join(unknown)}; allowed: {', '.join(_OPTIONS[fmt])}"
+        )
+    text = exporter(params, **options)
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
             fh.write(text)
@@ -481,6 +484,7 @@ def mujoco_trajectory(
         raise ParameterError(f"y0 must be 4 finite numbers (phi, psi, dphi, dpsi), got {y0!r}")
     t_end = _positive("t_end", t_end)
     dt = _positive("dt", dt)
+    integrator = _integrator(integrator)
     nsteps = int(round(t_end / dt))
     if nsteps < 1 or abs(nsteps * dt - t_end) > 1e-9 * t_end:
         raise ParameterError(f"t_end ({t_end:g}) must be a whole number of steps dt ({dt:g})")
@@ -503,13 +507,22 @@ def mujoco_trajectory(
     out[0] = y
     done = 0
     bad = mujoco.mjtWarning.mjWARN_BADQACC
-    for row, mark in enumerate(marks[1:], start=1):
-        mujoco.mj_step(model, data, nstep=int(mark - done))
-        done = int(mark)
-        out[row, :2] = data.qpos
-        out[row, 2:] = data.qvel
-        if data.warning[bad].number > 0 or not np.all(np.isfinite(out[row])):
-            raise IntegrationError(
-                f"MuJoCo ({integrator}): the simulation became unstable or non-finite near t = {done * dt:.6g} s"
-            )
+    # MuJoCo's default warning handler prints and appends to MUJOCO_LOG.TXT in the working
+    # directory; collect the messages instead and report them in the error.
+    messages: list = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: messages.append(str(msg).strip()))
+    try:
+        for row, mark in enumerate(marks[1:], start=1):
+            mujoco.mj_step(model, data, nstep=int(mark - done))
+            done = int(mark)
+            out[row, :2] = data.qpos
+            out[row, 2:] = data.qvel
+            if data.warning[bad].number > 0 or not np.all(np.isfinite(out[row])):
+                detail = f" ({messages[0]})" if messages else ""
+                raise IntegrationError(
+                    f"MuJoCo {integrator}: the simulation became unstable before t = {done * dt:.6g} s{detail}"
+                )
+    finally:
+        mujoco.set_mju_user_warning(previous)
     return marks * dt, out

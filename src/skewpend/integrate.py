@@ -77,7 +77,7 @@ class Trajectory:
 
     def tips(self) -> np.ndarray:
         """World positions of the rod ends ``(x1, y1, z1, x2, y2, z2)`` [m], shape (n, 6)."""
-        from .codegen import parameter_vector
+        from .compiled import parameter_vector
 
         return self._kernel.tips_many(self.y, parameter_vector(self.params))
 
@@ -130,7 +130,7 @@ def simulate(
     what it computed up to then, with ``status`` and ``message`` set -- never NaN rows;
     with ``throw=True`` it raises :class:`~skewpend.errors.IntegrationError` instead.
     """
-    from .codegen import kernel_module, parameter_vector
+    from .compiled import kernel_module, parameter_vector
 
     params.require_numeric("simulation")
     y = _initial_state(y0)
@@ -146,6 +146,10 @@ def simulate(
     kernel = kernel_module(params)
     p = parameter_vector(params)
     y5 = np.append(y, 0.0)
+    deriv = np.empty(5)
+    kernel.rhs(y5, p, deriv)
+    if not (np.all(np.isfinite(deriv)) and math.isfinite(kernel.energy(y5, p))):
+        raise ParameterError(f"the initial state {y.tolist()} has non-finite energy or acceleration")
 
     start = time.perf_counter()
     if method == "dop853":
