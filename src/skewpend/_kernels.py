@@ -255,7 +255,7 @@ def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
             m += 1
     else:
         ts[0] = t0
-        ys[0] = y
+        _put_row(ys, 0, y)
         m = 1
 
     rhs(y, p, K[0])
@@ -424,7 +424,7 @@ def rk4(y0, t0, dt, nsteps, p, stride):
     if not _all_finite(y):
         return ts[:0].copy(), ys[:0].copy(), 1, nfev
     ts[0] = t0
-    ys[0] = y
+    _put_row(ys, 0, y)
     m = 1
     h = dt
     half = 0.5 * dt
@@ -508,7 +508,7 @@ def gauss_legendre(z0, t0, dt, nsteps, p, stride, tol, max_iter):
     if not _all_finite(z):
         return ts[:0].copy(), zs[:0].copy(), 1, nfev
     ts[0] = t0
-    zs[0] = z
+    _put_row(zs, 0, z)
     m = 1
     h = dt
     status = 0

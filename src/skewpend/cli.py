@@ -236,51 +236,27 @@ class Method(str, Enum):
 _R = "Initial state and run"
 
 
-@app.command()
-def simulate(
-    a: A = None,
-    b: B = None,
-    m1: M1 = None,
-    m2: M2 = None,
-    alpha: ALPHA = None,
-    g: GRAV = None,
-    c1: Annotated[Optional[str], typer.Option("--c1", help="viscous damping in hinge 1 [N m s] (default 0)", rich_help_panel=_P)] = None,
-    c2: Annotated[Optional[str], typer.Option("--c2", help="viscous damping in hinge 2 [N m s] (default 0)", rich_help_panel=_P)] = None,
-    tau1: Annotated[Optional[str], typer.Option("--tau1", help="constant torque in hinge 1 [N m] (default 0)", rich_help_panel=_P)] = None,
-    tau2: Annotated[Optional[str], typer.Option("--tau2", help="constant torque in hinge 2 [N m] (default 0)", rich_help_panel=_P)] = None,
-    com1: COM1 = None,
-    com2: COM2 = None,
-    inertia1: IN1 = None,
-    inertia2: IN2 = None,
-    axis1: AX1 = None,
-    axis2: AX2 = None,
-    phi0: Annotated[Optional[str], typer.Option("--phi0", help="initial phi [rad, or e.g. 60deg] (default 1.2)", rich_help_panel=_R)] = None,
-    psi0: Annotated[Optional[str], typer.Option("--psi0", help="initial psi [rad, or deg] (default -0.8)", rich_help_panel=_R)] = None,
-    dphi0: Annotated[Optional[str], typer.Option("--dphi0", help="initial dphi/dt [rad/s] (default 0)", rich_help_panel=_R)] = None,
-    dpsi0: Annotated[Optional[str], typer.Option("--dpsi0", help="initial dpsi/dt [rad/s] (default 0)", rich_help_panel=_R)] = None,
-    t_end: Annotated[Optional[str], typer.Option("--t-end", help="duration [s] (default 20)", rich_help_panel=_R)] = None,
-    dt_out: Annotated[Optional[str], typer.Option("--dt-out", help="output interval [s] (default: the integrator's own steps)", rich_help_panel=_R)] = None,
-    method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)] = None,
-    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 (default 1e-10)", rich_help_panel=_R)] = None,
-    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 (default 1e-10)", rich_help_panel=_R)] = None,
-    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s] for rk4 and gauss (default 1e-3)", rich_help_panel=_R)] = None,
-    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the trajectory to FILE (.csv or .nc)", rich_help_panel=_R)] = None,
-    config: Annotated[Optional[str], typer.Option("--config", help="TOML file with [parameters], [initial], [simulation]; options override it", rich_help_panel=_R)] = None,
-) -> None:
-    """Simulate the nonlinear equations of motion; print a summary or write a trajectory file."""
+C1R = Annotated[Optional[str], typer.Option("--c1", help="viscous damping in hinge 1 [N m s] (default 0)", rich_help_panel=_P)]
+C2R = Annotated[Optional[str], typer.Option("--c2", help="viscous damping in hinge 2 [N m s] (default 0)", rich_help_panel=_P)]
+TAU1R = Annotated[Optional[str], typer.Option("--tau1", help="constant torque in hinge 1 [N m] (default 0)", rich_help_panel=_P)]
+TAU2R = Annotated[Optional[str], typer.Option("--tau2", help="constant torque in hinge 2 [N m] (default 0)", rich_help_panel=_P)]
+PHI0 = Annotated[Optional[str], typer.Option("--phi0", help="initial phi [rad, or e.g. 60deg] (default 1.2)", rich_help_panel=_R)]
+PSI0 = Annotated[Optional[str], typer.Option("--psi0", help="initial psi [rad, or deg] (default -0.8)", rich_help_panel=_R)]
+DPHI0 = Annotated[Optional[str], typer.Option("--dphi0", help="initial dphi/dt [rad/s] (default 0)", rich_help_panel=_R)]
+DPSI0 = Annotated[Optional[str], typer.Option("--dpsi0", help="initial dpsi/dt [rad/s] (default 0)", rich_help_panel=_R)]
+CONFIG = Annotated[Optional[str], typer.Option("--config", help="TOML file with [parameters], [initial], [simulation]; options override it", rich_help_panel=_R)]
+
+
+def _resolve(config: Optional[str], parameters: dict, initial: dict, simulation: dict):
+    """Numeric parameters, initial state and run settings: built-in defaults, then the
+    config file, then command-line options."""
     from .io import read_config
 
     run = {k: dict(v) for k, v in DEFAULT_RUN.items()}
     if config is not None:
         for section, values in read_config(config).items():
             run[section].update(values)
-    cli = {
-        "parameters": dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2,
-                           com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2),
-        "initial": dict(phi0=phi0, psi0=psi0, dphi0=dphi0, dpsi0=dpsi0),
-        "simulation": dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt, out=out),
-    }
-    for section, values in cli.items():
+    for section, values in (("parameters", parameters), ("initial", initial), ("simulation", simulation)):
         run[section].update({k: v for k, v in values.items() if v is not None})
     P, I, S = (run[k] for k in ("parameters", "initial", "simulation"))
     t = {k: _as_text(v) for k, v in P.items()}
@@ -298,7 +274,52 @@ def simulate(
     ]
     if any(v is None for v in y0):
         raise UsageError("the initial state must be numeric (not 'sym')")
-    number = lambda key, opt: None if S.get(key) is None else parse_scalar(_as_text(S[key]), opt)
+    return params, y0, S
+
+
+def _setting(S: dict, key: str, option: str) -> Optional[float]:
+    return None if S.get(key) is None else parse_scalar(_as_text(S[key]), option)
+
+
+@app.command()
+def simulate(
+    a: A = None,
+    b: B = None,
+    m1: M1 = None,
+    m2: M2 = None,
+    alpha: ALPHA = None,
+    g: GRAV = None,
+    c1: C1R = None,
+    c2: C2R = None,
+    tau1: TAU1R = None,
+    tau2: TAU2R = None,
+    com1: COM1 = None,
+    com2: COM2 = None,
+    inertia1: IN1 = None,
+    inertia2: IN2 = None,
+    axis1: AX1 = None,
+    axis2: AX2 = None,
+    phi0: PHI0 = None,
+    psi0: PSI0 = None,
+    dphi0: DPHI0 = None,
+    dpsi0: DPSI0 = None,
+    t_end: Annotated[Optional[str], typer.Option("--t-end", help="duration [s] (default 20)", rich_help_panel=_R)] = None,
+    dt_out: Annotated[Optional[str], typer.Option("--dt-out", help="output interval [s] (default: the integrator's own steps)", rich_help_panel=_R)] = None,
+    method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 (default 1e-10)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 (default 1e-10)", rich_help_panel=_R)] = None,
+    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s] for rk4 and gauss (default 1e-3)", rich_help_panel=_R)] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the trajectory to FILE (.csv or .nc)", rich_help_panel=_R)] = None,
+    config: CONFIG = None,
+) -> None:
+    """Simulate the nonlinear equations of motion; print a summary or write a trajectory file."""
+    params, y0, S = _resolve(
+        config,
+        dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2,
+             com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2),
+        dict(phi0=phi0, psi0=psi0, dphi0=dphi0, dpsi0=dpsi0),
+        dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt, out=out),
+    )
     method_name = str(S.get("method", "dop853"))
     from .integrate import METHODS, simulate as run_simulation
 
@@ -308,10 +329,10 @@ def simulate(
     if out_path is not None and not str(out_path).lower().endswith((".csv", ".nc")):
         raise UsageError(f"--out: expected a file name ending in .csv or .nc, got {out_path!r}")
     traj = run_simulation(
-        params, y0, number("t_end", "--t-end"),
-        dt_out=number("dt_out", "--dt-out"), method=method_name,
-        rtol=number("rtol", "--rtol") or 1e-10, atol=number("atol", "--atol") or 1e-10,
-        dt=number("dt", "--dt"),
+        params, y0, _setting(S, "t_end", "--t-end"),
+        dt_out=_setting(S, "dt_out", "--dt-out"), method=method_name,
+        rtol=_setting(S, "rtol", "--rtol"), atol=_setting(S, "atol", "--atol"),
+        dt=_setting(S, "dt", "--dt"),
     )
     if not traj.success:
         sys.stderr.write(f"skewpend: simulation {traj.message} at t = {traj.t[-1]:.6g} s; no file written\n")
@@ -321,6 +342,100 @@ def simulate(
 
         write_trajectory(traj, out_path)
     _summary(traj, out_path)
+
+
+class ExportFormat(str, Enum):
+    mjcf = "mjcf"
+    urdf = "urdf"
+
+
+@app.command()
+def export(
+    fmt: Annotated[ExportFormat, typer.Option("--format", "-f", help="model format")] = ExportFormat.mjcf,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write to FILE (default: print)")] = None,
+    a: A = None,
+    b: B = None,
+    m1: M1 = None,
+    m2: M2 = None,
+    alpha: ALPHA = None,
+    g: GRAV = None,
+    c1: C1R = None,
+    c2: C2R = None,
+    tau1: TAU1R = None,
+    tau2: TAU2R = None,
+    com1: COM1 = None,
+    com2: COM2 = None,
+    inertia1: IN1 = None,
+    inertia2: IN2 = None,
+    axis1: AX1 = None,
+    axis2: AX2 = None,
+    config: CONFIG = None,
+) -> None:
+    """Export the system as a MuJoCo MJCF model or a URDF (numeric parameters; the defaults of simulate)."""
+    from . import export as ex
+
+    params, _, _ = _resolve(
+        config,
+        dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2,
+             com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2),
+        {}, {},
+    )
+    if out is None:
+        sys.stdout.write(ex.to_mjcf(params) if fmt is ExportFormat.mjcf else ex.to_urdf(params))
+        return
+    path = ex.write_model(params, out, fmt.value)
+    sys.stderr.write(f"skewpend: wrote {fmt.value.upper()} model to {path}\n")
+
+
+@app.command()
+def validate(
+    a: A = None,
+    b: B = None,
+    m1: M1 = None,
+    m2: M2 = None,
+    alpha: ALPHA = None,
+    g: GRAV = None,
+    c1: C1R = None,
+    c2: C2R = None,
+    tau1: TAU1R = None,
+    tau2: TAU2R = None,
+    com1: COM1 = None,
+    com2: COM2 = None,
+    inertia1: IN1 = None,
+    inertia2: IN2 = None,
+    axis1: AX1 = None,
+    axis2: AX2 = None,
+    phi0: PHI0 = None,
+    psi0: PSI0 = None,
+    dphi0: DPHI0 = None,
+    dpsi0: DPSI0 = None,
+    t_end: Annotated[str, typer.Option("--t-end", help="duration [s]", rich_help_panel=_R)] = "2",
+    dt: Annotated[str, typer.Option("--dt", help="MuJoCo RK4 step [s]", rich_help_panel=_R)] = "1e-4",
+    tol: Annotated[str, typer.Option("--tol", help="largest allowed difference in any state component", rich_help_panel=_R)] = "1e-6",
+    config: CONFIG = None,
+) -> None:
+    """Compare skewpend with MuJoCo (the exported MJCF, RK4) for your parameters; exit 1 if they disagree."""
+    from .validation import compare_with_mujoco
+
+    params, y0, _ = _resolve(
+        config,
+        dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2,
+             com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2),
+        dict(phi0=phi0, psi0=psi0, dphi0=dphi0, dpsi0=dpsi0),
+        {},
+    )
+    tolerance = parse_scalar(tol, "--tol")
+    report = compare_with_mujoco(params, y0, parse_scalar(t_end, "--t-end"), dt=parse_scalar(dt, "--dt"))
+    lines = [
+        f"skewpend (dop853, rtol=atol=1e-12) vs MuJoCo {report.mujoco_version} (RK4, dt={report.dt:g} s), {report.t_end:g} s, {report.samples} samples",
+        "max |difference|:  " + "  ".join(f"{k}={v:.2e}" for k, v in report.max_abs_diff.items()),
+        f"energy drift: skewpend {report.energy_drift:.1e}",
+    ]
+    ok = report.max_difference <= tolerance
+    lines.append(("AGREE" if ok else "DISAGREE") + f" within {tolerance:g} (largest difference {report.max_difference:.2e})")
+    sys.stdout.write("\n".join(lines) + "\n")
+    if not ok:
+        sys.exit(1)
 
 
 def _summary(traj, out_path) -> None:
@@ -333,7 +448,8 @@ def _summary(traj, out_path) -> None:
         f"energy        E0={traj.energy[0]:.12g} J  E={traj.energy[-1]:.12g} J  work of Q={traj.work[-1]:.6g} J",
         f"energy drift  {traj.energy_drift:.3e} (max |E - W - E0| / max |E|)",
         f"steps         {st['steps']} accepted, {st['rejected']} rejected, {st['nfev']} evaluations",
-        f"wall time     {st['wall_time'] * 1e3:.2f} ms (integration, compiled)",
+        f"wall time     {st['wall_time'] * 1e3:.2f} ms (compiled integration"
+        + ("; includes loading/compiling the machine code on first use)" if st.get("includes_jit_load") else ")"),
     ]
     if out_path is not None:
         lines.append(f"written       {out_path} ({traj.t.size} rows)")

@@ -48,7 +48,8 @@ class Trajectory:
     * ``energy`` -- mechanical energy ``T + Pi`` [J] (``Pi = 0`` hanging), shape (n,);
     * ``work`` -- work done by damping and joint torques since ``t[0]`` [J], shape (n,);
     * ``params``, ``method``, ``settings`` (rtol, atol, dt, dt_out, ...) -- how it was made;
-    * ``stats`` -- ``nfev``, ``steps`` (accepted), ``rejected``, ``wall_time`` [s];
+    * ``stats`` -- ``nfev``, ``steps`` (accepted), ``rejected``, ``wall_time`` [s] and
+      ``includes_jit_load`` (the first run in a process also loads or compiles machine code);
     * ``status`` (0 = success) and ``message``;
     * ``energy_drift`` -- ``max |E - W - E(0)|`` divided by ``max(|E|)`` over the run
       (absolute when that scale is 0).
@@ -151,6 +152,8 @@ def simulate(
     if not (np.all(np.isfinite(deriv)) and math.isfinite(kernel.energy(y5, p))):
         raise ParameterError(f"the initial state {y.tolist()} has non-finite energy or acceleration")
 
+    routine = {"dop853": kernel.dop853, "rk4": kernel.rk4, "gauss": kernel.gauss_legendre}[method]
+    compiled_before = bool(routine.signatures)
     start = time.perf_counter()
     if method == "dop853":
         rtol = _check_positive("rtol", rtol)
@@ -189,6 +192,8 @@ def simulate(
             ys = kernel.speeds_many(zs, p)
         stats = {"nfev": int(nfev), "steps": int(min(nsteps, max(0, round(ts[-1] / step)))), "rejected": 0}
     stats["wall_time"] = time.perf_counter() - start
+    # the first call in a process loads (or compiles) the machine code: say so
+    stats["includes_jit_load"] = not compiled_before
 
     ys = np.ascontiguousarray(ys)
     states = ys[:, :4].copy()

@@ -41,7 +41,7 @@ def _table(traj) -> np.ndarray:
 
 
 def write_trajectory(traj, path: os.PathLike) -> Path:
-    """Write a :class:`~skewpend.integrate.Trajectory` to ``.csv`` or ``.nc`` (NetCDF, xarray).
+    """Write a :class:`~skewpend.integrate.Trajectory` to ``.csv`` or ``.nc`` (NetCDF 3 via xarray).
 
     The file appears only when complete (written to a temporary file, then renamed).
     A trajectory holding non-finite numbers is refused.
@@ -57,7 +57,7 @@ def write_trajectory(traj, path: os.PathLike) -> Path:
         if suffix == ".csv":
             np.savetxt(tmp, table, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.17g")
         else:
-            _to_dataset(traj, table).to_netcdf(tmp, engine="h5netcdf")
+            _to_dataset(traj, table).to_netcdf(tmp, engine="scipy", format="NETCDF3_64BIT")
     return path
 
 
@@ -65,7 +65,7 @@ def _to_dataset(traj, table: np.ndarray):
     try:
         import xarray as xr
     except ImportError:  # pragma: no cover - depends on the installation
-        raise SkewpendError("writing .nc needs xarray and h5netcdf: pip install 'skewpend[netcdf]'") from None
+        raise SkewpendError("writing .nc needs xarray: pip install 'skewpend[netcdf]'") from None
     from . import __version__
 
     data = {name: ("t", table[:, i]) for i, name in enumerate(CSV_COLUMNS) if name != "t"}
@@ -90,7 +90,7 @@ def _to_dataset(traj, table: np.ndarray):
         if value is not None:
             attrs[f"setting_{key}"] = value
     for key, value in traj.stats.items():
-        attrs[f"stat_{key}"] = value
+        attrs[f"stat_{key}"] = int(value) if isinstance(value, bool) else value
     ds.attrs.update(attrs)
     return ds
 
