@@ -8,11 +8,11 @@ The generated module defines, **before** the text of this file is appended to it
     import numpy as np
     import numba as nb
 
-    @nb.njit(cache=True)
+    @nb.njit(cache=True, error_model="numpy")
     def rhs(y, p, out):       # dy/dt of the autonomous ODE y' = F(y; p) into out
         ...
 
-    @nb.njit(cache=True)
+    @nb.njit(cache=True, error_model="numpy")
     def ham_rhs(z, p, out):   # the same, in canonical Hamiltonian variables
         ...
 
@@ -85,7 +85,7 @@ _MAX_FACTOR = 10.0
 _ERR_EXPONENT = -1.0 / 8.0  # the error estimate is O(h^8)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _all_finite(x):
     for i in range(x.shape[0]):
         if not math.isfinite(x[i]):
@@ -93,14 +93,14 @@ def _all_finite(x):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _put_row(a, r, x):
     # an explicit loop: numba's a[r] = x compiles a shape check that costs seconds
     for i in range(x.shape[0]):
         a[r, i] = x[i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _rms(x, scale):
     s = 0.0
     for i in range(x.shape[0]):
@@ -109,7 +109,7 @@ def _rms(x, scale):
     return math.sqrt(s / x.shape[0])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _dop853_step(y, h, p, K, ynew, ytmp):
     """One DOP853 step from y (K[0] = f(y) given): stages K[1:13], ynew; returns nfev."""
     n = y.shape[0]
@@ -129,7 +129,7 @@ def _dop853_step(y, h, p, K, ynew, ytmp):
     return _DOP_NS
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _dop853_error(K, h, y, ynew, rtol, atol):
     """Hairer's combined 5th/3rd-order error norm (inf if anything is non-finite)."""
     n = y.shape[0]
@@ -153,7 +153,7 @@ def _dop853_error(K, h, y, ynew, rtol, atol):
     return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _dop853_dense_coeffs(y, ynew, h, p, K, F, ytmp):
     """The 3 extra stages and the 7 coefficient rows F of the 7th-order interpolant; returns nfev."""
     n = y.shape[0]
@@ -177,7 +177,7 @@ def _dop853_dense_coeffs(y, ynew, h, p, K, F, ytmp):
     return _DOP_A.shape[0] - _DOP_NS - 1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _dop853_dense_eval(y, F, x, out):
     """The interpolant at x = (t - t_old) / h in [0, 1] into out; False if non-finite."""
     n = y.shape[0]
@@ -194,7 +194,7 @@ def _dop853_dense_eval(y, F, x, out):
     return ok
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
     """Adaptive Dormand-Prince 8(5,3) (Hairer's DOP853) for y' = rhs(y, p), t0 -> t_end.
 
@@ -218,6 +218,8 @@ def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
     dense = nout > 0
     if t_end < t0:
         raise ValueError("dop853: t_end must be >= t0")
+    if not (rtol >= 0.0 and atol >= 0.0 and rtol + atol > 0.0):
+        raise ValueError("dop853: rtol and atol must be >= 0, not both 0")
     span = t_end - t0
     slack = 1e-10 * max(span, abs(t_end))
     for k in range(nout):
@@ -389,7 +391,7 @@ def dop853(y0, t0, t_end, p, rtol, atol, h0, max_steps, t_out):
     return ts[:m].copy(), ys[:m].copy(), status, nfev, nacc, nrej
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _n_rows(nsteps, stride):
     rows = nsteps // stride + 1
     if nsteps % stride != 0:
@@ -397,7 +399,7 @@ def _n_rows(nsteps, stride):
     return rows
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def rk4(y0, t0, dt, nsteps, p, stride):
     """Classical fixed-step Runge-Kutta of order 4 for y' = rhs(y, p): nsteps steps of dt.
 
@@ -473,7 +475,7 @@ _GL_A22 = 0.25
 _EPS = 2.220446049250313e-16
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def gauss_legendre(z0, t0, dt, nsteps, p, stride, tol, max_iter):
     """2-stage Gauss-Legendre collocation (order 4, symplectic) for z' = ham_rhs(z, p).
 

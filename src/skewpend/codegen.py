@@ -143,7 +143,7 @@ def _used_names(exprs: Sequence[sp.Expr]) -> set:
 
 
 # -- the compiled kernel module (numba) ---------------------------------------------------------------
-_NJIT = "@nb.njit(cache=True)"
+_NJIT = '@nb.njit(cache=True, error_model="numpy")'
 
 
 def kernel_source(geometry: Parameters) -> str:

@@ -1,0 +1,128 @@
+"""`skewpend simulate | export | validate`: files, configs, overrides, errors (real processes)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+def run(*args, cwd=None, check=True):
+    proc = subprocess.run(
+        [sys.executable, "-m", "skewpend", *map(str, args)], capture_output=True, text=True, timeout=600, cwd=cwd,
+        env={**os.environ},
+    )
+    if check:
+        assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def test_default_run_prints_a_summary():
+    out = run("simulate", "--t-end", "2").stdout
+    assert "reached t_end" in out and "energy drift" in out and "wall time" in out
+
+
+def test_csv_output_columns_and_content(tmp_path):
+    path = tmp_path / "run.csv"
+    run("simulate", "--t-end", "1", "--dt-out", "0.1", "--out", path)
+    header = path.read_text().splitlines()[0]
+    assert header.startswith("t,phi,psi,dphi,dpsi,energy")
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert data.shape == (11, 13) and np.all(np.isfinite(data))
+    np.testing.assert_allclose(data[:, 0], np.linspace(0, 1, 11), atol=1e-12)
+    np.testing.assert_allclose(data[0, 1:5], [1.2, -0.8, 0, 0])
+    assert np.ptp(data[:, 5]) < 1e-8  # energy conserved
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]  # no temporary files left
+
+
+def test_netcdf_output_has_metadata(tmp_path):
+    xr = pytest.importorskip("xarray")
+    path = tmp_path / "run.nc"
+    run("simulate", "--t-end", "1", "--dt-out", "0.5", "--alpha", "30deg", "--out", path)
+    with xr.open_dataset(path, engine="scipy") as ds:
+        assert list(ds["phi"].values.shape) == [3]
+        assert ds.attrs["param_alpha"] == pytest.approx(np.pi / 6)
+        assert ds.attrs["method"] == "dop853" and ds.attrs["skewpend_version"]
+        assert ds["phi"].attrs["units"] == "rad"
+
+
+def test_config_file_and_command_line_override(tmp_path):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(
+        '[parameters]\na = 0.5\nb = 0.5\nm1 = 1\nm2 = 1\nalpha = "90deg"\ng = 9.81\n'
+        '[initial]\nphi0 = "10deg"\npsi0 = 0\n[simulation]\nt_end = 1.0\ndt_out = 0.5\nout = "from_config.csv"\n'
+    )
+    run("simulate", "--config", cfg, cwd=tmp_path)
+    a = np.loadtxt(tmp_path / "from_config.csv", delimiter=",", skiprows=1)
+    run("simulate", "--config", cfg, "--phi0", "20deg", "--out", "override.csv", cwd=tmp_path)
+    b = np.loadtxt(tmp_path / "override.csv", delimiter=",", skiprows=1)
+    assert a[0, 1] == pytest.approx(np.radians(10)) and b[0, 1] == pytest.approx(np.radians(20))
+    # alpha = 90 deg, psi0 = 0, psi' = 0: the second rod stays aligned (decoupled linear motion)
+    assert np.max(np.abs(a[:, 2])) < 1e-3
+
+
+@pytest.mark.parametrize("example", sorted(p.name for p in EXAMPLES.glob("*.toml") if "long" not in p.name))
+def test_examples_run_as_they_are(example, tmp_path):
+    proc = run("simulate", "--config", EXAMPLES / example, "--t-end", "1", cwd=tmp_path)
+    assert "reached t_end" in proc.stdout
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["simulate", "--m1", "-1"], "m1 must be > 0"),
+        (["simulate", "--t-end", "-3"], "t_end must be a positive"),
+        (["simulate", "--phi0", "abc"], "--phi0: expected a number"),
+        (["simulate", "--g", "sym"], "simulation needs numeric values"),
+        (["simulate", "--out", "run.txt"], "--out: expected a file name ending in .csv or .nc"),
+        (["simulate", "--method", "euler"], "--method"),
+        (["simulate", "--method", "rk4", "--dt", "0.003"], "whole number of steps"),
+        (["simulate", "--config", "missing.toml"], "does not exist"),
+        (["export", "--format", "sdf"], "--format"),
+        (["export", "--out", "no/such/dir/model.xml"], "does not exist"),
+    ],
+)
+def test_bad_input_one_line_status_2(args, message, tmp_path):
+    proc = run(*args, cwd=tmp_path, check=False)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("skewpend: error:") and message in lines[0], proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_config_keys(tmp_path):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text("[parameters]\nlength = 1\n")
+    proc = run("simulate", "--config", cfg, check=False)
+    assert proc.returncode == 2 and "unknown key(s) ['length'] in [parameters]" in proc.stderr
+    cfg.write_text("[parameters\n")
+    proc = run("simulate", "--config", cfg, check=False)
+    assert proc.returncode == 2 and "not valid TOML" in proc.stderr
+
+
+def test_failed_run_writes_no_file(tmp_path):
+    proc = run("simulate", "--dphi0", "1e150", "--t-end", "0.01", "--out", "x.csv", cwd=tmp_path, check=False)
+    assert proc.returncode == 1 and "no file written" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_export_writes_a_model_mujoco_loads(tmp_path):
+    mujoco = pytest.importorskip("mujoco")
+    path = tmp_path / "model.xml"
+    run("export", "--format", "mjcf", "--out", path, "--alpha", "20deg", "--m2", "0.5")
+    model = mujoco.MjModel.from_xml_path(str(path))
+    assert model.nq == 2 and model.body_mass[2] == pytest.approx(0.5)
+    urdf = run("export", "--format", "urdf").stdout
+    assert urdf.lstrip().startswith("<?xml") or "<robot" in urdf
+
+
+def test_validate_agrees_with_mujoco():
+    pytest.importorskip("mujoco")
+    out = run("validate", "--alpha", "50deg", "--phi0", "1.0", "--psi0", "0.5", "--t-end", "1").stdout
+    assert "AGREE within 1e-06" in out
