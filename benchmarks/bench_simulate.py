@@ -1,0 +1,109 @@
+"""Simulation speed and accuracy: skewpend against SciPy and MuJoCo, side by side in one run.
+
+Case (issue 3): a=1, b=0.8, m1=1, m2=0.7, alpha=0.6, g=9.81, y0=(1.2, -0.8, 0, 0),
+20 s of motion, warm (compiled code loaded before timing), in process.
+
+* skewpend dop853 at rtol = atol = 1e-10 (the default), own steps;
+* skewpend rk4, dt = 1e-3 (compiled fixed step) and gauss (symplectic), dt = 1e-3;
+* SciPy ``solve_ivp(method="DOP853", rtol=atol=1e-10)`` on skewpend's generated
+  standalone Python right-hand side (math/NumPy scalar code, no compilation);
+* MuJoCo, the exported MJCF, RK4 at dt = 1e-3 (stepping only; model compiled before).
+
+The error is the max-norm state error at t = 5 s against SciPy DOP853 at rtol = atol = 1e-13.
+(For MuJoCo the thin rods carry the tiny axial inertia it needs; its reference uses the same.)
+
+Run:  python benchmarks/bench_simulate.py [--repeat 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from skewpend import Parameters, simulate
+from skewpend.codegen import generate, parameter_vector
+
+P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+Y0 = np.array([1.2, -0.8, 0.0, 0.0])
+T_END, T_ERR = 20.0, 5.0
+
+
+def best_of(fn, repeat):
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), float(np.median(times)), result
+
+
+def scipy_rhs(params):
+    ns: dict = {}
+    exec(generate(params, "python"), ns)
+    return ns["rhs"], parameter_vector(params).tolist()
+
+
+def reference(params, t):
+    rhs, p = scipy_rhs(params)
+    sol = solve_ivp(rhs, (0, t), Y0, method="DOP853", rtol=1e-13, atol=1e-13, args=(p,))
+    return sol.y[:, -1]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeat", type=int, default=7)
+    args = ap.parse_args()
+    rows = []
+    ref5 = reference(P, T_ERR)
+
+    # skewpend (warm-up loads or compiles the machine code)
+    for method, kw in (("dop853", {}), ("rk4", {"dt": 1e-3}), ("gauss", {"dt": 1e-3})):
+        simulate(P, Y0, 1.0, method=method, **kw)
+        best, med, tr = best_of(lambda: simulate(P, Y0, T_END, method=method, **kw), args.repeat)
+        err = np.max(np.abs(simulate(P, Y0, T_ERR, method=method, **kw).y[-1] - ref5))
+        label = f"skewpend {method}" + (" rtol=atol=1e-10" if method == "dop853" else " dt=1e-3")
+        rows.append((label, best, med, err, tr.stats["steps"]))
+
+    # SciPy DOP853 with the generated (uncompiled) Python right-hand side
+    rhs, p = scipy_rhs(P)
+    best, med, sol = best_of(
+        lambda: solve_ivp(rhs, (0, T_END), Y0, method="DOP853", rtol=1e-10, atol=1e-10, args=(p,)), max(1, args.repeat // 3)
+    )
+    sol5 = solve_ivp(rhs, (0, T_ERR), Y0, method="DOP853", rtol=1e-10, atol=1e-10, args=(p,))
+    rows.append(("scipy solve_ivp DOP853 1e-10", best, med, np.max(np.abs(sol5.y[:, -1] - ref5)), sol.t.size - 1))
+
+    # MuJoCo RK4 dt = 1e-3
+    try:
+        import mujoco
+
+        from skewpend.export import mujoco_compatible, to_mjcf
+
+        same = mujoco_compatible(P)
+        model = mujoco.MjModel.from_xml_string(to_mjcf(P, timestep=1e-3))
+        data = mujoco.MjData(model)
+
+        def run_mujoco(t_end):
+            mujoco.mj_resetData(model, data)
+            data.qpos[:] = Y0[:2]
+            data.qvel[:] = Y0[2:]
+            mujoco.mj_step(model, data, nstep=int(round(t_end / 1e-3)))
+            return np.concatenate([data.qpos, data.qvel])
+
+        best, med, _ = best_of(lambda: run_mujoco(T_END), args.repeat)
+        err = np.max(np.abs(run_mujoco(T_ERR) - reference(same, T_ERR)))
+        rows.append((f"MuJoCo {mujoco.__version__} RK4 dt=1e-3", best, med, err, int(round(T_END / 1e-3))))
+    except ImportError:
+        print("(mujoco not installed: pip install 'skewpend[validate]')")
+
+    base = rows[0][2]
+    print(f"20 s of motion, warm; best and median of {args.repeat} runs; error = max |y(5 s) - reference|")
+    print(f"{'method':36s} {'best ms':>9s} {'median ms':>10s} {'error@5s':>10s} {'steps':>7s} {'median / skewpend dop853':>25s}")
+    for name, best, med, err, steps in rows:
+        print(f"{name:36s} {best * 1e3:9.2f} {med * 1e3:10.2f} {err:10.1e} {steps:7d} {med / base:25.1f}")
+
+
+if __name__ == "__main__":
+    main()
