@@ -22,6 +22,10 @@ _LAZY = {
     "LinearEquations": "derivation",
     "simulate": "integrate",
     "Trajectory": "integrate",
+    "normal_modes": "modes",
+    "Modes": "modes",
+    "sweep": "modes",
+    "characteristic_equation": "modes",
 }
 
 __all__ = [
@@ -31,6 +35,10 @@ __all__ = [
     "LinearEquations",
     "simulate",
     "Trajectory",
+    "normal_modes",
+    "Modes",
+    "sweep",
+    "characteristic_equation",
     "SkewpendError",
     "ParameterError",
     "NotNumericError",
@@ -42,6 +50,7 @@ __all__ = [
 if TYPE_CHECKING:  # pragma: no cover
     from .derivation import EquationsOfMotion, LinearEquations, derive
     from .integrate import Trajectory, simulate
+    from .modes import Modes, characteristic_equation, normal_modes, sweep
 
 
 def __getattr__(name: str) -> Any:

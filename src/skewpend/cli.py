@@ -7,13 +7,11 @@ stderr with exit status 2.
 
 from __future__ import annotations
 
-import math
 import sys
 from enum import Enum
-from typing import List, Optional
+from typing import Annotated, List, Optional
 
 import typer
-from typing_extensions import Annotated
 
 from .errors import SkewpendError
 
@@ -44,63 +42,7 @@ def _root(
     """The double pendulum with skewed hinge axes (see the README for the model)."""
 
 
-class UsageError(SkewpendError):
-    """A malformed command-line value."""
-
-
-# -- parsing of values --------------------------------------------------------------------------
-_SYMBOLIC = ("sym", "symbolic")
-
-
-def parse_scalar(text: Optional[str], option: str, *, angle: bool = False) -> Optional[float]:
-    """A number; for angles radians or a ``deg`` suffix; ``sym`` leaves it symbolic (None)."""
-    if text is None:
-        return None
-    t = text.strip().lower()
-    if t in _SYMBOLIC:
-        return None
-    scale = 1.0
-    if angle:
-        for suffix in ("deg", "°"):
-            if t.endswith(suffix):
-                t, scale = t[: -len(suffix)].strip(), math.pi / 180
-                break
-    try:
-        value = float(t)
-    except ValueError:
-        allowed = "a number in radians or with a deg suffix (e.g. 30deg)" if angle else "a number"
-        raise UsageError(f"{option}: expected {allowed}, or 'sym' for symbolic; got {text!r}") from None
-    if not math.isfinite(value):
-        raise UsageError(f"{option}: expected a finite number, got {text!r}")
-    return value * scale
-
-
-def parse_vector(text: Optional[str], option: str, sizes=(3,)) -> Optional[List[float]]:
-    """Comma-separated numbers, e.g. ``0,0.4,0``."""
-    if text is None:
-        return None
-    try:
-        values = [float(x) for x in text.replace(" ", "").split(",") if x != ""]
-    except ValueError:
-        raise UsageError(f"{option}: expected {' or '.join(map(str, sizes))} comma-separated numbers, got {text!r}") from None
-    if len(values) not in sizes:
-        raise UsageError(f"{option}: expected {' or '.join(map(str, sizes))} comma-separated numbers, got {len(values)}")
-    if not all(math.isfinite(v) for v in values):
-        raise UsageError(f"{option}: expected finite numbers, got {text!r}")
-    return values
-
-
-def parse_inertia(text: Optional[str], option: str):
-    """``Ixx,Iyy,Izz`` (principal, body axes) or ``Ixx,Iyy,Izz,Ixy,Ixz,Iyz`` or 9 entries."""
-    v = parse_vector(text, option, sizes=(3, 6, 9))
-    if v is None:
-        return None
-    if len(v) == 3:
-        return [[v[0], 0, 0], [0, v[1], 0], [0, 0, v[2]]]
-    if len(v) == 6:
-        xx, yy, zz, xy, xz, yz = v
-        return [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
-    return [v[0:3], v[3:6], v[6:9]]
+from .parsing import UsageError, parse_inertia, parse_scalar, parse_vector  # noqa: E402
 
 
 # -- shared options -----------------------------------------------------------------------------------
@@ -436,6 +378,171 @@ def validate(
     sys.stdout.write("\n".join(lines) + "\n")
     if not ok:
         sys.exit(1)
+
+
+class ModesFormat(str, Enum):
+    text = "text"
+    json = "json"
+    latex = "latex"
+
+
+@app.command()
+def modes(
+    a: A = None,
+    b: B = None,
+    m1: M1 = None,
+    m2: M2 = None,
+    alpha: ALPHA = None,
+    g: GRAV = None,
+    c1: C1R = None,
+    c2: C2R = None,
+    com1: COM1 = None,
+    com2: COM2 = None,
+    inertia1: IN1 = None,
+    inertia2: IN2 = None,
+    axis1: AX1 = None,
+    axis2: AX2 = None,
+    fmt: Annotated[ModesFormat, typer.Option("--format", "-f", help="text, json, or latex (the closed-form characteristic equation in the parameters not given)")] = ModesFormat.text,
+    sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1 (e.g. alpha=0:180deg:181)")] = None,
+    plot: Annotated[Optional[str], typer.Option("--plot", help="with --sweep: write the frequency curves to FILE (.png, .pdf, .svg)")] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="with --sweep: write the table to FILE (.csv or .json)")] = None,
+    tolerance: Annotated[str, typer.Option("--tolerance", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3")] = "0.01",
+    check_nonlinear: Annotated[Optional[str], typer.Option("--check-nonlinear", help="AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode")] = None,
+    config: CONFIG = None,
+) -> None:
+    """Normal modes of the small oscillations about the hanging equilibrium (and how alpha shapes them)."""
+    given = dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2,
+                 com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2)
+    if fmt is ModesFormat.latex:
+        _modes_latex(given)
+        return
+    from . import modes as md
+
+    params, _, _ = _resolve(config, given, {}, {})
+    if sweep_spec is not None:
+        _modes_sweep(params, sweep_spec, plot, out, parse_scalar(tolerance, "--tolerance"), fmt)
+        return
+    if plot is not None or out is not None:
+        raise UsageError("--plot and --out go with --sweep")
+    result = md.normal_modes(params)
+    check = None
+    if check_nonlinear is not None:
+        amplitude = parse_scalar(check_nonlinear, "--check-nonlinear", angle=True)
+        if amplitude is None:
+            raise UsageError("--check-nonlinear needs a number (radians, or e.g. 10deg)")
+        check = md.check_nonlinear(params, amplitude)
+    if fmt is ModesFormat.json:
+        import json
+
+        data = result.to_dict()
+        if check is not None:
+            data["nonlinear_check"] = {
+                "amplitude": check.amplitude,
+                "measured_frequencies": check.measured.tolist(),
+                "relative_shift": check.relative_shift.tolist(),
+            }
+        sys.stdout.write(json.dumps(data, indent=2) + "\n")
+        return
+    sys.stdout.write(_modes_text(result, check))
+
+
+def _modes_text(m, check) -> str:
+    import numpy as np
+
+    lines = ["Normal modes about the hanging equilibrium (phi = psi = 0)", ""]
+    lines.append(f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  {'shape (phi, psi), M0-normalised':>34}  {'psi/phi':>9}")
+    for k in range(2):
+        v = m.shapes[:, k]
+        ratio = "inf" if not np.isfinite(m.ratios[k]) else f"{m.ratios[k]:.5g}"
+        lines.append(
+            f"{k + 1:>4}  {m.frequencies[k]:14.8g}  {m.frequencies[k] / (2 * np.pi):10.6g}  {m.periods[k]:11.6g}  "
+            f"{f'({v[0]:+.6f}, {v[1]:+.6f})':>34}  {ratio:>9}"
+        )
+    beat = "inf (1:1)" if not np.isfinite(m.beat_period) else f"{m.beat_period:.6g} s"
+    lines.append(f"beat period 2 pi/(w2 - w1) = {beat};  w2/w1 = {m.frequencies[1] / m.frequencies[0]:.6g}")
+    if np.any(m.C != 0):
+        lines.append("with damping: " + ";  ".join(
+            f"mode {k + 1}: lambda = {m.eigenvalues[k].real:.6g} {'+' if m.eigenvalues[k].imag >= 0 else '-'} {abs(m.eigenvalues[k].imag):.6g} i, "
+            f"damped omega = {m.damped_frequencies[k]:.6g} rad/s, zeta = {m.damping_ratios[k]:.4g}"
+            for k in range(2)))
+    if check is not None:
+        lines.append("")
+        lines.append(f"nonlinear check, largest initial angle {check.amplitude:.6g} rad ({np.degrees(check.amplitude):.4g} deg):")
+        for k in range(2):
+            lines.append(
+                f"  mode {k + 1}: linear {check.linear[k]:.8g} rad/s, measured {check.measured[k]:.8g} rad/s "
+                f"over {check.cycles[k]} cycles, shift {check.relative_shift[k]:+.3e}"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def _modes_latex(given: dict) -> None:
+    from .modes import characteristic_equation
+    from .render import _tex
+
+    t = {k: _as_text(v) for k, v in given.items()}
+    params = build_parameters(
+        t["a"], t["b"], t["m1"], t["m2"], t["alpha"], t["g"], t["c1"] or "0", t["c2"] or "0", "0", "0",
+        t["com1"], t["com2"], t["inertia1"], t["inertia2"], t["axis1"], t["axis2"],
+    )
+    eq, roots = characteristic_equation(params)
+    body = [
+        r"\det\left(K_0 - \omega^2 M_0\right) = 0 \;\Longleftrightarrow\; " + _tex(eq.lhs) + " &= 0",
+        r"\omega_1^2 &= " + _tex(roots[0]),
+        r"\omega_2^2 &= " + _tex(roots[1]),
+    ]
+    sys.stdout.write("\\[\n\\begin{aligned}\n" + " \\\\\n".join(body) + "\n\\end{aligned}\n\\]\n")
+
+
+def _modes_sweep(params, spec, plot, out, tolerance, fmt) -> None:
+    import numpy as np
+
+    from . import modes as md
+
+    name, values = md.parse_sweep(spec)
+    if out is not None and not str(out).lower().endswith((".csv", ".json")):
+        raise UsageError(f"--out: expected a file name ending in .csv or .json, got {out!r}")
+    if plot is not None and not str(plot).lower().endswith((".png", ".pdf", ".svg")):
+        raise UsageError(f"--plot: expected a file name ending in .png, .pdf or .svg, got {plot!r}")
+    sw = md.sweep(params, name, values, tolerance=tolerance)
+    if out is not None:
+        from .io import atomic_path
+
+        with atomic_path(out) as tmp:
+            if str(out).lower().endswith(".csv"):
+                cols, rows = sw.table()
+                np.savetxt(tmp, rows, delimiter=",", header=",".join(cols), comments="", fmt="%.17g")
+            else:
+                import json
+
+                tmp.write_text(json.dumps(sw.to_dict(), indent=2) + "\n")
+    if plot is not None:
+        from .plots import plot_sweep, save_figure
+
+        save_figure(plot_sweep(sw), plot)
+    if fmt is ModesFormat.json and out is None:
+        import json
+
+        sys.stdout.write(json.dumps(sw.to_dict(), indent=2) + "\n")
+        return
+    show = (lambda v: f"{np.degrees(v):.4g} deg") if name == "alpha" else (lambda v: f"{v:.6g}")
+    lines = [
+        f"swept {name} over {show(values[0])} .. {show(values[-1])} ({values.size} values)",
+        f"omega1: {sw.frequencies[:, 0].min():.6g} .. {sw.frequencies[:, 0].max():.6g} rad/s;  "
+        f"omega2: {sw.frequencies[:, 1].min():.6g} .. {sw.frequencies[:, 1].max():.6g} rad/s;  "
+        f"w2/w1: {sw.frequency_ratio.min():.6g} .. {sw.frequency_ratio.max():.6g}",
+    ]
+    if sw.resonances:
+        lines.append(f"internal resonances (w2/w1 within {tolerance:g}*n of n):")
+        for r in sw.resonances:
+            how = "crossed at" if r.crossed else f"closest ({r.ratio:.5g}) at"
+            lines.append(f"  {r.order}:1  {how} {name} = {show(r.value)}")
+    else:
+        lines.append(f"no internal resonance 1:1, 2:1, 3:1 within {tolerance:g}*n")
+    for what, path in (("table", out), ("plot", plot)):
+        if path is not None:
+            lines.append(f"wrote {what} {path}")
+    sys.stdout.write("\n".join(lines) + "\n")
 
 
 def _summary(traj, out_path) -> None:

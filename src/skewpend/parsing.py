@@ -1,0 +1,72 @@
+"""Values as users type them: numbers, angles with a ``deg`` suffix, vectors, inertia tensors.
+
+Shared by the command line, configuration files and sweep specifications.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import List, Optional
+
+from .errors import ParameterError
+
+__all__ = ["UsageError", "parse_scalar", "parse_vector", "parse_inertia"]
+
+
+class UsageError(ParameterError):
+    """A malformed command-line or configuration value."""
+
+
+# -- parsing of values --------------------------------------------------------------------------
+_SYMBOLIC = ("sym", "symbolic")
+
+
+def parse_scalar(text: Optional[str], option: str, *, angle: bool = False) -> Optional[float]:
+    """A number; for angles radians or a ``deg`` suffix; ``sym`` leaves it symbolic (None)."""
+    if text is None:
+        return None
+    t = text.strip().lower()
+    if t in _SYMBOLIC:
+        return None
+    scale = 1.0
+    if angle:
+        for suffix in ("deg", "°"):
+            if t.endswith(suffix):
+                t, scale = t[: -len(suffix)].strip(), math.pi / 180
+                break
+    try:
+        value = float(t)
+    except ValueError:
+        allowed = "a number in radians or with a deg suffix (e.g. 30deg)" if angle else "a number"
+        raise UsageError(f"{option}: expected {allowed}, or 'sym' for symbolic; got {text!r}") from None
+    if not math.isfinite(value):
+        raise UsageError(f"{option}: expected a finite number, got {text!r}")
+    return value * scale
+
+
+def parse_vector(text: Optional[str], option: str, sizes=(3,)) -> Optional[List[float]]:
+    """Comma-separated numbers, e.g. ``0,0.4,0``."""
+    if text is None:
+        return None
+    try:
+        values = [float(x) for x in text.replace(" ", "").split(",") if x != ""]
+    except ValueError:
+        raise UsageError(f"{option}: expected {' or '.join(map(str, sizes))} comma-separated numbers, got {text!r}") from None
+    if len(values) not in sizes:
+        raise UsageError(f"{option}: expected {' or '.join(map(str, sizes))} comma-separated numbers, got {len(values)}")
+    if not all(math.isfinite(v) for v in values):
+        raise UsageError(f"{option}: expected finite numbers, got {text!r}")
+    return values
+
+
+def parse_inertia(text: Optional[str], option: str):
+    """``Ixx,Iyy,Izz`` (principal, body axes) or ``Ixx,Iyy,Izz,Ixy,Ixz,Iyz`` or 9 entries."""
+    v = parse_vector(text, option, sizes=(3, 6, 9))
+    if v is None:
+        return None
+    if len(v) == 3:
+        return [[v[0], 0, 0], [0, v[1], 0], [0, 0, v[2]]]
+    if len(v) == 6:
+        xx, yy, zz, xy, xz, yz = v
+        return [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
+    return [v[0:3], v[3:6], v[6:9]]
