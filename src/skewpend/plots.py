@@ -30,8 +30,8 @@ def plot_sweep(sw, *, title: Optional[str] = None):
     """Frequencies and mode-shape directions along a :class:`~skewpend.modes.Sweep`.
 
     Top: ``w1, w2`` [rad/s] against the swept variable (degrees for alpha), internal
-    resonances marked.  Bottom: the direction of each mode shape in the (phi, psi) plane,
-    ``atan2(psi, phi)`` [deg], which shows how the modes turn (veering) without the
+    resonances marked.  Bottom: the direction of each mode shape in the (phi, psi) plane
+    [deg] (modulo 180, unwrapped), which shows how the modes turn at a veering without the
     infinite ``psi/phi`` ratios of a mode where phi stands still.
     """
     plt = _pyplot()
@@ -47,10 +47,12 @@ def plot_sweep(sw, *, title: Optional[str] = None):
     ax1.set_ylabel("natural frequency [rad/s]")
     ax1.legend(loc="best")
     ax1.grid(alpha=0.3)
+    # a mode shape is a direction: defined modulo 180 deg; unwrap to continuous curves
     angle = np.degrees(np.arctan2(sw.shapes[:, 1, :], sw.shapes[:, 0, :]))
+    angle = np.unwrap((angle + 90.0) % 180.0 - 90.0, period=180.0, axis=0)
     ax2.plot(x, angle[:, 0], color="tab:blue", label="mode 1")
     ax2.plot(x, angle[:, 1], color="tab:red", label="mode 2")
-    ax2.set_ylabel("mode direction atan2(ψ, φ) [deg]")
+    ax2.set_ylabel("mode direction in the (φ, ψ) plane [deg]")
     ax2.set_xlabel(xlabel)
     ax2.legend(loc="best")
     ax2.grid(alpha=0.3)
