@@ -189,6 +189,16 @@ DPSI0 = Annotated[Optional[str], typer.Option("--dpsi0", help="initial dpsi/dt [
 CONFIG = Annotated[Optional[str], typer.Option("--config", help="TOML file with [parameters], [initial], [simulation]; options override it", rich_help_panel=_R)]
 
 
+#: The model options shared by simulate, export, validate and modes (their parameter names).
+PARAMETER_OPTIONS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2",
+                     "com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
+
+
+def _pick(namespace: dict, names) -> dict:
+    """The command's values of ``names`` that exist in its signature."""
+    return {k: namespace[k] for k in names if k in namespace}
+
+
 def _resolve(config: Optional[str], parameters: dict, initial: dict, simulation: dict):
     """Numeric parameters, initial state and run settings: built-in defaults, then the
     config file, then command-line options."""
@@ -257,9 +267,8 @@ def simulate(
     """Simulate the nonlinear equations of motion; print a summary or write a trajectory file."""
     params, y0, S = _resolve(
         config,
-        dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2,
-             com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2),
-        dict(phi0=phi0, psi0=psi0, dphi0=dphi0, dpsi0=dpsi0),
+        _pick(locals(), PARAMETER_OPTIONS),
+        _pick(locals(), ("phi0", "psi0", "dphi0", "dpsi0")),
         dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt, out=out),
     )
     method_name = str(S.get("method", "dop853"))
@@ -318,8 +327,7 @@ def export(
 
     params, _, _ = _resolve(
         config,
-        dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2,
-             com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2),
+        _pick(locals(), PARAMETER_OPTIONS),
         {}, {},
     )
     if out is None:
@@ -361,9 +369,8 @@ def validate(
 
     params, y0, _ = _resolve(
         config,
-        dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2,
-             com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2),
-        dict(phi0=phi0, psi0=psi0, dphi0=dphi0, dpsi0=dpsi0),
+        _pick(locals(), PARAMETER_OPTIONS),
+        _pick(locals(), ("phi0", "psi0", "dphi0", "dpsi0")),
         {},
     )
     tolerance = parse_scalar(tol, "--tol")
@@ -411,8 +418,7 @@ def modes(
     config: CONFIG = None,
 ) -> None:
     """Normal modes of the small oscillations about the hanging equilibrium (and how alpha shapes them)."""
-    given = dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2,
-                 com1=com1, com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2)
+    given = _pick(locals(), PARAMETER_OPTIONS)
     if fmt is ModesFormat.latex:
         _modes_latex(given)
         return

@@ -51,6 +51,7 @@ from typing import Optional, Sequence, Tuple, Union
 
 from .errors import IntegrationError, ParameterError, SkewpendError
 from .model import Parameters
+from .parsing import initial_state, positive_number
 
 __all__ = [
     "FORMATS",
@@ -101,18 +102,6 @@ def _comment(text: str) -> str:
     while "--" in text:
         text = text.replace("--", "- -")
     return text
-
-
-def _positive(name: str, value, *, allow_none: bool = False) -> Optional[float]:
-    if value is None and allow_none:
-        return None
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a positive number, got {value!r}") from None
-    if isinstance(value, bool) or not math.isfinite(x) or not x > 0:
-        raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
-    return x
 
 
 def _integrator(name: str) -> str:
@@ -180,7 +169,7 @@ def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None)
     skewpend with MuJoCo.  Idempotent for the default ``axial_inertia``.
     """
     params.require_numeric("export")
-    eps = _positive("axial_inertia", axial_inertia, allow_none=True)
+    eps = positive_number("axial_inertia", axial_inertia, allow_none=True)
     a, b, m1, m2 = (float(getattr(params, n)) for n in ("a", "b", "m1", "m2"))
     eps1 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m1 * a * a, AXIAL_INERTIA_FLOOR)
     eps2 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m2 * b * b, AXIAL_INERTIA_FLOOR)
@@ -250,7 +239,7 @@ def to_mjcf(
     ``timestep``, ``integrator`` or ``axial_inertia``.
     """
     p = mujoco_compatible(params, axial_inertia)
-    timestep = _positive("timestep", timestep)
+    timestep = positive_number("timestep", timestep)
     integrator = _integrator(integrator)
     axis1, axis2 = _axes(p)
     a, b = float(p.a), float(p.b)
@@ -476,14 +465,9 @@ def mujoco_trajectory(
     import numpy as np
 
     params.require_numeric("export")
-    try:
-        y = np.array(y0, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y0!r}") from None
-    if y.shape != (4,) or not np.all(np.isfinite(y)):
-        raise ParameterError(f"y0 must be 4 finite numbers (phi, psi, dphi, dpsi), got {y0!r}")
-    t_end = _positive("t_end", t_end)
-    dt = _positive("dt", dt)
+    y = initial_state(y0)
+    t_end = positive_number("t_end", t_end)
+    dt = positive_number("dt", dt)
     integrator = _integrator(integrator)
     nsteps = int(round(t_end / dt))
     if nsteps < 1 or abs(nsteps * dt - t_end) > 1e-9 * t_end:

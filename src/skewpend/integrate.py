@@ -25,6 +25,7 @@ import numpy as np
 
 from .errors import IntegrationError, ParameterError
 from .model import Parameters
+from .parsing import initial_state, positive_number
 
 __all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES"]
 
@@ -83,30 +84,6 @@ class Trajectory:
         return self._kernel.tips_many(self.y, parameter_vector(self.params))
 
 
-def _check_positive(name: str, value: Any, allow_none: bool = False) -> Optional[float]:
-    if value is None and allow_none:
-        return None
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(x) and x > 0):
-        raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
-    return x
-
-
-def _initial_state(y0: Sequence[float]) -> np.ndarray:
-    try:
-        y = np.asarray(y0, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y0!r}") from None
-    if y.shape != (4,):
-        raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y.size}")
-    if not np.all(np.isfinite(y)):
-        raise ParameterError(f"y0 must be finite, got {y.tolist()}")
-    return y
-
-
 def simulate(
     params: Parameters,
     y0: Sequence[float],
@@ -134,9 +111,9 @@ def simulate(
     from .compiled import kernel_module, parameter_vector
 
     params.require_numeric("simulation")
-    y = _initial_state(y0)
-    t_end = _check_positive("t_end", t_end)
-    dt_out = _check_positive("dt_out", dt_out, allow_none=True)
+    y = initial_state(y0)
+    t_end = positive_number("t_end", t_end)
+    dt_out = positive_number("dt_out", dt_out, allow_none=True)
     if method not in METHODS:
         raise ParameterError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
     if dt_out is not None and dt_out > t_end:
@@ -156,8 +133,8 @@ def simulate(
     compiled_before = bool(routine.signatures)
     start = time.perf_counter()
     if method == "dop853":
-        rtol = _check_positive("rtol", rtol)
-        atol = _check_positive("atol", atol)
+        rtol = positive_number("rtol", rtol)
+        atol = positive_number("atol", atol)
         settings.update(rtol=rtol, atol=atol)
         if dt_out is None:
             t_out = np.empty(0)
@@ -167,7 +144,7 @@ def simulate(
         ts, ys, status, nfev, nacc, nrej = kernel.dop853(y5, 0.0, t_end, p, rtol, atol, 0.0, int(max_steps), t_out)
         stats = {"nfev": int(nfev), "steps": int(nacc), "rejected": int(nrej)}
     else:
-        step = 1e-3 if dt is None else _check_positive("dt", dt)
+        step = 1e-3 if dt is None else positive_number("dt", dt)
         nsteps = int(round(t_end / step))
         if abs(nsteps * step - t_end) > 1e-9 * t_end:
             raise ParameterError(f"t_end ({t_end:g}) must be a whole number of steps dt ({step:g})")

@@ -6,11 +6,11 @@ Shared by the command line, configuration files and sweep specifications.
 from __future__ import annotations
 
 import math
-from typing import List, Optional
+from typing import Any, List, Optional, Sequence
 
 from .errors import ParameterError
 
-__all__ = ["UsageError", "parse_scalar", "parse_vector", "parse_inertia"]
+__all__ = ["UsageError", "parse_scalar", "parse_vector", "parse_inertia", "positive_number", "initial_state"]
 
 
 class UsageError(ParameterError):
@@ -70,3 +70,31 @@ def parse_inertia(text: Optional[str], option: str):
         xx, yy, zz, xy, xz, yz = v
         return [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
     return [v[0:3], v[3:6], v[6:9]]
+
+
+def positive_number(name: str, value: Any, *, allow_none: bool = False) -> Optional[float]:
+    """``value`` as a positive finite float (``None`` passes through with ``allow_none``)."""
+    if value is None and allow_none:
+        return None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a positive number, got {value!r}") from None
+    if isinstance(value, bool) or not math.isfinite(x) or not x > 0:
+        raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+    return x
+
+
+def initial_state(y0: Sequence[float]):
+    """``y0 = (phi, psi, dphi, dpsi)`` as a finite float array of shape (4,)."""
+    import numpy as np
+
+    try:
+        y = np.asarray(y0, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y0!r}") from None
+    if y.shape != (4,):
+        raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y.size}")
+    if not np.all(np.isfinite(y)):
+        raise ParameterError(f"y0 must be finite, got {y.tolist()}")
+    return y
