@@ -15,7 +15,7 @@ import pytest
 import sympy as sp
 from scipy.spatial.transform import Rotation
 
-from skewpend import EquilibriumError, Parameters, derive
+from skewpend import EquilibriumError, ParameterError, Parameters, derive
 from skewpend.derivation import SYMBOLS as S
 
 a, b, m1, m2, g, alpha = (S[n] for n in ("a", "b", "m1", "m2", "g", "alpha"))
@@ -296,3 +296,53 @@ def test_linearize_refuses_a_non_equilibrium():
 def test_damping_enters_linearisation():
     lin = derive(Parameters(c1=0.2, c2=None)).linearize()
     assert lin.C == sp.diag(sp.Rational(1, 5), S["c2"])
+
+
+# -- 8. symbolic bodies and axes ---------------------------------------------------------------------
+def _values_equal(e1, e2, subs, n=5, seed=13):
+    """M and f of two derivations agree at random states after substituting ``subs`` into e1."""
+    f1 = _numeric([e1.mass_matrix.subs(subs), e1.forcing.subs(subs)], ())
+    f2 = _numeric([e2.mass_matrix, e2.forcing], ())
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        y = rng.uniform(-3, 3, 4)
+        for x1, x2 in zip(f1(*y), f2(*y)):
+            np.testing.assert_allclose(np.array(x1, float), np.array(x2, float), rtol=1e-11, atol=1e-11)
+
+
+def test_symbolic_inertia_and_centre_of_mass_substitute_to_the_numeric_model():
+    base = dict(a=0.9, b=0.7, m1=1.3, m2=0.6, alpha=0.4, g=9.81)
+    I2 = ((0.03, 0.002, -0.001), (0.002, 0.005, 0.0015), (-0.001, 0.0015, 0.031))
+    com2 = (0.02, 0.33, -0.01)
+    sym = derive(Parameters(**base, inertia2="sym", com2=(0, "d", "w")).replace(com2=("u", "d", "w")))
+    assert set(sym.parameter_names) == {"u", "d", "w", "I2xx", "I2xy", "I2xz", "I2yy", "I2yz", "I2zz"}
+    num = derive(Parameters(**base, inertia2=I2, com2=com2))
+    names = {"I2xx": I2[0][0], "I2xy": I2[0][1], "I2xz": I2[0][2], "I2yy": I2[1][1], "I2yz": I2[1][2], "I2zz": I2[2][2],
+             "u": com2[0], "d": com2[1], "w": com2[2]}
+    _values_equal(sym, num, {sp.Symbol(k, real=True): v for k, v in names.items()})
+
+
+def test_symbolic_unit_axis_is_the_skew_angle_model():
+    """axis2 = (sa, 0, ca) with sa^2 + ca^2 = 1 reproduces e0 = cos(alpha) k + sin(alpha) i."""
+    e = derive(Parameters(axis2=("sa", 0, "ca")))
+    sa, ca = sp.Symbol("sa", real=True), sp.Symbol("ca", real=True)
+    back = {sa: sp.sin(alpha), ca: sp.cos(alpha)}
+    ref = derive()
+    assert sp.simplify(e.mass_matrix.subs(back) - ref.mass_matrix) == sp.zeros(2, 2)
+    assert sp.simplify(e.forcing.subs(back) - ref.forcing) == sp.zeros(2, 1)
+    # the relation was used: no power of sa above one survives in M11
+    assert sp.degree(sp.expand(e.mass_matrix[0, 0]), sa) <= 2 and not e.mass_matrix[0, 0].has(ca)
+
+
+def test_symbolic_geometry_is_refused_where_numbers_are_needed():
+    from skewpend import NotNumericError, simulate
+
+    p = Parameters(a=1, b=1, m1=1, m2=1, alpha=0.3, g=9.81, com2=(0, "d", 0))
+    with pytest.raises(NotNumericError, match="symbolic: d"):
+        simulate(p, (0.1, 0, 0, 0), 1.0)
+    with pytest.raises(ParameterError, match="symbol name"):
+        Parameters(com2=(0, "phi", 0))
+    with pytest.raises(ParameterError, match="own name"):
+        Parameters(axis2=("b", 0, "c"))
+    with pytest.raises(ParameterError, match="symmetric"):
+        Parameters(inertia2=(("A", "B", 0), (0, "C", 0), (0, 0, "D")))

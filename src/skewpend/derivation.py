@@ -30,7 +30,7 @@ import sympy as sp
 
 from .errors import EquilibriumError
 from .kinematics import Algebra, Relation, floats_for_long_rationals
-from .model import SCALAR_NAMES, Parameters
+from .model import GEOMETRY_NAMES, SCALAR_NAMES, Parameters
 
 __all__ = ["derive", "EquationsOfMotion", "LinearEquations", "SYMBOLS"]
 
@@ -223,9 +223,25 @@ class _Context:
         # Rodrigues products stay exact although |v| is 1 only to rounding.
         axis_dirs: Dict[str, List[sp.Rational]] = {}
         fixed_names: List[Tuple[str, sp.Rational]] = []
+        # symbol names used in the bodies and axes (a scalar parameter's name means that parameter)
+        geometry_symbols: List[str] = []
+        for name in GEOMETRY_NAMES:
+            value = getattr(params, name)
+            if value is None:
+                continue
+            for x in (e for row in value for e in (row if isinstance(row, tuple) else (row,))):
+                if isinstance(x, str) and x not in SCALAR_NAMES and x not in geometry_symbols:
+                    geometry_symbols.append(x)
+        gens += [sp.Symbol(n, real=True) for n in geometry_symbols]
+        symbolic_axes: List[Tuple[str, Tuple[str, ...], sp.Rational]] = []
         for name in ("axis1", "axis2"):
             vec = getattr(params, name)
             if vec is None:
+                continue
+            if any(isinstance(x, str) for x in vec):  # a symbolic unit axis: sum of squares = 1
+                names = tuple(x for x in vec if isinstance(x, str))
+                offset = sum((_number(x) ** 2 for x in vec if not isinstance(x, str)), sp.Integer(0))
+                symbolic_axes.append((name, names, offset))
                 continue
             v = [_number(x) for x in vec]
             axis_dirs[name] = v
@@ -238,10 +254,22 @@ class _Context:
         gens += [S["dphi"], S["dpsi"]]
         self.alg = alg = Algebra(gens)
         self.relations = [Relation(tuple(alg.index[n] for n in pair)) for pair in unit_pairs]
+        for _, names, offset in symbolic_axes:
+            choices = () if len(names) <= 2 else (len(names) - 1,)
+            self.relations.append(Relation(tuple(alg.index[n] for n in names), offset, choices))
         self.fixed = [(alg.index[n], v) for n, v in fixed_names]
         G = alg.gens
 
+        def entry(x):
+            if isinstance(x, str):
+                return self.val[x] if x in self.val else G[x]
+            return alg.const(_number(x))
+
+        self.entry = entry
+
         def axis(name):
+            if name not in axis_dirs:  # symbolic components
+                return [entry(x) for x in getattr(params, name)]
             v = alg.vec(axis_dirs[name])
             return alg.scale(G[f"{name}_r"], v) if f"{name}_r" in G else v
 
@@ -258,14 +286,14 @@ class _Context:
         else:
             self.e0 = axis("axis2")
         self.h = alg.scale(a, J_)  # the second hinge, at the end of rod 1
-        self.c1 = alg.scale(a / 2, J_) if params.com1 is None else alg.vec(map(_number, params.com1))
-        self.c2 = alg.scale(b / 2, J_) if params.com2 is None else alg.vec(map(_number, params.com2))
+        self.c1 = alg.scale(a / 2, J_) if params.com1 is None else [entry(x) for x in params.com1]
+        self.c2 = alg.scale(b / 2, J_) if params.com2 is None else [entry(x) for x in params.com2]
 
         def inertia(given, m, length):
             if given is None:  # thin rod along j: m l^2/12 (E - j j)
                 k = m * length**2 / 12
                 return [[k, 0 * k, 0 * k], [0 * k, 0 * k, 0 * k], [0 * k, 0 * k, k]]
-            return [alg.vec(map(_number, row)) for row in given]
+            return [[entry(x) for x in row] for row in given]
 
         self.I1 = inertia(params.inertia1, m1, a)
         self.I2 = inertia(params.inertia2, m2, b)

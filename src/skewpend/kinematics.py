@@ -31,13 +31,20 @@ Mat = List[List[PolyElement]]
 
 @dataclass(frozen=True)
 class Relation:
-    """A unit-norm relation ``sum(v_i**2) = 1`` between generators.
+    """A unit-norm relation ``sum(v_i**2) = 1 - offset`` between generators.
 
-    For an angle the generators are ``(cos, sin)``; for a unit vector its three
-    components.  Reduction removes even powers of one chosen generator.
+    For an angle the generators are ``(cos, sin)``; for a unit vector its symbolic
+    components (``offset`` = the sum of squares of its numeric ones).  Reduction removes
+    even powers of one generator, chosen among ``choices`` (default: any).
     """
 
     gens: Tuple[int, ...]  # generator indices
+    offset: object = 0
+    choices: Tuple[int, ...] = ()  # positions in gens that may be eliminated
+
+    @property
+    def eliminable(self) -> Tuple[int, ...]:
+        return self.choices or tuple(range(len(self.gens)))
 
 
 _LONG = 10**9
@@ -120,7 +127,7 @@ class Algebra:
     def _eliminate(self, p: PolyElement, rel: Relation, which: int) -> PolyElement:
         """Replace ``v_which**2`` by ``1 - sum(other v_i**2)`` throughout ``p``."""
         idx = rel.gens[which]
-        rest = self.R.one
+        rest = self.R.one - self.R.domain.convert(rel.offset)
         for other in rel.gens:
             if other != idx:
                 rest -= self.R.gens[other] ** 2
@@ -171,7 +178,7 @@ class Algebra:
             used.update(i for i, e in enumerate(monom) if e >= 2)
         active = [r for r in relations if used.intersection(r.gens)]
         best = p
-        for choice in itertools.product(*(range(len(r.gens)) for r in active)):
+        for choice in itertools.product(*(r.eliminable for r in active)):
             q = p
             for rel, which in zip(active, choice):
                 q = self._eliminate(q, rel, which)

@@ -22,7 +22,7 @@ from typing import Any, Mapping, Optional, Tuple
 
 from .errors import ParameterError
 
-__all__ = ["Parameters", "SCALAR_NAMES", "Vec3", "Mat3"]
+__all__ = ["Parameters", "SCALAR_NAMES", "GEOMETRY_NAMES", "RESERVED_NAMES", "Vec3", "Mat3"]
 
 Scalar = Optional[float]
 Vec3 = Tuple[float, float, float]
@@ -30,6 +30,9 @@ Mat3 = Tuple[Vec3, Vec3, Vec3]
 
 #: The scalar parameters, in the order used by generated code and JSON.
 SCALAR_NAMES = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
+
+#: The rigid-body generalisations (numbers, or symbol names).
+GEOMETRY_NAMES = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
 
 _POSITIVE = ("a", "b", "m1", "m2")
 _NONNEGATIVE = ("g", "c1", "c2")
@@ -44,24 +47,68 @@ def _as_real(name: str, value: Any) -> float:
     return x
 
 
-def _as_vec3(name: str, value: Any) -> Vec3:
+#: Names a symbolic geometry entry may not take (coordinates and internal stand-ins).
+RESERVED_NAMES = frozenset({"alpha", "phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi", "omega", "lam", "t"})
+_SYMBOLIC_WORDS = ("sym", "symbolic")
+
+
+def _as_entry(name: str, value: Any):
+    """A geometry entry: a real number, or a symbol name (an identifier) left symbolic."""
+    if isinstance(value, str):
+        text = value.strip()
+        if not text.isidentifier() or text in RESERVED_NAMES or text.startswith(("c_", "s_")):
+            raise ParameterError(
+                f"{name} must be a real number or a symbol name (an identifier, not one of "
+                f"{sorted(RESERVED_NAMES)} and not starting with c_ or s_), got {value!r}"
+            )
+        return text
+    return _as_real(name, value)
+
+
+def _as_vec3(name: str, value: Any, default_names: Optional[Tuple[str, str, str]] = None) -> Vec3:
+    if isinstance(value, str) and value.strip().lower() in _SYMBOLIC_WORDS and default_names:
+        return default_names  # type: ignore[return-value]
     try:
         items = list(value)
     except TypeError:
-        raise ParameterError(f"{name} must be a sequence of 3 real numbers, got {value!r}") from None
+        raise ParameterError(f"{name} must be a sequence of 3 real numbers or symbol names, got {value!r}") from None
     if len(items) != 3:
         raise ParameterError(f"{name} must have 3 components, got {len(items)}")
-    return tuple(_as_real(f"{name}[{i}]", v) for i, v in enumerate(items))  # type: ignore[return-value]
+    return tuple(_as_entry(f"{name}[{i}]", v) for i, v in enumerate(items))  # type: ignore[return-value]
 
 
-def _as_mat3(name: str, value: Any) -> Mat3:
+def _as_mat3(name: str, value: Any, prefix: str = "") -> Mat3:
+    if isinstance(value, str) and value.strip().lower() in _SYMBOLIC_WORDS:
+        n = lambda i, j: f"{prefix}{'xyz'[min(i, j)]}{'xyz'[max(i, j)]}"  # noqa: E731
+        return tuple(tuple(n(i, j) for j in range(3)) for i in range(3))  # type: ignore[return-value]
     try:
         rows = list(value)
     except TypeError:
-        raise ParameterError(f"{name} must be a 3x3 matrix of real numbers, got {value!r}") from None
+        raise ParameterError(f"{name} must be a 3x3 matrix of real numbers or symbol names, got {value!r}") from None
     if len(rows) != 3:
         raise ParameterError(f"{name} must be a 3x3 matrix, got {len(rows)} rows")
-    return tuple(_as_vec3(f"{name}[{i}]", r) for i, r in enumerate(rows))  # type: ignore[return-value]
+    mat = tuple(_as_vec3(f"{name}[{i}]", r) for i, r in enumerate(rows))
+    for i in range(3):
+        for j in range(i):
+            if isinstance(mat[i][j], str) or isinstance(mat[j][i], str):
+                if mat[i][j] != mat[j][i]:
+                    raise ParameterError(f"{name} must be symmetric, got {name}[{i}][{j}] = {mat[i][j]!r} "
+                                         f"but {name}[{j}][{i}] = {mat[j][i]!r}")
+    return mat  # type: ignore[return-value]
+
+
+def _numeric(entries) -> bool:
+    flat = [x for row in entries for x in (row if isinstance(row, tuple) else (row,))]
+    return not any(isinstance(x, str) for x in flat)
+
+
+def _names(entries) -> Tuple[str, ...]:
+    flat = [x for row in entries for x in (row if isinstance(row, tuple) else (row,))]
+    out: list = []
+    for x in flat:
+        if isinstance(x, str) and x not in out:
+            out.append(x)
+    return tuple(out)
 
 
 def _check_inertia(name: str, mat: Mat3) -> None:
@@ -99,7 +146,13 @@ class Parameters:
     * ``c1``, ``c2`` -- viscous joint damping [N m s/rad], >= 0 (default 0).
     * ``tau1``, ``tau2`` -- constant joint torques [N m] (default 0).
 
-    Rigid-body generalisations (numeric only; ``None`` = the specification's thin rods):
+    Rigid-body generalisations (``None`` = the specification's thin rods).  Each entry is a
+    number or a symbol name (an identifier, left symbolic; a scalar parameter's name refers
+    to that parameter); the word ``"sym"`` makes the whole vector or tensor symbolic
+    (``com2`` -> ``r2x, r2y, r2z``; ``inertia2`` -> ``I2xx, I2xy, ...``; ``axis1`` ->
+    ``n1x, n1y, n1z``; ``axis2`` -> ``e0x, e0y, e0z``).  Numeric inertia tensors are
+    checked; a symbolic axis is taken to be a unit vector (its components must satisfy
+    ``|n| = 1``; the derivation uses that relation).
 
     * ``com1``, ``com2`` -- centres of mass in the body frames [m].  Body 1's frame has
       its origin at the roof hinge, body 2's at the second hinge; both coincide in
@@ -143,20 +196,27 @@ class Parameters:
         for name in ("com1", "com2"):
             value = getattr(self, name)
             if value is not None:
-                object.__setattr__(self, name, _as_vec3(name, value))
+                object.__setattr__(self, name, _as_vec3(name, value, tuple(f"r{name[-1]}{x}" for x in "xyz")))
         for name in ("axis1", "axis2"):
             value = getattr(self, name)
             if value is not None:
-                v = _as_vec3(name, value)
-                norm = math.sqrt(sum(x * x for x in v))
-                if not norm > 1e-12:
-                    raise ParameterError(f"{name} must be a non-zero vector, got {v}")
-                object.__setattr__(self, name, tuple(x / norm for x in v))
+                v = _as_vec3(name, value, tuple(f"{'n1' if name == 'axis1' else 'e0'}{x}" for x in "xyz"))
+                if _numeric(v):
+                    norm = math.sqrt(sum(x * x for x in v))
+                    if not norm > 1e-12:
+                        raise ParameterError(f"{name} must be a non-zero vector, got {v}")
+                    v = tuple(x / norm for x in v)
+                elif any(x in SCALAR_NAMES for x in v if isinstance(x, str)):
+                    raise ParameterError(f"{name}: a symbolic axis component needs its own name, not a parameter's: {v}")
+                elif sum(x * x for x in v if not isinstance(x, str)) > 1:
+                    raise ParameterError(f"{name}: the numeric components of a unit axis exceed 1, got {v}")
+                object.__setattr__(self, name, v)
         for name in ("inertia1", "inertia2"):
             value = getattr(self, name)
             if value is not None:
-                mat = _as_mat3(name, value)
-                _check_inertia(name, mat)
+                mat = _as_mat3(name, value, prefix=f"I{name[-1]}")
+                if _numeric(mat):
+                    _check_inertia(name, mat)
                 object.__setattr__(self, name, mat)
 
     # -- queries -------------------------------------------------------------------
@@ -167,10 +227,21 @@ class Parameters:
 
     @property
     def symbolic_names(self) -> Tuple[str, ...]:
-        """Names of the scalar parameters left symbolic that enter the model."""
-        return tuple(
+        """Names of the parameters left symbolic that enter the model: scalars, then the
+        symbol names used in ``com*``, ``inertia*``, ``axis*``."""
+        scalars = tuple(
             n for n in SCALAR_NAMES if getattr(self, n) is None and (n != "alpha" or self.uses_alpha)
         )
+        extra = []
+        for k in GEOMETRY_NAMES:
+            value = getattr(self, k)
+            if value is not None:
+                extra += [x for x in _names(value) if x not in scalars and x not in extra and x not in SCALAR_NAMES]
+        referenced = [n for k in GEOMETRY_NAMES if getattr(self, k) is not None for n in _names(getattr(self, k))]
+        scalars_used = tuple(
+            n for n in SCALAR_NAMES if getattr(self, n) is None and n in referenced and n not in scalars
+        )
+        return scalars + scalars_used + tuple(extra)
 
     @property
     def is_numeric(self) -> bool:

@@ -44,26 +44,41 @@ def parse_scalar(text: Optional[str], option: str, *, angle: bool = False) -> Op
     return value * scale
 
 
-def parse_vector(text: Optional[str], option: str, sizes=(3,)) -> Optional[List[float]]:
-    """Comma-separated numbers, e.g. ``0,0.4,0``."""
+def _entry(text: str, option: str, sizes) -> object:
+    try:
+        value = float(text)
+    except ValueError:
+        if text.isidentifier():
+            return text  # a symbol name, left symbolic
+        raise UsageError(
+            f"{option}: expected {' or '.join(map(str, sizes))} comma-separated numbers or symbol names, got {text!r}"
+        ) from None
+    if not math.isfinite(value):
+        raise UsageError(f"{option}: expected finite numbers, got {text!r}")
+    return value
+
+
+def parse_vector(text: Optional[str], option: str, sizes=(3,)):
+    """Comma-separated numbers or symbol names, e.g. ``0,0.4,0`` or ``0,d,0``; ``sym`` alone
+    makes every component symbolic."""
     if text is None:
         return None
-    try:
-        values = [float(x) for x in text.replace(" ", "").split(",") if x != ""]
-    except ValueError:
-        raise UsageError(f"{option}: expected {' or '.join(map(str, sizes))} comma-separated numbers, got {text!r}") from None
+    if text.strip().lower() in _SYMBOLIC:
+        return "sym"
+    values = [_entry(x, option, sizes) for x in text.replace(" ", "").split(",") if x != ""]
     if len(values) not in sizes:
-        raise UsageError(f"{option}: expected {' or '.join(map(str, sizes))} comma-separated numbers, got {len(values)}")
-    if not all(math.isfinite(v) for v in values):
-        raise UsageError(f"{option}: expected finite numbers, got {text!r}")
+        raise UsageError(
+            f"{option}: expected {' or '.join(map(str, sizes))} comma-separated numbers or symbol names, got {len(values)}"
+        )
     return values
 
 
 def parse_inertia(text: Optional[str], option: str):
-    """``Ixx,Iyy,Izz`` (principal, body axes) or ``Ixx,Iyy,Izz,Ixy,Ixz,Iyz`` or 9 entries."""
+    """``Ixx,Iyy,Izz`` (principal, body axes) or ``Ixx,Iyy,Izz,Ixy,Ixz,Iyz`` or 9 entries;
+    ``sym`` for a general symbolic tensor."""
     v = parse_vector(text, option, sizes=(3, 6, 9))
-    if v is None:
-        return None
+    if v is None or v == "sym":
+        return v
     if len(v) == 3:
         return [[v[0], 0, 0], [0, v[1], 0], [0, 0, v[2]]]
     if len(v) == 6:
