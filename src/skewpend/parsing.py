@@ -6,7 +6,7 @@ Shared by the command line, configuration files and sweep specifications.
 from __future__ import annotations
 
 import math
-from typing import Any, List, Optional, Sequence
+from typing import Any, Optional, Sequence
 
 from .errors import ParameterError
 
