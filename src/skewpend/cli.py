@@ -17,7 +17,7 @@ from .errors import SkewpendError
 
 app = typer.Typer(
     name="skewpend",
-    help="The double pendulum with skewed hinge axes: derive its equations of motion.",
+    help="The double pendulum with skewed hinge axes: derive its equations of motion, simulate, validate against MuJoCo, analyse its normal modes.",
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
