@@ -54,10 +54,6 @@ M1 = Annotated[Optional[str], typer.Option("--m1", help="mass of rod 1 [kg]", ri
 M2 = Annotated[Optional[str], typer.Option("--m2", help="mass of rod 2 [kg]", rich_help_panel=_P)]
 ALPHA = Annotated[Optional[str], typer.Option("--alpha", help="skew angle of the hinges [rad, or e.g. 30deg]", rich_help_panel=_P)]
 GRAV = Annotated[Optional[str], typer.Option("--g", help="gravitational acceleration [m/s^2]", rich_help_panel=_P)]
-C1 = Annotated[str, typer.Option("--c1", help="viscous damping in hinge 1 [N m s] (default 0)", rich_help_panel=_P)]
-C2 = Annotated[str, typer.Option("--c2", help="viscous damping in hinge 2 [N m s] (default 0)", rich_help_panel=_P)]
-TAU1 = Annotated[str, typer.Option("--tau1", help="constant torque in hinge 1 [N m] (default 0)", rich_help_panel=_P)]
-TAU2 = Annotated[str, typer.Option("--tau2", help="constant torque in hinge 2 [N m] (default 0)", rich_help_panel=_P)]
 COM1 = Annotated[Optional[str], typer.Option("--com1", help="centre of mass of body 1, 'x,y,z' in its frame [m]", rich_help_panel=_G)]
 COM2 = Annotated[Optional[str], typer.Option("--com2", help="centre of mass of body 2, 'x,y,z' in its frame [m]", rich_help_panel=_G)]
 IN1 = Annotated[Optional[str], typer.Option("--inertia1", help="inertia of body 1 about its centre of mass: 'Ixx,Iyy,Izz[,Ixy,Ixz,Iyz]' [kg m^2]", rich_help_panel=_G)]
@@ -90,6 +86,57 @@ def build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, ine
     )
 
 
+_R = "Initial state and run"
+
+
+C1R = Annotated[Optional[str], typer.Option("--c1", help="viscous damping in hinge 1 [N m s] (default 0)", rich_help_panel=_P)]
+C2R = Annotated[Optional[str], typer.Option("--c2", help="viscous damping in hinge 2 [N m s] (default 0)", rich_help_panel=_P)]
+TAU1R = Annotated[Optional[str], typer.Option("--tau1", help="constant torque in hinge 1 [N m] (default 0)", rich_help_panel=_P)]
+TAU2R = Annotated[Optional[str], typer.Option("--tau2", help="constant torque in hinge 2 [N m] (default 0)", rich_help_panel=_P)]
+PHI0 = Annotated[Optional[str], typer.Option("--phi0", help="initial phi [rad, or e.g. 60deg] (default 1.2)", rich_help_panel=_R)]
+PSI0 = Annotated[Optional[str], typer.Option("--psi0", help="initial psi [rad, or deg] (default -0.8)", rich_help_panel=_R)]
+DPHI0 = Annotated[Optional[str], typer.Option("--dphi0", help="initial dphi/dt [rad/s] (default 0)", rich_help_panel=_R)]
+DPSI0 = Annotated[Optional[str], typer.Option("--dpsi0", help="initial dpsi/dt [rad/s] (default 0)", rich_help_panel=_R)]
+CONFIG = Annotated[Optional[str], typer.Option("--config", help="TOML file with [parameters], [initial], [simulation]; options override it", rich_help_panel=_R)]
+
+
+#: Model options shared by every command (name -> annotated type); default None.
+MODEL_OPTIONS = {
+    "a": A, "b": B, "m1": M1, "m2": M2, "alpha": ALPHA, "g": GRAV,
+    "c1": C1R, "c2": C2R, "tau1": TAU1R, "tau2": TAU2R,
+    "com1": COM1, "com2": COM2, "inertia1": IN1, "inertia2": IN2, "axis1": AX1, "axis2": AX2,
+}
+#: Initial-state options of simulate and validate.
+INITIAL_OPTIONS = {"phi0": PHI0, "psi0": PSI0, "dphi0": DPHI0, "dpsi0": DPSI0}
+
+
+def _options(*groups: dict):
+    """Give a command the shared options of ``groups`` (declared once, above); the command
+    receives them collected in its ``model`` (and ``initial``) argument, by name."""
+    import functools
+    import inspect
+
+    def decorate(func):
+        sig = inspect.signature(func, eval_str=True)
+        own = [p for name, p in sig.parameters.items() if name not in ("model", "initial")]
+        extra = [
+            inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=None, annotation=ann)
+            for group in groups
+            for name, ann in group.items()
+        ]
+        targets = [("model", set(groups[0]))] + ([("initial", set(groups[1]))] if len(groups) > 1 else [])
+
+        @functools.wraps(func)
+        def command(**kwargs):
+            collected = {target: {k: kwargs.pop(k) for k in names if k in kwargs} for target, names in targets}
+            return func(**collected, **kwargs)
+
+        command.__signature__ = sig.replace(parameters=extra + own)
+        return command
+
+    return decorate
+
+
 class DeriveFormat(str, Enum):
     text = "text"
     latex = "latex"
@@ -100,29 +147,16 @@ class DeriveFormat(str, Enum):
 
 
 @app.command()
+@_options(MODEL_OPTIONS)
 def derive(
-    a: A = None,
-    b: B = None,
-    m1: M1 = None,
-    m2: M2 = None,
-    alpha: ALPHA = None,
-    g: GRAV = None,
-    c1: C1 = "0",
-    c2: C2 = "0",
-    tau1: TAU1 = "0",
-    tau2: TAU2 = "0",
-    com1: COM1 = None,
-    com2: COM2 = None,
-    inertia1: IN1 = None,
-    inertia2: IN2 = None,
-    axis1: AX1 = None,
-    axis2: AX2 = None,
+    model: dict,
     linear: Annotated[bool, typer.Option("--linear", help="add the equations linearised about phi = psi = 0")] = False,
     steps: Annotated[bool, typer.Option("--steps", help="print the derivation step by step (P1, e, P, omega2, v_c, Theta2, T, Pi)")] = False,
     fmt: Annotated[DeriveFormat, typer.Option("--format", "-f", help="output format: equations (text, latex, json) or generated code (python, c, javascript)")] = DeriveFormat.text,
 ) -> None:
     """Derive the equations of motion M(q) q'' = f(q, q') by the specification's method."""
-    params = build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, inertia1, inertia2, axis1, axis2)
+    zero = {k: "0" for k in ("c1", "c2", "tau1", "tau2") if model.get(k) is None}
+    params = build_parameters(**{**model, **zero})
     if fmt in (DeriveFormat.python, DeriveFormat.c, DeriveFormat.javascript):
         from .codegen import generate
 
@@ -175,28 +209,6 @@ class Method(str, Enum):
     gauss = "gauss"
 
 
-_R = "Initial state and run"
-
-
-C1R = Annotated[Optional[str], typer.Option("--c1", help="viscous damping in hinge 1 [N m s] (default 0)", rich_help_panel=_P)]
-C2R = Annotated[Optional[str], typer.Option("--c2", help="viscous damping in hinge 2 [N m s] (default 0)", rich_help_panel=_P)]
-TAU1R = Annotated[Optional[str], typer.Option("--tau1", help="constant torque in hinge 1 [N m] (default 0)", rich_help_panel=_P)]
-TAU2R = Annotated[Optional[str], typer.Option("--tau2", help="constant torque in hinge 2 [N m] (default 0)", rich_help_panel=_P)]
-PHI0 = Annotated[Optional[str], typer.Option("--phi0", help="initial phi [rad, or e.g. 60deg] (default 1.2)", rich_help_panel=_R)]
-PSI0 = Annotated[Optional[str], typer.Option("--psi0", help="initial psi [rad, or deg] (default -0.8)", rich_help_panel=_R)]
-DPHI0 = Annotated[Optional[str], typer.Option("--dphi0", help="initial dphi/dt [rad/s] (default 0)", rich_help_panel=_R)]
-DPSI0 = Annotated[Optional[str], typer.Option("--dpsi0", help="initial dpsi/dt [rad/s] (default 0)", rich_help_panel=_R)]
-CONFIG = Annotated[Optional[str], typer.Option("--config", help="TOML file with [parameters], [initial], [simulation]; options override it", rich_help_panel=_R)]
-
-
-#: The model options shared by simulate, export, validate and modes (their parameter names).
-PARAMETER_OPTIONS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2",
-                     "com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
-
-
-def _pick(namespace: dict, names) -> dict:
-    """The command's values of ``names`` that exist in its signature."""
-    return {k: namespace[k] for k in names if k in namespace}
 
 
 def _resolve(config: Optional[str], parameters: dict, initial: dict, simulation: dict):
@@ -234,27 +246,10 @@ def _setting(S: dict, key: str, option: str) -> Optional[float]:
 
 
 @app.command()
+@_options(MODEL_OPTIONS, INITIAL_OPTIONS)
 def simulate(
-    a: A = None,
-    b: B = None,
-    m1: M1 = None,
-    m2: M2 = None,
-    alpha: ALPHA = None,
-    g: GRAV = None,
-    c1: C1R = None,
-    c2: C2R = None,
-    tau1: TAU1R = None,
-    tau2: TAU2R = None,
-    com1: COM1 = None,
-    com2: COM2 = None,
-    inertia1: IN1 = None,
-    inertia2: IN2 = None,
-    axis1: AX1 = None,
-    axis2: AX2 = None,
-    phi0: PHI0 = None,
-    psi0: PSI0 = None,
-    dphi0: DPHI0 = None,
-    dpsi0: DPSI0 = None,
+    model: dict,
+    initial: dict,
     t_end: Annotated[Optional[str], typer.Option("--t-end", help="duration [s] (default 20)", rich_help_panel=_R)] = None,
     dt_out: Annotated[Optional[str], typer.Option("--dt-out", help="output interval [s] (default: the integrator's own steps)", rich_help_panel=_R)] = None,
     method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)] = None,
@@ -267,8 +262,8 @@ def simulate(
     """Simulate the nonlinear equations of motion; print a summary or write a trajectory file."""
     params, y0, S = _resolve(
         config,
-        _pick(locals(), PARAMETER_OPTIONS),
-        _pick(locals(), ("phi0", "psi0", "dphi0", "dpsi0")),
+        model,
+        initial,
         dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt, out=out),
     )
     method_name = str(S.get("method", "dop853"))
@@ -301,25 +296,11 @@ class ExportFormat(str, Enum):
 
 
 @app.command()
+@_options(MODEL_OPTIONS)
 def export(
+    model: dict,
     fmt: Annotated[ExportFormat, typer.Option("--format", "-f", help="model format")] = ExportFormat.mjcf,
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="write to FILE (default: print)")] = None,
-    a: A = None,
-    b: B = None,
-    m1: M1 = None,
-    m2: M2 = None,
-    alpha: ALPHA = None,
-    g: GRAV = None,
-    c1: C1R = None,
-    c2: C2R = None,
-    tau1: TAU1R = None,
-    tau2: TAU2R = None,
-    com1: COM1 = None,
-    com2: COM2 = None,
-    inertia1: IN1 = None,
-    inertia2: IN2 = None,
-    axis1: AX1 = None,
-    axis2: AX2 = None,
     config: CONFIG = None,
 ) -> None:
     """Export the system as a MuJoCo MJCF model or a URDF (numeric parameters; the defaults of simulate)."""
@@ -327,7 +308,7 @@ def export(
 
     params, _, _ = _resolve(
         config,
-        _pick(locals(), PARAMETER_OPTIONS),
+        model,
         {}, {},
     )
     if out is None:
@@ -338,27 +319,10 @@ def export(
 
 
 @app.command()
+@_options(MODEL_OPTIONS, INITIAL_OPTIONS)
 def validate(
-    a: A = None,
-    b: B = None,
-    m1: M1 = None,
-    m2: M2 = None,
-    alpha: ALPHA = None,
-    g: GRAV = None,
-    c1: C1R = None,
-    c2: C2R = None,
-    tau1: TAU1R = None,
-    tau2: TAU2R = None,
-    com1: COM1 = None,
-    com2: COM2 = None,
-    inertia1: IN1 = None,
-    inertia2: IN2 = None,
-    axis1: AX1 = None,
-    axis2: AX2 = None,
-    phi0: PHI0 = None,
-    psi0: PSI0 = None,
-    dphi0: DPHI0 = None,
-    dpsi0: DPSI0 = None,
+    model: dict,
+    initial: dict,
     t_end: Annotated[str, typer.Option("--t-end", help="duration [s]", rich_help_panel=_R)] = "2",
     dt: Annotated[str, typer.Option("--dt", help="MuJoCo RK4 step [s]", rich_help_panel=_R)] = "1e-4",
     tol: Annotated[str, typer.Option("--tol", help="largest allowed difference in any state component", rich_help_panel=_R)] = "1e-6",
@@ -369,8 +333,8 @@ def validate(
 
     params, y0, _ = _resolve(
         config,
-        _pick(locals(), PARAMETER_OPTIONS),
-        _pick(locals(), ("phi0", "psi0", "dphi0", "dpsi0")),
+        model,
+        initial,
         {},
     )
     tolerance = parse_scalar(tol, "--tol")
@@ -394,21 +358,9 @@ class ModesFormat(str, Enum):
 
 
 @app.command()
+@_options({k: v for k, v in MODEL_OPTIONS.items() if k not in ("tau1", "tau2")})
 def modes(
-    a: A = None,
-    b: B = None,
-    m1: M1 = None,
-    m2: M2 = None,
-    alpha: ALPHA = None,
-    g: GRAV = None,
-    c1: C1R = None,
-    c2: C2R = None,
-    com1: COM1 = None,
-    com2: COM2 = None,
-    inertia1: IN1 = None,
-    inertia2: IN2 = None,
-    axis1: AX1 = None,
-    axis2: AX2 = None,
+    model: dict,
     fmt: Annotated[ModesFormat, typer.Option("--format", "-f", help="text, json, or latex (the closed-form characteristic equation in the parameters not given)")] = ModesFormat.text,
     sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1 (e.g. alpha=0:180deg:181)")] = None,
     plot: Annotated[Optional[str], typer.Option("--plot", help="with --sweep: write the frequency curves to FILE (.png, .pdf, .svg)")] = None,
@@ -418,7 +370,7 @@ def modes(
     config: CONFIG = None,
 ) -> None:
     """Normal modes of the small oscillations about the hanging equilibrium (and how alpha shapes them)."""
-    given = _pick(locals(), PARAMETER_OPTIONS)
+    given = model
     if fmt is ModesFormat.latex:
         _modes_latex(given)
         return
