@@ -7,6 +7,7 @@ parameter names.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Dict, List, Optional
 
 import sympy as sp
@@ -105,7 +106,8 @@ def _params_line(eom: EquationsOfMotion) -> str:
         values.pop("alpha", None)
     parts = [f"symbolic: {', '.join(names) if names else 'none'}"]
     if values:
-        parts.append("values: " + ", ".join(f"{k}={v:g}" for k, v in values.items()))
+        shown = [f"{k}={v:g}" + (f" ({math.degrees(v):.6g}°)" if k == "alpha" else "") for k, v in values.items()]
+        parts.append("values: " + ", ".join(shown))
     if not p.is_thin_rods:
         general = [k for k in ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2") if getattr(p, k) is not None]
         parts.append("general bodies/axes: " + ", ".join(general))
