@@ -257,7 +257,7 @@ class _Context:
         for _, names, offset in symbolic_axes:
             choices = () if len(names) <= 2 else (len(names) - 1,)
             self.relations.append(Relation(tuple(alg.index[n] for n in names), offset, choices))
-        self.fixed = [(alg.index[n], v) for n, v in fixed_names]
+        self.relations += [Relation((alg.index[n],), 1 - v) for n, v in fixed_names]
         G = alg.gens
 
         def entry(x):
@@ -304,7 +304,7 @@ class _Context:
     def finish(self, p, keys: Sequence[str] = ()) -> sp.Expr:
         """Reduce ``p`` to its shortest form, substitute late values, return a tidy expression."""
         alg = self.alg
-        p = alg.shortest(p, self.relations, self.fixed)
+        p = alg.shortest(p, self.relations)
         if self.late_exact:
             p = p.subs([(alg.gens[n], v) for n, v in self.late_exact.items()])
             p = alg.shortest(p, self.relations)

@@ -31,11 +31,12 @@ Mat = List[List[PolyElement]]
 
 @dataclass(frozen=True)
 class Relation:
-    """A unit-norm relation ``sum(v_i**2) = 1 - offset`` between generators.
+    """A relation ``sum(v_i**2) = 1 - offset`` between generators.
 
     For an angle the generators are ``(cos, sin)``; for a unit vector its symbolic
-    components (``offset`` = the sum of squares of its numeric ones).  Reduction removes
-    even powers of one generator, chosen among ``choices`` (default: any).
+    components (``offset`` = the sum of squares of its numeric ones); for ``r = 1/|v|``
+    the single generator ``r`` with ``offset = 1 - 1/|v|**2``.  Reduction removes even
+    powers of one generator, chosen among ``choices`` (default: any).
     """
 
     gens: Tuple[int, ...]  # generator indices
@@ -72,9 +73,6 @@ class Algebra:
 
     def vec(self, items: Iterable) -> Vec:
         return [self.R(x) if not isinstance(x, PolyElement) else x for x in items]
-
-    def zero_vec(self) -> Vec:
-        return [self.R.zero] * 3
 
     # -- linear algebra -----------------------------------------------------------------
     @staticmethod
@@ -147,32 +145,13 @@ class Algebra:
             result += self.R.from_dict({tuple(base): coeff}) * powers[half]
         return result + self.R.from_dict({m: c for m, c in out.items() if c})
 
-    def _fix(self, p: PolyElement, idx: int, value) -> PolyElement:
-        """Replace ``v_idx**2`` by the constant ``value`` throughout ``p``."""
-        if not any(m[idx] >= 2 for m in p.monoms()):
-            return p
-        out: Dict[tuple, object] = {}
-        for monom, coeff in p.terms():
-            k = monom[idx]
-            base = list(monom)
-            base[idx] = k % 2
-            key = tuple(base)
-            out[key] = out.get(key, 0) + coeff * value ** (k // 2)
-        return self.R.from_dict({m: c for m, c in out.items() if c})
-
-    def shortest(
-        self, p: PolyElement, relations: Sequence[Relation], fixed: Sequence[Tuple[int, object]] = ()
-    ) -> PolyElement:
+    def shortest(self, p: PolyElement, relations: Sequence[Relation]) -> PolyElement:
         """The reduction of ``p`` by ``relations`` with the fewest terms.
-
-        ``fixed`` relations ``v**2 = value`` (``value`` a rational) are applied first.
 
         Every relation whose generators appear is tried with each choice of generator
         to eliminate (ties keep the earlier choice: for angles, the sine is eliminated
         first, so cosines are preferred).
         """
-        for idx, value in fixed:
-            p = self._fix(p, idx, self.R.domain.convert(value))
         used = set()
         for monom in p.monoms():
             used.update(i for i, e in enumerate(monom) if e >= 2)
