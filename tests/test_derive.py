@@ -250,7 +250,7 @@ def test_general_body_model_reduces_to_thin_rods():
         base = Parameters(a=va, b=vb, m1=vm1, m2=vm2, alpha=val, g=9.81)
         rod = lambda m, l: ((m * l**2 / 12, 0, 0), (0, 0, 0), (0, 0, m * l**2 / 12))
         general = base.replace(
-            com1=(0, va / 2, 0), com2=(0, vb / 2, 0),
+            alpha=None, com1=(0, va / 2, 0), com2=(0, vb / 2, 0),
             inertia1=rod(vm1, va), inertia2=rod(vm2, vb),
             axis1=(0, 0, 3.0), axis2=(np.sin(val), 0, np.cos(val)),
         )

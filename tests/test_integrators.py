@@ -1,22 +1,20 @@
-"""The compiled integrators of the ``_kernels.py`` template: order, accuracy, symplecticity, status.
+"""The compiled integrators of the ``_integrators.c`` template: order, accuracy, symplecticity,
+status, and resumability (the work split into calls does not change a bit of the result).
 
-A generated-style module is built exactly as :mod:`skewpend.codegen` builds one -- a header
-with ``import``s and njit ``rhs`` / ``ham_rhs``, followed by the text of ``_kernels.py`` --
-written to a temporary directory and imported.  To compile the integrators only once, the
-test right-hand side serves several problems, chosen by ``p[0]``:
+A library is built exactly as :mod:`skewpend.compiled` builds one -- C ``rhs`` / ``ham_rhs``
+followed by the text of ``_integrators.c`` -- from test problems chosen by ``p[0]``:
 
 * 0 -- harmonic oscillator ``q'' = -w^2 q`` (``w = p[1]``), exact solution known;
 * 1 -- pendulum ``q'' = -sin q``, Hamiltonian ``H = p^2/2 - cos q``;
 * 2 -- ``y' = y^2`` (blows up at ``t = 1/y0``);
 * 3 -- ``y' = 1`` for ``y < 1.5``, undefined (NaN) beyond.
+
+:class:`Integrators` calls the resumable C functions in a loop, like :func:`skewpend.simulate`,
+with a deliberately small step budget and row buffer per call, and returns whole arrays.
 """
 
-import ast
-import importlib.util
+import ctypes
 import math
-import subprocess
-import sys
-import uuid
 from pathlib import Path
 
 import numpy as np
@@ -24,65 +22,116 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import skewpend
+from skewpend.compiled import State, _compile
 
-HEADER = '''"""Test problems (generated-style module)."""
-import math
-import numpy as np
-import numba as nb
-
-
-@nb.njit(cache=True)
-def rhs(y, p, out):
-    kind = int(p[0])
-    if kind == 0:
-        out[0] = y[1]
-        out[1] = -p[1] * p[1] * y[0]
-    elif kind == 1:
-        out[0] = y[1]
-        out[1] = -math.sin(y[0])
-    elif kind == 2:
-        out[0] = y[0] * y[0]
-        out[1] = 0.0
-    else:
-        out[0] = 1.0 if y[0] < 1.5 else math.nan
-        out[1] = 0.0
+HEADER = r"""
+#include <math.h>
+static void rhs(const double *y, const double *p, double *out)
+{
+    int kind = (int)p[0];
+    if (kind == 0) { out[0] = y[1]; out[1] = -p[1] * p[1] * y[0]; }
+    else if (kind == 1) { out[0] = y[1]; out[1] = -sin(y[0]); }
+    else if (kind == 2) { out[0] = y[0] * y[0]; out[1] = 0.0; }
+    else { out[0] = y[0] < 1.5 ? 1.0 : NAN; out[1] = 0.0; }
+}
+static void ham_rhs(const double *z, const double *p, double *out)
+{
+    int kind = (int)p[0];
+    if (kind == 0) { out[0] = z[1]; out[1] = -p[1] * p[1] * z[0]; }
+    else if (kind == 1) { out[0] = z[1]; out[1] = -sin(z[0]); }
+    else { out[0] = z[0] < 1.5 ? 1.0 : NAN; out[1] = 0.0; }
+}
+"""
 
 
-@nb.njit(cache=True)
-def ham_rhs(z, p, out):
-    kind = int(p[0])
-    if kind == 0:
-        out[0] = z[1]
-        out[1] = -p[1] * p[1] * z[0]
-    elif kind == 1:
-        out[0] = z[1]
-        out[1] = -math.sin(z[0])
-    else:
-        out[0] = 1.0 if z[0] < 1.5 else math.nan
-        out[1] = 0.0
+class Integrators:
+    """Whole-run wrappers over the resumable C integrators (budget steps / cap rows per call)."""
 
-'''
+    def __init__(self, path: Path, budget: int = 37, cap: int = 11):
+        self.lib = ctypes.CDLL(str(path))
+        self.budget, self.cap = budget, cap
+        dp, i64, d = ctypes.POINTER(ctypes.c_double), ctypes.c_int64, ctypes.c_double
+        ip, sp = ctypes.POINTER(i64), ctypes.POINTER(State)
+        self.lib.sp_dop853.argtypes = [sp, ctypes.c_int, dp, d, d, d, i64, i64, d, i64, ip, dp, i64, ip]
+        self.lib.sp_rk4.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, i64, dp, i64, ip]
+        self.lib.sp_gauss.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, d, i64, i64, dp, i64, ip]
+        self.calls = 0
 
-OSC, PEND, BLOWUP, NANWALL = 0.0, 1.0, 2.0, 3.0
-W = 1.3  # oscillator frequency
+    def _loop(self, call, n):
+        rows = np.empty((self.cap, n + 1))
+        m = ctypes.c_int64(0)
+        out = []
+        ptr = rows.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        while True:
+            status = call(ptr, m)
+            self.calls += 1
+            assert status != -3, "bad arguments"
+            out.append(rows[: m.value].copy())
+            if status >= 0:
+                break
+        table = np.concatenate(out)
+        return table[:, 0], table[:, 1:], status
+
+    def dop853(self, y0, t0, t_end, p, rtol, atol, h0, max_steps, dt_out=0.0, n_grid=0):
+        s = State.at(t0, y0)
+        s.h = h0
+        p = np.ascontiguousarray(p, float)
+        k_out = ctypes.c_int64(0)
+        pp = p.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        ts, ys, status = self._loop(
+            lambda rows, m: self.lib.sp_dop853(ctypes.byref(s), len(y0), pp, t_end, rtol, atol, max_steps, self.budget,
+                                               dt_out, n_grid, ctypes.byref(k_out), rows, self.cap, ctypes.byref(m)),
+            len(y0),
+        )
+        return ts, ys, status, s.nfev, s.naccept, s.nreject
+
+    def rk4(self, y0, t0, dt, nsteps, p, stride):
+        s = State.at(t0, y0)
+        p = np.ascontiguousarray(p, float)
+        pp = p.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        ts, ys, status = self._loop(
+            lambda rows, m: self.lib.sp_rk4(ctypes.byref(s), len(y0), pp, t0, dt, nsteps, stride, self.budget, rows,
+                                            self.cap, ctypes.byref(m)),
+            len(y0),
+        )
+        return ts, ys, status, s.nfev
+
+    def gauss_legendre(self, z0, t0, dt, nsteps, p, stride, tol, max_iter):
+        s = State.at(t0, z0)
+        p = np.ascontiguousarray(p, float)
+        pp = p.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        ts, zs, status = self._loop(
+            lambda rows, m: self.lib.sp_gauss(ctypes.byref(s), len(z0), pp, t0, dt, nsteps, stride, tol, max_iter,
+                                              self.budget, rows, self.cap, ctypes.byref(m)),
+            len(z0),
+        )
+        return ts, zs, status, s.nfev
 
 
 def template_text() -> str:
-    return (Path(skewpend.__file__).parent / "_kernels.py").read_text()
+    return (Path(skewpend.__file__).parent / "_integrators.c").read_text()
 
 
 @pytest.fixture(scope="module")
-def k(tmp_path_factory):
-    directory = tmp_path_factory.mktemp("kernels")
-    name = f"skewpend_test_model_{uuid.uuid4().hex}"
-    path = directory / f"{name}.py"
-    path.write_text(HEADER + "\n" + template_text())
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop(name, None)
+def library(tmp_path_factory):
+    path = tmp_path_factory.mktemp("kernels") / "problems.so"
+    _compile(HEADER + "\n" + template_text(), path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def k(library):
+    return Integrators(library)
+
+
+@pytest.fixture(scope="module")
+def k_whole(library):
+    """The same library called with budgets and buffers large enough for one call."""
+    return Integrators(library, budget=10**9, cap=2_000_000)
+
+
+OSC, PEND, BLOWUP, NANWALL = 0.0, 1.0, 2.0, 3.0
+W = 1.3  # oscillator frequency
 
 
 def osc_exact(t, q0=1.0, v0=0.0, w=W):
@@ -105,22 +154,53 @@ def fitted_slope(x, y):
     return np.polyfit(np.log(x), np.log(y), 1)[0]
 
 
-# -- the template itself ----------------------------------------------------------------------------------
-def test_template_is_importable_alone_and_generated_definitions_win(k):
-    import skewpend._kernels as standalone
+# -- resumability ------------------------------------------------------------------------------------
+def test_splitting_the_work_into_calls_changes_no_bit(k, k_whole):
+    """Every method, chunked (37 steps / 11 rows per call) and in one call, gives identical rows."""
+    p = np.array([PEND, 0.0])
+    y0 = np.array([2.0, 0.0])
+    runs = [
+        ("dop853 own steps", lambda m: m.dop853(y0, 0.0, 12.3, p, 1e-13, 1e-13, 0.0, 10**6)),
+        ("dop853 grid", lambda m: m.dop853(y0, 0.0, 12.3, p, 1e-13, 1e-13, 0.0, 10**6, 0.01, 1231)),
+        ("rk4", lambda m: m.rk4(y0, 0.0, 0.01, 1230, p, 7)),
+        ("gauss", lambda m: m.gauss_legendre(y0, 0.0, 0.01, 1230, p, 7, 1e-15, 100)),
+    ]
+    for name, run in runs:
+        before = k.calls
+        a, b = run(k), run(k_whole)
+        assert k.calls - before > 10, name  # really split
+        assert a[2] == b[2] == 0, name
+        np.testing.assert_array_equal(a[0], b[0], err_msg=name)
+        np.testing.assert_array_equal(a[1], b[1], err_msg=name)
+        assert a[3:] == b[3:], name  # evaluation and step counts
 
-    for name in ("rhs", "ham_rhs", "dop853", "rk4", "gauss_legendre"):
-        assert hasattr(standalone, name)
-    # it is appended after other code: a __future__ import there would be a SyntaxError
-    tree = ast.parse(template_text())
-    assert not any(isinstance(node, ast.ImportFrom) and node.module == "__future__" for node in ast.walk(tree))
-    with pytest.raises(NotImplementedError):  # alone, rhs is a placeholder
-        standalone.rhs(np.zeros(2), np.zeros(1), np.zeros(2))
-    out = np.empty(2)
-    k.rhs(np.array([1.0, 2.0]), np.array([OSC, W]), out)  # the test problem, not the placeholder
-    np.testing.assert_array_equal(out, [2.0, -W * W])
-    k.ham_rhs(np.array([0.5, 2.0]), np.array([PEND, 0.0]), out)
-    np.testing.assert_array_equal(out, [2.0, -math.sin(0.5)])
+
+def test_template_defines_no_model():
+    """The template is generic: it uses rhs/ham_rhs from the text before it and defines neither."""
+    text = template_text()
+    code = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith(("/*", "*")))
+    assert "void rhs(" not in code and "void ham_rhs(" not in code
+    for name in ("sp_dop853", "sp_rk4", "sp_gauss", "sp_state_size"):
+        assert f"{name}(" in text
+
+
+def test_dop853_tables_are_scipys():
+    """The DOP853 coefficients typed into the template equal SciPy's tables exactly."""
+    import re
+
+    from scipy.integrate._ivp import dop853_coefficients as ref
+
+    text = template_text()
+
+    def table(name):
+        body = re.search(rf"static const double {name}\[[^=]*= \{{(.*?)\}};", text, re.S).group(1)
+        return np.array([float(x) for x in re.findall(r"-?\d[\d.e+-]*", body)])
+
+    np.testing.assert_array_equal(table("DOP_C"), ref.C)
+    np.testing.assert_array_equal(table("DOP_A"), np.ravel(ref.A))
+    np.testing.assert_array_equal(table("DOP_E3"), ref.E3)
+    np.testing.assert_array_equal(table("DOP_E5"), ref.E5)
+    np.testing.assert_array_equal(table("DOP_D"), np.ravel(ref.D))
 
 
 # -- convergence orders of the fixed-step methods ---------------------------------------------------------
@@ -183,7 +263,7 @@ def test_dop853_error_proportional_to_tolerance(k):
     t_end = 30.0
     errs, steps = [], []
     for tol in TOLS:
-        ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, t_end, p, tol, tol, 0.0, 100000, np.empty(0))
+        ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, t_end, p, tol, tol, 0.0, 100000)
         assert status == 0 and ts[-1] == t_end
         err = np.max(np.abs(ys[-1] - osc_exact(t_end)))
         assert err < 100 * tol, (tol, err)
@@ -199,9 +279,9 @@ def test_dop853_error_proportional_to_tolerance(k):
 def test_dop853_dense_output_matches_exact_solution(k):
     p = np.array([OSC, W])
     # (the error includes the global error, which grows with t: ~4.7 tol at t = 10, ~8.7 tol at t = 30)
-    t_out = np.linspace(0.0, 10.0, 401)
+    t_out = np.arange(401) * 0.025
     for tol in (1e-7, 1e-10):
-        ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, 10.0, p, tol, tol, 0.0, 100000, t_out)
+        ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, 10.0, p, tol, tol, 0.0, 100000, 0.025, 401)
         assert status == 0
         np.testing.assert_array_equal(ts, t_out)
         np.testing.assert_array_equal(ys[0], [1.0, 0.0])
@@ -210,58 +290,60 @@ def test_dop853_dense_output_matches_exact_solution(k):
         assert err < 10 * tol
         # 12 evaluations per attempted step, 3 more per step with interior output points, 2 to start
         assert 2 + 12 * (nacc + nrej) < nfev <= 2 + 12 * (nacc + nrej) + 3 * nacc
-    # output times within rounding beyond t_end get the final state
-    ts, ys, status, *_ = k.dop853(np.array([1.0, 0.0]), 0.0, 1.0, p, 1e-9, 1e-9, 0.0, 1000, np.array([0.0, 1.0, 1.0 + 1e-13]))
-    assert status == 0 and len(ts) == 3
-    np.testing.assert_array_equal(ys[2], ys[1])
+    # a grid time within rounding beyond t_end (3 * 0.1 > 0.3) gets the final state
+    ts, ys, status, *_ = k.dop853(np.array([1.0, 0.0]), 0.0, 0.3, p, 1e-9, 1e-9, 0.0, 1000, 0.1, 4)
+    assert status == 0 and len(ts) == 4 and ts[3] > 0.3
+    np.testing.assert_allclose(ys[3], osc_exact(0.3), atol=1e-8)
 
 
-def test_dop853_rejects_bad_output_times(k):
-    p = np.array([OSC, W])
-    for t_out in (np.array([0.0, 2.0]), np.array([0.5, 0.2]), np.array([-0.1, 0.5])):
-        with pytest.raises(ValueError):
-            k.dop853(np.array([1.0, 0.0]), 0.0, 1.0, p, 1e-8, 1e-8, 0.0, 1000, t_out)
+def test_dop853_own_steps_are_dop853s(k):
+    """Own steps: t0 first, the last exactly t_end; the same method as SciPy's DOP853.
 
-
-def test_dop853_own_steps_match_scipy(k):
-    """Own steps: t0 first, the last exactly t_end; the step sequence is scipy's DOP853's.
-
-    Only to ~1e-6: the error estimate is a sum of O(1) terms cancelling to O(tol), so the
-    summation order alone changes it by ~eps/tol relative, and h by 1/8 of that.
+    What the algorithm guarantees is asserted, not SciPy's bit patterns: the automatic
+    initial step is Hairer's (as SciPy computes it, to rounding), the step count agrees with
+    SciPy's within 2 (the error estimate is a sum of O(1) terms cancelling to O(tol), so
+    summation order alone perturbs h by ~eps/tol -- enough to shift a late rejection), and
+    the solution meets the tolerance against a 1e-13 reference.
     """
+    from scipy.integrate._ivp.common import select_initial_step
+    from scipy.integrate._ivp.rk import DOP853
+
     p = np.array([PEND, 0.0])
     y0 = np.array([2.0, 0.0])
     t_end = 12.345
-    pend = lambda t, y: [y[1], -math.sin(y[0])]  # noqa: E731
+    pend = lambda t, y: np.array([y[1], -math.sin(y[0])])  # noqa: E731
     for h0 in (0.0, 0.05):  # automatic and given initial step
-        ts, ys, status, nfev, nacc, nrej = k.dop853(y0, 0.0, t_end, p, 1e-8, 1e-10, h0, 100000, np.empty(0))
+        ts, ys, status, nfev, nacc, nrej = k.dop853(y0, 0.0, t_end, p, 1e-8, 1e-10, h0, 100000)
         assert status == 0
         assert ts[0] == 0.0 and ts[-1] == t_end and np.all(np.diff(ts) > 0)
         assert len(ts) == nacc + 1 and ys.shape == (nacc + 1, 2)
         np.testing.assert_array_equal(ys[0], y0)
-        sol = solve_ivp(pend, (0.0, t_end), y0, method="DOP853", rtol=1e-8, atol=1e-10, first_step=h0 if h0 > 0 else None)
-        assert len(sol.t) == len(ts) and sol.nfev == nfev
         if h0 == 0.0:
-            assert ts[1] == pytest.approx(sol.t[1], rel=1e-12)  # the same automatic initial step
-        np.testing.assert_allclose(ts, sol.t, rtol=0, atol=1e-6)
+            h_ref = select_initial_step(pend, 0.0, y0, t_end, np.inf, pend(0.0, y0), 1, DOP853.error_estimator_order, 1e-8, 1e-10)
+            assert ts[1] == pytest.approx(h_ref, rel=1e-12)
+        else:
+            assert ts[1] == 0.05 or nrej > 0
+        sol = solve_ivp(pend, (0.0, t_end), y0, method="DOP853", rtol=1e-8, atol=1e-10, first_step=h0 if h0 > 0 else None)
+        assert abs(len(sol.t) - len(ts)) <= 2
         ref = solve_ivp(pend, (0.0, t_end), y0, method="DOP853", rtol=1e-13, atol=1e-13, t_eval=ts)
-        assert np.max(np.abs(ys - ref.y.T)) < 1e-6
+        assert np.max(np.abs(ys - ref.y.T)) < 100 * 1e-8
 
 
 def test_dop853_max_steps(k):
     p = np.array([OSC, W])
-    ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, 100.0, p, 1e-10, 1e-10, 0.0, 5, np.empty(0))
+    ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, 100.0, p, 1e-10, 1e-10, 0.0, 5)
     assert status == 3 and nacc + nrej == 5 and len(ts) == nacc + 1 and ts[-1] < 100.0
     np.testing.assert_allclose(ys, osc_exact(ts), atol=1e-8)
-    ts, ys, status, *_ = k.dop853(np.array([1.0, 0.0]), 0.0, 100.0, p, 1e-10, 1e-10, 0.0, 5, np.linspace(0, 100, 11))
+    ts, ys, status, *_ = k.dop853(np.array([1.0, 0.0]), 0.0, 100.0, p, 1e-10, 1e-10, 0.0, 5, 10.0, 11)
     assert status == 3 and len(ts) == 1 and ts[0] == 0.0
 
 
 def test_dop853_blow_up(k):
     """y' = y^2, y(0) = 1: y = 1/(1 - t) blows up at t = 1 < t_end = 2."""
     p = np.array([BLOWUP, 0.0])
-    for t_out in (np.empty(0), np.linspace(0.0, 2.0, 201)):
-        ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, 2.0, p, 1e-8, 1e-8, 0.0, 100000, t_out)
+    for t_out in (np.empty(0), np.arange(201) * 0.01):
+        grid = (0.01, 201) if len(t_out) else ()
+        ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, 2.0, p, 1e-8, 1e-8, 0.0, 100000, *grid)
         assert status in (1, 2)
         assert len(ts) >= 1 and np.all(np.isfinite(ys)) and np.all(np.isfinite(ts))
         # the numerical blow-up time is the exact one to about rtol
@@ -279,7 +361,7 @@ def test_dop853_blow_up(k):
 def test_non_finite_derivative_gives_status_1(k):
     """y' = 1 for y < 1.5, NaN beyond: every method stops at the wall with finite rows."""
     p = np.array([NANWALL, 0.0])
-    ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, 2.0, p, 1e-8, 1e-8, 0.0, 100000, np.empty(0))
+    ts, ys, status, nfev, nacc, nrej = k.dop853(np.array([1.0, 0.0]), 0.0, 2.0, p, 1e-8, 1e-8, 0.0, 100000)
     assert status == 1 and np.all(np.isfinite(ys))
     assert 0.5 - 1e-9 < ts[-1] < 0.5 and ys[-1, 0] < 1.5
     ts, ys, status, nfev = k.rk4(np.array([1.0, 0.0]), 0.0, 0.1, 20, p, 3)
@@ -296,7 +378,7 @@ def test_non_finite_derivative_gives_status_1(k):
 def test_dop853_rk4_gauss_non_finite_initial_state(k):
     p = np.array([OSC, W])
     y0 = np.array([np.nan, 0.0])
-    assert k.dop853(y0, 0.0, 1.0, p, 1e-8, 1e-8, 0.0, 100, np.empty(0))[2] == 1
+    assert k.dop853(y0, 0.0, 1.0, p, 1e-8, 1e-8, 0.0, 100)[2] == 1
     ts, ys, status, _ = k.rk4(y0, 0.0, 0.1, 10, p, 1)
     assert status == 1 and len(ts) == 0 and ys.shape == (0, 2)
     ts, zs, status, _ = k.gauss_legendre(y0, 0.0, 0.1, 10, p, 1, 1e-14, 50)
@@ -360,35 +442,3 @@ def test_gauss_legendre_energy_bounded_rk4_drifts(k):
     print(f"rk4: |H - H0| at t/10 {dH_rk[tenth]:.3g}, at the end {dH_rk[-1]:.3g}")
     assert dH_rk[-1] > 5 * dH_rk[tenth]
     assert dH_rk[-1] > 10 * last
-
-
-# -- numba's disk cache -------------------------------------------------------------------------------------
-CACHE_CHECK = """
-import importlib.util, sys
-import numpy as np
-name, path = sys.argv[1], sys.argv[2]
-spec = importlib.util.spec_from_file_location(name, path)
-k = importlib.util.module_from_spec(spec)
-sys.modules[name] = k
-spec.loader.exec_module(k)
-p, y0 = np.array([0.0, 1.3]), np.array([1.0, 0.0])
-k.dop853(y0, 0.0, 1.0, p, 1e-8, 1e-8, 0.0, 1000, np.empty(0))
-k.rk4(y0, 0.0, 0.1, 10, p, 1)
-k.gauss_legendre(y0, 0.0, 0.1, 10, p, 1, 1e-14, 100)
-for f in (k.dop853, k.rk4, k.gauss_legendre):
-    print(f.__name__, sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values()))
-"""
-
-
-def test_integrators_are_loaded_from_numba_cache_in_a_new_process(k):
-    p, y0 = np.array([OSC, W]), np.array([1.0, 0.0])
-    k.dop853(y0, 0.0, 1.0, p, 1e-8, 1e-8, 0.0, 1000, np.empty(0))  # compiled (and cached) here
-    k.rk4(y0, 0.0, 0.1, 10, p, 1)
-    k.gauss_legendre(y0, 0.0, 0.1, 10, p, 1, 1e-14, 100)
-    run = subprocess.run(
-        [sys.executable, "-c", CACHE_CHECK, k.__name__, k.__file__], capture_output=True, text=True, timeout=120
-    )
-    assert run.returncode == 0, run.stderr
-    for line in run.stdout.split("\n")[:3]:
-        name, hits, misses = line.split()
-        assert (int(hits), int(misses)) == (1, 0), line

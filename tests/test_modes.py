@@ -114,7 +114,7 @@ def test_sweep_over_alpha_and_resonances():
     m = normal_modes(BENCH.replace(alpha=crossings[0].value))
     assert m.frequencies[1] / m.frequencies[0] == pytest.approx(2.0, abs=2e-4)
     cols, rows = sw.table()
-    assert cols[:3] == ["alpha", "omega1", "omega2"] and rows.shape == (181, 10)
+    assert cols[:3] == ["alpha", "omega1", "omega2"] and rows.shape == (181, 11) and cols[-1] == "alpha_deg"
 
 
 def test_sweep_ratio_and_parse():
@@ -155,7 +155,7 @@ def test_cli_sweep_files(tmp_path):
     out = run("modes", "--sweep", "alpha=0:180deg:37", "--out", csv, "--plot", png).stdout
     assert "2:1  crossed at alpha" in out
     rows = np.loadtxt(csv, delimiter=",", skiprows=1)
-    assert rows.shape == (37, 10) and np.all(np.isfinite(rows))
+    assert rows.shape == (37, 11) and np.all(np.isfinite(rows))
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

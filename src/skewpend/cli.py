@@ -7,9 +7,10 @@ stderr with exit status 2.
 
 from __future__ import annotations
 
+import os
 import sys
 from enum import Enum
-from typing import Annotated, List, Optional
+from typing import Annotated, Dict, List, Optional
 
 import typer
 
@@ -162,6 +163,15 @@ def derive(
 
         if linear or steps:
             raise UsageError("--linear and --steps go with --format text|latex|json, not with generated code")
+        # numeric values become the code's default parameter vector P, all of them or none
+        # (generate refuses a partial set); a typed --c1/--c2/--tau1/--tau2 needs that vector
+        typed = [f"--{k}" for k in ("c1", "c2", "tau1", "tau2") if model.get(k) is not None and getattr(params, k) is not None]
+        core = [f"--{k}" for k in ("a", "b", "m1", "m2", "alpha", "g") if k != "alpha" or params.uses_alpha]
+        if typed and all(getattr(params, k[2:]) is None for k in core):
+            raise UsageError(
+                f"{', '.join(typed)} with --format {fmt.value} needs {' '.join(core)} as numbers too (all become the "
+                f"code's default parameter vector P); give them, or leave out {', '.join(typed)} (p is supplied at run time)"
+            )
         sys.stdout.write(generate(params, fmt.value))
         return
     from .derivation import derive as derive_eom
@@ -185,21 +195,25 @@ def derive(
 DEFAULT_RUN = {
     "parameters": {"a": 1.0, "b": 0.8, "m1": 1.0, "m2": 0.7, "alpha": 0.6, "g": 9.81},
     "initial": {"phi0": 1.2, "psi0": -0.8, "dphi0": 0.0, "dpsi0": 0.0},
-    "simulation": {"t_end": 20.0, "method": "dop853", "rtol": 1e-10, "atol": 1e-10},
+    "simulation": {"t_end": 20.0, "method": "dop853"},
 }
 
 
-def _as_text(value) -> Optional[str]:
+def _as_text(value, where: str = "value") -> Optional[str]:
     """A config value in the command line's spelling (numbers, '30deg', vectors, matrices)."""
     if value is None:
         return None
     if isinstance(value, bool):
-        raise UsageError(f"expected a number, got {value!r}")
+        raise UsageError(f"{where}: expected a number, got {str(value).lower()}")
     if isinstance(value, (list, tuple)):
         flat = []
         for v in value:
             flat.extend(v if isinstance(v, (list, tuple)) else [v])
+        if any(isinstance(x, (bool, list, tuple, dict)) for x in flat):
+            raise UsageError(f"{where}: expected numbers or symbol names, got {value!r}")
         return ",".join(repr(float(x)) if isinstance(x, (int, float)) else str(x) for x in flat)
+    if isinstance(value, dict):
+        raise UsageError(f"{where}: expected a number, got a table")
     return value if isinstance(value, str) else repr(value)
 
 
@@ -211,38 +225,92 @@ class Method(str, Enum):
 
 
 
+class _Run:
+    """Resolved settings: built-in defaults, then the config file, then command-line options.
+
+    Every value remembers where it came from, so a message names the option (``--a``) or
+    the file and key (``run.toml: [parameters] a``) that the user typed.
+    """
+
+    def __init__(self, config: Optional[str], sections: Dict[str, dict], defaults: bool = True):
+        from .io import read_config
+
+        self.values: Dict[str, Dict[str, object]] = {k: {} for k in DEFAULT_RUN}
+        self.where: Dict[str, Dict[str, str]] = {k: {} for k in DEFAULT_RUN}
+        self.given: Dict[str, set] = {k: set() for k in DEFAULT_RUN}
+        if defaults:
+            for section, values in DEFAULT_RUN.items():
+                for k, v in values.items():
+                    self._set(section, k, v, f"default {k}", given=False)
+        if config is not None:
+            for section, values in read_config(config).items():
+                for k, v in values.items():
+                    self._set(section, k, v, f"{config}: [{section}] {k}")
+        for section, values in sections.items():
+            for k, v in values.items():
+                if v is not None:
+                    self._set(section, k, v, "--" + k.replace("_", "-"))
+        P = self.values["parameters"]
+        if "axis2" in P and "alpha" in P and "alpha" not in self.given["parameters"]:
+            del P["alpha"]  # the built-in alpha gives way to a user's axis2
+
+    def _set(self, section, key, value, where, given=True):
+        self.values[section][key] = value
+        self.where[section][key] = where
+        if given:
+            self.given[section].add(key)
+
+    def text(self, section: str, key: str) -> Optional[str]:
+        return _as_text(self.values[section].get(key), self.where[section].get(key, key))
+
+    def scalar(self, section: str, key: str, *, angle: bool = False) -> Optional[float]:
+        return parse_scalar(self.text(section, key), self.where[section].get(key, key), angle=angle)
+
+    def is_given(self, section: str, key: str) -> bool:
+        return key in self.given[section]
+
+    def option(self, section: str, key: str) -> str:
+        return self.where[section].get(key, "--" + key.replace("_", "-"))
+
+    def parameters(self):
+        P = self.values["parameters"]
+        w = self.where["parameters"]
+        t = {k: self.text("parameters", k) for k in P}
+        return _build(t, w)
+
+    def initial_state(self):
+        y0 = [self.scalar("initial", k, angle=k in ("phi0", "psi0")) for k in ("phi0", "psi0", "dphi0", "dpsi0")]
+        if any(v is None for v in y0):
+            raise UsageError("the initial state must be numeric (not 'sym')")
+        return y0
+
+
+def _build(t: dict, where: dict):
+    """Parameters from spelled values, each parsed with the name the user knows it by."""
+    from .model import Parameters
+
+    def w(k):
+        return where.get(k, "--" + k)
+
+    scalars = {k: parse_scalar(t.get(k), w(k), angle=(k == "alpha")) for k in ("a", "b", "m1", "m2", "alpha", "g")}
+    for k in ("c1", "c2", "tau1", "tau2"):
+        scalars[k] = parse_scalar(t.get(k, "0") or "0", w(k))
+    geometry = {k: parse_vector(t.get(k), w(k)) for k in ("com1", "com2", "axis1", "axis2")}
+    geometry.update({k: parse_inertia(t.get(k), w(k)) for k in ("inertia1", "inertia2")})
+    return Parameters(**scalars, **geometry)
+
+
 def _resolve(config: Optional[str], parameters: dict, initial: dict, simulation: dict):
-    """Numeric parameters, initial state and run settings: built-in defaults, then the
-    config file, then command-line options."""
-    from .io import read_config
-
-    run = {k: dict(v) for k, v in DEFAULT_RUN.items()}
-    if config is not None:
-        for section, values in read_config(config).items():
-            run[section].update(values)
-    for section, values in (("parameters", parameters), ("initial", initial), ("simulation", simulation)):
-        run[section].update({k: v for k, v in values.items() if v is not None})
-    P, I, S = (run[k] for k in ("parameters", "initial", "simulation"))
-    t = {k: _as_text(v) for k, v in P.items()}
-    zero = "0"
-    params = build_parameters(
-        t.get("a"), t.get("b"), t.get("m1"), t.get("m2"), t.get("alpha"), t.get("g"),
-        t.get("c1", zero), t.get("c2", zero), t.get("tau1", zero), t.get("tau2", zero),
-        t.get("com1"), t.get("com2"), t.get("inertia1"), t.get("inertia2"), t.get("axis1"), t.get("axis2"),
-    )
-    y0 = [
-        parse_scalar(_as_text(I["phi0"]), "--phi0", angle=True),
-        parse_scalar(_as_text(I["psi0"]), "--psi0", angle=True),
-        parse_scalar(_as_text(I["dphi0"]), "--dphi0"),
-        parse_scalar(_as_text(I["dpsi0"]), "--dpsi0"),
-    ]
-    if any(v is None for v in y0):
-        raise UsageError("the initial state must be numeric (not 'sym')")
-    return params, y0, S
+    """Numeric parameters, initial state and the resolved run (see :class:`_Run`)."""
+    run = _Run(config, {"parameters": parameters, "initial": initial, "simulation": simulation})
+    return run.parameters(), run.initial_state(), run
 
 
-def _setting(S: dict, key: str, option: str) -> Optional[float]:
-    return None if S.get(key) is None else parse_scalar(_as_text(S[key]), option)
+def _setting(run: "_Run", key: str) -> Optional[float]:
+    return run.scalar("simulation", key)
+
+
+QUIET = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar (it is shown on a terminal for work over ~1 s)", rich_help_panel=_R)]
 
 
 @app.command()
@@ -251,43 +319,67 @@ def simulate(
     model: dict,
     initial: dict,
     t_end: Annotated[Optional[str], typer.Option("--t-end", help="duration [s] (default 20)", rich_help_panel=_R)] = None,
-    dt_out: Annotated[Optional[str], typer.Option("--dt-out", help="output interval [s] (default: the integrator's own steps)", rich_help_panel=_R)] = None,
+    dt_out: Annotated[Optional[str], typer.Option("--dt-out", help="with --out: output interval [s] (default: the integrator's own steps)", rich_help_panel=_R)] = None,
     method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)] = None,
-    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 (default 1e-10)", rich_help_panel=_R)] = None,
-    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 (default 1e-10)", rich_help_panel=_R)] = None,
-    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s] for rk4 and gauss (default 1e-3)", rich_help_panel=_R)] = None,
-    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the trajectory to FILE (.csv or .nc)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
+    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only (default 1e-3)", rich_help_panel=_R)] = None,
+    max_steps: Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="stream the trajectory to FILE (.csv or .nc)", rich_help_panel=_R)] = None,
+    quiet: QUIET = False,
     config: CONFIG = None,
 ) -> None:
-    """Simulate the nonlinear equations of motion; print a summary or write a trajectory file."""
-    params, y0, S = _resolve(
-        config,
-        model,
-        initial,
-        dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt, out=out),
-    )
-    method_name = str(S.get("method", "dop853"))
-    from .integrate import METHODS, simulate as run_simulation
+    """Simulate the nonlinear equations of motion; print a summary, or stream the trajectory to a file.
 
-    if method_name not in METHODS:
-        raise UsageError(f"--method: expected one of {', '.join(METHODS)}, got {method_name!r}")
+    Exit status: 0 done, 1 the run stopped early (what it computed is written), 2 bad input,
+    130 interrupted (nothing written).
+    """
+    from .integrate import METHODS, MAX_STEPS
+
+    params, y0, run = _resolve(
+        config, model, initial,
+        dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt,
+             max_steps=max_steps, out=out),
+    )
+    S = run.values["simulation"]
+    method_name = S.get("method", "dop853")
+    if not isinstance(method_name, str) or method_name not in METHODS:
+        raise UsageError(f"{run.option('simulation', 'method')}: expected one of {', '.join(METHODS)}, got {method_name!r}")
+    for key in ("rtol", "atol"):
+        if method_name != "dop853" and run.is_given("simulation", key):
+            raise UsageError(f"{run.option('simulation', key)} is a tolerance of dop853; {method_name} takes fixed steps (set --dt)")
+    if method_name == "dop853" and run.is_given("simulation", "dt"):
+        raise UsageError(f"{run.option('simulation', 'dt')} is the step of rk4 and gauss; dop853 chooses its own steps (set --rtol/--atol)")
     out_path = S.get("out")
-    if out_path is not None and not str(out_path).lower().endswith((".csv", ".nc")):
-        raise UsageError(f"--out: expected a file name ending in .csv or .nc, got {out_path!r}")
-    traj = run_simulation(
-        params, y0, _setting(S, "t_end", "--t-end"),
-        dt_out=_setting(S, "dt_out", "--dt-out"), method=method_name,
-        rtol=_setting(S, "rtol", "--rtol"), atol=_setting(S, "atol", "--atol"),
-        dt=_setting(S, "dt", "--dt"),
-    )
-    if not traj.success:
-        sys.stderr.write(f"skewpend: simulation {traj.message} at t = {traj.t[-1]:.6g} s; no file written\n")
-        sys.exit(1)
+    if out_path is not None and not isinstance(out_path, str):
+        raise UsageError(f"{run.option('simulation', 'out')}: expected a file name, got {out_path!r}")
+    if out_path is None and run.is_given("simulation", "dt_out"):
+        raise UsageError(f"{run.option('simulation', 'dt_out')} sets the rows written to --out; give --out FILE.csv|.nc too")
+    steps = MAX_STEPS
+    if run.is_given("simulation", "max_steps"):
+        value = _setting(run, "max_steps")
+        if value is None or value != int(value) or value < 1:
+            raise UsageError(f"{run.option('simulation', 'max_steps')}: expected a positive whole number, got {S['max_steps']!r}")
+        steps = int(value)
     if out_path is not None:
-        from .io import write_trajectory
+        from .io import TRAJECTORY_SUFFIXES, check_output_path
 
-        write_trajectory(traj, out_path)
+        check_output_path(out_path, TRAJECTORY_SUFFIXES, option=run.option("simulation", "out"))
+    from .integrate import simulate as run_simulation
+    from .progress import ProgressBar
+
+    with ProgressBar("simulating", unit="s", enabled=None if not quiet else False) as bar:
+        traj = run_simulation(
+            params, y0, _setting(run, "t_end"),
+            dt_out=_setting(run, "dt_out"), method=method_name,
+            rtol=_setting(run, "rtol"), atol=_setting(run, "atol"), dt=_setting(run, "dt"),
+            max_steps=steps, out=out_path, keep=False, progress=bar,
+        )
     _summary(traj, out_path)
+    if not traj.success:
+        written = f"; wrote the {traj.stats['rows']} rows computed to {out_path}" if out_path else ""
+        sys.stderr.write(f"skewpend: simulation {traj.message} at t = {traj.t[-1]:.6g} s{written}\n")
+        sys.exit(1)
 
 
 class ExportFormat(str, Enum):
@@ -361,34 +453,54 @@ class ModesFormat(str, Enum):
 @_options({k: v for k, v in MODEL_OPTIONS.items() if k not in ("tau1", "tau2")})
 def modes(
     model: dict,
-    fmt: Annotated[ModesFormat, typer.Option("--format", "-f", help="text, json, or latex (the closed-form characteristic equation in the parameters not given)")] = ModesFormat.text,
-    sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1 (e.g. alpha=0:180deg:181)")] = None,
+    fmt: Annotated[ModesFormat, typer.Option("--format", "-f", help="text, json, or latex (the closed-form characteristic equation in the parameters not given; not with --sweep, --plot, --out, --tolerance, --check-nonlinear)")] = ModesFormat.text,
+    sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1 (e.g. alpha=0:180deg:181; a unit on either end applies to the whole range, plain numbers are radians)")] = None,
     plot: Annotated[Optional[str], typer.Option("--plot", help="with --sweep: write the frequency curves to FILE (.png, .pdf, .svg)")] = None,
-    out: Annotated[Optional[str], typer.Option("--out", "-o", help="with --sweep: write the table to FILE (.csv or .json)")] = None,
-    tolerance: Annotated[str, typer.Option("--tolerance", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3")] = "0.01",
-    check_nonlinear: Annotated[Optional[str], typer.Option("--check-nonlinear", help="AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode")] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="with --sweep: write the table to FILE (.csv or .json; alpha in rad plus alpha_deg)")] = None,
+    tolerance: Annotated[Optional[str], typer.Option("--tolerance", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3 (a positive number; default 0.01)")] = None,
+    check_nonlinear: Annotated[Optional[str], typer.Option("--check-nonlinear", help="AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep)")] = None,
     config: CONFIG = None,
 ) -> None:
     """Normal modes of the small oscillations about the hanging equilibrium (and how alpha shapes them)."""
     given = model
+    # every option takes effect or is refused, before any work is done
     if fmt is ModesFormat.latex:
-        _modes_latex(given)
+        extra = [o for o, v in (("--sweep", sweep_spec), ("--plot", plot), ("--out", out), ("--tolerance", tolerance),
+                                ("--check-nonlinear", check_nonlinear)) if v is not None]
+        if extra:
+            raise UsageError(
+                f"--format latex prints only the closed-form characteristic equation, so {', '.join(extra)} "
+                "cannot be used with it (use --format text or json)"
+            )
+        _modes_latex(given, config)
         return
+    if sweep_spec is None:
+        if plot is not None or out is not None:
+            raise UsageError("--plot and --out go with --sweep")
+        if tolerance is not None:
+            raise UsageError("--tolerance sets how close w2/w1 must come to 1, 2, 3 along a --sweep; without --sweep it has no effect")
+    elif check_nonlinear is not None:
+        raise UsageError("--check-nonlinear measures one parameter set, not a sweep; use it without --sweep")
     from . import modes as md
 
     params, _, _ = _resolve(config, given, {}, {})
     if sweep_spec is not None:
-        _modes_sweep(params, sweep_spec, plot, out, parse_scalar(tolerance, "--tolerance"), fmt)
+        tol = 0.01
+        if tolerance is not None:
+            tol = parse_scalar(tolerance, "--tolerance")
+            if tol is None or not tol > 0:
+                raise UsageError(f"--tolerance: expected a positive number (e.g. 0.01), got {tolerance!r}")
+        _modes_sweep(params, sweep_spec, plot, out, tol, fmt, given)
         return
-    if plot is not None or out is not None:
-        raise UsageError("--plot and --out go with --sweep")
-    result = md.normal_modes(params)
-    check = None
+    amplitude = None
     if check_nonlinear is not None:
         amplitude = parse_scalar(check_nonlinear, "--check-nonlinear", angle=True)
-        if amplitude is None:
-            raise UsageError("--check-nonlinear needs a number (radians, or e.g. 10deg)")
-        check = md.check_nonlinear(params, amplitude)
+        if amplitude is None or not 0 < amplitude < 3.141592653589793:
+            raise UsageError(
+                f"--check-nonlinear: expected an amplitude between 0 and 180 deg exclusive (radians, or e.g. 10deg), got {check_nonlinear!r}"
+            )
+    result = md.normal_modes(params)
+    check = md.check_nonlinear(params, amplitude) if amplitude is not None else None
     if fmt is ModesFormat.json:
         import json
 
@@ -418,11 +530,19 @@ def _modes_text(m, check) -> str:
         )
     beat = "inf (1:1)" if not np.isfinite(m.beat_period) else f"{m.beat_period:.6g} s"
     lines.append(f"beat period 2 pi/(w2 - w1) = {beat};  w2/w1 = {m.frequencies[1] / m.frequencies[0]:.6g}")
-    if np.any(m.C != 0):
-        lines.append("with damping: " + ";  ".join(
-            f"mode {k + 1}: lambda = {m.eigenvalues[k].real:.6g} {'+' if m.eigenvalues[k].imag >= 0 else '-'} {abs(m.eigenvalues[k].imag):.6g} i, "
-            f"damped omega = {m.damped_frequencies[k]:.6g} rad/s, zeta = {m.damping_ratios[k]:.4g}"
-            for k in range(2)))
+    if m.damped:
+        lines.append("with damping (eigenvalues matched to the modes by shape; zeta = -(l1 + l2)/(2 sqrt(l1 l2))):")
+        for k in range(2):
+            l1, l2 = m.eigenvalue_pairs[k]
+            if m.overdamped[k]:
+                lines.append(
+                    f"  mode {k + 1}: overdamped, lambda = {l1.real:.6g} and {l2.real:.6g} (real), zeta = {m.damping_ratios[k]:.4g}"
+                )
+            else:
+                lines.append(
+                    f"  mode {k + 1}: lambda = {l1.real:.6g} +/- {abs(l1.imag):.6g} i, "
+                    f"damped omega = {m.damped_frequencies[k]:.6g} rad/s, zeta = {m.damping_ratios[k]:.4g}"
+                )
     if check is not None:
         lines.append("")
         lines.append(f"nonlinear check, largest initial angle {check.amplitude:.6g} rad ({np.degrees(check.amplitude):.4g} deg):")
@@ -434,16 +554,27 @@ def _modes_text(m, check) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _modes_latex(given: dict) -> None:
+def _modes_latex(given: dict, config: Optional[str]) -> None:
+    """The closed form for the parameters given (options over the config's [parameters]);
+    the others stay symbolic.  Damping and torques do not enter det(K0 - w^2 M0): refused."""
+    from .errors import EquilibriumError
     from .modes import characteristic_equation
     from .render import _tex
 
-    t = {k: _as_text(v) for k, v in given.items()}
-    params = build_parameters(
-        t["a"], t["b"], t["m1"], t["m2"], t["alpha"], t["g"], t["c1"] or "0", t["c2"] or "0", "0", "0",
-        t["com1"], t["com2"], t["inertia1"], t["inertia2"], t["axis1"], t["axis2"],
-    )
-    eq, roots = characteristic_equation(params)
+    run = _Run(config, {"parameters": given}, defaults=False)
+    for keys, why in (
+        (("tau1", "tau2"), "phi = psi = 0 is not an equilibrium with constant joint torques; normal modes need tau1 = tau2 = 0"),
+        (("c1", "c2"), None),
+    ):
+        named = [run.option("parameters", k) for k in keys if run.is_given("parameters", k) and run.scalar("parameters", k) != 0.0]
+        if named and why is not None:
+            raise EquilibriumError(f"{', '.join(named)}: {why}")
+        if named:
+            raise UsageError(
+                f"--format latex prints det(K0 - w^2 M0) = 0, the undamped characteristic equation, so damping "
+                f"({', '.join(named)}) would have no effect; leave it out or set it to 0, or use --format text or json for the damped modes"
+            )
+    eq, roots = characteristic_equation(run.parameters())
     body = [
         r"\det\left(K_0 - \omega^2 M_0\right) = 0 \;\Longleftrightarrow\; " + _tex(eq.lhs) + " &= 0",
         r"\omega_1^2 &= " + _tex(roots[0]),
@@ -452,12 +583,15 @@ def _modes_latex(given: dict) -> None:
     sys.stdout.write("\\[\n\\begin{aligned}\n" + " \\\\\n".join(body) + "\n\\end{aligned}\n\\]\n")
 
 
-def _modes_sweep(params, spec, plot, out, tolerance, fmt) -> None:
+def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
     import numpy as np
 
     from . import modes as md
 
     name, values = md.parse_sweep(spec)
+    swept = md.SWEPT_PARAMETER.get(name, name)
+    if given.get(swept) is not None:
+        raise UsageError(f"--{swept} and --sweep {name}=... both set {swept}; the sweep gives every value, so leave out --{swept}")
     if out is not None and not str(out).lower().endswith((".csv", ".json")):
         raise UsageError(f"--out: expected a file name ending in .csv or .json, got {out!r}")
     if plot is not None and not str(plot).lower().endswith((".png", ".pdf", ".svg")):
@@ -478,12 +612,13 @@ def _modes_sweep(params, spec, plot, out, tolerance, fmt) -> None:
         from .plots import plot_sweep, save_figure
 
         save_figure(plot_sweep(sw), plot)
-    if fmt is ModesFormat.json and out is None:
+    if fmt is ModesFormat.json:
         import json
 
         sys.stdout.write(json.dumps(sw.to_dict(), indent=2) + "\n")
         return
-    show = (lambda v: f"{np.degrees(v):.4g} deg") if name == "alpha" else (lambda v: f"{v:.6g}")
+    # alpha is reported in radians (the SI unit of the files) and in degrees (the plot's axis)
+    show = (lambda v: f"{v:.6g} rad ({np.degrees(v):.4g} deg)") if name == "alpha" else (lambda v: f"{v:.6g}")
     lines = [
         f"swept {name} over {show(values[0])} .. {show(values[-1])} ({values.size} values)",
         f"omega1: {sw.frequencies[:, 0].min():.6g} .. {sw.frequencies[:, 0].max():.6g} rad/s;  "
@@ -506,18 +641,22 @@ def _modes_sweep(params, spec, plot, out, tolerance, fmt) -> None:
 def _summary(traj, out_path) -> None:
     y = traj.final_state
     st = traj.stats
+    kernel = (
+        f"compiled for this model in {st['kernel_build_time']:.2f} s (first use; cached for later runs)"
+        if st.get("kernel") == "compiled" else "loaded from the cache"
+    )
     lines = [
-        f"method        {traj.method}  ({', '.join(f'{k}={v:g}' for k, v in traj.settings.items() if isinstance(v, float))})",
+        f"method        {traj.method}  ({', '.join(f'{k}={v:g}' for k, v in traj.settings.items() if isinstance(v, float) and k != 't_end')})",
         f"status        {traj.message}",
         f"final state   t={traj.t[-1]:.6g} s  phi={y[0]:.12g}  psi={y[1]:.12g}  dphi={y[2]:.12g}  dpsi={y[3]:.12g}",
         f"energy        E0={traj.energy[0]:.12g} J  E={traj.energy[-1]:.12g} J  work of Q={traj.work[-1]:.6g} J",
         f"energy drift  {traj.energy_drift:.3e} (max |E - W - E0| / max |E|)",
         f"steps         {st['steps']} accepted, {st['rejected']} rejected, {st['nfev']} evaluations",
-        f"wall time     {st['wall_time'] * 1e3:.2f} ms (compiled integration"
-        + ("; includes loading/compiling the machine code on first use)" if st.get("includes_jit_load") else ")"),
+        f"wall time     {st['wall_time'] * 1e3:.2f} ms (compiled integration)",
+        f"kernel        {kernel}",
     ]
     if out_path is not None:
-        lines.append(f"written       {out_path} ({traj.t.size} rows)")
+        lines.append(f"written       {out_path} ({st['rows']} rows)")
     sys.stdout.write("\n".join(lines) + "\n")
 
 
@@ -526,8 +665,16 @@ def _fail(message: str) -> None:
     sys.exit(2)
 
 
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    sys.stderr.write(f"skewpend: warning: {message}\n")
+
+
 def main(argv: Optional[List[str]] = None) -> None:
-    """Entry point: run the app; user mistakes become one line on stderr and exit status 2."""
+    """Entry point: run the app; user mistakes become one line on stderr and exit status 2,
+    Ctrl-C one line and exit status 130."""
+    import warnings
+
+    warnings.showwarning = _warning_line
     try:
         result = app(args=argv, prog_name="skewpend", standalone_mode=False)
     except SkewpendError as exc:
@@ -540,14 +687,29 @@ def main(argv: Optional[List[str]] = None) -> None:
         if kind == "NoArgsIsHelpError":
             sys.stdout.write(exc.format_message() + "\n")
             sys.exit(0)
-        if kind == "Abort":
-            sys.stderr.write("skewpend: aborted\n")
+        if kind == "Abort" or isinstance(exc.__cause__, KeyboardInterrupt):
+            sys.stderr.write("skewpend: interrupted\n")
             sys.exit(130)
+        if kind == "Exit":  # typer.Exit: --version and the like
+            sys.exit(getattr(exc, "exit_code", 0))
         if getattr(exc, "exit_code", None) == 2 and hasattr(exc, "format_message"):
             ctx = getattr(exc, "ctx", None)
             where = f"skewpend {ctx.info_name}" if ctx is not None and ctx.parent is not None else "skewpend"
             _fail(f"{exc.format_message().strip()} (see '{where} --help')")
-        raise
+        if os.environ.get("SKEWPEND_DEBUG"):
+            raise
+        if isinstance(exc, (OSError, MemoryError)):
+            detail = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            sys.stderr.write(f"skewpend: error: {detail}{where}\n")
+            sys.exit(1)
+        sys.stderr.write(
+            f"skewpend: internal error: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''} "
+            "(a bug: please report it with the command; SKEWPEND_DEBUG=1 shows the traceback)\n"
+        )
+        sys.exit(70)
+    if result == 130:  # Typer turns Ctrl-C into an exit code without a word
+        sys.stderr.write("skewpend: interrupted\n")
     sys.exit(result if isinstance(result, int) else 0)
 
 

@@ -1,32 +1,62 @@
-"""Compiled kernels: the generated numba module for a model, cached on disk.
+"""Compiled kernels: the generated C for a model, compiled once and cached on disk.
 
-This module does not import SymPy: when the generated module for a model's bodies
-and axes is already in the cache, a new process loads it (and numba's cached machine
-code) without deriving anything.  On a miss, :mod:`skewpend.codegen` writes it.
+This module does not import SymPy: when the shared library for a model's bodies and axes
+is in the cache, a new process loads it with :mod:`ctypes` in about a millisecond.  On a
+miss, :mod:`skewpend.kernelgen` prints the model's C from the derivation, the integrator
+template ``_integrators.c`` is appended, and the system C compiler (``$CC``, else ``cc``,
+``gcc`` or ``clang``) builds it -- a fraction of a second.
+
+The cache repairs itself: a library whose recorded SHA-256 does not match, or that does
+not load, is rebuilt; an unwritable cache directory falls back to a private temporary
+one (with a warning).  ``$SKEWPEND_CACHE_DIR`` overrides the user cache directory.
 """
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
-import importlib.util
 import os
+import platform
+import shutil
+import subprocess
 import sys
 import tempfile
 import threading
+import time
+import warnings
 from pathlib import Path
-from typing import Dict, Tuple
+from typing import Dict, Optional, Tuple
 
 from . import __version__
+from .errors import SkewpendError
 from .model import SCALAR_NAMES, Parameters
 
-__all__ = ["PARAMETER_ORDER", "STATE_ORDER", "geometry_of", "parameter_vector", "kernel_module", "cache_dir"]
+__all__ = [
+    "PARAMETER_ORDER",
+    "STATE_ORDER",
+    "geometry_of",
+    "parameter_vector",
+    "kernel_module",
+    "cache_dir",
+    "Kernel",
+    "State",
+    "CompilerError",
+]
 
 #: Order of the parameter array ``p`` of every generated routine.
 PARAMETER_ORDER: Tuple[str, ...] = SCALAR_NAMES
 #: Order of the state ``y``.
 STATE_ORDER: Tuple[str, ...] = ("phi", "psi", "dphi", "dpsi")
 _GEOMETRY = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
-_SOURCES = ("codegen.py", "derivation.py", "kinematics.py", "_kernels.py", "compiled.py")
+#: Files whose text determines the generated library (part of the cache key).
+_SOURCES = ("kernelgen.py", "codegen.py", "derivation.py", "kinematics.py", "_integrators.c", "compiled.py")
+#: Compiler flags: no floating-point contraction, so results do not depend on FMA availability.
+CFLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
+SP_NMAX = 8
+
+
+class CompilerError(SkewpendError, RuntimeError):
+    """No working C compiler, or the generated kernel did not compile."""
 
 
 def geometry_of(params: Parameters) -> Parameters:
@@ -44,12 +74,8 @@ def parameter_vector(params: Parameters):
     )
 
 
-def _template_text() -> str:
-    return (Path(__file__).with_name("_kernels.py")).read_text()
-
-
 def cache_dir() -> Path:
-    """Where generated kernels are kept: ``$SKEWPEND_CACHE_DIR`` or the user cache directory."""
+    """Where compiled kernels are kept: ``$SKEWPEND_CACHE_DIR`` or the user cache directory."""
     env = os.environ.get("SKEWPEND_CACHE_DIR")
     if env:
         return Path(env)
@@ -58,50 +84,306 @@ def cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("skewpend"))
 
 
+class State(ctypes.Structure):
+    """Mirror of ``sp_state`` in ``_integrators.c``: everything an integrator needs to resume."""
+
+    _fields_ = [
+        ("t", ctypes.c_double),
+        ("h", ctypes.c_double),
+        ("y", ctypes.c_double * SP_NMAX),
+        ("f", ctypes.c_double * SP_NMAX),
+        ("g", ctypes.c_double * SP_NMAX),
+        ("comp", ctypes.c_double * SP_NMAX),
+        ("told", ctypes.c_double),
+        ("hseg", ctypes.c_double),
+        ("yold", ctypes.c_double * SP_NMAX),
+        ("F", ctypes.c_double * (7 * SP_NMAX)),
+        ("nfev", ctypes.c_int64),
+        ("naccept", ctypes.c_int64),
+        ("nreject", ctypes.c_int64),
+        ("step", ctypes.c_int64),
+        ("started", ctypes.c_int32),
+        ("have_f", ctypes.c_int32),
+        ("dense_ok", ctypes.c_int32),
+        ("pad", ctypes.c_int32),
+    ]
+
+    @classmethod
+    def at(cls, t0: float, y0) -> "State":
+        s = cls()
+        s.t = float(t0)
+        for i, v in enumerate(y0):
+            s.y[i] = float(v)
+        return s
+
+
+# -- the compiler -----------------------------------------------------------------------------------
+def find_compiler() -> str:
+    """The C compiler: ``$CC`` if set, else the first of ``cc``, ``gcc``, ``clang`` on PATH."""
+    env = os.environ.get("CC")
+    if env:
+        return env
+    for name in ("cc", "gcc", "clang"):
+        path = shutil.which(name)
+        if path:
+            return path
+    raise CompilerError(
+        "skewpend compiles its simulation kernels with a C compiler and none was found: "
+        "install gcc or clang (e.g. 'apt-get install gcc'), or set CC"
+    )
+
+
+def _compile(source: str, target: Path) -> None:
+    """Compile ``source`` into the shared library ``target`` (written atomically)."""
+    cc = find_compiler()
+    directory = target.parent
+    fd, c_tmp = tempfile.mkstemp(dir=directory, prefix=f".{target.stem}.", suffix=".c.tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(source)
+    so_tmp = c_tmp[: -len(".c.tmp")] + ".so.tmp"
+    try:
+        cmd = [*cc.split(), *CFLAGS, "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+        except OSError as exc:
+            raise CompilerError(f"cannot run the C compiler {cc!r}: {exc.strerror}; install gcc or clang, or set CC") from None
+        if proc.returncode != 0:
+            first = (proc.stderr.strip().splitlines() or ["(no message)"])[0]
+            raise CompilerError(f"the C compiler {cc!r} failed on the generated kernel: {first}")
+        digest = hashlib.sha256(Path(so_tmp).read_bytes()).hexdigest()
+        os.replace(so_tmp, target)
+        _atomic_text(target.with_suffix(".sha256"), digest + "\n")
+        os.replace(c_tmp, target.with_suffix(".c"))  # kept for reading, not used
+    finally:
+        for tmp in (c_tmp, so_tmp):
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+# -- the loaded library ------------------------------------------------------------------------------
+class Kernel:
+    """The compiled functions of one model geometry (bound with :mod:`ctypes`).
+
+    Single-state functions take and fill float64 arrays: ``rhs(y, p, out)``, ``ham_rhs(z, p, out)``, ``jac(y, p, out)`` (out 5x5),
+    ``energy(y, p) -> float``, ``momenta``, ``velocities``, ``tips``; row functions
+    ``energies(ys, p)``, ``tips_many(ys, p)``, ``speeds_many(zs, p)``.  The raw resumable
+    integrators are ``lib.sp_dop853``, ``lib.sp_rk4`` and ``lib.sp_gauss`` (see
+    ``_integrators.c``), driven by :mod:`skewpend.integrate`.
+
+    ``origin`` says where it came from: ``"compiled"`` (built in this process, taking
+    ``build_time`` seconds) or ``"cache"``.
+    """
+
+    def __init__(self, path: Path, origin: str, build_time: float):
+        import numpy as np
+
+        self.path, self.origin, self.build_time = path, origin, build_time
+        lib = ctypes.CDLL(str(path))
+        self.lib = lib
+        dp = ctypes.POINTER(ctypes.c_double)
+        i64, sp = ctypes.c_int64, ctypes.POINTER(State)
+        for name in ("sp_rhs", "sp_ham_rhs", "sp_jac", "sp_momenta", "sp_velocities", "sp_tips"):
+            getattr(lib, name).argtypes = [dp, dp, dp]
+            getattr(lib, name).restype = None
+        lib.sp_energy.argtypes, lib.sp_energy.restype = [dp, dp], ctypes.c_double
+        lib.sp_energies.argtypes, lib.sp_energies.restype = [dp, i64, i64, dp, dp], None
+        lib.sp_tips_many.argtypes, lib.sp_tips_many.restype = [dp, i64, i64, dp, dp], None
+        lib.sp_speeds_many.argtypes, lib.sp_speeds_many.restype = [dp, i64, i64, dp], None
+        lib.sp_state_size.argtypes, lib.sp_state_size.restype = [], i64
+        d, ip = ctypes.c_double, ctypes.POINTER(i64)
+        lib.sp_dop853.argtypes = [sp, ctypes.c_int, dp, d, d, d, i64, i64, d, i64, ip, dp, i64, ip]
+        lib.sp_rk4.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, i64, dp, i64, ip]
+        lib.sp_gauss.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, d, i64, i64, dp, i64, ip]
+        for name in ("sp_dop853", "sp_rk4", "sp_gauss"):
+            getattr(lib, name).restype = ctypes.c_int
+        if lib.sp_state_size() != ctypes.sizeof(State):
+            raise CompilerError(f"{path}: integrator state layout mismatch ({lib.sp_state_size()} != {ctypes.sizeof(State)} bytes)")
+        self._np = np
+
+    # -- helpers -------------------------------------------------------------------------------
+    def _in(self, a):
+        a = self._np.ascontiguousarray(a, dtype=self._np.float64)
+        return a, a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+    def _call3(self, fn, y, p, out, size):
+        y, yp = self._in(y)
+        p, pp = self._in(p)
+        if out.dtype != self._np.float64 or not out.flags.c_contiguous or out.size < size:
+            raise ValueError(f"out must be a C-contiguous float64 array of at least {size} entries")
+        fn(yp, pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+
+    def rhs(self, y, p, out) -> None:
+        self._call3(self.lib.sp_rhs, y, p, out, 5)
+
+    def ham_rhs(self, z, p, out) -> None:
+        self._call3(self.lib.sp_ham_rhs, z, p, out, 5)
+
+    def jac(self, y, p, out) -> None:
+        self._call3(self.lib.sp_jac, y, p, out, 25)
+
+    def momenta(self, y, p, out) -> None:
+        self._call3(self.lib.sp_momenta, y, p, out, 2)
+
+    def velocities(self, z, p, out) -> None:
+        self._call3(self.lib.sp_velocities, z, p, out, 2)
+
+    def tips(self, y, p, out) -> None:
+        self._call3(self.lib.sp_tips, y, p, out, 6)
+
+    def energy(self, y, p) -> float:
+        y, yp = self._in(y)
+        p, pp = self._in(p)
+        return float(self.lib.sp_energy(yp, pp))
+
+    def _rows(self, ys):
+        ys = self._np.ascontiguousarray(ys, dtype=self._np.float64)
+        if ys.ndim != 2 or ys.shape[1] < 4:
+            raise ValueError("expected rows of states, shape (n, >= 4)")
+        return ys
+
+    def energies(self, ys, p, *, offset: int = 0):
+        """Energy of each row ``ys[i, offset:]`` (a state) [J], shape (n,)."""
+        ys = self._rows(ys)
+        p, pp = self._in(p)
+        out = self._np.empty(ys.shape[0])
+        base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
+        self.lib.sp_energies(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+        return out
+
+    def tips_many(self, ys, p, *, offset: int = 0):
+        """Rod ends of each row ``ys[i, offset:]``: shape (n, 6) [m]."""
+        ys = self._rows(ys)
+        p, pp = self._in(p)
+        out = self._np.empty((ys.shape[0], 6))
+        base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
+        self.lib.sp_tips_many(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+        return out
+
+    def speeds_many(self, zs, p, *, offset: int = 0, inplace: bool = False):
+        """Canonical rows ``(phi, psi, p_phi, p_psi, ...)`` -> ``(phi, psi, dphi, dpsi, ...)``."""
+        zs = self._rows(zs)
+        ys = zs if inplace else zs.copy()
+        p, pp = self._in(p)
+        base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
+        self.lib.sp_speeds_many(base, ys.shape[0], ys.shape[1], pp)
+        return ys
+
+
+# -- the cache ----------------------------------------------------------------------------------------
 _LOCK = threading.Lock()
-_LOADED: Dict[str, object] = {}
+_LOADED: Dict[str, Kernel] = {}
+_BY_GEOMETRY: Dict[str, Kernel] = {}
+_SOURCE_DIGEST: Optional[str] = None
+_FALLBACK_DIR: Optional[Path] = None
 
 
-def _key(geometry: Parameters) -> str:
-    h = hashlib.sha256()
-    h.update(__version__.encode())
-    h.update(repr(geometry.to_dict()).encode())
-    for name in _SOURCES:
-        h.update(Path(__file__).with_name(name).read_bytes())
+def _source_digest() -> str:
+    """Hash of everything that shapes the generated library but the geometry (once per process)."""
+    global _SOURCE_DIGEST
+    if _SOURCE_DIGEST is None:
+        h = hashlib.sha256()
+        h.update(__version__.encode())
+        h.update(" ".join(CFLAGS).encode())
+        h.update(platform.machine().encode())
+        h.update(sys.platform.encode())
+        for name in _SOURCES:
+            h.update(Path(__file__).with_name(name).read_bytes())
+        _SOURCE_DIGEST = h.hexdigest()
+    return _SOURCE_DIGEST
+
+
+def _key(geometry_repr: str) -> str:
+    h = hashlib.sha256(_source_digest().encode())
+    h.update(geometry_repr.encode())
     return h.hexdigest()[:20]
 
 
-def kernel_module(params: Parameters):
-    """The compiled kernel module for the bodies and axes of ``params``.
+def _writable_directory() -> Path:
+    """The kernel directory, created if needed; a private temporary one if that is impossible."""
+    global _FALLBACK_DIR
+    directory = cache_dir() / "kernels"
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        probe = tempfile.NamedTemporaryFile(dir=directory, prefix=".probe.", delete=True)
+        probe.close()
+        return directory
+    except OSError as exc:
+        if _FALLBACK_DIR is None:
+            _FALLBACK_DIR = Path(tempfile.mkdtemp(prefix="skewpend-kernels-"))
+            warnings.warn(
+                f"cannot write the kernel cache {directory} ({exc.strerror or exc}); using {_FALLBACK_DIR} "
+                "for this run (set SKEWPEND_CACHE_DIR to a writable directory to keep compiled kernels)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        return _FALLBACK_DIR
 
-    Generated on first use (derivation + code generation, well under a second), written to
-    :func:`cache_dir` atomically, and imported; numba caches its machine code next to it,
-    so later processes start without deriving or compiling.  The module holds ``rhs``,
-    ``jac``, ``energy``, ``momenta``, ``velocities``, ``ham_rhs`` and the integrators of
-    :mod:`skewpend._kernels`.
+
+def _intact(path: Path) -> bool:
+    sha = path.with_suffix(".sha256")
+    try:
+        recorded = sha.read_text().strip()
+        return hashlib.sha256(path.read_bytes()).hexdigest() == recorded
+    except OSError:
+        return False
+
+
+def _remove_stale_temporaries(directory: Path, age: float = 3600.0) -> None:
+    """Temporary files of builds killed mid-way (older than ``age`` seconds)."""
+    now = time.time()
+    for tmp in directory.glob(".*.tmp"):
+        try:
+            if now - tmp.stat().st_mtime > age:
+                tmp.unlink()
+        except OSError:
+            pass
+
+
+def kernel_module(params: Parameters) -> Kernel:
+    """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs).
+
+    Loaded from the cache when there; otherwise generated from the derivation, compiled
+    and cached (atomically: a killed build leaves no partial library behind).
     """
+    gkey = repr([getattr(params, k) for k in _GEOMETRY])
+    kernel = _BY_GEOMETRY.get(gkey)
+    if kernel is not None:
+        return kernel
     geometry = geometry_of(params)
-    key = _key(geometry)
+    key = _key(repr(geometry.to_dict()))
     with _LOCK:
         if key in _LOADED:
+            _BY_GEOMETRY[gkey] = _LOADED[key]
             return _LOADED[key]
         directory = cache_dir() / "kernels"
-        directory.mkdir(parents=True, exist_ok=True)
-        path = directory / f"skewpend_model_{key}.py"
-        if not path.exists():
-            from .codegen import kernel_source
+        path = directory / f"skewpend_{key}.so"
+        kernel = None
+        if path.exists() and _intact(path):
+            try:
+                kernel = Kernel(path, "cache", 0.0)
+            except (OSError, CompilerError):
+                kernel = None  # damaged: rebuilt below
+        if kernel is None:
+            start = time.perf_counter()
+            directory = _writable_directory()
+            path = directory / f"skewpend_{key}.so"
+            _remove_stale_temporaries(directory)
+            from .kernelgen import kernel_c_source
 
-            source = kernel_source(geometry) + "\n" + _template_text()
-            fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
-            with os.fdopen(fd, "w") as fh:
-                fh.write(source)
-            os.replace(tmp, path)
-        name = f"skewpend_model_{key}"
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-        _LOADED[key] = module
-        return module
-
-
+            source = kernel_c_source(geometry) + "\n" + Path(__file__).with_name("_integrators.c").read_text()
+            _compile(source, path)
+            kernel = Kernel(path, "compiled", time.perf_counter() - start)
+        _LOADED[key] = kernel
+        _BY_GEOMETRY[gkey] = kernel
+        return kernel

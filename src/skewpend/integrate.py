@@ -1,13 +1,18 @@
-"""Simulation: compiled integrators over the generated right-hand side.
+"""Simulation: compiled integrators over the generated right-hand side, in bounded chunks.
 
-``simulate`` runs one of three integrators, each compiled end to end with numba
-(the whole stepping loop, not a Python loop over a compiled function):
+``simulate`` runs one of three integrators, written in C (``_integrators.c``) and compiled
+together with the model's generated C (:mod:`skewpend.kernelgen`):
 
 * ``"dop853"`` (default) -- adaptive Dormand-Prince 8(5,3) with 7th-order dense output;
 * ``"rk4"`` -- classical fixed-step Runge-Kutta of order 4;
 * ``"gauss"`` -- 2-stage Gauss-Legendre collocation (order 4), applied to Hamilton's
   equations in the canonical variables ``(q, p = M(q) q')``: symplectic, so its energy
   error stays bounded over very long conservative runs.
+
+The integrators are resumable: each call into the compiled code does a bounded amount of
+work (aimed at ~0.05 s) and hands back a bounded block of rows, which this module turns
+into energies, rod ends, file rows and progress -- so Ctrl-C is honoured within a fraction
+of a second and memory stays bounded by what is kept.
 
 The state carries a fifth component ``W``: the work done by the non-potential forces
 ``Q = tau - c q'``.  ``E(t) - W(t)`` is then conserved for every model, and the
@@ -16,10 +21,13 @@ energy drift every run reports is ``max |E - W - E0|`` relative to the energy sc
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import math
+import os
 import time
 from dataclasses import dataclass, field
-from typing import Any, Dict, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -27,7 +35,7 @@ from .errors import IntegrationError, ParameterError
 from .model import Parameters
 from .parsing import initial_state, positive_number
 
-__all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES"]
+__all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS"]
 
 METHODS = ("dop853", "rk4", "gauss")
 
@@ -49,8 +57,10 @@ class Trajectory:
     * ``energy`` -- mechanical energy ``T + Pi`` [J] (``Pi = 0`` hanging), shape (n,);
     * ``work`` -- work done by damping and joint torques since ``t[0]`` [J], shape (n,);
     * ``params``, ``method``, ``settings`` (rtol, atol, dt, dt_out, ...) -- how it was made;
-    * ``stats`` -- ``nfev``, ``steps`` (accepted), ``rejected``, ``wall_time`` [s] and
-      ``includes_jit_load`` (the first run in a process also loads or compiles machine code);
+    * ``stats`` -- ``nfev``, ``steps`` (accepted), ``rejected``, ``wall_time`` [s] of the
+      integration, ``rows`` produced, ``kernel`` (``"compiled"`` when this process built the
+      model's machine code, taking ``kernel_build_time`` [s], else ``"cache"``);
+    * ``kept`` -- False when only the first and last rows were kept (``keep=False``);
     * ``status`` (0 = success) and ``message``;
     * ``energy_drift`` -- ``max |E - W - E(0)|`` divided by ``max(|E|)`` over the run
       (absolute when that scale is 0).
@@ -67,6 +77,7 @@ class Trajectory:
     status: int
     message: str
     energy_drift: float
+    kept: bool = True
     _kernel: Any = field(default=None, repr=False, compare=False)
 
     @property
@@ -84,6 +95,72 @@ class Trajectory:
         return self._kernel.tips_many(self.y, parameter_vector(self.params))
 
 
+#: Default cap on the attempted steps of one run (accepted + rejected).
+MAX_STEPS = 100_000_000
+#: Rows handed back by one call into the compiled integrator (memory per chunk ~ 0.4 MB).
+_CHUNK_ROWS = 8192
+#: Wall time aimed at per call into the compiled code, so Ctrl-C and progress react quickly.
+_CHUNK_SECONDS = 0.05
+_DEFAULT_DT = 1e-3
+_DEFAULT_TOL = 1e-10
+
+
+def _memory_limit() -> float:
+    """Bytes a kept trajectory may take: a quarter of the physical memory."""
+    try:
+        return 0.25 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        return 4e9
+
+
+class _Accumulator:
+    """Consumes output rows chunk by chunk: the energy balance, the kept rows, the file."""
+
+    def __init__(self, kernel, p, keep: bool, writer):
+        self.kernel, self.p, self.keep, self.writer = kernel, p, keep, writer
+        self.E0 = None
+        self.err = 0.0
+        self.scale = 0.0
+        self.blocks: List[np.ndarray] = []
+        self.first: Optional[np.ndarray] = None
+        self.last: Optional[np.ndarray] = None
+        self.rows = 0
+
+    def add(self, rows: np.ndarray) -> None:
+        """``rows``: (k, 6) = (t, phi, psi, dphi, dpsi, W), finite."""
+        if rows.shape[0] == 0:
+            return
+        energy = self.kernel.energies(rows, self.p, offset=1)
+        work = rows[:, 5]
+        if self.E0 is None:
+            self.E0 = float(energy[0])
+        self.err = max(self.err, float(np.max(np.abs(energy - work - self.E0))))
+        self.scale = max(self.scale, float(np.max(np.abs(energy))))
+        block = np.column_stack([rows, energy])  # t, y(4), W, E
+        if self.keep:
+            self.blocks.append(block)
+        else:
+            if self.first is None:
+                self.first = block[:1].copy()
+            self.last = block[-1:].copy()
+        if self.writer is not None:
+            tips = self.kernel.tips_many(rows, self.p, offset=1)
+            self.writer.write(np.column_stack([rows[:, :5], energy, work, tips]))
+        self.rows += rows.shape[0]
+
+    def table(self) -> np.ndarray:
+        if self.keep:
+            return np.concatenate(self.blocks) if self.blocks else np.empty((0, 7))
+        parts = [b for b in (self.first, self.last) if b is not None]
+        if len(parts) == 2 and parts[0][0, 0] == parts[1][0, 0]:
+            parts = parts[:1]
+        return np.concatenate(parts) if parts else np.empty((0, 7))
+
+
+def _progress_noop(t: float, t_end: float) -> None:
+    pass
+
+
 def simulate(
     params: Parameters,
     y0: Sequence[float],
@@ -91,24 +168,39 @@ def simulate(
     *,
     dt_out: Optional[float] = None,
     method: str = "dop853",
-    rtol: float = 1e-10,
-    atol: float = 1e-10,
+    rtol: Optional[float] = None,
+    atol: Optional[float] = None,
     dt: Optional[float] = None,
-    max_steps: int = 50_000_000,
+    max_steps: int = MAX_STEPS,
     throw: bool = False,
+    out: Optional[os.PathLike] = None,
+    keep: bool = True,
+    progress: Optional[Callable[[float, float], None]] = None,
 ) -> Trajectory:
     """Integrate the equations of motion from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``.
 
-    ``method``: ``"dop853"`` (adaptive; ``rtol``, ``atol``), ``"rk4"`` or ``"gauss"``
-    (fixed step ``dt`` [s], default 1e-3).  ``dt_out=None`` returns the integrator's own
-    steps; otherwise the states on the grid ``0, dt_out, 2 dt_out, ...`` (dense output for
-    dop853; for the fixed-step methods ``dt_out`` must be a multiple of ``dt``).
+    ``method``: ``"dop853"`` (adaptive; ``rtol``, ``atol``, default 1e-10), ``"rk4"`` or
+    ``"gauss"`` (fixed step ``dt`` [s], default 1e-3).  A setting that does not apply to the
+    method (``dt`` with dop853, ``rtol``/``atol`` with rk4 or gauss) is refused.
+    ``dt_out=None`` returns the integrator's own steps; otherwise the states on the grid
+    ``0, dt_out, 2 dt_out, ... <= t_end`` (dense output for dop853; for the fixed-step
+    methods ``dt_out`` must be a multiple of ``dt``).
 
-    A run that stops early (non-finite state, step-size underflow, too many steps) returns
-    what it computed up to then, with ``status`` and ``message`` set -- never NaN rows;
-    with ``throw=True`` it raises :class:`~skewpend.errors.IntegrationError` instead.
+    The compiled integrator works in bounded chunks: between chunks Ctrl-C raises
+    :class:`KeyboardInterrupt` (within about 0.05 s) and ``progress(t, t_end)`` is called.
+    ``out``: a ``.csv``/``.nc`` path the rows are streamed to while they are computed (the
+    file appears complete, or not at all on an exception or interrupt).  ``keep=False``
+    keeps only the first and last rows in the returned trajectory, so memory stays O(1)
+    however long the run; the energy drift is still measured over every row.
+
+    ``max_steps`` bounds the attempted steps; a run that cannot finish within it is refused
+    up front (exactly for rk4/gauss, by an estimate from the first steps for dop853), and a
+    run that stops early (non-finite state, step-size underflow, step cap) returns -- and
+    writes -- what it computed, with ``status`` and ``message`` set, never NaN rows; with
+    ``throw=True`` it raises :class:`~skewpend.errors.IntegrationError` after that.
     """
-    from .compiled import kernel_module, parameter_vector
+    from .compiled import State, kernel_module, parameter_vector
+    from .io import TrajectoryWriter, check_disk_space, check_output_path, trajectory_metadata, TRAJECTORY_SUFFIXES
 
     params.require_numeric("simulation")
     y = initial_state(y0)
@@ -118,9 +210,51 @@ def simulate(
         raise ParameterError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
     if dt_out is not None and dt_out > t_end:
         raise ParameterError(f"dt_out ({dt_out:g}) must not exceed t_end ({t_end:g})")
-    if isinstance(max_steps, bool) or int(max_steps) != max_steps or max_steps < 1:
-        raise ParameterError(f"max_steps must be a positive integer, got {max_steps!r}")
-    settings: Dict[str, Any] = {"t_end": t_end, "dt_out": dt_out}
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+        raise ParameterError(f"max_steps must be a positive whole number, got {max_steps!r}")
+    max_steps = int(max_steps)
+    if progress is not None and not callable(progress):
+        raise ParameterError("progress must be a callable progress(t, t_end)")
+    progress = progress or _progress_noop
+    if out is not None:
+        out = check_output_path(out, TRAJECTORY_SUFFIXES, option="out")
+    settings: Dict[str, Any] = {"t_end": t_end, "dt_out": dt_out, "max_steps": max_steps}
+    if method == "dop853":
+        if dt is not None:
+            raise ParameterError("dt is the step of rk4 and gauss; dop853 chooses its own steps (set rtol/atol instead)")
+        rtol = _DEFAULT_TOL if rtol is None else positive_number("rtol", rtol)
+        atol = _DEFAULT_TOL if atol is None else positive_number("atol", atol)
+        if rtol < 1e-15 or atol < 1e-300:
+            raise ParameterError(f"rtol must be >= 1e-15 (machine precision) and atol >= 1e-300, got rtol={rtol:g}, atol={atol:g}")
+        settings.update(rtol=rtol, atol=atol)
+        n_grid = 0 if dt_out is None else int(math.floor(t_end / dt_out * (1 + 1e-12))) + 1
+        nsteps = stride = 0
+    else:
+        for name, value in (("rtol", rtol), ("atol", atol)):
+            if value is not None:
+                raise ParameterError(f"{name} is a tolerance of dop853; {method} takes fixed steps dt (default {_DEFAULT_DT:g} s)")
+        step = _DEFAULT_DT if dt is None else positive_number("dt", dt)
+        if step > t_end:
+            raise ParameterError(f"dt ({step:g}) must not exceed t_end ({t_end:g})")
+        n_float = t_end / step
+        if n_float > max_steps:
+            raise ParameterError(
+                f"t_end/dt = {n_float:.4g} steps exceeds max_steps = {max_steps}; use a larger dt, a shorter t_end or raise max_steps"
+            )
+        nsteps = int(round(n_float))
+        if abs(nsteps * step - t_end) > 1e-9 * t_end:
+            raise ParameterError(f"t_end ({t_end:g}) must be a whole number of steps dt ({step:g})")
+        stride = 1
+        if dt_out is not None:
+            stride = int(round(dt_out / step))
+            if stride < 1 or abs(stride * step - dt_out) > 1e-9 * dt_out:
+                raise ParameterError(f"dt_out ({dt_out:g}) must be a whole multiple of dt ({step:g}) for method {method}")
+        settings.update(dt=step)
+        n_grid = nsteps // stride + 2
+    known_rows = n_grid if (method != "dop853" or dt_out is not None) else None
+    if known_rows is not None:
+        _check_room(known_rows, keep, out)
+
     kernel = kernel_module(params)
     p = parameter_vector(params)
     y5 = np.append(y, 0.0)
@@ -129,72 +263,123 @@ def simulate(
     if not (np.all(np.isfinite(deriv)) and math.isfinite(kernel.energy(y5, p))):
         raise ParameterError(f"the initial state {y.tolist()} has non-finite energy or acceleration")
 
-    routine = {"dop853": kernel.dop853, "rk4": kernel.rk4, "gauss": kernel.gauss_legendre}[method]
-    compiled_before = bool(routine.signatures)
-    start = time.perf_counter()
-    if method == "dop853":
-        rtol = positive_number("rtol", rtol)
-        atol = positive_number("atol", atol)
-        settings.update(rtol=rtol, atol=atol)
-        if dt_out is None:
-            t_out = np.empty(0)
-        else:
-            n = int(math.floor(t_end / dt_out * (1 + 1e-12))) + 1
-            t_out = np.arange(n) * dt_out
-        ts, ys, status, nfev, nacc, nrej = kernel.dop853(y5, 0.0, t_end, p, rtol, atol, 0.0, int(max_steps), t_out)
-        stats = {"nfev": int(nfev), "steps": int(nacc), "rejected": int(nrej)}
+    if method == "gauss":
+        mom = np.empty(2)
+        kernel.momenta(y5, p, mom)
+        z5 = y5.copy()
+        z5[2:4] = mom
+        state = State.at(0.0, z5)
+        tol, max_iter = 1e-15, 100
+        settings.update(implicit_tol=tol, implicit_max_iter=max_iter)
     else:
-        step = 1e-3 if dt is None else positive_number("dt", dt)
-        nsteps = int(round(t_end / step))
-        if abs(nsteps * step - t_end) > 1e-9 * t_end:
-            raise ParameterError(f"t_end ({t_end:g}) must be a whole number of steps dt ({step:g})")
-        stride = 1
-        if dt_out is not None:
-            stride = int(round(dt_out / step))
-            if stride < 1 or abs(stride * step - dt_out) > 1e-9 * dt_out:
-                raise ParameterError(f"dt_out ({dt_out:g}) must be a whole multiple of dt ({step:g}) for method {method}")
-        if nsteps > max_steps:
-            raise ParameterError(f"t_end/dt = {nsteps} steps exceeds max_steps = {max_steps}")
-        settings.update(dt=step)
+        state = State.at(0.0, y5)
+
+    rows = np.empty((_CHUNK_ROWS, 6))
+    dp = ctypes.POINTER(ctypes.c_double)
+    rows_ptr, p_ptr = rows.ctypes.data_as(dp), p.ctypes.data_as(dp)
+    m = ctypes.c_int64(0)
+    k_out = ctypes.c_int64(0)
+    sref = ctypes.byref(state)
+    lib = kernel.lib
+
+    def call(budget: int) -> int:
+        if method == "dop853":
+            return lib.sp_dop853(sref, 5, p_ptr, t_end, rtol, atol, max_steps, budget,
+                                 dt_out or 0.0, n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
         if method == "rk4":
-            ts, ys, status, nfev = kernel.rk4(y5, 0.0, step, nsteps, p, stride)
-        else:
-            z5 = y5.copy()
-            mom = np.empty(2)
-            kernel.momenta(y5, p, mom)
-            z5[2:4] = mom
-            tol, max_iter = 1e-15, 100
-            settings.update(implicit_tol=tol, implicit_max_iter=max_iter)
-            ts, zs, status, nfev = kernel.gauss_legendre(z5, 0.0, step, nsteps, p, stride, tol, max_iter)
-            ys = kernel.speeds_many(zs, p)
-        stats = {"nfev": int(nfev), "steps": int(min(nsteps, max(0, round(ts[-1] / step)))), "rejected": 0}
-    stats["wall_time"] = time.perf_counter() - start
-    # the first call in a process loads (or compiles) the machine code: say so
-    stats["includes_jit_load"] = not compiled_before
+            return lib.sp_rk4(sref, 5, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
+        return lib.sp_gauss(sref, 5, p_ptr, 0.0, step, nsteps, stride, tol, max_iter, budget, rows_ptr, _CHUNK_ROWS,
+                            ctypes.byref(m))
 
-    ys = np.ascontiguousarray(ys)
-    states = ys[:, :4].copy()
-    work = ys[:, 4].copy()
-    energy = kernel.energies(states, p)
-    scale = float(np.max(np.abs(energy))) if energy.size else 0.0
-    error = float(np.max(np.abs(energy - work - energy[0]))) if energy.size else 0.0
-    drift = error / scale if scale > 0 else error
-    status = int(status)
-    message = STATUS_MESSAGES.get(status, f"stopped with status {status}")
-    if status != 0 and throw:
-        raise IntegrationError(f"{method}: {message} at t = {ts[-1]:.6g} s")
-    return Trajectory(
-        t=np.asarray(ts, dtype=float),
-        y=states,
-        energy=energy,
-        work=work,
-        params=params,
-        method=method,
-        settings=settings,
-        stats=stats,
-        status=status,
-        message=message,
-        energy_drift=drift,
-        _kernel=kernel,
-    )
+    writer = None
+    metadata = {}
+    with contextlib.ExitStack() as stack:
+        if out is not None:
+            writer = stack.enter_context(TrajectoryWriter(out))
+        acc = _Accumulator(kernel, p, keep, writer)
+        budget = 2000
+        start = time.perf_counter()
+        probed = False
+        while True:
+            t_call = time.perf_counter()
+            status = call(budget)
+            took = time.perf_counter() - t_call
+            if status == -3:  # pragma: no cover - guarded by the arguments above
+                raise RuntimeError("internal error: bad arguments to the compiled integrator")
+            if m.value:
+                chunk = rows[: m.value]
+                if method == "gauss":
+                    chunk = kernel.speeds_many(chunk, p, offset=1)
+                acc.add(chunk)
+            if not probed and method == "dop853" and status == -1 and state.t > 0:
+                probed = True
+                _check_dop853_estimate(state, t_end, max_steps, dt_out is None, keep, out)
+            progress(state.t, t_end)
+            if status >= 0:
+                break
+            if status == -1:  # budget used: aim the next call at _CHUNK_SECONDS
+                budget = int(min(max(budget * _CHUNK_SECONDS / max(took, 1e-6), 100), 50_000_000))
+        wall = time.perf_counter() - start
+        stats = {
+            "nfev": int(state.nfev),
+            "steps": int(state.naccept),
+            "rejected": int(state.nreject),
+            "wall_time": wall,
+            "kernel": kernel.origin,
+            "kernel_build_time": kernel.build_time,
+            "rows": acc.rows,
+        }
+        drift = acc.err / acc.scale if acc.scale > 0 else acc.err
+        message = STATUS_MESSAGES.get(int(status), f"stopped with status {status}")
+        table = acc.table()
+        traj = Trajectory(
+            t=table[:, 0].copy(),
+            y=table[:, 1:5].copy(),
+            energy=table[:, 6].copy(),
+            work=table[:, 5].copy(),
+            params=params,
+            method=method,
+            settings=settings,
+            stats=stats,
+            status=int(status),
+            message=message,
+            energy_drift=drift,
+            kept=keep,
+            _kernel=kernel,
+        )
+        if writer is not None:
+            metadata = trajectory_metadata(traj)
+            metadata["t_reached"] = float(state.t)
+            writer.finish(metadata)
+    if traj.status != 0 and throw:
+        raise IntegrationError(f"{method}: {message} at t = {state.t:.6g} s")
+    return traj
 
+
+def _check_room(rows: float, keep: bool, out) -> None:
+    """Refuse up front what cannot fit: kept rows in memory, streamed rows on disk."""
+    if keep:
+        need = rows * 7 * 8
+        limit = _memory_limit()
+        if need > limit:
+            raise ParameterError(
+                f"keeping about {rows:.3g} rows would take {need / 1e9:.3g} GB of memory (limit {limit / 1e9:.3g} GB, a quarter "
+                "of this machine's); stream them to a file with out=..., keep=False, or use a larger dt_out"
+            )
+    if out is not None:
+        from .io import check_disk_space
+
+        check_disk_space(out, rows)
+
+
+def _check_dop853_estimate(state, t_end: float, max_steps: int, own_steps: bool, keep: bool, out) -> None:
+    """After the first chunk: refuse a dop853 run whose estimated step count exceeds max_steps."""
+    attempted = state.naccept + state.nreject
+    estimate = attempted * t_end / state.t
+    if estimate > max_steps:
+        raise ParameterError(
+            f"t_end = {t_end:g} s needs about {estimate:.2g} steps at this tolerance (from the first {attempted} steps), "
+            f"more than max_steps = {max_steps}; shorten t_end, loosen the tolerance or raise max_steps"
+        )
+    if own_steps:
+        _check_room(state.naccept * t_end / state.t, keep, out)

@@ -1,82 +1,250 @@
-"""Files: trajectories to CSV or NetCDF (atomically), run configurations from TOML."""
+"""Files: trajectories streamed to CSV or NetCDF (atomically), run configurations from TOML.
+
+Every file skewpend writes appears only when complete: it is written to a temporary file
+``.NAME.skewpend-PID.tmp`` beside it and renamed into place; an error or Ctrl-C removes the
+temporary file, and one left by a killed process is removed by the next write to the same
+name.  Files get the permissions the user's umask gives any new file.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
+import shutil
 import sys
-import tempfile
 from pathlib import Path
-from typing import Any, Dict, Iterator
+from typing import Any, Dict, Iterator, Optional, Sequence
 
 import numpy as np
 
 from .errors import ParameterError, SkewpendError
 
-__all__ = ["write_trajectory", "read_config", "atomic_path", "CSV_COLUMNS", "CONFIG_SECTIONS"]
+__all__ = [
+    "write_trajectory",
+    "TrajectoryWriter",
+    "read_config",
+    "atomic_path",
+    "check_output_path",
+    "CSV_COLUMNS",
+    "CONFIG_SECTIONS",
+    "TRAJECTORY_SUFFIXES",
+]
 
 #: Columns of a trajectory CSV, in order.
 CSV_COLUMNS = ("t", "phi", "psi", "dphi", "dpsi", "energy", "work", "x1", "y1", "z1", "x2", "y2", "z2")
+#: Units of the columns.
+UNITS = {"t": "s", "phi": "rad", "psi": "rad", "dphi": "rad/s", "dpsi": "rad/s", "energy": "J", "work": "J",
+         **{k: "m" for k in ("x1", "y1", "z1", "x2", "y2", "z2")}}
+TRAJECTORY_SUFFIXES = (".csv", ".nc")
+#: Bytes per row on disk, for the up-front space check (CSV: 13 numbers of up to 24 characters).
+BYTES_PER_ROW = {".csv": 13 * 24, ".nc": 13 * 8}
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _tmp_name(path: Path) -> Path:
+    return path.with_name(f".{path.name}.skewpend-{os.getpid()}.tmp")
+
+
+def _remove_stale(path: Path) -> None:
+    """Temporary files of earlier writes to ``path`` whose process is gone (e.g. ``kill -9``)."""
+    pattern = re.compile(rf"^\.{re.escape(path.name)}\.skewpend-(\d+)\.tmp$")
+    try:
+        entries = list(path.parent.iterdir()) if str(path.parent) else list(Path(".").iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        m = pattern.match(entry.name)
+        if not m or int(m.group(1)) == os.getpid():
+            continue
+        try:
+            os.kill(int(m.group(1)), 0)
+        except ProcessLookupError:
+            with contextlib.suppress(OSError):
+                entry.unlink()
+        except (PermissionError, OSError):
+            pass  # alive (another user's process) or unknown: leave it
+
+
+def check_output_path(path, suffixes: Sequence[str], option: str = "--out") -> Path:
+    """Refuse, before any work starts, an output path that cannot be written.
+
+    The suffix must be one of ``suffixes``; the path must not name a directory; its directory
+    must exist and accept a new file (tested by creating and removing a temporary file).
+    """
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise ParameterError(f"{option}: expected a file name ending in {' or '.join(suffixes)}, got {str(path)!r}")
+    if path.is_dir():
+        raise ParameterError(f"{option}: {path} is a directory; give a file name ending in {' or '.join(suffixes)}")
+    if path.exists() and not path.is_file():
+        raise ParameterError(f"{option}: {path} exists and is not a regular file")
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise ParameterError(f"{option}: cannot write {path}: directory {directory} does not exist")
+    tmp = _tmp_name(path)
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        os.close(fd)
+    except OSError as exc:
+        raise ParameterError(f"{option}: cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+    return path
+
+
+def check_disk_space(path: Path, rows: float) -> None:
+    """Refuse a file that would not fit on its file system (estimated from the row count)."""
+    need = rows * BYTES_PER_ROW.get(Path(path).suffix.lower(), 13 * 24)
+    directory = Path(path).parent if str(Path(path).parent) else Path(".")
+    try:
+        free = shutil.disk_usage(directory).free
+    except OSError:
+        return
+    if need > free:
+        raise ParameterError(
+            f"the output would take about {_size(need)} ({rows:.3g} rows) but only {_size(free)} is free in {directory}; "
+            "use a larger --dt-out, a shorter --t-end, or another directory"
+        )
+
+
+def _size(n: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB", "PB"):
+        if n < 1000 or unit == "PB":
+            return f"{n:.3g} {unit}"
+        n /= 1000.0
+    return f"{n:.3g} PB"
 
 
 @contextlib.contextmanager
 def atomic_path(path: Path) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; move it into place only if the block succeeds."""
+    """Yield a temporary path next to ``path``; move it into place only if the block succeeds.
+
+    The file gets the permissions of the user's umask; on any exception (Ctrl-C included)
+    the temporary file is removed and ``path`` is untouched.
+    """
     path = Path(path)
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise ParameterError(f"cannot write {path}: directory {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
+    if path.is_dir():
+        raise ParameterError(f"cannot write {path}: it is a directory")
+    _remove_stale(path)
+    tmp = _tmp_name(path)
     try:
-        yield Path(tmp)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666 & ~_umask())
+        os.close(fd)
+    except OSError as exc:
+        raise ParameterError(f"cannot write {path}: {exc.strerror or exc}") from None
+    try:
+        yield tmp
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
 
 
-def _table(traj) -> np.ndarray:
-    return np.column_stack([traj.t, traj.y, traj.energy, traj.work, traj.tips()])
+def _attr_value(value):
+    if isinstance(value, bool):
+        return int(value)
+    if isinstance(value, (list, tuple)):
+        return np.asarray(value, dtype=float)
+    return value
 
 
-def write_trajectory(traj, path: os.PathLike) -> Path:
-    """Write a :class:`~skewpend.integrate.Trajectory` to ``.csv`` or ``.nc`` (NetCDF 3 via xarray).
+def _flat_attrs(metadata: Dict[str, Any]) -> Dict[str, Any]:
+    return {k: _attr_value(v) for k, v in metadata.items() if v is not None}
 
-    The file appears only when complete (written to a temporary file, then renamed).
-    A trajectory holding non-finite numbers is refused.
+
+class TrajectoryWriter:
+    """Rows of a trajectory streamed to ``.csv`` or ``.nc`` as they are computed.
+
+    Use as a context manager: ``write(block)`` appends rows (columns :data:`CSV_COLUMNS`),
+    ``finish(metadata)`` records how the run ended; leaving the block without an exception
+    moves the file into place, with one it is removed.  CSV: a header line, the rows, then
+    ``# key: value`` lines with the metadata (read with ``numpy.loadtxt(path,
+    delimiter=",", skiprows=1)`` or ``pandas.read_csv(path, comment="#")``).  NetCDF 4
+    (``netCDF4``): one variable per column along the unlimited dimension ``t``, with units;
+    metadata as global attributes.
     """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in (".csv", ".nc"):
-        raise ParameterError(f"unknown output format {path.suffix!r} for {path}; allowed: .csv, .nc")
-    table = _table(traj)
-    if not np.all(np.isfinite(table)):
-        raise SkewpendError("refusing to write non-finite values")
-    with atomic_path(path) as tmp:
-        if suffix == ".csv":
-            np.savetxt(tmp, table, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.17g")
+
+    def __init__(self, path, metadata: Optional[Dict[str, Any]] = None):
+        self.path = Path(path)
+        self.suffix = self.path.suffix.lower()
+        if self.suffix not in TRAJECTORY_SUFFIXES:
+            raise ParameterError(f"unknown output format {self.path.suffix!r} for {self.path}; allowed: .csv, .nc")
+        self.metadata = dict(metadata or {})
+        self.rows = 0
+        self._stack = contextlib.ExitStack()
+
+    def __enter__(self) -> "TrajectoryWriter":
+        try:
+            tmp = self._stack.enter_context(atomic_path(self.path))
+            if self.suffix == ".csv":
+                self._fh = self._stack.enter_context(open(tmp, "w"))
+                self._fh.write(",".join(CSV_COLUMNS) + "\n")
+            else:
+                try:
+                    import netCDF4
+                except ImportError:
+                    raise SkewpendError("writing .nc needs netCDF4: pip install 'skewpend[netcdf]'") from None
+                ds = netCDF4.Dataset(tmp, "w", format="NETCDF4")
+                self._stack.callback(ds.close)
+                ds.createDimension("t", None)
+                self._vars = []
+                for name in CSV_COLUMNS:
+                    v = ds.createVariable(name, "f8", ("t",))
+                    v.units = UNITS[name]
+                    self._vars.append(v)
+                self._ds = ds
+        except BaseException:
+            self._stack.close()
+            raise
+        return self
+
+    def write(self, block: np.ndarray) -> None:
+        """Append rows, shape (k, 13), all finite."""
+        block = np.asarray(block, dtype=float)
+        if block.ndim != 2 or block.shape[1] != len(CSV_COLUMNS):
+            raise ValueError(f"expected rows of {len(CSV_COLUMNS)} columns")
+        if not np.all(np.isfinite(block)):
+            raise SkewpendError("refusing to write non-finite values")
+        if block.shape[0] == 0:
+            return
+        if self.suffix == ".csv":
+            np.savetxt(self._fh, block, delimiter=",", fmt="%.17g")
         else:
-            _to_dataset(traj, table).to_netcdf(tmp, engine="scipy", format="NETCDF3_64BIT")
-    return path
+            lo = self.rows
+            for i, v in enumerate(self._vars):
+                v[lo : lo + block.shape[0]] = block[:, i]
+        self.rows += block.shape[0]
+
+    def finish(self, metadata: Optional[Dict[str, Any]] = None) -> None:
+        self.metadata.update(metadata or {})
+        attrs = _flat_attrs(self.metadata)
+        if self.suffix == ".csv":
+            for k, v in attrs.items():
+                text = " ".join(map(repr, v.tolist())) if isinstance(v, np.ndarray) else v
+                self._fh.write(f"# {k}: {text}\n")
+        else:
+            self._ds.setncatts({"title": "skewpend trajectory of the skewed double pendulum", **attrs})
+
+    def __exit__(self, *exc) -> bool:
+        return self._stack.__exit__(*exc)
 
 
-def _to_dataset(traj, table: np.ndarray):
-    try:
-        import xarray as xr
-    except ImportError:  # pragma: no cover - depends on the installation
-        raise SkewpendError("writing .nc needs xarray: pip install 'skewpend[netcdf]'") from None
+def trajectory_metadata(traj) -> Dict[str, Any]:
+    """What a file records about how a trajectory was made (flat key -> number/string)."""
     from . import __version__
 
-    data = {name: ("t", table[:, i]) for i, name in enumerate(CSV_COLUMNS) if name != "t"}
-    ds = xr.Dataset(data, coords={"t": traj.t})
-    units = {"phi": "rad", "psi": "rad", "dphi": "rad/s", "dpsi": "rad/s", "energy": "J", "work": "J", "t": "s"}
-    for name, unit in units.items():
-        ds[name].attrs["units"] = unit
-    for name in ("x1", "y1", "z1", "x2", "y2", "z2"):
-        ds[name].attrs["units"] = "m"
-    attrs: Dict[str, Any] = {
-        "title": "skewpend trajectory of the skewed double pendulum",
+    md: Dict[str, Any] = {
         "skewpend_version": __version__,
         "method": traj.method,
         "status": traj.status,
@@ -85,21 +253,39 @@ def _to_dataset(traj, table: np.ndarray):
     }
     for key, value in traj.params.to_dict().items():
         if value is not None:
-            attrs[f"param_{key}"] = np.asarray(value, dtype=float) if isinstance(value, list) else float(value)
+            md[f"param_{key}"] = np.asarray(value, dtype=float).ravel().tolist() if isinstance(value, list) else float(value)
     for key, value in traj.settings.items():
         if value is not None:
-            attrs[f"setting_{key}"] = value
+            md[f"setting_{key}"] = value
     for key, value in traj.stats.items():
-        attrs[f"stat_{key}"] = int(value) if isinstance(value, bool) else value
-    ds.attrs.update(attrs)
-    return ds
+        md[f"stat_{key}"] = value
+    return md
+
+
+def trajectory_table(t, y, energy, work, tips) -> np.ndarray:
+    """Rows in :data:`CSV_COLUMNS` order."""
+    return np.column_stack([t, y, energy, work, tips])
+
+
+def write_trajectory(traj, path: os.PathLike) -> Path:
+    """Write a kept :class:`~skewpend.integrate.Trajectory` to ``.csv`` or ``.nc``.
+
+    (To stream a long run to a file without holding it, pass ``out=`` to
+    :func:`skewpend.simulate` instead.)  The file appears only when complete.
+    """
+    path = Path(path)
+    table = trajectory_table(traj.t, traj.y, traj.energy, traj.work, traj.tips())
+    with TrajectoryWriter(path) as w:
+        w.write(table)
+        w.finish(trajectory_metadata(traj))
+    return path
 
 
 # -- configuration -----------------------------------------------------------------------------------
 CONFIG_SECTIONS = {
     "parameters": {"a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "com1", "com2", "inertia1", "inertia2", "axis1", "axis2"},
     "initial": {"phi0", "psi0", "dphi0", "dpsi0"},
-    "simulation": {"t_end", "dt_out", "method", "rtol", "atol", "dt", "out"},
+    "simulation": {"t_end", "dt_out", "method", "rtol", "atol", "dt", "max_steps", "out"},
 }
 
 

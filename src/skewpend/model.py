@@ -211,6 +211,11 @@ class Parameters:
                 elif sum(x * x for x in v if not isinstance(x, str)) > 1:
                     raise ParameterError(f"{name}: the numeric components of a unit axis exceed 1, got {v}")
                 object.__setattr__(self, name, v)
+        if self.axis2 is not None and self.alpha is not None:
+            raise ParameterError(
+                "alpha sets the default second axis e0 = cos(alpha) k + sin(alpha) i; with axis2 given it would have "
+                "no effect: give alpha or axis2, not both"
+            )
         for name in ("inertia1", "inertia2"):
             value = getattr(self, name)
             if value is not None:

@@ -16,6 +16,7 @@ The linear matrices are derived once per body geometry and evaluated numerically
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -23,7 +24,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .errors import EquilibriumError, ParameterError
+from .errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
 from .model import SCALAR_NAMES, Parameters
 
 __all__ = [
@@ -61,17 +62,67 @@ def _geometry(params: Parameters) -> Parameters:
     )
 
 
-def linear_matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Numeric ``(M0, C0, K0)`` (2x2 each, SI units) of the linearisation about ``q = 0``."""
+class _NotFinite(ParameterError):
+    """Internal: a result is not a finite number (``reason`` is a short phrase)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+def _describe(params: Parameters) -> str:
+    names = [n for n in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2") if n != "alpha" or params.uses_alpha]
+    return ", ".join(f"{n} = {getattr(params, n):g}" for n in names if isinstance(getattr(params, n), float))
+
+
+def _not_finite_message(exc: "_NotFinite", params: Parameters) -> str:
+    return (
+        f"normal modes: {exc.reason} for {_describe(params)}; allowed: parameters of moderate size, for which M0, "
+        "C0, K0 and the frequencies are finite, normal double-precision numbers (magnitudes within about 1e-300 .. 1e300)"
+    )
+
+
+def _require_finite(**arrays: np.ndarray) -> None:
+    """Raise :class:`_NotFinite` naming the first array (keyword = its name) with a non-finite entry."""
+    for name, x in arrays.items():
+        if not np.all(np.isfinite(np.asarray(x))):
+            plural = name.startswith("the ") and name.endswith("s")
+            raise _NotFinite(f"{name} {'are' if plural else 'is'} not finite (overflow)")
+
+
+def _matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     params.require_numeric("normal modes")
     if params.tau1 or params.tau2:
         raise EquilibriumError(
             "phi = psi = 0 is not an equilibrium with constant joint torques; normal modes need tau1 = tau2 = 0"
         )
     f = _matrix_function(_geometry(params))
-    values = [0.0 if (n == "alpha" and not params.uses_alpha) else float(getattr(params, n)) for n in SCALAR_NAMES]
-    M, C, K = (np.array(x, dtype=float) for x in f(*values))
+    values = [
+        np.float64(0.0 if (n == "alpha" and not params.uses_alpha) else float(getattr(params, n)))
+        for n in SCALAR_NAMES
+    ]
+    with np.errstate(all="ignore"):
+        try:
+            M, C, K = (np.array(x, dtype=float) for x in f(*values))
+        except (OverflowError, ZeroDivisionError, FloatingPointError):
+            raise _NotFinite("the linear matrices M0, C0, K0 are not finite (overflow)") from None
+    _require_finite(M0=M, C0=C, K0=K)
+    tiny = np.finfo(float).tiny
+    for name, X in (("M0", M), ("K0", K), ("C0", C)):
+        if np.any((X != 0) & (np.abs(X) < tiny)):
+            raise _NotFinite(f"{name} underflows (entries below {tiny:.3g})")
     return M, C, K
+
+
+def linear_matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Numeric ``(M0, C0, K0)`` (2x2 each, SI units) of the linearisation about ``q = 0``.
+
+    Raises :class:`~skewpend.errors.ParameterError` when they are not finite (overflow).
+    """
+    try:
+        return _matrices(params)
+    except _NotFinite as exc:
+        raise ParameterError(_not_finite_message(exc, params)) from None
 
 
 # -- normal modes -------------------------------------------------------------------------------------
@@ -85,9 +136,21 @@ class Modes:
       (sign: the larger component positive), (2, 2);
     * ``ratios`` -- amplitude ratio ``psi/phi`` of each mode (``inf`` when phi does not move);
     * ``beat_period`` -- ``2 pi / (w2 - w1)`` [s] (``inf`` at a 1:1 resonance);
-    * ``eigenvalues`` -- with damping, the state-space eigenvalues with positive imaginary part
-      (or real, overdamped), one per mode; ``damped_frequencies`` [rad/s] and
-      ``damping_ratios`` follow from them (undamped: ``w_k`` and 0);
+    * ``eigenvalue_pairs`` -- (2, 2) complex: the two state-space eigenvalues of each mode,
+      row k for undamped mode k.  The four eigenvalues of ``l^2 M0 + l C0 + K0`` are given to
+      the undamped modes by their *shapes*: the displacement part ``x`` of each eigenvector is
+      compared with the undamped shapes by the M0-weighted similarity
+      ``|v_k^T M0 x| / sqrt(x^H M0 x)`` (1 = same shape), and the split of the four
+      eigenvalues into two pairs (complex conjugates stay together) with the largest total
+      similarity is taken.  An underdamped mode has a conjugate pair (positive imaginary part
+      first), an overdamped mode two negative real eigenvalues (the slower first);
+    * ``eigenvalues`` -- one per mode: the first of its pair (undamped: ``i w_k``);
+    * ``damped_frequencies`` -- ``|Im l|`` [rad/s] (0 for an overdamped mode);
+    * ``damping_ratios`` -- ``zeta_k = -(l1 + l2) / (2 sqrt(l1 l2))`` over the mode's pair:
+      ``-Re l / |l|`` for a conjugate pair (underdamped, < 1) and
+      ``(|l1| + |l2|) / (2 sqrt(l1 l2))`` for two real eigenvalues (overdamped, >= 1); for a
+      single degree of freedom ``m x'' + c x' + k x = 0`` both are ``c / (2 sqrt(k m))``.
+      Undamped: 0;
     * ``M``, ``C``, ``K`` -- the linear matrices; ``params``.
     """
 
@@ -99,10 +162,20 @@ class Modes:
     eigenvalues: np.ndarray
     damped_frequencies: np.ndarray
     damping_ratios: np.ndarray
+    eigenvalue_pairs: np.ndarray
     M: np.ndarray
     C: np.ndarray
     K: np.ndarray
     params: Parameters = field(repr=False)
+
+    @property
+    def damped(self) -> bool:
+        return bool(np.any(self.C != 0))
+
+    @property
+    def overdamped(self) -> np.ndarray:
+        """(2,) bool: the mode's two eigenvalues are real (no oscillation)."""
+        return self.damped & (self.eigenvalue_pairs[:, 0].imag == 0)
 
     def modal_coordinates(self, q: np.ndarray) -> np.ndarray:
         """``eta = V^T M0 q`` for angles ``q`` of shape (..., 2)."""
@@ -131,8 +204,9 @@ class Modes:
 
     def to_dict(self) -> Dict:
         """The JSON form: ``frequencies`` (rad/s, ascending), ``periods`` (s), ``mode_shapes``
-        (list of [phi, psi] vectors), and more."""
-        damped = bool(np.any(self.C != 0))
+        (list of [phi, psi] vectors), and more; with damping ``eigenvalues`` (one
+        ``[re, im]`` per mode), ``eigenvalue_pairs`` (both of each mode), ``overdamped``,
+        ``damped_frequencies`` and ``damping_ratios`` (see :class:`Modes`)."""
         d = {
             "frequencies": self.frequencies.tolist(),
             "periods": self.periods.tolist(),
@@ -143,57 +217,189 @@ class Modes:
             "M0": self.M.tolist(),
             "K0": self.K.tolist(),
         }
-        if damped:
+        if self.damped:
             d["C0"] = self.C.tolist()
             d["eigenvalues"] = [[float(z.real), float(z.imag)] for z in self.eigenvalues]
+            d["eigenvalue_pairs"] = [[[float(z.real), float(z.imag)] for z in pair] for pair in self.eigenvalue_pairs]
+            d["overdamped"] = [bool(x) for x in self.overdamped]
             d["damped_frequencies"] = self.damped_frequencies.tolist()
             d["damping_ratios"] = self.damping_ratios.tolist()
         return d
 
 
-def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Parameters) -> Modes:
-    from scipy.linalg import eigh
+def _qep_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """The four state-space eigenvalues ``l`` -- the roots of ``det(l^2 M + l C + K) = 0`` --
+    and the displacement parts ``x`` (2, 4) of the state-space eigenvectors ``[x; l x]``
+    (unit length), i.e. the null vectors of ``l^2 M + l C + K``.
 
-    lam, V = eigh(K, M)
-    if lam[0] <= 1e-12 * max(abs(lam[1]), 1e-300):
-        raise EquilibriumError(
-            f"the hanging position is not a stable equilibrium (w^2 = {lam.tolist()}); normal modes need g > 0"
-        )
-    for k in range(2):
-        col = V[:, k]
-        col[np.abs(col) < 1e-13 * np.abs(col).max()] = 0.0  # round-off where a hinge stands still
-        if col[np.argmax(np.abs(col))] < 0:
-            V[:, k] = -col
-    w = np.sqrt(lam)
-    with np.errstate(divide="ignore"):
+    The roots of the quartic (exact 2x2 coefficients) are polished by Newton steps; unlike
+    the eigenvalues of the 4x4 state matrix they keep full relative accuracy when the
+    damping spans many orders of magnitude (the slow creep ``~ k/c`` and the fast decay
+    ``~ c/m`` of heavy damping, a lightly damped mode beside an almost locked hinge).
+    """
+
+    def det(A: np.ndarray) -> float:
+        return A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+
+    def mixed(A: np.ndarray, B: np.ndarray) -> float:  # det(A + B) - det(A) - det(B)
+        return A[0, 0] * B[1, 1] + A[1, 1] * B[0, 0] - A[0, 1] * B[1, 0] - A[1, 0] * B[0, 1]
+
+    coefficients = np.array([det(M), mixed(M, C), mixed(M, K) + det(C), mixed(C, K), det(K)], dtype=float)
+    if not np.all(np.isfinite(coefficients)) or not coefficients[0] > 0 or not coefficients[-1] > 0:
+        raise _NotFinite("the characteristic polynomial det(l^2 M0 + l C0 + K0) is not finite (overflow)")
+    lam = np.roots(coefficients).astype(complex)
+    if lam.size != 4 or not np.all(np.isfinite(lam)):
+        raise _NotFinite("the state-space eigenvalues are not finite")
+    return _refine(lam, M, C, K)
+
+
+def _refine(lam: np.ndarray, M: np.ndarray, C: np.ndarray, K: np.ndarray):
+    """Newton steps on ``det(l^2 M + l C + K) = 0`` from each eigenvalue (real ones stay real,
+    conjugate pairs stay conjugate), then each eigenvector as the null vector of the 2x2
+    ``Q(l)``.  A step is kept only while it lowers ``|det Q|``; a refinement that merges two
+    distinct eigenvalues is undone."""
+
+    def det_and_slope(z: complex):
+        Q = z * z * M + z * C + K
+        dQ = 2 * z * M + C
+        f = Q[0, 0] * Q[1, 1] - Q[0, 1] * Q[1, 0]
+        df = dQ[0, 0] * Q[1, 1] + Q[0, 0] * dQ[1, 1] - dQ[0, 1] * Q[1, 0] - Q[0, 1] * dQ[1, 0]
+        return f, df
+
+    out = lam.copy()
+    for i, z0 in enumerate(lam):
+        if z0.imag < 0:
+            continue  # set from its conjugate below
+        z = z0.real if z0.imag == 0 else z0
+        f, df = det_and_slope(z)
+        for _ in range(8):
+            if not (np.isfinite(f) and np.isfinite(df)) or df == 0 or f == 0:
+                break
+            zn = z - f / df
+            fn, dfn = det_and_slope(zn)
+            if not (np.isfinite(fn) and abs(fn) < abs(f)):
+                break
+            z, f, df = zn, fn, dfn
+        if z0.imag != 0 and not np.imag(z) > 0:
+            z = z0  # a complex pair must stay complex
+        out[i] = z
+    for i, z0 in enumerate(lam):
+        if z0.imag < 0:
+            j = int(np.argmin(np.abs(lam - np.conj(z0))))
+            out[i] = np.conj(out[j])
+    # undo the refinement if it merged two distinct eigenvalues
+    gap0 = min(abs(lam[i] - lam[j]) / max(abs(lam[i]), abs(lam[j])) for i in range(4) for j in range(i))
+    gap1 = min(abs(out[i] - out[j]) / max(abs(out[i]), abs(out[j])) for i in range(4) for j in range(i))
+    if not np.all(np.isfinite(out)) or gap1 < 0.5 * gap0:
+        out = lam
+    Y = np.zeros((2, 4), complex)
+    nM, nC, nK = (np.abs(X).max() for X in (M, C, K))
+    for k, z in enumerate(out):
+        Q = z * z * M + z * C + K
+        a, b = np.array([-Q[0, 1], Q[0, 0]]), np.array([Q[1, 1], -Q[1, 0]])
+        x = a if np.linalg.norm(a) >= np.linalg.norm(b) else b
+        n = np.linalg.norm(x)
+        if not np.isfinite(n):
+            raise _NotFinite("the state-space eigenvectors are not finite")
+        if n > 1e-10 * (abs(z) ** 2 * nM + abs(z) * nC + nK):
+            Y[:, k] = x / n
+        # else Q(l) ~ 0: a double eigenvalue shared by two shapes; x = 0 carries no shape
+    return out, Y
+
+
+def _conjugate_closed(lam: np.ndarray) -> bool:
+    return all(z.imag == 0 or np.min(np.abs(lam - np.conj(z))) <= 1e-12 * abs(z) for z in lam)
+
+
+def _pair_by_shape(lam: np.ndarray, X: np.ndarray, M: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """Split the four eigenvalues into a pair per undamped mode (rows), by shape similarity."""
+    norm = np.sqrt(np.abs(np.einsum("ij,ik,kj->j", X.conj(), M, X).real))
+    # S[k, j]: similarity of eigenvector j to undamped mode k (V is M0-normalised); neutral 1/2
+    # for an eigenvalue whose shape is undetermined (x = 0, see _refine)
+    S = np.where(norm > 0, np.abs(V.T @ M @ X) / np.where(norm > 0, norm, 1.0), 0.5)
+
+    def is_pair(i: int, j: int) -> bool:
+        if lam[i].imag == 0 and lam[j].imag == 0:
+            return True
+        return lam[i].imag != 0 and abs(lam[i] - np.conj(lam[j])) <= 1e-12 * abs(lam[i])
+
+    best, best_score = None, -np.inf
+    for g1 in itertools.combinations(range(4), 2):
+        g2 = tuple(j for j in range(4) if j not in g1)
+        if not (is_pair(*g1) and is_pair(*g2)):
+            continue
+        score = S[0, list(g1)].sum() + S[1, list(g2)].sum()
+        if score > best_score:
+            best, best_score = (g1, g2), score
+    if best is None:
+        raise _NotFinite("the state-space eigenvalues do not form conjugate or real pairs (numerical failure)")
+    pairs = np.empty((2, 2), complex)
+    for k, g in enumerate(best):
+        z = lam[list(g)]
+        if z[0].imag != 0:
+            z = np.array([z[0].real + 1j * abs(z[0].imag), z[0].real - 1j * abs(z[0].imag)])
+        else:
+            z = z[np.argsort(np.abs(z))]
+        pairs[k] = z
+    return pairs
+
+
+def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Parameters) -> Modes:
+    """Raises :class:`_NotFinite` (short reason) when a result is not finite."""
+    from scipy.linalg import LinAlgError, eigh
+
+    with np.errstate(all="ignore"):
+        try:
+            lam, V = eigh(K, M)
+        except (LinAlgError, ValueError):
+            raise _NotFinite("the eigenproblem K0 v = w^2 M0 v cannot be solved in double precision (M0 not positive definite)") from None
+        _require_finite(**{"the frequencies": lam, "the mode shapes": V})
+        if lam[0] <= 1e-12 * max(abs(lam[1]), 1e-300):
+            raise EquilibriumError(
+                f"the hanging position is not a stable equilibrium (w^2 = {lam.tolist()}); normal modes need g > 0"
+            )
+        for k in range(2):
+            col = V[:, k]
+            col[np.abs(col) < 1e-13 * np.abs(col).max()] = 0.0  # round-off where a hinge stands still
+            if col[np.argmax(np.abs(col))] < 0:
+                V[:, k] = -col
+        w = np.sqrt(lam)
+        periods = 2 * np.pi / w
         ratios = np.where(np.abs(V[0]) > 1e-14 * np.abs(V).max(), V[1] / np.where(V[0] == 0, 1, V[0]), np.inf)
         beat = 2 * np.pi / (w[1] - w[0]) if w[1] > w[0] else np.inf
-    if np.any(C != 0):
-        Minv = np.linalg.inv(M)
-        A = np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ K, -Minv @ C]])
-        ev = np.linalg.eigvals(A)
-        # one eigenvalue per mode: the upper half plane; overdamped pairs are real
-        ev = ev[np.argsort(np.abs(ev))]
-        chosen: List[complex] = []
-        for z in ev:
-            if z.imag > 0 or (abs(z.imag) < 1e-12 * abs(z) and len(chosen) < 2):
-                chosen.append(z)
-        eig = np.array(sorted(chosen, key=abs)[:2])
-        damped_w = np.abs(eig.imag)
-        zeta = -eig.real / np.abs(eig)
-    else:
-        eig = 1j * w
-        damped_w = w.copy()
-        zeta = np.zeros(2)
+        _require_finite(**{"the frequencies": w, "the periods": periods})
+        if np.any(np.isnan(ratios)) or np.isnan(beat):
+            raise _NotFinite("the amplitude ratios are not numbers")
+        if np.any(C != 0):
+            try:
+                ev, X = _qep_eigen(M, C, K)
+            except (np.linalg.LinAlgError, ValueError):
+                raise _NotFinite("the state-space eigenvalues cannot be computed in double precision") from None
+            _require_finite(**{"the state-space eigenvalues": ev, "the state-space eigenvectors": X})
+            pairs = _pair_by_shape(ev, X, M, V)
+            eig = pairs[:, 0]
+            damped_w = np.abs(eig.imag)
+            prod = (pairs[:, 0] * pairs[:, 1]).real
+            if np.any(~(prod > 0)):
+                raise _NotFinite("a damped mode has a zero eigenvalue (underflow)")
+            # C0 >= 0 makes zeta >= 0; clip the round-off of an undamped mode
+            zeta = np.maximum(-(pairs[:, 0] + pairs[:, 1]).real / (2 * np.sqrt(prod)), 0.0)
+            _require_finite(**{"the damped frequencies": damped_w, "the damping ratios": zeta})
+        else:
+            eig = 1j * w
+            pairs = np.column_stack([1j * w, -1j * w])
+            damped_w = w.copy()
+            zeta = np.zeros(2)
     return Modes(
         frequencies=w,
-        periods=2 * np.pi / w,
+        periods=periods,
         shapes=V,
         ratios=ratios,
         beat_period=float(beat),
         eigenvalues=eig,
         damped_frequencies=damped_w,
         damping_ratios=zeta,
+        eigenvalue_pairs=pairs,
         M=M,
         C=C,
         K=K,
@@ -201,14 +407,24 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
     )
 
 
+def _modes(params: Parameters) -> Modes:
+    M, C, K = _matrices(params)
+    return _modes_from_matrices(M, C, K, params)
+
+
 def normal_modes(params: Parameters) -> Modes:
     """Normal modes of the numeric model ``params`` about ``phi = psi = 0``.
 
     Raises :class:`~skewpend.errors.EquilibriumError` when the hanging position is not an
-    equilibrium (torques, offset centres of mass) or not stable (``g = 0``).
+    equilibrium (torques, offset centres of mass) or not stable (``g = 0``), and
+    :class:`~skewpend.errors.ParameterError` when a result would not be finite (overflow of
+    extreme parameters): every array of the result is finite, except the documented
+    ``ratios = inf`` (phi stands still) and ``beat_period = inf`` (equal frequencies).
     """
-    M, C, K = linear_matrices(params)
-    return _modes_from_matrices(M, C, K, params)
+    try:
+        return _modes(params)
+    except _NotFinite as exc:
+        raise ParameterError(_not_finite_message(exc, params)) from None
 
 
 # -- closed form ------------------------------------------------------------------------------------
@@ -241,33 +457,25 @@ def characteristic_equation(params: Optional[Parameters] = None):
 # -- sweeps -----------------------------------------------------------------------------------------
 #: What ``sweep`` can vary: a parameter, or a ratio (the numerator is scaled, the denominator kept).
 SWEEPABLE = ("alpha", "a", "b", "m1", "m2", "g", "b/a", "m2/m1")
+#: The parameter a sweep sets (a ratio sets its numerator).
+SWEPT_PARAMETER = {"b/a": "b", "m2/m1": "m2"}
+_UNITS = {"alpha": "rad", "a": "m", "b": "m", "m1": "kg", "m2": "kg", "g": "m/s^2", "b/a": "1", "m2/m1": "1"}
 
 
 def parse_sweep(spec: str) -> Tuple[str, np.ndarray]:
-    """``"alpha=0:180deg:181"`` -> ``("alpha", values in radians)``; ``"b/a=0.2:5:100"``."""
-    from .parsing import parse_scalar  # the same number syntax as the options
+    """``"alpha=0:180deg:181"`` -> ``("alpha", values in radians)``; ``"b/a=0.2:5:100"``.
 
-    if "=" not in spec:
+    The range follows :func:`skewpend.parsing.parse_range`: a unit on either end (or both)
+    applies to the whole range, plain numbers are radians for alpha, mixed units are refused.
+    """
+    from .parsing import parse_range
+
+    if not isinstance(spec, str) or "=" not in spec:
         raise ParameterError(f"--sweep: expected NAME=START:STOP:COUNT (e.g. alpha=0:180deg:181), got {spec!r}")
     name, rng = (x.strip() for x in spec.split("=", 1))
     if name not in SWEEPABLE:
         raise ParameterError(f"--sweep: cannot sweep {name!r}; allowed: {', '.join(SWEEPABLE)}")
-    parts = rng.split(":")
-    if len(parts) != 3:
-        raise ParameterError(f"--sweep: expected START:STOP:COUNT, got {rng!r}")
-    start, stop, count = parts
-    if stop.strip().lower().endswith("deg") and not start.strip().lower().endswith("deg"):
-        start = start + "deg"
-    angle = name == "alpha"
-    lo = parse_scalar(start, "--sweep start", angle=angle)
-    hi = parse_scalar(stop, "--sweep stop", angle=angle)
-    try:
-        n = int(count)
-    except ValueError:
-        raise ParameterError(f"--sweep: COUNT must be a whole number, got {count!r}") from None
-    if lo is None or hi is None or not 2 <= n <= 100_000:
-        raise ParameterError(f"--sweep: need numeric START, STOP and 2 <= COUNT <= 100000, got {rng!r}")
-    return name, np.linspace(lo, hi, n)
+    return name, parse_range(rng, f"--sweep {name}", angle=name == "alpha")
 
 
 def _with_value(params: Parameters, name: str, value: float, base: Parameters) -> Parameters:
@@ -276,6 +484,12 @@ def _with_value(params: Parameters, name: str, value: float, base: Parameters) -
     if name == "m2/m1":
         return params.replace(m2=value * base.m1)
     return params.replace(**{name: value})
+
+
+def _show(name: str, value: float) -> str:
+    if name == "alpha":
+        return f"{value:.6g} rad ({math.degrees(value):.6g} deg)"
+    return f"{value:.6g}"
 
 
 @dataclass(frozen=True)
@@ -290,8 +504,9 @@ class Resonance:
 
 @dataclass(frozen=True)
 class Sweep:
-    """Modes along a swept variable: ``values`` (n,), ``frequencies`` (n, 2) [rad/s],
-    ``shapes`` (n, 2, 2) (columns = modes), ``ratios`` (n, 2) psi/phi, ``resonances``."""
+    """Modes along a swept variable: ``values`` (n,) in SI units (radians for alpha),
+    ``frequencies`` (n, 2) [rad/s], ``shapes`` (n, 2, 2) (columns = modes), ``ratios`` (n, 2)
+    psi/phi, ``resonances``."""
 
     name: str
     values: np.ndarray
@@ -307,25 +522,48 @@ class Sweep:
         return self.frequencies[:, 1] / self.frequencies[:, 0]
 
     def table(self) -> Tuple[List[str], np.ndarray]:
-        """Columns and rows for CSV output."""
+        """Columns and rows for CSV output (SI units: the swept alpha in radians, with an
+        ``alpha_deg`` column last; see :meth:`units`)."""
         cols = [
             self.name, "omega1", "omega2", "period1", "period2", "omega2_over_omega1",
             "mode1_phi", "mode1_psi", "mode2_phi", "mode2_psi",
         ]
-        rows = np.column_stack([
+        rows = [
             self.values, self.frequencies, 2 * np.pi / self.frequencies, self.frequency_ratio,
             self.shapes[:, :, 0], self.shapes[:, :, 1],
-        ])
-        return cols, rows
+        ]
+        if self.name == "alpha":
+            cols.append("alpha_deg")
+            rows.append(np.degrees(self.values))
+        return cols, np.column_stack(rows)
+
+    def units(self) -> Dict[str, str]:
+        """The unit of each column of :meth:`table`."""
+        shape = "kg^-1/2 m^-1 (v^T M0 v = 1)"
+        u = {self.name: _UNITS[self.name], "omega1": "rad/s", "omega2": "rad/s", "period1": "s", "period2": "s",
+             "omega2_over_omega1": "1", "mode1_phi": shape, "mode1_psi": shape, "mode2_phi": shape, "mode2_psi": shape}
+        if self.name == "alpha":
+            u["alpha_deg"] = "deg"
+        return u
 
     def to_dict(self) -> Dict:
+        """The JSON form: ``columns``, ``units`` and ``rows`` as in :meth:`table` (alpha in
+        radians plus ``alpha_deg``), and the ``resonances`` (``value`` in the swept variable's
+        SI unit, plus ``value_deg`` for alpha)."""
         cols, rows = self.table()
+        resonances = []
+        for r in self.resonances:
+            d = dict(r.__dict__)
+            if self.name == "alpha":
+                d["value_deg"] = math.degrees(r.value)
+            resonances.append(d)
         return {
             "swept": self.name,
             "columns": cols,
+            "units": self.units(),
             "rows": rows.tolist(),
             "resonance_tolerance": self.tolerance,
-            "resonances": [r.__dict__ for r in self.resonances],
+            "resonances": resonances,
         }
 
 
@@ -355,27 +593,65 @@ def _resonances(values: np.ndarray, ratio: np.ndarray, tol: float) -> List[Reson
     return sorted(found, key=lambda r: (r.value, r.order))
 
 
+def _failure_message(name: str, failures: List[Tuple[float, str]], total: int) -> str:
+    groups: Dict[str, List[float]] = {}
+    for value, why in failures:
+        groups.setdefault(why, []).append(value)
+    parts = []
+    for why, vals in groups.items():
+        shown = ", ".join(_show(name, v) for v in vals[:3]) + (f" (and {len(vals) - 3} more)" if len(vals) > 3 else "")
+        parts.append(f"{name} = {shown}: {why}")
+    return (
+        f"sweep of {name}: {len(failures)} of {total} values failed, so nothing is reported: " + "; ".join(parts)
+        + "; choose a range where every value gives finite modes of a stable hanging position"
+    )
+
+
 def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: float = 0.01) -> Sweep:
     """Normal modes of ``params`` with ``name`` (see :data:`SWEEPABLE`) set to each of ``values``.
 
     Resonances ``w2/w1 = n`` (n = 1, 2, 3) are reported where the ratio crosses ``n``
-    (interpolated) or comes within ``tolerance * n`` of it.
+    (interpolated) or comes within ``tolerance * n`` of it (``tolerance`` > 0).  If any
+    value fails (not a valid parameter, an unstable or non-equilibrium hanging position,
+    results not finite) the whole sweep is refused with a
+    :class:`~skewpend.errors.ParameterError` naming the failing values.
     """
     if name not in SWEEPABLE:
         raise ParameterError(f"cannot sweep {name!r}; allowed: {', '.join(SWEEPABLE)}")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.floating)) or not (
+        math.isfinite(tolerance) and tolerance > 0
+    ):
+        raise ParameterError(f"the resonance tolerance must be a positive number, got {tolerance!r}")
     values = np.asarray(values, float)
     if values.ndim != 1 or values.size < 2 or not np.all(np.isfinite(values)):
         raise ParameterError("sweep values must be at least 2 finite numbers")
-    probe = _with_value(params, name, float(values[0]), params)
-    probe.require_numeric("a sweep")
+    if name == "alpha" and not params.uses_alpha:
+        raise ParameterError("cannot sweep alpha: the hinge-2 axis is given explicitly (axis2), so alpha has no effect")
     freqs = np.empty((values.size, 2))
     shapes = np.empty((values.size, 2, 2))
     ratios = np.empty((values.size, 2))
+    failures: List[Tuple[float, str]] = []
     for i, v in enumerate(values):
-        m = normal_modes(_with_value(params, name, float(v), params))
-        freqs[i], shapes[i], ratios[i] = m.frequencies, m.shapes, m.ratios
-    ratio = freqs[:, 1] / freqs[:, 0]
-    return Sweep(name, values, freqs, shapes, ratios, _resonances(values, ratio, tolerance), tolerance, params)
+        try:
+            p = _with_value(params, name, float(v), params)
+            p.require_numeric("a sweep")
+            m = _modes(p)
+        except NotNumericError:
+            raise
+        except _NotFinite as exc:
+            failures.append((float(v), exc.reason))
+        except SkewpendError as exc:
+            failures.append((float(v), str(exc)))
+        else:
+            freqs[i], shapes[i], ratios[i] = m.frequencies, m.shapes, m.ratios
+    if failures:
+        raise ParameterError(_failure_message(name, failures, values.size))
+    with np.errstate(all="ignore"):
+        ratio = freqs[:, 1] / freqs[:, 0]
+    bad = ~(np.all(np.isfinite(freqs), axis=1) & np.all(np.isfinite(shapes), axis=(1, 2)) & np.isfinite(ratio))
+    if np.any(bad):  # pragma: no cover - every point was checked by _modes
+        raise ParameterError(_failure_message(name, [(float(v), "results not finite") for v in values[bad]], values.size))
+    return Sweep(name, values, freqs, shapes, ratios, _resonances(values, ratio, float(tolerance)), float(tolerance), params)
 
 
 # -- linear versus nonlinear ---------------------------------------------------------------------------
@@ -393,31 +669,67 @@ class NonlinearCheck:
         return self.measured / self.linear - 1
 
 
-def _zero_crossing_frequency(t: np.ndarray, x: np.ndarray) -> Tuple[float, int]:
+def _upward_crossings(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Times of the upward zero crossings of ``x(t)``, linearly interpolated."""
     up = np.nonzero((x[:-1] < 0) & (x[1:] >= 0))[0]
-    if up.size < 3:
-        raise ParameterError("too few oscillations to measure a frequency; increase the duration")
-    tc = t[up] - x[up] * (t[up + 1] - t[up]) / (x[up + 1] - x[up])
     # cubic refinement would need derivatives; the grid is fine enough (dt = T/400)
-    return 2 * np.pi * (up.size - 1) / (tc[-1] - tc[0]), int(up.size - 1)
+    return t[up] - x[up] * (t[up + 1] - t[up]) / (x[up + 1] - x[up])
 
 
 def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -> NonlinearCheck:
     """Start the nonlinear equations from each mode shape scaled so its largest angle is
     ``amplitude`` [rad], at rest; measure the frequency of the modal coordinate by upward
-    zero crossings (linearly interpolated) over ``cycles`` periods."""
+    zero crossings (linearly interpolated) over ``cycles`` periods.
+
+    Needs an undamped model (``c1 = c2 = 0``: the check compares undamped frequencies) and an
+    amplitude in (0, pi) rad small enough that the motion stays an oscillation about the
+    hanging position: the hinges never pass the upright position and the modal coordinate
+    crosses zero at least once per two linear periods; otherwise a
+    :class:`~skewpend.errors.ParameterError` says so.
+    """
     from .integrate import simulate
 
-    if not (math.isfinite(amplitude) and 0 < amplitude < math.pi):
-        raise ParameterError(f"amplitude must be in (0, pi) rad, got {amplitude!r}")
+    if isinstance(amplitude, bool) or not isinstance(amplitude, (int, float, np.floating)) or not (
+        math.isfinite(amplitude) and 0 < amplitude < math.pi
+    ):
+        raise ParameterError(
+            f"the nonlinear check needs an amplitude in (0, pi) rad, i.e. between 0 and 180 deg exclusive, got {amplitude!r}"
+        )
+    if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 4:
+        raise ParameterError(f"the nonlinear check needs a whole number of at least 4 cycles, got {cycles!r}")
     modes = normal_modes(params)
+    if modes.damped:
+        raise ParameterError(
+            f"the nonlinear check measures undamped oscillation frequencies, so it needs c1 = c2 = 0 "
+            f"(got c1 = {params.c1:g}, c2 = {params.c2:g})"
+        )
     measured = np.empty(2)
     used = np.empty(2, dtype=int)
+    deg = math.degrees(amplitude)
+    allowed = (
+        "the check needs an amplitude small enough for oscillation about the hanging position "
+        "(typically up to a few tens of degrees; the allowed range is 0 < amplitude < 180 deg)"
+    )
     for k in range(2):
         v = modes.shapes[:, k]
         q0 = amplitude * v / np.max(np.abs(v))
         T = modes.periods[k]
         tr = simulate(params, (q0[0], q0[1], 0.0, 0.0), cycles * T, dt_out=T / 400, rtol=1e-11, atol=1e-12, throw=True)
-        eta = modes.modal_coordinates(tr.y[:, :2])[:, k]
-        measured[k], used[k] = _zero_crossing_frequency(tr.t, eta)
+        q = tr.y[:, :2]
+        if not np.all(np.isfinite(q)):
+            raise ParameterError(f"the nonlinear motion from mode {k + 1} at {deg:.4g} deg is not finite; {allowed}")
+        if np.max(np.abs(q)) >= math.pi:
+            raise ParameterError(
+                f"at {deg:.4g} deg the motion started from mode {k + 1} goes over the top (a hinge angle reaches 180 deg), "
+                f"so it is not an oscillation about the hanging position; {allowed}"
+            )
+        tc = _upward_crossings(tr.t, modes.modal_coordinates(q)[:, k])
+        if tc.size < max(3, cycles // 2 + 1):
+            raise ParameterError(
+                f"at {deg:.4g} deg the motion started from mode {k + 1} is not an oscillation of that mode "
+                f"(its modal coordinate crossed zero upward {tc.size} times in {cycles} linear periods); {allowed}"
+            )
+        measured[k], used[k] = 2 * np.pi * (tc.size - 1) / (tc[-1] - tc[0]), tc.size - 1
+    if not np.all(np.isfinite(measured)):  # pragma: no cover - guarded by the checks above
+        raise ParameterError(f"the measured nonlinear frequencies are not finite at {deg:.4g} deg; {allowed}")
     return NonlinearCheck(float(amplitude), modes.frequencies.copy(), measured, used)

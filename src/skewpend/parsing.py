@@ -113,3 +113,70 @@ def initial_state(y0: Sequence[float]):
     if not np.all(np.isfinite(y)):
         raise ParameterError(f"y0 must be finite, got {y.tolist()}")
     return y
+
+
+# -- ranges -------------------------------------------------------------------------------------
+#: Units a range end may carry (angles only), as written -> canonical name.
+_RANGE_UNITS = (("deg", "deg"), ("°", "deg"), ("rad", "rad"))
+_MAX_RANGE_COUNT = 100_000
+
+
+def parse_range(text: Optional[str], option: str, *, angle: bool):
+    """``START:STOP:COUNT`` -> ``numpy.linspace(START, STOP, COUNT)`` (floats, SI units).
+
+    The one rule for units in a range: a unit written on either end, or on both, applies
+    to the whole range, so ``0:180deg:5``, ``0deg:180:5``, ``0deg:180deg:5`` and
+    ``0°:180°:5`` are the same five angles; plain numbers are radians (``0:3.14:5``,
+    ``0rad:3.14:5``); different units on the two ends (``0deg:1rad:5``) are refused.
+    Angles are returned in radians.  A range that is not an angle (``angle=False``) takes
+    plain numbers only.  COUNT is a whole number from 2 to 100000; the values must be
+    finite.  Errors are :class:`UsageError` naming ``option``.
+    """
+    import numpy as np
+
+    example = "0:180deg:181" if angle else "0.5:2:31"
+    if not isinstance(text, str):
+        raise UsageError(f"{option}: expected START:STOP:COUNT (e.g. {example}), got {text!r}")
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise UsageError(f"{option}: expected START:STOP:COUNT (e.g. {example}), got {text!r}")
+    ends, units = [], []
+    for part, which in zip(parts[:2], ("START", "STOP")):
+        t, unit = part.strip().lower(), None
+        for suffix, name in _RANGE_UNITS:
+            if t.endswith(suffix):
+                t, unit = t[: -len(suffix)].strip(), name
+                break
+        if unit is not None and not angle:
+            raise UsageError(f"{option}: {which} {part.strip()!r} has a unit; this range takes plain numbers (e.g. {example})")
+        try:
+            value = float(t)
+        except ValueError:
+            allowed = "a number in radians or with a deg suffix" if angle else "a number"
+            raise UsageError(f"{option}: {which} must be {allowed}, got {part.strip()!r} (e.g. {example})") from None
+        if not math.isfinite(value):
+            raise UsageError(f"{option}: {which} must be finite, got {part.strip()!r}")
+        ends.append(value)
+        units.append(unit)
+    explicit = sorted({u for u in units if u is not None})
+    if len(explicit) > 1:
+        raise UsageError(
+            f"{option}: START is in {units[0]} but STOP in {units[1]} ({text.strip()!r}); write one unit, "
+            "on either end or both (it applies to the whole range)"
+        )
+    count = parts[2].strip()
+    try:
+        n = int(count)
+    except ValueError:
+        n = None
+    if n is None or not 2 <= n <= _MAX_RANGE_COUNT:
+        raise UsageError(f"{option}: COUNT must be a whole number from 2 to {_MAX_RANGE_COUNT}, got {count!r}")
+    scale = math.pi / 180 if explicit == ["deg"] else 1.0  # the factor parse_scalar uses for 'deg'
+    with np.errstate(all="ignore"):
+        values = np.linspace(ends[0] * scale, ends[1] * scale, n)
+    if not np.all(np.isfinite(values)):
+        raise UsageError(f"{option}: the range {text.strip()!r} is too wide for double precision (STOP - START overflows)")
+    return values
+
+
+__all__.append("parse_range")

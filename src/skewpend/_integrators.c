@@ -1,0 +1,448 @@
+/* skewpend integrator template -- appended to the generated model code.
+ *
+ * Contract with the code generator (skewpend.kernelgen): the text before this template defines
+ *
+ *     static void rhs(const double *y, const double *p, double *out);      y' = F(y; p)
+ *     static void ham_rhs(const double *z, const double *p, double *out);  the same in (q, p_q)
+ *
+ * for states of at most SP_NMAX components.  Everything here is generic in the state size n.
+ *
+ * Every integrator is *resumable*: its whole state lives in an sp_state owned by the caller,
+ * and one call does a bounded amount of work (at most `budget` accepted steps, at most `cap`
+ * output rows) and returns.  The caller (skewpend.simulation) loops, writes the rows away,
+ * shows progress and lets Python handle Ctrl-C between calls.  Results do not depend on how
+ * the work is split into calls.
+ *
+ * Output rows are (t, y[0..n-1]), row-major, n + 1 doubles each.  Return values:
+ *    0  reached the end (every row written)
+ *    1  the state or its derivative became non-finite
+ *    2  step size underflow (dop853)
+ *    3  more than max_steps attempted steps (dop853)
+ *    4  the implicit stage equations did not converge (gauss)
+ *   -1  the step budget of this call is used up: call again
+ *   -2  the row buffer is full: take the rows and call again
+ * Rows are never non-finite.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+#define SP_NMAX 8
+
+typedef struct {
+    double t;                 /* current time */
+    double h;                 /* dop853: next step size (<= 0: choose automatically) */
+    double y[SP_NMAX];        /* current state */
+    double f[SP_NMAX];        /* dop853: F(y) (first same as last); gauss: first stage guess */
+    double g[SP_NMAX];        /* gauss: second stage guess */
+    double comp[SP_NMAX];     /* gauss: compensated-summation remainder */
+    double told;              /* dop853 dense output: the last step went from told ... */
+    double hseg;              /* ... over hseg */
+    double yold[SP_NMAX];     /* ... starting at yold, */
+    double F[7 * SP_NMAX];    /* ... with these interpolant coefficients */
+    int64_t nfev, naccept, nreject, step;
+    int32_t started, have_f, dense_ok, pad;
+} sp_state;
+
+int64_t sp_state_size(void) { return (int64_t)sizeof(sp_state); }
+
+static int all_finite(const double *x, int n)
+{
+    for (int i = 0; i < n; i++)
+        if (!isfinite(x[i])) return 0;
+    return 1;
+}
+
+static void put_row(double *rows, int64_t m, int n, double t, const double *y)
+{
+    double *r = rows + m * (n + 1);
+    r[0] = t;
+    memcpy(r + 1, y, (size_t)n * sizeof(double));
+}
+
+/* ---- DOP853: Hairer's Dormand-Prince 8(5,3); coefficient tables as tabulated in SciPy ---- */
+static const double DOP_C[16] = {0.0, 0.05260015195876773, 0.0789002279381516, 0.1183503419072274, 0.2816496580927726, 0.3333333333333333, 0.25, 0.3076923076923077, 0.6512820512820513, 0.6, 0.8571428571428571, 1.0, 1.0, 0.1, 0.2, 0.7777777777777778};
+static const double DOP_A[16][16] = {
+    {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.05260015195876773, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.0197250569845379, 0.0591751709536137, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.02958758547680685, 0.0, 0.08876275643042054, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.2413651341592667, 0.0, -0.8845494793282861, 0.924834003261792, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.037037037037037035, 0.0, 0.0, 0.17082860872947386, 0.12546768756682242, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.037109375, 0.0, 0.0, 0.17025221101954405, 0.06021653898045596, -0.017578125, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.03709200011850479, 0.0, 0.0, 0.17038392571223998, 0.10726203044637328, -0.015319437748624402, 0.008273789163814023, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.6241109587160757, 0.0, 0.0, -3.3608926294469414, -0.868219346841726, 27.59209969944671, 20.154067550477894, -43.48988418106996, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.47766253643826434, 0.0, 0.0, -2.4881146199716677, -0.590290826836843, 21.230051448181193, 15.279233632882423, -33.28821096898486, -0.020331201708508627, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {-0.9371424300859873, 0.0, 0.0, 5.186372428844064, 1.0914373489967295, -8.149787010746927, -18.52006565999696, 22.739487099350505, 2.4936055526796523, -3.0467644718982196, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {2.273310147516538, 0.0, 0.0, -10.53449546673725, -2.0008720582248625, -17.9589318631188, 27.94888452941996, -2.8589982771350235, -8.87285693353063, 12.360567175794303, 0.6433927460157636, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {0.054293734116568765, 0.0, 0.0, 0.0, 0.0, 4.450312892752409, 1.8915178993145003, -5.801203960010585, 0.3111643669578199, -0.1521609496625161, 0.20136540080403034, 0.04471061572777259, 0.0, 0.0, 0.0, 0.0},
+    {0.056167502283047954, 0.0, 0.0, 0.0, 0.0, 0.0, 0.25350021021662483, -0.2462390374708025, -0.12419142326381637, 0.15329179827876568, 0.00820105229563469, 0.007567897660545699, -0.008298, 0.0, 0.0, 0.0},
+    {0.03183464816350214, 0.0, 0.0, 0.0, 0.0, 0.028300909672366776, 0.053541988307438566, -0.05492374857139099, 0.0, 0.0, -0.00010834732869724932, 0.0003825710908356584, -0.00034046500868740456, 0.1413124436746325, 0.0, 0.0},
+    {-0.42889630158379194, 0.0, 0.0, 0.0, 0.0, -4.697621415361164, 7.683421196062599, 4.06898981839711, 0.3567271874552811, 0.0, 0.0, 0.0, -0.0013990241651590145, 2.9475147891527724, -9.15095847217987, 0.0}
+};
+static const double DOP_E3[13] = {-0.18980075407240762, 0.0, 0.0, 0.0, 0.0, 4.450312892752409, 1.8915178993145003, -5.801203960010585, -0.4226823213237919, -0.1521609496625161, 0.20136540080403034, 0.02265179219836082, 0.0};
+static const double DOP_E5[13] = {0.01312004499419488, 0.0, 0.0, 0.0, 0.0, -1.2251564463762044, -0.4957589496572502, 1.6643771824549864, -0.35032884874997366, 0.3341791187130175, 0.08192320648511571, -0.022355307863886294, 0.0};
+static const double DOP_D[4][16] = {
+    {-8.428938276109013, 0.0, 0.0, 0.0, 0.0, 0.5667149535193777, -3.0689499459498917, 2.38466765651207, 2.117034582445028, -0.871391583777973, 2.2404374302607883, 0.6315787787694688, -0.08899033645133331, 18.148505520854727, -9.194632392478356, -4.436036387594894},
+    {10.427508642579134, 0.0, 0.0, 0.0, 0.0, 242.28349177525817, 165.20045171727028, -374.5467547226902, -22.113666853125306, 7.733432668472264, -30.674084731089398, -9.332130526430229, 15.697238121770845, -31.139403219565178, -9.35292435884448, 35.81684148639408},
+    {19.985053242002433, 0.0, 0.0, 0.0, 0.0, -387.0373087493518, -189.17813819516758, 527.8081592054236, -11.57390253995963, 6.8812326946963, -1.0006050966910838, 0.7777137798053443, -2.778205752353508, -60.19669523126412, 84.32040550667716, 11.99229113618279},
+    {-25.69393346270375, 0.0, 0.0, 0.0, 0.0, -154.18974869023643, -231.5293791760455, 357.6391179106141, 93.40532418362432, -37.45832313645163, 104.0996495089623, 29.8402934266605, -43.53345659001114, 96.32455395918828, -39.17726167561544, -149.72683625798564}
+};
+
+#define DOP_NS 12           /* stages of the main method; K[12] = F(t + h, y_new) (FSAL) */
+#define DOP_NSTAGES 16      /* with the 3 extra stages of the dense output */
+#define DOP_SAFETY 0.9
+#define DOP_MIN_FACTOR 0.2
+#define DOP_MAX_FACTOR 10.0
+
+static double rms(const double *x, const double *scale, int n)
+{
+    double s = 0.0;
+    for (int i = 0; i < n; i++) {
+        double v = x[i] / scale[i];
+        s += v * v;
+    }
+    return sqrt(s / n);
+}
+
+/* one step from y with K[0] = F(y): stages K[1..12] and ynew */
+static void dop_step(const double *y, double h, const double *p, double K[][SP_NMAX], double *ynew, double *ytmp, int n)
+{
+    for (int s = 1; s < DOP_NS; s++) {
+        for (int i = 0; i < n; i++) {
+            double acc = 0.0;
+            for (int j = 0; j < s; j++) acc += DOP_A[s][j] * K[j][i];
+            ytmp[i] = y[i] + h * acc;
+        }
+        rhs(ytmp, p, K[s]);
+    }
+    for (int i = 0; i < n; i++) {
+        double acc = 0.0;
+        for (int j = 0; j < DOP_NS; j++) acc += DOP_A[DOP_NS][j] * K[j][i];
+        ynew[i] = y[i] + h * acc;
+    }
+    rhs(ynew, p, K[DOP_NS]);
+}
+
+/* Hairer's combined 5th/3rd-order error norm (inf if anything is non-finite) */
+static double dop_error(double K[][SP_NMAX], double h, const double *y, const double *ynew, double rtol, double atol, int n)
+{
+    double e5 = 0.0, e3 = 0.0;
+    for (int i = 0; i < n; i++) {
+        double sc = atol + rtol * fmax(fabs(y[i]), fabs(ynew[i]));
+        double a5 = 0.0, a3 = 0.0;
+        for (int j = 0; j < DOP_NS + 1; j++) {
+            a5 += DOP_E5[j] * K[j][i];
+            a3 += DOP_E3[j] * K[j][i];
+        }
+        a5 /= sc;
+        a3 /= sc;
+        e5 += a5 * a5;
+        e3 += a3 * a3;
+    }
+    if (!(isfinite(e5) && isfinite(e3))) return INFINITY;
+    if (e5 == 0.0 && e3 == 0.0) return 0.0;
+    return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * n);
+}
+
+/* the 3 extra stages and the 7 coefficient rows F of the 7th-order interpolant */
+static void dop_dense_coeffs(const double *y, const double *ynew, double h, const double *p, double K[][SP_NMAX],
+                             double *F, double *ytmp, int n)
+{
+    for (int s = DOP_NS + 1; s < DOP_NSTAGES; s++) {
+        for (int i = 0; i < n; i++) {
+            double acc = 0.0;
+            for (int j = 0; j < s; j++) acc += DOP_A[s][j] * K[j][i];
+            ytmp[i] = y[i] + h * acc;
+        }
+        rhs(ytmp, p, K[s]);
+    }
+    for (int i = 0; i < n; i++) {
+        double dy = ynew[i] - y[i];
+        F[0 * SP_NMAX + i] = dy;
+        F[1 * SP_NMAX + i] = h * K[0][i] - dy;
+        F[2 * SP_NMAX + i] = 2.0 * dy - h * (K[DOP_NS][i] + K[0][i]);
+        for (int r = 0; r < 4; r++) {
+            double acc = 0.0;
+            for (int j = 0; j < DOP_NSTAGES; j++) acc += DOP_D[r][j] * K[j][i];
+            F[(3 + r) * SP_NMAX + i] = h * acc;
+        }
+    }
+}
+
+/* the interpolant at x = (t - told) / h in [0, 1]; 0 if non-finite */
+static int dop_dense_eval(const double *y, const double *F, double x, double *out, int n)
+{
+    for (int i = 0; i < n; i++) {
+        double v = 0.0;
+        for (int k = 6; k >= 0; k--) {
+            v += F[k * SP_NMAX + i];
+            v *= ((6 - k) % 2 == 0) ? x : 1.0 - x;
+        }
+        out[i] = y[i] + v;
+        if (!isfinite(out[i])) return 0;
+    }
+    return 1;
+}
+
+/* Hairer's initial step (Hairer, Norsett & Wanner I, II.4; as SciPy's select_initial_step) */
+static double dop_initial_step(const double *y, const double *f0, const double *p, double span, double rtol,
+                               double atol, int64_t *nfev, int n)
+{
+    double sc[SP_NMAX], ytmp[SP_NMAX], f1[SP_NMAX];
+    for (int i = 0; i < n; i++) sc[i] = atol + fabs(y[i]) * rtol;
+    double d0 = rms(y, sc, n), d1 = rms(f0, sc, n);
+    double ha = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+    ha = fmin(ha, span);
+    for (int i = 0; i < n; i++) ytmp[i] = y[i] + ha * f0[i];
+    rhs(ytmp, p, f1);
+    (*nfev)++;
+    for (int i = 0; i < n; i++) f1[i] -= f0[i];
+    double d2 = rms(f1, sc, n) / ha, h1;
+    if (!isfinite(d2))
+        h1 = ha * 1e-3;
+    else if (d1 <= 1e-15 && d2 <= 1e-15)
+        h1 = fmax(1e-6, ha * 1e-3);
+    else
+        h1 = pow(0.01 / fmax(d1, d2), 1.0 / 8.0);
+    return fmin(fmin(100.0 * ha, h1), span);
+}
+
+/* Adaptive DOP853 for y' = rhs(y, p) from s->t to t_end (t_end > s->t on the first call).
+ *
+ * Error control per step with the combined 5th/3rd-order estimate scaled by
+ * atol + rtol * max(|y|, |y_new|) (RMS norm); step factor 0.9 err^(-1/8) in [0.2, 10], no
+ * increase right after a rejection; a trial step with a non-finite value is rejected like a
+ * failed one (factor 0.2).  Output: dt_out <= 0 -- every accepted step (and t0 first);
+ * dt_out > 0 -- the grid k dt_out, k = 0 .. n_grid - 1, by the 7th-order dense output (grid
+ * points up to rounding beyond t_end get the final state).  *k_out is the next grid index.
+ * max_steps bounds accepted + rejected steps over the whole run. */
+int sp_dop853(sp_state *s, int n, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
+              int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
+              int64_t *m_out)
+{
+    double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX];
+    const int dense = dt_out > 0.0;
+    int64_t m = 0, done = 0;
+    *m_out = 0;
+    if (n < 1 || n > SP_NMAX || cap < 2) return -3;
+    if (!s->started) {
+        s->started = 1;
+        if (!all_finite(s->y, n)) return 1;
+        if (!dense) put_row(rows, m++, n, s->t, s->y);
+    }
+    if (!s->have_f) {
+        rhs(s->y, p, s->f);
+        s->nfev++;
+        if (!all_finite(s->f, n)) { *m_out = m; return 1; }
+        s->have_f = 1;
+    }
+    for (;;) {
+        /* rows owed on the grid up to the current time */
+        if (dense) {
+            while (*k_out < n_grid) {
+                double tk = (double)(*k_out) * dt_out;
+                if (tk > s->t && s->t < t_end) break;
+                if (m >= cap) { *m_out = m; return -2; }
+                double *r = rows + m * (n + 1);
+                r[0] = tk;
+                if (tk >= s->t || !s->dense_ok) {
+                    memcpy(r + 1, s->y, (size_t)n * sizeof(double));
+                } else if (!dop_dense_eval(s->yold, s->F, (tk - s->told) / s->hseg, r + 1, n)) {
+                    *m_out = m;
+                    return 1;
+                }
+                m++;
+                (*k_out)++;
+            }
+        }
+        if (s->t >= t_end) { *m_out = m; return 0; }
+        if (done >= budget) { *m_out = m; return -1; }
+        if (!dense && m >= cap) { *m_out = m; return -2; }
+
+        /* one accepted step (or failure) */
+        if (s->h <= 0.0) s->h = dop_initial_step(s->y, s->f, p, t_end - s->t, rtol, atol, &s->nfev, n);
+        memcpy(K[0], s->f, (size_t)n * sizeof(double));
+        int rejected = 0, nonfinite = 0;
+        double h, t_new;
+        for (;;) {
+            if (s->naccept + s->nreject >= max_steps) { *m_out = m; return 3; }
+            double min_step = 10.0 * (nextafter(s->t, INFINITY) - s->t);
+            if (s->h < min_step) { *m_out = m; return nonfinite ? 1 : 2; }
+            t_new = s->t + s->h;
+            if (t_new >= t_end) t_new = t_end;
+            h = t_new - s->t;
+            dop_step(s->y, h, p, K, ynew, ytmp, n);
+            s->nfev += DOP_NS;
+            double err = (all_finite(ynew, n) && all_finite(K[DOP_NS], n)) ? dop_error(K, h, s->y, ynew, rtol, atol, n)
+                                                                         : INFINITY;
+            nonfinite = !isfinite(err);
+            if (err < 1.0) {
+                double fac = err == 0.0 ? DOP_MAX_FACTOR : fmin(DOP_MAX_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
+                if (rejected) fac = fmin(1.0, fac);
+                s->h = h * fac;
+                break;
+            }
+            double fac = nonfinite ? DOP_MIN_FACTOR : fmax(DOP_MIN_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
+            s->h = h * fac;
+            rejected = 1;
+            s->nreject++;
+        }
+        s->naccept++;
+        done++;
+        /* the interpolant, when a grid point lies inside this step */
+        s->dense_ok = 0;
+        if (dense && *k_out < n_grid && (double)(*k_out) * dt_out < t_new) {
+            dop_dense_coeffs(s->y, ynew, h, p, K, s->F, ytmp, n);
+            s->nfev += DOP_NSTAGES - DOP_NS - 1;
+            memcpy(s->yold, s->y, (size_t)n * sizeof(double));
+            s->told = s->t;
+            s->hseg = h;
+            s->dense_ok = 1;
+        }
+        s->t = t_new;
+        memcpy(s->y, ynew, (size_t)n * sizeof(double));
+        memcpy(s->f, K[DOP_NS], (size_t)n * sizeof(double));
+        if (!dense) put_row(rows, m++, n, s->t, s->y);
+    }
+}
+
+/* ---- fixed-step methods: nsteps steps of dt from t0; rows every stride-th step and the last ---- */
+
+/* Classical Runge-Kutta of order 4.  On a non-finite state the output ends with the last
+ * finite state (stored even if it is not on the stride). */
+int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t nsteps, int64_t stride,
+           int64_t budget, double *rows, int64_t cap, int64_t *m_out)
+{
+    double k1[SP_NMAX], k2[SP_NMAX], k3[SP_NMAX], k4[SP_NMAX], tmp[SP_NMAX];
+    const double half = 0.5 * dt, sixth = dt / 6.0;
+    int64_t m = 0, done = 0;
+    *m_out = 0;
+    if (n < 1 || n > SP_NMAX || cap < 2 || stride < 1) return -3;
+    if (!s->started) {
+        s->started = 1;
+        if (!all_finite(s->y, n)) return 1;
+        put_row(rows, m++, n, t0, s->y);
+    }
+    while (s->step < nsteps) {
+        if (done >= budget) { *m_out = m; return -1; }
+        if (m >= cap - 1) { *m_out = m; return -2; }
+        rhs(s->y, p, k1);
+        for (int i = 0; i < n; i++) tmp[i] = s->y[i] + half * k1[i];
+        rhs(tmp, p, k2);
+        for (int i = 0; i < n; i++) tmp[i] = s->y[i] + half * k2[i];
+        rhs(tmp, p, k3);
+        for (int i = 0; i < n; i++) tmp[i] = s->y[i] + dt * k3[i];
+        rhs(tmp, p, k4);
+        s->nfev += 4;
+        for (int i = 0; i < n; i++) tmp[i] = s->y[i] + sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
+        if (!all_finite(tmp, n)) {
+            if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, s->y);
+            *m_out = m;
+            return 1;
+        }
+        memcpy(s->y, tmp, (size_t)n * sizeof(double));
+        s->step++;
+        s->naccept++;
+        done++;
+        s->t = t0 + (double)s->step * dt;
+        if (s->step % stride == 0 || s->step == nsteps) put_row(rows, m++, n, s->t, s->y);
+    }
+    *m_out = m;
+    return 0;
+}
+
+/* 2-stage Gauss-Legendre collocation (order 4, symplectic) for z' = ham_rhs(z, p).
+ * The stage equations K_i = f(z + dt sum_j a_ij K_j) are solved by fixed-point iteration,
+ * started from the previous step's collocation polynomial extrapolated to the new stages,
+ * until the max-norm change of the stage values is <= tol max|z| -- or stops decreasing at
+ * the rounding level (<= 64 eps of the state) -- within max_iter iterations.  The update
+ * uses compensated summation. */
+int sp_gauss(sp_state *s, int n, const double *p, double t0, double dt, int64_t nsteps, int64_t stride,
+             double tol, int64_t max_iter, int64_t budget, double *rows, int64_t cap, int64_t *m_out)
+{
+    const double r3 = sqrt(3.0);
+    const double a11 = 0.25, a12 = 0.25 - r3 / 6.0, a21 = 0.25 + r3 / 6.0, a22 = 0.25;
+    const double w1 = r3, w2 = 1.0 + r3, eps = 2.220446049250313e-16;
+    double *k1 = s->f, *k2 = s->g, *z = s->y;
+    double f1[SP_NMAX], f2[SP_NMAX], y1[SP_NMAX], y2[SP_NMAX];
+    int64_t m = 0, done = 0;
+    *m_out = 0;
+    if (n < 1 || n > SP_NMAX || cap < 2 || stride < 1) return -3;
+    if (!s->started) {
+        s->started = 1;
+        if (!all_finite(z, n)) return 1;
+        put_row(rows, m++, n, t0, z);
+        memset(s->comp, 0, sizeof(s->comp));
+    }
+    if (!s->have_f && s->step < nsteps) {
+        ham_rhs(z, p, k1);
+        s->nfev++;
+        if (!all_finite(k1, n)) { *m_out = m; return 1; }
+        memcpy(k2, k1, (size_t)n * sizeof(double));
+        s->have_f = 1;
+    }
+    while (s->step < nsteps) {
+        if (done >= budget) { *m_out = m; return -1; }
+        if (m >= cap - 1) { *m_out = m; return -2; }
+        double scale = 0.0, prev = INFINITY;
+        int converged = 0;
+        for (int i = 0; i < n; i++) scale = fmax(scale, fabs(z[i]));
+        for (int64_t it = 0; it < max_iter; it++) {
+            for (int i = 0; i < n; i++) {
+                y1[i] = z[i] + dt * (a11 * k1[i] + a12 * k2[i]);
+                y2[i] = z[i] + dt * (a21 * k1[i] + a22 * k2[i]);
+            }
+            ham_rhs(y1, p, f1);
+            ham_rhs(y2, p, f2);
+            s->nfev += 2;
+            if (!(all_finite(f1, n) && all_finite(f2, n))) {
+                if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, z);
+                *m_out = m;
+                return 1;
+            }
+            double delta = 0.0, size = scale;
+            for (int i = 0; i < n; i++) {
+                double d1 = f1[i] - k1[i], d2 = f2[i] - k2[i];
+                delta = fmax(delta, fmax(fabs(dt * (a11 * d1 + a12 * d2)), fabs(dt * (a21 * d1 + a22 * d2))));
+                size = fmax(size, fmax(fabs(y1[i]), fabs(y2[i])));
+                k1[i] = f1[i];
+                k2[i] = f2[i];
+            }
+            if (delta <= tol * scale || delta == 0.0) { converged = 1; break; }
+            if (delta >= prev && delta <= 64.0 * eps * size) { converged = 1; break; } /* rounding level */
+            prev = delta;
+        }
+        if (!converged) {
+            if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, z);
+            *m_out = m;
+            return 4;
+        }
+        int ok = 1;
+        for (int i = 0; i < n; i++) {  /* z += dt/2 (k1 + k2), compensated */
+            double inc = 0.5 * dt * (k1[i] + k2[i]) + s->comp[i];
+            double nz = z[i] + inc;
+            s->comp[i] = inc - (nz - z[i]);
+            y1[i] = nz;
+            if (!isfinite(nz)) ok = 0;
+        }
+        if (!ok) {
+            if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, z);
+            *m_out = m;
+            return 1;
+        }
+        for (int i = 0; i < n; i++) {
+            z[i] = y1[i];
+            double d = k2[i] - k1[i], a = k1[i];  /* starting guess for the next step */
+            k1[i] = a + w1 * d;
+            k2[i] = a + w2 * d;
+        }
+        s->step++;
+        s->naccept++;
+        done++;
+        s->t = t0 + (double)s->step * dt;
+        if (s->step % stride == 0 || s->step == nsteps) put_row(rows, m++, n, s->t, z);
+    }
+    *m_out = m;
+    return 0;
+}

@@ -1,0 +1,280 @@
+"""Sturdy in a user's hands: Ctrl-C, long runs, memory, progress, files, the kernel cache.
+
+Real processes where the behaviour is about processes (signals, exit status, peak memory).
+Every run that could take long is bounded by a timeout; no test depends on absolute times
+beyond generous upper bounds on reaction to Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import skewpend
+from skewpend import Parameters
+
+P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81, c1=0.0, c2=0.0, tau1=0.0, tau2=0.0)
+Y0 = (1.2, -0.8, 0.0, 0.0)
+
+
+def cli(*args):
+    return [sys.executable, "-m", "skewpend", *map(str, args)]
+
+
+def run(args, cwd=None, env=None, timeout=300):
+    return subprocess.run(args, capture_output=True, text=True, cwd=cwd, env={**os.environ, **(env or {})}, timeout=timeout)
+
+
+def _interrupt(args, cwd, after: float, env=None):
+    """Start ``args``, wait until it is integrating (``after`` s), send SIGINT; (proc, out, err, seconds to exit)."""
+    proc = subprocess.Popen(args, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, **(env or {})})
+    time.sleep(after)
+    assert proc.poll() is None, proc.communicate()
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    return proc, out, err, time.monotonic() - sent
+
+
+# -- Ctrl-C ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("out", ["long.csv", "long.nc", None])
+def test_ctrl_c_stops_the_cli_with_status_130_and_no_file(tmp_path, out):
+    skewpend.simulate(P, Y0, 0.01)  # the kernel is compiled and cached before the clock starts
+    args = ["simulate", "--method", "gauss", "--dt", "1e-4", "--t-end", "2000"] + (["--out", out] if out else [])
+    proc, stdout, stderr, took = _interrupt(cli(*args), tmp_path, after=2.5)
+    assert proc.returncode == 130, stderr
+    assert stderr.strip().splitlines() == ["skewpend: interrupted"], stderr
+    assert took < 3.0  # the compiled loop works in ~0.05 s chunks
+    assert list(tmp_path.iterdir()) == []  # neither the output nor a temporary file
+
+
+def test_ctrl_c_raises_keyboardinterrupt_in_the_python_api(tmp_path):
+    code = (
+        "import skewpend\n"
+        "p = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)\n"
+        "skewpend.simulate(p, (1.2, -0.8, 0, 0), 0.01)\n"
+        "print('ready', flush=True)\n"
+        "try:\n"
+        "    skewpend.simulate(p, (1.2, -0.8, 0, 0), 2000.0, method='gauss', dt=1e-4, out='x.nc')\n"
+        "except KeyboardInterrupt:\n"
+        "    print('KeyboardInterrupt', flush=True)\n"
+    )
+    proc, stdout, stderr, took = _interrupt([sys.executable, "-c", code], tmp_path, after=2.5)
+    assert proc.returncode == 0, stderr
+    assert stdout.split() == ["ready", "KeyboardInterrupt"]
+    assert took < 3.0
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- memory and long runs ----------------------------------------------------------------------------------
+def _peak_rss_mb(args, cwd) -> float:
+    proc = subprocess.Popen(args, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0, proc.stderr.read()
+    return usage.ru_maxrss / 1024.0  # kB on Linux
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="ru_maxrss in kB is Linux's convention")
+def test_summary_only_run_keeps_constant_memory(tmp_path):
+    """2e5 and 2e6 steps: the same peak memory (keeping 2e6 rows would take >= 100 MB more)."""
+    skewpend.simulate(P, Y0, 0.01, method="gauss")
+    short = _peak_rss_mb(cli("simulate", "--method", "gauss", "--t-end", "200"), tmp_path)
+    long = _peak_rss_mb(cli("simulate", "--method", "gauss", "--t-end", "2000"), tmp_path)
+    print(f"peak RSS: 2e5 steps {short:.1f} MB, 2e6 steps {long:.1f} MB")
+    assert long - short < 20.0
+
+
+def test_streamed_file_has_every_row_and_bounded_memory(tmp_path):
+    """A grid of 2e5 rows streamed to CSV: every row is there, in order, and finite."""
+    path = tmp_path / "grid.csv"
+    tr = skewpend.simulate(P, Y0, 200.0, method="rk4", dt=1e-3, dt_out=1e-3, out=path, keep=False)
+    assert tr.success and tr.t.size == 2 and tr.stats["rows"] == 200_001
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert data.shape == (200_001, 13)
+    np.testing.assert_allclose(data[:, 0], np.arange(200_001) * 1e-3, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(data[-1, 1:5], tr.y[-1])  # %.17g round-trips exactly
+    kept = skewpend.simulate(P, Y0, 200.0, method="rk4", dt=1e-3, dt_out=1e-3)
+    np.testing.assert_array_equal(data[:, 1:5], kept.y)
+    assert tr.energy_drift == kept.energy_drift  # measured over every row, kept or not
+
+
+def test_max_steps_refused_up_front_with_an_estimate(tmp_path):
+    t0 = time.monotonic()
+    proc = run(cli("simulate", "--t-end", "1e9"), cwd=tmp_path)
+    assert proc.returncode == 2 and time.monotonic() - t0 < 30
+    line = proc.stderr.strip()
+    assert line.startswith("skewpend: error: t_end = 1e+09 s needs about") and "max_steps = 100000000" in line
+    proc = run(cli("simulate", "--method", "rk4", "--t-end", "100", "--max-steps", "1000"), cwd=tmp_path)
+    assert proc.returncode == 2 and "1e+05 steps exceeds max_steps = 1000" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_run_stopped_by_max_steps_writes_what_it_computed(tmp_path):
+    """An estimate can be beaten: the first steps are easy (slow start), the rest stop at the cap."""
+    out = tmp_path / "partial.nc"
+    # the pendulum starts almost at rest upside down: the first steps are long, later ones short
+    proc = run(cli("simulate", "--phi0", "3.14159", "--psi0", "0", "--t-end", "60", "--max-steps", "2600", "--out", out),
+               cwd=tmp_path)
+    if proc.returncode == 2:  # the estimate already refused it: then a smaller cap mid-run
+        pytest.skip(proc.stderr)
+    assert proc.returncode == 1, proc.stderr
+    assert "maximum number of steps exceeded" in proc.stderr and f"to {out}" in proc.stderr
+    import netCDF4
+
+    with netCDF4.Dataset(out) as ds:
+        assert ds.status == 3 and "maximum number of steps" in ds.message
+        t = ds["t"][:]
+        assert 0 < t[-1] < 60 and ds.t_reached == pytest.approx(t[-1])
+        assert np.all(np.isfinite(ds["phi"][:]))
+
+
+def test_stop_early_status_is_in_the_csv_metadata(tmp_path):
+    tr = skewpend.simulate(P, Y0, 100.0, max_steps=50, out=tmp_path / "x.csv")
+    assert tr.status == 3 and not tr.success
+    lines = (tmp_path / "x.csv").read_text().splitlines()
+    meta = dict(line[2:].split(": ", 1) for line in lines if line.startswith("# "))
+    assert meta["status"] == "3" and meta["message"] == "stopped: maximum number of steps exceeded"
+    data = np.loadtxt(tmp_path / "x.csv", delimiter=",", skiprows=1)
+    assert data.shape[0] == tr.stats["rows"] and float(meta["t_reached"]) == data[-1, 0]
+
+
+# -- progress -------------------------------------------------------------------------------------------
+def test_no_progress_output_when_stderr_is_not_a_terminal(tmp_path):
+    proc = run(cli("simulate", "--method", "gauss", "--t-end", "300"), cwd=tmp_path)  # ~1.5 s of work
+    assert proc.returncode == 0 and proc.stderr == ""
+
+
+def test_progress_bar_appears_for_long_work_only():
+    import io
+
+    from rich.console import Console
+
+    from skewpend.progress import ProgressBar
+
+    buf = io.StringIO()
+    console = Console(file=buf, force_terminal=True, width=100)
+    with ProgressBar("simulating", unit="s", enabled=True, delay=0.2, console=console) as bar:
+        tr = skewpend.simulate(P, Y0, 400.0, method="gauss", keep=False, progress=bar)
+        shown = bar.shown
+    assert tr.success and shown and "simulating" in buf.getvalue()
+    buf2 = io.StringIO()
+    with ProgressBar("simulating", enabled=True, delay=60, console=Console(file=buf2, force_terminal=True)) as bar:
+        skewpend.simulate(P, Y0, 1.0, progress=bar)
+    assert not bar.shown and buf2.getvalue() == ""
+    with ProgressBar("simulating", enabled=False, delay=0) as bar:
+        skewpend.simulate(P, Y0, 1.0, progress=bar)
+    assert not bar.shown
+
+
+def test_progress_is_called_with_increasing_times():
+    seen = []
+    skewpend.simulate(P, Y0, 200.0, method="rk4", keep=False, progress=lambda t, T: seen.append((t, T)))
+    ts = [t for t, _ in seen]
+    assert len(ts) >= 2 and ts == sorted(ts) and ts[-1] == pytest.approx(200.0) and {T for _, T in seen} == {200.0}
+
+
+# -- files ----------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("suffix", [".csv", ".nc"])
+@pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
+def test_files_get_the_permissions_of_the_umask(tmp_path, suffix, umask):
+    old = os.umask(umask)
+    try:
+        path = tmp_path / f"x{suffix}"
+        skewpend.simulate(P, Y0, 0.1, dt_out=0.05, out=path)
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask
+
+
+def test_a_temporary_file_left_by_kill_9_is_removed(tmp_path):
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    stale = tmp_path / f".run.csv.skewpend-{proc.pid}.tmp"  # a pid that no longer exists
+    stale.write_text("half a file")
+    alive = tmp_path / f".run.csv.skewpend-{os.getppid()}.tmp"  # a live process's: left alone
+    alive.write_text("in progress")
+    skewpend.simulate(P, Y0, 0.1, out=tmp_path / "run.csv")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["run.csv", alive.name])
+
+
+def test_killed_writer_leaves_no_output_and_the_next_run_cleans_up(tmp_path):
+    proc = subprocess.Popen(cli("simulate", "--method", "gauss", "--dt", "1e-4", "--t-end", "2000", "--dt-out", "0.01",
+                                "--out", "big.csv"), cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while not list(tmp_path.glob(".big.csv.*.tmp")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    proc.kill()
+    proc.wait()
+    assert not (tmp_path / "big.csv").exists() and len(list(tmp_path.glob(".big.csv.*.tmp"))) == 1
+    assert run(cli("simulate", "--t-end", "0.1", "--dt-out", "0.05", "--out", "big.csv"), cwd=tmp_path).returncode == 0
+    assert [p.name for p in tmp_path.iterdir()] == ["big.csv"]
+
+
+# -- the kernel cache -------------------------------------------------------------------------------------
+GEOMETRY = dict(com2=(0.0, 0.37, 0.01))  # a model of its own: its own library in the cache
+
+
+def test_damaged_kernel_is_rebuilt(tmp_path):
+    env = {"SKEWPEND_CACHE_DIR": str(tmp_path / "cache")}
+    args = cli("simulate", "--t-end", "1", "--com2", "0,0.37,0.01")
+    first = run(args, env=env)
+    assert first.returncode == 0 and "compiled for this model" in first.stdout
+    [lib] = (tmp_path / "cache" / "kernels").glob("*.so")
+    final = first.stdout.split("final state")[1].splitlines()[0]
+    for damage in (b"", b"\x7fELF garbage", lib.read_bytes()[:-100] + b"\0" * 100):
+        lib.write_bytes(damage)
+        again = run(args, env=env)
+        assert again.returncode == 0 and again.stderr == "", again.stderr
+        assert "compiled for this model" in again.stdout  # rebuilt, not loaded
+        assert again.stdout.split("final state")[1].splitlines()[0] == final
+    hit = run(args, env=env)
+    assert "loaded from the cache" in hit.stdout
+
+
+def test_unwritable_cache_falls_back_with_one_warning(tmp_path):
+    if os.geteuid() == 0:
+        # root may write anywhere: a cache path *under a regular file* cannot be created by anyone
+        blocker = tmp_path / "file"
+        blocker.write_text("")
+        cache = blocker / "cache"
+    else:
+        cache = tmp_path / "ro"
+        cache.mkdir()
+        cache.chmod(0o500)
+    proc = run(cli("simulate", "--t-end", "1", "--com2", "0,0.36,0.01"), env={"SKEWPEND_CACHE_DIR": str(cache)})
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("skewpend: warning: cannot write the kernel cache"), proc.stderr
+    assert "reached t_end" in proc.stdout
+
+
+def test_missing_compiler_is_one_clear_line(tmp_path):
+    proc = run(cli("simulate", "--t-end", "1", "--com2", "0,0.35,0.01"),
+               env={"SKEWPEND_CACHE_DIR": str(tmp_path), "CC": "/nonexistent/cc"})
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
+    assert "C compiler" in proc.stderr and "install gcc or clang" in proc.stderr
+
+
+def test_cache_hit_loads_without_sympy_or_compiler(tmp_path):
+    env = {"SKEWPEND_CACHE_DIR": str(tmp_path)}
+    assert run(cli("simulate", "--t-end", "1"), env=env).returncode == 0
+    code = (
+        "import sys, skewpend\n"
+        "p = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)\n"
+        "tr = skewpend.simulate(p, (1.2, -0.8, 0, 0), 1.0)\n"
+        "print(tr.stats['kernel'], 'sympy' in sys.modules)\n"
+    )
+    proc = run([sys.executable, "-c", code], env={**env, "CC": "/nonexistent/cc", "PATH": "/nonexistent"})
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["cache", "False"]
