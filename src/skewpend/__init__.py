@@ -53,7 +53,16 @@ if TYPE_CHECKING:  # pragma: no cover
     from .modes import Modes, characteristic_equation, normal_modes, sweep
 
 
+#: Submodules reachable as attributes after a plain ``import skewpend`` (imported on first use).
+_SUBMODULES = {
+    "derivation", "kinematics", "render", "codegen", "kernelgen", "compiled", "integrate", "io", "export",
+    "validation", "modes", "plots", "parsing", "progress", "model", "errors",
+}
+
+
 def __getattr__(name: str) -> Any:
+    if name in _SUBMODULES:
+        return import_module(f".{name}", __name__)
     if name in _LAZY:
         value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
         globals()[name] = value

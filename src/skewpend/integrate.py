@@ -239,7 +239,7 @@ def simulate(
         n_float = t_end / step
         if n_float > max_steps:
             raise ParameterError(
-                f"t_end/dt = {n_float:.4g} steps exceeds max_steps = {max_steps}; use a larger dt, a shorter t_end or raise max_steps"
+                f"t_end/dt = {n_float:.4g} steps exceeds the cap max_steps (--max-steps) = {max_steps}; use a larger dt, a shorter t_end or raise the cap"
             )
         nsteps = int(round(n_float))
         if abs(nsteps * step - t_end) > 1e-9 * t_end:
@@ -297,7 +297,7 @@ def simulate(
         if out is not None:
             writer = stack.enter_context(TrajectoryWriter(out))
         acc = _Accumulator(kernel, p, keep, writer)
-        budget = 2000
+        budget = min(2000, max(10, max_steps // 20))  # the first call doubles as dop853's probe
         start = time.perf_counter()
         probed = False
         while True:
@@ -379,7 +379,7 @@ def _check_dop853_estimate(state, t_end: float, max_steps: int, own_steps: bool,
     if estimate > max_steps:
         raise ParameterError(
             f"t_end = {t_end:g} s needs about {estimate:.2g} steps at this tolerance (from the first {attempted} steps), "
-            f"more than max_steps = {max_steps}; shorten t_end, loosen the tolerance or raise max_steps"
+            f"more than the cap max_steps (--max-steps) = {max_steps}; shorten t_end, loosen the tolerance or raise the cap"
         )
     if own_steps:
         _check_room(state.naccept * t_end / state.t, keep, out)

@@ -78,7 +78,7 @@ def _describe(params: Parameters) -> str:
 def _not_finite_message(exc: "_NotFinite", params: Parameters) -> str:
     return (
         f"normal modes: {exc.reason} for {_describe(params)}; allowed: parameters of moderate size, for which M0, "
-        "C0, K0 and the frequencies are finite, normal double-precision numbers (magnitudes within about 1e-300 .. 1e300)"
+        "C0, K0, the eigenvalues and their squares are finite, normal double-precision numbers (about 1e-150 .. 1e150)"
     )
 
 
@@ -232,10 +232,14 @@ def _qep_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[np.ndarray,
     and the displacement parts ``x`` (2, 4) of the state-space eigenvectors ``[x; l x]``
     (unit length), i.e. the null vectors of ``l^2 M + l C + K``.
 
-    The roots of the quartic (exact 2x2 coefficients) are polished by Newton steps; unlike
-    the eigenvalues of the 4x4 state matrix they keep full relative accuracy when the
-    damping spans many orders of magnitude (the slow creep ``~ k/c`` and the fast decay
-    ``~ c/m`` of heavy damping, a lightly damped mode beside an almost locked hinge).
+    Starting values are the roots of the quartic and the reciprocals of the roots of the
+    reversed quartic (accurate for the large and for the small roots); each is polished by
+    Newton steps on ``det Q(l)`` evaluated from the 2x2 matrix (scaled by ``1/l^2`` for
+    ``|l| > 1``, so nothing overflows).  Unlike the eigenvalues of the 4x4 state matrix this
+    keeps full relative accuracy when the damping spans many orders of magnitude (the slow
+    creep ``~ k/c`` and fast decay ``~ c/m`` of heavy damping, a lightly damped mode beside
+    an almost locked hinge).  Near a double root (critical damping) Newton does not
+    converge and the quartic's roots are used as they are.
     """
 
     def det(A: np.ndarray) -> float:
@@ -245,77 +249,85 @@ def _qep_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[np.ndarray,
         return A[0, 0] * B[1, 1] + A[1, 1] * B[0, 0] - A[0, 1] * B[1, 0] - A[1, 0] * B[0, 1]
 
     coefficients = np.array([det(M), mixed(M, C), mixed(M, K) + det(C), mixed(C, K), det(K)], dtype=float)
-    if not np.all(np.isfinite(coefficients)) or not coefficients[0] > 0 or not coefficients[-1] > 0:
+    if not np.all(np.isfinite(coefficients)) or not np.all(coefficients > 0):
         raise _NotFinite("the characteristic polynomial det(l^2 M0 + l C0 + K0) is not finite (overflow)")
-    lam = np.roots(coefficients).astype(complex)
+    big = np.roots(coefficients).astype(complex)
+    small = 1.0 / np.roots(coefficients[::-1]).astype(complex)
+    roots: List[complex] = []
+    for z0 in np.concatenate([big, small]):
+        if not np.isfinite(z0) or z0 == 0:
+            continue
+        z, converged = _newton(z0, M, C, K)
+        if not converged:
+            continue
+        if abs(z.imag) <= 1e-14 * abs(z):
+            z = complex(z.real, 0.0)
+        z = complex(z.real, abs(z.imag))
+        if not any(abs(z - r) <= 1e-10 * abs(r) for r in roots):
+            roots.append(z)
+    lam = np.array(roots + [np.conj(z) for z in roots if z.imag != 0])
+    if lam.size != 4:  # a (near) double root: Newton converges slowly there
+        lam = big
     if lam.size != 4 or not np.all(np.isfinite(lam)):
-        raise _NotFinite("the state-space eigenvalues are not finite")
-    return _refine(lam, M, C, K)
+        raise _NotFinite("the state-space eigenvalues are not finite (overflow)")
+    return lam, _null_vectors(lam, M, C, K)
 
 
-def _refine(lam: np.ndarray, M: np.ndarray, C: np.ndarray, K: np.ndarray):
-    """Newton steps on ``det(l^2 M + l C + K) = 0`` from each eigenvalue (real ones stay real,
-    conjugate pairs stay conjugate), then each eigenvector as the null vector of the 2x2
-    ``Q(l)``.  A step is kept only while it lowers ``|det Q|``; a refinement that merges two
-    distinct eigenvalues is undone."""
+def _scaled_q(z: complex, M: np.ndarray, C: np.ndarray, K: np.ndarray):
+    """``Q(z) = z^2 M + z C + K`` and ``dQ/dz``, both divided by ``z^2`` when ``|z| > 1``;
+    with the power of ``z`` taken out (0 or 2)."""
+    if abs(z) > 1:
+        w = 1.0 / z
+        return M + w * C + (w * w) * K, -(w * w) * C - (2 * w**3) * K, 2
+    return (z * z) * M + z * C + K, (2 * z) * M + C, 0
 
-    def det_and_slope(z: complex):
-        Q = z * z * M + z * C + K
-        dQ = 2 * z * M + C
+
+def _newton(z0: complex, M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[complex, bool]:
+    """Newton's method on ``det Q(z) = 0`` from ``z0`` (a real start stays real): the root
+    and whether the steps converged to machine precision."""
+    real = z0.imag == 0
+    z = complex(z0.real, 0.0) if real else complex(z0)
+    for _ in range(40):
+        Q, dQ, p = _scaled_q(z, M, C, K)
         f = Q[0, 0] * Q[1, 1] - Q[0, 1] * Q[1, 0]
         df = dQ[0, 0] * Q[1, 1] + Q[0, 0] * dQ[1, 1] - dQ[0, 1] * Q[1, 0] - Q[0, 1] * dQ[1, 0]
-        return f, df
+        if f == 0:
+            return z, True
+        # det Q = z^(2p) det Qs  =>  det Q / (det Q)' = det Qs / ((det Qs)' + 2p det Qs / z)
+        step = f / (df + 2 * p * f / z)
+        if not np.isfinite(step):
+            return z, False
+        if real:
+            step = complex(step.real, 0.0)
+        z -= step
+        if abs(step) <= 4 * np.finfo(float).eps * abs(z):
+            return z, True
+    return z, False
 
-    out = lam.copy()
-    for i, z0 in enumerate(lam):
-        if z0.imag < 0:
-            continue  # set from its conjugate below
-        z = z0.real if z0.imag == 0 else z0
-        f, df = det_and_slope(z)
-        for _ in range(8):
-            if not (np.isfinite(f) and np.isfinite(df)) or df == 0 or f == 0:
-                break
-            zn = z - f / df
-            fn, dfn = det_and_slope(zn)
-            if not (np.isfinite(fn) and abs(fn) < abs(f)):
-                break
-            z, f, df = zn, fn, dfn
-        if z0.imag != 0 and not np.imag(z) > 0:
-            z = z0  # a complex pair must stay complex
-        out[i] = z
-    for i, z0 in enumerate(lam):
-        if z0.imag < 0:
-            j = int(np.argmin(np.abs(lam - np.conj(z0))))
-            out[i] = np.conj(out[j])
-    # undo the refinement if it merged two distinct eigenvalues
-    gap0 = min(abs(lam[i] - lam[j]) / max(abs(lam[i]), abs(lam[j])) for i in range(4) for j in range(i))
-    gap1 = min(abs(out[i] - out[j]) / max(abs(out[i]), abs(out[j])) for i in range(4) for j in range(i))
-    if not np.all(np.isfinite(out)) or gap1 < 0.5 * gap0:
-        out = lam
-    Y = np.zeros((2, 4), complex)
-    nM, nC, nK = (np.abs(X).max() for X in (M, C, K))
-    for k, z in enumerate(out):
-        Q = z * z * M + z * C + K
+
+def _null_vectors(lam: np.ndarray, M: np.ndarray, C: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Unit null vectors of the (scaled) 2x2 ``Q(l)``, one column per eigenvalue; a zero
+    column where ``Q(l) ~ 0`` (a double eigenvalue shared by two shapes: no shape)."""
+    X = np.zeros((2, lam.size), complex)
+    nM, nC, nK = (np.abs(A).max() for A in (M, C, K))
+    for k, z in enumerate(lam):
+        Q, _, p = _scaled_q(z, M, C, K)
         a, b = np.array([-Q[0, 1], Q[0, 0]]), np.array([Q[1, 1], -Q[1, 0]])
         x = a if np.linalg.norm(a) >= np.linalg.norm(b) else b
         n = np.linalg.norm(x)
         if not np.isfinite(n):
-            raise _NotFinite("the state-space eigenvectors are not finite")
-        if n > 1e-10 * (abs(z) ** 2 * nM + abs(z) * nC + nK):
-            Y[:, k] = x / n
-        # else Q(l) ~ 0: a double eigenvalue shared by two shapes; x = 0 carries no shape
-    return out, Y
-
-
-def _conjugate_closed(lam: np.ndarray) -> bool:
-    return all(z.imag == 0 or np.min(np.abs(lam - np.conj(z))) <= 1e-12 * abs(z) for z in lam)
+            raise _NotFinite("the state-space eigenvectors are not finite (overflow)")
+        scale = nM + nC / abs(z) + nK / abs(z) ** 2 if p else abs(z) ** 2 * nM + abs(z) * nC + nK
+        if n > 1e-10 * scale:
+            X[:, k] = x / n
+    return X
 
 
 def _pair_by_shape(lam: np.ndarray, X: np.ndarray, M: np.ndarray, V: np.ndarray) -> np.ndarray:
     """Split the four eigenvalues into a pair per undamped mode (rows), by shape similarity."""
     norm = np.sqrt(np.abs(np.einsum("ij,ik,kj->j", X.conj(), M, X).real))
     # S[k, j]: similarity of eigenvector j to undamped mode k (V is M0-normalised); neutral 1/2
-    # for an eigenvalue whose shape is undetermined (x = 0, see _refine)
+    # for an eigenvalue whose shape is undetermined (x = 0, see _null_vectors)
     S = np.where(norm > 0, np.abs(V.T @ M @ X) / np.where(norm > 0, norm, 1.0), 0.5)
 
     def is_pair(i: int, j: int) -> bool:
@@ -374,7 +386,7 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
             try:
                 ev, X = _qep_eigen(M, C, K)
             except (np.linalg.LinAlgError, ValueError):
-                raise _NotFinite("the state-space eigenvalues cannot be computed in double precision") from None
+                raise _NotFinite("the state-space eigenvalues are not finite (overflow)") from None
             _require_finite(**{"the state-space eigenvalues": ev, "the state-space eigenvectors": X})
             pairs = _pair_by_shape(ev, X, M, V)
             eig = pairs[:, 0]

@@ -1,0 +1,386 @@
+"""Parse README.md into runnable examples (used by ``tests/test_readme.py``).
+
+* ```` ```python ```` blocks are executed in order in one shared namespace.
+* In ```` ```bash ````/``sh``/``console``/``shell`` blocks every line starting with ``skewpend``
+  is a CLI example that must exit with status 0.
+* Interactive transcripts -- a ``$ skewpend ...`` line followed by the output it prints -- are
+  run and their output compared with the README's (in any fenced block, including untagged ones,
+  since transcripts are usually shown in plain blocks).
+
+``python tests/readme_runner.py`` prints what would be collected.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+EXAMPLES = ROOT / "examples"
+
+PYTHON_LANGS = {"python", "py", "python3"}
+SHELL_LANGS = {"bash", "sh", "console", "shell", "shell-session"}
+# Lines in shell blocks that are not skewpend examples (reported as skipped, never run).
+SKIP_PREFIXES = ("pip ", "python -m pytest", "python benchmarks/", "bash ", "cd ")
+ERROR_PREFIX = "skewpend: error:"
+TIMEOUT = 300.0  # hard limit per command
+MAX_SECONDS = 120.0  # a README example must be cheaper than this
+_SHELL_META = set("|><;&`$")
+_FENCE = re.compile(r"^(?P<indent> *)(?P<fence>`{3,}|~{3,})(?P<info>.*)$")
+
+
+# ----------------------------------------------------------------------------------------------
+# Markdown fences
+
+
+@dataclass
+class Block:
+    index: int  # 0-based, among all fenced blocks
+    lang: str  # first word of the info string, lower case ('' if none)
+    fence_line: int  # 1-based line of the opening fence
+    lines: list[str]  # content lines (fence indentation removed)
+
+    @property
+    def first_line(self) -> int:
+        """1-based README line of the first content line."""
+        return self.fence_line + 1
+
+
+def parse_fences(text: str) -> list[Block]:
+    """Fenced code blocks (CommonMark: ``` or ~~~, closing fence of the same character and at
+    least the same length; an unclosed fence runs to the end of the document)."""
+    blocks: list[Block] = []
+    lines = text.splitlines()
+    i = 0
+    while i < len(lines):
+        m = _FENCE.match(lines[i])
+        if m is None or (m.group("fence")[0] == "`" and "`" in m.group("info")):
+            i += 1
+            continue
+        indent, fence = len(m.group("indent")), m.group("fence")
+        info = m.group("info").strip()
+        lang = info.split()[0].lower() if info else ""
+        start = i + 1  # 1-based fence line
+        body: list[str] = []
+        i += 1
+        while i < len(lines):
+            close = re.match(r"^ *(`{3,}|~{3,})\s*$", lines[i])
+            if close and close.group(1)[0] == fence[0] and len(close.group(1)) >= len(fence):
+                break
+            line = lines[i]
+            # remove up to `indent` spaces of the fence's indentation
+            strip = len(line) - len(line.lstrip(" "))
+            body.append(line[min(indent, strip):])
+            i += 1
+        blocks.append(Block(len(blocks), lang, start, body))
+        i += 1  # skip the closing fence
+    return blocks
+
+
+# ----------------------------------------------------------------------------------------------
+# Shell lines
+
+
+def strip_comment(line: str) -> str:
+    """Drop a trailing shell comment: a ``#`` outside quotes that starts the line or follows
+    whitespace (``a#b`` and ``"# x"`` are kept, as in the shell)."""
+    quote = None
+    word_start = True  # at the start of the line or after unquoted, unescaped whitespace
+    i = 0
+    while i < len(line):
+        ch = line[i]
+        blank = False
+        if quote == "'":
+            if ch == "'":
+                quote = None
+        elif quote == '"':
+            if ch == "\\":
+                i += 1
+            elif ch == '"':
+                quote = None
+        elif ch == "\\":
+            i += 1
+        elif ch in "'\"":
+            quote = ch
+        elif ch == "#" and word_start:
+            return line[:i].rstrip()
+        elif ch.isspace():
+            blank = True
+        word_start = blank
+        i += 1
+    return line.rstrip()
+
+
+def needs_shell(command: str) -> bool:
+    """True if the command has an unquoted pipe, redirection, list operator or expansion."""
+    quote = None
+    i = 0
+    while i < len(command):
+        ch = command[i]
+        if quote == "'":
+            if ch == "'":
+                quote = None
+        elif quote == '"':
+            if ch == "\\":
+                i += 1
+            elif ch == '"':
+                quote = None
+            elif ch in "$`":
+                return True
+        elif ch == "\\":
+            i += 1
+        elif ch in "'\"":
+            quote = ch
+        elif ch in _SHELL_META:
+            return True
+        i += 1
+    return False
+
+
+def is_skewpend(command: str) -> bool:
+    return command == "skewpend" or command.startswith("skewpend ")
+
+
+@dataclass
+class CliExample:
+    line: int  # 1-based README line of the command
+    command: str  # without the leading '$ ' and without a trailing comment
+    block: int  # index of the fenced block
+    expected: list[str] | None = None  # transcript output (None: only the exit status is checked)
+    shell: bool = False
+
+    @property
+    def transcript(self) -> bool:
+        return self.expected is not None
+
+    @property
+    def expected_status(self) -> int:
+        if self.expected is not None and any(l.startswith(ERROR_PREFIX) for l in self.expected):
+            return 2
+        return 0
+
+    def argv(self) -> list[str] | str:
+        """The command to run: an argument list, or a shell string for shell syntax."""
+        if self.shell:
+            python = shlex.quote(sys.executable)
+            return re.sub(r"(^|[|;&(]\s*)skewpend(?=\s|$)", rf"\g<1>{python} -m skewpend", self.command)
+        args = shlex.split(self.command)
+        return [sys.executable, "-m", "skewpend", *args[1:]]
+
+
+@dataclass
+class Skipped:
+    line: int
+    command: str
+    reason: str
+
+
+def _join_continuations(lines: list[str], first: int) -> list[tuple[int, str]]:
+    """(README line, logical line): a line ending in an unquoted backslash continues."""
+    out: list[tuple[int, str]] = []
+    pending: tuple[int, str] | None = None
+    for k, raw in enumerate(lines):
+        if pending is not None:
+            start, text = pending
+            text = text[:-1].rstrip() + " " + raw.strip()
+        else:
+            start, text = first + k, raw
+        if strip_comment(text).endswith("\\"):
+            pending = (start, strip_comment(text))
+        else:
+            pending = None
+            out.append((start, text))
+    if pending is not None:
+        out.append((pending[0], pending[1][:-1]))
+    return out
+
+
+def cli_examples(blocks: list[Block]) -> tuple[list[CliExample], list[Skipped]]:
+    examples: list[CliExample] = []
+    skipped: list[Skipped] = []
+    for block in blocks:
+        if block.lang not in SHELL_LANGS and block.lang != "":
+            continue
+        logical = _join_continuations(block.lines, block.first_line)
+        transcript = any(text.lstrip().startswith("$ ") or text.strip() == "$" for _, text in logical)
+        if not transcript:
+            if block.lang == "":  # untagged blocks only hold transcripts (or plain text)
+                continue
+            for lineno, text in logical:
+                command = strip_comment(text.strip())
+                if is_skewpend(command):
+                    examples.append(CliExample(lineno, command, block.index, shell=needs_shell(command)))
+                elif command.startswith(SKIP_PREFIXES):
+                    skipped.append(Skipped(lineno, command, "not a skewpend example"))
+            continue
+        # transcript: '$ command' lines, each followed by its output up to the next '$' line
+        current: CliExample | None = None
+        for lineno, text in logical:
+            stripped = text.lstrip()
+            if stripped.startswith("$ ") or stripped.rstrip() == "$":
+                command = strip_comment(stripped[1:].strip())
+                if is_skewpend(command):
+                    current = CliExample(lineno, command, block.index, expected=[], shell=needs_shell(command))
+                    examples.append(current)
+                else:
+                    current = None
+                    if command:
+                        skipped.append(Skipped(lineno, command, "transcript of a non-skewpend command"))
+            elif current is not None:
+                current.expected.append(text.rstrip())
+    for ex in examples:
+        if ex.expected is not None:
+            while ex.expected and not ex.expected[-1]:
+                ex.expected.pop()
+    return examples, skipped
+
+
+# ----------------------------------------------------------------------------------------------
+# Python blocks
+
+
+@dataclass
+class PythonBlock:
+    number: int  # 1-based among the python blocks
+    fence_line: int
+    first_line: int
+    source: str
+
+    @property
+    def title(self) -> str:
+        for line in self.source.splitlines():
+            if line.strip():
+                return line.strip()
+        return ""
+
+
+def python_blocks(blocks: list[Block]) -> list[PythonBlock]:
+    out = []
+    for block in blocks:
+        if block.lang in PYTHON_LANGS and any(l.strip() for l in block.lines):
+            out.append(PythonBlock(len(out) + 1, block.fence_line, block.first_line, "\n".join(block.lines) + "\n"))
+    return out
+
+
+@dataclass
+class Readme:
+    path: Path
+    python: list[PythonBlock]
+    cli: list[CliExample]
+    skipped: list[Skipped]
+
+
+def load(path: Path = README) -> Readme:
+    blocks = parse_fences(path.read_text(encoding="utf-8"))
+    cli, skipped = cli_examples(blocks)
+    return Readme(path, python_blocks(blocks), cli, skipped)
+
+
+def make_workdir(directory: Path) -> Path:
+    """A working directory holding a copy of the project's examples/."""
+    directory.mkdir(parents=True, exist_ok=True)
+    if EXAMPLES.is_dir():
+        shutil.copytree(EXAMPLES, directory / "examples", dirs_exist_ok=True)
+    return directory
+
+
+@dataclass
+class Namespace:
+    """The shared namespace of the README's python blocks, run top to bottom."""
+
+    path: Path
+    blocks: list[PythonBlock]
+    workdir: Path
+    globals: dict = field(default_factory=lambda: {"__name__": "__readme__"})
+    results: dict[int, BaseException | None] = field(default_factory=dict)
+
+    def _exec(self, block: PythonBlock) -> None:
+        # pad so that line numbers in tracebacks are the README's
+        code = compile("\n" * (block.first_line - 1) + block.source, str(self.path), "exec")
+        cwd = os.getcwd()
+        os.chdir(self.workdir)
+        try:
+            exec(code, self.globals)
+            self.results[block.number] = None
+        except BaseException as exc:  # noqa: BLE001 -- recorded and re-raised
+            self.results[block.number] = exc
+            raise
+        finally:
+            os.chdir(cwd)
+
+    def run(self, number: int) -> None:
+        """Run block `number`, first running any earlier block not yet run (so a selection of
+        blocks, or a different test order, still sees the names defined above it)."""
+        for block in self.blocks:
+            if block.number >= number:
+                break
+            if block.number not in self.results:
+                try:
+                    self._exec(block)
+                except Exception:
+                    pass  # recorded; reported by that block's own test
+        self._exec(self.blocks[number - 1])
+
+    def failed_before(self, number: int) -> list[int]:
+        return [n for n, exc in sorted(self.results.items()) if n < number and exc is not None]
+
+
+# ----------------------------------------------------------------------------------------------
+# Running CLI lines
+
+
+@dataclass
+class Outcome:
+    returncode: int | None  # None: timed out
+    output: str  # stdout + stderr, interleaved
+    seconds: float
+
+
+def run_cli(example: CliExample, workdir: Path, timeout: float = TIMEOUT) -> Outcome:
+    cmd = example.argv()
+    kwargs: dict = dict(cwd=workdir, env=dict(os.environ), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                        stderr=subprocess.STDOUT, timeout=timeout)
+    if example.shell:
+        kwargs.update(shell=True, executable=shutil.which("bash") or "/bin/sh")
+    start = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, **kwargs)
+    except subprocess.TimeoutExpired as exc:
+        out = exc.output or b""
+        return Outcome(None, out.decode("utf-8", "replace"), time.perf_counter() - start)
+    return Outcome(proc.returncode, proc.stdout.decode("utf-8", "replace"), time.perf_counter() - start)
+
+
+def output_lines(text: str) -> list[str]:
+    lines = [line.rstrip() for line in text.splitlines()]
+    while lines and not lines[-1]:
+        lines.pop()
+    return lines
+
+
+def summary(readme: Readme) -> str:
+    rel = readme.path.name
+    out = [f"{rel}: {len(readme.python)} python blocks, {len(readme.cli)} CLI lines "
+           f"({sum(e.transcript for e in readme.cli)} transcripts, {sum(e.shell for e in readme.cli)} via the shell), "
+           f"{len(readme.skipped)} skipped lines"]
+    for b in readme.python:
+        out.append(f"  python     {rel}:{b.fence_line:<4} block {b.number}: {b.title}")
+    for e in readme.cli:
+        kind = "transcript" if e.transcript else ("shell" if e.shell else "cli")
+        extra = f" -> {len(e.expected)} output line(s), exit {e.expected_status}" if e.transcript else ""
+        out.append(f"  {kind:<11}{rel}:{e.line:<4} {e.command}{extra}")
+    for s in readme.skipped:
+        out.append(f"  skipped    {rel}:{s.line:<4} {s.command}  ({s.reason})")
+    return "\n".join(out)
+
+
+if __name__ == "__main__":
+    print(summary(load(Path(sys.argv[1]) if len(sys.argv) > 1 else README)))
