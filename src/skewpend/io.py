@@ -295,6 +295,8 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
     Values are returned as written (angles may be strings such as ``"30deg"``); unknown
     sections or keys are an error.
     """
+    import datetime
+
     if sys.version_info >= (3, 11):
         import tomllib
     else:  # pragma: no cover
@@ -305,8 +307,20 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
             data = tomllib.load(fh)
     except FileNotFoundError:
         raise ParameterError(f"config file {path} does not exist") from None
+    except IsADirectoryError:
+        raise ParameterError(f"config file {path} is a directory; give a TOML file") from None
+    except OSError as exc:
+        raise ParameterError(f"config file {path} cannot be read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ParameterError(
+            f"config file {path} is not valid TOML: not UTF-8 text (byte {exc.start}); give a TOML text file"
+        ) from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"config file {path} is not valid TOML: {exc}") from None
+    if not data:
+        raise ParameterError(
+            f"config file {path} is empty; expected one or more of the sections [{'], ['.join(CONFIG_SECTIONS)}]"
+        )
     for section, values in data.items():
         if section not in CONFIG_SECTIONS:
             raise ParameterError(f"{path}: unknown section [{section}]; allowed: {', '.join(CONFIG_SECTIONS)}")
@@ -317,4 +331,12 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
             raise ParameterError(
                 f"{path}: unknown key(s) {unknown} in [{section}]; allowed: {sorted(CONFIG_SECTIONS[section])}"
             )
+        for key, value in values.items():
+            if isinstance(value, (datetime.date, datetime.time)):
+                raise ParameterError(f"{path}: [{section}] {key}: expected a number or a string, got a TOML date/time {value}")
+            if key.startswith(("com", "axis", "inertia")) and isinstance(value, list) and any(isinstance(v, (list, dict)) for v in value):
+                matrix = key.startswith("inertia") and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)
+                if not matrix:
+                    shape = "a 3x3 matrix [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] or a flat list of 3, 6 or 9" if key.startswith("inertia") else "a flat list of 3"
+                    raise ParameterError(f"{path}: [{section}] {key}: expected {shape} numbers or symbol names, got {value!r}")
     return {s: dict(data.get(s, {})) for s in CONFIG_SECTIONS}
