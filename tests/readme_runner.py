@@ -16,6 +16,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -345,18 +346,25 @@ class Outcome:
 
 
 def run_cli(example: CliExample, workdir: Path, timeout: float = TIMEOUT) -> Outcome:
+    """Run an example in `workdir` with this environment; on timeout kill its whole process
+    group (a shell pipeline included)."""
     cmd = example.argv()
     kwargs: dict = dict(cwd=workdir, env=dict(os.environ), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                        stderr=subprocess.STDOUT, timeout=timeout)
+                        stderr=subprocess.STDOUT, start_new_session=True)
     if example.shell:
         kwargs.update(shell=True, executable=shutil.which("bash") or "/bin/sh")
     start = time.perf_counter()
-    try:
-        proc = subprocess.run(cmd, **kwargs)
-    except subprocess.TimeoutExpired as exc:
-        out = exc.output or b""
-        return Outcome(None, out.decode("utf-8", "replace"), time.perf_counter() - start)
-    return Outcome(proc.returncode, proc.stdout.decode("utf-8", "replace"), time.perf_counter() - start)
+    with subprocess.Popen(cmd, **kwargs) as proc:
+        try:
+            out, _ = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            out, _ = proc.communicate()
+            return Outcome(None, (out or b"").decode("utf-8", "replace"), time.perf_counter() - start)
+    return Outcome(proc.returncode, out.decode("utf-8", "replace"), time.perf_counter() - start)
 
 
 def output_lines(text: str) -> list[str]:

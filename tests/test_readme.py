@@ -41,15 +41,21 @@ def namespace(tmp_path_factory) -> rr.Namespace:
 def test_python_block(block: rr.PythonBlock, namespace: rr.Namespace) -> None:
     try:
         namespace.run(block.number)
+        return
     except Exception as exc:
-        earlier = namespace.failed_before(block.number)
-        note = f"\n(earlier python block(s) {earlier} failed too)" if earlier else ""
-        tb = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__.tb_next))
-        pytest.fail(
-            f"README.md:{block.fence_line}: python block {block.number} ({block.title!r}) failed: "
-            f"{type(exc).__name__}: {exc}{note}\n{tb}",
-            pytrace=False,
-        )
+        error = exc
+    # the traceback from the README's own lines on (the harness's frames dropped)
+    tb = error.__traceback__
+    while tb is not None and tb.tb_frame.f_code.co_filename != str(README_PATH):
+        tb = tb.tb_next
+    trace = "".join(traceback.format_exception(type(error), error, tb or error.__traceback__))
+    earlier = namespace.failed_before(block.number)
+    note = f"\n(earlier python block(s) {earlier} failed too)" if earlier else ""
+    pytest.fail(
+        f"README.md:{block.fence_line}: python block {block.number} ({block.title!r}) failed: "
+        f"{type(error).__name__}: {error}{note}\n{trace}",
+        pytrace=False,
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -173,6 +179,15 @@ def test_harness_parses_sample(tmp_path: Path) -> None:
     with pytest.raises(ZeroDivisionError) as info:
         ns.run(4)
     assert info.traceback[-1].path == path and info.traceback[-1].lineno + 1 == 52
+
+
+def test_harness_timeout_and_shell(tmp_path: Path) -> None:
+    slow = rr.CliExample(1, "skewpend --help > help.txt && sleep 30", 0, shell=True)
+    outcome = rr.run_cli(slow, tmp_path, timeout=2)
+    assert outcome.returncode is None and outcome.seconds < 10
+    quick = rr.CliExample(1, "skewpend --help | head -n 3 > head.txt", 0, shell=True)
+    assert rr.run_cli(quick, tmp_path).returncode == 0
+    assert len((tmp_path / "head.txt").read_text().splitlines()) == 3
 
 
 @pytest.mark.parametrize(

@@ -72,6 +72,11 @@ _OPTIONS = {"mjcf": ("timestep", "integrator", "axial_inertia"), "urdf": ("axial
 #: MuJoCo integrators accepted by :func:`to_mjcf` and :func:`mujoco_trajectory`.
 INTEGRATORS = ("RK4", "Euler", "implicit", "implicitfast")
 
+#: Most MuJoCo steps :func:`mujoco_trajectory` takes in one run (refused up front beyond it).
+MAX_MUJOCO_STEPS = 100_000_000
+#: MuJoCo steps per call into ``mj_step``, so Ctrl-C is honoured within a fraction of a second.
+_MUJOCO_CHUNK = 20_000
+
 #: Default tiny inertia, relative to ``m l^2`` of each body.
 AXIAL_INERTIA_FACTOR = 1e-9
 #: Floor of the default tiny inertia [kg m^2] (MuJoCo rejects principal moments below ~1e-14).
@@ -126,21 +131,30 @@ def _regularised_inertia(inertia, eps: float):
     import numpy as np
 
     orig = np.array(inertia, dtype=float)
-    m = 0.5 * (orig + orig.T)
-    lam, vec = np.linalg.eigh(m)  # ascending
-    add = np.where(lam < 0.5 * eps, eps, 0.0)
-    lam2 = lam + add
-    margin = float(np.min(lam2.sum() - 2.0 * lam2))  # min over i of (sum of the others - lam_i)
-    if margin < 0.5 * eps:
-        add[0] += eps
-    if not np.any(add):
-        return tuple(tuple(float(x) for x in row) for row in orig)
-    out = m + (vec * add) @ vec.T
-    out = 0.5 * (out + out.T)
-    # entries that were exactly zero and moved by round-off only stay exactly zero
-    # (a thin rod along y: only the yy entry changes)
-    out[(orig == 0.0) & (np.abs(out) < 1e-3 * eps)] = 0.0
-    return tuple(tuple(float(x) for x in row) for row in out)
+    if not np.all(np.isfinite(orig)) or not math.isfinite(eps):
+        return tuple(tuple(float(x) for x in row) for row in orig)  # refused by the caller
+    # overflow (entries near 1e308) leaves inf/nan in the result, which the caller refuses
+    with np.errstate(over="ignore", invalid="ignore"):
+        m = 0.5 * orig + 0.5 * orig.T  # = (orig + orig.T) / 2, without overflow for entries near 1e308
+        scale = float(np.max(np.abs(m)))
+        if scale > 1e150:  # keep LAPACK's sums of squares finite
+            lam, vec = np.linalg.eigh(m / scale)  # ascending
+            lam = lam * scale
+        else:
+            lam, vec = np.linalg.eigh(m)  # ascending
+        add = np.where(lam < 0.5 * eps, eps, 0.0)
+        lam2 = lam + add
+        margin = float(np.min(lam2.sum() - 2.0 * lam2))  # min over i of (sum of the others - lam_i)
+        if margin < 0.5 * eps:
+            add[0] += eps
+        if not np.any(add):
+            return tuple(tuple(float(x) for x in row) for row in orig)
+        out = m + (vec * add) @ vec.T
+        out = 0.5 * (out + out.T)
+        # entries that were exactly zero and moved by round-off only stay exactly zero
+        # (a thin rod along y: only the yy entry changes)
+        out[(orig == 0.0) & (np.abs(out) < 1e-3 * eps)] = 0.0
+        return tuple(tuple(float(x) for x in row) for row in out)
 
 
 def _default_bodies(params: Parameters):
@@ -149,7 +163,7 @@ def _default_bodies(params: Parameters):
     com2 = params.com2 if params.com2 is not None else (0.0, b / 2, 0.0)
 
     def rod(m, length):
-        k = m * length**2 / 12
+        k = m * (length * length) / 12  # inf, not OverflowError, when it overflows (refused by the caller)
         return ((k, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, k))
 
     inertia1 = params.inertia1 if params.inertia1 is not None else rod(m1, a)
@@ -174,11 +188,41 @@ def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None)
     eps1 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m1 * a * a, AXIAL_INERTIA_FLOOR)
     eps2 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m2 * b * b, AXIAL_INERTIA_FLOOR)
     com1, com2, inertia1, inertia2 = _default_bodies(params)
+    bodies = []
+    for k, (inertia, eps_k) in enumerate(((inertia1, eps1), (inertia2, eps2)), start=1):
+        given = getattr(params, f"inertia{k}") is not None
+        what = f"the inertia tensor of body {k}" + ("" if given else f" (thin rod m{k} l^2/12)")
+        if not math.isfinite(eps_k):
+            raise _overflow(params, f"the tiny axial inertia of body {k} (1e-9 m{k} l^2)")
+        if not _finite(inertia):
+            raise _overflow(params, what)
+        try:
+            regularised = _regularised_inertia(inertia, eps_k)
+        except (ArithmeticError, ValueError):  # numpy.linalg.LinAlgError is a ValueError
+            raise _overflow(params, what) from None
+        if not _finite(regularised):
+            raise _overflow(params, what)
+        bodies.append(regularised)
     return params.replace(
         com1=tuple(map(float, com1)),
         com2=tuple(map(float, com2)),
-        inertia1=_regularised_inertia(inertia1, eps1),
-        inertia2=_regularised_inertia(inertia2, eps2),
+        inertia1=bodies[0],
+        inertia2=bodies[1],
+    )
+
+
+def _finite(values) -> bool:
+    """Every number in a (nested) sequence of floats is finite."""
+    if isinstance(values, (list, tuple)):
+        return all(_finite(v) for v in values)
+    return math.isfinite(float(values))
+
+
+def _overflow(params: Parameters, what: str) -> ParameterError:
+    sizes = ", ".join(f"{n} = {float(getattr(params, n)):g}" for n in ("a", "b", "m1", "m2"))
+    return ParameterError(
+        f"export: {what} is not a finite number (overflow) for {sizes}; allowed: parameters of moderate size, "
+        "for which every number in the model (lengths, masses, m l^2, inertia tensors) is a finite double"
     )
 
 
@@ -243,7 +287,7 @@ def to_mjcf(
     integrator = _integrator(integrator)
     axis1, axis2 = _axes(p)
     a, b = float(p.a), float(p.b)
-    radius = 0.01 * (a + b)
+    radius = 0.01 * a + 0.01 * b
     lines = [
         '<mujoco model="skewpend">',
         f"  <!-- {_header(p, 'MJCF')} -->",
@@ -304,7 +348,7 @@ def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: 
     p = mujoco_compatible(params, axial_inertia)
     axis1, axis2 = _axes(p)
     a, b = float(p.a), float(p.b)
-    radius = 0.01 * (a + b)
+    radius = 0.01 * a + 0.01 * b
     gravity = f"0 0 {_num(-p.g)}" if z_up else f"0 {_num(p.g)} 0"
     root = "roof" if z_up else "world"
 
@@ -409,6 +453,18 @@ def write_model(
 
     path = Path(path)
     fmt = _format_for(path, format)
+    implied = _SUFFIXES.get(path.suffix.lower())
+    if implied is not None and implied != fmt and path.suffix.lower() != ".xml":  # .xml: either (URDF is XML too)
+        raise ParameterError(
+            f"the file name {path.name!r} says {implied} but the format is {fmt}; give a name ending in "
+            f"{' or '.join(k for k, v in _SUFFIXES.items() if v == fmt)} for {fmt}, or use the format {implied} (--format {implied})"
+        )
+    if path.is_dir():
+        raise ParameterError(
+            f"cannot write {path}: it is a directory; give a file name (e.g. pendulum.xml for mjcf, pendulum.urdf for urdf)"
+        )
+    if path.exists() and not path.is_file():
+        raise ParameterError(f"cannot write {path}: it exists and is not a regular file")
     exporter = to_mjcf if fmt == "mjcf" else to_urdf
     unknown = sorted(set(options) - set(_OPTIONS[fmt]))
     if unknown:
@@ -469,7 +525,13 @@ def mujoco_trajectory(
     t_end = positive_number("t_end", t_end)
     dt = positive_number("dt", dt)
     integrator = _integrator(integrator)
-    nsteps = int(round(t_end / dt))
+    n_float = t_end / dt
+    if not n_float <= MAX_MUJOCO_STEPS:
+        raise ParameterError(
+            f"t_end/dt = {n_float:.4g} MuJoCo steps (t_end = {t_end:g} s, dt = {dt:g} s) is more than the "
+            f"{MAX_MUJOCO_STEPS:.0e} allowed; use a shorter t_end or a larger dt"
+        )
+    nsteps = int(round(n_float))
     if nsteps < 1 or abs(nsteps * dt - t_end) > 1e-9 * t_end:
         raise ParameterError(f"t_end ({t_end:g}) must be a whole number of steps dt ({dt:g})")
     if n_out is None:
@@ -481,7 +543,11 @@ def mujoco_trajectory(
 
     mujoco = _import_mujoco()
     xml = to_mjcf(params, timestep=dt, integrator=integrator, axial_inertia=axial_inertia)
-    model = mujoco.MjModel.from_xml_string(xml)
+    try:
+        model = mujoco.MjModel.from_xml_string(xml)
+    except ValueError as exc:  # MuJoCo's compiler refuses the model (e.g. a mass below its minimum)
+        detail = " ".join(str(exc).split())
+        raise ParameterError(f"MuJoCo refuses the exported model: {detail}") from None
     data = mujoco.MjData(model)
     data.qpos[:] = y[:2]
     data.qvel[:] = y[2:]
@@ -498,8 +564,10 @@ def mujoco_trajectory(
     mujoco.set_mju_user_warning(lambda msg: messages.append(str(msg).strip()))
     try:
         for row, mark in enumerate(marks[1:], start=1):
-            mujoco.mj_step(model, data, nstep=int(mark - done))
-            done = int(mark)
+            while done < mark:  # bounded calls: Ctrl-C raises KeyboardInterrupt between them
+                n = int(min(mark - done, _MUJOCO_CHUNK))
+                mujoco.mj_step(model, data, nstep=n)
+                done += n
             out[row, :2] = data.qpos
             out[row, 2:] = data.qvel
             if data.warning[bad].number > 0 or not np.all(np.isfinite(out[row])):

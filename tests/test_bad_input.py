@@ -1,0 +1,407 @@
+"""Bad input, every command: one line ``skewpend: error: ...`` on stderr, exit status 2.
+
+The project's rule for a user's mistake: exactly one line on stderr starting with
+``skewpend: error:`` that says what is wrong (naming the option, or the config file's key)
+and what is allowed; exit status 2; never a traceback, never a file left behind (neither the
+output nor a temporary ``.*.tmp``), never a silently wrong or non-finite result, never a
+silently ignored option.
+
+Each case gives the command line, fragments the message must contain (plain strings are
+matched case-insensitively; compiled patterns are searched) and the files to create in the
+working directory first (a config, or a directory in the way of an output file).  Most
+cases run in-process (``skewpend.cli.main``) in a fresh ``tmp_path`` as the working
+directory; a handful run as real processes to prove the same of ``python -m skewpend``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+from skewpend.cli import main
+
+DIR = object()  # a file entry that is a directory
+
+_CASES = []
+
+
+def case(id, argv, *fragments, files=None):
+    """One bad command line; ``fragments`` must all appear in the error line."""
+    _CASES.append(pytest.param(list(argv), fragments, files or {}, id=id))
+
+
+def opt(name: str) -> "re.Pattern":
+    """An option as the user typed it (``--dt-out``) or as the library calls it (``dt_out``)."""
+    return re.compile(rf"(--{re.escape(name)}\b|\b{re.escape(name.replace('-', '_'))}\b)", re.I)
+
+
+def names(param: str, value: str = "1e308") -> "re.Pattern":
+    """The message names the parameter: ``--a``, ``[parameters] a``, ``a = 1e+308`` or ``a must ...``."""
+    v = re.escape(value).replace("e", "e\\+?")
+    return re.compile(rf"(--{param}\b|\] {param}\b|\b{param} = {v}|\b{param} must\b|\b{param} \()", re.I)
+
+
+SWEEP = ["modes", "--sweep", "alpha=0:1:5"]
+DEFAULT_MODEL = ["--a", "1", "--b", "0.8", "--m1", "1", "--m2", "0.7", "--g", "9.81"]
+
+# -- derive ---------------------------------------------------------------------------------------------------
+case("derive-a-not-a-number", ["derive", "--a", "abc"], "--a", "expected a number")
+case("derive-a-inf", ["derive", "--a", "inf"], "--a", "finite")
+case("derive-b-nan", ["derive", "--b", "nan"], "--b", "finite")
+case("derive-m1-1e999", ["derive", "--m1", "1e999"], "--m1", "finite")
+case("derive-a-zero", ["derive", "--a", "0"], "a must be > 0")
+case("derive-b-negative", ["derive", "--b", "-1"], "b must be > 0")
+case("derive-m1-zero", ["derive", "--m1", "0"], "m1 must be > 0")
+case("derive-m2-negative", ["derive", "--m2", "-0.5"], "m2 must be > 0")
+case("derive-g-negative", ["derive", "--g", "-9.81"], "g must be >= 0")
+case("derive-c1-negative", ["derive", "--c1", "-0.1"], "c1 must be >= 0")
+case("derive-c2-not-a-number", ["derive", "--c2", "abc"], "--c2")
+case("derive-tau1-nan", ["derive", "--tau1", "nan"], "--tau1", "finite")
+case("derive-alpha-not-a-number", ["derive", "--alpha", "abc"], "--alpha", "deg")
+case("derive-alpha-bad-unit", ["derive", "--alpha", "30degs"], "--alpha", "deg")
+case("derive-alpha-inf-deg", ["derive", "--alpha", "infdeg"], "--alpha", "finite")
+case("derive-com2-two-entries", ["derive", "--com2", "0,1"], "--com2", "3")
+case("derive-com1-four-entries", ["derive", "--com1", "0,1,2,3"], "--com1", "3")
+case("derive-com1-inf-entry", ["derive", "--com1", "0,inf,0"], "--com1", "finite")
+case("derive-com2-reserved-name", ["derive", "--com2", "0,phi,0"], "com2", "symbol name")
+case("derive-axis1-zero", ["derive", "--axis1", "0,0,0"], "axis1", "non-zero")
+case("derive-axis2-zero", ["derive", "--axis2", "0,0,0"], "axis2", "non-zero")
+case("derive-axis2-overflowing-norm", ["derive", "--axis2", "1e308,1e308,0", "--alpha", "sym", *DEFAULT_MODEL], "axis2")
+case("derive-alpha-with-axis2", ["derive", "--alpha", "0.3", "--axis2", "1,0,1"], "alpha", "axis2", "not both")
+case("derive-inertia2-two-entries", ["derive", "--inertia2", "1,2"], "--inertia2", "3 or 6 or 9")
+case("derive-inertia2-four-entries", ["derive", "--inertia2", "1,2,3,4"], "--inertia2", "3 or 6 or 9")
+case("derive-inertia2-negative", ["derive", "--inertia2", "-1,1,1"], "inertia2", "positive semi-definite")
+case("derive-inertia1-triangle", ["derive", "--inertia1", "1,1,5"], "inertia1", "triangle")
+case("derive-inertia1-not-symmetric", ["derive", "--inertia1", "1,1,1,0,0,0,0,0,0"], "inertia1", "symmetric")
+case("derive-inertia2-huge", ["derive", "--inertia2", "1e308,1e308,1e308"], "inertia2")
+case("derive-python-with-linear", ["derive", "--format", "python", "--linear"], "--linear", "text|latex|json")
+case("derive-c-with-steps", ["derive", "--format", "c", "--steps"], "--steps", "text|latex|json")
+case("derive-javascript-with-both", ["derive", "--format", "javascript", "--linear", "--steps"], "--linear")
+case("derive-format-unknown", ["derive", "--format", "yaml"], "--format", "latex")
+case("derive-torque-code-needs-values", ["derive", "--tau1", "1", "--format", "python"], "--tau1", "--format python")
+case("derive-unknown-option", ["derive", "--bogus"], "--bogus")
+case("derive-option-without-value", ["derive", "--a"], "--a", "requires an argument")
+case("derive-extra-argument", ["derive", "extra"], "extra")
+case("derive-no-config-option", ["derive", "--config", "x.toml"], "--config")
+
+# -- simulate -------------------------------------------------------------------------------------------------
+case("sim-t-end-zero", ["simulate", "--t-end", "0"], opt("t-end"), "positive")
+case("sim-t-end-negative", ["simulate", "--t-end", "-1"], opt("t-end"), "positive")
+case("sim-t-end-not-a-number", ["simulate", "--t-end", "abc"], "--t-end")
+case("sim-t-end-inf", ["simulate", "--t-end", "inf"], "--t-end", "finite")
+case("sim-t-end-nan", ["simulate", "--t-end", "nan"], "--t-end", "finite")
+case("sim-t-end-1e999", ["simulate", "--t-end", "1e999"], "--t-end", "finite")
+case("sim-t-end-sym", ["simulate", "--t-end", "sym"], opt("t-end"))
+case("sim-t-end-1e308-dop853", ["simulate", "--t-end", "1e308"], opt("t-end"), opt("max-steps"))
+case("sim-t-end-1e308-rk4", ["simulate", "--t-end", "1e308", "--method", "rk4"], opt("max-steps"))
+case("sim-dt-1e-300", ["simulate", "--method", "rk4", "--dt", "1e-300"], opt("max-steps"))
+case("sim-dt-zero", ["simulate", "--method", "rk4", "--dt", "0"], opt("dt"), "positive")
+case("sim-dt-negative", ["simulate", "--method", "gauss", "--dt", "-1e-3"], opt("dt"), "positive")
+case("sim-dt-sym", ["simulate", "--method", "rk4", "--dt", "sym"], "--dt")
+case("sim-dt-beyond-t-end", ["simulate", "--method", "rk4", "--dt", "1", "--t-end", "0.5"], opt("dt"), opt("t-end"))
+case("sim-t-end-not-whole-steps", ["simulate", "--method", "rk4", "--dt", "0.3", "--t-end", "1"], "whole number")
+case("sim-dt-out-not-multiple-of-dt",
+     ["simulate", "--method", "rk4", "--dt", "0.2", "--dt-out", "0.3", "--out", "x.csv"], opt("dt-out"), "multiple")
+case("sim-rtol-with-rk4", ["simulate", "--method", "rk4", "--rtol", "1e-6"], "--rtol", "dop853")
+case("sim-atol-with-gauss", ["simulate", "--method", "gauss", "--atol", "1e-6"], "--atol", "dop853")
+case("sim-dt-with-dop853", ["simulate", "--dt", "1e-3"], "--dt", "rk4")
+case("sim-dt-out-without-out", ["simulate", "--dt-out", "0.1"], "--dt-out", "--out")
+case("sim-dt-out-zero", ["simulate", "--dt-out", "0", "--out", "x.csv"], opt("dt-out"), "positive")
+case("sim-dt-out-beyond-t-end", ["simulate", "--dt-out", "100", "--out", "x.csv"], opt("dt-out"), opt("t-end"))
+case("sim-dt-out-1e-300", ["simulate", "--dt-out", "1e-300", "--out", "x.csv"], "--dt-out")
+case("sim-dt-out-sym", ["simulate", "--dt-out", "sym", "--out", "x.csv"], "--dt-out")
+case("sim-rtol-zero", ["simulate", "--rtol", "0"], opt("rtol"), "positive")
+case("sim-rtol-below-precision", ["simulate", "--rtol", "1e-20"], opt("rtol"), "1e-15")
+case("sim-atol-subnormal", ["simulate", "--atol", "1e-320"], opt("atol"), "1e-300")
+case("sim-rtol-not-a-number", ["simulate", "--rtol", "abc"], "--rtol")
+case("sim-rtol-sym", ["simulate", "--rtol", "sym"], "--rtol")
+case("sim-method-unknown", ["simulate", "--method", "euler"], "--method", "dop853")
+case("sim-method-without-value", ["simulate", "--method"], "--method")
+case("sim-max-steps-zero", ["simulate", "--max-steps", "0"], "--max-steps", "whole number")
+case("sim-max-steps-negative", ["simulate", "--max-steps", "-5"], "--max-steps", "whole number")
+case("sim-max-steps-fraction", ["simulate", "--max-steps", "1.5"], "--max-steps", "whole number")
+case("sim-max-steps-not-a-number", ["simulate", "--max-steps", "abc"], "--max-steps", "whole number")
+case("sim-max-steps-inf", ["simulate", "--max-steps", "inf"], "--max-steps")
+case("sim-max-steps-1e308", ["simulate", "--max-steps", "1e308"], "--max-steps")
+case("sim-max-steps-too-few-rk4", ["simulate", "--method", "rk4", "--max-steps", "10"], opt("max-steps"))
+case("sim-out-no-suffix", ["simulate", "--out", "results"], "--out", ".csv")
+case("sim-out-wrong-suffix", ["simulate", "--out", "x.txt"], "--out", ".csv")
+case("sim-out-missing-directory", ["simulate", "--out", "nodir/x.csv"], "--out", "nodir")
+case("sim-out-proc", ["simulate", "--out", "/proc/x.csv"], "--out", "/proc/x.csv")
+case("sim-out-cwd", ["simulate", "--out", "."], "--out")
+case("sim-out-is-directory", ["simulate", "--out", "x.csv"], "--out", "directory", files={"x.csv": DIR})
+case("sim-out-nc-is-directory", ["simulate", "--out", "x.nc"], "--out", "directory", files={"x.nc": DIR})
+case("sim-phi0-not-a-number", ["simulate", "--phi0", "abc"], "--phi0", "deg")
+case("sim-psi0-inf", ["simulate", "--psi0", "inf"], "--psi0", "finite")
+case("sim-dphi0-1e999", ["simulate", "--dphi0", "1e999"], "--dphi0", "finite")
+case("sim-dpsi0-nan", ["simulate", "--dpsi0", "nan"], "--dpsi0", "finite")
+case("sim-phi0-sym", ["simulate", "--phi0", "sym"], "phi0", "numeric")
+case("sim-dphi0-1e308", ["simulate", "--dphi0", "1e308"], "initial state")
+case("sim-phi0-1e300", ["simulate", "--phi0", "1e300"], "--phi0")
+case("sim-a-sym", ["simulate", "--a", "sym"], "numeric", "symbolic: a")
+case("sim-inertia2-sym", ["simulate", "--inertia2", "sym"], "numeric", "I2xx")
+case("sim-a-1e308", ["simulate", "--a", "1e308"], names("a"))
+case("sim-b-1e308", ["simulate", "--b", "1e308", "--t-end", "1"], names("b"))
+case("sim-m1-1e308", ["simulate", "--m1", "1e308"], names("m1"))
+case("sim-g-1e308", ["simulate", "--g", "1e308"], names("g"))
+case("sim-tau1-inf", ["simulate", "--tau1", "inf"], "--tau1", "finite")
+case("sim-c2-negative", ["simulate", "--c2", "-1"], "c2 must be >= 0")
+case("sim-alpha-with-axis2", ["simulate", "--alpha", "0.3", "--axis2", "1,0,1"], "not both")
+case("sim-axis1-zero", ["simulate", "--axis1", "0,0,0"], "axis1", "non-zero")
+case("sim-inertia1-five-entries", ["simulate", "--inertia1", "1,2,3,4,5"], "--inertia1", "3 or 6 or 9")
+case("sim-inertia2-not-psd", ["simulate", "--inertia2", "1,-1,1"], "inertia2", "positive semi-definite")
+
+# -- export ---------------------------------------------------------------------------------------------------
+case("export-a-1e308", ["export", "--a", "1e308"], names("a"), "finite")
+case("export-b-1e308-urdf", ["export", "--b", "1e308", "--format", "urdf"], names("b"), "finite")
+case("export-m1-1e308", ["export", "--m1", "1e308", "--a", "10"], names("m1"), "finite")
+case("export-m2-1e308-urdf", ["export", "--m2", "1e308", "--b", "10", "--format", "urdf"], names("m2"), "finite")
+case("export-a-1e308-to-file", ["export", "--a", "1e308", "--out", "m.xml"], names("a"))
+case("export-inertia2-huge", ["export", "--inertia2", "1e308,1e308,1e308"], "inertia2")
+case("export-a-sym", ["export", "--a", "sym"], "numeric", "symbolic: a")
+case("export-a-not-a-number", ["export", "--a", "abc"], "--a")
+case("export-g-inf", ["export", "--g", "inf"], "--g", "finite")
+case("export-a-negative", ["export", "--a", "-1"], "a must be > 0")
+case("export-alpha-with-axis2", ["export", "--alpha", "1", "--axis2", "1,0,0"], "not both")
+case("export-axis2-zero", ["export", "--axis2", "0,0,0"], "axis2", "non-zero")
+case("export-com2-two-entries", ["export", "--com2", "1,2"], "--com2", "3")
+case("export-urdf-suffix-for-mjcf", ["export", "--out", "x.urdf"], "x.urdf", "mjcf")
+case("export-mjcf-suffix-for-urdf", ["export", "--format", "urdf", "--out", "x.mjcf"], "x.mjcf", "urdf")
+case("export-out-missing-directory", ["export", "--out", "nodir/m.xml"], "nodir")
+case("export-out-proc", ["export", "--out", "/proc/m.xml"], "/proc/m.xml")
+case("export-out-cwd", ["export", "--out", "."], "directory")
+case("export-out-is-directory", ["export", "--out", "m.xml"], "m.xml", "directory", files={"m.xml": DIR})
+case("export-format-unknown", ["export", "--format", "sdf"], "--format", "mjcf")
+case("export-unknown-option", ["export", "--linear"], "--linear")
+case("export-config-missing", ["export", "--config", "missing.toml"], "missing.toml", "does not exist")
+
+# -- validate -------------------------------------------------------------------------------------------------
+case("validate-dt-zero", ["validate", "--dt", "0"], opt("dt"), "positive")
+case("validate-dt-negative", ["validate", "--dt", "-1e-4"], opt("dt"), "positive")
+case("validate-dt-not-a-number", ["validate", "--dt", "abc"], "--dt")
+case("validate-dt-inf", ["validate", "--dt", "inf"], "--dt", "finite")
+case("validate-dt-sym", ["validate", "--dt", "sym"], "--dt")
+case("validate-dt-1e-300", ["validate", "--dt", "1e-300"], opt("dt"), "1e+08")
+case("validate-t-end-zero", ["validate", "--t-end", "0"], opt("t-end"), "positive")
+case("validate-t-end-negative", ["validate", "--t-end", "-2"], opt("t-end"), "positive")
+case("validate-t-end-sym", ["validate", "--t-end", "sym"], "--t-end")
+case("validate-t-end-1e9", ["validate", "--t-end", "1e9"], opt("t-end"), "1e+08")
+case("validate-t-end-1e308", ["validate", "--t-end", "1e308"], opt("t-end"), "1e+08")
+case("validate-t-end-not-whole-steps", ["validate", "--t-end", "1", "--dt", "0.3"], "whole number")
+case("validate-dt-beyond-t-end", ["validate", "--t-end", "0.5", "--dt", "1"], "whole number")
+case("validate-tol-not-a-number", ["validate", "--tol", "abc"], "--tol")
+case("validate-tol-negative", ["validate", "--tol", "-1"], "--tol")
+case("validate-tol-nan", ["validate", "--tol", "nan"], "--tol", "finite")
+case("validate-tol-sym", ["validate", "--tol", "sym"], "--tol")
+case("validate-a-1e308", ["validate", "--a", "1e308"], names("a"))
+case("validate-a-sym", ["validate", "--a", "sym"], "numeric", "symbolic: a")
+case("validate-m1-tiny-for-mujoco", ["validate", "--m1", "1e-300"], "mass")
+case("validate-phi0-nan", ["validate", "--phi0", "nan"], "--phi0", "finite")
+case("validate-alpha-with-axis2", ["validate", "--alpha", "1", "--axis2", "1,0,0"], "not both")
+case("validate-config-t-end-1e9", ["validate", "--config", "run.toml"], "t_end",
+     files={"run.toml": "[simulation]\nt_end = 1e9\n"})
+
+# -- modes ----------------------------------------------------------------------------------------------------
+case("modes-sweep-no-equals", ["modes", "--sweep", "alpha"], "--sweep", "NAME=START:STOP:COUNT")
+case("modes-sweep-unknown-name", ["modes", "--sweep", "x=0:1:10"], "--sweep", "cannot sweep 'x'")
+case("modes-sweep-empty-name", ["modes", "--sweep", "=0:1:5"], "--sweep", "cannot sweep")
+case("modes-sweep-two-parts", ["modes", "--sweep", "alpha=0:1"], "--sweep", "START:STOP:COUNT")
+case("modes-sweep-count-one", ["modes", "--sweep", "alpha=0:1:1"], "--sweep", "COUNT")
+case("modes-sweep-count-1e9", ["modes", "--sweep", "alpha=0:1:1e9"], "--sweep", "COUNT")
+case("modes-sweep-count-fraction", ["modes", "--sweep", "alpha=0:1:2.5"], "--sweep", "COUNT")
+case("modes-sweep-count-not-a-number", ["modes", "--sweep", "alpha=0:1:abc"], "--sweep", "COUNT")
+case("modes-sweep-start-not-a-number", ["modes", "--sweep", "alpha=a:b:5"], "--sweep", "START")
+case("modes-sweep-mixed-units", ["modes", "--sweep", "alpha=0deg:1rad:5"], "--sweep", "deg", "rad")
+case("modes-sweep-unit-on-length", ["modes", "--sweep", "a=1deg:2:5"], "--sweep a", "unit")
+case("modes-sweep-stop-inf", ["modes", "--sweep", "alpha=0:inf:5"], "--sweep", "finite")
+case("modes-sweep-start-nan", ["modes", "--sweep", "alpha=nan:1:5"], "--sweep", "finite")
+case("modes-sweep-too-wide", ["modes", "--sweep", "alpha=-1e308:1e308:5"], "--sweep", "too wide")
+case("modes-sweep-a-from-zero", ["modes", "--sweep", "a=0:1:5"], "a must be > 0")
+case("modes-sweep-a-negative", ["modes", "--sweep", "a=-1:1:5"], "a must be > 0")
+case("modes-sweep-a-to-1e308", ["modes", "--sweep", "a=1:1e308:3"], "sweep of a", "overflow")
+case("modes-sweep-g-from-zero", ["modes", "--sweep", "g=0:10:3"], "g > 0")
+case("modes-sweep-ratio-zero", ["modes", "--sweep", "b/a=0:2:3"], "b must be > 0")
+case("modes-plot-without-sweep", ["modes", "--plot", "x.png"], "--plot", "--sweep")
+case("modes-out-without-sweep", ["modes", "--out", "x.csv"], "--out", "--sweep")
+case("modes-tolerance-without-sweep", ["modes", "--tolerance", "0.1"], "--tolerance", "--sweep")
+case("modes-tolerance-zero", [*SWEEP, "--tolerance", "0"], "--tolerance", "positive")
+case("modes-tolerance-negative", [*SWEEP, "--tolerance", "-1"], "--tolerance", "positive")
+case("modes-tolerance-not-a-number", [*SWEEP, "--tolerance", "abc"], "--tolerance")
+case("modes-out-wrong-suffix", [*SWEEP, "--out", "x.txt"], "--out", ".csv")
+case("modes-out-missing-directory", [*SWEEP, "--out", "nodir/x.csv"], "nodir")
+case("modes-out-proc", [*SWEEP, "--out", "/proc/x.csv"], "/proc/x.csv")
+case("modes-out-is-directory", [*SWEEP, "--out", "x.csv"], "x.csv", "directory", files={"x.csv": DIR})
+case("modes-plot-wrong-suffix", [*SWEEP, "--plot", "x.jpg"], "--plot", ".png")
+case("modes-plot-missing-directory-after-table", [*SWEEP, "--out", "t.csv", "--plot", "nodir/p.png"], "nodir")
+case("modes-plot-proc", [*SWEEP, "--plot", "/proc/p.png"], "/proc/p.png")
+case("modes-sweep-with-check-nonlinear", [*SWEEP, "--check-nonlinear", "0.1"], "--check-nonlinear", "--sweep")
+case("modes-check-nonlinear-zero", ["modes", "--check-nonlinear", "0"], "--check-nonlinear", "180 deg")
+case("modes-check-nonlinear-too-large", ["modes", "--check-nonlinear", "4"], "--check-nonlinear", "180 deg")
+case("modes-check-nonlinear-not-a-number", ["modes", "--check-nonlinear", "abc"], "--check-nonlinear")
+case("modes-check-nonlinear-inf", ["modes", "--check-nonlinear", "inf"], "--check-nonlinear", "finite")
+case("modes-check-nonlinear-damped", ["modes", "--check-nonlinear", "0.1", "--c1", "0.1"], "c1")
+case("modes-latex-with-sweep", ["modes", "--format", "latex", "--sweep", "alpha=0:1:5"], "--format latex", "--sweep")
+case("modes-latex-with-damping", ["modes", "--format", "latex", "--c1", "0.1"], "--format latex", "--c1")
+case("modes-alpha-with-alpha-sweep", ["modes", "--alpha", "0.3", "--sweep", "alpha=0:1:5"], "--alpha", "--sweep")
+case("modes-g-zero", ["modes", "--g", "0"], "g > 0")
+case("modes-a-1e308", ["modes", "--a", "1e308"], names("a"), "overflow")
+case("modes-m2-1e308", ["modes", "--m2", "1e308"], names("m2"), "overflow")
+case("modes-g-1e308", ["modes", "--g", "1e308"], names("g"), "overflow")
+case("modes-a-sym", ["modes", "--a", "sym"], "numeric", "symbolic: a")
+case("modes-no-torque-option", ["modes", "--tau1", "1"], "--tau1")
+case("modes-format-unknown", ["modes", "--format", "yaml"], "--format", "json")
+
+# -- config files (TOML, --config) ------------------------------------------------------------------------------
+
+
+def config_case(id, text, *fragments, command="simulate", extra=()):
+    case(id, [command, "--config", "run.toml", *extra], *fragments, files={"run.toml": text})
+
+
+config_case("cfg-a-true", "[parameters]\na = true\n", "run.toml", "[parameters] a", "true")
+config_case("cfg-a-list", "[parameters]\na = [1, 2]\n", "[parameters] a", "number")
+config_case("cfg-a-table", "[parameters]\na = {x = 1}\n", "[parameters] a", "table")
+config_case("cfg-a-string", '[parameters]\na = "abc"\n', "[parameters] a", "number")
+config_case("cfg-a-string-1e999", '[parameters]\na = "1e999"\n', "[parameters] a", "finite")
+config_case("cfg-a-inf", "[parameters]\na = inf\n", "[parameters] a", "finite")
+config_case("cfg-a-nan", "[parameters]\na = nan\n", "[parameters] a", "finite")
+config_case("cfg-m1-minus-inf", "[parameters]\nm1 = -inf\n", "[parameters] m1", "finite")
+config_case("cfg-a-zero", "[parameters]\na = 0\n", "a must be > 0")
+config_case("cfg-m2-negative", "[parameters]\nm2 = -1\n", "m2 must be > 0")
+config_case("cfg-g-negative", "[parameters]\ng = -9.81\n", "g must be >= 0")
+config_case("cfg-a-1e308", "[parameters]\na = 1e308\n", names("a"))
+config_case("cfg-tau1-inf", "[parameters]\ntau1 = inf\n", "[parameters] tau1", "finite")
+config_case("cfg-alpha-words", '[parameters]\nalpha = "30 degrees"\n', "[parameters] alpha", "deg")
+config_case("cfg-alpha-with-axis2", "[parameters]\nalpha = 0.3\naxis2 = [1, 0, 1]\n", "not both")
+config_case("cfg-axis2-zero", "[parameters]\naxis2 = [0, 0, 0]\n", "axis2", "non-zero")
+config_case("cfg-com2-two-entries", "[parameters]\ncom2 = [0, 1]\n", "[parameters] com2", "3")
+config_case("cfg-com2-nested", "[parameters]\ncom2 = [[0, 1], [2]]\n", "com2", "3")
+config_case("cfg-com2-table", "[parameters]\ncom2 = {x = 0}\n", "com2", "table")
+config_case("cfg-inertia1-2x2", "[parameters]\ninertia1 = [[1, 0], [0, 1]]\n", "inertia1", "3x3")
+config_case("cfg-inertia2-ragged", "[parameters]\ninertia2 = [[1, 0, 0], [0, 1, 0, 0, 0, 1]]\n", "inertia2", "3x3")
+config_case("cfg-a-date", "[parameters]\na = 1979-05-27\n", "[parameters] a", "number")
+config_case("cfg-phi0-string", '[initial]\nphi0 = "abc"\n', "[initial] phi0", "deg")
+config_case("cfg-phi0-nan", "[initial]\nphi0 = nan\n", "[initial] phi0", "finite")
+config_case("cfg-t-end-1e308", "[simulation]\nt_end = 1e308\n", "t_end", "max_steps")
+config_case("cfg-t-end-inf", "[simulation]\nt_end = inf\n", "[simulation] t_end", "finite")
+config_case("cfg-t-end-zero", "[simulation]\nt_end = 0\n", "t_end", "positive")
+config_case("cfg-t-end-sym", '[simulation]\nt_end = "sym"\n', "t_end")
+config_case("cfg-method-3", "[simulation]\nmethod = 3\n", "[simulation] method", "dop853")
+config_case("cfg-method-unknown", '[simulation]\nmethod = "euler"\n', "[simulation] method", "dop853")
+config_case("cfg-out-number", "[simulation]\nout = 3\n", "[simulation] out", "file name")
+config_case("cfg-out-true", "[simulation]\nout = true\n", "[simulation] out", "file name")
+config_case("cfg-out-list", '[simulation]\nout = ["a.csv"]\n', "[simulation] out", "file name")
+config_case("cfg-out-wrong-suffix", '[simulation]\nout = "x.txt"\n', "[simulation] out", ".csv")
+config_case("cfg-out-missing-directory", '[simulation]\nout = "nodir/x.csv"\n', "[simulation] out", "nodir")
+config_case("cfg-max-steps-zero", "[simulation]\nmax_steps = 0\n", "[simulation] max_steps", "whole number")
+config_case("cfg-max-steps-fraction", "[simulation]\nmax_steps = 1.5\n", "[simulation] max_steps", "whole number")
+config_case("cfg-max-steps-string", '[simulation]\nmax_steps = "abc"\n', "[simulation] max_steps", "whole number")
+config_case("cfg-max-steps-true", "[simulation]\nmax_steps = true\n", "[simulation] max_steps")
+config_case("cfg-dt-with-dop853", "[simulation]\ndt = 1e-3\n", "[simulation] dt", "rk4")
+config_case("cfg-rtol-with-rk4", '[simulation]\nmethod = "rk4"\nrtol = 1e-6\n', "[simulation] rtol", "dop853")
+config_case("cfg-dt-zero-rk4", '[simulation]\nmethod = "rk4"\ndt = 0\n', "dt", "positive")
+config_case("cfg-rtol-string", '[simulation]\nrtol = "1e-6x"\n', "[simulation] rtol")
+config_case("cfg-dt-out-without-out", "[simulation]\ndt_out = 0.1\n", "[simulation] dt_out", "--out")
+config_case("cfg-dt-out-sym", '[simulation]\nout = "x.csv"\ndt_out = "sym"\n', "dt_out")
+config_case("cfg-unknown-section", "[extra]\na = 1\n", "unknown section [extra]", "parameters")
+config_case("cfg-unknown-key", "[parameters]\nfoo = 1\n", "foo", "allowed")
+config_case("cfg-key-wrong-case", "[parameters]\nA = 1\n", "'A'", "allowed")
+config_case("cfg-section-not-a-table", "parameters = 3\n", "[parameters]", "table")
+config_case("cfg-section-array-of-tables", "[[parameters]]\na = 1\n", "[parameters]", "table")
+config_case("cfg-empty", "", "run.toml", "empty")
+config_case("cfg-comments-only", "# nothing here\n\n", "run.toml", "empty")
+config_case("cfg-invalid-toml", "[parameters\na = \n", "run.toml", "not valid TOML")
+config_case("cfg-binary", b"\xff\xfe\x00\x01\x80abc\x00", "run.toml", "UTF-8")
+case("cfg-directory", ["simulate", "--config", "run.toml"], "run.toml", "directory", files={"run.toml": DIR})
+case("cfg-missing", ["simulate", "--config", "missing.toml"], "missing.toml", "does not exist")
+config_case("cfg-export-a-1e308", "[parameters]\na = 1e308\n", names("a"), "finite", command="export")
+config_case("cfg-export-binary", b"\x80\x81\x82", "UTF-8", command="export")
+config_case("cfg-modes-a-true", "[parameters]\na = true\n", "[parameters] a", command="modes")
+config_case("cfg-modes-empty", "", "empty", command="modes")
+config_case("cfg-modes-latex-a-list", "[parameters]\na = [1, 2]\n", "[parameters] a", command="modes", extra=["--format", "latex"])
+config_case("cfg-validate-unknown-key", "[initial]\ntheta0 = 1\n", "theta0", "allowed", command="validate")
+
+
+# -- the checks -----------------------------------------------------------------------------------------------
+def _setup(root: Path, files: dict) -> None:
+    for name, content in files.items():
+        path = root / name
+        if content is DIR:
+            path.mkdir()
+        elif isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content)
+
+
+def _snapshot(root: Path) -> set:
+    return {str(p.relative_to(root)) for p in root.rglob("*")}
+
+
+def _matches(fragment, line: str) -> bool:
+    if isinstance(fragment, re.Pattern):
+        return fragment.search(line) is not None
+    return fragment.lower() in line.lower()
+
+
+def _check(code, out: str, err: str, fragments, root: Path, before: set) -> None:
+    report = f"exit status {code}\nstderr: {err!r}\nstdout: {out[:300]!r}"
+    assert "Traceback" not in err and "Traceback" not in out, report
+    assert code == 2, report
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("skewpend: error:"), report
+    missing = [f.pattern if isinstance(f, re.Pattern) else f for f in fragments if not _matches(f, lines[0])]
+    assert not missing, f"the message lacks {missing}\n{report}"
+    assert out == "", report
+    left = _snapshot(root) - before
+    assert not left, f"files left behind: {sorted(left)}\n{report}"
+
+
+@pytest.mark.parametrize("argv, fragments, files", _CASES)
+def test_bad_input_is_refused_in_one_line(argv, fragments, files, tmp_path, monkeypatch, capsys):
+    _setup(tmp_path, files)
+    before = _snapshot(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("SKEWPEND_DEBUG", raising=False)  # it would turn an internal error into a traceback
+    monkeypatch.setattr(warnings, "showwarning", warnings.showwarning)  # main() replaces it
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # a warning printed on top of the error line must show
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+    out, err = capsys.readouterr()
+    _check(exc.value.code, out, err, fragments, tmp_path, before)
+
+
+def test_the_battery_is_large():
+    assert len(_CASES) >= 120
+    commands = {p.values[0][0] for p in _CASES}
+    assert commands == {"derive", "simulate", "export", "validate", "modes"}
+
+
+# -- the real process -----------------------------------------------------------------------------------------
+_PROCESS_CASES = [
+    pytest.param(["derive", "--alpha", "abc"], ("--alpha", "deg"), {}, id="derive-alpha"),
+    pytest.param(["simulate", "--out", "nodir/x.csv"], ("--out", "nodir"), {}, id="simulate-out-missing-dir"),
+    pytest.param(["simulate", "--max-steps", "0"], ("--max-steps", "whole number"), {}, id="simulate-max-steps-0"),
+    pytest.param(["simulate", "--config", "bin.toml"], ("bin.toml", "UTF-8"), {"bin.toml": b"\xff\xfe\x80"}, id="config-binary"),
+    pytest.param(["export", "--a", "1e308", "--out", "m.xml"], (names("a"), "finite"), {}, id="export-a-1e308"),
+    pytest.param(["validate", "--t-end", "1e9"], (opt("t-end"), "1e+08"), {}, id="validate-t-end-1e9"),
+    pytest.param(["modes", "--sweep", "alpha=0:1:1"], ("--sweep", "COUNT"), {}, id="modes-sweep-count"),
+]
+
+
+@pytest.mark.parametrize("argv, fragments, files", _PROCESS_CASES)
+def test_bad_input_in_a_real_process(argv, fragments, files, tmp_path):
+    _setup(tmp_path, files)
+    before = _snapshot(tmp_path)
+    proc = subprocess.run(
+        [sys.executable, "-m", "skewpend", *argv], cwd=tmp_path, capture_output=True, text=True, timeout=60,
+        env={**os.environ, "SKEWPEND_DEBUG": ""},
+    )
+    _check(proc.returncode, proc.stdout, proc.stderr, fragments, tmp_path, before)
