@@ -50,6 +50,7 @@ class _Expressions:
     df_dy: sp.Matrix  # 2x4
     dM_dq: Tuple[sp.Matrix, sp.Matrix]
     tips: sp.Matrix  # 6x1: rod 1's end a j and rod 2's end, world frame
+    axes: sp.Matrix  # 6x1: hinge 1's axis and hinge 2's current axis e = P1 . e0, world frame
 
 
 def _expressions(geometry: Parameters) -> _Expressions:
@@ -69,6 +70,7 @@ def _expressions(geometry: Parameters) -> _Expressions:
         df_dy=eom.forcing.jacobian(q + dq),
         dM_dq=(eom.mass_matrix.diff(q[0]), eom.mass_matrix.diff(q[1])),
         tips=_tips(eom),
+        axes=sp.Matrix.vstack(eom.steps["omega2"].diff(dq[0]), eom.steps["e"]),  # omega2 = phi' n1 + psi' e
     )
 
 

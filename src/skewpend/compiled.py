@@ -199,6 +199,7 @@ class Kernel:
         lib.sp_energy.argtypes, lib.sp_energy.restype = [dp, dp], ctypes.c_double
         lib.sp_energies.argtypes, lib.sp_energies.restype = [dp, i64, i64, dp, dp], None
         lib.sp_tips_many.argtypes, lib.sp_tips_many.restype = [dp, i64, i64, dp, dp], None
+        lib.sp_axes_many.argtypes, lib.sp_axes_many.restype = [dp, i64, i64, dp, dp], None
         lib.sp_speeds_many.argtypes, lib.sp_speeds_many.restype = [dp, i64, i64, dp], None
         lib.sp_state_size.argtypes, lib.sp_state_size.restype = [], i64
         d, ip = ctypes.c_double, ctypes.POINTER(i64)
@@ -268,6 +269,15 @@ class Kernel:
         out = self._np.empty((ys.shape[0], 6))
         base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
         self.lib.sp_tips_many(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+        return out
+
+    def axes_many(self, ys, p, *, offset: int = 0):
+        """Hinge axes of each row: ``(n1, e)`` in the world frame, shape (n, 6) (unit vectors)."""
+        ys = self._rows(ys)
+        p, pp = self._in(p)
+        out = self._np.empty((ys.shape[0], 6))
+        base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
+        self.lib.sp_axes_many(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
         return out
 
     def speeds_many(self, zs, p, *, offset: int = 0, inplace: bool = False):

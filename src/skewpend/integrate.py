@@ -94,6 +94,13 @@ class Trajectory:
 
         return self._kernel.tips_many(self.y, parameter_vector(self.params))
 
+    def axes(self) -> np.ndarray:
+        """The hinge axes in the world frame at each row: ``(n1, e)`` with ``e = P1 . e0`` the
+        second hinge's current axis (it turns with rod 1), shape (n, 6), unit vectors."""
+        from .compiled import parameter_vector
+
+        return self._kernel.axes_many(self.y, parameter_vector(self.params))
+
 
 #: Default cap on the attempted steps of one run (accepted + rejected).
 MAX_STEPS = 100_000_000

@@ -148,6 +148,11 @@ def kernel_c_source(geometry: Parameters) -> str:
     out += header("void tips(const double *y, const double *p, double *out)", "rod ends (x1, y1, z1, x2, y2, z2) [m] into out[6]", tips)
     out += _cse_block(c, tips, [f"r{i}" for i in range(6)], I)
     out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
+    # hinge axes in the world frame: n1 (fixed) and the second hinge's current axis e = P1 . e0
+    axes = list(ex.axes)
+    out += header("void axes(const double *y, const double *p, double *out)", "hinge axes (n1, e = P1 . e0) into out[6]", axes)
+    out += _cse_block(c, axes, [f"r{i}" for i in range(6)], I)
+    out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
     out.append(_EXPORTS)
     return "\n".join(out) + "\n"
 
@@ -170,6 +175,11 @@ void sp_energies(const double *rows, int64_t nrows, int64_t stride, const double
 void sp_tips_many(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
 {
     for (int64_t r = 0; r < nrows; r++) tips(rows + r * stride, p, out + 6 * r);
+}
+
+void sp_axes_many(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
+{
+    for (int64_t r = 0; r < nrows; r++) axes(rows + r * stride, p, out + 6 * r);
 }
 
 /* canonical rows (phi, psi, p_phi, p_psi, ...) -> (phi, psi, dphi, dpsi, ...), in place */
