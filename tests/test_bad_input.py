@@ -158,10 +158,10 @@ case("sim-inertia1-five-entries", ["simulate", "--inertia1", "1,2,3,4,5"], "--in
 case("sim-inertia2-not-psd", ["simulate", "--inertia2", "1,-1,1"], "inertia2", "positive semi-definite")
 
 # -- export ---------------------------------------------------------------------------------------------------
-case("export-a-1e308", ["export", "--a", "1e308"], names("a"), "finite")
-case("export-b-1e308-urdf", ["export", "--b", "1e308", "--format", "urdf"], names("b"), "finite")
-case("export-m1-1e308", ["export", "--m1", "1e308", "--a", "10"], names("m1"), "finite")
-case("export-m2-1e308-urdf", ["export", "--m2", "1e308", "--b", "10", "--format", "urdf"], names("m2"), "finite")
+case("export-a-1e308", ["export", "--a", "1e308"], names("a"), "at most 1e+100")
+case("export-b-1e308-urdf", ["export", "--b", "1e308", "--format", "urdf"], names("b"), "at most 1e+100")
+case("export-m1-1e308", ["export", "--m1", "1e308", "--a", "10"], names("m1"), "at most 1e+100")
+case("export-m2-1e308-urdf", ["export", "--m2", "1e308", "--b", "10", "--format", "urdf"], names("m2"), "at most 1e+100")
 case("export-a-1e308-to-file", ["export", "--a", "1e308", "--out", "m.xml"], names("a"))
 case("export-inertia2-huge", ["export", "--inertia2", "1e308,1e308,1e308"], "inertia2")
 case("export-a-sym", ["export", "--a", "sym"], "numeric", "symbolic: a")
@@ -171,7 +171,7 @@ case("export-a-negative", ["export", "--a", "-1"], "a must be > 0")
 case("export-alpha-with-axis2", ["export", "--alpha", "1", "--axis2", "1,0,0"], "not both")
 case("export-axis2-zero", ["export", "--axis2", "0,0,0"], "axis2", "non-zero")
 case("export-com2-two-entries", ["export", "--com2", "1,2"], "--com2", "3")
-case("export-urdf-suffix-for-mjcf", ["export", "--out", "x.urdf"], "x.urdf", "mjcf")
+case("export-urdf-suffix-for-mjcf", ["export", "--format", "mjcf", "--out", "x.urdf"], "x.urdf", "mjcf")
 case("export-mjcf-suffix-for-urdf", ["export", "--format", "urdf", "--out", "x.mjcf"], "x.mjcf", "urdf")
 case("export-out-missing-directory", ["export", "--out", "nodir/m.xml"], "nodir")
 case("export-out-proc", ["export", "--out", "/proc/m.xml"], "/proc/m.xml")
@@ -282,7 +282,8 @@ config_case("cfg-alpha-with-axis2", "[parameters]\nalpha = 0.3\naxis2 = [1, 0, 1
 config_case("cfg-axis2-zero", "[parameters]\naxis2 = [0, 0, 0]\n", "axis2", "non-zero")
 config_case("cfg-com2-two-entries", "[parameters]\ncom2 = [0, 1]\n", "[parameters] com2", "3")
 config_case("cfg-com2-nested", "[parameters]\ncom2 = [[0, 1], [2]]\n", "com2", "3")
-config_case("cfg-com2-table", "[parameters]\ncom2 = {x = 0}\n", "com2", "table")
+config_case("cfg-com2-table", "[parameters]\ncom2 = {x = 0}\n", "[parameters] com2", "list of 3", "table")
+config_case("cfg-inertia1-table", "[parameters]\ninertia1 = {xx = 1}\n", "[parameters] inertia1", "3x3", "table")
 config_case("cfg-inertia1-2x2", "[parameters]\ninertia1 = [[1, 0], [0, 1]]\n", "inertia1", "3x3")
 config_case("cfg-inertia2-ragged", "[parameters]\ninertia2 = [[1, 0, 0], [0, 1, 0, 0, 0, 1]]\n", "inertia2", "3x3")
 config_case("cfg-a-date", "[parameters]\na = 1979-05-27\n", "[parameters] a", "number")
@@ -320,7 +321,7 @@ config_case("cfg-invalid-toml", "[parameters\na = \n", "run.toml", "not valid TO
 config_case("cfg-binary", b"\xff\xfe\x00\x01\x80abc\x00", "run.toml", "UTF-8")
 case("cfg-directory", ["simulate", "--config", "run.toml"], "run.toml", "directory", files={"run.toml": DIR})
 case("cfg-missing", ["simulate", "--config", "missing.toml"], "missing.toml", "does not exist")
-config_case("cfg-export-a-1e308", "[parameters]\na = 1e308\n", names("a"), "finite", command="export")
+config_case("cfg-export-a-1e308", "[parameters]\na = 1e308\n", names("a"), "at most 1e+100", command="export")
 config_case("cfg-export-binary", b"\x80\x81\x82", "UTF-8", command="export")
 config_case("cfg-modes-a-true", "[parameters]\na = true\n", "[parameters] a", command="modes")
 config_case("cfg-modes-empty", "", "empty", command="modes")
@@ -390,7 +391,7 @@ _PROCESS_CASES = [
     pytest.param(["simulate", "--out", "nodir/x.csv"], ("--out", "nodir"), {}, id="simulate-out-missing-dir"),
     pytest.param(["simulate", "--max-steps", "0"], ("--max-steps", "whole number"), {}, id="simulate-max-steps-0"),
     pytest.param(["simulate", "--config", "bin.toml"], ("bin.toml", "UTF-8"), {"bin.toml": b"\xff\xfe\x80"}, id="config-binary"),
-    pytest.param(["export", "--a", "1e308", "--out", "m.xml"], (names("a"), "finite"), {}, id="export-a-1e308"),
+    pytest.param(["export", "--a", "1e308", "--out", "m.xml"], (names("a"), "at most 1e+100"), {}, id="export-a-1e308"),
     pytest.param(["validate", "--t-end", "1e9"], (opt("t-end"), "1e+08"), {}, id="validate-t-end-1e9"),
     pytest.param(["modes", "--sweep", "alpha=0:1:1"], ("--sweep", "COUNT"), {}, id="modes-sweep-count"),
 ]
@@ -405,3 +406,60 @@ def test_bad_input_in_a_real_process(argv, fragments, files, tmp_path):
         env={**os.environ, "SKEWPEND_DEBUG": ""},
     )
     _check(proc.returncode, proc.stdout, proc.stderr, fragments, tmp_path, before)
+
+
+# -- the library under the command line: validation and export refuse up front ---------------------------------
+def test_validation_refuses_too_many_mujoco_steps_at_once():
+    """No time is spent on a comparison that could not finish (1e13 MuJoCo steps)."""
+    import time
+
+    from skewpend import Parameters
+    from skewpend.errors import ParameterError
+    from skewpend.validation import compare_with_mujoco
+
+    p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+    start = time.monotonic()
+    for t_end, dt in ((1e9, 1e-4), (2.0, 1e-300), (1e308, 1e-4)):
+        with pytest.raises(ParameterError, match="MuJoCo steps"):
+            compare_with_mujoco(p, (1.2, -0.8, 0, 0), t_end, dt=dt)
+    for t_end, dt in ((0.0, 1e-4), (2.0, 0.0), (-1.0, 1e-4), (2.0, float("nan")), (None, 1e-4)):
+        with pytest.raises(ParameterError):
+            compare_with_mujoco(p, (1.2, -0.8, 0, 0), t_end, dt=dt)
+    assert time.monotonic() - start < 5.0
+
+
+def test_export_never_writes_a_non_finite_number(tmp_path):
+    """Values that would overflow are refused when the parameters are built (|x| <= 1e100);
+    the largest allowed ones export finite numbers only."""
+    from skewpend import Parameters
+    from skewpend.errors import ParameterError
+    from skewpend.export import to_mjcf, to_urdf
+
+    base = dict(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+    for change in (dict(a=1e308), dict(b=1e101), dict(m1=1e308, a=10.0), dict(m2=1e300, b=1e5)):
+        with pytest.raises(ParameterError, match="at most 1e\\+100"):
+            Parameters(**{**base, **change})
+    for big in (dict(a=1e100, b=1e100), dict(m1=1e100, a=1e100, m2=1e100, b=1e100)):
+        p = Parameters(**{**base, **big})
+        text = to_mjcf(p) + to_urdf(p)
+        assert "inf" not in text.lower() and "nan" not in text.lower()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_stops_a_long_validation_promptly(tmp_path):
+    """MuJoCo is stepped in bounded chunks, so SIGINT is honoured within a fraction of a second."""
+    import signal
+    import time
+
+    pytest.importorskip("mujoco")
+    proc = subprocess.Popen([sys.executable, "-m", "skewpend", "validate", "--t-end", "5000"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(2.5)
+    assert proc.poll() is None, proc.communicate()
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == ["skewpend: interrupted"], err
+    assert time.monotonic() - sent < 3.0
+    assert list(tmp_path.iterdir()) == []

@@ -279,9 +279,16 @@ class _Run:
         return _build(t, w)
 
     def initial_state(self):
-        y0 = [self.scalar("initial", k, angle=k in ("phi0", "psi0")) for k in ("phi0", "psi0", "dphi0", "dpsi0")]
-        if any(v is None for v in y0):
-            raise UsageError("the initial state must be numeric (not 'sym')")
+        from .parsing import MAX_ANGLE
+
+        y0 = []
+        for k in ("phi0", "psi0", "dphi0", "dpsi0"):
+            value = self.scalar("initial", k, angle=k in ("phi0", "psi0"))
+            if value is None:
+                raise UsageError(f"{self.option('initial', k)}: the initial state must be numeric, not 'sym'")
+            if k in ("phi0", "psi0") and abs(value) > MAX_ANGLE:
+                raise UsageError(f"{self.option('initial', k)}: expected an angle of at most {MAX_ANGLE:g} rad in magnitude, got {value:g}")
+            y0.append(value)
         return y0
 
 
@@ -306,8 +313,42 @@ def _resolve(config: Optional[str], parameters: dict, initial: dict, simulation:
     return run.parameters(), run.initial_state(), run
 
 
+def _positive(text: str, where: str) -> float:
+    """A positive finite number typed by the user ('sym' is not a run setting)."""
+    value = parse_scalar(text, where)
+    if value is None or not value > 0:
+        raise UsageError(f"{where}: expected a positive number, got {text!r}")
+    return value
+
+
 def _setting(run: "_Run", key: str) -> Optional[float]:
-    return run.scalar("simulation", key)
+    """A run setting (t_end, dt, dt_out, rtol, atol): None when not set, else a positive number."""
+    if run.values["simulation"].get(key) is None:
+        return None
+    return _positive(run.text("simulation", key), run.option("simulation", key))
+
+
+def _positive_setting(run: "_Run", key: str) -> float:
+    value = _setting(run, key)
+    if value is None:  # pragma: no cover - callers check is_given
+        raise UsageError(f"{run.option('simulation', key)}: expected a positive number")
+    return value
+
+
+#: Largest step cap (the compiled integrators count steps in 64-bit integers).
+_MAX_STEP_CAP = 10**15
+
+
+def _step_cap(run: "_Run") -> int:
+    where = run.option("simulation", "max_steps")
+    text = run.text("simulation", "max_steps")
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if not (1 <= value <= _MAX_STEP_CAP and value == int(value)):
+        raise UsageError(f"{where}: expected a positive whole number of at most {_MAX_STEP_CAP:.0e}, got {text!r}")
+    return int(value)
 
 
 QUIET = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar (it is shown on a terminal for work over ~1 s)", rich_help_panel=_R)]
@@ -355,12 +396,7 @@ def simulate(
         raise UsageError(f"{run.option('simulation', 'out')}: expected a file name, got {out_path!r}")
     if out_path is None and run.is_given("simulation", "dt_out"):
         raise UsageError(f"{run.option('simulation', 'dt_out')} sets the rows written to --out; give --out FILE.csv|.nc too")
-    steps = MAX_STEPS
-    if run.is_given("simulation", "max_steps"):
-        value = _setting(run, "max_steps")
-        if value is None or value != int(value) or value < 1:
-            raise UsageError(f"{run.option('simulation', 'max_steps')}: expected a positive whole number, got {S['max_steps']!r}")
-        steps = int(value)
+    steps = _step_cap(run) if run.is_given("simulation", "max_steps") else MAX_STEPS
     if out_path is not None:
         from .io import TRAJECTORY_SUFFIXES, check_output_path
 
@@ -391,22 +427,23 @@ class ExportFormat(str, Enum):
 @_options(MODEL_OPTIONS)
 def export(
     model: dict,
-    fmt: Annotated[ExportFormat, typer.Option("--format", "-f", help="model format")] = ExportFormat.mjcf,
+    fmt: Annotated[Optional[ExportFormat], typer.Option("--format", "-f", help="model format (default: from the --out suffix, .xml/.mjcf or .urdf; mjcf when printing)")] = None,
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="write to FILE (default: print)")] = None,
     config: CONFIG = None,
 ) -> None:
-    """Export the system as a MuJoCo MJCF model or a URDF (numeric parameters; the defaults of simulate)."""
+    """Export the system as a MuJoCo MJCF model or a URDF (numeric parameters; the defaults of simulate).
+
+    From a --config run file it takes [parameters].
+    """
     from . import export as ex
 
-    params, _, _ = _resolve(
-        config,
-        model,
-        {}, {},
-    )
+    params, _, _ = _resolve(config, model, {}, {})
     if out is None:
-        sys.stdout.write(ex.to_mjcf(params) if fmt is ExportFormat.mjcf else ex.to_urdf(params))
+        chosen = fmt or ExportFormat.mjcf
+        sys.stdout.write(ex.to_mjcf(params) if chosen is ExportFormat.mjcf else ex.to_urdf(params))
         return
-    path = ex.write_model(params, out, fmt.value)
+    path = ex.write_model(params, out, fmt.value if fmt else None)
+    fmt = fmt or ExportFormat(ex._format_for(path, None))
     sys.stderr.write(f"skewpend: wrote {fmt.value.upper()} model to {path}\n")
 
 
@@ -415,22 +452,25 @@ def export(
 def validate(
     model: dict,
     initial: dict,
-    t_end: Annotated[str, typer.Option("--t-end", help="duration [s]", rich_help_panel=_R)] = "2",
-    dt: Annotated[str, typer.Option("--dt", help="MuJoCo RK4 step [s]", rich_help_panel=_R)] = "1e-4",
-    tol: Annotated[str, typer.Option("--tol", help="largest allowed difference in any state component", rich_help_panel=_R)] = "1e-6",
+    t_end: Annotated[Optional[str], typer.Option("--t-end", help="duration [s] (default 2)", rich_help_panel=_R)] = None,
+    dt: Annotated[Optional[str], typer.Option("--dt", help="MuJoCo RK4 step [s] (default 1e-4)", rich_help_panel=_R)] = None,
+    tol: Annotated[Optional[str], typer.Option("--tol", help="largest allowed difference in any state component (default 1e-6)", rich_help_panel=_R)] = None,
     config: CONFIG = None,
 ) -> None:
-    """Compare skewpend with MuJoCo (the exported MJCF, RK4) for your parameters; exit 1 if they disagree."""
+    """Compare skewpend with MuJoCo (the exported MJCF, RK4) for your parameters; exit 1 if they disagree.
+
+    From a --config run file it takes [parameters], [initial] and [simulation] t_end.
+    """
     from .validation import compare_with_mujoco
 
-    params, y0, _ = _resolve(
-        config,
-        model,
-        initial,
-        {},
-    )
-    tolerance = parse_scalar(tol, "--tol")
-    report = compare_with_mujoco(params, y0, parse_scalar(t_end, "--t-end"), dt=parse_scalar(dt, "--dt"))
+    # a run file's [parameters], [initial] and t_end are used; its other [simulation] settings
+    # (method, dt, out, ...) are simulate's and do not apply to a comparison with MuJoCo
+    run = _Run(config, {"parameters": model, "initial": initial, "simulation": {"t_end": t_end}})
+    params, y0 = run.parameters(), run.initial_state()
+    horizon = _positive_setting(run, "t_end") if run.is_given("simulation", "t_end") else 2.0
+    step = 1e-4 if dt is None else _positive(dt, "--dt")
+    tolerance = 1e-6 if tol is None else _positive(tol, "--tol")
+    report = compare_with_mujoco(params, y0, horizon, dt=step)
     lines = [
         f"skewpend (dop853, rtol=atol=1e-12) vs MuJoCo {report.mujoco_version} (RK4, dt={report.dt:g} s), {report.t_end:g} s, {report.samples} samples",
         "max |difference|:  " + "  ".join(f"{k}={v:.2e}" for k, v in report.max_abs_diff.items()),
@@ -592,10 +632,12 @@ def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
     swept = md.SWEPT_PARAMETER.get(name, name)
     if given.get(swept) is not None:
         raise UsageError(f"--{swept} and --sweep {name}=... both set {swept}; the sweep gives every value, so leave out --{swept}")
-    if out is not None and not str(out).lower().endswith((".csv", ".json")):
-        raise UsageError(f"--out: expected a file name ending in .csv or .json, got {out!r}")
-    if plot is not None and not str(plot).lower().endswith((".png", ".pdf", ".svg")):
-        raise UsageError(f"--plot: expected a file name ending in .png, .pdf or .svg, got {plot!r}")
+    from .io import check_output_path
+
+    if out is not None:
+        check_output_path(out, (".csv", ".json"), option="--out")
+    if plot is not None:
+        check_output_path(plot, (".png", ".pdf", ".svg"), option="--plot")
     sw = md.sweep(params, name, values, tolerance=tolerance)
     if out is not None:
         from .io import atomic_path

@@ -192,10 +192,10 @@ def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None)
     for k, (inertia, eps_k) in enumerate(((inertia1, eps1), (inertia2, eps2)), start=1):
         given = getattr(params, f"inertia{k}") is not None
         what = f"the inertia tensor of body {k}" + ("" if given else f" (thin rod m{k} l^2/12)")
-        if not math.isfinite(eps_k):
-            raise _overflow(params, f"the tiny axial inertia of body {k} (1e-9 m{k} l^2)")
         if not _finite(inertia):
             raise _overflow(params, what)
+        if not math.isfinite(eps_k):
+            raise _overflow(params, f"the tiny axial inertia of body {k} (1e-9 m{k} l^2)")
         try:
             regularised = _regularised_inertia(inertia, eps_k)
         except (ArithmeticError, ValueError):  # numpy.linalg.LinAlgError is a ValueError
@@ -547,7 +547,10 @@ def mujoco_trajectory(
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:  # MuJoCo's compiler refuses the model (e.g. a mass below its minimum)
         detail = " ".join(str(exc).split())
-        raise ParameterError(f"MuJoCo refuses the exported model: {detail}") from None
+        raise ParameterError(
+            f"MuJoCo refuses the exported model ({detail}); allowed: masses, inertias and rod lengths MuJoCo "
+            "accepts (masses and principal moments above its minimum of about 1e-15)"
+        ) from None
     data = mujoco.MjData(model)
     data.qpos[:] = y[:2]
     data.qvel[:] = y[2:]

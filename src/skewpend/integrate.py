@@ -206,7 +206,7 @@ def simulate(
     writes -- what it computed, with ``status`` and ``message`` set, never NaN rows; with
     ``throw=True`` it raises :class:`~skewpend.errors.IntegrationError` after that.
     """
-    from .compiled import State, kernel_module, parameter_vector
+    from .compiled import PARAMETER_ORDER, State, kernel_module, parameter_vector
     from .io import TrajectoryWriter, check_disk_space, check_output_path, trajectory_metadata, TRAJECTORY_SUFFIXES
 
     params.require_numeric("simulation")
@@ -220,6 +220,8 @@ def simulate(
     if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
         raise ParameterError(f"max_steps must be a positive whole number, got {max_steps!r}")
     max_steps = int(max_steps)
+    if max_steps > 10**15:
+        raise ParameterError(f"max_steps must be at most 1e15 (steps are counted in 64-bit integers), got {max_steps}")
     if progress is not None and not callable(progress):
         raise ParameterError("progress must be a callable progress(t, t_end)")
     progress = progress or _progress_noop
@@ -268,7 +270,11 @@ def simulate(
     deriv = np.empty(5)
     kernel.rhs(y5, p, deriv)
     if not (np.all(np.isfinite(deriv)) and math.isfinite(kernel.energy(y5, p))):
-        raise ParameterError(f"the initial state {y.tolist()} has non-finite energy or acceleration")
+        values = ", ".join(f"{n} = {v:g}" for n, v in zip(PARAMETER_ORDER, p) if v != 0)
+        raise ParameterError(
+            f"the energy or acceleration at the initial state {y.tolist()} is not finite (overflow) for {values}; "
+            "use parameters and initial speeds of moderate size"
+        )
 
     if method == "gauss":
         mom = np.empty(2)

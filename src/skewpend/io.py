@@ -334,9 +334,12 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
         for key, value in values.items():
             if isinstance(value, (datetime.date, datetime.time)):
                 raise ParameterError(f"{path}: [{section}] {key}: expected a number or a string, got a TOML date/time {value}")
-            if key.startswith(("com", "axis", "inertia")) and isinstance(value, list) and any(isinstance(v, (list, dict)) for v in value):
-                matrix = key.startswith("inertia") and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)
+            if key.startswith(("com", "axis", "inertia")) and (
+                isinstance(value, dict) or isinstance(value, list) and any(isinstance(v, (list, dict)) for v in value)
+            ):
+                matrix = key.startswith("inertia") and isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)
                 if not matrix:
                     shape = "a 3x3 matrix [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] or a flat list of 3, 6 or 9" if key.startswith("inertia") else "a flat list of 3"
-                    raise ParameterError(f"{path}: [{section}] {key}: expected {shape} numbers or symbol names, got {value!r}")
+                    got = "a table" if isinstance(value, dict) else repr(value)
+                    raise ParameterError(f"{path}: [{section}] {key}: expected {shape} numbers or symbol names, got {got}")
     return {s: dict(data.get(s, {})) for s in CONFIG_SECTIONS}

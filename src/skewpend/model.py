@@ -38,13 +38,25 @@ _POSITIVE = ("a", "b", "m1", "m2")
 _NONNEGATIVE = ("g", "c1", "c2")
 
 
-def _as_real(name: str, value: Any) -> float:
+def _as_real(name: str, value: Any, limit: float = None) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ParameterError(f"{name} must be a real number or None (symbolic), got {value!r}")
     x = float(value)
     if not math.isfinite(x):
         raise ParameterError(f"{name} must be finite, got {x}")
+    limit = MAX_MAGNITUDE if limit is None else limit
+    if abs(x) > limit:
+        raise ParameterError(
+            f"{name} must be at most {limit:g} in magnitude (SI units; larger values overflow the equations), got {x:g}"
+        )
     return x
+
+
+#: Largest magnitude of a numeric scalar parameter, centre-of-mass or axis entry: squares and
+#: products of a few of them must stay far from the float64 overflow at 1.8e308.  Inertia
+#: entries (mass times length squared: a thin rod of the largest mass and length) go to 1e300.
+MAX_MAGNITUDE = 1e100
+MAX_INERTIA = 1e300
 
 
 #: Names a symbolic geometry entry may not take (coordinates and internal stand-ins).
@@ -62,7 +74,7 @@ def _as_entry(name: str, value: Any):
                 f"{sorted(RESERVED_NAMES)} and not starting with c_ or s_), got {value!r}"
             )
         return text
-    return _as_real(name, value)
+    return _as_real(name, value, MAX_INERTIA if name.startswith("inertia") else None)
 
 
 def _as_vec3(name: str, value: Any, default_names: Optional[Tuple[str, str, str]] = None) -> Vec3:
@@ -202,7 +214,8 @@ class Parameters:
             if value is not None:
                 v = _as_vec3(name, value, tuple(f"{'n1' if name == 'axis1' else 'e0'}{x}" for x in "xyz"))
                 if _numeric(v):
-                    norm = math.sqrt(sum(x * x for x in v))
+                    big = max(abs(x) for x in v)
+                    norm = big * math.sqrt(sum((x / big) ** 2 for x in v)) if big > 0 else 0.0
                     if not norm > 1e-12:
                         raise ParameterError(f"{name} must be a non-zero vector, got {v}")
                     v = tuple(x / norm for x in v)

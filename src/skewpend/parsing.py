@@ -100,8 +100,13 @@ def positive_number(name: str, value: Any, *, allow_none: bool = False) -> Optio
     return x
 
 
+#: Largest initial angle [rad]: beyond it an angle has no precision left for its fraction of a turn.
+MAX_ANGLE = 1e6
+
+
 def initial_state(y0: Sequence[float]):
-    """``y0 = (phi, psi, dphi, dpsi)`` as a finite float array of shape (4,)."""
+    """``y0 = (phi, psi, dphi, dpsi)`` as a finite float array of shape (4,); angles at most
+    :data:`MAX_ANGLE` in magnitude."""
     import numpy as np
 
     try:
@@ -112,6 +117,8 @@ def initial_state(y0: Sequence[float]):
         raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y.size}")
     if not np.all(np.isfinite(y)):
         raise ParameterError(f"y0 must be finite, got {y.tolist()}")
+    if np.any(np.abs(y[:2]) > MAX_ANGLE):
+        raise ParameterError(f"the initial angles must be at most {MAX_ANGLE:g} rad in magnitude, got {y[:2].tolist()}")
     return y
 
 

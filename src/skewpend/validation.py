@@ -60,6 +60,9 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
 
     params.require_numeric("validation")
     y0 = initial_state(y0)
+    for name, value in (("t_end (--t-end)", t_end), ("dt (--dt)", dt)):
+        if value is None:
+            raise ParameterError(f"{name} must be a positive number of seconds, not symbolic")
     t_end = positive_number("t_end (--t-end)", t_end)
     dt = positive_number("dt (--dt)", dt)
     n_float = t_end / dt

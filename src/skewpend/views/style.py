@@ -1,0 +1,181 @@
+"""One style for every skewpend figure, and the captions that say what a figure shows.
+
+Nothing here imports matplotlib at module level.  :func:`style` is a context manager that
+applies :data:`RC` (fonts, line widths, grid) only while a figure is built or saved -- the
+global ``matplotlib.rcParams`` are left as they were.  :func:`caption` and
+:func:`sweep_caption` are plain strings (the parameters and settings a figure shows), so
+they can be tested and reused without drawing anything.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from typing import Any, Dict, Iterator, List, Mapping, Optional
+
+__all__ = [
+    "RC", "COLORS", "DPI", "style", "fmt", "parameter_text", "settings_text", "initial_text", "caption",
+    "sweep_caption",
+]
+
+#: The rcParams every figure is built and saved with (applied by :func:`style`).
+RC: Dict[str, Any] = {
+    "font.size": 9.5,
+    "axes.titlesize": 10.5,
+    "axes.titleweight": "normal",
+    "axes.labelsize": 9.5,
+    "xtick.labelsize": 8.5,
+    "ytick.labelsize": 8.5,
+    "legend.fontsize": 8.5,
+    "legend.framealpha": 0.85,
+    "legend.edgecolor": "0.8",
+    "figure.titlesize": 10,
+    "lines.linewidth": 1.1,
+    "lines.markersize": 5,
+    "axes.grid": True,
+    "grid.alpha": 0.3,
+    "grid.linewidth": 0.6,
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+    "axes.formatter.limits": (-4, 5),
+    "axes.formatter.use_mathtext": True,
+    "mathtext.fontset": "dejavusans",
+    "figure.facecolor": "white",
+    "savefig.facecolor": "white",
+    "pdf.fonttype": 42,  # TrueType: text stays text in PDF
+    "svg.fonttype": "path",  # SVG looks the same without the fonts installed
+    "path.simplify": True,
+}
+
+#: Colours: phi (hinge 1, end of rod 1, mode 1) blue, psi (hinge 2, end of rod 2, mode 2) red.
+COLORS: Dict[str, str] = {
+    "phi": "#1f63a8",
+    "psi": "#c8312b",
+    "path": "#3b3b4f",
+    "energy": "#2b2b2b",
+    "reference": "0.45",
+    "rods": "0.35",
+    "start": "#2a9d4b",
+    "end": "#222222",
+}
+
+#: Resolution of raster output [dots per inch].
+DPI = 150
+
+# Symbols in labels (matplotlib mathtext; rendered with the same DejaVu Sans as the text).
+SYMBOL = {
+    "phi": r"$\varphi$",
+    "psi": r"$\psi$",
+    "dphi": r"$\dot\varphi$",
+    "dpsi": r"$\dot\psi$",
+}
+
+
+@contextlib.contextmanager
+def style() -> Iterator[None]:
+    """Build or save a figure in the skewpend style; rcParams are restored afterwards."""
+    import matplotlib
+
+    with matplotlib.rc_context(RC):
+        yield
+
+
+def fmt(x: float, digits: int = 4) -> str:
+    """A number as people write it: ``1``, ``0.8``, ``9.81``, ``1e-10``, ``-0.05``."""
+    x = float(x)
+    if x == 0:
+        return "0"
+    if not math.isfinite(x):
+        return str(x)
+    s = f"{x:.{digits}g}"
+    if "e" in s:
+        mant, exp = s.split("e")
+        s = f"{mant}e{int(exp)}"
+    return s
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(fmt(c, 3) for c in v) + ")"
+
+
+def parameter_text(params, *, skip: tuple = ()) -> str:
+    """The parameters as ``a = 1 m, b = 0.8 m, m1 = 1 kg, m2 = 0.7 kg, alpha = 34.38°, g = 9.81 m/s²``,
+    then damping and torques if non-zero and any general body or axis that was given.
+    Names are those of :class:`skewpend.Parameters` and the command-line options."""
+    d = params.to_dict()
+    parts: List[str] = []
+    units = {"a": "m", "b": "m", "m1": "kg", "m2": "kg", "g": "m/s²", "c1": "N m s", "c2": "N m s", "tau1": "N m", "tau2": "N m"}
+    for name in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2"):
+        value = d.get(name)
+        if name in skip or value is None:
+            continue
+        if name in ("c1", "c2", "tau1", "tau2") and value == 0:
+            continue
+        if isinstance(value, str):  # left symbolic
+            parts.append(f"{name} = {value}")
+        elif name == "alpha":
+            parts.append(f"alpha = {fmt(math.degrees(value))}°")
+        else:
+            parts.append(f"{name} = {fmt(value)} {units[name]}")
+    for name in ("axis1", "axis2"):
+        if d.get(name) is not None and name not in skip:
+            parts.append(f"{name} = {_vec(d[name])}")
+    custom = [n for n in ("com1", "com2", "inertia1", "inertia2") if d.get(n) is not None]
+    if custom:
+        parts.append("custom " + ", ".join(custom))
+    return ", ".join(parts)
+
+
+def settings_text(method: str, settings: Mapping[str, Any]) -> str:
+    """``dop853, rtol = 1e-10, atol = 1e-10, t_end = 5 s, rows every 0.01 s``."""
+    parts = [str(method)]
+    if settings.get("rtol") is not None:
+        parts.append(f"rtol = {fmt(settings['rtol'])}")
+    if settings.get("atol") is not None:
+        parts.append(f"atol = {fmt(settings['atol'])}")
+    if settings.get("dt") is not None:
+        parts.append(f"dt = {fmt(settings['dt'])} s")
+    if settings.get("t_end") is not None:
+        parts.append(f"t_end = {fmt(settings['t_end'])} s")
+    if settings.get("dt_out") is not None:
+        parts.append(f"rows every {fmt(settings['dt_out'])} s")
+    else:
+        parts.append("rows at the integrator's steps")
+    return ", ".join(parts)
+
+
+def initial_text(y0) -> str:
+    """``phi0 = 68.75°, psi0 = -45.84°, dphi0 = 0 rad/s, dpsi0 = 0 rad/s``."""
+    phi, psi, dphi, dpsi = (float(v) for v in y0)
+    return (
+        f"phi0 = {fmt(math.degrees(phi))}°, psi0 = {fmt(math.degrees(psi))}°, "
+        f"dphi0 = {fmt(dphi)} rad/s, dpsi0 = {fmt(dpsi)} rad/s"
+    )
+
+
+def caption(tr) -> str:
+    """What a trajectory figure shows, in three lines: the parameters; the initial state;
+    the method and its settings (and a fourth if the run stopped early: why)."""
+    lines = [parameter_text(tr.params), initial_text(tr.y[0]), settings_text(tr.method, tr.settings)]
+    if getattr(tr, "status", 0) != 0:
+        lines.append(f"run stopped early at t = {fmt(tr.t[-1])} s: {tr.message}")
+    return "\n".join(lines)
+
+
+def _ratio_skip(name: str) -> tuple:
+    # a ratio sweep scales its numerator; a plain sweep replaces the parameter
+    return (name.split("/")[0],) if "/" in name else (name,)
+
+
+def sweep_caption(sw) -> str:
+    """The swept range and the parameters held fixed."""
+    values = sw.values
+    if sw.name == "alpha":
+        lo, hi, unit = fmt(math.degrees(values[0])), fmt(math.degrees(values[-1])), "°"
+    else:
+        u = sw.units().get(sw.name, "")
+        lo, hi, unit = fmt(values[0]), fmt(values[-1]), ("" if u in ("", "1") else f" {u}")
+    swept = f"{sw.name} from {lo}{unit} to {hi}{unit} ({len(values)} points)"
+    fixed = parameter_text(sw.params, skip=_ratio_skip(sw.name))
+    return f"{swept}; {fixed}" if fixed else swept
+
