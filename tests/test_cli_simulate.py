@@ -77,7 +77,7 @@ def test_examples_run_as_they_are(example, tmp_path):
     "args, message",
     [
         (["simulate", "--m1", "-1"], "m1 must be > 0"),
-        (["simulate", "--t-end", "-3"], "t_end must be a positive"),
+        (["simulate", "--t-end", "-3"], "--t-end: expected a positive number"),
         (["simulate", "--phi0", "abc"], "--phi0: expected a number"),
         (["simulate", "--g", "sym"], "simulation needs numeric values"),
         (["simulate", "--out", "run.txt"], "--out: expected a file name ending in .csv or .nc"),

@@ -264,11 +264,8 @@ def test_save_figure_refuses_unknown_formats_and_cleans_up(tr, tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["plot.png"]
 
 
-# -- the sweep plot (moved from skewpend.plots) ---------------------------------------------------------
-def test_plot_sweep_moved_and_reexported():
-    import skewpend.plots as old
-
-    assert old.plot_sweep is F.plot_sweep and old.save_figure is F.save_figure
+# -- the sweep plot ---------------------------------------------------------------------------------------
+def test_plot_sweep():
     sw = skewpend.sweep(PARAMS, "alpha", np.radians(np.linspace(0, 180, 19)))
     fig = F.plot_sweep(sw, title="veering")
     top, bottom = fig.axes

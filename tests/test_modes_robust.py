@@ -244,7 +244,7 @@ def test_sweep_outputs_agree_on_alpha_units(tmp_path, capsys):
     for r in data["resonances"]:
         assert r["value_deg"] == pytest.approx(math.degrees(r["value"]))
     # the plot's axis: degrees, labelled so
-    from skewpend.plots import plot_sweep
+    from skewpend.views.figures import plot_sweep
 
     sw = sweep(BENCH, "alpha", parse_sweep("alpha=0:180deg:5")[1])
     fig = plot_sweep(sw)

@@ -56,7 +56,7 @@ if TYPE_CHECKING:  # pragma: no cover
 #: Submodules reachable as attributes after a plain ``import skewpend`` (imported on first use).
 _SUBMODULES = {
     "derivation", "kinematics", "render", "codegen", "kernelgen", "compiled", "integrate", "io", "export",
-    "validation", "modes", "plots", "parsing", "progress", "model", "errors",
+    "validation", "modes", "views", "parsing", "progress", "model", "errors",
 }
 
 

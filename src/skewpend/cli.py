@@ -367,6 +367,7 @@ def simulate(
     dt: Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only (default 1e-3)", rich_help_panel=_R)] = None,
     max_steps: Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)] = None,
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="stream the trajectory to FILE (.csv or .nc)", rich_help_panel=_R)] = None,
+    plot: Annotated[Optional[str], typer.Option("--plot", help="draw the run to FILE (.png, .svg or .pdf): angles, speeds, energy error, phase portraits, torus, 3D rod ends", rich_help_panel=_R)] = None,
     quiet: QUIET = False,
     config: CONFIG = None,
 ) -> None:
@@ -380,7 +381,7 @@ def simulate(
     params, y0, run = _resolve(
         config, model, initial,
         dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt,
-             max_steps=max_steps, out=out),
+             max_steps=max_steps, out=out, plot=plot),
     )
     S = run.values["simulation"]
     method_name = S.get("method", "dop853")
@@ -394,13 +395,21 @@ def simulate(
     out_path = S.get("out")
     if out_path is not None and not isinstance(out_path, str):
         raise UsageError(f"{run.option('simulation', 'out')}: expected a file name, got {out_path!r}")
-    if out_path is None and run.is_given("simulation", "dt_out"):
-        raise UsageError(f"{run.option('simulation', 'dt_out')} sets the rows written to --out; give --out FILE.csv|.nc too")
+    plot_path = S.get("plot")
+    if plot_path is not None and not isinstance(plot_path, str):
+        raise UsageError(f"{run.option('simulation', 'plot')}: expected a file name, got {plot_path!r}")
+    if out_path is None and plot_path is None and run.is_given("simulation", "dt_out"):
+        raise UsageError(f"{run.option('simulation', 'dt_out')} sets the rows written to --out or drawn by --plot; give --out FILE.csv|.nc or --plot FILE.png too")
     steps = _step_cap(run) if run.is_given("simulation", "max_steps") else MAX_STEPS
     if out_path is not None:
         from .io import TRAJECTORY_SUFFIXES, check_output_path
 
         check_output_path(out_path, TRAJECTORY_SUFFIXES, option=run.option("simulation", "out"))
+    if plot_path is not None:
+        from .io import check_output_path
+        from .views.figures import FIGURE_SUFFIXES
+
+        check_output_path(plot_path, FIGURE_SUFFIXES, option=run.option("simulation", "plot"))
     from .integrate import simulate as run_simulation
     from .progress import ProgressBar
 
@@ -409,9 +418,14 @@ def simulate(
             params, y0, _setting(run, "t_end"),
             dt_out=_setting(run, "dt_out"), method=method_name,
             rtol=_setting(run, "rtol"), atol=_setting(run, "atol"), dt=_setting(run, "dt"),
-            max_steps=steps, out=out_path, keep=False, progress=bar,
+            max_steps=steps, out=out_path, keep=plot_path is not None, progress=bar,
         )
     _summary(traj, out_path)
+    if plot_path is not None:  # also for a run that stopped early: its heading says why
+        from .views.figures import save_figure, simulation_figure
+
+        save_figure(simulation_figure(traj), plot_path)
+        sys.stdout.write(f"plot          {plot_path}\n")
     if not traj.success:
         written = f"; wrote the {traj.stats['rows']} rows computed to {out_path}" if out_path else ""
         sys.stderr.write(f"skewpend: simulation {traj.message} at t = {traj.t[-1]:.6g} s{written}\n")
@@ -651,7 +665,7 @@ def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
 
                 tmp.write_text(json.dumps(sw.to_dict(), indent=2) + "\n")
     if plot is not None:
-        from .plots import plot_sweep, save_figure
+        from .views.figures import plot_sweep, save_figure
 
         save_figure(plot_sweep(sw), plot)
     if fmt is ModesFormat.json:

@@ -253,32 +253,26 @@ class Kernel:
             raise ValueError("expected rows of states, shape (n, >= 4)")
         return ys
 
-    def energies(self, ys, p, *, offset: int = 0):
-        """Energy of each row ``ys[i, offset:]`` (a state) [J], shape (n,)."""
+    def _per_row(self, fn, ys, p, offset: int, width: int):
+        """``fn(rows, nrows, stride, p, out)`` over the states ``ys[i, offset:]``: out (n, width)."""
         ys = self._rows(ys)
         p, pp = self._in(p)
-        out = self._np.empty(ys.shape[0])
+        out = self._np.empty((ys.shape[0], width))
         base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
-        self.lib.sp_energies(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+        fn(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
         return out
+
+    def energies(self, ys, p, *, offset: int = 0):
+        """Energy of each row ``ys[i, offset:]`` (a state) [J], shape (n,)."""
+        return self._per_row(self.lib.sp_energies, ys, p, offset, 1)[:, 0]
 
     def tips_many(self, ys, p, *, offset: int = 0):
         """Rod ends of each row ``ys[i, offset:]``: shape (n, 6) [m]."""
-        ys = self._rows(ys)
-        p, pp = self._in(p)
-        out = self._np.empty((ys.shape[0], 6))
-        base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
-        self.lib.sp_tips_many(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
-        return out
+        return self._per_row(self.lib.sp_tips_many, ys, p, offset, 6)
 
     def axes_many(self, ys, p, *, offset: int = 0):
         """Hinge axes of each row: ``(n1, e)`` in the world frame, shape (n, 6) (unit vectors)."""
-        ys = self._rows(ys)
-        p, pp = self._in(p)
-        out = self._np.empty((ys.shape[0], 6))
-        base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
-        self.lib.sp_axes_many(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
-        return out
+        return self._per_row(self.lib.sp_axes_many, ys, p, offset, 6)
 
     def speeds_many(self, zs, p, *, offset: int = 0, inplace: bool = False):
         """Canonical rows ``(phi, psi, p_phi, p_psi, ...)`` -> ``(phi, psi, dphi, dpsi, ...)``."""

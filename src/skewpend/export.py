@@ -452,16 +452,16 @@ def write_model(
     from .io import atomic_path
 
     path = Path(path)
+    if path.is_dir():
+        raise ParameterError(
+            f"cannot write {path}: it is a directory; give a file name (e.g. pendulum.xml for mjcf, pendulum.urdf for urdf)"
+        )
     fmt = _format_for(path, format)
     implied = _SUFFIXES.get(path.suffix.lower())
     if implied is not None and implied != fmt and path.suffix.lower() != ".xml":  # .xml: either (URDF is XML too)
         raise ParameterError(
             f"the file name {path.name!r} says {implied} but the format is {fmt}; give a name ending in "
             f"{' or '.join(k for k, v in _SUFFIXES.items() if v == fmt)} for {fmt}, or use the format {implied} (--format {implied})"
-        )
-    if path.is_dir():
-        raise ParameterError(
-            f"cannot write {path}: it is a directory; give a file name (e.g. pendulum.xml for mjcf, pendulum.urdf for urdf)"
         )
     if path.exists() and not path.is_file():
         raise ParameterError(f"cannot write {path}: it exists and is not a regular file")

@@ -207,7 +207,7 @@ def simulate(
     ``throw=True`` it raises :class:`~skewpend.errors.IntegrationError` after that.
     """
     from .compiled import PARAMETER_ORDER, State, kernel_module, parameter_vector
-    from .io import TrajectoryWriter, check_disk_space, check_output_path, trajectory_metadata, TRAJECTORY_SUFFIXES
+    from .io import TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
 
     params.require_numeric("simulation")
     y = initial_state(y0)

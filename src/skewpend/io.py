@@ -71,6 +71,11 @@ def _remove_stale(path: Path) -> None:
             pass  # alive (another user's process) or unknown: leave it
 
 
+def _one_of(items: Sequence[str]) -> str:
+    items = list(items)
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
+
+
 def check_output_path(path, suffixes: Sequence[str], option: str = "--out") -> Path:
     """Refuse, before any work starts, an output path that cannot be written.
 
@@ -79,9 +84,9 @@ def check_output_path(path, suffixes: Sequence[str], option: str = "--out") -> P
     """
     path = Path(path)
     if path.suffix.lower() not in suffixes:
-        raise ParameterError(f"{option}: expected a file name ending in {' or '.join(suffixes)}, got {str(path)!r}")
+        raise ParameterError(f"{option}: expected a file name ending in {_one_of(suffixes)}, got {str(path)!r}")
     if path.is_dir():
-        raise ParameterError(f"{option}: {path} is a directory; give a file name ending in {' or '.join(suffixes)}")
+        raise ParameterError(f"{option}: {path} is a directory; give a file name ending in {_one_of(suffixes)}")
     if path.exists() and not path.is_file():
         raise ParameterError(f"{option}: {path} exists and is not a regular file")
     directory = path.parent if str(path.parent) else Path(".")
@@ -285,7 +290,7 @@ def write_trajectory(traj, path: os.PathLike) -> Path:
 CONFIG_SECTIONS = {
     "parameters": {"a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "com1", "com2", "inertia1", "inertia2", "axis1", "axis2"},
     "initial": {"phi0", "psi0", "dphi0", "dpsi0"},
-    "simulation": {"t_end", "dt_out", "method", "rtol", "atol", "dt", "max_steps", "out"},
+    "simulation": {"t_end", "dt_out", "method", "rtol", "atol", "dt", "max_steps", "out", "plot"},
 }
 
 

@@ -68,7 +68,7 @@ ROD_RADIUS = 0.022
 #: and the angle between them.
 DEFAULT_VIEW = (30.0, -58.0)
 #: The camera keeps at least this angle [deg] to each hinge axis (else another view is chosen).
-MIN_VIEW_ANGLE = 30.0
+MIN_VIEW_ANGLE = 25.0
 
 _COLORS = {
     "rod1": (0.23, 0.43, 0.68),
@@ -120,8 +120,9 @@ def choose_view(n1_world, e_world) -> Tuple[float, float]:
     """Camera ``(elev, azim)`` [deg] that sees neither hinge axis end-on.
 
     :data:`DEFAULT_VIEW` when it keeps :data:`MIN_VIEW_ANGLE` to both axes (it does for the
-    default axes ``k`` and ``e0(alpha)``, any alpha); otherwise the view nearest to it (elevation
-    10..50 deg) that maximises the smaller of the two angles.
+    default axes ``k`` and ``e0(alpha)``, any alpha: ``e0`` is horizontal and the camera 30 deg
+    above the horizon); otherwise the view nearest to it (elevation 10..50 deg) that maximises
+    the smaller of the two angles.
     """
     n1 = world_to_plot(np.asarray(n1_world, dtype=float))
     e = world_to_plot(np.asarray(e_world, dtype=float))
@@ -348,20 +349,26 @@ def _fmt(x: float) -> str:
     return f"{x:.4g}"
 
 
+def _alpha_is_skew(params) -> bool:
+    """Whether ``alpha`` is the angle between the hinge axes (default axes ``k`` and ``e0(alpha)``)."""
+    return (getattr(params, "alpha", None) is not None and getattr(params, "axis1", None) is None
+            and getattr(params, "axis2", None) is None)
+
+
 def _skew_angle(params, axes: np.ndarray) -> float:
-    """The skew angle [rad]: ``alpha`` when it defines the second axis, else the angle between the
-    axes, which ``n1 . e`` keeps (``e = P1 . e0`` turns about ``n1``)."""
-    alpha = getattr(params, "alpha", None)
-    if alpha is not None and getattr(params, "axis2", None) is None and getattr(params, "axis1", None) is None:
-        return float(alpha)
+    """The skew angle [rad]: ``alpha`` for the default axes, else the angle between the axes,
+    which every row keeps (``e = P1 . e0`` turns about ``n1``, so ``n1 . e`` is constant)."""
+    if _alpha_is_skew(params):
+        return float(params.alpha)
     c = float(np.clip(np.dot(axes[0, 0:3], axes[0, 3:6]), -1.0, 1.0))
     return math.acos(c)
 
 
 def _title(params, skew: float) -> Tuple[str, str]:
-    line1 = f"Double pendulum with skewed hinge axes:  α = {math.degrees(skew):.4g}°"
-    if getattr(params, "alpha", None) is None or getattr(params, "axis2", None) is not None:
-        line1 = f"Double pendulum with skewed hinge axes:  angle(n₁, e) = {math.degrees(skew):.4g}°"
+    if _alpha_is_skew(params):
+        line1 = f"Double pendulum with skewed hinge axes:  α = {math.degrees(skew):.4g}°"
+    else:
+        line1 = f"Double pendulum with skewed hinge axes:  ∠(n₁, e) = {math.degrees(skew):.4g}°"
     parts = [
         f"a = {_fmt(params.a)} m",
         f"b = {_fmt(params.b)} m",
@@ -375,6 +382,8 @@ def _title(params, skew: float) -> Tuple[str, str]:
             parts.append(f"{label} = {_fmt(value)} {unit}")
     if any(getattr(params, n, None) is not None for n in ("com1", "com2", "inertia1", "inertia2")):
         parts.append("general bodies")
+    if getattr(params, "alpha", None) is not None and not _alpha_is_skew(params):
+        parts.append(f"α = {math.degrees(float(params.alpha)):.4g}°")
     return line1, ",  ".join(parts)
 
 
@@ -395,7 +404,7 @@ class FrameRenderer:
         Figure, FigureCanvasAgg = _figure_module()
         from matplotlib.lines import Line2D
         from matplotlib.ticker import MaxNLocator
-        from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d projection)
+        import mpl_toolkits.mplot3d  # noqa: F401  (registers the 3d projection)
         from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
         self.size = _frame_size(size)
@@ -409,25 +418,65 @@ class FrameRenderer:
         # a hair over the exact size, so Agg's int() truncation gives exactly w x h
         self.fig = fig = Figure(figsize=((w + 0.01) / self.dpi, (h + 0.01) / self.dpi), dpi=self.dpi, facecolor="white")
         self.canvas = FigureCanvasAgg(fig)
-        small = max(6.0, min(9.0, 9.0 * min(w / 640.0, h / 480.0)))
+        # text sizes in points (so dpi scales them), by default 9 pt at 640 x 480 and 100 dpi
+        small = max(5.0, min(9.0, 9.0 * min(w / 640.0, h / 480.0)))
         self.fontsize = small
+        renderer = self.canvas.get_renderer()
+        px = lambda artist: artist.get_window_extent(renderer)  # noqa: E731
 
-        # title and parameters (static)
+        def fit_width(text, limit=0.98 * w):
+            for _ in range(4):  # shrink a line that is wider than the frame
+                width = px(text).width
+                if width <= limit:
+                    break
+                text.set_fontsize(text.get_fontsize() * limit / width * 0.99)
+
+        # title and parameters (static), shrunk to the frame's width
         self.skew = _skew_angle(tr.params, g.axes)
-        self.uses_alpha = getattr(tr.params, "axis2", None) is None and getattr(tr.params, "alpha", None) is not None
+        self.uses_alpha = _alpha_is_skew(tr.params)
         line1, line2 = _title(tr.params, self.skew)
-        fig.text(0.5, 0.985, line1, ha="center", va="top", fontsize=small + 2, fontweight="bold")
-        fig.text(0.5, 0.985 - (small + 5) / 72 * self.dpi / h, line2, ha="center", va="top", fontsize=small, color="0.25")
+        pad = 3.0 / h
+        title = fig.text(0.5, 1.0 - pad, line1, ha="center", va="top", fontsize=small + 2, fontweight="bold")
+        fit_width(title)
+        y2 = px(title).y0 / h - 0.3 * small / 72 * self.dpi / h
+        subtitle = fig.text(0.5, y2, line2, ha="center", va="top", fontsize=small, color="0.25")
+        fit_width(subtitle)
+        top = px(subtitle).y0 / h - pad
 
-        top = 1.0 - 2.9 * (small + 4) / 72 * self.dpi / h
-        bottom = 2.6 * (small + 4) / 72 * self.dpi / h
+        # legend (static) at the bottom: three columns, or two, or none if it would crowd the frame
+        # (frames narrower than 400 px have none)
+        ticks = MaxNLocator(8, steps=[1, 2, 2.5, 5, 10]).tick_values(-R, R)
+        self.grid_step = float(ticks[1] - ticks[0])
+        self._ticks = ticks[np.abs(ticks) <= R + 1e-12]
+        handles = [
+            Line2D([], [], color=_COLORS["rod1"], lw=5, solid_capstyle="round", label="rod 1 (a)"),
+            Line2D([], [], color=_COLORS["rod2"], lw=5, solid_capstyle="round", label="rod 2 (b)"),
+            Line2D([], [], color=_COLORS["axis1"], lw=2, marker=">", ms=5, label="hinge 1 axis n₁ (fixed)"),
+            Line2D([], [], color=_COLORS["axis2"], lw=2, marker=">", ms=5, label="hinge 2 axis e = P₁·e₀ (turns with rod 1)"),
+            Line2D([], [], color=_COLORS["trail"], lw=1.6, label=f"tip trail (last {g.trail:g} s)" if g.trail > 0 else "tip trail (off)"),
+            Line2D([], [], color=(0.80, 0.80, 0.83), lw=1, label=f"floor grid {self.grid_step:g} m"),
+        ]
+        bottom = pad
+        self.legend = None
+        for ncol in (3, 2) if w >= 400 else ():
+            legend = fig.legend(handles=handles, loc="lower center", ncol=ncol, fontsize=small - 0.5, frameon=False,
+                                bbox_to_anchor=(0.5, 0.0), handlelength=1.8, columnspacing=1.2, handletextpad=0.5,
+                                borderaxespad=0.3)
+            box = px(legend)
+            if box.width <= w and box.height <= 0.2 * h:
+                self.legend = legend
+                bottom = box.y1 / h
+                break
+            legend.remove()
+
         ax = fig.add_axes((0.0, bottom, 1.0, top - bottom), projection="3d")
         self.ax = ax
         ax.set_proj_type("ortho")
         ax.set_axis_off()
         n1 = g.axes[0, 0:3]
-        e_first = g.axes[0, 3:6]
-        self.view = tuple(float(v) for v in view) if view is not None else choose_view(n1, e_first)
+        # the second axis where rod 1 hangs most nearly vertical (phi nearest 0): about e0
+        hanging = int(np.argmin(np.abs(np.angle(np.exp(1j * g.y[:, 0])))))
+        self.view = _view(view) if view is not None else choose_view(n1, g.axes[hanging, 3:6])
         ax.view_init(elev=self.view[0], azim=self.view[1], roll=0)
 
         # camera-fixed directions (plot coordinates) and the light
@@ -440,9 +489,7 @@ class FrameRenderer:
 
         # the floor: a grid with round spacing (the scene's scale), just below the reach
         self.floor = -1.02 * R
-        ticks = MaxNLocator(8, steps=[1, 2, 2.5, 5, 10]).tick_values(-R, R)
-        self.grid_step = float(ticks[1] - ticks[0])
-        ticks = ticks[np.abs(ticks) <= R + 1e-12]
+        ticks = self._ticks
         lo, hi = float(ticks[0]), float(ticks[-1])
         corners = [np.array([x, y, self.floor]) for x in (lo, hi) for y in (lo, hi)]
         # the world basis i, j, k (j down) at the floor corner on the camera's left
@@ -520,18 +567,6 @@ class FrameRenderer:
             0.015, top - 0.01, "", ha="left", va="top", family="DejaVu Sans Mono", fontsize=small, animated=True,
             bbox=dict(boxstyle="round,pad=0.35", fc=(1, 1, 1, 0.85), ec="0.75", lw=0.6),
         )
-
-        # legend (static)
-        handles = [
-            Line2D([], [], color=_COLORS["rod1"], lw=5, solid_capstyle="round", label="rod 1 (a)"),
-            Line2D([], [], color=_COLORS["rod2"], lw=5, solid_capstyle="round", label="rod 2 (b)"),
-            Line2D([], [], color=_COLORS["axis1"], lw=2, marker=">", ms=5, label="hinge 1 axis n₁ (fixed)"),
-            Line2D([], [], color=_COLORS["axis2"], lw=2, marker=">", ms=5, label="hinge 2 axis e = P₁·e₀ (turns with rod 1)"),
-            Line2D([], [], color=_COLORS["trail"], lw=1.6, label=f"tip trail (last {g.trail:g} s)"),
-            Line2D([], [], color=(0.80, 0.80, 0.83), lw=1, label=f"floor grid {self.grid_step:g} m"),
-        ]
-        fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=small - 0.5, frameon=False,
-                   bbox_to_anchor=(0.5, 0.0), handlelength=1.8, columnspacing=1.2, handletextpad=0.5, borderaxespad=0.3)
 
         for artist in ax.get_children():
             artist.set_clip_on(False)
@@ -700,6 +735,16 @@ def _nonneg_number(name: str, value) -> float:
     return x
 
 
+def _view(view) -> Tuple[float, float]:
+    try:
+        elev, azim = (float(v) for v in view)
+        if not (math.isfinite(elev) and math.isfinite(azim)):
+            raise ValueError
+    except (TypeError, ValueError):
+        raise ParameterError(f"view must be two numbers (elevation, azimuth) in degrees, got {view!r}") from None
+    return elev, azim
+
+
 def _frame_size(size) -> Tuple[int, int]:
     try:
         w, h = size
@@ -768,12 +813,11 @@ def _ffmpeg():
 
 def _write_mp4(tmp: Path, frames, size: Tuple[int, int], fps: float) -> None:
     imageio_ffmpeg = _ffmpeg()
-    from fractions import Fraction
-
     w, h = size
+    # libx264 (the wheel's ffmpeg has it); the temporary file's name has no .mp4: say the format
     writer = imageio_ffmpeg.write_frames(
-        str(tmp), (w, h), fps=Fraction(fps).limit_denominator(100000), codec="libx264", pix_fmt_in="rgb24",
-        pix_fmt_out="yuv420p", quality=None, macro_block_size=2, ffmpeg_log_level="error",
+        str(tmp), (w, h), fps=float(fps), codec="libx264", pix_fmt_in="rgb24", pix_fmt_out="yuv420p",
+        quality=None, macro_block_size=2, ffmpeg_log_level="error",
         output_params=["-crf", "18", "-preset", "veryfast", "-movflags", "+faststart", "-f", "mp4"],
     )
     writer.send(None)
@@ -853,6 +897,10 @@ def animate(
         raise ParameterError(f"MP4 (H.264, yuv420p) needs an even width and height, got {w}x{h}")
     if progress is not None and not callable(progress):
         raise ParameterError("progress must be a callable progress(done, total)")
+    if view is not None:
+        view = _view(view)
+    _positive_number("dpi", dpi)
+    _nonneg_number("trail", trail)
     if fmt == ".mp4":
         _ffmpeg()
     if not getattr(tr, "kept", True):

@@ -17,10 +17,7 @@ Needs matplotlib (``pip install 'skewpend[plot]'``), imported on first use.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import List, Optional, Sequence
 
@@ -40,6 +37,7 @@ __all__ = [
     "plot_sweep",
     "save_figure",
     "FORMATS",
+    "FIGURE_SUFFIXES",
     "ENERGY_FLOOR",
     "wrap_angle",
     "wrapped_path",
@@ -47,7 +45,7 @@ __all__ = [
 ]
 
 #: File formats :func:`save_figure` writes, by suffix.
-FORMATS = (".png", ".svg", ".pdf")
+FIGURE_SUFFIXES = FORMATS = (".png", ".svg", ".pdf")
 
 #: The relative energy error is drawn no lower than this on its log axis (exact zeros, e.g. at t = 0).
 ENERGY_FLOOR = 1e-17
@@ -293,7 +291,11 @@ def _draw_tips(ax, tr, zoom: float = 1.0) -> None:
         axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
     ax.view_init(elev=18, azim=-58)
     ax.set_title("Rod ends in 3D (z: hinge 1 axis)", loc="left")
-    ax.legend(loc="upper left", fontsize=7.5, bbox_to_anchor=(0.0, 0.98))
+    legend = ax.legend(loc="upper left", fontsize=7.5, bbox_to_anchor=(0.0, 0.98))
+    for handle in getattr(legend, "legend_handles", None) or legend.legendHandles:  # paths may be drawn thin
+        if handle.get_label() != "pivot":
+            handle.set_linewidth(max(handle.get_linewidth(), 1.2))
+        handle.set_alpha(1.0)
 
 
 # -- figures ------------------------------------------------------------------------------------
@@ -423,44 +425,20 @@ def plot_sweep(sw, *, title: Optional[str] = None):
     return fig
 
 
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 def save_figure(fig, path) -> Path:
-    """Write ``fig`` to ``path`` as PNG, SVG or PDF (by the suffix, any case), atomically: it is
-    written to a temporary file with the same suffix in the same directory and renamed into
-    place, so ``path`` appears only complete; on any error (Ctrl-C too) the temporary file is
-    removed.  An unknown suffix or a missing directory is a :class:`skewpend.ParameterError`."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in FORMATS:
-        got = repr(path.suffix) if path.suffix else "no suffix"
-        raise skewpend.ParameterError(f"cannot save a figure as {path}: {got}; expected a file name ending in .png, .svg or .pdf")
-    directory = path.parent
-    if not directory.is_dir():
-        raise skewpend.ParameterError(f"cannot write {path}: directory {directory} does not exist")
-    if path.is_dir():
-        raise skewpend.ParameterError(f"cannot write {path}: it is a directory")
-    fmt_name = suffix[1:]
+    """Write ``fig`` to ``path`` as PNG, SVG or PDF (by the suffix, any case), atomically like
+    every file skewpend writes (:func:`skewpend.io.atomic_path`): ``path`` appears only
+    complete, with the umask's permissions; on any error (Ctrl-C too) nothing is left behind.
+    An unknown suffix or an unwritable place is a :class:`skewpend.ParameterError`."""
+    from ..io import atomic_path, check_output_path
+
+    path = check_output_path(path, FIGURE_SUFFIXES, option="figure")
+    fmt_name = path.suffix.lower()[1:]
     metadata = {
         "png": {"Software": f"skewpend {skewpend.__version__}"},
         "svg": {"Date": None, "Creator": f"skewpend {skewpend.__version__}"},
         "pdf": {"CreationDate": None, "Creator": f"skewpend {skewpend.__version__}"},
     }[fmt_name]
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{suffix}", dir=directory)
-    except OSError as exc:
-        raise skewpend.ParameterError(f"cannot write {path}: {exc.strerror or exc}") from None
-    try:
-        with os.fdopen(fd, "wb") as fh, style():
-            fig.savefig(fh, format=fmt_name, dpi=DPI, metadata=metadata)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh, style():
+        fig.savefig(fh, format=fmt_name, dpi=DPI, metadata=metadata)
     return path

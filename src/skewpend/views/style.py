@@ -14,7 +14,7 @@ import math
 from typing import Any, Dict, Iterator, List, Mapping, Optional
 
 __all__ = [
-    "RC", "COLORS", "DPI", "style", "fmt", "parameter_text", "settings_text", "initial_text", "caption",
+    "RC", "COLORS", "SYMBOL", "DPI", "style", "fmt", "parameter_text", "settings_text", "initial_text", "caption",
     "sweep_caption",
 ]
 
