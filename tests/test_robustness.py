@@ -162,7 +162,7 @@ def test_progress_bar_appears_for_long_work_only():
 
     buf = io.StringIO()
     console = Console(file=buf, force_terminal=True, width=100)
-    with ProgressBar("simulating", unit="s", enabled=True, delay=0.2, console=console) as bar:
+    with ProgressBar("simulating", unit="s", enabled=True, delay=0.0, console=console) as bar:
         tr = skewpend.simulate(P, Y0, 400.0, method="gauss", keep=False, progress=bar)
         shown = bar.shown
     assert tr.success and shown and "simulating" in buf.getvalue()

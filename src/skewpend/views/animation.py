@@ -15,8 +15,10 @@ Coordinates: the world basis ``i, j, k`` has ``j`` pointing down.  The plot show
 hinge axis ``k`` is the plot's horizontal ``Y``); see :func:`world_to_plot`.
 
 Rendering is Matplotlib 3-D on an Agg canvas (object-oriented, no pyplot).  The static parts
-(title, legend, panes, roof) are drawn once; each frame restores that background and draws
-only the moving artists.  MP4 goes through the ffmpeg executable that the ``imageio-ffmpeg``
+(title, legend, floor grid, roof, the i, j, k triad) are drawn once; each frame restores that
+background and draws only the moving artists.  The view limits are a cube fixed by the reach
+``a + b`` about the pivot; the framing shows the sphere of that radius below and beside the
+pivot, the floor, and upwards as far as this run's rods and axes go.  MP4 goes through the ffmpeg executable that the ``imageio-ffmpeg``
 wheel ships, GIF through Pillow.  The file appears complete or not at all.
 """
 
@@ -39,6 +41,9 @@ __all__ = [
     "FrameRenderer",
     "world_to_plot",
     "plot_to_world",
+    "choose_view",
+    "check_frame_times",
+    "check_output",
     "SUFFIXES",
     "DEFAULT_SIZE",
     "DEFAULT_DPI",
@@ -63,9 +68,10 @@ HEAD_LENGTH, HEAD_RADIUS, LABEL_GAP = 0.09, 0.028, 0.07
 ARC_RADIUS = 0.55
 #: Rod radius, as a fraction of the reach a + b.
 ROD_RADIUS = 0.022
-#: Default camera (plot coordinates): elevation and azimuth [deg].  Looks at the first axis k
-#: (the plot's Y) at about 48 deg and from 25 deg above, so both hinge axes show their length
-#: and the angle between them.
+#: Default camera (plot coordinates): elevation and azimuth [deg].  Its line of sight makes 43 deg
+#: with the first axis k (the plot's Y), so k shows 68 % of its length, and it is 30 deg above the
+#: horizon, so the angle between k and the horizontal e0 opens up (alpha = 90 deg shows as 56 deg)
+#: while rod 1's swing plane (x, -y) is seen at a slant of 43 deg from its normal.
 DEFAULT_VIEW = (30.0, -58.0)
 #: The camera keeps at least this angle [deg] to each hinge axis (else another view is chosen).
 MIN_VIEW_ANGLE = 25.0
@@ -412,6 +418,9 @@ class FrameRenderer:
         self.geometry = _Geometry(tr, trail)
         self.speed = float(speed)
         g = self.geometry
+        # enough decimals that consecutive frames show different times
+        step = float(np.min(np.diff(g.t))) if g.t.size > 1 else 1.0
+        self.t_decimals = int(min(9, max(3, math.ceil(-math.log10(step)) + 1))) if step > 0 else 3
         R = g.reach
         self.radius = ROD_RADIUS * R
         w, h = self.size
@@ -671,7 +680,7 @@ class FrameRenderer:
 
         # readout
         lines = [
-            f"t = {sc.t:8.3f} s" + (f"   ({self.speed:g}× speed)" if self.speed != 1.0 else ""),
+            f"t = {sc.t:{8 + self.t_decimals - 3}.{self.t_decimals}f} s" + (f"   ({self.speed:g}× speed)" if self.speed != 1.0 else ""),
             f"φ = {_deg_wrapped(sc.phi):+7.1f}°",
             f"ψ = {_deg_wrapped(sc.psi):+7.1f}°",
             f"E = {sc.energy:+.5g} J",
