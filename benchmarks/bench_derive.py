@@ -34,7 +34,7 @@ METHODS = ("skewpend", "kane", "lagrange", "kane+simplify")
 
 def build_skewpend():
     import skewpend
-    from skewpend.derivation import SYMBOLS as S
+    from skewpend.symbolic.derivation import SYMBOLS as S
 
     eom = skewpend.derive()
     names = {n: S[n] for n in ("a", "b", "m1", "m2", "g", "alpha", "phi", "psi", "dphi", "dpsi")}

@@ -152,7 +152,7 @@ def heyoka_script() -> str:
     from sympy.printing.str import StrPrinter
 
     import skewpend
-    from skewpend.derivation import SYMBOLS
+    from skewpend.symbolic.derivation import SYMBOLS
 
     params = skewpend.Parameters(
         a=A, b=B, m1=M1, m2=M2, alpha=ALPHA, g=G, c1=0.0, c2=0.0, tau1=0.0, tau2=0.0

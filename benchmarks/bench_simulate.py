@@ -24,7 +24,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from skewpend import Parameters, simulate
-from skewpend.codegen import generate, parameter_vector
+from skewpend.numeric.codegen import generate, parameter_vector
 
 P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
 Y0 = np.array([1.2, -0.8, 0.0, 0.0])
@@ -79,7 +79,7 @@ def main():
     try:
         import mujoco
 
-        from skewpend.export import mujoco_compatible, to_mjcf
+        from skewpend.interop.export import mujoco_compatible, to_mjcf
 
         same = mujoco_compatible(P)
         model = mujoco.MjModel.from_xml_string(to_mjcf(P, timestep=1e-3))

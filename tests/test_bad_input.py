@@ -415,7 +415,7 @@ def test_validation_refuses_too_many_mujoco_steps_at_once():
 
     from skewpend import Parameters
     from skewpend.errors import ParameterError
-    from skewpend.validation import compare_with_mujoco
+    from skewpend.interop.validation import compare_with_mujoco
 
     p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
     start = time.monotonic()
@@ -433,7 +433,7 @@ def test_export_never_writes_a_non_finite_number(tmp_path):
     the largest allowed ones export finite numbers only."""
     from skewpend import Parameters
     from skewpend.errors import ParameterError
-    from skewpend.export import to_mjcf, to_urdf
+    from skewpend.interop.export import to_mjcf, to_urdf
 
     base = dict(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
     for change in (dict(a=1e308), dict(b=1e101), dict(m1=1e308, a=10.0), dict(m2=1e300, b=1e5)):

@@ -11,8 +11,8 @@ import pytest
 import sympy as sp
 
 from skewpend import Parameters, derive
-from skewpend.derivation import SYMBOLS
-from skewpend.render import to_json
+from skewpend.symbolic.derivation import SYMBOLS
+from skewpend.symbolic.render import to_json
 
 
 def run(*args, check=True):

@@ -12,8 +12,9 @@ import pytest
 import sympy as sp
 
 from skewpend import Parameters, derive
-from skewpend.codegen import PARAMETER_ORDER, generate, kernel_module, parameter_vector
-from skewpend.derivation import SYMBOLS
+from skewpend.numeric.codegen import PARAMETER_ORDER, generate, parameter_vector
+from skewpend.numeric.kernels import kernel_module
+from skewpend.symbolic.derivation import SYMBOLS
 
 GENERAL = Parameters(
     a=1.1, b=0.7, m1=0.9, m2=0.6, g=9.81, c1=0.05, c2=0.02, tau1=0.1, tau2=-0.2,
@@ -162,7 +163,7 @@ def test_parameter_order_is_documented_in_generated_code():
 
 
 def test_kernel_is_cached_on_disk(tmp_path, monkeypatch):
-    import skewpend.compiled as cg
+    import skewpend.numeric.kernels as cg
 
     monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(cg, "_LOADED", {})

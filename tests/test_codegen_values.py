@@ -20,8 +20,8 @@ import sympy as sp
 
 from skewpend import Parameters, derive
 from skewpend.cli import build_parameters
-from skewpend.codegen import PARAMETER_ORDER, generate, parameter_vector
-from skewpend.derivation import SYMBOLS
+from skewpend.numeric.codegen import PARAMETER_ORDER, generate, parameter_vector
+from skewpend.symbolic.derivation import SYMBOLS
 from skewpend.parsing import UsageError
 
 CASES = {

@@ -16,7 +16,7 @@ import sympy as sp
 from scipy.spatial.transform import Rotation
 
 from skewpend import EquilibriumError, ParameterError, Parameters, derive
-from skewpend.derivation import SYMBOLS as S
+from skewpend.symbolic.derivation import SYMBOLS as S
 
 a, b, m1, m2, g, alpha = (S[n] for n in ("a", "b", "m1", "m2", "g", "alpha"))
 phi, psi, dphi, dpsi = (S[n] for n in ("phi", "psi", "dphi", "dpsi"))

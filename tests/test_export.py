@@ -21,9 +21,9 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from skewpend import NotNumericError, ParameterError, Parameters, SkewpendError, derive
-from skewpend.derivation import SYMBOLS
+from skewpend.symbolic.derivation import SYMBOLS
 from skewpend.errors import IntegrationError
-from skewpend.export import (
+from skewpend.interop.export import (
     MujocoMissingError,
     mujoco_compatible,
     mujoco_trajectory,
@@ -403,7 +403,7 @@ def test_unstable_simulation_is_reported(tmp_path, monkeypatch):
 
 
 def test_mujoco_is_imported_lazily_and_its_absence_is_explained(monkeypatch):
-    code = "import sys, skewpend.export; assert 'mujoco' not in sys.modules"
+    code = "import sys, skewpend.interop.export; assert 'mujoco' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)
     monkeypatch.setitem(sys.modules, "mujoco", None)  # makes `import mujoco` fail
     with pytest.raises(MujocoMissingError, match="pip install") as info:

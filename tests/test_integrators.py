@@ -1,8 +1,8 @@
-"""The compiled integrators of the ``_integrators.c`` template: order, accuracy, symplecticity,
+"""The compiled integrators of the ``integrators.c`` template: order, accuracy, symplecticity,
 status, and resumability (the work split into calls does not change a bit of the result).
 
-A library is built exactly as :mod:`skewpend.compiled` builds one -- C ``rhs`` / ``ham_rhs``
-followed by the text of ``_integrators.c`` -- from test problems chosen by ``p[0]``:
+A library is built exactly as :mod:`skewpend.numeric.kernels` builds one -- C ``rhs`` / ``ham_rhs``
+followed by the text of ``integrators.c`` -- from test problems chosen by ``p[0]``:
 
 * 0 -- harmonic oscillator ``q'' = -w^2 q`` (``w = p[1]``), exact solution known;
 * 1 -- pendulum ``q'' = -sin q``, Hamiltonian ``H = p^2/2 - cos q``;
@@ -22,7 +22,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import skewpend
-from skewpend.compiled import State, _compile
+from skewpend.numeric.kernels import State, _compile
 
 HEADER = r"""
 #include <math.h>
@@ -109,7 +109,7 @@ class Integrators:
 
 
 def template_text() -> str:
-    return (Path(skewpend.__file__).parent / "_integrators.c").read_text()
+    return (Path(skewpend.__file__).parent / "numeric" / "integrators.c").read_text()
 
 
 @pytest.fixture(scope="module")

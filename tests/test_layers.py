@@ -27,7 +27,124 @@ def test_help_is_light():
     code = (
         "import sys\nfrom skewpend.cli import main\n"
         "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
-        "print('sympy' in sys.modules, 'numpy' in sys.modules, 'skewpend.compiled' in sys.modules)"
+        "print('sympy' in sys.modules, 'numpy' in sys.modules, 'skewpend.numeric.kernels' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == "False False False"
+
+
+# -- the layers: imports go one way, down ------------------------------------------------------------
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent.parent / "src" / "skewpend"
+#: Higher layers may import lower ones, never the reverse (the package root is the public facade).
+LAYERS = {
+    "errors": 0, "parsing": 0, "io": 0, "progress": 0,
+    "symbolic": 1,
+    "numeric": 2,
+    "analysis": 3,
+    "interop": 4,
+    "views": 5,
+    "cli": 6, "__main__": 6,
+}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _imports(path: Path):
+    """Every intra-package import of a module, lazy ones inside functions included: (target, names)."""
+    name = _module_name(path)
+    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    tree = ast.parse(path.read_text())
+    typing_only = {  # `if TYPE_CHECKING:` imports are annotations, not dependencies
+        id(n) for block in ast.walk(tree)
+        if isinstance(block, ast.If) and getattr(block.test, "id", None) == "TYPE_CHECKING"
+        for n in ast.walk(block)
+    }
+    for node in ast.walk(tree):
+        if id(node) in typing_only:
+            continue
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - (node.level - 1)] if node.level > 1 else package
+                target = ".".join([*base, *(node.module.split(".") if node.module else [])])
+            elif node.module and node.module.split(".")[0] == "skewpend":
+                target = ".".join(node.module.split(".")[1:])
+            else:
+                continue
+            names = [a.name for a in node.names]
+            if not node.module and node.level:  # from . import x: x may be a module
+                for n in names:
+                    sub = f"{target}.{n}" if target else n
+                    if (PACKAGE / sub.replace(".", "/")).with_suffix(".py").exists() or (PACKAGE / sub.replace(".", "/")).is_dir():
+                        yield sub, [n]
+                    else:
+                        yield target, [n]
+            else:
+                yield target, names
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.split(".")[0] == "skewpend":
+                    yield ".".join(alias.name.split(".")[1:]), ["*"]  # the whole facade
+
+
+def _layer(module: str) -> int:
+    return LAYERS[module.split(".")[0]]
+
+
+def _graph():
+    graph = {}
+    for path in PACKAGE.rglob("*.py"):
+        graph[_module_name(path)] = list(_imports(path))
+    return graph
+
+
+def test_every_module_has_a_layer():
+    for module in _graph():
+        if module:  # the package root is the facade
+            assert module.split(".")[0] in LAYERS, f"{module}: add it to a layer"
+
+
+def test_imports_go_down_the_layers():
+    wrong = []
+    for module, imports in _graph().items():
+        if not module:
+            continue
+        for target, names in imports:
+            if target == "":  # the package root: only its version, never the facade
+                if set(names) - {"__version__"}:
+                    wrong.append(f"{module} imports {names} from the package root")
+                continue
+            if _layer(target) > _layer(module):
+                wrong.append(f"{module} (layer {_layer(module)}) imports {target} (layer {_layer(target)})")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_import_cycles():
+    graph = {m: {t for t, _ in imps if t} for m, imps in _graph().items() if m}
+    modules = set(graph)
+
+    def resolve(target):  # a package's __init__ counts as the package
+        return target if target in modules else None
+
+    state, cycle = {}, []
+
+    def visit(m, stack):
+        state[m] = 1
+        for t in sorted(filter(None, map(resolve, graph.get(m, ())))):
+            if state.get(t) == 1:
+                cycle.append(" -> ".join(stack[stack.index(t):] + [t]))
+            elif t not in state:
+                visit(t, stack + [t])
+        state[m] = 2
+
+    for m in sorted(modules):
+        if m not in state:
+            visit(m, [m])
+    assert not cycle, "import cycles:\n" + "\n".join(cycle)

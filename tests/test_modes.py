@@ -11,8 +11,8 @@ import pytest
 import sympy as sp
 
 from skewpend import EquilibriumError, ParameterError, Parameters, simulate
-from skewpend.derivation import SYMBOLS as S
-from skewpend.modes import characteristic_equation, check_nonlinear, normal_modes, parse_sweep, sweep
+from skewpend.symbolic.derivation import SYMBOLS as S
+from skewpend.analysis.modes import characteristic_equation, check_nonlinear, normal_modes, parse_sweep, sweep
 
 EQUAL = dict(a=1.0, b=1.0, m1=1.0, m2=1.0, g=9.81)
 BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)

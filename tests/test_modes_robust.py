@@ -21,7 +21,7 @@ import sympy as sp
 
 from skewpend import ParameterError, Parameters
 from skewpend.cli import main
-from skewpend.modes import normal_modes, parse_sweep, sweep
+from skewpend.analysis.modes import normal_modes, parse_sweep, sweep
 from skewpend.parsing import UsageError, parse_range
 
 BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)

@@ -12,25 +12,27 @@ from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 from .errors import EquilibriumError, IntegrationError, NotNumericError, ParameterError, SkewpendError
-from .model import Parameters
+from .symbolic.model import Parameters
 
 __version__ = "0.1.0"
 
 _LAZY = {
-    "derive": "derivation",
-    "EquationsOfMotion": "derivation",
-    "LinearEquations": "derivation",
-    "simulate": "integrate",
-    "Trajectory": "integrate",
-    "normal_modes": "modes",
-    "Modes": "modes",
-    "sweep": "modes",
-    "characteristic_equation": "modes",
+    "derive": "symbolic.derivation",
+    "EquationsOfMotion": "symbolic.derivation",
+    "LinearEquations": "symbolic.derivation",
+    "SYMBOLS": "symbolic.symbols",
+    "simulate": "numeric.simulation",
+    "Trajectory": "numeric.simulation",
+    "normal_modes": "analysis.modes",
+    "Modes": "analysis.modes",
+    "sweep": "analysis.modes",
+    "characteristic_equation": "analysis.modes",
 }
 
 __all__ = [
     "Parameters",
     "derive",
+    "SYMBOLS",
     "EquationsOfMotion",
     "LinearEquations",
     "simulate",
@@ -48,21 +50,28 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .derivation import EquationsOfMotion, LinearEquations, derive
-    from .integrate import Trajectory, simulate
-    from .modes import Modes, characteristic_equation, normal_modes, sweep
+    from .symbolic.derivation import EquationsOfMotion, LinearEquations, derive
+    from .symbolic.symbols import SYMBOLS
+    from .numeric.simulation import Trajectory, simulate
+    from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
 
 
-#: Submodules reachable as attributes after a plain ``import skewpend`` (imported on first use).
+#: Subpackages (the layers) and modules reachable as attributes after a plain ``import skewpend``
+#: (imported on first use); a module's short name reaches it in its layer (``skewpend.modes`` is
+#: ``skewpend.analysis.modes``).
 _SUBMODULES = {
-    "derivation", "kinematics", "render", "codegen", "kernelgen", "compiled", "integrate", "io", "export",
-    "validation", "modes", "views", "parsing", "progress", "model", "errors",
+    "symbolic": "symbolic", "numeric": "numeric", "analysis": "analysis", "interop": "interop", "views": "views",
+    "model": "symbolic.model", "kinematics": "symbolic.kinematics", "derivation": "symbolic.derivation",
+    "render": "symbolic.render", "symbols": "symbolic.symbols", "codegen": "numeric.codegen",
+    "kernels": "numeric.kernels", "simulation": "numeric.simulation", "modes": "analysis.modes",
+    "export": "interop.export", "validation": "interop.validation", "figures": "views.figures",
+    "io": "io", "parsing": "parsing", "progress": "progress", "errors": "errors", "cli": "cli",
 }
 
 
 def __getattr__(name: str) -> Any:
     if name in _SUBMODULES:
-        return import_module(f".{name}", __name__)
+        return import_module(f".{_SUBMODULES[name]}", __name__)
     if name in _LAZY:
         value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
         globals()[name] = value

@@ -65,7 +65,7 @@ AX2 = Annotated[Optional[str], typer.Option("--axis2", help="axis of hinge 2 wit
 
 def build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, inertia1, inertia2, axis1, axis2):
     """Parameters from command-line strings (validated; errors are SkewpendError)."""
-    from .model import Parameters
+    from .symbolic.model import Parameters
 
     return Parameters(
         a=parse_scalar(a, "--a"),
@@ -159,7 +159,7 @@ def derive(
     zero = {k: "0" for k in ("c1", "c2", "tau1", "tau2") if model.get(k) is None}
     params = build_parameters(**{**model, **zero})
     if fmt in (DeriveFormat.python, DeriveFormat.c, DeriveFormat.javascript):
-        from .codegen import generate
+        from .numeric.codegen import generate
 
         if linear or steps:
             raise UsageError("--linear and --steps go with --format text|latex|json, not with generated code")
@@ -174,8 +174,8 @@ def derive(
             )
         sys.stdout.write(generate(params, fmt.value))
         return
-    from .derivation import derive as derive_eom
-    from . import render
+    from .symbolic.derivation import derive as derive_eom
+    from .symbolic import render
 
     eom = derive_eom(params)
     lin = eom.linearize() if linear else None
@@ -294,7 +294,7 @@ class _Run:
 
 def _build(t: dict, where: dict):
     """Parameters from spelled values, each parsed with the name the user knows it by."""
-    from .model import Parameters
+    from .symbolic.model import Parameters
 
     def w(k):
         return where.get(k, "--" + k)
@@ -376,7 +376,7 @@ def simulate(
     Exit status: 0 done, 1 the run stopped early (what it computed is written), 2 bad input,
     130 interrupted (nothing written).
     """
-    from .integrate import METHODS, MAX_STEPS
+    from .numeric.simulation import METHODS, MAX_STEPS
 
     params, y0, run = _resolve(
         config, model, initial,
@@ -410,7 +410,7 @@ def simulate(
         from .views.figures import FIGURE_SUFFIXES
 
         check_output_path(plot_path, FIGURE_SUFFIXES, option=run.option("simulation", "plot"))
-    from .integrate import simulate as run_simulation
+    from .numeric.simulation import simulate as run_simulation
     from .progress import ProgressBar
 
     with ProgressBar("simulating", unit="s", enabled=None if not quiet else False) as bar:
@@ -449,7 +449,7 @@ def export(
 
     From a --config run file it takes [parameters].
     """
-    from . import export as ex
+    from .interop import export as ex
 
     params, _, _ = _resolve(config, model, {}, {})
     if out is None:
@@ -475,7 +475,7 @@ def validate(
 
     From a --config run file it takes [parameters], [initial] and [simulation] t_end.
     """
-    from .validation import compare_with_mujoco
+    from .interop.validation import compare_with_mujoco
 
     # a run file's [parameters], [initial] and t_end are used; its other [simulation] settings
     # (method, dt, out, ...) are simulate's and do not apply to a comparison with MuJoCo
@@ -535,7 +535,7 @@ def modes(
             raise UsageError("--tolerance sets how close w2/w1 must come to 1, 2, 3 along a --sweep; without --sweep it has no effect")
     elif check_nonlinear is not None:
         raise UsageError("--check-nonlinear measures one parameter set, not a sweep; use it without --sweep")
-    from . import modes as md
+    from .analysis import modes as md
 
     params, _, _ = _resolve(config, given, {}, {})
     if sweep_spec is not None:
@@ -612,8 +612,8 @@ def _modes_latex(given: dict, config: Optional[str]) -> None:
     """The closed form for the parameters given (options over the config's [parameters]);
     the others stay symbolic.  Damping and torques do not enter det(K0 - w^2 M0): refused."""
     from .errors import EquilibriumError
-    from .modes import characteristic_equation
-    from .render import _tex
+    from .analysis.modes import characteristic_equation
+    from .symbolic.render import _tex
 
     run = _Run(config, {"parameters": given}, defaults=False)
     for keys, why in (
@@ -640,7 +640,7 @@ def _modes_latex(given: dict, config: Optional[str]) -> None:
 def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
     import numpy as np
 
-    from . import modes as md
+    from .analysis import modes as md
 
     name, values = md.parse_sweep(spec)
     swept = md.SWEPT_PARAMETER.get(name, name)

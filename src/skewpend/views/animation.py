@@ -32,7 +32,7 @@ from typing import Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-from skewpend import ParameterError, SkewpendError
+from ..errors import ParameterError, SkewpendError
 
 __all__ = [
     "animate",

@@ -23,7 +23,8 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-import skewpend
+from .. import __version__
+from ..errors import ParameterError, SkewpendError
 
 from .style import COLORS, DPI, SYMBOL, caption, fmt, style, sweep_caption
 
@@ -59,7 +60,7 @@ def _figure_class():
         import mpl_toolkits.mplot3d  # noqa: F401  (registers the "3d" projection)
         from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover - depends on the installation
-        raise skewpend.SkewpendError("figures need matplotlib: pip install 'skewpend[plot]'") from None
+        raise SkewpendError("figures need matplotlib: pip install 'skewpend[plot]'") from None
     return Figure
 
 
@@ -74,12 +75,12 @@ def _heading(fig, text: str) -> None:
 
 def _check(tr) -> None:
     if not getattr(tr, "kept", True):
-        raise skewpend.ParameterError(
+        raise ParameterError(
             "this trajectory kept only its first and last rows (simulate(..., keep=False)); figures need "
             "every row: simulate with keep=True (the default) to plot it"
         )
     if len(tr.t) < 2:
-        raise skewpend.ParameterError(f"a figure needs at least two rows of the trajectory, it has {len(tr.t)}")
+        raise ParameterError(f"a figure needs at least two rows of the trajectory, it has {len(tr.t)}")
 
 
 def wrap_angle(x):
@@ -429,15 +430,15 @@ def save_figure(fig, path) -> Path:
     """Write ``fig`` to ``path`` as PNG, SVG or PDF (by the suffix, any case), atomically like
     every file skewpend writes (:func:`skewpend.io.atomic_path`): ``path`` appears only
     complete, with the umask's permissions; on any error (Ctrl-C too) nothing is left behind.
-    An unknown suffix or an unwritable place is a :class:`skewpend.ParameterError`."""
+    An unknown suffix or an unwritable place is a :class:`ParameterError`."""
     from ..io import atomic_path, check_output_path
 
     path = check_output_path(path, FIGURE_SUFFIXES, option="figure")
     fmt_name = path.suffix.lower()[1:]
     metadata = {
-        "png": {"Software": f"skewpend {skewpend.__version__}"},
-        "svg": {"Date": None, "Creator": f"skewpend {skewpend.__version__}"},
-        "pdf": {"CreationDate": None, "Creator": f"skewpend {skewpend.__version__}"},
+        "png": {"Software": f"skewpend {__version__}"},
+        "svg": {"Date": None, "Creator": f"skewpend {__version__}"},
+        "pdf": {"CreationDate": None, "Creator": f"skewpend {__version__}"},
     }[fmt_name]
     with atomic_path(path) as tmp, open(tmp, "wb") as fh, style():
         fig.savefig(fh, format=fmt_name, dpi=DPI, metadata=metadata)

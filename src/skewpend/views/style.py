@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from typing import Any, Dict, Iterator, List, Mapping, Optional
+from typing import Any, Dict, Iterator, List, Mapping
 
 __all__ = [
     "RC", "COLORS", "SYMBOL", "DPI", "style", "fmt", "parameter_text", "settings_text", "initial_text", "caption",

@@ -7,9 +7,9 @@ from typing import Dict, Sequence
 
 import numpy as np
 
-from .errors import IntegrationError, ParameterError
-from .model import Parameters
-from .parsing import initial_state, positive_number
+from ..errors import IntegrationError, ParameterError
+from ..symbolic.model import Parameters
+from ..parsing import initial_state, positive_number
 
 __all__ = ["ValidationReport", "compare_with_mujoco"]
 
@@ -56,7 +56,7 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     Ctrl-C (``KeyboardInterrupt``) stops a long comparison promptly.
     """
     from .export import MAX_MUJOCO_STEPS, _import_mujoco, mujoco_compatible, mujoco_trajectory
-    from .integrate import simulate
+    from ..numeric.simulation import simulate
 
     params.require_numeric("validation")
     y0 = initial_state(y0)

@@ -28,29 +28,13 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import sympy as sp
 
-from .errors import EquilibriumError
+from ..errors import EquilibriumError
 from .kinematics import Algebra, Relation, floats_for_long_rationals
 from .model import GEOMETRY_NAMES, SCALAR_NAMES, Parameters
+from .symbols import SYMBOLS
 
 __all__ = ["derive", "EquationsOfMotion", "LinearEquations", "SYMBOLS"]
 
-_ASSUMPTIONS = {
-    "a": dict(positive=True),
-    "b": dict(positive=True),
-    "m1": dict(positive=True),
-    "m2": dict(positive=True),
-    "alpha": dict(real=True),
-    "g": dict(nonnegative=True),
-    "c1": dict(nonnegative=True),
-    "c2": dict(nonnegative=True),
-    "tau1": dict(real=True),
-    "tau2": dict(real=True),
-}
-
-#: The symbols used in derived expressions, by name: the scalar parameters, the
-#: coordinates ``phi, psi``, the speeds ``dphi, dpsi`` and the accelerations ``ddphi, ddpsi``.
-SYMBOLS: Dict[str, sp.Symbol] = {n: sp.Symbol(n, **_ASSUMPTIONS[n]) for n in SCALAR_NAMES}
-SYMBOLS.update({n: sp.Symbol(n, real=True) for n in ("phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi")})
 
 _SPEEDS = ("dphi", "dpsi")
 

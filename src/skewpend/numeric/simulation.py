@@ -1,6 +1,6 @@
 """Simulation: compiled integrators over the generated right-hand side, in bounded chunks.
 
-``simulate`` runs one of three integrators, written in C (``_integrators.c``) and compiled
+``simulate`` runs one of three integrators, written in C (``integrators.c``) and compiled
 together with the model's generated C (:mod:`skewpend.kernelgen`):
 
 * ``"dop853"`` (default) -- adaptive Dormand-Prince 8(5,3) with 7th-order dense output;
@@ -31,9 +31,9 @@ from typing import Any, Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from .errors import IntegrationError, ParameterError
-from .model import Parameters
-from .parsing import initial_state, positive_number
+from ..errors import IntegrationError, ParameterError
+from ..symbolic.model import Parameters
+from ..parsing import initial_state, positive_number
 
 __all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS"]
 
@@ -90,14 +90,14 @@ class Trajectory:
 
     def tips(self) -> np.ndarray:
         """World positions of the rod ends ``(x1, y1, z1, x2, y2, z2)`` [m], shape (n, 6)."""
-        from .compiled import parameter_vector
+        from .kernels import parameter_vector
 
         return self._kernel.tips_many(self.y, parameter_vector(self.params))
 
     def axes(self) -> np.ndarray:
         """The hinge axes in the world frame at each row: ``(n1, e)`` with ``e = P1 . e0`` the
         second hinge's current axis (it turns with rod 1), shape (n, 6), unit vectors."""
-        from .compiled import parameter_vector
+        from .kernels import parameter_vector
 
         return self._kernel.axes_many(self.y, parameter_vector(self.params))
 
@@ -206,8 +206,8 @@ def simulate(
     writes -- what it computed, with ``status`` and ``message`` set, never NaN rows; with
     ``throw=True`` it raises :class:`~skewpend.errors.IntegrationError` after that.
     """
-    from .compiled import PARAMETER_ORDER, State, kernel_module, parameter_vector
-    from .io import TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
+    from .kernels import PARAMETER_ORDER, State, kernel_module, parameter_vector
+    from ..io import TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
 
     params.require_numeric("simulation")
     y = initial_state(y0)
@@ -380,7 +380,7 @@ def _check_room(rows: float, keep: bool, out) -> None:
                 "of this machine's); stream them to a file with out=..., keep=False, or use a larger dt_out"
             )
     if out is not None:
-        from .io import check_disk_space
+        from ..io import check_disk_space
 
         check_disk_space(out, rows)
 

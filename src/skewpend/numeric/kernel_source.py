@@ -4,7 +4,7 @@ The generated part holds the model's functions (right-hand side, Hamilton's equa
 Jacobian, energy, momenta, rod ends) as ``static`` C functions printed from
 :func:`skewpend.derive`'s expressions with common-subexpression elimination, plus thin
 exported wrappers (``sp_rhs``, ``sp_energies``, ...).  The hand-written, model-independent
-integrators (``_integrators.c``) are appended by :mod:`skewpend.compiled`.
+integrators (``integrators.c``) are appended by :mod:`skewpend.compiled`.
 
 State ``y = (phi, psi, dphi, dpsi, W)`` (``W``: work of ``Q = tau - c q'``), canonical state
 ``z = (phi, psi, p_phi, p_psi, W)``, parameters ``p`` in :data:`PARAMETER_ORDER`.
@@ -16,11 +16,11 @@ from typing import List
 
 import sympy as sp
 
-from . import __version__
+from .. import __version__
 from .codegen import _c_printer, _cse_block, _expressions, _Lang, _param_lines, _used_names
-from .compiled import PARAMETER_ORDER
-from .derivation import SYMBOLS
-from .model import Parameters
+from .conventions import PARAMETER_ORDER
+from ..symbolic.derivation import SYMBOLS
+from ..symbolic.model import Parameters
 
 __all__ = ["kernel_c_source"]
 

@@ -24,8 +24,8 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
-from .model import SCALAR_NAMES, Parameters
+from ..errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
+from ..symbolic.model import SCALAR_NAMES, Parameters
 
 __all__ = [
     "Modes",
@@ -45,7 +45,7 @@ __all__ = [
 def _matrix_function(geometry: Parameters) -> Callable:
     import sympy as sp
 
-    from .derivation import SYMBOLS, derive
+    from ..symbolic.derivation import SYMBOLS, derive
 
     lin = derive(geometry).linearize()
     args = [SYMBOLS[n] for n in SCALAR_NAMES]
@@ -450,7 +450,7 @@ def characteristic_equation(params: Optional[Parameters] = None):
     """
     import sympy as sp
 
-    from .derivation import derive
+    from ..symbolic.derivation import derive
 
     lin = derive(params if params is not None else Parameters()).linearize()
     M, K = lin.M, lin.K
@@ -480,7 +480,7 @@ def parse_sweep(spec: str) -> Tuple[str, np.ndarray]:
     The range follows :func:`skewpend.parsing.parse_range`: a unit on either end (or both)
     applies to the whole range, plain numbers are radians for alpha, mixed units are refused.
     """
-    from .parsing import parse_range
+    from ..parsing import parse_range
 
     if not isinstance(spec, str) or "=" not in spec:
         raise ParameterError(f"--sweep: expected NAME=START:STOP:COUNT (e.g. alpha=0:180deg:181), got {spec!r}")
@@ -699,7 +699,7 @@ def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -
     crosses zero at least once per two linear periods; otherwise a
     :class:`~skewpend.errors.ParameterError` says so.
     """
-    from .integrate import simulate
+    from ..numeric.simulation import simulate
 
     if isinstance(amplitude, bool) or not isinstance(amplitude, (int, float, np.floating)) or not (
         math.isfinite(amplitude) and 0 < amplitude < math.pi

@@ -49,9 +49,9 @@ import os
 from pathlib import Path
 from typing import Optional, Sequence, Tuple, Union
 
-from .errors import IntegrationError, ParameterError, SkewpendError
-from .model import Parameters
-from .parsing import initial_state, positive_number
+from ..errors import IntegrationError, ParameterError, SkewpendError
+from ..symbolic.model import Parameters
+from ..parsing import initial_state, positive_number
 
 __all__ = [
     "FORMATS",
@@ -232,7 +232,7 @@ def _fullinertia(m) -> str:
 
 
 def _header(params: Parameters, fmt: str) -> str:
-    from . import __version__
+    from .. import __version__
 
     values = ", ".join(
         f"{n}={_num(getattr(params, n))}"
@@ -449,7 +449,7 @@ def write_model(
     untouched.  Errors: :class:`~skewpend.errors.ParameterError` (unknown format, missing
     directory, bad option), :class:`~skewpend.errors.NotNumericError`.
     """
-    from .io import atomic_path
+    from ..io import atomic_path
 
     path = Path(path)
     if path.is_dir():

@@ -8,12 +8,15 @@ parameter names.
 from __future__ import annotations
 
 import math
-from typing import Any, Dict, List, Optional
+from typing import TYPE_CHECKING, Any, Dict, List, Optional
 
 import sympy as sp
 
-from . import __version__
-from .derivation import SYMBOLS, EquationsOfMotion, LinearEquations
+from .. import __version__
+from .symbols import SYMBOLS
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only: the derivation imports this module
+    from .derivation import EquationsOfMotion, LinearEquations
 
 __all__ = ["to_text", "to_latex", "to_json", "STEP_TITLES"]
 

@@ -2,8 +2,8 @@
 
 This module does not import SymPy: when the shared library for a model's bodies and axes
 is in the cache, a new process loads it with :mod:`ctypes` in about a millisecond.  On a
-miss, :mod:`skewpend.kernelgen` prints the model's C from the derivation, the integrator
-template ``_integrators.c`` is appended, and the system C compiler (``$CC``, else ``cc``,
+miss, :mod:`skewpend.numeric.kernel_source` prints the model's C from the derivation, the integrator
+template ``integrators.c`` is appended, and the system C compiler (``$CC``, else ``cc``,
 ``gcc`` or ``clang``) builds it -- a fraction of a second.
 
 The cache repairs itself: a library whose recorded SHA-256 does not match, or that does
@@ -25,11 +25,12 @@ import threading
 import time
 import warnings
 from pathlib import Path
-from typing import Dict, Optional, Tuple
+from typing import Dict, Optional
 
-from . import __version__
-from .errors import SkewpendError
-from .model import SCALAR_NAMES, Parameters
+from .. import __version__
+from ..errors import SkewpendError
+from ..symbolic.model import Parameters
+from .conventions import GEOMETRY, PARAMETER_ORDER, STATE_ORDER, geometry_of, parameter_vector
 
 __all__ = [
     "PARAMETER_ORDER",
@@ -43,13 +44,12 @@ __all__ = [
     "CompilerError",
 ]
 
-#: Order of the parameter array ``p`` of every generated routine.
-PARAMETER_ORDER: Tuple[str, ...] = SCALAR_NAMES
-#: Order of the state ``y``.
-STATE_ORDER: Tuple[str, ...] = ("phi", "psi", "dphi", "dpsi")
-_GEOMETRY = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
 #: Files whose text determines the generated library (part of the cache key).
-_SOURCES = ("kernelgen.py", "codegen.py", "derivation.py", "kinematics.py", "_integrators.c", "compiled.py")
+_SOURCES = (
+    "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c",
+    "numeric/kernels.py", "symbolic/derivation.py", "symbolic/kinematics.py", "symbolic/symbols.py",
+)
+_PACKAGE = Path(__file__).resolve().parent.parent
 #: Compiler flags: no floating-point contraction, so results do not depend on FMA availability.
 CFLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
 SP_NMAX = 8
@@ -57,21 +57,6 @@ SP_NMAX = 8
 
 class CompilerError(SkewpendError, RuntimeError):
     """No working C compiler, or the generated kernel did not compile."""
-
-
-def geometry_of(params: Parameters) -> Parameters:
-    """The same bodies and axes with every scalar parameter symbolic (a runtime input)."""
-    return Parameters(**{k: getattr(params, k) for k in _GEOMETRY}, **{k: None for k in SCALAR_NAMES})
-
-
-def parameter_vector(params: Parameters):
-    """The float64 parameter array ``p`` in :data:`PARAMETER_ORDER` (``alpha`` = 0 when unused)."""
-    import numpy as np
-
-    params.require_numeric("numeric evaluation")
-    return np.array(
-        [0.0 if (n == "alpha" and not params.uses_alpha) else float(getattr(params, n)) for n in PARAMETER_ORDER]
-    )
 
 
 def cache_dir() -> Path:
@@ -85,7 +70,7 @@ def cache_dir() -> Path:
 
 
 class State(ctypes.Structure):
-    """Mirror of ``sp_state`` in ``_integrators.c``: everything an integrator needs to resume."""
+    """Mirror of ``sp_state`` in ``integrators.c``: everything an integrator needs to resume."""
 
     _fields_ = [
         ("t", ctypes.c_double),
@@ -179,7 +164,7 @@ class Kernel:
     ``energy(y, p) -> float``, ``momenta``, ``velocities``, ``tips``; row functions
     ``energies(ys, p)``, ``tips_many(ys, p)``, ``speeds_many(zs, p)``.  The raw resumable
     integrators are ``lib.sp_dop853``, ``lib.sp_rk4`` and ``lib.sp_gauss`` (see
-    ``_integrators.c``), driven by :mod:`skewpend.integrate`.
+    ``integrators.c``), driven by :mod:`skewpend.numeric.simulation`.
 
     ``origin`` says where it came from: ``"compiled"`` (built in this process, taking
     ``build_time`` seconds) or ``"cache"``.
@@ -287,7 +272,7 @@ class Kernel:
 # -- the cache ----------------------------------------------------------------------------------------
 _LOCK = threading.Lock()
 _LOADED: Dict[str, Kernel] = {}
-_BY_GEOMETRY: Dict[str, Kernel] = {}
+_BYGEOMETRY: Dict[str, Kernel] = {}
 _SOURCE_DIGEST: Optional[str] = None
 _FALLBACK_DIR: Optional[Path] = None
 
@@ -302,7 +287,7 @@ def _source_digest() -> str:
         h.update(platform.machine().encode())
         h.update(sys.platform.encode())
         for name in _SOURCES:
-            h.update(Path(__file__).with_name(name).read_bytes())
+            h.update((_PACKAGE / name).read_bytes())
         _SOURCE_DIGEST = h.hexdigest()
     return _SOURCE_DIGEST
 
@@ -360,15 +345,15 @@ def kernel_module(params: Parameters) -> Kernel:
     Loaded from the cache when there; otherwise generated from the derivation, compiled
     and cached (atomically: a killed build leaves no partial library behind).
     """
-    gkey = repr([getattr(params, k) for k in _GEOMETRY])
-    kernel = _BY_GEOMETRY.get(gkey)
+    gkey = repr([getattr(params, k) for k in GEOMETRY])
+    kernel = _BYGEOMETRY.get(gkey)
     if kernel is not None:
         return kernel
     geometry = geometry_of(params)
     key = _key(repr(geometry.to_dict()))
     with _LOCK:
         if key in _LOADED:
-            _BY_GEOMETRY[gkey] = _LOADED[key]
+            _BYGEOMETRY[gkey] = _LOADED[key]
             return _LOADED[key]
         directory = cache_dir() / "kernels"
         path = directory / f"skewpend_{key}.so"
@@ -383,11 +368,11 @@ def kernel_module(params: Parameters) -> Kernel:
             directory = _writable_directory()
             path = directory / f"skewpend_{key}.so"
             _remove_stale_temporaries(directory)
-            from .kernelgen import kernel_c_source
+            from .kernel_source import kernel_c_source
 
-            source = kernel_c_source(geometry) + "\n" + Path(__file__).with_name("_integrators.c").read_text()
+            source = kernel_c_source(geometry) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
             _compile(source, path)
             kernel = Kernel(path, "compiled", time.perf_counter() - start)
         _LOADED[key] = kernel
-        _BY_GEOMETRY[gkey] = kernel
+        _BYGEOMETRY[gkey] = kernel
         return kernel

@@ -4,7 +4,7 @@ Every numeric function skewpend runs, and the standalone Python, C and JavaScrip
 user can take away, is printed here from :func:`skewpend.derive`'s expressions
 with common-subexpression elimination.  No equation of motion is typed by hand;
 the only hand-written numerics are the 2x2 linear solve ``M q'' = f`` and the
-integrators (``_integrators.c``); the C the simulations compile is printed by
+integrators (``integrators.c``); the C the simulations compile is printed by
 :mod:`skewpend.kernelgen` with the helpers below.
 
 Conventions shared by every generated routine:
@@ -22,19 +22,18 @@ from typing import Callable, List, Sequence, Tuple
 
 import sympy as sp
 
-from . import __version__
-from .derivation import SYMBOLS, derive
-from .model import Parameters
+from .. import __version__
+from ..symbolic.derivation import SYMBOLS, derive
+from ..symbolic.model import Parameters
 
 __all__ = [
     "PARAMETER_ORDER",
     "STATE_ORDER",
     "generate",
-    "kernel_module",
     "parameter_vector",
 ]
 
-from .compiled import PARAMETER_ORDER, STATE_ORDER, geometry_of, kernel_module, parameter_vector
+from .conventions import PARAMETER_ORDER, STATE_ORDER, geometry_of, parameter_vector
 
 
 # -- the expressions to print -------------------------------------------------------------------
@@ -160,7 +159,7 @@ def generate(params: Parameters, language: str) -> str:
     to 0).  Some but not all of them numeric is refused (:class:`~skewpend.parsing.UsageError`),
     as is a symbolic name in the geometry, which the code could not read from ``p``.
     """
-    from .errors import ParameterError
+    from ..errors import ParameterError
 
     langs = {"python": _standalone_python, "c": _standalone_c, "javascript": _standalone_js}
     if language not in langs:
@@ -177,7 +176,7 @@ _CORE_SCALARS = ("a", "b", "m1", "m2", "alpha", "g")
 
 def _check_geometry_numeric(geometry: Parameters) -> None:
     """Refuse symbol names in bodies and axes: generated code reads only ``p`` (scalars)."""
-    from .parsing import UsageError
+    from ..parsing import UsageError
 
     extra = [n for n in geometry.symbolic_names if n not in PARAMETER_ORDER]
     if extra:
@@ -190,7 +189,7 @@ def _check_geometry_numeric(geometry: Parameters) -> None:
 def _default_vector(params: Parameters):
     """The numeric parameter vector in :data:`PARAMETER_ORDER` to bake in as the default ``p``,
     or ``None`` when the scalars are left to run time; partial values are refused."""
-    from .parsing import UsageError
+    from ..parsing import UsageError
 
     core = [n for n in _CORE_SCALARS if n != "alpha" or params.uses_alpha]
     given = [n for n in core if getattr(params, n) is not None]

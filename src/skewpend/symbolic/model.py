@@ -20,7 +20,7 @@ import numbers
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Mapping, Optional, Tuple
 
-from .errors import ParameterError
+from ..errors import ParameterError
 
 __all__ = ["Parameters", "SCALAR_NAMES", "GEOMETRY_NAMES", "RESERVED_NAMES", "Vec3", "Mat3"]
 
@@ -302,7 +302,7 @@ class Parameters:
 
     def require_numeric(self, what: str = "this operation") -> "Parameters":
         """Return self, or raise :class:`NotNumericError` naming the symbolic parameters."""
-        from .errors import NotNumericError
+        from ..errors import NotNumericError
 
         if not self.is_numeric:
             raise NotNumericError(

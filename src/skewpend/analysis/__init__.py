@@ -1,0 +1,1 @@
+"""Analyses of the motion built on the symbolic and numeric layers: normal modes and sweeps."""

@@ -1,0 +1,1 @@
+"""Other engines and formats: MJCF/URDF export and the validation against MuJoCo."""
