@@ -18,7 +18,7 @@ from .errors import SkewpendError
 
 app = typer.Typer(
     name="skewpend",
-    help="The double pendulum with skewed hinge axes: derive its equations of motion, simulate, validate against MuJoCo, analyse its normal modes.",
+    help="The double pendulum with skewed hinge axes: derive its equations of motion, simulate, animate, validate against MuJoCo, analyse its normal modes.",
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -339,6 +339,22 @@ def _positive_setting(run: "_Run", key: str) -> float:
 _MAX_STEP_CAP = 10**15
 
 
+def _integration(run: "_Run"):
+    """The method and step cap of a run; a tolerance or step that does not apply is refused."""
+    from .numeric.simulation import MAX_STEPS, METHODS
+
+    method_name = run.values["simulation"].get("method", "dop853")
+    if not isinstance(method_name, str) or method_name not in METHODS:
+        raise UsageError(f"{run.option('simulation', 'method')}: expected one of {', '.join(METHODS)}, got {method_name!r}")
+    for key in ("rtol", "atol"):
+        if method_name != "dop853" and run.is_given("simulation", key):
+            raise UsageError(f"{run.option('simulation', key)} is a tolerance of dop853; {method_name} takes fixed steps (set --dt)")
+    if method_name == "dop853" and run.is_given("simulation", "dt"):
+        raise UsageError(f"{run.option('simulation', 'dt')} is the step of rk4 and gauss; dop853 chooses its own steps (set --rtol/--atol)")
+    steps = _step_cap(run) if run.is_given("simulation", "max_steps") else MAX_STEPS
+    return method_name, steps
+
+
 def _step_cap(run: "_Run") -> int:
     where = run.option("simulation", "max_steps")
     text = run.text("simulation", "max_steps")
@@ -376,22 +392,13 @@ def simulate(
     Exit status: 0 done, 1 the run stopped early (what it computed is written), 2 bad input,
     130 interrupted (nothing written).
     """
-    from .numeric.simulation import METHODS, MAX_STEPS
-
     params, y0, run = _resolve(
         config, model, initial,
         dict(t_end=t_end, dt_out=dt_out, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt,
              max_steps=max_steps, out=out, plot=plot),
     )
     S = run.values["simulation"]
-    method_name = S.get("method", "dop853")
-    if not isinstance(method_name, str) or method_name not in METHODS:
-        raise UsageError(f"{run.option('simulation', 'method')}: expected one of {', '.join(METHODS)}, got {method_name!r}")
-    for key in ("rtol", "atol"):
-        if method_name != "dop853" and run.is_given("simulation", key):
-            raise UsageError(f"{run.option('simulation', key)} is a tolerance of dop853; {method_name} takes fixed steps (set --dt)")
-    if method_name == "dop853" and run.is_given("simulation", "dt"):
-        raise UsageError(f"{run.option('simulation', 'dt')} is the step of rk4 and gauss; dop853 chooses its own steps (set --rtol/--atol)")
+    method_name, steps = _integration(run)
     out_path = S.get("out")
     if out_path is not None and not isinstance(out_path, str):
         raise UsageError(f"{run.option('simulation', 'out')}: expected a file name, got {out_path!r}")
@@ -400,7 +407,6 @@ def simulate(
         raise UsageError(f"{run.option('simulation', 'plot')}: expected a file name, got {plot_path!r}")
     if out_path is None and plot_path is None and run.is_given("simulation", "dt_out"):
         raise UsageError(f"{run.option('simulation', 'dt_out')} sets the rows written to --out or drawn by --plot; give --out FILE.csv|.nc or --plot FILE.png too")
-    steps = _step_cap(run) if run.is_given("simulation", "max_steps") else MAX_STEPS
     if out_path is not None:
         from .io import TRAJECTORY_SUFFIXES, check_output_path
 
@@ -429,6 +435,78 @@ def simulate(
     if not traj.success:
         written = f"; wrote the {traj.stats['rows']} rows computed to {out_path}" if out_path else ""
         sys.stderr.write(f"skewpend: simulation {traj.message} at t = {traj.t[-1]:.6g} s{written}\n")
+        sys.exit(1)
+
+
+@app.command()
+@_options(MODEL_OPTIONS, INITIAL_OPTIONS)
+def animate(
+    model: dict,
+    initial: dict,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="the video: FILE.mp4 (H.264) or FILE.gif (required)", rich_help_panel=_R)] = None,
+    t_end: Annotated[Optional[str], typer.Option("--t-end", help="seconds of motion (default 20); the video lasts t_end/speed", rich_help_panel=_R)] = None,
+    fps: Annotated[Optional[str], typer.Option("--fps", help="frames per second of the video (default 30)", rich_help_panel=_R)] = None,
+    speed: Annotated[Optional[str], typer.Option("--speed", help="seconds of motion per second of video (default 1; 0.5 = slow motion)", rich_help_panel=_R)] = None,
+    trail: Annotated[Optional[str], typer.Option("--trail", help="seconds of motion the fading trail of rod 2's tip covers (default 2; 0 = none)", rich_help_panel=_R)] = None,
+    size: Annotated[Optional[str], typer.Option("--size", help="frame size WIDTHxHEIGHT in pixels (default 640x480; even for MP4)", rich_help_panel=_R)] = None,
+    method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853, whose dense output gives the frames)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
+    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only; speed/fps must be a multiple of it", rich_help_panel=_R)] = None,
+    max_steps: Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)] = None,
+    quiet: QUIET = False,
+    config: CONFIG = None,
+) -> None:
+    """Simulate and write a 3D animation (MP4 or GIF): solid rods, both hinge axes, the tip's trail,
+    a readout of time, angles and energy; one frame per row at the exact frame times k*speed/fps.
+
+    Exit status: 0 done, 1 the run stopped early (the frames computed are written), 2 bad input,
+    130 interrupted (nothing written).
+    """
+    params, y0, run = _resolve(
+        config, model, initial,
+        dict(t_end=t_end, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt, max_steps=max_steps),
+    )
+    method_name, steps = _integration(run)
+    for key in ("dt_out", "out", "plot"):
+        if run.is_given("simulation", key):
+            raise UsageError(f"{run.option('simulation', key)} does not apply to animate: the frames are the rows (dt_out = speed/fps), written to --out")
+    fps_v = 30.0 if fps is None else _positive(fps, "--fps")
+    speed_v = 1.0 if speed is None else _positive(speed, "--speed")
+    from .views.animation import DEFAULT_SIZE, DEFAULT_TRAIL, check_output
+
+    trail_v = DEFAULT_TRAIL
+    if trail is not None:
+        trail_v = parse_scalar(trail, "--trail")
+        if trail_v is None or not trail_v >= 0:
+            raise UsageError(f"--trail: expected a number of seconds >= 0, got {trail!r}")
+    size_v = DEFAULT_SIZE
+    if size is not None:
+        try:
+            size_v = tuple(int(v) for v in size.lower().replace("×", "x").split("x"))
+            if len(size_v) != 2:
+                raise ValueError
+        except ValueError:
+            raise UsageError(f"--size: expected WIDTHxHEIGHT in pixels (e.g. 640x480), got {size!r}") from None
+    if out is None:
+        raise UsageError("--out: give the video file, FILE.mp4 or FILE.gif")
+    check_output(out)  # suffix, directory: refused before any work
+    from .numeric.simulation import simulate as run_simulation
+    from .progress import ProgressBar
+    from .views.animation import animate as write_animation
+
+    with ProgressBar("simulating", unit="s", enabled=None if not quiet else False) as bar:
+        traj = run_simulation(
+            params, y0, _setting(run, "t_end"), dt_out=speed_v / fps_v, method=method_name,
+            rtol=_setting(run, "rtol"), atol=_setting(run, "atol"), dt=_setting(run, "dt"),
+            max_steps=steps, progress=bar,
+        )
+    with ProgressBar("rendering", unit="frames", enabled=None if not quiet else False) as bar:
+        write_animation(traj, out, fps=fps_v, speed=speed_v, trail=trail_v, size=size_v, progress=bar)
+    n = traj.t.size
+    sys.stdout.write(f"wrote {out}: {n} frames, {n / fps_v:.2f} s at {fps_v:g} fps, {traj.t[-1]:.6g} s of motion ({speed_v:g}x)\n")
+    if not traj.success:
+        sys.stderr.write(f"skewpend: simulation {traj.message} at t = {traj.t[-1]:.6g} s; animated the frames computed\n")
         sys.exit(1)
 
 

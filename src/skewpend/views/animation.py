@@ -342,7 +342,7 @@ def _figure_module():
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover - depends on the installation
-        raise SkewpendError("animations need matplotlib: pip install 'skewpend[animate]'") from None
+        raise SkewpendError("animations need matplotlib (a dependency of skewpend): pip install matplotlib") from None
     return Figure, FigureCanvasAgg
 
 
@@ -815,7 +815,7 @@ def _ffmpeg():
     except ImportError:
         raise SkewpendError(
             "MP4 output needs the ffmpeg that the imageio-ffmpeg wheel ships: pip install imageio-ffmpeg "
-            "(or pip install 'skewpend[animate]'); or write a .gif"
+            "(a dependency of skewpend); or write a .gif"
         ) from None
     return imageio_ffmpeg
 

@@ -12,7 +12,7 @@ trajectory); rod ends [m].  The 3D view plots the world point ``(x, y, z)`` at
 ``(x, z, -y)``: the world's ``j`` (``y``) points down, so ``-y`` is drawn upwards and the
 pendulum hangs down from its pivot; ``z`` is the first hinge axis ``k``.
 
-Needs matplotlib (``pip install 'skewpend[plot]'``), imported on first use.
+Needs matplotlib (a dependency of skewpend), imported on first use.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def _figure_class():
         import mpl_toolkits.mplot3d  # noqa: F401  (registers the "3d" projection)
         from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover - depends on the installation
-        raise SkewpendError("figures need matplotlib: pip install 'skewpend[plot]'") from None
+        raise SkewpendError("figures need matplotlib (a dependency of skewpend): pip install matplotlib") from None
     return Figure
 
 
