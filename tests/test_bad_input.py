@@ -181,6 +181,21 @@ case("export-format-unknown", ["export", "--format", "sdf"], "--format", "mjcf")
 case("export-unknown-option", ["export", "--linear"], "--linear")
 case("export-config-missing", ["export", "--config", "missing.toml"], "missing.toml", "does not exist")
 
+# -- animate --------------------------------------------------------------------------------------------------
+case("animate-no-out", ["animate"], "--out", ".mp4")
+case("animate-out-avi", ["animate", "--out", "m.avi"], ".avi", ".mp4")
+case("animate-out-missing-dir", ["animate", "--out", "nodir/m.mp4"], "nodir")
+case("animate-fps-zero", ["animate", "--fps", "0", "--out", "m.gif"], "--fps", "positive")
+case("animate-fps-sym", ["animate", "--fps", "sym", "--out", "m.gif"], "--fps")
+case("animate-speed-negative", ["animate", "--speed", "-1", "--out", "m.gif"], "--speed", "positive")
+case("animate-trail-negative", ["animate", "--trail", "-2", "--out", "m.gif"], "--trail", ">= 0")
+case("animate-size-words", ["animate", "--size", "big", "--out", "m.gif"], "--size", "WIDTHxHEIGHT")
+case("animate-size-odd-mp4", ["animate", "--size", "641x480", "--out", "m.mp4"], "641")
+case("animate-dt-with-dop853", ["animate", "--dt", "0.01", "--out", "m.gif"], opt("dt"), "rk4")
+case("animate-rtol-with-rk4", ["animate", "--method", "rk4", "--rtol", "1e-6", "--out", "m.gif"], opt("rtol"), "dop853")
+case("animate-t-end-zero", ["animate", "--t-end", "0", "--out", "m.gif"], "--t-end", "positive")
+case("animate-alpha-with-axis2", ["animate", "--alpha", "1", "--axis2", "1,0,1", "--out", "m.gif"], "not both")
+
 # -- validate -------------------------------------------------------------------------------------------------
 case("validate-dt-zero", ["validate", "--dt", "0"], opt("dt"), "positive")
 case("validate-dt-negative", ["validate", "--dt", "-1e-4"], opt("dt"), "positive")
