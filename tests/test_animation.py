@@ -200,7 +200,7 @@ def test_camera_does_not_look_along_a_hinge_axis():
 
 @pytest.mark.parametrize("name", ["motion.avi", "motion", "motion.mp4.txt"])
 def test_bad_suffix_is_refused_and_no_file_is_left(clip, tmp_path, name):
-    with pytest.raises(skewpend.ParameterError, match=r"\.mp4, \.gif"):
+    with pytest.raises(skewpend.ParameterError, match=r"\.mp4 or \.gif"):
         animate(clip, tmp_path / name, fps=FPS, size=SIZE)
     assert _files(tmp_path) == []
 

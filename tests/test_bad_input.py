@@ -397,7 +397,7 @@ def test_bad_input_is_refused_in_one_line(argv, fragments, files, tmp_path, monk
 def test_the_battery_is_large():
     assert len(_CASES) >= 120
     commands = {p.values[0][0] for p in _CASES}
-    assert commands == {"derive", "simulate", "export", "validate", "modes"}
+    assert commands == {"derive", "simulate", "animate", "export", "validate", "modes"}
 
 
 # -- the real process -----------------------------------------------------------------------------------------

@@ -489,6 +489,22 @@ def _import_mujoco():
     return mujoco
 
 
+def mujoco_steps(t_end: float, dt: float) -> int:
+    """The number of MuJoCo steps ``t_end / dt``: a whole number, at most :data:`MAX_MUJOCO_STEPS`."""
+    t_end = positive_number("t_end (--t-end)", t_end)
+    dt = positive_number("dt (--dt)", dt)
+    n_float = t_end / dt
+    if not n_float <= MAX_MUJOCO_STEPS:
+        raise ParameterError(
+            f"t_end/dt = {n_float:.4g} MuJoCo steps (t_end = {t_end:g} s, dt = {dt:g} s) is more than the "
+            f"{MAX_MUJOCO_STEPS:.0e} allowed; use a shorter t_end (--t-end) or a larger dt (--dt)"
+        )
+    nsteps = int(round(n_float))
+    if nsteps < 1 or abs(nsteps * dt - t_end) > 1e-9 * t_end:
+        raise ParameterError(f"t_end ({t_end:g} s, --t-end) must be a whole number of MuJoCo steps dt ({dt:g} s, --dt)")
+    return nsteps
+
+
 def mujoco_trajectory(
     params: Parameters,
     y0: Sequence[float],
@@ -525,15 +541,7 @@ def mujoco_trajectory(
     t_end = positive_number("t_end", t_end)
     dt = positive_number("dt", dt)
     integrator = _integrator(integrator)
-    n_float = t_end / dt
-    if not n_float <= MAX_MUJOCO_STEPS:
-        raise ParameterError(
-            f"t_end/dt = {n_float:.4g} MuJoCo steps (t_end = {t_end:g} s, dt = {dt:g} s) is more than the "
-            f"{MAX_MUJOCO_STEPS:.0e} allowed; use a shorter t_end or a larger dt"
-        )
-    nsteps = int(round(n_float))
-    if nsteps < 1 or abs(nsteps * dt - t_end) > 1e-9 * t_end:
-        raise ParameterError(f"t_end ({t_end:g}) must be a whole number of steps dt ({dt:g})")
+    nsteps = mujoco_steps(t_end, dt)
     if n_out is None:
         marks = np.arange(nsteps + 1)
     else:

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import IntegrationError, ParameterError
 from ..symbolic.model import Parameters
-from ..parsing import initial_state, positive_number
+from ..parsing import initial_state
 
 __all__ = ["ValidationReport", "compare_with_mujoco"]
 
@@ -55,7 +55,7 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     :class:`~skewpend.errors.ParameterError`.  MuJoCo is stepped in bounded chunks, so
     Ctrl-C (``KeyboardInterrupt``) stops a long comparison promptly.
     """
-    from .export import MAX_MUJOCO_STEPS, _import_mujoco, mujoco_compatible, mujoco_trajectory
+    from .export import _import_mujoco, mujoco_compatible, mujoco_steps, mujoco_trajectory
     from ..numeric.simulation import simulate
 
     params.require_numeric("validation")
@@ -63,17 +63,7 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     for name, value in (("t_end (--t-end)", t_end), ("dt (--dt)", dt)):
         if value is None:
             raise ParameterError(f"{name} must be a positive number of seconds, not symbolic")
-    t_end = positive_number("t_end (--t-end)", t_end)
-    dt = positive_number("dt (--dt)", dt)
-    n_float = t_end / dt
-    if not n_float <= MAX_MUJOCO_STEPS:
-        raise ParameterError(
-            f"t_end/dt = {n_float:.4g} MuJoCo steps (t_end = {t_end:g} s, dt = {dt:g} s) is more than the "
-            f"{MAX_MUJOCO_STEPS:.0e} a validation may take; use a shorter t_end (--t-end) or a larger dt (--dt)"
-        )
-    nsteps = int(round(n_float))
-    if nsteps < 1 or abs(nsteps * dt - t_end) > 1e-9 * t_end:
-        raise ParameterError(f"t_end ({t_end:g} s, --t-end) must be a whole number of MuJoCo steps dt ({dt:g} s, --dt)")
+    nsteps = mujoco_steps(t_end, dt)
     mujoco = _import_mujoco()
     n_seg = _segments(max(nsteps, 1))
     t_mj, y_mj = mujoco_trajectory(params, y0, t_end, dt=dt, n_out=n_seg + 1)

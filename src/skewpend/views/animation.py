@@ -784,21 +784,9 @@ def check_frame_times(t, fps: float, speed: float) -> None:
 
 def check_output(out) -> Path:
     """The output path: a known suffix, not a directory, in an existing writable directory."""
-    path = Path(out)
-    suffix = path.suffix.lower()
-    if suffix not in SUFFIXES:
-        got = f"suffix {path.suffix!r}" if path.suffix else "no suffix"
-        raise ParameterError(f"animation output {str(path)!r}: {got}; allowed suffixes: {', '.join(SUFFIXES)}")
-    if path.is_dir():
-        raise ParameterError(f"animation output {path} is a directory; give a file name ending in {' or '.join(SUFFIXES)}")
-    if path.exists() and not path.is_file():
-        raise ParameterError(f"animation output {path} exists and is not a regular file")
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise ParameterError(f"cannot write {path}: directory {directory} does not exist")
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise ParameterError(f"cannot write {path}: directory {directory} is not writable")
-    return path
+    from ..io import check_output_path
+
+    return check_output_path(out, SUFFIXES, option="animation output")
 
 
 def _tmp_name(path: Path) -> Path:
