@@ -18,7 +18,7 @@ from .errors import SkewpendError
 
 app = typer.Typer(
     name="skewpend",
-    help="The double pendulum with skewed hinge axes: derive its equations of motion, simulate, animate, validate against MuJoCo, analyse its normal modes.",
+    help="The double pendulum with skewed hinge axes: a self-contained HTML report (skewpend report), the equations of motion, simulation, animation, validation against MuJoCo, normal modes.",
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -508,6 +508,58 @@ def animate(
     if not traj.success:
         sys.stderr.write(f"skewpend: simulation {traj.message} at t = {traj.t[-1]:.6g} s; animated the frames computed\n")
         sys.exit(1)
+
+
+# -- report -----------------------------------------------------------------------------------------------
+@app.command()
+@_options(MODEL_OPTIONS, INITIAL_OPTIONS)
+def report(
+    model: dict,
+    initial: dict,
+    t_end: Annotated[Optional[str], typer.Option("--t-end", help="simulated time [s] (default 20, at most 1000)", rich_help_panel=_R)] = None,
+    method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
+    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only (default 1e-3)", rich_help_panel=_R)] = None,
+    max_steps: Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)] = None,
+    out: Annotated[str, typer.Option("--out", "-o", help="the HTML file to write (default report.html)")] = "report.html",
+    quiet: QUIET = False,
+    config: CONFIG = None,
+) -> None:
+    """Write one self-contained HTML report (opens offline): the system, the derivation step by step,
+    the check against the specification at alpha = 0, normal modes against alpha, a simulation with
+    figures and an animation, the comparison with MuJoCo (when installed), how it was made.
+
+    From a --config run file it takes [parameters], [initial] and the integrator settings of
+    [simulation]; simulate's outputs there (out, dt_out, plot) do not apply to a report.
+    """
+    import shlex
+    import time
+
+    from .io import check_output_path
+    from .views.report import MAX_T_END, REPORT_SUFFIXES, build_report
+
+    started = time.perf_counter()
+    run = _Run(config, {"parameters": model, "initial": initial, "simulation": dict(
+        t_end=t_end, method=method.value if method else None, rtol=rtol, atol=atol, dt=dt, max_steps=max_steps)})
+    params, y0 = run.parameters(), run.initial_state()
+    method_name, steps = _integration(run)
+    horizon = _setting(run, "t_end")
+    if horizon > MAX_T_END:
+        raise UsageError(f"{run.option('simulation', 't_end')}: a report draws at most {MAX_T_END:g} s of motion, got {horizon:g}; "
+                         "use skewpend simulate --out for long runs")
+    check_output_path(out, REPORT_SUFFIXES, option="--out")
+    from .progress import ProgressBar
+
+    with ProgressBar("writing the report", unit="parts", enabled=None if not quiet else False) as bar:
+        path = build_report(
+            params, y0=y0, t_end=horizon, method=method_name,
+            rtol=_setting(run, "rtol"), atol=_setting(run, "atol"), dt=_setting(run, "dt"),
+            max_steps=steps, out=out, progress=bar,
+            command="skewpend " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+        )
+    size = path.stat().st_size
+    sys.stdout.write(f"wrote {path.resolve()} ({size / 1e6:.1f} MB) in {time.perf_counter() - started:.1f} s\n")
 
 
 class ExportFormat(str, Enum):

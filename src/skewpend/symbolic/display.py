@@ -18,9 +18,13 @@ JSON contract use: at ``alpha = 0`` the rotation tensor's first entry is
   angle and must vanish exactly (a normal form: zero only for an identity); expressions with
   floating-point numbers, where that exact test does not apply, must agree to 1e-12 at random
   points instead;
-* ``budget`` seconds bound the work per entry: the cheap candidates are always tried, the
-  expensive ones only while the entry's time lasts (SymPy cannot be interrupted, so the
-  budget is checked between candidates and ``trigsimp`` is not tried on large entries).
+* among the shorter candidates the shortest wins, except that a sum grouped by products of
+  the parameters, as the specification writes its energies, is preferred when it is at most
+  :data:`GROUPED_BONUS` operations longer;
+* the work per entry is bounded by its size (``trigsimp`` only for small entries, the
+  product-to-sum route for moderate ones), so the result is the same on every machine; and,
+  as a safety net for unusually large entries, by ``budget`` seconds (SymPy cannot be
+  interrupted: the budget is checked between candidates, the cheap ones are always tried).
 
 Nothing here changes what the numeric code uses: results are new expressions, and the
 derivation's own ones are left as they are.
@@ -33,14 +37,18 @@ import time
 from typing import Dict, Iterable, List, Optional
 
 import sympy as sp
-from sympy.simplify.fu import TR10i
+from sympy.simplify.fu import TR8, TR10i
 
 __all__ = ["display_form", "display_matrix", "display_steps", "proven_equal", "cost", "DEFAULT_BUDGET"]
 
-#: Seconds of candidates per entry (cheap candidates are always tried).
-DEFAULT_BUDGET = 0.25
+#: Seconds of candidates per entry: a safety net for unusually large entries only (the cheap
+#: candidates are always tried; which others are tried is decided by the entry's size, below,
+#: so that the result does not depend on the machine's speed or load).
+DEFAULT_BUDGET = 2.0
+#: Products are turned into sums (TR8) and folded back only for entries of at most this many operations.
+FOLD_MAX_OPS = 60
 #: ``trigsimp`` is tried only on entries of at most this many operations (it grows badly).
-TRIGSIMP_MAX_OPS = 32
+TRIGSIMP_MAX_OPS = 20
 #: Relative agreement required at random points when the exact test does not apply.
 NUMERIC_TOLERANCE = 1e-12
 
@@ -50,15 +58,15 @@ def _multiple_angles(expr: sp.Basic) -> int:
     """Trigonometric functions of a multiple angle (``cos(2 phi)``, ``sin(2 (phi + psi))``)."""
     n = 0
     for f in expr.atoms(sp.sin, sp.cos):
-        coeff, _ = f.args[0].as_coeff_Mul()
+        coeff, _ = sp.factor_terms(f.args[0]).as_coeff_Mul()
         if coeff != 1 and coeff != -1:
             n += 1
     return n
 
 
 def cost(expr: sp.Basic) -> int:
-    """How long an expression reads: ``count_ops`` plus 2 per multiple-angle function."""
-    return int(sp.count_ops(expr)) + 2 * _multiple_angles(expr)
+    """How long an expression reads: ``count_ops`` plus 3 per multiple-angle function."""
+    return int(sp.count_ops(expr)) + 3 * _multiple_angles(expr)
 
 
 # -- proof of equality ------------------------------------------------------------------------------
@@ -132,7 +140,7 @@ def proven_equal(a: sp.Expr, b: sp.Expr) -> bool:
 def _squares(expr: sp.Expr) -> List[sp.Expr]:
     """Double angles as squares: cos(2u) -> 2 cos(u)^2 - 1 and -> 1 - 2 sin(u)^2; sin(2u) -> 2 sin u cos u."""
     out = []
-    doubles = [f for f in expr.atoms(sp.sin, sp.cos) if f.args[0].as_coeff_Mul()[0] == 2]
+    doubles = [f for f in expr.atoms(sp.sin, sp.cos) if sp.factor_terms(f.args[0]).as_coeff_Mul()[0] == 2]
     if not doubles:
         return out
     for cos_rule in (lambda u: 2 * sp.cos(u) ** 2 - 1, lambda u: 1 - 2 * sp.sin(u) ** 2):
@@ -159,23 +167,57 @@ def _speed_collected(expr: sp.Expr, speeds: Iterable[sp.Symbol]) -> sp.Expr:
     return sp.collect(sp.expand(expr), speeds, func=lambda c: sp.factor_terms(TR10i(sp.factor_terms(c))))
 
 
+#: Readability bonus [operations] of a sum grouped by products of the parameters, the way the
+#: specification writes its energies (``a^2 m1 phi'^2/6 + ... + b^2 m2 (phi' + psi')^2/6``).
+GROUPED_BONUS = 4
+
+
+def _kinematic(symbol: sp.Symbol) -> bool:
+    return symbol.name in ("phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi", "alpha")
+
+
+def _fold(expr: sp.Expr) -> sp.Expr:
+    """A small factor in the angles and speeds, factored; ``cos^2 + sin^2`` removed (``trigsimp``,
+    for small factors) and sums of products folded into functions of sums of angles (TR10i)."""
+    expr = sp.factor(expr)
+    if expr.atoms(sp.sin, sp.cos) and sp.count_ops(expr) <= 2 * TRIGSIMP_MAX_OPS:
+        expr = sp.factor(sp.trigsimp(expr))
+    return sp.factor_terms(TR10i(expr))
+
+
+def grouped_by_parameters(expr: sp.Expr) -> Optional[sp.Expr]:
+    """The terms of ``expr`` gathered by their product of parameters (``a^2 m2``, ``a b m2``, ...),
+    each group's factor in the angles and speeds simplified (:func:`_fold`); None when all the
+    terms share one product."""
+    kin = [x for x in expr.free_symbols if _kinematic(x)]
+    groups: Dict[sp.Expr, List[sp.Expr]] = {}
+    for term in sp.Add.make_args(sp.expand(expr)):
+        params, rest = term.as_independent(*kin, as_Add=False) if kin else (term, sp.S.One)
+        number, monomial = params.as_coeff_Mul()
+        groups.setdefault(monomial, []).append(number * rest)
+    if len(groups) < 2:  # one product of parameters: nothing to group
+        return None
+    return sp.Add(*[monomial * _fold(sp.Add(*rest)) for monomial, rest in groups.items()])
+
+
 def display_form(expr: sp.Expr, *, budget: float = DEFAULT_BUDGET, speeds: Iterable[sp.Symbol] = ()) -> sp.Expr:
     """The shortest proved-equal form of ``expr`` found within ``budget`` seconds (see the module)."""
     expr = sp.sympify(expr)
     if expr.is_number or expr.is_Symbol or not expr.free_symbols:
         return expr
     start = time.perf_counter()
-    best, best_cost = expr, cost(expr)
-    tried = set()
+    original = cost(expr)
+    best, best_score = expr, original
+    tried: Dict[sp.Expr, None] = {}  # in the order tried (a set's order would vary between processes)
 
-    def consider(candidate) -> None:
-        nonlocal best, best_cost
+    def consider(candidate, bonus: int = 0) -> None:
+        nonlocal best, best_score
         if candidate is None or candidate in tried:
             return
-        tried.add(candidate)
+        tried[candidate] = None
         c = cost(candidate)
-        if c < best_cost and proven_equal(expr, candidate):
-            best, best_cost = candidate, c
+        if c < original and c - bonus < best_score and proven_equal(expr, candidate):
+            best, best_score = candidate, c - bonus
 
     def left() -> float:
         return budget - (time.perf_counter() - start)
@@ -187,6 +229,12 @@ def display_form(expr: sp.Expr, *, budget: float = DEFAULT_BUDGET, speeds: Itera
     ]
     for make in cheap:
         consider(make(expr))
+    if left() > 0 and expr.atoms(sp.sin, sp.cos) and sp.count_ops(expr) <= FOLD_MAX_OPS:
+        # products to sums, then sums of products back to functions of sums of angles
+        folded = sp.factor_terms(TR10i(sp.expand(TR8(expr))))
+        consider(folded)
+        for sq in _squares(folded):
+            consider(sq)
     speeds = tuple(speeds)
     if speeds and left() > 0:
         consider(_speed_collected(expr, speeds))
@@ -202,6 +250,8 @@ def display_form(expr: sp.Expr, *, budget: float = DEFAULT_BUDGET, speeds: Itera
                 break
             if base.atoms(sp.sin, sp.cos):
                 consider(_collected(base))
+    if left() > 0 and isinstance(sp.expand(best), sp.Add):
+        consider(grouped_by_parameters(best), GROUPED_BONUS)
     return best
 
 

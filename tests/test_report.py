@@ -1,0 +1,327 @@
+"""The HTML report (skewpend.views.report) and the display forms of the derivation
+(skewpend.symbolic.display), without a browser (tests/test_report_browser.py opens the page).
+
+Display forms: at alpha = 0 the rotation tensor shows cos(phi + psi), not products of single
+angles; every displayed entry is proved equal to the derivation's own (checked here again by
+sympy.simplify and at random points); the derivation's results are not touched.  The report:
+one self-contained file under 10 MB with every section, no reference outside itself, the
+specification's check identical, written atomically, its inputs refused before any work."""
+
+from __future__ import annotations
+
+import hashlib
+import html
+import json
+import math
+import random
+import re
+from pathlib import Path
+
+import pytest
+import sympy as sp
+
+pytest.importorskip("matplotlib")
+
+import skewpend  # noqa: E402
+from skewpend import NotNumericError, ParameterError, Parameters, derive  # noqa: E402
+from skewpend.symbolic.display import cost, display_form, display_matrix, display_steps, proven_equal  # noqa: E402
+from skewpend.symbolic.symbols import SYMBOLS as S  # noqa: E402
+from skewpend.views import report as R  # noqa: E402
+
+phi, psi, dphi, dpsi, alpha = (S[n] for n in ("phi", "psi", "dphi", "dpsi", "alpha"))
+MB = 1_000_000
+#: Small settings for the variants (the default report is built once, with its defaults).
+SMALL = dict(t_end=3.0, clip_seconds=1.0, fps=10.0, clip_size=(160, 120), sweep_points=19)
+
+
+# -- display forms -------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def planar():
+    return derive(Parameters(alpha=0))
+
+
+@pytest.fixture(scope="module")
+def planar_display(planar):
+    return display_steps(planar.steps)
+
+
+def _entries(value):
+    return list(value) if isinstance(value, sp.MatrixBase) else [value]
+
+
+def _numeric_points(a, b, n=5, seed=7):
+    rng = random.Random(seed)
+    symbols = sorted(a.free_symbols | b.free_symbols, key=sp.default_sort_key)
+    for _ in range(n):
+        at = {x: rng.uniform(0.2, 1.9) for x in symbols}
+        yield complex(a.evalf(subs=at)), complex(b.evalf(subs=at))
+
+
+def test_planar_rotation_shows_the_compound_angle(planar, planar_display):
+    shown = planar_display["P"]
+    text = str(shown)
+    assert "cos(phi + psi)" in text and "sin(phi + psi)" in text
+    assert "cos(phi)*cos(psi)" not in text and "sin(phi)*sin(psi)" not in text
+    assert shown == sp.Matrix([[sp.cos(phi + psi), -sp.sin(phi + psi), 0], [sp.sin(phi + psi), sp.cos(phi + psi), 0], [0, 0, 1]])
+    # and so the LaTeX of the report's check
+    assert r"\cos{\left(\varphi + \psi \right)}" in R._tex(shown)
+
+
+def test_planar_steps_read_like_the_specification(planar_display):
+    d = planar_display
+    assert d["omega2"] == sp.Matrix([0, 0, dphi + dpsi])
+    v = d["v_c"]
+    assert "cos(phi + psi)" in str(v[0]) and "sin(phi + psi)" in str(v[1])
+    assert "cos(phi + psi)**2" in str(d["Theta2"][0, 0])  # m2 b^2/12 (E - e~ e~), e~ = P j
+    assert "cos(phi + psi)" in str(d["Pi"]) and "cos(phi)*cos(psi)" not in str(d["Pi"])
+    assert "(dphi + dpsi)**2" in str(d["T"])  # grouped by parameters, as the specification writes T2
+
+
+def test_every_displayed_entry_equals_the_derivations(planar, planar_display):
+    general = derive(Parameters())
+    shown_general = display_steps(general.steps, keys=("P", "v_c", "T", "Pi", "f"))
+    for eom, shown in ((planar, planar_display), (general, shown_general)):
+        for key, value in eom.steps.items():
+            for orig, new in zip(_entries(value), _entries(shown[key])):
+                if orig == new:
+                    continue
+                assert cost(new) < cost(orig), (key, new)
+                assert sp.simplify(sp.expand_trig(orig - new)) == 0, (key, orig, new)
+                for x, y in _numeric_points(orig, new):
+                    assert abs(x - y) <= 1e-12 * max(1.0, abs(x)), (key, orig, new)
+
+
+def test_display_leaves_the_derivation_alone(planar):
+    before = {k: sp.srepr(v) for k, v in planar.steps.items()}
+    display_steps(planar.steps)
+    assert {k: sp.srepr(v) for k, v in planar.steps.items()} == before
+    assert "cos(phi)*cos(psi)" in str(planar.steps["P"])  # the numeric code's form is unchanged
+
+
+def test_proof_of_equality_is_exact():
+    assert proven_equal(sp.sin(phi) ** 2, 1 - sp.cos(phi) ** 2)
+    assert proven_equal(sp.cos(2 * (phi + psi)), 2 * sp.cos(phi + psi) ** 2 - 1)
+    assert not proven_equal(sp.cos(phi + psi), sp.cos(phi - psi))
+    assert not proven_equal(sp.sin(phi) * sp.cos(psi), sp.sin(phi + psi))
+    # a difference far below any numerical tolerance is still a difference
+    assert not proven_equal(sp.cos(phi), sp.cos(phi) + sp.Rational(1, 10**30) * sp.sin(psi))
+
+
+def test_display_keeps_what_it_cannot_shorten():
+    e = sp.cos(phi) + sp.sin(psi)
+    assert display_form(e) == e
+    assert display_matrix(sp.Matrix([[e, 0], [0, 1]])) == sp.Matrix([[e, 0], [0, 1]])
+
+
+# -- the report ------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def default_report(tmp_path_factory):
+    """The report with every default (the command `skewpend report` with no options)."""
+    out = tmp_path_factory.mktemp("report") / "report.html"
+    calls = []
+    path = R.build_report(out=out, progress=lambda done, total: calls.append((done, total)))
+    return path, path.read_text(encoding="utf-8"), calls
+
+
+def _section(page: str, key: str) -> str:
+    start = page.index(f'<section class="report-section" id="{key}"')
+    return page[start: page.index("</section>", start)]
+
+
+def test_default_report_is_one_small_file(default_report):
+    path, page, _ = default_report
+    assert path.name == "report.html" and path.stat().st_size <= 10 * MB
+    assert [p.name for p in path.parent.iterdir()] == ["report.html"]  # nothing beside it, no temporary file
+    assert page.startswith("<!DOCTYPE html>") and page.rstrip().endswith("</html>")
+
+
+def test_report_references_nothing_outside_itself(default_report):
+    _, page, _ = default_report
+    markup = re.sub(r"<(script|style)\b[^>]*>.*?</\1>", "", page, flags=re.S | re.I)  # the HTML, without code
+    refs = re.findall(r"""\b(?:src|href|poster|data)\s*=\s*["']([^"']*)["']""", markup, flags=re.I)
+    assert refs, "no src/href attribute found at all"
+    for ref in refs:
+        assert ref.startswith(("data:", "#")), ref[:80]
+    assert not re.search(r"""(?:src|href)\s*=\s*["']?\s*(?:https?:)?//""", page, flags=re.I)
+    assert not re.search(r"url\(\s*['\"]?(?!data:)", page), "a style sheet refers to a file"
+    assert "@import" not in page
+    assert re.search(r"<script[^>]*\bsrc=", page) is None and re.search(r"<link\b", page) is None
+
+
+def test_report_has_every_section_in_order(default_report):
+    _, page, calls = default_report
+    positions = [page.index(f'id="{key}"') for key, _ in R.SECTIONS]
+    assert positions == sorted(positions)
+    for key, title in R.SECTIONS:
+        assert f'href="#{key}"' in page  # the table of contents
+    total = calls[-1][1]
+    assert [d for d, _ in calls] == list(range(1, total + 1))
+
+
+def test_report_section_contents(default_report):
+    _, page, _ = default_report
+    system = _section(page, "system")
+    assert system.count('src="data:image/png;base64,') == 2  # reference configuration and initial state
+    for unit in ("kg", "m/s²", "N m s"):
+        assert unit in system
+    derivation = _section(page, "derivation")
+    steps = [html.unescape(t) for t in re.findall(r'<p class="step-title">([^<]*)</p>', derivation)]
+    assert steps == [
+        "Rotation of rod 1", "Current axis of the second hinge", "Rotation of rod 2", "Angular velocity of rod 2",
+        "Velocity of rod 2's centre of mass", "Inertia tensor of rod 2", "Kinetic energy", "Potential energy",
+        "Lagrange's equations",
+    ]
+    assert "With the values of section 1" in derivation and "Linearised" in derivation
+    check = _section(page, "check")
+    assert check.count("✓ identical") == 7 and "✗" not in check and "Every quantity agrees" in check
+    assert r"\cos{\left(\varphi + \psi \right)}" in check.replace("&amp;", "&")
+    modes = _section(page, "modes")
+    assert "ω [rad/s]" in modes and "2:1</b> crossed at α = 32.489°" in modes and "147.51°" in modes
+    sim = _section(page, "simulation")
+    assert sim.count('src="data:image/png;base64,') == 5
+    assert '<source src="data:video/mp4;base64,' in sim and "energy drift" in sim
+    validation = _section(page, "validation")
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        assert "pip install &#x27;skewpend[validate]&#x27;" in validation or "pip install 'skewpend[validate]'" in validation
+    else:
+        assert "AGREE" in validation and "DISAGREE" not in validation
+    provenance = _section(page, "provenance")
+    assert skewpend.__version__ in provenance and "KaTeX (bundled)" in provenance and "Timings" in provenance
+
+
+def test_report_mathematics_is_balanced_latex(default_report):
+    _, page, _ = default_report
+    maths = re.findall(r'<(?:span|div) class="math(?: display)?">(.*?)</(?:span|div)>', page, flags=re.S)
+    assert len(maths) > 100
+    for tex in maths:
+        assert tex.count("{") == tex.count("}"), tex[:120]
+        assert tex.count(r"\left") == tex.count(r"\right"), tex[:120]
+
+
+def test_video_is_h264_mp4(default_report):
+    import base64
+
+    _, page, _ = default_report
+    data = base64.b64decode(re.search(r'<source src="data:video/mp4;base64,([^"]+)"', page).group(1))
+    assert data[4:8] == b"ftyp" and b"avc1" in data[:4096]
+
+
+def test_report_returns_html_without_out():
+    page = R.build_report(Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=math.radians(30), g=9.81, c1=0.05), **SMALL)
+    assert isinstance(page, str) and page.startswith("<!DOCTYPE html>")
+    modes = _section(page, "modes")
+    assert "damping ratio ζ" in modes  # damped modes
+    assert "30°" in _section(page, "system")
+
+
+def test_general_bodies_say_why_there_is_no_sweep(tmp_path):
+    p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, g=9.81, axis2=(1, 0, 1), com2=(0, 0.4, 0),
+                   inertia2=((0.02, 0, 0), (0, 0.001, 0), (0, 0, 0.02)))
+    page = R.build_report(p, out=tmp_path / "general.html", **SMALL).read_text(encoding="utf-8")
+    modes = _section(page, "modes")
+    assert "ω [rad/s]" in modes and "axis2" in modes and "nothing to sweep" in modes
+    assert "Rotation of body 2" in _section(page, "derivation")
+    assert "✓ identical" in _section(page, "check")  # the specification's own thin rods
+
+
+def test_without_mujoco_the_report_says_how_to_get_it(monkeypatch):
+    monkeypatch.setattr(R, "_mujoco_installed", lambda: False)
+    monkeypatch.setattr(R, "PARALLEL", False)  # the serial path too
+    page = R.build_report(**SMALL)
+    validation = _section(page, "validation")
+    assert "MuJoCo is not installed" in validation and "skewpend[validate]" in validation
+
+
+def test_parallel_and_serial_symbolic_sections_agree():
+    params = Parameters(**R.DEFAULT_PARAMETERS)
+    background = R._Background.start(params)
+    try:
+        serial = R._symbolic_sections(params)
+        parallel = background.result()
+    finally:
+        background.stop()
+    assert parallel is not None, background.error
+    assert parallel["bodies"] == serial["bodies"] and parallel["notes"] == serial["notes"]
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(params=Parameters()), "numeric"),
+        (dict(out="report.pdf"), ".html"),
+        (dict(t_end=5000.0), "at most"),
+        (dict(t_end=-1.0), "positive"),
+        (dict(fps=0.0), "fps"),
+        (dict(fps=120.0), "fps"),
+        (dict(clip_size=(161, 120)), "even"),
+        (dict(sweep_points=1), "sweep_points"),
+        (dict(method="euler"), "method"),
+        (dict(dt=0.01), "dt"),
+        (dict(method="rk4", rtol=1e-8), "rtol"),
+        (dict(y0=(1.0, 2.0)), "y0"),
+        (dict(validate="yes"), "validate"),
+        (dict(progress="no"), "progress"),
+    ],
+)
+def test_refused_before_any_work(kwargs, message, tmp_path, monkeypatch):
+    def fail(ctx):  # pragma: no cover - must not be reached
+        raise AssertionError("work started")
+
+    monkeypatch.setattr(R, "_section_simulation", fail)
+    params = kwargs.pop("params", None)
+    out = kwargs.pop("out", None)
+    with pytest.raises((ParameterError, NotNumericError), match=re.escape(message)):
+        R.build_report(params, out=None if out is None else tmp_path / out, **kwargs)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_written_atomically(tmp_path, monkeypatch):
+    out = tmp_path / "r.html"
+    out.write_text("old")
+
+    def boom(ctx):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(R, "_section_validation", boom)
+    with pytest.raises(RuntimeError):
+        R.build_report(out=out, **SMALL)
+    assert out.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["r.html"]
+
+
+# -- the bundled KaTeX -------------------------------------------------------------------------------
+def test_bundled_katex_is_what_vendor_katex_recorded():
+    root = Path(R.__file__).parent / "assets" / "katex"
+    source = json.loads((root / "SOURCE.json").read_text())
+    assert source["package"] == "katex" and source["files"]
+    for rel, digest in source["files"].items():
+        assert hashlib.sha256((root / rel).read_bytes()).hexdigest() == digest, rel
+    assert "MIT" in (root / "LICENSE").read_text()
+    css, js, version = R.katex_assets()
+    assert version == source["version"]
+    fonts = sorted(p.name for p in (root / "fonts").glob("*.woff2"))
+    assert css.count("data:font/woff2;base64,") == len(fonts)
+    assert not re.search(r"url\(\s*['\"]?(?!data:)", css)
+    assert "</script" not in js.lower()
+
+
+def test_interrupted_report_leaves_no_file_and_no_process(tmp_path, monkeypatch):
+    started = []
+    original = R._Background.start
+
+    def start(params):
+        bg = original(params)
+        started.append(bg)
+        return bg
+
+    def interrupt(done, total):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(R._Background, "start", staticmethod(start))
+    out = tmp_path / "r.html"
+    with pytest.raises(KeyboardInterrupt):
+        R.build_report(out=out, progress=interrupt, **SMALL)
+    assert list(tmp_path.iterdir()) == []
+    if started:  # more than one core: the second process was stopped
+        assert started[0].proc.poll() is not None

@@ -1,0 +1,171 @@
+"""The HTML report opened in a real browser: Playwright drives Debian's Chromium, headless, with
+every request that is not file: or data: blocked and recorded.
+
+Asserted: nothing outside the file was requested; no console error or warning and no page
+error; KaTeX typeset every math element, each with a non-zero size and none wider than the
+text column, at least one in every step of the derivation; every image decoded
+(naturalWidth > 0); the video decodes (readyState >= 2, videoWidth > 0).  A screenshot of
+every section is kept in $SKEWPEND_ARTIFACTS (default tests/artifacts/report-browser/), with
+the report itself."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+sync_api = pytest.importorskip("playwright.sync_api")
+pytest.importorskip("matplotlib")
+
+CHROMIUM = "/usr/bin/chromium"
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"{CHROMIUM} is not installed (apt-get install chromium)")
+
+from skewpend import Parameters  # noqa: E402
+from skewpend.views import report as R  # noqa: E402
+
+ARGS = [
+    "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--autoplay-policy=no-user-gesture-required",
+]
+#: The reports opened: the built-in case (shorter run and clip, so the test is quick) and a
+#: user's case (alpha = 30 deg, damping: damped modes, different equations).
+CASES = {
+    "default": dict(params=None, t_end=8.0, clip_seconds=3.0, fps=15.0, sweep_points=61),
+    "alpha30-damped": dict(params=Parameters(a=1.0, b=1.0, m1=1.0, m2=0.5, alpha=0.5235987755982988, g=9.81, c1=0.05),
+                           t_end=5.0, clip_seconds=2.0, fps=10.0, sweep_points=37, y0=(0.6, -0.3, 0.0, 0.0)),
+}
+
+
+def _artifacts() -> Path:
+    root = Path(os.environ.get("SKEWPEND_ARTIFACTS") or Path(__file__).resolve().parent / "artifacts")
+    root.mkdir(parents=True, exist_ok=True)
+    ignore = root / ".gitignore"
+    if root.name == "artifacts" and not ignore.exists():
+        ignore.write_text("# test artifacts (screenshots, reports): not part of the repository\n*\n")
+    return root
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with sync_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module", params=list(CASES))
+def opened(request, browser, tmp_path_factory):
+    """The report built, opened offline, typeset, its screenshots taken: (page, records, folder)."""
+    case = dict(CASES[request.param])
+    params = case.pop("params")
+    html = tmp_path_factory.mktemp("report") / "report.html"
+    R.build_report(params, out=html, **case)
+    folder = _artifacts() / f"report-browser-{request.param}"
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    shutil.copyfile(html, folder / "report.html")
+
+    page = browser.new_page(viewport={"width": 1100, "height": 900})
+    records = {"blocked": [], "console": [], "errors": []}
+
+    def route(r):
+        url = r.request.url
+        if url.startswith(("file:", "data:")):
+            r.continue_()
+        else:
+            records["blocked"].append(url)
+            r.abort()
+
+    page.route("**/*", route)
+    page.on("console", lambda m: records["console"].append((m.type, m.text)))
+    page.on("pageerror", lambda e: records["errors"].append(str(e)))
+    page.on("requestfailed", lambda r: records["blocked"].append(r.url) if not r.url.startswith(("file:", "data:")) else None)
+    page.goto(html.as_uri(), wait_until="load")
+    page.wait_for_function("document.documentElement.getAttribute('data-math') !== null", timeout=30000)
+    page.evaluate("document.fonts.ready.then(() => true)")
+    page.wait_for_function("(() => { const v = document.querySelector('video'); return v && (v.readyState >= 2 || v.error); })()",
+                           timeout=20000)
+    for section in page.query_selector_all("section.report-section"):
+        section.screenshot(path=str(folder / f"{section.get_attribute('id')}.png"))
+    page.query_selector("nav.toc").screenshot(path=str(folder / "contents.png"))
+    yield page, records, folder
+    page.close()
+
+
+def test_nothing_outside_the_file_is_requested(opened):
+    _, records, _ = opened
+    assert records["blocked"] == []
+
+
+def test_no_console_errors_or_warnings(opened):
+    _, records, _ = opened
+    assert records["errors"] == []
+    assert [(t, m) for t, m in records["console"] if t in ("error", "warning", "assert")] == []
+
+
+def test_every_math_element_is_typeset_with_a_size(opened):
+    page, _, _ = opened
+    state = page.evaluate("""() => {
+        const all = Array.from(document.querySelectorAll('.math'));
+        return {
+            flag: document.documentElement.getAttribute('data-math'),
+            count: all.length,
+            failed: all.filter(e => e.classList.contains('math-error')).map(e => e.getAttribute('data-tex')),
+            untypeset: all.filter(e => !e.querySelector('.katex')).length,
+            empty: all.filter(e => { const r = e.getBoundingClientRect(); return !(r.width > 0 && r.height > 0); })
+                      .map(e => (e.getAttribute('data-tex') || '').slice(0, 80)),
+        };
+    }""")
+    assert state["flag"] == "done" and state["failed"] == []
+    assert state["count"] > 80 and state["untypeset"] == 0
+    assert state["empty"] == []
+    # KaTeX's own boxes too
+    zero = page.evaluate("""() => Array.from(document.querySelectorAll('.katex-html')).filter(e => {
+        const r = e.getBoundingClientRect(); return !(r.width > 0 && r.height > 0); }).length""")
+    assert zero == 0
+
+
+def test_every_derivation_step_has_typeset_mathematics(opened):
+    page, _, _ = opened
+    counts = page.evaluate("""() => Array.from(document.querySelectorAll('#derivation ol.steps > li'))
+        .map(li => li.querySelectorAll('.katex').length)""")
+    assert len(counts) == 9 and min(counts) >= 1
+    check = page.evaluate("""() => Array.from(document.querySelectorAll('#check ol.steps > li'))
+        .map(li => li.querySelectorAll('.katex').length)""")
+    assert len(check) == 7 and min(check) >= 3
+
+
+def test_display_mathematics_fits_the_column(opened):
+    page, _, _ = opened
+    wide = page.evaluate("""() => Array.from(document.querySelectorAll('.math.display'))
+        .filter(e => e.scrollWidth > e.clientWidth + 2)
+        .map(e => [e.scrollWidth, e.clientWidth, (e.getAttribute('data-tex') || '').slice(0, 60)])""")
+    assert wide == []
+
+
+def test_every_image_decoded(opened):
+    page, _, _ = opened
+    images = page.evaluate("""() => Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight, i.alt])""")
+    assert len(images) == 8  # 2 pictures of the system, the sweep, 5 simulation figures
+    for complete, width, height, alt in images:
+        assert complete and width > 0 and height > 0, alt
+
+
+def test_video_decodes(opened):
+    page, _, _ = opened
+    video = page.evaluate("""() => { const v = document.querySelector('video');
+        return {ready: v.readyState, width: v.videoWidth, height: v.videoHeight, error: v.error && v.error.code,
+                duration: v.duration, loop: v.loop, muted: v.muted}; }""")
+    assert video["error"] is None
+    assert video["ready"] >= 2 and video["width"] > 0 and video["height"] > 0
+    assert video["duration"] > 0.5 and video["loop"] and video["muted"]
+
+
+def test_screenshots_kept(opened):
+    _, _, folder = opened
+    names = {p.name for p in folder.glob("*.png")}
+    assert {f"{key}.png" for key, _ in R.SECTIONS} <= names
+    for p in folder.glob("*.png"):
+        assert p.stat().st_size > 2000, p.name
