@@ -27,6 +27,8 @@ _LAZY = {
     "Modes": "analysis.modes",
     "sweep": "analysis.modes",
     "characteristic_equation": "analysis.modes",
+    "flip_map": "analysis.flipmap",
+    "FlipMap": "analysis.flipmap",
 }
 
 __all__ = [
@@ -41,6 +43,8 @@ __all__ = [
     "Modes",
     "sweep",
     "characteristic_equation",
+    "flip_map",
+    "FlipMap",
     "SkewpendError",
     "ParameterError",
     "NotNumericError",
@@ -53,6 +57,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .symbolic.derivation import EquationsOfMotion, LinearEquations, derive
     from .symbolic.symbols import SYMBOLS
     from .numeric.simulation import Trajectory, simulate
+    from .analysis.flipmap import FlipMap, flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
 
 
@@ -65,6 +70,7 @@ _SUBMODULES = {
     "render": "symbolic.render", "symbols": "symbolic.symbols", "codegen": "numeric.codegen",
     "kernels": "numeric.kernels", "simulation": "numeric.simulation", "modes": "analysis.modes",
     "export": "interop.export", "validation": "interop.validation", "figures": "views.figures",
+    "flipmap": "analysis.flipmap", "ensemble": "numeric.ensemble",
     "io": "io", "parsing": "parsing", "progress": "progress", "errors": "errors", "cli": "cli",
 }
 

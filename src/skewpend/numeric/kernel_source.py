@@ -8,6 +8,10 @@ integrators (``integrators.c``) are appended by :mod:`skewpend.compiled`.
 
 State ``y = (phi, psi, dphi, dpsi, W)`` (``W``: work of ``Q = tau - c q'``), canonical state
 ``z = (phi, psi, p_phi, p_psi, W)``, parameters ``p`` in :data:`PARAMETER_ORDER`.
+
+With ``flip=True`` the source also holds the functions of the flip-time ensembles
+(:func:`flip_c_source`): the right-hand side of ``SP_LANES`` trajectories at once on a
+trigonometry-free state, with the parameter-only subexpressions hoisted into a per-run array.
 """
 
 from __future__ import annotations
@@ -22,13 +26,18 @@ from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["kernel_c_source"]
+__all__ = ["kernel_c_source", "flip_c_source", "SP_LANES"]
 
 _STATE = ("phi", "psi", "dphi", "dpsi")
 
 
-def kernel_c_source(geometry: Parameters) -> str:
-    """C source of the model functions for ``geometry`` (scalar parameters read from ``p``)."""
+def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
+    """C source of the model functions for ``geometry`` (scalar parameters read from ``p``).
+
+    ``flip=True`` adds the functions of the flip-time ensembles (:func:`flip_c_source`) and
+    defines ``SP_FLIP_KERNEL``, which enables ``sp_flip`` in the integrator template: a separate,
+    larger library built on the first flip map, so that a simulation's first use does not pay
+    for compiling it."""
     ex = _expressions(geometry)
     c = _Lang("c", _c_printer(), "const double ", ";")
     I = "    "
@@ -47,6 +56,8 @@ def kernel_c_source(geometry: Parameters) -> str:
         "#include <stdint.h>",
         "",
     ]
+    if flip:
+        out[-1:-1] = ["#define SP_FLIP_KERNEL 1"]
 
     def header(signature: str, doc: str, used_exprs, state: str = "y", names=_STATE) -> List[str]:
         lines = [f"/* {doc} */", f"static {signature}", "{"]
@@ -153,6 +164,8 @@ def kernel_c_source(geometry: Parameters) -> str:
     out += header("void axes(const double *y, const double *p, double *out)", "hinge axes (n1, e = P1 . e0) into out[6]", axes)
     out += _cse_block(c, axes, [f"r{i}" for i in range(6)], I)
     out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
+    if flip:
+        out += flip_c_source(ex, geometry)
     out.append(_EXPORTS)
     return "\n".join(out) + "\n"
 
@@ -194,3 +207,194 @@ void sp_speeds_many(double *rows, int64_t nrows, int64_t stride, const double *p
     }
 }
 """
+
+
+# -- flip-time ensembles: the model in SIMD lanes, without trigonometric functions ---------------------
+#: Trajectories integrated side by side by ``sp_flip`` (integrators.c): the lane loops have this
+#: fixed trip count, so the compiler turns them into SIMD instructions (8 doubles: one AVX-512
+#: register, two AVX2 ones).
+SP_LANES = 8
+#: The extra state components that replace sin/cos of the angles: (name, function, angle).
+_TRIG = (("sn_phi", "sin", "phi"), ("cs_phi", "cos", "phi"), ("sn_psi", "sin", "psi"), ("cs_psi", "cos", "psi"))
+_FLIP_STATE = ("phi", "psi", "dphi", "dpsi") + tuple(t[0] for t in _TRIG)
+
+
+class _ArithmeticPrinter:
+    """C for the trigonometry-free right-hand side: integer powers as products (``x*x``, which
+    the compiler vectorises; ``pow`` it would call), any remaining function refused."""
+
+    def __init__(self):
+        from sympy.printing.c import C99CodePrinter
+
+        class Printer(C99CodePrinter):
+            def _print_Pow(self, expr):
+                base, e = expr.args
+                if e.is_Integer and 1 <= abs(int(e)) <= 16:
+                    b = self.parenthesize(base, 100)  # always parenthesised
+                    prod = "*".join([b] * abs(int(e)))
+                    return f"({prod})" if e > 0 else f"(1.0/({prod}))"
+                raise ValueError(f"flip kernel: cannot print the power {expr} as arithmetic")
+
+            def _print_Function(self, expr):
+                raise ValueError(f"flip kernel: the function {expr} is left in the right-hand side")
+
+            _print_sin = _print_cos = _print_tan = _print_Function
+
+        self.doprint = Printer().doprint
+
+
+def _hoist(exprs, state):
+    """Each of ``exprs`` as a polynomial in the ``state`` symbols whose coefficients (functions of
+    the parameters only: ``sin(alpha)``, ``m2 b^2/3``, ...) are named constants ``P0, P1, ...``.
+
+    The parameters are run-time inputs, constant over a whole map, so the constants are computed
+    once per run (``flip_prepare``) instead of in every evaluation of the right-hand side.
+    Returns the rewritten expressions and the ``(symbol, expression)`` definitions.
+    """
+    defs = {}
+
+    def const(e):
+        if e.is_Number:
+            return e
+        if e not in defs:
+            defs[e] = sp.Symbol(f"P{len(defs)}")
+        return defs[e]
+
+    out = []
+    for e in exprs:
+        poly = sp.Poly(sp.expand(e), *state)
+        terms = [const(sp.sympify(coeff)) * sp.Mul(*[x**k for x, k in zip(state, monom)])
+                 for monom, coeff in poly.terms()]
+        out.append(sp.Add(*terms))
+    return out, [(sym, e) for e, sym in defs.items()]
+
+
+def _odd_under_reflection(ex) -> bool:
+    """Whether, without joint torques, the equations are odd under ``(q, q') -> -(q, q')``:
+    ``M(-q) = M(q)`` and ``f(-q, -q') = -f(q, q')`` identically (an exact symbolic check).  Then
+    the start at rest ``-q0`` moves as the mirror image of ``q0`` and flips at the same time."""
+    s = SYMBOLS
+    mirror = {s[n]: -s[n] for n in _STATE}
+    no_torque = {s["tau1"]: 0, s["tau2"]: 0}
+    for e in ex.M:
+        e = sp.sympify(e).subs(no_torque)
+        if sp.expand(e.xreplace(mirror) - e) != 0:
+            return False
+    for e in ex.f:
+        e = sp.sympify(e).subs(no_torque)
+        if sp.expand(e.xreplace(mirror) + e) != 0:
+            return False
+    return True
+
+
+def flip_c_source(ex, geometry: Parameters) -> List[str]:
+    """The model's functions for ``sp_flip`` (integrators.c): the right-hand side of
+    ``SP_LANES`` trajectories at once, on the state
+    ``(phi, psi, dphi, dpsi, sin phi, cos phi, sin psi, cos psi)``; the state at rest; the
+    potential with the torques' work; the symmetry flag.
+
+    The equations depend on the angles only through their sines and cosines (the derivation is
+    polynomial in them), so these four become state components with ``d/dt sin q = cos q q'``
+    and ``d/dt cos q = -sin q q'`` (differentiated by SymPy, like everything else): the
+    right-hand side is then pure arithmetic, a loop over lanes the compiler vectorises -- no
+    vector ``sin``/``cos`` needed.  Parameter-only subexpressions (``sin(alpha)``,
+    ``m2 b^2/3``, ...) are hoisted into ``flip_prepare``, run once per map.
+    """
+    s = SYMBOLS
+    q = {n: s[n] for n in _STATE}
+    trig = {getattr(sp, fn)(q[arg]): sp.Symbol(name) for name, fn, arg in _TRIG}
+    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
+    f = [ex.f[0], ex.f[1]]
+    dtrig = [sp.diff(getattr(sp, fn)(q[arg]), q[arg]) * q["d" + arg] for _, fn, arg in _TRIG]
+    exprs = []
+    for e in M + f + dtrig:
+        e = sp.sympify(e)
+        r = e.xreplace(trig)
+        if r.has(q["phi"]) or r.has(q["psi"]):
+            r = sp.expand_trig(e).xreplace(trig)
+        if r.has(q["phi"]) or r.has(q["psi"]):
+            raise ValueError(f"flip kernel: the equations depend on the angles other than through sin and cos: {e}")
+        exprs.append(r)
+    state = [sp.Symbol(n) if n not in q else q[n] for n in _FLIP_STATE[2:]]
+    hoisted, defs = _hoist(exprs, state)
+    c = _Lang("c", _c_printer(), "const double ", ";")
+    v = _ArithmeticPrinter()
+    I = "    "
+    out: List[str] = [
+        "/* ---- flip-time ensembles (sp_flip in integrators.c): SP_LANES trajectories side by side ---- */",
+        f"#define SP_LANES {SP_LANES}",
+        f"#define SP_FLIP_N {len(_FLIP_STATE)}  /* state {', '.join(_FLIP_STATE)} */",
+        f"#define SP_FLIP_NPP {max(len(defs), 1)}  /* prepared parameter constants */",
+        "/* 1: without torques the equations are odd under (q, q') -> -(q, q') (checked symbolically) */",
+        f"#define SP_FLIP_ODD {1 if _odd_under_reflection(ex) else 0}",
+        "",
+        "/* the parameter-only subexpressions of flip_rhs, once per run, into pp[SP_FLIP_NPP] */",
+        "static void flip_prepare(const double *p, double *pp)",
+        "{",
+    ]
+    out += _param_lines(c, I, _used_names([e for _, e in defs]))
+    if defs:
+        block = _cse_block(c, [e for _, e in defs], [f"pp[{i}]" for i in range(len(defs))], I, prefix="w")
+        out += [ln.replace(f"{I}const double pp[", f"{I}pp[") for ln in block]
+    else:
+        out.append(f"{I}pp[0] = 0.0;")
+    out += ["}", ""]
+    # the right-hand side, a loop over lanes
+    names = ["M11", "M12", "M22", "f1", "f2"] + [f"d{t[0]}" for t in _TRIG]
+    replacements, reduced = sp.cse(hoisted, symbols=sp.numbered_symbols("x"), optimizations="basic")
+    used = _used_names(list(reduced) + [e for _, e in replacements])
+    J = I * 2
+    out += [
+        "/* dy/dt of SP_LANES states: component k of lane l is y[k][l] (a loop the compiler vectorises) */",
+        "static inline __attribute__((always_inline)) void flip_rhs(const double (*restrict y)[SP_LANES],",
+        "                                                          const double *restrict pp,",
+        "                                                          double (*restrict out)[SP_LANES])",
+        "{",
+    ]
+    out += [f"{I}const double {sym} = pp[{i}];" for i, (sym, _) in enumerate(defs) if sym.name in used]
+    out += [f"{I}for (int l = 0; l < SP_LANES; l++) {{"]
+    out += [f"{J}const double {n} = y[{i}][l];" for i, n in enumerate(_FLIP_STATE) if n in used]
+    out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
+    out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
+    out += [
+        f"{J}const double det = M11 * M22 - M12 * M12;",  # M q'' = f, the 2x2 solve
+        f"{J}const double rdet = 1.0 / det;",
+        f"{J}out[0][l] = y[2][l];",
+        f"{J}out[1][l] = y[3][l];",
+        f"{J}out[2][l] = (M22 * f1 - M12 * f2) * rdet;",
+        f"{J}out[3][l] = (M11 * f2 - M12 * f1) * rdet;",
+    ]
+    out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
+    out += [f"{I}}}", "}", ""]
+    # the state at rest
+    init = [q["phi"], q["psi"], sp.Integer(0), sp.Integer(0)] + [getattr(sp, fn)(q[arg]) for _, fn, arg in _TRIG]
+    out += [
+        "/* the angles (phi, psi) at rest as a state of flip_rhs, into y[SP_FLIP_N] */",
+        "static void flip_init(double phi, double psi, double *y)",
+        "{",
+    ]
+    out += [f"{I}y[{i}] = {c.printer(e)};" for i, e in enumerate(init)]
+    out += ["}", ""]
+    # the potential with the constant torques' work: V = Pi - Q(q' = 0) . q
+    at_rest = {s["dphi"]: 0, s["dpsi"]: 0}
+    Q0 = [sp.sympify(x).subs(at_rest) for x in ex.Q]
+    V = ex.Pi - Q0[0] * q["phi"] - Q0[1] * q["psi"]
+    used = _used_names([V])
+    out += [
+        "/* V = Pi - Q(q' = 0) . q = Pi - tau . q at the angles q[2] [J]: with constant torques, E - tau . q",
+        " * (T + V) never increases (damping only removes energy) */",
+        "static double flip_potential(const double *q, const double *p)",
+        "{",
+        *[f"{I}const double {n} = q[{i}];" for i, n in enumerate(("phi", "psi")) if n in used],
+        *_param_lines(c, I, used),
+        *_cse_block(c, [V], ["V"], I),
+        f"{I}return V;",
+        "}",
+        "",
+        "void sp_flip_potential_many(const double *qs, int64_t n, const double *p, double *out)",
+        "{",
+        f"{I}for (int64_t r = 0; r < n; r++) out[r] = flip_potential(qs + 2 * r, p);",
+        "}",
+        "",
+    ]
+    return out

@@ -164,13 +164,17 @@ class Kernel:
     ``energy(y, p) -> float``, ``momenta``, ``velocities``, ``tips``; row functions
     ``energies(ys, p)``, ``tips_many(ys, p)``, ``speeds_many(zs, p)``.  The raw resumable
     integrators are ``lib.sp_dop853``, ``lib.sp_rk4`` and ``lib.sp_gauss`` (see
-    ``integrators.c``), driven by :mod:`skewpend.numeric.simulation`.
+    ``integrators.c``), driven by :mod:`skewpend.numeric.simulation`.  The *flip kernel*
+    (``kernel_module(params, flip=True)``, ``flip`` True) has these and ``lib.sp_flip``, which
+    integrates many starts at rest side by side until a joint flips, driven by
+    :mod:`skewpend.numeric.ensemble` (with ``flip_ws_size``, ``flip_lanes``, ``flip_odd``,
+    ``flip_potential_many``).
 
     ``origin`` says where it came from: ``"compiled"`` (built in this process, taking
     ``build_time`` seconds) or ``"cache"``.
     """
 
-    def __init__(self, path: Path, origin: str, build_time: float):
+    def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False):
         import numpy as np
 
         self.path, self.origin, self.build_time = path, origin, build_time
@@ -193,6 +197,21 @@ class Kernel:
         lib.sp_gauss.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, d, i64, i64, dp, i64, ip]
         for name in ("sp_dop853", "sp_rk4", "sp_gauss"):
             getattr(lib, name).restype = ctypes.c_int
+        self.flip = flip
+        if flip:  # the flip kernel: sp_flip, many starts at rest side by side (integrators.c)
+            if not hasattr(lib, "sp_flip"):
+                raise CompilerError(f"{path}: not a flip kernel (no sp_flip)")
+            i32p = ctypes.POINTER(ctypes.c_int32)
+            lib.sp_flip.argtypes = [ctypes.c_void_p, dp, dp, i64, d, d, d, i64, i64, dp, i32p, ip, ip]
+            lib.sp_flip.restype = ctypes.c_int
+            for name in ("sp_flip_ws_size", "sp_flip_lanes", "sp_flip_odd"):
+                getattr(lib, name).argtypes, getattr(lib, name).restype = [], i64
+            lib.sp_flip_potential_many.argtypes, lib.sp_flip_potential_many.restype = [dp, i64, dp, dp], None
+            #: bytes of the sp_flip workspace, trajectories side by side, and whether the model's
+            #: equations without torques are odd under (q, q') -> -(q, q') (a symbolic check)
+            self.flip_ws_size = int(lib.sp_flip_ws_size())
+            self.flip_lanes = int(lib.sp_flip_lanes())
+            self.flip_odd = bool(lib.sp_flip_odd())
         if lib.sp_state_size() != ctypes.sizeof(State):
             raise CompilerError(f"{path}: integrator state layout mismatch ({lib.sp_state_size()} != {ctypes.sizeof(State)} bytes)")
         self._np = np
@@ -258,6 +277,18 @@ class Kernel:
     def axes_many(self, ys, p, *, offset: int = 0):
         """Hinge axes of each row: ``(n1, e)`` in the world frame, shape (n, 6) (unit vectors)."""
         return self._per_row(self.lib.sp_axes_many, ys, p, offset, 6)
+
+    def flip_potential_many(self, qs, p):
+        """``V = Pi - tau . q`` at each row ``qs[i] = (phi, psi)`` [J], shape (n,): the potential
+        energy with the work of the constant joint torques (generated, see ``flip_c_source``)."""
+        qs = self._np.ascontiguousarray(qs, dtype=self._np.float64)
+        if qs.ndim != 2 or qs.shape[1] != 2:
+            raise ValueError("expected rows of angles, shape (n, 2)")
+        p, pp = self._in(p)
+        out = self._np.empty(qs.shape[0])
+        dp = ctypes.POINTER(ctypes.c_double)
+        self.lib.sp_flip_potential_many(qs.ctypes.data_as(dp), qs.shape[0], pp, out.ctypes.data_as(dp))
+        return out
 
     def speeds_many(self, zs, p, *, offset: int = 0, inplace: bool = False):
         """Canonical rows ``(phi, psi, p_phi, p_psi, ...)`` -> ``(phi, psi, dphi, dpsi, ...)``."""
@@ -339,18 +370,20 @@ def _remove_stale_temporaries(directory: Path, age: float = 3600.0) -> None:
             pass
 
 
-def kernel_module(params: Parameters) -> Kernel:
+def kernel_module(params: Parameters, *, flip: bool = False) -> Kernel:
     """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs).
 
     Loaded from the cache when there; otherwise generated from the derivation, compiled
-    and cached (atomically: a killed build leaves no partial library behind).
+    and cached (atomically: a killed build leaves no partial library behind).  ``flip=True``:
+    the larger library that also holds the flip-time ensembles (``sp_flip``), built on the
+    first flip map so that simulations never wait for it.
     """
-    gkey = repr([getattr(params, k) for k in GEOMETRY])
+    gkey = repr([getattr(params, k) for k in GEOMETRY]) + ("|flip" if flip else "")
     kernel = _BYGEOMETRY.get(gkey)
     if kernel is not None:
         return kernel
     geometry = geometry_of(params)
-    key = _key(repr(geometry.to_dict()))
+    key = _key(repr(geometry.to_dict())) + ("_flip" if flip else "")
     with _LOCK:
         if key in _LOADED:
             _BYGEOMETRY[gkey] = _LOADED[key]
@@ -360,7 +393,7 @@ def kernel_module(params: Parameters) -> Kernel:
         kernel = None
         if path.exists() and _intact(path):
             try:
-                kernel = Kernel(path, "cache", 0.0)
+                kernel = Kernel(path, "cache", 0.0, flip=flip)
             except (OSError, CompilerError):
                 kernel = None  # damaged: rebuilt below
         if kernel is None:
@@ -370,9 +403,9 @@ def kernel_module(params: Parameters) -> Kernel:
             _remove_stale_temporaries(directory)
             from .kernel_source import kernel_c_source
 
-            source = kernel_c_source(geometry) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
+            source = kernel_c_source(geometry, flip=flip) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
             _compile(source, path)
-            kernel = Kernel(path, "compiled", time.perf_counter() - start)
+            kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip)
         _LOADED[key] = kernel
         _BYGEOMETRY[gkey] = kernel
         return kernel
