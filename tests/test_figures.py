@@ -280,3 +280,137 @@ def test_plot_sweep():
     fig = F.plot_sweep(ratio)
     assert fig.axes[1].get_xlabel() == "b/a [1]"
     assert "b = " not in _heading(fig)
+
+
+# -- the flip-time map ----------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def fmap():
+    return skewpend.flip_map(PARAMS, 48)
+
+
+def _image_of(fig):
+    """The map's Axes and its flip-time image (the first image drawn on it)."""
+    ax = fig.axes[0]
+    return ax, ax.images[0]
+
+
+def test_flipmap_figure_draws_the_flip_times_transposed_with_nan_masked(fmap):
+    from matplotlib.colors import LogNorm, to_rgba
+
+    fig = F.flipmap_figure(fmap)
+    ax, im = _image_of(fig)
+    data = im.get_array()
+    # phi0 (axis 0 of flip_time) across, psi0 (axis 1) up: the image is flip_time.T with origin "lower"
+    assert im.origin == "lower" and data.shape == fmap.flip_time.T.shape
+    np.testing.assert_array_equal(np.ma.getmaskarray(data), np.isnan(fmap.flip_time.T))
+    np.testing.assert_array_equal(data.filled(np.nan), fmap.flip_time.T)
+    assert np.isnan(fmap.flip_time).any() and np.isfinite(fmap.flip_time).any()  # both kinds of cell are there
+    # a logarithmic colour scale from the shortest flip time to t_end
+    assert isinstance(im.norm, LogNorm)
+    assert im.norm.vmax == fmap.settings["t_end"] == 10.0
+    assert im.norm.vmin == np.nanmin(fmap.flip_time)
+    # the never-flipping cells in one flat colour that the colour map never takes
+    bad = im.cmap.get_bad()
+    assert tuple(bad) == to_rgba(F.FLIPMAP_COLORS["no_flip"])
+    ramp = im.cmap(np.linspace(0, 1, 256))
+    assert np.min(np.abs(ramp - bad).sum(axis=1)) > 0.2
+    # the window in degrees, equal aspect, ticks at multiples of 90 (minor 45)
+    np.testing.assert_allclose(im.get_extent(), [-180, 180, -180, 180], atol=1e-12)
+    assert ax.get_xlim() == pytest.approx((-180, 180)) and ax.get_ylim() == pytest.approx((-180, 180))
+    assert ax.get_aspect() == 1.0
+    for axis in (ax.xaxis, ax.yaxis):
+        ticks = [t for t in axis.get_majorticklocs() if -180 <= t <= 180]
+        assert ticks == [-180, -90, 0, 90, 180]
+        assert all(t % 45 == 0 for t in axis.get_minorticklocs())
+    assert "[deg]" in ax.get_xlabel() and "varphi" in ax.get_xlabel()
+    assert "[deg]" in ax.get_ylabel() and "psi" in ax.get_ylabel()
+    (bar,) = ax.child_axes  # the colour bar, inset beside the map: exactly as tall
+    assert bar.get_ylabel() == "flip time [s]"
+    assert max(bar.get_yticks()) == pytest.approx(10.0)  # t_end is labelled
+
+
+def test_flipmap_figure_heading_states_parameters_and_settings(fmap):
+    heading = _heading(F.flipmap_figure(fmap))
+    for text in ("a = 1 m", "b = 0.8 m", "m1 = 1 kg", "m2 = 0.7 kg", f"alpha = {math.degrees(0.6):.4g}°", "g = 9.81 m/s²",
+                 "released at rest", "phi0 in [-180°, 180°], psi0 in [-180°, 180°]", "n = 48 x 48 cells", "t_end = 10 s",
+                 "dop853", "rtol = 1e-10", "atol = 1e-10", "% of the cells flip", "% forbidden by energy"):
+        assert text in heading, (text, heading)
+    flipped = 100 * np.count_nonzero(np.isfinite(fmap.flip_time)) / fmap.flip_time.size
+    assert f"{flipped:.3g}% of the cells flip" in heading
+    # a long list of parameters is broken between items, not cut off
+    p = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, g=9.81, axis2=(1, 0, 1), c1=0.05, tau2=0.2,
+                            com2=(0, 0.4, 0.02), inertia2=((0.02, 0, 0), (0, 0.001, 0), (0, 0, 0.02)))
+    from skewpend.views.style import flipmap_caption
+
+    text = flipmap_caption(skewpend.flip_map(p, 4))
+    assert max(len(line) for line in text.split("\n")) <= 100 and "tau2 = 0.2 N m" in text and "custom" in text
+
+
+def test_flipmap_figure_window_in_degrees_and_mark_wrapped():
+    window = dict(phi_range=(0.2, 1.0), psi_range=(-1.5, -0.5))
+    fm = skewpend.flip_map(PARAMS, 24, **window)
+    fig = F.flipmap_figure(fm, mark=(1.2 - 2 * math.pi, -0.8), mark_label="the start")
+    ax, im = _image_of(fig)
+    np.testing.assert_allclose(im.get_extent(), np.degrees([0.2, 1.0, -1.5, -0.5]), rtol=1e-12)
+    np.testing.assert_array_equal(im.get_array().filled(np.nan), fm.flip_time.T)
+    # the cell at image row j, column i is (phi0[i], psi0[j]): its centre lies in the image there
+    x0, x1, y0, y1 = im.get_extent()
+    i, j = 5, 17
+    assert x0 + (i + 0.5) * (x1 - x0) / 24 == pytest.approx(math.degrees(fm.phi0[i, 0]))
+    assert y0 + (j + 0.5) * (y1 - y0) / 24 == pytest.approx(math.degrees(fm.psi0[0, j]))
+    (mark,) = [line for line in ax.lines if line.get_marker() == "o"]
+    assert mark.get_xdata()[0] == pytest.approx(math.degrees(1.2)) and mark.get_ydata()[0] == pytest.approx(math.degrees(-0.8))
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "the start" in labels and "no flip by t_end = 10 s" in labels
+    assert "phi0 in [11.46°, 57.3°], psi0 in [-85.94°, -28.65°]" in _heading(fig)
+
+
+def test_flipmap_figure_shows_the_energy_forbidden_region(fmap):
+    forbidden = F.flipmap_forbidden(fmap)
+    assert forbidden.shape == fmap.flip_time.shape and forbidden.any()
+    # exactly the cells flip_map skipped by its energy bound, and none of them flips
+    assert np.count_nonzero(forbidden) == fmap.stats["skipped_energy"]
+    assert np.all(np.isnan(fmap.flip_time[forbidden]))
+    margin = F.flipmap_energy_margin(fmap)
+    np.testing.assert_array_equal(margin < 0, forbidden)
+    fig = F.flipmap_figure(fmap)
+    ax = fig.axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["no flip by t_end = 10 s", "energy forbids any flip"]
+    assert len(ax.collections) >= 2  # the grey region (filled) and its edge (a line)
+    # given as cells: drawn as a second image, exactly those cells
+    fig = F.flipmap_figure(fmap, forbidden=forbidden)
+    ax = fig.axes[0]
+    assert len(ax.images) == 2
+    np.testing.assert_array_equal(~np.ma.getmaskarray(ax.images[1].get_array()), forbidden.T)
+    # or not at all
+    ax = F.flipmap_figure(fmap, forbidden=None).axes[0]
+    assert len(ax.images) == 1 and not ax.collections
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["no flip by t_end = 10 s"]
+    with pytest.raises(skewpend.ParameterError, match="shape"):
+        F.flipmap_figure(fmap, forbidden=forbidden[:-1])
+
+
+def test_flipmap_figure_without_any_flip():
+    fm = skewpend.flip_map(PARAMS.replace(g=0.0), 8)  # no gravity, released at rest: nothing moves
+    assert np.isnan(fm.flip_time).all()
+    fig = F.flipmap_figure(fm)
+    im = fig.axes[0].images[0]
+    assert np.ma.getmaskarray(im.get_array()).all()
+    assert 0 < im.norm.vmin < im.norm.vmax == 10.0
+    assert "0% of the cells flip" in _heading(fig)
+
+
+def test_flipmap_figure_saves_png_and_leaves_rcparams_alone(fmap, tmp_path):
+    import matplotlib
+    from PIL import Image
+
+    before = dict(matplotlib.rcParams)
+    fig = F.flipmap_figure(fmap, mark=(1.2, -0.8))
+    assert dict(matplotlib.rcParams) == before
+    path = F.save_figure(fig, tmp_path / "map.png")
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    with Image.open(io.BytesIO(data)) as im:
+        assert im.format == "PNG" and im.size[0] > 800 and im.size[1] > 800
+    assert [p.name for p in tmp_path.iterdir()] == ["map.png"]

@@ -325,3 +325,74 @@ def test_interrupted_report_leaves_no_file_and_no_process(tmp_path, monkeypatch)
     assert list(tmp_path.iterdir()) == []
     if started:  # more than one core: the second process was stopped
         assert started[0].proc.poll() is not None
+
+
+# -- the flip-time map (section 6) -----------------------------------------------------------------------
+def _png_size(b64: str):
+    import base64
+    import io
+
+    from PIL import Image
+
+    data = base64.b64decode(b64)
+    with Image.open(io.BytesIO(data)) as im:
+        return im.format, im.size, len(data)
+
+
+def test_report_flipmap_section(default_report):
+    import numpy as np
+
+    _, page, _ = default_report
+    keys = [k for k, _ in R.SECTIONS]
+    assert keys[keys.index("simulation") + 1:keys.index("simulation") + 4] == ["flipmap", "validation", "provenance"]
+    sec = _section(page, "flipmap")
+    assert '<span class="num">6</span>Which starts flip: the flip-time map' in sec
+    images = re.findall(r'src="data:image/png;base64,([^"]+)"', sec)
+    assert len(images) == 1
+    fmt, (w, h), nbytes = _png_size(images[0])
+    assert fmt == "PNG" and 600 <= w <= 900 and 600 <= h <= 900 and nbytes < 250_000  # small
+    text = html.unescape(re.sub(r"<[^>]+>", "", sec))
+    n = R.FLIPMAP_N
+    for words in (f"{n}\xa0×\xa0{n}", "the first time either hinge angle leaves (−180°, 180°)", "log colour scale",
+                  "White: no flip within 10 s", "grey: energy forbids any flip", "red dot: the angles of the simulation's"
+                  " initial state (section 5).", "starts that flip", "forbidden by energy", "mirrored"):
+        assert words in text, words
+    # the figures are numbered on through the page: the map follows the 5 of the simulation
+    assert re.search(r"Figure (\d+)\.", sec).group(1) == str(len(re.findall(r'<figure id="figure-', page[:page.index('id="flipmap"')])) + 1)
+    # the start of section 5 (at rest) on its own: its flip time agrees with simulate's rows
+    m = re.search(r"at rest: flips at t = ([0-9.]+) s \((φ|ψ), hinge ([12])\)", text)
+    assert m, text
+    t_flip, joint = float(m.group(1)), int(m.group(3)) - 1
+    tr = skewpend.simulate(Parameters(**R.DEFAULT_PARAMETERS), R.DEFAULT_INITIAL_STATE, t_flip + 0.01, dt_out=1e-4)
+    out = np.abs(tr.y[:, :2]) >= np.pi
+    first = int(np.argmax(out.any(axis=1)))
+    assert out.any() and out[first, joint]
+    assert tr.t[first - 1] <= t_flip + 1e-9 and t_flip <= tr.t[first] + 1e-9
+    provenance = _section(page, "provenance")
+    assert "6 · flip-time map" in provenance and "7 · validation against MuJoCo" in provenance
+    assert f"{n} × {n} starts at rest, t_end = 10 s" in html.unescape(provenance)
+
+
+def test_flipmap_section_for_general_bodies_with_torques_and_speeds():
+    from types import SimpleNamespace
+
+    p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, g=9.81, axis2=(1, 0, 1), com2=(0, 0.4, 0.02), c1=0.05, tau2=0.2,
+                   inertia2=((0.02, 0, 0), (0, 0.001, 0), (0, 0, 0.02)))
+    ctx = SimpleNamespace(params=p, y0=(4.0, -0.8, 0.5, 0.0), notes={})  # phi0 beyond 180 deg: wrapped on the map
+    sec = R._section_flipmap(ctx)
+    assert sec.count('src="data:image/png;base64,') == 1 and "callout" not in sec
+    text = html.unescape(re.sub(r"<[^>]+>", "", sec))
+    assert "but not at rest (the map is for starts at rest)" in text
+    assert f"φ₀ = {math.degrees(4.0 - 2 * math.pi):.5g}°".replace("-", "−") in text
+    assert "mirrored" not in text  # torques (and a centre of mass off the plane) break the mirror symmetry
+    assert "need not follow its cell" in text
+    assert "flip" in ctx.notes["flipmap"]
+
+
+def test_flipmap_section_start_that_energy_forbids_to_flip():
+    from types import SimpleNamespace
+
+    ctx = SimpleNamespace(params=Parameters(**R.DEFAULT_PARAMETERS), y0=(0.3, -0.2, 0.0, 0.0), notes={})
+    text = html.unescape(re.sub(r"<[^>]+>", "", R._section_flipmap(ctx)))
+    assert "at rest: never flips: energy forbids it" in text
+    assert re.search(r"starts that flip\d[\d\u2009]* of 20\u2009736 \(", text), text

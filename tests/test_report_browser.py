@@ -148,7 +148,7 @@ def test_display_mathematics_fits_the_column(opened):
 def test_every_image_decoded(opened):
     page, _, _ = opened
     images = page.evaluate("""() => Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight, i.alt])""")
-    assert len(images) == 8  # 2 pictures of the system, the sweep, 5 simulation figures
+    assert len(images) == 9  # 2 pictures of the system, the sweep, 5 simulation figures, the flip-time map
     for complete, width, height, alt in images:
         assert complete and width > 0 and height > 0, alt
 
@@ -169,3 +169,16 @@ def test_screenshots_kept(opened):
     assert {f"{key}.png" for key, _ in R.SECTIONS} <= names
     for p in folder.glob("*.png"):
         assert p.stat().st_size > 2000, p.name
+
+
+def test_flipmap_section_shows_its_map(opened):
+    page, _, folder = opened
+    state = page.evaluate("""() => { const s = document.querySelector('#flipmap');
+        const img = s.querySelector('figure img'); const r = img.getBoundingClientRect();
+        return {n: s.querySelectorAll('img').length, natural: img.naturalWidth, width: r.width, height: r.height,
+                column: s.getBoundingClientRect().width, toc: !!document.querySelector('nav.toc a[href="#flipmap"]'),
+                caption: s.querySelector('figcaption').textContent}; }""")
+    assert state["n"] == 1 and state["natural"] > 0 and state["toc"]
+    assert 300 < state["width"] <= state["column"] and state["height"] > 300
+    assert "no flip within" in state["caption"]
+    assert (folder / "flipmap.png").stat().st_size > 20000

@@ -23,8 +23,10 @@ Sections:
 4. normal modes: frequencies, periods, shapes; the frequencies against ``alpha`` with the
    internal resonances;
 5. a simulation: figures, energy drift, the animation;
-6. the validation against MuJoCo (or how to install it);
-7. how the report was made: versions, settings, timings.
+6. which starts flip: a small flip-time map (:func:`skewpend.flip_map`, released at rest), the
+   simulation's start marked on it;
+7. the validation against MuJoCo (or how to install it);
+8. how the report was made: versions, settings, timings.
 
 Sections 2 and 3 are symbolic work (SymPy); on a machine with more than one core a second Python
 process computes them while this one simulates and draws (:data:`PARALLEL`; if that process
@@ -80,6 +82,7 @@ SECTIONS = (
     ("check", "Check: the planar case α = 0"),
     ("modes", "Small oscillations: normal modes"),
     ("simulation", "Simulation"),
+    ("flipmap", "Which starts flip: the flip-time map"),
     ("validation", "Validation against MuJoCo"),
     ("provenance", "How this report was made"),
 )
@@ -97,6 +100,9 @@ SWEEP_POINTS = 181
 VALIDATION_DT = 1e-4
 VALIDATION_T_END = 2.0
 VALIDATION_TOL = 1e-6
+#: The flip-time map of section 6: cells per side and how long each start is followed [s].
+FLIPMAP_N = 144
+FLIPMAP_T_END = 10.0
 #: Rows drawn by the figures: every FIGURE_DT seconds, at most FIGURE_MAX_ROWS.
 FIGURE_DT = 0.01
 FIGURE_MAX_ROWS = 20000
@@ -749,7 +755,7 @@ def build_report(
     motion, at most ``t_end``; at most 1200 frames).  ``sweep_points``: values of alpha in
     0..180 deg for the frequency curves.  ``validate``: compare with MuJoCo (None: when MuJoCo is
     installed; True: it must be).  ``command``: the command line that made the report, shown in
-    section 7.  ``progress(done, total)`` is called as each part is finished.
+    section 8.  ``progress(done, total)`` is called as each part is finished.
 
     Every argument is checked before any work starts (:class:`~skewpend.ParameterError`).
     """
@@ -768,6 +774,7 @@ def build_report(
         "simulation": _section_simulation,  # first: section 1's pictures and the animation use its runs
         "system": _section_system,
         "modes": _section_modes,
+        "flipmap": _section_flipmap,
         "validation": _section_validation,
     }
     total = len(numeric) + 3
@@ -1414,7 +1421,116 @@ def _video_figure(ctx: _Context) -> str:
     )
 
 
-# -- section 6: validation -------------------------------------------------------------------------------
+# -- section 6: the flip-time map --------------------------------------------------------------------------
+def _count(k: int) -> str:
+    """A whole number with thin spaces between groups of three digits: ``20 736``."""
+    return f"{k:,}".replace(",", "\u2009")
+
+
+def _flip_of_start(p: Parameters, phi0: float, psi0: float) -> Tuple[float, int, bool]:
+    """Flip time [s] (NaN: none by FLIPMAP_T_END), joint (0, 1; -1 none) and whether energy forbids
+    a flip, of the start ``(phi0, psi0)`` at rest itself: a map of one cell centred on it (the
+    map's own engine)."""
+    from ..analysis.flipmap import flip_map
+
+    d = 1e-9
+    one = flip_map(p, 1, t_end=FLIPMAP_T_END, phi_range=(max(-math.pi, phi0 - d), min(math.pi, phi0 + d)),
+                   psi_range=(max(-math.pi, psi0 - d), min(math.pi, psi0 + d)), workers=1)
+    return float(one.flip_time[0, 0]), int(one.which[0, 0]), one.stats["skipped_energy"] == 1
+
+
+def _section_flipmap(ctx: _Context) -> str:
+    import warnings
+
+    from ..analysis.flipmap import flip_map
+    from . import figures as F
+    from .figures import wrap_angle
+
+    p, y0 = ctx.params, ctx.y0
+    n, t_end = FLIPMAP_N, FLIPMAP_T_END
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        try:
+            fm = flip_map(p, n, t_end=t_end)
+        except SkewpendError as exc:
+            ctx.notes["flipmap"] = "could not be made"
+            return f'<p class="callout warn">The flip-time map could not be made: {_e(exc)}</p>'
+    st = fm.stats
+    ctx.notes["flipmap"] = (f"{n} × {n} starts at rest, t_end = {t_end:g} s, DOP853 at rtol = {fm.settings['rtol']:g}, "
+                            f"atol = {fm.settings['atol']:g}: {st['flipped']} of {n * n} flip, computed in "
+                            f"{st['wall_time']:.2f} s")
+    phi_s, psi_s = float(wrap_angle(y0[0])), float(wrap_angle(y0[1]))
+    at_rest = y0[2] == 0.0 and y0[3] == 0.0
+    margin = F.flipmap_energy_margin(fm)
+    forbidden = None if margin is None else margin < 0
+    fig = F.flipmap_figure(fm, mark=(phi_s, psi_s), mark_label="start of section 5" + ("" if at_rest else " (its angles)"),
+                           forbidden=margin)
+    cells = n * n
+    flipped, skipped = st["flipped"], st["skipped_energy"]
+    n_forbidden = int(np.count_nonzero(forbidden)) if forbidden is not None else skipped
+    grey = ("grey: energy forbids any flip, so these starts were not integrated at all — released at rest, the energy "
+            + _t(r"$T + V$ with $V = \Pi - \tau\cdot q$ never increases (damping only dissipates), and here it starts "
+                 r"below the lowest $V$ on the boundary of the square (−180°, 180°)², which the angles must reach to flip; "))
+    if forbidden is None or n_forbidden == 0:
+        grey = ""
+    caption = (
+        _t(r"Flip time of the pendulum released at rest from $(\varphi_0, \psi_0)$ — the first time either hinge angle "
+           r"leaves (−180°, 180°) — on a log colour scale (bright: early, dark: late), with $\varphi_0$ across and "
+           r"$\psi_0$ up, for the parameters of section 1 (") + f"{n}&nbsp;×&nbsp;{n} starts, followed for {_num(t_end)} s). "
+        + f"White: no flip within {_num(t_end)} s; " + grey
+        + "red dot: the angles of the simulation's initial state (section 5)"
+        + ("." if at_rest else " — which starts with speeds, so its own motion need not follow its cell.")
+    )
+    out = [_t(
+        "<p>The double pendulum is the textbook chaotic mechanical system. Release it at rest from hinge angles "
+        r"$(\varphi_0, \psi_0)$ and wait: does a rod go over the top, and when? The <b>flip time</b> is the first time "
+        r"either $\varphi$ or $\psi$ leaves (−180°, 180°). Below, each of " + f"{n}&nbsp;×&nbsp;{n} = {_count(cells)}"
+        + " starts is one simulation of the equations of section 2 (DOP853 in compiled code generated from the derivation, "
+        "several trajectories side by side, each stopped at its flip, located on the dense output): smooth regions where "
+        "nearby starts flip alike, and between them the fractal tangle where the outcome depends sensitively on the start."
+        "</p>")]
+    out.append(_figure(_png(fig), caption, "flip-time map: flip time against the starting hinge angles"))
+    facts = [
+        ("starts that flip", f"{_count(flipped)} of {_count(cells)} ({_num(100.0 * flipped / cells, 3)} %) within "
+                             f"{_num(t_end)} s"),
+        ("no flip", f"{_count(cells - flipped)} ({_num(100.0 * (cells - flipped) / cells, 3)} %)"
+                    + (f", of which {_count(n_forbidden)} forbidden by energy" if forbidden is not None else "")),
+    ]
+    if at_rest:
+        try:
+            t_flip, joint, never = _flip_of_start(p, phi_s, psi_s)
+        except SkewpendError:
+            t_flip, joint, never = math.nan, -2, False
+        if never:
+            what = "never flips: energy forbids it"
+        elif joint >= 0:
+            what = f"flips at t = {_num(t_flip, 5)} s ({'φ' if joint == 0 else 'ψ'}, hinge {joint + 1})"
+        elif joint == -1:
+            what = f"does not flip within {_num(t_end)} s"
+        else:
+            what = "could not be computed"
+        facts.append(("the start of section 5", f"φ₀ = {_deg(phi_s)}, ψ₀ = {_deg(psi_s)}, at rest: {what}"))
+    else:
+        facts.append(("the start of section 5", f"φ₀ = {_deg(phi_s)}, ψ₀ = {_deg(psi_s)}, but not at rest "
+                                                "(the map is for starts at rest)"))
+    how = (f"{_count(st['integrated'])} starts integrated, {_count(st['mirrored'])} mirrored (the map is symmetric "
+           f"under (φ₀, ψ₀) → (−φ₀, −ψ₀))" if st["mirrored"] else f"{_count(st['integrated'])} starts integrated")
+    how += (f", {_count(skipped)} skipped by the energy bound; {_count(st['steps'])} steps on {st['workers']} "
+            f"thread{'s' if st['workers'] != 1 else ''}")
+    facts.append(("work", how))
+    facts.append(("time to compute the map", f"{st['wall_time']:.2f} s" + (f" (including {st['kernel_build_time']:.2f} s to compile its "
+                                                         "kernel, now cached)" if st.get("kernel_build_time") else "")))
+    if st.get("failed"):  # (flip_map's warning is caught: said here instead)
+        facts.append(("failed", f'<span class="verdict bad">{st["failed"]} starts could not be integrated</span> '
+                                "(left white)"))
+    out.append(_facts(facts))
+    out.append(_t("<p class=\"note\">In Python: <code>skewpend.flip_map(params, 512, t_end=10)</code> gives a larger "
+                  "map (a <code>FlipMap</code> with the flip times, the joint that flipped and the settings), "
+                  "<code>skewpend.views.figures.flipmap_figure</code> draws it.</p>"))
+    return "\n".join(out)
+
+
+# -- section 7: validation -------------------------------------------------------------------------------
 def _mujoco_installed() -> bool:
     import importlib.util
 
@@ -1464,7 +1580,7 @@ def _section_validation(ctx: _Context) -> str:
     )
 
 
-# -- section 7: provenance -------------------------------------------------------------------------------
+# -- section 8: provenance -------------------------------------------------------------------------------
 def _versions() -> List[Tuple[str, str]]:
     from importlib import metadata
 
@@ -1488,6 +1604,7 @@ def _section_provenance(ctx: _Context) -> str:
          + " (figures: rows every " + _num(max(FIGURE_DT, ctx.t_end / FIGURE_MAX_ROWS)) + " s)"),
         ("animation", _e(ctx.notes.get("clip", ""))),
         ("α sweep", _e(f"0 to 180° in {ctx.sweep_points} values: {ctx.notes.get('sweep', '')}")),
+        ("flip-time map", _e(ctx.notes.get("flipmap", ""))),
         ("validation", _e(f"MuJoCo RK4, dt = {VALIDATION_DT:g} s, {min(VALIDATION_T_END, ctx.t_end):g} s, tolerance "
                           f"{VALIDATION_TOL:g}: {ctx.notes.get('validation', '')}")),
         ("derivation shown for", _e(ctx.notes.get("derivation", ""))),
@@ -1506,7 +1623,8 @@ def _section_provenance(ctx: _Context) -> str:
         ("simulation: integration", "5 · integration"),
         ("simulation: figures", "5 · figures"),
         ("simulation: animation", "5 · animation"),
-        ("validation", "6 · validation against MuJoCo"),
+        ("flipmap", "6 · flip-time map"),
+        ("validation", "7 · validation against MuJoCo"),
         ("total", "total"),
     ]
     trows = [[_e(label), f"{ctx.timings[key]:.2f}"] for key, label in labels if key in ctx.timings]

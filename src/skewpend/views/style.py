@@ -2,8 +2,8 @@
 
 Nothing here imports matplotlib at module level.  :func:`style` is a context manager that
 applies :data:`RC` (fonts, line widths, grid) only while a figure is built or saved -- the
-global ``matplotlib.rcParams`` are left as they were.  :func:`caption` and
-:func:`sweep_caption` are plain strings (the parameters and settings a figure shows), so
+global ``matplotlib.rcParams`` are left as they were.  :func:`caption`,
+:func:`sweep_caption` and :func:`flipmap_caption` are plain strings (the parameters and settings a figure shows), so
 they can be tested and reused without drawing anything.
 """
 
@@ -15,7 +15,7 @@ from typing import Any, Dict, Iterator, List, Mapping
 
 __all__ = [
     "RC", "COLORS", "SYMBOL", "DPI", "style", "fmt", "parameter_text", "settings_text", "initial_text", "caption",
-    "sweep_caption",
+    "sweep_caption", "flipmap_window", "window_text", "flipmap_caption",
 ]
 
 #: The rcParams every figure is built and saved with (applied by :func:`style`).
@@ -179,3 +179,63 @@ def sweep_caption(sw) -> str:
     fixed = parameter_text(sw.params, skip=_ratio_skip(sw.name))
     return f"{swept}; {fixed}" if fixed else swept
 
+
+def flipmap_window(fm):
+    """``((phi_lo, phi_hi), (psi_lo, psi_hi))`` [rad]: the window a flip map covers (the outer
+    edges of its cells), from its settings, or else from its cell centres."""
+    out = []
+    for key, centres in (("phi_range", fm.phi0[:, 0]), ("psi_range", fm.psi0[0, :])):
+        given = fm.settings.get(key)
+        if given is not None:
+            out.append((float(given[0]), float(given[1])))
+            continue
+        c = [float(v) for v in centres]
+        half = 0.5 * (c[-1] - c[0]) / (len(c) - 1) if len(c) > 1 else 0.0
+        out.append((c[0] - half, c[-1] + half))
+    return tuple(out)
+
+
+def window_text(phi_range, psi_range) -> str:
+    """``phi0 in [-180°, 180°], psi0 in [-90°, 45°]`` (a flip map's window, given in radians)."""
+    (p0, p1), (q0, q1) = phi_range, psi_range
+    deg = lambda x: fmt(math.degrees(float(x)))  # noqa: E731
+    return f"phi0 in [{deg(p0)}°, {deg(p1)}°], psi0 in [{deg(q0)}°, {deg(q1)}°]"
+
+
+def _wrap_list(text: str, width: int = 100) -> str:
+    """A comma-separated list broken into lines of at most ``width`` characters, between items."""
+    lines: List[str] = []
+    for item in text.split(", "):
+        if lines and len(lines[-1]) + 2 + len(item) <= width:
+            lines[-1] += ", " + item
+        else:
+            if lines:
+                lines[-1] += ","
+            lines.append(item)
+    return "\n".join(lines)
+
+
+def flipmap_caption(fm) -> str:
+    """What a flip-time map shows, in three lines: the parameters; the grid (window, cells,
+    released at rest, ``t_end``); the method, its tolerances and how many cells flipped."""
+    st, stats = fm.settings, fm.stats
+    n0, n1 = fm.flip_time.shape
+    phi_range, psi_range = flipmap_window(fm)
+    t_end = st.get("t_end")
+    grid = f"released at rest from {window_text(phi_range, psi_range)}, n = {n0} x {n1} cells"
+    if t_end is not None:
+        grid += f", t_end = {fmt(t_end)} s"
+    parts = [str(st.get("method", "dop853"))]
+    for key in ("rtol", "atol"):
+        if st.get(key) is not None:
+            parts.append(f"{key} = {fmt(st[key])}")
+    cells = n0 * n1
+    flipped = stats.get("flipped")
+    if flipped is None:
+        import numpy as np
+
+        flipped = int(np.count_nonzero(np.isfinite(fm.flip_time)))
+    parts.append(f"{fmt(100.0 * flipped / cells, 3)}% of the cells flip")
+    if st.get("energy_bound") and stats.get("skipped_energy") is not None:
+        parts.append(f"{fmt(100.0 * stats['skipped_energy'] / cells, 3)}% forbidden by energy")
+    return "\n".join([_wrap_list(parameter_text(fm.params)), grid, ", ".join(parts)])
