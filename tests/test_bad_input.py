@@ -196,6 +196,24 @@ case("animate-rtol-with-rk4", ["animate", "--method", "rk4", "--rtol", "1e-6", "
 case("animate-t-end-zero", ["animate", "--t-end", "0", "--out", "m.gif"], "--t-end", "positive")
 case("animate-alpha-with-axis2", ["animate", "--alpha", "1", "--axis2", "1,0,1", "--out", "m.gif"], "not both")
 
+# -- flipmap --------------------------------------------------------------------------------------------------
+case("flipmap-n-zero", ["flipmap", "--n", "0"], "--n", "1 to 16384")
+case("flipmap-n-huge", ["flipmap", "--n", "1e6"], "--n", "16384")
+case("flipmap-n-fraction", ["flipmap", "--n", "2.5"], "--n", "whole number")
+case("flipmap-t-end-zero", ["flipmap", "--t-end", "0"], "--t-end", "positive")
+case("flipmap-t-end-sym", ["flipmap", "--t-end", "sym"], "--t-end")
+case("flipmap-window-inverted", ["flipmap", "--window", "90:-90deg,0:1"], "--window (phi)", "START < STOP")
+case("flipmap-window-one-range", ["flipmap", "--window", "0:1"], "--window", "PHI0:PHI1,PSI0:PSI1")
+case("flipmap-window-beyond-pi", ["flipmap", "--window", "0:270deg,0:1"], "--window (phi)", "180")
+case("flipmap-window-mixed-units", ["flipmap", "--window", "0deg:1rad,0:1"], "--window (phi)", "one unit")
+case("flipmap-out-txt", ["flipmap", "--out", "map.txt"], "--out", ".zarr or .nc")
+case("flipmap-out-missing-dir", ["flipmap", "--out", "nodir/map.nc"], "nodir")
+case("flipmap-plot-jpg", ["flipmap", "--plot", "map.jpg"], "--plot", ".png")
+case("flipmap-resume-without-store", ["flipmap", "--resume"], "--resume", ".zarr")
+case("flipmap-workers-zero", ["flipmap", "--workers", "0"], "--workers")
+case("flipmap-rtol-negative", ["flipmap", "--rtol", "-1"], "--rtol", "positive")
+case("flipmap-a-sym", ["flipmap", "--a", "sym"], "numeric", "symbolic: a")
+
 # -- validate -------------------------------------------------------------------------------------------------
 case("validate-dt-zero", ["validate", "--dt", "0"], opt("dt"), "positive")
 case("validate-dt-negative", ["validate", "--dt", "-1e-4"], opt("dt"), "positive")
@@ -397,7 +415,7 @@ def test_bad_input_is_refused_in_one_line(argv, fragments, files, tmp_path, monk
 def test_the_battery_is_large():
     assert len(_CASES) >= 120
     commands = {p.values[0][0] for p in _CASES}
-    assert commands == {"derive", "simulate", "animate", "export", "validate", "modes"}
+    assert commands == {"derive", "simulate", "animate", "flipmap", "export", "validate", "modes"}
 
 
 # -- the real process -----------------------------------------------------------------------------------------

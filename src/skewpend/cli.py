@@ -510,6 +510,100 @@ def animate(
         sys.exit(1)
 
 
+# -- flip-time maps ----------------------------------------------------------------------------------------
+_FLIPMAP_OUT = (".zarr", ".nc")
+
+
+@app.command()
+@_options(MODEL_OPTIONS)
+def flipmap(
+    model: dict,
+    n: Annotated[Optional[str], typer.Option("--n", help="cells per side: an n x n map (default 256)", rich_help_panel=_R)] = None,
+    t_end: Annotated[Optional[str], typer.Option("--t-end", help="longest time looked at [s] (default 10)", rich_help_panel=_R)] = None,
+    window: Annotated[Optional[str], typer.Option("--window", help="PHI0:PHI1,PSI0:PSI1 (radians, or e.g. -90:90deg,-180:180deg; default the whole square)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance of DOP853 (default 1e-10)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance of DOP853 (default 1e-10)", rich_help_panel=_R)] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the map to FILE.zarr (chunk by chunk, resumable) or FILE.nc", rich_help_panel=_R)] = None,
+    plot: Annotated[Optional[str], typer.Option("--plot", help="draw the map to FILE (.png, .svg or .pdf)", rich_help_panel=_R)] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="with --out FILE.zarr: compute only the chunks an interrupted run left missing", rich_help_panel=_R)] = False,
+    workers: Annotated[Optional[str], typer.Option("--workers", help="threads on this machine (default: every core)", rich_help_panel=_R)] = None,
+    scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="run on a dask.distributed cluster: tcp://HOST:PORT (needs skewpend[cluster])", rich_help_panel=_R)] = None,
+    quiet: QUIET = False,
+    config: CONFIG = None,
+) -> None:
+    """The flip-time map: for each start (phi0, psi0) at rest on an n x n grid, the first time either
+    hinge angle leaves (-180 deg, 180 deg) -- on every core, or on a Dask cluster.
+
+    From a --config run file it takes [parameters].
+    """
+    import math
+
+    from .io import check_output_path
+    from .parsing import parse_interval
+
+    params, _, _ = _resolve(config, model, {}, {})
+    size = 256 if n is None else parse_scalar(n, "--n")
+    if size is None or size != int(size) or not 1 <= size <= 16384:
+        raise UsageError(f"--n: expected a whole number of cells per side from 1 to 16384, got {n!r}")
+    horizon = 10.0 if t_end is None else _positive(t_end, "--t-end")
+    tolerances = {k: (None if v is None else _positive(v, f"--{k}")) for k, v in (("rtol", rtol), ("atol", atol))}
+    ranges = ((-math.pi, math.pi), (-math.pi, math.pi))
+    if window is not None:
+        parts = window.split(",")
+        if len(parts) != 2:
+            raise UsageError(f"--window: expected PHI0:PHI1,PSI0:PSI1 (e.g. -90:90deg,-180:180deg), got {window!r}")
+        ranges = tuple(parse_interval(part, f"--window ({name})", angle=True) for part, name in zip(parts, ("phi", "psi")))
+        for (lo, hi), name in zip(ranges, ("phi", "psi")):
+            if not -math.pi - 1e-12 <= lo < hi <= math.pi + 1e-12:
+                raise UsageError(f"--window ({name}): expected START < STOP within -180..180 deg, got {lo:.6g}:{hi:.6g} rad")
+    threads = None
+    if workers is not None:
+        threads = parse_scalar(workers, "--workers")
+        if threads is None or threads != int(threads) or not 1 <= threads <= 1024:
+            raise UsageError(f"--workers: expected a whole number of threads from 1 to 1024, got {workers!r}")
+        threads = int(threads)
+    if scheduler is not None and workers is not None:
+        raise UsageError("--workers counts threads on this machine; with --scheduler the cluster's workers do the work")
+    if out is not None:
+        if not str(out).lower().endswith(_FLIPMAP_OUT):
+            raise UsageError(f"--out: expected a file name ending in .zarr or .nc, got {out!r}")
+        if str(out).lower().endswith(".nc"):
+            check_output_path(out, (".nc",), option="--out")
+    if resume and (out is None or not str(out).lower().endswith(".zarr")):
+        raise UsageError("--resume continues a store: give --out FILE.zarr (a .nc file is written whole at the end)")
+    if plot is not None:
+        from .views.figures import FIGURE_SUFFIXES
+
+        check_output_path(plot, FIGURE_SUFFIXES, option="--plot")
+    from .analysis.flipmap import flip_map
+    from .progress import ProgressBar
+
+    store = out if out is not None and str(out).lower().endswith(".zarr") else None
+    with ProgressBar("flip map", unit="cells", enabled=None if not quiet else False) as bar:
+        fm = flip_map(params, int(size), t_end=horizon, phi_range=ranges[0], psi_range=ranges[1], workers=threads,
+                      progress=bar, store=store, resume=resume, scheduler=scheduler, **tolerances)
+    if out is not None and store is None:
+        fm.to_netcdf(out)
+    if plot is not None:
+        from .views.figures import flipmap_figure, save_figure
+
+        save_figure(flipmap_figure(fm), plot)
+    flipped = int(fm.flipped.sum()) if hasattr(fm, "flipped") else int((fm.which >= 0).sum())
+    st = fm.stats
+    lines = [
+        f"flip map      {fm.n} x {fm.n} starts at rest, t_end = {horizon:g} s",
+        f"flipped       {flipped} of {fm.n * fm.n} ({100 * flipped / (fm.n * fm.n):.1f} %)",
+        f"work          {st.get('integrated', '?')} cells integrated, {st.get('skipped_energy', 0)} ruled out by energy, "
+        f"{st.get('mirrored', 0)} by symmetry; {st.get('wall_time', float('nan')):.3g} s on {st.get('workers', '?')} workers",
+    ]
+    if st.get("failed"):
+        lines.append(f"failed        {st['failed']} cells (left NaN: the integration stopped early)")
+    for what, path in (("written", out), ("plot", plot)):
+        if path is not None:
+            lines.append(f"{what:14s}{path}")
+    sys.stdout.write("\n".join(lines) + "\n")
+
+
 # -- report -----------------------------------------------------------------------------------------------
 @app.command()
 @_options(MODEL_OPTIONS, INITIAL_OPTIONS)

@@ -6,7 +6,7 @@ Shared by the command line, configuration files and sweep specifications.
 from __future__ import annotations
 
 import math
-from typing import Any, Optional, Sequence
+from typing import Any, Optional, Sequence, Tuple
 
 from .errors import ParameterError
 
@@ -128,27 +128,12 @@ _RANGE_UNITS = (("deg", "deg"), ("°", "deg"), ("rad", "rad"))
 _MAX_RANGE_COUNT = 100_000
 
 
-def parse_range(text: Optional[str], option: str, *, angle: bool):
-    """``START:STOP:COUNT`` -> ``numpy.linspace(START, STOP, COUNT)`` (floats, SI units).
-
-    The one rule for units in a range: a unit written on either end, or on both, applies
-    to the whole range, so ``0:180deg:5``, ``0deg:180:5``, ``0deg:180deg:5`` and
-    ``0°:180°:5`` are the same five angles; plain numbers are radians (``0:3.14:5``,
-    ``0rad:3.14:5``); different units on the two ends (``0deg:1rad:5``) are refused.
-    Angles are returned in radians.  A range that is not an angle (``angle=False``) takes
-    plain numbers only.  COUNT is a whole number from 2 to 100000; the values must be
-    finite.  Errors are :class:`UsageError` naming ``option``.
-    """
-    import numpy as np
-
-    example = "0:180deg:181" if angle else "0.5:2:31"
-    if not isinstance(text, str):
-        raise UsageError(f"{option}: expected START:STOP:COUNT (e.g. {example}), got {text!r}")
-    parts = text.split(":")
-    if len(parts) != 3:
-        raise UsageError(f"{option}: expected START:STOP:COUNT (e.g. {example}), got {text!r}")
+def parse_interval(text: Optional[str], option: str, *, angle: bool, example: str = "-90:90deg") -> Tuple[float, float]:
+    """``START:STOP`` -> ``(start, stop)`` in SI units, with the unit rule of :func:`parse_range`."""
+    if not isinstance(text, str) or len(text.split(":")) != 2:
+        raise UsageError(f"{option}: expected START:STOP (e.g. {example}), got {text!r}")
     ends, units = [], []
-    for part, which in zip(parts[:2], ("START", "STOP")):
+    for part, which in zip(text.split(":"), ("START", "STOP")):
         t, unit = part.strip().lower(), None
         for suffix, name in _RANGE_UNITS:
             if t.endswith(suffix):
@@ -171,19 +156,40 @@ def parse_range(text: Optional[str], option: str, *, angle: bool):
             f"{option}: START is in {units[0]} but STOP in {units[1]} ({text.strip()!r}); write one unit, "
             "on either end or both (it applies to the whole range)"
         )
-    count = parts[2].strip()
+    scale = math.pi / 180 if explicit == ["deg"] else 1.0  # the factor parse_scalar uses for 'deg'
+    return ends[0] * scale, ends[1] * scale
+
+
+def parse_range(text: Optional[str], option: str, *, angle: bool):
+    """``START:STOP:COUNT`` -> ``numpy.linspace(START, STOP, COUNT)`` (floats, SI units).
+
+    The one rule for units in a range: a unit written on either end, or on both, applies
+    to the whole range, so ``0:180deg:5``, ``0deg:180:5``, ``0deg:180deg:5`` and
+    ``0°:180°:5`` are the same five angles; plain numbers are radians (``0:3.14:5``,
+    ``0rad:3.14:5``); different units on the two ends (``0deg:1rad:5``) are refused.
+    Angles are returned in radians.  A range that is not an angle (``angle=False``) takes
+    plain numbers only.  COUNT is a whole number from 2 to 100000; the values must be
+    finite.  Errors are :class:`UsageError` naming ``option``.
+    """
+    import numpy as np
+
+    example = "0:180deg:181" if angle else "0.5:2:31"
+    if not isinstance(text, str) or len(text.split(":")) != 3:
+        raise UsageError(f"{option}: expected START:STOP:COUNT (e.g. {example}), got {text!r}")
+    head, count = text.rsplit(":", 1)
+    lo, hi = parse_interval(head, option, angle=angle, example=example)
+    count = count.strip()
     try:
         n = int(count)
     except ValueError:
         n = None
     if n is None or not 2 <= n <= _MAX_RANGE_COUNT:
         raise UsageError(f"{option}: COUNT must be a whole number from 2 to {_MAX_RANGE_COUNT}, got {count!r}")
-    scale = math.pi / 180 if explicit == ["deg"] else 1.0  # the factor parse_scalar uses for 'deg'
     with np.errstate(all="ignore"):
-        values = np.linspace(ends[0] * scale, ends[1] * scale, n)
+        values = np.linspace(lo, hi, n)
     if not np.all(np.isfinite(values)):
         raise UsageError(f"{option}: the range {text.strip()!r} is too wide for double precision (STOP - START overflows)")
     return values
 
 
-__all__.append("parse_range")
+__all__ += ["parse_range", "parse_interval"]
