@@ -29,6 +29,7 @@ _LAZY = {
     "characteristic_equation": "analysis.modes",
     "flip_map": "analysis.flipmap",
     "FlipMap": "analysis.flipmap",
+    "open_flip_map": "analysis.flipmap",
 }
 
 __all__ = [
@@ -45,6 +46,7 @@ __all__ = [
     "characteristic_equation",
     "flip_map",
     "FlipMap",
+    "open_flip_map",
     "SkewpendError",
     "ParameterError",
     "NotNumericError",
@@ -57,7 +59,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .symbolic.derivation import EquationsOfMotion, LinearEquations, derive
     from .symbolic.symbols import SYMBOLS
     from .numeric.simulation import Trajectory, simulate
-    from .analysis.flipmap import FlipMap, flip_map
+    from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
 
 
@@ -70,7 +72,7 @@ _SUBMODULES = {
     "render": "symbolic.render", "symbols": "symbolic.symbols", "codegen": "numeric.codegen",
     "kernels": "numeric.kernels", "simulation": "numeric.simulation", "modes": "analysis.modes",
     "export": "interop.export", "validation": "interop.validation", "figures": "views.figures",
-    "flipmap": "analysis.flipmap", "ensemble": "numeric.ensemble",
+    "flipmap": "analysis.flipmap", "ensemble": "numeric.ensemble", "store": "numeric.store",
     "io": "io", "parsing": "parsing", "progress": "progress", "errors": "errors", "cli": "cli",
 }
 

@@ -596,6 +596,9 @@ def flipmap(
         f"work          {st.get('integrated', '?')} cells integrated, {st.get('skipped_energy', 0)} ruled out by energy, "
         f"{st.get('mirrored', 0)} by symmetry; {st.get('wall_time', float('nan')):.3g} s on {st.get('workers', '?')} workers",
     ]
+    if "chunks_computed" in st:
+        lines.append(f"store         {st['chunks_computed']} chunks computed now, {st.get('chunks_resumed', 0)} already done"
+                     + (f"; {st['tasks']} tasks on {st['scheduler']}" if st.get("scheduler") else ""))
     if st.get("failed"):
         lines.append(f"failed        {st['failed']} cells (left NaN: the integration stopped early)")
     for what, path in (("written", out), ("plot", plot)):

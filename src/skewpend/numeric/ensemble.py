@@ -187,7 +187,7 @@ CONNECT_TIMEOUT = 5.0
 #: At most this many tasks per run: work units are batched beyond it.
 MAX_TASKS = 2000
 
-_ADDRESS = re.compile(r"^(tcp|tls|ws|wss)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})/?$")
+_ADDRESS = re.compile(r"^(tcp)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})/?$")
 
 
 def require_distributed(what: str = "running on a Dask cluster"):
@@ -202,15 +202,20 @@ def require_distributed(what: str = "running on a Dask cluster"):
 
 
 def check_scheduler(scheduler):
-    """``scheduler`` as given, if it is an address ``tcp://HOST:PORT`` (or ``tls://``, ``ws://``,
-    ``wss://``) or a :class:`distributed.Client`; else a :class:`ParameterError`."""
+    """``scheduler`` if it is an address ``tcp://HOST:PORT`` (a bare ``HOST:PORT`` is taken as
+    ``tcp://``; TLS and other protocols need security settings: pass a Client made with them) or
+    a :class:`distributed.Client`; else a :class:`ParameterError`."""
     from ..errors import ParameterError
 
     if isinstance(scheduler, str):
-        m = _ADDRESS.match(scheduler.strip())
+        address = scheduler.strip()
+        if "://" not in address:  # HOST:PORT, as dask itself accepts it
+            address = "tcp://" + address
+        m = _ADDRESS.match(address)
         if not m or not 0 < int(m.group(3)) < 65536:
-            raise ParameterError(f"scheduler must be an address like tcp://HOST:PORT, got {scheduler!r}")
-        return scheduler.strip()
+            raise ParameterError(f"scheduler must be an address like tcp://HOST:PORT, got {scheduler!r} (for TLS or "
+                                 "another protocol, pass a dask.distributed Client set up for it)")
+        return address
     if type(scheduler).__name__ == "Client" and type(scheduler).__module__.startswith("distributed"):
         return scheduler
     raise ParameterError(
@@ -218,16 +223,20 @@ def check_scheduler(scheduler):
     )
 
 
-def connect_scheduler(scheduler, *, timeout: float = CONNECT_TIMEOUT):
+def connect_scheduler(scheduler, *, timeout: Optional[float] = None):
     """``(client, owned)``: a :class:`distributed.Client` for ``scheduler`` (an address or a
     client), ``owned`` if made here (then the caller closes it).  An unreachable scheduler, or
-    one without workers, is a :class:`ParameterError` after at most about ``timeout`` seconds."""
+    one without workers, is a :class:`ParameterError` after at most about ``timeout`` seconds
+    (default :data:`CONNECT_TIMEOUT`; a refused port or an unknown host at once)."""
     from ..errors import ParameterError
+
+    timeout = CONNECT_TIMEOUT if timeout is None else float(timeout)
 
     scheduler = check_scheduler(scheduler)
     distributed = require_distributed()
     if not isinstance(scheduler, str):
         return scheduler, False
+    _probe(scheduler, timeout)
     import logging
 
     # a failed connection is reported by the one error below, not by distributed's log
@@ -251,6 +260,69 @@ def connect_scheduler(scheduler, *, timeout: float = CONNECT_TIMEOUT):
         client.close(timeout=timeout)
         raise ParameterError(f"the Dask scheduler at {scheduler} has no workers (none joined within {timeout:g} s)") from None
     return client, True
+
+
+def _probe(address: str, timeout: float) -> None:
+    """Fail fast: a plain TCP connection to the scheduler's port, so that a refused port or an
+    unknown host is one clear line at once rather than dask's retries until the timeout."""
+    import socket
+
+    from ..errors import ParameterError
+
+    m = _ADDRESS.match(address)
+    host, port = m.group(2).strip("[]"), int(m.group(3))
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except socket.gaierror:
+        raise ParameterError(f"cannot reach the Dask scheduler at {address}: unknown host {host}") from None
+    except ConnectionRefusedError:
+        raise ParameterError(f"cannot reach the Dask scheduler at {address}: connection refused (is the scheduler "
+                             "running, on that port?)") from None
+    except (socket.timeout, TimeoutError):
+        raise ParameterError(f"cannot reach the Dask scheduler at {address} within {timeout:g} s") from None
+    except OSError as exc:
+        raise ParameterError(f"cannot reach the Dask scheduler at {address}: {exc.strerror or exc}") from None
+    _identify(address, timeout)
+
+
+def _identify(address: str, timeout: float) -> None:
+    """Ask whoever listens at ``address`` who it is, over dask's own protocol, with a hard
+    deadline: a port that accepts connections but does not answer (a dashboard port, another
+    service) would otherwise hang ``distributed.Client`` for ever.  Runs in a thread of its
+    own, with its own event loop (the caller may be inside one, e.g. Jupyter)."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    from ..errors import ParameterError
+
+    out: dict = {}
+
+    async def ask():
+        comm = await asyncio.wait_for(connect(address, timeout=timeout), timeout)
+        try:
+            await asyncio.wait_for(comm.write({"op": "identity", "reply": True}), timeout)
+            out["reply"] = await asyncio.wait_for(comm.read(), timeout)
+        finally:
+            comm.abort()
+
+    def run():
+        try:
+            asyncio.run(ask())
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            out["error"] = exc
+
+    thread = threading.Thread(target=run, name="skewpend-scheduler-probe", daemon=True)
+    thread.start()
+    thread.join(2 * timeout + 1)
+    reply = out.get("reply")
+    if not isinstance(reply, dict):
+        raise ParameterError(f"no Dask scheduler answered at {address} within {timeout:g} s (is that the scheduler's "
+                             "port? dask's default is 8786; 8787 is its dashboard)")
+    if reply.get("type") != "Scheduler":
+        raise ParameterError(f"{address} is not a Dask scheduler (it is a {reply.get('type', 'something else')}); "
+                             "give the scheduler's address")
 
 
 def cluster_threads(client) -> int:
@@ -282,7 +354,7 @@ def run_on_cluster(client, fn: Callable, args: Sequence[tuple], *, on_done: Call
     futures = [client.submit(fn, *a, key=f"{name}-{run}-{i}", pure=False) for i, a in enumerate(args)]
     index = {f.key: i for i, f in enumerate(futures)}
     try:
-        for fut in distributed.as_completed(futures):
+        for fut in distributed.as_completed(futures, loop=client.loop):
             try:
                 result = fut.result()
             except (ImportError, AttributeError) as exc:  # the task could not be unpickled on the worker
