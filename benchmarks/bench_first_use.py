@@ -45,7 +45,6 @@ Run:  python benchmarks/bench_first_use.py [--repeat-warm 5] [--repeat-cold 3]
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import math
 import os
 import platform
@@ -81,21 +80,7 @@ def skewpend_command() -> list[str]:
     return [sys.executable, "-m", "skewpend", "simulate"]
 
 
-def version(dist: str) -> str:
-    try:
-        return importlib.metadata.version(dist)
-    except importlib.metadata.PackageNotFoundError:
-        return "not installed"
-
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
+from _common import cpu_model, version  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
 def base_env() -> dict[str, str]:

@@ -35,7 +35,6 @@ Run:  python benchmarks/bench_flipmap.py [--repeat 5] [--n 128]
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import math
 import multiprocessing as mp
 import os
@@ -44,7 +43,6 @@ import statistics
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -61,21 +59,7 @@ def params():
     return skewpend.Parameters(a=A, b=B, m1=M1, m2=M2, alpha=ALPHA, g=G)
 
 
-def version(dist: str) -> str:
-    try:
-        return importlib.metadata.version(dist)
-    except importlib.metadata.PackageNotFoundError:
-        return "not installed"
-
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
+from _common import cpu_model, version  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
 def cells(n: int) -> np.ndarray:

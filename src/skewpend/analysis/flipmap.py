@@ -68,6 +68,7 @@ from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
+from ..parsing import positive_number
 from ..errors import NotNumericError, ParameterError
 from ..symbolic.model import Parameters
 
@@ -284,12 +285,7 @@ def _check_n(n) -> int:
 
 
 def _check_positive(name: str, value, *, cap: Optional[float] = None) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a positive number, got {value!r}") from None
-    if isinstance(value, bool) or not math.isfinite(x) or not x > 0:
-        raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+    x = positive_number(name, value)
     if cap is not None and x > cap:
         raise ParameterError(f"{name} must be at most {cap:g}, got {x:g}")
     return x
