@@ -18,7 +18,7 @@ from .errors import SkewpendError
 
 app = typer.Typer(
     name="skewpend",
-    help="The double pendulum with skewed hinge axes: a self-contained HTML report (skewpend report), the equations of motion, simulation, animation, validation against MuJoCo, normal modes.",
+    help="The double pendulum with skewed hinge axes: a self-contained HTML report (skewpend report), the equations of motion, simulation, animation, flip-time maps, normal modes, validation against MuJoCo.",
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
