@@ -368,6 +368,12 @@ def _step_cap(run: "_Run") -> int:
 
 
 QUIET = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar (it is shown on a terminal for work over ~1 s)", rich_help_panel=_R)]
+# integration settings shared by simulate, animate and report (declared once)
+METHOD = Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)]
+RTOL = Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)]
+ATOL = Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)]
+DT = Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only (default 1e-3)", rich_help_panel=_R)]
+MAX_STEPS_OPT = Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)]
 
 
 @app.command()
@@ -377,11 +383,11 @@ def simulate(
     initial: dict,
     t_end: Annotated[Optional[str], typer.Option("--t-end", help="duration [s] (default 20)", rich_help_panel=_R)] = None,
     dt_out: Annotated[Optional[str], typer.Option("--dt-out", help="with --out: output interval [s] (default: the integrator's own steps)", rich_help_panel=_R)] = None,
-    method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)] = None,
-    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
-    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
-    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only (default 1e-3)", rich_help_panel=_R)] = None,
-    max_steps: Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)] = None,
+    method: METHOD = None,
+    rtol: RTOL = None,
+    atol: ATOL = None,
+    dt: DT = None,
+    max_steps: MAX_STEPS_OPT = None,
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="stream the trajectory to FILE (.csv or .nc)", rich_help_panel=_R)] = None,
     plot: Annotated[Optional[str], typer.Option("--plot", help="draw the run to FILE (.png, .svg or .pdf): angles, speeds, energy error, phase portraits, torus, 3D rod ends", rich_help_panel=_R)] = None,
     quiet: QUIET = False,
@@ -449,11 +455,11 @@ def animate(
     speed: Annotated[Optional[str], typer.Option("--speed", help="seconds of motion per second of video (default 1; 0.5 = slow motion)", rich_help_panel=_R)] = None,
     trail: Annotated[Optional[str], typer.Option("--trail", help="seconds of motion the fading trail of rod 2's tip covers (default 2; 0 = none)", rich_help_panel=_R)] = None,
     size: Annotated[Optional[str], typer.Option("--size", help="frame size WIDTHxHEIGHT in pixels (default 640x480; even for MP4)", rich_help_panel=_R)] = None,
-    method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853, whose dense output gives the frames)", rich_help_panel=_R)] = None,
-    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
-    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
-    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only; speed/fps must be a multiple of it", rich_help_panel=_R)] = None,
-    max_steps: Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)] = None,
+    method: METHOD = None,
+    rtol: RTOL = None,
+    atol: ATOL = None,
+    dt: DT = None,
+    max_steps: MAX_STEPS_OPT = None,
     quiet: QUIET = False,
     config: CONFIG = None,
 ) -> None:
@@ -614,11 +620,11 @@ def report(
     model: dict,
     initial: dict,
     t_end: Annotated[Optional[str], typer.Option("--t-end", help="simulated time [s] (default 20, at most 1000)", rich_help_panel=_R)] = None,
-    method: Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=_R)] = None,
-    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
-    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)] = None,
-    dt: Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only (default 1e-3)", rich_help_panel=_R)] = None,
-    max_steps: Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)] = None,
+    method: METHOD = None,
+    rtol: RTOL = None,
+    atol: ATOL = None,
+    dt: DT = None,
+    max_steps: MAX_STEPS_OPT = None,
     out: Annotated[str, typer.Option("--out", "-o", help="the HTML file to write (default report.html)")] = "report.html",
     quiet: QUIET = False,
     config: CONFIG = None,
