@@ -107,10 +107,11 @@ static double rms(const double *x, const double *scale, int n)
     return sqrt(s / n);
 }
 
-/* one step from y with K[0] = F(y): stages K[1..12] and ynew */
-static void dop_step(const double *y, double h, const double *p, double K[][SP_NMAX], double *ynew, double *ytmp, int n)
+/* the stages K[first..last-1] from y, given the earlier ones */
+static void dop_stages(const double *y, double h, const double *p, double K[][SP_NMAX], double *ytmp, int n, int first,
+                       int last)
 {
-    for (int s = 1; s < DOP_NS; s++) {
+    for (int s = first; s < last; s++) {
         for (int i = 0; i < n; i++) {
             double acc = 0.0;
             for (int j = 0; j < s; j++) acc += DOP_A[s][j] * K[j][i];
@@ -118,6 +119,12 @@ static void dop_step(const double *y, double h, const double *p, double K[][SP_N
         }
         rhs(ytmp, p, K[s]);
     }
+}
+
+/* one step from y with K[0] = F(y): stages K[1..12] and ynew */
+static void dop_step(const double *y, double h, const double *p, double K[][SP_NMAX], double *ynew, double *ytmp, int n)
+{
+    dop_stages(y, h, p, K, ytmp, n, 1, DOP_NS);
     for (int i = 0; i < n; i++) {
         double acc = 0.0;
         for (int j = 0; j < DOP_NS; j++) acc += DOP_A[DOP_NS][j] * K[j][i];
@@ -151,14 +158,7 @@ static double dop_error(double K[][SP_NMAX], double h, const double *y, const do
 static void dop_dense_coeffs(const double *y, const double *ynew, double h, const double *p, double K[][SP_NMAX],
                              double *F, double *ytmp, int n)
 {
-    for (int s = DOP_NS + 1; s < DOP_NSTAGES; s++) {
-        for (int i = 0; i < n; i++) {
-            double acc = 0.0;
-            for (int j = 0; j < s; j++) acc += DOP_A[s][j] * K[j][i];
-            ytmp[i] = y[i] + h * acc;
-        }
-        rhs(ytmp, p, K[s]);
-    }
+    dop_stages(y, h, p, K, ytmp, n, DOP_NS + 1, DOP_NSTAGES);
     for (int i = 0; i < n; i++) {
         double dy = ynew[i] - y[i];
         F[0 * SP_NMAX + i] = dy;
