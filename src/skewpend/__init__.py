@@ -30,6 +30,15 @@ _LAZY = {
     "flip_map": "analysis.flipmap",
     "FlipMap": "analysis.flipmap",
     "open_flip_map": "analysis.flipmap",
+    "lyapunov": "analysis.lyapunov",
+    "LyapunovSpectrum": "analysis.lyapunov",
+    "lyapunov_map": "analysis.lyapunov",
+    "LyapunovMap": "analysis.lyapunov",
+    "poincare": "analysis.poincare",
+    "PoincareSection": "analysis.poincare",
+    "chaos_diagram": "analysis.chaos",
+    "ChaosDiagram": "analysis.chaos",
+    "open_chaos_diagram": "analysis.chaos",
 }
 
 __all__ = [
@@ -47,6 +56,15 @@ __all__ = [
     "flip_map",
     "FlipMap",
     "open_flip_map",
+    "lyapunov",
+    "LyapunovSpectrum",
+    "lyapunov_map",
+    "LyapunovMap",
+    "poincare",
+    "PoincareSection",
+    "chaos_diagram",
+    "ChaosDiagram",
+    "open_chaos_diagram",
     "SkewpendError",
     "ParameterError",
     "NotNumericError",
@@ -61,6 +79,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from .numeric.simulation import Trajectory, simulate
     from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
+    from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map
+    from .analysis.poincare import PoincareSection, poincare
+    from .analysis.chaos import ChaosDiagram, chaos_diagram, open_chaos_diagram
 
 
 #: Subpackages (the layers) and modules reachable as attributes after a plain ``import skewpend``
@@ -72,7 +93,7 @@ _SUBMODULES = {
     "render": "symbolic.render", "symbols": "symbolic.symbols", "codegen": "numeric.codegen",
     "kernels": "numeric.kernels", "simulation": "numeric.simulation", "modes": "analysis.modes",
     "export": "interop.export", "validation": "interop.validation", "figures": "views.figures",
-    "flipmap": "analysis.flipmap", "ensemble": "numeric.ensemble", "store": "numeric.store",
+    "flipmap": "analysis.flipmap", "chaos": "analysis.chaos", "ensemble": "numeric.ensemble", "store": "numeric.store",
     "io": "io", "parsing": "parsing", "progress": "progress", "errors": "errors", "cli": "cli",
 }
 

@@ -43,7 +43,7 @@ typedef struct {
     double yold[SP_NMAX];     /* ... starting at yold, */
     double F[7 * SP_NMAX];    /* ... with these interpolant coefficients */
     int64_t nfev, naccept, nreject, step;
-    int32_t started, have_f, dense_ok, pad;
+    int32_t started, have_f, dense_ok, aux; /* aux: a counter of chaos.c's sp_section */
 } sp_state;
 
 int64_t sp_state_size(void) { return (int64_t)sizeof(sp_state); }
@@ -96,6 +96,10 @@ static const double DOP_D[4][16] = {
 #define DOP_SAFETY 0.9
 #define DOP_MIN_FACTOR 0.2
 #define DOP_MAX_FACTOR 10.0
+
+/* DOP853-CORE BEGIN: the step, error norm, dense output and initial step, generic in the state size n.
+ * The chaos kernel instantiates this block a second time for its variational systems (state size
+ * SP_VMAX, right-hand side var_rhs), by textual substitution in skewpend.numeric.kernels. */
 
 static double rms(const double *x, const double *scale, int n)
 {
@@ -209,6 +213,45 @@ static double dop_initial_step(const double *y, const double *f0, const double *
         h1 = pow(0.01 / fmax(d1, d2), 1.0 / 8.0);
     return fmin(fmin(100.0 * ha, h1), span);
 }
+/* One accepted step from (t, y), F(y) = f, ending at t_stop at the latest: the step size *h is
+ * tried and shrunk until the error norm is below 1 (a trial with a non-finite value is rejected
+ * like a failed one, factor 0.2), and *h is set for the next step (factor 0.9 err^(-1/8) in
+ * [0.2, 10], no increase right after a rejection).  On success (0) ynew, K[0..12] = the stages
+ * and *t_new, *h_used describe the step.  Else 1 (non-finite state: step size underflow after a
+ * non-finite trial), 2 (step size underflow) or 3 (naccept + nreject reached max_steps). */
+static int dop_advance(double t, const double *y, const double *f, const double *p, double t_stop, double rtol,
+                       double atol, int64_t max_steps, double *hio, int64_t naccept, int64_t *nreject, int64_t *nfev,
+                       double K[][SP_NMAX], double *ynew, double *ytmp, int n, double *t_new_out, double *h_used)
+{
+    int rejected = 0, nonfinite = 0;
+    memcpy(K[0], f, (size_t)n * sizeof(double));
+    for (;;) {
+        if (naccept + *nreject >= max_steps) return 3;
+        double min_step = 10.0 * (nextafter(t, INFINITY) - t);
+        if (*hio < min_step) return nonfinite ? 1 : 2;
+        double t_new = t + *hio;
+        if (t_new >= t_stop) t_new = t_stop;
+        double h = t_new - t;
+        dop_step(y, h, p, K, ynew, ytmp, n);
+        *nfev += DOP_NS;
+        double err = (all_finite(ynew, n) && all_finite(K[DOP_NS], n)) ? dop_error(K, h, y, ynew, rtol, atol, n)
+                                                                     : INFINITY;
+        nonfinite = !isfinite(err);
+        if (err < 1.0) {
+            double fac = err == 0.0 ? DOP_MAX_FACTOR : fmin(DOP_MAX_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
+            if (rejected) fac = fmin(1.0, fac);
+            *hio = h * fac;
+            *t_new_out = t_new;
+            *h_used = h;
+            return 0;
+        }
+        double fac = nonfinite ? DOP_MIN_FACTOR : fmax(DOP_MIN_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
+        *hio = h * fac;
+        rejected = 1;
+        (*nreject)++;
+    }
+}
+/* DOP853-CORE END */
 
 /* Adaptive DOP853 for y' = rhs(y, p) from s->t to t_end (t_end > s->t on the first call).
  *
@@ -264,32 +307,10 @@ int sp_dop853(sp_state *s, int n, const double *p, double t_end, double rtol, do
 
         /* one accepted step (or failure) */
         if (s->h <= 0.0) s->h = dop_initial_step(s->y, s->f, p, t_end - s->t, rtol, atol, &s->nfev, n);
-        memcpy(K[0], s->f, (size_t)n * sizeof(double));
-        int rejected = 0, nonfinite = 0;
         double h, t_new;
-        for (;;) {
-            if (s->naccept + s->nreject >= max_steps) { *m_out = m; return 3; }
-            double min_step = 10.0 * (nextafter(s->t, INFINITY) - s->t);
-            if (s->h < min_step) { *m_out = m; return nonfinite ? 1 : 2; }
-            t_new = s->t + s->h;
-            if (t_new >= t_end) t_new = t_end;
-            h = t_new - s->t;
-            dop_step(s->y, h, p, K, ynew, ytmp, n);
-            s->nfev += DOP_NS;
-            double err = (all_finite(ynew, n) && all_finite(K[DOP_NS], n)) ? dop_error(K, h, s->y, ynew, rtol, atol, n)
-                                                                         : INFINITY;
-            nonfinite = !isfinite(err);
-            if (err < 1.0) {
-                double fac = err == 0.0 ? DOP_MAX_FACTOR : fmin(DOP_MAX_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
-                if (rejected) fac = fmin(1.0, fac);
-                s->h = h * fac;
-                break;
-            }
-            double fac = nonfinite ? DOP_MIN_FACTOR : fmax(DOP_MIN_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
-            s->h = h * fac;
-            rejected = 1;
-            s->nreject++;
-        }
+        int rc = dop_advance(s->t, s->y, s->f, p, t_end, rtol, atol, max_steps, &s->h, s->naccept, &s->nreject,
+                             &s->nfev, K, ynew, ytmp, n, &t_new, &h);
+        if (rc) { *m_out = m; return rc; }
         s->naccept++;
         done++;
         /* the interpolant, when a grid point lies inside this step */

@@ -96,7 +96,8 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     jac_exprs = M + f + list(ex.df_dy) + dM[0] + dM[1] + dQ + Q
     df_names = [f"df{i}{j}" for i in range(2) for j in range(4)]
     dM_names = [f"dM{k}_{n}" for k in range(2) for n in ("11", "12", "22")]
-    out += header("void jac(const double *y, const double *p, double *out)", "Jacobian d(dy/dt)/dy into out[25], row-major", jac_exprs)
+    out += header("void rhs_jac(const double *y, const double *p, double *dy, double *out)",
+                  "dy/dt into dy[5] and its Jacobian d(dy/dt)/dy into out[25], row-major", jac_exprs)
     out += _cse_block(c, jac_exprs, ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + ["dQ1_1", "dQ1_2", "dQ2_1", "dQ2_2", "Q1", "Q2"], I)
     out += solve
     out += [
@@ -116,6 +117,18 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
         f"{I}}}",
         f"{I}out[4 * 5 + 2] = Q1 + dQ1_1 * y[2] + dQ2_1 * y[3];",
         f"{I}out[4 * 5 + 3] = Q2 + dQ1_2 * y[2] + dQ2_2 * y[3];",
+        f"{I}dy[0] = y[2];",
+        f"{I}dy[1] = y[3];",
+        f"{I}dy[2] = ddphi;",
+        f"{I}dy[3] = ddpsi;",
+        f"{I}dy[4] = Q1 * y[2] + Q2 * y[3];",
+        "}",
+        "",
+        "/* Jacobian d(dy/dt)/dy into out[25], row-major */",
+        "static void jac(const double *y, const double *p, double *out)",
+        "{",
+        f"{I}double dy[5];",
+        f"{I}rhs_jac(y, p, dy, out);",
         "}",
         "",
     ]

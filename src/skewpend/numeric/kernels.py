@@ -41,18 +41,21 @@ __all__ = [
     "cache_dir",
     "Kernel",
     "State",
+    "LyapState",
     "CompilerError",
 ]
 
 #: Files whose text determines the generated library (part of the cache key).
 _SOURCES = (
-    "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c",
+    "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c", "numeric/chaos.c",
     "numeric/kernels.py", "symbolic/derivation.py", "symbolic/kinematics.py", "symbolic/symbols.py",
 )
 _PACKAGE = Path(__file__).resolve().parent.parent
 #: Compiler flags: no floating-point contraction, so results do not depend on FMA availability.
 CFLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
 SP_NMAX = 8
+#: State size of the chaos kernel's variational systems: the state and up to 4 tangent vectors.
+SP_VMAX = 20
 
 
 class CompilerError(SkewpendError, RuntimeError):
@@ -90,7 +93,7 @@ class State(ctypes.Structure):
         ("started", ctypes.c_int32),
         ("have_f", ctypes.c_int32),
         ("dense_ok", ctypes.c_int32),
-        ("pad", ctypes.c_int32),
+        ("aux", ctypes.c_int32),
     ]
 
     @classmethod
@@ -100,6 +103,49 @@ class State(ctypes.Structure):
         for i, v in enumerate(y0):
             s.y[i] = float(v)
         return s
+
+
+class LyapState(ctypes.Structure):
+    """Mirror of ``sp_lyap_state`` in ``chaos.c``: a resumable Benettin run."""
+
+    _fields_ = [
+        ("t", ctypes.c_double),
+        ("h", ctypes.c_double),
+        ("t0", ctypes.c_double),
+        ("every", ctypes.c_double),
+        ("y", ctypes.c_double * SP_VMAX),
+        ("f", ctypes.c_double * SP_VMAX),
+        ("nfev", ctypes.c_int64),
+        ("naccept", ctypes.c_int64),
+        ("nreject", ctypes.c_int64),
+        ("nrenorm", ctypes.c_int64),
+        ("k", ctypes.c_int32),
+        ("have_f", ctypes.c_int32),
+        ("pad0", ctypes.c_int32),
+        ("pad1", ctypes.c_int32),
+    ]
+
+
+_CORE_NAMES = ("rms", "dop_stages", "dop_step", "dop_error", "dop_dense_coeffs", "dop_dense_eval",
+               "dop_initial_step", "dop_advance")
+
+
+def variational_core(integrators_c: str) -> str:
+    """The DOP853 core of ``integrators.c`` (between its ``DOP853-CORE`` markers) instantiated
+    for the variational systems of ``chaos.c``: functions suffixed ``_v``, state size
+    ``SP_VMAX``, right-hand side ``var_rhs(n, y, p, out)``.  One text for both integrators."""
+    import re
+
+    begin = integrators_c.index("/* DOP853-CORE BEGIN")
+    end = integrators_c.index("/* DOP853-CORE END */")
+    core = integrators_c[begin:end]
+    core = re.sub(r"\b(" + "|".join(_CORE_NAMES) + r")\b", r"\1_v", core)
+    core = re.sub(r"\bSP_NMAX\b", "SP_VMAX", core)
+    core, count = re.subn(r"\brhs\(", "var_rhs(n, ", core)
+    if count != 3:  # dop_stages, dop_step and dop_initial_step evaluate the right-hand side
+        raise CompilerError(f"integrators.c: the DOP853 core calls rhs {count} times, expected 3")
+    return f"/* ---- the DOP853 core again, for the variational systems (generated from integrators.c) ---- */\n" \
+           f"#define SP_VMAX {SP_VMAX}\nstatic void var_rhs(int n, const double *y, const double *p, double *out);\n" + core
 
 
 # -- the compiler -----------------------------------------------------------------------------------
@@ -174,7 +220,7 @@ class Kernel:
     ``build_time`` seconds) or ``"cache"``.
     """
 
-    def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False):
+    def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False, chaos: bool = False):
         import numpy as np
 
         self.path, self.origin, self.build_time = path, origin, build_time
@@ -212,6 +258,21 @@ class Kernel:
             self.flip_ws_size = int(lib.sp_flip_ws_size())
             self.flip_lanes = int(lib.sp_flip_lanes())
             self.flip_odd = bool(lib.sp_flip_odd())
+        self.chaos = chaos
+        if chaos:  # the chaos kernel: Lyapunov exponents and Poincare sections (chaos.c)
+            if not hasattr(lib, "sp_lyap"):
+                raise CompilerError(f"{path}: not a chaos kernel (no sp_lyap)")
+            i32p = ctypes.POINTER(ctypes.c_int32)
+            lib.sp_lyap.argtypes = [ctypes.POINTER(LyapState), dp, d, d, d, i64, i64, dp, i64, ip]
+            lib.sp_lyap.restype = ctypes.c_int
+            lib.sp_lyap1_many.argtypes = [dp, dp, i64, d, d, d, d, d, i64, dp, i32p, ip]
+            lib.sp_lyap1_many.restype = None
+            lib.sp_section.argtypes = [sp, dp, ctypes.c_int, d, d, ctypes.c_int, ctypes.c_int, i64, d, d, d, i64, i64,
+                                       dp, i64, ip]
+            lib.sp_section.restype = ctypes.c_int
+            lib.sp_lyap_state_size.argtypes, lib.sp_lyap_state_size.restype = [], i64
+            if lib.sp_lyap_state_size() != ctypes.sizeof(LyapState):
+                raise CompilerError(f"{path}: Lyapunov state layout mismatch")
         if lib.sp_state_size() != ctypes.sizeof(State):
             raise CompilerError(f"{path}: integrator state layout mismatch ({lib.sp_state_size()} != {ctypes.sizeof(State)} bytes)")
         self._np = np
@@ -370,20 +431,24 @@ def _remove_stale_temporaries(directory: Path, age: float = 3600.0) -> None:
             pass
 
 
-def kernel_module(params: Parameters, *, flip: bool = False) -> Kernel:
+def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False) -> Kernel:
     """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs).
 
     Loaded from the cache when there; otherwise generated from the derivation, compiled
     and cached (atomically: a killed build leaves no partial library behind).  ``flip=True``:
     the larger library that also holds the flip-time ensembles (``sp_flip``), built on the
-    first flip map so that simulations never wait for it.
+    first flip map so that simulations never wait for it.  ``chaos=True``: the library that also
+    holds the Lyapunov and Poincare-section routines (``chaos.c``), built on first use.
     """
-    gkey = repr([getattr(params, k) for k in GEOMETRY]) + ("|flip" if flip else "")
+    if flip and chaos:
+        raise ValueError("kernel_module: flip and chaos are separate libraries")
+    kind = "flip" if flip else ("chaos" if chaos else "")
+    gkey = repr([getattr(params, k) for k in GEOMETRY]) + ("|" + kind if kind else "")
     kernel = _BYGEOMETRY.get(gkey)
     if kernel is not None:
         return kernel
     geometry = geometry_of(params)
-    key = _key(repr(geometry.to_dict())) + ("_flip" if flip else "")
+    key = _key(repr(geometry.to_dict())) + ("_" + kind if kind else "")
     with _LOCK:
         if key in _LOADED:
             _BYGEOMETRY[gkey] = _LOADED[key]
@@ -393,7 +458,7 @@ def kernel_module(params: Parameters, *, flip: bool = False) -> Kernel:
         kernel = None
         if path.exists() and _intact(path):
             try:
-                kernel = Kernel(path, "cache", 0.0, flip=flip)
+                kernel = Kernel(path, "cache", 0.0, flip=flip, chaos=chaos)
             except (OSError, CompilerError):
                 kernel = None  # damaged: rebuilt below
         if kernel is None:
@@ -403,9 +468,12 @@ def kernel_module(params: Parameters, *, flip: bool = False) -> Kernel:
             _remove_stale_temporaries(directory)
             from .kernel_source import kernel_c_source
 
-            source = kernel_c_source(geometry, flip=flip) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
+            integrators = (_PACKAGE / "numeric" / "integrators.c").read_text()
+            source = kernel_c_source(geometry, flip=flip) + "\n" + integrators
+            if chaos:
+                source += "\n" + variational_core(integrators) + "\n" + (_PACKAGE / "numeric" / "chaos.c").read_text()
             _compile(source, path)
-            kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip)
+            kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip, chaos=chaos)
         _LOADED[key] = kernel
         _BYGEOMETRY[gkey] = kernel
         return kernel

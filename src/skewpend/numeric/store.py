@@ -120,8 +120,9 @@ def check_store_path(path, *, option: str = "store") -> Path:
 
 
 class RowStore:
-    """A Zarr group of 2-D arrays over an ``(rows, cols)`` grid, in chunks of ``chunk_rows``
-    whole rows, with a ``done`` flag and a row of statistics per chunk.
+    """A Zarr group of arrays over an ``(rows, cols)`` grid (optionally with one more trailing
+    dimension), in chunks of ``chunk_rows`` whole rows, with a ``done`` flag and a row of
+    statistics per chunk.
 
     Use :meth:`create` (a new store, locked) or :meth:`open` (an existing one; locked when
     ``writable``) as a context manager; leaving the block releases the lock.  Arrays:
@@ -149,11 +150,13 @@ class RowStore:
     def create(cls, path, *, kind: str, shape: Tuple[int, int], chunk_rows: int,
                arrays: Mapping[str, Tuple[Any, Any, Mapping[str, Any]]], dims: Tuple[str, str],
                coords: Mapping[str, Tuple[np.ndarray, Mapping[str, Any]]], stats: Sequence[str],
-               attrs: Mapping[str, Any]) -> "RowStore":
+               attrs: Mapping[str, Any], extra: Optional[Tuple[str, np.ndarray, Mapping[str, Any]]] = None) -> "RowStore":
         """Write the template of a new store at ``path`` (refused if anything is there).
 
-        ``arrays``: name -> (dtype, fill value, attributes); ``coords``: for each name in
-        ``dims``, (values, attributes); ``kind`` is recorded and checked by :meth:`open`.
+        ``arrays``: name -> (dtype, fill value, attributes), or (dtype, fill value, attributes,
+        True) for an array with the trailing dimension ``extra`` = (name, coordinate values,
+        attributes) -- shape ``(rows, cols, len(values))``; ``coords``: for each name in ``dims``,
+        (values, attributes); ``kind`` is recorded and checked by :meth:`open`.
         """
         zarr = require_zarr()
         path = Path(path)
@@ -168,9 +171,20 @@ class RowStore:
         n_chunks = rows // chunk_rows
         try:
             group = zarr.open_group(str(tmp), mode="w-")
-            for name, (dtype, fill, a) in arrays.items():
-                _create_array(zarr, group, name, shape=(rows, cols), chunks=(chunk_rows, cols), dtype=dtype,
-                              fill_value=fill, dims=dims, attrs=a)
+            for name, (dtype, fill, a, *has_extra) in arrays.items():
+                if has_extra and has_extra[0]:
+                    if extra is None:
+                        raise ValueError(f"array {name} has the extra dimension, but none is given")
+                    size = len(extra[1])
+                    _create_array(zarr, group, name, shape=(rows, cols, size), chunks=(chunk_rows, cols, size),
+                                  dtype=dtype, fill_value=fill, dims=(*dims, extra[0]), attrs=a)
+                else:
+                    _create_array(zarr, group, name, shape=(rows, cols), chunks=(chunk_rows, cols), dtype=dtype,
+                                  fill_value=fill, dims=dims, attrs=a)
+            if extra is not None:
+                values = np.asarray(extra[1], dtype=np.float64)
+                _create_array(zarr, group, extra[0], shape=values.shape, chunks=values.shape, dtype="float64",
+                              fill_value=np.nan, dims=(extra[0],), attrs=extra[2], data=values)
             for dim, size in zip(dims, (rows, cols)):
                 values, a = coords[dim]
                 values = np.asarray(values, dtype=np.float64)
@@ -290,7 +304,7 @@ class RowStore:
         rows = self.chunk_rows_of(k)
         try:
             for name in self.arrays:
-                self._arrays[name][rows, :] = data[name]
+                self._arrays[name][rows] = data[name]
             self._arrays["chunk_stats"][k:k + 1, :] = np.asarray(stats, dtype=np.float64)[None, :]
             self._arrays["done"][k:k + 1] = np.ones(1, dtype=bool)  # the whole chunk: never read first
         except OSError as exc:  # a full disk, a store deleted under us, ...

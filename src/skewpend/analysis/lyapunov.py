@@ -1,0 +1,437 @@
+"""Lyapunov exponents: how fast nearby motions separate, by Benettin's method.
+
+``lyapunov(params, y0, t_end=...)`` integrates the state together with ``k`` tangent vectors
+(the variational equations ``v' = J(y) v``, with ``J`` the Jacobian generated from the
+derivation, evaluated along the trajectory inside the same adaptive DOP853 steps as the state
+-- not frozen over a step), and every ``renorm_every`` seconds replaces the vectors by the
+``Q`` of their QR decomposition, adding ``log |r_jj|`` to the growth of the ``j``-th direction.
+The exponents are the growths divided by the time: ``k = 4`` the full spectrum (in the order
+of the QR, which is descending once the vectors have aligned), ``k = 1`` the largest alone
+(about 3x cheaper).  The code is ``sp_lyap`` in ``chaos.c`` (the *chaos kernel*).
+
+Checks that hold for this system (tested): without damping and torques the spectrum is
+``(l, 0, 0, -l)`` up to the finite time (a Hamiltonian, autonomous system: pairs ``+-`` and
+two zeros), so its sum is ~0; with damping the sum is the time average of the trace of
+``J`` (phase-space volume contracts at that rate); near the stable equilibrium every exponent
+tends to 0; the mirror start ``-y0`` has the same spectrum when the equations are odd.
+
+``lyapunov_map(params, n, ...)`` is the largest exponent over a grid of starts at rest, like
+:func:`~skewpend.analysis.flipmap.flip_map`, on every core.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, Optional, Sequence
+
+import numpy as np
+
+from ..errors import IntegrationError, NotNumericError, ParameterError
+from ..parsing import initial_state, positive_number
+from ..symbolic.model import Parameters
+
+__all__ = ["lyapunov", "LyapunovSpectrum", "lyapunov_map", "LyapunovMap", "largest_exponents", "DEFAULT_TOL"]
+
+#: Default tolerances (relative and absolute) of the DOP853 error control.
+DEFAULT_TOL = 1e-10
+#: Default cap on attempted steps.
+MAX_STEPS = 100_000_000
+#: Accepted steps per call into the compiled code (a few milliseconds: Ctrl-C stops within that).
+_BUDGET = 4000
+#: Renormalisation rows handed back per call.
+_ROWS = 4096
+#: Points kept of the running estimate (history), whatever the number of renormalisations.
+_HISTORY = 2000
+#: Failure codes of the compiled integrators.
+_STATUS = {
+    1: "the state or its derivative became non-finite",
+    2: "the step size underflowed",
+    3: "more than max_steps steps were attempted",
+}
+
+
+@dataclass(frozen=True)
+class LyapunovSpectrum:
+    """The result of :func:`lyapunov`.
+
+    * ``exponents`` -- shape ``(k,)`` [1/s], in the order of the QR (descending once converged);
+    * ``uncertainty`` -- shape ``(k,)`` [1/s]: the standard error of the mean of the exponents
+      measured over ``windows`` equal time windows (their spread / sqrt(windows)); NaN with
+      fewer than 2 windows;
+    * ``t``, ``history`` -- the running estimates: ``history[i]`` is the exponents measured from
+      the end of the transient to ``t[i]`` [s] (at most 2000 points, evenly thinned);
+    * ``window_exponents`` -- shape ``(windows, k)``: the exponents of each window;
+    * ``params``, ``y0``, ``settings`` (t_end, renorm_every, transient, rtol, atol, ...), ``stats``
+      (steps, rejected, renormalisations, wall time), ``status`` (0: reached t_end) and ``message``.
+    """
+
+    exponents: np.ndarray
+    uncertainty: np.ndarray
+    t: np.ndarray
+    history: np.ndarray
+    window_exponents: np.ndarray
+    params: Parameters
+    y0: np.ndarray
+    settings: Dict[str, Any]
+    stats: Dict[str, Any] = field(default_factory=dict)
+    status: int = 0
+    message: str = "reached t_end"
+
+    @property
+    def k(self) -> int:
+        return int(self.exponents.size)
+
+    @property
+    def sum(self) -> float:
+        """Sum of the exponents [1/s] (the rate of phase-space volume change, for k = 4)."""
+        return float(np.sum(self.exponents))
+
+    @property
+    def kaplan_yorke_dimension(self) -> float:
+        """The Kaplan-Yorke (Lyapunov) dimension ``j + (l_1 + ... + l_j) / |l_{j+1}|``, with ``j``
+        the largest index with a non-negative partial sum (needs the full spectrum)."""
+        lam = np.sort(self.exponents)[::-1]
+        partial = np.cumsum(lam)
+        j = int(np.count_nonzero(partial >= 0))
+        if j == 0:
+            return 0.0
+        if j >= lam.size:
+            return float(lam.size)
+        return j + float(partial[j - 1]) / abs(float(lam[j]))
+
+    def table(self) -> str:
+        """The exponents with their uncertainties, one per line (text)."""
+        lines = [f"lambda_{i + 1} = {v:+.6f} +- {u:.2g} 1/s" for i, (v, u) in enumerate(zip(self.exponents, self.uncertainty))]
+        if self.k == 4:
+            lines.append(f"sum      = {self.sum:+.3e} 1/s")
+        return "\n".join(lines)
+
+    def to_dict(self) -> Dict[str, Any]:
+        """Plain data (JSON-ready): exponents, uncertainties, settings, statistics, parameters."""
+        return {
+            "exponents": self.exponents.tolist(),
+            "uncertainty": [None if not math.isfinite(u) else float(u) for u in self.uncertainty],
+            "sum": self.sum,
+            "y0": self.y0.tolist(),
+            "status": self.status,
+            "message": self.message,
+            "settings": dict(self.settings),
+            "stats": dict(self.stats),
+            "params": self.params.to_dict(),
+        }
+
+
+def _check_params(params, what: str) -> Parameters:
+    if not isinstance(params, Parameters):
+        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
+    try:
+        params.require_numeric(what)
+    except NotNumericError as exc:
+        raise ParameterError(str(exc)) from None
+    return params
+
+
+def _check_tolerances(rtol, atol):
+    rtol = DEFAULT_TOL if rtol is None else positive_number("rtol", rtol)
+    atol = DEFAULT_TOL if atol is None else positive_number("atol", atol)
+    if not (1e-15 <= rtol <= 1.0 and 1e-300 <= atol <= 1.0):
+        raise ParameterError(f"rtol must be from 1e-15 to 1 and atol from 1e-300 to 1, got rtol={rtol:g}, atol={atol:g}")
+    return rtol, atol
+
+
+def _check_max_steps(max_steps) -> int:
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or not 1 <= max_steps <= 10**15:
+        raise ParameterError(f"max_steps must be a whole number from 1 to 1e15, got {max_steps!r}")
+    return int(max_steps)
+
+
+def _check_times(t_end, renorm_every, transient):
+    t_end = positive_number("t_end", t_end)
+    renorm_every = positive_number("renorm_every", renorm_every)
+    try:
+        transient = float(transient)
+    except (TypeError, ValueError):
+        raise ParameterError(f"transient must be a number of seconds >= 0, got {transient!r}") from None
+    if not (math.isfinite(transient) and transient >= 0):
+        raise ParameterError(f"transient must be a number of seconds >= 0, got {transient!r}")
+    if renorm_every > t_end:
+        raise ParameterError(f"renorm_every ({renorm_every:g} s) must not exceed t_end ({t_end:g} s)")
+    if transient + renorm_every > t_end:
+        raise ParameterError(
+            f"transient ({transient:g} s) leaves less than one renormalisation interval ({renorm_every:g} s) "
+            f"before t_end ({t_end:g} s); use a longer t_end or a shorter transient"
+        )
+    if t_end / renorm_every > 1e12:
+        raise ParameterError(f"t_end / renorm_every = {t_end / renorm_every:.3g} renormalisations is too many (at most 1e12)")
+    return t_end, renorm_every, transient
+
+
+def lyapunov(
+    params: Parameters,
+    y0: Sequence[float],
+    *,
+    t_end: float,
+    renorm_every: float = 1.0,
+    transient: float = 0.0,
+    n_exponents: int = 4,
+    rtol: Optional[float] = None,
+    atol: Optional[float] = None,
+    windows: int = 10,
+    max_steps: int = MAX_STEPS,
+    progress: Optional[Callable[[float, float], None]] = None,
+    throw: bool = True,
+) -> LyapunovSpectrum:
+    """The Lyapunov spectrum [1/s] of the motion from ``y0 = (phi, psi, dphi, dpsi)``.
+
+    Benettin's method on the variational equations: the state and ``n_exponents`` (1 to 4)
+    tangent vectors -- starting as the first columns of the identity (one vector: the unit
+    diagonal ``(1, 1, 1, 1)/2``) -- integrated together by adaptive DOP853 (``rtol``/``atol``,
+    default 1e-10, on every component), re-orthonormalised by QR every ``renorm_every``
+    seconds.  The first ``transient`` seconds align the vectors and are not counted (the
+    measurement starts at the last renormalisation at or before ``transient``).  The
+    uncertainty is the spread of the exponents over ``windows`` equal time windows.
+    ``progress(t, t_end)`` is called between bounded calls (Ctrl-C stops within a few ms).
+
+    A run that stops early (non-finite state, step underflow, ``max_steps``) raises
+    :class:`~skewpend.errors.IntegrationError` (``throw=True``) or returns the exponents up to
+    where it got, with ``status``/``message`` set.
+    """
+    from ..numeric.kernels import LyapState, kernel_module, parameter_vector
+
+    params = _check_params(params, "Lyapunov exponents")
+    y = initial_state(y0)
+    t_end, renorm_every, transient = _check_times(t_end, renorm_every, transient)
+    if isinstance(n_exponents, bool) or n_exponents not in (1, 2, 3, 4):
+        raise ParameterError(f"n_exponents must be 1, 2, 3 or 4, got {n_exponents!r}")
+    rtol, atol = _check_tolerances(rtol, atol)
+    max_steps = _check_max_steps(max_steps)
+    if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or not 1 <= windows <= 1000:
+        raise ParameterError(f"windows must be a whole number from 1 to 1000, got {windows!r}")
+    if progress is not None and not callable(progress):
+        raise ParameterError("progress must be a callable progress(t, t_end)")
+    k = int(n_exponents)
+
+    kernel = kernel_module(params, chaos=True)
+    p = parameter_vector(params)
+    state = LyapState()
+    state.k, state.every, state.t0 = k, renorm_every, 0.0
+    for i in range(4):
+        state.y[i] = float(y[i])
+    tangent = np.eye(4)[:, :k] if k > 1 else np.full((4, 1), 0.5)
+    for j in range(k):
+        for r in range(4):
+            state.y[4 + 4 * j + r] = float(tangent[r, j])
+
+    # the measured part: renormalisations after the transient, cut into windows of whole intervals
+    n_total = int(math.ceil(t_end / renorm_every * (1 - 1e-12)))
+    n_skip = int(math.floor(transient / renorm_every * (1 + 1e-12)))
+    n_meas = n_total - n_skip
+    n_win = min(int(windows), n_meas)
+    bounds = np.linspace(0, n_meas, n_win + 1).round().astype(np.int64)  # window w: rows bounds[w] .. bounds[w+1]-1
+    stride = max(1, int(math.ceil(n_meas / _HISTORY)))
+
+    win_sum = np.zeros((n_win, k))
+    win_time = np.zeros(n_win)
+    total = np.zeros(k)
+    t_from = n_skip * renorm_every if n_skip else 0.0
+    t_prev_row = 0.0
+    hist_t, hist = [], []
+    seen = 0  # measured rows so far
+
+    rows = np.empty((_ROWS, k + 1))
+    dp = ctypes.POINTER(ctypes.c_double)
+    m = ctypes.c_int64(0)
+    call_args = (ctypes.byref(state), p.ctypes.data_as(dp), t_end, rtol, atol, max_steps, _BUDGET,
+                 rows.ctypes.data_as(dp), _ROWS, ctypes.byref(m))
+    start = time.perf_counter()
+    renorms = 0
+    while True:
+        status = kernel.lib.sp_lyap(*call_args)
+        if status == -3:  # pragma: no cover - guarded by the checks above
+            raise RuntimeError("internal error: bad arguments to sp_lyap")
+        got = rows[: m.value]
+        for row in got:
+            renorms += 1
+            t = float(row[0])
+            if renorms <= n_skip:
+                t_from = t
+                t_prev_row = t
+                continue
+            logs = row[1:]
+            total += logs
+            w = int(np.searchsorted(bounds, seen, side="right") - 1)
+            w = min(w, n_win - 1)
+            win_sum[w] += logs
+            win_time[w] += t - t_prev_row
+            t_prev_row = t
+            seen += 1
+            if seen % stride == 0 or seen == n_meas:
+                hist_t.append(t)
+                hist.append(total / (t - t_from))
+        if progress is not None:
+            progress(state.t, t_end)
+        if status in (-1, -2):
+            continue
+        break
+    wall = time.perf_counter() - start
+
+    t_reached = float(state.t)
+    span = (hist_t[-1] if hist_t else t_from) - t_from
+    exponents = total / span if span > 0 else np.full(k, np.nan)
+    filled = win_time > 0
+    win_exp = np.where(filled[:, None], win_sum / np.where(filled, win_time, 1.0)[:, None], np.nan)
+    n_filled = int(np.count_nonzero(filled))
+    if n_filled >= 2:
+        uncertainty = np.nanstd(win_exp[filled], axis=0, ddof=1) / math.sqrt(n_filled)
+    else:
+        uncertainty = np.full(k, np.nan)
+    message = "reached t_end" if status == 0 else f"stopped at t = {t_reached:.6g} s: {_STATUS.get(status, f'status {status}')}"
+    settings = {
+        "t_end": t_end, "renorm_every": renorm_every, "transient": transient, "measured_from": t_from,
+        "n_exponents": k, "rtol": rtol, "atol": atol, "windows": n_win, "max_steps": max_steps,
+        "method": "dop853 on the state and tangent vectors (Benettin, QR)",
+    }
+    stats = {
+        "steps": int(state.naccept), "rejected": int(state.nreject), "nfev": int(state.nfev),
+        "renormalisations": int(state.nrenorm), "t_reached": t_reached, "wall_time": wall,
+        "kernel": kernel.origin, "kernel_build_time": kernel.build_time,
+    }
+    result = LyapunovSpectrum(
+        exponents=exponents, uncertainty=uncertainty, t=np.asarray(hist_t), history=np.asarray(hist).reshape(-1, k),
+        window_exponents=win_exp, params=params, y0=y, settings=settings, stats=stats, status=int(status),
+        message=message,
+    )
+    if status != 0 and throw:
+        raise IntegrationError(f"lyapunov: {message}; the exponents up to there are in the result with throw=False")
+    return result
+
+
+# -- many trajectories: the largest exponent on the ensemble engine ----------------------------------------
+def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, transient: float, rtol: float,
+                      atol: float, max_steps: int, cancel=None, group: int = 1):
+    """The largest exponent of each state in ``starts`` (shape ``(m, 4)``), by ``sp_lyap1_many``
+    (one tangent vector from ``(1, 1, 1, 1)/2``), ``group`` trajectories per call into C (``cancel``
+    is checked between calls).  Returns ``(lambda, status, steps)``; ``lambda`` is NaN where a
+    trajectory failed."""
+    from ..numeric.ensemble import Cancelled
+
+    starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 4)
+    m = starts.shape[0]
+    lam = np.full(m, np.nan)
+    status = np.zeros(m, dtype=np.int32)
+    steps = np.zeros(m, dtype=np.int64)
+    dp = ctypes.POINTER(ctypes.c_double)
+    pp = np.ascontiguousarray(p, dtype=np.float64)
+    fn = kernel.lib.sp_lyap1_many
+    for a in range(0, m, group):
+        if cancel is not None and cancel.is_set():
+            raise Cancelled()
+        b = min(m, a + group)
+        fn(pp.ctypes.data_as(dp), starts[a:b].ctypes.data_as(dp), b - a, t_end, renorm_every, transient, rtol, atol,
+           max_steps, lam[a:].ctypes.data_as(dp), status[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
+           steps[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int64)))
+    return lam, status, steps
+
+
+@dataclass(frozen=True)
+class LyapunovMap:
+    """The result of :func:`lyapunov_map`: the largest exponent [1/s] for starts at rest from the
+    cell centres ``phi0`` (axis 0) x ``psi0`` (axis 1) [rad], shape ``(n, n)`` (NaN where the
+    integration failed), with ``params``, ``settings`` and ``stats``."""
+
+    phi0: np.ndarray
+    psi0: np.ndarray
+    exponent: np.ndarray
+    params: Parameters
+    settings: Dict[str, Any]
+    stats: Dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return int(self.exponent.shape[0])
+
+    def to_xarray(self):
+        """An :class:`xarray.Dataset` with ``exponent`` on ``(phi0, psi0)`` and the settings as attributes."""
+        import json
+
+        import xarray as xr
+
+        return xr.Dataset(
+            {"exponent": (("phi0", "psi0"), self.exponent,
+                          {"units": "1/s", "long_name": "largest Lyapunov exponent"})},
+            coords={"phi0": ("phi0", self.phi0[:, 0], {"units": "rad"}), "psi0": ("psi0", self.psi0[0], {"units": "rad"})},
+            attrs={"title": "largest Lyapunov exponent of starts at rest (skewpend)",
+                   "settings": json.dumps(self.settings), "params": json.dumps(self.params.to_dict())},
+        )
+
+
+def lyapunov_map(
+    params: Parameters,
+    n: int,
+    *,
+    t_end: float = 100.0,
+    renorm_every: float = 1.0,
+    transient: float = 0.0,
+    phi_range: Sequence[float] = (-math.pi, math.pi),
+    psi_range: Sequence[float] = (-math.pi, math.pi),
+    rtol: Optional[float] = 1e-8,
+    atol: Optional[float] = 1e-8,
+    workers: Optional[int] = None,
+    max_steps: int = MAX_STEPS,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> LyapunovMap:
+    """The largest Lyapunov exponent [1/s] over ``t_end`` seconds for the starts at rest from the
+    centres of an ``n x n`` grid over ``phi_range x psi_range`` [rad] (as :func:`flip_map`):
+    one tangent vector per start, renormalised every ``renorm_every`` s, DOP853 at
+    ``rtol``/``atol`` (default 1e-8: the exponent, not the trajectory, is wanted), rows of cells
+    on ``workers`` threads (default: every core), ``progress(done_cells, total_cells)``.
+    Bitwise the same whatever the number of workers."""
+    from ..numeric.ensemble import run_chunks
+    from ..numeric.kernels import kernel_module, parameter_vector
+    from .flipmap import _check_n, _check_range, _check_workers, cell_centres
+
+    params = _check_params(params, "a Lyapunov map")
+    n = _check_n(n)
+    if n > 1024:
+        raise ParameterError(f"n must be at most 1024 for a Lyapunov map (each cell is a long integration), got {n}")
+    t_end, renorm_every, transient = _check_times(t_end, renorm_every, transient)
+    phi_range = _check_range("phi_range", phi_range)
+    psi_range = _check_range("psi_range", psi_range)
+    rtol, atol = _check_tolerances(rtol, atol)
+    max_steps = _check_max_steps(max_steps)
+    workers = _check_workers(workers)
+    if progress is not None and not callable(progress):
+        raise ParameterError("progress must be a callable progress(done_cells, total_cells)")
+    kernel = kernel_module(params, chaos=True)
+    p = parameter_vector(params)
+    phi = cell_centres(*phi_range, n)
+    psi = cell_centres(*psi_range, n)
+    exponent = np.full((n, n), np.nan)
+    steps = np.zeros((n, n), dtype=np.int64)
+    failed = np.zeros((n, n), dtype=bool)
+    start = time.perf_counter()
+    done = [0]
+
+    def work(i, cancel):
+        starts = np.column_stack([np.full(n, phi[i]), psi, np.zeros(n), np.zeros(n)])
+        return largest_exponents(kernel, p, starts, t_end=t_end, renorm_every=renorm_every, transient=transient,
+                                 rtol=rtol, atol=atol, max_steps=max_steps, cancel=cancel)
+
+    def on_done(i, result):
+        lam, status, st = result
+        exponent[i], steps[i], failed[i] = lam, st, status != 0
+        done[0] += n
+        if progress is not None:
+            progress(done[0], n * n)
+
+    run_chunks(n, work, workers=workers, on_done=on_done, keep=False)
+    settings = {"n": n, "t_end": t_end, "renorm_every": renorm_every, "transient": transient,
+                "phi_range": tuple(phi_range), "psi_range": tuple(psi_range), "rtol": rtol, "atol": atol,
+                "max_steps": max_steps}
+    stats = {"cells": n * n, "failed": int(failed.sum()), "steps": int(steps.sum()),
+             "wall_time": time.perf_counter() - start, "workers": workers}
+    return LyapunovMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
+                       exponent=exponent, params=params, settings=settings, stats=stats)

@@ -1,0 +1,466 @@
+"""Poincare sections on an energy surface, and the energy surface itself.
+
+``poincare(params, energy, section="phi=0")`` starts ``n_orbits`` orbits on the section at the
+given energy and records ``n_crossings`` returns of each to the section (crossings of the
+section coordinate through its value, modulo 2 pi, in the chosen direction).  Each crossing is
+located on the DOP853 step that made it, by the 7th-order dense output and root finding on the
+interpolant (``locate="dense"``, to ~1e-15 in the coordinate, the interpolant being accurate to
+the tolerance), or independently by Hénon's trick (``locate="henon"``: integrating from the step's
+start with the section coordinate as the independent variable).  The points are given in the
+canonical coordinates of the other joint, ``(q, p_q)``, where the section map preserves area,
+and in ``(q, q')``; each carries its energy error.
+
+The energy surface of a conservative model (no damping, no torques): on the section
+``q_c = v`` a point ``(q, p_q)`` of the other joint can be reached at energy ``E`` exactly when
+``p_q^2 / (2 M_qq) + Pi <= E`` (the least kinetic energy with momentum ``p_q``, over the speed
+of the section joint, is ``p_q^2 / (2 M_qq)``); the speed of the section joint is then fixed
+by ``E`` up to its sign, which the direction chooses.  Seeds outside are reported in
+``unreachable``, never dropped silently.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..errors import IntegrationError, ParameterError
+from ..parsing import positive_number
+from ..symbolic.model import Parameters
+from .lyapunov import MAX_STEPS, _check_max_steps, _check_params, _check_tolerances
+
+__all__ = ["poincare", "PoincareSection", "parse_section", "energy_minimum", "section_seeds", "EnergySurface",
+           "LOCATE_METHODS"]
+
+LOCATE_METHODS = ("dense", "henon")
+_COORDS = {"phi": 0, "psi": 1}
+_TWO_PI = 2.0 * math.pi
+#: Accepted steps per call into the compiled code (a few ms: Ctrl-C stops within that).
+_BUDGET = 4000
+
+
+def parse_section(section) -> Tuple[str, float]:
+    """``"phi=0"``, ``"psi=0.5"``, ``"psi=30deg"`` -> ``("phi", 0.0)``: the joint whose angle is
+    fixed on the section and its value [rad] (taken modulo 2 pi)."""
+    from ..parsing import parse_scalar
+
+    if not isinstance(section, str):
+        raise ParameterError(f"section must be a string like 'phi=0' or 'psi=30deg', got {section!r}")
+    m = re.fullmatch(r"\s*(phi|psi)\s*=\s*(\S+)\s*", section)
+    if not m:
+        raise ParameterError(f"section must be 'phi=VALUE' or 'psi=VALUE' (radians, or with a deg suffix), got {section!r}")
+    value = parse_scalar(m.group(2), f"section {m.group(1)}", angle=True)
+    if value is None:
+        raise ParameterError(f"section value must be a number, got {m.group(2)!r}")
+    return m.group(1), float(value)
+
+
+def _require_conservative(params: Parameters, what: str) -> None:
+    moving = {k: getattr(params, k) for k in ("c1", "c2", "tau1", "tau2") if getattr(params, k) != 0}
+    if moving:
+        values = ", ".join(f"{k} = {v:g}" for k, v in moving.items())
+        raise ParameterError(
+            f"{what} needs a conservative model (energy is then constant), but {values}; "
+            "set the damping c1, c2 and the torques tau1, tau2 to 0"
+        )
+
+
+def _mass_matrices(kernel, p, q: np.ndarray) -> np.ndarray:
+    """M(q) for rows of angles q (m, 2): shape (m, 2, 2), from the generated momenta p = M q'."""
+    m = q.shape[0]
+    out = np.empty((m, 2, 2))
+    buf = np.empty(2)
+    y = np.zeros(5)
+    for i in range(m):
+        y[:2] = q[i]
+        for j in range(2):
+            y[2:4] = 0.0
+            y[2 + j] = 1.0
+            kernel.momenta(y, p, buf)
+            out[i, :, j] = buf
+    return out
+
+
+def _potential(kernel, p, q: np.ndarray) -> np.ndarray:
+    rows = np.zeros((q.shape[0], 5))
+    rows[:, :2] = q
+    return kernel.energies(rows, p)
+
+
+def energy_minimum(kernel, p, *, samples: int = 121) -> Tuple[float, np.ndarray]:
+    """The least potential energy [J] and where: a grid over the torus refined by Nelder-Mead
+    from the best grid points (the generated energy at rest)."""
+    from scipy.optimize import minimize
+
+    u = np.linspace(-math.pi, math.pi, samples, endpoint=False)
+    Q = np.array(np.meshgrid(u, u, indexing="ij")).reshape(2, -1).T
+    V = _potential(kernel, p, Q)
+    best = np.argsort(V)[:4]
+    f = lambda q: float(_potential(kernel, p, np.asarray(q, dtype=float).reshape(1, 2))[0])  # noqa: E731
+    results = [minimize(f, Q[i], method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-15, "maxiter": 4000})
+               for i in best]
+    r = min(results, key=lambda r: r.fun)
+    return float(r.fun), np.asarray(r.x)
+
+
+@dataclass(frozen=True)
+class EnergySurface:
+    """The energy surface ``E`` of a conservative model seen on the section ``q_c = value``:
+    ``coord`` is the section joint (0 phi, 1 psi), ``other`` the other; ``e_min`` the least
+    potential energy; ``reach(q, p_q)`` the margin ``E - Pi - p_q^2 / (2 M_qq)`` (>= 0: reachable)."""
+
+    kernel: Any
+    p: np.ndarray
+    energy: float
+    coord: int
+    value: float
+    e_min: float
+
+    @property
+    def other(self) -> int:
+        return 1 - self.coord
+
+    def _q(self, x: np.ndarray) -> np.ndarray:
+        q = np.empty((x.size, 2))
+        q[:, self.coord] = self.value
+        q[:, self.other] = x
+        return q
+
+    def reach(self, x, p_other) -> np.ndarray:
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        p_other = np.atleast_1d(np.asarray(p_other, dtype=float))
+        q = self._q(x)
+        M = _mass_matrices(self.kernel, self.p, q)
+        Moo = M[:, self.other, self.other]
+        return self.energy - _potential(self.kernel, self.p, q) - p_other**2 / (2.0 * Moo)
+
+    def bounds(self, samples: int = 721) -> Tuple[float, float]:
+        """(least potential on the section, the largest |p_q| reachable) over a fine grid."""
+        x = np.linspace(-math.pi, math.pi, samples)
+        q = self._q(x)
+        V = _potential(self.kernel, self.p, q)
+        Moo = _mass_matrices(self.kernel, self.p, q)[:, self.other, self.other]
+        k = np.clip(self.energy - V, 0.0, None)
+        return float(V.min()), float(np.sqrt(2.0 * k * Moo).max())
+
+    def states(self, x, p_other, direction: int) -> np.ndarray:
+        """The states (phi, psi, dphi, dpsi) of reachable seeds: the section joint's speed from
+        the energy, its sign from ``direction`` (0 counts as +1)."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        p_other = np.atleast_1d(np.asarray(p_other, dtype=float))
+        q = self._q(x)
+        M = _mass_matrices(self.kernel, self.p, q)
+        c, o = self.coord, self.other
+        det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] ** 2
+        K = self.energy - _potential(self.kernel, self.p, q)
+        disc = (2.0 * K * M[:, o, o] - p_other**2) / det
+        speed_c = (1.0 if direction >= 0 else -1.0) * np.sqrt(np.clip(disc, 0.0, None))
+        speed_o = (p_other - M[:, o, c] * speed_c) / M[:, o, o]
+        y = np.zeros((x.size, 4))
+        y[:, :2] = q
+        y[:, 2 + c] = speed_c
+        y[:, 2 + o] = speed_o
+        return y
+
+
+def _surface(params, energy, coord, value):
+    from ..numeric.kernels import kernel_module, parameter_vector
+
+    kernel = kernel_module(params, chaos=True)
+    p = parameter_vector(params)
+    e_min, _ = energy_minimum(kernel, p)
+    return EnergySurface(kernel, p, float(energy), coord, value, e_min)
+
+
+def section_seeds(surface: EnergySurface, n: int, *, margin: float = 1e-9) -> np.ndarray:
+    """``n`` seeds ``(q, p_q)`` spread over the reachable region of the section: the points of
+    a Halton sequence in its bounding box that fall inside (deterministic)."""
+    from scipy.stats import qmc
+
+    _, pmax = surface.bounds()
+    scale = abs(surface.energy - surface.e_min) + 1e-300
+    sampler = qmc.Halton(d=2, scramble=False)
+    sampler.fast_forward(1)  # skip the corner point (0, 0)
+    seeds = []
+    for _ in range(200):
+        u = sampler.random(max(64, 4 * n))
+        x = -math.pi + _TWO_PI * u[:, 0]
+        pq = pmax * (2.0 * u[:, 1] - 1.0)
+        inside = surface.reach(x, pq) > margin * scale
+        seeds.extend(zip(x[inside], pq[inside]))
+        if len(seeds) >= n:
+            break
+    return np.asarray(seeds[:n], dtype=float).reshape(-1, 2)
+
+
+@dataclass(frozen=True)
+class PoincareSection:
+    """The result of :func:`poincare`.
+
+    Points (one per crossing, all orbits concatenated; ``orbit[i]`` says whose):
+
+    * ``q``, ``p`` -- the other joint's angle (wrapped to ``[-pi, pi)``) [rad] and canonical
+      momentum [J s]: the area-preserving coordinates of the section;
+    * ``dq`` -- the other joint's speed [rad/s];
+    * ``t`` -- the crossing time [s]; ``states`` -- the full state (phi, psi, dphi, dpsi), shape (N, 4);
+    * ``energy_error`` -- ``E(state) - energy`` [J].
+
+    Orbits: ``seeds`` (n, 2) = their starts ``(q, p_q)`` on the section, ``crossings`` (n,) how
+    many each made, ``status`` (n,) 0 = all wanted crossings, 5 = ``t_max`` reached first, 1-3
+    failures.  ``unreachable``: seeds given that cannot lie on the surface (reported, not used).
+    ``coord_names`` = (section joint, other joint); ``params``, ``settings``, ``stats``.
+    """
+
+    q: np.ndarray
+    p: np.ndarray
+    dq: np.ndarray
+    t: np.ndarray
+    states: np.ndarray
+    energy_error: np.ndarray
+    orbit: np.ndarray
+    seeds: np.ndarray
+    crossings: np.ndarray
+    status: np.ndarray
+    unreachable: np.ndarray
+    params: Parameters
+    settings: Dict[str, Any]
+    stats: Dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def coord_names(self) -> Tuple[str, str]:
+        c = self.settings["coordinate"]
+        return c, ("psi" if c == "phi" else "phi")
+
+    @property
+    def n_points(self) -> int:
+        return int(self.q.size)
+
+    def orbit_points(self, k: int) -> Tuple[np.ndarray, np.ndarray]:
+        """``(q, p)`` of orbit ``k``."""
+        sel = self.orbit == k
+        return self.q[sel], self.p[sel]
+
+    def to_xarray(self):
+        """An :class:`xarray.Dataset` on dimension ``point`` (and ``orbit`` for the seeds)."""
+        import json
+
+        import xarray as xr
+
+        _, other = self.coord_names
+        return xr.Dataset(
+            {
+                other: ("point", self.q, {"units": "rad", "long_name": f"{other} on the section"}),
+                f"p_{other}": ("point", self.p, {"units": "J s", "long_name": f"canonical momentum of {other}"}),
+                f"d{other}": ("point", self.dq, {"units": "rad/s"}),
+                "t": ("point", self.t, {"units": "s", "long_name": "crossing time"}),
+                "orbit_index": ("point", self.orbit),
+                "energy_error": ("point", self.energy_error, {"units": "J"}),
+                "seed_q": ("orbit", self.seeds[:, 0], {"units": "rad"}),
+                "seed_p": ("orbit", self.seeds[:, 1], {"units": "J s"}),
+                "crossings": ("orbit", self.crossings),
+                "status": ("orbit", self.status),
+            },
+            attrs={"title": "Poincare section of the skewed double pendulum (skewpend)",
+                   "settings": json.dumps(self.settings), "params": json.dumps(self.params.to_dict())},
+        )
+
+    def to_csv(self, path) -> None:
+        """The points as CSV (orbit, t, q, p_q, q', energy_error), written atomically."""
+        from ..io import atomic_path
+
+        _, other = self.coord_names
+        header = f"orbit,t,{other},p_{other},d{other},energy_error"
+        table = np.column_stack([self.orbit, self.t, self.q, self.p, self.dq, self.energy_error])
+        with atomic_path(path) as tmp:
+            np.savetxt(tmp, table, delimiter=",", header=header, comments="", fmt=["%d"] + ["%.17g"] * 5)
+
+    def to_netcdf(self, path) -> None:
+        """The dataset of :meth:`to_xarray` as NetCDF4, written atomically."""
+        from ..io import atomic_path, require_netcdf
+
+        require_netcdf()
+        with atomic_path(path) as tmp:
+            self.to_xarray().to_netcdf(tmp, engine="netcdf4")
+
+
+def poincare(
+    params: Parameters,
+    energy: float,
+    *,
+    section: str = "phi=0",
+    direction: int = 1,
+    n_orbits: int = 50,
+    n_crossings: int = 500,
+    seeds=None,
+    locate: str = "dense",
+    t_max: Optional[float] = None,
+    rtol: Optional[float] = 1e-12,
+    atol: Optional[float] = 1e-12,
+    max_steps: int = MAX_STEPS,
+    workers: Optional[int] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> PoincareSection:
+    """The Poincare section ``section`` (``"phi=VALUE"`` or ``"psi=VALUE"``, modulo 2 pi) of the
+    orbits at ``energy`` [J] (the energy of :func:`simulate`: ``T + Pi``; see ``stats["e_min"]``
+    for the least possible), crossed in ``direction`` (+1: the section joint's angle increasing,
+    -1 decreasing, 0 both).
+
+    ``n_orbits`` orbits start on the section -- from ``seeds`` (an array of ``(q, p_q)`` of the
+    other joint) or, by default, spread over the reachable region -- and are followed for
+    ``n_crossings`` crossings each, or until ``t_max`` [s] (default: 200 small-oscillation periods
+    per crossing wanted).  DOP853 at ``rtol``/``atol`` (default 1e-12); ``locate``: ``"dense"`` or
+    ``"henon"`` (see the module).  Orbits run on ``workers`` threads; ``progress(done, total)``
+    counts crossings.
+
+    Refused with one clear :class:`~skewpend.errors.ParameterError`: damping or torques (the
+    energy would not be constant), an energy below the minimum, a section the motion cannot
+    reach at that energy.
+    """
+    from ..numeric.ensemble import Cancelled, run_chunks
+    from ..numeric.kernels import State
+    from .flipmap import _check_workers
+
+    params = _check_params(params, "a Poincare section")
+    _require_conservative(params, "a Poincare section")
+    try:
+        energy = float(energy)
+    except (TypeError, ValueError):
+        raise ParameterError(f"energy must be a number of joules, got {energy!r}") from None
+    if isinstance(energy, bool) or not math.isfinite(energy):
+        raise ParameterError(f"energy must be a finite number of joules, got {energy!r}")
+    name, value = parse_section(section)
+    if direction not in (-1, 0, 1) or isinstance(direction, bool):
+        raise ParameterError(f"direction must be +1, -1 or 0 (both), got {direction!r}")
+    if locate not in LOCATE_METHODS:
+        raise ParameterError(f"locate must be one of {', '.join(LOCATE_METHODS)}, got {locate!r}")
+    for label, v, cap in (("n_orbits", n_orbits, 100_000), ("n_crossings", n_crossings, 10_000_000)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= cap:
+            raise ParameterError(f"{label} must be a whole number from 1 to {cap}, got {v!r}")
+    if int(n_orbits) * int(n_crossings) > 50_000_000:
+        raise ParameterError(f"n_orbits x n_crossings = {int(n_orbits) * int(n_crossings)} points is too many (at most 5e7)")
+    t_max = positive_number("t_max", t_max, allow_none=True)
+    rtol, atol = _check_tolerances(rtol, atol)
+    max_steps = _check_max_steps(max_steps)
+    workers = _check_workers(workers)
+    if progress is not None and not callable(progress):
+        raise ParameterError("progress must be a callable progress(done, total)")
+
+    coord = _COORDS[name]
+    surface = _surface(params, energy, coord, value)
+    scale = max(abs(surface.e_min), abs(energy), 1e-300)
+    if energy < surface.e_min - 1e-12 * scale:
+        raise ParameterError(f"energy {energy:.6g} J is below the minimum of the potential energy, {surface.e_min:.6g} J; "
+                             f"allowed: energy >= {surface.e_min:.6g} J")
+    v_section, _ = surface.bounds()
+    if v_section >= energy:
+        raise ParameterError(
+            f"the motion never reaches the section {section!r} at energy {energy:.6g} J: the potential energy on it is "
+            f"at least {v_section:.6g} J; choose a higher energy or another section value"
+        )
+    if seeds is None:
+        seeds_ok = section_seeds(surface, int(n_orbits))
+        unreachable = np.empty((0, 2))
+        if seeds_ok.shape[0] == 0:
+            raise ParameterError(f"no orbit can be started on the section {section!r} at energy {energy:.6g} J "
+                                 f"(the reachable region is too thin); choose a higher energy")
+    else:
+        try:
+            given = np.asarray(seeds, dtype=float).reshape(-1, 2)
+        except (TypeError, ValueError):
+            raise ParameterError("seeds must be an array of (q, p_q) pairs of the other joint") from None
+        if given.shape[0] == 0 or not np.all(np.isfinite(given)):
+            raise ParameterError("seeds must be a non-empty array of finite (q, p_q) pairs of the other joint")
+        ok = surface.reach(given[:, 0], given[:, 1]) >= 0
+        seeds_ok, unreachable = given[ok], given[~ok]
+        if seeds_ok.shape[0] == 0:
+            raise ParameterError(f"none of the {given.shape[0]} seeds can lie on the energy surface {energy:.6g} J at the "
+                                 f"section {section!r} (each needs p^2/(2 M) + Pi <= E)")
+    starts = surface.states(seeds_ok[:, 0], seeds_ok[:, 1], direction)
+    n = starts.shape[0]
+    want = int(n_crossings)
+    if t_max is None:
+        g = max(float(params.g), 1e-12)
+        period = 2.0 * math.pi * math.sqrt((float(params.a) + float(params.b)) / g)
+        t_max = 200.0 * period * want
+    kernel, p = surface.kernel, surface.p
+    method = LOCATE_METHODS.index(locate)
+    period_wrap = _TWO_PI
+    value_wrapped = math.remainder(value, _TWO_PI)
+    done = [0]
+    start = time.perf_counter()
+
+    def work(k, cancel):
+        state = State.at(0.0, list(starts[k]) + [0.0])
+        rows = np.empty((min(want, 8192), 5))
+        dp = ctypes.POINTER(ctypes.c_double)
+        m = ctypes.c_int64(0)
+        got = []
+        while True:
+            rc = kernel.lib.sp_section(ctypes.byref(state), p.ctypes.data_as(dp), coord, value_wrapped, period_wrap,
+                                       int(direction), method, want, t_max, rtol, atol, max_steps, _BUDGET,
+                                       rows.ctypes.data_as(dp), rows.shape[0], ctypes.byref(m))
+            if m.value:
+                got.append(rows[: m.value].copy())
+            if rc in (-1, -2):
+                if cancel.is_set():
+                    raise Cancelled()
+                continue
+            if rc == -3:  # pragma: no cover - guarded by the checks above
+                raise RuntimeError("internal error: bad arguments to sp_section")
+            break
+        table = np.concatenate(got) if got else np.empty((0, 5))
+        return table, rc, int(state.naccept), int(state.nreject), int(state.aux)
+
+    tables: list = [None] * n
+    status = np.zeros(n, dtype=np.int32)
+    steps = np.zeros(n, dtype=np.int64)
+    rejected = np.zeros(n, dtype=np.int64)
+    fallbacks = np.zeros(n, dtype=np.int64)
+
+    def on_done(k, result):
+        tables[k], status[k], steps[k], rejected[k], fallbacks[k] = result
+        done[0] += want
+        if progress is not None:
+            progress(done[0], n * want)
+
+    run_chunks(n, work, workers=workers, on_done=on_done, keep=False)
+    counts = np.array([t.shape[0] for t in tables], dtype=np.int64)
+    table = np.concatenate(tables) if n else np.empty((0, 5))
+    orbit = np.repeat(np.arange(n), counts)
+    states = table[:, 1:5]
+    o = 1 - coord
+    rows5 = np.zeros((states.shape[0], 5))
+    rows5[:, :4] = states
+    e = kernel.energies(rows5, p)
+    mom = np.empty((states.shape[0], 2))
+    buf = np.empty(2)
+    for i in range(states.shape[0]):
+        kernel.momenta(rows5[i], p, buf)
+        mom[i] = buf
+    q_other = np.mod(states[:, o] + math.pi, _TWO_PI) - math.pi
+    failed = int(np.count_nonzero((status != 0) & (status != 5)))
+    settings = {
+        "energy": energy, "section": f"{name}={value:g}", "coordinate": name, "value": value, "direction": int(direction),
+        "n_orbits": int(n_orbits), "n_crossings": want, "locate": locate, "t_max": t_max, "rtol": rtol, "atol": atol,
+        "max_steps": max_steps, "seeds": "given" if seeds is not None else "halton",
+    }
+    stats = {
+        "points": int(table.shape[0]), "orbits": n, "unreachable": int(unreachable.shape[0]),
+        "orbits_short": int(np.count_nonzero(status == 5)), "failed": failed, "steps": int(steps.sum()),
+        "rejected": int(rejected.sum()), "e_min": surface.e_min, "henon_fallbacks": int(fallbacks.sum()),
+        "max_energy_error": float(np.max(np.abs(e - energy))) if e.size else 0.0,
+        "wall_time": time.perf_counter() - start, "workers": workers,
+    }
+    result = PoincareSection(
+        q=q_other, p=mom[:, o], dq=states[:, 2 + o], t=table[:, 0], states=states, energy_error=e - energy, orbit=orbit,
+        seeds=seeds_ok, crossings=counts, status=status, unreachable=unreachable, params=params, settings=settings,
+        stats=stats,
+    )
+    if table.shape[0] == 0:
+        raise IntegrationError(f"no orbit crossed the section {section!r} within t_max = {t_max:g} s")
+    return result
