@@ -613,6 +613,289 @@ def flipmap(
     sys.stdout.write("\n".join(lines) + "\n")
 
 
+# -- chaos: Lyapunov spectra, Poincare sections, the chaos diagram ------------------------------------------
+def _whole(text: Optional[str], option: str, default: int, lo: int, hi: int) -> int:
+    """A whole number typed by the user, from ``lo`` to ``hi`` (``default`` when not given)."""
+    if text is None:
+        return default
+    value = parse_scalar(text, option)
+    if value is None or value != int(value) or not lo <= value <= hi:
+        raise UsageError(f"{option}: expected a whole number from {lo} to {hi}, got {text!r}")
+    return int(value)
+
+
+def _seconds(text: Optional[str], option: str, default: Optional[float], *, zero: bool = False) -> Optional[float]:
+    """A time [s] typed by the user: positive (or >= 0 with ``zero``)."""
+    if text is None:
+        return default
+    value = parse_scalar(text, option)
+    if value is None or not (value >= 0 if zero else value > 0):
+        raise UsageError(f"{option}: expected a {'non-negative' if zero else 'positive'} number of seconds, got {text!r}")
+    return value
+
+
+def _workers_option(workers: Optional[str]) -> Optional[int]:
+    return None if workers is None else _whole(workers, "--workers", 1, 1, 1024)
+
+
+def _check_plot(plot: Optional[str]) -> None:
+    if plot is not None:
+        from .io import check_output_path
+        from .views.figures import FIGURE_SUFFIXES
+
+        check_output_path(plot, FIGURE_SUFFIXES, option="--plot")
+
+
+def _tolerances(rtol: Optional[str], atol: Optional[str]) -> dict:
+    return {k: _positive(v, f"--{k}") for k, v in (("rtol", rtol), ("atol", atol)) if v is not None}
+
+
+@app.command()
+@_options(MODEL_OPTIONS, INITIAL_OPTIONS)
+def lyapunov(
+    model: dict,
+    initial: dict,
+    t_end: Annotated[Optional[str], typer.Option("--t-end", help="length of the run [s] (default 1000)", rich_help_panel=_R)] = None,
+    renorm_every: Annotated[Optional[str], typer.Option("--renorm-every", help="QR re-orthonormalisation interval [s] (default 1)", rich_help_panel=_R)] = None,
+    transient: Annotated[Optional[str], typer.Option("--transient", help="seconds at the start not counted (default 0)", rich_help_panel=_R)] = None,
+    exponents: Annotated[Optional[str], typer.Option("--exponents", help="how many exponents: 4 (the spectrum, default) or 1 (the largest, cheaper)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance of DOP853 (default 1e-10)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance of DOP853 (default 1e-10)", rich_help_panel=_R)] = None,
+    windows: Annotated[Optional[str], typer.Option("--windows", help="time windows for the uncertainty (default 10)", rich_help_panel=_R)] = None,
+    max_steps: MAX_STEPS_OPT = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the result to FILE.json (exponents, settings) or FILE.csv (running estimates)", rich_help_panel=_R)] = None,
+    plot: Annotated[Optional[str], typer.Option("--plot", help="draw the running estimates to FILE (.png, .svg or .pdf)", rich_help_panel=_R)] = None,
+    quiet: QUIET = False,
+    config: CONFIG = None,
+) -> None:
+    """Lyapunov exponents of the motion from the initial state: Benettin's method (QR) on the
+    variational equations generated from the derivation.
+
+    From a --config run file it takes [parameters] and [initial].
+    """
+    from .io import check_output_path
+    from .progress import ProgressBar
+
+    params, y0, _ = _resolve(config, model, initial, {})
+    horizon = _seconds(t_end, "--t-end", 1000.0)
+    every = _seconds(renorm_every, "--renorm-every", 1.0)
+    skip = _seconds(transient, "--transient", 0.0, zero=True)
+    k = _whole(exponents, "--exponents", 4, 1, 4)
+    n_win = _whole(windows, "--windows", 10, 1, 1000)
+    cap = _whole(max_steps, "--max-steps", 10**8, 1, 10**15)
+    if out is not None:
+        check_output_path(out, (".json", ".csv"), option="--out")
+    _check_plot(plot)
+    from .analysis.lyapunov import lyapunov as run_lyapunov
+
+    with ProgressBar("Lyapunov", unit="s", enabled=None if not quiet else False) as bar:
+        spec = run_lyapunov(params, y0, t_end=horizon, renorm_every=every, transient=skip, n_exponents=k,
+                            windows=n_win, max_steps=cap, progress=bar, throw=False, **_tolerances(rtol, atol))
+    if out is not None:
+        _write_lyapunov(spec, out)
+    if plot is not None:
+        from .views.figures import lyapunov_figure, save_figure
+
+        save_figure(lyapunov_figure(spec), plot)
+    st = spec.stats
+    lines = [spec.table()]
+    if spec.k == 4:
+        lines.append(f"Kaplan-Yorke dimension {spec.kaplan_yorke_dimension:.4f}")
+    lines.append(f"run      {spec.settings['measured_from']:g} .. {st['t_reached']:g} s, QR every {every:g} s, "
+                 f"{st['steps']} steps ({st['rejected']} rejected), {st['wall_time']:.3g} s")
+    for what, path in (("written", out), ("plot", plot)):
+        if path is not None:
+            lines.append(f"{what:9s}{path}")
+    sys.stdout.write("\n".join(lines) + "\n")
+    if spec.status != 0:
+        sys.stderr.write(f"skewpend: lyapunov {spec.message}; the exponents above cover the time up to there\n")
+        sys.exit(1)
+
+
+def _write_lyapunov(spec, out: str) -> None:
+    import json
+
+    import numpy as np
+
+    from .io import atomic_path
+
+    with atomic_path(out) as tmp:
+        if str(out).lower().endswith(".json"):
+            tmp.write_text(json.dumps(spec.to_dict(), indent=2) + "\n")
+        else:
+            header = "t," + ",".join(f"lambda_{i + 1}" for i in range(spec.k))
+            np.savetxt(tmp, np.column_stack([spec.t, spec.history]), delimiter=",", header=header, comments="",
+                       fmt="%.17g")
+
+
+class Direction(str, Enum):
+    up = "+1"
+    down = "-1"
+    both = "both"
+
+
+class Locate(str, Enum):
+    dense = "dense"
+    henon = "henon"
+
+
+@app.command()
+@_options(MODEL_OPTIONS)
+def poincare(
+    model: dict,
+    energy: Annotated[Optional[str], typer.Option("--energy", help="the energy of the orbits [J] (required; 0 = at rest, for thin rods)", rich_help_panel=_R)] = None,
+    section: Annotated[Optional[str], typer.Option("--section", help="phi=VALUE or psi=VALUE (radians or e.g. 30deg; modulo 360 deg; default phi=0)", rich_help_panel=_R)] = None,
+    direction: Annotated[Direction, typer.Option("--direction", help="crossings with the angle increasing (+1), decreasing (-1) or both", rich_help_panel=_R)] = Direction.up,
+    orbits: Annotated[Optional[str], typer.Option("--orbits", help="orbits started on the section (default 50)", rich_help_panel=_R)] = None,
+    crossings: Annotated[Optional[str], typer.Option("--crossings", help="crossings recorded per orbit (default 500)", rich_help_panel=_R)] = None,
+    locate: Annotated[Locate, typer.Option("--locate", help="crossings by the dense output and root finding, or by Henon's trick", rich_help_panel=_R)] = Locate.dense,
+    t_max: Annotated[Optional[str], typer.Option("--t-max", help="longest time per orbit [s] (default 200 small-oscillation periods per crossing)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance of DOP853 (default 1e-12)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance of DOP853 (default 1e-12)", rich_help_panel=_R)] = None,
+    velocity: Annotated[bool, typer.Option("--velocity", help="plot (q, q') instead of the canonical (q, p_q)", rich_help_panel=_R)] = False,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the points to FILE.csv or FILE.nc", rich_help_panel=_R)] = None,
+    plot: Annotated[Optional[str], typer.Option("--plot", help="draw the section to FILE (.png, .svg or .pdf)", rich_help_panel=_R)] = None,
+    workers: Annotated[Optional[str], typer.Option("--workers", help="threads (default: every core)", rich_help_panel=_R)] = None,
+    quiet: QUIET = False,
+    config: CONFIG = None,
+) -> None:
+    """A Poincare section on an energy surface: orbits started on the section, their crossings
+    located on the dense output, in the area-preserving coordinates (q, p_q) of the other joint.
+
+    Needs a conservative model (no damping, no torques). From a --config run file it takes [parameters].
+    """
+    from .io import check_output_path
+    from .progress import ProgressBar
+
+    params, _, _ = _resolve(config, model, {}, {})
+    if energy is None:
+        raise UsageError("--energy is required: the energy of the orbits in joules (e.g. --energy 10)")
+    e = parse_scalar(energy, "--energy")
+    if e is None:
+        raise UsageError(f"--energy: expected a number of joules, got {energy!r}")
+    n_orbits = _whole(orbits, "--orbits", 50, 1, 100_000)
+    n_cross = _whole(crossings, "--crossings", 500, 1, 10_000_000)
+    horizon = _seconds(t_max, "--t-max", None)
+    threads = _workers_option(workers)
+    if out is not None:
+        check_output_path(out, (".csv", ".nc"), option="--out")
+    _check_plot(plot)
+    if velocity and plot is None:
+        raise UsageError("--velocity chooses the plot's coordinates: give --plot FILE too")
+    from .analysis.poincare import poincare as run_poincare
+
+    sign = {"+1": 1, "-1": -1, "both": 0}[direction.value]
+    with ProgressBar("Poincare section", unit="crossings", enabled=None if not quiet else False) as bar:
+        sec = run_poincare(params, e, section="phi=0" if section is None else section, direction=sign,
+                           n_orbits=n_orbits, n_crossings=n_cross, locate=locate.value, t_max=horizon,
+                           workers=threads, progress=bar, **_tolerances(rtol, atol))
+    if out is not None:
+        (sec.to_netcdf if str(out).lower().endswith(".nc") else sec.to_csv)(out)
+    if plot is not None:
+        from .views.figures import poincare_figure, save_figure
+
+        save_figure(poincare_figure(sec, canonical=not velocity), plot)
+    st = sec.stats
+    c, o = sec.coord_names
+    lines = [
+        f"section   {sec.settings['section']} ({'both directions' if sign == 0 else ('increasing' if sign > 0 else 'decreasing')}), "
+        f"energy {e:g} J (minimum {st['e_min']:.6g} J)",
+        f"points    {st['points']} in ({o}, p_{o}) from {st['orbits']} orbits"
+        + (f"; {st['orbits_short']} reached t_max first" if st["orbits_short"] else ""),
+        f"accuracy  max |energy error| {st['max_energy_error']:.2e} J",
+        f"work      {st['steps']} steps, {st['wall_time']:.3g} s on {st['workers']} workers",
+    ]
+    if st["failed"]:
+        lines.append(f"failed    {st['failed']} orbits stopped early (non-finite state, step underflow or max steps)")
+    for what, path in (("written", out), ("plot", plot)):
+        if path is not None:
+            lines.append(f"{what:10s}{path}")
+    sys.stdout.write("\n".join(lines) + "\n")
+
+
+_DIAGRAM_OUT = (".zarr", ".nc")
+
+
+@app.command("chaos-diagram")
+@_options(MODEL_OPTIONS)
+def chaos_diagram(
+    model: dict,
+    alphas: Annotated[Optional[str], typer.Option("--alphas", help="skew angles START:STOP:COUNT (e.g. 0:90deg:7, the default)", rich_help_panel=_R)] = None,
+    energies: Annotated[Optional[str], typer.Option("--energies", help="energies above the minimum START:STOP:COUNT [J] (default: 8 up to the potential's span)", rich_help_panel=_R)] = None,
+    samples: Annotated[Optional[str], typer.Option("--samples", help="starts per cell on the energy surface (default 24)", rich_help_panel=_R)] = None,
+    t_end: Annotated[Optional[str], typer.Option("--t-end", help="length of each run [s] (default 150)", rich_help_panel=_R)] = None,
+    threshold: Annotated[Optional[str], typer.Option("--threshold", help="largest exponent [1/s] above which a start counts as chaotic (default from the frequencies and t_end)", rich_help_panel=_R)] = None,
+    rtol: Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance of DOP853 (default 1e-8)", rich_help_panel=_R)] = None,
+    atol: Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance of DOP853 (default 1e-8)", rich_help_panel=_R)] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the diagram to FILE.zarr (row by row, resumable) or FILE.nc", rich_help_panel=_R)] = None,
+    plot: Annotated[Optional[str], typer.Option("--plot", help="draw the diagram to FILE (.png, .svg or .pdf)", rich_help_panel=_R)] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="with --out FILE.zarr: compute only the rows an interrupted run left missing", rich_help_panel=_R)] = False,
+    workers: Annotated[Optional[str], typer.Option("--workers", help="threads on this machine (default: every core)", rich_help_panel=_R)] = None,
+    scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="run on a dask.distributed cluster: tcp://HOST:PORT (needs skewpend[cluster])", rich_help_panel=_R)] = None,
+    quiet: QUIET = False,
+    config: CONFIG = None,
+) -> None:
+    """How the skew angle changes chaos: for each alpha and energy, the fraction of starts on
+    that energy surface whose largest Lyapunov exponent is clearly positive.
+
+    Needs a conservative model (no damping, no torques); alpha is the diagram's axis (use
+    --alphas, not --alpha). From a --config run file it takes [parameters].
+    """
+    from .io import check_output_path
+    from .parsing import parse_range
+    from .progress import ProgressBar
+
+    run = _Run(config, {"parameters": model})
+    if run.is_given("parameters", "alpha"):
+        raise UsageError(f"{run.option('parameters', 'alpha')}: the chaos diagram varies alpha itself; give the angles with --alphas START:STOP:COUNT")
+    run.values["parameters"].pop("alpha", None)
+    params = run.parameters()
+    alpha_values = None if alphas is None else parse_range(alphas, "--alphas", angle=True)
+    energy_values = None if energies is None else parse_range(energies, "--energies", angle=False)
+    n_samples = _whole(samples, "--samples", 24, 1, 100_000)
+    horizon = _seconds(t_end, "--t-end", 150.0)
+    thr = None if threshold is None else _positive(threshold, "--threshold")
+    threads = _workers_option(workers)
+    if scheduler is not None and workers is not None:
+        raise UsageError("--workers counts threads on this machine; with --scheduler the cluster's workers do the work")
+    if out is not None:
+        if not str(out).lower().endswith(_DIAGRAM_OUT):
+            raise UsageError(f"--out: expected a file name ending in .zarr or .nc, got {out!r}")
+        if str(out).lower().endswith(".nc"):
+            check_output_path(out, (".nc",), option="--out")
+    if resume and (out is None or not str(out).lower().endswith(".zarr")):
+        raise UsageError("--resume continues a store: give --out FILE.zarr (a .nc file is written whole at the end)")
+    _check_plot(plot)
+    from .analysis.chaos import chaos_diagram as run_diagram
+
+    store = out if out is not None and str(out).lower().endswith(".zarr") else None
+    kw = {"alpha": alpha_values} if alpha_values is not None else {}
+    if energy_values is not None:
+        kw["energy"] = energy_values
+    with ProgressBar("chaos diagram", unit="alphas", enabled=None if not quiet else False) as bar:
+        d = run_diagram(params, samples=n_samples, t_end=horizon, threshold=thr, workers=threads, progress=bar,
+                        store=store, resume=resume, scheduler=scheduler, **kw, **_tolerances(rtol, atol))
+    if out is not None and store is None:
+        d.to_netcdf(out)
+    if plot is not None:
+        from .views.figures import chaos_diagram_figure, save_figure
+
+        save_figure(chaos_diagram_figure(d), plot)
+    st = d.stats
+    lines = [
+        f"chaotic fraction (largest exponent > {d.threshold:.3g} 1/s over {horizon:g} s, {n_samples} starts per cell on phi = 0)",
+        d.table(),
+        f"work      {st['trajectories']} trajectories, {st['wall_time']:.3g} s on {st['workers']} workers"
+        + (f"; {st['rows_resumed']} rows already in the store" if st.get("rows_resumed") else ""),
+    ]
+    if st["failed"]:
+        lines.append(f"failed    {st['failed']} trajectories (left NaN)")
+    for what, path in (("written", out), ("plot", plot)):
+        if path is not None:
+            lines.append(f"{what:10s}{path}")
+    sys.stdout.write("\n".join(lines) + "\n")
+
+
 # -- report -----------------------------------------------------------------------------------------------
 @app.command()
 @_options(MODEL_OPTIONS, INITIAL_OPTIONS)
