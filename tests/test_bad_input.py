@@ -214,6 +214,51 @@ case("flipmap-workers-zero", ["flipmap", "--workers", "0"], "--workers")
 case("flipmap-rtol-negative", ["flipmap", "--rtol", "-1"], "--rtol", "positive")
 case("flipmap-a-sym", ["flipmap", "--a", "sym"], "numeric", "symbolic: a")
 
+# -- lyapunov, poincare, chaos-diagram ------------------------------------------------------------------------
+case("lyapunov-t-end-zero", ["lyapunov", "--t-end", "0"], "--t-end", "positive")
+case("lyapunov-t-end-negative", ["lyapunov", "--t-end", "-5"], "--t-end", "positive")
+case("lyapunov-t-end-nan", ["lyapunov", "--t-end", "nan"], "--t-end", "finite")
+case("lyapunov-renorm-beyond-t-end", ["lyapunov", "--t-end", "1", "--renorm-every", "2"], "renorm_every", "t_end")
+case("lyapunov-transient-too-long", ["lyapunov", "--t-end", "10", "--transient", "10"], "transient", "t_end")
+case("lyapunov-transient-negative", ["lyapunov", "--transient", "-1"], "--transient", "non-negative")
+case("lyapunov-exponents-five", ["lyapunov", "--exponents", "5"], "--exponents", "1 to 4")
+case("lyapunov-exponents-fraction", ["lyapunov", "--exponents", "1.5"], "--exponents", "whole number")
+case("lyapunov-windows-zero", ["lyapunov", "--windows", "0"], "--windows")
+case("lyapunov-out-txt", ["lyapunov", "--out", "l.txt"], "--out", ".json")
+case("lyapunov-plot-jpg", ["lyapunov", "--plot", "l.jpg"], "--plot", ".png")
+case("lyapunov-phi0-inf", ["lyapunov", "--phi0", "inf"], "--phi0", "finite")
+case("lyapunov-a-sym", ["lyapunov", "--a", "sym"], "numeric", "symbolic: a")
+case("lyapunov-rtol-zero", ["lyapunov", "--rtol", "0"], "--rtol", "positive")
+case("lyapunov-rtol-tiny", ["lyapunov", "--rtol", "1e-20"], "rtol", "1e-15")
+case("poincare-no-energy", ["poincare"], "--energy", "required")
+case("poincare-energy-below-minimum", ["poincare", "--energy", "-1"], "below the minimum", "energy >=")
+case("poincare-energy-not-a-number", ["poincare", "--energy", "abc"], "--energy")
+case("poincare-energy-inf", ["poincare", "--energy", "inf"], "--energy", "finite")
+case("poincare-section-never-reached", ["poincare", "--energy", "1", "--section", "phi=180deg"], "never reaches")
+case("poincare-section-bad-name", ["poincare", "--energy", "5", "--section", "theta=0"], "section", "phi=VALUE")
+case("poincare-section-bad-value", ["poincare", "--energy", "5", "--section", "phi=abc"], "section phi", "number")
+case("poincare-damped", ["poincare", "--energy", "5", "--c1", "0.1"], "conservative", "c1 = 0.1")
+case("poincare-torque", ["poincare", "--energy", "5", "--tau2", "0.5"], "conservative", "tau2")
+case("poincare-orbits-zero", ["poincare", "--energy", "5", "--orbits", "0"], "--orbits")
+case("poincare-crossings-fraction", ["poincare", "--energy", "5", "--crossings", "2.5"], "--crossings", "whole number")
+case("poincare-t-max-zero", ["poincare", "--energy", "5", "--t-max", "0"], "--t-max", "positive")
+case("poincare-out-json", ["poincare", "--energy", "5", "--out", "s.json"], "--out", ".csv")
+case("poincare-velocity-without-plot", ["poincare", "--energy", "5", "--velocity"], "--velocity", "--plot")
+case("poincare-out-missing-dir", ["poincare", "--energy", "5", "--out", "nodir/s.csv"], "nodir")
+case("chaos-diagram-alpha-given", ["chaos-diagram", "--alpha", "0.3"], "--alpha", "--alphas")
+case("chaos-diagram-alphas-count-one", ["chaos-diagram", "--alphas", "0:90deg:1"], "--alphas", "COUNT")
+case("chaos-diagram-alphas-decreasing", ["chaos-diagram", "--alphas", "90:0deg:3"], "alpha", "increasing")
+case("chaos-diagram-energies-zero", ["chaos-diagram", "--energies", "0:10:3"], "energy", "positive")
+case("chaos-diagram-energies-unit", ["chaos-diagram", "--energies", "1deg:10:3"], "--energies", "plain numbers")
+case("chaos-diagram-samples-zero", ["chaos-diagram", "--samples", "0"], "--samples")
+case("chaos-diagram-threshold-negative", ["chaos-diagram", "--threshold", "-1"], "--threshold", "positive")
+case("chaos-diagram-damped", ["chaos-diagram", "--c2", "0.2"], "conservative")
+case("chaos-diagram-axis2", ["chaos-diagram", "--axis2", "1,0,1"], "axis2")
+case("chaos-diagram-out-csv", ["chaos-diagram", "--out", "d.csv"], "--out", ".zarr or .nc")
+case("chaos-diagram-resume-without-store", ["chaos-diagram", "--resume"], "--resume", ".zarr")
+case("chaos-diagram-workers-and-scheduler", ["chaos-diagram", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
+     "--workers", "--scheduler")
+
 # -- validate -------------------------------------------------------------------------------------------------
 case("validate-dt-zero", ["validate", "--dt", "0"], opt("dt"), "positive")
 case("validate-dt-negative", ["validate", "--dt", "-1e-4"], opt("dt"), "positive")
@@ -415,7 +460,8 @@ def test_bad_input_is_refused_in_one_line(argv, fragments, files, tmp_path, monk
 def test_the_battery_is_large():
     assert len(_CASES) >= 120
     commands = {p.values[0][0] for p in _CASES}
-    assert commands == {"derive", "simulate", "animate", "flipmap", "export", "validate", "modes"}
+    assert commands == {"derive", "simulate", "animate", "flipmap", "export", "validate", "modes", "lyapunov", "poincare",
+                        "chaos-diagram"}
 
 
 # -- the real process -----------------------------------------------------------------------------------------
