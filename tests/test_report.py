@@ -344,7 +344,7 @@ def test_report_flipmap_section(default_report):
 
     _, page, _ = default_report
     keys = [k for k, _ in R.SECTIONS]
-    assert keys[keys.index("simulation") + 1:keys.index("simulation") + 4] == ["flipmap", "validation", "provenance"]
+    assert keys[keys.index("simulation") + 1:keys.index("simulation") + 5] == ["flipmap", "chaos", "validation", "provenance"]
     sec = _section(page, "flipmap")
     assert '<span class="num">6</span>Which starts flip: the flip-time map' in sec
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', sec)
@@ -369,7 +369,7 @@ def test_report_flipmap_section(default_report):
     assert out.any() and out[first, joint]
     assert tr.t[first - 1] <= t_flip + 1e-9 and t_flip <= tr.t[first] + 1e-9
     provenance = _section(page, "provenance")
-    assert "6 · flip-time map" in provenance and "7 · validation against MuJoCo" in provenance
+    assert "6 · flip-time map" in provenance and "8 · validation against MuJoCo" in provenance
     assert f"{n} × {n} starts at rest, t_end = 10 s" in html.unescape(provenance)
 
 
@@ -396,3 +396,45 @@ def test_flipmap_section_start_that_energy_forbids_to_flip():
     text = html.unescape(re.sub(r"<[^>]+>", "", R._section_flipmap(ctx)))
     assert "at rest: never flips: energy forbids it" in text
     assert re.search(r"starts that flip\d[\d\u2009]* of 20\u2009736 \(", text), text
+
+
+def test_report_chaos_section(default_report):
+    """Section 7: the Lyapunov spectrum of section 5's start (a Hamiltonian pair structure), two
+    Poincare sections, the largest-exponent map and the chaos diagram, each a figure."""
+    _, page, _ = default_report
+    sec = _section(page, "chaos")
+    assert '<span class="num">7</span>How chaotic' in sec
+    images = re.findall(r'src="data:image/png;base64,([^"]+)"', sec)
+    assert len(images) == 5  # running estimates, two sections, the map, the diagram
+    for data in images:
+        fmt, (w, h), nbytes = _png_size(data)
+        assert fmt == "PNG" and 300 <= w <= 1400 and 300 <= h <= 1400 and nbytes < 600_000
+    text = html.unescape(re.sub(r"<[^>]+>", "", sec))
+    lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+) ± ", text)]
+    assert len(lam) == 4
+    # the default model is conservative: pairs +-lambda and two zeros, up to O(1/T) with T = 500 s
+    # (the finite-time sum is log(det M(q0)/det M(q(T)))/T, |log det ratio| <~ 2 for these rods)
+    assert lam[0] > 0.1 and abs(lam[0] + lam[3]) < 0.01 and abs(lam[1]) < 0.02 and abs(lam[2]) < 0.02
+    for words in ("Benettin", "Poincaré section", "area", "% of the potential's span", "Does skewing the hinges tame or feed chaos?",
+                  "alpha\\E [J]"):
+        assert words in text, words
+    # the diagram's table: 7 alphas from 0 to 90 deg, fractions in [0, 1], none chaotic at the lowest energy
+    rows = re.findall(r"^\s*([0-9.]+) deg((?:\s+[0-9.]+)+)\s*$", text, flags=re.M)
+    assert [float(r[0]) for r in rows] == [0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0]
+    fractions = [[float(x) for x in r[1].split()] for r in rows]
+    assert all(0.0 <= f <= 1.0 for row in fractions for f in row)
+    assert all(row[0] == 0.0 for row in fractions) and all(max(row) > 0.5 for row in fractions)
+    provenance = html.unescape(_section(page, "provenance"))
+    assert "7 · chaos: exponents, sections, diagram" in provenance
+
+
+def test_chaos_section_for_a_damped_model_explains_what_is_left_out():
+    from types import SimpleNamespace
+
+    p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81, c1=0.05)
+    ctx = SimpleNamespace(params=p, y0=(1.2, -0.8, 0.0, 0.0), notes={})
+    body = R._section_chaos(ctx)
+    text = html.unescape(re.sub(r"<[^>]+>", "", body))
+    assert "need an energy surface" in text and len(re.findall(r"<figure", body)) == 1
+    lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+) ± ", text)]
+    assert len(lam) == 4 and sum(lam) < -0.01  # damping contracts phase space

@@ -25,8 +25,10 @@ Sections:
 5. a simulation: figures, energy drift, the animation;
 6. which starts flip: a small flip-time map (:func:`skewpend.flip_map`, released at rest), the
    simulation's start marked on it;
-7. the validation against MuJoCo (or how to install it);
-8. how the report was made: versions, settings, timings.
+7. how chaotic: the Lyapunov spectrum of the simulation's start, Poincare sections at two
+   energies, a largest-exponent map, and the chaotic fraction over (alpha, energy);
+8. the validation against MuJoCo (or how to install it);
+9. how the report was made: versions, settings, timings.
 
 Sections 2 and 3 are symbolic work (SymPy); on a machine with more than one core a second Python
 process computes them while this one simulates and draws (:data:`PARALLEL`; if that process
@@ -83,6 +85,7 @@ SECTIONS = (
     ("modes", "Small oscillations: normal modes"),
     ("simulation", "Simulation"),
     ("flipmap", "Which starts flip: the flip-time map"),
+    ("chaos", "How chaotic: Lyapunov exponents, Poincaré sections and the skew"),
     ("validation", "Validation against MuJoCo"),
     ("provenance", "How this report was made"),
 )
@@ -103,6 +106,18 @@ VALIDATION_TOL = 1e-6
 #: The flip-time map of section 6: cells per side and how long each start is followed [s].
 FLIPMAP_N = 144
 FLIPMAP_T_END = 10.0
+#: Section 7: the Lyapunov run [s], the Poincare sections (energies as fractions of the
+#: potential's span, orbits, crossings), the largest-exponent map (cells per side, seconds) and
+#: the chaos diagram (alphas, energies, starts per cell, seconds).
+CHAOS_LYAPUNOV_T_END = 500.0
+CHAOS_SECTION_LEVELS = (0.15, 0.5)
+CHAOS_SECTION_ORBITS = 24
+CHAOS_SECTION_CROSSINGS = 300
+CHAOS_MAP_N = 32
+CHAOS_MAP_T_END = 60.0
+CHAOS_DIAGRAM = dict(n_alpha=7, samples=12, t_end=100.0)
+#: ... at these fractions of the potential's span (denser where chaos sets in)
+CHAOS_DIAGRAM_LEVELS = (0.1, 0.17, 0.25, 0.35, 0.5, 0.75, 1.0)
 #: Rows drawn by the figures: every FIGURE_DT seconds, at most FIGURE_MAX_ROWS.
 FIGURE_DT = 0.01
 FIGURE_MAX_ROWS = 20000
@@ -755,7 +770,7 @@ def build_report(
     motion, at most ``t_end``; at most 1200 frames).  ``sweep_points``: values of alpha in
     0..180 deg for the frequency curves.  ``validate``: compare with MuJoCo (None: when MuJoCo is
     installed; True: it must be).  ``command``: the command line that made the report, shown in
-    section 8.  ``progress(done, total)`` is called as each part is finished.
+    section 9.  ``progress(done, total)`` is called as each part is finished.
 
     Every argument is checked before any work starts (:class:`~skewpend.ParameterError`).
     """
@@ -775,6 +790,7 @@ def build_report(
         "system": _section_system,
         "modes": _section_modes,
         "flipmap": _section_flipmap,
+        "chaos": _section_chaos,
         "validation": _section_validation,
     }
     total = len(numeric) + 3
@@ -1421,6 +1437,110 @@ def _video_figure(ctx: _Context) -> str:
     )
 
 
+# -- section 7: chaos ------------------------------------------------------------------------------------------
+def _section_chaos(ctx: _Context) -> str:
+    import warnings
+
+    from ..analysis.chaos import chaos_diagram, potential_range
+    from ..analysis.lyapunov import lyapunov, lyapunov_map
+    from ..analysis.poincare import poincare
+    from . import figures as F
+
+    p, y0 = ctx.params, ctx.y0
+    out = [_t(
+        "<p>Chaos, measured. The <b>Lyapunov exponents</b> are the rates at which nearby motions separate: the state is "
+        "integrated together with four tangent vectors — the variational equations "
+        r"$\dot v = J(y)\,v$ with the Jacobian $J$ generated from the derivation of section 2, in the same adaptive "
+        "DOP853 steps as the state — and every second the vectors are re-orthonormalised (QR), their logarithmic "
+        "growths summed (Benettin's method). A positive largest exponent means chaos; without damping and torques "
+        r"the spectrum comes in pairs $\pm\lambda$ with two zeros.</p>")]
+    notes = []
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        try:
+            spec = lyapunov(p, y0, t_end=CHAOS_LYAPUNOV_T_END, throw=False)
+        except SkewpendError as exc:
+            spec = None
+            out.append(f'<p class="callout warn">The Lyapunov spectrum could not be computed: {_e(exc)}</p>')
+    if spec is not None:
+        fig = F.lyapunov_figure(spec)
+        out.append(_figure(_png(fig), _t(
+            "Running estimates of the four Lyapunov exponents of the simulation's initial state (section 5), "
+            f"over {_num(CHAOS_LYAPUNOV_T_END)} s, QR every {_num(spec.settings['renorm_every'])} s; they settle as the "
+            "time grows (the uncertainty is the spread over 10 time windows)."), "Lyapunov exponents against time"))
+        facts = [(f"λ{i + 1}", f"{spec.exponents[i]:+.4f} ± {spec.uncertainty[i]:.2g} 1/s") for i in range(spec.k)]
+        facts.append(("sum", f"{spec.sum:+.2e} 1/s"))
+        facts.append(("work", f"{_count(spec.stats['steps'])} steps in {spec.stats['wall_time']:.2f} s"))
+        if spec.status != 0:
+            facts.append(("stopped", _e(spec.message)))
+        out.append(_facts(facts))
+        notes.append(f"Lyapunov {spec.stats['wall_time']:.2f} s")
+
+    conservative = all(getattr(p, k) == 0 for k in ("c1", "c2", "tau1", "tau2"))
+    if not conservative:
+        out.append(_t("<p class=\"note\">Poincaré sections and the chaos diagram need an energy surface, that is a "
+                      "conservative model; with the damping or torques of section 1 they are left out (the Lyapunov "
+                      "exponents above include the damping: their sum is the rate of phase-space contraction).</p>"))
+        ctx.notes["chaos"] = ", ".join(notes) + "; sections and diagram skipped (not conservative)"
+        return "\n".join(out)
+
+    span = potential_range(p)
+    out.append(_t(
+        "<p>A <b>Poincaré section</b> cuts the motion at fixed energy each time the first rod passes the vertical "
+        r"($\varphi = 0$, moving forwards) and plots the second joint's angle and canonical momentum "
+        r"$(\psi, p_\psi)$ — coordinates in which the section map preserves area. Regular orbits draw closed curves; "
+        "chaotic ones scatter over an area. Each crossing is located on the dense output of the step that made it. "
+        f"Left: a low energy, right: a higher one ({CHAOS_SECTION_ORBITS} orbits, up to {CHAOS_SECTION_CROSSINGS} "
+        "crossings each).</p>"))
+    imgs = []
+    for level in CHAOS_SECTION_LEVELS:
+        e = level * span
+        try:
+            sec = poincare(p, e, n_orbits=CHAOS_SECTION_ORBITS, n_crossings=CHAOS_SECTION_CROSSINGS)
+        except SkewpendError as exc:
+            imgs.append(f'<p class="callout warn">The section at {_num(e, 4)} J could not be made: {_e(exc)}</p>')
+            continue
+        imgs.append(_figure(_png(F.poincare_figure(sec)), _t(
+            f"Section $\\varphi = 0$ at E = {_num(e, 4)} J ({_num(100 * level, 3)} % of the potential's span "
+            f"{_num(span, 4)} J): {_count(sec.n_points)} points, energy error at most "
+            f"{sec.stats['max_energy_error']:.1e} J."), f"Poincaré section at {e:.3g} J"))
+        notes.append(f"section {e:.3g} J {sec.stats['wall_time']:.2f} s")
+    out.append('<div class="figure-row">' + "".join(imgs) + "</div>")
+
+    try:
+        m = lyapunov_map(p, CHAOS_MAP_N, t_end=CHAOS_MAP_T_END)
+        out.append(_figure(_png(F.lyapunov_map_figure(m)), _t(
+            f"The largest Lyapunov exponent over {_num(CHAOS_MAP_T_END)} s for starts at rest on a "
+            f"{CHAOS_MAP_N}&nbsp;×&nbsp;{CHAOS_MAP_N} grid of $(\\varphi_0, \\psi_0)$ — compare the flip-time map of "
+            "section 6: the starts low in the well move regularly (exponent near 0), the wild ones are chaotic."),
+            "largest Lyapunov exponent of starts at rest"))
+        notes.append(f"map {m.stats['wall_time']:.2f} s")
+    except SkewpendError as exc:
+        out.append(f'<p class="callout warn">The largest-exponent map could not be made: {_e(exc)}</p>')
+
+    if p.uses_alpha:
+        try:
+            d = chaos_diagram(p, energy=[level * span for level in CHAOS_DIAGRAM_LEVELS], **CHAOS_DIAGRAM)
+        except SkewpendError as exc:
+            d = None
+            out.append(f'<p class="callout warn">The chaos diagram could not be made: {_e(exc)}</p>')
+        if d is not None:
+            out.append(_t(
+                "<p><b>Does skewing the hinges tame or feed chaos?</b> For each skew angle $\\alpha$ and energy above "
+                f"the rest state, {CHAOS_DIAGRAM['samples']} starts spread over the energy surface (on the section "
+                "$\\varphi = 0$) are followed for " + _num(CHAOS_DIAGRAM['t_end']) + " s; the fraction whose largest "
+                f"exponent exceeds {_num(d.threshold, 3)} 1/s (clearly above the finite-time level of regular motion) "
+                "is the chaotic fraction of that energy surface. The other parameters are those of section 1.</p>"))
+            out.append(_figure(_png(F.chaos_diagram_figure(d)), _t(
+                "Chaotic fraction of the energy surface against $\\alpha$ and the energy above rest. "
+                "A larger diagram: <code>skewpend chaos-diagram --out diagram.zarr --plot diagram.png</code>."),
+                "chaos diagram over alpha and energy"))
+            out.append('<pre class="table">' + _e(d.table()) + "</pre>")
+            notes.append(f"diagram {d.stats['wall_time']:.2f} s")
+    ctx.notes["chaos"] = ", ".join(notes)
+    return "\n".join(out)
+
+
 # -- section 6: the flip-time map --------------------------------------------------------------------------
 def _count(k: int) -> str:
     """A whole number with thin spaces between groups of three digits: ``20 736``."""
@@ -1530,7 +1650,7 @@ def _section_flipmap(ctx: _Context) -> str:
     return "\n".join(out)
 
 
-# -- section 7: validation -------------------------------------------------------------------------------
+# -- section 8: validation -------------------------------------------------------------------------------
 def _mujoco_installed() -> bool:
     import importlib.util
 
@@ -1580,7 +1700,7 @@ def _section_validation(ctx: _Context) -> str:
     )
 
 
-# -- section 8: provenance -------------------------------------------------------------------------------
+# -- section 9: provenance -------------------------------------------------------------------------------
 def _versions() -> List[Tuple[str, str]]:
     from importlib import metadata
 
@@ -1605,6 +1725,7 @@ def _section_provenance(ctx: _Context) -> str:
         ("animation", _e(ctx.notes.get("clip", ""))),
         ("α sweep", _e(f"0 to 180° in {ctx.sweep_points} values: {ctx.notes.get('sweep', '')}")),
         ("flip-time map", _e(ctx.notes.get("flipmap", ""))),
+        ("chaos", _e(ctx.notes.get("chaos", ""))),
         ("validation", _e(f"MuJoCo RK4, dt = {VALIDATION_DT:g} s, {min(VALIDATION_T_END, ctx.t_end):g} s, tolerance "
                           f"{VALIDATION_TOL:g}: {ctx.notes.get('validation', '')}")),
         ("derivation shown for", _e(ctx.notes.get("derivation", ""))),
@@ -1624,7 +1745,8 @@ def _section_provenance(ctx: _Context) -> str:
         ("simulation: figures", "5 · figures"),
         ("simulation: animation", "5 · animation"),
         ("flipmap", "6 · flip-time map"),
-        ("validation", "7 · validation against MuJoCo"),
+        ("chaos", "7 · chaos: exponents, sections, diagram"),
+        ("validation", "8 · validation against MuJoCo"),
         ("total", "total"),
     ]
     trows = [[_e(label), f"{ctx.timings[key]:.2f}"] for key, label in labels if key in ctx.timings]
