@@ -627,11 +627,14 @@ def fingerprint(settings: Dict[str, Any]) -> str:
 
 
 def _settings_diff(stored: Dict[str, Any], wanted: Dict[str, Any]) -> str:
-    def flat(d):
+    def flat(d, top=None):
+        """Nested settings (the parameters) by their own names, prefixed only where a name is
+        also a top-level setting (``params.alpha`` beside a diagram's ``alpha`` axis)."""
+        top = set(d) if top is None else top
         out = {}
         for k, v in d.items():
             if isinstance(v, dict):
-                out.update(flat(v))
+                out.update({(f"{k}.{kk}" if kk in top else kk): vv for kk, vv in flat(v, top).items()})
             else:
                 out[k] = v
         return out

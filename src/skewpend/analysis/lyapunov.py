@@ -169,6 +169,13 @@ def _check_times(t_end, renorm_every, transient):
     return t_end, renorm_every, transient
 
 
+def skipped_renormalisations(transient: float, renorm_every: float) -> int:
+    """How many renormalisations the transient covers: those at or before ``transient`` (with a
+    relative slack of 1e-12, so that ``transient = 3 x 0.1`` skips three).  The one rule of
+    :func:`lyapunov` and of the ensembles (``sp_lyap1_many``)."""
+    return int(math.floor(transient / renorm_every * (1 + 1e-12)))
+
+
 def lyapunov(
     params: Parameters,
     y0: Sequence[float],
@@ -227,7 +234,7 @@ def lyapunov(
 
     # the measured part: renormalisations after the transient, cut into windows of whole intervals
     n_total = int(math.ceil(t_end / renorm_every * (1 - 1e-12)))
-    n_skip = int(math.floor(transient / renorm_every * (1 + 1e-12)))
+    n_skip = skipped_renormalisations(transient, renorm_every)
     n_meas = n_total - n_skip
     n_win = min(int(windows), n_meas)
     bounds = np.linspace(0, n_meas, n_win + 1).round().astype(np.int64)  # window w: rows bounds[w] .. bounds[w+1]-1
@@ -238,6 +245,7 @@ def lyapunov(
     total = np.zeros(k)
     t_from = n_skip * renorm_every if n_skip else 0.0
     t_prev_row = 0.0
+    t_last = t_from  # time of the last measured renormalisation
     hist_t, hist = [], []
     seen = 0  # measured rows so far
 
@@ -257,7 +265,7 @@ def lyapunov(
             renorms += 1
             t = float(row[0])
             if renorms <= n_skip:
-                t_from = t
+                t_from = t_last = t
                 t_prev_row = t
                 continue
             logs = row[1:]
@@ -267,6 +275,7 @@ def lyapunov(
             win_sum[w] += logs
             win_time[w] += t - t_prev_row
             t_prev_row = t
+            t_last = t
             seen += 1
             if seen % stride == 0 or seen == n_meas:
                 hist_t.append(t)
@@ -279,7 +288,7 @@ def lyapunov(
     wall = time.perf_counter() - start
 
     t_reached = float(state.t)
-    span = (hist_t[-1] if hist_t else t_from) - t_from
+    span = t_last - t_from
     exponents = total / span if span > 0 else np.full(k, np.nan)
     filled = win_time > 0
     win_exp = np.where(filled[:, None], win_sum / np.where(filled, win_time, 1.0)[:, None], np.nan)
@@ -330,7 +339,8 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
         if cancel is not None and cancel.is_set():
             raise Cancelled()
         b = min(m, a + group)
-        fn(pp.ctypes.data_as(dp), starts[a:b].ctypes.data_as(dp), b - a, t_end, renorm_every, transient, rtol, atol,
+        fn(pp.ctypes.data_as(dp), starts[a:b].ctypes.data_as(dp), b - a, t_end, renorm_every,
+           skipped_renormalisations(transient, renorm_every), rtol, atol,
            max_steps, lam[a:].ctypes.data_as(dp), status[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
            steps[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int64)))
     return lam, status, steps

@@ -54,9 +54,19 @@ def parse_section(section) -> Tuple[str, float]:
     m = re.fullmatch(r"\s*(phi|psi)\s*=\s*(\S+)\s*", section)
     if not m:
         raise ParameterError(f"section must be 'phi=VALUE' or 'psi=VALUE' (radians, or with a deg suffix), got {section!r}")
-    value = parse_scalar(m.group(2), f"section {m.group(1)}", angle=True)
+    text = m.group(2).lower()
+    pi = re.fullmatch(r"([+-]?(?:\d+(?:\.\d*)?|\.\d+)?)\*?pi(?:/(\d+(?:\.\d*)?))?", text)
+    if pi:  # pi, -pi, pi/2, 2pi, 0.5*pi
+        factor = pi.group(1)
+        factor = -1.0 if factor == "-" else (1.0 if factor in ("", "+") else float(factor))
+        return m.group(1), factor * math.pi / (float(pi.group(2)) if pi.group(2) else 1.0)
+    try:
+        value = parse_scalar(text, f"section {m.group(1)}", angle=True)
+    except ParameterError:
+        value = None
     if value is None:
-        raise ParameterError(f"section value must be a number, got {m.group(2)!r}")
+        raise ParameterError(f"section {m.group(1)}: the value must be a number in radians, with a deg suffix, or a "
+                             f"multiple of pi (e.g. phi=0, psi=30deg, phi=pi/2), got {m.group(2)!r}")
     return m.group(1), float(value)
 
 
@@ -281,9 +291,13 @@ class PoincareSection:
 
     def to_netcdf(self, path) -> None:
         """The dataset of :meth:`to_xarray` as NetCDF4, written atomically."""
-        from ..io import atomic_path, require_netcdf
+        from ..errors import SkewpendError
+        from ..io import atomic_path
 
-        require_netcdf()
+        try:
+            import netCDF4  # noqa: F401
+        except ImportError:
+            raise SkewpendError('writing .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
         with atomic_path(path) as tmp:
             self.to_xarray().to_netcdf(tmp, engine="netcdf4")
 
@@ -327,11 +341,13 @@ def poincare(
 
     params = _check_params(params, "a Poincare section")
     _require_conservative(params, "a Poincare section")
+    if isinstance(energy, bool):
+        raise ParameterError(f"energy must be a number of joules, got {energy!r}")
     try:
         energy = float(energy)
     except (TypeError, ValueError):
         raise ParameterError(f"energy must be a number of joules, got {energy!r}") from None
-    if isinstance(energy, bool) or not math.isfinite(energy):
+    if not math.isfinite(energy):
         raise ParameterError(f"energy must be a finite number of joules, got {energy!r}")
     name, value = parse_section(section)
     if direction not in (-1, 0, 1) or isinstance(direction, bool):
@@ -341,8 +357,8 @@ def poincare(
     for label, v, cap in (("n_orbits", n_orbits, 100_000), ("n_crossings", n_crossings, 10_000_000)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= cap:
             raise ParameterError(f"{label} must be a whole number from 1 to {cap}, got {v!r}")
-    if int(n_orbits) * int(n_crossings) > 50_000_000:
-        raise ParameterError(f"n_orbits x n_crossings = {int(n_orbits) * int(n_crossings)} points is too many (at most 5e7)")
+    if int(n_orbits) * int(n_crossings) > 10_000_000:
+        raise ParameterError(f"n_orbits x n_crossings = {int(n_orbits) * int(n_crossings)} points is too many (at most 1e7)")
     t_max = positive_number("t_max", t_max, allow_none=True)
     rtol, atol = _check_tolerances(rtol, atol)
     max_steps = _check_max_steps(max_steps)

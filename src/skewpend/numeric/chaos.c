@@ -115,12 +115,12 @@ int sp_lyap(sp_lyap_state *s, const double *p, double t_end, double rtol, double
     }
 }
 
-/* The largest exponent of m starts y0s[m][4] (rows of 4 doubles) over (transient, t_end]: one
- * tangent vector from (1, 1, 1, 1)/2, renormalised every `every` seconds; the growth after
- * `transient` (renormalisations at t > transient) divided by the time it covers.  out_lambda[i] is
+/* The largest exponent of m starts y0s[m][4] (rows of 4 doubles): one tangent vector from
+ * (1, 1, 1, 1)/2, renormalised every `every` seconds up to t_end; the growth after the first
+ * n_skip renormalisations (the transient) divided by the time it covers.  out_lambda[i] is
  * NaN, and status[i] the failure code (1..3), when a trajectory fails; steps[i] counts its
  * accepted + rejected steps. */
-void sp_lyap1_many(const double *p, const double *y0s, int64_t m, double t_end, double every, double transient,
+void sp_lyap1_many(const double *p, const double *y0s, int64_t m, double t_end, double every, int64_t n_skip,
                    double rtol, double atol, int64_t max_steps, double *out_lambda, int32_t *status, int64_t *steps)
 {
     double rows[64 * 2];
@@ -131,18 +131,17 @@ void sp_lyap1_many(const double *p, const double *y0s, int64_t m, double t_end, 
         s.every = every;
         for (int r = 0; r < 4; r++) s.y[r] = y0s[4 * i + r];
         for (int r = 0; r < 4; r++) s.y[4 + r] = 0.5;
-        double sum = 0.0, t_from = -1.0;
+        double sum = 0.0, t_from = 0.0;
+        int64_t seen = 0;
         int rc;
         do {
             int64_t got = 0;
             rc = sp_lyap(&s, p, t_end, rtol, atol, max_steps, INT64_MAX, rows, 64, &got);
-            for (int64_t j = 0; j < got; j++) {
-                double t = rows[2 * j];
-                if (t > transient) sum += rows[2 * j + 1];
-                else t_from = t;
+            for (int64_t j = 0; j < got; j++, seen++) {
+                if (seen >= n_skip) sum += rows[2 * j + 1];
+                else t_from = rows[2 * j];
             }
         } while (rc == -2);
-        if (t_from < 0.0) t_from = 0.0;
         status[i] = rc;
         steps[i] = s.naccept + s.nreject;
         out_lambda[i] = (rc == 0 && t_end > t_from) ? sum / (t_end - t_from) : NAN;
