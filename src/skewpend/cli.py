@@ -374,6 +374,9 @@ RTOL = Annotated[Optional[str], typer.Option("--rtol", help="relative tolerance,
 ATOL = Annotated[Optional[str], typer.Option("--atol", help="absolute tolerance, dop853 only (default 1e-10)", rich_help_panel=_R)]
 DT = Annotated[Optional[str], typer.Option("--dt", help="step [s], rk4 and gauss only (default 1e-3)", rich_help_panel=_R)]
 MAX_STEPS_OPT = Annotated[Optional[str], typer.Option("--max-steps", help="refuse or stop a run that needs more steps (default 1e8)", rich_help_panel=_R)]
+# ensemble settings shared by flipmap and chaos-diagram (declared once)
+WORKERS = Annotated[Optional[str], typer.Option("--workers", help="threads on this machine (default: every core)", rich_help_panel=_R)]
+SCHEDULER = Annotated[Optional[str], typer.Option("--scheduler", help="run on a dask.distributed cluster: tcp://HOST:PORT (needs skewpend[cluster])", rich_help_panel=_R)]
 
 
 @app.command()
@@ -517,7 +520,8 @@ def animate(
 
 
 # -- flip-time maps ----------------------------------------------------------------------------------------
-_FLIPMAP_OUT = (".zarr", ".nc")
+#: What the ensemble commands (flipmap, chaos-diagram) write: a resumable store or one NetCDF file.
+_ENSEMBLE_OUT = (".zarr", ".nc")
 
 
 @app.command()
@@ -532,8 +536,8 @@ def flipmap(
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the map to FILE.zarr (chunk by chunk, resumable) or FILE.nc", rich_help_panel=_R)] = None,
     plot: Annotated[Optional[str], typer.Option("--plot", help="draw the map to FILE (.png, .svg or .pdf)", rich_help_panel=_R)] = None,
     resume: Annotated[bool, typer.Option("--resume", help="with --out FILE.zarr: compute only the chunks an interrupted run left missing", rich_help_panel=_R)] = False,
-    workers: Annotated[Optional[str], typer.Option("--workers", help="threads on this machine (default: every core)", rich_help_panel=_R)] = None,
-    scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="run on a dask.distributed cluster: tcp://HOST:PORT (needs skewpend[cluster])", rich_help_panel=_R)] = None,
+    workers: WORKERS = None,
+    scheduler: SCHEDULER = None,
     quiet: QUIET = False,
     config: CONFIG = None,
 ) -> None:
@@ -544,7 +548,6 @@ def flipmap(
     """
     import math
 
-    from .io import check_output_path
     from .parsing import parse_interval
 
     params, _, _ = _resolve(config, model, {}, {})
@@ -562,25 +565,7 @@ def flipmap(
         for (lo, hi), name in zip(ranges, ("phi", "psi")):
             if not -math.pi - 1e-12 <= lo < hi <= math.pi + 1e-12:
                 raise UsageError(f"--window ({name}): expected START < STOP within -180..180 deg, got {lo:.6g}:{hi:.6g} rad")
-    threads = None
-    if workers is not None:
-        threads = parse_scalar(workers, "--workers")
-        if threads is None or threads != int(threads) or not 1 <= threads <= 1024:
-            raise UsageError(f"--workers: expected a whole number of threads from 1 to 1024, got {workers!r}")
-        threads = int(threads)
-    if scheduler is not None and workers is not None:
-        raise UsageError("--workers counts threads on this machine; with --scheduler the cluster's workers do the work")
-    if out is not None:
-        if not str(out).lower().endswith(_FLIPMAP_OUT):
-            raise UsageError(f"--out: expected a file name ending in .zarr or .nc, got {out!r}")
-        if str(out).lower().endswith(".nc"):
-            check_output_path(out, (".nc",), option="--out")
-    if resume and (out is None or not str(out).lower().endswith(".zarr")):
-        raise UsageError("--resume continues a store: give --out FILE.zarr (a .nc file is written whole at the end)")
-    if plot is not None:
-        from .views.figures import FIGURE_SUFFIXES
-
-        check_output_path(plot, FIGURE_SUFFIXES, option="--plot")
+    threads = _ensemble_outputs(workers, scheduler, out, resume, plot)
     from .analysis.flipmap import flip_map
     from .progress import ProgressBar
 
@@ -635,7 +620,7 @@ def _seconds(text: Optional[str], option: str, default: Optional[float], *, zero
 
 
 def _workers_option(workers: Optional[str]) -> Optional[int]:
-    return None if workers is None else _whole(workers, "--workers", 1, 1, 1024)
+    return None if workers is None else _whole(workers, "--workers (threads)", 1, 1, 1024)
 
 
 def _check_plot(plot: Optional[str]) -> None:
@@ -644,6 +629,25 @@ def _check_plot(plot: Optional[str]) -> None:
         from .views.figures import FIGURE_SUFFIXES
 
         check_output_path(plot, FIGURE_SUFFIXES, option="--plot")
+
+
+def _ensemble_outputs(workers, scheduler, out, resume: bool, plot) -> Optional[int]:
+    """The checks of an ensemble command's --workers/--scheduler, --out FILE.zarr|.nc, --resume and
+    --plot (before any work); the thread count (None: every core)."""
+    from .io import check_output_path
+
+    threads = _workers_option(workers)
+    if scheduler is not None and workers is not None:
+        raise UsageError("--workers counts threads on this machine; with --scheduler the cluster's workers do the work")
+    if out is not None:
+        if not str(out).lower().endswith(_ENSEMBLE_OUT):
+            raise UsageError(f"--out: expected a file name ending in .zarr or .nc, got {out!r}")
+        if str(out).lower().endswith(".nc"):
+            check_output_path(out, (".nc",), option="--out")
+    if resume and (out is None or not str(out).lower().endswith(".zarr")):
+        raise UsageError("--resume continues a store: give --out FILE.zarr (a .nc file is written whole at the end)")
+    _check_plot(plot)
+    return threads
 
 
 def _tolerances(rtol: Optional[str], atol: Optional[str]) -> dict:
@@ -813,9 +817,6 @@ def poincare(
     sys.stdout.write("\n".join(lines) + "\n")
 
 
-_DIAGRAM_OUT = (".zarr", ".nc")
-
-
 @app.command("chaos-diagram")
 @_options(MODEL_OPTIONS)
 def chaos_diagram(
@@ -830,8 +831,8 @@ def chaos_diagram(
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="write the diagram to FILE.zarr (row by row, resumable) or FILE.nc", rich_help_panel=_R)] = None,
     plot: Annotated[Optional[str], typer.Option("--plot", help="draw the diagram to FILE (.png, .svg or .pdf)", rich_help_panel=_R)] = None,
     resume: Annotated[bool, typer.Option("--resume", help="with --out FILE.zarr: compute only the rows an interrupted run left missing", rich_help_panel=_R)] = False,
-    workers: Annotated[Optional[str], typer.Option("--workers", help="threads on this machine (default: every core)", rich_help_panel=_R)] = None,
-    scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="run on a dask.distributed cluster: tcp://HOST:PORT (needs skewpend[cluster])", rich_help_panel=_R)] = None,
+    workers: WORKERS = None,
+    scheduler: SCHEDULER = None,
     quiet: QUIET = False,
     config: CONFIG = None,
 ) -> None:
@@ -841,7 +842,6 @@ def chaos_diagram(
     Needs a conservative model (no damping, no torques); alpha is the diagram's axis (use
     --alphas, not --alpha). From a --config run file it takes [parameters].
     """
-    from .io import check_output_path
     from .parsing import parse_range
     from .progress import ProgressBar
 
@@ -855,17 +855,7 @@ def chaos_diagram(
     n_samples = _whole(samples, "--samples", 24, 1, 100_000)
     horizon = _seconds(t_end, "--t-end", 150.0)
     thr = None if threshold is None else _positive(threshold, "--threshold")
-    threads = _workers_option(workers)
-    if scheduler is not None and workers is not None:
-        raise UsageError("--workers counts threads on this machine; with --scheduler the cluster's workers do the work")
-    if out is not None:
-        if not str(out).lower().endswith(_DIAGRAM_OUT):
-            raise UsageError(f"--out: expected a file name ending in .zarr or .nc, got {out!r}")
-        if str(out).lower().endswith(".nc"):
-            check_output_path(out, (".nc",), option="--out")
-    if resume and (out is None or not str(out).lower().endswith(".zarr")):
-        raise UsageError("--resume continues a store: give --out FILE.zarr (a .nc file is written whole at the end)")
-    _check_plot(plot)
+    threads = _ensemble_outputs(workers, scheduler, out, resume, plot)
     from .analysis.chaos import chaos_diagram as run_diagram
 
     store = out if out is not None and str(out).lower().endswith(".zarr") else None

@@ -21,6 +21,7 @@ import numpy as np
 from .errors import ParameterError, SkewpendError
 
 __all__ = [
+    "require_netcdf",
     "write_trajectory",
     "TrajectoryWriter",
     "read_config",
@@ -30,6 +31,15 @@ __all__ = [
     "CONFIG_SECTIONS",
     "TRAJECTORY_SUFFIXES",
 ]
+
+
+def require_netcdf():
+    """The ``netCDF4`` module, or one clear :class:`SkewpendError` naming the extra to install."""
+    try:
+        import netCDF4
+    except ImportError:
+        raise SkewpendError('writing .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
+    return netCDF4
 
 #: Columns of a trajectory CSV, in order.
 CSV_COLUMNS = ("t", "phi", "psi", "dphi", "dpsi", "energy", "work", "x1", "y1", "z1", "x2", "y2", "z2")
@@ -196,10 +206,7 @@ class TrajectoryWriter:
                 self._fh = self._stack.enter_context(open(tmp, "w"))
                 self._fh.write(",".join(CSV_COLUMNS) + "\n")
             else:
-                try:
-                    import netCDF4
-                except ImportError:
-                    raise SkewpendError("writing .nc needs netCDF4: pip install 'skewpend[netcdf]'") from None
+                netCDF4 = require_netcdf()
                 ds = netCDF4.Dataset(tmp, "w", format="NETCDF4")
                 self._stack.callback(ds.close)
                 ds.createDimension("t", None)

@@ -109,13 +109,9 @@ class ChaosDiagram:
 
     def to_netcdf(self, path) -> None:
         """:meth:`to_xarray` as NetCDF4 (netCDF4 engine), written atomically."""
-        from ..errors import SkewpendError
-        from ..io import atomic_path
+        from ..io import atomic_path, require_netcdf
 
-        try:
-            import netCDF4  # noqa: F401
-        except ImportError:
-            raise SkewpendError('writing .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
+        require_netcdf()
         with atomic_path(path) as tmp:
             self.to_xarray().to_netcdf(tmp, engine="netcdf4")
 

@@ -166,16 +166,12 @@ class FlipMap:
         appears only when complete (:func:`skewpend.io.atomic_path`).  Returns the path."""
         from pathlib import Path
 
-        from ..errors import SkewpendError
-        from ..io import atomic_path
+        from ..io import atomic_path, require_netcdf
 
         path = Path(path)
         if path.suffix.lower() != ".nc":
             raise ParameterError(f"expected a file name ending in .nc, got {str(path)!r}")
-        try:
-            import netCDF4
-        except ImportError:
-            raise SkewpendError('writing .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
+        netCDF4 = require_netcdf()
         n = self.n
         with atomic_path(path) as tmp:
             ds = netCDF4.Dataset(tmp, "w", format="NETCDF4")

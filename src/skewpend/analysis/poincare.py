@@ -25,7 +25,7 @@ import math
 import re
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Optional, Tuple
 
 import numpy as np
 
@@ -291,13 +291,9 @@ class PoincareSection:
 
     def to_netcdf(self, path) -> None:
         """The dataset of :meth:`to_xarray` as NetCDF4, written atomically."""
-        from ..errors import SkewpendError
-        from ..io import atomic_path
+        from ..io import atomic_path, require_netcdf
 
-        try:
-            import netCDF4  # noqa: F401
-        except ImportError:
-            raise SkewpendError('writing .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
+        require_netcdf()
         with atomic_path(path) as tmp:
             self.to_xarray().to_netcdf(tmp, engine="netcdf4")
 

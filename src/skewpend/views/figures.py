@@ -520,6 +520,21 @@ def _wrap_deg(x: float) -> float:
     return math.degrees(float(wrap_angle(float(x))))
 
 
+def _start_map_axes(ax, extent, title: str) -> None:
+    """The axes of a map over starts at rest (flip map, Lyapunov map): limits, degree ticks
+    outwards, a closed frame, the hinge labels and the title."""
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    _degree_ticks(ax.xaxis, extent[0], extent[1])
+    _degree_ticks(ax.yaxis, extent[2], extent[3])
+    ax.tick_params(which="both", direction="out")
+    for side in ("top", "right"):
+        ax.spines[side].set_visible(True)
+    ax.set_xlabel(r"$\varphi_0$, hinge 1 at release [deg]")
+    ax.set_ylabel(r"$\psi_0$, hinge 2 at release [deg]")
+    ax.set_title(title, loc="left")
+
+
 def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: str = "start",
                    forbidden="auto"):
     """The flip-time map of a :class:`skewpend.FlipMap`, the classic picture.
@@ -597,16 +612,7 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
             ax.plot([x], [y], marker="o", ms=7.5, mfc=colors["mark"], mec="white", mew=1.4, ls="none", zorder=4)
             handles.append(Line2D([], [], marker="o", ms=7.5, mfc=colors["mark"], mec="white", mew=1.4, ls="none",
                                   label=mark_label))
-        ax.set_xlim(extent[0], extent[1])
-        ax.set_ylim(extent[2], extent[3])
-        _degree_ticks(ax.xaxis, extent[0], extent[1])
-        _degree_ticks(ax.yaxis, extent[2], extent[3])
-        ax.tick_params(which="both", direction="out")
-        for side in ("top", "right"):
-            ax.spines[side].set_visible(True)
-        ax.set_xlabel(r"$\varphi_0$, hinge 1 at release [deg]")
-        ax.set_ylabel(r"$\psi_0$, hinge 2 at release [deg]")
-        ax.set_title("Flip time: when either hinge angle first leaves (−180°, 180°)", loc="left")
+        _start_map_axes(ax, extent, "Flip time: when either hinge angle first leaves (−180°, 180°)")
         # the colour bar exactly as tall as the (square) map
         bar = fig.colorbar(im, cax=ax.inset_axes([1.035, 0.0, 0.04, 1.0]))
         bar.set_label("flip time [s]")
@@ -1080,16 +1086,7 @@ def lyapunov_map_figure(m):
         interpolation = "nearest" if max(lam.shape) <= 1024 else "antialiased"
         im = ax.imshow(np.ma.masked_invalid(lam.T), origin="lower", extent=extent, cmap=cmap,
                        norm=Normalize(vmin=vmin, vmax=vmax), interpolation=interpolation, aspect="equal")
-        ax.set_xlim(extent[0], extent[1])
-        ax.set_ylim(extent[2], extent[3])
-        _degree_ticks(ax.xaxis, extent[0], extent[1])
-        _degree_ticks(ax.yaxis, extent[2], extent[3])
-        ax.tick_params(which="both", direction="out")
-        for side in ("top", "right"):
-            ax.spines[side].set_visible(True)
-        ax.set_xlabel(r"$\varphi_0$, hinge 1 at release [deg]")
-        ax.set_ylabel(r"$\psi_0$, hinge 2 at release [deg]")
-        ax.set_title("Largest Lyapunov exponent of starts at rest", loc="left")
+        _start_map_axes(ax, extent, "Largest Lyapunov exponent of starts at rest")
         bar = fig.colorbar(im, cax=ax.inset_axes([1.035, 0.0, 0.04, 1.0]))
         bar.set_label("largest Lyapunov exponent [1/s]")
         bar.ax.tick_params(which="both", direction="out")
