@@ -148,7 +148,11 @@ def test_display_mathematics_fits_the_column(opened):
 def test_every_image_decoded(opened):
     page, _, _ = opened
     images = page.evaluate("""() => Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight, i.alt])""")
-    assert len(images) == 9  # 2 pictures of the system, the sweep, 5 simulation figures, the flip-time map
+    # 2 pictures of the system, the sweep, 5 simulation figures, the flip-time map, and section 7's
+    # Lyapunov estimates -- with, for a conservative model, two Poincare sections, the
+    # largest-exponent map and the chaos diagram (a damped model has no energy surface)
+    damped = page.evaluate("() => document.querySelector('#chaos').textContent.includes('need an energy surface')")
+    assert len(images) == (10 if damped else 14)
     for complete, width, height, alt in images:
         assert complete and width > 0 and height > 0, alt
 
@@ -182,3 +186,25 @@ def test_flipmap_section_shows_its_map(opened):
     assert 300 < state["width"] <= state["column"] and state["height"] > 300
     assert "no flip within" in state["caption"]
     assert (folder / "flipmap.png").stat().st_size > 20000
+
+
+def test_chaos_section_shows_its_five_figures(opened):
+    page, _, folder = opened
+    if page.evaluate("() => document.querySelector('#chaos').textContent.includes('need an energy surface')"):
+        assert page.evaluate("() => document.querySelectorAll('#chaos figure img').length") == 1
+        return  # damped: the Lyapunov figure alone (tested in test_report.py)
+    state = page.evaluate("""() => { const s = document.querySelector('#chaos');
+        const imgs = Array.from(s.querySelectorAll('figure img'));
+        const row = s.querySelector('.figure-row'); const pair = row ? Array.from(row.querySelectorAll('img')) : [];
+        const pre = s.querySelector('pre.table');
+        return {n: imgs.length, decoded: imgs.every(i => i.complete && i.naturalWidth > 0),
+                tops: pair.map(i => Math.round(i.getBoundingClientRect().top)),
+                widths: imgs.map(i => i.getBoundingClientRect().width), column: s.getBoundingClientRect().width,
+                table: pre ? pre.textContent : '', tableWidth: pre ? pre.scrollWidth : 0,
+                toc: !!document.querySelector('nav.toc a[href="#chaos"]')}; }""")
+    assert state["n"] == 5 and state["decoded"] and state["toc"]
+    # the two Poincare sections side by side (one row), every figure within the column
+    assert len(state["tops"]) == 2 and state["tops"][0] == state["tops"][1]
+    assert all(0 < w <= state["column"] for w in state["widths"])
+    assert "alpha\\E [J]" in state["table"] and state["table"].count(" deg ") == 7
+    assert (folder / "chaos.png").stat().st_size > 50000

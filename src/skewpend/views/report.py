@@ -113,9 +113,9 @@ CHAOS_LYAPUNOV_T_END = 500.0
 CHAOS_SECTION_LEVELS = (0.15, 0.5)
 CHAOS_SECTION_ORBITS = 24
 CHAOS_SECTION_CROSSINGS = 300
-CHAOS_MAP_N = 32
-CHAOS_MAP_T_END = 60.0
-CHAOS_DIAGRAM = dict(n_alpha=7, samples=12, t_end=100.0)
+CHAOS_MAP_N = 24
+CHAOS_MAP_T_END = 50.0
+CHAOS_DIAGRAM = dict(n_alpha=7, samples=12, t_end=80.0)
 #: ... at these fractions of the potential's span (denser where chaos sets in)
 CHAOS_DIAGRAM_LEVELS = (0.1, 0.17, 0.25, 0.35, 0.5, 0.75, 1.0)
 #: Rows drawn by the figures: every FIGURE_DT seconds, at most FIGURE_MAX_ROWS.
