@@ -8,6 +8,7 @@ stderr with exit status 2.
 from __future__ import annotations
 
 import os
+import re
 import sys
 from enum import Enum
 from typing import Annotated, Dict, List, Optional
@@ -884,6 +885,54 @@ def chaos_diagram(
         if path is not None:
             lines.append(f"{what:10s}{path}")
     sys.stdout.write("\n".join(lines) + "\n")
+
+
+# -- the live explorer --------------------------------------------------------------------------------------
+_LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+@app.command()
+def serve(
+    host: Annotated[str, typer.Option("--host", help="address to listen on (default 127.0.0.1: this machine only)")] = "127.0.0.1",
+    port: Annotated[Optional[str], typer.Option("--port", help="TCP port (default 8000)")] = None,
+    open_browser: Annotated[bool, typer.Option("--open", help="open the page in the web browser")] = False,
+) -> None:
+    """The live explorer in the browser: the pendulum in 3D with sliders, equations, plots, normal
+    modes and a flip map, on physics generated from the derivation (needs skewpend[web]).
+
+    Ctrl-C stops the server.
+    """
+    import ipaddress
+    import socket
+
+    number = _whole(port, "--port", 8000, 1, 65535)
+    name = host.strip()
+    if not name:
+        raise UsageError("--host: expected an address such as 127.0.0.1 or 0.0.0.0, got ''")
+    try:
+        ipaddress.ip_address(name.strip("[]"))
+    except ValueError:
+        if not re.fullmatch(r"[A-Za-z0-9.-]{1,253}", name):
+            raise UsageError(f"--host: expected an IP address or a host name, got {host!r}") from None
+    from .views.explorer import require_web
+
+    require_web("skewpend serve")
+    family = socket.AF_INET6 if ":" in name else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:  # refuse a busy port in one line, before starting
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((name.strip("[]"), number))
+        except OSError as exc:
+            raise UsageError(f"--port: cannot listen on {name}:{number}: {exc.strerror or exc}; choose another --port "
+                             "or --host") from None
+    if name not in _LOOPBACK:
+        sys.stderr.write(f"skewpend: warning: serving on {name}:{number}, not only on this machine: anyone who can reach "
+                         "it can use the explorer (its work per request is bounded)\n")
+    sys.stderr.write(f"skewpend explorer on http://{'127.0.0.1' if name in ('0.0.0.0', '::') else name}:{number}/ "
+                     "(Ctrl-C to stop)\n")
+    from .views.explorer import serve as run_server
+
+    run_server(name, number, open_browser=open_browser)
 
 
 # -- report -----------------------------------------------------------------------------------------------

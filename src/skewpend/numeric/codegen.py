@@ -257,6 +257,33 @@ def _body(lang: _Lang, ex: _Expressions, indent: str) -> Tuple[List[str], List[s
     return rhs_lines, en_lines
 
 
+def explorer_js(params: Parameters) -> str:
+    """The JavaScript module of the web explorer (an ES module): ``rhs(y, p)``, ``energy(y, p)``,
+    and the drawing's ``tips(y, p)`` (rod ends ``[x1, y1, z1, x2, y2, z2]`` [m]) and ``axes(y, p)``
+    (the hinge axes ``[n1, e]`` in the world frame, ``e = P1 . e0``), all printed from the
+    derivation for the bodies and axes of ``params``, every scalar read from ``p`` in
+    :data:`PARAMETER_ORDER` (the sliders change ``p``, never the code)."""
+    geometry = geometry_of(params)
+    _check_geometry_numeric(geometry)
+    ex = _expressions(geometry)
+    lang = _Lang("javascript", _js_printer(), "const ", ";")
+    rhs, en = _body(lang, ex, "  ")
+    doc = "\n".join(" * " + line for line in _doc_lines(geometry, None))
+    out = ["/**", doc, " */", "", f"export const PARAMETER_ORDER = [{', '.join(repr(n) for n in PARAMETER_ORDER)}];", "",
+           "/** dy/dt = [dphi, dpsi, ddphi, ddpsi] */", "export function rhs(y, p) {", *rhs,
+           "  return [y[2], y[3], ddphi, ddpsi];", "}", "",
+           "/** mechanical energy T + Pi [J] */", "export function energy(y, p) {", *en, "  return E;", "}", ""]
+    for name, exprs, doc_line in (("tips", list(ex.tips), "rod ends [x1, y1, z1, x2, y2, z2] [m] (j points down)"),
+                                  ("axes", list(ex.axes), "hinge axes [n1x, n1y, n1z, ex, ey, ez]: n1 fixed, e = P1 . e0")):
+        used = _used_names(exprs)
+        body = [f"  const {n} = y[{i}];" for i, n in enumerate(STATE_ORDER) if n in used]
+        body += _param_lines(lang, "  ", used)
+        body += _cse_block(lang, exprs, [f"r{i}" for i in range(len(exprs))], "  ")
+        out += [f"/** {doc_line} */", f"export function {name}(y, p) {{", *body,
+                f"  return [{', '.join(f'r{i}' for i in range(len(exprs)))}];", "}", ""]
+    return "\n".join(out)
+
+
 def _standalone_python(ex: _Expressions, geometry: Parameters, values=None) -> str:
     lang = _Lang("python", _py_printer(), "", "")
     rhs, en = _body(lang, ex, "    ")
