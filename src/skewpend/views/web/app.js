@@ -331,8 +331,8 @@ async function fetchModes() {
     m.frequencies.forEach((w, k) => {
       const s = m.shapes.map((row) => row[k]);
       const li = document.createElement("li");
-      li.innerHTML = `<span>mode ${k + 1}: ${m.frequencies_hz[k].toFixed(4)} Hz (T = ${m.periods[k].toFixed(3)} s), ` +
-        `φ : ψ = 1 : ${(s[1] / s[0]).toFixed(3)}</span>`;
+      li.innerHTML = `<span>mode ${k + 1}: <b>${m.frequencies_hz[k].toFixed(4)} Hz</b>, T = ${m.periods[k].toFixed(3)} s, ` +
+        `ψ/φ = ${(s[1] / s[0]).toFixed(3)}</span>`;
       const b = Object.assign(document.createElement("button"), { type: "button", textContent: "start" });
       b.dataset.mode = String(k);
       b.addEventListener("click", () => startMode(s));
@@ -380,19 +380,25 @@ function drawFlipMap() {
       if (ft === null) g.fillStyle = "#ffffff";
       else {
         const u = Math.log(Math.max(ft, 0.05) / 0.05) / Math.log(flip.t_end / 0.05); // 0 early .. 1 late
-        const hue = 40 + 220 * u;
-        g.fillStyle = `hsl(${hue}, 70%, ${70 - 40 * u}%)`;
+        g.fillStyle = colour(0.88 * (1 - u)); // bright: early, dark: late (log scale); never white (no flip)
       }
       g.fillRect(i * cw, c.height - (j + 1) * ch, cw + 0.5, ch + 0.5); // phi0 across, psi0 up
     }
   }
   markStart();
 }
+// a perceptual sequential scale (magma's stops), u in [0, 1]
+const STOPS = [[0, 0, 4], [59, 15, 112], [140, 41, 129], [222, 73, 104], [254, 159, 109], [252, 253, 191]];
+function colour(u) {
+  const x = Math.min(1, Math.max(0, u)) * (STOPS.length - 1), k = Math.min(STOPS.length - 2, Math.floor(x)), f = x - k;
+  const c = STOPS[k].map((v, i) => Math.round(v + f * (STOPS[k + 1][i] - v)));
+  return `rgb(${c[0]}, ${c[1]}, ${c[2]})`;
+}
 function markStart() {
   if (!flip) return;
   const c = document.getElementById("flipmap"), g = c.getContext("2d");
   const x = ((values.phi0 + 180) / 360) * c.width, yy = c.height - ((values.psi0 + 180) / 360) * c.height;
-  g.strokeStyle = "#c0392b"; g.lineWidth = 2; g.beginPath(); g.arc(x, yy, 5, 0, 2 * Math.PI); g.stroke();
+  g.strokeStyle = "#2ecc71"; g.lineWidth = 2.5; g.beginPath(); g.arc(x, yy, 5, 0, 2 * Math.PI); g.stroke();
 }
 function clickFlipMap(ev) {
   if (!flip) return;
