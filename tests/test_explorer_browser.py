@@ -246,3 +246,27 @@ def test_no_console_errors_and_no_request_leaves_the_machine(opened, server):
     assert [m for m in opened.console if m[0] in ("error", "warning", "pageerror")] == []
     hosts = {urlparse(u).netloc for u in opened.requests if not u.startswith("data:")}
     assert hosts == {urlparse(server).netloc}
+
+
+def test_dragging_rod_two_sets_psi0_about_the_skewed_axis(browser, server):
+    p = Page(browser, server + "/?alpha=50&phi0=30&psi0=0")
+    try:
+        p.pause()
+        start = p.page.evaluate("() => window.explorer.screenOf('rod2')")
+        p.page.mouse.move(start["x"], start["y"])
+        p.page.mouse.down()
+        for k in range(1, 6):
+            p.page.mouse.move(start["x"] - 20 * k, start["y"] - 5 * k)
+        p.page.mouse.up()
+        s = p.state()
+        assert abs(s["values"]["psi0"]) > 3.0 and s["values"]["phi0"] == 30.0
+        # the drawn rod 2 is the generated tips() at the new start: it turned about the second
+        # hinge axis e, so the joint stays and the tip moves on a circle about e (|tip - joint|
+        # = b and (tip - joint) . e = 0, e from the generated axes())
+        tip = np.array(p.page.evaluate("() => window.explorer.physics.tips(window.explorer.state().y, window.explorer.state().p)"))
+        axes = np.array(p.page.evaluate("() => window.explorer.physics.axes(window.explorer.state().y, window.explorer.state().p)"))
+        d = tip[3:] - tip[:3]
+        assert np.linalg.norm(d) == pytest.approx(s["values"]["b"], rel=1e-12)
+        assert abs(d @ axes[3:]) < 1e-12
+    finally:
+        p.close()

@@ -196,7 +196,10 @@ function hud() {
   document.getElementById("hud-time").textContent = `t = ${t.toFixed(2)} s`;
   document.getElementById("hud-energy").textContent = `E = ${E.toFixed(4)} J`;
   const rel = (E - E0) / energyScale();
-  document.getElementById("hud-drift").textContent = `drift ${(E - E0).toExponential(1)} J (${rel.toExponential(1)} of m g L)`;
+  const damped = values.c1 > 0 || values.c2 > 0;
+  document.getElementById("hud-drift").textContent = damped
+    ? `E − E(0) = ${(E - E0).toFixed(4)} J (damping dissipates)`
+    : `drift ${(E - E0).toExponential(1)} J (${rel.toExponential(1)} of m g L)`;
   document.getElementById("hud-fps").textContent = `${fps.toFixed(0)} fps`;
 }
 
