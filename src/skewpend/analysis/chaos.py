@@ -323,13 +323,10 @@ def chaos_diagram(
     fp = fingerprint(settings)
     store_path = None
     if store is not None:
-        from ..numeric.store import check_store_path, require_zarr
+        from ..numeric.store import store_target
 
-        store_path = check_store_path(store)
-        require_zarr("a chaos diagram store")
-        if os.path.lexists(store_path):
-            if not resume:
-                raise ParameterError(f"{store_path} exists; resume it (--resume) or choose another path")
+        store_path, exists = store_target(store, resume=resume, what="a chaos diagram store")
+        if exists:
             _open_store(store_path, settings, fp, writable=False, diff=_settings_diff).close()
     if scheduler is not None:
         from ..numeric.ensemble import check_scheduler, require_distributed

@@ -868,13 +868,10 @@ def _chunked_flip_map(params, n, *, t_end, phi_range, psi_range, rtol, atol, wor
     fp = fingerprint(settings_record)
     store_path = None
     if store is not None:
-        from ..numeric.store import check_store_path, require_zarr
+        from ..numeric.store import store_target
 
-        store_path = check_store_path(store)
-        require_zarr("a flip map store")
-        if os.path.lexists(store_path):
-            if not resume:
-                raise ParameterError(f"{store_path} exists; resume it (--resume) or choose another path")
+        store_path, exists = store_target(store, resume=resume, what="a flip map store")
+        if exists:
             _open_for_resume(store_path, settings_record, fp, writable=False).close()  # refuse early, before any work
     if scheduler is not None:
         from ..numeric.ensemble import check_scheduler

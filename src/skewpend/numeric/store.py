@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import ParameterError, SkewpendError
 
-__all__ = ["RowStore", "require_zarr", "CLUSTER_EXTRA", "STORE_SUFFIX"]
+__all__ = ["RowStore", "require_zarr", "store_target", "CLUSTER_EXTRA", "STORE_SUFFIX"]
 
 #: How to install what stores and clusters need.
 CLUSTER_EXTRA = 'pip install "skewpend[cluster]"'
@@ -117,6 +117,17 @@ def check_store_path(path, *, option: str = "store") -> Path:
     if not parent.is_dir():
         raise ParameterError(f"{option}: cannot write {path}: directory {parent} does not exist")
     return path
+
+
+def store_target(store, *, resume: bool, what: str) -> Tuple[Path, bool]:
+    """The path of a run's store (checked, Zarr importable) and whether it exists already; an
+    existing store without ``resume`` is refused (never overwritten)."""
+    path = check_store_path(store)
+    require_zarr(what)
+    exists = os.path.lexists(path)
+    if exists and not resume:
+        raise ParameterError(f"{path} exists; resume it (--resume) or choose another path")
+    return path, exists
 
 
 class RowStore:
