@@ -19,14 +19,13 @@ The produced files are committed; run this only to move to another KaTeX version
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
-import subprocess
 import sys
-import tarfile
 import tempfile
 from pathlib import Path
+
+from _npm import npm_pack, sha256  # tools/ is on sys.path when run
 
 #: The KaTeX version the package ships (``npm view katex version`` when it was vendored).
 VERSION = "0.19.1"
@@ -35,26 +34,12 @@ ROOT = Path(__file__).resolve().parent.parent
 DEST = ROOT / "src" / "skewpend" / "views" / "assets" / "katex"
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+_sha256 = sha256
 
 
 def fetch(version: str, workdir: Path) -> tuple[Path, dict]:
     """``npm pack katex@version`` into ``workdir``; returns the unpacked ``package/`` and npm's record."""
-    npm = shutil.which("npm")
-    if npm is None:
-        raise SystemExit("vendor_katex: npm is needed (apt-get install npm)")
-    out = subprocess.run(
-        [npm, "pack", f"katex@{version}", "--json", "--pack-destination", str(workdir)],
-        cwd=workdir, check=True, capture_output=True, text=True,
-    ).stdout
-    record = json.loads(out[out.index("["):])[0]
-    tarball = workdir / record["filename"]
-    with tarfile.open(tarball) as tar:
-        members = [m for m in tar.getmembers() if m.isfile() and m.name.startswith("package/")
-                   and ".." not in Path(m.name).parts]
-        tar.extractall(workdir, members=members)
-    return workdir / "package", record
+    return npm_pack("katex", version, workdir)
 
 
 def vendor(version: str = VERSION, dest: Path = DEST) -> dict:

@@ -24,16 +24,15 @@ The produced files are committed; run this only to move to another three.js vers
 
 from __future__ import annotations
 
-import hashlib
 import json
 import posixpath
 import re
 import shutil
-import subprocess
 import sys
-import tarfile
 import tempfile
 from pathlib import Path
+
+from _npm import npm_pack, sha256  # tools/ is on sys.path when run
 
 #: The three.js version the package ships (``npm view three version`` when it was vendored).
 VERSION = "0.187.0"
@@ -63,8 +62,7 @@ def module_specifiers(text: str) -> list[str]:
     return list(dict.fromkeys(found))
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+_sha256 = sha256
 
 
 def _dest_rel(pkg_rel: str) -> str:
@@ -76,20 +74,7 @@ def _dest_rel(pkg_rel: str) -> str:
 
 def fetch(version: str, workdir: Path) -> tuple[Path, dict]:
     """``npm pack three@version`` into ``workdir``; returns the unpacked ``package/`` and npm's record."""
-    npm = shutil.which("npm")
-    if npm is None:
-        raise SystemExit("vendor_three: npm is needed (apt-get install npm)")
-    out = subprocess.run(
-        [npm, "pack", f"three@{version}", "--json", "--ignore-scripts", "--pack-destination", str(workdir)],
-        cwd=workdir, check=True, capture_output=True, text=True,
-    ).stdout
-    record = json.loads(out[out.index("["):])[0]
-    tarball = workdir / record["filename"]
-    with tarfile.open(tarball) as tar:
-        members = [m for m in tar.getmembers() if m.isfile() and m.name.startswith("package/")
-                   and ".." not in Path(m.name).parts]
-        tar.extractall(workdir, members=members)
-    return workdir / "package", record
+    return npm_pack("three", version, workdir)
 
 
 def module_closure(package: Path, roots: list[str]) -> list[str]:
