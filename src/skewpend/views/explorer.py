@@ -26,7 +26,7 @@ import threading
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List
 
 from .. import __version__
 from ..errors import SkewpendError
@@ -156,7 +156,6 @@ def create_app(*, physics_params=None):
     JavaScript the page integrates (default: the specification's thin rods)."""
     require_web()
     from fastapi import FastAPI, HTTPException, Request
-    from fastapi.encoders import jsonable_encoder
     from fastapi.responses import FileResponse, JSONResponse, Response
     from fastapi.staticfiles import StaticFiles
     from starlette.concurrency import run_in_threadpool
@@ -164,7 +163,7 @@ def create_app(*, physics_params=None):
     from ..numeric.codegen import explorer_js
     from ..symbolic.model import Parameters
 
-    Model, EquationsRequest, SimulateRequest, ModesRequest, FlipMapRequest = _models()
+    _, EquationsRequest, SimulateRequest, ModesRequest, FlipMapRequest = _models()
     physics = explorer_js(physics_params if physics_params is not None else Parameters())
     slots = threading.BoundedSemaphore(HEAVY_SLOTS)
 
@@ -267,7 +266,6 @@ def create_app(*, physics_params=None):
 
         return await heavy(run)
 
-    app.state.jsonable_encoder = jsonable_encoder
     return app
 
 
