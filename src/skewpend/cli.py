@@ -905,7 +905,12 @@ def serve(
     import ipaddress
     import socket
 
-    number = _whole(port, "--port", 8000, 1, 65535)
+    number = 8000
+    if port is not None:
+        text = port.strip()
+        if not (text.isdigit() and 1 <= int(text) <= 65535):
+            raise UsageError(f"--port: expected a whole number from 1 to 65535, got {port!r}")
+        number = int(text)
     name = host.strip()
     if not name:
         raise UsageError("--host: expected an address such as 127.0.0.1 or 0.0.0.0, got ''")

@@ -42,12 +42,24 @@ LIMITS = {
     "flipmap_n": 96,  # cells per side
     "flipmap_t_end": 30.0,  # s
     "flipmap_cells_time": 96 * 96 * 10.0,  # n^2 x t_end [cell-seconds]
+    "flipmap_cell_steps": 20_000,  # integrator steps per cell (a cell that needs more counts as failed)
 }
+#: Largest request body [bytes].
+MAX_BODY = 65_536
 #: Seconds a heavy request may take before it is answered with 503.
 TIME_LIMIT = 20.0
 #: Heavy requests computed at the same time (the others wait their turn).
 HEAVY_SLOTS = 2
 _WEB = Path(__file__).resolve().parent / "web"
+
+
+#: The error answers of the API (besides FastAPI's own 422 for invalid requests).
+_ERRORS = {422: {"description": "invalid input: detail names the field and what is allowed"},
+           503: {"description": "the computation took longer than the time limit"}}
+
+
+class _Deadline(Exception):
+    """Raised in a worker thread whose request ran out of time."""
 
 
 def require_web(what: str = "the explorer"):
@@ -71,7 +83,7 @@ def _models():
     class Model(BaseModel):
         """The pendulum: thin uniform rods with the specification's hinge axes (SI units, radians)."""
 
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
         a: float = Field(1.0, gt=0, le=10, description="length of rod 1 [m]")
         b: float = Field(0.8, gt=0, le=10, description="length of rod 2 [m]")
         m1: float = Field(1.0, gt=0, le=100, description="mass of rod 1 [kg]")
@@ -84,12 +96,12 @@ def _models():
         tau2: float = Field(0.0, ge=-1000, le=1000, description="constant torque at hinge 2 [N m]")
 
     class EquationsRequest(BaseModel):
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
         model: Model = Field(default_factory=Model)
         digits: int = Field(4, ge=2, le=8, description="significant digits of the numbers shown")
 
     class SimulateRequest(BaseModel):
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
         model: Model = Field(default_factory=Model)
         y0: List[Entry] = Field([1.2, -0.8, 0.0, 0.0], min_length=4, max_length=4,
                                 description="initial state (phi, psi, dphi, dpsi) [rad, rad/s], each at most 1000")
@@ -98,11 +110,11 @@ def _models():
         rtol: float = Field(1e-10, ge=1e-14, le=1e-3, description="relative tolerance of DOP853")
 
     class ModesRequest(BaseModel):
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
         model: Model = Field(default_factory=Model)
 
     class FlipMapRequest(BaseModel):
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
         model: Model = Field(default_factory=Model)
         n: int = Field(48, ge=2, le=LIMITS["flipmap_n"], description="cells per side")
         t_end: float = Field(10.0, gt=0, le=LIMITS["flipmap_t_end"], description="longest time looked at [s]")
@@ -156,7 +168,9 @@ def create_app(*, physics_params=None):
     JavaScript the page integrates (default: the specification's thin rods)."""
     require_web()
     from fastapi import FastAPI, HTTPException, Request
+    from fastapi.exceptions import RequestValidationError
     from fastapi.responses import FileResponse, JSONResponse, Response
+    from starlette.exceptions import HTTPException as StarletteHTTPException
     from fastapi.staticfiles import StaticFiles
     from starlette.concurrency import run_in_threadpool
 
@@ -179,18 +193,52 @@ def create_app(*, physics_params=None):
 
     @app.exception_handler(SkewpendError)
     async def _skewpend_error(request: Request, exc: SkewpendError):
-        return unprocessable(str(exc), ("body", "model"))
+        return unprocessable(str(exc))
 
-    async def heavy(fn, *args):
-        """``fn(*args)`` in a worker thread, at most HEAVY_SLOTS at a time, within TIME_LIMIT s."""
+    @app.exception_handler(RequestValidationError)
+    async def _invalid(request: Request, exc: RequestValidationError):
+        # FastAPI's own handler echoes the input, which may be NaN (not JSON) or megabytes: name
+        # the field and say what is wrong, nothing else
+        detail = [{"loc": [str(x) for x in e.get("loc", ())], "msg": str(e.get("msg", "invalid")),
+                   "type": str(e.get("type", "value_error"))} for e in exc.errors()]
+        return JSONResponse(status_code=422, content={"detail": detail})
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(request: Request, exc: StarletteHTTPException):
+        if exc.status_code == 400:  # a body that is not UTF-8 JSON: bad input like any other
+            return unprocessable("the request body must be JSON (UTF-8)")
+        return JSONResponse(status_code=exc.status_code, content={"detail": exc.detail}, headers=exc.headers)
+
+    @app.middleware("http")
+    async def _body_size(request: Request, call_next):
+        size = request.headers.get("content-length")
+        if size is not None and (not size.isdigit() or int(size) > MAX_BODY):
+            return unprocessable(f"the request body must be at most {MAX_BODY} bytes")
+        return await call_next(request)
+
+    async def heavy(fn):
+        """``fn(check)`` in a worker thread, at most HEAVY_SLOTS at a time, within TIME_LIMIT s
+        (waiting for a slot included).  ``check()`` raises once the time is up: the work calls it
+        between its bounded steps (the library's progress callbacks), so a request answered 503
+        stops computing and frees its slot within a fraction of a second."""
+        cancel = threading.Event()
+
+        def check(*_):
+            if cancel.is_set():
+                raise _Deadline()
 
         def run():
-            with slots:
-                return fn(*args)
+            while not slots.acquire(timeout=0.05):
+                check()
+            try:
+                return fn(check)
+            finally:
+                slots.release()
 
         try:
             return await asyncio.wait_for(run_in_threadpool(run), timeout=TIME_LIMIT)
-        except asyncio.TimeoutError:
+        except (asyncio.TimeoutError, _Deadline):
+            cancel.set()
             raise HTTPException(status_code=503, detail=f"the computation took longer than {TIME_LIMIT:g} s") from None
 
     # -- the page ---------------------------------------------------------------------------------------
@@ -210,13 +258,13 @@ def create_app(*, physics_params=None):
     async def version() -> Dict[str, Any]:
         return {"skewpend": __version__, "limits": LIMITS, "time_limit": TIME_LIMIT}
 
-    @app.post("/api/equations", summary="The equations of motion M(q) q'' = f(q, q') for the given parameters (LaTeX)")
+    @app.post("/api/equations", responses=_ERRORS, summary="The equations of motion M(q) q'' = f(q, q') for the given parameters (LaTeX)")
     async def equations(req: EquationsRequest) -> Dict[str, Any]:
         values = tuple(float(v) for v in req.model.model_dump().values())
         _params(req.model)  # validated by the library first (one clear message)
-        return await heavy(_equations, values, req.digits)
+        return await heavy(lambda check: _equations(values, req.digits))
 
-    @app.post("/api/simulate", summary="A trajectory by DOP853 (compiled code generated from the derivation)")
+    @app.post("/api/simulate", responses=_ERRORS, summary="A trajectory by DOP853 (compiled code generated from the derivation)")
     async def simulate(req: SimulateRequest) -> Dict[str, Any]:
         points = req.t_end / req.dt_out + 1
         if points > LIMITS["simulate_points"]:
@@ -224,21 +272,21 @@ def create_app(*, physics_params=None):
                                  f"{LIMITS['simulate_points']}; use a larger dt_out", ("body", "dt_out"))
         params = _params(req.model)
 
-        def run():
+        def run(check):
             from ..numeric.simulation import simulate as sim
 
             tr = sim(params, req.y0, req.t_end, dt_out=req.dt_out, rtol=req.rtol, atol=req.rtol,
-                     max_steps=LIMITS["simulate_steps"])
+                     max_steps=LIMITS["simulate_steps"], progress=check)
             return {"t": _finite(tr.t), "y": _finite(tr.y), "energy": _finite(tr.energy),
                     "status": tr.status, "message": tr.message, "steps": int(tr.stats.get("steps", 0))}
 
         return await heavy(run)
 
-    @app.post("/api/modes", summary="Normal modes about the hanging position")
+    @app.post("/api/modes", responses=_ERRORS, summary="Normal modes about the hanging position")
     async def modes(req: ModesRequest) -> Dict[str, Any]:
         params = _params(req.model)
 
-        def run():
+        def run(check):
             from ..analysis.modes import normal_modes
 
             m = normal_modes(params)
@@ -248,7 +296,7 @@ def create_app(*, physics_params=None):
 
         return await heavy(run)
 
-    @app.post("/api/flipmap", summary="A small flip-time map of starts at rest")
+    @app.post("/api/flipmap", responses=_ERRORS, summary="A small flip-time map of starts at rest")
     async def flipmap(req: FlipMapRequest) -> Dict[str, Any]:
         work = req.n * req.n * req.t_end
         if work > LIMITS["flipmap_cells_time"]:
@@ -256,13 +304,19 @@ def create_app(*, physics_params=None):
                                  f"{LIMITS['flipmap_cells_time']:g}; use a smaller n or t_end", ("body", "n"))
         params = _params(req.model)
 
-        def run():
+        def run(check):
+            import warnings
+
             from ..analysis.flipmap import flip_map
 
-            fm = flip_map(params, req.n, t_end=req.t_end, workers=1)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # failed cells are counted in the answer
+                # a row per chunk, the deadline checked after each; each cell at most FLIP_CELL_STEPS steps
+                fm = flip_map(params, req.n, t_end=req.t_end, workers=1, chunk_size=req.n, progress=check,
+                              max_steps=LIMITS["flipmap_cell_steps"])
             return {"n": req.n, "t_end": req.t_end, "phi0": _finite(fm.phi0[:, 0]), "psi0": _finite(fm.psi0[0]),
                     "flip_time": _finite(fm.flip_time), "which": fm.which.astype(int).tolist(),
-                    "wall_time": fm.stats["wall_time"]}
+                    "failed": int(fm.stats["failed"]), "wall_time": fm.stats["wall_time"]}
 
         return await heavy(run)
 

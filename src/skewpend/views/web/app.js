@@ -369,7 +369,8 @@ async function fetchFlipMap() {
   try {
     const t0 = performance.now();
     flip = await api("/api/flipmap", { model: model(), n: 48, t_end: 10 });
-    status.textContent = `${flip.n} × ${flip.n} starts at rest, up to ${flip.t_end} s (${((performance.now() - t0) / 1000).toFixed(2)} s)`;
+    status.textContent = `${flip.n} × ${flip.n} starts at rest, up to ${flip.t_end} s (${((performance.now() - t0) / 1000).toFixed(2)} s)` +
+      (flip.failed ? `; ${flip.failed} cells could not be integrated within the step limit (white)` : "");
     drawFlipMap();
   } catch (err) { status.className = "error"; status.textContent = err.message; }
 }
