@@ -204,7 +204,7 @@ function hud() {
 }
 
 // ---- plots (canvas 2D) ---------------------------------------------------------------------------------
-function plot(canvasId, series, colors, labels, unit, symmetric) {
+function plot(canvasId, series, colors, labels, unit, symmetric, wrapped = false) {
   const c = document.getElementById(canvasId), g = c.getContext("2d");
   const W = c.width, H = c.height, L = 44, R = 8, T = 16, B = 18;
   g.clearRect(0, 0, W, H);
@@ -230,7 +230,13 @@ function plot(canvasId, series, colors, labels, unit, symmetric) {
   g.fillText(`${t1.toFixed(1)} s`, W - R, H - 4);
   series.forEach((s, k) => {
     g.strokeStyle = colors[k]; g.lineWidth = 1.5; g.beginPath();
-    hist.forEach((row, i) => { const px = X(row[0]), py = Y(s(row)); if (i) g.lineTo(px, py); else g.moveTo(px, py); });
+    let prev = null;
+    hist.forEach((row) => {
+      const v = s(row), px = X(row[0]), py = Y(v);
+      // a wrapped angle jumping from +180 to -180 is not drawn as a line across the plot
+      if (prev === null || (wrapped && Math.abs(v - prev) > 180)) g.moveTo(px, py); else g.lineTo(px, py);
+      prev = v;
+    });
     g.stroke();
     g.fillStyle = colors[k]; g.textAlign = "left";
     g.fillText(labels[k], L + 6 + 70 * k, 11);
@@ -240,7 +246,7 @@ function plot(canvasId, series, colors, labels, unit, symmetric) {
 function fmt(v) { return Math.abs(v) >= 1e3 || (Math.abs(v) < 1e-2 && v !== 0) ? v.toExponential(1) : v.toFixed(2); }
 const wrapDeg = (a) => ((((a / DEG) + 180) % 360) + 360) % 360 - 180;
 function plots() {
-  plot("angles-plot", [(r) => wrapDeg(r[1]), (r) => wrapDeg(r[2])], ["#2f6fd0", "#d9702f"], ["φ", "ψ"], "angle [°]", false);
+  plot("angles-plot", [(r) => wrapDeg(r[1]), (r) => wrapDeg(r[2])], ["#2f6fd0", "#d9702f"], ["φ", "ψ"], "angle [°]", false, true);
   plot("energy-plot", [(r) => r[3]], ["#6b4fbf"], ["E − E(0)"], "[J]", true);
 }
 
