@@ -165,8 +165,12 @@ def test_alpha_slider_changes_the_drawing_and_the_equations(opened):
 
 
 def test_a_flip_map_click_starts_the_motion_from_that_cell(opened):
+    # the map follows the parameters by itself (computed on load and after each change); the
+    # button computes it again
     opened.page.click("#flipmap-go")
-    opened.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
+    opened.page.wait_for_function("() => window.explorer.flip() !== null && "
+                                  "document.querySelector('#flipmap-status').textContent.includes('starts at rest')",
+                                  timeout=60000)
     flip = opened.page.evaluate("() => window.explorer.flip()")
     n = flip["n"]
     box = opened.page.locator("#flipmap").bounding_box()
@@ -268,5 +272,19 @@ def test_dragging_rod_two_sets_psi0_about_the_skewed_axis(browser, server):
         d = tip[3:] - tip[:3]
         assert np.linalg.norm(d) == pytest.approx(s["values"]["b"], rel=1e-12)
         assert abs(d @ axes[3:]) < 1e-12
+    finally:
+        p.close()
+
+
+def test_the_flip_map_follows_the_parameters(browser, server):
+    p = Page(browser, server + "/?alpha=10")
+    try:
+        p.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
+        p.set_slider("alpha", 70)
+        # at once: the old map is gone (it must not be clicked), then the new one arrives
+        assert p.page.evaluate("() => window.explorer.flip()") is None
+        p.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
+        status = p.page.text_content("#flipmap-status")
+        assert "48 × 48 starts at rest" in status
     finally:
         p.close()

@@ -295,7 +295,8 @@ function changed(key) {
   if (key !== "phi0" && key !== "psi0") {
     document.getElementById("equations").classList.add("stale");
     clearTimeout(pending);
-    pending = setTimeout(() => { fetchEquations(); fetchModes(); invalidateFlipMap(); }, 250);
+    invalidateFlipMap(); // a map of other parameters must not be clicked
+    pending = setTimeout(() => { fetchEquations(); fetchModes(); fetchFlipMap(); }, 250);
   }
 }
 
@@ -367,18 +368,21 @@ function invalidateFlipMap() {
   flip = null;
   const c = document.getElementById("flipmap");
   c.getContext("2d").clearRect(0, 0, c.width, c.height);
-  document.getElementById("flipmap-status").textContent = "parameters changed: compute again";
+  document.getElementById("flipmap-status").textContent = "parameters changed…";
 }
+let flipSerial = 0;
 async function fetchFlipMap() {
-  const status = document.getElementById("flipmap-status");
+  const status = document.getElementById("flipmap-status"), serial = ++flipSerial;
   status.className = ""; status.textContent = "computing…";
   try {
     const t0 = performance.now();
-    flip = await api("/api/flipmap", { model: model(), n: 48, t_end: 10 });
+    const answer = await api("/api/flipmap", { model: model(), n: 48, t_end: 10 });
+    if (serial !== flipSerial) return; // parameters changed meanwhile: a newer map is coming
+    flip = answer;
     status.textContent = `${flip.n} × ${flip.n} starts at rest, up to ${flip.t_end} s (${((performance.now() - t0) / 1000).toFixed(2)} s)` +
       (flip.failed ? `; ${flip.failed} cells could not be integrated within the step limit (white)` : "");
     drawFlipMap();
-  } catch (err) { status.className = "error"; status.textContent = err.message; }
+  } catch (err) { if (serial === flipSerial) { status.className = "error"; status.textContent = err.message; } }
 }
 function drawFlipMap() {
   const c = document.getElementById("flipmap"), g = c.getContext("2d");
@@ -513,6 +517,7 @@ restart();
 saveUrl();
 fetchEquations();
 fetchModes();
+fetchFlipMap();
 requestAnimationFrame(frame);
 
 // for tests and the curious: the state, read-only
