@@ -421,11 +421,7 @@ def simulate(
         from .io import TRAJECTORY_SUFFIXES, check_output_path
 
         check_output_path(out_path, TRAJECTORY_SUFFIXES, option=run.option("simulation", "out"))
-    if plot_path is not None:
-        from .io import check_output_path
-        from .views.figures import FIGURE_SUFFIXES
-
-        check_output_path(plot_path, FIGURE_SUFFIXES, option=run.option("simulation", "plot"))
+    _check_plot(plot_path, run.option("simulation", "plot"))
     from .numeric.simulation import simulate as run_simulation
     from .progress import ProgressBar
 
@@ -624,12 +620,13 @@ def _workers_option(workers: Optional[str]) -> Optional[int]:
     return None if workers is None else _whole(workers, "--workers (threads)", 1, 1, 1024)
 
 
-def _check_plot(plot: Optional[str]) -> None:
+def _check_plot(plot: Optional[str], option: str = "--plot") -> None:
+    """A figure's output path, checked before any work (``option`` names it in the message)."""
     if plot is not None:
         from .io import check_output_path
         from .views.figures import FIGURE_SUFFIXES
 
-        check_output_path(plot, FIGURE_SUFFIXES, option="--plot")
+        check_output_path(plot, FIGURE_SUFFIXES, option=option)
 
 
 def _ensemble_outputs(workers, scheduler, out, resume: bool, plot) -> Optional[int]:
