@@ -87,8 +87,15 @@ def opened(request, browser, tmp_path_factory):
     page.evaluate("document.fonts.ready.then(() => true)")
     page.wait_for_function("(() => { const v = document.querySelector('video'); return v && (v.readyState >= 2 || v.error); })()",
                            timeout=20000)
-    for section in page.query_selector_all("section.report-section"):
-        section.screenshot(path=str(folder / f"{section.get_attribute('id')}.png"))
+    # each section cut from a full-page screenshot by its box in page coordinates (an element
+    # screenshot would scroll to it and wait for animation frames, which a busy headless browser
+    # playing the report's video may hold back for longer than any timeout)
+    boxes = page.evaluate("""() => Array.from(document.querySelectorAll('section.report-section')).map(s => {
+        const r = s.getBoundingClientRect();
+        return {id: s.id, x: r.left + window.scrollX, y: r.top + window.scrollY, width: r.width, height: r.height}; })""")
+    for b in boxes:
+        page.screenshot(path=str(folder / f"{b['id']}.png"), full_page=True,
+                        clip={"x": b["x"], "y": b["y"], "width": b["width"], "height": b["height"]})
     page.query_selector("nav.toc").screenshot(path=str(folder / "contents.png"))
     yield page, records, folder
     page.close()
