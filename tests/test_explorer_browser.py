@@ -126,7 +126,9 @@ def test_the_canvas_shows_a_moving_drawing(opened):
     # a drawing, not a blank (or single-colour) canvas: the rods, axes, grid and trail make the
     # pixel values vary (a cleared canvas has variance 0)
     assert a.std() > 8.0, a.std()
-    opened.page.wait_for_timeout(600)
+    t0 = opened.state()["t"]
+    # half a second of motion later (however slowly a software-rendering browser draws)
+    opened.page.wait_for_function(f"() => window.explorer.state().t > {t0 + 0.5}", timeout=30000)
     b = opened.canvas_pixels()
     assert np.abs(a - b).mean() > 0.05  # the pendulum moved
     s = opened.state()
