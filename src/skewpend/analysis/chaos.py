@@ -316,7 +316,7 @@ def chaos_diagram(
         raise ParameterError("give workers or scheduler, not both (a cluster's workers run the rows)")
 
     from .. import __version__
-    from .flipmap import _settings_diff, fingerprint
+    from .flipmap import fingerprint
 
     settings = _settings(params, alphas, energies, samples, t_end, renorm_every, transient, threshold, rtol, atol,
                          max_steps)
@@ -327,7 +327,7 @@ def chaos_diagram(
 
         store_path, exists = store_target(store, resume=resume, what="a chaos diagram store")
         if exists:
-            _open_store(store_path, settings, fp, writable=False, diff=_settings_diff).close()
+            _open_store(store_path, settings, fp, writable=False).close()
     if scheduler is not None:
         from ..numeric.ensemble import check_scheduler, require_distributed
 
@@ -348,7 +348,7 @@ def chaos_diagram(
     try:
         if store_path is not None:
             if os.path.lexists(store_path):
-                st = _open_store(store_path, settings, fp, writable=True, diff=_settings_diff)
+                st = _open_store(store_path, settings, fp, writable=True)
             else:
                 st = _template(store_path, settings, fp, alphas, energies, S)
             done = st.done()
@@ -445,23 +445,10 @@ def _template(path, settings, fp, alphas, energies, samples):
     )
 
 
-def _open_store(path, settings, fp, *, writable, diff):
+def _open_store(path, settings, fp, *, writable):
     from ..numeric.store import RowStore
 
-    st = RowStore.open(path, kind=STORE_KIND, writable=writable)
-    try:
-        attrs = st.attrs
-        if attrs.get("fingerprint") != fp:
-            try:
-                stored = json.loads(attrs.get("settings", "{}"))
-            except ValueError:
-                stored = {}
-            raise ParameterError(f"{path} was made with other settings: {diff(stored, settings)}; resume with the "
-                                 "same settings, or choose another path")
-    except BaseException:
-        st.close()
-        raise
-    return st
+    return RowStore.open_matching(path, kind=STORE_KIND, fingerprint=fp, settings=settings, writable=writable)
 
 
 def open_chaos_diagram(path) -> ChaosDiagram:

@@ -622,26 +622,6 @@ def fingerprint(settings: Dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _settings_diff(stored: Dict[str, Any], wanted: Dict[str, Any]) -> str:
-    def flat(d, top=None):
-        """Nested settings (the parameters) by their own names, prefixed only where a name is
-        also a top-level setting (``params.alpha`` beside a diagram's ``alpha`` axis)."""
-        top = set(d) if top is None else top
-        out = {}
-        for k, v in d.items():
-            if isinstance(v, dict):
-                out.update({(f"{k}.{kk}" if kk in top else kk): vv for kk, vv in flat(v, top).items()})
-            else:
-                out[k] = v
-        return out
-
-    a, b = flat(stored), flat(wanted)
-    diffs = [f"{k} {b.get(k)!r} (store: {a.get(k)!r})" for k in list(b) + [k for k in a if k not in b] if a.get(k) != b.get(k)]
-    if not diffs:
-        return "settings recorded differently"
-    return ", ".join(diffs[:6]) + (f", and {len(diffs) - 6} more" if len(diffs) > 6 else "")
-
-
 def _divisor_at_most(n: int, target: int) -> int:
     """The largest divisor of ``n`` that is at most ``target`` (at least 1)."""
     target = max(1, min(int(target), n))
@@ -831,22 +811,10 @@ def _store_template(store_path, settings, fp, rows, phi, psi):
 
 def _open_for_resume(store_path, settings, fp, *, writable):
     """The existing store at ``store_path``, checked against ``settings`` (refused if other)."""
-    import json
-
     from ..numeric.store import RowStore
 
-    st = RowStore.open(store_path, kind=STORE_KIND, writable=writable)
+    st = RowStore.open_matching(store_path, kind=STORE_KIND, fingerprint=fp, settings=settings, writable=writable)
     try:
-        attrs = st.attrs
-        if attrs.get("fingerprint") != fp:
-            try:
-                stored = json.loads(attrs.get("settings", "{}"))
-            except ValueError:
-                stored = {}
-            raise ParameterError(
-                f"{store_path} was made with other settings: {_settings_diff(stored, settings)}; resume with the "
-                "same settings, or choose another path"
-            )
         n = settings["n"]
         if st.shape != (n, n) or n % st.chunk_rows or set(st.arrays) != {"flip_time", "which"}:
             raise ParameterError(f"{store_path} is damaged: its layout does not match its settings")

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import ParameterError, SkewpendError
 
-__all__ = ["RowStore", "require_zarr", "store_target", "CLUSTER_EXTRA", "STORE_SUFFIX"]
+__all__ = ["RowStore", "require_zarr", "store_target", "settings_diff", "CLUSTER_EXTRA", "STORE_SUFFIX"]
 
 #: How to install what stores and clusters need.
 CLUSTER_EXTRA = 'pip install "skewpend[cluster]"'
@@ -117,6 +117,28 @@ def check_store_path(path, *, option: str = "store") -> Path:
     if not parent.is_dir():
         raise ParameterError(f"{option}: cannot write {path}: directory {parent} does not exist")
     return path
+
+
+def settings_diff(stored: Dict[str, Any], wanted: Dict[str, Any]) -> str:
+    """What differs between a store's recorded settings and a run's, for the message."""
+
+    def flat(d, top=None):
+        """Nested settings (the parameters) by their own names, prefixed only where a name is
+        also a top-level setting (``params.alpha`` beside a diagram's ``alpha`` axis)."""
+        top = set(d) if top is None else top
+        out = {}
+        for k, v in d.items():
+            if isinstance(v, dict):
+                out.update({(f"{k}.{kk}" if kk in top else kk): vv for kk, vv in flat(v, top).items()})
+            else:
+                out[k] = v
+        return out
+
+    a, b = flat(stored), flat(wanted)
+    diffs = [f"{k} {b.get(k)!r} (store: {a.get(k)!r})" for k in list(b) + [k for k in a if k not in b] if a.get(k) != b.get(k)]
+    if not diffs:
+        return "settings recorded differently"
+    return ", ".join(diffs[:6]) + (f", and {len(diffs) - 6} more" if len(diffs) > 6 else "")
 
 
 def store_target(store, *, resume: bool, what: str) -> Tuple[Path, bool]:
@@ -247,6 +269,22 @@ class RowStore:
         if attrs.get("skewpend_store") != FORMAT or attrs.get("kind") != kind:
             raise ParameterError(f"{path} is not a {kind} store made by skewpend")
         return cls(path, group, zarr, lock=writable)
+
+    @classmethod
+    def open_matching(cls, path, *, kind: str, fingerprint: str, settings: Mapping[str, Any],
+                      writable: bool = False) -> "RowStore":
+        """:meth:`open`, refused (naming what differs) unless the store was made with the same
+        settings (their recorded fingerprint): the check before a run resumes a store."""
+        st = cls.open(path, kind=kind, writable=writable)
+        if st.attrs.get("fingerprint") != fingerprint:
+            try:
+                stored = json.loads(st.attrs.get("settings", "{}"))
+            except ValueError:
+                stored = {}
+            st.close()
+            raise ParameterError(f"{path} was made with other settings: {settings_diff(stored, dict(settings))}; "
+                                 "resume with the same settings, or choose another path")
+        return st
 
     def close(self) -> None:
         """Release the lock (if held)."""
