@@ -40,7 +40,7 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parent.parent / "src" / "skewpend"
 #: Higher layers may import lower ones, never the reverse (the package root is the public facade).
 LAYERS = {
-    "errors": 0, "parsing": 0, "io": 0, "progress": 0,
+    "errors": 0, "parsing": 0, "io": 0, "progress": 0, "interrupts": 0,
     "symbolic": 1,
     "numeric": 2,
     "analysis": 3,

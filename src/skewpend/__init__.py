@@ -94,7 +94,7 @@ _SUBMODULES = {
     "kernels": "numeric.kernels", "simulation": "numeric.simulation", "modes": "analysis.modes",
     "export": "interop.export", "validation": "interop.validation", "figures": "views.figures",
     "flipmap": "analysis.flipmap", "chaos": "analysis.chaos", "ensemble": "numeric.ensemble", "store": "numeric.store",
-    "io": "io", "parsing": "parsing", "progress": "progress", "errors": "errors", "cli": "cli",
+    "io": "io", "parsing": "parsing", "progress": "progress", "interrupts": "interrupts", "errors": "errors", "cli": "cli",
 }
 
 

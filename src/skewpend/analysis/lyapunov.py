@@ -30,6 +30,7 @@ from typing import Any, Callable, Dict, Optional, Sequence
 import numpy as np
 
 from ..errors import IntegrationError, NotNumericError, ParameterError
+from ..interrupts import Interrupts
 from ..parsing import initial_state, positive_number
 from ..symbolic.model import Parameters
 
@@ -256,35 +257,37 @@ def lyapunov(
                  rows.ctypes.data_as(dp), _ROWS, ctypes.byref(m))
     start = time.perf_counter()
     renorms = 0
-    while True:
-        status = kernel.lib.sp_lyap(*call_args)
-        if status == -3:  # pragma: no cover - guarded by the checks above
-            raise RuntimeError("internal error: bad arguments to sp_lyap")
-        got = rows[: m.value]
-        for row in got:
-            renorms += 1
-            t = float(row[0])
-            if renorms <= n_skip:
-                t_from = t_last = t
+    with Interrupts() as intr:  # Ctrl-C raised between the bounded calls, never lost
+        while True:
+            status = kernel.lib.sp_lyap(*call_args)
+            intr.check()
+            if status == -3:  # pragma: no cover - guarded by the checks above
+                raise RuntimeError("internal error: bad arguments to sp_lyap")
+            got = rows[: m.value]
+            for row in got:
+                renorms += 1
+                t = float(row[0])
+                if renorms <= n_skip:
+                    t_from = t_last = t
+                    t_prev_row = t
+                    continue
+                logs = row[1:]
+                total += logs
+                w = int(np.searchsorted(bounds, seen, side="right") - 1)
+                w = min(w, n_win - 1)
+                win_sum[w] += logs
+                win_time[w] += t - t_prev_row
                 t_prev_row = t
+                t_last = t
+                seen += 1
+                if seen % stride == 0 or seen == n_meas:
+                    hist_t.append(t)
+                    hist.append(total / (t - t_from))
+            if progress is not None:
+                progress(state.t, t_end)
+            if status in (-1, -2):
                 continue
-            logs = row[1:]
-            total += logs
-            w = int(np.searchsorted(bounds, seen, side="right") - 1)
-            w = min(w, n_win - 1)
-            win_sum[w] += logs
-            win_time[w] += t - t_prev_row
-            t_prev_row = t
-            t_last = t
-            seen += 1
-            if seen % stride == 0 or seen == n_meas:
-                hist_t.append(t)
-                hist.append(total / (t - t_from))
-        if progress is not None:
-            progress(state.t, t_end)
-        if status in (-1, -2):
-            continue
-        break
+            break
     wall = time.perf_counter() - start
 
     t_reached = float(state.t)

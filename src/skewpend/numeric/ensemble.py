@@ -44,6 +44,8 @@ from typing import Callable, List, Optional, Sequence, TypeVar
 
 import numpy as np
 
+from ..interrupts import Interrupts
+
 __all__ = [
     "run_chunks", "default_workers", "Cancelled", "FlipIntegrator", "FlipChunk",
     "connect_scheduler", "run_on_cluster", "require_distributed", "batches", "CONNECT_TIMEOUT", "MAX_TASKS",
@@ -89,37 +91,46 @@ def run_chunks(
     if n_chunks == 0:
         return []
     cancel = threading.Event()
-    if workers <= 1 or n_chunks == 1:  # no thread needed; Ctrl-C arrives between the C calls
-        for i in range(n_chunks):
-            result = work(i, cancel)
-            if on_done is not None:
-                on_done(i, result)
-            if keep:
-                results[i] = result
-            del result
-        return results  # type: ignore[return-value]
-    pool = cf.ThreadPoolExecutor(max_workers=min(workers, n_chunks), thread_name_prefix="skewpend-ensemble")
-    futures = {}
-    try:
-        futures = {pool.submit(work, i, cancel): i for i in range(n_chunks)}
-        pending = set(futures)
-        while pending:
-            done, pending = cf.wait(pending, timeout=0.1, return_when=cf.FIRST_COMPLETED)
-            for fut in done:
-                i = futures.pop(fut)
-                result = fut.result()  # re-raises a worker's exception
-                if on_done is not None:
-                    on_done(i, result)
-                if keep:
-                    results[i] = result
-                del fut, result
-    except BaseException:
-        cancel.set()
-        for fut in futures:
-            fut.cancel()
-        pool.shutdown(wait=True)
-        raise
-    pool.shutdown(wait=True)
+    # Ctrl-C sets `cancel` at once (the workers stop at their next bounded call into C) and is
+    # raised here as KeyboardInterrupt, whatever the workers raise on the way out
+    with Interrupts(on_signal=cancel.set) as intr:
+        try:
+            if workers <= 1 or n_chunks == 1:  # no thread needed
+                for i in range(n_chunks):
+                    result = work(i, cancel)
+                    intr.check()
+                    if on_done is not None:
+                        on_done(i, result)
+                    if keep:
+                        results[i] = result
+                    del result
+                return results  # type: ignore[return-value]
+            pool = cf.ThreadPoolExecutor(max_workers=min(workers, n_chunks), thread_name_prefix="skewpend-ensemble")
+            futures = {}
+            try:
+                futures = {pool.submit(work, i, cancel): i for i in range(n_chunks)}
+                pending = set(futures)
+                while pending:
+                    done, pending = cf.wait(pending, timeout=0.1, return_when=cf.FIRST_COMPLETED)
+                    intr.check()
+                    for fut in done:
+                        i = futures.pop(fut)
+                        result = fut.result()  # re-raises a worker's exception
+                        if on_done is not None:
+                            on_done(i, result)
+                        if keep:
+                            results[i] = result
+                        del fut, result
+            except BaseException:
+                cancel.set()
+                for fut in futures:
+                    fut.cancel()
+                pool.shutdown(wait=True)
+                raise
+            pool.shutdown(wait=True)
+        except Cancelled:
+            intr.check()  # cancelled by Ctrl-C: KeyboardInterrupt
+            raise
     return results  # type: ignore[return-value]
 
 

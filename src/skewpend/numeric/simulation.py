@@ -31,6 +31,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from ..interrupts import Interrupts
 from ..errors import IntegrationError, ParameterError
 from ..symbolic.model import Parameters
 from ..parsing import initial_state, positive_number
@@ -313,10 +314,12 @@ def simulate(
         budget = min(2000, max(10, max_steps // 20))  # the first call doubles as dop853's probe
         start = time.perf_counter()
         probed = False
+        intr = stack.enter_context(Interrupts())
         while True:
             t_call = time.perf_counter()
             status = call(budget)
             took = time.perf_counter() - t_call
+            intr.check()
             if status == -3:  # pragma: no cover - guarded by the arguments above
                 raise RuntimeError("internal error: bad arguments to the compiled integrator")
             if m.value:

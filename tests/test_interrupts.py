@@ -1,0 +1,72 @@
+"""Ctrl-C is never lost (``skewpend.interrupts``): recorded at the signal, raised at a check."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+import pytest
+
+from skewpend.interrupts import Interrupts
+
+
+def _sigint_to_self():
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(0.05)  # the handler runs in the main thread between bytecodes, here
+
+
+def test_a_signal_is_recorded_and_raised_at_the_check():
+    calls = []
+    with pytest.raises(KeyboardInterrupt):
+        with Interrupts(on_signal=lambda: calls.append(1)) as intr:
+            _sigint_to_self()  # no exception here ...
+            assert intr.pending and calls == [1]
+            intr.check()  # ... but here
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+def test_a_signal_inside_a_destructor_is_not_swallowed():
+    """Without the guard, KeyboardInterrupt raised inside __del__ is only reported ("Exception
+    ignored") and the run goes on; with it, the next check raises."""
+
+    class Interrupted:
+        def __del__(self):
+            _sigint_to_self()
+
+    with pytest.raises(KeyboardInterrupt):
+        with Interrupts() as intr:
+            Interrupted()  # collected at once: the signal is handled inside __del__
+            intr.check()
+
+
+def test_a_signal_in_the_last_stretch_raises_on_leaving():
+    with pytest.raises(KeyboardInterrupt):
+        with Interrupts():
+            _sigint_to_self()
+
+
+def test_a_handler_of_the_application_is_left_alone():
+    seen = []
+    old = signal.signal(signal.SIGINT, lambda s, f: seen.append(s))
+    try:
+        with Interrupts() as intr:
+            _sigint_to_self()
+            intr.check()  # not ours to raise
+        assert seen == [signal.SIGINT]
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def test_outside_the_main_thread_nothing_changes():
+    out = []
+
+    def run():
+        with Interrupts() as intr:
+            out.append(intr._previous is None and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+
+    t = threading.Thread(target=run)
+    t.start()
+    t.join()
+    assert out == [True]
