@@ -746,7 +746,7 @@ class Locate(str, Enum):
 def poincare(
     model: dict,
     energy: Annotated[Optional[str], typer.Option("--energy", help="the energy of the orbits [J] (required; 0 = at rest, for thin rods)", rich_help_panel=_R)] = None,
-    section: Annotated[Optional[str], typer.Option("--section", help="phi=VALUE or psi=VALUE (radians or e.g. 30deg; modulo 360 deg; default phi=0)", rich_help_panel=_R)] = None,
+    section: Annotated[Optional[str], typer.Option("--section", help="phi=VALUE or psi=VALUE (radians, e.g. 30deg, or a multiple of pi such as pi/2; modulo 360 deg; default phi=0)", rich_help_panel=_R)] = None,
     direction: Annotated[Direction, typer.Option("--direction", help="crossings with the angle increasing (+1), decreasing (-1) or both", rich_help_panel=_R)] = Direction.up,
     orbits: Annotated[Optional[str], typer.Option("--orbits", help="orbits started on the section (default 50)", rich_help_panel=_R)] = None,
     crossings: Annotated[Optional[str], typer.Option("--crossings", help="crossings recorded per orbit (default 500)", rich_help_panel=_R)] = None,
