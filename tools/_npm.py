@@ -31,3 +31,14 @@ def npm_pack(name: str, version: str, workdir: Path) -> tuple[Path, dict]:
                    and ".." not in Path(m.name).parts]
         tar.extractall(workdir, members=members)
     return workdir / "package", record
+
+
+def write_source(dest: Path, source: dict) -> dict:
+    """Record what was vendored in ``dest/SOURCE.json`` (checked by the tests); returns ``source``."""
+    (dest / "SOURCE.json").write_text(json.dumps(source, indent=2) + "\n")
+    return source
+
+
+def summary(name: str, version: str, dest: Path, root: Path, source: dict) -> str:
+    size = sum((dest / rel).stat().st_size for rel in source["files"])
+    return f"vendored {name} {version}: {len(source['files'])} files, {size / 1e3:.0f} kB in {dest.relative_to(root)}"

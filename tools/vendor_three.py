@@ -32,7 +32,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _npm import npm_pack, sha256  # tools/ is on sys.path when run
+from _npm import npm_pack, sha256, summary, write_source  # tools/ is on sys.path when run
 
 #: The three.js version the package ships (``npm view three version`` when it was vendored).
 VERSION = "0.187.0"
@@ -128,16 +128,13 @@ def vendor(version: str = VERSION, dest: Path = DEST) -> dict:
             "entry": _dest_rel(entry),
             "files": {rel: _sha256(dest / rel) for rel in copied},
         }
-        (dest / "SOURCE.json").write_text(json.dumps(source, indent=2) + "\n")
-    return source
+    return write_source(dest, source)
 
 
 def main(argv: list[str]) -> None:
     version = argv[0] if argv else VERSION
     source = vendor(version)
-    size = sum((DEST / rel).stat().st_size for rel in source["files"])
-    print(f"vendored three {version}: {len(source['files'])} files, {size / 1e3:.0f} kB in {DEST.relative_to(ROOT)}"
-          f" (import map: \"three\" -> {source['entry']})")
+    print(summary("three", version, DEST, ROOT, source) + f" (import map: \"three\" -> {source['entry']})")
 
 
 if __name__ == "__main__":

@@ -520,6 +520,12 @@ def _wrap_deg(x: float) -> float:
     return math.degrees(float(wrap_angle(float(x))))
 
 
+def _degree_extent(result) -> list:
+    """``[phi_lo, phi_hi, psi_lo, psi_hi]`` in degrees: the window of a map over starts at rest."""
+    (phi_lo, phi_hi), (psi_lo, psi_hi) = flipmap_window(result)
+    return [math.degrees(phi_lo), math.degrees(phi_hi), math.degrees(psi_lo), math.degrees(psi_hi)]
+
+
 def _start_map_axes(ax, extent, title: str) -> None:
     """The axes of a map over starts at rest (flip map, Lyapunov map): limits, degree ticks
     outwards, a closed frame, the hinge labels and the title."""
@@ -561,8 +567,7 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
     ft = np.asarray(fm.flip_time, dtype=float)
     if ft.ndim != 2 or ft.size == 0:
         raise ParameterError(f"a flip map needs a 2-D array of flip times, got shape {ft.shape}")
-    (phi_lo, phi_hi), (psi_lo, psi_hi) = flipmap_window(fm)
-    extent = [math.degrees(phi_lo), math.degrees(phi_hi), math.degrees(psi_lo), math.degrees(psi_hi)]
+    extent = _degree_extent(fm)
     finite = ft[np.isfinite(ft)]
     t_end = float(fm.settings.get("t_end") or (np.max(finite) if finite.size else 1.0))
     vmin = float(np.min(finite)) if finite.size else t_end / 100.0
@@ -1071,8 +1076,7 @@ def lyapunov_map_figure(m):
     lam = np.asarray(m.exponent, dtype=float)
     if lam.ndim != 2 or lam.size == 0:
         raise ParameterError(f"a Lyapunov map needs a 2-D array of exponents, got shape {lam.shape}")
-    (phi_lo, phi_hi), (psi_lo, psi_hi) = flipmap_window(m)
-    extent = [math.degrees(phi_lo), math.degrees(phi_hi), math.degrees(psi_lo), math.degrees(psi_hi)]
+    extent = _degree_extent(m)
     finite = lam[np.isfinite(lam)]
     vmin = min(0.0, float(finite.min())) if finite.size else 0.0
     vmax = float(finite.max()) if finite.size else 1.0
