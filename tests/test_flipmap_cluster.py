@@ -17,7 +17,8 @@ distributed = pytest.importorskip("distributed")
 pytest.importorskip("zarr")
 
 from skewpend import ParameterError, Parameters, SkewpendError  # noqa: E402
-from skewpend.analysis.flipmap import _cluster_task, _Job, flip_map, open_flip_map  # noqa: E402
+from skewpend.analysis.flipmap import FlipJob, flip_map, open_flip_map  # noqa: E402
+from skewpend.numeric.grid import cluster_task  # noqa: E402
 from skewpend.numeric.ensemble import MAX_TASKS, batches  # noqa: E402
 
 BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
@@ -185,11 +186,11 @@ def test_a_worker_with_another_skewpend_is_refused():
                max_steps=1000, symmetric=True, threshold=None)
     name = kernel_module(BENCH, flip=True).path.name
     with pytest.raises(SkewpendError, match=f"skewpend {re.escape(_version())}, this run 0.0.1"):
-        _cluster_task(_Job(**job, version="0.0.1", kernel_name=name), [[0, 3]])
+        cluster_task(FlipJob(**job, version="0.0.1", kernel_name=name), [[0, 3]])
     with pytest.raises(SkewpendError, match="generates another kernel"):
-        _cluster_task(_Job(**job, version=_version(), kernel_name="skewpend_other.so"), [[0, 3]])
-    out = _cluster_task(_Job(**job, version=_version(), kernel_name=name), [[0, 3], [1, 2]])
-    assert [r[0].tolist() for r in out] == [[0, 3], [1, 2]] and out[0][1].shape == (2, 4)
+        cluster_task(FlipJob(**job, version=_version(), kernel_name="skewpend_other.so"), [[0, 3]])
+    out = cluster_task(FlipJob(**job, version=_version(), kernel_name=name), [[0, 3], [1, 2]])
+    assert [r[0].tolist() for r in out] == [[0, 3], [1, 2]] and out[0][1]["flip_time"].shape == (2, 4)
 
 
 def _version():

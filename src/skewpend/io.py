@@ -27,6 +27,8 @@ __all__ = [
     "read_config",
     "atomic_path",
     "check_output_path",
+    "write_netcdf",
+    "read_netcdf",
     "CSV_COLUMNS",
     "CONFIG_SECTIONS",
     "TRAJECTORY_SUFFIXES",
@@ -158,12 +160,83 @@ def atomic_path(path: Path) -> Iterator[Path]:
     except OSError as exc:
         raise ParameterError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
-        yield tmp
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
+        try:
+            yield tmp
+            os.chmod(tmp, 0o666 & ~_umask())
+            os.replace(tmp, path)
+        except OSError as exc:  # a full disk, a directory removed under us, ...
+            raise SkewpendError(f"cannot write {path}: {exc.strerror or exc}") from None
+        except RuntimeError as exc:  # netCDF4/HDF5 report a full disk as "NetCDF: HDF error"
+            if not str(exc).startswith("NetCDF"):
+                raise
+            raise SkewpendError(f"cannot write {path}: {str(exc).strip()}{_disk_hint(directory)}") from None
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def _disk_hint(directory: Path) -> str:
+    """``" (no space left on device)"`` when ``directory``'s file system is (nearly) full."""
+    try:
+        st = os.statvfs(directory)
+    except OSError:
+        return ""
+    return " (no space left on device)" if st.f_bavail * st.f_frsize < (1 << 20) else ""
+
+
+def write_netcdf(spec, path) -> Path:
+    """Write a :class:`~skewpend.results.DatasetSpec` to the NetCDF 4 file ``path`` (``*.nc``)
+    with ``netCDF4`` (no xarray needed), atomically.  Lists among the attributes become float
+    arrays, booleans integers, ``None`` is left out.  The one NetCDF writer of every result."""
+    path = Path(path)
+    if path.suffix.lower() != ".nc":
+        raise ParameterError(f"expected a file name ending in .nc, got {str(path)!r}")
+    netCDF4 = require_netcdf()
+    with atomic_path(path) as tmp:
+        ds = netCDF4.Dataset(tmp, "w", format="NETCDF4")
+        try:
+            sizes: Dict[str, int] = {}
+            for dims, values, _ in list(spec.coords.values()) + list(spec.variables.values()):
+                for dim, size in zip(dims, np.shape(values)):
+                    sizes.setdefault(dim, int(size))
+            for dim, size in sizes.items():
+                ds.createDimension(dim, size)
+            for group in (spec.coords, spec.variables):
+                for name, (dims, values, attrs) in group.items():
+                    values = np.asarray(values)
+                    kind = "f8" if values.dtype.kind == "f" else ("i1" if values.dtype == np.int8 else
+                                                                   ("i4" if values.dtype.itemsize <= 4 else "i8"))
+                    compress = values.ndim >= 2
+                    v = ds.createVariable(name, kind, tuple(dims), zlib=compress, complevel=4 if compress else 0,
+                                          fill_value=False)
+                    v.setncatts(_flat_attrs(dict(attrs)))
+                    v[...] = values
+            ds.setncatts(_flat_attrs(dict(spec.attrs)))
+        finally:
+            ds.close()
+    return path
+
+
+def read_netcdf(path, *, kind: str):
+    """``(variables, attrs)`` of a NetCDF file written by :func:`write_netcdf` for a result of
+    ``kind``; anything else is one clear :class:`ParameterError`."""
+    try:
+        import netCDF4
+    except ImportError:
+        raise SkewpendError('reading .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"{path} does not exist")
+    try:
+        with netCDF4.Dataset(path) as ds:
+            ds.set_auto_mask(False)
+            attrs = {k: ds.getncattr(k) for k in ds.ncattrs()}
+            variables = {name: np.asarray(v[...]) for name, v in ds.variables.items()}
+    except (OSError, RuntimeError, KeyError) as exc:
+        raise ParameterError(f"{path} is not a readable NetCDF file ({str(exc).strip() or type(exc).__name__})") from None
+    if attrs.get("kind") not in (None, kind) and str(attrs.get("kind")) != kind:
+        raise ParameterError(f"{path} holds a {attrs.get('kind')}, not a {kind}")
+    return variables, attrs
 
 
 def _attr_value(value):
@@ -200,6 +273,8 @@ class TrajectoryWriter:
         self._stack = contextlib.ExitStack()
 
     def __enter__(self) -> "TrajectoryWriter":
+        if self.suffix == ".nc":
+            require_netcdf()  # before anything is created
         try:
             tmp = self._stack.enter_context(atomic_path(self.path))
             if self.suffix == ".csv":
@@ -217,8 +292,9 @@ class TrajectoryWriter:
                     self._vars.append(v)
                 self._ds = ds
         except BaseException:
-            self._stack.close()
-            raise
+            # leave the atomic writer by its error path: the temporary file is removed, never committed
+            if not self._stack.__exit__(*sys.exc_info()):
+                raise
         return self
 
     def write(self, block: np.ndarray) -> None:

@@ -59,20 +59,24 @@ Stored, resumable and distributed runs (``store=``, ``resume=``, ``scheduler=``;
 
 from __future__ import annotations
 
+import json
 import math
 import os
-import time
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Optional, Sequence, Tuple
+from typing import Any, Callable, ClassVar, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..parsing import positive_number
 from ..errors import NotNumericError, ParameterError
+from ..numeric.grid import GridJob, check_workers as _check_workers
+from ..results import DatasetSpec, ResultProtocol, canonical_json, fingerprint
+from ..status import Status
 from ..symbolic.model import Parameters
 
-__all__ = ["flip_map", "FlipMap", "open_flip_map", "cell_centres", "energy_barrier", "flip_settings", "fingerprint", "MAX_N"]
+__all__ = ["flip_map", "FlipMap", "FlipJob", "open_flip_map", "cell_centres", "energy_barrier", "flip_settings",
+           "fingerprint", "MAX_N"]
 
 #: Largest grid: n x n cells (16384^2 = 2.7e8 cells, about 4 GB of results).
 MAX_N = 16384
@@ -83,11 +87,12 @@ MAX_STEPS = 100_000_000
 #: Points per side of the square sampled for the energy barrier.
 _BARRIER_SAMPLES = 4097
 #: Safety margin of the energy bound, relative to the potential's scale.
-_BARRIER_MARGIN = 1e-9
+BARRIER_MARGIN = 1e-9
+_BARRIER_MARGIN = BARRIER_MARGIN
 
 
 @dataclass(frozen=True)
-class FlipMap:
+class FlipMap(ResultProtocol):
     """The result of :func:`flip_map`.
 
     * ``phi0``, ``psi0`` -- the starting angles (cell centres) [rad], shape ``(n, n)``: ``phi0``
@@ -95,7 +100,11 @@ class FlipMap:
     * ``flip_time`` -- first time either angle leaves ``(-pi, pi)`` [s], NaN if not by ``t_end``;
     * ``which`` -- the joint that flipped: 0 (phi), 1 (psi), -1 none;
     * ``params``, ``settings`` (n, t_end, window, tolerances, which shortcuts were used),
-      ``stats`` (cells integrated / skipped by the energy bound / mirrored, steps, wall time, ...).
+      ``stats`` (cells integrated / skipped by the energy bound / mirrored, ``failed``, ``steps``
+      (accepted), ``rejected``, ``energy_barrier`` [J], wall time, the run's chunks, store and
+      cluster);
+    * ``status`` (:class:`~skewpend.status.Status`: PARTIAL when cells failed), ``message``,
+      ``ok``; ``to_xarray()``, ``to_netcdf(path)``, ``summary()`` (the result protocol).
     """
 
     phi0: np.ndarray
@@ -105,6 +114,10 @@ class FlipMap:
     params: Parameters
     settings: Dict[str, Any]
     stats: Dict[str, Any] = field(default_factory=dict)
+    status: Status = Status.SUCCESS
+    message: str = "all cells completed"
+
+    result_kind: ClassVar[str] = "flip map"
 
     @property
     def n(self) -> int:
@@ -115,86 +128,28 @@ class FlipMap:
         """Boolean mask of the cells that flipped by ``t_end``."""
         return np.isfinite(self.flip_time)
 
-    def _attrs(self) -> Dict[str, Any]:
-        """Global attributes of a file: numbers, strings and lists only (NetCDF and Zarr take
-        them as they are); ``flip_map_settings`` / ``flip_map_stats`` (JSON) let
-        :func:`open_flip_map` rebuild the map."""
-        import json
-
-        attrs: Dict[str, Any] = {"title": "flip-time map of the skewed double pendulum (skewpend)",
-                                 "params": json.dumps(self.params.to_dict())}
+    def _dataset(self) -> DatasetSpec:
+        """Variables ``flip_time`` [s] and ``which`` over ``phi0``, ``psi0`` [rad]; attributes: the
+        protocol's (params, settings, stats as JSON, status, message) and the settings and
+        statistics one by one (numbers, strings and lists only, so NetCDF and Zarr take them)."""
+        attrs: Dict[str, Any] = {"title": FlipJob.title}
         for group in (self.settings, self.stats):
             for key, value in group.items():
                 if value is None:
                     continue
-                if isinstance(value, bool):
-                    value = int(value)
-                elif isinstance(value, tuple):
-                    value = list(value)
-                attrs[key] = value
-        attrs["flip_map_settings"] = json.dumps(self.settings)
-        attrs["flip_map_stats"] = json.dumps(self.stats)
-        return attrs
-
-    def to_xarray(self):
-        """An :class:`xarray.Dataset`: ``flip_time`` [s] and ``which`` over the coordinates ``phi0``
-        and ``psi0`` [rad], with the parameters, settings and statistics as attributes (numbers,
-        strings and lists only, so it writes to NetCDF and Zarr as it is)."""
-        try:
-            import xarray as xr
-        except ImportError:
-            raise ImportError(
-                "FlipMap.to_xarray() needs xarray, which is not installed: pip install xarray"
-            ) from None
-
+                attrs[key] = int(value) if isinstance(value, bool) else (list(value) if isinstance(value, tuple)
+                                                                         else value)
+        attrs.update(self._base_attrs())
+        attrs["flip_map_settings"] = canonical_json(self.settings)
+        attrs["flip_map_stats"] = canonical_json(self.stats)
         dims = ("phi0", "psi0")
-        return xr.Dataset(
-            {
-                "flip_time": (dims, self.flip_time, dict(_VARIABLES["flip_time"])),
-                "which": (dims, self.which, dict(_VARIABLES["which"])),
-            },
-            coords={
-                "phi0": ("phi0", self.phi0[:, 0].copy(), dict(_VARIABLES["phi0"])),
-                "psi0": ("psi0", self.psi0[0, :].copy(), dict(_VARIABLES["psi0"])),
-            },
-            attrs=self._attrs(),
+        return DatasetSpec(
+            variables={"flip_time": (dims, self.flip_time, dict(_VARIABLES["flip_time"])),
+                       "which": (dims, self.which, dict(_VARIABLES["which"]))},
+            coords={"phi0": (("phi0",), self.phi0[:, 0].copy(), dict(_VARIABLES["phi0"])),
+                    "psi0": (("psi0",), self.psi0[0, :].copy(), dict(_VARIABLES["psi0"]))},
+            attrs=attrs,
         )
-
-    def to_netcdf(self, path) -> "os.PathLike":
-        """Write the map to a NetCDF 4 file ``*.nc`` (with ``netCDF4``, the ``netcdf`` extra; no
-        xarray needed), the same variables and attributes as :meth:`to_xarray`.  The file
-        appears only when complete (:func:`skewpend.io.atomic_path`).  Returns the path."""
-        from pathlib import Path
-
-        from ..io import atomic_path, require_netcdf
-
-        path = Path(path)
-        if path.suffix.lower() != ".nc":
-            raise ParameterError(f"expected a file name ending in .nc, got {str(path)!r}")
-        netCDF4 = require_netcdf()
-        n = self.n
-        with atomic_path(path) as tmp:
-            ds = netCDF4.Dataset(tmp, "w", format="NETCDF4")
-            try:
-                for dim in ("phi0", "psi0"):
-                    ds.createDimension(dim, n)
-                for name, values in (("phi0", self.phi0[:, 0]), ("psi0", self.psi0[0, :])):
-                    v = ds.createVariable(name, "f8", (name,))
-                    v.setncatts(_VARIABLES[name])
-                    v[:] = values
-                chunks = [max(1, min(n, 65536 // n)), n]
-                v = ds.createVariable("flip_time", "f8", ("phi0", "psi0"), zlib=True, complevel=4, chunksizes=chunks,
-                                      fill_value=False)
-                v.setncatts(_VARIABLES["flip_time"])
-                v[:] = self.flip_time
-                v = ds.createVariable("which", "i1", ("phi0", "psi0"), zlib=True, complevel=4, chunksizes=chunks,
-                                      fill_value=False)
-                v.setncatts(_VARIABLES["which"])
-                v[:] = self.which
-                ds.setncatts({k: (np.asarray(v, dtype=float) if isinstance(v, list) else v) for k, v in self._attrs().items()})
-            finally:
-                ds.close()
-        return path
 
 
 #: Attributes of the variables in files (NetCDF, Zarr, xarray).
@@ -210,54 +165,40 @@ _VARIABLES = {
 def open_flip_map(path) -> FlipMap:
     """A :class:`FlipMap` read back from a complete store ``*.zarr`` (made with ``flip_map(...,
     store=path)``; needs the ``cluster`` extra) or a file ``*.nc`` (:meth:`FlipMap.to_netcdf`;
-    needs ``netCDF4``).  A store whose run has not finished is refused (resume it first)."""
-    import json
+    needs ``netCDF4``).  A store whose run has not finished, or that is damaged, is refused
+    (resume it first)."""
     from pathlib import Path
-
-    from ..errors import SkewpendError
 
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".zarr":
-        from ..numeric.store import RowStore
+        from ..numeric.grid import read_store
 
-        with RowStore.open(path, kind=STORE_KIND) as st:
-            attrs = st.attrs
-            done = st.done()
-            if not attrs.get("complete") or not done.all():
-                raise ParameterError(f"{path} is not complete ({int(done.sum())} of {done.size} chunks done); "
-                                     "resume it with the same settings first")
-            arrays = {name: st.read(name) for name in ("flip_time", "which", "phi0", "psi0")}
+        arrays, attrs = read_store(STORE_KIND, path, what="a flip map")
     elif suffix == ".nc":
-        try:
-            import netCDF4
-        except ImportError:
-            raise SkewpendError('reading .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
-        if not path.is_file():
-            raise ParameterError(f"{path} does not exist")
-        try:
-            with netCDF4.Dataset(path) as ds:
-                ds.set_auto_mask(False)
-                attrs = {k: ds.getncattr(k) for k in ds.ncattrs()}
-                arrays = {name: np.asarray(ds.variables[name][:]) for name in ("flip_time", "which", "phi0", "psi0")}
-        except (OSError, KeyError) as exc:
-            raise ParameterError(f"{path} is not a flip map file ({exc})") from None
+        from ..io import read_netcdf
+
+        arrays, attrs = read_netcdf(path, kind=FlipMap.result_kind)
     else:
         raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
     try:
         settings = json.loads(attrs["flip_map_settings"])
         stats = json.loads(attrs["flip_map_stats"])
         params = Parameters.from_mapping(json.loads(attrs["params"]))
+        arrays = {name: arrays[name] for name in ("flip_time", "which", "phi0", "psi0")}
     except (KeyError, TypeError, ValueError) as exc:
         raise ParameterError(f"{path} is not a flip map made by skewpend (missing or bad attribute: {exc})") from None
     for key in ("phi_range", "psi_range"):
         settings[key] = tuple(settings[key])
     phi, psi = arrays["phi0"].astype(np.float64), arrays["psi0"].astype(np.float64)
     n = phi.size
+    from ..results import grid_status
+
+    status, message = grid_status(int(stats.get("failed", 0)), n * n, "cells")
     return FlipMap(
         phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
         flip_time=arrays["flip_time"].astype(np.float64), which=arrays["which"].astype(np.int8),
-        params=params, settings=settings, stats=stats,
+        params=params, settings=settings, stats=stats, status=status, message=message,
     )
 
 
@@ -304,16 +245,6 @@ def _check_range(name: str, value) -> Tuple[float, float]:
             f"{name} must lie within [-pi, pi] (a start outside has already flipped), got ({lo:g}, {hi:g})"
         )
     return lo, hi
-
-
-def _check_workers(workers) -> int:
-    from ..numeric.ensemble import default_workers
-
-    if workers is None:
-        return default_workers()
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
-    return int(workers)
 
 
 # -- the grid and the energy bound ----------------------------------------------------------------------
@@ -383,27 +314,30 @@ def flip_map(
     ``flip_time[i, j]``: the first time [s] either joint angle leaves ``(-pi, pi)`` starting
     from ``(phi0[i], psi0[j], 0, 0)``, NaN if not by ``t_end``; ``which``: 0 (phi), 1 (psi), -1.
     DOP853 with ``rtol``/``atol`` (default 1e-10 each); the crossing is located on the dense
-    output.  ``workers`` threads (default: the cores this process may use) integrate chunks
-    of ``chunk_size`` cells (default: about 8 chunks per worker); the result does not depend
-    on either.  ``progress(done_cells, total_cells)`` is called in the calling thread as chunks
-    finish.  Ctrl-C stops within a few milliseconds (:class:`KeyboardInterrupt`).
+    output.  ``workers`` threads (default: the cores this process may use) integrate units of
+    whole rows (with their mirror rows); the result does not depend on their number.
+    ``progress(done_cells, total_cells)`` is called in the calling thread as units finish.
+    Ctrl-C stops within a few milliseconds (:class:`KeyboardInterrupt`).
     ``shortcuts=False`` integrates every cell (no energy bound, no mirror symmetry).
     ``max_steps`` caps the attempted steps of one trajectory (a cell that hits it, or fails
-    otherwise, is counted in ``stats["failed"]``, with a warning, and left NaN).
+    otherwise, is counted in ``stats["failed"]``, left NaN, and makes the map's ``status``
+    PARTIAL, with a warning).
 
     ``store``: a directory ``*.zarr`` the map is written to chunk by chunk (blocks of whole
-    rows; ``chunk_size``, with a store or a scheduler, is the store's chunk in cells, rounded
-    down to whole rows dividing ``n``), with the settings and their SHA-256 fingerprint in
-    its attributes; an existing path is refused
-    unless ``resume=True``, which computes only the chunks not yet done and refuses a store
-    made with other settings (a missing store is started afresh).  The store's layout, not
-    ``chunk_size``, rules a resumed run.  ``scheduler``: a ``tcp://HOST:PORT`` address or a
-    :class:`distributed.Client`: the chunks run as tasks on that Dask cluster (whose workers
-    need this skewpend and a C compiler), and ``workers`` must be left out.  Either way the
-    result is bitwise the same as without them.  Both need the ``cluster`` extra
-    (``pip install "skewpend[cluster]"``); without them neither Zarr nor Dask is imported.
+    rows; ``chunk_size`` is the store's chunk in cells, rounded down to whole rows dividing
+    ``n``), with the settings and their SHA-256 fingerprint in its attributes; an existing
+    path is refused unless ``resume=True``, which computes only the chunks not yet done (and
+    those found damaged) and refuses a store made with other settings (a missing store is
+    started afresh).  The store's layout, not ``chunk_size``, rules a resumed run.
+    ``scheduler``: a ``tcp://HOST:PORT`` address or a :class:`distributed.Client`: the chunks
+    run as tasks on that Dask cluster (whose workers need this skewpend and a C compiler), and
+    ``workers`` must be left out.  Either way the result is bitwise the same as without them.
+    Both need the ``cluster`` extra (``pip install "skewpend[cluster]"``); without them neither
+    Zarr nor Dask is imported.  The computation is a :class:`FlipJob` on
+    :func:`skewpend.numeric.grid.run_grid`.
     """
-    from ..numeric.ensemble import FlipIntegrator, run_chunks
+    from .. import __version__
+    from ..numeric.grid import check_run_options, run_grid
     from ..numeric.kernels import kernel_module, parameter_vector
 
     params = _check_params(params)
@@ -415,150 +349,29 @@ def flip_map(
     atol = DEFAULT_TOL if atol is None else _check_positive("atol", atol, cap=1.0)
     if rtol < 1e-15 or atol < 1e-300:
         raise ParameterError(f"rtol must be >= 1e-15 (machine precision) and atol >= 1e-300, got rtol={rtol:g}, atol={atol:g}")
-    explicit_workers = workers
-    workers = _check_workers(workers)
-    if progress is not None and not callable(progress):
-        raise ParameterError("progress must be a callable progress(done_cells, total_cells)")
-    if chunk_size is not None and (isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1):
-        raise ParameterError(f"chunk_size must be a whole number >= 1, got {chunk_size!r}")
+    workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress,
+                                chunk_size=chunk_size)
     if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or not 1 <= max_steps <= 10**15:
         raise ParameterError(f"max_steps must be a whole number from 1 to 1e15, got {max_steps!r}")
-
-    if resume not in (True, False):
-        raise ParameterError(f"resume must be True or False, got {resume!r}")
-    if store is not None or scheduler is not None or resume:
-        if resume and store is None:
-            raise ParameterError("resume needs a store: the path of the .zarr store to continue")
-        if scheduler is not None and explicit_workers is not None:
-            raise ParameterError("give workers or scheduler, not both (a cluster's workers run the chunks)")
-        return _chunked_flip_map(
-            params, n, t_end=t_end, phi_range=(phi_lo, phi_hi), psi_range=(psi_lo, psi_hi), rtol=rtol, atol=atol,
-            workers=workers, progress=progress, shortcuts=bool(shortcuts), chunk_size=chunk_size,
-            max_steps=int(max_steps), store=store, resume=bool(resume), scheduler=scheduler,
-        )
-
     _check_memory(n)
-    start = time.perf_counter()
+
     kernel = kernel_module(params, flip=True)
     p = parameter_vector(params)
-    phi = cell_centres(phi_lo, phi_hi, n)
-    psi = cell_centres(psi_lo, psi_hi, n)
-    total = n * n
-
-    def starts(ids):  # the cells (phi0, psi0) of flat indices ids = i n + j
-        return np.column_stack([phi[ids // n], psi[ids % n]])
-
-    flip_time = np.full(total, np.nan)
-    which = np.full(total, -1, dtype=np.int8)
     no_torque = params.tau1 == 0.0 and params.tau2 == 0.0
     symmetric = bool(shortcuts and kernel.flip_odd and no_torque and phi_lo == -phi_hi and psi_lo == -psi_hi)
-    # cell (i, j) and its mirror (n-1-i, n-1-j) = total-1-k: exact negatives in a symmetric window
-    todo = np.arange((total + 1) // 2 if symmetric else total, dtype=np.int64)
-
-    barrier = scale = None
-    V0 = np.empty(todo.size)
-    for a in range(0, todo.size, 1 << 20):
-        V0[a:a + (1 << 20)] = kernel.flip_potential_many(starts(todo[a:a + (1 << 20)]), p)
-    skipped = 0
+    barrier = threshold = None
     if shortcuts:
         barrier, scale = energy_barrier(kernel, p)
-        forbidden = V0 < barrier - _BARRIER_MARGIN * max(scale, 1e-300)
-        if symmetric:  # the same decision for a cell and its mirror (V is even, up to rounding)
-            mirror_V = np.empty(todo.size)
-            for a in range(0, todo.size, 1 << 20):
-                mirror_V[a:a + (1 << 20)] = kernel.flip_potential_many(starts(total - 1 - todo[a:a + (1 << 20)]), p)
-            forbidden &= mirror_V < barrier - _BARRIER_MARGIN * max(scale, 1e-300)
-            del mirror_V
-            skipped = 2 * int(np.count_nonzero(forbidden)) - int(np.count_nonzero(forbidden & (todo == total - 1 - todo)))
-        else:
-            skipped = int(np.count_nonzero(forbidden))
-        todo, V0 = todo[~forbidden], V0[~forbidden]
-        del forbidden
-    # expensive cells first (low energy: likely no flip until t_end), for balanced chunks
-    todo = todo[np.argsort(V0, kind="stable")]
-    del V0
-
-    done_cells = skipped
-    if progress is not None:
-        progress(done_cells, total)
-
-    m = todo.size
-    integrator = FlipIntegrator(kernel, p, t_end=t_end, rtol=rtol, atol=atol, max_steps=int(max_steps))
-    lanes = integrator.lanes
-    if chunk_size is None:
-        chunk_size = max(8 * lanes, min(4096, -(-m // (8 * workers))))
-        chunk_size = -(-chunk_size // lanes) * lanes
-    chunk_size = int(chunk_size)
-    bounds = [(a, min(a + chunk_size, m)) for a in range(0, m, chunk_size)]
-
-    def work(i, cancel):
-        a, b = bounds[i]
-        return integrator.run(starts(todo[a:b]), cancel)
-
-    counts = {"n": done_cells}
-
-    def on_done(i, chunk):
-        a, b = bounds[i]
-        ids = todo[a:b]
-        extra = int(np.count_nonzero(total - 1 - ids != ids)) if symmetric else 0
-        counts["n"] += (b - a) + extra
-        if progress is not None:
-            progress(counts["n"], total)
-
-    chunks = run_chunks(len(bounds), work, workers=workers, on_done=on_done)
-    steps = rejected = failed = 0
-    integrated_time = 0.0
-    for (a, b), chunk in zip(bounds, chunks):
-        ids = todo[a:b]
-        flip_time[ids] = chunk.time
-        w = chunk.which.astype(np.int8)
-        bad = w == -2
-        failed += int(np.count_nonzero(bad))
-        w[bad] = -1
-        which[ids] = w
-        steps += int(chunk.steps.sum())
-        rejected += int(chunk.rejected.sum())
-        integrated_time += float(np.sum(np.where(np.isfinite(chunk.time), chunk.time, t_end)[~bad]))
-    mirrored = 0
-    if symmetric:
-        mirror = total - 1 - todo
-        flip_time[mirror] = flip_time[todo]
-        which[mirror] = which[todo]
-        mirrored = int(np.count_nonzero(mirror != todo))
-    if progress is not None and counts["n"] != total:
-        progress(total, total)
-    if failed:
-        warnings.warn(f"flip_map: the integration of {failed} cell(s) failed (non-finite state, step size underflow "
-                      f"or more than max_steps = {max_steps} steps); they are left NaN", RuntimeWarning, stacklevel=2)
-    wall = time.perf_counter() - start
-    settings = {
-        "n": n, "t_end": t_end, "phi_range": (phi_lo, phi_hi), "psi_range": (psi_lo, psi_hi),
-        "rtol": rtol, "atol": atol, "max_steps": int(max_steps), "method": "dop853",
-        "shortcuts": bool(shortcuts), "energy_bound": bool(shortcuts), "symmetry": symmetric,
-    }
-    stats = {
-        "cells": total,
-        "integrated": int(m),
-        "skipped_energy": skipped,
-        "mirrored": mirrored,
-        "flipped": int(np.count_nonzero(np.isfinite(flip_time))),
-        "failed": failed,
-        "steps": steps,
-        "rejected": rejected,
-        "integrated_time": integrated_time,
-        "energy_barrier": barrier,
-        "wall_time": wall,
-        "workers": workers,
-        "chunks": len(bounds),
-        "chunk_size": chunk_size,
-        "lanes": lanes,
-        "kernel": kernel.origin,
-        "kernel_build_time": kernel.build_time,
-    }
-    return FlipMap(
-        phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
-        flip_time=flip_time.reshape(n, n), which=which.reshape(n, n), params=params, settings=settings, stats=stats,
-    )
+        threshold = barrier - _BARRIER_MARGIN * max(scale, 1e-300)
+    job = FlipJob(params=params, n=n, t_end=t_end, phi_range=(phi_lo, phi_hi), psi_range=(psi_lo, psi_hi), rtol=rtol,
+                  atol=atol, max_steps=int(max_steps), symmetric=symmetric, threshold=threshold, version=__version__,
+                  kernel_name=kernel.path.name, shortcuts=bool(shortcuts), barrier=barrier)
+    state = (kernel, p, job.integrator(kernel, p))
+    result = run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress,
+                      chunk_size=chunk_size, state=state)
+    if result.stats["failed"]:
+        warnings.warn(f"flip_map: {result.message}", RuntimeWarning, stacklevel=2)
+    return result
 
 
 #: Bytes per cell while a map is computed (results, energies, indices, sort).
@@ -579,17 +392,11 @@ def _check_memory(n: int) -> None:
         )
 
 
-# -- chunked runs: a Zarr store (resumable) and/or a Dask cluster ---------------------------------------
+# -- the job ------------------------------------------------------------------------------------------
 #: The store's kind (its attribute ``kind``): stores of anything else are refused.
 STORE_KIND = "skewpend flip map"
 #: Columns of the per-chunk statistics kept in a store.
 CHUNK_STATS = ("integrated", "skipped_energy", "mirrored", "failed", "steps", "rejected", "integrated_time")
-#: Default store chunk: at most this many cells (whole rows) ...
-_CHUNK_CELLS = 65536
-#: ... and at least this many chunks (so a killed run loses at most about 1/8 of the map).
-_MIN_CHUNKS = 8
-#: Work units (a few rows each, with their mirrors) per worker thread, for balance.
-_UNITS_PER_WORKER = 16
 
 
 def flip_settings(params: Parameters, n: int, *, t_end: float, phi_range, psi_range, rtol: float, atol: float,
@@ -613,32 +420,11 @@ def flip_settings(params: Parameters, n: int, *, t_end: float, phi_range, psi_ra
     }
 
 
-def fingerprint(settings: Dict[str, Any]) -> str:
-    """SHA-256 (hex) of the canonical JSON of :func:`flip_settings`."""
-    import hashlib
-    import json
-
-    text = json.dumps(settings, sort_keys=True, separators=(",", ":"), allow_nan=False)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def _divisor_at_most(n: int, target: int) -> int:
-    """The largest divisor of ``n`` that is at most ``target`` (at least 1)."""
-    target = max(1, min(int(target), n))
-    for r in range(target, 0, -1):
-        if n % r == 0:
-            return r
-    return 1  # pragma: no cover
-
-
 def chunk_rows(n: int, *, chunk_size: Optional[int] = None) -> int:
-    """Rows per store chunk, a divisor of ``n`` (every chunk whole rows, one Zarr chunk of each
-    array, and the mirror image of a chunk -- rows ``n - 1 - i`` -- a chunk too): ``chunk_size``
-    cells rounded down to whole rows, or by default at most :data:`_CHUNK_CELLS` cells and at
-    least :data:`_MIN_CHUNKS` chunks."""
-    if chunk_size is not None:
-        return _divisor_at_most(n, chunk_size // n)
-    return _divisor_at_most(n, min(n // _MIN_CHUNKS, _CHUNK_CELLS // n))
+    """Rows per store chunk of an ``n x n`` map: :func:`skewpend.numeric.grid.chunk_rows`."""
+    from ..numeric.grid import chunk_rows as rows_per_chunk
+
+    return rows_per_chunk(n, n, chunk_size=chunk_size)
 
 
 def row_groups(n: int, symmetric: bool) -> list:
@@ -653,18 +439,9 @@ def row_groups(n: int, symmetric: bool) -> list:
     return groups
 
 
-def work_units(groups: Sequence[Sequence[int]], threads: int) -> list:
-    """``groups`` in order, joined into about :data:`_UNITS_PER_WORKER` units per thread (lists of
-    rows): small enough for balance, large enough for few calls and tasks."""
-    from ..numeric.ensemble import batches
-
-    units = batches(list(groups), max(1, _UNITS_PER_WORKER * max(1, threads)))
-    return [sorted(r for g in unit for r in g) for unit in units]
-
-
 @dataclass(frozen=True)
-class _Job:
-    """What computing rows of the map needs: small and picklable (sent with each cluster task)."""
+class FlipJob(GridJob):
+    """A flip map as a job of the grid driver: small and picklable (sent with each cluster task)."""
 
     params: Parameters
     n: int
@@ -678,294 +455,139 @@ class _Job:
     threshold: Optional[float]  # energy bound: cells with V(q0) below it never flip (None: not used)
     version: str
     kernel_name: str  # the compiled kernel's file name: the same generated code everywhere
+    shortcuts: bool = True
+    barrier: Optional[float] = None
 
+    kind: ClassVar[str] = STORE_KIND
+    what: ClassVar[str] = "a flip map"
+    stat_names: ClassVar[Tuple[str, ...]] = CHUNK_STATS
+    title: ClassVar[str] = "flip-time map of the skewed double pendulum (skewpend)"
 
-def _compute_rows(job: _Job, kernel, p, integrator, rows: Sequence[int], cancel=None):
-    """``(rows, flip_time, which, stats)`` for a unit of whole ``rows`` (closed under the mirror
-    when the map is symmetric): results of shape ``(len(rows), n)`` and per-row statistics
-    (columns :data:`CHUNK_STATS`).  Exactly the cells and the arithmetic of :func:`flip_map` in
-    memory -- the same representative of each mirror pair is integrated, the same energy test
-    decides -- so the same bits."""
-    n = job.n
-    total = n * n
-    phi = cell_centres(*job.phi_range, n)
-    psi = cell_centres(*job.psi_range, n)
-    rows = np.asarray(sorted(rows), dtype=np.int64)
-    ids = (rows[:, None] * n + np.arange(n, dtype=np.int64)[None, :]).ravel()
-    reps = ids[ids <= total - 1 - ids] if job.symmetric else ids
+    def shape(self) -> Tuple[int, int]:
+        return self.n, self.n
 
-    def starts(f):
-        return np.column_stack([phi[f // n], psi[f % n]])
+    def arrays(self):
+        from ..numeric.grid import ArraySpec
 
-    if job.threshold is not None:
-        forbidden = kernel.flip_potential_many(starts(reps), p) < job.threshold
-        if job.symmetric:
-            forbidden &= kernel.flip_potential_many(starts(total - 1 - reps), p) < job.threshold
-        todo = reps[~forbidden]
-    else:
-        todo = reps
-    out = integrator.run(starts(todo), cancel)
+        return {"flip_time": ArraySpec("float64", np.nan, _VARIABLES["flip_time"]),
+                "which": ArraySpec("int8", -1, _VARIABLES["which"])}
 
-    pos = np.full(n, -1, dtype=np.int64)
-    pos[rows] = np.arange(rows.size)
-    time_ = np.full((rows.size, n), np.nan)
-    which = np.full((rows.size, n), -1, dtype=np.int8)
-    w = out.which.astype(np.int8)
-    bad = w == -2
-    w[bad] = -1
-    time_[pos[todo // n], todo % n] = out.time
-    which[pos[todo // n], todo % n] = w
-    mirror = total - 1 - todo
-    copied = mirror != todo if job.symmetric else np.zeros(todo.size, dtype=bool)
-    mirror = mirror[copied]
-    time_[pos[mirror // n], mirror % n] = out.time[copied]
-    which[pos[mirror // n], mirror % n] = w[copied]
+    def coords(self):
+        return {"phi0": (cell_centres(*self.phi_range, self.n), _VARIABLES["phi0"]),
+                "psi0": (cell_centres(*self.psi_range, self.n), _VARIABLES["psi0"])}
 
-    at, m = pos[todo // n], rows.size  # the row (in the unit) of each integrated cell
-    lived = np.where(np.isfinite(out.time) & ~bad, out.time, np.where(bad, 0.0, job.t_end))
-    stats = np.zeros((m, len(CHUNK_STATS)))
-    stats[:, 0] = np.bincount(at, minlength=m)
-    stats[:, 2] = np.bincount(pos[mirror // n], minlength=m)
-    stats[:, 1] = n - stats[:, 0] - stats[:, 2]
-    stats[:, 3] = np.bincount(at, weights=bad, minlength=m)
-    stats[:, 4] = np.bincount(at, weights=out.steps, minlength=m)
-    stats[:, 5] = np.bincount(at, weights=out.rejected, minlength=m)
-    stats[:, 6] = np.bincount(at, weights=lived, minlength=m)
-    return rows, time_, which, stats
+    def settings(self) -> Dict[str, Any]:
+        return flip_settings(self.params, self.n, t_end=self.t_end, phi_range=self.phi_range,
+                             psi_range=self.psi_range, rtol=self.rtol, atol=self.atol, max_steps=self.max_steps,
+                             shortcuts=self.shortcuts)
 
+    def store_attrs(self) -> Dict[str, Any]:
+        s = self.settings()
+        return {"params": json.dumps(s["params"]), "shortcuts": int(self.shortcuts),
+                **{k: s[k] for k in ("n", "t_end", "phi_range", "psi_range", "rtol", "atol", "max_steps", "method")}}
 
-def _integrator(job: _Job, kernel, p):
-    from ..numeric.ensemble import FlipIntegrator
+    def row_groups(self):
+        return row_groups(self.n, self.symmetric)
 
-    return FlipIntegrator(kernel, p, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps)
+    def chunk_rows(self, chunk_size):
+        return chunk_rows(self.n, chunk_size=chunk_size)
 
+    def integrator(self, kernel, p):
+        from ..numeric.ensemble import FlipIntegrator
 
-def _cluster_task(job: _Job, units: Sequence[Sequence[int]]) -> list:
-    """A cluster task: the rows of ``units``, computed on a worker (which compiles or loads the
-    kernel itself, from its own cache), one thread."""
-    from .. import __version__
-    from ..errors import SkewpendError
-    from ..numeric.kernels import kernel_module, parameter_vector
+        return FlipIntegrator(kernel, p, t_end=self.t_end, rtol=self.rtol, atol=self.atol, max_steps=self.max_steps)
 
-    if __version__ != job.version:
-        raise SkewpendError(f"a worker has skewpend {__version__}, this run {job.version}: install the same skewpend on every worker")
-    kernel = kernel_module(job.params, flip=True)
-    if kernel.path.name != job.kernel_name:
-        raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {job.kernel_name}): "
-                            "install the same skewpend on every worker")
-    p = parameter_vector(job.params)
-    integrator = _integrator(job, kernel, p)
-    return [_compute_rows(job, kernel, p, integrator, rows) for rows in units]
+    def setup(self):
+        """The kernel (compiled or loaded here), checked to be the very code of this run."""
+        from ..errors import SkewpendError
+        from ..numeric.kernels import kernel_module, parameter_vector
 
+        kernel = kernel_module(self.params, flip=True)
+        if kernel.path.name != self.kernel_name:
+            raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
+                                "install the same skewpend on every worker")
+        p = parameter_vector(self.params)
+        return kernel, p, self.integrator(kernel, p)
 
-class _Assembler:
-    """Rows arriving in any order, gathered into the map in memory and into whole chunks: a
-    chunk goes to the store (if any) as soon as all its rows are in.  Chunks already done in
-    the store are never written again (their bits are the same anyway)."""
+    def compute(self, state, rows, cancel=None):
+        """The cells of whole ``rows`` (closed under the mirror when the map is symmetric): the
+        same representative of each mirror pair is integrated, the same energy test decides,
+        wherever and in whatever unit the rows are computed -- so the same bits."""
+        kernel, p, integrator = state
+        n = self.n
+        total = n * n
+        phi = cell_centres(*self.phi_range, n)
+        psi = cell_centres(*self.psi_range, n)
+        rows = np.asarray(rows, dtype=np.int64)
+        ids = (rows[:, None] * n + np.arange(n, dtype=np.int64)[None, :]).ravel()
+        reps = ids[ids <= total - 1 - ids] if self.symmetric else ids
 
-    def __init__(self, n: int, rows_per_chunk: int, done: np.ndarray, store=None):
-        self.n, self.R, self.done, self.store = n, rows_per_chunk, done, store
-        self.flip_time = np.full((n, n), np.nan)
-        self.which = np.full((n, n), -1, dtype=np.int8)
-        self.row_stats = np.zeros((n, len(CHUNK_STATS)))
-        self.missing = {int(k): rows_per_chunk for k in np.flatnonzero(~done)}  # rows still to come
-        self.written = 0
+        def starts(f):
+            return np.column_stack([phi[f // n], psi[f % n]])
 
-    def add(self, rows, time_, which, stats) -> None:
-        R = self.R
-        keep = ~self.done[rows // R]
-        rows, time_, which, stats = rows[keep], time_[keep], which[keep], stats[keep]
-        self.flip_time[rows], self.which[rows], self.row_stats[rows] = time_, which, stats
-        for k in np.unique(rows // R).tolist():
-            self.missing[k] -= int(np.count_nonzero(rows // R == k))
-            if self.missing[k] == 0:
-                block = slice(k * R, (k + 1) * R)
-                if self.store is not None:
-                    self.store.write_chunk(k, {"flip_time": self.flip_time[block], "which": self.which[block]},
-                                           self.row_stats[block].sum(axis=0))
-                self.done[k] = True
-                self.written += 1
-                del self.missing[k]
-
-
-def _store_template(store_path, settings, fp, rows, phi, psi):
-    import json
-
-    from ..numeric.store import RowStore
-
-    n = settings["n"]
-    attrs = {
-        "title": "flip-time map of the skewed double pendulum (skewpend)",
-        "fingerprint": fp, "settings": json.dumps(settings, sort_keys=True), "params": json.dumps(settings["params"]),
-        "skewpend_version": settings["skewpend_version"],
-        **{k: settings[k] for k in ("n", "t_end", "phi_range", "psi_range", "rtol", "atol", "max_steps", "method")},
-        "shortcuts": int(settings["shortcuts"]),
-    }
-    return RowStore.create(
-        store_path, kind=STORE_KIND, shape=(n, n), chunk_rows=rows, dims=("phi0", "psi0"),
-        arrays={"flip_time": ("float64", np.nan, _VARIABLES["flip_time"]), "which": ("int8", -1, _VARIABLES["which"])},
-        coords={"phi0": (phi, _VARIABLES["phi0"]), "psi0": (psi, _VARIABLES["psi0"])},
-        stats=CHUNK_STATS, attrs=attrs,
-    )
-
-
-def _open_for_resume(store_path, settings, fp, *, writable):
-    """The existing store at ``store_path``, checked against ``settings`` (refused if other)."""
-    from ..numeric.store import RowStore
-
-    st = RowStore.open_matching(store_path, kind=STORE_KIND, fingerprint=fp, settings=settings, writable=writable)
-    try:
-        n = settings["n"]
-        if st.shape != (n, n) or n % st.chunk_rows or set(st.arrays) != {"flip_time", "which"}:
-            raise ParameterError(f"{store_path} is damaged: its layout does not match its settings")
-    except BaseException:
-        st.close()
-        raise
-    return st
-
-
-def _chunked_flip_map(params, n, *, t_end, phi_range, psi_range, rtol, atol, workers, progress, shortcuts,
-                      chunk_size, max_steps, store, resume, scheduler) -> FlipMap:
-    """:func:`flip_map` in chunks of whole rows, written to a store and/or run on a cluster."""
-    from .. import __version__
-    from ..numeric.ensemble import cluster_threads, connect_scheduler, require_distributed, run_chunks
-    from ..numeric.kernels import kernel_module, parameter_vector
-
-    settings_record = flip_settings(params, n, t_end=t_end, phi_range=phi_range, psi_range=psi_range, rtol=rtol,
-                                    atol=atol, max_steps=max_steps, shortcuts=shortcuts)
-    fp = fingerprint(settings_record)
-    store_path = None
-    if store is not None:
-        from ..numeric.store import store_target
-
-        store_path, exists = store_target(store, resume=resume, what="a flip map store")
-        if exists:
-            _open_for_resume(store_path, settings_record, fp, writable=False).close()  # refuse early, before any work
-    if scheduler is not None:
-        from ..numeric.ensemble import check_scheduler
-
-        check_scheduler(scheduler)
-        require_distributed()
-    _check_memory(n)
-
-    start = time.perf_counter()
-    client, owned = (connect_scheduler(scheduler) if scheduler is not None else (None, False))
-    store_ = None
-    try:
-        threads = cluster_threads(client) if client is not None else workers
-        address = None if client is None else str(client.scheduler.address)
-        kernel = kernel_module(params, flip=True)
-        p = parameter_vector(params)
-        phi = cell_centres(*phi_range, n)
-        psi = cell_centres(*psi_range, n)
-        no_torque = params.tau1 == 0.0 and params.tau2 == 0.0
-        symmetric = bool(shortcuts and kernel.flip_odd and no_torque and phi_range[0] == -phi_range[1]
-                         and psi_range[0] == -psi_range[1])
-        barrier = scale = threshold = None
-        if shortcuts:
-            barrier, scale = energy_barrier(kernel, p)
-            threshold = barrier - _BARRIER_MARGIN * max(scale, 1e-300)
-
-        if store_path is not None and os.path.lexists(store_path):  # resume
-            store_ = _open_for_resume(store_path, settings_record, fp, writable=True)
-            rows = store_.chunk_rows
+        if self.threshold is not None:
+            forbidden = kernel.flip_potential_many(starts(reps), p) < self.threshold
+            if self.symmetric:
+                forbidden &= kernel.flip_potential_many(starts(total - 1 - reps), p) < self.threshold
+            todo = reps[~forbidden]
         else:
-            rows = chunk_rows(n, chunk_size=chunk_size)
-            if store_path is not None:
-                store_ = _store_template(store_path, settings_record, fp, rows, phi, psi)
-        n_chunks = n // rows
-        job = _Job(params=params, n=n, t_end=t_end, phi_range=tuple(phi_range), psi_range=tuple(psi_range), rtol=rtol,
-                   atol=atol, max_steps=max_steps, symmetric=symmetric, threshold=threshold, version=__version__,
-                   kernel_name=kernel.path.name)
-        done = store_.done() if store_ is not None else np.zeros(n_chunks, dtype=bool)
-        resumed = int(np.count_nonzero(done))
-        needed = ~np.repeat(done, rows)  # rows still to compute
-        units = work_units([g for g in row_groups(n, symmetric) if needed[list(g)].any()], threads)
-        assembler = _Assembler(n, rows, done.copy(), store_)
-        counts = {"cells": resumed * rows * n, "tasks": 0}
-        if progress is not None:
-            progress(counts["cells"], n * n)
+            todo = reps
+        out = integrator.run(starts(todo), cancel)
 
-        def collect(result):
-            counts["cells"] += n * int(np.count_nonzero(needed[result[0]]))
-            assembler.add(*result)
-            if progress is not None:
-                progress(counts["cells"], n * n)
+        pos = np.full(n, -1, dtype=np.int64)
+        pos[rows] = np.arange(rows.size)
+        time_ = np.full((rows.size, n), np.nan)
+        which = np.full((rows.size, n), -1, dtype=np.int8)
+        w = out.which.astype(np.int8)
+        bad = w == -2
+        w[bad] = -1
+        time_[pos[todo // n], todo % n] = out.time
+        which[pos[todo // n], todo % n] = w
+        mirror = total - 1 - todo
+        copied = mirror != todo if self.symmetric else np.zeros(todo.size, dtype=bool)
+        mirror = mirror[copied]
+        time_[pos[mirror // n], mirror % n] = out.time[copied]
+        which[pos[mirror // n], mirror % n] = w[copied]
 
-        if client is None:
-            integrator = _integrator(job, kernel, p)
-            run_chunks(len(units), lambda i, cancel: _compute_rows(job, kernel, p, integrator, units[i], cancel),
-                       workers=workers, on_done=lambda i, result: collect(result), keep=False)
-        else:
-            from ..numeric.ensemble import batches, run_on_cluster
+        at, m = pos[todo // n], rows.size  # the row (in the unit) of each integrated cell
+        lived = np.where(np.isfinite(out.time) & ~bad, out.time, np.where(bad, 0.0, self.t_end))
+        stats = np.zeros((m, len(CHUNK_STATS)))
+        stats[:, 0] = np.bincount(at, minlength=m)
+        stats[:, 2] = np.bincount(pos[mirror // n], minlength=m)
+        stats[:, 1] = n - stats[:, 0] - stats[:, 2]
+        stats[:, 3] = np.bincount(at, weights=bad, minlength=m)
+        stats[:, 4] = np.bincount(at, weights=out.steps, minlength=m)
+        stats[:, 5] = np.bincount(at, weights=out.rejected, minlength=m)
+        stats[:, 6] = np.bincount(at, weights=lived, minlength=m)
+        return {"flip_time": time_, "which": which}, stats
 
-            tasks = batches(units)
-            counts["tasks"] = len(tasks)
+    def result(self, run) -> FlipMap:
+        from ..results import grid_status
 
-            def collect_task(i, results):
-                for result in results:
-                    collect(result)
-
-            run_on_cluster(client, _cluster_task, [(job, b) for b in tasks], on_done=collect_task,
-                           name="skewpend-flipmap")
-        if assembler.missing:  # pragma: no cover - every unit delivered: every chunk complete
-            raise RuntimeError("internal error: chunks left incomplete")
-        counts["computed"] = assembler.written
-
-        flip_time, which = assembler.flip_time, assembler.which
-        cs = np.add.reduceat(assembler.row_stats, np.arange(0, n, rows), axis=0)  # per chunk
-        if resumed:  # the chunks done before this run: from the store
-            old = np.repeat(done, rows)
-            flip_time[old] = store_.read("flip_time")[old]
-            which[old] = store_.read("which")[old]
-            cs[done] = store_.chunk_stats()[done]
-        total_stats = {name: cs[:, i].sum() for i, name in enumerate(CHUNK_STATS)}
+        n = self.n
+        totals = run.totals(CHUNK_STATS)
+        flip_time, which = run.data["flip_time"], run.data["which"]
         settings = {
-            "n": n, "t_end": t_end, "phi_range": tuple(phi_range), "psi_range": tuple(psi_range),
-            "rtol": rtol, "atol": atol, "max_steps": int(max_steps), "method": "dop853",
-            "shortcuts": bool(shortcuts), "energy_bound": bool(shortcuts), "symmetry": symmetric,
+            "n": n, "t_end": self.t_end, "phi_range": tuple(self.phi_range), "psi_range": tuple(self.psi_range),
+            "rtol": self.rtol, "atol": self.atol, "max_steps": int(self.max_steps), "method": "dop853",
+            "shortcuts": self.shortcuts, "energy_bound": self.shortcuts, "symmetry": self.symmetric,
         }
+        kernel = run.state[0] if run.state is not None else None
         stats = {
-            "cells": n * n,
-            "integrated": int(total_stats["integrated"]),
-            "skipped_energy": int(total_stats["skipped_energy"]),
-            "mirrored": int(total_stats["mirrored"]),
-            "flipped": int(np.count_nonzero(np.isfinite(flip_time))),
-            "failed": int(total_stats["failed"]),
-            "steps": int(total_stats["steps"]),
-            "rejected": int(total_stats["rejected"]),
-            "integrated_time": float(total_stats["integrated_time"]),
-            "energy_barrier": barrier,
-            "wall_time": time.perf_counter() - start,
-            "workers": threads,
-            "chunks": n_chunks,
-            "chunk_size": rows * n,
-            "lanes": kernel.flip_lanes,
-            "kernel": kernel.origin,
-            "kernel_build_time": kernel.build_time,
-            "store": None if store_path is None else str(store_path),
-            "fingerprint": fp,
-            "chunks_resumed": resumed,
-            "chunks_computed": counts["computed"],
-            "scheduler": address,
-            "tasks": counts["tasks"],
+            "cells": n * n, "integrated": int(totals["integrated"]), "skipped_energy": int(totals["skipped_energy"]),
+            "mirrored": int(totals["mirrored"]), "flipped": int(np.count_nonzero(np.isfinite(flip_time))),
+            "failed": int(totals["failed"]), "steps": int(totals["steps"]), "rejected": int(totals["rejected"]),
+            "integrated_time": float(totals["integrated_time"]), "energy_barrier": self.barrier,
+            "lanes": None if kernel is None else kernel.flip_lanes,
+            "kernel": None if kernel is None else kernel.origin,
+            "kernel_build_time": None if kernel is None else kernel.build_time,
+            **run.info,
         }
-        result = FlipMap(
-            phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
-            flip_time=flip_time, which=which, params=params, settings=settings, stats=stats,
-        )
-        if store_path is not None:  # the last write: the run's settings and statistics, and "complete"
-            import json
+        status, message = grid_status(stats["failed"], n * n, "cells")
+        phi, psi = (values for values, _ in self.coords().values())
+        return FlipMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
+                       flip_time=flip_time, which=which, params=self.params, settings=settings, stats=stats,
+                       status=status, message=message)
 
-            store_.set_attrs(complete=True, flip_map_settings=json.dumps(settings), flip_map_stats=json.dumps(stats))
-    finally:
-        if store_ is not None:
-            store_.close()
-        if owned:
-            client.close(timeout=5)
-
-    if stats["failed"]:
-        warnings.warn(f"flip_map: the integration of {stats['failed']} cell(s) failed (non-finite state, step size "
-                      f"underflow or more than max_steps = {max_steps} steps); they are left NaN", RuntimeWarning,
-                      stacklevel=3)
-    return result
+    def result_attrs(self, result: FlipMap) -> Dict[str, Any]:
+        return {"flip_map_settings": canonical_json(result.settings), "flip_map_stats": canonical_json(result.stats)}

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import ParameterError, SkewpendError
 
-__all__ = ["RowStore", "require_zarr", "store_target", "settings_diff", "CLUSTER_EXTRA", "STORE_SUFFIX"]
+__all__ = ["RowStore", "require_zarr", "store_target", "settings_diff", "digest", "CLUSTER_EXTRA", "STORE_SUFFIX"]
 
 #: How to install what stores and clusters need.
 CLUSTER_EXTRA = 'pip install "skewpend[cluster]"'
@@ -173,7 +173,11 @@ class RowStore:
         self.n_chunks: int = self.shape[0] // self.chunk_rows
         self.arrays: Tuple[str, ...] = tuple(a["arrays"])
         self.stat_names: Tuple[str, ...] = tuple(a["stats"])
-        self._arrays = {name: group[name] for name in (*self.arrays, "done", "chunk_stats")}  # handles, read once
+        names = (*self.arrays, "done", "chunk_stats") + (("chunk_digest",) if a.get("digests", False) else ())
+        try:
+            self._arrays = {name: group[name] for name in names}  # handles, read once
+        except Exception as exc:  # noqa: BLE001 - a deleted array, corrupt array metadata
+            raise ParameterError(_damaged(path, f"an array cannot be opened ({_reason(exc)})")) from None
         self._lock: Optional[Path] = None
         if lock:
             self._acquire()
@@ -230,9 +234,13 @@ class RowStore:
             _create_array(zarr, group, "chunk_stats", shape=(n_chunks, len(stats)), chunks=(1, len(stats)),
                           dtype="float64", fill_value=np.nan, dims=("chunk", "stat"),
                           attrs={"long_name": "statistics of each chunk", "columns": list(stats)})
+            _create_array(zarr, group, "chunk_digest", shape=(n_chunks, len(arrays)), chunks=(1, len(arrays)),
+                          dtype="uint64", fill_value=0, dims=("chunk", "array"),
+                          attrs={"long_name": "BLAKE2b-64 digest of each chunk of each array (written before 'done')",
+                                 "columns": list(arrays)})
             _update_attrs(group, {
                 **dict(attrs), "skewpend_store": FORMAT, "kind": kind, "shape": [rows, cols], "chunk_rows": int(chunk_rows),
-                "n_chunks": n_chunks, "arrays": list(arrays), "stats": list(stats), "complete": False,
+                "n_chunks": n_chunks, "arrays": list(arrays), "stats": list(stats), "complete": False, "digests": True,
             })
             _write_lock(tmp / LOCK_NAME)
             try:
@@ -265,9 +273,19 @@ class RowStore:
             group = zarr.open_group(str(path), mode="r+" if writable else "r")
             attrs = dict(group.attrs)
         except Exception:  # noqa: BLE001 - whatever Zarr raises for a directory that is not a group
+            if (path / "zarr.json").exists() or (path / ".zgroup").exists():
+                raise ParameterError(_damaged(path, "its group metadata cannot be read")) from None
             raise ParameterError(f"{path} is not a {kind} store (no Zarr group there)") from None
         if attrs.get("skewpend_store") != FORMAT or attrs.get("kind") != kind:
             raise ParameterError(f"{path} is not a {kind} store made by skewpend")
+        try:
+            shape = [int(x) for x in attrs["shape"]]
+            rows_per_chunk = int(attrs["chunk_rows"])
+            ok = len(shape) == 2 and rows_per_chunk >= 1 and shape[0] % rows_per_chunk == 0
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ParameterError(_damaged(path, "its layout attributes are missing or inconsistent"))
         return cls(path, group, zarr, lock=writable)
 
     @classmethod
@@ -355,17 +373,71 @@ class RowStore:
             for name in self.arrays:
                 self._arrays[name][rows] = data[name]
             self._arrays["chunk_stats"][k:k + 1, :] = np.asarray(stats, dtype=np.float64)[None, :]
+            if "chunk_digest" in self._arrays:
+                digests = [digest(np.asarray(data[name], dtype=self._arrays[name].dtype)) for name in self.arrays]
+                self._arrays["chunk_digest"][k:k + 1, :] = np.asarray(digests, dtype=np.uint64)[None, :]
             self._arrays["done"][k:k + 1] = np.ones(1, dtype=bool)  # the whole chunk: never read first
         except OSError as exc:  # a full disk, a store deleted under us, ...
             raise SkewpendError(f"cannot write to {self.path}: {exc.strerror or exc} (what was written is kept: "
                                 "resume once the problem is fixed)") from None
 
+    def damaged(self, done: Optional[np.ndarray] = None) -> np.ndarray:
+        """Indices of the chunks flagged done whose data cannot be read or no longer match the
+        digests written with them (a chunk file deleted, emptied or overwritten).  A missing
+        chunk file of an array is read as its fill value, which is right only if that is what
+        was written: the digest tells.  Stores made before digests existed: readability only."""
+        done = self.done() if done is None else done
+        digests = None
+        if "chunk_digest" in self._arrays:
+            try:
+                digests = np.asarray(self._arrays["chunk_digest"][...], dtype=np.uint64)
+            except Exception:  # noqa: BLE001 - unreadable digests: every chunk is suspect
+                return np.flatnonzero(done)
+        bad = []
+        for k in np.flatnonzero(done).tolist():
+            rows = self.chunk_rows_of(k)
+            try:
+                blocks = [np.asarray(self._arrays[name][rows]) for name in self.arrays]
+                np.asarray(self._arrays["chunk_stats"][k:k + 1])
+            except Exception:  # noqa: BLE001 - whatever Zarr raises for a damaged chunk file
+                bad.append(k)
+                continue
+            if digests is not None and any(int(digests[k, i]) != digest(b) for i, b in enumerate(blocks)):
+                bad.append(k)
+        return np.asarray(bad, dtype=np.int64)
+
     def read(self, name: str) -> np.ndarray:
         arr = self._arrays[name] if name in self._arrays else self._g[name]
-        return np.asarray(arr[...])
+        try:
+            return np.asarray(arr[...])
+        except Exception as exc:  # noqa: BLE001 - a damaged chunk file
+            raise ParameterError(_damaged(self.path, f"{name} cannot be read ({_reason(exc)}); resume it to "
+                                                     "recompute the damaged chunks")) from None
+
+    def names(self) -> Tuple[str, ...]:
+        """Every array of the store (data, coordinates, bookkeeping)."""
+        return tuple(self._g.array_keys())
 
     def chunk_stats(self) -> np.ndarray:
         return self.read("chunk_stats")
+
+
+def digest(block: np.ndarray) -> int:
+    """BLAKE2b-64 of an array block's bytes (C order): what :meth:`RowStore.damaged` checks."""
+    import hashlib
+
+    return int.from_bytes(hashlib.blake2b(np.ascontiguousarray(block).tobytes(), digest_size=8).digest(), "little")
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    reason = text[0] if text else type(exc).__name__
+    return reason if len(reason) <= 120 else reason[:117] + "..."
+
+
+def _damaged(path: Path, what: str) -> str:
+    return (f"{path} is damaged: {what}; it cannot be repaired -- delete it and run again, or choose another path"
+            if "resume" not in what else f"{path} is damaged: {what}")
 
 
 def _update_attrs(group, values: Mapping[str, Any]) -> None:

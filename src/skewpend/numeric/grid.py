@@ -1,0 +1,418 @@
+"""One grid driver: a computation over many starts is a *job*; :func:`run_grid` runs any job.
+
+The template method of xarray's ``backends/common.py`` ``store()``: the driver owns the
+sequence -- check the store, connect the cluster, cut the work, run it on threads or as Dask
+tasks, gather rows into chunks, write each chunk to the Zarr store once it is whole, resume,
+Ctrl-C, progress -- and a job supplies only its primitives:
+
+* its layout: :meth:`GridJob.shape` ``(rows, cols)``, :meth:`GridJob.arrays` (name ->
+  :class:`ArraySpec`), :meth:`GridJob.coords` (the two dimensions' values), optionally a
+  trailing dimension (:meth:`GridJob.trailing`) and :attr:`GridJob.stat_names` (statistics
+  kept per row and, summed, per store chunk);
+* :meth:`GridJob.settings`: the plain-JSON settings that determine every bit of the result
+  (their :func:`~skewpend.results.fingerprint` is recorded in a store; resuming with other
+  settings is refused, naming what differs);
+* :meth:`GridJob.setup` (once per process: compile or load the kernel) and
+  :meth:`GridJob.compute` (the rows of one unit of work -> their arrays and statistics);
+* :meth:`GridJob.row_groups` (rows that must be computed together, e.g. a row and its mirror
+  image) and :meth:`GridJob.chunk_rows` (rows per store chunk);
+* :meth:`GridJob.result` (the driver's :class:`GridRun` -> the result object) and
+  :meth:`GridJob.result_attrs` (what the store records once the run is complete).
+
+An in-memory run is simply "no store".  Jobs are frozen dataclasses: small and picklable, they
+travel with each cluster task.  A unit computes exactly the same cells with exactly the same
+arithmetic wherever it runs, so the result is bitwise the same whatever the chunking, the
+number of workers or the cluster.  A resumed store is checked first: a chunk marked done whose
+data cannot be read or no longer match their digests is computed again.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar, Dict, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..errors import ParameterError
+
+__all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "open_store_for", "chunk_rows", "work_units", "check_workers",
+           "check_run_options", "UNITS_PER_WORKER"]
+
+#: Default store chunk: at most this many cells (whole rows) ...
+CHUNK_CELLS = 65536
+#: ... and at least this many chunks (so a killed run loses at most about 1/8 of the grid).
+MIN_CHUNKS = 8
+#: Work units (a few rows each) per worker thread, for balance.
+UNITS_PER_WORKER = 16
+
+
+@dataclass(frozen=True)
+class ArraySpec:
+    """One result array over the grid: dtype, fill value (what a cell not computed holds),
+    attributes (units, long_name), and whether it has the job's trailing dimension."""
+
+    dtype: str
+    fill: Any
+    attrs: Mapping[str, Any]
+    trailing: bool = False
+
+
+@dataclass
+class GridRun:
+    """What :func:`run_grid` hands to :meth:`GridJob.result`: the full arrays, the statistics
+    of each store chunk (rows of ``job.stat_names``), and ``info`` about the run (``workers``,
+    ``chunks``, ``chunk_rows``, ``chunks_resumed``, ``chunks_computed``, ``chunks_repaired``,
+    ``store``, ``fingerprint``, ``scheduler``, ``tasks``, ``wall_time``)."""
+
+    data: Dict[str, np.ndarray]
+    chunk_stats: np.ndarray
+    info: Dict[str, Any] = field(default_factory=dict)
+    state: Any = None  #: what ``job.setup()`` returned in this process (None for a cluster run)
+
+    def totals(self, names: Sequence[str]) -> Dict[str, float]:
+        """The statistics summed over the chunks, by name."""
+        return {name: float(self.chunk_stats[:, i].sum()) for i, name in enumerate(names)}
+
+
+class GridJob:
+    """The primitives of a computation over a grid (see the module).  Subclasses are frozen
+    dataclasses with at least a ``version`` field (the skewpend that made the job: a cluster
+    worker with another one is refused)."""
+
+    #: The store's ``kind`` attribute (a store of another kind is refused).
+    kind: ClassVar[str] = "grid"
+    #: What it is, for messages ("a flip map").
+    what: ClassVar[str] = "a grid"
+    #: Statistics per row (and, summed, per store chunk).
+    stat_names: ClassVar[Tuple[str, ...]] = ()
+    #: Title of the store.
+    title: ClassVar[str] = "skewpend grid"
+
+    # -- layout -------------------------------------------------------------------------------------
+    def shape(self) -> Tuple[int, int]:
+        raise NotImplementedError
+
+    def arrays(self) -> Dict[str, ArraySpec]:
+        raise NotImplementedError
+
+    def coords(self) -> Dict[str, Tuple[np.ndarray, Mapping[str, Any]]]:
+        """The two dimensions, in order: name -> (values, attributes)."""
+        raise NotImplementedError
+
+    def trailing(self) -> Optional[Tuple[str, np.ndarray, Mapping[str, Any]]]:
+        """A third dimension of the arrays marked ``trailing``: (name, values, attributes)."""
+        return None
+
+    def settings(self) -> Dict[str, Any]:
+        raise NotImplementedError
+
+    def store_attrs(self) -> Dict[str, Any]:
+        """More attributes of a new store's template."""
+        return {}
+
+    def row_groups(self) -> List[Tuple[int, ...]]:
+        """Rows computed together (every row in exactly one group); default: each row alone."""
+        return [(i,) for i in range(self.shape()[0])]
+
+    def chunk_rows(self, chunk_size: Optional[int]) -> int:
+        """Rows per store chunk (a divisor of the rows): :func:`chunk_rows`."""
+        rows, cols = self.shape()
+        return chunk_rows(rows, cols, chunk_size=chunk_size)
+
+    def progress_per_row(self) -> int:
+        """Units of progress per row (default: its cells)."""
+        return self.shape()[1]
+
+    # -- work ---------------------------------------------------------------------------------------
+    def setup(self) -> Any:
+        """Per process (here, or a cluster worker): what :meth:`compute` needs (a kernel...)."""
+        return None
+
+    def compute(self, state: Any, rows: np.ndarray, cancel=None) -> Tuple[Dict[str, np.ndarray], np.ndarray]:
+        """The rows ``rows`` (sorted): their part of every array (leading dimension
+        ``len(rows)``) and statistics, shape ``(len(rows), len(stat_names))``."""
+        raise NotImplementedError
+
+    # -- result -------------------------------------------------------------------------------------
+    def result(self, run: GridRun) -> Any:
+        raise NotImplementedError
+
+    def result_attrs(self, result: Any) -> Dict[str, Any]:
+        """What a complete store records about the result (JSON strings, numbers)."""
+        return {}
+
+
+# -- shared checks of the run options -------------------------------------------------------------
+def check_workers(workers) -> int:
+    """``workers`` as a whole number >= 1 (None: the cores this process may use)."""
+    from .ensemble import default_workers
+
+    if workers is None:
+        return default_workers()
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
+    if workers > 4096:
+        raise ParameterError(f"workers must be at most 4096, got {workers}")
+    return int(workers)
+
+
+def check_run_options(*, workers, scheduler, store, resume, progress, chunk_size=None, unit: str = "cells") -> int:
+    """The checks every grid computation makes of its run options; returns the worker count."""
+    if resume not in (True, False):
+        raise ParameterError(f"resume must be True or False, got {resume!r}")
+    if resume and store is None:
+        raise ParameterError("resume needs a store: the path of the .zarr store to continue")
+    if scheduler is not None and workers is not None:
+        raise ParameterError("give workers or scheduler, not both (a cluster's workers run the chunks)")
+    if progress is not None and not callable(progress):
+        raise ParameterError(f"progress must be a callable progress(done_{unit}, total_{unit})")
+    if chunk_size is not None and (isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer))
+                                   or chunk_size < 1):
+        raise ParameterError(f"chunk_size must be a whole number >= 1, got {chunk_size!r}")
+    return check_workers(workers)
+
+
+def _divisor_at_most(n: int, target: int) -> int:
+    """The largest divisor of ``n`` that is at most ``target`` (at least 1)."""
+    target = max(1, min(int(target), n))
+    for r in range(target, 0, -1):
+        if n % r == 0:
+            return r
+    return 1  # pragma: no cover
+
+
+def chunk_rows(rows: int, cols: Optional[int] = None, *, chunk_size: Optional[int] = None) -> int:
+    """Rows per store chunk, a divisor of ``rows`` (every chunk whole rows, one Zarr chunk of
+    each array; for a square grid the mirror image of a chunk -- rows ``n - 1 - i`` -- is a
+    chunk too): ``chunk_size`` cells rounded down to whole rows, or by default at most
+    :data:`CHUNK_CELLS` cells and at least :data:`MIN_CHUNKS` chunks."""
+    cols = rows if cols is None else cols
+    if chunk_size is not None:
+        return _divisor_at_most(rows, chunk_size // max(cols, 1))
+    return _divisor_at_most(rows, min(rows // MIN_CHUNKS, CHUNK_CELLS // max(cols, 1)))
+
+
+def work_units(groups: Sequence[Sequence[int]], threads: int) -> list:
+    """``groups`` in order, joined into about :data:`UNITS_PER_WORKER` units per thread (lists
+    of rows): small enough for balance, large enough for few calls and tasks."""
+    from .ensemble import batches
+
+    units = batches(list(groups), max(1, UNITS_PER_WORKER * max(1, threads)))
+    return [sorted(r for g in unit for r in g) for unit in units]
+
+
+# -- the driver -----------------------------------------------------------------------------------
+def cluster_task(job: GridJob, units: Sequence[Sequence[int]]) -> list:
+    """A cluster task: the rows of ``units``, computed on a worker (which sets the job up
+    itself: compiles or loads the kernel from its own cache), one thread."""
+    from .. import __version__
+    from ..errors import SkewpendError
+
+    if __version__ != job.version:
+        raise SkewpendError(f"a worker has skewpend {__version__}, this run {job.version}: install the same skewpend on "
+                            "every worker")
+    state = job.setup()
+    out = []
+    for rows in units:
+        rows = np.asarray(sorted(rows), dtype=np.int64)
+        out.append((rows, *job.compute(state, rows)))
+    return out
+
+
+class _Assembler:
+    """Rows arriving in any order, gathered into the arrays and into whole chunks: a chunk goes
+    to the store (if any) as soon as all its rows are in.  Chunks already done are skipped."""
+
+    def __init__(self, job: GridJob, rows_per_chunk: int, done: np.ndarray, store=None):
+        rows, cols = job.shape()
+        trailing = job.trailing()
+        self.data = {}
+        for name, spec in job.arrays().items():
+            shape = (rows, cols, len(trailing[1])) if spec.trailing else (rows, cols)
+            self.data[name] = np.full(shape, spec.fill, dtype=spec.dtype)
+        self.row_stats = np.zeros((rows, len(job.stat_names)))
+        self.R, self.done, self.store = rows_per_chunk, done, store
+        self.missing = {int(k): rows_per_chunk for k in np.flatnonzero(~done)}  # rows still to come
+        self.written = 0
+
+    def add(self, rows: np.ndarray, data: Mapping[str, np.ndarray], stats: np.ndarray) -> None:
+        R = self.R
+        keep = ~self.done[rows // R]
+        rows = rows[keep]
+        for name, values in data.items():
+            self.data[name][rows] = np.asarray(values)[keep]
+        self.row_stats[rows] = np.asarray(stats)[keep]
+        for k in np.unique(rows // R).tolist():
+            self.missing[k] -= int(np.count_nonzero(rows // R == k))
+            if self.missing[k] == 0:
+                block = slice(k * R, (k + 1) * R)
+                if self.store is not None:
+                    self.store.write_chunk(k, {name: arr[block] for name, arr in self.data.items()},
+                                           self.row_stats[block].sum(axis=0))
+                self.done[k] = True
+                self.written += 1
+                del self.missing[k]
+
+
+def _template(job: GridJob, path, fp: str, rows_per_chunk: int):
+    from ..results import canonical_json
+    from .store import RowStore
+
+    settings = job.settings()
+    dims = tuple(job.coords())
+    arrays = {name: (spec.dtype, spec.fill, dict(spec.attrs), spec.trailing) for name, spec in job.arrays().items()}
+    attrs = {"title": job.title, "fingerprint": fp, "settings": canonical_json(settings),
+             "skewpend_version": settings.get("skewpend_version", job.version), **job.store_attrs()}
+    return RowStore.create(path, kind=job.kind, shape=job.shape(), chunk_rows=rows_per_chunk, dims=dims,
+                           arrays=arrays, coords=job.coords(), extra=job.trailing(), stats=job.stat_names, attrs=attrs)
+
+
+def open_store_for(job: GridJob, path, fp: str, *, writable: bool):
+    """The existing store at ``path`` for ``job``: the same kind, settings (fingerprint) and layout."""
+    from .store import RowStore
+
+    st = RowStore.open_matching(path, kind=job.kind, fingerprint=fp, settings=job.settings(), writable=writable)
+    try:
+        if st.shape != tuple(job.shape()) or set(st.arrays) != set(job.arrays()):
+            raise ParameterError(f"{path} is damaged: its layout does not match its settings; delete it and run again")
+    except BaseException:
+        st.close()
+        raise
+    return st
+
+
+def run_grid(job: GridJob, *, workers: int, scheduler=None, store=None, resume: bool = False,
+             progress: Optional[Callable[[int, int], None]] = None, chunk_size: Optional[int] = None,
+             state: Any = None) -> Any:
+    """Run ``job`` and return ``job.result(run)`` (see the module).
+
+    ``workers`` threads (already checked), or ``scheduler`` (a ``tcp://HOST:PORT`` address or a
+    :class:`distributed.Client`); ``store`` a ``*.zarr`` path (refused if it exists, unless
+    ``resume``); ``progress(done, total)`` in the calling thread, in units of
+    :meth:`GridJob.progress_per_row`; ``chunk_size`` cells per store chunk (rounded to whole
+    rows); ``state`` what :meth:`GridJob.setup` returned, if the caller has it already.
+    Ctrl-C: :class:`KeyboardInterrupt` within a few milliseconds, the store keeping every
+    complete chunk.
+    """
+    from ..results import fingerprint
+    from .ensemble import cluster_threads, connect_scheduler, require_distributed, run_chunks
+
+    fp = fingerprint(job.settings())
+    store_path = None
+    if store is not None:
+        from .store import store_target
+
+        store_path, exists = store_target(store, resume=resume, what=f"{job.what} store")
+        if exists:
+            open_store_for(job, store_path, fp, writable=False).close()  # refuse early, before any work
+    if scheduler is not None:
+        from .ensemble import check_scheduler
+
+        check_scheduler(scheduler)
+        require_distributed()
+
+    start = time.perf_counter()
+    n_rows, _ = job.shape()
+    per_row = job.progress_per_row()
+    client, owned = (connect_scheduler(scheduler) if scheduler is not None else (None, False))
+    st = None
+    try:
+        threads = cluster_threads(client) if client is not None else workers
+        if client is None and state is None:
+            state = job.setup()
+        repaired = 0
+        if store_path is not None and os.path.lexists(store_path):  # resume
+            st = open_store_for(job, store_path, fp, writable=True)
+            R = st.chunk_rows
+            done = st.done()
+            bad = st.damaged(done)
+            repaired = int(bad.size)
+            done[bad] = False
+        else:
+            R = job.chunk_rows(chunk_size)
+            if store_path is not None:
+                st = _template(job, store_path, fp, R)
+            done = np.zeros(n_rows // R, dtype=bool)
+        resumed = int(np.count_nonzero(done))
+        needed = ~np.repeat(done, R)  # rows still to compute
+        units = work_units([g for g in job.row_groups() if needed[list(g)].any()], threads)
+        assembler = _Assembler(job, R, done.copy(), st)
+        count = [resumed * R * per_row]
+        if progress is not None:
+            progress(count[0], n_rows * per_row)
+
+        def collect(result):
+            rows, data, stats = result
+            count[0] += per_row * int(np.count_nonzero(needed[rows]))
+            assembler.add(rows, data, stats)
+            if progress is not None:
+                progress(count[0], n_rows * per_row)
+
+        tasks = 0
+        if client is None:
+            def work(i, cancel):
+                rows = np.asarray(units[i], dtype=np.int64)
+                return (rows, *job.compute(state, rows, cancel))
+
+            run_chunks(len(units), work, workers=workers, on_done=lambda i, result: collect(result), keep=False)
+        else:
+            from .ensemble import batches, run_on_cluster
+
+            batched = batches(units)
+            tasks = len(batched)
+
+            def collect_task(i, results):
+                for result in results:
+                    collect(result)
+
+            run_on_cluster(client, cluster_task, [(job, b) for b in batched], on_done=collect_task,
+                           name=f"skewpend-{job.kind.replace(' ', '-')}")
+        if assembler.missing:  # pragma: no cover - every unit delivered: every chunk complete
+            raise RuntimeError("internal error: chunks left incomplete")
+
+        data = assembler.data
+        chunk_stats = np.add.reduceat(assembler.row_stats, np.arange(0, n_rows, R), axis=0)
+        if resumed:  # the chunks done before this run: from the store
+            old = np.repeat(done, R)
+            for name in data:
+                data[name][old] = st.read(name)[old]
+            chunk_stats[done] = st.chunk_stats()[done]
+        info = {
+            "workers": threads, "chunks": n_rows // R, "chunk_rows": R, "chunk_size": R * job.shape()[1],
+            "chunks_resumed": resumed, "chunks_computed": assembler.written, "chunks_repaired": repaired,
+            "store": None if store_path is None else str(store_path), "fingerprint": fp,
+            "scheduler": None if client is None else str(client.scheduler.address), "tasks": tasks,
+            "wall_time": time.perf_counter() - start,
+        }
+        result = job.result(GridRun(data=data, chunk_stats=chunk_stats, info=info, state=state))
+        if st is not None:  # the last write: what the result records, and "complete"
+            st.set_attrs(complete=True, **job.result_attrs(result))
+    finally:
+        if st is not None:
+            st.close()
+        if owned:
+            client.close(timeout=5)
+    return result
+
+
+def read_store(job_kind: str, path, *, what: str) -> Tuple[Dict[str, np.ndarray], Dict[str, Any]]:
+    """``(arrays, attrs)`` of a complete, undamaged store of ``job_kind`` (every array and
+    coordinate by name): the reading half of the driver, for the ``open_*`` functions."""
+    from .store import RowStore
+
+    with RowStore.open(path, kind=job_kind) as st:
+        attrs = st.attrs
+        done = st.done()
+        if not attrs.get("complete") or not done.all():
+            raise ParameterError(f"{path} is not complete ({int(done.sum())} of {done.size} chunks done); "
+                                 f"resume it with the same settings first")
+        bad = st.damaged(done)
+        if bad.size:
+            raise ParameterError(f"{path} is damaged: {bad.size} chunk(s) cannot be read or changed since they were "
+                                 f"written; resume it (with the same settings) to compute them again")
+        names = list(st.arrays) + [n for n in st.names() if n not in st.arrays and n not in
+                                    ("done", "chunk_stats", "chunk_digest")]
+        arrays = {name: st.read(name) for name in names}
+    return arrays, attrs

@@ -1,0 +1,141 @@
+"""The result protocol: what every result of skewpend offers, written once.
+
+Every result (a trajectory, a flip map, a Lyapunov spectrum, a chaos diagram, ...) is a small
+immutable object carrying its data and how it was made -- in the manner of diffrax's
+``Solution(ts, ys, stats, result)``:
+
+* ``params`` -- the :class:`~skewpend.Parameters`;
+* ``settings`` -- the resolved settings (plain JSON data; :func:`canonical_json` is their one
+  encoding, :func:`fingerprint` its SHA-256, which a store records to refuse resuming with
+  other settings);
+* ``stats`` -- statistics with documented keys (``steps`` always counts *accepted* steps,
+  ``rejected`` the rejected ones);
+* ``status`` -- a :class:`~skewpend.status.Status`; ``message`` and ``ok`` follow from it (and
+  from ``failures``, the count of failed trajectories of a grid);
+* ``to_xarray()``, ``to_netcdf(path)``, ``summary()``.
+
+:class:`ResultProtocol` implements these from one method a result class supplies,
+``_dataset()``: its variables, coordinates and attributes in a neutral form
+(:class:`DatasetSpec`) that xarray, NetCDF (``netCDF4``, no xarray needed) and Zarr all take.
+:func:`grid_status` is the one rule for a grid of many trajectories: all ok, or
+:attr:`Status.PARTIAL` with a message naming how many failed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any, Dict, Mapping, Tuple
+
+import numpy as np
+
+from .status import Status
+
+__all__ = ["ResultProtocol", "DatasetSpec", "canonical_json", "fingerprint", "plain", "grid_status"]
+
+
+def plain(value: Any) -> Any:
+    """``value`` as plain JSON data: tuples and arrays as lists, NumPy scalars as Python numbers,
+    non-finite floats as ``None`` (JSON has no NaN)."""
+    if isinstance(value, Mapping):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [plain(v) for v in value.tolist()]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        x = float(value)
+        return x if math.isfinite(x) else None
+    return value
+
+
+def canonical_json(settings: Mapping[str, Any]) -> str:
+    """The one encoding of settings: sorted keys, no spaces, strict JSON."""
+    return json.dumps(plain(settings), sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def fingerprint(settings: Mapping[str, Any]) -> str:
+    """SHA-256 (hex) of :func:`canonical_json`."""
+    return hashlib.sha256(canonical_json(settings).encode()).hexdigest()
+
+
+def grid_status(failed: int, total: int, what: str = "trajectories") -> Tuple[Status, str]:
+    """``(status, message)`` of a grid of ``total`` trajectories of which ``failed`` failed."""
+    if failed <= 0:
+        return Status.SUCCESS, f"all {total} {what} completed"
+    return Status.PARTIAL, (f"{failed} of {total} {what} failed (non-finite state, step size underflow or "
+                            "max_steps reached); they are NaN in the result")
+
+
+@dataclass
+class DatasetSpec:
+    """A result's data in a neutral form: ``variables`` and ``coords`` map a name to
+    ``(dims, values, attributes)``; ``attrs`` are numbers, strings and lists only."""
+
+    variables: Dict[str, Tuple[Tuple[str, ...], np.ndarray, Dict[str, Any]]]
+    coords: Dict[str, Tuple[Tuple[str, ...], np.ndarray, Dict[str, Any]]]
+    attrs: Dict[str, Any] = field(default_factory=dict)
+
+    def to_xarray(self):
+        try:
+            import xarray as xr
+        except ImportError:
+            raise ImportError("to_xarray() needs xarray, which is not installed: pip install xarray") from None
+        return xr.Dataset({k: (d, v, dict(a)) for k, (d, v, a) in self.variables.items()},
+                          coords={k: (d, v, dict(a)) for k, (d, v, a) in self.coords.items()},
+                          attrs=dict(self.attrs))
+
+
+class ResultProtocol:
+    """Mixin of every result class (see the module).  A class supplies ``_dataset()`` and has
+    the fields ``params``, ``settings``, ``stats``, ``status``; ``message`` may be a field."""
+
+    #: What the file attribute ``kind`` says (and :func:`skewpend.io.open_result` dispatches on).
+    result_kind: str = "result"
+
+    @property
+    def ok(self) -> bool:
+        """True when the whole computation succeeded (``status`` is SUCCESS)."""
+        return Status.of(getattr(self, "status", Status.SUCCESS)) is Status.SUCCESS
+
+    def _dataset(self) -> DatasetSpec:  # pragma: no cover - every result class overrides it
+        raise NotImplementedError
+
+    def _base_attrs(self) -> Dict[str, Any]:
+        from . import __version__
+
+        status = Status.of(getattr(self, "status", Status.SUCCESS))
+        return {
+            "kind": self.result_kind, "skewpend_version": __version__, "status": int(status),
+            "message": str(getattr(self, "message", status.message)),
+            "params": canonical_json(self.params.to_dict()), "settings": canonical_json(self.settings),
+            "stats": canonical_json(getattr(self, "stats", {})),
+        }
+
+    def to_xarray(self):
+        """An :class:`xarray.Dataset` of the result, with how it was made as attributes."""
+        return self._dataset().to_xarray()
+
+    def to_netcdf(self, path):
+        """Write the result to a NetCDF 4 file ``*.nc`` (``netCDF4``, the ``netcdf`` extra; no
+        xarray needed), atomically: the file appears complete or not at all.  Returns the path."""
+        from .io import write_netcdf
+
+        return write_netcdf(self._dataset(), path)
+
+    def summary(self) -> str:
+        """A few lines for a person: what it is, its status, its main statistics."""
+        status = Status.of(getattr(self, "status", Status.SUCCESS))
+        lines = [f"{self.result_kind}: {getattr(self, 'message', status.message)}"]
+        stats = getattr(self, "stats", {}) or {}
+        shown = [f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in stats.items()
+                 if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if shown:
+            lines.append(", ".join(shown[:10]))
+        return "\n".join(lines)
