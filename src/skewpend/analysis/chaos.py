@@ -21,18 +21,20 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Optional, Sequence
+from typing import Any, Callable, ClassVar, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..errors import ParameterError
+from ..numeric.grid import GridJob
+from ..results import DatasetSpec, ResultProtocol, canonical_json
+from ..status import Status
 from ..symbolic.model import Parameters
 from .lyapunov import MAX_STEPS, _check_max_steps, _check_params, _check_times, _check_tolerances, largest_exponents
 
-__all__ = ["chaos_diagram", "ChaosDiagram", "open_chaos_diagram", "default_threshold", "STORE_KIND"]
+__all__ = ["chaos_diagram", "ChaosDiagram", "ChaosJob", "open_chaos_diagram", "default_threshold", "STORE_KIND"]
 
 STORE_KIND = "chaos-diagram"
 #: Statistics per row (and per store chunk).
@@ -41,7 +43,7 @@ _MAX_CELLS = 1_000_000  # alpha x energy x samples trajectories at most
 
 
 @dataclass(frozen=True)
-class ChaosDiagram:
+class ChaosDiagram(ResultProtocol):
     """The result of :func:`chaos_diagram`.
 
     * ``alpha`` -- shape ``(na,)`` [rad]; ``energy`` -- shape ``(ne,)`` [J above the minimum of
@@ -51,7 +53,10 @@ class ChaosDiagram:
       failed);
     * ``threshold`` [1/s]: exponents above it count as chaotic;
     * ``fraction`` -- shape ``(na, ne)``: the chaotic fraction of the valid samples;
-    * ``params`` (alpha replaced row by row), ``settings``, ``stats``.
+    * ``params`` (alpha replaced row by row), ``settings``, ``stats`` (``trajectories``,
+      ``failed``, ``unreachable``, ``steps`` accepted, the run's rows, store and cluster);
+    * ``status`` (PARTIAL when trajectories failed), ``message``, ``ok``; ``to_xarray()``,
+      ``to_netcdf(path)``, ``summary()`` (the result protocol).
     """
 
     alpha: np.ndarray
@@ -61,6 +66,10 @@ class ChaosDiagram:
     params: Parameters
     settings: Dict[str, Any]
     stats: Dict[str, Any] = field(default_factory=dict)
+    status: Status = Status.SUCCESS
+    message: str = "all trajectories completed"
+
+    result_kind: ClassVar[str] = "chaos diagram"
 
     @property
     def valid(self) -> np.ndarray:
@@ -81,39 +90,29 @@ class ChaosDiagram:
         return out
 
     def table(self) -> str:
-        """The chaotic fractions as a text table: rows alpha [deg], columns energy [J]."""
+        """The chaotic fractions as a text table: rows alpha [deg], columns energy [J]; a cell
+        without a single valid sample shows ``--``."""
         head = "alpha\\E [J] " + " ".join(f"{e:>6.3g}" for e in self.energy)
         lines = [head]
         for i, a in enumerate(self.alpha):
-            cells = " ".join("   nan" if not np.isfinite(f) else f"{f:6.2f}" for f in self.fraction[i])
+            cells = " ".join("    --" if not np.isfinite(f) else f"{f:6.2f}" for f in self.fraction[i])
             lines.append(f"{math.degrees(a):8.1f} deg " + cells)
         return "\n".join(lines)
 
-    def to_xarray(self):
-        """An :class:`xarray.Dataset`: ``exponent`` on (alpha, energy, sample), ``fraction`` and
-        ``mean_exponent`` on (alpha, energy), the settings as attributes."""
-        import xarray as xr
-
-        return xr.Dataset(
-            {
-                "exponent": (("alpha", "energy", "sample"), self.exponent, _VARIABLES["exponent"]),
-                "fraction": (("alpha", "energy"), self.fraction, _VARIABLES["fraction"]),
+    def _dataset(self) -> DatasetSpec:
+        """``exponent`` on (alpha, energy, sample), ``fraction`` and ``mean_exponent`` on
+        (alpha, energy), the protocol's attributes and the threshold."""
+        return DatasetSpec(
+            variables={
+                "exponent": (("alpha", "energy", "sample"), self.exponent, dict(_VARIABLES["exponent"])),
+                "fraction": (("alpha", "energy"), self.fraction, dict(_VARIABLES["fraction"])),
                 "mean_exponent": (("alpha", "energy"), self.mean_exponent, {"units": "1/s"}),
             },
-            coords={"alpha": ("alpha", self.alpha, _VARIABLES["alpha"]),
-                    "energy": ("energy", self.energy, _VARIABLES["energy"]),
-                    "sample": ("sample", np.arange(self.exponent.shape[2]))},
-            attrs={"title": "chaos diagram of the skewed double pendulum (skewpend)", "threshold": self.threshold,
-                   "settings": json.dumps(self.settings), "params": json.dumps(self.params.to_dict())},
+            coords={"alpha": (("alpha",), self.alpha, dict(_VARIABLES["alpha"])),
+                    "energy": (("energy",), self.energy, dict(_VARIABLES["energy"])),
+                    "sample": (("sample",), np.arange(self.exponent.shape[2]), dict(_VARIABLES["sample"]))},
+            attrs={"title": ChaosJob.title, "threshold": self.threshold, **self._base_attrs()},
         )
-
-    def to_netcdf(self, path) -> None:
-        """:meth:`to_xarray` as NetCDF4 (netCDF4 engine), written atomically."""
-        from ..io import atomic_path, require_netcdf
-
-        require_netcdf()
-        with atomic_path(path) as tmp:
-            self.to_xarray().to_netcdf(tmp, engine="netcdf4")
 
 
 _VARIABLES = {
@@ -157,8 +156,8 @@ def potential_range(params: Parameters) -> float:
 
 
 @dataclass(frozen=True)
-class _Job:
-    """What computing rows needs: small and picklable (sent with each cluster task)."""
+class ChaosJob(GridJob):
+    """A chaos diagram as a job of the grid driver: one row per alpha (small and picklable)."""
 
     params: Parameters
     alpha: tuple
@@ -171,62 +170,112 @@ class _Job:
     atol: float
     max_steps: int
     version: str
+    threshold: float = math.nan
 
+    kind: ClassVar[str] = STORE_KIND
+    what: ClassVar[str] = "a chaos diagram"
+    stat_names: ClassVar[Tuple[str, ...]] = CHUNK_STATS
+    title: ClassVar[str] = "chaos diagram of the skewed double pendulum (skewpend)"
 
-def _compute_row(job: _Job, i: int, cancel=None):
-    """Row ``i`` (one alpha): ``(i, exponents (ne, samples), stats)``."""
-    from ..numeric.kernels import kernel_module, parameter_vector
-    from .poincare import EnergySurface, energy_minimum, section_seeds
+    def shape(self):
+        return len(self.alpha), len(self.energy)
 
-    start = time.perf_counter()
-    params = job.params.replace(alpha=float(job.alpha[i]))
-    kernel = kernel_module(params, chaos=True)
-    p = parameter_vector(params)
-    e_min, _ = energy_minimum(kernel, p)
-    ne, S = len(job.energy), job.samples
-    out = np.full((ne, S), np.nan)
-    stats = np.zeros(len(CHUNK_STATS))
-    for j, de in enumerate(job.energy):
-        surface = EnergySurface(kernel, p, e_min + float(de), 0, 0.0, e_min)
-        v_section, _ = surface.bounds()
-        if v_section >= surface.energy:
-            stats[2] += S
-            continue
-        seeds = section_seeds(surface, S)
-        stats[2] += S - seeds.shape[0]
-        if seeds.shape[0] == 0:
-            continue
-        starts = surface.states(seeds[:, 0], seeds[:, 1], +1)
-        lam, status, steps = largest_exponents(kernel, p, starts, t_end=job.t_end, renorm_every=job.renorm_every,
-                                               transient=job.transient, rtol=job.rtol, atol=job.atol,
-                                               max_steps=job.max_steps, cancel=cancel)
-        out[j, : lam.size] = lam
-        stats[0] += lam.size
-        stats[1] += int(np.count_nonzero(status != 0))
-        stats[3] += int(steps.sum())
-    stats[4] = time.perf_counter() - start
-    return i, out, stats
+    def arrays(self):
+        from ..numeric.grid import ArraySpec
 
+        return {"exponent": ArraySpec("float64", np.nan, _VARIABLES["exponent"], trailing=True),
+                "fraction": ArraySpec("float64", np.nan, _VARIABLES["fraction"])}
 
-def _cluster_task(job: _Job, rows: Sequence[int]) -> list:
-    from .. import __version__
-    from ..errors import SkewpendError
+    def coords(self):
+        return {"alpha": (np.asarray(self.alpha, dtype=float), _VARIABLES["alpha"]),
+                "energy": (np.asarray(self.energy, dtype=float), _VARIABLES["energy"])}
 
-    if __version__ != job.version:
-        raise SkewpendError(f"a worker has skewpend {__version__}, this run {job.version}: install the same skewpend on every worker")
-    return [_compute_row(job, i) for i in rows]
+    def trailing(self):
+        return "sample", np.arange(self.samples, dtype=float), _VARIABLES["sample"]
 
+    def settings(self):
+        from .. import __version__
 
-def _settings(params, alpha, energy, samples, t_end, renorm_every, transient, threshold, rtol, atol, max_steps):
-    from .. import __version__
+        params = self.params
+        return {
+            "params": params.replace(alpha=0.0).to_dict() if params.uses_alpha else params.to_dict(),
+            "alpha": [float(a) for a in self.alpha], "energy": [float(e) for e in self.energy],
+            "samples": int(self.samples), "t_end": self.t_end, "renorm_every": self.renorm_every,
+            "transient": self.transient, "threshold": self.threshold, "rtol": self.rtol, "atol": self.atol,
+            "max_steps": int(self.max_steps), "section": "phi=0", "direction": 1, "seeds": "halton",
+            "skewpend_version": __version__,
+        }
 
-    return {
-        "params": params.replace(alpha=0.0).to_dict() if params.uses_alpha else params.to_dict(),
-        "alpha": [float(a) for a in alpha], "energy": [float(e) for e in energy], "samples": int(samples),
-        "t_end": t_end, "renorm_every": renorm_every, "transient": transient, "threshold": threshold,
-        "rtol": rtol, "atol": atol, "max_steps": int(max_steps), "section": "phi=0", "direction": 1,
-        "seeds": "halton", "skewpend_version": __version__,
-    }
+    def store_attrs(self):
+        return {"threshold": self.threshold}
+
+    def chunk_rows(self, chunk_size):
+        return 1
+
+    def progress_per_row(self):
+        return 1
+
+    def compute(self, state, rows, cancel=None):
+        ne, S = len(self.energy), self.samples
+        exponent = np.full((rows.size, ne, S), np.nan)
+        stats = np.zeros((rows.size, len(CHUNK_STATS)))
+        for r, i in enumerate(rows.tolist()):
+            exponent[r], stats[r] = self._row(i, cancel)
+        return {"exponent": exponent, "fraction": _fraction(exponent, self.threshold)}, stats
+
+    def _row(self, i: int, cancel=None):
+        """Row ``i`` (one alpha): exponents ``(ne, samples)`` and statistics."""
+        from ..numeric.kernels import kernel_module, parameter_vector
+        from .poincare import EnergySurface, energy_minimum, section_seeds
+
+        start = time.perf_counter()
+        params = self.params.replace(alpha=float(self.alpha[i]))
+        kernel = kernel_module(params, chaos=True)
+        p = parameter_vector(params)
+        e_min, _ = energy_minimum(kernel, p)
+        ne, S = len(self.energy), self.samples
+        out = np.full((ne, S), np.nan)
+        stats = np.zeros(len(CHUNK_STATS))
+        for j, de in enumerate(self.energy):
+            surface = EnergySurface(kernel, p, e_min + float(de), 0, 0.0, e_min)
+            v_section, _ = surface.bounds()
+            if v_section >= surface.energy:
+                stats[2] += S
+                continue
+            seeds = section_seeds(surface, S)
+            stats[2] += S - seeds.shape[0]
+            if seeds.shape[0] == 0:
+                continue
+            starts = surface.states(seeds[:, 0], seeds[:, 1], +1)
+            lam, status, steps = largest_exponents(kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every,
+                                                   transient=self.transient, rtol=self.rtol, atol=self.atol,
+                                                   max_steps=self.max_steps, cancel=cancel)
+            out[j, : lam.size] = lam
+            stats[0] += lam.size
+            stats[1] += int(np.count_nonzero(status != 0))
+            stats[3] += int(steps.sum())
+        stats[4] = time.perf_counter() - start
+        return out, stats
+
+    def result(self, run) -> "ChaosDiagram":
+        from ..results import grid_status
+
+        totals = run.totals(CHUNK_STATS)
+        info = run.info
+        stats = {
+            "trajectories": int(totals["trajectories"]), "failed": int(totals["failed"]),
+            "unreachable": int(totals["unreachable"]), "steps": int(totals["steps"]), "wall_time": info["wall_time"],
+            "workers": info["workers"], "rows_resumed": info["chunks_resumed"], "rows_computed": info["chunks_computed"],
+            "rows_repaired": info["chunks_repaired"], "store": info["store"], "scheduler": info["scheduler"],
+            "fingerprint": info["fingerprint"],
+        }
+        status, message = grid_status(stats["failed"], stats["trajectories"])
+        alphas, energies = (values for values, _ in self.coords().values())
+        return ChaosDiagram(alpha=alphas, energy=energies, exponent=run.data["exponent"], threshold=float(self.threshold),
+                            params=self.params, settings=self.settings(), stats=stats, status=status, message=message)
+
+    def result_attrs(self, result):
+        return {"chaos_diagram_stats": canonical_json(result.stats)}
 
 
 def chaos_diagram(
@@ -261,9 +310,12 @@ def chaos_diagram(
     ``params`` gives everything but alpha, and must not fix the second axis itself.
 
     ``workers``, ``progress(done_rows, total_rows)``, ``store`` (``*.zarr``), ``resume`` and
-    ``scheduler`` work as for :func:`~skewpend.analysis.flipmap.flip_map`.
+    ``scheduler`` work as for :func:`~skewpend.analysis.flipmap.flip_map` (a :class:`ChaosJob`
+    on :func:`skewpend.numeric.grid.run_grid`).  Trajectories that fail make the diagram's
+    ``status`` PARTIAL.
     """
-    from .flipmap import _check_workers
+    from .. import __version__
+    from ..numeric.grid import check_run_options, run_grid
     from .poincare import _require_conservative
 
     if not isinstance(params, Parameters):
@@ -283,10 +335,8 @@ def chaos_diagram(
         raise ParameterError(f"samples must be a whole number from 1 to 100000, got {samples!r}")
     rtol, atol = _check_tolerances(rtol, atol)
     max_steps = _check_max_steps(max_steps)
-    explicit_workers = workers
-    workers = _check_workers(workers)
-    if progress is not None and not callable(progress):
-        raise ParameterError("progress must be a callable progress(done_rows, total_rows)")
+    workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress,
+                                unit="rows")
     if energy is None:
         top = potential_range(params.replace(alpha=0.0))
         if not top > 0:
@@ -308,102 +358,10 @@ def chaos_diagram(
             raise ParameterError(f"threshold must be a positive number [1/s], got {threshold!r}") from None
         if not (math.isfinite(threshold) and threshold > 0):
             raise ParameterError(f"threshold must be a positive number [1/s], got {threshold!r}")
-    if resume not in (True, False):
-        raise ParameterError(f"resume must be True or False, got {resume!r}")
-    if resume and store is None:
-        raise ParameterError("resume needs a store: the path of the .zarr store to continue")
-    if scheduler is not None and explicit_workers is not None:
-        raise ParameterError("give workers or scheduler, not both (a cluster's workers run the rows)")
-
-    from .. import __version__
-    from .flipmap import fingerprint
-
-    settings = _settings(params, alphas, energies, samples, t_end, renorm_every, transient, threshold, rtol, atol,
-                         max_steps)
-    fp = fingerprint(settings)
-    store_path = None
-    if store is not None:
-        from ..numeric.store import store_target
-
-        store_path, exists = store_target(store, resume=resume, what="a chaos diagram store")
-        if exists:
-            _open_store(store_path, settings, fp, writable=False).close()
-    if scheduler is not None:
-        from ..numeric.ensemble import check_scheduler, require_distributed
-
-        check_scheduler(scheduler)
-        require_distributed()
-
-    from ..numeric.ensemble import connect_scheduler, run_chunks
-
-    start = time.perf_counter()
-    na, ne, S = alphas.size, energies.size, int(samples)
-    job = _Job(params=params, alpha=tuple(alphas.tolist()), energy=tuple(energies.tolist()), samples=S, t_end=t_end,
-               renorm_every=renorm_every, transient=transient, rtol=rtol, atol=atol, max_steps=max_steps,
-               version=__version__)
-    exponent = np.full((na, ne, S), np.nan)
-    row_stats = np.zeros((na, len(CHUNK_STATS)))
-    client, owned = (connect_scheduler(scheduler) if scheduler is not None else (None, False))
-    st = None
-    try:
-        if store_path is not None:
-            if os.path.lexists(store_path):
-                st = _open_store(store_path, settings, fp, writable=True)
-            else:
-                st = _template(store_path, settings, fp, alphas, energies, S)
-            done = st.done()
-            if done.any():
-                exponent[done] = st.read("exponent")[done]
-                row_stats[done] = st.chunk_stats()[done]
-        else:
-            done = np.zeros(na, dtype=bool)
-        resumed = int(done.sum())
-        todo = [i for i in range(na) if not done[i]]
-        count = [resumed]
-        if progress is not None:
-            progress(count[0], na)
-
-        def collect(result):
-            i, row, stats = result
-            exponent[i], row_stats[i] = row, stats
-            if st is not None:
-                st.write_chunk(i, {"exponent": row[None], "fraction": _fraction(row, threshold)[None]}, stats)
-            count[0] += 1
-            if progress is not None:
-                progress(count[0], na)
-
-        if client is None:
-            run_chunks(len(todo), lambda k, cancel: _compute_row(job, todo[k], cancel), workers=workers,
-                       on_done=lambda k, result: collect(result), keep=False)
-            threads = workers
-        else:
-            from ..numeric.ensemble import batches, cluster_threads, run_on_cluster
-
-            threads = cluster_threads(client)
-            tasks = batches(todo)
-
-            def collect_task(k, results):
-                for result in results:
-                    collect(result)
-
-            run_on_cluster(client, _cluster_task, [(job, b) for b in tasks], on_done=collect_task,
-                           name="skewpend-chaos-diagram")
-        totals = row_stats.sum(axis=0)
-        stats = {
-            "trajectories": int(totals[0]), "failed": int(totals[1]), "unreachable": int(totals[2]),
-            "steps": int(totals[3]), "wall_time": time.perf_counter() - start, "workers": threads,
-            "rows_resumed": resumed, "rows_computed": len(todo), "store": None if store_path is None else str(store_path),
-            "scheduler": None if client is None else str(client.scheduler.address), "fingerprint": fp,
-        }
-        if st is not None:
-            st.set_attrs(complete=True, chaos_diagram_stats=json.dumps(stats))
-    finally:
-        if st is not None:
-            st.close()
-        if owned:
-            client.close(timeout=5)
-    return ChaosDiagram(alpha=alphas, energy=energies, exponent=exponent, threshold=float(threshold), params=params,
-                        settings=settings, stats=stats)
+    job = ChaosJob(params=params, alpha=tuple(alphas.tolist()), energy=tuple(energies.tolist()), samples=int(samples),
+                   t_end=t_end, renorm_every=renorm_every, transient=transient, rtol=rtol, atol=atol,
+                   max_steps=max_steps, version=__version__, threshold=float(threshold))
+    return run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress)
 
 
 def _fraction(row: np.ndarray, threshold: float) -> np.ndarray:
@@ -430,39 +388,36 @@ def _grid(name, values, n, lo, hi, *, lo_open: bool) -> np.ndarray:
     return np.linspace(lo, hi, n) if n > 1 else np.array([lo])
 
 
-def _template(path, settings, fp, alphas, energies, samples):
-    from ..numeric.store import RowStore
-
-    return RowStore.create(
-        path, kind=STORE_KIND, shape=(alphas.size, energies.size), chunk_rows=1, dims=("alpha", "energy"),
-        arrays={"exponent": ("float64", np.nan, _VARIABLES["exponent"], True),
-                "fraction": ("float64", np.nan, _VARIABLES["fraction"])},
-        coords={"alpha": (alphas, _VARIABLES["alpha"]), "energy": (energies, _VARIABLES["energy"])},
-        extra=("sample", np.arange(samples, dtype=float), _VARIABLES["sample"]),
-        stats=CHUNK_STATS,
-        attrs={"title": "chaos diagram of the skewed double pendulum (skewpend)", "fingerprint": fp,
-               "settings": json.dumps(settings, sort_keys=True), "threshold": settings["threshold"]},
-    )
-
-
-def _open_store(path, settings, fp, *, writable):
-    from ..numeric.store import RowStore
-
-    return RowStore.open_matching(path, kind=STORE_KIND, fingerprint=fp, settings=settings, writable=writable)
-
-
 def open_chaos_diagram(path) -> ChaosDiagram:
-    """A :class:`ChaosDiagram` read back from a complete store ``*.zarr``."""
-    from ..numeric.store import RowStore, check_store_path
+    """A :class:`ChaosDiagram` read back from a complete store ``*.zarr`` or a file ``*.nc``
+    (:meth:`ChaosDiagram.to_netcdf`)."""
+    from pathlib import Path
 
-    path = check_store_path(path, option="path")
-    with RowStore.open(path, kind=STORE_KIND) as st:
-        attrs = st.attrs
-        if not attrs.get("complete"):
-            raise ParameterError(f"{path} is not complete: resume the run that made it (--resume)")
+    from ..results import grid_status
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".zarr":
+        from ..numeric.grid import read_store
+
+        arrays, attrs = read_store(STORE_KIND, path, what="a chaos diagram")
+        stats_key = "chaos_diagram_stats"
+    elif suffix == ".nc":
+        from ..io import read_netcdf
+
+        arrays, attrs = read_netcdf(path, kind=ChaosDiagram.result_kind)
+        stats_key = "stats"
+    else:
+        raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
+    try:
         settings = json.loads(attrs["settings"])
-        exponent = st.read("exponent")
-        stats = json.loads(attrs.get("chaos_diagram_stats", "{}"))
-    params = Parameters.from_mapping(settings["params"])
+        stats = json.loads(attrs.get(stats_key, "{}"))
+        params = Parameters.from_mapping(settings["params"])
+        exponent = np.asarray(arrays["exponent"], dtype=float)
+        threshold = float(settings["threshold"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ParameterError(f"{path} is not a chaos diagram made by skewpend (missing or bad attribute: {exc})") from None
+    status, message = grid_status(int(stats.get("failed", 0)), int(stats.get("trajectories", exponent.size)))
     return ChaosDiagram(alpha=np.asarray(settings["alpha"]), energy=np.asarray(settings["energy"]), exponent=exponent,
-                        threshold=float(settings["threshold"]), params=params, settings=settings, stats=stats)
+                        threshold=threshold, params=params, settings=settings, stats=stats, status=status,
+                        message=message)
