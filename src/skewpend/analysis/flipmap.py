@@ -213,7 +213,8 @@ def _check_params(params) -> Parameters:
     return params
 
 
-def _check_n(n) -> int:
+def check_n(n) -> int:
+    """``n`` cells per side: a whole number from 1 to :data:`MAX_N`."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
         raise ParameterError(f"n must be a whole number of cells per side, got {n!r}")
     if not 1 <= n <= MAX_N:
@@ -228,7 +229,8 @@ def _check_positive(name: str, value, *, cap: Optional[float] = None) -> float:
     return x
 
 
-def _check_range(name: str, value) -> Tuple[float, float]:
+def check_range(name: str, value) -> Tuple[float, float]:
+    """A window ``(start, stop)`` of angles within ``[-pi, pi]``, start < stop."""
     try:
         lo, hi = (float(v) for v in value)
     except (TypeError, ValueError):
@@ -341,10 +343,10 @@ def flip_map(
     from ..numeric.kernels import kernel_module, parameter_vector
 
     params = _check_params(params)
-    n = _check_n(n)
+    n = check_n(n)
     t_end = _check_positive("t_end", t_end)
-    phi_lo, phi_hi = _check_range("phi_range", phi_range)
-    psi_lo, psi_hi = _check_range("psi_range", psi_range)
+    phi_lo, phi_hi = check_range("phi_range", phi_range)
+    psi_lo, psi_hi = check_range("psi_range", psi_range)
     rtol = DEFAULT_TOL if rtol is None else _check_positive("rtol", rtol, cap=1.0)
     atol = DEFAULT_TOL if atol is None else _check_positive("atol", atol, cap=1.0)
     if rtol < 1e-15 or atol < 1e-300:

@@ -25,16 +25,20 @@ import ctypes
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Optional, Sequence
+from typing import Any, Callable, ClassVar, Dict, Optional, Sequence
 
 import numpy as np
 
 from ..errors import IntegrationError, NotNumericError, ParameterError
 from ..interrupts import Interrupts
+from ..numeric.grid import GridJob
+from ..results import DatasetSpec, ResultProtocol, canonical_json
+from ..status import Status
 from ..parsing import initial_state, positive_number
 from ..symbolic.model import Parameters
 
-__all__ = ["lyapunov", "LyapunovSpectrum", "lyapunov_map", "LyapunovMap", "largest_exponents", "DEFAULT_TOL"]
+__all__ = ["lyapunov", "LyapunovSpectrum", "lyapunov_map", "LyapunovMap", "LyapunovMapJob", "open_lyapunov_map",
+           "largest_exponents", "DEFAULT_TOL"]
 
 #: Default tolerances (relative and absolute) of the DOP853 error control.
 DEFAULT_TOL = 1e-10
@@ -350,10 +354,13 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
 
 
 @dataclass(frozen=True)
-class LyapunovMap:
+class LyapunovMap(ResultProtocol):
     """The result of :func:`lyapunov_map`: the largest exponent [1/s] for starts at rest from the
     cell centres ``phi0`` (axis 0) x ``psi0`` (axis 1) [rad], shape ``(n, n)`` (NaN where the
-    integration failed), with ``params``, ``settings`` and ``stats``."""
+    integration failed), with ``params``, ``settings``, ``stats`` (``cells``, ``failed``,
+    ``steps`` accepted, the run's chunks, store and cluster) and the result protocol's
+    ``status`` (PARTIAL when cells failed), ``message``, ``ok``, ``to_xarray()``,
+    ``to_netcdf()``, ``summary()``."""
 
     phi0: np.ndarray
     psi0: np.ndarray
@@ -361,24 +368,113 @@ class LyapunovMap:
     params: Parameters
     settings: Dict[str, Any]
     stats: Dict[str, Any] = field(default_factory=dict)
+    status: Status = Status.SUCCESS
+    message: str = "all cells completed"
+
+    result_kind: ClassVar[str] = "Lyapunov map"
 
     @property
     def n(self) -> int:
         return int(self.exponent.shape[0])
 
-    def to_xarray(self):
-        """An :class:`xarray.Dataset` with ``exponent`` on ``(phi0, psi0)`` and the settings as attributes."""
-        import json
-
-        import xarray as xr
-
-        return xr.Dataset(
-            {"exponent": (("phi0", "psi0"), self.exponent,
-                          {"units": "1/s", "long_name": "largest Lyapunov exponent"})},
-            coords={"phi0": ("phi0", self.phi0[:, 0], {"units": "rad"}), "psi0": ("psi0", self.psi0[0], {"units": "rad"})},
-            attrs={"title": "largest Lyapunov exponent of starts at rest (skewpend)",
-                   "settings": json.dumps(self.settings), "params": json.dumps(self.params.to_dict())},
+    def _dataset(self) -> DatasetSpec:
+        return DatasetSpec(
+            variables={"exponent": (("phi0", "psi0"), self.exponent, dict(_MAP_VARIABLES["exponent"]))},
+            coords={"phi0": (("phi0",), self.phi0[:, 0].copy(), dict(_MAP_VARIABLES["phi0"])),
+                    "psi0": (("psi0",), self.psi0[0].copy(), dict(_MAP_VARIABLES["psi0"]))},
+            attrs={"title": LyapunovMapJob.title, **self._base_attrs()},
         )
+
+
+_MAP_VARIABLES = {
+    "exponent": {"units": "1/s", "long_name": "largest Lyapunov exponent of a start at rest; NaN: failed"},
+    "phi0": {"units": "rad", "long_name": "initial angle of hinge 1"},
+    "psi0": {"units": "rad", "long_name": "initial angle of hinge 2"},
+}
+#: Statistics per row (and per store chunk) of a Lyapunov map.
+MAP_STATS = ("cells", "failed", "steps")
+
+
+@dataclass(frozen=True)
+class LyapunovMapJob(GridJob):
+    """A Lyapunov map as a job of the grid driver (small and picklable)."""
+
+    params: Parameters
+    n: int
+    t_end: float
+    renorm_every: float
+    transient: float
+    phi_range: tuple
+    psi_range: tuple
+    rtol: float
+    atol: float
+    max_steps: int
+    version: str
+
+    kind: ClassVar[str] = "skewpend lyapunov map"
+    what: ClassVar[str] = "a Lyapunov map"
+    stat_names: ClassVar[tuple] = MAP_STATS
+    title: ClassVar[str] = "largest Lyapunov exponent of starts at rest (skewpend)"
+
+    def shape(self):
+        return self.n, self.n
+
+    def arrays(self):
+        from ..numeric.grid import ArraySpec
+
+        return {"exponent": ArraySpec("float64", np.nan, _MAP_VARIABLES["exponent"])}
+
+    def coords(self):
+        from .flipmap import cell_centres
+
+        return {"phi0": (cell_centres(*self.phi_range, self.n), _MAP_VARIABLES["phi0"]),
+                "psi0": (cell_centres(*self.psi_range, self.n), _MAP_VARIABLES["psi0"])}
+
+    def settings(self):
+        from .. import __version__
+
+        return {"kind": "lyapunov_map", "params": self.params.to_dict(), "n": self.n, "t_end": self.t_end,
+                "renorm_every": self.renorm_every, "transient": self.transient, "phi_range": list(self.phi_range),
+                "psi_range": list(self.psi_range), "rtol": self.rtol, "atol": self.atol,
+                "max_steps": self.max_steps, "skewpend_version": __version__}
+
+    def setup(self):
+        from ..numeric.kernels import kernel_module, parameter_vector
+
+        return kernel_module(self.params, chaos=True), parameter_vector(self.params)
+
+    def compute(self, state, rows, cancel=None):
+        kernel, p = state
+        phi, psi = (values for values, _ in self.coords().values())
+        exponent = np.full((rows.size, self.n), np.nan)
+        stats = np.zeros((rows.size, len(MAP_STATS)))
+        for r, i in enumerate(rows.tolist()):
+            starts = np.column_stack([np.full(self.n, phi[i]), psi, np.zeros(self.n), np.zeros(self.n)])
+            lam, status, steps = largest_exponents(kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every,
+                                                   transient=self.transient, rtol=self.rtol, atol=self.atol,
+                                                   max_steps=self.max_steps, cancel=cancel)
+            exponent[r] = lam
+            stats[r] = (self.n, np.count_nonzero(status != 0), steps.sum())
+        return {"exponent": exponent}, stats
+
+    def result(self, run) -> LyapunovMap:
+        from ..results import grid_status
+
+        n = self.n
+        totals = run.totals(MAP_STATS)
+        settings = {"n": n, "t_end": self.t_end, "renorm_every": self.renorm_every, "transient": self.transient,
+                    "phi_range": tuple(self.phi_range), "psi_range": tuple(self.psi_range), "rtol": self.rtol,
+                    "atol": self.atol, "max_steps": self.max_steps}
+        stats = {"cells": n * n, "failed": int(totals["failed"]), "steps": int(totals["steps"]), **run.info}
+        status, message = grid_status(stats["failed"], n * n, "cells")
+        phi, psi = (values for values, _ in self.coords().values())
+        return LyapunovMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
+                           exponent=run.data["exponent"], params=self.params, settings=settings, stats=stats,
+                           status=status, message=message)
+
+    def result_attrs(self, result):
+        return {"lyapunov_map_settings": canonical_json(result.settings),
+                "lyapunov_map_stats": canonical_json(result.stats)}
 
 
 def lyapunov_map(
@@ -395,56 +491,70 @@ def lyapunov_map(
     workers: Optional[int] = None,
     max_steps: int = MAX_STEPS,
     progress: Optional[Callable[[int, int], None]] = None,
+    store=None,
+    resume: bool = False,
+    scheduler=None,
 ) -> LyapunovMap:
     """The largest Lyapunov exponent [1/s] over ``t_end`` seconds for the starts at rest from the
     centres of an ``n x n`` grid over ``phi_range x psi_range`` [rad] (as :func:`flip_map`):
     one tangent vector per start, renormalised every ``renorm_every`` s, DOP853 at
     ``rtol``/``atol`` (default 1e-8: the exponent, not the trajectory, is wanted), rows of cells
-    on ``workers`` threads (default: every core), ``progress(done_cells, total_cells)``.
-    Bitwise the same whatever the number of workers."""
-    from ..numeric.ensemble import run_chunks
-    from ..numeric.kernels import kernel_module, parameter_vector
-    from .flipmap import _check_n, _check_range, _check_workers, cell_centres
+    on ``workers`` threads (default: every core), ``progress(done_cells, total_cells)``;
+    ``store`` (``*.zarr``), ``resume`` and ``scheduler`` as for
+    :func:`~skewpend.analysis.flipmap.flip_map` (a :class:`LyapunovMapJob` on
+    :func:`skewpend.numeric.grid.run_grid`).  Bitwise the same whatever the number of workers,
+    the chunking or the cluster."""
+    from .. import __version__
+    from ..numeric.grid import check_run_options, run_grid
+    from .flipmap import check_n, check_range
 
     params = _check_params(params, "a Lyapunov map")
-    n = _check_n(n)
+    n = check_n(n)
     if n > 1024:
         raise ParameterError(f"n must be at most 1024 for a Lyapunov map (each cell is a long integration), got {n}")
     t_end, renorm_every, transient = _check_times(t_end, renorm_every, transient)
-    phi_range = _check_range("phi_range", phi_range)
-    psi_range = _check_range("psi_range", psi_range)
+    phi_range = check_range("phi_range", phi_range)
+    psi_range = check_range("psi_range", psi_range)
     rtol, atol = _check_tolerances(rtol, atol)
     max_steps = _check_max_steps(max_steps)
-    workers = _check_workers(workers)
-    if progress is not None and not callable(progress):
-        raise ParameterError("progress must be a callable progress(done_cells, total_cells)")
-    kernel = kernel_module(params, chaos=True)
-    p = parameter_vector(params)
-    phi = cell_centres(*phi_range, n)
-    psi = cell_centres(*psi_range, n)
-    exponent = np.full((n, n), np.nan)
-    steps = np.zeros((n, n), dtype=np.int64)
-    failed = np.zeros((n, n), dtype=bool)
-    start = time.perf_counter()
-    done = [0]
+    workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress)
+    job = LyapunovMapJob(params=params, n=n, t_end=t_end, renorm_every=renorm_every, transient=transient,
+                         phi_range=tuple(phi_range), psi_range=tuple(psi_range), rtol=rtol, atol=atol,
+                         max_steps=max_steps, version=__version__)
+    return run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress)
 
-    def work(i, cancel):
-        starts = np.column_stack([np.full(n, phi[i]), psi, np.zeros(n), np.zeros(n)])
-        return largest_exponents(kernel, p, starts, t_end=t_end, renorm_every=renorm_every, transient=transient,
-                                 rtol=rtol, atol=atol, max_steps=max_steps, cancel=cancel)
 
-    def on_done(i, result):
-        lam, status, st = result
-        exponent[i], steps[i], failed[i] = lam, st, status != 0
-        done[0] += n
-        if progress is not None:
-            progress(done[0], n * n)
+def open_lyapunov_map(path) -> LyapunovMap:
+    """A :class:`LyapunovMap` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
+    import json
+    from pathlib import Path
 
-    run_chunks(n, work, workers=workers, on_done=on_done, keep=False)
-    settings = {"n": n, "t_end": t_end, "renorm_every": renorm_every, "transient": transient,
-                "phi_range": tuple(phi_range), "psi_range": tuple(psi_range), "rtol": rtol, "atol": atol,
-                "max_steps": max_steps}
-    stats = {"cells": n * n, "failed": int(failed.sum()), "steps": int(steps.sum()),
-             "wall_time": time.perf_counter() - start, "workers": workers}
+    from ..results import grid_status
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".zarr":
+        from ..numeric.grid import read_store
+
+        arrays, attrs = read_store(LyapunovMapJob.kind, path, what="a Lyapunov map")
+        keys = ("lyapunov_map_settings", "lyapunov_map_stats")
+    elif suffix == ".nc":
+        from ..io import read_netcdf
+
+        arrays, attrs = read_netcdf(path, kind=LyapunovMap.result_kind)
+        keys = ("settings", "stats")
+    else:
+        raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
+    try:
+        settings, stats = (json.loads(attrs[k]) for k in keys)
+        params = Parameters.from_mapping(json.loads(attrs["params"]) if "params" in attrs else settings["params"])
+        phi, psi = (np.asarray(arrays[k], dtype=float) for k in ("phi0", "psi0"))
+        exponent = np.asarray(arrays["exponent"], dtype=float)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ParameterError(f"{path} is not a Lyapunov map made by skewpend (missing or bad attribute: {exc})") from None
+    for key in ("phi_range", "psi_range"):
+        settings[key] = tuple(settings[key])
+    n = phi.size
+    status, message = grid_status(int(stats.get("failed", 0)), n * n, "cells")
     return LyapunovMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
-                       exponent=exponent, params=params, settings=settings, stats=stats)
+                       exponent=exponent, params=params, settings=settings, stats=stats, status=status, message=message)
