@@ -547,7 +547,8 @@ def open_lyapunov_map(path) -> LyapunovMap:
         raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
     try:
         settings, stats = (json.loads(attrs[k]) for k in keys)
-        params = Parameters.from_mapping(json.loads(attrs["params"]) if "params" in attrs else settings["params"])
+        params = Parameters.from_mapping(json.loads(attrs["params"]) if "params" in attrs
+                                         else json.loads(attrs["settings"])["params"])
         phi, psi = (np.asarray(arrays[k], dtype=float) for k in ("phi0", "psi0"))
         exponent = np.asarray(arrays["exponent"], dtype=float)
     except (KeyError, TypeError, ValueError) as exc:

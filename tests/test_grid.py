@@ -1,0 +1,262 @@
+"""The grid driver (numeric/grid.py), the result protocol (results.py) and damaged stores.
+
+* a toy job (pure NumPy, no kernel) shows the protocol a new analysis plugs in with, and that
+  the driver's results do not depend on chunks, workers or a store;
+* the Lyapunov map gained stores, resume and NetCDF from the driver: same bits either way;
+* a store whose chunk files were deleted, emptied or overwritten is repaired on resume (the
+  damaged chunks recomputed, bitwise the same map), refused when read, and damage that cannot
+  be repaired (array metadata, a deleted array) is one ParameterError;
+* a grid with failed cells says so in its status (PARTIAL, ok False), and NetCDF output on a
+  full disk is one SkewpendError with no file left.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import subprocess
+import sys
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+from skewpend import ParameterError, Parameters, SkewpendError
+from skewpend.numeric.grid import ArraySpec, GridJob, run_grid
+from skewpend.status import Status
+
+zarr = pytest.importorskip("zarr")
+
+BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+
+
+# -- a toy job: the protocol without any kernel ------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Toy(GridJob):
+    rows: int
+    cols: int
+    version: str = "toy"
+
+    kind: ClassVar[str] = "toy grid"
+    what: ClassVar[str] = "a toy grid"
+    stat_names: ClassVar[tuple] = ("cells", "sum")
+
+    def shape(self):
+        return self.rows, self.cols
+
+    def arrays(self):
+        return {"value": ArraySpec("float64", np.nan, {"units": "1"}), "parity": ArraySpec("int8", -1, {})}
+
+    def coords(self):
+        return {"x": (np.arange(self.rows, dtype=float), {}), "y": (np.arange(self.cols, dtype=float), {})}
+
+    def settings(self):
+        return {"rows": self.rows, "cols": self.cols}
+
+    def compute(self, state, rows, cancel=None):
+        value = np.sin(rows[:, None] * 1.3 + np.arange(self.cols)[None, :] * 0.7)
+        stats = np.column_stack([np.full(rows.size, self.cols), value.sum(axis=1)])
+        return {"value": value, "parity": (rows[:, None] + np.arange(self.cols)[None, :]) % 2}, stats
+
+    def result(self, run):
+        return run
+
+
+def _toy_expected(rows, cols):
+    i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    return np.sin(i * 1.3 + j * 0.7), (i + j) % 2
+
+
+def test_a_toy_job_runs_in_memory_and_in_a_store_with_the_same_result(tmp_path):
+    job = Toy(rows=24, cols=5)
+    value, parity = _toy_expected(24, 5)
+    seen = []
+    mem = run_grid(job, workers=2, progress=lambda done, total: seen.append((done, total)))
+    assert np.array_equal(mem.data["value"], value) and np.array_equal(mem.data["parity"], parity)
+    assert seen[0] == (0, 120) and seen[-1] == (120, 120) and all(a <= b for (a, _), (b, _) in zip(seen, seen[1:]))
+    assert mem.totals(Toy.stat_names)["cells"] == 120 and mem.info["store"] is None
+    for chunk_size, workers in ((5, 1), (15, 2), (60, 2), (None, 3)):
+        run = run_grid(job, workers=workers, store=tmp_path / f"t{chunk_size}.zarr", chunk_size=chunk_size)
+        assert run.data["value"].tobytes() == mem.data["value"].tobytes()
+        assert run.info["chunks"] * run.info["chunk_rows"] == 24
+    again = run_grid(job, workers=1, store=tmp_path / "t5.zarr", resume=True)
+    assert again.info["chunks_computed"] == 0 and again.data["value"].tobytes() == mem.data["value"].tobytes()
+    with pytest.raises(ParameterError, match="exists; resume it"):
+        run_grid(job, workers=1, store=tmp_path / "t5.zarr")
+    with pytest.raises(ParameterError, match="other settings: rows 12"):
+        run_grid(Toy(rows=12, cols=5), workers=1, store=tmp_path / "t5.zarr", resume=True)
+
+
+# -- the Lyapunov map: stores for free ------------------------------------------------------------------------
+def test_lyapunov_map_store_resume_and_files_are_bitwise_the_same(tmp_path):
+    from skewpend.analysis.lyapunov import lyapunov_map, open_lyapunov_map
+
+    kw = dict(t_end=4.0, phi_range=(-2.0, 2.0), psi_range=(-2.5, 2.5))
+    ref = lyapunov_map(BENCH, 8, workers=1, **kw)
+    assert ref.ok and ref.status is Status.SUCCESS and ref.stats["cells"] == 64 and np.isfinite(ref.exponent).all()
+    path = tmp_path / "lm.zarr"
+    stored = lyapunov_map(BENCH, 8, workers=2, store=path, **kw)
+    assert stored.exponent.tobytes() == ref.exponent.tobytes() and stored.stats["store"] == str(path)
+    back = open_lyapunov_map(path)
+    assert back.exponent.tobytes() == ref.exponent.tobytes() and back.settings == stored.settings and back.ok
+    pytest.importorskip("netCDF4")
+    nc = ref.to_netcdf(tmp_path / "lm.nc")
+    again = open_lyapunov_map(nc)
+    assert again.exponent.tobytes() == ref.exponent.tobytes() and again.params == ref.params
+
+
+# -- damaged stores -------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A finished 16 x 16 flip-map store (8 chunks of 2 rows) and the map in memory."""
+    from skewpend.analysis.flipmap import flip_map
+
+    d = tmp_path_factory.mktemp("stores")
+    kw = dict(t_end=3.0, chunk_size=32)
+    ref = flip_map(BENCH, 16, workers=1, **kw)
+    flip_map(BENCH, 16, workers=1, store=d / "m.zarr", **kw)
+    assert np.isfinite(ref.flip_time).sum() > 20  # there is something to lose
+    return d / "m.zarr", ref, kw
+
+
+def _copy(finished, tmp_path):
+    src, ref, kw = finished
+    dst = tmp_path / "m.zarr"
+    shutil.copytree(src, dst)
+    return dst, ref, kw
+
+
+def _chunk_file(store, array, k):
+    return store / array / "c" / str(k) / "0"
+
+
+def _nonempty_chunks(ref, rows=2):
+    """Chunks whose flip times are not all NaN (a chunk of fill values need not exist as a file)."""
+    return [k for k in range(8) if np.isfinite(ref.flip_time[k * rows:(k + 1) * rows]).any()]
+
+
+@pytest.mark.parametrize("damage", ["delete", "empty", "random"])
+def test_a_damaged_chunk_is_recomputed_on_resume(finished, tmp_path, damage):
+    from skewpend.analysis.flipmap import flip_map, open_flip_map
+
+    path, ref, kw = _copy(finished, tmp_path)
+    ks = _nonempty_chunks(ref)[:2]
+    rng = np.random.default_rng(7)
+    for k in ks:
+        f = _chunk_file(path, "flip_time", k)
+        if damage == "delete":
+            f.unlink()
+        elif damage == "empty":
+            f.write_bytes(b"")
+        else:
+            f.write_bytes(rng.integers(0, 256, f.stat().st_size, dtype=np.uint8).tobytes())
+    with pytest.raises(ParameterError, match="damaged|cannot be read"):
+        open_flip_map(path)
+    fm = flip_map(BENCH, 16, workers=1, store=path, resume=True, **kw)
+    assert fm.flip_time.tobytes() == ref.flip_time.tobytes() and fm.which.tobytes() == ref.which.tobytes()
+    assert fm.stats["chunks_repaired"] == 2 and fm.stats["chunks_computed"] == 2
+    assert open_flip_map(path).flip_time.tobytes() == ref.flip_time.tobytes()
+
+
+@pytest.mark.parametrize("damage", ["array metadata", "deleted array", "group metadata"])
+def test_damage_that_cannot_be_repaired_is_one_clear_error(finished, tmp_path, damage):
+    from skewpend.analysis.flipmap import flip_map, open_flip_map
+
+    path, ref, kw = _copy(finished, tmp_path)
+    if damage == "array metadata":
+        (path / "which" / "zarr.json").write_text("{not json")
+    elif damage == "deleted array":
+        shutil.rmtree(path / "which")
+    else:
+        (path / "zarr.json").write_text("")
+    for call in (lambda: flip_map(BENCH, 16, workers=1, store=path, resume=True, **kw), lambda: open_flip_map(path)):
+        with pytest.raises(ParameterError) as info:
+            call()
+        assert "damaged" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_the_cli_resume_of_a_damaged_store_is_exit_2_or_repaired(finished, tmp_path):
+    path, ref, kw = _copy(finished, tmp_path)
+    (path / "flip_time" / "zarr.json").write_text("garbage")
+    r = subprocess.run([sys.executable, "-m", "skewpend", "flipmap", "--n", "16", "--t-end", "3", "--out", str(path),
+                        "--resume", "--quiet"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "damaged" in r.stderr, r.stderr
+
+
+# -- statuses -------------------------------------------------------------------------------------------------
+def test_failed_cells_make_a_partial_status():
+    from skewpend.analysis.flipmap import flip_map
+
+    with pytest.warns(RuntimeWarning, match="failed"):
+        fm = flip_map(BENCH, 6, t_end=5.0, max_steps=20, shortcuts=False)
+    assert fm.status is Status.PARTIAL and not fm.ok and fm.stats["failed"] > 0
+    assert f"{fm.stats['failed']} of 36 cells failed" in fm.message
+    assert "flip map" in fm.summary() and str(fm.stats["failed"]) in fm.summary()
+    good = flip_map(BENCH, 6, t_end=1.0)
+    assert good.ok and good.status == 0 and good.message == "all 36 cells completed"
+
+
+def test_a_chaos_diagram_with_failed_trajectories_is_partial():
+    from skewpend.analysis.chaos import chaos_diagram
+
+    d = chaos_diagram(BENCH, alpha=[0.0], energy=[12.0], samples=3, t_end=5.0, max_steps=30, workers=1)
+    assert d.status is Status.PARTIAL and not d.ok and d.stats["failed"] == 3
+    assert "nan" not in d.table()
+
+
+def test_status_codes_and_messages():
+    assert [int(s) for s in Status] == list(range(7)) and Status.of(5) is Status.SHORT
+    assert all(s.message for s in Status) and Status.SUCCESS.ok and not Status.PARTIAL.ok
+    with pytest.raises(ValueError, match="unknown status code 99"):
+        Status.of(99)
+
+
+# -- files ----------------------------------------------------------------------------------------------------
+def test_settings_have_one_strict_encoding():
+    from skewpend.results import canonical_json, fingerprint
+
+    a = {"b": (1, 2.5), "a": np.float64(0.1), "n": np.int64(3), "x": float("nan")}
+    assert canonical_json(a) == '{"a":0.1,"b":[1,2.5],"n":3,"x":null}'
+    assert fingerprint(a) == fingerprint(dict(reversed(list(a.items())))) and len(fingerprint(a)) == 64
+    json.loads(canonical_json(a))  # strict JSON
+
+
+def test_without_netcdf4_no_empty_file_is_left(tmp_path, monkeypatch):
+    from skewpend.io import TrajectoryWriter
+
+    monkeypatch.setitem(sys.modules, "netCDF4", None)
+    with pytest.raises(SkewpendError, match="netCDF4"):
+        with TrajectoryWriter(tmp_path / "s.nc"):
+            pass
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 256 kB tmpfs (needs root; else skipped with the reason)."""
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("a full disk is simulated with a small tmpfs, which needs root")
+    mnt = tmp_path / "full"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mnt)], capture_output=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode().strip()}")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", str(mnt)], capture_output=True)
+
+
+def test_netcdf_on_a_full_disk_is_one_error_and_no_file(full_disk):
+    pytest.importorskip("netCDF4")
+    from skewpend.analysis.flipmap import flip_map
+
+    fm = flip_map(BENCH, 300, t_end=0.05, shortcuts=False, workers=2)
+    rng = np.random.default_rng(3)  # incompressible values: more than the disk holds
+    fm = dataclasses.replace(fm, flip_time=rng.random((300, 300)))
+    with pytest.raises(SkewpendError) as info:
+        fm.to_netcdf(full_disk / "m.nc")
+    assert "cannot write" in str(info.value) and "\n" not in str(info.value)
+    assert list(full_disk.iterdir()) == []
