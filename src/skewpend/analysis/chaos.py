@@ -32,7 +32,8 @@ from ..numeric.grid import GridJob
 from ..results import DatasetSpec, ResultProtocol, canonical_json
 from ..status import Status
 from ..symbolic.model import Parameters
-from .lyapunov import MAX_STEPS, _check_max_steps, _check_params, _check_times, _check_tolerances, largest_exponents
+from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
+from .lyapunov import check_times, largest_exponents
 
 __all__ = ["chaos_diagram", "ChaosDiagram", "ChaosJob", "open_chaos_diagram", "default_threshold", "STORE_KIND"]
 
@@ -146,12 +147,12 @@ def default_threshold(params: Parameters, t_end: float) -> float:
 def potential_range(params: Parameters) -> float:
     """The potential energy's span [J] over the torus (at ``params``' alpha): a natural top energy."""
     from ..numeric.kernels import kernel_module, parameter_vector
-    from .poincare import _potential
+    from .poincare import potential
 
     kernel = kernel_module(params, chaos=True)
     u = np.linspace(-math.pi, math.pi, 181)
     Q = np.array(np.meshgrid(u, u, indexing="ij")).reshape(2, -1).T
-    V = _potential(kernel, parameter_vector(params), Q)
+    V = potential(kernel, parameter_vector(params), Q)
     return float(V.max() - V.min())
 
 
@@ -316,25 +317,25 @@ def chaos_diagram(
     """
     from .. import __version__
     from ..numeric.grid import check_run_options, run_grid
-    from .poincare import _require_conservative
+    from .poincare import require_conservative
 
     if not isinstance(params, Parameters):
         raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
     if params.uses_alpha and params.alpha is None:  # alpha is the diagram's own axis
         params = params.replace(alpha=0.0)
-    params = _check_params(params, "a chaos diagram")
+    params = numeric_params(params, "a chaos diagram")
     if not params.uses_alpha:
         raise ParameterError("a chaos diagram varies alpha, but params fix the second hinge axis (axis2) directly; "
                              "leave axis2 at its default to use alpha")
-    _require_conservative(params, "a chaos diagram")
+    require_conservative(params, "a chaos diagram")
     alphas = _grid("alpha", alpha, n_alpha, 0.0, math.pi / 2, lo_open=False)
     if np.any(np.abs(alphas) > 2 * math.pi):
         raise ParameterError("alpha values must be angles in radians within [-2 pi, 2 pi]")
-    t_end, renorm_every, transient = _check_times(t_end, renorm_every, transient)
+    t_end, renorm_every, transient = check_times(t_end, renorm_every, transient)
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 1 <= samples <= 100_000:
         raise ParameterError(f"samples must be a whole number from 1 to 100000, got {samples!r}")
-    rtol, atol = _check_tolerances(rtol, atol)
-    max_steps = _check_max_steps(max_steps)
+    rtol, atol = tolerances(rtol, atol)
+    max_steps = check_max_steps(max_steps)
     workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress,
                                 unit="rows")
     if energy is None:

@@ -68,9 +68,9 @@ from typing import Any, Callable, ClassVar, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..parsing import positive_number
-from ..errors import NotNumericError, ParameterError
-from ..numeric.grid import GridJob, check_workers as _check_workers
+from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_params, positive, tolerances
+from ..errors import ParameterError
+from ..numeric.grid import GridJob
 from ..results import DatasetSpec, ResultProtocol, canonical_json, fingerprint
 from ..status import Status
 from ..symbolic.model import Parameters
@@ -80,10 +80,6 @@ __all__ = ["flip_map", "FlipMap", "FlipJob", "open_flip_map", "cell_centres", "e
 
 #: Largest grid: n x n cells (16384^2 = 2.7e8 cells, about 4 GB of results).
 MAX_N = 16384
-#: Default tolerances (relative and absolute) of the DOP853 error control.
-DEFAULT_TOL = 1e-10
-#: Default cap on the attempted steps of one trajectory.
-MAX_STEPS = 100_000_000
 #: Points per side of the square sampled for the energy barrier.
 _BARRIER_SAMPLES = 4097
 #: Safety margin of the energy bound, relative to the potential's scale.
@@ -203,16 +199,6 @@ def open_flip_map(path) -> FlipMap:
 
 
 # -- input checks ---------------------------------------------------------------------------------
-def _check_params(params) -> Parameters:
-    if not isinstance(params, Parameters):
-        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
-    try:
-        params.require_numeric("a flip map")
-    except NotNumericError as exc:
-        raise ParameterError(str(exc)) from None
-    return params
-
-
 def check_n(n) -> int:
     """``n`` cells per side: a whole number from 1 to :data:`MAX_N`."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
@@ -220,13 +206,6 @@ def check_n(n) -> int:
     if not 1 <= n <= MAX_N:
         raise ParameterError(f"n must be from 1 to {MAX_N} (cells per side), got {n}")
     return int(n)
-
-
-def _check_positive(name: str, value, *, cap: Optional[float] = None) -> float:
-    x = positive_number(name, value)
-    if cap is not None and x > cap:
-        raise ParameterError(f"{name} must be at most {cap:g}, got {x:g}")
-    return x
 
 
 def check_range(name: str, value) -> Tuple[float, float]:
@@ -342,19 +321,15 @@ def flip_map(
     from ..numeric.grid import check_run_options, run_grid
     from ..numeric.kernels import kernel_module, parameter_vector
 
-    params = _check_params(params)
+    params = numeric_params(params, "a flip map")
     n = check_n(n)
-    t_end = _check_positive("t_end", t_end)
+    t_end = positive("t_end", t_end)
     phi_lo, phi_hi = check_range("phi_range", phi_range)
     psi_lo, psi_hi = check_range("psi_range", psi_range)
-    rtol = DEFAULT_TOL if rtol is None else _check_positive("rtol", rtol, cap=1.0)
-    atol = DEFAULT_TOL if atol is None else _check_positive("atol", atol, cap=1.0)
-    if rtol < 1e-15 or atol < 1e-300:
-        raise ParameterError(f"rtol must be >= 1e-15 (machine precision) and atol >= 1e-300, got rtol={rtol:g}, atol={atol:g}")
+    rtol, atol = tolerances(rtol, atol)
     workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress,
                                 chunk_size=chunk_size)
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or not 1 <= max_steps <= 10**15:
-        raise ParameterError(f"max_steps must be a whole number from 1 to 1e15, got {max_steps!r}")
+    max_steps = check_max_steps(max_steps)
     _check_memory(n)
 
     kernel = kernel_module(params, flip=True)

@@ -30,6 +30,7 @@ from typing import Any, Callable, ClassVar, Dict, Optional, Sequence
 import numpy as np
 
 from ..errors import IntegrationError, NotNumericError, ParameterError
+from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
 from ..interrupts import Interrupts
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, ResultProtocol, canonical_json
@@ -40,10 +41,6 @@ from ..symbolic.model import Parameters
 __all__ = ["lyapunov", "LyapunovSpectrum", "lyapunov_map", "LyapunovMap", "LyapunovMapJob", "open_lyapunov_map",
            "largest_exponents", "DEFAULT_TOL"]
 
-#: Default tolerances (relative and absolute) of the DOP853 error control.
-DEFAULT_TOL = 1e-10
-#: Default cap on attempted steps.
-MAX_STEPS = 100_000_000
 #: Accepted steps per call into the compiled code (a few milliseconds: Ctrl-C stops within that).
 _BUDGET = 4000
 #: Renormalisation rows handed back per call.
@@ -129,31 +126,8 @@ class LyapunovSpectrum:
         }
 
 
-def _check_params(params, what: str) -> Parameters:
-    if not isinstance(params, Parameters):
-        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
-    try:
-        params.require_numeric(what)
-    except NotNumericError as exc:
-        raise ParameterError(str(exc)) from None
-    return params
-
-
-def _check_tolerances(rtol, atol):
-    rtol = DEFAULT_TOL if rtol is None else positive_number("rtol", rtol)
-    atol = DEFAULT_TOL if atol is None else positive_number("atol", atol)
-    if not (1e-15 <= rtol <= 1.0 and 1e-300 <= atol <= 1.0):
-        raise ParameterError(f"rtol must be from 1e-15 to 1 and atol from 1e-300 to 1, got rtol={rtol:g}, atol={atol:g}")
-    return rtol, atol
-
-
-def _check_max_steps(max_steps) -> int:
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or not 1 <= max_steps <= 10**15:
-        raise ParameterError(f"max_steps must be a whole number from 1 to 1e15, got {max_steps!r}")
-    return int(max_steps)
-
-
-def _check_times(t_end, renorm_every, transient):
+def check_times(t_end, renorm_every, transient):
+    """``(t_end, renorm_every, transient)`` of a Lyapunov computation, checked together."""
     t_end = positive_number("t_end", t_end)
     renorm_every = positive_number("renorm_every", renorm_every)
     try:
@@ -213,13 +187,13 @@ def lyapunov(
     """
     from ..numeric.kernels import LyapState, kernel_module, parameter_vector
 
-    params = _check_params(params, "Lyapunov exponents")
+    params = numeric_params(params, "Lyapunov exponents")
     y = initial_state(y0)
-    t_end, renorm_every, transient = _check_times(t_end, renorm_every, transient)
+    t_end, renorm_every, transient = check_times(t_end, renorm_every, transient)
     if isinstance(n_exponents, bool) or n_exponents not in (1, 2, 3, 4):
         raise ParameterError(f"n_exponents must be 1, 2, 3 or 4, got {n_exponents!r}")
-    rtol, atol = _check_tolerances(rtol, atol)
-    max_steps = _check_max_steps(max_steps)
+    rtol, atol = tolerances(rtol, atol)
+    max_steps = check_max_steps(max_steps)
     if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or not 1 <= windows <= 1000:
         raise ParameterError(f"windows must be a whole number from 1 to 1000, got {windows!r}")
     if progress is not None and not callable(progress):
@@ -508,15 +482,15 @@ def lyapunov_map(
     from ..numeric.grid import check_run_options, run_grid
     from .flipmap import check_n, check_range
 
-    params = _check_params(params, "a Lyapunov map")
+    params = numeric_params(params, "a Lyapunov map")
     n = check_n(n)
     if n > 1024:
         raise ParameterError(f"n must be at most 1024 for a Lyapunov map (each cell is a long integration), got {n}")
-    t_end, renorm_every, transient = _check_times(t_end, renorm_every, transient)
+    t_end, renorm_every, transient = check_times(t_end, renorm_every, transient)
     phi_range = check_range("phi_range", phi_range)
     psi_range = check_range("psi_range", psi_range)
-    rtol, atol = _check_tolerances(rtol, atol)
-    max_steps = _check_max_steps(max_steps)
+    rtol, atol = tolerances(rtol, atol)
+    max_steps = check_max_steps(max_steps)
     workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress)
     job = LyapunovMapJob(params=params, n=n, t_end=t_end, renorm_every=renorm_every, transient=transient,
                          phi_range=tuple(phi_range), psi_range=tuple(psi_range), rtol=rtol, atol=atol,

@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import IntegrationError, ParameterError
 from ..parsing import positive_number
 from ..symbolic.model import Parameters
-from .lyapunov import MAX_STEPS, _check_max_steps, _check_params, _check_tolerances
+from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
 
 __all__ = ["poincare", "PoincareSection", "parse_section", "energy_minimum", "section_seeds", "EnergySurface",
            "LOCATE_METHODS"]
@@ -70,7 +70,7 @@ def parse_section(section) -> Tuple[str, float]:
     return m.group(1), float(value)
 
 
-def _require_conservative(params: Parameters, what: str) -> None:
+def require_conservative(params: Parameters, what: str) -> None:
     moving = {k: getattr(params, k) for k in ("c1", "c2", "tau1", "tau2") if getattr(params, k) != 0}
     if moving:
         values = ", ".join(f"{k} = {v:g}" for k, v in moving.items())
@@ -80,7 +80,7 @@ def _require_conservative(params: Parameters, what: str) -> None:
         )
 
 
-def _mass_matrices(kernel, p, q: np.ndarray) -> np.ndarray:
+def mass_matrices(kernel, p, q: np.ndarray) -> np.ndarray:
     """M(q) for rows of angles q (m, 2): shape (m, 2, 2), from the generated momenta p = M q'."""
     m = q.shape[0]
     out = np.empty((m, 2, 2))
@@ -96,7 +96,7 @@ def _mass_matrices(kernel, p, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def _potential(kernel, p, q: np.ndarray) -> np.ndarray:
+def potential(kernel, p, q: np.ndarray) -> np.ndarray:
     rows = np.zeros((q.shape[0], 5))
     rows[:, :2] = q
     return kernel.energies(rows, p)
@@ -109,9 +109,9 @@ def energy_minimum(kernel, p, *, samples: int = 121) -> Tuple[float, np.ndarray]
 
     u = np.linspace(-math.pi, math.pi, samples, endpoint=False)
     Q = np.array(np.meshgrid(u, u, indexing="ij")).reshape(2, -1).T
-    V = _potential(kernel, p, Q)
+    V = potential(kernel, p, Q)
     best = np.argsort(V)[:4]
-    f = lambda q: float(_potential(kernel, p, np.asarray(q, dtype=float).reshape(1, 2))[0])  # noqa: E731
+    f = lambda q: float(potential(kernel, p, np.asarray(q, dtype=float).reshape(1, 2))[0])  # noqa: E731
     results = [minimize(f, Q[i], method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-15, "maxiter": 4000})
                for i in best]
     r = min(results, key=lambda r: r.fun)
@@ -145,16 +145,16 @@ class EnergySurface:
         x = np.atleast_1d(np.asarray(x, dtype=float))
         p_other = np.atleast_1d(np.asarray(p_other, dtype=float))
         q = self._q(x)
-        M = _mass_matrices(self.kernel, self.p, q)
+        M = mass_matrices(self.kernel, self.p, q)
         Moo = M[:, self.other, self.other]
-        return self.energy - _potential(self.kernel, self.p, q) - p_other**2 / (2.0 * Moo)
+        return self.energy - potential(self.kernel, self.p, q) - p_other**2 / (2.0 * Moo)
 
     def bounds(self, samples: int = 721) -> Tuple[float, float]:
         """(least potential on the section, the largest |p_q| reachable) over a fine grid."""
         x = np.linspace(-math.pi, math.pi, samples)
         q = self._q(x)
-        V = _potential(self.kernel, self.p, q)
-        Moo = _mass_matrices(self.kernel, self.p, q)[:, self.other, self.other]
+        V = potential(self.kernel, self.p, q)
+        Moo = mass_matrices(self.kernel, self.p, q)[:, self.other, self.other]
         k = np.clip(self.energy - V, 0.0, None)
         return float(V.min()), float(np.sqrt(2.0 * k * Moo).max())
 
@@ -164,10 +164,10 @@ class EnergySurface:
         x = np.atleast_1d(np.asarray(x, dtype=float))
         p_other = np.atleast_1d(np.asarray(p_other, dtype=float))
         q = self._q(x)
-        M = _mass_matrices(self.kernel, self.p, q)
+        M = mass_matrices(self.kernel, self.p, q)
         c, o = self.coord, self.other
         det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] ** 2
-        K = self.energy - _potential(self.kernel, self.p, q)
+        K = self.energy - potential(self.kernel, self.p, q)
         disc = (2.0 * K * M[:, o, o] - p_other**2) / det
         speed_c = (1.0 if direction >= 0 else -1.0) * np.sqrt(np.clip(disc, 0.0, None))
         speed_o = (p_other - M[:, o, c] * speed_c) / M[:, o, o]
@@ -333,10 +333,10 @@ def poincare(
     """
     from ..numeric.ensemble import Cancelled, run_chunks
     from ..numeric.kernels import State
-    from .flipmap import _check_workers
+    from ..numeric.grid import check_workers
 
-    params = _check_params(params, "a Poincare section")
-    _require_conservative(params, "a Poincare section")
+    params = numeric_params(params, "a Poincare section")
+    require_conservative(params, "a Poincare section")
     if isinstance(energy, bool):
         raise ParameterError(f"energy must be a number of joules, got {energy!r}")
     try:
@@ -356,9 +356,9 @@ def poincare(
     if int(n_orbits) * int(n_crossings) > 10_000_000:
         raise ParameterError(f"n_orbits x n_crossings = {int(n_orbits) * int(n_crossings)} points is too many (at most 1e7)")
     t_max = positive_number("t_max", t_max, allow_none=True)
-    rtol, atol = _check_tolerances(rtol, atol)
-    max_steps = _check_max_steps(max_steps)
-    workers = _check_workers(workers)
+    rtol, atol = tolerances(rtol, atol)
+    max_steps = check_max_steps(max_steps)
+    workers = check_workers(workers)
     if progress is not None and not callable(progress):
         raise ParameterError("progress must be a callable progress(done, total)")
 

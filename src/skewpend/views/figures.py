@@ -800,7 +800,7 @@ def poincare_boundary(section, *, canonical: bool = True, samples: int = 721):
     ``M_qq q'^2 / 2`` (section joint at rest) when not -- so the edge is lopsided.
     Evaluates the compiled model (cached with the section's kernel); None if that is
     impossible here (no compiler)."""
-    from ..analysis.poincare import _mass_matrices, _potential
+    from ..analysis.poincare import mass_matrices, potential
     from ..numeric.conventions import parameter_vector
     from ..numeric.kernels import kernel_module
 
@@ -815,8 +815,8 @@ def poincare_boundary(section, *, canonical: bool = True, samples: int = 721):
     q = np.empty((samples, 2))
     q[:, c] = float(section.settings["value"])
     q[:, o] = x
-    M = _mass_matrices(kernel, p, q)
-    room = float(section.settings["energy"]) - _potential(kernel, p, q)
+    M = mass_matrices(kernel, p, q)
+    room = float(section.settings["energy"]) - potential(kernel, p, q)
     room = np.where(room >= 0, room, np.nan)
     if canonical:
         upper = np.sqrt(2.0 * room * M[:, o, o])

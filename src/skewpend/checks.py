@@ -1,0 +1,104 @@
+"""The library's checks of its arguments, written once.
+
+Every public function validates what it is given with these (and the CLI, config files and
+the web API reach the same functions), so a rule -- what a tolerance may be, how many steps a
+run may take, that ``progress`` is callable -- has one wording everywhere.  Messages name the
+*parameter* (``max_steps``), never a command-line flag: the CLI maps names to flags.
+
+The defaults that several computations share are here too: :data:`MAX_STEPS` and
+:data:`DEFAULT_TOL`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Optional, Tuple
+
+import numpy as np
+
+from .errors import NotNumericError, ParameterError
+
+__all__ = [
+    "MAX_STEPS", "MAX_STEPS_LIMIT", "DEFAULT_TOL", "numeric_params", "tolerances", "max_steps", "whole", "positive",
+    "progress_callable", "flag",
+]
+
+#: Default cap on the attempted steps (accepted + rejected) of one trajectory.
+MAX_STEPS = 100_000_000
+#: The largest cap a caller may ask for.
+MAX_STEPS_LIMIT = 10**15
+#: Default relative and absolute tolerance of the adaptive integrators.
+DEFAULT_TOL = 1e-10
+
+
+def numeric_params(params, what: str):
+    """``params`` if it is a :class:`~skewpend.Parameters` with every value numeric (``what``
+    needs them: "a flip map", ...), else a :class:`ParameterError`."""
+    from .symbolic.model import Parameters
+
+    if not isinstance(params, Parameters):
+        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
+    try:
+        params.require_numeric(what)
+    except NotNumericError as exc:
+        raise ParameterError(str(exc)) from None
+    return params
+
+
+def positive(name: str, value: Any, *, cap: Optional[float] = None) -> float:
+    """``value`` as a finite float > 0 (and at most ``cap``)."""
+    from .parsing import positive_number
+
+    x = positive_number(name, value)
+    if cap is not None and x > cap:
+        raise ParameterError(f"{name} must be at most {cap:g}, got {x:g}")
+    return x
+
+
+def tolerances(rtol, atol, *, default: float = DEFAULT_TOL) -> Tuple[float, float]:
+    """``(rtol, atol)``: each a positive number (None: ``default``), rtol from 1e-15 (machine
+    precision) to 1, atol from 1e-300 to 1."""
+    rtol = default if rtol is None else positive("rtol", rtol)
+    atol = default if atol is None else positive("atol", atol)
+    if not (1e-15 <= rtol <= 1.0 and 1e-300 <= atol <= 1.0):
+        raise ParameterError(f"rtol must be from 1e-15 (machine precision) to 1 and atol from 1e-300 to 1, got "
+                             f"rtol={rtol:g}, atol={atol:g}")
+    return rtol, atol
+
+
+def whole(name: str, value: Any, lo: int, hi: int, *, what: str = "") -> int:
+    """``value`` as an int from ``lo`` to ``hi`` (a bool, a float or a string is refused)."""
+    unit = f" ({what})" if what else ""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {value!r}")
+    if not lo <= value <= hi:
+        raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {value}")
+    return int(value)
+
+
+def max_steps(value) -> int:
+    """A cap on the attempted steps of one trajectory: a whole number from 1 to 1e15."""
+    return whole("max_steps", value, 1, MAX_STEPS_LIMIT)
+
+
+def progress_callable(progress, signature: str = "progress(done, total)") -> Optional[Callable]:
+    """``progress`` if it is None or callable."""
+    if progress is not None and not callable(progress):
+        raise ParameterError(f"progress must be a callable {signature}")
+    return progress
+
+
+def flag(name: str) -> str:
+    """The command-line flag of a parameter name: ``max_steps`` -> ``--max-steps``."""
+    return "--" + name.replace("_", "-")
+
+
+def finite_seconds(name: str, value: Any, *, zero: bool = True) -> float:
+    """A duration [s]: a finite number >= 0 (> 0 unless ``zero``)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number of seconds, got {value!r}") from None
+    if isinstance(value, bool) or not math.isfinite(x) or x < 0 or (x == 0 and not zero):
+        raise ParameterError(f"{name} must be a number of seconds {'>=' if zero else '>'} 0, got {value!r}")
+    return x
