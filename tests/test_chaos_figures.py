@@ -251,7 +251,7 @@ def test_poincare_boundary_is_the_reachable_region(section):
     """The edges against brute force: at each q the states on the section with kinetic energy
     E - Pi form an ellipse in (phi', q'); of its half with phi' > 0 (the direction), the extremes
     of q' and of p_q = M_qc phi' + M_qq q' are the edges."""
-    from skewpend.analysis.poincare import _mass_matrices, _potential
+    from skewpend.analysis.poincare import mass_matrices, potential
     from skewpend.numeric.conventions import parameter_vector
     from skewpend.numeric.kernels import kernel_module
 
@@ -261,8 +261,8 @@ def test_poincare_boundary_is_the_reachable_region(section):
     theta = np.linspace(0.0, 2 * math.pi, 200_001)
     for k, xi in enumerate(x):
         q = np.array([[0.0, xi]])  # on phi = 0
-        M = _mass_matrices(kernel, p, q)[0]
-        room = section.settings["energy"] - _potential(kernel, p, q)[0]
+        M = mass_matrices(kernel, p, q)[0]
+        room = section.settings["energy"] - potential(kernel, p, q)[0]
         u = math.sqrt(2 * room) * np.vstack([np.cos(theta), np.sin(theta)])
         v = np.linalg.solve(np.linalg.cholesky(M).T, u)  # v^T M v = 2 room
         ends = math.sqrt(2 * room / M[1, 1]) * np.array([[0.0, 0.0], [1.0, -1.0]])  # the half's ends: phi' = 0

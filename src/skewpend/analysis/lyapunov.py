@@ -56,7 +56,7 @@ _STATUS = {
 
 
 @dataclass(frozen=True)
-class LyapunovSpectrum:
+class LyapunovSpectrum(ResultProtocol):
     """The result of :func:`lyapunov`.
 
     * ``exponents`` -- shape ``(k,)`` [1/s], in the order of the QR (descending once converged);
@@ -79,8 +79,13 @@ class LyapunovSpectrum:
     y0: np.ndarray
     settings: Dict[str, Any]
     stats: Dict[str, Any] = field(default_factory=dict)
-    status: int = 0
+    status: Status = Status.SUCCESS
     message: str = "reached t_end"
+
+    result_kind: ClassVar[str] = "Lyapunov spectrum"
+
+    def __post_init__(self):
+        object.__setattr__(self, "status", Status.of(self.status))  # an int from C: its Status
 
     @property
     def k(self) -> int:
@@ -105,25 +110,49 @@ class LyapunovSpectrum:
         return j + float(partial[j - 1]) / abs(float(lam[j]))
 
     def table(self) -> str:
-        """The exponents with their uncertainties, one per line (text)."""
-        lines = [f"lambda_{i + 1} = {v:+.6f} +- {u:.2g} 1/s" for i, (v, u) in enumerate(zip(self.exponents, self.uncertainty))]
-        if self.k == 4:
+        """The exponents with their uncertainties, one per line (text).  Nothing non-finite is
+        printed as a number: an exponent that could not be measured reads "not measured", an
+        uncertainty from fewer than 2 windows is left out (and said so)."""
+        lines = []
+        for i, (v, u) in enumerate(zip(self.exponents, self.uncertainty)):
+            value = f"{v:+.6f}" if math.isfinite(v) else "not measured"
+            spread = f" +- {u:.2g}" if math.isfinite(u) and math.isfinite(v) else ""
+            lines.append(f"lambda_{i + 1} = {value}{spread} 1/s" if math.isfinite(v) else f"lambda_{i + 1} = {value}")
+        if self.k == 4 and math.isfinite(self.sum):
             lines.append(f"sum      = {self.sum:+.3e} 1/s")
+        if not np.isfinite(self.uncertainty).any() and np.isfinite(self.exponents).any():
+            lines.append("(no uncertainty: it needs at least 2 windows after the transient)")
         return "\n".join(lines)
+
+    def _dataset(self) -> DatasetSpec:
+        k = np.arange(1, self.k + 1)
+        return DatasetSpec(
+            variables={
+                "exponent": (("k",), self.exponents, {"units": "1/s", "long_name": "Lyapunov exponent (QR order)"}),
+                "uncertainty": (("k",), self.uncertainty, {"units": "1/s", "long_name": "standard error over windows"}),
+                "history": (("time", "k"), self.history, {"units": "1/s", "long_name": "running estimate"}),
+                "window_exponent": (("window", "k"), self.window_exponents, {"units": "1/s"}),
+                "y0": (("state",), self.y0, {"long_name": "initial state (phi, psi, dphi, dpsi)"}),
+            },
+            coords={"k": (("k",), k, {}), "time": (("time",), self.t, {"units": "s"})},
+            attrs={"title": "Lyapunov spectrum of the skewed double pendulum (skewpend)", **self._base_attrs()},
+        )
 
     def to_dict(self) -> Dict[str, Any]:
         """Plain data (JSON-ready): exponents, uncertainties, settings, statistics, parameters."""
-        return {
-            "exponents": self.exponents.tolist(),
-            "uncertainty": [None if not math.isfinite(u) else float(u) for u in self.uncertainty],
+        from ..results import plain
+
+        return plain({  # strict JSON: a non-finite value is null
+            "exponents": self.exponents,
+            "uncertainty": self.uncertainty,
             "sum": self.sum,
-            "y0": self.y0.tolist(),
-            "status": self.status,
+            "y0": self.y0,
+            "status": int(self.status),
             "message": self.message,
             "settings": dict(self.settings),
             "stats": dict(self.stats),
             "params": self.params.to_dict(),
-        }
+        })
 
 
 def check_times(t_end, renorm_every, transient):

@@ -25,11 +25,13 @@ import math
 import re
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Optional, Tuple
+from typing import Any, Callable, ClassVar, Dict, Optional, Tuple
 
 import numpy as np
 
 from ..errors import IntegrationError, ParameterError
+from ..results import DatasetSpec, ResultProtocol
+from ..status import Status
 from ..parsing import positive_number
 from ..symbolic.model import Parameters
 from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
@@ -42,6 +44,31 @@ _COORDS = {"phi": 0, "psi": 1}
 _TWO_PI = 2.0 * math.pi
 #: Accepted steps per call into the compiled code (a few ms: Ctrl-C stops within that).
 _BUDGET = 4000
+
+
+#: Points whose energy error exceeds this fraction of the energy above the minimum are not on
+#: the energy surface any more: the section is reported PARTIAL (a tolerance far too loose).
+MAX_RELATIVE_ENERGY_ERROR = 1e-3
+
+
+def section_status(orbit_status: np.ndarray, stats: Dict[str, Any], room: float) -> Tuple[Status, str]:
+    """The one rule for a section's outcome (see :class:`PoincareSection`)."""
+    n = int(np.size(orbit_status))
+    failed = int(np.count_nonzero((orbit_status != 0) & (orbit_status != int(Status.SHORT))))
+    short = int(np.count_nonzero(orbit_status == int(Status.SHORT)))
+    err = float(stats.get("max_energy_error", 0.0))
+    problems = []
+    if failed:
+        problems.append(f"{failed} of {n} orbits failed (non-finite state, step size underflow or max_steps)")
+    if not (err <= MAX_RELATIVE_ENERGY_ERROR * max(room, 1e-300)):
+        problems.append(f"the energy error reaches {err:.3g} J, more than {MAX_RELATIVE_ENERGY_ERROR:g} of the "
+                        f"energy above the minimum ({room:.3g} J): the points left the energy surface; use a "
+                        "smaller rtol/atol")
+    if problems:
+        return Status.PARTIAL, "; ".join(problems)
+    if short:
+        return Status.SHORT, f"{short} of {n} orbits reached t_max before the wanted crossings (fewer points)"
+    return Status.SUCCESS, f"all {n} orbits made their crossings"
 
 
 def parse_section(section) -> Tuple[str, float]:
@@ -209,7 +236,7 @@ def section_seeds(surface: EnergySurface, n: int, *, margin: float = 1e-9) -> np
 
 
 @dataclass(frozen=True)
-class PoincareSection:
+class PoincareSection(ResultProtocol):
     """The result of :func:`poincare`.
 
     Points (one per crossing, all orbits concatenated; ``orbit[i]`` says whose):
@@ -221,9 +248,15 @@ class PoincareSection:
     * ``energy_error`` -- ``E(state) - energy`` [J].
 
     Orbits: ``seeds`` (n, 2) = their starts ``(q, p_q)`` on the section, ``crossings`` (n,) how
-    many each made, ``status`` (n,) 0 = all wanted crossings, 5 = ``t_max`` reached first, 1-3
-    failures.  ``unreachable``: seeds given that cannot lie on the surface (reported, not used).
-    ``coord_names`` = (section joint, other joint); ``params``, ``settings``, ``stats``.
+    many each made, ``orbit_status`` (n,) the :class:`~skewpend.status.Status` code of each: 0 =
+    all wanted crossings, 5 (SHORT) = ``t_max`` reached first, 1-3 failures.  ``unreachable``:
+    seeds given that cannot lie on the surface (reported, not used).  ``coord_names`` =
+    (section joint, other joint); ``params``, ``settings``, ``stats``.
+
+    The result protocol: ``status`` is SUCCESS when every orbit made its crossings with an
+    energy error below :data:`MAX_RELATIVE_ENERGY_ERROR` of the energy above the minimum;
+    PARTIAL when orbits failed or the points left the energy surface (a tolerance far too
+    loose); SHORT when orbits reached ``t_max`` first -- ``message`` says which and how many.
     """
 
     q: np.ndarray
@@ -235,11 +268,15 @@ class PoincareSection:
     orbit: np.ndarray
     seeds: np.ndarray
     crossings: np.ndarray
-    status: np.ndarray
+    orbit_status: np.ndarray
     unreachable: np.ndarray
     params: Parameters
     settings: Dict[str, Any]
     stats: Dict[str, Any] = field(default_factory=dict)
+    status: Status = Status.SUCCESS
+    message: str = "every orbit made its crossings"
+
+    result_kind: ClassVar[str] = "Poincare section"
 
     @property
     def coord_names(self) -> Tuple[str, str]:
@@ -255,28 +292,24 @@ class PoincareSection:
         sel = self.orbit == k
         return self.q[sel], self.p[sel]
 
-    def to_xarray(self):
-        """An :class:`xarray.Dataset` on dimension ``point`` (and ``orbit`` for the seeds)."""
-        import json
-
-        import xarray as xr
-
+    def _dataset(self) -> DatasetSpec:
+        """On dimension ``point`` (and ``orbit`` for the seeds and their outcomes)."""
         _, other = self.coord_names
-        return xr.Dataset(
-            {
-                other: ("point", self.q, {"units": "rad", "long_name": f"{other} on the section"}),
-                f"p_{other}": ("point", self.p, {"units": "J s", "long_name": f"canonical momentum of {other}"}),
-                f"d{other}": ("point", self.dq, {"units": "rad/s"}),
-                "t": ("point", self.t, {"units": "s", "long_name": "crossing time"}),
-                "orbit_index": ("point", self.orbit),
-                "energy_error": ("point", self.energy_error, {"units": "J"}),
-                "seed_q": ("orbit", self.seeds[:, 0], {"units": "rad"}),
-                "seed_p": ("orbit", self.seeds[:, 1], {"units": "J s"}),
-                "crossings": ("orbit", self.crossings),
-                "status": ("orbit", self.status),
+        return DatasetSpec(
+            variables={
+                other: (("point",), self.q, {"units": "rad", "long_name": f"{other} on the section"}),
+                f"p_{other}": (("point",), self.p, {"units": "J s", "long_name": f"canonical momentum of {other}"}),
+                f"d{other}": (("point",), self.dq, {"units": "rad/s"}),
+                "t": (("point",), self.t, {"units": "s", "long_name": "crossing time"}),
+                "orbit_index": (("point",), self.orbit, {}),
+                "energy_error": (("point",), self.energy_error, {"units": "J"}),
+                "seed_q": (("orbit",), self.seeds[:, 0], {"units": "rad"}),
+                "seed_p": (("orbit",), self.seeds[:, 1], {"units": "J s"}),
+                "crossings": (("orbit",), self.crossings, {}),
+                "status": (("orbit",), self.orbit_status, {"long_name": "outcome of each orbit (skewpend.Status)"}),
             },
-            attrs={"title": "Poincare section of the skewed double pendulum (skewpend)",
-                   "settings": json.dumps(self.settings), "params": json.dumps(self.params.to_dict())},
+            coords={},
+            attrs={"title": "Poincare section of the skewed double pendulum (skewpend)", **self._base_attrs()},
         )
 
     def to_csv(self, path) -> None:
@@ -288,14 +321,6 @@ class PoincareSection:
         table = np.column_stack([self.orbit, self.t, self.q, self.p, self.dq, self.energy_error])
         with atomic_path(path) as tmp:
             np.savetxt(tmp, table, delimiter=",", header=header, comments="", fmt=["%d"] + ["%.17g"] * 5)
-
-    def to_netcdf(self, path) -> None:
-        """The dataset of :meth:`to_xarray` as NetCDF4, written atomically."""
-        from ..io import atomic_path, require_netcdf
-
-        require_netcdf()
-        with atomic_path(path) as tmp:
-            self.to_xarray().to_netcdf(tmp, engine="netcdf4")
 
 
 def poincare(
@@ -468,10 +493,11 @@ def poincare(
         "max_energy_error": float(np.max(np.abs(e - energy))) if e.size else 0.0,
         "wall_time": time.perf_counter() - start, "workers": workers,
     }
+    outcome, message = section_status(status, stats, energy - surface.e_min)
     result = PoincareSection(
         q=q_other, p=mom[:, o], dq=states[:, 2 + o], t=table[:, 0], states=states, energy_error=e - energy, orbit=orbit,
-        seeds=seeds_ok, crossings=counts, status=status, unreachable=unreachable, params=params, settings=settings,
-        stats=stats,
+        seeds=seeds_ok, crossings=counts, orbit_status=status, unreachable=unreachable, params=params,
+        settings=settings, stats=stats, status=outcome, message=message,
     )
     if table.shape[0] == 0:
         raise IntegrationError(f"no orbit crossed the section {section!r} within t_max = {t_max:g} s")

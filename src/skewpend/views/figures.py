@@ -853,7 +853,7 @@ def _poincare_caption(section, shown: int) -> str:
     points = f"{orbits} x {st.get('n_crossings', '?')} crossings wanted: {total} points"
     if shown < total:
         points += f", {shown} drawn (thinned evenly)"
-    short = int(np.count_nonzero(np.asarray(section.status) == 5))
+    short = int(np.count_nonzero(np.asarray(section.orbit_status) == 5))
     if short:
         points += f", {short} orbit{'s' if short != 1 else ''} stopped at t_max"
     run = ["dop853", f"crossings located by {'dense output' if st.get('locate') == 'dense' else 'Hénon’s method'}"]
