@@ -1,4 +1,4 @@
-"""Ctrl-C that is never lost: SIGINT recorded, raised at the next safe point.
+"""Ctrl-C and SIGTERM that are never lost: recorded at the signal, raised at the next safe point.
 
 Python raises :class:`KeyboardInterrupt` wherever the main thread happens to be when the signal
 is handled -- also inside a ``__del__`` or a callback whose exceptions Python only reports as
@@ -8,15 +8,46 @@ the library (the chunked integrators, the ensemble engine) therefore run inside
 called between the bounded calls into compiled code (a few ms to ~0.05 s apart), raises the
 :class:`KeyboardInterrupt` there.  A handler the application installed itself is left alone, and
 outside the main thread nothing changes.
+
+SIGTERM (``kill``, ``timeout``, a CI cancel) gets what SIGINT gets once an application asks for
+it with :func:`terminate_like_interrupt` (the command line does, for its whole lifetime): the
+signal raises :class:`Terminated`, a :class:`KeyboardInterrupt`, so every clean-up that runs on
+Ctrl-C (temporary files, worker threads, child processes) runs on SIGTERM too; inside
+:class:`Interrupts` it is recorded and raised at the next check like SIGINT.  Without that call a
+library user's SIGTERM keeps Python's default (the process ends at once).
 """
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import threading
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Iterator, Optional
 
-__all__ = ["Interrupts"]
+__all__ = ["Interrupts", "Terminated", "terminate_like_interrupt"]
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Ctrl-C's :class:`KeyboardInterrupt` would be."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    """The SIGTERM handler of :func:`terminate_like_interrupt` (outside :class:`Interrupts`)."""
+    raise Terminated
+
+
+@contextlib.contextmanager
+def terminate_like_interrupt() -> Iterator[None]:
+    """While active (in the main thread), SIGTERM raises :class:`Terminated` -- and is recorded by
+    :class:`Interrupts` like SIGINT; the previous handler is restored on leaving."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 class Interrupts:
@@ -24,31 +55,34 @@ class Interrupts:
     called at the signal too (it must be quick and thread-safe, e.g. ``threading.Event.set``)."""
 
     def __init__(self, on_signal: Optional[Callable[[], None]] = None) -> None:
-        self.pending = False
+        self.pending: Optional[type] = None  # the exception to raise at the next check, if any
         self.on_signal = on_signal  # also run at the signal (e.g. tell worker threads to stop)
-        self._previous: Optional[Any] = None
+        self._previous: Optional[dict] = None  # the handlers replaced, by signal number
 
     def _record(self, signum, frame) -> None:
-        self.pending = True
+        # SIGTERM outranks a Ctrl-C recorded before it: the process is asked to end
+        if self.pending is not Terminated:
+            self.pending = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
         if self.on_signal is not None:
             self.on_signal()
 
     def __enter__(self) -> "Interrupts":
-        if threading.current_thread() is threading.main_thread() and \
-                signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            self._previous = signal.signal(signal.SIGINT, self._record)
+        if threading.current_thread() is threading.main_thread():
+            for signum, ours in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, _raise_terminated)):
+                if signal.getsignal(signum) is ours:  # a handler of the application is left alone
+                    self._previous = self._previous or {}
+                    self._previous[signum] = signal.signal(signum, self._record)
         return self
 
     def check(self) -> None:
-        """Raise :class:`KeyboardInterrupt` if Ctrl-C came since the last check."""
-        if self.pending:
-            self.pending = False
-            raise KeyboardInterrupt
+        """Raise :class:`KeyboardInterrupt` (or :class:`Terminated`) if a signal came since the last check."""
+        if self.pending is not None:
+            kind, self.pending = self.pending, None
+            raise kind
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
-        if self.pending and exc_type is None:  # a Ctrl-C during the last stretch still counts
-            self.pending = False
-            raise KeyboardInterrupt
+        for signum, previous in (self._previous or {}).items():
+            signal.signal(signum, previous)
+        self._previous = None
+        if self.pending is not None and exc_type is None:  # a signal during the last stretch still counts
+            self.check()

@@ -6,11 +6,12 @@ Shared by the command line, configuration files and sweep specifications.
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, Optional, Sequence, Tuple
 
 from .errors import ParameterError
 
-__all__ = ["UsageError", "parse_scalar", "parse_vector", "parse_inertia", "positive_number", "initial_state"]
+__all__ = ["UsageError", "parse_scalar", "parse_whole", "parse_vector", "parse_inertia", "positive_number", "initial_state"]
 
 
 class UsageError(ParameterError):
@@ -21,32 +22,71 @@ class UsageError(ParameterError):
 _SYMBOLIC = ("sym", "symbolic")
 
 
-def parse_scalar(text: Optional[str], option: str, *, angle: bool = False) -> Optional[float]:
-    """A number; for angles radians or a ``deg`` suffix; ``sym`` leaves it symbolic (None)."""
+#: A multiple of pi as an angle may be written: ``pi``, ``-pi``, ``pi/2``, ``2pi``, ``0.5*pi``, ``3pi/4``.
+_PI = re.compile(r"([+-]?(?:\d+(?:\.\d*)?|\.\d+)?)\*?(?:pi|π)(?:/((?:\d+(?:\.\d*)?|\.\d+)(?:e[+-]?\d+)?))?")
+
+
+def _number(t: str) -> float:
+    """``float(t)`` for ASCII text only (Python's float also reads other scripts' digits)."""
+    if not t.isascii():
+        raise ValueError(t)
+    return float(t)
+
+
+def parse_scalar(text: Any, option: str, *, angle: bool = False) -> Optional[float]:
+    """A number; for angles radians, a ``deg`` suffix or a multiple of pi (``pi/2``); ``sym``
+    leaves it symbolic (None).  A number already parsed (int or float, not bool) is checked only."""
     if text is None:
         return None
-    t = text.strip().lower()
-    if t in _SYMBOLIC:
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        value, text = float(text), repr(text)
+    else:
+        value = None
+    t = str(text).strip().lower()
+    if value is None and t in _SYMBOLIC:
         return None
     scale = 1.0
-    if angle:
+    if value is None and angle:
         for suffix in ("deg", "°"):
             if t.endswith(suffix):
                 t, scale = t[: -len(suffix)].strip(), math.pi / 180
                 break
-    try:
-        value = float(t)
-    except ValueError:
-        allowed = "a number in radians or with a deg suffix (e.g. 30deg)" if angle else "a number"
-        raise UsageError(f"{option}: expected {allowed}, or 'sym' for symbolic; got {text!r}") from None
+        m = _PI.fullmatch(t) if scale == 1.0 else None
+        if m:
+            factor = m.group(1)
+            factor = -1.0 if factor == "-" else (1.0 if factor in ("", "+") else float(factor))
+            divisor = float(m.group(2)) if m.group(2) else 1.0
+            if not divisor > 0:
+                raise UsageError(f"{option}: a multiple of pi divides by a positive number, got {text!r}")
+            value = factor * math.pi / divisor
+    if value is None:
+        try:
+            value = _number(t)
+        except ValueError:
+            allowed = "a number in radians, with a deg suffix (e.g. 30deg) or a multiple of pi (e.g. pi/2)" if angle else "a number"
+            raise UsageError(f"{option}: expected {allowed}, or 'sym' for symbolic; got {text!r}") from None
+    value *= scale
     if not math.isfinite(value):
         raise UsageError(f"{option}: expected a finite number, got {text!r}")
-    return value * scale
+    return value
 
 
-def _entry(text: str, option: str, sizes) -> object:
+def parse_whole(text: Any, option: str, lo: int, hi: int) -> int:
+    """A whole number from ``lo`` to ``hi``: digits, or a float spelling of one (``1e3``)."""
     try:
-        value = float(text)
+        value = _number(str(text).strip()) if not isinstance(text, bool) else math.nan
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value == int(value) and lo <= value <= hi):
+        raise UsageError(f"{option}: expected a whole number from {lo} to {hi}, got {text!r}")
+    return int(value)
+
+
+def _entry(text: Any, option: str, sizes) -> object:
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        text = repr(text)
+    try:
+        value = _number(text)
     except ValueError:
         if text.isidentifier():
             return text  # a symbol name, left symbolic
@@ -142,7 +182,7 @@ def parse_interval(text: Optional[str], option: str, *, angle: bool, example: st
         if unit is not None and not angle:
             raise UsageError(f"{option}: {which} {part.strip()!r} has a unit; this range takes plain numbers (e.g. {example})")
         try:
-            value = float(t)
+            value = _number(t)
         except ValueError:
             allowed = "a number in radians or with a deg suffix" if angle else "a number"
             raise UsageError(f"{option}: {which} must be {allowed}, got {part.strip()!r} (e.g. {example})") from None

@@ -1,0 +1,188 @@
+"""The ``skewpend`` command line: parse, call one library function, print (pyhf's ``cli/``).
+
+* :mod:`.types` -- the parameter types (angle, positive, whole, range, output path, ...) that
+  parse a typed value once; :mod:`.options` -- the option groups the commands share;
+* one short module per command group: :mod:`.equations` (derive, export, validate),
+  :mod:`.modes`, :mod:`.simulate` (simulate, animate, report), :mod:`.analyses` (flipmap,
+  lyapunov, poincare, chaos-diagram), :mod:`.serve`;
+* run files (``--config``) are resolved by the library (:mod:`skewpend.config`).
+
+This module holds the app and :func:`main`, where outcomes become exit statuses, once:
+
+====  =====================================================================================
+0     done
+1     the result is partly failed (its ``ok`` is False): one line names what failed
+2     bad input: one line ``skewpend: error: ...`` (the library's message, with the parameter
+      it names shown as the option or run-file key the user typed)
+130   interrupted (Ctrl-C): one line, nothing left behind
+143   terminated (SIGTERM): the same as Ctrl-C
+70    an internal error (a bug): one line; ``SKEWPEND_DEBUG=1`` shows the traceback
+====  =====================================================================================
+
+Heavy modules (NumPy, SymPy, Matplotlib) are imported inside the commands, so that
+``skewpend --help`` is instant.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from typing import Annotated, Any, List, Optional
+
+import typer
+
+from ..errors import SkewpendError
+
+__all__ = ["app", "main", "build_parameters"]
+
+app = typer.Typer(
+    name="skewpend",
+    help="The double pendulum with skewed hinge axes: a self-contained HTML report (skewpend report), the equations of motion, simulation, animation, flip-time maps, normal modes, validation against MuJoCo.",
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        sys.stdout.write(f"skewpend {__version__}\n")
+        raise typer.Exit()
+
+
+@app.callback(invoke_without_command=True)
+def _root(
+    ctx: typer.Context,
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="show the version and exit")
+    ] = False,
+) -> None:
+    """The double pendulum with skewed hinge axes (see the README for the model)."""
+    if ctx.invoked_subcommand is None:  # no command: the help, exit 0
+        sys.stdout.write(ctx.get_help() + "\n")
+        raise typer.Exit()
+
+
+def _register() -> None:
+    """Each command module holds plain functions; they become commands here (no import cycle)."""
+    from . import analyses, equations, modes, serve, simulate
+
+    order = ("derive", "simulate", "animate", "flipmap", "lyapunov", "poincare", "chaos_diagram", "serve", "report",
+             "export", "validate", "modes")
+    found = {name: getattr(module, name) for module in (equations, simulate, analyses, modes, serve) for name in module.COMMANDS}
+    for name in order:
+        app.command(name.replace("_", "-"))(found[name])
+
+
+_register()
+
+
+def build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, inertia1, inertia2, axis1, axis2):
+    """Deprecated: :class:`~skewpend.Parameters` from command-line strings; use
+    :func:`skewpend.config.build_parameters` (a mapping of values as spelled)."""
+    from ..config import build_parameters as build
+
+    return build(dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2, com1=com1,
+                      com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2))
+
+
+# -- outcomes -> exit statuses (the one place) -------------------------------------------------------
+#: The option of each name the library's messages use where it is not ``--name`` (per command
+#: where it differs: the chaos diagram's alpha and energy are ranges).
+FLAGS = {
+    "n_exponents": "--exponents", "n_orbits": "--orbits", "n_crossings": "--crossings", "store": "--out",
+    "y0": "the initial state (--phi0, --psi0, --dphi0, --dpsi0)", "n": "--n", "samples": "--samples",
+}
+COMMAND_FLAGS = {"chaos-diagram": {"alpha": "--alphas", "energy": "--energies"}}
+_NAMED = re.compile(r"^([a-z][a-z0-9_]*)(?=(?: must\b| = |: | \(| is\b))")
+
+
+def locate(message: str, command: Optional[str] = None, options: Any = ()) -> str:
+    """A library message that begins with a parameter's name (``max_steps must be ...``) shown
+    with the option or run-file key the user typed: ``--max-steps: max_steps must be ...``.
+    ``options`` are the command's option names; a message that already names an option
+    (``--``) or a run file is left as it is."""
+    from .options import LOCATIONS
+
+    m = _NAMED.match(message)
+    if not m or "--" in message or re.search(r"\.toml\b", message):
+        return message
+    name = m.group(1)
+    where = COMMAND_FLAGS.get(command or "", {}).get(name) or FLAGS.get(name)
+    if where is None and (name in LOCATIONS or name in options):
+        where = LOCATIONS.get(name, "")
+        if not where or where.startswith("default "):
+            where = "--" + name.replace("_", "-")
+    return f"{where}: {message}" if where else message
+
+
+def _ok(result: Any) -> bool:
+    """Whether a command's result is whole (the result protocol's ``ok``)."""
+    ok = getattr(result, "ok", None)
+    if ok is None:
+        ok = getattr(result, "success", True)
+    return bool(ok)
+
+
+def _fail(message: str, status: int = 2) -> None:
+    sys.stderr.write(f"skewpend: error: {message}\n")
+    sys.exit(status)
+
+
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    sys.stderr.write(f"skewpend: warning: {message}\n")
+
+
+def _usage_message(exc) -> str:
+    """A usage error of the command-line parser (typer's click) as one line."""
+    ctx = getattr(exc, "ctx", None)
+    where = f"skewpend {ctx.info_name}" if ctx is not None and ctx.parent is not None else "skewpend"
+    return f"{exc.format_message().strip()} (see '{where} --help')"
+
+
+def main(argv: Optional[List[str]] = None) -> None:
+    """Entry point: run a command and exit with its status (see the module)."""
+    import warnings
+
+    from ..interrupts import Terminated, terminate_like_interrupt
+
+    warnings.showwarning = _warning_line
+    args = sys.argv[1:] if argv is None else list(argv)
+    name = next((a for a in args if not a.startswith("-")), None)
+    group = typer.main.get_command(app)
+    try:
+        with terminate_like_interrupt():
+            with group.make_context("skewpend", args) as ctx:
+                result = group.invoke(ctx)
+    except typer.Exit as exc:  # --help, --version
+        sys.exit(exc.exit_code)
+    except Terminated:
+        sys.stderr.write("skewpend: terminated\n")
+        sys.exit(143)
+    except KeyboardInterrupt:
+        sys.stderr.write("skewpend: interrupted\n")
+        sys.exit(130)
+    except SkewpendError as exc:
+        command = group.commands.get(name) if name else None
+        _fail(locate(str(exc), name, {p.name for p in getattr(command, "params", ())}))
+    except typer.TyperException as exc:  # the parser's usage errors (typer's click)
+        _fail(_usage_message(exc), getattr(exc, "exit_code", 2))
+    except Exception as exc:
+        if os.environ.get("SKEWPEND_DEBUG"):
+            raise
+        if isinstance(exc, (OSError, MemoryError)):
+            detail = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            _fail(f"{detail}{where}", 1)
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        sys.stderr.write(f"skewpend: internal error: {type(exc).__name__}: {first} "
+                         "(a bug: please report it with the command; SKEWPEND_DEBUG=1 shows the traceback)\n")
+        sys.exit(70)
+    result, note = result if isinstance(result, tuple) else (result, "")
+    if not _ok(result):
+        sys.stderr.write(f"skewpend: {name}: {getattr(result, 'message', 'failed')}{note}\n")
+        sys.exit(1)
+    sys.exit(0)

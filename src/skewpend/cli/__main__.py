@@ -1,0 +1,5 @@
+"""``python -m skewpend.cli`` runs the command-line tool."""
+
+from . import main
+
+main()

@@ -1,0 +1,135 @@
+"""``derive`` (the equations of motion, or generated code), ``export`` (MJCF/URDF) and
+``validate`` (against MuJoCo)."""
+
+from __future__ import annotations
+
+import sys
+from enum import Enum
+from typing import Annotated, Optional
+
+import typer
+
+from ..parsing import UsageError
+from . import types as T
+from .options import CONFIG, INITIAL, MODEL, RUN, command, option, resolve
+
+COMMANDS = ("derive", "export", "validate")
+
+
+class DeriveFormat(str, Enum):
+    text = "text"
+    latex = "latex"
+    json = "json"
+    python = "python"
+    c = "c"
+    javascript = "javascript"
+
+
+_CODE = ("python", "c", "javascript")
+
+
+@command(MODEL)
+def derive(
+    model: dict,
+    linear: Annotated[bool, typer.Option("--linear", help="add the equations linearised about phi = psi = 0")] = False,
+    steps: Annotated[bool, typer.Option("--steps", help="print the derivation step by step (P1, e, P, omega2, v_c, Theta2, T, Pi)")] = False,
+    fmt: Annotated[DeriveFormat, typer.Option("--format", "-f", help="output format: equations (text, latex, json) or generated code (python, c, javascript)")] = DeriveFormat.text,
+) -> None:
+    """Derive the equations of motion M(q) q'' = f(q, q') by the specification's method."""
+    params = resolve("derive", None, defaults=False, parameters=model).parameters()
+    if fmt.value in _CODE:
+        if linear or steps:
+            raise UsageError("--linear and --steps go with --format text|latex|json, not with generated code")
+        _check_code_parameters(model, params, fmt.value)
+        from ..numeric.codegen import generate
+
+        sys.stdout.write(generate(params, fmt.value))
+        return
+    from ..symbolic import render
+    from ..symbolic.derivation import derive as derive_eom
+
+    eom = derive_eom(params)
+    lin = eom.linearize() if linear else None
+    if fmt is DeriveFormat.json:
+        import json
+
+        text = json.dumps(render.to_json(eom, linear=lin, steps=steps), indent=2) + "\n"
+    else:
+        text = (render.to_latex if fmt is DeriveFormat.latex else render.to_text)(eom, linear=lin, steps=steps)
+    sys.stdout.write(text)
+
+
+def _check_code_parameters(model: dict, params, fmt: str) -> None:
+    """Numeric values become the code's default parameter vector P, all of them or none; a typed
+    --c1/--c2/--tau1/--tau2 needs that vector."""
+    typed = [f"--{k}" for k in ("c1", "c2", "tau1", "tau2") if model.get(k) is not None and getattr(params, k) is not None]
+    core = [f"--{k}" for k in ("a", "b", "m1", "m2", "alpha", "g") if k != "alpha" or params.uses_alpha]
+    if typed and all(getattr(params, k[2:]) is None for k in core):
+        raise UsageError(
+            f"{', '.join(typed)} with --format {fmt} needs {' '.join(core)} as numbers too (all become the "
+            f"code's default parameter vector P); give them, or leave out {', '.join(typed)} (p is supplied at run time)"
+        )
+
+
+class ExportFormat(str, Enum):
+    mjcf = "mjcf"
+    urdf = "urdf"
+
+
+@command(MODEL)
+def export(
+    model: dict,
+    fmt: Annotated[Optional[ExportFormat], typer.Option("--format", "-f", help="model format (default: from the --out suffix, .xml/.mjcf or .urdf; mjcf when printing)")] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="write to FILE (default: print)")] = None,
+    config: CONFIG = None,
+) -> None:
+    """Export the system as a MuJoCo MJCF model or a URDF (numeric parameters; the defaults of simulate).
+
+    From a --config run file it takes [parameters].
+    """
+    from ..interop import export as ex
+
+    params = resolve("export", config, parameters=model).parameters()
+    if out is None:
+        sys.stdout.write(ex.to_urdf(params) if fmt is ExportFormat.urdf else ex.to_mjcf(params))
+        return
+    path = ex.write_model(params, out, fmt.value if fmt else None)
+    kind = fmt.value if fmt else ("urdf" if path.suffix.lower() == ".urdf" else "mjcf")
+    sys.stderr.write(f"skewpend: wrote {kind.upper()} model to {path}\n")
+
+
+@command(MODEL, INITIAL)
+def validate(
+    model: dict,
+    initial: dict,
+    t_end: option("--t-end", T.Positive("number of seconds"), "duration [s] (default 2)") = None,
+    dt: option("--dt", T.Positive("number of seconds"), "MuJoCo RK4 step [s] (default 1e-4)") = None,
+    tol: option("--tol", T.Positive(), "largest allowed difference in any state component (default 1e-6)") = None,
+    config: CONFIG = None,
+) -> None:
+    """Compare skewpend with MuJoCo (the exported MJCF, RK4) for your parameters; exit 1 if they disagree.
+
+    From a --config run file it takes [parameters], [initial] and [simulation] t_end.
+    """
+    from ..interop.validation import compare_with_mujoco
+
+    run = resolve("validate", config, parameters=model, initial=initial, simulation={"t_end": t_end})
+    params, y0 = run.parameters(), run.initial_state()
+    horizon = run.number("t_end", 2.0)
+    report = compare_with_mujoco(params, y0, horizon, dt=1e-4 if dt is None else dt)
+    tolerance = 1e-6 if tol is None else tol
+    ok = report.max_difference <= tolerance
+    sys.stdout.write("\n".join([
+        f"skewpend (dop853, rtol=atol=1e-12) vs MuJoCo {report.mujoco_version} (RK4, dt={report.dt:g} s), {report.t_end:g} s, {report.samples} samples",
+        "max |difference|:  " + "  ".join(f"{k}={v:.2e}" for k, v in report.max_abs_diff.items()),
+        f"energy drift: skewpend {report.energy_drift:.1e}",
+        ("AGREE" if ok else "DISAGREE") + f" within {tolerance:g} (largest difference {report.max_difference:.2e})",
+    ]) + "\n")
+    return _Verdict(ok, f"skewpend and MuJoCo differ by {report.max_difference:.2e}, more than --tol {tolerance:g}")
+
+
+class _Verdict:
+    """A comparison's outcome in the result protocol's terms (``ok``, ``message``)."""
+
+    def __init__(self, ok: bool, message: str) -> None:
+        self.ok, self.message = ok, message

@@ -1,0 +1,210 @@
+"""``modes``: the normal modes about the hanging equilibrium, a sweep of them over a parameter,
+their closed-form characteristic equation, and a check against the nonlinear motion."""
+
+from __future__ import annotations
+
+import sys
+from enum import Enum
+from typing import Annotated, Optional
+
+import typer
+
+from ..parsing import UsageError
+from . import types as T
+from .options import CONFIG, MODEL_NO_TORQUE, command, option, resolve
+
+COMMANDS = ("modes",)
+
+
+class ModesFormat(str, Enum):
+    text = "text"
+    json = "json"
+    latex = "latex"
+
+
+@command(MODEL_NO_TORQUE)
+def modes(
+    model: dict,
+    fmt: Annotated[ModesFormat, typer.Option("--format", "-f", help="text, json, or latex (the closed-form characteristic equation in the parameters not given; not with --sweep, --plot, --out, --tolerance, --check-nonlinear)")] = ModesFormat.text,
+    sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1 (e.g. alpha=0:180deg:181; a unit on either end applies to the whole range, plain numbers are radians)")] = None,
+    plot: Annotated[Optional[str], typer.Option("--plot", help="with --sweep: write the frequency curves to FILE (.png, .pdf, .svg)")] = None,
+    out: Annotated[Optional[str], typer.Option("--out", "-o", help="with --sweep: write the table to FILE (.csv or .json; alpha in rad plus alpha_deg)")] = None,
+    # parsed after the check that it goes with --sweep (a misplaced option is the first thing to say)
+    tolerance: Annotated[Optional[str], typer.Option("--tolerance", metavar="NUMBER", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3 (a positive number; default 0.01)")] = None,
+    check_nonlinear: option("--check-nonlinear", T.Angle(), "AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep)", None) = None,
+    config: CONFIG = None,
+) -> None:
+    """Normal modes of the small oscillations about the hanging equilibrium (and how alpha shapes them)."""
+    given = model
+    # every option takes effect or is refused, before any work is done
+    if fmt is ModesFormat.latex:
+        extra = [o for o, v in (("--sweep", sweep_spec), ("--plot", plot), ("--out", out), ("--tolerance", tolerance),
+                                ("--check-nonlinear", check_nonlinear)) if v is not None]
+        if extra:
+            raise UsageError(
+                f"--format latex prints only the closed-form characteristic equation, so {', '.join(extra)} "
+                "cannot be used with it (use --format text or json)"
+            )
+        _modes_latex(given, config)
+        return
+    if sweep_spec is None:
+        if plot is not None or out is not None:
+            raise UsageError("--plot and --out go with --sweep")
+        if tolerance is not None:
+            raise UsageError("--tolerance sets how close w2/w1 must come to 1, 2, 3 along a --sweep; without --sweep it has no effect")
+    elif check_nonlinear is not None:
+        raise UsageError("--check-nonlinear measures one parameter set, not a sweep; use it without --sweep")
+    from ..analysis import modes as md
+
+    params = resolve("modes", config, parameters=given).parameters()
+    if sweep_spec is not None:
+        tol = 0.01 if tolerance is None else T.Positive().convert(tolerance, "--tolerance")
+        _modes_sweep(params, sweep_spec, plot, out, tol, fmt, given)
+        return
+    amplitude = check_nonlinear
+    if amplitude is not None and (amplitude == "sym" or not 0 < amplitude < 3.141592653589793):
+        raise UsageError(
+            f"--check-nonlinear: expected an amplitude between 0 and 180 deg exclusive (radians, or e.g. 10deg), got {amplitude!r}"
+        )
+    result = md.normal_modes(params)
+    check = md.check_nonlinear(params, amplitude) if amplitude is not None else None
+    if fmt is ModesFormat.json:
+        import json
+
+        data = result.to_dict()
+        if check is not None:
+            data["nonlinear_check"] = {
+                "amplitude": check.amplitude,
+                "measured_frequencies": check.measured.tolist(),
+                "relative_shift": check.relative_shift.tolist(),
+            }
+        sys.stdout.write(json.dumps(data, indent=2) + "\n")
+        return
+    sys.stdout.write(_modes_text(result, check))
+
+
+def _modes_text(m, check) -> str:
+    import numpy as np
+
+    lines = ["Normal modes about the hanging equilibrium (phi = psi = 0)", ""]
+    lines.append(f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  {'shape (phi, psi), M0-normalised':>34}  {'psi/phi':>9}")
+    for k in range(2):
+        v = m.shapes[:, k]
+        ratio = "inf" if not np.isfinite(m.ratios[k]) else f"{m.ratios[k]:.5g}"
+        lines.append(
+            f"{k + 1:>4}  {m.frequencies[k]:14.8g}  {m.frequencies[k] / (2 * np.pi):10.6g}  {m.periods[k]:11.6g}  "
+            f"{f'({v[0]:+.6f}, {v[1]:+.6f})':>34}  {ratio:>9}"
+        )
+    beat = "inf (1:1)" if not np.isfinite(m.beat_period) else f"{m.beat_period:.6g} s"
+    lines.append(f"beat period 2 pi/(w2 - w1) = {beat};  w2/w1 = {m.frequencies[1] / m.frequencies[0]:.6g}")
+    if m.damped:
+        lines.append("with damping (eigenvalues matched to the modes by shape; zeta = -(l1 + l2)/(2 sqrt(l1 l2))):")
+        for k in range(2):
+            l1, l2 = m.eigenvalue_pairs[k]
+            if m.overdamped[k]:
+                lines.append(
+                    f"  mode {k + 1}: overdamped, lambda = {l1.real:.6g} and {l2.real:.6g} (real), zeta = {m.damping_ratios[k]:.4g}"
+                )
+            else:
+                lines.append(
+                    f"  mode {k + 1}: lambda = {l1.real:.6g} +/- {abs(l1.imag):.6g} i, "
+                    f"damped omega = {m.damped_frequencies[k]:.6g} rad/s, zeta = {m.damping_ratios[k]:.4g}"
+                )
+    if check is not None:
+        lines.append("")
+        lines.append(f"nonlinear check, largest initial angle {check.amplitude:.6g} rad ({np.degrees(check.amplitude):.4g} deg):")
+        for k in range(2):
+            lines.append(
+                f"  mode {k + 1}: linear {check.linear[k]:.8g} rad/s, measured {check.measured[k]:.8g} rad/s "
+                f"over {check.cycles[k]} cycles, shift {check.relative_shift[k]:+.3e}"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def _modes_latex(given: dict, config: Optional[str]) -> None:
+    """The closed form for the parameters given (options over the config's [parameters]);
+    the others stay symbolic.  Damping and torques do not enter det(K0 - w^2 M0): refused."""
+    from ..analysis.modes import characteristic_equation
+    from ..errors import EquilibriumError
+    from ..symbolic import render
+
+    tex = getattr(render, "tex", None) or render._tex  # the renderer's LaTeX of one expression
+    run = resolve("modes", config, defaults=False, parameters=given)
+    for keys, why in (
+        (("tau1", "tau2"), "phi = psi = 0 is not an equilibrium with constant joint torques; normal modes need tau1 = tau2 = 0"),
+        (("c1", "c2"), None),
+    ):
+        named = [run.option("parameters", k) for k in keys if run.is_given("parameters", k) and run.scalar("parameters", k) != 0.0]
+        if named and why is not None:
+            raise EquilibriumError(f"{', '.join(named)}: {why}")
+        if named:
+            raise UsageError(
+                f"--format latex prints det(K0 - w^2 M0) = 0, the undamped characteristic equation, so damping "
+                f"({', '.join(named)}) would have no effect; leave it out or set it to 0, or use --format text or json for the damped modes"
+            )
+    eq, roots = characteristic_equation(run.parameters())
+    body = [
+        r"\det\left(K_0 - \omega^2 M_0\right) = 0 \;\Longleftrightarrow\; " + tex(eq.lhs) + " &= 0",
+        r"\omega_1^2 &= " + tex(roots[0]),
+        r"\omega_2^2 &= " + tex(roots[1]),
+    ]
+    sys.stdout.write("\\[\n\\begin{aligned}\n" + " \\\\\n".join(body) + "\n\\end{aligned}\n\\]\n")
+
+
+def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
+    import numpy as np
+
+    from ..analysis import modes as md
+
+    name, values = md.parse_sweep(spec)
+    swept = md.SWEPT_PARAMETER.get(name, name)
+    if given.get(swept) is not None:
+        raise UsageError(f"--{swept} and --sweep {name}=... both set {swept}; the sweep gives every value, so leave out --{swept}")
+    from ..io import check_output_path
+
+    if out is not None:
+        check_output_path(out, (".csv", ".json"), option="--out")
+    if plot is not None:
+        check_output_path(plot, (".png", ".pdf", ".svg"), option="--plot")
+    sw = md.sweep(params, name, values, tolerance=tolerance)
+    if out is not None:
+        from ..io import atomic_path
+
+        with atomic_path(out) as tmp:
+            if str(out).lower().endswith(".csv"):
+                cols, rows = sw.columns()
+                np.savetxt(tmp, rows, delimiter=",", header=",".join(cols), comments="", fmt="%.17g")
+            else:
+                import json
+
+                tmp.write_text(json.dumps(sw.to_dict(), indent=2) + "\n")
+    if plot is not None:
+        from ..views.figures import plot_sweep, save_figure
+
+        save_figure(plot_sweep(sw), plot)
+    if fmt is ModesFormat.json:
+        import json
+
+        sys.stdout.write(json.dumps(sw.to_dict(), indent=2) + "\n")
+        return
+    # alpha is reported in radians (the SI unit of the files) and in degrees (the plot's axis)
+    show = (lambda v: f"{v:.6g} rad ({np.degrees(v):.4g} deg)") if name == "alpha" else (lambda v: f"{v:.6g}")
+    lines = [
+        f"swept {name} over {show(values[0])} .. {show(values[-1])} ({values.size} values)",
+        f"omega1: {sw.frequencies[:, 0].min():.6g} .. {sw.frequencies[:, 0].max():.6g} rad/s;  "
+        f"omega2: {sw.frequencies[:, 1].min():.6g} .. {sw.frequencies[:, 1].max():.6g} rad/s;  "
+        f"w2/w1: {sw.frequency_ratio.min():.6g} .. {sw.frequency_ratio.max():.6g}",
+    ]
+    if sw.resonances:
+        lines.append(f"internal resonances (w2/w1 within {tolerance:g}*n of n):")
+        for r in sw.resonances:
+            how = "crossed at" if r.crossed else f"closest ({r.ratio:.5g}) at"
+            lines.append(f"  {r.order}:1  {how} {name} = {show(r.value)}")
+    else:
+        lines.append(f"no internal resonance 1:1, 2:1, 3:1 within {tolerance:g}*n")
+    for what, path in (("table", out), ("plot", plot)):
+        if path is not None:
+            lines.append(f"wrote {what} {path}")
+    sys.stdout.write("\n".join(lines) + "\n")
+
+

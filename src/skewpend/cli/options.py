@@ -1,0 +1,165 @@
+"""The options the commands share, declared once, and :func:`command`, which gives a command its
+option groups and parses every value with its type (:mod:`skewpend.cli.types`) before it runs.
+
+Option groups: :data:`MODEL` (the parameters of the model), :data:`INITIAL` (the initial state),
+:data:`INTEGRATION` (method, tolerances, step, step cap) and :data:`ENSEMBLE` (workers and a
+cluster).  A command declares the groups it takes with ``@command(MODEL, INITIAL)`` and receives
+them collected, by name, in its ``model`` / ``initial`` / ``integration`` / ``ensemble``
+argument (only the values given; None for the others).
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+from enum import Enum
+from typing import Annotated, Any, Dict, Optional
+
+import typer
+
+from . import types as T
+
+_P = "Model parameters (a number, or 'sym' for symbolic; default symbolic)"
+_G = "General bodies and axes (default: the specification's thin rods)"
+RUN = "Initial state and run"
+
+
+def option(flag: str, kind: T.ParamType, help: str, panel: str = RUN, *aliases: str):
+    """An option typed as text whose value ``kind`` parses (None when not given)."""
+    return Annotated[Optional[str], typer.Option(flag, *aliases, help=help, metavar=kind.metavar, rich_help_panel=panel), kind]
+
+
+#: The model's options (every command but serve).
+MODEL: Dict[str, Any] = {
+    "a": option("--a", T.Scalar(), "length of rod 1 [m]", _P),
+    "b": option("--b", T.Scalar(), "length of rod 2 [m]", _P),
+    "m1": option("--m1", T.Scalar(), "mass of rod 1 [kg]", _P),
+    "m2": option("--m2", T.Scalar(), "mass of rod 2 [kg]", _P),
+    "alpha": option("--alpha", T.Angle(), "skew angle of the hinges [rad, e.g. 30deg, or a multiple of pi]", _P),
+    "g": option("--g", T.Scalar(), "gravitational acceleration [m/s^2]", _P),
+    "c1": option("--c1", T.Scalar(), "viscous damping in hinge 1 [N m s] (default 0)", _P),
+    "c2": option("--c2", T.Scalar(), "viscous damping in hinge 2 [N m s] (default 0)", _P),
+    "tau1": option("--tau1", T.Scalar(), "constant torque in hinge 1 [N m] (default 0)", _P),
+    "tau2": option("--tau2", T.Scalar(), "constant torque in hinge 2 [N m] (default 0)", _P),
+    "com1": option("--com1", T.Vector(), "centre of mass of body 1, 'x,y,z' in its frame [m]", _G),
+    "com2": option("--com2", T.Vector(), "centre of mass of body 2, 'x,y,z' in its frame [m]", _G),
+    "inertia1": option("--inertia1", T.Inertia(), "inertia of body 1 about its centre of mass: 'Ixx,Iyy,Izz[,Ixy,Ixz,Iyz]' [kg m^2]", _G),
+    "inertia2": option("--inertia2", T.Inertia(), "inertia of body 2 about its centre of mass: 'Ixx,Iyy,Izz[,Ixy,Ixz,Iyz]' [kg m^2]", _G),
+    "axis1": option("--axis1", T.Vector(), "axis of hinge 1, 'x,y,z' (default k)", _G),
+    "axis2": option("--axis2", T.Vector(), "axis of hinge 2 with the rods vertical, 'x,y,z' (default cos(alpha) k + sin(alpha) i; replaces --alpha)", _G),
+}
+#: The model without the constant torques (modes: the hanging rest is no equilibrium with them).
+MODEL_NO_TORQUE = {k: v for k, v in MODEL.items() if k not in ("tau1", "tau2")}
+
+#: The initial state.
+INITIAL: Dict[str, Any] = {
+    "phi0": option("--phi0", T.Angle(), "initial phi [rad, or e.g. 60deg] (default 1.2)"),
+    "psi0": option("--psi0", T.Angle(), "initial psi [rad, or deg] (default -0.8)"),
+    "dphi0": option("--dphi0", T.Scalar(), "initial dphi/dt [rad/s] (default 0)"),
+    "dpsi0": option("--dpsi0", T.Scalar(), "initial dpsi/dt [rad/s] (default 0)"),
+}
+
+
+class Method(str, Enum):
+    dop853 = "dop853"
+    rk4 = "rk4"
+    gauss = "gauss"
+
+
+#: The integrator (simulate, animate, report).
+INTEGRATION: Dict[str, Any] = {
+    "method": Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=RUN)],
+    "rtol": option("--rtol", T.Positive(), "relative tolerance, dop853 only (default 1e-10)"),
+    "atol": option("--atol", T.Positive(), "absolute tolerance, dop853 only (default 1e-10)"),
+    "dt": option("--dt", T.Positive("number of seconds"), "step [s], rk4 and gauss only (default 1e-3)"),
+    "max_steps": option("--max-steps", T.Whole(1, 10**15), "refuse or stop a run that needs more steps (default 1e8)"),
+}
+
+
+def tolerances(default: str) -> Dict[str, Any]:
+    """rtol and atol of the DOP853-only analyses (``default`` is the library's, for the help)."""
+    return {
+        "rtol": option("--rtol", T.Positive(), f"relative tolerance of DOP853 (default {default})"),
+        "atol": option("--atol", T.Positive(), f"absolute tolerance of DOP853 (default {default})"),
+    }
+
+
+#: Threads here or a cluster (flipmap, chaos-diagram).
+ENSEMBLE: Dict[str, Any] = {
+    "workers": option("--workers", T.Whole(1, 1024), "threads on this machine (default: every core)"),
+    "scheduler": option("--scheduler", T.Scheduler(), "run on a dask.distributed cluster: tcp://HOST:PORT (needs skewpend[cluster])"),
+}
+
+CONFIG = Annotated[Optional[str], typer.Option("--config", help="TOML run file with [parameters], [initial], [simulation]; options override it; a key this command does not read is refused", rich_help_panel=RUN)]
+QUIET = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar (it is shown on a terminal for work over ~1 s)", rich_help_panel=RUN)]
+
+
+def plot_option(what: str):
+    return option("--plot", T.OutPath("..views.figures:FIGURE_SUFFIXES"), f"draw {what} to FILE (.png, .svg or .pdf)")
+
+
+_GROUPS = {id(MODEL): "model", id(MODEL_NO_TORQUE): "model", id(INITIAL): "initial", id(INTEGRATION): "integration",
+           id(ENSEMBLE): "ensemble"}
+
+
+def _kind(annotation) -> Optional[T.ParamType]:
+    return next((m for m in getattr(annotation, "__metadata__", ()) if isinstance(m, T.ParamType)), None)
+
+
+def _flag(annotation, name: str) -> str:
+    info = next((m for m in getattr(annotation, "__metadata__", ()) if hasattr(m, "param_decls")), None)
+    decls = [d for d in (getattr(info, "param_decls", None) or ()) if d.startswith("--")]
+    return decls[0] if decls else "--" + name.replace("_", "-")
+
+
+def command(*groups: Dict[str, Any]):
+    """Give a command the option ``groups`` and parse every typed value (see the module)."""
+
+    def decorate(func):
+        sig = inspect.signature(func, eval_str=True)
+        names = {_GROUPS[id(g)]: g for g in groups}
+        own = [p for name, p in sig.parameters.items() if name not in names]
+        extra = [
+            inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=None, annotation=ann)
+            for group in groups for name, ann in group.items()
+        ]
+        annotations = {p.name: p.annotation for p in extra + own}
+
+        @functools.wraps(func)
+        def run(**kwargs):
+            for name, value in kwargs.items():
+                kind = _kind(annotations.get(name))
+                if kind is not None and value is not None:
+                    kwargs[name] = kind.convert(value, _flag(annotations[name], name))
+            for target, group in names.items():
+                kwargs[target] = {k: kwargs.pop(k) for k in group if k in kwargs}
+            if "integration" in kwargs and kwargs["integration"].get("method") is not None:
+                kwargs["integration"]["method"] = kwargs["integration"]["method"].value
+            return func(**kwargs)
+
+        run.__signature__ = sig.replace(parameters=extra + own)
+        return run
+
+    return decorate
+
+
+#: The current command's names for the parameters the library's messages use (see
+#: :func:`skewpend.cli.messages.locate`); filled by :func:`resolve`.
+LOCATIONS: Dict[str, str] = {}
+
+
+def resolve(command_name: str, config: Optional[str] = None, *, defaults: bool = True, flags=None, **sections):
+    """The :class:`~skewpend.config.Run` of a command (defaults, run file, options); its
+    locations are remembered for the messages."""
+    from ..config import Run
+
+    run = Run(command_name, config, sections, defaults=defaults, flags=flags)
+    LOCATIONS.update(run.locations())
+    return run
+
+
+def progress(label: str, unit: str, quiet: bool):
+    """The progress bar of a long computation (on a terminal, unless ``--quiet``)."""
+    from ..progress import ProgressBar
+
+    return ProgressBar(label, unit=unit, enabled=None if not quiet else False)

@@ -1,0 +1,274 @@
+"""Parameter types of the command line: each parses a typed value once and names the option
+in its one-line refusal.
+
+They play the part of click's ``ParamType`` (pyhf's ``cli/``): the option is declared as text
+and its type rides along in the ``Annotated`` metadata (``Annotated[Optional[str],
+typer.Option("--a"), Scalar()]``); :func:`skewpend.cli.options.command` converts every given
+value with :meth:`ParamType.convert` before the command runs.  (Typer 0.29 vendors click and
+exposes no ``ParamType`` to subclass; this keeps the parsing in one place all the same.)  The
+parsers themselves are the library's (:mod:`skewpend.parsing`), shared with run files.
+Errors are :class:`~skewpend.parsing.UsageError`: one line, exit status 2.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import math
+import re
+from typing import Any, Optional, Sequence, Tuple
+
+from ..parsing import UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
+
+__all__ = [
+    "ParamType", "Scalar", "Angle", "Positive", "NonNegative", "Whole", "Range", "Interval", "Window", "Vector",
+    "Inertia", "OutPath", "Scheduler", "Port", "Host", "Size", "Section", "Energy",
+]
+
+
+class ParamType:
+    """Text typed for an option -> its value (``convert``), or a :class:`UsageError` naming the option."""
+
+    metavar = "VALUE"
+
+    def convert(self, text: str, flag: str) -> Any:  # pragma: no cover - every type overrides it
+        raise NotImplementedError
+
+
+class Scalar(ParamType):
+    """A model parameter: a finite number, or ``sym`` (kept as the text ``"sym"``: symbolic)."""
+
+    metavar = "NUMBER|sym"
+    angle = False
+
+    def convert(self, text, flag):
+        value = parse_scalar(text, flag, angle=self.angle)
+        return "sym" if value is None else value
+
+
+class Angle(Scalar):
+    """An angle: radians, a ``deg`` suffix (``30deg``) or a multiple of pi (``pi/2``); or ``sym``."""
+
+    metavar = "ANGLE"
+    angle = True
+
+
+class Positive(ParamType):
+    """A positive finite number (``sym`` refused: a setting is never symbolic)."""
+
+    metavar = "NUMBER"
+    angle = False
+    strict = True  # > 0; NonNegative: >= 0
+
+    def __init__(self, what: str = "number", *, at_most: Optional[float] = None) -> None:
+        self.what = what
+        self.at_most = at_most
+
+    def convert(self, text, flag):
+        value = parse_scalar(text, flag, angle=self.angle)
+        sign = "positive" if self.strict else "non-negative"
+        if value is None or not (value > 0 if self.strict else value >= 0):
+            raise UsageError(f"{flag}: expected a {sign} {self.what}{'' if self.strict else ' (>= 0)'}, got {text!r}")
+        if self.at_most is not None and value > self.at_most:
+            raise UsageError(f"{flag}: expected a {sign} {self.what} of at most {self.at_most:g}, got {text!r}")
+        return abs(value)  # -0 is 0
+
+
+class NonNegative(Positive):
+    strict = False
+
+
+class PositiveAngle(Positive):
+    """An angle in (0, ``at_most``), radians or ``deg`` or a multiple of pi."""
+
+    angle = True
+    metavar = "ANGLE"
+
+
+class Whole(ParamType):
+    """A whole number from ``lo`` to ``hi`` (``1e3`` is a whole number too)."""
+
+    metavar = "N"
+
+    def __init__(self, lo: int, hi: int) -> None:
+        self.lo, self.hi = lo, hi
+
+    def convert(self, text, flag):
+        return parse_whole(text, flag, self.lo, self.hi)
+
+
+class Range(ParamType):
+    """``START:STOP:COUNT`` -> evenly spaced values (see :func:`skewpend.parsing.parse_range`)."""
+
+    metavar = "START:STOP:COUNT"
+
+    def __init__(self, *, angle: bool) -> None:
+        self.angle = angle
+
+    def convert(self, text, flag):
+        from ..parsing import parse_range
+
+        return parse_range(text, flag, angle=self.angle)
+
+
+class Interval(ParamType):
+    """``START:STOP`` -> ``(start, stop)``."""
+
+    metavar = "START:STOP"
+
+    def __init__(self, *, angle: bool) -> None:
+        self.angle = angle
+
+    def convert(self, text, flag):
+        from ..parsing import parse_interval
+
+        return parse_interval(text, flag, angle=self.angle)
+
+
+class Window(ParamType):
+    """``PHI0:PHI1,PSI0:PSI1`` -> two increasing angle intervals within -180..180 deg."""
+
+    metavar = "PHI0:PHI1,PSI0:PSI1"
+
+    def convert(self, text, flag):
+        from ..parsing import parse_interval
+
+        parts = text.split(",")
+        if len(parts) != 2:
+            raise UsageError(f"{flag}: expected PHI0:PHI1,PSI0:PSI1 (e.g. -90:90deg,-180:180deg), got {text!r}")
+        ranges = tuple(parse_interval(part, f"{flag} ({name})", angle=True) for part, name in zip(parts, ("phi", "psi")))
+        for (lo, hi), name in zip(ranges, ("phi", "psi")):
+            if not -math.pi - 1e-12 <= lo < hi <= math.pi + 1e-12:
+                raise UsageError(f"{flag} ({name}): expected START < STOP within -180..180 deg, got {lo:.6g}:{hi:.6g} rad")
+        return ranges
+
+
+class Vector(ParamType):
+    """``x,y,z`` numbers or symbol names, or ``sym``."""
+
+    metavar = "X,Y,Z"
+
+    def convert(self, text, flag):
+        return parse_vector(text, flag)
+
+
+class Inertia(ParamType):
+    """``Ixx,Iyy,Izz[,Ixy,Ixz,Iyz]`` (or 9 entries), or ``sym``."""
+
+    metavar = "I"
+
+    def convert(self, text, flag):
+        value = parse_inertia(text, flag)
+        return value if value == "sym" else ",".join(str(x) for row in value for x in row)
+
+
+class OutPath(ParamType):
+    """An output file with one of ``suffixes``, in an existing directory: checked before any work."""
+
+    metavar = "FILE"
+
+    def __init__(self, suffixes, *, check: bool = True) -> None:
+        self._suffixes = suffixes  # a tuple, or "module:NAME" of the library (imported when used)
+        self.check = check
+
+    @property
+    def suffixes(self) -> Tuple[str, ...]:
+        if isinstance(self._suffixes, str):
+            import importlib
+
+            module, name = self._suffixes.split(":")
+            return tuple(getattr(importlib.import_module(module, __package__), name))
+        return tuple(self._suffixes)
+
+    def convert(self, text, flag):
+        if not text.strip():
+            raise UsageError(f"{flag}: expected a file name ending in {' or '.join(self.suffixes)}, got ''")
+        if not text.lower().endswith(self.suffixes):
+            raise UsageError(f"{flag}: expected a file name ending in {' or '.join(self.suffixes)}, got {text!r}")
+        if self.check:
+            from ..io import check_output_path
+
+            check_output_path(text, self.suffixes, option=flag)
+        return text
+
+
+class Scheduler(ParamType):
+    """The address of a dask.distributed scheduler, ``tcp://HOST:PORT`` (or another scheme://)."""
+
+    metavar = "tcp://HOST:PORT"
+
+    def convert(self, text, flag):
+        t = text.strip()
+        m = re.fullmatch(r"([a-z][a-z0-9+.-]*)://(\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})/?", t)
+        if not (t.isascii() and m and 1 <= int(m.group(3)) <= 65535):
+            raise UsageError(f"{flag}: expected a scheduler address such as tcp://127.0.0.1:8786, got {text!r}")
+        return t
+
+
+class Port(ParamType):
+    metavar = "PORT"
+
+    def convert(self, text, flag):
+        t = text.strip()
+        if not (t.isascii() and t.isdigit() and 1 <= int(t) <= 65535):
+            raise UsageError(f"{flag}: expected a whole number from 1 to 65535, got {text!r}")
+        return int(t)
+
+
+class Host(ParamType):
+    """An IP address (``[::1]`` or ``::1``) or a host name."""
+
+    metavar = "HOST"
+
+    def convert(self, text, flag):
+        name = text.strip()
+        if not name:
+            raise UsageError(f"{flag}: expected an address such as 127.0.0.1 or 0.0.0.0, got {text!r}")
+        bare = name[1:-1] if name.startswith("[") and name.endswith("]") else name
+        try:
+            return str(ipaddress.ip_address(bare))
+        except ValueError:
+            if not (name.isascii() and re.fullmatch(r"[A-Za-z0-9](?:[A-Za-z0-9.-]{0,251}[A-Za-z0-9])?", name)):
+                raise UsageError(f"{flag}: expected an IP address or a host name, got {text!r}") from None
+            return name
+
+
+class Size(ParamType):
+    """``WIDTHxHEIGHT`` in pixels."""
+
+    metavar = "WxH"
+
+    def convert(self, text, flag) -> Tuple[int, int]:
+        parts = text.strip().lower().replace("×", "x").split("x")
+        if len(parts) != 2 or not all(p.strip().isascii() and p.strip().isdigit() for p in parts):
+            raise UsageError(f"{flag}: expected WIDTHxHEIGHT in pixels (e.g. 640x480), got {text!r}")
+        w, h = (int(p) for p in parts)
+        if not (16 <= w <= 7680 and 16 <= h <= 4320):
+            raise UsageError(f"{flag}: expected WIDTHxHEIGHT from 16x16 to 7680x4320 pixels, got {text!r}")
+        return w, h
+
+
+class Section(ParamType):
+    """``phi=VALUE`` or ``psi=VALUE`` (an angle: radians, deg, a multiple of pi) -> the library's spelling."""
+
+    metavar = "phi=VALUE|psi=VALUE"
+
+    def convert(self, text, flag):
+        m = re.fullmatch(r"\s*(phi|psi)\s*=\s*(\S+)\s*", text)
+        if not m:
+            raise UsageError(f"{flag}: expected phi=VALUE or psi=VALUE (radians, e.g. 30deg, or a multiple of pi such as pi/2), got {text!r}")
+        value = parse_scalar(m.group(2), f"{flag} {m.group(1)}", angle=True)
+        if value is None:
+            raise UsageError(f"{flag} {m.group(1)}: the value must be a number, not 'sym'")
+        return f"{m.group(1)}={value!r}"
+
+
+class Energy(ParamType):
+    """An energy in joules (a finite number; the library checks it against the minimum)."""
+
+    metavar = "JOULES"
+
+    def convert(self, text, flag):
+        value = parse_scalar(text, flag)
+        if value is None:
+            raise UsageError(f"{flag}: expected a number of joules, got {text!r}")
+        return value

@@ -1,0 +1,258 @@
+"""Run settings as a person writes them: a TOML run file, values typed on a command line, defaults.
+
+A *run* resolves, key by key, the built-in defaults, then a run file (``--config``), then the
+values given on the command line; every value remembers where it came from, so a message can
+name what the user typed (``--a``, or ``run.toml: [parameters] a``).
+
+**The rule for run files, written once** (:data:`READS`): every key a command reads takes
+effect; a key it does not read is refused in one line naming the key and the command, as
+unknown keys are.  Nothing in a run file is ever silently ignored.
+
+The parameters of the model are built in one way, :func:`build_parameters`, from values as the
+user spelled them (numbers, ``"30deg"``, ``"pi/2"``, ``"sym"``, vectors, matrices).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Dict, Iterable, Mapping, Optional
+
+from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
+
+__all__ = [
+    "DEFAULT_RUN", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
+]
+
+#: The run ``skewpend simulate`` does with no options (the reference case of the README).
+DEFAULT_RUN: Dict[str, Dict[str, Any]] = {
+    "parameters": {"a": 1.0, "b": 0.8, "m1": 1.0, "m2": 0.7, "alpha": 0.6, "g": 9.81},
+    "initial": {"phi0": 1.2, "psi0": -0.8, "dphi0": 0.0, "dpsi0": 0.0},
+    "simulation": {"t_end": 20.0, "method": "dop853"},
+}
+
+#: The commands that integrate one run with a choice of method (DEFAULT_RUN's [simulation] is theirs).
+ONE_RUN = ("simulate", "animate", "report")
+
+#: The model's keys ([parameters]) and the initial state's ([initial]).
+SCALAR_KEYS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
+MODEL_KEYS = frozenset(SCALAR_KEYS + ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2"))
+INITIAL_KEYS = frozenset(("phi0", "psi0", "dphi0", "dpsi0"))
+_INTEGRATION = frozenset(("t_end", "method", "rtol", "atol", "dt", "max_steps"))
+_DOP853 = frozenset(("t_end", "method", "rtol", "atol"))  # the DOP853-only analyses
+
+#: What each command reads of a run file, by section.  The one rule: a key listed takes effect,
+#: any other key of a run file is refused, naming the key and the command.
+READS: Dict[str, Dict[str, frozenset]] = {
+    "simulate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS,
+                 "simulation": _INTEGRATION | {"dt_out", "out", "plot"}},
+    "animate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": _INTEGRATION},
+    "report": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": _INTEGRATION},
+    "validate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": frozenset({"t_end"})},
+    "lyapunov": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": _DOP853 | {"max_steps"}},
+    "flipmap": {"parameters": MODEL_KEYS, "simulation": _DOP853},
+    "poincare": {"parameters": MODEL_KEYS, "simulation": frozenset(("method", "rtol", "atol"))},
+    "chaos-diagram": {"parameters": MODEL_KEYS - {"alpha"}, "simulation": _DOP853},
+    "export": {"parameters": MODEL_KEYS},
+    "modes": {"parameters": MODEL_KEYS},
+}
+
+#: Why a command does not read a key that some other command does (the refusal says it).
+_WHY_NOT = {
+    ("chaos-diagram", "alpha"): "the chaos diagram varies alpha itself (give the angles with --alphas START:STOP:COUNT)",
+    ("animate", "dt_out"): "the frames are the rows (dt_out = speed/fps), written to --out",
+    ("animate", "out"): "the video is written to --out FILE.mp4|.gif",
+    ("animate", "plot"): "an animation draws no plot",
+    ("report", "out"): "the report is written to --out FILE.html",
+    ("report", "dt_out"): "the report draws the integrator's own steps",
+    ("poincare", "t_end"): "each orbit runs until its crossings are recorded, or --t-max",
+}
+
+
+def as_text(value: Any, where: str = "value") -> Optional[str]:
+    """A run file's value in the command line's spelling (vectors and matrices flattened to
+    ``x,y,z``); numbers, strings and None pass through.  Booleans and tables are refused."""
+    if value is None or isinstance(value, str):
+        return value
+    if isinstance(value, bool):
+        raise UsageError(f"{where}: expected a number, got {str(value).lower()}")
+    if isinstance(value, (list, tuple)):
+        flat = []
+        for v in value:
+            flat.extend(v if isinstance(v, (list, tuple)) else [v])
+        if any(isinstance(x, (bool, list, tuple, dict)) for x in flat):
+            raise UsageError(f"{where}: expected numbers or symbol names, got {value!r}")
+        return ",".join(repr(float(x)) if isinstance(x, (int, float)) else str(x) for x in flat)
+    if isinstance(value, dict):
+        raise UsageError(f"{where}: expected a number, got a table")
+    if isinstance(value, (int, float)):
+        return value  # parsed (and checked) by parse_scalar
+    return repr(value)
+
+
+def build_parameters(values: Mapping[str, Any], where: Optional[Mapping[str, str]] = None):
+    """:class:`~skewpend.Parameters` from values as spelled (the one way of building them from
+    user input).  A missing scalar stays symbolic, except the damping and torques ``c1, c2, tau1,
+    tau2``, which are 0 unless given (``"sym"`` makes them symbolic); ``where`` names each key as
+    the user knows it (default ``--key``)."""
+    from .symbolic.model import Parameters
+
+    where = dict(where or {})
+
+    def w(k):
+        return where.get(k, "--" + k)
+
+    def text(k):
+        return as_text(values.get(k), w(k))
+
+    scalars = {k: parse_scalar(text(k), w(k), angle=(k == "alpha")) for k in ("a", "b", "m1", "m2", "alpha", "g")}
+    for k in ("c1", "c2", "tau1", "tau2"):
+        scalars[k] = parse_scalar(0.0 if values.get(k) is None else text(k), w(k))
+    geometry = {k: parse_vector(text(k), w(k)) for k in ("com1", "com2", "axis1", "axis2")}
+    geometry.update({k: parse_inertia(text(k), w(k)) for k in ("inertia1", "inertia2")})
+    return Parameters(**scalars, **geometry)
+
+
+class Run:
+    """The resolved settings of one command: defaults, then the run file, then the command line.
+
+    ``command`` names the command (a key of :data:`READS`); ``config`` is the run file or None;
+    ``given`` maps a section to the values typed on the command line (None: not given);
+    ``defaults`` adds :data:`DEFAULT_RUN` (False: a missing parameter stays symbolic).
+    """
+
+    def __init__(self, command: str, config: Optional[str] = None, given: Optional[Mapping[str, Mapping[str, Any]]] = None,
+                 *, defaults: bool = True, flags: Optional[Mapping[str, str]] = None) -> None:
+        from .io import read_config
+
+        self.command = command
+        self.values: Dict[str, Dict[str, Any]] = {k: {} for k in DEFAULT_RUN}
+        self.where: Dict[str, Dict[str, str]] = {k: {} for k in DEFAULT_RUN}
+        self.given: Dict[str, set] = {k: set() for k in DEFAULT_RUN}
+        self._flags = dict(flags or {})
+        if defaults:  # the reference case; its duration and method only for the commands of one run
+            for section, values in DEFAULT_RUN.items():
+                if section == "simulation" and command not in ONE_RUN:
+                    continue
+                for k, v in values.items():
+                    self._set(section, k, v, f"default {k}", given=False)
+        if config is not None:
+            reads = READS.get(command, {})
+            for section, values in read_config(config).items():
+                for k, v in values.items():
+                    if k not in reads.get(section, ()):
+                        why = _WHY_NOT.get((command, k), "it is a setting of another command")
+                        raise UsageError(f"{config}: [{section}] {k} is not read by skewpend {command}: {why}; "
+                                         f"remove it from the run file, or give this command its own")
+                    self._set(section, k, v, f"{config}: [{section}] {k}")
+        for section, values in (given or {}).items():
+            for k, v in values.items():
+                if v is not None:
+                    self._set(section, k, v, self.flag(k))
+        P = self.values["parameters"]
+        if "axis2" in P and "alpha" in P and "alpha" not in self.given["parameters"]:
+            del P["alpha"]  # the built-in alpha gives way to a user's axis2
+
+    def flag(self, key: str) -> str:
+        """The command-line option of ``key``."""
+        return self._flags.get(key, "--" + key.replace("_", "-"))
+
+    def _set(self, section, key, value, where, given=True):
+        self.values[section][key] = value
+        self.where[section][key] = where
+        if given:
+            self.given[section].add(key)
+
+    # -- reading values -------------------------------------------------------------------------
+    def option(self, section: str, key: str) -> str:
+        """Where the value of ``key`` came from, as the user knows it."""
+        return self.where[section].get(key, self.flag(key))
+
+    def locations(self) -> Dict[str, str]:
+        """Every key -> where its value came from (for messages that name a parameter)."""
+        return {k: w for where in self.where.values() for k, w in where.items()}
+
+    def is_given(self, section: str, key: str) -> bool:
+        return key in self.given[section]
+
+    def raw(self, section: str, key: str, default: Any = None) -> Any:
+        return self.values[section].get(key, default)
+
+    def text(self, section: str, key: str) -> Optional[str]:
+        return as_text(self.values[section].get(key), self.option(section, key))
+
+    def scalar(self, section: str, key: str, *, angle: bool = False) -> Optional[float]:
+        return parse_scalar(self.text(section, key), self.option(section, key), angle=angle)
+
+    def number(self, key: str, default: Optional[float] = None, *, low: float = 0.0, inclusive: bool = False,
+               section: str = "simulation") -> Optional[float]:
+        """A setting that is a number above ``low`` (at least ``low`` with ``inclusive``);
+        ``default`` when not set; 'sym' is refused (a setting is never symbolic)."""
+        if self.values[section].get(key) is None:
+            return default
+        where = self.option(section, key)
+        value = parse_scalar(self.text(section, key), where)
+        if value is None or not (value >= low if inclusive else value > low):
+            bound = ("a non-negative" if inclusive else "a positive") if low == 0 else f"a number {'>=' if inclusive else '>'} {low:g}"
+            raise UsageError(f"{where}: expected {bound} number, got {self.values[section][key]!r}")
+        return value
+
+    def whole(self, key: str, default: int, lo: int, hi: int, section: str = "simulation") -> int:
+        if self.values[section].get(key) is None:
+            return default
+        value = self.values[section][key]
+        return parse_whole(value, self.option(section, key), lo, hi)
+
+    def path(self, key: str, section: str = "simulation") -> Optional[str]:
+        value = self.values[section].get(key)
+        if value is not None and not isinstance(value, str):
+            raise UsageError(f"{self.option(section, key)}: expected a file name, got {value!r}")
+        return value
+
+    def settings(self, keys: Iterable[str], section: str = "simulation") -> Dict[str, float]:
+        """The positive numeric settings among ``keys`` that are set (defaults included)."""
+        return {k: self.number(k, section=section) for k in keys if self.values[section].get(k) is not None}
+
+    # -- the model and the start ------------------------------------------------------------------
+    def parameters(self):
+        """The :class:`~skewpend.Parameters` of the run (see :func:`build_parameters`)."""
+        return build_parameters(self.values["parameters"], self.where["parameters"])
+
+    def initial_state(self):
+        """``[phi0, psi0, dphi0, dpsi0]``: numeric, the angles at most :data:`MAX_ANGLE` rad."""
+        y0 = []
+        for k in ("phi0", "psi0", "dphi0", "dpsi0"):
+            value = self.scalar("initial", k, angle=k in ("phi0", "psi0"))
+            if value is None:
+                raise UsageError(f"{self.option('initial', k)}: the initial state must be numeric, not 'sym'")
+            if k in ("phi0", "psi0") and abs(value) > MAX_ANGLE:
+                raise UsageError(f"{self.option('initial', k)}: expected an angle of at most {MAX_ANGLE:g} rad in magnitude, got {value:g}")
+            y0.append(value)
+        return y0
+
+    def integration(self, methods: Iterable[str] = ("dop853", "rk4", "gauss")) -> Dict[str, Any]:
+        """The integrator settings (method, rtol, atol, dt, max_steps) that are set, checked
+        against each other: tolerances go with dop853, a step with rk4 and gauss; a method
+        outside ``methods`` is refused."""
+        methods = tuple(methods)
+        method = self.values["simulation"].get("method", "dop853")
+        if not isinstance(method, str) or method not in methods:
+            raise UsageError(f"{self.option('simulation', 'method')}: expected {' or '.join(methods)}, got {method!r}")
+        for key in ("rtol", "atol"):
+            if method != "dop853" and self.is_given("simulation", key):
+                raise UsageError(f"{self.option('simulation', key)} is a tolerance of dop853; {method} takes fixed steps (set --dt)")
+        if method == "dop853" and self.is_given("simulation", "dt"):
+            raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; dop853 chooses its own steps (set --rtol/--atol)")
+        out: Dict[str, Any] = {"method": method, **self.settings(("rtol", "atol", "dt"))}
+        if self.values["simulation"].get("max_steps") is not None:
+            out["max_steps"] = self.whole("max_steps", 0, 1, MAX_STEP_CAP)
+        return out
+
+
+#: Largest step cap (the compiled integrators count steps in 64-bit integers).
+MAX_STEP_CAP = 10**15
+
+
+def whole_multiple(value: float, unit: float) -> bool:
+    """Whether ``value`` is a whole number of ``unit`` (to rounding)."""
+    k = round(value / unit)
+    return math.isclose(k * unit, value, rel_tol=1e-9, abs_tol=1e-12 * unit)
