@@ -113,7 +113,7 @@ def test_sweep_over_alpha_and_resonances():
     assert len(crossings) == 2
     m = normal_modes(BENCH.replace(alpha=crossings[0].value))
     assert m.frequencies[1] / m.frequencies[0] == pytest.approx(2.0, abs=2e-4)
-    cols, rows = sw.table()
+    cols, rows = sw.columns()
     assert cols[:3] == ["alpha", "omega1", "omega2"] and rows.shape == (181, 11) and cols[-1] == "alpha_deg"
 
 

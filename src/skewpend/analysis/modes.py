@@ -20,11 +20,13 @@ import itertools
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
+from ..results import DatasetSpec, ResultProtocol
+from ..status import Status
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
 __all__ = [
@@ -127,7 +129,7 @@ def linear_matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndar
 
 # -- normal modes -------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class Modes:
+class Modes(ResultProtocol):
     """Normal modes of the small oscillations about the hanging equilibrium.
 
     * ``frequencies`` -- natural (undamped) angular frequencies ``w_k`` [rad/s], ascending, (2,);
@@ -151,7 +153,10 @@ class Modes:
       ``(|l1| + |l2|) / (2 sqrt(l1 l2))`` for two real eigenvalues (overdamped, >= 1); for a
       single degree of freedom ``m x'' + c x' + k x = 0`` both are ``c / (2 sqrt(k m))``.
       Undamped: 0;
-    * ``M``, ``C``, ``K`` -- the linear matrices; ``params``.
+    * ``M``, ``C``, ``K`` -- the linear matrices; ``params``;
+    * the result protocol: ``settings`` (the equilibrium), ``stats`` (empty), ``status``
+      (always SUCCESS: what cannot be computed is refused), ``ok``, ``message``, ``to_xarray()``,
+      ``to_netcdf()``, ``summary()``.
     """
 
     frequencies: np.ndarray
@@ -167,6 +172,37 @@ class Modes:
     C: np.ndarray
     K: np.ndarray
     params: Parameters = field(repr=False)
+
+    result_kind: ClassVar[str] = "normal modes"
+    status: ClassVar[Status] = Status.SUCCESS
+    message: ClassVar[str] = "the modes of the linearised equations about the hanging equilibrium"
+
+    @property
+    def settings(self) -> Dict:
+        return {"equilibrium": [0.0, 0.0]}
+
+    @property
+    def stats(self) -> Dict:
+        return {}
+
+    def _dataset(self) -> DatasetSpec:
+        pairs = self.eigenvalue_pairs
+        return DatasetSpec(
+            variables={
+                "frequency": (("mode",), self.frequencies, {"units": "rad/s", "long_name": "natural angular frequency"}),
+                "period": (("mode",), self.periods, {"units": "s"}),
+                "shape": (("coordinate", "mode"), self.shapes, {"long_name": "mode shape, v^T M0 v = 1; rows phi, psi"}),
+                "damping_ratio": (("mode",), self.damping_ratios, {"units": "1"}),
+                "damped_frequency": (("mode",), self.damped_frequencies, {"units": "rad/s"}),
+                "eigenvalue_real": (("mode", "pair"), pairs.real, {"units": "1/s"}),
+                "eigenvalue_imag": (("mode", "pair"), pairs.imag, {"units": "1/s"}),
+                "M0": (("coordinate", "coordinate_2"), self.M, {"long_name": "linear mass matrix"}),
+                "C0": (("coordinate", "coordinate_2"), self.C, {"long_name": "linear damping matrix"}),
+                "K0": (("coordinate", "coordinate_2"), self.K, {"long_name": "linear stiffness matrix"}),
+            },
+            coords={"mode": (("mode",), np.array([1, 2]), {})},
+            attrs={"title": "normal modes of the skewed double pendulum (skewpend)", **self._base_attrs()},
+        )
 
     @property
     def damped(self) -> bool:
@@ -515,10 +551,11 @@ class Resonance:
 
 
 @dataclass(frozen=True)
-class Sweep:
+class Sweep(ResultProtocol):
     """Modes along a swept variable: ``values`` (n,) in SI units (radians for alpha),
     ``frequencies`` (n, 2) [rad/s], ``shapes`` (n, 2, 2) (columns = modes), ``ratios`` (n, 2)
-    psi/phi, ``resonances``."""
+    psi/phi, ``resonances``; the result protocol as for :class:`Modes`.  :meth:`columns` gives
+    the CSV columns and rows, :meth:`table` a text table (as every result's ``table()``)."""
 
     name: str
     values: np.ndarray
@@ -529,11 +566,41 @@ class Sweep:
     tolerance: float
     params: Parameters = field(repr=False)
 
+    result_kind: ClassVar[str] = "modes sweep"
+    status: ClassVar[Status] = Status.SUCCESS
+    message: ClassVar[str] = "the modes at every value of the sweep"
+
+    @property
+    def settings(self) -> Dict:
+        return {"swept": self.name, "values": self.values.tolist(), "resonance_tolerance": self.tolerance}
+
+    @property
+    def stats(self) -> Dict:
+        return {"values": int(self.values.size), "resonances": len(self.resonances)}
+
+    def _dataset(self) -> DatasetSpec:
+        cols, rows = self.columns()
+        units = self.units()
+        return DatasetSpec(
+            variables={c: (("value",), rows[:, i], {"units": units[c]}) for i, c in enumerate(cols) if c != self.name},
+            coords={"value": (("value",), self.values, {"units": units[self.name], "long_name": self.name})},
+            attrs={"title": "normal modes along a sweep (skewpend)", **self._base_attrs()},
+        )
+
+    def table(self) -> str:
+        """A text table: the swept value, both frequencies and their ratio."""
+        unit = "deg" if self.name == "alpha" else _UNITS[self.name]
+        values = np.degrees(self.values) if self.name == "alpha" else self.values
+        lines = [f"{self.name + ' [' + unit + ']':>14} {'omega1':>10} {'omega2':>10} {'w2/w1':>8}"]
+        for v, (w1, w2) in zip(values, self.frequencies):
+            lines.append(f"{v:14.6g} {w1:10.6g} {w2:10.6g} {w2 / w1:8.4f}")
+        return "\n".join(lines)
+
     @property
     def frequency_ratio(self) -> np.ndarray:
         return self.frequencies[:, 1] / self.frequencies[:, 0]
 
-    def table(self) -> Tuple[List[str], np.ndarray]:
+    def columns(self) -> Tuple[List[str], np.ndarray]:
         """Columns and rows for CSV output (SI units: the swept alpha in radians, with an
         ``alpha_deg`` column last; see :meth:`units`)."""
         cols = [
@@ -550,7 +617,7 @@ class Sweep:
         return cols, np.column_stack(rows)
 
     def units(self) -> Dict[str, str]:
-        """The unit of each column of :meth:`table`."""
+        """The unit of each column of :meth:`columns`."""
         shape = "kg^-1/2 m^-1 (v^T M0 v = 1)"
         u = {self.name: _UNITS[self.name], "omega1": "rad/s", "omega2": "rad/s", "period1": "s", "period2": "s",
              "omega2_over_omega1": "1", "mode1_phi": shape, "mode1_psi": shape, "mode2_phi": shape, "mode2_psi": shape}
@@ -559,10 +626,10 @@ class Sweep:
         return u
 
     def to_dict(self) -> Dict:
-        """The JSON form: ``columns``, ``units`` and ``rows`` as in :meth:`table` (alpha in
+        """The JSON form: ``columns``, ``units`` and ``rows`` as in :meth:`columns` (alpha in
         radians plus ``alpha_deg``), and the ``resonances`` (``value`` in the swept variable's
         SI unit, plus ``value_deg`` for alpha)."""
-        cols, rows = self.table()
+        cols, rows = self.columns()
         resonances = []
         for r in self.resonances:
             d = dict(r.__dict__)

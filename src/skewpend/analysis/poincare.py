@@ -60,7 +60,9 @@ def section_status(orbit_status: np.ndarray, stats: Dict[str, Any], room: float)
     problems = []
     if failed:
         problems.append(f"{failed} of {n} orbits failed (non-finite state, step size underflow or max_steps)")
-    if not (err <= MAX_RELATIVE_ENERGY_ERROR * max(room, 1e-300)):
+    if not math.isfinite(err):
+        problems.append("points with a non-finite energy were produced")
+    elif not err <= MAX_RELATIVE_ENERGY_ERROR * max(room, 1e-300):
         problems.append(f"the energy error reaches {err:.3g} J, more than {MAX_RELATIVE_ENERGY_ERROR:g} of the "
                         f"energy above the minimum ({room:.3g} J): the points left the energy surface; use a "
                         "smaller rtol/atol")
