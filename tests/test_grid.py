@@ -260,3 +260,23 @@ def test_netcdf_on_a_full_disk_is_one_error_and_no_file(full_disk):
         fm.to_netcdf(full_disk / "m.nc")
     assert "cannot write" in str(info.value) and "\n" not in str(info.value)
     assert list(full_disk.iterdir()) == []
+
+
+# -- work that cannot finish is refused before it starts ------------------------------------------------------
+@pytest.mark.parametrize("call", [
+    lambda: __import__("skewpend.analysis.flipmap", fromlist=["x"]).flip_map(BENCH, 8, t_end=1e308),
+    lambda: __import__("skewpend.analysis.flipmap", fromlist=["x"]).flip_map(BENCH, 8, t_end=1e9),
+    lambda: __import__("skewpend.analysis.chaos", fromlist=["x"]).chaos_diagram(BENCH, samples=2, t_end=1e12),
+    lambda: __import__("skewpend.analysis.lyapunov", fromlist=["x"]).lyapunov_map(BENCH, 4, t_end=1e12),
+    lambda: __import__("skewpend.analysis.flipmap", fromlist=["x"]).flip_map(BENCH, 8, t_end=1e5, max_steps=1000),
+], ids=["flip-1e308", "flip-1e9", "chaos-1e12", "lyapunov-map-1e12", "flip-small-cap"])
+def test_infeasible_grids_are_refused_at_once_with_the_estimate(call):
+    import time
+
+    start = time.perf_counter()
+    with pytest.raises(ParameterError) as info:
+        call()
+    message = str(info.value)
+    assert "cannot finish" in message and "steps per trajectory" in message and "max_steps" in message
+    assert "\n" not in message and "nan" not in message and "inf" not in message.replace("info", "")
+    assert time.perf_counter() - start < 5.0  # a trial run of a few ms (plus a kernel build on a cold cache)

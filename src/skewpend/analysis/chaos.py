@@ -359,10 +359,33 @@ def chaos_diagram(
             raise ParameterError(f"threshold must be a positive number [1/s], got {threshold!r}") from None
         if not (math.isfinite(threshold) and threshold > 0):
             raise ParameterError(f"threshold must be a positive number [1/s], got {threshold!r}")
+    _check_feasible(params.replace(alpha=float(alphas[-1])), float(energies[-1]), t_end=t_end, rtol=rtol, atol=atol,
+                    max_steps=max_steps)
     job = ChaosJob(params=params, alpha=tuple(alphas.tolist()), energy=tuple(energies.tolist()), samples=int(samples),
                    t_end=t_end, renorm_every=renorm_every, transient=transient, rtol=rtol, atol=atol,
                    max_steps=max_steps, version=__version__, threshold=float(threshold))
     return run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress)
+
+
+def _check_feasible(params: Parameters, energy: float, *, t_end: float, rtol: float, atol: float,
+                    max_steps: int) -> None:
+    """Refuse up front a diagram whose trajectories cannot finish within ``max_steps``: the trial
+    runs start at rest high up and from the bottom with the top energy as kinetic energy."""
+    from ..numeric.kernels import kernel_module, parameter_vector
+    from .lyapunov import check_exponent_work
+    from .poincare import energy_minimum, mass_matrices
+
+    kernel = kernel_module(params, chaos=True)
+    p = parameter_vector(params)
+    e_min, q_min = energy_minimum(kernel, p)
+    m11 = float(mass_matrices(kernel, p, np.asarray(q_min, dtype=float).reshape(1, 2))[0, 0, 0])
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        speed = math.sqrt(2.0 * energy / m11) if m11 > 0 and math.isfinite(energy / m11) else math.inf
+    if not math.isfinite(speed):
+        raise ParameterError(f"energy {energy:g} J is too large for these bodies (the speeds overflow)")
+    probe = [(2.5, 2.5, 0.0, 0.0), (float(q_min[0]), float(q_min[1]), speed, 0.0)]
+    check_exponent_work((kernel, p), probe, params=params, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps,
+                        what="this chaos diagram")
 
 
 def _fraction(row: np.ndarray, threshold: float) -> np.ndarray:

@@ -331,7 +331,6 @@ def flip_map(
                                 chunk_size=chunk_size)
     max_steps = check_max_steps(max_steps)
     _check_memory(n)
-
     kernel = kernel_module(params, flip=True)
     p = parameter_vector(params)
     no_torque = params.tau1 == 0.0 and params.tau2 == 0.0
@@ -344,11 +343,28 @@ def flip_map(
                   atol=atol, max_steps=int(max_steps), symmetric=symmetric, threshold=threshold, version=__version__,
                   kernel_name=kernel.path.name, shortcuts=bool(shortcuts), barrier=barrier)
     state = (kernel, p, job.integrator(kernel, p))
+    _check_feasible(job, state)
     result = run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress,
                       chunk_size=chunk_size, state=state)
     if result.stats["failed"]:
         warnings.warn(f"flip_map: {result.message}", RuntimeWarning, stacklevel=2)
     return result
+
+
+def _check_feasible(job: "FlipJob", state) -> None:
+    """Refuse a map whose cells could not finish within ``max_steps`` (a trial run of the flip
+    kernel from energetic starts of the window: the ones that flip last the longest)."""
+    from ..numeric.ensemble import FlipIntegrator
+    from ..numeric.grid import check_feasible, probe_time, steps_per_second
+
+    kernel, p, _ = state
+    corner = (max(map(abs, job.phi_range)), max(map(abs, job.psi_range)))
+    cells = np.array([(0.9 * corner[0], 0.9 * corner[1]), (0.9 * corner[0], -0.9 * corner[1]), (0.5 * corner[0], 0.0)])
+    t = min(job.t_end, probe_time(job.params))
+    out = FlipIntegrator(kernel, p, t_end=t, rtol=job.rtol, atol=job.atol, max_steps=200_000).run(cells)
+    lived = np.where(np.isfinite(out.time), out.time, np.where(out.which == -2, 0.0, t))
+    rate = steps_per_second(out.steps + out.rejected, lived)
+    check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps, what="this flip map")
 
 
 #: Bytes per cell while a map is computed (results, energies, indices, sort).

@@ -524,7 +524,28 @@ def lyapunov_map(
     job = LyapunovMapJob(params=params, n=n, t_end=t_end, renorm_every=renorm_every, transient=transient,
                          phi_range=tuple(phi_range), psi_range=tuple(psi_range), rtol=rtol, atol=atol,
                          max_steps=max_steps, version=__version__)
-    return run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress)
+    state = job.setup()
+    corner = (max(map(abs, phi_range)), max(map(abs, psi_range)))
+    probe = [(0.9 * corner[0], 0.9 * corner[1], 0.0, 0.0), (0.9 * corner[0], -0.9 * corner[1], 0.0, 0.0),
+             (0.5 * corner[0], 0.0, 0.0, 0.0)]
+    check_exponent_work(state, probe, params=params, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps,
+                        what="this Lyapunov map")
+    return run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress,
+                    state=state)
+
+
+def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol: float, max_steps: int,
+                        what: str) -> None:
+    """Refuse up front work of largest exponents that cannot finish within ``max_steps`` per
+    trajectory: a trial run of the chaos kernel (``state`` = (kernel, p)) from ``probe``."""
+    from ..numeric.grid import check_feasible, probe_time, steps_per_second
+
+    kernel, p = state
+    t = min(t_end, probe_time(params))
+    _, status, steps = largest_exponents(kernel, p, np.asarray(probe, dtype=float), t_end=t, renorm_every=t,
+                                         transient=0.0, rtol=rtol, atol=atol, max_steps=200_000)
+    rate = steps_per_second(steps, np.where(status == 0, t, 0.0))
+    check_feasible(rate, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps, what=what)
 
 
 def open_lyapunov_map(path) -> LyapunovMap:

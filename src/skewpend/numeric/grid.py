@@ -28,6 +28,7 @@ data cannot be read or no longer match their digests is computed again.
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -38,7 +39,7 @@ import numpy as np
 from ..errors import ParameterError
 
 __all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "open_store_for", "chunk_rows", "work_units", "check_workers",
-           "check_run_options", "UNITS_PER_WORKER"]
+           "check_run_options", "check_feasible", "steps_per_second", "probe_time", "UNITS_PER_WORKER"]
 
 #: Default store chunk: at most this many cells (whole rows) ...
 CHUNK_CELLS = 65536
@@ -172,6 +173,48 @@ def check_run_options(*, workers, scheduler, store, resume, progress, chunk_size
                                    or chunk_size < 1):
         raise ParameterError(f"chunk_size must be a whole number >= 1, got {chunk_size!r}")
     return check_workers(workers)
+
+
+def probe_time(params) -> float:
+    """How long a trial run lasts [s]: about 20 swing times ``sqrt((a + b) / g)`` (1 s without
+    gravity), long enough for a representative step rate, a few ms of work."""
+    scale = math.sqrt((float(params.a) + float(params.b)) / float(params.g)) if float(params.g) > 0 else 1.0
+    return 20.0 * min(max(scale, 1e-6), 1e6)
+
+
+def steps_per_second(steps, durations) -> float:
+    """The largest rate ``steps / duration`` of trial runs (inf when one could not advance)."""
+    steps, durations = np.asarray(steps, dtype=float), np.asarray(durations, dtype=float)
+    if steps.size == 0:
+        return 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rates = np.where(durations > 0, steps / durations, np.inf)
+    return float(np.max(rates))
+
+
+#: A grid is refused when its trajectories would need this many times ``max_steps``: the trial
+#: rate is that of a few energetic starts, and cells differ in their rate by an order of
+#: magnitude or more (and a flip stops a cell early), so only work that could not finish at a
+#: hundredth of the trial rate is refused up front; cells that merely reach ``max_steps`` are
+#: counted as failed and make the result's status PARTIAL.
+FEASIBILITY_FACTOR = 100.0
+
+
+def check_feasible(rate: float, *, t_end: float, rtol: float, atol: float, max_steps: int, what: str,
+                   factor: float = FEASIBILITY_FACTOR) -> float:
+    """Refuse, before any work, a computation whose trajectories of ``t_end`` seconds would each
+    need more than ``factor x max_steps`` steps at ``rate`` steps per simulated second (measured
+    by a trial run of the computation's own kernel: :func:`probe_time`,
+    :func:`steps_per_second`), with the estimate in the message.  Returns the estimated steps
+    per trajectory."""
+    need = rate * t_end
+    if need > factor * max_steps:
+        about = f"about {need:.3g}" if math.isfinite(need) else "more than 1e308"
+        rate_text = f"~{rate:.3g} steps per simulated second" if math.isfinite(rate) else "a trial run could not advance"
+        raise ParameterError(f"{what} cannot finish: t_end = {t_end:g} s needs {about} steps per trajectory "
+                             f"({rate_text} at rtol={rtol:g}, atol={atol:g}), more than max_steps = {max_steps:g}; "
+                             "use a shorter t_end (or a larger max_steps)")
+    return need
 
 
 def _divisor_at_most(n: int, target: int) -> int:
