@@ -12,6 +12,7 @@ from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 from .errors import EquilibriumError, IntegrationError, NotNumericError, ParameterError, SkewpendError
+from .status import Status
 from .symbolic.model import Parameters
 
 __version__ = "0.1.0"
@@ -34,6 +35,9 @@ _LAZY = {
     "LyapunovSpectrum": "analysis.lyapunov",
     "lyapunov_map": "analysis.lyapunov",
     "LyapunovMap": "analysis.lyapunov",
+    "open_lyapunov_map": "analysis.lyapunov",
+    "run_grid": "numeric.grid",
+    "GridJob": "numeric.grid",
     "poincare": "analysis.poincare",
     "PoincareSection": "analysis.poincare",
     "chaos_diagram": "analysis.chaos",
@@ -60,6 +64,10 @@ __all__ = [
     "LyapunovSpectrum",
     "lyapunov_map",
     "LyapunovMap",
+    "open_lyapunov_map",
+    "run_grid",
+    "GridJob",
+    "Status",
     "poincare",
     "PoincareSection",
     "chaos_diagram",
@@ -79,7 +87,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from .numeric.simulation import Trajectory, simulate
     from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
-    from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map
+    from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map, open_lyapunov_map
+    from .numeric.grid import GridJob, run_grid
     from .analysis.poincare import PoincareSection, poincare
     from .analysis.chaos import ChaosDiagram, chaos_diagram, open_chaos_diagram
 
@@ -94,6 +103,7 @@ _SUBMODULES = {
     "kernels": "numeric.kernels", "simulation": "numeric.simulation", "modes": "analysis.modes",
     "export": "interop.export", "validation": "interop.validation", "figures": "views.figures",
     "flipmap": "analysis.flipmap", "chaos": "analysis.chaos", "ensemble": "numeric.ensemble", "store": "numeric.store",
+    "grid": "numeric.grid", "results": "results", "status": "status", "checks": "checks",
     "io": "io", "parsing": "parsing", "progress": "progress", "interrupts": "interrupts", "errors": "errors", "cli": "cli",
 }
 
