@@ -16,8 +16,9 @@ and the number of workers.
   vector, and stops each at the first time a joint angle reaches +-pi, located on the dense
   output.
 
-The next analyses (final state, Lyapunov exponents, Poincare crossings) plug in as further
-integrators with the same ``run(cells, cancel)`` shape.
+Computations over grids of starts do not call these directly: they are jobs of the one grid
+driver, :func:`skewpend.numeric.grid.run_grid`, which uses :func:`run_chunks` locally and
+:func:`run_on_cluster` on a cluster.
 
 Beyond one machine (the ``cluster`` extra, ``dask.distributed``, imported only here and only
 when a scheduler is given):
