@@ -26,6 +26,8 @@ import pytest
 
 from skewpend.cli import main
 
+from helpers import assert_refused, run_cli
+
 DIR = object()  # a file entry that is a directory
 
 _CASES = []
@@ -407,6 +409,48 @@ config_case("cfg-modes-latex-a-list", "[parameters]\na = [1, 2]\n", "[parameters
 config_case("cfg-validate-unknown-key", "[initial]\ntheta0 = 1\n", "theta0", "allowed", command="validate")
 
 
+# -- issue 20, class 3: internal errors on bad input -------------------------------------------------------------
+case("poincare-section-pi-over-zero", ["poincare", "--energy", "5", "--section", "phi=pi/0"], "--section", "pi")
+case("poincare-section-pi-over-tiny", ["poincare", "--energy", "5", "--section", "phi=pi/1e-320"], "--section", "finite")
+case("poincare-section-huge-multiple", ["poincare", "--energy", "5", "--section", "psi=1e400pi"], "--section")
+case("animate-fps-1e308", ["animate", "--fps", "1e308", "--out", "m.gif"], "--fps", "at most")
+case("animate-t-end-1e308", ["animate", "--t-end", "1e308", "--out", "m.gif"], "--t-end", "frames")
+case("animate-fps-frames-cap", ["animate", "--fps", "240", "--t-end", "1e4", "--out", "m.gif"], "frames", "at most")
+case("animate-size-huge-digits", ["animate", "--size", "9" * 5000 + "x480", "--out", "m.gif"], "--size")
+case("animate-size-fullwidth-digits", ["animate", "--size", "６４０x480", "--out", "m.gif"], "--size")
+case("serve-port-superscript", ["serve", "--port", "²"], "--port", "1 to 65535")
+case("serve-port-arabic-digits", ["serve", "--port", "٨٠٠٠"], "--port")
+case("serve-port-5000-digits", ["serve", "--port", "9" * 5000], "--port")
+case("serve-port-empty", ["serve", "--port", ""], "--port")
+case("serve-host-non-ascii", ["serve", "--host", "hôst"], "--host")
+case("lyapunov-transient-not-whole-intervals", ["lyapunov", "--transient", "8.5"], "--transient", "--renorm-every")
+case("flipmap-scheduler-not-an-address", ["flipmap", "--scheduler", "nowhere"], "--scheduler", "tcp://")
+case("flipmap-scheduler-port-too-big", ["flipmap", "--scheduler", "tcp://127.0.0.1:99999"], "--scheduler")
+case("chaos-diagram-alpha-nan", ["chaos-diagram", "--alpha", "nan"], "--alpha")
+
+# -- issue 20, class 7: a run file's key takes effect or is refused ---------------------------------------------
+config_case("cfg-flipmap-initial-refused", "[initial]\nphi0 = 1\n", "[initial] phi0", "flipmap", command="flipmap")
+config_case("cfg-flipmap-dt-out-refused", "[simulation]\ndt_out = 0.1\n", "dt_out", "flipmap", command="flipmap")
+config_case("cfg-flipmap-rk4-refused", '[simulation]\nmethod = "rk4"\n', "[simulation] method", "dop853", command="flipmap")
+config_case("cfg-flipmap-t-end-zero", "[simulation]\nt_end = 0\n", "[simulation] t_end", "positive", command="flipmap")
+config_case("cfg-flipmap-rtol-string", '[simulation]\nrtol = "x"\n', "[simulation] rtol", command="flipmap")
+config_case("cfg-lyapunov-t-end-negative", "[simulation]\nt_end = -1\n", "[simulation] t_end", "positive", command="lyapunov")
+config_case("cfg-lyapunov-rtol-zero", "[simulation]\nrtol = 0\n", "[simulation] rtol", command="lyapunov")
+config_case("cfg-lyapunov-out-refused", '[simulation]\nout = "x.csv"\n', "[simulation] out", "lyapunov", command="lyapunov")
+config_case("cfg-lyapunov-max-steps-fraction", "[simulation]\nmax_steps = 2.5\n", "[simulation] max_steps", command="lyapunov")
+config_case("cfg-poincare-t-end-refused", "[simulation]\nt_end = 5\n", "[simulation] t_end", "poincare", "--t-max", command="poincare", extra=["--energy", "5"])
+config_case("cfg-poincare-initial-refused", "[initial]\npsi0 = 1\n", "[initial] psi0", "poincare", command="poincare", extra=["--energy", "5"])
+config_case("cfg-poincare-rtol-negative", "[simulation]\nrtol = -1\n", "[simulation] rtol", command="poincare", extra=["--energy", "5"])
+config_case("cfg-chaos-alpha-refused", "[parameters]\nalpha = 0.3\n", "[parameters] alpha", "--alphas", command="chaos-diagram")
+config_case("cfg-chaos-initial-refused", "[initial]\nphi0 = 0.3\n", "[initial] phi0", command="chaos-diagram")
+config_case("cfg-animate-out-refused", '[simulation]\nout = "x.csv"\n', "[simulation] out", "animate", command="animate", extra=["--out", "m.gif"])
+config_case("cfg-animate-dt-out-refused", "[simulation]\ndt_out = 0.1\n", "[simulation] dt_out", "speed/fps", command="animate", extra=["--out", "m.gif"])
+config_case("cfg-report-plot-refused", '[simulation]\nplot = "p.png"\n', "[simulation] plot", "report", command="report")
+config_case("cfg-validate-method-refused", '[simulation]\nmethod = "rk4"\n', "[simulation] method", "validate", command="validate")
+config_case("cfg-export-initial-refused", "[initial]\nphi0 = 1\n", "[initial] phi0", "export", command="export")
+config_case("cfg-modes-simulation-refused", "[simulation]\nt_end = 1\n", "[simulation] t_end", "modes", command="modes")
+
+
 # -- the checks -----------------------------------------------------------------------------------------------
 def _setup(root: Path, files: dict) -> None:
     for name, content in files.items():
@@ -461,7 +505,7 @@ def test_the_battery_is_large():
     assert len(_CASES) >= 120
     commands = {p.values[0][0] for p in _CASES}
     assert commands == {"derive", "simulate", "animate", "flipmap", "export", "validate", "modes", "lyapunov", "poincare",
-                        "chaos-diagram"}
+                        "chaos-diagram", "report", "serve"}
 
 
 # -- the real process -----------------------------------------------------------------------------------------
@@ -542,3 +586,118 @@ def test_ctrl_c_stops_a_long_validation_promptly(tmp_path):
     assert err.strip().splitlines() == ["skewpend: interrupted"], err
     assert time.monotonic() - sent < 3.0
     assert list(tmp_path.iterdir()) == []
+
+
+# -- every option of every command, hostile values (issue 20) -----------------------------------------------------
+# Values no option takes: not finite, not numbers, other scripts' digits, 400-digit numbers (inf as floats).
+NOT_A_NUMBER = ["nan", "inf", "-inf", "1e999", "", " ", "abc", "²", "١٢", "٣.٥", "9" * 400, "0x10", "1,5", "1e", "--"]
+#: ... and for the settings: never symbolic, positive.
+NOT_POSITIVE = [*NOT_A_NUMBER, "sym", "0", "-0", "-1", "-1e308", "-1e-320"]
+NOT_WHOLE = [*NOT_A_NUMBER, "sym", "0", "-0", "-1", "1.5", "1e308", "9" * 5000, "1e-320"]
+NOT_A_VECTOR = ["", "nan,0,0", "0,inf,0", "1,2", "1,2,3,4", "²,0,0", "0,1e999,0", "a;b,0,0"]
+NOT_AN_INERTIA = ["", "nan,1,1", "1,2", "1,2,3,4", "1,1,inf", "١,1,1"]
+NOT_A_RANGE = ["", "0:1", "0:1:1", "0:1:1e9", "nan:1:5", "0:inf:5", "0:1:²", "-1e308:1e308:5", "a:b:c", "0:1:2.5"]
+NOT_AN_OUTPUT = ["", "x.txt", "nodir/x.{}", "/proc/x.{}", "."]
+
+MODEL_SCALARS = ["--a", "--b", "--m1", "--m2", "--alpha", "--g", "--c1", "--c2", "--tau1", "--tau2"]
+MODEL_VECTORS = ["--com1", "--com2", "--axis1", "--axis2"]
+MODEL_INERTIAS = ["--inertia1", "--inertia2"]
+INITIAL = ["--phi0", "--psi0", "--dphi0", "--dpsi0"]
+#: Each command: what it needs to get going, and its options by kind (the model's added below).
+COMMANDS = {
+    "derive": {"needs": []},
+    "simulate": {"needs": [], "initial": True, "positive": ["--t-end", "--dt-out", "--rtol", "--atol"],
+                 "whole": ["--max-steps"], "out": {"--out": "csv", "--plot": "png"}},
+    "animate": {"needs": ["--out", "m.gif"], "initial": True, "positive": ["--t-end", "--fps", "--speed", "--rtol", "--atol"],
+                "whole": ["--max-steps"], "out": {"--out": "gif"}},
+    "report": {"needs": [], "initial": True, "positive": ["--t-end", "--rtol", "--atol"], "whole": ["--max-steps"],
+               "out": {"--out": "html"}},
+    "flipmap": {"needs": [], "positive": ["--t-end", "--rtol", "--atol"], "whole": ["--n", "--workers"],
+                "out": {"--out": "nc", "--plot": "png"}},
+    "lyapunov": {"needs": [], "initial": True, "positive": ["--t-end", "--renorm-every", "--rtol", "--atol"],
+                 "whole": ["--exponents", "--windows", "--max-steps"], "out": {"--out": "json", "--plot": "png"}},
+    "poincare": {"needs": ["--energy", "5"], "positive": ["--t-max", "--rtol", "--atol"],
+                 "whole": ["--orbits", "--crossings", "--workers"], "out": {"--out": "csv", "--plot": "png"}},
+    "chaos-diagram": {"needs": [], "positive": ["--t-end", "--threshold", "--rtol", "--atol"],
+                      "whole": ["--samples", "--workers"], "out": {"--out": "nc", "--plot": "png"},
+                      "range": ["--alphas", "--energies"]},
+    "export": {"needs": []},
+    "validate": {"needs": [], "initial": True, "positive": ["--t-end", "--dt", "--tol"]},
+    "modes": {"needs": [], "positive": [], "range": []},
+}
+_BATTERY = []
+
+
+def _battery(command, argv, flag):
+    _BATTERY.append(pytest.param([command, *argv], flag, id=f"{command} {' '.join(argv)[:60]}"))
+
+
+for command, spec in COMMANDS.items():
+    needs = spec["needs"]
+    scalars = [f for f in MODEL_SCALARS if not (command == "modes" and f.startswith("--tau"))]
+    # the model's options share their types: every value on derive, a sample of them elsewhere
+    every = command == "derive"
+    for flag in scalars + (INITIAL if spec.get("initial") else []):
+        for value in NOT_A_NUMBER if every else NOT_A_NUMBER[::3]:
+            _battery(command, [*needs, flag, value], flag)
+    for flag in MODEL_VECTORS:
+        for value in NOT_A_VECTOR if every else NOT_A_VECTOR[::3]:
+            _battery(command, [*needs, flag, value], flag)
+    for flag in MODEL_INERTIAS:
+        for value in NOT_AN_INERTIA if every else NOT_AN_INERTIA[::2]:
+            _battery(command, [*needs, flag, value], flag)
+    for flag in spec.get("positive", []):
+        for value in NOT_POSITIVE:
+            _battery(command, [*needs, flag, value], flag)
+    for flag in spec.get("whole", []):
+        for value in NOT_WHOLE:
+            _battery(command, [*needs, flag, value], flag)
+    for flag in spec.get("range", []):
+        for value in NOT_A_RANGE:
+            _battery(command, [*needs, flag, value], flag)
+    for flag, suffix in spec.get("out", {}).items():
+        for value in NOT_AN_OUTPUT:
+            rest = [a for a in needs if a not in ("--out", "m.gif")] if flag == "--out" else needs
+            _battery(command, [*rest, flag, value.format(suffix)], flag if value.strip() else flag)
+for value in NOT_POSITIVE[:-3] + ["-1"]:
+    if value.strip("-0") or value == "":  # -0 is 0: a trail of none
+        _battery("animate", ["--out", "m.gif", "--trail", value], "--trail")
+    _battery("lyapunov", ["--transient", value], "--transient") if value not in ("0", "-0") else None
+for value in ["", "x", "9x", "0x480", "640x0", "1e3x480", "640x480x2", "-640x480", "nanxnan"]:
+    _battery("animate", ["--out", "m.gif", "--size", value], "--size")
+for value in ["", "phi", "phi=", "theta=0", "phi=nan", "phi=inf", "phi=pi/0", "psi=pi/-2", "phi=sym", "phi=²", "phi=1e999deg"]:
+    _battery("poincare", ["--energy", "5", "--section", value], "--section")
+for value in NOT_A_NUMBER:
+    _battery("poincare", ["--energy", value], "--energy")
+    _battery("modes", ["--check-nonlinear", value], "--check-nonlinear")
+    _battery("modes", ["--sweep", "alpha=0:1:5", "--tolerance", value], "--tolerance")
+for value in ["", "alpha", "x=0:1:5", "alpha=0:1:1", "alpha=nan:1:5", "alpha=0:1:9" * 3, "a=0:1e999:5", "alpha=0:1:²"]:
+    _battery("modes", ["--sweep", value], "--sweep")
+for value in ["", "1:0,0:1", "0:1", "0:1,0:1,0:1", "nan:1,0:1", "0:1,0:inf", "0:4,0:1", "0:²,0:1"]:
+    _battery("flipmap", ["--window", value], "--window")
+for value in ["", "nowhere", "tcp://", "tcp://h:0", "tcp://h:99999", "tcp://h:²", "tcp://hôst:8786"]:
+    for command in ("flipmap", "chaos-diagram"):
+        _battery(command, ["--scheduler", value], "--scheduler")
+for value in ["", "0", "-1", "65536", "1e3", "80.5", "²", "٨٠", "9" * 5000, "0x50", " "]:
+    _battery("serve", ["--port", value], "--port")
+for value in ["", " ", "no such host!", "hôst", "a" * 300, "-bad-", "[::1"]:
+    _battery("serve", ["--host", value], "--host")
+for command in ("simulate", "animate", "report"):
+    _battery(command, ["--method", "euler", *COMMANDS[command]["needs"]], "--method")
+    _battery(command, ["--method", "", *COMMANDS[command]["needs"]], "--method")
+for command in ("derive", "export", "modes"):
+    _battery(command, ["--format", "xml"], "--format")
+_battery("poincare", ["--energy", "5", "--direction", "up"], "--direction")
+_battery("poincare", ["--energy", "5", "--locate", "newton"], "--locate")
+
+
+def test_the_option_battery_covers_every_command_with_hundreds_of_cases():
+    assert len(_BATTERY) >= 1000
+    assert {p.values[0][0] for p in _BATTERY} == set(COMMANDS) | {"serve"}
+
+
+@pytest.mark.parametrize("argv, flag", _BATTERY)
+def test_every_option_refuses_hostile_values_in_one_line(argv, flag, tmp_path):
+    """Exit status 2, exactly one line naming the option, no traceback, nothing written."""
+    ran = run_cli(argv, cwd=tmp_path)
+    assert_refused(ran, [flag if flag != "--section" else "section"], tmp_path, set())

@@ -209,7 +209,7 @@ class Port(ParamType):
 
     def convert(self, text, flag):
         t = text.strip()
-        if not (t.isascii() and t.isdigit() and 1 <= int(t) <= 65535):
+        if not (t.isascii() and t.isdigit() and len(t) <= 5 and 1 <= int(t) <= 65535):
             raise UsageError(f"{flag}: expected a whole number from 1 to 65535, got {text!r}")
         return int(t)
 
@@ -239,7 +239,7 @@ class Size(ParamType):
 
     def convert(self, text, flag) -> Tuple[int, int]:
         parts = text.strip().lower().replace("×", "x").split("x")
-        if len(parts) != 2 or not all(p.strip().isascii() and p.strip().isdigit() for p in parts):
+        if len(parts) != 2 or not all(p.strip().isascii() and p.strip().isdigit() and len(p.strip()) <= 5 for p in parts):
             raise UsageError(f"{flag}: expected WIDTHxHEIGHT in pixels (e.g. 640x480), got {text!r}")
         w, h = (int(p) for p in parts)
         if not (16 <= w <= 7680 and 16 <= h <= 4320):

@@ -1,0 +1,110 @@
+"""Helpers the tests share: running the command line in-process or as a real process, and the
+checks of the project's rule for bad input (one line, exit status 2, nothing left behind)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Optional, Sequence
+
+#: The command line as a process.
+SKEWPEND = [sys.executable, "-m", "skewpend"]
+
+
+@dataclass
+class Ran:
+    """What a run of the command line gave: exit status, stdout, stderr."""
+
+    code: int
+    out: str
+    err: str
+
+    def report(self) -> str:
+        return f"exit status {self.code}\nstderr: {self.err!r}\nstdout: {self.out[:300]!r}"
+
+
+def run_cli(argv: Sequence[str], cwd: Optional[os.PathLike] = None) -> Ran:
+    """``skewpend ARGV`` in this process (``skewpend.cli.main``), in ``cwd``; warnings always shown."""
+    from skewpend.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    here = os.getcwd()
+    shown = warnings.showwarning  # main() replaces it
+    debug = os.environ.pop("SKEWPEND_DEBUG", None)  # it would turn an internal error into a traceback
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        with warnings.catch_warnings(), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            warnings.simplefilter("always")  # a warning printed on top of the error line must show
+            try:
+                main([str(a) for a in argv])
+                code = 0
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    finally:
+        os.chdir(here)
+        warnings.showwarning = shown
+        if debug is not None:
+            os.environ["SKEWPEND_DEBUG"] = debug
+    return Ran(code, out.getvalue(), err.getvalue())
+
+
+def run_process(argv: Sequence[str], cwd: Optional[os.PathLike] = None, *, timeout: float = 120, env=None) -> Ran:
+    """``python -m skewpend ARGV`` as a real process."""
+    proc = subprocess.run([*SKEWPEND, *map(str, argv)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "SKEWPEND_DEBUG": "", **(env or {})})
+    return Ran(proc.returncode, proc.stdout, proc.stderr)
+
+
+def signal_process(argv: Sequence[str], cwd: os.PathLike, *, after: float, signum: int = signal.SIGINT,
+                   ready: Optional[Path] = None):
+    """Start ``python -m skewpend ARGV``, wait ``after`` seconds (or until ``ready`` exists), send
+    ``signum``; (Ran, seconds from the signal to the exit)."""
+    proc = subprocess.Popen([*SKEWPEND, *map(str, argv)], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    deadline = time.monotonic() + after
+    while time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    assert proc.poll() is None, proc.communicate()
+    sent = time.monotonic()
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=60)
+    return Ran(proc.returncode, out, err), time.monotonic() - sent
+
+
+def snapshot(root: Path) -> set:
+    """Every file and directory under ``root`` (to tell what a run left behind)."""
+    return {str(p.relative_to(root)) for p in Path(root).rglob("*")}
+
+
+def matches(fragment, line: str) -> bool:
+    """A plain fragment is found case-insensitively; a compiled pattern is searched."""
+    if isinstance(fragment, re.Pattern):
+        return fragment.search(line) is not None
+    return fragment.lower() in line.lower()
+
+
+def assert_refused(ran: Ran, fragments: Iterable = (), root: Optional[Path] = None, before: Optional[set] = None) -> str:
+    """The rule for bad input: exit status 2, exactly one stderr line ``skewpend: error: ...``
+    holding every fragment, no traceback, nothing on stdout, no file left in ``root``."""
+    report = ran.report()
+    assert "Traceback" not in ran.err and "Traceback" not in ran.out, report
+    assert ran.code == 2, report
+    lines = ran.err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("skewpend: error:"), report
+    missing = [f.pattern if isinstance(f, re.Pattern) else f for f in fragments if not matches(f, lines[0])]
+    assert not missing, f"the message lacks {missing}\n{report}"
+    assert ran.out == "", report
+    if root is not None:
+        left = snapshot(root) - (before or set())
+        assert not left, f"files left behind: {sorted(left)}\n{report}"
+    return lines[0]
