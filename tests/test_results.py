@@ -90,3 +90,15 @@ def test_a_status_from_c_is_a_status():
 
     spec = lyapunov(BENCH, [1.0, 0.5, 0.0, 0.0], t_end=50.0, max_steps=100, throw=False)
     assert spec.status is Status.MAX_STEPS and not spec.ok and math.isfinite(spec.stats["t_reached"])
+
+
+def test_fewer_starts_than_asked_are_said():
+    """Starts that cannot be placed are counted and named in the message, never dropped silently."""
+    from skewpend.analysis.chaos import chaos_diagram
+    from skewpend.analysis.poincare import poincare
+
+    d = chaos_diagram(BENCH, alpha=[0.0], energy=[1e-6, 5.0], samples=4, t_end=4.0)  # 1 uJ: a tiny region
+    assert d.stats["unreachable"] == 2 and "2 of the 8 starts" in d.message and d.stats["trajectories"] == 6
+    given = poincare(BENCH, energy=8.0, seeds=[(0.1, 0.0), (3.0, 50.0)], n_crossings=5)
+    assert given.unreachable.shape == (1, 2) and given.status is Status.SHORT
+    assert "only 1 of the 2 orbits" in given.message

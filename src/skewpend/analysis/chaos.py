@@ -271,6 +271,9 @@ class ChaosJob(GridJob):
             "fingerprint": info["fingerprint"],
         }
         status, message = grid_status(stats["failed"], stats["trajectories"])
+        if stats["unreachable"]:
+            message += (f"; {stats['unreachable']} of the {len(self.alpha) * len(self.energy) * self.samples} starts "
+                        "asked for could not be placed on their energy surface (the fractions count the others)")
         alphas, energies = (values for values, _ in self.coords().values())
         return ChaosDiagram(alpha=alphas, energy=energies, exponent=run.data["exponent"], threshold=float(self.threshold),
                             params=self.params, settings=self.settings(), stats=stats, status=status, message=message)

@@ -68,8 +68,15 @@ def section_status(orbit_status: np.ndarray, stats: Dict[str, Any], room: float)
                         "smaller rtol/atol")
     if problems:
         return Status.PARTIAL, "; ".join(problems)
+    notes = []
+    asked = int(stats.get("orbits_asked", n))
+    if n < asked:
+        notes.append(f"only {n} of the {asked} orbits asked for could be started on the section (the reachable "
+                     "region is too small for more distinct seeds, or given seeds are unreachable)")
     if short:
-        return Status.SHORT, f"{short} of {n} orbits reached t_max before the wanted crossings (fewer points)"
+        notes.append(f"{short} of {n} orbits reached t_max before the wanted crossings (fewer points)")
+    if notes:
+        return Status.SHORT, "; ".join(notes)
     return Status.SUCCESS, f"all {n} orbits made their crossings"
 
 
@@ -489,7 +496,8 @@ def poincare(
         "max_steps": max_steps, "seeds": "given" if seeds is not None else "halton",
     }
     stats = {
-        "points": int(table.shape[0]), "orbits": n, "unreachable": int(unreachable.shape[0]),
+        "points": int(table.shape[0]), "orbits": n, "orbits_asked": int(n_orbits) if seeds is None else int(n + unreachable.shape[0]),
+        "unreachable": int(unreachable.shape[0]),
         "orbits_short": int(np.count_nonzero(status == 5)), "failed": failed, "steps": int(steps.sum()),
         "rejected": int(rejected.sum()), "e_min": surface.e_min, "henon_fallbacks": int(fallbacks.sum()),
         "max_energy_error": float(np.max(np.abs(e - energy))) if e.size else 0.0,
