@@ -280,3 +280,27 @@ def test_infeasible_grids_are_refused_at_once_with_the_estimate(call):
     assert "cannot finish" in message and "steps per trajectory" in message and "max_steps" in message
     assert "\n" not in message and "nan" not in message and "inf" not in message.replace("info", "")
     assert time.perf_counter() - start < 5.0  # a trial run of a few ms (plus a kernel build on a cold cache)
+
+
+@pytest.mark.parametrize("suffix,t_end", [(".csv", 5.0), (".nc", 5.0), (".csv", 0.04), (".nc", 0.1)])
+def test_a_trajectory_on_a_full_disk_is_one_error_and_no_file(full_disk, suffix, t_end):
+    """Refused up front from the size estimate, or failing while written: either way one line and
+    nothing left behind (the disk is filled but for 16 kB first)."""
+    if suffix == ".nc":
+        pytest.importorskip("netCDF4")
+    from skewpend import simulate
+
+    filler = full_disk / "filler"
+    with open(filler, "wb") as fh:
+        try:
+            while True:
+                fh.write(b"\0" * 4096)
+                fh.flush()
+                if shutil.disk_usage(full_disk).free < 16 * 1024:
+                    break
+        except OSError:
+            pass
+    with pytest.raises(SkewpendError) as info:
+        simulate(BENCH, [1.0, 0.5, 0.0, 0.0], t_end, dt_out=1e-3, out=full_disk / f"s{suffix}")
+    assert "\n" not in str(info.value) and str(full_disk) in str(info.value)
+    assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]

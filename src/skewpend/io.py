@@ -127,7 +127,7 @@ def check_disk_space(path: Path, rows: float) -> None:
     if need > free:
         raise ParameterError(
             f"the output would take about {_size(need)} ({rows:.3g} rows) but only {_size(free)} is free in {directory}; "
-            "use a larger --dt-out, a shorter --t-end, or another directory"
+            "use a larger dt_out, a shorter t_end, or another directory"
         )
 
 
