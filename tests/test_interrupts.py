@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from skewpend.interrupts import Interrupts
+from skewpend.interrupts import Interrupts, Terminated, terminate_like_interrupt
 
 
 def _sigint_to_self():
@@ -70,3 +70,43 @@ def test_outside_the_main_thread_nothing_changes():
     t.start()
     t.join()
     assert out == [True]
+
+
+# -- SIGTERM: what Ctrl-C gets, once an application asks for it ---------------------------------------------
+def _sigterm_to_self():
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.05)
+
+
+def test_sigterm_is_recorded_and_raised_as_terminated_at_the_check():
+    calls = []
+    with terminate_like_interrupt():
+        with pytest.raises(Terminated):
+            with Interrupts(on_signal=lambda: calls.append(1)) as intr:
+                _sigterm_to_self()  # recorded, not raised here
+                assert intr.pending is Terminated and calls == [1]
+                intr.check()
+        assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL  # ours again, until the CLI leaves
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+
+
+def test_terminated_is_a_keyboardinterrupt_so_every_ctrl_c_clean_up_runs():
+    assert issubclass(Terminated, KeyboardInterrupt)
+    with terminate_like_interrupt():
+        with pytest.raises(KeyboardInterrupt):
+            _sigterm_to_self()  # outside Interrupts: raised where the main thread is
+
+
+def test_sigterm_outranks_an_earlier_ctrl_c():
+    with terminate_like_interrupt():
+        with pytest.raises(Terminated):
+            with Interrupts() as intr:
+                _sigint_to_self()
+                _sigterm_to_self()
+                intr.check()
+
+
+def test_without_the_request_sigterm_is_left_alone():
+    with Interrupts() as intr:
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+        assert intr._previous is None or signal.SIGTERM not in intr._previous

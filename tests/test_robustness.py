@@ -57,6 +57,40 @@ def test_ctrl_c_stops_the_cli_with_status_130_and_no_file(tmp_path, out):
     assert list(tmp_path.iterdir()) == []  # neither the output nor a temporary file
 
 
+# -- SIGTERM gets what Ctrl-C gets (issue 20, class 6) ------------------------------------------------------
+def _terminated(args, tmp_path, after: float):
+    from helpers import signal_process
+
+    ran, took = signal_process(args, tmp_path, after=after, signum=signal.SIGTERM)
+    assert ran.code == 143, ran.report()
+    assert ran.err.strip().splitlines() == ["skewpend: terminated"], ran.report()
+    assert "Traceback" not in ran.err
+    return ran, took
+
+
+@pytest.mark.parametrize("out", ["long.csv", "long.nc", None])
+def test_sigterm_stops_simulate_with_status_143_and_no_file(tmp_path, out):
+    skewpend.simulate(P, Y0, 0.01, method="gauss")  # the kernel is compiled and cached before the clock starts
+    args = ["simulate", "--method", "gauss", "--dt", "1e-4", "--t-end", "2000"] + (["--out", out] if out else [])
+    _, took = _terminated(args, tmp_path, after=2.5)
+    assert took < 3.0  # the compiled loop works in ~0.05 s chunks
+    assert list(tmp_path.iterdir()) == []  # neither the output nor a .NAME.skewpend-PID.tmp
+
+
+def test_sigterm_stops_an_ensemble_with_status_143_and_no_file(tmp_path):
+    """A flip map on every core (worker threads, chunks in flight) ends as on Ctrl-C: nothing written."""
+    skewpend.flip_map(P, 2, t_end=1.0)  # kernels cached before the clock starts
+    _, took = _terminated(["flipmap", "--n", "1500", "--t-end", "100", "--out", "map.nc"], tmp_path, after=4.0)
+    assert took < 5.0
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sigterm_stops_lyapunov_with_status_143(tmp_path):
+    _, took = _terminated(["lyapunov", "--t-end", "1e5", "--max-steps", "1e12", "--out", "l.json"], tmp_path, after=3.0)
+    assert took < 3.0
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_ctrl_c_raises_keyboardinterrupt_in_the_python_api(tmp_path):
     code = (
         "import skewpend\n"
