@@ -131,3 +131,79 @@ def test_validate_agrees_with_mujoco():
     pytest.importorskip("mujoco")
     out = run("validate", "--alpha", "50deg", "--phi0", "1.0", "--psi0", "0.5", "--t-end", "1").stdout
     assert "AGREE within 1e-06" in out
+
+
+# -- run files: every key a command reads takes effect (issue 20, class 7) ---------------------------------------
+RUN_FILE = "[simulation]\nt_end = 5.5\nrtol = 1e-7\natol = 1e-9\n"
+#: command, extra options, the library function it calls (module, name), the keyword -> value it must receive
+HONOURED = [
+    ("lyapunov", [], ("skewpend.analysis.lyapunov", "lyapunov"), {"t_end": 5.5, "rtol": 1e-7, "atol": 1e-9}),
+    ("flipmap", ["--n", "4"], ("skewpend.analysis.flipmap", "flip_map"), {"t_end": 5.5, "rtol": 1e-7, "atol": 1e-9}),
+    ("chaos-diagram", [], ("skewpend.analysis.chaos", "chaos_diagram"), {"t_end": 5.5, "rtol": 1e-7, "atol": 1e-9}),
+    ("simulate", [], ("skewpend.numeric.simulation", "simulate"), {"rtol": 1e-7, "atol": 1e-9}),
+    ("report", [], ("skewpend.views.report", "build_report"), {"t_end": 5.5, "rtol": 1e-7, "atol": 1e-9}),
+]
+
+
+class _Called(Exception):
+    pass
+
+
+@pytest.mark.parametrize("command, extra, target, expected", HONOURED, ids=[h[0] for h in HONOURED])
+def test_every_run_file_key_a_command_reads_takes_effect(command, extra, target, expected, tmp_path, monkeypatch):
+    import importlib
+
+    from helpers import run_cli
+
+    seen = {}
+
+    def spy(*args, **kwargs):
+        seen.update(kwargs, args=args)
+        from skewpend.errors import SkewpendError
+
+        raise SkewpendError("spy: called")
+
+    monkeypatch.setattr(importlib.import_module(target[0]), target[1], spy)
+    (tmp_path / "run.toml").write_text(RUN_FILE)
+    ran = run_cli([command, "--config", "run.toml", *extra], cwd=tmp_path)
+    assert "spy: called" in ran.err, ran.report()
+    for key, value in expected.items():
+        assert seen.get(key) == value, (key, seen)
+    if command == "simulate":
+        assert seen["args"][2] == 5.5  # t_end is simulate's third argument
+
+
+def test_poincare_takes_rtol_and_atol_from_a_run_file(tmp_path, monkeypatch):
+    import skewpend.analysis.poincare as poincare
+    from helpers import run_cli
+
+    seen = {}
+    monkeypatch.setattr(poincare, "poincare", lambda *a, **kw: seen.update(kw) or (_ for _ in ()).throw(_Called()))
+    (tmp_path / "run.toml").write_text("[simulation]\nrtol = 1e-9\natol = 1e-11\n")
+    ran = run_cli(["poincare", "--energy", "5", "--config", "run.toml"], cwd=tmp_path)
+    assert seen["rtol"] == 1e-9 and seen["atol"] == 1e-11, ran.report()
+
+
+def test_options_override_the_run_file_for_the_analyses(tmp_path, monkeypatch):
+    import skewpend.analysis.lyapunov as lyapunov
+    from helpers import run_cli
+
+    seen = {}
+    monkeypatch.setattr(lyapunov, "lyapunov", lambda *a, **kw: seen.update(kw) or (_ for _ in ()).throw(_Called()))
+    (tmp_path / "run.toml").write_text(RUN_FILE)
+    run_cli(["lyapunov", "--config", "run.toml", "--t-end", "7", "--rtol", "1e-8"], cwd=tmp_path)
+    assert seen["t_end"] == 7.0 and seen["rtol"] == 1e-8 and seen["atol"] == 1e-9
+
+
+def test_transient_is_honoured_or_refused_by_one_rule(tmp_path, monkeypatch):
+    """A transient that is a whole number of renormalisation intervals is passed on as given; any
+    other is refused (the measurement starts at a renormalisation), never silently rounded."""
+    import skewpend.analysis.lyapunov as lyapunov
+    from helpers import assert_refused, run_cli
+
+    seen = {}
+    monkeypatch.setattr(lyapunov, "lyapunov", lambda *a, **kw: seen.update(kw) or (_ for _ in ()).throw(_Called()))
+    run_cli(["lyapunov", "--transient", "8.5", "--renorm-every", "0.5"], cwd=tmp_path)
+    assert seen["transient"] == 8.5 and seen["renorm_every"] == 0.5
+    line = assert_refused(run_cli(["lyapunov", "--transient", "8.5"], cwd=tmp_path), ["--transient", "8.5", "--renorm-every"])
+    assert "whole number" in line
