@@ -269,7 +269,8 @@ def test_netcdf_on_a_full_disk_is_one_error_and_no_file(full_disk):
     lambda: __import__("skewpend.analysis.chaos", fromlist=["x"]).chaos_diagram(BENCH, samples=2, t_end=1e12),
     lambda: __import__("skewpend.analysis.lyapunov", fromlist=["x"]).lyapunov_map(BENCH, 4, t_end=1e12),
     lambda: __import__("skewpend.analysis.flipmap", fromlist=["x"]).flip_map(BENCH, 8, t_end=1e5, max_steps=1000),
-], ids=["flip-1e308", "flip-1e9", "chaos-1e12", "lyapunov-map-1e12", "flip-small-cap"])
+    lambda: __import__("skewpend.analysis.poincare", fromlist=["x"]).poincare(BENCH.replace(a=1e100), 5.0),
+], ids=["flip-1e308", "flip-1e9", "chaos-1e12", "lyapunov-map-1e12", "flip-small-cap", "poincare-a-1e100"])
 def test_infeasible_grids_are_refused_at_once_with_the_estimate(call):
     import time
 
@@ -280,6 +281,14 @@ def test_infeasible_grids_are_refused_at_once_with_the_estimate(call):
     assert "cannot finish" in message and "steps per trajectory" in message and "max_steps" in message
     assert "\n" not in message and "nan" not in message and "inf" not in message.replace("info", "")
     assert time.perf_counter() - start < 5.0  # a trial run of a few ms (plus a kernel build on a cold cache)
+
+
+def test_a_generous_t_max_is_not_refused():
+    """t_max only bounds a section: orbits that make their crossings early are not refused for it."""
+    from skewpend.analysis.poincare import poincare
+
+    sec = poincare(BENCH, 5.0, n_orbits=2, n_crossings=5, t_max=1e12)
+    assert sec.ok and np.all(sec.crossings == 5)
 
 
 @pytest.mark.parametrize("suffix,t_end", [(".csv", 5.0), (".nc", 5.0), (".csv", 0.04), (".nc", 0.1)])

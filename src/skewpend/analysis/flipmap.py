@@ -362,7 +362,7 @@ def _check_feasible(job: "FlipJob", state) -> None:
     cells = np.array([(0.9 * corner[0], 0.9 * corner[1]), (0.9 * corner[0], -0.9 * corner[1]), (0.5 * corner[0], 0.0)])
     t = min(job.t_end, probe_time(job.params))
     out = FlipIntegrator(kernel, p, t_end=t, rtol=job.rtol, atol=job.atol, max_steps=200_000).run(cells)
-    lived = np.where(np.isfinite(out.time), out.time, np.where(out.which == -2, 0.0, t))
+    lived = np.where(np.isfinite(out.time), out.time, t)  # a failed trial: a lower bound of the rate
     rate = steps_per_second(out.steps + out.rejected, lived)
     check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps, what="this flip map")
 

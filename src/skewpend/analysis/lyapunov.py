@@ -535,7 +535,7 @@ def lyapunov_map(
 
 
 def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol: float, max_steps: int,
-                        what: str) -> None:
+                        what: str, time_name: str = "t_end", advice: Optional[str] = None) -> None:
     """Refuse up front work of largest exponents that cannot finish within ``max_steps`` per
     trajectory: a trial run of the chaos kernel (``state`` = (kernel, p)) from ``probe``."""
     from ..numeric.grid import check_feasible, probe_time, steps_per_second
@@ -544,8 +544,10 @@ def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol
     t = min(t_end, probe_time(params))
     _, status, steps = largest_exponents(kernel, p, np.asarray(probe, dtype=float), t_end=t, renorm_every=t,
                                          transient=0.0, rtol=rtol, atol=atol, max_steps=200_000)
-    rate = steps_per_second(steps, np.where(status == 0, t, 0.0))
-    check_feasible(rate, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps, what=what)
+    # a trial that stopped early (max_steps, a failure) made at most its steps in t: a lower bound of the rate
+    rate = steps_per_second(steps, np.full(steps.shape, t))
+    check_feasible(rate, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps, what=what, time_name=time_name,
+                   advice=advice)
 
 
 def open_lyapunov_map(path) -> LyapunovMap:

@@ -429,11 +429,19 @@ def poincare(
     starts = surface.states(seeds_ok[:, 0], seeds_ok[:, 1], direction)
     n = starts.shape[0]
     want = int(n_crossings)
+    g = max(float(params.g), 1e-12)
+    period = 2.0 * math.pi * math.sqrt((float(params.a) + float(params.b)) / g)  # a swing, roughly
     if t_max is None:
-        g = max(float(params.g), 1e-12)
-        period = 2.0 * math.pi * math.sqrt((float(params.a) + float(params.b)) / g)
         t_max = 200.0 * period * want
     kernel, p = surface.kernel, surface.p
+    from .lyapunov import check_exponent_work
+
+    # an orbit takes about one swing per crossing (t_max only bounds it): refuse what cannot finish
+    expected = min(t_max, want * period)
+    check_exponent_work((kernel, p), starts[:3], params=params, t_end=expected, rtol=rtol, atol=atol,
+                        max_steps=max_steps, what="this Poincare section",
+                        time_name=f"{want} crossings at about one swing ({period:.3g} s) each: t",
+                        advice="ask for fewer crossings, or a larger max_steps")
     method = LOCATE_METHODS.index(locate)
     period_wrap = _TWO_PI
     value_wrapped = math.remainder(value, _TWO_PI)

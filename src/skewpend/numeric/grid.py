@@ -201,7 +201,8 @@ FEASIBILITY_FACTOR = 100.0
 
 
 def check_feasible(rate: float, *, t_end: float, rtol: float, atol: float, max_steps: int, what: str,
-                   factor: float = FEASIBILITY_FACTOR) -> float:
+                   factor: float = FEASIBILITY_FACTOR, time_name: str = "t_end",
+                   advice: Optional[str] = None) -> float:
     """Refuse, before any work, a computation whose trajectories of ``t_end`` seconds would each
     need more than ``factor x max_steps`` steps at ``rate`` steps per simulated second (measured
     by a trial run of the computation's own kernel: :func:`probe_time`,
@@ -211,9 +212,9 @@ def check_feasible(rate: float, *, t_end: float, rtol: float, atol: float, max_s
     if need > factor * max_steps:
         about = f"about {need:.3g}" if math.isfinite(need) else "more than 1e308"
         rate_text = f"~{rate:.3g} steps per simulated second" if math.isfinite(rate) else "a trial run could not advance"
-        raise ParameterError(f"{what} cannot finish: t_end = {t_end:g} s needs {about} steps per trajectory "
+        raise ParameterError(f"{what} cannot finish: {time_name} = {t_end:g} s needs {about} steps per trajectory "
                              f"({rate_text} at rtol={rtol:g}, atol={atol:g}), more than max_steps = {max_steps:g}; "
-                             "use a shorter t_end (or a larger max_steps)")
+                             + (advice or f"use a shorter {time_name} (or a larger max_steps)"))
     return need
 
 
