@@ -350,6 +350,10 @@ def chaos_diagram(
     energies = _grid("energy", energy, n_energy, 0.0, top, lo_open=True)
     if np.any(energies <= 0):
         raise ParameterError("energy values must be positive (joules above the minimum of the potential)")
+    from .poincare import ENERGY_LIMIT
+
+    if np.any(energies > ENERGY_LIMIT):
+        raise ParameterError(f"energy values must be at most {ENERGY_LIMIT:g} J, got {float(energies.max()):g}")
     n_cells = alphas.size * energies.size * int(samples)
     if n_cells > _MAX_CELLS:
         raise ParameterError(f"alpha x energy x samples = {n_cells} trajectories is too many (at most {_MAX_CELLS})")

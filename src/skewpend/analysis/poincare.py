@@ -46,6 +46,10 @@ _TWO_PI = 2.0 * math.pi
 _BUDGET = 4000
 
 
+#: Largest energy magnitude [J] a section or diagram accepts (the parameters' own bound: beyond
+#: it the equations' products overflow).
+ENERGY_LIMIT = 1e100
+
 #: Points whose energy error exceeds this fraction of the energy above the minimum are not on
 #: the energy surface any more: the section is reported PARTIAL (a tolerance far too loose).
 MAX_RELATIVE_ENERGY_ERROR = 1e-3
@@ -379,6 +383,9 @@ def poincare(
         raise ParameterError(f"energy must be a number of joules, got {energy!r}") from None
     if not math.isfinite(energy):
         raise ParameterError(f"energy must be a finite number of joules, got {energy!r}")
+    if abs(energy) > ENERGY_LIMIT:
+        raise ParameterError(f"energy must be at most {ENERGY_LIMIT:g} J in magnitude (as every parameter), "
+                             f"got {energy:g}")
     name, value = parse_section(section)
     if direction not in (-1, 0, 1) or isinstance(direction, bool):
         raise ParameterError(f"direction must be +1, -1 or 0 (both), got {direction!r}")
