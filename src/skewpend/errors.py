@@ -12,6 +12,9 @@ __all__ = [
     "NotNumericError",
     "EquilibriumError",
     "IntegrationError",
+    "MissingExtraError",
+    "require",
+    "EXTRAS",
 ]
 
 
@@ -33,3 +36,28 @@ class EquilibriumError(SkewpendError, ValueError):
 
 class IntegrationError(SkewpendError, RuntimeError):
     """A simulation stopped early (non-finite state, step size underflow, too many steps)."""
+
+
+class MissingExtraError(SkewpendError, ImportError):
+    """An optional dependency is not installed; the message names the extra that installs it
+    (pyhf's ``ImportBackendError``).  The one exception for every missing extra."""
+
+
+#: The extras of ``pyproject.toml`` and what each brings, by importable module name.
+EXTRAS = {
+    "netCDF4": "netcdf", "mujoco": "validate", "zarr": "cluster", "distributed": "cluster", "dask": "cluster",
+    "fastapi": "web", "uvicorn": "web", "heyoka": "bench", "xarray": None,
+}
+
+
+def require(module: str, what: str):
+    """``import module`` for ``what`` ("writing .nc", "a Zarr store", ...), or one
+    :class:`MissingExtraError` saying what to install."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        extra = EXTRAS.get(module)
+        how = f'pip install "skewpend[{extra}]"' if extra else f"pip install {module.lower()}"
+        raise MissingExtraError(f"{what} needs {module}, which is not installed: {how}") from None

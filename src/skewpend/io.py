@@ -37,11 +37,9 @@ __all__ = [
 
 def require_netcdf():
     """The ``netCDF4`` module, or one clear :class:`SkewpendError` naming the extra to install."""
-    try:
-        import netCDF4
-    except ImportError:
-        raise SkewpendError('writing .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
-    return netCDF4
+    from .errors import require
+
+    return require("netCDF4", "writing .nc")
 
 #: Columns of a trajectory CSV, in order.
 CSV_COLUMNS = ("t", "phi", "psi", "dphi", "dpsi", "energy", "work", "x1", "y1", "z1", "x2", "y2", "z2")
@@ -220,10 +218,9 @@ def write_netcdf(spec, path) -> Path:
 def read_netcdf(path, *, kind: str):
     """``(variables, attrs)`` of a NetCDF file written by :func:`write_netcdf` for a result of
     ``kind``; anything else is one clear :class:`ParameterError`."""
-    try:
-        import netCDF4
-    except ImportError:
-        raise SkewpendError('reading .nc needs netCDF4, which is not installed: pip install "skewpend[netcdf]"') from None
+    from .errors import require
+
+    netCDF4 = require("netCDF4", "reading .nc")
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"{path} does not exist")

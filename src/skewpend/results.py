@@ -83,10 +83,9 @@ class DatasetSpec:
     attrs: Dict[str, Any] = field(default_factory=dict)
 
     def to_xarray(self):
-        try:
-            import xarray as xr
-        except ImportError:
-            raise ImportError("to_xarray() needs xarray, which is not installed: pip install xarray") from None
+        from .errors import require
+
+        xr = require("xarray", "to_xarray()")
         return xr.Dataset({k: (d, v, dict(a)) for k, (d, v, a) in self.variables.items()},
                           coords={k: (d, v, dict(a)) for k, (d, v, a) in self.coords.items()},
                           attrs=dict(self.attrs))

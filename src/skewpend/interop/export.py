@@ -49,7 +49,7 @@ import os
 from pathlib import Path
 from typing import Optional, Sequence, Tuple, Union
 
-from ..errors import IntegrationError, ParameterError, SkewpendError
+from ..errors import IntegrationError, MissingExtraError, ParameterError, SkewpendError
 from ..symbolic.model import Parameters
 from ..parsing import initial_state, positive_number
 
@@ -83,8 +83,9 @@ AXIAL_INERTIA_FACTOR = 1e-9
 AXIAL_INERTIA_FLOOR = 1e-12
 
 
-class MujocoMissingError(SkewpendError, ImportError):
-    """The optional dependency ``mujoco`` is needed but not installed."""
+class MujocoMissingError(MissingExtraError):
+    """The optional dependency ``mujoco`` is needed but not installed (a
+    :class:`~skewpend.errors.MissingExtraError`)."""
 
 
 # -- helpers -----------------------------------------------------------------------------------
@@ -478,15 +479,19 @@ def write_model(
     return path
 
 
-def _import_mujoco():
+def import_mujoco():
+    """The ``mujoco`` module, or a :class:`MujocoMissingError` naming the extra to install."""
     try:
         import mujoco  # noqa: F401
-    except ImportError as exc:  # pragma: no cover - depends on the environment
+    except ImportError:  # pragma: no cover - depends on the environment
         raise MujocoMissingError(
-            f"this needs the optional dependency 'mujoco' ({exc}); install it with "
-            "pip install 'skewpend[validate]' or pip install mujoco"
+            "this needs the optional dependency 'mujoco', which is not installed: pip install \"skewpend[validate]\" "
+            "(or pip install mujoco)"
         ) from None
     return mujoco
+
+
+_import_mujoco = import_mujoco  # the old private name, until every caller uses import_mujoco
 
 
 def mujoco_steps(t_end: float, dt: float) -> int:
@@ -549,7 +554,7 @@ def mujoco_trajectory(
             raise ParameterError(f"n_out must be an integer >= 2 or None, got {n_out!r}")
         marks = np.unique(np.rint(np.linspace(0, nsteps, int(n_out))).astype(np.int64))
 
-    mujoco = _import_mujoco()
+    mujoco = import_mujoco()
     xml = to_mjcf(params, timestep=dt, integrator=integrator, axial_inertia=axial_inertia)
     try:
         model = mujoco.MjModel.from_xml_string(xml)

@@ -55,7 +55,7 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     :class:`~skewpend.errors.ParameterError`.  MuJoCo is stepped in bounded chunks, so
     Ctrl-C (``KeyboardInterrupt``) stops a long comparison promptly.
     """
-    from .export import _import_mujoco, mujoco_compatible, mujoco_steps, mujoco_trajectory
+    from .export import import_mujoco, mujoco_compatible, mujoco_steps, mujoco_trajectory
     from ..numeric.simulation import simulate
 
     params.require_numeric("validation")
@@ -64,7 +64,7 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
         if value is None:
             raise ParameterError(f"{name} must be a positive number of seconds, not symbolic")
     nsteps = mujoco_steps(t_end, dt)
-    mujoco = _import_mujoco()
+    mujoco = import_mujoco()
     n_seg = _segments(max(nsteps, 1))
     t_mj, y_mj = mujoco_trajectory(params, y0, t_end, dt=dt, n_out=n_seg + 1)
     same = mujoco_compatible(params)

@@ -204,13 +204,9 @@ _ADDRESS = re.compile(r"^(tcp)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})/
 
 def require_distributed(what: str = "running on a Dask cluster"):
     """The ``distributed`` module, or a :class:`SkewpendError` naming the extra to install."""
-    try:
-        import distributed
-    except ImportError:
-        from ..errors import SkewpendError
+    from ..errors import require
 
-        raise SkewpendError(f'{what} needs dask.distributed, which is not installed: pip install "skewpend[cluster]"') from None
-    return distributed
+    return require("distributed", what)
 
 
 def check_scheduler(scheduler):

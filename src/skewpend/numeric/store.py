@@ -51,11 +51,9 @@ LOCK_NAME = ".skewpend.lock"
 
 def require_zarr(what: str = "a Zarr store"):
     """The ``zarr`` module, or a :class:`SkewpendError` naming the extra to install."""
-    try:
-        import zarr
-    except ImportError:
-        raise SkewpendError(f"{what} needs Zarr, which is not installed: {CLUSTER_EXTRA}") from None
-    return zarr
+    from ..errors import require
+
+    return require("zarr", what)
 
 
 def _zarr3(zarr) -> bool:
