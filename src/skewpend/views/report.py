@@ -658,9 +658,9 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
     if validate is not None and not isinstance(validate, bool):
         raise ParameterError(f"validate must be True, False or None (when MuJoCo is installed), got {validate!r}")
     if validate:
-        from ..interop.export import _import_mujoco
+        from ..interop.export import import_mujoco
 
-        _import_mujoco()  # a clear error now, not after the work
+        import_mujoco()  # a clear error now, not after the work
     if out is not None:
         check_output_path(out, REPORT_SUFFIXES, option="--out")
     return params, tuple(float(v) for v in y), t_end, clip_seconds, fps, (w, h)
