@@ -33,7 +33,7 @@ import numpy as np
 
 from .status import Status
 
-__all__ = ["ResultProtocol", "DatasetSpec", "canonical_json", "fingerprint", "plain", "grid_status"]
+__all__ = ["Result", "ResultProtocol", "DatasetSpec", "canonical_json", "fingerprint", "plain", "grid_status"]
 
 
 def plain(value: Any) -> Any:
@@ -138,3 +138,21 @@ class ResultProtocol:
         if shown:
             lines.append(", ".join(shown[:10]))
         return "\n".join(lines)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Result(ResultProtocol):
+    """The fields every result class shares, keyword-only (so a subclass lists its own data
+    fields first): ``params``, ``settings``, ``stats``, ``status`` (an int from C becomes its
+    :class:`Status`), ``message``."""
+
+    params: Any
+    settings: Dict[str, Any]
+    stats: Dict[str, Any] = field(default_factory=dict)
+    status: Status = Status.SUCCESS
+    message: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "status", Status.of(self.status))
+        if not self.message:
+            object.__setattr__(self, "message", self.status.message)

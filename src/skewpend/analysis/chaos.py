@@ -22,15 +22,14 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Dict, Optional, Sequence, Tuple
+from dataclasses import dataclass
+from typing import Callable, ClassVar, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..errors import ParameterError
 from ..numeric.grid import GridJob
-from ..results import DatasetSpec, ResultProtocol, canonical_json
-from ..status import Status
+from ..results import DatasetSpec, Result, canonical_json
 from ..symbolic.model import Parameters
 from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
 from .lyapunov import check_times, largest_exponents
@@ -44,7 +43,7 @@ _MAX_CELLS = 1_000_000  # alpha x energy x samples trajectories at most
 
 
 @dataclass(frozen=True)
-class ChaosDiagram(ResultProtocol):
+class ChaosDiagram(Result):
     """The result of :func:`chaos_diagram`.
 
     * ``alpha`` -- shape ``(na,)`` [rad]; ``energy`` -- shape ``(ne,)`` [J above the minimum of
@@ -64,11 +63,6 @@ class ChaosDiagram(ResultProtocol):
     energy: np.ndarray
     exponent: np.ndarray
     threshold: float
-    params: Parameters
-    settings: Dict[str, Any]
-    stats: Dict[str, Any] = field(default_factory=dict)
-    status: Status = Status.SUCCESS
-    message: str = "all trajectories completed"
 
     result_kind: ClassVar[str] = "chaos diagram"
 

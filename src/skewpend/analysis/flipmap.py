@@ -63,16 +63,16 @@ import json
 import math
 import os
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, ClassVar, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_params, positive, tolerances
+from ..checks import DEFAULT_TOL, MAX_STEPS  # noqa: F401 - the module's documented defaults
+from ..checks import max_steps as check_max_steps, numeric_params, positive, tolerances
 from ..errors import ParameterError
 from ..numeric.grid import GridJob
-from ..results import DatasetSpec, ResultProtocol, canonical_json, fingerprint
-from ..status import Status
+from ..results import DatasetSpec, Result, canonical_json, fingerprint
 from ..symbolic.model import Parameters
 
 __all__ = ["flip_map", "FlipMap", "FlipJob", "open_flip_map", "cell_centres", "energy_barrier", "flip_settings",
@@ -88,7 +88,7 @@ _BARRIER_MARGIN = BARRIER_MARGIN
 
 
 @dataclass(frozen=True)
-class FlipMap(ResultProtocol):
+class FlipMap(Result):
     """The result of :func:`flip_map`.
 
     * ``phi0``, ``psi0`` -- the starting angles (cell centres) [rad], shape ``(n, n)``: ``phi0``
@@ -107,11 +107,6 @@ class FlipMap(ResultProtocol):
     psi0: np.ndarray
     flip_time: np.ndarray
     which: np.ndarray
-    params: Parameters
-    settings: Dict[str, Any]
-    stats: Dict[str, Any] = field(default_factory=dict)
-    status: Status = Status.SUCCESS
-    message: str = "all cells completed"
 
     result_kind: ClassVar[str] = "flip map"
 

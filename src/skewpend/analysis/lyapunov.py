@@ -24,17 +24,16 @@ from __future__ import annotations
 import ctypes
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, ClassVar, Dict, Optional, Sequence
 
 import numpy as np
 
-from ..errors import IntegrationError, NotNumericError, ParameterError
+from ..errors import IntegrationError, ParameterError
 from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
 from ..interrupts import Interrupts
 from ..numeric.grid import GridJob
-from ..results import DatasetSpec, ResultProtocol, canonical_json
-from ..status import Status
+from ..results import DatasetSpec, Result, canonical_json
 from ..parsing import initial_state, positive_number
 from ..symbolic.model import Parameters
 
@@ -56,7 +55,7 @@ _STATUS = {
 
 
 @dataclass(frozen=True)
-class LyapunovSpectrum(ResultProtocol):
+class LyapunovSpectrum(Result):
     """The result of :func:`lyapunov`.
 
     * ``exponents`` -- shape ``(k,)`` [1/s], in the order of the QR (descending once converged);
@@ -75,17 +74,9 @@ class LyapunovSpectrum(ResultProtocol):
     t: np.ndarray
     history: np.ndarray
     window_exponents: np.ndarray
-    params: Parameters
     y0: np.ndarray
-    settings: Dict[str, Any]
-    stats: Dict[str, Any] = field(default_factory=dict)
-    status: Status = Status.SUCCESS
-    message: str = "reached t_end"
 
     result_kind: ClassVar[str] = "Lyapunov spectrum"
-
-    def __post_init__(self):
-        object.__setattr__(self, "status", Status.of(self.status))  # an int from C: its Status
 
     @property
     def k(self) -> int:
@@ -357,7 +348,7 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
 
 
 @dataclass(frozen=True)
-class LyapunovMap(ResultProtocol):
+class LyapunovMap(Result):
     """The result of :func:`lyapunov_map`: the largest exponent [1/s] for starts at rest from the
     cell centres ``phi0`` (axis 0) x ``psi0`` (axis 1) [rad], shape ``(n, n)`` (NaN where the
     integration failed), with ``params``, ``settings``, ``stats`` (``cells``, ``failed``,
@@ -368,11 +359,6 @@ class LyapunovMap(ResultProtocol):
     phi0: np.ndarray
     psi0: np.ndarray
     exponent: np.ndarray
-    params: Parameters
-    settings: Dict[str, Any]
-    stats: Dict[str, Any] = field(default_factory=dict)
-    status: Status = Status.SUCCESS
-    message: str = "all cells completed"
 
     result_kind: ClassVar[str] = "Lyapunov map"
 

@@ -24,13 +24,13 @@ import ctypes
 import math
 import re
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, ClassVar, Dict, Optional, Tuple
 
 import numpy as np
 
 from ..errors import IntegrationError, ParameterError
-from ..results import DatasetSpec, ResultProtocol
+from ..results import DatasetSpec, Result
 from ..status import Status
 from ..parsing import positive_number
 from ..symbolic.model import Parameters
@@ -249,7 +249,7 @@ def section_seeds(surface: EnergySurface, n: int, *, margin: float = 1e-9) -> np
 
 
 @dataclass(frozen=True)
-class PoincareSection(ResultProtocol):
+class PoincareSection(Result):
     """The result of :func:`poincare`.
 
     Points (one per crossing, all orbits concatenated; ``orbit[i]`` says whose):
@@ -283,11 +283,6 @@ class PoincareSection(ResultProtocol):
     crossings: np.ndarray
     orbit_status: np.ndarray
     unreachable: np.ndarray
-    params: Parameters
-    settings: Dict[str, Any]
-    stats: Dict[str, Any] = field(default_factory=dict)
-    status: Status = Status.SUCCESS
-    message: str = "every orbit made its crossings"
 
     result_kind: ClassVar[str] = "Poincare section"
 
