@@ -16,7 +16,6 @@ The linear matrices are derived once per body geometry and evaluated numerically
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -26,6 +25,7 @@ import numpy as np
 
 from ..errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
 from ..results import DatasetSpec, ResultProtocol
+from .qep import NotFinite, pair_by_shape, quadratic_eigen
 from ..status import Status
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
@@ -64,20 +64,12 @@ def _geometry(params: Parameters) -> Parameters:
     )
 
 
-class _NotFinite(ParameterError):
-    """Internal: a result is not a finite number (``reason`` is a short phrase)."""
-
-    def __init__(self, reason: str) -> None:
-        super().__init__(reason)
-        self.reason = reason
-
-
 def _describe(params: Parameters) -> str:
     names = [n for n in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2") if n != "alpha" or params.uses_alpha]
     return ", ".join(f"{n} = {getattr(params, n):g}" for n in names if isinstance(getattr(params, n), float))
 
 
-def _not_finite_message(exc: "_NotFinite", params: Parameters) -> str:
+def _not_finite_message(exc: "NotFinite", params: Parameters) -> str:
     return (
         f"normal modes: {exc.reason} for {_describe(params)}; allowed: parameters of moderate size, for which M0, "
         "C0, K0, the eigenvalues and their squares are finite, normal double-precision numbers (about 1e-150 .. 1e150)"
@@ -85,11 +77,11 @@ def _not_finite_message(exc: "_NotFinite", params: Parameters) -> str:
 
 
 def _require_finite(**arrays: np.ndarray) -> None:
-    """Raise :class:`_NotFinite` naming the first array (keyword = its name) with a non-finite entry."""
+    """Raise :class:`NotFinite` naming the first array (keyword = its name) with a non-finite entry."""
     for name, x in arrays.items():
         if not np.all(np.isfinite(np.asarray(x))):
             plural = name.startswith("the ") and name.endswith("s")
-            raise _NotFinite(f"{name} {'are' if plural else 'is'} not finite (overflow)")
+            raise NotFinite(f"{name} {'are' if plural else 'is'} not finite (overflow)")
 
 
 def _matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -107,12 +99,12 @@ def _matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         try:
             M, C, K = (np.array(x, dtype=float) for x in f(*values))
         except (OverflowError, ZeroDivisionError, FloatingPointError):
-            raise _NotFinite("the linear matrices M0, C0, K0 are not finite (overflow)") from None
+            raise NotFinite("the linear matrices M0, C0, K0 are not finite (overflow)") from None
     _require_finite(M0=M, C0=C, K0=K)
     tiny = np.finfo(float).tiny
     for name, X in (("M0", M), ("K0", K), ("C0", C)):
         if np.any((X != 0) & (np.abs(X) < tiny)):
-            raise _NotFinite(f"{name} underflows (entries below {tiny:.3g})")
+            raise NotFinite(f"{name} underflows (entries below {tiny:.3g})")
     return M, C, K
 
 
@@ -123,7 +115,7 @@ def linear_matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndar
     """
     try:
         return _matrices(params)
-    except _NotFinite as exc:
+    except NotFinite as exc:
         raise ParameterError(_not_finite_message(exc, params)) from None
 
 
@@ -263,144 +255,15 @@ class Modes(ResultProtocol):
         return d
 
 
-def _qep_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """The four state-space eigenvalues ``l`` -- the roots of ``det(l^2 M + l C + K) = 0`` --
-    and the displacement parts ``x`` (2, 4) of the state-space eigenvectors ``[x; l x]``
-    (unit length), i.e. the null vectors of ``l^2 M + l C + K``.
-
-    Starting values are the roots of the quartic and the reciprocals of the roots of the
-    reversed quartic (accurate for the large and for the small roots); each is polished by
-    Newton steps on ``det Q(l)`` evaluated from the 2x2 matrix (scaled by ``1/l^2`` for
-    ``|l| > 1``, so nothing overflows).  Unlike the eigenvalues of the 4x4 state matrix this
-    keeps full relative accuracy when the damping spans many orders of magnitude (the slow
-    creep ``~ k/c`` and fast decay ``~ c/m`` of heavy damping, a lightly damped mode beside
-    an almost locked hinge).  Near a double root (critical damping) Newton does not
-    converge and the quartic's roots are used as they are.
-    """
-
-    def det(A: np.ndarray) -> float:
-        return A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-
-    def mixed(A: np.ndarray, B: np.ndarray) -> float:  # det(A + B) - det(A) - det(B)
-        return A[0, 0] * B[1, 1] + A[1, 1] * B[0, 0] - A[0, 1] * B[1, 0] - A[1, 0] * B[0, 1]
-
-    coefficients = np.array([det(M), mixed(M, C), mixed(M, K) + det(C), mixed(C, K), det(K)], dtype=float)
-    if not np.all(np.isfinite(coefficients)) or not np.all(coefficients > 0):
-        raise _NotFinite("the characteristic polynomial det(l^2 M0 + l C0 + K0) is not finite (overflow)")
-    big = np.roots(coefficients).astype(complex)
-    small = 1.0 / np.roots(coefficients[::-1]).astype(complex)
-    roots: List[complex] = []
-    for z0 in np.concatenate([big, small]):
-        if not np.isfinite(z0) or z0 == 0:
-            continue
-        z, converged = _newton(z0, M, C, K)
-        if not converged:
-            continue
-        if abs(z.imag) <= 1e-14 * abs(z):
-            z = complex(z.real, 0.0)
-        z = complex(z.real, abs(z.imag))
-        if not any(abs(z - r) <= 1e-10 * abs(r) for r in roots):
-            roots.append(z)
-    lam = np.array(roots + [np.conj(z) for z in roots if z.imag != 0])
-    if lam.size != 4:  # a (near) double root: Newton converges slowly there
-        lam = big
-    if lam.size != 4 or not np.all(np.isfinite(lam)):
-        raise _NotFinite("the state-space eigenvalues are not finite (overflow)")
-    return lam, _null_vectors(lam, M, C, K)
-
-
-def _scaled_q(z: complex, M: np.ndarray, C: np.ndarray, K: np.ndarray):
-    """``Q(z) = z^2 M + z C + K`` and ``dQ/dz``, both divided by ``z^2`` when ``|z| > 1``;
-    with the power of ``z`` taken out (0 or 2)."""
-    if abs(z) > 1:
-        w = 1.0 / z
-        return M + w * C + (w * w) * K, -(w * w) * C - (2 * w**3) * K, 2
-    return (z * z) * M + z * C + K, (2 * z) * M + C, 0
-
-
-def _newton(z0: complex, M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[complex, bool]:
-    """Newton's method on ``det Q(z) = 0`` from ``z0`` (a real start stays real): the root
-    and whether the steps converged to machine precision."""
-    real = z0.imag == 0
-    z = complex(z0.real, 0.0) if real else complex(z0)
-    for _ in range(40):
-        Q, dQ, p = _scaled_q(z, M, C, K)
-        f = Q[0, 0] * Q[1, 1] - Q[0, 1] * Q[1, 0]
-        df = dQ[0, 0] * Q[1, 1] + Q[0, 0] * dQ[1, 1] - dQ[0, 1] * Q[1, 0] - Q[0, 1] * dQ[1, 0]
-        if f == 0:
-            return z, True
-        # det Q = z^(2p) det Qs  =>  det Q / (det Q)' = det Qs / ((det Qs)' + 2p det Qs / z)
-        step = f / (df + 2 * p * f / z)
-        if not np.isfinite(step):
-            return z, False
-        if real:
-            step = complex(step.real, 0.0)
-        z -= step
-        if abs(step) <= 4 * np.finfo(float).eps * abs(z):
-            return z, True
-    return z, False
-
-
-def _null_vectors(lam: np.ndarray, M: np.ndarray, C: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """Unit null vectors of the (scaled) 2x2 ``Q(l)``, one column per eigenvalue; a zero
-    column where ``Q(l) ~ 0`` (a double eigenvalue shared by two shapes: no shape)."""
-    X = np.zeros((2, lam.size), complex)
-    nM, nC, nK = (np.abs(A).max() for A in (M, C, K))
-    for k, z in enumerate(lam):
-        Q, _, p = _scaled_q(z, M, C, K)
-        a, b = np.array([-Q[0, 1], Q[0, 0]]), np.array([Q[1, 1], -Q[1, 0]])
-        x = a if np.linalg.norm(a) >= np.linalg.norm(b) else b
-        n = np.linalg.norm(x)
-        if not np.isfinite(n):
-            raise _NotFinite("the state-space eigenvectors are not finite (overflow)")
-        scale = nM + nC / abs(z) + nK / abs(z) ** 2 if p else abs(z) ** 2 * nM + abs(z) * nC + nK
-        if n > 1e-10 * scale:
-            X[:, k] = x / n
-    return X
-
-
-def _pair_by_shape(lam: np.ndarray, X: np.ndarray, M: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """Split the four eigenvalues into a pair per undamped mode (rows), by shape similarity."""
-    norm = np.sqrt(np.abs(np.einsum("ij,ik,kj->j", X.conj(), M, X).real))
-    # S[k, j]: similarity of eigenvector j to undamped mode k (V is M0-normalised); neutral 1/2
-    # for an eigenvalue whose shape is undetermined (x = 0, see _null_vectors)
-    S = np.where(norm > 0, np.abs(V.T @ M @ X) / np.where(norm > 0, norm, 1.0), 0.5)
-
-    def is_pair(i: int, j: int) -> bool:
-        if lam[i].imag == 0 and lam[j].imag == 0:
-            return True
-        return lam[i].imag != 0 and abs(lam[i] - np.conj(lam[j])) <= 1e-12 * abs(lam[i])
-
-    best, best_score = None, -np.inf
-    for g1 in itertools.combinations(range(4), 2):
-        g2 = tuple(j for j in range(4) if j not in g1)
-        if not (is_pair(*g1) and is_pair(*g2)):
-            continue
-        score = S[0, list(g1)].sum() + S[1, list(g2)].sum()
-        if score > best_score:
-            best, best_score = (g1, g2), score
-    if best is None:
-        raise _NotFinite("the state-space eigenvalues do not form conjugate or real pairs (numerical failure)")
-    pairs = np.empty((2, 2), complex)
-    for k, g in enumerate(best):
-        z = lam[list(g)]
-        if z[0].imag != 0:
-            z = np.array([z[0].real + 1j * abs(z[0].imag), z[0].real - 1j * abs(z[0].imag)])
-        else:
-            z = z[np.argsort(np.abs(z))]
-        pairs[k] = z
-    return pairs
-
-
 def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Parameters) -> Modes:
-    """Raises :class:`_NotFinite` (short reason) when a result is not finite."""
+    """Raises :class:`NotFinite` (short reason) when a result is not finite."""
     from scipy.linalg import LinAlgError, eigh
 
     with np.errstate(all="ignore"):
         try:
             lam, V = eigh(K, M)
         except (LinAlgError, ValueError):
-            raise _NotFinite("the eigenproblem K0 v = w^2 M0 v cannot be solved in double precision (M0 not positive definite)") from None
+            raise NotFinite("the eigenproblem K0 v = w^2 M0 v cannot be solved in double precision (M0 not positive definite)") from None
         _require_finite(**{"the frequencies": lam, "the mode shapes": V})
         if lam[0] <= 1e-12 * max(abs(lam[1]), 1e-300):
             raise EquilibriumError(
@@ -417,19 +280,19 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         beat = 2 * np.pi / (w[1] - w[0]) if w[1] > w[0] else np.inf
         _require_finite(**{"the frequencies": w, "the periods": periods})
         if np.any(np.isnan(ratios)) or np.isnan(beat):
-            raise _NotFinite("the amplitude ratios are not numbers")
+            raise NotFinite("the amplitude ratios are not numbers")
         if np.any(C != 0):
             try:
-                ev, X = _qep_eigen(M, C, K)
+                ev, X = quadratic_eigen(M, C, K)
             except (np.linalg.LinAlgError, ValueError):
-                raise _NotFinite("the state-space eigenvalues are not finite (overflow)") from None
+                raise NotFinite("the state-space eigenvalues are not finite (overflow)") from None
             _require_finite(**{"the state-space eigenvalues": ev, "the state-space eigenvectors": X})
-            pairs = _pair_by_shape(ev, X, M, V)
+            pairs = pair_by_shape(ev, X, M, V)
             eig = pairs[:, 0]
             damped_w = np.abs(eig.imag)
             prod = (pairs[:, 0] * pairs[:, 1]).real
             if np.any(~(prod > 0)):
-                raise _NotFinite("a damped mode has a zero eigenvalue (underflow)")
+                raise NotFinite("a damped mode has a zero eigenvalue (underflow)")
             # C0 >= 0 makes zeta >= 0; clip the round-off of an undamped mode
             zeta = np.maximum(-(pairs[:, 0] + pairs[:, 1]).real / (2 * np.sqrt(prod)), 0.0)
             _require_finite(**{"the damped frequencies": damped_w, "the damping ratios": zeta})
@@ -471,7 +334,7 @@ def normal_modes(params: Parameters) -> Modes:
     """
     try:
         return _modes(params)
-    except _NotFinite as exc:
+    except NotFinite as exc:
         raise ParameterError(_not_finite_message(exc, params)) from None
 
 
@@ -717,7 +580,7 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
             m = _modes(p)
         except NotNumericError:
             raise
-        except _NotFinite as exc:
+        except NotFinite as exc:
             failures.append((float(v), exc.reason))
         except SkewpendError as exc:
             failures.append((float(v), str(exc)))
