@@ -428,6 +428,12 @@ case("flipmap-scheduler-not-an-address", ["flipmap", "--scheduler", "nowhere"], 
 case("flipmap-scheduler-port-too-big", ["flipmap", "--scheduler", "tcp://127.0.0.1:99999"], "--scheduler")
 case("chaos-diagram-alpha-nan", ["chaos-diagram", "--alpha", "nan"], "--alpha")
 
+# -- issue 20, class 9: the command line's part -----------------------------------------------------------------
+case("poincare-energy-1e308-one-line", ["poincare", "--energy", "1e308"], "--energy")  # no NumPy warning above it
+case("flipmap-store-named-as-the-option", ["flipmap", "--out", "nodir/m.zarr"], re.compile(r"error: --out: "), "nodir")
+case("chaos-store-named-as-the-option", ["chaos-diagram", "--out", "nodir/d.zarr"], re.compile(r"error: --out: "), "nodir")
+case("simulate-max-steps-named-as-the-option", ["simulate", "--method", "rk4", "--max-steps", "10"], "--max-steps")
+
 # -- issue 20, class 7: a run file's key takes effect or is refused ---------------------------------------------
 config_case("cfg-flipmap-initial-refused", "[initial]\nphi0 = 1\n", "[initial] phi0", "flipmap", command="flipmap")
 config_case("cfg-flipmap-dt-out-refused", "[simulation]\ndt_out = 0.1\n", "dt_out", "flipmap", command="flipmap")

@@ -97,26 +97,48 @@ FLAGS = {
     "y0": "the initial state (--phi0, --psi0, --dphi0, --dpsi0)", "n": "--n", "samples": "--samples",
 }
 COMMAND_FLAGS = {"chaos-diagram": {"alpha": "--alphas", "energy": "--energies"}}
-_NAMED = re.compile(r"^([a-z][a-z0-9_]*)(?=(?: must\b| = |: | \(| is\b))")
+_NAMED = re.compile(r"^([a-z][a-z0-9_]*)(?=(?: must\b|: | \(| is\b))")
+_SNAKE = re.compile(r"\b([a-z][a-z0-9]*_[a-z0-9_]+)\b(?! \()")
 
 
 def locate(message: str, command: Optional[str] = None, options: Any = ()) -> str:
-    """A library message that begins with a parameter's name (``max_steps must be ...``) shown
-    with the option or run-file key the user typed: ``--max-steps: max_steps must be ...``.
-    ``options`` are the command's option names; a message that already names an option
-    (``--``) or a run file is left as it is."""
+    """A library message, which names parameters, shown with the options the user typed.
+
+    One that begins with a parameter's name is led by its option or run-file key
+    (``max_steps must be ...`` -> ``--max-steps: max_steps must be ...``; ``store: ...`` ->
+    ``--out: ...``); a parameter named further on gets its option beside it (``use a larger
+    dt_out`` -> ``use a larger dt_out (--dt-out)``).  ``options`` are the command's option names;
+    a message that already names an option (``--``) or a run file is left as it is."""
     from .options import LOCATIONS
 
-    m = _NAMED.match(message)
-    if not m or "--" in message or re.search(r"\.toml\b", message):
+    if "--" in message or re.search(r"\.toml\b", message):
         return message
-    name = m.group(1)
-    where = COMMAND_FLAGS.get(command or "", {}).get(name) or FLAGS.get(name)
-    if where is None and (name in LOCATIONS or name in options):
-        where = LOCATIONS.get(name, "")
-        if not where or where.startswith("default "):
-            where = "--" + name.replace("_", "-")
-    return f"{where}: {message}" if where else message
+
+    def where(name: str) -> Optional[str]:
+        found = COMMAND_FLAGS.get(command or "", {}).get(name) or FLAGS.get(name)
+        if found is None and (name in LOCATIONS or name in options):
+            found = LOCATIONS.get(name, "")
+            if not found or found.startswith("default "):
+                found = "--" + name.replace("_", "-")
+        return found
+
+    m = _NAMED.match(message)
+    lead = where(m.group(1)) if m else None
+    rest = message[m.end():] if lead else message
+    seen = set()
+
+    def beside(match):
+        name = match.group(1)
+        flag = where(name) if name not in seen else None
+        seen.add(name)
+        return f"{name} ({flag})" if flag and flag.startswith("--") else name
+
+    rest = _SNAKE.sub(beside, rest)
+    if not lead:
+        return rest
+    if rest.startswith(": "):  # "store: cannot write ..." -> "--out: cannot write ..."
+        return lead + rest
+    return f"{lead}: {m.group(1)}{rest}"
 
 
 def _ok(result: Any) -> bool:
@@ -149,12 +171,15 @@ def main(argv: Optional[List[str]] = None) -> None:
 
     from ..interrupts import Terminated, terminate_like_interrupt
 
-    warnings.showwarning = _warning_line
     args = sys.argv[1:] if argv is None else list(argv)
     name = next((a for a in args if not a.startswith("-")), None)
     group = typer.main.get_command(app)
     try:
-        with terminate_like_interrupt():
+        with terminate_like_interrupt(), warnings.catch_warnings():  # the warning settings are restored on leaving
+            warnings.showwarning = _warning_line
+            # NumPy's floating-point warnings ("overflow encountered in multiply") are arithmetic
+            # detail: a result says what failed in its status, bad input in its one line
+            warnings.filterwarnings("ignore", message=r".*encountered in", category=RuntimeWarning)
             with group.make_context("skewpend", args) as ctx:
                 result = group.invoke(ctx)
     except typer.Exit as exc:  # --help, --version
