@@ -6,6 +6,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 from skewpend import Parameters, simulate
 
 SCRIPT = """
@@ -31,6 +33,23 @@ def test_help_is_light():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == "False False False"
+
+
+HEAVY = ("sympy", "numpy", "matplotlib", "scipy", "xarray", "zarr", "skewpend.numeric.kernels")
+
+
+@pytest.mark.parametrize("argv", [[], ["--version"], *[[c, "--help"] for c in (
+    "derive", "simulate", "animate", "flipmap", "lyapunov", "poincare", "chaos-diagram", "serve", "report", "export",
+    "validate", "modes")]])
+def test_help_of_every_command_imports_nothing_heavy(argv):
+    """``skewpend``, ``--version`` and every ``COMMAND --help`` stay instant: no NumPy, SymPy,
+    Matplotlib (the commands import them when they run)."""
+    code = (
+        f"import sys\nfrom skewpend.cli import main\ntry:\n    main({argv!r})\nexcept SystemExit as e:\n    code = e.code\n"
+        f"print(code, [m for m in {HEAVY!r} if m in sys.modules])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "0 []"
 
 
 # -- the layers: imports go one way, down ------------------------------------------------------------
