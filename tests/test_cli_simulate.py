@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -207,3 +208,33 @@ def test_transient_is_honoured_or_refused_by_one_rule(tmp_path, monkeypatch):
     assert seen["transient"] == 8.5 and seen["renorm_every"] == 0.5
     line = assert_refused(run_cli(["lyapunov", "--transient", "8.5"], cwd=tmp_path), ["--transient", "8.5", "--renorm-every"])
     assert "whole number" in line
+
+
+# -- exit status 1: a result that is partly failed (one rule in skewpend.cli.main) -------------------------------
+class _Partial:
+    """What a command returns in the result protocol's terms."""
+
+    ok = False
+    message = "3 of 8 cells failed (max_steps reached)"
+
+
+def test_the_rule_reads_ok_then_success():
+    from skewpend.cli import _ok
+
+    assert _ok(object()) and _ok(type("R", (), {"ok": True})()) and not _ok(_Partial())
+    assert not _ok(type("T", (), {"success": False})())  # a Trajectory before the protocol's ok
+
+
+@pytest.mark.parametrize("argv, what", [
+    (["chaos-diagram", "--alphas", "0:1:2", "--energies", "1:2:2", "--samples", "2", "--t-end", "5", "--rtol", "1"],
+     "trajectories failed"),
+    (["poincare", "--energy", "5", "--rtol", "1", "--orbits", "3", "--crossings", "5"], "orbits failed"),
+])
+def test_failed_trajectories_exit_1_with_one_line(argv, what, tmp_path):
+    from helpers import run_process
+
+    ran = run_process(argv, cwd=tmp_path)
+    assert ran.code == 1, ran.report()
+    lines = ran.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"skewpend: {argv[0]}: ") and what in lines[0], ran.report()
+    assert not re.search(r"\bnan\b(?! \(|\))", ran.out.lower().replace("left nan", ""))  # no NaN printed as a number
