@@ -707,3 +707,35 @@ def test_every_option_refuses_hostile_values_in_one_line(argv, flag, tmp_path):
     """Exit status 2, exactly one line naming the option, no traceback, nothing written."""
     ran = run_cli(argv, cwd=tmp_path)
     assert_refused(ran, [flag if flag != "--section" else "section"], tmp_path, set())
+
+
+# -- the library names parameters, the command line shows options (one table in skewpend.cli) ---------------------
+@pytest.mark.parametrize("message, command, options, parameter, shown", [
+    ("max_steps must be a whole number from 1 to 1e15", "simulate", {"max_steps"}, None,
+     "--max-steps: max_steps must be a whole number from 1 to 1e15"),
+    ("store: cannot write nodir/m.zarr", "flipmap", set(), None, "--out: cannot write nodir/m.zarr"),
+    ("use a larger dt_out, a shorter t_end", "simulate", {"dt_out", "t_end"}, None,
+     "use a larger dt_out (--dt-out), a shorter t_end (--t-end)"),
+    ("n_exponents must be 1 or 4", "lyapunov", set(), None, "--exponents: n_exponents must be 1 or 4"),
+    ("alpha must be increasing", "chaos-diagram", {"alphas"}, None, "--alphas: alpha must be increasing"),
+    ("the cap is too small", "simulate", {"max_steps"}, "max_steps", "--max-steps: the cap is too small"),
+    ("t_end = 1e+09 s needs more than max_steps (--max-steps)", "simulate", set(), None,
+     "t_end = 1e+09 s needs more than max_steps (--max-steps)"),  # names an option already: as it is
+    ("parameters must be numeric", "simulate", set(), None, "parameters must be numeric"),  # not an option
+])
+def test_messages_name_the_option_the_user_typed(message, command, options, parameter, shown):
+    from skewpend.cli import locate
+
+    assert locate(message, command, options, parameter) == shown
+
+
+def test_an_error_naming_its_parameter_is_shown_with_the_option(tmp_path, monkeypatch):
+    import skewpend.analysis.lyapunov as lyapunov
+    from skewpend.errors import ParameterError
+
+    def refuse(*args, **kwargs):
+        raise ParameterError("too many windows for this run", parameter="windows")
+
+    monkeypatch.setattr(lyapunov, "lyapunov", refuse)
+    line = assert_refused(run_cli(["lyapunov", "--windows", "7"], cwd=tmp_path), [], tmp_path, set())
+    assert line == "skewpend: error: --windows: too many windows for this run"

@@ -23,7 +23,14 @@ class SkewpendError(Exception):
 
 
 class ParameterError(SkewpendError, ValueError):
-    """A model parameter is invalid (wrong sign, not finite, unphysical inertia, ...)."""
+    """A model parameter is invalid (wrong sign, not finite, unphysical inertia, ...).
+
+    ``parameter`` optionally names the parameter at fault (``"max_steps"``), for a front end
+    to show as its own spelling (the command line: ``--max-steps``)."""
+
+    def __init__(self, *args, parameter=None) -> None:
+        super().__init__(*args)
+        self.parameter = parameter
 
 
 class NotNumericError(SkewpendError, ValueError):

@@ -101,13 +101,14 @@ _NAMED = re.compile(r"^([a-z][a-z0-9_]*)(?=(?: must\b|: | \(| is\b))")
 _SNAKE = re.compile(r"\b([a-z][a-z0-9]*_[a-z0-9_]+)\b(?! \()")
 
 
-def locate(message: str, command: Optional[str] = None, options: Any = ()) -> str:
+def locate(message: str, command: Optional[str] = None, options: Any = (), parameter: Optional[str] = None) -> str:
     """A library message, which names parameters, shown with the options the user typed.
 
     One that begins with a parameter's name is led by its option or run-file key
     (``max_steps must be ...`` -> ``--max-steps: max_steps must be ...``; ``store: ...`` ->
     ``--out: ...``); a parameter named further on gets its option beside it (``use a larger
-    dt_out`` -> ``use a larger dt_out (--dt-out)``).  ``options`` are the command's option names;
+    dt_out`` -> ``use a larger dt_out (--dt-out)``); ``parameter`` (an error's own ``parameter``)
+    leads in any case.  ``options`` are the command's option names;
     a message that already names an option (``--``) or a run file is left as it is."""
     from .options import LOCATIONS
 
@@ -123,6 +124,9 @@ def locate(message: str, command: Optional[str] = None, options: Any = ()) -> st
         return found
 
     m = _NAMED.match(message)
+    if parameter is not None and not (m and m.group(1) == parameter):  # named by the error, not its text
+        lead = where(parameter)
+        return f"{lead}: {_SNAKE.sub(lambda s: s.group(1), message)}" if lead else message
     lead = where(m.group(1)) if m else None
     rest = message[m.end():] if lead else message
     seen = set()
@@ -192,7 +196,7 @@ def main(argv: Optional[List[str]] = None) -> None:
         sys.exit(130)
     except SkewpendError as exc:
         command = group.commands.get(name) if name else None
-        _fail(locate(str(exc), name, {p.name for p in getattr(command, "params", ())}))
+        _fail(locate(str(exc), name, {p.name for p in getattr(command, "params", ())}, getattr(exc, "parameter", None)))
     except typer.TyperException as exc:  # the parser's usage errors (typer's click)
         _fail(_usage_message(exc), getattr(exc, "exit_code", 2))
     except Exception as exc:
