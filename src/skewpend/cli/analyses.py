@@ -5,6 +5,7 @@ that is partly failed makes the exit status 1 (:func:`skewpend.cli.main`)."""
 from __future__ import annotations
 
 import sys
+import warnings
 from enum import Enum
 from typing import Annotated, Optional
 
@@ -84,7 +85,9 @@ def flipmap(
     kw = run.settings(("t_end", "rtol", "atol"))
     if window is not None:
         kw["phi_range"], kw["psi_range"] = window
-    with progress("flip map", "cells", quiet) as bar:
+    with progress("flip map", "cells", quiet) as bar, warnings.catch_warnings():
+        # flip_map also warns of failed cells; its status says so, and main() prints it once
+        warnings.filterwarnings("ignore", message="flip_map: ", category=RuntimeWarning)
         fm = flip_map(params, 256 if n is None else n, progress=bar, store=store, resume=resume, **ensemble, **kw)
     if out is not None and store is None:
         fm.to_netcdf(out)
