@@ -66,11 +66,16 @@ def run_process(argv: Sequence[str], cwd: Optional[os.PathLike] = None, *, timeo
 
 
 def signal_process(argv: Sequence[str], cwd: os.PathLike, *, after: float, signum: int = signal.SIGINT,
-                   ready: Optional[Path] = None):
-    """Start ``python -m skewpend ARGV``, wait ``after`` seconds (or until ``ready`` exists), send
-    ``signum``; (Ran, seconds from the signal to the exit)."""
+                   ready: Optional[str] = None):
+    """Start ``python -m skewpend ARGV``, wait ``after`` seconds -- or, with ``ready`` (a glob in
+    ``cwd``), until a file matches it and ``after`` seconds more -- send ``signum``; (Ran, seconds
+    from the signal to the exit)."""
     proc = subprocess.Popen([*SKEWPEND, *map(str, argv)], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
+    if ready is not None:
+        limit = time.monotonic() + 120
+        while not list(Path(cwd).glob(ready)) and proc.poll() is None and time.monotonic() < limit:
+            time.sleep(0.05)
     deadline = time.monotonic() + after
     while time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.05)

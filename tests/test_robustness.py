@@ -85,6 +85,19 @@ def test_sigterm_stops_an_ensemble_with_status_143_and_no_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_sigterm_while_rendering_an_animation_leaves_no_file_and_no_ffmpeg(tmp_path):
+    pytest.importorskip("imageio_ffmpeg")
+    from helpers import signal_process
+
+    ran, took = signal_process(["animate", "--t-end", "60", "--out", "m.mp4"], tmp_path, after=1.0,
+                               signum=signal.SIGTERM, ready=".m.mp4.*.tmp")
+    assert ran.code == 143 and ran.err.strip().splitlines() == ["skewpend: terminated"], ran.report()
+    assert took < 5.0
+    assert list(tmp_path.iterdir()) == []
+    ps = subprocess.run(["ps", "-eo", "ppid,args"], capture_output=True, text=True).stdout
+    assert "m.mp4" not in ps  # no ffmpeg left writing the video
+
+
 def test_sigterm_stops_lyapunov_with_status_143(tmp_path):
     _, took = _terminated(["lyapunov", "--t-end", "1e5", "--max-steps", "1e12", "--out", "l.json"], tmp_path, after=3.0)
     assert took < 3.0
