@@ -725,6 +725,9 @@ def test_every_option_refuses_hostile_values_in_one_line(argv, flag, tmp_path):
 ])
 def test_messages_name_the_option_the_user_typed(message, command, options, parameter, shown):
     from skewpend.cli import locate
+    from skewpend.cli.options import LOCATIONS
+
+    LOCATIONS.clear()  # no earlier run's run file
 
     assert locate(message, command, options, parameter) == shown
 

@@ -20,7 +20,7 @@ from typing import Any, Dict, Iterable, Mapping, Optional
 from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
 
 __all__ = [
-    "DEFAULT_RUN", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
+    "DEFAULT_RUN", "COMMAND_DEFAULTS", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
 ]
 
 #: The run ``skewpend simulate`` does with no options (the reference case of the README).
@@ -30,8 +30,12 @@ DEFAULT_RUN: Dict[str, Dict[str, Any]] = {
     "simulation": {"t_end": 20.0, "method": "dop853"},
 }
 
-#: The commands that integrate one run with a choice of method (DEFAULT_RUN's [simulation] is theirs).
-ONE_RUN = ("simulate", "animate", "report")
+#: The settings a command needs that its library function does not default itself (the run
+#: of simulate, animate and report is DEFAULT_RUN's; the Lyapunov spectrum's length).
+COMMAND_DEFAULTS: Dict[str, Dict[str, Any]] = {
+    "simulate": DEFAULT_RUN["simulation"], "animate": DEFAULT_RUN["simulation"], "report": DEFAULT_RUN["simulation"],
+    "lyapunov": {"t_end": 1000.0},
+}
 
 #: The model's keys ([parameters]) and the initial state's ([initial]).
 SCALAR_KEYS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
@@ -129,10 +133,8 @@ class Run:
         self.where: Dict[str, Dict[str, str]] = {k: {} for k in DEFAULT_RUN}
         self.given: Dict[str, set] = {k: set() for k in DEFAULT_RUN}
         self._flags = dict(flags or {})
-        if defaults:  # the reference case; its duration and method only for the commands of one run
-            for section, values in DEFAULT_RUN.items():
-                if section == "simulation" and command not in ONE_RUN:
-                    continue
+        if defaults:  # the reference case, and the settings the command's library function needs
+            for section, values in {**DEFAULT_RUN, "simulation": COMMAND_DEFAULTS.get(command, {})}.items():
                 for k, v in values.items():
                     self._set(section, k, v, f"default {k}", given=False)
         if config is not None:
@@ -244,12 +246,10 @@ class Run:
             raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; dop853 chooses its own steps (set --rtol/--atol)")
         out: Dict[str, Any] = {"method": method, **self.settings(("rtol", "atol", "dt"))}
         if self.values["simulation"].get("max_steps") is not None:
-            out["max_steps"] = self.whole("max_steps", 0, 1, MAX_STEP_CAP)
+            from .checks import MAX_STEPS_LIMIT
+
+            out["max_steps"] = self.whole("max_steps", 0, 1, MAX_STEPS_LIMIT)
         return out
-
-
-#: Largest step cap (the compiled integrators count steps in 64-bit integers).
-MAX_STEP_CAP = 10**15
 
 
 def whole_multiple(value: float, unit: float) -> bool:

@@ -175,6 +175,9 @@ def main(argv: Optional[List[str]] = None) -> None:
 
     from ..interrupts import Terminated, terminate_like_interrupt
 
+    from .options import LOCATIONS
+
+    LOCATIONS.clear()  # this run's (main may run more than once in a process)
     args = sys.argv[1:] if argv is None else list(argv)
     name = next((a for a in args if not a.startswith("-")), None)
     group = typer.main.get_command(app)

@@ -13,7 +13,7 @@ import typer
 
 from ..parsing import UsageError
 from . import types as T
-from .options import CONFIG, ENSEMBLE, INITIAL, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve, tolerances
+from .options import CONFIG, ENSEMBLE, INITIAL, INTEGRATION, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve, tolerances
 
 COMMANDS = ("flipmap", "lyapunov", "poincare", "chaos_diagram")
 
@@ -121,7 +121,7 @@ def lyapunov(
     rtol: tolerances("1e-10")["rtol"] = None,
     atol: tolerances("1e-10")["atol"] = None,
     windows: option("--windows", T.Whole(1, 1000), "time windows for the uncertainty (default 10)") = None,
-    max_steps: option("--max-steps", T.Whole(1, 10**15), "refuse or stop a run that needs more steps (default 1e8)") = None,
+    max_steps: INTEGRATION["max_steps"] = None,
     out: option("--out", T.OutPath((".json", ".csv")), "write the result to FILE.json (exponents, settings) or FILE.csv (running estimates)", RUN, "-o") = None,
     plot: plot_option("the running estimates") = None,
     quiet: QUIET = False,
@@ -147,11 +147,10 @@ def lyapunov(
 
     kw = {k: v for k, v in dict(renorm_every=renorm_every, transient=transient, n_exponents=exponents,
                                 windows=windows).items() if v is not None}
-    kw.update(run.settings(("rtol", "atol")))
-    if run.raw("simulation", "max_steps") is not None:
-        kw["max_steps"] = run.whole("max_steps", 0, 1, 10**15)
+    kw.update(run.integration(methods=("dop853",)))
+    kw.pop("method")
     with progress("Lyapunov", "s", quiet) as bar:
-        spec = run_lyapunov(params, y0, t_end=run.number("t_end", 1000.0), progress=bar, throw=False, **kw)
+        spec = run_lyapunov(params, y0, t_end=run.number("t_end"), progress=bar, throw=False, **kw)
     if out is not None:
         _write_lyapunov(spec, out)
     _draw(plot, "lyapunov_figure", spec)

@@ -115,8 +115,7 @@ def validate(
 
     run = resolve("validate", config, parameters=model, initial=initial, simulation={"t_end": t_end})
     params, y0 = run.parameters(), run.initial_state()
-    horizon = run.number("t_end", 2.0)
-    report = compare_with_mujoco(params, y0, horizon, dt=1e-4 if dt is None else dt)
+    report = compare_with_mujoco(params, y0, **run.settings(("t_end",)), **({} if dt is None else {"dt": dt}))
     tolerance = 1e-6 if tol is None else tol
     ok = report.max_difference <= tolerance
     sys.stdout.write("\n".join([

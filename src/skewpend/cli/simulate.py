@@ -120,7 +120,7 @@ def animate(
     130 interrupted, 143 terminated (nothing written).
     """
     run, params, y0, settings = _run("animate", config, model, initial, integration, t_end=t_end)
-    from ..views.animation import DEFAULT_SIZE, DEFAULT_TRAIL, check_output
+    from ..views.animation import check_output
 
     if out is None:
         raise UsageError("--out: give the video file, FILE.mp4 or FILE.gif")
@@ -135,9 +135,9 @@ def animate(
 
     with progress("simulating", "s", quiet) as bar:
         traj = run_simulation(params, y0, horizon, dt_out=speed_v / fps_v, progress=bar, **settings)
+    looks = {k: v for k, v in dict(trail=trail, size=size).items() if v is not None}
     with progress("rendering", "frames", quiet) as bar:
-        write_animation(traj, out, fps=fps_v, speed=speed_v, trail=DEFAULT_TRAIL if trail is None else trail,
-                        size=size or DEFAULT_SIZE, progress=bar)
+        write_animation(traj, out, fps=fps_v, speed=speed_v, progress=bar, **looks)
     n = traj.t.size
     sys.stdout.write(f"wrote {out}: {n} frames, {n / fps_v:.2f} s at {fps_v:g} fps, {traj.t[-1]:.6g} s of motion ({speed_v:g}x)\n")
     return traj, f" at t = {traj.t[-1]:.6g} s; animated the frames computed"
