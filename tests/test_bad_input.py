@@ -401,6 +401,9 @@ config_case("cfg-invalid-toml", "[parameters\na = \n", "run.toml", "not valid TO
 config_case("cfg-binary", b"\xff\xfe\x00\x01\x80abc\x00", "run.toml", "UTF-8")
 case("cfg-directory", ["simulate", "--config", "run.toml"], "run.toml", "directory", files={"run.toml": DIR})
 case("cfg-missing", ["simulate", "--config", "missing.toml"], "missing.toml", "does not exist")
+case("cfg-dev-zero", ["simulate", "--config", "/dev/zero"], "/dev/zero", "regular file")  # not read for ever
+case("cfg-dev-stdin", ["lyapunov", "--config", "/dev/stdin"], "/dev/stdin")
+case("cfg-huge", ["flipmap", "--config", "big.toml"], "big.toml", "bytes", files={"big.toml": "# " + "x" * (1 << 21) + "\n"})
 config_case("cfg-export-a-1e308", "[parameters]\na = 1e308\n", names("a"), "at most 1e+100", command="export")
 config_case("cfg-export-binary", b"\x80\x81\x82", "UTF-8", command="export")
 config_case("cfg-modes-a-true", "[parameters]\na = true\n", "[parameters] a", command="modes")

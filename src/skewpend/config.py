@@ -116,6 +116,28 @@ def build_parameters(values: Mapping[str, Any], where: Optional[Mapping[str, str
     return Parameters(**scalars, **geometry)
 
 
+#: The largest run file read [bytes] (a run file is a few hundred bytes; /dev/zero is endless).
+MAX_RUN_FILE = 1 << 20
+
+
+def _check_run_file(path) -> None:
+    """A run file must be a regular file of at most :data:`MAX_RUN_FILE` bytes (a device, a FIFO
+    or /dev/stdin would be read for ever); a missing one is reported by the reader."""
+    import os
+    import stat
+
+    try:
+        info = os.stat(path)
+    except OSError:
+        return  # read_config says what is wrong (missing, unreadable)
+    if stat.S_ISDIR(info.st_mode):
+        return
+    if not stat.S_ISREG(info.st_mode):
+        raise UsageError(f"config file {path} is not a regular file (a device or a pipe); give a TOML file")
+    if info.st_size > MAX_RUN_FILE:
+        raise UsageError(f"config file {path} is {info.st_size} bytes; a run file is at most {MAX_RUN_FILE} bytes of TOML")
+
+
 class Run:
     """The resolved settings of one command: defaults, then the run file, then the command line.
 
@@ -138,6 +160,7 @@ class Run:
                 for k, v in values.items():
                     self._set(section, k, v, f"default {k}", given=False)
         if config is not None:
+            _check_run_file(config)
             reads = READS.get(command, {})
             for section, values in read_config(config).items():
                 for k, v in values.items():
