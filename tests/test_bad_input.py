@@ -437,6 +437,13 @@ case("flipmap-store-named-as-the-option", ["flipmap", "--out", "nodir/m.zarr"], 
 case("chaos-store-named-as-the-option", ["chaos-diagram", "--out", "nodir/d.zarr"], re.compile(r"error: --out: "), "nodir")
 case("simulate-max-steps-named-as-the-option", ["simulate", "--method", "rk4", "--max-steps", "10"], "--max-steps")
 
+# -- an option given twice would silently lose its first value ---------------------------------------------------
+case("simulate-a-twice", ["simulate", "--a", "1", "--a", "2"], "--a", "twice")
+case("simulate-out-twice-short", ["simulate", "--out=a.csv", "-o", "b.csv"], "twice")
+case("flipmap-n-twice", ["flipmap", "--n", "4", "--n", "8"], "--n", "twice")
+case("serve-port-twice", ["serve", "--port", "8001", "--port", "8002"], "--port", "twice")
+case("derive-format-twice", ["derive", "-f", "json", "--format", "latex"], "twice")
+
 # -- issue 20, class 7: a run file's key takes effect or is refused ---------------------------------------------
 config_case("cfg-flipmap-initial-refused", "[initial]\nphi0 = 1\n", "[initial] phi0", "flipmap", command="flipmap")
 config_case("cfg-flipmap-dt-out-refused", "[simulation]\ndt_out = 0.1\n", "dt_out", "flipmap", command="flipmap")

@@ -169,6 +169,25 @@ def _usage_message(exc) -> str:
     return f"{exc.format_message().strip()} (see '{where} --help')"
 
 
+def _check_repeats(command, args: List[str]) -> None:
+    """An option given twice would silently lose its first value: refused."""
+    from ..parsing import UsageError
+
+    by_flag = {flag: p for p in getattr(command, "params", ()) for flag in (*p.opts, *p.secondary_opts)}
+    seen, i = {}, 0
+    while i < len(args) and args[i] != "--":
+        flag = args[i].split("=", 1)[0]
+        param = by_flag.get(flag) if args[i].startswith("-") else None
+        if param is None:
+            i += 1
+            continue
+        takes_value = not getattr(param, "is_flag", False) and "=" not in args[i]
+        if param.name in seen and not getattr(param, "is_flag", False):
+            raise UsageError(f"{flag} is given twice ({seen[param.name]!r} and {args[i + 1] if takes_value and i + 1 < len(args) else args[i].split('=', 1)[-1]!r}); give it once")
+        seen[param.name] = args[i + 1] if takes_value and i + 1 < len(args) else args[i].split("=", 1)[-1]
+        i += 2 if takes_value else 1
+
+
 def main(argv: Optional[List[str]] = None) -> None:
     """Entry point: run a command and exit with its status (see the module)."""
     import warnings
@@ -187,6 +206,8 @@ def main(argv: Optional[List[str]] = None) -> None:
             # NumPy's floating-point warnings ("overflow encountered in multiply") are arithmetic
             # detail: a result says what failed in its status, bad input in its one line
             warnings.filterwarnings("ignore", message=r".*encountered in", category=RuntimeWarning)
+            if name in group.commands:
+                _check_repeats(group.commands[name], args[args.index(name) + 1:])
             with group.make_context("skewpend", args) as ctx:
                 result = group.invoke(ctx)
     except typer.Exit as exc:  # --help, --version
