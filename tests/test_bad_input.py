@@ -752,3 +752,20 @@ def test_an_error_naming_its_parameter_is_shown_with_the_option(tmp_path, monkey
     monkeypatch.setattr(lyapunov, "lyapunov", refuse)
     line = assert_refused(run_cli(["lyapunov", "--windows", "7"], cwd=tmp_path), [], tmp_path, set())
     assert line == "skewpend: error: --windows: too many windows for this run"
+
+
+@pytest.mark.parametrize("host, shown", [("[::1]", "http://[::1]:"), ("::1", "http://[::1]:"), ("localhost", "http://localhost:")])
+def test_serve_on_ipv6_loopback_neither_warns_nor_misprints(host, shown, tmp_path, monkeypatch):
+    """``--host [::1]`` passed the check, warned falsely and failed in uvicorn (issue 20, class 8)."""
+    import socket
+
+    pytest.importorskip("fastapi")
+    if not socket.has_ipv6:
+        pytest.skip("no IPv6 on this machine")
+    from skewpend.views import explorer
+
+    started = []
+    monkeypatch.setattr(explorer, "serve", lambda *a, **kw: started.append(a))
+    ran = run_cli(["serve", "--host", host, "--port", "8765"], cwd=tmp_path)
+    assert ran.code == 0 and "warning" not in ran.err and shown in ran.err, ran.report()
+    assert started and started[0][0] in ("::1", "localhost")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Annotated
 
 import typer
@@ -14,8 +15,8 @@ COMMANDS = ("serve",)
 
 @command()
 def serve(
-    host: option("--host", T.Host(), "address to listen on (default 127.0.0.1: this machine only)", None) = None,
-    port: option("--port", T.Port(), "TCP port (default 8000)", None) = None,
+    host: option("--host", T.Host(), "address to listen on (default 127.0.0.1: this machine only)", None) = "127.0.0.1",
+    port: option("--port", T.Port(), "TCP port (default 8000)", None) = "8000",
     open_browser: Annotated[bool, typer.Option("--open", help="open the page in the web browser")] = False,
 ) -> None:
     """The live explorer in the browser: the pendulum in 3D with sliders, equations, plots, normal
@@ -25,4 +26,33 @@ def serve(
     """
     from ..views import explorer
 
-    explorer.serve(**{k: v for k, v in dict(host=host, port=port).items() if v is not None}, open_browser=open_browser)
+    _announce(explorer, host, port)
+    explorer.serve(host, port, open_browser=open_browser)
+
+
+def _announce(explorer, host: str, port: int) -> None:
+    """Transitional (until explorer.serve checks its address itself): a busy port in one line
+    before starting, a warning when serving beyond this machine, the address to open."""
+    import ipaddress
+    import socket
+
+    from ..parsing import UsageError
+
+    explorer.require_web("skewpend serve")
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            raise UsageError(f"--port: cannot listen on {host}:{port}: {exc.strerror or exc}; choose another --port "
+                             "or --host") from None
+    try:
+        loopback = ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        loopback = host == "localhost"
+    if not loopback:
+        sys.stderr.write(f"skewpend: warning: serving on {host}:{port}, not only on this machine: anyone who can reach "
+                         "it can use the explorer (its work per request is bounded)\n")
+    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else (f"[{host}]" if ":" in host else host)
+    sys.stderr.write(f"skewpend explorer on http://{shown}:{port}/ (Ctrl-C to stop)\n")
