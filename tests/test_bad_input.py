@@ -766,6 +766,9 @@ def test_serve_on_ipv6_loopback_neither_warns_nor_misprints(host, shown, tmp_pat
 
     started = []
     monkeypatch.setattr(explorer, "serve", lambda *a, **kw: started.append(a))
-    ran = run_cli(["serve", "--host", host, "--port", "8765"], cwd=tmp_path)
+    with socket.socket(socket.AF_INET6) as free:
+        free.bind(("::1", 0))
+        port = free.getsockname()[1]
+    ran = run_cli(["serve", "--host", host, "--port", str(port)], cwd=tmp_path)
     assert ran.code == 0 and "warning" not in ran.err and shown in ran.err, ran.report()
     assert started and started[0][0] in ("::1", "localhost")
