@@ -31,7 +31,7 @@ def modes(
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="with --sweep: write the table to FILE (.csv or .json; alpha in rad plus alpha_deg)")] = None,
     # parsed after the check that it goes with --sweep (a misplaced option is the first thing to say)
     tolerance: Annotated[Optional[str], typer.Option("--tolerance", metavar="NUMBER", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3 (a positive number; default 0.01)")] = None,
-    check_nonlinear: option("--check-nonlinear", T.Angle(), "AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep)", None) = None,
+    check_nonlinear: option("--check-nonlinear", T.Angle("ANGLE"), "AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep)", None) = None,
     config: CONFIG = None,
 ) -> None:
     """Normal modes of the small oscillations about the hanging equilibrium (and how alpha shapes them)."""

@@ -53,10 +53,10 @@ MODEL_NO_TORQUE = {k: v for k, v in MODEL.items() if k not in ("tau1", "tau2")}
 
 #: The initial state.
 INITIAL: Dict[str, Any] = {
-    "phi0": option("--phi0", T.Angle(), "initial phi [rad, or e.g. 60deg] (default 1.2)"),
-    "psi0": option("--psi0", T.Angle(), "initial psi [rad, or deg] (default -0.8)"),
-    "dphi0": option("--dphi0", T.Scalar(), "initial dphi/dt [rad/s] (default 0)"),
-    "dpsi0": option("--dpsi0", T.Scalar(), "initial dpsi/dt [rad/s] (default 0)"),
+    "phi0": option("--phi0", T.Angle("ANGLE"), "initial phi [rad, or e.g. 60deg] (default 1.2)"),
+    "psi0": option("--psi0", T.Angle("ANGLE"), "initial psi [rad, or deg] (default -0.8)"),
+    "dphi0": option("--dphi0", T.Scalar("NUMBER"), "initial dphi/dt [rad/s] (default 0)"),
+    "dpsi0": option("--dpsi0", T.Scalar("NUMBER"), "initial dpsi/dt [rad/s] (default 0)"),
 }
 
 
@@ -90,7 +90,7 @@ ENSEMBLE: Dict[str, Any] = {
     "scheduler": option("--scheduler", T.Scheduler(), "run on a dask.distributed cluster: tcp://HOST:PORT (needs skewpend[cluster])"),
 }
 
-CONFIG = Annotated[Optional[str], typer.Option("--config", help="TOML run file with [parameters], [initial], [simulation]; options override it; a key this command does not read is refused", rich_help_panel=RUN)]
+CONFIG = Annotated[Optional[str], typer.Option("--config", metavar="FILE", help="TOML run file with [parameters], [initial], [simulation]; options override it; a key this command does not read is refused", rich_help_panel=RUN)]
 QUIET = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar (it is shown on a terminal for work over ~1 s)", rich_help_panel=RUN)]
 
 

@@ -40,6 +40,10 @@ class Scalar(ParamType):
     metavar = "NUMBER|sym"
     angle = False
 
+    def __init__(self, metavar: Optional[str] = None) -> None:
+        if metavar is not None:
+            self.metavar = metavar
+
     def convert(self, text, flag):
         value = parse_scalar(text, flag, angle=self.angle)
         return "sym" if value is None else value
@@ -48,7 +52,7 @@ class Scalar(ParamType):
 class Angle(Scalar):
     """An angle: radians, a ``deg`` suffix (``30deg``) or a multiple of pi (``pi/2``); or ``sym``."""
 
-    metavar = "ANGLE"
+    metavar = "ANGLE|sym"
     angle = True
 
 
