@@ -712,6 +712,7 @@ def test_the_option_battery_covers_every_command_with_hundreds_of_cases():
     assert {p.values[0][0] for p in _BATTERY} == set(COMMANDS) | {"serve"}
 
 
+@pytest.mark.slow  # about 2,100 cases, ~75 s in all
 @pytest.mark.parametrize("argv, flag", _BATTERY)
 def test_every_option_refuses_hostile_values_in_one_line(argv, flag, tmp_path):
     """Exit status 2, exactly one line naming the option, no traceback, nothing written."""

@@ -77,6 +77,7 @@ def test_sigterm_stops_simulate_with_status_143_and_no_file(tmp_path, out):
     assert list(tmp_path.iterdir()) == []  # neither the output nor a .NAME.skewpend-PID.tmp
 
 
+@pytest.mark.slow
 def test_sigterm_stops_an_ensemble_with_status_143_and_no_file(tmp_path):
     """A flip map on every core (worker threads, chunks in flight) ends as on Ctrl-C: nothing written."""
     skewpend.flip_map(P, 2, t_end=1.0)  # kernels cached before the clock starts
@@ -85,6 +86,7 @@ def test_sigterm_stops_an_ensemble_with_status_143_and_no_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_sigterm_while_rendering_an_animation_leaves_no_file_and_no_ffmpeg(tmp_path):
     pytest.importorskip("imageio_ffmpeg")
     from helpers import signal_process
@@ -98,6 +100,7 @@ def test_sigterm_while_rendering_an_animation_leaves_no_file_and_no_ffmpeg(tmp_p
     assert "m.mp4" not in ps  # no ffmpeg left writing the video
 
 
+@pytest.mark.slow
 def test_sigterm_while_writing_a_report_leaves_nothing_in_tmpdir(tmp_path, monkeypatch):
     from helpers import signal_process
 
