@@ -89,6 +89,20 @@ def build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, ine
                       com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2))
 
 
+#: Names the single-module CLI (``skewpend/cli.py``) had, where they live now (deprecated here).
+_MOVED = {"DEFAULT_RUN": ("..config", "DEFAULT_RUN"), "MODEL_OPTIONS": (".options", "MODEL"),
+          "INITIAL_OPTIONS": (".options", "INITIAL"), "Method": (".options", "Method")}
+
+
+def __getattr__(name: str):
+    if name in _MOVED:
+        import importlib
+
+        module, attribute = _MOVED[name]
+        return getattr(importlib.import_module(module, __name__), attribute)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 # -- outcomes -> exit statuses (the one place) -------------------------------------------------------
 #: The option of each name the library's messages use where it is not ``--name`` (per command
 #: where it differs: the chaos diagram's alpha and energy are ranges).
