@@ -320,6 +320,7 @@ def test_unwritable_cache_falls_back_with_one_warning(tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("skewpend: warning: cannot write the kernel cache"), proc.stderr
     assert "reached t_end" in proc.stdout
+    assert "not cached" in proc.stdout and "cached for later runs" not in proc.stdout  # the summary says so too
 
 
 def test_missing_compiler_is_one_clear_line(tmp_path):

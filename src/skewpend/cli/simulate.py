@@ -76,10 +76,10 @@ def check_plot(plot, option: str = "--plot") -> None:
 
 def summary(traj, out_path) -> str:
     y, st = traj.final_state, traj.stats
-    kernel = (
-        f"compiled for this model in {st['kernel_build_time']:.2f} s (first use; cached for later runs)"
-        if st.get("kernel") == "compiled" else "loaded from the cache"
-    )
+    kernel = "loaded from the cache"
+    if st.get("kernel") == "compiled":
+        kept = "first use; cached for later runs" if _cache_writable() else "not cached: the kernel cache is not writable"
+        kernel = f"compiled for this model in {st['kernel_build_time']:.2f} s ({kept})"
     lines = [
         f"method        {traj.method}  ({', '.join(f'{k}={v:g}' for k, v in traj.settings.items() if isinstance(v, float) and k != 't_end')})",
         f"status        {traj.message}",
@@ -93,6 +93,16 @@ def summary(traj, out_path) -> str:
     if out_path is not None:
         lines.append(f"written       {out_path} ({st['rows']} rows)")
     return "\n".join(lines) + "\n"
+
+
+def _cache_writable() -> bool:
+    """Whether compiled kernels are kept for later runs (else a temporary directory held them)."""
+    import os
+
+    from ..numeric.kernels import cache_dir
+
+    directory = cache_dir() / "kernels"
+    return directory.is_dir() and os.access(directory, os.W_OK)
 
 
 #: The most frames an animation may have (a 30 fps video of ~30 minutes).
