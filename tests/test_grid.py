@@ -313,3 +313,30 @@ def test_a_trajectory_on_a_full_disk_is_one_error_and_no_file(full_disk, suffix,
         simulate(BENCH, [1.0, 0.5, 0.0, 0.0], t_end, dt_out=1e-3, out=full_disk / f"s{suffix}")
     assert "\n" not in str(info.value) and str(full_disk) in str(info.value)
     assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]
+
+
+@pytest.mark.parametrize("kw", [dict(t_end=1e12), dict(t_end=10.0, y0=[1.2, -0.8, 1e10, 0.0]),
+                                dict(t_end=1.0, params=BENCH.replace(tau2=1e15)), dict(t_end=1000.0, params=BENCH.replace(c1=1e10))],
+                         ids=["t-end-1e12", "dphi0-1e10", "tau2-1e15", "c1-1e10"])
+def test_a_lyapunov_run_that_cannot_finish_is_refused_after_its_first_call(kw):
+    """As simulate: the first bounded call's step rate gives the estimate (issue 20 class 1)."""
+    import time
+
+    from skewpend.analysis.lyapunov import lyapunov
+
+    params = kw.pop("params", BENCH)
+    y0 = kw.pop("y0", [1.2, -0.8, 0.0, 0.0])
+    start = time.perf_counter()
+    with pytest.raises(ParameterError, match=r"needs about .* steps at this tolerance .* more than max_steps"):
+        lyapunov(params, y0, **kw)
+    assert time.perf_counter() - start < 5.0
+
+
+def test_a_lyapunov_start_that_overflows_is_refused_as_simulate_refuses_it():
+    from skewpend import simulate
+    from skewpend.analysis.lyapunov import lyapunov
+
+    for call in (lambda: simulate(BENCH, [1.2, -0.8, 1e308, 0.0], 1.0),
+                 lambda: lyapunov(BENCH, [1.2, -0.8, 1e308, 0.0], t_end=1.0)):
+        with pytest.raises(ParameterError, match="is not finite .overflow."):
+            call()

@@ -146,6 +146,20 @@ class LyapunovSpectrum(Result):
         })
 
 
+def _check_estimate(state, t_end: float, max_steps: int) -> None:
+    """After the first bounded call: the steps the whole run needs at the rate so far."""
+    attempted = int(state.naccept) + int(state.nreject)
+    reached = float(state.t)
+    estimate = attempted * t_end / reached if reached > 0 else math.inf
+    if estimate > max_steps:
+        about = f"about {estimate:.2g}" if math.isfinite(estimate) else "more than 1e308"
+        raise ParameterError(
+            f"t_end = {t_end:g} s needs {about} steps at this tolerance (from the first {attempted} steps, which "
+            f"reached t = {reached:.3g} s), more than max_steps = {max_steps}; shorten t_end, loosen the tolerance "
+            "or raise max_steps"
+        )
+
+
 def check_times(t_end, renorm_every, transient):
     """``(t_end, renorm_every, transient)`` of a Lyapunov computation, checked together."""
     t_end = positive_number("t_end", t_end)
@@ -222,6 +236,9 @@ def lyapunov(
 
     kernel = kernel_module(params, chaos=True)
     p = parameter_vector(params)
+    from ..numeric.simulation import check_start
+
+    check_start(kernel, p, y)
     state = LyapState()
     state.k, state.every, state.t0 = k, renorm_every, 0.0
     for i in range(4):
@@ -255,6 +272,7 @@ def lyapunov(
                  rows.ctypes.data_as(dp), _ROWS, ctypes.byref(m))
     start = time.perf_counter()
     renorms = 0
+    estimated = False
     with Interrupts() as intr:  # Ctrl-C raised between the bounded calls, never lost
         while True:
             status = kernel.lib.sp_lyap(*call_args)
@@ -284,6 +302,9 @@ def lyapunov(
             if progress is not None:
                 progress(state.t, t_end)
             if status in (-1, -2):
+                if not estimated:  # after the first bounded call: refuse what cannot finish, as simulate does
+                    estimated = True
+                    _check_estimate(state, t_end, max_steps)
                 continue
             break
     wall = time.perf_counter() - start

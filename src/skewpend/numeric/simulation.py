@@ -36,7 +36,7 @@ from ..errors import IntegrationError, ParameterError
 from ..symbolic.model import Parameters
 from ..parsing import initial_state, positive_number
 
-__all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS"]
+__all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", "check_start"]
 
 METHODS = ("dop853", "rk4", "gauss")
 
@@ -101,6 +101,24 @@ class Trajectory:
         from .kernels import parameter_vector
 
         return self._kernel.axes_many(self.y, parameter_vector(self.params))
+
+
+def check_start(kernel, p, y) -> None:
+    """Refuse an initial state ``y`` (4,) whose energy or acceleration is not finite (overflow:
+    huge speeds or parameters) -- before any integration, for every computation from a start."""
+    y5 = np.append(np.asarray(y, dtype=float), 0.0)
+    deriv = np.empty(5)
+    with np.errstate(all="ignore"):
+        kernel.rhs(y5, p, deriv)
+        energy = kernel.energy(y5, p)
+    if not (np.all(np.isfinite(deriv)) and math.isfinite(energy)):
+        from .kernels import PARAMETER_ORDER
+
+        values = ", ".join(f"{n} = {v:g}" for n, v in zip(PARAMETER_ORDER, p) if v != 0)
+        raise ParameterError(
+            f"the energy or acceleration at the initial state {np.asarray(y).tolist()} is not finite (overflow) for "
+            f"{values}; use parameters and initial speeds of moderate size"
+        )
 
 
 #: Default cap on the attempted steps of one run (accepted + rejected).
@@ -207,7 +225,7 @@ def simulate(
     writes -- what it computed, with ``status`` and ``message`` set, never NaN rows; with
     ``throw=True`` it raises :class:`~skewpend.errors.IntegrationError` after that.
     """
-    from .kernels import PARAMETER_ORDER, State, kernel_module, parameter_vector
+    from .kernels import State, kernel_module, parameter_vector
     from ..io import TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
 
     params.require_numeric("simulation")
@@ -268,14 +286,7 @@ def simulate(
     kernel = kernel_module(params)
     p = parameter_vector(params)
     y5 = np.append(y, 0.0)
-    deriv = np.empty(5)
-    kernel.rhs(y5, p, deriv)
-    if not (np.all(np.isfinite(deriv)) and math.isfinite(kernel.energy(y5, p))):
-        values = ", ".join(f"{n} = {v:g}" for n, v in zip(PARAMETER_ORDER, p) if v != 0)
-        raise ParameterError(
-            f"the energy or acceleration at the initial state {y.tolist()} is not finite (overflow) for {values}; "
-            "use parameters and initial speeds of moderate size"
-        )
+    check_start(kernel, p, y)
 
     if method == "gauss":
         mom = np.empty(2)
