@@ -340,3 +340,24 @@ def test_a_lyapunov_start_that_overflows_is_refused_as_simulate_refuses_it():
                  lambda: lyapunov(BENCH, [1.2, -0.8, 1e308, 0.0], t_end=1.0)):
         with pytest.raises(ParameterError, match="is not finite .overflow."):
             call()
+
+
+def test_a_private_kernel_cache_leaves_nothing_behind(tmp_path):
+    """An unwritable cache: the run compiles into a private temporary directory, removed at exit."""
+    blocker = tmp_path / "not-a-directory"
+    blocker.write_text("")
+    tmpdir = tmp_path / "tmp"
+    tmpdir.mkdir()
+    env = dict(os.environ, SKEWPEND_CACHE_DIR=str(blocker), TMPDIR=str(tmpdir))
+    r = subprocess.run([sys.executable, "-m", "skewpend", "simulate", "--t-end", "1"], env=env, capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "not cached" in r.stdout and list(tmpdir.iterdir()) == []
+
+
+def test_a_compiler_that_produces_nothing_is_one_clear_line(tmp_path):
+    env = dict(os.environ, CC="/bin/true", SKEWPEND_CACHE_DIR=str(tmp_path / "cache"))
+    r = subprocess.run([sys.executable, "-m", "skewpend", "simulate", "--t-end", "1"], env=env, capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.strip().count("\n") == 0
+    assert "'/bin/true' reported success but produced no shared library" in r.stderr

@@ -181,6 +181,9 @@ def _compile(source: str, target: Path) -> None:
         if proc.returncode != 0:
             first = (proc.stderr.strip().splitlines() or ["(no message)"])[0]
             raise CompilerError(f"the C compiler {cc!r} failed on the generated kernel: {first}")
+        if not os.path.isfile(so_tmp) or os.path.getsize(so_tmp) == 0:
+            raise CompilerError(f"the C compiler {cc!r} reported success but produced no shared library; set CC to a "
+                                "working C compiler (gcc or clang)")
         digest = hashlib.sha256(Path(so_tmp).read_bytes()).hexdigest()
         os.replace(so_tmp, target)
         _atomic_text(target.with_suffix(".sha256"), digest + "\n")
@@ -401,7 +404,11 @@ def _writable_directory() -> Path:
         return directory
     except OSError as exc:
         if _FALLBACK_DIR is None:
+            import atexit
+
             _FALLBACK_DIR = Path(tempfile.mkdtemp(prefix="skewpend-kernels-"))
+            # a private directory for this run only: removed at exit (the loaded libraries stay mapped)
+            atexit.register(shutil.rmtree, _FALLBACK_DIR, ignore_errors=True)
             warnings.warn(
                 f"cannot write the kernel cache {directory} ({exc.strerror or exc}); using {_FALLBACK_DIR} "
                 "for this run (set SKEWPEND_CACHE_DIR to a writable directory to keep compiled kernels)",
