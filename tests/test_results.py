@@ -102,3 +102,23 @@ def test_fewer_starts_than_asked_are_said():
     given = poincare(BENCH, energy=8.0, seeds=[(0.1, 0.0), (3.0, 50.0)], n_crossings=5)
     assert given.unreachable.shape == (1, 2) and given.status is Status.SHORT
     assert "only 1 of the 2 orbits" in given.message
+
+
+def test_the_flip_time_of_one_start_is_the_maps_cell():
+    """flip_time (the report's single start) computes a cell exactly as the map does: same bits."""
+    from skewpend.analysis.flipmap import flip_map, flip_time
+
+    fm = flip_map(BENCH, 8, t_end=6.0)
+    margin = fm.energy_margin()
+    assert margin.shape == (8, 8) and np.array_equal(margin < 0, np.isnan(fm.flip_time) & (margin < 0))
+    checked = 0
+    for i, j in [(0, 0), (1, 6), (3, 3), (7, 2), (5, 5)]:
+        one = flip_time(BENCH, fm.phi0[i, j], fm.psi0[i, j], t_end=6.0)
+        assert one.forbidden == (margin[i, j] < 0)
+        if not one.forbidden:
+            assert one.which == fm.which[i, j] and (np.isnan(one.time) and np.isnan(fm.flip_time[i, j])
+                                                    or one.time == fm.flip_time[i, j])
+            checked += 1
+    assert checked >= 2
+    with pytest.raises(Exception, match="within"):
+        flip_time(BENCH, 4.0, 0.0)

@@ -73,9 +73,10 @@ from ..checks import max_steps as check_max_steps, numeric_params, positive, tol
 from ..errors import ParameterError
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json, fingerprint
+from ..status import Status
 from ..symbolic.model import Parameters
 
-__all__ = ["flip_map", "FlipMap", "FlipJob", "open_flip_map", "cell_centres", "energy_barrier", "flip_settings",
+__all__ = ["flip_map", "flip_time", "FlipOfStart", "FlipMap", "FlipJob", "open_flip_map", "cell_centres", "energy_barrier", "flip_settings",
            "fingerprint", "MAX_N"]
 
 #: Largest grid: n x n cells (16384^2 = 2.7e8 cells, about 4 GB of results).
@@ -118,6 +119,23 @@ class FlipMap(Result):
     def flipped(self) -> np.ndarray:
         """Boolean mask of the cells that flipped by ``t_end``."""
         return np.isfinite(self.flip_time)
+
+    def energy_margin(self) -> np.ndarray:
+        """``V(q0) - V_threshold`` [J] on the cells, laid out like ``flip_time``: the potential
+        ``V = Pi - tau . q`` at each start less the energy bound's threshold (its minimum on the
+        boundary of the square ``(-pi, pi)^2``, less the safety margin); negative where energy
+        alone forbids a flip.  The threshold the map used (``stats["energy_threshold"]``), or,
+        for a map made without the shortcuts, the same computed now."""
+        from ..numeric.kernels import kernel_module, parameter_vector
+
+        kernel = kernel_module(self.params, flip=True)
+        p = parameter_vector(self.params)
+        threshold = self.stats.get("energy_threshold")
+        if threshold is None:
+            barrier, scale = energy_barrier(kernel, p)
+            threshold = barrier - BARRIER_MARGIN * max(scale, 1e-300)
+        q = np.column_stack([np.asarray(self.phi0, dtype=float).ravel(), np.asarray(self.psi0, dtype=float).ravel()])
+        return kernel.flip_potential_many(np.ascontiguousarray(q), p).reshape(np.shape(self.flip_time)) - threshold
 
     def _dataset(self) -> DatasetSpec:
         """Variables ``flip_time`` [s] and ``which`` over ``phi0``, ``psi0`` [rad]; attributes: the
@@ -191,6 +209,45 @@ def open_flip_map(path) -> FlipMap:
         flip_time=arrays["flip_time"].astype(np.float64), which=arrays["which"].astype(np.int8),
         params=params, settings=settings, stats=stats, status=status, message=message,
     )
+
+
+@dataclass(frozen=True)
+class FlipOfStart:
+    """:func:`flip_time`'s answer for one start at rest: ``time`` [s] (NaN: no flip by
+    ``t_end``), ``which`` joint (0 phi, 1 psi, -1 none), ``forbidden`` (energy alone forbids a
+    flip: not integrated) and ``status`` (a failed integration is not SUCCESS)."""
+
+    time: float
+    which: int
+    forbidden: bool
+    status: Status = Status.SUCCESS
+
+
+def flip_time(params: Parameters, phi0: float, psi0: float, *, t_end: float = 10.0, rtol: Optional[float] = None,
+              atol: Optional[float] = None, max_steps: int = MAX_STEPS) -> FlipOfStart:
+    """The flip time of one start ``(phi0, psi0)`` at rest [rad], exactly as a cell of
+    :func:`flip_map` with the same settings computes it (the energy bound, the flip kernel,
+    DOP853 with the flip located on the dense output)."""
+    from ..numeric.ensemble import FlipIntegrator
+    from ..numeric.kernels import kernel_module, parameter_vector
+
+    params = numeric_params(params, "a flip time")
+    t_end = positive("t_end", t_end)
+    rtol, atol = tolerances(rtol, atol)
+    max_steps = check_max_steps(max_steps)
+    q0 = np.array([[float(phi0), float(psi0)]])
+    if not np.all(np.isfinite(q0)) or np.any(np.abs(q0) >= math.pi):
+        raise ParameterError(f"the start must lie within (-pi, pi) in both angles, got ({phi0!r}, {psi0!r})")
+    kernel = kernel_module(params, flip=True)
+    p = parameter_vector(params)
+    barrier, scale = energy_barrier(kernel, p)
+    if kernel.flip_potential_many(q0, p)[0] < barrier - BARRIER_MARGIN * max(scale, 1e-300):
+        return FlipOfStart(math.nan, -1, True)
+    out = FlipIntegrator(kernel, p, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps).run(q0)
+    which = int(out.which[0])
+    if which == -2:
+        return FlipOfStart(math.nan, -1, False, Status.PARTIAL)
+    return FlipOfStart(float(out.time[0]), which, False)
 
 
 # -- input checks ---------------------------------------------------------------------------------
@@ -566,6 +623,7 @@ class FlipJob(GridJob):
             "mirrored": int(totals["mirrored"]), "flipped": int(np.count_nonzero(np.isfinite(flip_time))),
             "failed": int(totals["failed"]), "steps": int(totals["steps"]), "rejected": int(totals["rejected"]),
             "integrated_time": float(totals["integrated_time"]), "energy_barrier": self.barrier,
+            "energy_threshold": self.threshold,
             "lanes": None if kernel is None else kernel.flip_lanes,
             "kernel": None if kernel is None else kernel.origin,
             "kernel_build_time": None if kernel is None else kernel.build_time,

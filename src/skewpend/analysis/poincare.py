@@ -295,6 +295,42 @@ class PoincareSection(Result):
     def n_points(self) -> int:
         return int(self.q.size)
 
+    def boundary(self, *, canonical: bool = True, samples: int = 721):
+        """The edge of the energy surface on the section: ``(q, lower, upper)`` with ``q`` from
+        -pi to pi [rad] and ``lower``, ``upper`` the least and the largest value of the drawn
+        coordinate that energy allows there, NaN where ``Pi > E``.
+
+        ``canonical``: the momentum ``p_q`` [J s], ``|p_q| <= sqrt(2 M_qq (E - Pi))`` (the least
+        kinetic energy at a given ``p_q`` has the section joint at rest, so the crossing direction
+        does not matter).  Otherwise the speed ``q'`` [rad/s]: the least kinetic energy at a given
+        ``q'`` is ``q'^2 (M_qq - M_qc^2 / M_cc) / 2`` when the section joint's speed that attains
+        it, ``-M_qc q' / M_cc``, has the sign the direction asks for (or the direction is 0), and
+        ``M_qq q'^2 / 2`` (section joint at rest) when not -- so the edge is lopsided."""
+        from ..numeric.kernels import kernel_module, parameter_vector
+
+        kernel = kernel_module(self.params, chaos=True)
+        p = parameter_vector(self.params)
+        c = 0 if self.settings["coordinate"] == "phi" else 1
+        o = 1 - c
+        x = np.linspace(-math.pi, math.pi, samples)
+        q = np.empty((samples, 2))
+        q[:, c] = float(self.settings["value"])
+        q[:, o] = x
+        M = mass_matrices(kernel, p, q)
+        room = float(self.settings["energy"]) - potential(kernel, p, q)
+        room = np.where(room >= 0, room, np.nan)
+        if canonical:
+            upper = np.sqrt(2.0 * room * M[:, o, o])
+            return x, -upper, upper
+        reduced = np.sqrt(2.0 * room / (M[:, o, o] - M[:, o, c] ** 2 / M[:, c, c]))
+        full = np.sqrt(2.0 * room / M[:, o, o])
+        d = int(self.settings.get("direction", 0))
+        # q' > 0 is reached with the section joint moving at -M_qc q' / M_cc: allowed if d * that >= 0
+        coupling = M[:, o, c]
+        upper = np.where((d == 0) | (-d * coupling >= 0), reduced, full)
+        lower = -np.where((d == 0) | (d * coupling >= 0), reduced, full)
+        return x, lower, upper
+
     def orbit_points(self, k: int) -> Tuple[np.ndarray, np.ndarray]:
         """``(q, p)`` of orbit ``k``."""
         sel = self.orbit == k

@@ -444,24 +444,12 @@ FLIPMAP_COLORS = {
 
 
 def flipmap_energy_margin(fm) -> Optional[np.ndarray]:
-    """``V(q0) - V_min`` [J] on the cells of ``fm``, laid out like ``fm.flip_time``: the potential
-    ``V = Pi - tau . q`` at the start less its minimum ``V_min`` on the boundary of the square
-    ``(-pi, pi)^2`` (and less the safety margin of :func:`skewpend.flip_map`); negative: energy
-    forbids a flip (:func:`flipmap_forbidden`).  None if the compiled potential cannot be had here
-    (no compiler)."""
-    from ..analysis.flipmap import _BARRIER_MARGIN, energy_barrier
-    from ..numeric.conventions import parameter_vector
-    from ..numeric.kernels import kernel_module
-
+    """``fm.energy_margin()`` (:meth:`skewpend.FlipMap.energy_margin`: negative where energy
+    forbids a flip), or None if the compiled potential cannot be had here (no compiler)."""
     try:
-        kernel = kernel_module(fm.params, flip=True)
+        return fm.energy_margin()
     except (SkewpendError, OSError):
         return None
-    p = parameter_vector(fm.params)
-    q = np.column_stack([np.asarray(fm.phi0, dtype=float).ravel(), np.asarray(fm.psi0, dtype=float).ravel()])
-    V0 = kernel.flip_potential_many(np.ascontiguousarray(q), p).reshape(np.shape(fm.flip_time))
-    barrier, scale = energy_barrier(kernel, p)
-    return V0 - (barrier - _BARRIER_MARGIN * max(scale, 1e-300))
 
 
 def flipmap_forbidden(fm) -> Optional[np.ndarray]:
@@ -798,37 +786,12 @@ def poincare_boundary(section, *, canonical: bool = True, samples: int = 721):
     ``q'`` is ``q'^2 (M_qq - M_qc^2 / M_cc) / 2`` when the section joint's speed that attains it,
     ``-M_qc q' / M_cc``, has the sign the direction asks for (or the direction is 0), and
     ``M_qq q'^2 / 2`` (section joint at rest) when not -- so the edge is lopsided.
-    Evaluates the compiled model (cached with the section's kernel); None if that is
-    impossible here (no compiler)."""
-    from ..analysis.poincare import mass_matrices, potential
-    from ..numeric.conventions import parameter_vector
-    from ..numeric.kernels import kernel_module
-
+    :meth:`skewpend.PoincareSection.boundary`; None if the compiled model cannot be had here
+    (no compiler)."""
     try:
-        kernel = kernel_module(section.params, chaos=True)
+        return section.boundary(canonical=canonical, samples=samples)
     except (SkewpendError, OSError):
         return None
-    p = parameter_vector(section.params)
-    c = 0 if section.settings["coordinate"] == "phi" else 1
-    o = 1 - c
-    x = np.linspace(-math.pi, math.pi, samples)
-    q = np.empty((samples, 2))
-    q[:, c] = float(section.settings["value"])
-    q[:, o] = x
-    M = mass_matrices(kernel, p, q)
-    room = float(section.settings["energy"]) - potential(kernel, p, q)
-    room = np.where(room >= 0, room, np.nan)
-    if canonical:
-        upper = np.sqrt(2.0 * room * M[:, o, o])
-        return x, -upper, upper
-    reduced = np.sqrt(2.0 * room / (M[:, o, o] - M[:, o, c] ** 2 / M[:, c, c]))
-    full = np.sqrt(2.0 * room / M[:, o, o])
-    d = int(section.settings.get("direction", 0))
-    # q' > 0 is reached with the section joint moving at -M_qc q' / M_cc: allowed if d * that >= 0
-    coupling = M[:, o, c]
-    upper = np.where((d == 0) | (-d * coupling >= 0), reduced, full)
-    lower = -np.where((d == 0) | (d * coupling >= 0), reduced, full)
-    return x, lower, upper
 
 
 _DIRECTION = {1: "increasing", -1: "decreasing", 0: "either way"}

@@ -1547,22 +1547,10 @@ def _count(k: int) -> str:
     return f"{k:,}".replace(",", "\u2009")
 
 
-def _flip_of_start(p: Parameters, phi0: float, psi0: float) -> Tuple[float, int, bool]:
-    """Flip time [s] (NaN: none by FLIPMAP_T_END), joint (0, 1; -1 none) and whether energy forbids
-    a flip, of the start ``(phi0, psi0)`` at rest itself: a map of one cell centred on it (the
-    map's own engine)."""
-    from ..analysis.flipmap import flip_map
-
-    d = 1e-9
-    one = flip_map(p, 1, t_end=FLIPMAP_T_END, phi_range=(max(-math.pi, phi0 - d), min(math.pi, phi0 + d)),
-                   psi_range=(max(-math.pi, psi0 - d), min(math.pi, psi0 + d)), workers=1)
-    return float(one.flip_time[0, 0]), int(one.which[0, 0]), one.stats["skipped_energy"] == 1
-
-
 def _section_flipmap(ctx: _Context) -> str:
     import warnings
 
-    from ..analysis.flipmap import flip_map
+    from ..analysis.flipmap import flip_map, flip_time
     from . import figures as F
     from .figures import wrap_angle
 
@@ -1618,7 +1606,8 @@ def _section_flipmap(ctx: _Context) -> str:
     ]
     if at_rest:
         try:
-            t_flip, joint, never = _flip_of_start(p, phi_s, psi_s)
+            one = flip_time(p, phi_s, psi_s, t_end=FLIPMAP_T_END)
+            t_flip, joint, never = one.time, (one.which if one.status.ok else -2), one.forbidden
         except SkewpendError:
             t_flip, joint, never = math.nan, -2, False
         if never:
