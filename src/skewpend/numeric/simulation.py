@@ -32,6 +32,8 @@ from typing import Any, Callable, Dict, List, Optional, Sequence
 import numpy as np
 
 from ..interrupts import Interrupts
+from ..status import Status
+from .driver import check_step_estimate, drive
 from ..errors import IntegrationError, ParameterError
 from ..symbolic.model import Parameters
 from ..parsing import initial_state, positive_number
@@ -40,13 +42,8 @@ __all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", 
 
 METHODS = ("dop853", "rk4", "gauss")
 
-STATUS_MESSAGES = {
-    0: "reached t_end",
-    1: "stopped: the state or its derivative became non-finite",
-    2: "stopped: step size underflow",
-    3: "stopped: maximum number of steps exceeded",
-    4: "stopped: the implicit stage equations did not converge",
-}
+#: Deprecated: the messages of :class:`skewpend.status.Status` by code (use ``Status(code).message``).
+STATUS_MESSAGES = {int(s): s.message for s in Status if s <= Status.NO_CONVERGENCE}
 
 
 @dataclass(frozen=True)
@@ -125,8 +122,6 @@ def check_start(kernel, p, y) -> None:
 MAX_STEPS = 100_000_000
 #: Rows handed back by one call into the compiled integrator (memory per chunk ~ 0.4 MB).
 _CHUNK_ROWS = 8192
-#: Wall time aimed at per call into the compiled code, so Ctrl-C and progress react quickly.
-_CHUNK_SECONDS = 0.05
 _DEFAULT_DT = 1e-3
 _DEFAULT_TOL = 1e-10
 
@@ -267,7 +262,7 @@ def simulate(
         n_float = t_end / step
         if n_float > max_steps:
             raise ParameterError(
-                f"t_end/dt = {n_float:.4g} steps exceeds the cap max_steps (--max-steps) = {max_steps}; use a larger dt, a shorter t_end or raise the cap"
+                f"t_end/dt = {n_float:.4g} steps exceeds the cap max_steps = {max_steps}; use a larger dt, a shorter t_end or raise the cap"
             )
         nsteps = int(round(n_float))
         if abs(nsteps * step - t_end) > 1e-9 * t_end:
@@ -322,30 +317,24 @@ def simulate(
         if out is not None:
             writer = stack.enter_context(TrajectoryWriter(out))
         acc = _Accumulator(kernel, p, keep, writer)
-        budget = min(2000, max(10, max_steps // 20))  # the first call doubles as dop853's probe
-        start = time.perf_counter()
-        probed = False
-        intr = stack.enter_context(Interrupts())
-        while True:
-            t_call = time.perf_counter()
-            status = call(budget)
-            took = time.perf_counter() - t_call
-            intr.check()
-            if status == -3:  # pragma: no cover - guarded by the arguments above
-                raise RuntimeError("internal error: bad arguments to the compiled integrator")
+
+        def take() -> None:
             if m.value:
                 chunk = rows[: m.value]
                 if method == "gauss":
                     chunk = kernel.speeds_many(chunk, p, offset=1)
                 acc.add(chunk)
-            if not probed and method == "dop853" and status == -1 and state.t > 0:
-                probed = True
-                _check_dop853_estimate(state, t_end, max_steps, dt_out is None, keep, out)
-            progress(state.t, t_end)
-            if status >= 0:
-                break
-            if status == -1:  # budget used: aim the next call at _CHUNK_SECONDS
-                budget = int(min(max(budget * _CHUNK_SECONDS / max(took, 1e-6), 100), 50_000_000))
+
+        def estimate() -> None:  # after the first bounded call: refuse what cannot finish
+            check_step_estimate(state, t_end, max_steps)
+            if dt_out is None:
+                _check_room(state.naccept * t_end / state.t, keep, out)
+
+        start = time.perf_counter()
+        intr = stack.enter_context(Interrupts())
+        status = drive(call, budget=min(2000, max(10, max_steps // 20)), take=take, check=intr.check,
+                       progress=lambda: progress(state.t, t_end), estimate=estimate if method == "dop853" else None,
+                       adapt=True, name=f"sp_{method}")
         wall = time.perf_counter() - start
         stats = {
             "nfev": int(state.nfev),
@@ -357,7 +346,7 @@ def simulate(
             "rows": acc.rows,
         }
         drift = acc.err / acc.scale if acc.scale > 0 else acc.err
-        message = STATUS_MESSAGES.get(int(status), f"stopped with status {status}")
+        message = status.message
         table = acc.table()
         traj = Trajectory(
             t=table[:, 0].copy(),
@@ -397,16 +386,3 @@ def _check_room(rows: float, keep: bool, out) -> None:
         from ..io import check_disk_space
 
         check_disk_space(out, rows)
-
-
-def _check_dop853_estimate(state, t_end: float, max_steps: int, own_steps: bool, keep: bool, out) -> None:
-    """After the first chunk: refuse a dop853 run whose estimated step count exceeds max_steps."""
-    attempted = state.naccept + state.nreject
-    estimate = attempted * t_end / state.t
-    if estimate > max_steps:
-        raise ParameterError(
-            f"t_end = {t_end:g} s needs about {estimate:.2g} steps at this tolerance (from the first {attempted} steps), "
-            f"more than the cap max_steps (--max-steps) = {max_steps}; shorten t_end, loosen the tolerance or raise the cap"
-        )
-    if own_steps:
-        _check_room(state.naccept * t_end / state.t, keep, out)
