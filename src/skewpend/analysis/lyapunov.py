@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import IntegrationError, ParameterError
 from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
 from ..interrupts import Interrupts
+from ..numeric.driver import check_step_estimate, drive
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json
 from ..parsing import initial_state, positive_number
@@ -146,20 +147,6 @@ class LyapunovSpectrum(Result):
         })
 
 
-def _check_estimate(state, t_end: float, max_steps: int) -> None:
-    """After the first bounded call: the steps the whole run needs at the rate so far."""
-    attempted = int(state.naccept) + int(state.nreject)
-    reached = float(state.t)
-    estimate = attempted * t_end / reached if reached > 0 else math.inf
-    if estimate > max_steps:
-        about = f"about {estimate:.2g}" if math.isfinite(estimate) else "more than 1e308"
-        raise ParameterError(
-            f"t_end = {t_end:g} s needs {about} steps at this tolerance (from the first {attempted} steps, which "
-            f"reached t = {reached:.3g} s), more than max_steps = {max_steps}; shorten t_end, loosen the tolerance "
-            "or raise max_steps"
-        )
-
-
 def check_times(t_end, renorm_every, transient):
     """``(t_end, renorm_every, transient)`` of a Lyapunov computation, checked together."""
     t_end = positive_number("t_end", t_end)
@@ -272,41 +259,34 @@ def lyapunov(
                  rows.ctypes.data_as(dp), _ROWS, ctypes.byref(m))
     start = time.perf_counter()
     renorms = 0
-    estimated = False
-    with Interrupts() as intr:  # Ctrl-C raised between the bounded calls, never lost
-        while True:
-            status = kernel.lib.sp_lyap(*call_args)
-            intr.check()
-            if status == -3:  # pragma: no cover - guarded by the checks above
-                raise RuntimeError("internal error: bad arguments to sp_lyap")
-            got = rows[: m.value]
-            for row in got:
-                renorms += 1
-                t = float(row[0])
-                if renorms <= n_skip:
-                    t_from = t_last = t
-                    t_prev_row = t
-                    continue
-                logs = row[1:]
-                total += logs
-                w = int(np.searchsorted(bounds, seen, side="right") - 1)
-                w = min(w, n_win - 1)
-                win_sum[w] += logs
-                win_time[w] += t - t_prev_row
+
+    def take() -> None:
+        nonlocal renorms, t_from, t_last, t_prev_row, seen
+        for row in rows[: m.value]:
+            renorms += 1
+            t = float(row[0])
+            if renorms <= n_skip:
+                t_from = t_last = t
                 t_prev_row = t
-                t_last = t
-                seen += 1
-                if seen % stride == 0 or seen == n_meas:
-                    hist_t.append(t)
-                    hist.append(total / (t - t_from))
-            if progress is not None:
-                progress(state.t, t_end)
-            if status in (-1, -2):
-                if not estimated:  # after the first bounded call: refuse what cannot finish, as simulate does
-                    estimated = True
-                    _check_estimate(state, t_end, max_steps)
                 continue
-            break
+            logs = row[1:]
+            total[:] += logs
+            w = int(np.searchsorted(bounds, seen, side="right") - 1)
+            w = min(w, n_win - 1)
+            win_sum[w] += logs
+            win_time[w] += t - t_prev_row
+            t_prev_row = t
+            t_last = t
+            seen += 1
+            if seen % stride == 0 or seen == n_meas:
+                hist_t.append(t)
+                hist.append(total / (t - t_from))
+
+    with Interrupts() as intr:  # Ctrl-C raised between the bounded calls, never lost
+        # after the first bounded call: refuse what cannot finish, as simulate does
+        status = drive(lambda budget: kernel.lib.sp_lyap(*call_args), budget=_BUDGET, take=take, check=intr.check,
+                       progress=None if progress is None else (lambda: progress(state.t, t_end)),
+                       estimate=lambda: check_step_estimate(state, t_end, max_steps), name="sp_lyap")
     wall = time.perf_counter() - start
 
     t_reached = float(state.t)

@@ -400,7 +400,8 @@ def poincare(
     energy would not be constant), an energy below the minimum, a section the motion cannot
     reach at that energy.
     """
-    from ..numeric.ensemble import Cancelled, run_chunks
+    from ..numeric.driver import drive
+    from ..numeric.ensemble import run_chunks
     from ..numeric.kernels import State
     from ..numeric.grid import check_workers
 
@@ -492,19 +493,12 @@ def poincare(
         dp = ctypes.POINTER(ctypes.c_double)
         m = ctypes.c_int64(0)
         got = []
-        while True:
-            rc = kernel.lib.sp_section(ctypes.byref(state), p.ctypes.data_as(dp), coord, value_wrapped, period_wrap,
-                                       int(direction), method, want, t_max, rtol, atol, max_steps, _BUDGET,
-                                       rows.ctypes.data_as(dp), rows.shape[0], ctypes.byref(m))
-            if m.value:
-                got.append(rows[: m.value].copy())
-            if rc in (-1, -2):
-                if cancel.is_set():
-                    raise Cancelled()
-                continue
-            if rc == -3:  # pragma: no cover - guarded by the checks above
-                raise RuntimeError("internal error: bad arguments to sp_section")
-            break
+        rc = drive(lambda budget: kernel.lib.sp_section(
+                       ctypes.byref(state), p.ctypes.data_as(dp), coord, value_wrapped, period_wrap, int(direction),
+                       method, want, t_max, rtol, atol, max_steps, budget, rows.ctypes.data_as(dp), rows.shape[0],
+                       ctypes.byref(m)),
+                   budget=_BUDGET, take=lambda: got.append(rows[: m.value].copy()) if m.value else None,
+                   cancel=cancel, name="sp_section")
         table = np.concatenate(got) if got else np.empty((0, 5))
         return table, rc, int(state.naccept), int(state.nreject), int(state.aux)
 
@@ -544,7 +538,7 @@ def poincare(
     stats = {
         "points": int(table.shape[0]), "orbits": n, "orbits_asked": int(n_orbits) if seeds is None else int(n + unreachable.shape[0]),
         "unreachable": int(unreachable.shape[0]),
-        "orbits_short": int(np.count_nonzero(status == 5)), "failed": failed, "steps": int(steps.sum()),
+        "orbits_short": int(np.count_nonzero(status == int(Status.SHORT))), "failed": failed, "steps": int(steps.sum()),
         "rejected": int(rejected.sum()), "e_min": surface.e_min, "henon_fallbacks": int(fallbacks.sum()),
         "max_energy_error": float(np.max(np.abs(e - energy))) if e.size else 0.0,
         "wall_time": time.perf_counter() - start, "workers": workers,

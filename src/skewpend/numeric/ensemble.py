@@ -175,22 +175,16 @@ class FlipIntegrator:
             return out
         ws = np.zeros(self.kernel.flip_ws_size // 8 + 8, dtype=np.float64)  # zeroed: a fresh start
         dp = ctypes.POINTER(ctypes.c_double)
-        args = (
-            ws.ctypes.data, self.p.ctypes.data_as(dp), cells.ctypes.data_as(dp), m, self.t_end, self.rtol, self.atol,
-            self.max_steps, self.budget, out.time.ctypes.data_as(dp),
-            out.which.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            out.steps.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
-            out.rejected.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
-        )
+        head = (ws.ctypes.data, self.p.ctypes.data_as(dp), cells.ctypes.data_as(dp), m, self.t_end, self.rtol,
+                self.atol, self.max_steps)
+        tail = (out.time.ctypes.data_as(dp), out.which.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
+                out.steps.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
+                out.rejected.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)))
         fn = self.kernel.lib.sp_flip
-        while True:
-            status = fn(*args)
-            if status == 0:
-                return out
-            if status != -1:  # pragma: no cover - guarded by the callers' checks
-                raise RuntimeError(f"internal error: sp_flip returned {status}")
-            if cancel is not None and cancel.is_set():
-                raise Cancelled()
+        from .driver import drive
+
+        drive(lambda budget: fn(*head, budget, *tail), budget=self.budget, cancel=cancel, name="sp_flip")
+        return out
 
 
 # -- beyond one machine: dask.distributed ------------------------------------------------------------
