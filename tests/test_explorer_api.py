@@ -472,13 +472,19 @@ def test_timed_out_work_does_not_hold_its_slot(monkeypatch):
 
 
 def test_flip_map_work_is_bounded():
-    body = {"model": {**DEFAULT_MODEL, "a": 0.1, "b": 0.1, "m1": 0.1, "m2": 0.1, "c1": 100.0, "c2": 100.0},
+    # heavy damping on small bodies: many steps per cell, some cells reach the per-cell step bound (counted)
+    body = {"model": {**DEFAULT_MODEL, "a": 0.1, "b": 0.1, "m1": 0.1, "m2": 0.1, "c1": 10.0, "c2": 10.0},
             "n": 2, "t_end": 30.0}
     share = body["n"] ** 2 * body["t_end"] / explorer.LIMITS["flipmap_cells_time"]
     r, seconds = post("/api/flipmap", body)
-    assert r.status_code == 200
+    assert r.status_code == 200 and r.json()["failed"] >= 1
     # a request using a share of the work limit should take about that share of the time limit (x 5 for slack)
     assert seconds <= 5 * share * explorer.TIME_LIMIT, f"{seconds:.2f} s for {share:.2%} of the work limit"
+    # ten times the damping: no cell could finish within the step bound -- refused up front, with the estimate
+    body["model"].update(c1=100.0, c2=100.0)
+    r, seconds = post("/api/flipmap", body)
+    assert r.status_code == 422 and "cannot finish" in r.text and "steps per trajectory" in r.text
+    assert seconds <= 5 * share * explorer.TIME_LIMIT + 5.0  # + a kernel build on a cold cache
 
 
 # -- 7. skewpend serve --------------------------------------------------------------------------------------------

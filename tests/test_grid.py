@@ -270,7 +270,11 @@ def test_netcdf_on_a_full_disk_is_one_error_and_no_file(full_disk):
     lambda: __import__("skewpend.analysis.lyapunov", fromlist=["x"]).lyapunov_map(BENCH, 4, t_end=1e12),
     lambda: __import__("skewpend.analysis.flipmap", fromlist=["x"]).flip_map(BENCH, 8, t_end=1e5, max_steps=1000),
     lambda: __import__("skewpend.analysis.poincare", fromlist=["x"]).poincare(BENCH.replace(a=1e100), 5.0),
-], ids=["flip-1e308", "flip-1e9", "chaos-1e12", "lyapunov-map-1e12", "flip-small-cap", "poincare-a-1e100"])
+    lambda: __import__("skewpend.analysis.flipmap", fromlist=["x"]).flip_map(BENCH.replace(c1=1e15), 8),
+    lambda: __import__("skewpend.analysis.flipmap", fromlist=["x"]).flip_map(BENCH.replace(b=1e-15), 8),
+    lambda: __import__("skewpend.analysis.lyapunov", fromlist=["x"]).lyapunov_map(BENCH.replace(c1=1e15), 4, t_end=5.0),
+], ids=["flip-1e308", "flip-1e9", "chaos-1e12", "lyapunov-map-1e12", "flip-small-cap", "poincare-a-1e100",
+        "flip-c1-1e15", "flip-b-1e-15", "lyapunov-map-c1-1e15"])
 def test_infeasible_grids_are_refused_at_once_with_the_estimate(call):
     import time
 
@@ -361,3 +365,10 @@ def test_a_compiler_that_produces_nothing_is_one_clear_line(tmp_path):
                        text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0
     assert "'/bin/true' reported success but produced no shared library" in r.stderr
+
+
+def test_a_diagram_of_subnormal_masses_is_refused_in_one_line():
+    from skewpend.analysis.chaos import chaos_diagram
+
+    with pytest.raises(ParameterError, match="not finite for these parameters"):
+        chaos_diagram(BENCH.replace(m2=5e-324), samples=2, t_end=5.0)

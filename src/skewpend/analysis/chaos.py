@@ -125,7 +125,11 @@ def _omega_low(params: Parameters) -> float:
 
     kernel = kernel_module(params, chaos=True)
     J = np.zeros(25)
-    kernel.jac(np.zeros(5), parameter_vector(params), J)
+    with np.errstate(all="ignore"):
+        kernel.jac(np.zeros(5), parameter_vector(params), J)
+    if not np.all(np.isfinite(J)):
+        raise ParameterError("the linearised equations at rest are not finite for these parameters (a mass, length "
+                             "or inertia too small or too large for double precision); use values of moderate size")
     ev = np.linalg.eigvals(J.reshape(5, 5)[:4, :4])
     w = np.abs(ev.imag)
     w = w[w > 1e-9]

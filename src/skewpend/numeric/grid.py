@@ -175,6 +175,12 @@ def check_run_options(*, workers, scheduler, store, resume, progress, chunk_size
     return check_workers(workers)
 
 
+#: Steps a trial run may take, and how often a failed trial is tried again over a thousandth of
+#: its time (a system too stiff for the first trial shows its rate on a shorter one).
+PROBE_STEPS = 200_000
+PROBE_TRIES = 6
+
+
 def probe_time(params) -> float:
     """How long a trial run lasts [s]: about 20 swing times ``sqrt((a + b) / g)`` (1 s without
     gravity), long enough for a representative step rate, a few ms of work."""
