@@ -172,16 +172,7 @@ def test_no_import_cycles():
 # -- no private names across modules ----------------------------------------------------------------------
 #: Private names one module still takes from another (issue 15 removes them: each is a concept on the
 #: wrong floor, or a helper to make public). A new one fails the test below.
-KNOWN_PRIVATE_IMPORTS = {
-    ("views.report", "symbolic.render", "_tex"), ("views.report", "symbolic.render", "_UNICODE"),
-    ("views.report", "symbolic.render", "_LATEX_LABELS"), ("views.figures", "analysis.flipmap", "_BARRIER_MARGIN"),
-    ("views.figures", "views.style", "_wrap_list"), ("views.explorer", "views.report", "_equations_tex"),
-    ("views.explorer", "views.report", "_numeric"), ("views.explorer", "views.report", "_tex"),
-    ("numeric.kernel_source", "numeric.codegen", "_c_printer"), ("numeric.kernel_source", "numeric.codegen", "_cse_block"),
-    ("numeric.kernel_source", "numeric.codegen", "_expressions"), ("numeric.kernel_source", "numeric.codegen", "_Lang"),
-    ("numeric.kernel_source", "numeric.codegen", "_param_lines"), ("numeric.kernel_source", "numeric.codegen", "_used_names"),
-    ("cli.modes", "symbolic.render", "_tex"),  # render has no public LaTeX of one expression yet
-}
+KNOWN_PRIVATE_IMPORTS: set = set()  # issue 15 removed the last of them
 
 
 def _private_uses(path: Path):

@@ -128,7 +128,7 @@ def _modes_latex(given: dict, config: Optional[str]) -> None:
     from ..errors import EquilibriumError
     from ..symbolic import render
 
-    tex = getattr(render, "tex", None) or render._tex  # the renderer's LaTeX of one expression
+    tex = render.tex  # the renderer's LaTeX of one expression
     run = resolve("modes", config, defaults=False, parameters=given)
     for keys, why in (
         (("tau1", "tau2"), "phi = psi = 0 is not an equilibrium with constant joint torques; normal modes need tau1 = tau2 = 0"),

@@ -52,7 +52,7 @@ class _Expressions:
     axes: sp.Matrix  # 6x1: hinge 1's axis and hinge 2's current axis e = P1 . e0, world frame
 
 
-def _expressions(geometry: Parameters) -> _Expressions:
+def expressions(geometry: Parameters) -> _Expressions:
     eom = derive(geometry)
     s = SYMBOLS
     q = [s["phi"], s["psi"]]
@@ -83,7 +83,7 @@ def _tips(eom) -> sp.Matrix:
 
 
 # -- printing -----------------------------------------------------------------------------------------
-class _Lang:
+class Lang:
     """How one target language writes assignments, reads inputs and forms a function."""
 
     def __init__(self, name: str, printer: Callable[[sp.Expr], str], declare: str, end: str):
@@ -100,7 +100,7 @@ def _py_printer():
     return printer.doprint
 
 
-def _c_printer():
+def c_printer():
     from sympy.printing.c import C99CodePrinter
 
     return C99CodePrinter().doprint
@@ -112,15 +112,15 @@ def _js_printer():
     return JavascriptCodePrinter().doprint
 
 
-def _inputs(lang: _Lang, indent: str, state: str, names: Sequence[str]) -> List[str]:
+def _inputs(lang: Lang, indent: str, state: str, names: Sequence[str]) -> List[str]:
     lines = []
     for i, n in enumerate(names):
         lines.append(f"{indent}{lang.declare}{n} = {state}[{i}]{lang.end}")
     return lines
 
 
-def _cse_block(
-    lang: _Lang, exprs: Sequence[sp.Expr], targets: Sequence[str], indent: str, prefix: str = "x"
+def cse_block(
+    lang: Lang, exprs: Sequence[sp.Expr], targets: Sequence[str], indent: str, prefix: str = "x"
 ) -> List[str]:
     """Assignments computing ``targets = exprs`` with common subexpressions shared."""
     symbols = sp.numbered_symbols(prefix)
@@ -130,13 +130,13 @@ def _cse_block(
     return lines
 
 
-def _param_lines(lang: _Lang, indent: str, used: set) -> List[str]:
+def param_lines(lang: Lang, indent: str, used: set) -> List[str]:
     return [
         f"{indent}{lang.declare}{n} = p[{i}]{lang.end}" for i, n in enumerate(PARAMETER_ORDER) if n in used
     ]
 
 
-def _used_names(exprs: Sequence[sp.Expr]) -> set:
+def used_names(exprs: Sequence[sp.Expr]) -> set:
     names = set()
     for e in exprs:
         names |= {s.name for s in sp.sympify(e).free_symbols}
@@ -167,7 +167,7 @@ def generate(params: Parameters, language: str) -> str:
     geometry = geometry_of(params)
     _check_geometry_numeric(geometry)
     values = _default_vector(params)
-    return langs[language](_expressions(geometry), geometry, values)
+    return langs[language](expressions(geometry), geometry, values)
 
 
 #: Scalars without a default value: given all as numbers (baked into ``P``) or none.
@@ -238,22 +238,22 @@ def _doc_lines(geometry: Parameters, values=None) -> List[str]:
     return lines
 
 
-def _body(lang: _Lang, ex: _Expressions, indent: str) -> Tuple[List[str], List[str]]:
+def _body(lang: Lang, ex: _Expressions, indent: str) -> Tuple[List[str], List[str]]:
     M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
     f = [ex.f[0], ex.f[1]]
-    used = _used_names(M + f)
+    used = used_names(M + f)
     rhs_lines = [f"{indent}{lang.declare}{n} = y[{i}]{lang.end}" for i, n in enumerate(STATE_ORDER) if n in used]
-    rhs_lines += _param_lines(lang, indent, used)
-    rhs_lines += _cse_block(lang, M + f, ["M11", "M12", "M22", "f1", "f2"], indent)
+    rhs_lines += param_lines(lang, indent, used)
+    rhs_lines += cse_block(lang, M + f, ["M11", "M12", "M22", "f1", "f2"], indent)
     rhs_lines += [
         f"{indent}{lang.declare}det = M11 * M22 - M12 * M12{lang.end}",
         f"{indent}{lang.declare}ddphi = (M22 * f1 - M12 * f2) / det{lang.end}",
         f"{indent}{lang.declare}ddpsi = (M11 * f2 - M12 * f1) / det{lang.end}",
     ]
-    used = _used_names([ex.T, ex.Pi])
+    used = used_names([ex.T, ex.Pi])
     en_lines = [f"{indent}{lang.declare}{n} = y[{i}]{lang.end}" for i, n in enumerate(STATE_ORDER) if n in used]
-    en_lines += _param_lines(lang, indent, used)
-    en_lines += _cse_block(lang, [ex.T + ex.Pi], ["E"], indent)
+    en_lines += param_lines(lang, indent, used)
+    en_lines += cse_block(lang, [ex.T + ex.Pi], ["E"], indent)
     return rhs_lines, en_lines
 
 
@@ -265,8 +265,8 @@ def explorer_js(params: Parameters) -> str:
     :data:`PARAMETER_ORDER` (the sliders change ``p``, never the code)."""
     geometry = geometry_of(params)
     _check_geometry_numeric(geometry)
-    ex = _expressions(geometry)
-    lang = _Lang("javascript", _js_printer(), "const ", ";")
+    ex = expressions(geometry)
+    lang = Lang("javascript", _js_printer(), "const ", ";")
     rhs, en = _body(lang, ex, "  ")
     doc = "\n".join(" * " + line for line in _doc_lines(geometry, None))
     out = ["/**", doc, " */", "", f"export const PARAMETER_ORDER = [{', '.join(repr(n) for n in PARAMETER_ORDER)}];", "",
@@ -275,17 +275,17 @@ def explorer_js(params: Parameters) -> str:
            "/** mechanical energy T + Pi [J] */", "export function energy(y, p) {", *en, "  return E;", "}", ""]
     for name, exprs, doc_line in (("tips", list(ex.tips), "rod ends [x1, y1, z1, x2, y2, z2] [m] (j points down)"),
                                   ("axes", list(ex.axes), "hinge axes [n1x, n1y, n1z, ex, ey, ez]: n1 fixed, e = P1 . e0")):
-        used = _used_names(exprs)
+        used = used_names(exprs)
         body = [f"  const {n} = y[{i}];" for i, n in enumerate(STATE_ORDER) if n in used]
-        body += _param_lines(lang, "  ", used)
-        body += _cse_block(lang, exprs, [f"r{i}" for i in range(len(exprs))], "  ")
+        body += param_lines(lang, "  ", used)
+        body += cse_block(lang, exprs, [f"r{i}" for i in range(len(exprs))], "  ")
         out += [f"/** {doc_line} */", f"export function {name}(y, p) {{", *body,
                 f"  return [{', '.join(f'r{i}' for i in range(len(exprs)))}];", "}", ""]
     return "\n".join(out)
 
 
 def _standalone_python(ex: _Expressions, geometry: Parameters, values=None) -> str:
-    lang = _Lang("python", _py_printer(), "", "")
+    lang = Lang("python", _py_printer(), "", "")
     rhs, en = _body(lang, ex, "    ")
     doc = "\n".join(_doc_lines(geometry, values))
     pdef, head = "p", []
@@ -303,7 +303,7 @@ def _standalone_python(ex: _Expressions, geometry: Parameters, values=None) -> s
 
 
 def _standalone_c(ex: _Expressions, geometry: Parameters, values=None) -> str:
-    lang = _Lang("c", _c_printer(), "const double ", ";")
+    lang = Lang("c", c_printer(), "const double ", ";")
     rhs, en = _body(lang, ex, "    ")
     doc = "\n".join(" * " + line for line in _doc_lines(geometry, values))
     head = []
@@ -324,7 +324,7 @@ def _standalone_c(ex: _Expressions, geometry: Parameters, values=None) -> str:
 
 
 def _standalone_js(ex: _Expressions, geometry: Parameters, values=None) -> str:
-    lang = _Lang("javascript", _js_printer(), "const ", ";")
+    lang = Lang("javascript", _js_printer(), "const ", ";")
     rhs, en = _body(lang, ex, "  ")
     doc = "\n".join(" * " + line for line in _doc_lines(geometry, values))
     pdef, head = "p", []

@@ -21,7 +21,7 @@ from typing import List
 import sympy as sp
 
 from .. import __version__
-from .codegen import _c_printer, _cse_block, _expressions, _Lang, _param_lines, _used_names
+from .codegen import c_printer, cse_block, expressions, Lang, param_lines, used_names
 from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
@@ -38,8 +38,8 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     defines ``SP_FLIP_KERNEL``, which enables ``sp_flip`` in the integrator template: a separate,
     larger library built on the first flip map, so that a simulation's first use does not pay
     for compiling it."""
-    ex = _expressions(geometry)
-    c = _Lang("c", _c_printer(), "const double ", ";")
+    ex = expressions(geometry)
+    c = Lang("c", c_printer(), "const double ", ";")
     I = "    "
     M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
     f = [ex.f[0], ex.f[1]]
@@ -61,9 +61,9 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
 
     def header(signature: str, doc: str, used_exprs, state: str = "y", names=_STATE) -> List[str]:
         lines = [f"/* {doc} */", f"static {signature}", "{"]
-        used = _used_names(used_exprs)
+        used = used_names(used_exprs)
         lines += [f"{I}const double {n} = {state}[{i}];" for i, n in enumerate(names) if n in used]
-        lines += _param_lines(c, I, used)
+        lines += param_lines(c, I, used)
         return lines
 
     solve = [
@@ -75,7 +75,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     # rhs: M q'' = f solved numerically (no symbolic inverse); W' = Q . q'
     exprs = M + f + Q
     out += header("void rhs(const double *y, const double *p, double *out)", "dy/dt into out[5]", exprs)
-    out += _cse_block(c, exprs, ["M11", "M12", "M22", "f1", "f2", "Q1", "Q2"], I)
+    out += cse_block(c, exprs, ["M11", "M12", "M22", "f1", "f2", "Q1", "Q2"], I)
     out += solve
     out += [
         f"{I}out[0] = y[2];",
@@ -88,7 +88,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     ]
     # energy
     out += header("double energy(const double *y, const double *p)", "mechanical energy T + Pi [J]", [ex.T, ex.Pi])
-    out += _cse_block(c, [ex.T + ex.Pi], ["E"], I)
+    out += cse_block(c, [ex.T + ex.Pi], ["E"], I)
     out += [f"{I}return E;", "}", ""]
     # Jacobian of rhs (5x5, row-major): d(q'')/dy = M^-1 (df/dy - dM/dq q'')
     dM = [[d[0, 0], d[0, 1], d[1, 1]] for d in ex.dM_dq]
@@ -98,7 +98,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     dM_names = [f"dM{k}_{n}" for k in range(2) for n in ("11", "12", "22")]
     out += header("void rhs_jac(const double *y, const double *p, double *dy, double *out)",
                   "dy/dt into dy[5] and its Jacobian d(dy/dt)/dy into out[25], row-major", jac_exprs)
-    out += _cse_block(c, jac_exprs, ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + ["dQ1_1", "dQ1_2", "dQ2_1", "dQ2_2", "Q1", "Q2"], I)
+    out += cse_block(c, jac_exprs, ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + ["dQ1_1", "dQ1_2", "dQ2_1", "dQ2_2", "Q1", "Q2"], I)
     out += solve
     out += [
         f"{I}const double dMs[2][3] = {{{{dM0_11, dM0_12, dM0_22}}, {{dM1_11, dM1_12, dM1_22}}}};",
@@ -134,10 +134,10 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     ]
     # canonical momenta and the speeds back from them
     out += header("void momenta(const double *y, const double *p, double *out)", "p_q = M(q) q' [J s] into out[2]", M)
-    out += _cse_block(c, M, ["M11", "M12", "M22"], I)
+    out += cse_block(c, M, ["M11", "M12", "M22"], I)
     out += [f"{I}out[0] = M11 * y[2] + M12 * y[3];", f"{I}out[1] = M12 * y[2] + M22 * y[3];", "}", ""]
     out += header("void velocities(const double *z, const double *p, double *out)", "q' = M(q)^-1 p_q into out[2]", M, state="z", names=_STATE[:2])
-    out += _cse_block(c, M, ["M11", "M12", "M22"], I)
+    out += cse_block(c, M, ["M11", "M12", "M22"], I)
     out += [
         f"{I}const double det = M11 * M22 - M12 * M12;",
         f"{I}out[0] = (M22 * z[2] - M12 * z[3]) / det;",
@@ -148,16 +148,16 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     # Hamilton's equations: q' = M^-1 p; p' = dT/dq(q, q') - dPi/dq + Q(q'); W' = Q . q'
     ham = M + list(ex.dPi_dq)
     out += header("void ham_rhs(const double *z, const double *p, double *out)", "dz/dt of z = (phi, psi, p_phi, p_psi, W) into out[5]", ham, state="z", names=_STATE[:2])
-    used = _used_names(ham)
-    out += _cse_block(c, ham, ["M11", "M12", "M22", "dPi1", "dPi2"], I)
+    used = used_names(ham)
+    out += cse_block(c, ham, ["M11", "M12", "M22", "dPi1", "dPi2"], I)
     out += [
         f"{I}const double det = M11 * M22 - M12 * M12;",
         f"{I}const double dphi = (M22 * z[2] - M12 * z[3]) / det;",
         f"{I}const double dpsi = (M11 * z[3] - M12 * z[2]) / det;",
     ]
     more = list(ex.dT_dq) + Q
-    out += _param_lines(c, I, _used_names(more) - used - set(_STATE))
-    out += _cse_block(c, more, ["dT1", "dT2", "Q1", "Q2"], I, prefix="u")
+    out += param_lines(c, I, used_names(more) - used - set(_STATE))
+    out += cse_block(c, more, ["dT1", "dT2", "Q1", "Q2"], I, prefix="u")
     out += [
         f"{I}out[0] = dphi;",
         f"{I}out[1] = dpsi;",
@@ -170,12 +170,12 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     # rod ends
     tips = list(ex.tips)
     out += header("void tips(const double *y, const double *p, double *out)", "rod ends (x1, y1, z1, x2, y2, z2) [m] into out[6]", tips)
-    out += _cse_block(c, tips, [f"r{i}" for i in range(6)], I)
+    out += cse_block(c, tips, [f"r{i}" for i in range(6)], I)
     out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
     # hinge axes in the world frame: n1 (fixed) and the second hinge's current axis e = P1 . e0
     axes = list(ex.axes)
     out += header("void axes(const double *y, const double *p, double *out)", "hinge axes (n1, e = P1 . e0) into out[6]", axes)
-    out += _cse_block(c, axes, [f"r{i}" for i in range(6)], I)
+    out += cse_block(c, axes, [f"r{i}" for i in range(6)], I)
     out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
     if flip:
         out += flip_c_source(ex, geometry)
@@ -330,7 +330,7 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
         exprs.append(r)
     state = [sp.Symbol(n) if n not in q else q[n] for n in _FLIP_STATE[2:]]
     hoisted, defs = _hoist(exprs, state)
-    c = _Lang("c", _c_printer(), "const double ", ";")
+    c = Lang("c", c_printer(), "const double ", ";")
     v = _ArithmeticPrinter()
     I = "    "
     out: List[str] = [
@@ -345,9 +345,9 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
         "static void flip_prepare(const double *p, double *pp)",
         "{",
     ]
-    out += _param_lines(c, I, _used_names([e for _, e in defs]))
+    out += param_lines(c, I, used_names([e for _, e in defs]))
     if defs:
-        block = _cse_block(c, [e for _, e in defs], [f"pp[{i}]" for i in range(len(defs))], I, prefix="w")
+        block = cse_block(c, [e for _, e in defs], [f"pp[{i}]" for i in range(len(defs))], I, prefix="w")
         out += [ln.replace(f"{I}const double pp[", f"{I}pp[") for ln in block]
     else:
         out.append(f"{I}pp[0] = 0.0;")
@@ -355,7 +355,7 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
     # the right-hand side, a loop over lanes
     names = ["M11", "M12", "M22", "f1", "f2"] + [f"d{t[0]}" for t in _TRIG]
     replacements, reduced = sp.cse(hoisted, symbols=sp.numbered_symbols("x"), optimizations="basic")
-    used = _used_names(list(reduced) + [e for _, e in replacements])
+    used = used_names(list(reduced) + [e for _, e in replacements])
     J = I * 2
     out += [
         "/* dy/dt of SP_LANES states: component k of lane l is y[k][l] (a loop the compiler vectorises) */",
@@ -392,15 +392,15 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
     at_rest = {s["dphi"]: 0, s["dpsi"]: 0}
     Q0 = [sp.sympify(x).subs(at_rest) for x in ex.Q]
     V = ex.Pi - Q0[0] * q["phi"] - Q0[1] * q["psi"]
-    used = _used_names([V])
+    used = used_names([V])
     out += [
         "/* V = Pi - Q(q' = 0) . q = Pi - tau . q at the angles q[2] [J]: with constant torques, E - tau . q",
         " * (T + V) never increases (damping only removes energy) */",
         "static double flip_potential(const double *q, const double *p)",
         "{",
         *[f"{I}const double {n} = q[{i}];" for i, n in enumerate(("phi", "psi")) if n in used],
-        *_param_lines(c, I, used),
-        *_cse_block(c, [V], ["V"], I),
+        *param_lines(c, I, used),
+        *cse_block(c, [V], ["V"], I),
         f"{I}return V;",
         "}",
         "",

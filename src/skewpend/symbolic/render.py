@@ -35,7 +35,7 @@ STEP_TITLES = {
 }
 
 _S = SYMBOLS
-_UNICODE = {
+UNICODE = {
     _S["dphi"]: sp.Symbol("φ̇"),
     _S["dpsi"]: sp.Symbol("ψ̇"),
     _S["ddphi"]: sp.Symbol("φ̈"),
@@ -74,7 +74,7 @@ _TEXT_LABELS = {
     "M": "M",
     "f": "f",
 }
-_LATEX_LABELS = {
+LATEX_LABELS = {
     "P1": r"\underline{\underline{P}}_1",
     "e": r"\underline{e}",
     "P": r"\underline{\underline{P}}",
@@ -91,9 +91,9 @@ _LATEX_LABELS = {
 # -- text ----------------------------------------------------------------------------------
 def _pretty(label: str, expr: Any, width: int) -> str:
     if isinstance(expr, sp.MatrixBase):
-        expr = expr.xreplace(_UNICODE)
+        expr = expr.xreplace(UNICODE)
     else:
-        expr = sp.sympify(expr).xreplace(_UNICODE)
+        expr = sp.sympify(expr).xreplace(UNICODE)
     return sp.pretty(sp.Eq(sp.Symbol(label), expr, evaluate=False), use_unicode=True, num_columns=width)
 
 
@@ -169,12 +169,12 @@ def to_text(
             out.append(_pretty("C₀", linear.C, width))
         out.append(_pretty("K₀", linear.K, width))
         for i, lhs in enumerate(_linear_lhs(linear), 1):
-            out.append(sp.pretty(sp.Eq(lhs.xreplace(_UNICODE), 0, evaluate=False), num_columns=width))
+            out.append(sp.pretty(sp.Eq(lhs.xreplace(UNICODE), 0, evaluate=False), num_columns=width))
     return "\n".join(out) + "\n"
 
 
 # -- LaTeX -------------------------------------------------------------------------------------
-def _tex(expr: Any) -> str:
+def tex(expr: Any) -> str:
     return sp.latex(expr, symbol_names=_LATEX_NAMES)
 
 
@@ -193,17 +193,17 @@ def to_latex(
         for key, value in eom.steps.items():
             if key in ("M", "f"):
                 continue
-            rows.append(f"{_LATEX_LABELS[key]} &= {_tex(value)}")
+            rows.append(f"{LATEX_LABELS[key]} &= {tex(value)}")
     for i in range(2):
         rows.append(
-            r"\left(" + _tex(M[i, 0]) + r"\right)" + _tex(ddphi) + " + "
-            + r"\left(" + _tex(M[i, 1]) + r"\right)" + _tex(ddpsi) + " &= " + _tex(f[i])
+            r"\left(" + tex(M[i, 0]) + r"\right)" + tex(ddphi) + " + "
+            + r"\left(" + tex(M[i, 1]) + r"\right)" + tex(ddpsi) + " &= " + tex(f[i])
         )
-    rows.append(f"T &= {_tex(eom.kinetic_energy)}")
-    rows.append(rf"\Pi &= {_tex(eom.potential_energy)}")
+    rows.append(f"T &= {tex(eom.kinetic_energy)}")
+    rows.append(rf"\Pi &= {tex(eom.potential_energy)}")
     if linear is not None:
         for lhs in _linear_lhs(linear):
-            rows.append(f"{_tex(lhs)} &= 0")
+            rows.append(f"{tex(lhs)} &= 0")
     body = "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
     if display:
         return body

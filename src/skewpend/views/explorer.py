@@ -147,18 +147,19 @@ def _finite(values) -> list:
 def _equations(values: tuple, digits: int) -> Dict[str, Any]:
     from ..symbolic.derivation import derive
     from ..symbolic.model import Parameters
-    from .report import _equations_tex, _numeric, _tex
+    from ..symbolic.layout import equations_tex, numeric
+    from ..symbolic.render import tex
 
     names = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
     params = Parameters(**dict(zip(names, values)))
     eom = derive(params)
-    M, f = _numeric(eom.mass_matrix, digits), _numeric(eom.forcing, digits)
+    M, f = numeric(eom.mass_matrix, digits), numeric(eom.forcing, digits)
     return {
-        "latex": _equations_tex(M, f, _tex),
-        "M": [[_tex(M[i, j]) for j in range(2)] for i in range(2)],
-        "f": [_tex(f[i]) for i in range(2)],
-        "T": _tex(_numeric(eom.kinetic_energy, digits)),
-        "Pi": _tex(_numeric(eom.potential_energy, digits)),
+        "latex": equations_tex(M, f, tex),
+        "M": [[tex(M[i, j]) for j in range(2)] for i in range(2)],
+        "f": [tex(f[i]) for i in range(2)],
+        "T": tex(numeric(eom.kinetic_energy, digits)),
+        "Pi": tex(numeric(eom.potential_energy, digits)),
         "digits": digits,
     }
 

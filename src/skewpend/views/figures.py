@@ -688,7 +688,7 @@ def _settings_list(settings, keys) -> List[str]:
 def _lyapunov_caption(spec) -> str:
     """What a Lyapunov figure shows: the parameters; the start; the method, tolerances, t_end,
     renormalisation interval, transient and windows (and, if the run stopped early, why)."""
-    from .style import _wrap_list, initial_text, parameter_text
+    from .style import wrap_list, initial_text, parameter_text
 
     st = spec.settings
     run = [f"dop853 on the state and {spec.k} tangent vector{'s' if spec.k != 1 else ''} (Benettin, QR)"]
@@ -701,8 +701,8 @@ def _lyapunov_caption(spec) -> str:
         run.append(f"transient {fmt(st['transient'])} s (measured from t = {fmt(st.get('measured_from', 0.0))} s)")
     if st.get("windows") is not None:
         run.append(f"uncertainty from {st['windows']} windows")
-    lines = [_wrap_list(parameter_text(spec.params)), "released from " + initial_text(spec.y0),
-             _wrap_list(", ".join(run), 110)]
+    lines = [wrap_list(parameter_text(spec.params)), "released from " + initial_text(spec.y0),
+             wrap_list(", ".join(run), 110)]
     if getattr(spec, "status", 0) != 0:
         lines.append(f"run {spec.message}")
     return "\n".join(lines)
@@ -804,7 +804,7 @@ def _section_text(settings) -> str:
 
 
 def _poincare_caption(section, shown: int) -> str:
-    from .style import _wrap_list, parameter_text
+    from .style import wrap_list, parameter_text
 
     st, stats = section.settings, section.stats
     n_orbits = int(np.asarray(section.crossings).size)
@@ -823,8 +823,8 @@ def _poincare_caption(section, shown: int) -> str:
     run += _settings_list(st, ("rtol", "atol"))
     if section.energy_error is not None and np.size(section.energy_error):
         run.append(f"largest |energy error| = {fmt(float(np.max(np.abs(section.energy_error))), 2)} J")
-    return "\n".join([_wrap_list(parameter_text(section.params)), f"{surface}, {_section_text(st)}", points,
-                      _wrap_list(", ".join(run), 100)])
+    return "\n".join([wrap_list(parameter_text(section.params)), f"{surface}, {_section_text(st)}", points,
+                      wrap_list(", ".join(run), 100)])
 
 
 def poincare_figure(section, *, canonical: bool = True, max_points: Optional[int] = None):
@@ -894,7 +894,7 @@ def _edges(centres: np.ndarray) -> np.ndarray:
 
 
 def _chaos_caption(diagram) -> str:
-    from .style import _wrap_list, parameter_text
+    from .style import wrap_list, parameter_text
 
     st, stats = diagram.settings, diagram.stats
     alpha, energy = np.degrees(np.asarray(diagram.alpha, dtype=float)), np.asarray(diagram.energy, dtype=float)
@@ -913,8 +913,8 @@ def _chaos_caption(diagram) -> str:
     for key, what in (("unreachable", "starts not reachable"), ("failed", "integrations failed")):
         if stats.get(key):
             run.append(f"{stats[key]} {what}")
-    return "\n".join([_wrap_list(parameter_text(diagram.params, skip=("alpha",))), _wrap_list(grid, 120),
-                      _wrap_list(", ".join(run), 120)])
+    return "\n".join([wrap_list(parameter_text(diagram.params, skip=("alpha",))), wrap_list(grid, 120),
+                      wrap_list(", ".join(run), 120)])
 
 
 def chaos_diagram_figure(diagram):
@@ -1005,7 +1005,7 @@ def chaos_diagram_figure(diagram):
 
 
 def _lyapunov_map_caption(m) -> str:
-    from .style import _wrap_list, flipmap_window, parameter_text, window_text
+    from .style import wrap_list, flipmap_window, parameter_text, window_text
 
     st = m.settings
     n0, n1 = np.shape(m.exponent)
@@ -1021,7 +1021,7 @@ def _lyapunov_map_caption(m) -> str:
     run += ["dop853 on the state and one tangent vector (Benettin)"] + _settings_list(st, ("rtol", "atol"))
     failed = int(np.count_nonzero(~np.isfinite(np.asarray(m.exponent, dtype=float))))
     run.append(f"{failed} of {n0 * n1} cells failed" if failed else "every cell integrated")
-    return "\n".join([_wrap_list(parameter_text(m.params)), grid, _wrap_list(", ".join(run), 100)])
+    return "\n".join([wrap_list(parameter_text(m.params)), grid, wrap_list(", ".join(run), 100)])
 
 
 def lyapunov_map_figure(m):

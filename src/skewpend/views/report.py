@@ -55,6 +55,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from .. import __version__
+from ..symbolic.layout import equations_fit, equations_tex, layout, linear_tex, numeric, rounded_linear
 from ..errors import ParameterError, SkewpendError
 from ..symbolic.model import Parameters
 
@@ -280,9 +281,9 @@ def _template(name: str) -> str:
     return _asset("templates", name).decode("utf-8")
 
 
-# -- LaTeX of derived expressions --------------------------------------------------------------
+# -- LaTeX of derived expressions (the layout engine: skewpend.symbolic.layout) ---------------------
 def _tex(expr) -> str:
-    from ..symbolic.render import _tex as tex
+    from ..symbolic.render import tex
 
     return tex(expr)
 
@@ -294,236 +295,6 @@ def _np_tex(a: np.ndarray, digits: int = 5) -> str:
 
 def _vector_tex(v, digits: int = 4) -> str:
     return r"\begin{bmatrix}" + r" \\ ".join(_num_tex(x, digits) for x in v) + r"\end{bmatrix}"
-
-
-#: Width of a line of display mathematics, in columns of SymPy's pretty printer (about 7.5 px
-#: each at the report's font size: the text column holds about 100).
-LINE_COLUMNS = 88
-
-
-def _width(expr) -> int:
-    """Rough rendered width of an expression, in columns (SymPy's 2-D pretty print)."""
-    import sympy as sp
-
-    from ..symbolic.render import _UNICODE
-
-    text = sp.pretty(expr.xreplace(_UNICODE), use_unicode=True, wrap_line=False, num_columns=10**6)
-    return max((len(line) for line in text.splitlines()), default=0)
-
-
-def _signed(tex: str, first: bool) -> str:
-    """A term's LaTeX after the previous one: `` + t`` or `` - t`` (the first keeps its sign)."""
-    if first:
-        return tex
-    return " - " + tex[1:] if tex.startswith("-") else " + " + tex
-
-
-def _pack(items: Sequence[Tuple[str, int]], room: int, later: int) -> List[str]:
-    """``(tex, width)`` terms of a sum packed into lines of at most ``room`` (the first line) and
-    ``later`` columns; every line but the first starts with its sign."""
-    lines: List[str] = []
-    current, used = "", 0
-    for k, (tex, w) in enumerate(items):
-        limit = room if not lines else later
-        if current and used + w + 3 > limit:
-            lines.append(current)
-            current, used = "", 0
-        current += _signed(tex, first=(k == 0))
-        used += w + 3
-    lines.append(current)
-    return [ln.lstrip() for ln in lines]
-
-
-def _flat_terms(terms: Sequence, limit: int) -> List:
-    """Terms of a sum, a term wider than ``limit`` that is a product with a sum in it distributed
-    over that sum (so that it can be broken too)."""
-    import sympy as sp
-
-    out: List = []
-    for t in terms:
-        if _width(t) > limit and isinstance(t, sp.Mul) and any(isinstance(f, sp.Add) for f in t.args):
-            out += _flat_terms(sp.Add.make_args(sp.expand(t, deep=False, trig=False, power_exp=False, log=False, multinomial=False)), limit)
-        else:
-            out.append(t)
-    return out
-
-
-def _sum_lines(expr, tex, room: int, later: int) -> Optional[Tuple[str, List[str], str]]:
-    """``(head, lines, tail)`` for a long expression broken between the terms of a sum, or of the
-    one sum in a product (``head [ ... ] tail``); None when it cannot be broken."""
-    import sympy as sp
-
-    if isinstance(expr, sp.Add):
-        terms = _flat_terms(sp.Add.make_args(expr), later)
-        lines = _pack([(tex(t), _width(t)) for t in terms], room, later)
-        return ("", lines, "") if len(lines) > 1 else None
-    if isinstance(expr, sp.Mul):
-        sums = [f for f in expr.args if isinstance(f, sp.Add)]
-        if len(sums) == 1:
-            inner = sums[0]
-            rest = sp.Mul(*[f for f in expr.args if f is not inner])
-            head = "" if rest == 1 else ("-" if rest == -1 else tex(rest))
-            w = _width(rest) + 2
-            terms = _flat_terms(sp.Add.make_args(inner), later - 2)
-            lines = _pack([(tex(t), _width(t)) for t in terms], room - w, later - 2)
-            if len(lines) > 1:
-                return head + r"\Bigl[", lines, r"\Bigr]"
-    return None
-
-
-def _long(label: str, label_cols: int, expr, tex) -> List[str]:
-    """``label &= expr`` as rows of an ``aligned`` block, broken between the terms of a long sum
-    (or of the one sum in a product, written ``factor [ ... ]``); continuation rows start at
-    the alignment point."""
-    room = LINE_COLUMNS - label_cols - 3
-    if _width(expr) <= room or room < 24:
-        return [f"{label} &= {tex(expr)}"]
-    split = _sum_lines(expr, tex, room, room - 3)
-    if split is None:
-        return [f"{label} &= {tex(expr)}"]
-    head, lines, tail = split
-    rows = [f"{label} &= {head}{lines[0]}"] + [r"&\quad " + ln for ln in lines[1:]]
-    rows[-1] += tail
-    return rows
-
-
-def _aligned(rows: Sequence[str]) -> str:
-    return r"\begin{aligned}" + r" \\ ".join(rows) + r"\end{aligned}"
-
-
-def _component(label: str, i: int, j: Optional[int] = None) -> str:
-    """``P_{12}``, ``f_{1}``; ``(\\underline{\\vartheta}_c)_{1}`` for a decorated label (1, 2, 3 = i, j, k)."""
-    index = f"{i + 1}" if j is None else f"{i + 1}{j + 1}"
-    plain = {r"\underline{\underline{P}}": "P", r"\underline{\underline{\Theta}}_2": r"\Theta_{2}",
-             r"\underline{\vartheta}_c": r"\vartheta_{c}", r"\underline{\omega}_2": r"\omega_{2}", r"\underline{e}": "e"}
-    base = plain.get(label, label)
-    if base.endswith("}") and "_{" in base:  # \Theta_{2} -> \Theta_{2,12}
-        return base[:-1] + "," + index + "}"
-    return f"{base}_{{{index}}}"
-
-
-def _layout(label: str, label_cols: int, value, tex, *, prefix: str = "") -> str:
-    """Display mathematics for ``label = prefix value``: whole when it fits a line; else a matrix
-    or vector entry by entry (components 1, 2, 3 along i, j, k; a symmetric matrix's entries
-    below the diagonal named with those above; zero entries listed together), each long entry
-    broken between terms."""
-    import sympy as sp
-
-    if not isinstance(value, sp.MatrixBase):
-        rows = _long(f"{label} = {prefix}".rstrip(" ="), label_cols, value, tex)
-        return _aligned(rows) if len(rows) > 1 else rows[0].replace("&=", "=")
-    if _width(value) + label_cols <= LINE_COLUMNS:
-        return f"{label} = {prefix}" + tex(value)
-    rows = [f"{label} &= {prefix.rstrip(' =')}" + r",\quad\text{by components:}" if prefix else ""]
-    rows = [r for r in rows if r]
-    symmetric = value.rows == value.cols and value.rows > 1 and value == value.T
-    zeros = []
-    for i in range(value.rows):
-        for j in range(value.cols):
-            if symmetric and j < i:
-                continue
-            name = _component(label, i) if value.cols == 1 else _component(label, i, j)
-            if symmetric and i != j:
-                name += " = " + _component(label, j, i)
-            if value[i, j] == 0:
-                zeros.append(name)
-                continue
-            rows += _long(name, 10 if not (symmetric and i != j) else 20, value[i, j], tex)
-    if zeros:
-        rows.append(", ".join(zeros) + " &= 0")
-    return _aligned(rows)
-
-
-def _equation_rows(lhs: str, lhs_cols: int, rhs, tex) -> List[str]:
-    """``lhs = rhs`` as left-aligned rows: one line if it fits; else the left-hand side on its
-    own line and ``= rhs`` below it, broken between terms."""
-    room = LINE_COLUMNS - 4
-    if lhs_cols + _width(rhs) + 3 <= room:
-        return [f"&{lhs} = {tex(rhs)}"]
-    split = _sum_lines(rhs, tex, room - 6, room - 6)
-    if split is None:
-        return [f"&{lhs}", r"&\qquad = " + tex(rhs)]
-    head, lines, tail = split
-    rows = [f"&{lhs}", r"&\qquad = " + head + lines[0]] + [r"&\qquad\quad " + ln for ln in lines[1:]]
-    rows[-1] += tail
-    return rows
-
-
-def _equations_tex(M, f, tex) -> str:
-    """The equations of motion ``(M11) phi'' + (M12) psi'' = f1`` and the second row written out
-    (in terms of the entries' names when a left-hand side is wider than a line)."""
-    dd = (r"\ddot\varphi", r"\ddot\psi")
-    wide = max(_width(M[i, 0]) + _width(M[i, 1]) for i in range(2)) + 14 > LINE_COLUMNS - 8
-    rows: List[str] = []
-    for i in range(2):
-        if wide:
-            rows.append(f"&M_{{{i + 1}1}}" + dd[0] + f" + M_{{{i + 1}2}}" + dd[1] + f" = f_{{{i + 1}}}")
-            continue
-        terms = [_coefficient(M[i, j], dd[j], tex) for j in range(2) if M[i, j] != 0]
-        lhs = "".join(_signed(t, first=(k == 0)) for k, t in enumerate(terms))
-        rows += _equation_rows(lhs, _width(M[i, 0]) + _width(M[i, 1]) + 14, f[i], tex)
-        if i == 0:
-            rows[-1] += r"\\[0.4em]"
-    return _aligned(rows).replace(r"\\[0.4em] \\", r"\\[0.4em]")
-
-
-def _equations_fit(M) -> bool:
-    return max(_width(M[i, 0]) + _width(M[i, 1]) for i in range(2)) + 14 <= LINE_COLUMNS - 8
-
-
-def _numeric(expr, digits: int = 5):
-    """An expression (or matrix) with its numbers rounded to ``digits`` significant digits and
-    the terms in the speeds collected."""
-    import sympy as sp
-
-    from ..symbolic.symbols import SYMBOLS
-
-    dphi, dpsi = SYMBOLS["dphi"], SYMBOLS["dpsi"]
-
-    def one(e):
-        e = sp.expand(e)
-        if e.has(dphi) or e.has(dpsi):
-            e = sp.collect(e, [dphi**2, dphi * dpsi, dpsi**2, dphi, dpsi])
-        e = sp.N(e, digits)
-        rounded = {}
-        for x in e.atoms(sp.Float):
-            v = float(f"{float(x):.{digits}g}")
-            rounded[x] = sp.Integer(int(v)) if v.is_integer() else sp.Float(v, digits)
-        return e.xreplace(rounded)
-
-    return expr.applyfunc(one) if isinstance(expr, sp.MatrixBase) else one(expr)
-
-
-def _rounded_linear(lin, digits: int):
-    from types import SimpleNamespace
-
-    return SimpleNamespace(M=_numeric(lin.M, digits), C=_numeric(lin.C, digits), K=_numeric(lin.K, digits))
-
-
-def _coefficient(coeff, symbol: str, tex) -> str:
-    """``coeff symbol`` (parentheses around a sum; ``1``/``-1`` left out)."""
-    import sympy as sp
-
-    if coeff == 1:
-        return symbol
-    if coeff == -1:
-        return "-" + symbol
-    if isinstance(coeff, sp.Add):
-        return r"\left(" + tex(coeff) + r"\right)" + symbol
-    return tex(coeff) + r"\," + symbol
-
-
-def _linear_tex(lin, tex) -> str:
-    """``M0 q'' + C0 q' + K0 q = 0`` written out row by row, left-aligned, broken between terms."""
-    names = ((lin.M, (r"\ddot\varphi", r"\ddot\psi")), (lin.C, (r"\dot\varphi", r"\dot\psi")), (lin.K, (r"\varphi", r"\psi")))
-    rows = []
-    for i in range(2):
-        items = [(_coefficient(mat[i, j], sym[j], tex), _width(mat[i, j]) + 5)
-                 for mat, sym in names for j in range(2) if mat[i, j] != 0]
-        lines = _pack(items, LINE_COLUMNS - 6, LINE_COLUMNS - 10)
-        lines[-1] += " = 0"
-        rows += ["&" + lines[0]] + [r"&\quad " + ln for ln in lines[1:]]
-    return _aligned(rows)
 
 
 # -- the specification's formulas, typed from its text (../shared/seed/double_pendulum_spec.txt) --
@@ -1009,7 +780,7 @@ _P1, _P = r"\underline{\underline{P}}_1", r"\underline{\underline{P}}"
 
 def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, str]]:
     """(title, html) of each step of the derivation, in the specification's order."""
-    from ..symbolic.render import _LATEX_LABELS as L
+    from ..symbolic.render import LATEX_LABELS as L
 
     tex = _tex
     n1 = r"\underline{k}" if p.axis1 is None else r"\underline{n}_1"
@@ -1023,7 +794,7 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
         _t(r"<p>Rodrigues' formula gives the rotation tensor by the angle $\theta$ about the unit axis $\underline{n}$ "
            r"($\underline{\underline{E}}$ the identity):</p>") + _md(rodrigues)
         + _t(f"<p>{Rod} 1 turns by $\\varphi$ about ${n1}$; by components in the basis $\\underline{{i}},\\underline{{j}},\\underline{{k}}$:</p>")
-        + _md(_layout(L["P1"], 12, steps["P1"], tex, prefix=r"\underline{\underline{P}}(\varphi, " + n1 + ") = ")),
+        + _md(layout(L["P1"], 12, steps["P1"], tex, prefix=r"\underline{\underline{P}}(\varphi, " + n1 + ") = ")),
     ))
     if p.axis2 is None:
         e0 = r"\underline{e}_0 = \cos\alpha\,\underline{k} + \sin\alpha\,\underline{i}"
@@ -1032,21 +803,21 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
     items.append((
         "Current axis of the second hinge",
         _t(f"<p>With the rods hanging the second hinge's axis is ${e0}$; it turns with {rod} 1:</p>")
-        + _md(_layout(L["e"], 10, steps["e"], tex, prefix=_P1 + r" \cdot \underline{e}_0 = ")),
+        + _md(layout(L["e"], 10, steps["e"], tex, prefix=_P1 + r" \cdot \underline{e}_0 = ")),
     ))
     items.append((
         f"Rotation of {rod} 2",
         _t(f"<p>{Rod} 2 turns by $\\psi$ about $\\underline{{e}}$ on top of {rod} 1's rotation; as "
            r"$\underline{\underline{P}}(\psi,\underline{e}) = " + _P1 + r"\cdot\underline{\underline{P}}(\psi,\underline{e}_0)\cdot"
            + _P1 + r"^T$:</p>")
-        + _md(_layout(L["P"], 30, steps["P"], tex, prefix=r"\underline{\underline{P}}(\psi,\underline{e}) \cdot " + _P1
+        + _md(layout(L["P"], 30, steps["P"], tex, prefix=r"\underline{\underline{P}}(\psi,\underline{e}) \cdot " + _P1
                       + " = " + _P1 + r" \cdot \underline{\underline{P}}(\psi,\underline{e}_0) = ")),
     ))
     items.append((
         f"Angular velocity of {rod} 2",
         _t(r"<p>By the addition of angular velocities, $\underline{\omega}_2 = \underline{\omega}_1 + " + _P1
            + r"\cdot\tilde{\underline{\omega}}_2$ with $\tilde{\underline{\omega}}_2 = \dot\psi\,\underline{e}_0$:</p>")
-        + _md(_layout(L["omega2"], 14, steps["omega2"], tex, prefix=r"\dot\varphi\," + n1 + r" + \dot\psi\,\underline{e} = ")),
+        + _md(layout(L["omega2"], 14, steps["omega2"], tex, prefix=r"\dot\varphi\," + n1 + r" + \dot\psi\,\underline{e} = ")),
     ))
     c2 = r"\tfrac{b}{2}\,\underline{j}" if p.com2 is None else _vector_tex(p.com2)
     items.append((
@@ -1055,7 +826,7 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
            f"the centre of mass of {rod} 2 is at $" + _P + r"\cdot\underline{c}_2$ from that hinge, $\underline{c}_2 = "
            + c2 + f"$ in {rod} 2's frame" + (r" (the specification's $\tfrac{1}{2}\underline{b}$)" if p.com2 is None else "")
            + ":</p>")
-        + _md(_layout(L["v_c"], 30, steps["v_c"], tex, prefix=r"\dot\varphi\," + n1 + r" \times \underline{a} + "
+        + _md(layout(L["v_c"], 30, steps["v_c"], tex, prefix=r"\dot\varphi\," + n1 + r" \times \underline{a} + "
                       r"\underline{\omega}_2 \times (" + _P + r"\cdot\underline{c}_2) = ")),
     ))
     if p.inertia2 is None:
@@ -1068,7 +839,7 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
     items.append((
         f"Inertia tensor of {rod} 2",
         _t(f"<p>About its centre of mass, turned with the {rod}, from ${theta0}$ in its own frame{extra}:</p>")
-        + _md(_layout(L["Theta2"], 16, steps["Theta2"], tex,
+        + _md(layout(L["Theta2"], 16, steps["Theta2"], tex,
                       prefix=_P + r"\cdot\underline{\underline{\Theta}}{}^0_2\cdot" + _P + "^T = ")),
     ))
     if p.is_thin_rods:
@@ -1080,13 +851,13 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
         "Kinetic energy",
         _t("<p>$" + t1 + r", and $T_2 = \tfrac{1}{2}\underline{\omega}_2\cdot\underline{\underline{\Theta}}_2\cdot"
            r"\underline{\omega}_2 + \tfrac{1}{2} m_2\, \underline{\vartheta}_c\cdot\underline{\vartheta}_c$:</p>")
-        + _md(_layout("T", 12, steps["T"], tex, prefix="T_1 + T_2 = ")),
+        + _md(layout("T", 12, steps["T"], tex, prefix="T_1 + T_2 = ")),
     ))
     items.append((
         "Potential energy",
         _t(r"<p>Measured from the hanging position (the specification's $\Pi_2 = m_2 g\,(a + b - \underline{r}_c\cdot"
            r"\underline{j})$ is larger by the constant $m_2 g b/2$, which no equation of motion sees):</p>")
-        + _md(_layout(r"\Pi", 12, steps["Pi"], tex, prefix=r"\Pi_1 + \Pi_2 = ")),
+        + _md(layout(r"\Pi", 12, steps["Pi"], tex, prefix=r"\Pi_1 + \Pi_2 = ")),
     ))
     forced = any(getattr(p, k) is None or getattr(p, k) != 0 for k in ("c1", "c2", "tau1", "tau2"))
     q = (r"$Q_i = \tau_i - c_i\,\dot q_i$ (joint torques and viscous damping)" if forced
@@ -1097,8 +868,8 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
         + _md(r"\frac{d}{dt}\frac{\partial T}{\partial \dot{q}_i}-\frac{\partial T}{\partial q_i} = -\frac{\partial \Pi}{\partial q_i}+Q_i")
         + _t(r"<p>$T$ is quadratic in the speeds, so they read $M(q)\,\ddot q = f(q, \dot q)$, the mass matrix $M$ being "
              r"the Hessian of $T$ in the speeds:</p>")
-        + _md(_layout("M", 3, steps["M"], tex))
-        + _md(_layout("f", 3, steps["f"], tex)),
+        + _md(layout("M", 3, steps["M"], tex))
+        + _md(layout("f", 3, steps["f"], tex)),
     ))
     return items
 
@@ -1113,7 +884,7 @@ def _section_derivation(ctx: _Context) -> str:
     if symbolic:
         steps = display_steps(eom.steps)
     else:  # numbers to 4 significant digits
-        steps = {k: _numeric(v, 4) for k, v in eom.steps.items()}
+        steps = {k: numeric(v, 4) for k, v in eom.steps.items()}
     out = []
     if symbolic:
         out.append(_t(
@@ -1135,11 +906,11 @@ def _section_derivation(ctx: _Context) -> str:
         f'<li><p class="step-title">{_e(title)}</p>{body}</li>' for title, body in items) + "</ol>")
     tex = _tex  # the steps are in display form (symbolic) or rounded (numbers) already
     out.append("<h3>The equations of motion</h3>")
-    if _equations_fit(steps["M"]):
+    if equations_fit(steps["M"]):
         out.append("<p>Written out, the nonlinear equations of motion are</p>")
     else:
         out.append(_t(r"<p>The nonlinear equations of motion, with the entries $M_{mn}$ and $f_m$ of step 9, are</p>"))
-    out.append(_md(_equations_tex(steps["M"], steps["f"], tex)))
+    out.append(_md(equations_tex(steps["M"], steps["f"], tex)))
     try:
         lin = eom.linearize()
     except SkewpendError as exc:
@@ -1148,23 +919,23 @@ def _section_derivation(ctx: _Context) -> str:
         out.append(_t(
             r"<p>Linearised about the hanging position ($\varphi, \psi$ and their speeds small, first-order terms "
             r"kept), $M_0\,\ddot q + C_0\,\dot q + K_0\,q = 0$:</p>"))
-        out.append(_md(_linear_tex(lin if symbolic else _rounded_linear(lin, 4), tex)))
+        out.append(_md(linear_tex(lin if symbolic else rounded_linear(lin, 4), tex)))
     if symbolic:
         eom_n = derive(p)
         out.append("<h3>With the values of section 1</h3>")
         out.append("<p>The same equations with the parameters of section 1 (numbers to 5 significant digits):</p>")
-        Mn, fn = _numeric(eom_n.mass_matrix), _numeric(eom_n.forcing)
-        out.append(_md(_equations_tex(Mn, fn, _tex)))
-        if not _equations_fit(Mn):
-            out.append(_md(_layout("M", 3, Mn, _tex)))
-            out.append(_md(_layout("f", 3, fn, _tex)))
+        Mn, fn = numeric(eom_n.mass_matrix), numeric(eom_n.forcing)
+        out.append(_md(equations_tex(Mn, fn, _tex)))
+        if not equations_fit(Mn):
+            out.append(_md(layout("M", 3, Mn, _tex)))
+            out.append(_md(layout("f", 3, fn, _tex)))
         try:
             lin_n = eom_n.linearize()
         except SkewpendError:
             pass
         else:
             out.append("<p>Linearised:</p>")
-            out.append(_md(_linear_tex(_rounded_linear(lin_n, 5), _tex)))
+            out.append(_md(linear_tex(rounded_linear(lin_n, 5), _tex)))
     ctx.notes["derivation"] = ("the specification's thin rods, every parameter symbolic" if symbolic
                                else "the report's bodies and axes, with their values")
     return "\n".join(out)
@@ -1184,7 +955,7 @@ def _section_check(ctx: _Context) -> str:
 
     from ..symbolic.derivation import derive
     from ..symbolic.display import display_form, display_steps
-    from ..symbolic.render import _LATEX_LABELS as L
+    from ..symbolic.render import LATEX_LABELS as L
     from ..symbolic.symbols import SYMBOLS as S
 
     spec, spec_tex = _specification()
@@ -1234,7 +1005,7 @@ def _section_check(ctx: _Context) -> str:
         '<p class="note">The specification (energies differentiated, first-order terms kept):</p>'
         + _md(spec_tex["linear"])
         + '<p class="note">This derivation at α = 0:</p>'
-        + _md(_linear_tex(lin0, _tex))
+        + _md(linear_tex(lin0, _tex))
         + "<p>The differences of the matrices, computed by <code>sympy.simplify</code> when this report was made:</p>"
         + _md(r"M_0 - M_0^{\text{spec}} = " + _tex(dM) + r",\qquad K_0 - K_0^{\text{spec}} = " + _tex(dK))
         + ('<p><span class="verdict ok">✓ identical</span></p>' if lin_ok else '<p><span class="verdict bad">✗ differs</span></p>')

@@ -202,7 +202,7 @@ def window_text(phi_range, psi_range) -> str:
     return f"phi0 in [{deg(p0)}°, {deg(p1)}°], psi0 in [{deg(q0)}°, {deg(q1)}°]"
 
 
-def _wrap_list(text: str, width: int = 100) -> str:
+def wrap_list(text: str, width: int = 100) -> str:
     """A comma-separated list broken into lines of at most ``width`` characters, between items."""
     lines: List[str] = []
     for item in text.split(", "):
@@ -238,4 +238,4 @@ def flipmap_caption(fm) -> str:
     parts.append(f"{fmt(100.0 * flipped / cells, 3)}% of the cells flip")
     if st.get("energy_bound") and stats.get("skipped_energy") is not None:
         parts.append(f"{fmt(100.0 * stats['skipped_energy'] / cells, 3)}% forbidden by energy")
-    return "\n".join([_wrap_list(parameter_text(fm.params)), grid, ", ".join(parts)])
+    return "\n".join([wrap_list(parameter_text(fm.params)), grid, ", ".join(parts)])
