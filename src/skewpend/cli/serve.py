@@ -31,28 +31,10 @@ def serve(
 
 
 def _announce(explorer, host: str, port: int) -> None:
-    """Transitional (until explorer.serve checks its address itself): a busy port in one line
-    before starting, a warning when serving beyond this machine, the address to open."""
-    import ipaddress
-    import socket
-
-    from ..parsing import UsageError
-
+    """A bad or busy address in one line before starting (the library's check), a warning when
+    serving beyond this machine, the address to open."""
     explorer.require_web("skewpend serve")
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    with socket.socket(family, socket.SOCK_STREAM) as probe:
-        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            probe.bind((host, port))
-        except OSError as exc:
-            raise UsageError(f"--port: cannot listen on {host}:{port}: {exc.strerror or exc}; choose another --port "
-                             "or --host") from None
-    try:
-        loopback = ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        loopback = host == "localhost"
-    if not loopback:
-        sys.stderr.write(f"skewpend: warning: serving on {host}:{port}, not only on this machine: anyone who can reach "
-                         "it can use the explorer (its work per request is bounded)\n")
-    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else (f"[{host}]" if ":" in host else host)
-    sys.stderr.write(f"skewpend explorer on http://{shown}:{port}/ (Ctrl-C to stop)\n")
+    address = explorer.check_address(host, port)
+    if address.warning:
+        sys.stderr.write(f"skewpend: warning: {address.warning}\n")
+    sys.stderr.write(f"skewpend explorer on {address.url} (Ctrl-C to stop)\n")

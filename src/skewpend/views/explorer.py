@@ -5,7 +5,8 @@ bundled in the package from the npm ``three`` package, never loaded from a CDN -
 the motion in the browser with the JavaScript *generated from the derivation*
 (:func:`skewpend.numeric.codegen.explorer_js`, printed when the app is created and served as
 ``/physics.js``; the sliders change the parameter vector, never the code).  Heavier work goes
-through a JSON API, documented by its OpenAPI schema (``/openapi.json``, ``/docs``):
+through a JSON API, documented by its OpenAPI schema (``/openapi.json``; there is no ``/docs`` page: FastAPI's
+Swagger UI loads its scripts from a CDN, and the explorer never makes a request leave the machine):
 
 * ``POST /api/equations`` -- the equations of motion for the current parameters (LaTeX);
 * ``POST /api/simulate`` -- a trajectory (DOP853, compiled), with the energy;
@@ -18,6 +19,14 @@ size, duration, output points: :data:`LIMITS`) and larger requests are refused a
 heavy work runs in worker threads, at most :data:`HEAVY_SLOTS` at a time, each with a time limit
 (:data:`TIME_LIMIT` s, then HTTP 503).  Bad parameters found by the library (e.g. an inertia that
 is not physical) are 422 too, with the library's one-line message.
+
+The server (:func:`serve`) also bounds what a client can hold: a request body is counted as it is
+read (chunked or not) and refused with 422 as soon as it passes :data:`MAX_BODY`; a connection
+that has not sent complete request headers within :data:`HEADER_TIMEOUT` s is closed, and one
+whose body does not arrive within :data:`BODY_TIMEOUT` s is answered 408; at most
+:data:`MAX_CONNECTIONS` requests are handled at once (the others get 503); the ``Host`` header
+must name the server (DNS rebinding), else 400; on Ctrl-C or SIGTERM in-flight work is cancelled
+and the server stops within about a second.
 """
 
 import asyncio
@@ -31,7 +40,8 @@ from typing import Any, Dict, List
 from .. import __version__
 from ..errors import SkewpendError
 
-__all__ = ["create_app", "LIMITS", "TIME_LIMIT", "HEAVY_SLOTS", "require_web", "WEB_EXTRA"]
+__all__ = ["create_app", "serve", "check_host", "check_address", "Address", "LIMITS", "TIME_LIMIT", "HEAVY_SLOTS",
+           "MAX_BODY", "HEADER_TIMEOUT", "BODY_TIMEOUT", "MAX_CONNECTIONS", "require_web", "WEB_EXTRA"]
 
 WEB_EXTRA = 'pip install "skewpend[web]"'
 #: Bounds on the work one request may ask for.
@@ -50,6 +60,14 @@ MAX_BODY = 65_536
 TIME_LIMIT = 20.0
 #: Heavy requests computed at the same time (the others wait their turn).
 HEAVY_SLOTS = 2
+#: Seconds a connection may take to send a request's complete headers (then it is closed).
+HEADER_TIMEOUT = 5.0
+#: Seconds a request's body may take to arrive (then 408).
+BODY_TIMEOUT = 10.0
+#: Requests handled at the same time by :func:`serve` (uvicorn's ``limit_concurrency``: the others get 503).
+MAX_CONNECTIONS = 256
+#: Seconds :func:`serve` waits at shutdown for answers in flight (their work is cancelled at once).
+SHUTDOWN_GRACE = 1.0
 _WEB = Path(__file__).resolve().parent / "web"
 
 
@@ -60,6 +78,98 @@ _ERRORS = {422: {"description": "invalid input: detail names the field and what 
 
 class _Deadline(Exception):
     """Raised in a worker thread whose request ran out of time."""
+
+
+class _Guard:
+    """The ASGI middleware in front of the app: the ``Host`` header (when ``hosts`` is given) and
+    the request body, counted as it is *read* from the server -- a ``Content-Length`` over
+    :data:`MAX_BODY` is refused before reading, a chunked body as soon as it passes it; at most
+    MAX_BODY bytes are ever held.  The body is then replayed to the app."""
+
+    def __init__(self, app, hosts=None, port=None):
+        self.app, self.hosts, self.port = app, hosts, port
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http":
+            return await self.app(scope, receive, send)
+        headers = dict(scope.get("headers") or ())
+        if self.hosts is not None and not _host_allowed(headers.get(b"host"), self.hosts, self.port):
+            return await _answer(send, 400, "the Host header must name this server (e.g. 127.0.0.1 or localhost)")
+        size = headers.get(b"content-length")
+        if size is not None and (not size.isdigit() or int(size) > MAX_BODY):
+            return await _answer(send, 422, f"the request body must be at most {MAX_BODY} bytes", close=True)
+        body, more = bytearray(), True
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + BODY_TIMEOUT
+        while more:
+            try:
+                message = await asyncio.wait_for(receive(), timeout=max(deadline - loop.time(), 0.0))
+            except asyncio.TimeoutError:
+                return await _answer(send, 408, f"the request body did not arrive within {BODY_TIMEOUT:g} s", close=True)
+            if message["type"] != "http.request":  # the client left
+                return None
+            body += message.get("body", b"")
+            more = message.get("more_body", False)
+            if len(body) > MAX_BODY:
+                return await _answer(send, 422, f"the request body must be at most {MAX_BODY} bytes", close=True)
+        replayed = False
+
+        async def replay():
+            nonlocal replayed
+            if not replayed:
+                replayed = True
+                return {"type": "http.request", "body": bytes(body), "more_body": False}
+            return await receive()
+
+        return await self.app(scope, replay, send)
+
+
+async def _answer(send, status: int, message: str, close: bool = False) -> None:
+    """A JSON error answer (``close``: and the connection is closed, the rest of the body unread)."""
+    import json
+
+    if status == 422:
+        content = {"detail": [{"loc": ["body"], "msg": message, "type": "value_error"}]}
+    else:
+        content = {"detail": message}
+    data = json.dumps(content).encode()
+    headers = [(b"content-type", b"application/json"), (b"content-length", str(len(data)).encode())]
+    if close:
+        headers.append((b"connection", b"close"))
+    await send({"type": "http.response.start", "status": status, "headers": headers})
+    await send({"type": "http.response.body", "body": data, "more_body": False})
+
+
+def _host_allowed(value, hosts, port) -> bool:
+    """Whether a ``Host`` header (bytes or None) names one of ``hosts`` (lower case; IPv6 without
+    brackets; ``"*ip"`` allows every IP literal), with no port or ``port``."""
+    import ipaddress
+
+    if not value:
+        return False
+    try:
+        text = value.decode("ascii").strip().lower()
+    except UnicodeDecodeError:
+        return False
+    if text.startswith("["):
+        name, bracket, rest = text[1:].partition("]")
+        if not bracket or (rest and not rest.startswith(":")):
+            return False
+        given = rest[1:] if rest else None
+    else:
+        name, colon, given = text.partition(":")
+        given = given if colon else None
+    if given is not None and not (given.isdigit() and port is not None and int(given) == port):
+        return False
+    if name in hosts:
+        return True
+    if "*ip" in hosts:
+        try:
+            ipaddress.ip_address(name)
+            return True
+        except ValueError:
+            return False
+    return False
 
 
 def require_web(what: str = "the explorer"):
@@ -164,9 +274,13 @@ def _equations(values: tuple, digits: int) -> Dict[str, Any]:
     }
 
 
-def create_app(*, physics_params=None):
+def create_app(*, physics_params=None, hosts=None, port=None):
     """The FastAPI application.  ``physics_params``: the bodies and axes whose generated
-    JavaScript the page integrates (default: the specification's thin rods)."""
+    JavaScript the page integrates (default: the specification's thin rods).  ``hosts``: the
+    names the ``Host`` header may give (lower case, IPv6 without brackets; ``"*ip"``: any IP
+    address), with no port or ``port``; others get 400 (None: any host, for use in process;
+    :func:`serve` passes the names of its address).  ``app.state.stopping`` (a
+    :class:`threading.Event`) cancels every computation in flight when set (503)."""
     require_web()
     from fastapi import FastAPI, HTTPException, Request
     from fastapi.exceptions import RequestValidationError
@@ -181,10 +295,13 @@ def create_app(*, physics_params=None):
     _, EquationsRequest, SimulateRequest, ModesRequest, FlipMapRequest = _models()
     physics = explorer_js(physics_params if physics_params is not None else Parameters())
     slots = threading.BoundedSemaphore(HEAVY_SLOTS)
+    stopping = threading.Event()
 
     app = FastAPI(
         title="skewpend explorer",
         version=__version__,
+        docs_url=None,  # Swagger UI and ReDoc load scripts from a CDN: only the schema, /openapi.json
+        redoc_url=None,
         description="The double pendulum with skewed hinge axes: equations, simulation, normal modes and flip maps, "
                     "computed from the symbolic derivation.",
     )
@@ -210,12 +327,8 @@ def create_app(*, physics_params=None):
             return unprocessable("the request body must be JSON (UTF-8)")
         return JSONResponse(status_code=exc.status_code, content={"detail": exc.detail}, headers=exc.headers)
 
-    @app.middleware("http")
-    async def _body_size(request: Request, call_next):
-        size = request.headers.get("content-length")
-        if size is not None and (not size.isdigit() or int(size) > MAX_BODY):
-            return unprocessable(f"the request body must be at most {MAX_BODY} bytes")
-        return await call_next(request)
+    app.state.stopping = stopping
+    app.add_middleware(_Guard, hosts=None if hosts is None else frozenset(hosts), port=port)
 
     async def heavy(fn):
         """``fn(check)`` in a worker thread, at most HEAVY_SLOTS at a time, within TIME_LIMIT s
@@ -225,7 +338,7 @@ def create_app(*, physics_params=None):
         cancel = threading.Event()
 
         def check(*_):
-            if cancel.is_set():
+            if cancel.is_set() or stopping.is_set():
                 raise _Deadline()
 
         def run():
@@ -240,7 +353,12 @@ def create_app(*, physics_params=None):
             return await asyncio.wait_for(run_in_threadpool(run), timeout=TIME_LIMIT)
         except (asyncio.TimeoutError, _Deadline):
             cancel.set()
+            if stopping.is_set():
+                raise HTTPException(status_code=503, detail="the server is shutting down") from None
             raise HTTPException(status_code=503, detail=f"the computation took longer than {TIME_LIMIT:g} s") from None
+        except BaseException:  # cancelled (the client left, the server stops): the work stops too
+            cancel.set()
+            raise
 
     # -- the page ---------------------------------------------------------------------------------------
     @app.get("/", include_in_schema=False)
@@ -328,15 +446,226 @@ def _katex_dir() -> Path:
     return Path(str(resources.files("skewpend.views").joinpath("assets", "katex")))
 
 
-def serve(host: str = "127.0.0.1", port: int = 8000, *, open_browser: bool = False, log_level: str = "warning") -> None:
-    """Run the explorer with uvicorn until Ctrl-C."""
+class Address:
+    """Where :func:`serve` listens: ``host`` (an IP address without brackets or a host name),
+    ``port``, ``url`` (IPv6 in brackets; a wildcard address shown as 127.0.0.1), ``loopback``
+    (this machine only) and ``warning`` (a sentence for a front end to show when it is not)."""
+
+    def __init__(self, host: str, port: int) -> None:
+        self.host, self.port = host, port
+        self.loopback = _is_loopback(host)
+        shown = "127.0.0.1" if host in ("0.0.0.0", "::") else (f"[{host}]" if ":" in host else host)
+        self.url = f"http://{shown}:{port}/"
+        self.warning = None if self.loopback else (
+            f"serving on {host}:{port}, not only on this machine: anyone who can reach it can use the explorer "
+            "(its work per request is bounded)")
+
+    def __repr__(self) -> str:
+        return f"Address({self.host!r}, {self.port})"
+
+
+def check_host(host) -> str:
+    """``host`` as :func:`serve` binds it: an IP address (``::1`` or ``[::1]`` -> ``::1``) or a
+    host name (ASCII letters, digits, ``.`` and ``-``); :class:`ParameterError` otherwise."""
+    import ipaddress
+    import re
+
+    from ..errors import ParameterError
+
+    name = host.strip() if isinstance(host, str) else None
+    if not name:
+        raise ParameterError(f"host: expected an IP address or a host name, got {host!r}", parameter="host")
+    bare = name[1:-1] if name.startswith("[") and name.endswith("]") else name
+    try:
+        return str(ipaddress.ip_address(bare))
+    except ValueError:
+        pass
+    if not (name.isascii() and re.fullmatch(r"[A-Za-z0-9](?:[A-Za-z0-9.-]{0,251}[A-Za-z0-9])?", name)):
+        raise ParameterError(f"host: expected an IP address or a host name, got {host!r}", parameter="host")
+    return name.lower()
+
+
+def _check_port(port) -> int:
+    from ..errors import ParameterError
+
+    if isinstance(port, str) and port.strip().isascii() and port.strip().isdigit() and len(port.strip()) <= 5:
+        port = int(port.strip())
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise ParameterError(f"port: expected a whole number from 1 to 65535 (0: any free port), got {port!r}",
+                             parameter="port")
+    return port
+
+
+def _is_loopback(host: str) -> bool:
+    import ipaddress
+
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
+
+
+def _bind(host: str, port: int):
+    """The listening sockets of ``host:port`` (every address of a name such as ``localhost``,
+    on one port), or one :class:`ParameterError` naming the address."""
+    import socket
+
+    from ..errors import ParameterError
+
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except (OSError, UnicodeError) as exc:
+        raise ParameterError(f"host: cannot listen on {host!r}: {getattr(exc, 'strerror', None) or exc}",
+                             parameter="host") from None
+    sockets, seen = [], set()
+    try:
+        for family, kind, proto, _, address in infos:
+            if (family, address[0]) in seen or family not in (socket.AF_INET, socket.AF_INET6):
+                continue
+            seen.add((family, address[0]))
+            sock = socket.socket(family, kind, proto)
+            sockets.append(sock)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            if family == socket.AF_INET6 and len(infos) > 1:
+                sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_V6ONLY, 1)
+            try:
+                sock.bind((address[0], port, *address[2:]))
+            except OSError as exc:
+                shown = f"[{address[0]}]" if family == socket.AF_INET6 else address[0]
+                raise ParameterError(f"port: cannot listen on {shown}:{port}: {exc.strerror or exc}; choose another "
+                                     "port or host", parameter="port") from None
+            port = port or sock.getsockname()[1]  # port 0: the rest of the addresses on the one chosen
+        if not sockets:
+            raise ParameterError(f"host: {host!r} has no IP address to listen on", parameter="host")
+    except BaseException:
+        for sock in sockets:
+            sock.close()
+        raise
+    return sockets
+
+
+def check_address(host="127.0.0.1", port=8000) -> Address:
+    """The :class:`Address` :func:`serve` would listen on, checked: the host is valid and the port
+    can be bound now (tried and released); :class:`ParameterError` naming ``host`` or ``port``."""
+    host, port = check_host(host), _check_port(port)
+    sockets = _bind(host, port)
+    try:
+        return Address(host, sockets[0].getsockname()[1])
+    finally:
+        for sock in sockets:
+            sock.close()
+
+
+def _allowed_hosts(host: str) -> frozenset:
+    """The names the Host header may give for a server bound to ``host``."""
+    import socket
+
+    names = {host}
+    if _is_loopback(host):
+        names |= {"localhost", "127.0.0.1", "::1"}
+    if host in ("0.0.0.0", "::"):  # every interface: any IP address, and this machine's names
+        names |= {"localhost", "*ip", socket.gethostname().lower(), socket.getfqdn().lower()}
+    return frozenset(names)
+
+
+def _protocol():
+    """uvicorn's h11 protocol with a deadline for a request's headers: a connection that has not
+    sent complete headers within HEADER_TIMEOUT s after connecting (or after its last answer) is
+    closed -- uvicorn's keep-alive timer is reset by every byte, so a slow client could hold it forever."""
+    from uvicorn.protocols.http.h11_impl import H11Protocol
+
+    class Protocol(H11Protocol):
+        _header_timer = None
+        _partial = False
+
+        def _arm(self) -> None:
+            self._disarm()
+            self._partial = False
+            self._header_timer = self.loop.call_later(HEADER_TIMEOUT, self._header_timeout)
+
+        def _disarm(self) -> None:
+            if self._header_timer is not None:
+                self._header_timer.cancel()
+                self._header_timer = None
+
+        def _header_timeout(self) -> None:
+            self._header_timer = None
+            if not self.transport.is_closing():
+                if self._partial:
+                    self.transport.write(b"HTTP/1.1 408 Request Timeout\r\ncontent-length: 0\r\nconnection: close\r\n\r\n")
+                self.transport.close()
+
+        def connection_made(self, transport) -> None:
+            super().connection_made(transport)
+            self._arm()
+
+        def data_received(self, data: bytes) -> None:
+            cycle = self.cycle
+            self._partial = True
+            super().data_received(data)
+            if self.cycle is not cycle:  # the headers of a request are complete
+                self._disarm()
+
+        def on_response_complete(self) -> None:
+            cycle = self.cycle
+            super().on_response_complete()
+            if self.cycle is cycle and not self.transport.is_closing():  # waiting for the next request
+                self._arm()
+
+        def connection_lost(self, exc) -> None:
+            self._disarm()
+            super().connection_lost(exc)
+
+    return Protocol
+
+
+def serve(host: str = "127.0.0.1", port: int = 8000, *, open_browser: bool = False, log_level: str = "warning",
+          ready=None) -> None:
+    """Run the explorer with uvicorn on ``host:port`` until Ctrl-C or SIGTERM.
+
+    ``host``: an IP address (``::1`` or ``[::1]``) or a host name (see :func:`check_host`);
+    ``port``: 1 to 65535, or 0 for any free port.  Bad input or an address that cannot be bound
+    is one :class:`ParameterError` naming ``host`` or ``port``, raised before anything starts.
+    ``ready``: called with the :class:`Address` once listening (the front end announces it);
+    ``open_browser``: open the page then.  Requests whose ``Host`` header does not name this
+    server get 400 (for a loopback address: also ``localhost``, ``127.0.0.1``, ``[::1]``).  At
+    the signal, in-flight computations are cancelled (answered 503) and the server stops within
+    about :data:`SHUTDOWN_GRACE` s; the signal is then raised again by uvicorn (a
+    :class:`KeyboardInterrupt` for Ctrl-C)."""
     require_web()
     import uvicorn
 
-    app = create_app()
-    if open_browser:
-        import webbrowser
+    host, port = check_host(host), _check_port(port)
+    sockets = _bind(host, port)
+    try:
+        address = Address(host, sockets[0].getsockname()[1])
+        app = create_app(hosts=_allowed_hosts(host), port=address.port)
+        stopping = app.state.stopping
 
-        shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
-        threading.Timer(1.0, webbrowser.open, args=(f"http://{shown}:{port}/",)).start()
-    uvicorn.run(app, host=host, port=port, log_level=log_level)
+        class Server(uvicorn.Server):
+            def handle_exit(self, sig, frame) -> None:
+                stopping.set()  # the work in flight stops at its next check (a fraction of a second)
+                super().handle_exit(sig, frame)
+
+            async def startup(self, sockets=None) -> None:
+                await super().startup(sockets)
+                if self.started:
+                    if ready is not None:
+                        ready(address)
+                    if open_browser:
+                        import webbrowser
+
+                        threading.Thread(target=webbrowser.open, args=(address.url,), daemon=True).start()
+
+            async def shutdown(self, sockets=None) -> None:
+                stopping.set()
+                await super().shutdown(sockets)
+
+        config = uvicorn.Config(
+            app, host=host, port=address.port, log_level=log_level, http=_protocol(), lifespan="off",
+            timeout_keep_alive=int(math.ceil(HEADER_TIMEOUT)), limit_concurrency=MAX_CONNECTIONS,
+            timeout_graceful_shutdown=int(math.ceil(SHUTDOWN_GRACE)), h11_max_incomplete_event_size=16 * 1024)
+        Server(config).run(sockets=sockets)
+    finally:
+        for sock in sockets:
+            sock.close()
