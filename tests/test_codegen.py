@@ -194,3 +194,54 @@ def test_symbolic_parameters_give_no_default_vector():
     for lang in ("python", "c", "javascript"):
         src = generate(Parameters(), lang)
         assert "SKEWPEND_P" not in src and "P =" not in src and "Values" not in src
+
+
+# -- the return codes: one list (skewpend.status), the C #defines generated from it -----------------
+def test_generated_return_codes_equal_the_status_enums():
+    import re
+
+    from skewpend.numeric.kernel_source import status_defines
+    from skewpend.status import CallCode, Status
+
+    defined = {}
+    for line in status_defines():
+        m = re.match(r"#define (SP_\w+) \(?(-?\d+)\)?\s", line)
+        if m:
+            defined[m.group(1)] = int(m.group(2))
+    expected = {f"SP_STATUS_{s.name}": int(s) for s in Status}
+    expected.update({f"SP_CALL_{c.name}": int(c) for c in CallCode})
+    assert defined == expected
+
+
+def test_templates_return_only_named_codes():
+    """integrators.c and chaos.c return the generated SP_STATUS_/SP_CALL_ names, never a bare
+    integer code (the helpers returning a 0/1 truth value are the exceptions listed here)."""
+    import re
+    from pathlib import Path
+
+    import skewpend
+
+    numeric = Path(skewpend.__file__).parent / "numeric"
+    boolean = {"all_finite", "lyap_qr", "henon_locate", "dense_locate", "dop_dense_eval"}
+    for name in ("integrators.c", "chaos.c", "dop853_core.h"):
+        fn = None
+        for line in (numeric / name).read_text().splitlines():
+            m = re.match(r"^(?:static |SP_MULTIVERSION )?(?:inline )?\w+ (?:\w+ )*\**(?:DOP_NAME\()?(\w+)\)?\(", line)
+            if m:
+                fn = m.group(1)
+            if re.search(r"\breturn -?\d+;", line):
+                assert fn in boolean, f"{name}: {fn} returns a bare code: {line.strip()}"
+
+
+def test_dop853_core_is_written_once():
+    """One DOP853 core, included by the plain and the variational integrators; no copy by text."""
+    from pathlib import Path
+
+    import skewpend
+
+    numeric = Path(skewpend.__file__).parent / "numeric"
+    assert '#include "dop853_core.h"' in (numeric / "integrators.c").read_text()
+    assert '#include "dop853_core.h"' in (numeric / "chaos.c").read_text()
+    assert "static int DOP_NAME(dop_advance)(" in (numeric / "dop853_core.h").read_text()
+    for name in ("integrators.c", "chaos.c"):
+        assert "static int dop_advance(" not in (numeric / name).read_text()

@@ -2,7 +2,8 @@
 status, and resumability (the work split into calls does not change a bit of the result).
 
 A library is built exactly as :mod:`skewpend.numeric.kernels` builds one -- C ``rhs`` / ``ham_rhs``
-followed by the text of ``integrators.c`` -- from test problems chosen by ``p[0]``:
+and the generated return codes followed by the text of ``integrators.c`` -- from test problems
+chosen by ``p[0]``:
 
 * 0 -- harmonic oscillator ``q'' = -w^2 q`` (``w = p[1]``), exact solution known;
 * 1 -- pendulum ``q'' = -sin q``, Hamiltonian ``H = p^2/2 - cos q``;
@@ -22,6 +23,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import skewpend
+from skewpend.numeric.kernel_source import status_defines
 from skewpend.numeric.kernels import State, _compile
 
 HEADER = r"""
@@ -115,7 +117,7 @@ def template_text() -> str:
 @pytest.fixture(scope="module")
 def library(tmp_path_factory):
     path = tmp_path_factory.mktemp("kernels") / "problems.so"
-    _compile(HEADER + "\n" + template_text(), path)
+    _compile(HEADER + "\n" + "\n".join(status_defines()) + "\n" + template_text(), path)
     return path
 
 

@@ -1,11 +1,21 @@
 /* skewpend chaos kernel: Lyapunov exponents and Poincare sections.
  *
  * Appended to the generated model code (which defines rhs and rhs_jac, the right-hand side and
- * its Jacobian printed from the derivation), integrators.c, and a second instantiation of the
- * DOP853 core of integrators.c (the functions with suffix _v: state size SP_VMAX, right-hand
- * side var_rhs(n, ...)).  Like the integrators, every routine does a bounded amount of work per
- * call and can be resumed, so the caller shows progress and handles Ctrl-C between calls.
+ * its Jacobian printed from the derivation) and integrators.c; it includes the DOP853 core
+ * (dop853_core.h) a second time for its variational systems: the functions with suffix _v, state
+ * size SP_VMAX, right-hand side var_rhs(n, ...).  Like the integrators, every routine does a
+ * bounded amount of work per call and can be resumed, so the caller shows progress and handles
+ * Ctrl-C between calls; return codes are the SP_STATUS_* / SP_CALL_* of integrators.c.
  */
+
+/* State size of the variational systems: the state and up to 4 tangent vectors (kernels.SP_VMAX;
+ * the layout check of sp_lyap_state_size catches a mismatch). */
+#define SP_VMAX 20
+static void var_rhs(int n, const double *y, const double *p, double *out);
+#define DOP_NAME(x) x##_v
+#define DOP_NDIM SP_VMAX
+#define DOP_RHS(y, p, out) var_rhs(n, y, p, out)
+#include "dop853_core.h"
 
 /* ---- variational equations: the state y[0..3] and k tangent vectors y[4 + 4 j .. 4 + 4 j + 3] ---- */
 
@@ -66,8 +76,9 @@ int64_t sp_lyap_state_size(void) { return (int64_t)sizeof(sp_lyap_state); }
  * control on every component, rtol/atol as in sp_dop853 -- stepping exactly onto the
  * renormalisation times t0 + j every (and t_end), where the tangent vectors are replaced by the
  * Q of their QR decomposition and a row (t, log r_11, ..., log r_kk) is written (k + 1 doubles).
- * Returns 0 (reached t_end), 1 (non-finite), 2 (step size underflow), 3 (max_steps), -1 (budget
- * of accepted steps used up: call again), -2 (rows full: take them and call again). */
+ * Returns SP_STATUS_SUCCESS (reached t_end), _NONFINITE, _STEP_UNDERFLOW, _MAX_STEPS, SP_CALL_BUDGET
+ * (budget of accepted steps used up: call again), _BUFFER_FULL (rows full: take them and call
+ * again) or _BAD_ARGUMENTS. */
 int sp_lyap(sp_lyap_state *s, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
             int64_t budget, double *rows, int64_t cap, int64_t *m_out)
 {
@@ -75,30 +86,30 @@ int sp_lyap(sp_lyap_state *s, const double *p, double t_end, double rtol, double
     double K[DOP_NSTAGES][SP_VMAX], ynew[SP_VMAX], ytmp[SP_VMAX];
     int64_t m = 0, done = 0;
     *m_out = 0;
-    if (k < 1 || k > 4 || cap < 1 || !(s->every > 0.0)) return -3;
+    if (k < 1 || k > 4 || cap < 1 || !(s->every > 0.0)) return SP_CALL_BAD_ARGUMENTS;
     if (!s->have_f) {
-        if (!all_finite(s->y, n)) return 1;
+        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
         var_rhs(n, s->y, p, s->f);
         s->nfev++;
-        if (!all_finite(s->f, n)) return 1;
+        if (!all_finite(s->f, n)) return SP_STATUS_NONFINITE;
         s->have_f = 1;
     }
     for (;;) {
         double t_next = s->t0 + (double)(s->nrenorm + 1) * s->every;
         if (t_next > t_end) t_next = t_end;
         if (s->t >= t_next) {
-            if (m >= cap) { *m_out = m; return -2; }
+            if (m >= cap) { *m_out = m; return SP_CALL_BUFFER_FULL; }
             double *r = rows + m * (k + 1);
             r[0] = s->t;
-            if (!lyap_qr(s->y, k, r + 1)) { *m_out = m; return 1; }
+            if (!lyap_qr(s->y, k, r + 1)) { *m_out = m; return SP_STATUS_NONFINITE; }
             m++;
             s->nrenorm++;
             var_rhs(n, s->y, p, s->f); /* the tangent part of F changed with the vectors */
             s->nfev++;
-            if (s->t >= t_end) { *m_out = m; return 0; }
+            if (s->t >= t_end) { *m_out = m; return SP_STATUS_SUCCESS; }
             continue;
         }
-        if (done >= budget) { *m_out = m; return -1; }
+        if (done >= budget) { *m_out = m; return SP_CALL_BUDGET; }
         if (s->h <= 0.0) s->h = dop_initial_step_v(s->y, s->f, p, t_next - s->t, rtol, atol, &s->nfev, n);
         const double hprop = s->h;
         double h, t_new;
@@ -141,10 +152,10 @@ void sp_lyap1_many(const double *p, const double *y0s, int64_t m, double t_end, 
                 if (seen >= n_skip) sum += rows[2 * j + 1];
                 else t_from = rows[2 * j];
             }
-        } while (rc == -2);
+        } while (rc == SP_CALL_BUFFER_FULL);
         status[i] = rc;
         steps[i] = s.naccept + s.nreject;
-        out_lambda[i] = (rc == 0 && t_end > t_from) ? sum / (t_end - t_from) : NAN;
+        out_lambda[i] = (rc == SP_STATUS_SUCCESS && t_end > t_from) ? sum / (t_end - t_from) : NAN;
     }
 }
 
@@ -238,8 +249,8 @@ static int dense_locate(const double *yold, const double *F, int coord, double t
  * monotonic over the step, the dense output instead, counted in s->aux), and written as a row
  * (t, y[0..3]); y[coord] is written as the exact section value.  At most one crossing per step
  * (the first in the direction wanted).  s->step counts the crossings found.  A start
- * on the section is not a crossing.  Returns 0 (want crossings found), 5 (t_end reached first),
- * 1, 2, 3 as sp_dop853, -1 (budget used up), -2 (rows full). */
+ * on the section is not a crossing.  Returns SP_STATUS_SUCCESS (want crossings found),
+ * SP_STATUS_SHORT (t_end reached first), the failures and SP_CALL_* codes of sp_dop853. */
 int sp_section(sp_state *s, const double *p, int coord, double level, double period, int direction, int method,
                int64_t want, double t_end, double rtol, double atol, int64_t max_steps, int64_t budget, double *rows,
                int64_t cap, int64_t *m_out)
@@ -248,20 +259,20 @@ int sp_section(sp_state *s, const double *p, int coord, double level, double per
     double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX], yc[SP_NMAX];
     int64_t m = 0, done = 0;
     *m_out = 0;
-    if (coord < 0 || coord > 3 || cap < 1 || (method != 0 && method != 1)) return -3;
+    if (coord < 0 || coord > 3 || cap < 1 || (method != 0 && method != 1)) return SP_CALL_BAD_ARGUMENTS;
     if (!s->have_f) {
-        if (!all_finite(s->y, n)) return 1;
+        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
         s->y[4] = 0.0;
         rhs(s->y, p, s->f);
         s->nfev++;
-        if (!all_finite(s->f, n)) return 1;
+        if (!all_finite(s->f, n)) return SP_STATUS_NONFINITE;
         s->have_f = 1;
     }
     for (;;) {
-        if (s->step >= want) { *m_out = m; return 0; }
-        if (s->t >= t_end) { *m_out = m; return 5; }
-        if (done >= budget) { *m_out = m; return -1; }
-        if (m >= cap) { *m_out = m; return -2; }
+        if (s->step >= want) { *m_out = m; return SP_STATUS_SUCCESS; }
+        if (s->t >= t_end) { *m_out = m; return SP_STATUS_SHORT; }
+        if (done >= budget) { *m_out = m; return SP_CALL_BUDGET; }
+        if (m >= cap) { *m_out = m; return SP_CALL_BUFFER_FULL; }
         if (s->h <= 0.0) s->h = dop_initial_step(s->y, s->f, p, t_end - s->t, rtol, atol, &s->nfev, n);
         double h, t_new;
         int rc = dop_advance(s->t, s->y, s->f, p, t_end, rtol, atol, max_steps, &s->h, s->naccept, &s->nreject,
@@ -293,7 +304,7 @@ int sp_section(sp_state *s, const double *p, int coord, double level, double per
                 tc = s->t + x * h;
                 yc[coord] = target;
             }
-            if (!ok) { *m_out = m; return 1; }
+            if (!ok) { *m_out = m; return SP_STATUS_NONFINITE; }
             put_row(rows, m++, n, tc, yc);
             s->step++;
         }

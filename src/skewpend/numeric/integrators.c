@@ -15,14 +15,13 @@
  * shows progress and lets Python handle Ctrl-C between calls.  Results do not depend on how
  * the work is split into calls.
  *
- * Output rows are (t, y[0..n-1]), row-major, n + 1 doubles each.  Return values:
- *    0  reached the end (every row written)
- *    1  the state or its derivative became non-finite
- *    2  step size underflow (dop853)
- *    3  more than max_steps attempted steps (dop853)
- *    4  the implicit stage equations did not converge (gauss)
- *   -1  the step budget of this call is used up: call again
- *   -2  the row buffer is full: take the rows and call again
+ * Output rows are (t, y[0..n-1]), row-major, n + 1 doubles each.  Return values: the
+ * SP_STATUS_* codes (>= 0: the run is over; 0 reached the end, 1 non-finite state, 2 step size
+ * underflow, 3 max_steps, 4 no convergence of the implicit stages) or the SP_CALL_* codes (< 0:
+ * -1 the step budget of this call is used up, call again; -2 the row buffer is full, take the
+ * rows and call again; -3 the arguments were refused -- an internal error, the callers check
+ * them first).  They are #defines generated from skewpend.status (kernel_source.status_defines),
+ * the one list, and driven by skewpend.numeric.driver.drive.
  * Rows are never non-finite.
  */
 #include <math.h>
@@ -97,161 +96,12 @@ static const double DOP_D[4][16] = {
 #define DOP_MIN_FACTOR 0.2
 #define DOP_MAX_FACTOR 10.0
 
-/* DOP853-CORE BEGIN: the step, error norm, dense output and initial step, generic in the state size n.
- * The chaos kernel instantiates this block a second time for its variational systems (state size
- * SP_VMAX, right-hand side var_rhs), by textual substitution in skewpend.numeric.kernels. */
+/* the DOP853 core for the model's own state (chaos.c includes it again for the variational systems) */
+#define DOP_NAME(x) x
+#define DOP_NDIM SP_NMAX
+#define DOP_RHS(y, p, out) rhs(y, p, out)
+#include "dop853_core.h"
 
-static double rms(const double *x, const double *scale, int n)
-{
-    double s = 0.0;
-    for (int i = 0; i < n; i++) {
-        double v = x[i] / scale[i];
-        s += v * v;
-    }
-    return sqrt(s / n);
-}
-
-/* the stages K[first..last-1] from y, given the earlier ones */
-static void dop_stages(const double *y, double h, const double *p, double K[][SP_NMAX], double *ytmp, int n, int first,
-                       int last)
-{
-    for (int s = first; s < last; s++) {
-        for (int i = 0; i < n; i++) {
-            double acc = 0.0;
-            for (int j = 0; j < s; j++) acc += DOP_A[s][j] * K[j][i];
-            ytmp[i] = y[i] + h * acc;
-        }
-        rhs(ytmp, p, K[s]);
-    }
-}
-
-/* one step from y with K[0] = F(y): stages K[1..12] and ynew */
-static void dop_step(const double *y, double h, const double *p, double K[][SP_NMAX], double *ynew, double *ytmp, int n)
-{
-    dop_stages(y, h, p, K, ytmp, n, 1, DOP_NS);
-    for (int i = 0; i < n; i++) {
-        double acc = 0.0;
-        for (int j = 0; j < DOP_NS; j++) acc += DOP_A[DOP_NS][j] * K[j][i];
-        ynew[i] = y[i] + h * acc;
-    }
-    rhs(ynew, p, K[DOP_NS]);
-}
-
-/* Hairer's combined 5th/3rd-order error norm (inf if anything is non-finite) */
-static double dop_error(double K[][SP_NMAX], double h, const double *y, const double *ynew, double rtol, double atol, int n)
-{
-    double e5 = 0.0, e3 = 0.0;
-    for (int i = 0; i < n; i++) {
-        double sc = atol + rtol * fmax(fabs(y[i]), fabs(ynew[i]));
-        double a5 = 0.0, a3 = 0.0;
-        for (int j = 0; j < DOP_NS + 1; j++) {
-            a5 += DOP_E5[j] * K[j][i];
-            a3 += DOP_E3[j] * K[j][i];
-        }
-        a5 /= sc;
-        a3 /= sc;
-        e5 += a5 * a5;
-        e3 += a3 * a3;
-    }
-    if (!(isfinite(e5) && isfinite(e3))) return INFINITY;
-    if (e5 == 0.0 && e3 == 0.0) return 0.0;
-    return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * n);
-}
-
-/* the 3 extra stages and the 7 coefficient rows F of the 7th-order interpolant */
-static void dop_dense_coeffs(const double *y, const double *ynew, double h, const double *p, double K[][SP_NMAX],
-                             double *F, double *ytmp, int n)
-{
-    dop_stages(y, h, p, K, ytmp, n, DOP_NS + 1, DOP_NSTAGES);
-    for (int i = 0; i < n; i++) {
-        double dy = ynew[i] - y[i];
-        F[0 * SP_NMAX + i] = dy;
-        F[1 * SP_NMAX + i] = h * K[0][i] - dy;
-        F[2 * SP_NMAX + i] = 2.0 * dy - h * (K[DOP_NS][i] + K[0][i]);
-        for (int r = 0; r < 4; r++) {
-            double acc = 0.0;
-            for (int j = 0; j < DOP_NSTAGES; j++) acc += DOP_D[r][j] * K[j][i];
-            F[(3 + r) * SP_NMAX + i] = h * acc;
-        }
-    }
-}
-
-/* the interpolant at x = (t - told) / h in [0, 1]; 0 if non-finite */
-static int dop_dense_eval(const double *y, const double *F, double x, double *out, int n)
-{
-    for (int i = 0; i < n; i++) {
-        double v = 0.0;
-        for (int k = 6; k >= 0; k--) {
-            v += F[k * SP_NMAX + i];
-            v *= ((6 - k) % 2 == 0) ? x : 1.0 - x;
-        }
-        out[i] = y[i] + v;
-        if (!isfinite(out[i])) return 0;
-    }
-    return 1;
-}
-
-/* Hairer's initial step (Hairer, Norsett & Wanner I, II.4; as SciPy's select_initial_step) */
-static double dop_initial_step(const double *y, const double *f0, const double *p, double span, double rtol,
-                               double atol, int64_t *nfev, int n)
-{
-    double sc[SP_NMAX], ytmp[SP_NMAX], f1[SP_NMAX];
-    for (int i = 0; i < n; i++) sc[i] = atol + fabs(y[i]) * rtol;
-    double d0 = rms(y, sc, n), d1 = rms(f0, sc, n);
-    double ha = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
-    ha = fmin(ha, span);
-    for (int i = 0; i < n; i++) ytmp[i] = y[i] + ha * f0[i];
-    rhs(ytmp, p, f1);
-    (*nfev)++;
-    for (int i = 0; i < n; i++) f1[i] -= f0[i];
-    double d2 = rms(f1, sc, n) / ha, h1;
-    if (!isfinite(d2))
-        h1 = ha * 1e-3;
-    else if (d1 <= 1e-15 && d2 <= 1e-15)
-        h1 = fmax(1e-6, ha * 1e-3);
-    else
-        h1 = pow(0.01 / fmax(d1, d2), 1.0 / 8.0);
-    return fmin(fmin(100.0 * ha, h1), span);
-}
-/* One accepted step from (t, y), F(y) = f, ending at t_stop at the latest: the step size *h is
- * tried and shrunk until the error norm is below 1 (a trial with a non-finite value is rejected
- * like a failed one, factor 0.2), and *h is set for the next step (factor 0.9 err^(-1/8) in
- * [0.2, 10], no increase right after a rejection).  On success (0) ynew, K[0..12] = the stages
- * and *t_new, *h_used describe the step.  Else 1 (non-finite state: step size underflow after a
- * non-finite trial), 2 (step size underflow) or 3 (naccept + nreject reached max_steps). */
-static int dop_advance(double t, const double *y, const double *f, const double *p, double t_stop, double rtol,
-                       double atol, int64_t max_steps, double *hio, int64_t naccept, int64_t *nreject, int64_t *nfev,
-                       double K[][SP_NMAX], double *ynew, double *ytmp, int n, double *t_new_out, double *h_used)
-{
-    int rejected = 0, nonfinite = 0;
-    memcpy(K[0], f, (size_t)n * sizeof(double));
-    for (;;) {
-        if (naccept + *nreject >= max_steps) return 3;
-        double min_step = 10.0 * (nextafter(t, INFINITY) - t);
-        if (*hio < min_step) return nonfinite ? 1 : 2;
-        double t_new = t + *hio;
-        if (t_new >= t_stop) t_new = t_stop;
-        double h = t_new - t;
-        dop_step(y, h, p, K, ynew, ytmp, n);
-        *nfev += DOP_NS;
-        double err = (all_finite(ynew, n) && all_finite(K[DOP_NS], n)) ? dop_error(K, h, y, ynew, rtol, atol, n)
-                                                                     : INFINITY;
-        nonfinite = !isfinite(err);
-        if (err < 1.0) {
-            double fac = err == 0.0 ? DOP_MAX_FACTOR : fmin(DOP_MAX_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
-            if (rejected) fac = fmin(1.0, fac);
-            *hio = h * fac;
-            *t_new_out = t_new;
-            *h_used = h;
-            return 0;
-        }
-        double fac = nonfinite ? DOP_MIN_FACTOR : fmax(DOP_MIN_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
-        *hio = h * fac;
-        rejected = 1;
-        (*nreject)++;
-    }
-}
-/* DOP853-CORE END */
 
 /* Adaptive DOP853 for y' = rhs(y, p) from s->t to t_end (t_end > s->t on the first call).
  *
@@ -270,16 +120,16 @@ int sp_dop853(sp_state *s, int n, const double *p, double t_end, double rtol, do
     const int dense = dt_out > 0.0;
     int64_t m = 0, done = 0;
     *m_out = 0;
-    if (n < 1 || n > SP_NMAX || cap < 2) return -3;
+    if (n < 1 || n > SP_NMAX || cap < 2) return SP_CALL_BAD_ARGUMENTS;
     if (!s->started) {
         s->started = 1;
-        if (!all_finite(s->y, n)) return 1;
+        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
         if (!dense) put_row(rows, m++, n, s->t, s->y);
     }
     if (!s->have_f) {
         rhs(s->y, p, s->f);
         s->nfev++;
-        if (!all_finite(s->f, n)) { *m_out = m; return 1; }
+        if (!all_finite(s->f, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
         s->have_f = 1;
     }
     for (;;) {
@@ -288,22 +138,22 @@ int sp_dop853(sp_state *s, int n, const double *p, double t_end, double rtol, do
             while (*k_out < n_grid) {
                 double tk = (double)(*k_out) * dt_out;
                 if (tk > s->t && s->t < t_end) break;
-                if (m >= cap) { *m_out = m; return -2; }
+                if (m >= cap) { *m_out = m; return SP_CALL_BUFFER_FULL; }
                 double *r = rows + m * (n + 1);
                 r[0] = tk;
                 if (tk >= s->t || !s->dense_ok) {
                     memcpy(r + 1, s->y, (size_t)n * sizeof(double));
                 } else if (!dop_dense_eval(s->yold, s->F, (tk - s->told) / s->hseg, r + 1, n)) {
                     *m_out = m;
-                    return 1;
+                    return SP_STATUS_NONFINITE;
                 }
                 m++;
                 (*k_out)++;
             }
         }
-        if (s->t >= t_end) { *m_out = m; return 0; }
-        if (done >= budget) { *m_out = m; return -1; }
-        if (!dense && m >= cap) { *m_out = m; return -2; }
+        if (s->t >= t_end) { *m_out = m; return SP_STATUS_SUCCESS; }
+        if (done >= budget) { *m_out = m; return SP_CALL_BUDGET; }
+        if (!dense && m >= cap) { *m_out = m; return SP_CALL_BUFFER_FULL; }
 
         /* one accepted step (or failure) */
         if (s->h <= 0.0) s->h = dop_initial_step(s->y, s->f, p, t_end - s->t, rtol, atol, &s->nfev, n);
@@ -332,6 +182,16 @@ int sp_dop853(sp_state *s, int n, const double *p, double t_end, double rtol, do
 
 /* ---- fixed-step methods: nsteps steps of dt from t0; rows every stride-th step and the last ---- */
 
+/* A fixed-step method stops early with `code` at step s->step, whose state is z: the output ends
+ * with that last finite state (written even if it is not on the stride). */
+static int fixed_stop(const sp_state *s, const double *z, int n, double t0, double dt, int64_t stride, double *rows,
+                      int64_t m, int64_t *m_out, int code)
+{
+    if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, z);
+    *m_out = m;
+    return code;
+}
+
 /* Classical Runge-Kutta of order 4.  On a non-finite state the output ends with the last
  * finite state (stored even if it is not on the stride). */
 int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t nsteps, int64_t stride,
@@ -341,15 +201,15 @@ int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t ns
     const double half = 0.5 * dt, sixth = dt / 6.0;
     int64_t m = 0, done = 0;
     *m_out = 0;
-    if (n < 1 || n > SP_NMAX || cap < 2 || stride < 1) return -3;
+    if (n < 1 || n > SP_NMAX || cap < 2 || stride < 1) return SP_CALL_BAD_ARGUMENTS;
     if (!s->started) {
         s->started = 1;
-        if (!all_finite(s->y, n)) return 1;
+        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
         put_row(rows, m++, n, t0, s->y);
     }
     while (s->step < nsteps) {
-        if (done >= budget) { *m_out = m; return -1; }
-        if (m >= cap - 1) { *m_out = m; return -2; }
+        if (done >= budget) { *m_out = m; return SP_CALL_BUDGET; }
+        if (m >= cap - 1) { *m_out = m; return SP_CALL_BUFFER_FULL; }
         rhs(s->y, p, k1);
         for (int i = 0; i < n; i++) tmp[i] = s->y[i] + half * k1[i];
         rhs(tmp, p, k2);
@@ -359,11 +219,7 @@ int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t ns
         rhs(tmp, p, k4);
         s->nfev += 4;
         for (int i = 0; i < n; i++) tmp[i] = s->y[i] + sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
-        if (!all_finite(tmp, n)) {
-            if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, s->y);
-            *m_out = m;
-            return 1;
-        }
+        if (!all_finite(tmp, n)) return fixed_stop(s, s->y, n, t0, dt, stride, rows, m, m_out, SP_STATUS_NONFINITE);
         memcpy(s->y, tmp, (size_t)n * sizeof(double));
         s->step++;
         s->naccept++;
@@ -372,7 +228,7 @@ int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t ns
         if (s->step % stride == 0 || s->step == nsteps) put_row(rows, m++, n, s->t, s->y);
     }
     *m_out = m;
-    return 0;
+    return SP_STATUS_SUCCESS;
 }
 
 /* 2-stage Gauss-Legendre collocation (order 4, symplectic) for z' = ham_rhs(z, p).
@@ -391,23 +247,23 @@ int sp_gauss(sp_state *s, int n, const double *p, double t0, double dt, int64_t 
     double f1[SP_NMAX], f2[SP_NMAX], y1[SP_NMAX], y2[SP_NMAX];
     int64_t m = 0, done = 0;
     *m_out = 0;
-    if (n < 1 || n > SP_NMAX || cap < 2 || stride < 1) return -3;
+    if (n < 1 || n > SP_NMAX || cap < 2 || stride < 1) return SP_CALL_BAD_ARGUMENTS;
     if (!s->started) {
         s->started = 1;
-        if (!all_finite(z, n)) return 1;
+        if (!all_finite(z, n)) return SP_STATUS_NONFINITE;
         put_row(rows, m++, n, t0, z);
         memset(s->comp, 0, sizeof(s->comp));
     }
     if (!s->have_f && s->step < nsteps) {
         ham_rhs(z, p, k1);
         s->nfev++;
-        if (!all_finite(k1, n)) { *m_out = m; return 1; }
+        if (!all_finite(k1, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
         memcpy(k2, k1, (size_t)n * sizeof(double));
         s->have_f = 1;
     }
     while (s->step < nsteps) {
-        if (done >= budget) { *m_out = m; return -1; }
-        if (m >= cap - 1) { *m_out = m; return -2; }
+        if (done >= budget) { *m_out = m; return SP_CALL_BUDGET; }
+        if (m >= cap - 1) { *m_out = m; return SP_CALL_BUFFER_FULL; }
         double scale = 0.0, prev = INFINITY;
         int converged = 0;
         for (int i = 0; i < n; i++) scale = fmax(scale, fabs(z[i]));
@@ -420,9 +276,7 @@ int sp_gauss(sp_state *s, int n, const double *p, double t0, double dt, int64_t 
             ham_rhs(y2, p, f2);
             s->nfev += 2;
             if (!(all_finite(f1, n) && all_finite(f2, n))) {
-                if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, z);
-                *m_out = m;
-                return 1;
+                return fixed_stop(s, z, n, t0, dt, stride, rows, m, m_out, SP_STATUS_NONFINITE);
             }
             double delta = 0.0, size = scale;
             for (int i = 0; i < n; i++) {
@@ -437,9 +291,7 @@ int sp_gauss(sp_state *s, int n, const double *p, double t0, double dt, int64_t 
             prev = delta;
         }
         if (!converged) {
-            if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, z);
-            *m_out = m;
-            return 4;
+            return fixed_stop(s, z, n, t0, dt, stride, rows, m, m_out, SP_STATUS_NO_CONVERGENCE);
         }
         int ok = 1;
         for (int i = 0; i < n; i++) {  /* z += dt/2 (k1 + k2), compensated */
@@ -450,9 +302,7 @@ int sp_gauss(sp_state *s, int n, const double *p, double t0, double dt, int64_t 
             if (!isfinite(nz)) ok = 0;
         }
         if (!ok) {
-            if (s->step % stride != 0) put_row(rows, m++, n, t0 + (double)s->step * dt, z);
-            *m_out = m;
-            return 1;
+            return fixed_stop(s, z, n, t0, dt, stride, rows, m, m_out, SP_STATUS_NONFINITE);
         }
         for (int i = 0; i < n; i++) {
             z[i] = y1[i];
@@ -467,7 +317,7 @@ int sp_gauss(sp_state *s, int n, const double *p, double t0, double dt, int64_t 
         if (s->step % stride == 0 || s->step == nsteps) put_row(rows, m++, n, s->t, z);
     }
     *m_out = m;
-    return 0;
+    return SP_STATUS_SUCCESS;
 }
 
 #ifdef SP_FLIP_KERNEL /* only in the flip kernel (kernel_module(..., flip=True)) */
@@ -640,7 +490,7 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
     double H[SP_LANES], tnew[SP_LANES], e5[SP_LANES], e3[SP_LANES], bad[SP_LANES], err[SP_LANES], root[SP_LANES];
     int accept[SP_LANES], fail[SP_LANES], event[SP_LANES];
     flip_tables T;
-    if (m < 0 || !(t_end > 0.0) || !(rtol > 0.0) || !(atol > 0.0) || budget < 1) return -3;
+    if (m < 0 || !(t_end > 0.0) || !(rtol > 0.0) || !(atol > 0.0) || budget < 1) return SP_CALL_BAD_ARGUMENTS;
     flip_tables_init(&T);
     if (!w->started) {
         flip_prepare(p, w->pp);
@@ -709,8 +559,8 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
         }
         int active = 0;
         for (int l = 0; l < SP_LANES; l++) active += w->cell[l] >= 0;
-        if (!active) { status = 0; break; }
-        if (it >= budget) { status = -1; break; }
+        if (!active) { status = SP_STATUS_SUCCESS; break; }
+        if (it >= budget) { status = SP_CALL_BUDGET; break; }
 
         /* one trial step in every lane (idle or failing lanes: h = 0) */
         for (int l = 0; l < SP_LANES; l++) {

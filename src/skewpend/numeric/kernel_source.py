@@ -26,7 +26,7 @@ from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["kernel_c_source", "flip_c_source", "SP_LANES"]
+__all__ = ["kernel_c_source", "flip_c_source", "status_defines", "SP_LANES"]
 
 _STATE = ("phi", "psi", "dphi", "dpsi")
 
@@ -58,6 +58,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     ]
     if flip:
         out[-1:-1] = ["#define SP_FLIP_KERNEL 1"]
+    out[-1:-1] = status_defines()
 
     def header(signature: str, doc: str, used_exprs, state: str = "y", names=_STATE) -> List[str]:
         lines = [f"/* {doc} */", f"static {signature}", "{"]
@@ -181,6 +182,21 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
         out += flip_c_source(ex, geometry)
     out.append(_EXPORTS)
     return "\n".join(out) + "\n"
+
+
+def status_defines() -> List[str]:
+    """The return codes of the compiled integrators as C ``#define``\\ s, generated from
+    :class:`skewpend.status.Status` (``SP_STATUS_<NAME>``, >= 0: the run is over) and
+    :class:`skewpend.status.CallCode` (``SP_CALL_<NAME>``, < 0: call again) -- the one list."""
+    from ..status import CallCode, Status
+
+    lines = ["/* return codes, generated from skewpend.status (Status: the run is over; CallCode: call again) */"]
+    lines += [f"#define SP_STATUS_{s.name} {int(s)}  /* {s.message} */" for s in Status]
+    docs = {CallCode.BUDGET: "the step budget of this call is used up: call again",
+            CallCode.BUFFER_FULL: "the output buffer is full: take the rows and call again",
+            CallCode.BAD_ARGUMENTS: "the arguments were refused (an internal error: the callers check them)"}
+    lines += [f"#define SP_CALL_{c.name} ({int(c)})  /* {docs[c]} */" for c in CallCode]
+    return lines
 
 
 _EXPORTS = r"""/* ---- exported entry points (ctypes) ---- */

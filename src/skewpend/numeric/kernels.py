@@ -48,7 +48,8 @@ __all__ = [
 #: Files whose text determines the generated library (part of the cache key).
 _SOURCES = (
     "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c", "numeric/chaos.c",
-    "numeric/kernels.py", "symbolic/derivation.py", "symbolic/kinematics.py", "symbolic/symbols.py",
+    "numeric/dop853_core.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
+    "symbolic/symbols.py",
 )
 _PACKAGE = Path(__file__).resolve().parent.parent
 #: Compiler flags: no floating-point contraction, so results do not depend on FMA availability.
@@ -126,28 +127,6 @@ class LyapState(ctypes.Structure):
     ]
 
 
-_CORE_NAMES = ("rms", "dop_stages", "dop_step", "dop_error", "dop_dense_coeffs", "dop_dense_eval",
-               "dop_initial_step", "dop_advance")
-
-
-def variational_core(integrators_c: str) -> str:
-    """The DOP853 core of ``integrators.c`` (between its ``DOP853-CORE`` markers) instantiated
-    for the variational systems of ``chaos.c``: functions suffixed ``_v``, state size
-    ``SP_VMAX``, right-hand side ``var_rhs(n, y, p, out)``.  One text for both integrators."""
-    import re
-
-    begin = integrators_c.index("/* DOP853-CORE BEGIN")
-    end = integrators_c.index("/* DOP853-CORE END */")
-    core = integrators_c[begin:end]
-    core = re.sub(r"\b(" + "|".join(_CORE_NAMES) + r")\b", r"\1_v", core)
-    core = re.sub(r"\bSP_NMAX\b", "SP_VMAX", core)
-    core, count = re.subn(r"\brhs\(", "var_rhs(n, ", core)
-    if count != 3:  # dop_stages, dop_step and dop_initial_step evaluate the right-hand side
-        raise CompilerError(f"integrators.c: the DOP853 core calls rhs {count} times, expected 3")
-    return f"/* ---- the DOP853 core again, for the variational systems (generated from integrators.c) ---- */\n" \
-           f"#define SP_VMAX {SP_VMAX}\nstatic void var_rhs(int n, const double *y, const double *p, double *out);\n" + core
-
-
 # -- the compiler -----------------------------------------------------------------------------------
 def find_compiler() -> str:
     """The C compiler: ``$CC`` if set, else the first of ``cc``, ``gcc``, ``clang`` on PATH."""
@@ -173,7 +152,8 @@ def _compile(source: str, target: Path) -> None:
         fh.write(source)
     so_tmp = c_tmp[: -len(".c.tmp")] + ".so.tmp"
     try:
-        cmd = [*cc.split(), *CFLAGS, "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
+        # -I: the integrators include the DOP853 core (dop853_core.h) from the package
+        cmd = [*cc.split(), *CFLAGS, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True)
         except OSError as exc:
@@ -478,7 +458,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
             integrators = (_PACKAGE / "numeric" / "integrators.c").read_text()
             source = kernel_c_source(geometry, flip=flip) + "\n" + integrators
             if chaos:
-                source += "\n" + variational_core(integrators) + "\n" + (_PACKAGE / "numeric" / "chaos.c").read_text()
+                source += "\n" + (_PACKAGE / "numeric" / "chaos.c").read_text()
             _compile(source, path)
             kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip, chaos=chaos)
         _LOADED[key] = kernel
