@@ -290,3 +290,23 @@ def test_the_flip_map_follows_the_parameters(browser, server):
         assert "48 × 48 starts at rest" in status
     finally:
         p.close()
+
+
+@pytest.mark.parametrize("query", ["?g=0", "?g=0&alpha=0", "?g=0.01"])
+def test_a_clean_console_without_gravity(browser, server, query):
+    """``?g=0`` logged an error: the page asked for normal modes, which the server refuses (422)
+    without gravity, and the browser logs every failed request.  Now the page says why there
+    are none and asks nothing that fails."""
+    p = Page(browser, server + "/" + query)
+    try:
+        p.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
+        p.page.wait_for_function("() => document.querySelector('#modes li, #modes .note, #modes .error') !== null",
+                                 timeout=30000)
+        assert [m for m in p.console if m[0] in ("error", "warning", "pageerror")] == []
+        modes = p.page.text_content("#modes")
+        if query.startswith("?g=0&") or query == "?g=0":
+            assert "no normal modes for g = 0" in modes and p.page.locator("#modes .error").count() == 0
+        else:
+            assert p.page.locator("#modes li").count() == 2
+    finally:
+        p.close()

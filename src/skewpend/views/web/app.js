@@ -335,6 +335,11 @@ async function fetchEquations() {
 }
 async function fetchModes() {
   const el = document.getElementById("modes");
+  if (!(values.g > 0)) { // the server refuses (422), which the browser logs as an error: not asked
+    el.replaceChildren(Object.assign(document.createElement("span"), {
+      className: "note", textContent: "no normal modes for g = 0: without gravity the hanging position is not a stable equilibrium" }));
+    return;
+  }
   try {
     const m = await api("/api/modes", { model: model() });
     const ul = document.createElement("ul");
