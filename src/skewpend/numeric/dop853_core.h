@@ -6,19 +6,10 @@
  *     DOP_NDIM             the array size of a state (SP_NMAX, SP_VMAX)
  *     DOP_RHS(y, p, out)   the right-hand side y' = F(y; p) (the state size n is in scope)
  *
- * and has the tables DOP_*, all_finite and the SP_STATUS_* codes in scope.  They are undefined at
+ * and has the tables DOP_*, their dimension-free helpers dop_* (integrators.c), all_finite and
+ * the SP_STATUS_* codes in scope.  They are undefined at
  * the end, so the next instance defines its own.  No include guard: included once per instance.
  */
-
-static double DOP_NAME(rms)(const double *x, const double *scale, int n)
-{
-    double s = 0.0;
-    for (int i = 0; i < n; i++) {
-        double v = x[i] / scale[i];
-        s += v * v;
-    }
-    return sqrt(s / n);
-}
 
 /* the stages K[first..last-1] from y, given the earlier ones */
 static void DOP_NAME(dop_stages)(const double *y, double h, const double *p, double K[][DOP_NDIM], double *ytmp, int n, int first,
@@ -72,29 +63,14 @@ static void DOP_NAME(dop_dense_coeffs)(const double *y, const double *ynew, doub
                              double *F, double *ytmp, int n)
 {
     DOP_NAME(dop_stages)(y, h, p, K, ytmp, n, DOP_NS + 1, DOP_NSTAGES);
-    for (int i = 0; i < n; i++) {
-        double dy = ynew[i] - y[i];
-        F[0 * DOP_NDIM + i] = dy;
-        F[1 * DOP_NDIM + i] = h * K[0][i] - dy;
-        F[2 * DOP_NDIM + i] = 2.0 * dy - h * (K[DOP_NS][i] + K[0][i]);
-        for (int r = 0; r < 4; r++) {
-            double acc = 0.0;
-            for (int j = 0; j < DOP_NSTAGES; j++) acc += DOP_D[r][j] * K[j][i];
-            F[(3 + r) * DOP_NDIM + i] = h * acc;
-        }
-    }
+    for (int i = 0; i < n; i++) dop_dense_component(y[i], ynew[i], h, &K[0][i], DOP_NDIM, F + i, DOP_NDIM);
 }
 
 /* the interpolant at x = (t - told) / h in [0, 1]; 0 if non-finite */
 static int DOP_NAME(dop_dense_eval)(const double *y, const double *F, double x, double *out, int n)
 {
     for (int i = 0; i < n; i++) {
-        double v = 0.0;
-        for (int k = 6; k >= 0; k--) {
-            v += F[k * DOP_NDIM + i];
-            v *= ((6 - k) % 2 == 0) ? x : 1.0 - x;
-        }
-        out[i] = y[i] + v;
+        out[i] = dop_dense_value(y[i], F + i, DOP_NDIM, x);
         if (!isfinite(out[i])) return 0;
     }
     return 1;
@@ -106,21 +82,12 @@ static double DOP_NAME(dop_initial_step)(const double *y, const double *f0, cons
 {
     double sc[DOP_NDIM], ytmp[DOP_NDIM], f1[DOP_NDIM];
     for (int i = 0; i < n; i++) sc[i] = atol + fabs(y[i]) * rtol;
-    double d0 = DOP_NAME(rms)(y, sc, n), d1 = DOP_NAME(rms)(f0, sc, n);
-    double ha = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
-    ha = fmin(ha, span);
+    const double d1 = dop_rms(f0, 1, sc, 1, n), ha = dop_trial_step(dop_rms(y, 1, sc, 1, n), d1, span);
     for (int i = 0; i < n; i++) ytmp[i] = y[i] + ha * f0[i];
     DOP_RHS(ytmp, p, f1);
     (*nfev)++;
     for (int i = 0; i < n; i++) f1[i] -= f0[i];
-    double d2 = DOP_NAME(rms)(f1, sc, n) / ha, h1;
-    if (!isfinite(d2))
-        h1 = ha * 1e-3;
-    else if (d1 <= 1e-15 && d2 <= 1e-15)
-        h1 = fmax(1e-6, ha * 1e-3);
-    else
-        h1 = pow(0.01 / fmax(d1, d2), 1.0 / 8.0);
-    return fmin(fmin(100.0 * ha, h1), span);
+    return dop_first_step(ha, d1, dop_rms(f1, 1, sc, 1, n) / ha, span);
 }
 /* One accepted step from (t, y), F(y) = f, ending at t_stop at the latest: the step size *h is
  * tried and shrunk until the error norm is below 1 (a trial with a non-finite value is rejected

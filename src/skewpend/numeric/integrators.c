@@ -25,6 +25,7 @@
  * Rows are never non-finite.
  */
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -95,6 +96,70 @@ static const double DOP_D[4][16] = {
 #define DOP_SAFETY 0.9
 #define DOP_MIN_FACTOR 0.2
 #define DOP_MAX_FACTOR 10.0
+
+/* ---- the tableau's helpers, free of the state's dimension and layout: one component, or one
+ * number, at a time, with its elements `stride` doubles apart -- shared by the DOP853 core (stride
+ * 1 or the state size) and the lanes of sp_flip (stride SP_LANES), so every integrator takes the
+ * same initial step, interpolant and dense coefficients ---- */
+
+/* the RMS norm of x[i * xs] / scale[i * ss], i < n */
+static double dop_rms(const double *x, ptrdiff_t xs, const double *scale, ptrdiff_t ss, int n)
+{
+    double s = 0.0;
+    for (int i = 0; i < n; i++) {
+        double v = x[i * xs] / scale[i * ss];
+        s += v * v;
+    }
+    return sqrt(s / n);
+}
+
+/* Hairer's initial step (Hairer, Norsett & Wanner I, II.4; as SciPy's select_initial_step), in two
+ * halves: the trial step from d0 = |y|, d1 = |f(y)| (scaled RMS norms) ... */
+static inline double dop_trial_step(double d0, double d1, double span)
+{
+    double ha = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+    return fmin(ha, span);
+}
+
+/* ... and the first step from d2 = |f(y + ha f) - f(y)| / ha */
+static inline double dop_first_step(double ha, double d1, double d2, double span)
+{
+    double h1;
+    if (!isfinite(d2))
+        h1 = ha * 1e-3;
+    else if (d1 <= 1e-15 && d2 <= 1e-15)
+        h1 = fmax(1e-6, ha * 1e-3);
+    else
+        h1 = pow(0.01 / fmax(d1, d2), 1.0 / 8.0);
+    return fmin(fmin(100.0 * ha, h1), span);
+}
+
+/* the 7 coefficients F[k * fs] of the 7th-order interpolant of one component over a step of h from
+ * y to ynew, from its 16 stages K[j * ks] */
+static inline void dop_dense_component(double y, double ynew, double h, const double *K, ptrdiff_t ks, double *F,
+                                       ptrdiff_t fs)
+{
+    double dy = ynew - y;
+    F[0 * fs] = dy;
+    F[1 * fs] = h * K[0] - dy;
+    F[2 * fs] = 2.0 * dy - h * (K[DOP_NS * ks] + K[0]);
+    for (int r = 0; r < 4; r++) {
+        double acc = 0.0;
+        for (int j = 0; j < DOP_NSTAGES; j++) acc += DOP_D[r][j] * K[j * ks];
+        F[(3 + r) * fs] = h * acc;
+    }
+}
+
+/* the interpolant of one component at x = (t - told) / h in [0, 1] from its coefficients F[k * fs] */
+static inline double dop_dense_value(double y, const double *F, ptrdiff_t fs, double x)
+{
+    double v = 0.0;
+    for (int k = 6; k >= 0; k--) {
+        v += F[k * fs];
+        v *= ((6 - k) % 2 == 0) ? x : 1.0 - x;
+    }
+    return y + v;
+}
 
 /* the DOP853 core for the model's own state (chaos.c includes it again for the variational systems) */
 #define DOP_NAME(x) x
@@ -423,15 +488,7 @@ static inline __attribute__((always_inline)) void flip_stage_arg(
 }
 
 /* the interpolant of one component at x in [0, 1] (as dop_dense_eval) from its 7 coefficients */
-static double flip_dense(double y0, const double *F, double x)
-{
-    double v = 0.0;
-    for (int k = 6; k >= 0; k--) {
-        v += F[k];
-        v *= ((6 - k) % 2 == 0) ? x : 1.0 - x;
-    }
-    return y0 + v;
-}
+static double flip_dense(double y0, const double *F, double x) { return dop_dense_value(y0, F, 1, x); }
 
 /* The first x in (0, 1] with |q(x)| >= pi on the interpolant of one angle over a step of h
  * seconds, or -1 if there is none.  `crossed`: the step's end is at or past pi. */
@@ -523,38 +580,26 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
         if (nfresh) {
             double ha[SP_LANES], d1[SP_LANES], sc[SP_FLIP_N][SP_LANES];
             flip_rhs((const double (*)[SP_LANES])y, pp, K[0]);
-            for (int l = 0; l < SP_LANES; l++) {
+            for (int l = 0; l < SP_LANES; l++) {  /* Hairer's initial step, as dop_initial_step, lane by lane */
                 ha[l] = 0.0;
                 if (!fresh[l]) continue;
-                double d0 = 0.0, s1 = 0.0;
                 int finite = 1;
                 for (int i = 0; i < n; i++) {
                     f[i][l] = K[0][i][l];
                     if (!isfinite(f[i][l]) || !isfinite(y[i][l])) finite = 0;
                     sc[i][l] = atol + fabs(y[i][l]) * rtol;
-                    d0 += (y[i][l] / sc[i][l]) * (y[i][l] / sc[i][l]);
-                    s1 += (f[i][l] / sc[i][l]) * (f[i][l] / sc[i][l]);
                 }
                 if (!finite) { fresh[l] = 0; w->h[l] = -1.0; continue; }  /* fails below */
-                d0 = sqrt(d0 / n);
-                d1[l] = sqrt(s1 / n);
-                ha[l] = (d0 < 1e-5 || d1[l] < 1e-5) ? 1e-6 : 0.01 * d0 / d1[l];
-                ha[l] = fmin(ha[l], t_end);
+                d1[l] = dop_rms(&f[0][l], SP_LANES, &sc[0][l], SP_LANES, n);
+                ha[l] = dop_trial_step(dop_rms(&y[0][l], SP_LANES, &sc[0][l], SP_LANES, n), d1[l], t_end);
             }
             for (int i = 0; i < n; i++) SP_LANE_LOOP ytmp[i][l] = y[i][l] + ha[l] * f[i][l];
             flip_rhs((const double (*)[SP_LANES])ytmp, pp, K[1]);
             for (int l = 0; l < SP_LANES; l++) {
                 if (!fresh[l]) continue;
-                double s2 = 0.0, h1;
-                for (int i = 0; i < n; i++) {
-                    double v = (K[1][i][l] - f[i][l]) / sc[i][l];
-                    s2 += v * v;
-                }
-                double d2 = sqrt(s2 / n) / ha[l];
-                if (!isfinite(d2)) h1 = ha[l] * 1e-3;
-                else if (d1[l] <= 1e-15 && d2 <= 1e-15) h1 = fmax(1e-6, ha[l] * 1e-3);
-                else h1 = pow(0.01 / fmax(d1[l], d2), 1.0 / 8.0);
-                w->h[l] = fmin(fmin(100.0 * ha[l], h1), t_end);
+                double df[SP_FLIP_N];
+                for (int i = 0; i < n; i++) df[i] = K[1][i][l] - f[i][l];
+                w->h[l] = dop_first_step(ha[l], d1[l], dop_rms(df, 1, &sc[0][l], SP_LANES, n) / ha[l], t_end);
             }
         }
         int active = 0;
@@ -648,15 +693,8 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
                 int who = -1;
                 for (int c = 0; c < 2; c++) {
                     if (!(event[l] & (5 << c))) continue;
-                    double F[7], h = H[l], dy = ynew[c][l] - y[c][l];
-                    F[0] = dy;
-                    F[1] = h * K[0][c][l] - dy;
-                    F[2] = 2.0 * dy - h * (K[DOP_NS][c][l] + K[0][c][l]);
-                    for (int r = 0; r < 4; r++) {
-                        double acc = 0.0;
-                        for (int j = 0; j < DOP_NSTAGES; j++) acc += DOP_D[r][j] * K[j][c][l];
-                        F[3 + r] = h * acc;
-                    }
+                    double F[7], h = H[l];
+                    dop_dense_component(y[c][l], ynew[c][l], h, &K[0][c][l], SP_FLIP_N * SP_LANES, F, 1);
                     double x = flip_locate(y[c][l], F, h, (event[l] >> c) & 1);
                     if (x >= 0.0 && w->t[l] + x * h < best) { best = w->t[l] + x * h; who = c; }
                 }
