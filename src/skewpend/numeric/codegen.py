@@ -182,7 +182,7 @@ def _check_geometry_numeric(geometry: Parameters) -> None:
     if extra:
         raise UsageError(
             f"generated code needs numeric bodies and axes (they are baked in); symbolic: {', '.join(extra)}; "
-            "give --com*/--inertia*/--axis* as numbers (or scalar parameter names)"
+            "give com1, com2, inertia1, inertia2, axis1 and axis2 as numbers (or scalar parameter names)"
         )
 
 
