@@ -114,14 +114,13 @@ static int DOP_NAME(dop_advance)(double t, const double *y, const double *f, con
                                                                      : INFINITY;
         nonfinite = !isfinite(err);
         if (err < 1.0) {
-            double fac = err == 0.0 ? DOP_MAX_FACTOR : fmin(DOP_MAX_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
-            if (rejected) fac = fmin(1.0, fac);
+            const double fac = DOP_FACTOR_ACCEPTED(err, DOP_SAFETY * pow(err, -1.0 / 8.0), rejected);
             *hio = h * fac;
             *t_new_out = t_new;
             *h_used = h;
             return SP_STATUS_SUCCESS;
         }
-        double fac = nonfinite ? DOP_MIN_FACTOR : fmax(DOP_MIN_FACTOR, DOP_SAFETY * pow(err, -1.0 / 8.0));
+        const double fac = DOP_FACTOR_REJECTED(nonfinite, DOP_SAFETY * pow(err, -1.0 / 8.0));
         *hio = h * fac;
         rejected = 1;
         (*nreject)++;

@@ -150,6 +150,15 @@ static inline void dop_dense_component(double y, double ynew, double h, const do
     }
 }
 
+/* Hairer's step-size rule: the factor of the next step after an accepted one with error norm err in
+ * [0, 1) -- GROW, the safety factor times err^(-1/8) (evaluated only when err > 0), at most
+ * DOP_MAX_FACTOR, and at most 1 right after a rejection -- and after a rejected one (DOP_MIN_FACTOR
+ * after a non-finite trial).  Macros, so that GROW is computed only where it is used. */
+#define DOP_FACTOR_UP(err, GROW) ((err) == 0.0 ? DOP_MAX_FACTOR : fmin(DOP_MAX_FACTOR, (GROW)))
+#define DOP_FACTOR_ACCEPTED(err, GROW, after_rejection) \
+    ((after_rejection) ? fmin(1.0, DOP_FACTOR_UP(err, GROW)) : DOP_FACTOR_UP(err, GROW))
+#define DOP_FACTOR_REJECTED(nonfinite, GROW) ((nonfinite) ? DOP_MIN_FACTOR : fmax(DOP_MIN_FACTOR, (GROW)))
+
 /* the interpolant of one component at x = (t - told) / h in [0, 1] from its coefficients F[k * fs] */
 static inline double dop_dense_value(double y, const double *F, ptrdiff_t fs, double x)
 {
@@ -661,8 +670,7 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
             if (nonfinite) err[l] = INFINITY;
             else if (e5[l] == 0.0 && e3[l] == 0.0) err[l] = 0.0;
             if (err[l] < 1.0) {
-                double fac = err[l] == 0.0 ? DOP_MAX_FACTOR : fmin(DOP_MAX_FACTOR, SP_FLIP_SAFETY / root[l]);
-                if (w->last_rejected[l]) fac = fmin(1.0, fac);
+                const double fac = DOP_FACTOR_ACCEPTED(err[l], SP_FLIP_SAFETY / root[l], w->last_rejected[l]);
                 w->h[l] = H[l] * fac;
                 w->last_rejected[l] = 0;
                 w->nacc[l]++;
@@ -675,7 +683,7 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
                 }
                 nevent += event[l] != 0;
             } else {
-                double fac = nonfinite ? DOP_MIN_FACTOR : fmax(DOP_MIN_FACTOR, SP_FLIP_SAFETY / root[l]);
+                const double fac = DOP_FACTOR_REJECTED(nonfinite, SP_FLIP_SAFETY / root[l]);
                 w->h[l] = H[l] * fac;
                 w->last_rejected[l] = 1;
                 w->nrej[l]++;
