@@ -68,14 +68,23 @@ def test_check_raises_between_calls():
     assert fake.budgets == [1]
 
 
-def test_cancel_is_checked_before_calling_again_only():
+def test_between_runs_only_before_calling_again():
+    """The ensemble engine's cancel event: checked between calls, never after the last one."""
     cancel = threading.Event()
     cancel.set()
-    assert drive(FakeC(0), budget=1, cancel=cancel) is Status.SUCCESS  # finished: nothing to cancel
+
+    def between():
+        if cancel.is_set():
+            raise Cancelled()
+
+    assert drive(FakeC(0), budget=1, between=between) is Status.SUCCESS  # finished: nothing to cancel
     fake = FakeC(-1, -1, 0)
     with pytest.raises(Cancelled):
-        drive(fake, budget=1, cancel=cancel)
+        drive(fake, budget=1, between=between)
     assert len(fake.budgets) == 1
+    fake = FakeC(-2, -1, 0)
+    cancel.clear()
+    assert drive(fake, budget=1, between=between) is Status.SUCCESS and len(fake.budgets) == 3
 
 
 def test_adapted_budget_aims_at_chunk_seconds_and_only_after_a_budget_return():

@@ -401,7 +401,7 @@ def poincare(
     reach at that energy.
     """
     from ..numeric.driver import drive
-    from ..numeric.ensemble import run_chunks
+    from ..numeric.ensemble import Cancelled, run_chunks
     from ..numeric.kernels import State
     from ..numeric.grid import check_workers
 
@@ -493,12 +493,17 @@ def poincare(
         dp = ctypes.POINTER(ctypes.c_double)
         m = ctypes.c_int64(0)
         got = []
+
+        def between() -> None:  # the engine's cancel event, between two bounded calls
+            if cancel.is_set():
+                raise Cancelled()
+
         rc = drive(lambda budget: kernel.lib.sp_section(
                        ctypes.byref(state), p.ctypes.data_as(dp), coord, value_wrapped, period_wrap, int(direction),
                        method, want, t_max, rtol, atol, max_steps, budget, rows.ctypes.data_as(dp), rows.shape[0],
                        ctypes.byref(m)),
                    budget=_BUDGET, take=lambda: got.append(rows[: m.value].copy()) if m.value else None,
-                   cancel=cancel, name="sp_section")
+                   between=between, name="sp_section")
         table = np.concatenate(got) if got else np.empty((0, 5))
         return table, rc, int(state.naccept), int(state.nreject), int(state.aux)
 

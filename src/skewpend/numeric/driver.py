@@ -5,8 +5,8 @@ returns either a :class:`~skewpend.status.Status` code (``>= 0``: done, with tha
 :class:`~skewpend.status.CallCode` (``< 0``: call again).  :func:`drive` is the one loop around
 such a call, for ``simulate``, ``lyapunov``, Poincare sections and the flip-map lanes:
 
-* ``-1`` (:attr:`CallCode.BUDGET`): the step budget of this call is used up -- check Ctrl-C (or the
-  ensemble engine's cancel event), report progress, optionally refuse a run whose estimated work
+* ``-1`` (:attr:`CallCode.BUDGET`): the step budget of this call is used up -- check Ctrl-C (and
+  the ensemble engine's cancel event), report progress, optionally refuse a run whose estimated work
   exceeds its cap (:func:`check_step_estimate`, once, after the first such return), retune the
   budget to about :data:`CHUNK_SECONDS` of work, and call again;
 * ``-2`` (:attr:`CallCode.BUFFER_FULL`): the row buffer is full -- take the rows and call again;
@@ -41,7 +41,7 @@ def drive(
     budget: int,
     take: Optional[Callable[[], None]] = None,
     check: Optional[Callable[[], None]] = None,
-    cancel=None,
+    between: Optional[Callable[[], None]] = None,
     progress: Optional[Callable[[], None]] = None,
     estimate: Optional[Callable[[], None]] = None,
     adapt: bool = False,
@@ -50,13 +50,12 @@ def drive(
     """Call ``call(budget)`` until it returns a :class:`Status` code, and return that status.
 
     After every call, in this order: ``check()`` (e.g. :meth:`Interrupts.check`: raises on
-    Ctrl-C), then ``cancel`` (a :class:`threading.Event`: the ensemble engine's
-    :class:`~skewpend.numeric.ensemble.Cancelled` when set, checked only
-    before calling again), a ``-3`` is a :class:`RuntimeError` naming ``name``, ``take()`` collects
-    the rows the call wrote (also after the last call), ``estimate()`` runs once, after the first
-    :attr:`CallCode.BUDGET` return (it raises to refuse the run), and ``progress()``.  With
-    ``adapt`` the budget of each next call is scaled so that a call takes about
-    :data:`CHUNK_SECONDS`.
+    Ctrl-C); a ``-3`` is a :class:`RuntimeError` naming ``name``; ``take()`` collects the rows the
+    call wrote (also after the last call); then, if the run goes on, ``estimate()`` once, after
+    the first :attr:`CallCode.BUDGET` return (it raises to refuse the run), ``progress()`` (also
+    after the last call) and ``between()`` (only before calling again: e.g. raise the ensemble
+    engine's ``Cancelled`` when its cancel event is set).  With ``adapt`` the budget of each next
+    call is scaled so that a call takes about :data:`CHUNK_SECONDS`.
     """
     estimated = estimate is None
     while True:
@@ -80,10 +79,8 @@ def drive(
             estimate()
         if progress is not None:
             progress()
-        if cancel is not None and cancel.is_set():
-            from .ensemble import Cancelled
-
-            raise Cancelled()
+        if between is not None:
+            between()
         if adapt and code == CallCode.BUDGET:
             budget = int(min(max(budget * CHUNK_SECONDS / max(took, 1e-6), _BUDGET_MIN), _BUDGET_MAX))
 

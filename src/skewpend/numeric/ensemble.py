@@ -183,7 +183,11 @@ class FlipIntegrator:
         fn = self.kernel.lib.sp_flip
         from .driver import drive
 
-        drive(lambda budget: fn(*head, budget, *tail), budget=self.budget, cancel=cancel, name="sp_flip")
+        def between() -> None:  # the engine's cancel event, between two bounded calls
+            if cancel is not None and cancel.is_set():
+                raise Cancelled()
+
+        drive(lambda budget: fn(*head, budget, *tail), budget=self.budget, between=between, name="sp_flip")
         return out
 
 
