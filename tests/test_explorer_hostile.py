@@ -272,7 +272,7 @@ def test_a_request_without_a_host_header_is_refused(server):
     ("127.0.0.1", ["127.0.0.1", "localhost", "[::1]"], [], ["evil.example", "192.168.1.2"]),
     ("::1", ["[::1]", "localhost", "127.0.0.1"], [], ["evil.example"]),
     ("192.0.2.7", ["192.0.2.7"], [], ["localhost", "evil.example", "192.0.2.8"]),
-    ("0.0.0.0", ["192.168.1.2", "[fe80::1]", "localhost"], [], ["evil.example"]),
+    ("0.0.0.0", ["192.168.1.2", "[fe80::1]", "localhost"], [], ["evil.example", "*ip"]),
 ])
 def test_the_hosts_allowed_for_each_bind(bound, names, allowed, refused):
     hosts = explorer._allowed_hosts(bound)
@@ -360,7 +360,7 @@ def test_check_address_url_and_loopback(host, loopback, url):
 @pytest.mark.parametrize("host, port, parameter", [
     ("127.0.0.1", "²", "port"), ("127.0.0.1", "٨٠٠٠", "port"), ("127.0.0.1", 70000, "port"), ("127.0.0.1", -1, "port"),
     ("127.0.0.1", 80.5, "port"), ("127.0.0.1", True, "port"), ("127.0.0.1", "9" * 5000, "port"),
-    ("[::1", 8000, "host"), ("192.0.2.1", 0, "port"),  # TEST-NET: not an address of this machine
+    ("[::1", 8000, "host"), ("192.0.2.1", 0, "host"),  # TEST-NET: not an address of this machine
 ])
 def test_serve_refuses_bad_addresses_before_starting(host, port, parameter, monkeypatch):
     monkeypatch.setattr(explorer, "create_app", lambda **kw: pytest.fail("started"))
@@ -381,7 +381,7 @@ def test_serve_refuses_a_busy_port_in_one_line(monkeypatch):
 
 
 @pytest.mark.parametrize("argv, words", [
-    (["--host", "192.0.2.1"], "--port"), (["--port", "²"], "--port"), (["--host", "[::1"], "--host"),
+    (["--host", "192.0.2.1"], "--host"), (["--port", "²"], "--port"), (["--host", "[::1"], "--host"),
 ])
 def test_the_command_refuses_bad_addresses_in_one_line(argv, words):
     ran = subprocess.run([sys.executable, "-m", "skewpend", "serve", *argv], capture_output=True, text=True, timeout=60,

@@ -161,7 +161,7 @@ def _host_allowed(value, hosts, port) -> bool:
         given = given if colon else None
     if given is not None and not (given.isdigit() and port is not None and int(given) == port):
         return False
-    if name in hosts:
+    if name in hosts and name != "*ip":
         return True
     if "*ip" in hosts:
         try:
@@ -531,7 +531,12 @@ def _bind(host: str, port: int):
             try:
                 sock.bind((address[0], port, *address[2:]))
             except OSError as exc:
+                import errno
+
                 shown = f"[{address[0]}]" if family == socket.AF_INET6 else address[0]
+                if exc.errno == errno.EADDRNOTAVAIL:  # not an address of this machine
+                    raise ParameterError(f"host: cannot listen on {shown}: {exc.strerror or exc}; use an address of "
+                                         "this machine (e.g. 127.0.0.1 or 0.0.0.0)", parameter="host") from None
                 raise ParameterError(f"port: cannot listen on {shown}:{port}: {exc.strerror or exc}; choose another "
                                      "port or host", parameter="port") from None
             port = port or sock.getsockname()[1]  # port 0: the rest of the addresses on the one chosen
