@@ -154,3 +154,12 @@ def test_symbolic_parameters_are_refused():
 
     with pytest.raises(NotNumericError, match="symbolic: g"):
         simulate(BENCH.replace(g=None), Y0, 1.0)
+
+
+@pytest.mark.parametrize("method, t_end", [("dop853", 1e9), ("rk4", 1e9)])
+def test_unfinishable_run_is_refused_naming_max_steps_not_a_flag(method, t_end):
+    """Refused before the work (rk4: t_end/dt; dop853: the driver's estimate after the first bounded
+    call), in the library's names: the command line maps max_steps to its flag."""
+    with pytest.raises(ParameterError, match=r"max_steps = 100000000") as info:
+        simulate(BENCH, Y0, t_end, method=method)
+    assert "--" not in str(info.value)

@@ -5,7 +5,7 @@ user can take away, is printed here from :func:`skewpend.derive`'s expressions
 with common-subexpression elimination.  No equation of motion is typed by hand;
 the only hand-written numerics are the 2x2 linear solve ``M q'' = f`` and the
 integrators (``integrators.c``); the C the simulations compile is printed by
-:mod:`skewpend.kernelgen` with the helpers below.
+:mod:`skewpend.numeric.kernel_source` with the helpers below.
 
 Conventions shared by every generated routine:
 

@@ -1,6 +1,6 @@
 /* skewpend integrator template -- appended to the generated model code.
  *
- * Contract with the code generator (skewpend.kernelgen): the text before this template defines
+ * Contract with the code generator (skewpend.numeric.kernel_source): the text before this template defines
  *
  *     static void rhs(const double *y, const double *p, double *out);      y' = F(y; p)
  *     static void ham_rhs(const double *z, const double *p, double *out);  the same in (q, p_q)
@@ -11,7 +11,7 @@
  *
  * Every integrator is *resumable*: its whole state lives in an sp_state owned by the caller,
  * and one call does a bounded amount of work (at most `budget` accepted steps, at most `cap`
- * output rows) and returns.  The caller (skewpend.simulation) loops, writes the rows away,
+ * output rows) and returns.  The caller (skewpend.numeric.driver.drive) loops, takes the rows,
  * shows progress and lets Python handle Ctrl-C between calls.  Results do not depend on how
  * the work is split into calls.
  *

@@ -4,7 +4,7 @@ The generated part holds the model's functions (right-hand side, Hamilton's equa
 Jacobian, energy, momenta, rod ends) as ``static`` C functions printed from
 :func:`skewpend.derive`'s expressions with common-subexpression elimination, plus thin
 exported wrappers (``sp_rhs``, ``sp_energies``, ...).  The hand-written, model-independent
-integrators (``integrators.c``) are appended by :mod:`skewpend.compiled`.
+integrators (``integrators.c``) are appended by :mod:`skewpend.numeric.kernels`.
 
 State ``y = (phi, psi, dphi, dpsi, W)`` (``W``: work of ``Q = tau - c q'``), canonical state
 ``z = (phi, psi, p_phi, p_psi, W)``, parameters ``p`` in :data:`PARAMETER_ORDER`.

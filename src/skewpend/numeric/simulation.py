@@ -1,7 +1,7 @@
 """Simulation: compiled integrators over the generated right-hand side, in bounded chunks.
 
 ``simulate`` runs one of three integrators, written in C (``integrators.c``) and compiled
-together with the model's generated C (:mod:`skewpend.kernelgen`):
+together with the model's generated C (:mod:`skewpend.numeric.kernel_source`):
 
 * ``"dop853"`` (default) -- adaptive Dormand-Prince 8(5,3) with 7th-order dense output;
 * ``"rk4"`` -- classical fixed-step Runge-Kutta of order 4;
