@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import io
 import os
-import socket
 import threading
 import time
 from pathlib import Path
@@ -28,12 +27,11 @@ import numpy as np
 import pytest
 
 pytest.importorskip("fastapi")
-uvicorn = pytest.importorskip("uvicorn")
+pytest.importorskip("uvicorn")
 sync_api = pytest.importorskip("playwright.sync_api")
 
 import skewpend  # noqa: E402
 from skewpend import Parameters  # noqa: E402
-from skewpend.views.explorer import create_app  # noqa: E402
 
 CHROMIUM = "/usr/bin/chromium"
 if not os.path.exists(CHROMIUM):  # pragma: no cover - .ci/run installs it
@@ -49,26 +47,23 @@ def _artifacts() -> Path:
     return folder
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def server():
-    port = _free_port()
-    config = uvicorn.Config(create_app(), host="127.0.0.1", port=port, log_level="warning")
-    srv = uvicorn.Server(config)
-    thread = threading.Thread(target=srv.run, daemon=True)
+    """The real server (``explorer.serve``: the Host check, the body and header limits) in a thread."""
+    from skewpend.views import explorer
+
+    started, stop = [], threading.Event()
+    thread = threading.Thread(target=explorer.serve, args=("127.0.0.1", 0), kwargs={"ready": started.append, "stop": stop},
+                              daemon=True)
     thread.start()
     deadline = time.time() + 30
-    while not srv.started:
-        assert time.time() < deadline, "the server did not start"
+    while not started:
+        assert time.time() < deadline and thread.is_alive(), "the server did not start"
         time.sleep(0.05)
-    yield f"http://127.0.0.1:{port}"
-    srv.should_exit = True
+    yield started[0].url.rstrip("/")
+    stop.set()
     thread.join(timeout=10)
+    assert not thread.is_alive(), "the server did not stop"
 
 
 @pytest.fixture(scope="module")

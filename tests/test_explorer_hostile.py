@@ -404,3 +404,22 @@ def test_serving_on_ipv6_loopback_prints_a_bracketed_url_and_answers():
             assert _status(_read_answer(s)) == 200
     finally:
         _stop(proc)
+
+
+def test_serve_in_a_thread_stops_when_told():
+    """``serve(..., ready=, stop=)``: the address once listening; setting ``stop`` ends it as Ctrl-C does."""
+    started, stop = [], threading.Event()
+    thread = threading.Thread(target=explorer.serve, args=("localhost", 0), kwargs={"ready": started.append, "stop": stop},
+                              daemon=True)
+    thread.start()
+    deadline = time.monotonic() + START_LIMIT
+    while not started and thread.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert started, "the server did not start"
+    address = started[0]
+    assert address.url == f"http://localhost:{address.port}/" and address.loopback
+    assert _status(_get(address.port, host_header=f"localhost:{address.port}")) == 200
+    start = time.monotonic()
+    stop.set()
+    thread.join(5)
+    assert not thread.is_alive() and time.monotonic() - start < 2.0

@@ -625,14 +625,15 @@ def _protocol():
 
 
 def serve(host: str = "127.0.0.1", port: int = 8000, *, open_browser: bool = False, log_level: str = "warning",
-          ready=None) -> None:
+          ready=None, stop=None) -> None:
     """Run the explorer with uvicorn on ``host:port`` until Ctrl-C or SIGTERM.
 
     ``host``: an IP address (``::1`` or ``[::1]``) or a host name (see :func:`check_host`);
     ``port``: 1 to 65535, or 0 for any free port.  Bad input or an address that cannot be bound
     is one :class:`ParameterError` naming ``host`` or ``port``, raised before anything starts.
     ``ready``: called with the :class:`Address` once listening (the front end announces it);
-    ``open_browser``: open the page then.  Requests whose ``Host`` header does not name this
+    ``open_browser``: open the page then.  ``stop``: a :class:`threading.Event` that stops the
+    server as Ctrl-C does when set (for a server run in a thread).  Requests whose ``Host`` header does not name this
     server get 400 (for a loopback address: also ``localhost``, ``127.0.0.1``, ``[::1]``).  At
     the signal, in-flight computations are cancelled (answered 503) and the server stops within
     about :data:`SHUTDOWN_GRACE` s; the signal is then raised again by uvicorn (a
@@ -661,6 +662,12 @@ def serve(host: str = "127.0.0.1", port: int = 8000, *, open_browser: bool = Fal
                         import webbrowser
 
                         threading.Thread(target=webbrowser.open, args=(address.url,), daemon=True).start()
+
+            async def on_tick(self, counter: int) -> bool:
+                if stop is not None and stop.is_set():
+                    stopping.set()
+                    self.should_exit = True
+                return await super().on_tick(counter)
 
             async def shutdown(self, sockets=None) -> None:
                 stopping.set()
