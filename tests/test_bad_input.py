@@ -608,7 +608,7 @@ def test_ctrl_c_stops_a_long_validation_promptly(tmp_path):
 # Values no option takes: not finite, not numbers, other scripts' digits, 400-digit numbers (inf as floats).
 NOT_A_NUMBER = ["nan", "inf", "-inf", "1e999", "", " ", "abc", "²", "١٢", "٣.٥", "9" * 400, "0x10", "1,5", "1e", "--"]
 #: ... and for the settings: never symbolic, positive.
-NOT_POSITIVE = [*NOT_A_NUMBER, "sym", "0", "-0", "-1", "-1e308", "-1e-320"]
+NOT_POSITIVE = [*NOT_A_NUMBER, "sym", "0", "-0", "-1", "-1e308", "-1e-320", "5e-324"]
 NOT_WHOLE = [*NOT_A_NUMBER, "sym", "0", "-0", "-1", "1.5", "1e308", "9" * 5000, "1e-320"]
 NOT_A_VECTOR = ["", "nan,0,0", "0,inf,0", "1,2", "1,2,3,4", "²,0,0", "0,1e999,0", "a;b,0,0"]
 NOT_AN_INERTIA = ["", "nan,1,1", "1,2", "1,2,3,4", "1,1,inf", "١,1,1"]

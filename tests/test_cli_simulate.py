@@ -229,7 +229,7 @@ def test_the_rule_reads_ok_then_success():
     (["chaos-diagram", "--alphas", "0:1:2", "--energies", "1:2:2", "--samples", "2", "--t-end", "5", "--rtol", "1"],
      "trajectories failed"),
     (["poincare", "--energy", "5", "--rtol", "1", "--orbits", "3", "--crossings", "5"], "orbits failed"),
-    (["flipmap", "--n", "16", "--t-end", "5e-324"], "cells failed"),  # one line: not flip_map's warning too
+    (["flipmap", "--n", "16", "--a", "1e-300"], "cells failed"),  # one line: not flip_map's warning too
 ])
 def test_failed_trajectories_exit_1_with_one_line(argv, what, tmp_path):
     from helpers import run_process

@@ -372,3 +372,25 @@ def test_a_diagram_of_subnormal_masses_is_refused_in_one_line():
 
     with pytest.raises(ParameterError, match="not finite for these parameters"):
         chaos_diagram(BENCH.replace(m2=5e-324), samples=2, t_end=5.0)
+
+
+@pytest.mark.parametrize("t_end", [5e-324, 1e-310])
+def test_a_subnormal_duration_is_refused_not_flushed_to_zero(t_end):
+    """The compiled code may treat a subnormal time as 0 (a 'bad arguments' internal error
+    before this rule); every duration and tolerance is a normal float or refused."""
+    from skewpend import flip_map, lyapunov, simulate
+
+    for call in (lambda: flip_map(BENCH, 4, t_end=t_end), lambda: lyapunov(BENCH, [1.0, 1.0, 0.0, 0.0], t_end=t_end),
+                 lambda: simulate(BENCH, [1.0, 1.0, 0.0, 0.0], t_end)):
+        with pytest.raises(ParameterError, match="smallest normal float"):
+            call()
+
+
+def test_trial_runs_never_last_a_subnormal_time():
+    from skewpend.numeric.grid import PROBE_TRIES, probe_durations
+
+    times = list(probe_durations(1e-300, BENCH))
+    assert times == [1e-300, 1e-303, 1e-306]  # the next, 1e-309, is subnormal
+    long = list(probe_durations(1e9, BENCH))
+    assert len(long) == PROBE_TRIES and long[0] == pytest.approx(20 * np.sqrt(1.8 / 9.81))
+    assert all(b == pytest.approx(a * 1e-3) for a, b in zip(long, long[1:]))

@@ -46,7 +46,8 @@ def numeric_params(params, what: str):
 
 
 def positive(name: str, value: Any, *, cap: Optional[float] = None) -> float:
-    """``value`` as a finite float > 0 (and at most ``cap``)."""
+    """``value`` as a finite float > 0, not subnormal (at least 2.2e-308, which the compiled code
+    may flush to 0), and at most ``cap``."""
     from .parsing import positive_number
 
     x = positive_number(name, value)

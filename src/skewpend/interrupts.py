@@ -22,7 +22,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-from typing import Any, Callable, Iterator, Optional
+from typing import Callable, Iterator, Optional
 
 __all__ = ["Interrupts", "Terminated", "terminate_like_interrupt"]
 

@@ -6,6 +6,7 @@ Shared by the command line, configuration files and sweep specifications.
 from __future__ import annotations
 
 import math
+import sys
 import re
 from typing import Any, Optional, Sequence, Tuple
 
@@ -128,7 +129,8 @@ def parse_inertia(text: Optional[str], option: str):
 
 
 def positive_number(name: str, value: Any, *, allow_none: bool = False) -> Optional[float]:
-    """``value`` as a positive finite float (``None`` passes through with ``allow_none``)."""
+    """``value`` as a positive finite float, not subnormal (``None`` passes through with
+    ``allow_none``)."""
     if value is None and allow_none:
         return None
     try:
@@ -137,6 +139,9 @@ def positive_number(name: str, value: Any, *, allow_none: bool = False) -> Optio
         raise ParameterError(f"{name} must be a positive number, got {value!r}") from None
     if isinstance(value, bool) or not math.isfinite(x) or not x > 0:
         raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+    if x < sys.float_info.min:  # subnormal: compiled code may flush it to 0
+        raise ParameterError(f"{name} must be at least {sys.float_info.min:.3g} (the smallest normal float), "
+                             f"got {value!r}")
     return x
 
 

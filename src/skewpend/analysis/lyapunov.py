@@ -525,18 +525,17 @@ def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol
                         what: str, time_name: str = "t_end", advice: Optional[str] = None) -> None:
     """Refuse up front work of largest exponents that cannot finish within ``max_steps`` per
     trajectory: a trial run of the chaos kernel (``state`` = (kernel, p)) from ``probe``."""
-    from ..numeric.grid import PROBE_STEPS, PROBE_TRIES, check_feasible, probe_time, steps_per_second
+    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, steps_per_second
 
     kernel, p = state
-    t = min(t_end, probe_time(params))
-    for _ in range(PROBE_TRIES):  # a trial that fails (too stiff for its steps) is tried over a shorter time
+    rate = 0.0
+    for t in probe_durations(t_end, params):  # a trial that fails (too stiff for its steps) is tried over a shorter time
         _, status, steps = largest_exponents(kernel, p, np.asarray(probe, dtype=float), t_end=t, renorm_every=t,
                                              transient=0.0, rtol=rtol, atol=atol, max_steps=PROBE_STEPS)
         # a trial that stopped early made at most its steps in t: a lower bound of the rate
         rate = steps_per_second(steps, np.full(steps.shape, t))
         if np.all(status == 0):
             break
-        t *= 1e-3
     check_feasible(rate, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps, what=what, time_name=time_name,
                    advice=advice)
 

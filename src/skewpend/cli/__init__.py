@@ -122,7 +122,7 @@ def locate(message: str, command: Optional[str] = None, options: Any = (), param
     (``max_steps must be ...`` -> ``--max-steps: max_steps must be ...``; ``store: ...`` ->
     ``--out: ...``); a parameter named further on gets its option beside it (``use a larger
     dt_out`` -> ``use a larger dt_out (--dt-out)``); ``parameter`` (an error's own ``parameter``)
-    leads in any case.  ``options`` are the command's option names;
+    leads when the text does not name it.  ``options`` are the command's option names;
     a message that already names an option (``--``) or a run file is left as it is."""
     from .options import LOCATIONS
 
@@ -138,7 +138,8 @@ def locate(message: str, command: Optional[str] = None, options: Any = (), param
         return found
 
     m = _NAMED.match(message)
-    if parameter is not None and not (m and m.group(1) == parameter):  # named by the error, not its text
+    named_later = parameter is not None and re.search(rf"\b{re.escape(parameter)}\b", message) is not None
+    if parameter is not None and not (m and m.group(1) == parameter) and not named_later:  # named by the error only
         lead = where(parameter)
         return f"{lead}: {_SNAKE.sub(lambda s: s.group(1), message)}" if lead else message
     lead = where(m.group(1)) if m else None

@@ -11,7 +11,7 @@ import typer
 
 from ..parsing import UsageError
 from . import types as T
-from .options import CONFIG, INITIAL, MODEL, RUN, command, option, resolve
+from .options import CONFIG, INITIAL, MODEL, command, option, resolve
 
 COMMANDS = ("derive", "export", "validate")
 

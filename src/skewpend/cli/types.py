@@ -12,10 +12,12 @@ Errors are :class:`~skewpend.parsing.UsageError`: one line, exit status 2.
 
 from __future__ import annotations
 
+import sys
+
 import ipaddress
 import math
 import re
-from typing import Any, Optional, Sequence, Tuple
+from typing import Any, Optional, Tuple
 
 from ..parsing import UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
 
@@ -72,6 +74,9 @@ class Positive(ParamType):
         sign = "positive" if self.strict else "non-negative"
         if value is None or not (value > 0 if self.strict else value >= 0):
             raise UsageError(f"{flag}: expected a {sign} {self.what}{'' if self.strict else ' (>= 0)'}, got {text!r}")
+        if 0 < value < sys.float_info.min:  # subnormal: the compiled code may flush it to 0
+            raise UsageError(f"{flag}: expected a {sign} {self.what} of at least {sys.float_info.min:.3g} (the "
+                             f"smallest normal float){'' if self.strict else ' or 0'}, got {text!r}")
         if self.at_most is not None and value > self.at_most:
             raise UsageError(f"{flag}: expected a {sign} {self.what} of at most {self.at_most:g}, got {text!r}")
         return abs(value)  # -0 is 0

@@ -49,7 +49,7 @@ import os
 from pathlib import Path
 from typing import Optional, Sequence, Tuple, Union
 
-from ..errors import IntegrationError, MissingExtraError, ParameterError, SkewpendError
+from ..errors import IntegrationError, MissingExtraError, ParameterError
 from ..symbolic.model import Parameters
 from ..parsing import initial_state, positive_number
 
@@ -462,7 +462,7 @@ def write_model(
     if implied is not None and implied != fmt and path.suffix.lower() != ".xml":  # .xml: either (URDF is XML too)
         raise ParameterError(
             f"the file name {path.name!r} says {implied} but the format is {fmt}; give a name ending in "
-            f"{' or '.join(k for k, v in _SUFFIXES.items() if v == fmt)} for {fmt}, or use the format {implied} (--format {implied})"
+            f"{' or '.join(k for k, v in _SUFFIXES.items() if v == fmt)} for {fmt}, or use the format {implied}"
         )
     if path.exists() and not path.is_file():
         raise ParameterError(f"cannot write {path}: it exists and is not a regular file")
@@ -491,22 +491,19 @@ def import_mujoco():
     return mujoco
 
 
-_import_mujoco = import_mujoco  # the old private name, until every caller uses import_mujoco
-
-
 def mujoco_steps(t_end: float, dt: float) -> int:
     """The number of MuJoCo steps ``t_end / dt``: a whole number, at most :data:`MAX_MUJOCO_STEPS`."""
-    t_end = positive_number("t_end (--t-end)", t_end)
-    dt = positive_number("dt (--dt)", dt)
+    t_end = positive_number("t_end", t_end)
+    dt = positive_number("dt", dt)
     n_float = t_end / dt
     if not n_float <= MAX_MUJOCO_STEPS:
         raise ParameterError(
             f"t_end/dt = {n_float:.4g} MuJoCo steps (t_end = {t_end:g} s, dt = {dt:g} s) is more than the "
-            f"{MAX_MUJOCO_STEPS:.0e} allowed; use a shorter t_end (--t-end) or a larger dt (--dt)"
+            f"{MAX_MUJOCO_STEPS:.0e} allowed; use a shorter t_end or a larger dt"
         )
     nsteps = int(round(n_float))
     if nsteps < 1 or abs(nsteps * dt - t_end) > 1e-9 * t_end:
-        raise ParameterError(f"t_end ({t_end:g} s, --t-end) must be a whole number of MuJoCo steps dt ({dt:g} s, --dt)")
+        raise ParameterError(f"t_end ({t_end:g} s) must be a whole number of MuJoCo steps dt ({dt:g} s)")
     return nsteps
 
 

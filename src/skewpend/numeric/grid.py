@@ -29,6 +29,7 @@ data cannot be read or no longer match their digests is computed again.
 from __future__ import annotations
 
 import math
+import sys
 import os
 import time
 from dataclasses import dataclass, field
@@ -186,6 +187,18 @@ def probe_time(params) -> float:
     gravity), long enough for a representative step rate, a few ms of work."""
     scale = math.sqrt((float(params.a) + float(params.b)) / float(params.g)) if float(params.g) > 0 else 1.0
     return 20.0 * min(max(scale, 1e-6), 1e6)
+
+
+def probe_durations(t_end: float, params):
+    """The durations of successive trial runs: ``min(t_end, probe_time(params))``, then a
+    thousandth of the previous one, at most :data:`PROBE_TRIES` of them, and none below the
+    smallest normal float (a subnormal time is 0 to the compiled code)."""
+    t = min(float(t_end), probe_time(params))
+    for _ in range(PROBE_TRIES):
+        if not t >= sys.float_info.min:
+            return
+        yield t
+        t *= 1e-3
 
 
 def steps_per_second(steps, durations) -> float:

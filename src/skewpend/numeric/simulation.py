@@ -31,12 +31,13 @@ from typing import Any, Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from .. import checks
 from ..interrupts import Interrupts
 from ..status import Status
 from .driver import check_step_estimate, drive
 from ..errors import IntegrationError, ParameterError
 from ..symbolic.model import Parameters
-from ..parsing import initial_state, positive_number
+from ..parsing import initial_state
 
 __all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", "check_start"]
 
@@ -123,7 +124,7 @@ MAX_STEPS = 100_000_000
 #: Rows handed back by one call into the compiled integrator (memory per chunk ~ 0.4 MB).
 _CHUNK_ROWS = 8192
 _DEFAULT_DT = 1e-3
-_DEFAULT_TOL = 1e-10
+_DEFAULT_TOL = checks.DEFAULT_TOL
 
 
 def _memory_limit() -> float:
@@ -225,19 +226,14 @@ def simulate(
 
     params.require_numeric("simulation")
     y = initial_state(y0)
-    t_end = positive_number("t_end", t_end)
-    dt_out = positive_number("dt_out", dt_out, allow_none=True)
+    t_end = checks.positive("t_end", t_end)
+    dt_out = None if dt_out is None else checks.positive("dt_out", dt_out)
     if method not in METHODS:
         raise ParameterError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
     if dt_out is not None and dt_out > t_end:
         raise ParameterError(f"dt_out ({dt_out:g}) must not exceed t_end ({t_end:g})")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
-        raise ParameterError(f"max_steps must be a positive whole number, got {max_steps!r}")
-    max_steps = int(max_steps)
-    if max_steps > 10**15:
-        raise ParameterError(f"max_steps must be at most 1e15 (steps are counted in 64-bit integers), got {max_steps}")
-    if progress is not None and not callable(progress):
-        raise ParameterError("progress must be a callable progress(t, t_end)")
+    max_steps = checks.max_steps(max_steps)
+    checks.progress_callable(progress, "progress(t, t_end)")
     progress = progress or _progress_noop
     if out is not None:
         out = check_output_path(out, TRAJECTORY_SUFFIXES, option="out")
@@ -245,10 +241,7 @@ def simulate(
     if method == "dop853":
         if dt is not None:
             raise ParameterError("dt is the step of rk4 and gauss; dop853 chooses its own steps (set rtol/atol instead)")
-        rtol = _DEFAULT_TOL if rtol is None else positive_number("rtol", rtol)
-        atol = _DEFAULT_TOL if atol is None else positive_number("atol", atol)
-        if rtol < 1e-15 or atol < 1e-300:
-            raise ParameterError(f"rtol must be >= 1e-15 (machine precision) and atol >= 1e-300, got rtol={rtol:g}, atol={atol:g}")
+        rtol, atol = checks.tolerances(rtol, atol, default=_DEFAULT_TOL)
         settings.update(rtol=rtol, atol=atol)
         n_grid = 0 if dt_out is None else int(math.floor(t_end / dt_out * (1 + 1e-12))) + 1
         nsteps = stride = 0
@@ -256,7 +249,7 @@ def simulate(
         for name, value in (("rtol", rtol), ("atol", atol)):
             if value is not None:
                 raise ParameterError(f"{name} is a tolerance of dop853; {method} takes fixed steps dt (default {_DEFAULT_DT:g} s)")
-        step = _DEFAULT_DT if dt is None else positive_number("dt", dt)
+        step = _DEFAULT_DT if dt is None else checks.positive("dt", dt)
         if step > t_end:
             raise ParameterError(f"dt ({step:g}) must not exceed t_end ({t_end:g})")
         n_float = t_end / step

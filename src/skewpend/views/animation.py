@@ -25,14 +25,15 @@ wheel ships, GIF through Pillow.  The file appears complete or not at all.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .. import checks
 from ..errors import ParameterError, SkewpendError
+from ..io import atomic_path
 
 __all__ = [
     "animate",
@@ -200,7 +201,7 @@ class _Geometry:
         t = np.asarray(tr.t, dtype=float)
         if t.ndim != 1 or t.size < 1:
             raise ParameterError("the trajectory has no rows to animate")
-        trail = _nonneg_number("trail", trail)
+        trail = checks.finite_seconds("trail", trail)
         p = tr.params
         self.tr = tr
         self.t = t
@@ -414,7 +415,7 @@ class FrameRenderer:
         from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
         self.size = _frame_size(size)
-        self.dpi = _positive_number("dpi", dpi)
+        self.dpi = checks.positive("dpi", dpi)
         self.geometry = _Geometry(tr, trail)
         self.speed = float(speed)
         g = self.geometry
@@ -720,30 +721,6 @@ class FrameRenderer:
 # validation
 
 
-def _positive_number(name: str, value) -> float:
-    try:
-        if isinstance(value, bool):
-            raise TypeError
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a positive number, got {value!r}") from None
-    if not math.isfinite(x) or x <= 0.0:
-        raise ParameterError(f"{name} must be a positive number, got {value!r}")
-    return x
-
-
-def _nonneg_number(name: str, value) -> float:
-    try:
-        if isinstance(value, bool):
-            raise TypeError
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number >= 0 [s], got {value!r}") from None
-    if not math.isfinite(x) or x < 0.0:
-        raise ParameterError(f"{name} must be a number >= 0 [s], got {value!r}")
-    return x
-
-
 def _view(view) -> Tuple[float, float]:
     try:
         elev, azim = (float(v) for v in view)
@@ -787,10 +764,6 @@ def check_output(out) -> Path:
     from ..io import check_output_path
 
     return check_output_path(out, SUFFIXES, option="animation output")
-
-
-def _tmp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.skewpend-{os.getpid()}.tmp")
 
 
 # --------------------------------------------------------------------------------------------
@@ -886,18 +859,17 @@ def animate(
     Ctrl-C the temporary file is removed and ``out`` is untouched.  Returns ``Path(out)``.
     """
     path = check_output(out)
-    fps = _positive_number("fps", fps)
-    speed = _positive_number("speed", speed)
+    fps = checks.positive("fps", fps)
+    speed = checks.positive("speed", speed)
     w, h = _frame_size(size)
     fmt = path.suffix.lower()
     if fmt == ".mp4" and (w % 2 or h % 2):
         raise ParameterError(f"MP4 (H.264, yuv420p) needs an even width and height, got {w}x{h}")
-    if progress is not None and not callable(progress):
-        raise ParameterError("progress must be a callable progress(done, total)")
+    checks.progress_callable(progress)
     if view is not None:
         view = _view(view)
-    _positive_number("dpi", dpi)
-    _nonneg_number("trail", trail)
+    checks.positive("dpi", dpi)
+    checks.finite_seconds("trail", trail)
     if fmt == ".mp4":
         _ffmpeg()
     if not getattr(tr, "kept", True):
@@ -914,26 +886,16 @@ def animate(
             if progress is not None:
                 progress(k + 1, total)
 
-    tmp = _tmp_name(path)
     try:
-        if fmt == ".mp4":
-            _write_mp4(tmp, frames(), (w, h), fps)
-        else:
-            sample = []
-            for k in sorted({0, total // 3, (2 * total) // 3, total - 1}):  # for the palette
-                renderer.draw(k)
-                sample.append(renderer.rgb())
-            sample = np.concatenate(sample, axis=0)
-            _write_gif(tmp, frames(), fps, sample)
-        mask = os.umask(0o022)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            if fmt == ".mp4":
+                _write_mp4(tmp, frames(), (w, h), fps)
+            else:
+                sample = []
+                for k in sorted({0, total // 3, (2 * total) // 3, total - 1}):  # for the palette
+                    renderer.draw(k)
+                    sample.append(renderer.rgb())
+                _write_gif(tmp, frames(), fps, np.concatenate(sample, axis=0))
     finally:
-        if tmp.exists():
-            try:
-                tmp.unlink()
-            except OSError:  # pragma: no cover
-                pass
         renderer.close()
     return path
