@@ -176,7 +176,7 @@ def test_max_steps_refused_up_front_with_an_estimate(tmp_path):
     proc = run(cli("simulate", "--t-end", "1e9"), cwd=tmp_path)
     assert proc.returncode == 2 and time.monotonic() - t0 < 30
     line = proc.stderr.strip()
-    assert line.startswith("skewpend: error: t_end (--t-end) = 1e+09 s needs about") and "max_steps (--max-steps) = 100000000" in line
+    assert line.startswith("skewpend: error: t_end = 1e+09 s needs about") and "max_steps (--max-steps) = 100000000" in line
     proc = run(cli("simulate", "--method", "rk4", "--t-end", "100", "--max-steps", "1000"), cwd=tmp_path)
     assert proc.returncode == 2 and "1e+05 steps exceeds the cap max_steps (--max-steps) = 1000" in proc.stderr
     assert list(tmp_path.iterdir()) == []

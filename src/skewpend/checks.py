@@ -12,14 +12,13 @@ The defaults that several computations share are here too: :data:`MAX_STEPS` and
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Any, Callable, Optional, Tuple
-
-import numpy as np
 
 from .errors import NotNumericError, ParameterError
 
 __all__ = [
-    "MAX_STEPS", "MAX_STEPS_LIMIT", "DEFAULT_TOL", "numeric_params", "tolerances", "max_steps", "whole", "positive",
+    "MAX_STEPS", "MAX_STEPS_LIMIT", "DEFAULT_TOL", "RTOL_MIN", "ATOL_MIN", "numeric_params", "tolerances", "max_steps", "whole", "positive",
     "progress_callable", "flag",
 ]
 
@@ -29,6 +28,8 @@ MAX_STEPS = 100_000_000
 MAX_STEPS_LIMIT = 10**15
 #: Default relative and absolute tolerance of the adaptive integrators.
 DEFAULT_TOL = 1e-10
+#: The smallest tolerances: rtol at machine precision, atol far below any state's scale.
+RTOL_MIN, ATOL_MIN = 1e-15, 1e-300
 
 
 def numeric_params(params, what: str):
@@ -61,7 +62,7 @@ def tolerances(rtol, atol, *, default: float = DEFAULT_TOL) -> Tuple[float, floa
     precision) to 1, atol from 1e-300 to 1."""
     rtol = default if rtol is None else positive("rtol", rtol)
     atol = default if atol is None else positive("atol", atol)
-    if not (1e-15 <= rtol <= 1.0 and 1e-300 <= atol <= 1.0):
+    if not (RTOL_MIN <= rtol <= 1.0 and ATOL_MIN <= atol <= 1.0):
         raise ParameterError(f"rtol must be from 1e-15 (machine precision) to 1 and atol from 1e-300 to 1, got "
                              f"rtol={rtol:g}, atol={atol:g}")
     return rtol, atol
@@ -70,7 +71,7 @@ def tolerances(rtol, atol, *, default: float = DEFAULT_TOL) -> Tuple[float, floa
 def whole(name: str, value: Any, lo: int, hi: int, *, what: str = "") -> int:
     """``value`` as an int from ``lo`` to ``hi`` (a bool, a float or a string is refused)."""
     unit = f" ({what})" if what else ""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):  # NumPy's integers too
         raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {value!r}")
     if not lo <= value <= hi:
         raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {value}")

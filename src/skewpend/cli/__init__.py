@@ -121,8 +121,8 @@ def locate(message: str, command: Optional[str] = None, options: Any = (), param
     One that begins with a parameter's name is led by its option or run-file key
     (``max_steps must be ...`` -> ``--max-steps: max_steps must be ...``; ``store: ...`` ->
     ``--out: ...``); a parameter named further on gets its option beside it (``use a larger
-    dt_out`` -> ``use a larger dt_out (--dt-out)``); ``parameter`` (an error's own ``parameter``)
-    leads when the text does not name it.  ``options`` are the command's option names;
+    dt_out`` -> ``use a larger dt_out (--dt-out)``); an error's own ``parameter`` gets its option
+    beside it where the text names it (and only it), else leads.  ``options`` are the command's option names;
     a message that already names an option (``--``) or a run file is left as it is."""
     from .options import LOCATIONS
 
@@ -138,10 +138,12 @@ def locate(message: str, command: Optional[str] = None, options: Any = (), param
         return found
 
     m = _NAMED.match(message)
-    named_later = parameter is not None and re.search(rf"\b{re.escape(parameter)}\b", message) is not None
-    if parameter is not None and not (m and m.group(1) == parameter) and not named_later:  # named by the error only
-        lead = where(parameter)
-        return f"{lead}: {_SNAKE.sub(lambda s: s.group(1), message)}" if lead else message
+    if parameter is not None and not (m and m.group(1) == parameter):  # the error's parameter, not the first word
+        flag = where(parameter)
+        named = rf"\b{re.escape(parameter)}\b(?= = | must\b)"  # the text names it as a parameter: the flag beside it
+        if flag and re.search(named, message):
+            return re.sub(named, f"{parameter} ({flag})", message, count=1)
+        return f"{flag}: {message}" if flag else message
     lead = where(m.group(1)) if m else None
     rest = message[m.end():] if lead else message
     seen = set()

@@ -18,6 +18,7 @@ from typing import Annotated, Any, Dict, Optional
 import typer
 
 from . import types as T
+from ..checks import ATOL_MIN, RTOL_MIN
 
 _P = "Model parameters (a number, or 'sym' for symbolic; default symbolic)"
 _G = "General bodies and axes (default: the specification's thin rods)"
@@ -69,8 +70,8 @@ class Method(str, Enum):
 #: The integrator (simulate, animate, report).
 INTEGRATION: Dict[str, Any] = {
     "method": Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=RUN)],
-    "rtol": option("--rtol", T.Positive(), "relative tolerance, dop853 only (default 1e-10)"),
-    "atol": option("--atol", T.Positive(), "absolute tolerance, dop853 only (default 1e-10)"),
+    "rtol": option("--rtol", T.Positive(at_least=RTOL_MIN), "relative tolerance, dop853 only (default 1e-10)"),
+    "atol": option("--atol", T.Positive(at_least=ATOL_MIN), "absolute tolerance, dop853 only (default 1e-10)"),
     "dt": option("--dt", T.Positive("number of seconds"), "step [s], rk4 and gauss only (default 1e-3)"),
     "max_steps": option("--max-steps", T.Whole(1, 10**15), "refuse or stop a run that needs more steps (default 1e8)"),
 }
@@ -79,8 +80,8 @@ INTEGRATION: Dict[str, Any] = {
 def tolerances(default: str) -> Dict[str, Any]:
     """rtol and atol of the DOP853-only analyses (``default`` is the library's, for the help)."""
     return {
-        "rtol": option("--rtol", T.Positive(), f"relative tolerance of DOP853 (default {default})"),
-        "atol": option("--atol", T.Positive(), f"absolute tolerance of DOP853 (default {default})"),
+        "rtol": option("--rtol", T.Positive(at_least=RTOL_MIN), f"relative tolerance of DOP853 (default {default})"),
+        "atol": option("--atol", T.Positive(at_least=ATOL_MIN), f"absolute tolerance of DOP853 (default {default})"),
     }
 
 

@@ -65,18 +65,20 @@ class Positive(ParamType):
     angle = False
     strict = True  # > 0; NonNegative: >= 0
 
-    def __init__(self, what: str = "number", *, at_most: Optional[float] = None) -> None:
+    def __init__(self, what: str = "number", *, at_most: Optional[float] = None, at_least: Optional[float] = None) -> None:
         self.what = what
         self.at_most = at_most
+        self.at_least = sys.float_info.min if at_least is None else at_least
 
     def convert(self, text, flag):
         value = parse_scalar(text, flag, angle=self.angle)
         sign = "positive" if self.strict else "non-negative"
         if value is None or not (value > 0 if self.strict else value >= 0):
             raise UsageError(f"{flag}: expected a {sign} {self.what}{'' if self.strict else ' (>= 0)'}, got {text!r}")
-        if 0 < value < sys.float_info.min:  # subnormal: the compiled code may flush it to 0
-            raise UsageError(f"{flag}: expected a {sign} {self.what} of at least {sys.float_info.min:.3g} (the "
-                             f"smallest normal float){'' if self.strict else ' or 0'}, got {text!r}")
+        if 0 < value < self.at_least:  # by default subnormal: the compiled code may flush it to 0
+            least = "the smallest normal float" if self.at_least == sys.float_info.min else ""
+            raise UsageError(f"{flag}: expected a {sign} {self.what} of at least {self.at_least:.3g}"
+                             f"{f' ({least})' if least else ''}{'' if self.strict else ' or 0'}, got {text!r}")
         if self.at_most is not None and value > self.at_most:
             raise UsageError(f"{flag}: expected a {sign} {self.what} of at most {self.at_most:g}, got {text!r}")
         return abs(value)  # -0 is 0

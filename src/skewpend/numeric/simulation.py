@@ -255,8 +255,8 @@ def simulate(
         n_float = t_end / step
         if n_float > max_steps:
             raise ParameterError(
-                f"t_end/dt = {n_float:.4g} steps exceeds the cap max_steps = {max_steps}; use a larger dt, a shorter t_end or raise the cap"
-            )
+                f"t_end/dt = {n_float:.4g} steps exceeds the cap max_steps = {max_steps}; use a larger dt, a shorter t_end or raise the cap",
+                parameter="max_steps")
         nsteps = int(round(n_float))
         if abs(nsteps * step - t_end) > 1e-9 * t_end:
             raise ParameterError(f"t_end ({t_end:g}) must be a whole number of steps dt ({step:g})")
