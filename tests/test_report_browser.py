@@ -87,16 +87,22 @@ def opened(request, browser, tmp_path_factory):
     page.evaluate("document.fonts.ready.then(() => true)")
     page.wait_for_function("(() => { const v = document.querySelector('video'); return v && (v.readyState >= 2 || v.error); })()",
                            timeout=20000)
-    # each section cut from a full-page screenshot by its box in page coordinates (an element
-    # screenshot would scroll to it and wait for animation frames, which a busy headless browser
-    # playing the report's video may hold back for longer than any timeout)
+    # the video paused (a headless browser playing it may hold back the frames a screenshot waits
+    # for), then ONE full-page screenshot, each section cut from it by its box in page
+    # coordinates (a screenshot per section made a slow machine time out)
+    page.evaluate("document.querySelectorAll('video').forEach(v => v.pause())")
     boxes = page.evaluate("""() => Array.from(document.querySelectorAll('section.report-section')).map(s => {
         const r = s.getBoundingClientRect();
         return {id: s.id, x: r.left + window.scrollX, y: r.top + window.scrollY, width: r.width, height: r.height}; })""")
-    for b in boxes:
-        page.screenshot(path=str(folder / f"{b['id']}.png"), full_page=True,
-                        clip={"x": b["x"], "y": b["y"], "width": b["width"], "height": b["height"]})
-    page.query_selector("nav.toc").screenshot(path=str(folder / "contents.png"))
+    whole = folder / "page.png"
+    page.screenshot(path=str(whole), full_page=True, animations="disabled", timeout=120000)
+    from PIL import Image
+
+    with Image.open(whole) as shot:
+        for b in boxes:
+            box = (round(b["x"]), round(b["y"]), round(b["x"] + b["width"]), round(b["y"] + b["height"]))
+            shot.crop(box).save(folder / f"{b['id']}.png")
+    page.query_selector("nav.toc").screenshot(path=str(folder / "contents.png"), animations="disabled", timeout=120000)
     yield page, records, folder
     page.close()
 
