@@ -34,6 +34,7 @@ import numpy as np
 from .. import checks
 from ..errors import ParameterError, SkewpendError
 from ..io import atomic_path
+from .style import parameter_text
 
 __all__ = [
     "animate",
@@ -352,10 +353,6 @@ def _deg_wrapped(angle: float) -> float:
     return d - 360.0 if d > 180.0 else d
 
 
-def _fmt(x: float) -> str:
-    return f"{x:.4g}"
-
-
 def _alpha_is_skew(params) -> bool:
     """Whether ``alpha`` is the angle between the hinge axes (default axes ``k`` and ``e0(alpha)``)."""
     return (getattr(params, "alpha", None) is not None and getattr(params, "axis1", None) is None
@@ -376,22 +373,8 @@ def _title(params, skew: float) -> Tuple[str, str]:
         line1 = f"Double pendulum with skewed hinge axes:  α = {math.degrees(skew):.4g}°"
     else:
         line1 = f"Double pendulum with skewed hinge axes:  ∠(n₁, e) = {math.degrees(skew):.4g}°"
-    parts = [
-        f"a = {_fmt(params.a)} m",
-        f"b = {_fmt(params.b)} m",
-        f"m₁ = {_fmt(params.m1)} kg",
-        f"m₂ = {_fmt(params.m2)} kg",
-        f"g = {_fmt(params.g)} m/s²",
-    ]
-    for name, label, unit in (("c1", "c₁", "N m s"), ("c2", "c₂", "N m s"), ("tau1", "τ₁", "N m"), ("tau2", "τ₂", "N m")):
-        value = getattr(params, name, 0.0) or 0.0
-        if float(value) != 0.0:
-            parts.append(f"{label} = {_fmt(value)} {unit}")
-    if any(getattr(params, n, None) is not None for n in ("com1", "com2", "inertia1", "inertia2")):
-        parts.append("general bodies")
-    if getattr(params, "alpha", None) is not None and not _alpha_is_skew(params):
-        parts.append(f"α = {math.degrees(float(params.alpha)):.4g}°")
-    return line1, ",  ".join(parts)
+    skip = ("alpha",) if _alpha_is_skew(params) else ()  # then alpha is in the first line
+    return line1, parameter_text(params, skip=skip, symbols=True, sep=",  ")
 
 
 class FrameRenderer:

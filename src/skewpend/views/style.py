@@ -98,10 +98,16 @@ def _vec(v) -> str:
     return "(" + ", ".join(fmt(c, 3) for c in v) + ")"
 
 
-def parameter_text(params, *, skip: tuple = ()) -> str:
+#: The parameters' names as a picture's text writes them (``symbols=True``).
+SYMBOLS = {"m1": "m₁", "m2": "m₂", "alpha": "α", "c1": "c₁", "c2": "c₂", "tau1": "τ₁", "tau2": "τ₂"}
+
+
+def parameter_text(params, *, skip: tuple = (), symbols: bool = False, sep: str = ", ") -> str:
     """The parameters as ``a = 1 m, b = 0.8 m, m1 = 1 kg, m2 = 0.7 kg, alpha = 34.38°, g = 9.81 m/s²``,
     then damping and torques if non-zero and any general body or axis that was given.
-    Names are those of :class:`skewpend.Parameters` and the command-line options."""
+    Names are those of :class:`skewpend.Parameters` and the command-line options, or with
+    ``symbols`` the mathematical symbols (``m₁``, ``α``, ``τ₁``: an animation's title); ``sep``
+    joins the parts."""
     d = params.to_dict()
     parts: List[str] = []
     units = {"a": "m", "b": "m", "m1": "kg", "m2": "kg", "g": "m/s²", "c1": "N m s", "c2": "N m s", "tau1": "N m", "tau2": "N m"}
@@ -111,19 +117,20 @@ def parameter_text(params, *, skip: tuple = ()) -> str:
             continue
         if name in ("c1", "c2", "tau1", "tau2") and value == 0:
             continue
+        label = SYMBOLS.get(name, name) if symbols else name
         if isinstance(value, str):  # left symbolic
-            parts.append(f"{name} = {value}")
+            parts.append(f"{label} = {value}")
         elif name == "alpha":
-            parts.append(f"alpha = {fmt(math.degrees(value))}°")
+            parts.append(f"{label} = {fmt(math.degrees(value))}°")
         else:
-            parts.append(f"{name} = {fmt(value)} {units[name]}")
+            parts.append(f"{label} = {fmt(value)} {units[name]}")
     for name in ("axis1", "axis2"):
         if d.get(name) is not None and name not in skip:
             parts.append(f"{name} = {_vec(d[name])}")
     custom = [n for n in ("com1", "com2", "inertia1", "inertia2") if d.get(n) is not None]
     if custom:
         parts.append("custom " + ", ".join(custom))
-    return ", ".join(parts)
+    return sep.join(parts)
 
 
 def settings_text(method: str, settings: Mapping[str, Any]) -> str:
