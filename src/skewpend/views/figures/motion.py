@@ -1,0 +1,364 @@
+"""Figures of one trajectory (angles, speeds, energy balance, phase portraits, the torus, the rod
+ends in 3D, the whole simulation) and of a parameter sweep of the normal modes."""
+
+from __future__ import annotations
+
+import math
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+from ...errors import ParameterError
+from ..style import COLORS, SYMBOL, caption, fmt, style, sweep_caption
+from .base import ENERGY_FLOOR, TWO_PI, heading, new_figure, wrap_angle
+
+__all__ = ["angles_figure", "phase_figure", "energy_figure", "torus_figure", "tips_figure", "simulation_figure",
+           "plot_sweep", "wrapped_path", "tips_view"]
+
+
+def _check(tr) -> None:
+    if not getattr(tr, "kept", True):
+        raise ParameterError(
+            "this trajectory kept only its first and last rows (simulate(..., keep=False)); figures need "
+            "every row: simulate with keep=True (the default) to plot it"
+        )
+    if len(tr.t) < 2:
+        raise ParameterError(f"a figure needs at least two rows of the trajectory, it has {len(tr.t)}")
+
+
+def _cell(p: np.ndarray, wrap: np.ndarray) -> np.ndarray:
+    """Which copy of the square a point (unwrapped coordinates) lies in: k with p = wrapped + 2 pi k."""
+    k = np.zeros_like(p)
+    k[..., wrap] = np.round((p[..., wrap] - wrap_angle(p[..., wrap])) / TWO_PI)
+    return k
+
+
+def wrapped_path(columns: Sequence[np.ndarray], wrap: Sequence[bool]) -> np.ndarray:
+    """A path for drawing on the torus (or the cylinder of a phase portrait).
+
+    ``columns`` are continuous coordinates (radians for the wrapped ones); the columns with
+    ``wrap`` true are wrapped to (-pi, pi].  Where the path leaves the square it is cut: the
+    crossing point on the edge (linearly interpolated between the two rows) ends one piece,
+    a row of NaN breaks the line, and the same point on the opposite edge starts the next --
+    so no drawn segment jumps across the square.  Returns an array (m, len(columns)), m >= n.
+    """
+    P = np.column_stack([np.asarray(c, dtype=float) for c in columns])
+    W = np.asarray(wrap, dtype=bool)
+    K = _cell(P, W)
+    jumps = np.nonzero(np.any(np.diff(K, axis=0) != 0, axis=1))[0]
+    if len(jumps) == 0:
+        return P - TWO_PI * K
+    nan_row = np.full((1, P.shape[1]), np.nan)
+    pieces: List[np.ndarray] = []
+    start = 0
+    for i in jumps:
+        pieces.append(P[start : i + 1] - TWO_PI * K[start : i + 1])
+        a, b = P[i], P[i + 1]
+        crossings = []
+        for j in np.nonzero(W)[0]:
+            if b[j] == a[j]:
+                continue
+            lo, hi = min(a[j], b[j]), max(a[j], b[j])
+            for m in range(math.ceil((lo - math.pi) / TWO_PI), math.floor((hi - math.pi) / TWO_PI) + 1):
+                crossings.append((math.pi + TWO_PI * m - a[j]) / (b[j] - a[j]))
+        crossings.sort()
+        bounds = [0.0, *crossings, 1.0]
+        for n, s in enumerate(crossings):
+            c = a + s * (b - a)
+            before = _cell(a + 0.5 * (bounds[n] + s) * (b - a), W)
+            after = _cell(a + 0.5 * (s + bounds[n + 2]) * (b - a), W)
+            if np.array_equal(before, after):
+                continue
+            pieces += [(c - TWO_PI * before)[None], nan_row, (c - TWO_PI * after)[None]]
+        start = i + 1
+    pieces.append(P[start:] - TWO_PI * K[start:])
+    return np.concatenate(pieces)
+
+
+def _legend_above(ax) -> None:
+    """The legend in one row above the axes' top right corner (the title is on the left)."""
+    n = len(ax.get_legend_handles_labels()[1])
+    ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=max(n, 1), frameon=False, borderaxespad=0.2,
+              handlelength=1.6, columnspacing=1.2)
+
+
+def _thin(n: int, lw: float = 0.8) -> dict:
+    """Line width and opacity for a path of n rows drawn over itself: thinner and lighter for
+    long runs, so a dense region still shows its structure instead of a solid blot."""
+    if n <= 5000:
+        return {"lw": lw}
+    return {"lw": max(0.12, lw * math.sqrt(5000 / n)), "alpha": 0.6}
+
+
+def _turn_ticks(axis, values) -> None:
+    """Ticks at multiples of 90, 180, 360, ... degrees when an angle spans more than half a turn."""
+    from matplotlib.ticker import MultipleLocator
+
+    finite = np.asarray(values)[np.isfinite(values)]
+    span = float(np.ptp(finite)) if finite.size else 0.0
+    if span < 180:
+        return
+    for base in (90, 180, 360, 720, 1440, 3600, 7200, 14400, 36000):
+        if span / base <= 8:
+            axis.set_major_locator(MultipleLocator(base))
+            return
+
+
+def _angle_ticks(ax, which: str) -> None:
+    from matplotlib.ticker import MultipleLocator
+
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    axis.set_major_locator(MultipleLocator(90))
+    axis.set_minor_locator(MultipleLocator(30))
+
+
+# -- panels (draw into a given Axes) -------------------------------------------------------------
+def _draw_angles(ax, tr) -> None:
+    phi, psi = np.degrees(np.unwrap(tr.y[:, 0])), np.degrees(np.unwrap(tr.y[:, 1]))
+    ax.plot(tr.t, phi, color=COLORS["phi"], label=f"{SYMBOL['phi']} (hinge 1)")
+    ax.plot(tr.t, psi, color=COLORS["psi"], label=f"{SYMBOL['psi']} (hinge 2)")
+    _turn_ticks(ax.yaxis, np.concatenate([phi, psi]))
+    ax.set_ylabel("angle [deg]")
+    ax.set_title("Hinge angles (unwrapped)", loc="left")
+    _legend_above(ax)
+    ax.set_xlim(tr.t[0], tr.t[-1])
+
+
+def _draw_speeds(ax, tr) -> None:
+    ax.plot(tr.t, tr.y[:, 2], color=COLORS["phi"], label=SYMBOL["dphi"])
+    ax.plot(tr.t, tr.y[:, 3], color=COLORS["psi"], label=SYMBOL["dpsi"])
+    ax.set_ylabel("angular speed [rad/s]")
+    ax.set_title("Angular speeds", loc="left")
+    _legend_above(ax)
+    ax.set_xlim(tr.t[0], tr.t[-1])
+
+
+def _energy_error(tr):
+    scale = float(np.max(np.abs(tr.energy)))
+    err = np.abs(tr.energy - tr.work - tr.energy[0])
+    return (err / scale, True) if scale > 0 else (err, False)
+
+
+def _draw_energy(ax, tr) -> None:
+    err, relative = _energy_error(tr)
+    shown = np.maximum(err, ENERGY_FLOOR)
+    ax.plot(tr.t, shown, color=COLORS["energy"], lw=0.9, label="error at each row")
+    ax.set_yscale("log")
+    drift = float(tr.energy_drift)
+    if drift > 0 and math.isfinite(drift):
+        ax.axhline(drift, color=COLORS["reference"], lw=0.9, ls="--", label=f"reported energy_drift = {fmt(drift, 3)}")
+    else:
+        ax.plot([], [], ls="none", label=f"reported energy_drift = {fmt(drift, 3)}")
+    n_floor = int(np.count_nonzero(err < ENERGY_FLOOR))
+    if n_floor:
+        what = "row" if n_floor == 1 else "rows"
+        ax.text(
+            0.99, 0.03, f"{n_floor} {what} below {fmt(ENERGY_FLOOR)} (e.g. 0 at t = 0) drawn at {fmt(ENERGY_FLOOR)}",
+            transform=ax.transAxes, ha="right", va="bottom", fontsize=7.5, color="0.35",
+        )
+    if relative:
+        ax.set_ylabel(r"$|E - W - E_0|\,/\,\max|E|$ [1]")
+        ax.set_title("Energy error (W: work of damping and torques)", loc="left")
+    else:
+        ax.set_ylabel(r"$|E - W - E_0|$ [J]")
+        ax.set_title("Energy error, absolute (E = 0 throughout)", loc="left")
+    ax.set_xlabel("t [s]")
+    ax.set_xlim(tr.t[0], tr.t[-1])
+    ax.legend(loc="lower left", bbox_to_anchor=(0.015, 0.0))
+
+
+def _draw_phase(ax, tr, k: int) -> None:
+    name, speed = ("phi", "dphi") if k == 0 else ("psi", "dpsi")
+    path = wrapped_path([np.unwrap(tr.y[:, k]), tr.y[:, k + 2]], [True, False])
+    ax.plot(np.degrees(path[:, 0]), path[:, 1], color=COLORS[name], **_thin(len(tr.t)))
+    ax.plot([math.degrees(wrap_angle(tr.y[0, k]))], [tr.y[0, k + 2]], "o", color=COLORS["start"], ms=5,
+            label="start (t = 0)", zorder=3)
+    ax.set_xlabel(f"{SYMBOL[name]} (wrapped) [deg]")
+    ax.set_ylabel(f"{SYMBOL[speed]} [rad/s]")
+    ax.set_title(f"Phase portrait, hinge {k + 1}", loc="left")
+    if np.any(np.isnan(path[:, 0])):  # it went over the top: show the whole circle
+        ax.set_xlim(-180, 180)
+        _angle_ticks(ax, "x")
+    _legend_above(ax)
+
+
+def _draw_torus(ax, tr) -> None:
+    path = np.degrees(wrapped_path([np.unwrap(tr.y[:, 0]), np.unwrap(tr.y[:, 1])], [True, True]))
+    ax.plot(path[:, 0], path[:, 1], color=COLORS["path"], **_thin(len(tr.t), 0.7))
+    ax.plot([math.degrees(wrap_angle(tr.y[0, 0]))], [math.degrees(wrap_angle(tr.y[0, 1]))], "o",
+            color=COLORS["start"], ms=5, label="start (t = 0)", zorder=3)
+    ax.set_xlim(-180, 180)
+    ax.set_ylim(-180, 180)
+    ax.set_aspect("equal")
+    _angle_ticks(ax, "x")
+    _angle_ticks(ax, "y")
+    ax.set_xlabel(f"{SYMBOL['phi']} (wrapped) [deg]")
+    ax.set_ylabel(f"{SYMBOL['psi']} (wrapped) [deg]")
+    ax.set_title("Configuration space (torus)", loc="left")
+    _legend_above(ax)
+
+
+def tips_view(tips: np.ndarray) -> np.ndarray:
+    """World rod ends ``(x1, y1, z1, x2, y2, z2)`` as drawn by :func:`tips_figure`: each end at
+    ``(x, z, -y)`` (``-y`` up, since the world's ``y`` points down)."""
+    tips = np.asarray(tips, dtype=float)
+    return np.column_stack([tips[:, 0], tips[:, 2], -tips[:, 1], tips[:, 3], tips[:, 5], -tips[:, 4]])
+
+
+def _draw_tips(ax, tr, zoom: float = 1.0) -> None:
+    from matplotlib.ticker import MaxNLocator
+
+    v = tips_view(tr.tips())
+    ax.plot(v[:, 0], v[:, 1], v[:, 2], color=COLORS["phi"], label="end of rod 1", **_thin(len(v)))
+    ax.plot(v[:, 3], v[:, 4], v[:, 5], color=COLORS["psi"], label="end of rod 2", **_thin(len(v)))
+    # the rods at t = 0 and the pivot on the first hinge axis
+    ax.plot([0, v[0, 0], v[0, 3]], [0, v[0, 1], v[0, 4]], [0, v[0, 2], v[0, 5]], color=COLORS["rods"], lw=2.2,
+            marker="o", ms=3, alpha=0.8, label="rods at t = 0")
+    ax.plot([0], [0], [0], marker="s", color="black", ms=5, ls="none", label="pivot")
+    pts = np.vstack([np.zeros((1, 3)), v[:, :3], v[:, 3:]])
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2 * 1.05, 1e-9)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1), zoom=zoom)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m]")
+    ax.set_zlabel("−y [m] (up)")
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
+    ax.view_init(elev=18, azim=-58)
+    ax.set_title("Rod ends in 3D (z: hinge 1 axis)", loc="left")
+    legend = ax.legend(loc="upper left", fontsize=7.5, bbox_to_anchor=(0.0, 0.98))
+    for handle in getattr(legend, "legend_handles", None) or legend.legendHandles:  # paths may be drawn thin
+        if handle.get_label() != "pivot":
+            handle.set_linewidth(max(handle.get_linewidth(), 1.2))
+        handle.set_alpha(1.0)
+
+
+# -- figures ------------------------------------------------------------------------------------
+def angles_figure(tr):
+    """phi and psi [deg] (unwrapped) against t [s]; below, their speeds [rad/s]."""
+    _check(tr)
+    with style():
+        fig = new_figure((8.0, 6.4))
+        ax1, ax2 = fig.subplots(2, 1, sharex=True)
+        _draw_angles(ax1, tr)
+        _draw_speeds(ax2, tr)
+        ax2.set_xlabel("t [s]")
+        heading(fig, caption(tr))
+    return fig
+
+
+def phase_figure(tr):
+    """Phase portraits (phi, dphi) and (psi, dpsi): angle wrapped to (-180, 180] [deg], speed [rad/s]."""
+    _check(tr)
+    with style():
+        fig = new_figure((10.0, 4.9))
+        ax1, ax2 = fig.subplots(1, 2)
+        _draw_phase(ax1, tr, 0)
+        _draw_phase(ax2, tr, 1)
+        heading(fig, caption(tr))
+    return fig
+
+
+def energy_figure(tr):
+    """The energy error ``|E - W - E0| / max|E|`` on a log scale against t, the reported
+    ``energy_drift`` as a dashed line; values below :data:`ENERGY_FLOOR` drawn at it (said so)."""
+    _check(tr)
+    with style():
+        fig = new_figure((8.0, 4.4))
+        ax = fig.subplots()
+        _draw_energy(ax, tr)
+        heading(fig, caption(tr))
+    return fig
+
+
+def torus_figure(tr):
+    """The path in configuration space: (phi, psi) wrapped to (-180, 180] [deg] on the square
+    whose opposite edges are identified (a torus), cut where it wraps."""
+    _check(tr)
+    with style():
+        fig = new_figure((6.4, 6.9))
+        ax = fig.subplots()
+        _draw_torus(ax, tr)
+        heading(fig, caption(tr))
+    return fig
+
+
+def tips_figure(tr):
+    """The paths of both rod ends in 3D [m], the rods at t = 0 and the pivot; world ``(x, y, z)``
+    drawn at ``(x, z, -y)`` (see :func:`tips_view`) so the pendulum hangs down; equal scales."""
+    _check(tr)
+    with style():
+        fig = new_figure((7.0, 7.3))
+        ax = fig.add_subplot(projection="3d")
+        _draw_tips(ax, tr)
+        heading(fig, caption(tr))
+    return fig
+
+
+def simulation_figure(tr):
+    """Everything in one figure (for ``skewpend simulate --plot``): angles, speeds and the
+    energy error against time on the left; the two phase portraits in the middle; the torus
+    and the 3D paths of the rod ends on the right."""
+    _check(tr)
+    with style():
+        fig = new_figure((17.0, 10.0))
+        left, middle, right = fig.subfigures(1, 3, width_ratios=[1.55, 1.0, 1.0], wspace=0.01)
+        a1, a2, a3 = left.subplots(3, 1, sharex=True)
+        _draw_angles(a1, tr)
+        _draw_speeds(a2, tr)
+        _draw_energy(a3, tr)
+        p1, p2 = middle.subplots(2, 1)
+        torus = right.add_subplot(2, 1, 1)
+        tips = right.add_subplot(2, 1, 2, projection="3d")
+        _draw_phase(p1, tr, 0)
+        _draw_phase(p2, tr, 1)
+        _draw_torus(torus, tr)
+        _draw_tips(tips, tr, zoom=0.88)  # room for the tick and axis labels in the small panel
+        heading(fig, caption(tr))
+    return fig
+
+
+def plot_sweep(sw, *, title: Optional[str] = None):
+    """Frequencies and mode-shape directions along a :class:`~skewpend.modes.Sweep`.
+
+    Top: ``w1, w2`` [rad/s] against the swept variable (degrees for alpha), internal
+    resonances marked.  Bottom: the direction of each mode shape in the (phi, psi) plane
+    [deg] (modulo 180, unwrapped), which shows how the modes turn at a veering without the
+    infinite ``psi/phi`` ratios of a mode where phi stands still.
+    """
+    if sw.name == "alpha":
+        x, xlabel = np.degrees(sw.values), r"$\alpha$ [deg]"
+    else:
+        unit = sw.units().get(sw.name, "")
+        x, xlabel = np.asarray(sw.values, dtype=float), f"{sw.name} [{unit or '1'}]"
+    with style():
+        fig = new_figure((7.5, 7.0))
+        ax1, ax2 = fig.subplots(2, 1, sharex=True)
+        ax1.plot(x, sw.frequencies[:, 0], label=r"$\omega_1$ (lower mode)", color=COLORS["phi"])
+        ax1.plot(x, sw.frequencies[:, 1], label=r"$\omega_2$ (upper mode)", color=COLORS["psi"])
+        for r in sw.resonances:
+            xv = math.degrees(r.value) if sw.name == "alpha" else r.value
+            ax1.axvline(xv, color=COLORS["reference"], lw=0.8, ls="--")
+            ax1.annotate(f"{r.order}:1", (xv, 1.0), xycoords=ax1.get_xaxis_transform(), textcoords="offset points",
+                         xytext=(3, -12), fontsize=8, color="0.3")
+        ax1.set_ylabel("natural frequency [rad/s]")
+        ax1.set_title("Natural frequencies (dashed: internal resonances " + r"$\omega_2 = n\,\omega_1$)", loc="left")
+        ax1.legend(loc="best")
+        # a mode shape is a direction: defined modulo 180 deg; unwrap to continuous curves
+        angle = np.degrees(np.arctan2(sw.shapes[:, 1, :], sw.shapes[:, 0, :]))
+        angle = np.unwrap((angle + 90.0) % 180.0 - 90.0, period=180.0, axis=0)
+        ax2.plot(x, angle[:, 0], color=COLORS["phi"], label="mode 1")
+        ax2.plot(x, angle[:, 1], color=COLORS["psi"], label="mode 2")
+        ax2.set_ylabel(f"direction in the ({SYMBOL['phi']}, {SYMBOL['psi']}) plane [deg]")
+        ax2.set_title(f"Mode shapes: direction of ({SYMBOL['phi']}, {SYMBOL['psi']}), modulo 180°", loc="left")
+        ax2.set_xlabel(xlabel)
+        if len(x) > 1 and x[0] != x[-1]:
+            ax2.set_xlim(x[0], x[-1])
+        ax2.legend(loc="best")
+        text = sweep_caption(sw)
+        heading(fig, f"{title}\n{text}" if title else text)
+    return fig
