@@ -13,7 +13,7 @@ import skewpend
 from skewpend.views.animation import (
     DEFAULT_VIEW,
     FrameRenderer,
-    _eye,
+    eye,
     animate,
     choose_view,
     frame_scene,
@@ -185,13 +185,13 @@ def test_camera_does_not_look_along_a_hinge_axis():
         e0 = np.array([math.sin(alpha), 0.0, math.cos(alpha)])
         elev, azim = choose_view([0.0, 0.0, 1.0], e0)
         assert (elev, azim) == DEFAULT_VIEW
-        eye = plot_to_world(_eye(elev, azim))
+        seen_from = plot_to_world(eye(elev, azim))
         for axis in (np.array([0.0, 0.0, 1.0]), e0):
-            assert math.degrees(math.acos(abs(eye @ axis))) >= 30.0 - 1e-9
+            assert math.degrees(math.acos(abs(seen_from @ axis))) >= 30.0 - 1e-9
     # a first axis along the default line of sight gets another view
-    n1 = plot_to_world(_eye(*DEFAULT_VIEW))
+    n1 = plot_to_world(eye(*DEFAULT_VIEW))
     elev, azim = choose_view(n1, [0.0, 0.0, 1.0])
-    assert math.degrees(math.acos(abs(plot_to_world(_eye(elev, azim)) @ n1))) >= 30.0
+    assert math.degrees(math.acos(abs(plot_to_world(eye(elev, azim)) @ n1))) >= 30.0
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,0 +1,380 @@
+"""The renderer: every frame of one trajectory drawn on one reused Matplotlib 3-D figure."""
+
+from __future__ import annotations
+
+import math
+from typing import Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ... import checks
+from ...errors import SkewpendError
+from ..style import parameter_text
+from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, HEAD_LENGTH, HEAD_RADIUS, LABEL_GAP, ROD_RADIUS,
+                    SCENE_COLORS, FrameScene, Geometry, check_frame_size, check_view, choose_view, cone, cylinder, eye,
+                    unit, world_to_plot)
+
+# --------------------------------------------------------------------------------------------
+# the renderer
+
+
+def _figure_module():
+    try:
+        import matplotlib  # noqa: F401
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise SkewpendError("animations need matplotlib (a dependency of skewpend): pip install matplotlib") from None
+    return Figure, FigureCanvasAgg
+
+
+def _deg_wrapped(angle: float) -> float:
+    d = math.degrees(angle) % 360.0
+    return d - 360.0 if d > 180.0 else d
+
+
+def _alpha_is_skew(params) -> bool:
+    """Whether ``alpha`` is the angle between the hinge axes (default axes ``k`` and ``e0(alpha)``)."""
+    return (getattr(params, "alpha", None) is not None and getattr(params, "axis1", None) is None
+            and getattr(params, "axis2", None) is None)
+
+
+def _skew_angle(params, axes: np.ndarray) -> float:
+    """The skew angle [rad]: ``alpha`` for the default axes, else the angle between the axes,
+    which every row keeps (``e = P1 . e0`` turns about ``n1``, so ``n1 . e`` is constant)."""
+    if _alpha_is_skew(params):
+        return float(params.alpha)
+    c = float(np.clip(np.dot(axes[0, 0:3], axes[0, 3:6]), -1.0, 1.0))
+    return math.acos(c)
+
+
+def _title(params, skew: float) -> Tuple[str, str]:
+    if _alpha_is_skew(params):
+        line1 = f"Double pendulum with skewed hinge axes:  α = {math.degrees(skew):.4g}°"
+    else:
+        line1 = f"Double pendulum with skewed hinge axes:  ∠(n₁, e) = {math.degrees(skew):.4g}°"
+    skip = ("alpha",) if _alpha_is_skew(params) else ()  # then alpha is in the first line
+    return line1, parameter_text(params, skip=skip, symbols=True, sep=",  ")
+
+
+class FrameRenderer:
+    """Draws the frames of one trajectory on one reused Matplotlib figure (Agg canvas).
+
+    ``draw(k)`` draws frame ``k`` and returns its :class:`FrameScene`; ``rgb()`` gives the pixels
+    (h, w, 3) uint8.  ``fig``, ``ax`` (an ``Axes3D``) and ``artists`` are public so the drawing
+    can be inspected: ``artists["axis1"]``, ``artists["axis2"]`` are ``Line3D`` (their 3-D data is
+    the hinge axis segment in plot coordinates, :func:`world_to_plot`), ``"solids"`` the shaded rods
+    and hinge pins (``Poly3DCollection``), ``"heads"`` the arrow heads, ``"trail"``
+    (``Line3DCollection``), ``"shadows"``, ``"readout"`` (figure text), ``"axis2_label"``.
+    """
+
+    def __init__(self, tr, *, size: Sequence[int] = DEFAULT_SIZE, dpi: float = DEFAULT_DPI,
+                 trail: float = DEFAULT_TRAIL, speed: float = 1.0,
+                 view: Optional[Tuple[float, float]] = None) -> None:
+        Figure, FigureCanvasAgg = _figure_module()
+        from matplotlib.lines import Line2D
+        from matplotlib.ticker import MaxNLocator
+        import mpl_toolkits.mplot3d  # noqa: F401  (registers the 3d projection)
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+        self.size = check_frame_size(size)
+        self.dpi = checks.positive("dpi", dpi)
+        self.geometry = Geometry(tr, trail)
+        self.speed = float(speed)
+        g = self.geometry
+        # enough decimals that consecutive frames show different times
+        step = float(np.min(np.diff(g.t))) if g.t.size > 1 else 1.0
+        self.t_decimals = int(min(9, max(3, math.ceil(-math.log10(step)) + 1))) if step > 0 else 3
+        R = g.reach
+        self.radius = ROD_RADIUS * R
+        w, h = self.size
+        # a hair over the exact size, so Agg's int() truncation gives exactly w x h
+        self.fig = fig = Figure(figsize=((w + 0.01) / self.dpi, (h + 0.01) / self.dpi), dpi=self.dpi, facecolor="white")
+        self.canvas = FigureCanvasAgg(fig)
+        # text sizes in points (so dpi scales them), by default 9 pt at 640 x 480 and 100 dpi
+        small = max(5.0, min(9.0, 9.0 * min(w / 640.0, h / 480.0)))
+        self.fontsize = small
+        renderer = self.canvas.get_renderer()
+        px = lambda artist: artist.get_window_extent(renderer)  # noqa: E731
+
+        def fit_width(text, limit=0.98 * w):
+            for _ in range(4):  # shrink a line that is wider than the frame
+                width = px(text).width
+                if width <= limit:
+                    break
+                text.set_fontsize(text.get_fontsize() * limit / width * 0.99)
+
+        # title and parameters (static), shrunk to the frame's width
+        self.skew = _skew_angle(tr.params, g.axes)
+        self.uses_alpha = _alpha_is_skew(tr.params)
+        line1, line2 = _title(tr.params, self.skew)
+        pad = 3.0 / h
+        title = fig.text(0.5, 1.0 - pad, line1, ha="center", va="top", fontsize=small + 2, fontweight="bold")
+        fit_width(title)
+        y2 = px(title).y0 / h - 0.3 * small / 72 * self.dpi / h
+        subtitle = fig.text(0.5, y2, line2, ha="center", va="top", fontsize=small, color="0.25")
+        fit_width(subtitle)
+        top = px(subtitle).y0 / h - pad
+
+        # legend (static) at the bottom: three columns, or two, or none if it would crowd the frame
+        # (frames narrower than 400 px have none)
+        ticks = MaxNLocator(8, steps=[1, 2, 2.5, 5, 10]).tick_values(-R, R)
+        self.grid_step = float(ticks[1] - ticks[0])
+        self._ticks = ticks[np.abs(ticks) <= R + 1e-12]
+        handles = [
+            Line2D([], [], color=SCENE_COLORS["rod1"], lw=5, solid_capstyle="round", label="rod 1 (a)"),
+            Line2D([], [], color=SCENE_COLORS["rod2"], lw=5, solid_capstyle="round", label="rod 2 (b)"),
+            Line2D([], [], color=SCENE_COLORS["axis1"], lw=2, marker=">", ms=5, label="hinge 1 axis n₁ (fixed)"),
+            Line2D([], [], color=SCENE_COLORS["axis2"], lw=2, marker=">", ms=5, label="hinge 2 axis e = P₁·e₀ (turns with rod 1)"),
+            Line2D([], [], color=SCENE_COLORS["trail"], lw=1.6, label=f"tip trail (last {g.trail:g} s)" if g.trail > 0 else "tip trail (off)"),
+            Line2D([], [], color=(0.80, 0.80, 0.83), lw=1, label=f"floor grid {self.grid_step:g} m"),
+        ]
+        bottom = pad
+        self.legend = None
+        for ncol in (3, 2) if w >= 400 else ():
+            legend = fig.legend(handles=handles, loc="lower center", ncol=ncol, fontsize=small - 0.5, frameon=False,
+                                bbox_to_anchor=(0.5, 0.0), handlelength=1.8, columnspacing=1.2, handletextpad=0.5,
+                                borderaxespad=0.3)
+            box = px(legend)
+            if box.width <= w and box.height <= 0.2 * h:
+                self.legend = legend
+                bottom = box.y1 / h
+                break
+            legend.remove()
+
+        ax = fig.add_axes((0.0, bottom, 1.0, top - bottom), projection="3d")
+        self.ax = ax
+        ax.set_proj_type("ortho")
+        ax.set_axis_off()
+        n1 = g.axes[0, 0:3]
+        # the second axis where rod 1 hangs most nearly vertical (phi nearest 0): about e0
+        hanging = int(np.argmin(np.abs(np.angle(np.exp(1j * g.y[:, 0])))))
+        self.view = check_view(view) if view is not None else choose_view(n1, g.axes[hanging, 3:6])
+        ax.view_init(elev=self.view[0], azim=self.view[1], roll=0)
+
+        # camera-fixed directions (plot coordinates) and the light
+        self.eye = eye(*self.view)
+        up = np.array([0.0, 0.0, 1.0])
+        right = unit(np.cross(up, self.eye)) if abs(self.eye[2]) < 0.999 else unit(np.cross(self.eye, [1.0, 0.0, 0.0]))
+        screen_up = np.cross(self.eye, right)
+        self.light = unit(0.9 * self.eye + 0.7 * screen_up - 0.5 * right)
+        self.half_vector = unit(self.light + self.eye)
+
+        # the floor: a grid with round spacing (the scene's scale), just below the reach
+        self.floor = -1.02 * R
+        ticks = self._ticks
+        lo, hi = float(ticks[0]), float(ticks[-1])
+        corners = [np.array([x, y, self.floor]) for x in (lo, hi) for y in (lo, hi)]
+        # the world basis i, j, k (j down) at the floor corner on the camera's left
+        corner = min(corners, key=lambda c: float(c @ right) - 0.5 * float(c @ self.eye))
+        tl = 0.22 * R
+        triad_origin = corner + np.array([0.0, 0.0, tl])
+        triad = [(world_to_plot(v), name) for v, name in (([1.0, 0.0, 0.0], "i"), ([0.0, 1.0, 0.0], "j"), ([0.0, 0.0, 1.0], "k"))]
+
+        # view limits fixed by the reach R = a + b: everything drawn (the sphere of radius R about
+        # the pivot, the floor, the triad) fills the axes; the box centre is put at the centre of
+        # that content on screen, the limits form a cube (equal scales), the zoom fits it
+        content = [R * right, -R * right, -R * screen_up] + corners
+        content += [triad_origin + 1.3 * tl * v for v, _ in triad]
+        # upwards only as far as this run's rods and hinge axes (with arrow heads, labels) reach
+        reach_axis = g.half + (HEAD_LENGTH + LABEL_GAP) * R
+        tips = world_to_plot(g.tips.reshape(-1, 2, 3))
+        e = world_to_plot(g.axes[:, 3:6])
+        moving = np.concatenate([
+            tips.reshape(-1, 3), tips[:, 0] + reach_axis * e, tips[:, 0] - reach_axis * e,
+            reach_axis * world_to_plot(g.axes[:, 0:3]), -reach_axis * world_to_plot(g.axes[:, 0:3]),
+        ])
+        content.append(moving[np.argmax(moving @ screen_up)])
+        sr = np.array([c @ right for c in content])
+        su = np.array([c @ screen_up for c in content])
+        su = np.append(su, su.max() + 0.04 * R)
+        mid_r, mid_u = 0.5 * (sr.max() + sr.min()), 0.5 * (su.max() + su.min())
+        centre = mid_r * right + (mid_u / screen_up[2]) * up if abs(screen_up[2]) > 1e-6 else mid_r * right + mid_u * screen_up
+        lim = 1.08 * R
+        ax.set_xlim(centre[0] - lim, centre[0] + lim)
+        ax.set_ylim(centre[1] - lim, centre[1] + lim)
+        ax.set_zlim(centre[2] - lim, centre[2] + lim)
+        ax.set_box_aspect((1.0, 1.0, 1.0), zoom=1.0)
+        self.canvas.draw()
+        px = self._pixels_per_metre(right, screen_up)
+        # Axes3D draws in a square box centred in its rectangle; nothing is clipped to that box
+        # (clip_on=False below), so the content may use the whole rectangle
+        rect = ax.get_position(original=True)
+        zoom = 0.97 * min(rect.width * w / (px[0] * np.ptp(sr)), rect.height * h / (px[1] * np.ptp(su)))
+        ax.set_box_aspect((1.0, 1.0, 1.0), zoom=zoom)
+        self.canvas.draw()
+        self.pixels_per_metre = float(np.mean(self._pixels_per_metre(right, screen_up)))
+
+        grid = [np.array([[v, lo, self.floor], [v, hi, self.floor]]) for v in ticks]
+        grid += [np.array([[lo, v, self.floor], [hi, v, self.floor]]) for v in ticks]
+        ax.add_collection3d(Line3DCollection(grid, colors=[(0.80, 0.80, 0.83, 1.0)], linewidths=0.6))
+        for vec, name in triad:
+            end = triad_origin + tl * vec
+            ax.plot(*np.stack([triad_origin, end]).T, color="0.45", lw=1.0)
+            lab = triad_origin + 1.3 * tl * vec
+            ax.text(lab[0], lab[1], lab[2], name, color="0.35", fontsize=small, fontstyle="italic", ha="center", va="center")
+        # roof plate at the pivot: a square in the plot's horizontal plane
+        s = 0.16 * R
+        roof = np.array([[[-s, -s, 0.0], [s, -s, 0.0], [s, s, 0.0], [-s, s, 0.0]]])
+        ax.add_collection3d(Poly3DCollection(roof, facecolors=[(*SCENE_COLORS["roof"], 0.55)], edgecolors=[(0.3, 0.3, 0.3, 0.8)], linewidths=0.6))
+
+        # moving artists (animated: left out of the cached background)
+        lw_rod = 2.0 * self.radius * self.pixels_per_metre * 72.0 / self.dpi
+        self.artists: Dict[str, object] = {}
+        self.artists["shadows"] = Line3DCollection([np.zeros((2, 3))] * 2, colors=[SCENE_COLORS["shadow"]], linewidths=max(1.0, lw_rod), capstyle="round", animated=True)
+        self.artists["trail"] = Line3DCollection([np.zeros((2, 3))], linewidths=1.6, animated=True)
+        self.artists["solids"] = Poly3DCollection(np.zeros((1, 4, 3)), linewidths=0.6, animated=True)
+        for name in ("shadows", "trail", "solids"):
+            ax.add_collection3d(self.artists[name])
+        (self.artists["axis1"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["axis1"], lw=2.0, solid_capstyle="butt", animated=True)
+        (self.artists["axis2"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["axis2"], lw=2.0, solid_capstyle="butt", animated=True)
+        self.artists["heads"] = Poly3DCollection(np.zeros((1, 4, 3)), linewidths=0.4, animated=True)
+        ax.add_collection3d(self.artists["heads"])
+        label_kw = dict(fontsize=small + 1, fontweight="bold", ha="center", va="center", animated=True)
+        self.artists["axis1_label"] = ax.text(0, 0, 0, "n₁", color=SCENE_COLORS["axis1"], **label_kw)
+        self.artists["axis2_label"] = ax.text(0, 0, 0, "e", color=SCENE_COLORS["axis2"], **label_kw)
+        (self.artists["axis1_ref"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["axis1"], lw=1.2, ls=(0, (2, 2)), alpha=0.9, animated=True)
+        (self.artists["skew_arc"],) = ax.plot([0, 0], [0, 0], [0, 0], color="0.15", lw=1.1, animated=True)
+        self.artists["skew_label"] = ax.text(0, 0, 0, "α" if self.uses_alpha else "∠", color="0.1", fontsize=small + 1, ha="center", va="center", animated=True)
+        self.artists["readout"] = fig.text(
+            0.015, top - 0.01, "", ha="left", va="top", family="DejaVu Sans Mono", fontsize=small, animated=True,
+            bbox=dict(boxstyle="round,pad=0.35", fc=(1, 1, 1, 0.85), ec="0.75", lw=0.6),
+        )
+
+        for artist in ax.get_children():
+            artist.set_clip_on(False)
+
+        # draw the static background once and cache it
+        self.canvas.draw()
+        if self.canvas.get_width_height() != (w, h):  # pragma: no cover - guarded by the +0.01 above
+            raise SkewpendError(f"the canvas is {self.canvas.get_width_height()} pixels, expected {w}x{h}")
+        self._background = self.canvas.copy_from_bbox(fig.bbox)
+        self.scene: Optional[FrameScene] = None
+
+    # -- helpers -------------------------------------------------------------------------------
+
+    def _pixels_per_metre(self, right: np.ndarray, screen_up: np.ndarray) -> np.ndarray:
+        """Screen scale of the orthographic plot along the screen's horizontal and vertical [px/m]."""
+        from mpl_toolkits.mplot3d import proj3d
+
+        pts = np.array([np.zeros(3), right, screen_up])
+        x, y, _ = proj3d.proj_transform(pts[:, 0], pts[:, 1], pts[:, 2], self.ax.get_proj())
+        disp = self.ax.transData.transform(np.column_stack([x, y]))
+        return np.array([np.linalg.norm(disp[1] - disp[0]), np.linalg.norm(disp[2] - disp[0])])
+
+    def _shade(self, normals: np.ndarray, base: np.ndarray) -> np.ndarray:
+        """RGBA per facet: ambient + Lambert + a little specular, fixed light in camera space."""
+        lam = np.clip(normals @ self.light, 0.0, None)
+        spec = np.clip(normals @ self.half_vector, 0.0, None) ** 24
+        rgb = base * (0.38 + 0.62 * lam)[:, None] + 0.35 * spec[:, None]
+        rgba = np.empty((normals.shape[0], 4))
+        rgba[:, :3] = np.clip(rgb, 0.0, 1.0)
+        rgba[:, 3] = 1.0
+        return rgba
+
+    def _visible(self, quads: np.ndarray, normals: np.ndarray, base) -> Tuple[np.ndarray, np.ndarray]:
+        keep = normals @ self.eye > -0.02  # orthographic camera: back faces point away from eye
+        return quads[keep], self._shade(normals[keep], np.asarray(base, dtype=float))
+
+    # -- drawing -------------------------------------------------------------------------------
+
+    def draw(self, k: int) -> FrameScene:
+        """Draw frame ``k`` onto the canvas; returns the scene it drew."""
+        sc = self.geometry.scene(k)
+        self.scene = sc
+        g, r, ax = self.geometry, self.radius, self.ax
+        P = world_to_plot(sc.rods)
+        C = world_to_plot(sc.axis_centers)
+        D = world_to_plot(sc.axis_directions)
+        h = sc.axis_half_length
+
+        # solids: two rods, two hinge pins along their axes
+        parts = []
+        parts.append(self._visible(*cylinder(P[0], P[1], r, D[0]), SCENE_COLORS["rod1"]))
+        parts.append(self._visible(*cylinder(P[1], P[2], r, D[1]), SCENE_COLORS["rod2"]))
+        pin = 2.6 * r
+        parts.append(self._visible(*cylinder(C[0] - pin * D[0], C[0] + pin * D[0], 1.45 * r, P[1] - P[0], 1), SCENE_COLORS["pin"]))
+        parts.append(self._visible(*cylinder(C[1] - pin * D[1], C[1] + pin * D[1], 1.45 * r, P[2] - P[1], 1), SCENE_COLORS["pin"]))
+        quads = np.concatenate([q for q, _ in parts])
+        colors = np.concatenate([c for _, c in parts])
+        solids = self.artists["solids"]
+        solids.set_verts(quads)
+        solids.set_facecolor(colors)
+        solids.set_edgecolor(colors)
+
+        # hinge axes: lines through the hinges, arrow heads at the + ends, labels beyond
+        heads, head_colors = [], []
+        head_len, head_r = HEAD_LENGTH * g.reach, HEAD_RADIUS * g.reach
+        for i, name in ((0, "axis1"), (1, "axis2")):
+            seg = world_to_plot(sc.axis_segment(i))
+            line = self.artists[name]
+            line.set_data_3d(seg[:, 0], seg[:, 1], seg[:, 2])
+            q, n = cone(seg[1], seg[1] + head_len * D[i], head_r)
+            heads.append(q)
+            head_colors.append(self._shade(n, np.asarray(SCENE_COLORS[name])))
+            label = C[i] + (h + head_len + LABEL_GAP * g.reach) * D[i]
+            self.artists[f"{name}_label"].set_position_3d(label)
+        ref = world_to_plot(np.array([sc.axis_centers[1] - h * sc.axis_directions[0], sc.axis_centers[1] + h * sc.axis_directions[0]]))
+        self.artists["axis1_ref"].set_data_3d(ref[:, 0], ref[:, 1], ref[:, 2])
+        arc = world_to_plot(sc.skew_arc)
+        self.artists["skew_arc"].set_data_3d(arc[:, 0], arc[:, 1], arc[:, 2])
+        mid = arc[arc.shape[0] // 2]
+        self.artists["skew_label"].set_position_3d(C[1] + 1.35 * (mid - C[1]))
+        hq = np.concatenate(heads)
+        hc = np.concatenate(head_colors)
+        self.artists["heads"].set_verts(hq)
+        self.artists["heads"].set_facecolor(hc)
+        self.artists["heads"].set_edgecolor(hc)
+
+        # trail of rod 2's tip, fading out, and the shadows of the rods on the floor
+        trail = self.artists["trail"]
+        tp = world_to_plot(sc.trail)
+        if tp.shape[0] > 1:
+            trail.set_segments(np.stack([tp[:-1], tp[1:]], axis=1))
+            rgba = np.empty((tp.shape[0] - 1, 4))
+            rgba[:, :3] = SCENE_COLORS["trail"]
+            rgba[:, 3] = sc.trail_alpha
+            trail.set_color(rgba)
+            trail.set_visible(True)
+        else:
+            trail.set_visible(False)
+        fl = P.copy()
+        fl[:, 2] = self.floor
+        self.artists["shadows"].set_segments([fl[0:2], fl[1:3]])
+
+        # readout
+        lines = [
+            f"t = {sc.t:{8 + self.t_decimals - 3}.{self.t_decimals}f} s" + (f"   ({self.speed:g}× speed)" if self.speed != 1.0 else ""),
+            f"φ = {_deg_wrapped(sc.phi):+7.1f}°",
+            f"ψ = {_deg_wrapped(sc.psi):+7.1f}°",
+            f"E = {sc.energy:+.5g} J",
+        ]
+        if np.any(g.work != 0.0):
+            lines.append(f"W = {sc.work:+.5g} J  (damping, torques)")
+        self.artists["readout"].set_text("\n".join(lines))
+
+        # blit: cached background + moving artists, back to front
+        renderer = self.canvas.get_renderer()
+        self.canvas.restore_region(self._background)
+        ax.M = ax.get_proj()
+        ax.invM = np.linalg.inv(ax.M)
+        for name in ("shadows", "trail", "solids"):
+            art = self.artists[name]
+            if art.get_visible():
+                art.do_3d_projection()
+                art.draw(renderer)
+        for name in ("axis1_ref", "skew_arc", "axis1", "axis2"):
+            self.artists[name].draw(renderer)
+        self.artists["heads"].do_3d_projection()
+        self.artists["heads"].draw(renderer)
+        for name in ("axis1_label", "axis2_label", "skew_label", "readout"):
+            self.artists[name].draw(renderer)
+        return sc
+
+    def rgb(self) -> np.ndarray:
+        """The canvas as an (h, w, 3) uint8 array (a copy)."""
+        buf = np.asarray(self.canvas.buffer_rgba())
+        return np.ascontiguousarray(buf[:, :, :3])
+
+    def close(self) -> None:
+        self.fig.clear()
