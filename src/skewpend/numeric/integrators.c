@@ -23,6 +23,11 @@
  * them first).  They are #defines generated from skewpend.status (kernel_source.status_defines),
  * the one list, and driven by skewpend.numeric.driver.drive.
  * Rows are never non-finite.
+ *
+ * Why one file of ~740 lines: it is appended to the generated model code as one translation unit,
+ * so rhs/ham_rhs and the shared static helpers (the DOP853 core of dop853_core.h, the Gauss
+ * stages, the lane loops of sp_flip) are inlined across integrators; a split would need a
+ * header of internal functions and a second template to keep in step with kernel_source.
  */
 #include <math.h>
 #include <stddef.h>
