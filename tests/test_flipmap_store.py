@@ -19,7 +19,7 @@ from skewpend import ParameterError, Parameters, SkewpendError  # noqa: E402
 from skewpend.analysis.flipmap import (  # noqa: E402
     FlipMap, chunk_rows, fingerprint, flip_map, flip_settings, open_flip_map, row_groups,
 )
-from skewpend.numeric.grid import work_units  # noqa: E402
+from skewpend.numeric.grid import UNITS_PER_WORKER, work_units  # noqa: E402
 from skewpend.numeric.store import LOCK_NAME, RowStore  # noqa: E402
 
 BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
@@ -108,8 +108,8 @@ def test_chunk_layout():
         assert sorted(r for g in groups for r in g) == list(range(n))  # every row in exactly one group
         assert all(g == (g[0],) and (not sym or g[0] == n - 1 - g[0]) or g == (g[0], n - 1 - g[0]) for g in groups)
     units = work_units(row_groups(128, True), threads=2)
-    assert len(units) == 32 and sorted(r for u in units for r in u) == list(range(128))
-    assert all(n_rows == 4 for n_rows in map(len, units))  # 2 pairs of mirror rows each
+    assert len(units) == 2 * UNITS_PER_WORKER and sorted(r for u in units for r in u) == list(range(128))
+    assert all(n_rows == 128 // len(units) for n_rows in map(len, units))  # whole pairs of mirror rows each
 
 
 # -- resume -----------------------------------------------------------------------------------------------

@@ -573,13 +573,17 @@ class FlipJob(GridJob):
         def starts(f):
             return np.column_stack([phi[f // n], psi[f % n]])
 
+        V = kernel.flip_potential_many(starts(reps), p)
         if self.threshold is not None:
-            forbidden = kernel.flip_potential_many(starts(reps), p) < self.threshold
+            forbidden = V < self.threshold
             if self.symmetric:
                 forbidden &= kernel.flip_potential_many(starts(total - 1 - reps), p) < self.threshold
-            todo = reps[~forbidden]
+            todo, V = reps[~forbidden], V[~forbidden]
         else:
             todo = reps
+        # the long-lived (low-energy) cells first: the lanes' last cells are then the quick ones, so
+        # few lanes idle at the end of the unit (each cell's bits do not depend on the order)
+        todo = todo[np.argsort(V, kind="stable")]
         out = integrator.run(starts(todo), cancel)
 
         pos = np.full(n, -1, dtype=np.int64)

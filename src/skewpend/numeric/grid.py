@@ -47,7 +47,7 @@ CHUNK_CELLS = 65536
 #: ... and at least this many chunks (so a killed run loses at most about 1/8 of the grid).
 MIN_CHUNKS = 8
 #: Work units (a few rows each) per worker thread, for balance.
-UNITS_PER_WORKER = 16
+UNITS_PER_WORKER = 8
 
 
 @dataclass(frozen=True)
