@@ -24,6 +24,7 @@ _LAZY = {
     "SYMBOLS": "symbolic.symbols",
     "simulate": "numeric.simulation",
     "Trajectory": "numeric.simulation",
+    "open_trajectory": "numeric.simulation",
     "normal_modes": "analysis.modes",
     "Modes": "analysis.modes",
     "sweep": "analysis.modes",
@@ -53,6 +54,7 @@ __all__ = [
     "LinearEquations",
     "simulate",
     "Trajectory",
+    "open_trajectory",
     "normal_modes",
     "Modes",
     "sweep",
@@ -84,7 +86,7 @@ __all__ = [
 if TYPE_CHECKING:  # pragma: no cover
     from .symbolic.derivation import EquationsOfMotion, LinearEquations, derive
     from .symbolic.symbols import SYMBOLS
-    from .numeric.simulation import Trajectory, simulate
+    from .numeric.simulation import Trajectory, open_trajectory, simulate
     from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
     from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map, open_lyapunov_map

@@ -47,6 +47,8 @@ CSV_COLUMNS = ("t", "phi", "psi", "dphi", "dpsi", "energy", "work", "x1", "y1", 
 UNITS = {"t": "s", "phi": "rad", "psi": "rad", "dphi": "rad/s", "dpsi": "rad/s", "energy": "J", "work": "J",
          **{k: "m" for k in ("x1", "y1", "z1", "x2", "y2", "z2")}}
 TRAJECTORY_SUFFIXES = (".csv", ".nc")
+#: What a trajectory file's attribute ``kind`` says.
+TRAJECTORY_KIND = "skewpend trajectory"
 #: Bytes per row on disk, for the up-front space check (CSV: 13 numbers of up to 24 characters).
 BYTES_PER_ROW = {".csv": 13 * 24, ".nc": 13 * 8}
 
@@ -330,6 +332,7 @@ def trajectory_metadata(traj) -> Dict[str, Any]:
     from . import __version__
 
     md: Dict[str, Any] = {
+        "kind": TRAJECTORY_KIND,
         "skewpend_version": __version__,
         "method": traj.method,
         "status": traj.status,
@@ -350,6 +353,52 @@ def trajectory_metadata(traj) -> Dict[str, Any]:
 def trajectory_table(t, y, energy, work, tips) -> np.ndarray:
     """Rows in :data:`CSV_COLUMNS` order."""
     return np.column_stack([t, y, energy, work, tips])
+
+
+def _csv_value(text: str):
+    """A ``# key: value`` line's value as written by :class:`TrajectoryWriter`: a number, a list
+    of numbers (space-separated), or the text."""
+    parts = text.split()
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        return text
+    return values[0] if len(values) == 1 else values
+
+
+def read_trajectory(path) -> "tuple[np.ndarray, Dict[str, Any]]":
+    """``(rows, metadata)`` of a trajectory file ``*.csv`` or ``*.nc`` written by skewpend
+    (:data:`CSV_COLUMNS` columns; the flat metadata of :func:`trajectory_metadata`)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in TRAJECTORY_SUFFIXES:
+        raise ParameterError(f"expected a trajectory file ending in .csv or .nc, got {str(path)!r}")
+    if not path.is_file():
+        raise ParameterError(f"{path} does not exist")
+    if suffix == ".nc":
+        variables, attrs = read_netcdf(path, kind=TRAJECTORY_KIND)
+        missing = [c for c in CSV_COLUMNS if c not in variables]
+        if missing:
+            raise ParameterError(f"{path} is not a skewpend trajectory: it lacks {', '.join(missing)}")
+        rows = np.column_stack([np.asarray(variables[c], dtype=float) for c in CSV_COLUMNS])
+        meta = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in attrs.items()}
+        return rows, meta
+    meta: Dict[str, Any] = {}
+    try:
+        with open(path) as fh:
+            header = fh.readline().strip()
+            for line in fh:
+                if line.startswith("# ") and ": " in line:
+                    key, _, value = line[2:].rstrip("\n").partition(": ")
+                    meta[key] = _csv_value(value)
+        if header != ",".join(CSV_COLUMNS):
+            raise ValueError("its header is not skewpend's")
+        rows = np.loadtxt(path, delimiter=",", skiprows=1, comments="#", ndmin=2)
+    except (OSError, ValueError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"{path} is not a skewpend trajectory CSV file ({exc})") from None
+    if rows.shape[1:] != (len(CSV_COLUMNS),):
+        raise ParameterError(f"{path} is not a skewpend trajectory CSV file (expected {len(CSV_COLUMNS)} columns)")
+    return rows, meta
 
 
 def write_trajectory(traj, path: os.PathLike) -> Path:

@@ -33,13 +33,15 @@ import numpy as np
 
 from .. import checks
 from ..interrupts import Interrupts
+from ..io import TRAJECTORY_KIND
+from ..results import ResultProtocol
 from ..status import Status
 from .driver import check_step_estimate, drive
 from ..errors import IntegrationError, ParameterError
 from ..symbolic.model import Parameters
 from ..parsing import initial_state
 
-__all__ = ["simulate", "Trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", "check_start"]
+__all__ = ["simulate", "Trajectory", "open_trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", "check_start"]
 
 METHODS = ("dop853", "rk4", "gauss")
 
@@ -48,8 +50,9 @@ STATUS_MESSAGES = {int(s): s.message for s in Status if s <= Status.NO_CONVERGEN
 
 
 @dataclass(frozen=True)
-class Trajectory:
-    """The result of :func:`simulate`.
+class Trajectory(ResultProtocol):
+    """The result of :func:`simulate` (and of :func:`open_trajectory`); it speaks the result
+    protocol (:mod:`skewpend.results`): ``ok``, ``to_xarray()``, ``to_netcdf(path)``, ``summary()``.
 
     * ``t`` -- times [s], shape (n,);
     * ``y`` -- states ``(phi, psi, dphi, dpsi)`` [rad, rad/s], shape (n, 4);
@@ -60,7 +63,8 @@ class Trajectory:
       integration, ``rows`` produced, ``kernel`` (``"compiled"`` when this process built the
       model's machine code, taking ``kernel_build_time`` [s], else ``"cache"``);
     * ``kept`` -- False when only the first and last rows were kept (``keep=False``);
-    * ``status`` (0 = success) and ``message``;
+    * ``status`` (a :class:`~skewpend.Status`; ``SUCCESS`` = 0) and ``message``; ``ok`` (and its
+      older name ``success``) is True when the run reached ``t_end``;
     * ``energy_drift`` -- ``max |E - W - E(0)|`` divided by ``max(|E|)`` over the run
       (absolute when that scale is 0).
     """
@@ -79,9 +83,62 @@ class Trajectory:
     kept: bool = True
     _kernel: Any = field(default=None, repr=False, compare=False)
 
+    result_kind = TRAJECTORY_KIND
+
+    def __post_init__(self):
+        object.__setattr__(self, "status", Status.of(self.status))
+
     @property
     def success(self) -> bool:
-        return self.status == 0
+        """The same as ``ok`` (the name before the result protocol)."""
+        return self.ok
+
+    def _kernel_or_load(self):
+        if self._kernel is None:  # a reopened trajectory: the model's kernel from the cache
+            from .kernels import kernel_module
+
+            object.__setattr__(self, "_kernel", kernel_module(self.params))
+        return self._kernel
+
+    def _dataset(self):
+        from ..io import CSV_COLUMNS, UNITS
+        from ..results import DatasetSpec
+
+        names = {"phi": "hinge angle 1", "psi": "hinge angle 2", "dphi": "angular speed of hinge 1",
+                 "dpsi": "angular speed of hinge 2", "energy": "mechanical energy T + Pi (Pi = 0 hanging)",
+                 "work": "work of damping and joint torques since t[0]"}
+        columns = {"phi": self.y[:, 0], "psi": self.y[:, 1], "dphi": self.y[:, 2], "dpsi": self.y[:, 3],
+                   "energy": self.energy, "work": self.work}
+        tips = self.tips()
+        for k, name in enumerate(CSV_COLUMNS[7:]):
+            columns[name] = tips[:, k]
+            names[name] = f"world {name[0]} of the end of rod {name[1]}"
+        variables = {k: (("t",), np.asarray(v, dtype=float), {"units": UNITS[k], "long_name": names[k]})
+                     for k, v in columns.items()}
+        attrs = {**self._base_attrs(), "method": self.method, "energy_drift": float(self.energy_drift),
+                 "kept": int(self.kept)}
+        return DatasetSpec(variables=variables, coords={"t": (("t",), np.asarray(self.t, dtype=float),
+                                                              {"units": "s", "long_name": "time"})}, attrs=attrs)
+
+    def to_netcdf(self, path):
+        """Write the trajectory to ``*.nc`` (the same file as ``simulate(..., out=path)`` streams;
+        reopen it with :func:`open_trajectory`), atomically.  Returns the path."""
+        from pathlib import Path
+
+        from ..io import write_trajectory
+
+        if Path(path).suffix.lower() != ".nc":
+            raise ParameterError(f"expected a file name ending in .nc, got {str(path)!r}")
+        return write_trajectory(self, path)
+
+    def summary(self) -> str:
+        """A few lines: the run, its status, the energy balance and the work it took."""
+        st = self.stats
+        return "\n".join([
+            f"{self.result_kind}: {self.message}",
+            f"{self.method}, t = {self.t[0]:g} .. {self.t[-1]:g} s, {len(self.t)} rows{'' if self.kept else ' (first and last kept)'}",
+            f"energy drift {self.energy_drift:.3g}; {st.get('steps', 0)} steps ({st.get('rejected', 0)} rejected)",
+        ])
 
     @property
     def final_state(self) -> np.ndarray:
@@ -91,14 +148,35 @@ class Trajectory:
         """World positions of the rod ends ``(x1, y1, z1, x2, y2, z2)`` [m], shape (n, 6)."""
         from .kernels import parameter_vector
 
-        return self._kernel.tips_many(self.y, parameter_vector(self.params))
+        return self._kernel_or_load().tips_many(self.y, parameter_vector(self.params))
 
     def axes(self) -> np.ndarray:
         """The hinge axes in the world frame at each row: ``(n1, e)`` with ``e = P1 . e0`` the
         second hinge's current axis (it turns with rod 1), shape (n, 6), unit vectors."""
         from .kernels import parameter_vector
 
-        return self._kernel.axes_many(self.y, parameter_vector(self.params))
+        return self._kernel_or_load().axes_many(self.y, parameter_vector(self.params))
+
+
+def open_trajectory(path) -> Trajectory:
+    """A :class:`Trajectory` read back from a file skewpend wrote (``simulate(..., out=...)``,
+    ``Trajectory.to_netcdf``, ``skewpend simulate --out``): ``*.csv`` or ``*.nc``.  Its rod ends
+    and axes come from the model's kernel (loaded, or compiled, on first use)."""
+    from ..io import read_trajectory
+
+    rows, meta = read_trajectory(path)
+    values = {k[len("param_"):]: v for k, v in meta.items() if k.startswith("param_")}
+    try:
+        params = Parameters(**values)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{path}: its parameters cannot be read back ({exc})") from None
+    settings = {k[len("setting_"):]: v for k, v in meta.items() if k.startswith("setting_")}
+    stats = {k[len("stat_"):]: v for k, v in meta.items() if k.startswith("stat_")}
+    code = meta.get("status", 0)
+    return Trajectory(t=rows[:, 0].copy(), y=rows[:, 1:5].copy(), energy=rows[:, 5].copy(), work=rows[:, 6].copy(),
+                      params=params, method=str(meta.get("method", "")), settings=settings, stats=stats,
+                      status=int(code), message=str(meta.get("message", Status.of(int(code)).message)),
+                      energy_drift=float(meta.get("energy_drift", math.nan)), kept=True)
 
 
 def check_start(kernel, p, y) -> None:

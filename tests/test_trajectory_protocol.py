@@ -1,0 +1,77 @@
+"""A trajectory speaks the result protocol (issue 15): status as a Status, ok, message,
+to_xarray with units, to_netcdf and open_trajectory (and CSV) round trips that give back every
+number exactly, and a summary that says how the run ended."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import skewpend
+from skewpend import ParameterError, Parameters, Status, open_trajectory, simulate
+
+P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81, c1=0.05, tau2=0.1)
+Y0 = (1.2, -0.8, 0.3, 0.0)
+
+
+@pytest.fixture(scope="module")
+def tr():
+    return simulate(P, Y0, 3.0, dt_out=0.01)
+
+
+def test_status_ok_and_message(tr):
+    assert tr.status is Status.SUCCESS and tr.ok and tr.success and tr.status == 0
+    cut = simulate(P, Y0, 3.0, max_steps=10)
+    assert cut.status is Status.MAX_STEPS and not cut.ok and not cut.success
+    assert cut.message == Status.MAX_STEPS.message and cut.message in cut.summary() and "dop853" in cut.summary()
+
+
+def test_to_xarray_has_every_column_with_units(tr):
+    pytest.importorskip("xarray")
+    ds = tr.to_xarray()
+    np.testing.assert_array_equal(ds["t"].values, tr.t)
+    np.testing.assert_array_equal(ds["phi"].values, tr.y[:, 0])
+    np.testing.assert_array_equal(ds["dpsi"].values, tr.y[:, 3])
+    np.testing.assert_array_equal(ds["energy"].values, tr.energy)
+    np.testing.assert_array_equal(np.column_stack([ds[k].values for k in ("x1", "y1", "z1", "x2", "y2", "z2")]),
+                                  tr.tips())
+    assert ds["phi"].attrs["units"] == "rad" and ds["energy"].attrs["units"] == "J" and ds["x2"].attrs["units"] == "m"
+    assert ds.attrs["kind"] == "skewpend trajectory" and ds.attrs["status"] == 0 and ds.attrs["method"] == "dop853"
+
+
+@pytest.mark.parametrize("suffix", [".nc", ".csv"])
+def test_a_written_trajectory_reopens_exactly(tr, tmp_path, suffix):
+    if suffix == ".nc":
+        pytest.importorskip("netCDF4")
+        path = tr.to_netcdf(tmp_path / "run.nc")
+    else:
+        path = skewpend.io.write_trajectory(tr, tmp_path / "run.csv")
+    back = open_trajectory(path)
+    for name in ("t", "y", "energy", "work"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(tr, name))  # %.17g and float64: exact
+    assert back.params == tr.params and back.method == tr.method and back.status is Status.SUCCESS
+    assert back.energy_drift == tr.energy_drift and back.stats["steps"] == tr.stats["steps"]
+    assert back.settings["rtol"] == tr.settings["rtol"]
+    np.testing.assert_array_equal(back.tips(), tr.tips())  # the kernel of the parameters read back
+
+
+def test_a_streamed_run_reopens_like_a_kept_one(tmp_path):
+    pytest.importorskip("netCDF4")
+    kept = simulate(P, Y0, 2.0, dt_out=0.05)
+    simulate(P, Y0, 2.0, dt_out=0.05, out=tmp_path / "s.nc", keep=False)
+    back = open_trajectory(tmp_path / "s.nc")
+    np.testing.assert_array_equal(back.y, kept.y)
+    np.testing.assert_array_equal(back.t, kept.t)
+
+
+def test_reopening_something_else_is_one_clear_error(tmp_path):
+    (tmp_path / "x.csv").write_text("a,b\n1,2\n")
+    with pytest.raises(ParameterError, match="not a skewpend trajectory"):
+        open_trajectory(tmp_path / "x.csv")
+    with pytest.raises(ParameterError, match="does not exist"):
+        open_trajectory(tmp_path / "none.nc")
+    with pytest.raises(ParameterError, match=".csv or .nc"):
+        open_trajectory(tmp_path / "x.txt")
+    tr = simulate(P, Y0, 0.5)
+    with pytest.raises(ParameterError, match=".nc"):
+        tr.to_netcdf(tmp_path / "x.csv")
