@@ -380,14 +380,14 @@ def test_largest_exponents_grouping_and_cancel():
     p = parameter_vector(P)
     starts = np.array([CHAOTIC, REGULAR, CHAOTIC2, (0.5, -0.4, 0.0, 0.0), CHAOTIC3])
     kw = dict(t_end=15.0, renorm_every=1.0, transient=0.0, rtol=1e-9, atol=1e-9, max_steps=10**7)
-    lam1, status1, steps1 = largest_exponents(kernel, p, starts, group=1, **kw)
-    lam3, status3, steps3 = largest_exponents(kernel, p, starts, group=3, **kw)
-    assert lam1.tobytes() == lam3.tobytes() and np.array_equal(steps1, steps3)
+    lam1, status1, steps1, rejected1 = largest_exponents(kernel, p, starts, group=1, **kw)
+    lam3, status3, steps3, rejected3 = largest_exponents(kernel, p, starts, group=3, **kw)
+    assert lam1.tobytes() == lam3.tobytes() and np.array_equal(steps1, steps3) and np.array_equal(rejected1, rejected3)
     assert np.all(status1 == 0) and np.all(steps1 > 0) and np.all(np.isfinite(lam1))
     for y0, lam in zip(starts, lam1):
         assert lam == pytest.approx(lyapunov(P, y0, n_exponents=1, **kw).exponents[0], rel=1e-12)
     # a failing trajectory (step cap) is NaN with its status, the others unaffected
-    lam, status, _ = largest_exponents(kernel, p, starts[:2], **{**kw, "max_steps": 50})
+    lam, status, _, _ = largest_exponents(kernel, p, starts[:2], **{**kw, "max_steps": 50})
     assert np.all(np.isnan(lam)) and np.all(status == 3)
     cancel = threading.Event()
     cancel.set()
@@ -399,6 +399,6 @@ def test_largest_exponents_measure_from_the_same_renormalisation_as_lyapunov():
     kernel, p = kernel_module(P, chaos=True), parameter_vector(P)
     kw = dict(t_end=5.0, renorm_every=0.1, transient=0.3, rtol=1e-8, atol=1e-8)
     one = lyapunov(P, CHAOTIC, n_exponents=1, **kw)
-    lam, status, _ = largest_exponents(kernel, p, np.array([CHAOTIC]), max_steps=10**7, **kw)
+    lam, status, _, _ = largest_exponents(kernel, p, np.array([CHAOTIC]), max_steps=10**7, **kw)
     assert status[0] == 0
     assert lam[0] == pytest.approx(one.exponents[0], rel=1e-12)

@@ -75,3 +75,19 @@ def test_reopening_something_else_is_one_clear_error(tmp_path):
     tr = simulate(P, Y0, 0.5)
     with pytest.raises(ParameterError, match=".nc"):
         tr.to_netcdf(tmp_path / "x.csv")
+
+
+def test_a_lyapunov_map_counts_accepted_and_rejected_steps_as_lyapunov_does():
+    """stats['steps'] means accepted steps everywhere: the map's cells (sp_lyap1_many) counted
+    against lyapunov() of each start (sp_lyap through the driver), which also gives the same
+    exponent to the bit."""
+    p = Parameters(a=1.0, b=1.0, m1=1.0, m2=1.0, g=9.81, alpha=0.6)
+    m = skewpend.lyapunov_map(p, 2, t_end=20.0)
+    steps = rejected = 0
+    for i in range(2):
+        for j in range(2):
+            r = skewpend.lyapunov(p, [m.phi0[i, j], m.psi0[i, j], 0.0, 0.0], t_end=20.0, n_exponents=1,
+                                  rtol=1e-8, atol=1e-8, renorm_every=1.0)
+            assert r.exponents[0] == m.exponent[i, j]
+            steps, rejected = steps + r.stats["steps"], rejected + r.stats["rejected"]
+    assert (m.stats["steps"], m.stats["rejected"]) == (steps, rejected) and rejected > 0

@@ -38,7 +38,7 @@ __all__ = ["chaos_diagram", "ChaosDiagram", "ChaosJob", "open_chaos_diagram", "d
 
 STORE_KIND = "chaos-diagram"
 #: Statistics per row (and per store chunk).
-CHUNK_STATS = ("trajectories", "failed", "unreachable", "steps", "wall_time")
+CHUNK_STATS = ("trajectories", "failed", "unreachable", "steps", "rejected", "wall_time")
 _MAX_CELLS = 1_000_000  # alpha x energy x samples trajectories at most
 
 
@@ -54,7 +54,8 @@ class ChaosDiagram(Result):
     * ``threshold`` [1/s]: exponents above it count as chaotic;
     * ``fraction`` -- shape ``(na, ne)``: the chaotic fraction of the valid samples;
     * ``params`` (alpha replaced row by row), ``settings``, ``stats`` (``trajectories``,
-      ``failed``, ``unreachable``, ``steps`` accepted, the run's rows, store and cluster);
+      ``failed``, ``unreachable``, ``steps`` accepted, ``rejected``, the run's rows, store and
+      cluster);
     * ``status`` (PARTIAL when trajectories failed), ``message``, ``ok``; ``to_xarray()``,
       ``to_netcdf(path)``, ``summary()`` (the result protocol).
     """
@@ -246,14 +247,15 @@ class ChaosJob(GridJob):
             if seeds.shape[0] == 0:
                 continue
             starts = surface.states(seeds[:, 0], seeds[:, 1], +1)
-            lam, status, steps = largest_exponents(kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every,
-                                                   transient=self.transient, rtol=self.rtol, atol=self.atol,
-                                                   max_steps=self.max_steps, cancel=cancel)
+            lam, status, steps, rejected = largest_exponents(
+                kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every, transient=self.transient,
+                rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, cancel=cancel)
             out[j, : lam.size] = lam
             stats[0] += lam.size
             stats[1] += int(np.count_nonzero(status != 0))
             stats[3] += int(steps.sum())
-        stats[4] = time.perf_counter() - start
+            stats[4] += int(rejected.sum())
+        stats[5] = time.perf_counter() - start
         return out, stats
 
     def result(self, run) -> "ChaosDiagram":
@@ -263,7 +265,8 @@ class ChaosJob(GridJob):
         info = run.info
         stats = {
             "trajectories": int(totals["trajectories"]), "failed": int(totals["failed"]),
-            "unreachable": int(totals["unreachable"]), "steps": int(totals["steps"]), "wall_time": info["wall_time"],
+            "unreachable": int(totals["unreachable"]), "steps": int(totals["steps"]),
+            "rejected": int(totals["rejected"]), "wall_time": info["wall_time"],
             "workers": info["workers"], "rows_resumed": info["chunks_resumed"], "rows_computed": info["chunks_computed"],
             "rows_repaired": info["chunks_repaired"], "store": info["store"], "scheduler": info["scheduler"],
             "fingerprint": info["fingerprint"],

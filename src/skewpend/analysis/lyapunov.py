@@ -325,8 +325,8 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
                       atol: float, max_steps: int, cancel=None, group: int = 1):
     """The largest exponent of each state in ``starts`` (shape ``(m, 4)``), by ``sp_lyap1_many``
     (one tangent vector from ``(1, 1, 1, 1)/2``), ``group`` trajectories per call into C (``cancel``
-    is checked between calls).  Returns ``(lambda, status, steps)``; ``lambda`` is NaN where a
-    trajectory failed."""
+    is checked between calls).  Returns ``(lambda, status, steps, rejected)``: the accepted and
+    the rejected steps of each; ``lambda`` is NaN where a trajectory failed."""
     from ..numeric.ensemble import Cancelled
 
     starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 4)
@@ -334,6 +334,7 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
     lam = np.full(m, np.nan)
     status = np.zeros(m, dtype=np.int32)
     steps = np.zeros(m, dtype=np.int64)
+    rejected = np.zeros(m, dtype=np.int64)
     dp = ctypes.POINTER(ctypes.c_double)
     pp = np.ascontiguousarray(p, dtype=np.float64)
     fn = kernel.lib.sp_lyap1_many
@@ -344,8 +345,9 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
         fn(pp.ctypes.data_as(dp), starts[a:b].ctypes.data_as(dp), b - a, t_end, renorm_every,
            skipped_renormalisations(transient, renorm_every), rtol, atol,
            max_steps, lam[a:].ctypes.data_as(dp), status[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-           steps[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int64)))
-    return lam, status, steps
+           steps[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
+           rejected[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int64)))
+    return lam, status, steps, rejected
 
 
 @dataclass(frozen=True)
@@ -353,7 +355,7 @@ class LyapunovMap(Result):
     """The result of :func:`lyapunov_map`: the largest exponent [1/s] for starts at rest from the
     cell centres ``phi0`` (axis 0) x ``psi0`` (axis 1) [rad], shape ``(n, n)`` (NaN where the
     integration failed), with ``params``, ``settings``, ``stats`` (``cells``, ``failed``,
-    ``steps`` accepted, the run's chunks, store and cluster) and the result protocol's
+    ``steps`` accepted, ``rejected``, the run's chunks, store and cluster) and the result protocol's
     ``status`` (PARTIAL when cells failed), ``message``, ``ok``, ``to_xarray()``,
     ``to_netcdf()``, ``summary()``."""
 
@@ -382,7 +384,7 @@ _MAP_VARIABLES = {
     "psi0": {"units": "rad", "long_name": "initial angle of hinge 2"},
 }
 #: Statistics per row (and per store chunk) of a Lyapunov map.
-MAP_STATS = ("cells", "failed", "steps")
+MAP_STATS = ("cells", "failed", "steps", "rejected")
 
 
 @dataclass(frozen=True)
@@ -440,11 +442,11 @@ class LyapunovMapJob(GridJob):
         stats = np.zeros((rows.size, len(MAP_STATS)))
         for r, i in enumerate(rows.tolist()):
             starts = np.column_stack([np.full(self.n, phi[i]), psi, np.zeros(self.n), np.zeros(self.n)])
-            lam, status, steps = largest_exponents(kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every,
-                                                   transient=self.transient, rtol=self.rtol, atol=self.atol,
-                                                   max_steps=self.max_steps, cancel=cancel)
+            lam, status, steps, rejected = largest_exponents(
+                kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every, transient=self.transient,
+                rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, cancel=cancel)
             exponent[r] = lam
-            stats[r] = (self.n, np.count_nonzero(status != 0), steps.sum())
+            stats[r] = (self.n, np.count_nonzero(status != 0), steps.sum(), rejected.sum())
         return {"exponent": exponent}, stats
 
     def result(self, run) -> LyapunovMap:
@@ -455,7 +457,8 @@ class LyapunovMapJob(GridJob):
         settings = {"n": n, "t_end": self.t_end, "renorm_every": self.renorm_every, "transient": self.transient,
                     "phi_range": tuple(self.phi_range), "psi_range": tuple(self.psi_range), "rtol": self.rtol,
                     "atol": self.atol, "max_steps": self.max_steps}
-        stats = {"cells": n * n, "failed": int(totals["failed"]), "steps": int(totals["steps"]), **run.info}
+        stats = {"cells": n * n, "failed": int(totals["failed"]), "steps": int(totals["steps"]),
+                 "rejected": int(totals["rejected"]), **run.info}
         status, message = grid_status(stats["failed"], n * n, "cells")
         phi, psi = (values for values, _ in self.coords().values())
         return LyapunovMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
@@ -530,10 +533,11 @@ def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol
     kernel, p = state
     rate = 0.0
     for t in probe_durations(t_end, params):  # a trial that fails (too stiff for its steps) is tried over a shorter time
-        _, status, steps = largest_exponents(kernel, p, np.asarray(probe, dtype=float), t_end=t, renorm_every=t,
-                                             transient=0.0, rtol=rtol, atol=atol, max_steps=PROBE_STEPS)
+        _, status, steps, rejected = largest_exponents(kernel, p, np.asarray(probe, dtype=float), t_end=t,
+                                                       renorm_every=t, transient=0.0, rtol=rtol, atol=atol,
+                                                       max_steps=PROBE_STEPS)
         # a trial that stopped early made at most its steps in t: a lower bound of the rate
-        rate = steps_per_second(steps, np.full(steps.shape, t))
+        rate = steps_per_second(steps + rejected, np.full(steps.shape, t))
         if np.all(status == 0):
             break
     check_feasible(rate, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps, what=what, time_name=time_name,

@@ -130,9 +130,10 @@ int sp_lyap(sp_lyap_state *s, const double *p, double t_end, double rtol, double
  * (1, 1, 1, 1)/2, renormalised every `every` seconds up to t_end; the growth after the first
  * n_skip renormalisations (the transient) divided by the time it covers.  out_lambda[i] is
  * NaN, and status[i] the failure code (1..3), when a trajectory fails; steps[i] counts its
- * accepted + rejected steps. */
+ * accepted steps, rejected[i] its rejected ones. */
 void sp_lyap1_many(const double *p, const double *y0s, int64_t m, double t_end, double every, int64_t n_skip,
-                   double rtol, double atol, int64_t max_steps, double *out_lambda, int32_t *status, int64_t *steps)
+                   double rtol, double atol, int64_t max_steps, double *out_lambda, int32_t *status, int64_t *steps,
+                   int64_t *rejected)
 {
     double rows[64 * 2];
     for (int64_t i = 0; i < m; i++) {
@@ -154,7 +155,8 @@ void sp_lyap1_many(const double *p, const double *y0s, int64_t m, double t_end, 
             }
         } while (rc == SP_CALL_BUFFER_FULL);
         status[i] = rc;
-        steps[i] = s.naccept + s.nreject;
+        steps[i] = s.naccept;
+        rejected[i] = s.nreject;
         out_lambda[i] = (rc == SP_STATUS_SUCCESS && t_end > t_from) ? sum / (t_end - t_from) : NAN;
     }
 }
