@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from skewpend import EquilibriumError, ParameterError, Parameters, derive
 from skewpend.symbolic.derivation import SYMBOLS as S
+from skewpend.symbolic.specification import check_planar, planar_formulas
 
 a, b, m1, m2, g, alpha = (S[n] for n in ("a", "b", "m1", "m2", "g", "alpha"))
 phi, psi, dphi, dpsi = (S[n] for n in ("phi", "psi", "dphi", "dpsi"))
@@ -33,21 +34,13 @@ def _numeric(expr, names=("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1"
 
 
 # -- 1. the specification ----------------------------------------------------------------------
+# The specification's planar formulas are typed once, in skewpend.symbolic.specification (from
+# its text, not from the derivation); these tests hold the derivation to them.
 def test_alpha_zero_linear_equations_are_the_specifications(eom):
-    """The specification's linear equations (its Russian half), typed from the text."""
+    """The specification's linear equations (its Russian half)."""
+    spec = planar_formulas()
+    M_spec, K_spec = spec["M0"], spec["K0"]
     lin = derive(Parameters(alpha=0)).linearize()
-    M_spec = sp.Matrix(
-        [
-            [m1 * a**2 / 3 + m2 * b**2 / 3 + m2 * a * (a + b), m2 * b**2 / 3 + m2 * a * b / 2],
-            [m2 * b**2 / 3 + m2 * a * b / 2, m2 * b**2 / 3],
-        ]
-    )
-    K_spec = sp.Matrix(
-        [
-            [g / 2 * ((m1 + 2 * m2) * a + m2 * b), g / 2 * m2 * b],
-            [g / 2 * m2 * b, g / 2 * m2 * b],
-        ]
-    )
     assert sp.simplify(lin.M - M_spec) == sp.zeros(2, 2)
     assert sp.simplify(lin.K - K_spec) == sp.zeros(2, 2)
     assert lin.C == sp.zeros(2, 2)
@@ -58,36 +51,45 @@ def test_alpha_zero_linear_equations_are_the_specifications(eom):
 
 
 def test_alpha_zero_energies_and_kinematics_are_the_specifications():
+    spec = planar_formulas()
     eom0 = derive(Parameters(alpha=0))
-    T_spec = sp.Rational(1, 2) * m1 * a**2 / 3 * dphi**2 + sp.Rational(1, 2) * (
-        m2 * b**2 / 3 * (dphi + dpsi) ** 2 + m2 * a * b * sp.cos(psi) * (dphi + dpsi) * dphi + m2 * a**2 * dphi**2
-    )
-    Pi_spec = m1 * g * (a / 2 - a / 2 * sp.cos(phi)) + m2 * g * (
-        a * (1 - sp.cos(phi)) + b / 2 * (2 + sp.sin(phi) * sp.sin(psi) - sp.cos(phi) * sp.cos(psi))
-    )
-    assert sp.simplify(eom0.kinetic_energy - T_spec) == 0
+    assert sp.simplify(eom0.kinetic_energy - spec["T"]) == 0
     # skewpend puts Pi = 0 with both rods hanging; the specification's Pi2 is m2 g b/2 there
-    assert sp.simplify(eom0.potential_energy - Pi_spec + m2 * g * b / 2) == 0
+    assert sp.simplify(eom0.potential_energy - spec["Pi"] + m2 * g * b / 2) == 0
     steps = eom0.steps
-    assert sp.simplify(steps["omega2"] - sp.Matrix([0, 0, dphi + dpsi])) == sp.zeros(3, 1)
-    assert sp.simplify(steps["e"] - sp.Matrix([0, 0, 1])) == sp.zeros(3, 1)
-    v2_spec = b**2 / 4 * (dphi + dpsi) ** 2 + a * b * sp.cos(psi) * (dphi + dpsi) * dphi + a**2 * dphi**2
+    assert sp.simplify(steps["omega2"] - spec["omega2"]) == sp.zeros(3, 1)
+    assert sp.simplify(steps["e"] - spec["e"]) == sp.zeros(3, 1)
+    assert sp.simplify(steps["P"] - spec["P"]) == sp.zeros(3, 3)
     v = steps["v_c"]
-    assert sp.simplify((v.T * v)[0, 0] - v2_spec) == 0
+    assert sp.simplify((v.T * v)[0, 0] - spec["v2"]) == 0
+    # the library's check says the same, quantity by quantity
+    verdicts = {c.key: c.identical for c in check_planar(eom0)}
+    assert verdicts == dict.fromkeys(("e", "P", "omega2", "v2", "T", "Pi", "M0", "K0", "C0"), True)
+
+
+def test_the_planar_check_catches_a_wrong_sign():
+    """check_planar is not a check that cannot fail: a derivation with one sign flipped in its
+    potential (a stand-in for a wrong derivation) differs."""
+    eom0 = derive(Parameters(alpha=0))
+
+    class Wrong:
+        steps, kinetic_energy = eom0.steps, eom0.kinetic_energy
+        potential_energy = eom0.potential_energy.subs(S["g"], -S["g"])
+
+        def linearize(self):
+            return eom0.linearize()
+
+    verdicts = {c.key: c.identical for c in check_planar(Wrong())}
+    assert not verdicts["Pi"] and verdicts["T"] and verdicts["M0"]
 
 
 def test_alpha_zero_nonlinear_equations_from_the_specifications_energies():
     """Lagrange's equations applied (by SymPy's generic calculus) to the specification's T and Pi."""
     t = sp.Symbol("t")
     q1, q2 = sp.Function("q1")(t), sp.Function("q2")(t)
-    T_spec = sp.Rational(1, 2) * m1 * a**2 / 3 * q1.diff(t) ** 2 + sp.Rational(1, 2) * (
-        m2 * b**2 / 3 * (q1.diff(t) + q2.diff(t)) ** 2
-        + m2 * a * b * sp.cos(q2) * (q1.diff(t) + q2.diff(t)) * q1.diff(t)
-        + m2 * a**2 * q1.diff(t) ** 2
-    )
-    Pi_spec = m1 * g * (a / 2 - a / 2 * sp.cos(q1)) + m2 * g * (
-        a * (1 - sp.cos(q1)) + b / 2 * (2 + sp.sin(q1) * sp.sin(q2) - sp.cos(q1) * sp.cos(q2))
-    )
+    spec = planar_formulas()
+    to_time = {phi: q1, psi: q2, dphi: q1.diff(t), dpsi: q2.diff(t)}
+    T_spec, Pi_spec = spec["T"].xreplace(to_time), spec["Pi"].xreplace(to_time)
     L = [sp.diff(T_spec.diff(q.diff(t)), t) - T_spec.diff(q) + Pi_spec.diff(q) for q in (q1, q2)]
     eom0 = derive(Parameters(alpha=0))
     mine = list(eom0.mass_matrix * eom0.ddq - eom0.forcing)

@@ -17,9 +17,10 @@ Sections:
    Lagrange's equations), nonlinear and linearised, then with the values of section 1;
    intermediate results in display form (:mod:`skewpend.symbolic.display`: e.g. ``cos(phi + psi)``
    at ``alpha = 0``; proved equal to the derivation's, which the numeric code uses unchanged);
-3. the check at ``alpha = 0``: the planar formulas and linear equations of the specification,
-   typed here from its text, against the derivation, with the differences computed by
-   ``sympy.simplify`` when the report is made;
+3. the check at ``alpha = 0``: the planar formulas and linear equations of the specification
+   (:mod:`skewpend.symbolic.specification`, typed from its text) against the derivation, with
+   the differences computed by ``sympy.simplify`` when the report is made
+   (:func:`~skewpend.symbolic.specification.check_planar`);
 4. normal modes: frequencies, periods, shapes; the frequencies against ``alpha`` with the
    internal resonances;
 5. a simulation: figures, energy drift, the animation;
@@ -295,59 +296,6 @@ def _np_tex(a: np.ndarray, digits: int = 5) -> str:
 
 def _vector_tex(v, digits: int = 4) -> str:
     return r"\begin{bmatrix}" + r" \\ ".join(_num_tex(x, digits) for x in v) + r"\end{bmatrix}"
-
-
-# -- the specification's formulas, typed from its text (../shared/seed/double_pendulum_spec.txt) --
-def _specification():
-    """The specification's planar case (alpha = 0): SymPy forms typed from its text, and its LaTeX."""
-    import sympy as sp
-
-    from ..symbolic.symbols import SYMBOLS as S
-
-    a, b, m1, m2, g = (S[n] for n in ("a", "b", "m1", "m2", "g"))
-    phi, psi, dphi, dpsi = (S[n] for n in ("phi", "psi", "dphi", "dpsi"))
-    half = sp.Rational(1, 2)
-    T1 = half * m1 * a**2 / 3 * dphi**2
-    T2 = half * (m2 * b**2 / 3 * (dphi + dpsi) ** 2 + m2 * a * b * sp.cos(psi) * (dphi + dpsi) * dphi + m2 * a**2 * dphi**2)
-    Pi1 = m1 * g * (a / 2 - a / 2 * sp.cos(phi))
-    Pi2 = m2 * g * (a * (1 - sp.cos(phi)) + b / 2 * (2 + sp.sin(phi) * sp.sin(psi) - sp.cos(phi) * sp.cos(psi)))
-    u = phi + psi
-    spec = {
-        "e": sp.Matrix([0, 0, 1]),
-        "P": sp.Matrix([[sp.cos(u), -sp.sin(u), 0], [sp.sin(u), sp.cos(u), 0], [0, 0, 1]]),
-        "omega2": sp.Matrix([0, 0, dphi + dpsi]),
-        "v2": b**2 / 4 * (dphi + dpsi) ** 2 + a * b * sp.cos(psi) * (dphi + dpsi) * dphi + a**2 * dphi**2,
-        "T": T1 + T2,
-        "Pi": Pi1 + Pi2,
-        "M0": sp.Matrix([
-            [m1 * a**2 / 3 + m2 * b**2 / 3 + m2 * a * (a + b), m2 * b**2 / 3 + m2 * a * b / 2],
-            [m2 * b**2 / 3 + m2 * a * b / 2, m2 * b**2 / 3],
-        ]),
-        "K0": sp.Matrix([
-            [g / 2 * ((m1 + 2 * m2) * a + m2 * b), g / 2 * m2 * b],
-            [g / 2 * m2 * b, g / 2 * m2 * b],
-        ]),
-    }
-    # the specification's own LaTeX (its Russian half), with \dot{} written as there
-    latex = {
-        "e": r"\underline{e}_0 = \cos(\alpha) \underline{k} + \sin(\alpha) \underline{i} = \underline{k}, \qquad "
-             r"\underline{e} = \underline{\underline {P}}_1 \cdot \underline{e}_0 = \underline{k}",
-        "P": r"\underline{\underline{P}}_2(\psi,\underline{e})= \underline{\underline{P}}_2(\psi,\underline{k}), \qquad "
-             r"\underline{\underline{P}} = \underline{\underline{P}}_2 \cdot \underline{\underline{P}}_1"
-             r" = \underline{\underline{P}}(\varphi + \psi, \underline{k})",
-        "omega2": r"\underline{\omega}_2 = (\dot{\varphi}+\dot{\psi})\underline{k}",
-        "v2": r"\upsilon^2_c = \frac{1}{4} b^2 (\dot{\varphi}+\dot{\psi})^2 + ab\cos\psi(\dot{\varphi}+\dot{\psi})\dot{\varphi} + a^2\dot{\varphi}^2",
-        "T": r"T = \frac{1}{2}\frac{m_1 a^2}{3}\dot{\varphi}^2 + \frac{1}{2} \left( \frac{m_2 b^2}{3}(\dot{\varphi}+\dot{\psi})^2"
-             r" + m_2 ab\cos\psi(\dot{\varphi}+\dot{\psi})\dot{\varphi} + m_2 a^2\dot{\varphi}^2 \right)",
-        "Pi": r"\Pi = m_1 g \left( \frac{a}{2} - \frac{a}{2} \cos \varphi \right) + m_2 g \left[ a \left(1-\cos\varphi \right)"
-              r" + \frac{b}{2}\left(2 + \sin\varphi\sin\psi - \cos\varphi\cos\psi \right) \right]",
-        "linear": r"\begin{cases}"
-                  r"\ddot{\varphi} \left( \frac{m_1 a^2}{3} + \frac{m_2 b^2}{3} + m_2 a (a+b) \right) + \ddot{\psi} \left( \frac{m_2 b^2}{3} + \frac{m_2 ab}{2} \right)"
-                  r" + \varphi \frac{g}{2} \left((m_1+2m_2)a+m_2 b \right)+\psi \frac{g}{2}m_2 b = 0\\"
-                  r"\ddot{\varphi} \left( \frac{m_2 b^2}{3} + \frac{m_2 ab}{2} \right) + \ddot{\psi} \frac{m_2 b^2}{3} + \varphi \frac{g}{2} m_2 b + \psi \frac{g}{2} m_2 b = 0"
-                  r"\end{cases}",
-    }
-    return spec, latex
 
 
 # -- the report -------------------------------------------------------------------------------
@@ -942,64 +890,45 @@ def _section_derivation(ctx: _Context) -> str:
 
 
 # -- section 3: the check at alpha = 0 -----------------------------------------------------------------
-def _identical(diff) -> bool:
-    import sympy as sp
-
-    if isinstance(diff, sp.MatrixBase):
-        return all(sp.simplify(x) == 0 for x in diff)
-    return sp.simplify(diff) == 0
-
-
 def _section_check(ctx: _Context) -> str:
     import sympy as sp
 
     from ..symbolic.derivation import derive
     from ..symbolic.display import display_form, display_steps
     from ..symbolic.render import LATEX_LABELS as L
+    from ..symbolic.specification import check_planar, planar_latex
     from ..symbolic.symbols import SYMBOLS as S
 
-    spec, spec_tex = _specification()
+    spec_tex = planar_latex()
     eom0 = derive(Parameters(alpha=0.0))
     lin0 = eom0.linearize()
-    raw = eom0.steps
-    steps = display_steps(raw, keys=("e", "P", "omega2", "v_c", "T", "Pi"))
-    v2_raw = sp.expand((raw["v_c"].T * raw["v_c"])[0, 0])
+    checks = {c.key: c for c in check_planar(eom0)}
+    steps = display_steps(eom0.steps, keys=("e", "P", "omega2", "v_c", "T", "Pi"))
     v = steps["v_c"]  # shorter to square
     v2 = display_form(sp.expand((v.T * v)[0, 0]), speeds=(S["dphi"], S["dpsi"]))
-    zero_level = S["m2"] * S["g"] * S["b"] / 2
-    rows = [
-        # title, the specification's LaTeX, ours, the difference (from the derivation's own results), expected
-        ("The second hinge's axis", spec_tex["e"], f"{L['e']} = " + _tex(steps["e"]), raw["e"] - spec["e"], None),
-        ("Rotation of rod 2", spec_tex["P"], f"{L['P']} = " + _tex(steps["P"]), raw["P"] - spec["P"], None),
-        ("Angular velocity of rod 2", spec_tex["omega2"], f"{L['omega2']} = " + _tex(steps["omega2"]),
-         raw["omega2"] - spec["omega2"], None),
-        ("Speed of rod 2's centre of mass", spec_tex["v2"],
-         r"\underline{\vartheta}_c\cdot\underline{\vartheta}_c = " + _tex(v2), v2_raw - spec["v2"], None),
-        ("Kinetic energy", spec_tex["T"], "T = " + _tex(steps["T"]), eom0.kinetic_energy - spec["T"], None),
-        ("Potential energy", spec_tex["Pi"], r"\Pi = " + _tex(steps["Pi"]), eom0.potential_energy - spec["Pi"], -zero_level),
-    ]
+    ours = {"e": f"{L['e']} = " + _tex(steps["e"]), "P": f"{L['P']} = " + _tex(steps["P"]),
+            "omega2": f"{L['omega2']} = " + _tex(steps["omega2"]),
+            "v2": r"\underline{\vartheta}_c\cdot\underline{\vartheta}_c = " + _tex(v2),
+            "T": "T = " + _tex(steps["T"]), "Pi": r"\Pi = " + _tex(steps["Pi"])}
     blocks = []
-    all_ok = True
-    for title, theirs, ours, diff, constant in rows:
-        ok = _identical(diff if constant is None else diff - constant)
-        all_ok &= ok
-        if constant is None:
-            zero = r"\underline{0}" if isinstance(diff, sp.MatrixBase) else "0"
-            line = r"\text{skewpend} - \text{specification} = " + zero
-        else:
-            line = (r"\Pi_{\text{skewpend}} - \Pi_{\text{spec}} = " + _tex(constant)
+    for key, mine in ours.items():
+        c = checks[key]
+        if key == "Pi":
+            line = (r"\Pi_{\text{skewpend}} - \Pi_{\text{spec}} = " + _tex(c.expected)
                     + r"\quad\text{(a constant: the specification's zero level)}")
-        verdict = '<span class="verdict ok">✓ identical</span>' if ok else '<span class="verdict bad">✗ differs</span>'
+        else:
+            zero = r"\underline{0}" if isinstance(c.difference, sp.MatrixBase) else "0"
+            line = r"\text{skewpend} - \text{specification} = " + zero
+        verdict = '<span class="verdict ok">✓ identical</span>' if c.identical else '<span class="verdict bad">✗ differs</span>'
         blocks.append(
-            f'<li><p class="step-title">{_e(title)}</p>'
-            f'<p class="note">The specification:</p>{_md(theirs)}'
-            f'<p class="note">This derivation at α = 0:</p>{_md(ours)}'
+            f'<li><p class="step-title">{_e(c.title)}</p>'
+            f'<p class="note">The specification:</p>{_md(spec_tex[key])}'
+            f'<p class="note">This derivation at α = 0:</p>{_md(mine)}'
             f"<p>{_m(line)} &nbsp; {verdict}</p></li>"
         )
-    dM = sp.simplify(lin0.M - spec["M0"])
-    dK = sp.simplify(lin0.K - spec["K0"])
-    lin_ok = dM == sp.zeros(2, 2) and dK == sp.zeros(2, 2) and lin0.C == sp.zeros(2, 2)
-    all_ok &= lin_ok
+    dM, dK = checks["M0"].difference, checks["K0"].difference
+    lin_ok = checks["M0"].identical and checks["K0"].identical and checks["C0"].identical
+    all_ok = all(c.identical for c in checks.values())
     blocks.append(
         '<li><p class="step-title">The linearised equations of motion</p>'
         '<p class="note">The specification (energies differentiated, first-order terms kept):</p>'
