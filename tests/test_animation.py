@@ -21,7 +21,8 @@ from skewpend.views.animation import (
     world_to_plot,
 )
 
-BENCH = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+from skewpend.config import reference_parameters  # noqa: E402
+BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 Y0 = (1.2, -0.8, 0.0, 0.0)
 FPS, SPEED = 12.0, 1.0
 SIZE = (240, 180)

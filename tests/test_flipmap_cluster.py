@@ -16,12 +16,13 @@ import pytest
 distributed = pytest.importorskip("distributed")
 pytest.importorskip("zarr")
 
-from skewpend import ParameterError, Parameters, SkewpendError  # noqa: E402
+from skewpend import ParameterError, SkewpendError  # noqa: E402
 from skewpend.analysis.flipmap import FlipJob, flip_map, open_flip_map  # noqa: E402
 from skewpend.numeric.grid import cluster_task  # noqa: E402
 from skewpend.numeric.ensemble import MAX_TASKS, batches  # noqa: E402
 
-BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+from skewpend.config import reference_parameters  # noqa: E402
+BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 #: No test here may take longer (no pytest-timeout in the test extra: SIGALRM does it).
 TIMEOUT = 90
 

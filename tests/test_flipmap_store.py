@@ -15,14 +15,15 @@ import pytest
 
 zarr = pytest.importorskip("zarr")
 
-from skewpend import ParameterError, Parameters, SkewpendError  # noqa: E402
+from skewpend import ParameterError, SkewpendError  # noqa: E402
 from skewpend.analysis.flipmap import (  # noqa: E402
     FlipMap, chunk_rows, fingerprint, flip_map, flip_settings, open_flip_map, row_groups,
 )
 from skewpend.numeric.grid import UNITS_PER_WORKER, work_units  # noqa: E402
 from skewpend.numeric.store import LOCK_NAME, RowStore  # noqa: E402
 
-BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+from skewpend.config import reference_parameters  # noqa: E402
+BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 KIND = "skewpend flip map"
 
 

@@ -23,13 +23,14 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from skewpend import ParameterError, Parameters, SkewpendError
+from skewpend import ParameterError, SkewpendError
 from skewpend.numeric.grid import ArraySpec, GridJob, run_grid
 from skewpend.status import Status
 
 zarr = pytest.importorskip("zarr")
 
-BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+from skewpend.config import reference_parameters  # noqa: E402
+BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 
 
 # -- a toy job: the protocol without any kernel ------------------------------------------------------------

@@ -24,7 +24,8 @@ from skewpend.cli import main
 from skewpend.analysis.modes import normal_modes, parse_sweep, sweep
 from skewpend.parsing import UsageError, parse_range
 
-BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+from skewpend.config import reference_parameters  # noqa: E402
+BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 L, MASS, G = 0.8, 1.3, 9.81
 #: Equal uniform thin rods (length L, mass MASS) at alpha = 90 deg: the hinges decouple.
 RIGHT = Parameters(a=L, b=L, m1=MASS, m2=MASS, alpha=math.pi / 2, g=G)

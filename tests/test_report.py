@@ -229,7 +229,7 @@ def test_general_bodies_say_why_there_is_no_sweep(tmp_path):
 
 
 def test_without_mujoco_the_report_says_how_to_get_it(monkeypatch):
-    monkeypatch.setattr(R, "_mujoco_installed", lambda: False)
+    monkeypatch.setattr(R.analyses, "mujoco_installed", lambda: False)
     monkeypatch.setattr(R, "PARALLEL", False)  # the serial path too
     page = R.build_report(**SMALL)
     validation = _section(page, "validation")
@@ -271,7 +271,7 @@ def test_refused_before_any_work(kwargs, message, tmp_path, monkeypatch):
     def fail(ctx):  # pragma: no cover - must not be reached
         raise AssertionError("work started")
 
-    monkeypatch.setattr(R, "_section_simulation", fail)
+    monkeypatch.setattr(R, "section_simulation", fail)
     params = kwargs.pop("params", None)
     out = kwargs.pop("out", None)
     with pytest.raises((ParameterError, NotNumericError), match=re.escape(message)):
@@ -286,7 +286,7 @@ def test_written_atomically(tmp_path, monkeypatch):
     def boom(ctx):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(R, "_section_validation", boom)
+    monkeypatch.setattr(R, "section_validation", boom)
     with pytest.raises(RuntimeError):
         R.build_report(out=out, **SMALL)
     assert out.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["r.html"]
@@ -294,7 +294,7 @@ def test_written_atomically(tmp_path, monkeypatch):
 
 # -- the bundled KaTeX -------------------------------------------------------------------------------
 def test_bundled_katex_is_what_vendor_katex_recorded():
-    root = Path(R.__file__).parent / "assets" / "katex"
+    root = Path(R.__file__).parent.parent / "assets" / "katex"  # views/assets (R is the views/report package)
     source = json.loads((root / "SOURCE.json").read_text())
     assert source["package"] == "katex" and source["files"]
     for rel, digest in source["files"].items():
@@ -381,7 +381,7 @@ def test_flipmap_section_for_general_bodies_with_torques_and_speeds():
     p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, g=9.81, axis2=(1, 0, 1), com2=(0, 0.4, 0.02), c1=0.05, tau2=0.2,
                    inertia2=((0.02, 0, 0), (0, 0.001, 0), (0, 0, 0.02)))
     ctx = SimpleNamespace(params=p, y0=(4.0, -0.8, 0.5, 0.0), notes={})  # phi0 beyond 180 deg: wrapped on the map
-    sec = R._section_flipmap(ctx)
+    sec = R.section_flipmap(ctx)
     assert sec.count('src="data:image/png;base64,') == 1 and "callout" not in sec
     text = html.unescape(re.sub(r"<[^>]+>", "", sec))
     assert "but not at rest (the map is for starts at rest)" in text
@@ -395,7 +395,7 @@ def test_flipmap_section_start_that_energy_forbids_to_flip():
     from types import SimpleNamespace
 
     ctx = SimpleNamespace(params=Parameters(**R.DEFAULT_PARAMETERS), y0=(0.3, -0.2, 0.0, 0.0), notes={})
-    text = html.unescape(re.sub(r"<[^>]+>", "", R._section_flipmap(ctx)))
+    text = html.unescape(re.sub(r"<[^>]+>", "", R.section_flipmap(ctx)))
     assert "at rest: never flips: energy forbids it" in text
     assert re.search(r"starts that flip\d[\d\u2009]* of 20\u2009736 \(", text), text
 
@@ -435,7 +435,7 @@ def test_chaos_section_for_a_damped_model_explains_what_is_left_out():
 
     p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81, c1=0.05)
     ctx = SimpleNamespace(params=p, y0=(1.2, -0.8, 0.0, 0.0), notes={})
-    body = R._section_chaos(ctx)
+    body = R.section_chaos(ctx)
     text = html.unescape(re.sub(r"<[^>]+>", "", body))
     assert "need an energy surface" in text and len(re.findall(r"<figure", body)) == 1
     lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+) ± ", text)]

@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from skewpend import Parameters
 from skewpend.status import Status
 
-BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+from skewpend.config import reference_parameters  # noqa: E402
+BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 
 
 def _results():

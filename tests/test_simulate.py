@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from skewpend import IntegrationError, ParameterError, Parameters
+from skewpend import IntegrationError, ParameterError
 from skewpend.numeric.codegen import generate, parameter_vector
 from skewpend.numeric.simulation import simulate
 
-BENCH = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+from skewpend.config import reference_parameters  # noqa: E402
+BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 Y0 = (1.2, -0.8, 0.0, 0.0)
 
 

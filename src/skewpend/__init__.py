@@ -25,6 +25,8 @@ _LAZY = {
     "simulate": "numeric.simulation",
     "Trajectory": "numeric.simulation",
     "open_trajectory": "numeric.simulation",
+    "reference_parameters": "config",
+    "reference_state": "config",
     "normal_modes": "analysis.modes",
     "Modes": "analysis.modes",
     "sweep": "analysis.modes",
@@ -55,6 +57,8 @@ __all__ = [
     "simulate",
     "Trajectory",
     "open_trajectory",
+    "reference_parameters",
+    "reference_state",
     "normal_modes",
     "Modes",
     "sweep",
@@ -87,6 +91,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .symbolic.derivation import EquationsOfMotion, LinearEquations, derive
     from .symbolic.symbols import SYMBOLS
     from .numeric.simulation import Trajectory, open_trajectory, simulate
+    from .config import reference_parameters, reference_state
     from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
     from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map, open_lyapunov_map

@@ -15,12 +15,12 @@ user spelled them (numbers, ``"30deg"``, ``"pi/2"``, ``"sym"``, vectors, matrice
 from __future__ import annotations
 
 import math
-from typing import Any, Dict, Iterable, Mapping, Optional
+from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
 from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
 
 __all__ = [
-    "DEFAULT_RUN", "COMMAND_DEFAULTS", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
+    "DEFAULT_RUN", "reference_parameters", "reference_state", "COMMAND_DEFAULTS", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
 ]
 
 #: The run ``skewpend simulate`` does with no options (the reference case of the README).
@@ -29,6 +29,20 @@ DEFAULT_RUN: Dict[str, Dict[str, Any]] = {
     "initial": {"phi0": 1.2, "psi0": -0.8, "dphi0": 0.0, "dpsi0": 0.0},
     "simulation": {"t_end": 20.0, "method": "dop853"},
 }
+
+def reference_parameters():
+    """The reference case (:data:`DEFAULT_RUN`'s ``[parameters]``: the README's and the report's
+    built-in model) as :class:`~skewpend.Parameters`."""
+    from .symbolic.model import Parameters
+
+    return Parameters(**DEFAULT_RUN["parameters"])
+
+
+def reference_state() -> Tuple[float, float, float, float]:
+    """The reference case's initial state ``(phi, psi, dphi, dpsi)`` (:data:`DEFAULT_RUN`'s ``[initial]``)."""
+    initial = DEFAULT_RUN["initial"]
+    return tuple(float(initial[k]) for k in ("phi0", "psi0", "dphi0", "dpsi0"))  # type: ignore[return-value]
+
 
 #: The settings a command needs that its library function does not default itself (the run
 #: of simulate, animate and report is DEFAULT_RUN's; the Lyapunov spectrum's length).

@@ -1,0 +1,333 @@
+"""One self-contained HTML report that reads like a worked solution (``skewpend report``).
+
+:func:`build_report` computes everything from the library -- the derivation by rotation tensors
+and Lagrange's equations, the check of the planar case against the specification, the normal
+modes and their dependence on ``alpha``, a simulation with its figures and an animation, the
+comparison with MuJoCo -- and writes one HTML file that opens offline: the mathematics is
+typeset by KaTeX, bundled into the file (script, style sheet, fonts as ``data:`` URIs), the
+figures are PNG and the animation MP4 (H.264) ``data:`` URIs.  Nothing is fetched: the file
+has no reference to anything outside itself.
+
+Sections:
+
+1. the system -- a picture of the pendulum with both hinge axes (reference configuration and
+   initial state), the parameters with their units, the initial state;
+2. the equations of motion, step by step as the specification derives them (``P1``, ``e``,
+   ``P``, ``omega2``, the velocity of rod 2's centre of mass, its inertia tensor, ``T``, ``Pi``,
+   Lagrange's equations), nonlinear and linearised, then with the values of section 1;
+   intermediate results in display form (:mod:`skewpend.symbolic.display`: e.g. ``cos(phi + psi)``
+   at ``alpha = 0``; proved equal to the derivation's, which the numeric code uses unchanged);
+3. the check at ``alpha = 0``: the planar formulas and linear equations of the specification
+   (:mod:`skewpend.symbolic.specification`, typed from its text) against the derivation, with
+   the differences computed by ``sympy.simplify`` when the report is made
+   (:func:`~skewpend.symbolic.specification.check_planar`);
+4. normal modes: frequencies, periods, shapes; the frequencies against ``alpha`` with the
+   internal resonances;
+5. a simulation: figures, energy drift, the animation;
+6. which starts flip: a small flip-time map (:func:`skewpend.flip_map`, released at rest), the
+   simulation's start marked on it;
+7. how chaotic: the Lyapunov spectrum of the simulation's start, Poincare sections at two
+   energies, a largest-exponent map, and the chaotic fraction over (alpha, energy);
+8. the validation against MuJoCo (or how to install it);
+9. how the report was made: versions, settings, timings.
+
+Sections 2 and 3 are symbolic work (SymPy); on a machine with more than one core a second Python
+process computes them while this one simulates and draws (:data:`PARALLEL`; if that process
+cannot run, they are computed here).  The file is written atomically (:func:`skewpend.io.atomic_path`):
+it appears complete or not at all, also on Ctrl-C, which stops the second process too.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Callable, Dict, List, Optional, Sequence, Union
+
+import numpy as np
+
+from ... import __version__
+from ...errors import ParameterError, SkewpendError
+from ...symbolic.model import Parameters
+
+from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, video_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
+from .analyses import mujoco_installed, section_chaos, section_flipmap, section_provenance, section_validation  # noqa: F401
+from .derivation import section_check, section_derivation
+from .system import VIDEO_SLOT, section_modes, section_simulation, section_system, video_figure
+
+__all__ = [
+    "build_report",
+    "DEFAULT_PARAMETERS",
+    "DEFAULT_INITIAL_STATE",
+    "DEFAULT_T_END",
+    "REPORT_SUFFIXES",
+    "SECTIONS",
+    "MAX_T_END",
+    "katex_assets",
+]
+
+
+def _require_libraries() -> None:
+    """The report draws with Matplotlib (and Pillow) and encodes its video with the ffmpeg of the
+    imageio-ffmpeg wheel: say which is missing before any work starts."""
+    import importlib.util
+
+    missing = [name for name, module in (("matplotlib", "matplotlib"), ("Pillow", "PIL"), ("imageio-ffmpeg", "imageio_ffmpeg"))
+               if importlib.util.find_spec(module) is None]
+    if missing:
+        raise SkewpendError(f"the report needs {', '.join(missing)}: pip install {' '.join(missing)}")
+
+
+def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_seconds, fps, clip_size, sweep_points,
+                  validate, out):
+    from ...io import check_output_path
+    from ...numeric.simulation import METHODS
+    from ...parsing import initial_state, positive_number
+
+    _require_libraries()
+    if params is None:
+        params = Parameters(**DEFAULT_PARAMETERS)
+    if not isinstance(params, Parameters):
+        raise ParameterError(f"params must be skewpend.Parameters, got {type(params).__name__}")
+    params.require_numeric("a report")
+    y = initial_state(DEFAULT_INITIAL_STATE if y0 is None else y0)
+    t_end = positive_number("t_end", t_end)
+    if t_end > MAX_T_END:
+        raise ParameterError(
+            f"t_end = {t_end:g} s is longer than a report draws (at most {MAX_T_END:g} s); "
+            "use skewpend simulate --out for long runs"
+        )
+    if method not in METHODS:
+        raise ParameterError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
+    if method == "dop853" and dt is not None:
+        raise ParameterError("dt is the step of rk4 and gauss; dop853 chooses its own steps (set rtol/atol instead)")
+    if method != "dop853" and (rtol is not None or atol is not None):
+        raise ParameterError(f"rtol and atol are tolerances of dop853; {method} takes fixed steps dt")
+    if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1):
+        raise ParameterError(f"max_steps must be a positive whole number, got {max_steps!r}")
+    clip_seconds = positive_number("clip_seconds", clip_seconds)
+    fps = positive_number("fps", fps)
+    if not 1 <= fps <= 60:
+        raise ParameterError(f"fps must be between 1 and 60, got {fps:g}")
+    if min(clip_seconds, t_end) * fps > 1200:
+        raise ParameterError(f"the animation would have {min(clip_seconds, t_end) * fps:.0f} frames; at most 1200 (clip_seconds * fps)")
+    try:
+        w, h = (int(v) for v in clip_size)
+    except (TypeError, ValueError):
+        raise ParameterError(f"clip_size must be (width, height) in pixels, got {clip_size!r}") from None
+    if w % 2 or h % 2 or not (64 <= w <= 1280 and 64 <= h <= 960):
+        raise ParameterError(f"clip_size must be even sizes between 64x64 and 1280x960 pixels, got {clip_size!r}")
+    if isinstance(sweep_points, bool) or not isinstance(sweep_points, (int, np.integer)) or not 2 <= sweep_points <= 2001:
+        raise ParameterError(f"sweep_points must be a whole number from 2 to 2001, got {sweep_points!r}")
+    if validate is not None and not isinstance(validate, bool):
+        raise ParameterError(f"validate must be True, False or None (when MuJoCo is installed), got {validate!r}")
+    if validate:
+        from ...interop.export import import_mujoco
+
+        import_mujoco()  # a clear error now, not after the work
+    if out is not None:
+        check_output_path(out, REPORT_SUFFIXES, option="--out")
+    return params, tuple(float(v) for v in y), t_end, clip_seconds, fps, (w, h)
+
+
+#: Compute the symbolic sections in a second process when the machine has more than one core.
+PARALLEL = True
+
+
+def _symbolic_sections(params: Parameters) -> Dict[str, Dict]:
+    """Sections 2 and 3 (pure SymPy): ``{"bodies": ..., "notes": ..., "timings": ...}`` (JSON-able)."""
+    from types import SimpleNamespace
+
+    ctx = SimpleNamespace(params=params, notes={})
+    bodies, timings = {}, {}
+    for key, build in (("derivation", section_derivation), ("check", section_check)):
+        t0 = time.perf_counter()
+        bodies[key] = build(ctx)
+        timings[key] = time.perf_counter() - t0
+    return {"bodies": bodies, "notes": dict(ctx.notes), "timings": timings}
+
+
+def _worker_main() -> None:
+    """Entry point of the second process: parameters as JSON on stdin, the sections as JSON on stdout."""
+    import json
+
+    params = Parameters.from_mapping(json.loads(sys.stdin.read()))
+    sys.stdout.write(json.dumps(_symbolic_sections(params)))
+
+
+class _Background:
+    """Sections 2 and 3 computed by ``python -c`` in a child process (started by this process, and
+    stopped by it -- by its process id -- if it is still running when the report ends)."""
+
+    def __init__(self, proc) -> None:
+        self.proc = proc
+        self.error: List[str] = []
+
+    @classmethod
+    def start(cls, params: Parameters) -> Optional["_Background"]:
+        import json
+        import subprocess
+
+        root = str(Path(__file__).resolve().parents[3])  # the directory holding the package
+        env = dict(os.environ)
+        env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        code = "from skewpend.views.report import _worker_main; _worker_main()"
+        try:
+            proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE, env=env)
+            proc.stdin.write(json.dumps(params.to_dict()).encode("utf-8"))
+            proc.stdin.close()
+            proc.stdin = None  # written: communicate() only reads
+        except OSError:
+            return None
+        return cls(proc)
+
+    def result(self) -> Optional[Dict]:
+        """The sections, or None if the child failed (the caller then computes them itself)."""
+        import json
+
+        out, err = self.proc.communicate()
+        if self.proc.returncode != 0:
+            self.error = err.decode("utf-8", "replace").strip().splitlines()[-1:]
+            return None
+        try:
+            return json.loads(out.decode("utf-8"))
+        except ValueError:
+            return None
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        for stream in (self.proc.stdout, self.proc.stderr):
+            if stream is not None:
+                stream.close()
+
+
+def build_report(
+    params: Optional[Parameters] = None,
+    *,
+    y0: Optional[Sequence[float]] = None,
+    t_end: float = DEFAULT_T_END,
+    method: str = "dop853",
+    rtol: Optional[float] = None,
+    atol: Optional[float] = None,
+    dt: Optional[float] = None,
+    max_steps: Optional[int] = None,
+    out: Optional[Union[str, Path]] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
+    clip_seconds: float = CLIP_SECONDS,
+    fps: float = CLIP_FPS,
+    clip_size: Sequence[int] = CLIP_SIZE,
+    sweep_points: int = SWEEP_POINTS,
+    validate: Optional[bool] = None,
+    command: Optional[str] = None,
+) -> Union[Path, str]:
+    """Build the report; write it to ``out`` (``.html``/``.htm``, atomically: the file appears
+    complete or not at all) and return the path, or return the HTML text when ``out`` is None.
+
+    ``params``: numeric :class:`~skewpend.Parameters` (default :data:`DEFAULT_PARAMETERS`);
+    ``y0 = (phi, psi, dphi, dpsi)``: the simulation's initial state (default
+    :data:`DEFAULT_INITIAL_STATE`); ``t_end`` [s]: its length (at most :data:`MAX_T_END`);
+    ``method``, ``rtol``, ``atol``, ``dt``, ``max_steps``: as for :func:`skewpend.simulate`.
+    ``clip_seconds``, ``fps``, ``clip_size``: the animation (the first ``clip_seconds`` of the
+    motion, at most ``t_end``; at most 1200 frames).  ``sweep_points``: values of alpha in
+    0..180 deg for the frequency curves.  ``validate``: compare with MuJoCo (None: when MuJoCo is
+    installed; True: it must be).  ``command``: the command line that made the report, shown in
+    section 9.  ``progress(done, total)`` is called as each part is finished.
+
+    Every argument is checked before any work starts (:class:`~skewpend.ParameterError`).
+    """
+    start = time.perf_counter()
+    params, y0, t_end, clip_seconds, fps, clip_size = _check_inputs(
+        params, y0, t_end, method, rtol, atol, dt, max_steps, clip_seconds, fps, clip_size, sweep_points, validate, out
+    )
+    if progress is not None and not callable(progress):
+        raise ParameterError("progress must be a callable progress(done, total)")
+    ctx = Context(params, y0, t_end, method, rtol, atol, dt, max_steps, min(clip_seconds, t_end), fps, clip_size,
+                   int(sweep_points), validate, command)
+    # sections 2 and 3 are symbolic work (SymPy, a few seconds): on a machine with more than one
+    # core they are computed by a second Python process while this one simulates and draws
+    background = _Background.start(params) if PARALLEL and (os.cpu_count() or 1) > 1 else None
+    numeric = {
+        "simulation": section_simulation,  # first: section 1's pictures and the animation use its runs
+        "system": section_system,
+        "modes": section_modes,
+        "flipmap": section_flipmap,
+        "chaos": section_chaos,
+        "validation": section_validation,
+    }
+    total = len(numeric) + 3
+    done = 0
+    bodies: Dict[str, str] = {}
+    try:
+        for key, build in numeric.items():
+            t0 = time.perf_counter()
+            bodies[key] = build(ctx)
+            ctx.timings[key] = time.perf_counter() - t0
+            done += 1
+            if progress is not None:
+                progress(done, total)
+        symbolic = background.result() if background is not None else None
+        if symbolic is None:  # serial, or the second process failed: compute it here
+            symbolic = _symbolic_sections(params)
+        else:
+            ctx.notes["parallel"] = "sections 2 and 3 computed by a second process, in parallel"
+    finally:
+        if background is not None:
+            background.stop()
+    bodies.update(symbolic["bodies"])
+    ctx.notes.update(symbolic["notes"])
+    ctx.timings.update(symbolic["timings"])
+    for _ in ("derivation", "check"):
+        done += 1
+        if progress is not None:
+            progress(done, total)
+    bodies["simulation"] = bodies["simulation"].replace(VIDEO_SLOT, video_figure(ctx))
+    ctx.timings["total"] = time.perf_counter() - start
+    bodies["provenance"] = section_provenance(ctx)
+    page = _assemble(ctx, bodies)
+    result: Union[Path, str] = page
+    if out is not None:
+        from ...io import atomic_path
+
+        result = Path(out)
+        with atomic_path(result) as tmp:
+            tmp.write_bytes(page.encode("utf-8"))
+    if progress is not None:
+        progress(total, total)
+    return result
+
+
+def _assemble(ctx: Context, bodies: Dict[str, str]) -> str:
+    from string import Template
+
+    css, js, _ = katex_assets()
+    toc = "\n".join(f'    <li><a href="#{key}">{esc(title)}</a></li>' for key, title in SECTIONS)
+    parts = []
+    for n, (key, title) in enumerate(SECTIONS, 1):
+        parts.append(
+            f'<section class="report-section" id="{key}" aria-labelledby="{key}-title">\n'
+            f'<h2 id="{key}-title"><span class="num">{n}</span>{esc(title)}</h2>\n{bodies[key]}\n</section>'
+        )
+    p = ctx.params
+    if p.uses_alpha and p.is_thin_rods:
+        subtitle = (f"Two thin rods whose hinge axes are skewed by α = {fmt_deg(p.alpha)}: the equations of motion derived "
+                    "step by step, checked, analysed and simulated")
+    else:
+        subtitle = "Two rigid bodies on skewed hinges: the equations of motion derived step by step, checked, analysed and simulated"
+    page = Template(template("report.html")).substitute(
+        title="The double pendulum with skewed hinge axes",
+        subtitle=subtitle,
+        version=esc(__version__),
+        katex_css=css,
+        report_css=template("report.css"),
+        toc=toc,
+        body=number_figures("\n".join(parts)),
+        footer=esc(f"Made by skewpend {__version__}. This one file holds every figure, the video, and the script and fonts "
+                  "that typeset its mathematics (KaTeX, MIT licence): it opens offline and fetches nothing."),
+        katex_js=js,
+        render_js=template("render.js"),
+    )
+    return page

@@ -1,0 +1,270 @@
+"""What every section of the report shares: its settings (the built-in case, the sizes and
+lengths of its runs), the small HTML helpers (escaping, mathematics for KaTeX, figures, tables),
+the bundled KaTeX, the LaTeX of expressions, and the context the sections fill."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ... import __version__
+from ...config import DEFAULT_RUN, reference_state
+from ...errors import SkewpendError
+from ...symbolic.model import Parameters
+
+#: The built-in case (the README's benchmark case, as ``skewpend simulate`` runs it).
+DEFAULT_PARAMETERS = dict(DEFAULT_RUN["parameters"])
+DEFAULT_INITIAL_STATE = reference_state()
+DEFAULT_T_END = float(DEFAULT_RUN["simulation"]["t_end"])
+#: Longest simulated time a report draws [s] (its figures show every 0.01 s up to 20,000 rows).
+MAX_T_END = 1000.0
+#: File names a report is written to.
+REPORT_SUFFIXES = (".html", ".htm")
+#: (id, title) of the sections, in order.
+SECTIONS = (
+    ("system", "The system"),
+    ("derivation", "Equations of motion, step by step"),
+    ("check", "Check: the planar case α = 0"),
+    ("modes", "Small oscillations: normal modes"),
+    ("simulation", "Simulation"),
+    ("flipmap", "Which starts flip: the flip-time map"),
+    ("chaos", "How chaotic: Lyapunov exponents, Poincaré sections and the skew"),
+    ("validation", "Validation against MuJoCo"),
+    ("provenance", "How this report was made"),
+)
+#: Animation: length of the clip [s of motion], frames per second, frame size [px].
+CLIP_SECONDS = 10.0
+CLIP_FPS = 20.0
+CLIP_SIZE = (480, 360)
+#: Pictures of section 1 [px].
+PICTURE_SIZE = (560, 420)
+#: Resolution of the figures [dots per inch].
+FIGURE_DPI = 110
+#: Sweep of alpha for the frequency curves: 0..180 deg in this many points.
+SWEEP_POINTS = 181
+#: Validation: MuJoCo's step and horizon, and the agreement required.
+VALIDATION_DT = 1e-4
+VALIDATION_T_END = 2.0
+VALIDATION_TOL = 1e-6
+#: The flip-time map of section 6: cells per side and how long each start is followed [s].
+FLIPMAP_N = 144
+FLIPMAP_T_END = 10.0
+#: Section 7: the Lyapunov run [s], the Poincare sections (energies as fractions of the
+#: potential's span, orbits, crossings), the largest-exponent map (cells per side, seconds) and
+#: the chaos diagram (alphas, energies, starts per cell, seconds).
+CHAOS_LYAPUNOV_T_END = 500.0
+CHAOS_SECTION_LEVELS = (0.15, 0.5)
+CHAOS_SECTION_ORBITS = 24
+CHAOS_SECTION_CROSSINGS = 300
+CHAOS_MAP_N = 24
+CHAOS_MAP_T_END = 50.0
+CHAOS_DIAGRAM = dict(n_alpha=7, samples=12, t_end=80.0)
+#: ... at these fractions of the potential's span (denser where chaos sets in)
+CHAOS_DIAGRAM_LEVELS = (0.1, 0.17, 0.25, 0.35, 0.5, 0.75, 1.0)
+#: Rows drawn by the figures: every FIGURE_DT seconds, at most FIGURE_MAX_ROWS.
+FIGURE_DT = 0.01
+FIGURE_MAX_ROWS = 20000
+
+
+# -- small helpers ----------------------------------------------------------------------------
+def esc(text) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def inline_math(tex: str) -> str:
+    """Inline mathematics (typeset in the browser by KaTeX; the LaTeX is the element's text)."""
+    return f'<span class="math">{esc(tex)}</span>'
+
+
+def display_math(tex: str) -> str:
+    """Display mathematics."""
+    return f'<div class="math display">{esc(tex)}</div>'
+
+
+def prose(text: str) -> str:
+    """Prose written in this module with inline mathematics between ``$`` signs (the text
+    itself is trusted HTML; the mathematics is escaped into a KaTeX element)."""
+    parts = text.split("$")
+    if len(parts) % 2 == 0:
+        raise ValueError(f"unbalanced $ in {text[:60]!r}")
+    return "".join(p if i % 2 == 0 else inline_math(p) for i, p in enumerate(parts))
+
+
+def fmt_num(x: float, digits: int = 6) -> str:
+    """A number for the text: ``1``, ``0.8``, ``9.81``, ``1.83×10⁻¹¹`` (HTML)."""
+    x = float(x)
+    if x == 0:
+        return "0"
+    if not math.isfinite(x):
+        return "∞" if x > 0 else ("−∞" if x < 0 else "not a number")
+    s = f"{x:.{digits}g}"
+    if "e" in s:
+        mant, exp = s.split("e")
+        return f"{mant.replace('-', '−')}×10<sup>{str(int(exp)).replace('-', '−')}</sup>"
+    return s.replace("-", "−")
+
+
+def fmt_num_tex(x: float, digits: int = 6) -> str:
+    s = f"{float(x):.{digits}g}"
+    if "e" in s:
+        mant, exp = s.split("e")
+        return rf"{mant}\times 10^{{{int(exp)}}}"
+    return s
+
+
+def fmt_deg(x: float) -> str:
+    return f"{fmt_num(math.degrees(x), 5)}°"
+
+
+def fig_png(fig, dpi: int = FIGURE_DPI) -> bytes:
+    from ..style import style
+
+    buf = io.BytesIO()
+    with style():
+        fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": f"skewpend {__version__}"})
+    fig.clear()
+    return buf.getvalue()
+
+
+def rgb_png(rgb: np.ndarray) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(rgb, "RGB").save(buf, format="PNG", optimize=True)
+    return buf.getvalue()
+
+
+def data_uri(data: bytes, mime: str) -> str:
+    return f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
+
+
+#: Stands for a figure's number until the page is assembled (figures are numbered in page order).
+FIGURE_SLOT = "\x00FIGURE\x00"
+
+
+def figure_html(data: bytes, caption: str, alt: str) -> str:
+    """A numbered PNG figure; ``caption`` is HTML."""
+    return (
+        f'<figure id="figure-{FIGURE_SLOT}"><img src="{data_uri(data, "image/png")}" alt="{esc(alt)}">'
+        f"<figcaption><b>Figure {FIGURE_SLOT}.</b> {caption}</figcaption></figure>"
+    )
+
+
+def video_html(data: bytes, caption: str, poster: Optional[bytes], size: Tuple[int, int]) -> str:
+    """The MP4 (H.264) clip as a data URI in a looping, muted, autoplaying <video>."""
+    poster_attr = f' poster="{data_uri(poster, "image/png")}"' if poster else ""
+    return (
+        f'<figure id="figure-{FIGURE_SLOT}"><video controls loop muted autoplay playsinline preload="auto" '
+        f'width="{size[0]}" height="{size[1]}"{poster_attr}>'
+        f'<source src="{data_uri(data, "video/mp4")}" type="video/mp4">'
+        "Your browser cannot play H.264 video.</video>"
+        f"<figcaption><b>Figure {FIGURE_SLOT}.</b> {caption}</figcaption></figure>"
+    )
+
+
+def number_figures(page: str) -> str:
+    count = 0
+    out = []
+    for i, part in enumerate(page.split(FIGURE_SLOT)):
+        if i:
+            out.append(str((count // 2) + 1))  # two marks per figure: its id and its caption
+            count += 1
+        out.append(part)
+    return "".join(out)
+
+
+def table_html(head: Sequence[str], rows: Sequence[Sequence[str]], *, numeric: Sequence[int] = (), caption: str = "",
+           compact: bool = False) -> str:
+    cap = f"<caption>{caption}</caption>" if caption else ""
+    th = "".join(f'<th{" class=num" if i in numeric else ""}>{h}</th>' for i, h in enumerate(head))
+    body = "".join(
+        "<tr>" + "".join(f'<td{" class=num" if i in numeric else ""}>{c}</td>' for i, c in enumerate(r)) + "</tr>"
+        for r in rows
+    )
+    cls = ' class="compact"' if compact else ""
+    return f'<div class="table-wrap"><table{cls}>{cap}<thead><tr>{th}</tr></thead><tbody>{body}</tbody></table></div>'
+
+
+def facts_html(items: Sequence[Tuple[str, str]]) -> str:
+    return '<dl class="facts">' + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in items) + "</dl>"
+
+
+# -- the bundled KaTeX ------------------------------------------------------------------------
+def asset(*parts: str) -> bytes:
+    return resources.files("skewpend.views").joinpath(*parts).read_bytes()
+
+
+def katex_assets() -> Tuple[str, str, str]:
+    """``(css, js, version)`` of the bundled KaTeX; the CSS's fonts are inlined as WOFF2 ``data:``
+    URIs (the WOFF and TTF alternatives are dropped), so the style sheet references no file."""
+    import json
+    import re
+
+    source = json.loads(asset("assets", "katex", "SOURCE.json"))
+    css = asset("assets", "katex", "katex.min.css").decode("utf-8")
+
+    def src(match: "re.Match[str]") -> str:
+        urls = re.findall(r"url\(([^)]+)\)\s*format\([\"']?(\w+)[\"']?\)", match.group(1))
+        for url, fmt in urls:
+            if fmt == "woff2":
+                name = url.strip("\"'").rsplit("/", 1)[-1]
+                data = asset("assets", "katex", "fonts", name)
+                return "src:url(" + data_uri(data, "font/woff2") + ') format("woff2")'
+        raise SkewpendError(f"bundled KaTeX: no woff2 font in {match.group(0)[:80]}")
+
+    css = re.sub(r"src:([^;}]+)", src, css)
+    if re.search(r"url\((?!data:)", css):
+        raise SkewpendError("bundled KaTeX: the style sheet still references a file")
+    js = asset("assets", "katex", "katex.min.js").decode("utf-8").replace("</script", "<\\/script")
+    return css, js, str(source.get("version", "?"))
+
+
+def template(name: str) -> str:
+    return asset("templates", name).decode("utf-8")
+
+
+# -- LaTeX of derived expressions (the layout engine: skewpend.symbolic.layout) ---------------------
+def tex_of(expr) -> str:
+    from ...symbolic.render import tex
+
+    return tex(expr)
+
+
+def array_tex(a: np.ndarray, digits: int = 5) -> str:
+    rows = [" & ".join(fmt_num_tex(x, digits) for x in row) for row in np.asarray(a, dtype=float)]
+    return r"\begin{bmatrix}" + r" \\ ".join(rows) + r"\end{bmatrix}"
+
+
+def vector_tex(v, digits: int = 4) -> str:
+    return r"\begin{bmatrix}" + r" \\ ".join(fmt_num_tex(x, digits) for x in v) + r"\end{bmatrix}"
+
+
+# -- the report -------------------------------------------------------------------------------
+@dataclass
+class Context:
+    params: Parameters
+    y0: Tuple[float, float, float, float]
+    t_end: float
+    method: str
+    rtol: Optional[float]
+    atol: Optional[float]
+    dt: Optional[float]
+    max_steps: Optional[int]
+    clip_seconds: float
+    fps: float
+    clip_size: Tuple[int, int]
+    sweep_points: int
+    validate: Optional[bool]
+    command: Optional[str]
+    timings: Dict[str, float] = field(default_factory=dict)
+    notes: Dict[str, str] = field(default_factory=dict)
+    clip: object = None  # the animation's trajectory (row 0: the initial state)
+    video: Optional[bytes] = None
+    still: Optional[bytes] = None  # section 1's picture of the initial state (also the video's poster)
