@@ -26,3 +26,23 @@ def reference_state():
     from skewpend.config import reference_state
 
     return reference_state()
+
+
+# -- the quick selection: `python -m pytest -m "not slow"` ------------------------------------------------
+#: Modules whose every test is slow (a browser, or a report built per module).
+SLOW_MODULES = {"test_report_browser.py", "test_explorer_browser.py", "test_report.py"}
+
+
+def _measured_slow() -> set:
+    """Node ids of tests measured at >= 1 s (tests/slow.txt, with how they were measured)."""
+    path = Path(__file__).resolve().parent / "slow.txt"
+    lines = [line.split(None, 1) for line in path.read_text(encoding="utf-8").splitlines()
+             if line.strip() and not line.startswith("#")]
+    return {node.strip() for _, node in lines}
+
+
+def pytest_collection_modifyitems(config, items):
+    slow = _measured_slow()
+    for item in items:
+        if item.nodeid in slow or Path(str(item.fspath)).name in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
