@@ -58,10 +58,20 @@ def run_cli(argv: Sequence[str], cwd: Optional[os.PathLike] = None) -> Ran:
     return Ran(code, out.getvalue(), err.getvalue())
 
 
-def run_process(argv: Sequence[str], cwd: Optional[os.PathLike] = None, *, timeout: float = 120, env=None) -> Ran:
-    """``python -m skewpend ARGV`` as a real process."""
+def completed(argv: Sequence, cwd: Optional[os.PathLike] = None, *, timeout: float = 300, env=None,
+              check: bool = False) -> subprocess.CompletedProcess:
+    """``python -m skewpend ARGV`` as a real process, as a user runs it (``env`` added to this
+    process's environment; ``check``: assert exit status 0, showing stderr)."""
     proc = subprocess.run([*SKEWPEND, *map(str, argv)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
                           env={**os.environ, "SKEWPEND_DEBUG": "", **(env or {})})
+    if check:
+        assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def run_process(argv: Sequence[str], cwd: Optional[os.PathLike] = None, *, timeout: float = 120, env=None) -> Ran:
+    """``python -m skewpend ARGV`` as a real process, as a :class:`Ran`."""
+    proc = completed(argv, cwd, timeout=timeout, env=env)
     return Ran(proc.returncode, proc.stdout, proc.stderr)
 
 

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -13,16 +11,12 @@ import sympy as sp
 from skewpend import Parameters, derive
 from skewpend.symbolic.derivation import SYMBOLS
 from skewpend.symbolic.render import to_json
+from helpers import completed
 
 
 def run(*args, check=True):
     """Run the real command in a fresh process, as a user would."""
-    proc = subprocess.run(
-        [sys.executable, "-m", "skewpend.cli", *args], capture_output=True, text=True, timeout=120
-    )
-    if check:
-        assert proc.returncode == 0, proc.stderr
-    return proc
+    return completed(args, timeout=120, check=check)
 
 
 @pytest.fixture(scope="module")

@@ -2,26 +2,18 @@
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import completed
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
 def run(*args, cwd=None, check=True):
-    proc = subprocess.run(
-        [sys.executable, "-m", "skewpend", *map(str, args)], capture_output=True, text=True, timeout=600, cwd=cwd,
-        env={**os.environ},
-    )
-    if check:
-        assert proc.returncode == 0, proc.stderr
-    return proc
+    return completed(args, cwd, timeout=600, check=check)
 
 
 def test_default_run_prints_a_summary():

@@ -30,6 +30,7 @@ from skewpend.status import Status
 zarr = pytest.importorskip("zarr")
 
 from skewpend.config import reference_parameters  # noqa: E402
+from helpers import completed
 BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 
 
@@ -181,8 +182,7 @@ def test_damage_that_cannot_be_repaired_is_one_clear_error(finished, tmp_path, d
 def test_the_cli_resume_of_a_damaged_store_is_exit_2_or_repaired(finished, tmp_path):
     path, ref, kw = _copy(finished, tmp_path)
     (path / "flip_time" / "zarr.json").write_text("garbage")
-    r = subprocess.run([sys.executable, "-m", "skewpend", "flipmap", "--n", "16", "--t-end", "3", "--out", str(path),
-                        "--resume", "--quiet"], capture_output=True, text=True, timeout=120)
+    r = completed(["flipmap", "--n", "16", "--t-end", "3", "--out", path, "--resume", "--quiet"], timeout=120)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "damaged" in r.stderr, r.stderr
 
 
@@ -353,17 +353,15 @@ def test_a_private_kernel_cache_leaves_nothing_behind(tmp_path):
     blocker.write_text("")
     tmpdir = tmp_path / "tmp"
     tmpdir.mkdir()
-    env = dict(os.environ, SKEWPEND_CACHE_DIR=str(blocker), TMPDIR=str(tmpdir))
-    r = subprocess.run([sys.executable, "-m", "skewpend", "simulate", "--t-end", "1"], env=env, capture_output=True,
-                       text=True, timeout=120)
+    r = completed(["simulate", "--t-end", "1"], env=dict(SKEWPEND_CACHE_DIR=str(blocker), TMPDIR=str(tmpdir)),
+                  timeout=120)
     assert r.returncode == 0, r.stderr
     assert "not cached" in r.stdout and list(tmpdir.iterdir()) == []
 
 
 def test_a_compiler_that_produces_nothing_is_one_clear_line(tmp_path):
-    env = dict(os.environ, CC="/bin/true", SKEWPEND_CACHE_DIR=str(tmp_path / "cache"))
-    r = subprocess.run([sys.executable, "-m", "skewpend", "simulate", "--t-end", "1"], env=env, capture_output=True,
-                       text=True, timeout=120)
+    r = completed(["simulate", "--t-end", "1"], env=dict(CC="/bin/true", SKEWPEND_CACHE_DIR=str(tmp_path / "cache")),
+                  timeout=120)
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0
     assert "'/bin/true' reported success but produced no shared library" in r.stderr
 

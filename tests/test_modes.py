@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -16,6 +14,7 @@ from skewpend.analysis.modes import characteristic_equation, check_nonlinear, no
 
 EQUAL = dict(a=1.0, b=1.0, m1=1.0, m2=1.0, g=9.81)
 from skewpend.config import reference_parameters  # noqa: E402
+from helpers import completed
 BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 
 
@@ -139,10 +138,7 @@ def test_nonlinear_frequencies_converge_to_linear():
 
 
 def run(*args, check=True):
-    proc = subprocess.run([sys.executable, "-m", "skewpend", *map(str, args)], capture_output=True, text=True, timeout=300)
-    if check:
-        assert proc.returncode == 0, proc.stderr
-    return proc
+    return completed(args, check=check)
 
 
 def test_cli_json_contract():
