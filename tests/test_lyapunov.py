@@ -268,11 +268,11 @@ def test_history_is_thinned_to_at_most_2000_points():
     assert np.all(np.diff(r.t) > 0) and r.t[-1] == 5000.0 and np.array_equal(r.history[-1], r.exponents)
 
 
-def test_a_run_stopped_early_raises_or_returns_what_it_measured():
+def test_a_run_stopped_early_returns_what_it_measured_or_raises_with_throw():
     with pytest.raises(IntegrationError, match="max_steps"):
-        lyapunov(P, CHAOTIC, t_end=50.0, max_steps=500)
-    r = lyapunov(P, CHAOTIC, t_end=50.0, max_steps=500, throw=False)
-    assert r.status == 3 and "max_steps" in r.message and r.stats["t_reached"] < 50.0
+        lyapunov(P, CHAOTIC, t_end=50.0, max_steps=500, throw=True)
+    r = lyapunov(P, CHAOTIC, t_end=50.0, max_steps=500)  # the one default: throw=False, as simulate
+    assert r.status == 3 and not r.ok and "max_steps" in r.message and r.stats["t_reached"] < 50.0
     assert np.all(np.isfinite(r.exponents))
     # the same trajectory stopped at its last renormalisation on purpose: same steps, same growths
     last = float(r.t[-1])

@@ -189,7 +189,7 @@ def lyapunov(
     windows: int = 10,
     max_steps: int = MAX_STEPS,
     progress: Optional[Callable[[float, float], None]] = None,
-    throw: bool = True,
+    throw: bool = False,
 ) -> LyapunovSpectrum:
     """The Lyapunov spectrum [1/s] of the motion from ``y0 = (phi, psi, dphi, dpsi)``.
 
@@ -202,9 +202,10 @@ def lyapunov(
     uncertainty is the spread of the exponents over ``windows`` equal time windows.
     ``progress(t, t_end)`` is called between bounded calls (Ctrl-C stops within a few ms).
 
-    A run that stops early (non-finite state, step underflow, ``max_steps``) raises
-    :class:`~skewpend.errors.IntegrationError` (``throw=True``) or returns the exponents up to
-    where it got, with ``status``/``message`` set.
+    A run that stops early (non-finite state, step underflow, ``max_steps``) returns the exponents
+    up to where it got, with ``status``/``message`` set and ``ok`` False -- as every result does
+    (:func:`skewpend.simulate` too); with ``throw=True`` it raises
+    :class:`~skewpend.errors.IntegrationError` instead.
     """
     from ..numeric.kernels import LyapState, kernel_module, parameter_vector
 
