@@ -79,7 +79,8 @@ def summary(traj, out_path) -> str:
     kernel = "loaded from the cache"
     if st.get("kernel") == "compiled":
         kept = "first use; cached for later runs" if _cache_writable() else "not cached: the kernel cache is not writable"
-        kernel = f"compiled for this model in {st['kernel_build_time']:.2f} s ({kept})"
+        by = f" by {st['compiler']}" if st.get("compiler") else ""
+        kernel = f"compiled for this model{by} in {st['kernel_build_time']:.2f} s ({kept})"
     lines = [
         f"method        {traj.method}  ({', '.join(f'{k}={v:g}' for k, v in traj.settings.items() if isinstance(v, float) and k != 't_end')})",
         f"status        {traj.message}",

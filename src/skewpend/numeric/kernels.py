@@ -3,8 +3,10 @@
 This module does not import SymPy: when the shared library for a model's bodies and axes
 is in the cache, a new process loads it with :mod:`ctypes` in about a millisecond.  On a
 miss, :mod:`skewpend.numeric.kernel_source` prints the model's C from the derivation, the integrator
-template ``integrators.c`` is appended, and the system C compiler (``$CC``, else ``cc``,
-``gcc`` or ``clang``) builds it -- a fraction of a second.
+template ``integrators.c`` is appended, and a C compiler builds it: ``$CC``, else the system's
+``cc``, ``gcc`` or ``clang`` (a fraction of a second), else the packaged ``zig cc`` of the
+``ziglang`` wheel (a dependency: no system compiler needed; about 2 s per kernel, 6 s the very
+first time).  Each cached library records which compiler built it (``.compiler`` beside it).
 
 The cache repairs itself: a library whose recorded SHA-256 does not match, or that does
 not load, is rebuilt; an unwritable cache directory falls back to a private temporary
@@ -43,6 +45,10 @@ __all__ = [
     "State",
     "LyapState",
     "CompilerError",
+    "find_compiler",
+    "packaged_compiler",
+    "compiler_name",
+    "built_by",
 ]
 
 #: Files whose text determines the generated library (part of the cache key).
@@ -128,24 +134,54 @@ class LyapState(ctypes.Structure):
 
 
 # -- the compiler -----------------------------------------------------------------------------------
-def find_compiler() -> str:
-    """The C compiler: ``$CC`` if set, else the first of ``cc``, ``gcc``, ``clang`` on PATH."""
+#: The packaged compiler: the ``ziglang`` wheel's ``zig cc`` (clang with its own libc and linker),
+#: a dependency of skewpend, used when no system compiler is found.
+PACKAGED_COMPILER = ("-m", "ziglang", "cc")
+
+
+def packaged_compiler() -> Optional[list]:
+    """``[python, -m, ziglang, cc]`` if the ``ziglang`` wheel is installed, else None."""
+    import importlib.util
+
+    if importlib.util.find_spec("ziglang") is None:
+        return None
+    return [sys.executable, *PACKAGED_COMPILER]
+
+
+def find_compiler() -> list:
+    """The C compiler as a command (a list): ``$CC`` if set, else the first of ``cc``, ``gcc``,
+    ``clang`` on PATH, else the packaged ``zig cc`` (:func:`packaged_compiler`)."""
+    import shlex
+
     env = os.environ.get("CC")
     if env:
-        return env
+        return shlex.split(env)
     for name in ("cc", "gcc", "clang"):
         path = shutil.which(name)
         if path:
-            return path
+            return [path]
+    packaged = packaged_compiler()
+    if packaged is not None:
+        return packaged
     raise CompilerError(
-        "skewpend compiles its simulation kernels with a C compiler and none was found: "
-        "install gcc or clang (e.g. 'apt-get install gcc'), or set CC"
+        "skewpend compiles its simulation kernels with a C compiler and none was found: install gcc or clang "
+        "(e.g. 'apt-get install gcc'), or the packaged one ('pip install ziglang'), or set CC"
     )
 
 
-def _compile(source: str, target: Path) -> None:
-    """Compile ``source`` into the shared library ``target`` (written atomically)."""
+def compiler_name(cc: list) -> str:
+    """How a compiler command reads in messages and in the cache's records: ``/usr/bin/cc``, or
+    ``zig cc (ziglang)`` for the packaged one."""
+    if tuple(cc[1:]) == PACKAGED_COMPILER:
+        return "zig cc (ziglang)"
+    return " ".join(cc)
+
+
+def _compile(source: str, target: Path) -> str:
+    """Compile ``source`` into the shared library ``target`` (written atomically, with the
+    records ``.sha256`` and ``.compiler`` beside it); returns the compiler's name."""
     cc = find_compiler()
+    name = compiler_name(cc)
     directory = target.parent
     fd, c_tmp = tempfile.mkstemp(dir=directory, prefix=f".{target.stem}.", suffix=".c.tmp")
     with os.fdopen(fd, "w") as fh:
@@ -153,25 +189,35 @@ def _compile(source: str, target: Path) -> None:
     so_tmp = c_tmp[: -len(".c.tmp")] + ".so.tmp"
     try:
         # -I: the integrators include the DOP853 core (dop853_core.h) from the package
-        cmd = [*cc.split(), *CFLAGS, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
+        cmd = [*cc, *CFLAGS, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True)
         except OSError as exc:
-            raise CompilerError(f"cannot run the C compiler {cc!r}: {exc.strerror}; install gcc or clang, or set CC") from None
+            raise CompilerError(f"cannot run the C compiler {name!r}: {exc.strerror}; install gcc or clang, or set CC") from None
         if proc.returncode != 0:
             first = (proc.stderr.strip().splitlines() or ["(no message)"])[0]
-            raise CompilerError(f"the C compiler {cc!r} failed on the generated kernel: {first}")
+            raise CompilerError(f"the C compiler {name!r} failed on the generated kernel: {first}")
         if not os.path.isfile(so_tmp) or os.path.getsize(so_tmp) == 0:
-            raise CompilerError(f"the C compiler {cc!r} reported success but produced no shared library; set CC to a "
+            raise CompilerError(f"the C compiler {name!r} reported success but produced no shared library; set CC to a "
                                 "working C compiler (gcc or clang)")
         digest = hashlib.sha256(Path(so_tmp).read_bytes()).hexdigest()
         os.replace(so_tmp, target)
         _atomic_text(target.with_suffix(".sha256"), digest + "\n")
+        _atomic_text(target.with_suffix(".compiler"), name + "\n")
         os.replace(c_tmp, target.with_suffix(".c"))  # kept for reading, not used
     finally:
         for tmp in (c_tmp, so_tmp):
             if os.path.exists(tmp):
                 os.unlink(tmp)
+    return name
+
+
+def built_by(path: Path) -> Optional[str]:
+    """Which compiler built the cached library ``path`` (its ``.compiler`` record), or None."""
+    try:
+        return path.with_suffix(".compiler").read_text().strip() or None
+    except OSError:
+        return None
 
 
 def _atomic_text(path: Path, text: str) -> None:
@@ -200,13 +246,15 @@ class Kernel:
     ``flip_potential_many``).
 
     ``origin`` says where it came from: ``"compiled"`` (built in this process, taking
-    ``build_time`` seconds) or ``"cache"``.
+    ``build_time`` seconds) or ``"cache"``; ``compiler`` which compiler built it (None for a
+    library cached before that was recorded).
     """
 
     def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False, chaos: bool = False):
         import numpy as np
 
         self.path, self.origin, self.build_time = path, origin, build_time
+        self.compiler = built_by(path)
         lib = ctypes.CDLL(str(path))
         self.lib = lib
         dp = ctypes.POINTER(ctypes.c_double)

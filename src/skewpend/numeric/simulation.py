@@ -61,7 +61,8 @@ class Trajectory(ResultProtocol):
     * ``params``, ``method``, ``settings`` (rtol, atol, dt, dt_out, ...) -- how it was made;
     * ``stats`` -- ``nfev``, ``steps`` (accepted), ``rejected``, ``wall_time`` [s] of the
       integration, ``rows`` produced, ``kernel`` (``"compiled"`` when this process built the
-      model's machine code, taking ``kernel_build_time`` [s], else ``"cache"``);
+      model's machine code, taking ``kernel_build_time`` [s], else ``"cache"``), ``compiler``
+      (which compiler built it: the system's, or ``zig cc (ziglang)``);
     * ``kept`` -- False when only the first and last rows were kept (``keep=False``);
     * ``status`` (a :class:`~skewpend.Status`; ``SUCCESS`` = 0) and ``message``; ``ok`` (and its
       older name ``success``) is True when the run reached ``t_end``;
@@ -414,6 +415,7 @@ def simulate(
             "wall_time": wall,
             "kernel": kernel.origin,
             "kernel_build_time": kernel.build_time,
+            "compiler": kernel.compiler,
             "rows": acc.rows,
         }
         drift = acc.err / acc.scale if acc.scale > 0 else acc.err

@@ -1,0 +1,106 @@
+"""No C compiler needed (issue 16): the order in which a compiler is found ($CC, the system's
+cc/gcc/clang, the packaged zig cc of the ziglang wheel), the record of which one built each
+cached library, and -- as a new user without a compiler runs them -- simulate, flipmap,
+lyapunov and report with a PATH that holds no compiler, CC unset and an empty kernel cache.
+
+Results of the packaged compiler are compared with the system compiler's to tolerances
+derived from the runs (both are IEEE double without contraction or fast math; only the C
+library's sin/cos may differ in the last bit, which a short, non-chaotic run amplifies by a
+few orders of magnitude at most)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from skewpend.numeric import kernels as K
+
+from helpers import completed
+
+ziglang = pytest.importorskip("ziglang")
+
+
+def test_cc_wins_then_the_system_compiler_then_the_packaged_one(monkeypatch, tmp_path):
+    monkeypatch.setenv("CC", "my-cc --flag 'a b'")
+    assert K.find_compiler() == ["my-cc", "--flag", "a b"]
+    monkeypatch.delenv("CC")
+    monkeypatch.setenv("PATH", str(tmp_path))  # nothing on it
+    assert K.find_compiler() == [sys.executable, "-m", "ziglang", "cc"]
+    assert K.compiler_name(K.find_compiler()) == "zig cc (ziglang)"
+    (tmp_path / "gcc").write_text("#!/bin/sh\n")
+    (tmp_path / "gcc").chmod(0o755)
+    assert K.find_compiler() == [str(tmp_path / "gcc")]
+
+
+def test_without_any_compiler_the_message_says_what_to_install(monkeypatch, tmp_path):
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path))
+    monkeypatch.setattr(K, "packaged_compiler", lambda: None)
+    with pytest.raises(K.CompilerError, match="install gcc or clang .*'pip install ziglang'.*or set CC"):
+        K.find_compiler()
+
+
+def _no_compiler_env(tmp_path) -> dict:
+    path = tmp_path / "bin"
+    path.mkdir()
+    env = {"PATH": str(path), "SKEWPEND_CACHE_DIR": str(tmp_path / "cache"), "HOME": os.environ.get("HOME", str(tmp_path))}
+    assert not any(shutil.which(n, path=str(path)) for n in ("cc", "gcc", "clang"))
+    return env
+
+
+@pytest.mark.slow
+def test_every_command_works_without_a_system_compiler(tmp_path):
+    """The smoke set of issue 16: simulate, flipmap, lyapunov, report with no cc/gcc/clang on
+    PATH, CC unset, an empty kernel cache: every kernel is built by zig cc and says so."""
+    env = _no_compiler_env(tmp_path)
+    saved = os.environ.pop("CC", None)
+    try:
+        for argv in (["simulate", "--t-end", "2", "--out", "run.csv"], ["flipmap", "--n", "16", "--t-end", "3"],
+                     ["lyapunov", "--t-end", "20"], ["report", "--out", "report.html"]):
+            r = completed(argv, tmp_path, env=env, timeout=600)
+            assert r.returncode == 0, (argv, r.stderr)
+    finally:
+        if saved is not None:
+            os.environ["CC"] = saved
+    records = sorted((tmp_path / "cache" / "kernels").glob("*.compiler"))
+    assert len(records) >= 3  # at least the simulation, flip and chaos kernels
+    assert {p.read_text().strip() for p in records} == {"zig cc (ziglang)"}
+    assert (tmp_path / "report.html").stat().st_size > 500_000 and (tmp_path / "run.csv").exists()
+
+
+@pytest.mark.slow
+def test_the_packaged_compiler_gives_the_system_compilers_results(tmp_path):
+    system = next((shutil.which(n) for n in ("cc", "gcc", "clang") if shutil.which(n)), None)
+    if system is None:
+        pytest.skip("no system C compiler to compare with")
+    code = (
+        "import sys, numpy as np, skewpend as s, warnings\n"
+        "warnings.simplefilter('ignore')\n"
+        "p = s.reference_parameters()\n"
+        "tr = s.simulate(p, (0.5, -0.3, 0.0, 0.0), 2.0, dt_out=0.1)\n"
+        "fm = s.flip_map(p, 24, t_end=3.0)\n"
+        "ly = s.lyapunov(p, (0.5, -0.3, 0.0, 0.0), t_end=50.0)\n"
+        "np.savez(sys.argv[1], y=tr.y, flip=fm.flip_time, lam=ly.exponents, compiler=tr.stats['compiler'])\n"
+    )
+    out = {}
+    for name in ("system", "zig"):
+        (tmp_path / name).mkdir()
+        env = {"CC": system} if name == "system" else _no_compiler_env(tmp_path / name)
+        env["SKEWPEND_CACHE_DIR"] = str(tmp_path / name / "cache")
+        full = {**{k: v for k, v in os.environ.items() if k != "CC"}, **env}
+        proc = subprocess.run([sys.executable, "-c", code, str(tmp_path / f"{name}.npz")], env=full,
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        out[name] = np.load(tmp_path / f"{name}.npz")
+    assert str(out["zig"]["compiler"]) == "zig cc (ziglang)" and str(out["system"]["compiler"]) == system
+    # a regular 2 s run at rtol 1e-10: last-bit differences of sin/cos stay far below 1e-9
+    np.testing.assert_allclose(out["zig"]["y"], out["system"]["y"], rtol=0, atol=1e-9)
+    a, b = out["zig"]["flip"], out["system"]["flip"]
+    assert np.array_equal(np.isnan(a), np.isnan(b))  # the same cells flip (3 s, far from the boundaries' scale)
+    np.testing.assert_allclose(a[~np.isnan(a)], b[~np.isnan(b)], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(out["zig"]["lam"], out["system"]["lam"], rtol=0, atol=1e-6)
