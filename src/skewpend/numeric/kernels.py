@@ -46,6 +46,7 @@ __all__ = [
     "LyapState",
     "CompilerError",
     "find_compiler",
+    "LIB_SUFFIX",
     "packaged_compiler",
     "compiler_name",
     "built_by",
@@ -61,6 +62,8 @@ _PACKAGE = Path(__file__).resolve().parent.parent
 #: Compiler flags: no floating-point contraction, so results do not depend on FMA availability.
 CFLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
 SP_NMAX = 8
+#: Shared libraries are named as the platform expects (``.dylib`` on macOS, ``.so`` elsewhere).
+LIB_SUFFIX = ".dylib" if sys.platform == "darwin" else ".so"
 #: State size of the chaos kernel's variational systems: the state and up to 4 tangent vectors.
 SP_VMAX = 20
 
@@ -186,7 +189,7 @@ def _compile(source: str, target: Path) -> str:
     fd, c_tmp = tempfile.mkstemp(dir=directory, prefix=f".{target.stem}.", suffix=".c.tmp")
     with os.fdopen(fd, "w") as fh:
         fh.write(source)
-    so_tmp = c_tmp[: -len(".c.tmp")] + ".so.tmp"
+    so_tmp = c_tmp[: -len(".c.tmp")] + LIB_SUFFIX + ".tmp"
     try:
         # -I: the integrators include the DOP853 core (dop853_core.h) from the package
         cmd = [*cc, *CFLAGS, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
@@ -489,7 +492,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
             _BYGEOMETRY[gkey] = _LOADED[key]
             return _LOADED[key]
         directory = cache_dir() / "kernels"
-        path = directory / f"skewpend_{key}.so"
+        path = directory / f"skewpend_{key}{LIB_SUFFIX}"
         kernel = None
         if path.exists() and _intact(path):
             try:
@@ -499,7 +502,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
         if kernel is None:
             start = time.perf_counter()
             directory = _writable_directory()
-            path = directory / f"skewpend_{key}.so"
+            path = directory / f"skewpend_{key}{LIB_SUFFIX}"
             _remove_stale_temporaries(directory)
             from .kernel_source import kernel_c_source
 
