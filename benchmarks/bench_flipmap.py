@@ -190,7 +190,6 @@ def main() -> int:
     args = ap.parse_args()
     n, R = args.n, max(1, args.repeat)
 
-    import skewpend
     from skewpend.analysis.flipmap import flip_map
     from skewpend.numeric.ensemble import default_workers
 

@@ -15,7 +15,6 @@ sockets on 127.0.0.1 / ::1 only, every loop bounded and every wait with a time l
 from __future__ import annotations
 
 import json
-import os
 import selectors
 import signal
 import socket

@@ -30,7 +30,7 @@ from skewpend.status import Status
 zarr = pytest.importorskip("zarr")
 
 from skewpend.config import reference_parameters  # noqa: E402
-from helpers import completed
+from helpers import completed  # noqa: E402
 BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 
 

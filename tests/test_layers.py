@@ -53,8 +53,8 @@ def test_help_of_every_command_imports_nothing_heavy(argv):
 
 
 # -- the layers: imports go one way, down ------------------------------------------------------------
-import ast
-from pathlib import Path
+import ast  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 PACKAGE = Path(__file__).resolve().parent.parent / "src" / "skewpend"
 #: Higher layers may import lower ones, never the reverse (the package root is the public facade).

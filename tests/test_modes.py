@@ -14,7 +14,7 @@ from skewpend.analysis.modes import characteristic_equation, check_nonlinear, no
 
 EQUAL = dict(a=1.0, b=1.0, m1=1.0, m2=1.0, g=9.81)
 from skewpend.config import reference_parameters  # noqa: E402
-from helpers import completed
+from helpers import completed  # noqa: E402
 BENCH = reference_parameters()  # the reference case: a = 1, b = 0.8, m1 = 1, m2 = 0.7, alpha = 0.6, g = 9.81
 
 

@@ -52,6 +52,7 @@ def positive(name: str, value: Any, *, cap: Optional[float] = None) -> float:
     from .parsing import positive_number
 
     x = positive_number(name, value)
+    assert x is not None  # None only with allow_none
     if cap is not None and x > cap:
         raise ParameterError(f"{name} must be at most {cap:g}, got {x:g}")
     return x
@@ -73,9 +74,10 @@ def whole(name: str, value: Any, lo: int, hi: int, *, what: str = "") -> int:
     unit = f" ({what})" if what else ""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):  # NumPy's integers too
         raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {value!r}")
-    if not lo <= value <= hi:
-        raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {value}")
-    return int(value)
+    n = int(value)
+    if not lo <= n <= hi:
+        raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {n}")
+    return n
 
 
 def max_steps(value) -> int:

@@ -27,7 +27,7 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Any, Dict, Mapping, Tuple
+from typing import TYPE_CHECKING, Any, ClassVar, Dict, Mapping, Tuple
 
 import numpy as np
 
@@ -96,7 +96,12 @@ class ResultProtocol:
     the fields ``params``, ``settings``, ``stats``, ``status``; ``message`` may be a field."""
 
     #: What the file attribute ``kind`` says (and :func:`skewpend.io.open_result` dispatches on).
-    result_kind: str = "result"
+    result_kind: ClassVar[str] = "result"
+    if TYPE_CHECKING:  # what every result class has (declared by the dataclasses themselves)
+        params: Any
+
+        @property
+        def settings(self) -> Dict[str, Any]: ...
 
     @property
     def ok(self) -> bool:

@@ -64,7 +64,7 @@ import math
 import os
 import warnings
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, Dict, Optional, Sequence, Tuple
+from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -481,7 +481,7 @@ def row_groups(n: int, symmetric: bool) -> list:
     alone.  Every row is in exactly one group."""
     if not symmetric:
         return [(i,) for i in range(n)]
-    groups = [(i, n - 1 - i) for i in range(n // 2)]
+    groups: List[Tuple[int, ...]] = [(i, n - 1 - i) for i in range(n // 2)]
     if n % 2:
         groups.append((n // 2,))
     return groups

@@ -35,6 +35,7 @@ from ..interrupts import Interrupts
 from ..numeric.driver import check_step_estimate, drive
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json
+from ..status import Status
 from ..parsing import initial_state, positive_number
 from ..symbolic.model import Parameters
 
@@ -313,7 +314,7 @@ def lyapunov(
     }
     result = LyapunovSpectrum(
         exponents=exponents, uncertainty=uncertainty, t=np.asarray(hist_t), history=np.asarray(hist).reshape(-1, k),
-        window_exponents=win_exp, params=params, y0=y, settings=settings, stats=stats, status=int(status),
+        window_exponents=win_exp, params=params, y0=y, settings=settings, stats=stats, status=Status.of(int(status)),
         message=message,
     )
     if status != 0 and throw:

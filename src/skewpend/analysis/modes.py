@@ -391,9 +391,9 @@ def parse_sweep(spec: str) -> Tuple[str, np.ndarray]:
 
 def _with_value(params: Parameters, name: str, value: float, base: Parameters) -> Parameters:
     if name == "b/a":
-        return params.replace(b=value * base.a)
+        return params.replace(b=value * float(base.a))  # type: ignore[arg-type]  # numeric: a sweep checks it
     if name == "m2/m1":
-        return params.replace(m2=value * base.m1)
+        return params.replace(m2=value * float(base.m1))  # type: ignore[arg-type]
     return params.replace(**{name: value})
 
 
@@ -514,7 +514,7 @@ def _resonances(values: np.ndarray, ratio: np.ndarray, tol: float) -> List[Reson
     for n in (1, 2, 3):
         d = ratio - n
         # exact crossings, interpolated
-        for i in np.nonzero(np.sign(d[:-1]) * np.sign(d[1:]) < 0)[0]:
+        for i in np.nonzero(np.sign(d[:-1]) * np.sign(d[1:]) < 0)[0].tolist():
             s = d[i] / (d[i] - d[i + 1])
             found.append(Resonance(n, float(values[i] + s * (values[i + 1] - values[i])), float(n), True))
         # near approaches: local minima of |d| within tolerance (relative to n), not at a crossing
@@ -528,7 +528,7 @@ def _resonances(values: np.ndarray, ratio: np.ndarray, tol: float) -> List[Reson
             while j + 1 < len(values) and near[j + 1]:
                 j += 1
             k = i + int(np.argmin(np.abs(d[i : j + 1])))
-            lo, hi = sorted((values[max(i - 1, 0)], values[min(j + 1, len(values) - 1)]))
+            lo, hi = sorted((float(values[max(i - 1, 0)]), float(values[min(j + 1, len(values) - 1)])))
             if not any(r.order == n and r.crossed and lo <= r.value <= hi for r in found):
                 found.append(Resonance(n, float(values[k]), float(ratio[k]), False))
             i = j + 1
@@ -564,16 +564,16 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
         math.isfinite(tolerance) and tolerance > 0
     ):
         raise ParameterError(f"the resonance tolerance must be a positive number, got {tolerance!r}")
-    values = np.asarray(values, float)
-    if values.ndim != 1 or values.size < 2 or not np.all(np.isfinite(values)):
+    grid = np.asarray(values, float)
+    if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
         raise ParameterError("sweep values must be at least 2 finite numbers")
     if name == "alpha" and not params.uses_alpha:
         raise ParameterError("cannot sweep alpha: the hinge-2 axis is given explicitly (axis2), so alpha has no effect")
-    freqs = np.empty((values.size, 2))
-    shapes = np.empty((values.size, 2, 2))
-    ratios = np.empty((values.size, 2))
+    freqs = np.empty((grid.size, 2))
+    shapes = np.empty((grid.size, 2, 2))
+    ratios = np.empty((grid.size, 2))
     failures: List[Tuple[float, str]] = []
-    for i, v in enumerate(values):
+    for i, v in enumerate(grid):
         try:
             p = _with_value(params, name, float(v), params)
             p.require_numeric("a sweep")
@@ -587,13 +587,13 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
         else:
             freqs[i], shapes[i], ratios[i] = m.frequencies, m.shapes, m.ratios
     if failures:
-        raise ParameterError(_failure_message(name, failures, values.size))
+        raise ParameterError(_failure_message(name, failures, grid.size))
     with np.errstate(all="ignore"):
         ratio = freqs[:, 1] / freqs[:, 0]
     bad = ~(np.all(np.isfinite(freqs), axis=1) & np.all(np.isfinite(shapes), axis=(1, 2)) & np.isfinite(ratio))
     if np.any(bad):  # pragma: no cover - every point was checked by _modes
-        raise ParameterError(_failure_message(name, [(float(v), "results not finite") for v in values[bad]], values.size))
-    return Sweep(name, values, freqs, shapes, ratios, _resonances(values, ratio, float(tolerance)), float(tolerance), params)
+        raise ParameterError(_failure_message(name, [(float(v), "results not finite") for v in grid[bad]], grid.size))
+    return Sweep(name, grid, freqs, shapes, ratios, _resonances(grid, ratio, float(tolerance)), float(tolerance), params)
 
 
 # -- linear versus nonlinear ---------------------------------------------------------------------------

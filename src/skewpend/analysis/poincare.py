@@ -25,7 +25,7 @@ import math
 import re
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, Dict, Optional, Tuple
+from typing import Any, Callable, ClassVar, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -236,7 +236,7 @@ def section_seeds(surface: EnergySurface, n: int, *, margin: float = 1e-9) -> np
     scale = abs(surface.energy - surface.e_min) + 1e-300
     sampler = qmc.Halton(d=2, scramble=False)
     sampler.fast_forward(1)  # skip the corner point (0, 0)
-    seeds = []
+    seeds: List[Tuple[float, float]] = []
     for _ in range(200):
         u = sampler.random(max(64, 4 * n))
         x = -math.pi + _TWO_PI * u[:, 0]
@@ -245,7 +245,7 @@ def section_seeds(surface: EnergySurface, n: int, *, margin: float = 1e-9) -> np
         seeds.extend(zip(x[inside], pq[inside]))
         if len(seeds) >= n:
             break
-    return np.asarray(seeds[:n], dtype=float).reshape(-1, 2)
+    return np.asarray(seeds[:n], dtype=np.float64).reshape(-1, 2)
 
 
 @dataclass(frozen=True)
@@ -468,10 +468,9 @@ def poincare(
     starts = surface.states(seeds_ok[:, 0], seeds_ok[:, 1], direction)
     n = starts.shape[0]
     want = int(n_crossings)
-    g = max(float(params.g), 1e-12)
-    period = 2.0 * math.pi * math.sqrt((float(params.a) + float(params.b)) / g)  # a swing, roughly
-    if t_max is None:
-        t_max = 200.0 * period * want
+    a, b, g = (float(getattr(params, k)) for k in ("a", "b", "g"))  # numeric: checked above
+    period = 2.0 * math.pi * math.sqrt((a + b) / max(g, 1e-12))  # a swing, roughly
+    t_max = 200.0 * period * want if t_max is None else t_max
     kernel, p = surface.kernel, surface.p
     from .lyapunov import check_exponent_work
 

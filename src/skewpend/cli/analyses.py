@@ -57,6 +57,16 @@ def _draw(plot, figure: str, *args, **kwargs) -> None:
         figures.save_figure(getattr(figures, figure)(*args, **kwargs), plot)
 
 
+#: The tolerance and step-cap options of these commands (named: an annotation is no place for a subscript).
+ATOL_E10 = tolerances("1e-10")["atol"]
+ATOL_E12 = tolerances("1e-12")["atol"]
+ATOL_E8 = tolerances("1e-8")["atol"]
+MAX_STEPS_OPTION = INTEGRATION["max_steps"]
+RTOL_E10 = tolerances("1e-10")["rtol"]
+RTOL_E12 = tolerances("1e-12")["rtol"]
+RTOL_E8 = tolerances("1e-8")["rtol"]
+
+
 @command(MODEL, ENSEMBLE)
 def flipmap(
     model: dict,
@@ -64,8 +74,8 @@ def flipmap(
     n: option("--n", T.Whole(1, 16384), "cells per side: an n x n map (default 256)") = None,
     t_end: option("--t-end", _SECONDS, "longest time looked at [s] (default 10)") = None,
     window: option("--window", T.Window(), "PHI0:PHI1,PSI0:PSI1 (radians, or e.g. -90:90deg,-180:180deg; default the whole square)") = None,
-    rtol: tolerances("1e-10")["rtol"] = None,
-    atol: tolerances("1e-10")["atol"] = None,
+    rtol: RTOL_E10 = None,
+    atol: ATOL_E10 = None,
     out: option("--out", _STORE, "write the map to FILE.zarr (chunk by chunk, resumable) or FILE.nc", RUN, "-o") = None,
     plot: plot_option("the map") = None,
     resume: Annotated[bool, typer.Option("--resume", help=RESUME.format("chunks"), rich_help_panel=RUN)] = False,
@@ -118,10 +128,10 @@ def lyapunov(
     renorm_every: option("--renorm-every", _SECONDS, "QR re-orthonormalisation interval [s] (default 1)") = None,
     transient: option("--transient", T.NonNegative("number of seconds"), "seconds at the start not counted, a whole number of --renorm-every intervals (default 0)") = None,
     exponents: option("--exponents", T.Whole(1, 4), "how many exponents: 4 (the spectrum, default) or 1 (the largest, cheaper)") = None,
-    rtol: tolerances("1e-10")["rtol"] = None,
-    atol: tolerances("1e-10")["atol"] = None,
+    rtol: RTOL_E10 = None,
+    atol: ATOL_E10 = None,
     windows: option("--windows", T.Whole(1, 1000), "time windows for the uncertainty (default 10)") = None,
-    max_steps: INTEGRATION["max_steps"] = None,
+    max_steps: MAX_STEPS_OPTION = None,
     out: option("--out", T.OutPath((".json", ".csv")), "write the result to FILE.json (exponents, settings) or FILE.csv (running estimates)", RUN, "-o") = None,
     plot: plot_option("the running estimates") = None,
     quiet: QUIET = False,
@@ -213,8 +223,8 @@ def poincare(
     crossings: option("--crossings", T.Whole(1, 10_000_000), "crossings recorded per orbit (default 500)") = None,
     locate: Annotated[Locate, typer.Option("--locate", help="crossings by the dense output and root finding, or by Henon's trick", rich_help_panel=RUN)] = Locate.dense,
     t_max: option("--t-max", _SECONDS, "longest time per orbit [s] (default 200 small-oscillation periods per crossing)") = None,
-    rtol: tolerances("1e-12")["rtol"] = None,
-    atol: tolerances("1e-12")["atol"] = None,
+    rtol: RTOL_E12 = None,
+    atol: ATOL_E12 = None,
     velocity: Annotated[bool, typer.Option("--velocity", help="plot (q, q') instead of the canonical (q, p_q)", rich_help_panel=RUN)] = False,
     out: option("--out", T.OutPath((".csv", ".nc")), "write the points to FILE.csv or FILE.nc", RUN, "-o") = None,
     plot: plot_option("the section") = None,
@@ -273,8 +283,8 @@ def chaos_diagram(
     samples: option("--samples", T.Whole(1, 100_000), "starts per cell on the energy surface (default 24)") = None,
     t_end: option("--t-end", _SECONDS, "length of each run [s] (default 150)") = None,
     threshold: option("--threshold", T.Positive(), "largest exponent [1/s] above which a start counts as chaotic (default from the frequencies and t_end)") = None,
-    rtol: tolerances("1e-8")["rtol"] = None,
-    atol: tolerances("1e-8")["atol"] = None,
+    rtol: RTOL_E8 = None,
+    atol: ATOL_E8 = None,
     out: option("--out", _STORE, "write the diagram to FILE.zarr (row by row, resumable) or FILE.nc", RUN, "-o") = None,
     plot: plot_option("the diagram") = None,
     resume: Annotated[bool, typer.Option("--resume", help=RESUME.format("rows"), rich_help_panel=RUN)] = False,

@@ -43,7 +43,7 @@ def drive(
     check: Optional[Callable[[], None]] = None,
     between: Optional[Callable[[], None]] = None,
     progress: Optional[Callable[[], None]] = None,
-    estimate: Optional[Callable[[], None]] = None,
+    estimate: Optional[Callable[[], float]] = None,
     adapt: bool = False,
     name: str = "the compiled integrator",
 ) -> Status:

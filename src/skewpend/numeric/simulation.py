@@ -27,7 +27,7 @@ import math
 import os
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, List, Optional, Sequence
+from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -84,7 +84,7 @@ class Trajectory(ResultProtocol):
     kept: bool = True
     _kernel: Any = field(default=None, repr=False, compare=False)
 
-    result_kind = TRAJECTORY_KIND
+    result_kind: ClassVar[str] = TRAJECTORY_KIND
 
     def __post_init__(self):
         object.__setattr__(self, "status", Status.of(self.status))
@@ -219,7 +219,7 @@ class _Accumulator:
 
     def __init__(self, kernel, p, keep: bool, writer):
         self.kernel, self.p, self.keep, self.writer = kernel, p, keep, writer
-        self.E0 = None
+        self.E0: Optional[float] = None
         self.err = 0.0
         self.scale = 0.0
         self.blocks: List[np.ndarray] = []
@@ -397,10 +397,11 @@ def simulate(
                     chunk = kernel.speeds_many(chunk, p, offset=1)
                 acc.add(chunk)
 
-        def estimate() -> None:  # after the first bounded call: refuse what cannot finish
-            check_step_estimate(state, t_end, max_steps)
+        def estimate() -> float:  # after the first bounded call: refuse what cannot finish
+            steps = check_step_estimate(state, t_end, max_steps)
             if dt_out is None:
                 _check_room(state.naccept * t_end / state.t, keep, out)
+            return steps
 
         start = time.perf_counter()
         intr = stack.enter_context(Interrupts())
