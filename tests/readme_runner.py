@@ -1,4 +1,8 @@
-"""Parse README.md into runnable examples (used by ``tests/test_readme.py``).
+"""Parse README.md and the docs' pages into runnable examples (used by ``tests/test_readme.py``).
+
+Each document is read as a reader would: its examples -- python blocks and CLI lines -- run in
+the order they appear, in one working directory per document (so a line that resumes a store
+finds the store the line before it made).
 
 * ```` ```python ```` blocks are executed in order in one shared namespace.
 * In ```` ```bash ````/``sh``/``console``/``shell`` blocks every line starting with ``skewpend``
@@ -26,6 +30,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 EXAMPLES = ROOT / "examples"
+DOCS = ROOT / "docs"
+# executed by Sphinx (MyST-NB) when the docs are built, not here; generated pages
+DOCS_SKIP = ("_build", "tutorials", "reference/generated", "auto_gallery")
 
 PYTHON_LANGS = {"python", "py", "python3"}
 SHELL_LANGS = {"bash", "sh", "console", "shell", "shell-session"}
@@ -390,5 +397,81 @@ def summary(readme: Readme) -> str:
     return "\n".join(out)
 
 
+def documents() -> list[Path]:
+    """README.md, then every Markdown page of the docs (the executed tutorials excepted)."""
+    pages = sorted(p for p in DOCS.rglob("*.md")
+                   if not any(str(p.relative_to(DOCS)).startswith(skip) for skip in DOCS_SKIP))
+    return [README, *pages]
+
+
+def relative(path: Path) -> str:
+    try:
+        return str(path.relative_to(ROOT))
+    except ValueError:
+        return str(path)
+
+
+@dataclass
+class Step:
+    """One example of a document: a python block or a CLI line, at its place in the text."""
+
+    line: int
+    python: PythonBlock | None = None
+    cli: CliExample | None = None
+
+    @property
+    def title(self) -> str:
+        return self.python.title if self.python is not None else self.cli.command
+
+
+def steps(readme: Readme) -> list[Step]:
+    """The document's examples in reading order."""
+    out = [Step(b.first_line, python=b) for b in readme.python] + [Step(e.line, cli=e) for e in readme.cli]
+    return sorted(out, key=lambda s: s.line)
+
+
+@dataclass
+class Reader:
+    """Runs a document's steps in order in one working directory (earlier steps first, once)."""
+
+    readme: Readme
+    workdir: Path
+    outcomes: dict[int, object] = field(default_factory=dict)  # step index -> exception | Outcome
+
+    def __post_init__(self) -> None:
+        self.steps = steps(self.readme)
+        self.namespace = Namespace(self.readme.path, self.readme.python, self.workdir)
+
+    def _run_one(self, k: int) -> object:
+        step = self.steps[k]
+        if step.python is not None:
+            try:
+                self.namespace._exec(step.python)
+                result: object = None
+            except Exception as exc:  # noqa: BLE001 -- reported by that step's test
+                result = exc
+        else:
+            result = run_cli(step.cli, self.workdir)
+        self.outcomes[k] = result
+        return result
+
+    def run(self, k: int) -> object:
+        """Run step `k` after every earlier step not yet run; its exception or CLI outcome."""
+        for j in range(k):
+            if j not in self.outcomes:
+                self._run_one(j)
+        return self.outcomes[k] if k in self.outcomes else self._run_one(k)
+
+    def failed_before(self, k: int) -> list[str]:
+        bad = []
+        for j in range(k):
+            out = self.outcomes.get(j)
+            step = self.steps[j]
+            if isinstance(out, BaseException) or (isinstance(out, Outcome) and out.returncode != step.cli.expected_status):
+                bad.append(f"line {step.line}")
+        return bad
+
+
 if __name__ == "__main__":
-    print(summary(load(Path(sys.argv[1]) if len(sys.argv) > 1 else README)))
+    for doc in ([Path(a) for a in sys.argv[1:]] or documents()):
+        print(summary(load(doc)))

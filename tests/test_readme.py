@@ -1,8 +1,10 @@
-"""The README's examples run: every python block (in order, one shared namespace) and every
-``skewpend`` line of its shell blocks, and its ``$ skewpend ...`` transcripts print what they show.
+"""The examples of README.md and of every page of the docs run as a reader would run them: each
+document's python blocks (one shared namespace) and the ``skewpend`` lines of its shell blocks, in
+the order they appear, in one working directory per document; ``$ skewpend ...`` transcripts
+print what they show. (The tutorials are notebooks that Sphinx executes when the docs are built.)
 
-``python tests/readme_runner.py`` lists what is collected. A README example must be cheap (under
-120 s); a long run belongs in the README with small durations.
+``python tests/readme_runner.py`` lists what is collected. An example must be cheap (under
+120 s); a long run belongs in the docs with small durations.
 """
 
 from __future__ import annotations
@@ -17,81 +19,98 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import readme_runner as rr  # noqa: E402
 
-README_PATH = Path(__file__).resolve().parents[1] / "README.md"
-README = rr.load(README_PATH)
+DOCUMENTS = [rr.load(path) for path in rr.documents()]
+README = DOCUMENTS[0]
+STEPS = [(doc, k, step) for doc in DOCUMENTS for k, step in enumerate(rr.steps(doc))]
 
 
 def _slug(text: str, n: int = 50) -> str:
     return re.sub(r"[^\w.,=:+/-]+", "_", text.strip())[:n].strip("_")
 
 
-# ----------------------------------------------------------------------------------------------
-# python blocks
+_READERS: dict[Path, rr.Reader] = {}
 
 
 @pytest.fixture(scope="module")
-def namespace(tmp_path_factory) -> rr.Namespace:
-    workdir = rr.make_workdir(tmp_path_factory.mktemp("readme-python"))
-    return rr.Namespace(README_PATH, README.python, workdir)
+def reader(tmp_path_factory):
+    """One reader per document: its own working directory, its steps in order."""
+
+    def get(doc: rr.Readme) -> rr.Reader:
+        if doc.path not in _READERS:
+            workdir = rr.make_workdir(tmp_path_factory.mktemp(_slug(doc.path.stem, 20)))
+            _READERS[doc.path] = rr.Reader(doc, workdir)
+        return _READERS[doc.path]
+
+    yield get
+    _READERS.clear()
+
+
+def _python_failure(where: str, step: rr.Step, error: BaseException, earlier: list[str], path: Path) -> str:
+    tb = error.__traceback__  # from the document's own lines on (the harness's frames dropped)
+    while tb is not None and tb.tb_next is not None and tb.tb_frame.f_code.co_filename != str(path):
+        tb = tb.tb_next
+    trace = "".join(traceback.format_exception(type(error), error, tb))
+    note = f"\n(earlier example(s) at {', '.join(earlier)} failed too)" if earlier else ""
+    return (f"{where}: python block ({step.title!r}) failed: {type(error).__name__}: {error}{note}\n"
+            f"{trace[-4000:]}")
 
 
 @pytest.mark.parametrize(
-    "block", README.python, ids=[f"py{b.number}-L{b.fence_line}-{_slug(b.title)}" for b in README.python]
+    "doc, k, step", STEPS,
+    ids=[f"{rr.relative(d.path)}:L{s.line}-{_slug(s.title)}" for d, _, s in STEPS],
 )
-def test_python_block(block: rr.PythonBlock, namespace: rr.Namespace) -> None:
-    try:
-        namespace.run(block.number)
+def test_example(doc: rr.Readme, k: int, step: rr.Step, reader) -> None:
+    """Every example of README.md and the docs' pages, in reading order per document."""
+    r = reader(doc)
+    result = r.run(k)
+    where = f"{rr.relative(doc.path)}:{step.line}"
+    earlier = r.failed_before(k)
+    if step.python is not None:
+        if result is not None:
+            pytest.fail(_python_failure(where, step, result, earlier, doc.path), pytrace=False)
         return
-    except Exception as exc:
-        error = exc
-    # the traceback from the README's own lines on (the harness's frames dropped)
-    tb = error.__traceback__
-    while tb is not None and tb.tb_frame.f_code.co_filename != str(README_PATH):
-        tb = tb.tb_next
-    trace = "".join(traceback.format_exception(type(error), error, tb or error.__traceback__))
-    earlier = namespace.failed_before(block.number)
-    note = f"\n(earlier python block(s) {earlier} failed too)" if earlier else ""
-    pytest.fail(
-        f"README.md:{block.fence_line}: python block {block.number} ({block.title!r}) failed: "
-        f"{type(error).__name__}: {error}{note}\n{trace}",
-        pytrace=False,
-    )
-
-
-# ----------------------------------------------------------------------------------------------
-# CLI lines and transcripts
-
-
-def _describe(ex: rr.CliExample) -> str:
-    kind = "transcript" if ex.transcript else "CLI line"
-    return f"README.md:{ex.line}: {kind} `{ex.command}`"
-
-
-@pytest.mark.parametrize("example", README.cli, ids=[f"L{e.line}-{_slug(e.command)}" for e in README.cli])
-def test_cli_line(example: rr.CliExample, tmp_path: Path) -> None:
-    workdir = rr.make_workdir(tmp_path)
-    outcome = rr.run_cli(example, workdir)
-    where = _describe(example)
+    example, outcome = step.cli, result
+    kind = "transcript" if example.transcript else "CLI line"
+    where = f"{where}: {kind} `{example.command}`"
     tail = "\n".join(outcome.output.splitlines()[-30:])
     if outcome.returncode is None:
-        pytest.fail(f"{where} timed out after {rr.TIMEOUT:.0f} s (README examples must take < "
+        pytest.fail(f"{where} timed out after {rr.TIMEOUT:.0f} s (examples must take < "
                     f"{rr.MAX_SECONDS:.0f} s)\n{tail}", pytrace=False)
     problems = []
     if example.transcript:
         actual = rr.output_lines(outcome.output)
         if actual != example.expected:
-            problems.append("output differs from the README:\n  README shows:\n"
+            problems.append("output differs from the document:\n  it shows:\n"
                             + "\n".join(f"    {l}" for l in example.expected)
                             + "\n  actual output:\n" + "\n".join(f"    {l}" for l in actual))
     if outcome.returncode != example.expected_status:
         problems.append(f"exit status {outcome.returncode}, expected {example.expected_status}")
     if outcome.seconds > rr.MAX_SECONDS:
-        problems.append(f"took {outcome.seconds:.1f} s (> {rr.MAX_SECONDS:.0f} s): the README should use "
-                        f"smaller durations")
+        problems.append(f"took {outcome.seconds:.1f} s (> {rr.MAX_SECONDS:.0f} s): use smaller durations")
+    if problems and earlier:
+        problems.append(f"(earlier example(s) at {', '.join(earlier)} failed too)")
     if problems:
         body = "\n".join(problems)
         output = "" if example.transcript else f"\noutput (last 30 lines):\n{tail}"
         pytest.fail(f"{where}: {body}{output}", pytrace=False)
+
+
+def test_documents_have_examples() -> None:
+    for doc in DOCUMENTS:
+        print(rr.summary(doc))
+    assert README.python, "no ```python blocks found in README.md"
+    assert README.cli, "no skewpend command lines found in README.md"
+    assert len(DOCUMENTS) > 10, "the docs' pages were not found"
+
+
+def test_reading_order(tmp_path: Path) -> None:
+    """A later CLI line sees the files an earlier one made (one working directory per document)."""
+    path = tmp_path / "page.md"
+    path.write_text("```bash\nskewpend derive --format json > eq.json\n```\n\n```python\n"
+                    "import json\nassert 'mass_matrix' in json.load(open('eq.json'))\n```\n", encoding="utf-8")
+    r = rr.Reader(rr.load(path), tmp_path)
+    assert [s.line for s in r.steps] == [2, 6]
+    assert r.run(1) is None and r.outcomes[0].returncode == 0
 
 
 # ----------------------------------------------------------------------------------------------

@@ -17,7 +17,7 @@ How (see :mod:`skewpend.numeric.ensemble` and ``sp_flip`` in ``integrators.c``):
 * what no general integrator knows is used first:
 
   - **energy bound.**  With constant torques ``tau`` and damping ``c >= 0``, ``T + V`` with
-    ``V = Pi - tau . q`` never increases (``d/dt (T + V) = -c q'^2``), and released at rest it
+    ``V = Pi - tau·q`` never increases (``d/dt (T + V) = -c q'^2``), and released at rest it
     starts at ``V(q0)``.  To leave the square ``(-pi, pi)^2`` the (unwrapped) angles must reach
     its boundary, where ``V >= V_min``, the minimum of ``V`` over the four sides.  So a cell
     with ``V(q0) < V_min`` can never flip: NaN without integrating.  Without torques ``V`` is
@@ -122,7 +122,7 @@ class FlipMap(Result):
 
     def energy_margin(self) -> np.ndarray:
         """``V(q0) - V_threshold`` [J] on the cells, laid out like ``flip_time``: the potential
-        ``V = Pi - tau . q`` at each start less the energy bound's threshold (its minimum on the
+        ``V = Pi - tau·q`` at each start less the energy bound's threshold (its minimum on the
         boundary of the square ``(-pi, pi)^2``, less the safety margin); negative where energy
         alone forbids a flip.  The threshold the map used (``stats["energy_threshold"]``), or,
         for a map made without the shortcuts, the same computed now."""
@@ -290,7 +290,7 @@ def cell_centres(lo: float, hi: float, n: int) -> np.ndarray:
 
 
 def energy_barrier(kernel, p, *, samples: int = _BARRIER_SAMPLES) -> Tuple[float, float]:
-    """``(V_min, scale)``: the minimum of ``V = Pi - tau . q`` over the boundary of the square
+    """``(V_min, scale)``: the minimum of ``V = Pi - tau·q`` over the boundary of the square
     ``[-pi, pi]^2`` (the four sides), and the potential's scale (its largest magnitude there).
 
     Each side is sampled at ``samples`` points; around each of the (up to 8) lowest sampled

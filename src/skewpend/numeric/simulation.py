@@ -152,7 +152,7 @@ class Trajectory(ResultProtocol):
         return self._kernel_or_load().tips_many(self.y, parameter_vector(self.params))
 
     def axes(self) -> np.ndarray:
-        """The hinge axes in the world frame at each row: ``(n1, e)`` with ``e = P1 . e0`` the
+        """The hinge axes in the world frame at each row: ``(n1, e)`` with ``e = P1·e0`` the
         second hinge's current axis (it turns with rod 1), shape (n, 6), unit vectors."""
         from .kernels import parameter_vector
 

@@ -5,7 +5,7 @@ dense-output states at the frame times ``k * speed / fps`` (make the trajectory 
 ``skewpend.simulate(params, y0, duration * speed, dt_out=speed / fps)``).
 
 The geometry of a frame comes from the trajectory only -- the rod ends ``tr.tips()`` and the
-hinge axes ``tr.axes()`` (``n1`` and ``e = P1 . e0``), both generated from the symbolic
+hinge axes ``tr.axes()`` (``n1`` and ``e = P1·e0``), both generated from the symbolic
 derivation; nothing here recomputes the kinematics.  :func:`frame_scene` returns that
 geometry in world coordinates exactly as it is drawn, so it can be checked against the
 model and against the projected artists of :class:`FrameRenderer`.

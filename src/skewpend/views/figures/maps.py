@@ -38,7 +38,7 @@ def flipmap_energy_margin(fm) -> Optional[np.ndarray]:
 
 def flipmap_forbidden(fm) -> Optional[np.ndarray]:
     """The cells of ``fm`` that energy alone forbids to flip, as a boolean array laid out like
-    ``fm.flip_time``: released at rest, ``V = Pi - tau . q`` (which never increases: damping only
+    ``fm.flip_time``: released at rest, ``V = Pi - tau·q`` (which never increases: damping only
     dissipates) starts below its minimum ``V_min`` on the boundary of the square ``(-pi, pi)^2``
     -- the test :func:`skewpend.flip_map` uses to skip them.  Evaluates the compiled potential of
     ``fm.params`` (cached with the map's kernel); None if that is impossible here (no compiler)."""

@@ -1,0 +1,83 @@
+"""Sphinx glue for skewpend's docs.
+
+* ``.. skewpend-cli::``: the CLI reference, generated from the Typer app itself (every
+  command's help and every option's name, metavar, help and default, as ``--help`` prints
+  them), never typed twice;
+* a check that every public name (``skewpend.__all__``) is documented in the API reference: a
+  name missing from it is a warning, which ``sphinx-build -W`` makes an error.
+"""
+
+from __future__ import annotations
+
+import textwrap
+
+import typer
+from docutils import nodes
+from docutils.statemachine import StringList
+from sphinx.application import Sphinx
+from sphinx.util import logging
+from sphinx.util.docutils import SphinxDirective
+
+import skewpend
+from skewpend.cli import app as _app
+
+logger = logging.getLogger(__name__)
+
+#: the ``skewpend`` command as Click (Typer's own copy of it) sees it
+cli_command = typer.main.get_command(_app)
+
+
+def _rst_escape(text: str) -> str:
+    return text.replace("\\", "\\\\").replace("*", "\\*").replace("`", "\\`").replace("|", "\\|")
+
+
+def cli_rst() -> list[str]:
+    """reStructuredText for every command: its help, then a table of its options."""
+    root = cli_command.make_context("skewpend", [], resilient_parsing=True)
+    lines: list[str] = []
+    for name, cmd in cli_command.commands.items():
+        title = f"skewpend {name}"
+        lines += [title, "-" * len(title), ""]
+        ctx = cmd.make_context(name, [], parent=root, resilient_parsing=True)
+        usage = " ".join(cmd.collect_usage_pieces(ctx))
+        lines += ["::", "", f"    skewpend {name} {usage}", ""]
+        lines += [_rst_escape(line) for line in textwrap.dedent(cmd.help or "").splitlines()] + [""]
+        records = [p.get_help_record(ctx) for p in cmd.params]
+        records = [r for r in records if r is not None]
+        if records:
+            lines += [".. list-table::", "   :header-rows: 1", "   :widths: 35 65", "",
+                      "   * - option", "     - meaning"]
+            for opts, help_text in records:
+                lines += [f"   * - ``{opts}``", f"     - {_rst_escape(help_text) or ' '}"]
+            lines.append("")
+    return lines
+
+
+class CliDirective(SphinxDirective):
+    """``.. skewpend-cli::`` -- the generated reference of every command."""
+
+    has_content = False
+
+    def run(self) -> list[nodes.Node]:
+        container = nodes.section() if False else nodes.container()
+        self.state.nested_parse(StringList(cli_rst(), source="skewpend --help"), self.content_offset, container,
+                                match_titles=True)
+        return container.children
+
+
+def public_names() -> list[str]:
+    return [name for name in skewpend.__all__ if not name.startswith("__")]
+
+
+def _check_api(app: Sphinx, env) -> None:
+    documented = set(env.get_domain("py").objects)
+    missing = [name for name in public_names() if f"skewpend.{name}" not in documented]
+    if missing:
+        logger.warning("public names missing from the API reference (docs/reference/api.md): %s",
+                       ", ".join(missing), type="skewpend", subtype="api")
+
+
+def setup(app: Sphinx) -> dict:
+    app.connect("env-check-consistency", _check_api)
+    app.add_directive("skewpend-cli", CliDirective)
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
