@@ -29,8 +29,10 @@ def reference_state():
 
 
 # -- the quick selection: `python -m pytest -m "not slow"` ------------------------------------------------
-#: Modules whose every test is slow (a browser, or a report built per module).
-SLOW_MODULES = {"test_report_browser.py", "test_explorer_browser.py", "test_report.py"}
+#: Modules whose every test is slow: a browser, a report built per module, the docs' build, and the docs'
+#: examples (a page's examples run in reading order, each after the ones above it, so a quick selection
+#: of them would run the slow ones anyway).
+SLOW_MODULES = {"test_report_browser.py", "test_explorer_browser.py", "test_report.py", "test_readme.py", "test_docs.py"}
 
 
 def _measured_slow() -> set:

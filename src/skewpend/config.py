@@ -32,7 +32,13 @@ DEFAULT_RUN: Dict[str, Dict[str, Any]] = {
 
 def reference_parameters():
     """The reference case (:data:`DEFAULT_RUN`'s ``[parameters]``: the README's and the report's
-    built-in model) as :class:`~skewpend.Parameters`."""
+    built-in model) as :class:`~skewpend.Parameters`.
+
+    >>> import skewpend
+    >>> p = skewpend.reference_parameters()
+    >>> p.a, p.b, p.m1, p.m2, p.alpha, p.g
+    (1.0, 0.8, 1.0, 0.7, 0.6, 9.81)
+    """
     from .symbolic.model import Parameters
 
     return Parameters(**DEFAULT_RUN["parameters"])

@@ -19,7 +19,14 @@ __all__ = ["Status", "CallCode"]
 
 
 class Status(IntEnum):
-    """The outcome of a computation; ``int(status)`` is the code, :attr:`message` says it."""
+    """The outcome of a computation; ``int(status)`` is the code, :attr:`message` says it.
+
+    >>> from skewpend import Status
+    >>> Status(6)
+    <Status.PARTIAL: 6>
+    >>> Status.SUCCESS.ok, Status.PARTIAL.ok
+    (True, False)
+    """
 
     SUCCESS = 0
     NONFINITE = 1

@@ -331,6 +331,14 @@ def normal_modes(params: Parameters) -> Modes:
     :class:`~skewpend.errors.ParameterError` when a result would not be finite (overflow of
     extreme parameters): every array of the result is finite, except the documented
     ``ratios = inf`` (phi stands still) and ``beat_period = inf`` (equal frequencies).
+
+    Equal rods of unit length at ``alpha = 0`` with ``g = 1``: the compound double pendulum,
+    whose squared frequencies are ``3 -/+ 6/sqrt(7)``:
+
+    >>> import skewpend
+    >>> modes = skewpend.normal_modes(skewpend.Parameters(a=1, b=1, m1=1, m2=1, alpha=0, g=1))
+    >>> [round(float(w) ** 2, 6) for w in modes.frequencies]
+    [0.732213, 5.267787]
     """
     try:
         return _modes(params)

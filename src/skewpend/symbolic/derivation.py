@@ -413,6 +413,14 @@ def derive(params: Optional[Parameters] = None) -> EquationsOfMotion:
 
     ``params`` defaults to ``Parameters()``: the specification's thin rods with every
     parameter symbolic (``a, b, m1, m2, alpha, g``) and no damping or torques.
+
+    In the planar case the coupling of the mass matrix is the specification's
+    ``m2 b (a cos(psi)/2 + b/3)``:
+
+    >>> import skewpend
+    >>> eom = skewpend.derive(skewpend.Parameters(alpha=0))
+    >>> eom.mass_matrix[0, 1]
+    b*m2*(3*a*cos(psi) + 2*b)/6
     """
     if params is None:
         params = Parameters()
