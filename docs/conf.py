@@ -41,8 +41,8 @@ extensions = [
     "skewpend_docs",  # docs/_ext/skewpend_docs.py: the API reference's completeness check
 ]
 
-source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
-exclude_patterns = ["_build", "gallery/README.txt", "**.ipynb_checkpoints", "jupyter_execute"]
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb"}  # (the gallery writes .ipynb files: not sources)
+exclude_patterns = ["_build", "gallery/README.txt", "sg_execution_times.rst", "auto_gallery/*.ipynb", "**.ipynb_checkpoints", "jupyter_execute"]
 root_doc = "index"
 
 # --- MyST and notebooks ----------------------------------------------------------------------

@@ -91,7 +91,7 @@ class LyapunovSpectrum(Result):
 
     @property
     def kaplan_yorke_dimension(self) -> float:
-        """The Kaplan-Yorke (Lyapunov) dimension ``j + (l_1 + ... + l_j) / |l_{j+1}|``, with ``j``
+        """The Kaplan-Yorke (Lyapunov) dimension ``j + (l_1 + … + l_j) / |l_{j+1}|``, with ``j``
         the largest index with a non-negative partial sum (needs the full spectrum)."""
         lam = np.sort(self.exponents)[::-1]
         partial = np.cumsum(lam)

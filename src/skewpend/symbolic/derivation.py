@@ -13,7 +13,7 @@ Compactness comes from structure, not from one large ``simplify()``: ``T`` is bu
 the first rod's frame (it does not depend on ``phi``); ``M(q)`` is the Hessian of ``T``
 in the speeds; the velocity terms come from derivatives of ``M``
 (Christoffel symbols); the gravity terms from ``Pi``; each entry is then reduced with
-``cos^2 + sin^2 = 1`` in its shortest form (:func:`skewpend.kinematics.compact`).
+``cos^2 + sin^2 = 1`` in its shortest form (:meth:`skewpend.symbolic.kinematics.Algebra.shortest`).
 
 The result is ``M(q) q'' = f(q, q')`` with ``f`` containing the generalised
 non-potential forces ``Q_i = tau_i - c_i q_i'`` (joint torques and viscous damping).

@@ -6,7 +6,7 @@ polynomial ring over the rationals while the kinematics is built (``c_phi``,
 SymPy's sparse polynomial arithmetic (``sympy.polys.rings``) keeps the whole
 derivation exact and fast, with no expression swell.  Relations such as
 ``cos^2 + sin^2 = 1`` (or ``|n| = 1`` for a hinge axis given by its components)
-are applied afterwards by :meth:`Algebra.compact`, which picks the shortest
+are applied afterwards by :meth:`Algebra.shortest`, which picks the shortest
 reduced form of each entry and only then turns it into a SymPy expression with
 ``cos``/``sin`` restored.
 
@@ -149,8 +149,9 @@ class Algebra:
         """The reduction of ``p`` by ``relations`` with the fewest terms.
 
         Every relation whose generators appear is tried with each choice of generator
-        to eliminate (ties keep the earlier choice: for angles, the sine is eliminated
-        first, so cosines are preferred).
+        to eliminate (ties keep the earlier choice, and the unreduced polynomial wins any tie; for
+        angles the cosine is eliminated first, so among equally short results the sine form
+        wins -- hence ``sin(alpha)**2 sin(psi)**2`` in ``M11``).
         """
         used = set()
         for monom in p.monoms():
