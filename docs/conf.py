@@ -50,6 +50,7 @@ myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist", "at
 myst_heading_anchors = 3
 nb_execution_mode = os.environ.get("SKEWPEND_DOCS_EXECUTE", "cache")  # 'off' for a quick look
 nb_execution_timeout = 180  # seconds per notebook
+nb_execution_in_temp = True  # each notebook runs in a temporary directory: the files it writes go there
 nb_execution_raise_on_error = True  # a failing cell fails the build
 nb_execution_show_tb = True
 nb_execution_cache_path = str(HERE / "_build" / ".jupyter_cache")
@@ -85,6 +86,9 @@ sphinx_gallery_conf = {
     "image_srcset": [],
     "within_subsection_order": "FileNameSortKey",
     "show_memory": False,
+    "write_computation_times": False,  # its page loads DataTables from a CDN: the site stays offline
+    "image_scrapers": ("skewpend_docs",),  # skewpend's figures (docs/_ext/skewpend_docs.py)
+    "reset_modules": (),
 }
 
 # --- HTML ------------------------------------------------------------------------------------

@@ -65,6 +65,29 @@ class CliDirective(SphinxDirective):
         return container.children
 
 
+def _gallery_scraper(block, block_vars, gallery_conf):
+    """sphinx-gallery: every Matplotlib figure a gallery script has made (skewpend's figures are
+    built without pyplot, so the default scraper does not see them), saved as the thumbnail and
+    image of that script."""
+    from matplotlib.figure import Figure
+    from sphinx_gallery.scrapers import figure_rst
+
+    seen = block_vars.setdefault("skewpend_figures", set())
+    paths = []
+    for value in list(block_vars["example_globals"].values()):
+        if isinstance(value, Figure) and id(value) not in seen:
+            seen.add(id(value))
+            path = next(block_vars["image_path_iterator"])
+            value.savefig(path, dpi=100, facecolor="white")
+            paths.append(path)
+    return figure_rst(paths, gallery_conf["src_dir"])
+
+
+def _get_sg_image_scraper():
+    """sphinx-gallery's hook: ``"image_scrapers": ("skewpend_docs",)``."""
+    return _gallery_scraper
+
+
 def public_names() -> list[str]:
     return [name for name in skewpend.__all__ if not name.startswith("__")]
 
