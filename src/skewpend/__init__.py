@@ -31,6 +31,9 @@ _LAZY = {
     "Modes": "analysis.modes",
     "sweep": "analysis.modes",
     "characteristic_equation": "analysis.modes",
+    "equilibria": "analysis.equilibria",
+    "Equilibria": "analysis.equilibria",
+    "Equilibrium": "analysis.equilibria",
     "flip_map": "analysis.flipmap",
     "FlipMap": "analysis.flipmap",
     "open_flip_map": "analysis.flipmap",
@@ -63,6 +66,9 @@ __all__ = [
     "Modes",
     "sweep",
     "characteristic_equation",
+    "equilibria",
+    "Equilibria",
+    "Equilibrium",
     "flip_map",
     "FlipMap",
     "open_flip_map",
@@ -94,6 +100,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .config import reference_parameters, reference_state
     from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
+    from .analysis.equilibria import Equilibria, Equilibrium, equilibria
     from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map, open_lyapunov_map
     from .numeric.grid import GridJob, run_grid
     from .analysis.poincare import PoincareSection, poincare

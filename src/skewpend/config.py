@@ -78,6 +78,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "chaos-diagram": {"parameters": MODEL_KEYS - {"alpha"}, "simulation": _DOP853},
     "export": {"parameters": MODEL_KEYS},
     "modes": {"parameters": MODEL_KEYS},
+    "equilibria": {"parameters": MODEL_KEYS},
 }
 
 #: Why a command does not read a key that some other command does (the refusal says it).

@@ -122,7 +122,7 @@ def linear_matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndar
 # -- normal modes -------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Modes(ResultProtocol):
-    """Normal modes of the small oscillations about the hanging equilibrium.
+    """Normal modes of the small oscillations about an equilibrium (the hanging one by default).
 
     * ``frequencies`` -- natural (undamped) angular frequencies ``w_k`` [rad/s], ascending, (2,);
     * ``periods`` -- ``2 pi / w_k`` [s], (2,);
@@ -145,7 +145,13 @@ class Modes(ResultProtocol):
       ``(|l1| + |l2|) / (2 sqrt(l1 l2))`` for two real eigenvalues (overdamped, >= 1); for a
       single degree of freedom ``m x'' + c x' + k x = 0`` both are ``c / (2 sqrt(k m))``.
       Undamped: 0;
-    * ``M``, ``C``, ``K`` -- the linear matrices; ``params``;
+    * ``M``, ``C``, ``K`` -- the linear matrices; ``state_matrix`` -- the 4 x 4 matrix of
+      ``(dq, dq')``; ``params``;
+    * ``equilibrium`` -- ``(phi, psi)`` [rad] the modes are about; ``growth_rates`` [1/s] --
+      0 for an oscillating mode; about an unstable equilibrium (``normal_modes(params,
+      about=...)``) a mode along which a disturbance grows like ``exp(s t)`` has growth rate
+      ``s > 0``, frequency 0 and period ``inf`` (its eigenvalue pair is real, ``+s`` first) --
+      never an imaginary frequency;
     * the result protocol: ``settings`` (the equilibrium), ``stats`` (empty), ``status``
       (always SUCCESS: what cannot be computed is refused), ``ok``, ``message``, ``to_xarray()``,
       ``to_netcdf()``, ``summary()``.
@@ -164,14 +170,33 @@ class Modes(ResultProtocol):
     C: np.ndarray
     K: np.ndarray
     params: Parameters = field(repr=False)
+    growth_rates: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    equilibrium: Tuple[float, float] = (0.0, 0.0)
 
     result_kind: ClassVar[str] = "normal modes"
     status: ClassVar[Status] = Status.SUCCESS
-    message: ClassVar[str] = "the modes of the linearised equations about the hanging equilibrium"
+
+    @property
+    def message(self) -> str:
+        if self.equilibrium == (0.0, 0.0):
+            return "the modes of the linearised equations about the hanging equilibrium"
+        return (f"the modes of the linearised equations about the equilibrium phi = {self.equilibrium[0]:.6g}, "
+                f"psi = {self.equilibrium[1]:.6g} rad")
+
+    @property
+    def unstable(self) -> np.ndarray:
+        """(2,) bool: the mode grows (a saddle direction of the potential)."""
+        return self.growth_rates > 0
+
+    @property
+    def state_matrix(self) -> np.ndarray:
+        """``[[0, I], [-M^-1 K, -M^-1 C]]``: ``d/dt (dq, dq') = A (dq, dq')``."""
+        Minv = np.linalg.inv(self.M)
+        return np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ self.K, -Minv @ self.C]])
 
     @property
     def settings(self) -> Dict:
-        return {"equilibrium": [0.0, 0.0]}
+        return {"equilibrium": [float(self.equilibrium[0]), float(self.equilibrium[1])]}
 
     @property
     def stats(self) -> Dict:
@@ -191,6 +216,7 @@ class Modes(ResultProtocol):
                 "M0": (("coordinate", "coordinate_2"), self.M, {"long_name": "linear mass matrix"}),
                 "C0": (("coordinate", "coordinate_2"), self.C, {"long_name": "linear damping matrix"}),
                 "K0": (("coordinate", "coordinate_2"), self.K, {"long_name": "linear stiffness matrix"}),
+                "growth_rate": (("mode",), self.growth_rates, {"units": "1/s", "long_name": "growth rate (0: oscillating)"}),
             },
             coords={"mode": (("mode",), np.array([1, 2]), {})},
             attrs={"title": "normal modes of the skewed double pendulum (skewpend)", **self._base_attrs()},
@@ -213,8 +239,11 @@ class Modes(ResultProtocol):
         """Modal amplitudes and phases of a small initial state (undamped linear solution).
 
         ``q(t) = sum_k v_k A_k cos(w_k t - delta_k)``; returns ``amplitude`` (A_k) and
-        ``phase`` (delta_k) [rad], each (2,).
+        ``phase`` (delta_k) [rad], each (2,).  About an unstable equilibrium there is no such
+        form (a growing mode has no phase): refused.
         """
+        if np.any(self.unstable):
+            raise EquilibriumError("decompose: a growing mode has no amplitude and phase; use linear_response")
         a = self.modal_coordinates(np.asarray(q0, float))
         b = self.modal_coordinates(np.asarray(dq0, float)) / self.frequencies
         return {"amplitude": np.hypot(a, b), "phase": np.arctan2(b, a)}
@@ -226,8 +255,12 @@ class Modes(ResultProtocol):
         a = self.modal_coordinates(np.asarray(q0, float))
         b = self.modal_coordinates(np.asarray(dq0, float))
         w = self.frequencies
-        eta = a * np.cos(w * t) + b / w * np.sin(w * t)
-        deta = -a * w * np.sin(w * t) + b * np.cos(w * t)
+        s = self.growth_rates
+        with np.errstate(all="ignore"):
+            # an oscillating mode: cos and sin; a growing one: cosh and sinh (of its growth rate)
+            eta = np.where(s > 0, a * np.cosh(s * t) + b / np.where(s > 0, s, 1) * np.sinh(s * t),
+                           a * np.cos(w * t) + b / np.where(w > 0, w, 1) * np.sin(w * t))
+            deta = np.where(s > 0, a * s * np.sinh(s * t) + b * np.cosh(s * t), -a * w * np.sin(w * t) + b * np.cos(w * t))
         return np.hstack([eta @ self.shapes.T, deta @ self.shapes.T])
 
     def to_dict(self) -> Dict:
@@ -241,10 +274,13 @@ class Modes(ResultProtocol):
             "mode_shapes": self.shapes.T.tolist(),
             "amplitude_ratios_psi_over_phi": [None if not np.isfinite(r) else float(r) for r in self.ratios],
             "beat_period": None if not np.isfinite(self.beat_period) else float(self.beat_period),
-            "frequency_ratio": float(self.frequencies[1] / self.frequencies[0]),
+            "frequency_ratio": float(self.frequencies[1] / self.frequencies[0]) if self.frequencies[0] > 0 else None,
             "M0": self.M.tolist(),
             "K0": self.K.tolist(),
+            "equilibrium": [float(x) for x in self.equilibrium],
+            "growth_rates": self.growth_rates.tolist(),
         }
+        d["periods"] = [None if not np.isfinite(x) else float(x) for x in self.periods]
         if self.damped:
             d["C0"] = self.C.tolist()
             d["eigenvalues"] = [[float(z.real), float(z.imag)] for z in self.eigenvalues]
@@ -255,7 +291,8 @@ class Modes(ResultProtocol):
         return d
 
 
-def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Parameters) -> Modes:
+def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Parameters,
+                         equilibrium: Optional[Tuple[float, float]] = None) -> Modes:
     """Raises :class:`NotFinite` (short reason) when a result is not finite."""
     from scipy.linalg import LinAlgError, eigh
 
@@ -265,25 +302,31 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         except (LinAlgError, ValueError):
             raise NotFinite("the eigenproblem K0 v = w^2 M0 v cannot be solved in double precision (M0 not positive definite)") from None
         _require_finite(**{"the frequencies": lam, "the mode shapes": V})
-        if lam[0] <= 1e-12 * max(abs(lam[1]), 1e-300):
+        if equilibrium is None and lam[0] <= 1e-12 * max(abs(lam[1]), 1e-300):
             raise EquilibriumError(
                 f"the hanging position is not a stable equilibrium (w^2 = {lam.tolist()}); normal modes need g > 0"
             )
+        if equilibrium is not None and np.any(np.abs(lam) <= 1e-12 * max(np.abs(lam).max(), 1e-300)):
+            raise EquilibriumError(
+                f"the equilibrium ({equilibrium[0]:.6g}, {equilibrium[1]:.6g}) is degenerate (w^2 = {lam.tolist()}): "
+                "its linearisation has a zero eigenvalue")
         for k in range(2):
             col = V[:, k]
             col[np.abs(col) < 1e-13 * np.abs(col).max()] = 0.0  # round-off where a hinge stands still
             if col[np.argmax(np.abs(col))] < 0:
                 V[:, k] = -col
-        w = np.sqrt(lam)
-        periods = 2 * np.pi / w
+        w = np.sqrt(np.maximum(lam, 0.0))
+        growth = np.sqrt(np.maximum(-lam, 0.0))
+        with np.errstate(divide="ignore"):
+            periods = np.where(w > 0, 2 * np.pi / np.where(w > 0, w, 1), np.inf)
         ratios = np.where(np.abs(V[0]) > 1e-14 * np.abs(V).max(), V[1] / np.where(V[0] == 0, 1, V[0]), np.inf)
-        beat = 2 * np.pi / (w[1] - w[0]) if w[1] > w[0] else np.inf
-        _require_finite(**{"the frequencies": w, "the periods": periods})
+        beat = 2 * np.pi / (w[1] - w[0]) if w[1] > w[0] and w[0] > 0 else np.inf
+        _require_finite(**{"the frequencies": w, "the periods": periods[w > 0]})
         if np.any(np.isnan(ratios)) or np.isnan(beat):
             raise NotFinite("the amplitude ratios are not numbers")
         if np.any(C != 0):
             try:
-                ev, X = quadratic_eigen(M, C, K)
+                ev, X = quadratic_eigen(M, C, K, stable=equilibrium is None or bool(lam[0] > 0))
             except (np.linalg.LinAlgError, ValueError):
                 raise NotFinite("the state-space eigenvalues are not finite (overflow)") from None
             _require_finite(**{"the state-space eigenvalues": ev, "the state-space eigenvectors": X})
@@ -291,14 +334,21 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
             eig = pairs[:, 0]
             damped_w = np.abs(eig.imag)
             prod = (pairs[:, 0] * pairs[:, 1]).real
-            if np.any(~(prod > 0)):
+            if np.any(~(np.abs(prod) > 0)):
                 raise NotFinite("a damped mode has a zero eigenvalue (underflow)")
+            # a growing mode's pair is real with opposite signs: its rate is the positive one, and
+            # zeta uses |l1 l2| (for one degree of freedom m x'' + c x' - k x = 0: c / (2 sqrt(k m)))
+            grows = prod < 0
+            pairs[grows] = np.sort(pairs[grows].real, axis=1)[:, ::-1] + 0j
+            eig = pairs[:, 0]
+            damped_w = np.where(grows, 0.0, damped_w)
+            growth = np.where(grows, pairs[:, 0].real, 0.0)
             # C0 >= 0 makes zeta >= 0; clip the round-off of an undamped mode
-            zeta = np.maximum(-(pairs[:, 0] + pairs[:, 1]).real / (2 * np.sqrt(prod)), 0.0)
+            zeta = np.maximum(-(pairs[:, 0] + pairs[:, 1]).real / (2 * np.sqrt(np.abs(prod))), 0.0)
             _require_finite(**{"the damped frequencies": damped_w, "the damping ratios": zeta})
         else:
-            eig = 1j * w
-            pairs = np.column_stack([1j * w, -1j * w])
+            eig = np.where(growth > 0, growth + 0j, 1j * w)
+            pairs = np.column_stack([eig, np.where(growth > 0, -growth + 0j, -1j * w)])
             damped_w = w.copy()
             zeta = np.zeros(2)
     return Modes(
@@ -315,7 +365,30 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         C=C,
         K=K,
         params=params,
+        growth_rates=growth,
+        equilibrium=(0.0, 0.0) if equilibrium is None else (float(equilibrium[0]), float(equilibrium[1])),
     )
+
+
+def _modes_about(params: Parameters, about) -> Modes:
+    from .equilibria import Equilibrium, equilibria, equilibrium_at
+
+    if isinstance(about, Equilibrium):
+        eq = about
+    elif isinstance(about, str):
+        eq = equilibria(params).find(about)
+    else:
+        try:
+            pair = [float(x) for x in about]
+        except (TypeError, ValueError):
+            raise ParameterError(f"about must be an equilibrium, a label such as 'up-up', or (phi, psi), got {about!r}") from None
+        if len(pair) != 2:
+            raise ParameterError(f"about must be an equilibrium, a label such as 'up-up', or (phi, psi), got {about!r}")
+        eq = equilibrium_at(params, pair)
+    try:
+        return _modes_from_matrices(eq.M, eq.C, eq.K, params, equilibrium=eq.q)
+    except NotFinite as exc:
+        raise ParameterError(_not_finite_message(exc, params)) from None
 
 
 def _modes(params: Parameters) -> Modes:
@@ -323,8 +396,13 @@ def _modes(params: Parameters) -> Modes:
     return _modes_from_matrices(M, C, K, params)
 
 
-def normal_modes(params: Parameters) -> Modes:
-    """Normal modes of the numeric model ``params`` about ``phi = psi = 0``.
+def normal_modes(params: Parameters, about=None) -> Modes:
+    """Normal modes of the numeric model ``params`` about ``phi = psi = 0``, or about another
+    equilibrium: ``about`` an :class:`~skewpend.analysis.equilibria.Equilibrium`, a label of one
+    (``"up-up"``, see :func:`skewpend.equilibria`) or a pair ``(phi, psi)`` near one (polished by
+    Newton's method).  There M, C, K are ``M(q*)``, the damping and the Hessian of
+    ``V = Pi - tau . q``, constant torques are allowed, and a direction along which the
+    equilibrium is unstable is a mode with a growth rate (``growth_rates``), frequency 0.
 
     Raises :class:`~skewpend.errors.EquilibriumError` when the hanging position is not an
     equilibrium (torques, offset centres of mass) or not stable (``g = 0``), and
@@ -340,6 +418,8 @@ def normal_modes(params: Parameters) -> Modes:
     >>> [round(float(w) ** 2, 6) for w in modes.frequencies]
     [0.732213, 5.267787]
     """
+    if about is not None:
+        return _modes_about(params, about)
     try:
         return _modes(params)
     except NotFinite as exc:

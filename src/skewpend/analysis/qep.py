@@ -24,7 +24,7 @@ class NotFinite(ParameterError):
         self.reason = reason
 
 
-def quadratic_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+def quadratic_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray, *, stable: bool = True) -> Tuple[np.ndarray, np.ndarray]:
     """The four state-space eigenvalues ``l`` -- the roots of ``det(l^2 M + l C + K) = 0`` --
     and the displacement parts ``x`` (2, 4) of the state-space eigenvectors ``[x; l x]``
     (unit length), i.e. the null vectors of ``l^2 M + l C + K``.
@@ -36,7 +36,9 @@ def quadratic_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[np.nda
     keeps full relative accuracy when the damping spans many orders of magnitude (the slow
     creep ``~ k/c`` and fast decay ``~ c/m`` of heavy damping, a lightly damped mode beside
     an almost locked hinge).  Near a double root (critical damping) Newton does not
-    converge and the quartic's roots are used as they are.
+    converge and the quartic's roots are used as they are.  ``stable``: ``K`` is positive
+    definite (every coefficient of the quartic is then positive, and a zero one is an underflow);
+    about an unstable equilibrium only ``det M > 0`` is required.
     """
 
     def det(A: np.ndarray) -> float:
@@ -46,7 +48,8 @@ def quadratic_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> Tuple[np.nda
         return A[0, 0] * B[1, 1] + A[1, 1] * B[0, 0] - A[0, 1] * B[1, 0] - A[1, 0] * B[0, 1]
 
     coefficients = np.array([det(M), mixed(M, C), mixed(M, K) + det(C), mixed(C, K), det(K)], dtype=float)
-    if not np.all(np.isfinite(coefficients)) or not np.all(coefficients > 0):
+    positive = coefficients > 0 if stable else coefficients[:1] > 0
+    if not np.all(np.isfinite(coefficients)) or not np.all(positive) or coefficients[-1] == 0:
         raise NotFinite("the characteristic polynomial det(l^2 M0 + l C0 + K0) is not finite (overflow)")
     big = np.roots(coefficients).astype(complex)
     small = 1.0 / np.roots(coefficients[::-1]).astype(complex)

@@ -68,11 +68,12 @@ def _root(
 
 def _register() -> None:
     """Each command module holds plain functions; they become commands here (no import cycle)."""
-    from . import analyses, equations, modes, serve, simulate
+    from . import analyses, equations, modes, orbits, serve, simulate
 
     order = ("derive", "simulate", "animate", "flipmap", "lyapunov", "poincare", "chaos_diagram", "serve", "report",
-             "export", "validate", "modes")
-    found = {name: getattr(module, name) for module in (equations, simulate, analyses, modes, serve) for name in module.COMMANDS}
+             "export", "validate", "modes", "equilibria")
+    found = {name: getattr(module, name)
+             for module in (equations, simulate, analyses, modes, orbits, serve) for name in module.COMMANDS}
     for name in order:
         app.command(name.replace("_", "-"))(found[name])
 

@@ -32,14 +32,15 @@ def modes(
     # parsed after the check that it goes with --sweep (a misplaced option is the first thing to say)
     tolerance: Annotated[Optional[str], typer.Option("--tolerance", metavar="NUMBER", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3 (a positive number; default 0.01)")] = None,
     check_nonlinear: option("--check-nonlinear", T.Angle("ANGLE"), "AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep)", None) = None,
+    about: option("--about", T.EquilibriumChoice(), "the modes about another equilibrium: a label (down-up, up-down, up-up; see skewpend equilibria) or PHI,PSI near one; an unstable direction is given as a growth rate (not with --sweep, --check-nonlinear, --format latex)", None) = None,
     config: CONFIG = None,
 ) -> None:
-    """Normal modes of the small oscillations about the hanging equilibrium (and how alpha shapes them)."""
+    """Normal modes of the small oscillations about the hanging equilibrium or another one (and how alpha shapes them)."""
     given = model
     # every option takes effect or is refused, before any work is done
     if fmt is ModesFormat.latex:
         extra = [o for o, v in (("--sweep", sweep_spec), ("--plot", plot), ("--out", out), ("--tolerance", tolerance),
-                                ("--check-nonlinear", check_nonlinear)) if v is not None]
+                                ("--check-nonlinear", check_nonlinear), ("--about", about)) if v is not None]
         if extra:
             raise UsageError(
                 f"--format latex prints only the closed-form characteristic equation, so {', '.join(extra)} "
@@ -54,6 +55,8 @@ def modes(
             raise UsageError("--tolerance sets how close w2/w1 must come to 1, 2, 3 along a --sweep; without --sweep it has no effect")
     elif check_nonlinear is not None:
         raise UsageError("--check-nonlinear measures one parameter set, not a sweep; use it without --sweep")
+    if about is not None and (sweep_spec is not None or check_nonlinear is not None):
+        raise UsageError("--about goes without --sweep and --check-nonlinear (they are about the hanging equilibrium)")
     from ..analysis import modes as md
 
     params = resolve("modes", config, parameters=given).parameters()
@@ -66,7 +69,7 @@ def modes(
         raise UsageError(
             f"--check-nonlinear: expected an amplitude between 0 and 180 deg exclusive (radians, or e.g. 10deg), got {amplitude!r}"
         )
-    result = md.normal_modes(params)
+    result = md.normal_modes(params, about=about)
     check = md.check_nonlinear(params, amplitude) if amplitude is not None else None
     if fmt is ModesFormat.json:
         import json
@@ -86,22 +89,35 @@ def modes(
 def _modes_text(m, check) -> str:
     import numpy as np
 
-    lines = ["Normal modes about the hanging equilibrium (phi = psi = 0)", ""]
+    if m.equilibrium == (0.0, 0.0):
+        lines = ["Normal modes about the hanging equilibrium (phi = psi = 0)", ""]
+    else:
+        lines = [f"Modes about the equilibrium phi = {np.degrees(m.equilibrium[0]):.6g} deg, "
+                 f"psi = {np.degrees(m.equilibrium[1]):.6g} deg", ""]
     lines.append(f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  {'shape (phi, psi), M0-normalised':>34}  {'psi/phi':>9}")
     for k in range(2):
         v = m.shapes[:, k]
         ratio = "inf" if not np.isfinite(m.ratios[k]) else f"{m.ratios[k]:.5g}"
+        shape = f"({v[0]:+.6f}, {v[1]:+.6f})"
+        if m.unstable[k]:
+            lines.append(f"{k + 1:>4}  {'--':>14}  {'--':>10}  {'--':>11}  {shape:>34}  {ratio:>9}  unstable: "
+                         f"grows like exp({m.growth_rates[k]:.8g} t / s)")
+            continue
         lines.append(
             f"{k + 1:>4}  {m.frequencies[k]:14.8g}  {m.frequencies[k] / (2 * np.pi):10.6g}  {m.periods[k]:11.6g}  "
-            f"{f'({v[0]:+.6f}, {v[1]:+.6f})':>34}  {ratio:>9}"
+            f"{shape:>34}  {ratio:>9}"
         )
-    beat = "inf (1:1)" if not np.isfinite(m.beat_period) else f"{m.beat_period:.6g} s"
-    lines.append(f"beat period 2 pi/(w2 - w1) = {beat};  w2/w1 = {m.frequencies[1] / m.frequencies[0]:.6g}")
+    if not np.any(m.unstable):
+        beat = "inf (1:1)" if not np.isfinite(m.beat_period) else f"{m.beat_period:.6g} s"
+        lines.append(f"beat period 2 pi/(w2 - w1) = {beat};  w2/w1 = {m.frequencies[1] / m.frequencies[0]:.6g}")
     if m.damped:
         lines.append("with damping (eigenvalues matched to the modes by shape; zeta = -(l1 + l2)/(2 sqrt(l1 l2))):")
         for k in range(2):
             l1, l2 = m.eigenvalue_pairs[k]
-            if m.overdamped[k]:
+            if m.unstable[k]:
+                lines.append(f"  mode {k + 1}: unstable, lambda = {l1.real:.6g} and {l2.real:.6g} (real), "
+                             f"growth rate {m.growth_rates[k]:.6g} 1/s")
+            elif m.overdamped[k]:
                 lines.append(
                     f"  mode {k + 1}: overdamped, lambda = {l1.real:.6g} and {l2.real:.6g} (real), zeta = {m.damping_ratios[k]:.4g}"
                 )

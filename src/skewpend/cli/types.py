@@ -153,6 +153,31 @@ class Window(ParamType):
         return ranges
 
 
+class EquilibriumChoice(ParamType):
+    """An equilibrium: a label (``down-down``, ``down-up``, ``up-down``, ``up-up``, ...: rod 1 then
+    rod 2) or ``PHI,PSI`` angles near one (radians, ``deg`` suffix or multiples of pi)."""
+
+    metavar = "LABEL|PHI,PSI"
+    LABEL = re.compile(r"^(down|up|level)-(down|up|level)$")
+
+    def convert(self, text, flag):
+        from ..parsing import parse_scalar
+
+        if self.LABEL.match(text.strip().lower()):
+            return text.strip().lower()
+        parts = text.split(",")
+        if len(parts) != 2:
+            raise UsageError(f"{flag}: expected a label (down-down, down-up, up-down, up-up, ...) or PHI,PSI "
+                             f"(e.g. 180deg,0), got {text!r}")
+        values = []
+        for part, name in zip(parts, ("phi", "psi")):
+            v = parse_scalar(part.strip(), f"{flag} ({name})", angle=True)
+            if v is None:
+                raise UsageError(f"{flag} ({name}): an equilibrium's angle must be a number, not 'sym'")
+            values.append(v)
+        return tuple(values)
+
+
 class Vector(ParamType):
     """``x,y,z`` numbers or symbol names, or ``sym``."""
 

@@ -1,0 +1,404 @@
+"""Every equilibrium of the skewed double pendulum on the torus, and the linearisation about each.
+
+At rest the equations of motion ``M(q) q'' = f(q, q')`` reduce to ``dPi/dq = tau``: an equilibrium
+is a critical point of ``V(q) = Pi(q) - tau . q``, the potential energy with the work of the
+constant torques.  ``Pi`` is a trigonometric polynomial of degree one in each angle (its
+gradient too), so there are finitely many isolated equilibria (at most eight) unless gravity and
+the torques both vanish.  :func:`equilibria` finds them all:
+
+* Newton's method on ``grad V = 0`` (gradient and Hessian generated from the derivation, one
+  vectorised iteration for every start) from an ``n x n`` grid of starts over the torus;
+* the roots deduplicated on the torus (angles modulo 2 pi) and polished;
+* a check that none is missed: on the torus the Morse indices of nondegenerate critical points
+  satisfy ``sum (-1)^index = 0`` (Poincare-Hopf: the Euler characteristic of the torus); if the
+  sum is not 0 the grid is refined, and a result that still fails the check says so
+  (:attr:`~skewpend.Status.PARTIAL`).
+
+Each :class:`Equilibrium` carries its linearisation ``M q'' + C q' + K q = 0`` (``M = M(q*)``,
+``K`` the Hessian of ``V``, ``C`` the damping), the eigenvalues of the state matrix, the Morse
+index (the number of negative eigenvalues of ``K``: 0 for a minimum of ``V``, a stable
+equilibrium), the natural frequencies of its oscillating directions and the growth rates of its
+unstable ones, with their directions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..errors import EquilibriumError, ParameterError
+from ..results import DatasetSpec, ResultProtocol
+from ..status import Status
+from ..symbolic.model import SCALAR_NAMES, Parameters
+
+__all__ = ["Equilibrium", "Equilibria", "equilibria", "equilibrium_at", "linearisation_functions"]
+
+#: Grid of Newton starts per side (refined up to :data:`MAX_STARTS` while the index check fails).
+DEFAULT_STARTS = 16
+MAX_STARTS = 128
+#: Two roots closer than this on the torus [rad] are one equilibrium.
+SAME_ROOT = 1e-6
+#: How far [rad] a point given as "near an equilibrium" may lie from it.
+NEAR = 0.2
+#: An eigenvalue of K below this fraction of the largest is taken as zero (a degenerate point).
+DEGENERATE = 1e-9
+
+
+def _geometry_only(params: Parameters) -> Parameters:
+    """``params`` with every scalar symbolic (the bodies and axes kept): one derivation serves
+    every ``a, b, m1, m2, alpha, g, c, tau``."""
+    keep = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
+    return Parameters(**{k: getattr(params, k) for k in keep}, **{k: None for k in SCALAR_NAMES})
+
+
+@lru_cache(maxsize=32)
+def linearisation_functions(geometry: Parameters) -> Callable:
+    """``f(*scalars, phi, psi) -> (Pi, grad Pi, Hessian of Pi, M, C)`` generated (SymPy
+    ``lambdify``) from the derivation of ``geometry`` (scalars in :data:`SCALAR_NAMES` order;
+    ``C = -df/dq'`` at rest, the damping)."""
+    import sympy as sp
+
+    from ..symbolic.derivation import SYMBOLS, derive
+
+    eom = derive(geometry)
+    phi, psi, dphi, dpsi = (SYMBOLS[n] for n in ("phi", "psi", "dphi", "dpsi"))
+    q = [phi, psi]
+    Pi = eom.potential_energy
+    grad = [sp.diff(Pi, x) for x in q]
+    hess = [[sp.diff(g, x) for x in q] for g in grad]
+    rest = {dphi: 0, dpsi: 0}
+    C = [[-sp.diff(eom.forcing[i], v).subs(rest) for v in (dphi, dpsi)] for i in range(2)]
+    args = [SYMBOLS[n] for n in SCALAR_NAMES] + q
+    return sp.lambdify(args, [Pi, grad, hess, eom.mass_matrix.tolist(), C], "numpy")
+
+
+@lru_cache(maxsize=32)
+def _direction_functions(geometry: Parameters) -> Callable:
+    """``f(alpha, phi, psi) -> (j . P1 j, j . P j)``: the vertical component of each rod's
+    direction (``j`` points down: positive = hanging, negative = pointing up)."""
+    import sympy as sp
+
+    from ..symbolic.derivation import SYMBOLS, derive
+
+    steps = derive(geometry).steps
+    args = [SYMBOLS[n] for n in SCALAR_NAMES] + [SYMBOLS["phi"], SYMBOLS["psi"]]
+    return sp.lambdify(args, [steps["P1"][1, 1], steps["P"][1, 1]], "numpy")
+
+
+def _scalars(params: Parameters) -> List[float]:
+    return [0.0 if (n == "alpha" and not params.uses_alpha) else float(getattr(params, n)) for n in SCALAR_NAMES]
+
+
+def wrap(q: np.ndarray) -> np.ndarray:
+    """Angles into (-pi, pi]."""
+    w = np.mod(np.asarray(q, dtype=float) + np.pi, 2 * np.pi) - np.pi
+    return np.where(w == -np.pi, np.pi, w)
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """One equilibrium ``q* = (phi, psi)`` and the linearised motion about it.
+
+    * ``q`` -- ``(phi, psi)`` [rad] in ``(-pi, pi]``; ``label`` -- which way each rod points,
+      rod 1 then rod 2: ``down``, ``up`` or ``level`` (horizontal) -- ``"down-down"`` is the
+      hanging position, ``"up-up"`` both rods upright in line;
+    * ``potential`` -- ``V(q*) = Pi(q*) - tau . q*`` [J] (Pi = 0 with both rods hanging);
+    * ``M``, ``C``, ``K`` -- the linearisation ``M dq'' + C dq' + K dq = 0`` about ``q*``
+      (``K`` the Hessian of ``V``); ``A`` -- the 4 x 4 state matrix of ``(dq, dq')``;
+      ``eigenvalues`` -- its eigenvalues (descending real part);
+    * ``morse_index`` -- the number of negative eigenvalues of ``K`` (0: a minimum of ``V``,
+      stable; 1: a saddle; 2: a maximum of ``V``); ``stable`` -- index 0;
+    * ``frequencies`` [rad/s] and ``shapes`` -- the oscillating directions (``K v = w^2 M v``,
+      ``w^2 > 0``), ascending; ``growth_rates`` [1/s] and ``unstable_directions`` -- the
+      directions of ``K v = -s^2 M v`` along which a small disturbance grows like ``exp(s t)``
+      (without damping; with damping the rates are the positive real parts of ``eigenvalues``).
+      Shapes and directions are columns ``[phi, psi]`` with ``v^T M v = 1``.
+    """
+
+    q: Tuple[float, float]
+    label: str
+    potential: float
+    M: np.ndarray = field(repr=False)
+    C: np.ndarray = field(repr=False)
+    K: np.ndarray = field(repr=False)
+    A: np.ndarray = field(repr=False)
+    eigenvalues: np.ndarray = field(repr=False)
+    morse_index: int = 0
+    frequencies: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    shapes: np.ndarray = field(default_factory=lambda: np.zeros((2, 0)), repr=False)
+    growth_rates: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    unstable_directions: np.ndarray = field(default_factory=lambda: np.zeros((2, 0)), repr=False)
+
+    @property
+    def stable(self) -> bool:
+        """A minimum of ``V`` (Lagrange-Dirichlet): stable; with damping asymptotically so."""
+        return self.morse_index == 0
+
+    @property
+    def state(self) -> np.ndarray:
+        """The equilibrium as a state ``(phi, psi, 0, 0)``."""
+        return np.array([self.q[0], self.q[1], 0.0, 0.0])
+
+    def describe(self) -> str:
+        kind = {0: "stable (minimum of V)", 1: "saddle (index 1)", 2: "maximum of V (index 2)"}[self.morse_index]
+        parts = [f"{self.label:>9}  phi = {math.degrees(self.q[0]):8.3f} deg, psi = {math.degrees(self.q[1]):8.3f} deg"
+                 f"  V = {self.potential:11.6g} J  {kind}"]
+        if self.frequencies.size:
+            parts.append("frequencies " + ", ".join(f"{w:.6g}" for w in self.frequencies) + " rad/s")
+        if self.growth_rates.size:
+            parts.append("growth rates " + ", ".join(f"{s:.6g}" for s in self.growth_rates) + " 1/s")
+        return ";  ".join(parts)
+
+
+def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], functions) -> Equilibrium:
+    """The :class:`Equilibrium` at ``q`` (already a root)."""
+    from scipy.linalg import eig, eigh
+
+    Pi, _, H, M, C = functions(*values, float(q[0]), float(q[1]))
+    M = np.array(M, dtype=float)
+    C = np.array(C, dtype=float) * np.ones((2, 2))
+    K = np.array(H, dtype=float)
+    K = 0.5 * (K + K.T)
+    tau = np.array([params.tau1, params.tau2], dtype=float)
+    potential = float(Pi) - float(tau @ q)
+    Minv = np.linalg.inv(M)
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ K, -Minv @ C]])
+    ev = eig(A, right=False)
+    ev = ev[np.lexsort((-ev.imag, -ev.real))]
+    lam, V = eigh(K, M)
+    scale = max(np.abs(lam).max(), np.finfo(float).tiny)
+    index = int(np.sum(lam < -DEGENERATE * scale))
+    for k in range(V.shape[1]):
+        col = V[:, k]
+        if col[np.argmax(np.abs(col))] < 0:
+            V[:, k] = -col
+    osc = lam > DEGENERATE * scale
+    unstable = lam < -DEGENERATE * scale
+    if np.any(C != 0):
+        growth = np.sort(ev.real[ev.real > 1e-12 * np.abs(ev).max()])[::-1][:index] if index else np.zeros(0)
+    else:
+        growth = np.sqrt(-lam[unstable])[::-1]
+    directions = V[:, unstable][:, ::-1]
+    dirs = _direction_functions(_geometry_only(params))(*values, float(q[0]), float(q[1]))
+    label = "-".join("level" if abs(float(d)) < 1e-9 else ("down" if float(d) > 0 else "up") for d in dirs)
+    return Equilibrium(
+        q=(float(q[0]), float(q[1])), label=label, potential=potential, M=M, C=C, K=K, A=A, eigenvalues=ev,
+        morse_index=index, frequencies=np.sqrt(lam[osc]), shapes=V[:, osc], growth_rates=np.asarray(growth, dtype=float),
+        unstable_directions=directions,
+    )
+
+
+class Equilibria(ResultProtocol):
+    """Every equilibrium of a model (:func:`equilibria`), ordered by potential energy.
+
+    * ``points`` -- the :class:`Equilibrium` objects (``len``, iteration and indexing reach them);
+    * ``index_sum`` -- ``sum (-1)^index`` over them: 0 on the torus when none is missed
+      (Poincare-Hopf), the check behind ``status``;
+    * the result protocol: ``params``, ``settings`` (the grid of starts), ``stats`` (``starts``,
+      ``converged``, ``newton_iterations``), ``status``, ``message``, ``ok``, ``to_xarray()``,
+      ``to_netcdf()``, ``summary()``, ``table()``.
+    """
+
+    result_kind: ClassVar[str] = "equilibria"
+
+    def __init__(self, points: List[Equilibrium], params: Parameters, settings: Dict, stats: Dict,
+                 status: Status, message: str):
+        self.points = list(points)
+        self.params = params
+        self._settings = dict(settings)
+        self._stats = dict(stats)
+        self.status = Status(status)
+        self.message = message
+
+    @property
+    def settings(self) -> Dict:
+        return dict(self._settings)
+
+    @property
+    def stats(self) -> Dict:
+        return dict(self._stats)
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def __iter__(self):
+        return iter(self.points)
+
+    def __getitem__(self, k):
+        return self.points[k]
+
+    @property
+    def index_sum(self) -> int:
+        return int(sum((-1) ** e.morse_index for e in self.points))
+
+    def find(self, label: str) -> Equilibrium:
+        """The equilibrium with this ``label`` (``"down-down"``, ``"up-up"``, ...)."""
+        found = [e for e in self.points if e.label == label]
+        if not found:
+            have = ", ".join(e.label for e in self.points) or "none"
+            raise ParameterError(f"no equilibrium is labelled {label!r}; the model has: {have}")
+        return found[0]
+
+    def table(self) -> str:
+        lines = [f"{'label':>9}  {'phi [deg]':>10}  {'psi [deg]':>10}  {'V [J]':>12}  index  "
+                 f"{'frequencies [rad/s]':<24}  growth rates [1/s]"]
+        for e in self.points:
+            freq = ", ".join(f"{w:.6g}" for w in e.frequencies) or "--"
+            grow = ", ".join(f"{s:.6g}" for s in e.growth_rates) or "--"
+            lines.append(f"{e.label:>9}  {math.degrees(e.q[0]):10.4f}  {math.degrees(e.q[1]):10.4f}  "
+                         f"{e.potential:12.6g}  {e.morse_index:>5}  {freq:<24}  {grow}")
+        return "\n".join(lines)
+
+    def _dataset(self) -> DatasetSpec:
+        n = len(self.points)
+
+        def col(fn, k):
+            out = np.full(n, np.nan)
+            for i, e in enumerate(self.points):
+                arr = fn(e)
+                if arr.size > k:
+                    out[i] = arr[k]
+            return out
+
+        return DatasetSpec(
+            variables={
+                "phi": (("equilibrium",), np.array([e.q[0] for e in self.points]), {"units": "rad"}),
+                "psi": (("equilibrium",), np.array([e.q[1] for e in self.points]), {"units": "rad"}),
+                "potential": (("equilibrium",), np.array([e.potential for e in self.points]),
+                              {"units": "J", "long_name": "V = Pi - tau . q"}),
+                "morse_index": (("equilibrium",), np.array([e.morse_index for e in self.points], dtype=np.int32), {}),
+                "frequency": (("equilibrium", "direction"),
+                              np.stack([col(lambda e: e.frequencies, k) for k in range(2)], axis=1) if n else np.zeros((0, 2)),
+                              {"units": "rad/s", "long_name": "natural angular frequency (NaN: not oscillating)"}),
+                "growth_rate": (("equilibrium", "direction"),
+                                np.stack([col(lambda e: e.growth_rates, k) for k in range(2)], axis=1) if n else np.zeros((0, 2)),
+                                {"units": "1/s", "long_name": "growth rate of an unstable direction (NaN: none)"}),
+            },
+            coords={"label": (("equilibrium",), np.array([e.label for e in self.points], dtype=object), {})},
+            attrs={},
+        )
+
+
+def _newton(grad_hess, q: np.ndarray, tau: np.ndarray, iterations: int = 60) -> Tuple[np.ndarray, np.ndarray, int]:
+    """Vectorised Newton on ``grad Pi(q) = tau`` from every row of ``q``: (roots, converged, its)."""
+    converged = np.zeros(len(q), dtype=bool)
+    active = np.ones(len(q), dtype=bool)
+    its = 0
+    with np.errstate(all="ignore"):
+        for its in range(1, iterations + 1):
+            g, H = grad_hess(q)
+            g = g - tau
+            det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] * H[:, 1, 0]
+            ok = active & np.isfinite(det) & (np.abs(det) > 0)
+            d0 = np.where(ok, -(H[:, 1, 1] * g[:, 0] - H[:, 0, 1] * g[:, 1]) / np.where(ok, det, 1.0), 0.0)
+            d1 = np.where(ok, -(-H[:, 1, 0] * g[:, 0] + H[:, 0, 0] * g[:, 1]) / np.where(ok, det, 1.0), 0.0)
+            step = np.hypot(d0, d1)
+            shrink = np.where(step > 0.5, 0.5 / np.maximum(step, 1e-300), 1.0)  # at most 0.5 rad a step
+            q[:, 0] += d0 * shrink
+            q[:, 1] += d1 * shrink
+            active &= ok
+            done = active & (step < 1e-13 * (1 + np.abs(q).max(axis=1)))
+            converged |= done
+            active &= ~done
+            if not active.any():
+                break
+    return q, converged, its
+
+
+def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibria:
+    """Every equilibrium of the numeric model ``params`` on the torus (see the module).
+
+    ``starts``: Newton starts per side of the first grid (doubled, up to 128, while the
+    Poincare-Hopf check fails).  Refused: a symbolic parameter, and ``g = 0`` without torques
+    (then every configuration is an equilibrium).  Without gravity but with torques there is no
+    equilibrium (an empty result).
+    """
+    from ..checks import whole
+
+    params.require_numeric("equilibria")
+    starts = whole("starts", starts, lo=2, hi=MAX_STARTS)
+    tau = np.array([params.tau1, params.tau2], dtype=float)
+    values = _scalars(params)
+    functions = linearisation_functions(_geometry_only(params))
+
+    def grad_hess(q):
+        _, g, H, _, _ = functions(*values, q[:, 0], q[:, 1])
+        n = len(q)
+        g = np.stack([np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in g], axis=1)
+        H = np.array([[np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in row] for row in H]).transpose(2, 0, 1)
+        return g, H
+
+    # the scale of the gradient (to tell "no equilibrium" and degenerate models apart)
+    probe = wrap(np.random.default_rng(0).uniform(-np.pi, np.pi, (64, 2)))
+    gscale = float(np.abs(grad_hess(probe)[0]).max())
+    if not (gscale > 0) and not np.any(tau):
+        raise EquilibriumError("every configuration is an equilibrium without gravity and torques (g = 0, tau = 0); "
+                               "equilibria need g > 0 or a torque")
+    total_its = 0
+    total_starts = 0
+    n = starts
+    while True:
+        grid = (np.arange(n) + 0.5) / n * 2 * np.pi - np.pi
+        q0 = np.array(np.meshgrid(grid, grid, indexing="ij")).reshape(2, -1).T.copy()
+        roots, conv, its = _newton(grad_hess, q0, tau)
+        total_its += its
+        total_starts += len(q0)
+        found: List[np.ndarray] = []
+        for r in wrap(roots[conv]):
+            g, _ = grad_hess(r[None, :])
+            if not np.all(np.abs(g[0] - tau) <= 1e-9 * max(gscale, np.abs(tau).max())):
+                continue
+            if all(np.max(np.abs(wrap(r - f))) > SAME_ROOT for f in found):
+                found.append(r)
+        points = [_linearise(params, wrap(r), values, functions) for r in found]
+        points.sort(key=lambda e: (e.potential, e.q))
+        index_sum = sum((-1) ** e.morse_index for e in points)
+        if index_sum == 0 or n >= MAX_STARTS:
+            break
+        n = min(2 * n, MAX_STARTS)
+    degenerate = [e for e in points
+                  if np.min(np.abs(np.linalg.eigvalsh(e.K))) <= DEGENERATE * max(np.abs(np.linalg.eigvalsh(e.K)).max(), 1e-300)]
+    if index_sum == 0 and not degenerate:
+        status, message = Status.SUCCESS, (
+            f"{len(points)} equilibria; their Morse indices sum to 0 as on the torus (none missed)" if points else
+            "no equilibrium: the torques are not balanced by gravity anywhere")
+    else:
+        status, message = Status.PARTIAL, (
+            f"{len(points)} equilibria found, but " + (
+                f"{len(degenerate)} of them degenerate (K singular): the index check does not apply" if degenerate else
+                f"their indices sum to {index_sum}, not 0: an equilibrium may be missed"))
+    settings = {"starts": starts, "final_starts": n, "tau": tau.tolist()}
+    stats = {"starts": total_starts, "converged": int(len(points)), "newton_iterations": int(total_its)}
+    return Equilibria(points, params, settings, stats, status, message)
+
+
+def equilibrium_at(params: Parameters, q: Sequence[float]) -> Equilibrium:
+    """The equilibrium at ``q = (phi, psi)``, polished by Newton's method from there; refused with
+    one line when ``q`` is not near an equilibrium (the residual names how far)."""
+    params.require_numeric("an equilibrium")
+    values = _scalars(params)
+    functions = linearisation_functions(_geometry_only(params))
+    tau = np.array([params.tau1, params.tau2], dtype=float)
+    q0 = np.asarray(q, dtype=float).reshape(1, 2)
+    if not np.all(np.isfinite(q0)):
+        raise ParameterError(f"an equilibrium's angles must be finite, got {list(q)}")
+
+    def grad_hess(qq):
+        _, g, H, _, _ = functions(*values, qq[:, 0], qq[:, 1])
+        g = np.array([[float(np.asarray(x).ravel()[0]) for x in g]])
+        H = np.array([[[float(np.asarray(x).ravel()[0]) for x in row] for row in H]])
+        return g, H
+
+    g0, _ = grad_hess(q0.copy())
+    root, conv, _ = _newton(grad_hess, q0.copy(), tau, iterations=30)
+    moved = float(np.max(np.abs(wrap(root[0] - q0[0]))))
+    if not conv[0] or moved > NEAR:
+        residual = float(np.max(np.abs(g0[0] - tau)))
+        raise EquilibriumError(
+            f"(phi, psi) = ({q0[0, 0]:.6g}, {q0[0, 1]:.6g}) rad is not an equilibrium: dV/dq = {residual:.3g} N m there; "
+            "choose one of skewpend.equilibria(params)")
+    return _linearise(params, wrap(root[0]), values, functions)
