@@ -35,7 +35,7 @@ from ..results import DatasetSpec, ResultProtocol
 from ..status import Status
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
-__all__ = ["Equilibrium", "Equilibria", "equilibria", "equilibrium_at", "linearisation_functions"]
+__all__ = ["Equilibrium", "Equilibria", "equilibria", "equilibrium_at", "linearisation_functions", "potential_function"]
 
 #: Grid of Newton starts per side (refined up to :data:`MAX_STARTS` while the index check fails).
 DEFAULT_STARTS = 16
@@ -91,6 +91,19 @@ def _direction_functions(geometry: Parameters) -> Callable:
 
 def _scalars(params: Parameters) -> List[float]:
     return [0.0 if (n == "alpha" and not params.uses_alpha) else float(getattr(params, n)) for n in SCALAR_NAMES]
+
+
+def potential_function(params: Parameters) -> Callable[[float, float], float]:
+    """``V(phi, psi) = Pi - tau . q`` [J] of the numeric model (generated from the derivation)."""
+    params.require_numeric("the potential")
+    values = _scalars(params)
+    functions = linearisation_functions(_geometry_only(params))
+    tau1, tau2 = float(params.tau1), float(params.tau2)
+
+    def V(phi: float, psi: float) -> float:
+        return float(functions(*values, phi, psi)[0]) - tau1 * phi - tau2 * psi
+
+    return V
 
 
 def wrap(q: np.ndarray) -> np.ndarray:

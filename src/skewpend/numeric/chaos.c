@@ -126,6 +126,42 @@ int sp_lyap(sp_lyap_state *s, const double *p, double t_end, double rtol, double
     }
 }
 
+/* The flow and its derivative: the state and s->k tangent vectors (1..4) integrated together
+ * from s->t to t_end by adaptive DOP853 (error control on every component, as sp_lyap) with no
+ * renormalisation, so that starting from the identity the tangent vectors end as the columns of
+ * the state-transition matrix d y(t_end) / d y(s->t) -- over one period, the monodromy matrix.
+ * Resumable like sp_lyap: SP_STATUS_SUCCESS (reached t_end), _NONFINITE, _STEP_UNDERFLOW,
+ * _MAX_STEPS, SP_CALL_BUDGET (call again) or _BAD_ARGUMENTS. */
+int sp_flow(sp_lyap_state *s, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
+            int64_t budget)
+{
+    const int k = s->k, n = 4 + 4 * k;
+    double K[DOP_NSTAGES][SP_VMAX], ynew[SP_VMAX], ytmp[SP_VMAX];
+    int64_t done = 0;
+    if (k < 1 || k > 4 || !(t_end >= s->t)) return SP_CALL_BAD_ARGUMENTS;
+    if (!s->have_f) {
+        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
+        var_rhs(n, s->y, p, s->f);
+        s->nfev++;
+        if (!all_finite(s->f, n)) return SP_STATUS_NONFINITE;
+        s->have_f = 1;
+    }
+    while (s->t < t_end) {
+        if (done >= budget) return SP_CALL_BUDGET;
+        if (s->h <= 0.0) s->h = dop_initial_step_v(s->y, s->f, p, t_end - s->t, rtol, atol, &s->nfev, n);
+        double h, t_new;
+        int rc = dop_advance_v(s->t, s->y, s->f, p, t_end, rtol, atol, max_steps, &s->h, s->naccept, &s->nreject,
+                               &s->nfev, K, ynew, ytmp, n, &t_new, &h);
+        if (rc) return rc;
+        s->naccept++;
+        done++;
+        s->t = t_new;
+        memcpy(s->y, ynew, (size_t)n * sizeof(double));
+        memcpy(s->f, K[DOP_NS], (size_t)n * sizeof(double));
+    }
+    return SP_STATUS_SUCCESS;
+}
+
 /* The largest exponent of m starts y0s[m][4] (rows of 4 doubles): one tangent vector from
  * (1, 1, 1, 1)/2, renormalised every `every` seconds up to t_end; the growth after the first
  * n_skip renormalisations (the transient) divided by the time it covers.  out_lambda[i] is

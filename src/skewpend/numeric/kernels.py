@@ -299,6 +299,8 @@ class Kernel:
             i32p = ctypes.POINTER(ctypes.c_int32)
             lib.sp_lyap.argtypes = [ctypes.POINTER(LyapState), dp, d, d, d, i64, i64, dp, i64, ip]
             lib.sp_lyap.restype = ctypes.c_int
+            lib.sp_flow.argtypes = [ctypes.POINTER(LyapState), dp, d, d, d, i64, i64]
+            lib.sp_flow.restype = ctypes.c_int
             lib.sp_lyap1_many.argtypes = [dp, dp, i64, d, d, i64, d, d, i64, dp, i32p, ip, ip]
             lib.sp_lyap1_many.restype = None
             lib.sp_section.argtypes = [sp, dp, ctypes.c_int, d, d, ctypes.c_int, ctypes.c_int, i64, d, d, d, i64, i64,

@@ -1,0 +1,638 @@
+"""Periodic orbits, their stability, and the nonlinear normal modes as the energy grows.
+
+**A periodic orbit** (:func:`periodic_orbit`) is found by single shooting: the unknowns are the
+start ``x0 = (phi, psi, phi', psi')`` and the period ``T``; the equations are
+
+* ``phi_T(x0) - x0 = s``: the orbit closes after ``T``, up to ``s = 2 pi (r1, r2, 0, 0)`` for a
+  rotation in which the angles advance by whole turns (``rotation = (r1, r2)``);
+* ``<f(x_ref), x0 - x_ref> = 0``: the phase condition (the start lies on the plane through the
+  reference point across the flow, so the orbit is not slid along itself);
+* ``H(x0) = E``: the energy ``H = T + Pi - tau . q``, for the conservative model.
+
+Six equations in five unknowns, consistent at a solution (the energy is conserved); each
+Gauss-Newton step solves them in the least-squares sense with the Jacobian from the variational
+equations (``d phi_T / d x0`` is the state-transition matrix of :mod:`skewpend.numeric.variational`,
+``d phi_T / d T = f(phi_T(x0))``).  Over the converged period the state-transition matrix is the
+monodromy matrix; its eigenvalues are the Floquet multipliers.  For a conservative model with two
+degrees of freedom they are ``{1, 1, mu, 1/mu}``; ``sigma = trace - 2 = mu + 1/mu`` decides the
+stability: ``|sigma| < 2`` stable (a pair on the unit circle), ``sigma > 2`` unstable through +1,
+``sigma < -2`` unstable through -1 (period doubling).  Newton's failure is a status, never an orbit.
+
+**Nonlinear normal modes** (:func:`nnm`) continue the family of periodic orbits that each linear
+mode starts, by pseudo-arclength continuation in ``(x0, T, E)`` (a step along the secant, then the
+corrector with the arclength condition added), the step adapted to how fast the corrector
+converges, up to an energy limit -- by default the lowest energy at which a joint can flip (the
+minimum of ``V`` on the boundary of the square ``|phi|, |psi| <= pi``).  Along the family it
+reports folds (the energy turns back), stability changes (``sigma`` crossing +2: a multiplier
+leaving the unit circle through +1, a branch point; crossing -2: through -1, a period doubling).
+:func:`backbones` computes both families and the internal resonances between them (one family's
+frequency crossing a small rational multiple of the other's at the same energy).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..checks import numeric_params, tolerances
+from ..errors import EquilibriumError, IntegrationError, ParameterError
+from ..results import DatasetSpec, ResultProtocol
+from ..status import Status
+from ..symbolic.model import Parameters
+
+__all__ = ["PeriodicOrbit", "periodic_orbit", "NNMFamily", "nnm", "Backbones", "backbones", "flip_energy",
+           "BranchEvent"]
+
+#: Newton tolerance on the scaled residual, and the most iterations.
+NEWTON_TOL = 1e-10
+NEWTON_MAX = 25
+#: The variational integration's tolerances (the monodromy matrix is as accurate as the orbit).
+ORBIT_TOL = 1e-12
+#: ``|sigma| - 2`` beyond this counts as unstable (the multipliers' accuracy, from ORBIT_TOL).
+STABILITY_MARGIN = 1e-6
+
+
+def _require_conservative(params: Parameters, what: str) -> None:
+    if params.c1 or params.c2:
+        raise ParameterError(f"{what} needs a conservative model: with damping (c1 = {params.c1:g}, c2 = {params.c2:g}) "
+                             "the energy decays and no orbit is periodic; set c1 = c2 = 0")
+
+
+class _Model:
+    """What shooting needs of one model: the flow with its derivative, the vector field, the energy."""
+
+    def __init__(self, params: Parameters, rtol: float, atol: float):
+        from ..numeric.kernels import kernel_module, parameter_vector
+        from ..numeric.variational import FlowIntegrator
+
+        self.params = params
+        self.flow = FlowIntegrator(params, rtol=rtol, atol=atol)
+        self.kernel = kernel_module(params)
+        self.p = parameter_vector(params)
+        self.tau = np.array([params.tau1, params.tau2], dtype=float)
+        self.calls = 0
+        self.steps = 0
+
+    def field(self, y: np.ndarray) -> np.ndarray:
+        out = np.empty(5)
+        self.kernel.rhs(np.append(y, 0.0), self.p, out)
+        return out[:4]
+
+    def energy(self, y: np.ndarray) -> float:
+        return self.kernel.energy(np.append(y, 0.0), self.p) - float(self.tau @ y[:2])
+
+    def energy_gradient(self, y: np.ndarray) -> np.ndarray:
+        g = np.empty(4)
+        for i in range(4):
+            h = 1e-6 * max(1.0, abs(y[i]))
+            e = np.zeros(4)
+            e[i] = h
+            g[i] = (self.energy(y + e) - self.energy(y - e)) / (2 * h)
+        return g
+
+    def shoot(self, x0: np.ndarray, T: float, check=None):
+        if not (T > 0) or not math.isfinite(T):
+            return None
+        fl = self.flow(x0, T, check=check)
+        self.calls += 1
+        self.steps += fl.steps
+        if fl.status != Status.SUCCESS or not np.all(np.isfinite(fl.stm)):
+            return None
+        return fl
+
+
+@dataclass
+class _Scales:
+    """Units of the unknowns for the least-squares problem: angles, speeds, period, energy."""
+
+    angle: float
+    speed: float
+    period: float
+    energy: float
+
+    def vector(self) -> np.ndarray:
+        return np.array([self.angle, self.angle, self.speed, self.speed, self.period, self.energy])
+
+
+def _newton(model: _Model, x0: np.ndarray, T: float, E: float, shift: np.ndarray, ref: np.ndarray, scales: _Scales,
+            arclength: Optional[Tuple[np.ndarray, np.ndarray]] = None, free_energy: bool = False, check=None,
+            tol: float = NEWTON_TOL, max_iterations: int = NEWTON_MAX):
+    """Gauss-Newton on the shooting equations.  Unknowns ``(x0, T)`` and, with ``free_energy``,
+    ``E``; ``arclength = (u_pred, tangent)`` in scaled unknowns adds the pseudo-arclength row.
+    Returns ``(x0, T, E, flow, iterations, residual)`` or None when it does not converge."""
+    f_ref = model.field(ref)
+    n_ref = float(np.linalg.norm(f_ref / np.r_[scales.angle, scales.angle, scales.speed, scales.speed])) or 1.0
+    su = scales.vector()
+    x0, T, E = np.array(x0, dtype=float), float(T), float(E)
+    residual = math.inf
+    for it in range(1, max_iterations + 1):
+        fl = model.shoot(x0, T, check)
+        if fl is None:
+            return None
+        r_close = (fl.y - x0 - shift) / su[:4]
+        r_phase = float(f_ref @ (x0 - ref)) / (n_ref * scales.angle)
+        r_energy = (model.energy(x0) - E) / scales.energy
+        rows = [r_close, [r_phase], [r_energy]]
+        J_close = np.hstack([(fl.stm - np.eye(4)) * su[None, :4] / su[:4, None], (model.field(fl.y) * su[4] / su[:4])[:, None]])
+        J_phase = np.r_[f_ref * su[:4] / (n_ref * scales.angle), 0.0]
+        J_energy = np.r_[model.energy_gradient(x0) * su[:4] / scales.energy, 0.0]
+        J = np.vstack([J_close, J_phase, J_energy])
+        if free_energy:
+            J = np.hstack([J, np.zeros((J.shape[0], 1))])
+            J[-1, -1] = -1.0  # d(H - E)/dE, in units of the energy scale
+        if arclength is not None:
+            u_pred, tangent = arclength
+            u = np.r_[x0, T, E] / su
+            rows.append([float(tangent @ (u - u_pred))])
+            J = np.vstack([J, tangent])
+        r = np.concatenate([np.ravel(x) for x in rows])
+        residual = float(np.max(np.abs(r)))
+        if not np.all(np.isfinite(r)) or not np.all(np.isfinite(J)):
+            return None
+        du, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        step = float(np.max(np.abs(du)))
+        if step > 0.5:  # a wild step: damp it (the corrector is a local method)
+            du *= 0.5 / step
+        x0 = x0 + du[:4] * su[:4]
+        T = T + du[4] * su[4]
+        if free_energy:
+            E = E + du[5] * su[5]
+        if residual < tol and step < 1e3 * tol:
+            fl = model.shoot(x0, T, check)
+            if fl is None:
+                return None
+            return x0, T, E, fl, it, residual
+    return None
+
+
+def _multipliers(stm: np.ndarray) -> Tuple[np.ndarray, float]:
+    mu = np.linalg.eigvals(stm)
+    mu = mu[np.argsort(-np.abs(mu))]
+    return mu, float(np.trace(stm) - 2.0)
+
+
+def _stable(sigma: float) -> bool:
+    return abs(sigma) <= 2.0 + STABILITY_MARGIN
+
+
+class PeriodicOrbit(ResultProtocol):
+    """A periodic orbit (:func:`periodic_orbit`), or the failure to find one (``ok`` False).
+
+    * ``state`` -- the start ``(phi, psi, phi', psi')`` on the orbit; ``period`` [s];
+      ``frequency`` ``2 pi / T`` [rad/s]; ``energy`` ``H = T + Pi - tau . q`` [J];
+      ``rotation`` -- whole turns of ``(phi, psi)`` per period (``(0, 0)``: a libration);
+    * ``monodromy`` (4, 4), ``multipliers`` (4,) complex, largest modulus first; ``sigma`` --
+      ``trace - 2``; ``stable`` -- ``|sigma| <= 2`` (within :data:`STABILITY_MARGIN`);
+    * ``trajectory(rows)`` -- the orbit over one period as a :class:`~skewpend.Trajectory`
+      (integrated anew by :func:`skewpend.simulate`);
+    * the result protocol: ``params``, ``settings``, ``stats`` (``newton_iterations``,
+      ``residual``, ``flows``, ``steps``), ``status``, ``message``, ``ok``, ``to_xarray()``,
+      ``to_netcdf()``, ``summary()``.
+    """
+
+    result_kind: ClassVar[str] = "periodic orbit"
+
+    def __init__(self, params, state, period, energy, rotation, monodromy, settings, stats, status, message):
+        self.params = params
+        self.state = np.asarray(state, dtype=float)
+        self.period = float(period)
+        self.energy = float(energy)
+        self.rotation = tuple(int(r) for r in rotation)
+        self.monodromy = np.asarray(monodromy, dtype=float)
+        if np.all(np.isfinite(self.monodromy)):
+            self.multipliers, self.sigma = _multipliers(self.monodromy)
+        else:
+            self.multipliers, self.sigma = np.full(4, np.nan + 0j), math.nan
+        self._settings = dict(settings)
+        self._stats = dict(stats)
+        self.status = Status(status)
+        self.message = message
+
+    @property
+    def settings(self) -> Dict:
+        return dict(self._settings)
+
+    @property
+    def stats(self) -> Dict:
+        return dict(self._stats)
+
+    @property
+    def frequency(self) -> float:
+        return 2 * math.pi / self.period if self.period > 0 else math.nan
+
+    @property
+    def stable(self) -> bool:
+        return bool(self.ok and _stable(self.sigma))
+
+    def trajectory(self, rows: int = 400, *, rtol: float = 1e-12, atol: float = 1e-12):
+        """The orbit over one period, integrated anew by :func:`skewpend.simulate` (``rows + 1`` rows)."""
+        from ..numeric.simulation import simulate
+
+        if not self.ok:
+            raise IntegrationError(f"no orbit to draw: {self.message}")
+        return simulate(self.params, self.state, self.period, rtol=rtol, atol=atol, dt_out=self.period / rows)
+
+    def table(self) -> str:
+        if not self.ok:
+            return f"no periodic orbit: {self.message}"
+        mu = ", ".join(f"{abs(m):.6g}" + (f" (arg {math.degrees(np.angle(m)):.3g} deg)" if abs(m.imag) > 1e-12 else "")
+                       for m in self.multipliers)
+        return "\n".join([
+            f"start      phi = {self.state[0]:.9g}, psi = {self.state[1]:.9g} rad, "
+            f"phi' = {self.state[2]:.9g}, psi' = {self.state[3]:.9g} rad/s",
+            f"period     {self.period:.12g} s (frequency {self.frequency:.9g} rad/s)",
+            f"energy     {self.energy:.9g} J" + (f"; rotation {self.rotation}" if any(self.rotation) else ""),
+            f"Floquet    |mu| = {mu}",
+            f"stability  {'stable' if self.stable else 'unstable'} (sigma = trace - 2 = {self.sigma:.9g}; "
+            f"stable when |sigma| <= 2)",
+        ])
+
+    def _dataset(self) -> DatasetSpec:
+        return DatasetSpec(
+            variables={
+                "state": (("component",), self.state, {"long_name": "start on the orbit (phi, psi, phi', psi')"}),
+                "period": ((), np.float64(self.period), {"units": "s"}),
+                "energy": ((), np.float64(self.energy), {"units": "J"}),
+                "monodromy": (("component", "component_2"), self.monodromy, {}),
+                "multiplier_real": (("multiplier",), self.multipliers.real, {}),
+                "multiplier_imag": (("multiplier",), self.multipliers.imag, {}),
+            },
+            coords={"component": (("component",), np.array(["phi", "psi", "dphi", "dpsi"], dtype=object), {})},
+            attrs={"title": "periodic orbit of the skewed double pendulum (skewpend)", **self._base_attrs()},
+        )
+
+
+def _scales_for(params: Parameters, T: float, E: float) -> _Scales:
+    w = 2 * math.pi / T
+    return _Scales(angle=1.0, speed=w, period=T, energy=max(abs(E), 1e-300))
+
+
+def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, period: Optional[float] = None, *,
+                   mode: Optional[int] = None, energy: Optional[float] = None, rotation: Tuple[int, int] = (0, 0),
+                   rtol: float = ORBIT_TOL, atol: float = ORBIT_TOL, tol: float = NEWTON_TOL,
+                   max_iterations: int = NEWTON_MAX, throw: bool = False) -> PeriodicOrbit:
+    """A periodic orbit near a guess ``(y0, period)`` at the energy ``energy`` (default: the
+    guess's), or, with ``mode=1|2`` and ``energy``, the orbit of that nonlinear normal mode at
+    that energy (continued from the linear mode by :func:`nnm`).
+
+    ``rotation = (r1, r2)``: whole turns of ``(phi, psi)`` per period (a rotating orbit).  The
+    result's ``ok`` is False, with the reason in ``message``, when Newton's method does not
+    converge (``throw=True`` raises :class:`~skewpend.errors.IntegrationError` instead).
+    """
+    params = numeric_params(params, "periodic orbits")
+    _require_conservative(params, "a periodic orbit")
+    rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
+    if mode is not None:
+        if y0 is not None or period is not None:
+            raise ParameterError("give either a guess (y0, period) or mode=, not both")
+        if energy is None:
+            raise ParameterError("mode= needs energy= (the energy of the orbit wanted) [J]")
+        family = nnm(params, mode=mode, energy_max=energy, rtol=rtol, atol=atol)
+        if not family.energies.size or family.energies[-1] < energy * (1 - 1e-9):
+            return _failed(params, "the family stops before this energy: " + family.message, rotation, throw)
+        return family.orbit(len(family.energies) - 1)
+    if y0 is None or period is None:
+        raise ParameterError("a periodic orbit needs a guess: y0 (phi, psi, phi', psi') and period [s], or mode= and energy=")
+    x0 = np.asarray(y0, dtype=float)
+    if x0.shape != (4,) or not np.all(np.isfinite(x0)):
+        raise ParameterError(f"y0 must be four finite numbers (phi, psi, phi', psi'), got {y0!r}")
+    if isinstance(period, bool) or not isinstance(period, (int, float)) or not (0 < period < 1e6):
+        raise ParameterError(f"period must be a positive number of seconds below 1e6, got {period!r}")
+    if len(rotation) != 2 or any(isinstance(r, bool) or int(r) != r for r in rotation):
+        raise ParameterError(f"rotation must be two whole numbers of turns (r1, r2), got {rotation!r}")
+    model = _Model(params, rtol, atol)
+    E = model.energy(x0) if energy is None else float(energy)
+    if not math.isfinite(E):
+        raise ParameterError(f"energy must be a finite number of joules, got {energy!r}")
+    shift = np.array([2 * math.pi * rotation[0], 2 * math.pi * rotation[1], 0.0, 0.0])
+    scales = _scales_for(params, float(period), E if E != 0 else 1.0)
+    out = _newton(model, x0, float(period), E, shift, x0, scales, tol=tol, max_iterations=max_iterations)
+    settings = {"guess": x0.tolist(), "period_guess": float(period), "energy": E, "rotation": list(rotation),
+                "rtol": rtol, "atol": atol, "tol": tol}
+    if out is None:
+        return _failed(params, f"Newton's method did not converge from this guess in {max_iterations} iterations "
+                               "(try a better guess, e.g. from skewpend.nnm)", rotation, throw, settings, model)
+    x, T, E, fl, its, res = out
+    stats = {"newton_iterations": its, "residual": res, "flows": model.calls, "steps": model.steps}
+    return PeriodicOrbit(params, x, T, E, rotation, fl.stm, settings, stats, Status.SUCCESS,
+                         "a periodic orbit: closes to the Newton tolerance")
+
+
+def _failed(params, why, rotation, throw, settings=None, model=None) -> PeriodicOrbit:
+    if throw:
+        raise IntegrationError(why)
+    stats = {} if model is None else {"flows": model.calls, "steps": model.steps}
+    return PeriodicOrbit(params, np.full(4, np.nan), math.nan, math.nan, rotation, np.full((4, 4), np.nan),
+                         settings or {}, stats, Status.NO_CONVERGENCE, why)
+
+
+# -- nonlinear normal modes ------------------------------------------------------------------------
+
+
+def flip_energy(params: Parameters) -> float:
+    """The lowest energy at which a joint can flip: the minimum of ``V = Pi - tau . q`` on the
+    boundary of the square ``|phi|, |psi| <= pi`` (sampled densely, then refined)."""
+    from scipy.optimize import minimize_scalar
+
+    from .equilibria import potential_function
+
+    V = potential_function(params)
+    best = math.inf
+    s = np.linspace(-math.pi, math.pi, 2049)
+    sides = [(lambda t, c=c: (c, t)) for c in (-math.pi, math.pi)] + [(lambda t, c=c: (t, c)) for c in (-math.pi, math.pi)]
+    for side in sides:
+        values = np.array([V(*side(t)) for t in s])
+        k = int(np.argmin(values))
+        lo, hi = s[max(k - 1, 0)], s[min(k + 1, len(s) - 1)]
+        res = minimize_scalar(lambda t: V(*side(t)), bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
+        best = min(best, float(values[k]), float(res.fun))
+    return best
+
+
+@dataclass(frozen=True)
+class BranchEvent:
+    """A point of interest along a family: ``kind`` (``"fold"``, ``"branch point"`` -- a multiplier
+    leaving or entering the unit circle through +1 --, ``"period doubling"`` -- through -1 --, or
+    ``"resonance"``), the ``energy`` [J] and ``frequency`` [rad/s] there (interpolated between the
+    two orbits that bracket it, ``index`` the first of them), and a ``detail``."""
+
+    kind: str
+    index: int
+    energy: float
+    frequency: float
+    detail: str = ""
+
+
+class NNMFamily(ResultProtocol):
+    """A nonlinear normal mode: the family of periodic orbits continuing linear mode ``mode``.
+
+    Arrays along the family (one entry per orbit, in continuation order): ``energies`` [J],
+    ``periods`` [s], ``frequencies`` [rad/s], ``states`` (n, 4) the starts, ``multipliers``
+    (n, 4) complex, ``sigma`` (n,) ``trace - 2``, ``stable`` (n,) bool; ``events`` -- the
+    :class:`BranchEvent` found (folds, stability changes); ``linear_frequency`` -- the mode's
+    frequency at zero energy; ``energy_max`` -- where it was asked to stop.  ``orbit(k)`` gives
+    orbit ``k`` as a :class:`PeriodicOrbit`.  The result protocol as every result's.
+    """
+
+    result_kind: ClassVar[str] = "nonlinear normal mode"
+
+    def __init__(self, params, mode, linear_frequency, energies, periods, states, monodromies, events, energy_max,
+                 settings, stats, status, message):
+        self.params = params
+        self.mode = int(mode)
+        self.linear_frequency = float(linear_frequency)
+        self.energies = np.asarray(energies, dtype=float)
+        self.periods = np.asarray(periods, dtype=float)
+        self.states = np.asarray(states, dtype=float).reshape(-1, 4)
+        self.monodromies = np.asarray(monodromies, dtype=float).reshape(-1, 4, 4)
+        mus = [_multipliers(m) for m in self.monodromies]
+        self.multipliers = np.array([m for m, _ in mus]).reshape(-1, 4)
+        self.sigma = np.array([s for _, s in mus], dtype=float)
+        self.events = list(events)
+        self.energy_max = float(energy_max)
+        self._settings = dict(settings)
+        self._stats = dict(stats)
+        self.status = Status(status)
+        self.message = message
+
+    @property
+    def settings(self) -> Dict:
+        return dict(self._settings)
+
+    @property
+    def stats(self) -> Dict:
+        return dict(self._stats)
+
+    @property
+    def frequencies(self) -> np.ndarray:
+        return 2 * np.pi / self.periods
+
+    @property
+    def stable(self) -> np.ndarray:
+        return np.abs(self.sigma) <= 2.0 + STABILITY_MARGIN
+
+    def __len__(self) -> int:
+        return len(self.energies)
+
+    def orbit(self, k: int) -> PeriodicOrbit:
+        settings = {**self.settings, "index": int(k)}
+        return PeriodicOrbit(self.params, self.states[k], self.periods[k], self.energies[k], (0, 0),
+                             self.monodromies[k], settings, {}, Status.SUCCESS,
+                             f"orbit {k} of nonlinear normal mode {self.mode}")
+
+    def at_energy(self, energy: float) -> PeriodicOrbit:
+        """The computed orbit whose energy is closest to ``energy``."""
+        return self.orbit(int(np.argmin(np.abs(self.energies - energy))))
+
+    def table(self, every: int = 0) -> str:
+        n = len(self)
+        step = every or max(1, n // 12)
+        lines = [f"{'energy [J]':>12}  {'frequency [rad/s]':>17}  {'period [s]':>11}  {'sigma':>10}  stability"]
+        for k in list(range(0, n, step)) + ([n - 1] if (n - 1) % step else []):
+            lines.append(f"{self.energies[k]:12.6g}  {self.frequencies[k]:17.9g}  {self.periods[k]:11.7g}  "
+                         f"{self.sigma[k]:10.6g}  {'stable' if self.stable[k] else 'unstable'}")
+        for e in self.events:
+            lines.append(f"{e.kind} at E = {e.energy:.6g} J (frequency {e.frequency:.6g} rad/s){': ' + e.detail if e.detail else ''}")
+        return "\n".join(lines)
+
+    def _dataset(self) -> DatasetSpec:
+        return DatasetSpec(
+            variables={
+                "energy": (("orbit",), self.energies, {"units": "J"}),
+                "period": (("orbit",), self.periods, {"units": "s"}),
+                "frequency": (("orbit",), self.frequencies, {"units": "rad/s"}),
+                "state": (("orbit", "component"), self.states, {"long_name": "start on the orbit (phi, psi, phi', psi')"}),
+                "sigma": (("orbit",), self.sigma, {"long_name": "trace of the monodromy matrix - 2"}),
+                "stable": (("orbit",), self.stable.astype(np.int8), {}),
+                "multiplier_real": (("orbit", "multiplier"), self.multipliers.real, {}),
+                "multiplier_imag": (("orbit", "multiplier"), self.multipliers.imag, {}),
+            },
+            coords={"component": (("component",), np.array(["phi", "psi", "dphi", "dpsi"], dtype=object), {})},
+            attrs={"title": f"nonlinear normal mode {self.mode} of the skewed double pendulum (skewpend)",
+                   "mode": self.mode, "linear_frequency": self.linear_frequency,
+                   "events": "; ".join(f"{e.kind} at E = {e.energy:.9g} J" for e in self.events),
+                   **self._base_attrs()},
+        )
+
+
+def _events(energies, frequencies, sigma, tangents_E) -> List[BranchEvent]:
+    out: List[BranchEvent] = []
+    for k in range(len(energies) - 1):
+        def at(a, b, k=k):
+            t = a / (a - b) if a != b else 0.5
+            return (float(energies[k] + t * (energies[k + 1] - energies[k])),
+                    float(frequencies[k] + t * (frequencies[k + 1] - frequencies[k])))
+        for level, kind in ((2.0, "branch point"), (-2.0, "period doubling")):
+            a, b = sigma[k] - level, sigma[k + 1] - level
+            if a * b < 0:
+                E, w = at(a, b)
+                way = ("loses" if abs(sigma[k + 1]) > abs(sigma[k]) else "regains") + " stability"
+                out.append(BranchEvent(kind, k, E, w, f"the family {way} (a multiplier at {'+' if level > 0 else '-'}1)"))
+        if tangents_E[k] * tangents_E[k + 1] < 0:
+            out.append(BranchEvent("fold", k, float(energies[k + 1]), float(frequencies[k + 1]),
+                                   "the energy turns back along the family"))
+    return out
+
+
+def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None, max_orbits: int = 2000,
+        resolution: int = 200, step: float = 0.02, rtol: float = ORBIT_TOL, atol: float = ORBIT_TOL,
+        progress: Optional[Callable[[float, float], None]] = None) -> NNMFamily:
+    """The nonlinear normal mode ``mode`` (1: the lower linear frequency, 2: the higher) of the
+    conservative model ``params``: its periodic orbits from near zero energy up to ``energy_max``
+    [J] (default: :func:`flip_energy`, where a joint can first flip over), by pseudo-arclength
+    continuation (see the module).  ``step``: the first step in the scaled unknowns (adapted);
+    ``resolution``: successive orbits differ by at most ``energy_max / resolution`` in energy (so
+    a family has at least that many orbits); ``max_orbits`` bounds the family's length; the last
+    orbit lies exactly at ``energy_max``; ``progress(energy, energy_max)`` after each orbit.
+    The result's status is SUCCESS when the family reached ``energy_max``; else ``ok`` is False
+    and ``message`` says where and why it stopped (the orbits computed are kept)."""
+    from .modes import normal_modes
+    from ..checks import positive, progress_callable, whole
+    from ..interrupts import Interrupts
+
+    params = numeric_params(params, "nonlinear normal modes")
+    _require_conservative(params, "a nonlinear normal mode")
+    if params.tau1 or params.tau2:
+        raise EquilibriumError("nonlinear normal modes start from the modes about the hanging equilibrium; "
+                               "with torques use skewpend.periodic_orbit about skewpend.equilibria(params)")
+    if isinstance(mode, bool) or mode not in (1, 2):
+        raise ParameterError(f"mode must be 1 (the lower linear frequency) or 2 (the higher), got {mode!r}")
+    max_orbits = whole("max_orbits", max_orbits, lo=2, hi=100_000)
+    resolution = whole("resolution", resolution, lo=1, hi=100_000)
+    step = positive("step", step, cap=0.5)
+    rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
+    progress = progress_callable(progress, "progress(energy, energy_max)")
+    barrier = flip_energy(params)
+    E_max = barrier if energy_max is None else positive("energy_max", energy_max)
+    linear = normal_modes(params)
+    w0 = float(linear.frequencies[mode - 1])
+    v = linear.shapes[:, mode - 1]
+    model = _Model(params, rtol, atol)
+    T0 = 2 * math.pi / w0
+    scales = _Scales(angle=1.0, speed=w0, period=T0, energy=max(E_max, 1e-300))
+    su = scales.vector()
+    # the first orbit: the linear mode at a small energy (1/2 w^2 A^2 = E with v^T M v = 1)
+    E = min(1e-4 * E_max, 1e-4 * barrier)
+    A = math.sqrt(2 * E) / w0
+    x = np.r_[A * v, 0.0, 0.0]
+    energies, periods, states, monos, tangE = [], [], [], [], []
+    settings = {"mode": mode, "energy_max": E_max, "step": step, "rtol": rtol, "atol": atol, "max_orbits": max_orbits}
+    status, message = Status.SUCCESS, ""
+    with Interrupts() as intr:
+        out = _newton(model, x, T0, E, np.zeros(4), x, scales, check=intr.check)
+        if out is None:
+            raise IntegrationError("the continuation could not start from the linear mode (Newton failed at the first orbit)")
+        x, T, E, fl, _, _ = out
+        energies.append(E), periods.append(T), states.append(x), monos.append(fl.stm)
+        # the first tangent: along increasing energy (a second orbit at twice the energy)
+        out2 = _newton(model, x * math.sqrt(2.0), T, 2 * E, np.zeros(4), x, scales, check=intr.check)
+        if out2 is None:
+            raise IntegrationError("the continuation could not take its first step from the linear mode")
+        x2, T2, E2, fl2, _, _ = out2
+        energies.append(E2), periods.append(T2), states.append(x2), monos.append(fl2.stm)
+        ds = step
+        failures = 0
+        while True:
+            u_prev = np.r_[states[-2], periods[-2], energies[-2]] / su
+            u_cur = np.r_[states[-1], periods[-1], energies[-1]] / su
+            tangent = u_cur - u_prev
+            tangent /= np.linalg.norm(tangent)
+            tangE.append(tangent[-1])
+            if energies[-1] >= E_max:
+                break
+            if len(energies) >= max_orbits:
+                status, message = Status.MAX_STEPS, f"stopped after max_orbits = {max_orbits} orbits at E = {energies[-1]:.6g} J"
+                break
+            u_pred = u_cur + ds * tangent
+            x_p, T_p, E_p = u_pred[:4] * su[:4], u_pred[4] * su[4], u_pred[5] * su[5]
+            res = _newton(model, x_p, T_p, E_p, np.zeros(4), states[-1], scales, arclength=(u_pred, tangent),
+                          free_energy=True, check=intr.check, max_iterations=8)
+            if res is None:
+                ds /= 2
+                failures += 1
+                if ds < 1e-7:
+                    status = Status.NO_CONVERGENCE
+                    message = (f"the continuation stopped at E = {energies[-1]:.6g} J (frequency "
+                               f"{2 * math.pi / periods[-1]:.6g} rad/s): the corrector failed with the smallest step")
+                    break
+                continue
+            x_n, T_n, E_n, fl_n, its, _ = res
+            dE = abs(E_n - energies[-1])
+            if dE > E_max / resolution:  # coarser than asked: take a shorter step instead
+                ds *= 0.9 * (E_max / resolution) / dE
+                continue
+            if E_n > E_max and energies[-1] < E_max:
+                # the last orbit exactly at energy_max (energy fixed, from the interpolated orbit)
+                t_ = (E_max - energies[-1]) / (E_n - energies[-1])
+                guess = states[-1] + t_ * (x_n - states[-1])
+                fixed = _newton(model, guess, periods[-1] + t_ * (T_n - periods[-1]), E_max, np.zeros(4), states[-1],
+                                scales, check=intr.check)
+                if fixed is not None:
+                    x_n, T_n, E_n, fl_n = fixed[0], fixed[1], fixed[2], fixed[3]
+            energies.append(E_n), periods.append(T_n), states.append(x_n), monos.append(fl_n.stm)
+            ds = min(ds * (1.5 if its <= 3 else (1.0 if its <= 5 else 0.5)), 0.2)
+            if abs(E_n - energies[-2]) > 0:
+                ds = min(ds, 0.95 * ds * (E_max / resolution) / abs(E_n - energies[-2]))
+            if progress is not None:
+                progress(min(E_n, E_max), E_max)
+    tangE.append(tangE[-1] if tangE else 1.0)
+    energies_a = np.array(energies)
+    family_freq = 2 * np.pi / np.array(periods)
+    sig = np.array([np.trace(m) - 2 for m in monos])
+    events = _events(energies_a, family_freq, sig, np.array(tangE))
+    if status == Status.SUCCESS:
+        message = (f"{len(energies)} orbits from E = {energies[0]:.3g} J to {energies[-1]:.6g} J"
+                   + (" (the lowest energy at which a joint can flip)" if energy_max is None else ""))
+    stats = {"orbits": len(energies), "flows": model.calls, "steps": model.steps, "failed_steps": failures}
+    return NNMFamily(params, mode, w0, energies, periods, states, monos, events, E_max, settings, stats, status, message)
+
+
+class Backbones:
+    """Both nonlinear normal modes (``families[0]``: mode 1, ``families[1]``: mode 2) and the
+    internal resonances between them: energies where ``w_i(E) / w_j(E)`` crosses a ratio ``p/q``
+    with ``p, q <= max_order`` (``resonances``: :class:`BranchEvent` of kind ``"resonance"``)."""
+
+    def __init__(self, families: List[NNMFamily], resonances: List[BranchEvent]):
+        self.families = families
+        self.resonances = resonances
+
+    @property
+    def ok(self) -> bool:
+        return all(f.ok for f in self.families)
+
+    @property
+    def status(self) -> Status:
+        return Status.SUCCESS if self.ok else Status.PARTIAL
+
+    @property
+    def message(self) -> str:
+        return "; ".join(f"mode {f.mode}: {f.message}" for f in self.families)
+
+
+def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_order: int = 3, **kw) -> Backbones:
+    """Both families (:func:`nnm`) and their internal resonances up to order ``max_order``."""
+    fams = [nnm(params, mode=m, energy_max=energy_max, **kw) for m in (1, 2)]
+    ratios = sorted({Fraction(p, q) for p in range(1, max_order + 1) for q in range(1, max_order + 1)})
+    res: List[BranchEvent] = []
+    f1, f2 = fams
+    lo = max(f1.energies.min(), f2.energies.min())
+    hi = min(f1.energies.max(), f2.energies.max())
+    if hi > lo:
+        E = np.linspace(lo, hi, 4001)
+        # each family as a function of energy (valid where its energy increases along the family)
+        def along(f):
+            order = np.argsort(f.energies)
+            return np.interp(E, f.energies[order], f.frequencies[order])
+        ratio = along(f2) / along(f1)
+        for r in ratios:
+            d = ratio - float(r)
+            for k in np.nonzero(d[:-1] * d[1:] < 0)[0]:
+                t = d[k] / (d[k] - d[k + 1])
+                Ek = float(E[k] + t * (E[k + 1] - E[k]))
+                w1 = float(np.interp(Ek, E, along(f1)))
+                res.append(BranchEvent("resonance", int(k), Ek, w1, f"w2/w1 = {r.numerator}/{r.denominator}"))
+    return Backbones(fams, res)
