@@ -32,7 +32,7 @@ frequency crossing a small rational multiple of the other's at the same energy).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from fractions import Fraction
 from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
