@@ -34,6 +34,11 @@ _LAZY = {
     "equilibria": "analysis.equilibria",
     "Equilibria": "analysis.equilibria",
     "Equilibrium": "analysis.equilibria",
+    "periodic_orbit": "analysis.orbits",
+    "PeriodicOrbit": "analysis.orbits",
+    "nnm": "analysis.orbits",
+    "NNMFamily": "analysis.orbits",
+    "backbones": "analysis.orbits",
     "flip_map": "analysis.flipmap",
     "FlipMap": "analysis.flipmap",
     "open_flip_map": "analysis.flipmap",
@@ -69,6 +74,11 @@ __all__ = [
     "equilibria",
     "Equilibria",
     "Equilibrium",
+    "periodic_orbit",
+    "PeriodicOrbit",
+    "nnm",
+    "NNMFamily",
+    "backbones",
     "flip_map",
     "FlipMap",
     "open_flip_map",
@@ -101,6 +111,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
     from .analysis.equilibria import Equilibria, Equilibrium, equilibria
+    from .analysis.orbits import NNMFamily, PeriodicOrbit, backbones, nnm, periodic_orbit
     from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map, open_lyapunov_map
     from .numeric.grid import GridJob, run_grid
     from .analysis.poincare import PoincareSection, poincare
