@@ -160,7 +160,8 @@ def test_refusals():
 def test_result_protocol():
     eq = equilibria(skewpend.reference_parameters())
     ds = eq.to_xarray()
-    assert list(ds["label"].values) == [e.label for e in eq]
+    assert ds.attrs["labels"].split(", ") == [e.label for e in eq]
+    assert np.allclose(ds["phi"].values, [e.q[0] for e in eq])
     assert "none missed" in eq.summary() or "none missed" in eq.message
     text = eq.table()
     assert "down-down" in text and "nan" not in text.lower()

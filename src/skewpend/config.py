@@ -79,6 +79,8 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "export": {"parameters": MODEL_KEYS},
     "modes": {"parameters": MODEL_KEYS},
     "equilibria": {"parameters": MODEL_KEYS},
+    "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS},
+    "nnm": {"parameters": MODEL_KEYS},
 }
 
 #: Why a command does not read a key that some other command does (the refusal says it).

@@ -291,8 +291,9 @@ class Equilibria(ResultProtocol):
                                 np.stack([col(lambda e: e.growth_rates, k) for k in range(2)], axis=1) if n else np.zeros((0, 2)),
                                 {"units": "1/s", "long_name": "growth rate of an unstable direction (NaN: none)"}),
             },
-            coords={"label": (("equilibrium",), np.array([e.label for e in self.points], dtype=object), {})},
-            attrs={},
+            coords={},
+            attrs={"title": "equilibria of the skewed double pendulum (skewpend)",
+                   "labels": ", ".join(e.label for e in self.points), "index_sum": self.index_sum, **self._base_attrs()},
         )
 
 

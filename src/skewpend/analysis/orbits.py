@@ -261,8 +261,9 @@ class PeriodicOrbit(ResultProtocol):
                 "multiplier_real": (("multiplier",), self.multipliers.real, {}),
                 "multiplier_imag": (("multiplier",), self.multipliers.imag, {}),
             },
-            coords={"component": (("component",), np.array(["phi", "psi", "dphi", "dpsi"], dtype=object), {})},
-            attrs={"title": "periodic orbit of the skewed double pendulum (skewpend)", **self._base_attrs()},
+            coords={},
+            attrs={"title": "periodic orbit of the skewed double pendulum (skewpend)", "components": "phi, psi, dphi, dpsi",
+                   **self._base_attrs()},
         )
 
 
@@ -451,8 +452,8 @@ class NNMFamily(ResultProtocol):
                 "multiplier_real": (("orbit", "multiplier"), self.multipliers.real, {}),
                 "multiplier_imag": (("orbit", "multiplier"), self.multipliers.imag, {}),
             },
-            coords={"component": (("component",), np.array(["phi", "psi", "dphi", "dpsi"], dtype=object), {})},
-            attrs={"title": f"nonlinear normal mode {self.mode} of the skewed double pendulum (skewpend)",
+            coords={},
+            attrs={"components": "phi, psi, dphi, dpsi", "title": f"nonlinear normal mode {self.mode} of the skewed double pendulum (skewpend)",
                    "mode": self.mode, "linear_frequency": self.linear_frequency,
                    "events": "; ".join(f"{e.kind} at E = {e.energy:.9g} J" for e in self.events),
                    **self._base_attrs()},

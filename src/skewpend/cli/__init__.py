@@ -71,7 +71,7 @@ def _register() -> None:
     from . import analyses, equations, modes, orbits, serve, simulate
 
     order = ("derive", "simulate", "animate", "flipmap", "lyapunov", "poincare", "chaos_diagram", "serve", "report",
-             "export", "validate", "modes", "equilibria")
+             "export", "validate", "modes", "equilibria", "orbit", "nnm")
     found = {name: getattr(module, name)
              for module in (equations, simulate, analyses, modes, orbits, serve) for name in module.COMMANDS}
     for name in order:

@@ -1,4 +1,6 @@
-"""``equilibria``: every equilibrium of the model, with its stability and linearisation."""
+"""Between the linear modes and chaos: ``equilibria`` (every equilibrium, its stability and
+linearisation), ``orbit`` (one periodic orbit, from a guess or a nonlinear normal mode) and ``nnm``
+(the families of periodic orbits continuing the linear modes: the backbones)."""
 
 from __future__ import annotations
 
@@ -8,9 +10,12 @@ from typing import Annotated
 
 import typer
 
-from .options import CONFIG, MODEL, command, resolve
+from ..parsing import UsageError
+from . import types as T
+from .options import CONFIG, INITIAL, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
 
-COMMANDS = ("equilibria",)
+COMMANDS = ("equilibria", "orbit", "nnm")
+_ENERGY = T.Positive("number of joules")
 
 
 class EquilibriaFormat(str, Enum):
@@ -52,4 +57,114 @@ def equilibria(
         sys.stdout.write(json.dumps(plain(data), indent=2, allow_nan=False) + "\n")
     else:
         sys.stdout.write(result.table() + "\n" + result.message + "\n")
+    return result
+
+
+@command(MODEL, INITIAL)
+def orbit(
+    model: dict,
+    initial: dict,
+    mode: option("--mode", T.Whole(1, 2), "the orbit of nonlinear normal mode 1 or 2 at --energy (continued from the linear mode)") = None,
+    energy: option("--energy", _ENERGY, "the orbit's energy [J] (with --mode; with a guess, default the guess's energy)") = None,
+    period: option("--period", T.Positive("number of seconds"), "with a guess (--phi0 --psi0 --dphi0 --dpsi0): its period [s]") = None,
+    rotation: option("--rotation", T.Numbers(2, whole=True, metavar="R1,R2"), "whole turns of phi and psi per period, R1,R2 (a rotating orbit; default 0,0)") = None,
+    out: option("--out", T.OutPath((".nc",)), "write the orbit (start, period, monodromy matrix, multipliers) to FILE.nc", RUN, "-o") = None,
+    plot: plot_option("the orbit over one period") = None,
+    config: CONFIG = None,
+):
+    """A periodic orbit and its stability (Floquet multipliers): from a guess (the initial-state options and --period) or as a nonlinear normal mode at an energy (--mode, --energy).
+
+    From a --config run file it takes [parameters] and [initial].
+    """
+    from ..analysis.orbits import periodic_orbit
+
+    guessed = any(v is not None for v in initial.values())
+    if mode is not None and (guessed or period is not None or rotation is not None):
+        raise UsageError("--mode finds the orbit of a nonlinear normal mode; a guess (--phi0 ... --period, --rotation) goes without it")
+    if mode is not None and energy is None:
+        raise UsageError("--mode needs --energy (the energy of the orbit wanted) [J]")
+    if mode is None and period is None:
+        raise UsageError("an orbit needs a guess (--phi0 --psi0 --dphi0 --dpsi0 and --period) or --mode and --energy")
+    if plot is not None:
+        from .simulate import check_plot
+
+        check_plot(plot)
+    run = resolve("orbit", config, parameters=model, initial=initial)
+    params = run.parameters()
+    if mode is not None:
+        result = periodic_orbit(params, mode=mode, energy=energy)
+    else:
+        turns = (0, 0)
+        if rotation is not None:
+            turns = (int(rotation[0]), int(rotation[1]))
+        result = periodic_orbit(params, run.initial_state(), period, energy=energy, rotation=turns)
+    sys.stdout.write(result.table() + "\n")
+    if result.ok:
+        if out is not None:
+            result.to_netcdf(out)
+        if plot is not None:
+            from ..views import figures
+
+            figures.save_figure(figures.simulation_figure(result.trajectory()), plot)
+    return result
+
+
+@command(MODEL)
+def nnm(
+    model: dict,
+    mode: option("--mode", T.Whole(1, 2), "the family: 1 (from the lower linear mode) or 2; default both, with their internal resonances") = None,
+    energy_max: option("--energy-max", _ENERGY, "continue up to this energy [J] (default: the lowest energy at which a joint can flip)") = None,
+    resolution: option("--resolution", T.Whole(1, 100000), "at least this many orbits per family up to --energy-max (default 200)") = None,
+    orbits_at: option("--orbits-at", T.Numbers(most=4, metavar="E1,E2,..."), "with --plot: draw the orbits at these energies E1,E2,... [J] beside the curves (at most 4; default two)") = None,
+    out: option("--out", T.OutPath((".nc",)), "write the family (energies, periods, starts, multipliers) to FILE.nc (needs --mode)", RUN, "-o") = None,
+    plot: plot_option("the frequency-energy plot") = None,
+    quiet: QUIET = False,
+    config: CONFIG = None,
+):
+    """Nonlinear normal modes: the families of periodic orbits continuing the linear modes as the energy grows (the backbones), their stability, bifurcations and internal resonances.
+
+    From a --config run file it takes [parameters].
+    """
+    from ..analysis.orbits import backbones, nnm as continue_mode
+
+    if out is not None and mode is None:
+        raise UsageError("--out writes one family: give --mode 1 or --mode 2")
+    if orbits_at is not None and plot is None:
+        raise UsageError("--orbits-at chooses the orbits drawn by --plot; give --plot FILE")
+    if orbits_at is not None and any(not e > 0 for e in orbits_at):
+        raise UsageError(f"--orbits-at: expected at most four positive energies E1,E2,... [J], got {orbits_at!r}")
+    if plot is not None:
+        from .simulate import check_plot
+
+        check_plot(plot)
+    params = resolve("nnm", config, parameters=model).parameters()
+    kw = {} if resolution is None else {"resolution": resolution}
+    with progress("nonlinear normal modes", "J", quiet) as bar:
+        if mode is None:
+            result = backbones(params, energy_max=energy_max, progress=bar, **kw)
+            fams, resonances = result.families, result.resonances
+        else:
+            result = continue_mode(params, mode=mode, energy_max=energy_max, progress=bar, **kw)
+            fams, resonances = [result], []
+    lines = []
+    for f in fams:
+        lines += [f"mode {f.mode}: linear frequency {f.linear_frequency:.9g} rad/s; {f.message}", f.table(), ""]
+    for r in resonances:
+        lines.append(f"internal resonance {r.detail} at E = {r.energy:.6g} J")
+    if out is not None:
+        fams[0].to_netcdf(out)
+        lines.append(f"written       {out}")
+    if plot is not None:
+        from ..views import figures
+
+        energies = list(orbits_at) if orbits_at is not None else [0.2 * fams[0].energy_max, 0.9 * fams[0].energy_max]
+        drawn = []
+        for f in fams:
+            for E in energies:
+                if f.ok or E <= f.energies.max():
+                    if E <= f.energies.max():
+                        drawn.append((f.mode, float(E), f.at_energy(E).trajectory()))
+        figures.save_figure(figures.fep_figure(fams, orbits=drawn[:4], resonances=resonances), plot)
+        lines.append(f"plot          {plot}")
+    sys.stdout.write("\n".join(lines).rstrip() + "\n")
     return result

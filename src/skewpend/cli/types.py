@@ -178,6 +178,29 @@ class EquilibriumChoice(ParamType):
         return tuple(values)
 
 
+class Numbers(ParamType):
+    """``X1,X2,...``: finite numbers, ``count`` of them (or 1 to ``most``), whole ones with ``whole``."""
+
+    def __init__(self, count: Optional[int] = None, most: int = 16, whole: bool = False, metavar: str = "X1,X2,...") -> None:
+        self.count, self.most, self.whole, self.metavar = count, most, whole, metavar
+
+    def convert(self, text, flag):
+        parts = [s.strip() for s in text.split(",")]
+        want = f"{self.count}" if self.count else f"1 to {self.most}"
+        kind = "whole numbers" if self.whole else "numbers"
+        if (self.count and len(parts) != self.count) or not (1 <= len(parts) <= (self.count or self.most)):
+            raise UsageError(f"{flag}: expected {want} comma-separated {kind}, got {text!r}")
+        values = []
+        for s in parts:
+            v = parse_scalar(s, flag, angle=False)
+            if v is None:
+                raise UsageError(f"{flag}: expected {kind}, not 'sym'")
+            if self.whole and v != int(v):
+                raise UsageError(f"{flag}: expected whole numbers, got {s!r}")
+            values.append(int(v) if self.whole else v)
+        return tuple(values)
+
+
 class Vector(ParamType):
     """``x,y,z`` numbers or symbol names, or ``sym``."""
 

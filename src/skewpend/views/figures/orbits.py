@@ -1,0 +1,106 @@
+"""The frequency-energy plot of the nonlinear normal modes, with the orbits drawn in (phi, psi)."""
+
+from __future__ import annotations
+
+from typing import Optional, Sequence
+
+import numpy as np
+
+from ..style import COLORS, SYMBOL, parameter_text, style
+from .base import heading, new_figure
+
+__all__ = ["fep_figure", "FAMILY_COLORS"]
+
+#: The colour of each family (mode 1, mode 2): those of phi and psi elsewhere.
+FAMILY_COLORS = {1: COLORS["phi"], 2: COLORS["psi"]}
+_EVENT_MARKERS = {"branch point": ("o", "branch point (multiplier +1)"), "period doubling": ("s", "period doubling (multiplier −1)"),
+                  "fold": ("D", "fold"), "resonance": ("*", "internal resonance")}
+
+
+def _runs(mask: np.ndarray):
+    """(start, stop) index ranges where ``mask`` is constant, overlapping by one point so the
+    curve is continuous where the stability changes."""
+    edges = np.nonzero(mask[1:] != mask[:-1])[0] + 1
+    starts = np.r_[0, edges]
+    stops = np.r_[edges, len(mask)]
+    return [(int(a), int(min(b + 1, len(mask))), bool(mask[a])) for a, b in zip(starts, stops)]
+
+
+def fep_figure(families, *, orbits: Optional[Sequence] = None, resonances: Sequence = ()):
+    """The frequency-energy plot: each family's frequency [rad/s] against its energy [J], solid
+    where its orbits are stable and dashed where unstable, its branch points, period doublings and
+    folds marked, and the ``resonances`` (of :func:`skewpend.backbones`) too.  ``orbits``: the
+    orbits to draw in the (phi, psi) plane beside it, as ``(family_mode, energy, trajectory)``
+    triples (trajectories over one period, e.g. ``family.at_energy(E).trajectory()``), marked on
+    the curves.  ``families``: an :class:`~skewpend.NNMFamily`, a list of them, or a
+    :class:`~skewpend.analysis.orbits.Backbones`.  The figure draws only what it is given.
+    """
+    if hasattr(families, "families"):
+        resonances = list(resonances) or list(families.resonances)
+        families = families.families
+    if not isinstance(families, (list, tuple)):
+        families = [families]
+    orbits = list(orbits or [])
+    with style():
+        fig = new_figure((11.0, 5.6) if orbits else (7.5, 5.4))
+        if orbits:
+            grid = fig.add_gridspec(2, 3, width_ratios=(2.2, 1, 1))
+            ax = fig.add_subplot(grid[:, 0])
+            small = [fig.add_subplot(grid[i // 2, 1 + i % 2]) for i in range(min(len(orbits), 4))]
+        else:
+            ax, small = fig.add_subplot(1, 1, 1), []
+        seen = set()
+        for fam in families:
+            color = FAMILY_COLORS.get(fam.mode, "0.3")
+            E, w = fam.energies, fam.frequencies
+            for a, b, stable in _runs(fam.stable):
+                label = f"mode {fam.mode}" + ("" if stable else " (unstable)")
+                ax.plot(E[a:b], w[a:b], color=color, lw=1.8 if stable else 1.4, ls="-" if stable else "--",
+                        label=None if label in seen else label)
+                seen.add(label)
+            ax.plot([0.0], [fam.linear_frequency], marker="<", color=color, ms=6, clip_on=False)
+            for ev in fam.events:
+                marker, text = _EVENT_MARKERS.get(ev.kind, ("x", ev.kind))
+                ax.plot([ev.energy], [ev.frequency], marker=marker, color="k", mfc="white", ms=7, ls="none",
+                        label=None if text in seen else text, zorder=5)
+                seen.add(text)
+        for ev in resonances:
+            marker, text = _EVENT_MARKERS["resonance"]
+            ax.axvline(ev.energy, color="0.55", lw=0.8, ls=":")
+            ax.annotate(ev.detail.replace("w2/w1", "ω₂/ω₁") + " (internal resonance)", (ev.energy, 0.0),
+                        xycoords=ax.get_xaxis_transform(), textcoords="offset points", xytext=(3, 5), fontsize=8,
+                        color="0.3", rotation=90, va="bottom")
+        ax.set_xlabel("energy E above the hanging rest [J]")
+        ax.set_ylabel("frequency 2π/T [rad/s]")
+        ax.set_xlim(left=0.0)
+        ax.set_title("Backbones: nonlinear normal modes (◀ linear frequency)", loc="left")
+        ax.legend(loc="best", fontsize=8)
+        for k, (sub, (mode, energy, tr)) in enumerate(zip(small, orbits)):
+            color = FAMILY_COLORS.get(mode, "0.3")
+            sub.plot(np.degrees(tr.y[:, 0]), np.degrees(tr.y[:, 1]), color=color, lw=1.3)
+            sub.plot(np.degrees(tr.y[0, 0]), np.degrees(tr.y[0, 1]), "o", color=color, ms=3)
+            sub.set_title(f"({chr(ord('a') + k)}) mode {mode}, E = {energy:.3g} J", fontsize=9, loc="left")
+            sub.set_xlabel(f"{SYMBOL['phi']} [deg]", fontsize=8)
+            sub.set_ylabel(f"{SYMBOL['psi']} [deg]", fontsize=8)
+            sub.tick_params(labelsize=7)
+            lim = max(np.abs(np.degrees(tr.y[:, :2])).max() * 1.15, 1e-9)
+            sub.set_xlim(-lim, lim)
+            sub.set_ylim(-lim, lim)
+            sub.set_aspect("equal")
+            sub.axhline(0, color="0.85", lw=0.6, zorder=0)
+            sub.axvline(0, color="0.85", lw=0.6, zorder=0)
+            fam = next((f for f in families if f.mode == mode), None)
+            if fam is not None:
+                w = float(np.interp(energy, fam.energies, fam.frequencies))
+                ax.annotate(f"({chr(ord('a') + k)})", (energy, w), textcoords="offset points", xytext=(4, 4),
+                            fontsize=8, color=color)
+                ax.plot([energy], [w], "o", color=color, ms=4)
+        params = families[0].params if families else None
+        text = "Frequency-energy plot"
+        if params is not None:
+            text += "\n" + parameter_text(params)
+        if families:
+            e_max = max(f.energy_max for f in families)
+            text += f"; families continued up to E = {e_max:.4g} J"
+        heading(fig, text)
+    return fig
