@@ -264,3 +264,106 @@ def test_result_protocol(families):
     assert ds["energy"].shape == (len(f),) and "nan" not in f.table().lower()
     o = f.orbit(10)
     assert o.ok and o.to_xarray()["period"].values == pytest.approx(f.periods[10])
+
+
+# -- the command line ------------------------------------------------------------------------------
+
+
+def test_cli_orbit_and_nnm(tmp_path):
+    from helpers import run_cli
+
+    ran = run_cli(["orbit", "--mode", "2", "--energy", "3", "--out", "o.nc", "--plot", "o.png"], cwd=tmp_path)
+    assert ran.code == 0, ran.report()
+    assert "stable" in ran.out and (tmp_path / "o.nc").stat().st_size > 0 and (tmp_path / "o.png").stat().st_size > 0
+    ran = run_cli(["orbit", "--phi0", "0", "--psi0", "0", "--dphi0", "8", "--dpsi0", "0", "--period", "0.83",
+                   "--rotation", "1,0"], cwd=tmp_path)
+    assert ran.code == 0 and "rotation (1, 0)" in ran.out, ran.report()
+    ran = run_cli(["nnm", "--mode", "1", "--resolution", "40", "--out", "fam.nc", "--plot", "fep.png", "--orbits-at", "1,4"],
+                  cwd=tmp_path)
+    assert ran.code == 0, ran.report()
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "fam.nc") as ds:
+        assert ds["energy"].size >= 40 and float(ds["energy"][-1]) == pytest.approx(0.7 * 9.81 * 0.8, rel=1e-9)
+    ran = run_cli(["nnm", "--resolution", "30"], cwd=tmp_path)
+    assert ran.code == 0 and "internal resonance w2/w1 = 3/2" in ran.out, ran.report()
+
+
+def test_cli_orbit_that_does_not_converge_exits_1(tmp_path):
+    from helpers import run_cli
+
+    ran = run_cli(["orbit", "--phi0", "2.5", "--psi0", "-2", "--dphi0", "3", "--dpsi0", "-4", "--period", "0.37",
+                   "--out", "bad.nc"], cwd=tmp_path)
+    assert ran.code == 1 and "did not converge" in ran.err and not (tmp_path / "bad.nc").exists(), ran.report()
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["orbit"], "needs a guess"),
+    (["orbit", "--mode", "1"], "--energy"),
+    (["orbit", "--mode", "3", "--energy", "1"], "--mode"),
+    (["orbit", "--mode", "1", "--energy", "1", "--period", "2"], "--mode"),
+    (["orbit", "--period", "1", "--rotation", "1"], "--rotation"),
+    (["orbit", "--period", "1", "--rotation", "a,b"], "--rotation"),
+    (["orbit", "--period", "-1"], "--period"),
+    (["orbit", "--mode", "1", "--energy", "nan"], "--energy"),
+    (["orbit", "--mode", "1", "--energy", "1", "--c1", "0.1"], "conservative"),
+    (["nnm", "--mode", "0"], "--mode"),
+    (["nnm", "--energy-max", "-1"], "--energy-max"),
+    (["nnm", "--resolution", "0"], "--resolution"),
+    (["nnm", "--out", "f.nc"], "--mode"),
+    (["nnm", "--orbits-at", "1,2"], "--plot"),
+    (["nnm", "--plot", "f.png", "--orbits-at", "1,2,3,4,5"], "--orbits-at"),
+    (["nnm", "--plot", "f.png", "--orbits-at", "-1"], "--orbits-at"),
+    (["nnm", "--out", "f.txt", "--mode", "1"], "--out"),
+    (["nnm", "--tau1", "1"], "torques"),
+    (["nnm", "--a", "sym"], "numeric"),
+    (["equilibria", "--a", "sym"], "numeric"),
+])
+def test_cli_bad_input(argv, text, tmp_path):
+    from helpers import run_cli
+
+    ran = run_cli(argv, cwd=tmp_path)
+    assert ran.code == 2, ran.report()
+    assert text in ran.err and len(ran.err.strip().splitlines()) == 1, ran.report()
+    assert not any(tmp_path.iterdir())
+
+
+# -- continuation in alpha --------------------------------------------------------------------------
+
+
+def test_alpha_continuation_ends_on_the_closed_form_and_is_symmetric():
+    """Mode 2 at 3 J from alpha = 0 to 180 deg: at 90 deg it is rod 2's pendulum (closed form), and
+    the frequencies at alpha and 180 deg - alpha agree (reflecting the second axis in the plane of
+    the rods, with psi -> -psi, is a symmetry of the equations)."""
+    from scipy.special import ellipk
+
+    from skewpend.analysis.orbits import nnm_alpha
+
+    p = skewpend.reference_parameters()
+    alphas = np.radians(np.linspace(0, 180, 37))
+    fam = nnm_alpha(p, 2, energy=3.0, alphas=alphas)
+    assert fam.ok and len(fam.alphas) == 37
+    k, inertia = 9.81 * 0.7 * 0.8 / 2, 0.7 * 0.8 ** 2 / 3
+    T90 = 4 * ellipk(3.0 / (2 * k)) / math.sqrt(k / inertia)
+    assert fam.periods[18] == pytest.approx(T90, rel=1e-9)
+    assert np.allclose(fam.frequencies, fam.frequencies[::-1], rtol=1e-8)
+    # at alpha = 0.6 rad it is the orbit of the energy continuation
+    f2 = nnm(p, mode=2, energy_max=3.0)
+    near = skewpend.Parameters(a=1, b=0.8, m1=1, m2=0.7, alpha=float(alphas[7]), g=9.81)
+    w7 = nnm(near, mode=2, energy_max=3.0).frequencies[-1]
+    assert fam.frequencies[7] == pytest.approx(w7, rel=1e-9)
+    assert f2.frequencies[-1] > 0
+
+
+def test_cli_nnm_along_alpha(tmp_path):
+    from helpers import run_cli
+
+    ran = run_cli(["nnm", "--mode", "1", "--alphas", "0:180deg:31", "--energy", "5", "--plot", "a.png", "--out", "a.nc"],
+                  cwd=tmp_path)
+    assert ran.code == 0 and "branch point" in ran.out, ran.report()
+    for argv, text in ((["nnm", "--alphas", "0:1:3"], "--energy"),
+                       (["nnm", "--alphas", "0:1:3", "--energy", "1"], "--mode"),
+                       (["nnm", "--mode", "1", "--alphas", "0:1:3", "--energy", "1", "--alpha", "1"], "--alpha"),
+                       (["nnm", "--mode", "1", "--alphas", "0:1:3", "--energy", "1", "--resolution", "5"], "--resolution")):
+        bad = run_cli(argv, cwd=tmp_path)
+        assert bad.code == 2 and text in bad.err and len(bad.err.strip().splitlines()) == 1, bad.report()

@@ -346,7 +346,8 @@ def test_report_flipmap_section(default_report):
 
     _, page, _ = default_report
     keys = [k for k, _ in R.SECTIONS]
-    assert keys[keys.index("simulation") + 1:keys.index("simulation") + 5] == ["flipmap", "chaos", "validation", "provenance"]
+    assert keys[keys.index("simulation") + 1:keys.index("simulation") + 6] == ["flipmap", "chaos", "orbits", "validation",
+                                                                               "provenance"]
     sec = _section(page, "flipmap")
     assert '<span class="num">6</span>Which starts flip: the flip-time map' in sec
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', sec)
@@ -440,3 +441,25 @@ def test_chaos_section_for_a_damped_model_explains_what_is_left_out():
     assert "need an energy surface" in text and len(re.findall(r"<figure", body)) == 1
     lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+) ± ", text)]
     assert len(lam) == 4 and sum(lam) < -0.01  # damping contracts phase space
+
+
+def test_report_orbits_section(default_report):
+    """Section 8: the equilibria table and the frequency-energy plot, for the report's parameters."""
+    import skewpend
+
+    _, page, _ = default_report
+    sec = _section(page, "orbits")
+    assert '<span class="num">8</span>Beyond small oscillations' in sec
+    for label in ("down-down", "down-up", "up-down", "up-up"):
+        assert f"<td>{label}</td>" in sec
+    assert "none missed" in sec
+    images = re.findall(r'src="data:image/png;base64,([^"]+)"', sec)
+    assert len(images) == 1
+    fmt_, size, _ = _png_size(images[0])
+    assert fmt_ == "PNG" and size[0] > 800
+    # the facts state the families' end frequencies as the library computes them
+    from skewpend.analysis.orbits import nnm
+
+    f2 = nnm(skewpend.reference_parameters(), mode=2, resolution=80)
+    assert f"{f2.frequencies[-1]:.5g}" in sec
+    assert "nan" not in re.sub(r"<[^>]+>", " ", sec).lower().split()

@@ -163,9 +163,10 @@ def test_every_image_decoded(opened):
     images = page.evaluate("""() => Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight, i.alt])""")
     # 2 pictures of the system, the sweep, 5 simulation figures, the flip-time map, and section 7's
     # Lyapunov estimates -- with, for a conservative model, two Poincare sections, the
-    # largest-exponent map and the chaos diagram (a damped model has no energy surface)
+    # largest-exponent map and the chaos diagram (a damped model has no energy surface), and section
+    # 8's frequency-energy plot (of the undamped model when damped)
     damped = page.evaluate("() => document.querySelector('#chaos').textContent.includes('need an energy surface')")
-    assert len(images) == (10 if damped else 14)
+    assert len(images) == (11 if damped else 15)
     for complete, width, height, alt in images:
         assert complete and width > 0 and height > 0, alt
 

@@ -39,6 +39,7 @@ _LAZY = {
     "nnm": "analysis.orbits",
     "NNMFamily": "analysis.orbits",
     "backbones": "analysis.orbits",
+    "nnm_alpha": "analysis.orbits",
     "flip_map": "analysis.flipmap",
     "FlipMap": "analysis.flipmap",
     "open_flip_map": "analysis.flipmap",
@@ -79,6 +80,7 @@ __all__ = [
     "nnm",
     "NNMFamily",
     "backbones",
+    "nnm_alpha",
     "flip_map",
     "FlipMap",
     "open_flip_map",
@@ -111,7 +113,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
     from .analysis.equilibria import Equilibria, Equilibrium, equilibria
-    from .analysis.orbits import NNMFamily, PeriodicOrbit, backbones, nnm, periodic_orbit
+    from .analysis.orbits import NNMFamily, PeriodicOrbit, backbones, nnm, nnm_alpha, periodic_orbit
     from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map, open_lyapunov_map
     from .numeric.grid import GridJob, run_grid
     from .analysis.poincare import PoincareSection, poincare

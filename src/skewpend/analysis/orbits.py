@@ -45,7 +45,7 @@ from ..status import Status
 from ..symbolic.model import Parameters
 
 __all__ = ["PeriodicOrbit", "periodic_orbit", "NNMFamily", "nnm", "Backbones", "backbones", "flip_energy",
-           "BranchEvent"]
+           "BranchEvent", "AlphaFamily", "nnm_alpha"]
 
 #: Newton tolerance on the scaled residual, and the most iterations.
 NEWTON_TOL = 1e-10
@@ -637,3 +637,145 @@ def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_ord
                 w1 = float(np.interp(Ek, E, along(f1)))
                 res.append(BranchEvent("resonance", int(k), Ek, w1, f"w2/w1 = {r.numerator}/{r.denominator}"))
     return Backbones(fams, res)
+
+
+# -- continuation in alpha at fixed energy ---------------------------------------------------------
+
+
+class AlphaFamily(ResultProtocol):
+    """A nonlinear normal mode at a fixed energy followed along the skew angle (:func:`nnm_alpha`).
+
+    Arrays over ``alphas`` [rad] (those reached): ``periods`` [s], ``frequencies`` [rad/s],
+    ``states`` (n, 4), ``sigma`` (trace - 2), ``stable``; ``events`` -- stability changes between
+    neighbouring angles (:class:`BranchEvent`, ``energy`` holding the angle's energy and
+    ``detail`` the angle); ``energy`` [J] and ``mode``.  The result protocol as every result's.
+    """
+
+    result_kind: ClassVar[str] = "nonlinear normal mode along alpha"
+
+    def __init__(self, params, mode, energy, alphas, periods, states, sigma, events, settings, stats, status, message):
+        self.params, self.mode, self.energy = params, int(mode), float(energy)
+        self.alphas = np.asarray(alphas, dtype=float)
+        self.periods = np.asarray(periods, dtype=float)
+        self.states = np.asarray(states, dtype=float).reshape(-1, 4)
+        self.sigma = np.asarray(sigma, dtype=float)
+        self.events = list(events)
+        self._settings, self._stats = dict(settings), dict(stats)
+        self.status, self.message = Status(status), message
+
+    @property
+    def settings(self) -> Dict:
+        return dict(self._settings)
+
+    @property
+    def stats(self) -> Dict:
+        return dict(self._stats)
+
+    @property
+    def frequencies(self) -> np.ndarray:
+        return 2 * np.pi / self.periods
+
+    @property
+    def stable(self) -> np.ndarray:
+        return np.abs(self.sigma) <= 2.0 + STABILITY_MARGIN
+
+    def table(self) -> str:
+        lines = [f"{'alpha [deg]':>11}  {'frequency [rad/s]':>17}  {'sigma':>10}  stability"]
+        step = max(1, len(self.alphas) // 12)
+        for k in list(range(0, len(self.alphas), step)) + ([len(self.alphas) - 1] if (len(self.alphas) - 1) % step else []):
+            lines.append(f"{math.degrees(self.alphas[k]):11.4f}  {self.frequencies[k]:17.9g}  {self.sigma[k]:10.6g}  "
+                         f"{'stable' if self.stable[k] else 'unstable'}")
+        lines += [f"{e.kind}: {e.detail}" for e in self.events]
+        return "\n".join(lines)
+
+    def _dataset(self) -> DatasetSpec:
+        return DatasetSpec(
+            variables={
+                "period": (("alpha",), self.periods, {"units": "s"}),
+                "frequency": (("alpha",), self.frequencies, {"units": "rad/s"}),
+                "state": (("alpha", "component"), self.states, {"long_name": "start on the orbit (phi, psi, phi', psi')"}),
+                "sigma": (("alpha",), self.sigma, {"long_name": "trace of the monodromy matrix - 2"}),
+            },
+            coords={"alpha": (("alpha",), self.alphas, {"units": "rad"})},
+            attrs={"title": f"nonlinear normal mode {self.mode} at {self.energy:g} J along alpha (skewpend)",
+                   "energy": self.energy, "mode": self.mode, **self._base_attrs()},
+        )
+
+
+def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Sequence[float],
+              rtol: float = ORBIT_TOL, atol: float = ORBIT_TOL,
+              progress: Optional[Callable[[float, float], None]] = None) -> AlphaFamily:
+    """The orbit of nonlinear normal mode ``mode`` at the fixed ``energy`` [J], continued along the
+    skew angles ``alphas`` [rad] (increasing or decreasing, as given): the first orbit from
+    :func:`nnm` at ``alphas[0]``, each next one by Newton's method at the next angle from the
+    previous one (natural-parameter continuation; a step that fails is halved, down to 1e-6 rad).
+    Stability changes between neighbouring angles are reported.  The thin rods' ``alpha`` only
+    (general axes have no single skew angle)."""
+    from dataclasses import replace
+
+    from ..checks import positive, progress_callable
+    from ..interrupts import Interrupts
+
+    params = numeric_params(params, "nonlinear normal modes")
+    if not params.uses_alpha:
+        raise ParameterError("continuation in alpha needs the skew angle alpha (not a general axis2)")
+    _require_conservative(params, "a nonlinear normal mode")
+    energy = positive("energy", energy)
+    grid = np.asarray(alphas, dtype=float)
+    if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)) or np.any(np.diff(grid) == 0) or \
+            not (np.all(np.diff(grid) > 0) or np.all(np.diff(grid) < 0)):
+        raise ParameterError("alphas must be at least two finite angles [rad], strictly increasing or decreasing")
+    progress = progress_callable(progress, "progress(done, total)")
+    start = nnm(replace(params, alpha=float(grid[0])), mode=mode, energy_max=energy, rtol=rtol, atol=atol)
+    if not start.ok:
+        raise IntegrationError(f"the family at alpha = {grid[0]:.6g} rad does not reach {energy:g} J: {start.message}")
+    x, T = start.states[-1].copy(), float(start.periods[-1])
+    alphas_done, periods, states, sigma = [float(grid[0])], [T], [x.copy()], [float(np.trace(start.monodromies[-1]) - 2)]
+    status, message = Status.SUCCESS, ""
+    model_cache: Dict[float, _Model] = {}
+    calls = 0
+    with Interrupts() as intr:
+        k = 1
+        a_prev = float(grid[0])
+        target = float(grid[1])
+        while k < len(grid):
+            a = target
+            q = replace(params, alpha=a)
+            model = model_cache.setdefault(a, _Model(q, rtol, atol))
+            scales = _scales_for(q, T, energy)
+            out = _newton(model, x, T, energy, np.zeros(4), x, scales, check=intr.check)
+            calls += model.calls
+            if out is None:
+                h = (a - a_prev) / 2
+                if abs(h) < 1e-6:
+                    status = Status.NO_CONVERGENCE
+                    message = f"the continuation stopped at alpha = {math.degrees(a_prev):.6g} deg: Newton failed at the next angle"
+                    break
+                target = a_prev + h
+                continue
+            x, T = out[0], out[1]
+            if a == float(grid[k]):
+                alphas_done.append(a), periods.append(T), states.append(x.copy())
+                sigma.append(float(np.trace(out[3].stm) - 2))
+                if progress is not None:
+                    progress(k, len(grid) - 1)
+                k += 1
+            a_prev = a
+            target = float(grid[k]) if k < len(grid) else a
+    events: List[BranchEvent] = []
+    s = np.array(sigma)
+    w = 2 * np.pi / np.array(periods)
+    for j in range(len(s) - 1):
+        for level, kind in ((2.0, "branch point"), (-2.0, "period doubling")):
+            d0, d1 = s[j] - level, s[j + 1] - level
+            if d0 * d1 < 0:
+                t_ = d0 / (d0 - d1)
+                al = alphas_done[j] + t_ * (alphas_done[j + 1] - alphas_done[j])
+                way = "loses" if abs(s[j + 1]) > abs(s[j]) else "regains"
+                events.append(BranchEvent(kind, j, energy, float(w[j] + t_ * (w[j + 1] - w[j])),
+                                          f"at alpha = {math.degrees(al):.4g} deg the orbit {way} stability"))
+    if status == Status.SUCCESS:
+        message = f"{len(alphas_done)} orbits at E = {energy:g} J from alpha = {math.degrees(grid[0]):.4g} to {math.degrees(grid[-1]):.4g} deg"
+    settings = {"mode": int(mode), "energy": energy, "alphas": grid.tolist(), "rtol": rtol, "atol": atol}
+    return AlphaFamily(params, mode, energy, alphas_done, periods, states, sigma, events, settings,
+                       {"orbits": len(alphas_done), "flows": calls}, status, message)

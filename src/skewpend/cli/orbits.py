@@ -116,6 +116,8 @@ def nnm(
     energy_max: option("--energy-max", _ENERGY, "continue up to this energy [J] (default: the lowest energy at which a joint can flip)") = None,
     resolution: option("--resolution", T.Whole(1, 100000), "at least this many orbits per family up to --energy-max (default 200)") = None,
     orbits_at: option("--orbits-at", T.Numbers(most=4, metavar="E1,E2,..."), "with --plot: draw the orbits at these energies E1,E2,... [J] beside the curves (at most 4; default two)") = None,
+    alphas: option("--alphas", T.Range(angle=True), "instead of energy: follow the orbit at --energy along the skew angles START:STOP:COUNT (e.g. 0:90deg:46; needs --mode)") = None,
+    energy: option("--energy", _ENERGY, "with --alphas: the fixed energy [J]") = None,
     out: option("--out", T.OutPath((".nc",)), "write the family (energies, periods, starts, multipliers) to FILE.nc (needs --mode)", RUN, "-o") = None,
     plot: plot_option("the frequency-energy plot") = None,
     quiet: QUIET = False,
@@ -127,6 +129,10 @@ def nnm(
     """
     from ..analysis.orbits import backbones, nnm as continue_mode
 
+    if (alphas is None) != (energy is None):
+        raise UsageError("--alphas and --energy go together: the orbit at a fixed energy followed along alpha")
+    if alphas is not None:
+        return _along_alpha(model, mode, alphas, energy, energy_max, resolution, orbits_at, out, plot, quiet, config)
     if out is not None and mode is None:
         raise UsageError("--out writes one family: give --mode 1 or --mode 2")
     if orbits_at is not None and plot is None:
@@ -168,3 +174,34 @@ def nnm(
         lines.append(f"plot          {plot}")
     sys.stdout.write("\n".join(lines).rstrip() + "\n")
     return result
+
+
+def _along_alpha(model, mode, alphas, energy, energy_max, resolution, orbits_at, out, plot, quiet, config):
+    from ..analysis.orbits import nnm_alpha
+
+    if mode is None:
+        raise UsageError("--alphas follows one family: give --mode 1 or --mode 2")
+    extra = [o for o, v in (("--energy-max", energy_max), ("--resolution", resolution), ("--orbits-at", orbits_at))
+             if v is not None]
+    if extra:
+        raise UsageError(f"{', '.join(extra)} go with the continuation in energy, not with --alphas")
+    if model.get("alpha") is not None:
+        raise UsageError("--alpha: the continuation varies alpha itself; give the angles with --alphas START:STOP:COUNT")
+    if plot is not None:
+        from .simulate import check_plot
+
+        check_plot(plot)
+    params = resolve("nnm", config, parameters={**model, "alpha": float(alphas[0])}).parameters()
+    with progress("nonlinear normal mode along alpha", "angles", quiet) as bar:
+        fam = nnm_alpha(params, mode, energy=energy, alphas=alphas, progress=bar)
+    lines = [f"mode {fam.mode} at E = {fam.energy:g} J: {fam.message}", fam.table()]
+    if out is not None:
+        fam.to_netcdf(out)
+        lines.append(f"written       {out}")
+    if plot is not None:
+        from ..views import figures
+
+        figures.save_figure(figures.alpha_family_figure(fam), plot)
+        lines.append(f"plot          {plot}")
+    sys.stdout.write("\n".join(lines) + "\n")
+    return fam

@@ -9,7 +9,7 @@ import numpy as np
 from ..style import COLORS, SYMBOL, parameter_text, style
 from .base import heading, new_figure
 
-__all__ = ["fep_figure", "FAMILY_COLORS"]
+__all__ = ["fep_figure", "alpha_family_figure", "FAMILY_COLORS"]
 
 #: The colour of each family (mode 1, mode 2): those of phi and psi elsewhere.
 FAMILY_COLORS = {1: COLORS["phi"], 2: COLORS["psi"]}
@@ -103,4 +103,39 @@ def fep_figure(families, *, orbits: Optional[Sequence] = None, resonances: Seque
             e_max = max(f.energy_max for f in families)
             text += f"; families continued up to E = {e_max:.4g} J"
         heading(fig, text)
+    return fig
+
+
+def alpha_family_figure(families):
+    """A nonlinear normal mode at fixed energy along the skew angle (:func:`skewpend.nnm_alpha`):
+    frequency [rad/s] against alpha [deg], solid where the orbit is stable, dashed where not,
+    stability changes marked.  ``families``: one :class:`~skewpend.analysis.orbits.AlphaFamily`
+    or several (e.g. both modes, or several energies)."""
+    if not isinstance(families, (list, tuple)):
+        families = [families]
+    with style():
+        fig = new_figure((7.5, 4.8))
+        ax = fig.add_subplot(1, 1, 1)
+        seen = set()
+        for fam in families:
+            color = FAMILY_COLORS.get(fam.mode, "0.3")
+            a, w = np.degrees(fam.alphas), fam.frequencies
+            for lo, hi, stable in _runs(fam.stable):
+                label = f"mode {fam.mode}, E = {fam.energy:.3g} J" + ("" if stable else " (unstable)")
+                ax.plot(a[lo:hi], w[lo:hi], color=color, lw=1.8 if stable else 1.4, ls="-" if stable else "--",
+                        label=None if label in seen else label)
+                seen.add(label)
+            for j, ev in enumerate(fam.events):
+                marker, text = _EVENT_MARKERS.get(ev.kind, ("x", ev.kind))
+                al = float(ev.detail.split("=")[1].split("deg")[0])
+                ax.plot([al], [ev.frequency], marker=marker, color="k", mfc="white", ms=7, ls="none",
+                        label=None if text in seen else text, zorder=5)
+                seen.add(text)
+        ax.set_xlabel("skew angle α [deg]")
+        ax.set_ylabel("frequency 2π/T [rad/s]")
+        ax.set_title("Nonlinear normal modes at fixed energy along the skew angle", loc="left")
+        ax.legend(loc="best", fontsize=8)
+        params = families[0].params if families else None
+        if params is not None:
+            heading(fig, "Continuation in α\n" + parameter_text(params, skip=("alpha",)))
     return fig

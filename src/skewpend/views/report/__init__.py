@@ -28,8 +28,10 @@ Sections:
    simulation's start marked on it;
 7. how chaotic: the Lyapunov spectrum of the simulation's start, Poincare sections at two
    energies, a largest-exponent map, and the chaotic fraction over (alpha, energy);
-8. the validation against MuJoCo (or how to install it);
-9. how the report was made: versions, settings, timings.
+8. beyond small oscillations: every equilibrium with its stability, and the nonlinear normal
+   modes (frequency against energy, stability, bifurcations, internal resonances);
+9. the validation against MuJoCo (or how to install it);
+10. how the report was made: versions, settings, timings.
 
 Sections 2 and 3 are symbolic work (SymPy); on a machine with more than one core a second Python
 process computes them while this one simulates and draws (:data:`PARALLEL`; if that process
@@ -52,6 +54,7 @@ from ...errors import ParameterError, SkewpendError
 from ...symbolic.model import Parameters
 
 from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, video_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
+from .orbits import section_orbits
 from .analyses import mujoco_installed, section_chaos, section_flipmap, section_provenance, section_validation  # noqa: F401
 from .derivation import section_check, section_derivation
 from .system import VIDEO_SLOT, section_modes, section_simulation, section_system, video_figure
@@ -235,7 +238,7 @@ def build_report(
     motion, at most ``t_end``; at most 1200 frames).  ``sweep_points``: values of alpha in
     0..180 deg for the frequency curves.  ``validate``: compare with MuJoCo (None: when MuJoCo is
     installed; True: it must be).  ``command``: the command line that made the report, shown in
-    section 9.  ``progress(done, total)`` is called as each part is finished.
+    section 10.  ``progress(done, total)`` is called as each part is finished.
 
     Every argument is checked before any work starts (:class:`~skewpend.ParameterError`).
     """
@@ -256,6 +259,7 @@ def build_report(
         "modes": section_modes,
         "flipmap": section_flipmap,
         "chaos": section_chaos,
+        "orbits": section_orbits,
         "validation": section_validation,
     }
     total = len(numeric) + 3

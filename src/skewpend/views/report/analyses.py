@@ -1,4 +1,4 @@
-"""Sections 6 to 9 of the report: the flip-time map, chaos, the validation against
+"""Sections 6, 7, 9 and 10 of the report: the flip-time map, chaos, the validation against
 MuJoCo, how the report was made."""
 
 from __future__ import annotations
@@ -216,7 +216,7 @@ def section_flipmap(ctx: Context) -> str:
     return "\n".join(out)
 
 
-# -- section 8: validation -------------------------------------------------------------------------------
+# -- section 9: validation -------------------------------------------------------------------------------
 def mujoco_installed() -> bool:
     import importlib.util
 
@@ -266,7 +266,7 @@ def section_validation(ctx: Context) -> str:
     )
 
 
-# -- section 9: provenance -------------------------------------------------------------------------------
+# -- section 10: provenance -------------------------------------------------------------------------------
 def _versions() -> List[Tuple[str, str]]:
     from importlib import metadata
 

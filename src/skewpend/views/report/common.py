@@ -36,6 +36,7 @@ SECTIONS = (
     ("simulation", "Simulation"),
     ("flipmap", "Which starts flip: the flip-time map"),
     ("chaos", "How chaotic: Lyapunov exponents, Poincaré sections and the skew"),
+    ("orbits", "Beyond small oscillations: equilibria and nonlinear normal modes"),
     ("validation", "Validation against MuJoCo"),
     ("provenance", "How this report was made"),
 )
