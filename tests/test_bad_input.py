@@ -640,6 +640,11 @@ COMMANDS = {
     "export": {"needs": []},
     "validate": {"needs": [], "initial": True, "positive": ["--t-end", "--dt", "--tol"]},
     "modes": {"needs": [], "positive": [], "range": []},
+    "equilibria": {"needs": []},
+    "orbit": {"needs": ["--period", "1"], "initial": True, "positive": ["--energy"], "whole": ["--mode"],
+              "out": {"--out": "nc", "--plot": "png"}},
+    "nnm": {"needs": [], "positive": ["--energy-max", "--energy"], "whole": ["--mode", "--resolution"],
+            "out": {"--out": "nc", "--plot": "png"}, "range": ["--alphas"]},
 }
 _BATTERY = []
 
@@ -701,8 +706,14 @@ for value in ["", " ", "no such host!", "hôst", "a" * 300, "-bad-", "[::1"]:
 for command in ("simulate", "animate", "report"):
     _battery(command, ["--method", "euler", *COMMANDS[command]["needs"]], "--method")
     _battery(command, ["--method", "", *COMMANDS[command]["needs"]], "--method")
-for command in ("derive", "export", "modes"):
+for command in ("derive", "export", "modes", "equilibria"):
     _battery(command, ["--format", "xml"], "--format")
+for value in ["", "1", "1,2,3", "a,b", "1.5,0", "nan,0", "1,²"]:
+    _battery("orbit", ["--period", "1", "--rotation", value], "--rotation")
+for value in ["", "a", "1,2,3,4,5", "nan", "1,inf", "²"]:
+    _battery("nnm", ["--plot", "f.png", "--orbits-at", value], "--orbits-at")
+for value in ["", "sideways", "1", "1,2,3", "nan,0", "sym,0", "²,0"]:
+    _battery("modes", ["--about", value], "--about")
 _battery("poincare", ["--energy", "5", "--direction", "up"], "--direction")
 _battery("poincare", ["--energy", "5", "--locate", "newton"], "--locate")
 
