@@ -367,3 +367,17 @@ def test_cli_nnm_along_alpha(tmp_path):
                        (["nnm", "--mode", "1", "--alphas", "0:1:3", "--energy", "1", "--resolution", "5"], "--resolution")):
         bad = run_cli(argv, cwd=tmp_path)
         assert bad.code == 2 and text in bad.err and len(bad.err.strip().splitlines()) == 1, bad.report()
+
+
+@pytest.mark.parametrize("signum, code", [(2, 130), (15, 143)])
+def test_nnm_stops_on_ctrl_c_and_sigterm_leaving_nothing(signum, code, tmp_path):
+    import signal
+
+    from helpers import signal_process
+
+    ran, seconds = signal_process(["nnm", "--mode", "2", "--resolution", "20000", "--out", "f.nc", "--plot", "f.png"],
+                                  tmp_path, after=2.0, signum=signal.Signals(signum))
+    assert ran.code == code, ran.report()
+    assert seconds < 3.0
+    assert ran.err.strip().splitlines()[-1] in ("skewpend: interrupted", "skewpend: terminated")
+    assert list(tmp_path.iterdir()) == []
