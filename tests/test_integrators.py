@@ -28,6 +28,10 @@ from skewpend.numeric.kernels import State, _compile
 
 HEADER = r"""
 #include <math.h>
+#define SP_NPARAM 4
+#define SP_TAU1 2
+#define SP_TAU2 3
+static double energy(const double *y, const double *p) { return 0.5 * y[1] * y[1]; }
 static void rhs(const double *y, const double *p, double *out)
 {
     int kind = (int)p[0];
@@ -181,7 +185,7 @@ def test_template_defines_no_model():
     """The template is generic: it uses rhs/ham_rhs from the text before it and defines neither."""
     text = template_text()
     code = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith(("/*", "*")))
-    assert "void rhs(" not in code and "void ham_rhs(" not in code
+    assert "void rhs(" not in code and "void ham_rhs(" not in code and "double energy(" not in code
     for name in ("sp_dop853", "sp_rk4", "sp_gauss", "sp_state_size"):
         assert f"{name}(" in text
 

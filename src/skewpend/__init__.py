@@ -40,6 +40,13 @@ _LAZY = {
     "NNMFamily": "analysis.orbits",
     "backbones": "analysis.orbits",
     "nnm_alpha": "analysis.orbits",
+    "Controller": "numeric.control",
+    "linearization": "analysis.control",
+    "controllability": "analysis.control",
+    "lqr": "analysis.control",
+    "LQR": "analysis.control",
+    "swingup": "analysis.control",
+    "SwingUp": "analysis.control",
     "flip_map": "analysis.flipmap",
     "FlipMap": "analysis.flipmap",
     "open_flip_map": "analysis.flipmap",
@@ -81,6 +88,13 @@ __all__ = [
     "NNMFamily",
     "backbones",
     "nnm_alpha",
+    "Controller",
+    "linearization",
+    "controllability",
+    "lqr",
+    "LQR",
+    "swingup",
+    "SwingUp",
     "flip_map",
     "FlipMap",
     "open_flip_map",
@@ -113,6 +127,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.flipmap import FlipMap, flip_map, open_flip_map
     from .analysis.modes import Modes, characteristic_equation, normal_modes, sweep
     from .analysis.equilibria import Equilibria, Equilibrium, equilibria
+    from .numeric.control import Controller
+    from .analysis.control import LQR, SwingUp, controllability, linearization, lqr, swingup
     from .analysis.orbits import NNMFamily, PeriodicOrbit, backbones, nnm, nnm_alpha, periodic_orbit
     from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map, open_lyapunov_map
     from .numeric.grid import GridJob, run_grid

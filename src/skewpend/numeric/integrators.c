@@ -4,6 +4,8 @@
  *
  *     static void rhs(const double *y, const double *p, double *out);      y' = F(y; p)
  *     static void ham_rhs(const double *z, const double *p, double *out);  the same in (q, p_q)
+ *     static double energy(const double *y, const double *p);              E = T + Pi (swing-up inputs)
+ *     #define SP_NPARAM, SP_TAU1, SP_TAU2   the length of p and where its constant torques are
  *
  * for states of at most SP_NMAX components.  Everything here is generic in the state size n.
  * The flip kernel (SP_FLIP_KERNEL defined) also has sp_flip at the end, for ensembles of starts
@@ -24,7 +26,7 @@
  * the one list, and driven by skewpend.numeric.driver.drive.
  * Rows are never non-finite.
  *
- * Why one file of ~740 lines: it is appended to the generated model code as one translation unit,
+ * Why one file of ~880 lines: it is appended to the generated model code as one translation unit,
  * so rhs/ham_rhs and the shared static helpers (the DOP853 core of dop853_core.h, the Gauss
  * stages, the lane loops of sp_flip) are inlined across integrators; a split would need a
  * header of internal functions and a second template to keep in step with kernel_source.
@@ -175,10 +177,114 @@ static inline double dop_dense_value(double y, const double *F, ptrdiff_t fs, do
     return y + v;
 }
 
+/* ---- inputs: joint torques that vary, evaluated inside the integrators (no Python per step) ----
+ *
+ * A run with inputs passes an sp_control to sp_dop853_ctl / sp_rk4_ctl, which make it this
+ * thread's active control for the call; model_rhs then adds the input u(y) to the constant torques
+ * tau of p before calling the generated rhs -- so the work W of Q = tau + u - c q' includes the
+ * inputs' work and E - W stays conserved.  Laws (kind):
+ *   SP_CTL_FEEDBACK  u = u* - K (x - x*), the angles of x - x* wrapped to (-pi, pi];
+ *   SP_CTL_SWINGUP   energy shaping u_j = ke (E* - E) q'_j on the actuated joints (E = T + Pi, the
+ *                    generated energy), the elbow also held towards its target by a PD law
+ *                    -kp (psi - psi*) - kd psi', switched to the feedback inside
+ *                    (x - x*)' P (x - x*) < rho;
+ *   SP_CTL_TABLE     u(t) interpolated linearly in a table (held at its ends); the state then has a
+ *                    sixth component, the time (t' = 1), which the input reads.
+ * Then the joints not actuated get u = 0 and every u_j is clipped to [-umax_j, umax_j]. */
+#define SP_CTL_FEEDBACK 1
+#define SP_CTL_SWINGUP 2
+#define SP_CTL_TABLE 3
+typedef struct {
+    int32_t kind;              /* SP_CTL_* */
+    int32_t actuated;          /* bit 0: joint 1 (the shoulder), bit 1: joint 2 (the elbow) */
+    double umax[2];            /* saturation of each joint's input [N m] (inf: none) */
+    double K[8];               /* feedback gain, 2 x 4 row-major */
+    double xs[4];              /* target state x* */
+    double us[2];              /* feedforward input u* at the target */
+    double ke;                 /* swing-up: energy gain [N m s / J] */
+    double kp, kd;             /* swing-up: the elbow's PD gains [N m, N m s] */
+    double E_target;           /* swing-up: the energy E* [J] */
+    double P[16];              /* swing-up: the region (x - x*)' P (x - x*) < rho where the feedback takes over */
+    double rho;
+    int64_t n_table;           /* table: n_table rows of (t, u1, u2) */
+    const double *table;
+} sp_control;
+
+static _Thread_local const sp_control *sp_ctl = 0;
+
+static double sp_wrap(double x)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double w = fmod(x + pi, two_pi);
+    if (w < 0.0) w += two_pi;
+    return w - pi;
+}
+
+/* the input u[2] at state y (y[5] the time for a table) */
+static void sp_input(const sp_control *c, const double *y, const double *p, double *u)
+{
+    double dx[4] = {sp_wrap(y[0] - c->xs[0]), sp_wrap(y[1] - c->xs[1]), y[2] - c->xs[2], y[3] - c->xs[3]};
+    int feedback = c->kind == SP_CTL_FEEDBACK;
+    u[0] = u[1] = 0.0;
+    if (c->kind == SP_CTL_SWINGUP) {
+        double v = 0.0;
+        for (int i = 0; i < 4; i++)
+            for (int j = 0; j < 4; j++) v += dx[i] * c->P[4 * i + j] * dx[j];
+        if (v < c->rho) {
+            feedback = 1;
+        } else {
+            double e = c->E_target - energy(y, p);
+            u[0] = c->ke * e * y[2];
+            u[1] = c->ke * e * y[3] - c->kp * dx[1] - c->kd * y[3];
+        }
+    } else if (c->kind == SP_CTL_TABLE) {
+        const double *T = c->table;
+        const int64_t n = c->n_table;
+        const double t = y[5];
+        if (t <= T[0]) { u[0] = T[1]; u[1] = T[2]; }
+        else if (t >= T[3 * (n - 1)]) { u[0] = T[3 * (n - 1) + 1]; u[1] = T[3 * (n - 1) + 2]; }
+        else {
+            int64_t lo = 0, hi = n - 1;  /* T[3 lo] <= t < T[3 hi] */
+            while (hi - lo > 1) { int64_t mid = (lo + hi) / 2; if (T[3 * mid] <= t) lo = mid; else hi = mid; }
+            const double w = (t - T[3 * lo]) / (T[3 * hi] - T[3 * lo]);
+            u[0] = T[3 * lo + 1] + w * (T[3 * hi + 1] - T[3 * lo + 1]);
+            u[1] = T[3 * lo + 2] + w * (T[3 * hi + 2] - T[3 * lo + 2]);
+        }
+    }
+    if (feedback) {
+        for (int r = 0; r < 2; r++) {
+            double acc = c->us[r];
+            for (int j = 0; j < 4; j++) acc -= c->K[4 * r + j] * dx[j];
+            u[r] = acc;
+        }
+    }
+    for (int r = 0; r < 2; r++) {
+        if (!(c->actuated & (1 << r))) u[r] = 0.0;
+        if (u[r] > c->umax[r]) u[r] = c->umax[r];
+        if (u[r] < -c->umax[r]) u[r] = -c->umax[r];
+    }
+}
+
+/* the model's right-hand side with this thread's active inputs, if any */
+static void model_rhs(const double *y, const double *p, double *out)
+{
+    if (!sp_ctl) {
+        rhs(y, p, out);
+        return;
+    }
+    double q[SP_NPARAM], u[2];
+    memcpy(q, p, sizeof q);
+    sp_input(sp_ctl, y, p, u);
+    q[SP_TAU1] += u[0];
+    q[SP_TAU2] += u[1];
+    rhs(y, q, out);
+    if (sp_ctl->kind == SP_CTL_TABLE) out[5] = 1.0;
+}
+
 /* the DOP853 core for the model's own state (chaos.c includes it again for the variational systems) */
 #define DOP_NAME(x) x
 #define DOP_NDIM SP_NMAX
-#define DOP_RHS(y, p, out) rhs(y, p, out)
+#define DOP_RHS(y, p, out) model_rhs(y, p, out)
 #include "dop853_core.h"
 
 
@@ -206,7 +312,7 @@ int sp_dop853(sp_state *s, int n, const double *p, double t_end, double rtol, do
         if (!dense) put_row(rows, m++, n, s->t, s->y);
     }
     if (!s->have_f) {
-        rhs(s->y, p, s->f);
+        model_rhs(s->y, p, s->f);
         s->nfev++;
         if (!all_finite(s->f, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
         s->have_f = 1;
@@ -289,13 +395,13 @@ int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t ns
     while (s->step < nsteps) {
         if (done >= budget) { *m_out = m; return SP_CALL_BUDGET; }
         if (m >= cap - 1) { *m_out = m; return SP_CALL_BUFFER_FULL; }
-        rhs(s->y, p, k1);
+        model_rhs(s->y, p, k1);
         for (int i = 0; i < n; i++) tmp[i] = s->y[i] + half * k1[i];
-        rhs(tmp, p, k2);
+        model_rhs(tmp, p, k2);
         for (int i = 0; i < n; i++) tmp[i] = s->y[i] + half * k2[i];
-        rhs(tmp, p, k3);
+        model_rhs(tmp, p, k3);
         for (int i = 0; i < n; i++) tmp[i] = s->y[i] + dt * k3[i];
-        rhs(tmp, p, k4);
+        model_rhs(tmp, p, k4);
         s->nfev += 4;
         for (int i = 0; i < n; i++) tmp[i] = s->y[i] + sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
         if (!all_finite(tmp, n)) return fixed_stop(s, s->y, n, t0, dt, stride, rows, m, m_out, SP_STATUS_NONFINITE);
@@ -309,6 +415,34 @@ int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t ns
     *m_out = m;
     return SP_STATUS_SUCCESS;
 }
+
+/* sp_dop853 and sp_rk4 with inputs: c is this thread's active control for the call */
+int sp_dop853_ctl(const sp_control *c, sp_state *s, int n, const double *p, double t_end, double rtol, double atol,
+                  int64_t max_steps, int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows,
+                  int64_t cap, int64_t *m_out)
+{
+    sp_ctl = c;
+    int rc = sp_dop853(s, n, p, t_end, rtol, atol, max_steps, budget, dt_out, n_grid, k_out, rows, cap, m_out);
+    sp_ctl = 0;
+    return rc;
+}
+
+int sp_rk4_ctl(const sp_control *c, sp_state *s, int n, const double *p, double t0, double dt, int64_t nsteps,
+               int64_t stride, int64_t budget, double *rows, int64_t cap, int64_t *m_out)
+{
+    sp_ctl = c;
+    int rc = sp_rk4(s, n, p, t0, dt, nsteps, stride, budget, rows, cap, m_out);
+    sp_ctl = 0;
+    return rc;
+}
+
+/* the inputs at nrows states (`stride` doubles apart, the time at offset 5 for a table) into out[2 nrows] */
+void sp_inputs_many(const sp_control *c, const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
+{
+    for (int64_t r = 0; r < nrows; r++) sp_input(c, rows + r * stride, p, out + 2 * r);
+}
+
+int64_t sp_control_size(void) { return (int64_t)sizeof(sp_control); }
 
 /* 2-stage Gauss-Legendre collocation (order 4, symplectic) for z' = ham_rhs(z, p).
  * The stage equations K_i = f(z + dt sum_j a_ij K_j) are solved by fixed-point iteration,

@@ -59,6 +59,9 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     if flip:
         out[-1:-1] = ["#define SP_FLIP_KERNEL 1"]
     out[-1:-1] = status_defines()
+    # where the integrators' inputs add to the constant torques (from the one parameter order)
+    out[-1:-1] = [f"#define SP_NPARAM {len(PARAMETER_ORDER)}", f"#define SP_TAU1 {PARAMETER_ORDER.index('tau1')}",
+                  f"#define SP_TAU2 {PARAMETER_ORDER.index('tau2')}"]
 
     def header(signature: str, doc: str, used_exprs, state: str = "y", names=_STATE) -> List[str]:
         lines = [f"/* {doc} */", f"static {signature}", "{"]

@@ -34,7 +34,7 @@ from ..errors import SkewpendError
 from ..symbolic.model import Parameters
 from .conventions import GEOMETRY, PARAMETER_ORDER, STATE_ORDER, geometry_of, parameter_vector
 
-__all__ = [
+__all__ = ["ControlStruct",
     "PARAMETER_ORDER",
     "STATE_ORDER",
     "geometry_of",
@@ -113,6 +113,28 @@ class State(ctypes.Structure):
         for i, v in enumerate(y0):
             s.y[i] = float(v)
         return s
+
+
+class ControlStruct(ctypes.Structure):
+    """Mirror of ``sp_control`` in ``integrators.c``: the inputs applied inside the integrators
+    (:mod:`skewpend.numeric.control` fills it)."""
+
+    _fields_ = [
+        ("kind", ctypes.c_int32),
+        ("actuated", ctypes.c_int32),
+        ("umax", ctypes.c_double * 2),
+        ("K", ctypes.c_double * 8),
+        ("xs", ctypes.c_double * 4),
+        ("us", ctypes.c_double * 2),
+        ("ke", ctypes.c_double),
+        ("kp", ctypes.c_double),
+        ("kd", ctypes.c_double),
+        ("E_target", ctypes.c_double),
+        ("P", ctypes.c_double * 16),
+        ("rho", ctypes.c_double),
+        ("n_table", ctypes.c_int64),
+        ("table", ctypes.POINTER(ctypes.c_double)),
+    ]
 
 
 class LyapState(ctypes.Structure):
@@ -275,8 +297,15 @@ class Kernel:
         lib.sp_dop853.argtypes = [sp, ctypes.c_int, dp, d, d, d, i64, i64, d, i64, ip, dp, i64, ip]
         lib.sp_rk4.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, i64, dp, i64, ip]
         lib.sp_gauss.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, d, i64, i64, dp, i64, ip]
-        for name in ("sp_dop853", "sp_rk4", "sp_gauss"):
+        cp = ctypes.POINTER(ControlStruct)
+        lib.sp_dop853_ctl.argtypes = [cp, sp, ctypes.c_int, dp, d, d, d, i64, i64, d, i64, ip, dp, i64, ip]
+        lib.sp_rk4_ctl.argtypes = [cp, sp, ctypes.c_int, dp, d, d, i64, i64, i64, dp, i64, ip]
+        lib.sp_inputs_many.argtypes, lib.sp_inputs_many.restype = [cp, dp, i64, i64, dp, dp], None
+        lib.sp_control_size.argtypes, lib.sp_control_size.restype = [], i64
+        for name in ("sp_dop853", "sp_rk4", "sp_gauss", "sp_dop853_ctl", "sp_rk4_ctl"):
             getattr(lib, name).restype = ctypes.c_int
+        if lib.sp_control_size() != ctypes.sizeof(ControlStruct):
+            raise CompilerError(f"{path}: control layout mismatch ({lib.sp_control_size()} != {ctypes.sizeof(ControlStruct)} bytes)")
         self.flip = flip
         if flip:  # the flip kernel: sp_flip, many starts at rest side by side (integrators.c)
             if not hasattr(lib, "sp_flip"):

@@ -83,6 +83,17 @@ class Trajectory(ResultProtocol):
     energy_drift: float
     kept: bool = True
     _kernel: Any = field(default=None, repr=False, compare=False)
+    controller: Any = field(default=None, repr=False, compare=False)
+
+    def inputs(self) -> np.ndarray:
+        """The joint torques the run's ``controller`` applied at each row, (n, 2) [N m] (the
+        constant torques ``tau`` of the parameters not included; zeros without a controller)."""
+        if self.controller is None:
+            return np.zeros((len(self.t), 2))
+        from .kernels import kernel_module, parameter_vector
+
+        kernel = self._kernel if self._kernel is not None else kernel_module(self.params)
+        return self.controller.inputs(kernel, parameter_vector(self.params), self.t, self.y)
 
     result_kind: ClassVar[str] = TRAJECTORY_KIND
 
@@ -277,6 +288,7 @@ def simulate(
     out: Optional[os.PathLike] = None,
     keep: bool = True,
     progress: Optional[Callable[[float, float], None]] = None,
+    controller: Any = None,
 ) -> Trajectory:
     """Integrate the equations of motion from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``.
 
@@ -299,6 +311,11 @@ def simulate(
     run that stops early (non-finite state, step-size underflow, step cap) returns -- and
     writes -- what it computed, with ``status`` and ``message`` set, never NaN rows; with
     ``throw=True`` it raises :class:`~skewpend.errors.IntegrationError` after that.
+
+    ``controller``: a :class:`skewpend.numeric.control.Controller` -- joint torques that vary
+    (feedback laws, swing-up, a table), evaluated inside the compiled integrator at every stage
+    (dop853 or rk4); ``Trajectory.inputs()`` gives them at the rows, and the work ``W`` includes
+    theirs.
     """
     from .kernels import State, kernel_module, parameter_vector
     from ..io import TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
@@ -312,6 +329,14 @@ def simulate(
     if dt_out is not None and dt_out > t_end:
         raise ParameterError(f"dt_out ({dt_out:g}) must not exceed t_end ({t_end:g})")
     max_steps = checks.max_steps(max_steps)
+    if controller is not None:
+        from .control import Controller
+
+        if not isinstance(controller, Controller):
+            raise ParameterError(f"controller must be a skewpend Controller (feedback, swing-up or a table), got {controller!r}")
+        if method == "gauss":
+            raise ParameterError("inputs that vary need dop853 or rk4 (gauss integrates Hamilton's equations of the "
+                                 "model with constant torques)")
     checks.progress_callable(progress, "progress(t, t_end)")
     progress = progress or _progress_noop
     if out is not None:
@@ -349,6 +374,8 @@ def simulate(
     known_rows = n_grid if (method != "dop853" or dt_out is not None) else None
     if known_rows is not None:
         _check_room(known_rows, keep, out)
+    if controller is not None:
+        settings["controller"] = controller.settings()
 
     kernel = kernel_module(params)
     p = parameter_vector(params)
@@ -364,9 +391,12 @@ def simulate(
         tol, max_iter = 1e-15, 100
         settings.update(implicit_tol=tol, implicit_max_iter=max_iter)
     else:
-        state = State.at(0.0, y5)
+        state = State.at(0.0, y5 if controller is None or controller.state_size == 5 else np.append(y5, 0.0))
+    n = 5 if controller is None else controller.state_size
+    cstruct = None if controller is None else controller.struct()
+    cref = None if cstruct is None else ctypes.byref(cstruct)
 
-    rows = np.empty((_CHUNK_ROWS, 6))
+    rows = np.empty((_CHUNK_ROWS, n + 1))
     dp = ctypes.POINTER(ctypes.c_double)
     rows_ptr, p_ptr = rows.ctypes.data_as(dp), p.ctypes.data_as(dp)
     m = ctypes.c_int64(0)
@@ -375,6 +405,12 @@ def simulate(
     lib = kernel.lib
 
     def call(budget: int) -> int:
+        if cref is not None:
+            if method == "dop853":
+                return lib.sp_dop853_ctl(cref, sref, n, p_ptr, t_end, rtol, atol, max_steps, budget, dt_out or 0.0,
+                                         n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
+            return lib.sp_rk4_ctl(cref, sref, n, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS,
+                                  ctypes.byref(m))
         if method == "dop853":
             return lib.sp_dop853(sref, 5, p_ptr, t_end, rtol, atol, max_steps, budget,
                                  dt_out or 0.0, n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
@@ -392,7 +428,7 @@ def simulate(
 
         def take() -> None:
             if m.value:
-                chunk = rows[: m.value]
+                chunk = rows[: m.value, :6]
                 if method == "gauss":
                     chunk = kernel.speeds_many(chunk, p, offset=1)
                 acc.add(chunk)
@@ -436,6 +472,7 @@ def simulate(
             energy_drift=drift,
             kept=keep,
             _kernel=kernel,
+            controller=controller,
         )
         if writer is not None:
             metadata = trajectory_metadata(traj)

@@ -1,0 +1,184 @@
+"""Joint torques that vary: the inputs the compiled integrators apply (``sp_control`` in
+``integrators.c``), with no Python call per step.
+
+A :class:`Controller` says which joints are actuated (``"both"``, ``"acrobot"`` -- the elbow only --,
+``"pendubot"`` -- the shoulder only), the saturation of each joint's torque and the law:
+
+* ``Controller.feedback(K, target, u_target)``: linear state feedback ``u = u* - K (x - x*)``,
+  the angles of ``x - x*`` wrapped to (-pi, pi] (a PD law is the feedback ``K = [Kp, Kd]``);
+* ``Controller.swingup(energy_gain, target_energy, K, target, P, rho, elbow_gains=(kp, kd))``:
+  energy shaping ``u_j = k_e (E* - E) q'_j`` on the actuated joints (``E = T + Pi`` from the
+  derivation), which pumps energy towards ``E*``, the elbow also held towards its target angle by
+  ``-kp (psi - psi*) - kd psi'`` (so the two rods swing up as one), switched to the feedback
+  inside the region ``(x - x*)^T P (x - x*) < rho``;
+* ``Controller.table(times, torques)``: ``u(t)`` interpolated linearly in a table (held at its
+  ends).
+
+The inputs add to the model's constant torques ``tau``; the work ``W`` of ``Q = tau + u - c q'``
+then includes theirs, so ``E - W`` stays conserved (the energy balance of every run).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from dataclasses import dataclass, field
+from typing import Any, Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..errors import ParameterError
+
+__all__ = ["Controller", "ACTUATION", "KINDS", "torque_limits"]
+
+#: Which joints a motor drives: bit 0 the shoulder (joint 1), bit 1 the elbow (joint 2).
+ACTUATION = {"both": 3, "pendubot": 1, "acrobot": 2}
+#: The laws (the ``SP_CTL_*`` codes of ``integrators.c``).
+KINDS = {"feedback": 1, "swingup": 2, "table": 3}
+
+
+def _actuation(actuated: str) -> int:
+    if actuated not in ACTUATION:
+        raise ParameterError(f"actuated must be one of {', '.join(ACTUATION)} (acrobot: the elbow only, pendubot: "
+                             f"the shoulder only), got {actuated!r}")
+    return ACTUATION[actuated]
+
+
+def torque_limits(umax) -> Tuple[float, float]:
+    if umax is None:
+        return (math.inf, math.inf)
+    values = np.broadcast_to(np.asarray(umax, dtype=float), (2,))
+    if np.any(~(values > 0)) or np.any(np.isnan(values)):
+        raise ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint), got {umax!r}")
+    return float(values[0]), float(values[1])
+
+
+def _finite(name: str, value, shape) -> np.ndarray:
+    a = np.asarray(value, dtype=float)
+    if a.shape != shape:
+        raise ParameterError(f"{name} must have shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ParameterError(f"{name} must be finite")
+    return a
+
+
+@dataclass(frozen=True)
+class Controller:
+    """The inputs of a run (see the module); build one with :meth:`feedback`, :meth:`swingup` or
+    :meth:`table`, pass it to :func:`skewpend.simulate` as ``controller=``."""
+
+    kind: str
+    actuated: str = "both"
+    umax: Tuple[float, float] = (math.inf, math.inf)
+    K: np.ndarray = field(default_factory=lambda: np.zeros((2, 4)), repr=False)
+    target: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    u_target: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    energy_gain: float = 0.0
+    elbow_gains: Tuple[float, float] = (0.0, 0.0)
+    target_energy: float = 0.0
+    P: np.ndarray = field(default_factory=lambda: np.zeros((4, 4)), repr=False)
+    rho: float = 0.0
+    times: Optional[np.ndarray] = field(default=None, repr=False)
+    torques: Optional[np.ndarray] = field(default=None, repr=False)
+
+    # -- constructors ------------------------------------------------------------------------
+    @classmethod
+    def feedback(cls, K, target, u_target=(0.0, 0.0), *, actuated: str = "both", umax=None) -> "Controller":
+        """``u = u* - K (x - x*)``, ``K`` (2, 4) (rows for the joints; an unactuated joint's row is
+        ignored), ``target`` the state ``x*`` (4,), ``u_target`` the input there."""
+        _actuation(actuated)
+        return cls("feedback", actuated, torque_limits(umax), _finite("K", K, (2, 4)), _finite("target", target, (4,)),
+                   _finite("u_target", u_target, (2,)))
+
+    @classmethod
+    def swingup(cls, energy_gain: float, target_energy: float, K, target, P, rho: float, u_target=(0.0, 0.0), *,
+                elbow_gains=(0.0, 0.0), actuated: str = "both", umax=None) -> "Controller":
+        """Energy shaping ``u_j = energy_gain (E* - E) q'_j`` on the actuated joints, switched to the
+        feedback ``u* - K (x - x*)`` inside ``(x - x*)^T P (x - x*) < rho``."""
+        _actuation(actuated)
+        if not (math.isfinite(energy_gain) and energy_gain > 0):
+            raise ParameterError(f"energy_gain must be a positive number, got {energy_gain!r}")
+        if not math.isfinite(target_energy):
+            raise ParameterError(f"target_energy must be finite, got {target_energy!r}")
+        if not (math.isfinite(rho) and rho >= 0):
+            raise ParameterError(f"rho must be a non-negative number, got {rho!r}")
+        gains = _finite("elbow_gains", elbow_gains, (2,))
+        if np.any(gains < 0):
+            raise ParameterError(f"elbow_gains (kp, kd) must not be negative, got {elbow_gains!r}")
+        return cls("swingup", actuated, torque_limits(umax), _finite("K", K, (2, 4)), _finite("target", target, (4,)),
+                   _finite("u_target", u_target, (2,)), float(energy_gain), (float(gains[0]), float(gains[1])),
+                   float(target_energy), _finite("P", P, (4, 4)), float(rho))
+
+    @classmethod
+    def table(cls, times: Sequence[float], torques, *, actuated: str = "both", umax=None) -> "Controller":
+        """``u(t)`` linear between the rows ``(times[k], torques[k])`` (``torques`` (n, 2) [N m]; a
+        1-D ``torques`` is the actuated joint's for the acrobot or pendubot), held at the ends."""
+        code = _actuation(actuated)
+        t = np.asarray(times, dtype=float)
+        u = np.asarray(torques, dtype=float)
+        if u.ndim == 1:
+            if actuated == "both":
+                raise ParameterError("torques must have two columns (one per joint) when both joints are actuated")
+            u = np.column_stack([u, np.zeros_like(u)] if code == 1 else [np.zeros_like(u), u])
+        if t.ndim != 1 or t.size < 1 or u.shape != (t.size, 2):
+            raise ParameterError(f"a torque table needs n times and n x 2 torques, got {t.shape} and {u.shape}")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(u))):
+            raise ParameterError("a torque table must hold finite numbers")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            raise ParameterError("a torque table's times must increase strictly")
+        return cls("table", actuated, torque_limits(umax), times=t, torques=u)
+
+    # -- what the integrators get --------------------------------------------------------------
+    @property
+    def state_size(self) -> int:
+        """5 (angles, speeds, W), or 6 with the time for a table."""
+        return 6 if self.kind == "table" else 5
+
+    def struct(self):
+        """The ``sp_control`` the compiled code reads (keep it alive during the call)."""
+        from .kernels import ControlStruct
+
+        c = ControlStruct()
+        c.kind = KINDS[self.kind]
+        c.actuated = ACTUATION[self.actuated]
+        c.umax[:] = list(self.umax)
+        c.K[:] = np.ravel(self.K).tolist()
+        c.xs[:] = np.asarray(self.target, dtype=float).tolist()
+        c.us[:] = np.asarray(self.u_target, dtype=float).tolist()
+        c.ke, c.E_target = self.energy_gain, self.target_energy
+        c.kp, c.kd = self.elbow_gains
+        c.P[:] = np.ravel(self.P).tolist()
+        c.rho = self.rho
+        if self.kind == "table":
+            table = np.ascontiguousarray(np.column_stack([self.times, self.torques]), dtype=float)
+            c.n_table = len(table)
+            c.table = table.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+            c._keep = table  # the array lives as long as the struct
+        return c
+
+    def inputs(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The inputs ``u`` (n, 2) [N m] at the states ``y`` (n, 4) and times ``t`` (n,)."""
+        rows = np.zeros((len(t), 6))
+        rows[:, :4] = y
+        rows[:, 5] = t
+        out = np.empty((len(t), 2))
+        dp = ctypes.POINTER(ctypes.c_double)
+        c = self.struct()
+        kernel.lib.sp_inputs_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), 6, p.ctypes.data_as(dp),
+                                  out.ctypes.data_as(dp))
+        return out
+
+    def settings(self) -> Dict[str, Any]:
+        """Plain JSON data describing the inputs (part of a run's settings)."""
+        d: Dict[str, Any] = {"kind": self.kind, "actuated": self.actuated,
+                             "umax": [x if math.isfinite(x) else None for x in self.umax]}
+        if self.kind in ("feedback", "swingup"):
+            d.update(K=np.asarray(self.K).tolist(), target=np.asarray(self.target).tolist(),
+                     u_target=np.asarray(self.u_target).tolist())
+        if self.kind == "swingup":
+            d.update(energy_gain=self.energy_gain, elbow_gains=list(self.elbow_gains), target_energy=self.target_energy,
+                     P=np.asarray(self.P).tolist(),
+                     rho=self.rho)
+        if self.kind == "table":
+            d.update(times=self.times.tolist(), torques=self.torques.tolist())
+        return d
