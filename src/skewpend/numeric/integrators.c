@@ -210,7 +210,14 @@ typedef struct {
     const double *table;
 } sp_control;
 
+/* the active control of this thread (a run with inputs sets it for the duration of a call); the
+ * initial-exec model makes reading it one load, not a call, in every right-hand side (one pointer
+ * fits the static TLS that the C library keeps for libraries loaded later) */
+#if defined(__ELF__) && (defined(__GNUC__) || defined(__clang__))
+static _Thread_local const sp_control *sp_ctl __attribute__((tls_model("initial-exec"))) = 0;
+#else
 static _Thread_local const sp_control *sp_ctl = 0;
+#endif
 
 static double sp_wrap(double x)
 {
@@ -266,9 +273,9 @@ static void sp_input(const sp_control *c, const double *y, const double *p, doub
 }
 
 /* the model's right-hand side with this thread's active inputs, if any */
-static void model_rhs(const double *y, const double *p, double *out)
+static inline void model_rhs(const double *y, const double *p, double *out)
 {
-    if (!sp_ctl) {
+    if (__builtin_expect(sp_ctl == 0, 1)) {
         rhs(y, p, out);
         return;
     }
