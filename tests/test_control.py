@@ -195,3 +195,44 @@ def test_refusals():
         Controller.table([0, 0], [[0, 0], [1, 1]])
     with pytest.raises(ParameterError, match="umax"):
         Controller.feedback(np.zeros((2, 4)), [0, 0, 0, 0], umax=-1)
+
+
+def test_cli_control(tmp_path):
+    from helpers import run_cli
+
+    ran = run_cli(["control", "lqr", "--umax", "10", "--q", "10,10,1,1"], cwd=tmp_path)
+    assert ran.code == 0 and "closed loop" in ran.out and "controllable (rank 4" in ran.out, ran.report()
+    ran = run_cli(["control", "swingup", "--alpha", "30deg", "--t-end", "8", "--out", "s.csv", "--plot", "s.png"],
+                  cwd=tmp_path)
+    assert ran.code == 0 and "captured by the LQR" in ran.out, ran.report()
+    data = np.loadtxt(tmp_path / "s.csv", delimiter=",", skiprows=1)
+    assert data.shape[1] == 9 and np.max(np.abs(data[:, 7:])) <= 10.0 + 1e-12  # t, state, E, W, u1, u2
+    # not captured within the time: exit 1, the reason in one line
+    ran = run_cli(["control", "swingup", "--t-end", "0.5"], cwd=tmp_path)
+    assert ran.code == 1 and "not captured" in ran.err, ran.report()
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["control"], "lqr or swingup"),
+    (["control", "balance"], "action"),
+    (["control", "lqr", "--actuated", "elbow"], "--actuated"),
+    (["control", "lqr", "--actuated", "acrobot", "--alpha", "90deg"], "not controllable"),
+    (["control", "lqr", "--t-end", "3"], "--t-end"),
+    (["control", "lqr", "--q", "1,1,1"], "--q"),
+    (["control", "lqr", "--q", "1,1,-1,1"], "--q"),
+    (["control", "lqr", "--r", "1,1", "--actuated", "acrobot"], "--r"),
+    (["control", "lqr", "--r", "0,1"], "--r"),
+    (["control", "lqr", "--umax", "0"], "--umax"),
+    (["control", "lqr", "--target", "40deg,10deg"], "not an equilibrium"),
+    (["control", "swingup", "--elbow-gains", "1"], "--elbow-gains"),
+    (["control", "swingup", "--out", "s.txt"], "--out"),
+    (["control", "swingup", "--animate", "s.avi"], "--animate"),
+    (["control", "lqr", "--a", "sym"], "numeric"),
+])
+def test_cli_control_bad_input(argv, text, tmp_path):
+    from helpers import run_cli
+
+    ran = run_cli(argv, cwd=tmp_path)
+    assert ran.code == 2, ran.report()
+    assert text in ran.err and len(ran.err.strip().splitlines()) == 1, ran.report()
+    assert not any(tmp_path.iterdir())

@@ -81,6 +81,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "equilibria": {"parameters": MODEL_KEYS},
     "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS},
     "nnm": {"parameters": MODEL_KEYS},
+    "control": {"parameters": MODEL_KEYS},
 }
 
 #: Why a command does not read a key that some other command does (the refusal says it).

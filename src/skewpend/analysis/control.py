@@ -258,6 +258,10 @@ class SwingUp:
     controller: Any
 
     @property
+    def ok(self) -> bool:
+        return bool(self.captured)
+
+    @property
     def message(self) -> str:
         if self.captured:
             return f"captured by the LQR at t = {self.capture_time:.4g} s and held to the end"

@@ -1,0 +1,136 @@
+"""``control lqr|swingup``: balance the pendulum at an equilibrium with LQR, and swing it up to it."""
+
+from __future__ import annotations
+
+import math
+import sys
+from enum import Enum
+from typing import Annotated, Optional
+
+import typer
+
+from ..parsing import UsageError
+from . import types as T
+from .options import CONFIG, MODEL, QUIET, RUN, command, option, plot_option, resolve
+
+COMMANDS = ("control",)
+
+
+class Action(str, Enum):
+    lqr = "lqr"
+    swingup = "swingup"
+
+
+class Actuated(str, Enum):
+    both = "both"
+    acrobot = "acrobot"
+    pendubot = "pendubot"
+
+
+@command(MODEL)
+def control(
+    model: dict,
+    action: Annotated[Optional[Action], typer.Argument(help="lqr: the gain at the target, its closed-loop eigenvalues and region of attraction; swingup: from hanging to the target and capture by the LQR", show_default=False)] = None,
+    target: option("--target", T.EquilibriumChoice(), "the equilibrium to balance at: a label (default up-up) or PHI,PSI near one") = None,
+    actuated: Annotated[Actuated, typer.Option("--actuated", help="both joints, acrobot (the elbow only) or pendubot (the shoulder only)", rich_help_panel=RUN)] = Actuated.both,
+    q: option("--q", T.Numbers(4, metavar="Q1,Q2,Q3,Q4"), "LQR state weights: the diagonal of Q for (phi, psi, phi', psi') (default 1,1,1,1)") = None,
+    r: option("--r", T.Numbers(most=2, metavar="R1[,R2]"), "LQR input weights: the diagonal of R, one per actuated joint (default 1)") = None,
+    umax: option("--umax", T.Positive("number of N m"), "torque limit of each motor [N m] (default: none for lqr, 10 for swingup)") = None,
+    t_end: option("--t-end", T.Positive("number of seconds"), "swingup: length of the run [s] (default 20)") = None,
+    energy_gain: option("--energy-gain", T.Positive(), "swingup: gain of the energy shaping [N m s/J] (default 2)") = None,
+    elbow_gains: option("--elbow-gains", T.Numbers(2, metavar="KP,KD"), "swingup: the elbow's PD gains holding rod 2 in line while the energy is pumped (default 20,4)") = None,
+    out: option("--out", T.OutPath((".csv", ".nc")), "swingup: write the run to FILE (.csv or .nc)", RUN, "-o") = None,
+    plot: plot_option("the swing-up run") = None,
+    animate: option("--animate", T.OutPath((".mp4", ".gif")), "swingup: write the 3D animation to FILE.mp4 or FILE.gif", RUN) = None,
+    quiet: QUIET = False,
+    config: CONFIG = None,
+):
+    """Balance it and swing it up: LQR at any equilibrium (controllability, gain, closed-loop eigenvalues, region of attraction) and energy-shaping swing-up captured by the LQR, with skewed axes.
+
+    From a --config run file it takes [parameters].
+    """
+    import numpy as np
+
+    from ..analysis.control import controllability, lqr, swingup
+
+    if action is None:
+        raise UsageError("control: give what to do, lqr or swingup (e.g. skewpend control lqr --actuated acrobot)")
+    if action is Action.lqr:
+        used = [o for o, v in (("--t-end", t_end), ("--energy-gain", energy_gain), ("--elbow-gains", elbow_gains),
+                               ("--out", out), ("--plot", plot), ("--animate", animate)) if v is not None]
+        if used:
+            raise UsageError(f"{', '.join(used)} {'goes' if len(used) == 1 else 'go'} with 'control swingup', not 'control lqr'")
+    if plot is not None:
+        from .simulate import check_plot
+
+        check_plot(plot)
+    params = resolve("control", config, parameters=model).parameters()
+    joints = 2 if actuated is Actuated.both else 1
+    if r is not None and len(r) != joints:
+        raise UsageError(f"--r: give {joints} weight(s), one per actuated joint ({actuated.value}), got {len(r)}")
+    if q is not None and any(x < 0 for x in q):
+        raise UsageError("--q: state weights must not be negative")
+    if r is not None and any(not x > 0 for x in r):
+        raise UsageError("--r: input weights must be positive")
+    Q = None if q is None else np.diag(q)
+    R = None if r is None else np.diag(r)
+    goal = "up-up" if target is None else target
+    if action is Action.lqr:
+        design = lqr(params, goal, actuated.value, Q=Q, R=R, umax=umax)
+        lin = design.linearization
+        c = controllability(lin.A, lin.B)
+        lines = [
+            f"target      {lin.equilibrium.label}: phi = {math.degrees(lin.target[0]):.6g} deg, psi = {math.degrees(lin.target[1]):.6g} deg",
+            f"actuated    {actuated.value}; controllable (rank {c['rank']} of 4, PBH distance {c['distance']:.3g})",
+            "gain K      u = -K (x - x*), x = (phi, psi, phi', psi')",
+        ]
+        for row, j in enumerate(lin.joints):
+            lines.append(f"  joint {j + 1}   " + "  ".join(f"{v:12.6g}" for v in design.K[row]))
+        lines.append("closed loop " + ", ".join(f"{z.real:.6g}{z.imag:+.6g}i" if abs(z.imag) > 1e-12 else f"{z.real:.6g}"
+                                                for z in design.eigenvalues) + " [1/s]")
+        limit = "no torque limit" if umax is None else f"|u| <= {umax:g} N m"
+        lines.append(f"region      dx' P dx < {design.rho:.6g} ({limit}; sampled inner estimate: every start inside is captured)")
+        sys.stdout.write("\n".join(lines) + "\n")
+        return design
+    if animate is not None and not str(animate).lower().endswith((".mp4", ".gif")):
+        raise UsageError("--animate: expected FILE.mp4 or FILE.gif")
+    kw = {}
+    if energy_gain is not None:
+        kw["energy_gain"] = energy_gain
+    if elbow_gains is not None:
+        kw["elbow_gains"] = elbow_gains
+    run = swingup(params, goal, actuated.value, umax=10.0 if umax is None else umax, t_end=20.0 if t_end is None else t_end,
+                  Q=Q, R=R, **kw)
+    tr = run.trajectory
+    u = tr.inputs()
+    lines = [
+        f"swing-up    {actuated.value} to {run.lqr.linearization.equilibrium.label}, |u| <= {run.controller.umax[0]:g} N m, "
+        f"{tr.t[-1]:g} s",
+        f"result      {run.message}",
+        f"largest |u| {np.abs(u).max():.4g} N m; energy balance |E - W - E0|/max|E| = {tr.energy_drift:.2g}",
+    ]
+    if out is not None:
+        tr.to_netcdf(out) if str(out).lower().endswith(".nc") else _write_csv(tr, u, out)
+        lines.append(f"written     {out}")
+    if plot is not None:
+        from ..views import figures
+
+        figures.save_figure(figures.control_figure(run), plot)
+        lines.append(f"plot        {plot}")
+    if animate is not None:
+        from ..views.animation import animate as render
+
+        render(tr, animate, fps=1.0 / float(tr.t[1] - tr.t[0]) if len(tr.t) > 1 else 30.0)
+        lines.append(f"animation   {animate}")
+    sys.stdout.write("\n".join(lines) + "\n")
+    return run
+
+
+def _write_csv(tr, u, out) -> None:
+    import numpy as np
+
+    from ..io import atomic_path
+
+    with atomic_path(out) as tmp:
+        np.savetxt(tmp, np.column_stack([tr.t, tr.y, tr.energy, tr.work, u]), delimiter=",",
+                   header="t,phi,psi,dphi,dpsi,energy,work,u1,u2", comments="")
