@@ -26,12 +26,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Callable, ClassVar, Dict, List, Sequence, Tuple
+from typing import Callable, ClassVar, List, Sequence, Tuple
 
 import numpy as np
 
 from ..errors import EquilibriumError, ParameterError
-from ..results import DatasetSpec, ResultProtocol
+from ..results import DatasetSpec, Result
 from ..status import Status
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
@@ -205,7 +205,8 @@ def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], funct
     )
 
 
-class Equilibria(ResultProtocol):
+@dataclass(frozen=True)
+class Equilibria(Result):
     """Every equilibrium of a model (:func:`equilibria`), ordered by potential energy.
 
     * ``points`` -- the :class:`Equilibrium` objects (``len``, iteration and indexing reach them);
@@ -216,24 +217,9 @@ class Equilibria(ResultProtocol):
       ``to_netcdf()``, ``summary()``, ``table()``.
     """
 
+    points: List[Equilibrium]
+
     result_kind: ClassVar[str] = "equilibria"
-
-    def __init__(self, points: List[Equilibrium], params: Parameters, settings: Dict, stats: Dict,
-                 status: Status, message: str):
-        self.points = list(points)
-        self.params = params
-        self._settings = dict(settings)
-        self._stats = dict(stats)
-        self.status = Status(status)
-        self.message = message
-
-    @property
-    def settings(self) -> Dict:
-        return dict(self._settings)
-
-    @property
-    def stats(self) -> Dict:
-        return dict(self._stats)
 
     def __len__(self) -> int:
         return len(self.points)
@@ -387,7 +373,7 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibri
                 f"their indices sum to {index_sum}, not 0: an equilibrium may be missed"))
     settings = {"starts": starts, "final_starts": n, "tau": tau.tolist()}
     stats = {"starts": total_starts, "converged": int(len(points)), "newton_iterations": int(total_its)}
-    return Equilibria(points, params, settings, stats, status, message)
+    return Equilibria(points=points, params=params, settings=settings, stats=stats, status=status, message=message)
 
 
 def equilibrium_at(params: Parameters, q: Sequence[float]) -> Equilibrium:

@@ -32,7 +32,7 @@ frequency crossing a small rational multiple of the other's at the same energy).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
@@ -40,7 +40,7 @@ import numpy as np
 
 from ..checks import numeric_params, tolerances
 from ..errors import EquilibriumError, IntegrationError, ParameterError
-from ..results import DatasetSpec, ResultProtocol
+from ..results import DatasetSpec, Result
 from ..status import Status
 from ..symbolic.model import Parameters
 
@@ -179,7 +179,8 @@ def _stable(sigma: float) -> bool:
     return abs(sigma) <= 2.0 + STABILITY_MARGIN
 
 
-class PeriodicOrbit(ResultProtocol):
+@dataclass(frozen=True)
+class PeriodicOrbit(Result):
     """A periodic orbit (:func:`periodic_orbit`), or the failure to find one (``ok`` False).
 
     * ``state`` -- the start ``(phi, psi, phi', psi')`` on the orbit; ``period`` [s];
@@ -194,31 +195,25 @@ class PeriodicOrbit(ResultProtocol):
       ``to_netcdf()``, ``summary()``.
     """
 
+    state: np.ndarray
+    period: float
+    energy: float
+    rotation: Tuple[int, int]
+    monodromy: np.ndarray = field(repr=False)
+    multipliers: np.ndarray = field(init=False, repr=False)
+    sigma: float = field(init=False)
+
     result_kind: ClassVar[str] = "periodic orbit"
 
-    def __init__(self, params, state, period, energy, rotation, monodromy, settings, stats, status, message):
-        self.params = params
-        self.state = np.asarray(state, dtype=float)
-        self.period = float(period)
-        self.energy = float(energy)
-        self.rotation = tuple(int(r) for r in rotation)
-        self.monodromy = np.asarray(monodromy, dtype=float)
-        if np.all(np.isfinite(self.monodromy)):
-            self.multipliers, self.sigma = _multipliers(self.monodromy)
-        else:
-            self.multipliers, self.sigma = np.full(4, np.nan + 0j), math.nan
-        self._settings = dict(settings)
-        self._stats = dict(stats)
-        self.status = Status(status)
-        self.message = message
-
-    @property
-    def settings(self) -> Dict:
-        return dict(self._settings)
-
-    @property
-    def stats(self) -> Dict:
-        return dict(self._stats)
+    def __post_init__(self):
+        super().__post_init__()
+        mono = np.asarray(self.monodromy, dtype=float)
+        object.__setattr__(self, "state", np.asarray(self.state, dtype=float))
+        object.__setattr__(self, "rotation", tuple(int(r) for r in self.rotation))
+        object.__setattr__(self, "monodromy", mono)
+        mu, sigma = _multipliers(mono) if np.all(np.isfinite(mono)) else (np.full(4, np.nan + 0j), math.nan)
+        object.__setattr__(self, "multipliers", mu)
+        object.__setattr__(self, "sigma", sigma)
 
     @property
     def frequency(self) -> float:
@@ -319,16 +314,18 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
                                "(try a better guess, e.g. from skewpend.nnm)", rotation, throw, settings, model)
     x, T, E, fl, its, res = out
     stats = {"newton_iterations": its, "residual": res, "flows": model.calls, "steps": model.steps}
-    return PeriodicOrbit(params, x, T, E, rotation, fl.stm, settings, stats, Status.SUCCESS,
-                         "a periodic orbit: closes to the Newton tolerance")
+    return PeriodicOrbit(state=x, period=T, energy=E, rotation=rotation, monodromy=fl.stm, params=params,
+                         settings=settings, stats=stats, status=Status.SUCCESS,
+                         message="a periodic orbit: closes to the Newton tolerance")
 
 
 def _failed(params, why, rotation, throw, settings=None, model=None) -> PeriodicOrbit:
     if throw:
         raise IntegrationError(why)
     stats = {} if model is None else {"flows": model.calls, "steps": model.steps}
-    return PeriodicOrbit(params, np.full(4, np.nan), math.nan, math.nan, rotation, np.full((4, 4), np.nan),
-                         settings or {}, stats, Status.NO_CONVERGENCE, why)
+    return PeriodicOrbit(state=np.full(4, np.nan), period=math.nan, energy=math.nan, rotation=rotation,
+                         monodromy=np.full((4, 4), np.nan), params=params, settings=settings or {}, stats=stats,
+                         status=Status.NO_CONVERGENCE, message=why)
 
 
 # -- nonlinear normal modes ------------------------------------------------------------------------
@@ -368,7 +365,8 @@ class BranchEvent:
     detail: str = ""
 
 
-class NNMFamily(ResultProtocol):
+@dataclass(frozen=True)
+class NNMFamily(Result):
     """A nonlinear normal mode: the family of periodic orbits continuing linear mode ``mode``.
 
     Arrays along the family (one entry per orbit, in continuation order): ``energies`` [J],
@@ -379,34 +377,28 @@ class NNMFamily(ResultProtocol):
     orbit ``k`` as a :class:`PeriodicOrbit`.  The result protocol as every result's.
     """
 
+    mode: int
+    linear_frequency: float
+    energies: np.ndarray
+    periods: np.ndarray
+    states: np.ndarray = field(repr=False)
+    monodromies: np.ndarray = field(repr=False)
+    events: List["BranchEvent"]
+    energy_max: float
+    multipliers: np.ndarray = field(init=False, repr=False)
+    sigma: np.ndarray = field(init=False, repr=False)
+
     result_kind: ClassVar[str] = "nonlinear normal mode"
 
-    def __init__(self, params, mode, linear_frequency, energies, periods, states, monodromies, events, energy_max,
-                 settings, stats, status, message):
-        self.params = params
-        self.mode = int(mode)
-        self.linear_frequency = float(linear_frequency)
-        self.energies = np.asarray(energies, dtype=float)
-        self.periods = np.asarray(periods, dtype=float)
-        self.states = np.asarray(states, dtype=float).reshape(-1, 4)
-        self.monodromies = np.asarray(monodromies, dtype=float).reshape(-1, 4, 4)
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "energies", np.asarray(self.energies, dtype=float))
+        object.__setattr__(self, "periods", np.asarray(self.periods, dtype=float))
+        object.__setattr__(self, "states", np.asarray(self.states, dtype=float).reshape(-1, 4))
+        object.__setattr__(self, "monodromies", np.asarray(self.monodromies, dtype=float).reshape(-1, 4, 4))
         mus = [_multipliers(m) for m in self.monodromies]
-        self.multipliers = np.array([m for m, _ in mus]).reshape(-1, 4)
-        self.sigma = np.array([s for _, s in mus], dtype=float)
-        self.events = list(events)
-        self.energy_max = float(energy_max)
-        self._settings = dict(settings)
-        self._stats = dict(stats)
-        self.status = Status(status)
-        self.message = message
-
-    @property
-    def settings(self) -> Dict:
-        return dict(self._settings)
-
-    @property
-    def stats(self) -> Dict:
-        return dict(self._stats)
+        object.__setattr__(self, "multipliers", np.array([m for m, _ in mus]).reshape(-1, 4))
+        object.__setattr__(self, "sigma", np.array([s for _, s in mus], dtype=float))
 
     @property
     def frequencies(self) -> np.ndarray:
@@ -421,9 +413,9 @@ class NNMFamily(ResultProtocol):
 
     def orbit(self, k: int) -> PeriodicOrbit:
         settings = {**self.settings, "index": int(k)}
-        return PeriodicOrbit(self.params, self.states[k], self.periods[k], self.energies[k], (0, 0),
-                             self.monodromies[k], settings, {}, Status.SUCCESS,
-                             f"orbit {k} of nonlinear normal mode {self.mode}")
+        return PeriodicOrbit(state=self.states[k], period=self.periods[k], energy=self.energies[k], rotation=(0, 0),
+                             monodromy=self.monodromies[k], params=self.params, settings=settings, stats={},
+                             status=Status.SUCCESS, message=f"orbit {k} of nonlinear normal mode {self.mode}")
 
     def at_energy(self, energy: float) -> PeriodicOrbit:
         """The computed orbit whose energy is closest to ``energy``."""
@@ -589,7 +581,9 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
         message = (f"{len(energies)} orbits from E = {energies[0]:.3g} J to {energies[-1]:.6g} J"
                    + (" (the lowest energy at which a joint can flip)" if energy_max is None else ""))
     stats = {"orbits": len(energies), "flows": model.calls, "steps": model.steps, "failed_steps": failures}
-    return NNMFamily(params, mode, w0, energies, periods, states, monos, events, E_max, settings, stats, status, message)
+    return NNMFamily(mode=mode, linear_frequency=w0, energies=energies, periods=periods, states=states,
+                     monodromies=monos, events=events, energy_max=E_max, params=params, settings=settings, stats=stats,
+                     status=status, message=message)
 
 
 class Backbones:
@@ -642,7 +636,8 @@ def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_ord
 # -- continuation in alpha at fixed energy ---------------------------------------------------------
 
 
-class AlphaFamily(ResultProtocol):
+@dataclass(frozen=True)
+class AlphaFamily(Result):
     """A nonlinear normal mode at a fixed energy followed along the skew angle (:func:`nnm_alpha`).
 
     Arrays over ``alphas`` [rad] (those reached): ``periods`` [s], ``frequencies`` [rad/s],
@@ -651,25 +646,21 @@ class AlphaFamily(ResultProtocol):
     ``detail`` the angle); ``energy`` [J] and ``mode``.  The result protocol as every result's.
     """
 
+    mode: int
+    energy: float
+    alphas: np.ndarray
+    periods: np.ndarray
+    states: np.ndarray = field(repr=False)
+    sigma: np.ndarray = field(repr=False)
+    events: List[BranchEvent]
+
     result_kind: ClassVar[str] = "nonlinear normal mode along alpha"
 
-    def __init__(self, params, mode, energy, alphas, periods, states, sigma, events, settings, stats, status, message):
-        self.params, self.mode, self.energy = params, int(mode), float(energy)
-        self.alphas = np.asarray(alphas, dtype=float)
-        self.periods = np.asarray(periods, dtype=float)
-        self.states = np.asarray(states, dtype=float).reshape(-1, 4)
-        self.sigma = np.asarray(sigma, dtype=float)
-        self.events = list(events)
-        self._settings, self._stats = dict(settings), dict(stats)
-        self.status, self.message = Status(status), message
-
-    @property
-    def settings(self) -> Dict:
-        return dict(self._settings)
-
-    @property
-    def stats(self) -> Dict:
-        return dict(self._stats)
+    def __post_init__(self):
+        super().__post_init__()
+        for name in ("alphas", "periods", "sigma"):
+            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float))
+        object.__setattr__(self, "states", np.asarray(self.states, dtype=float).reshape(-1, 4))
 
     @property
     def frequencies(self) -> np.ndarray:
@@ -777,5 +768,6 @@ def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Seque
     if status == Status.SUCCESS:
         message = f"{len(alphas_done)} orbits at E = {energy:g} J from alpha = {math.degrees(grid[0]):.4g} to {math.degrees(grid[-1]):.4g} deg"
     settings = {"mode": int(mode), "energy": energy, "alphas": grid.tolist(), "rtol": rtol, "atol": atol}
-    return AlphaFamily(params, mode, energy, alphas_done, periods, states, sigma, events, settings,
-                       {"orbits": len(alphas_done), "flows": calls}, status, message)
+    return AlphaFamily(mode=int(mode), energy=energy, alphas=alphas_done, periods=periods, states=states, sigma=sigma,
+                       events=events, params=params, settings=settings, stats={"orbits": len(alphas_done), "flows": calls},
+                       status=status, message=message)
