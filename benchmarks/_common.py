@@ -1,9 +1,10 @@
-"""Helpers shared by the benchmark scripts (machine facts for their headers)."""
+"""Helpers shared by the benchmark scripts (machine facts for their headers, heyoka.py compile times)."""
 
 from __future__ import annotations
 
 import importlib.metadata
 import platform
+import time
 from pathlib import Path
 
 
@@ -22,3 +23,31 @@ def cpu_model() -> str:
     except OSError:
         pass
     return platform.processor() or platform.machine()
+
+
+def compile_times(build):
+    """(cold seconds, seconds from heyoka's on-disk cache, object) for ``build()`` (the JIT only).
+
+    The in-memory cache is cleared before the caching build, else that build would be served from
+    memory and store nothing on disk (on a first run the "cached" figure was then a second cold
+    compile)."""
+    import heyoka as hy
+
+    L = hy.llvm_state
+    was = L.get_diskcache_enabled()
+    L.clear_memcache()
+    L.set_diskcache_enabled(False)
+    try:
+        t0 = time.perf_counter()
+        obj = build()
+        cold = time.perf_counter() - t0
+    finally:
+        L.set_diskcache_enabled(was)
+    # with heyoka's on-disk cache as the user has it: the in-memory cache cleared first, else this
+    # build would be served from memory and store nothing on disk (stores the code if it is not there)
+    L.clear_memcache()
+    build()
+    L.clear_memcache()
+    t0 = time.perf_counter()
+    build()
+    return cold, time.perf_counter() - t0, obj

@@ -41,7 +41,7 @@ import time
 
 import numpy as np
 
-from _common import cpu_model, version  # benchmarks/ is on sys.path when run
+from _common import compile_times, cpu_model, version  # benchmarks/ is on sys.path when run
 
 T_END, RENORM = 1000.0, 1.0
 TOL_FULL, TOL_LLE, TOL_SPREAD = 1e-10, 1e-6, 1e-12
@@ -102,27 +102,6 @@ def heyoka_lle(sys_, rhs, X, names, y0, tol):
         tangent.append(hy.sum(terms))
     eqs = sys_ + list(zip(u, tangent))
     return lambda: hy.taylor_adaptive(eqs, list(y0) + [1.0, 0.0, 0.0, 0.0], tol=tol, compact_mode=False)
-
-
-def compile_times(build):
-    """(cold seconds, seconds from heyoka's on-disk cache, integrator) for ``build()`` (the JIT only)."""
-    import heyoka as hy
-
-    L = hy.llvm_state
-    was = L.get_diskcache_enabled()
-    L.clear_memcache()
-    L.set_diskcache_enabled(False)
-    try:
-        t0 = time.perf_counter()
-        ta = build()
-        cold = time.perf_counter() - t0
-    finally:
-        L.set_diskcache_enabled(was)
-    build()  # with heyoka's on-disk cache as the user has it (stores the code if it is not there)
-    L.clear_memcache()
-    t0 = time.perf_counter()
-    build()
-    return cold, time.perf_counter() - t0, ta
 
 
 def benettin(ta, y0, k, t_end=T_END, every=RENORM):

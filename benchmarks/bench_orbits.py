@@ -52,7 +52,7 @@ import time
 
 import numpy as np
 
-from _common import cpu_model, version  # benchmarks/ is on sys.path when run
+from _common import compile_times, cpu_model, version  # benchmarks/ is on sys.path when run
 
 E_PICK = 3.0  # J: the mode-2 orbit to re-solve
 PERTURB = 1e-3  # relative perturbation of the start and the period
@@ -79,30 +79,6 @@ def measure(fns, repeat, inner=1):
                 out[lab] = fn()
             times[lab].append((time.perf_counter() - t0) / inner)
     return {lab: (min(t), float(np.median(t)), t, first[lab], out[lab]) for lab, t in times.items()}
-
-
-def compile_times(build):
-    """(cold seconds, seconds from heyoka's on-disk cache, object) for ``build()`` (the JIT only)."""
-    import heyoka as hy
-
-    L = hy.llvm_state
-    was = L.get_diskcache_enabled()
-    L.clear_memcache()
-    L.set_diskcache_enabled(False)
-    try:
-        t0 = time.perf_counter()
-        obj = build()
-        cold = time.perf_counter() - t0
-    finally:
-        L.set_diskcache_enabled(was)
-    # with heyoka's on-disk cache as the user has it: the in-memory cache cleared first, else this
-    # build would be served from memory and store nothing on disk (stores the code if it is not there)
-    L.clear_memcache()
-    build()
-    L.clear_memcache()
-    t0 = time.perf_counter()
-    build()
-    return cold, time.perf_counter() - t0, obj
 
 
 # ----------------------------------------------------------------------------- heyoka
