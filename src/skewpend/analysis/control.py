@@ -41,22 +41,6 @@ def _columns(actuated: str) -> Tuple[int, ...]:
     return tuple(j for j in range(2) if code & (1 << j))
 
 
-def _equilibrium(params: Parameters, equilibrium):
-    from .equilibria import Equilibrium, equilibria, equilibrium_at
-
-    if isinstance(equilibrium, Equilibrium):
-        return equilibrium
-    if isinstance(equilibrium, str):
-        return equilibria(params).find(equilibrium)
-    try:
-        q = [float(x) for x in equilibrium]
-    except (TypeError, ValueError):
-        raise ParameterError(f"equilibrium must be a label such as 'up-up', an Equilibrium or (phi, psi), got {equilibrium!r}") from None
-    if len(q) != 2:
-        raise ParameterError(f"equilibrium must be a label such as 'up-up', an Equilibrium or (phi, psi), got {equilibrium!r}")
-    return equilibrium_at(params, q)
-
-
 @dataclass(frozen=True)
 class Linearization:
     """``d/dt dx = A dx + B du`` about ``equilibrium`` (its state ``x*``); ``actuated`` and the
@@ -79,7 +63,9 @@ def linearization(params: Parameters, equilibrium="up-up", actuated: str = "both
     ``B = [0; M^-1 S]``, ``S`` the columns of the actuated joints."""
     params = numeric_params(params, "a linearisation")
     joints = _columns(actuated)
-    eq = _equilibrium(params, equilibrium)
+    from .equilibria import find_equilibrium
+
+    eq = find_equilibrium(params, equilibrium)
     S = np.eye(2)[:, list(joints)]
     B = np.vstack([np.zeros((2, len(joints))), np.linalg.solve(eq.M, S)])
     return Linearization(eq.A.copy(), B, eq, actuated, joints)

@@ -35,7 +35,8 @@ from ..results import DatasetSpec, Result
 from ..status import Status
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
-__all__ = ["Equilibrium", "Equilibria", "equilibria", "equilibrium_at", "linearisation_functions", "potential_function"]
+__all__ = ["Equilibrium", "Equilibria", "equilibria", "equilibrium_at", "find_equilibrium", "linearisation_functions",
+           "potential_function"]
 
 #: Grid of Newton starts per side (refined up to :data:`MAX_STARTS` while the index check fails).
 DEFAULT_STARTS = 16
@@ -402,3 +403,20 @@ def equilibrium_at(params: Parameters, q: Sequence[float]) -> Equilibrium:
             f"(phi, psi) = ({q0[0, 0]:.6g}, {q0[0, 1]:.6g}) rad is not an equilibrium: dV/dq = {residual:.3g} N m there; "
             "choose one of skewpend.equilibria(params)")
     return _linearise(params, wrap(root[0]), values, functions)
+
+
+def find_equilibrium(params: Parameters, which, name: str = "equilibrium") -> Equilibrium:
+    """An equilibrium given as an :class:`Equilibrium`, a label (``"up-up"``: one of
+    :func:`equilibria`'s) or angles ``(phi, psi)`` near one (:func:`equilibrium_at`); ``name`` is
+    the argument's name in the refusal."""
+    if isinstance(which, Equilibrium):
+        return which
+    if isinstance(which, str):
+        return equilibria(params).find(which)
+    try:
+        q = [float(x) for x in which]
+    except (TypeError, ValueError):
+        q = []
+    if len(q) != 2:
+        raise ParameterError(f"{name} must be an equilibrium, a label such as 'up-up', or (phi, psi), got {which!r}")
+    return equilibrium_at(params, q)

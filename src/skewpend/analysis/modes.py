@@ -371,20 +371,9 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
 
 
 def _modes_about(params: Parameters, about) -> Modes:
-    from .equilibria import Equilibrium, equilibria, equilibrium_at
+    from .equilibria import find_equilibrium
 
-    if isinstance(about, Equilibrium):
-        eq = about
-    elif isinstance(about, str):
-        eq = equilibria(params).find(about)
-    else:
-        try:
-            pair = [float(x) for x in about]
-        except (TypeError, ValueError):
-            raise ParameterError(f"about must be an equilibrium, a label such as 'up-up', or (phi, psi), got {about!r}") from None
-        if len(pair) != 2:
-            raise ParameterError(f"about must be an equilibrium, a label such as 'up-up', or (phi, psi), got {about!r}")
-        eq = equilibrium_at(params, pair)
+    eq = find_equilibrium(params, about, "about")
     try:
         return _modes_from_matrices(eq.M, eq.C, eq.K, params, equilibrium=eq.q)
     except NotFinite as exc:
