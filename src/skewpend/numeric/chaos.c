@@ -72,6 +72,18 @@ typedef struct {
 
 int64_t sp_lyap_state_size(void) { return (int64_t)sizeof(sp_lyap_state); }
 
+/* F at the start of a resumable variational run (once): 0 if the state or F is not finite */
+static int var_start(sp_lyap_state *s, const double *p, int n)
+{
+    if (s->have_f) return 1;
+    if (!all_finite(s->y, n)) return 0;
+    var_rhs(n, s->y, p, s->f);
+    s->nfev++;
+    if (!all_finite(s->f, n)) return 0;
+    s->have_f = 1;
+    return 1;
+}
+
 /* Benettin's method: the state and s->k tangent vectors (1..4) by adaptive DOP853 -- error
  * control on every component, rtol/atol as in sp_dop853 -- stepping exactly onto the
  * renormalisation times t0 + j every (and t_end), where the tangent vectors are replaced by the
@@ -87,13 +99,7 @@ int sp_lyap(sp_lyap_state *s, const double *p, double t_end, double rtol, double
     int64_t m = 0, done = 0;
     *m_out = 0;
     if (k < 1 || k > 4 || cap < 1 || !(s->every > 0.0)) return SP_CALL_BAD_ARGUMENTS;
-    if (!s->have_f) {
-        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
-        var_rhs(n, s->y, p, s->f);
-        s->nfev++;
-        if (!all_finite(s->f, n)) return SP_STATUS_NONFINITE;
-        s->have_f = 1;
-    }
+    if (!var_start(s, p, n)) return SP_STATUS_NONFINITE;
     for (;;) {
         double t_next = s->t0 + (double)(s->nrenorm + 1) * s->every;
         if (t_next > t_end) t_next = t_end;
@@ -139,13 +145,7 @@ int sp_flow(sp_lyap_state *s, const double *p, double t_end, double rtol, double
     double K[DOP_NSTAGES][SP_VMAX], ynew[SP_VMAX], ytmp[SP_VMAX];
     int64_t done = 0;
     if (k < 1 || k > 4 || !(t_end >= s->t)) return SP_CALL_BAD_ARGUMENTS;
-    if (!s->have_f) {
-        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
-        var_rhs(n, s->y, p, s->f);
-        s->nfev++;
-        if (!all_finite(s->f, n)) return SP_STATUS_NONFINITE;
-        s->have_f = 1;
-    }
+    if (!var_start(s, p, n)) return SP_STATUS_NONFINITE;
     while (s->t < t_end) {
         if (done >= budget) return SP_CALL_BUDGET;
         if (s->h <= 0.0) s->h = dop_initial_step_v(s->y, s->f, p, t_end - s->t, rtol, atol, &s->nfev, n);
