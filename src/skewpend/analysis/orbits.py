@@ -365,8 +365,25 @@ class BranchEvent:
     detail: str = ""
 
 
+class _Orbits:
+    """What a family of orbits (in energy or in alpha) derives from its ``periods`` and ``sigma``."""
+
+    periods: np.ndarray
+    sigma: np.ndarray
+
+    @property
+    def frequencies(self) -> np.ndarray:
+        """``2 pi / T`` [rad/s] of each orbit."""
+        return 2 * np.pi / self.periods
+
+    @property
+    def stable(self) -> np.ndarray:
+        """``|sigma| <= 2`` (within :data:`STABILITY_MARGIN`): the nontrivial multipliers on the unit circle."""
+        return np.abs(self.sigma) <= 2.0 + STABILITY_MARGIN
+
+
 @dataclass(frozen=True)
-class NNMFamily(Result):
+class NNMFamily(_Orbits, Result):
     """A nonlinear normal mode: the family of periodic orbits continuing linear mode ``mode``.
 
     Arrays along the family (one entry per orbit, in continuation order): ``energies`` [J],
@@ -400,13 +417,6 @@ class NNMFamily(Result):
         object.__setattr__(self, "multipliers", np.array([m for m, _ in mus]).reshape(-1, 4))
         object.__setattr__(self, "sigma", np.array([s for _, s in mus], dtype=float))
 
-    @property
-    def frequencies(self) -> np.ndarray:
-        return 2 * np.pi / self.periods
-
-    @property
-    def stable(self) -> np.ndarray:
-        return np.abs(self.sigma) <= 2.0 + STABILITY_MARGIN
 
     def __len__(self) -> int:
         return len(self.energies)
@@ -637,7 +647,7 @@ def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_ord
 
 
 @dataclass(frozen=True)
-class AlphaFamily(Result):
+class AlphaFamily(_Orbits, Result):
     """A nonlinear normal mode at a fixed energy followed along the skew angle (:func:`nnm_alpha`).
 
     Arrays over ``alphas`` [rad] (those reached): ``periods`` [s], ``frequencies`` [rad/s],
@@ -662,13 +672,6 @@ class AlphaFamily(Result):
             object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float))
         object.__setattr__(self, "states", np.asarray(self.states, dtype=float).reshape(-1, 4))
 
-    @property
-    def frequencies(self) -> np.ndarray:
-        return 2 * np.pi / self.periods
-
-    @property
-    def stable(self) -> np.ndarray:
-        return np.abs(self.sigma) <= 2.0 + STABILITY_MARGIN
 
     def table(self) -> str:
         lines = [f"{'alpha [deg]':>11}  {'frequency [rad/s]':>17}  {'sigma':>10}  stability"]
