@@ -110,3 +110,29 @@ def test_without_the_request_sigterm_is_left_alone():
     with Interrupts() as intr:
         assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
         assert intr._previous is None or signal.SIGTERM not in intr._previous
+
+
+def test_nested_interrupts_share_one_signal():
+    """A report records a signal between its sections; a simulation inside it raises it at its first
+    check, once; a signal during the inner work reaches the outer's on_signal too."""
+    import os
+    import signal
+    import time
+
+    from skewpend.interrupts import Interrupts
+
+    told = []
+    with Interrupts(on_signal=lambda: told.append("outer")) as outer:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.01)  # the handler runs: recorded, nothing raised here
+        with Interrupts() as inner:
+            with pytest.raises(KeyboardInterrupt):
+                inner.check()
+            inner.check()  # raised once
+        outer.check()  # ... and not again by the enclosing work
+        with pytest.raises(KeyboardInterrupt):  # raised when the inner work ends (its last stretch counts)
+            with Interrupts():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.01)
+                assert told == ["outer", "outer"] and outer.pending is KeyboardInterrupt
+        outer.pending = None  # handled here: leaving the outer block raises nothing more

@@ -58,6 +58,7 @@ class Interrupts:
         self.pending: Optional[type] = None  # the exception to raise at the next check, if any
         self.on_signal = on_signal  # also run at the signal (e.g. tell worker threads to stop)
         self._previous: Optional[dict] = None  # the handlers replaced, by signal number
+        self._outer: Optional["Interrupts"] = None  # an enclosing Interrupts (nested: a report's simulations)
 
     def _record(self, signum, frame) -> None:
         # SIGTERM outranks a Ctrl-C recorded before it: the process is asked to end
@@ -65,24 +66,37 @@ class Interrupts:
             self.pending = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
         if self.on_signal is not None:
             self.on_signal()
+        if self._outer is not None:  # the enclosing work hears of it too (its on_signal, its checks)
+            self._outer._record(signum, frame)
 
     def __enter__(self) -> "Interrupts":
         if threading.current_thread() is threading.main_thread():
             for signum, ours in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, _raise_terminated)):
-                if signal.getsignal(signum) is ours:  # a handler of the application is left alone
+                handler = signal.getsignal(signum)
+                outer = getattr(handler, "__self__", None)
+                nested = isinstance(outer, Interrupts) and getattr(handler, "__func__", None) is Interrupts._record
+                if handler is ours or nested:  # a handler of the application is left alone
                     self._previous = self._previous or {}
                     self._previous[signum] = signal.signal(signum, self._record)
+                    if nested:
+                        self._outer = outer
         return self
 
     def check(self) -> None:
-        """Raise :class:`KeyboardInterrupt` (or :class:`Terminated`) if a signal came since the last check."""
+        """Raise :class:`KeyboardInterrupt` (or :class:`Terminated`) if a signal came since the last
+        check -- here, or, nested, in the enclosing :class:`Interrupts` before this one began."""
+        if self.pending is None and self._outer is not None and self._outer.pending is not None:
+            self.pending = self._outer.pending
         if self.pending is not None:
             kind, self.pending = self.pending, None
+            if self._outer is not None:
+                self._outer.pending = None  # raised once, here; it travels out through the enclosing work
             raise kind
 
     def __exit__(self, exc_type, exc, tb) -> None:
         for signum, previous in (self._previous or {}).items():
             signal.signal(signum, previous)
         self._previous = None
+        self._outer = None
         if self.pending is not None and exc_type is None:  # a signal during the last stretch still counts
             self.check()

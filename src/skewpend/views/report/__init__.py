@@ -251,8 +251,19 @@ def build_report(
     ctx = Context(params, y0, t_end, method, rtol, atol, dt, max_steps, min(clip_seconds, t_end), fps, clip_size,
                    int(sweep_points), validate, command)
     # sections 2 and 3 are symbolic work (SymPy, a few seconds): on a machine with more than one
-    # core they are computed by a second Python process while this one simulates and draws
-    background = _Background.start(params) if PARALLEL and (os.cpu_count() or 1) > 1 else None
+    # core they are computed by a second Python process while this one simulates and draws.
+    # Ctrl-C and SIGTERM are recorded and raised between the sections and the compiled calls, never
+    # inside a clean-up that Python would only report (a figure's weak-reference callback, say);
+    # the second process is stopped at the signal.
+    from ...interrupts import Interrupts
+
+    running: Dict[str, "_Background"] = {}
+
+    def stop_background() -> None:
+        child = running.get("child")
+        if child is not None and child.proc.poll() is None:
+            child.proc.kill()
+
     numeric = {
         "simulation": section_simulation,  # first: section 1's pictures and the animation use its runs
         "system": section_system,
@@ -265,22 +276,29 @@ def build_report(
     total = len(numeric) + 3
     done = 0
     bodies: Dict[str, str] = {}
-    try:
-        for key, build in numeric.items():
-            t0 = time.perf_counter()
-            bodies[key] = build(ctx)
-            ctx.timings[key] = time.perf_counter() - t0
-            done += 1
-            if progress is not None:
-                progress(done, total)
-        symbolic = background.result() if background is not None else None
-        if symbolic is None:  # serial, or the second process failed: compute it here
-            symbolic = _symbolic_sections(params)
-        else:
-            ctx.notes["parallel"] = "sections 2 and 3 computed by a second process, in parallel"
-    finally:
+    with Interrupts(on_signal=stop_background) as intr:
+        background = _Background.start(params) if PARALLEL and (os.cpu_count() or 1) > 1 else None
         if background is not None:
-            background.stop()
+            running["child"] = background
+        try:
+            for key, build in numeric.items():
+                intr.check()
+                t0 = time.perf_counter()
+                bodies[key] = build(ctx)
+                ctx.timings[key] = time.perf_counter() - t0
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+            intr.check()
+            symbolic = background.result() if background is not None else None
+            intr.check()
+            if symbolic is None:  # serial, or the second process failed: compute it here
+                symbolic = _symbolic_sections(params)
+            else:
+                ctx.notes["parallel"] = "sections 2 and 3 computed by a second process, in parallel"
+        finally:
+            if background is not None:
+                background.stop()
     bodies.update(symbolic["bodies"])
     ctx.notes.update(symbolic["notes"])
     ctx.timings.update(symbolic["timings"])
