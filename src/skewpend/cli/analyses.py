@@ -29,7 +29,7 @@ def _dop853(name: str, config, model, initial=None, **simulation):
     return run
 
 
-def _outputs(workers, scheduler, out, resume: bool, plot) -> Optional[str]:
+def ensemble_outputs(workers, scheduler, out, resume: bool, plot) -> Optional[str]:
     """The checks of an ensemble command's outputs before any work; the store (FILE.zarr) or None."""
     from ..io import check_output_path
 
@@ -50,7 +50,7 @@ def _written(*pairs) -> list:
     return [f"{what:10s}{path}" for what, path in pairs if path is not None]
 
 
-def _draw(plot, figure: str, *args, **kwargs) -> None:
+def draw_figure(plot, figure: str, *args, **kwargs) -> None:
     if plot is not None:
         from ..views import figures
 
@@ -89,7 +89,7 @@ def flipmap(
     """
     run = _dop853("flipmap", config, model, t_end=t_end, rtol=rtol, atol=atol)
     params = run.parameters()
-    store = _outputs(ensemble["workers"], ensemble["scheduler"], out, resume, plot)
+    store = ensemble_outputs(ensemble["workers"], ensemble["scheduler"], out, resume, plot)
     from ..analysis.flipmap import flip_map
 
     kw = run.settings(("t_end", "rtol", "atol"))
@@ -101,7 +101,7 @@ def flipmap(
         fm = flip_map(params, 256 if n is None else n, progress=bar, store=store, resume=resume, **ensemble, **kw)
     if out is not None and store is None:
         fm.to_netcdf(out)
-    _draw(plot, "flipmap_figure", fm)
+    draw_figure(plot, "flipmap_figure", fm)
     flipped = int(fm.flipped.sum()) if hasattr(fm, "flipped") else int((fm.which >= 0).sum())
     st = fm.stats
     lines = [
@@ -163,7 +163,7 @@ def lyapunov(
         spec = run_lyapunov(params, y0, t_end=run.number("t_end"), progress=bar, throw=False, **kw)
     if out is not None:
         _write_lyapunov(spec, out)
-    _draw(plot, "lyapunov_figure", spec)
+    draw_figure(plot, "lyapunov_figure", spec)
     st = spec.stats
     lines = [spec.table()]
     if spec.k == 4:
@@ -257,7 +257,7 @@ def poincare(
                            **run.settings(("rtol", "atol")))
     if out is not None:
         (sec.to_netcdf if out.lower().endswith(".nc") else sec.to_csv)(out)
-    _draw(plot, "poincare_figure", sec, canonical=not velocity)
+    draw_figure(plot, "poincare_figure", sec, canonical=not velocity)
     st = sec.stats
     c, o = sec.coord_names
     lines = [
@@ -303,7 +303,7 @@ def chaos_diagram(
     run = _dop853("chaos-diagram", config, model, t_end=t_end, rtol=rtol, atol=atol)
     run.values["parameters"].pop("alpha", None)  # the default's: the diagram's axis replaces it
     params = run.parameters()
-    store = _outputs(ensemble["workers"], ensemble["scheduler"], out, resume, plot)
+    store = ensemble_outputs(ensemble["workers"], ensemble["scheduler"], out, resume, plot)
     from ..analysis.chaos import chaos_diagram as run_diagram
 
     kw = {k: v for k, v in dict(alpha=alphas, energy=energies, samples=samples, threshold=threshold).items() if v is not None}
@@ -312,7 +312,7 @@ def chaos_diagram(
         d = run_diagram(params, progress=bar, store=store, resume=resume, **ensemble, **kw)
     if out is not None and store is None:
         d.to_netcdf(out)
-    _draw(plot, "chaos_diagram_figure", d)
+    draw_figure(plot, "chaos_diagram_figure", d)
     st = d.stats
     lines = [
         f"chaotic fraction (largest exponent > {d.threshold:.3g} 1/s over {kw.get('t_end', 150.0):g} s, "

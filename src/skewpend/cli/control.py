@@ -1,4 +1,5 @@
-"""``control lqr|swingup``: balance the pendulum at an equilibrium with LQR, and swing it up to it."""
+"""``control lqr|swingup|roa``: balance the pendulum at an equilibrium with LQR, swing it up to it,
+and map the LQR's region of attraction."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ import typer
 
 from ..parsing import UsageError
 from . import types as T
-from .options import CONFIG, MODEL, QUIET, RUN, command, option, plot_option, resolve
+from .analyses import ATOL_E8, RTOL_E8, RESUME, draw_figure, ensemble_outputs
+from .options import CONFIG, ENSEMBLE, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
 
 COMMANDS = ("control",)
 
@@ -19,6 +21,7 @@ COMMANDS = ("control",)
 class Action(str, Enum):
     lqr = "lqr"
     swingup = "swingup"
+    roa = "roa"
 
 
 class Actuated(str, Enum):
@@ -27,25 +30,40 @@ class Actuated(str, Enum):
     pendubot = "pendubot"
 
 
-@command(MODEL)
+#: The options that belong to some actions only (the others refuse them with one line).
+ONLY = {
+    "--t-end": ("swingup", "roa"), "--energy-gain": ("swingup",), "--elbow-gains": ("swingup",), "--out": ("swingup", "roa"),
+    "--plot": ("swingup", "roa"), "--animate": ("swingup",), "--n": ("roa",), "--plane": ("roa",), "--window": ("roa",),
+    "--rtol": ("roa",), "--atol": ("roa",), "--resume": ("roa",), "--workers": ("roa",), "--scheduler": ("roa",),
+}
+
+
+@command(MODEL, ENSEMBLE)
 def control(
     model: dict,
-    action: Annotated[Optional[Action], typer.Argument(help="lqr: the gain at the target, its closed-loop eigenvalues and region of attraction; swingup: from hanging to the target and capture by the LQR", show_default=False)] = None,
+    ensemble: dict,
+    action: Annotated[Optional[Action], typer.Argument(help="lqr: the gain at the target, its closed-loop eigenvalues and region estimate; swingup: from hanging to the target and capture by the LQR; roa: the LQR's region of attraction on a grid of starts", show_default=False)] = None,
     target: option("--target", T.EquilibriumChoice(), "the equilibrium to balance at: a label (default up-up) or PHI,PSI near one") = None,
     actuated: Annotated[Actuated, typer.Option("--actuated", help="both joints, acrobot (the elbow only) or pendubot (the shoulder only)", rich_help_panel=RUN)] = Actuated.both,
     q: option("--q", T.Numbers(4, metavar="Q1,Q2,Q3,Q4"), "LQR state weights: the diagonal of Q for (phi, psi, phi', psi') (default 1,1,1,1)") = None,
     r: option("--r", T.Numbers(most=2, metavar="R1[,R2]"), "LQR input weights: the diagonal of R, one per actuated joint (default 1)") = None,
-    umax: option("--umax", T.Positive("number of N m"), "torque limit of each motor [N m] (default: none for lqr, 10 for swingup)") = None,
-    t_end: option("--t-end", T.Positive("number of seconds"), "swingup: length of the run [s] (default 20)") = None,
+    umax: option("--umax", T.Positive("number of N m"), "torque limit of each motor [N m] (default: none for lqr, 10 for swingup and roa)") = None,
+    t_end: option("--t-end", T.Positive("number of seconds"), "swingup: length of the run [s] (default 20); roa: longest time each start is followed (default 10)") = None,
     energy_gain: option("--energy-gain", T.Positive(), "swingup: gain of the energy shaping [N m s/J] (default 2)") = None,
     elbow_gains: option("--elbow-gains", T.Numbers(2, metavar="KP,KD"), "swingup: the elbow's PD gains holding rod 2 in line while the energy is pumped (default 20,4)") = None,
-    out: option("--out", T.OutPath((".csv", ".nc")), "swingup: write the run to FILE (.csv or .nc)", RUN, "-o") = None,
-    plot: plot_option("the swing-up run") = None,
+    n: option("--n", T.Whole(1, 4096), "roa: cells per side, an n x n grid of starts (default 128)") = None,
+    plane: option("--plane", T.Plane(), "roa: the two coordinates varied, of phi, psi, dphi, dpsi (default phi,psi; the others at the target's)") = None,
+    window: option("--window", T.Offsets(), "roa: their ranges as offsets from the target, LO:HI,LO:HI (radians or deg; rad/s or deg/s; default -180:180deg for an angle, -5:5 for a speed)") = None,
+    rtol: RTOL_E8 = None,
+    atol: ATOL_E8 = None,
+    out: option("--out", T.OutPath((".csv", ".nc", ".zarr"), check=False), "swingup: write the run to FILE (.csv or .nc); roa: the map to FILE.zarr (chunk by chunk, resumable) or FILE.nc", RUN, "-o") = None,
+    plot: plot_option("the swing-up run or the region of attraction") = None,
     animate: option("--animate", T.OutPath((".mp4", ".gif")), "swingup: write the 3D animation to FILE.mp4 or FILE.gif", RUN) = None,
+    resume: Annotated[bool, typer.Option("--resume", help="roa: " + RESUME.format("chunks"), rich_help_panel=RUN)] = False,
     quiet: QUIET = False,
     config: CONFIG = None,
 ):
-    """Balance it and swing it up: LQR at any equilibrium (controllability, gain, closed-loop eigenvalues, region of attraction) and energy-shaping swing-up captured by the LQR, with skewed axes.
+    """Balance it and swing it up: LQR at any equilibrium (controllability, gain, closed-loop eigenvalues, region estimate), energy-shaping swing-up captured by the LQR, and the region of attraction on a grid of starts -- with skewed axes.
 
     From a --config run file it takes [parameters].
     """
@@ -54,12 +72,23 @@ def control(
     from ..analysis.control import controllability, lqr, swingup
 
     if action is None:
-        raise UsageError("control: give what to do, lqr or swingup (e.g. skewpend control lqr --actuated acrobot)")
-    if action is Action.lqr:
-        used = [o for o, v in (("--t-end", t_end), ("--energy-gain", energy_gain), ("--elbow-gains", elbow_gains),
-                               ("--out", out), ("--plot", plot), ("--animate", animate)) if v is not None]
-        if used:
-            raise UsageError(f"{', '.join(used)} {'goes' if len(used) == 1 else 'go'} with 'control swingup', not 'control lqr'")
+        raise UsageError("control: give what to do, lqr, swingup or roa (e.g. skewpend control lqr --actuated acrobot)")
+    given = {"--t-end": t_end, "--energy-gain": energy_gain, "--elbow-gains": elbow_gains, "--out": out, "--plot": plot,
+             "--animate": animate, "--n": n, "--plane": plane, "--window": window, "--rtol": rtol, "--atol": atol,
+             "--resume": resume or None, "--workers": ensemble.get("workers"), "--scheduler": ensemble.get("scheduler")}
+    used = [flag for flag, value in given.items() if value is not None and action.value not in ONLY[flag]]
+    if used:
+        goes = " or ".join(f"'control {a}'" for a in ONLY[used[0]])
+        raise UsageError(f"{used[0]} goes with {goes}, not 'control {action.value}'")
+    store = None
+    if action is Action.roa:
+        if out is not None and not out.lower().endswith((".zarr", ".nc")):
+            raise UsageError(f"--out: control roa writes FILE.zarr or FILE.nc, got {out!r}")
+        store = ensemble_outputs(ensemble.get("workers"), ensemble.get("scheduler"), out, resume, plot)
+    elif out is not None:
+        from ..io import check_output_path
+
+        check_output_path(out, (".csv", ".nc"), option="--out")
     if plot is not None:
         from .simulate import check_plot
 
@@ -75,6 +104,9 @@ def control(
     Q = None if q is None else np.diag(q)
     R = None if r is None else np.diag(r)
     goal = "up-up" if target is None else target
+    if action is Action.roa:
+        return _roa(params, goal, actuated.value, Q, R, umax, t_end, n, plane, window, rtol, atol, out, store, plot, resume,
+                    ensemble, quiet)
     if action is Action.lqr:
         design = lqr(params, goal, actuated.value, Q=Q, R=R, umax=umax)
         lin = design.linearization
@@ -92,8 +124,6 @@ def control(
         lines.append(f"region      dx' P dx < {design.rho:.6g} ({limit}; sampled inner estimate: every start inside is captured)")
         sys.stdout.write("\n".join(lines) + "\n")
         return design
-    if animate is not None and not str(animate).lower().endswith((".mp4", ".gif")):
-        raise UsageError("--animate: expected FILE.mp4 or FILE.gif")
     kw = {}
     if energy_gain is not None:
         kw["energy_gain"] = energy_gain
@@ -134,3 +164,34 @@ def _write_csv(tr, u, out) -> None:
     with atomic_path(out) as tmp:
         np.savetxt(tmp, np.column_stack([tr.t, tr.y, tr.energy, tr.work, u]), delimiter=",",
                    header="t,phi,psi,dphi,dpsi,energy,work,u1,u2", comments="")
+
+
+def _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol, out, store, plot, resume, ensemble,
+         quiet):
+    from ..analysis.roa import region_of_attraction
+
+    kw = {k: v for k, v in (("plane", plane), ("window", window), ("t_end", t_end), ("rtol", rtol), ("atol", atol))
+          if v is not None}
+    with progress("region of attraction", "cells", quiet) as bar:
+        roa = region_of_attraction(params, goal, actuated, 128 if n is None else n, Q=Q, R=R,
+                                   umax=10.0 if umax is None else umax, progress=bar, store=store, resume=resume,
+                                   **{k: v for k, v in ensemble.items() if v is not None}, **kw)
+    if out is not None and store is None:
+        roa.to_netcdf(out)
+    draw_figure(plot, "roa_figure", roa)
+    st, se = roa.stats, roa.settings
+    a, b = roa.plane
+    lines = [
+        f"target      {', '.join(f'{math.degrees(v):.6g} deg' for v in roa.target[:2])} ({actuated}, |u| <= {se['umax'][0]:g} N m)",
+        f"grid        {roa.n} x {roa.n} starts over {a} x {b} about the target, followed up to {se['t_end']:g} s",
+        f"captured    {st['captured']} of {st['cells']} ({100 * roa.captured_fraction:.1f} %); inside the LQR estimate "
+        f"dx' P dx < {roa.rho:.4g} at the start: {100 * roa.inner_fraction:.2f} %",
+        f"work        {st['steps']} steps; {st.get('wall_time', float('nan')):.3g} s on {st.get('workers', '?')} workers",
+    ]
+    if store is not None:
+        lines.append(f"store       {st['chunks_computed']} chunks computed now, {st.get('chunks_resumed', 0)} already done")
+    if st.get("failed"):
+        lines.append(f"failed      {st['failed']} cells (left NaN: chattering where the wrapped feedback jumps)")
+    lines += [f"{what:12s}{path}" for what, path in (("written", out), ("plot", plot)) if path is not None]
+    sys.stdout.write("\n".join(lines) + "\n")
+    return roa

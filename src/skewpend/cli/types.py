@@ -153,6 +153,38 @@ class Window(ParamType):
         return ranges
 
 
+class Plane(ParamType):
+    """``A,B``: two different coordinates of the state, of ``phi, psi, dphi, dpsi``."""
+
+    metavar = "A,B"
+    NAMES = ("phi", "psi", "dphi", "dpsi")
+
+    def convert(self, text, flag):
+        parts = [p.strip().lower() for p in text.split(",")]
+        if len(parts) != 2 or any(p not in self.NAMES for p in parts) or parts[0] == parts[1]:
+            raise UsageError(f"{flag}: expected two different coordinates of {', '.join(self.NAMES)} "
+                             f"(e.g. phi,psi or phi,dphi), got {text!r}")
+        return tuple(parts)
+
+
+class Offsets(ParamType):
+    """``LO:HI,LO:HI`` -> two increasing intervals of offsets (radians or deg; rad/s or deg/s)."""
+
+    metavar = "LO:HI,LO:HI"
+
+    def convert(self, text, flag):
+        from ..parsing import parse_interval
+
+        parts = text.split(",")
+        if len(parts) != 2:
+            raise UsageError(f"{flag}: expected LO:HI,LO:HI (e.g. -90:90deg,-180:180deg), got {text!r}")
+        ranges = tuple(parse_interval(part, flag, angle=True) for part in parts)
+        for lo, hi in ranges:
+            if not lo < hi:
+                raise UsageError(f"{flag}: expected LO < HI in each range, got {text!r}")
+        return ranges
+
+
 class EquilibriumChoice(ParamType):
     """An equilibrium: a label (``down-down``, ``down-up``, ``up-down``, ``up-up``, ...: rod 1 then
     rod 2) or ``PHI,PSI`` angles near one (radians, ``deg`` suffix or multiples of pi)."""

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["Controller", "ACTUATION", "KINDS", "torque_limits"]
+__all__ = ["Controller", "ACTUATION", "KINDS", "torque_limits", "capture_many"]
 
 #: Which joints a motor drives: bit 0 the shoulder (joint 1), bit 1 the elbow (joint 2).
 ACTUATION = {"both": 3, "pendubot": 1, "acrobot": 2}
@@ -168,6 +168,19 @@ class Controller:
                                   out.ctypes.data_as(dp))
         return out
 
+    def closed_loop(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The closed loop's ``y'`` (n, 4) at the states ``y`` (n, 4) and times ``t`` (n,): the
+        generated right-hand side with these inputs added to the torques (``sp_rhs_ctl_many``)."""
+        rows = np.zeros((len(t), 6))
+        rows[:, :4] = y
+        rows[:, 5] = t
+        out = np.empty_like(rows)
+        dp = ctypes.POINTER(ctypes.c_double)
+        c = self.struct()
+        kernel.lib.sp_rhs_ctl_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), 6, p.ctypes.data_as(dp),
+                                   out.ctypes.data_as(dp))
+        return out[:, :4]
+
     def settings(self) -> Dict[str, Any]:
         """Plain JSON data describing the inputs (part of a run's settings)."""
         d: Dict[str, Any] = {"kind": self.kind, "actuated": self.actuated,
@@ -182,3 +195,34 @@ class Controller:
         if self.kind == "table":
             d.update(times=self.times.tolist(), torques=self.torques.tolist())
         return d
+
+
+def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarray, *, t_end: float, rtol: float,
+                 atol: float, max_steps: int, P: np.ndarray, rho: float, cancel=None, group: int = 16):
+    """The closed loop of ``controller`` from each of ``starts`` (m, 4), integrated by DOP853 until
+    it enters the region ``dx^T P dx < rho`` about the controller's target (``sp_capture_many``):
+    ``(time, steps, status)`` -- the capture time [s] (NaN: not by ``t_end``, or failed), the
+    accepted and rejected steps, and the integration's status code (0: completed).  ``group``
+    starts per compiled call, ``cancel`` (a ``threading.Event``) checked between calls; each
+    start's result does not depend on the grouping."""
+    from .ensemble import Cancelled
+
+    starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 4)
+    m = starts.shape[0]
+    time = np.full(m, np.nan)
+    steps = np.zeros(m, dtype=np.int64)
+    status = np.zeros(m, dtype=np.int8)
+    region = np.ascontiguousarray(P, dtype=np.float64).reshape(4, 4)
+    pp = np.ascontiguousarray(p, dtype=np.float64)
+    c = controller.struct()
+    dp = ctypes.POINTER(ctypes.c_double)
+    i64p, i8p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int8)
+    fn = kernel.lib.sp_capture_many
+    for a in range(0, m, group):
+        if cancel is not None and cancel.is_set():
+            raise Cancelled()
+        b = min(m, a + group)
+        fn(ctypes.byref(c), pp.ctypes.data_as(dp), starts[a:].ctypes.data_as(dp), b - a, float(t_end), float(rtol),
+           float(atol), int(max_steps), region.ctypes.data_as(dp), float(rho), time[a:].ctypes.data_as(dp),
+           steps[a:].ctypes.data_as(i64p), status[a:].ctypes.data_as(i8p))
+    return time, steps, status

@@ -449,7 +449,69 @@ void sp_inputs_many(const sp_control *c, const double *rows, int64_t nrows, int6
     for (int64_t r = 0; r < nrows; r++) sp_input(c, rows + r * stride, p, out + 2 * r);
 }
 
+/* the closed loop's right-hand side y' (SP_NMAX doubles per row, of which the state's) at nrows states
+ * (`stride` doubles apart, 5 or 6 components each) into out[nrows * stride] */
+void sp_rhs_ctl_many(const sp_control *c, const double *rows, int64_t nrows, int64_t stride, const double *p,
+                     double *out)
+{
+    double y[SP_NMAX], f[SP_NMAX];
+    sp_ctl = c;
+    for (int64_t r = 0; r < nrows; r++) {
+        memset(y, 0, sizeof y);
+        memcpy(y, rows + r * stride, (size_t)stride * sizeof(double));
+        model_rhs(y, p, f);
+        memcpy(out + r * stride, f, (size_t)stride * sizeof(double));
+    }
+    sp_ctl = 0;
+}
+
 int64_t sp_control_size(void) { return (int64_t)sizeof(sp_control); }
+
+/* Capture of m closed-loop starts (regions of attraction): each start (4 doubles: angles and speeds)
+ * is integrated with the control c by DOP853 (the core above, on the 4 mechanical components) until
+ * it enters the region dx' P dx < rho about the target c->xs (angles wrapped) -- captured: time[k]
+ * is the end of the first accepted step inside -- or reaches t_end (time[k] = NaN).  status[k] is
+ * SP_STATUS_SUCCESS, or the code of a failed integration (time NaN); steps[k] counts its accepted
+ * and rejected steps.  Every start's arithmetic is its own: the results do not depend on m or on
+ * which starts share a call. */
+void sp_capture_many(const sp_control *c, const double *p, const double *starts, int64_t m, double t_end,
+                     double rtol, double atol, int64_t max_steps, const double *P, double rho, double *time,
+                     int64_t *steps, int8_t *status)
+{
+    double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX], y[SP_NMAX], f[SP_NMAX];
+    const int n = 4;
+    sp_ctl = c;
+    for (int64_t k = 0; k < m; k++) {
+        double t = 0.0, h = 0.0, hused, t_new, when = NAN;
+        int64_t nacc = 0, nrej = 0, nfev = 0;
+        int rc = SP_STATUS_SUCCESS;
+        memset(y, 0, sizeof y);
+        memcpy(y, starts + 4 * k, 4 * sizeof(double));
+        model_rhs(y, p, f);
+        if (!all_finite(y, n) || !all_finite(f, n)) rc = SP_STATUS_NONFINITE;
+        for (;;) {
+            if (rc != SP_STATUS_SUCCESS) break;
+            double dx[4] = {sp_wrap(y[0] - c->xs[0]), sp_wrap(y[1] - c->xs[1]), y[2] - c->xs[2], y[3] - c->xs[3]};
+            double v = 0.0;
+            for (int i = 0; i < 4; i++)
+                for (int j = 0; j < 4; j++) v += dx[i] * P[4 * i + j] * dx[j];
+            if (v < rho) { when = t; break; }
+            if (t >= t_end) break;
+            if (h <= 0.0) h = dop_initial_step(y, f, p, t_end - t, rtol, atol, &nfev, n);
+            rc = dop_advance(t, y, f, p, t_end, rtol, atol, max_steps, &h, nacc, &nrej, &nfev, K, ynew, ytmp, n,
+                             &t_new, &hused);
+            if (rc) break;
+            nacc++;
+            t = t_new;
+            memcpy(y, ynew, (size_t)n * sizeof(double));
+            memcpy(f, K[DOP_NS], (size_t)n * sizeof(double));
+        }
+        time[k] = when;
+        steps[k] = nacc + nrej;
+        status[k] = (int8_t)rc;
+    }
+    sp_ctl = 0;
+}
 
 /* 2-stage Gauss-Legendre collocation (order 4, symplectic) for z' = ham_rhs(z, p).
  * The stage equations K_i = f(z + dt sum_j a_ij K_j) are solved by fixed-point iteration,

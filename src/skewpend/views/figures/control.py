@@ -9,7 +9,7 @@ import numpy as np
 from ..style import COLORS, SYMBOL, parameter_text, style
 from .base import heading, new_figure
 
-__all__ = ["control_figure"]
+__all__ = ["control_figure", "roa_figure", "ROA_COLORS"]
 
 
 def control_figure(run):
@@ -57,4 +57,64 @@ def control_figure(run):
         ax3.legend(loc="best", fontsize=8)
         heading(fig, "Swing-up and capture by the LQR\n" + parameter_text(tr.params)
                 + f"\n|u| ≤ {ctl.umax[0]:g} N m; " + run.message)
+    return fig
+
+
+#: Colours of the region-of-attraction map: capture times, not captured, failed, the LQR's estimate.
+ROA_COLORS = {"cmap": "viridis", "not_captured": "#f2f2f2", "failed": "#e4572e", "estimate": "#111111",
+              "target": "#e4572e"}
+
+
+def _axis_label(name: str) -> str:
+    unit = "deg" if name in ("phi", "psi") else "deg/s"
+    sym = SYMBOL["phi" if "phi" in name else "psi"]
+    return f"{sym}{chr(0x2032) if name.startswith('d') else ''} − {sym}{chr(0x2032) if name.startswith('d') else ''}* [{unit}]"
+
+
+def roa_figure(roa):
+    """A region of attraction (:func:`skewpend.region_of_attraction`): the capture time of every
+    start on the slice (offsets from the target, degrees), the starts not captured by ``t_end``
+    light grey, failed ones red, and the LQR's inner estimate ``dx^T P dx < rho`` (its slice)
+    drawn on the same axes; the captured fraction in the heading."""
+    from matplotlib.colors import ListedColormap
+
+    dx, dy = roa.deviations()
+    order_x, order_y = np.argsort(dx), np.argsort(dy)
+    x, y = np.degrees(dx[order_x]), np.degrees(dy[order_y])
+    t = roa.capture_time[np.ix_(order_x, order_y)]
+    outcome = roa.outcome[np.ix_(order_x, order_y)]
+    settings = roa.settings
+    with style():
+        fig = new_figure((7.6, 6.6))
+        ax = fig.subplots()
+        grey = np.where(outcome == 0, 0.0, np.nan)
+        ax.pcolormesh(x, y, grey.T, cmap=ListedColormap([ROA_COLORS["not_captured"]]), shading="nearest")
+        if np.any(outcome == -1):
+            red = np.where(outcome == -1, 0.0, np.nan)
+            ax.pcolormesh(x, y, red.T, cmap=ListedColormap([ROA_COLORS["failed"]]), shading="nearest")
+        mesh = ax.pcolormesh(x, y, t.T, cmap=ROA_COLORS["cmap"], shading="nearest", vmin=0.0,
+                             vmax=max(float(np.nanmax(t)) if np.any(np.isfinite(t)) else 1.0, 1e-9))
+        cbar = fig.colorbar(mesh, ax=ax, pad=0.02)
+        cbar.set_label("time to enter the LQR's estimate [s]")
+        e = np.degrees(roa.ellipse())
+        ax.plot(e[:, 0], e[:, 1], color=ROA_COLORS["estimate"], lw=1.4, label="LQR estimate  dxᵀP dx < ρ (inner bound)")
+        ax.plot([0], [0], marker="+", ms=12, mew=2, color=ROA_COLORS["target"], ls="none", label="the target")
+        from matplotlib.patches import Patch
+
+        handles, labels = ax.get_legend_handles_labels()
+        handles.append(Patch(color=ROA_COLORS["not_captured"], ec="0.6", label=f"not captured by t = {settings['t_end']:g} s"))
+        if np.any(outcome == -1):
+            handles.append(Patch(color=ROA_COLORS["failed"], label="failed (chatters on the law's jump)"))
+        ax.legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.9)
+        ax.set_xlabel(_axis_label(roa.plane[0]))
+        ax.set_ylabel(_axis_label(roa.plane[1]))
+        ax.set_xlim(x[0] - 0.5 * (x[1] - x[0]) if x.size > 1 else x[0] - 1, x[-1] + 0.5 * (x[-1] - x[-2]) if x.size > 1 else x[-1] + 1)
+        ax.set_ylim(y[0] - 0.5 * (y[1] - y[0]) if y.size > 1 else y[0] - 1, y[-1] + 0.5 * (y[-1] - y[-2]) if y.size > 1 else y[-1] + 1)
+        umax = settings.get("umax") or [None, None]
+        limit = "no torque limit" if umax[0] is None else f"|u| ≤ {umax[0]:g} N m"
+        tgt = ", ".join(f"{math.degrees(v):.4g}°" for v in roa.target[:2])
+        heading(fig, f"Region of attraction of the LQR at ({tgt}), {settings['actuated']}, {limit}\n"
+                + parameter_text(roa.params)
+                + f"\ncaptured: {100 * roa.captured_fraction:.1f} % of {roa.n} × {roa.n} starts "
+                f"(the estimate holds {100 * roa.inner_fraction:.2f} %)")
     return fig

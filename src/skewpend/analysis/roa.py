@@ -1,0 +1,409 @@
+"""Regions of attraction: which starts a saturated LQR brings to its equilibrium, on a grid.
+
+``region_of_attraction(params, target, actuated, n)`` designs (or takes) the LQR about
+``target`` with the torque limit ``umax`` and releases the closed loop from the centres of an
+``n x n`` grid of cells on a 2-D slice of the state space through the target -- two of
+``phi, psi, phi', psi'`` (``plane``) varied over ``window`` about their target values, the other
+two at theirs.  Each start is integrated by DOP853 with the inputs inside the compiled code
+(``sp_capture_many`` in ``integrators.c``; no Python per step) until it enters the LQR's inner
+estimate ``dx^T P dx < rho`` (:func:`skewpend.lqr`: inside it ``V = dx^T P dx`` decreases along
+the saturated nonlinear loop, so a start that gets there is captured) -- its *capture time* --
+or until ``t_end``.  A start entering the estimate is captured (the estimate is an inner bound);
+one that does not by ``t_end`` is counted as not captured (it may be captured later, or never).
+
+The map is a :class:`RoaJob` on the grid driver (:func:`skewpend.numeric.grid.run_grid`): rows
+of cells on every core, or as tasks on a Dask cluster (``scheduler=``), written chunk by chunk to
+a resumable Zarr store (``store=``, ``resume=``) -- bitwise the same result whatever the
+chunking, the workers or a resume after kill -9 (each start's arithmetic is its own).
+
+The feedback wraps the angle errors to (-pi, pi]: the law jumps where an angle is opposite its
+target (the hanging position, for an upright target).  A trajectory that lingers there can chatter
+on the jump (a sliding mode, with no classical solution); the integration then stops at
+``max_steps`` and the cell is *failed* (NaN, ``outcome`` -1, status PARTIAL) -- rare on cell
+centres, and reported, never guessed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, ClassVar, Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..checks import max_steps as check_max_steps, numeric_params, positive, tolerances
+from ..errors import EquilibriumError, ParameterError
+from ..numeric.grid import GridJob
+from ..results import DatasetSpec, Result, canonical_json
+from ..symbolic.model import Parameters
+
+__all__ = ["region_of_attraction", "RegionOfAttraction", "RoaJob", "open_region_of_attraction", "COORDINATES",
+           "STORE_KIND", "MAX_STEPS_ROA"]
+
+#: The state's coordinates a slice may vary (their index in x = (phi, psi, phi', psi')).
+COORDINATES = {"phi": 0, "psi": 1, "dphi": 2, "dpsi": 3}
+_UNITS = {"phi": "rad", "psi": "rad", "dphi": "rad/s", "dpsi": "rad/s"}
+_LONG = {"phi": "initial angle of hinge 1", "psi": "initial angle of hinge 2",
+         "dphi": "initial angular speed of hinge 1", "dpsi": "initial angular speed of hinge 2"}
+STORE_KIND = "skewpend region of attraction"
+#: Default cap on the steps of one start (a normal one takes hundreds; see the module on chattering).
+MAX_STEPS_ROA = 200_000
+#: Largest grid side.
+MAX_N = 4096
+#: Statistics per row (and per store chunk).
+CHUNK_STATS = ("cells", "captured", "failed", "steps")
+
+
+def _plane(plane) -> Tuple[str, str]:
+    try:
+        a, b = plane
+    except (TypeError, ValueError):
+        raise ParameterError(f"plane must be two of {', '.join(COORDINATES)}, got {plane!r}") from None
+    if a not in COORDINATES or b not in COORDINATES or a == b:
+        raise ParameterError(f"plane must be two different coordinates of {', '.join(COORDINATES)}, got {plane!r}")
+    return str(a), str(b)
+
+
+def _window(name: str, value, angle: bool) -> Tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a pair (start, stop) of offsets from the target, got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ParameterError(f"{name} must be finite with start < stop, got ({lo:g}, {hi:g})")
+    if angle and (lo < -math.pi or hi > math.pi):
+        raise ParameterError(f"{name}: an angle's offsets from the target must lie within [-pi, pi] (the rest is the "
+                             f"same angles again), got ({lo:g}, {hi:g})")
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class RegionOfAttraction(Result):
+    """The result of :func:`region_of_attraction`.
+
+    * ``plane`` -- the two coordinates varied (of ``phi, psi, dphi, dpsi``); ``x0``, ``y0`` -- their
+      starting values (cell centres; ``x0`` along axis 0, ``y0`` along axis 1) [rad or rad/s];
+    * ``capture_time`` (n, n) [s] -- when the start entered the LQR's estimate (0: it starts
+      inside), NaN if not by ``t_end`` or failed; ``outcome`` (n, n) -- 1 captured, 0 not
+      captured by ``t_end``, -1 failed;
+    * ``target`` (the equilibrium's state), ``K`` (2 x 4), ``P``, ``rho`` -- the feedback and its
+      estimate ``dx^T P dx < rho``; :meth:`ellipse` is its slice in ``plane``;
+    * ``captured_fraction``, ``inner_fraction`` (cells inside the estimate at the start);
+    * ``params``, ``settings``, ``stats`` (``cells``, ``captured``, ``failed``, ``steps``, the run's
+      chunks, store and cluster), ``status`` (PARTIAL when cells failed), ``message``, ``ok``,
+      ``to_xarray()``, ``to_netcdf()``, ``summary()``.
+    """
+
+    plane: Tuple[str, str]
+    x0: np.ndarray
+    y0: np.ndarray
+    capture_time: np.ndarray
+    outcome: np.ndarray
+    target: np.ndarray
+    K: np.ndarray
+    P: np.ndarray
+    rho: float
+
+    result_kind: ClassVar[str] = "region of attraction"
+
+    @property
+    def n(self) -> int:
+        return int(self.capture_time.shape[0])
+
+    @property
+    def captured(self) -> np.ndarray:
+        return self.outcome == 1
+
+    @property
+    def captured_fraction(self) -> float:
+        """The fraction of the cells captured by ``t_end``: the region's share of the window."""
+        return float(np.count_nonzero(self.captured)) / self.capture_time.size
+
+    def deviations(self) -> Tuple[np.ndarray, np.ndarray]:
+        """The axes as offsets from the target (angles wrapped to (-pi, pi])."""
+        out = []
+        for name, values in zip(self.plane, (self.x0, self.y0)):
+            d = np.asarray(values, dtype=float) - self.target[COORDINATES[name]]
+            out.append((d + np.pi) % (2 * np.pi) - np.pi if COORDINATES[name] < 2 else d)
+        return out[0], out[1]
+
+    @property
+    def inner_fraction(self) -> float:
+        """The fraction of the cells inside the LQR's estimate at the start (all captured at t = 0)."""
+        dx, dy = self.deviations()
+        i, j = (COORDINATES[c] for c in self.plane)
+        S = self.P[np.ix_([i, j], [i, j])]
+        X, Y = np.meshgrid(dx, dy, indexing="ij")
+        v = S[0, 0] * X * X + 2 * S[0, 1] * X * Y + S[1, 1] * Y * Y
+        return float(np.count_nonzero(v < self.rho)) / v.size
+
+    def ellipse(self, points: int = 361) -> np.ndarray:
+        """The boundary of the estimate's slice ``dx^T P dx = rho`` in ``plane`` (other offsets 0),
+        as offsets from the target: an array (points, 2)."""
+        i, j = (COORDINATES[c] for c in self.plane)
+        S = self.P[np.ix_([i, j], [i, j])]
+        L = np.linalg.cholesky(S)
+        s = np.linspace(0.0, 2 * np.pi, points)
+        unit = np.vstack([np.cos(s), np.sin(s)]) * math.sqrt(self.rho)
+        return np.linalg.solve(L.T, unit).T
+
+    def _dataset(self) -> DatasetSpec:
+        a, b = (f"{c}0" for c in self.plane)
+        attrs = {"title": RoaJob.title, "plane": ",".join(self.plane), "target": self.target.tolist(),
+                 "K": self.K.ravel().tolist(), "P": self.P.ravel().tolist(), "rho": self.rho,
+                 "captured_fraction": self.captured_fraction, **self._base_attrs()}
+        return DatasetSpec(
+            variables={"capture_time": ((a, b), self.capture_time, dict(_VARIABLES["capture_time"])),
+                       "outcome": ((a, b), self.outcome, dict(_VARIABLES["outcome"]))},
+            coords={a: ((a,), np.asarray(self.x0, dtype=float).copy(), _coord_attrs(self.plane[0])),
+                    b: ((b,), np.asarray(self.y0, dtype=float).copy(), _coord_attrs(self.plane[1]))},
+            attrs=attrs,
+        )
+
+
+_VARIABLES = {
+    "capture_time": {"units": "s", "long_name": "time the closed loop entered the LQR's region estimate; NaN: not by t_end"},
+    "outcome": {"long_name": "1 captured, 0 not captured by t_end, -1 integration failed"},
+}
+
+
+def _coord_attrs(name: str) -> Dict[str, str]:
+    return {"units": _UNITS[name], "long_name": _LONG[name]}
+
+
+@dataclass(frozen=True)
+class RoaJob(GridJob):
+    """A region-of-attraction map as a job of the grid driver (small and picklable)."""
+
+    params: Parameters
+    n: int
+    plane: Tuple[str, str]
+    x_range: Tuple[float, float]  # absolute values of the plane's first coordinate (cell edges)
+    y_range: Tuple[float, float]
+    target: Tuple[float, ...]
+    K: Tuple[float, ...]  # 2 x 4, row-major
+    P: Tuple[float, ...]  # 4 x 4, row-major
+    rho: float
+    actuated: str
+    umax: Tuple[float, float]
+    t_end: float
+    rtol: float
+    atol: float
+    max_steps: int
+    version: str
+    kernel_name: str
+
+    kind: ClassVar[str] = STORE_KIND
+    what: ClassVar[str] = "a region-of-attraction map"
+    stat_names: ClassVar[Tuple[str, ...]] = CHUNK_STATS
+    title: ClassVar[str] = "region of attraction of a saturated LQR (skewpend)"
+
+    def shape(self):
+        return self.n, self.n
+
+    def arrays(self):
+        from ..numeric.grid import ArraySpec
+
+        return {"capture_time": ArraySpec("float64", np.nan, _VARIABLES["capture_time"]),
+                "outcome": ArraySpec("int8", -1, _VARIABLES["outcome"])}
+
+    def coords(self):
+        from .flipmap import cell_centres
+
+        a, b = self.plane
+        return {f"{a}0": (cell_centres(*self.x_range, self.n), _coord_attrs(a)),
+                f"{b}0": (cell_centres(*self.y_range, self.n), _coord_attrs(b))}
+
+    def settings(self) -> Dict[str, Any]:
+        return {"kind": "region_of_attraction", "params": self.params.to_dict(), "n": self.n, "plane": list(self.plane),
+                "x_range": list(self.x_range), "y_range": list(self.y_range), "target": list(self.target),
+                "K": list(self.K), "P": list(self.P), "rho": self.rho, "actuated": self.actuated,
+                "umax": [u if math.isfinite(u) else None for u in self.umax], "t_end": self.t_end, "rtol": self.rtol,
+                "atol": self.atol, "max_steps": self.max_steps, "method": "dop853", "skewpend_version": self.version}
+
+    def store_attrs(self):
+        return {"params": json.dumps(self.params.to_dict())}
+
+    def controller(self):
+        from ..numeric.control import Controller
+
+        return Controller.feedback(np.reshape(self.K, (2, 4)), np.asarray(self.target), actuated=self.actuated,
+                                   umax=self.umax)
+
+    def setup(self):
+        from ..errors import SkewpendError
+        from ..numeric.kernels import kernel_module, parameter_vector
+
+        kernel = kernel_module(self.params)
+        if kernel.path.name != self.kernel_name:
+            raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
+                                "install the same skewpend on every worker")
+        return kernel, parameter_vector(self.params), self.controller()
+
+    def starts(self, rows: np.ndarray) -> np.ndarray:
+        """The starts of whole rows of cells, (rows * n, 4)."""
+        xs, ys = (values for values, _ in self.coords().values())
+        i, j = (COORDINATES[c] for c in self.plane)
+        rows = np.asarray(rows, dtype=np.int64)
+        out = np.tile(np.asarray(self.target, dtype=float), (rows.size * self.n, 1))
+        out[:, i] = np.repeat(xs[rows], self.n)
+        out[:, j] = np.tile(ys, rows.size)
+        return out
+
+    def compute(self, state, rows, cancel=None):
+        from ..numeric.control import capture_many
+
+        kernel, p, ctl = state
+        rows = np.asarray(rows, dtype=np.int64)
+        time_, steps, status = capture_many(kernel, p, ctl, self.starts(rows), t_end=self.t_end, rtol=self.rtol,
+                                            atol=self.atol, max_steps=self.max_steps, P=np.reshape(self.P, (4, 4)),
+                                            rho=self.rho, cancel=cancel)
+        shape = (rows.size, self.n)
+        failed = (status != 0).reshape(shape)
+        captured = np.isfinite(time_).reshape(shape)
+        outcome = np.where(failed, -1, np.where(captured, 1, 0)).astype(np.int8)
+        stats = np.column_stack([np.full(rows.size, self.n), captured.sum(1), failed.sum(1),
+                                 steps.reshape(shape).sum(1)]).astype(float)
+        return {"capture_time": time_.reshape(shape), "outcome": outcome}, stats
+
+    def result(self, run) -> RegionOfAttraction:
+        from ..results import grid_status
+
+        n = self.n
+        totals = run.totals(CHUNK_STATS)
+        settings = {k: v for k, v in self.settings().items() if k not in ("kind", "params", "skewpend_version")}
+        stats = {"cells": n * n, "captured": int(totals["captured"]), "failed": int(totals["failed"]),
+                 "steps": int(totals["steps"]), **run.info}
+        status, message = grid_status(stats["failed"], n * n, "cells")
+        if stats["failed"]:
+            message += " (a start that chatters where the wrapped feedback jumps, at the angle opposite the target)"
+        xs, ys = (values for values, _ in self.coords().values())
+        return RegionOfAttraction(plane=tuple(self.plane), x0=xs, y0=ys, capture_time=run.data["capture_time"],
+                                  outcome=run.data["outcome"], target=np.asarray(self.target, dtype=float),
+                                  K=np.reshape(self.K, (2, 4)), P=np.reshape(self.P, (4, 4)), rho=self.rho,
+                                  params=self.params, settings=settings, stats=stats, status=status, message=message)
+
+    def result_attrs(self, result: RegionOfAttraction) -> Dict[str, Any]:
+        return {"roa_settings": canonical_json(result.settings), "roa_stats": canonical_json(result.stats)}
+
+
+def region_of_attraction(
+    params: Parameters,
+    target="up-up",
+    actuated: str = "both",
+    n: int = 64,
+    *,
+    design=None,
+    plane: Sequence[str] = ("phi", "psi"),
+    window: Optional[Sequence[Sequence[float]]] = None,
+    umax=10.0,
+    Q=None,
+    R=None,
+    t_end: float = 10.0,
+    rtol: Optional[float] = 1e-8,
+    atol: Optional[float] = 1e-8,
+    max_steps: int = MAX_STEPS_ROA,
+    workers: Optional[int] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
+    chunk_size: Optional[int] = None,
+    store=None,
+    resume: bool = False,
+    scheduler=None,
+) -> RegionOfAttraction:
+    """The region of attraction of the LQR about ``target`` with the ``actuated`` joints and the
+    torque limit ``umax`` [N m] (see the module), on ``n x n`` cells of the slice ``plane``.
+
+    ``design``: an :class:`~skewpend.analysis.control.LQR` from :func:`skewpend.lqr` (then
+    ``target``, ``actuated``, ``Q``, ``R`` and ``umax`` come from it); otherwise it is designed
+    here with ``Q``, ``R``, ``umax``.  ``window``: the ranges of the two coordinates as offsets from
+    the target, ``((lo, hi), (lo, hi))`` -- default ``(-pi, pi)`` for an angle (the whole circle)
+    and ``(-5, 5)`` rad/s for a speed.  Each start runs for at most ``t_end`` seconds; DOP853 at
+    ``rtol``/``atol`` (default 1e-8: whether and when, not the path, is wanted) with at most
+    ``max_steps`` steps per start.  ``workers``, ``progress(done_cells, total)``, ``chunk_size``,
+    ``store`` (``*.zarr``), ``resume`` and ``scheduler`` as for :func:`skewpend.flip_map`."""
+    from .. import __version__
+    from ..numeric.control import torque_limits
+    from ..numeric.grid import check_run_options, run_grid
+    from ..numeric.kernels import kernel_module
+    from .control import LQR, lqr
+    from .flipmap import check_n
+
+    params = numeric_params(params, "a region of attraction")
+    n = check_n(n)
+    if n > MAX_N:
+        raise ParameterError(f"n must be at most {MAX_N} for a region of attraction, got {n}")
+    a, b = _plane(plane)
+    if window is None:
+        window = [(-math.pi, math.pi) if COORDINATES[c] < 2 else (-5.0, 5.0) for c in (a, b)]
+    try:
+        wa, wb = window
+    except (TypeError, ValueError):
+        raise ParameterError(f"window must be two ranges ((lo, hi), (lo, hi)) of offsets from the target, got {window!r}") from None
+    wa = _window(f"window of {a}", wa, COORDINATES[a] < 2)
+    wb = _window(f"window of {b}", wb, COORDINATES[b] < 2)
+    t_end = positive("t_end", t_end)
+    rtol, atol = tolerances(rtol, atol)
+    max_steps = check_max_steps(max_steps)
+    workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress,
+                                chunk_size=chunk_size)
+    if design is None:
+        design = lqr(params, target, actuated, Q, R, umax=umax)
+    elif not isinstance(design, LQR):
+        raise ParameterError(f"design must be an LQR from skewpend.lqr, got {type(design).__name__}")
+    elif design.params != params:
+        raise ParameterError("design was made for other parameters than params")
+    if not (design.rho > 0 and math.isfinite(design.rho)):
+        raise EquilibriumError("the LQR's region estimate is empty or unbounded with this torque limit "
+                               f"(rho = {design.rho:g}): raise umax, or change Q and R")
+    lin = design.linearization
+    x_star = lin.target
+    ia, ib = COORDINATES[a], COORDINATES[b]
+    kernel = kernel_module(params)
+    job = RoaJob(params=params, n=n, plane=(a, b), x_range=(x_star[ia] + wa[0], x_star[ia] + wa[1]),
+                 y_range=(x_star[ib] + wb[0], x_star[ib] + wb[1]), target=tuple(float(v) for v in x_star),
+                 K=tuple(float(v) for v in design.gain.ravel()), P=tuple(float(v) for v in np.ravel(design.P)),
+                 rho=float(design.rho), actuated=lin.actuated, umax=torque_limits(design.umax), t_end=t_end, rtol=rtol,
+                 atol=atol, max_steps=int(max_steps), version=__version__, kernel_name=kernel.path.name)
+    state = job.setup()
+    return run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress,
+                    chunk_size=chunk_size, state=state)
+
+
+def open_region_of_attraction(path) -> RegionOfAttraction:
+    """A :class:`RegionOfAttraction` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
+    from pathlib import Path
+
+    from ..results import grid_status
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".zarr":
+        from ..numeric.grid import read_store
+
+        arrays, attrs = read_store(STORE_KIND, path, what="a region-of-attraction map")
+        keys = ("roa_settings", "roa_stats")
+    elif suffix == ".nc":
+        from ..io import read_netcdf
+
+        arrays, attrs = read_netcdf(path, kind=RegionOfAttraction.result_kind)
+        keys = ("settings", "stats")
+    else:
+        raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
+    try:
+        settings, stats = (json.loads(attrs[k]) for k in keys)
+        params = Parameters.from_mapping(json.loads(attrs["params"]))
+        a, b = settings["plane"]
+        x0, y0 = (np.asarray(arrays[f"{c}0"], dtype=float) for c in (a, b))
+        capture_time = np.asarray(arrays["capture_time"], dtype=float)
+        outcome = np.asarray(arrays["outcome"]).astype(np.int8)
+        target = np.asarray(settings["target"], dtype=float)
+        K = np.reshape(np.asarray(settings["K"], dtype=float), (2, 4))
+        P = np.reshape(np.asarray(settings["P"], dtype=float), (4, 4))
+        rho = float(settings["rho"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ParameterError(f"{path} is not a region of attraction made by skewpend (missing or bad attribute: {exc})") from None
+    status, message = grid_status(int(stats.get("failed", 0)), capture_time.size, "cells")
+    return RegionOfAttraction(plane=(a, b), x0=x0, y0=y0, capture_time=capture_time, outcome=outcome, target=target,
+                              K=K, P=P, rho=rho, params=params, settings=settings, stats=stats, status=status,
+                              message=message)
