@@ -213,7 +213,7 @@ def test_cli_control(tmp_path):
 
 
 @pytest.mark.parametrize("argv, text", [
-    (["control"], "lqr or swingup"),
+    (["control"], "lqr, swingup or roa"),
     (["control", "balance"], "action"),
     (["control", "lqr", "--actuated", "elbow"], "--actuated"),
     (["control", "lqr", "--actuated", "acrobot", "--alpha", "90deg"], "not controllable"),
@@ -236,3 +236,59 @@ def test_cli_control_bad_input(argv, text, tmp_path):
     assert ran.code == 2, ran.report()
     assert text in ran.err and len(ran.err.strip().splitlines()) == 1, ran.report()
     assert not any(tmp_path.iterdir())
+
+
+# -- a law written in Python: the slow path -------------------------------------------------------------
+def _python_lqr(design):
+    K, xs = design.gain, design.linearization.target
+
+    def law(t, x):
+        dx = x - xs
+        dx[:2] = (dx[:2] + np.pi) % (2 * np.pi) - np.pi
+        return -K @ dx
+
+    return law
+
+
+def test_a_python_law_is_the_built_in_law():
+    """The same LQR written in Python (Controller.function) and built in: the same motion to the
+    integrators' tolerance (the Python run carries the time as a sixth state, so its steps differ)."""
+    from skewpend.numeric.control import Controller
+
+    p = thin(math.radians(30))
+    design = skewpend.lqr(p, "up-up", "both", umax=10.0)
+    y0 = design.linearization.target + np.array([0.4, -0.3, 0.2, 0.0])
+    kw = dict(dt_out=0.01, rtol=1e-11, atol=1e-11)
+    a = skewpend.simulate(p, y0, 4.0, controller=Controller.function(_python_lqr(design), umax=10.0), **kw)
+    b = skewpend.simulate(p, y0, 4.0, controller=design.controller(), **kw)
+    assert a.ok and b.ok and np.array_equal(a.t, b.t)
+    assert np.abs(a.y - b.y).max() < 1e-7
+    assert np.abs(a.inputs() - b.inputs()).max() < 1e-5 and np.abs(a.inputs()).max() == pytest.approx(10.0)
+    assert a.energy_drift < 1e-9  # E - W conserved: W includes the Python law's work
+
+
+def test_a_python_law_s_errors_reach_the_caller():
+    from skewpend.numeric.control import Controller
+
+    p = thin(0.3)
+
+    def broken(t, x):
+        if t > 0.5:
+            raise ZeroDivisionError("the law failed at t = %.3f" % t)
+        return (0.0, 0.0)
+
+    with pytest.raises(ZeroDivisionError, match="the law failed"):
+        skewpend.simulate(p, (0.3, 0.1, 0, 0), 2.0, controller=Controller.function(broken))
+    with pytest.raises(ParameterError, match="two torques"):
+        skewpend.simulate(p, (0.3, 0.1, 0, 0), 2.0, controller=Controller.function(lambda t, x: (1.0, 2.0, 3.0)))
+    with pytest.raises(ParameterError, match="callable"):
+        Controller.function(3.0)
+
+    def interrupted(t, x):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        skewpend.simulate(p, (0.3, 0.1, 0, 0), 2.0, controller=Controller.function(interrupted))
+    # a non-finite torque stops the run with its status, no NaN rows
+    tr = skewpend.simulate(p, (0.3, 0.1, 0, 0), 2.0, controller=Controller.function(lambda t, x: (np.nan, 0.0)))
+    assert not tr.ok and np.all(np.isfinite(tr.y))

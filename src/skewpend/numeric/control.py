@@ -12,7 +12,11 @@ A :class:`Controller` says which joints are actuated (``"both"``, ``"acrobot"`` 
   ``-kp (psi - psi*) - kd psi'`` (so the two rods swing up as one), switched to the feedback
   inside the region ``(x - x*)^T P (x - x*) < rho``;
 * ``Controller.table(times, torques)``: ``u(t)`` interpolated linearly in a table (held at its
-  ends).
+  ends);
+* ``Controller.function(f)``: any law ``u = f(t, x)`` written in Python -- the slow path: the
+  compiled integrator calls back into Python at every stage (about a microsecond or two each,
+  tens of times the cost of the built-in laws); an exception in ``f`` stops the run and is
+  raised by :func:`skewpend.simulate`.
 
 The inputs add to the model's constant torques ``tau``; the work ``W`` of ``Q = tau + u - c q'``
 then includes theirs, so ``E - W`` stays conserved (the energy balance of every run).
@@ -29,12 +33,14 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["Controller", "ACTUATION", "KINDS", "torque_limits", "capture_many"]
+__all__ = ["Controller", "ACTUATION", "KINDS", "CALLBACK", "torque_limits", "capture_many", "raise_law_error"]
 
 #: Which joints a motor drives: bit 0 the shoulder (joint 1), bit 1 the elbow (joint 2).
 ACTUATION = {"both": 3, "pendubot": 1, "acrobot": 2}
 #: The laws (the ``SP_CTL_*`` codes of ``integrators.c``).
-KINDS = {"feedback": 1, "swingup": 2, "table": 3}
+KINDS = {"feedback": 1, "swingup": 2, "table": 3, "function": 4}
+#: The C signature of a Python law: u[2] at time t and state y[4] (``sp_control.callback``).
+CALLBACK = ctypes.CFUNCTYPE(None, ctypes.c_double, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double))
 
 
 def _actuation(actuated: str) -> int:
@@ -80,6 +86,7 @@ class Controller:
     rho: float = 0.0
     times: Optional[np.ndarray] = field(default=None, repr=False)
     torques: Optional[np.ndarray] = field(default=None, repr=False)
+    function: Any = field(default=None, repr=False)
 
     # -- constructors ------------------------------------------------------------------------
     @classmethod
@@ -128,11 +135,22 @@ class Controller:
             raise ParameterError("a torque table's times must increase strictly")
         return cls("table", actuated, torque_limits(umax), times=t, torques=u)
 
+    @classmethod
+    def function(cls, f, *, actuated: str = "both", umax=None) -> "Controller":
+        """``u = f(t, x)``: a Python callable of the time [s] and the state ``x = (phi, psi, phi',
+        psi')`` (a NumPy array) returning the two joint torques [N m] (the joints not actuated get
+        0, then the limits apply).  The slow path (see the module): for laws the built-in ones
+        cannot express."""
+        _actuation(actuated)
+        if not callable(f):
+            raise ParameterError(f"the law must be a callable f(t, x) -> (u1, u2), got {f!r}")
+        return cls("function", actuated, torque_limits(umax), function=f)
+
     # -- what the integrators get --------------------------------------------------------------
     @property
     def state_size(self) -> int:
-        """5 (angles, speeds, W), or 6 with the time for a table."""
-        return 6 if self.kind == "table" else 5
+        """5 (angles, speeds, W), or 6 with the time for a table or a Python law."""
+        return 6 if self.kind in ("table", "function") else 5
 
     def struct(self):
         """The ``sp_control`` the compiled code reads (keep it alive during the call)."""
@@ -154,6 +172,10 @@ class Controller:
             c.n_table = len(table)
             c.table = table.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
             c._keep = table  # the array lives as long as the struct
+        if self.kind == "function":
+            c.errors = []
+            c._keep = CALLBACK(_python_law(self.function, c.errors))
+            c.callback = ctypes.cast(c._keep, ctypes.c_void_p)
         return c
 
     def inputs(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -166,6 +188,7 @@ class Controller:
         c = self.struct()
         kernel.lib.sp_inputs_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), 6, p.ctypes.data_as(dp),
                                   out.ctypes.data_as(dp))
+        raise_law_error(c)
         return out
 
     def closed_loop(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -194,7 +217,37 @@ class Controller:
                      rho=self.rho)
         if self.kind == "table":
             d.update(times=self.times.tolist(), torques=self.torques.tolist())
+        if self.kind == "function":
+            d.update(function=getattr(self.function, "__qualname__", repr(self.function)))
         return d
+
+
+def _python_law(f, errors: list):
+    """The C callback around ``f(t, x)``: the torques, or NaN (which stops the integration) with
+    the exception kept in ``errors`` -- an exception must not cross the C frames."""
+    nan = float("nan")
+
+    def law(t, y, u):
+        if errors:
+            u[0] = u[1] = nan
+            return
+        try:
+            v = np.asarray(f(t, np.array([y[0], y[1], y[2], y[3]])), dtype=float).reshape(-1)
+            if v.shape != (2,):
+                raise ParameterError(f"the controller function must return two torques (u1, u2) [N m], got shape {v.shape}")
+            u[0], u[1] = float(v[0]), float(v[1])
+        except BaseException as exc:  # noqa: BLE001 - raised again by the caller (KeyboardInterrupt too)
+            errors.append(exc)
+            u[0] = u[1] = nan
+
+    return law
+
+
+def raise_law_error(struct) -> None:
+    """Raise what a Python law (``Controller.function``) raised during a compiled call, if anything."""
+    errors = getattr(struct, "errors", None)
+    if errors:
+        raise errors[0]
 
 
 def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarray, *, t_end: float, rtol: float,

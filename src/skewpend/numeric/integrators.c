@@ -189,11 +189,14 @@ static inline double dop_dense_value(double y, const double *F, ptrdiff_t fs, do
  *                    -kp (psi - psi*) - kd psi', switched to the feedback inside
  *                    (x - x*)' P (x - x*) < rho;
  *   SP_CTL_TABLE     u(t) interpolated linearly in a table (held at its ends); the state then has a
- *                    sixth component, the time (t' = 1), which the input reads.
+ *                    sixth component, the time (t' = 1), which the input reads;
+ *   SP_CTL_CALLBACK  u = callback(t, y): a function of the caller's (Python's slow path), with the time
+ *                    as a sixth state too.
  * Then the joints not actuated get u = 0 and every u_j is clipped to [-umax_j, umax_j]. */
 #define SP_CTL_FEEDBACK 1
 #define SP_CTL_SWINGUP 2
 #define SP_CTL_TABLE 3
+#define SP_CTL_CALLBACK 4
 typedef struct {
     int32_t kind;              /* SP_CTL_* */
     int32_t actuated;          /* bit 0: joint 1 (the shoulder), bit 1: joint 2 (the elbow) */
@@ -208,6 +211,7 @@ typedef struct {
     double rho;
     int64_t n_table;           /* table: n_table rows of (t, u1, u2) */
     const double *table;
+    void (*callback)(double t, const double *y, double *u); /* callback: u[2] at time t and state y[4] */
 } sp_control;
 
 /* the active control of this thread (a run with inputs sets it for the duration of a call); the
@@ -227,6 +231,15 @@ static double sp_wrap(double x)
     return w - pi;
 }
 
+/* dx' P dx about the target of c, the angles of dx wrapped */
+static double sp_region(const sp_control *c, const double *P, const double *y)
+{
+    double dx[4] = {sp_wrap(y[0] - c->xs[0]), sp_wrap(y[1] - c->xs[1]), y[2] - c->xs[2], y[3] - c->xs[3]}, v = 0.0;
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 4; j++) v += dx[i] * P[4 * i + j] * dx[j];
+    return v;
+}
+
 /* the input u[2] at state y (y[5] the time for a table) */
 static void sp_input(const sp_control *c, const double *y, const double *p, double *u)
 {
@@ -234,16 +247,15 @@ static void sp_input(const sp_control *c, const double *y, const double *p, doub
     int feedback = c->kind == SP_CTL_FEEDBACK;
     u[0] = u[1] = 0.0;
     if (c->kind == SP_CTL_SWINGUP) {
-        double v = 0.0;
-        for (int i = 0; i < 4; i++)
-            for (int j = 0; j < 4; j++) v += dx[i] * c->P[4 * i + j] * dx[j];
-        if (v < c->rho) {
+        if (sp_region(c, c->P, y) < c->rho) {
             feedback = 1;
         } else {
             double e = c->E_target - energy(y, p);
             u[0] = c->ke * e * y[2];
             u[1] = c->ke * e * y[3] - c->kp * dx[1] - c->kd * y[3];
         }
+    } else if (c->kind == SP_CTL_CALLBACK) {
+        c->callback(y[5], y, u);
     } else if (c->kind == SP_CTL_TABLE) {
         const double *T = c->table;
         const int64_t n = c->n_table;
@@ -285,7 +297,7 @@ static inline void model_rhs(const double *y, const double *p, double *out)
     q[SP_TAU1] += u[0];
     q[SP_TAU2] += u[1];
     rhs(y, q, out);
-    if (sp_ctl->kind == SP_CTL_TABLE) out[5] = 1.0;
+    if (sp_ctl->kind >= SP_CTL_TABLE) out[5] = 1.0; /* a table or callback reads the time, a sixth state */
 }
 
 /* the DOP853 core for the model's own state (chaos.c includes it again for the variational systems) */
@@ -470,7 +482,8 @@ int64_t sp_control_size(void) { return (int64_t)sizeof(sp_control); }
 /* Capture of m closed-loop starts (regions of attraction): each start (4 doubles: angles and speeds)
  * is integrated with the control c by DOP853 (the core above, on the 4 mechanical components) until
  * it enters the region dx' P dx < rho about the target c->xs (angles wrapped) -- captured: time[k]
- * is the end of the first accepted step inside -- or reaches t_end (time[k] = NaN).  status[k] is
+ * is the entry, located by bisection on the 7th-order dense output of the first step that ends
+ * inside -- or reaches t_end (time[k] = NaN).  status[k] is
  * SP_STATUS_SUCCESS, or the code of a failed integration (time NaN); steps[k] counts its accepted
  * and rejected steps.  Every start's arithmetic is its own: the results do not depend on m or on
  * which starts share a call. */
@@ -478,7 +491,7 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
                      double rtol, double atol, int64_t max_steps, const double *P, double rho, double *time,
                      int64_t *steps, int8_t *status)
 {
-    double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX], y[SP_NMAX], f[SP_NMAX];
+    double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX], y[SP_NMAX], f[SP_NMAX], F[7 * SP_NMAX];
     const int n = 4;
     sp_ctl = c;
     for (int64_t k = 0; k < m; k++) {
@@ -489,19 +502,23 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
         memcpy(y, starts + 4 * k, 4 * sizeof(double));
         model_rhs(y, p, f);
         if (!all_finite(y, n) || !all_finite(f, n)) rc = SP_STATUS_NONFINITE;
-        for (;;) {
-            if (rc != SP_STATUS_SUCCESS) break;
-            double dx[4] = {sp_wrap(y[0] - c->xs[0]), sp_wrap(y[1] - c->xs[1]), y[2] - c->xs[2], y[3] - c->xs[3]};
-            double v = 0.0;
-            for (int i = 0; i < 4; i++)
-                for (int j = 0; j < 4; j++) v += dx[i] * P[4 * i + j] * dx[j];
-            if (v < rho) { when = t; break; }
-            if (t >= t_end) break;
+        else if (sp_region(c, P, y) < rho) when = 0.0;
+        while (rc == SP_STATUS_SUCCESS && isnan(when) && t < t_end) {
             if (h <= 0.0) h = dop_initial_step(y, f, p, t_end - t, rtol, atol, &nfev, n);
             rc = dop_advance(t, y, f, p, t_end, rtol, atol, max_steps, &h, nacc, &nrej, &nfev, K, ynew, ytmp, n,
                              &t_new, &hused);
             if (rc) break;
             nacc++;
+            if (sp_region(c, P, ynew) < rho) {
+                /* entered during this step: bisect the dense output for the first point inside */
+                double lo = 0.0, hi = 1.0;
+                dop_dense_coeffs(y, ynew, hused, p, K, F, ytmp, n);
+                for (int it = 0; it < 60 && (hi - lo) * hused > 1e-14 * fmax(1.0, t_new); it++) {
+                    double mid = 0.5 * (lo + hi);
+                    if (dop_dense_eval(y, F, mid, ytmp, n) && sp_region(c, P, ytmp) < rho) hi = mid; else lo = mid;
+                }
+                when = t + hi * hused;
+            }
             t = t_new;
             memcpy(y, ynew, (size_t)n * sizeof(double));
             memcpy(f, K[DOP_NS], (size_t)n * sizeof(double));

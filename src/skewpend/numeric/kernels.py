@@ -134,6 +134,7 @@ class ControlStruct(ctypes.Structure):
         ("rho", ctypes.c_double),
         ("n_table", ctypes.c_int64),
         ("table", ctypes.POINTER(ctypes.c_double)),
+        ("callback", ctypes.c_void_p),
     ]
 
 

@@ -314,8 +314,9 @@ def simulate(
 
     ``controller``: a :class:`skewpend.numeric.control.Controller` -- joint torques that vary
     (feedback laws, swing-up, a table), evaluated inside the compiled integrator at every stage
-    (dop853 or rk4); ``Trajectory.inputs()`` gives them at the rows, and the work ``W`` includes
-    theirs.
+    (dop853 or rk4), or a Python function (``Controller.function``, the slow path: an exception
+    it raises is raised here); ``Trajectory.inputs()`` gives them at the rows, and the work ``W``
+    includes theirs.
     """
     from .kernels import State, kernel_module, parameter_vector
     from ..io import TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
@@ -333,7 +334,8 @@ def simulate(
         from .control import Controller
 
         if not isinstance(controller, Controller):
-            raise ParameterError(f"controller must be a skewpend Controller (feedback, swing-up or a table), got {controller!r}")
+            raise ParameterError(f"controller must be a skewpend Controller (feedback, swing-up, a table or a Python "
+                                 f"function: Controller.function), got {controller!r}")
         if method == "gauss":
             raise ParameterError("inputs that vary need dop853 or rk4 (gauss integrates Hamilton's equations of the "
                                  "model with constant torques)")
@@ -444,6 +446,10 @@ def simulate(
         status = drive(call, budget=min(2000, max(10, max_steps // 20)), take=take, check=intr.check,
                        progress=lambda: progress(state.t, t_end), estimate=estimate if method == "dop853" else None,
                        adapt=True, name=f"sp_{method}")
+        if cstruct is not None:
+            from .control import raise_law_error
+
+            raise_law_error(cstruct)  # a Python law's exception, not a non-finite state
         wall = time.perf_counter() - start
         stats = {
             "nfev": int(state.nfev),
