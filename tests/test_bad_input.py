@@ -645,6 +645,8 @@ COMMANDS = {
               "out": {"--out": "nc", "--plot": "png"}},
     "nnm": {"needs": [], "positive": ["--energy-max", "--energy"], "whole": ["--mode", "--resolution"],
             "out": {"--out": "nc", "--plot": "png"}, "range": ["--alphas"]},
+    "control": {"needs": ["roa"], "positive": ["--t-end", "--rtol", "--atol", "--umax"], "whole": ["--n", "--workers"],
+                "out": {"--out": "nc", "--plot": "png"}},
 }
 _BATTERY = []
 
@@ -714,6 +716,24 @@ for value in ["", "a", "1,2,3,4,5", "nan", "1,inf", "²"]:
     _battery("nnm", ["--plot", "f.png", "--orbits-at", value], "--orbits-at")
 for value in ["", "sideways", "1", "1,2,3", "nan,0", "sym,0", "²,0"]:
     _battery("modes", ["--about", value], "--about")
+for value in ["", "phi", "phi,phi", "phi,theta", "phi,psi,dphi", "x,y", "²,phi"]:
+    _battery("control", ["roa", "--plane", value], "--plane")
+for value in ["", "1:0,0:1", "0:1", "0:1,0:1,0:1", "nan:1,0:1", "0:1,0:inf", "0:4,0:1", "0:²,0:1"]:
+    _battery("control", ["roa", "--window", value], "--window")
+for value in ["", "1,1,1", "1,1,1,nan", "1,1,-1,1", "a,b,c,d", "1,1,1,1,1"]:
+    _battery("control", ["lqr", "--q", value], "--q")
+for value in ["", "0", "-1", "nan", "1,2,3", "inf"]:
+    _battery("control", ["lqr", "--r", value], "--r")
+for value in ["", "sideways", "1", "nan,0", "40deg,10deg", "²,0"]:
+    _battery("control", ["lqr", "--target", value], "--target")
+for value in ["", "1", "-1,1", "nan,1", "1,2,3"]:
+    _battery("control", ["swingup", "--elbow-gains", value], "--elbow-gains")
+for value in NOT_POSITIVE[::2]:
+    _battery("control", ["swingup", "--energy-gain", value], "--energy-gain")
+for value in ["", "elbow", "none"]:
+    _battery("control", ["lqr", "--actuated", value], "--actuated")
+for action in ("", "balance"):
+    _battery("control", [action], "action" if action else "control")
 _battery("poincare", ["--energy", "5", "--direction", "up"], "--direction")
 _battery("poincare", ["--energy", "5", "--locate", "newton"], "--locate")
 

@@ -104,6 +104,14 @@ def control(
     Q = None if q is None else np.diag(q)
     R = None if r is None else np.diag(r)
     goal = "up-up" if target is None else target
+    if target is not None:
+        from ..analysis.equilibria import find_equilibrium
+        from ..errors import EquilibriumError
+
+        try:
+            find_equilibrium(params, goal)
+        except EquilibriumError as exc:
+            raise UsageError(f"--target: {exc}") from None
     if action is Action.roa:
         return _roa(params, goal, actuated.value, Q, R, umax, t_end, n, plane, window, rtol, atol, out, store, plot, resume,
                     ensemble, quiet)
@@ -170,6 +178,10 @@ def _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol
          quiet):
     from ..analysis.roa import region_of_attraction
 
+    for name, (lo, hi) in zip(plane or ("phi", "psi"), window or ()):
+        if name in ("phi", "psi") and (lo < -math.pi - 1e-12 or hi > math.pi + 1e-12):
+            raise UsageError(f"--window ({name}): an angle's offsets from the target must lie within -180..180 deg, "
+                             f"got {lo:.6g}:{hi:.6g} rad")
     kw = {k: v for k, v in (("plane", plane), ("window", window), ("t_end", t_end), ("rtol", rtol), ("atol", atol))
           if v is not None}
     with progress("region of attraction", "cells", quiet) as bar:
