@@ -47,6 +47,9 @@ _LAZY = {
     "LQR": "analysis.control",
     "swingup": "analysis.control",
     "SwingUp": "analysis.control",
+    "region_of_attraction": "analysis.roa",
+    "RegionOfAttraction": "analysis.roa",
+    "open_region_of_attraction": "analysis.roa",
     "flip_map": "analysis.flipmap",
     "FlipMap": "analysis.flipmap",
     "open_flip_map": "analysis.flipmap",
@@ -95,6 +98,9 @@ __all__ = [
     "LQR",
     "swingup",
     "SwingUp",
+    "region_of_attraction",
+    "RegionOfAttraction",
+    "open_region_of_attraction",
     "flip_map",
     "FlipMap",
     "open_flip_map",
@@ -129,6 +135,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.equilibria import Equilibria, Equilibrium, equilibria
     from .numeric.control import Controller
     from .analysis.control import LQR, SwingUp, controllability, linearization, lqr, swingup
+    from .analysis.roa import RegionOfAttraction, open_region_of_attraction, region_of_attraction
     from .analysis.orbits import NNMFamily, PeriodicOrbit, backbones, nnm, nnm_alpha, periodic_orbit
     from .analysis.lyapunov import LyapunovMap, LyapunovSpectrum, lyapunov, lyapunov_map, open_lyapunov_map
     from .numeric.grid import GridJob, run_grid
