@@ -51,3 +51,22 @@ def compile_times(build):
     t0 = time.perf_counter()
     build()
     return cold, time.perf_counter() - t0, obj
+
+
+def heyoka_header(cores: int, *, sympy: bool = False):
+    """Print the machine lines every heyoka.py comparison starts with; the module ``heyoka`` or None
+    (not installed: only skewpend is measured)."""
+    import os
+
+    try:
+        import heyoka as hy
+    except ImportError:
+        hy = None
+    print("machine")
+    print(f"  cpu        {cpu_model()}")
+    print(f"  cores      {cores} usable (os.cpu_count {os.cpu_count()}); load average {os.getloadavg()[0]:.2f} at start")
+    print(f"  python     {platform.python_version()}   numpy {version('numpy')}   "
+          + (f"sympy {version('sympy')}   " if sympy else "") + f"skewpend {version('skewpend')}")
+    print(f"  heyoka     {version('heyoka')}" + (f"   (recommended SIMD batch size {hy.recommended_simd_size()})" if hy else ""))
+    return hy
+

@@ -38,7 +38,6 @@ import argparse
 import math
 import multiprocessing as mp
 import os
-import platform
 import statistics
 import sys
 import threading
@@ -59,7 +58,7 @@ def params():
     return skewpend.Parameters(a=A, b=B, m1=M1, m2=M2, alpha=ALPHA, g=G)
 
 
-from _common import cpu_model, version  # noqa: E402  (benchmarks/ is on sys.path when run)
+from _common import heyoka_header  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
 def cells(n: int) -> np.ndarray:
@@ -193,18 +192,9 @@ def main() -> int:
     from skewpend.analysis.flipmap import flip_map
     from skewpend.numeric.ensemble import default_workers
 
-    try:
-        import heyoka as hy
-
-        have_heyoka = True
-    except ImportError:
-        have_heyoka = False
     cores = default_workers()
-    print("machine")
-    print(f"  cpu        {cpu_model()}")
-    print(f"  cores      {cores} usable (os.cpu_count {os.cpu_count()}); load average {os.getloadavg()[0]:.2f} at start")
-    print(f"  python     {platform.python_version()}   numpy {version('numpy')}   skewpend {version('skewpend')}")
-    print(f"  heyoka     {version('heyoka')}" + (f"   (recommended SIMD batch size {hy.recommended_simd_size()})" if have_heyoka else ""))
+    hy = heyoka_header(cores)
+    have_heyoka = hy is not None
     print(f"case: {n} x {n} map, t_end = {T_END:g} s, a={A} b={B} m1={M1} m2={M2} alpha={ALPHA} g={G}, released at rest")
     print(f"repetitions: {R} (median)\n")
 

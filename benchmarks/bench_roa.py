@@ -69,14 +69,13 @@ import argparse
 import math
 import multiprocessing as mp
 import os
-import platform
 import statistics
 import sys
 import time
 
 import numpy as np
 
-from _common import compile_times, cpu_model, version  # benchmarks/ is on sys.path when run
+from _common import heyoka_header, compile_times  # benchmarks/ is on sys.path when run
 
 A, B, M1, M2, ALPHA_DEG, G = 1.0, 0.8, 1.0, 0.7, 30.0, 9.81
 TARGET, ACTUATED, UMAX = "up-up", "both", 10.0
@@ -334,19 +333,9 @@ def main() -> int:
     from skewpend.analysis.roa import region_of_attraction
     from skewpend.numeric.ensemble import default_workers
 
-    try:
-        import heyoka as hy
-
-        have_heyoka = True
-    except ImportError:
-        have_heyoka = False
     cores = default_workers()
-    print("machine")
-    print(f"  cpu        {cpu_model()}")
-    print(f"  cores      {cores} usable (os.cpu_count {os.cpu_count()}); load average {os.getloadavg()[0]:.2f} at start")
-    print(f"  python     {platform.python_version()}   numpy {version('numpy')}   sympy {version('sympy')}   "
-          f"skewpend {version('skewpend')}")
-    print(f"  heyoka     {version('heyoka')}" + (f"   (recommended SIMD batch size {hy.recommended_simd_size()})" if have_heyoka else ""))
+    hy = heyoka_header(cores, sympy=True)
+    have_heyoka = hy is not None
     p = params()
     d = design(p)
     lw = law(d)

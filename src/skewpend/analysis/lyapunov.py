@@ -549,26 +549,13 @@ def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol
 def open_lyapunov_map(path) -> LyapunovMap:
     """A :class:`LyapunovMap` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
     import json
-    from pathlib import Path
 
+    from ..numeric.grid import read_grid_result
     from ..results import grid_status
 
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".zarr":
-        from ..numeric.grid import read_store
-
-        arrays, attrs = read_store(LyapunovMapJob.kind, path, what="a Lyapunov map")
-        keys = ("lyapunov_map_settings", "lyapunov_map_stats")
-    elif suffix == ".nc":
-        from ..io import read_netcdf
-
-        arrays, attrs = read_netcdf(path, kind=LyapunovMap.result_kind)
-        keys = ("settings", "stats")
-    else:
-        raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
+    arrays, attrs, settings, stats = read_grid_result(path, store_kind=LyapunovMapJob.kind, result_kind=LyapunovMap.result_kind,
+                                                      what="a Lyapunov map", store_keys=("lyapunov_map_settings", "lyapunov_map_stats"))
     try:
-        settings, stats = (json.loads(attrs[k]) for k in keys)
         params = Parameters.from_mapping(json.loads(attrs["params"]) if "params" in attrs
                                          else json.loads(attrs["settings"])["params"])
         phi, psi = (np.asarray(arrays[k], dtype=float) for k in ("phi0", "psi0"))

@@ -372,26 +372,12 @@ def region_of_attraction(
 
 def open_region_of_attraction(path) -> RegionOfAttraction:
     """A :class:`RegionOfAttraction` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
-    from pathlib import Path
-
+    from ..numeric.grid import read_grid_result
     from ..results import grid_status
 
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".zarr":
-        from ..numeric.grid import read_store
-
-        arrays, attrs = read_store(STORE_KIND, path, what="a region-of-attraction map")
-        keys = ("roa_settings", "roa_stats")
-    elif suffix == ".nc":
-        from ..io import read_netcdf
-
-        arrays, attrs = read_netcdf(path, kind=RegionOfAttraction.result_kind)
-        keys = ("settings", "stats")
-    else:
-        raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
+    arrays, attrs, settings, stats = read_grid_result(path, store_kind=STORE_KIND, result_kind=RegionOfAttraction.result_kind,
+                                                      what="a region-of-attraction map", store_keys=("roa_settings", "roa_stats"))
     try:
-        settings, stats = (json.loads(attrs[k]) for k in keys)
         params = Parameters.from_mapping(json.loads(attrs["params"]))
         a, b = settings["plane"]
         x0, y0 = (np.asarray(arrays[f"{c}0"], dtype=float) for c in (a, b))

@@ -86,7 +86,7 @@ class Controller:
     rho: float = 0.0
     times: Optional[np.ndarray] = field(default=None, repr=False)
     torques: Optional[np.ndarray] = field(default=None, repr=False)
-    function: Any = field(default=None, repr=False)
+    law: Any = field(default=None, repr=False)  #: a Python law (Controller.function)
 
     # -- constructors ------------------------------------------------------------------------
     @classmethod
@@ -144,7 +144,7 @@ class Controller:
         _actuation(actuated)
         if not callable(f):
             raise ParameterError(f"the law must be a callable f(t, x) -> (u1, u2), got {f!r}")
-        return cls("function", actuated, torque_limits(umax), function=f)
+        return cls("function", actuated, torque_limits(umax), law=f)
 
     # -- what the integrators get --------------------------------------------------------------
     @property
@@ -174,7 +174,7 @@ class Controller:
             c._keep = table  # the array lives as long as the struct
         if self.kind == "function":
             c.errors = []
-            c._keep = CALLBACK(_python_law(self.function, c.errors))
+            c._keep = CALLBACK(_python_law(self.law, c.errors))
             c.callback = ctypes.cast(c._keep, ctypes.c_void_p)
         return c
 
@@ -218,7 +218,7 @@ class Controller:
         if self.kind == "table":
             d.update(times=self.times.tolist(), torques=self.torques.tolist())
         if self.kind == "function":
-            d.update(function=getattr(self.function, "__qualname__", repr(self.function)))
+            d.update(function=getattr(self.law, "__qualname__", repr(self.law)))
         return d
 
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "open_store_for", "chunk_rows", "work_units", "check_workers",
+__all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "read_grid_result", "open_store_for", "chunk_rows", "work_units", "check_workers",
            "check_run_options", "check_feasible", "steps_per_second", "probe_time", "UNITS_PER_WORKER"]
 
 #: Default store chunk: at most this many cells (whole rows) ...
@@ -479,3 +479,30 @@ def read_store(job_kind: str, path, *, what: str) -> Tuple[Dict[str, np.ndarray]
                                     ("done", "chunk_stats", "chunk_digest")]
         arrays = {name: st.read(name) for name in names}
     return arrays, attrs
+
+
+def read_grid_result(path, *, store_kind: str, result_kind: str, what: str, store_keys: Tuple[str, str]):
+    """``(arrays, attrs, settings, stats)`` of a grid result written whole: a complete store
+    ``*.zarr`` (its settings and statistics in the attributes ``store_keys``) or a file ``*.nc``
+    (the result protocol's ``settings`` and ``stats``); anything else is refused in one line."""
+    import json
+    from pathlib import Path
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".zarr":
+        arrays, attrs = read_store(store_kind, path, what=what)
+        keys = store_keys
+    elif suffix == ".nc":
+        from ..io import read_netcdf
+
+        arrays, attrs = read_netcdf(path, kind=result_kind)
+        keys = ("settings", "stats")
+    else:
+        raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
+    try:
+        settings, stats = (json.loads(attrs[k]) for k in keys)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ParameterError(f"{path} is not {what} made by skewpend (missing or bad attribute: {exc})") from None
+    return arrays, attrs, settings, stats
+
