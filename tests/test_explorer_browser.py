@@ -305,3 +305,38 @@ def test_a_clean_console_without_gravity(browser, server, query):
             assert p.page.locator("#modes li").count() == 2
     finally:
         p.close()
+
+
+@pytest.mark.parametrize("width, height", [(1280, 800), (1920, 1080), (390, 844)], ids=["laptop", "full-hd", "phone"])
+def test_every_window_size_shows_everything_uncut(browser, server, width, height):
+    """Issue 19's 'look at it': at a laptop's, a full-HD and a phone's size nothing sticks out of
+    the page, the equations fit their box (shrunk, once KaTeX's fonts are in), the 3D view has a
+    sensible size and draws, and the panel follows it (beside, or below on a phone)."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    try:
+        page.goto(server + "/")
+        page.wait_for_function("() => window.explorer && window.explorer.state().frames > 5", timeout=30000)
+        page.wait_for_function("() => document.querySelector('#equations .katex') !== null", timeout=30000)
+        page.evaluate("() => document.fonts.ready")
+        page.wait_for_timeout(300)
+        m = page.evaluate("""() => {
+            const eq = document.getElementById('equations'), st = document.getElementById('stage').getBoundingClientRect();
+            const panel = document.getElementById('panel').getBoundingClientRect();
+            return {page: document.documentElement.scrollWidth, inner: window.innerWidth,
+                    eqScroll: eq.scrollWidth, eqClient: eq.clientWidth, stageW: st.width, stageH: st.height,
+                    panelTop: panel.top, panelLeft: panel.left, stageBottom: st.bottom};
+        }""")
+        page.screenshot(path=str(_artifacts() / f"explorer-{width}x{height}.png"), full_page=width < 600)
+        assert m["page"] <= m["inner"], m  # no horizontal scrolling of the page
+        assert m["eqScroll"] <= m["eqClient"] + 1, m  # the equations fit their box
+        assert 300 <= m["stageH"] <= height and m["stageW"] >= 0.5 * min(width, 1000), m
+        if width < 1000:
+            assert m["panelTop"] >= m["stageBottom"] - 1, m  # the panel below the view
+        else:
+            assert m["panelLeft"] >= m["stageW"] - 1, m  # the panel beside it
+        from PIL import Image
+
+        shot = np.asarray(Image.open(io.BytesIO(page.locator("#scene").screenshot())).convert("L"), dtype=float)
+        assert shot.std() > 5.0  # a drawing, not an empty canvas
+    finally:
+        page.close()

@@ -206,7 +206,10 @@ function hud() {
 // ---- plots (canvas 2D) ---------------------------------------------------------------------------------
 function plot(canvasId, series, colors, labels, unit, symmetric, wrapped = false) {
   const c = document.getElementById(canvasId), g = c.getContext("2d");
-  const W = c.width, H = c.height, L = 44, R = 8, T = 16, B = 18;
+  // drawn at the canvas's displayed size and the screen's pixel ratio: crisp at any panel width
+  const dpr = window.devicePixelRatio || 1, W = c.clientWidth || c.width, H = c.clientHeight || c.height, R = 8, T = 16, B = 18;
+  if (c.width !== Math.round(W * dpr) || c.height !== Math.round(H * dpr)) { c.width = Math.round(W * dpr); c.height = Math.round(H * dpr); }
+  g.setTransform(dpr, 0, 0, dpr, 0, 0);
   g.clearRect(0, 0, W, H);
   g.font = "11px system-ui, sans-serif";
   if (!hist.length) return;
@@ -215,6 +218,8 @@ function plot(canvasId, series, colors, labels, unit, symmetric, wrapped = false
   for (const row of hist) for (const s of series) { const v = s(row); if (v < lo) lo = v; if (v > hi) hi = v; }
   if (symmetric) { const m = Math.max(Math.abs(lo), Math.abs(hi), 1e-12); lo = -m; hi = m; }
   if (!(hi > lo)) { hi = lo + 1; }
+  // the left margin holds the widest tick label: never cut off
+  const L = Math.ceil(Math.max(g.measureText(fmt(hi)).width, g.measureText(fmt(lo)).width)) + 8;
   const X = (tt) => L + ((tt - t0) / Math.max(t1 - t0, 1e-9)) * (W - L - R);
   const Y = (v) => T + (1 - (v - lo) / (hi - lo)) * (H - T - B);
   g.strokeStyle = "#c8cfd9"; g.lineWidth = 1;
@@ -316,6 +321,18 @@ async function api(path, body) {
   }
   return data;
 }
+// the equations shrink to the panel's width (down to 60 % of the panel's type size), then scroll
+function fitEquations() {
+  const el = document.getElementById("equations"), k = el.querySelector(".katex-display") || el.firstElementChild;
+  if (!k) return;
+  k.style.fontSize = "";
+  const room = el.clientWidth - 12, need = k.scrollWidth;
+  if (need > room && room > 0) k.style.fontSize = `${Math.max(0.6, room / need).toFixed(3)}em`;
+}
+// refitted whenever the box changes width (the window, the panel's scroll bar appearing, ...)
+// and once KaTeX's fonts have loaded (the formulas are wider in them than in the fallback font)
+new ResizeObserver(fitEquations).observe(document.getElementById("equations"));
+document.fonts.addEventListener("loadingdone", fitEquations);
 let eqSerial = 0;
 async function fetchEquations() {
   const el = document.getElementById("equations"), serial = ++eqSerial, alpha = values.alpha;
@@ -324,6 +341,8 @@ async function fetchEquations() {
     if (serial !== eqSerial) return;
     if (window.katex) window.katex.render(data.latex, el, { displayMode: true, throwOnError: false });
     else el.textContent = data.latex;
+    fitEquations();
+    document.fonts.ready.then(fitEquations);
     el.dataset.alpha = String(alpha);
     el.classList.remove("stale");
   } catch (err) {
