@@ -340,3 +340,25 @@ def test_every_window_size_shows_everything_uncut(browser, server, width, height
         assert shot.std() > 5.0  # a drawing, not an empty canvas
     finally:
         page.close()
+
+
+@pytest.mark.parametrize("query", ["", "?alpha=0", "?alpha=90&a=0.5&m2=2.5", "?alpha=150&b=1.7&c1=0.4"])
+def test_the_modes_computed_in_the_page_are_the_library_s(browser, server, query):
+    """The page computes the normal modes itself, from the generated M0 and K0 (no request): the
+    frequencies and shapes equal skewpend.normal_modes' to 1e-9 (relative), whatever the skew,
+    bodies or damping (the undamped modes; damping is shown by the library's damping ratios)."""
+    from skewpend import Parameters
+
+    p = Page(browser, server + "/" + query)
+    try:
+        js = p.page.evaluate("() => window.explorer.modes()")
+        s = p.state()
+        lib = skewpend.normal_modes(Parameters(**dict(zip(("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2"),
+                                                         s["p"]))))
+        np.testing.assert_allclose(js["frequencies"], lib.frequencies, rtol=1e-9)
+        np.testing.assert_allclose(np.array(js["shapes"]).T, lib.shapes, rtol=1e-9, atol=1e-12)
+        assert not any("/api/modes" in u for u in p.requests)
+        texts = p.page.locator("#modes li").all_text_contents()
+        assert len(texts) == 2 and f"{lib.frequencies[0] / (2 * np.pi):.4f} Hz" in texts[0]
+    finally:
+        p.close()

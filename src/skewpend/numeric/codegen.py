@@ -259,8 +259,9 @@ def _body(lang: Lang, ex: _Expressions, indent: str) -> Tuple[List[str], List[st
 
 def explorer_js(params: Parameters) -> str:
     """The JavaScript module of the web explorer (an ES module): ``rhs(y, p)``, ``energy(y, p)``,
-    and the drawing's ``tips(y, p)`` (rod ends ``[x1, y1, z1, x2, y2, z2]`` [m]) and ``axes(y, p)``
-    (the hinge axes ``[n1, e]`` in the world frame, ``e = P1 . e0``), all printed from the
+    the drawing's ``tips(y, p)`` (rod ends ``[x1, y1, z1, x2, y2, z2]`` [m]) and ``axes(y, p)``
+    (the hinge axes ``[n1, e]`` in the world frame, ``e = P1 . e0``), and ``linear(y, p)`` (``M0``
+    and ``K0`` at rest, for the normal modes computed in the browser), all printed from the
     derivation for the bodies and axes of ``params``, every scalar read from ``p`` in
     :data:`PARAMETER_ORDER` (the sliders change ``p``, never the code)."""
     geometry = geometry_of(params)
@@ -273,8 +274,15 @@ def explorer_js(params: Parameters) -> str:
            "/** dy/dt = [dphi, dpsi, ddphi, ddpsi] */", "export function rhs(y, p) {", *rhs,
            "  return [y[2], y[3], ddphi, ddpsi];", "}", "",
            "/** mechanical energy T + Pi [J] */", "export function energy(y, p) {", *en, "  return E;", "}", ""]
+    q = [SYMBOLS["phi"], SYMBOLS["psi"]]
+    rest = {q[0]: 0, q[1]: 0}
+    hess = sp.hessian(ex.Pi, q)
+    linear = [ex.M[0, 0].subs(rest), ex.M[0, 1].subs(rest), ex.M[1, 1].subs(rest),
+              hess[0, 0].subs(rest), hess[0, 1].subs(rest), hess[1, 1].subs(rest)]
     for name, exprs, doc_line in (("tips", list(ex.tips), "rod ends [x1, y1, z1, x2, y2, z2] [m] (j points down)"),
-                                  ("axes", list(ex.axes), "hinge axes [n1x, n1y, n1z, ex, ey, ez]: n1 fixed, e = P1 . e0")):
+                                  ("axes", list(ex.axes), "hinge axes [n1x, n1y, n1z, ex, ey, ez]: n1 fixed, e = P1 . e0"),
+                                  ("linear", linear, "the linearisation at rest (phi = psi = 0): [M0_11, M0_12, M0_22, "
+                                   "K0_11, K0_12, K0_22], M0 = M(0), K0 = the Hessian of Pi")):
         used = used_names(exprs)
         body = [f"  const {n} = y[{i}];" for i, n in enumerate(STATE_ORDER) if n in used]
         body += param_lines(lang, "  ", used)

@@ -352,31 +352,50 @@ async function fetchEquations() {
     el.classList.remove("stale");
   }
 }
-async function fetchModes() {
-  const el = document.getElementById("modes");
-  if (!(values.g > 0)) { // the server refuses (422), which the browser logs as an error: not asked
+// The normal modes about the hanging position, computed here from the generated M0 and K0
+// (physics.linear): K0 x = w^2 M0 x, a 2 x 2 generalised symmetric eigenproblem; each shape
+// normalised to x' M0 x = 1, its larger component positive (normal_modes' conventions).
+function normalModes(pv) {
+  const [m11, m12, m22, k11, k12, k22] = physics.linear(y, pv);
+  const a = m11 * m22 - m12 * m12, b = -(m11 * k22 + m22 * k11 - 2 * m12 * k12), c = k11 * k22 - k12 * k12;
+  const disc = Math.sqrt(Math.max(b * b - 4 * a * c, 0));
+  const big = (-b + Math.sign(-b || 1) * disc) / (2 * a), small = c / (a * big); // no cancellation
+  const lambdas = [Math.min(big, small), Math.max(big, small)];
+  if (!(a > 0) || !(lambdas[0] > 0)) return null; // not a stable equilibrium (e.g. g = 0)
+  const shapes = lambdas.map((l) => {
+    // the row of K0 - l M0 with the larger entries gives the better-conditioned null vector
+    const r1 = [k11 - l * m11, k12 - l * m12], r2 = [k12 - l * m12, k22 - l * m22];
+    const r = Math.hypot(...r1) >= Math.hypot(...r2) ? r1 : r2;
+    let x = [-r[1], r[0]];
+    const n = Math.sqrt(x[0] * (m11 * x[0] + m12 * x[1]) + x[1] * (m12 * x[0] + m22 * x[1]));
+    x = x.map((v) => v / n);
+    return Math.abs(x[0]) >= Math.abs(x[1]) ? (x[0] < 0 ? x.map((v) => -v) : x) : (x[1] < 0 ? x.map((v) => -v) : x);
+  });
+  const w = lambdas.map(Math.sqrt);
+  return { frequencies: w, frequencies_hz: w.map((v) => v / (2 * Math.PI)), periods: w.map((v) => 2 * Math.PI / v),
+           shapes, ratios: shapes.map((x) => x[1] / x[0]) };
+}
+function fetchModes() {
+  const el = document.getElementById("modes"), m = normalModes(paramVector());
+  if (!m) {
     el.replaceChildren(Object.assign(document.createElement("span"), {
-      className: "note", textContent: "no normal modes for g = 0: without gravity the hanging position is not a stable equilibrium" }));
+      className: "note", textContent: values.g > 0 ? "no normal modes: the hanging position is not a stable equilibrium here"
+        : "no normal modes for g = 0: without gravity the hanging position is not a stable equilibrium" }));
     return;
   }
-  try {
-    const m = await api("/api/modes", { model: model() });
-    const ul = document.createElement("ul");
-    m.frequencies.forEach((w, k) => {
-      const s = m.shapes.map((row) => row[k]);
-      const li = document.createElement("li");
-      li.innerHTML = `<span>mode ${k + 1}: <b>${m.frequencies_hz[k].toFixed(4)} Hz</b>, T = ${m.periods[k].toFixed(3)} s, ` +
-        `ψ/φ = ${(s[1] / s[0]).toFixed(3)}</span>`;
-      const b = Object.assign(document.createElement("button"), { type: "button", textContent: "start" });
-      b.dataset.mode = String(k);
-      b.addEventListener("click", () => startMode(s));
-      li.append(b);
-      ul.append(li);
-    });
-    el.replaceChildren(ul);
-  } catch (err) {
-    el.replaceChildren(Object.assign(document.createElement("span"), { className: "error", textContent: err.message }));
-  }
+  const ul = document.createElement("ul");
+  m.frequencies.forEach((w, k) => {
+    const s = m.shapes[k];
+    const li = document.createElement("li");
+    li.innerHTML = `<span>mode ${k + 1}: <b>${m.frequencies_hz[k].toFixed(4)} Hz</b>, T = ${m.periods[k].toFixed(3)} s, ` +
+      `ψ/φ = ${m.ratios[k].toFixed(3)}</span>`;
+    const btn = Object.assign(document.createElement("button"), { type: "button", textContent: "start" });
+    btn.dataset.mode = String(k);
+    btn.addEventListener("click", () => startMode(s));
+    li.append(btn);
+    ul.append(li);
+  });
+  el.replaceChildren(ul);
 }
 function startMode(shape) {
   const peak = Math.max(Math.abs(shape[0]), Math.abs(shape[1]));
@@ -556,6 +575,7 @@ window.explorer = {
   state: () => ({ t, y: [...y], p: [...p], running, fps, frames, E0, values: { ...values }, trail: trailCount,
                   frameMs: frameMs.count ? frameMs.total / frameMs.count : null }),
   flip: () => flip && { n: flip.n, t_end: flip.t_end, phi0: flip.phi0, psi0: flip.psi0 },
+  modes: () => normalModes(paramVector()),
   screenOf,
   physics,
 };
