@@ -70,3 +70,28 @@ def heyoka_header(cores: int, *, sympy: bool = False):
     print(f"  heyoka     {version('heyoka')}" + (f"   (recommended SIMD batch size {hy.recommended_simd_size()})" if hy else ""))
     return hy
 
+
+def heyoka_first_order(eom, s_dict, hv):
+    """skewpend's equations of motion ``M(q) q'' = f`` as heyoka.py's first-order system over the
+    variables ``hv`` = (phi, psi, phi', psi'), every symbol replaced through ``s_dict`` (SymPy
+    symbol -> heyoka expression) by ``hy.from_sympy``; ``q'' = M^-1 f`` solved as skewpend does."""
+    import heyoka as hy
+    import sympy as sp
+
+    def conv(e):
+        e = sp.sympify(e)
+        # constants heyoka cannot take as they are: functions of numbers (cos(3/5)) and rationals
+        # whose denominator is not a power of 2 -> doubles
+        e = e.xreplace({fn: sp.Float(float(fn), 53) for fn in e.atoms(sp.Function) if not fn.free_symbols})
+        e = e.xreplace({r: sp.Float(float(r), 53) for r in e.atoms(sp.Rational) if not r.is_Integer})
+        extra = e.free_symbols - set(s_dict)
+        if extra:
+            raise ValueError(f"equations still contain {sorted(map(str, extra))}")
+        return hy.from_sympy(e, s_dict=s_dict)
+
+    M, f = eom.mass_matrix, eom.forcing
+    M11, M12, M22, f1, f2 = conv(M[0, 0]), conv(M[0, 1]), conv(M[1, 1]), conv(f[0]), conv(f[1])
+    det = M11 * M22 - M12 * M12
+    phi, psi, dphi, dpsi = hv
+    return [(phi, dphi), (psi, dpsi), (dphi, (M22 * f1 - M12 * f2) / det), (dpsi, (M11 * f2 - M12 * f1) / det)]
+

@@ -58,7 +58,7 @@ def params():
     return skewpend.Parameters(a=A, b=B, m1=M1, m2=M2, alpha=ALPHA, g=G)
 
 
-from _common import heyoka_header  # noqa: E402  (benchmarks/ is on sys.path when run)
+from _common import heyoka_first_order, heyoka_header  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
 def cells(n: int) -> np.ndarray:
@@ -74,7 +74,6 @@ def cells(n: int) -> np.ndarray:
 def heyoka_system():
     """The equations of motion for heyoka, from skewpend's derivation via hy.from_sympy."""
     import heyoka as hy
-    import sympy as sp
 
     import skewpend
     from skewpend.symbolic.derivation import SYMBOLS
@@ -84,22 +83,7 @@ def heyoka_system():
     hv = hy.make_vars(*names)
     s_dict = {SYMBOLS[nm]: v for nm, v in zip(names, hv)}
 
-    def conv(e):
-        e = sp.sympify(e)
-        # constants only heyoka cannot take as they are: functions of numbers (cos(3/5)) and
-        # rationals whose denominator is not a power of 2 -> doubles
-        e = e.xreplace({fn: sp.Float(float(fn), 53) for fn in e.atoms(sp.Function) if not fn.free_symbols})
-        e = e.xreplace({r: sp.Float(float(r), 53) for r in e.atoms(sp.Rational) if not r.is_Integer})
-        extra = e.free_symbols - set(s_dict)
-        if extra:
-            raise ValueError(f"equations still contain {sorted(map(str, extra))}")
-        return hy.from_sympy(e, s_dict=s_dict)
-
-    M, f = eom.mass_matrix, eom.forcing
-    M11, M12, M22, f1, f2 = conv(M[0, 0]), conv(M[0, 1]), conv(M[1, 1]), conv(f[0]), conv(f[1])
-    det = M11 * M22 - M12 * M12
-    phi, psi, dphi, dpsi = hv
-    return [(phi, dphi), (psi, dpsi), (dphi, (M22 * f1 - M12 * f2) / det), (dpsi, (M11 * f2 - M12 * f1) / det)], hv
+    return heyoka_first_order(eom, s_dict, hv), hv
 
 
 def heyoka_integrator(tol: float):

@@ -75,7 +75,7 @@ import time
 
 import numpy as np
 
-from _common import heyoka_header, compile_times  # benchmarks/ is on sys.path when run
+from _common import heyoka_first_order, heyoka_header, compile_times  # benchmarks/ is on sys.path when run
 
 A, B, M1, M2, ALPHA_DEG, G = 1.0, 0.8, 1.0, 0.7, 30.0, 9.81
 TARGET, ACTUATED, UMAX = "up-up", "both", 10.0
@@ -129,7 +129,6 @@ def heyoka_system(p, K, xs, umax):
     """The closed loop for heyoka from skewpend's derivation, the torques symbolic and replaced by
     u(x): (equations, variables, wrapped dx, the unsaturated inputs -K dx)."""
     import heyoka as hy
-    import sympy as sp
 
     import skewpend
     from skewpend.symbolic.derivation import SYMBOLS
@@ -149,23 +148,9 @@ def heyoka_system(p, K, xs, umax):
     s_dict = {SYMBOLS[nm]: v for nm, v in zip(names, hv)}
     s_dict[SYMBOLS["tau1"]], s_dict[SYMBOLS["tau2"]] = u
 
-    def conv(e):
-        e = sp.sympify(e)
-        # constants heyoka cannot take as they are: functions of numbers (cos(3/5)) and rationals
-        # whose denominator is not a power of 2 -> doubles
-        e = e.xreplace({fn: sp.Float(float(fn), 53) for fn in e.atoms(sp.Function) if not fn.free_symbols})
-        e = e.xreplace({r: sp.Float(float(r), 53) for r in e.atoms(sp.Rational) if not r.is_Integer})
-        extra = e.free_symbols - set(s_dict)
-        if extra:
-            raise ValueError(f"equations still contain {sorted(map(str, extra))}")
-        return hy.from_sympy(e, s_dict=s_dict)
-
-    M, f = eom.mass_matrix, eom.forcing
-    if not {SYMBOLS["tau1"], SYMBOLS["tau2"]} <= f.free_symbols:
+    if not {SYMBOLS["tau1"], SYMBOLS["tau2"]} <= eom.forcing.free_symbols:
         raise ValueError("the derivation's forcing does not contain the torques tau1, tau2")
-    M11, M12, M22, f1, f2 = conv(M[0, 0]), conv(M[0, 1]), conv(M[1, 1]), conv(f[0]), conv(f[1])
-    det = M11 * M22 - M12 * M12
-    sys_ = [(phi, dphi), (psi, dpsi), (dphi, (M22 * f1 - M12 * f2) / det), (dpsi, (M11 * f2 - M12 * f1) / det)]
+    sys_ = heyoka_first_order(eom, s_dict, hv)
     return sys_, hv, dx, raws
 
 
