@@ -136,8 +136,10 @@ def _u_target(params: Parameters, lin: Linearization) -> np.ndarray:
 
 
 def _deviation(x: np.ndarray, target: np.ndarray) -> np.ndarray:
+    from .equilibria import wrap
+
     dx = x - target
-    dx[..., :2] = (dx[..., :2] + np.pi) % (2 * np.pi) - np.pi
+    dx[..., :2] = wrap(dx[..., :2])
     return dx
 
 

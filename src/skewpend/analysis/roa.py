@@ -122,10 +122,12 @@ class RegionOfAttraction(Result):
 
     def deviations(self) -> Tuple[np.ndarray, np.ndarray]:
         """The axes as offsets from the target (angles wrapped to (-pi, pi])."""
+        from .equilibria import wrap
+
         out = []
         for name, values in zip(self.plane, (self.x0, self.y0)):
             d = np.asarray(values, dtype=float) - self.target[COORDINATES[name]]
-            out.append((d + np.pi) % (2 * np.pi) - np.pi if COORDINATES[name] < 2 else d)
+            out.append(wrap(d) if COORDINATES[name] < 2 else d)
         return out[0], out[1]
 
     @property

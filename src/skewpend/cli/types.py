@@ -23,7 +23,7 @@ from ..parsing import UsageError, parse_inertia, parse_scalar, parse_vector, par
 
 __all__ = [
     "ParamType", "Scalar", "Angle", "Positive", "NonNegative", "Whole", "Range", "Interval", "Window", "Vector",
-    "Inertia", "OutPath", "Scheduler", "Port", "Host", "Size", "Section", "Energy",
+    "Inertia", "OutPath", "Scheduler", "Port", "Host", "Size", "Section", "Energy", "Offsets", "Plane", "EquilibriumChoice",
 ]
 
 
@@ -135,24 +135,6 @@ class Interval(ParamType):
         return parse_interval(text, flag, angle=self.angle)
 
 
-class Window(ParamType):
-    """``PHI0:PHI1,PSI0:PSI1`` -> two increasing angle intervals within -180..180 deg."""
-
-    metavar = "PHI0:PHI1,PSI0:PSI1"
-
-    def convert(self, text, flag):
-        from ..parsing import parse_interval
-
-        parts = text.split(",")
-        if len(parts) != 2:
-            raise UsageError(f"{flag}: expected PHI0:PHI1,PSI0:PSI1 (e.g. -90:90deg,-180:180deg), got {text!r}")
-        ranges = tuple(parse_interval(part, f"{flag} ({name})", angle=True) for part, name in zip(parts, ("phi", "psi")))
-        for (lo, hi), name in zip(ranges, ("phi", "psi")):
-            if not -math.pi - 1e-12 <= lo < hi <= math.pi + 1e-12:
-                raise UsageError(f"{flag} ({name}): expected START < STOP within -180..180 deg, got {lo:.6g}:{hi:.6g} rad")
-        return ranges
-
-
 class Plane(ParamType):
     """``A,B``: two different coordinates of the state, of ``phi, psi, dphi, dpsi``."""
 
@@ -168,21 +150,35 @@ class Plane(ParamType):
 
 
 class Offsets(ParamType):
-    """``LO:HI,LO:HI`` -> two increasing intervals of offsets (radians or deg; rad/s or deg/s)."""
+    """``LO:HI,LO:HI`` -> two increasing intervals (radians or deg; rad/s or deg/s), each within
+    ``[-within, within]`` when ``within`` is set."""
 
     metavar = "LO:HI,LO:HI"
+    names: Tuple[str, str] = ("", "")
+    within: Optional[float] = None
 
     def convert(self, text, flag):
         from ..parsing import parse_interval
 
         parts = text.split(",")
         if len(parts) != 2:
-            raise UsageError(f"{flag}: expected LO:HI,LO:HI (e.g. -90:90deg,-180:180deg), got {text!r}")
-        ranges = tuple(parse_interval(part, flag, angle=True) for part in parts)
-        for lo, hi in ranges:
+            raise UsageError(f"{flag}: expected {self.metavar} (e.g. -90:90deg,-180:180deg), got {text!r}")
+        where = [f"{flag} ({name})" if name else flag for name in self.names]
+        ranges = tuple(parse_interval(part, at, angle=True) for part, at in zip(parts, where))
+        for (lo, hi), at in zip(ranges, where):
             if not lo < hi:
-                raise UsageError(f"{flag}: expected LO < HI in each range, got {text!r}")
+                raise UsageError(f"{at}: expected START < STOP, got {lo:.6g}:{hi:.6g}")
+            if self.within is not None and not -self.within - 1e-12 <= lo < hi <= self.within + 1e-12:
+                raise UsageError(f"{at}: expected START < STOP within -180..180 deg, got {lo:.6g}:{hi:.6g} rad")
         return ranges
+
+
+class Window(Offsets):
+    """``PHI0:PHI1,PSI0:PSI1`` -> two increasing angle intervals within -180..180 deg."""
+
+    metavar = "PHI0:PHI1,PSI0:PSI1"
+    names = ("phi", "psi")
+    within = math.pi
 
 
 class EquilibriumChoice(ParamType):
