@@ -18,16 +18,39 @@ def serve(
     host: option("--host", T.Host(), "address to listen on (default 127.0.0.1: this machine only)", None) = "127.0.0.1",
     port: option("--port", T.Port(), "TCP port (default 8000)", None) = "8000",
     open_browser: Annotated[bool, typer.Option("--open", help="open the page in the web browser")] = False,
+    export: Annotated[str, typer.Option("--export", metavar="DIR", show_default=False,
+                                        help="write the explorer as a static site to DIR (new or empty) instead of "
+                                             "serving it: it runs in any browser from the file system or a static "
+                                             "host, with no server and no network")] = None,
+    force: Annotated[bool, typer.Option("--force", help="with --export: replace an earlier export in DIR")] = False,
 ) -> None:
     """The live explorer in the browser: the pendulum in 3D with sliders, equations, plots, normal
-    modes and a flip map, on physics generated from the derivation (needs skewpend[web]).
+    modes and a flip map, on physics generated from the derivation (needs skewpend[web]; with
+    --export, nothing beyond skewpend itself).
 
     Ctrl-C stops the server.
     """
-    from ..views import explorer
+    from ..parsing import UsageError
 
-    _announce(explorer, host, port)
-    explorer.serve(host, port, open_browser=open_browser)
+    if export is None:
+        if force:
+            raise UsageError("--force: only with --export DIR (it replaces an earlier export)")
+        from ..views import explorer
+
+        _announce(explorer, host, port)
+        explorer.serve(host, port, open_browser=open_browser)
+        return
+    given = [flag for flag, value, default in (("--host", host, "127.0.0.1"), ("--port", port, "8000")) if str(value) != default]
+    if given:
+        raise UsageError(f"{', '.join(given)}: not with --export (a static site has no server)")
+    from ..views.frontend import export_explorer
+
+    index = export_explorer(export, force=force)
+    sys.stderr.write(f"skewpend: wrote the static explorer to {index.parent}/ (open {index.name} in a browser)\n")
+    if open_browser:
+        import webbrowser
+
+        webbrowser.open(index.resolve().as_uri())
 
 
 def _announce(explorer, host: str, port: int) -> None:

@@ -17,6 +17,8 @@ Conventions shared by every generated routine:
 
 from __future__ import annotations
 
+import json
+import re
 from dataclasses import dataclass
 from typing import Callable, List, Sequence, Tuple
 
@@ -29,6 +31,12 @@ from ..symbolic.model import Parameters
 __all__ = [
     "PARAMETER_ORDER",
     "STATE_ORDER",
+    "EQUATION_GENERATORS",
+    "EQUATION_ENTRIES",
+    "equation_terms",
+    "explorer_js",
+    "classic_js",
+    "dop853_js",
     "generate",
     "parameter_vector",
 ]
@@ -257,13 +265,48 @@ def _body(lang: Lang, ex: _Expressions, indent: str) -> Tuple[List[str], List[st
     return rhs_lines, en_lines
 
 
+#: The state functions the entries of M and f are polynomials in (the equations' "monomials").
+EQUATION_GENERATORS = ("sin(phi)", "cos(phi)", "sin(psi)", "cos(psi)", "dphi", "dpsi")
+#: The entries of the equations of motion, in the order of :func:`equation_terms`' output.
+EQUATION_ENTRIES = ("M11", "M12", "M22", "f1", "f2")
+
+
+def equation_terms(M, f) -> List[Tuple[str, Tuple[int, ...], sp.Expr, sp.Expr]]:
+    """The entries of ``M`` and ``f`` as sums of coefficients times monomials in
+    :data:`EQUATION_GENERATORS`: ``(entry, exponents, monomial, coefficient)`` for every term
+    (the coefficient free of the state), in display order -- the mass matrix's constant term
+    first; the forcing's speed-squared terms, then the gravity terms, the damping terms and the
+    constant torque; within each, more trigonometric factors first (the mass matrix: fewer).  Raises ValueError for an entry that is not such a polynomial."""
+    s = SYMBOLS
+    gens = [sp.sin(s["phi"]), sp.cos(s["phi"]), sp.sin(s["psi"]), sp.cos(s["psi"]), s["dphi"], s["dpsi"]]
+    state = {s["phi"], s["psi"], s["dphi"], s["dpsi"]}
+    out = []
+    for name, expr in zip(EQUATION_ENTRIES, [M[0, 0], M[0, 1], M[1, 1], f[0], f[1]]):
+        poly = sp.Poly(sp.expand(expr), *gens)
+        rows = []
+        for exps, coeff in poly.terms():
+            if coeff.free_symbols & state:
+                raise ValueError(f"{name} is not a polynomial in {', '.join(EQUATION_GENERATORS)}")
+            monomial = sp.Mul(*[g**e for g, e in zip(gens, exps)])
+            speeds, trig = exps[4] + exps[5], sum(exps[:4])
+            rank = (trig,) if name.startswith("M") else ({2: 0, 0: 1, 1: 2}[speeds] + (3 if speeds + trig == 0 else 0), -trig)
+            rows.append((rank, name, tuple(int(e) for e in exps), monomial, coeff))
+        out += [row[1:] for row in sorted(rows, key=lambda r: r[0])]
+    return out
+
+
 def explorer_js(params: Parameters) -> str:
     """The JavaScript module of the web explorer (an ES module): ``rhs(y, p)``, ``energy(y, p)``,
     the drawing's ``tips(y, p)`` (rod ends ``[x1, y1, z1, x2, y2, z2]`` [m]) and ``axes(y, p)``
-    (the hinge axes ``[n1, e]`` in the world frame, ``e = P1 . e0``), and ``linear(y, p)`` (``M0``
-    and ``K0`` at rest, for the normal modes computed in the browser), all printed from the
-    derivation for the bodies and axes of ``params``, every scalar read from ``p`` in
-    :data:`PARAMETER_ORDER` (the sliders change ``p``, never the code)."""
+    (the hinge axes ``[n1, e]`` in the world frame, ``e = P1 . e0``), ``linear(y, p)`` (``M0``
+    and ``K0`` at rest, for the normal modes computed in the browser), the equations of motion
+    as ``TERMS`` (``[entry, exponents, LaTeX of the monomial]``, see :func:`equation_terms`) with
+    their coefficients ``coefficients(p)`` (typeset by the page for the current parameters), and
+    ``FLIP_ODD`` (without torques the equations are odd under ``(q, q') -> -(q, q')``), all
+    printed from the derivation for the bodies and axes of ``params``, every scalar read from
+    ``p`` in :data:`PARAMETER_ORDER` (the sliders change ``p``, never the code)."""
+    from ..symbolic.render import tex
+    from .kernel_source import odd_under_reflection
     geometry = geometry_of(params)
     _check_geometry_numeric(geometry)
     ex = expressions(geometry)
@@ -289,7 +332,48 @@ def explorer_js(params: Parameters) -> str:
         body += cse_block(lang, exprs, [f"r{i}" for i in range(len(exprs))], "  ")
         out += [f"/** {doc_line} */", f"export function {name}(y, p) {{", *body,
                 f"  return [{', '.join(f'r{i}' for i in range(len(exprs)))}];", "}", ""]
+    terms = equation_terms(ex.M, ex.f)
+    listed = ",\n".join(f"  [{json.dumps(name)}, {list(exps)}, {json.dumps(_compact_trig(tex(mono)) if mono != 1 else '')}]"
+                        for name, exps, mono, _ in terms)
+    coeffs = [c for *_, c in terms]
+    body = param_lines(lang, "  ", used_names(coeffs))
+    body += cse_block(lang, coeffs, [f"k{i}" for i in range(len(coeffs))], "  ")
+    out += [f"/** the terms of the equations of motion: [entry ({', '.join(EQUATION_ENTRIES)}), exponents of "
+            f"({', '.join(EQUATION_GENERATORS)}), LaTeX of the monomial] */",
+            f"export const TERMS = [\n{listed}\n];", "",
+            "/** the coefficient of each of TERMS for the parameters p */", "export function coefficients(p) {", *body,
+            f"  return [{', '.join(f'k{i}' for i in range(len(coeffs)))}];", "}", "",
+            "/** without torques the equations are odd under (q, q') -> -(q, q'): mirror starts flip alike */",
+            f"export const FLIP_ODD = {'true' if odd_under_reflection(ex) else 'false'};", ""]
     return "\n".join(out)
+
+
+def _compact_trig(latex: str) -> str:
+    """``\\sin^{2}{\\left(\\psi \\right)}`` -> ``\\sin^{2}\\psi``: a function of one angle without brackets."""
+    return re.sub(r"\\(sin|cos)(\^\{\d+\})?\{\\left\((\\varphi|\\psi) \\right\)\}", r"\\\1\2\3", latex)
+
+
+def classic_js(module: str, name: str) -> str:
+    """A generated ES module (its exports all ``export const`` / ``export function`` at the start
+    of a line) as a classic script defining ``self[name]`` -- for a Web Worker built from text."""
+    exported = re.findall(r"^export (?:const|function) ([A-Za-z_]\w*)", module, flags=re.M)
+    body = re.sub(r"^export ", "", module, flags=re.M)
+    if "export " in re.sub(r"/\*.*?\*/", "", body, flags=re.S):
+        raise ValueError("classic_js: an export that is not a top-level const or function")
+    return f"self.{name} = (() => {{\n{body}\nreturn {{ {', '.join(exported)} }};\n}})();\n"
+
+
+def dop853_js() -> str:
+    """The DOP853 tableau (Hairer's Dormand-Prince 8(5,3), as tabulated in SciPy -- the same
+    numbers as ``integrators.c``'s) as a classic script defining ``self.DOP853`` (A, C, E3, E5,
+    D), for the flip-map workers of the explorer."""
+    from scipy.integrate._ivp import dop853_coefficients as t
+
+    def arr(x):
+        return json.dumps([float(v) for v in x]) if x.ndim == 1 else "[" + ", ".join(arr(r) for r in x) + "]"
+
+    return ("self.DOP853 = {" + ", ".join(f"{k}: {arr(getattr(t, k))}" for k in ("A", "C", "E3", "E5", "D")) +
+            ", NS: 12, NSTAGES: 16};\n")
 
 
 def _standalone_python(ex: _Expressions, geometry: Parameters, values=None) -> str:

@@ -26,7 +26,7 @@ from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["kernel_c_source", "flip_c_source", "status_defines", "SP_LANES"]
+__all__ = ["kernel_c_source", "flip_c_source", "status_defines", "odd_under_reflection", "SP_LANES"]
 
 _STATE = ("phi", "psi", "dphi", "dpsi")
 
@@ -301,7 +301,7 @@ def _hoist(exprs, state):
     return out, [(sym, e) for e, sym in defs.items()]
 
 
-def _odd_under_reflection(ex) -> bool:
+def odd_under_reflection(ex) -> bool:
     """Whether, without joint torques, the equations are odd under ``(q, q') -> -(q, q')``:
     ``M(-q) = M(q)`` and ``f(-q, -q') = -f(q, q')`` identically (an exact symbolic check).  Then
     the start at rest ``-q0`` moves as the mirror image of ``q0`` and flips at the same time."""
@@ -358,7 +358,7 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
         f"#define SP_FLIP_N {len(_FLIP_STATE)}  /* state {', '.join(_FLIP_STATE)} */",
         f"#define SP_FLIP_NPP {max(len(defs), 1)}  /* prepared parameter constants */",
         "/* 1: without torques the equations are odd under (q, q') -> -(q, q') (checked symbolically) */",
-        f"#define SP_FLIP_ODD {1 if _odd_under_reflection(ex) else 0}",
+        f"#define SP_FLIP_ODD {1 if odd_under_reflection(ex) else 0}",
         "",
         "/* the parameter-only subexpressions of flip_rhs, once per run, into pp[SP_FLIP_NPP] */",
         "static void flip_prepare(const double *p, double *pp)",

@@ -1,17 +1,21 @@
 """The live explorer: a local web app over the library (``skewpend serve``; the ``web`` extra).
 
-The page (``web/index.html``, ``web/app.js``) draws the moving pendulum in 3D with three.js --
-bundled in the package from the npm ``three`` package, never loaded from a CDN -- and integrates
-the motion in the browser with the JavaScript *generated from the derivation*
-(:func:`skewpend.numeric.codegen.explorer_js`, printed when the app is created and served as
-``/physics.js``; the sliders change the parameter vector, never the code).  Heavier work goes
-through a JSON API, documented by its OpenAPI schema (``/openapi.json``; there is no ``/docs`` page: FastAPI's
-Swagger UI loads its scripts from a CDN, and the explorer never makes a request leave the machine):
+The page (``web/index.html``, ``web/app.js``) is the same front end as the static explorer
+(:func:`skewpend.views.frontend.export_explorer`): it draws the moving pendulum in 3D with three.js
+-- bundled in the package from the npm ``three`` package, never loaded from a CDN -- and computes
+everything it shows in the browser with the JavaScript *generated from the derivation*
+(:func:`skewpend.numeric.codegen.explorer_js`): the motion, the equations for the current
+parameters, the normal modes and the flip map (in Web Workers).  The server delivers the page's
+files (``/sources/*.js``: the registrations of :mod:`skewpend.views.frontend`; the generated
+module alone is ``/physics.js``) and, for programs, a JSON API with the library's compiled
+computations, documented by its OpenAPI schema (``/openapi.json``; there is no ``/docs`` page:
+FastAPI's Swagger UI loads its scripts from a CDN, and the explorer never makes a request leave
+the machine):
 
 * ``POST /api/equations`` -- the equations of motion for the current parameters (LaTeX);
 * ``POST /api/simulate`` -- a trajectory (DOP853, compiled), with the energy;
 * ``POST /api/modes`` -- the normal modes (frequencies, shapes);
-* ``POST /api/flipmap`` -- a small flip-time map (a click on a cell starts the 3D motion there).
+* ``POST /api/flipmap`` -- a small flip-time map (compiled DOP853).
 
 Safety: the server binds 127.0.0.1 unless told otherwise; every request is validated (bad input
 -> HTTP 422 with a message naming the field); the work a request may ask for is bounded (grid
@@ -33,7 +37,6 @@ import asyncio
 import math
 import threading
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 from typing import Any, Dict, List
 
@@ -289,11 +292,12 @@ def create_app(*, physics_params=None, hosts=None, port=None):
     from fastapi.staticfiles import StaticFiles
     from starlette.concurrency import run_in_threadpool
 
-    from ..numeric.codegen import explorer_js
-    from ..symbolic.model import Parameters
+    from .frontend import katex_dir, registration, sources
 
     _, EquationsRequest, SimulateRequest, ModesRequest, FlipMapRequest = _models()
-    physics = explorer_js(physics_params if physics_params is not None else Parameters())
+    page_sources = sources(physics_params)
+    physics = page_sources["physics"].code
+    registrations = {name: registration(src) for name, src in page_sources.items()}
     slots = threading.BoundedSemaphore(HEAVY_SLOTS)
     stopping = threading.Event()
 
@@ -369,7 +373,13 @@ def create_app(*, physics_params=None, hosts=None, port=None):
     async def physics_js():
         return Response(physics, media_type="text/javascript", headers={"Cache-Control": "no-cache"})
 
-    app.mount("/static/katex", StaticFiles(directory=str(_katex_dir())), name="katex")
+    @app.get("/sources/{name}.js", include_in_schema=False)
+    async def source(name: str):
+        if name not in registrations:
+            raise StarletteHTTPException(status_code=404)
+        return Response(registrations[name], media_type="text/javascript", headers={"Cache-Control": "no-cache"})
+
+    app.mount("/static/katex", StaticFiles(directory=str(katex_dir())), name="katex")
     app.mount("/static", StaticFiles(directory=str(_WEB)), name="static")
 
     # -- the API ----------------------------------------------------------------------------------------
@@ -440,10 +450,6 @@ def create_app(*, physics_params=None, hosts=None, port=None):
         return await heavy(run)
 
     return app
-
-
-def _katex_dir() -> Path:
-    return Path(str(resources.files("skewpend.views").joinpath("assets", "katex")))
 
 
 class Address:

@@ -1,0 +1,166 @@
+"""The browser front end's JavaScript, as one set of sources shared by every view that runs in a
+browser: the served explorer (``skewpend serve``), the static explorer (:func:`export_explorer`,
+``skewpend explorer``), the report's live 3D view and the notebook widget.
+
+The sources are the vendored three.js (from the npm package, never a CDN), the physics generated
+from the derivation (:func:`skewpend.numeric.codegen.explorer_js`: motion, energy, drawing,
+linearisation and the equations' coefficients), the DOP853 tableau, and the page's own scripts in
+``web/``.  Each is delivered as a *registration*: a classic script that stores the text with its
+import specifiers (``web/loader.js`` turns the modules into ``blob:`` URLs at run time), so the
+same page runs from a server, from the file system -- browsers refuse module files from
+``file://`` -- and inlined in one HTML file, with no request leaving it.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import dataclass, field
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import Dict, List, Optional
+
+__all__ = ["Source", "sources", "registration", "export_explorer", "WEB_DIR", "katex_dir", "SOURCE_ORDER"]
+
+WEB_DIR = Path(__file__).resolve().parent / "web"
+_THREE = WEB_DIR / "vendor" / "three"
+
+
+@dataclass(frozen=True)
+class Source:
+    """One registered text: ``code``, its ``imports`` (specifier as written -> source name) and
+    whether it is a ``classic`` script (a Web Worker's part) rather than a module."""
+
+    name: str
+    code: str
+    imports: Dict[str, str] = field(default_factory=dict)
+    classic: bool = False
+
+
+#: The order the registrations are loaded in (any order works; this one is the dependencies' order).
+SOURCE_ORDER = ("three-core", "three", "three-orbit", "physics", "scene", "explorer", "physics-classic", "dop853",
+                "flipworker")
+
+
+def _read(path: Path) -> str:
+    return path.read_text(encoding="utf-8")
+
+
+def _checked(src: Source) -> Source:
+    """Refuse a module that does not import what its specifiers say (e.g. after a three.js upgrade)."""
+    for specifier in src.imports:
+        if f'from "{specifier}"' not in src.code and f"from '{specifier}'" not in src.code:
+            raise RuntimeError(f"front end: {src.name} does not import {specifier!r}")
+    return src
+
+
+@lru_cache(maxsize=1)
+def _static_sources() -> tuple:
+    """The sources that do not depend on the bodies: three.js and the page's own scripts."""
+    from ..numeric.codegen import dop853_js
+
+    out = [
+        Source("three-core", _read(_THREE / "three.core.js")),
+        Source("three", _read(_THREE / "three.module.js"), {"./three.core.js": "three-core"}),
+        Source("three-orbit", _read(_THREE / "addons" / "controls" / "OrbitControls.js"), {"three": "three"}),
+        Source("scene", _read(WEB_DIR / "scene.js"),
+               {"three": "three", "three/addons/controls/OrbitControls.js": "three-orbit"}),
+        Source("explorer", _read(WEB_DIR / "app.js"), {"three": "three", "./scene.js": "scene", "./physics.js": "physics"}),
+        Source("dop853", dop853_js(), classic=True),
+        Source("flipworker", _read(WEB_DIR / "flipworker.js"), classic=True),
+    ]
+    return tuple(_checked(s) for s in out)
+
+
+@lru_cache(maxsize=8)
+def _physics_sources(physics_params) -> tuple:
+    from ..numeric.codegen import classic_js, explorer_js
+    from ..symbolic.model import Parameters
+
+    module = explorer_js(physics_params if physics_params is not None else Parameters())
+    return (Source("physics", module), Source("physics-classic", classic_js(module, "physics"), classic=True))
+
+
+def sources(physics_params=None) -> Dict[str, Source]:
+    """Every source of the front end, by name, in :data:`SOURCE_ORDER`; the physics for the bodies
+    and axes of ``physics_params`` (default: the specification's thin rods)."""
+    found = {s.name: s for s in _static_sources() + _physics_sources(physics_params)}
+    return {name: found[name] for name in SOURCE_ORDER}
+
+
+def registration(src: Source) -> str:
+    """The classic script registering ``src`` (safe to inline in HTML: ``</`` is escaped)."""
+    entry = {"code": src.code, "imports": src.imports, "classic": src.classic}
+    text = json.dumps(entry, ensure_ascii=False).replace("</", "<\\/").replace("<!--", "<\\!--")
+    return f"(self.SKEWPEND_SOURCES = self.SKEWPEND_SOURCES || {{}})[{json.dumps(src.name)}] = {text};\n"
+
+
+def katex_dir() -> Path:
+    return Path(str(resources.files("skewpend.views").joinpath("assets", "katex")))
+
+
+def _licences() -> List[tuple]:
+    return [(_THREE / "LICENSE", "three.js"), (katex_dir() / "LICENSE", "KaTeX")]
+
+
+def export_explorer(directory, params=None, *, force: bool = False) -> Path:
+    """Write the static explorer to ``directory``: ``index.html`` with the page's files beside it
+    (``static/``: styles, KaTeX, the loader; ``sources/``: three.js, the generated physics and the
+    page's scripts as registrations; ``LICENSES/``).  It runs entirely in the browser, opened from
+    the file system or any static web host, with the network off; the physics is generated for
+    the bodies and axes of ``params`` (default: the specification's thin rods).
+
+    ``directory`` must not exist, or be empty, or (``force=True``) be an earlier export (it is
+    then replaced); anything else is refused with :class:`ParameterError`.  The site is written
+    to a temporary directory beside it and moved into place, so an interruption leaves no half
+    site.  Returns the path of ``index.html``."""
+    from ..errors import ParameterError
+
+    target = Path(directory)
+    marker = ".skewpend-explorer"
+    if target.exists():
+        if not target.is_dir():
+            raise ParameterError(f"explorer export: {target} exists and is not a directory; give a new directory")
+        existing = list(target.iterdir())
+        if existing and not (force and (target / marker).exists()):
+            what = "an earlier export: pass force=True (--force) to replace it" if (target / marker).exists() else \
+                "a directory with other files in it; give a new or empty directory"
+            raise ParameterError(f"explorer export: {target} is {what}")
+    if not target.parent.is_dir():
+        raise ParameterError(f"explorer export: the parent directory {target.parent} does not exist")
+    srcs = sources(params)  # generated first: an error leaves nothing behind
+    tmp = target.parent / f".{target.name}.tmp-export"
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        (tmp / "static").mkdir(parents=True)
+        (tmp / "sources").mkdir()
+        (tmp / "LICENSES").mkdir()
+        for name in ("app.css", "loader.js"):
+            shutil.copy2(WEB_DIR / name, tmp / "static" / name)
+        shutil.copytree(katex_dir(), tmp / "static" / "katex")
+        for src in srcs.values():
+            (tmp / "sources" / f"{src.name}.js").write_text(registration(src), encoding="utf-8")
+        for path, name in _licences():
+            shutil.copy2(path, tmp / "LICENSES" / f"{name}.txt")
+        (tmp / "index.html").write_text(_read(WEB_DIR / "index.html"), encoding="utf-8")
+        from .. import __version__
+
+        (tmp / marker).write_text(json.dumps({"skewpend": __version__}) + "\n", encoding="utf-8")
+        if target.exists():
+            old = target.parent / f".{target.name}.old-export"
+            shutil.rmtree(old, ignore_errors=True)
+            target.rename(old)
+            tmp.rename(target)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            tmp.rename(target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return target / "index.html"
+
+
+def page_sources(params: Optional[object] = None) -> List[str]:
+    """The registrations of every source, in order (for a page that inlines them)."""
+    return [registration(s) for s in sources(params).values()]
