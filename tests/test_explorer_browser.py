@@ -1,6 +1,8 @@
-"""The live explorer as a person uses it: the server on a free loopback port, the page in Debian's
-Chromium (Playwright, WebGL by SwiftShader), pointer and slider interactions, checked by what the
-page shows and by independent computations.
+"""The explorer as a person uses it, served and static: the page from the server on a free
+loopback port, and the static export (``skewpend serve --export``) opened from ``file://`` with every
+request that is not a file of the site blocked -- the same front end, every test run on both -- in
+Debian's Chromium (Playwright, WebGL by SwiftShader), pointer and slider interactions, checked by
+what the page shows and by independent computations.
 
 * the 3D canvas really shows a drawing (pixel variance) and it moves;
 * moving the alpha slider changes the drawing (the second hinge axis turns) and the equations;
@@ -9,7 +11,11 @@ page shows and by independent computations.
 * a mode's button starts the motion along that mode's shape;
 * dragging a rod sets its starting angle;
 * reloading from the shared address gives the same state;
-* no console errors or warnings, and no request leaves 127.0.0.1.
+* the equations' coefficients equal the library's (an independent numeric derivation) to 1e-9;
+* the flip map computed in the page's workers equals ``flip_map``'s (same outcome in every cell,
+  flip times within 1e-3 s on 99 % of them);
+* no console errors or warnings, and no request leaves 127.0.0.1 (served) or the site's
+  directory (static).
 
 Screenshots are kept in ``$SKEWPEND_ARTIFACTS/explorer/`` (default ``tests/artifacts/``).
 """
@@ -48,7 +54,7 @@ def _artifacts() -> Path:
 
 
 @pytest.fixture(scope="module")
-def server():
+def served():
     """The real server (``explorer.serve``: the Host check, the body and header limits) in a thread."""
     from skewpend.views import explorer
 
@@ -60,10 +66,29 @@ def server():
     while not started:
         assert time.time() < deadline and thread.is_alive(), "the server did not start"
         time.sleep(0.05)
-    yield started[0].url.rstrip("/")
+    yield started[0].url
     stop.set()
     thread.join(timeout=10)
     assert not thread.is_alive(), "the server did not stop"
+
+
+@pytest.fixture(scope="module", params=["served", "static"])
+def site(request, tmp_path_factory):
+    """The page's address: the server's, or the static export's ``index.html`` as a file:// URL."""
+    if request.param == "served":
+        return request.getfixturevalue("served")
+    from skewpend.views.frontend import export_explorer
+
+    return export_explorer(tmp_path_factory.mktemp("static") / "explorer").resolve().as_uri()
+
+
+def _allowed(site: str, url: str) -> bool:
+    """Whether the page may request ``url``: the server's own address, or (static) a file of the site."""
+    if url.startswith(("data:", "blob:")):
+        return True
+    if site.startswith("file://"):
+        return url.startswith(site.rsplit("/", 1)[0] + "/")
+    return urlparse(url).netloc == urlparse(site).netloc
 
 
 @pytest.fixture(scope="module")
@@ -75,15 +100,26 @@ def browser():
 
 
 class Page:
-    """A page of the explorer with what it logged and requested."""
+    """A page of the explorer at ``site + query`` with what it logged and requested; a request
+    anywhere else than the site is blocked (and kept in ``blocked``)."""
 
-    def __init__(self, browser, url: str):
-        self.page = browser.new_page(viewport={"width": 1400, "height": 950})
-        self.console, self.requests = [], []
+    def __init__(self, browser, site: str, query: str = "", viewport=(1400, 950)):
+        self.page = browser.new_page(viewport={"width": viewport[0], "height": viewport[1]})
+        self.console, self.requests, self.blocked = [], [], []
         self.page.on("console", lambda m: self.console.append((m.type, m.text)))
         self.page.on("pageerror", lambda e: self.console.append(("pageerror", str(e))))
         self.page.on("request", lambda r: self.requests.append(r.url))
-        self.page.goto(url)
+        # workers' requests (their blob: scripts) are not routed through the page: allowed anyway
+
+        def route(r):
+            if _allowed(site, r.request.url):
+                r.continue_()
+            else:
+                self.blocked.append(r.request.url)
+                r.abort()
+
+        self.page.route("**/*", route)
+        self.page.goto(site + query)
         self.page.wait_for_function("() => window.explorer && window.explorer.state().frames > 5", timeout=30000)
         self.page.wait_for_function("() => document.querySelector('#equations .katex') !== null", timeout=30000)
 
@@ -109,10 +145,11 @@ class Page:
 
 
 @pytest.fixture(scope="module")
-def opened(browser, server):
-    p = Page(browser, server + "/")
+def opened(browser, site):
+    p = Page(browser, site)
     yield p
-    p.page.screenshot(path=str(_artifacts() / "explorer-end.png"), full_page=True)
+    kind = "static" if site.startswith("file:") else "served"
+    p.page.screenshot(path=str(_artifacts() / f"explorer-{kind}-end.png"), full_page=True)
     p.close()
 
 
@@ -223,7 +260,7 @@ def test_the_shared_address_restores_the_view(browser, opened):
     opened.set_slider("psi0", 120)
     url = opened.page.evaluate("() => location.href")
     s = opened.state()
-    other = Page(browser, url)
+    other = Page(browser, url.split("?")[0], "?" + url.split("?", 1)[1])
     try:
         t = other.state()
         assert t["values"] == s["values"]
@@ -233,8 +270,8 @@ def test_the_shared_address_restores_the_view(browser, opened):
         other.close()
 
 
-def test_a_bad_address_is_reported_on_the_page_not_ignored(browser, server):
-    p = Page(browser, server + "/?a=abc&alpha=999&zeta=1")
+def test_a_bad_address_is_reported_on_the_page_not_ignored(browser, site):
+    p = Page(browser, site, "?a=abc&alpha=999&zeta=1")
     try:
         text = p.page.text_content("#notice")
         assert "a=abc" in text and "alpha=999" in text and "zeta" in text
@@ -243,14 +280,16 @@ def test_a_bad_address_is_reported_on_the_page_not_ignored(browser, server):
         p.close()
 
 
-def test_no_console_errors_and_no_request_leaves_the_machine(opened, server):
+def test_no_console_errors_and_no_request_leaves_the_site(opened, site):
     assert [m for m in opened.console if m[0] in ("error", "warning", "pageerror")] == []
-    hosts = {urlparse(u).netloc for u in opened.requests if not u.startswith("data:")}
-    assert hosts == {urlparse(server).netloc}
+    assert opened.blocked == []
+    assert all(_allowed(site, u) for u in opened.requests)
+    # the page asks nothing of a server: everything is computed in the browser
+    assert not any("/api/" in u for u in opened.requests)
 
 
-def test_dragging_rod_two_sets_psi0_about_the_skewed_axis(browser, server):
-    p = Page(browser, server + "/?alpha=50&phi0=30&psi0=0")
+def test_dragging_rod_two_sets_psi0_about_the_skewed_axis(browser, site):
+    p = Page(browser, site, "?alpha=50&phi0=30&psi0=0")
     try:
         p.pause()
         start = p.page.evaluate("() => window.explorer.screenOf('rod2')")
@@ -273,8 +312,8 @@ def test_dragging_rod_two_sets_psi0_about_the_skewed_axis(browser, server):
         p.close()
 
 
-def test_the_flip_map_follows_the_parameters(browser, server):
-    p = Page(browser, server + "/?alpha=10")
+def test_the_flip_map_follows_the_parameters(browser, site):
+    p = Page(browser, site, "?alpha=10")
     try:
         p.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
         p.set_slider("alpha", 70)
@@ -288,11 +327,11 @@ def test_the_flip_map_follows_the_parameters(browser, server):
 
 
 @pytest.mark.parametrize("query", ["?g=0", "?g=0&alpha=0", "?g=0.01"])
-def test_a_clean_console_without_gravity(browser, server, query):
+def test_a_clean_console_without_gravity(browser, site, query):
     """``?g=0`` logged an error: the page asked for normal modes, which the server refuses (422)
     without gravity, and the browser logs every failed request.  Now the page says why there
     are none and asks nothing that fails."""
-    p = Page(browser, server + "/" + query)
+    p = Page(browser, site, query)
     try:
         p.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
         p.page.wait_for_function("() => document.querySelector('#modes li, #modes .note, #modes .error') !== null",
@@ -308,13 +347,13 @@ def test_a_clean_console_without_gravity(browser, server, query):
 
 
 @pytest.mark.parametrize("width, height", [(1280, 800), (1920, 1080), (390, 844)], ids=["laptop", "full-hd", "phone"])
-def test_every_window_size_shows_everything_uncut(browser, server, width, height):
+def test_every_window_size_shows_everything_uncut(browser, site, width, height):
     """Issue 19's 'look at it': at a laptop's, a full-HD and a phone's size nothing sticks out of
     the page, the equations fit their box (shrunk, once KaTeX's fonts are in), the 3D view has a
     sensible size and draws, and the panel follows it (beside, or below on a phone)."""
     page = browser.new_page(viewport={"width": width, "height": height})
     try:
-        page.goto(server + "/")
+        page.goto(site)
         page.wait_for_function("() => window.explorer && window.explorer.state().frames > 5", timeout=30000)
         page.wait_for_function("() => document.querySelector('#equations .katex') !== null", timeout=30000)
         page.evaluate("() => document.fonts.ready")
@@ -326,7 +365,8 @@ def test_every_window_size_shows_everything_uncut(browser, server, width, height
                     eqScroll: eq.scrollWidth, eqClient: eq.clientWidth, stageW: st.width, stageH: st.height,
                     panelTop: panel.top, panelLeft: panel.left, stageBottom: st.bottom};
         }""")
-        page.screenshot(path=str(_artifacts() / f"explorer-{width}x{height}.png"), full_page=width < 600)
+        kind = "static" if site.startswith("file:") else "served"
+        page.screenshot(path=str(_artifacts() / f"explorer-{kind}-{width}x{height}.png"), full_page=width < 600)
         assert m["page"] <= m["inner"], m  # no horizontal scrolling of the page
         assert m["eqScroll"] <= m["eqClient"] + 1, m  # the equations fit their box
         assert 300 <= m["stageH"] <= height and m["stageW"] >= 0.5 * min(width, 1000), m
@@ -343,13 +383,13 @@ def test_every_window_size_shows_everything_uncut(browser, server, width, height
 
 
 @pytest.mark.parametrize("query", ["", "?alpha=0", "?alpha=90&a=0.5&m2=2.5", "?alpha=150&b=1.7&c1=0.4"])
-def test_the_modes_computed_in_the_page_are_the_library_s(browser, server, query):
+def test_the_modes_computed_in_the_page_are_the_library_s(browser, site, query):
     """The page computes the normal modes itself, from the generated M0 and K0 (no request): the
     frequencies and shapes equal skewpend.normal_modes' to 1e-9 (relative), whatever the skew,
     bodies or damping (the undamped modes; damping is shown by the library's damping ratios)."""
     from skewpend import Parameters
 
-    p = Page(browser, server + "/" + query)
+    p = Page(browser, site, query)
     try:
         js = p.page.evaluate("() => window.explorer.modes()")
         s = p.state()
@@ -360,5 +400,89 @@ def test_the_modes_computed_in_the_page_are_the_library_s(browser, server, query
         assert not any("/api/modes" in u for u in p.requests)
         texts = p.page.locator("#modes li").all_text_contents()
         assert len(texts) == 2 and f"{lib.frequencies[0] / (2 * np.pi):.4f} Hz" in texts[0]
+    finally:
+        p.close()
+
+
+_NAMES = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
+
+
+def _library_terms(params) -> dict:
+    """The library's equations for numeric ``params`` (its own derivation with the numbers in, not
+    the generated code): each entry of M and f as {exponents of (sin phi, cos phi, sin psi, cos psi,
+    dphi, dpsi): coefficient}."""
+    import sympy as sp
+
+    from skewpend import derive
+    from skewpend.symbolic.symbols import SYMBOLS as S
+
+    eom = derive(params)
+    gens = [sp.sin(S["phi"]), sp.cos(S["phi"]), sp.sin(S["psi"]), sp.cos(S["psi"]), S["dphi"], S["dpsi"]]
+    M, f = eom.mass_matrix, eom.forcing
+    entries = {"M11": M[0, 0], "M12": M[0, 1], "M22": M[1, 1], "f1": f[0], "f2": f[1]}
+    return {name: {tuple(e): float(c) for e, c in sp.Poly(sp.expand(x), *gens).terms()} for name, x in entries.items()}
+
+
+@pytest.mark.parametrize("query", ["", "?alpha=0", "?alpha=90&a=0.5&m2=2.5", "?alpha=-137.5&b=1.7&c1=0.4&c2=1.1&g=3.7"])
+def test_the_equations_shown_are_the_library_s(browser, site, query):
+    """The page typesets the equations for the current parameters from the generated coefficient
+    functions: every coefficient equals the library's derivation with the numbers put in, to 1e-9
+    of the largest coefficient of M (of f) -- a coefficient the library has as exactly 0 (cos 90
+    deg, exact there) is a rounding error of cos(pi/2) in the page."""
+    p = Page(browser, site, query)
+    try:
+        eq = p.page.evaluate("() => window.explorer.equations()")
+        s = p.state()
+        lib = _library_terms(Parameters(**dict(zip(_NAMES, s["p"]))))
+        page: dict = {name: {} for name in lib}
+        for (name, exps, _), c in zip(eq["terms"], eq["coefficients"]):
+            page[name][tuple(exps)] = c
+        for name in lib:
+            # relative to the largest coefficient of M (or of f): an entry may be 0 (M12 at 90 deg)
+            scale = max(abs(v) for other in lib if other[0] == name[0] for v in lib[other].values())
+            for key in set(lib[name]) | set(page[name]):
+                assert abs(page[name].get(key, 0.0) - lib[name].get(key, 0.0)) <= 1e-9 * scale, (name, key)
+        # what is shown is those numbers, rounded to 4 digits: the largest coefficient of f1
+        big = max(lib["f1"].values(), key=abs)
+        shown = p.page.text_content("#equations")
+        assert f"{abs(big):.4g}" in shown.replace("−", "-")
+        assert [m for m in p.console if m[0] in ("error", "warning", "pageerror")] == []
+    finally:
+        p.close()
+
+
+_MAPS: dict = {}
+
+
+def _library_map(p_vector, n, t_end):
+    key = (tuple(p_vector), n, t_end)
+    if key not in _MAPS:
+        _MAPS[key] = skewpend.flip_map(Parameters(**dict(zip(_NAMES, p_vector))), n, t_end=t_end)
+    return _MAPS[key]
+
+
+@pytest.mark.parametrize("query", ["", "?alpha=0&b=1.2", "?alpha=120&c1=0.3"])
+def test_the_flip_map_is_the_library_s(browser, site, query):
+    """The page's flip map (Web Workers, the flip method on the generated physics) against
+    skewpend.flip_map (compiled C) for the same parameters: the same outcome in every cell (flips
+    or not, and which rod), and the flip time within 1e-3 s on at least 99 % of the cells that flip
+    -- both integrate at rtol = atol = 1e-10, so they differ by rounding, amplified only in the
+    chaotic cells."""
+    p = Page(browser, site, query)
+    try:
+        p.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
+        js = p.page.evaluate("() => window.explorer.flip()")
+        s = p.state()
+        lib = _library_map(s["p"], js["n"], js["t_end"])
+        np.testing.assert_array_equal(np.array(js["phi0"]), lib.phi0[:, 0])
+        np.testing.assert_array_equal(np.array(js["psi0"]), lib.psi0[0])
+        t_js = np.array([[np.nan if v is None else v for v in row] for row in js["flip_time"]])
+        assert js["failed"] == 0 and lib.stats["failed"] == 0
+        np.testing.assert_array_equal(np.isnan(t_js), np.isnan(lib.flip_time))
+        np.testing.assert_array_equal(np.array(js["which"]), lib.which)
+        flips = ~np.isnan(t_js)
+        assert flips.sum() > 0.2 * flips.size  # a map with flips to compare
+        close = np.abs(t_js - lib.flip_time)[flips] <= 1e-3
+        assert close.mean() >= 0.99, close.mean()
     finally:
         p.close()

@@ -34,6 +34,7 @@ __all__ = [
     "EQUATION_GENERATORS",
     "EQUATION_ENTRIES",
     "equation_terms",
+    "odd_under_reflection",
     "explorer_js",
     "classic_js",
     "dop853_js",
@@ -306,7 +307,6 @@ def explorer_js(params: Parameters) -> str:
     printed from the derivation for the bodies and axes of ``params``, every scalar read from
     ``p`` in :data:`PARAMETER_ORDER` (the sliders change ``p``, never the code)."""
     from ..symbolic.render import tex
-    from .kernel_source import odd_under_reflection
     geometry = geometry_of(params)
     _check_geometry_numeric(geometry)
     ex = expressions(geometry)
@@ -346,6 +346,24 @@ def explorer_js(params: Parameters) -> str:
             "/** without torques the equations are odd under (q, q') -> -(q, q'): mirror starts flip alike */",
             f"export const FLIP_ODD = {'true' if odd_under_reflection(ex) else 'false'};", ""]
     return "\n".join(out)
+
+
+def odd_under_reflection(ex) -> bool:
+    """Whether, without joint torques, the equations are odd under ``(q, q') -> -(q, q')``:
+    ``M(-q) = M(q)`` and ``f(-q, -q') = -f(q, q')`` identically (an exact symbolic check).  Then
+    the start at rest ``-q0`` moves as the mirror image of ``q0`` and flips at the same time."""
+    s = SYMBOLS
+    mirror = {s[n]: -s[n] for n in STATE_ORDER}
+    no_torque = {s["tau1"]: 0, s["tau2"]: 0}
+    for e in ex.M:
+        e = sp.sympify(e).subs(no_torque)
+        if sp.expand(e.xreplace(mirror) - e) != 0:
+            return False
+    for e in ex.f:
+        e = sp.sympify(e).subs(no_torque)
+        if sp.expand(e.xreplace(mirror) + e) != 0:
+            return False
+    return True
 
 
 def _compact_trig(latex: str) -> str:

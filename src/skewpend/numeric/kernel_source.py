@@ -21,12 +21,12 @@ from typing import List
 import sympy as sp
 
 from .. import __version__
-from .codegen import c_printer, cse_block, expressions, Lang, param_lines, used_names
+from .codegen import c_printer, cse_block, expressions, Lang, odd_under_reflection, param_lines, used_names
 from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["kernel_c_source", "flip_c_source", "status_defines", "odd_under_reflection", "SP_LANES"]
+__all__ = ["kernel_c_source", "flip_c_source", "status_defines", "SP_LANES"]
 
 _STATE = ("phi", "psi", "dphi", "dpsi")
 
@@ -299,24 +299,6 @@ def _hoist(exprs, state):
                  for monom, coeff in poly.terms()]
         out.append(sp.Add(*terms))
     return out, [(sym, e) for e, sym in defs.items()]
-
-
-def odd_under_reflection(ex) -> bool:
-    """Whether, without joint torques, the equations are odd under ``(q, q') -> -(q, q')``:
-    ``M(-q) = M(q)`` and ``f(-q, -q') = -f(q, q')`` identically (an exact symbolic check).  Then
-    the start at rest ``-q0`` moves as the mirror image of ``q0`` and flips at the same time."""
-    s = SYMBOLS
-    mirror = {s[n]: -s[n] for n in _STATE}
-    no_torque = {s["tau1"]: 0, s["tau2"]: 0}
-    for e in ex.M:
-        e = sp.sympify(e).subs(no_torque)
-        if sp.expand(e.xreplace(mirror) - e) != 0:
-            return False
-    for e in ex.f:
-        e = sp.sympify(e).subs(no_torque)
-        if sp.expand(e.xreplace(mirror) + e) != 0:
-            return False
-    return True
 
 
 def flip_c_source(ex, geometry: Parameters) -> List[str]:

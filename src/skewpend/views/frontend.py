@@ -97,7 +97,7 @@ def registration(src: Source) -> str:
 
 
 def katex_dir() -> Path:
-    return Path(str(resources.files("skewpend.views").joinpath("assets", "katex")))
+    return Path(str(resources.files("skewpend.views") / "assets" / "katex"))
 
 
 def _licences() -> List[tuple]:
