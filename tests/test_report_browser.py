@@ -4,7 +4,8 @@ every request that is not file: or data: blocked and recorded.
 Asserted: nothing outside the file was requested; no console error or warning and no page
 error; KaTeX typeset every math element, each with a non-zero size and none wider than the
 text column, at least one in every step of the derivation; every image decoded
-(naturalWidth > 0); the video decodes (readyState >= 2, videoWidth > 0).  A screenshot of
+(naturalWidth > 0); the live 3D view draws (pixel variance), turns when dragged, and replays the
+simulated states (the drawn rod ends and axes against skewpend.simulate to 1e-9).  A screenshot of
 every section is kept in $SKEWPEND_ARTIFACTS (default tests/artifacts/report-browser/), with
 the report itself."""
 
@@ -26,8 +27,8 @@ from skewpend import Parameters  # noqa: E402
 from skewpend.views import report as R  # noqa: E402
 
 ARGS = [
-    "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--autoplay-policy=no-user-gesture-required",
+    "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-first-run",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
 ]
 #: The reports opened: the built-in case (shorter run and clip, so the test is quick) and a
 #: user's case (alpha = 30 deg, damping: damped modes, different equations).
@@ -72,7 +73,7 @@ def opened(request, browser, tmp_path_factory):
 
     def route(r):
         url = r.request.url
-        if url.startswith(("file:", "data:")):
+        if url.startswith(("file:", "data:", "blob:")):
             r.continue_()
         else:
             records["blocked"].append(url)
@@ -81,16 +82,15 @@ def opened(request, browser, tmp_path_factory):
     page.route("**/*", route)
     page.on("console", lambda m: records["console"].append((m.type, m.text)))
     page.on("pageerror", lambda e: records["errors"].append(str(e)))
-    page.on("requestfailed", lambda r: records["blocked"].append(r.url) if not r.url.startswith(("file:", "data:")) else None)
+    page.on("requestfailed", lambda r: records["blocked"].append(r.url) if not r.url.startswith(("file:", "data:", "blob:")) else None)
     page.goto(html.as_uri(), wait_until="load")
     page.wait_for_function("document.documentElement.getAttribute('data-math') !== null", timeout=30000)
     page.evaluate("document.fonts.ready.then(() => true)")
-    page.wait_for_function("(() => { const v = document.querySelector('video'); return v && (v.readyState >= 2 || v.error); })()",
-                           timeout=20000)
-    # the video paused (a headless browser playing it may hold back the frames a screenshot waits
-    # for), then ONE full-page screenshot, each section cut from it by its box in page
-    # coordinates (a screenshot per section made a slow machine time out)
-    page.evaluate("document.querySelectorAll('video').forEach(v => v.pause())")
+    page.wait_for_function("window.skewpendReplay && window.skewpendReplay.views.length === 1 && "
+                           "window.skewpendReplay.views[0].state().renders > 2", timeout=30000)
+    # the live view paused, then ONE full-page screenshot, each section cut from it by its box in
+    # page coordinates (a screenshot per section made a slow machine time out)
+    page.evaluate("window.skewpendReplay.views[0].show(0)")
     boxes = page.evaluate("""() => Array.from(document.querySelectorAll('section.report-section')).map(s => {
         const r = s.getBoundingClientRect();
         return {id: s.id, x: r.left + window.scrollX, y: r.top + window.scrollY, width: r.width, height: r.height}; })""")
@@ -166,19 +166,65 @@ def test_every_image_decoded(opened):
     # largest-exponent map and the chaos diagram (a damped model has no energy surface), and section
     # 8's frequency-energy plot (of the undamped model when damped)
     damped = page.evaluate("() => document.querySelector('#chaos').textContent.includes('need an energy surface')")
-    assert len(images) == (11 if damped else 15)
+    assert len(images) == (12 if damped else 16)  # and the live view's poster (hidden once it draws)
     for complete, width, height, alt in images:
         assert complete and width > 0 and height > 0, alt
 
 
-def test_video_decodes(opened):
-    page, _, _ = opened
-    video = page.evaluate("""() => { const v = document.querySelector('video');
-        return {ready: v.readyState, width: v.videoWidth, height: v.videoHeight, error: v.error && v.error.code,
-                duration: v.duration, loop: v.loop, muted: v.muted}; }""")
-    assert video["error"] is None
-    assert video["ready"] >= 2 and video["width"] > 0 and video["height"] > 0
-    assert video["duration"] > 0.5 and video["loop"] and video["muted"]
+def _canvas(page):
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    png = page.locator("figure.live-view canvas").screenshot(animations="disabled")
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
+
+
+def test_the_live_view_draws_turns_and_replays_the_motion(opened, request):
+    import numpy as np
+
+    page, records, folder = opened
+    view = "window.skewpendReplay.views[0]"
+    page.locator("figure.live-view").scroll_into_view_if_needed()
+    assert page.evaluate("document.querySelector('figure.live-view').classList.contains('live')")
+    # the drawn rod ends and hinge axes at every 7th frame are the simulated states'
+    case = dict(CASES[request.node.callspec.params["opened"]])
+    params = case["params"] or Parameters(**R.DEFAULT_PARAMETERS)
+    fps = case["fps"]
+    frames = page.evaluate(f"{view}.frames")
+    tr = __import__("skewpend").simulate(params, case.get("y0", R.DEFAULT_INITIAL_STATE), (frames - 1) / fps, dt_out=1 / fps)
+    tips, axes = tr.tips(), tr.axes()
+    assert frames == tr.t.size
+    for k in range(0, frames, 7):
+        drawn = page.evaluate(f"{view}.show({k})")
+        assert drawn["frame"] == k
+        np.testing.assert_allclose(drawn["tips"], tips[k], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(drawn["axes"], axes[k], rtol=0, atol=1e-9)
+    # a drawing, not a blank canvas; another frame draws another picture
+    page.evaluate(f"{view}.show(0)")
+    a = _canvas(page)
+    assert a.std() > 8.0, a.std()
+    page.evaluate(f"{view}.show({frames // 2})")
+    b = _canvas(page)
+    assert np.abs(a - b).mean() > 0.05
+    # dragging turns the view (paused: the pendulum stays, the camera moves)
+    box = page.locator("figure.live-view canvas").bounding_box()
+    x, y = box["x"] + 0.8 * box["width"], box["y"] + 0.5 * box["height"]
+    page.mouse.move(x, y)
+    page.mouse.down()
+    for k in range(1, 8):
+        page.mouse.move(x - 30 * k, y + 4 * k)
+    page.mouse.up()
+    page.wait_for_timeout(300)
+    c = _canvas(page)
+    assert np.abs(c - b).mean() > 0.5
+    assert page.evaluate(f"{view}.state().frame") == frames // 2  # still the same moment
+    # playing moves on in time
+    page.evaluate(f"{view}.play()")
+    page.wait_for_function(f"{view}.state().frame !== {frames // 2}", timeout=10000)
+    page.locator("figure.live-view").screenshot(path=str(folder / "live-view.png"), animations="disabled")
+    page.evaluate(f"{view}.show(0)")
 
 
 def test_screenshots_kept(opened):

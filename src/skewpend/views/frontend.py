@@ -19,9 +19,10 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Dict, List, Optional
+from typing import Dict, List
 
-__all__ = ["Source", "sources", "registration", "export_explorer", "WEB_DIR", "katex_dir", "SOURCE_ORDER"]
+__all__ = ["Source", "sources", "registration", "export_explorer", "inline_page_scripts", "WEB_DIR", "katex_dir",
+           "SOURCE_ORDER", "REPLAY_ORDER"]
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 _THREE = WEB_DIR / "vendor" / "three"
@@ -38,9 +39,12 @@ class Source:
     classic: bool = False
 
 
-#: The order the registrations are loaded in (any order works; this one is the dependencies' order).
+#: The explorer's sources in the order its page loads them (any order works; this one is the
+#: dependencies' order).
 SOURCE_ORDER = ("three-core", "three", "three-orbit", "physics", "scene", "explorer", "physics-classic", "dop853",
                 "flipworker")
+#: The live replay's sources (the report's 3D view of a computed motion): no physics at all.
+REPLAY_ORDER = ("three-core", "three", "three-orbit", "scene", "replay")
 
 
 def _read(path: Path) -> str:
@@ -67,6 +71,7 @@ def _static_sources() -> tuple:
         Source("scene", _read(WEB_DIR / "scene.js"),
                {"three": "three", "three/addons/controls/OrbitControls.js": "three-orbit"}),
         Source("explorer", _read(WEB_DIR / "app.js"), {"three": "three", "./scene.js": "scene", "./physics.js": "physics"}),
+        Source("replay", _read(WEB_DIR / "replay.js"), {"./scene.js": "scene"}),
         Source("dop853", dop853_js(), classic=True),
         Source("flipworker", _read(WEB_DIR / "flipworker.js"), classic=True),
     ]
@@ -82,11 +87,25 @@ def _physics_sources(physics_params) -> tuple:
     return (Source("physics", module), Source("physics-classic", classic_js(module, "physics"), classic=True))
 
 
-def sources(physics_params=None) -> Dict[str, Source]:
-    """Every source of the front end, by name, in :data:`SOURCE_ORDER`; the physics for the bodies
-    and axes of ``physics_params`` (default: the specification's thin rods)."""
-    found = {s.name: s for s in _static_sources() + _physics_sources(physics_params)}
-    return {name: found[name] for name in SOURCE_ORDER}
+def sources(physics_params=None, order=SOURCE_ORDER) -> Dict[str, Source]:
+    """The sources named in ``order`` (default: the explorer's, :data:`SOURCE_ORDER`), by name; the
+    physics for the bodies and axes of ``physics_params`` (default: the specification's thin rods)."""
+    found = {s.name: s for s in _static_sources()}
+    if any(name.startswith("physics") for name in order):
+        found.update({s.name: s for s in _physics_sources(physics_params)})
+    return {name: found[name] for name in order}
+
+
+def inline_page_scripts(order=REPLAY_ORDER, entry: str = "replay", physics_params=None) -> str:
+    """``<script>`` elements for one self-contained HTML file: the registrations of ``order`` and
+    the loader, which imports ``entry`` once the page has parsed (the scripts go at the end of
+    the body)."""
+    parts = [f"<script>\n{registration(s)}</script>" for s in sources(physics_params, order).values()]
+    loader = _read(WEB_DIR / "loader.js")
+    if "</" in loader:  # it would end the script element
+        raise RuntimeError("front end: loader.js must not contain '</'")
+    parts.append(f'<script data-entry="{entry}">\n{loader}</script>')
+    return "\n".join(parts)
 
 
 def registration(src: Source) -> str:
@@ -161,6 +180,3 @@ def export_explorer(directory, params=None, *, force: bool = False) -> Path:
     return target / "index.html"
 
 
-def page_sources(params: Optional[object] = None) -> List[str]:
-    """The registrations of every source, in order (for a page that inlines them)."""
-    return [registration(s) for s in sources(params).values()]

@@ -2,11 +2,12 @@
 
 :func:`build_report` computes everything from the library -- the derivation by rotation tensors
 and Lagrange's equations, the check of the planar case against the specification, the normal
-modes and their dependence on ``alpha``, a simulation with its figures and an animation, the
+modes and their dependence on ``alpha``, a simulation with its figures and a live 3D view, the
 comparison with MuJoCo -- and writes one HTML file that opens offline: the mathematics is
 typeset by KaTeX, bundled into the file (script, style sheet, fonts as ``data:`` URIs), the
-figures are PNG and the animation MP4 (H.264) ``data:`` URIs.  Nothing is fetched: the file
-has no reference to anything outside itself.
+figures are PNG ``data:`` URIs, and the motion is replayed in 3D by three.js (bundled too, the
+explorer's scene: :mod:`skewpend.views.frontend`), turnable, from the states the library
+computed.  Nothing is fetched: the file has no reference to anything outside itself.
 
 Sections:
 
@@ -23,7 +24,7 @@ Sections:
    (:func:`~skewpend.symbolic.specification.check_planar`);
 4. normal modes: frequencies, periods, shapes; the frequencies against ``alpha`` with the
    internal resonances;
-5. a simulation: figures, energy drift, the animation;
+5. a simulation: figures, energy drift, the motion replayed live in 3D;
 6. which starts flip: a small flip-time map (:func:`skewpend.flip_map`, released at rest), the
    simulation's start marked on it;
 7. how chaotic: the Lyapunov spectrum of the simulation's start, Poincare sections at two
@@ -53,11 +54,12 @@ from ... import __version__
 from ...errors import ParameterError, SkewpendError
 from ...symbolic.model import Parameters
 
-from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, video_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
+from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
 from .orbits import section_orbits
 from .analyses import mujoco_installed, section_chaos, section_flipmap, section_provenance, section_validation  # noqa: F401
 from .derivation import section_check, section_derivation
-from .system import VIDEO_SLOT, section_modes, section_simulation, section_system, video_figure
+from .system import LIVE_SLOT, live_figure, section_modes, section_simulation, section_system
+from ..frontend import inline_page_scripts
 
 __all__ = [
     "build_report",
@@ -72,11 +74,10 @@ __all__ = [
 
 
 def _require_libraries() -> None:
-    """The report draws with Matplotlib (and Pillow) and encodes its video with the ffmpeg of the
-    imageio-ffmpeg wheel: say which is missing before any work starts."""
+    """The report draws with Matplotlib (and Pillow): say which is missing before any work starts."""
     import importlib.util
 
-    missing = [name for name, module in (("matplotlib", "matplotlib"), ("Pillow", "PIL"), ("imageio-ffmpeg", "imageio_ffmpeg"))
+    missing = [name for name, module in (("matplotlib", "matplotlib"), ("Pillow", "PIL"))
                if importlib.util.find_spec(module) is None]
     if missing:
         raise SkewpendError(f"the report needs {', '.join(missing)}: pip install {' '.join(missing)}")
@@ -234,8 +235,9 @@ def build_report(
     ``y0 = (phi, psi, dphi, dpsi)``: the simulation's initial state (default
     :data:`DEFAULT_INITIAL_STATE`); ``t_end`` [s]: its length (at most :data:`MAX_T_END`);
     ``method``, ``rtol``, ``atol``, ``dt``, ``max_steps``: as for :func:`skewpend.simulate`.
-    ``clip_seconds``, ``fps``, ``clip_size``: the animation (the first ``clip_seconds`` of the
-    motion, at most ``t_end``; at most 1200 frames).  ``sweep_points``: values of alpha in
+    ``clip_seconds``, ``fps``, ``clip_size``: the live 3D view (the first ``clip_seconds`` of the
+    motion, at most ``t_end``, replayed from ``fps`` computed states per second, at most 1200, on
+    a canvas of ``clip_size`` pixels).  ``sweep_points``: values of alpha in
     0..180 deg for the frequency curves.  ``validate``: compare with MuJoCo (None: when MuJoCo is
     installed; True: it must be).  ``command``: the command line that made the report, shown in
     section 10.  ``progress(done, total)`` is called as each part is finished.
@@ -306,7 +308,7 @@ def build_report(
         done += 1
         if progress is not None:
             progress(done, total)
-    bodies["simulation"] = bodies["simulation"].replace(VIDEO_SLOT, video_figure(ctx))
+    bodies["simulation"] = bodies["simulation"].replace(LIVE_SLOT, live_figure(ctx))
     ctx.timings["total"] = time.perf_counter() - start
     bodies["provenance"] = section_provenance(ctx)
     page = _assemble(ctx, bodies)
@@ -347,9 +349,11 @@ def _assemble(ctx: Context, bodies: Dict[str, str]) -> str:
         report_css=template("report.css"),
         toc=toc,
         body=number_figures("\n".join(parts)),
-        footer=esc(f"Made by skewpend {__version__}. This one file holds every figure, the video, and the script and fonts "
+        footer=esc(f"Made by skewpend {__version__}. This one file holds every figure, the live 3D view (three.js, MIT "
+                  "licence), and the script and fonts "
                   "that typeset its mathematics (KaTeX, MIT licence): it opens offline and fetches nothing."),
         katex_js=js,
         render_js=template("render.js"),
+        live_js=inline_page_scripts(),
     )
     return page

@@ -42,8 +42,8 @@ SECTIONS = (
 )
 #: Animation: length of the clip [s of motion], frames per second, frame size [px].
 CLIP_SECONDS = 10.0
-CLIP_FPS = 20.0
-CLIP_SIZE = (480, 360)
+CLIP_FPS = 30.0
+CLIP_SIZE = (720, 480)
 #: Pictures of section 1 [px].
 PICTURE_SIZE = (560, 420)
 #: Resolution of the figures [dots per inch].
@@ -158,14 +158,27 @@ def figure_html(data: bytes, caption: str, alt: str) -> str:
     )
 
 
-def video_html(data: bytes, caption: str, poster: Optional[bytes], size: Tuple[int, int]) -> str:
-    """The MP4 (H.264) clip as a data URI in a looping, muted, autoplaying <video>."""
-    poster_attr = f' poster="{data_uri(poster, "image/png")}"' if poster else ""
+def live_view_html(data: dict, caption: str, poster: Optional[bytes], size: Tuple[int, int]) -> str:
+    """The live 3D replay of a computed motion (``web/replay.js`` on ``web/scene.js``): a canvas of
+    ``size`` pixels with play/pause and a time slider, the states to replay as JSON (``t``,
+    ``tips``, ``axes``, ``size``: numbers only, written exactly), and ``poster`` (the start) shown
+    until the view draws -- and instead of it where a browser has no WebGL or no JavaScript."""
+    import json
+
+    w, h = size
+    payload = json.dumps(data, separators=(",", ":"), allow_nan=False)
+    poster_html = (f'<img class="live-poster" src="{data_uri(poster, "image/png")}" alt="the pendulum at the start of the motion">'
+                   if poster else "")
     return (
-        f'<figure id="figure-{FIGURE_SLOT}"><video controls loop muted autoplay playsinline preload="auto" '
-        f'width="{size[0]}" height="{size[1]}"{poster_attr}>'
-        f'<source src="{data_uri(data, "video/mp4")}" type="video/mp4">'
-        "Your browser cannot play H.264 video.</video>"
+        f'<figure id="figure-{FIGURE_SLOT}" class="live-view" style="max-width: {w}px">'
+        f'<div class="live-stage">{poster_html}'
+        f'<canvas width="{w}" height="{h}" style="aspect-ratio: {w} / {h}" '
+        'aria-label="the motion in 3D: drag to turn the view, scroll to zoom"></canvas></div>'
+        '<div class="live-controls"><button type="button" class="live-play" aria-pressed="true">Pause</button>'
+        '<input type="range" class="live-time" min="0" max="0" step="1" value="0" aria-label="frame of the motion">'
+        '<output class="live-clock">t = 0.00 s</output><span class="live-hint">drag: turn · scroll: zoom</span></div>'
+        '<p class="live-note"></p>'
+        f'<script type="application/json" class="live-data">{payload}</script>'
         f"<figcaption><b>Figure {FIGURE_SLOT}.</b> {caption}</figcaption></figure>"
     )
 
@@ -267,5 +280,5 @@ class Context:
     timings: Dict[str, float] = field(default_factory=dict)
     notes: Dict[str, str] = field(default_factory=dict)
     clip: object = None  # the animation's trajectory (row 0: the initial state)
-    video: Optional[bytes] = None
-    still: Optional[bytes] = None  # section 1's picture of the initial state (also the video's poster)
+    live: Optional[dict] = None  # the live view's frames: t, tips, axes, size
+    still: Optional[bytes] = None  # section 1's picture of the initial state (also the live view's poster)

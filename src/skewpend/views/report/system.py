@@ -13,7 +13,7 @@ import numpy as np
 from ...errors import SkewpendError
 from ...symbolic.model import Parameters
 
-from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, video_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
+from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
 
 # -- section 1: the system ------------------------------------------------------------------------
 _UNITS = {"a": "m", "b": "m", "m1": "kg", "m2": "kg", "alpha": "", "g": "m/s²", "c1": "N m s", "c2": "N m s",
@@ -228,14 +228,13 @@ def section_modes(ctx: Context) -> str:
 
 
 # -- section 5: simulation ------------------------------------------------------------------------------
-#: Where the video goes in section 5's body (its poster, section 1's picture, is made later).
-VIDEO_SLOT = "<!--skewpend:video-->"
+#: Where the live view goes in section 5's body (its poster, section 1's picture, is made later).
+LIVE_SLOT = "<!--skewpend:live-view-->"
 
 
 def section_simulation(ctx: Context) -> str:
     from ...numeric.simulation import simulate
     from .. import figures as F
-    from ..animation import animate
     from ..style import settings_text
 
     p, y0 = ctx.params, ctx.y0
@@ -291,29 +290,30 @@ def section_simulation(ctx: Context) -> str:
         out.append(figure_html(fig_png(make(tr)), caption, alt))
     ctx.timings["simulation: figures"] = time.perf_counter() - t0
 
-    # the animation: the first clip_seconds of the same motion, one row per frame (dense output)
+    # the live view: the first clip_seconds of the same motion, one row per frame (dense output),
+    # replayed in the browser from the rod ends and hinge axes the library computes at each frame
     t0 = time.perf_counter()
     frame = 1.0 / ctx.fps
     clip_t = max(frame, math.floor(ctx.clip_seconds / frame + 1e-9) * frame)
     clip_kw = {"max_steps": int(ctx.max_steps)} if ctx.max_steps is not None else {}
     ctx.clip = clip = simulate(p, y0, clip_t, dt_out=frame, **clip_kw)
-    with tempfile.TemporaryDirectory(prefix="skewpend-report-") as tmp:
-        path = Path(tmp) / "clip.mp4"
-        animate(clip, path, fps=ctx.fps, speed=1.0, size=ctx.clip_size)
-        ctx.video = path.read_bytes()
-    ctx.timings["simulation: animation"] = time.perf_counter() - t0
-    ctx.notes["clip"] = (f"{fmt_num(clip.t[-1])} s of motion, {clip.t.size} frames at {ctx.fps:g} fps, "
-                         f"{ctx.clip_size[0]}×{ctx.clip_size[1]} px, {len(ctx.video) / 1e3:.0f} kB")
-    out.append(VIDEO_SLOT)
+    size = max(float(p.a), float(p.b))
+    ctx.live = {"t": clip.t.tolist(), "tips": clip.tips().tolist(), "axes": clip.axes().tolist(), "size": size}
+    ctx.timings["simulation: live view"] = time.perf_counter() - t0
+    ctx.notes["clip"] = (f"{fmt_num(clip.t[-1])} s of motion, {clip.t.size} frames at {ctx.fps:g} per second, "
+                         f"replayed live in 3D ({ctx.clip_size[0]}×{ctx.clip_size[1]} px)")
+    out.append(LIVE_SLOT)
     return "\n".join(out)
 
 
-def video_figure(ctx: Context) -> str:
+def live_figure(ctx: Context) -> str:
     clip = ctx.clip
-    return video_html(
-        ctx.video,
-        f"The first {fmt_num(clip.t[-1])} s of the motion, in real time ({ctx.fps:g} frames per second, H.264): the rods, "
-        "both hinge axes (green: hinge 1, magenta: hinge 2, with the angle between them) and the fading trail of rod 2's tip"
-        + (" (computed by DOP853, whose dense output gives the states at the frame times)." if ctx.method != "dop853" else "."),
+    return live_view_html(
+        ctx.live,
+        f"The first {fmt_num(clip.t[-1])} s of the motion, replayed in real time in 3D from the computed states "
+        f"({ctx.fps:g} frames per second; drag to turn the view, scroll to zoom, the slider picks a moment): both rods, both "
+        "hinge axes (green: the roof's, yellow: the second, turning with rod 1) and the trail of rod 2's tip"
+        + (" (computed by DOP853, whose dense output gives the states at the frame times)" if ctx.method != "dop853" else "")
+        + ". A video of the motion: <code>skewpend animate</code>.",
         ctx.still, ctx.clip_size,
     )
