@@ -393,7 +393,7 @@ def test_report_flipmap_section(default_report):
     assert out.any() and out[first, joint]
     assert tr.t[first - 1] <= t_flip + 1e-9 and t_flip <= tr.t[first] + 1e-9
     provenance = _section(page, "provenance")
-    assert "6 · flip-time map" in provenance and "8 · validation against MuJoCo" in provenance
+    assert "6 · flip-time map" in provenance and "9 · validation against MuJoCo" in provenance
     assert f"{n} × {n} starts at rest, t_end = 10 s" in html.unescape(provenance)
 
 
@@ -484,3 +484,33 @@ def test_report_orbits_section(default_report):
     f2 = nnm(skewpend.reference_parameters(), mode=2, resolution=80)
     assert f"{f2.frequencies[-1]:.5g}" in sec
     assert "nan" not in re.sub(r"<[^>]+>", " ", sec).lower().split()
+
+
+def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monkeypatch):
+    """Sections 2 and 3 are kept in the cache directory under a key of the parameters, the version
+    and skewpend's own code: a second report with the same parameters reads them (the same HTML),
+    other parameters or other code miss, and a damaged entry is computed again."""
+    from skewpend.views.report import cache
+
+    monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "cache"))
+    p = Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=math.radians(30), g=9.81)
+    first = R.build_report(p, **SMALL)
+    assert "read from the cache" not in first
+    entry = tmp_path / "cache" / "report-sections" / f"{cache.key(p)}.json"
+    assert entry.is_file()
+    second = R.build_report(p, **SMALL)
+    assert "sections 2 and 3 read from the cache" in second
+    for key in ("derivation", "check"):
+        assert _section(first, key) == _section(second, key)
+    assert cache.key(p.replace(alpha=math.radians(31))) != cache.key(p)
+    monkeypatch.setattr(cache, "_code_digest", lambda: "other code")
+    assert cache.load(p) is None  # another version of the code: another key
+    monkeypatch.undo()
+    monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "cache"))
+    entry.write_text('{"bodies": {"derivation": 1}}')
+    assert cache.load(p) is None
+    entry.write_text("not json")
+    assert cache.load(p) is None
+    third = R.build_report(p, **SMALL)
+    assert "read from the cache" not in third and _section(third, "derivation") == _section(first, "derivation")
+    assert cache.load(p) is not None  # and stored again

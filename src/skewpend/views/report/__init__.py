@@ -56,7 +56,7 @@ from ...symbolic.model import Parameters
 
 from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
 from .orbits import section_orbits
-from .analyses import mujoco_installed, section_chaos, section_flipmap, section_provenance, section_validation  # noqa: F401
+from .analyses import chaos_jobs, mujoco_installed, section_chaos, section_flipmap, section_provenance, section_validation  # noqa: F401
 from .derivation import section_check, section_derivation
 from .system import LIVE_SLOT, live_figure, section_modes, section_simulation, section_system
 from ..frontend import inline_page_scripts
@@ -262,6 +262,7 @@ def build_report(
     running: Dict[str, "_Background"] = {}
 
     def stop_background() -> None:
+        ctx.prefetch.cancel()
         child = running.get("child")
         if child is not None and child.proc.poll() is None:
             child.proc.kill()
@@ -271,18 +272,25 @@ def build_report(
         "system": section_system,
         "modes": section_modes,
         "flipmap": section_flipmap,
-        "chaos": section_chaos,
         "orbits": section_orbits,
         "validation": section_validation,
+        "chaos": section_chaos,  # last: its ensembles (prefetched) run while the others draw
     }
     total = len(numeric) + 3
     done = 0
     bodies: Dict[str, str] = {}
+    from . import cache
+
+    t0 = time.perf_counter()
+    cached = cache.load(params)  # sections 2 and 3 made earlier for these parameters by this code
+    loaded = time.perf_counter() - t0
     with Interrupts(on_signal=stop_background) as intr:
-        background = _Background.start(params) if PARALLEL and (os.cpu_count() or 1) > 1 else None
+        background = _Background.start(params) if cached is None and PARALLEL and (os.cpu_count() or 1) > 1 else None
         if background is not None:
             running["child"] = background
         try:
+            # section 7's ensembles run from now on, while sections 1 to 6 draw
+            ctx.prefetch.start(chaos_jobs(ctx))
             for key, build in numeric.items():
                 intr.check()
                 t0 = time.perf_counter()
@@ -294,11 +302,18 @@ def build_report(
             intr.check()
             symbolic = background.result() if background is not None else None
             intr.check()
-            if symbolic is None:  # serial, or the second process failed: compute it here
+            if cached is not None:
+                symbolic = {**cached, "timings": {"derivation": loaded / 2, "check": loaded / 2}}
+                ctx.notes["cached"] = ("sections 2 and 3 read from the cache (computed earlier for these parameters by "
+                                       "this skewpend)")
+            elif symbolic is None:  # serial, or the second process failed: compute it here
                 symbolic = _symbolic_sections(params)
             else:
                 ctx.notes["parallel"] = "sections 2 and 3 computed by a second process, in parallel"
+            if cached is None:
+                cache.save(params, symbolic)
         finally:
+            ctx.prefetch.cancel()  # a no-op once they are done (an error or Ctrl-C: they stop)
             if background is not None:
                 background.stop()
     bodies.update(symbolic["bodies"])

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import platform
-from typing import List, Tuple
+from typing import Callable, Dict, List, Tuple
 
 import numpy as np
 
@@ -15,12 +15,35 @@ from ...errors import SkewpendError
 from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
 
 # -- section 7: chaos ------------------------------------------------------------------------------------------
+def chaos_jobs(ctx: Context) -> Dict[str, Callable]:
+    """Section 7's ensembles, as ``{name: compute(progress)}`` -- started when the report starts
+    (:class:`Prefetch`), so that they run while the earlier sections draw: the Poincare sections,
+    the largest-exponent map and the chaos diagram (a conservative model only: they need an energy
+    surface; the diagram only when the model has a skew angle)."""
+    from ...analysis.chaos import chaos_diagram, potential_range
+    from ...analysis.lyapunov import lyapunov_map
+    from ...analysis.poincare import poincare
+
+    p = ctx.params
+    if not all(getattr(p, k) == 0 for k in ("c1", "c2", "tau1", "tau2")):
+        return {}
+    span = potential_range(p)
+    jobs: Dict[str, Callable] = {}
+    for level in CHAOS_SECTION_LEVELS:
+        jobs[f"section {level}"] = (lambda e: lambda check: poincare(
+            p, e, n_orbits=CHAOS_SECTION_ORBITS, n_crossings=CHAOS_SECTION_CROSSINGS, progress=check))(level * span)
+    jobs["map"] = lambda check: lyapunov_map(p, CHAOS_MAP_N, t_end=CHAOS_MAP_T_END, progress=check)
+    if p.uses_alpha:
+        jobs["diagram"] = lambda check: chaos_diagram(p, energy=[level * span for level in CHAOS_DIAGRAM_LEVELS],
+                                                      progress=check, **CHAOS_DIAGRAM)
+    return jobs
+
+
 def section_chaos(ctx: Context) -> str:
     import warnings
 
-    from ...analysis.chaos import chaos_diagram, potential_range
-    from ...analysis.lyapunov import lyapunov, lyapunov_map
-    from ...analysis.poincare import poincare
+    from ...analysis.chaos import potential_range
+    from ...analysis.lyapunov import lyapunov
     from .. import figures as F
 
     p, y0 = ctx.params, ctx.y0
@@ -62,6 +85,7 @@ def section_chaos(ctx: Context) -> str:
         return "\n".join(out)
 
     span = potential_range(p)
+    jobs = chaos_jobs(ctx)
     out.append(prose(
         "<p>A <b>Poincaré section</b> cuts the motion at fixed energy each time the first rod passes the vertical "
         r"($\varphi = 0$, moving forwards) and plots the second joint's angle and canonical momentum "
@@ -73,7 +97,7 @@ def section_chaos(ctx: Context) -> str:
     for level in CHAOS_SECTION_LEVELS:
         e = level * span
         try:
-            sec = poincare(p, e, n_orbits=CHAOS_SECTION_ORBITS, n_crossings=CHAOS_SECTION_CROSSINGS)
+            sec = ctx.prefetch.result(f"section {level}", jobs[f"section {level}"])
         except SkewpendError as exc:
             imgs.append(f'<p class="callout warn">The section at {fmt_num(e, 4)} J could not be made: {esc(exc)}</p>')
             continue
@@ -85,7 +109,7 @@ def section_chaos(ctx: Context) -> str:
     out.append('<div class="figure-row">' + "".join(imgs) + "</div>")
 
     try:
-        m = lyapunov_map(p, CHAOS_MAP_N, t_end=CHAOS_MAP_T_END)
+        m = ctx.prefetch.result("map", jobs["map"])
         out.append(figure_html(fig_png(F.lyapunov_map_figure(m)), prose(
             f"The largest Lyapunov exponent over {fmt_num(CHAOS_MAP_T_END)} s for starts at rest on a "
             f"{CHAOS_MAP_N}&nbsp;×&nbsp;{CHAOS_MAP_N} grid of $(\\varphi_0, \\psi_0)$ — compare the flip-time map of "
@@ -97,7 +121,7 @@ def section_chaos(ctx: Context) -> str:
 
     if p.uses_alpha:
         try:
-            d = chaos_diagram(p, energy=[level * span for level in CHAOS_DIAGRAM_LEVELS], **CHAOS_DIAGRAM)
+            d = ctx.prefetch.result("diagram", jobs["diagram"])
         except SkewpendError as exc:
             d = None
             out.append(f'<p class="callout warn">The chaos diagram could not be made: {esc(exc)}</p>')
@@ -309,10 +333,11 @@ def section_provenance(ctx: Context) -> str:
         ("simulation", "5 · simulation, all of it"),
         ("simulation: integration", "5 · integration"),
         ("simulation: figures", "5 · figures"),
-        ("simulation: animation", "5 · animation"),
+        ("simulation: live view", "5 · live view: frames, rod ends, axes"),
         ("flipmap", "6 · flip-time map"),
         ("chaos", "7 · chaos: exponents, sections, diagram"),
-        ("validation", "8 · validation against MuJoCo"),
+        ("orbits", "8 · equilibria and nonlinear normal modes"),
+        ("validation", "9 · validation against MuJoCo"),
         ("total", "total"),
     ]
     trows = [[esc(label), f"{ctx.timings[key]:.2f}"] for key, label in labels if key in ctx.timings]
@@ -323,7 +348,9 @@ def section_provenance(ctx: Context) -> str:
         + table_html(["part", "seconds"], trows, numeric=(1,), compact=True,
                  caption="Wall time of each part in this run" + (
                      " (sections 2 and 3 in a second process, in parallel with the others)" if ctx.notes.get("parallel")
-                     else ""))
-        + "<p class=\"note\">Everything here was computed when this file was made; opening it computes nothing but the "
-          "typesetting of the mathematics.</p>"
+                     else " (sections 2 and 3 read from the cache)" if ctx.notes.get("cached") else ""))
+        + "<p class=\"note\">Everything here was computed when this file was made"
+        + (" (sections 2 and 3 by an earlier run with the same parameters and the same skewpend, kept in the cache "
+           "directory like the compiled kernels)" if ctx.notes.get("cached") else "")
+        + "; opening it computes nothing but the typesetting of the mathematics.</p>"
     )

@@ -10,7 +10,7 @@ import io
 import math
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import Dict, Optional, Sequence, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -261,6 +261,58 @@ def vector_tex(v, digits: int = 4) -> str:
 
 
 # -- the report -------------------------------------------------------------------------------
+class Prefetch:
+    """Computations of later sections started at once in a daemon thread, so that their compiled
+    work (which releases the GIL, on every core) overlaps the main thread's drawing of the earlier
+    sections.  ``start({name: compute(check)})`` runs them in order; ``result(name, compute)``
+    waits for one and returns its value (or raises its exception) -- or computes it now if it was
+    never started; ``cancel()`` makes the running one stop at its next progress call."""
+
+    class Cancelled(Exception):
+        pass
+
+    def __init__(self) -> None:
+        import threading
+
+        self._done: Dict[str, threading.Event] = {}
+        self._out: Dict[str, Tuple[bool, object]] = {}
+        self._stop = threading.Event()
+
+    def check(self, *_args) -> None:
+        if self._stop.is_set():
+            raise Prefetch.Cancelled()
+
+    def start(self, jobs: Dict[str, Callable]) -> None:
+        import threading
+
+        for name in jobs:
+            self._done[name] = threading.Event()
+
+        def run() -> None:
+            for name, compute in jobs.items():
+                try:
+                    self.check()
+                    self._out[name] = (True, compute(self.check))
+                except BaseException as exc:  # delivered to whoever asks for it
+                    self._out[name] = (False, exc)
+                self._done[name].set()
+
+        threading.Thread(target=run, name="skewpend-report-prefetch", daemon=True).start()
+
+    def result(self, name: str, compute: Callable):
+        if name not in self._done:
+            return compute(None)
+        while not self._done[name].wait(0.05):  # in slices: Ctrl-C is seen at once
+            pass
+        ok, value = self._out[name]
+        if not ok:
+            raise value  # type: ignore[misc]
+        return value
+
+    def cancel(self) -> None:
+        self._stop.set()
+
+
 @dataclass
 class Context:
     params: Parameters
@@ -282,3 +334,4 @@ class Context:
     clip: object = None  # the animation's trajectory (row 0: the initial state)
     live: Optional[dict] = None  # the live view's frames: t, tips, axes, size
     still: Optional[bytes] = None  # section 1's picture of the initial state (also the live view's poster)
+    prefetch: Prefetch = field(default_factory=Prefetch)

@@ -1,0 +1,81 @@
+"""A disk cache of the report's symbolic sections (2, the derivation, and 3, the check at alpha = 0).
+
+They are pure SymPy -- several seconds -- and depend only on the parameters and on skewpend's own
+code, so, like the compiled kernels, they are kept in the cache directory
+(:func:`skewpend.numeric.kernels.cache_dir`, ``$SKEWPEND_CACHE_DIR``) under a key that is the
+SHA-256 of the parameters, skewpend's version and the text of every module that can change them
+(``skewpend/symbolic``, ``skewpend/views/report``): any edit to that code, another version or
+other parameters is another key.  A missing, unreadable or damaged entry is computed again; a
+cache that cannot be written is skipped.  At most :data:`KEEP` entries are kept (the oldest go).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from functools import lru_cache
+from pathlib import Path
+from typing import Dict, Optional
+
+__all__ = ["load", "save", "key", "KEEP"]
+
+#: Entries kept in the cache (each some 100 kB of HTML).
+KEEP = 64
+_PACKAGE = Path(__file__).resolve().parents[2]
+
+
+@lru_cache(maxsize=1)
+def _code_digest() -> str:
+    h = hashlib.sha256()
+    for folder in ("symbolic", "views/report"):
+        for path in sorted((_PACKAGE / folder).glob("*.py")):
+            h.update(path.relative_to(_PACKAGE).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def key(params) -> str:
+    from ... import __version__
+
+    text = json.dumps({"skewpend": __version__, "code": _code_digest(), "params": params.to_dict()}, sort_keys=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _folder() -> Path:
+    from ...numeric.kernels import cache_dir
+
+    return cache_dir() / "report-sections"
+
+
+def load(params) -> Optional[Dict]:
+    """The sections stored for ``params`` (``{"bodies", "notes", "timings"}``), or None."""
+    path = _folder() / f"{key(params)}.json"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not (isinstance(data, dict) and isinstance(data.get("bodies"), dict)
+            and all(isinstance(data["bodies"].get(k), str) for k in ("derivation", "check"))
+            and isinstance(data.get("notes"), dict) and isinstance(data.get("timings"), dict)):
+        return None
+    try:
+        os.utime(path)  # recently used: kept longest
+    except OSError:
+        pass
+    return data
+
+
+def save(params, sections: Dict) -> None:
+    """Store ``sections`` for ``params`` (atomically); silently nothing if the cache is not writable."""
+    folder = _folder()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{key(params)}.json"
+        tmp = folder / f".{path.name}.{os.getpid()}.tmp"
+        tmp.write_text(json.dumps(sections), encoding="utf-8")
+        os.replace(tmp, path)
+        entries = sorted(folder.glob("*.json"), key=lambda p: p.stat().st_mtime)
+        for old in entries[:-KEEP]:
+            old.unlink(missing_ok=True)
+    except OSError:
+        return
