@@ -1,8 +1,10 @@
-"""The views against issue 8's goals, as whole processes on this machine.
+"""The views against their goals, as whole processes on this machine.
 
-* ``skewpend animate --t-end 10 --out motion.mp4`` (and ``.gif``): 10 s at 30 fps, goal <= 20 s;
-* ``skewpend report`` with an empty kernel cache (goal <= 30 s) and with the kernels cached
-  (goal <= 15 s); the report's size (goal <= 10 MB).
+* ``skewpend animate --t-end 10 --out motion.mp4`` (and ``.gif``): 10 s at 30 fps, goal <= 20 s
+  (issue 8);
+* ``skewpend report`` cold -- an empty cache: every kernel compiled, the symbolic sections
+  computed (issue 19: goal <= 15 s) -- and warm -- the kernels and the report's symbolic sections
+  cached (issue 19: goal <= 8 s); the report's size (goal <= 10 MB).
 
 Run:  python benchmarks/bench_views.py [--repeat 3]
 """
@@ -42,10 +44,11 @@ def main() -> None:
         cold = []
         for k in range(args.repeat):
             cold.append(timed(["report", "--quiet", "--out", "cold.html"], env={"SKEWPEND_CACHE_DIR": str(Path(tmp) / f"c{k}")}, cwd=tmp))
-        rows.append(("report, empty kernel cache", cold, 30.0))
+        rows.append(("report, cold (empty cache)", cold, 15.0))
+        timed(["report", "--quiet", "--out", "warm.html"], env=warm_cache, cwd=tmp)  # fills the cache
         warm = [timed(["report", "--quiet", "--out", "warm.html"], env=warm_cache, cwd=tmp) for _ in range(args.repeat)]
         size = (Path(tmp) / "warm.html").stat().st_size
-        rows.append((f"report, kernels cached ({size / 1e6:.1f} MB, goal <= 10 MB)", warm, 15.0))
+        rows.append((f"report, warm ({size / 1e6:.1f} MB, goal <= 10 MB)", warm, 8.0))
     print(f"{os.cpu_count()} cores, Python {sys.version.split()[0]}; median of {args.repeat} whole processes")
     print(f"{'case':58s} {'median s':>9s} {'min s':>7s} {'goal s':>7s}")
     for name, times, goal in rows:
