@@ -266,7 +266,8 @@ class Prefetch:
     work (which releases the GIL, on every core) overlaps the main thread's drawing of the earlier
     sections.  ``start({name: compute(check)})`` runs them in order; ``result(name, compute)``
     waits for one and returns its value (or raises its exception) -- or computes it now if it was
-    never started; ``cancel()`` makes the running one stop at its next progress call."""
+    never started or was cancelled; ``cancel()`` (at Ctrl-C or SIGTERM) makes the running one stop at
+    its next progress call, and the main thread's own computation then meets the signal."""
 
     class Cancelled(Exception):
         pass
@@ -305,6 +306,8 @@ class Prefetch:
         while not self._done[name].wait(0.05):  # in slices: Ctrl-C is seen at once
             pass
         ok, value = self._out[name]
+        if isinstance(value, Prefetch.Cancelled):  # stopped by a signal: the main thread's own call raises it
+            return compute(None)
         if not ok:
             raise value  # type: ignore[misc]
         return value
