@@ -8,10 +8,11 @@ loads into ``src/skewpend/views/web/vendor/three/``:
 * the ES-module build and every module it imports, with the relative imports kept valid: the
   entry is ``build/three.module.min.js`` when the package ships it, else ``build/three.module.js``
   (three r186 and later publish no minified builds, see mrdoob/three.js#33893); both import
-  ``./three.core[.min].js``, so the import map of the page points ``"three"`` at
+  ``./three.core[.min].js``, so the page's module loader (``web/loader.js``, fed by
+  ``skewpend.views.frontend``) maps ``"three"`` to
   ``/static/vendor/three/<entry>`` (the entry's name is recorded in ``SOURCE.json``);
 * ``examples/jsm/controls/OrbitControls.js`` as ``addons/controls/OrbitControls.js`` (it imports
-  ``'three'``, resolved by the same import map; ``"three/addons/"`` may map to ``.../addons/``);
+  ``'three'``, resolved by the same loader);
 * ``LICENSE`` (MIT), and ``SOURCE.json``: version, the tarball's integrity string as the
   registry gave it, the entry module, and the SHA-256 of every copied file (checked by
   ``tests/test_vendor_three.py``).
