@@ -9,8 +9,8 @@ loads into ``src/skewpend/views/web/vendor/three/``:
   entry is ``build/three.module.min.js`` when the package ships it, else ``build/three.module.js``
   (three r186 and later publish no minified builds, see mrdoob/three.js#33893); both import
   ``./three.core[.min].js``, so the page's module loader (``web/loader.js``, fed by
-  ``skewpend.views.frontend``) maps ``"three"`` to
-  ``/static/vendor/three/<entry>`` (the entry's name is recorded in ``SOURCE.json``);
+  ``skewpend.views.frontend``) gives ``"three"`` the entry module and its ``./three.core.js``
+  import the core module (the entry's name is recorded in ``SOURCE.json``);
 * ``examples/jsm/controls/OrbitControls.js`` as ``addons/controls/OrbitControls.js`` (it imports
   ``'three'``, resolved by the same loader);
 * ``LICENSE`` (MIT), and ``SOURCE.json``: version, the tarball's integrity string as the
