@@ -65,6 +65,8 @@ _LAZY = {
     "chaos_diagram": "analysis.chaos",
     "ChaosDiagram": "analysis.chaos",
     "open_chaos_diagram": "analysis.chaos",
+    "widget": "views.widget",
+    "PendulumWidget": "views.widget",
 }
 
 __all__ = [
@@ -117,6 +119,8 @@ __all__ = [
     "chaos_diagram",
     "ChaosDiagram",
     "open_chaos_diagram",
+    "widget",
+    "PendulumWidget",
     "SkewpendError",
     "ParameterError",
     "NotNumericError",
@@ -141,6 +145,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .numeric.grid import GridJob, run_grid
     from .analysis.poincare import PoincareSection, poincare
     from .analysis.chaos import ChaosDiagram, chaos_diagram, open_chaos_diagram
+    from .views.widget import PendulumWidget, widget
 
 
 #: Subpackages (the layers) and modules reachable as attributes after a plain ``import skewpend``

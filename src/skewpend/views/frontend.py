@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Dict, List
 
 __all__ = ["Source", "sources", "registration", "export_explorer", "inline_page_scripts", "WEB_DIR", "katex_dir",
-           "SOURCE_ORDER", "REPLAY_ORDER"]
+           "SOURCE_ORDER", "REPLAY_ORDER", "WIDGET_ORDER", "module_bundle"]
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 _THREE = WEB_DIR / "vendor" / "three"
@@ -41,10 +41,12 @@ class Source:
 
 #: The explorer's sources in the order its page loads them (any order works; this one is the
 #: dependencies' order).
-SOURCE_ORDER = ("three-core", "three", "three-orbit", "physics", "scene", "explorer", "physics-classic", "dop853",
+SOURCE_ORDER = ("three-core", "three", "three-orbit", "physics", "scene", "live", "explorer", "physics-classic", "dop853",
                 "flipworker")
 #: The live replay's sources (the report's 3D view of a computed motion): no physics at all.
-REPLAY_ORDER = ("three-core", "three", "three-orbit", "scene", "replay")
+REPLAY_ORDER = ("three-core", "three", "three-orbit", "scene", "live", "replay")
+#: The notebook widget's sources (:mod:`skewpend.views.widget`): the live motion, no flip map.
+WIDGET_ORDER = ("three-core", "three", "three-orbit", "physics", "scene", "live", "widget")
 
 
 def _read(path: Path) -> str:
@@ -70,8 +72,11 @@ def _static_sources() -> tuple:
         Source("three-orbit", _read(_THREE / "addons" / "controls" / "OrbitControls.js"), {"three": "three"}),
         Source("scene", _read(WEB_DIR / "scene.js"),
                {"three": "three", "three/addons/controls/OrbitControls.js": "three-orbit"}),
-        Source("explorer", _read(WEB_DIR / "app.js"), {"three": "three", "./scene.js": "scene", "./physics.js": "physics"}),
-        Source("replay", _read(WEB_DIR / "replay.js"), {"./scene.js": "scene"}),
+        Source("live", _read(WEB_DIR / "live.js")),
+        Source("explorer", _read(WEB_DIR / "app.js"),
+               {"three": "three", "./scene.js": "scene", "./physics.js": "physics", "./live.js": "live"}),
+        Source("replay", _read(WEB_DIR / "replay.js"), {"./scene.js": "scene", "./live.js": "live"}),
+        Source("widget", _read(WEB_DIR / "widget.js"), {"./scene.js": "scene", "./physics.js": "physics", "./live.js": "live"}),
         Source("dop853", dop853_js(), classic=True),
         Source("flipworker", _read(WEB_DIR / "flipworker.js"), classic=True),
     ]
@@ -106,6 +111,47 @@ def inline_page_scripts(order=REPLAY_ORDER, entry: str = "replay", physics_param
         raise RuntimeError("front end: loader.js must not contain '</'")
     parts.append(f'<script data-entry="{entry}">\n{loader}</script>')
     return "\n".join(parts)
+
+
+def module_bundle(order=WIDGET_ORDER, entry: str = "widget", physics_params=None) -> str:
+    """One ES module holding the sources of ``order`` with the loader (for a notebook widget:
+    anywidget imports one module); its default export is ``entry``'s (anywidget's ``{render}``).
+
+    Each source is registered under its name and a digest of its text and imports
+    (``three@1f0c...``), and the loader keeps its ``blob:`` URLs page-wide: widgets on one page
+    share one three.js (one module instance) while each keeps the physics of its own bodies."""
+    import hashlib
+
+    found = sources(physics_params, order)
+    if entry not in found:
+        raise RuntimeError(f"front end: the entry {entry!r} is not among the sources {order}")
+    keyed: Dict[str, str] = {}
+
+    def key(name: str) -> str:  # a name for this exact text, its dependencies' included
+        if name not in keyed:
+            src = found[name]
+            deps = {spec: key(dep) for spec, dep in src.imports.items()}
+            digest = hashlib.sha256(json.dumps([src.code, deps, src.classic]).encode()).hexdigest()[:16]
+            keyed[name] = f"{name}@{digest}"
+        return keyed[name]
+
+    registry = {key(n): {"code": found[n].code, "imports": {spec: key(dep) for spec, dep in found[n].imports.items()},
+                         "classic": found[n].classic} for n in found}
+    loader = _read(WEB_DIR / "loader.js")
+    return "\n".join([
+        "// skewpend's front end as one module: three.js (vendored from npm), the physics generated from",
+        "// the derivation and the view's code, made blob: URLs by skewpend's loader (loader.js).",
+        f"const sources = {json.dumps(registry, ensure_ascii=False)};",
+        "const registry = (self.SKEWPEND_SOURCES = self.SKEWPEND_SOURCES || {});",
+        "for (const [name, source] of Object.entries(sources)) if (!(name in registry)) registry[name] = source;",
+        loader,
+        f"const entry = self.skewpend.import({json.dumps(key(entry))});",
+        "export default {",
+        "  async initialize(context) { const m = await entry; if (m.default.initialize) return m.default.initialize(context); },",
+        "  async render(context) { const m = await entry; return m.default.render(context); },",
+        "};",
+        "",
+    ])
 
 
 def registration(src: Source) -> str:

@@ -6,23 +6,10 @@
 import * as THREE from "three";
 import { createScene, world } from "./scene.js";
 import * as physics from "./physics.js";
+import { SLIDERS, advance as advanceBy } from "./live.js";
 
 const DEG = Math.PI / 180;
 const ORDER = physics.PARAMETER_ORDER; // a, b, m1, m2, alpha, g, c1, c2, tau1, tau2
-// The sliders: [key, label, min, max, step, default, unit, in degrees]
-const SLIDERS = [
-  ["alpha", "α skew", -180, 180, 0.5, 34.38, "°", true],
-  ["a", "a rod 1", 0.2, 3, 0.05, 1.0, "m"],
-  ["b", "b rod 2", 0.2, 3, 0.05, 0.8, "m"],
-  ["m1", "m1", 0.1, 5, 0.05, 1.0, "kg"],
-  ["m2", "m2", 0.1, 5, 0.05, 0.7, "kg"],
-  ["g", "g", 0, 20, 0.01, 9.81, "m/s²"],
-  ["c1", "c1 damping", 0, 2, 0.01, 0, "N m s"],
-  ["c2", "c2 damping", 0, 2, 0.01, 0, "N m s"],
-  ["phi0", "φ0 start", -180, 180, 0.5, 68.75, "°", true],
-  ["psi0", "ψ0 start", -180, 180, 0.5, -45.84, "°", true],
-];
-const DT = 1 / 1000; // fixed RK4 step [s]
 const TRAIL = 1200; // points of the tip trail
 const HISTORY = 20; // seconds shown in the plots
 
@@ -41,14 +28,6 @@ function paramVector() {
   return v;
 }
 function energyScale() { return Math.max(1e-9, (values.m1 * values.a + values.m2 * (2 * values.a + values.b)) * Math.max(values.g, 1)); }
-
-function rk4(yv, h) {
-  const k1 = physics.rhs(yv, p);
-  const k2 = physics.rhs(yv.map((v, i) => v + 0.5 * h * k1[i]), p);
-  const k3 = physics.rhs(yv.map((v, i) => v + 0.5 * h * k2[i]), p);
-  const k4 = physics.rhs(yv.map((v, i) => v + h * k3[i]), p);
-  return yv.map((v, i) => v + (h / 6) * (k1[i] + 2 * (k2[i] + k3[i]) + k4[i]));
-}
 
 // ---- three.js scene (scene.js) ------------------------------------------------------------------------
 const canvas = document.getElementById("scene");
@@ -80,14 +59,10 @@ function record() {
   while (hist.length && hist[0][0] < t - HISTORY) hist.shift();
 }
 function advance(seconds) {
-  const n = Math.min(Math.ceil(seconds / DT), 4000);
-  const h = seconds / Math.max(n, 1);
-  for (let i = 0; i < n; i++) {
-    const next = rk4(y, h);
-    if (!next.every(Number.isFinite)) { setRunning(false); notify("the motion became non-finite: reset or change the parameters"); return; }
-    y = next;
-    t += h;
-  }
+  const step = advanceBy(physics.rhs, y, p, seconds);
+  y = step.y;
+  t += step.dt;
+  if (!step.ok) { setRunning(false); notify("the motion became non-finite: reset or change the parameters"); }
 }
 
 const frameMs = { total: 0, count: 0 }; // JavaScript time per frame (physics, scene update, plots)

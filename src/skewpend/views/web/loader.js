@@ -6,11 +6,13 @@
 // module files) and inside a single HTML file (the report), and no request leaves the page.
 //
 // skewpend.import(name) -> the module; skewpend.source(name) -> a source's text (for Web Workers).
+// The blob: URLs are kept page-wide, so a source registered once is one module however many times
+// this script runs (each notebook widget's module runs it).
 // When this script has data-entry="name", that module is imported once the page has parsed.
 (function () {
   "use strict";
   const registry = (self.SKEWPEND_SOURCES = self.SKEWPEND_SOURCES || {});
-  const urls = {};
+  const urls = (self.SKEWPEND_URLS = self.SKEWPEND_URLS || {}); // page-wide: one module per source
   function source(name) {
     const entry = registry[name];
     if (!entry) throw new Error(`skewpend: no source named ${name}`);

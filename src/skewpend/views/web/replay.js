@@ -5,11 +5,12 @@
 // length scale `size`).  Nothing is integrated here: the frames are the library's.  Used by the
 // report (one HTML file, this module inlined) and by anything else that shows a computed run.
 import { createScene } from "./scene.js";
+import { frameAt } from "./live.js";
 
 function setup(figure) {
   const data = JSON.parse(figure.querySelector("script.live-data").textContent);
   const canvas = figure.querySelector("canvas");
-  const n = data.t.length, duration = data.t[n - 1] - data.t[0];
+  const n = data.t.length;
   let view;
   try {
     view = createScene(canvas, { trail: Math.min(n, 600) });
@@ -48,9 +49,7 @@ function setup(figure) {
     if (running) {
       // real time: the frame whose time has come since the start (or since play was pressed)
       if (origin === null) origin = stamp - 1000 * (data.t[frame] - data.t[0]);
-      const elapsed = duration > 0 ? ((stamp - origin) / 1000) % (duration + (data.t[1] - data.t[0] || 0)) : 0;
-      let k = 0;
-      while (k + 1 < n && data.t[k + 1] - data.t[0] <= elapsed) k++;
+      const k = frameAt(data.t, (stamp - origin) / 1000);
       if (k !== shown) { // every frame since the last one drawn goes into the trail
         if (k > frame) for (let j = frame + 1; j <= k; j++) pose(j); else pose(k);
         shown = k;

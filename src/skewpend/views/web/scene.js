@@ -103,6 +103,13 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
       }
     },
     render() { renderer.render(scene, camera); },
+    /** free the WebGL context and the controls' listeners (a notebook cell re-run or removed) */
+    dispose() {
+      controls.dispose();
+      scene.traverse((o) => { if (o.geometry) o.geometry.dispose(); if (o.material) o.material.dispose(); });
+      renderer.dispose();
+      renderer.forceContextLoss();
+    },
     /** the page position of a point (three.js coordinates): for pointing at a rod */
     toPage(point) {
       const v = point.clone().project(camera), r = canvas.getBoundingClientRect();

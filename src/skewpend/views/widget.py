@@ -1,0 +1,263 @@
+"""skewpend in a notebook cell: the live 3D pendulum with its sliders, as an `anywidget
+<https://anywidget.dev>`_ widget (JupyterLab, Jupyter Notebook 7, VS Code, Colab).
+
+>>> w = skewpend.widget()                            # doctest: +SKIP
+>>> w                                                # the cell shows it; drag to turn, sliders below
+>>> w.params = w.params.replace(alpha=0.3)           # the view follows
+>>> w.y0 = (2.0, 0.0, 0.0, 0.0)                      # and starts again from there
+>>> w.state.t, w.state.y                             # what the view shows now
+>>> tr = w.run(20.0)                                 # skewpend.simulate computes; the view replays it
+
+The view is the same front end as the explorer's and the report's (``web/scene.js``); its live
+motion is the JavaScript generated from the derivation for these bodies and axes, advanced by
+RK4, and ``run`` replays the states the compiled integrator computed.  State is synced both
+ways: a slider moved in the cell changes ``w.params`` or ``w.y0``; Python's changes move the
+sliders.  Needs the ``notebook`` extra (``pip install 'skewpend[notebook]'``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Optional, Sequence, Tuple
+
+import numpy as np
+
+try:
+    import anywidget
+    import traitlets
+except ImportError as exc:  # pragma: no cover - the extra is part of the test install
+    raise ImportError("skewpend.widget needs anywidget: pip install 'skewpend[notebook]'") from exc
+
+from ..errors import ParameterError
+from ..symbolic.model import SCALAR_NAMES, Parameters
+
+__all__ = ["widget", "PendulumWidget", "WidgetState"]
+
+#: Frames per second of a replayed run, and the most frames one replay may hold (JSON to the browser).
+FPS = 30
+MAX_FRAMES = 20_000
+#: The sliders shown, in this order (alpha only when the second axis is e0(alpha)).
+SLIDERS = ("alpha", "phi0", "psi0", "a", "b", "m1", "m2", "g", "c1", "c2")
+
+
+@dataclass(frozen=True, eq=False)  # y is an array: compare fields
+class WidgetState:
+    """What the widget's view shows (as it last reported, about every 0.25 s while it moves):
+    ``t`` [s], ``y = (phi, psi, dphi, dpsi)``, ``mode`` (``"live"``: the browser integrates;
+    ``"replay"``: a computed run, at ``frame``), ``ok`` (False once the live motion became
+    non-finite) and ``message``.  Before any view reported: ``mode == "not shown"``."""
+
+    t: float
+    y: np.ndarray
+    mode: str
+    frame: Optional[int] = None
+    ok: bool = True
+    message: str = ""
+
+
+class WidgetValueError(ParameterError, traitlets.TraitError):
+    """A refused value of a synced trait: a :class:`~skewpend.ParameterError` that traitlets
+    also knows as its own (it then rolls back the change's other traits)."""
+
+
+def _front_end(geometry: Parameters) -> Tuple[str, str]:
+    from .frontend import WEB_DIR, WIDGET_ORDER, module_bundle
+
+    return module_bundle(WIDGET_ORDER, "widget", geometry), (WEB_DIR / "widget.css").read_text(encoding="utf-8")
+
+
+class PendulumWidget(anywidget.AnyWidget):
+    """The live 3D pendulum in a notebook; make it with :func:`skewpend.widget`.
+
+    Synced with the view: ``params`` (the scalars; the bodies and axes are fixed at creation),
+    ``y0``, ``running``; the view writes back what it shows (:attr:`state`).  :meth:`run`
+    replays a run computed by :func:`skewpend.simulate`; :meth:`restart`, :meth:`play`,
+    :meth:`pause` do what their buttons do."""
+
+    # the model's state, synced with the view (widget.js)
+    values = traitlets.Dict().tag(sync=True)
+    y0 = traitlets.Any([0.0, 0.0, 0.0, 0.0]).tag(sync=True)  # any 4 numbers in; a list of floats kept
+    running = traitlets.Bool(True).tag(sync=True)
+    replay = traitlets.Dict().tag(sync=True)
+    sliders = traitlets.List(traitlets.Unicode()).tag(sync=True)
+    height = traitlets.Int(420).tag(sync=True)
+    shown = traitlets.Dict().tag(sync=True)
+
+    def __init__(self, params: Optional[Parameters] = None, y0: Optional[Sequence[float]] = None, *,
+                 height: int = 420) -> None:
+        from .. import checks
+        from ..config import reference_parameters, reference_state
+        from ..numeric.conventions import geometry_of
+
+        params = reference_parameters() if params is None else checks.numeric_params(params, "the widget")
+        height = checks.whole("height", height, 160, 4000, what="the view's height in pixels")
+        geometry = geometry_of(params)
+        self._geometry = geometry
+        self._esm, self._css = _front_end(geometry)
+        names = [n for n in SCALAR_NAMES if n != "alpha" or geometry.uses_alpha]
+        super().__init__(
+            values={n: float(getattr(params, n)) for n in names},
+            y0=_start(reference_state() if y0 is None else y0),
+            sliders=[n for n in SLIDERS if n in names or n in ("phi0", "psi0")],
+            height=height,
+        )
+
+    # -- validation of every change (from Python or from the view) ----------------------------------
+    @traitlets.validate("values")
+    def _valid_values(self, proposal: Any) -> dict:
+        try:
+            return self._checked_values(proposal["value"])
+        except ParameterError as exc:
+            raise WidgetValueError(str(exc)) from None
+
+    def _checked_values(self, given: Any) -> dict:
+        values = dict(given)
+        allowed = [n for n in SCALAR_NAMES if n != "alpha" or self._geometry.uses_alpha]
+        unknown = sorted(set(values) - set(allowed))
+        missing = [n for n in allowed if n not in values]
+        if unknown or missing:
+            what = "; ".join(([f"unknown {', '.join(unknown)}"] if unknown else []) +
+                             ([f"missing {', '.join(missing)}"] if missing else []))
+            raise ParameterError(f"widget values: {what}; expected all of {', '.join(allowed)} (set w.params to change some)")
+        params = self._geometry.replace(**values)  # checks each value (positive masses, ...)
+        return {n: float(getattr(params, n)) for n in allowed}
+
+    @traitlets.validate("y0")
+    def _valid_y0(self, proposal: Any) -> list:
+        try:
+            return _start(proposal["value"])
+        except ParameterError as exc:
+            raise WidgetValueError(str(exc)) from None
+
+    @traitlets.observe("values", "y0")
+    def _drop_replay(self, change: Any) -> None:
+        """A replayed run belongs to the parameters and start it was computed from."""
+        if self.replay and change["old"] != change["new"]:
+            self.replay = {}
+
+    def set_state(self, sync_data: dict) -> None:
+        """A view's change (ipywidgets calls this).  One that the checks refuse -- no slider makes
+        one, but a view is another program -- is logged in one line and the view is sent the
+        values kept, so the view and Python never disagree."""
+        try:
+            super().set_state(sync_data)
+        except traitlets.TraitError as exc:
+            self.log.warning("skewpend widget: a change from the view was refused: %s", exc)
+            self.send_state(list(sync_data))
+
+    # -- the public face ------------------------------------------------------------------------------
+    @property
+    def params(self) -> Parameters:
+        """The pendulum shown: the bodies and axes given at creation with the current scalars."""
+        return self._geometry.replace(**self.values)
+
+    @params.setter
+    def params(self, params: Parameters) -> None:
+        from .. import checks
+        from ..numeric.conventions import geometry_of
+
+        checks.numeric_params(params, "the widget")
+        if geometry_of(params) != self._geometry:
+            raise ParameterError("the widget's bodies and axes are fixed when it is made (its physics is generated for "
+                                 "them); change scalars only (params.replace(alpha=...)), or make a new skewpend.widget")
+        self.values = {n: float(getattr(params, n)) for n in self.values}
+
+    @property
+    def state(self) -> WidgetState:
+        """What the view shows now (as last reported; see :class:`WidgetState`)."""
+        s = self.shown
+        if not s:
+            return WidgetState(t=0.0, y=np.array(self.y0, dtype=float), mode="not shown")
+        return WidgetState(t=float(s["t"]), y=np.array(s["y"], dtype=float), mode=str(s["mode"]),
+                           frame=None if s.get("frame") is None else int(s["frame"]), ok=bool(s.get("ok", True)),
+                           message=str(s.get("message", "")))
+
+    def run(self, t_end: float = 10.0, **simulate_options: Any):
+        """Compute the motion from ``y0`` over ``[0, t_end]`` with :func:`skewpend.simulate`
+        (``simulate_options``: ``method``, ``rtol``, ``atol``, ``dt``, ``max_steps``) and replay
+        it in the view, :data:`FPS` frames per second; returns the
+        :class:`~skewpend.Trajectory` (its rows are the frames)."""
+        from .. import checks
+        from ..numeric.simulation import simulate
+
+        t_end = checks.finite_seconds("t_end", t_end, zero=False)
+        for option in ("dt_out", "out", "keep", "progress", "controller", "throw"):
+            if option in simulate_options:
+                raise ParameterError(f"widget.run: {option} cannot be set here (the widget replays every frame, "
+                                     f"{FPS} per second); allowed: method, rtol, atol, dt, max_steps")
+        frames = math.floor(t_end * FPS + 1e-9) + 1
+        if frames > MAX_FRAMES:
+            raise ParameterError(f"widget.run: t_end = {t_end:g} s is {frames} frames at {FPS} per second; at most "
+                                 f"{MAX_FRAMES} ({MAX_FRAMES / FPS:g} s) are replayed: simulate longer runs with "
+                                 "skewpend.simulate and look at them with skewpend.views")
+        dt_out = 1.0 / FPS
+        if simulate_options.get("method", "dop853") != "dop853":  # fixed steps: frames on whole steps
+            step = float(simulate_options.get("dt") or 1e-3)
+            dt_out = max(1, round(dt_out / step)) * step
+            if dt_out > t_end:
+                raise ParameterError(f"widget.run: t_end = {t_end:g} s is shorter than one frame ({dt_out:g} s)")
+        trajectory = simulate(self.params, self.y0, t_end, dt_out=dt_out, **simulate_options)
+        self.show(trajectory)
+        return trajectory
+
+    def show(self, trajectory) -> None:
+        """Replay ``trajectory`` (a :class:`~skewpend.Trajectory` of these bodies and axes, e.g.
+        from :func:`skewpend.simulate` with ``dt_out``) in the view; its parameters and start
+        become the widget's."""
+        from ..numeric.conventions import geometry_of
+        from ..numeric.simulation import Trajectory
+
+        if not isinstance(trajectory, Trajectory):
+            raise ParameterError(f"widget.show: expected a skewpend.Trajectory, got {type(trajectory).__name__}")
+        if geometry_of(trajectory.params) != self._geometry:
+            raise ParameterError("widget.show: the trajectory's bodies and axes differ from the widget's; "
+                                 "make a skewpend.widget(trajectory.params)")
+        n = len(trajectory.t)
+        if n > MAX_FRAMES:
+            raise ParameterError(f"widget.show: {n} rows are more than the {MAX_FRAMES} frames replayed; "
+                                 "simulate with dt_out (e.g. 1/30 s)")
+        if not trajectory.kept:
+            raise ParameterError("widget.show: the trajectory kept only its first and last rows (keep=False)")
+        data = {
+            "t": trajectory.t.tolist(), "y": trajectory.y.tolist(), "tips": trajectory.tips().tolist(),
+            "axes": trajectory.axes().tolist(), "size": max(float(trajectory.params.a), float(trajectory.params.b)),
+            "label": f"skewpend.simulate ({trajectory.method}), t = 0 .. {trajectory.t[-1]:g} s",
+            "message": "" if trajectory.ok else f"The run stopped early: {trajectory.message}",
+        }
+        with self.hold_sync():
+            self.params = trajectory.params
+            self.y0 = list(trajectory.y[0])
+            self.replay = data
+            self.running = True
+
+    def restart(self) -> None:
+        """Start the motion again from ``y0`` (a replay: from its first frame)."""
+        self.send({"cmd": "restart"})
+
+    def play(self) -> None:
+        self.running = True
+
+    def pause(self) -> None:
+        self.running = False
+
+    def __repr__(self) -> str:
+        values = ", ".join(f"{k}={v:g}" for k, v in self.values.items() if k not in ("tau1", "tau2") or v)
+        what = "replaying a computed run" if self.replay else "live"
+        y0 = ", ".join(f"{v:g}" for v in self.y0)
+        return f"skewpend.widget({values}; y0=({y0}); {what}, {'running' if self.running else 'paused'})"
+
+
+def _start(y0: Sequence[float]) -> list:
+    from ..parsing import initial_state
+
+    return [float(v) for v in initial_state(y0)]
+
+
+def widget(params: Optional[Parameters] = None, y0: Optional[Sequence[float]] = None, *,
+           height: int = 420) -> PendulumWidget:
+    """The live 3D pendulum in a notebook cell (an anywidget): the bodies and axes of ``params``
+    (default: :func:`skewpend.reference_parameters`) from ``y0 = (phi, psi, dphi, dpsi)``
+    (default: :func:`skewpend.reference_state`), ``height`` pixels tall.  See
+    :class:`PendulumWidget` for what it syncs; needs ``pip install 'skewpend[notebook]'``."""
+    return PendulumWidget(params, y0, height=height)
