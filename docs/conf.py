@@ -55,6 +55,7 @@ nb_execution_raise_on_error = True  # a failing cell fails the build
 nb_execution_show_tb = True
 nb_execution_cache_path = str(HERE / "_build" / ".jupyter_cache")
 nb_merge_streams = True
+nb_ipywidgets_js = {}  # no widget manager from a CDN: the site is offline (the widget tutorial shows a picture)
 suppress_warnings = ["myst-nb.lexer"] if nb_execution_mode == "off" else []  # no kernel asked: no lexer
 
 # --- mathematics: KaTeX at build time, from the package's own copy --------------------------

@@ -147,3 +147,13 @@ def test_docstring_examples_run() -> None:
     assert examples >= 8, f"only {examples} docstring examples found"
     result = runner.summarize(verbose=False)
     assert result.failed == 0, f"{result.failed} docstring example(s) failed (see the output above)"
+
+
+def test_no_page_carries_a_notebook_widget_s_state(site: Path) -> None:
+    # the widget tutorial executes a widget; its saved state (the whole front end, megabytes) would
+    # be rendered by nothing in an offline page (docs/_ext/skewpend_docs.py drops it)
+    page = (site / "tutorials" / "widget.html").read_text(encoding="utf-8")
+    assert "widget.png" in page and "refused: m2 must be &gt; 0" in page
+    for p in pages(site):
+        assert "application/vnd.jupyter.widget-state+json" not in p.read_text(encoding="utf-8"), p
+        assert p.stat().st_size < 1_500_000, (p, p.stat().st_size)

@@ -249,7 +249,7 @@ def test_the_widget_draws_moves_and_is_the_library_s_motion(harness):
     drawn_tips, drawn_axes = _drawn(s)
     np.testing.assert_allclose(drawn_tips, tips, atol=1e-9)
     np.testing.assert_allclose(drawn_axes, axes, atol=1e-9)
-    harness.page.screenshot(path=str(_artifacts() / "widget.png"), full_page=True)
+    harness.page.locator("#w0 .skewpend-widget").screenshot(path=str(_artifacts() / "widget.png"))
     assert harness.errors() == [] and harness.blocked == []
 
 
@@ -318,7 +318,7 @@ def test_a_run_from_python_is_replayed_frame_by_frame(harness):
         st = w.state
         assert st.mode == "replay" and st.frame == k and st.y.tolist() == tr.y[k].tolist()
     assert "skewpend.simulate (dop853)" in harness.page.locator("#w0 .sw-mode").text_content()
-    harness.page.locator("#w0").screenshot(path=str(_artifacts() / "widget-replay.png"))
+    harness.page.locator("#w0 .skewpend-widget").screenshot(path=str(_artifacts() / "widget-replay.png"))
     # a slider moved during the replay: the run was for other parameters, so both sides drop it
     harness.slider("alpha", 10)
     assert w.replay == {} and harness.view()["mode"] == "live" and w.state.mode == "live"

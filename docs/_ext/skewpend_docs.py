@@ -100,7 +100,16 @@ def _check_api(app: Sphinx, env) -> None:
                        ", ".join(missing), type="skewpend", subtype="api")
 
 
+def _drop_widget_state(app: Sphinx, doctree) -> None:
+    """No notebook widget's saved state in a page: without the widget manager (which myst-nb would
+    load from a CDN; ``nb_ipywidgets_js = {}``) nothing renders it, and a widget's state carries
+    its whole front end (megabytes).  The widget tutorial shows a picture instead."""
+    files = getattr(app.env, "nb_metadata", {}).get(app.env.docname, {}).get("js_files", {})
+    files.pop("ipywidgets_state", None)
+
+
 def setup(app: Sphinx) -> dict:
     app.connect("env-check-consistency", _check_api)
+    app.connect("doctree-read", _drop_widget_state)
     app.add_directive("skewpend-cli", CliDirective)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
