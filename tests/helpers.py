@@ -16,6 +16,26 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Optional, Sequence
 
+#: Debian's Chromium, driven by Playwright in the browser tests (``playwright install`` cannot
+#: download here), and its headless flags with WebGL drawn by SwiftShader.
+CHROMIUM = "/usr/bin/chromium"
+WEBGL_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-first-run",
+              "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+@contextlib.contextmanager
+def chromium():
+    """A headless Chromium with WebGL (for a module-scoped ``browser`` fixture)."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=WEBGL_ARGS)
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
 #: The command line as a process.
 SKEWPEND = [sys.executable, "-m", "skewpend"]
 

@@ -34,16 +34,14 @@ import pytest
 
 pytest.importorskip("fastapi")
 pytest.importorskip("uvicorn")
-sync_api = pytest.importorskip("playwright.sync_api")
+pytest.importorskip("playwright.sync_api")
 
 import skewpend  # noqa: E402
 from skewpend import Parameters  # noqa: E402
+from helpers import CHROMIUM, chromium  # noqa: E402
 
-CHROMIUM = "/usr/bin/chromium"
 if not os.path.exists(CHROMIUM):  # pragma: no cover - .ci/run installs it
     pytest.skip("Debian's chromium is needed (apt-get install chromium)", allow_module_level=True)
-ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
 def _artifacts() -> Path:
@@ -93,10 +91,8 @@ def _allowed(site: str, url: str) -> bool:
 
 @pytest.fixture(scope="module")
 def browser():
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+    with chromium() as b:
         yield b
-        b.close()
 
 
 class Page:

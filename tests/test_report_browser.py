@@ -17,19 +17,15 @@ from pathlib import Path
 
 import pytest
 
-sync_api = pytest.importorskip("playwright.sync_api")
+pytest.importorskip("playwright.sync_api")
+from helpers import CHROMIUM, chromium  # noqa: E402
 pytest.importorskip("matplotlib")
 
-CHROMIUM = "/usr/bin/chromium"
 pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"{CHROMIUM} is not installed (apt-get install chromium)")
 
 from skewpend import Parameters  # noqa: E402
 from skewpend.views import report as R  # noqa: E402
 
-ARGS = [
-    "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-]
 #: The reports opened: the built-in case (shorter run and clip, so the test is quick) and a
 #: user's case (alpha = 30 deg, damping: damped modes, different equations).
 CASES = {
@@ -50,10 +46,8 @@ def _artifacts() -> Path:
 
 @pytest.fixture(scope="module")
 def browser():
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+    with chromium() as b:
         yield b
-        b.close()
 
 
 @pytest.fixture(scope="module", params=list(CASES))

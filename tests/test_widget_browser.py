@@ -33,19 +33,17 @@ import numpy as np
 import pytest
 
 pytest.importorskip("anywidget")
-sync_api = pytest.importorskip("playwright.sync_api")
+pytest.importorskip("playwright.sync_api")
 
 import comm  # noqa: E402
 from comm.base_comm import BaseComm  # noqa: E402
 
 import skewpend  # noqa: E402
 from skewpend import Parameters  # noqa: E402
+from helpers import CHROMIUM, chromium  # noqa: E402
 
-CHROMIUM = "/usr/bin/chromium"
 if not os.path.exists(CHROMIUM):  # pragma: no cover - .ci/run installs it
     pytest.skip("Debian's chromium is needed (apt-get install chromium)", allow_module_level=True)
-ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 ORDER = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
 
 # The page's side of the notebook: a model with anywidget's API; what it sends waits in `outbox`.
@@ -115,10 +113,8 @@ def queue_comms(monkeypatch):
 
 @pytest.fixture(scope="module")
 def browser():
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+    with chromium() as b:
         yield b
-        b.close()
 
 
 class Harness:
