@@ -90,6 +90,9 @@ def test_the_view_s_changes_reach_python(caplog):
     assert w.params.m1 == 1.0
     assert updates(w, "values") == [w.values]
     assert any("a change from the view was refused: m1 must be > 0" in r.getMessage() for r in caplog.records)
+    # a report that is not one (another program's view) is refused the same way; w.state still reads
+    w.comm.handle_msg({"content": {"data": {"method": "update", "state": {"shown": {"t": "soon"}}}}, "buffers": []})
+    assert w.state.t == 1.25 and any("a view's report must hold" in r.getMessage() for r in caplog.records)
 
 
 def test_run_replays_the_library_s_states():

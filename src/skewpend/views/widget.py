@@ -130,6 +130,21 @@ class PendulumWidget(anywidget.AnyWidget):
         except ParameterError as exc:
             raise WidgetValueError(str(exc)) from None
 
+    @traitlets.validate("shown")
+    def _valid_shown(self, proposal: Any) -> dict:
+        """What a view reports: a time, a state of 4 numbers, a mode (or nothing yet)."""
+        shown = dict(proposal["value"])
+        if not shown:
+            return shown
+        try:
+            t, y = float(shown["t"]), [float(v) for v in shown["y"]]
+            ok = len(y) == 4 and shown.get("mode") in ("live", "replay") and math.isfinite(t)
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise WidgetValueError(f"a view's report must hold t, y (4 numbers) and mode (live or replay), got {shown!r}")
+        return shown
+
     @traitlets.observe("values", "y0")
     def _drop_replay(self, change: Any) -> None:
         """A replayed run belongs to the parameters and start it was computed from."""
