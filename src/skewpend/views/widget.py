@@ -1,12 +1,13 @@
 """skewpend in a notebook cell: the live 3D pendulum with its sliders, as an `anywidget
 <https://anywidget.dev>`_ widget (JupyterLab, Jupyter Notebook 7, VS Code, Colab).
 
->>> w = skewpend.widget()                            # doctest: +SKIP
->>> w                                                # the cell shows it; drag to turn, sliders below
->>> w.params = w.params.replace(alpha=0.3)           # the view follows
->>> w.y0 = (2.0, 0.0, 0.0, 0.0)                      # and starts again from there
->>> w.state.t, w.state.y                             # what the view shows now
->>> tr = w.run(20.0)                                 # skewpend.simulate computes; the view replays it
+In a notebook cell::
+
+    w = skewpend.widget()                      # the cell's last line shows it; drag to turn
+    w.params = w.params.replace(alpha=0.3)     # the view follows
+    w.y0 = (2.0, 0.0, 0.0, 0.0)                # and starts again from there
+    w.state.t, w.state.y                       # what the view shows now
+    tr = w.run(20.0)                           # skewpend.simulate computes; the view replays it
 
 The view is the same front end as the explorer's and the report's (``web/scene.js``); its live
 motion is the JavaScript generated from the derivation for these bodies and axes, advanced by
