@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Dict, List
 
 __all__ = ["Source", "sources", "registration", "export_explorer", "inline_page_scripts", "WEB_DIR", "katex_dir",
-           "SOURCE_ORDER", "REPLAY_ORDER", "WIDGET_ORDER", "module_bundle"]
+           "SOURCE_ORDER", "REPLAY_ORDER", "WIDGET_ORDER", "module_bundle", "replay_data"]
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 _THREE = WEB_DIR / "vendor" / "three"
@@ -111,6 +111,15 @@ def inline_page_scripts(order=REPLAY_ORDER, entry: str = "replay", physics_param
         raise RuntimeError("front end: loader.js must not contain '</'")
     parts.append(f'<script data-entry="{entry}">\n{loader}</script>')
     return "\n".join(parts)
+
+
+def replay_data(trajectory) -> dict:
+    """What a browser view replays of a computed run (``web/replay.js``, the widget): the rows'
+    times ``t`` [s], states ``y``, the library's rod ends ``tips`` and hinge axes ``axes`` at
+    each row, and the length scale ``size`` [m] of the drawn axes -- plain lists, written exactly."""
+    p = trajectory.params
+    return {"t": trajectory.t.tolist(), "y": trajectory.y.tolist(), "tips": trajectory.tips().tolist(),
+            "axes": trajectory.axes().tolist(), "size": max(float(p.a), float(p.b))}
 
 
 def module_bundle(order=WIDGET_ORDER, entry: str = "widget", physics_params=None) -> str:

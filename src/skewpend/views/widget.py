@@ -223,6 +223,7 @@ class PendulumWidget(anywidget.AnyWidget):
         become the widget's."""
         from ..numeric.conventions import geometry_of
         from ..numeric.simulation import Trajectory
+        from .frontend import replay_data
 
         if not isinstance(trajectory, Trajectory):
             raise ParameterError(f"widget.show: expected a skewpend.Trajectory, got {type(trajectory).__name__}")
@@ -236,8 +237,7 @@ class PendulumWidget(anywidget.AnyWidget):
         if not trajectory.kept:
             raise ParameterError("widget.show: the trajectory kept only its first and last rows (keep=False)")
         data = {
-            "t": trajectory.t.tolist(), "y": trajectory.y.tolist(), "tips": trajectory.tips().tolist(),
-            "axes": trajectory.axes().tolist(), "size": max(float(trajectory.params.a), float(trajectory.params.b)),
+            **replay_data(trajectory),
             "label": f"skewpend.simulate ({trajectory.method}), t = 0 .. {trajectory.t[-1]:g} s",
             "message": "" if trajectory.ok else f"The run stopped early: {trajectory.message}",
         }

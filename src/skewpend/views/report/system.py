@@ -234,6 +234,7 @@ def section_simulation(ctx: Context) -> str:
     from ...numeric.simulation import simulate
     from .. import figures as F
     from ..style import settings_text
+    from ..frontend import replay_data
 
     p, y0 = ctx.params, ctx.y0
     dt_out = max(FIGURE_DT, ctx.t_end / FIGURE_MAX_ROWS)
@@ -295,8 +296,7 @@ def section_simulation(ctx: Context) -> str:
     clip_t = max(frame, math.floor(ctx.clip_seconds / frame + 1e-9) * frame)
     clip_kw = {"max_steps": int(ctx.max_steps)} if ctx.max_steps is not None else {}
     ctx.clip = clip = simulate(p, y0, clip_t, dt_out=frame, **clip_kw)
-    size = max(float(p.a), float(p.b))
-    ctx.live = {"t": clip.t.tolist(), "tips": clip.tips().tolist(), "axes": clip.axes().tolist(), "size": size}
+    ctx.live = replay_data(clip)
     ctx.timings["simulation: live view"] = time.perf_counter() - t0
     ctx.notes["clip"] = (f"{fmt_num(clip.t[-1])} s of motion, {clip.t.size} frames at {ctx.fps:g} per second, "
                          f"replayed live in 3D ({ctx.clip_size[0]}×{ctx.clip_size[1]} px)")
