@@ -19,7 +19,7 @@ from .errors import NotNumericError, ParameterError
 
 __all__ = [
     "MAX_STEPS", "MAX_STEPS_LIMIT", "DEFAULT_TOL", "RTOL_MIN", "ATOL_MIN", "numeric_params", "tolerances", "max_steps", "whole", "positive",
-    "progress_callable", "flag",
+    "progress_callable", "flag", "finite_seconds", "angle", "angles", "ANGLE_LIMIT",
 ]
 
 #: Default cap on the attempted steps (accepted + rejected) of one trajectory.
@@ -106,3 +106,32 @@ def finite_seconds(name: str, value: Any, *, zero: bool = True) -> float:
     if isinstance(value, bool) or not math.isfinite(x) or x < 0 or (x == 0 and not zero):
         raise ParameterError(f"{name} must be a number of seconds {'>=' if zero else '>'} 0, got {value!r}")
     return x
+
+
+#: The largest angle [rad] that is reduced modulo 2 pi: its double's spacing (1.2e-10 rad at 1e6)
+#: keeps the reduced angle to better than 1e-9 rad; beyond it a reduction would invent digits.
+ANGLE_LIMIT = 1e6
+
+
+def angle(name: str, value: Any) -> float:
+    """An angle [rad] reduced modulo 2 pi into (-pi, pi]: a finite real number (NumPy's scalars
+    too) of magnitude at most :data:`ANGLE_LIMIT`, where the reduction keeps its meaning."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} must be an angle in radians (a real number), got {value!r}")
+    x = float(value)
+    if not math.isfinite(x) or abs(x) > ANGLE_LIMIT:
+        raise ParameterError(f"{name} must be a finite angle of at most {ANGLE_LIMIT:g} rad in magnitude (it is "
+                             f"reduced modulo 2 pi, which beyond that loses its digits), got {x:g}")
+    w = math.remainder(x, 2 * math.pi)  # exact: into [-pi, pi]
+    return math.pi if w <= -math.pi else w
+
+
+def angles(name: str, values: Any, n: int) -> Tuple[float, ...]:
+    """``n`` angles (a sequence or array of real numbers), each as :func:`angle` makes it."""
+    try:
+        items = [v.item() if hasattr(v, "item") else v for v in list(values)]
+    except TypeError:
+        raise ParameterError(f"{name} must be {n} angles in radians, got {values!r}") from None
+    if len(items) != n:
+        raise ParameterError(f"{name} must be {n} angles in radians, got {len(items)} values")
+    return tuple(angle(f"{name}[{i}]", v) for i, v in enumerate(items))
