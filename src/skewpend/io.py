@@ -423,6 +423,20 @@ CONFIG_SECTIONS = {
 }
 
 
+def _check_run_value(path, section: str, key: str, value: Any, depth: int = 0) -> None:
+    """A run file's value nests at most two lists deep (a 3x3 matrix), and its integers are
+    numbers a double holds (a 330-digit integer would overflow every computation)."""
+    if depth > 2 or isinstance(value, dict) and depth > 0:
+        raise ParameterError(f"{path}: [{section}] {key}: nested too deeply; expected a number, a string, a list "
+                             f"of them or a 3x3 matrix")
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2**1023:
+        raise ParameterError(f"{path}: [{section}] {key}: the integer {str(value)[:12]}... ({len(str(abs(value)))} "
+                             f"digits) is beyond any double; expected a number of at most 1.8e308 in magnitude")
+    if isinstance(value, list):
+        for v in value:
+            _check_run_value(path, section, key, v, depth + 1)
+
+
 def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
     """Read a run configuration (TOML) with sections ``parameters``, ``initial``, ``simulation``.
 
@@ -451,6 +465,9 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
         ) from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"config file {path} is not valid TOML: {exc}") from None
+    except RecursionError:  # the reader recurses once per level of nesting
+        raise ParameterError(f"config file {path} nests arrays or tables too deeply; a run file's values are "
+                             f"numbers, strings, lists of them and 3x3 matrices") from None
     if not data:
         raise ParameterError(
             f"config file {path} is empty; expected one or more of the sections [{'], ['.join(CONFIG_SECTIONS)}]"
@@ -466,6 +483,7 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
                 f"{path}: unknown key(s) {unknown} in [{section}]; allowed: {sorted(CONFIG_SECTIONS[section])}"
             )
         for key, value in values.items():
+            _check_run_value(path, section, key, value)
             if isinstance(value, (datetime.date, datetime.time)):
                 raise ParameterError(f"{path}: [{section}] {key}: expected a number or a string, got a TOML date/time {value}")
             if key.startswith(("com", "axis", "inertia")) and (
