@@ -26,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, Dict, Mapping, Tuple
 
@@ -53,6 +54,22 @@ def plain(value: Any) -> Any:
         x = float(value)
         return x if math.isfinite(x) else None
     return value
+
+
+def _brief(value: Any) -> str:
+    """A value in a few characters: an array by its dtype and shape (whole when it has at most
+    four numbers), a number to six digits, a long string or list cut short."""
+    if isinstance(value, np.ndarray):
+        if value.size <= 4 and value.dtype.kind in "biufc":
+            return np.array2string(value, precision=6, separator=", ", max_line_width=10**6).replace("\n", "")
+        return f"{value.dtype}[{'x'.join(map(str, value.shape))}]"
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):.6g}"
+    if isinstance(value, (list, tuple)) and (len(value) > 4 or not all(isinstance(v, numbers.Real) for v in value)):
+        kinds = sorted({type(v).__name__ for v in value})
+        return f"{type(value).__name__} of {len(value)}" + (f" {kinds[0]}" if len(kinds) == 1 else "")
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def canonical_json(settings: Mapping[str, Any]) -> str:
@@ -107,6 +124,28 @@ class ResultProtocol:
     def ok(self) -> bool:
         """True when the whole computation succeeded (``status`` is SUCCESS)."""
         return Status.of(getattr(self, "status", Status.SUCCESS)) is Status.SUCCESS
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        # a result's repr is a line a person reads (shapes, not whole arrays): put in each class's
+        # own namespace, where @dataclass keeps it instead of writing its field-by-field repr
+        if "__repr__" not in cls.__dict__:
+            cls.__repr__ = ResultProtocol.__repr__  # type: ignore[method-assign]
+
+    def __repr__(self) -> str:
+        """``<Trajectory success: the message; t float64[124], y float64[124x4], ...>``: the
+        status, the message and each data field by its shape (a few numbers shown whole)."""
+        import dataclasses
+
+        status = Status.of(getattr(self, "status", Status.SUCCESS))
+        names = ([f.name for f in dataclasses.fields(self)] if dataclasses.is_dataclass(self) else [])  # type: ignore[arg-type]
+        shown = [f"{name} {_brief(getattr(self, name, None))}" for name in names
+                 if name not in ("params", "settings", "stats", "status", "message") and not name.startswith("_")]
+        text = f"<{type(self).__name__} {status.name.lower()}: {getattr(self, 'message', status.message)}"
+        body = ", ".join(shown)
+        if len(body) > 300:
+            body = body[:297].rsplit(", ", 1)[0] + ", ..."
+        return f"{text}; {body}>" if body else text + ">"
 
     def _dataset(self) -> DatasetSpec:  # pragma: no cover - every result class overrides it
         raise NotImplementedError

@@ -261,7 +261,7 @@ class PendulumWidget(anywidget.AnyWidget):
         values = ", ".join(f"{k}={v:g}" for k, v in self.values.items() if k not in ("tau1", "tau2") or v)
         what = "replaying a computed run" if self.replay else "live"
         y0 = ", ".join(f"{v:g}" for v in self.y0)
-        return f"skewpend.widget({values}; y0=({y0}); {what}, {'running' if self.running else 'paused'})"
+        return f"<PendulumWidget {what}, {'running' if self.running else 'paused'}: {values}; y0 = ({y0})>"
 
 
 def _start(y0: Sequence[float]) -> list:
