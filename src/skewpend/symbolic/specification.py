@@ -1,6 +1,6 @@
 """The specification's planar case (``alpha = 0``), typed once from its text, and its check.
 
-``../shared/seed/double_pendulum_spec.txt`` derives the equations of the double pendulum with
+The specification (a theoretical-mechanics course page; docs/theory/method.md sets it out) derives the equations of the double pendulum with
 skewed hinges and, as its check, writes out the planar case ``alpha = 0`` by hand. This module
 is the one transcription of those formulas in the project (the report shows them, the tests
 and the report compare the derivation with them); nothing here is computed by the derivation.
