@@ -206,6 +206,19 @@ def _check_repeats(command, args: List[str]) -> None:
         i += 2 if takes_value else 1
 
 
+_GROUP: Any = None
+
+
+def _group():
+    """The click group of :data:`app`, built once per process (building it takes ~40 ms; a test
+    suite or a server calling :func:`main` many times would rebuild it each time). The group holds no
+    state of a run: its options' values live in each call's context, the run file's in ``LOCATIONS``."""
+    global _GROUP
+    if _GROUP is None:
+        _GROUP = typer.main.get_command(app)
+    return _GROUP
+
+
 def main(argv: Optional[List[str]] = None) -> None:
     """Entry point: run a command and exit with its status (see the module)."""
     import warnings
@@ -217,7 +230,7 @@ def main(argv: Optional[List[str]] = None) -> None:
     LOCATIONS.clear()  # this run's (main may run more than once in a process)
     args = sys.argv[1:] if argv is None else list(argv)
     name = next((a for a in args if not a.startswith("-")), None)
-    group = typer.main.get_command(app)
+    group = _group()
     try:
         with terminate_like_interrupt(), warnings.catch_warnings():  # the warning settings are restored on leaving
             warnings.showwarning = _warning_line
