@@ -130,7 +130,7 @@ def angles(name: str, values: Any, n: int) -> Tuple[float, ...]:
     """``n`` angles (a sequence or array of real numbers), each as :func:`angle` makes it."""
     try:
         items = [v.item() if hasattr(v, "item") else v for v in list(values)]
-    except TypeError:
+    except (TypeError, ValueError):  # not iterable, or an item an array of several numbers
         raise ParameterError(f"{name} must be {n} angles in radians, got {values!r}") from None
     if len(items) != n:
         raise ParameterError(f"{name} must be {n} angles in radians, got {len(items)} values")

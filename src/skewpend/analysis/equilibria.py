@@ -284,10 +284,27 @@ class Equilibria(Result):
         )
 
 
-def _newton(grad_hess, q: np.ndarray, tau: np.ndarray, iterations: int = 60) -> Tuple[np.ndarray, np.ndarray, int]:
-    """Vectorised Newton on ``grad Pi(q) = tau`` from every row of ``q``: (roots, converged, its)."""
+def _gradient_scale(grad_hess, tau: np.ndarray) -> float:
+    """The size of ``grad Pi`` over the torus (64 seeded points) and of the torques: the unit in
+    which a root's residual ``grad Pi - tau`` is judged."""
+    probe = wrap(np.random.default_rng(0).uniform(-np.pi, np.pi, (64, 2)))
+    return float(max(np.abs(grad_hess(probe)[0]).max(), np.abs(tau).max()))
+
+
+#: A root's residual ``|grad Pi - tau|`` must be below this fraction of the gradient's scale.
+RESIDUAL = 1e-9
+
+
+def _newton(grad_hess, q: np.ndarray, tau: np.ndarray, iterations: int = 60, *,
+            gscale: float = 0.0) -> Tuple[np.ndarray, np.ndarray, int]:
+    """Vectorised Newton on ``grad Pi(q) = tau`` from every row of ``q``: (roots, converged, its).
+
+    The angles are kept in (-pi, pi] after every step, so a step is measured against angles of
+    at most pi; a row converges when its step is below 1e-13 rad *and* its residual is below
+    :data:`RESIDUAL` x ``gscale`` (a step lost to rounding is never taken for convergence)."""
     converged = np.zeros(len(q), dtype=bool)
     active = np.ones(len(q), dtype=bool)
+    q = wrap(q)
     its = 0
     with np.errstate(all="ignore"):
         for its in range(1, iterations + 1):
@@ -301,8 +318,10 @@ def _newton(grad_hess, q: np.ndarray, tau: np.ndarray, iterations: int = 60) -> 
             shrink = np.where(step > 0.5, 0.5 / np.maximum(step, 1e-300), 1.0)  # at most 0.5 rad a step
             q[:, 0] += d0 * shrink
             q[:, 1] += d1 * shrink
+            q = wrap(q)
             active &= ok
-            done = active & (step < 1e-13 * (1 + np.abs(q).max(axis=1)))
+            small = np.max(np.abs(g), axis=1) <= RESIDUAL * gscale  # the residual before this (tiny) step
+            done = active & (step < 1e-13 * (1 + np.pi)) & small
             converged |= done
             active &= ~done
             if not active.any():
@@ -318,9 +337,9 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibri
     (then every configuration is an equilibrium).  Without gravity but with torques there is no
     equilibrium (an empty result).
     """
-    from ..checks import whole
+    from ..checks import numeric_params, whole
 
-    params.require_numeric("equilibria")
+    params = numeric_params(params, "equilibria")
     starts = whole("starts", starts, lo=2, hi=MAX_STARTS)
     tau = np.array([params.tau1, params.tau2], dtype=float)
     values = _scalars(params)
@@ -334,9 +353,8 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibri
         return g, H
 
     # the scale of the gradient (to tell "no equilibrium" and degenerate models apart)
-    probe = wrap(np.random.default_rng(0).uniform(-np.pi, np.pi, (64, 2)))
-    gscale = float(np.abs(grad_hess(probe)[0]).max())
-    if not (gscale > 0) and not np.any(tau):
+    gscale = _gradient_scale(grad_hess, tau)
+    if not (gscale > 0):
         raise EquilibriumError("every configuration is an equilibrium without gravity and torques (g = 0, tau = 0); "
                                "equilibria need g > 0 or a torque")
     total_its = 0
@@ -345,7 +363,7 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibri
     while True:
         grid = (np.arange(n) + 0.5) / n * 2 * np.pi - np.pi
         q0 = np.array(np.meshgrid(grid, grid, indexing="ij")).reshape(2, -1).T.copy()
-        roots, conv, its = _newton(grad_hess, q0, tau)
+        roots, conv, its = _newton(grad_hess, q0, tau, gscale=gscale)
         total_its += its
         total_starts += len(q0)
         found: List[np.ndarray] = []
@@ -377,25 +395,29 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibri
     return Equilibria(points=points, params=params, settings=settings, stats=stats, status=status, message=message)
 
 
-def equilibrium_at(params: Parameters, q: Sequence[float]) -> Equilibrium:
-    """The equilibrium at ``q = (phi, psi)``, polished by Newton's method from there; refused with
-    one line when ``q`` is not near an equilibrium (the residual names how far)."""
-    params.require_numeric("an equilibrium")
+def equilibrium_at(params: Parameters, q: Sequence[float], name: str = "q") -> Equilibrium:
+    """The equilibrium at ``q = (phi, psi)`` (angles reduced modulo 2 pi, :func:`skewpend.checks.angles`:
+    at most 1e6 rad in magnitude), polished by Newton's method from there; refused with one line
+    when ``q`` is not near an equilibrium (the residual names how far).  ``name``: the
+    argument's name in a refusal."""
+    from ..checks import angles, numeric_params
+
+    params = numeric_params(params, "an equilibrium")
+    q0 = np.array(angles(name, q, 2), dtype=float).reshape(1, 2)
     values = _scalars(params)
     functions = linearisation_functions(_geometry_only(params))
     tau = np.array([params.tau1, params.tau2], dtype=float)
-    q0 = np.asarray(q, dtype=float).reshape(1, 2)
-    if not np.all(np.isfinite(q0)):
-        raise ParameterError(f"an equilibrium's angles must be finite, got {list(q)}")
 
     def grad_hess(qq):
         _, g, H, _, _ = functions(*values, qq[:, 0], qq[:, 1])
-        g = np.array([[float(np.asarray(x).ravel()[0]) for x in g]])
-        H = np.array([[[float(np.asarray(x).ravel()[0]) for x in row] for row in H]])
+        n = len(qq)
+        g = np.stack([np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in g], axis=1)
+        H = np.array([[np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in row] for row in H]).transpose(2, 0, 1)
         return g, H
 
+    gscale = _gradient_scale(grad_hess, tau)
     g0, _ = grad_hess(q0.copy())
-    root, conv, _ = _newton(grad_hess, q0.copy(), tau, iterations=30)
+    root, conv, _ = _newton(grad_hess, q0.copy(), tau, iterations=30, gscale=gscale)
     moved = float(np.max(np.abs(wrap(root[0] - q0[0]))))
     if not conv[0] or moved > NEAR:
         residual = float(np.max(np.abs(g0[0] - tau)))
@@ -407,16 +429,15 @@ def equilibrium_at(params: Parameters, q: Sequence[float]) -> Equilibrium:
 
 def find_equilibrium(params: Parameters, which, name: str = "equilibrium") -> Equilibrium:
     """An equilibrium given as an :class:`Equilibrium`, a label (``"up-up"``: one of
-    :func:`equilibria`'s) or angles ``(phi, psi)`` near one (:func:`equilibrium_at`); ``name`` is
-    the argument's name in the refusal."""
+    :func:`equilibria`'s) or angles ``(phi, psi)`` near one (:func:`equilibrium_at`; reduced
+    modulo 2 pi, refused beyond 1e6 rad); ``name`` is the argument's name in the refusal."""
+    from ..checks import numeric_params
+
+    params = numeric_params(params, "an equilibrium")
     if isinstance(which, Equilibrium):
         return which
     if isinstance(which, str):
         return equilibria(params).find(which)
-    try:
-        q = [float(x) for x in which]
-    except (TypeError, ValueError):
-        q = []
-    if len(q) != 2:
+    if which is None or isinstance(which, (bytes, dict, set)):
         raise ParameterError(f"{name} must be an equilibrium, a label such as 'up-up', or (phi, psi), got {which!r}")
-    return equilibrium_at(params, q)
+    return equilibrium_at(params, which, name)
