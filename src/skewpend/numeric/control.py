@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import signal
 from dataclasses import dataclass, field
 from typing import Any, Dict, Optional, Sequence, Tuple
 
@@ -222,13 +223,30 @@ class Controller:
         return d
 
 
+def _interrupt_pending() -> Optional[type]:
+    """The signal an :class:`~skewpend.interrupts.Interrupts` of this process recorded and has not
+    raised yet (its class), if any: a slow Python law must not hold Ctrl-C until the compiled call
+    returns (the check between calls would come only after the whole budget of steps)."""
+    from ..interrupts import Interrupts
+
+    owner = getattr(signal.getsignal(signal.SIGINT), "__self__", None)
+    return owner.pending if isinstance(owner, Interrupts) else None
+
+
 def _python_law(f, errors: list):
     """The C callback around ``f(t, x)``: the torques, or NaN (which stops the integration) with
-    the exception kept in ``errors`` -- an exception must not cross the C frames."""
+    the exception kept in ``errors`` -- an exception must not cross the C frames.  A Ctrl-C (or
+    SIGTERM) recorded by the caller's :class:`~skewpend.interrupts.Interrupts` stops it the same
+    way at the next call of the law; the caller's check then raises it."""
     nan = float("nan")
 
     def law(t, y, u):
         if errors:
+            u[0] = u[1] = nan
+            return
+        pending = _interrupt_pending()
+        if pending is not None:
+            errors.append(pending())
             u[0] = u[1] = nan
             return
         try:

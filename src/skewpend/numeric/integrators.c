@@ -440,18 +440,20 @@ int sp_dop853_ctl(const sp_control *c, sp_state *s, int n, const double *p, doub
                   int64_t max_steps, int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows,
                   int64_t cap, int64_t *m_out)
 {
+    const sp_control *outer = sp_ctl; /* a Python law may run a simulation of its own: restore the caller's */
     sp_ctl = c;
     int rc = sp_dop853(s, n, p, t_end, rtol, atol, max_steps, budget, dt_out, n_grid, k_out, rows, cap, m_out);
-    sp_ctl = 0;
+    sp_ctl = outer;
     return rc;
 }
 
 int sp_rk4_ctl(const sp_control *c, sp_state *s, int n, const double *p, double t0, double dt, int64_t nsteps,
                int64_t stride, int64_t budget, double *rows, int64_t cap, int64_t *m_out)
 {
+    const sp_control *outer = sp_ctl;
     sp_ctl = c;
     int rc = sp_rk4(s, n, p, t0, dt, nsteps, stride, budget, rows, cap, m_out);
-    sp_ctl = 0;
+    sp_ctl = outer;
     return rc;
 }
 
@@ -467,6 +469,7 @@ void sp_rhs_ctl_many(const sp_control *c, const double *rows, int64_t nrows, int
                      double *out)
 {
     double y[SP_NMAX], f[SP_NMAX];
+    const sp_control *outer = sp_ctl;
     sp_ctl = c;
     for (int64_t r = 0; r < nrows; r++) {
         memset(y, 0, sizeof y);
@@ -474,7 +477,7 @@ void sp_rhs_ctl_many(const sp_control *c, const double *rows, int64_t nrows, int
         model_rhs(y, p, f);
         memcpy(out + r * stride, f, (size_t)stride * sizeof(double));
     }
-    sp_ctl = 0;
+    sp_ctl = outer;
 }
 
 int64_t sp_control_size(void) { return (int64_t)sizeof(sp_control); }
@@ -493,6 +496,7 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
 {
     double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX], y[SP_NMAX], f[SP_NMAX], F[7 * SP_NMAX];
     const int n = 4;
+    const sp_control *outer = sp_ctl;
     sp_ctl = c;
     for (int64_t k = 0; k < m; k++) {
         double t = 0.0, h = 0.0, hused, t_new, when = NAN;
@@ -527,7 +531,7 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
         steps[k] = nacc + nrej;
         status[k] = (int8_t)rc;
     }
-    sp_ctl = 0;
+    sp_ctl = outer;
 }
 
 /* 2-stage Gauss-Legendre collocation (order 4, symplectic) for z' = ham_rhs(z, p).
