@@ -215,7 +215,9 @@ def _group():
     state of a run: its options' values live in each call's context, the run file's in ``LOCATIONS``."""
     global _GROUP
     if _GROUP is None:
-        _GROUP = typer.main.get_command(app)
+        from .options import show_defaults
+
+        _GROUP = show_defaults(typer.main.get_command(app))
     return _GROUP
 
 

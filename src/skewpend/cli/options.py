@@ -11,6 +11,7 @@ argument (only the values given; None for the others).
 from __future__ import annotations
 
 import functools
+import re
 import inspect
 from enum import Enum
 from typing import Annotated, Any, Dict, Optional
@@ -164,3 +165,42 @@ def progress(label: str, unit: str, quiet: bool):
     from ..progress import ProgressBar
 
     return ProgressBar(label, unit=unit, enabled=None if not quiet else False)
+
+
+#: Commands whose model parameters stay symbolic when not given (the others start from the
+#: reference case, :data:`skewpend.config.DEFAULT_RUN`).
+SYMBOLIC_MODEL = frozenset({"derive", "modes"})
+#: Options whose absence needs no default: outputs (nothing written), a cluster (none: this machine).
+_NO_DEFAULT = frozenset({"out", "plot", "animate", "export", "scheduler", "config"})
+
+
+def show_defaults(group) -> Any:
+    """Every option's help ends with its default (issue 29: the help showed none for the model's
+    parameters, which the reference case fills in): the reference case's value of a model key, or
+    'symbolic' for derive and modes, or the option's own default; outputs and flags are left
+    alone, as are options whose help already says its default or that it is required."""
+    from ..config import DEFAULT_RUN
+
+    reference = {**DEFAULT_RUN["parameters"]}
+    for name, cmd in getattr(group, "commands", {}).items():
+        if hasattr(cmd, "commands"):
+            show_defaults(cmd)
+            continue
+        for p in cmd.params:
+            help_text = getattr(p, "help", None)
+            if help_text is None or getattr(p, "is_flag", False) or p.name in _NO_DEFAULT:
+                continue
+            if re.search(r"\bdefault\b|\brequired\b", help_text, re.IGNORECASE):
+                continue
+            if p.name in MODEL:
+                if name in SYMBOLIC_MODEL:
+                    value = "symbolic"
+                elif p.name in reference:
+                    value = f"{reference[p.name]:g}"
+                else:
+                    value = "the specification's thin rod" if p.name.startswith(("com", "inertia")) else None
+            else:
+                value = getattr(p.default, "value", p.default)
+            if value is not None:
+                p.help = f"{help_text} (default {value})"
+    return group
