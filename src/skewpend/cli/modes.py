@@ -26,12 +26,12 @@ class ModesFormat(str, Enum):
 def modes(
     model: dict,
     fmt: Annotated[ModesFormat, typer.Option("--format", "-f", help="text, json, or latex (the closed-form characteristic equation in the parameters not given; not with --sweep, --plot, --out, --tolerance, --check-nonlinear)")] = ModesFormat.text,
-    sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1 (e.g. alpha=0:180deg:181; a unit on either end applies to the whole range, plain numbers are radians)")] = None,
+    sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1 (e.g. alpha=0:180deg:181; a unit on either end applies to the whole range, plain numbers are radians; default: no sweep, the modes of the one model)")] = None,
     plot: Annotated[Optional[str], typer.Option("--plot", help="with --sweep: write the frequency curves to FILE (.png, .pdf, .svg)")] = None,
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="with --sweep: write the table to FILE (.csv or .json; alpha in rad plus alpha_deg)")] = None,
     # parsed after the check that it goes with --sweep (a misplaced option is the first thing to say)
     tolerance: Annotated[Optional[str], typer.Option("--tolerance", metavar="NUMBER", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3 (a positive number; default 0.01)")] = None,
-    check_nonlinear: option("--check-nonlinear", T.Angle("ANGLE"), "AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep)", None) = None,
+    check_nonlinear: option("--check-nonlinear", T.Angle("ANGLE"), "AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep; default: not measured)", None) = None,
     about: option("--about", T.EquilibriumChoice(), "the modes about another equilibrium: a label (down-up, up-down, up-up; see skewpend equilibria) or PHI,PSI near one; an unstable direction is given as a growth rate (not with --sweep, --check-nonlinear, --format latex)", None) = None,
     config: CONFIG = None,
 ) -> None:

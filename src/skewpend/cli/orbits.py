@@ -64,9 +64,9 @@ def equilibria(
 def orbit(
     model: dict,
     initial: dict,
-    mode: option("--mode", T.Whole(1, 2), "the orbit of nonlinear normal mode 1 or 2 at --energy (continued from the linear mode)") = None,
+    mode: option("--mode", T.Whole(1, 2), "the orbit of nonlinear normal mode 1 or 2 at --energy (continued from the linear mode; default: none, the orbit through the guess --phi0 --psi0 --dphi0 --dpsi0)") = None,
     energy: option("--energy", _ENERGY, "the orbit's energy [J] (with --mode; with a guess, default the guess's energy)") = None,
-    period: option("--period", T.Positive("number of seconds"), "with a guess (--phi0 --psi0 --dphi0 --dpsi0): its period [s]") = None,
+    period: option("--period", T.Positive("number of seconds"), "with a guess (--phi0 --psi0 --dphi0 --dpsi0): its period [s] (required with a guess)") = None,
     rotation: option("--rotation", T.Numbers(2, whole=True, metavar="R1,R2"), "whole turns of phi and psi per period, R1,R2 (a rotating orbit; default 0,0)") = None,
     out: option("--out", T.OutPath((".nc",)), "write the orbit (start, period, monodromy matrix, multipliers) to FILE.nc", RUN, "-o") = None,
     plot: plot_option("the orbit over one period") = None,
