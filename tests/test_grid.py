@@ -208,7 +208,7 @@ def test_a_chaos_diagram_with_failed_trajectories_is_partial():
 
 
 def test_status_codes_and_messages():
-    assert [int(s) for s in Status] == list(range(7)) and Status.of(5) is Status.SHORT
+    assert [int(s) for s in Status] == list(range(9)) and Status.of(5) is Status.SHORT
     assert all(s.message for s in Status) and Status.SUCCESS.ok and not Status.PARTIAL.ok
     with pytest.raises(ValueError, match="unknown status code 99"):
         Status.of(99)

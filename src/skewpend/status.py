@@ -4,8 +4,9 @@
 ``result.message``, ``result.ok``), in the manner of diffrax's ``RESULTS`` and SciPy's
 ``MESSAGES``: the codes 0-5 are also the codes the compiled integrators return for one
 trajectory (``integrators.c``, ``chaos.c``; the C ``#define``\\ s are generated from this
-enum), and :attr:`Status.PARTIAL` is the outcome of a grid of many trajectories of which some
-failed.
+enum), :attr:`Status.PARTIAL` is the outcome of a grid of many trajectories of which some
+failed, :attr:`Status.TRIVIAL` a search for a periodic orbit that found an equilibrium, and
+:attr:`Status.NOT_SETTLED` a time average (a Lyapunov exponent) whose convergence check failed.
 
 :class:`CallCode` are the compiled integrators' *control* returns -- "call again" -- that the
 resumable C-call driver handles and no result ever carries.
@@ -35,6 +36,8 @@ class Status(IntEnum):
     NO_CONVERGENCE = 4
     SHORT = 5
     PARTIAL = 6
+    TRIVIAL = 7
+    NOT_SETTLED = 8
 
     @property
     def message(self) -> str:
@@ -62,6 +65,8 @@ _MESSAGES = {
     Status.NO_CONVERGENCE: "stopped: the implicit stage equations did not converge",
     Status.SHORT: "stopped: t_max reached before the wanted number of crossings",
     Status.PARTIAL: "some of the trajectories failed",
+    Status.TRIVIAL: "no periodic orbit: the solution found is an equilibrium (its motion vanishes)",
+    Status.NOT_SETTLED: "the estimate has not settled: run longer",
 }
 
 
