@@ -1,9 +1,11 @@
 """Files: trajectories streamed to CSV or NetCDF (atomically), run configurations from TOML.
 
 Every file skewpend writes appears only when complete: it is written to a temporary file
-``.NAME.skewpend-PID.tmp`` beside it and renamed into place; an error or Ctrl-C removes the
-temporary file, and one left by a killed process is removed by the next write to the same
-name.  Files get the permissions the user's umask gives any new file.
+``.NAME.skewpend-PID-RANDOM.tmp`` beside it, created exclusively (a name that exists -- a file
+or a symbolic link someone planted -- is never opened, followed or reused: another random name
+is drawn), and renamed into place; an error or Ctrl-C removes the temporary file, and one left
+by a killed process is removed by the next write to the same name.  Files get the permissions
+the user's umask gives any new file.
 """
 
 from __future__ import annotations
@@ -59,20 +61,30 @@ def _umask() -> int:
     return mask
 
 
-def _tmp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.skewpend-{os.getpid()}.tmp")
+def _tmp_file(path: Path) -> Path:
+    """A new, empty temporary file beside ``path``, created exclusively under a random name
+    (``O_EXCL``: never an existing file, never through a symbolic link); ``OSError`` if the
+    directory does not take it."""
+    import tempfile
+
+    directory = path.parent if str(path.parent) else Path(".")
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.skewpend-{os.getpid()}-", suffix=".tmp", dir=directory)
+    os.close(fd)
+    return Path(name)
 
 
 def _remove_stale(path: Path) -> None:
-    """Temporary files of earlier writes to ``path`` whose process is gone (e.g. ``kill -9``)."""
-    pattern = re.compile(rf"^\.{re.escape(path.name)}\.skewpend-(\d+)\.tmp$")
+    """Temporary files of earlier writes to ``path`` whose process is gone (e.g. ``kill -9``):
+    regular files named as :func:`_tmp_file` names them (a symbolic link or a directory of that
+    name is left alone)."""
+    pattern = re.compile(rf"^\.{re.escape(path.name)}\.skewpend-(\d+)(?:-[A-Za-z0-9_]+)?\.tmp$")
     try:
         entries = list(path.parent.iterdir()) if str(path.parent) else list(Path(".").iterdir())
     except OSError:
         return
     for entry in entries:
         m = pattern.match(entry.name)
-        if not m or int(m.group(1)) == os.getpid():
+        if not m or int(m.group(1)) == os.getpid() or entry.is_symlink() or not entry.is_file():
             continue
         try:
             os.kill(int(m.group(1)), 0)
@@ -104,15 +116,12 @@ def check_output_path(path, suffixes: Sequence[str], option: str = "--out") -> P
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise ParameterError(f"{option}: cannot write {path}: directory {directory} does not exist")
-    tmp = _tmp_name(path)
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        os.close(fd)
+        tmp = _tmp_file(path)
     except OSError as exc:
         raise ParameterError(f"{option}: cannot write {path}: {exc.strerror or exc}") from None
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+    with contextlib.suppress(OSError):
+        os.unlink(tmp)  # ours: created just now, exclusively
     return path
 
 
@@ -153,10 +162,8 @@ def atomic_path(path: Path) -> Iterator[Path]:
     if path.is_dir():
         raise ParameterError(f"cannot write {path}: it is a directory")
     _remove_stale(path)
-    tmp = _tmp_name(path)
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666 & ~_umask())
-        os.close(fd)
+        tmp = _tmp_file(path)
     except OSError as exc:
         raise ParameterError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
