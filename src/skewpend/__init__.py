@@ -65,6 +65,7 @@ _LAZY = {
     "chaos_diagram": "analysis.chaos",
     "ChaosDiagram": "analysis.chaos",
     "open_chaos_diagram": "analysis.chaos",
+    "open_result": "analysis.readback",
     "widget": "views.widget",
     "PendulumWidget": "views.widget",
 }
@@ -119,6 +120,7 @@ __all__ = [
     "chaos_diagram",
     "ChaosDiagram",
     "open_chaos_diagram",
+    "open_result",
     "widget",
     "PendulumWidget",
     "SkewpendError",
@@ -145,6 +147,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .numeric.grid import GridJob, run_grid
     from .analysis.poincare import PoincareSection, poincare
     from .analysis.chaos import ChaosDiagram, chaos_diagram, open_chaos_diagram
+    from .analysis.readback import open_result
     from .views.widget import PendulumWidget, widget
 
 

@@ -12,7 +12,8 @@ immutable object carrying its data and how it was made -- in the manner of diffr
   ``rejected`` the rejected ones);
 * ``status`` -- a :class:`~skewpend.status.Status`; ``message`` and ``ok`` follow from it (and
   from ``failures``, the count of failed trajectories of a grid);
-* ``to_xarray()``, ``to_netcdf(path)``, ``summary()``.
+* ``to_xarray()``, ``to_netcdf(path)``, ``summary()``; :func:`skewpend.open_result` reads any
+  result file back as the class that wrote it.
 
 :class:`ResultProtocol` implements these from one method a result class supplies,
 ``_dataset()``: its variables, coordinates and attributes in a neutral form
@@ -112,7 +113,7 @@ class ResultProtocol:
     """Mixin of every result class (see the module).  A class supplies ``_dataset()`` and has
     the fields ``params``, ``settings``, ``stats``, ``status``; ``message`` may be a field."""
 
-    #: What the file attribute ``kind`` says (and :func:`skewpend.io.open_result` dispatches on).
+    #: What the file attribute ``kind`` says (and :func:`skewpend.open_result` dispatches on).
     result_kind: ClassVar[str] = "result"
     if TYPE_CHECKING:  # what every result class has (declared by the dataclasses themselves)
         params: Any

@@ -511,9 +511,13 @@ def open_result(path):
     write, an unknown kind, a JSON or CSV export that keeps only part of a result -- is one
     :class:`~skewpend.errors.ParameterError` line.
 
-    >>> import skewpend                                               # doctest: +SKIP
-    >>> skewpend.normal_modes(skewpend.reference_parameters()).to_netcdf("modes.nc")
-    >>> skewpend.open_result("modes.nc").frequencies
+    >>> import os, tempfile, skewpend
+    >>> path = os.path.join(tempfile.mkdtemp(), "modes.nc")
+    >>> modes = skewpend.normal_modes(skewpend.reference_parameters())
+    >>> _ = modes.to_netcdf(path)
+    >>> back = skewpend.open_result(path)
+    >>> type(back).__name__, bool((back.frequencies == modes.frequencies).all())
+    ('Modes', True)
     """
     if isinstance(path, bool) or not isinstance(path, (str, bytes)) and not hasattr(path, "__fspath__"):
         raise ParameterError(f"path must be a file name, got {path!r}")
