@@ -95,3 +95,17 @@ def test_ctrl_c_stops_a_slow_python_law_within_a_second(ref):
     took = time.perf_counter() - sent[0] - 0.2
     assert took < 1.0, f"stopped {took:.2f} s after Ctrl-C"
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+# -- the widget's run(): no OverflowError, dt checked -------------------------------------------------------------
+@pytest.mark.parametrize("t_end, options, words", [
+    (1e308, {}, "t_end = 1e+308 s is more than 20000 frames"),
+    (1e6, {}, "more than 20000 frames"),
+    (1.0, {"method": "rk4", "dt": 0}, "dt must be"),
+    (1.0, {"method": "rk4", "dt": 1e-320}, "dt must be at least"),
+    (1.0, {"method": "rk4", "dt": "x"}, "dt must be"),
+])
+def test_widget_run_refuses_in_one_line(t_end, options, words):
+    pytest.importorskip("anywidget")
+    with pytest.raises(skewpend.errors.ParameterError, match=words):
+        skewpend.widget().run(t_end, **options)

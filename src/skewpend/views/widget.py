@@ -202,14 +202,15 @@ class PendulumWidget(anywidget.AnyWidget):
             if option in simulate_options:
                 raise ParameterError(f"widget.run: {option} cannot be set here (the widget replays every frame, "
                                      f"{FPS} per second); allowed: method, rtol, atol, dt, max_steps")
-        frames = math.floor(t_end * FPS + 1e-9) + 1
+        frames = math.floor(min(t_end, 2.0 * MAX_FRAMES / FPS) * FPS + 1e-9) + 1  # capped: no overflow at 1e308
         if frames > MAX_FRAMES:
-            raise ParameterError(f"widget.run: t_end = {t_end:g} s is {frames} frames at {FPS} per second; at most "
+            raise ParameterError(f"widget.run: t_end = {t_end:g} s is more than {MAX_FRAMES} frames at {FPS} per second; at most "
                                  f"{MAX_FRAMES} ({MAX_FRAMES / FPS:g} s) are replayed: simulate longer runs with "
                                  "skewpend.simulate and look at them with skewpend.views")
         dt_out = 1.0 / FPS
         if simulate_options.get("method", "dop853") != "dop853":  # fixed steps: frames on whole steps
-            step = float(simulate_options.get("dt") or 1e-3)
+            given = simulate_options.get("dt")
+            step = 1e-3 if given is None else checks.positive("dt", given, cap=t_end)
             dt_out = max(1, round(dt_out / step)) * step
             if dt_out > t_end:
                 raise ParameterError(f"widget.run: t_end = {t_end:g} s is shorter than one frame ({dt_out:g} s)")
