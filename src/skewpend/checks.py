@@ -109,21 +109,35 @@ def finite_seconds(name: str, value: Any, *, zero: bool = True) -> float:
 
 
 #: The largest angle [rad] that is reduced modulo 2 pi: its double's spacing (1.2e-10 rad at 1e6)
-#: keeps the reduced angle to better than 1e-9 rad; beyond it a reduction would invent digits.
-ANGLE_LIMIT = 1e6
+#: keeps the reduced angle to better than 1e-9 rad; beyond it a reduction would invent digits
+#: (the parsers' :data:`skewpend.parsing.MAX_ANGLE`, one bound).
+from .parsing import MAX_ANGLE as ANGLE_LIMIT  # noqa: E402
 
 
 def angle(name: str, value: Any) -> float:
-    """An angle [rad] reduced modulo 2 pi into (-pi, pi]: a finite real number (NumPy's scalars
-    too) of magnitude at most :data:`ANGLE_LIMIT`, where the reduction keeps its meaning."""
+    """An angle [rad] reduced modulo 2 pi into (-pi, pi] (to the double nearest the exact
+    reduction): a finite real number (NumPy's scalars too) of magnitude at most
+    :data:`ANGLE_LIMIT`, where the reduction keeps its meaning."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ParameterError(f"{name} must be an angle in radians (a real number), got {value!r}")
     x = float(value)
     if not math.isfinite(x) or abs(x) > ANGLE_LIMIT:
         raise ParameterError(f"{name} must be a finite angle of at most {ANGLE_LIMIT:g} rad in magnitude (it is "
                              f"reduced modulo 2 pi, which beyond that loses its digits), got {x:g}")
-    w = math.remainder(x, 2 * math.pi)  # exact: into [-pi, pi]
+    if -math.pi < x <= math.pi:
+        return x
+    # reduced against 2 pi to 40 digits (the double 2*math.pi is 2.4e-16 short, which 1.6e5 turns
+    # would make 4e-11 rad): the result is the double nearest the true reduction
+    from decimal import Decimal, localcontext
+
+    with localcontext() as ctx:
+        ctx.prec = 60
+        exact = Decimal(x)
+        w = float(exact - round(exact / _TWO_PI) * _TWO_PI)
     return math.pi if w <= -math.pi else w
+
+
+_TWO_PI = __import__("decimal").Decimal("6.283185307179586476925286766559005768394338798750211641949889")
 
 
 def angles(name: str, values: Any, n: int) -> Tuple[float, ...]:

@@ -69,6 +69,8 @@ def parse_scalar(text: Any, option: str, *, angle: bool = False) -> Optional[flo
     value *= scale
     if not math.isfinite(value):
         raise UsageError(f"{option}: expected a finite number, got {text!r}")
+    if angle and abs(value) > MAX_ANGLE:  # cos and sin of it would be digits of rounding
+        raise UsageError(f"{option}: expected an angle of at most {MAX_ANGLE:g} rad in magnitude, got {text!r}")
     return value
 
 

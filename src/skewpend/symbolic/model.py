@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Mapping, Optional, Tuple
 
 from ..errors import ParameterError
+from ..parsing import MAX_ANGLE
 
 __all__ = ["Parameters", "SCALAR_NAMES", "GEOMETRY_NAMES", "RESERVED_NAMES", "Vec3", "Mat3"]
 
@@ -204,6 +205,9 @@ class Parameters:
                 raise ParameterError(f"{name} must be > 0, got {x:g}")
             if name in _NONNEGATIVE and x < 0:
                 raise ParameterError(f"{name} must be >= 0, got {x:g}")
+            if name == "alpha" and isinstance(x, float) and abs(x) > MAX_ANGLE:
+                raise ParameterError(f"alpha must be an angle of at most {MAX_ANGLE:g} rad in magnitude (its cosine "
+                                     f"and sine would be digits of rounding), got {x:g}")
             object.__setattr__(self, name, x)
         for name in ("com1", "com2"):
             value = getattr(self, name)

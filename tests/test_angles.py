@@ -1,0 +1,59 @@
+"""Angles beyond 1e6 rad are refused everywhere they enter (issue 29, item 1): their cosine and
+sine, or their reduction modulo 2 pi, would be digits of rounding. Within the bound an angle is
+reduced exactly (math.remainder) into (-pi, pi]."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import skewpend
+from skewpend import checks
+from skewpend.errors import ParameterError
+
+from helpers import assert_refused, run_cli
+
+
+@pytest.mark.parametrize("value,expected", [(0.0, 0.0), (math.pi, math.pi), (-math.pi, math.pi), (3 * math.pi, math.pi),
+                                            (7.0, 7.0 - 2 * math.pi), (np.float32(1.5), 1.5), (np.int64(-4), -4 + 2 * math.pi)])
+def test_angle_is_reduced_into_minus_pi_pi(value, expected):
+    got = checks.angle("q", value)
+    assert -math.pi < got <= math.pi
+    assert got == pytest.approx(expected, abs=4 * math.ulp(max(1.0, abs(float(value)))))
+
+
+def test_reduction_keeps_its_digits_up_to_the_bound():
+    """At the bound the double's spacing is 1.2e-10 rad; the reduction itself is exact to the
+    last bit (the libm's sin reduces exactly too, so their sines agree to a few ulps)."""
+    assert math.ulp(checks.ANGLE_LIMIT) < 2e-10
+    for x in (0.999 * checks.ANGLE_LIMIT, -123456.789, 1e5 + 0.1):
+        w = checks.angle("q", x)
+        assert math.sin(w) == pytest.approx(math.sin(x), abs=4e-16) and math.cos(w) == pytest.approx(math.cos(x), abs=4e-16)
+
+
+@pytest.mark.parametrize("bad", [1e17, -1e7, float("nan"), float("inf"), True, "1", None, 1j])
+def test_absurd_or_non_real_angles_are_refused(bad):
+    with pytest.raises(ParameterError, match="q"):
+        checks.angle("q", bad)
+
+
+def test_angles_takes_arrays_and_counts():
+    assert checks.angles("about", np.array([0.5, -0.5]), 2) == (0.5, -0.5)
+    with pytest.raises(ParameterError, match="about must be 2 angles"):
+        checks.angles("about", [1.0, 2.0, 3.0], 2)
+    with pytest.raises(ParameterError, match=r"about\[1\]"):
+        checks.angles("about", [1.0, 1e300], 2)
+
+
+def test_parameters_refuse_an_absurd_skew_angle():
+    with pytest.raises(ParameterError, match="alpha must be an angle of at most"):
+        skewpend.Parameters(a=1.0, b=1.0, m1=1.0, m2=1.0, alpha=1e17, g=9.81)
+    assert skewpend.Parameters(a=1.0, b=1.0, m1=1.0, m2=1.0, alpha=-7.0, g=9.81).alpha == -7.0  # kept as given
+
+
+@pytest.mark.parametrize("argv,flag", [(["derive", "--alpha", "1e17"], "--alpha"), (["simulate", "--phi0", "1e7"], "--phi0"),
+                                       (["simulate", "--psi0", "-2e8deg"], "--psi0")])
+def test_cli_refuses_absurd_angles(tmp_path, argv, flag):
+    assert_refused(run_cli(argv, cwd=tmp_path), [flag, "at most 1e+06 rad"])
