@@ -42,6 +42,9 @@ __all__ = ["open_result", "result_kinds", "AGREEMENT"]
 #: more than this).
 AGREEMENT = 1e-6
 
+#: The settings every :func:`skewpend.simulate` run records (None when unset: then not in its file).
+SIMULATE_SETTINGS = ("t_end", "dt_out", "max_steps")
+
 _HDF5 = b"\x89HDF\r\n\x1a\n"
 _NETCDF3 = (b"CDF\x01", b"CDF\x02", b"CDF\x05")
 
@@ -450,6 +453,8 @@ def _trajectory(path: Path, kind: str):
     traj = open_trajectory(path)
     if not traj.params.is_numeric:
         raise ParameterError(f"{path} is not a trajectory made by skewpend: its parameters are missing")
+    for key in SIMULATE_SETTINGS:  # a file leaves out a setting that is None (dt_out when unset)
+        traj.settings.setdefault(key, None)
     # the stored energy is the model's at the stored states (a few rows, spread over the run)
     rows = np.unique(np.linspace(0, len(traj.t) - 1, min(len(traj.t), 16)).astype(int))
     from ..numeric.kernels import kernel_module, parameter_vector
@@ -458,6 +463,19 @@ def _trajectory(path: Path, kind: str):
     E = kernel.energies(traj.y[rows], p)
     _agree(path, "energy", traj.energy[rows], E)
     return traj
+
+
+def _chaos_diagram(path: Path, kind: str):
+    from .chaos import open_chaos_diagram
+
+    diagram = open_chaos_diagram(path)
+    if path.suffix.lower() == ".nc":  # the caller's parameters (the settings keep those of the grid, alpha 0)
+        from ..io import read_netcdf
+
+        _, attrs = read_netcdf(path, kind=kind)
+        if "params" in attrs:
+            diagram = dataclasses.replace(diagram, params=_protocol(path, attrs)["params"])
+    return diagram
 
 
 #: The reader of each result kind (the file attribute ``kind``).
@@ -474,7 +492,7 @@ _READERS: Dict[str, Callable[[Path, str], Any]] = {
     "nonlinear normal mode along alpha": _netcdf_reader(_nnm_alpha),
     "Poincare section": _netcdf_reader(_poincare),
     "region of attraction": _by_opener(".roa", "open_region_of_attraction"),
-    "chaos diagram": _by_opener(".chaos", "open_chaos_diagram"),
+    "chaos diagram": _chaos_diagram,
 }
 
 

@@ -1,0 +1,274 @@
+"""``skewpend.open_result``: every result kind written is read back whole, as the class that wrote
+it -- data exactly, how it was made (params, settings, stats, status, message) -- and its methods
+work; what a file does not hold is rebuilt and checked against the parameters; everything else is
+one clear ParameterError line."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+import skewpend as sp
+from skewpend import ParameterError, open_result
+from skewpend.analysis.readback import AGREEMENT, result_kinds
+from skewpend.results import canonical_json
+
+netCDF4 = pytest.importorskip("netCDF4")
+xr = pytest.importorskip("xarray")
+
+
+@pytest.fixture(scope="module")
+def damped(reference):
+    """Damping and torques: complex mode pairs, equilibria away from the hanging one."""
+    return reference.replace(c1=0.05, c2=0.03, tau1=0.4, tau2=-0.2)
+
+
+@pytest.fixture(scope="module")
+def results(reference, damped):
+    """One small result of every kind (conservative ones from the reference case)."""
+    P = reference
+    fam = sp.nnm(P, mode=1, energy_max=0.5, resolution=5)
+    return {
+        "skewpend trajectory": sp.simulate(damped, (1.0, 0.5, 0.2, -0.1), 1.0),
+        "Lyapunov spectrum": sp.lyapunov(P, (1.0, 0.5, 0, 0), t_end=5.0),
+        "Lyapunov map": sp.lyapunov_map(P, 4, t_end=2.0),
+        "normal modes": sp.normal_modes(damped.replace(tau1=0.0, tau2=0.0)),
+        "modes sweep": sp.sweep(P, "alpha", np.linspace(0.0, 1.0, 5)),
+        "flip map": sp.flip_map(P, 4, t_end=2.0),
+        "equilibria": sp.equilibria(damped),
+        "periodic orbit": fam.orbit(len(fam) - 1),
+        "nonlinear normal mode": fam,
+        "nonlinear normal mode along alpha": sp.nnm_alpha(P, 1, energy=0.2, alphas=[P.alpha, P.alpha + 0.05]),
+        "Poincare section": sp.poincare(P, 1.0, n_orbits=3, n_crossings=10),
+        "region of attraction": sp.region_of_attraction(P, n=4, t_end=1.0),
+        "chaos diagram": sp.chaos_diagram(P, n_alpha=2, n_energy=2, samples=2, t_end=5.0),
+    }
+
+
+def test_every_kind_is_covered(results):
+    assert set(result_kinds()) == set(results) and len(results) == 13
+    for kind, r in results.items():
+        assert r.result_kind == kind
+
+
+def _same(back, orig):
+    """The same class, how it was made, and every stored array exactly (NaN where NaN)."""
+    assert type(back) is type(orig)
+    assert back.params == orig.params
+    assert back.status == orig.status and back.message == orig.message and back.ok == orig.ok
+    assert canonical_json(back.settings) == canonical_json(orig.settings)
+    assert canonical_json(back.stats) == canonical_json(orig.stats)
+    a, b = orig.to_xarray(), back.to_xarray()
+    xr.testing.assert_identical(a, b)  # values bit for bit, coordinates, attributes
+
+
+def _methods(back):
+    assert back.summary().startswith(back.result_kind)
+    assert "\n" not in repr(back) and repr(back).startswith(f"<{type(back).__name__}")
+    if hasattr(back, "table"):
+        assert back.table()
+
+
+@pytest.mark.parametrize("kind", ["skewpend trajectory", "Lyapunov spectrum", "Lyapunov map", "normal modes",
+                                  "modes sweep", "flip map", "equilibria", "periodic orbit", "nonlinear normal mode",
+                                  "nonlinear normal mode along alpha", "Poincare section", "region of attraction",
+                                  "chaos diagram"])
+def test_netcdf_round_trip(results, kind, tmp_path):
+    orig = results[kind]
+    path = orig.to_netcdf(tmp_path / "result.nc")
+    back = open_result(path)
+    _same(back, orig)
+    _methods(back)
+    again = open_result(back.to_netcdf(tmp_path / "again.nc"))  # a reopened result writes the same file
+    _same(again, orig)
+
+
+def test_trajectory_csv(damped, tmp_path):
+    orig = sp.simulate(damped, (1.0, 0.5, 0.2, -0.1), 1.0, out=tmp_path / "run.csv")
+    back = open_result(tmp_path / "run.csv")
+    for name in ("t", "y", "energy", "work"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(orig, name))  # %.17g: exact
+    assert back.params == orig.params and back.status == orig.status and back.message == orig.message
+    np.testing.assert_allclose(back.tips(), orig.tips(), rtol=0, atol=1e-12)
+    _methods(back)
+
+
+@pytest.mark.parametrize("kind, make", [
+    ("flip map", lambda P, s: sp.flip_map(P, 4, t_end=2.0, store=s)),
+    ("Lyapunov map", lambda P, s: sp.lyapunov_map(P, 4, t_end=2.0, store=s)),
+    ("region of attraction", lambda P, s: sp.region_of_attraction(P, n=4, t_end=1.0, store=s)),
+    ("chaos diagram", lambda P, s: sp.chaos_diagram(P, n_alpha=2, n_energy=2, samples=2, t_end=5.0, store=s)),
+])
+def test_zarr_stores(reference, kind, make, tmp_path):
+    pytest.importorskip("zarr")
+    orig = make(reference, tmp_path / "grid.zarr")
+    back = open_result(tmp_path / "grid.zarr")
+    assert type(back) is type(orig) and back.result_kind == kind
+    for name, var in orig.to_xarray().data_vars.items():
+        np.testing.assert_array_equal(back.to_xarray()[name].values, var.values)
+    # a chaos diagram's store keeps the parameters of its grid (alpha is an axis there), not the caller's alpha
+    same = back.params == orig.params or kind == "chaos diagram" and back.params == orig.params.replace(alpha=0.0)
+    assert same and back.status == orig.status
+    _methods(back)
+
+
+# -- what a file does not hold: rebuilt, and equal to the original's ---------------------------------------
+def test_rebuilt_parts_match_the_original(results, tmp_path):
+    def reopen(kind):
+        return open_result(results[kind].to_netcdf(tmp_path / f"{kind.replace(' ', '_')}.nc"))
+
+    modes, orig = reopen("normal modes"), results["normal modes"]
+    assert modes.damped and np.iscomplexobj(modes.eigenvalues)
+    np.testing.assert_array_equal(modes.eigenvalues, orig.eigenvalues)
+    np.testing.assert_allclose(modes.ratios, orig.ratios, rtol=1e-12)
+    assert modes.beat_period == pytest.approx(orig.beat_period, rel=1e-12)
+    np.testing.assert_allclose(modes.state_matrix, orig.state_matrix, rtol=1e-12, atol=1e-12)
+
+    eq, orig = reopen("equilibria"), results["equilibria"]
+    assert [e.label for e in eq] == [e.label for e in orig] and eq.index_sum == orig.index_sum
+    for e, o in zip(eq, orig):
+        assert e.q == o.q and e.potential == o.potential and e.morse_index == o.morse_index
+        for name in ("M", "C", "K", "A", "eigenvalues", "shapes", "unstable_directions"):
+            np.testing.assert_allclose(getattr(e, name), getattr(o, name), rtol=1e-9, atol=1e-9)
+    assert sp.normal_modes(eq.params, about=eq[0]).ok  # the rebuilt linearisation serves the modes
+
+    sw, orig = reopen("modes sweep"), results["modes sweep"]
+    assert sw.resonances == orig.resonances
+    np.testing.assert_allclose(sw.ratios, orig.ratios, rtol=1e-12)
+
+    fam, orig = reopen("nonlinear normal mode"), results["nonlinear normal mode"]
+    np.testing.assert_allclose(fam.monodromies, orig.monodromies, rtol=0, atol=1e-9)
+    assert fam.events == orig.events and fam.energy_max == orig.energy_max
+    k = len(fam) // 2
+    assert fam.orbit(k).stable == orig.orbit(k).stable and fam.at_energy(0.3).period == orig.at_energy(0.3).period
+
+    alpha, orig = reopen("nonlinear normal mode along alpha"), results["nonlinear normal mode along alpha"]
+    assert alpha.events == orig.events
+    np.testing.assert_array_equal(alpha.stable, orig.stable)
+
+    orbit, orig = reopen("periodic orbit"), results["periodic orbit"]
+    assert orbit.rotation == orig.rotation and orbit.sigma == orig.sigma and orbit.stable == orig.stable
+
+    sec, orig = reopen("Poincare section"), results["Poincare section"]
+    wrapped = orig.states.copy()
+    wrapped[:, :2] = np.mod(wrapped[:, :2] + math.pi, 2 * math.pi) - math.pi
+    np.testing.assert_allclose(sec.states, wrapped, rtol=0, atol=1e-9)
+    for a, b in zip(sec.boundary(), orig.boundary()):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(sec.orbit_points(1)[0], orig.orbit_points(1)[0])
+
+    lyap = reopen("Lyapunov spectrum")
+    np.testing.assert_equal(lyap.kaplan_yorke_dimension, results["Lyapunov spectrum"].kaplan_yorke_dimension)
+
+
+def test_a_failed_orbit_round_trips(reference, tmp_path):
+    bad = sp.periodic_orbit(reference, (2.5, -2.0, 3.0, -4.0), 0.37, max_iterations=3)
+    assert not bad.ok
+    back = open_result(bad.to_netcdf(tmp_path / "bad.nc"))
+    _same(back, bad)
+    assert back.table().startswith("no periodic orbit")
+
+
+# -- another model: refused -------------------------------------------------------------------------------
+def _edit_attr(path, name, value):
+    with netCDF4.Dataset(path, "a") as ds:
+        ds.setncattr(name, value)
+
+
+@pytest.mark.parametrize("kind", ["normal modes", "modes sweep", "equilibria", "periodic orbit",
+                                  "nonlinear normal mode", "nonlinear normal mode along alpha", "Poincare section"])
+def test_a_file_of_another_model_is_refused(results, kind, tmp_path):
+    path = results[kind].to_netcdf(tmp_path / "result.nc")
+    params = results[kind].params.to_dict()
+    params["m2"] = float(params["m2"]) * 1.5
+    _edit_attr(path, "params", canonical_json(params))
+    with pytest.raises(ParameterError, match="another model") as err:
+        open_result(path)
+    assert "\n" not in str(err.value)
+
+
+def test_a_trajectory_of_another_model_is_refused(results, tmp_path):
+    path = results["skewpend trajectory"].to_netcdf(tmp_path / "run.nc")
+    _edit_attr(path, "param_m2", 2.0)
+    with pytest.raises(ParameterError, match="another model"):
+        open_result(path)
+
+
+def test_the_agreement_is_stated():
+    assert 0 < AGREEMENT <= 1e-6
+
+
+# -- anything else: one clear line ---------------------------------------------------------------------------
+def _refused(path, *fragments):
+    with pytest.raises(ParameterError) as err:
+        open_result(path)
+    text = str(err.value)
+    assert "\n" not in text, text
+    for f in fragments:
+        assert f in text, text
+    return text
+
+
+def test_missing_empty_and_foreign_files(tmp_path, results):
+    _refused(tmp_path / "none.nc", "does not exist")
+    (tmp_path / "empty.nc").write_bytes(b"")
+    _refused(tmp_path / "empty.nc", "empty")
+    (tmp_path / "text.nc").write_text("hello\n")
+    _refused(tmp_path / "text.nc", "not a result file")
+    (tmp_path / "x.json").write_text(json.dumps({"exponents": [0.1]}))
+    _refused(tmp_path / "x.json", "JSON export", ".nc")
+    (tmp_path / "table.csv").write_text("t,lambda_1\n0,0.1\n")
+    _refused(tmp_path / "table.csv", "CSV table")
+    with pytest.raises(ParameterError):
+        open_result(None)
+
+
+def test_netcdf_without_kind_or_of_unknown_kind(tmp_path):
+    with netCDF4.Dataset(tmp_path / "plain.nc", "w") as ds:
+        ds.createDimension("x", 2)
+        ds.createVariable("x", "f8", ("x",))[:] = [1, 2]
+    _refused(tmp_path / "plain.nc", "not a result of skewpend")
+    _edit_attr(tmp_path / "plain.nc", "kind", "weather forecast")
+    _refused(tmp_path / "plain.nc", "'weather forecast'", "known kinds")
+
+
+def test_a_file_missing_what_its_kind_needs(results, tmp_path):
+    path = results["normal modes"].to_netcdf(tmp_path / "modes.nc")
+    _edit_attr(path, "kind", "equilibria")
+    _refused(path, "not a equilibria made by skewpend")
+    _edit_attr(path, "kind", "normal modes")
+    _edit_attr(path, "params", "{not json")
+    _refused(path)
+
+
+def test_truncated_files(results, tmp_path):
+    path = results["equilibria"].to_netcdf(tmp_path / "eq.nc")
+    data = path.read_bytes()
+    (tmp_path / "cut.nc").write_bytes(data[: len(data) // 2])
+    _refused(tmp_path / "cut.nc", "cut.nc")
+    run = tmp_path / "run.csv"
+    sp.simulate(results["skewpend trajectory"].params, (1.0, 0.5, 0, 0), 0.5, out=run)
+    lines = run.read_text().splitlines(keepends=True)
+    rows = [line for line in lines if not line.startswith("#")]
+    (tmp_path / "cut.csv").write_text("".join(rows[: len(rows) // 2]))
+    _refused(tmp_path / "cut.csv", "truncated")
+
+
+def test_misnamed_files_and_directories(results, tmp_path):
+    path = results["normal modes"].to_netcdf(tmp_path / "modes.nc")
+    shutil.copy(path, tmp_path / "modes.dat")
+    _refused(tmp_path / "modes.dat", "NetCDF", "rename")
+    (tmp_path / "folder.zarr").mkdir()
+    _refused(tmp_path / "folder.zarr", "not a Zarr store")
+    (tmp_path / "plain").mkdir()
+    _refused(tmp_path / "plain", "directory")
+
+
+def test_a_foreign_zarr_store(tmp_path):
+    zarr = pytest.importorskip("zarr")
+    zarr.open_group(str(tmp_path / "other.zarr"), mode="w").attrs["kind"] = "flip map"
+    _refused(tmp_path / "other.zarr", "not one made by skewpend")
