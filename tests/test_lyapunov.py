@@ -255,11 +255,19 @@ def test_uncertainty_history_windows_and_plain_data():
     data = json.loads(json.dumps(r.to_dict()))
     assert data["exponents"] == r.exponents.tolist() and data["uncertainty"] == r.uncertainty.tolist()
     assert data["sum"] == r.sum and data["y0"] == list(CHAOTIC) and data["params"]["alpha"] == 0.6
-    assert len(r.table().splitlines()) == 5
+    # the 95 % interval: Student's t with 9 degrees of freedom (2.262, from tables) times the standard error
+    np.testing.assert_allclose(r.interval, 2.2621571628 * r.uncertainty, rtol=1e-9)
+    assert data["interval"] == r.interval.tolist() and data["confidence"] == 0.95
+    # 4 exponents, the sum, the Kaplan-Yorke line (not meaningful: no damping) and what +- means
+    lines = r.table().splitlines()
+    assert len(lines) == 7 and "not meaningful" in lines[5] and "95 %" in lines[6]
+    assert data["kaplan_yorke_dimension"] is None
 
     one = lyapunov(P, CHAOTIC, t_end=20.0, windows=1, n_exponents=1)
     assert np.all(np.isnan(one.uncertainty)) and one.history.shape == (20, 1)
     assert json.loads(json.dumps(one.to_dict()))["uncertainty"] == [None]
+    # one window cannot tell whether the exponent settled: said in the status, never a success
+    assert not one.ok and one.status.name == "NOT_SETTLED" and "at least 4" in one.message
 
 
 def test_history_is_thinned_to_at_most_2000_points():

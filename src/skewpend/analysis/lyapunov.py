@@ -15,6 +15,14 @@ two zeros), so its sum is ~0; with damping the sum is the time average of the tr
 ``J`` (phase-space volume contracts at that rate); near the stable equilibrium every exponent
 tends to 0; the mirror start ``-y0`` has the same spectrum when the equations are odd.
 
+Error bars are batch means: the measured time is cut into ``windows`` equal blocks, the
+standard error is the spread of the block exponents over sqrt(windows), and the interval is
+that times Student's t quantile (95 %).  They mean something only if the blocks are long enough
+to be nearly independent and the estimate has stopped drifting, which :func:`settle_check`
+tests (the two halves agree; the block exponents are not serially correlated); a run that
+fails it has status :attr:`~skewpend.status.Status.NOT_SETTLED`, keeps its numbers and says
+how much longer to run.
+
 ``lyapunov_map(params, n, ...)`` is the largest exponent over a grid of starts at rest, like
 :func:`~skewpend.analysis.flipmap.flip_map`, on every core.
 """
@@ -48,6 +56,13 @@ _BUDGET = 4000
 _ROWS = 4096
 #: Points kept of the running estimate (history), whatever the number of renormalisations.
 _HISTORY = 2000
+#: Confidence of the intervals (``LyapunovSpectrum.interval``).
+CONFIDENCE = 0.95
+#: Level of each of the two tests of :func:`settle_check` (a settled run fails one or the other
+#: about 5-10 % of the time: the price of catching the unsettled ones).
+CHECK_LEVEL = 0.05
+#: Fewest windows :func:`settle_check` can work with (two halves of two).
+MIN_WINDOWS = 4
 #: Failure codes of the compiled integrators.
 _STATUS = {
     1: "the state or its derivative became non-finite",
@@ -62,13 +77,18 @@ class LyapunovSpectrum(Result):
 
     * ``exponents`` -- shape ``(k,)`` [1/s], in the order of the QR (descending once converged);
     * ``uncertainty`` -- shape ``(k,)`` [1/s]: the standard error of the mean of the exponents
-      measured over ``windows`` equal time windows (their spread / sqrt(windows)); NaN with
-      fewer than 2 windows;
+      measured over ``windows`` equal time windows (their spread / sqrt(windows): batch means);
+      NaN with fewer than 2 windows; ``interval`` is the half-width of the 95 % confidence
+      interval (Student's t quantile times that); both mean what they say only when ``status``
+      is not ``NOT_SETTLED`` (:func:`settle_check`);
     * ``t``, ``history`` -- the running estimates: ``history[i]`` is the exponents measured from
       the end of the transient to ``t[i]`` [s] (at most 2000 points, evenly thinned);
     * ``window_exponents`` -- shape ``(windows, k)``: the exponents of each window;
     * ``params``, ``y0``, ``settings`` (t_end, renorm_every, transient, rtol, atol, ...), ``stats``
-      (steps, rejected, renormalisations, wall time), ``status`` (0: reached t_end) and ``message``.
+      (steps, rejected, renormalisations, wall time, and the convergence check's
+      ``halves_sigma``, ``von_neumann_sigma``), ``status`` (0: reached t_end and settled;
+      NOT_SETTLED: reached t_end, but the check failed -- the message says why and how long to
+      run) and ``message``.
     """
 
     exponents: np.ndarray
@@ -90,9 +110,34 @@ class LyapunovSpectrum(Result):
         return float(np.sum(self.exponents))
 
     @property
+    def windows_measured(self) -> int:
+        """How many windows hold a measurement (fewer than ``settings['windows']`` if the run stopped)."""
+        return int(np.count_nonzero(np.all(np.isfinite(self.window_exponents), axis=1)))
+
+    @property
+    def interval(self) -> np.ndarray:
+        """Half-width [1/s] of each exponent's 95 % confidence interval: Student's t quantile
+        (``windows - 1`` degrees of freedom) times ``uncertainty``; NaN with fewer than 2 windows."""
+        n = self.windows_measured
+        if n < 2:
+            return np.full(self.k, np.nan)
+        return _t_quantile(0.5 + CONFIDENCE / 2, n - 1) * np.asarray(self.uncertainty, dtype=float)
+
+    @property
+    def conservative(self) -> bool:
+        """Without damping the flow preserves phase-space volume (constant torques derive from a
+        potential): the spectrum sums to 0 and comes in pairs +-l."""
+        return float(self.params.c1 or 0.0) == 0.0 and float(self.params.c2 or 0.0) == 0.0
+
+    @property
     def kaplan_yorke_dimension(self) -> float:
         """The Kaplan-Yorke (Lyapunov) dimension ``j + (l_1 + … + l_j) / |l_{j+1}|``, with ``j``
-        the largest index with a non-negative partial sum (needs the full spectrum)."""
+        the largest index with a non-negative partial sum: an attractor's dimension, so NaN for a
+        conservative system (no damping: the phase-space volume is preserved, there is no
+        attractor, and the formula would give about 4 whatever the motion) and NaN without the
+        full spectrum."""
+        if self.k != 4 or self.conservative:
+            return math.nan
         lam = np.sort(self.exponents)[::-1]
         partial = np.cumsum(lam)
         j = int(np.count_nonzero(partial >= 0))
@@ -103,18 +148,35 @@ class LyapunovSpectrum(Result):
         return j + float(partial[j - 1]) / abs(float(lam[j]))
 
     def table(self) -> str:
-        """The exponents with their uncertainties, one per line (text).  Nothing non-finite is
-        printed as a number: an exponent that could not be measured reads "not measured", an
-        uncertainty from fewer than 2 windows is left out (and said so)."""
+        """The exponents with their 95 % intervals, one per line (text), the sum and (full
+        spectrum) the Kaplan-Yorke dimension.  Nothing non-finite is printed as a number: an
+        exponent that could not be measured reads "not measured", an interval from fewer than 2
+        windows is left out (and said so); a run that has not settled (``NOT_SETTLED``) prints
+        its exponents without error bars, and a conservative system's Kaplan-Yorke dimension
+        is said to be meaningless rather than printed."""
+        settled = self.status != Status.NOT_SETTLED
         lines = []
-        for i, (v, u) in enumerate(zip(self.exponents, self.uncertainty)):
+        for i, (v, u) in enumerate(zip(self.exponents, self.interval)):
             value = f"{v:+.6f}" if math.isfinite(v) else "not measured"
-            spread = f" +- {u:.2g}" if math.isfinite(u) and math.isfinite(v) else ""
+            spread = f" +- {u:.2g}" if settled and math.isfinite(u) and math.isfinite(v) else ""
             lines.append(f"lambda_{i + 1} = {value}{spread} 1/s" if math.isfinite(v) else f"lambda_{i + 1} = {value}")
         if self.k == 4 and math.isfinite(self.sum):
             lines.append(f"sum      = {self.sum:+.3e} 1/s")
-        if not np.isfinite(self.uncertainty).any() and np.isfinite(self.exponents).any():
+        if self.k == 4:
+            if self.conservative:
+                lines.append("Kaplan-Yorke dimension: not meaningful for a conservative system "
+                             "(no damping: the phase-space volume is preserved)")
+            elif math.isfinite(self.kaplan_yorke_dimension):
+                lines.append(f"Kaplan-Yorke dimension {self.kaplan_yorke_dimension:.4f}")
+        n = self.windows_measured
+        if not np.isfinite(self.exponents).any():
+            pass
+        elif n < 2:
             lines.append("(no uncertainty: it needs at least 2 windows after the transient)")
+        elif not settled:
+            lines.append("(no error bars: the exponents have not settled, see the status)")
+        else:
+            lines.append(f"(+-: {100 * CONFIDENCE:g} % intervals from the spread of {n} windows, Student's t)")
         return "\n".join(lines)
 
     def _dataset(self) -> DatasetSpec:
@@ -123,6 +185,7 @@ class LyapunovSpectrum(Result):
             variables={
                 "exponent": (("k",), self.exponents, {"units": "1/s", "long_name": "Lyapunov exponent (QR order)"}),
                 "uncertainty": (("k",), self.uncertainty, {"units": "1/s", "long_name": "standard error over windows"}),
+                "interval": (("k",), self.interval, {"units": "1/s", "long_name": "half-width of the 95 % interval"}),
                 "history": (("time", "k"), self.history, {"units": "1/s", "long_name": "running estimate"}),
                 "window_exponent": (("window", "k"), self.window_exponents, {"units": "1/s"}),
                 "y0": (("state",), self.y0, {"long_name": "initial state (phi, psi, dphi, dpsi)"}),
@@ -138,7 +201,10 @@ class LyapunovSpectrum(Result):
         return plain({  # strict JSON: a non-finite value is null
             "exponents": self.exponents,
             "uncertainty": self.uncertainty,
+            "interval": self.interval,
+            "confidence": CONFIDENCE,
             "sum": self.sum,
+            "kaplan_yorke_dimension": self.kaplan_yorke_dimension,  # null: conservative, or not the full spectrum
             "y0": self.y0,
             "status": int(self.status),
             "message": self.message,
@@ -146,6 +212,85 @@ class LyapunovSpectrum(Result):
             "stats": dict(self.stats),
             "params": self.params.to_dict(),
         })
+
+
+def _t_quantile(q: float, dof: int) -> float:
+    from scipy.stats import t
+
+    return float(t.ppf(q, dof))
+
+
+def _normal_quantile(q: float) -> float:
+    from scipy.stats import norm
+
+    return float(norm.ppf(q))
+
+
+def _longer(seconds: float) -> float:
+    """A round time about 20 times ``seconds`` (1, 2 or 5 times a power of ten, at least that)."""
+    target = 20.0 * seconds
+    exp = math.floor(math.log10(target))
+    for m in (1.0, 2.0, 5.0, 10.0):
+        if m * 10.0 ** exp >= target * (1 - 1e-12):
+            return m * 10.0 ** exp
+    return target
+
+
+def settle_check(window_exponents, *, level: float = CHECK_LEVEL):
+    """Whether the exponents measured over equal time windows have settled: the stated rule.
+
+    ``window_exponents`` has shape ``(K, k)`` (K >= 4 windows of equal length, in time order).
+    The exponents checked are the first (the largest: whether the motion is chaotic) and every
+    other one clearly away from 0 (whose 95 % interval, mean +- ``t_{0.975, K-1} s / sqrt(K)``,
+    excludes 0): an exponent that tends to 0 (the flow direction, a conservative system's second
+    zero) grows by a bounded amount, so its windows' spread overstates its error -- its interval
+    contains 0 and covers, while its window values, anticorrelated, would fail the tests below
+    at random. For each checked exponent, with ``x`` its K window values, ``s`` their standard
+    deviation and ``h = K // 2``:
+
+    * **the halves agree**: the means of the first ``h`` and the last ``h`` windows differ by at
+      most ``t_{1-level/2, K-1}`` times their standard error ``s sqrt(2/h)`` -- a drifting
+      estimate (a transient, an orbit stuck near an island, a regular orbit's ``ln T / T``)
+      fails this;
+    * **the windows are independent**: von Neumann's ratio ``sum (x_{i+1} - x_i)^2 / sum (x_i -
+      mean)^2`` (2 for independent windows, variance ``4 (K-2)/(K^2-1)``) is not below 2 by
+      more than the one-sided normal quantile ``z_{1-level}`` of its standard deviation --
+      windows too short to be independent make the standard error too small, and fail this.
+
+    Returns ``(settled, halves_sigma, von_neumann_sigma, detail)``: the largest statistics over
+    the exponents in units of their own standard deviation, and, when not settled, a sentence
+    about the worst exponent (``lambda_j ...``).  Windows with identical values (no spread)
+    count as settled."""
+    x = np.asarray(window_exponents, dtype=float)
+    K = x.shape[0]
+    if K < MIN_WINDOWS or not np.all(np.isfinite(x)):
+        raise ValueError(f"settle_check needs at least {MIN_WINDOWS} finite windows, got {x.shape}")
+    h = K // 2
+    first, second = x[:h].mean(axis=0), x[K - h:].mean(axis=0)
+    s = x.std(axis=0, ddof=1)
+    dev = np.sum((x - x.mean(axis=0)) ** 2, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_halves = np.where(s > 0, np.abs(second - first) / (s * math.sqrt(2.0 / h)), 0.0)
+        ratio = np.where(dev > 0, np.sum(np.diff(x, axis=0) ** 2, axis=0) / dev, 2.0)
+    z_vn = (2.0 - ratio) / math.sqrt(4.0 * (K - 2) / (K * K - 1))
+    t_crit, z_crit = _t_quantile(1 - level / 2, K - 1), _normal_quantile(1 - level)
+    checked = np.abs(x.mean(axis=0)) > _t_quantile(0.5 + CONFIDENCE / 2, K - 1) * s / math.sqrt(K)
+    checked[0] = True
+    z_halves, z_vn = np.where(checked, z_halves, -np.inf), np.where(checked, z_vn, -np.inf)
+    bad_h, bad_v = z_halves > t_crit, z_vn > z_crit
+    settled = not (bad_h.any() or bad_v.any())
+    detail = None
+    if not settled:
+        j = int(np.argmax(np.maximum(z_halves / t_crit, z_vn / z_crit)))
+        parts = []
+        if bad_h[j]:
+            parts.append(f"its two halves give {first[j]:+.3f} and {second[j]:+.3f} 1/s, "
+                         f"{z_halves[j]:.1f} standard errors apart (at most {t_crit:.2f} if settled)")
+        if bad_v[j]:
+            parts.append(f"its {K} window values are correlated (von Neumann ratio {ratio[j]:.2f}, "
+                         f"{z_vn[j]:.1f} sigma below the 2 of independent windows)")
+        detail = f"lambda_{j + 1}: " + "; ".join(parts)
+    return settled, float(np.max(z_halves)), float(np.max(z_vn)), detail
 
 
 def check_times(t_end, renorm_every, transient):
@@ -200,7 +345,11 @@ def lyapunov(
     default 1e-10, on every component), re-orthonormalised by QR every ``renorm_every``
     seconds.  The first ``transient`` seconds align the vectors and are not counted (the
     measurement starts at the last renormalisation at or before ``transient``).  The
-    uncertainty is the spread of the exponents over ``windows`` equal time windows.
+    uncertainty is the standard error from the spread of the exponents over ``windows`` equal
+    time windows (batch means), ``interval`` its 95 % half-width (Student's t); both hold only if
+    the run has settled, which :func:`settle_check` tests on the windows (at least 4): a run that
+    fails -- or has fewer than 4 windows to tell -- has status ``NOT_SETTLED``, ``ok`` False,
+    its exponents kept and a message saying how long to run.
     ``progress(t, t_end)`` is called between bounded calls (Ctrl-C stops within a few ms).
 
     A run that stops early (non-finite state, step underflow, ``max_steps``) returns the exponents
@@ -302,6 +451,18 @@ def lyapunov(
     else:
         uncertainty = np.full(k, np.nan)
     message = "reached t_end" if status == 0 else f"stopped at t = {t_reached:.6g} s: {_STATUS.get(status, f'status {status}')}"
+    check = {"halves_sigma": math.nan, "von_neumann_sigma": math.nan}
+    if status == 0 and span > 0 and n_filled >= MIN_WINDOWS and np.all(np.isfinite(win_exp)):
+        settled, check["halves_sigma"], check["von_neumann_sigma"], detail = settle_check(win_exp)
+        if not settled:
+            status = int(Status.NOT_SETTLED)
+            message = (f"{detail.split(':')[0]} has not settled in {span:g} s: {detail.split(': ', 1)[1]}; "
+                       f"run longer, e.g. t_end = {_longer(t_end):g} s")
+    elif status == 0:
+        status = int(Status.NOT_SETTLED)
+        message = (f"reached t_end, but whether the exponents have settled cannot be told from {n_filled} "
+                   f"window{'s' if n_filled != 1 else ''}: the check needs at least {MIN_WINDOWS} (windows >= "
+                   f"{MIN_WINDOWS} and as many renormalisations after the transient)")
     settings = {
         "t_end": t_end, "renorm_every": renorm_every, "transient": transient, "measured_from": t_from,
         "n_exponents": k, "rtol": rtol, "atol": atol, "windows": n_win, "max_steps": max_steps,
@@ -310,14 +471,14 @@ def lyapunov(
     stats = {
         "steps": int(state.naccept), "rejected": int(state.nreject), "nfev": int(state.nfev),
         "renormalisations": int(state.nrenorm), "t_reached": t_reached, "wall_time": wall,
-        "kernel": kernel.origin, "kernel_build_time": kernel.build_time,
+        "kernel": kernel.origin, "kernel_build_time": kernel.build_time, **check,
     }
     result = LyapunovSpectrum(
         exponents=exponents, uncertainty=uncertainty, t=np.asarray(hist_t), history=np.asarray(hist).reshape(-1, k),
         window_exponents=win_exp, params=params, y0=y, settings=settings, stats=stats, status=Status.of(int(status)),
         message=message,
     )
-    if status != 0 and throw:
+    if status not in (0, int(Status.NOT_SETTLED)) and throw:
         raise IntegrationError(f"lyapunov: {message}; the exponents up to there are in the result with throw=False")
     return result
 

@@ -130,7 +130,7 @@ def lyapunov(
     exponents: option("--exponents", T.Whole(1, 4), "how many exponents: 4 (the spectrum, default) or 1 (the largest, cheaper)") = None,
     rtol: RTOL_E10 = None,
     atol: ATOL_E10 = None,
-    windows: option("--windows", T.Whole(1, 1000), "time windows for the uncertainty (default 10)") = None,
+    windows: option("--windows", T.Whole(1, 1000), "time windows for the 95 % intervals and the check that the exponents settled, at least 4 for the check (default 10)") = None,
     max_steps: MAX_STEPS_OPTION = None,
     out: option("--out", T.OutPath((".json", ".csv")), "write the result to FILE.json (exponents, settings) or FILE.csv (running estimates)", RUN, "-o") = None,
     plot: plot_option("the running estimates") = None,
@@ -139,6 +139,10 @@ def lyapunov(
 ):
     """Lyapunov exponents of the motion from the initial state: Benettin's method (QR) on the
     variational equations generated from the derivation.
+
+    The +- are 95 % intervals from the spread over --windows equal time windows. A run whose
+    exponents have not settled (its two halves disagree, or its windows are correlated) prints its
+    numbers without error bars and exits 1 with one line saying so and how long to run.
 
     From a --config run file it takes [parameters], [initial] and [simulation] t_end, rtol, atol, max_steps.
     """
@@ -153,7 +157,11 @@ def lyapunov(
     from .simulate import check_plot
 
     check_plot(plot)
+    import re
+    from dataclasses import replace
+
     from ..analysis.lyapunov import lyapunov as run_lyapunov
+    from ..status import Status
 
     kw = {k: v for k, v in dict(renorm_every=renorm_every, transient=transient, n_exponents=exponents,
                                 windows=windows).items() if v is not None}
@@ -165,13 +173,13 @@ def lyapunov(
         _write_lyapunov(spec, out)
     draw_figure(plot, "lyapunov_figure", spec)
     st = spec.stats
-    lines = [spec.table()]
-    if spec.k == 4:
-        lines.append(f"Kaplan-Yorke dimension {spec.kaplan_yorke_dimension:.4f}")
+    lines = [spec.table()]  # with the Kaplan-Yorke dimension where it means something
     lines.append(f"run      {spec.settings['measured_from']:g} .. {st['t_reached']:g} s, QR every {every:g} s, "
                  f"{st['steps']} steps ({st['rejected']} rejected), {st['wall_time']:.3g} s")
     lines += [f"{what:9s}{path}" for what, path in (("written", out), ("plot", plot)) if path is not None]
     sys.stdout.write("\n".join(lines) + "\n")
+    if spec.status == Status.NOT_SETTLED:  # the library's advice in the option the user types
+        return replace(spec, message=re.sub(r"e\.g\. t_end = (\S+) s", r"e.g. --t-end \1", spec.message)), ""
     return spec, "; the exponents above cover the time up to there"
 
 
