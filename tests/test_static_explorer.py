@@ -81,27 +81,35 @@ def test_the_export_refuses_what_it_must_not_overwrite(tmp_path):
     from skewpend.errors import ParameterError
 
     (tmp_path / "busy").mkdir()
-    (tmp_path / "busy" / "notes.txt").write_text("mine")
-    with pytest.raises(ParameterError, match="other files"):
+    (tmp_path / "busy" / "index.html").write_text("mine")
+    with pytest.raises(ParameterError, match="already has index.html, which no export wrote"):
         frontend.export_explorer(tmp_path / "busy")
-    assert [p.name for p in (tmp_path / "busy").iterdir()] == ["notes.txt"]
+    with pytest.raises(ParameterError, match="not an earlier export"):
+        frontend.export_explorer(tmp_path / "busy", force=True)
+    assert [p.name for p in (tmp_path / "busy").iterdir()] == ["index.html"]
+    assert (tmp_path / "busy" / "index.html").read_text() == "mine"
     (tmp_path / "file").write_text("x")
     with pytest.raises(ParameterError, match="not a directory"):
         frontend.export_explorer(tmp_path / "file")
     with pytest.raises(ParameterError, match="parent directory"):
         frontend.export_explorer(tmp_path / "missing" / "site")
-    # an earlier export: refused without force, replaced with it; an empty directory is used
+    # an earlier export: refused without force, replaced with it; a file beside it is kept
     frontend.export_explorer(tmp_path / "site")
     with pytest.raises(ParameterError, match="earlier export"):
         frontend.export_explorer(tmp_path / "site")
-    (tmp_path / "site" / "stale.txt").write_text("old")
+    (tmp_path / "site" / "CNAME").write_text("example.org")
+    (tmp_path / "site" / "index.html").write_text("old")
     frontend.export_explorer(tmp_path / "site", force=True)
-    assert not (tmp_path / "site" / "stale.txt").exists() and (tmp_path / "site" / "index.html").is_file()
-    (tmp_path / "empty").mkdir()
-    frontend.export_explorer(tmp_path / "empty")
-    assert (tmp_path / "empty" / "index.html").is_file()
-    # nothing temporary is left beside them
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["busy", "empty", "file", "site"]
+    assert (tmp_path / "site" / "CNAME").read_text() == "example.org"
+    assert (tmp_path / "site" / "index.html").read_text() != "old"
+    # a directory with other files: the site is added beside them
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "notes.txt").write_text("mine")
+    frontend.export_explorer(tmp_path / "notes")
+    assert (tmp_path / "notes" / "index.html").is_file() and (tmp_path / "notes" / "notes.txt").read_text() == "mine"
+    # nothing temporary is left beside them or inside them
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["busy", "file", "notes", "site"]
+    assert not [p for p in (tmp_path / "site").iterdir() if "export" in p.name]
 
 
 def _cli(*args, cwd=None):

@@ -19,10 +19,12 @@ def serve(
     port: option("--port", T.Port(), "TCP port (default 8000)", None) = "8000",
     open_browser: Annotated[bool, typer.Option("--open", help="open the page in the web browser")] = False,
     export: Annotated[str, typer.Option("--export", metavar="DIR", show_default=False,
-                                        help="write the explorer as a static site to DIR (new or empty) instead of "
+                                        help="write the explorer as a static site to DIR (new, or a directory without the "
+                                             "site's files: '.' too; other files in it are never touched) instead of "
                                              "serving it: it runs in any browser from the file system or a static "
                                              "host, with no server and no network")] = None,
-    force: Annotated[bool, typer.Option("--force", help="with --export: replace an earlier export in DIR")] = False,
+    force: Annotated[bool, typer.Option("--force", help="with --export: replace an earlier export in DIR (only the files its "
+                                                   "manifest lists; anything else there is refused or left alone)")] = False,
 ) -> None:
     """The live explorer in the browser: the pendulum in 3D with sliders, equations, plots, normal
     modes and a flip map, on physics generated from the derivation (needs skewpend[web]; with

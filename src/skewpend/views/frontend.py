@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Dict, List
+from typing import Dict, List, Optional
 
 __all__ = ["Source", "sources", "registration", "export_explorer", "inline_page_scripts", "WEB_DIR", "katex_dir",
-           "SOURCE_ORDER", "REPLAY_ORDER", "WIDGET_ORDER", "module_bundle", "replay_data"]
+           "SOURCE_ORDER", "REPLAY_ORDER", "MANIFEST", "EXPORT_ENTRIES", "WIDGET_ORDER", "module_bundle", "replay_data"]
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 _THREE = WEB_DIR / "vendor" / "three"
@@ -178,60 +178,223 @@ def _licences() -> List[tuple]:
     return [(_THREE / "LICENSE", "three.js"), (katex_dir() / "LICENSE", "KaTeX")]
 
 
+#: The export's manifest: the version that wrote it and every file it wrote (relative paths).
+MANIFEST = ".skewpend-explorer"
+#: What the export writes at the top of its directory (the manifest last).
+EXPORT_ENTRIES = ("index.html", "static", "sources", "LICENSES", MANIFEST)
+
+
 def export_explorer(directory, params=None, *, force: bool = False) -> Path:
     """Write the static explorer to ``directory``: ``index.html`` with the page's files beside it
     (``static/``: styles, KaTeX, the loader; ``sources/``: three.js, the generated physics and the
-    page's scripts as registrations; ``LICENSES/``).  It runs entirely in the browser, opened from
-    the file system or any static web host, with the network off; the physics is generated for
-    the bodies and axes of ``params`` (default: the specification's thin rods).
+    page's scripts as registrations; ``LICENSES/``; ``.skewpend-explorer``, the manifest of every
+    file written).  It runs entirely in the browser, opened from the file system or any static
+    web host, with the network off; the physics is generated for the bodies and axes of
+    ``params`` (a :class:`~skewpend.Parameters`; default: the specification's thin rods).
 
-    ``directory`` must not exist, or be empty, or (``force=True``) be an earlier export (it is
-    then replaced); anything else is refused with :class:`ParameterError`.  The site is written
-    to a temporary directory beside it and moved into place, so an interruption leaves no half
-    site.  Returns the path of ``index.html``."""
+    ``directory`` may be new, or an existing directory (``"."`` too) in which none of those five
+    names exists -- or, with ``force=True``, in which they are an earlier export's, holding only
+    the files its manifest lists: those are replaced.  Nothing else in ``directory`` is ever
+    touched (a ``CNAME`` beside the site stays); a symbolic link as ``directory`` or among the
+    export's entries, a file the export did not write where it would write, or a directory that
+    cannot be written is refused with one :class:`ParameterError`, before anything is written.
+    The site is built in a temporary directory made exclusively (``tempfile.mkdtemp``: a new,
+    random name, never an existing path) beside ``directory`` -- inside it when it exists -- and
+    moved into place, so an error or an interruption leaves no half site.  Returns the path of
+    ``index.html``."""
+    import os
+    import tempfile
+
+    from ..errors import ParameterError, SkewpendError
+    from ..symbolic.model import Parameters
+
+    if params is not None and not isinstance(params, Parameters):
+        raise ParameterError(f"params must be a skewpend.Parameters or None, got {type(params).__name__}")
+    if isinstance(force, str) or not isinstance(force, (bool, int)):
+        raise ParameterError(f"force must be True or False, got {force!r}")
+    try:
+        target = Path(os.fspath(directory))
+    except TypeError:
+        raise ParameterError(f"directory must be a path, got {type(directory).__name__}") from None
+    if not str(directory).strip():
+        raise ParameterError("explorer export: the directory is empty text; give a directory name")
+    what = "explorer export"
+    replaced = _export_plan(target, bool(force), what)  # refusals first: nothing is written yet
+    srcs = sources(params)  # generated before anything is written: an error leaves nothing behind
+    exists = os.path.lexists(target)
+    parent = target if exists else (target.parent if str(target.parent) else Path("."))
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=".skewpend-export-" if exists else f".{target.name}.skewpend-export-",
+                                        dir=parent))
+    except OSError as exc:
+        raise ParameterError(f"{what}: cannot write {target}: {exc.strerror or exc}") from None
+    site = staging / "site" if exists else staging
+    try:
+        try:
+            _write_site(site, srcs)
+        except OSError as exc:
+            raise SkewpendError(f"{what}: cannot write {target}: {exc.strerror or exc}") from None
+        if exists:
+            _swap_in(target, staging, site, replaced, what)
+        else:
+            try:
+                os.rename(staging, target)  # an empty directory made meanwhile is replaced; anything else refused
+            except OSError as exc:
+                raise ParameterError(f"{what}: cannot create {target}: {exc.strerror or exc}") from None
+    finally:
+        if os.path.lexists(staging) and not os.path.islink(staging):
+            shutil.rmtree(staging, ignore_errors=True)  # ours: made by mkdtemp, it holds only what we put there
+    return target / "index.html"
+
+
+def _write_site(site: Path, srcs: Dict[str, Source]) -> None:
+    """The export's files, written into the new directory ``site`` (the manifest last)."""
+    import os
+
+    from .. import __version__
+
+    site.mkdir(exist_ok=True)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    os.chmod(site, 0o777 & ~mask)  # mkdtemp made it private; a site is read by web servers
+    (site / "static").mkdir()
+    (site / "sources").mkdir()
+    (site / "LICENSES").mkdir()
+    for name in ("app.css", "loader.js"):
+        shutil.copyfile(WEB_DIR / name, site / "static" / name)
+    shutil.copytree(katex_dir(), site / "static" / "katex", copy_function=shutil.copyfile)
+    for src in srcs.values():
+        (site / "sources" / f"{src.name}.js").write_text(registration(src), encoding="utf-8")
+    for path, name in _licences():
+        shutil.copyfile(path, site / "LICENSES" / f"{name}.txt")
+    (site / "index.html").write_text(_read(WEB_DIR / "index.html"), encoding="utf-8")
+    files = sorted(Path(root, f).relative_to(site).as_posix() for root, _, names in os.walk(site) for f in names)
+    (site / MANIFEST).write_text(json.dumps({"skewpend": __version__, "files": files}, indent=1) + "\n",
+                                 encoding="utf-8")
+
+
+def _manifest(target: Path) -> "Optional[set]":
+    """The files an earlier export in ``target`` recorded as its own, or None (no manifest, or a
+    manifest that is not a regular file skewpend wrote)."""
+    import os
+    import stat
+
+    path = target / MANIFEST
+    try:
+        st = os.lstat(path)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > 1 << 20:
+            return None
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or "skewpend" not in data:
+        return None
+    files = data.get("files")
+    if files is None:  # an export by an earlier skewpend: the files this one writes
+        return set(_site_files())
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        return None
+    return set(files)
+
+
+@lru_cache(maxsize=1)
+def _site_files() -> tuple:
+    """The relative paths of the files an export writes (for a manifest that did not list them)."""
+    import os
+
+    katex = katex_dir()
+    out = ["index.html", "static/app.css", "static/loader.js", *(f"sources/{n}.js" for n in SOURCE_ORDER),
+           *(f"LICENSES/{name}.txt" for _, name in _licences())]
+    out += [f"static/katex/{Path(root, f).relative_to(katex).as_posix()}" for root, _, names in os.walk(katex) for f in names]
+    return tuple(out)
+
+
+def _export_plan(target: Path, force: bool, what: str) -> List[str]:
+    """Check ``target`` before anything is written; return the export's entries in it that are
+    an earlier export's own (to be replaced).  Every refusal is one :class:`ParameterError`."""
+    import os
+    import stat
+
     from ..errors import ParameterError
 
-    target = Path(directory)
-    marker = ".skewpend-explorer"
-    if target.exists():
-        if not target.is_dir():
-            raise ParameterError(f"explorer export: {target} exists and is not a directory; give a new directory")
-        existing = list(target.iterdir())
-        if existing and not (force and (target / marker).exists()):
-            what = "an earlier export: pass force=True (--force) to replace it" if (target / marker).exists() else \
-                "a directory with other files in it; give a new or empty directory"
-            raise ParameterError(f"explorer export: {target} is {what}")
-    if not target.parent.is_dir():
-        raise ParameterError(f"explorer export: the parent directory {target.parent} does not exist")
-    srcs = sources(params)  # generated first: an error leaves nothing behind
-    tmp = target.parent / f".{target.name}.tmp-export"
-    shutil.rmtree(tmp, ignore_errors=True)
-    try:
-        (tmp / "static").mkdir(parents=True)
-        (tmp / "sources").mkdir()
-        (tmp / "LICENSES").mkdir()
-        for name in ("app.css", "loader.js"):
-            shutil.copy2(WEB_DIR / name, tmp / "static" / name)
-        shutil.copytree(katex_dir(), tmp / "static" / "katex")
-        for src in srcs.values():
-            (tmp / "sources" / f"{src.name}.js").write_text(registration(src), encoding="utf-8")
-        for path, name in _licences():
-            shutil.copy2(path, tmp / "LICENSES" / f"{name}.txt")
-        (tmp / "index.html").write_text(_read(WEB_DIR / "index.html"), encoding="utf-8")
-        from .. import __version__
+    if not os.path.lexists(target):
+        parent = target.parent if str(target.parent) else Path(".")
+        if not parent.is_dir():
+            raise ParameterError(f"{what}: the parent directory {parent} does not exist")
+        return []
+    if target.is_symlink():
+        raise ParameterError(f"{what}: {target} is a symbolic link; give a real directory (the export never writes "
+                             "through a link)")
+    if not target.is_dir():
+        raise ParameterError(f"{what}: {target} exists and is not a directory; give a new directory")
+    present = [name for name in EXPORT_ENTRIES if os.path.lexists(target / name)]
+    if not present:
+        return []
+    owned = _manifest(target)
+    if not force:
+        if owned is not None:
+            raise ParameterError(f"{what}: {target} holds an earlier export: pass force=True (--force) to replace it")
+        raise ParameterError(f"{what}: {target} already has {present[0]}, which no export wrote; give a new or empty "
+                             f"directory, or one without {', '.join(EXPORT_ENTRIES)}")
+    if owned is None:
+        raise ParameterError(f"{what}: {target} is not an earlier export (it has {present[0]} but no manifest "
+                             f"{MANIFEST} that skewpend wrote); nothing was replaced")
+    owned_dirs = {str(Path(f).parent.as_posix()) for f in owned}
+    owned_dirs |= {d.rsplit("/", i)[0] for d in list(owned_dirs) for i in range(d.count("/") + 1)}
+    for name in present:
+        if name == MANIFEST:
+            continue
+        for path in [target / name, *_walk(target / name)]:
+            rel = path.relative_to(target).as_posix()
+            st = os.lstat(path)
+            if stat.S_ISLNK(st.st_mode):
+                raise ParameterError(f"{what}: {path} is a symbolic link, which no export wrote; move it away first "
+                                     "(nothing was replaced)")
+            if stat.S_ISDIR(st.st_mode) and rel in owned_dirs or stat.S_ISREG(st.st_mode) and rel in owned:
+                continue
+            raise ParameterError(f"{what}: {path} was not written by the export; move it away first (nothing was "
+                                 "replaced)")
+    return present
 
-        (tmp / marker).write_text(json.dumps({"skewpend": __version__}) + "\n", encoding="utf-8")
-        if target.exists():
-            old = target.parent / f".{target.name}.old-export"
-            shutil.rmtree(old, ignore_errors=True)
-            target.rename(old)
-            tmp.rename(target)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            tmp.rename(target)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return target / "index.html"
+
+def _walk(top: Path) -> List[Path]:
+    """Everything below ``top`` (not following symbolic links)."""
+    import os
+
+    if not top.is_dir() or top.is_symlink():
+        return []
+    out: List[Path] = []
+    for root, dirs, files in os.walk(top, followlinks=False):
+        out += [Path(root, n) for n in dirs + files]
+    return out
+
+
+def _swap_in(target: Path, staging: Path, site: Path, replaced: List[str], what: str) -> None:
+    """Move the export's entries from ``site`` into the existing directory ``target``, the entries
+    of an earlier export (``replaced``) into ``staging`` (removed with it); on an error every
+    entry is moved back.  Signals wait until the few renames are done."""
+    import os
+
+    from ..errors import SkewpendError
+    from ..interrupts import Interrupts
+
+    old = staging / "old"
+    done: List[tuple] = []
+    with Interrupts():
+        try:
+            old.mkdir()
+            for name in EXPORT_ENTRIES:
+                if name in replaced:
+                    os.rename(target / name, old / name)
+                    done.append((old / name, target / name))
+                os.rename(site / name, target / name)
+                done.append((target / name, site / name))
+        except OSError as exc:
+            for moved, back in reversed(done):
+                try:
+                    os.rename(moved, back)
+                except OSError:
+                    pass
+            raise SkewpendError(f"{what}: cannot write {target}: {exc.strerror or exc}") from None
 
 

@@ -1,0 +1,239 @@
+"""Files the program writes touch nothing that is not theirs (issue 29, item 10): the static
+explorer's export (``serve --export``), the shared atomic writer (``io.atomic_path``) behind the
+report, animations, figures and every ``--out``; and the views' public entry points refuse
+wrong-typed arguments in one line."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from skewpend.errors import ParameterError, SkewpendError
+from skewpend.views import frontend
+
+
+@pytest.fixture(scope="module")
+def site_files():
+    return set(frontend._site_files())
+
+
+def _tree(path: Path) -> dict:
+    """Every entry below ``path`` -> its text (files), its target (links) or None (directories)."""
+    out = {}
+    for p in sorted(path.rglob("*")):
+        rel = p.relative_to(path).as_posix()
+        out[rel] = os.readlink(p) if p.is_symlink() else (p.read_bytes() if p.is_file() else None)
+    return out
+
+
+# -- the static export --------------------------------------------------------------------------------
+def test_planted_temporary_names_are_neither_followed_nor_removed(tmp_path):
+    """The old export wrote through ``.site.tmp-export -> victim/`` and deleted ``.site.old-export/``."""
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (tmp_path / ".site.tmp-export").symlink_to(victim)
+    (tmp_path / ".site.old-export").mkdir()
+    (tmp_path / ".site.old-export" / "mine.txt").write_text("mine")
+    before = _tree(tmp_path)
+    frontend.export_explorer(tmp_path / "site")
+    frontend.export_explorer(tmp_path / "site", force=True)
+    after = _tree(tmp_path)
+    assert {k: v for k, v in after.items() if not k.startswith("site")} == before  # untouched, nothing left
+    assert (tmp_path / "site" / "index.html").is_file() and list(victim.iterdir()) == []
+
+
+def test_the_manifest_lists_exactly_the_files_written(tmp_path, site_files):
+    import json
+
+    site = frontend.export_explorer(tmp_path / "site").parent
+    manifest = json.loads((site / frontend.MANIFEST).read_text())
+    written = {p.relative_to(site).as_posix() for p in site.rglob("*") if p.is_file()} - {frontend.MANIFEST}
+    assert set(manifest["files"]) == written == site_files
+    assert oct(site.stat().st_mode & 0o777) == oct(0o777 & ~_umask())  # not mkdtemp's private 0700
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def test_force_replaces_only_what_the_export_wrote(tmp_path):
+    site = tmp_path / "site"
+    frontend.export_explorer(site)
+    (site / "CNAME").write_text("example.org")  # a static host's file beside the site: kept
+    (site / "index.html").write_text("edited")  # the export's own file: replaced
+    frontend.export_explorer(site, force=True)
+    assert (site / "CNAME").read_text() == "example.org" and "edited" not in (site / "index.html").read_text()
+    # a file of the user's inside the export's directories: refused, nothing replaced
+    (site / "static" / "custom.css").write_text("mine")
+    (site / "index.html").write_text("edited")
+    with pytest.raises(ParameterError, match=r"custom\.css was not written by the export"):
+        frontend.export_explorer(site, force=True)
+    assert (site / "index.html").read_text() == "edited" and (site / "static" / "custom.css").read_text() == "mine"
+    (site / "static" / "custom.css").unlink()
+    # a symbolic link inside: refused (never followed, never removed)
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "keep.txt").write_text("keep")
+    (site / "sources" / "more").symlink_to(outside)
+    with pytest.raises(ParameterError, match="symbolic link"):
+        frontend.export_explorer(site, force=True)
+    assert (outside / "keep.txt").read_text() == "keep" and (site / "sources" / "more").is_symlink()
+    # the manifest's word is needed: without it nothing counts as the export's
+    (site / "sources" / "more").unlink()
+    (site / frontend.MANIFEST).unlink()
+    with pytest.raises(ParameterError, match="not an earlier export"):
+        frontend.export_explorer(site, force=True)
+    (site / frontend.MANIFEST).symlink_to(tmp_path / "fake-manifest")
+    with pytest.raises(ParameterError, match="not an earlier export"):
+        frontend.export_explorer(site, force=True)
+
+
+def test_a_symbolic_link_as_the_directory_is_refused(tmp_path):
+    real = tmp_path / "real"
+    frontend.export_explorer(real)
+    (tmp_path / "link").symlink_to(real)
+    before = _tree(real)
+    for force in (False, True):
+        with pytest.raises(ParameterError, match="symbolic link"):
+            frontend.export_explorer(tmp_path / "link", force=force)
+    assert _tree(real) == before and (tmp_path / "link").is_symlink()
+
+
+def test_an_existing_directory_gets_the_site_beside_its_files(tmp_path, monkeypatch):
+    """``serve --export .`` (the old export renamed the directory: "Device or resource busy")."""
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "README").write_text("mine")
+    monkeypatch.chdir(work)
+    index = frontend.export_explorer(".")
+    assert index.is_file() and (work / "README").read_text() == "mine"
+    with pytest.raises(ParameterError, match="earlier export"):
+        frontend.export_explorer(".")
+    frontend.export_explorer(".", force=True)
+    assert sorted(p.name for p in work.iterdir()) == sorted(["README", *frontend.EXPORT_ENTRIES])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["work"]
+    # an entry of the export's name that is not the export's: refused, untouched
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "static").mkdir()
+    with pytest.raises(ParameterError, match="already has static, which no export wrote"):
+        frontend.export_explorer(other)
+    assert _tree(other) == {"static": None}
+
+
+def test_an_error_while_writing_leaves_nothing(tmp_path, monkeypatch):
+    site = tmp_path / "site"
+    frontend.export_explorer(site)
+    before = _tree(tmp_path)
+
+    def full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(frontend.shutil, "copytree", full)
+    for target, force in ((site, True), (tmp_path / "new", False)):
+        with pytest.raises(SkewpendError, match="cannot write .*: No space left on device"):
+            frontend.export_explorer(target, force=force)
+        assert _tree(tmp_path) == before  # the earlier export whole, no temporary directory
+
+
+def test_an_interrupted_swap_puts_the_earlier_export_back(tmp_path, monkeypatch):
+    site = tmp_path / "site"
+    frontend.export_explorer(site)
+    (site / "index.html").write_text("earlier")
+    before = _tree(tmp_path)
+    real = os.rename
+    calls = []
+
+    def failing(src, dst):
+        calls.append(dst)
+        if len(calls) == 4:  # in the middle of moving the new entries in
+            raise OSError(5, "Input/output error")
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "rename", failing)
+    with pytest.raises(SkewpendError, match="Input/output error"):
+        frontend.export_explorer(site, force=True)
+    assert _tree(tmp_path) == before
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
+def test_a_read_only_directory_is_one_line(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        with pytest.raises(ParameterError, match="cannot write .*Permission denied"):
+            frontend.export_explorer(ro / "site")
+        with pytest.raises(ParameterError, match="cannot write .*Permission denied"):
+            frontend.export_explorer(ro)
+    finally:
+        ro.chmod(0o755)
+
+
+def test_the_export_refuses_wrong_arguments_in_one_line(tmp_path):
+    for kwargs, words in (({"params": "x"}, "params must be a skewpend.Parameters"),
+                          ({"params": {"a": 1}}, "params must be a skewpend.Parameters"),
+                          ({"force": "yes"}, "force must be True or False")):
+        with pytest.raises(ParameterError, match=words):
+            frontend.export_explorer(tmp_path / "site", **kwargs)
+    with pytest.raises(ParameterError, match="directory must be a path"):
+        frontend.export_explorer(3)
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- the shared atomic writer -------------------------------------------------------------------------
+def test_the_atomic_writer_never_writes_through_a_planted_name(tmp_path):
+    """The old temporary name ``.NAME.skewpend-PID.tmp`` was predictable and opened with O_TRUNC
+    (following a symbolic link planted under it); check_output_path removed a file of that name."""
+    from skewpend.io import atomic_path, check_output_path
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    out = tmp_path / "out.csv"
+    planted = tmp_path / f".out.csv.skewpend-{os.getpid()}.tmp"
+    planted.symlink_to(victim)
+    check_output_path(out, (".csv",))
+    with atomic_path(out) as tmp:
+        assert not tmp.exists() or tmp.stat().st_size == 0
+        assert tmp.parent == tmp_path and tmp != planted and not tmp.is_symlink()
+        tmp.write_text("new")
+    assert out.read_text() == "new" and victim.read_text() == "precious" and planted.is_symlink()
+    # an error: the temporary file goes, the planted name stays
+    with pytest.raises(RuntimeError):
+        with atomic_path(out) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("boom")
+    assert out.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["victim.txt", "out.csv", planted.name])
+
+
+def test_the_atomic_writer_replaces_a_link_never_its_target(tmp_path):
+    from skewpend.io import atomic_path
+
+    victim = tmp_path / "victim.html"
+    victim.write_text("precious")
+    link = tmp_path / "report.html"
+    link.symlink_to(victim)
+    with atomic_path(link) as tmp:
+        tmp.write_text("report")
+    assert victim.read_text() == "precious" and not link.is_symlink() and link.read_text() == "report"
+
+
+def test_a_stale_temporary_file_of_a_dead_process_is_removed_but_never_a_link(tmp_path):
+    from skewpend.io import atomic_path
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp_path / f".out.csv.skewpend-{dead.pid}-abc123.tmp"
+    stale.write_text("half")
+    link = tmp_path / f".out.csv.skewpend-{dead.pid}.tmp"
+    link.symlink_to(tmp_path / "elsewhere")
+    with atomic_path(tmp_path / "out.csv") as tmp:
+        tmp.write_text("x")
+    assert not stale.exists() and link.is_symlink()
