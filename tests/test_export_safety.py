@@ -237,3 +237,22 @@ def test_a_stale_temporary_file_of_a_dead_process_is_removed_but_never_a_link(tm
     with atomic_path(tmp_path / "out.csv") as tmp:
         tmp.write_text("x")
     assert not stale.exists() and link.is_symlink()
+
+
+def test_the_report_cache_writes_through_an_exclusive_temporary_file(tmp_path, monkeypatch):
+    from skewpend import Parameters
+    from skewpend.views.report import cache
+
+    monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "cache"))
+    folder = tmp_path / "cache" / "report-sections"
+    folder.mkdir(parents=True)
+    p = Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=0.5, g=9.81)
+    victim = tmp_path / "victim"
+    victim.write_text("precious")
+    name = f"{cache.key(p)}.json"
+    planted = folder / f".{name}.{os.getpid()}.tmp"  # the old, predictable name
+    planted.symlink_to(victim)
+    sections = {"bodies": {"derivation": "d", "check": "c"}, "notes": {}, "timings": {}}
+    cache.save(p, sections)
+    assert cache.load(p) == sections and victim.read_text() == "precious"
+    assert sorted(q.name for q in folder.iterdir()) == sorted([name, planted.name])
