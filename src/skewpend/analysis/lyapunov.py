@@ -30,6 +30,7 @@ how much longer to run.
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -214,12 +215,14 @@ class LyapunovSpectrum(Result):
         })
 
 
+@functools.lru_cache(maxsize=256)
 def _t_quantile(q: float, dof: int) -> float:
     from scipy.stats import t
 
     return float(t.ppf(q, dof))
 
 
+@functools.lru_cache(maxsize=16)
 def _normal_quantile(q: float) -> float:
     from scipy.stats import norm
 
