@@ -74,3 +74,132 @@ def test_equilibrium_newton_converges_only_with_a_small_residual():
 def test_cli_modes_about_absurd_angle_refused():
     ran = run_cli(["modes", "--about", "1e17,0"])
     assert_refused(ran, ["about", "1e+06 rad"])
+
+
+# -- a trivial orbit is a status, never a success -----------------------------------------------------
+
+
+@pytest.mark.parametrize("label", ["down-down", "up-down"])
+def test_an_equilibrium_is_not_a_periodic_orbit(label):
+    from skewpend.analysis.orbits import periodic_orbit
+
+    q = equilibria(REF).find(label).q
+    o = periodic_orbit(REF, (q[0], q[1], 0.0, 0.0), 2.0)
+    assert o.status is skewpend.Status.TRIVIAL and not o.ok and not o.stable
+    assert "equilibrium" in o.message and label in o.message
+    assert np.all(np.isnan(o.state)) and math.isnan(o.period)  # no orbit's numbers on a non-orbit
+    with pytest.raises(skewpend.errors.IntegrationError, match="equilibrium"):
+        periodic_orbit(REF, (q[0], q[1], 0.0, 0.0), 2.0, throw=True)
+
+
+def test_a_real_orbit_moves_and_closes():
+    """The guess (0.3, 0.2, 0, 0), 1.6 s converges to a libration: it moves (amplitude > 0.01 rad)
+    and closes after its period to 1e-8 (an independent integration)."""
+    from skewpend.analysis.orbits import periodic_orbit
+
+    o = periodic_orbit(REF, (0.3, 0.2, 0.0, 0.0), np.float32(1.6))
+    assert o.ok and o.status is skewpend.Status.SUCCESS
+    assert np.max(np.abs(o.state[:2])) > 0.01
+    end = skewpend.simulate(REF, o.state, o.period, rtol=1e-12, atol=1e-12).y[-1]
+    np.testing.assert_allclose(end, o.state, atol=1e-8)
+    same = periodic_orbit(REF, (0.3 + 2 * math.pi, np.float64(0.2), np.int64(0), 0.0), 1.6)  # a whole turn away
+    assert same.ok and abs(same.period - o.period) < 1e-8 * o.period
+    assert periodic_orbit(REF, (0.3, 0.2, 0.0, 0.0), np.int64(2)).status in (skewpend.Status.SUCCESS,
+                                                                          skewpend.Status.NO_CONVERGENCE)
+
+
+def test_cli_orbit_at_rest_exits_1_with_the_reason():
+    for top in ("0", "pi"):
+        ran = run_cli(["orbit", "--phi0", top, "--psi0", top, "--dphi0", "0", "--dpsi0", "0", "--period", "2"])
+        assert ran.code == 1, ran.report()
+        assert "equilibrium" in ran.err and "stable" not in ran.out and "Traceback" not in ran.err
+
+
+# -- validation: numpy scalars accepted, bad numbers refused, infeasible work refused up front ----------------
+
+
+@pytest.mark.parametrize("kw, fragment", [
+    ({"tol": -1}, "tol"), ({"tol": math.nan}, "tol"), ({"tol": 0.5}, "tol must be from"), ({"tol": 1e-20}, "tol must be from"),
+    ({"max_iterations": -5}, "max_iterations"), ({"max_iterations": 2.0}, "max_iterations"),
+    ({"max_iterations": True}, "max_iterations"),
+    ({"rotation": (1e300, 0)}, "rotation"), ({"rotation": (10**400, 0)}, "rotation"), ({"rotation": (1.5, 0)}, "rotation"),
+    ({"rotation": (0, 2000)}, "rotation"), ({"rotation": None}, "rotation"),
+    ({"energy": math.inf}, "energy"), ({"energy": "1"}, "energy"), ({"throw": "yes"}, "throw"),
+    ({"progress": 3}, "progress"),
+])
+def test_periodic_orbit_bad_settings_refused(kw, fragment):
+    from skewpend.analysis.orbits import periodic_orbit
+
+    with pytest.raises(ParameterError, match=fragment):
+        periodic_orbit(REF, (0.3, 0.2, 0.0, 0.0), 1.6, **kw)
+
+
+@pytest.mark.parametrize("y0, period, fragment", [
+    ((1e17, 0, 0, 0), 1.6, r"y0\[0\] must be a finite angle"), ((0, -math.inf, 0, 0), 1.6, r"y0\[1\]"),
+    ((0, 0, math.nan, 0), 1.6, r"y0\[2\]"), ((0, 0, 0, "1"), 1.6, r"y0\[3\]"), ((0, 0, 0), 1.6, "four numbers"),
+    (None, 1.6, "guess"), ("abcd", 1.6, "y0"), ((0.3, 0.2, 0, 0), -1, "period"), ((0.3, 0.2, 0, 0), math.nan, "period"),
+    ((0.3, 0.2, 0, 0), True, "period"), ((0.3, 0.2, 0, 0), 1e308, "period"),
+])
+def test_periodic_orbit_bad_guess_refused(y0, period, fragment):
+    from skewpend.analysis.orbits import periodic_orbit
+
+    with pytest.raises(ParameterError, match=fragment):
+        periodic_orbit(REF, y0, period)
+
+
+def test_a_period_too_long_to_shoot_is_refused_before_any_work():
+    """1e5 s needs ~3e6 steps per shooting from the gentlest start (~31 per simulated second at
+    1e-12): refused by the trial flow's estimate, with the estimate in the message."""
+    from skewpend.analysis.orbits import periodic_orbit
+
+    with pytest.raises(ParameterError, match=r"period must be short enough to shoot: 100000 s needs about [0-9.e+]+ steps per shooting"):
+        periodic_orbit(REF, (0.3, 0.2, 0.0, 0.0), 1e5)
+    with pytest.raises(ParameterError, match="period"):
+        periodic_orbit(REF, (0.3, 0.2, 1e6, -1e6), 1.0)  # a start so fast one period is out of reach
+
+
+@pytest.mark.parametrize("kw, fragment", [
+    ({"energy_max": 1e308}, "energy_max must be at most 29.0376 J"), ({"energy_max": 30.0}, "highest equilibrium"),
+    ({"energy_max": 1e-12}, "energy_max must be at least"), ({"energy_max": math.nan}, "energy_max"),
+    ({"resolution": 100_000}, "resolution must be below max_orbits"), ({"resolution": 50, "max_orbits": 50}, "resolution"),
+    ({"mode": 1.0}, "mode"), ({"mode": 3}, "mode"), ({"max_orbits": -1}, "max_orbits"),
+])
+def test_nnm_refuses_up_front(kw, fragment):
+    from skewpend.analysis.orbits import nnm
+
+    with pytest.raises(ParameterError, match=fragment):
+        nnm(REF, **{"mode": 1, **kw})
+
+
+def test_nnm_numpy_mode_and_backbones_max_order():
+    from skewpend.analysis.orbits import backbones, nnm
+
+    fam = nnm(REF, mode=np.int64(1), energy_max=0.05, resolution=5)
+    assert fam.ok and fam.mode == 1 and abs(fam.energies[-1] - 0.05) < 1e-9
+    for bad in (-1, 0, 2.5, 100):
+        with pytest.raises(ParameterError, match="max_order"):
+            backbones(REF, max_order=bad)
+
+
+@pytest.mark.parametrize("kw, fragment", [
+    ({"energy": 1e308}, "energy must be at most"), ({"energy": -1}, "energy"),
+    ({"alphas": [0.1, 1e300]}, "alphas"), ({"alphas": ["a", "b"]}, "alphas"), ({"alphas": [0.1]}, "alphas"),
+    ({"alphas": None}, "alphas"), ({"alphas": [0.2, 0.1, 0.3]}, "alphas"),
+])
+def test_nnm_alpha_refuses_up_front(kw, fragment):
+    from skewpend.analysis.orbits import nnm_alpha
+
+    with pytest.raises(ParameterError, match=fragment):
+        nnm_alpha(REF, 1, **{"energy": 1.0, "alphas": [0.1, 0.2], **kw})
+
+
+@pytest.mark.parametrize("argv, fragments", [
+    (["orbit", "--period", "1e5"], ["--period", "steps per shooting"]),
+    (["orbit", "--period", "2", "--rotation", "1e300,0"], ["--rotation", "1e+300"]),
+    (["orbit", "--mode", "1", "--energy", "1e308"], ["--energy", "highest equilibrium"]),
+    (["nnm", "--resolution", "100000"], ["--resolution", "max_orbits"]),
+    (["nnm", "--energy-max", "1e308"], ["--energy-max", "highest equilibrium"]),
+    (["nnm", "--mode", "1", "--alphas", "0:10deg:3", "--energy", "1e308"], ["--energy", "highest equilibrium"]),
+])
+def test_cli_infeasible_orbit_work_refused_at_once(argv, fragments):
+    assert_refused(run_cli(argv), fragments)

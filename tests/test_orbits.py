@@ -375,7 +375,7 @@ def test_nnm_stops_on_ctrl_c_and_sigterm_leaving_nothing(signum, code, tmp_path)
 
     from helpers import signal_process
 
-    ran, seconds = signal_process(["nnm", "--mode", "2", "--resolution", "20000", "--out", "f.nc", "--plot", "f.png"],
+    ran, seconds = signal_process(["nnm", "--mode", "2", "--resolution", "1999", "--out", "f.nc", "--plot", "f.png"],
                                   tmp_path, after=2.0, signum=signal.Signals(signum))
     assert ran.code == code, ran.report()
     assert seconds < 3.0

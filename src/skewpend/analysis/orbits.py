@@ -32,14 +32,15 @@ frequency crossing a small rational multiple of the other's at the same energy).
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..checks import numeric_params, tolerances
-from ..errors import EquilibriumError, IntegrationError, ParameterError
+from ..checks import angle, numeric_params, positive, progress_callable, tolerances, whole
+from ..errors import EquilibriumError, IntegrationError, ParameterError, SkewpendError
 from ..results import DatasetSpec, Result
 from ..status import Status
 from ..symbolic.model import Parameters
@@ -54,6 +55,21 @@ NEWTON_MAX = 25
 ORBIT_TOL = 1e-12
 #: ``|sigma| - 2`` beyond this counts as unstable (the multipliers' accuracy, from ORBIT_TOL).
 STABILITY_MARGIN = 1e-6
+#: The Newton tolerance a caller may ask for: from machine precision to 1e-6.
+TOL_RANGE = (1e-15, 1e-6)
+#: The most Newton iterations a caller may ask for.
+MAX_ITERATIONS_LIMIT = 1000
+#: The steps one shooting (one flow over a period, with its state-transition matrix) may take:
+#: about 5 s of compiled work; a period that needs more is refused before any work, from a trial
+#: flow of the orbit's own start (:func:`skewpend.numeric.grid.probe_durations`).
+ORBIT_MAX_STEPS = 1_000_000
+#: The most whole turns per period a rotating orbit may make (the closure is tested to the Newton
+#: tolerance in angles that advance by 2 pi r: beyond this their doubles keep too few digits).
+ROTATION_LIMIT = 1000
+#: An orbit whose motion is smaller than this [rad] (or 100 x the Newton tolerance) is an
+#: equilibrium: the amplitude ``|q'| / w + |q''| / w^2`` at its start (``w = 2 pi / T``), in
+#: the angle unit of the shooting (1 rad).
+TRIVIAL_AMPLITUDE = 1e-6
 
 
 def _require_conservative(params: Parameters, what: str) -> None:
@@ -70,7 +86,7 @@ class _Model:
         from ..numeric.variational import FlowIntegrator
 
         self.params = params
-        self.flow = FlowIntegrator(params, rtol=rtol, atol=atol)
+        self.flow = FlowIntegrator(params, rtol=rtol, atol=atol, max_steps=ORBIT_MAX_STEPS)
         self.kernel = kernel_module(params)
         self.p = parameter_vector(params)
         self.tau = np.array([params.tau1, params.tau2], dtype=float)
@@ -87,12 +103,44 @@ class _Model:
 
     def energy_gradient(self, y: np.ndarray) -> np.ndarray:
         g = np.empty(4)
-        for i in range(4):
+        for i in range(4):  # central differences of the energy
             h = 1e-6 * max(1.0, abs(y[i]))
             e = np.zeros(4)
             e[i] = h
             g[i] = (self.energy(y + e) - self.energy(y - e)) / (2 * h)
         return g
+
+    def amplitude(self, y: np.ndarray, T: float) -> float:
+        """How far the motion through ``y`` goes in a period ``T`` [rad], from its velocity and
+        acceleration there: ``|q'| / w + |q''| / w^2``, ``w = 2 pi / T`` (0 at an equilibrium)."""
+        f = self.field(y)
+        w = 2 * math.pi / T
+        return float(np.max(np.abs(f[:2])) / w + np.max(np.abs(f[2:])) / w ** 2)
+
+    def check_work(self, x0: np.ndarray, T: float) -> float:
+        """Refuse, before any work, a shooting over the period ``T`` that could not finish within
+        :data:`ORBIT_MAX_STEPS` steps, estimated from a trial flow from ``x0`` (the grid's probe:
+        :func:`~skewpend.numeric.grid.probe_durations`, :func:`~skewpend.numeric.grid.steps_per_second`).
+        Returns the estimated steps of one shooting."""
+        from ..numeric.grid import PROBE_STEPS, probe_durations, steps_per_second
+        from ..numeric.variational import FlowIntegrator
+
+        trial = FlowIntegrator(self.params, rtol=self.flow.rtol, atol=self.flow.atol, max_steps=PROBE_STEPS)
+        rate = math.inf
+        for t in probe_durations(T, self.params):  # a trial that fails is tried over a shorter time
+            fl = trial(x0, t)
+            rate = steps_per_second(np.array([fl.steps + fl.rejected]), np.array([t]))
+            if fl.status == Status.SUCCESS:
+                break
+        need = rate * T
+        if not need <= ORBIT_MAX_STEPS:
+            about = f"about {need:.3g}" if math.isfinite(need) else "more than 1e308"
+            how = f"~{rate:.3g} steps per simulated second" if math.isfinite(rate) else "a trial flow could not advance"
+            raise ParameterError(
+                f"period must be short enough to shoot: {T:g} s needs {about} steps per shooting from this start ({how} at rtol={self.flow.rtol:g}, "
+                f"atol={self.flow.atol:g}), more than the {ORBIT_MAX_STEPS:g} one shooting may take; a periodic "
+                "orbit's period is a few swings: give a shorter period or a slower start")
+        return need
 
     def shoot(self, x0: np.ndarray, T: float, check=None):
         if not (T > 0) or not math.isfinite(T):
@@ -120,10 +168,11 @@ class _Scales:
 
 def _newton(model: _Model, x0: np.ndarray, T: float, E: float, shift: np.ndarray, ref: np.ndarray, scales: _Scales,
             arclength: Optional[Tuple[np.ndarray, np.ndarray]] = None, free_energy: bool = False, check=None,
-            tol: float = NEWTON_TOL, max_iterations: int = NEWTON_MAX):
+            tol: float = NEWTON_TOL, max_iterations: int = NEWTON_MAX, progress=None):
     """Gauss-Newton on the shooting equations.  Unknowns ``(x0, T)`` and, with ``free_energy``,
     ``E``; ``arclength = (u_pred, tangent)`` in scaled unknowns adds the pseudo-arclength row.
-    Returns ``(x0, T, E, flow, iterations, residual)`` or None when it does not converge."""
+    Returns ``(x0, T, E, flow, iterations, residual)`` or None when it does not converge;
+    ``progress(iteration, max_iterations)`` after each iteration."""
     f_ref = model.field(ref)
     n_ref = float(np.linalg.norm(f_ref / np.r_[scales.angle, scales.angle, scales.speed, scales.speed])) or 1.0
     su = scales.vector()
@@ -161,6 +210,8 @@ def _newton(model: _Model, x0: np.ndarray, T: float, E: float, shift: np.ndarray
         T = T + du[4] * su[4]
         if free_energy:
             E = E + du[5] * su[5]
+        if progress is not None:
+            progress(it, max_iterations)
         if residual < tol and step < 1e3 * tol:
             fl = model.shoot(x0, T, check)
             if fl is None:
@@ -267,65 +318,157 @@ def _scales_for(params: Parameters, T: float, E: float) -> _Scales:
     return _Scales(angle=1.0, speed=w, period=T, energy=max(abs(E), 1e-300))
 
 
+def _state(y0) -> np.ndarray:
+    """``y0 = (phi, psi, phi', psi')``: four real numbers (NumPy's too), the angles reduced modulo
+    2 pi (:func:`skewpend.checks.angle`: at most 1e6 rad), the speeds finite."""
+    try:
+        items = [v.item() if hasattr(v, "item") else v for v in list(y0)]
+    except (TypeError, ValueError):
+        items = None
+    if items is None or len(items) != 4:
+        raise ParameterError(f"y0 must be four numbers (phi, psi, phi', psi'), got {y0!r}")
+    for i, v in enumerate(items[2:], start=2):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(float(v)):
+            raise ParameterError(f"y0[{i}] must be a finite speed [rad/s] (a real number), got {v!r}")
+    return np.array([angle("y0[0]", items[0]), angle("y0[1]", items[1]), float(items[2]), float(items[3])])
+
+
+def _real(name: str, value, unit: str) -> float:
+    """A finite real number (NumPy's scalars too)."""
+    if hasattr(value, "item") and getattr(value, "ndim", 0) == 0:
+        value = value.item()
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)):
+        raise ParameterError(f"{name} must be a finite number of {unit}, got {value!r}")
+    return float(value)
+
+
+def _rotation(rotation) -> Tuple[int, int]:
+    """Two whole numbers of turns (NumPy's integers too) of at most :data:`ROTATION_LIMIT`."""
+    try:
+        turns = [v.item() if hasattr(v, "item") else v for v in list(rotation)]
+    except (TypeError, ValueError):
+        turns = []
+    ok = len(turns) == 2 and all(isinstance(r, numbers.Integral) and not isinstance(r, bool) for r in turns)
+    if not ok or any(abs(int(r)) > ROTATION_LIMIT for r in turns):
+        shown = ", ".join((f"{float(r):.3g}" if abs(int(r)) < 10**308 else "beyond 1e308") if ok else repr(r)
+                          for r in turns) if turns else repr(rotation)
+        raise ParameterError(f"rotation must be two whole numbers of turns (r1, r2) from {-ROTATION_LIMIT} to "
+                             f"{ROTATION_LIMIT}, got ({shown})")
+    return int(turns[0]), int(turns[1])
+
+
+def _newton_settings(tol, max_iterations) -> Tuple[float, int]:
+    tol = positive("tol", tol)
+    if not TOL_RANGE[0] <= tol <= TOL_RANGE[1]:
+        raise ParameterError(f"tol must be from {TOL_RANGE[0]:g} to {TOL_RANGE[1]:g} (Newton's tolerance on the scaled "
+                             f"residual), got {tol:g}")
+    return tol, whole("max_iterations", max_iterations, 1, MAX_ITERATIONS_LIMIT)
+
+
+def _trivial(model: "_Model", x: np.ndarray, T: float, tol: float) -> Optional[str]:
+    """Why the solution ``(x, T)`` is an equilibrium, not an orbit (None when it moves): its
+    amplitude is below :data:`TRIVIAL_AMPLITUDE` (or 100 x the Newton tolerance)."""
+    threshold = max(TRIVIAL_AMPLITUDE, 100 * tol)
+    amp = model.amplitude(x, T)
+    if amp >= threshold:
+        return None
+    where = f"(phi, psi) = ({x[0]:.6g}, {x[1]:.6g}) rad"
+    try:
+        from .equilibria import equilibrium_at
+
+        eq = equilibrium_at(model.params, x[:2])
+        where = f"{eq.label} at (phi, psi) = ({eq.q[0]:.6g}, {eq.q[1]:.6g}) rad, V = {eq.potential:.6g} J"
+    except SkewpendError:
+        pass
+    return (f"no periodic orbit: Newton's method converged to the equilibrium {where}, where the motion vanishes "
+            f"(amplitude {amp:.2g} rad, below {threshold:g} rad); start farther from it (a guess that moves, at an "
+            "energy above the equilibrium's)")
+
+
 def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, period: Optional[float] = None, *,
                    mode: Optional[int] = None, energy: Optional[float] = None, rotation: Tuple[int, int] = (0, 0),
                    rtol: float = ORBIT_TOL, atol: float = ORBIT_TOL, tol: float = NEWTON_TOL,
-                   max_iterations: int = NEWTON_MAX, throw: bool = False) -> PeriodicOrbit:
+                   max_iterations: int = NEWTON_MAX, throw: bool = False,
+                   progress: Optional[Callable[[float, float], None]] = None) -> PeriodicOrbit:
     """A periodic orbit near a guess ``(y0, period)`` at the energy ``energy`` (default: the
     guess's), or, with ``mode=1|2`` and ``energy``, the orbit of that nonlinear normal mode at
     that energy (continued from the linear mode by :func:`nnm`).
 
-    ``rotation = (r1, r2)``: whole turns of ``(phi, psi)`` per period (a rotating orbit).  The
-    result's ``ok`` is False, with the reason in ``message``, when Newton's method does not
-    converge (``throw=True`` raises :class:`~skewpend.errors.IntegrationError` instead).
+    ``y0``'s angles are reduced modulo 2 pi (at most 1e6 rad); ``period`` [s] is refused before
+    any work when one shooting over it would need more than :data:`ORBIT_MAX_STEPS` steps (a
+    trial flow from ``y0`` estimates them).  ``rotation = (r1, r2)``: whole turns of
+    ``(phi, psi)`` per period (a rotating orbit; at most :data:`ROTATION_LIMIT`).  ``tol``:
+    Newton's tolerance on the scaled residual (1e-15 to 1e-6); ``max_iterations`` (1 to 1000).
+    ``progress(iteration, max_iterations)`` after each Newton iteration (with ``mode``:
+    ``progress(energy, energy)`` along the continuation).
+
+    The result's ``ok`` is False, with the reason in ``message``, when Newton's method does not
+    converge (status ``NO_CONVERGENCE``) or converges to an equilibrium -- a solution whose
+    amplitude is below :data:`TRIVIAL_AMPLITUDE` (status ``TRIVIAL``: an equilibrium is never
+    reported as a periodic orbit); ``throw=True`` raises :class:`~skewpend.errors.IntegrationError`
+    instead.
     """
+    from ..interrupts import Interrupts
+
     params = numeric_params(params, "periodic orbits")
     _require_conservative(params, "a periodic orbit")
     rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
+    tol, max_iterations = _newton_settings(tol, max_iterations)
+    if throw not in (True, False):
+        raise ParameterError(f"throw must be True or False, got {throw!r}")
+    progress = progress_callable(progress, "progress(done, total)")
     if mode is not None:
         if y0 is not None or period is not None:
             raise ParameterError("give either a guess (y0, period) or mode=, not both")
         if energy is None:
             raise ParameterError("mode= needs energy= (the energy of the orbit wanted) [J]")
-        family = nnm(params, mode=mode, energy_max=energy, rtol=rtol, atol=atol)
+        mode = whole("mode", mode, 1, 2, what="1: the lower linear frequency, 2: the higher")
+        energy = _energy_limit(params, "energy", energy)
+        family = nnm(params, mode=mode, energy_max=energy, rtol=rtol, atol=atol, progress=progress)
         if not family.energies.size or family.energies[-1] < energy * (1 - 1e-9):
-            return _failed(params, "the family stops before this energy: " + family.message, rotation, throw)
+            return _failed(params, "the family stops before this energy: " + family.message, (0, 0), throw)
         return family.orbit(len(family.energies) - 1)
     if y0 is None or period is None:
         raise ParameterError("a periodic orbit needs a guess: y0 (phi, psi, phi', psi') and period [s], or mode= and energy=")
-    x0 = np.asarray(y0, dtype=float)
-    if x0.shape != (4,) or not np.all(np.isfinite(x0)):
-        raise ParameterError(f"y0 must be four finite numbers (phi, psi, phi', psi'), got {y0!r}")
-    if isinstance(period, bool) or not isinstance(period, (int, float)) or not (0 < period < 1e6):
-        raise ParameterError(f"period must be a positive number of seconds below 1e6, got {period!r}")
-    if len(rotation) != 2 or any(isinstance(r, bool) or int(r) != r for r in rotation):
-        raise ParameterError(f"rotation must be two whole numbers of turns (r1, r2), got {rotation!r}")
+    x0 = _state(y0)
+    period = positive("period", period)
+    if not period < 1e6:
+        raise ParameterError(f"period must be a positive number of seconds below 1e6, got {period:g}")
+    rotation = _rotation(rotation)
+    if energy is not None:
+        energy = _real("energy", energy, "joules")
     model = _Model(params, rtol, atol)
-    E = model.energy(x0) if energy is None else float(energy)
+    model.check_work(x0, period)
+    E = model.energy(x0) if energy is None else energy
     if not math.isfinite(E):
-        raise ParameterError(f"energy must be a finite number of joules, got {energy!r}")
+        raise ParameterError(f"y0: the energy of the guess is not finite ({E!r}); give a slower start")
     shift = np.array([2 * math.pi * rotation[0], 2 * math.pi * rotation[1], 0.0, 0.0])
-    scales = _scales_for(params, float(period), E if E != 0 else 1.0)
-    out = _newton(model, x0, float(period), E, shift, x0, scales, tol=tol, max_iterations=max_iterations)
-    settings = {"guess": x0.tolist(), "period_guess": float(period), "energy": E, "rotation": list(rotation),
+    scales = _scales_for(params, period, E if E != 0 else 1.0)
+    with Interrupts() as intr:
+        out = _newton(model, x0, period, E, shift, x0, scales, tol=tol, max_iterations=max_iterations,
+                      check=intr.check, progress=progress)
+    settings = {"guess": x0.tolist(), "period_guess": period, "energy": E, "rotation": list(rotation),
                 "rtol": rtol, "atol": atol, "tol": tol}
     if out is None:
         return _failed(params, f"Newton's method did not converge from this guess in {max_iterations} iterations "
                                "(try a better guess, e.g. from skewpend.nnm)", rotation, throw, settings, model)
     x, T, E, fl, its, res = out
+    trivial = _trivial(model, x, T, tol) if not any(rotation) else None
+    if trivial is not None:
+        return _failed(params, trivial, rotation, throw, settings, model, status=Status.TRIVIAL)
     stats = {"newton_iterations": its, "residual": res, "flows": model.calls, "steps": model.steps}
     return PeriodicOrbit(state=x, period=T, energy=E, rotation=rotation, monodromy=fl.stm, params=params,
                          settings=settings, stats=stats, status=Status.SUCCESS,
                          message="a periodic orbit: closes to the Newton tolerance")
 
 
-def _failed(params, why, rotation, throw, settings=None, model=None) -> PeriodicOrbit:
+def _failed(params, why, rotation, throw, settings=None, model=None, status=Status.NO_CONVERGENCE) -> PeriodicOrbit:
     if throw:
         raise IntegrationError(why)
     stats = {} if model is None else {"flows": model.calls, "steps": model.steps}
     return PeriodicOrbit(state=np.full(4, np.nan), period=math.nan, energy=math.nan, rotation=rotation,
                          monodromy=np.full((4, 4), np.nan), params=params, settings=settings or {}, stats=stats,
-                         status=Status.NO_CONVERGENCE, message=why)
+                         status=status, message=why)
 
 
 # -- nonlinear normal modes ------------------------------------------------------------------------
@@ -336,18 +479,27 @@ def flip_energy(params: Parameters) -> float:
     boundary of the square ``|phi|, |psi| <= pi`` (sampled densely, then refined)."""
     from scipy.optimize import minimize_scalar
 
-    from .equilibria import potential_function
+    from .equilibria import _geometry_only, _scalars, linearisation_functions, potential_function
 
     V = potential_function(params)
+    functions, values = linearisation_functions(_geometry_only(params)), _scalars(params)
+    tau1, tau2 = float(params.tau1), float(params.tau2)
+
+    def V_many(phi: np.ndarray, psi: np.ndarray) -> np.ndarray:  # V on many points at once
+        Pi = np.broadcast_to(np.asarray(functions(*values, phi, psi)[0], dtype=float), phi.shape)
+        return Pi - tau1 * phi - tau2 * psi
+
     best = math.inf
     s = np.linspace(-math.pi, math.pi, 2049)
-    sides = [(lambda t, c=c: (c, t)) for c in (-math.pi, math.pi)] + [(lambda t, c=c: (t, c)) for c in (-math.pi, math.pi)]
+    sides = [(lambda t, c=c: (np.full_like(t, c), t)) for c in (-math.pi, math.pi)] + \
+            [(lambda t, c=c: (t, np.full_like(t, c))) for c in (-math.pi, math.pi)]
     for side in sides:
-        values = np.array([V(*side(t)) for t in s])
-        k = int(np.argmin(values))
+        values_s = V_many(*side(s))
+        k = int(np.argmin(values_s))
         lo, hi = s[max(k - 1, 0)], s[min(k + 1, len(s) - 1)]
-        res = minimize_scalar(lambda t: V(*side(t)), bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
-        best = min(best, float(values[k]), float(res.fun))
+        res = minimize_scalar(lambda t: V(*(float(x[0]) for x in side(np.array([t])))), bounds=(lo, hi),
+                              method="bounded", options={"xatol": 1e-12})
+        best = min(best, float(values_s[k]), float(res.fun))
     return best
 
 
@@ -481,6 +633,38 @@ def _events(energies, frequencies, sigma, tangents_E) -> List[BranchEvent]:
     return out
 
 
+#: The first orbit of a family lies at this fraction of the energy (``energy_max`` or the flip energy).
+FIRST_ORBIT = 1e-4
+
+
+def _energy_limit(params: Parameters, name: str, value, *, mode: Optional[int] = None) -> float:
+    """An energy [J] a family of librations can reach: positive, at most the potential energy of
+    the highest equilibrium (above it no orbit of the family has the turning point where it comes
+    to rest, E = V <= max V), and -- with ``mode`` -- large enough that the family's first orbit
+    (at :data:`FIRST_ORBIT` of it) moves by more than 10 x :data:`TRIVIAL_AMPLITUDE`."""
+    from .equilibria import equilibria
+
+    E = positive(name, value)
+    points = equilibria(params).points
+    if points:
+        top = max(points, key=lambda e: e.potential)
+        if E > top.potential:
+            raise ParameterError(f"{name} must be at most {top.potential:.6g} J, the potential energy of the highest "
+                                 f"equilibrium ({top.label}): no libration of a nonlinear normal mode reaches above it, "
+                                 f"got {E:g}")
+    if mode is not None:
+        from .modes import normal_modes
+
+        w0 = float(normal_modes(params).frequencies[mode - 1])
+        first = FIRST_ORBIT * min(E, flip_energy(params))
+        smallest = 0.5 * (10 * TRIVIAL_AMPLITUDE * w0) ** 2 / FIRST_ORBIT
+        if math.sqrt(2 * first) / w0 < 10 * TRIVIAL_AMPLITUDE:
+            raise ParameterError(f"{name} must be at least {smallest:.3g} J for mode {mode}: below it the family's "
+                                 f"orbits are the linear mode's, smaller than the amplitude an orbit is told from "
+                                 f"its equilibrium by (use skewpend.normal_modes), got {E:g}")
+    return E
+
+
 def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None, max_orbits: int = 2000,
         resolution: int = 200, step: float = 0.02, rtol: float = ORBIT_TOL, atol: float = ORBIT_TOL,
         progress: Optional[Callable[[float, float], None]] = None) -> NNMFamily:
@@ -494,7 +678,6 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     The result's status is SUCCESS when the family reached ``energy_max``; else ``ok`` is False
     and ``message`` says where and why it stopped (the orbits computed are kept)."""
     from .modes import normal_modes
-    from ..checks import positive, progress_callable, whole
     from ..interrupts import Interrupts
 
     params = numeric_params(params, "nonlinear normal modes")
@@ -502,15 +685,17 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     if params.tau1 or params.tau2:
         raise EquilibriumError("nonlinear normal modes start from the modes about the hanging equilibrium; "
                                "with torques use skewpend.periodic_orbit about skewpend.equilibria(params)")
-    if isinstance(mode, bool) or mode not in (1, 2):
-        raise ParameterError(f"mode must be 1 (the lower linear frequency) or 2 (the higher), got {mode!r}")
+    mode = whole("mode", mode, 1, 2, what="1: the lower linear frequency, 2: the higher")
     max_orbits = whole("max_orbits", max_orbits, lo=2, hi=100_000)
     resolution = whole("resolution", resolution, lo=1, hi=100_000)
+    if resolution >= max_orbits:
+        raise ParameterError(f"resolution must be below max_orbits = {max_orbits} (a family of at least resolution "
+                             f"orbits cannot fit in max_orbits of them), got {resolution}")
     step = positive("step", step, cap=0.5)
     rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
     progress = progress_callable(progress, "progress(energy, energy_max)")
     barrier = flip_energy(params)
-    E_max = barrier if energy_max is None else positive("energy_max", energy_max)
+    E_max = barrier if energy_max is None else _energy_limit(params, "energy_max", energy_max, mode=mode)
     linear = normal_modes(params)
     w0 = float(linear.frequencies[mode - 1])
     v = linear.shapes[:, mode - 1]
@@ -519,7 +704,7 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     scales = _Scales(angle=1.0, speed=w0, period=T0, energy=max(E_max, 1e-300))
     su = scales.vector()
     # the first orbit: the linear mode at a small energy (1/2 w^2 A^2 = E with v^T M v = 1)
-    E = min(1e-4 * E_max, 1e-4 * barrier)
+    E = FIRST_ORBIT * min(E_max, barrier)
     A = math.sqrt(2 * E) / w0
     x = np.r_[A * v, 0.0, 0.0]
     energies, periods, states, monos, tangE = [], [], [], [], []
@@ -619,7 +804,8 @@ class Backbones:
 
 
 def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_order: int = 3, **kw) -> Backbones:
-    """Both families (:func:`nnm`) and their internal resonances up to order ``max_order``."""
+    """Both families (:func:`nnm`) and their internal resonances up to order ``max_order`` (1 to 12)."""
+    max_order = whole("max_order", max_order, 1, 12)
     fams = [nnm(params, mode=m, energy_max=energy_max, **kw) for m in (1, 2)]
     ratios = sorted({Fraction(p, q) for p in range(1, max_order + 1) for q in range(1, max_order + 1)})
     res: List[BranchEvent] = []
@@ -707,19 +893,26 @@ def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Seque
     (general axes have no single skew angle)."""
     from dataclasses import replace
 
-    from ..checks import positive, progress_callable
+    from ..checks import ANGLE_LIMIT
     from ..interrupts import Interrupts
 
     params = numeric_params(params, "nonlinear normal modes")
     if not params.uses_alpha:
         raise ParameterError("continuation in alpha needs the skew angle alpha (not a general axis2)")
     _require_conservative(params, "a nonlinear normal mode")
-    energy = positive("energy", energy)
-    grid = np.asarray(alphas, dtype=float)
-    if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)) or np.any(np.diff(grid) == 0) or \
-            not (np.all(np.diff(grid) > 0) or np.all(np.diff(grid) < 0)):
-        raise ParameterError("alphas must be at least two finite angles [rad], strictly increasing or decreasing")
+    mode = whole("mode", mode, 1, 2, what="1: the lower linear frequency, 2: the higher")
+    try:
+        grid = np.array([a.item() if hasattr(a, "item") else a for a in list(alphas)], dtype=float)
+        if any(isinstance(a, (bool, str, bytes)) for a in list(alphas)):
+            raise TypeError
+    except (TypeError, ValueError):
+        raise ParameterError(f"alphas must be at least two angles [rad], got {alphas!r}") from None
+    if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)) or np.any(np.abs(grid) > ANGLE_LIMIT) or \
+            np.any(np.diff(grid) == 0) or not (np.all(np.diff(grid) > 0) or np.all(np.diff(grid) < 0)):
+        raise ParameterError(f"alphas must be at least two finite angles [rad] of at most {ANGLE_LIMIT:g} in magnitude, "
+                             "strictly increasing or decreasing")
     progress = progress_callable(progress, "progress(done, total)")
+    energy = _energy_limit(replace(params, alpha=float(grid[0])), "energy", energy, mode=mode)
     start = nnm(replace(params, alpha=float(grid[0])), mode=mode, energy_max=energy, rtol=rtol, atol=atol)
     if not start.ok:
         raise IntegrationError(f"the family at alpha = {grid[0]:.6g} rad does not reach {energy:g} J: {start.message}")

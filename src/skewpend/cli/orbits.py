@@ -70,6 +70,7 @@ def orbit(
     rotation: option("--rotation", T.Numbers(2, whole=True, metavar="R1,R2"), "whole turns of phi and psi per period, R1,R2 (a rotating orbit; default 0,0)") = None,
     out: option("--out", T.OutPath((".nc",)), "write the orbit (start, period, monodromy matrix, multipliers) to FILE.nc", RUN, "-o") = None,
     plot: plot_option("the orbit over one period") = None,
+    quiet: QUIET = False,
     config: CONFIG = None,
 ):
     """A periodic orbit and its stability (Floquet multipliers): from a guess (the initial-state options and --period) or as a nonlinear normal mode at an energy (--mode, --energy).
@@ -92,12 +93,12 @@ def orbit(
     run = resolve("orbit", config, parameters=model, initial=initial)
     params = run.parameters()
     if mode is not None:
-        result = periodic_orbit(params, mode=mode, energy=energy)
+        with progress(f"nonlinear normal mode {mode} up to {energy:g} J", "J", quiet) as bar:
+            result = periodic_orbit(params, mode=mode, energy=energy, progress=bar)
     else:
-        turns = (0, 0)
-        if rotation is not None:
-            turns = (int(rotation[0]), int(rotation[1]))
-        result = periodic_orbit(params, run.initial_state(), period, energy=energy, rotation=turns)
+        turns = (0, 0) if rotation is None else tuple(rotation)  # whole numbers of turns: the library checks them
+        with progress("periodic orbit (Newton iterations)", "", quiet) as bar:
+            result = periodic_orbit(params, run.initial_state(), period, energy=energy, rotation=turns, progress=bar)
     sys.stdout.write(result.table() + "\n")
     if result.ok:
         if out is not None:
