@@ -44,6 +44,7 @@ def section_chaos(ctx: Context) -> str:
 
     from ...analysis.chaos import potential_range
     from ...analysis.lyapunov import lyapunov
+    from ...status import Status
     from .. import figures as F
 
     p, y0 = ctx.params, ctx.y0
@@ -67,12 +68,15 @@ def section_chaos(ctx: Context) -> str:
         out.append(figure_html(fig_png(fig), prose(
             "Running estimates of the four Lyapunov exponents of the simulation's initial state (section 5), "
             f"over {fmt_num(CHAOS_LYAPUNOV_T_END)} s, QR every {fmt_num(spec.settings['renorm_every'])} s; they settle as the "
-            "time grows (the uncertainty is the spread over 10 time windows)."), "Lyapunov exponents against time"))
-        facts = [(f"λ{i + 1}", f"{spec.exponents[i]:+.4f} ± {spec.uncertainty[i]:.2g} 1/s") for i in range(spec.k)]
+            "time grows (± is the 95 % interval from the spread over 10 time windows, given once they have settled)."),
+            "Lyapunov exponents against time"))
+        settled = spec.status != Status.NOT_SETTLED
+        facts = [(f"λ{i + 1}", f"{spec.exponents[i]:+.4f}" + (f" ± {spec.interval[i]:.2g}" if settled else "") + " 1/s")
+                 for i in range(spec.k)]
         facts.append(("sum", f"{spec.sum:+.2e} 1/s"))
         facts.append(("work", f"{fmt_count(spec.stats['steps'])} steps in {spec.stats['wall_time']:.2f} s"))
         if spec.status != 0:
-            facts.append(("stopped", esc(spec.message)))
+            facts.append(("stopped" if settled else "not settled", esc(spec.message)))
         out.append(facts_html(facts))
         notes.append(f"Lyapunov {spec.stats['wall_time']:.2f} s")
 
