@@ -203,3 +203,28 @@ def test_nnm_alpha_refuses_up_front(kw, fragment):
 ])
 def test_cli_infeasible_orbit_work_refused_at_once(argv, fragments):
     assert_refused(run_cli(argv), fragments)
+
+
+# -- the modes' other entries: one ParameterError for what is not a model or not numbers ------------------
+
+
+@pytest.mark.parametrize("call", [
+    lambda: normal_modes(None), lambda: normal_modes("x"),
+    lambda: skewpend.analysis.modes.sweep(None, "alpha", [0, 1]),
+    lambda: skewpend.analysis.modes.sweep(REF, "alpha", ["a", "b"]),
+    lambda: skewpend.analysis.modes.sweep(REF, "alpha", None),
+    lambda: skewpend.analysis.modes.characteristic_equation("x"),
+    lambda: skewpend.analysis.modes.check_nonlinear(None, 0.1),
+])
+def test_modes_entries_refuse_what_is_not_a_model(call):
+    with pytest.raises(ParameterError):
+        call()
+
+
+def test_periodic_orbit_reports_progress_per_newton_iteration():
+    from skewpend.analysis.orbits import periodic_orbit
+
+    seen = []
+    o = periodic_orbit(REF, (0.3, 0.2, 0.0, 0.0), 1.6, progress=lambda done, total: seen.append((done, total)))
+    assert o.ok and seen and [d for d, _ in seen] == list(range(1, len(seen) + 1))
+    assert {t for _, t in seen} == {25} and len(seen) == o.stats["newton_iterations"]

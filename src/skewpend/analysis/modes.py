@@ -407,6 +407,8 @@ def normal_modes(params: Parameters, about=None) -> Modes:
     >>> [round(float(w) ** 2, 6) for w in modes.frequencies]
     [0.732213, 5.267787]
     """
+    if not isinstance(params, Parameters):  # one line, not an AttributeError (issue 29, item 8)
+        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
     if about is not None:
         return _modes_about(params, about)
     try:
@@ -428,6 +430,8 @@ def characteristic_equation(params: Optional[Parameters] = None):
 
     from ..symbolic.derivation import derive
 
+    if params is not None and not isinstance(params, Parameters):
+        raise ParameterError(f"params must be a skewpend.Parameters (or None: all symbolic), got {type(params).__name__}")
     lin = derive(params if params is not None else Parameters()).linearize()
     M, K = lin.M, lin.K
     w = sp.Symbol("omega", positive=True)
@@ -635,13 +639,20 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
     results not finite) the whole sweep is refused with a
     :class:`~skewpend.errors.ParameterError` naming the failing values.
     """
+    if not isinstance(params, Parameters):
+        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
     if name not in SWEEPABLE:
         raise ParameterError(f"cannot sweep {name!r}; allowed: {', '.join(SWEEPABLE)}")
     if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.floating)) or not (
         math.isfinite(tolerance) and tolerance > 0
     ):
         raise ParameterError(f"the resonance tolerance must be a positive number, got {tolerance!r}")
-    grid = np.asarray(values, float)
+    try:
+        if isinstance(values, (str, bytes)) or any(isinstance(v, (str, bytes, bool)) for v in values):
+            raise TypeError
+        grid = np.asarray(values, float)
+    except (TypeError, ValueError):
+        grid = np.zeros(0)
     if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
         raise ParameterError("sweep values must be at least 2 finite numbers")
     if name == "alpha" and not params.uses_alpha:
