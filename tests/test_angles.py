@@ -57,3 +57,8 @@ def test_parameters_refuse_an_absurd_skew_angle():
                                        (["simulate", "--psi0", "-2e8deg"], "--psi0")])
 def test_cli_refuses_absurd_angles(tmp_path, argv, flag):
     assert_refused(run_cli(argv, cwd=tmp_path), [flag, "at most 1e+06 rad"])
+
+
+def test_a_huge_whole_number_is_shown_short():
+    with pytest.raises(ParameterError, match=r"got 100000000000\.\.\. \(401 digits\)$"):
+        checks.whole("n", 10**400, 1, 10)

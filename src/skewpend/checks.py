@@ -76,7 +76,9 @@ def whole(name: str, value: Any, lo: int, hi: int, *, what: str = "") -> int:
         raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {value!r}")
     n = int(value)
     if not lo <= n <= hi:
-        raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {n}")
+        digits = str(n)
+        shown = digits if len(digits) <= 20 else f"{digits[:12]}... ({len(digits.lstrip('-'))} digits)"
+        raise ParameterError(f"{name} must be a whole number from {lo:g} to {hi:g}{unit}, got {shown}")
     return n
 
 
