@@ -280,7 +280,9 @@ class ChaosJob(GridJob):
                             params=self.params, settings=self.settings(), stats=stats, status=status, message=message)
 
     def result_attrs(self, result):
-        return {"chaos_diagram_stats": canonical_json(result.stats)}
+        # the caller's parameters: the settings keep the grid's (alpha 0, replaced by each column's)
+        return {"chaos_diagram_stats": canonical_json(result.stats),
+                "chaos_diagram_params": canonical_json(result.params.to_dict())}
 
 
 def chaos_diagram(
@@ -433,18 +435,18 @@ def open_chaos_diagram(path) -> ChaosDiagram:
         from ..numeric.grid import read_store
 
         arrays, attrs = read_store(STORE_KIND, path, what="a chaos diagram")
-        stats_key = "chaos_diagram_stats"
+        stats_key, params_key = "chaos_diagram_stats", "chaos_diagram_params"
     elif suffix == ".nc":
         from ..io import read_netcdf
 
         arrays, attrs = read_netcdf(path, kind=ChaosDiagram.result_kind)
-        stats_key = "stats"
+        stats_key, params_key = "stats", "params"
     else:
         raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
     try:
         settings = json.loads(attrs["settings"])
         stats = json.loads(attrs.get(stats_key, "{}"))
-        params = Parameters.from_mapping(settings["params"])
+        params = Parameters.from_mapping(json.loads(attrs[params_key]) if params_key in attrs else settings["params"])
         exponent = np.asarray(arrays["exponent"], dtype=float)
         threshold = float(settings["threshold"])
     except (KeyError, TypeError, ValueError) as exc:

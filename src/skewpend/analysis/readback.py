@@ -468,14 +468,7 @@ def _trajectory(path: Path, kind: str):
 def _chaos_diagram(path: Path, kind: str):
     from .chaos import open_chaos_diagram
 
-    diagram = open_chaos_diagram(path)
-    if path.suffix.lower() == ".nc":  # the caller's parameters (the settings keep those of the grid, alpha 0)
-        from ..io import read_netcdf
-
-        _, attrs = read_netcdf(path, kind=kind)
-        if "params" in attrs:
-            diagram = dataclasses.replace(diagram, params=_protocol(path, attrs)["params"])
-    return diagram
+    return open_chaos_diagram(path)  # the caller's parameters: recorded by the store and the file
 
 
 #: The reader of each result kind (the file attribute ``kind``).
