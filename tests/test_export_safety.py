@@ -256,3 +256,120 @@ def test_the_report_cache_writes_through_an_exclusive_temporary_file(tmp_path, m
     cache.save(p, sections)
     assert cache.load(p) == sections and victim.read_text() == "precious"
     assert sorted(q.name for q in folder.iterdir()) == sorted([name, planted.name])
+
+
+# -- Ctrl-C during the report (item 9): a signal no check takes is raised where the work is ------------
+def _signal_self_later(delay: float, signum=None):
+    import signal
+    import threading
+
+    timer = threading.Timer(delay, os.kill, args=(os.getpid(), signum or signal.SIGINT))
+    timer.start()
+    return timer
+
+
+def _spin(seconds: float) -> None:
+    """Plain Python work with no check (the report's drawing, SymPy)."""
+    import time
+
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        sum(range(100))
+
+
+def test_a_signal_without_a_check_is_raised_after_the_grace_time():
+    import time
+
+    from skewpend.interrupts import Interrupts
+
+    with pytest.raises(KeyboardInterrupt):
+        with Interrupts(escalate_after=0.1):
+            _signal_self_later(0.05)
+            start = time.monotonic()
+            try:
+                _spin(5.0)
+            finally:
+                took = time.monotonic() - start
+    assert took < 1.5
+    # without escalation the signal waits for the check (the old behaviour, kept for compiled loops)
+    with pytest.raises(KeyboardInterrupt):
+        with Interrupts() as intr:
+            _signal_self_later(0.0)
+            _spin(0.4)
+            assert intr.pending is KeyboardInterrupt
+
+
+def test_the_escalation_interrupts_a_blocking_wait_and_sigterm_stays_terminated():
+    """A compiler's subprocess or a pipe: a real signal is sent again, so the wait ends."""
+    import signal
+    import time
+
+    from skewpend.interrupts import Interrupts, Terminated, terminate_like_interrupt
+
+    with terminate_like_interrupt():
+        start = time.monotonic()
+        with pytest.raises(Terminated):
+            with Interrupts(escalate_after=0.1):
+                _signal_self_later(0.05, signal.SIGTERM)
+                subprocess.run(["sleep", "10"])
+        assert time.monotonic() - start < 3.0
+
+
+def test_the_escalation_waits_while_a_destructor_runs(monkeypatch):
+    """Raised inside ``__del__`` it would only be reported ("Exception ignored") and lost."""
+    import gc
+    import time
+
+    from skewpend.interrupts import Interrupts
+
+    swallowed = []
+    monkeypatch.setattr(sys, "unraisablehook", swallowed.append)
+
+    class Slow:
+        def __del__(self):
+            _spin(0.4)  # the grace time passes in here
+
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        with Interrupts(escalate_after=0.05):
+            _signal_self_later(0.0)
+            Slow()
+            gc.collect()
+            _spin(5.0)  # raised in here, right after the destructor
+    assert not swallowed and time.monotonic() - start < 2.5
+
+
+def test_the_report_stops_inside_a_long_section(tmp_path, monkeypatch):
+    """A section that draws for seconds (no check inside) no longer holds Ctrl-C until it ends."""
+    import time
+
+    import skewpend.views.report as R
+
+    monkeypatch.setattr(R, "PARALLEL", False)
+    monkeypatch.setattr(R, "chaos_jobs", lambda ctx: {})
+    from skewpend.views.report import cache
+
+    monkeypatch.setattr(cache, "load", lambda params: {"bodies": {}, "notes": {}, "timings": {}})
+    monkeypatch.setattr(R, "section_simulation", lambda ctx: _spin(20.0))
+    out = tmp_path / "r.html"
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        _signal_self_later(0.2)
+        R.build_report(out=out)
+    assert time.monotonic() - start < 3.0
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_stops_the_report_within_a_second_or_so(tmp_path, signame):
+    """The report drew or ran SymPy for seconds between its checks (4-14 s to stop)."""
+    import signal
+
+    from helpers import signal_process
+
+    ran, took = signal_process(["report", "--out", "r.html"], tmp_path, after=4.0, signum=getattr(signal, signame))
+    assert ran.code == {"SIGINT": 130, "SIGTERM": 143}[signame], ran.report()
+    assert ran.err.strip().splitlines() == ["skewpend: " + {"SIGINT": "interrupted", "SIGTERM": "terminated"}[signame]]
+    assert took < 3.0
+    assert list(tmp_path.iterdir()) == []

@@ -15,6 +15,14 @@ signal raises :class:`Terminated`, a :class:`KeyboardInterrupt`, so every clean-
 Ctrl-C (temporary files, worker threads, child processes) runs on SIGTERM too; inside
 :class:`Interrupts` it is recorded and raised at the next check like SIGINT.  Without that call a
 library user's SIGTERM keeps Python's default (the process ends at once).
+
+Work that spends seconds in plain Python between checks (the report's drawing and SymPy) asks for
+``Interrupts(escalate_after=0.3)``: a signal that no check has taken within that time is raised
+in the main thread where it is (the signal is sent again to the main thread, whose handler then
+raises) -- unless the main thread is inside a ``__del__``, where it would be swallowed: then it
+tries again shortly.  The flag stays set, so an exception swallowed anyway is raised at the next
+check.  It is not for loops that call Python from compiled code (a ctypes callback would only
+print the exception).
 """
 
 from __future__ import annotations
@@ -54,13 +62,25 @@ class Interrupts:
     """``with Interrupts() as intr: ... intr.check() ...`` -- see the module.  ``on_signal`` is
     called at the signal too (it must be quick and thread-safe, e.g. ``threading.Event.set``)."""
 
-    def __init__(self, on_signal: Optional[Callable[[], None]] = None) -> None:
+    def __init__(self, on_signal: Optional[Callable[[], None]] = None, *,
+                 escalate_after: Optional[float] = None) -> None:
         self.pending: Optional[type] = None  # the exception to raise at the next check, if any
         self.on_signal = on_signal  # also run at the signal (e.g. tell worker threads to stop)
+        self.escalate_after = escalate_after  # seconds a signal may wait for a check (None: forever)
         self._previous: Optional[dict] = None  # the handlers replaced, by signal number
         self._outer: Optional["Interrupts"] = None  # an enclosing Interrupts (nested: a report's simulations)
+        self._timer: Optional[threading.Timer] = None
+        self._raise_now = False  # set by the timer: the handler, run again, raises
 
     def _record(self, signum, frame) -> None:
+        if self._raise_now:  # the timer's call, not a new signal
+            self._raise_now = False
+            if self.pending is None:
+                return  # a check took it meanwhile
+            if _in_destructor(frame):  # it would be swallowed there: a little later
+                self._arm(0.05, signum)
+                return
+            raise self.pending  # it stays pending: swallowed anyway, the next check raises it
         # SIGTERM outranks a Ctrl-C recorded before it: the process is asked to end
         if self.pending is not Terminated:
             self.pending = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
@@ -68,6 +88,22 @@ class Interrupts:
             self.on_signal()
         if self._outer is not None:  # the enclosing work hears of it too (its on_signal, its checks)
             self._outer._record(signum, frame)
+        if self.escalate_after is not None and self._timer is None:
+            self._arm(self.escalate_after, signum)
+
+    def _arm(self, delay: float, signum: int) -> None:
+        timer = threading.Timer(delay, self._escalate, args=(signum,))
+        timer.daemon = True
+        self._timer = timer
+        timer.start()
+
+    def _escalate(self, signum: int) -> None:
+        """In the timer's thread: a signal no check has taken is raised by the handler, run again
+        (sent to the main thread as a real signal, so that a blocking wait -- a compiler's
+        subprocess, a pipe -- is interrupted too)."""
+        if self.pending is not None and self._previous is not None:
+            self._raise_now = True
+            signal.pthread_kill(threading.main_thread().ident, signum)
 
     def __enter__(self) -> "Interrupts":
         if threading.current_thread() is threading.main_thread():
@@ -94,9 +130,22 @@ class Interrupts:
             raise kind
 
     def __exit__(self, exc_type, exc, tb) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._raise_now = False
         for signum, previous in (self._previous or {}).items():
             signal.signal(signum, previous)
         self._previous = None
         self._outer = None
         if self.pending is not None and exc_type is None:  # a signal during the last stretch still counts
             self.check()
+
+
+def _in_destructor(frame) -> bool:
+    """Whether ``frame`` runs inside a ``__del__`` (an exception raised there is only reported)."""
+    while frame is not None:
+        if frame.f_code.co_name == "__del__":
+            return True
+        frame = frame.f_back
+    return False

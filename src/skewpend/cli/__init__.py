@@ -221,6 +221,21 @@ def _group():
     return _GROUP
 
 
+def _quick_exit(status: int) -> None:
+    """Exit after a signal without the interpreter's last full garbage collection (a second or
+    more after a report's SymPy and Matplotlib work): the objects are frozen out of it; atexit
+    handlers and every ``finally`` still run.  Only as the process's own command line (``main()``
+    without ``argv``): a program calling ``main(argv)`` goes on and keeps its collector."""
+    import gc
+
+    if _AS_PROGRAM:
+        gc.freeze()
+    sys.exit(status)
+
+
+_AS_PROGRAM = False
+
+
 def main(argv: Optional[List[str]] = None) -> None:
     """Entry point: run a command and exit with its status (see the module)."""
     import warnings
@@ -230,6 +245,8 @@ def main(argv: Optional[List[str]] = None) -> None:
     from .options import LOCATIONS
 
     LOCATIONS.clear()  # this run's (main may run more than once in a process)
+    global _AS_PROGRAM
+    _AS_PROGRAM = argv is None
     args = sys.argv[1:] if argv is None else list(argv)
     name = next((a for a in args if not a.startswith("-")), None)
     group = _group()
@@ -247,10 +264,10 @@ def main(argv: Optional[List[str]] = None) -> None:
         sys.exit(exc.exit_code)
     except Terminated:
         sys.stderr.write("skewpend: terminated\n")
-        sys.exit(143)
+        _quick_exit(143)
     except KeyboardInterrupt:
         sys.stderr.write("skewpend: interrupted\n")
-        sys.exit(130)
+        _quick_exit(130)
     except SkewpendError as exc:
         command = group.commands.get(name) if name else None
         _fail(locate(str(exc), name, {p.name for p in getattr(command, "params", ())}, getattr(exc, "parameter", None)))

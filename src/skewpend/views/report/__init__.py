@@ -284,7 +284,8 @@ def build_report(
     t0 = time.perf_counter()
     cached = cache.load(params)  # sections 2 and 3 made earlier for these parameters by this code
     loaded = time.perf_counter() - t0
-    with Interrupts(on_signal=stop_background) as intr:
+    # drawing and SymPy run seconds between checks: a signal no check took within 0.3 s is raised where it is
+    with Interrupts(on_signal=stop_background, escalate_after=0.3) as intr:
         background = _Background.start(params) if cached is None and PARALLEL and (os.cpu_count() or 1) > 1 else None
         if background is not None:
             running["child"] = background
