@@ -62,3 +62,12 @@ def test_cli_refuses_absurd_angles(tmp_path, argv, flag):
 def test_a_huge_whole_number_is_shown_short():
     with pytest.raises(ParameterError, match=r"got 100000000000\.\.\. \(401 digits\)$"):
         checks.whole("n", 10**400, 1, 10)
+
+
+@pytest.mark.parametrize("name", ["a", "m2", "g", "c1", "tau2", "alpha"])
+def test_parameters_refuse_subnormal_values(name):
+    """A subnormal length made a 16 x 16 flip map take 20 s of failing cells; the compiled code may
+    flush such a number to 0. Zero stays allowed where it is (damping, torque, alpha)."""
+    values = {**dict(a=1.0, b=1.0, m1=1.0, m2=1.0, alpha=0.5, g=9.81), name: 1e-320}
+    with pytest.raises(ParameterError, match=f"^{name} must be 0 or a normal number"):
+        skewpend.Parameters(**values)
