@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Dict, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..checks import numeric_params
+from ..checks import angles, numeric_params
 from ..errors import EquilibriumError, ParameterError
 from ..symbolic.model import Parameters
 
@@ -34,7 +34,7 @@ __all__ = ["Linearization", "linearization", "controllability", "LQR", "lqr", "S
 def _columns(actuated: str) -> Tuple[int, ...]:
     from ..numeric.control import ACTUATION
 
-    if actuated not in ACTUATION:
+    if not isinstance(actuated, str) or actuated not in ACTUATION:
         raise ParameterError(f"actuated must be one of {', '.join(ACTUATION)} (acrobot: the elbow only, pendubot: "
                              f"the shoulder only), got {actuated!r}")
     code = ACTUATION[actuated]
@@ -65,17 +65,59 @@ def linearization(params: Parameters, equilibrium="up-up", actuated: str = "both
     joints = _columns(actuated)
     from .equilibria import find_equilibrium
 
-    eq = find_equilibrium(params, equilibrium)
+    eq = find_equilibrium(params, equilibrium_argument(equilibrium), "equilibrium")
     S = np.eye(2)[:, list(joints)]
     B = np.vstack([np.zeros((2, len(joints))), np.linalg.solve(eq.M, S)])
     return Linearization(eq.A.copy(), B, eq, actuated, joints)
 
 
+def equilibrium_argument(which, name: str = "equilibrium"):
+    """A label or an ``Equilibrium`` as given; angles ``(phi, psi)`` reduced modulo 2 pi
+    (:func:`skewpend.checks.angles`: refused beyond 1e6 rad, where the reduction loses its digits)."""
+    from .equilibria import Equilibrium
+
+    if isinstance(which, (str, Equilibrium)):
+        return which
+    if not hasattr(which, "__len__"):
+        raise ParameterError(f"{name} must be an equilibrium, a label such as 'up-up', or angles (phi, psi) near one, "
+                             f"got {which!r}")
+    return angles(name, which, 2)
+
+
+def _matrix(name: str, value, shape: Optional[Tuple[int, ...]] = None, ndim: int = 2) -> np.ndarray:
+    """``value`` (a sequence of numbers, an array, NumPy scalars) as a finite float array of
+    ``ndim`` dimensions (and ``shape``), else one :class:`ParameterError` naming ``name``."""
+    what = ("x".join(str(k) for k in shape) + " " if shape else "") + ("matrix" if ndim == 2 else "vector")
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        a = None
+    if a is None or a.ndim != ndim or (shape is not None and a.shape != shape) or a.size == 0:
+        got = f"shape {a.shape}" if a is not None else repr(value) if isinstance(value, str) else type(value).__name__
+        raise ParameterError(f"{name} must be a {what} of real numbers (a nested sequence or an array), got {got}")
+    if not np.all(np.isfinite(a)):
+        raise ParameterError(f"{name} must hold finite numbers")
+    return a
+
+
 def controllability(A: np.ndarray, B: np.ndarray) -> Dict[str, Any]:
     """``rank`` of ``[B, AB, A^2 B, A^3 B]`` (numerical, SVD), its singular values, and
     ``distance`` -- the smallest singular value of ``[A - lambda I, B]`` over the eigenvalues of
-    ``A``, relative to ``max(|A|, |B|)``: 0 exactly when the pair is uncontrollable (PBH)."""
+    ``A``, relative to ``max(|A|, |B|)``: 0 exactly when the pair is uncontrollable (PBH).
+    ``A`` (n x n) and ``B`` (n x m): arrays or nested sequences of finite numbers."""
+    A = _matrix("A", A)
     n = A.shape[0]
+    if A.shape != (n, n):
+        raise ParameterError(f"A must be a square matrix, got shape {A.shape}")
+    try:
+        one_input = np.ndim(B) == 1
+    except ValueError:  # ragged
+        one_input = False
+    B = _matrix("B", B, ndim=1 if one_input else 2)
+    if B.ndim == 1:
+        B = B[:, None]  # one input
+    if B.shape[0] != n:
+        raise ParameterError(f"B must have as many rows as A ({n}), got shape {B.shape}")
     blocks = [B]
     for _ in range(n - 1):
         blocks.append(A @ blocks[-1])
@@ -143,81 +185,191 @@ def _deviation(x: np.ndarray, target: np.ndarray) -> np.ndarray:
     return dx
 
 
-def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.ndarray, umax, samples: int = 20000,
+#: rho is this fraction of the smallest level V at which the search found V' >= 0 (see _rho_estimate).
+RHO_MARGIN = 0.95
+#: The search: rays through the ellipsoids (each bisected to its first crossing), radii per ray,
+#: random samples in the ball, and local minimisations from the best crossings found.
+RHO_RAYS, RHO_RADII, RHO_SAMPLES, RHO_STARTS = 2048, 40, 20000, 24
+
+
+def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.ndarray, umax, samples: int = RHO_SAMPLES,
                   seed: int = 0) -> float:
-    """The largest rho such that V = dx^T P dx decreases along the saturated nonlinear closed loop
-    at every sample with V < rho (samples on ellipsoid shells; the compiled right-hand side)."""
+    """The region estimate ``rho`` (see :func:`lqr`): :data:`RHO_MARGIN` times the smallest level
+    ``V = dx^T P dx`` at which a seeded search finds ``V' = 2 dx^T P f(x) >= 0`` for the saturated
+    nonlinear closed loop (the compiled right-hand side), and at most the level where the
+    ellipsoid reaches an angle error of pi (beyond it the wrapped law jumps).  The search: the
+    first crossing along :data:`RHO_RAYS` rays (a grid of radii, then bisection), ``samples``
+    points uniform in the ball, then SLSQP (minimise V subject to V' >= 0) from the
+    :data:`RHO_STARTS` best crossings, each result moved to its ray's first crossing.  0 when
+    ``P`` is not positive definite (V is no Lyapunov function then)."""
+    from scipy.optimize import minimize
+
     from ..numeric.control import Controller
     from ..numeric.kernels import kernel_module, parameter_vector
 
+    w = np.linalg.eigvalsh(P)
+    if not (w[0] > 1e-12 * w[-1] > 0):
+        return 0.0
     kernel = kernel_module(params)
     p = parameter_vector(params)
     ctl = Controller.feedback(K2, lin.target, np.zeros(2), actuated=lin.actuated, umax=umax)
-    rng = np.random.default_rng(seed)
-    # directions uniform on the unit sphere of the P-norm
+    target = lin.target
+    Pinv = np.linalg.inv(P)
+    ceiling = math.pi ** 2 / max(Pinv[0, 0], Pinv[1, 1])  # the ellipsoid's angle errors reach pi there
     L = np.linalg.cholesky(P)
-    z = rng.normal(size=(samples, 4))
-    z /= np.linalg.norm(z, axis=1, keepdims=True)
-    d = np.linalg.solve(L.T, z.T).T  # d^T P d = 1
-    radii = rng.uniform(0, 1, samples) ** 0.25  # uniform in the 4-ball
-    t = np.zeros(samples)
+    rng = np.random.default_rng(seed)
 
-    def decreasing(rho: float) -> bool:
-        dx = d * math.sqrt(rho) * radii[:, None]
-        xdot = ctl.closed_loop(kernel, p, t, lin.target + dx)
-        return bool(np.all(2.0 * np.einsum("ki,ij,kj->k", dx, P, xdot) < 0))
+    rhs = ctl.closed_loop_function(kernel, p)
 
-    # bisection on log(rho) between a level that passes and one that fails
-    lo, hi = -8.0, 8.0
-    if not decreasing(10 ** lo):
-        return 0.0
-    if decreasing(10 ** hi):
-        return float(10 ** hi)
-    for _ in range(24):
-        mid = 0.5 * (lo + hi)
-        if decreasing(10 ** mid):
-            lo = mid
-        else:
-            hi = mid
-    return float(10 ** lo)
+    def vdot(dx: np.ndarray) -> np.ndarray:
+        dx = np.atleast_2d(dx)
+        with np.errstate(all="ignore"):
+            return 2.0 * np.einsum("ki,ij,kj->k", dx, P, rhs(target + dx))
+
+    def unit(z: np.ndarray) -> np.ndarray:  # directions with d^T P d = 1
+        z = z / np.linalg.norm(z, axis=-1, keepdims=True)
+        return np.linalg.solve(L.T, z.T).T
+
+    def first_crossing(d: np.ndarray, search: bool = False):
+        """Per ray d (d^T P d = 1): the smallest radius s with V'(s d) >= 0 (V = s^2), inf if none
+        below the ceiling; with ``search`` also the point of each ray nearest to growing (the largest
+        V'/V before its crossing) and that ratio."""
+        top = math.sqrt(ceiling)
+        radii = top * np.geomspace(1e-4, 1.0, RHO_RADII)
+        vd = vdot((d[:, None, :] * radii[None, :, None]).reshape(-1, 4)).reshape(len(d), RHO_RADII)
+        bad = ~(vd < 0)  # NaN counts as growing
+        hit = bad.any(axis=1)
+        k = np.argmax(bad, axis=1)
+        lo = np.where(k > 0, radii[np.maximum(k - 1, 0)], 0.0)
+        hi = radii[k]
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            up = ~(vdot(d * mid[:, None]) < 0)
+            hi = np.where(up, mid, hi)
+            lo = np.where(up, lo, mid)
+        crossing = np.where(hit, hi, math.inf)
+        if not search:
+            return crossing
+        ratio = np.where(radii[None, :] < crossing[:, None], vd / radii[None, :] ** 2, -np.inf)
+        j = np.argmax(ratio, axis=1)
+        return crossing, d * radii[j][:, None], ratio[np.arange(len(d)), j]
+
+    d = unit(rng.normal(size=(RHO_RAYS, 4)))
+    s, near, ratio = first_crossing(d, search=True)
+    best = [float(v) ** 2 for v in s[np.isfinite(s)]]
+    # points uniform in the ball V < ceiling
+    x = unit(rng.normal(size=(samples, 4))) * (math.sqrt(ceiling) * rng.uniform(0, 1, samples) ** 0.25)[:, None]
+    grow = ~(vdot(x) < 0)
+    vx = np.einsum("ki,ij,kj->k", x, P, x)
+    best += [float(v) for v in vx[grow]]
+    # starts of the local search: the earliest crossings, the points nearest to growing, the samples that grow
+    third = max(1, RHO_STARTS // 3)
+    candidates = [d[i] * s[i] for i in np.argsort(s)[:third] if np.isfinite(s[i])]
+    candidates += [near[i] for i in np.argsort(-ratio)[:third] if np.isfinite(ratio[i])]
+    candidates += [x[i] for i in np.flatnonzero(grow)[np.argsort(vx[grow])][:third]]
+
+    # local search: minimise V subject to V' >= 0 from the best points found
+    def growth(z: np.ndarray) -> np.ndarray:  # V'/V: scale-free, negative near the target (x = 0 is no minimiser)
+        z = np.atleast_2d(z)
+        return vdot(z) / np.einsum("ki,ij,kj->k", z, P, z)
+
+    def constraint(z):
+        return float(growth(z)[0])
+
+    def constraint_gradient(z):  # central differences, one compiled call
+        h = 1e-7 * max(1e-3, float(np.abs(z).max()))
+        v = growth(np.vstack([z + h * np.eye(4), z - h * np.eye(4)]))
+        return (v[:4] - v[4:]) / (2 * h)
+
+    found = []
+    for z0 in candidates:
+        with np.errstate(all="ignore"):
+            res = minimize(lambda z: float(z @ P @ z), z0, jac=lambda z: 2.0 * P @ z, method="SLSQP",
+                           constraints=[{"type": "ineq", "fun": constraint, "jac": constraint_gradient}],
+                           options={"maxiter": 60, "ftol": 1e-12})
+        z = np.asarray(res.x, dtype=float)
+        if np.all(np.isfinite(z)) and np.any(z != 0):
+            found.append(z / math.sqrt(float(z @ P @ z)))
+    if found:
+        s2 = first_crossing(np.array(found))
+        best += [float(v) ** 2 for v in s2[np.isfinite(s2)]]
+    smallest = min(best, default=math.inf)
+    return float(RHO_MARGIN * min(smallest, ceiling))
+
+
+def _weights(Q, R, m: int) -> Tuple[np.ndarray, np.ndarray]:
+    """``Q`` (4 x 4, default identity) symmetric positive semi-definite and ``R`` (m x m, a number
+    for one input; default identity) symmetric positive definite, else one ParameterError."""
+    Qm = np.eye(4) if Q is None else _matrix("Q", Q, (4, 4))
+    if R is None:
+        Rm = np.eye(m)
+    else:
+        try:
+            scalar = np.ndim(R) == 0
+        except ValueError:
+            scalar = False
+        Rm = _matrix("R", [[R]] if scalar else R, (m, m))
+    scale = max(float(np.abs(Qm).max()), 1e-300)
+    if not np.allclose(Qm, Qm.T, rtol=1e-12, atol=1e-12 * scale) or np.linalg.eigvalsh(Qm).min() < -1e-12 * scale:
+        raise ParameterError("Q must be a finite, symmetric, positive semi-definite 4 x 4 matrix")
+    if not np.allclose(Rm, Rm.T, rtol=1e-12, atol=0) or not np.linalg.eigvalsh(Rm).min() > 0:
+        raise ParameterError(f"R must be a finite, symmetric, positive definite {m} x {m} matrix")
+    return Qm, Rm
 
 
 def lqr(params: Parameters, equilibrium="up-up", actuated: str = "both", Q=None, R=None, *, umax=None,
         estimate: bool = True) -> LQR:
-    """The LQR about ``equilibrium`` with the ``actuated`` joints (see the module).
+    """The LQR about ``equilibrium`` (a label, an ``Equilibrium`` or angles ``(phi, psi)`` near one,
+    reduced modulo 2 pi) with the ``actuated`` joints (see the module).
 
-    ``Q`` (4 x 4, default identity) and ``R`` (m x m, default identity) must be symmetric,
-    ``Q`` positive semi-definite and ``R`` positive definite; refused with one line: an
-    uncontrollable pair (the PBH distance in the message), a non-finite solution.  ``umax``:
-    torque limits for the region estimate (``estimate=False`` skips it)."""
+    ``Q`` (4 x 4, default identity) and ``R`` (m x m, default identity; a number for one motor)
+    must be symmetric, ``Q`` positive semi-definite and ``R`` positive definite.  A singular
+    ``Q`` is accepted where the Riccati equation still has its unique stabilising solution and the
+    closed loop is asymptotically stable, i.e. ``(A, Q^1/2)`` is detectable (at the top ``Q = 0``
+    is: the LQR then only mirrors the unstable eigenvalues); otherwise one ParameterError.  A
+    singular ``P`` gives no region estimate (``rho = 0``: ``V = dx^T P dx`` is no Lyapunov
+    function).  Refused with one line too: an uncontrollable pair (the PBH distance in the
+    message), a non-finite solution.  ``umax``: torque limits for the region estimate
+    (``estimate=False`` skips it); ``rho`` is certified as the module says."""
     from scipy.linalg import solve_continuous_are
 
     from ..numeric.control import torque_limits
 
     params = numeric_params(params, "an LQR")
-    lin = linearization(params, equilibrium, actuated)
-    m = lin.B.shape[1]
-    Qm = np.eye(4) if Q is None else np.asarray(Q, dtype=float)
-    Rm = np.eye(m) if R is None else np.atleast_2d(np.asarray(R, dtype=float))
-    if Qm.shape != (4, 4) or not np.all(np.isfinite(Qm)) or not np.allclose(Qm, Qm.T) or np.linalg.eigvalsh(Qm).min() < -1e-12:
-        raise ParameterError("Q must be a finite, symmetric, positive semi-definite 4 x 4 matrix")
-    if Rm.shape != (m, m) or not np.all(np.isfinite(Rm)) or not np.allclose(Rm, Rm.T) or np.linalg.eigvalsh(Rm).min() <= 0:
-        raise ParameterError(f"R must be a finite, symmetric, positive definite {m} x {m} matrix")
+    if not isinstance(estimate, (bool, np.bool_)):
+        raise ParameterError(f"estimate must be True or False, got {estimate!r}")
+    joints = _columns(actuated)
+    Qm, Rm = _weights(Q, R, len(joints))
+    limits = torque_limits(umax)
+    lin = linearization(params, equilibrium_argument(equilibrium), actuated)
     ctrb = controllability(lin.A, lin.B)
     if not ctrb["controllable"] or ctrb["distance"] < 1e-10:
         raise EquilibriumError(
             f"the {actuated} is not controllable at {lin.equilibrium.label} for these parameters (rank {ctrb['rank']} of 4, "
             f"PBH distance {ctrb['distance']:.2e}): no linear feedback can stabilise it")
+    w = np.linalg.eigvalsh(Qm)
+    singular_q = not (w[0] > 1e-12 * max(w[-1], 1e-300))
+    undetectable = ParameterError(
+        f"Q must make (A, Q^1/2) detectable at {lin.equilibrium.label}: this Q leaves a mode of the linearisation "
+        "that does not decay unweighted, so the Riccati equation has no unique stabilising solution; weight every "
+        "state (a positive definite Q)")
     try:
-        P = solve_continuous_are(lin.A, lin.B, Qm, Rm)
+        with np.errstate(all="ignore"):
+            P = solve_continuous_are(lin.A, lin.B, Qm, Rm)
     except (np.linalg.LinAlgError, ValueError) as exc:
+        if singular_q:
+            raise undetectable from None
         raise EquilibriumError(f"the Riccati equation has no stabilising solution here: {exc}") from None
     K = np.linalg.solve(Rm, lin.B.T @ P)
     if not (np.all(np.isfinite(P)) and np.all(np.isfinite(K))):
         raise EquilibriumError("the Riccati solution is not finite (extreme parameters or weights)")
     eig = np.linalg.eigvals(lin.A - lin.B @ K)
     eig = eig[np.argsort(-eig.real)]
-    limits = torque_limits(umax)
+    if not eig.real.max() < -1e-6 * max(float(np.abs(eig).max()), 1e-300):
+        if singular_q:
+            raise undetectable
+        raise EquilibriumError("the Riccati solution does not stabilise the linearisation (extreme parameters or weights)")
+    P = 0.5 * (P + P.T)
     result = LQR(K, P, eig, lin, Qm, Rm, math.inf, limits, params)
     if estimate:
         rho = _rho_estimate(params, lin, result.gain, P, limits)
@@ -248,24 +400,48 @@ class SwingUp:
         return "not captured: the motion never stayed in the LQR's region (raise the torque limit, the energy gain or t_end)"
 
 
+#: The longest swing-up run [s]: a swing-up takes seconds; after the capture the run only holds the target.
+SWINGUP_T_MAX = 3600.0
+
+
 def swingup(params: Parameters, target="up-up", actuated: str = "both", *, umax=10.0, energy_gain: float = 2.0,
             elbow_gains=(20.0, 4.0), t_end: float = 20.0, y0: Optional[Sequence[float]] = None, Q=None, R=None,
-            dt_out: float = 0.01) -> SwingUp:
-    """Swing the pendulum up from ``y0`` (default: hanging, nudged by 0.05 rad) to ``target`` with
-    the torque limit ``umax`` [N m]: energy shaping towards the target's potential energy, the LQR
-    inside its region of attraction estimate; simulated over ``t_end``."""
+            dt_out: float = 0.01, progress: Optional[Callable[[float, float], None]] = None) -> SwingUp:
+    """Swing the pendulum up from ``y0`` (default: hanging, nudged by 0.05 rad) to ``target`` (a
+    label or angles near an equilibrium, reduced modulo 2 pi) with the torque limit ``umax``
+    [N m]: energy shaping towards the target's potential energy, the LQR inside its region of
+    attraction estimate; simulated over ``t_end`` (at most :data:`SWINGUP_T_MAX` s), the states
+    every ``dt_out`` s.  ``progress(t, t_end)`` is called as the run advances (first with t = 0,
+    before the LQR is designed).  Every argument is checked before any work."""
+    from ..checks import positive, progress_callable
     from ..numeric.control import Controller
     from ..numeric.simulation import simulate
 
     params = numeric_params(params, "a swing-up")
+    _columns(actuated)
+    target = equilibrium_argument(target, "target")
+    t_end = positive("t_end", t_end, cap=SWINGUP_T_MAX)
+    dt_out = positive("dt_out", dt_out, cap=t_end)
+    if t_end / dt_out > 1e7:
+        raise ParameterError(f"dt_out = {dt_out:g} s gives {t_end / dt_out:.3g} rows over t_end = {t_end:g} s; at most "
+                             "1e7: use a larger dt_out")
+    progress = progress_callable(progress, "progress(t, t_end)")
+    # the law's own arguments, checked now rather than after the design
+    Controller.swingup(energy_gain, 0.0, np.zeros((2, 4)), np.zeros(4), np.eye(4), 0.0, elbow_gains=elbow_gains,
+                       actuated=actuated, umax=umax)
+    start = np.array([0.05, 0.0, 0.0, 0.0]) if y0 is None else _matrix("y0", y0, (4,), ndim=1)
+    angles("y0", start[:2], 2)  # refused beyond 1e6 rad (the run keeps the angles as given)
+    if progress is not None:
+        progress(0.0, t_end)
     design = lqr(params, target, actuated, Q, R, umax=umax)
     if not (design.rho > 0):
-        raise EquilibriumError("the LQR's region of attraction estimate is empty with this torque limit: raise umax")
+        why = ("P is singular (Q leaves modes unweighted), so V = dx^T P dx bounds no region: weight every state in Q"
+               if np.linalg.eigvalsh(design.P)[0] <= 1e-12 * np.linalg.eigvalsh(design.P)[-1] else "raise umax")
+        raise EquilibriumError(f"the LQR's region of attraction estimate is empty: {why}")
     lin = design.linearization
     ctl = Controller.swingup(energy_gain, lin.equilibrium.potential, design.gain, lin.target, design.P, design.rho,
                              elbow_gains=elbow_gains, actuated=actuated, umax=umax)
-    start = np.array([0.05, 0.0, 0.0, 0.0]) if y0 is None else np.asarray(y0, dtype=float)
-    tr = simulate(params, start, t_end, dt_out=dt_out, controller=ctl)
+    tr = simulate(params, start, t_end, dt_out=dt_out, controller=ctl, progress=progress)
     inside = design.inside(tr.y)
     if inside[-1]:
         k = len(inside) - 1

@@ -328,10 +328,11 @@ def region_of_attraction(
     from ..numeric.control import torque_limits
     from ..numeric.grid import check_run_options, run_grid
     from ..numeric.kernels import kernel_module
-    from .control import LQR, lqr
+    from .control import LQR, equilibrium_argument, lqr
     from .flipmap import check_n
 
     params = numeric_params(params, "a region of attraction")
+    target = equilibrium_argument(target, "target")  # angles reduced modulo 2 pi, refused beyond 1e6 rad
     n = check_n(n)
     if n > MAX_N:
         raise ParameterError(f"n must be at most {MAX_N} for a region of attraction, got {n}")
@@ -356,8 +357,9 @@ def region_of_attraction(
     elif design.params != params:
         raise ParameterError("design was made for other parameters than params")
     if not (design.rho > 0 and math.isfinite(design.rho)):
-        raise EquilibriumError("the LQR's region estimate is empty or unbounded with this torque limit "
-                               f"(rho = {design.rho:g}): raise umax, or change Q and R")
+        raise EquilibriumError(f"the LQR's region estimate is empty or unbounded (rho = {design.rho:g}): raise umax, "
+                               "or change Q and R (a Q that leaves states unweighted gives a singular P, which "
+                               "bounds no region)")
     lin = design.linearization
     x_star = lin.target
     ia, ib = COORDINATES[a], COORDINATES[b]
@@ -368,8 +370,36 @@ def region_of_attraction(
                  rho=float(design.rho), actuated=lin.actuated, umax=torque_limits(design.umax), t_end=t_end, rtol=rtol,
                  atol=atol, max_steps=int(max_steps), version=__version__, kernel_name=kernel.path.name)
     state = job.setup()
+    _check_feasible(job, state)
     return run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress,
                     chunk_size=chunk_size, state=state)
+
+
+def _check_feasible(job: RoaJob, state) -> None:
+    """Refuse, before any work, a map whose starts could not finish: a trial run of the closed loop
+    (the job's own kernel and law) from the window's corners and edges gives the steps per
+    simulated second; a start not captured is followed to ``t_end``, so a ``t_end`` that would need
+    more than :data:`~skewpend.numeric.grid.FEASIBILITY_FACTOR` x ``max_steps`` at that rate is
+    refused with the estimate (as for every grid: starts that settle step more slowly)."""
+    from ..numeric.control import capture_many
+    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, steps_per_second
+
+    kernel, p, ctl = state
+    xs, ys = (values for values, _ in job.coords().values())
+    corners = [(xs[i], ys[j]) for i in (0, -1, len(xs) // 2) for j in (0, -1, len(ys) // 2) if (i, j) != (len(xs) // 2,) * 2]
+    ia, ib = (COORDINATES[c] for c in job.plane)
+    starts = np.tile(np.asarray(job.target, dtype=float), (len(corners), 1))
+    starts[:, ia], starts[:, ib] = zip(*corners)
+    rate = 0.0
+    for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
+        time_, steps, status = capture_many(kernel, p, ctl, starts, t_end=t, rtol=job.rtol, atol=job.atol,
+                                            max_steps=PROBE_STEPS, P=np.reshape(job.P, (4, 4)), rho=job.rho)
+        lived = np.where(np.isfinite(time_), time_, t)  # a captured start stops early: its rate until then
+        rate = steps_per_second(steps, lived)
+        if not np.any(status != 0):
+            break
+    check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps,
+                   what="this region of attraction")
 
 
 def open_region_of_attraction(path) -> RegionOfAttraction:

@@ -51,7 +51,7 @@ def control(
     t_end: option("--t-end", T.Positive("number of seconds"), "swingup: length of the run [s] (default 20); roa: longest time each start is followed (default 10)") = None,
     energy_gain: option("--energy-gain", T.Positive(), "swingup: gain of the energy shaping [N m s/J] (default 2)") = None,
     elbow_gains: option("--elbow-gains", T.Numbers(2, metavar="KP,KD"), "swingup: the elbow's PD gains holding rod 2 in line while the energy is pumped (default 20,4)") = None,
-    n: option("--n", T.Whole(1, 4096), "roa: cells per side, an n x n grid of starts (default 128)") = None,
+    n: option("--n", T.Whole(1, 4096), "roa: cells per side, an n x n grid of starts (default 64)") = None,
     plane: option("--plane", T.Plane(), "roa: the two coordinates varied, of phi, psi, dphi, dpsi (default phi,psi; the others at the target's)") = None,
     window: option("--window", T.Offsets(), "roa: their ranges as offsets from the target, LO:HI,LO:HI (radians or deg; rad/s or deg/s; default -180:180deg for an angle, -5:5 for a speed)") = None,
     rtol: RTOL_E8 = None,
@@ -103,20 +103,24 @@ def control(
         raise UsageError("--r: input weights must be positive")
     Q = None if q is None else np.diag(q)
     R = None if r is None else np.diag(r)
-    goal = "up-up" if target is None else target
+    defaults = library_defaults(action)
+    goal = defaults["target"] if target is None else target
     if target is not None:
         from ..analysis.equilibria import find_equilibrium
-        from ..errors import EquilibriumError
+        from ..checks import angles
+        from ..errors import EquilibriumError, ParameterError
 
         try:
+            if not isinstance(goal, str):
+                goal = angles("target", goal, 2)  # reduced modulo 2 pi; refused beyond 1e6 rad
             find_equilibrium(params, goal)
-        except EquilibriumError as exc:
+        except (EquilibriumError, ParameterError) as exc:
             raise UsageError(f"--target: {exc}") from None
     if action is Action.roa:
         return _roa(params, goal, actuated.value, Q, R, umax, t_end, n, plane, window, rtol, atol, out, store, plot, resume,
                     ensemble, quiet)
     if action is Action.lqr:
-        design = lqr(params, goal, actuated.value, Q=Q, R=R, umax=umax)
+        design = lqr(params, goal, actuated.value, Q=Q, R=R, **({} if umax is None else {"umax": umax}))
         lin = design.linearization
         c = controllability(lin.A, lin.B)
         lines = [
@@ -128,17 +132,19 @@ def control(
             lines.append(f"  joint {j + 1}   " + "  ".join(f"{v:12.6g}" for v in design.K[row]))
         lines.append("closed loop " + ", ".join(f"{z.real:.6g}{z.imag:+.6g}i" if abs(z.imag) > 1e-12 else f"{z.real:.6g}"
                                                 for z in design.eigenvalues) + " [1/s]")
-        limit = "no torque limit" if umax is None else f"|u| <= {umax:g} N m"
-        lines.append(f"region      dx' P dx < {design.rho:.6g} ({limit}; sampled inner estimate: every start inside is captured)")
+        limit = "no torque limit" if not math.isfinite(design.umax[0]) else f"|u| <= {design.umax[0]:g} N m"
+        if design.rho > 0:
+            lines.append(f"region      dx' P dx < {design.rho:.6g} ({limit}; V decreases inside wherever a seeded search "
+                         "looked: 0.95 of the smallest level where it found V' >= 0)")
+        else:
+            lines.append("region      none: P is singular (Q leaves modes unweighted), so dx' P dx bounds no region"
+                         if np.linalg.eigvalsh(design.P)[0] <= 1e-12 * np.linalg.eigvalsh(design.P)[-1] else
+                         f"region      none ({limit}): V' >= 0 arbitrarily close to the target")
         sys.stdout.write("\n".join(lines) + "\n")
         return design
-    kw = {}
-    if energy_gain is not None:
-        kw["energy_gain"] = energy_gain
-    if elbow_gains is not None:
-        kw["elbow_gains"] = elbow_gains
-    run = swingup(params, goal, actuated.value, umax=10.0 if umax is None else umax, t_end=20.0 if t_end is None else t_end,
-                  Q=Q, R=R, **kw)
+    kw = given_only(umax=umax, t_end=t_end, energy_gain=energy_gain, elbow_gains=elbow_gains)  # else the library's
+    with progress("swing-up", "s", quiet) as bar:
+        run = swingup(params, goal, actuated.value, Q=Q, R=R, progress=bar, **kw)
     tr = run.trajectory
     u = tr.inputs()
     lines = [
@@ -164,6 +170,24 @@ def control(
     return run
 
 
+def given_only(**options):
+    """The options the user gave (not None): the others take the library function's defaults."""
+    return {k: v for k, v in options.items() if v is not None}
+
+
+def library_defaults(action: "Action") -> dict:
+    """The defaults of the library function behind ``action`` (lqr, swingup, region_of_attraction),
+    read from its signature: the one place they are written."""
+    import inspect
+
+    from ..analysis import control, roa
+
+    fn = {"lqr": control.lqr, "swingup": control.swingup, "roa": roa.region_of_attraction}[Action(action).value]
+    found = {k: p.default for k, p in inspect.signature(fn).parameters.items() if p.default is not inspect.Parameter.empty}
+    found.setdefault("target", found.get("equilibrium"))
+    return found
+
+
 def _write_csv(tr, u, out) -> None:
     import numpy as np
 
@@ -182,11 +206,9 @@ def _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol
         if name in ("phi", "psi") and (lo < -math.pi - 1e-12 or hi > math.pi + 1e-12):
             raise UsageError(f"--window ({name}): an angle's offsets from the target must lie within -180..180 deg, "
                              f"got {lo:.6g}:{hi:.6g} rad")
-    kw = {k: v for k, v in (("plane", plane), ("window", window), ("t_end", t_end), ("rtol", rtol), ("atol", atol))
-          if v is not None}
+    kw = given_only(n=n, plane=plane, window=window, t_end=t_end, rtol=rtol, atol=atol, umax=umax)  # else the library's
     with progress("region of attraction", "cells", quiet) as bar:
-        roa = region_of_attraction(params, goal, actuated, 128 if n is None else n, Q=Q, R=R,
-                                   umax=10.0 if umax is None else umax, progress=bar, store=store, resume=resume,
+        roa = region_of_attraction(params, goal, actuated, Q=Q, R=R, progress=bar, store=store, resume=resume,
                                    **{k: v for k, v in ensemble.items() if v is not None}, **kw)
     if out is not None and store is None:
         roa.to_netcdf(out)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import numbers
 import signal
 from dataclasses import dataclass, field
 from typing import Any, Dict, Optional, Sequence, Tuple
@@ -45,7 +46,7 @@ CALLBACK = ctypes.CFUNCTYPE(None, ctypes.c_double, ctypes.POINTER(ctypes.c_doubl
 
 
 def _actuation(actuated: str) -> int:
-    if actuated not in ACTUATION:
+    if not isinstance(actuated, str) or actuated not in ACTUATION:
         raise ParameterError(f"actuated must be one of {', '.join(ACTUATION)} (acrobot: the elbow only, pendubot: "
                              f"the shoulder only), got {actuated!r}")
     return ACTUATION[actuated]
@@ -54,14 +55,37 @@ def _actuation(actuated: str) -> int:
 def torque_limits(umax) -> Tuple[float, float]:
     if umax is None:
         return (math.inf, math.inf)
-    values = np.broadcast_to(np.asarray(umax, dtype=float), (2,))
-    if np.any(~(values > 0)) or np.any(np.isnan(values)):
-        raise ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint), got {umax!r}")
+    refusal = ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint; inf: none), got {umax!r}")
+    if isinstance(umax, (str, bytes, bool)):
+        raise refusal
+    try:
+        values = np.broadcast_to(np.asarray(umax, dtype=float), (2,))
+    except (TypeError, ValueError, OverflowError):
+        raise refusal from None
+    if not np.all(values > 0) or np.any(values < 2.2250738585072014e-308):  # NaN fails the first, subnormals the second
+        raise refusal
     return float(values[0]), float(values[1])
 
 
+def _array(name: str, value) -> np.ndarray:
+    """``value`` as a float array (sequences, arrays and NumPy scalars), else one ParameterError."""
+    if isinstance(value, (str, bytes)):
+        raise ParameterError(f"{name} must be numbers, got {value!r}")
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"{name} must be numbers (a sequence or an array), got {type(value).__name__}") from None
+
+
+def _real(name: str, value) -> float:
+    """A real number (NumPy's scalars too; not a bool or a string), else one ParameterError."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} must be a real number, got {value!r}")
+    return float(value)
+
+
 def _finite(name: str, value, shape) -> np.ndarray:
-    a = np.asarray(value, dtype=float)
+    a = _array(name, value)
     if a.shape != shape:
         raise ParameterError(f"{name} must have shape {shape}, got {a.shape}")
     if not np.all(np.isfinite(a)):
@@ -104,6 +128,8 @@ class Controller:
         """Energy shaping ``u_j = energy_gain (E* - E) q'_j`` on the actuated joints, switched to the
         feedback ``u* - K (x - x*)`` inside ``(x - x*)^T P (x - x*) < rho``."""
         _actuation(actuated)
+        energy_gain, target_energy, rho = (_real(n, v) for n, v in (("energy_gain", energy_gain),
+                                                                      ("target_energy", target_energy), ("rho", rho)))
         if not (math.isfinite(energy_gain) and energy_gain > 0):
             raise ParameterError(f"energy_gain must be a positive number, got {energy_gain!r}")
         if not math.isfinite(target_energy):
@@ -122,8 +148,8 @@ class Controller:
         """``u(t)`` linear between the rows ``(times[k], torques[k])`` (``torques`` (n, 2) [N m]; a
         1-D ``torques`` is the actuated joint's for the acrobot or pendubot), held at the ends."""
         code = _actuation(actuated)
-        t = np.asarray(times, dtype=float)
-        u = np.asarray(torques, dtype=float)
+        t = _array("times", times)
+        u = _array("torques", torques)
         if u.ndim == 1:
             if actuated == "both":
                 raise ParameterError("torques must have two columns (one per joint) when both joints are actuated")
@@ -204,6 +230,25 @@ class Controller:
         kernel.lib.sp_rhs_ctl_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), 6, p.ctypes.data_as(dp),
                                    out.ctypes.data_as(dp))
         return out[:, :4]
+
+    def closed_loop_function(self, kernel, p: np.ndarray):
+        """:meth:`closed_loop` as a function ``f(y) -> y'`` of states ``y`` (n, 4) at t = 0, the
+        ``sp_control`` built once (for searches that call it thousands of times)."""
+        c = self.struct()
+        pp = np.ascontiguousarray(p, dtype=np.float64)
+        dp = ctypes.POINTER(ctypes.c_double)
+        fn, ref, p_ptr = kernel.lib.sp_rhs_ctl_many, ctypes.byref(c), pp.ctypes.data_as(dp)
+
+        def f(y: np.ndarray) -> np.ndarray:
+            rows = np.zeros((len(y), 6))
+            rows[:, :4] = y
+            out = np.empty_like(rows)
+            fn(ref, rows.ctypes.data_as(dp), len(rows), 6, p_ptr, out.ctypes.data_as(dp))
+            raise_law_error(c)
+            return out[:, :4]
+
+        f.keep = (c, pp)  # alive as long as f
+        return f
 
     def settings(self) -> Dict[str, Any]:
         """Plain JSON data describing the inputs (part of a run's settings)."""
