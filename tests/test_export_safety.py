@@ -373,3 +373,60 @@ def test_ctrl_c_stops_the_report_within_a_second_or_so(tmp_path, signame):
     assert ran.err.strip().splitlines() == ["skewpend: " + {"SIGINT": "interrupted", "SIGTERM": "terminated"}[signame]]
     assert took < 3.0
     assert list(tmp_path.iterdir()) == []
+
+
+# -- a full disk: one line, nothing left (item 10) ------------------------------------------------------
+@pytest.fixture
+def full_dir(tmp_path):
+    """A directory on a 64 kB file system (tmpfs; needs root and mount)."""
+    full = tmp_path / "full"
+    full.mkdir()
+    try:
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(full)], capture_output=True)
+    except OSError as exc:
+        pytest.skip(f"cannot mount a small tmpfs to fill: {exc}")
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs to fill (root needed): {done.stderr.decode().strip()}")
+    try:
+        try:
+            (full / "filler").write_bytes(b"x" * 60_000)  # nearly full: a few frames overflow it
+        except OSError:
+            pass
+        yield full
+    finally:
+        subprocess.run(["umount", str(full)], capture_output=True)
+
+
+@pytest.fixture(scope="module")
+def short_run():
+    import skewpend
+
+    return skewpend.simulate(skewpend.reference_parameters(), (1.0, 0.5, 0.0, 0.0), 0.3, dt_out=1 / 30)
+
+
+@pytest.mark.parametrize("name", ["a.mp4", "a.gif"])
+def test_a_full_disk_while_animating_is_one_line_and_leaves_nothing(full_dir, short_run, capfd, name):
+    from skewpend.views.animation import animate
+
+    with pytest.raises(SkewpendError) as info:
+        animate(short_run, full_dir / name, size=(160, 120))
+    assert str(info.value) == f"cannot write {full_dir / name}: No space left on device"
+    assert capfd.readouterr().err == ""  # ffmpeg's messages never reach the terminal
+    assert [p.name for p in full_dir.iterdir()] == ["filler"]
+
+
+def test_ffmpeg_failing_is_one_line_and_leaves_nothing(tmp_path, short_run, monkeypatch, capfd):
+    """The old writer returned as if done when ffmpeg failed (a truncated video, exit status 0)."""
+    from skewpend.views import animation
+
+    class Broken:
+        @staticmethod
+        def get_ffmpeg_exe():
+            return sys.executable  # "ffmpeg" that fails on its arguments
+
+    monkeypatch.setattr(animation, "_ffmpeg", lambda: Broken)
+    with pytest.raises(SkewpendError, match=r"^cannot write .*a\.mp4: ffmpeg failed \(exit status 2: .*\)$"):
+        animation.animate(short_run, tmp_path / "a.mp4", size=(160, 120))
+    assert capfd.readouterr().err == "" and list(tmp_path.iterdir()) == []
+    assert animation._ffmpeg_reason("[out#0/mp4 @ 0x1] Error writing trailer: No space left on device\nmore", 1) \
+        == "No space left on device"

@@ -98,31 +98,68 @@ def _ffmpeg():
 
 
 def _write_mp4(tmp: Path, frames, size: Tuple[int, int], fps: float) -> None:
-    imageio_ffmpeg = _ffmpeg()
+    """H.264 through the wheel's ffmpeg, run here (not imageio's writer, which lets ffmpeg print
+    to the terminal and returns as if done when ffmpeg failed): frames on its stdin, its messages
+    kept in a temporary file and reduced to one line on a failure -- a full disk is "cannot write
+    OUT: No space left on device" --, its exit status checked; an error or Ctrl-C kills it."""
+    import subprocess
+    import tempfile
+    from fractions import Fraction
+
+    exe = _ffmpeg().get_ffmpeg_exe()
     w, h = size
     # libx264 (the wheel's ffmpeg has it); the temporary file's name has no .mp4: say the format
-    writer = imageio_ffmpeg.write_frames(
-        str(tmp), (w, h), fps=float(fps), codec="libx264", pix_fmt_in="rgb24", pix_fmt_out="yuv420p",
-        quality=None, macro_block_size=2, ffmpeg_log_level="error",
-        output_params=["-crf", "18", "-preset", "veryfast", "-movflags", "+faststart", "-f", "mp4"],
-    )
-    writer.send(None)
-    ok = False
-    try:
-        for frame in frames:
-            writer.send(frame)
-        ok = True
-    finally:
-        if ok:
-            writer.close()  # waits for ffmpeg to finish the file
-        else:
-            # an error or Ctrl-C: stop ffmpeg at once (the temporary file is removed by the caller)
+    cmd = [exe, "-y", "-nostdin", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{w}x{h}", "-pix_fmt", "rgb24",
+           "-r", str(Fraction(float(fps)).limit_denominator()), "-i", "-", "-an", "-vcodec", "libx264",
+           "-pix_fmt", "yuv420p", "-v", "error", "-crf", "18", "-preset", "veryfast", "-movflags", "+faststart",
+           "-f", "mp4", str(tmp)]
+    with tempfile.TemporaryFile() as log:  # ffmpeg's messages: never to the terminal
+        try:
+            proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=log,
+                                    start_new_session=True)  # Ctrl-C at the terminal is ours to handle
+        except OSError as exc:
+            raise SkewpendError(f"cannot run ffmpeg ({exe}): {exc.strerror or exc}") from None
+        try:
             try:
-                writer.throw(KeyboardInterrupt)
-            except BaseException:
+                for frame in frames:
+                    proc.stdin.write(np.ascontiguousarray(frame, dtype=np.uint8).tobytes())
+                proc.stdin.close()
+            except BrokenPipeError:  # ffmpeg stopped: its status and messages say why
                 pass
-    if not tmp.exists() or tmp.stat().st_size == 0:
-        raise SkewpendError("ffmpeg wrote no video (see its messages above)")
+            status = proc.wait()
+        finally:
+            if proc.poll() is None:  # an error or Ctrl-C while writing: stop it at once
+                proc.kill()
+                proc.wait()
+            if proc.stdin is not None and not proc.stdin.closed:
+                try:
+                    proc.stdin.close()
+                except OSError:
+                    pass
+        log.seek(0)
+        messages = log.read().decode("utf-8", "replace")
+    if status != 0 or not tmp.exists() or tmp.stat().st_size == 0:
+        raise OSError(_ffmpeg_errno(messages), _ffmpeg_reason(messages, status))
+
+
+def _ffmpeg_errno(messages: str) -> int:
+    import errno
+
+    return errno.ENOSPC if "No space left on device" in messages else errno.EIO
+
+
+def _ffmpeg_reason(messages: str, status: int) -> str:
+    """One line for ffmpeg's failure: the system's reason when it gave one (a full disk), else
+    its last message."""
+    import re
+
+    for reason in ("No space left on device", "Disk quota exceeded", "Permission denied", "Read-only file system",
+                   "File too large", "Input/output error"):
+        if reason in messages:
+            return reason
+    lines = [re.sub(r"^\[[^\]]*\]\s*", "", ln).strip() for ln in messages.splitlines() if ln.strip()]
+    last = lines[-1] if lines else "no message"
+    return f"ffmpeg failed (exit status {status}: {last})"
 
 
 def _write_gif(tmp: Path, frames, fps: float, sample: np.ndarray) -> None:
