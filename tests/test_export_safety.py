@@ -430,3 +430,39 @@ def test_ffmpeg_failing_is_one_line_and_leaves_nothing(tmp_path, short_run, monk
     assert capfd.readouterr().err == "" and list(tmp_path.iterdir()) == []
     assert animation._ffmpeg_reason("[out#0/mp4 @ 0x1] Error writing trailer: No space left on device\nmore", 1) \
         == "No space left on device"
+
+
+# -- the views' entry points refuse wrong-typed arguments in one line (item 8) --------------------------
+@pytest.mark.parametrize("bad", ["x", None, 3, [1.0, 2.0]])
+def test_view_entry_points_refuse_what_they_cannot_draw(bad, tmp_path, short_run):
+    from skewpend.views import animation, figures
+
+    with pytest.raises(ParameterError, match=r"^tr must be a skewpend\.Trajectory"):
+        animation.animate(bad, tmp_path / "a.gif")
+    for name in ("angles_figure", "simulation_figure", "flipmap_figure", "lyapunov_figure", "poincare_figure",
+                 "chaos_diagram_figure", "lyapunov_map_figure", "control_figure", "roa_figure", "plot_sweep",
+                 "fep_figure", "alpha_family_figure"):
+        with pytest.raises(ParameterError, match=r" must be (a|an) .*, got "):
+            getattr(figures, name)(bad)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_figure_of_the_right_result_still_draws(short_run):
+    from skewpend.views import figures
+
+    assert figures.angles_figure(short_run).axes
+
+
+def test_the_report_refuses_wrong_types_before_any_work(tmp_path):
+    from skewpend.views.report import build_report
+
+    (tmp_path / "d.html").mkdir()
+    for kwargs, words in (({"params": "x"}, "params must be a skewpend.Parameters, got str"),
+                          ({"y0": "abc"}, "y0 must be 4 numbers"),
+                          ({"out": 3}, "--out must be a file path, got int"),
+                          ({"out": ""}, "--out must be a file path"),
+                          ({"out": tmp_path / "d.html"}, "is a directory"),
+                          ({"out": tmp_path / "r.txt"}, r"ending in \.html")):
+        with pytest.raises(ParameterError, match=words):
+            build_report(**kwargs)
+    assert [p.name for p in tmp_path.iterdir()] == ["d.html"]

@@ -106,7 +106,7 @@ def check_output_path(path, suffixes: Sequence[str], option: str = "--out") -> P
     The suffix must be one of ``suffixes``; the path must not name a directory; its directory
     must exist and accept a new file (tested by creating and removing a temporary file).
     """
-    path = Path(path)
+    path = _as_path(path, option)
     if path.suffix.lower() not in suffixes:
         raise ParameterError(f"{option}: expected a file name ending in {_one_of(suffixes)}, got {str(path)!r}")
     if path.is_dir():
@@ -148,6 +148,17 @@ def _size(n: float) -> str:
     return f"{n:.3g} PB"
 
 
+def _as_path(path, option: str = "path") -> Path:
+    """``path`` as a :class:`Path`; anything but text or a path-like is one :class:`ParameterError`."""
+    try:
+        path = Path(os.fspath(path))
+    except TypeError:
+        raise ParameterError(f"{option} must be a file path, got {type(path).__name__}") from None
+    if not str(path).strip() or str(path) == ".":
+        raise ParameterError(f"{option} must be a file path, got {str(path)!r}")
+    return path
+
+
 @contextlib.contextmanager
 def atomic_path(path: Path) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; move it into place only if the block succeeds.
@@ -155,7 +166,7 @@ def atomic_path(path: Path) -> Iterator[Path]:
     The file gets the permissions of the user's umask; on any exception (Ctrl-C included)
     the temporary file is removed and ``path`` is untouched.
     """
-    path = Path(path)
+    path = _as_path(path)
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise ParameterError(f"cannot write {path}: directory {directory} does not exist")

@@ -211,6 +211,10 @@ def animate(
     file is written to a temporary file beside ``out`` and renamed at the end; on any error or
     Ctrl-C the temporary file is removed and ``out`` is untouched.  Returns ``Path(out)``.
     """
+    from ...numeric.simulation import Trajectory
+
+    if not isinstance(tr, Trajectory):
+        raise ParameterError(f"tr must be a skewpend.Trajectory (from skewpend.simulate), got {type(tr).__name__}")
     path = check_output(out)
     fps = checks.positive("fps", fps)
     speed = checks.positive("speed", speed)

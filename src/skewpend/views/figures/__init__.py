@@ -28,6 +28,46 @@ from .motion import (angles_figure, energy_figure, phase_figure, plot_sweep, sim
                      tips_view, torus_figure, wrapped_path)
 from ..style import fmt
 
+
+def _refusing_wrong_types(fn, what: str):
+    """``fn`` with one clear :class:`~skewpend.ParameterError` when its first argument is not the
+    result it draws (``angles_figure("x")`` was an AttributeError); duck-typed stand-ins still work."""
+    import functools
+    import inspect
+
+    from ...errors import ParameterError
+
+    name = next(iter(inspect.signature(fn).parameters))
+
+    @functools.wraps(fn)
+    def call(obj, *args, **kwargs):
+        try:
+            return fn(obj, *args, **kwargs)
+        except AttributeError as exc:
+            bad = getattr(exc, "obj", object())
+            if bad is obj:  # the argument itself lacks what the result has
+                raise ParameterError(f"{name} must be {what}, got {type(obj).__name__}") from None
+            if isinstance(obj, (list, tuple)) and any(bad is item for item in obj):  # one of a sequence's items
+                raise ParameterError(f"{name} must be {what}, got a {type(obj).__name__} holding "
+                                     f"{type(bad).__name__}") from None
+            raise
+
+    return call
+
+
+_TRAJECTORY = "a skewpend.Trajectory (from skewpend.simulate)"
+for _fn, _what in ((angles_figure, _TRAJECTORY), (phase_figure, _TRAJECTORY), (energy_figure, _TRAJECTORY),
+                   (torus_figure, _TRAJECTORY), (tips_figure, _TRAJECTORY), (simulation_figure, _TRAJECTORY),
+                   (plot_sweep, "a skewpend.modes.Sweep"), (flipmap_figure, "a skewpend.FlipMap"),
+                   (lyapunov_figure, "a skewpend.LyapunovSpectrum"), (poincare_figure, "a skewpend.PoincareSection"),
+                   (chaos_diagram_figure, "a skewpend.ChaosDiagram"), (lyapunov_map_figure, "a skewpend.LyapunovMap"),
+                   (control_figure, "a swing-up run (skewpend.swingup)"),
+                   (roa_figure, "a skewpend.RegionOfAttraction"),
+                   (fep_figure, "a sequence of nonlinear normal mode families (skewpend.nnm)"),
+                   (alpha_family_figure, "a sequence of families in alpha (skewpend.nnm_alpha)")):
+    globals()[_fn.__name__] = _refusing_wrong_types(_fn, _what)
+del _fn, _what
+
 __all__ = [
     "angles_figure", "phase_figure", "energy_figure", "torus_figure", "tips_figure", "simulation_figure", "plot_sweep",
     "flipmap_figure", "flipmap_forbidden", "flipmap_energy_margin", "FLIPMAP_COLORS", "save_figure", "FORMATS",

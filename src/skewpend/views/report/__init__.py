@@ -92,9 +92,9 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
     _require_libraries()
     if params is None:
         params = Parameters(**DEFAULT_PARAMETERS)
-    if not isinstance(params, Parameters):
-        raise ParameterError(f"params must be skewpend.Parameters, got {type(params).__name__}")
-    params.require_numeric("a report")
+    from ... import checks
+
+    params = checks.numeric_params(params, "a report")
     y = initial_state(DEFAULT_INITIAL_STATE if y0 is None else y0)
     t_end = positive_number("t_end", t_end)
     if t_end > MAX_T_END:
