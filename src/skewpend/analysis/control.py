@@ -8,8 +8,11 @@
   ``lambda`` of ``A`` (the Popov-Belevitch-Hautus test, as a distance);
 * :func:`lqr` -- the gain ``K``, the Riccati solution ``P`` (SciPy's ``solve_continuous_are``),
   the closed-loop eigenvalues, and an inner estimate of the region of attraction with the torque
-  limits: the largest level ``rho`` of ``V = dx^T P dx`` on whose sublevel set ``V' < 0`` for
-  the nonlinear closed loop with saturation (checked on samples);
+  limits: a level ``rho`` of ``V = dx^T P dx`` below which ``V' < 0`` for the nonlinear closed
+  loop with saturation -- :data:`RHO_MARGIN` (0.95) times the smallest ``V`` at which a seeded
+  search (rays bisected to their first crossing, samples in the ball, SLSQP minimising ``V``
+  subject to ``V'/V >= 0``) finds ``V' >= 0``, at most where the ellipsoid reaches an angle error
+  of pi.  A search, not a proof: a growing region thinner than it resolves could remain;
 * :func:`swingup` -- energy shaping from hanging towards the target's energy, switched to the LQR
   inside its region, simulated with the torque limit; the run, and when it was captured.
 
