@@ -45,6 +45,8 @@ def serve(
     given = [flag for flag, value, default in (("--host", host, "127.0.0.1"), ("--port", port, "8000")) if str(value) != default]
     if given:
         raise UsageError(f"{', '.join(given)}: not with --export (a static site has no server)")
+    if export.strip() == "-":
+        raise UsageError("--export -: a static site is a directory, not standard output; give its name")
     from ..views.frontend import export_explorer
 
     index = export_explorer(export, force=force)
