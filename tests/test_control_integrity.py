@@ -307,3 +307,33 @@ def test_cli_lqr_with_q_zero_says_there_is_no_region():
     assert "region      none: P is singular" in ran.out
     ran = run_cli(["control", "lqr", "--q", "0,0,0,0", "--target", "up-down"])
     assert ran.code == 2 and ran.err.count("\n") == 1 and "detectable" in ran.err, ran.report()
+
+
+# -- item 8, as an adversary: what broke next ---------------------------------------------------------------------
+@pytest.mark.parametrize("law, words", [
+    (lambda t, x: "ab", "must return two torques"),
+    (lambda t, x: {1: 2}, "must return two torques"),
+    (lambda t, x: (1.0, 2.0, 3.0), "must return two torques"),
+])
+def test_a_python_law_returning_nonsense_is_one_parameter_error(ref, law, words):
+    with pytest.raises(ParameterError, match=re.escape(words)):
+        skewpend.simulate(ref, (0.1, 0, 0, 0), 0.5, dt_out=0.1, controller=Controller.function(law, umax=5.0))
+
+
+def test_a_law_that_takes_no_state_is_refused_when_built():
+    with pytest.raises(ParameterError, match=r"the law must take two arguments, f\(t, x\)"):
+        Controller.function(lambda: (0.0, 0.0))
+
+
+def test_a_swingup_whose_run_fails_is_not_captured_and_says_why(ref):
+    """energy_gain = 1e308: the law's first torque is inf * 0; the run stops at once (0 rows) -- a
+    failed run, never an IndexError nor a capture."""
+    run = skewpend.swingup(ref, energy_gain=1e308, t_end=2.0)
+    assert not run.captured and not run.ok and "the run failed" in run.message
+
+
+def test_a_one_cell_map_at_the_target_needs_no_trial_rate(ref):
+    """n = 1: the one start is the target, inside the estimate at once (the trial rate was 0/0)."""
+    d = skewpend.lqr(ref, "up-up", umax=10.0)
+    r = skewpend.region_of_attraction(ref, n=1, design=d, t_end=1e-300)
+    assert r.ok and r.captured_fraction == 1.0 and r.capture_time[0, 0] == 0.0

@@ -398,6 +398,8 @@ class SwingUp:
 
     @property
     def message(self) -> str:
+        if not getattr(self.trajectory, "ok", True):
+            return f"not captured: the run failed ({self.trajectory.message})"
         if self.captured:
             return f"captured by the LQR at t = {self.capture_time:.4g} s and held to the end"
         return "not captured: the motion never stayed in the LQR's region (raise the torque limit, the energy gain or t_end)"
@@ -446,7 +448,7 @@ def swingup(params: Parameters, target="up-up", actuated: str = "both", *, umax=
                              elbow_gains=elbow_gains, actuated=actuated, umax=umax)
     tr = simulate(params, start, t_end, dt_out=dt_out, controller=ctl, progress=progress)
     inside = design.inside(tr.y)
-    if inside[-1]:
+    if tr.ok and inside.size and inside[-1]:
         k = len(inside) - 1
         while k > 0 and inside[k - 1]:
             k -= 1

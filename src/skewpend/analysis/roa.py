@@ -394,8 +394,9 @@ def _check_feasible(job: RoaJob, state) -> None:
     for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
         time_, steps, status = capture_many(kernel, p, ctl, starts, t_end=t, rtol=job.rtol, atol=job.atol,
                                             max_steps=PROBE_STEPS, P=np.reshape(job.P, (4, 4)), rho=job.rho)
-        lived = np.where(np.isfinite(time_), time_, t)  # a captured start stops early: its rate until then
-        rate = steps_per_second(steps, lived)
+        moved = ~(time_ == 0)  # a start inside the estimate is captured at once: no steps, no rate
+        lived = np.where(np.isfinite(time_), time_, t)[moved]  # a captured start stops early: its rate until then
+        rate = steps_per_second(steps[moved], lived)
         if not np.any(status != 0):
             break
     check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps,

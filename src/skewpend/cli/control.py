@@ -149,10 +149,11 @@ def control(
     u = tr.inputs()
     lines = [
         f"swing-up    {actuated.value} to {run.lqr.linearization.equilibrium.label}, |u| <= {run.controller.umax[0]:g} N m, "
-        f"{tr.t[-1]:g} s",
+        f"{tr.t[-1] if len(tr.t) else 0.0:g} s",
         f"result      {run.message}",
-        f"largest |u| {np.abs(u).max():.4g} N m; energy balance |E - W - E0|/max|E| = {tr.energy_drift:.2g}",
     ]
+    if len(u):
+        lines.append(f"largest |u| {np.abs(u).max():.4g} N m; energy balance |E - W - E0|/max|E| = {tr.energy_drift:.2g}")
     if out is not None:
         tr.to_netcdf(out) if str(out).lower().endswith(".nc") else _write_csv(tr, u, out)
         lines.append(f"written     {out}")

@@ -25,6 +25,7 @@ then includes theirs, so ``E - W`` stays conserved (the energy balance of every 
 from __future__ import annotations
 
 import ctypes
+import inspect
 import math
 import numbers
 import signal
@@ -171,6 +172,12 @@ class Controller:
         _actuation(actuated)
         if not callable(f):
             raise ParameterError(f"the law must be a callable f(t, x) -> (u1, u2), got {f!r}")
+        try:
+            inspect.signature(f).bind(0.0, np.zeros(4))
+        except TypeError:
+            raise ParameterError(f"the law must take two arguments, f(t, x) -> (u1, u2); {f!r} does not") from None
+        except ValueError:  # no signature to read (some built-ins): its first call says
+            pass
         return cls("function", actuated, torque_limits(umax), law=f)
 
     # -- what the integrators get --------------------------------------------------------------
@@ -295,9 +302,14 @@ def _python_law(f, errors: list):
             u[0] = u[1] = nan
             return
         try:
-            v = np.asarray(f(t, np.array([y[0], y[1], y[2], y[3]])), dtype=float).reshape(-1)
-            if v.shape != (2,):
-                raise ParameterError(f"the controller function must return two torques (u1, u2) [N m], got shape {v.shape}")
+            got = f(t, np.array([y[0], y[1], y[2], y[3]]))
+            try:
+                v = np.asarray(got, dtype=float).reshape(-1)
+            except (TypeError, ValueError, OverflowError):
+                v = None
+            if v is None or v.shape != (2,):
+                raise ParameterError("the controller function must return two torques (u1, u2) [N m], got "
+                                     + (f"shape {v.shape}" if v is not None else repr(got)[:60]))
             u[0], u[1] = float(v[0]), float(v[1])
         except BaseException as exc:  # noqa: BLE001 - raised again by the caller (KeyboardInterrupt too)
             errors.append(exc)
