@@ -107,6 +107,22 @@ def potential_function(params: Parameters) -> Callable[[float, float], float]:
     return V
 
 
+def potential_on_arrays(params: Parameters) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``V(phi, psi)`` of :func:`potential_function` on arrays of angles at once (the same
+    generated function, broadcast)."""
+    params.require_numeric("the potential")
+    values = _scalars(params)
+    functions = linearisation_functions(_geometry_only(params))
+    tau1, tau2 = float(params.tau1), float(params.tau2)
+
+    def V(phi: np.ndarray, psi: np.ndarray) -> np.ndarray:
+        phi, psi = np.broadcast_arrays(np.asarray(phi, dtype=float), np.asarray(psi, dtype=float))
+        Pi = np.broadcast_to(np.asarray(functions(*values, phi, psi)[0], dtype=float), phi.shape)
+        return Pi - tau1 * phi - tau2 * psi
+
+    return V
+
+
 def wrap(q: np.ndarray) -> np.ndarray:
     """Angles into (-pi, pi]."""
     w = np.mod(np.asarray(q, dtype=float) + np.pi, 2 * np.pi) - np.pi

@@ -479,15 +479,9 @@ def flip_energy(params: Parameters) -> float:
     boundary of the square ``|phi|, |psi| <= pi`` (sampled densely, then refined)."""
     from scipy.optimize import minimize_scalar
 
-    from .equilibria import _geometry_only, _scalars, linearisation_functions, potential_function
+    from .equilibria import potential_function, potential_on_arrays
 
-    V = potential_function(params)
-    functions, values = linearisation_functions(_geometry_only(params)), _scalars(params)
-    tau1, tau2 = float(params.tau1), float(params.tau2)
-
-    def V_many(phi: np.ndarray, psi: np.ndarray) -> np.ndarray:  # V on many points at once
-        Pi = np.broadcast_to(np.asarray(functions(*values, phi, psi)[0], dtype=float), phi.shape)
-        return Pi - tau1 * phi - tau2 * psi
+    V, V_many = potential_function(params), potential_on_arrays(params)  # V_many: on many points at once
 
     best = math.inf
     s = np.linspace(-math.pi, math.pi, 2049)
