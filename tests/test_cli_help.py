@@ -39,7 +39,7 @@ def test_every_option_states_its_default_or_that_it_is_required():
 
 @pytest.mark.parametrize("command,flag,shown", [("simulate", "--a", "(default 1)"), ("simulate", "--alpha", "(default 0.6)"),
                                                 ("control", "--m2", "(default 0.7)"), ("derive", "--a", "(default symbolic)"),
-                                                ("modes", "--b", "(default symbolic)")])
+                                                ("modes", "--b", "(default 0.8; symbolic with --format latex)")])
 def test_model_defaults_shown_per_command(command, flag, shown):
     ran = run_cli([command, "--help"])
     assert ran.code == 0

@@ -168,8 +168,9 @@ def progress(label: str, unit: str, quiet: bool):
 
 
 #: Commands whose model parameters stay symbolic when not given (the others start from the
-#: reference case, :data:`skewpend.config.DEFAULT_RUN`).
-SYMBOLIC_MODEL = frozenset({"derive", "modes"})
+#: reference case, :data:`skewpend.config.DEFAULT_RUN`), and those where one format keeps them so.
+SYMBOLIC_MODEL = frozenset({"derive"})
+SYMBOLIC_FORMAT = {"modes": "--format latex"}
 #: Options whose absence needs no default: outputs (nothing written), a cluster (none: this machine).
 _NO_DEFAULT = frozenset({"out", "plot", "animate", "export", "scheduler", "config"})
 
@@ -177,7 +178,7 @@ _NO_DEFAULT = frozenset({"out", "plot", "animate", "export", "scheduler", "confi
 def show_defaults(group) -> Any:
     """Every option's help ends with its default (issue 29: the help showed none for the model's
     parameters, which the reference case fills in): the reference case's value of a model key, or
-    'symbolic' for derive and modes, or the option's own default; outputs and flags are left
+    'symbolic' for derive (and modes --format latex), or the option's own default; outputs and flags are left
     alone, as are options whose help already says its default or that it is required."""
     from ..config import DEFAULT_RUN
 
@@ -197,6 +198,8 @@ def show_defaults(group) -> Any:
                     value = "symbolic"
                 elif p.name in reference:
                     value = f"{reference[p.name]:g}"
+                    if name in SYMBOLIC_FORMAT:
+                        value += f"; symbolic with {SYMBOLIC_FORMAT[name]}"
                 else:
                     value = "the specification's thin rod" if p.name.startswith(("com", "inertia")) else None
             else:
