@@ -466,3 +466,21 @@ def test_the_report_refuses_wrong_types_before_any_work(tmp_path):
         with pytest.raises(ParameterError, match=words):
             build_report(**kwargs)
     assert [p.name for p in tmp_path.iterdir()] == ["d.html"]
+
+
+def test_a_compiler_s_temporary_files_go_to_a_directory_that_is_removed(tmp_path, monkeypatch):
+    """Ctrl-C now stops a report during a kernel's compilation; a compiler killed mid-way cannot
+    remove its own temporary files (gcc's ``ccXXXX.s`` in TMPDIR), so they go to a directory of ours."""
+    from skewpend.numeric import kernels
+
+    fake = tmp_path / "fakecc"
+    fake.write_text('#!/bin/sh\necho half > "$TMPDIR/ccXXXX.s"\necho "fakecc: failed" >&2\nexit 1\n')
+    fake.chmod(0o755)
+    scratch, cache = tmp_path / "tmp", tmp_path / "kernels"
+    scratch.mkdir()
+    cache.mkdir()
+    monkeypatch.setenv("CC", str(fake))
+    monkeypatch.setenv("TMPDIR", str(scratch))
+    with pytest.raises(kernels.CompilerError, match="fakecc: failed"):
+        kernels._compile("int x;\n", cache / "k.so")
+    assert list(scratch.iterdir()) == [] and list(cache.iterdir()) == []

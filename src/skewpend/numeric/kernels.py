@@ -216,10 +216,15 @@ def _compile(source: str, target: Path) -> str:
     try:
         # -I: the integrators include the DOP853 core (dop853_core.h) from the package
         cmd = [*cc, *CFLAGS, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
+        # the compiler's own temporary files (gcc's .s) go to a directory of ours, removed even when
+        # Ctrl-C kills the compiler mid-way (it could not clean up after itself)
+        scratch = tempfile.mkdtemp(dir=directory, prefix=f".{target.stem}.", suffix=".cc-tmp")
         try:
-            proc = subprocess.run(cmd, capture_output=True, text=True)
+            proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "TMPDIR": scratch})
         except OSError as exc:
             raise CompilerError(f"cannot run the C compiler {name!r}: {exc.strerror}; install gcc or clang, or set CC") from None
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
         if proc.returncode != 0:
             first = (proc.stderr.strip().splitlines() or ["(no message)"])[0]
             raise CompilerError(f"the C compiler {name!r} failed on the generated kernel: {first}")
