@@ -1,4 +1,5 @@
-"""Test-session set-up: compiled kernels go to a cache inside the project, not the user's."""
+"""Test-session set-up: compiled kernels go to a cache inside the project, not the user's; the quick
+selection (``-m "not slow"``); the split over pytest-xdist's workers; tools a module needs."""
 
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ def reference_state():
 #: Modules whose every test is slow: a browser, a report built per module, the docs' build, and the docs'
 #: examples (a page's examples run in reading order, each after the ones above it, so a quick selection
 #: of them would run the slow ones anyway).
-SLOW_MODULES = {"test_report_browser.py", "test_explorer_browser.py", "test_report.py", "test_readme.py", "test_docs.py"}
+SLOW_MODULES = {"test_report_browser.py", "test_explorer_browser.py", "test_widget_browser.py", "test_report.py",
+                "test_readme.py", "test_docs.py"}
 
 
 def _measured_slow() -> set:
@@ -43,8 +45,60 @@ def _measured_slow() -> set:
     return {node.strip() for _, node in lines}
 
 
+# -- pytest-xdist (`python -m pytest` runs on every core: pyproject's addopts, --dist loadgroup) ----------
+#: Modules run whole on one worker, first: they build something expensive once per module (the docs'
+#: site, the README's and the report's runs, a browser and its pages), which two workers would each build,
+#: and they are the longest, which started last would leave one core idle at the end.  In this order.
+FIRST = ("test_docs.py", "test_readme.py", "test_report_browser.py", "test_report.py", "test_explorer_browser.py",
+         "test_widget_browser.py")
+
+
+def _grouped(path: Path) -> bool:
+    """Whether a module's tests stay together on one worker: the modules above, and every module
+    with a module-scoped fixture (built once per worker that runs any of its tests)."""
+    if path.name in FIRST:
+        return True
+    text = path.read_text(encoding="utf-8")
+    return 'scope="module"' in text or "scope='module'" in text
+
+
+def pytest_sessionstart(session):
+    """With workers (pytest-xdist), the reference model's kernels are compiled once, here, before the
+    workers start, rather than by two workers at once (a cold cache; a warm one is only loaded)."""
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    try:
+        from skewpend.config import reference_parameters
+        from skewpend.numeric.kernels import kernel_module
+
+        p = reference_parameters()
+        for kind in ({}, {"flip": True}, {"chaos": True}):
+            kernel_module(p, **kind)
+    except Exception:  # a broken build is reported by the tests themselves
+        pass
+
+
 def pytest_collection_modifyitems(config, items):
     slow = _measured_slow()
+    grouped = {}
     for item in items:
-        if item.nodeid in slow or Path(str(item.fspath)).name in SLOW_MODULES:
+        path = Path(str(item.fspath))
+        if item.nodeid in slow or path.name in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
+        if path not in grouped:
+            grouped[path] = _grouped(path)
+        if grouped[path]:
+            item.add_marker(pytest.mark.xdist_group(path.stem))
+    rank = {name: i for i, name in enumerate(FIRST)}
+    items.sort(key=lambda item: rank.get(Path(str(item.fspath)).name, len(FIRST)))  # stable: else as collected
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    """A test marked ``needs_tool`` (helpers.needs): skipped with its reason -- failed under CI."""
+    mark = item.get_closest_marker("needs_tool")
+    if mark is not None:
+        from helpers import skip_or_fail
+
+        skip_or_fail(mark.args[0])

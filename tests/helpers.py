@@ -23,6 +23,49 @@ WEBGL_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swifts
               "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
+def under_ci() -> bool:
+    """Whether this run is CI's (``CI=true``, as CI services and ``.ci/run`` set it)."""
+    return os.environ.get("CI", "").strip().lower() in ("1", "true", "yes")
+
+
+def missing_browser() -> Optional[str]:
+    """Why the browser tests cannot run on this machine, or None when they can."""
+    import importlib.util
+
+    if importlib.util.find_spec("playwright") is None:
+        return "Playwright is not installed (pip install -e '.[test]')"
+    if not os.path.exists(CHROMIUM):
+        return f"Chromium is not installed at {CHROMIUM} (Debian: apt-get install chromium)"
+    return None
+
+
+def missing_node() -> Optional[str]:
+    """Why the docs' build cannot run here (it renders formulas with KaTeX under Node.js), or None."""
+    import shutil
+
+    return None if shutil.which("node") else "Node.js is not installed ('node' is not on PATH; Debian: apt-get install nodejs)"
+
+
+def needs(reason: Optional[str]) -> list:
+    """Marks for a module whose tests need a tool that is missing for ``reason`` (None: nothing is
+    missing): the tests are skipped with the reason -- but under CI (``CI=true``) they fail with it,
+    so that CI never goes green by skipping (conftest.py's ``pytest_runtest_setup``)."""
+    import pytest
+
+    return [] if reason is None else [pytest.mark.needs_tool(reason)]
+
+
+def skip_or_fail(reason: Optional[str]) -> None:
+    """In a test or fixture: skip for ``reason`` -- or fail under CI (see :func:`needs`)."""
+    import pytest
+
+    if reason is None:
+        return
+    if under_ci():
+        pytest.fail(f"{reason} (CI=true: a missing tool fails the run; it is never skipped)", pytrace=False)
+    pytest.skip(reason)
+
+
 @contextlib.contextmanager
 def chromium():
     """A headless Chromium with WebGL (for a module-scoped ``browser`` fixture)."""

@@ -29,6 +29,9 @@ BUILD_TIMEOUT = 1500  # s: the whole site, notebooks executed, on 2 cores (measu
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> Path:
+    from helpers import missing_node, skip_or_fail
+
+    skip_or_fail(missing_node())  # KaTeX renders the formulas under Node.js at build time
     out = tmp_path_factory.mktemp("site")
     env = dict(os.environ, PYTHONWARNINGS="ignore::DeprecationWarning")
     proc = subprocess.run(

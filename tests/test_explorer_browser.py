@@ -34,14 +34,13 @@ import pytest
 
 pytest.importorskip("fastapi")
 pytest.importorskip("uvicorn")
-pytest.importorskip("playwright.sync_api")
 
 import skewpend  # noqa: E402
 from skewpend import Parameters  # noqa: E402
-from helpers import CHROMIUM, chromium  # noqa: E402
+from helpers import chromium, missing_browser, needs  # noqa: E402
 
-if not os.path.exists(CHROMIUM):  # pragma: no cover - .ci/run installs it
-    pytest.skip("Debian's chromium is needed (apt-get install chromium)", allow_module_level=True)
+# no Playwright or Chromium: skipped with the reason; under CI (CI=true) failed instead
+pytestmark = needs(missing_browser())
 
 
 def _artifacts() -> Path:

@@ -490,8 +490,15 @@ def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monke
     """Sections 2 and 3 are kept in the cache directory under a key of the parameters, the version
     and skewpend's own code: a second report with the same parameters reads them (the same HTML),
     other parameters or other code miss, and a damaged entry is computed again."""
+    from skewpend.numeric.kernels import cache_dir
     from skewpend.views.report import cache
 
+    # a cache of its own for the report's sections, sharing the test session's compiled kernels (a
+    # private kernel cache would compile every kernel of the report again: ~10 s, and not under test)
+    kernels = cache_dir() / "kernels"
+    kernels.mkdir(parents=True, exist_ok=True)
+    (tmp_path / "cache").mkdir()
+    (tmp_path / "cache" / "kernels").symlink_to(kernels, target_is_directory=True)
     monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "cache"))
     p = Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=math.radians(30), g=9.81)
     first = R.build_report(p, **SMALL)

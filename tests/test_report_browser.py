@@ -17,11 +17,11 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("playwright.sync_api")
-from helpers import CHROMIUM, chromium  # noqa: E402
+from helpers import chromium, missing_browser, needs  # noqa: E402
 pytest.importorskip("matplotlib")
 
-pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"{CHROMIUM} is not installed (apt-get install chromium)")
+# no Playwright or Chromium: skipped with the reason; under CI (CI=true) failed instead
+pytestmark = needs(missing_browser())
 
 from skewpend import Parameters  # noqa: E402
 from skewpend.views import report as R  # noqa: E402

@@ -33,17 +33,16 @@ import numpy as np
 import pytest
 
 pytest.importorskip("anywidget")
-pytest.importorskip("playwright.sync_api")
 
 import comm  # noqa: E402
 from comm.base_comm import BaseComm  # noqa: E402
 
 import skewpend  # noqa: E402
 from skewpend import Parameters  # noqa: E402
-from helpers import CHROMIUM, chromium  # noqa: E402
+from helpers import chromium, missing_browser, needs  # noqa: E402
 
-if not os.path.exists(CHROMIUM):  # pragma: no cover - .ci/run installs it
-    pytest.skip("Debian's chromium is needed (apt-get install chromium)", allow_module_level=True)
+# no Playwright or Chromium: skipped with the reason; under CI (CI=true) failed instead
+pytestmark = needs(missing_browser())
 ORDER = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
 
 # The page's side of the notebook: a model with anywidget's API; what it sends waits in `outbox`.
