@@ -162,18 +162,37 @@ def test_an_interrupted_swap_puts_the_earlier_export_back(tmp_path, monkeypatch)
     assert _tree(tmp_path) == before
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
-def test_a_read_only_directory_is_one_line(tmp_path):
+@pytest.fixture
+def read_only_dir(tmp_path):
+    """A directory this process cannot write: chmod 555, or for root a read-only tmpfs."""
     ro = tmp_path / "ro"
     ro.mkdir()
-    ro.chmod(0o555)
-    try:
-        with pytest.raises(ParameterError, match="cannot write .*Permission denied"):
-            frontend.export_explorer(ro / "site")
-        with pytest.raises(ParameterError, match="cannot write .*Permission denied"):
-            frontend.export_explorer(ro)
-    finally:
+    if os.geteuid() != 0:
+        ro.chmod(0o555)
+        yield ro
         ro.chmod(0o755)
+        return
+    try:
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k,ro", "tmpfs", str(ro)], capture_output=True)
+    except OSError as exc:
+        pytest.skip(f"root writes into read-only directories, and no read-only tmpfs: {exc}")
+    if done.returncode != 0:
+        pytest.skip(f"root writes into read-only directories, and no read-only tmpfs: {done.stderr.decode().strip()}")
+    try:
+        yield ro
+    finally:
+        subprocess.run(["umount", str(ro)], capture_output=True)
+
+
+def test_a_read_only_directory_is_one_line(read_only_dir):
+    from skewpend.io import check_output_path
+
+    for target in (read_only_dir / "site", read_only_dir):
+        with pytest.raises(ParameterError, match=r"^explorer export: cannot write .*: (Permission denied|Read-only)"):
+            frontend.export_explorer(target)
+    with pytest.raises(ParameterError, match=r"^--out: cannot write .*: (Permission denied|Read-only)"):
+        check_output_path(read_only_dir / "r.html", (".html",))
+    assert list(read_only_dir.iterdir()) == []
 
 
 def test_the_export_refuses_wrong_arguments_in_one_line(tmp_path):
