@@ -503,3 +503,16 @@ def test_a_compiler_s_temporary_files_go_to_a_directory_that_is_removed(tmp_path
     with pytest.raises(kernels.CompilerError, match="fakecc: failed"):
         kernels._compile("int x;\n", cache / "k.so")
     assert list(scratch.iterdir()) == [] and list(cache.iterdir()) == []
+
+
+def test_a_name_near_the_file_system_s_limit_is_still_written(tmp_path):
+    """The temporary name adds some 30 characters: a 250-character name used to fail."""
+    from skewpend.io import atomic_path
+
+    out = tmp_path / ("a" * 245 + ".csv")
+    with atomic_path(out) as tmp:
+        tmp.write_text("x")
+    site = tmp_path / ("s" * 250)
+    frontend.export_explorer(site)
+    assert out.read_text() == "x" and (site / "index.html").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([out.name, site.name])

@@ -224,7 +224,9 @@ def export_explorer(directory, params=None, *, force: bool = False) -> Path:
     exists = os.path.lexists(target)
     parent = target if exists else (target.parent if str(target.parent) else Path("."))
     try:
-        staging = Path(tempfile.mkdtemp(prefix=".skewpend-export-" if exists else f".{target.name}.skewpend-export-",
+        from ..io import _short
+
+        staging = Path(tempfile.mkdtemp(prefix=".skewpend-export-" if exists else f".{_short(target.name)}.skewpend-export-",
                                         dir=parent))
     except OSError as exc:
         raise ParameterError(f"{what}: cannot write {target}: {exc.strerror or exc}") from None
