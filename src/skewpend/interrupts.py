@@ -71,12 +71,13 @@ class Interrupts:
         self._outer: Optional["Interrupts"] = None  # an enclosing Interrupts (nested: a report's simulations)
         self._timer: Optional[threading.Timer] = None
         self._raise_now = False  # set by the timer: the handler, run again, raises
+        self._closing = False  # leaving the block: the timer's call raises nothing (the exit's check does)
 
     def _record(self, signum, frame) -> None:
         if self._raise_now:  # the timer's call, not a new signal
             self._raise_now = False
-            if self.pending is None:
-                return  # a check took it meanwhile
+            if self.pending is None or self._closing:
+                return  # a check took it meanwhile, or the block is ending (its exit raises it)
             if _in_destructor(frame):  # it would be swallowed there: a little later
                 self._arm(0.05, signum)
                 return
@@ -88,7 +89,7 @@ class Interrupts:
             self.on_signal()
         if self._outer is not None:  # the enclosing work hears of it too (its on_signal, its checks)
             self._outer._record(signum, frame)
-        if self.escalate_after is not None and self._timer is None:
+        if self.escalate_after is not None and self._timer is None and not self._closing:
             self._arm(self.escalate_after, signum)
 
     def _arm(self, delay: float, signum: int) -> None:
@@ -101,7 +102,7 @@ class Interrupts:
         """In the timer's thread: a signal no check has taken is raised by the handler, run again
         (sent to the main thread as a real signal, so that a blocking wait -- a compiler's
         subprocess, a pipe -- is interrupted too)."""
-        if self.pending is not None and self._previous is not None:
+        if self.pending is not None and self._previous is not None and not self._closing:
             self._raise_now = True
             signal.pthread_kill(threading.main_thread().ident, signum)
 
@@ -130,14 +131,17 @@ class Interrupts:
             raise kind
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
+        self._closing = True
+        timer, self._timer = self._timer, None
+        if timer is not None:
+            timer.cancel()
+            timer.join()  # no signal re-sent once the handlers below are restored
         self._raise_now = False
         for signum, previous in (self._previous or {}).items():
             signal.signal(signum, previous)
         self._previous = None
         self._outer = None
+        self._closing = False
         if self.pending is not None and exc_type is None:  # a signal during the last stretch still counts
             self.check()
 
