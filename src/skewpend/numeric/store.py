@@ -75,7 +75,12 @@ def _create_array(zarr, group, name: str, *, shape, chunks, dtype, fill_value, d
 
 
 def _tmp_dir(path: Path) -> Path:
-    return path.with_name(f".{path.name}.skewpend-{os.getpid()}.tmp")
+    """A new directory beside ``path``, made exclusively under a random name (never an existing
+    path or a planted link), holding the template at ``store`` until it is renamed into place."""
+    import tempfile
+
+    parent = path.parent if str(path.parent) else Path(".")
+    return Path(tempfile.mkdtemp(prefix=f".{path.name}.skewpend-{os.getpid()}-", suffix=".tmp", dir=parent))
 
 
 def _alive(pid: int) -> bool:
@@ -90,7 +95,7 @@ def _alive(pid: int) -> bool:
 
 def _remove_stale_templates(path: Path) -> None:
     """Temporary store directories beside ``path`` left by killed processes."""
-    pattern = re.compile(rf"^\.{re.escape(path.name)}\.skewpend-(\d+)\.tmp$")
+    pattern = re.compile(rf"^\.{re.escape(path.name)}\.skewpend-(\d+)-[A-Za-z0-9_]+\.tmp$")
     parent = path.parent if str(path.parent) else Path(".")
     try:
         entries = list(parent.iterdir())
@@ -98,7 +103,7 @@ def _remove_stale_templates(path: Path) -> None:
         return
     for entry in entries:
         m = pattern.match(entry.name)
-        if m and int(m.group(1)) != os.getpid() and not _alive(int(m.group(1))):
+        if m and int(m.group(1)) != os.getpid() and not _alive(int(m.group(1))) and not entry.is_symlink():
             shutil.rmtree(entry, ignore_errors=True)
 
 
@@ -201,8 +206,11 @@ class RowStore:
         if os.path.lexists(path):
             raise ParameterError(f"{path} exists; resume it or choose another path")
         _remove_stale_templates(path)
-        tmp = _tmp_dir(path)
-        shutil.rmtree(tmp, ignore_errors=True)
+        try:
+            holder = _tmp_dir(path)
+        except OSError as exc:
+            raise ParameterError(f"cannot create {path}: {exc.strerror or exc}") from None
+        tmp = holder / "store"
         n_chunks = rows // chunk_rows
         try:
             group = zarr.open_group(str(tmp), mode="w-")
@@ -248,11 +256,9 @@ class RowStore:
                     raise ParameterError(f"{path} exists; resume it or choose another path") from None
                 raise ParameterError(f"cannot create {path}: {exc.strerror or exc}") from None
         except OSError as exc:
-            shutil.rmtree(tmp, ignore_errors=True)
             raise ParameterError(f"cannot create {path}: {exc.strerror or exc}") from None
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
+        finally:
+            shutil.rmtree(holder, ignore_errors=True)  # the holder only: the store has left it, or failed
         store = cls(path, zarr.open_group(str(path), mode="r+"), zarr, lock=False)
         store._lock = path / LOCK_NAME
         return store
