@@ -71,3 +71,11 @@ def test_parameters_refuse_subnormal_values(name):
     values = {**dict(a=1.0, b=1.0, m1=1.0, m2=1.0, alpha=0.5, g=9.81), name: 1e-320}
     with pytest.raises(ParameterError, match=f"^{name} must be 0 or a normal number"):
         skewpend.Parameters(**values)
+
+
+@pytest.mark.parametrize("argv,fragment", [
+    (["equilibria", "--b", "1e17"], "not positive definite in double precision"),  # was exit 70 LinAlgError
+    (["modes", "--a", "1e17"], "zero to rounding"),  # said only 'normal modes need g > 0' with g = 9.81
+])
+def test_scales_too_far_apart_are_one_line(tmp_path, argv, fragment):
+    assert_refused(run_cli(argv, cwd=tmp_path), [fragment])

@@ -186,7 +186,7 @@ class Equilibrium:
 
 def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], functions) -> Equilibrium:
     """The :class:`Equilibrium` at ``q`` (already a root)."""
-    from scipy.linalg import eig, eigh
+    from scipy.linalg import LinAlgError, eig, eigh
 
     Pi, _, H, M, C = functions(*values, float(q[0]), float(q[1]))
     M = np.array(M, dtype=float)
@@ -199,7 +199,13 @@ def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], funct
     A = np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ K, -Minv @ C]])
     ev = eig(A, right=False)
     ev = ev[np.lexsort((-ev.imag, -ev.real))]
-    lam, V = eigh(K, M)
+    try:
+        lam, V = eigh(K, M)
+    except (LinAlgError, ValueError):  # M not positive definite to rounding: scales too far apart
+        raise ParameterError(
+            f"the mass matrix at phi = {float(q[0]):.6g}, psi = {float(q[1]):.6g} is not positive definite in double "
+            f"precision (condition number {np.linalg.cond(M):.3g}): the model's lengths, masses and inertias span too "
+            f"many orders of magnitude") from None
     scale = max(np.abs(lam).max(), np.finfo(float).tiny)
     index = int(np.sum(lam < -DEGENERATE * scale))
     for k in range(V.shape[1]):

@@ -305,6 +305,8 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         if equilibrium is None and lam[0] <= 1e-12 * max(abs(lam[1]), 1e-300):
             raise EquilibriumError(
                 f"the hanging position is not a stable equilibrium (w^2 = {lam.tolist()}); normal modes need g > 0"
+                + ("" if lam[0] < 0 or float(params.g or 0) <= 0 else
+                   ", and w1^2 above 1e-12 w2^2 (here it is zero to rounding: the model's scales span too many orders of magnitude)")
             )
         if equilibrium is not None and np.any(np.abs(lam) <= 1e-12 * max(np.abs(lam).max(), 1e-300)):
             raise EquilibriumError(
