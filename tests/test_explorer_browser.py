@@ -287,6 +287,9 @@ def test_dragging_rod_two_sets_psi0_about_the_skewed_axis(browser, site):
     p = Page(browser, site, "?alpha=50&phi0=30&psi0=0")
     try:
         p.pause()
+        # the layout settled (fonts in, two frames drawn) before the rod's place on screen is read:
+        # under load a late font swap moved the canvas after it was read
+        p.page.evaluate("() => document.fonts.ready.then(() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r))))")
         start = p.page.evaluate("() => window.explorer.screenOf('rod2')")
         p.page.mouse.move(start["x"], start["y"])
         p.page.mouse.down()

@@ -516,3 +516,31 @@ def test_a_name_near_the_file_system_s_limit_is_still_written(tmp_path):
     frontend.export_explorer(site)
     assert out.read_text() == "x" and (site / "index.html").is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([out.name, site.name])
+
+
+def test_the_escalation_waits_while_a_gc_callback_runs(monkeypatch):
+    """A garbage collector's callback (a profiler's, or a test plugin's) reports its exceptions only,
+    like ``__del__``: the escalation waits until it has returned."""
+    import gc
+    import time
+
+    from skewpend.interrupts import Interrupts
+
+    swallowed = []
+    monkeypatch.setattr(sys, "unraisablehook", swallowed.append)
+
+    def slow_callback(phase, info):
+        if phase == "start":
+            _spin(0.4)  # the grace time passes in here
+
+    gc.callbacks.append(slow_callback)
+    try:
+        start = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            with Interrupts(escalate_after=0.05):
+                _signal_self_later(0.0)
+                gc.collect()
+                _spin(5.0)  # raised in here, right after the callback
+    finally:
+        gc.callbacks.remove(slow_callback)
+    assert not swallowed and time.monotonic() - start < 2.5

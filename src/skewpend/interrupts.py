@@ -147,9 +147,13 @@ class Interrupts:
 
 
 def _in_destructor(frame) -> bool:
-    """Whether ``frame`` runs inside a ``__del__`` (an exception raised there is only reported)."""
+    """Whether ``frame`` runs inside a ``__del__`` or a garbage collector's callback (``gc.callbacks``,
+    which a profiler or test plugin may install): an exception raised there is only reported."""
+    import gc
+
+    callbacks = {getattr(cb, "__code__", None) for cb in gc.callbacks}
     while frame is not None:
-        if frame.f_code.co_name == "__del__":
+        if frame.f_code.co_name == "__del__" or frame.f_code in callbacks:
             return True
         frame = frame.f_back
     return False

@@ -68,12 +68,12 @@ def _tmp_file(path: Path) -> Path:
     import tempfile
 
     directory = path.parent if str(path.parent) else Path(".")
-    fd, name = tempfile.mkstemp(prefix=f".{_short(path.name)}.skewpend-{os.getpid()}-", suffix=".tmp", dir=directory)
+    fd, name = tempfile.mkstemp(prefix=f".{short_name(path.name)}.skewpend-{os.getpid()}-", suffix=".tmp", dir=directory)
     os.close(fd)
     return Path(name)
 
 
-def _short(name: str) -> str:
+def short_name(name: str) -> str:
     """``name`` cut to 120 characters for a temporary name (a name near the file system's limit of
     255 bytes stays writable: the temporary name adds some 30)."""
     return name if len(name.encode()) <= 120 else name.encode()[:120].decode("utf-8", "ignore")
@@ -83,7 +83,7 @@ def _remove_stale(path: Path) -> None:
     """Temporary files of earlier writes to ``path`` whose process is gone (e.g. ``kill -9``):
     regular files named as :func:`_tmp_file` names them (a symbolic link or a directory of that
     name is left alone)."""
-    pattern = re.compile(rf"^\.{re.escape(_short(path.name))}\.skewpend-(\d+)(?:-[A-Za-z0-9_]+)?\.tmp$")
+    pattern = re.compile(rf"^\.{re.escape(short_name(path.name))}\.skewpend-(\d+)(?:-[A-Za-z0-9_]+)?\.tmp$")
     try:
         entries = list(path.parent.iterdir()) if str(path.parent) else list(Path(".").iterdir())
     except OSError:

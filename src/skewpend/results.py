@@ -139,7 +139,7 @@ class ResultProtocol:
         import dataclasses
 
         status = Status.of(getattr(self, "status", Status.SUCCESS))
-        names = ([f.name for f in dataclasses.fields(self)] if dataclasses.is_dataclass(self) else [])  # type: ignore[arg-type]
+        names: list = [f.name for f in dataclasses.fields(self)] if dataclasses.is_dataclass(self) else []  # type: ignore[arg-type]
         shown = [f"{name} {_brief(getattr(self, name, None))}" for name in names
                  if name not in ("params", "settings", "stats", "status", "message") and not name.startswith("_")]
         text = f"<{type(self).__name__} {status.name.lower()}: {getattr(self, 'message', status.message)}"

@@ -438,9 +438,9 @@ def lyapunov(
 
     with Interrupts() as intr:  # Ctrl-C raised between the bounded calls, never lost
         # after the first bounded call: refuse what cannot finish, as simulate does
-        status = drive(lambda budget: kernel.lib.sp_lyap(*call_args), budget=_BUDGET, take=take, check=intr.check,
+        status = int(drive(lambda budget: kernel.lib.sp_lyap(*call_args), budget=_BUDGET, take=take, check=intr.check,
                        progress=None if progress is None else (lambda: progress(state.t, t_end)),
-                       estimate=lambda: check_step_estimate(state, t_end, max_steps), name="sp_lyap")
+                       estimate=lambda: check_step_estimate(state, t_end, max_steps), name="sp_lyap"))
     wall = time.perf_counter() - start
 
     t_reached = float(state.t)

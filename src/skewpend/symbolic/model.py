@@ -205,9 +205,9 @@ class Parameters:
                 raise ParameterError(f"{name} must be > 0, got {x:g}")
             if name in _NONNEGATIVE and x < 0:
                 raise ParameterError(f"{name} must be >= 0, got {x:g}")
-            if isinstance(x, float) and x != 0 and abs(x) < 2.2250738585072014e-308:  # subnormal
-                raise ParameterError(f"{name} must be 0 or a normal number (at least 2.2e-308 in magnitude: the compiled "
-                                     f"code may flush a subnormal one to 0), got {x:g}")
+            if name in _POSITIVE and isinstance(x, float) and x < 2.2250738585072014e-308:  # subnormal: 0 to the C code
+                raise ParameterError(f"{name} must be a normal number (at least 2.2e-308: the compiled code may flush a "
+                                     f"subnormal one to 0, a degenerate model), got {x:g}")
             if name == "alpha" and isinstance(x, float) and abs(x) > MAX_ANGLE:
                 raise ParameterError(f"alpha must be an angle of at most {MAX_ANGLE:g} rad in magnitude (its cosine "
                                      f"and sine would be digits of rounding), got {x:g}")

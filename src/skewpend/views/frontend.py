@@ -224,9 +224,9 @@ def export_explorer(directory, params=None, *, force: bool = False) -> Path:
     exists = os.path.lexists(target)
     parent = target if exists else (target.parent if str(target.parent) else Path("."))
     try:
-        from ..io import _short
+        from ..io import short_name
 
-        staging = Path(tempfile.mkdtemp(prefix=".skewpend-export-" if exists else f".{_short(target.name)}.skewpend-export-",
+        staging = Path(tempfile.mkdtemp(prefix=".skewpend-export-" if exists else f".{short_name(target.name)}.skewpend-export-",
                                         dir=parent))
     except OSError as exc:
         raise ParameterError(f"{what}: cannot write {target}: {exc.strerror or exc}") from None
