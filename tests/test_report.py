@@ -500,6 +500,15 @@ def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monke
     (tmp_path / "cache").mkdir()
     (tmp_path / "cache" / "kernels").symlink_to(kernels, target_is_directory=True)
     monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "cache"))
+
+    def numeric_sections_stubbed():  # what is under test is sections 2 and 3; the others take ~20 s a report
+        for name in ("section_simulation", "section_system", "section_modes", "section_flipmap", "section_orbits",
+                     "section_validation", "section_chaos"):
+            monkeypatch.setattr(R, name, lambda ctx, name=name: f"<p>{name}: not under test</p>")
+        monkeypatch.setattr(R, "chaos_jobs", lambda ctx: {})
+        monkeypatch.setattr(R, "live_figure", lambda ctx: "")
+
+    numeric_sections_stubbed()
     p = Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=math.radians(30), g=9.81)
     first = R.build_report(p, **SMALL)
     assert "read from the cache" not in first
@@ -514,6 +523,7 @@ def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monke
     assert cache.load(p) is None  # another version of the code: another key
     monkeypatch.undo()
     monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "cache"))
+    numeric_sections_stubbed()
     entry.write_text('{"bodies": {"derivation": 1}}')
     assert cache.load(p) is None
     entry.write_text("not json")
