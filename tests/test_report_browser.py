@@ -50,13 +50,19 @@ def browser():
         yield b
 
 
+#: The reports built in this process, by case.
+_BUILT: dict = {}
+
+
 @pytest.fixture(scope="module", params=list(CASES))
 def opened(request, browser, tmp_path_factory):
     """The report built, opened offline, typeset, its screenshots taken: (page, records, folder)."""
-    case = dict(CASES[request.param])
-    params = case.pop("params")
-    html = tmp_path_factory.mktemp("report") / "report.html"
-    R.build_report(params, out=html, **case)
+    html = _BUILT.get(request.param)
+    if html is None:  # built once per process: a worker may set a module's parametrised fixture up twice
+        case = dict(CASES[request.param])
+        params = case.pop("params")
+        html = _BUILT[request.param] = tmp_path_factory.mktemp("report") / "report.html"
+        R.build_report(params, out=html, **case)
     folder = _artifacts() / f"report-browser-{request.param}"
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
