@@ -126,7 +126,7 @@ def test_c_source_compiles_and_matches(tmp_path):
     cc = shutil.which("cc") or shutil.which("gcc")
     subprocess.run([cc, "-O2", "-shared", "-fPIC", "-std=c99", "-Wall", "-Werror", "-o", str(lib), str(src), "-lm"], check=True)
     so = ctypes.CDLL(str(lib))
-    dbl4, dbl10 = ctypes.c_double * 4, ctypes.c_double * 10
+    dbl4, dbl10 = ctypes.c_double * 4, ctypes.c_double * len(PARAMETER_ORDER)
     so.skewpend_energy.restype = ctypes.c_double
     acc, en = _reference(params)
     p = dbl10(*parameter_vector(params))
@@ -184,7 +184,7 @@ def test_numeric_values_become_the_default_parameter_vector():
     literal = ", ".join(repr(x) for x in parameter_vector(params).tolist())
     py, c, js = (generate(params, lang) for lang in ("python", "c", "javascript"))
     assert f"P = ({literal})" in py and "def rhs(t, y, p=P):" in py and "def energy(y, p=P):" in py
-    assert f"static const double SKEWPEND_P[10] = {{{literal}}};" in c
+    assert f"static const double SKEWPEND_P[{len(PARAMETER_ORDER)}] = {{{literal}}};" in c
     assert f"export const P = [{literal}];" in js and "export function rhs(y, p = P) {" in js
     for src in (py, c, js):
         assert "Values (the default parameter vector P): a = 0.5, b = 1.5," in src

@@ -24,6 +24,8 @@ from skewpend.numeric.codegen import PARAMETER_ORDER, generate, parameter_vector
 from skewpend.symbolic.derivation import SYMBOLS
 from skewpend.parsing import UsageError
 
+N = len(PARAMETER_ORDER)
+
 CASES = {
     "thin": Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81),
     "damped": Parameters(a=0.5, b=1.5, m1=2.0, m2=0.3, alpha=math.radians(30), g=3.7, c1=0.1, c2=0.3, tau1=0.2, tau2=-0.05),
@@ -114,7 +116,7 @@ def test_c_default_vector_compiles_and_matches(tmp_path, name):
     (tmp_path / "model.c").write_text(generate(params, "c"))
     (tmp_path / "use.c").write_text(
         '#include "model.c"\n'
-        "void get_p(double out[10]) { for (int i = 0; i < 10; ++i) out[i] = SKEWPEND_P[i]; }\n"
+        f"void get_p(double out[{N}]) {{ for (int i = 0; i < {N}; ++i) out[i] = SKEWPEND_P[i]; }}\n"
         "void rhs_default(const double y[4], double dydt[4]) { skewpend_rhs(y, SKEWPEND_P, dydt); }\n"
         "double energy_default(const double y[4]) { return skewpend_energy(y, SKEWPEND_P); }\n"
     )
@@ -123,7 +125,7 @@ def test_c_default_vector_compiles_and_matches(tmp_path, name):
     subprocess.run(["cc", *flags, "-o", str(tmp_path / "alone.so"), str(tmp_path / "model.c"), "-lm"], check=True)
     subprocess.run(["cc", *flags, "-o", str(tmp_path / "use.so"), str(tmp_path / "use.c"), "-lm"], check=True)
     so = ctypes.CDLL(str(tmp_path / "use.so"))
-    dbl4, dbl10 = ctypes.c_double * 4, ctypes.c_double * 10
+    dbl4, dbl10 = ctypes.c_double * 4, ctypes.c_double * N
     so.energy_default.restype = so.skewpend_energy.restype = ctypes.c_double
     got = dbl10()
     so.get_p(got)

@@ -58,7 +58,7 @@ COMMAND_DEFAULTS: Dict[str, Dict[str, Any]] = {
 }
 
 #: The model's keys ([parameters]) and the initial state's ([initial]).
-SCALAR_KEYS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
+SCALAR_KEYS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "cf1", "cf2", "cfs", "Ir", "gr")
 MODEL_KEYS = frozenset(SCALAR_KEYS + ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2"))
 INITIAL_KEYS = frozenset(("phi0", "psi0", "dphi0", "dpsi0"))
 _INTEGRATION = frozenset(("t_end", "method", "rtol", "atol", "dt", "max_steps"))
@@ -120,7 +120,8 @@ def as_text(value: Any, where: str = "value") -> Optional[str]:
 def build_parameters(values: Mapping[str, Any], where: Optional[Mapping[str, str]] = None):
     """:class:`~skewpend.Parameters` from values as spelled (the one way of building them from
     user input).  A missing scalar stays symbolic, except the damping and torques ``c1, c2, tau1,
-    tau2``, which are 0 unless given (``"sym"`` makes them symbolic); ``where`` names each key as
+    tau2`` and the optional terms ``cf1, cf2, Ir`` (0 unless given), ``cfs`` (100) and ``gr`` (1):
+    they take :class:`~skewpend.Parameters`' defaults (``"sym"`` makes them symbolic); ``where`` names each key as
     the user knows it (default ``--key``)."""
     from .symbolic.model import Parameters
 
@@ -133,8 +134,9 @@ def build_parameters(values: Mapping[str, Any], where: Optional[Mapping[str, str
         return as_text(values.get(k), w(k))
 
     scalars = {k: parse_scalar(text(k), w(k), angle=(k == "alpha")) for k in ("a", "b", "m1", "m2", "alpha", "g")}
-    for k in ("c1", "c2", "tau1", "tau2"):
-        scalars[k] = parse_scalar(0.0 if values.get(k) is None else text(k), w(k))
+    for k in ("c1", "c2", "tau1", "tau2", "cf1", "cf2", "cfs", "Ir", "gr"):
+        default = getattr(Parameters(), k)  # 0 (off); cfs 100 [s/rad], gr 1
+        scalars[k] = parse_scalar(default if values.get(k) is None else text(k), w(k))
     geometry = {k: parse_vector(text(k), w(k)) for k in ("com1", "com2", "axis1", "axis2")}
     geometry.update({k: parse_inertia(text(k), w(k)) for k in ("inertia1", "inertia2")})
     return Parameters(**scalars, **geometry)

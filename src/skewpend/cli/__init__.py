@@ -81,13 +81,15 @@ def _register() -> None:
 _register()
 
 
-def build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, inertia1, inertia2, axis1, axis2):
+def build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, inertia1, inertia2, axis1, axis2,
+                     cf1=None, cf2=None, cfs=None, Ir=None, gr=None):
     """Deprecated: :class:`~skewpend.Parameters` from command-line strings; use
     :func:`skewpend.config.build_parameters` (a mapping of values as spelled)."""
     from ..config import build_parameters as build
 
     return build(dict(a=a, b=b, m1=m1, m2=m2, alpha=alpha, g=g, c1=c1, c2=c2, tau1=tau1, tau2=tau2, com1=com1,
-                      com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2))
+                      com2=com2, inertia1=inertia1, inertia2=inertia2, axis1=axis1, axis2=axis2, cf1=cf1, cf2=cf2,
+                      cfs=cfs, Ir=Ir, gr=gr))
 
 
 #: Names the single-module CLI (``skewpend/cli.py``) had, where they live now (deprecated here).

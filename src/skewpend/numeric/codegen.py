@@ -10,8 +10,9 @@ integrators (``integrators.c``); the C the simulations compile is printed by
 Conventions shared by every generated routine:
 
 * state ``y = (phi, psi, dphi, dpsi)`` [rad, rad, rad/s, rad/s];
-* parameters ``p = (a, b, m1, m2, alpha, g, c1, c2, tau1, tau2)`` (SI units, radians),
-  the order of :data:`PARAMETER_ORDER`;
+* parameters ``p = (a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, cf1, cf2, cfs, Ir, gr)`` (SI
+  units, radians), the order of :data:`PARAMETER_ORDER` (the optional friction and rotor terms
+  are in the code only when the model has them: :func:`~skewpend.numeric.conventions.geometry_of`);
 * general-body geometry (``com``, ``inertia``, ``axis``) is baked into the code as numbers.
 """
 
@@ -66,7 +67,7 @@ def expressions(geometry: Parameters) -> _Expressions:
     s = SYMBOLS
     q = [s["phi"], s["psi"]]
     dq = [s["dphi"], s["dpsi"]]
-    Q = sp.Matrix([s["tau1"] - s["c1"] * dq[0], s["tau2"] - s["c2"] * dq[1]])
+    Q = eom.generalized_forces
     return _Expressions(
         M=eom.mass_matrix,
         f=eom.forcing,
@@ -208,7 +209,7 @@ def _default_vector(params: Parameters):
         "parameter vector P) or none of them (p is supplied at run time)"
     )
     if not given:
-        ignored = [f"{n} = {getattr(params, n)!r}" for n in rest if getattr(params, n) not in (None, 0.0)]
+        ignored = [f"{n} = {getattr(params, n)!r}" for n in rest if getattr(params, n) not in (None, getattr(Parameters(), n))]
         if ignored:
             raise UsageError(f"generated code: {', '.join(ignored)} would be ignored without {', '.join(core)}; {choices}")
         return None
@@ -306,7 +307,12 @@ def explorer_js(params: Parameters) -> str:
     ``FLIP_ODD`` (without torques the equations are odd under ``(q, q') -> -(q, q')``), all
     printed from the derivation for the bodies and axes of ``params``, every scalar read from
     ``p`` in :data:`PARAMETER_ORDER` (the sliders change ``p``, never the code)."""
+    from ..errors import ParameterError
     from ..symbolic.render import tex
+    if params.has_friction or params.has_rotor:
+        raise ParameterError(
+            "the explorer has no Coulomb friction or rotor inertia (its sliders cannot set cf1, cf2, Ir); "
+            "explore the model with cf1 = cf2 = Ir = 0, and simulate the full model with skewpend simulate")
     geometry = geometry_of(params)
     _check_geometry_numeric(geometry)
     ex = expressions(geometry)
@@ -422,14 +428,14 @@ def _standalone_c(ex: _Expressions, geometry: Parameters, values=None) -> str:
                 "#if defined(__GNUC__) || defined(__clang__)",
                 "__attribute__((unused))",
                 "#endif",
-                f"static const double SKEWPEND_P[10] = {{{', '.join(_number(v) for v in values)}}};", ""]
+                f"static const double SKEWPEND_P[{len(PARAMETER_ORDER)}] = {{{', '.join(_number(v) for v in values)}}};", ""]
     return "\n".join(
         ["/*", doc, " */", "#include <math.h>", "", *head,
          "/* dydt = (dphi, dpsi, ddphi, ddpsi) */",
-         "void skewpend_rhs(const double y[4], const double p[10], double dydt[4])", "{",
+         f"void skewpend_rhs(const double y[4], const double p[{len(PARAMETER_ORDER)}], double dydt[4])", "{",
          *rhs, "    dydt[0] = y[2];", "    dydt[1] = y[3];", "    dydt[2] = ddphi;", "    dydt[3] = ddpsi;", "}", "",
          "/* mechanical energy T + Pi [J] */",
-         "double skewpend_energy(const double y[4], const double p[10])", "{", *en, "    return E;", "}", ""]
+         f"double skewpend_energy(const double y[4], const double p[{len(PARAMETER_ORDER)}])", "{", *en, "    return E;", "}", ""]
     )
 
 

@@ -1,14 +1,15 @@
 """Conventions shared by every generated numeric routine: the order of the state and of the
 parameter array, and the split of a model into geometry (baked into code) and scalars
-(run-time inputs)."""
+(run-time inputs; the optional friction and rotor terms are in the code only when a model has
+them, see :func:`geometry_of`)."""
 
 from __future__ import annotations
 
 from typing import Tuple
 
-from ..symbolic.model import SCALAR_NAMES, Parameters
+from ..symbolic.model import FRICTION_NAMES, ROTOR_NAMES, SCALAR_NAMES, Parameters
 
-__all__ = ["PARAMETER_ORDER", "STATE_ORDER", "GEOMETRY", "geometry_of", "parameter_vector"]
+__all__ = ["PARAMETER_ORDER", "STATE_ORDER", "GEOMETRY", "geometry_of", "optional_terms", "parameter_vector"]
 
 #: Order of the parameter array ``p`` of every generated routine.
 PARAMETER_ORDER: Tuple[str, ...] = SCALAR_NAMES
@@ -18,9 +19,23 @@ STATE_ORDER: Tuple[str, ...] = ("phi", "psi", "dphi", "dpsi")
 GEOMETRY: Tuple[str, ...] = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
 
 
+def optional_terms(params: Parameters) -> Tuple[bool, bool]:
+    """Which optional terms the compiled code of ``params`` holds: (Coulomb friction, rotor inertia)."""
+    return params.has_friction, params.has_rotor
+
+
 def geometry_of(params: Parameters) -> Parameters:
-    """The same bodies and axes with every scalar parameter symbolic (a runtime input)."""
-    return Parameters(**{k: getattr(params, k) for k in GEOMETRY}, **{k: None for k in SCALAR_NAMES})
+    """The same bodies and axes with every scalar parameter symbolic (a runtime input).
+
+    The optional terms are structural: Coulomb friction (``cf1, cf2, cfs``) and the rotor inertia
+    (``Ir, gr``) are runtime inputs when ``params`` has them (non-zero or symbolic), and are left
+    out of the code otherwise -- so a model without them runs exactly today's code (bit for bit),
+    and its ``p`` entries for them are not read.  Code for a model with friction reads any ``cf``,
+    0 included."""
+    friction, rotor = optional_terms(params)
+    off = {n: getattr(Parameters(), n) for n in FRICTION_NAMES * (not friction) + ROTOR_NAMES * (not rotor)}
+    scalars = {k: None for k in SCALAR_NAMES if k not in off}
+    return Parameters(**{k: getattr(params, k) for k in GEOMETRY}, **scalars, **off)
 
 
 def parameter_vector(params: Parameters):

@@ -32,7 +32,7 @@ from typing import Dict, Optional
 from .. import __version__
 from ..errors import SkewpendError
 from ..symbolic.model import Parameters
-from .conventions import GEOMETRY, PARAMETER_ORDER, STATE_ORDER, geometry_of, parameter_vector
+from .conventions import GEOMETRY, PARAMETER_ORDER, STATE_ORDER, geometry_of, optional_terms, parameter_vector
 
 __all__ = ["ControlStruct",
     "PARAMETER_ORDER",
@@ -521,7 +521,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
     if flip and chaos:
         raise ValueError("kernel_module: flip and chaos are separate libraries")
     kind = "flip" if flip else ("chaos" if chaos else "")
-    gkey = repr([getattr(params, k) for k in GEOMETRY]) + ("|" + kind if kind else "")
+    gkey = repr([getattr(params, k) for k in GEOMETRY] + list(optional_terms(params))) + ("|" + kind if kind else "")
     kernel = _BYGEOMETRY.get(gkey)
     if kernel is not None:
         return kernel

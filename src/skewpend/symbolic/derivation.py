@@ -16,7 +16,10 @@ in the speeds; the velocity terms come from derivatives of ``M``
 ``cos^2 + sin^2 = 1`` in its shortest form (:meth:`skewpend.symbolic.kinematics.Algebra.shortest`).
 
 The result is ``M(q) q'' = f(q, q')`` with ``f`` containing the generalised
-non-potential forces ``Q_i = tau_i - c_i q_i'`` (joint torques and viscous damping).
+non-potential forces ``Q_i = tau_i - c_i q_i' - cf_i atan(cfs q_i')`` (joint torques, viscous
+damping and, optionally, smooth Coulomb friction).  Optionally ``T`` also holds the kinetic
+energy of two geared motors' rotors (``Ir``, ``gr``), so their reflected inertia enters ``M``
+through Lagrange's equations like every other inertia.
 """
 
 from __future__ import annotations
@@ -93,7 +96,10 @@ class EquationsOfMotion:
     * ``mass_matrix`` -- 2x2 ``M(q)`` [kg m^2];
     * ``forcing`` -- 2x1 ``f(q, q')`` [N m], velocity, gravity, damping and torque terms;
     * ``kinetic_energy`` ``T`` and ``potential_energy`` ``Pi`` [J] (``Pi = 0`` with both
-      rods hanging vertically, ``phi = psi = 0``);
+      rods hanging vertically, ``phi = psi = 0``); ``T`` includes the rotors' when ``Ir != 0``;
+    * ``generalized_forces`` -- 2x1 ``Q(q')`` [N m], the non-potential forces
+      ``tau_i - c_i q_i' - cf_i atan(cfs q_i')`` (their power ``Q . q'`` is the energy account's
+      ``W'``);
     * ``params`` -- the :class:`~skewpend.Parameters` it was derived for.
 
     :attr:`steps` holds the specification's intermediate results; :meth:`linearize`
@@ -105,6 +111,7 @@ class EquationsOfMotion:
     forcing: sp.Matrix
     kinetic_energy: sp.Expr
     potential_energy: sp.Expr
+    generalized_forces: sp.Matrix
     _ctx: "_Context" = field(repr=False, compare=False)
 
     # -- names ---------------------------------------------------------------------
@@ -236,6 +243,15 @@ class _Context:
                 fixed_names.append((r.name, 1 / norm2))
                 self.late_expr[r] = sp.Float(1 / math.sqrt(float(norm2)))
         gens += [S["dphi"], S["dpsi"]]
+        # Coulomb friction: atan(cfs q_i') stands in the ring as a generator of its own, restored
+        # to the function by finish() (only when the friction enters: today's ring otherwise).
+        self.friction = params.has_friction
+        if self.friction:
+            rate = S["cfs"] if params.cfs is None else _number(params.cfs)
+            for ang in ("phi", "psi"):
+                placeholder = sp.Symbol(f"atan_d{ang}", real=True)
+                gens.append(placeholder)
+                self.restore[placeholder] = sp.atan(rate * S[f"d{ang}"])
         self.alg = alg = Algebra(gens)
         self.relations = [Relation(tuple(alg.index[n] for n in pair)) for pair in unit_pairs]
         for _, names, offset in symbolic_axes:
@@ -327,6 +343,14 @@ class _Context:
             + v["m2"] * alg.dot(v_c2, v_c2)
             + alg.dot(omega2_body, alg.matvec(self.I2, omega2_body))
         ) / 2
+        # Geared motors (optional, Ir = 0 by default): a rotor of axial inertia Ir fixed to the
+        # roof turns about n1 at gr phi'; the rotor at hinge 2, carried by rod 1, spins about e0 at
+        # gr psi' relative to rod 1, so its axial speed is (n1 . e0) phi' + gr psi' (its transverse
+        # inertia belongs to rod 1's).
+        if self.params.has_rotor:
+            Ir, gr = v["Ir"], v["gr"]
+            spin2 = alg.dot(n1, e0) * dphi + gr * dpsi
+            T = T + Ir * (gr**2 * dphi**2 + spin2**2) / 2
 
         # Potential energy: Pi = -g sum m j . r_c, zero with both rods hanging (phi = psi = 0).
         #   j . (P1 x) = (P1^T j) . x
@@ -338,24 +362,28 @@ class _Context:
         M = [[T.diff(speeds[i]).diff(speeds[j]) for j in range(2)] for i in range(2)]
 
         # Lagrange: M q'' = -sum_jk (dM_ij/dq_k - 1/2 dM_jk/dq_i) q'_j q'_k - dPi/dq_i + Q_i,
-        # Q_i = tau_i - c_i q'_i.
+        # Q_i = tau_i - c_i q'_i - cf_i atan(cfs q'_i).
         dM = [[[self.d_dq(M[i][j], k) for k in range(2)] for j in range(2)] for i in range(2)]
-        forcing = []
+        forcing, forces = [], []
         for i in range(2):
             vel = alg.R.zero
             for j in range(2):
                 for k in range(2):
                     vel += (dM[i][j][k] - dM[j][k][i] / 2) * speeds[j] * speeds[k]
             Q = v[f"tau{i + 1}"] - v[f"c{i + 1}"] * speeds[i]
+            if self.friction:
+                Q = Q - v[f"cf{i + 1}"] * alg.gens[("atan_dphi", "atan_dpsi")[i]]
+            forces.append(Q)
             forcing.append(-vel - self.d_dq(Pi, i) + Q)
 
-        self.T, self.Pi, self.M, self.f = T, Pi, M, forcing
+        self.T, self.Pi, self.M, self.f, self.Q = T, Pi, M, forcing, forces
         return EquationsOfMotion(
             params=self.params,
             mass_matrix=self.finish_matrix(M),
             forcing=self.finish_matrix(forcing, keys=_SPEEDS),
             kinetic_energy=self.finish(T, keys=_SPEEDS),
             potential_energy=self.finish(Pi, keys=[n for n in ("m1", "m2") if n in alg.gens]),
+            generalized_forces=self.finish_matrix(forces, keys=_SPEEDS),
             _ctx=self,
         )
 
@@ -404,7 +432,10 @@ class _Context:
             )
         M0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.M[i][j].subs(zero)))
         K0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.d_dq(grad[i], j).subs(zero)))
-        C0 = sp.Matrix(2, 2, lambda i, j: self.finish(v[f"c{i + 1}"]) if i == j else sp.S.Zero)
+        # damping: -dQ/dq' at rest; Coulomb friction's smooth sign has slope cfs there, so it acts
+        # on small motions (|q'| << 1/cfs) as a viscous damping cf_i cfs.
+        friction = (lambda i: v[f"cf{i + 1}"] * v["cfs"]) if self.friction else (lambda i: 0)
+        C0 = sp.Matrix(2, 2, lambda i, j: self.finish(v[f"c{i + 1}"] + friction(i)) if i == j else sp.S.Zero)
         return LinearEquations(M=M0, C=C0, K=K0, params=self.params)
 
 

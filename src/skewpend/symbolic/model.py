@@ -23,20 +23,25 @@ from typing import Any, Mapping, Optional, Tuple
 from ..errors import ParameterError
 from ..parsing import MAX_ANGLE
 
-__all__ = ["Parameters", "SCALAR_NAMES", "GEOMETRY_NAMES", "RESERVED_NAMES", "Vec3", "Mat3"]
+__all__ = ["Parameters", "SCALAR_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "GEOMETRY_NAMES", "RESERVED_NAMES", "Vec3", "Mat3"]
 
 Scalar = Optional[float]
 Vec3 = Tuple[float, float, float]
 Mat3 = Tuple[Vec3, Vec3, Vec3]
 
 #: The scalar parameters, in the order used by generated code and JSON.
-SCALAR_NAMES = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
+SCALAR_NAMES = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "cf1", "cf2", "cfs", "Ir", "gr")
+
+#: The optional model terms, off by default (0): Coulomb friction ``cf1, cf2`` (with its
+#: smoothing rate ``cfs``) and the geared motors' rotor inertia ``Ir`` (with the gear ratio ``gr``).
+FRICTION_NAMES = ("cf1", "cf2", "cfs")
+ROTOR_NAMES = ("Ir", "gr")
 
 #: The rigid-body generalisations (numbers, or symbol names).
 GEOMETRY_NAMES = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
 
-_POSITIVE = ("a", "b", "m1", "m2")
-_NONNEGATIVE = ("g", "c1", "c2")
+_POSITIVE = ("a", "b", "m1", "m2", "cfs")
+_NONNEGATIVE = ("g", "c1", "c2", "cf1", "cf2", "Ir")
 
 
 def _as_real(name: str, value: Any, limit: float = None) -> float:
@@ -61,7 +66,8 @@ MAX_INERTIA = 1e300
 
 
 #: Names a symbolic geometry entry may not take (coordinates and internal stand-ins).
-RESERVED_NAMES = frozenset({"alpha", "phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi", "omega", "lam", "t"})
+RESERVED_NAMES = frozenset({"alpha", "phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi", "omega", "lam", "t",
+                            "atan_dphi", "atan_dpsi"})
 _SYMBOLIC_WORDS = ("sym", "symbolic")
 
 
@@ -159,6 +165,19 @@ class Parameters:
     * ``c1``, ``c2`` -- viscous joint damping [N m s/rad], >= 0 (default 0).
     * ``tau1``, ``tau2`` -- constant joint torques [N m] (default 0).
 
+    Optional terms (off by default; the DFKI rig's model, ``docs/guide/model.md``):
+
+    * ``cf1``, ``cf2`` -- Coulomb friction [N m], >= 0 (default 0): the joint torque
+      ``-cf_i atan(cfs q_i')``, the lab's smooth sign *without* a factor ``2/pi``, so the torque
+      saturates at ``cf_i pi/2`` (its value at ``cfs q' = 1`` is ``cf_i pi/4``).
+    * ``cfs`` -- the friction's smoothing rate [s/rad], > 0 (default 100, the lab's).
+    * ``Ir`` -- axial inertia of each geared motor's rotor [kg m^2], >= 0 (default 0): a rotor
+      fixed to the roof turning ``gr`` times as fast as hinge 1, and one carried by rod 1
+      (spinning about hinge 2's axis) turning at ``gr psi'`` relative to rod 1.
+    * ``gr`` -- gear ratio, any real number (default 1, direct drive): the rotor's speed relative
+      to its carrier over the joint's; negative for a gear that reverses the direction.  The lab's
+      equations correspond to ``gr = -6`` for its 6:1 motors (see the guide).
+
     Rigid-body generalisations (``None`` = the specification's thin rods).  Each entry is a
     number or a symbol name (an identifier, left symbolic; a scalar parameter's name refers
     to that parameter); the word ``"sym"`` makes the whole vector or tensor symbolic
@@ -188,6 +207,11 @@ class Parameters:
     c2: Scalar = 0.0
     tau1: Scalar = 0.0
     tau2: Scalar = 0.0
+    cf1: Scalar = 0.0
+    cf2: Scalar = 0.0
+    cfs: Scalar = 100.0
+    Ir: Scalar = 0.0
+    gr: Scalar = 1.0
     com1: Optional[Vec3] = field(default=None)
     com2: Optional[Vec3] = field(default=None)
     inertia1: Optional[Mat3] = field(default=None)
@@ -256,6 +280,7 @@ class Parameters:
         symbol names used in ``com*``, ``inertia*``, ``axis*``."""
         scalars = tuple(
             n for n in SCALAR_NAMES if getattr(self, n) is None and (n != "alpha" or self.uses_alpha)
+            and (n != "cfs" or self.has_friction) and (n != "gr" or self.has_rotor)
         )
         extra = []
         for k in GEOMETRY_NAMES:
@@ -267,6 +292,21 @@ class Parameters:
             n for n in SCALAR_NAMES if getattr(self, n) is None and n in referenced and n not in scalars
         )
         return scalars + scalars_used + tuple(extra)
+
+    @property
+    def has_friction(self) -> bool:
+        """Whether Coulomb friction enters the model (``cf1`` or ``cf2`` non-zero or symbolic)."""
+        return any(getattr(self, n) is None or getattr(self, n) != 0 for n in ("cf1", "cf2"))
+
+    @property
+    def has_rotor(self) -> bool:
+        """Whether the rotor inertia enters the model (``Ir`` non-zero or symbolic)."""
+        return self.Ir is None or self.Ir != 0
+
+    @property
+    def dissipative(self) -> bool:
+        """Whether energy is dissipated: viscous damping or Coulomb friction (non-zero or symbolic)."""
+        return self.has_friction or any(getattr(self, n) is None or getattr(self, n) != 0 for n in ("c1", "c2"))
 
     @property
     def is_numeric(self) -> bool:

@@ -21,6 +21,11 @@ _ASSUMPTIONS = {
     "c2": dict(nonnegative=True),
     "tau1": dict(real=True),
     "tau2": dict(real=True),
+    "cf1": dict(nonnegative=True),
+    "cf2": dict(nonnegative=True),
+    "cfs": dict(positive=True),
+    "Ir": dict(nonnegative=True),
+    "gr": dict(real=True),
 }
 
 #: The symbols used in derived expressions, by name: the scalar parameters, the
