@@ -79,6 +79,7 @@ def pytest_sessionstart(session):
         pass
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist's own, which reads the groups (it runs first otherwise: LIFO)
 def pytest_collection_modifyitems(config, items):
     slow = _measured_slow()
     grouped = {}

@@ -195,17 +195,17 @@ def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], funct
     K = 0.5 * (K + K.T)
     tau = np.array([params.tau1, params.tau2], dtype=float)
     potential = float(Pi) - float(tau @ q)
-    Minv = np.linalg.inv(M)
-    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ K, -Minv @ C]])
-    ev = eig(A, right=False)
-    ev = ev[np.lexsort((-ev.imag, -ev.real))]
     try:
+        Minv = np.linalg.inv(M)
         lam, V = eigh(K, M)
-    except (LinAlgError, ValueError):  # M not positive definite to rounding: scales too far apart
+    except (LinAlgError, np.linalg.LinAlgError, ValueError):  # M not positive definite to rounding: scales too far apart
         raise ParameterError(
             f"the mass matrix at phi = {float(q[0]):.6g}, psi = {float(q[1]):.6g} is not positive definite in double "
             f"precision (condition number {np.linalg.cond(M):.3g}): the model's lengths, masses and inertias span too "
             f"many orders of magnitude") from None
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ K, -Minv @ C]])
+    ev = eig(A, right=False)
+    ev = ev[np.lexsort((-ev.imag, -ev.real))]
     scale = max(np.abs(lam).max(), np.finfo(float).tiny)
     index = int(np.sum(lam < -DEGENERATE * scale))
     for k in range(V.shape[1]):
