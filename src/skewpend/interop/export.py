@@ -212,6 +212,46 @@ def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None)
     )
 
 
+def _no_friction(params: Parameters, fmt: str) -> None:
+    if params.has_friction:
+        raise ParameterError(
+            f"export {fmt}: Coulomb friction (cf1 = {params.cf1:g}, cf2 = {params.cf2:g}) has no exact counterpart: "
+            "skewpend's torque is the smooth -cf atan(cfs q'), MuJoCo's frictionloss a dry-friction constraint "
+            "(up to frictionloss, sticking exactly) and URDF's <dynamics friction> is left to the simulator; export "
+            "the model with cf1 = cf2 = 0 (set frictionloss yourself if you want MuJoCo's model: cf pi/2 is the "
+            "same largest torque)")
+
+
+def _rotor_split(p: Parameters) -> Tuple[Parameters, Tuple[float, float]]:
+    """The rotors' kinetic energy as MuJoCo can hold it, exactly: ``armature`` on the hinges
+    and an axial inertia about the second hinge's axis ``e0`` in each rod.  With ``c = n1 . e0``
+    the rotors add ``Ir gr^2 + Ir c^2``, ``Ir gr c``, ``Ir gr^2`` to ``M``; an inertia ``J e0 e0^T``
+    in rod 2 adds ``J (c^2, c, 1)``, in rod 1 ``J (c^2, 0, 0)``, an armature ``A_i`` adds to
+    ``M_ii`` alone; so ``J2 = Ir gr``, ``J1 = Ir (1 - gr)``, ``A1 = Ir gr^2``, ``A2 = Ir gr (gr - 1)``.
+    Returns the model with those inertias added (``Ir = 0``) and ``(A1, A2)``; refuses a split a
+    simulator cannot take (a negative armature, a body inertia no longer physical)."""
+    import numpy as np
+
+    if not p.has_rotor:
+        return p, (0.0, 0.0)
+    Ir, gr = float(p.Ir), float(p.gr)
+    _, e0 = _axes(p)
+    ee = np.outer(e0, e0)
+    A1, A2 = Ir * gr * gr, Ir * gr * (gr - 1.0)
+    J1, J2 = Ir * (1.0 - gr), Ir * gr
+    why = ("the rotors' inertia Ir (reflected through the gear gr) maps exactly onto MuJoCo only as armature "
+           f"A1 = Ir gr^2, A2 = Ir gr (gr - 1) and axial inertias Ir (1 - gr) (rod 1) and Ir gr (rod 2) about "
+           f"hinge 2's axis; for Ir = {Ir:g}, gr = {gr:g}")
+    if A2 < 0:
+        raise ParameterError(f"export: {why} the armature A2 = {A2:g} would be negative (0 < gr < 1)")
+    try:
+        q = p.replace(Ir=0.0, inertia1=(np.array(p.inertia1, dtype=float) + J1 * ee).tolist(),
+                      inertia2=(np.array(p.inertia2, dtype=float) + J2 * ee).tolist())
+    except ParameterError as exc:
+        raise ParameterError(f"export: {why} a body's inertia would not be physical: {exc}") from None
+    return q, (A1, A2)
+
+
 def _finite(values) -> bool:
     """Every number in a (nested) sequence of floats is finite."""
     if isinstance(values, (list, tuple)):
@@ -237,7 +277,7 @@ def _header(params: Parameters, fmt: str) -> str:
 
     values = ", ".join(
         f"{n}={_num(getattr(params, n))}"
-        for n in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
+        for n in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2") + ("Ir", "gr") * params.has_rotor
         if getattr(params, n) is not None
     )
     return _comment(
@@ -269,8 +309,10 @@ def to_mjcf(
       (``contype=conaffinity=0``) are for viewing only and carry no mass.
     * Hinge joints ``hinge1`` (axis ``axis1``, default ``0 0 1``) and ``hinge2`` (axis
       ``axis2``, default ``sin(alpha) 0 cos(alpha)``) at the body origins, ``damping`` =
-      ``c1``, ``c2`` (passive torque ``-c qdot``), ``limited="false"``, ``armature=0``,
-      ``frictionloss=0``, ``stiffness=0``.
+      ``c1``, ``c2`` (passive torque ``-c qdot``), ``limited="false"``, ``frictionloss=0``,
+      ``stiffness=0``, ``armature=0`` -- or, with the geared motors' rotors (``Ir``), the exact split
+      of their kinetic energy into armature and axial inertias of the rods (:func:`_rotor_split`).
+      Coulomb friction (``cf1, cf2``) is refused: MuJoCo's ``frictionloss`` is another model.
     * Constant joint torques: two ``<general>`` actuators ``tau1``, ``tau2`` on the hinges
       with ``biastype="affine" biasprm="tau_i 0 0"`` and ``gainprm="1"``, unlimited: the
       actuator force is ``ctrl + tau_i``, and ``ctrl`` is 0 unless set.  So the file is
@@ -284,6 +326,9 @@ def to_mjcf(
     ``timestep``, ``integrator`` or ``axial_inertia``.
     """
     p = mujoco_compatible(params, axial_inertia)
+    _no_friction(p, "MJCF")
+    header = _header(p, "MJCF")
+    p, (arm1, arm2) = _rotor_split(p)
     timestep = positive_number("timestep", timestep)
     integrator = _integrator(integrator)
     axis1, axis2 = _axes(p)
@@ -291,7 +336,7 @@ def to_mjcf(
     radius = 0.01 * a + 0.01 * b
     lines = [
         '<mujoco model="skewpend">',
-        f"  <!-- {_header(p, 'MJCF')} -->",
+        f"  <!-- {header} -->",
         "  <!-- Constant joint torques: actuators tau1, tau2 with force = ctrl + tau_i "
         "(affine bias); ctrl defaults to 0. -->",
         '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
@@ -301,13 +346,13 @@ def to_mjcf(
         "  <worldbody>",
         '    <body name="rod1" pos="0 0 0">',
         f'      <joint name="hinge1" type="hinge" pos="0 0 0" axis="{_vec(axis1)}" '
-        f'damping="{_num(p.c1)}" limited="false" armature="0" frictionloss="0" stiffness="0"/>',
+        f'damping="{_num(p.c1)}" limited="false" armature="{_num(arm1)}" frictionloss="0" stiffness="0"/>',
         f'      <inertial pos="{_vec(p.com1)}" mass="{_num(p.m1)}" fullinertia="{_fullinertia(p.inertia1)}"/>',
         f'      <geom name="rod1" type="capsule" fromto="0 0 0 0 {_num(a)} 0" size="{_num(radius)}" '
         'contype="0" conaffinity="0" rgba="0.2 0.4 0.8 1"/>',
         f'      <body name="rod2" pos="0 {_num(a)} 0">',
         f'        <joint name="hinge2" type="hinge" pos="0 0 0" axis="{_vec(axis2)}" '
-        f'damping="{_num(p.c2)}" limited="false" armature="0" frictionloss="0" stiffness="0"/>',
+        f'damping="{_num(p.c2)}" limited="false" armature="{_num(arm2)}" frictionloss="0" stiffness="0"/>',
         f'        <inertial pos="{_vec(p.com2)}" mass="{_num(p.m2)}" fullinertia="{_fullinertia(p.inertia2)}"/>',
         f'        <geom name="rod2" type="capsule" fromto="0 0 0 0 {_num(b)} 0" size="{_num(radius)}" '
         'contype="0" conaffinity="0" rgba="0.8 0.3 0.2 1"/>',
@@ -347,6 +392,10 @@ def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: 
     and must be applied by the simulator (e.g. MuJoCo ``data.qfrc_applied``).
     """
     p = mujoco_compatible(params, axial_inertia)
+    _no_friction(p, "URDF")
+    if p.has_rotor:
+        raise ParameterError(f"export URDF: the geared motors' rotor inertia (Ir = {p.Ir:g}, gr = {p.gr:g}) has no place "
+                             "in URDF (no armature, no coupling of joint inertias); export MJCF, which holds it exactly")
     axis1, axis2 = _axes(p)
     a, b = float(p.a), float(p.b)
     radius = 0.01 * a + 0.01 * b
