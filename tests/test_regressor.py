@@ -163,6 +163,22 @@ def test_base_regressor_full_rank_and_dependent_columns_drop_it(which, planar, s
     assert np.allclose(Y @ pi, Yb @ (base.matrix_at(0.9, alpha, 9.81) @ pi), rtol=0, atol=1e-12 * np.abs(Y @ pi).max())
 
 
+@pytest.mark.slow  # about 5 s: the derivation with a float axis and the float-tolerant relations
+def test_user_axis_and_no_gravity():
+    """A numeric second axis (1/|v| enters the derivation as a float: relations to rounding) and g = 0."""
+    tilted = R.base_parameters(Parameters(axis2=(0.3, 0.1, 1.0)))
+    assert tilted.rank == 12 and "alpha" not in tilted.where
+    assert sp.expand(dict(zip(tilted.names, tilted.expressions))["h1x_b"]) == sp.Symbol("h1x", real=True) + \
+        sp.Float(0.3) * sp.Symbol("h2z", real=True)
+    q, dq, ddq = R._samples(20, seed=5)
+    Y = R.regressor(Parameters(axis2=(0.3, 0.1, 1.0))).numeric()(q, dq, ddq, 0.7, 0.0, 9.81).reshape(-1, 22)
+    Yb = tilted.regressor(q, dq, ddq, 0.7, 0.0, 9.81).reshape(-1, 12)
+    pi = np.random.default_rng(1).normal(size=22)
+    assert np.allclose(Y @ pi, Yb @ (tilted.matrix_at(0.7, 0.0, 9.81) @ pi), rtol=0, atol=1e-12 * np.abs(Y @ pi).max())
+    weightless = R.base_parameters(Parameters(alpha=0.0, g=0.0))
+    assert weightless.rank == 6 and "h1x" in weightless.unidentifiable
+
+
 def test_planar_base_parameters_are_the_data_readme_combinations(planar):
     """The kaheman2023 README's J1, J2, K, P1, P2 (planar, centres of mass on the rods: a1, a2 from each
     hinge, L1 between the hinges, I1, I2 about the centres of mass) are exactly

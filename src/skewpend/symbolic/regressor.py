@@ -178,7 +178,7 @@ def _regressor(axes: Tuple) -> Regressor:
     # terms of the substitution cancel in the canonical form
     lhs = lhs0.xreplace(subs).applyfunc(_canonical)
     pi = sp.Matrix(PI_SYMBOLS)
-    Y = lhs.jacobian(pi).applyfunc(sp.expand)
+    Y = lhs.jacobian(pi).applyfunc(lambda e: _chop(sp.expand(e)))
     bad = Y.free_symbols & set(PI_SYMBOLS)
     if bad:  # the derivation is not linear in pi: a bug, never a user error
         raise AssertionError(f"the equations are not linear in the inertial parameters: Y depends on {sorted(map(str, bad))}")
@@ -256,6 +256,32 @@ def _reduce(expr: sp.Expr, gens: Sequence[sp.Symbol] = ()) -> sp.Expr:
     return expr
 
 
+def _chop(expr: sp.Expr, rel: float = 1e-13) -> sp.Expr:
+    """Drop the terms of an expanded sum whose float coefficient is rounding next to the largest
+    (a user's numeric hinge axis enters the derivation as floats: ``1/|v|`` is irrational)."""
+    if not expr.has(sp.Float) or not isinstance(expr, sp.Add):
+        return expr
+    coeffs = [abs(float(t.as_coeff_Mul()[0])) for t in expr.args]
+    big = max(coeffs)
+    return sp.Add(*[t for t, c in zip(expr.args, coeffs) if c > rel * big])
+
+
+def _scale(M: sp.Matrix) -> float:
+    return max((abs(float(t.as_coeff_Mul()[0])) for x in M for t in sp.Add.make_args(sp.expand(x)) if x != 0),
+               default=1.0)
+
+
+def _chop_matrix(M: sp.Matrix, scale: Optional[float] = None, rel: float = 1e-12) -> sp.Matrix:
+    """Drop float terms below ``rel`` times the largest coefficient of the whole matrix."""
+    big = _scale(M) if scale is None else scale
+
+    def chop(x):
+        x = sp.expand(x)
+        return sp.Add(*[t for t in sp.Add.make_args(x) if abs(float(t.as_coeff_Mul()[0])) > rel * big])
+
+    return M.applyfunc(chop)
+
+
 def _canonical(expr: sp.Expr) -> sp.Expr:
     """``expr`` (in ``cos``, ``sin``) reduced as :func:`_reduce` does, back in ``cos``, ``sin``."""
     S = SYMBOLS
@@ -263,7 +289,7 @@ def _canonical(expr: sp.Expr) -> sp.Expr:
     for n in ("phi", "psi", "alpha"):
         back[_C[n]] = sp.cos(S[n])
         back[_S[n]] = sp.sin(S[n])
-    return _reduce(_to_poly_symbols(expr)).xreplace(back)
+    return _chop(_reduce(_to_poly_symbols(expr))).xreplace(back)
 
 
 _STATE_GENS = [_S["phi"], _C["phi"], _S["psi"], _C["psi"], SYMBOLS["dphi"], SYMBOLS["dpsi"], SYMBOLS["ddphi"],
@@ -466,6 +492,9 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
         if given[n] is not None and len(piv) < generic_rank:
             exact[S[n]] = sp.nsimplify(given[n], rational=True)
     Cx = C.xreplace(exact) if exact else C
+    inexact = Cx.has(sp.Float)  # a user's numeric axis: 1/|v| entered as a float
+    if inexact:  # chop the rounding, solve on the exact binary values, check to a tolerance
+        Cx = _chop_matrix(Cx).applyfunc(lambda x: x.xreplace({f: sp.Rational(f) for f in x.atoms(sp.Float)}))
     coef_syms = [_C["alpha"], _S["alpha"], S["a"], S["g"]]
     vals = {_C["alpha"]: math.cos(at["alpha"]), _S["alpha"]: math.sin(at["alpha"]), S["a"]: at["a"], S["g"]: at["g"]}
     Cf = np.array(sp.lambdify(coef_syms, Cx, modules="numpy")(*[vals[s] for s in coef_syms]), dtype=float)
@@ -477,11 +506,19 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     K = _solve(CP.extract(rows, list(range(r))), CD.extract(rows, list(range(len(dep)))))
     # check every row, exactly, modulo cos^2 + sin^2 = 1
     resid = CP * K - CD
+    scale = _scale(Cx) if inexact else 1.0
     for x in resid:
         if x != 0:
-            num = sp.numer(sp.together(x))
-            if _reduce(num, [_S["alpha"], _C["alpha"], S["a"], S["g"]]) != 0:
+            if inexact:  # to rounding, at the generic values (no alpha: the axes are the user's)
+                num = sp.Integer(abs(float(x.subs({S["a"]: at["a"], S["g"]: at["g"]}))) > 1e-9 * scale)
+            else:
+                num = _reduce(sp.numer(sp.together(x)))
+            if num != 0:
                 raise AssertionError(f"a dependent column's relation does not hold exactly: {x}")
+    if inexact:
+        K = K.applyfunc(lambda x: sp.expand(x).xreplace(
+            {r: sp.Float(r, 15) for r in sp.expand(x).atoms(sp.Rational) if not r.is_Integer}))
+        K = _chop_matrix(K, scale=1.0, rel=1e-12)
     K = K.applyfunc(_tidy)
     pi = sp.Matrix(PI_SYMBOLS)
     T = sp.zeros(r, len(PI_NAMES))
@@ -495,7 +532,7 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     return BaseParameters(
         names=names, expressions=exprs, matrix=T, pivots=tuple(piv), dependent=tuple(dep), relations=K,
         regressor=_lambdify_columns(Yb), symbolic_regressor=Yb,
-        where={n: (None if given[n] is None else at[n]) for n in ("a", "alpha", "g")},
+        where={n: (None if given[n] is None else at[n]) for n in ("a", "alpha", "g") if n != "alpha" or reg.uses_alpha},
         seconds=time.perf_counter() - t0,
     )
 
