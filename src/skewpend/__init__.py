@@ -66,6 +66,8 @@ _LAZY = {
     "ChaosDiagram": "analysis.chaos",
     "open_chaos_diagram": "analysis.chaos",
     "open_result": "analysis.readback",
+    "Measurements": "analysis.measurements",
+    "Convention": "analysis.measurements",
     "widget": "views.widget",
     "PendulumWidget": "views.widget",
 }
@@ -121,6 +123,8 @@ __all__ = [
     "ChaosDiagram",
     "open_chaos_diagram",
     "open_result",
+    "Measurements",
+    "Convention",
     "widget",
     "PendulumWidget",
     "SkewpendError",
@@ -148,6 +152,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.poincare import PoincareSection, poincare
     from .analysis.chaos import ChaosDiagram, chaos_diagram, open_chaos_diagram
     from .analysis.readback import open_result
+    from .analysis.measurements import Convention, Measurements
     from .views.widget import PendulumWidget, widget
 
 

@@ -1,0 +1,919 @@
+"""Measured motion of a real double pendulum, in skewpend's coordinates: :class:`Measurements`.
+
+Identification (issue 27) starts from data: times, the two hinge angles, their speeds where they
+were measured and the joint torques where they were measured, in one or more *pieces* (each a
+stretch of contiguous samples with its own start).  Every reader converts the file's angles to
+skewpend's convention once, here, and checks that the result is plausible:
+
+* skewpend's coordinates: ``phi`` the angle of hinge 1, ``psi`` the angle of hinge 2 *relative to
+  rod 1*, both zero with the rods hanging, in radians, positive about the hinge axes (``k`` and
+  ``e``; with ``j`` pointing down); joint torques ``u = (tau1, tau2)`` [N m] act in the sense of
+  their angle (they enter Lagrange's equations as ``Q = u - c q'``).
+* a file states its own :class:`Convention` (second angle absolute or relative, zero hanging or
+  upright, a sign per angle, degrees or radians); :func:`convert` and :func:`convert_back` are
+  the one conversion and its inverse.
+* checks, each one :class:`~skewpend.errors.ParameterError` naming the file and piece and what to
+  do: wrapped angles (jumps of about 2 pi between samples: unwrapped only when the convention
+  says ``wrapped=True``), a free swing whose mean sits near the upright (the other zero), a second
+  angle that follows the first as an absolute one would, velocities that run against their
+  angles' rate of change, time that does not increase, NaN/inf rows (dropped and counted up to
+  ``nonfinite``, a fraction; refused above it), fewer than :data:`MIN_SAMPLES` samples, constant
+  angles, pieces shorter than ``min_duration``.  A time step longer than ``gap_factor`` times
+  the median step cuts the piece in two.  Nothing is fixed silently: every action is a line in
+  ``metadata["actions"]`` and in :meth:`Measurements.summary`.
+
+Readers: :meth:`Measurements.from_arrays` (the one constructor every reader goes through),
+:meth:`~Measurements.from_csv` (a column mapping), :meth:`~Measurements.from_mat` (MATLAB cell
+arrays of pieces), :meth:`~Measurements.from_kaheman` and :meth:`~Measurements.from_dfki` (the two
+measured rigs of ``data/``), :meth:`~Measurements.from_trajectory` (skewpend's own trajectories).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from ..errors import ParameterError
+
+__all__ = ["Measurements", "Piece", "Convention", "SKEWPEND", "convert", "convert_back",
+           "MIN_SAMPLES", "GAP_FACTOR", "NONFINITE", "KAHEMAN_FILE", "DFKI_COLUMNS"]
+
+#: Fewest samples a piece may have.
+MIN_SAMPLES = 10
+#: A time step longer than this many median steps is a gap: the piece is cut there.
+GAP_FACTOR = 5.0
+#: Largest fraction of rows holding NaN or inf that a reader drops (counted); above it, refused.
+NONFINITE = 0.05
+#: The free-swing data file of Kaheman et al. (2023) in ``data/kaheman2023/``.
+KAHEMAN_FILE = "DoublePendulumDataForParameterEstimation.mat"
+#: The columns :meth:`Measurements.from_dfki` reads (``filtered=True`` takes ``pos_filt``/``vel_filt``).
+DFKI_COLUMNS = {"t": "time", "phi": "pos_meas1", "psi": "pos_meas2", "dphi": "vel_meas1", "dpsi": "vel_meas2",
+                "tau1": "tau_meas1", "tau2": "tau_meas2"}
+
+_COLUMN_KEYS = ("t", "phi", "psi", "dphi", "dpsi", "tau1", "tau2")
+_CHECKS = ("mean", "tracking", "velocities", "units")
+
+
+# -- conventions --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Convention:
+    """How a file measures its two angles (and the torques that go with them).
+
+    * ``second``: ``"relative"`` (the second angle is measured from rod 1, as skewpend's ``psi``)
+      or ``"absolute"`` (from the vertical, like the first);
+    * ``zero``: ``"hanging"`` (0 with the rods hanging, as skewpend) or ``"upright"`` (0 with the
+      rods up; hanging is pi) -- it applies to absolute angles (a relative angle is 0 with the rods
+      in line either way);
+    * ``sign``: per angle, +1 when the file's angle turns the same way as skewpend's (about the
+      hinge axis, right-handed), -1 when it turns the other way; a joint torque takes its angle's
+      sign;
+    * ``unit``: ``"rad"`` or ``"deg"`` (angles and angular speeds; torques are always N m);
+    * ``wrapped``: the file's angles are reduced into one turn (jumps of 2 pi where they pass the
+      cut); the readers unwrap them.  Without it such jumps are refused.
+    """
+
+    second: str = "relative"
+    zero: str = "hanging"
+    sign: Tuple[int, int] = (1, 1)
+    unit: str = "rad"
+    wrapped: bool = False
+
+    def __post_init__(self):
+        if self.second not in ("relative", "absolute"):
+            raise ParameterError(f"Convention second must be 'relative' or 'absolute', got {self.second!r}",
+                                 parameter="convention")
+        if self.zero not in ("hanging", "upright"):
+            raise ParameterError(f"Convention zero must be 'hanging' or 'upright', got {self.zero!r}",
+                                 parameter="convention")
+        if self.unit not in ("rad", "deg"):
+            raise ParameterError(f"Convention unit must be 'rad' or 'deg', got {self.unit!r}", parameter="convention")
+        try:
+            sign = tuple(int(s) for s in self.sign)
+        except (TypeError, ValueError):
+            sign = ()
+        if len(sign) != 2 or any(s not in (1, -1) for s in sign) or any(s != x for s, x in zip(sign, self.sign)):
+            raise ParameterError(f"Convention sign must be two of +1/-1, got {self.sign!r}", parameter="convention")
+        object.__setattr__(self, "sign", sign)
+        object.__setattr__(self, "wrapped", bool(self.wrapped))
+
+    @property
+    def scale(self) -> float:
+        """Radians per unit of the file's angles."""
+        return math.pi / 180.0 if self.unit == "deg" else 1.0
+
+    @property
+    def period(self) -> float:
+        """One turn in the file's unit."""
+        return 360.0 if self.unit == "deg" else 2 * math.pi
+
+    def to_dict(self) -> Dict[str, Any]:
+        return {"second": self.second, "zero": self.zero, "sign": list(self.sign), "unit": self.unit,
+                "wrapped": self.wrapped}
+
+    def describe(self) -> str:
+        """The conversion to skewpend's coordinates as formulas (``theta1``, ``theta2`` the file's
+        angles), e.g. ``phi = theta1 - pi, psi = theta2 - theta1``."""
+        k = " * pi/180" if self.unit == "deg" else ""
+        t1, t2 = (("-" if self.sign[i] < 0 else "") + f"theta{i + 1}{k}" for i in range(2))
+        phi = t1 + (" - pi" if self.zero == "upright" else "")
+        psi = (f"{t2} - ({t1})" if t1.startswith("-") else f"{t2} - {t1}") if self.second == "absolute" else t2
+        text = f"phi = {phi}, psi = {psi}"
+        if self.sign != (1, 1):
+            text += f"; torques times {self.sign[0]:+d}, {self.sign[1]:+d}"
+        return text + (" (unwrapped first)" if self.wrapped else "")
+
+
+#: skewpend's own convention: relative second angle, zero hanging, radians, same sense.
+SKEWPEND = Convention()
+
+
+def convert(q, dq=None, u=None, *, convention: Convention = SKEWPEND):
+    """The file's angles ``q`` (n x 2), speeds ``dq`` and torques ``u`` in ``convention`` ->
+    skewpend's ``(q, dq, u)`` (``None`` stays ``None``).  Affine and exactly invertible by
+    :func:`convert_back` (to rounding); unwrapping and the whole-turn shifts of the readers are
+    not part of it."""
+    c = convention
+    sign = np.asarray(c.sign, dtype=float)
+    a = np.asarray(q, dtype=float) * c.scale * sign
+    if c.zero == "upright":
+        a[:, 0] -= math.pi
+        if c.second == "absolute":
+            a[:, 1] -= math.pi
+    if c.second == "absolute":
+        a[:, 1] = a[:, 1] - a[:, 0]
+    v = None
+    if dq is not None:
+        v = np.asarray(dq, dtype=float) * c.scale * sign
+        if c.second == "absolute":
+            v[:, 1] = v[:, 1] - v[:, 0]
+    w = None if u is None else np.asarray(u, dtype=float) * sign
+    return a, v, w
+
+
+def convert_back(q, dq=None, u=None, *, convention: Convention = SKEWPEND):
+    """Inverse of :func:`convert`: skewpend's ``(q, dq, u)`` -> the file's, in ``convention``."""
+    c = convention
+    sign = np.asarray(c.sign, dtype=float)
+    a = np.array(q, dtype=float)
+    if c.second == "absolute":
+        a[:, 1] = a[:, 1] + a[:, 0]
+    if c.zero == "upright":
+        a[:, 0] += math.pi
+        if c.second == "absolute":
+            a[:, 1] += math.pi
+    a = a * sign / c.scale
+    v = None
+    if dq is not None:
+        v = np.array(dq, dtype=float)
+        if c.second == "absolute":
+            v[:, 1] = v[:, 1] + v[:, 0]
+        v = v * sign / c.scale
+    w = None if u is None else np.asarray(u, dtype=float) * sign
+    return a, v, w
+
+
+# -- one piece ----------------------------------------------------------------------------------------
+def _frozen(x: Optional[np.ndarray]) -> Optional[np.ndarray]:
+    if x is None:
+        return None
+    x = np.array(x, dtype=float)
+    x.flags.writeable = False
+    return x
+
+
+@dataclass(frozen=True, eq=False)
+class Piece:
+    """One stretch of contiguous samples, in skewpend's coordinates: ``t`` (n,) [s], strictly
+    increasing, steps possibly uneven; ``q`` (n, 2) ``(phi, psi)`` [rad]; ``dq`` (n, 2) [rad/s] or
+    None (not measured); ``u`` (n, 2) joint torques [N m] or None (not measured; a free swing);
+    ``name``, ``source`` (the file), ``group`` (``"fit"``/``"validation"`` where the file says),
+    ``note`` (what was done to it: cut at a gap, ...).  Arrays are read-only."""
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: Optional[np.ndarray] = None
+    u: Optional[np.ndarray] = None
+    name: str = ""
+    source: str = ""
+    group: str = ""
+    note: str = ""
+
+    def __post_init__(self):
+        for key in ("t", "q", "dq", "u"):
+            object.__setattr__(self, key, _frozen(getattr(self, key)))
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def dt(self) -> float:
+        """The median time step [s]."""
+        return float(np.median(np.diff(self.t)))
+
+    @property
+    def y(self) -> Optional[np.ndarray]:
+        """States ``(phi, psi, dphi, dpsi)`` (n, 4), or None without measured speeds."""
+        return None if self.dq is None else np.hstack([self.q, self.dq])
+
+    def sampling(self) -> Dict[str, Any]:
+        d = np.diff(self.t)
+        return {"name": self.name, "group": self.group, "samples": len(self), "start": float(self.t[0]),
+                "duration": self.duration, "median_dt": float(np.median(d)), "min_dt": float(d.min()),
+                "max_dt": float(d.max()), "note": self.note}
+
+    def line(self) -> str:
+        """One line: name, samples, duration, steps, and what was done to it."""
+        s = self.sampling()
+        group = f" ({self.group})" if self.group else ""
+        steps = (f"dt {s['median_dt']:.4g} s" if s["max_dt"] - s["min_dt"] <= 1e-6 * s["median_dt"]
+                 else f"median dt {s['median_dt']:.4g} s ({s['min_dt']:.3g}..{s['max_dt']:.3g})")
+        return (f"{self.name}{group}: {len(self)} samples, {self.duration:.4g} s from t = {self.t[0]:.4g} s, {steps}, "
+                + (self.note or "no gaps"))
+
+    def __repr__(self) -> str:
+        have = ", ".join(k for k, v in (("speeds", self.dq), ("torques", self.u)) if v is not None) or "angles only"
+        return f"<Piece {self.line()}; {have}>"
+
+    def _take(self, rows, **changes) -> "Piece":
+        values = {"t": self.t[rows], "q": self.q[rows], "dq": None if self.dq is None else self.dq[rows],
+                  "u": None if self.u is None else self.u[rows], "name": self.name, "source": self.source,
+                  "group": self.group, "note": self.note}
+        values.update(changes)
+        return Piece(**values)
+
+
+# -- checks -------------------------------------------------------------------------------------------
+def _as_pairs(value, n: int, what: str, label: str) -> Optional[np.ndarray]:
+    if value is None:
+        return None
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{label}: {what} must be numbers") from None
+    if a.shape != (n, 2):
+        raise ParameterError(f"{label}: {what} must have shape ({n}, 2) like the times, got {a.shape}")
+    return a
+
+
+class _Builder:
+    """Checks and converts raw pieces; collects what it did (``actions``)."""
+
+    def __init__(self, convention: Convention, source: str, *, nonfinite: float, gap_factor: float,
+                 min_duration: float, short: str, skip: Sequence[str]):
+        if not isinstance(convention, Convention):
+            raise ParameterError(f"convention must be a skewpend.Convention, got {type(convention).__name__}",
+                                 parameter="convention")
+        if not (isinstance(nonfinite, (int, float)) and 0 <= nonfinite < 1):
+            raise ParameterError(f"nonfinite must be a fraction in [0, 1), got {nonfinite!r}", parameter="nonfinite")
+        if not (isinstance(gap_factor, (int, float)) and gap_factor > 1 and math.isfinite(gap_factor)):
+            raise ParameterError(f"gap_factor must be a number above 1, got {gap_factor!r}", parameter="gap_factor")
+        if not (isinstance(min_duration, (int, float)) and min_duration >= 0 and math.isfinite(min_duration)):
+            raise ParameterError(f"min_duration must be a number of seconds >= 0, got {min_duration!r}",
+                                 parameter="min_duration")
+        if short not in ("refuse", "drop"):
+            raise ParameterError(f"short must be 'refuse' or 'drop', got {short!r}", parameter="short")
+        skip = (skip,) if isinstance(skip, str) else tuple(skip)
+        unknown = [s for s in skip if s not in _CHECKS]
+        if unknown:
+            raise ParameterError(f"skip: unknown check {unknown[0]!r}; the checks that may be skipped: "
+                                 f"{', '.join(_CHECKS)}", parameter="skip")
+        self.convention, self.source = convention, source
+        self.nonfinite, self.gap_factor, self.min_duration, self.short, self.skip = (
+            float(nonfinite), float(gap_factor), float(min_duration), short, skip)
+        self.actions: List[str] = []
+
+    def settings(self) -> Dict[str, Any]:
+        return {"nonfinite": self.nonfinite, "gap_factor": self.gap_factor, "min_duration": self.min_duration,
+                "min_samples": MIN_SAMPLES, "short": self.short, "skip": list(self.skip)}
+
+    def build(self, raw: Mapping[str, Any]) -> List[Piece]:
+        name = str(raw.get("name") or "piece")
+        source = str(raw.get("source") or self.source)
+        label = f"{Path(source).name}: {name}" if source else name
+        try:
+            t = np.asarray(raw["t"], dtype=float).ravel()
+            q = np.asarray(raw["q"], dtype=float)
+        except KeyError as exc:
+            raise ParameterError(f"{label}: a piece needs {exc.args[0]!r}") from None
+        except (TypeError, ValueError):
+            raise ParameterError(f"{label}: times and angles must be numbers") from None
+        n = len(t)
+        q = _as_pairs(q, n, "angles q", label)
+        dq = _as_pairs(raw.get("dq"), n, "speeds dq", label)
+        u = _as_pairs(raw.get("u"), n, "torques u", label)
+        # NaN / inf rows
+        good = np.isfinite(t) & np.isfinite(q).all(axis=1)
+        for x in (dq, u):
+            if x is not None:
+                good &= np.isfinite(x).all(axis=1)
+        bad = int(n - good.sum())
+        if bad:
+            if bad > self.nonfinite * n:
+                raise ParameterError(f"{label}: {bad} of {n} rows hold NaN or inf ({bad / n:.1%}), more than "
+                                     f"nonfinite={self.nonfinite:g} allows: clean the data or raise nonfinite")
+            t, q = t[good], q[good]
+            dq = None if dq is None else dq[good]
+            u = None if u is None else u[good]
+            self.actions.append(f"{label}: dropped {bad} of {n} rows holding NaN or inf")
+        if len(t) < MIN_SAMPLES:
+            raise ParameterError(f"{label}: {len(t)} samples; a piece needs at least {MIN_SAMPLES}")
+        steps = np.diff(t)
+        if np.any(steps <= 0):
+            i = int(np.argmax(steps <= 0))
+            raise ParameterError(f"{label}: time does not increase at sample {i + 1} (counting from 0; t = {t[i]:.9g} then "
+                                 f"{t[i + 1]:.9g}): sort the rows, or cut the data into pieces where time restarts")
+        # gaps
+        median = float(np.median(steps))
+        cuts = np.flatnonzero(steps > self.gap_factor * median)
+        bounds = [0, *(cuts + 1).tolist(), len(t)]
+        if len(cuts):
+            where = ", ".join(f"{t[i]:.6g}..{t[i + 1]:.6g} s" for i in cuts[:5]) + (", ..." if len(cuts) > 5 else "")
+            self.actions.append(f"{label}: cut into {len(cuts) + 1} pieces at {len(cuts)} gap(s) longer than "
+                                f"{self.gap_factor:g} x the median step {median:.4g} s ({where})")
+        pieces = []
+        for k in range(len(bounds) - 1):
+            rows = slice(bounds[k], bounds[k + 1])
+            sub = name if len(cuts) == 0 else f"{name} part {k + 1}"
+            note = "" if len(cuts) == 0 else f"part {k + 1} of {len(cuts) + 1}, cut at gaps"
+            sub_label = f"{Path(source).name}: {sub}" if source else sub
+            ts = t[rows]
+            if len(ts) < MIN_SAMPLES or ts[-1] - ts[0] < self.min_duration:
+                why = (f"{len(ts)} samples (fewer than {MIN_SAMPLES})" if len(ts) < MIN_SAMPLES else
+                       f"{ts[-1] - ts[0]:.4g} s (shorter than min_duration={self.min_duration:g} s)")
+                if self.short == "drop":
+                    self.actions.append(f"{sub_label}: dropped, {why}")
+                    continue
+                raise ParameterError(f"{sub_label}: {why}" + (" after cutting at gaps" if len(cuts) else "")
+                                     + "; pass short='drop' to drop such pieces (recorded in metadata)")
+            piece = self._convert(ts, q[rows], None if dq is None else dq[rows], None if u is None else u[rows],
+                                  sub_label)
+            pieces.append(Piece(t=ts, q=piece[0], dq=piece[1], u=piece[2], name=sub, source=source,
+                                group=str(raw.get("group") or ""), note=note))
+        return pieces
+
+    def _convert(self, t, q, dq, u, label):
+        c = self.convention
+        q = np.array(q, dtype=float)
+        jumps = np.abs(np.diff(q, axis=0)) > c.period / 2
+        if jumps.any():
+            count = int(jumps.sum())
+            if not c.wrapped:
+                i, k = np.argwhere(jumps)[0]
+                raise ParameterError(
+                    f"{label}: the {('first', 'second')[k]} angle jumps by {q[i + 1, k] - q[i, k]:+.4g} {c.unit} between samples at "
+                    f"t = {t[i]:.6g} s ({count} such jumps): the angles look wrapped into one turn; state "
+                    "Convention(wrapped=True) to unwrap them")
+            q = np.unwrap(q, axis=0, period=c.period)
+            self.actions.append(f"{label}: unwrapped {count} jump(s) of one turn")
+        q, dq, u = convert(q, dq, u, convention=c)
+        for k, name in enumerate(("phi", "psi")):
+            turns = round(float(np.median(q[:, k])) / (2 * math.pi))
+            if turns:
+                q[:, k] -= 2 * math.pi * turns
+                self.actions.append(f"{label}: {name} shifted by {-turns:+d} turn(s) to put its median in (-pi, pi]")
+        for k, name in enumerate(("phi", "psi")):
+            x = q[:, k]
+            if np.ptp(x) <= 1e-12 * max(1.0, float(np.abs(x).max())):
+                raise ParameterError(f"{label}: {name} is constant ({x[0]:.6g} rad) over the piece: a measurement "
+                                     "needs motion; drop the piece or check the column mapping")
+        if c.unit == "rad" and "units" not in self.skip:
+            self._check_units(q, label)
+        if dq is not None and "velocities" not in self.skip:
+            self._check_velocities(t, q, dq, label)
+        if u is None and "mean" not in self.skip:
+            self._check_mean(q, label)
+        if c.second == "relative" and "tracking" not in self.skip:
+            self._check_tracking(q, label)
+        return q, dq, u
+
+    def _check_units(self, q, label):
+        for k, name in enumerate(("phi", "psi")):
+            x = q[:, k]
+            if np.ptp(x) <= 4 * math.pi:
+                continue
+            crossings = int(np.count_nonzero(np.diff(np.sign(x - x.mean())) != 0))
+            if crossings >= 4:
+                raise ParameterError(
+                    f"{label}: {name} swings back and forth over {np.ptp(x):.3g} rad (more than two turns, "
+                    f"{crossings} times across its mean): the angles look like degrees; state "
+                    "Convention(unit='deg'), or skip=('units',) if the rig really turns over and back")
+
+    def _check_velocities(self, t, q, dq, label):
+        for k, name in enumerate(("phi", "psi")):
+            rate = np.gradient(q[:, k], t)
+            if np.std(rate) == 0 or np.std(dq[:, k]) == 0:
+                continue
+            r = float(np.corrcoef(rate, dq[:, k])[0, 1])
+            ratio = float(np.std(dq[:, k]) / np.std(rate))
+            if r < -0.5:
+                raise ParameterError(f"{label}: d{name} runs against {name}'s rate of change (correlation {r:.2f}): "
+                                     "its sign or its column is wrong; check the column mapping, or skip=('velocities',)")
+            if r > 0.5 and not (1 / 3 < ratio < 3):
+                raise ParameterError(f"{label}: d{name} is {ratio:.3g} times {name}'s rate of change: the speeds look "
+                                     "in other units than the angles (degrees?) or of another column; check the "
+                                     "mapping, or skip=('velocities',)")
+
+    def _check_mean(self, q, label):
+        c = self.convention
+        for k, name in enumerate(("phi", "psi")):
+            x = q[:, k]
+            if np.ptp(x) >= 2 * math.pi:  # turns over: no mean to judge
+                continue
+            m = float(np.mean(x))
+            if abs(m) <= math.pi / 2:
+                continue
+            if k == 0:
+                other = "upright" if c.zero == "hanging" else "hanging"
+                raise ParameterError(
+                    f"{label}: a free swing's phi has mean {m:.3g} rad, near the upright, not the hanging rest "
+                    f"it swings about: the data look measured with zero {other}; state Convention(zero={other!r}), "
+                    "or skip=('mean',) if the rig really swings about the top")
+            other = "absolute" if c.second == "relative" else "relative"
+            raise ParameterError(
+                f"{label}: a free swing's psi has mean {m:.3g} rad, near rod 2 folded up, not about any rest "
+                f"of a free swing: the second angle looks {other} (or zeroed the other way); state "
+                f"Convention(second={other!r}) or check zero=, or skip=('mean',)")
+
+    def _check_tracking(self, q, label):
+        phi, psi = q[:, 0], q[:, 1]
+        if np.std(phi) == 0 or np.std(psi) == 0:
+            return
+        r = float(np.corrcoef(phi, psi)[0, 1])
+        ratio = float(np.std(psi - phi) / np.std(phi))
+        if r > 0.95 and ratio < 0.25:
+            raise ParameterError(
+                f"{label}: psi follows phi (correlation {r:.3f}; psi - phi varies {ratio:.2g} times as much as phi), "
+                "as an absolute second angle does: state Convention(second='absolute'), or skip=('tracking',) "
+                "if rod 2 really turns about twice as far as rod 1")
+
+
+# -- the measurements ---------------------------------------------------------------------------------
+def _plain_freeze(value):
+    if isinstance(value, Mapping):
+        return MappingProxyType({k: _plain_freeze(v) for k, v in value.items()})
+    if isinstance(value, (list, tuple)):
+        return tuple(_plain_freeze(v) for v in value)
+    return value
+
+
+@dataclass(frozen=True, eq=False)
+class Measurements:
+    """Measured motion in skewpend's coordinates: ``pieces`` (a tuple of :class:`Piece`) and
+    ``metadata`` (read-only: ``format``, ``sources``, ``convention`` as stated, ``conversion``
+    as formulas, ``checks`` (their settings), ``actions`` (everything done to the data: rows
+    dropped, pieces cut at gaps, angles unwrapped or shifted by whole turns, splits),
+    ``sampling`` (per piece: samples, start, duration, median/min/max step)).
+
+    Build one with a reader (:meth:`from_kaheman`, :meth:`from_dfki`, :meth:`from_csv`,
+    :meth:`from_mat`, :meth:`from_trajectory`) or :meth:`from_arrays`.  ``len()`` counts pieces;
+    indexing takes a piece by position or name; :meth:`split` makes fitting and held-out sets,
+    :meth:`select` a subset, :meth:`summary` one line per piece.
+    """
+
+    pieces: Tuple[Piece, ...]
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        pieces = tuple(self.pieces)
+        if not pieces or not all(isinstance(p, Piece) for p in pieces):
+            raise ParameterError("Measurements need at least one Piece")
+        object.__setattr__(self, "pieces", pieces)
+        meta = dict(self.metadata)
+        meta["sampling"] = [p.sampling() for p in pieces]
+        object.__setattr__(self, "metadata", _plain_freeze(meta))
+
+    # -- a sequence of pieces ------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.pieces)
+
+    def __iter__(self) -> Iterator[Piece]:
+        return iter(self.pieces)
+
+    def __getitem__(self, key: Union[int, str]) -> Piece:
+        if isinstance(key, str):
+            for p in self.pieces:
+                if p.name == key:
+                    return p
+            raise KeyError(key)
+        return self.pieces[key]
+
+    @property
+    def names(self) -> Tuple[str, ...]:
+        return tuple(p.name for p in self.pieces)
+
+    @property
+    def samples(self) -> int:
+        """Samples in all pieces together."""
+        return sum(len(p) for p in self.pieces)
+
+    @property
+    def duration(self) -> float:
+        """Measured time in all pieces together [s]."""
+        return sum(p.duration for p in self.pieces)
+
+    @property
+    def has_velocities(self) -> bool:
+        return all(p.dq is not None for p in self.pieces)
+
+    @property
+    def has_torques(self) -> bool:
+        return all(p.u is not None for p in self.pieces)
+
+    def _groups(self) -> str:
+        counts: Dict[str, int] = {}
+        for p in self.pieces:
+            if p.group:
+                counts[p.group] = counts.get(p.group, 0) + 1
+        return f" ({', '.join(f'{g} {n}' for g, n in counts.items())})" if counts else ""
+
+    def __repr__(self) -> str:
+        sources = self.metadata.get("sources", ())
+        src = Path(sources[0]).name + (f" and {len(sources) - 1} more" if len(sources) > 1 else "") if sources else ""
+        speeds = "speeds" if self.has_velocities else ("some speeds" if any(p.dq is not None for p in self) else
+                                                       "no speeds")
+        torques = "torques" if self.has_torques else ("some torques" if any(p.u is not None for p in self) else
+                                                      "no torques")
+        return (f"<Measurements {self.metadata.get('format', '')}: {len(self)} pieces{self._groups()}, "
+                f"{self.samples} samples over {self.duration:.4g} s; {speeds}, {torques}"
+                + (f"; from {src}" if src else "") + ">")
+
+    def summary(self) -> str:
+        """A line for the whole, a line per piece, then the conversion and every action taken."""
+        lines = [repr(self)[1:-1], f"conversion: {self.metadata.get('conversion', '')}"]
+        lines += [p.line() for p in self.pieces]
+        lines += [f"done: {a}" for a in self.metadata.get("actions", ())]
+        return "\n".join(lines)
+
+    def _with(self, pieces: Sequence[Piece], action: str) -> "Measurements":
+        meta = {k: v for k, v in self.metadata.items() if k != "sampling"}
+        meta["actions"] = list(meta.get("actions", ())) + [action]
+        return Measurements(pieces=tuple(pieces), metadata=_thaw(meta))
+
+    # -- subsets -------------------------------------------------------------------------------------
+    def _indices(self, which) -> List[int]:
+        if isinstance(which, (int, np.integer, str)):
+            which = [which]
+        out = []
+        for w in which:
+            if isinstance(w, str):
+                if w not in self.names:
+                    raise ParameterError(f"no piece named {w!r}; the pieces: {', '.join(self.names[:8])}"
+                                         + (", ..." if len(self) > 8 else ""))
+                out.append(self.names.index(w))
+            elif isinstance(w, (int, np.integer)) and not isinstance(w, bool) and -len(self) <= w < len(self):
+                out.append(int(w) % len(self))
+            else:
+                raise ParameterError(f"piece {w!r} is not a piece's index (0..{len(self) - 1}) or name")
+        return out
+
+    def select(self, pieces=None, *, group: Optional[str] = None,
+               time: Optional[Tuple[float, float]] = None) -> "Measurements":
+        """The pieces given (indices or names, one or several), of a ``group`` (``"fit"``,
+        ``"validation"``), and/or only their samples with ``time[0] <= t <= time[1]`` (pieces
+        left with fewer than :data:`MIN_SAMPLES` samples in that window are dropped, recorded)."""
+        chosen = list(range(len(self))) if pieces is None else self._indices(pieces)
+        if group is not None:
+            chosen = [i for i in chosen if self.pieces[i].group == group]
+        what = []
+        if pieces is not None:
+            what.append(f"pieces {', '.join(self.pieces[i].name for i in chosen)}")
+        if group is not None:
+            what.append(f"group {group!r}")
+        result = [self.pieces[i] for i in chosen]
+        if time is not None:
+            try:
+                t0, t1 = (float(x) for x in time)
+            except (TypeError, ValueError):
+                raise ParameterError(f"time must be a pair (start, end) in seconds, got {time!r}") from None
+            if not t0 < t1:
+                raise ParameterError(f"time must be a pair (start, end) with start < end, got {time!r}")
+            windowed, dropped = [], []
+            for p in result:
+                rows = (p.t >= t0) & (p.t <= t1)
+                if rows.sum() >= MIN_SAMPLES:
+                    windowed.append(p if rows.all() else p._take(rows))
+                else:
+                    dropped.append(p.name)
+            result = windowed
+            what.append(f"time {t0:g}..{t1:g} s" + (f" (dropped {len(dropped)} piece(s) with fewer than "
+                                                    f"{MIN_SAMPLES} samples in it)" if dropped else ""))
+        if not result:
+            raise ParameterError(f"select({', '.join(what) or 'nothing'}) leaves no piece")
+        return self._with(result, "selected " + "; ".join(what or ["all"]))
+
+    def split(self, held_out: Union[float, str, Sequence[Union[int, str]]] = 0.25
+              ) -> Tuple["Measurements", "Measurements"]:
+        """``(fit, held_out)`` for validation.  ``held_out``:
+
+        * a group name (``"validation"``): its pieces are held out (the file's own split);
+        * indices or names of pieces;
+        * a fraction in (0, 1): that share of the pieces, the last ones (the later in the file),
+          at least one on each side; a single piece is cut in time instead (its last ``fraction``
+          held out).
+        """
+        n = len(self)
+        if isinstance(held_out, str) and held_out not in self.names:
+            held = [i for i, p in enumerate(self.pieces) if p.group == held_out]
+            if not held:
+                groups = sorted({p.group for p in self.pieces if p.group})
+                raise ParameterError(f"no piece is in group {held_out!r}"
+                                     + (f"; the groups: {', '.join(groups)}" if groups else "; no piece has a group"))
+            how = f"group {held_out!r} held out"
+        elif isinstance(held_out, (float, np.floating)) and not isinstance(held_out, bool):
+            f = float(held_out)
+            if not 0 < f < 1:
+                raise ParameterError(f"held_out as a fraction must be in (0, 1), got {held_out!r}", parameter="held_out")
+            if n == 1:
+                p = self.pieces[0]
+                cut = int(np.searchsorted(p.t, p.t[0] + (1 - f) * p.duration))
+                if cut < MIN_SAMPLES or len(p) - cut < MIN_SAMPLES:
+                    raise ParameterError(f"{p.name}: cutting at {1 - f:.0%} of its time leaves fewer than "
+                                         f"{MIN_SAMPLES} samples on one side; choose another fraction")
+                a = p._take(slice(0, cut), name=f"{p.name} (fit part)")
+                b = p._take(slice(cut, None), name=f"{p.name} (held-out part)")
+                how = f"{p.name} cut at t = {p.t[cut]:.6g} s, the last {f:.0%} of its time held out"
+                return self._with([a], f"split: {how}"), self._with([b], f"split: {how}")
+            k = min(n - 1, max(1, round(f * n)))
+            held = list(range(n - k, n))
+            how = f"the last {k} of {n} pieces held out"
+        else:
+            held = self._indices(held_out)
+            how = f"pieces {', '.join(self.pieces[i].name for i in held)} held out"
+        fit = [p for i, p in enumerate(self.pieces) if i not in held]
+        if not fit:
+            raise ParameterError(f"split: {how} leaves no piece to fit")
+        return (self._with(fit, f"split: {how}"), self._with([self.pieces[i] for i in held], f"split: {how}"))
+
+    # -- readers -------------------------------------------------------------------------------------
+    @classmethod
+    def from_arrays(cls, pieces: Sequence[Mapping[str, Any]], *, convention: Convention = SKEWPEND,
+                    source: str = "", format: str = "arrays", nonfinite: float = NONFINITE,
+                    gap_factor: float = GAP_FACTOR, min_duration: float = 0.0, short: str = "refuse",
+                    skip: Sequence[str] = (), extra: Optional[Mapping[str, Any]] = None) -> "Measurements":
+        """Measurements from raw pieces, each a mapping with ``t``, ``q`` (the file's two angles,
+        n x 2, in ``convention``), optionally ``dq``, ``u``, ``name``, ``group``, ``source``.
+        Every reader ends here: it converts to skewpend's coordinates and runs the checks (see
+        the module); ``skip`` names checks to leave out (``"mean"``, ``"tracking"``,
+        ``"velocities"``: the heuristic ones), recorded in ``metadata["checks"]``."""
+        builder = _Builder(convention, source, nonfinite=nonfinite, gap_factor=gap_factor,
+                           min_duration=min_duration, short=short, skip=skip)
+        if isinstance(pieces, Mapping):
+            pieces = [pieces]
+        built: List[Piece] = []
+        for raw in pieces:
+            built.extend(builder.build(raw))
+        if not built:
+            raise ParameterError(f"{source or 'the data'}: no piece is left after the checks (see short=)")
+        sources = sorted({p.source for p in built if p.source}) or ([source] if source else [])
+        meta: Dict[str, Any] = {"format": format, "sources": sources, "convention": convention.to_dict(),
+                                "conversion": convention.describe(), "checks": builder.settings(),
+                                "actions": builder.actions}
+        if extra:
+            meta.update(extra)
+        return cls(pieces=tuple(built), metadata=meta)
+
+    @classmethod
+    def from_csv(cls, path, columns: Mapping[str, Any], *, convention: Convention = SKEWPEND,
+                 delimiter: str = ",", **checks) -> "Measurements":
+        """Measurements from one or more CSV files with a header line, one piece per file.
+        ``columns`` maps ``t``, ``phi``, ``psi`` (required: the file's first and second angle, in
+        ``convention``) and optionally ``dphi``, ``dpsi``, ``tau1``, ``tau2`` to column names;
+        speeds and torques come in pairs (absent: None); a torque may be a number (``"tau2": 0.0``
+        for an unactuated joint).  ``checks``: see :meth:`from_arrays`."""
+        paths = _paths(path)
+        raws = [_read_csv_piece(p, columns, delimiter) for p in paths]
+        return cls.from_arrays(raws, convention=convention, source=str(paths[0]), format="csv", **checks)
+
+    @classmethod
+    def from_dfki(cls, path, *, filtered: bool = False, convention: Convention = SKEWPEND,
+                  **checks) -> "Measurements":
+        """The DFKI double-pendulum rig's CSV files (``trajectory_NN.csv``; a folder reads all of
+        them): relative joint angles, zero hanging, in the sense of skewpend's (see the guide),
+        measured speeds (``filtered=True``: the lab's filtered angles and speeds) and the measured
+        motor torques ``tau_meas``.  The measured, uneven time steps are kept."""
+        paths = _paths(path, pattern="trajectory_*.csv")
+        columns = dict(DFKI_COLUMNS)
+        if filtered:
+            columns.update(phi="pos_filt1", psi="pos_filt2", dphi="vel_filt1", dpsi="vel_filt2")
+        raws = [_read_csv_piece(p, columns, ",") for p in paths]
+        return cls.from_arrays(raws, convention=convention, source=str(paths[0]), format="dfki",
+                               extra={"filtered": bool(filtered)}, **checks)
+
+    @classmethod
+    def from_mat(cls, path, data: Union[str, Mapping[str, str]], time: Union[str, Mapping[str, str], None] = None,
+                 *, dt: Union[float, str, None] = None, angles: Tuple[int, int] = (0, 1),
+                 velocities: Optional[Tuple[int, int]] = None, torques: Optional[Tuple[int, int]] = None,
+                 convention: Convention = SKEWPEND, format: str = "mat", **checks) -> "Measurements":
+        """Measurements from a MATLAB ``.mat`` file (v5/v7; ``scipy.io.loadmat``).  ``data`` names
+        the variable holding the samples -- a cell array of pieces or one array, channels along
+        one axis and samples along the other -- or maps group names to variables
+        (``{"fit": "Y_id", "validation": "Y_vad"}``); ``time`` names the matching time
+        variable(s), or ``dt`` gives a fixed step (a number, or a variable's name).  ``angles``,
+        ``velocities``, ``torques``: the channel indices.  Pieces are named ``VAR[i]``."""
+        path = Path(path)
+        mat = _load_mat(path)
+        groups = {"": data} if isinstance(data, str) else dict(data)
+        times = time if isinstance(time, Mapping) else {g: time for g in groups}
+        step = dt
+        if isinstance(dt, str):
+            step = float(np.asarray(_variable(mat, dt, path)).ravel()[0])
+        raws = []
+        for group, var in groups.items():
+            items = _cells(_variable(mat, var, path))
+            tvar = times.get(group)
+            titems = _cells(_variable(mat, tvar, path)) if tvar else [None] * len(items)
+            if tvar is None and step is None:
+                raise ParameterError(f"{path}: give time= (the time variable) or dt= for {var!r}", parameter="time")
+            if len(titems) != len(items):
+                raise ParameterError(f"{path}: {var!r} has {len(items)} pieces but {tvar!r} {len(titems)}")
+            for i, (item, tv) in enumerate(zip(items, titems)):
+                name = f"{var}[{i}]"
+                x = np.atleast_2d(np.asarray(item, dtype=float))
+                if tv is not None:
+                    tt = np.asarray(tv, dtype=float).ravel()
+                    if x.shape[1] != len(tt):
+                        if x.shape[0] != len(tt):
+                            raise ParameterError(f"{path}: {name} is {x.shape[0]} x {x.shape[1]} but its time "
+                                                 f"has {len(tt)} samples")
+                        x = x.T
+                else:
+                    x = x if x.shape[1] >= x.shape[0] else x.T
+                    tt = step * np.arange(x.shape[1])  # type: ignore[operator]
+                channels = x.shape[0]
+                for what, idx in (("angles", angles), ("velocities", velocities), ("torques", torques)):
+                    if idx is not None and (len(idx) != 2 or not all(0 <= int(j) < channels for j in idx)):
+                        raise ParameterError(f"{path}: {what}={tuple(idx)!r} are not two of the {channels} channels "
+                                             f"of {name}", parameter=what)
+                raws.append({"t": tt, "q": x[list(angles)].T,
+                             "dq": None if velocities is None else x[list(velocities)].T,
+                             "u": None if torques is None else x[list(torques)].T,
+                             "name": name, "group": group, "source": str(path)})
+        return cls.from_arrays(raws, convention=convention, source=str(path), format=format, **checks)
+
+    @classmethod
+    def from_kaheman(cls, path, which: str = "all", **checks) -> "Measurements":
+        """The free-swing double pendulum of Kaheman et al. (2023) (``data/kaheman2023/``; the
+        ``.mat`` file or its folder): ``which="fit"`` (26 pieces, ``Y_id``), ``"validation"``
+        (4 pieces, ``Y_vad``) or ``"all"``, grouped ``fit``/``validation``.  The file's state
+        ``[theta1, theta2, dtheta1, dtheta2]`` holds absolute angles from the upright; converted:
+        ``phi = theta1 - pi``, ``psi = theta2 - theta1`` (sense kept; see the guide's Conventions)."""
+        path = Path(path)
+        if path.is_dir():
+            path = path / KAHEMAN_FILE
+        layout = {"fit": ("Y_id", "Time_id"), "validation": ("Y_vad", "Time_vad")}
+        if which not in ("fit", "validation", "all"):
+            raise ParameterError(f"which must be 'fit', 'validation' or 'all', got {which!r}", parameter="which")
+        chosen = layout if which == "all" else {which: layout[which]}
+        return cls.from_mat(path, {g: v[0] for g, v in chosen.items()}, {g: v[1] for g, v in chosen.items()},
+                            angles=(0, 1), velocities=(2, 3), format="kaheman",
+                            convention=Convention(second="absolute", zero="upright"), **checks)
+
+    @classmethod
+    def from_trajectory(cls, source, **checks) -> "Measurements":
+        """skewpend's own trajectory -- a :class:`~skewpend.Trajectory` or its ``.nc``/``.csv``
+        file -- as measurements: its ``t``, angles, speeds, and as torques the controller's plus
+        the constant ``tau1``, ``tau2`` when there are any (None for a free run).  A file of a
+        controlled run is refused (its torques are not stored): pass the Trajectory itself."""
+        from ..numeric.simulation import Trajectory, open_trajectory
+
+        if isinstance(source, Trajectory):
+            traj, src, name = source, "", "trajectory"
+        else:
+            src = str(source)
+            traj, name = open_trajectory(source), Path(src).stem
+            if traj.settings.get("controller") is not None:
+                raise ParameterError(f"{src}: a run with a controller, whose torques the file does not store; "
+                                     "pass the Trajectory object instead")
+        if not traj.kept:
+            raise ParameterError(f"{src or 'the trajectory'}: only its first and last rows were kept (keep=False); "
+                                 "simulate with keep=True")
+        tau = np.array([float(traj.params.tau1 or 0.0), float(traj.params.tau2 or 0.0)])
+        u = None
+        if traj.controller is not None:
+            u = traj.inputs() + tau
+        elif np.any(tau != 0):
+            u = np.tile(tau, (len(traj.t), 1))
+        y = np.asarray(traj.y, dtype=float)
+        extra = {"params": traj.params.to_dict(), "run": traj.message}
+        return cls.from_arrays([{"t": traj.t, "q": y[:, :2], "dq": y[:, 2:4], "u": u, "name": name}],
+                               source=src, format="trajectory", extra=extra, **checks)
+
+
+def _thaw(value):
+    if isinstance(value, Mapping):
+        return {k: _thaw(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return [_thaw(v) for v in value]
+    return value
+
+
+# -- file helpers -------------------------------------------------------------------------------------
+def _paths(path, pattern: str = "*.csv") -> List[Path]:
+    items = [path] if isinstance(path, (str, Path)) else list(path)
+    if not items:
+        raise ParameterError("no file given")
+    out: List[Path] = []
+    for item in items:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(p.glob(pattern))
+            if not found:
+                raise ParameterError(f"{p}: a folder with no {pattern} in it")
+            out.extend(found)
+        elif not p.is_file():
+            raise ParameterError(f"{p} does not exist")
+        else:
+            out.append(p)
+    return out
+
+
+def _read_csv_piece(path: Path, columns: Mapping[str, Any], delimiter: str) -> Dict[str, Any]:
+    unknown = [k for k in columns if k not in _COLUMN_KEYS]
+    if unknown:
+        raise ParameterError(f"columns: unknown key {unknown[0]!r}; the keys: {', '.join(_COLUMN_KEYS)}",
+                             parameter="columns")
+    for need in ("t", "phi", "psi"):
+        if columns.get(need) is None:
+            raise ParameterError(f"columns must name the {need!r} column", parameter="columns")
+    for a, b in (("dphi", "dpsi"), ("tau1", "tau2")):
+        if (columns.get(a) is None) != (columns.get(b) is None):
+            raise ParameterError(f"columns: {a} and {b} come together (give both or neither; a torque may be "
+                                 "a number such as 0.0 for an unactuated joint)", parameter="columns")
+    try:
+        with open(path, newline="") as fh:
+            header = [h.strip() for h in next(csv.reader(fh, delimiter=delimiter))]
+    except StopIteration:
+        raise ParameterError(f"{path} is empty") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"{path} cannot be read as text: {exc}") from None
+    wanted = {k: v for k, v in columns.items() if isinstance(v, str)}
+    missing = [v for v in wanted.values() if v not in header]
+    if missing:
+        raise ParameterError(f"{path}: no column {missing[0]!r}; its columns: {', '.join(header)}",
+                             parameter="columns")
+    index = {k: header.index(v) for k, v in wanted.items()}
+    use = sorted(set(index.values()))
+    try:
+        table = np.loadtxt(path, delimiter=delimiter, skiprows=1, usecols=use, ndmin=2)
+    except ValueError:
+        try:  # empty fields: NaN (then counted and dropped or refused by the checks)
+            table = np.genfromtxt(path, delimiter=delimiter, skip_header=1, usecols=use, ndmin=2)
+        except ValueError as exc:
+            raise ParameterError(f"{path}: not a table of numbers ({exc})") from None
+    col = {k: table[:, use.index(i)] for k, i in index.items()}
+    n = len(table)
+
+    def pair(a: str, b: str):
+        if columns.get(a) is None:
+            return None
+        return np.column_stack([col[k] if k in col else np.full(n, float(columns[k])) for k in (a, b)])
+
+    for k in ("tau1", "tau2", "dphi", "dpsi"):
+        v = columns.get(k)
+        if v is not None and not isinstance(v, str) and not isinstance(v, (int, float)):
+            raise ParameterError(f"columns: {k} must be a column name or a number", parameter="columns")
+    for k in ("t", "phi", "psi", "dphi", "dpsi"):
+        v = columns.get(k)
+        if v is not None and not isinstance(v, str):
+            raise ParameterError(f"columns: {k} must be a column name, got {v!r}", parameter="columns")
+    return {"t": col["t"], "q": np.column_stack([col["phi"], col["psi"]]), "dq": pair("dphi", "dpsi"),
+            "u": pair("tau1", "tau2"), "name": path.stem, "source": str(path)}
+
+
+def _load_mat(path: Path) -> Dict[str, Any]:
+    from scipy.io import loadmat
+
+    if not path.is_file():
+        raise ParameterError(f"{path} does not exist")
+    try:
+        return loadmat(str(path))
+    except NotImplementedError:
+        raise ParameterError(f"{path} is a MATLAB v7.3 (HDF5) file: save it with -v7, or read it with h5py "
+                             "and use Measurements.from_arrays") from None
+    except (ValueError, OSError, TypeError) as exc:
+        raise ParameterError(f"{path} is not a MATLAB .mat file scipy can read ({exc})") from None
+
+
+def _variable(mat: Mapping[str, Any], name: str, path: Path):
+    if name not in mat:
+        names = [k for k in mat if not k.startswith("__")]
+        raise ParameterError(f"{path}: no variable {name!r}; it holds {', '.join(names)}")
+    return mat[name]
+
+
+def _cells(value) -> List[np.ndarray]:
+    """The pieces of a cell array (MATLAB order), or ``[value]`` for a plain array."""
+    a = np.asarray(value)
+    if a.dtype == object:
+        return [np.asarray(x) for x in a.ravel(order="F")]
+    return [a]
