@@ -137,7 +137,16 @@ def convert(q, dq=None, u=None, *, convention: Convention = SKEWPEND):
     """The file's angles ``q`` (n x 2), speeds ``dq`` and torques ``u`` in ``convention`` ->
     skewpend's ``(q, dq, u)`` (``None`` stays ``None``).  Affine and exactly invertible by
     :func:`convert_back` (to rounding); unwrapping and the whole-turn shifts of the readers are
-    not part of it."""
+    not part of it.
+
+    Absolute angles from the upright (the Kaheman rig's), rod 1 0.1 rad and rod 2 0.3 rad past
+    hanging, are ``phi = 0.1``, ``psi = 0.2``:
+
+    >>> from math import pi
+    >>> q, dq, u = convert([[pi + 0.1, pi + 0.3]], convention=Convention(second="absolute", zero="upright"))
+    >>> [round(float(x), 12) for x in q[0]], dq, u
+    ([0.1, 0.2], None, None)
+    """
     c = convention
     sign = np.asarray(c.sign, dtype=float)
     a = np.asarray(q, dtype=float) * c.scale * sign
@@ -302,13 +311,14 @@ class _Builder:
         label = f"{Path(source).name}: {name}" if source else name
         try:
             t = np.asarray(raw["t"], dtype=float).ravel()
-            q = np.asarray(raw["q"], dtype=float)
+            q_raw = np.asarray(raw["q"], dtype=float)
         except KeyError as exc:
             raise ParameterError(f"{label}: a piece needs {exc.args[0]!r}") from None
         except (TypeError, ValueError):
             raise ParameterError(f"{label}: times and angles must be numbers") from None
         n = len(t)
-        q = _as_pairs(q, n, "angles q", label)
+        q = _as_pairs(q_raw, n, "angles q", label)
+        assert q is not None
         dq = _as_pairs(raw.get("dq"), n, "speeds dq", label)
         u = _as_pairs(raw.get("u"), n, "torques u", label)
         # NaN / inf rows
@@ -724,9 +734,14 @@ class Measurements:
         mat = _load_mat(path)
         groups = {"": data} if isinstance(data, str) else dict(data)
         times = time if isinstance(time, Mapping) else {g: time for g in groups}
-        step = dt
-        if isinstance(dt, str):
-            step = float(np.asarray(_variable(mat, dt, path)).ravel()[0])
+        step: Optional[float] = None
+        if dt is not None:
+            try:
+                step = float(np.asarray(_variable(mat, dt, path) if isinstance(dt, str) else dt).ravel()[0])
+            except (TypeError, ValueError, IndexError):
+                step = math.nan
+            if not (math.isfinite(step) and step > 0):
+                raise ParameterError(f"{path}: dt must be a positive number of seconds, got {dt!r}", parameter="dt")
         raws = []
         for group, var in groups.items():
             items = _cells(_variable(mat, var, path))
@@ -748,7 +763,7 @@ class Measurements:
                         x = x.T
                 else:
                     x = x if x.shape[1] >= x.shape[0] else x.T
-                    tt = step * np.arange(x.shape[1])  # type: ignore[operator]
+                    tt = float(step or 0.0) * np.arange(x.shape[1])
                 channels = x.shape[0]
                 for what, idx in (("angles", angles), ("velocities", velocities), ("torques", torques)):
                     if idx is not None and (len(idx) != 2 or not all(0 <= int(j) < channels for j in idx)):
