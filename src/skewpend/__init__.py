@@ -67,6 +67,8 @@ _LAZY = {
     "open_chaos_diagram": "analysis.chaos",
     "open_result": "analysis.readback",
     "Measurements": "analysis.measurements",
+    "identify": "analysis.identify",
+    "Identification": "analysis.identify",
     "Convention": "analysis.measurements",
     "widget": "views.widget",
     "PendulumWidget": "views.widget",
@@ -125,6 +127,8 @@ __all__ = [
     "open_result",
     "Measurements",
     "Convention",
+    "identify",
+    "Identification",
     "widget",
     "PendulumWidget",
     "SkewpendError",
@@ -153,6 +157,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.chaos import ChaosDiagram, chaos_diagram, open_chaos_diagram
     from .analysis.readback import open_result
     from .analysis.measurements import Convention, Measurements
+    from .analysis.identify import Identification, identify
     from .views.widget import PendulumWidget, widget
 
 

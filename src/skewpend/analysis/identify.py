@@ -1,0 +1,551 @@
+"""Identify a real pendulum's parameters from its measured motion: :func:`identify` (issue 27).
+
+This first version is the *linear* estimate, inverse dynamics on filtered signals as the DFKI lab
+does it:
+
+1. per piece: uneven time steps are first resampled onto a uniform grid (the median step) by cubic
+   interpolation (``scipy.interpolate.CubicSpline``); then the angles are smoothed and
+   differentiated twice by a Savitzky-Golay filter (``scipy.signal.savgol_filter``, polynomial
+   order :data:`ORDER` = 4, window ``smoothing`` seconds, default :data:`SMOOTHING` = 0.05 s, i.e.
+   51 samples at 1 kHz: it passes the motion below about 15 Hz); measured torques get the same
+   filter (both sides of the equations filtered alike); the ``window // 2`` samples at each end,
+   where the filter extrapolates, are dropped;
+2. the base regressor ``Y_b(q, q', q'')`` of the model's geometry
+   (:func:`skewpend.symbolic.regressor.base_parameters`) on those samples;
+3. weighted least squares :func:`~skewpend.symbolic.regressor.linear_estimate`: with measured
+   torques ``Y_b beta = tau``; for a free swing the homogeneous version, normalised by the
+   reference ``J1zz_b`` (free motion determines ratios only: one overall scale of every inertial
+   parameter and damping is undetermined; the fitted model takes it from ``params0``).
+
+Intervals (95 %): the least-squares interval assumes independent residuals, which filtered signals
+are not; so each half-width is the larger of that and the spread of re-fits on the pieces resampled
+with replacement (:data:`BOOTSTRAP` resamples, seeded; with at least five pieces).  Neither covers
+the bias of the filter or of noisy accelerations in the regressor (errors in the variables): the
+output-error fit that comes next does not have that bias.
+
+The fitted :class:`~skewpend.Parameters` are ``params0`` with what the base parameters determine
+replaced: masses, the entries that do not enter the equations and (free swing) the overall scale
+are ``params0``'s; the centres of mass, the inertia tensors about them and the damping are set so
+that the model's base parameters equal the estimate (checked to 1e-9).  Where an entry that does not
+enter the equations is needed to keep a body physical (the planar case: the inertia about the rod's
+normal ``x``, which moves with the one about ``z`` as for mass moved along the rod) it is set so.
+A base parameter that no physical body realises (a negative inertia, negative damping) gives a
+non-success status instead of a model.
+
+Held-out prediction: each validation piece is simulated with the fitted model (and with
+``params0``, for comparison) from its first measured state over its duration; the RMS of the angle
+error over both angles ``(phi, psi)`` and all samples is reported per piece and overall.  Pieces
+with measured torques are not simulated in this version (their inputs vary); their held-out error
+is the RMS of the torque prediction ``Y_b beta - tau`` [N m].
+
+Status: :attr:`~skewpend.Status.SUCCESS` when every step worked; :attr:`~skewpend.Status.NO_CONVERGENCE`
+with a one-line message when the data do not determine a parameter (rank-deficient) or the estimate
+is not physical; :attr:`~skewpend.Status.NONFINITE` when a held-out simulation failed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..results import DatasetSpec, Result
+from ..status import Status
+from ..symbolic.model import Parameters
+from ..symbolic.regressor import PI_NAMES, SCALE_DIRECTION, base_parameters, linear_estimate, standard_parameters
+from .measurements import Measurements, Piece
+
+__all__ = ["identify", "Identification", "SMOOTHING", "ORDER", "BOOTSTRAP", "REFERENCE", "RANK_TOL"]
+
+#: Default Savitzky-Golay window [s].
+SMOOTHING = 0.05
+#: Savitzky-Golay polynomial order.
+ORDER = 4
+#: Re-fits on resampled pieces for the intervals.
+BOOTSTRAP = 200
+#: The base parameter a free swing's estimate is normalised by.
+REFERENCE = "J1zz_b"
+#: Smallest singular value (of the column-scaled regressor, relative to the largest) for a direction
+#: to count as determined.
+RANK_TOL = 1e-7
+
+#: Fields of Parameters the linear estimate cannot free (they enter the equations nonlinearly or
+#: are not in the regressor): freed by the output-error fit that comes next.
+_NOT_LINEAR = ("a", "b", "m1", "m2", "alpha", "g", "cf1", "cf2", "cfs", "Ir", "gr", "axis1", "axis2",
+               "com1", "com2", "inertia1", "inertia2", "tau1", "tau2")
+
+_BASE_CACHE: Dict[Tuple, Any] = {}
+
+
+def _base(params: Parameters):
+    key = (params.axis1, params.axis2, params.a, params.alpha, params.g)
+    if key not in _BASE_CACHE:
+        _BASE_CACHE[key] = base_parameters(params)
+    return _BASE_CACHE[key]
+
+
+# -- the result ----------------------------------------------------------------------------------------
+@dataclass(frozen=True, kw_only=True)
+class Identification(Result):
+    """The result of :func:`identify` (the shared result protocol; ``params`` is the fitted model,
+    ``params0`` the start, when the fit is not physical ``params`` is ``params0``).
+
+    * ``names``, ``expressions`` (text), ``values``, ``intervals`` (95 %, r x 2): the base parameters
+      (free swing: in ``params0``'s scale of ``reference``);
+    * ``reference``, ``ratios`` (name -> value), ``ratio_intervals``: free swing only (else empty);
+    * ``undetermined``: the directions the data cannot determine, in words; ``not_entering``: the
+      standard parameters that do not enter the equations;
+    * ``pieces``, ``residual_rms`` (per fitting piece; N m, free swing in ``params0``'s scale);
+    * ``validation``, ``heldout_rms`` (rad per validation piece, fitted model), ``heldout_rms0``
+      (``params0``), ``heldout_overall``, ``heldout_overall0``; ``heldout_kind`` ``"angle"`` or
+      ``"torque"`` per piece.
+    """
+
+    params0: Parameters
+    names: Tuple[str, ...] = ()
+    expressions: Tuple[str, ...] = ()
+    values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    intervals: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    free: Tuple[str, ...] = ()
+    reference: Optional[str] = None
+    ratios: Dict[str, float] = field(default_factory=dict)
+    ratio_intervals: Dict[str, Tuple[float, float]] = field(default_factory=dict)
+    undetermined: Tuple[str, ...] = ()
+    not_entering: Tuple[str, ...] = ()
+    pieces: Tuple[str, ...] = ()
+    residual_rms: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    validation: Tuple[str, ...] = ()
+    heldout_kind: Tuple[str, ...] = ()
+    heldout_rms: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    heldout_rms0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    result_kind: ClassVar[str] = "identification"
+
+    @property
+    def heldout_overall(self) -> float:
+        """RMS over every held-out angle sample (pieces weighted by their lengths), fitted model."""
+        return float(self.stats.get("heldout_overall", math.nan))
+
+    @property
+    def heldout_overall0(self) -> float:
+        return float(self.stats.get("heldout_overall0", math.nan))
+
+    def table(self) -> str:
+        lines = [f"{'base parameter':<14} {'value':>13} {'95 % interval':>30}   expression"]
+        for n, e, v, (lo, hi) in zip(self.names, self.expressions, self.values, self.intervals):
+            iv = f"{'(params0: the scale)':>28}" if n == self.reference else f"[{lo:>12.6g}, {hi:>12.6g}]"
+            if n not in self.free:
+                iv = f"{'(held at params0)':>28}"
+            lines.append(f"{n:<14} {v:>13.6g}  {iv}   {e}")
+        if self.ratios:
+            lines.append(f"ratios to {self.reference} (what a free swing determines):")
+            for n, v in self.ratios.items():
+                lo, hi = self.ratio_intervals[n]
+                lines.append(f"  {n:<18} {v:>13.6g}  [{lo:>12.6g}, {hi:>12.6g}]")
+        for u in self.undetermined:
+            lines.append(f"undetermined: {u}")
+        if len(self.pieces):
+            lines.append(f"residual RMS per fitting piece: median {np.median(self.residual_rms):.3g}, "
+                         f"max {np.max(self.residual_rms):.3g} N m over {len(self.pieces)} pieces")
+        for n, k, r, r0 in zip(self.validation, self.heldout_kind, self.heldout_rms, self.heldout_rms0):
+            unit = "rad" if k == "angle" else "N m"
+            lines.append(f"held out {n}: {k} RMS {r:.4g} {unit} (params0: {r0:.4g})")
+        if len(self.validation):
+            lines.append(f"held out overall angle RMS: {self.heldout_overall:.4g} rad "
+                         f"(params0: {self.heldout_overall0:.4g})")
+        return "\n".join(lines)
+
+    def summary(self) -> str:
+        lines = [f"identification ({self.settings.get('method', '')}): {self.message}",
+                 f"{len(self.names)} base parameters from {len(self.pieces)} pieces, "
+                 f"{self.stats.get('samples', 0)} samples, {self.stats.get('seconds', 0.0):.3g} s"]
+        if len(self.validation):
+            lines.append(f"held out: angle RMS {self.heldout_overall:.4g} rad (params0 {self.heldout_overall0:.4g})")
+        return "\n".join(lines)
+
+    def _dataset(self) -> DatasetSpec:
+        r, n, v = len(self.names), len(self.pieces), len(self.validation)
+        ratio_names = list(self.ratios)
+        text = "; ".join  # netCDF attributes hold numbers or one string: lists of text joined by "; "
+        attrs = {"title": "skewpend identification", "base_names": text(self.names),
+                 "base_expressions": text(self.expressions), "free": text(self.free),
+                 "reference": self.reference or "", "ratio_names": text(ratio_names),
+                 "ratios": [self.ratios[k] for k in ratio_names],
+                 "ratio_lower": [self.ratio_intervals[k][0] for k in ratio_names],
+                 "ratio_upper": [self.ratio_intervals[k][1] for k in ratio_names],
+                 "undetermined": text(self.undetermined), "not_entering": text(self.not_entering),
+                 "pieces": text(self.pieces), "validation": text(self.validation),
+                 "heldout_kind": text(self.heldout_kind), "params0": _json(self.params0.to_dict()),
+                 **self._base_attrs()}
+        vals = np.asarray(self.values, dtype=float).reshape(r)
+        iv = np.asarray(self.intervals, dtype=float).reshape(r, 2)
+        return DatasetSpec(
+            variables={
+                "value": (("base",), vals.copy(), {"long_name": "base parameter estimate"}),
+                "lower": (("base",), iv[:, 0].copy(), {"long_name": "95 % interval, lower end"}),
+                "upper": (("base",), iv[:, 1].copy(), {"long_name": "95 % interval, upper end"}),
+                "residual_rms": (("piece",), np.asarray(self.residual_rms, dtype=float).reshape(n).copy(),
+                                 {"units": "N m", "long_name": "inverse-dynamics residual RMS per fitting piece"}),
+                "heldout_rms": (("held_out",), np.asarray(self.heldout_rms, dtype=float).reshape(v).copy(),
+                                {"long_name": "held-out RMS, fitted model (rad for angle pieces, N m for torque)"}),
+                "heldout_rms0": (("held_out",), np.asarray(self.heldout_rms0, dtype=float).reshape(v).copy(),
+                                 {"long_name": "held-out RMS, params0"}),
+            },
+            coords={"base": (("base",), np.arange(r), {"long_name": "index into attribute base_names"}),
+                    "piece": (("piece",), np.arange(n), {"long_name": "index into attribute pieces"}),
+                    "held_out": (("held_out",), np.arange(v), {"long_name": "index into attribute validation"})},
+            attrs=attrs,
+        )
+
+
+def _expression_text(expr) -> str:
+    """A base parameter's expression as text, long exact rationals (``a**2`` at a measured ``a``)
+    shown as 6-digit decimals."""
+    import re
+
+    text = str(expr)
+    text = re.sub(r"(\d+)\*(\w+)/(\d+)", lambda m: f"{int(m[1]) / int(m[3]):.6g}*{m[2]}", text)
+    return re.sub(r"(?<![\w.])(\d+)/(\d+)", lambda m: f"{int(m[1]) / int(m[2]):.6g}", text)
+
+
+def _json(d) -> str:
+    from ..results import canonical_json
+
+    return canonical_json(d)
+
+
+# -- signals ------------------------------------------------------------------------------------------
+def _window(dt: float, smoothing: float) -> int:
+    w = int(round(smoothing / dt))
+    w += 1 - w % 2  # odd
+    return max(w, ORDER + 3 - (ORDER % 2))  # at least order + 2, odd
+
+
+def _filtered(piece: Piece, smoothing: float):
+    """Uniform grid, smoothed q, q', q'', torques, with the edges dropped; and the window."""
+    from scipy.interpolate import CubicSpline
+    from scipy.signal import savgol_filter
+
+    t, q, u = np.asarray(piece.t, float), np.asarray(piece.q, float), piece.u
+    d = np.diff(t)
+    dt = float(np.median(d))
+    if d.max() - d.min() > 1e-6 * dt:  # uneven: resample onto the median step, cubic
+        grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+        q = CubicSpline(t, q, axis=0)(grid)
+        u = None if u is None else CubicSpline(t, np.asarray(u, float), axis=0)(grid)
+        t = grid
+    w = _window(dt, smoothing)
+    if len(t) < 2 * w + ORDER:
+        raise ParameterError(f"piece {piece.name!r} has {len(t)} samples, too few for the smoothing window of "
+                             f"{w} samples ({smoothing:g} s): pass a smaller smoothing or drop the piece")
+    qs = savgol_filter(q, w, ORDER, axis=0)
+    dq = savgol_filter(q, w, ORDER, deriv=1, delta=dt, axis=0)
+    ddq = savgol_filter(q, w, ORDER, deriv=2, delta=dt, axis=0)
+    us = None if u is None else savgol_filter(np.asarray(u, float), w, ORDER, axis=0)
+    e = w // 2
+    s = slice(e, len(t) - e)
+    return t[s], qs[s], dq[s], ddq[s], (None if us is None else us[s]), w, dt
+
+
+# -- the fit ------------------------------------------------------------------------------------------
+def _check_input(measurements, params0, free, validation, smoothing):
+    if not isinstance(measurements, Measurements):
+        raise ParameterError(f"measurements must be a skewpend Measurements, got {type(measurements).__name__}")
+    if len(measurements) == 0:
+        raise ParameterError("measurements hold no pieces")
+    if validation is not None and not isinstance(validation, Measurements):
+        raise ParameterError(f"validation must be a skewpend Measurements or None, got {type(validation).__name__}")
+    if not isinstance(params0, Parameters):
+        raise ParameterError(f"params0 must be a skewpend Parameters, got {type(params0).__name__}")
+    if not params0.is_numeric:
+        raise ParameterError(f"params0 must be numeric; symbolic: {', '.join(params0.symbolic_names)}")
+    if params0.has_friction or params0.has_rotor:
+        raise ParameterError("the linear first estimate has no Coulomb friction or rotor inertia terms: "
+                             "set cf1 = cf2 = Ir = 0 in params0")
+    try:
+        s = float(smoothing)
+    except (TypeError, ValueError):
+        raise ParameterError(f"smoothing must be a window in seconds, got {smoothing!r}") from None
+    if not (math.isfinite(s) and s > 0):
+        raise ParameterError(f"smoothing must be a positive window in seconds, got {smoothing!r}")
+    return s
+
+
+def _free(free, names) -> Tuple[str, ...]:
+    if free is None:
+        return tuple(names)
+    if isinstance(free, str):
+        free = [free]
+    try:
+        free = [str(f) for f in free]
+    except TypeError:
+        raise ParameterError(f"free must be a list of names, got {free!r}") from None
+    for f in free:
+        if f in names:
+            continue
+        if f in _NOT_LINEAR:
+            raise ParameterError(f"free: {f} cannot be freed by the linear first estimate (it enters the equations "
+                                 f"nonlinearly or is not in them); free base parameters {list(names)}")
+        if f in PI_NAMES:
+            raise ParameterError(f"free: {f} is not a base parameter of this model; free base parameters "
+                                 f"{list(names)}")
+        raise ParameterError(f"free: unknown name {f!r}; free base parameters {list(names)}")
+    if not free:
+        raise ParameterError("free names no parameter")
+    return tuple(n for n in names if n in free)
+
+
+def _solve(G, b, homogeneous, k):
+    """Least squares from the normal equations: homogeneous -> eigenvector of the smallest
+    eigenvalue normalised so entry k is 1."""
+    if homogeneous:
+        lam, vec = np.linalg.eigh(G)
+        v = vec[:, 0]
+        return v / v[k]
+    return np.linalg.solve(G, b)
+
+
+def identify(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
+             validation: Optional[Measurements] = None, smoothing: float = SMOOTHING,
+             bootstrap: int = BOOTSTRAP, seed: int = 0) -> Identification:
+    """Identify the base parameters of a measured pendulum: the linear first estimate.
+
+    ``measurements``: the motion to fit (:class:`~skewpend.Measurements`; torques where measured, a
+    free swing without); ``params0``: a numeric model supplying the geometry (``a``, ``alpha``,
+    ``g``, the axes), the masses, the entries the data cannot determine and, for a free swing, the
+    overall scale; ``free``: the base parameters to estimate (default all; the others stay at
+    ``params0``'s values -- ``alpha`` and the other nonlinear parameters are freed by the
+    output-error fit that comes next); ``validation``: held-out pieces to predict; ``smoothing``:
+    the Savitzky-Golay window in seconds (order 4).  Method, intervals and status: see the module.
+
+    >>> import skewpend  # doctest: +SKIP
+    >>> fit = skewpend.identify(skewpend.Measurements.from_kaheman("data/kaheman2023", which="fit"),
+    ...                         params0, validation=skewpend.Measurements.from_kaheman("data/kaheman2023",
+    ...                         which="validation"))  # doctest: +SKIP
+    """
+    from scipy.stats import t as stats_t
+
+    t_start = time.perf_counter()
+    smoothing = _check_input(measurements, params0, free, validation, smoothing)
+    B = _base(params0)
+    names = B.names
+    free_names = _free(free, names)
+    fi = [names.index(n) for n in free_names]
+    xi = [j for j in range(len(names)) if j not in fi]
+    a, g = float(params0.a), float(params0.g)
+    alpha = float(params0.alpha) if params0.alpha is not None else 0.0
+    beta0 = B.values(standard_parameters(params0), a, alpha, g)
+    driven = [p.u is not None for p in measurements]
+    if any(driven) and not all(driven):
+        raise ParameterError("measurements mix pieces with and without torques: identify them separately")
+    has_tau = all(driven)
+    homogeneous = not has_tau and not xi
+    k = names.index(REFERENCE) if REFERENCE in names else 0
+
+    # 1-2: filtered signals and the base regressor, per piece
+    rows: List[np.ndarray] = []
+    rhs: List[np.ndarray] = []
+    windows = set()
+    for p in measurements:
+        _, q, dq, ddq, u, w, _ = _filtered(p, smoothing)
+        windows.add(w)
+        Y = B.regressor(q, dq, ddq, a, alpha, g)  # (N, 2, r)
+        tau = np.zeros(q.shape) if u is None else u
+        tau = tau - np.einsum("nij,j->ni", Y[:, :, xi], beta0[xi]) if xi else tau
+        rows.append(Y)
+        rhs.append(tau)
+    samples = int(sum(len(Y) for Y in rows))
+    settings = {"method": "linear (inverse dynamics on Savitzky-Golay filtered signals)",
+                "smoothing": smoothing, "order": ORDER, "windows": sorted(windows), "free": list(free_names),
+                "reference": names[k] if homogeneous else None, "bootstrap": int(bootstrap), "seed": int(seed),
+                "pieces": [p.name for p in measurements],
+                "validation": [] if validation is None else [p.name for p in validation]}
+    not_entering = tuple(B.unidentifiable)
+    undetermined = []
+    if not has_tau:
+        undetermined.append(SCALE_DIRECTION + (" (taken from params0's " + names[k] + ")" if homogeneous
+                                               else " (fixed by the base parameters held at params0's values)"))
+    if not_entering:
+        undetermined.append("do not enter the equations: " + ", ".join(not_entering))
+    common = dict(params0=params0, free=free_names, names=names, expressions=tuple(_expression_text(e) for e in B.expressions),
+                  undetermined=tuple(undetermined), not_entering=not_entering,
+                  pieces=tuple(p.name for p in measurements), settings=settings)
+
+    def failed(message: str, status: Status = Status.NO_CONVERGENCE, **extra) -> Identification:
+        stats = {"seconds": time.perf_counter() - t_start, "samples": samples}
+        data = {"values": np.full(len(names), np.nan), "intervals": np.full((len(names), 2), np.nan),
+                **common, **extra}
+        return Identification(params=params0, status=status, message=message, stats=stats, **data)
+
+    # rank: singular values of the column-scaled free regressor
+    Yf = np.concatenate([Y[:, :, fi] for Y in rows]).reshape(-1, len(fi))
+    scale = np.sqrt(np.mean(Yf**2, axis=0))
+    if np.any(scale == 0):
+        missing = [free_names[j] for j in np.flatnonzero(scale == 0)]
+        return failed(f"the data do not determine {', '.join(missing)}; free fewer parameters or add excitation")
+    _, s, vt = np.linalg.svd(Yf / scale, full_matrices=False)
+    deficient = s[-2] if homogeneous else s[-1]
+    if deficient < RANK_TOL * s[0]:
+        v = vt[-2] if homogeneous else vt[-1]
+        worst = free_names[int(np.argmax(np.abs(v)))]
+        return failed(f"the data do not determine {worst}; free fewer parameters or add excitation")
+
+    # 3: the estimate (scaled columns), nominal intervals, then the piece bootstrap
+    Ys = Yf / scale
+    T = np.concatenate(rhs).reshape(-1)
+    est = linear_estimate(Ys, None if homogeneous else T, reference=fi.index(k) if homogeneous else None,
+                          names=[names[j] for j in fi])
+    # back from the scaled columns: x = y / scale (homogeneous: ratios to the reference)
+    unit = scale[fi.index(k)] / scale if homogeneous else 1.0 / scale
+    x = est.values * unit
+    half = (est.intervals[:, 1] - est.intervals[:, 0]) / 2 * unit
+    z = float(stats_t.ppf(0.975, est.dof))
+    if bootstrap and len(rows) >= 5:
+        As = [Y[:, :, fi].reshape(-1, len(fi)) / scale for Y in rows]
+        G = np.array([A.T @ A for A in As])
+        bv = np.array([A.T @ t.reshape(-1) for A, t in zip(As, rhs)])
+        rng = np.random.default_rng(seed)
+        draws = []
+        for _ in range(int(bootstrap)):
+            pick = rng.integers(0, len(rows), len(rows))
+            try:
+                yb = _solve(G[pick].sum(0), bv[pick].sum(0), homogeneous, fi.index(k) if homogeneous else 0)
+            except np.linalg.LinAlgError:
+                continue
+            draws.append(yb * unit)
+        if len(draws) >= 20:
+            sd = np.std(np.array(draws), axis=0, ddof=1)
+            half = np.maximum(half, z * sd)
+            settings["bootstrap_used"] = len(draws)
+    # in params0's units: free swing scaled by params0's reference
+    values = beta0.copy()
+    halves = np.zeros(len(names))
+    if homogeneous:
+        values[fi] = x * beta0[k]
+        halves[fi] = half * abs(beta0[k])
+    else:
+        values[fi] = x
+        halves[fi] = half
+    intervals = np.column_stack([values - halves, values + halves])
+    ratios, ratio_iv = {}, {}
+    if homogeneous:
+        for j, n in enumerate(free_names):
+            if fi[j] != k:
+                ratios[f"{n}/{names[k]}"] = float(x[j])
+                ratio_iv[f"{n}/{names[k]}"] = (float(x[j] - half[j]), float(x[j] + half[j]))
+    resid = []
+    for Y, p in zip(rows, measurements):
+        tau = np.zeros(Y.shape[:2]) if p.u is None else None
+        pred = np.einsum("nij,j->ni", Y, values)
+        if tau is None:  # driven: compare with the filtered torques
+            tau = _filtered(p, smoothing)[4]
+        resid.append(float(np.sqrt(np.mean((pred - tau) ** 2))))
+    common.update(values=values, intervals=intervals, reference=names[k] if homogeneous else None, ratios=ratios,
+                  ratio_intervals=ratio_iv, residual_rms=np.array(resid))
+
+    # the fitted Parameters
+    try:
+        fitted = _realise(params0, B, values, a, alpha, g)
+    except ParameterError as exc:
+        return failed(f"the estimate is not physical: {exc}")
+    check = B.values(standard_parameters(fitted), a, alpha, g)
+    if np.abs(check - values).max() > 1e-9 * max(np.abs(values).max(), 1e-300):
+        return failed("the fitted Parameters do not reproduce the estimated base parameters")
+
+    # held-out prediction
+    status, message = Status.SUCCESS, "identified (linear first estimate)"
+    vnames, kinds, hr, hr0 = [], [], [], []
+    sq, sq0, count = 0.0, 0.0, 0
+    if validation is not None:
+        for p in validation:
+            vnames.append(p.name)
+            if p.u is not None:
+                _, q, dq, ddq, u, _, _ = _filtered(p, smoothing)
+                Y = B.regressor(q, dq, ddq, a, alpha, g)
+                kinds.append("torque")
+                hr.append(float(np.sqrt(np.mean((np.einsum("nij,j->ni", Y, values) - u) ** 2))))
+                hr0.append(float(np.sqrt(np.mean((np.einsum("nij,j->ni", Y, beta0) - u) ** 2))))
+                continue
+            kinds.append("angle")
+            e1, e0 = _predict(fitted, p, smoothing), _predict(params0, p, smoothing)
+            if e1 is None or e0 is None:
+                status, message = Status.NONFINITE, f"the held-out simulation of {p.name} failed"
+                hr.append(math.nan)
+                hr0.append(math.nan)
+                continue
+            hr.append(float(np.sqrt(np.mean(e1**2))))
+            hr0.append(float(np.sqrt(np.mean(e0**2))))
+            sq, sq0, count = sq + float(np.sum(e1**2)), sq0 + float(np.sum(e0**2)), count + e1.size
+    stats = {"seconds": time.perf_counter() - t_start, "samples": samples, "equations": 2 * samples,
+             "sigma2": est.sigma2, "dof": est.dof}
+    if count:
+        stats["heldout_overall"] = math.sqrt(sq / count)
+        stats["heldout_overall0"] = math.sqrt(sq0 / count)
+    common.pop("params0")
+    return Identification(params=fitted, params0=params0, status=status, message=message, stats=stats,
+                          validation=tuple(vnames), heldout_kind=tuple(kinds), heldout_rms=np.array(hr),
+                          heldout_rms0=np.array(hr0), **common)
+
+
+def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.ndarray]:
+    """Angle errors (n, 2) of ``params`` simulated from the piece's first measured state."""
+    from ..numeric.simulation import simulate
+
+    t = np.asarray(piece.t, float) - float(piece.t[0])
+    if piece.dq is not None:
+        dq0 = np.asarray(piece.dq[0], float)
+    else:
+        from scipy.signal import savgol_filter
+
+        w = min(_window(piece.dt, smoothing), len(t) - (len(t) + 1) % 2)
+        dq0 = savgol_filter(np.asarray(piece.q, float), w, ORDER, deriv=1, delta=piece.dt, axis=0)[0]
+    y0 = [float(piece.q[0, 0]), float(piece.q[0, 1]), float(dq0[0]), float(dq0[1])]
+    try:
+        tr = simulate(params, y0, float(t[-1]) + piece.dt, dt_out=piece.dt)
+    except Exception:  # noqa: BLE001 - any failure of one held-out simulation is reported in the status
+        return None
+    ts, ys = np.asarray(tr.t, float), np.asarray(tr.y, float)
+    if not tr.ok or ts[-1] < t[-1] - 1e-9 or not np.all(np.isfinite(ys)):
+        return None
+    sim = np.column_stack([np.interp(t, ts, ys[:, 0]), np.interp(t, ts, ys[:, 1])])
+    return sim - np.asarray(piece.q, float)
+
+
+def _realise(params0: Parameters, B, values: np.ndarray, a: float, alpha: float, g: float) -> Parameters:
+    """``params0`` with the pivot entries of ``pi`` set so that its base parameters are ``values``."""
+    pi0 = standard_parameters(params0)
+    T = B.matrix_at(a, alpha, g)
+    pi = pi0.copy()
+    piv = list(B.pivots)
+    # T[:, piv] is the identity: pi_P = beta - T_D pi_D
+    dep = [j for j in range(len(pi)) if j not in piv]
+    pi[piv] = values - T[:, dep] @ pi0[dep]
+    idx = {n: j for j, n in enumerate(PI_NAMES)}
+    changes: Dict[str, Any] = {"c1": float(pi[idx["c1"]]), "c2": float(pi[idx["c2"]])}
+    pairs = list(zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))))
+    for i in (1, 2):
+        m = pi[idx[f"m{i}"]]
+        h = np.array([pi[idx[f"h{i}{x}"]] for x in "xyz"])
+        c = h / m
+        J = np.empty((3, 3))
+        for p, (r, s) in pairs:
+            J[r, s] = J[s, r] = pi[idx[f"J{i}{p}"]]
+        ic = J - m * (c @ c * np.eye(3) - np.outer(c, c))
+        # entries that do not enter the equations: params0's, about the centre of mass
+        c0 = pi0[[idx[f"h{i}{x}"] for x in "xyz"]] / m
+        J0 = np.empty((3, 3))
+        for p, (r, s) in pairs:
+            J0[r, s] = J0[s, r] = pi0[idx[f"J{i}{p}"]]
+        ic0 = J0 - m * (c0 @ c0 * np.eye(3) - np.outer(c0, c0))
+        for p, (r, s) in pairs:
+            if f"J{i}{p}" in B.unidentifiable:
+                ic[r, s] = ic[s, r] = ic0[r, s]
+        if f"J{i}xx" in B.unidentifiable:  # planar: x-inertia moves with z's (mass moved along the rod)
+            ic[0, 0] += ic[2, 2] - ic0[2, 2]
+        changes[f"com{i}"] = tuple(float(v) for v in c)
+        changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))
+    return params0.replace(**changes)

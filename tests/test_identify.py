@@ -1,0 +1,221 @@
+"""skewpend.identify, the linear first estimate (issue 27): on the real free-swing data of Kaheman et al.
+(2023) against the authors' published parameters, on noiseless synthetic data made by skewpend, the
+result protocol, and bad input.  The real data are read and fitted once per module (the fixture: a
+few seconds, most of it the symbolic base parameters, computed once and cached)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import skewpend
+from skewpend import Measurements, Status
+from skewpend.analysis.identify import Identification, identify
+from skewpend.errors import ParameterError
+from skewpend.symbolic import regressor as R
+
+KAHEMAN = Path(__file__).resolve().parent.parent / "data" / "kaheman2023"
+
+
+def kaheman_values():
+    from scipy.io import loadmat
+
+    return [float(x) for x in loadmat(str(KAHEMAN / "EstimatedParameters_DoublePendulum.mat"))
+            ["EstimatedParameters"].ravel()]
+
+
+def kaheman_parameters(**changes) -> skewpend.Parameters:
+    """The authors' model in skewpend's terms (as tests/test_measurements.py)."""
+    m1, m2, a1, a2, L1, I1, I2, k1, k2, g = kaheman_values()
+    p = skewpend.Parameters(a=L1, b=2 * a2, m1=m1, m2=m2, alpha=0, g=g, c1=k1, c2=k2, com1=(0, a1, 0),
+                            com2=(0, a2, 0), inertia1=((I1, 0, 0), (0, 0, 0), (0, 0, I1)),
+                            inertia2=((I2, 0, 0), (0, 0, 0), (0, 0, I2)))
+    return p.replace(**changes) if changes else p
+
+
+def readme_ratios(ratios, L1, g):
+    """The data README's J2/J1, K/J1, P1/J1, P2/J1 from the ratios to J1zz_b (the identities of
+    tests/test_regressor.py: J1 = J1zz_b, J2 = J2zz, K = a h2y, P1 = g h1y_b, P2 = g h2y)."""
+    return {"J2/J1": ratios["J2zz/J1zz_b"], "K/J1": L1 * ratios["h2y/J1zz_b"],
+            "P1/J1": g * ratios["h1y_b/J1zz_b"], "P2/J1": g * ratios["h2y/J1zz_b"]}
+
+
+def published_ratios():
+    m1, m2, a1, a2, L1, I1, I2, k1, k2, g = kaheman_values()
+    J1 = I1 + m1 * a1**2 + m2 * L1**2
+    return {"J2/J1": (I2 + m2 * a2**2) / J1, "K/J1": m2 * L1 * a2 / J1, "P1/J1": g * (m1 * a1 + m2 * L1) / J1,
+            "P2/J1": g * m2 * a2 / J1}
+
+
+@pytest.fixture(scope="module")
+def kaheman_fit():
+    fit = Measurements.from_kaheman(KAHEMAN, which="fit")
+    val = Measurements.from_kaheman(KAHEMAN, which="validation")
+    return identify(fit, kaheman_parameters(), validation=val)
+
+
+# -- the real free swing -----------------------------------------------------------------------------------
+def test_kaheman_ratios_match_the_published_values(kaheman_fit):
+    """The linear estimate (default smoothing 0.05 s, order 4) on the 26 fitting pieces against the
+    authors' published parameters, measured: J2/J1 +0.22 %, K/J1 +0.14 %, P1/J1 -0.18 %, P2/J1 +0.14 %.
+    Asserted: within 1 % each (the issue's goal for the final method is 2 %).  K/P2 = a/g exactly.
+    The 95 % intervals (about +-0.07 % on J2/J1) do NOT cover the published values: they carry the
+    noise and the piece-to-piece spread, not the filter's bias nor the published model's own error."""
+    r = kaheman_fit
+    assert r.ok, r.message
+    assert r.reference == "J1zz_b" and len(r.ratios) == 7
+    m1, m2, a1, a2, L1, I1, I2, k1, k2, g = kaheman_values()
+    ours, theirs = readme_ratios(r.ratios, L1, g), published_ratios()
+    diff = {k: 100 * (ours[k] / theirs[k] - 1) for k in theirs}
+    assert all(abs(d) < 1.0 for d in diff.values()), diff
+    assert ours["K/J1"] / ours["P2/J1"] == pytest.approx(L1 / g, rel=1e-12)
+
+
+def test_kaheman_heldout_prediction_beside_the_authors_model(kaheman_fit):
+    """The 4 held-out pieces simulated from their first measured state over their 2.66 s, angle RMS over
+    (phi, psi) and all samples, measured: fitted 0.00517 rad, the authors' model 0.00495 rad under the
+    same protocol (piece 4 dominates: 0.0087 and 0.0083).  Asserted: overall below 0.01 rad and at most
+    1.25 times the authors' (measured 1.045)."""
+    r = kaheman_fit
+    assert r.validation == ("Y_vad[0]", "Y_vad[1]", "Y_vad[2]", "Y_vad[3]") or len(r.validation) == 4
+    assert set(r.heldout_kind) == {"angle"}
+    assert np.all(np.isfinite(r.heldout_rms)) and np.all(np.isfinite(r.heldout_rms0))
+    assert r.heldout_overall < 0.01 and r.heldout_overall0 < 0.01
+    assert r.heldout_overall <= 1.25 * r.heldout_overall0, (r.heldout_overall, r.heldout_overall0)
+
+
+def test_kaheman_fitted_parameters_realise_the_estimate(kaheman_fit):
+    """The fitted Parameters: params0's masses and overall scale (J1zz_b), and base parameters equal to
+    the estimate to 1e-9 (recomputed from the Parameters)."""
+    r = kaheman_fit
+    p, p0 = r.params, r.params0
+    assert p.m1 == p0.m1 and p.m2 == p0.m2 and p.a == p0.a and p.g == p0.g
+    B = R.base_parameters(p0)
+    beta = B.values(R.standard_parameters(p), p.a, 0.0, p.g)
+    assert np.abs(beta - r.values).max() <= 1e-9 * np.abs(r.values).max()
+    beta0 = B.values(R.standard_parameters(p0), p0.a, 0.0, p0.g)
+    assert beta[0] == pytest.approx(beta0[0], rel=1e-12)
+    assert np.all(r.intervals[:, 0] <= r.values) and np.all(r.values <= r.intervals[:, 1])
+    assert len(r.residual_rms) == 26 and np.all(r.residual_rms > 0)
+
+
+def test_kaheman_result_protocol(kaheman_fit, tmp_path):
+    r = kaheman_fit
+    assert isinstance(r, Identification) and r.result_kind == "identification" and r.status is Status.SUCCESS
+    text = r.table()
+    assert "J1zz_b" in text and "one overall scale of every inertial parameter and damping" in text
+    assert "m1" in text and "held out overall angle RMS" in text
+    assert "identification" in r.summary() and "Identification success" in repr(r)
+    ds = r.to_xarray()
+    assert ds.attrs["base_names"].split("; ") == list(r.names) and ds["value"].shape == (8,)
+    assert r.expressions[0] == "J1zz + 0.0298319*m2"  # a**2 m2 at the measured a
+    assert ds.attrs["kind"] == "identification"
+    path = r.to_netcdf(tmp_path / "fit.nc")
+    import xarray as xr
+
+    with xr.open_dataset(path) as back:
+        assert np.array_equal(back["value"].values, r.values) and back.attrs["kind"] == "identification"
+
+
+# -- synthetic data made by skewpend -------------------------------------------------------------------
+STARTS = [(2.0, -1.0, 0.0, 1.0), (-1.2, 2.5, 1.0, 0.0), (0.5, 1.5, -2.0, 3.0), (1.0, 0.3, 0.0, 0.0),
+          (-0.3, -0.6, 1.0, 1.0)]
+
+
+def _synthetic(p, torques=None, seconds=2.0):
+    pieces = []
+    for i, y0 in enumerate(STARTS):
+        pk = p if torques is None else p.replace(tau1=torques[i][0], tau2=torques[i][1])
+        tr = skewpend.simulate(pk, y0, seconds, dt_out=1e-3)
+        y = np.asarray(tr.y)
+        piece = {"t": np.asarray(tr.t), "q": y[:, :2], "dq": y[:, 2:4], "name": f"s{i}"}
+        if torques is not None:
+            piece["u"] = np.tile(torques[i], (len(y), 1))
+        pieces.append(piece)
+    return Measurements.from_arrays(pieces, skip=("mean",))
+
+
+def test_synthetic_free_swing_recovers_the_ratios():
+    """A known planar model with damping (the authors' geometry, larger damping), simulated from five
+    starts for 2 s, sampled at 1 kHz, no noise; params0 wrong in c1 and com2.  With smoothing 0.02 s
+    (21 samples, order 4) the filter's bias, which scales as window**4 here, leaves measured relative
+    errors of 3e-6..6e-5 on the inertial ratios and 6e-4 on the damping ratios (0.05 s: 2e-3 on these
+    fast chaotic swings).  Asserted: 1e-3 relative; the off-axis h1x, h2x (truth 0) below 1e-5."""
+    truth_p = kaheman_parameters(c1=2e-4, c2=5e-5)
+    M = _synthetic(truth_p)
+    r = identify(M, truth_p.replace(c1=1e-4, com2=(0, 0.1, 0)), smoothing=0.02)
+    assert r.ok, r.message
+    B = R.base_parameters(truth_p)
+    truth = B.values(R.standard_parameters(truth_p), truth_p.a, 0.0, truth_p.g)
+    for n, t in zip(B.names[1:], truth[1:] / truth[0]):
+        got = r.ratios[f"{n}/J1zz_b"]
+        if n in ("h1x", "h2x"):
+            assert abs(got) < 1e-5, (n, got)
+        else:
+            assert got == pytest.approx(t, rel=1e-3), n
+    # J1zz_b held at the truth's value (free= the others): no reference, the same numbers in its scale
+    held = identify(M, truth_p, free=[n for n in B.names if n != "J1zz_b"], smoothing=0.02)
+    assert held.ok and held.reference is None and not held.ratios and "(held at params0)" in held.table()
+    for n, t, got in zip(B.names, truth, held.values):
+        if n not in ("h1x", "h2x"):
+            assert got == pytest.approx(t, rel=1e-3), n
+
+
+def test_synthetic_driven_recovers_the_base_parameters():
+    """Constant measured torques per piece: the scale is determined (no reference).  Same data and
+    smoothing as the free swing; asserted 1e-3 relative on every base parameter but the off-axis h1x,
+    h2x (truth 0: below 1e-3 of the largest first moment)."""
+    truth_p = kaheman_parameters(c1=2e-4, c2=5e-5)
+    torques = [(0.01, -0.005), (-0.02, 0.01), (0.0, 0.015), (0.015, 0.0), (-0.01, -0.01)]
+    M = _synthetic(truth_p, torques)
+    assert M.has_torques
+    r = identify(M, truth_p.replace(m2=truth_p.m2), smoothing=0.02)
+    assert r.ok, r.message
+    assert r.reference is None and not r.ratios
+    B = R.base_parameters(truth_p)
+    truth = B.values(R.standard_parameters(truth_p), truth_p.a, 0.0, truth_p.g)
+    for n, t, got in zip(B.names, truth, r.values):
+        if n in ("h1x", "h2x"):
+            assert abs(got) < 1e-3 * abs(truth[B.names.index("h1y_b")]), (n, got)
+        else:
+            assert got == pytest.approx(t, rel=1e-3), n
+
+
+def test_rank_deficient_data_get_an_honest_status():
+    """Tiny swings (1e-4 rad) of one frequency: sin(phi) = phi to 1e-9, so gravity's columns are
+    proportional to the accelerations'; the data do not determine every ratio."""
+    t = np.arange(0, 5, 1e-3)
+    w = 2 * math.pi * 0.9
+    q = 1e-4 * np.column_stack([np.sin(w * t), 0.5 * np.sin(w * t)])
+    M = Measurements.from_arrays([{"t": t, "q": q, "name": "tiny"}], skip=("mean", "tracking"))
+    r = identify(M, kaheman_parameters())
+    assert r.status is Status.NO_CONVERGENCE and not r.ok
+    assert r.message.startswith("the data do not determine") and "add excitation" in r.message
+    assert r.params == r.params0 and np.all(np.isnan(r.values))
+
+
+# -- bad input -----------------------------------------------------------------------------------------
+def test_bad_input_one_line_errors(kaheman_fit):
+    M = Measurements.from_kaheman(KAHEMAN, which="validation")
+    p0 = kaheman_parameters()
+    cases = [
+        (lambda: identify([1, 2], p0), "must be a skewpend Measurements"),
+        (lambda: identify(M, {"a": 1}), "params0 must be a skewpend Parameters"),
+        (lambda: identify(M, p0.replace(m1=None)), "params0 must be numeric"),
+        (lambda: identify(M, p0, free=["J9zz"]), "unknown name 'J9zz'"),
+        (lambda: identify(M, p0, free=["alpha"]), "alpha cannot be freed by the linear"),
+        (lambda: identify(M, p0, free=["m1"]), "m1 cannot be freed"),
+        (lambda: identify(M, p0, free=["J1xx"]), "J1xx is not a base parameter"),
+        (lambda: identify(M, p0, free=[]), "free names no parameter"),
+        (lambda: identify(M, p0.replace(cf1=0.1)), "no Coulomb friction"),
+        (lambda: identify(M, p0, smoothing=-1), "smoothing"),
+        (lambda: identify(M, p0, smoothing=3.0), "too few for the smoothing window"),
+        (lambda: identify(M, p0, validation="x"), "validation must be"),
+    ]
+    for call, says in cases:
+        with pytest.raises(ParameterError, match=says) as info:
+            call()
+        assert "\n" not in str(info.value), says
