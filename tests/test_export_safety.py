@@ -544,3 +544,29 @@ def test_the_escalation_waits_while_a_gc_callback_runs(monkeypatch):
     finally:
         gc.callbacks.remove(slow_callback)
     assert not swallowed and time.monotonic() - start < 2.5
+
+
+def test_the_escalation_waits_while_a_weakref_callback_runs(monkeypatch):
+    """A weak reference's callback (a WeakKeyDictionary's ``remove`` under xdist swallowed it; here a
+    ``weakref.finalize``, whose call is in weakref.py) reports its exceptions only: the escalation
+    waits until it has returned."""
+    import time
+    import weakref
+
+    from skewpend.interrupts import Interrupts
+
+    swallowed = []
+    monkeypatch.setattr(sys, "unraisablehook", swallowed.append)
+
+    class Thing:
+        pass
+
+    thing = Thing()
+    weakref.finalize(thing, _spin, 0.4)  # the grace time passes in here
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        with Interrupts(escalate_after=0.05):
+            _signal_self_later(0.0)
+            del thing  # the finalizer runs here
+            _spin(5.0)  # raised in here, right after it
+    assert not swallowed and time.monotonic() - start < 2.5

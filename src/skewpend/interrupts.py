@@ -147,13 +147,19 @@ class Interrupts:
 
 
 def _in_destructor(frame) -> bool:
-    """Whether ``frame`` runs inside a ``__del__`` or a garbage collector's callback (``gc.callbacks``,
-    which a profiler or test plugin may install): an exception raised there is only reported."""
+    """Whether ``frame`` runs inside a ``__del__``, a garbage collector's callback (``gc.callbacks``,
+    which a profiler or test plugin may install) or a weak reference's callback: an exception raised
+    there is only reported."""
     import gc
 
     callbacks = {getattr(cb, "__code__", None) for cb in gc.callbacks}
     while frame is not None:
-        if frame.f_code.co_name == "__del__" or frame.f_code in callbacks:
-            return True
+        code = frame.f_code
+        if code.co_name == "__del__" or code in callbacks or code.co_filename.endswith(_WEAKREF_FILES):
+            return True  # (weak references' callbacks, e.g. a WeakKeyDictionary's remove, report only too)
         frame = frame.f_back
     return False
+
+
+#: The standard library's weak-reference modules: their callbacks run where exceptions are only reported.
+_WEAKREF_FILES = ("/weakref.py", "/_weakrefset.py")
