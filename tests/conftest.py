@@ -79,18 +79,27 @@ def pytest_sessionstart(session):
         pass
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist's own, which reads the groups (it runs first otherwise: LIFO)
+_GROUPED: dict = {}
+
+
+def pytest_itemcollected(item):
+    """The xdist group of a test, set as it is collected: before any ``pytest_collection_modifyitems``
+    (xdist's own reads the groups there, and the order of that hook's implementations differs between
+    pytest and xdist versions: set in it, the groups were missed under CI's versions)."""
+    path = Path(str(item.fspath))
+    if path not in _GROUPED:
+        _GROUPED[path] = _grouped(path)
+    if _GROUPED[path]:
+        item.add_marker(pytest.mark.xdist_group(path.stem))
+
+
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     slow = _measured_slow()
-    grouped = {}
     for item in items:
         path = Path(str(item.fspath))
-        if item.nodeid in slow or path.name in SLOW_MODULES:
+        if item.nodeid.split("@")[0] in slow or path.name in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
-        if path not in grouped:
-            grouped[path] = _grouped(path)
-        if grouped[path]:
-            item.add_marker(pytest.mark.xdist_group(path.stem))
     rank = {name: i for i, name in enumerate(FIRST)}
     items.sort(key=lambda item: rank.get(Path(str(item.fspath)).name, len(FIRST)))  # stable: else as collected
 

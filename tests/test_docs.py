@@ -27,19 +27,46 @@ DOCS = ROOT / "docs"
 BUILD_TIMEOUT = 1500  # s: the whole site, notebooks executed, on 2 cores (measured: see the README)
 
 
+#: The build of this process (a worker may set the module's fixture up again after another module's
+#: tests): its site, or why it failed.
+_BUILD: dict = {}
+
+
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> Path:
     from helpers import missing_node, skip_or_fail
 
     skip_or_fail(missing_node())  # KaTeX renders the formulas under Node.js at build time
-    out = tmp_path_factory.mktemp("site")
+    if not _BUILD:
+        _BUILD.update(_build(tmp_path_factory.mktemp("site")))
+    assert "error" not in _BUILD, _BUILD.get("error")
+    return _BUILD["site"]
+
+
+def _build(out: Path) -> dict:
+    """sphinx-build into ``out``. Its output goes to a file, not a pipe, and its process group is
+    ended afterwards: the KaTeX server it starts (Node.js) outlived a failed build holding the pipe,
+    and the test waited for the pipe's end until its timeout."""
+    import signal
+
     env = dict(os.environ, PYTHONWARNINGS="ignore::DeprecationWarning")
-    proc = subprocess.run(
-        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-b", "html", "-q", str(DOCS), str(out)],
-        cwd=ROOT, env=env, capture_output=True, text=True, timeout=BUILD_TIMEOUT,
-    )
-    assert proc.returncode == 0, f"sphinx-build -W failed (exit {proc.returncode}):\n{proc.stderr[-6000:]}"
-    return out
+    log = out.parent / "sphinx.log"
+    with open(log, "w+", encoding="utf-8") as fh:
+        proc = subprocess.Popen([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-b", "html", "-q", str(DOCS), str(out)],
+                                cwd=ROOT, env=env, stdout=fh, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        try:
+            code = proc.wait(timeout=BUILD_TIMEOUT)
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)  # what the build left running (its KaTeX server)
+            except ProcessLookupError:
+                pass
+            proc.wait()
+        fh.seek(0)
+        text = fh.read()
+    if code != 0:
+        return {"error": f"sphinx-build -W failed (exit {code}):\n{text[-6000:]}"}
+    return {"site": out}
 
 
 def pages(site: Path) -> list[Path]:
