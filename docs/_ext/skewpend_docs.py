@@ -108,7 +108,48 @@ def _drop_widget_state(app: Sphinx, doctree) -> None:
     files.pop("ipywidgets_state", None)
 
 
+def _patient_katex_server() -> None:
+    """sphinxcontrib-katex connects to its Node.js server as soon as the server's socket file exists;
+    Node creates the file when it binds and listens a moment later, so on a loaded machine the first
+    connection may be refused (seen under CI: the build failed with ConnectionRefusedError). Here the
+    connection is retried for a few seconds; the server it started keeps running and is connected to."""
+    import socket
+    import time
+
+    try:
+        from sphinxcontrib import katex
+    except ImportError:  # pragma: no cover - the docs extra installs it
+        return
+    server = katex.KaTeXServer
+    if getattr(server.start_server_process, "_skewpend_patient", False):
+        return
+    original = server.start_server_process.__func__
+
+    def start_server_process(cls, rundir, timeout):
+        real_connect = socket.socket.connect
+
+        def connect(sock, address):
+            deadline = time.monotonic() + max(float(timeout), 5.0)
+            while True:
+                try:
+                    return real_connect(sock, address)
+                except ConnectionRefusedError:  # bound, not yet listening
+                    if time.monotonic() > deadline:
+                        raise
+                    time.sleep(0.02)
+
+        socket.socket.connect = connect
+        try:
+            return original(cls, rundir, timeout)
+        finally:
+            socket.socket.connect = real_connect
+
+    start_server_process._skewpend_patient = True  # type: ignore[attr-defined]
+    server.start_server_process = classmethod(start_server_process)
+
+
 def setup(app: Sphinx) -> dict:
+    _patient_katex_server()
     app.connect("env-check-consistency", _check_api)
     app.connect("doctree-read", _drop_widget_state)
     app.add_directive("skewpend-cli", CliDirective)
