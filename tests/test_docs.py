@@ -38,9 +38,30 @@ def site(tmp_path_factory) -> Path:
 
     skip_or_fail(missing_node())  # KaTeX renders the formulas under Node.js at build time
     if not _BUILD:
-        _BUILD.update(_build(tmp_path_factory.mktemp("site")))
+        _BUILD.update(_built_once(tmp_path_factory))
     assert "error" not in _BUILD, _BUILD.get("error")
     return _BUILD["site"]
+
+
+def _built_once(tmp_path_factory) -> dict:
+    """The site built once per test session, whichever worker asks first: under a file lock, in the
+    session's shared temporary directory (two builds at once race in the source tree's
+    docs/auto_gallery, which sphinx-gallery writes; the workers' module groups do not always hold)."""
+    import fcntl
+    import json
+
+    shared = tmp_path_factory.getbasetemp()
+    shared = shared.parent if shared.name.startswith("popen-gw") else shared  # the session's, not the worker's
+    (shared / "docs-build").mkdir(exist_ok=True)
+    outcome = shared / "docs-build" / "outcome.json"
+    with open(shared / "docs-build" / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if outcome.exists():
+            done = json.loads(outcome.read_text(encoding="utf-8"))
+        else:
+            done = _build(shared / "docs-build" / "site")
+            outcome.write_text(json.dumps({k: str(v) for k, v in done.items()}), encoding="utf-8")
+    return {"site": Path(done["site"])} if "site" in done else done
 
 
 def _build(out: Path) -> dict:
