@@ -93,6 +93,30 @@ def pytest_itemcollected(item):
         item.add_marker(pytest.mark.xdist_group(path.stem))
 
 
+def _groups_broken() -> bool:
+    """pytest >= 9.2 builds a node's id from a structured id; pytest-xdist <= 3.8 still writes the group
+    into the legacy ``item._nodeid``, which no longer takes: --dist loadgroup silently stops grouping
+    (pytest-dev/pytest-xdist#1386). True while both hold."""
+    if tuple(int(p) for p in pytest.__version__.split(".")[:2] if p.isdigit()) < (9, 2):
+        return False
+    import inspect
+
+    import xdist.remote
+
+    return "item._nodeid =" in inspect.getsource(xdist.remote)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_configure(config):
+    """Under --dist loadgroup, stop with the reason where the groups would not hold: the modules sharing
+    an expensive fixture would otherwise run it on both workers and race on shared files."""
+    if (not hasattr(config, "workerinput") and getattr(config.option, "dist", "no") == "loadgroup"
+            and getattr(config.option, "numprocesses", None) and _groups_broken()):
+        raise pytest.UsageError(
+            f"pytest-xdist's --dist loadgroup does not group under pytest {pytest.__version__} "
+            "(pytest-dev/pytest-xdist#1386): install the test extra's pytest (<9.2), or run with -n0")
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     slow = _measured_slow()
