@@ -59,7 +59,7 @@ from ..symbolic.model import Parameters
 from ..symbolic.regressor import PI_NAMES, SCALE_DIRECTION, base_parameters, linear_estimate, standard_parameters
 from .measurements import Measurements, Piece
 
-__all__ = ["identify", "Identification", "SMOOTHING", "ORDER", "BOOTSTRAP", "REFERENCE", "RANK_TOL"]
+__all__ = ["identify", "Identification", "SMOOTHING", "ORDER", "BOOTSTRAP", "REFERENCE", "RANK_TOL", "METHODS"]
 
 #: Default Savitzky-Golay window [s].
 SMOOTHING = 0.05
@@ -122,8 +122,27 @@ class Identification(Result):
     heldout_kind: Tuple[str, ...] = ()
     heldout_rms: np.ndarray = field(default_factory=lambda: np.zeros(0))
     heldout_rms0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    method: str = "linear"
+    fit_rms: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    alpha: float = math.nan
+    alpha_interval: Tuple[float, float] = (math.nan, math.nan)
+    alpha_note: str = ""
+    profile_alpha: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    profile_cost: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    correlation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     result_kind: ClassVar[str] = "identification"
+
+    @property
+    def heldout_median(self) -> float:
+        """The median over held-out angle pieces of each piece's RMS, fitted model [rad]."""
+        r = [x for x, k in zip(self.heldout_rms, self.heldout_kind) if k == "angle"]
+        return float(np.median(r)) if r else math.nan
+
+    @property
+    def heldout_median0(self) -> float:
+        r = [x for x, k in zip(self.heldout_rms0, self.heldout_kind) if k == "angle"]
+        return float(np.median(r)) if r else math.nan
 
     @property
     def heldout_overall(self) -> float:
@@ -146,16 +165,24 @@ class Identification(Result):
             for n, v in self.ratios.items():
                 lo, hi = self.ratio_intervals[n]
                 lines.append(f"  {n:<18} {v:>13.6g}  [{lo:>12.6g}, {hi:>12.6g}]")
+        if math.isfinite(self.alpha):
+            lo, hi = self.alpha_interval
+            lines.append(f"skew angle alpha: {math.degrees(self.alpha):.3f} deg, 95 % interval "
+                         f"[{math.degrees(lo):.3f}, {math.degrees(hi):.3f}] deg" + (f" ({self.alpha_note})" if self.alpha_note else ""))
         for u in self.undetermined:
             lines.append(f"undetermined: {u}")
-        if len(self.pieces):
+        if len(self.fit_rms):
+            lines.append(f"output error per fitting piece (angles): median {np.median(self.fit_rms):.4g} rad, "
+                         f"max {np.max(self.fit_rms):.4g} rad")
+        if len(self.pieces) and self.method == "linear":
             lines.append(f"residual RMS per fitting piece: median {np.median(self.residual_rms):.3g}, "
                          f"max {np.max(self.residual_rms):.3g} N m over {len(self.pieces)} pieces")
         for n, k, r, r0 in zip(self.validation, self.heldout_kind, self.heldout_rms, self.heldout_rms0):
             unit = "rad" if k == "angle" else "N m"
             lines.append(f"held out {n}: {k} RMS {r:.4g} {unit} (params0: {r0:.4g})")
         if len(self.validation):
-            lines.append(f"held out overall angle RMS: {self.heldout_overall:.4g} rad "
+            lines.append(f"held out angle RMS: median over pieces {self.heldout_median:.4g} rad "
+                         f"(params0: {self.heldout_median0:.4g}); overall {self.heldout_overall:.4g} rad "
                          f"(params0: {self.heldout_overall0:.4g})")
         return "\n".join(lines)
 
@@ -163,8 +190,12 @@ class Identification(Result):
         lines = [f"identification ({self.settings.get('method', '')}): {self.message}",
                  f"{len(self.names)} base parameters from {len(self.pieces)} pieces, "
                  f"{self.stats.get('samples', 0)} samples, {self.stats.get('seconds', 0.0):.3g} s"]
+        if math.isfinite(self.alpha):
+            lo, hi = self.alpha_interval
+            lines.append(f"alpha = {math.degrees(self.alpha):.3f} deg, 95 % [{math.degrees(lo):.3f}, {math.degrees(hi):.3f}] deg")
         if len(self.validation):
-            lines.append(f"held out: angle RMS {self.heldout_overall:.4g} rad (params0 {self.heldout_overall0:.4g})")
+            lines.append(f"held out: angle RMS median {self.heldout_median:.4g} rad (params0 {self.heldout_median0:.4g}), "
+                         f"overall {self.heldout_overall:.4g} rad (params0 {self.heldout_overall0:.4g})")
         return "\n".join(lines)
 
     def _dataset(self) -> DatasetSpec:
@@ -180,6 +211,8 @@ class Identification(Result):
                  "undetermined": text(self.undetermined), "not_entering": text(self.not_entering),
                  "pieces": text(self.pieces), "validation": text(self.validation),
                  "heldout_kind": text(self.heldout_kind), "params0": _json(self.params0.to_dict()),
+                 "method": self.method, "alpha": float(self.alpha),
+                 "alpha_interval": [float(x) for x in self.alpha_interval], "alpha_note": self.alpha_note,
                  **self._base_attrs()}
         vals = np.asarray(self.values, dtype=float).reshape(r)
         iv = np.asarray(self.intervals, dtype=float).reshape(r, 2)
@@ -194,10 +227,17 @@ class Identification(Result):
                                 {"long_name": "held-out RMS, fitted model (rad for angle pieces, N m for torque)"}),
                 "heldout_rms0": (("held_out",), np.asarray(self.heldout_rms0, dtype=float).reshape(v).copy(),
                                  {"long_name": "held-out RMS, params0"}),
+                "fit_rms": (("fit_piece",), np.asarray(self.fit_rms, dtype=float).copy(),
+                            {"units": "rad", "long_name": "output-error angle RMS per fitting piece"}),
+                "profile_cost": (("profile",), np.asarray(self.profile_cost, dtype=float).copy(),
+                                 {"units": "rad2", "long_name": "profiled sum of squared angle residuals"}),
             },
             coords={"base": (("base",), np.arange(r), {"long_name": "index into attribute base_names"}),
                     "piece": (("piece",), np.arange(n), {"long_name": "index into attribute pieces"}),
-                    "held_out": (("held_out",), np.arange(v), {"long_name": "index into attribute validation"})},
+                    "held_out": (("held_out",), np.arange(v), {"long_name": "index into attribute validation"}),
+                    "fit_piece": (("fit_piece",), np.arange(len(self.fit_rms)), {"long_name": "index into attribute pieces"}),
+                    "profile": (("profile",), np.asarray(self.profile_alpha, dtype=float).copy(),
+                                {"units": "rad", "long_name": "skew angle of the profile"})},
             attrs=attrs,
         )
 
@@ -309,9 +349,9 @@ def _solve(G, b, homogeneous, k):
     return np.linalg.solve(G, b)
 
 
-def identify(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
-             validation: Optional[Measurements] = None, smoothing: float = SMOOTHING,
-             bootstrap: int = BOOTSTRAP, seed: int = 0) -> Identification:
+def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
+            validation: Optional[Measurements] = None, smoothing: float = SMOOTHING,
+            bootstrap: int = BOOTSTRAP, seed: int = 0) -> Identification:
     """Identify the base parameters of a measured pendulum: the linear first estimate.
 
     ``measurements``: the motion to fit (:class:`~skewpend.Measurements`; torques where measured, a
@@ -491,6 +531,393 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
                           heldout_rms0=np.array(hr0), **common)
 
 
+METHODS = ("output-error", "linear")
+#: The profile's grid of |alpha| [deg] near the start (extended by doubling while the cost falls).
+PROFILE_GRID = (0.5, 1.0, 2.0, 4.0)
+
+
+def identify(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
+             validation: Optional[Measurements] = None, method: str = "output-error", smoothing: float = SMOOTHING,
+             segment: float = 0.5, bootstrap: int = BOOTSTRAP, seed: int = 0,
+             progress: Optional[Any] = None) -> Identification:
+    """Identify a measured pendulum's base parameters (and, freed, its skew angle).
+
+    ``measurements``: the motion to fit (:class:`~skewpend.Measurements`; torques where measured, a
+    free swing without); ``params0``: a numeric model supplying the geometry (``a``, ``alpha``,
+    ``g``, the axes), the masses, the entries the data cannot determine, the start of the fit and,
+    for a free swing, the overall scale; ``free``: the base parameters to estimate (default all),
+    and ``"alpha"`` to estimate the skew angle too; ``validation``: held-out pieces, each simulated
+    from its first measured state; ``method``: ``"output-error"`` (default: the linear estimate,
+    then multiple shooting with exact sensitivities, :mod:`skewpend.analysis.shooting`) or
+    ``"linear"`` (the first estimate alone); ``smoothing``: the Savitzky-Golay window [s];
+    ``segment``: the shooting segments' length [s]; ``bootstrap``, ``seed``: the resampled
+    pieces of the intervals; ``progress``: ``callable(stage: str, fraction: float)``.
+
+    >>> import skewpend  # doctest: +SKIP
+    >>> fit = skewpend.identify(skewpend.Measurements.from_kaheman("data/kaheman2023", which="fit"),
+    ...                         params0, free=None, validation=skewpend.Measurements.from_kaheman(
+    ...                         "data/kaheman2023", which="validation"))  # doctest: +SKIP
+    """
+    if method not in METHODS:
+        raise ParameterError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    names_free = None
+    alpha_free = False
+    if free is not None:
+        if isinstance(free, str):
+            free = [free]
+        try:
+            names_free = [str(f) for f in free]
+        except TypeError:
+            raise ParameterError(f"free must be a list of names, got {free!r}") from None
+        alpha_free = "alpha" in names_free
+        names_free = [f for f in names_free if f != "alpha"]
+        if alpha_free and method == "linear":
+            raise ParameterError("free: alpha enters the equations nonlinearly: free it with method='output-error'")
+        if alpha_free and not names_free:
+            names_free = None  # alpha alone: with every base parameter
+    try:
+        seg_len = float(segment)
+    except (TypeError, ValueError):
+        raise ParameterError(f"segment must be a length in seconds, got {segment!r}") from None
+    if not (math.isfinite(seg_len) and 0 < seg_len <= 60):
+        raise ParameterError(f"segment must be a length in seconds in (0, 60], got {segment!r}")
+    t_start = time.perf_counter()
+    say = progress if callable(progress) else (lambda stage, fraction: None)
+    say("linear estimate", 0.0)
+    lin = _linear(measurements, params0, free=names_free, validation=validation if method == "linear" else None,
+                  smoothing=smoothing, bootstrap=bootstrap, seed=seed)
+    if method == "linear" or not np.all(np.isfinite(np.asarray(lin.values, float))):
+        return lin  # (a linear estimate that is not physical still starts the output-error fit)
+    return _output_error(lin, measurements, params0, alpha_free, validation, smoothing, seg_len, bootstrap, seed,
+                         say, t_start)
+
+
+def _signals(piece: Piece, smoothing: float):
+    """A piece on a uniform grid: ``(t, q, q_smooth, dq_smooth, u)`` (the whole length; smoothed
+    start states for the shooting nodes)."""
+    from scipy.interpolate import CubicSpline
+    from scipy.signal import savgol_filter
+
+    t, q, u = np.asarray(piece.t, float), np.asarray(piece.q, float), piece.u
+    u = None if u is None else np.asarray(u, float)
+    d = np.diff(t)
+    dt = float(np.median(d))
+    if d.max() - d.min() > 1e-6 * dt:
+        grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+        q = CubicSpline(t, q, axis=0)(grid)
+        u = None if u is None else CubicSpline(t, u, axis=0)(grid)
+        t = grid
+    w = min(_window(dt, smoothing), len(t) - (len(t) + 1) % 2)
+    qs = savgol_filter(q, w, ORDER, axis=0)
+    dqs = savgol_filter(q, w, ORDER, deriv=1, delta=dt, axis=0)
+    return t, q, qs, dqs, u
+
+
+def _stem(name: str) -> str:
+    return name[:-2] if name.endswith("_b") else name
+
+
+def _output_error(lin: Identification, measurements, params0, alpha_free, validation, smoothing, segment,
+                  bootstrap, seed, say, t_start) -> Identification:
+    from . import shooting
+    from ..symbolic.regressor import _independent
+
+    a, g = float(params0.a), float(params0.g)
+    alpha0 = float(params0.alpha) if params0.alpha is not None else 0.0
+    homogeneous = lin.reference is not None
+    ref = lin.reference
+    signals = [_signals(p, smoothing) for p in measurements]
+    seg = shooting.segments(signals, [p.name for p in measurements], segment)
+    n_pieces = len(measurements)
+    start_y0 = seg.y0.copy()
+    settings = dict(lin.settings)
+    settings.update(method="output-error (multiple shooting, RK4 with exact sensitivities)", segment=segment,
+                    step=seg.h, segments=len(seg), alpha_free=bool(alpha_free))
+    if not alpha_free:
+        B = _base(params0)
+        names = B.names
+        beta0 = np.asarray(lin.values, float)
+        free = [n for n in lin.free if n != ref]
+        Yb = B.symbolic_regressor
+    else:
+        B = _base(params0.replace(alpha=None))  # every skew angle: the generic base parameters
+        names = B.names
+        if lin.status is Status.SUCCESS:
+            beta0 = B.values(standard_parameters(lin.params), a, alpha0, g)
+        elif tuple(lin.names) == tuple(B.names):
+            beta0 = np.asarray(lin.values, float)
+        else:
+            beta0 = B.values(standard_parameters(params0), a, alpha0, g)
+        # the base parameters the data determine near alpha0 (the others are held at the start's values)
+        from ..symbolic.regressor import _samples
+
+        q, dq, ddq = _samples(40, 0)
+        A = B.regressor(q, dq, ddq, a, alpha0, g).reshape(-1, len(names))
+        det = [names[j] for j in _independent(A, range(len(names)))]
+        stems = {_stem(n) for n in lin.free}
+        free = [n for n in names if n in det and _stem(n) in stems and n != ref]
+        Yb = B.symbolic_regressor
+
+        def refree(alpha: float) -> None:
+            """Free every base parameter the data determine at ``alpha`` (away from alpha0 the skew
+            brings the inertia entries the near-planar fit held into the equations)."""
+            A = B.regressor(q, dq, ddq, a, alpha, g).reshape(-1, len(names))
+            det = [names[j] for j in _independent(A, range(len(names)))]
+            free[:] = [n for n in names if n in det and (_stem(n) in stems or n not in lin_names) and n != ref]
+
+        lin_names = set(lin.names)
+    held = [n for n in names if n not in free and n != ref]
+
+    def run(beta, alpha, free_alpha, y0, iterations=60, boot=0, tol=1e-10):
+        seg.y0[:] = y0
+        return shooting.fit(Yb, names, beta, free, alpha, free_alpha, seg, a, g, pieces=n_pieces,
+                            max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol)
+
+    say("output-error fit", 0.1)
+    try:
+        sf = run(beta0, alpha0, False, start_y0, boot=0 if alpha_free else bootstrap)
+    except FloatingPointError as exc:
+        return _oe_failed(lin, f"the output-error fit failed: {exc}", settings, t_start)
+    alpha_hat, a_lo, a_hi, note = math.nan, math.nan, math.nan, ""
+    prof_a: List[float] = []
+    prof_c: List[float] = []
+    if alpha_free:
+        sf, alpha_hat, (a_lo, a_hi), note, prof_a, prof_c = _skew_search(run, sf, alpha0, bootstrap, seed, say, refree)
+    held = [n for n in names if n not in free and n != ref]
+    beta = sf.beta
+    theta = dict(zip(sf.theta_names, sf.theta))
+    half = dict(zip(sf.theta_names, sf.half))
+    values = np.asarray(beta, float)
+    halves = np.array([half.get(n, 0.0) for n in names])
+    intervals = np.column_stack([values - halves, values + halves])
+    for j, n in enumerate(names):
+        if n in sf.flat or (n in half and not math.isfinite(half[n])):
+            intervals[j] = (math.nan, math.nan)
+    k = names.index(ref) if homogeneous else 0
+    ratios, ratio_iv = {}, {}
+    if homogeneous:
+        for j, n in enumerate(names):
+            if n in theta:
+                ratios[f"{n}/{ref}"] = float(values[j] / values[k])
+                ratio_iv[f"{n}/{ref}"] = (float(intervals[j, 0] / values[k]), float(intervals[j, 1] / values[k]))
+    alpha_fit = alpha_hat if alpha_free else alpha0
+    try:
+        fitted = _realise(params0.replace(alpha=alpha_fit) if alpha_free else params0, B, values, a, alpha_fit, g,
+                          held=held)
+        projected = ""
+    except ParameterError as exc:
+        # a body on the edge of the physical (a slender rod: no moment about its own axis) may land a
+        # little outside: the nearest physical body, accepted when it moves no base parameter by more
+        # than a tenth of its 95 % half-width
+        try:
+            fitted = _realise(params0.replace(alpha=alpha_fit) if alpha_free else params0, B, values, a, alpha_fit,
+                              g, held=held, project=True)
+        except ParameterError as exc2:
+            return _oe_failed(lin, f"the output-error estimate is not physical: {exc} [projected: {exc2}]", settings, t_start)
+        moved = B.values(standard_parameters(fitted), a, alpha_fit, g) - values
+        free_j = [j for j, n in enumerate(names) if n in theta]
+        big = 1e-2 * float(np.max(np.abs(values)))  # a near-zero entry (a product of inertia) is measured on the others' scale
+        worst = max((abs(moved[j]) / max(abs(values[j]), big) for j in free_j if abs(moved[j]) > 0), default=0.0)
+        if worst > 0.01:
+            return _oe_failed(lin, f"the output-error estimate is not physical: {exc} (the nearest physical body "
+                              f"moves a base parameter by {100 * worst:.2g} %)", settings, t_start)
+        over = [names[j] for j in free_j if math.isfinite(halves[j]) and abs(moved[j]) > halves[j]]
+        projected = ("the estimate lies just outside the physical bodies; the model is the nearest physical body "
+                     f"(base parameters moved by at most {100 * worst:.2g} %"
+                     + (f", beyond the 95 % interval for {', '.join(over)})" if over else ")"))
+    check = B.values(standard_parameters(fitted), a, alpha_fit, g)
+    keep = [j for j, n in enumerate(names) if n not in held]
+    tol = 1e-9 * max(np.abs(values).max(), 1e-300)
+    if projected:
+        tol = max(tol, float(np.max(np.abs(check - values)[keep])))
+    values = np.where([n in held for n in names], check, values)  # held: the body's own, at its new centre
+    if np.abs(check[keep] - values[keep]).max() > tol:
+        return _oe_failed(lin, "the fitted Parameters do not reproduce the estimated base parameters", settings, t_start)
+    status, message = Status.SUCCESS, "identified (output error, multiple shooting)" + (f"; {projected}" if projected else "")
+    if not sf.converged:
+        status, message = Status.NO_CONVERGENCE, f"the output-error fit did not converge: {sf.message}"
+    elif sf.flat:
+        status, message = Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer "
+                                                  "parameters or add excitation")
+    say("held-out prediction", 0.9)
+    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a,
+                                                   alpha_fit, g)
+    if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
+        status, message = Status.NONFINITE, "a held-out simulation failed"
+    undetermined = list(lin.undetermined)
+    if held:
+        undetermined.append("held at the start's values (the data do not determine them near alpha = "
+                            f"{math.degrees(alpha0):g} deg): " + ", ".join(held))
+    settings.update(iterations=sf.iterations, converged=sf.converged, free=list(sf.theta_names))
+    stats = dict(lin.stats)
+    stats.update(seconds=time.perf_counter() - t_start, fit_seconds=sf.seconds, cost=sf.cost, **stats_extra)
+    return Identification(
+        params=fitted, params0=params0, status=status, message=message, stats=stats, settings=settings,
+        names=names, expressions=tuple(_expression_text(e) for e in B.expressions), values=values, intervals=intervals,
+        free=tuple(n for n in names if n in theta or n == ref), reference=ref, ratios=ratios,
+        ratio_intervals=ratio_iv, undetermined=tuple(undetermined), not_entering=tuple(B.unidentifiable),
+        pieces=lin.pieces, residual_rms=lin.residual_rms, validation=tuple(vnames), heldout_kind=tuple(kinds),
+        heldout_rms=np.array(hr), heldout_rms0=np.array(hr0), method="output-error", fit_rms=sf.rms_piece,
+        alpha=float(alpha_hat), alpha_interval=(float(a_lo), float(a_hi)), alpha_note=note,
+        profile_alpha=np.array(prof_a), profile_cost=np.array(prof_c), correlation=sf.correlation)
+
+
+def _oe_failed(lin: Identification, message: str, settings, t_start) -> Identification:
+    import dataclasses
+
+    stats = dict(lin.stats)
+    stats["seconds"] = time.perf_counter() - t_start
+    return dataclasses.replace(lin, status=Status.NO_CONVERGENCE, message=message, settings=settings, stats=stats,
+                               params=lin.params0, method="output-error")
+
+
+def _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha, g):
+    vnames, kinds, hr, hr0 = [], [], [], []
+    sq, sq0, count = 0.0, 0.0, 0
+    if validation is not None:
+        for p in validation:
+            vnames.append(p.name)
+            if p.u is not None:
+                _, q, dq, ddq, u, _, _ = _filtered(p, smoothing)
+                Y = B.regressor(q, dq, ddq, a, alpha, g)
+                kinds.append("torque")
+                hr.append(float(np.sqrt(np.mean((np.einsum("nij,j->ni", Y, values) - u) ** 2))))
+                hr0.append(float(np.sqrt(np.mean((np.einsum("nij,j->ni", Y, beta0) - u) ** 2))))
+                continue
+            kinds.append("angle")
+            e1, e0 = _predict(fitted, p, smoothing), _predict(params0, p, smoothing)
+            if e1 is None or e0 is None:
+                hr.append(math.nan)
+                hr0.append(math.nan)
+                continue
+            hr.append(float(np.sqrt(np.mean(e1**2))))
+            hr0.append(float(np.sqrt(np.mean(e0**2))))
+            sq, sq0, count = sq + float(np.sum(e1**2)), sq0 + float(np.sum(e0**2)), count + e1.size
+    extra = {}
+    if count:
+        extra = {"heldout_overall": math.sqrt(sq / count), "heldout_overall0": math.sqrt(sq0 / count)}
+    return vnames, kinds, hr, hr0, extra
+
+
+def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree):
+    """The skew angle: a profile of the cost over alpha (every other parameter re-fitted at each
+    grid angle), then, where its minimum is away from alpha0's neighbourhood, a fit with alpha
+    free.  Returns (fit, alpha, (lo, hi), note, grid, costs)."""
+    probe = run(sf0.beta, alpha0, True, sf0.y0, iterations=0)
+    flat = "alpha" in probe.flat
+    if not flat:  # alpha is determined to first order at alpha0: a regular fit with alpha free
+        sf = run(sf0.beta, alpha0, True, sf0.y0, boot=bootstrap)
+        if sf.converged and "alpha" not in sf.flat:
+            h = float(sf.half[-1])
+            return sf, sf.alpha, (sf.alpha - h, sf.alpha + h), "", [], []
+    # the profile: alpha0 + d, d from the grid, on both sides (mirror symmetry checked, not assumed)
+    grid = [alpha0]
+    fits = {alpha0: sf0}
+    say("profile of the skew angle", 0.3)
+
+    def at(alpha, start):
+        if alpha not in fits:
+            fits[alpha] = run(start.beta, alpha, False, start.y0, iterations=8, tol=1e-7)
+        return fits[alpha]
+
+    steps = [math.radians(d) for d in PROFILE_GRID]
+    up = at(alpha0 + steps[0], sf0)
+    down = at(alpha0 - steps[0], sf0)
+    even = abs(up.cost - down.cost) <= 1e-6 * up.cost
+    sides = (1,) if even else (1, -1)
+    for side in sides:
+        prev = sf0
+        d_list = list(steps)
+        i = 0
+        while i < len(d_list):
+            d = d_list[i]
+            alpha = alpha0 + side * d
+            if abs(alpha) > math.radians(89):
+                break
+            f = at(alpha, prev)
+            grid.append(alpha)
+            if i == len(d_list) - 1 and f.cost < prev.cost:  # still falling: extend
+                d_list.append(2 * d)
+            prev = f
+            i += 1
+    if even:  # mirror
+        grid += [2 * alpha0 - x for x in grid if x != alpha0]
+        for x in list(grid):
+            if x not in fits:
+                fits[x] = fits[2 * alpha0 - x]
+    grid = sorted(set(grid))
+    costs = np.array([fits[x].cost for x in grid])
+    ssr = np.array([fits[x].ssr_piece for x in grid])  # (grid, pieces)
+    best = int(np.argmin(costs))
+    if 0 < best < len(grid) - 1 and abs(grid[best] - alpha0) > steps[1] * 1.01:
+        # a minimum away from alpha0: a regular fit with alpha free from there
+        say("fit with the skew angle free", 0.7)
+        refree(grid[best])
+        sf = run(fits[grid[best]].beta, grid[best], True, fits[grid[best]].y0, boot=bootstrap)
+        if sf.converged and "alpha" not in sf.flat and math.isfinite(sf.half[-1]):
+            h = float(sf.half[-1])
+            est = sf.alpha
+            note = ""
+            if even:  # the mirror image fits as well: reported on alpha0's side (positive from 0)
+                side = math.copysign(1.0, alpha0) if alpha0 != 0 else 1.0
+                est = alpha0 + side * abs(est - alpha0)
+                note = "the sign of alpha - alpha0 is not determined (the mirror image fits as well)"
+            return sf, est, (est - h, est + h), note, grid, list(costs)
+    if even:
+        # alpha - alpha0 enters to second order only: its square u is the quantity the data determine.
+        # Linearised at d = the first grid step, d y/d u = (d y/d alpha) / (2 d); u's estimate is the
+        # Gauss-Newton step from d^2, its interval the sandwich / bootstrap one; |alpha - alpha0| is
+        # bounded by sqrt(u's upper end)
+        d = steps[0]
+        at_d = fits[alpha0 + d]
+        lin_u = run(at_d.beta, alpha0 + d, True, at_d.y0, iterations=0, boot=bootstrap)
+        if "alpha" not in lin_u.flat and math.isfinite(lin_u.half[-1]):
+            u = d * d + 2 * d * float(lin_u.newton_step[-1])
+            hu = 2 * d * float(lin_u.half[-1])
+            est = math.sqrt(max(u, 0.0))
+            # an estimate below zero (no skew fits better than none) is bounded as one at zero: the
+            # bound is never narrower than the interval's half-width allows
+            bound = math.sqrt(max(u, 0.0) + hu)
+            note = (f"the data determine (alpha - alpha0)^2 = {u:.3g} +- {hu:.3g} rad^2"
+                    + (" (below zero: no skew fits better than none)" if u < 0 else "")
+                    + "; the 95 % bound on |alpha - alpha0| is the square root of its upper end (from zero "
+                    "where the estimate is below); the sign is not determined (mirror symmetry)")
+            return sf0, alpha0 + est, (alpha0 - bound, alpha0 + bound), note, grid, list(costs)
+    # near alpha0: the interval from the profile, re-minimised on pieces resampled with replacement
+    x = np.array(grid)
+    est = _vertex(x, costs)
+    rng = np.random.default_rng(seed)
+    draws = []
+    n = ssr.shape[1]
+    for _ in range(int(bootstrap) or 200):
+        w = np.bincount(rng.integers(0, n, n), minlength=n)
+        draws.append(_vertex(x, ssr @ w))
+    lo, hi = np.percentile(draws, [2.5, 97.5])
+    note = "95 % interval from the profile of the cost, re-minimised on resampled pieces"
+    if even:
+        m = max(abs(lo - alpha0), abs(hi - alpha0), abs(est - alpha0))
+        lo, hi = alpha0 - m, alpha0 + m
+        note += "; the sign of alpha - alpha0 is not determined (mirror symmetry)"
+    sf = fits[grid[best]]
+    return sf, float(est), (float(lo), float(hi)), note, grid, list(costs)
+
+
+def _vertex(x: np.ndarray, c: np.ndarray) -> float:
+    """The minimum of a profile: the vertex of the parabola through the lowest grid point and its
+    neighbours (the grid point itself at an end)."""
+    k = int(np.argmin(c))
+    if k == 0 or k == len(x) - 1:
+        return float(x[k])
+    x0, x1, x2 = x[k - 1:k + 2]
+    c0, c1, c2 = c[k - 1:k + 2]
+    den = (x0 - x1) * (x0 - x2) * (x1 - x2)
+    A = (x2 * (c1 - c0) + x1 * (c0 - c2) + x0 * (c2 - c1)) / den
+    Bq = (x2**2 * (c0 - c1) + x1**2 * (c2 - c0) + x0**2 * (c1 - c2)) / den
+    if A <= 0:
+        return float(x[k])
+    return float(min(max(-Bq / (2 * A), x0), x2))
+
+
 def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.ndarray]:
     """Angle errors (n, 2) of ``params`` simulated from the piece's first measured state."""
     from ..numeric.simulation import simulate
@@ -515,8 +942,11 @@ def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.
     return sim - np.asarray(piece.q, float)
 
 
-def _realise(params0: Parameters, B, values: np.ndarray, a: float, alpha: float, g: float) -> Parameters:
-    """``params0`` with the pivot entries of ``pi`` set so that its base parameters are ``values``."""
+def _realise(params0: Parameters, B, values: np.ndarray, a: float, alpha: float, g: float,
+             held: Sequence[str] = (), project: bool = False) -> Parameters:
+    """``params0`` with the pivot entries of ``pi`` set so that its base parameters are ``values``;
+    the base parameters named in ``held`` (inertia entries the fit did not free) are instead taken
+    from params0's own inertia about the (new) centre of mass, like the dependent entries."""
     pi0 = standard_parameters(params0)
     T = B.matrix_at(a, alpha, g)
     pi = pi0.copy()
@@ -525,6 +955,22 @@ def _realise(params0: Parameters, B, values: np.ndarray, a: float, alpha: float,
     dep = [j for j in range(len(pi)) if j not in piv]
     pi[piv] = values - T[:, dep] @ pi0[dep]
     idx = {n: j for j, n in enumerate(PI_NAMES)}
+    # an inertia entry that only moves inside a combination is held about the body's *centre of mass*
+    # (params0's own inertia, carried to the new centre): held about the hinge, a centre moved by the
+    # fit would leave e.g. a slender rod a negative moment about its own axis
+    held_piv = [piv[k] for k, n in enumerate(B.names) if n in held and PI_NAMES[piv[k]].startswith("J")]
+    for i in (1, 2):
+        m = pi[idx[f"m{i}"]]
+        c_new = np.array([pi[idx[f"h{i}{x}"]] for x in "xyz"]) / m
+        c_old = np.array([pi0[idx[f"h{i}{x}"]] for x in "xyz"]) / m
+        shift = lambda c: m * (c @ c * np.eye(3) - np.outer(c, c))  # noqa: E731
+        for p, (r, s_) in zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
+            j = idx[f"J{i}{p}"]
+            if j in dep or j in held_piv:
+                pi[j] = pi0[j] - shift(c_old)[r, s_] + shift(c_new)[r, s_]
+    rows = [k for k in range(len(piv)) if piv[k] not in held_piv]
+    for k in rows:
+        pi[piv[k]] = values[k] - T[k, dep] @ pi[dep]
     changes: Dict[str, Any] = {"c1": float(pi[idx["c1"]]), "c2": float(pi[idx["c2"]])}
     pairs = list(zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))))
     for i in (1, 2):
@@ -544,8 +990,14 @@ def _realise(params0: Parameters, B, values: np.ndarray, a: float, alpha: float,
         for p, (r, s) in pairs:
             if f"J{i}{p}" in B.unidentifiable:
                 ic[r, s] = ic[s, r] = ic0[r, s]
-        if f"J{i}xx" in B.unidentifiable:  # planar: x-inertia moves with z's (mass moved along the rod)
+        if f"J{i}xx" in B.unidentifiable or any(_stem(n) == f"J{i}xx" for n in held):
+            # planar (or held): x-inertia moves with z's (mass moved along the rod)
             ic[0, 0] += ic[2, 2] - ic0[2, 2]
+        if project:  # onto the nearest physical body: moments >= 0, each at most the sum of the others
+            w, V = np.linalg.eigh(0.5 * (ic + ic.T))
+            w = np.maximum(w, 0.0)
+            w[2] = min(w[2], w[0] + w[1])
+            ic = (V * w) @ V.T
         changes[f"com{i}"] = tuple(float(v) for v in c)
         changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))
     return params0.replace(**changes)
