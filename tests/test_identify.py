@@ -51,20 +51,28 @@ def published_ratios():
 
 
 @pytest.fixture(scope="module")
+def kaheman_linear():
+    fit = Measurements.from_kaheman(KAHEMAN, which="fit")
+    val = Measurements.from_kaheman(KAHEMAN, which="validation")
+    return identify(fit, kaheman_parameters(), validation=val, method="linear")
+
+
+@pytest.fixture(scope="module")
 def kaheman_fit():
+    """The default method: the linear estimate, then the output-error fit (multiple shooting)."""
     fit = Measurements.from_kaheman(KAHEMAN, which="fit")
     val = Measurements.from_kaheman(KAHEMAN, which="validation")
     return identify(fit, kaheman_parameters(), validation=val)
 
 
 # -- the real free swing -----------------------------------------------------------------------------------
-def test_kaheman_ratios_match_the_published_values(kaheman_fit):
+def test_kaheman_linear_ratios_match_the_published_values(kaheman_linear):
     """The linear estimate (default smoothing 0.05 s, order 4) on the 26 fitting pieces against the
     authors' published parameters, measured: J2/J1 +0.22 %, K/J1 +0.14 %, P1/J1 -0.18 %, P2/J1 +0.14 %.
     Asserted: within 1 % each (the issue's goal for the final method is 2 %).  K/P2 = a/g exactly.
     The 95 % intervals (about +-0.07 % on J2/J1) do NOT cover the published values: they carry the
     noise and the piece-to-piece spread, not the filter's bias nor the published model's own error."""
-    r = kaheman_fit
+    r = kaheman_linear
     assert r.ok, r.message
     assert r.reference == "J1zz_b" and len(r.ratios) == 7
     m1, m2, a1, a2, L1, I1, I2, k1, k2, g = kaheman_values()
@@ -74,12 +82,37 @@ def test_kaheman_ratios_match_the_published_values(kaheman_fit):
     assert ours["K/J1"] / ours["P2/J1"] == pytest.approx(L1 / g, rel=1e-12)
 
 
-def test_kaheman_heldout_prediction_beside_the_authors_model(kaheman_fit):
+def test_kaheman_output_error_ratios_match_the_published_values(kaheman_fit):
+    """The output-error fit (0.5 s segments, RK4 at 4 ms) from the linear estimate, measured against the
+    authors' values: J2/J1 +0.10 %, K/J1 +0.01 %, P1/J1 +0.06 %, P2/J1 +0.01 % (the issue's goal: 2 %).
+    Asserted: 0.5 % each, and the fit's angle residual per piece below 2e-3 rad (measured median 7.6e-4)."""
+    r = kaheman_fit
+    assert r.ok, r.message
+    assert r.method == "output-error" and r.reference == "J1zz_b" and len(r.ratios) == 7
+    m1, m2, a1, a2, L1, I1, I2, k1, k2, g = kaheman_values()
+    ours, theirs = readme_ratios(r.ratios, L1, g), published_ratios()
+    diff = {k: 100 * (ours[k] / theirs[k] - 1) for k in theirs}
+    assert all(abs(d) < 0.5 for d in diff.values()), diff
+    assert len(r.fit_rms) == 26 and np.median(r.fit_rms) < 2e-3
+    assert r.settings["segments"] > 26 and r.settings["converged"]
+
+
+def test_kaheman_output_error_heldout_beats_the_authors_model(kaheman_fit):
+    """The 4 held-out pieces simulated from their first measured state (the authors' protocol), angle
+    RMS over (phi, psi).  Measured: median over pieces 0.00316 rad (the authors' model 0.00328, the
+    issue's goal 0.0033), overall 0.00491 (0.00495; the fourth piece dominates both).  Asserted: the
+    median at most 0.0033 and neither figure above the authors' model's."""
+    r = kaheman_fit
+    assert r.heldout_median <= 0.0033, r.heldout_median
+    assert r.heldout_median <= r.heldout_median0 and r.heldout_overall <= r.heldout_overall0
+
+
+def test_kaheman_linear_heldout_prediction_beside_the_authors_model(kaheman_linear):
     """The 4 held-out pieces simulated from their first measured state over their 2.66 s, angle RMS over
     (phi, psi) and all samples, measured: fitted 0.00517 rad, the authors' model 0.00495 rad under the
     same protocol (piece 4 dominates: 0.0087 and 0.0083).  Asserted: overall below 0.01 rad and at most
     1.25 times the authors' (measured 1.045)."""
-    r = kaheman_fit
+    r = kaheman_linear
     assert r.validation == ("Y_vad[0]", "Y_vad[1]", "Y_vad[2]", "Y_vad[3]") or len(r.validation) == 4
     assert set(r.heldout_kind) == {"angle"}
     assert np.all(np.isfinite(r.heldout_rms)) and np.all(np.isfinite(r.heldout_rms0))
@@ -87,10 +120,11 @@ def test_kaheman_heldout_prediction_beside_the_authors_model(kaheman_fit):
     assert r.heldout_overall <= 1.25 * r.heldout_overall0, (r.heldout_overall, r.heldout_overall0)
 
 
-def test_kaheman_fitted_parameters_realise_the_estimate(kaheman_fit):
+@pytest.mark.parametrize("which", ["kaheman_linear", "kaheman_fit"])
+def test_kaheman_fitted_parameters_realise_the_estimate(which, request):
     """The fitted Parameters: params0's masses and overall scale (J1zz_b), and base parameters equal to
     the estimate to 1e-9 (recomputed from the Parameters)."""
-    r = kaheman_fit
+    r = request.getfixturevalue(which)
     p, p0 = r.params, r.params0
     assert p.m1 == p0.m1 and p.m2 == p0.m2 and p.a == p0.a and p.g == p0.g
     B = R.base_parameters(p0)
@@ -107,7 +141,7 @@ def test_kaheman_result_protocol(kaheman_fit, tmp_path):
     assert isinstance(r, Identification) and r.result_kind == "identification" and r.status is Status.SUCCESS
     text = r.table()
     assert "J1zz_b" in text and "one overall scale of every inertial parameter and damping" in text
-    assert "m1" in text and "held out overall angle RMS" in text
+    assert "m1" in text and "held out angle RMS: median over pieces" in text and "output error per fitting piece" in text
     assert "identification" in r.summary() and "Identification success" in repr(r)
     ds = r.to_xarray()
     assert ds.attrs["base_names"].split("; ") == list(r.names) and ds["value"].shape == (8,)
@@ -206,7 +240,10 @@ def test_bad_input_one_line_errors(kaheman_fit):
         (lambda: identify(M, {"a": 1}), "params0 must be a skewpend Parameters"),
         (lambda: identify(M, p0.replace(m1=None)), "params0 must be numeric"),
         (lambda: identify(M, p0, free=["J9zz"]), "unknown name 'J9zz'"),
-        (lambda: identify(M, p0, free=["alpha"]), "alpha cannot be freed by the linear"),
+        (lambda: identify(M, p0, free=["alpha"], method="linear"), "alpha enters the equations nonlinearly"),
+        (lambda: identify(M, p0, method="newton"), "method must be one of output-error, linear"),
+        (lambda: identify(M, p0, segment=0), "segment must be a length in seconds"),
+        (lambda: identify(M, p0, segment="x"), "segment must be a length in seconds"),
         (lambda: identify(M, p0, free=["m1"]), "m1 cannot be freed"),
         (lambda: identify(M, p0, free=["J1xx"]), "J1xx is not a base parameter"),
         (lambda: identify(M, p0, free=[]), "free names no parameter"),
@@ -219,3 +256,45 @@ def test_bad_input_one_line_errors(kaheman_fit):
         with pytest.raises(ParameterError, match=says) as info:
             call()
         assert "\n" not in str(info.value), says
+
+
+# -- the skew angle -------------------------------------------------------------------------------------------
+def test_kaheman_skew_angle_freed_is_zero_within_its_interval():
+    """The real planar pendulum with alpha freed: alpha enters to second order at 0 (mirror symmetry), so
+    its square is estimated -- measured -0.00166 +- 0.0012 rad^2, below zero (no skew fits better than
+    none) -- and the 95 % bound on |alpha| is the root of its upper end from zero: 1.98 deg.  The issue's
+    goal: |alpha| < 1 deg with an interval covering 0.  The base parameters stay the planar fit's."""
+    fit = Measurements.from_kaheman(KAHEMAN, which="fit")
+    r = identify(fit, kaheman_parameters(), free=["alpha"], bootstrap=50)
+    assert r.ok, r.message
+    assert abs(math.degrees(r.alpha)) < 1.0
+    lo, hi = r.alpha_interval
+    assert lo <= 0 <= hi and 0.2 < math.degrees(hi) < 5.0 and lo == -hi
+    assert "sign is not determined" in r.alpha_note and "rad^2" in r.alpha_note
+    assert len(r.profile_alpha) >= 7 and np.argmin(r.profile_cost) == len(r.profile_cost) // 2
+    assert "held at the start's values" in " ".join(r.undetermined)
+
+
+def test_synthetic_skew_angle_is_recovered_from_a_planar_start():
+    """Free swings of the authors' rig made by skewpend at alpha = 20 deg (8 of the real pieces' starts,
+    2.67 s at 1 kHz, noise 5e-4 rad), fitted from params0 at alpha = 0: the profile (1, 2, 4 ... 32 deg)
+    finds the minimum away from 0, then alpha is fitted with every base parameter the skew brings in.
+    Measured: 20.011 +- 0.069 deg (seed 1).  Asserted: within 0.1 deg and the interval covers 20 deg;
+    the sign is reported as not determined (the mirror rig fits as well)."""
+    from skewpend.analysis.measurements import Piece
+
+    real = list(Measurements.from_kaheman(KAHEMAN, which="fit"))[:8]
+    truth = kaheman_parameters(alpha=math.radians(20.0))
+    rng = np.random.default_rng(1)
+    pieces = []
+    for k, pc in enumerate(real):
+        tr = skewpend.simulate(truth, [*pc.q[0], *pc.dq[0]], 2.666, dt_out=1e-3, rtol=1e-11, atol=1e-11)
+        pieces.append(Piece(t=np.asarray(tr.t), q=np.asarray(tr.y)[:, :2] + rng.normal(0, 5e-4, (len(tr.t), 2)),
+                            name=f"s{k}"))
+    r = identify(Measurements(pieces), kaheman_parameters(), free=["alpha"], bootstrap=50)
+    assert r.ok, r.message
+    assert abs(math.degrees(r.alpha) - 20.0) < 0.1
+    lo, hi = r.alpha_interval
+    assert lo <= math.radians(20.0) <= hi and hi - lo < math.radians(1.0)
+    assert "not determined" in r.alpha_note
+    assert r.params.alpha == pytest.approx(r.alpha, abs=1e-15)

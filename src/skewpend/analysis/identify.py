@@ -533,7 +533,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
 
 METHODS = ("output-error", "linear")
 #: The profile's grid of |alpha| [deg] near the start (extended by doubling while the cost falls).
-PROFILE_GRID = (0.5, 1.0, 2.0, 4.0)
+PROFILE_GRID = (1.0, 2.0, 4.0)
 
 
 def identify(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
@@ -560,6 +560,8 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
     """
     if method not in METHODS:
         raise ParameterError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if validation is not None and not isinstance(validation, Measurements):
+        raise ParameterError(f"validation must be a skewpend Measurements or None, got {type(validation).__name__}")
     names_free = None
     alpha_free = False
     if free is not None:

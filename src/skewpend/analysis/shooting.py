@@ -50,7 +50,7 @@ __all__ = ["SEGMENT", "STEP", "FLAT", "ShootingFit", "Segments", "segments", "fi
 #: Default length of a shooting segment [s].
 SEGMENT = 0.5
 #: Target RK4 step [s] (rounded to a whole number of sampling steps).
-STEP = 0.002
+STEP = 0.004
 #: Smallest relative curvature (reduced, column-scaled Gauss-Newton matrix) of a determined direction.
 FLAT = 1e-9
 
