@@ -152,6 +152,16 @@ def test_kaheman_result_protocol(kaheman_fit, tmp_path):
 
     with xr.open_dataset(path) as back:
         assert np.array_equal(back["value"].values, r.values) and back.attrs["kind"] == "identification"
+    # one reader for every result: the same table back, the base parameters re-derived from the stored
+    # model and checked; a file whose model was changed is refused
+    again = skewpend.open_result(path)
+    assert isinstance(again, Identification) and again.table() == r.table() and again.params == r.params
+    with xr.open_dataset(path) as back:
+        bad = back.load()
+    bad["value"].values[1] *= 1.01
+    bad.to_netcdf(tmp_path / "bad.nc")
+    with pytest.raises(ParameterError, match="base parameters differs from what its parameters give"):
+        skewpend.open_result(tmp_path / "bad.nc")
 
 
 # -- synthetic data made by skewpend -------------------------------------------------------------------

@@ -46,11 +46,23 @@ def results(reference, damped):
         "Poincare section": sp.poincare(P, 1.0, n_orbits=3, n_crossings=10),
         "region of attraction": sp.region_of_attraction(P, n=4, t_end=1.0),
         "chaos diagram": sp.chaos_diagram(P, n_alpha=2, n_energy=2, samples=2, t_end=5.0),
+        "identification": _identification(damped.replace(tau1=0.0, tau2=0.0)),
     }
 
 
+def _identification(P):
+    """The linear estimate on three noiseless free swings of 1 s made by skewpend (held out: a fourth)."""
+    pieces = []
+    for i, y0 in enumerate([(1.0, 0.5, 0.0, 0.0), (-0.8, 1.5, 1.0, 0.0), (2.0, -1.0, 0.0, 2.0), (0.5, 0.5, -1.0, 1.0)]):
+        tr = sp.simulate(P, y0, 1.0, dt_out=1e-3)
+        pieces.append({"t": np.asarray(tr.t), "q": np.asarray(tr.y)[:, :2], "dq": np.asarray(tr.y)[:, 2:], "name": f"s{i}"})
+    m = sp.Measurements.from_arrays(pieces, skip=("mean",))
+    fit, held = m.split([3])
+    return sp.identify(fit, P, validation=held, method="linear", smoothing=0.02)
+
+
 def test_every_kind_is_covered(results):
-    assert set(result_kinds()) == set(results) and len(results) == 13
+    assert set(result_kinds()) == set(results) and len(results) == 14
     for kind, r in results.items():
         assert r.result_kind == kind
 
@@ -76,7 +88,7 @@ def _methods(back):
 @pytest.mark.parametrize("kind", ["skewpend trajectory", "Lyapunov spectrum", "Lyapunov map", "normal modes",
                                   "modes sweep", "flip map", "equilibria", "periodic orbit", "nonlinear normal mode",
                                   "nonlinear normal mode along alpha", "Poincare section", "region of attraction",
-                                  "chaos diagram"])
+                                  "chaos diagram", "identification"])
 def test_netcdf_round_trip(results, kind, tmp_path):
     orig = results[kind]
     path = orig.to_netcdf(tmp_path / "result.nc")

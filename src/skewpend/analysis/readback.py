@@ -424,6 +424,54 @@ def _poincare(path, variables, attrs):
         unreachable=np.full((n_unreachable, 2), np.nan), **proto)
 
 
+def _identification(path, variables, attrs):
+    from ..symbolic.regressor import standard_parameters
+    from .identify import Identification, _base
+
+    proto = _protocol(path, attrs)
+    try:
+        params0 = Parameters.from_mapping(_json_attr(attrs, "params0"))
+    except SkewpendError as exc:
+        raise ParameterError(f"{path}: its starting parameters cannot be read back ({exc})") from None
+
+    def names(key):
+        text = str(attrs.get(key, ""))
+        return tuple(x for x in text.split("; ") if x) if text else ()
+
+    def numbers(key):
+        return [float(x) for x in np.atleast_1d(np.asarray(attrs.get(key, []), dtype=float))]
+
+    ratio_names = names("ratio_names")
+    ratios = dict(zip(ratio_names, numbers("ratios")))
+    ratio_iv = {k: (lo, hi) for k, lo, hi in zip(ratio_names, numbers("ratio_lower"), numbers("ratio_upper"))}
+    values = np.asarray(variables["value"], dtype=float)
+    intervals = np.column_stack([np.asarray(variables["lower"], dtype=float), np.asarray(variables["upper"], dtype=float)])
+    alpha_iv = numbers("alpha_interval") or [math.nan, math.nan]
+    get = lambda key: np.asarray(variables[key], dtype=float) if key in variables else np.zeros(0)  # noqa: E731
+    result = Identification(
+        params0=params0, names=names("base_names"), expressions=names("base_expressions"), values=values,
+        intervals=intervals, free=names("free"), reference=str(attrs.get("reference", "")) or None, ratios=ratios,
+        ratio_intervals=ratio_iv, undetermined=names("undetermined"), not_entering=names("not_entering"),
+        pieces=names("pieces"), residual_rms=get("residual_rms"), validation=names("validation"),
+        heldout_kind=names("heldout_kind"), heldout_rms=get("heldout_rms"), heldout_rms0=get("heldout_rms0"),
+        method=str(attrs.get("method", "linear")), fit_rms=get("fit_rms"),
+        alpha=float(attrs.get("alpha", math.nan)), alpha_interval=(alpha_iv[0], alpha_iv[-1]),
+        alpha_note=str(attrs.get("alpha_note", "")),
+        profile_alpha=np.asarray(variables["profile"], dtype=float) if "profile" in variables else np.zeros(0),
+        profile_cost=get("profile_cost"), **proto)
+    # the stored base parameters are those of the stored model (a model projected onto the nearest
+    # physical body, or one that failed, keeps the estimate itself)
+    if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):
+        p = result.params
+        B = _base(params0.replace(alpha=None)) if result.settings.get("alpha_free") else _base(params0)
+        if tuple(B.names) != result.names:
+            raise ParameterError(f"{path} was written by another model: its base parameters are {list(result.names)}, "
+                                 f"the model's are {list(B.names)}")
+        alpha = float(p.alpha) if p.alpha is not None else 0.0
+        _agree(path, "base parameters", values, B.values(standard_parameters(p), float(p.a), alpha, float(p.g)))
+    return result
+
+
 def _netcdf_reader(kind_reader):
     def read(path: Path, kind: str):
         from ..io import read_netcdf
@@ -486,6 +534,7 @@ _READERS: Dict[str, Callable[[Path, str], Any]] = {
     "Poincare section": _netcdf_reader(_poincare),
     "region of attraction": _by_opener(".roa", "open_region_of_attraction"),
     "chaos diagram": _chaos_diagram,
+    "identification": _netcdf_reader(_identification),
 }
 
 
