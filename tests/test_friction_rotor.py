@@ -19,7 +19,7 @@ from skewpend.numeric.conventions import geometry_of
 from skewpend.symbolic.derivation import SYMBOLS
 
 S = SYMBOLS
-DFKI = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki-design-C.0"
+DFKI = Path(__file__).resolve().parents[1] / "data" / "dfki-design-C.0"  # in the repository
 
 
 def dfki_model(**changes) -> Parameters:
@@ -135,7 +135,6 @@ def test_coulomb_friction_decays_linearly():
 
 
 # -- the lab's rig: measured torques in, measured motion out ---------------------------------------------
-@pytest.mark.skipif(not (DFKI / "trajectory_00.csv").exists(), reason="the DFKI data (../shared/data) is not here")
 def test_dfki_rig_follows_its_measured_motion():
     """trajectory_00: the lab's model h1.0 driven by the measured torques from the measured start
     follows the measured angles over the first 0.5 s within 0.15 rad (phi) and 0.2 rad (psi), while
