@@ -73,18 +73,78 @@ REFERENCE = "J1zz_b"
 #: to count as determined.
 RANK_TOL = 1e-7
 
-#: Fields of Parameters the linear estimate cannot free (they enter the equations nonlinearly or
-#: are not in the regressor): freed by the output-error fit that comes next.
-_NOT_LINEAR = ("a", "b", "m1", "m2", "alpha", "g", "cf1", "cf2", "cfs", "Ir", "gr", "axis1", "axis2",
+#: Fields of Parameters that are not base parameters (they enter the equations nonlinearly or are not
+#: in them); ``alpha`` is freed by the output-error fit.
+_NOT_LINEAR = ("a", "b", "m1", "m2", "alpha", "g", "cfs", "gr", "axis1", "axis2",
                "com1", "com2", "inertia1", "inertia2", "tau1", "tau2")
+#: The terms beside the inertial ones that the equations are linear in: Coulomb friction and the
+#: rotors' inertia (for given cfs and gr); identified when params0 has them (nonzero).
+EXTRA = ("cf1", "cf2", "Ir")
 
 _BASE_CACHE: Dict[Tuple, Any] = {}
 
 
-def _base(params: Parameters):
-    key = (params.axis1, params.axis2, params.a, params.alpha, params.g)
+def _std(params: Parameters) -> np.ndarray:
+    """The standard parameters (:func:`standard_parameters`) and then cf1, cf2, Ir."""
+    return np.concatenate([standard_parameters(params), [float(getattr(params, n) or 0.0) for n in EXTRA]])
+
+
+class _Terms:
+    """The base parameters of ``params``' geometry (:func:`base_parameters`) and the friction and
+    rotor terms ``params`` has: their regressor columns are the derivative of the derived equations'
+    ``M q'' - f`` in ``cf1``, ``cf2``, ``Ir`` (linear in each, at ``params``' ``cfs`` and ``gr``)."""
+
+    def __init__(self, B, params: Parameters):
+        import sympy as sp
+
+        from ..symbolic.regressor import _lambdify_columns
+
+        self.B = B
+        self.extra = tuple(n for n in EXTRA if getattr(params, n))
+        self.names = tuple(B.names) + self.extra
+        self.pivots, self.unidentifiable, self.matrix_at = B.pivots, B.unidentifiable, B.matrix_at
+        self.expressions = tuple(B.expressions) + tuple(sp.Symbol(n) for n in self.extra)
+        self.symbolic_regressor = B.symbolic_regressor
+        self._fx = None
+        if self.extra:
+            from ..symbolic.derivation import derive
+            from ..symbolic.symbols import SYMBOLS
+
+            eom = derive(params.replace(**{n: None for n in self.extra}))
+            ddq = sp.Matrix([SYMBOLS["ddphi"], SYMBOLS["ddpsi"]])
+            lhs = eom.mass_matrix * ddq - eom.forcing
+            syms = {str(x): x for x in lhs.free_symbols}
+            Yx = lhs.jacobian([syms[n] for n in self.extra]).applyfunc(sp.expand)
+            if any(str(x) in self.extra for x in Yx.free_symbols):
+                raise AssertionError("the equations are not linear in the friction and rotor terms")
+            self.symbolic_regressor = B.symbolic_regressor.row_join(Yx)
+            self._fx = _lambdify_columns(Yx)
+
+    @property
+    def rank(self) -> int:
+        return len(self.names)
+
+    def regressor(self, q, dq, ddq, a, alpha, g):
+        Y = self.B.regressor(q, dq, ddq, a, alpha, g)
+        if self._fx is None:
+            return Y
+        return np.concatenate([Y, self._fx(q, dq, ddq, a, alpha, g)], axis=2)
+
+    def values(self, pi_ext, a: float, alpha: float = 0.0, g: float = 9.81) -> np.ndarray:
+        """The base parameters and the terms of an extended standard vector (:func:`_std`)."""
+        pi_ext = np.asarray(pi_ext, dtype=float)
+        n = len(PI_NAMES)
+        return np.concatenate([self.B.values(pi_ext[:n], a, alpha, g), [pi_ext[n + EXTRA.index(x)] for x in self.extra]])
+
+
+def _base(params: Parameters) -> _Terms:
+    key = (params.axis1, params.axis2, params.a, params.alpha, params.g,
+           tuple(bool(getattr(params, n)) for n in EXTRA), params.cfs, params.gr)
     if key not in _BASE_CACHE:
-        _BASE_CACHE[key] = base_parameters(params)
+        inner = (params.axis1, params.axis2, params.a, params.alpha, params.g)
+        if inner not in _BASE_CACHE:
+            _BASE_CACHE[inner] = base_parameters(params)
+        _BASE_CACHE[key] = _Terms(_BASE_CACHE[inner], params)
     return _BASE_CACHE[key]
 
 
@@ -241,6 +301,15 @@ class Identification(Result):
             attrs=attrs,
         )
 
+    def to_run_file(self, path, *, force: bool = False):
+        """Write the fitted model as a TOML run file (``--config`` of every command), atomically:
+        a comment header saying what was identified (method, data, held-out angle RMS beside
+        ``params0``'s, the skew angle if freed, status, undetermined directions), then
+        ``[parameters]`` with every model key of ``params`` that is set, numbers written with
+        ``repr`` (they read back exactly).  A result whose status is not success is refused
+        (:class:`~skewpend.errors.ParameterError`) unless ``force=True``.  Returns the path."""
+        return _write_run_file(self, path, force=force)
+
 
 def _expression_text(expr) -> str:
     """A base parameter's expression as text, long exact rationals (``a**2`` at a measured ``a``)
@@ -303,9 +372,6 @@ def _check_input(measurements, params0, free, validation, smoothing):
         raise ParameterError(f"params0 must be a skewpend Parameters, got {type(params0).__name__}")
     if not params0.is_numeric:
         raise ParameterError(f"params0 must be numeric; symbolic: {', '.join(params0.symbolic_names)}")
-    if params0.has_friction or params0.has_rotor:
-        raise ParameterError("the linear first estimate has no Coulomb friction or rotor inertia terms: "
-                             "set cf1 = cf2 = Ir = 0 in params0")
     try:
         s = float(smoothing)
     except (TypeError, ValueError):
@@ -327,6 +393,9 @@ def _free(free, names) -> Tuple[str, ...]:
     for f in free:
         if f in names:
             continue
+        if f in EXTRA:
+            raise ParameterError(f"free: {f} is not in params0's model (it is 0): give params0 a nonzero {f} to "
+                                 "identify it")
         if f in _NOT_LINEAR:
             raise ParameterError(f"free: {f} cannot be freed by the linear first estimate (it enters the equations "
                                  f"nonlinearly or is not in them); free base parameters {list(names)}")
@@ -378,7 +447,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     xi = [j for j in range(len(names)) if j not in fi]
     a, g = float(params0.a), float(params0.g)
     alpha = float(params0.alpha) if params0.alpha is not None else 0.0
-    beta0 = B.values(standard_parameters(params0), a, alpha, g)
+    beta0 = B.values(_std(params0), a, alpha, g)
     driven = [p.u is not None for p in measurements]
     if any(driven) and not all(driven):
         raise ParameterError("measurements mix pieces with and without torques: identify them separately")
@@ -492,7 +561,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
         fitted = _realise(params0, B, values, a, alpha, g)
     except ParameterError as exc:
         return failed(f"the estimate is not physical: {exc}")
-    check = B.values(standard_parameters(fitted), a, alpha, g)
+    check = B.values(_std(fitted), a, alpha, g)
     if np.abs(check - values).max() > 1e-9 * max(np.abs(values).max(), 1e-300):
         return failed("the fitted Parameters do not reproduce the estimated base parameters")
 
@@ -575,6 +644,9 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
         names_free = [f for f in names_free if f != "alpha"]
         if alpha_free and method == "linear":
             raise ParameterError("free: alpha enters the equations nonlinearly: free it with method='output-error'")
+        if alpha_free and isinstance(params0, Parameters) and (params0.has_friction or params0.has_rotor):
+            raise ParameterError("free: alpha cannot be freed together with Coulomb friction or rotor inertia yet "
+                                 "(set cf1 = cf2 = Ir = 0 in params0, or hold alpha)")
         if alpha_free and not names_free:
             names_free = None  # alpha alone: with every base parameter
     try:
@@ -594,17 +666,17 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
                          say, t_start)
 
 
-def _signals(piece: Piece, smoothing: float):
-    """A piece on a uniform grid: ``(t, q, q_smooth, dq_smooth, u)`` (the whole length; smoothed
-    start states for the shooting nodes)."""
+def _signals(piece: Piece, smoothing: float, step: Optional[float] = None):
+    """A piece on a uniform grid of ``step`` (default its median step): ``(t, q, q_smooth,
+    dq_smooth, u)`` (the whole length; smoothed start states for the shooting nodes)."""
     from scipy.interpolate import CubicSpline
     from scipy.signal import savgol_filter
 
     t, q, u = np.asarray(piece.t, float), np.asarray(piece.q, float), piece.u
     u = None if u is None else np.asarray(u, float)
     d = np.diff(t)
-    dt = float(np.median(d))
-    if d.max() - d.min() > 1e-6 * dt:
+    dt = float(np.median(d)) if step is None else float(step)
+    if d.max() - d.min() > 1e-6 * dt or abs(float(np.median(d)) - dt) > 1e-6 * dt:
         grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
         q = CubicSpline(t, q, axis=0)(grid)
         u = None if u is None else CubicSpline(t, u, axis=0)(grid)
@@ -628,7 +700,9 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     alpha0 = float(params0.alpha) if params0.alpha is not None else 0.0
     homogeneous = lin.reference is not None
     ref = lin.reference
-    signals = [_signals(p, smoothing) for p in measurements]
+    # one sampling step for every piece (the coarsest piece's median step; finer ones resampled)
+    step = max(float(np.median(np.diff(np.asarray(p.t, float)))) for p in measurements)
+    signals = [_signals(p, smoothing, step) for p in measurements]
     seg = shooting.segments(signals, [p.name for p in measurements], segment)
     n_pieces = len(measurements)
     start_y0 = seg.y0.copy()
@@ -638,18 +712,19 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     if not alpha_free:
         B = _base(params0)
         names = B.names
-        beta0 = np.asarray(lin.values, float)
+        # the linear estimate starts the fit; where it is not physical (noisy accelerations), params0 does
+        beta0 = np.asarray(lin.values if lin.status is Status.SUCCESS else B.values(_std(params0), a, alpha0, g), float)
         free = [n for n in lin.free if n != ref]
         Yb = B.symbolic_regressor
     else:
         B = _base(params0.replace(alpha=None))  # every skew angle: the generic base parameters
         names = B.names
         if lin.status is Status.SUCCESS:
-            beta0 = B.values(standard_parameters(lin.params), a, alpha0, g)
+            beta0 = B.values(_std(lin.params), a, alpha0, g)
         elif tuple(lin.names) == tuple(B.names):
             beta0 = np.asarray(lin.values, float)
         else:
-            beta0 = B.values(standard_parameters(params0), a, alpha0, g)
+            beta0 = B.values(_std(params0), a, alpha0, g)
         # the base parameters the data determine near alpha0 (the others are held at the start's values)
         from ..symbolic.regressor import _samples
 
@@ -703,6 +778,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
                 ratios[f"{n}/{ref}"] = float(values[j] / values[k])
                 ratio_iv[f"{n}/{ref}"] = (float(intervals[j, 0] / values[k]), float(intervals[j, 1] / values[k]))
     alpha_fit = alpha_hat if alpha_free else alpha0
+    unphysical, projected = "", ""
     try:
         fitted = _realise(params0.replace(alpha=alpha_fit) if alpha_free else params0, B, values, a, alpha_fit, g,
                           held=held)
@@ -710,39 +786,45 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     except ParameterError as exc:
         # a body on the edge of the physical (a slender rod: no moment about its own axis) may land a
         # little outside: the nearest physical body, accepted when it moves no base parameter by more
-        # than a tenth of its 95 % half-width
+        # than 1 % (the message says by how much, and where that is beyond the 95 % interval)
         try:
             fitted = _realise(params0.replace(alpha=alpha_fit) if alpha_free else params0, B, values, a, alpha_fit,
                               g, held=held, project=True)
         except ParameterError as exc2:
-            return _oe_failed(lin, f"the output-error estimate is not physical: {exc} [projected: {exc2}]", settings, t_start)
-        moved = B.values(standard_parameters(fitted), a, alpha_fit, g) - values
-        free_j = [j for j, n in enumerate(names) if n in theta]
-        big = 1e-2 * float(np.max(np.abs(values)))  # a near-zero entry (a product of inertia) is measured on the others' scale
-        worst = max((abs(moved[j]) / max(abs(values[j]), big) for j in free_j if abs(moved[j]) > 0), default=0.0)
-        if worst > 0.01:
-            return _oe_failed(lin, f"the output-error estimate is not physical: {exc} (the nearest physical body "
-                              f"moves a base parameter by {100 * worst:.2g} %)", settings, t_start)
-        over = [names[j] for j in free_j if math.isfinite(halves[j]) and abs(moved[j]) > halves[j]]
-        projected = ("the estimate lies just outside the physical bodies; the model is the nearest physical body "
-                     f"(base parameters moved by at most {100 * worst:.2g} %"
-                     + (f", beyond the 95 % interval for {', '.join(over)})" if over else ")"))
-    check = B.values(standard_parameters(fitted), a, alpha_fit, g)
-    keep = [j for j, n in enumerate(names) if n not in held]
-    tol = 1e-9 * max(np.abs(values).max(), 1e-300)
-    if projected:
-        tol = max(tol, float(np.max(np.abs(check - values)[keep])))
-    values = np.where([n in held for n in names], check, values)  # held: the body's own, at its new centre
-    if np.abs(check[keep] - values[keep]).max() > tol:
-        return _oe_failed(lin, "the fitted Parameters do not reproduce the estimated base parameters", settings, t_start)
+            fitted, unphysical = None, f"the output-error estimate is not physical: {exc} [nearest physical: {exc2}]"
+        if fitted is not None:
+            moved = B.values(_std(fitted), a, alpha_fit, g) - values
+            free_j = [j for j, n in enumerate(names) if n in theta]
+            big = 1e-2 * float(np.max(np.abs(values)))  # a near-zero entry (a product of inertia) on the others' scale
+            worst = max((abs(moved[j]) / max(abs(values[j]), big) for j in free_j if abs(moved[j]) > 0), default=0.0)
+            if worst > 0.01:
+                fitted, unphysical = None, (f"the output-error estimate is not physical: {exc} (the nearest physical "
+                                            f"body moves a base parameter by {100 * worst:.2g} %)")
+            else:
+                over = [names[j] for j in free_j if math.isfinite(halves[j]) and abs(moved[j]) > halves[j]]
+                projected = ("the estimate lies just outside the physical bodies; the model is the nearest physical "
+                             f"body (base parameters moved by at most {100 * worst:.2g} %"
+                             + (f", beyond the 95 % interval for {', '.join(over)})" if over else ")"))
+    if fitted is not None:
+        check = B.values(_std(fitted), a, alpha_fit, g)
+        keep = [j for j, n in enumerate(names) if n not in held]
+        tol = 1e-9 * max(np.abs(values).max(), 1e-300)
+        if projected:
+            tol = max(tol, float(np.max(np.abs(check - values)[keep])))
+        values = np.where([n in held for n in names], check, values)  # held: the body's own, at its new centre
+        if np.abs(check[keep] - values[keep]).max() > tol:
+            return _oe_failed(lin, "the fitted Parameters do not reproduce the estimated base parameters", settings,
+                              t_start)
     status, message = Status.SUCCESS, "identified (output error, multiple shooting)" + (f"; {projected}" if projected else "")
+    if fitted is None:  # the estimate and its intervals are reported; the model stays params0
+        status, message = Status.NO_CONVERGENCE, unphysical
     if not sf.converged:
         status, message = Status.NO_CONVERGENCE, f"the output-error fit did not converge: {sf.message}"
     elif sf.flat:
         status, message = Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer "
                                                   "parameters or add excitation")
     say("held-out prediction", 0.9)
-    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a,
+    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted if fitted is not None else params0, params0, validation, smoothing, B, values, beta0, a,
                                                    alpha_fit, g)
     if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
         status, message = Status.NONFINITE, "a held-out simulation failed"
@@ -754,7 +836,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     stats = dict(lin.stats)
     stats.update(seconds=time.perf_counter() - t_start, fit_seconds=sf.seconds, cost=sf.cost, **stats_extra)
     return Identification(
-        params=fitted, params0=params0, status=status, message=message, stats=stats, settings=settings,
+        params=fitted if fitted is not None else params0, params0=params0, status=status, message=message, stats=stats, settings=settings,
         names=names, expressions=tuple(_expression_text(e) for e in B.expressions), values=values, intervals=intervals,
         free=tuple(n for n in names if n in theta or n == ref), reference=ref, ratios=ratios,
         ratio_intervals=ratio_iv, undetermined=tuple(undetermined), not_entering=tuple(B.unidentifiable),
@@ -944,11 +1026,14 @@ def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.
     return sim - np.asarray(piece.q, float)
 
 
-def _realise(params0: Parameters, B, values: np.ndarray, a: float, alpha: float, g: float,
+def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float, g: float,
              held: Sequence[str] = (), project: bool = False) -> Parameters:
     """``params0`` with the pivot entries of ``pi`` set so that its base parameters are ``values``;
     the base parameters named in ``held`` (inertia entries the fit did not free) are instead taken
     from params0's own inertia about the (new) centre of mass, like the dependent entries."""
+    B = W.B if isinstance(W, _Terms) else W
+    extra = dict(zip(W.extra, (float(v) for v in values[B.rank:]))) if isinstance(W, _Terms) else {}
+    values = np.asarray(values, dtype=float)[:B.rank]
     pi0 = standard_parameters(params0)
     T = B.matrix_at(a, alpha, g)
     pi = pi0.copy()
@@ -1002,4 +1087,91 @@ def _realise(params0: Parameters, B, values: np.ndarray, a: float, alpha: float,
             ic = (V * w) @ V.T
         changes[f"com{i}"] = tuple(float(v) for v in c)
         changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))
-    return params0.replace(**changes)
+    return params0.replace(**changes, **extra)
+
+
+# -- the run file (Identification.to_run_file) ----------------------------------------------------------
+#: The [parameters] keys of a run file, in the order written.
+_RUN_FILE_KEYS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "com1", "com2", "inertia1", "inertia2",
+                  "axis1", "axis2", "cf1", "cf2", "cfs", "Ir", "gr", "tau1", "tau2")
+
+
+def _toml_value(value) -> str:
+    """A parameter's value as TOML: numbers by ``repr`` (exact round trip), vectors and 3x3
+    matrices as arrays, a symbol name as a string."""
+    import json
+
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, str):
+        return json.dumps(value)
+    return repr(float(value))
+
+
+def _run_file_parameters(params: Parameters) -> List[Tuple[str, Any]]:
+    """The model keys of ``params`` that are set.  ``alpha`` only where it enters (no ``axis2``);
+    the optional terms ``cf1, cf2, cfs, Ir, gr`` and the torques ``tau1, tau2`` only where they
+    differ from the model's default (off): a run file does not have to spell out what is off,
+    and such a file reads back the same."""
+    default = Parameters()
+    out = []
+    for key in _RUN_FILE_KEYS:
+        value = getattr(params, key)
+        if value is None or (key == "alpha" and not params.uses_alpha):
+            continue
+        if key in ("cf1", "cf2", "cfs", "Ir", "gr", "tau1", "tau2") and value == getattr(default, key):
+            continue
+        out.append((key, value))
+    return out
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _names_text(names: Sequence[str]) -> str:
+    names = list(names)
+    return ", ".join(names) if len(names) <= 6 else f"{', '.join(names[:3])}, ..., {names[-1]}"
+
+
+def _write_run_file(result: "Identification", path, *, force: bool = False):
+    from .. import __version__
+    from ..io import _as_path, atomic_path
+
+    path = _as_path(path, "path")
+    status = Status.of(result.status)
+    if status is not Status.SUCCESS and not force:
+        raise ParameterError(f"the identification did not succeed ({status.name.lower()}: "
+                             f"{_one_line(result.message)}), so its params are not a fitted model: no run file "
+                             "written (force=True writes it anyway)")
+    lines = [f"# skewpend run file: a pendulum identified from measured motion (skewpend {__version__})",
+             f"# method: {_one_line(result.settings.get('method', result.method))}",
+             f"# data: {len(result.pieces)} pieces ({_names_text(result.pieces)}), "
+             f"{result.stats.get('samples', 0)} samples after filtering"]
+    if result.free:
+        lines.append(f"# free: {', '.join(result.free)}" + (", alpha" if math.isfinite(result.alpha) else ""))
+    if len(result.validation):
+        lines.append(f"# held out: {len(result.validation)} pieces ({_names_text(result.validation)})")
+        if any(k == "angle" for k in result.heldout_kind):
+            lines.append(f"# held-out angle RMS: median over pieces {result.heldout_median:.4g} rad "
+                         f"(params0: {result.heldout_median0:.4g}), overall {result.heldout_overall:.4g} rad "
+                         f"(params0: {result.heldout_overall0:.4g})")
+    else:
+        lines.append("# held out: none (no validation data)")
+    if math.isfinite(result.alpha):
+        lo, hi = result.alpha_interval
+        lines.append(f"# skew angle alpha: {math.degrees(result.alpha):.4g} deg, 95 % interval "
+                     f"[{math.degrees(lo):.4g}, {math.degrees(hi):.4g}] deg")
+        if result.alpha_note:
+            lines.append(f"#   ({_one_line(result.alpha_note)})")
+    lines.append(f"# status: {status.name.lower()}: {_one_line(result.message)}"
+                 + ("" if status is Status.SUCCESS else " -- written with force=True: NOT a fitted model"))
+    for u in result.undetermined:
+        lines.append(f"# undetermined: {_one_line(u)}")
+    lines += ["# use it as: skewpend simulate --config FILE (any command that reads [parameters])", "",
+              "[parameters]"]
+    lines += [f"{key} = {_toml_value(value)}" for key, value in _run_file_parameters(result.params)]
+    text = "\n".join(lines) + "\n"
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return path

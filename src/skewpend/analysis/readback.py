@@ -425,8 +425,7 @@ def _poincare(path, variables, attrs):
 
 
 def _identification(path, variables, attrs):
-    from ..symbolic.regressor import standard_parameters
-    from .identify import Identification, _base
+    from .identify import Identification, _base, _std
 
     proto = _protocol(path, attrs)
     try:
@@ -468,7 +467,7 @@ def _identification(path, variables, attrs):
             raise ParameterError(f"{path} was written by another model: its base parameters are {list(result.names)}, "
                                  f"the model's are {list(B.names)}")
         alpha = float(p.alpha) if p.alpha is not None else 0.0
-        _agree(path, "base parameters", values, B.values(standard_parameters(p), float(p.a), alpha, float(p.g)))
+        _agree(path, "base parameters", values, B.values(_std(p), float(p.a), alpha, float(p.g)))
     return result
 
 
