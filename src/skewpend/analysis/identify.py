@@ -372,13 +372,9 @@ def _check_input(measurements, params0, free, validation, smoothing):
         raise ParameterError(f"params0 must be a skewpend Parameters, got {type(params0).__name__}")
     if not params0.is_numeric:
         raise ParameterError(f"params0 must be numeric; symbolic: {', '.join(params0.symbolic_names)}")
-    try:
-        s = float(smoothing)
-    except (TypeError, ValueError):
-        raise ParameterError(f"smoothing must be a window in seconds, got {smoothing!r}") from None
-    if not (math.isfinite(s) and s > 0):
-        raise ParameterError(f"smoothing must be a positive window in seconds, got {smoothing!r}")
-    return s
+    from ..checks import positive
+
+    return positive("smoothing", smoothing, cap=60.0)  # a window in seconds
 
 
 def _free(free, names) -> Tuple[str, ...]:
@@ -649,12 +645,9 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
                                  "(set cf1 = cf2 = Ir = 0 in params0, or hold alpha)")
         if alpha_free and not names_free:
             names_free = None  # alpha alone: with every base parameter
-    try:
-        seg_len = float(segment)
-    except (TypeError, ValueError):
-        raise ParameterError(f"segment must be a length in seconds, got {segment!r}") from None
-    if not (math.isfinite(seg_len) and 0 < seg_len <= 60):
-        raise ParameterError(f"segment must be a length in seconds in (0, 60], got {segment!r}")
+    from ..checks import positive
+
+    seg_len = positive("segment", segment, cap=60.0)  # a length in seconds
     t_start = time.perf_counter()
     say = progress if callable(progress) else (lambda stage, fraction: None)
     say("linear estimate", 0.0)
