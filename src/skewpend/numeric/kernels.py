@@ -509,6 +509,25 @@ def _remove_stale_temporaries(directory: Path, age: float = 3600.0) -> None:
             pass
 
 
+def _announce(kind: str, cached: bool) -> None:
+    """One line on stderr before a build (seconds with the packaged compiler; silent otherwise, a new
+    user waited 16 s for a first simulate without a word), in a terminal and in a pipe;
+    ``SKEWPEND_QUIET=1`` silences it.  A compiler that cannot be run is said first, alone."""
+    cc = find_compiler()
+    if os.path.sep not in cc[0] and shutil.which(cc[0]) is None or os.path.sep in cc[0] and not os.access(cc[0], os.X_OK):
+        raise CompilerError(f"cannot run the C compiler {compiler_name(cc)!r}: No such file or directory; install gcc "
+                            "or clang, or set CC")
+    if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
+        return
+    what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels"}.get(kind, "the model's kernels")
+    when = "first use only; cached for later runs" if cached else "for this run: the cache is not writable"
+    try:
+        sys.stderr.write(f"skewpend: compiling {what} ({when})...\n")
+        sys.stderr.flush()
+    except (OSError, ValueError, AttributeError):  # a closed or missing stderr: nothing to say it on
+        pass
+
+
 def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False) -> Kernel:
     """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs).
 
@@ -546,6 +565,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
             _remove_stale_temporaries(directory)
             from .kernel_source import kernel_c_source
 
+            _announce(kind, cached=directory == cache_dir() / "kernels")
             integrators = (_PACKAGE / "numeric" / "integrators.c").read_text()
             source = kernel_c_source(geometry, flip=flip) + "\n" + integrators
             if chaos:
