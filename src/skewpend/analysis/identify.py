@@ -1168,3 +1168,12 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return path
+
+
+def predict_piece(params: Parameters, piece: Piece, smoothing: float = SMOOTHING) -> Optional[np.ndarray]:
+    """The angles (n, 2) [rad] of ``params`` simulated from ``piece``'s first measured state (``q[0]``,
+    and ``dq[0]`` where measured, else its Savitzky-Golay estimate with window ``smoothing`` [s]) at
+    the piece's times: the prediction whose error the held-out RMS measures; None where the
+    simulation failed.  (Used by the identification's figure.)"""
+    err = _predict(params, piece, smoothing)
+    return None if err is None else err + np.asarray(piece.q, float)
