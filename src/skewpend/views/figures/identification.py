@@ -36,7 +36,7 @@ __all__ = ["plot_identification", "identification_predictions", "FIT_PIECES_SHOW
 
 #: Fitting pieces drawn in panel (a) (the first and the last, then evenly between).
 FIT_PIECES_SHOWN = 2
-#: Held-out pieces drawn in panel (a) at most (every one up to this many; panel (b) draws them all).
+#: Held-out pieces drawn in panels (a) and (b) at most (the first this many; the report's table lists every one).
 HELDOUT_PIECES_SHOWN = 6
 #: The figure's size [in]: 1600 x 1000 px at the style's 150 dpi.
 FIGURE_SIZE = (1600 / 150, 1000 / 150)
@@ -325,7 +325,7 @@ def _heading_text(result, measurements, validation) -> str:
 # -- the figure ----------------------------------------------------------------------------------------
 def plot_identification(result, measurements, validation=None, path=None):
     """The figure of an identification: (a) measured and predicted angles of a few fitting pieces and
-    of every held-out piece (up to :data:`HELDOUT_PIECES_SHOWN`), with ``params0``'s prediction
+    of every held-out piece (the first :data:`HELDOUT_PIECES_SHOWN`), with ``params0``'s prediction
     dashed; (b) the held-out prediction error over time; (c) each estimate's 95 % half-width
     relative to it (log scale; the free-swing ratios when ``result.ratios`` holds them); (d) the
     correlation matrix of the free parameters; (e) when the skew angle was profiled, the cost over
