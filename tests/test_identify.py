@@ -321,7 +321,7 @@ def test_synthetic_driven_rig_with_friction_and_rotor():
     on every base parameter (the off-axis h1x, h2x, truth 0: 5e-3 of the largest first moment)."""
     import sys
 
-    from skewpend.analysis.identify import _base, _std
+    from skewpend.analysis.identify import model_terms, standard_vector
     from skewpend.numeric.control import Controller
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -338,8 +338,8 @@ def test_synthetic_driven_rig_with_friction_and_rotor():
         pieces.append({"t": np.asarray(tr.t), "q": y[:, :2], "dq": y[:, 2:],
                        "u": np.column_stack([np.interp(tr.t, t, u[:, k]) for k in range(2)]), "name": f"d{i}"})
     M = Measurements.from_arrays(pieces, skip=("mean",))
-    B = _base(lab)
-    truth = B.values(_std(lab), lab.a, 0.0, lab.g)
+    B = model_terms(lab)
+    truth = B.values(standard_vector(lab), lab.a, 0.0, lab.g)
     r = identify(M, lab.replace(c1=0.02, cf1=0.05, cf2=0.05, Ir=1e-4), smoothing=0.02)
     assert r.ok, r.message
     assert r.names[-3:] == ("cf1", "cf2", "Ir") and r.reference is None

@@ -152,7 +152,7 @@ def test_skewed_base_parameters(skewed):
 def test_base_regressor_full_rank_and_dependent_columns_drop_it(which, planar, skewed, reg):
     base = {"planar": planar, "skewed": skewed}[which]
     alpha = 0.0 if which == "planar" else 0.7
-    q, dq, ddq = R._samples(30, seed=11)  # other samples than the ones the rank was found on
+    q, dq, ddq = R.sample_states(30, seed=11)  # other samples than the ones the rank was found on
     Yb = base.regressor(q, dq, ddq, 0.9, alpha, 9.81).reshape(-1, base.rank)
     assert np.linalg.matrix_rank(Yb) == base.rank
     Y = reg.numeric()(q, dq, ddq, 0.9, alpha, 9.81).reshape(-1, len(R.PI_NAMES))
@@ -170,7 +170,7 @@ def test_user_axis_and_no_gravity():
     assert tilted.rank == 12 and "alpha" not in tilted.where
     assert sp.expand(dict(zip(tilted.names, tilted.expressions))["h1x_b"]) == sp.Symbol("h1x", real=True) + \
         sp.Float(0.3) * sp.Symbol("h2z", real=True)
-    q, dq, ddq = R._samples(20, seed=5)
+    q, dq, ddq = R.sample_states(20, seed=5)
     Y = R.regressor(Parameters(axis2=(0.3, 0.1, 1.0))).numeric()(q, dq, ddq, 0.7, 0.0, 9.81).reshape(-1, 22)
     Yb = tilted.regressor(q, dq, ddq, 0.7, 0.0, 9.81).reshape(-1, 12)
     pi = np.random.default_rng(1).normal(size=22)

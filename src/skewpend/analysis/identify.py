@@ -84,7 +84,7 @@ EXTRA = ("cf1", "cf2", "Ir")
 _BASE_CACHE: Dict[Tuple, Any] = {}
 
 
-def _std(params: Parameters) -> np.ndarray:
+def standard_vector(params: Parameters) -> np.ndarray:
     """The standard parameters (:func:`standard_parameters`) and then cf1, cf2, Ir."""
     return np.concatenate([standard_parameters(params), [float(getattr(params, n) or 0.0) for n in EXTRA]])
 
@@ -97,7 +97,7 @@ class _Terms:
     def __init__(self, B, params: Parameters):
         import sympy as sp
 
-        from ..symbolic.regressor import _lambdify_columns
+        from ..symbolic.regressor import lambdify_columns
 
         self.B = B
         self.extra = tuple(n for n in EXTRA if getattr(params, n))
@@ -118,7 +118,7 @@ class _Terms:
             if any(str(x) in self.extra for x in Yx.free_symbols):
                 raise AssertionError("the equations are not linear in the friction and rotor terms")
             self.symbolic_regressor = B.symbolic_regressor.row_join(Yx)
-            self._fx = _lambdify_columns(Yx)
+            self._fx = lambdify_columns(Yx)
 
     @property
     def rank(self) -> int:
@@ -131,13 +131,13 @@ class _Terms:
         return np.concatenate([Y, self._fx(q, dq, ddq, a, alpha, g)], axis=2)
 
     def values(self, pi_ext, a: float, alpha: float = 0.0, g: float = 9.81) -> np.ndarray:
-        """The base parameters and the terms of an extended standard vector (:func:`_std`)."""
+        """The base parameters and the terms of an extended standard vector (:func:`standard_vector`)."""
         pi_ext = np.asarray(pi_ext, dtype=float)
         n = len(PI_NAMES)
         return np.concatenate([self.B.values(pi_ext[:n], a, alpha, g), [pi_ext[n + EXTRA.index(x)] for x in self.extra]])
 
 
-def _base(params: Parameters) -> _Terms:
+def model_terms(params: Parameters) -> _Terms:
     key = (params.axis1, params.axis2, params.a, params.alpha, params.g,
            tuple(bool(getattr(params, n)) for n in EXTRA), params.cfs, params.gr)
     if key not in _BASE_CACHE:
@@ -436,14 +436,14 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
 
     t_start = time.perf_counter()
     smoothing = _check_input(measurements, params0, free, validation, smoothing)
-    B = _base(params0)
+    B = model_terms(params0)
     names = B.names
     free_names = _free(free, names)
     fi = [names.index(n) for n in free_names]
     xi = [j for j in range(len(names)) if j not in fi]
     a, g = float(params0.a), float(params0.g)
     alpha = float(params0.alpha) if params0.alpha is not None else 0.0
-    beta0 = B.values(_std(params0), a, alpha, g)
+    beta0 = B.values(standard_vector(params0), a, alpha, g)
     driven = [p.u is not None for p in measurements]
     if any(driven) and not all(driven):
         raise ParameterError("measurements mix pieces with and without torques: identify them separately")
@@ -557,7 +557,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
         fitted = _realise(params0, B, values, a, alpha, g)
     except ParameterError as exc:
         return failed(f"the estimate is not physical: {exc}")
-    check = B.values(_std(fitted), a, alpha, g)
+    check = B.values(standard_vector(fitted), a, alpha, g)
     if np.abs(check - values).max() > 1e-9 * max(np.abs(values).max(), 1e-300):
         return failed("the fitted Parameters do not reproduce the estimated base parameters")
 
@@ -687,7 +687,7 @@ def _stem(name: str) -> str:
 def _output_error(lin: Identification, measurements, params0, alpha_free, validation, smoothing, segment,
                   bootstrap, seed, say, t_start) -> Identification:
     from . import shooting
-    from ..symbolic.regressor import _independent
+    from ..symbolic.regressor import independent_columns
 
     a, g = float(params0.a), float(params0.g)
     alpha0 = float(params0.alpha) if params0.alpha is not None else 0.0
@@ -703,27 +703,27 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     settings.update(method="output-error (multiple shooting, RK4 with exact sensitivities)", segment=segment,
                     step=seg.h, segments=len(seg), alpha_free=bool(alpha_free))
     if not alpha_free:
-        B = _base(params0)
+        B = model_terms(params0)
         names = B.names
         # the linear estimate starts the fit; where it is not physical (noisy accelerations), params0 does
-        beta0 = np.asarray(lin.values if lin.status is Status.SUCCESS else B.values(_std(params0), a, alpha0, g), float)
+        beta0 = np.asarray(lin.values if lin.status is Status.SUCCESS else B.values(standard_vector(params0), a, alpha0, g), float)
         free = [n for n in lin.free if n != ref]
         Yb = B.symbolic_regressor
     else:
-        B = _base(params0.replace(alpha=None))  # every skew angle: the generic base parameters
+        B = model_terms(params0.replace(alpha=None))  # every skew angle: the generic base parameters
         names = B.names
         if lin.status is Status.SUCCESS:
-            beta0 = B.values(_std(lin.params), a, alpha0, g)
+            beta0 = B.values(standard_vector(lin.params), a, alpha0, g)
         elif tuple(lin.names) == tuple(B.names):
             beta0 = np.asarray(lin.values, float)
         else:
-            beta0 = B.values(_std(params0), a, alpha0, g)
+            beta0 = B.values(standard_vector(params0), a, alpha0, g)
         # the base parameters the data determine near alpha0 (the others are held at the start's values)
-        from ..symbolic.regressor import _samples
+        from ..symbolic.regressor import sample_states
 
-        q, dq, ddq = _samples(40, 0)
+        q, dq, ddq = sample_states(40, 0)
         A = B.regressor(q, dq, ddq, a, alpha0, g).reshape(-1, len(names))
-        det = [names[j] for j in _independent(A, range(len(names)))]
+        det = [names[j] for j in independent_columns(A, range(len(names)))]
         stems = {_stem(n) for n in lin.free}
         free = [n for n in names if n in det and _stem(n) in stems and n != ref]
         Yb = B.symbolic_regressor
@@ -732,7 +732,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
             """Free every base parameter the data determine at ``alpha`` (away from alpha0 the skew
             brings the inertia entries the near-planar fit held into the equations)."""
             A = B.regressor(q, dq, ddq, a, alpha, g).reshape(-1, len(names))
-            det = [names[j] for j in _independent(A, range(len(names)))]
+            det = [names[j] for j in independent_columns(A, range(len(names)))]
             free[:] = [n for n in names if n in det and (_stem(n) in stems or n not in lin_names) and n != ref]
 
         lin_names = set(lin.names)
@@ -786,7 +786,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         except ParameterError as exc2:
             fitted, unphysical = None, f"the output-error estimate is not physical: {exc} [nearest physical: {exc2}]"
         if fitted is not None:
-            moved = B.values(_std(fitted), a, alpha_fit, g) - values
+            moved = B.values(standard_vector(fitted), a, alpha_fit, g) - values
             free_j = [j for j, n in enumerate(names) if n in theta]
             big = 1e-2 * float(np.max(np.abs(values)))  # a near-zero entry (a product of inertia) on the others' scale
             worst = max((abs(moved[j]) / max(abs(values[j]), big) for j in free_j if abs(moved[j]) > 0), default=0.0)
@@ -799,7 +799,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
                              f"body (base parameters moved by at most {100 * worst:.2g} %"
                              + (f", beyond the 95 % interval for {', '.join(over)})" if over else ")"))
     if fitted is not None:
-        check = B.values(_std(fitted), a, alpha_fit, g)
+        check = B.values(standard_vector(fitted), a, alpha_fit, g)
         keep = [j for j, n in enumerate(names) if n not in held]
         tol = 1e-9 * max(np.abs(values).max(), 1e-300)
         if projected:
@@ -1128,10 +1128,11 @@ def _names_text(names: Sequence[str]) -> str:
 
 
 def _write_run_file(result: "Identification", path, *, force: bool = False):
-    from .. import __version__
-    from ..io import _as_path, atomic_path
+    from pathlib import Path
 
-    path = _as_path(path, "path")
+    from .. import __version__
+    from ..io import atomic_path
+
     status = Status.of(result.status)
     if status is not Status.SUCCESS and not force:
         raise ParameterError(f"the identification did not succeed ({status.name.lower()}: "
@@ -1165,9 +1166,9 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
               "[parameters]"]
     lines += [f"{key} = {_toml_value(value)}" for key, value in _run_file_parameters(result.params)]
     text = "\n".join(lines) + "\n"
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:  # (it refuses a path that is not one, in one line)
         tmp.write_text(text, encoding="utf-8")
-    return path
+    return Path(path)
 
 
 def predict_piece(params: Parameters, piece: Piece, smoothing: float = SMOOTHING) -> Optional[np.ndarray]:

@@ -425,7 +425,7 @@ def _poincare(path, variables, attrs):
 
 
 def _identification(path, variables, attrs):
-    from .identify import Identification, _base, _std
+    from .identify import Identification, model_terms, standard_vector
 
     proto = _protocol(path, attrs)
     try:
@@ -462,12 +462,12 @@ def _identification(path, variables, attrs):
     # physical body, or one that failed, keeps the estimate itself)
     if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):
         p = result.params
-        B = _base(params0.replace(alpha=None)) if result.settings.get("alpha_free") else _base(params0)
+        B = model_terms(params0.replace(alpha=None)) if result.settings.get("alpha_free") else model_terms(params0)
         if tuple(B.names) != result.names:
             raise ParameterError(f"{path} was written by another model: its base parameters are {list(result.names)}, "
                                  f"the model's are {list(B.names)}")
         alpha = float(p.alpha) if p.alpha is not None else 0.0
-        _agree(path, "base parameters", values, B.values(_std(p), float(p.a), alpha, float(p.g)))
+        _agree(path, "base parameters", values, B.values(standard_vector(p), float(p.a), alpha, float(p.g)))
     return result
 
 

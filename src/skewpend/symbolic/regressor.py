@@ -50,6 +50,9 @@ __all__ = [
     "linear_estimate",
     "standard_parameters",
     "PIVOT_ORDER",
+    "independent_columns",
+    "lambdify_columns",
+    "sample_states",
     "SCALE_DIRECTION",
 ]
 
@@ -144,7 +147,7 @@ class Regressor:
 
     def numeric(self) -> Callable:
         """``Y(q, dq, ddq, a, alpha, g) -> (N, 2, 22)`` (NumPy, vectorised over rows)."""
-        return _lambdify_columns(self.Y)
+        return lambdify_columns(self.Y)
 
 
 @lru_cache(maxsize=8)
@@ -200,7 +203,7 @@ def regressor(geometry: Optional[Parameters] = None) -> Regressor:
     return _regressor(_axes_key(geometry))
 
 
-def _lambdify_columns(Y: sp.Matrix) -> Callable:
+def lambdify_columns(Y: sp.Matrix) -> Callable:
     """A NumPy function ``(q, dq, ddq, a, alpha, g) -> (N, 2, ncol)`` generated from ``Y`` (cse)."""
     S = SYMBOLS
     args = [S[n] for n in _ARGS]
@@ -322,7 +325,7 @@ def _coefficients(axes: Tuple) -> Tuple[sp.Matrix, Tuple]:
     return C, tuple(keys)
 
 
-def _samples(n: int, seed: int):
+def sample_states(n: int, seed: int):
     rng = np.random.default_rng(seed)
     q = rng.uniform(-math.pi, math.pi, (n, 2))
     dq = rng.normal(0, 2.0, (n, 2))
@@ -330,7 +333,7 @@ def _samples(n: int, seed: int):
     return q, dq, ddq
 
 
-def _independent(A: np.ndarray, order: Sequence[int], tol: float = 1e-9) -> List[int]:
+def independent_columns(A: np.ndarray, order: Sequence[int], tol: float = 1e-9) -> List[int]:
     """Columns of ``A`` taken greedily in ``order`` when they raise the rank (columns scaled)."""
     norms = np.linalg.norm(A, axis=0)
     B = A / np.where(norms > 0, norms, 1.0)
@@ -470,15 +473,15 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
         given["alpha"] = 0.0
     at = {n: (generic[n] if v is None else float(v)) for n, v in given.items()}
     Ynum = reg.numeric()
-    q, dq, ddq = _samples(samples, seed)
+    q, dq, ddq = sample_states(samples, seed)
     A = Ynum(q, dq, ddq, at["a"], at["alpha"], at["g"]).reshape(-1, len(PI_NAMES))
     A_gen = Ynum(q, dq, ddq, generic["a"], generic["alpha"], generic["g"]).reshape(-1, len(PI_NAMES))
     names_order = list(PIVOT_ORDER if order is None else order)
     if sorted(names_order) != sorted(PI_NAMES):
         raise ParameterError(f"order must be a permutation of {list(PI_NAMES)}")
     pref = [PI_NAMES.index(n) for n in names_order]
-    piv = _independent(A, pref)  # in the order of preference: the base parameters' order
-    generic_rank = len(_independent(A_gen, pref))
+    piv = independent_columns(A, pref)  # in the order of preference: the base parameters' order
+    generic_rank = len(independent_columns(A_gen, pref))
     dep = [j for j in range(len(PI_NAMES)) if j not in piv]
 
     # exact relations Y_D = Y_P K from the coefficient matrix (rows: equation x monomial)
@@ -499,7 +502,7 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     vals = {_C["alpha"]: math.cos(at["alpha"]), _S["alpha"]: math.sin(at["alpha"]), S["a"]: at["a"], S["g"]: at["g"]}
     Cf = np.array(sp.lambdify(coef_syms, Cx, modules="numpy")(*[vals[s] for s in coef_syms]), dtype=float)
     r = len(piv)
-    rows = _independent(Cf[:, piv].T, range(Cf.shape[0]))
+    rows = independent_columns(Cf[:, piv].T, range(Cf.shape[0]))
     if len(rows) != r:
         raise AssertionError("the coefficient matrix does not have the regressor's rank")
     CP, CD = Cx[:, piv], Cx[:, dep]
@@ -531,7 +534,7 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     Yb = reg.Y[:, piv]
     return BaseParameters(
         names=names, expressions=exprs, matrix=T, pivots=tuple(piv), dependent=tuple(dep), relations=K,
-        regressor=_lambdify_columns(Yb), symbolic_regressor=Yb,
+        regressor=lambdify_columns(Yb), symbolic_regressor=Yb,
         where={n: (None if given[n] is None else at[n]) for n in ("a", "alpha", "g") if n != "alpha" or reg.uses_alpha},
         seconds=time.perf_counter() - t0,
     )
