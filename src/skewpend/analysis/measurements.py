@@ -42,7 +42,8 @@ import numpy as np
 from ..errors import ParameterError
 
 __all__ = ["Measurements", "Piece", "Convention", "SKEWPEND", "convert", "convert_back",
-           "MIN_SAMPLES", "GAP_FACTOR", "NONFINITE", "KAHEMAN_FILE", "DFKI_COLUMNS"]
+           "MIN_SAMPLES", "GAP_FACTOR", "NONFINITE", "KAHEMAN_FILE", "KAHEMAN_PARAMETERS_FILE", "DFKI_COLUMNS",
+           "kaheman_published_parameters"]
 
 #: Fewest samples a piece may have.
 MIN_SAMPLES = 10
@@ -52,6 +53,8 @@ GAP_FACTOR = 5.0
 NONFINITE = 0.05
 #: The free-swing data file of Kaheman et al. (2023) in ``data/kaheman2023/``.
 KAHEMAN_FILE = "DoublePendulumDataForParameterEstimation.mat"
+#: The authors' identified parameters beside it (:func:`kaheman_published_parameters`).
+KAHEMAN_PARAMETERS_FILE = "EstimatedParameters_DoublePendulum.mat"
 #: The columns :meth:`Measurements.from_dfki` reads (``filtered=True`` takes ``pos_filt``/``vel_filt``).
 DFKI_COLUMNS = {"t": "time", "phi": "pos_meas1", "psi": "pos_meas2", "dphi": "vel_meas1", "dpsi": "vel_meas2",
                 "tau1": "tau_meas1", "tau2": "tau_meas2"}
@@ -932,3 +935,29 @@ def _cells(value) -> List[np.ndarray]:
     if a.dtype == object:
         return [np.asarray(x) for x in a.ravel(order="F")]
     return [a]
+
+
+# -- the published model of the Kaheman rig ------------------------------------------------------------
+def kaheman_published_parameters(path):
+    """The model Kaheman et al. (2023) identified for their free-swing pendulum, in skewpend's terms,
+    from ``EstimatedParameters_DoublePendulum.mat`` (``path``: that file, the data file beside it or
+    their folder, ``data/kaheman2023``).  Their ``[m1 m2 a1 a2 L1 I1 I2 k1 k2 g]`` become ``a = L1``,
+    ``m1``, ``m2``, ``com1 = (0, a1, 0)``, ``com2 = (0, a2, 0)``, inertias ``I1``, ``I2`` about ``k``
+    (and ``i``: a rod's moment about its own axis ``j`` is 0), ``c1 = k1``, ``c2 = k2``, ``g``,
+    ``alpha = 0`` and ``b = 2 a2`` (rod 2's length does not enter their model; it only places the tip).
+    The start ``params0`` of ``skewpend identify --format kaheman``."""
+    from ..symbolic.model import Parameters
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / KAHEMAN_PARAMETERS_FILE
+    elif path.name == KAHEMAN_FILE:
+        path = path.parent / KAHEMAN_PARAMETERS_FILE
+    mat = _load_mat(path)
+    values = np.asarray(_variable(mat, "EstimatedParameters", path), dtype=float).ravel()
+    if values.size != 10 or not np.all(np.isfinite(values)):
+        raise ParameterError(f"{path}: EstimatedParameters must hold 10 finite numbers [m1 m2 a1 a2 L1 I1 I2 k1 k2 g], "
+                             f"got {values.size}")
+    m1, m2, a1, a2, L1, I1, I2, k1, k2, g = (float(x) for x in values)
+    return Parameters(a=L1, b=2 * a2, m1=m1, m2=m2, alpha=0, g=g, c1=k1, c2=k2, com1=(0, a1, 0), com2=(0, a2, 0),
+                      inertia1=((I1, 0, 0), (0, 0, 0), (0, 0, I1)), inertia2=((I2, 0, 0), (0, 0, 0), (0, 0, I2)))

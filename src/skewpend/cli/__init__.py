@@ -68,12 +68,12 @@ def _root(
 
 def _register() -> None:
     """Each command module holds plain functions; they become commands here (no import cycle)."""
-    from . import analyses, control, equations, modes, orbits, serve, simulate
+    from . import analyses, control, equations, identify, modes, orbits, serve, simulate
 
     order = ("derive", "simulate", "animate", "flipmap", "lyapunov", "poincare", "chaos_diagram", "serve", "report",
-             "export", "validate", "modes", "equilibria", "orbit", "nnm", "control")
+             "export", "validate", "modes", "equilibria", "orbit", "nnm", "control", "identify")
     found = {name: getattr(module, name)
-             for module in (equations, simulate, analyses, modes, orbits, control, serve) for name in module.COMMANDS}
+             for module in (equations, simulate, analyses, modes, orbits, control, identify, serve) for name in module.COMMANDS}
     for name in order:
         app.command(name.replace("_", "-"))(found[name])
 
