@@ -82,6 +82,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS},
     "nnm": {"parameters": MODEL_KEYS},
     "control": {"parameters": MODEL_KEYS},
+    "identify": {"parameters": MODEL_KEYS},  # params0, the fit's start
 }
 
 #: Why a command does not read a key that some other command does (the refusal says it).

@@ -441,7 +441,8 @@ def write_trajectory(traj, path: os.PathLike) -> Path:
 
 # -- configuration -----------------------------------------------------------------------------------
 CONFIG_SECTIONS = {
-    "parameters": {"a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "com1", "com2", "inertia1", "inertia2", "axis1", "axis2"},
+    "parameters": {"a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "com1", "com2", "inertia1", "inertia2", "axis1", "axis2",
+                   "cf1", "cf2", "cfs", "Ir", "gr"},
     "initial": {"phi0", "psi0", "dphi0", "dpsi0"},
     "simulation": {"t_end", "dt_out", "method", "rtol", "atol", "dt", "max_steps", "out", "plot"},
 }

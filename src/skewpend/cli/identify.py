@@ -86,14 +86,7 @@ def _start_model(func):
     return run
 
 
-def _register_run_file_keys() -> None:
-    """``--config``: identify reads a run file's [parameters] (every model key), as export does."""
-    from ..config import MODEL_KEYS, READS
 
-    READS.setdefault("identify", {"parameters": MODEL_KEYS})
-
-
-_register_run_file_keys()
 
 _SECONDS = T.Positive("number of seconds")
 _DATA_HELP = ("measured motion: files or folders, combined (kaheman: the folder data/kaheman2023 or its .mat file; "

@@ -428,7 +428,8 @@ class _Context:
             raise EquilibriumError(
                 "phi = psi = 0 is not an equilibrium of this model (static generalised forces "
                 f"{[str(x) for x in static]}); linearisation needs zero joint torques and centres "
-                "of mass hanging straight below their hinges"
+                "of mass hanging straight below their hinges, or the equilibrium named: modes about "
+                "this model's hanging rest with about='down-down' (--about down-down)"
             )
         M0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.M[i][j].subs(zero)))
         K0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.d_dq(grad[i], j).subs(zero)))
