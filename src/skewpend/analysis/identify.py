@@ -778,8 +778,8 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         projected = ""
     except ParameterError as exc:
         # a body on the edge of the physical (a slender rod: no moment about its own axis) may land a
-        # little outside: the nearest physical body, accepted when it moves no base parameter by more
-        # than 1 % (the message says by how much, and where that is beyond the 95 % interval)
+        # little outside: the nearest physical body, accepted when it moves no base parameter both by
+        # more than 1 % and beyond its 95 % interval (the message says by how much)
         try:
             fitted = _realise(params0.replace(alpha=alpha_fit) if alpha_free else params0, B, values, a, alpha_fit,
                               g, held=held, project=True)
@@ -790,11 +790,13 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
             free_j = [j for j, n in enumerate(names) if n in theta]
             big = 1e-2 * float(np.max(np.abs(values)))  # a near-zero entry (a product of inertia) on the others' scale
             worst = max((abs(moved[j]) / max(abs(values[j]), big) for j in free_j if abs(moved[j]) > 0), default=0.0)
-            if worst > 0.01:
+            over = [names[j] for j in free_j if math.isfinite(halves[j]) and abs(moved[j]) > halves[j]]
+            # accepted when the move is small (1 %) or within the estimate's own 95 % interval
+            if worst > 0.01 and over:
                 fitted, unphysical = None, (f"the output-error estimate is not physical: {exc} (the nearest physical "
-                                            f"body moves a base parameter by {100 * worst:.2g} %)")
+                                            f"body moves {', '.join(over)} by up to {100 * worst:.2g} %, beyond the "
+                                            "95 % interval)")
             else:
-                over = [names[j] for j in free_j if math.isfinite(halves[j]) and abs(moved[j]) > halves[j]]
                 projected = ("the estimate lies just outside the physical bodies; the model is the nearest physical "
                              f"body (base parameters moved by at most {100 * worst:.2g} %"
                              + (f", beyond the 95 % interval for {', '.join(over)})" if over else ")"))
