@@ -81,6 +81,11 @@ def pytest_sessionstart(session):
 
 _GROUPED: dict = {}
 
+#: Modules split into one xdist group per value of a module-scoped parametrised fixture, whose
+#: groups share nothing (each builds its own browser, server or export): the explorer's served
+#: and static pages run on two workers at once rather than one after the other on one.
+SPLIT = {"test_explorer_browser.py": "site"}
+
 
 def pytest_itemcollected(item):
     """The xdist group of a test, set as it is collected: before any ``pytest_collection_modifyitems``
@@ -90,7 +95,10 @@ def pytest_itemcollected(item):
     if path not in _GROUPED:
         _GROUPED[path] = _grouped(path)
     if _GROUPED[path]:
-        item.add_marker(pytest.mark.xdist_group(path.stem))
+        by = SPLIT.get(path.name)
+        params = getattr(getattr(item, "callspec", None), "params", {})
+        name = f"{path.stem}-{params[by]}" if by in params else path.stem
+        item.add_marker(pytest.mark.xdist_group(name))
 
 
 def _groups_broken() -> bool:
