@@ -563,33 +563,12 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
 
     # held-out prediction
     status, message = Status.SUCCESS, "identified (linear first estimate)"
-    vnames, kinds, hr, hr0 = [], [], [], []
-    sq, sq0, count = 0.0, 0.0, 0
-    if validation is not None:
-        for p in validation:
-            vnames.append(p.name)
-            if p.u is not None:
-                _, q, dq, ddq, u, _, _ = _filtered(p, smoothing)
-                Y = B.regressor(q, dq, ddq, a, alpha, g)
-                kinds.append("torque")
-                hr.append(float(np.sqrt(np.mean((np.einsum("nij,j->ni", Y, values) - u) ** 2))))
-                hr0.append(float(np.sqrt(np.mean((np.einsum("nij,j->ni", Y, beta0) - u) ** 2))))
-                continue
-            kinds.append("angle")
-            e1, e0 = _predict(fitted, p, smoothing), _predict(params0, p, smoothing)
-            if e1 is None or e0 is None:
-                status, message = Status.NONFINITE, f"the held-out simulation of {p.name} failed"
-                hr.append(math.nan)
-                hr0.append(math.nan)
-                continue
-            hr.append(float(np.sqrt(np.mean(e1**2))))
-            hr0.append(float(np.sqrt(np.mean(e0**2))))
-            sq, sq0, count = sq + float(np.sum(e1**2)), sq0 + float(np.sum(e0**2)), count + e1.size
+    vnames, kinds, hr, hr0, heldout = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha, g)
+    failed_pieces = [n for n, x, x0 in zip(vnames, hr, hr0) if not (math.isfinite(x) and math.isfinite(x0))]
+    if failed_pieces:
+        status, message = Status.NONFINITE, f"the held-out simulation of {failed_pieces[0]} failed"
     stats = {"seconds": time.perf_counter() - t_start, "samples": samples, "equations": 2 * samples,
-             "sigma2": est.sigma2, "dof": est.dof}
-    if count:
-        stats["heldout_overall"] = math.sqrt(sq / count)
-        stats["heldout_overall0"] = math.sqrt(sq0 / count)
+             "sigma2": est.sigma2, "dof": est.dof, **heldout}
     common.pop("params0")
     return Identification(params=fitted, params0=params0, status=status, message=message, stats=stats,
                           validation=tuple(vnames), heldout_kind=tuple(kinds), heldout_rms=np.array(hr),
