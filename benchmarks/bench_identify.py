@@ -74,11 +74,12 @@ def main() -> None:
     ap.add_argument("--pieces", type=int, default=8)
     ap.add_argument("--noise", type=float, default=5e-4)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--only", choices=("real", "synthetic", "coverage"), default=None,
+                    help="run one part: real (1, 2), synthetic (3) or coverage (4); default: all")
     args = ap.parse_args()
 
     import skewpend
     from skewpend import Measurements
-    from skewpend.analysis.measurements import Piece
 
     print("machine")
     print(f"  cpu        {cpu_model()}")
@@ -89,6 +90,19 @@ def main() -> None:
     val = Measurements.from_kaheman(DATA, which="validation")
     p0 = published()
     skewpend.identify(fit, p0, method="linear")  # warm-up: the symbolic base parameters, once per process
+
+    if args.only in (None, "coverage"):
+        _coverage(fit, p0, args)
+    if args.only == "coverage":
+        return
+    if args.only in (None, "real"):
+        _real(fit, val, p0, args)
+    if args.only in (None, "synthetic"):
+        _synthetic(fit, p0, args)
+
+
+def _real(fit, val, p0, args) -> None:
+    import skewpend
 
     print("\n1. real free swing, output error (params0: the published model)")
     secs, r = timed(lambda: skewpend.identify(fit, p0, validation=val), args.repeat)
@@ -109,6 +123,13 @@ def main() -> None:
     print(f"  {ra.alpha_note}")
     print(f"  best of {args.repeat}: {secs2:.2f} s (goal <= 30 s: {'PASS' if secs2 <= 30 else 'FAIL'}; MuJoCo's toolbox: "
           f"937 s quoted, {937 / secs2:.0f}x)")
+
+
+
+def _synthetic(fit, p0, args) -> None:
+    import skewpend
+    from skewpend import Measurements
+    from skewpend.analysis.measurements import Piece
 
     print(f"\n3. synthetic alpha = 20 deg, {args.pieces} pieces, noise {args.noise:g} rad, {args.seeds} seeds, start alpha = 0")
     truth = p0.replace(alpha=math.radians(20.0))
@@ -132,6 +153,36 @@ def main() -> None:
     print(f"  |error|: median {np.median(e):.4f} deg, max {e.max():.4f} deg (goal 0.1: {'PASS' if e.max() <= 0.1 else 'FAIL'}); "
           f"covered {covered}/{args.seeds} (goal >= {math.ceil(0.85 * args.seeds)}: "
           f"{'PASS' if covered >= math.ceil(0.85 * args.seeds) else 'FAIL'}); median time {np.median(times):.1f} s")
+
+
+def _coverage(fit, p0, args) -> None:
+    """4. The base parameters' 95 % intervals: planar data made by skewpend from the published model
+    (the first ``--pieces`` real starts, noise ``--noise``), fitted from params0 with every ratio 3 %
+    off, over ``--seeds`` seeds: how often each ratio's interval covers the truth."""
+    import skewpend
+    from skewpend import Measurements
+    from skewpend.analysis.identify import model_terms, standard_vector
+    from skewpend.analysis.measurements import Piece
+
+    print(f"\n4. coverage of the ratios' 95 % intervals: planar synthetic data, {args.pieces} pieces, noise "
+          f"{args.noise:g} rad, {args.seeds} seeds")
+    B = model_terms(p0)
+    truth = B.values(standard_vector(p0), p0.a, 0.0, p0.g)
+    k = B.names.index("J1zz_b")
+    starts = [(*pc.q[0], *pc.dq[0]) for pc in list(fit)[:args.pieces]]
+    clean = [skewpend.simulate(p0, y0, 2.666, dt_out=1e-3, rtol=1e-11, atol=1e-11) for y0 in starts]
+    start = p0.replace(com2=(0.0, p0.com2[1] * 1.03, 0.0), c1=p0.c1 * 1.5)
+    hits = {n: 0 for n in B.names if n != "J1zz_b"}
+    for seed in range(args.seeds):
+        rng = np.random.default_rng(seed)
+        M = Measurements([Piece(t=np.asarray(tr.t), q=np.asarray(tr.y)[:, :2] + rng.normal(0, args.noise, (len(tr.t), 2)),
+                                name=f"s{j}") for j, tr in enumerate(clean)])
+        r = skewpend.identify(M, start, bootstrap=100, seed=seed)
+        for n in hits:
+            lo, hi = r.ratio_intervals[f"{n}/J1zz_b"]
+            hits[n] += lo <= truth[B.names.index(n)] / truth[k] <= hi
+    for n, h in hits.items():
+        print(f"  {n + '/J1zz_b':16} covered {h:2}/{args.seeds}")
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ Intervals: residuals of a real rig are mostly model error, correlated along a pi
 Gauss-Newton covariance ``sigma^2 (J^T J)^-1`` is far too narrow.  The covariance used is the
 *cluster-robust sandwich* over pieces, ``S^-1 (sum_c g_c g_c^T) S^-1`` (``S`` the reduced
 Gauss-Newton matrix, ``g_c`` piece ``c``'s reduced gradient at the optimum), which holds for any
-correlation within a piece; it is checked against one-step re-fits on the pieces resampled with
+correlation within a piece, with Student's t quantile at ``pieces - 1`` degrees of freedom; it is checked against one-step re-fits on the pieces resampled with
 replacement (seeded), and each half-width is the larger of the two.  A direction whose reduced
 curvature is below :data:`FLAT` of the largest (column-scaled) is undetermined: it gets no interval.
 """
@@ -326,7 +326,7 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
         bootstrap: int = 200, seed: int = 0, tol: float = 1e-10, progress: Optional[Callable[[int, float], None]] = None,
         alpha_bounds: Tuple[float, float] = (-math.pi / 2, math.pi / 2)) -> ShootingFit:
     """Levenberg-Marquardt on the segments' residuals; see the module."""
-    from scipy.stats import norm
+    from scipy.stats import t as student_t
 
     t_start = time.perf_counter()
     model = _Model(Yb, a, g)
@@ -399,7 +399,8 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
     lam_e, vec = np.linalg.eigh(Sn)
     flat_dirs = lam_e < FLAT * lam_e.max()
     flat = tuple(theta_names[int(np.argmax(np.abs(vec[:, k])))] for k in np.flatnonzero(flat_dirs))
-    z = float(norm.ppf(0.975))
+    # the sandwich over G pieces has G - 1 degrees of freedom: Student's t (8 pieces: 2.36, not 1.96)
+    z = float(student_t.ppf(0.975, max(pieces - 1, 1)))
     half = np.full(p, np.nan)
     sand = np.full(p, np.nan)
     boot = np.full(p, np.nan)
