@@ -377,15 +377,20 @@ def _check_input(measurements, params0, free, validation, smoothing):
     return positive("smoothing", smoothing, cap=60.0)  # a window in seconds
 
 
+def _name_list(free) -> List[str]:
+    """``free`` as a list of names (one name alone is a list of one); else one ParameterError."""
+    if isinstance(free, str):
+        return [free]
+    try:
+        return [str(f) for f in free]
+    except TypeError:
+        raise ParameterError(f"free must be a list of names, got {free!r}") from None
+
+
 def _free(free, names) -> Tuple[str, ...]:
     if free is None:
         return tuple(names)
-    if isinstance(free, str):
-        free = [free]
-    try:
-        free = [str(f) for f in free]
-    except TypeError:
-        raise ParameterError(f"free must be a list of names, got {free!r}") from None
+    free = _name_list(free)
     for f in free:
         if f in names:
             continue
@@ -609,12 +614,7 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
     names_free = None
     alpha_free = False
     if free is not None:
-        if isinstance(free, str):
-            free = [free]
-        try:
-            names_free = [str(f) for f in free]
-        except TypeError:
-            raise ParameterError(f"free must be a list of names, got {free!r}") from None
+        names_free = _name_list(free)
         alpha_free = "alpha" in names_free
         names_free = [f for f in names_free if f != "alpha"]
         if alpha_free and method == "linear":
