@@ -292,3 +292,19 @@ def test_a_python_law_s_errors_reach_the_caller():
     # a non-finite torque stops the run with its status, no NaN rows
     tr = skewpend.simulate(p, (0.3, 0.1, 0, 0), 2.0, controller=Controller.function(lambda t, x: (np.nan, 0.0)))
     assert not tr.ok and np.all(np.isfinite(tr.y))
+
+
+@pytest.mark.parametrize("dt, k, fps", [(0.01, 4, 25.0), (0.02, 2, 25.0), (0.04, 1, 25.0), (0.05, 1, 20.0), (0.03, 2, 50 / 3)])
+def test_the_swingup_animation_shows_at_most_25_frames_a_second(dt, k, fps):
+    """`control swingup --animate` renders the run's rows (every 0.01 s) at most 25 per second: a GIF
+    cannot show 100 (browsers draw delays under 2/100 s as 1/10 s), and four times the frames cost four
+    times the rendering. Every k-th row, the frame times exactly k*dt apart, as animate() requires."""
+    from skewpend.cli.control import _frames
+    from skewpend.views.animation import check_frame_times
+
+    tr = skewpend.simulate(thin(), (0.3, -0.2, 0.0, 0.0), 1.2, dt_out=dt)
+    shown, got = _frames(tr)
+    assert got == pytest.approx(fps, rel=1e-12)
+    np.testing.assert_array_equal(shown.y, tr.y[::k])
+    np.testing.assert_array_equal(shown.energy, tr.energy[::k])
+    check_frame_times(shown.t, got, 1.0)

@@ -165,7 +165,8 @@ def control(
     if animate is not None:
         from ..views.animation import animate as render
 
-        render(tr, animate, fps=1.0 / float(tr.t[1] - tr.t[0]) if len(tr.t) > 1 else 30.0)
+        shown, fps = _frames(tr)
+        render(shown, animate, fps=fps)
         lines.append(f"animation   {animate}")
     sys.stdout.write("\n".join(lines) + "\n")
     return run
@@ -230,3 +231,24 @@ def _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol
     lines += [f"{what:12s}{path}" for what, path in (("written", out), ("plot", plot)) if path is not None]
     sys.stdout.write("\n".join(lines) + "\n")
     return roa
+
+
+#: Frames per second of ``--animate`` at most: the run's rows come every 0.01 s (100 per second), which
+#: a GIF cannot show (browsers draw delays under 2/100 s as 1/10 s: ten times too slow) and which would
+#: render four times the frames a viewer sees.
+ANIMATION_FPS = 25.0
+
+
+def _frames(tr):
+    """``(trajectory, fps)`` for :func:`skewpend.views.animation.animate`: every k-th row, k the
+    smallest whole number that brings the rows' rate to at most :data:`ANIMATION_FPS` per second."""
+    import dataclasses
+
+    if len(tr.t) < 2:
+        return tr, ANIMATION_FPS
+    dt = float(tr.t[1] - tr.t[0])
+    k = max(1, math.ceil(1.0 / (dt * ANIMATION_FPS) - 1e-9))
+    if k > 1:
+        tr = dataclasses.replace(tr, t=tr.t[::k], y=tr.y[::k], energy=tr.energy[::k], work=tr.work[::k])
+    return tr, 1.0 / (k * dt)
+
