@@ -44,6 +44,7 @@ __all__ = ["ControlStruct",
     "Kernel",
     "State",
     "LyapState",
+    "TaylorState",
     "CompilerError",
     "find_compiler",
     "LIB_SUFFIX",
@@ -55,7 +56,7 @@ __all__ = ["ControlStruct",
 #: Files whose text determines the generated library (part of the cache key).
 _SOURCES = (
     "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c", "numeric/chaos.c",
-    "numeric/dop853_core.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
+    "numeric/dop853_core.h", "numeric/kernels.py", "numeric/taylor.c", "numeric/taylor_source.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
     "symbolic/symbols.py",
 )
 _PACKAGE = Path(__file__).resolve().parent.parent
@@ -108,6 +109,38 @@ class State(ctypes.Structure):
 
     @classmethod
     def at(cls, t0: float, y0) -> "State":
+        s = cls()
+        s.t = float(t0)
+        for i, v in enumerate(y0):
+            s.y[i] = float(v)
+        return s
+
+
+#: Mirror of ``SP_TN`` and ``SP_TPMAX`` in the Taylor kernel (:mod:`skewpend.numeric.taylor_source`).
+SP_TN, SP_TPMAX = 5, 32
+
+
+class TaylorState(ctypes.Structure):
+    """Mirror of ``sp_taylor_state`` in ``taylor.c``: a resumable Taylor run."""
+
+    _fields_ = [
+        ("t", ctypes.c_double),
+        ("y", ctypes.c_double * SP_TN),
+        ("told", ctypes.c_double),
+        ("hold", ctypes.c_double),
+        ("jet", ctypes.c_double * (SP_TN * (SP_TPMAX + 2))),
+        ("nfev", ctypes.c_int64),
+        ("naccept", ctypes.c_int64),
+        ("nreject", ctypes.c_int64),
+        ("order", ctypes.c_int64),
+        ("started", ctypes.c_int32),
+        ("dense_ok", ctypes.c_int32),
+        ("work", ctypes.c_int32),
+        ("pad", ctypes.c_int32),
+    ]
+
+    @classmethod
+    def at(cls, t0: float, y0) -> "TaylorState":
         s = cls()
         s.t = float(t0)
         for i, v in enumerate(y0):
@@ -281,7 +314,8 @@ class Kernel:
     library cached before that was recorded).
     """
 
-    def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False, chaos: bool = False):
+    def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False, chaos: bool = False,
+                 taylor: bool = False):
         import numpy as np
 
         self.path, self.origin, self.build_time = path, origin, build_time
@@ -347,6 +381,15 @@ class Kernel:
             lib.sp_lyap_state_size.argtypes, lib.sp_lyap_state_size.restype = [], i64
             if lib.sp_lyap_state_size() != ctypes.sizeof(LyapState):
                 raise CompilerError(f"{path}: Lyapunov state layout mismatch")
+        self.taylor = taylor
+        if taylor:  # the Taylor kernel: sp_taylor (taylor.c, with recurrences from taylor_source.py)
+            if not hasattr(lib, "sp_taylor"):
+                raise CompilerError(f"{path}: not a Taylor kernel (no sp_taylor)")
+            lib.sp_taylor.argtypes = [ctypes.POINTER(TaylorState), dp, d, d, d, i64, i64, d, i64, ip, dp, i64, ip]
+            lib.sp_taylor.restype = ctypes.c_int
+            lib.sp_taylor_state_size.argtypes, lib.sp_taylor_state_size.restype = [], i64
+            if lib.sp_taylor_state_size() != ctypes.sizeof(TaylorState):
+                raise CompilerError(f"{path}: Taylor state layout mismatch")
         if lib.sp_state_size() != ctypes.sizeof(State):
             raise CompilerError(f"{path}: integrator state layout mismatch ({lib.sp_state_size()} != {ctypes.sizeof(State)} bytes)")
         self._np = np
@@ -519,7 +562,7 @@ def _announce(kind: str, cached: bool) -> None:
                             "or clang, or set CC")
     if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
         return
-    what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels"}.get(kind, "the model's kernels")
+    what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels", "taylor": "the Taylor kernels"}.get(kind, "the model's kernels")
     when = "first use only; cached for later runs" if cached else "for this run: the cache is not writable"
     try:
         sys.stderr.write(f"skewpend: compiling {what} ({when})...\n")
@@ -528,7 +571,7 @@ def _announce(kind: str, cached: bool) -> None:
         pass
 
 
-def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False) -> Kernel:
+def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False, taylor: bool = False) -> Kernel:
     """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs).
 
     Loaded from the cache when there; otherwise generated from the derivation, compiled
@@ -536,10 +579,13 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
     the larger library that also holds the flip-time ensembles (``sp_flip``), built on the
     first flip map so that simulations never wait for it.  ``chaos=True``: the library that also
     holds the Lyapunov and Poincare-section routines (``chaos.c``), built on first use.
+    ``taylor=True``: the library that also holds the Taylor integrator (``sp_taylor``, its
+    recurrences generated by :mod:`skewpend.numeric.taylor_source`), built on first use; it
+    raises ValueError for a model whose equations have a function without a series recurrence.
     """
-    if flip and chaos:
-        raise ValueError("kernel_module: flip and chaos are separate libraries")
-    kind = "flip" if flip else ("chaos" if chaos else "")
+    if flip + chaos + taylor > 1:
+        raise ValueError("kernel_module: flip, chaos and taylor are separate libraries")
+    kind = "flip" if flip else ("chaos" if chaos else ("taylor" if taylor else ""))
     gkey = repr([getattr(params, k) for k in GEOMETRY] + list(optional_terms(params))) + ("|" + kind if kind else "")
     kernel = _BYGEOMETRY.get(gkey)
     if kernel is not None:
@@ -555,7 +601,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
         kernel = None
         if path.exists() and _intact(path):
             try:
-                kernel = Kernel(path, "cache", 0.0, flip=flip, chaos=chaos)
+                kernel = Kernel(path, "cache", 0.0, flip=flip, chaos=chaos, taylor=taylor)
             except (OSError, CompilerError):
                 kernel = None  # damaged: rebuilt below
         if kernel is None:
@@ -565,13 +611,20 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
             _remove_stale_temporaries(directory)
             from .kernel_source import kernel_c_source
 
+            extra = ""
+            if taylor:  # generated before announcing: a model without recurrences is refused, not compiled
+                from .taylor_source import taylor_c_source
+
+                extra = taylor_c_source(geometry) + "\n" + (_PACKAGE / "numeric" / "taylor.c").read_text()
             _announce(kind, cached=directory == cache_dir() / "kernels")
             integrators = (_PACKAGE / "numeric" / "integrators.c").read_text()
             source = kernel_c_source(geometry, flip=flip) + "\n" + integrators
             if chaos:
                 source += "\n" + (_PACKAGE / "numeric" / "chaos.c").read_text()
+            if taylor:
+                source += "\n" + extra
             _compile(source, path)
-            kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip, chaos=chaos)
+            kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip, chaos=chaos, taylor=taylor)
         _LOADED[key] = kernel
         _BYGEOMETRY[gkey] = kernel
         return kernel

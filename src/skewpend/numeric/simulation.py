@@ -7,7 +7,10 @@ together with the model's generated C (:mod:`skewpend.numeric.kernel_source`):
 * ``"rk4"`` -- classical fixed-step Runge-Kutta of order 4;
 * ``"gauss"`` -- 2-stage Gauss-Legendre collocation (order 4), applied to Hamilton's
   equations in the canonical variables ``(q, p = M(q) q')``: symplectic, so its energy
-  error stays bounded over very long conservative runs.
+  error stays bounded over very long conservative runs;
+* ``"taylor"`` -- adaptive Taylor series (``taylor.c``), its coefficient recurrences generated
+  from the derivation (:mod:`skewpend.numeric.taylor_source`), in a sibling kernel built on
+  first use.
 
 The integrators are resumable: each call into the compiled code does a bounded amount of
 work (aimed at ~0.05 s) and hands back a bounded block of rows, which this module turns
@@ -43,7 +46,9 @@ from ..parsing import initial_state
 
 __all__ = ["simulate", "Trajectory", "open_trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", "check_start"]
 
-METHODS = ("dop853", "rk4", "gauss")
+METHODS = ("dop853", "rk4", "gauss", "taylor")
+#: The methods that choose their own steps (rtol, atol); the others take a fixed step dt.
+ADAPTIVE = ("dop853", "taylor")
 
 #: Deprecated: the messages of :class:`skewpend.status.Status` by code (use ``Status(code).message``).
 STATUS_MESSAGES = {int(s): s.message for s in Status if s <= Status.NO_CONVERGENCE}
@@ -292,12 +297,24 @@ def simulate(
 ) -> Trajectory:
     """Integrate the equations of motion from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``.
 
-    ``method``: ``"dop853"`` (adaptive; ``rtol``, ``atol``, default 1e-10), ``"rk4"`` or
-    ``"gauss"`` (fixed step ``dt`` [s], default 1e-3).  A setting that does not apply to the
-    method (``dt`` with dop853, ``rtol``/``atol`` with rk4 or gauss) is refused.
-    ``dt_out=None`` returns the integrator's own steps; otherwise the states on the grid
-    ``0, dt_out, 2 dt_out, ... <= t_end`` (dense output for dop853; for the fixed-step
-    methods ``dt_out`` must be a multiple of ``dt``).
+    ``method``: ``"dop853"`` or ``"taylor"`` (adaptive; ``rtol``, ``atol``, default 1e-10),
+    ``"rk4"`` or ``"gauss"`` (fixed step ``dt`` [s], default 1e-3).  A setting that does not
+    apply to the method (``dt`` with dop853 or taylor, ``rtol``/``atol`` with rk4 or gauss) is
+    refused.  ``dt_out=None`` returns the integrator's own steps; otherwise the states on the
+    grid ``0, dt_out, 2 dt_out, ... <= t_end`` (dense output for dop853 and taylor; for the
+    fixed-step methods ``dt_out`` must be a multiple of ``dt``).
+
+    ``"taylor"`` is an adaptive Taylor series method (Jorba & Zou's order and step rule, as
+    heyoka's ``taylor_adaptive``): order ``p = ceil(-ln(rtol)/2) + 1`` (6 at 1e-4, 13 at
+    1e-10, 19 at 1e-15), step ``h = rho exp(-2) exp(-0.7/(p-1))`` with ``rho = min over m = p-1, p
+    of (s / max_i |y_i[m]|)^(1/m)``, ``y_i[m]`` the Taylor coefficients and
+    ``s = max(atol/rtol, max_i |y_i|)``.  With ``rtol = atol = tol`` this is heyoka's rule for
+    its ``tol`` (absolute error control while the state's largest component is below 1,
+    relative above); ``atol`` enters only through that floor of the scale.  Every step is
+    accepted (``stats["rejected"]`` is 0; ``stats["nfev"]`` counts series evaluations, one per
+    step; ``stats["order"]`` is ``p``); dense output evaluates the step's polynomial.  The
+    coefficient recurrences are generated from the derivation (Coulomb friction's ``atan``
+    included); it takes no ``controller``.
 
     The compiled integrator works in bounded chunks: between chunks Ctrl-C raises
     :class:`KeyboardInterrupt` (within about 0.05 s) and ``progress(t, t_end)`` is called.
@@ -318,7 +335,7 @@ def simulate(
     it raises is raised here); ``Trajectory.inputs()`` gives them at the rows, and the work ``W``
     includes theirs.
     """
-    from .kernels import State, kernel_module, parameter_vector
+    from .kernels import State, TaylorState, kernel_module, parameter_vector
     from ..io import TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
 
     params.require_numeric("simulation")
@@ -339,14 +356,17 @@ def simulate(
         if method == "gauss":
             raise ParameterError("inputs that vary need dop853 or rk4 (gauss integrates Hamilton's equations of the "
                                  "model with constant torques)")
+        if method == "taylor":
+            raise ParameterError("inputs that vary need dop853 or rk4 (taylor's series are generated for the model "
+                                 "with constant torques)")
     checks.progress_callable(progress, "progress(t, t_end)")
     progress = progress or _progress_noop
     if out is not None:
         out = check_output_path(out, TRAJECTORY_SUFFIXES, option="out")
     settings: Dict[str, Any] = {"t_end": t_end, "dt_out": dt_out, "max_steps": max_steps}
-    if method == "dop853":
+    if method in ADAPTIVE:
         if dt is not None:
-            raise ParameterError("dt is the step of rk4 and gauss; dop853 chooses its own steps (set rtol/atol instead)")
+            raise ParameterError(f"dt is the step of rk4 and gauss; {method} chooses its own steps (set rtol/atol instead)")
         rtol, atol = checks.tolerances(rtol, atol, default=_DEFAULT_TOL)
         settings.update(rtol=rtol, atol=atol)
         n_grid = 0 if dt_out is None else int(math.floor(t_end / dt_out * (1 + 1e-12))) + 1
@@ -354,7 +374,8 @@ def simulate(
     else:
         for name, value in (("rtol", rtol), ("atol", atol)):
             if value is not None:
-                raise ParameterError(f"{name} is a tolerance of dop853; {method} takes fixed steps dt (default {_DEFAULT_DT:g} s)")
+                raise ParameterError(f"{name} is a tolerance of dop853 and taylor; {method} takes fixed steps dt (default "
+                                     f"{_DEFAULT_DT:g} s)")
         step = _DEFAULT_DT if dt is None else checks.positive("dt", dt)
         if step > t_end:
             raise ParameterError(f"dt ({step:g}) must not exceed t_end ({t_end:g})")
@@ -373,17 +394,24 @@ def simulate(
                 raise ParameterError(f"dt_out ({dt_out:g}) must be a whole multiple of dt ({step:g}) for method {method}")
         settings.update(dt=step)
         n_grid = nsteps // stride + 2
-    known_rows = n_grid if (method != "dop853" or dt_out is not None) else None
+    known_rows = n_grid if (method not in ADAPTIVE or dt_out is not None) else None
     if known_rows is not None:
         _check_room(known_rows, keep, out)
     if controller is not None:
         settings["controller"] = controller.settings()
 
-    kernel = kernel_module(params)
+    if method == "taylor":
+        try:
+            kernel = kernel_module(params, taylor=True)
+        except ValueError as exc:  # a function in the equations without a series recurrence
+            raise ParameterError(f"method taylor: {exc}; use dop853") from None
+    else:
+        kernel = kernel_module(params)
     p = parameter_vector(params)
     y5 = np.append(y, 0.0)
     check_start(kernel, p, y)
 
+    state: Any
     if method == "gauss":
         mom = np.empty(2)
         kernel.momenta(y5, p, mom)
@@ -392,6 +420,8 @@ def simulate(
         state = State.at(0.0, z5)
         tol, max_iter = 1e-15, 100
         settings.update(implicit_tol=tol, implicit_max_iter=max_iter)
+    elif method == "taylor":
+        state = TaylorState.at(0.0, y5)
     else:
         state = State.at(0.0, y5 if controller is None or controller.state_size == 5 else np.append(y5, 0.0))
     n = 5 if controller is None else controller.state_size
@@ -413,6 +443,9 @@ def simulate(
                                          n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
             return lib.sp_rk4_ctl(cref, sref, n, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS,
                                   ctypes.byref(m))
+        if method == "taylor":
+            return lib.sp_taylor(sref, p_ptr, t_end, rtol, atol, max_steps, budget, dt_out or 0.0, n_grid,
+                                 ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
         if method == "dop853":
             return lib.sp_dop853(sref, 5, p_ptr, t_end, rtol, atol, max_steps, budget,
                                  dt_out or 0.0, n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
@@ -444,7 +477,7 @@ def simulate(
         start = time.perf_counter()
         intr = stack.enter_context(Interrupts())
         status = drive(call, budget=min(2000, max(10, max_steps // 20)), take=take, check=intr.check,
-                       progress=lambda: progress(state.t, t_end), estimate=estimate if method == "dop853" else None,
+                       progress=lambda: progress(state.t, t_end), estimate=estimate if method in ADAPTIVE else None,
                        adapt=True, name=f"sp_{method}")
         if cstruct is not None:
             from .control import raise_law_error
@@ -461,6 +494,8 @@ def simulate(
             "compiler": kernel.compiler,
             "rows": acc.rows,
         }
+        if method == "taylor":
+            stats["order"] = int(state.order)
         drift = acc.err / acc.scale if acc.scale > 0 else acc.err
         message = status.message
         table = acc.table()

@@ -1,0 +1,120 @@
+/* skewpend Taylor integrator -- appended to the model code and integrators.c in the Taylor kernel.
+ *
+ * Contract with taylor_source.py (generated, before this file): SP_TN (5: phi, psi, dphi, dpsi, W),
+ * SP_TPMAX, SP_TAYLOR_NPC, taylor_work(p), taylor_prepare(p, pc) and taylor_jet(x, pc, order, work),
+ * which fills the Taylor coefficients x[i][1 .. order] of the solution through x[i][0].
+ *
+ * Order and step as Jorba & Zou (2005) and heyoka: order p = ceil(-ln(tol) / 2) + 1 with tol = rtol,
+ * step h = rho * SP_TAYLOR_FAC(p), rho = min over m = p - 1, p of (scale / max_i |x_i[m]|)^(1/m),
+ * scale = max(atol / rtol, max_i |x_i[0]|) (heyoka's absolute / relative switch when atol = rtol).
+ * Every step is accepted; the new state is the polynomial at h (Horner).  Dense output evaluates
+ * the last step's polynomial.  Same resumable contract, rows and return codes as sp_dop853.
+ */
+
+typedef struct {
+    double t;                                /* current time */
+    double y[SP_TN];                         /* current state */
+    double told, hold;                       /* dense output: the last step went from told over hold */
+    double jet[SP_TN][SP_TPMAX + 2];         /* ... with these coefficients */
+    int64_t nfev, naccept, nreject, order;   /* nfev: series evaluations (one per step) */
+    int32_t started, dense_ok, work, pad;
+} sp_taylor_state;
+
+int64_t sp_taylor_state_size(void) { return (int64_t)sizeof(sp_taylor_state); }
+
+/* the safety factor of the step: heyoka's exp(-2) exp(-0.7 / (p - 1)) times SP_TAYLOR_GAIN */
+#ifndef SP_TAYLOR_GAIN
+#define SP_TAYLOR_GAIN 1.0
+#endif
+
+static void taylor_eval(const double (*jet)[SP_TPMAX + 2], int order, int n, double h, double *out)
+{
+    for (int i = 0; i < n; i++) {
+        double acc = jet[i][order];
+        for (int k = order - 1; k >= 0; k--) acc = acc * h + jet[i][k];
+        out[i] = acc;
+    }
+}
+
+int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
+              int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
+              int64_t *m_out)
+{
+    const int n = SP_TN, dense = dt_out > 0.0;
+    double pc[SP_TAYLOR_NPC], x[SP_TN][SP_TPMAX + 2], ynew[SP_TN];
+    int64_t m = 0, done = 0;
+    *m_out = 0;
+    if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0)) return SP_CALL_BAD_ARGUMENTS;
+    taylor_prepare(p, pc);
+    int order = (int)ceil(-log(rtol) / 2.0) + 1;
+    if (order < 2) order = 2;
+    if (order > SP_TPMAX) order = SP_TPMAX;
+    const double fac = SP_TAYLOR_GAIN * exp(-2.0) * exp(-0.7 / (double)(order - 1));
+    const double floor_scale = atol / rtol;
+    const double e1 = 1.0 / (double)(order - 1), e2 = 1.0 / (double)order;
+    if (!s->started) {
+        s->started = 1;
+        s->order = order;
+        s->work = taylor_work(p);
+        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
+        if (!dense) put_row(rows, m++, n, s->t, s->y);
+    }
+    const int nc = s->work ? n : n - 1; /* W is left out of the norms when it is not integrated */
+    for (;;) {
+        if (dense) {
+            while (*k_out < n_grid) {
+                double tk = (double)(*k_out) * dt_out;
+                if (tk > s->t && s->t < t_end) break;
+                if (m >= cap) { *m_out = m; return SP_CALL_BUFFER_FULL; }
+                double *r = rows + m * (n + 1);
+                r[0] = tk;
+                if (tk >= s->t || !s->dense_ok) {
+                    memcpy(r + 1, s->y, (size_t)n * sizeof(double));
+                } else {
+                    taylor_eval((const double (*)[SP_TPMAX + 2])s->jet, (int)s->order, n, tk - s->told, r + 1);
+                    if (!all_finite(r + 1, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
+                }
+                m++;
+                (*k_out)++;
+            }
+        }
+        if (s->t >= t_end) { *m_out = m; return SP_STATUS_SUCCESS; }
+        if (done >= budget) { *m_out = m; return SP_CALL_BUDGET; }
+        if (!dense && m >= cap) { *m_out = m; return SP_CALL_BUFFER_FULL; }
+        if (s->naccept >= max_steps) { *m_out = m; return SP_STATUS_MAX_STEPS; }
+
+        for (int i = 0; i < n; i++) x[i][0] = s->y[i];
+        taylor_jet(x, pc, order, s->work);
+        s->nfev++;
+        double big = 0.0, d1 = 0.0, d2 = 0.0;
+        for (int i = 0; i < nc; i++) {
+            big = fmax(big, fabs(x[i][0]));
+            d1 = fmax(d1, fabs(x[i][order - 1]));
+            d2 = fmax(d2, fabs(x[i][order]));
+        }
+        const double scale = fmax(floor_scale, big);
+        double rho = INFINITY;
+        if (d1 > 0.0) rho = pow(scale / d1, e1);
+        if (d2 > 0.0) rho = fmin(rho, pow(scale / d2, e2));
+        double h = rho * fac;
+        if (!(h == h)) { *m_out = m; return SP_STATUS_NONFINITE; }
+        const double left = t_end - s->t;
+        int last = 0;
+        if (h >= left) { h = left; last = 1; }
+        if (!last && s->t + h == s->t) { *m_out = m; return SP_STATUS_STEP_UNDERFLOW; }
+        taylor_eval((const double (*)[SP_TPMAX + 2])x, order, n, h, ynew);
+        if (!all_finite(ynew, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
+        s->naccept++;
+        done++;
+        s->dense_ok = 0;
+        if (dense && *k_out < n_grid && (double)(*k_out) * dt_out < (last ? t_end : s->t + h)) {
+            memcpy(s->jet, x, sizeof x);
+            s->told = s->t;
+            s->hold = h;
+            s->dense_ok = 1;
+        }
+        s->t = last ? t_end : s->t + h;
+        memcpy(s->y, ynew, (size_t)n * sizeof(double));
+        if (!dense) put_row(rows, m++, n, s->t, s->y);
+    }
+}

@@ -1,0 +1,354 @@
+"""C source of the Taylor integrator's coefficient recurrences, generated from the derivation.
+
+``simulate(..., method="taylor")`` integrates with an adaptive Taylor series method (the
+hand-written driver is ``taylor.c``).  Its model part is printed here from the same expressions
+the other kernels use (:func:`skewpend.numeric.codegen.expressions`: ``M(q) q'' = f(q, q')`` and
+the non-potential forces ``Q``), turned into a sequence of elementary operations on truncated
+power series:
+
+* every subexpression free of the state (``m2 b^2/3``, ``sin(alpha)``, ...) is a *constant*,
+  computed once per call from the parameter vector (``taylor_prepare``) -- a constant has no
+  coefficients beyond order 0, so a product with it is a scalar multiple, a sum with it touches
+  order 0 only;
+* sums, differences and scalar multiples cost O(1) per order, products and quotients of two
+  series O(k) at order k (a square half of that), ``sin``/``cos`` of a series one recurrence pair
+  (``s' = c u'``, ``c' = -s u'``), ``atan`` (Coulomb friction) ``a' = u'/(1 + u^2)``;
+* ``M q'' = f`` is solved in series arithmetic: ``q''[k] = M[0]^-1 (f[k] - sum_{j>=1} M[j] q''[k-j])``
+  (the entries of ``M`` that are constant contribute nothing beyond order 0);
+* the work ``W' = Q . q'`` is a separate block, skipped at run time when the parameters ``Q``
+  depends on are all 0 (then ``Q`` is identically 0: checked symbolically here).
+
+Two forms of the equations are tried -- the derivation's own, and the entries expanded as
+polynomials in ``sin``/``cos`` of the angles and the speeds -- and the one with fewer series
+products is printed.  Nothing here is an equation of motion typed by hand.
+"""
+
+from __future__ import annotations
+
+from typing import Dict, List, Tuple
+
+import sympy as sp
+
+from .codegen import c_printer, cse_block, expressions, param_lines, used_names, Lang
+from .conventions import PARAMETER_ORDER, STATE_ORDER
+from ..symbolic.derivation import SYMBOLS
+from ..symbolic.model import Parameters
+
+__all__ = ["taylor_c_source", "SP_TN", "SP_TPMAX"]
+
+#: State components of the Taylor integrator: (phi, psi, dphi, dpsi, W).
+SP_TN = 5
+#: Highest Taylor order (rtol >= 1e-15 needs at most 19).
+SP_TPMAX = 32
+
+
+class _Graph:
+    """Series operations in evaluation order.  A value is ``("c", text)`` (a constant: a C
+    expression of the prepared constants) or ``("s", name)`` (a series: ``name[k]``)."""
+
+    def __init__(self):
+        self.ops: List[Tuple] = []  # (kind, target, args...)
+        self.memo: Dict[sp.Expr, Tuple[str, str]] = {}
+        self.consts: List[sp.Expr] = []
+        self.const_index: Dict[sp.Expr, int] = {}
+        self.count = 0
+        self.cost = 0.0
+        self.state = {SYMBOLS[n]: ("s", f"x[{i}]") for i, n in enumerate(STATE_ORDER)}
+        self.series_syms = set(self.state)
+        self.const_expr: Dict[sp.Symbol, sp.Expr] = {}  # CSE symbols standing for constants
+
+    def is_const(self, e: sp.Expr) -> bool:
+        return not (e.free_symbols & self.series_syms)
+
+    def define(self, sym: sp.Symbol, e: sp.Expr) -> None:
+        """A common subexpression ``sym = e`` (from sp.cse, in order)."""
+        if self.is_const(e):
+            self.const_expr[sym] = e.xreplace(self.const_expr)
+            self.memo[sym] = self.const(self.const_expr[sym])
+        else:
+            self.memo[sym] = self.node(e)
+            self.series_syms.add(sym)
+
+    def const(self, e: sp.Expr) -> Tuple[str, str]:
+        e = e.xreplace(self.const_expr)
+        if e.is_Number:
+            return ("c", repr(float(e)))
+        if e not in self.const_index:
+            self.const_index[e] = len(self.consts)
+            self.consts.append(e)
+        return ("c", f"pc[{self.const_index[e]}]")
+
+    def new(self, kind: str, *args, cost: float = 0.0) -> Tuple[str, str]:
+        name = f"n{self.count}"
+        self.count += 1
+        self.ops.append((kind, name) + args)
+        self.cost += cost
+        return ("s", name)
+
+    def node(self, e: sp.Expr) -> Tuple[str, str]:
+        e = sp.sympify(e)
+        if e in self.memo:
+            return self.memo[e]
+        if self.is_const(e):
+            out = self.const(e)
+        elif e in self.state:
+            out = self.state[e]
+        elif e.is_Add:
+            consts = [a for a in e.args if self.is_const(a)]
+            series = sorted((a for a in e.args if not self.is_const(a)), key=sp.default_sort_key)
+            acc = self.node(series[0])
+            for a in series[1:]:
+                coeff, rest = a.as_coeff_Mul()
+                if coeff == -1:
+                    acc = self.new("sub", acc, self.node(rest))
+                else:
+                    acc = self.new("add", acc, self.node(a))
+            if consts:
+                acc = self.new("addc", acc, self.const(sp.Add(*consts)))
+            out = acc
+        elif e.is_Mul:
+            consts = [a for a in e.args if self.is_const(a)]
+            series = sorted((a for a in e.args if not self.is_const(a)), key=sp.default_sort_key)
+            acc = self.node(series[0])
+            for a in series[1:]:
+                if a.is_Pow and a.exp == -1:
+                    acc = self.new("div", acc, self.node(a.base), cost=1.0)
+                else:
+                    acc = self.new("mul", acc, self.node(a), cost=1.0)
+            if consts:
+                c = sp.Mul(*consts)
+                acc = self.new("neg", acc) if c == -1 else self.new("scale", acc, self.const(c))
+            out = acc
+        elif e.is_Pow and e.exp.is_Integer:
+            n = int(e.exp)
+            if n < 0:
+                out = self.new("rdiv", ("c", "1.0"), self.node(e.base ** (-n)), cost=1.0)
+                self.memo[e] = out
+                return out
+            base = self.node(e.base)
+            acc, k = base, 1
+            while 2 * k <= n:  # repeated squaring, then products
+                acc = self.new("sqr", acc, cost=0.5)
+                k *= 2
+            while k < n:
+                acc = self.new("mul", acc, base, cost=1.0)
+                k += 1
+            out = acc
+        elif isinstance(e, (sp.sin, sp.cos)):
+            u = e.args[0]
+            key_s, key_c = sp.sin(u), sp.cos(u)
+            arg = self.node(u)
+            s = self.new("sincos", arg, cost=2.0)
+            c = ("s", s[1] + "c")
+            self.memo[key_s], self.memo[key_c] = s, c
+            return self.memo[e]
+        elif isinstance(e, sp.atan):
+            arg = self.node(e.args[0])
+            out = self.new("atan", arg, cost=2.5)
+        else:
+            raise ValueError(f"taylor kernel: no series recurrence for {e.func.__name__} (in {e})")
+        self.memo[e] = out
+        return out
+
+
+def _build(ex, expand: bool):
+    s = SYMBOLS
+    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
+    f = [ex.f[0], ex.f[1]]
+    Q = [ex.Q[0], ex.Q[1]]
+    main = M + f
+    if expand:
+        main = [sp.expand(sp.expand_trig(e)) if e.free_symbols & {s["phi"], s["psi"]} else sp.expand(e) for e in main]
+    g = _Graph()
+    # common subexpressions first (their products shared), then each as one series node
+    repl, reduced = sp.cse(main, symbols=sp.numbered_symbols("z"), optimizations="basic")
+    for sym, e in repl:
+        g.define(sym, e)
+    main_nodes = [g.node(e) for e in reduced]
+    n_main = len(g.ops)
+    work_nodes = [g.node(e) for e in Q]
+    return g, main_nodes, n_main, work_nodes
+
+
+def _graph(ex):
+    best = None
+    for expand in (False, True):
+        built = _build(ex, expand)
+        if best is None or built[0].cost < best[0].cost:
+            best = built
+    return best
+
+
+def _val(v, k: str) -> str:
+    return v[1] if v[0] == "c" else f"{v[1]}[{k}]"
+
+
+def _op_lines(op, order0: bool, I: str) -> List[str]:
+    """C for one operation at order 0 (``order0``) or at a general order ``k >= 1``."""
+    kind, t = op[0], op[1]
+    a: Tuple[str, str] = op[2] if len(op) > 2 else ("c", "0.0")
+    b: Tuple[str, str] = op[3] if len(op) > 3 else ("c", "0.0")
+    k = "0" if order0 else "k"
+
+    def at(v, idx=k):
+        return _val(v, idx)
+
+    if kind in ("add", "sub"):
+        sign = "+" if kind == "add" else "-"
+        if order0 or (a[0] == "s" and b[0] == "s"):
+            return [f"{I}{t}[{k}] = {at(a)} {sign} {at(b)};"]
+        if a[0] == "s":
+            return [f"{I}{t}[k] = {at(a)};"]
+        return [f"{I}{t}[k] = {'' if kind == 'add' else '-'}{at(b)};"]
+    if kind == "addc":
+        return [f"{I}{t}[0] = {at(a)} + {b[1]};"] if order0 else [f"{I}{t}[k] = {at(a)};"]
+    if kind == "neg":
+        return [f"{I}{t}[{k}] = -{at(a)};"]
+    if kind == "scale":
+        return [f"{I}{t}[{k}] = {b[1]} * {at(a)};"]
+    if kind == "mul":
+        if order0:
+            return [f"{I}{t}[0] = {at(a)} * {at(b)};"]
+        if a[0] == "c" or b[0] == "c":  # cannot happen (constants are folded), kept for safety
+            return [f"{I}{t}[k] = {at(a)} * {at(b)};"]
+        return [f"{I}{{ double acc = 0.0; for (int j = 0; j <= k; j++) acc += {a[1]}[j] * {b[1]}[k - j]; {t}[k] = acc; }}"]
+    if kind == "sqr":
+        if order0:
+            return [f"{I}{t}[0] = {at(a)} * {at(a)};"]
+        x = a[1]
+        return [f"{I}{{ double acc = 0.0; for (int j = 0; j < (k + 1) / 2; j++) acc += {x}[j] * {x}[k - j];",
+                f"{I}  acc += acc; if (!(k & 1)) acc += {x}[k / 2] * {x}[k / 2]; {t}[k] = acc; }}"]
+    if kind in ("div", "rdiv"):  # t = a / b: t[k] = (a[k] - sum_{j=1..k} b[j] t[k-j]) / b[0]
+        if order0:
+            return [f"{I}r{t} = 1.0 / {at(b)};", f"{I}{t}[0] = {at(a)} * r{t};"]
+        num = at(a) if a[0] == "s" else "0.0"
+        return [f"{I}{{ double acc = {num}; for (int j = 1; j <= k; j++) acc -= {b[1]}[j] * {t}[k - j]; {t}[k] = acc * r{t}; }}"]
+    if kind == "sincos":  # s' = c u', c' = -s u': k s[k] = sum_j j u[j] c[k-j]
+        c = t + "c"
+        if order0:
+            return [f"{I}{t}[0] = sin({at(a)});", f"{I}{c}[0] = cos({at(a)});"]
+        du = _derivative_of(a)
+        return [f"{I}{{ double as = 0.0, ac = 0.0; for (int j = 1; j <= k; j++) {{ const double d = {du('j')};",
+                f"{I}  as += d * {c}[k - j]; ac += d * {t}[k - j]; }} {t}[k] = as * inv[k]; {c}[k] = -ac * inv[k]; }}"]
+    if kind == "atan":  # t' (1 + u^2) = u': d = 1 + u^2, k t[k] d[0] = k u[k] - sum_{j=1..k-1} d[j] (k-j) t[k-j]
+        d = t + "d"
+        x = a[1]
+        if order0:
+            return [f"{I}{d}[0] = 1.0 + {at(a)} * {at(a)};", f"{I}r{t} = 1.0 / {d}[0];",
+                    f"{I}{t}[0] = atan({at(a)});"]
+        return [f"{I}{{ double acc = 0.0; for (int j = 0; j < (k + 1) / 2; j++) acc += {x}[j] * {x}[k - j];",
+                f"{I}  acc += acc; if (!(k & 1)) acc += {x}[k / 2] * {x}[k / 2]; {d}[k] = acc; }}",
+                f"{I}{{ double acc = {_derivative_of(a)('k')}; for (int j = 1; j < k; j++) acc -= {d}[j] * (double)(k - j) * {t}[k - j];",
+                f"{I}  {t}[k] = acc * r{t} * inv[k]; }}"]
+    raise AssertionError(kind)
+
+
+def _derivative_of(a):
+    """``j u[j]`` as C for the series ``u``: a state variable's derivative series where there is
+    one (``j phi[j] = dphi[j-1]``, exact), else the product."""
+    deriv = {"x[0]": "x[2]", "x[1]": "x[3]"}
+    if a[1] in deriv:
+        return lambda j: f"{deriv[a[1]]}[{j} - 1]"
+    return lambda j: f"(double)({j}) * {a[1]}[{j}]"
+
+
+def taylor_c_source(geometry: Parameters, ex=None) -> str:
+    """The model part of the Taylor kernel: ``SP_TAYLOR_NPC``, ``taylor_prepare(p, pc)`` (the
+    constants), ``taylor_jet(x, pc, order, work)`` (the coefficients 1 .. order of the state
+    ``x[SP_TN][SP_TPMAX + 2]`` from its coefficients 0), ``SP_TAYLOR_WORK_PARAMS`` (the parameters
+    ``Q`` depends on).  Raises ValueError for a function without a recurrence here."""
+    if ex is None:
+        ex = expressions(geometry)
+    g, main, n_main, work = _graph(ex)
+    M11, M12, M22, f1, f2 = main
+    Q1, Q2 = work
+    c = Lang("c", c_printer(), "const double ", ";")
+    I = "    "
+    npc = max(len(g.consts), 1)
+    out = ["/* ---- Taylor integrator: the model's series recurrences (generated, see taylor_source.py) ---- */",
+           f"#define SP_TN {SP_TN}", f"#define SP_TPMAX {SP_TPMAX}", f"#define SP_TAYLOR_NPC {npc}",
+           f"/* series products per order: {g.cost:g} (a square counts 1/2, sin/cos 2) */", ""]
+    # whether W needs integrating: the parameters Q depends on, and whether Q vanishes when they do
+    qparams = sorted(used_names([ex.Q[0], ex.Q[1]]) & set(PARAMETER_ORDER), key=PARAMETER_ORDER.index)
+    zero = {SYMBOLS[n]: 0 for n in qparams}
+    vanishes = all(sp.simplify(sp.sympify(e).xreplace(zero)) == 0 for e in ex.Q)
+    idx = [PARAMETER_ORDER.index(n) for n in qparams] if vanishes else []
+    out += ["/* W' = Q . q' needs integrating unless these parameters are all 0 (then Q = 0 identically) */",
+            "static int taylor_work(const double *p)", "{",
+            f"{I}return {' || '.join(f'p[{i}] != 0.0' for i in idx) if idx else '1'};", "}", ""]
+    out += ["/* the state-free subexpressions, once per call, into pc[SP_TAYLOR_NPC] */",
+            "static void taylor_prepare(const double *p, double *pc)", "{"]
+    out += param_lines(c, I, used_names(g.consts))
+    if g.consts:
+        block = cse_block(c, g.consts, [f"pc[{i}]" for i in range(len(g.consts))], I, prefix="w")
+        out += [ln.replace(f"{I}const double pc[", f"{I}pc[") for ln in block]
+    else:
+        out.append(f"{I}pc[0] = 0.0;")
+    out += ["}", ""]
+    names = [op[1] for op in g.ops]
+    extra = [op[1] + "c" for op in g.ops if op[0] == "sincos"] + [op[1] + "d" for op in g.ops if op[0] == "atan"]
+    L = "SP_TPMAX + 1"
+    out += ["/* coefficients 1 .. order of x[SP_TN] from x[i][0]: x[i][k + 1] = (x_i')[k] / (k + 1) */",
+            "static void taylor_jet(double (*restrict x)[SP_TPMAX + 2], const double *restrict pc, int order, int work)",
+            "{",
+            f"{I}static const double inv[SP_TPMAX + 2] = {{0.0, {', '.join(f'1.0 / {i}' for i in range(1, SP_TPMAX + 2))}}};",
+            f"{I}double {', '.join(f'{n}[{L}]' for n in names + extra + ['a1', 'a2'])};",
+            f"{I}(void)inv;"]
+    recips = [op[1] for op in g.ops if op[0] in ("div", "rdiv", "atan")]
+    if recips:
+        out.append(f"{I}double {', '.join(f'r{n} = 0.0' for n in recips)};")
+
+    def solve(order0: bool) -> List[str]:
+        k = "0" if order0 else "k"
+        if order0:
+            lines = [f"{I}const double m11 = {_val(M11, '0')}, m12 = {_val(M12, '0')}, m22 = {_val(M22, '0')};",
+                     f"{I}const double rdet = 1.0 / (m11 * m22 - m12 * m12);",
+                     f"{I}const double r1 = {_val(f1, '0')}, r2 = {_val(f2, '0')};"]
+        else:
+            terms1 = [(M11, "a1"), (M12, "a2")]
+            terms2 = [(M12, "a1"), (M22, "a2")]
+            sums = []
+            for name, terms in (("r1", terms1), ("r2", terms2)):
+                series = [(m, a) for m, a in terms if m[0] == "s"]
+                body = " + ".join(f"{m[1]}[j] * {a}[k - j]" for m, a in series)
+                sums.append(f"{I}double {name} = {_val(f1 if name == 'r1' else f2, 'k')};" if not series else
+                            f"{I}double {name} = {_val(f1 if name == 'r1' else f2, 'k')}; "
+                            f"for (int j = 1; j <= k; j++) {name} -= {body};")
+            lines = sums
+        lines += [f"{I}a1[{k}] = (m22 * r1 - m12 * r2) * rdet;", f"{I}a2[{k}] = (m11 * r2 - m12 * r1) * rdet;",
+                  f"{I}x[0][{k} + 1] = x[2][{k}] * inv[{k} + 1];", f"{I}x[1][{k} + 1] = x[3][{k}] * inv[{k} + 1];",
+                  f"{I}x[2][{k} + 1] = a1[{k}] * inv[{k} + 1];", f"{I}x[3][{k} + 1] = a2[{k}] * inv[{k} + 1];"]
+        return lines
+
+    def work_lines(order0: bool) -> List[str]:
+        k = "0" if order0 else "k"
+        lines = []
+        for op in g.ops[n_main:]:
+            lines += _op_lines(op, order0, I + "    ")
+        w = []
+        for q, v in ((Q1, "x[2]"), (Q2, "x[3]")):
+            if q[0] == "c":
+                w.append(f"{q[1]} * {v}[{k}]")
+            elif order0:
+                w.append(f"{q[1]}[0] * {v}[0]")
+            else:
+                w.append(f"wq{v[2]}")
+        pre = []
+        if not order0:
+            for q, v in ((Q1, "x[2]"), (Q2, "x[3]")):
+                if q[0] == "s":
+                    pre.append(f"{I}    double wq{v[2]} = 0.0; for (int j = 0; j <= k; j++) wq{v[2]} += {q[1]}[j] * {v}[k - j];")
+        return [f"{I}if (work) {{"] + lines + pre + [f"{I}    x[4][{k} + 1] = ({' + '.join(w)}) * inv[{k} + 1];", f"{I}}} else {{",
+                                                     f"{I}    x[4][{k} + 1] = 0.0;", f"{I}}}"]
+
+    out += ["", f"{I}/* order 0 */"]
+    for op in g.ops[:n_main]:
+        out += _op_lines(op, True, I)
+    out += solve(True) + work_lines(True)
+    out += ["", f"{I}/* orders 1 .. order - 1 */", f"{I}for (int k = 1; k < order; k++) {{"]
+    J = I + "    "
+    for op in g.ops[:n_main]:
+        out += [J + ln[len(I):] if ln.startswith(I) else ln for ln in _op_lines(op, False, I)]
+    out += [J + ln[len(I):] for ln in solve(False) + work_lines(False)]
+    out += [f"{I}}}", "}", ""]
+    return "\n".join(out) + "\n"
