@@ -32,6 +32,22 @@ phi, psi, dphi, dpsi, alpha = (S[n] for n in ("phi", "psi", "dphi", "dpsi", "alp
 MB = 1_000_000
 #: Small settings for the variants (the default report is built once, with its defaults).
 SMALL = dict(t_end=3.0, clip_seconds=1.0, fps=10.0, clip_size=(160, 120), sweep_points=19)
+#: The numeric sections; each whole report runs them all (~10 s): the default report below, and the
+#: README's `skewpend report` examples (default, damped, a general body: tests/test_readme.py) and the
+#: browser's two reports (tests/test_report_browser.py) build every section of those cases end to end.
+NUMERIC_SECTIONS = ("section_simulation", "section_system", "section_modes", "section_flipmap", "section_orbits",
+                    "section_validation", "section_chaos")
+
+
+def only_sections(monkeypatch, *keep):
+    """Replace every numeric section but ``keep`` with a stub: a variant test builds what it checks."""
+    for name in NUMERIC_SECTIONS:
+        if name not in keep:
+            monkeypatch.setattr(R, name, lambda ctx, name=name: f"<p>{name}: not under test</p>")
+    if "section_chaos" not in keep:
+        monkeypatch.setattr(R, "chaos_jobs", lambda ctx: {})
+    if "section_simulation" not in keep:
+        monkeypatch.setattr(R, "live_figure", lambda ctx: "")
 
 
 # -- display forms -------------------------------------------------------------------------------
@@ -231,7 +247,8 @@ def test_the_live_view_replays_the_simulated_motion(default_report):
     assert data["size"] == max(p.a, p.b)
 
 
-def test_report_returns_html_without_out():
+def test_report_returns_html_without_out(monkeypatch):
+    only_sections(monkeypatch, "section_modes", "section_system", "section_simulation")  # 1 draws 5's motion
     page = R.build_report(Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=math.radians(30), g=9.81, c1=0.05), **SMALL)
     assert isinstance(page, str) and page.startswith("<!DOCTYPE html>")
     modes = _section(page, "modes")
@@ -239,7 +256,8 @@ def test_report_returns_html_without_out():
     assert "30°" in _section(page, "system")
 
 
-def test_general_bodies_say_why_there_is_no_sweep(tmp_path):
+def test_general_bodies_say_why_there_is_no_sweep(tmp_path, monkeypatch):
+    only_sections(monkeypatch, "section_modes")
     p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, g=9.81, axis2=(1, 0, 1), com2=(0, 0.4, 0),
                    inertia2=((0.02, 0, 0), (0, 0.001, 0), (0, 0, 0.02)))
     page = R.build_report(p, out=tmp_path / "general.html", **SMALL).read_text(encoding="utf-8")
@@ -252,21 +270,10 @@ def test_general_bodies_say_why_there_is_no_sweep(tmp_path):
 def test_without_mujoco_the_report_says_how_to_get_it(monkeypatch):
     monkeypatch.setattr(R.analyses, "mujoco_installed", lambda: False)
     monkeypatch.setattr(R, "PARALLEL", False)  # the serial path too
+    only_sections(monkeypatch, "section_validation")
     page = R.build_report(**SMALL)
     validation = _section(page, "validation")
     assert "MuJoCo is not installed" in validation and "skewpend[validate]" in validation
-
-
-def test_parallel_and_serial_symbolic_sections_agree():
-    params = Parameters(**R.DEFAULT_PARAMETERS)
-    background = R._Background.start(params)
-    try:
-        serial = R._symbolic_sections(params)
-        parallel = background.result()
-    finally:
-        background.stop()
-    assert parallel is not None, background.error
-    assert parallel["bodies"] == serial["bodies"] and parallel["notes"] == serial["notes"]
 
 
 @pytest.mark.parametrize(
@@ -307,6 +314,7 @@ def test_written_atomically(tmp_path, monkeypatch):
     def boom(ctx):
         raise RuntimeError("boom")
 
+    only_sections(monkeypatch, "section_modes")  # sections computed before the failure, as in a report
     monkeypatch.setattr(R, "section_validation", boom)
     with pytest.raises(RuntimeError):
         R.build_report(out=out, **SMALL)
@@ -489,7 +497,8 @@ def test_report_orbits_section(default_report):
 def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monkeypatch):
     """Sections 2 and 3 are kept in the cache directory under a key of the parameters, the version
     and skewpend's own code: a second report with the same parameters reads them (the same HTML),
-    other parameters or other code miss, and a damaged entry is computed again."""
+    other parameters or other code miss, and a damaged entry is computed again.  The first report
+    computes them in a second process, the last one in this process: the two agree."""
     from skewpend.numeric.kernels import cache_dir
     from skewpend.views.report import cache
 
@@ -501,17 +510,13 @@ def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monke
     (tmp_path / "cache" / "kernels").symlink_to(kernels, target_is_directory=True)
     monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "cache"))
 
-    def numeric_sections_stubbed():  # what is under test is sections 2 and 3; the others take ~20 s a report
-        for name in ("section_simulation", "section_system", "section_modes", "section_flipmap", "section_orbits",
-                     "section_validation", "section_chaos"):
-            monkeypatch.setattr(R, name, lambda ctx, name=name: f"<p>{name}: not under test</p>")
-        monkeypatch.setattr(R, "chaos_jobs", lambda ctx: {})
-        monkeypatch.setattr(R, "live_figure", lambda ctx: "")
+    def numeric_sections_stubbed():  # what is under test is sections 2 and 3
+        only_sections(monkeypatch)
 
     numeric_sections_stubbed()
     p = Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=math.radians(30), g=9.81)
     first = R.build_report(p, **SMALL)
-    assert "read from the cache" not in first
+    assert "read from the cache" not in first and "in a second process" in first
     entry = tmp_path / "cache" / "report-sections" / f"{cache.key(p)}.json"
     assert entry.is_file()
     second = R.build_report(p, **SMALL)
@@ -528,6 +533,10 @@ def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monke
     assert cache.load(p) is None
     entry.write_text("not json")
     assert cache.load(p) is None
+    # computed again, in this process this time: the serial path gives what the second process gave
+    monkeypatch.setattr(R, "PARALLEL", False)
     third = R.build_report(p, **SMALL)
-    assert "read from the cache" not in third and _section(third, "derivation") == _section(first, "derivation")
+    assert "read from the cache" not in third and "in a second process" not in third
+    for key in ("derivation", "check"):
+        assert _section(third, key) == _section(first, key)
     assert cache.load(p) is not None  # and stored again
