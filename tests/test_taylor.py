@@ -1,0 +1,119 @@
+"""simulate(method="taylor"): the Taylor series integrator generated from the derivation (issue 28).
+
+Tolerances follow from the method: with Jorba-Zou's order and step rule the local error per step is
+about tol (relative to max(1, |y|)) and every step is accepted, so over a few hundred steps of
+non-chaotic motion the global error stays within a few hundred tol; against another integrator run
+at 1e-13 the difference is bounded by the sum of both errors.
+"""
+
+import ctypes
+import math
+
+import numpy as np
+import pytest
+
+from skewpend import Parameters, simulate
+from skewpend.errors import ParameterError
+
+P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+Y0 = (0.7, -0.4, 0.3, -0.2)  # a regular (non-chaotic) swing: errors are not amplified by 1e4 per 5 s
+
+
+def test_agrees_with_dop853_and_with_scipy_on_the_generated_python_rhs():
+    scipy = pytest.importorskip("scipy.integrate")
+    from skewpend.numeric.codegen import generate, parameter_vector
+
+    tr = simulate(P, Y0, 2.0, method="taylor", rtol=1e-13, atol=1e-13)
+    assert tr.ok and tr.stats["rejected"] == 0 and tr.stats["order"] == 16
+    ref = simulate(P, Y0, 2.0, method="dop853", rtol=1e-13, atol=1e-13)
+    assert np.max(np.abs(tr.y[-1] - ref.y[-1])) < 1e-10
+    ns: dict = {}
+    exec(generate(P, "python"), ns)
+    sol = scipy.solve_ivp(ns["rhs"], (0.0, 2.0), Y0, method="DOP853", rtol=1e-13, atol=1e-13,
+                          args=(parameter_vector(P).tolist(),))
+    assert np.max(np.abs(tr.y[-1] - sol.y[:, -1])) < 1e-10
+
+
+def test_error_falls_with_the_tolerance_and_energy_is_conserved():
+    ref = simulate(P, Y0, 5.0, method="dop853", rtol=1e-14, atol=1e-14).y[-1]
+    errors = []
+    for tol in (1e-5, 1e-7, 1e-9, 1e-11):
+        tr = simulate(P, Y0, 5.0, method="taylor", rtol=tol, atol=tol)
+        err = float(np.max(np.abs(tr.y[-1] - ref)))
+        errors.append(err)
+        assert err < 300 * tol, (tol, err)
+        assert tr.energy_drift < 300 * tol, (tol, tr.energy_drift)  # undamped: E - W = E - 0 conserved
+        assert np.all(tr.work == 0.0)  # W is not integrated without damping or torques
+    # roughly proportional: each 100-fold tighter tolerance gains at least a factor 10 (until 1e-13)
+    for loose, tight in zip(errors, errors[1:]):
+        assert tight < loose / 10 or tight < 1e-12, errors
+
+
+def test_mirror_start_gives_the_mirrored_trajectory():
+    a = simulate(P, Y0, 3.0, method="taylor", rtol=1e-10, atol=1e-10)
+    b = simulate(P, tuple(-v for v in Y0), 3.0, method="taylor", rtol=1e-10, atol=1e-10)
+    assert a.t.shape == b.t.shape and np.array_equal(a.t, b.t)  # the same steps
+    np.testing.assert_allclose(b.y, -a.y, rtol=0, atol=1e-13)
+
+
+def test_damped_driven_model_energy_account_and_friction():
+    Pd = P.replace(c1=0.05, c2=0.02, tau1=0.1, tau2=-0.05)
+    tr = simulate(Pd, Y0, 5.0, method="taylor", rtol=1e-12, atol=1e-12)
+    assert tr.ok and tr.energy_drift < 1e-10
+    assert tr.work[-1] != 0.0  # the damping and the torques did work, and E - W was conserved
+    ref = simulate(Pd, Y0, 5.0, method="dop853", rtol=1e-13, atol=1e-13)
+    assert np.max(np.abs(tr.y[-1] - ref.y[-1])) < 1e-9
+    assert abs(tr.work[-1] - ref.work[-1]) < 1e-9
+    # Coulomb friction: -cf atan(cfs q'), whose recurrence is generated too
+    Pf = P.replace(cf1=0.02, cf2=0.01, cfs=20.0)
+    tr = simulate(Pf, Y0, 2.0, method="taylor", rtol=1e-12, atol=1e-12)
+    ref = simulate(Pf, Y0, 2.0, method="dop853", rtol=1e-13, atol=1e-13)
+    assert tr.ok and np.max(np.abs(tr.y[-1] - ref.y[-1])) < 1e-9
+    assert tr.energy_drift < 1e-10
+
+
+def test_dense_output_agrees_with_the_steps():
+    steps = simulate(P, Y0, 2.0, method="taylor", rtol=1e-11, atol=1e-11)
+    grid = simulate(P, Y0, 2.0, method="taylor", rtol=1e-11, atol=1e-11, dt_out=0.01)
+    assert len(grid.t) == 201 and grid.t[-1] == 2.0
+    assert np.array_equal(grid.y[-1], steps.y[-1])  # the same steps: the end state is bit for bit the same
+    assert np.array_equal(grid.y[0], steps.y[0])
+    # between the steps: the polynomial agrees with a tight DOP853 dense output on the same grid
+    ref = simulate(P, Y0, 2.0, method="dop853", rtol=1e-13, atol=1e-13, dt_out=0.01)
+    assert np.max(np.abs(grid.y - ref.y)) < 1e-9
+
+
+def test_results_do_not_depend_on_the_chunking():
+    from skewpend.numeric.kernels import TaylorState, kernel_module, parameter_vector
+
+    kernel = kernel_module(P, taylor=True)
+    p = parameter_vector(P)
+    dp = ctypes.POINTER(ctypes.c_double)
+
+    def run(budget, cap):
+        s = TaylorState.at(0.0, list(Y0) + [0.0])
+        rows = np.empty((cap, 6))
+        out, m, k = [], ctypes.c_int64(0), ctypes.c_int64(0)
+        while True:
+            rc = kernel.lib.sp_taylor(ctypes.byref(s), p.ctypes.data_as(dp), 1.0, 1e-10, 1e-10, 10**6, budget, 0.05,
+                                      21, ctypes.byref(k), rows.ctypes.data_as(dp), cap, ctypes.byref(m))
+            out.append(rows[: m.value].copy())
+            if rc >= 0:
+                return rc, np.concatenate(out)
+
+    rc1, a = run(10**6, 1000)
+    rc2, b = run(1, 2)
+    assert rc1 == rc2 == 0 and a.shape == (21, 6) and np.array_equal(a, b)
+
+
+def test_refusals():
+    with pytest.raises(ParameterError, match="dt is the step of rk4 and gauss; taylor"):
+        simulate(P, Y0, 1.0, method="taylor", dt=1e-3)
+    with pytest.raises(ParameterError, match="rtol is a tolerance of dop853 and taylor"):
+        simulate(P, Y0, 1.0, method="rk4", rtol=1e-6)
+    from skewpend.numeric.control import Controller
+
+    with pytest.raises(ParameterError, match="taylor"):
+        simulate(P, Y0, 1.0, method="taylor", controller=Controller.function(lambda t, y: (0.0, 0.0)))
+    tr = simulate(P, Y0, 10.0, method="taylor", max_steps=5)  # refused up front or stopped at the cap
+    assert not tr.ok and tr.stats["steps"] <= 5 and math.isfinite(tr.y[-1, 0])
