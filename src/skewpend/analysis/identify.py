@@ -35,8 +35,8 @@ non-success status instead of a model.
 Held-out prediction: each validation piece is simulated with the fitted model (and with
 ``params0``, for comparison) from its first measured state over its duration; the RMS of the angle
 error over both angles ``(phi, psi)`` and all samples is reported per piece and overall.  Pieces
-with measured torques are not simulated in this version (their inputs vary); their held-out error
-is the RMS of the torque prediction ``Y_b beta - tau`` [N m].
+with measured torques are simulated with those torques (linear between the samples); to predict
+over a fixed horizon, cut the held-out pieces first (:meth:`~skewpend.Measurements.cut`).
 
 Status: :attr:`~skewpend.Status.SUCCESS` when every step worked; :attr:`~skewpend.Status.NO_CONVERGENCE`
 with a one-line message when the data do not determine a parameter (rank-deficient) or the estimate
@@ -161,8 +161,8 @@ class Identification(Result):
       standard parameters that do not enter the equations;
     * ``pieces``, ``residual_rms`` (per fitting piece; N m, free swing in ``params0``'s scale);
     * ``validation``, ``heldout_rms`` (rad per validation piece, fitted model), ``heldout_rms0``
-      (``params0``), ``heldout_overall``, ``heldout_overall0``; ``heldout_kind`` ``"angle"`` or
-      ``"torque"`` per piece.
+      (``params0``), ``heldout_overall``, ``heldout_overall0``; ``heldout_kind`` ``"angle"`` per piece
+      (driven pieces are simulated with their measured torques).
     """
 
     params0: Parameters
@@ -835,14 +835,7 @@ def _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha,
     if validation is not None:
         for p in validation:
             vnames.append(p.name)
-            if p.u is not None:
-                _, q, dq, ddq, u, _, _ = _filtered(p, smoothing)
-                Y = B.regressor(q, dq, ddq, a, alpha, g)
-                kinds.append("torque")
-                hr.append(float(np.sqrt(np.mean((np.einsum("nij,j->ni", Y, values) - u) ** 2))))
-                hr0.append(float(np.sqrt(np.mean((np.einsum("nij,j->ni", Y, beta0) - u) ** 2))))
-                continue
-            kinds.append("angle")
+            kinds.append("angle")  # driven pieces too: simulated with their measured torques
             e1, e0 = _predict(fitted, p, smoothing), _predict(params0, p, smoothing)
             if e1 is None or e0 is None:
                 hr.append(math.nan)
@@ -990,7 +983,12 @@ def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.
         dq0 = savgol_filter(np.asarray(piece.q, float), w, ORDER, deriv=1, delta=piece.dt, axis=0)[0]
     y0 = [float(piece.q[0, 0]), float(piece.q[0, 1]), float(dq0[0]), float(dq0[1])]
     try:
-        tr = simulate(params, y0, float(t[-1]) + piece.dt, dt_out=piece.dt)
+        if piece.u is None:
+            tr = simulate(params, y0, float(t[-1]) + piece.dt, dt_out=piece.dt)
+        else:  # driven: the measured torques, linear between the samples
+            from ..numeric.control import Controller
+
+            tr = simulate(params, y0, float(t[-1]), controller=Controller.table(t, np.asarray(piece.u, float)))
     except Exception:  # noqa: BLE001 - any failure of one held-out simulation is reported in the status
         return None
     ts, ys = np.asarray(tr.t, float), np.asarray(tr.y, float)
@@ -1033,6 +1031,9 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
     for k in rows:
         pi[piv[k]] = values[k] - T[k, dep] @ pi[dep]
     changes: Dict[str, Any] = {"c1": float(pi[idx["c1"]]), "c2": float(pi[idx["c2"]])}
+    if project:  # damping, friction and rotor inertia >= 0
+        changes = {k: max(v, 0.0) for k, v in changes.items()}
+        extra = {k: max(v, 0.0) for k, v in extra.items()}
     pairs = list(zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))))
     for i in (1, 2):
         m = pi[idx[f"m{i}"]]

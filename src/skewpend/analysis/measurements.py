@@ -43,7 +43,7 @@ from ..errors import ParameterError
 
 __all__ = ["Measurements", "Piece", "Convention", "SKEWPEND", "convert", "convert_back",
            "MIN_SAMPLES", "GAP_FACTOR", "NONFINITE", "KAHEMAN_FILE", "KAHEMAN_PARAMETERS_FILE", "DFKI_COLUMNS",
-           "kaheman_published_parameters"]
+           "kaheman_published_parameters", "dfki_lab_parameters"]
 
 #: Fewest samples a piece may have.
 MIN_SAMPLES = 10
@@ -667,6 +667,30 @@ class Measurements:
             raise ParameterError(f"split: {how} leaves no piece to fit")
         return (self._with(fit, f"split: {how}"), self._with([self.pieces[i] for i in held], f"split: {how}"))
 
+    def cut(self, seconds: float) -> "Measurements":
+        """Every piece cut into consecutive pieces of about ``seconds`` each (a piece's duration
+        divided into ``round(duration / seconds)`` equal parts, at least one; neighbours share their
+        boundary sample), named ``"NAME [k]"``.  Used for held-out prediction over a fixed horizon:
+        each part is simulated from its own first measured state."""
+        from ..checks import positive
+
+        seconds = positive("seconds", seconds, cap=1e6)
+        out = []
+        for p in self.pieces:
+            count = max(1, int(round(p.duration / seconds)))
+            if count == 1:
+                out.append(p)
+                continue
+            edges = np.searchsorted(p.t, p.t[0] + p.duration * np.arange(count + 1) / count)
+            edges[-1] = len(p) - 1
+            for k in range(count):
+                rows = slice(int(edges[k]), int(edges[k + 1]) + 1)
+                if rows.stop - rows.start >= MIN_SAMPLES:
+                    out.append(p._take(rows, name=f"{p.name} [{k}]"))
+        if not out:
+            raise ParameterError(f"cut({seconds:g}) leaves no piece of {MIN_SAMPLES} samples or more")
+        return self._with(out, f"cut into pieces of about {seconds:g} s")
+
     # -- readers -------------------------------------------------------------------------------------
     @classmethod
     def from_arrays(cls, pieces: Sequence[Mapping[str, Any]], *, convention: Convention = SKEWPEND,
@@ -961,3 +985,44 @@ def kaheman_published_parameters(path):
     m1, m2, a1, a2, L1, I1, I2, k1, k2, g = (float(x) for x in values)
     return Parameters(a=L1, b=2 * a2, m1=m1, m2=m2, alpha=0, g=g, c1=k1, c2=k2, com1=(0, a1, 0), com2=(0, a2, 0),
                       inertia1=((I1, 0, 0), (0, 0, 0), (0, 0, I1)), inertia2=((I2, 0, 0), (0, 0, 0), (0, 0, I2)))
+
+
+def dfki_lab_parameters(path):
+    """One of the DFKI lab's identified models of its rig (``model_*_parameters.yml``: ``m1, m2, l1,
+    l2, r1, r2``, ``I1, I2`` about the joints, ``Ir``, ``gr``, ``b1, b2``, ``cf1, cf2``, ``g``; ``path``
+    that file) in skewpend's terms: ``a = l1``, ``b = l2``, centres of mass ``(0, r, 0)``, inertias
+    about them ``I - m r^2`` (about ``k`` and ``i``), ``c = b``, Coulomb friction ``cf`` at ``cfs = 100``
+    (the lab's ``atan(100 q')``), the rotor ``Ir`` at ``gr = -gr_lab`` (the lab's cross term ``-gr Ir``
+    is a rotor turning against the joint; see the guide), ``alpha = 0``.
+
+    Only the base parameters enter the equations (``I1 + m2 l1^2``, ``m1 r1 + m2 l1``, ``I2``,
+    ``m2 r2``, ...).  Where the lab's own split is not a physical body (model 3.0: ``I2 < m2 r2^2``, a
+    negative inertia about the centre of mass) the masses are raised until it is (each body's inertia
+    about its centre of mass then a fifth of its inertia about the joint), keeping every base
+    parameter: the model moves exactly as the lab's."""
+    from ..symbolic.model import Parameters
+
+    path = Path(path)
+    values: Dict[str, float] = {}
+    for line in path.read_text(encoding="utf-8").splitlines():
+        key, sep, value = line.partition(":")
+        if sep and key.strip():
+            try:
+                values[key.strip()] = float(value)
+            except ValueError:
+                raise ParameterError(f"{path}: {key.strip()} is not a number: {value.strip()!r}") from None
+    need = ("m1", "m2", "l1", "l2", "r1", "r2", "I1", "I2", "Ir", "gr", "b1", "b2", "cf1", "cf2", "g")
+    missing = [k for k in need if k not in values]
+    if missing:
+        raise ParameterError(f"{path}: missing {', '.join(missing)} (a DFKI model_*_parameters.yml has them all)")
+    v = values
+    l1 = v["l1"]
+    J1, h1, J2, h2 = v["I1"] + v["m2"] * l1**2, v["m1"] * v["r1"] + v["m2"] * l1, v["I2"], v["m2"] * v["r2"]
+    m2 = v["m2"] if J2 > h2**2 / v["m2"] else 1.25 * h2**2 / J2
+    I1j, m1r1 = J1 - m2 * l1**2, h1 - m2 * l1
+    m1 = v["m1"] if I1j > m1r1**2 / v["m1"] else 1.25 * m1r1**2 / I1j
+    r1, r2 = m1r1 / m1, h2 / m2
+    I1c, I2c = I1j - m1 * r1**2, J2 - m2 * r2**2
+    return Parameters(a=l1, b=v["l2"], m1=m1, m2=m2, alpha=0.0, g=v["g"], com1=(0, r1, 0), com2=(0, r2, 0),
+                      inertia1=((I1c, 0, 0), (0, 0, 0), (0, 0, I1c)), inertia2=((I2c, 0, 0), (0, 0, 0), (0, 0, I2c)),
+                      c1=v["b1"], c2=v["b2"], cf1=v["cf1"], cf2=v["cf2"], cfs=100.0, Ir=v["Ir"], gr=-v["gr"])

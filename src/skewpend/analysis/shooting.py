@@ -45,7 +45,7 @@ import sympy as sp
 from ..errors import ParameterError
 from ..symbolic.symbols import SYMBOLS
 
-__all__ = ["SEGMENT", "STEP", "FLAT", "ShootingFit", "Segments", "segments", "fit"]
+__all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit"]
 
 #: Default length of a shooting segment [s].
 SEGMENT = 0.5
@@ -295,6 +295,43 @@ def _reduce(Hll, Hlg, Hgg, gl, gg, lam):
     return Sred, gred, Ainv, AinvB
 
 
+#: Converged when the undamped Gauss-Newton step, or each of the last :data:`STALLED` accepted steps,
+#: moves every free parameter by less than this fraction of the half-width of its 95 % interval (the
+#: cluster-robust sandwich reported, see the module).
+STEP_HALF = 0.02
+#: Accepted steps in a row below :data:`STEP_HALF` of every half-width that end the iteration.
+STALLED = 3
+
+
+def _halves(Hll, Hlg, Hgg, gl, gg, owner: np.ndarray, pieces: int):
+    """The undamped Gauss-Newton step from here and the 95 % half-widths of the sandwich over pieces
+    (as reported at the end); None where they are not defined.
+
+    Why a stopping rule on this scale: on real data the residuals are mostly model error and the
+    Gauss-Newton model of the cost holds in a small region only (Coulomb friction's ``atan(cfs q')``
+    makes the angles' response to the parameters strongly nonlinear), so Levenberg-Marquardt creeps
+    towards the optimum with the relative fall of the cost above any fixed tolerance for many
+    iterations, long after the parameters stopped moving on the scale of what the data determine."""
+    p = Hgg.shape[1]
+    if p == 0 or pieces < 2:
+        return None
+    try:
+        Sred, gred, _, _ = _reduce(Hll, Hlg, Hgg, gl, gg, 0.0)
+        Sinv = np.linalg.inv(Sred.sum(0))
+    except np.linalg.LinAlgError:
+        return None
+    step = -Sinv @ gred.sum(0)
+    gc = np.zeros((pieces, p))
+    np.add.at(gc, owner, gred)
+    var = np.diag(Sinv @ (gc.T @ gc * pieces / (pieces - 1)) @ Sinv)
+    from scipy.stats import t as student_t
+
+    half = float(student_t.ppf(0.975, pieces - 1)) * np.sqrt(np.maximum(var, 0.0))
+    if not (np.all(np.isfinite(step)) and np.all(np.isfinite(half)) and np.all(half > 0)):
+        return None
+    return step, half
+
+
 @dataclass
 class ShootingFit:
     """What :func:`fit` returns (the caller turns it into an :class:`~skewpend.Identification`)."""
@@ -348,7 +385,7 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
     cost = float(np.sum(e**2))
     if not math.isfinite(cost):
         raise FloatingPointError("the start model's simulation is not finite")
-    converged, it, message = False, 0, ""
+    converged, it, message, stalled = False, 0, "", 0
     for it in range(1, max_iterations + 1):
         accepted = False
         while lam < 1e12:
@@ -387,6 +424,13 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
         if rel < tol or step_small:
             converged, message = True, "converged"
             break
+        sh = _halves(Hll, Hlg, Hgg, gl, gg, seg.piece, pieces)
+        if sh is not None:
+            stalled = stalled + 1 if np.all(np.abs(dg) <= STEP_HALF * sh[1]) else 0
+            if np.all(np.abs(sh[0]) <= STEP_HALF * sh[1]) or stalled >= STALLED:
+                converged, message = True, (f"converged (the {'next step is' if stalled < STALLED else 'last steps are'} "
+                                            f"below {100 * STEP_HALF:g} % of every parameter's 95 % interval)")
+                break
     else:
         message = f"not converged in {max_iterations} iterations"
 
