@@ -84,19 +84,19 @@ def test_dense_output_agrees_with_the_steps():
 
 
 def test_results_do_not_depend_on_the_chunking():
-    from skewpend.numeric.kernels import TaylorState, kernel_module, parameter_vector
+    from skewpend.numeric.kernels import TaylorState, parameter_vector, taylor_kernel
+    from skewpend.numeric.taylor_source import taylor_order
 
-    kernel = kernel_module(P, taylor=True)
+    kernel = taylor_kernel(P, taylor_order(1e-10))
     p = parameter_vector(P)
-    dp = ctypes.POINTER(ctypes.c_double)
 
     def run(budget, cap):
         s = TaylorState.at(0.0, list(Y0) + [0.0])
         rows = np.empty((cap, 6))
         out, m, k = [], ctypes.c_int64(0), ctypes.c_int64(0)
         while True:
-            rc = kernel.lib.sp_taylor(ctypes.byref(s), p.ctypes.data_as(dp), 1.0, 1e-10, 1e-10, 10**6, budget, 0.05,
-                                      21, ctypes.byref(k), rows.ctypes.data_as(dp), cap, ctypes.byref(m))
+            rc = kernel.lib.sp_taylor(ctypes.addressof(s), p.ctypes.data, 1.0, 1e-10, 1e-10, 10**6, budget, 0.05, 21,
+                                      ctypes.byref(k), rows.ctypes.data, cap, ctypes.byref(m))
             out.append(rows[: m.value].copy())
             if rc >= 0:
                 return rc, np.concatenate(out)

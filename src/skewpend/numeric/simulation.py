@@ -400,13 +400,15 @@ def simulate(
     if controller is not None:
         settings["controller"] = controller.settings()
 
+    kernel = kernel_module(params)
     if method == "taylor":
+        from .kernels import taylor_kernel
+        from .taylor_source import taylor_order
+
         try:
-            kernel = kernel_module(params, taylor=True)
+            tk = taylor_kernel(params, taylor_order(float(rtol or 0.0)))
         except ValueError as exc:  # a function in the equations without a series recurrence
             raise ParameterError(f"method taylor: {exc}; use dop853") from None
-    else:
-        kernel = kernel_module(params)
     p = parameter_vector(params)
     y5 = np.append(y, 0.0)
     check_start(kernel, p, y)
@@ -444,8 +446,9 @@ def simulate(
             return lib.sp_rk4_ctl(cref, sref, n, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS,
                                   ctypes.byref(m))
         if method == "taylor":
-            return lib.sp_taylor(sref, p_ptr, t_end, rtol, atol, max_steps, budget, dt_out or 0.0, n_grid,
-                                 ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
+            return tk.lib.sp_taylor(ctypes.addressof(state), p.ctypes.data, t_end, rtol, atol, max_steps, budget,
+                                    dt_out or 0.0, n_grid, ctypes.byref(k_out), rows.ctypes.data, _CHUNK_ROWS,
+                                    ctypes.byref(m))
         if method == "dop853":
             return lib.sp_dop853(sref, 5, p_ptr, t_end, rtol, atol, max_steps, budget,
                                  dt_out or 0.0, n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
@@ -496,6 +499,9 @@ def simulate(
         }
         if method == "taylor":
             stats["order"] = int(state.order)
+            if tk.origin == "compiled":  # this process built the Taylor library of this order
+                stats["kernel"] = "compiled"
+                stats["kernel_build_time"] = kernel.build_time + tk.build_time
         drift = acc.err / acc.scale if acc.scale > 0 else acc.err
         message = status.message
         table = acc.table()

@@ -1,15 +1,31 @@
-/* skewpend Taylor integrator -- appended to the model code and integrators.c in the Taylor kernel.
+/* skewpend Taylor integrator -- appended to the generated recurrences of one order (taylor_source.py).
  *
- * Contract with taylor_source.py (generated, before this file): SP_TN (5: phi, psi, dphi, dpsi, W),
- * SP_TPMAX, SP_TAYLOR_NPC, taylor_work(p), taylor_prepare(p, pc) and taylor_jet(x, pc, order, work),
- * which fills the Taylor coefficients x[i][1 .. order] of the solution through x[i][0].
+ * Contract with taylor_source.py (generated, before this file): the SP_STATUS_* and SP_CALL_* codes,
+ * SP_TN (5: phi, psi, dphi, dpsi, W), SP_TPMAX, SP_TORDER (the order p of this library),
+ * SP_TAYLOR_NPC, taylor_work(p), taylor_prepare(p, pc) and taylor_jet(x, pc, work), which fills the
+ * Taylor coefficients x[i][1 .. p] of the solution through x[i][0].
  *
- * Order and step as Jorba & Zou (2005) and heyoka: order p = ceil(-ln(tol) / 2) + 1 with tol = rtol,
- * step h = rho * SP_TAYLOR_FAC(p), rho = min over m = p - 1, p of (scale / max_i |x_i[m]|)^(1/m),
+ * Order and step as Jorba & Zou (2005) and heyoka: the caller picks p = ceil(-ln(rtol) / 2) + 1;
+ * step h = rho exp(-2) exp(-0.7 / (p - 1)), rho = min over m = p - 1, p of (scale / max_i |x_i[m]|)^(1/m),
  * scale = max(atol / rtol, max_i |x_i[0]|) (heyoka's absolute / relative switch when atol = rtol).
  * Every step is accepted; the new state is the polynomial at h (Horner).  Dense output evaluates
- * the last step's polynomial.  Same resumable contract, rows and return codes as sp_dop853.
+ * the last step's polynomial.  Same resumable contract, rows and return codes as sp_dop853
+ * (integrators.c); results do not depend on how the work is split into calls.
  */
+
+static int tay_finite(const double *x, int n)
+{
+    for (int i = 0; i < n; i++)
+        if (!isfinite(x[i])) return 0;
+    return 1;
+}
+
+static void tay_row(double *rows, int64_t m, int n, double t, const double *y)
+{
+    double *r = rows + m * (n + 1);
+    r[0] = t;
+    memcpy(r + 1, y, (size_t)n * sizeof(double));
+}
 
 typedef struct {
     double t;                                /* current time */
@@ -21,11 +37,6 @@ typedef struct {
 } sp_taylor_state;
 
 int64_t sp_taylor_state_size(void) { return (int64_t)sizeof(sp_taylor_state); }
-
-/* the safety factor of the step: heyoka's exp(-2) exp(-0.7 / (p - 1)) times SP_TAYLOR_GAIN */
-#ifndef SP_TAYLOR_GAIN
-#define SP_TAYLOR_GAIN 1.0
-#endif
 
 static void taylor_eval(const double (*jet)[SP_TPMAX + 2], int order, int n, double h, double *out)
 {
@@ -46,18 +57,16 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
     *m_out = 0;
     if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0)) return SP_CALL_BAD_ARGUMENTS;
     taylor_prepare(p, pc);
-    int order = (int)ceil(-log(rtol) / 2.0) + 1;
-    if (order < 2) order = 2;
-    if (order > SP_TPMAX) order = SP_TPMAX;
-    const double fac = SP_TAYLOR_GAIN * exp(-2.0) * exp(-0.7 / (double)(order - 1));
+    const int order = SP_TORDER;
+    const double fac = exp(-2.0) * exp(-0.7 / (double)(order - 1));
     const double floor_scale = atol / rtol;
     const double e1 = 1.0 / (double)(order - 1), e2 = 1.0 / (double)order;
     if (!s->started) {
         s->started = 1;
         s->order = order;
         s->work = taylor_work(p);
-        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
-        if (!dense) put_row(rows, m++, n, s->t, s->y);
+        if (!tay_finite(s->y, n)) return SP_STATUS_NONFINITE;
+        if (!dense) tay_row(rows, m++, n, s->t, s->y);
     }
     const int nc = s->work ? n : n - 1; /* W is left out of the norms when it is not integrated */
     for (;;) {
@@ -72,7 +81,7 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
                     memcpy(r + 1, s->y, (size_t)n * sizeof(double));
                 } else {
                     taylor_eval((const double (*)[SP_TPMAX + 2])s->jet, (int)s->order, n, tk - s->told, r + 1);
-                    if (!all_finite(r + 1, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
+                    if (!tay_finite(r + 1, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
                 }
                 m++;
                 (*k_out)++;
@@ -84,7 +93,7 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         if (s->naccept >= max_steps) { *m_out = m; return SP_STATUS_MAX_STEPS; }
 
         for (int i = 0; i < n; i++) x[i][0] = s->y[i];
-        taylor_jet(x, pc, order, s->work);
+        taylor_jet(x, pc, s->work);
         s->nfev++;
         double big = 0.0, d1 = 0.0, d2 = 0.0;
         for (int i = 0; i < nc; i++) {
@@ -103,7 +112,7 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         if (h >= left) { h = left; last = 1; }
         if (!last && s->t + h == s->t) { *m_out = m; return SP_STATUS_STEP_UNDERFLOW; }
         taylor_eval((const double (*)[SP_TPMAX + 2])x, order, n, h, ynew);
-        if (!all_finite(ynew, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
+        if (!tay_finite(ynew, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
         s->naccept++;
         done++;
         s->dense_ok = 0;
@@ -115,6 +124,6 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         }
         s->t = last ? t_end : s->t + h;
         memcpy(s->y, ynew, (size_t)n * sizeof(double));
-        if (!dense) put_row(rows, m++, n, s->t, s->y);
+        if (!dense) tay_row(rows, m++, n, s->t, s->y);
     }
 }
