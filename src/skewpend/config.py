@@ -281,19 +281,23 @@ class Run:
             y0.append(value)
         return y0
 
-    def integration(self, methods: Iterable[str] = ("dop853", "rk4", "gauss")) -> Dict[str, Any]:
+    def integration(self, methods: Optional[Iterable[str]] = None) -> Dict[str, Any]:
         """The integrator settings (method, rtol, atol, dt, max_steps) that are set, checked
-        against each other: tolerances go with dop853, a step with rk4 and gauss; a method
-        outside ``methods`` is refused."""
-        methods = tuple(methods)
+        against each other: tolerances go with the adaptive methods (dop853, taylor), a step with
+        rk4 and gauss; a method outside ``methods`` (default: every method of ``simulate``) is
+        refused."""
+        from .numeric.simulation import ADAPTIVE, METHODS
+
+        methods = tuple(METHODS if methods is None else methods)
         method = self.values["simulation"].get("method", "dop853")
         if not isinstance(method, str) or method not in methods:
             raise UsageError(f"{self.option('simulation', 'method')}: expected {' or '.join(methods)}, got {method!r}")
         for key in ("rtol", "atol"):
-            if method != "dop853" and self.is_given("simulation", key):
-                raise UsageError(f"{self.option('simulation', key)} is a tolerance of dop853; {method} takes fixed steps (set --dt)")
-        if method == "dop853" and self.is_given("simulation", "dt"):
-            raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; dop853 chooses its own steps (set --rtol/--atol)")
+            if method not in ADAPTIVE and self.is_given("simulation", key):
+                raise UsageError(f"{self.option('simulation', key)} is a tolerance of {' and '.join(ADAPTIVE)}; {method} "
+                                 "takes fixed steps (set --dt)")
+        if method in ADAPTIVE and self.is_given("simulation", "dt"):
+            raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; {method} chooses its own steps (set --rtol/--atol)")
         out: Dict[str, Any] = {"method": method, **self.settings(("rtol", "atol", "dt"))}
         if self.values["simulation"].get("max_steps") is not None:
             from .checks import MAX_STEPS_LIMIT

@@ -20,6 +20,7 @@ import typer
 
 from . import types as T
 from ..checks import ATOL_MIN, RTOL_MIN
+from ..numeric.simulation import ADAPTIVE as _ADAPTIVE, METHODS as _METHODS
 
 _P = "Model parameters (a number, or 'sym' for symbolic; default symbolic)"
 _G = "General bodies and axes (default: the specification's thin rods)"
@@ -67,17 +68,15 @@ INITIAL: Dict[str, Any] = {
 }
 
 
-class Method(str, Enum):
-    dop853 = "dop853"
-    rk4 = "rk4"
-    gauss = "gauss"
+#: The integrators of ``simulate`` (the library's list: ``skewpend.numeric.simulation.METHODS``).
+Method = Enum("Method", {m: m for m in _METHODS}, type=str)  # type: ignore[misc]
 
 
 #: The integrator (simulate, animate, report).
 INTEGRATION: Dict[str, Any] = {
     "method": Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=RUN)],
-    "rtol": option("--rtol", T.Positive(at_least=RTOL_MIN), "relative tolerance, dop853 only (default 1e-10)"),
-    "atol": option("--atol", T.Positive(at_least=ATOL_MIN), "absolute tolerance, dop853 only (default 1e-10)"),
+    "rtol": option("--rtol", T.Positive(at_least=RTOL_MIN), f"relative tolerance, {' and '.join(_ADAPTIVE)} only (default 1e-10)"),
+    "atol": option("--atol", T.Positive(at_least=ATOL_MIN), f"absolute tolerance, {' and '.join(_ADAPTIVE)} only (default 1e-10)"),
     "dt": option("--dt", T.Positive("number of seconds"), "step [s], rk4 and gauss only (default 1e-3)"),
     "max_steps": option("--max-steps", T.Whole(1, 10**15), "refuse or stop a run that needs more steps (default 1e8)"),
 }
