@@ -132,12 +132,18 @@ class Page:
             self.page.click("#play")
         self.page.wait_for_function("() => !window.explorer.state().running")
 
-    def frames_drawn(self, count: int = 2):
-        """Returns once ``count`` more frames were drawn (the frame counter, not a fixed sleep)."""
-        done = self.state()["frames"] + count
+    def frames_drawn(self, count: int = 1):
+        """Returns once ``count`` more frames were drawn since the last ``set_slider`` (or since now), by
+        the frame counter, not a fixed sleep.  A paused page draws one frame after a change, which may
+        come before this is called: hence counted from the change."""
+        mark, self.mark = self.mark, None
+        done = (self.state()["frames"] if mark is None else mark) + count
         self.page.wait_for_function(f"() => window.explorer.state().frames >= {done}", timeout=30000)
 
+    mark = None
+
     def set_slider(self, key: str, value: float):
+        self.mark = self.state()["frames"]
         self.page.locator(f"#s-{key}").fill(str(value))
 
     def close(self):
@@ -182,6 +188,23 @@ def test_at_the_defaults_the_page_computes_what_the_library_does(opened):
     """The modes, the equations and the flip map of the page at its defaults (the module's page,
     before anything is changed) against the library's (the checks below)."""
     _check_page(opened, "")
+
+
+def test_a_paused_page_draws_only_after_a_change(opened):
+    """Paused, the page stops drawing (software WebGL drew 60 identical frames a second, over a core's
+    worth): across 20 animation frames no frame is drawn, and an input draws again."""
+    opened.pause()
+    quiet = opened.page.evaluate("""() => new Promise((done) => {
+        const rafs = (n, then) => n ? requestAnimationFrame(() => rafs(n - 1, then)) : then();
+        rafs(20, () => {  // the pause's own frame and the camera's settling drawn
+            const before = window.explorer.state().frames;
+            rafs(20, () => done([before, window.explorer.state().frames]));
+        });
+    })""")
+    assert quiet[0] == quiet[1], quiet
+    opened.set_slider("phi0", 25)
+    opened.frames_drawn()  # an input: drawn again (times out otherwise)
+    assert opened.state()["values"]["phi0"] == 25
 
 
 def test_alpha_slider_changes_the_drawing_and_the_equations(opened):
@@ -518,6 +541,7 @@ def test_at_an_address_the_page_computes_what_the_library_does(browser, site, qu
     gravity (GRAVITY_FREE) its console stays clean -- each check as its docstring above says."""
     p = Page(browser, site, query)
     try:
+        p.pause()  # no motion is checked here: a paused page draws nothing (and leaves the cores to the checks)
         _check_page(p, query)
     finally:
         p.close()

@@ -208,6 +208,12 @@ def test_the_live_view_draws_turns_and_replays_the_motion(opened, request):
     page.evaluate(f"{view}.show({frames // 2})")
     b = _canvas(page)
     assert np.abs(a - b).mean() > 0.05
+    # paused and left alone, nothing is drawn: across 20 animation frames, no render
+    quiet = page.evaluate(f"""() => new Promise((done) => {{
+        const rafs = (n, then) => n ? requestAnimationFrame(() => rafs(n - 1, then)) : then();
+        rafs(30, () => {{ const before = {view}.state().renders; rafs(20, () => done([before, {view}.state().renders])); }});
+    }})""")
+    assert quiet[0] == quiet[1], quiet
     # dragging turns the view (paused: the pendulum stays, the camera moves)
     box = page.locator("figure.live-view canvas").bounding_box()
     x, y = box["x"] + 0.8 * box["width"], box["y"] + 0.5 * box["height"]

@@ -45,6 +45,7 @@ function draw() {
 
 // ---- the motion ---------------------------------------------------------------------------------------
 function restart() {
+  invalidate();
   p = paramVector();
   y = [values.phi0 * DEG, values.psi0 * DEG, 0, 0];
   t = 0;
@@ -66,18 +67,29 @@ function advance(seconds) {
 }
 
 const frameMs = { total: 0, count: 0 }; // JavaScript time per frame (physics, scene update, plots)
+// Frames are drawn while the motion runs; paused, only after something that may change the picture (an
+// input or a pointer on the page, the camera moving or settling, a new size): a paused page costs no CPU
+// (software WebGL drew 60 frames a second of the same picture, over a core's worth).
+let dirty = true;
+function invalidate() { dirty = true; }
+for (const type of ["input", "change", "click", "pointerdown", "pointermove", "pointerup", "wheel", "keydown"]) {
+  document.addEventListener(type, invalidate, true);
+}
+window.addEventListener("resize", invalidate);
 function frame(stamp) {
   requestAnimationFrame(frame);
   const w0 = performance.now();
-  view.resize();
+  const resized = view.resize();
   const dtReal = lastStamp ? Math.min((stamp - lastStamp) / 1000, 0.05) : 0;
   lastStamp = stamp;
+  const turned = controls.update(); // true while the camera moves (its damping settling included)
+  if (!running && !dirty && !resized && !turned) return;
+  dirty = false;
   if (running && dtReal > 0) {
     advance(dtReal * speed);
     record();
     if (document.getElementById("trail").checked) { geometry(); view.pushTrail(); }
   }
-  controls.update();
   draw();
   frames++; fpsFrames++;
   if (stamp - fpsT0 > 500) { fps = (1000 * fpsFrames) / (stamp - fpsT0); fpsT0 = stamp; fpsFrames = 0; }
@@ -159,6 +171,7 @@ function notify(text) {
 }
 function setRunning(on) {
   running = on;
+  invalidate();
   const b = document.getElementById("play");
   b.textContent = on ? "Pause" : "Play";
   b.setAttribute("aria-pressed", on ? "true" : "false");

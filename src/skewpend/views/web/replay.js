@@ -55,9 +55,8 @@ function setup(figure) {
         shown = k;
       }
     }
-    view.controls.update();
-    view.render();
-    renders++;
+    view.controls.update(); // the camera's damping: a change marks the view for drawing
+    if (view.renderIfChanged()) renders++; // drawn only when something changed: paused, nothing
   }
   pose(0);
   requestAnimationFrame(tick);

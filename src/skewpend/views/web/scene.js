@@ -62,6 +62,10 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
   trailGeom.setDrawRange(0, 0);
   scene.add(new THREE.Line(trailGeom, new THREE.LineBasicMaterial({ color: 0xffb27a, transparent: true, opacity: 0.7 })));
   let trailCount = 0;
+  // something changed since the last render (a pose, the trail, the size, the camera): renderIfChanged()
+  // draws only then, so a paused view costs nothing (software WebGL drew the same picture 60 times a second)
+  let stale = true;
+  controls.addEventListener("change", () => { stale = true; });
 
   const view = {
     renderer, camera, controls, rods: { rod1, rod2, joint1, bob },
@@ -79,6 +83,7 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
       placeSegment(axis1, G.o.clone().addScaledVector(G.n1, -half), G.o.clone().addScaledVector(G.n1, half));
       placeSegment(axis2, G.t1.clone().addScaledVector(G.e, -half), G.t1.clone().addScaledVector(G.e, half));
       view.geometry = G;
+      stale = true;
       return G;
     },
     /** add the tip's current position to the trail */
@@ -90,19 +95,29 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
       trailPos[0] = G.t2.x; trailPos[1] = G.t2.y; trailPos[2] = G.t2.z;
       trailGeom.setDrawRange(0, trailCount);
       trailGeom.attributes.position.needsUpdate = true;
+      stale = true;
     },
-    clearTrail() { trailCount = 0; trailGeom.setDrawRange(0, 0); },
+    clearTrail() { trailCount = 0; trailGeom.setDrawRange(0, 0); stale = true; },
     get trailCount() { return trailCount; },
-    /** match the drawing buffer to the canvas's displayed size */
+    /** match the drawing buffer to the canvas's displayed size; true if it changed */
     resize() {
       const w = canvas.clientWidth, h = canvas.clientHeight, r = renderer.getPixelRatio();
       if (w > 0 && h > 0 && (canvas.width !== Math.floor(w * r) || canvas.height !== Math.floor(h * r))) {
         renderer.setSize(w, h, false);
         camera.aspect = w / h;
         camera.updateProjectionMatrix();
+        stale = true;
+        return true;
       }
+      return false;
     },
-    render() { renderer.render(scene, camera); },
+    render() { renderer.render(scene, camera); stale = false; },
+    /** render if anything changed since the last render; true if it drew */
+    renderIfChanged() {
+      if (!stale) return false;
+      view.render();
+      return true;
+    },
     /** free the WebGL context and the controls' listeners (a notebook cell re-run or removed) */
     dispose() {
       controls.dispose();

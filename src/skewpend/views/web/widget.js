@@ -246,8 +246,8 @@ export function render({ model, el }) {
         report(false);
       }
     }
-    view.controls.update();
-    view.render();
+    view.controls.update(); // the camera's damping: a change marks the view for drawing
+    view.renderIfChanged(); // drawn only when something changed: paused, nothing
     showHud();
   }
 
