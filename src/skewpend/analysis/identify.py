@@ -752,9 +752,8 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     alpha_fit = alpha_hat if alpha_free else alpha0
     unphysical, projected = "", ""
     try:
-        fitted = _realise(params0.replace(alpha=alpha_fit) if alpha_free else params0, B, values, a, alpha_fit, g,
-                          held=held)
-        projected = ""
+        fitted, projected = _realise_masses(params0.replace(alpha=alpha_fit) if alpha_free else params0, B, values, a,
+                                            alpha_fit, g, held=held)
     except ParameterError as exc:
         # a body on the edge of the physical (a slender rod: no moment about its own axis) may land a
         # little outside: the nearest physical body, accepted when it moves no base parameter both by
@@ -996,6 +995,41 @@ def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.
         return None
     sim = np.column_stack([np.interp(t, ts, ys[:, 0]), np.interp(t, ts, ys[:, 1])])
     return sim - np.asarray(piece.q, float)
+
+
+#: The factors both masses are raised by, in turn, where params0's cannot realise an estimate.
+MASS_FACTORS = (1.25, 1.5, 2.0, 3.0, 5.0)
+
+
+def _realise_masses(params0: Parameters, W, values: np.ndarray, a: float, alpha: float, g: float,
+                    held: Sequence[str] = ()) -> Tuple[Parameters, str]:
+    """:func:`_realise`; where ``params0``'s masses cannot realise the estimate (a body whose inertia
+    about its centre of mass would be negative: with a rod's first moment ``h`` and its inertia ``J``
+    about the joint fixed, that inertia is ``J - h^2 / m``), both masses raised by the first of
+    :data:`MASS_FACTORS` that can, every base parameter kept exactly (the masses themselves do not
+    enter the equations apart from those combinations).  Returns the model and a note ('' when
+    params0's masses did)."""
+    try:
+        return _realise(params0, W, values, a, alpha, g, held=held), ""
+    except ParameterError as exc:
+        first = exc
+    B = W.B if isinstance(W, _Terms) else W
+    if any(n in ("m1", "m2") for n in B.names):  # a mass is itself determined: it cannot be chosen
+        raise first
+    for k in MASS_FACTORS:
+        try:
+            p = _realise(params0.replace(m1=k * float(params0.m1), m2=k * float(params0.m2)), W, values, a, alpha, g,
+                         held=held)
+        except ParameterError:
+            continue
+        keep = [j for j, n in enumerate(W.names) if n not in held]
+        check = W.values(standard_vector(p), a, alpha, g) if isinstance(W, _Terms) else B.values(
+            standard_parameters(p), a, alpha, g)
+        if np.abs(check[keep] - np.asarray(values, float)[keep]).max() <= 1e-9 * max(np.abs(values).max(), 1e-300):
+            return p, (f"both masses raised x{k:g} from params0's, which cannot realise the estimate (a body's "
+                       "inertia about its centre of mass would be negative; the data determine the masses only "
+                       "in the base parameters' combinations)")
+    raise first
 
 
 def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float, g: float,

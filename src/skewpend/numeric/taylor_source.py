@@ -182,78 +182,96 @@ def _graph(ex):
     return best
 
 
-def _val(v, k: str) -> str:
+def _val(v, k: int) -> str:
     return v[1] if v[0] == "c" else f"{v[1]}[{k}]"
 
 
-def _sums(I: str, names: List[str], lo: str, hi: str, terms) -> str:
-    """C adding ``sum_{j=lo..hi} terms[i](j)`` to ``names[i]`` (declared and initialised by the
-    caller), one loop; the loops are unrolled for the library's order (one running sum each: two
-    interleaved ones measured slower, 0.86 against 0.61 us a step at order 15)."""
-    body = " ".join(f"{n} += {f('j')};" for n, f in zip(names, terms))
-    return f"{I}for (int j = {lo}; j <= {hi}; j++) {{ {body} }}"
+#: Up to this order every sum is written out; above it, sums of more than :data:`INLINE_TERMS`
+#: terms are loops with fixed bounds: a taylor_jet written out entirely outgrows the instruction
+#: cache from order 17 (measured, us a step written out / with loops: order 15 0.60 / 0.78, order 17
+#: 1.52 / 0.94, order 19 2.05 / 1.26).
+INLINE_ORDER = 16
+INLINE_TERMS = 8
+_inline_terms = INLINE_TERMS
 
 
-def _op_lines(op, order0: bool, I: str) -> List[str]:
-    """C for one operation at order 0 (``order0``) or at a general order ``k >= 1``."""
+def _sub(k: int, j) -> str:
+    return str(k - j) if isinstance(j, int) else f"{k} - j"
+
+
+def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+") -> str:
+    """C for ``init op term(lo) op ... op term(hi)``, added left to right (``init`` empty: start
+    with ``term(lo)``): written out, or a loop with fixed bounds for a long sum (the same additions
+    in the same order: the same bits)."""
+    if hi < lo:
+        return init or "0.0"
+    if hi - lo + 1 <= _inline_terms:
+        parts = [term(j) for j in range(lo, hi + 1)]
+        if not init:
+            return " + ".join(parts) if op == "+" else "-" + " - ".join(parts)
+        return init + "".join(f" {op} {t}" for t in parts)
+    if not init and op == "+":
+        return f"({{ double acc_ = {term(lo)}; for (int j = {lo + 1}; j <= {hi}; j++) acc_ += {term('j')}; acc_; }})"
+    return f"({{ double acc_ = {init or '0.0'}; for (int j = {lo}; j <= {hi}; j++) acc_ {op}= {term('j')}; acc_; }})"
+
+
+def _dot(a: str, b: str, k: int, lo: int = 0, hi=None) -> str:
+    """``a[lo] * b[k - lo] + ... + a[hi] * b[k - hi]`` (hi default k)."""
+    return _reduce(lambda j: f"{a}[{j}] * {b}[{_sub(k, j)}]", lo, k if hi is None else hi)
+
+
+def _op_lines(op, k: int, I: str) -> List[str]:
+    """C for one operation at the order ``k`` (a number: every sum is written out, so the whole
+    series evaluation is straight-line code without loops or data-dependent branches)."""
     kind, t = op[0], op[1]
     a: Tuple[str, str] = op[2] if len(op) > 2 else ("c", "0.0")
     b: Tuple[str, str] = op[3] if len(op) > 3 else ("c", "0.0")
-    k = "0" if order0 else "k"
 
-    def at(v, idx=k):
-        return _val(v, idx)
+    def at(v):
+        return _val(v, k)
 
     if kind in ("add", "sub"):
         sign = "+" if kind == "add" else "-"
-        if order0 or (a[0] == "s" and b[0] == "s"):
-            return [f"{I}{t}[{k}] = {at(a)} {sign} {at(b)};"]
-        if a[0] == "s":
-            return [f"{I}{t}[k] = {at(a)};"]
-        return [f"{I}{t}[k] = {'' if kind == 'add' else '-'}{at(b)};"]
+        return [f"{I}{t}[{k}] = {at(a)} {sign} {at(b)};"]
     if kind == "addc":
-        return [f"{I}{t}[0] = {at(a)} + {b[1]};"] if order0 else [f"{I}{t}[k] = {at(a)};"]
+        return [f"{I}{t}[0] = {at(a)} + {b[1]};"] if k == 0 else [f"{I}{t}[{k}] = {at(a)};"]
     if kind == "neg":
         return [f"{I}{t}[{k}] = -{at(a)};"]
     if kind == "scale":
         return [f"{I}{t}[{k}] = {b[1]} * {at(a)};"]
     if kind == "mul":
-        if order0:
-            return [f"{I}{t}[0] = {at(a)} * {at(b)};"]
-        if a[0] == "c" or b[0] == "c":  # cannot happen (constants are folded), kept for safety
-            return [f"{I}{t}[k] = {at(a)} * {at(b)};"]
-        return [f"{I}{{ double acc = 0.0;", _sums(I + "  ", ["acc"], "0", "k", [lambda j: f"{a[1]}[{j}] * {b[1]}[k - ({j})]"]),
-                f"{I}  {t}[k] = acc; }}"]
-    if kind == "sqr":
-        if order0:
-            return [f"{I}{t}[0] = {at(a)} * {at(a)};"]
+        return [f"{I}{t}[{k}] = {_dot(a[1], b[1], k)};"]
+    if kind == "sqr":  # twice the products below the middle, plus the middle square
         x = a[1]
-        return [f"{I}{{ double acc = 0.0; for (int j = 0; j < (k + 1) / 2; j++) acc += {x}[j] * {x}[k - j];",
-                f"{I}  acc += acc; if (!(k & 1)) acc += {x}[k / 2] * {x}[k / 2]; {t}[k] = acc; }}"]
+        if k == 0:
+            return [f"{I}{t}[0] = {x}[0] * {x}[0];"]
+        half = _dot(x, x, k, 0, (k + 1) // 2 - 1)
+        mid = f" + {x}[{k // 2}] * {x}[{k // 2}]" if k % 2 == 0 else ""
+        return [f"{I}{{ const double h = {half}; {t}[{k}] = h + h{mid}; }}"]
     if kind in ("div", "rdiv"):  # t = a / b: t[k] = (a[k] - sum_{j=1..k} b[j] t[k-j]) / b[0]
-        if order0:
+        if k == 0:
             return [f"{I}r{t} = 1.0 / {at(b)};", f"{I}{t}[0] = {at(a)} * r{t};"]
         num = at(a) if a[0] == "s" else "0.0"
-        return [f"{I}{{ double acc = {num}; for (int j = 1; j <= k; j++) acc -= {b[1]}[j] * {t}[k - j]; {t}[k] = acc * r{t}; }}"]
-    if kind == "sincos":  # s' = c u', c' = -s u': k s[k] = sum_j j u[j] c[k-j]
+        return [f"{I}{t}[{k}] = ({_reduce(lambda j: f'{b[1]}[{j}] * {t}[{_sub(k, j)}]', 1, k, num, '-')}) * r{t};"]
+    if kind == "sincos":  # s' = c u', c' = -s u': k s[k] = sum_{j=1..k} j u[j] c[k-j]
         c = t + "c"
-        if order0:
+        if k == 0:
             return [f"{I}{t}[0] = sin({at(a)});", f"{I}{c}[0] = cos({at(a)});"]
         du = _derivative_of(a)
-        return [f"{I}{{ double as = 0.0, ac = 0.0;",
-                _sums(I + "  ", ["as", "ac"], "1", "k", [lambda j: f"{du(j)} * {c}[k - ({j})]",
-                                                         lambda j: f"{du(j)} * {t}[k - ({j})]"]),
-                f"{I}  {t}[k] = as * inv[k]; {c}[k] = -ac * inv[k]; }}"]
+        ss = _reduce(lambda j: f"{du(j)} * {c}[{_sub(k, j)}]", 1, k)
+        cs = _reduce(lambda j: f"{du(j)} * {t}[{_sub(k, j)}]", 1, k)
+        return [f"{I}{t}[{k}] = ({ss}) * inv[{k}];", f"{I}{c}[{k}] = -({cs}) * inv[{k}];"]
     if kind == "atan":  # t' (1 + u^2) = u': d = 1 + u^2, k t[k] d[0] = k u[k] - sum_{j=1..k-1} d[j] (k-j) t[k-j]
         d = t + "d"
         x = a[1]
-        if order0:
+        if k == 0:
             return [f"{I}{d}[0] = 1.0 + {at(a)} * {at(a)};", f"{I}r{t} = 1.0 / {d}[0];",
                     f"{I}{t}[0] = atan({at(a)});"]
-        return [f"{I}{{ double acc = 0.0; for (int j = 0; j < (k + 1) / 2; j++) acc += {x}[j] * {x}[k - j];",
-                f"{I}  acc += acc; if (!(k & 1)) acc += {x}[k / 2] * {x}[k / 2]; {d}[k] = acc; }}",
-                f"{I}{{ double acc = {_derivative_of(a)('k')}; for (int j = 1; j < k; j++) acc -= {d}[j] * (double)(k - j) * {t}[k - j];",
-                f"{I}  {t}[k] = acc * r{t} * inv[k]; }}"]
+        half = _dot(x, x, k, 0, (k + 1) // 2 - 1)
+        mid = f" + {x}[{k // 2}] * {x}[{k // 2}]" if k % 2 == 0 else ""
+        acc = _reduce(lambda j: f"{d}[{j}] * (double)({_sub(k, j)}) * {t}[{_sub(k, j)}]", 1, k - 1, _derivative_of(a)(k), "-")
+        return [f"{I}{{ const double h = {half}; {d}[{k}] = h + h{mid}; }}",
+                f"{I}{t}[{k}] = ({acc}) * r{t} * inv[{k}];"]
     raise AssertionError(kind)
 
 
@@ -262,7 +280,7 @@ def _derivative_of(a):
     one (``j phi[j] = dphi[j-1]``, exact), else the product."""
     deriv = {"x[0]": "x[2]", "x[1]": "x[3]"}
     if a[1] in deriv:
-        return lambda j: f"{deriv[a[1]]}[{j} - 1]"
+        return lambda j: f"{deriv[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}]"
     return lambda j: f"(double)({j}) * {a[1]}[{j}]"
 
 
@@ -276,11 +294,15 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
     """C of the Taylor kernel of ``geometry`` at one ``order`` (a small library of its own,
     :func:`skewpend.numeric.kernels.taylor_kernel`): ``taylor_work(p)`` (whether W needs
     integrating), ``taylor_prepare(p, pc)`` (the constants), ``taylor_jet(x, pc, work)`` (the
-    coefficients 1 .. order of the state ``x[SP_TN][SP_TPMAX + 2]`` from its coefficients 0, every
-    loop unrolled for this order: straight-line code without data-dependent branches), then the
-    driver ``taylor.c``.  Raises ValueError for a function without a recurrence here."""
+    coefficients 1 .. order of the state ``x[SP_TN][SP_TPMAX + 2]`` from its coefficients 0,
+    written out order by order: straight-line code without loops, each sum in the order a loop
+    from j = 0 would add it -- measured 0.61 against 0.94 us a step at order 15 for the loops,
+    whose trip counts change with the order and defeat branch prediction), then the driver
+    ``taylor.c``.  Raises ValueError for a function without a recurrence here."""
     from .kernel_source import status_defines
 
+    global _inline_terms
+    _inline_terms = SP_TPMAX + 1 if order <= INLINE_ORDER else INLINE_TERMS
     if not 2 <= order <= SP_TPMAX:
         raise ValueError(f"taylor kernel: order {order} outside 2 .. {SP_TPMAX}")
     if ex is None:
@@ -298,7 +320,7 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
            f" * Series products per order: {g.cost:g} (a square counts 1/2, sin/cos 2). */",
            "#include <math.h>", "#include <stdint.h>", "#include <string.h>", "", *status_defines(), "",
            f"#define SP_TN {SP_TN}", f"#define SP_TPMAX {SP_TPMAX}", f"#define SP_TORDER {order}",
-           f"#define SP_TAYLOR_NPC {npc}", "#define SP_UNROLL _Pragma(\"GCC unroll 64\")", ""]
+           f"#define SP_TAYLOR_NPC {npc}", ""]
     # whether W needs integrating: the parameters Q depends on, and whether Q vanishes when they do
     qparams = sorted(used_names([ex.Q[0], ex.Q[1]]) & set(PARAMETER_ORDER), key=PARAMETER_ORDER.index)
     zero = {SYMBOLS[n]: 0 for n in qparams}
@@ -328,59 +350,45 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
     if recips:
         out.append(f"{I}double {', '.join(f'r{n} = 0.0' for n in recips)};")
 
-    def solve(order0: bool) -> List[str]:
-        k = "0" if order0 else "k"
-        if order0:
-            lines = [f"{I}const double m11 = {_val(M11, '0')}, m12 = {_val(M12, '0')}, m22 = {_val(M22, '0')};",
-                     f"{I}const double rdet = 1.0 / (m11 * m22 - m12 * m12);",
-                     f"{I}const double r1 = {_val(f1, '0')}, r2 = {_val(f2, '0')};"]
+    def solve(k: int) -> List[str]:
+        """M q''[k] = f[k] - sum_{j=1..k} M[j] q''[k-j] (constant entries of M: nothing beyond order 0)."""
+        if k == 0:
+            lines = [f"{I}const double m11 = {_val(M11, 0)}, m12 = {_val(M12, 0)}, m22 = {_val(M22, 0)};",
+                     f"{I}const double rdet = 1.0 / (m11 * m22 - m12 * m12);"]
         else:
-            terms1 = [(M11, "a1"), (M12, "a2")]
-            terms2 = [(M12, "a1"), (M22, "a2")]
-            sums = []
-            for name, terms in (("r1", terms1), ("r2", terms2)):
-                series = [(m, a) for m, a in terms if m[0] == "s"]
-                body = " + ".join(f"{m[1]}[j] * {a}[k - j]" for m, a in series)
-                sums.append(f"{I}double {name} = {_val(f1 if name == 'r1' else f2, 'k')};" if not series else
-                            f"{I}double {name} = {_val(f1 if name == 'r1' else f2, 'k')}; "
-                            f"for (int j = 1; j <= k; j++) {name} -= {body};")
-            lines = sums
-        lines += [f"{I}a1[{k}] = (m22 * r1 - m12 * r2) * rdet;", f"{I}a2[{k}] = (m11 * r2 - m12 * r1) * rdet;",
-                  f"{I}x[0][{k} + 1] = x[2][{k}] * inv[{k} + 1];", f"{I}x[1][{k} + 1] = x[3][{k}] * inv[{k} + 1];",
-                  f"{I}x[2][{k} + 1] = a1[{k}] * inv[{k} + 1];", f"{I}x[3][{k} + 1] = a2[{k}] * inv[{k} + 1];"]
+            lines = []
+        for name, rhs, terms in (("r1", f1, [(M11, "a1"), (M12, "a2")]), ("r2", f2, [(M12, "a1"), (M22, "a2")])):
+            series = [(m, q) for m, q in terms if m[0] == "s"]
+
+            def term(j, series=series):
+                return "(" + " + ".join(f"{m[1]}[{j}] * {q}[{_sub(k, j)}]" for m, q in series) + ")"
+
+            value = _reduce(term, 1, k, _val(rhs, k), "-") if series else _val(rhs, k)
+            lines.append(f"{I}const double {name}_{k} = {value};")
+        lines += [f"{I}a1[{k}] = (m22 * r1_{k} - m12 * r2_{k}) * rdet;", f"{I}a2[{k}] = (m11 * r2_{k} - m12 * r1_{k}) * rdet;",
+                  f"{I}x[0][{k + 1}] = x[2][{k}] * inv[{k + 1}];", f"{I}x[1][{k + 1}] = x[3][{k}] * inv[{k + 1}];",
+                  f"{I}x[2][{k + 1}] = a1[{k}] * inv[{k + 1}];", f"{I}x[3][{k + 1}] = a2[{k}] * inv[{k + 1}];"]
         return lines
 
-    def work_lines(order0: bool) -> List[str]:
-        k = "0" if order0 else "k"
+    def work_lines(k: int) -> List[str]:
+        """W' = Q1 q1' + Q2 q2' (its series products written out too)."""
         lines = []
         for op in g.ops[n_main:]:
-            lines += _op_lines(op, order0, I + "    ")
+            lines += _op_lines(op, k, I + "    ")
         w = []
         for q, v in ((Q1, "x[2]"), (Q2, "x[3]")):
             if q[0] == "c":
                 w.append(f"{q[1]} * {v}[{k}]")
-            elif order0:
-                w.append(f"{q[1]}[0] * {v}[0]")
             else:
-                w.append(f"wq{v[2]}")
-        pre = []
-        if not order0:
-            for q, v in ((Q1, "x[2]"), (Q2, "x[3]")):
-                if q[0] == "s":
-                    pre.append(f"{I}    double wq{v[2]} = 0.0; for (int j = 0; j <= k; j++) wq{v[2]} += {q[1]}[j] * {v}[k - j];")
-        return [f"{I}if (work) {{"] + lines + pre + [f"{I}    x[4][{k} + 1] = ({' + '.join(w)}) * inv[{k} + 1];", f"{I}}} else {{",
-                                                     f"{I}    x[4][{k} + 1] = 0.0;", f"{I}}}"]
+                w.append(f"({_dot(q[1], v, k)})")
+        return ([f"{I}if (work) {{"] + lines + [f"{I}    x[4][{k + 1}] = ({' + '.join(w)}) * inv[{k + 1}];",
+                                                 f"{I}}} else {{", f"{I}    x[4][{k + 1}] = 0.0;", f"{I}}}"])
 
-    body = ["", f"{I}/* order 0 */"]
-    for op in g.ops[:n_main]:
-        body += _op_lines(op, True, I)
-    body += solve(True) + work_lines(True)
-    body += ["", f"{I}/* orders 1 .. SP_TORDER - 1, unrolled */", f"{I}for (int k = 1; k < SP_TORDER; k++) {{"]
-    J = I + "    "
-    for op in g.ops[:n_main]:
-        body += [J + ln[len(I):] if ln.startswith(I) else ln for ln in _op_lines(op, False, I)]
-    body += [J + ln[len(I):] for ln in solve(False) + work_lines(False)]
-    body += [f"{I}}}", "}", ""]
-    out += [ln.replace("for (int ", "SP_UNROLL for (int ") for ln in body]
+    for k in range(order):
+        out += ["", f"{I}/* order {k} */"]
+        for op in g.ops[:n_main]:
+            out += _op_lines(op, k, I)
+        out += solve(k) + work_lines(k)
+    out += ["}", ""]
     driver = (Path(__file__).resolve().parent / "taylor.c").read_text()
     return "\n".join(out) + "\n" + driver
