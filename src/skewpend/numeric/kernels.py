@@ -634,13 +634,21 @@ class TaylorKernel:
         self.lib = lib
 
 
-def taylor_kernel(params: Parameters, order: int) -> TaylorKernel:
+_TAYLOR_OF: Dict[tuple, "TaylorKernel"] = {}
+
+
+def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = None) -> TaylorKernel:
     """The Taylor integrator of order ``order`` for the bodies and axes of ``params``, from the
     cache or generated (:mod:`skewpend.numeric.taylor_source`) and compiled on first use.  Raises
-    ValueError (before compiling) for equations with a function that has no series recurrence."""
+    ValueError (before compiling) for equations with a function that has no series recurrence.
+    ``model``: the model's :func:`kernel_module` when the caller has it (a quicker look-up)."""
+    if model is not None and (model.path, order) in _TAYLOR_OF:
+        return _TAYLOR_OF[model.path, order]
     gkey = repr([getattr(params, k) for k in GEOMETRY] + list(optional_terms(params))) + f"|taylor{order}"
     kernel = _BYGEOMETRY.get(gkey)
     if kernel is not None:
+        if model is not None:
+            _TAYLOR_OF[model.path, order] = kernel  # type: ignore[assignment]
         return kernel  # type: ignore[return-value]
     geometry = geometry_of(params)
     # the Taylor library's text also depends on its generator and driver (not part of the others' key)
@@ -670,4 +678,6 @@ def taylor_kernel(params: Parameters, order: int) -> TaylorKernel:
             loaded = TaylorKernel(path, "compiled", time.perf_counter() - start, order)
         _LOADED[key] = loaded  # type: ignore[assignment]
         _BYGEOMETRY[gkey] = loaded  # type: ignore[assignment]
+        if model is not None:
+            _TAYLOR_OF[model.path, order] = loaded
         return loaded

@@ -199,12 +199,15 @@ def open_trajectory(path) -> Trajectory:
 def check_start(kernel, p, y) -> None:
     """Refuse an initial state ``y`` (4,) whose energy or acceleration is not finite (overflow:
     huge speeds or parameters) -- before any integration, for every computation from a start."""
-    y5 = np.append(np.asarray(y, dtype=float), 0.0)
-    deriv = np.empty(5)
-    with np.errstate(all="ignore"):
-        kernel.rhs(y5, p, deriv)
-        energy = kernel.energy(y5, p)
-    if not (np.all(np.isfinite(deriv)) and math.isfinite(energy)):
+    # ctypes arrays straight into the C functions (NumPy's wrappers cost more than the calls: this
+    # runs once per simulate)
+    y5 = (ctypes.c_double * 5)(*[float(v) for v in y][:4], 0.0)
+    deriv = (ctypes.c_double * 5)()
+    pa = np.ascontiguousarray(p, dtype=np.float64)
+    pp = ctypes.cast(pa.ctypes.data, ctypes.POINTER(ctypes.c_double))
+    kernel.lib.sp_rhs(y5, pp, deriv)
+    energy = kernel.lib.sp_energy(y5, pp)
+    if not (all(math.isfinite(v) for v in deriv) and math.isfinite(energy)):
         from .kernels import PARAMETER_ORDER
 
         values = ", ".join(f"{n} = {v:g}" for n, v in zip(PARAMETER_ORDER, p) if v != 0)
@@ -406,7 +409,7 @@ def simulate(
         from .taylor_source import taylor_order
 
         try:
-            tk = taylor_kernel(params, taylor_order(float(rtol or 0.0)))
+            tk = taylor_kernel(params, taylor_order(float(rtol or 0.0)), model=kernel)
         except ValueError as exc:  # a function in the equations without a series recurrence
             raise ParameterError(f"method taylor: {exc}; use dop853") from None
     p = parameter_vector(params)
