@@ -228,7 +228,7 @@ def test_dfki_pieces(dfki):
         np.testing.assert_array_equal(p.u[:, k], raw[:, header.index(f"tau_meas{name}")])
     filtered = Measurements.from_dfki(DFKI / "trajectory_00.csv", filtered=True)
     assert filtered.metadata["filtered"] is True and len(filtered) == 1
-    assert len(Measurements.from_dfki(DFKI)) == 2  # a folder: every trajectory_*.csv in it
+    assert len(Measurements.from_dfki(DFKI)) == 9  # a folder: every trajectory_*.csv in it (all nine runs)
     assert dfki.metadata["actions"] == ()
 
 
