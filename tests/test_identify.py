@@ -396,3 +396,38 @@ def test_dfki_driven_rig_against_the_labs_models():
     # the model realises the estimate exactly (the masses raised: h1.0's cannot carry it)
     check = B.values(standard_vector(r.params), lab.a, 0.0, lab.g)
     assert np.allclose(check, r.values, rtol=1e-9, atol=1e-12)
+
+
+def test_cut_and_the_labs_models_read_as_parameters():
+    """``Measurements.cut`` splits each piece into parts of about the horizon (sharing their boundary
+    sample, every sample kept); ``dfki_lab_parameters`` reads the lab's models with their base
+    parameters exactly, model 3.0 (as written no body: I2 < m2 r2^2) with raised masses."""
+    from skewpend.analysis.measurements import dfki_lab_parameters
+
+    m = Measurements.from_dfki([DFKI / "trajectory_00.csv", DFKI / "trajectory_12.csv"])
+    parts = m.cut(1.0)
+    assert len(parts) == 10 + 6 and parts.names[0] == "trajectory_00 [0]" and parts.names[-1] == "trajectory_12 [5]"
+    whole = m["trajectory_12"]
+    twelve = [p for p in parts if p.name.startswith("trajectory_12")]
+    assert twelve[0].t[0] == whole.t[0] and twelve[-1].t[-1] == whole.t[-1]
+    assert all(a.t[-1] == b.t[0] for a, b in zip(twelve, twelve[1:]))
+    assert sum(len(p) for p in twelve) == len(whole) + len(twelve) - 1
+    assert all(abs(p.duration - 1.0) < 0.05 for p in twelve) and np.array_equal(twelve[2].u, whole.u[
+        np.searchsorted(whole.t, twelve[2].t[0]):np.searchsorted(whole.t, twelve[2].t[-1]) + 1])
+    assert len(m.cut(100.0)) == 2 and "cut into pieces" in parts.metadata["actions"][-1]
+    with pytest.raises(ParameterError, match="seconds"):
+        m.cut(0.0)
+    h1 = dfki_lab_parameters(DFKI / "model_h1.0_parameters.yml")
+    assert (h1.m1, h1.m2, h1.gr, h1.cfs) == (0.5476215952387185, 0.5978621372377623, -6.0, 100.0)
+    m30 = dfki_lab_parameters(DFKI / "model_3.0_parameters.yml")
+    assert m30.m2 > 0.563935954099688  # raised: the lab's split is no body
+    r1, r2 = m30.com1[1], m30.com2[1]
+    got = {"J1zz_b": m30.inertia1[2][2] + m30.m1 * r1**2 + m30.m2 * m30.a**2, "h1y_b": m30.m1 * r1 + m30.m2 * m30.a,
+           "J2zz": m30.inertia2[2][2] + m30.m2 * r2**2, "h2y": m30.m2 * r2, "c1": m30.c1, "cf2": m30.cf2, "Ir": m30.Ir}
+    assert min(m30.inertia1[2][2], m30.inertia2[2][2]) > 0 and m30.com1[0] == m30.com2[0] == 0
+    I1, I2, m1, m2, r1, r2, l1 = 0.02671076499939512, 0.053878129629650884, 0.6416937799349799, 0.563935954099688, \
+        0.2, 0.3212669909674605, 0.2
+    want = {"J1zz_b": I1 + m2 * l1**2, "h1y_b": m1 * r1 + m2 * l1, "J2zz": I2, "h2y": m2 * r2, "c1": 0.001,
+            "cf2": 0.078, "Ir": 9.937281205437459e-05}
+    for n, v in want.items():
+        assert got[n] == pytest.approx(v, rel=1e-12), n

@@ -21,7 +21,12 @@ segments advance together (NumPy arrays over segments).  The residuals are the s
 measured angles at every step.
 
 Gauss-Newton with Levenberg-Marquardt damping; each segment's 4 start values are eliminated per
-segment (Schur complement), so the linear algebra is that of the few global parameters.
+segment (Schur complement), so the linear algebra is that of the few global parameters.  It stops
+when the cost stops falling (relative ``tol``), or when the undamped Gauss-Newton step, or each of
+the last :data:`STALLED` accepted steps, moves every free parameter by less than :data:`STEP_HALF`
+of its 95 % half-width: on a real rig with Coulomb friction the quadratic model of the cost holds in
+a small region only and the iteration creeps, its steps alternating and shrinking slowly, long
+after the parameters stopped moving on the scale of what the data determine.
 
 Intervals: residuals of a real rig are mostly model error, correlated along a piece, so the
 Gauss-Newton covariance ``sigma^2 (J^T J)^-1`` is far too narrow.  The covariance used is the
