@@ -23,8 +23,8 @@ def test_agrees_with_dop853_and_with_scipy_on_the_generated_python_rhs():
     scipy = pytest.importorskip("scipy.integrate")
     from skewpend.numeric.codegen import generate, parameter_vector
 
-    tr = simulate(P, Y0, 2.0, method="taylor", rtol=1e-13, atol=1e-13)
-    assert tr.ok and tr.stats["rejected"] == 0 and tr.stats["order"] == 16
+    tr = simulate(P, Y0, 2.0, method="taylor", rtol=1e-12, atol=1e-12)
+    assert tr.ok and tr.stats["rejected"] == 0 and tr.stats["order"] == 15
     ref = simulate(P, Y0, 2.0, method="dop853", rtol=1e-13, atol=1e-13)
     assert np.max(np.abs(tr.y[-1] - ref.y[-1])) < 1e-10
     ns: dict = {}
@@ -37,21 +37,21 @@ def test_agrees_with_dop853_and_with_scipy_on_the_generated_python_rhs():
 def test_error_falls_with_the_tolerance_and_energy_is_conserved():
     ref = simulate(P, Y0, 5.0, method="dop853", rtol=1e-14, atol=1e-14).y[-1]
     errors = []
-    for tol in (1e-5, 1e-7, 1e-9, 1e-11):
+    for tol in (1e-6, 1e-9, 1e-12):  # orders 8, 12, 15 (a library each: few orders keep the tests quick)
         tr = simulate(P, Y0, 5.0, method="taylor", rtol=tol, atol=tol)
         err = float(np.max(np.abs(tr.y[-1] - ref)))
         errors.append(err)
         assert err < 300 * tol, (tol, err)
         assert tr.energy_drift < 300 * tol, (tol, tr.energy_drift)  # undamped: E - W = E - 0 conserved
         assert np.all(tr.work == 0.0)  # W is not integrated without damping or torques
-    # roughly proportional: each 100-fold tighter tolerance gains at least a factor 10 (until 1e-13)
+    # roughly proportional: each 1000-fold tighter tolerance gains at least a factor 30 (until 1e-13)
     for loose, tight in zip(errors, errors[1:]):
-        assert tight < loose / 10 or tight < 1e-12, errors
+        assert tight < loose / 30 or tight < 1e-12, errors
 
 
 def test_mirror_start_gives_the_mirrored_trajectory():
-    a = simulate(P, Y0, 3.0, method="taylor", rtol=1e-10, atol=1e-10)
-    b = simulate(P, tuple(-v for v in Y0), 3.0, method="taylor", rtol=1e-10, atol=1e-10)
+    a = simulate(P, Y0, 3.0, method="taylor", rtol=1e-9, atol=1e-9)
+    b = simulate(P, tuple(-v for v in Y0), 3.0, method="taylor", rtol=1e-9, atol=1e-9)
     assert a.t.shape == b.t.shape and np.array_equal(a.t, b.t)  # the same steps
     np.testing.assert_allclose(b.y, -a.y, rtol=0, atol=1e-13)
 
@@ -73,8 +73,8 @@ def test_damped_driven_model_energy_account_and_friction():
 
 
 def test_dense_output_agrees_with_the_steps():
-    steps = simulate(P, Y0, 2.0, method="taylor", rtol=1e-11, atol=1e-11)
-    grid = simulate(P, Y0, 2.0, method="taylor", rtol=1e-11, atol=1e-11, dt_out=0.01)
+    steps = simulate(P, Y0, 2.0, method="taylor", rtol=1e-12, atol=1e-12)
+    grid = simulate(P, Y0, 2.0, method="taylor", rtol=1e-12, atol=1e-12, dt_out=0.01)
     assert len(grid.t) == 201 and grid.t[-1] == 2.0
     assert np.array_equal(grid.y[-1], steps.y[-1])  # the same steps: the end state is bit for bit the same
     assert np.array_equal(grid.y[0], steps.y[0])
@@ -87,7 +87,7 @@ def test_results_do_not_depend_on_the_chunking():
     from skewpend.numeric.kernels import TaylorState, parameter_vector, taylor_kernel
     from skewpend.numeric.taylor_source import taylor_order
 
-    kernel = taylor_kernel(P, taylor_order(1e-10))
+    kernel = taylor_kernel(P, taylor_order(1e-9))
     p = parameter_vector(P)
 
     def run(budget, cap):
@@ -95,7 +95,7 @@ def test_results_do_not_depend_on_the_chunking():
         rows = np.empty((cap, 6))
         out, m, k = [], ctypes.c_int64(0), ctypes.c_int64(0)
         while True:
-            rc = kernel.lib.sp_taylor(ctypes.addressof(s), p.ctypes.data, 1.0, 1e-10, 1e-10, 10**6, budget, 0.05, 21,
+            rc = kernel.lib.sp_taylor(ctypes.addressof(s), p.ctypes.data, 1.0, 1e-9, 1e-9, 10**6, budget, 0.05, 21,
                                       ctypes.byref(k), rows.ctypes.data, cap, ctypes.byref(m))
             out.append(rows[: m.value].copy())
             if rc >= 0:
@@ -108,12 +108,12 @@ def test_results_do_not_depend_on_the_chunking():
 
 def test_refusals():
     with pytest.raises(ParameterError, match="dt is the step of rk4 and gauss; taylor"):
-        simulate(P, Y0, 1.0, method="taylor", dt=1e-3)
+        simulate(P, Y0, 1.0, method="taylor", rtol=1e-9, dt=1e-3)
     with pytest.raises(ParameterError, match="rtol is a tolerance of dop853 and taylor"):
         simulate(P, Y0, 1.0, method="rk4", rtol=1e-6)
     from skewpend.numeric.control import Controller
 
     with pytest.raises(ParameterError, match="taylor"):
         simulate(P, Y0, 1.0, method="taylor", controller=Controller.function(lambda t, y: (0.0, 0.0)))
-    tr = simulate(P, Y0, 10.0, method="taylor", max_steps=5)  # refused up front or stopped at the cap
+    tr = simulate(P, Y0, 10.0, method="taylor", rtol=1e-9, atol=1e-9, max_steps=5)  # stopped at the cap
     assert not tr.ok and tr.stats["steps"] <= 5 and math.isfinite(tr.y[-1, 0])
