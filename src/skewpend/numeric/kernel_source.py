@@ -217,6 +217,25 @@ void sp_energies(const double *rows, int64_t nrows, int64_t stride, const double
     for (int64_t r = 0; r < nrows; r++) out[r] = energy(rows + r * stride, p);
 }
 
+/* simulate's energy account of a block of rows (t, y[0..4], ...), `stride` doubles apart: each row's
+ * energy into out[r], and the running maxima acc[0] = max |E - W - E0|, acc[1] = max |E|, with
+ * E0 = acc[2], taken from the first row ever when acc[3] == 0 (then acc[3] = 1) */
+void sp_energy_account(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out, double *acc)
+{
+    for (int64_t r = 0; r < nrows; r++) {
+        const double *y = rows + r * stride + 1;
+        const double e = energy(y, p);
+        out[r] = e;
+        if (acc[3] == 0.0) {
+            acc[2] = e;
+            acc[3] = 1.0;
+        }
+        const double d = fabs((e - y[4]) - acc[2]);
+        if (d > acc[0] || d != d) acc[0] = d;
+        if (fabs(e) > acc[1] || e != e) acc[1] = fabs(e);
+    }
+}
+
 void sp_tips_many(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
 {
     for (int64_t r = 0; r < nrows; r++) tips(rows + r * stride, p, out + 6 * r);

@@ -330,6 +330,8 @@ class Kernel:
             getattr(lib, name).restype = None
         lib.sp_energy.argtypes, lib.sp_energy.restype = [dp, dp], ctypes.c_double
         lib.sp_energies.argtypes, lib.sp_energies.restype = [dp, i64, i64, dp, dp], None
+        vp = ctypes.c_void_p  # addresses: the quickest ctypes call (simulate's per-chunk account)
+        lib.sp_energy_account.argtypes, lib.sp_energy_account.restype = [vp, i64, i64, vp, vp, vp], None
         lib.sp_tips_many.argtypes, lib.sp_tips_many.restype = [dp, i64, i64, dp, dp], None
         lib.sp_axes_many.argtypes, lib.sp_axes_many.restype = [dp, i64, i64, dp, dp], None
         lib.sp_speeds_many.argtypes, lib.sp_speeds_many.restype = [dp, i64, i64, dp], None
