@@ -20,7 +20,7 @@ import typer
 
 from . import types as T
 from ..checks import ATOL_MIN, RTOL_MIN
-from ..numeric.simulation import ADAPTIVE as _ADAPTIVE, METHODS as _METHODS
+from ..numeric.conventions import ADAPTIVE as _ADAPTIVE, METHODS as _METHODS
 
 _P = "Model parameters (a number, or 'sym' for symbolic; default symbolic)"
 _G = "General bodies and axes (default: the specification's thin rods)"

@@ -9,8 +9,12 @@ from typing import Tuple
 
 from ..symbolic.model import FRICTION_NAMES, ROTOR_NAMES, SCALAR_NAMES, Parameters
 
-__all__ = ["PARAMETER_ORDER", "STATE_ORDER", "GEOMETRY", "geometry_of", "optional_terms", "parameter_vector"]
+__all__ = ["METHODS", "ADAPTIVE", "PARAMETER_ORDER", "STATE_ORDER", "GEOMETRY", "geometry_of", "optional_terms", "parameter_vector"]
 
+#: The integrators of ``simulate`` (here, where the command line's --help reads them without NumPy).
+METHODS: Tuple[str, ...] = ("dop853", "rk4", "gauss", "taylor")
+#: The methods that choose their own steps (rtol, atol); the others take a fixed step dt.
+ADAPTIVE: Tuple[str, ...] = ("dop853", "taylor")
 #: Order of the parameter array ``p`` of every generated routine.
 PARAMETER_ORDER: Tuple[str, ...] = SCALAR_NAMES
 #: Order of the state ``y``.

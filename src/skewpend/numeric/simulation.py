@@ -46,9 +46,7 @@ from ..parsing import initial_state
 
 __all__ = ["simulate", "Trajectory", "open_trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", "check_start"]
 
-METHODS = ("dop853", "rk4", "gauss", "taylor")
-#: The methods that choose their own steps (rtol, atol); the others take a fixed step dt.
-ADAPTIVE = ("dop853", "taylor")
+from .conventions import ADAPTIVE, METHODS  # noqa: E402  (the CLI's --help reads them without NumPy)
 
 #: Deprecated: the messages of :class:`skewpend.status.Status` by code (use ``Status(code).message``).
 STATUS_MESSAGES = {int(s): s.message for s in Status if s <= Status.NO_CONVERGENCE}
