@@ -154,14 +154,9 @@ class _Graph:
         return out
 
 
-def _build(ex, expand: bool):
-    s = SYMBOLS
-    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
-    f = [ex.f[0], ex.f[1]]
+def _build(ex, main):
+    """The graph of ``main`` (M11, M12, M22, f1, f2, in some algebraic form) and of Q."""
     Q = [ex.Q[0], ex.Q[1]]
-    main = M + f
-    if expand:
-        main = [sp.expand(sp.expand_trig(e)) if e.free_symbols & {s["phi"], s["psi"]} else sp.expand(e) for e in main]
     g = _Graph()
     # common subexpressions first (their products shared), then each as one series node
     repl, reduced = sp.cse(main, symbols=sp.numbered_symbols("z"), optimizations="basic")
@@ -173,10 +168,28 @@ def _build(ex, expand: bool):
     return g, main_nodes, n_main, work_nodes
 
 
+def _forms(ex):
+    """Algebraic forms of M and f to try: the derivation's own; expanded as polynomials in the
+    sines, cosines and speeds; and that polynomial collected in each one of them (for issue 3's
+    rods, collected in sin(psi): 11.5 series products an order against 13.5 and 16.5)."""
+    s = SYMBOLS
+    angles = {s["phi"], s["psi"]}
+    main = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1], ex.f[0], ex.f[1]]
+    yield main
+    expanded = [sp.expand(sp.expand_trig(e)) if e.free_symbols & angles else sp.expand(e) for e in main]
+    yield expanded
+    gens = set()
+    for e in expanded:
+        gens |= {a for a in e.atoms(sp.sin, sp.cos) if a.free_symbols & angles}
+    gens |= {s["dphi"], s["dpsi"]}
+    for gen in sorted(gens, key=sp.default_sort_key):
+        yield [sp.collect(e, gen) for e in expanded]
+
+
 def _graph(ex):
     best = None
-    for expand in (False, True):
-        built = _build(ex, expand)
+    for main in _forms(ex):
+        built = _build(ex, main)
         if best is None or built[0].cost < best[0].cost:
             best = built
     return best
