@@ -102,16 +102,17 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
             d2 = fmax(d2, fabs(x[i][order]));
         }
         const double scale = fmax(floor_scale, big);
-        double rho = INFINITY;
-        if (d1 > 0.0) rho = pow(scale / d1, e1);
-        if (d2 > 0.0) rho = fmin(rho, pow(scale / d2, e2));
-        double h = rho * fac;
+        double lrho = INFINITY; /* ln rho: two logarithms and one exponential, not two powers */
+        if (d1 > 0.0) lrho = log(scale / d1) * e1;
+        if (d2 > 0.0) lrho = fmin(lrho, log(scale / d2) * e2);
+        double h = exp(lrho) * fac;
         if (!(h == h)) { *m_out = m; return SP_STATUS_NONFINITE; }
         const double left = t_end - s->t;
         int last = 0;
         if (h >= left) { h = left; last = 1; }
         if (!last && s->t + h == s->t) { *m_out = m; return SP_STATUS_STEP_UNDERFLOW; }
-        taylor_eval((const double (*)[SP_TPMAX + 2])x, order, n, h, ynew);
+        taylor_eval((const double (*)[SP_TPMAX + 2])x, order, nc, h, ynew);
+        if (nc < n) ynew[4] = s->y[4]; /* W' = 0 identically: W stays */
         if (!tay_finite(ynew, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
         s->naccept++;
         done++;
