@@ -108,3 +108,37 @@ def test_a_fit_recovers_a_skewed_model_from_noiseless_data(generic):
     assert abs(r.alpha - P.alpha) < 1e-5
     assert r.cost < 1e-12
     assert r.theta_names == tuple(free) + ("alpha",)
+
+
+def test_the_stopping_rule_measures_steps_against_the_intervals():
+    """``_halves``: the undamped Gauss-Newton step and the sandwich's 95 % half-widths from the
+    accumulated blocks (what the stopping rule compares, STEP_HALF); None with fewer than two pieces
+    (no interval over pieces) or a singular reduced matrix."""
+    from scipy.stats import t as student_t
+
+    rng = np.random.default_rng(3)
+    S, p = 6, 2
+    J = rng.normal(size=(S, 10, 4 + p))  # per segment: residual Jacobian in (4 start values, p globals)
+    r = rng.normal(size=(S, 10))
+    Hll = np.einsum("sia,sib->sab", J[:, :, :4], J[:, :, :4])
+    Hlg = np.einsum("sia,sib->sab", J[:, :, :4], J[:, :, 4:])
+    Hgg = np.einsum("sia,sib->sab", J[:, :, 4:], J[:, :, 4:])
+    gl = np.einsum("sia,si->sa", J[:, :, :4], r)
+    gg = np.einsum("sia,si->sa", J[:, :, 4:], r)
+    owner = np.array([0, 0, 1, 1, 2, 2])
+    step, half = shooting._halves(Hll, Hlg, Hgg, gl, gg, owner, 3)
+    # the step is the least-squares step of the stacked problem in all unknowns, projected on the globals
+    A = np.zeros((S * 10, 4 * S + p))
+    for s in range(S):
+        A[s * 10:(s + 1) * 10, 4 * s:4 * s + 4] = J[s, :, :4]
+        A[s * 10:(s + 1) * 10, 4 * S:] = J[s, :, 4:]
+    full = -np.linalg.lstsq(A, r.reshape(-1), rcond=None)[0]
+    np.testing.assert_allclose(step, full[4 * S:], rtol=1e-9, atol=1e-12)
+    assert half.shape == (p,) and np.all(half > 0)
+    Sred, gred, _, _ = shooting._reduce(Hll, Hlg, Hgg, gl, gg, 0.0)
+    Sinv = np.linalg.inv(Sred.sum(0))
+    gc = np.array([gred[owner == c].sum(0) for c in range(3)])
+    cov = Sinv @ (gc.T @ gc * 3 / 2) @ Sinv
+    np.testing.assert_allclose(half, student_t.ppf(0.975, 2) * np.sqrt(np.diag(cov)), rtol=1e-12)
+    assert shooting._halves(Hll, Hlg, Hgg, gl, gg, np.zeros(S, int), 1) is None
+    assert shooting._halves(Hll, np.zeros_like(Hlg), np.zeros_like(Hgg), gl, gg, owner, 3) is None  # singular
