@@ -37,6 +37,10 @@ SLOW_MODULES = {"test_report_browser.py", "test_explorer_browser.py", "test_widg
                 "test_readme.py", "test_docs.py"}
 
 
+#: Module-scoped fixtures that fit real data (seconds each): every test that needs one is slow.
+SLOW_FIXTURES = {"test_identify.py": {"kaheman_fit", "kaheman_linear"}, "test_identify_cli.py": {"fitted"}}
+
+
 def _measured_slow() -> set:
     """Node ids of tests measured at >= 1 s (tests/slow.txt, with how they were measured)."""
     path = Path(__file__).resolve().parent / "slow.txt"
@@ -130,7 +134,8 @@ def pytest_collection_modifyitems(config, items):
     slow = _measured_slow()
     for item in items:
         path = Path(str(item.fspath))
-        if item.nodeid.split("@")[0] in slow or path.name in SLOW_MODULES:
+        if (item.nodeid.split("@")[0] in slow or path.name in SLOW_MODULES
+                or SLOW_FIXTURES.get(path.name, set()) & set(getattr(item, "fixturenames", ()))):
             item.add_marker(pytest.mark.slow)
     rank = {name: i for i, name in enumerate(FIRST)}
     items.sort(key=lambda item: rank.get(Path(str(item.fspath)).name, len(FIRST)))  # stable: else as collected
