@@ -9,8 +9,8 @@ together with the model's generated C (:mod:`skewpend.numeric.kernel_source`):
   equations in the canonical variables ``(q, p = M(q) q')``: symplectic, so its energy
   error stays bounded over very long conservative runs;
 * ``"taylor"`` -- adaptive Taylor series (``taylor.c``), its coefficient recurrences generated
-  from the derivation (:mod:`skewpend.numeric.taylor_source`), in a sibling kernel built on
-  first use.
+  from the derivation (:mod:`skewpend.numeric.taylor_source`), one small library per order
+  (:func:`skewpend.numeric.kernels.taylor_kernel`), built on its first use.
 
 The integrators are resumable: each call into the compiled code does a bounded amount of
 work (aimed at ~0.05 s) and hands back a bounded block of rows, which this module turns
@@ -318,7 +318,7 @@ def simulate(
     accepted (``stats["rejected"]`` is 0; ``stats["nfev"]`` counts series evaluations, one per
     step; ``stats["order"]`` is ``p``); dense output evaluates the step's polynomial.  The
     coefficient recurrences are generated from the derivation (Coulomb friction's ``atan``
-    included); it takes no ``controller``.
+    included), each order a small library compiled on its first use; it takes no ``controller``.
 
     The compiled integrator works in bounded chunks: between chunks Ctrl-C raises
     :class:`KeyboardInterrupt` (within about 0.05 s) and ``progress(t, t_end)`` is called.
