@@ -381,17 +381,23 @@ def test_the_report_stops_inside_a_long_section(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
-def test_ctrl_c_stops_the_report_within_a_second_or_so(tmp_path, signame):
-    """The report drew or ran SymPy for seconds between its checks (4-14 s to stop)."""
+def test_ctrl_c_stops_the_report_within_a_second_or_so(tmp_path, monkeypatch, signame):
+    """The report drew or ran SymPy for seconds between its checks (4-14 s to stop).  Nothing is left
+    where it writes, nor in its temporary directory (TMPDIR: the second process's and the compiler's
+    files too)."""
     import signal
 
     from helpers import signal_process
 
-    ran, took = signal_process(["report", "--out", "r.html"], tmp_path, after=4.0, signum=getattr(signal, signame))
+    scratch, work = tmp_path / "tmp", tmp_path / "work"
+    scratch.mkdir()
+    work.mkdir()
+    monkeypatch.setenv("TMPDIR", str(scratch))
+    ran, took = signal_process(["report", "--out", "r.html"], work, after=4.0, signum=getattr(signal, signame))
     assert ran.code == {"SIGINT": 130, "SIGTERM": 143}[signame], ran.report()
     assert ran.err.strip().splitlines() == ["skewpend: " + {"SIGINT": "interrupted", "SIGTERM": "terminated"}[signame]]
     assert took < 3.0
-    assert list(tmp_path.iterdir()) == []
+    assert list(work.iterdir()) == [] and list(scratch.iterdir()) == []
 
 
 # -- a full disk: one line, nothing left (item 10) ------------------------------------------------------
