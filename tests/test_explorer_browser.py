@@ -186,7 +186,10 @@ def test_energy_drift_is_shown_and_small(opened):
 
 def test_at_the_defaults_the_page_computes_what_the_library_does(opened):
     """The modes, the equations and the flip map of the page at its defaults (the module's page,
-    before anything is changed) against the library's (the checks below)."""
+    before anything is changed) against the library's (the checks below).  The flip map waits until
+    its panel is shown (below the fold here): nothing computed before."""
+    assert opened.page.evaluate("() => window.explorer.flip()") is None
+    assert opened.page.text_content("#flipmap-status") == "computed when shown"
     _check_page(opened, "")
 
 
@@ -228,7 +231,7 @@ def test_alpha_slider_changes_the_drawing_and_the_equations(opened):
 
 
 def test_a_flip_map_click_starts_the_motion_from_that_cell(opened):
-    # the map follows the parameters by itself (computed on load and after each change); the
+    # the map follows the parameters by itself (computed once shown, then after each change); the
     # button computes it again
     opened.page.click("#flipmap-go")
     opened.page.wait_for_function("() => window.explorer.flip() !== null && "
@@ -340,6 +343,7 @@ _SETTLED = ("() => !document.querySelector('#equations').classList.contains('sta
 
 def test_the_flip_map_follows_the_parameters(opened):
     p = opened
+    p.page.locator("#flipmap").scroll_into_view_if_needed()  # computed once shown, then after each change
     p.page.wait_for_function(_SETTLED, timeout=60000)  # no map of earlier parameters still in progress
     p.set_slider("alpha", 10)
     p.page.wait_for_function(_SETTLED, timeout=60000)
@@ -491,6 +495,7 @@ def _check_flip_map(p: Page):
     or not, and which rod), and the flip time within 1e-3 s on at least 99 % of the cells that flip
     -- both integrate at rtol = atol = 1e-10, so they differ by rounding, amplified only in the
     chaotic cells."""
+    p.page.locator("#flipmap").scroll_into_view_if_needed()  # computed once shown
     p.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
     js = p.page.evaluate("() => window.explorer.flip()")
     s = p.state()
@@ -511,6 +516,7 @@ def _check_console_without_gravity(p: Page, query: str):
     """``?g=0`` logged an error: the page asked for normal modes, which the server refuses (422)
     without gravity, and the browser logs every failed request.  Now the page says why there
     are none and asks nothing that fails."""
+    p.page.locator("#flipmap").scroll_into_view_if_needed()  # computed once shown
     p.page.wait_for_function("() => window.explorer.flip() !== null", timeout=60000)
     p.page.wait_for_function("() => document.querySelector('#modes li, #modes .note, #modes .error') !== null",
                              timeout=30000)

@@ -209,7 +209,7 @@ function changed(key) {
     document.getElementById("equations").classList.add("stale");
     clearTimeout(pending);
     invalidateFlipMap(); // a map of other parameters must not be clicked
-    pending = setTimeout(() => { showEquations(); showModes(); computeFlipMap(); }, 250);
+    pending = setTimeout(() => { showEquations(); showModes(); if (flipWanted) computeFlipMap(); }, 250);
   }
 }
 
@@ -348,7 +348,7 @@ function invalidateFlipMap() {
 // share one integration when the equations are odd (no torques).  A change of parameters cancels
 // a map in progress.
 const FLIP = { n: 48, tEnd: 10, rtol: 1e-10, atol: 1e-10, maxSteps: 20000 };
-let flipSerial = 0, pool = [];
+let flipSerial = 0, pool = [], flipWanted = false; // flipWanted: the panel was shown (or the button pressed)
 function workerSource() {
   return ["physics-classic", "dop853", "flipworker"].map((name) => self.skewpend.source(name)).join("\n");
 }
@@ -535,13 +535,27 @@ document.getElementById("speed").addEventListener("input", (ev) => {
   speed = parseFloat(ev.target.value);
   document.getElementById("speed-out").textContent = `${speed.toFixed(1)}×`;
 });
-document.getElementById("flipmap-go").addEventListener("click", computeFlipMap);
+document.getElementById("flipmap-go").addEventListener("click", () => { flipWanted = true; computeFlipMap(); });
 document.getElementById("flipmap").addEventListener("click", clickFlipMap);
 restart();
 saveUrl();
 showEquations();
 showModes();
-computeFlipMap();
+// The flip map (48 x 48 integrations in Web Workers, seconds of every core) is computed once its panel
+// has come into view, and from then on after each change of the parameters: a visitor who never
+// scrolls down to it does not pay for it.
+if (typeof IntersectionObserver === "function") {
+  document.getElementById("flipmap-status").textContent = "computed when shown";
+  const seen = new IntersectionObserver((entries) => {
+    if (!entries.some((e) => e.isIntersecting)) return;
+    seen.disconnect();
+    if (!flipWanted) { flipWanted = true; computeFlipMap(); }
+  });
+  seen.observe(document.getElementById("flipmap"));
+} else {
+  flipWanted = true;
+  computeFlipMap();
+}
 requestAnimationFrame(frame);
 
 // for tests and the curious: the state, read-only
