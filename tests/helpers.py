@@ -23,6 +23,42 @@ WEBGL_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swifts
               "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
+def once_per_session(tmp_path_factory, name: str, make):
+    """``make(directory)`` run once per test session, whichever worker (pytest-xdist) asks first, the others
+    waiting for it: under a file lock in the session's shared temporary directory.  ``make`` returns a
+    JSON-able value, which every caller gets (the one who made it too)."""
+    import fcntl
+    import json
+
+    shared = tmp_path_factory.getbasetemp()
+    shared = shared.parent if shared.name.startswith("popen-gw") else shared  # the session's, not the worker's
+    folder = shared / name
+    folder.mkdir(exist_ok=True)
+    outcome = folder / "outcome.json"
+    with open(folder / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not outcome.exists():
+            outcome.write_text(json.dumps(make(folder)), encoding="utf-8")
+        return json.loads(outcome.read_text(encoding="utf-8"))
+
+
+def default_report(tmp_path_factory):
+    """``skewpend report`` with every default (``build_report(out=...)``), built once per session and
+    read by tests/test_report.py and tests/test_report_browser.py: ``(path, progress calls)``."""
+
+    def make(folder):
+        from skewpend.views import report as R
+
+        calls: list = []
+        out = folder / "report" / "report.html"
+        out.parent.mkdir()
+        R.build_report(out=out, progress=lambda done, total: calls.append((done, total)))
+        return {"path": str(out), "calls": calls}
+
+    made = once_per_session(tmp_path_factory, "default-report", make)
+    return Path(made["path"]), [tuple(c) for c in made["calls"]]
+
+
 def under_ci() -> bool:
     """Whether this run is CI's (``CI=true``, as CI services and ``.ci/run`` set it)."""
     return os.environ.get("CI", "").strip().lower() in ("1", "true", "yes")

@@ -44,23 +44,13 @@ def site(tmp_path_factory) -> Path:
 
 
 def _built_once(tmp_path_factory) -> dict:
-    """The site built once per test session, whichever worker asks first: under a file lock, in the
-    session's shared temporary directory (two builds at once race in the source tree's
-    docs/auto_gallery, which sphinx-gallery writes; the workers' module groups do not always hold)."""
-    import fcntl
-    import json
+    """The site built once per test session, whichever worker asks first (two builds at once race in
+    the source tree's docs/auto_gallery, which sphinx-gallery writes; the workers' module groups do not
+    always hold)."""
+    from helpers import once_per_session
 
-    shared = tmp_path_factory.getbasetemp()
-    shared = shared.parent if shared.name.startswith("popen-gw") else shared  # the session's, not the worker's
-    (shared / "docs-build").mkdir(exist_ok=True)
-    outcome = shared / "docs-build" / "outcome.json"
-    with open(shared / "docs-build" / ".lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
-        if outcome.exists():
-            done = json.loads(outcome.read_text(encoding="utf-8"))
-        else:
-            done = _build(shared / "docs-build" / "site")
-            outcome.write_text(json.dumps({k: str(v) for k, v in done.items()}), encoding="utf-8")
+    done = once_per_session(tmp_path_factory, "docs-build",
+                            lambda folder: {k: str(v) for k, v in _build(folder / "site").items()})
     return {"site": Path(done["site"])} if "site" in done else done
 
 

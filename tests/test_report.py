@@ -134,10 +134,11 @@ def test_display_keeps_what_it_cannot_shorten():
 # -- the report ------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def default_report(tmp_path_factory):
-    """The report with every default (the command `skewpend report` with no options)."""
-    out = tmp_path_factory.mktemp("report") / "report.html"
-    calls = []
-    path = R.build_report(out=out, progress=lambda done, total: calls.append((done, total)))
+    """The report with every default (the command `skewpend report` with no options), built once per
+    session: tests/test_report_browser.py opens the same file."""
+    from helpers import default_report as built
+
+    path, calls = built(tmp_path_factory)
     return path, path.read_text(encoding="utf-8"), calls
 
 

@@ -26,10 +26,10 @@ pytestmark = needs(missing_browser())
 from skewpend import Parameters  # noqa: E402
 from skewpend.views import report as R  # noqa: E402
 
-#: The reports opened: the built-in case (shorter run and clip, so the test is quick) and a
-#: user's case (alpha = 30 deg, damping: damped modes, different equations).
+#: The reports opened: the built-in case (every default: the very file tests/test_report.py reads,
+#: built once per session) and a user's case (alpha = 30 deg, damping: damped modes, other equations).
 CASES = {
-    "default": dict(params=None, t_end=8.0, clip_seconds=3.0, fps=15.0, sweep_points=61),
+    "default": dict(params=None, fps=R.CLIP_FPS),
     "alpha30-damped": dict(params=Parameters(a=1.0, b=1.0, m1=1.0, m2=0.5, alpha=0.5235987755982988, g=9.81, c1=0.05),
                            t_end=5.0, clip_seconds=2.0, fps=10.0, sweep_points=37, y0=(0.6, -0.3, 0.0, 0.0)),
 }
@@ -58,7 +58,11 @@ _BUILT: dict = {}
 def opened(request, browser, tmp_path_factory):
     """The report built, opened offline, typeset, its screenshots taken: (page, records, folder)."""
     html = _BUILT.get(request.param)
-    if html is None:  # built once per process: a worker may set a module's parametrised fixture up twice
+    if html is None and request.param == "default":
+        from helpers import default_report
+
+        html = _BUILT[request.param] = default_report(tmp_path_factory)[0]
+    elif html is None:  # built once per process: a worker may set a module's parametrised fixture up twice
         case = dict(CASES[request.param])
         params = case.pop("params")
         html = _BUILT[request.param] = tmp_path_factory.mktemp("report") / "report.html"
