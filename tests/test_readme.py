@@ -209,6 +209,21 @@ def test_harness_timeout_and_shell(tmp_path: Path) -> None:
     assert len((tmp_path / "head.txt").read_text().splitlines()) == 3
 
 
+def test_the_warm_interpreter_is_a_process_per_example(tmp_path: Path) -> None:
+    """Plain commands run in children of one warm interpreter (readme_runner.Warm): each has its own
+    exit status, output, working directory and files, as a reader's process; one that outlives the
+    timeout is killed (its whole session) and the next example runs as before."""
+    slow = rr.CliExample(1, "skewpend simulate --t-end 3000 --method gauss --dt 1e-4 --out long.nc", 0)
+    outcome = rr.run_cli(slow, tmp_path, timeout=2)
+    assert outcome.returncode is None and outcome.seconds < 10
+    refused = rr.run_cli(rr.CliExample(2, "skewpend modes --about 1e17,0", 0), tmp_path)
+    assert refused.returncode == 2 and refused.output.startswith("skewpend: error: --about")
+    (tmp_path / "sub").mkdir()
+    ran = rr.run_cli(rr.CliExample(3, "skewpend simulate --t-end 0.5 --out run.csv", 0), tmp_path / "sub")
+    assert ran.returncode == 0 and "reached t_end" in ran.output and (tmp_path / "sub" / "run.csv").is_file()
+    assert rr.run_cli(rr.CliExample(4, "skewpend --version", 0), tmp_path).output.startswith("skewpend ")
+
+
 @pytest.mark.parametrize(
     "line, stripped",
     [
