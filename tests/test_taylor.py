@@ -84,8 +84,7 @@ def test_dense_output_agrees_with_the_steps():
 
 
 def test_results_do_not_depend_on_the_chunking():
-    from skewpend.numeric.kernels import TaylorState, parameter_vector, taylor_kernel
-    from skewpend.numeric.taylor_source import taylor_order
+    from skewpend.numeric.kernels import TaylorState, parameter_vector, taylor_kernel, taylor_order
 
     kernel = taylor_kernel(P, taylor_order(1e-9))
     p = parameter_vector(P)
@@ -117,3 +116,81 @@ def test_refusals():
         simulate(P, Y0, 1.0, method="taylor", controller=Controller.function(lambda t, y: (0.0, 0.0)))
     tr = simulate(P, Y0, 10.0, method="taylor", rtol=1e-9, atol=1e-9, max_steps=5)  # stopped at the cap
     assert not tr.ok and tr.stats["steps"] <= 5 and math.isfinite(tr.y[-1, 0])
+
+
+def _columns(tr):
+    return [tr.t, tr.y, tr.energy, tr.work, np.array([tr.energy_drift, tr.stats["steps"], int(tr.status)])]
+
+
+def _same_bits(a, b):
+    return all(x.shape == y.shape and x.tobytes() == y.tobytes() for x, y in zip(_columns(a), _columns(b)))
+
+
+def test_prepared_parameters_are_per_object_and_results_equal_a_fresh_process():
+    """simulate keeps what it prepared for a Parameters object (kernel, parameter array, Taylor
+    kernels); another object -- other parameters, or equal ones -- gets its own, and every result
+    is the same bits as in a fresh process."""
+    import json
+    import subprocess
+    import sys
+
+    from skewpend.numeric import simulation
+
+    Pd = P.replace(c1=0.05, c2=0.02, tau1=0.1, tau2=-0.05)
+    runs = [(P, 1e-9, None), (Pd, 1e-9, None), (P.replace(g=3.7), 1e-9, 0.05), (P, 1e-6, None), (Pd, 1e-9, None)]
+    here = [simulate(Q, Y0, 3.0, method="taylor", rtol=tol, atol=tol, dt_out=d) for Q, tol, d in runs]
+    assert simulation._PREPARED[id(P)].params is P and simulation._PREPARED[id(Pd)].params is Pd
+    again = simulate(Parameters(**P.to_dict()), Y0, 3.0, method="taylor", rtol=1e-9, atol=1e-9)  # equal, not the same
+    assert _same_bits(again, here[0])
+    code = (
+        "import json, sys, numpy as np\n"
+        "from skewpend import Parameters, simulate\n"
+        "out = []\n"
+        "for d, g, tol, dt_out in json.loads(sys.argv[1]):\n"
+        "    tr = simulate(Parameters(**d).replace(g=g), %r, 3.0, method='taylor', rtol=tol, atol=tol, dt_out=dt_out)\n"
+        "    out.append([a.tobytes().hex() for a in (tr.t, tr.y, tr.energy, tr.work,"
+        " np.array([tr.energy_drift, tr.stats['steps'], int(tr.status)]))])\n"
+        "print(json.dumps(out))\n" % (Y0,)
+    )
+    spec = [(Q.to_dict(), Q.g, tol, d) for Q, tol, d in runs]
+    fresh = json.loads(subprocess.run([sys.executable, "-c", code, json.dumps(spec)], capture_output=True, text=True,
+                                      check=True).stdout)
+    for tr, hexes in zip(here, fresh):
+        assert [a.tobytes().hex() for a in _columns(tr)] == hexes
+
+
+def test_quick_argument_paths_give_the_same_run():
+    """Floats in a tuple take simulate's quick checks; arrays, ints and lists the library's checks:
+    the same run either way, and the same refusals."""
+    a = simulate(P, (1.0, -0.5, 0.0, 0.0), 2.0, method="taylor", rtol=1e-8, atol=1e-8)
+    b = simulate(P, np.array([1, -0.5, 0, 0]), 2, method="taylor", rtol=np.float64(1e-8), atol=1e-8, max_steps=10**6)
+    c = simulate(P, [1.0, -0.5, 0, 0.0], 2.0, method="taylor", rtol=1e-8, atol=1e-8)
+    assert _same_bits(a, b) and _same_bits(a, c)
+    for y0 in ((1.0, float("nan"), 0.0, 0.0), (2e6, 0.0, 0.0, 0.0), (0.0, 0.0, float("inf"), 0.0), (1.0, 2.0, 3.0)):
+        with pytest.raises(ParameterError, match="y0|initial angles"):
+            simulate(P, y0, 1.0, method="taylor")
+    for t_end in (float("nan"), -1.0, 0.0, float("inf"), 1e-320):
+        with pytest.raises(ParameterError, match="t_end"):
+            simulate(P, Y0, t_end, method="taylor")
+    with pytest.raises(ParameterError, match="rtol"):
+        simulate(P, Y0, 1.0, method="taylor", rtol=1e-16, atol=1e-9)
+    with pytest.raises(ParameterError, match="max_steps"):
+        simulate(P, Y0, 1.0, method="taylor", max_steps=0)
+
+
+def test_long_run_goes_on_in_chunks_with_progress_and_keep_false():
+    """More than the first call's 2000 steps: the run continues in drive() (Interrupts, progress);
+    keep=False keeps the first and last rows of the same run, and the same energy drift."""
+    seen = []
+    full = simulate(P, Y0, 200.0, method="taylor", rtol=1e-6, atol=1e-6, progress=lambda t, t_end: seen.append(t))
+    assert full.ok and full.stats["steps"] > 4000 and len(seen) >= 2 and seen[-1] == 200.0
+    assert all(x <= y for x, y in zip(seen, seen[1:]))
+    ends = simulate(P, Y0, 200.0, method="taylor", rtol=1e-6, atol=1e-6, keep=False)
+    assert not ends.kept and len(ends.t) == 2 and ends.energy_drift == full.energy_drift
+    for name in ("t", "y", "energy", "work"):
+        assert np.array_equal(getattr(ends, name), getattr(full, name)[[0, -1]])
+    short = simulate(P, Y0, 0.5, method="taylor", rtol=1e-6, atol=1e-6, progress=lambda t, t_end: seen.append(-t))
+    assert short.ok and seen[-1] == -0.5  # one call: progress once, at the end
+    for name in ("t", "y", "energy", "work"):  # arrays of their own, contiguous
+        arr = getattr(full, name)
+        assert arr.flags.c_contiguous and arr.flags.owndata

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import math
 import os
 import platform
 import shutil
@@ -47,6 +48,7 @@ __all__ = ["ControlStruct",
     "TaylorState",
     "TaylorKernel",
     "taylor_kernel",
+    "taylor_order",
     "CompilerError",
     "find_compiler",
     "LIB_SUFFIX",
@@ -120,6 +122,13 @@ class State(ctypes.Structure):
 
 #: Mirror of ``SP_TN`` and ``SP_TPMAX`` in the Taylor kernel (:mod:`skewpend.numeric.taylor_source`).
 SP_TN, SP_TPMAX = 5, 32
+
+
+def taylor_order(rtol: float) -> int:
+    """The Taylor order for a relative tolerance: Jorba & Zou's ``ceil(-ln(rtol) / 2) + 1``, at
+    least 2 and at most ``SP_TPMAX`` (here, not in :mod:`~skewpend.numeric.taylor_source`, so that
+    a run from cached kernels does not import SymPy)."""
+    return min(max(int(math.ceil(-math.log(rtol) / 2.0)) + 1, 2), SP_TPMAX)
 
 
 class TaylorState(ctypes.Structure):

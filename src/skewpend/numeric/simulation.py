@@ -28,6 +28,7 @@ import contextlib
 import ctypes
 import math
 import os
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence
@@ -36,13 +37,13 @@ import numpy as np
 
 from .. import checks
 from ..interrupts import Interrupts
-from ..io import TRAJECTORY_KIND
+from ..io import TRAJECTORY_KIND, TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
 from ..results import ResultProtocol
-from ..status import Status
+from ..status import CallCode, Status
 from .driver import check_step_estimate, drive
 from ..errors import IntegrationError, ParameterError
 from ..symbolic.model import Parameters
-from ..parsing import initial_state
+from ..parsing import MAX_ANGLE, initial_state
 
 __all__ = ["simulate", "Trajectory", "open_trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", "check_start"]
 
@@ -221,6 +222,8 @@ MAX_STEPS = 100_000_000
 _CHUNK_ROWS = 8192
 _DEFAULT_DT = 1e-3
 _DEFAULT_TOL = checks.DEFAULT_TOL
+_FLOAT_MIN = sys.float_info.min
+_DP = ctypes.POINTER(ctypes.c_double)
 
 
 def _memory_limit() -> float:
@@ -239,13 +242,16 @@ class _Accumulator:
         # the energy account in C, one call per chunk: acc = (max |E - W - E0|, max |E|, E0, E0 set)
         self.acc = np.zeros(4)
         self.energy = np.empty(_CHUNK_ROWS)
-        self.blocks: List[np.ndarray] = []
+        self._addr = (p.ctypes.data, self.energy.ctypes.data, self.acc.ctypes.data)  # (array.ctypes is slow)
+        self.blocks: List[np.ndarray] = []  # kept rows (t, y(4), W), copies
+        self.eblocks: List[np.ndarray] = []  # ... and their energies
         self.first: Optional[np.ndarray] = None
         self.last: Optional[np.ndarray] = None
         self.rows = 0
 
-    def add(self, rows: np.ndarray) -> None:
-        """``rows``: (k, 6) = (t, phi, psi, dphi, dpsi, W), finite."""
+    def add(self, rows: np.ndarray, final: bool = False) -> None:
+        """``rows``: (k, 6) = (t, phi, psi, dphi, dpsi, W), finite.  ``final``: the last rows of
+        the run (then ``rows`` and the energies may be kept as views: nothing overwrites them)."""
         if rows.shape[0] == 0:
             return
         k = rows.shape[0]
@@ -253,33 +259,107 @@ class _Accumulator:
             rows = np.ascontiguousarray(rows)
         if k > self.energy.shape[0]:
             self.energy = np.empty(k)
-        self.kernel.lib.sp_energy_account(rows.ctypes.data, k, rows.strides[0] // 8, self.p.ctypes.data,
-                                          self.energy.ctypes.data, self.acc.ctypes.data)
+            self._addr = (self._addr[0], self.energy.ctypes.data, self._addr[2])
+        p_addr, e_addr, acc_addr = self._addr
+        self.kernel.lib.sp_energy_account(rows.ctypes.data, k, rows.strides[0] // 8, p_addr, e_addr, acc_addr)
         energy = self.energy[:k]
-        work = rows[:, 5]
-        block = np.column_stack([rows[:, :6], energy])  # t, y(4), W, E
         if self.keep:
-            self.blocks.append(block)
+            self.blocks.append(rows if final else rows.copy())
+            self.eblocks.append(energy if final else energy.copy())
         else:
             if self.first is None:
-                self.first = block[:1].copy()
-            self.last = block[-1:].copy()
+                self.first = np.append(rows[0, :6], energy[0])
+            self.last = np.append(rows[k - 1, :6], energy[k - 1])
         if self.writer is not None:
             tips = self.kernel.tips_many(rows, self.p, offset=1)
-            self.writer.write(np.column_stack([rows[:, :5], energy, work, tips]))
-        self.rows += rows.shape[0]
+            self.writer.write(np.column_stack([rows[:, :5], energy, rows[:, 5], tips]))
+        self.rows += k
 
-    def table(self) -> np.ndarray:
+    def columns(self):
+        """``(t, y, energy, work)`` of the kept rows, each a contiguous array of its own."""
         if self.keep:
-            return np.concatenate(self.blocks) if self.blocks else np.empty((0, 7))
+            if len(self.blocks) == 1:
+                rows, energy = self.blocks[0], self.eblocks[0]
+            elif self.blocks:
+                rows, energy = np.concatenate(self.blocks), np.concatenate(self.eblocks)
+            else:
+                rows, energy = np.empty((0, 6)), np.empty(0)
+            return rows[:, 0].copy(), rows[:, 1:5].copy(), energy.copy(), rows[:, 5].copy()
         parts = [b for b in (self.first, self.last) if b is not None]
-        if len(parts) == 2 and parts[0][0, 0] == parts[1][0, 0]:
+        if len(parts) == 2 and parts[0][0] == parts[1][0]:
             parts = parts[:1]
-        return np.concatenate(parts) if parts else np.empty((0, 7))
+        table = np.array(parts) if parts else np.empty((0, 7))
+        return table[:, 0].copy(), table[:, 1:5].copy(), table[:, 6].copy(), table[:, 5].copy()
 
 
 def _progress_noop(t: float, t_end: float) -> None:
     pass
+
+
+class _Prepared:
+    """What ``simulate`` needs of one :class:`Parameters` object, computed on its first run and
+    kept (a Parameters is immutable): its model kernel, parameter array (read-only) and Taylor
+    kernels by order.  Keyed by the object's identity and checked to be that object (it is held,
+    so its id cannot be reused while it is here); another object, even an equal one, is prepared
+    afresh -- never a stale kernel or parameter array."""
+
+    __slots__ = ("params", "kernel", "p", "p_ptr", "taylor")
+
+    def __init__(self, params: Parameters, kernel, p: np.ndarray):
+        self.params, self.kernel, self.p = params, kernel, p
+        self.p_ptr = p.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        self.taylor: Dict[int, Any] = {}
+
+
+#: The prepared Parameters objects, by id (at most :data:`_PREPARED_MAX`, the oldest dropped first).
+_PREPARED: Dict[int, _Prepared] = {}
+_PREPARED_MAX = 16
+
+
+def _prepare(params: Parameters) -> _Prepared:
+    K = _KERNELS or _kernels()
+    kernel = K.kernel_module(params)
+    p = K.parameter_vector(params)
+    p.flags.writeable = False
+    entry = _Prepared(params, kernel, p)
+    while len(_PREPARED) >= _PREPARED_MAX:
+        _PREPARED.pop(next(iter(_PREPARED)), None)
+    _PREPARED[id(params)] = entry
+    return entry
+
+
+def _initial_state(y0) -> List[float]:
+    """``initial_state(y0)`` as a list, quicker for the common case of 4 Python floats."""
+    if type(y0) in (tuple, list) and len(y0) == 4:
+        a, b, c, d = y0
+        if type(a) is float and type(b) is float and type(c) is float and type(d) is float and abs(a) <= MAX_ANGLE \
+                and abs(b) <= MAX_ANGLE and math.isfinite(c) and math.isfinite(d):  # (NaN fails the comparisons)
+            return [a, b, c, d]
+    return initial_state(y0).tolist()
+
+
+def _check_start(kernel, entry: _Prepared, y: List[float]) -> None:
+    """:func:`check_start` with the prepared parameter pointer (the same test, a few times quicker)."""
+    y5 = (ctypes.c_double * 5)(y[0], y[1], y[2], y[3], 0.0)
+    deriv = (ctypes.c_double * 5)()
+    kernel.lib.sp_rhs(y5, entry.p_ptr, deriv)
+    energy = kernel.lib.sp_energy(y5, entry.p_ptr)
+    if not (math.isfinite(energy) and math.isfinite(deriv[0]) and math.isfinite(deriv[1]) and math.isfinite(deriv[2])
+            and math.isfinite(deriv[3]) and math.isfinite(deriv[4])):
+        check_start(kernel, entry.p, y)  # raises, with the message
+
+
+_KERNELS: Any = None
+
+
+def _kernels():
+    """:mod:`skewpend.numeric.kernels`, imported on the first simulation (not with this module)."""
+    global _KERNELS
+    if _KERNELS is None:
+        from . import kernels
+
+        _KERNELS = kernels
+    return _KERNELS
 
 
 def simulate(
@@ -339,18 +419,23 @@ def simulate(
     it raises is raised here); ``Trajectory.inputs()`` gives them at the rows, and the work ``W``
     includes theirs.
     """
-    from .kernels import State, TaylorState, kernel_module, parameter_vector
-    from ..io import TRAJECTORY_SUFFIXES, TrajectoryWriter, check_output_path, trajectory_metadata
-
-    params.require_numeric("simulation")
-    y = initial_state(y0)
-    t_end = checks.positive("t_end", t_end)
+    K = _KERNELS or _kernels()
+    # per Parameters object, once (_Prepared); then the quick checks of the common argument types,
+    # the library's own checks (same messages) for everything else
+    entry = _PREPARED.get(id(params))
+    if entry is None or entry.params is not params:
+        entry = None
+        params.require_numeric("simulation")
+    y = _initial_state(y0)
+    if not (type(t_end) is float and _FLOAT_MIN <= t_end < math.inf):
+        t_end = checks.positive("t_end", t_end)
     dt_out = None if dt_out is None else checks.positive("dt_out", dt_out)
     if method not in METHODS:
         raise ParameterError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
     if dt_out is not None and dt_out > t_end:
         raise ParameterError(f"dt_out ({dt_out:g}) must not exceed t_end ({t_end:g})")
-    max_steps = checks.max_steps(max_steps)
+    if not (type(max_steps) is int and 1 <= max_steps <= checks.MAX_STEPS_LIMIT):
+        max_steps = checks.max_steps(max_steps)
     if controller is not None:
         from .control import Controller
 
@@ -363,16 +448,18 @@ def simulate(
         if method == "taylor":
             raise ParameterError("inputs that vary need dop853 or rk4 (taylor's series are generated for the model "
                                  "with constant torques)")
-    checks.progress_callable(progress, "progress(t, t_end)")
-    progress = progress or _progress_noop
+    if progress is not None:
+        checks.progress_callable(progress, "progress(t, t_end)")
     if out is not None:
         out = check_output_path(out, TRAJECTORY_SUFFIXES, option="out")
     settings: Dict[str, Any] = {"t_end": t_end, "dt_out": dt_out, "max_steps": max_steps}
     if method in ADAPTIVE:
         if dt is not None:
             raise ParameterError(f"dt is the step of rk4 and gauss; {method} chooses its own steps (set rtol/atol instead)")
-        rtol, atol = checks.tolerances(rtol, atol, default=_DEFAULT_TOL)
-        settings.update(rtol=rtol, atol=atol)
+        if not (type(rtol) is float and type(atol) is float and checks.RTOL_MIN <= rtol <= 1.0
+                and checks.ATOL_MIN <= atol <= 1.0):
+            rtol, atol = checks.tolerances(rtol, atol, default=_DEFAULT_TOL)
+        settings["rtol"], settings["atol"] = rtol, atol
         n_grid = 0 if dt_out is None else int(math.floor(t_end / dt_out * (1 + 1e-12))) + 1
         nsteps = stride = 0
     else:
@@ -404,62 +491,69 @@ def simulate(
     if controller is not None:
         settings["controller"] = controller.settings()
 
-    kernel = kernel_module(params)
+    if entry is None:
+        entry = _prepare(params)
+    kernel, p = entry.kernel, entry.p
+    tk: Any = None
     if method == "taylor":
-        from .kernels import taylor_kernel
-        from .taylor_source import taylor_order
-
-        try:
-            tk = taylor_kernel(params, taylor_order(float(rtol or 0.0)), model=kernel)
-        except ValueError as exc:  # a function in the equations without a series recurrence
-            raise ParameterError(f"method taylor: {exc}; use dop853") from None
-    p = parameter_vector(params)
-    y5 = np.append(y, 0.0)
-    check_start(kernel, p, y)
+        order = K.taylor_order(rtol)
+        tk = entry.taylor.get(order)
+        if tk is None:
+            try:
+                tk = K.taylor_kernel(params, order, model=kernel)
+            except ValueError as exc:  # a function in the equations without a series recurrence
+                raise ParameterError(f"method taylor: {exc}; use dop853") from None
+            entry.taylor[order] = tk
+    _check_start(kernel, entry, y)
 
     state: Any
-    if method == "gauss":
+    if method == "taylor":
+        state = K.TaylorState()
+        state.y[0], state.y[1], state.y[2], state.y[3] = y
+    elif method == "gauss":
+        y5 = np.array(y + [0.0])
         mom = np.empty(2)
         kernel.momenta(y5, p, mom)
         z5 = y5.copy()
         z5[2:4] = mom
-        state = State.at(0.0, z5)
+        state = K.State.at(0.0, z5)
         tol, max_iter = 1e-15, 100
         settings.update(implicit_tol=tol, implicit_max_iter=max_iter)
-    elif method == "taylor":
-        state = TaylorState.at(0.0, y5)
     else:
-        state = State.at(0.0, y5 if controller is None or controller.state_size == 5 else np.append(y5, 0.0))
+        state = K.State.at(0.0, y + [0.0] if controller is None or controller.state_size == 5 else y + [0.0, 0.0])
     n = 5 if controller is None else controller.state_size
     cstruct = None if controller is None else controller.struct()
     cref = None if cstruct is None else ctypes.byref(cstruct)
 
     rows = np.empty((_CHUNK_ROWS, n + 1))
-    dp = ctypes.POINTER(ctypes.c_double)
-    rows_ptr, p_ptr = rows.ctypes.data_as(dp), p.ctypes.data_as(dp)
+    rows_ptr, p_ptr = rows.ctypes.data_as(_DP), entry.p_ptr
     m = ctypes.c_int64(0)
     k_out = ctypes.c_int64(0)
     sref = ctypes.byref(state)
     lib = kernel.lib
 
-    def call(budget: int) -> int:
-        if cref is not None:
+    if method == "taylor":
+        taylor_fn, s_addr, p_addr, rows_addr = tk.lib.sp_taylor, ctypes.addressof(state), p.ctypes.data, rows.ctypes.data
+        m_ref, k_ref, dense_dt = ctypes.byref(m), ctypes.byref(k_out), dt_out or 0.0
+
+        def call(budget: int) -> int:
+            return taylor_fn(s_addr, p_addr, t_end, rtol, atol, max_steps, budget, dense_dt, n_grid, k_ref, rows_addr,
+                             _CHUNK_ROWS, m_ref)
+    else:
+        def call(budget: int) -> int:
+            if cref is not None:
+                if method == "dop853":
+                    return lib.sp_dop853_ctl(cref, sref, n, p_ptr, t_end, rtol, atol, max_steps, budget, dt_out or 0.0,
+                                             n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
+                return lib.sp_rk4_ctl(cref, sref, n, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS,
+                                      ctypes.byref(m))
             if method == "dop853":
-                return lib.sp_dop853_ctl(cref, sref, n, p_ptr, t_end, rtol, atol, max_steps, budget, dt_out or 0.0,
-                                         n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
-            return lib.sp_rk4_ctl(cref, sref, n, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS,
-                                  ctypes.byref(m))
-        if method == "taylor":
-            return tk.lib.sp_taylor(ctypes.addressof(state), p.ctypes.data, t_end, rtol, atol, max_steps, budget,
-                                    dt_out or 0.0, n_grid, ctypes.byref(k_out), rows.ctypes.data, _CHUNK_ROWS,
-                                    ctypes.byref(m))
-        if method == "dop853":
-            return lib.sp_dop853(sref, 5, p_ptr, t_end, rtol, atol, max_steps, budget,
-                                 dt_out or 0.0, n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
-        if method == "rk4":
-            return lib.sp_rk4(sref, 5, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
-        return lib.sp_gauss(sref, 5, p_ptr, 0.0, step, nsteps, stride, tol, max_iter, budget, rows_ptr, _CHUNK_ROWS,
-                            ctypes.byref(m))
+                return lib.sp_dop853(sref, 5, p_ptr, t_end, rtol, atol, max_steps, budget,
+                                     dt_out or 0.0, n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
+            if method == "rk4":
+                return lib.sp_rk4(sref, 5, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
+            return lib.sp_gauss(sref, 5, p_ptr, 0.0, step, nsteps, stride, tol, max_iter, budget, rows_ptr, _CHUNK_ROWS,
+                                ctypes.byref(m))
 
     writer = None
     metadata = {}
@@ -468,12 +562,12 @@ def simulate(
             writer = stack.enter_context(TrajectoryWriter(out))
         acc = _Accumulator(kernel, p, keep, writer)
 
-        def take() -> None:
+        def take(final: bool = False) -> None:
             if m.value:
                 chunk = rows[: m.value, :6]
                 if method == "gauss":
                     chunk = kernel.speeds_many(chunk, p, offset=1)
-                acc.add(chunk)
+                acc.add(chunk, final)
 
         def estimate() -> float:  # after the first bounded call: refuse what cannot finish
             steps = check_step_estimate(state, t_end, max_steps)
@@ -481,11 +575,34 @@ def simulate(
                 _check_room(state.naccept * t_end / state.t, keep, out)
             return steps
 
+        def report() -> None:
+            if progress is not None:
+                progress(state.t, t_end)
+
+        budget = min(2000, max(10, max_steps // 20))
         start = time.perf_counter()
-        intr = stack.enter_context(Interrupts())
-        status = drive(call, budget=min(2000, max(10, max_steps // 20)), take=take, check=intr.check,
-                       progress=lambda: progress(state.t, t_end), estimate=estimate if method in ADAPTIVE else None,
-                       adapt=True, name=f"sp_{method}")
+        # The first bounded call (at most 2000 steps: a few ms) runs without Interrupts' signal
+        # handlers (installing and restoring them costs more than a short run takes): a Ctrl-C
+        # during it raises as Python's handler does, when the call returns.  A run that goes on
+        # continues in drive(), inside Interrupts, as drive() would have (its budget adapted to
+        # ~0.05 s a call after drive's first call; results do not depend on the chunks).
+        code = int(call(budget))
+        if code == CallCode.BAD_ARGUMENTS:  # pragma: no cover - the arguments are checked above
+            raise RuntimeError(f"internal error: bad arguments to sp_{method}")
+        if code >= 0:
+            take(True)
+            report()
+            status = Status.of(code)
+        else:
+            take()
+            estimated = method not in ADAPTIVE
+            if code == CallCode.BUDGET and not estimated:
+                estimated = True
+                estimate()
+            report()
+            intr = stack.enter_context(Interrupts())
+            status = drive(call, budget=budget, take=take, check=intr.check, progress=report,
+                           estimate=None if estimated else estimate, adapt=True, name=f"sp_{method}")
         if cstruct is not None:
             from .control import raise_law_error
 
@@ -509,17 +626,17 @@ def simulate(
         err, scale = float(acc.acc[0]), float(acc.acc[1])
         drift = err / scale if scale > 0 else err
         message = status.message
-        table = acc.table()
+        t_col, y_col, e_col, w_col = acc.columns()
         traj = Trajectory(
-            t=table[:, 0].copy(),
-            y=table[:, 1:5].copy(),
-            energy=table[:, 6].copy(),
-            work=table[:, 5].copy(),
+            t=t_col,
+            y=y_col,
+            energy=e_col,
+            work=w_col,
             params=params,
             method=method,
             settings=settings,
             stats=stats,
-            status=int(status),
+            status=status,
             message=message,
             energy_drift=drift,
             kept=keep,

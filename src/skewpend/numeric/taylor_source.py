@@ -25,7 +25,6 @@ products is printed.  Nothing here is an equation of motion typed by hand.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Dict, List, Tuple
 
@@ -37,11 +36,12 @@ from .conventions import PARAMETER_ORDER, STATE_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["taylor_c_source", "taylor_order", "SP_TN", "SP_TPMAX"]
+__all__ = ["taylor_c_source", "SP_TN", "SP_TPMAX"]
 
 #: State components of the Taylor integrator: (phi, psi, dphi, dpsi, W).
 SP_TN = 5
-#: Highest Taylor order (rtol >= 1e-15 needs at most 19).
+#: Highest Taylor order (rtol >= 1e-15 needs at most 19).  The order of a tolerance is
+#: :func:`skewpend.numeric.kernels.taylor_order` (there: simulate does not import SymPy).
 SP_TPMAX = 32
 
 
@@ -295,12 +295,6 @@ def _derivative_of(a):
     if a[1] in deriv:
         return lambda j: f"{deriv[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}]"
     return lambda j: f"(double)({j}) * {a[1]}[{j}]"
-
-
-def taylor_order(rtol: float) -> int:
-    """The Taylor order for a relative tolerance: Jorba & Zou's ``ceil(-ln(rtol) / 2) + 1``, at
-    least 2 and at most :data:`SP_TPMAX`."""
-    return min(max(int(math.ceil(-math.log(rtol) / 2.0)) + 1, 2), SP_TPMAX)
 
 
 def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
