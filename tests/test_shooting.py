@@ -37,6 +37,36 @@ def _segments(params, seconds=0.6, dt=1e-3, step=0.002, noise=0.0, seed=0):
     return shooting.segments(filtered, names, segment=seconds, step=step)
 
 
+def test_the_compiled_regressor_functions_are_the_expressions(generic):
+    """The C functions printed from the base regressor and its derivatives (shooting._generated)
+    against SymPy's NumPy printing of the same expressions, at random states: equal to rounding
+    (1e-12 relative to the largest entry of each matrix), and the speeds, alpha, a and g all read."""
+    import sympy as sp
+
+    from skewpend.symbolic.symbols import SYMBOLS as S
+
+    B, _ = generic
+    Y = B.symbolic_regressor
+    base, full, r = shooting._generated(Y)
+    YM1, YM2 = Y.diff(S["ddphi"]), Y.diff(S["ddpsi"])
+    Yh = Y.xreplace({S["ddphi"]: 0, S["ddpsi"]: 0})
+    mats = [YM1, YM2, Yh, Yh.diff(S["phi"]), Yh.diff(S["psi"]), YM1.diff(S["phi"]), YM1.diff(S["psi"]),
+            YM2.diff(S["phi"]), YM2.diff(S["psi"]), Yh.diff(S["dphi"]), Yh.diff(S["dpsi"]), Yh.diff(S["alpha"]),
+            YM1.diff(S["alpha"]), YM2.diff(S["alpha"])]
+    args = [S[n] for n in ("phi", "psi", "dphi", "dpsi", "alpha", "a", "g")]
+    numpy = sp.lambdify(args, [e for M in mats for e in M], modules="numpy")
+    rng = np.random.default_rng(3)
+    y = rng.uniform(-3, 3, (7, 4))
+    for alpha, a, g in ((0.4, 1.0, 9.81), (-1.1, 0.37, 3.2)):
+        got = full(y, alpha, a, g)
+        want = np.array([np.broadcast_to(v, (7,)) for v in numpy(*y.T, alpha, a, g)])
+        scale = np.abs(want.reshape(14, -1)).max(axis=1).repeat(2 * r)[:, None] + 1e-300
+        assert np.all(np.abs(got - want) <= 1e-12 * scale), np.abs(got - want).max()
+        assert np.all(np.abs(base(y, alpha, a, g) - want[: 3 * 2 * r]) <= 1e-12 * scale[: 3 * 2 * r])
+    assert not np.array_equal(full(y, 0.4, 1.0, 9.81), full(y, 0.4, 1.0, 3.2))  # g is read
+    assert not np.array_equal(full(y, 0.4, 1.0, 9.81), full(y, 0.4, 0.9, 9.81))  # a is read
+
+
 def test_the_regressor_dynamics_are_the_simulations(generic):
     """RK4 at 1 ms on q'' = M(beta)^-1 (tau - Yh beta), generated from the base regressor, against the
     compiled DOP853 at 1e-12 on the kernels generated from the same derivation by another route:

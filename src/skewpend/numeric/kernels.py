@@ -48,6 +48,7 @@ __all__ = ["ControlStruct",
     "TaylorState",
     "TaylorKernel",
     "taylor_kernel",
+    "source_library",
     "taylor_order",
     "CompilerError",
     "find_compiler",
@@ -565,7 +566,8 @@ def _announce(kind: str, cached: bool) -> None:
                             "or clang, or set CC")
     if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
         return
-    what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels", "taylor": "the Taylor kernel of this order"}.get(kind, "the model's kernels")
+    what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels", "taylor": "the Taylor kernel of this order",
+            "regressor": "the identification's regressor functions"}.get(kind, "the model's kernels")
     when = "first use only; cached for later runs" if cached else "for this run: the cache is not writable"
     try:
         sys.stderr.write(f"skewpend: compiling {what} ({when})...\n")
@@ -692,3 +694,27 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
         if model is not None:
             _TAYLOR_OF[model.path, order] = loaded
         return loaded
+
+
+# -- generated code outside the model's kernels ------------------------------------------------------
+_LIBRARIES: Dict[str, ctypes.CDLL] = {}
+
+
+def source_library(source: str, name: str) -> ctypes.CDLL:
+    """The shared library of the C text ``source`` (generated elsewhere, e.g. the identification's
+    batched regressor functions), cached like the kernels under ``name`` and the text's digest:
+    compiled once per text, announced on stderr as the kernels are."""
+    key = hashlib.sha256(source.encode("utf-8")).hexdigest()[:20]
+    with _LOCK:
+        if key in _LIBRARIES:
+            return _LIBRARIES[key]
+        path = cache_dir() / "kernels" / f"skewpend_{name}_{key}{LIB_SUFFIX}"
+        if not (path.exists() and _intact(path)):
+            directory = _writable_directory()
+            path = directory / f"skewpend_{name}_{key}{LIB_SUFFIX}"
+            _remove_stale_temporaries(directory)
+            _announce(name, cached=directory == cache_dir() / "kernels")
+            _compile(source, path)
+        lib = ctypes.CDLL(str(path))
+        _LIBRARIES[key] = lib
+        return lib
