@@ -241,8 +241,7 @@ class _Accumulator:
         self.kernel, self.p, self.keep, self.writer = kernel, p, keep, writer
         # the energy account in C, one call per chunk: acc = (max |E - W - E0|, max |E|, E0, E0 set)
         self.acc = np.zeros(4)
-        self.energy = np.empty(_CHUNK_ROWS)
-        self._addr = (p.ctypes.data, self.energy.ctypes.data, self.acc.ctypes.data)  # (array.ctypes is slow)
+        self._addr = (p.ctypes.data, self.acc.ctypes.data)  # (array.ctypes is slow)
         self.blocks: List[np.ndarray] = []  # kept rows (t, y(4), W), copies
         self.eblocks: List[np.ndarray] = []  # ... and their energies
         self.first: Optional[np.ndarray] = None
@@ -257,15 +256,12 @@ class _Accumulator:
         k = rows.shape[0]
         if rows.strides[1] != 8:
             rows = np.ascontiguousarray(rows)
-        if k > self.energy.shape[0]:
-            self.energy = np.empty(k)
-            self._addr = (self._addr[0], self.energy.ctypes.data, self._addr[2])
-        p_addr, e_addr, acc_addr = self._addr
-        self.kernel.lib.sp_energy_account(rows.ctypes.data, k, rows.strides[0] // 8, p_addr, e_addr, acc_addr)
-        energy = self.energy[:k]
+        energy = np.empty(k)  # each block's own (kept as it is)
+        p_addr, acc_addr = self._addr
+        self.kernel.lib.sp_energy_account(rows.ctypes.data, k, rows.strides[0] // 8, p_addr, energy.ctypes.data, acc_addr)
         if self.keep:
             self.blocks.append(rows if final else rows.copy())
-            self.eblocks.append(energy if final else energy.copy())
+            self.eblocks.append(energy)
         else:
             if self.first is None:
                 self.first = np.append(rows[0, :6], energy[0])
@@ -284,6 +280,8 @@ class _Accumulator:
                 rows, energy = np.concatenate(self.blocks), np.concatenate(self.eblocks)
             else:
                 rows, energy = np.empty((0, 6)), np.empty(0)
+            if len(self.blocks) == 1:  # the energies are an array of their own already
+                return rows[:, 0].copy(), rows[:, 1:5].copy(), energy, rows[:, 5].copy()
             return rows[:, 0].copy(), rows[:, 1:5].copy(), energy.copy(), rows[:, 5].copy()
         parts = [b for b in (self.first, self.last) if b is not None]
         if len(parts) == 2 and parts[0][0] == parts[1][0]:
@@ -303,11 +301,12 @@ class _Prepared:
     so its id cannot be reused while it is here); another object, even an equal one, is prepared
     afresh -- never a stale kernel or parameter array."""
 
-    __slots__ = ("params", "kernel", "p", "p_ptr", "taylor")
+    __slots__ = ("params", "kernel", "p", "p_ptr", "p_addr", "taylor")
 
     def __init__(self, params: Parameters, kernel, p: np.ndarray):
         self.params, self.kernel, self.p = params, kernel, p
         self.p_ptr = p.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        self.p_addr = p.ctypes.data
         self.taylor: Dict[int, Any] = {}
 
 
@@ -526,20 +525,21 @@ def simulate(
     cref = None if cstruct is None else ctypes.byref(cstruct)
 
     rows = np.empty((_CHUNK_ROWS, n + 1))
-    rows_ptr, p_ptr = rows.ctypes.data_as(_DP), entry.p_ptr
     m = ctypes.c_int64(0)
     k_out = ctypes.c_int64(0)
-    sref = ctypes.byref(state)
-    lib = kernel.lib
 
     if method == "taylor":
-        taylor_fn, s_addr, p_addr, rows_addr = tk.lib.sp_taylor, ctypes.addressof(state), p.ctypes.data, rows.ctypes.data
+        taylor_fn, s_addr, p_addr, rows_addr = tk.lib.sp_taylor, ctypes.addressof(state), entry.p_addr, rows.ctypes.data
         m_ref, k_ref, dense_dt = ctypes.byref(m), ctypes.byref(k_out), dt_out or 0.0
 
         def call(budget: int) -> int:
             return taylor_fn(s_addr, p_addr, t_end, rtol, atol, max_steps, budget, dense_dt, n_grid, k_ref, rows_addr,
                              _CHUNK_ROWS, m_ref)
     else:
+        rows_ptr, p_ptr = rows.ctypes.data_as(_DP), entry.p_ptr
+        sref = ctypes.byref(state)
+        lib = kernel.lib
+
         def call(budget: int) -> int:
             if cref is not None:
                 if method == "dop853":
