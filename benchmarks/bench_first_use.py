@@ -40,6 +40,19 @@ Goals (first use): skewpend cold <= 2.5 s, skewpend warm <= 0.6 s.
 
 Run:  python benchmarks/bench_first_use.py [--repeat-warm 5] [--repeat-cold 3]
       (--repeat N sets both). heyoka is optional: pip install heyoka
+
+--no-compiler (issue 28, goal 5): a new user's first minute on a machine WITHOUT a system C compiler,
+as tests/test_compiler.py hides it: PATH is one empty directory (no cc, gcc or clang; the commands
+are started by their full path), CC is unset, and HOME, XDG_CACHE_HOME and SKEWPEND_CACHE_DIR are
+fresh empty directories for every run (so the packaged zig cc's own cache, ~/.cache/zig, and
+matplotlib's font cache start empty too, as on a new machine). Measured, --repeat-cold times each,
+interleaved: the first `skewpend simulate` (goal <= 5 s) and the first `skewpend report -q`
+(goal <= 30 s), each in its own fresh home; then, in the same home as that first simulate, a
+`skewpend report` (the model's kernel already built: the report's other kernels and SymPy only).
+Each run's stderr (a pipe here, as in a script or CI) is checked for the one-line notice
+"compiling the model's kernels (first use only...)" (after a simulate: for any kind's notice);
+every kind's notice, the compiler each kernel recorded and the report's own timings (section 10)
+are printed.
 """
 
 from __future__ import annotations
@@ -62,6 +75,9 @@ Y0 = (1.2, -0.8, 0.0, 0.0)
 T_END = 20.0
 TOL = 1e-10
 GOALS = {"skewpend cold": 2.5, "skewpend warm": 0.6}
+NO_COMPILER_GOALS = {"first simulate": 5.0, "first report": 30.0}  # issue 28, goal 5
+NOTICE = "compiling the model's kernels (first use only"
+NOTICE_RE = re.compile(r"compiling the (.+?) kernels \(first use only")  # every kind's one-line notice
 AGREEMENT = 1e-6
 CHECK_RTOL = 1e-14  # skewpend's tight run for the agreement check (untimed)
 REF_TOL = sys.float_info.epsilon  # heyoka's default tolerance: the reference (untimed)
@@ -208,6 +224,95 @@ except AttributeError:
 '''
 
 
+# ----------------------------------------------------------------------------- no system compiler
+
+
+def no_compiler_env(root: Path) -> dict[str, str]:
+    """A new user's environment without a system compiler: PATH one empty directory, CC unset, and a
+    fresh HOME, XDG_CACHE_HOME and SKEWPEND_CACHE_DIR under root (as tests/test_compiler.py)."""
+    env = {k: v for k, v in base_env().items() if k not in ("CC", "HOME", "MPLCONFIGDIR")}
+    for sub in ("bin", "home", "home/.cache"):
+        (root / sub).mkdir(parents=True, exist_ok=True)
+    if any(shutil.which(n, path=str(root / "bin")) for n in ("cc", "gcc", "clang")):
+        raise SystemExit("the empty PATH directory has a C compiler in it")
+    env.update(PATH=str(root / "bin"), HOME=str(root / "home"), XDG_CACHE_HOME=str(root / "home" / ".cache"),
+               SKEWPEND_CACHE_DIR=str(root / "skewpend"))
+    return env
+
+
+def no_compiler(repeat: int, keep: bool) -> int:
+    from bench_report import timings  # section 10's table of a report
+
+    sk = skewpend_command()[:-1]  # the executable (started by its full path: PATH has nothing)
+    print("machine")
+    print(f"  cpu        {cpu_model()}")
+    print(f"  nproc      {len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count()}")
+    print(f"  platform   {platform.platform()}")
+    print(f"  python     {platform.python_version()}   skewpend {version('skewpend')}   ziglang {version('ziglang')}   "
+          f"sympy {version('sympy')}   matplotlib {version('matplotlib')}")
+    print(f"  command    {' '.join(sk)}")
+    print(f"  load       {' '.join(f'{x:.2f}' for x in os.getloadavg())} at the start (1, 5, 15 min; the machine "
+          "may be shared)")
+    print(f"no system compiler: PATH = an empty directory, CC unset, fresh HOME and caches for every run; "
+          f"{repeat} runs each, interleaved (median reported)\n", flush=True)
+    work = Path(tempfile.mkdtemp(prefix="skewpend-bench-no-compiler-"))
+    times: dict[str, list[float]] = {}
+    notices: dict[str, list[bool]] = {}
+    tables: dict[str, dict[str, float]] = {}
+    compilers: set[str] = set()
+    builds: list[str] = []
+
+    def once(case: str, root: Path, args: list[str]) -> None:
+        dt, proc = run_timed(sk + args, no_compiler_env(root), case)
+        times.setdefault(case, []).append(dt)
+        kinds = NOTICE_RE.findall(proc.stderr)
+        notices.setdefault(case, []).append(NOTICE in proc.stderr or (bool(kinds) and "after" in case))
+        for line in (proc.stdout + proc.stderr).splitlines():
+            if line.startswith("kernel") and "compiled" in line:
+                builds.append(f"{case}: {line.split(None, 1)[1]}")
+        for rec in (root / "skewpend").rglob("*.compiler"):
+            compilers.add(rec.read_text().strip())
+        other = [ln for ln in proc.stderr.splitlines() if ln.strip() and not NOTICE_RE.search(ln)]
+        print(f"  {case:<28} {dt:7.2f} s   notices on stderr (a pipe): {', '.join(kinds) or 'NONE'}"
+              + (f"   other stderr: {' | '.join(other)[:200]}" if other else ""), flush=True)
+
+    try:
+        for i in range(repeat):
+            once("first simulate", work / f"sim-{i}", ["simulate"])
+            once("report after that simulate", work / f"sim-{i}", ["report", "-q", "-o", str(work / "after.html")])
+            tables["report after simulate"] = timings(work / "after.html")
+            once("first report", work / f"rep-{i}", ["report", "-q", "-o", str(work / "first.html")])
+            tables["first report"] = timings(work / "first.html")
+    finally:
+        if keep:
+            print(f"\n(temporary directories kept in {work})")
+        else:
+            shutil.rmtree(work, ignore_errors=True)
+    print(f"\n{'case':<30} {'n':>2} {'median s':>9} {'min s':>7} {'max s':>7}  notice  goal")
+    failed = False
+    for case, v in times.items():
+        med = statistics.median(v)
+        goal = ""
+        if case in NO_COMPILER_GOALS:
+            ok = med <= NO_COMPILER_GOALS[case]
+            failed |= not ok
+            goal = f"<= {NO_COMPILER_GOALS[case]:g} s  {'met' if ok else 'NOT met'}"
+        seen = f"{sum(notices[case])}/{len(v)}"
+        print(f"{case:<30} {len(v):>2} {med:>9.2f} {min(v):>7.2f} {max(v):>7.2f}  {seen:>6}  {goal}")
+    print(f"\ncompilers recorded by the kernels: {', '.join(sorted(compilers)) or 'none'}")
+    for line in dict.fromkeys(builds):
+        print(f"  {line}")
+    if tables:
+        kinds = list(tables)
+        print("\nthe report's own timings (section 10, the last run of each) [s]")
+        print(f"{'part':<44}" + "".join(f"{k:>24}" for k in kinds))
+        for part in dict.fromkeys(p for t in tables.values() for p in t):
+            print(f"{part:<44}" + "".join(f"{tables[k].get(part, float('nan')):>24.2f}" for k in kinds))
+    print(f"\nload average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(f"goals: {'all met' if not failed else 'NOT all met'}")
+    return 0
+
+
 # ----------------------------------------------------------------------------- main
 
 
@@ -217,7 +322,11 @@ def main() -> int:
     ap.add_argument("--repeat-warm", type=int, default=5, help="warm repetitions (default 5)")
     ap.add_argument("--repeat-cold", type=int, default=3, help="cold repetitions (default 3)")
     ap.add_argument("--keep", action="store_true", help="keep the temporary directories")
+    ap.add_argument("--no-compiler", action="store_true",
+                    help="a new user's first simulate and report with no system C compiler (issue 28, goal 5)")
     args = ap.parse_args()
+    if args.no_compiler:
+        return no_compiler(args.repeat if args.repeat is not None else args.repeat_cold, args.keep)
     n_warm = args.repeat if args.repeat is not None else args.repeat_warm
     n_cold = args.repeat if args.repeat is not None else args.repeat_cold
     if n_warm < 1 or n_cold < 1:

@@ -50,6 +50,7 @@ T_END = 10.0
 HY_TOL = 1e-8
 REF_TOL = 1e-13
 GOAL, AMBITION = 1.0, 2.0  # skewpend time <= heyoka time / GOAL (and / AMBITION)
+GOAL_28 = 3.0  # issue 28: the flip map stays >= 3x faster than heyoka's batch mode (best configuration)
 
 
 def params():
@@ -302,7 +303,8 @@ def main() -> int:
         ratio = best_hy / sk_med
         print(f"\ngoal (issue 9): skewpend at least as fast as heyoka's batch mode (best heyoka configuration: "
               f"{best_hy:.3f} s): {'PASS' if ratio >= GOAL else 'FAIL'} -- skewpend is {ratio:.1f}x faster"
-              f" (ambition {AMBITION:g}x: {'met' if ratio >= AMBITION else 'not met'})")
+              f" (ambition {AMBITION:g}x: {'met' if ratio >= AMBITION else 'not met'}; "
+              f"issue 28's goal {GOAL_28:g}x: {'met' if ratio >= GOAL_28 else 'NOT met'})")
     print(f"load average at the end: {os.getloadavg()[0]:.2f}")
     return 0
 

@@ -36,6 +36,7 @@ Run:  python benchmarks/bench_lyapunov.py [--repeat 5]
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import time
 
@@ -46,7 +47,7 @@ from _common import compile_times, cpu_model, version  # benchmarks/ is on sys.p
 T_END, RENORM = 1000.0, 1.0
 TOL_FULL, TOL_LLE, TOL_SPREAD = 1e-10, 1e-6, 1e-12
 NAMES = ("phi", "psi", "dphi", "dpsi")
-GOAL = 1.5  # skewpend time <= GOAL x heyoka time (full spectrum)
+GOAL = 0.5  # skewpend time <= GOAL x heyoka time (full spectrum; issue 28, was 1.5x in issue 12)
 
 
 def case():
@@ -207,8 +208,11 @@ def main():
     for kind, goal in (("full", f"   goal <= {GOAL:g}x"), ("largest", "")):
         s, h = res[f"skewpend {kind}"], res[f"heyoka {kind}"]
         d = np.max(np.abs(exps(f"skewpend {kind}")[: exps(f"heyoka {kind}").size] - exps(f"heyoka {kind}")))
+        if goal:
+            goal += f" (median): {'met' if s[1] / h[1] <= GOAL else 'NOT met'}"
         print(f"  {kind:8s} {s[0] / h[0]:5.2f}x  {s[1] / h[1]:5.2f}x{goal}   max |dl| = {d:.2e} /s")
     print(f"  skewpend stats (full): {res['skewpend full'][2].stats}")
+    print(f"load average at the end: {os.getloadavg()[0]:.2f} (the machine may be shared)")
 
 
 if __name__ == "__main__":
