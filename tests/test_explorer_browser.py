@@ -540,7 +540,13 @@ def _check_page(p: Page, query: str):
         _check_console_without_gravity(p, query)
 
 
-@pytest.mark.parametrize("query", QUERIES)
+#: The static export runs the same page code from files (every check on its page at the defaults, and
+#: the other tests, run on both): at one address of each kind of check besides.
+STATIC_QUERIES = ["?alpha=90&a=0.5&m2=2.5", "?alpha=-137.5&b=1.7&c1=0.4&c2=1.1&g=3.7", "?alpha=120&c1=0.3", "?g=0"]
+
+
+@pytest.mark.parametrize("site, query", [("served", q) for q in QUERIES] + [("static", q) for q in STATIC_QUERIES],
+                         indirect=["site"])
 def test_at_an_address_the_page_computes_what_the_library_does(browser, site, query):
     """The page opened at ``query`` (the parameters in its address): the modes (MODES), the
     equations (EQUATIONS) and the flip map (FLIP_MAPS) it computes are the library's, and without
