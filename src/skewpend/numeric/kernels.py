@@ -260,7 +260,10 @@ def _compile(source: str, target: Path) -> str:
     so_tmp = c_tmp[: -len(".c.tmp")] + LIB_SUFFIX + ".tmp"
     try:
         # -I: the integrators include the DOP853 core (dop853_core.h) from the package
-        cmd = [*cc, *CFLAGS, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
+        # the packaged zig cc builds its compiler runtime (compiler_rt) on its first use, 4-7 s, for
+        # builtins no kernel calls (double and 64-bit integer arithmetic are instructions; only libm is used)
+        extra = ["-rtlib=none"] if tuple(cc[1:]) == PACKAGED_COMPILER else []
+        cmd = [*cc, *CFLAGS, *extra, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
         # the compiler's own temporary files (gcc's .s) go to a directory of ours, removed even when
         # Ctrl-C kills the compiler mid-way (it could not clean up after itself)
         scratch = tempfile.mkdtemp(dir=directory, prefix=f".{target.stem}.", suffix=".cc-tmp")
