@@ -19,4 +19,13 @@ def test_every_entry_names_a_test_function_that_exists():
         function = re.sub(r"\[.*\]$", "", name)
         source = HERE.parent / path
         assert source.is_file(), node
-        assert re.search(rf"^def {re.escape(function)}\(", source.read_text(encoding="utf-8"), re.M), node
+        text = source.read_text(encoding="utf-8")
+        found = re.search(rf"^def {re.escape(function)}\(", text, re.M)
+        assert found, node
+        # a parametrised test's id has its parameters: an entry without them marks nothing
+        above = text[: found.start()].splitlines()
+        decorators = []
+        while above and (above[-1].startswith("@") or above[-1][:1] in (" ", ")", "]")):
+            decorators.append(above.pop())
+        if any("parametrize" in line for line in decorators) and "[" not in name:
+            raise AssertionError(f"{node}: parametrised; name each case, e.g. {node}[...]")
