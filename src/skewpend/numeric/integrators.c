@@ -55,19 +55,7 @@ typedef struct {
 
 int64_t sp_state_size(void) { return (int64_t)sizeof(sp_state); }
 
-static int all_finite(const double *x, int n)
-{
-    for (int i = 0; i < n; i++)
-        if (!isfinite(x[i])) return 0;
-    return 1;
-}
-
-static void put_row(double *rows, int64_t m, int n, double t, const double *y)
-{
-    double *r = rows + m * (n + 1);
-    r[0] = t;
-    memcpy(r + 1, y, (size_t)n * sizeof(double));
-}
+#include "rows.h" /* all_finite, put_row: shared with taylor.c */
 
 /* ---- DOP853: Hairer's Dormand-Prince 8(5,3); coefficient tables as tabulated in SciPy ---- */
 static const double DOP_C[16] = {0.0, 0.05260015195876773, 0.0789002279381516, 0.1183503419072274, 0.2816496580927726, 0.3333333333333333, 0.25, 0.3076923076923077, 0.6512820512820513, 0.6, 0.8571428571428571, 1.0, 1.0, 0.1, 0.2, 0.7777777777777778};

@@ -61,7 +61,7 @@ __all__ = ["ControlStruct",
 #: Files whose text determines the generated library (part of the cache key).
 _SOURCES = (
     "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c", "numeric/chaos.c",
-    "numeric/dop853_core.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
+    "numeric/dop853_core.h", "numeric/rows.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
     "symbolic/symbols.py",
 )
 _PACKAGE = Path(__file__).resolve().parent.parent
@@ -668,7 +668,7 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
         return kernel  # type: ignore[return-value]
     geometry = geometry_of(params)
     # the Taylor library's text also depends on its generator and driver (not part of the others' key)
-    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c"))
+    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h"))
     key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest()) + f"_taylor{order}"
     with _LOCK:
         if key in _LOADED:

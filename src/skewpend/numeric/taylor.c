@@ -13,19 +13,7 @@
  * (integrators.c); results do not depend on how the work is split into calls.
  */
 
-static int tay_finite(const double *x, int n)
-{
-    for (int i = 0; i < n; i++)
-        if (!isfinite(x[i])) return 0;
-    return 1;
-}
-
-static void tay_row(double *rows, int64_t m, int n, double t, const double *y)
-{
-    double *r = rows + m * (n + 1);
-    r[0] = t;
-    memcpy(r + 1, y, (size_t)n * sizeof(double));
-}
+#include "rows.h" /* all_finite, put_row: shared with integrators.c */
 
 typedef struct {
     double t;                                /* current time */
@@ -65,8 +53,8 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         s->started = 1;
         s->order = order;
         s->work = taylor_work(p);
-        if (!tay_finite(s->y, n)) return SP_STATUS_NONFINITE;
-        if (!dense) tay_row(rows, m++, n, s->t, s->y);
+        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
+        if (!dense) put_row(rows, m++, n, s->t, s->y);
     }
     const int nc = s->work ? n : n - 1; /* W is left out of the norms when it is not integrated */
     for (;;) {
@@ -81,7 +69,7 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
                     memcpy(r + 1, s->y, (size_t)n * sizeof(double));
                 } else {
                     taylor_eval((const double (*)[SP_TPMAX + 2])s->jet, (int)s->order, n, tk - s->told, r + 1);
-                    if (!tay_finite(r + 1, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
+                    if (!all_finite(r + 1, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
                 }
                 m++;
                 (*k_out)++;
@@ -113,7 +101,7 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         if (!last && s->t + h == s->t) { *m_out = m; return SP_STATUS_STEP_UNDERFLOW; }
         taylor_eval((const double (*)[SP_TPMAX + 2])x, order, nc, h, ynew);
         if (nc < n) ynew[4] = s->y[4]; /* W' = 0 identically: W stays */
-        if (!tay_finite(ynew, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
+        if (!all_finite(ynew, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
         s->naccept++;
         done++;
         s->dense_ok = 0;
@@ -125,6 +113,6 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         }
         s->t = last ? t_end : s->t + h;
         memcpy(s->y, ynew, (size_t)n * sizeof(double));
-        if (!dense) tay_row(rows, m++, n, s->t, s->y);
+        if (!dense) put_row(rows, m++, n, s->t, s->y);
     }
 }
