@@ -95,3 +95,13 @@ def heyoka_first_order(eom, s_dict, hv):
     phi, psi, dphi, dpsi = hv
     return [(phi, dphi), (psi, dpsi), (dphi, (M22 * f1 - M12 * f2) / det), (dpsi, (M11 * f2 - M12 * f1) / det)]
 
+
+def print_report_timings(tables: dict, width: int) -> None:
+    """The report's own timings (its section 10) of each run kind, side by side: ``tables`` maps a kind
+    to ``{part: seconds}``; a part missing in a kind prints as nan."""
+    kinds = list(tables)
+    print("\nthe report's own timings (section 10, the last run of each) [s]")
+    print(f"{'part':<44}" + "".join(f"{k:>{width}}" for k in kinds))
+    for part in dict.fromkeys(p for t in tables.values() for p in t):
+        print(f"{part:<44}" + "".join(f"{tables[k].get(part, float('nan')):>{width}.2f}" for k in kinds))
+

@@ -96,7 +96,7 @@ def skewpend_command() -> list[str]:
     return [sys.executable, "-m", "skewpend", "simulate"]
 
 
-from _common import cpu_model, version  # noqa: E402  (benchmarks/ is on sys.path when run)
+from _common import cpu_model, print_report_timings, version  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
 def base_env() -> dict[str, str]:
@@ -303,11 +303,7 @@ def no_compiler(repeat: int, keep: bool) -> int:
     for line in dict.fromkeys(builds):
         print(f"  {line}")
     if tables:
-        kinds = list(tables)
-        print("\nthe report's own timings (section 10, the last run of each) [s]")
-        print(f"{'part':<44}" + "".join(f"{k:>24}" for k in kinds))
-        for part in dict.fromkeys(p for t in tables.values() for p in t):
-            print(f"{part:<44}" + "".join(f"{tables[k].get(part, float('nan')):>24.2f}" for k in kinds))
+        print_report_timings(tables, 24)
     print(f"\nload average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(f"goals: {'all met' if not failed else 'NOT all met'}")
     return 0

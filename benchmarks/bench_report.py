@@ -36,7 +36,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import cpu_model, version  # noqa: E402
+from _common import cpu_model, print_report_timings, version  # noqa: E402
 
 GOAL_WARM = 25.0  # report warm <= 25x a warm simulate process
 GOAL_COLD = 2.0  # report cold <= 2x report warm
@@ -131,10 +131,7 @@ def main() -> int:
 
     if tables:
         kinds = list(tables)
-        print("\nthe report's own timings (section 10, the last run of each) [s]")
-        print(f"{'part':<44}" + "".join(f"{k:>9}" for k in kinds))
-        for part in dict.fromkeys(p for t in tables.values() for p in t):
-            print(f"{part:<44}" + "".join(f"{tables[k].get(part, float('nan')):>9.2f}" for k in kinds))
+        print_report_timings(tables, 9)
         last = {"warm": times["report warm"][-1], "cold": times["report cold"][-1] if times["report cold"] else None}
         print(f"{'whole process (this benchmark)':<44}" + "".join(f"{last[k]:>9.2f}" for k in kinds))
         print(f"{'  outside the table: start-up, imports, file':<44}"
