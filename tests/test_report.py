@@ -131,6 +131,20 @@ def test_display_keeps_what_it_cannot_shorten():
     assert display_matrix(sp.Matrix([[e, 0], [0, 1]])) == sp.Matrix([[e, 0], [0, 1]])
 
 
+
+def test_the_form_shown_does_not_depend_on_the_clock(planar, planar_display, monkeypatch):
+    """A loaded machine once showed a longer potential energy (a 2 s clock cut the candidates
+    short); the form shown comes from the entry's size alone: a clock that races ahead by an
+    hour at every reading changes nothing."""
+    import skewpend.symbolic.display as D
+
+    ticks = iter(range(0, 10**9, 3600))
+    monkeypatch.setattr(D.time, "perf_counter", lambda: float(next(ticks)))
+    shown = display_steps(planar.steps, keys=("P", "v_c", "T", "Pi"))
+    for key in ("P", "v_c", "T", "Pi"):
+        assert shown[key] == planar_display[key], key
+    assert "cos(phi + psi)" in str(shown["Pi"])  # the grouped form, as the specification writes it
+
 # -- the report ------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def default_report(tmp_path_factory):

@@ -21,10 +21,11 @@ JSON contract use: at ``alpha = 0`` the rotation tensor's first entry is
 * among the shorter candidates the shortest wins, except that a sum grouped by products of
   the parameters, as the specification writes its energies, is preferred when it is at most
   :data:`GROUPED_BONUS` operations longer;
-* the work per entry is bounded by its size (``trigsimp`` only for small entries, the
-  product-to-sum route for moderate ones), so the result is the same on every machine; and,
-  as a safety net for unusually large entries, by ``budget`` seconds (SymPy cannot be
-  interrupted: the budget is checked between candidates, the cheap ones are always tried).
+* the work per entry is bounded by its size alone (``trigsimp`` only for small entries, the
+  product-to-sum route for moderate ones, nothing but the cheap candidates for very large ones:
+  :data:`LARGE_OPS`), so the result is the same on every machine and under any load.  A clock
+  (``budget`` seconds, checked between candidates; the cheap ones are always tried) is off by
+  default: with it, a busy machine could show a longer form of the same entry.
 
 Nothing here changes what the numeric code uses: results are new expressions, and the
 derivation's own ones are left as they are.
@@ -41,10 +42,12 @@ from sympy.simplify.fu import TR8, TR10i
 
 __all__ = ["display_form", "display_matrix", "display_steps", "proven_equal", "cost", "DEFAULT_BUDGET"]
 
-#: Seconds of candidates per entry: a safety net for unusually large entries only (the cheap
-#: candidates are always tried; which others are tried is decided by the entry's size, below,
-#: so that the result does not depend on the machine's speed or load).
-DEFAULT_BUDGET = 2.0
+#: Seconds of candidates per entry: None, no clock.  Which candidates are tried is decided by the
+#: entry's size (below), so that the form shown does not depend on the machine's speed or load (a
+#: 2 s clock here once showed a longer potential energy in a report made on a loaded machine).
+DEFAULT_BUDGET: Optional[float] = None
+#: Entries of more operations than this get only the cheap candidates (common factors, TR10i).
+LARGE_OPS = 400
 #: Products are turned into sums (TR8) and folded back only for entries of at most this many operations.
 FOLD_MAX_OPS = 60
 #: ``trigsimp`` is tried only on entries of at most this many operations (it grows badly).
@@ -200,8 +203,10 @@ def grouped_by_parameters(expr: sp.Expr) -> Optional[sp.Expr]:
     return sp.Add(*[monomial * _fold(sp.Add(*rest)) for monomial, rest in groups.items()])
 
 
-def display_form(expr: sp.Expr, *, budget: float = DEFAULT_BUDGET, speeds: Iterable[sp.Symbol] = ()) -> sp.Expr:
-    """The shortest proved-equal form of ``expr`` found within ``budget`` seconds (see the module)."""
+def display_form(expr: sp.Expr, *, budget: Optional[float] = DEFAULT_BUDGET,
+                 speeds: Iterable[sp.Symbol] = ()) -> sp.Expr:
+    """The shortest proved-equal form of ``expr`` among the candidates its size allows (see the
+    module); ``budget``: seconds, checked between candidates (None: no clock)."""
     expr = sp.sympify(expr)
     if expr.is_number or expr.is_Symbol or not expr.free_symbols:
         return expr
@@ -220,7 +225,7 @@ def display_form(expr: sp.Expr, *, budget: float = DEFAULT_BUDGET, speeds: Itera
             best, best_score = candidate, c - bonus
 
     def left() -> float:
-        return budget - (time.perf_counter() - start)
+        return 1.0 if budget is None else budget - (time.perf_counter() - start)
 
     cheap = [
         lambda e: sp.factor_terms(e),
@@ -229,6 +234,8 @@ def display_form(expr: sp.Expr, *, budget: float = DEFAULT_BUDGET, speeds: Itera
     ]
     for make in cheap:
         consider(make(expr))
+    if original > LARGE_OPS:
+        return best
     if left() > 0 and expr.atoms(sp.sin, sp.cos) and sp.count_ops(expr) <= FOLD_MAX_OPS:
         # products to sums, then sums of products back to functions of sums of angles
         folded = sp.factor_terms(TR10i(sp.expand(TR8(expr))))
@@ -255,7 +262,7 @@ def display_form(expr: sp.Expr, *, budget: float = DEFAULT_BUDGET, speeds: Itera
     return best
 
 
-def display_matrix(m: sp.MatrixBase, *, budget: float = DEFAULT_BUDGET, speeds: Iterable[sp.Symbol] = ()) -> sp.Matrix:
+def display_matrix(m: sp.MatrixBase, *, budget: Optional[float] = DEFAULT_BUDGET, speeds: Iterable[sp.Symbol] = ()) -> sp.Matrix:
     """:func:`display_form` entry by entry (an entry seen before is not simplified again)."""
     done: Dict[sp.Expr, sp.Expr] = {}
     out = []
@@ -266,7 +273,7 @@ def display_matrix(m: sp.MatrixBase, *, budget: float = DEFAULT_BUDGET, speeds: 
     return sp.Matrix(m.rows, m.cols, out)
 
 
-def display_steps(steps: Dict[str, sp.Basic], *, budget: float = DEFAULT_BUDGET,
+def display_steps(steps: Dict[str, sp.Basic], *, budget: Optional[float] = DEFAULT_BUDGET,
                   keys: Optional[Iterable[str]] = None) -> Dict[str, sp.Basic]:
     """The derivation's ``steps`` (``EquationsOfMotion.steps``) in display form; ``keys``: which
     (default all).  The dictionary returned is new; the derivation's results are untouched."""
