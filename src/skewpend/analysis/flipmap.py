@@ -407,19 +407,21 @@ def _check_feasible(job: "FlipJob", state) -> None:
     """Refuse a map whose cells could not finish within ``max_steps`` (a trial run of the flip
     kernel from energetic starts of the window: the ones that flip last the longest)."""
     from ..numeric.ensemble import FlipIntegrator
-    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, steps_per_second
+    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, refused_already, steps_per_second
 
     kernel, p, _ = state
     corner = (max(map(abs, job.phi_range)), max(map(abs, job.psi_range)))
     cells = np.array([(0.9 * corner[0], 0.9 * corner[1]), (0.9 * corner[0], -0.9 * corner[1]), (0.5 * corner[0], 0.0)])
-    rate = 0.0
+    rate, ok = 0.0, False
     for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
         out = FlipIntegrator(kernel, p, t_end=t, rtol=job.rtol, atol=job.atol, max_steps=PROBE_STEPS).run(cells)
         lived = np.where(np.isfinite(out.time), out.time, t)  # a failed trial: a lower bound of the rate
         rate = steps_per_second(out.steps + out.rejected, lived)
-        if not np.any(out.which == -2):
+        ok = not np.any(out.which == -2)
+        if ok or refused_already(rate, job.t_end, job.max_steps):
             break
-    check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps, what="this flip map")
+    check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps, what="this flip map",
+                   lower_bound=not ok)
 
 
 #: Bytes per cell while a map is computed (results, energies, indices, sort).

@@ -694,20 +694,21 @@ def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol
                         what: str, time_name: str = "t_end", advice: Optional[str] = None) -> None:
     """Refuse up front work of largest exponents that cannot finish within ``max_steps`` per
     trajectory: a trial run of the chaos kernel (``state`` = (kernel, p)) from ``probe``."""
-    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, steps_per_second
+    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, refused_already, steps_per_second
 
     kernel, p = state
-    rate = 0.0
+    rate, ok = 0.0, False
     for t in probe_durations(t_end, params):  # a trial that fails (too stiff for its steps) is tried over a shorter time
         _, status, steps, rejected = largest_exponents(kernel, p, np.asarray(probe, dtype=float), t_end=t,
                                                        renorm_every=t, transient=0.0, rtol=rtol, atol=atol,
                                                        max_steps=PROBE_STEPS)
         # a trial that stopped early made at most its steps in t: a lower bound of the rate
         rate = steps_per_second(steps + rejected, np.full(steps.shape, t))
-        if np.all(status == 0):
+        ok = bool(np.all(status == 0))
+        if ok or refused_already(rate, t_end, max_steps):
             break
     check_feasible(rate, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps, what=what, time_name=time_name,
-                   advice=advice)
+                   advice=advice, lower_bound=not ok)
 
 
 def open_lyapunov_map(path) -> LyapunovMap:

@@ -129,15 +129,16 @@ class _Model:
         from ..numeric.variational import FlowIntegrator
 
         trial = FlowIntegrator(self.params, rtol=self.flow.rtol, atol=self.flow.atol, max_steps=PROBE_STEPS)
-        rate = math.inf
+        rate, ok = math.inf, False
         for t in probe_durations(T, self.params):  # a trial that fails is tried over a shorter time
             fl = trial(x0, t)
             rate = steps_per_second(np.array([fl.steps + fl.rejected]), np.array([t]))
-            if fl.status == Status.SUCCESS:
+            ok = fl.status == Status.SUCCESS
+            if ok or rate * T > ORBIT_MAX_STEPS:  # a failed trial's rate is a lower bound: enough to refuse
                 break
         need = rate * T
         if not need <= ORBIT_MAX_STEPS:
-            about = f"about {need:.3g}" if math.isfinite(need) else "more than 1e308"
+            about = f"{'about' if ok else 'at least'} {need:.3g}" if math.isfinite(need) else "more than 1e308"
             how = f"~{rate:.3g} steps per simulated second" if math.isfinite(rate) else "a trial flow could not advance"
             raise ParameterError(
                 f"period must be short enough to shoot: {T:g} s needs {about} steps per shooting from this start ({how} at rtol={self.flow.rtol:g}, "

@@ -382,7 +382,7 @@ def _check_feasible(job: RoaJob, state) -> None:
     more than :data:`~skewpend.numeric.grid.FEASIBILITY_FACTOR` x ``max_steps`` at that rate is
     refused with the estimate (as for every grid: starts that settle step more slowly)."""
     from ..numeric.control import capture_many
-    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, steps_per_second
+    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, refused_already, steps_per_second
 
     kernel, p, ctl = state
     xs, ys = (values for values, _ in job.coords().values())
@@ -390,17 +390,18 @@ def _check_feasible(job: RoaJob, state) -> None:
     ia, ib = (COORDINATES[c] for c in job.plane)
     starts = np.tile(np.asarray(job.target, dtype=float), (len(corners), 1))
     starts[:, ia], starts[:, ib] = zip(*corners)
-    rate = 0.0
+    rate, ok = 0.0, False
     for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
         time_, steps, status = capture_many(kernel, p, ctl, starts, t_end=t, rtol=job.rtol, atol=job.atol,
                                             max_steps=PROBE_STEPS, P=np.reshape(job.P, (4, 4)), rho=job.rho)
         moved = ~(time_ == 0)  # a start inside the estimate is captured at once: no steps, no rate
         lived = np.where(np.isfinite(time_), time_, t)[moved]  # a captured start stops early: its rate until then
         rate = steps_per_second(steps[moved], lived)
-        if not np.any(status != 0):
+        ok = not np.any(status != 0)
+        if ok or refused_already(rate, job.t_end, job.max_steps):
             break
     check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps,
-                   what="this region of attraction")
+                   what="this region of attraction", lower_bound=not ok)
 
 
 def open_region_of_attraction(path) -> RegionOfAttraction:

@@ -219,18 +219,27 @@ def steps_per_second(steps, durations) -> float:
 FEASIBILITY_FACTOR = 100.0
 
 
+def refused_already(rate: float, t_end: float, max_steps: int, factor: float = FEASIBILITY_FACTOR) -> bool:
+    """Whether a failed trial's rate (a lower bound: it stopped at its step cap) already refuses the
+    work, so that no shorter trial is needed (a stiff system's trials of PROBE_STEPS steps each
+    took seconds of variational work only to raise the bound)."""
+    return rate * t_end > factor * max_steps
+
+
 def check_feasible(rate: float, *, t_end: float, rtol: float, atol: float, max_steps: int, what: str,
                    factor: float = FEASIBILITY_FACTOR, time_name: str = "t_end",
-                   advice: Optional[str] = None) -> float:
+                   advice: Optional[str] = None, lower_bound: bool = False) -> float:
     """Refuse, before any work, a computation whose trajectories of ``t_end`` seconds would each
     need more than ``factor x max_steps`` steps at ``rate`` steps per simulated second (measured
     by a trial run of the computation's own kernel: :func:`probe_time`,
     :func:`steps_per_second`), with the estimate in the message.  Returns the estimated steps
-    per trajectory."""
+    per trajectory.  ``lower_bound``: the rate is that of a trial stopped at its step cap (the
+    message says "at least")."""
     need = rate * t_end
     if need > factor * max_steps:
-        about = f"about {need:.3g}" if math.isfinite(need) else "more than 1e308"
-        rate_text = f"~{rate:.3g} steps per simulated second" if math.isfinite(rate) else "a trial run could not advance"
+        about = ("at least" if lower_bound else "about") + f" {need:.3g}" if math.isfinite(need) else "more than 1e308"
+        rate_text = ((("at least " if lower_bound else "~") + f"{rate:.3g} steps per simulated second")
+                     if math.isfinite(rate) else "a trial run could not advance")
         raise ParameterError(f"{what} cannot finish: {time_name} = {t_end:g} s needs {about} steps per trajectory "
                              f"({rate_text} at rtol={rtol:g}, atol={atol:g}), more than max_steps = {max_steps:g}; "
                              + (advice or f"use a shorter {time_name} (or a larger max_steps)"))
