@@ -42,21 +42,48 @@ def once_per_session(tmp_path_factory, name: str, make):
         return json.loads(outcome.read_text(encoding="utf-8"))
 
 
-def default_report(tmp_path_factory):
-    """``skewpend report`` with every default (``build_report(out=...)``), built once per session and
-    read by tests/test_report.py and tests/test_report_browser.py: ``(path, progress calls)``."""
+#: Documented commands whose run is shared (docs/getting-started.md): each runs once per session, exactly
+#: as written, in a working directory of its own; tests/test_readme.py checks its outcome as the
+#: example's, and the report tests read the file it wrote (a report is the suite's most expensive run).
+SHARED_COMMANDS = {
+    "skewpend report": "report.html",
+    "skewpend report --alpha 30deg --c1 0.05 --out damped.html": "damped.html",
+}
+
+
+def shared_cli_run(tmp_path_factory, command: str) -> dict:
+    """``command`` (one of :data:`SHARED_COMMANDS`) run once per session by the README test's runner
+    (a child of its warm interpreter, in a copy of the project's examples/), whichever test asks
+    first: ``{"returncode", "output", "seconds", "dir"}``."""
+    import hashlib
+    import shlex
+
+    import readme_runner as rr
+
+    if command not in SHARED_COMMANDS:
+        raise KeyError(command)
 
     def make(folder):
-        from skewpend.views import report as R
+        run = rr.make_workdir(folder / "run")
+        argv = shlex.split(command)[1:]
+        out = rr.Warm.run(argv, run, rr.TIMEOUT) if hasattr(os, "fork") else rr.run_cli(
+            rr.CliExample(line=0, command=command, block=0), run)
+        return {"returncode": out.returncode, "output": out.output, "seconds": out.seconds, "dir": str(run)}
 
-        calls: list = []
-        out = folder / "report" / "report.html"
-        out.parent.mkdir()
-        R.build_report(out=out, progress=lambda done, total: calls.append((done, total)))
-        return {"path": str(out), "calls": calls}
+    return once_per_session(tmp_path_factory, "cli-" + hashlib.sha1(command.encode()).hexdigest()[:12], make)
 
-    made = once_per_session(tmp_path_factory, "default-report", make)
-    return Path(made["path"]), [tuple(c) for c in made["calls"]]
+
+def shared_report(tmp_path_factory, command: str = "skewpend report") -> Path:
+    """The report written by the shared run of ``command`` (docs/getting-started.md's; read by
+    tests/test_report.py and tests/test_report_browser.py); the run must have succeeded."""
+    made = shared_cli_run(tmp_path_factory, command)
+    assert made["returncode"] == 0, f"{command} failed (exit {made['returncode']}):\n{made['output'][-3000:]}"
+    return Path(made["dir"]) / SHARED_COMMANDS[command]
+
+
+def default_report(tmp_path_factory) -> Path:
+    """``skewpend report`` with every default, run once per session (:func:`shared_report`)."""
+    return shared_report(tmp_path_factory, "skewpend report")
 
 
 def under_ci() -> bool:

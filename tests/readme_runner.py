@@ -525,6 +525,9 @@ class Reader:
     readme: Readme
     workdir: Path
     outcomes: dict[int, object] = field(default_factory=dict)  # step index -> exception | Outcome
+    #: ``shared(example)``: the outcome and output folder of a run shared with other tests (tests/helpers.py's
+    #: ``shared_cli_run``: the command run once per session, exactly as written), or None to run it here
+    shared: object = None
 
     def __post_init__(self) -> None:
         self.steps = steps(self.readme)
@@ -539,7 +542,12 @@ class Reader:
             except Exception as exc:  # noqa: BLE001 -- reported by that step's test
                 result = exc
         else:
-            result = run_cli(step.cli, self.workdir)
+            made = self.shared(step.cli) if self.shared is not None and not step.cli.shell else None
+            if made is None:
+                result = run_cli(step.cli, self.workdir)
+            else:  # its files are copied here, for the examples after it
+                shutil.copytree(made["dir"], self.workdir, dirs_exist_ok=True)
+                result = Outcome(made["returncode"], made["output"], made["seconds"])
         self.outcomes[k] = result
         return result
 

@@ -38,11 +38,19 @@ def reader(tmp_path_factory):
     def get(doc: rr.Readme) -> rr.Reader:
         if doc.path not in _READERS:
             workdir = rr.make_workdir(tmp_path_factory.mktemp(_slug(doc.path.stem, 20)))
-            _READERS[doc.path] = rr.Reader(doc, workdir)
+            _READERS[doc.path] = rr.Reader(doc, workdir, shared=lambda example: _shared(example, tmp_path_factory))
         return _READERS[doc.path]
 
     yield get
     _READERS.clear()
+
+
+def _shared(example: rr.CliExample, tmp_path_factory):
+    """The run of a documented report command that the report tests read too (helpers.SHARED_COMMANDS):
+    run once per session, exactly as written, whichever test asks first; None for every other command."""
+    from helpers import SHARED_COMMANDS, shared_cli_run
+
+    return shared_cli_run(tmp_path_factory, example.command) if example.command in SHARED_COMMANDS else None
 
 
 def _python_failure(where: str, step: rr.Step, error: BaseException, earlier: list[str], path: Path) -> str:

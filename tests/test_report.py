@@ -32,9 +32,10 @@ phi, psi, dphi, dpsi, alpha = (S[n] for n in ("phi", "psi", "dphi", "dpsi", "alp
 MB = 1_000_000
 #: Small settings for the variants (the default report is built once, with its defaults).
 SMALL = dict(t_end=3.0, clip_seconds=1.0, fps=10.0, clip_size=(160, 120), sweep_points=19)
-#: The numeric sections; each whole report runs them all (~10 s): the default report below, and the
-#: README's `skewpend report` examples (default, damped, a general body: tests/test_readme.py) and the
-#: browser's two reports (tests/test_report_browser.py) build every section of those cases end to end.
+#: The numeric sections; each whole report runs them all (~10 s): docs/getting-started.md's three
+#: `skewpend report` examples (default, damped, a general body: tests/test_readme.py) build every section
+#: of those cases end to end; the default and damped runs are the files read below and opened by
+#: tests/test_report_browser.py (run once per session: tests/helpers.py's shared_cli_run).
 NUMERIC_SECTIONS = ("section_simulation", "section_system", "section_modes", "section_flipmap", "section_orbits",
                     "section_validation", "section_chaos")
 
@@ -148,12 +149,13 @@ def test_the_form_shown_does_not_depend_on_the_clock(planar, planar_display, mon
 # -- the report ------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def default_report(tmp_path_factory):
-    """The report with every default (the command `skewpend report` with no options), built once per
-    session: tests/test_report_browser.py opens the same file."""
+    """The report with every default: the command `skewpend report` of docs/getting-started.md, run once
+    per session (tests/helpers.py's shared_cli_run; test_readme checks its outcome, and
+    tests/test_report_browser.py opens the same file)."""
     from helpers import default_report as built
 
-    path, calls = built(tmp_path_factory)
-    return path, path.read_text(encoding="utf-8"), calls
+    path = built(tmp_path_factory)
+    return path, path.read_text(encoding="utf-8"), None
 
 
 def _section(page: str, key: str) -> str:
@@ -164,7 +166,8 @@ def _section(page: str, key: str) -> str:
 def test_default_report_is_one_small_file(default_report):
     path, page, _ = default_report
     assert path.name == "report.html" and path.stat().st_size <= 10 * MB
-    assert [p.name for p in path.parent.iterdir()] == ["report.html"]  # nothing beside it, no temporary file
+    # nothing beside it (its folder also holds the examples/ every documented command's folder has), no temporary file
+    assert sorted(p.name for p in path.parent.iterdir()) == ["examples", "report.html"]
     assert page.startswith("<!DOCTYPE html>") and page.rstrip().endswith("</html>")
 
 
@@ -183,13 +186,25 @@ def test_report_references_nothing_outside_itself(default_report):
 
 
 def test_report_has_every_section_in_order(default_report):
-    _, page, calls = default_report
+    _, page, _ = default_report
     positions = [page.index(f'id="{key}"') for key, _ in R.SECTIONS]
     assert positions == sorted(positions)
     for key, title in R.SECTIONS:
         assert f'href="#{key}"' in page  # the table of contents
+
+
+def test_progress_counts_every_part_once_in_order(monkeypatch):
+    """``progress(done, total)``: 1, 2, ..., total, one call per part (the numeric sections stubbed,
+    the symbolic ones as if read from the cache: what is counted, not what is computed)."""
+    from skewpend.views.report import cache
+
+    only_sections(monkeypatch)
+    monkeypatch.setattr(cache, "load", lambda params: {"bodies": {"derivation": "<p>d</p>", "check": "<p>c</p>"},
+                                                         "notes": {}, "timings": {}})
+    calls: list = []
+    R.build_report(progress=lambda done, total: calls.append((done, total)), **SMALL)
     total = calls[-1][1]
-    assert [d for d, _ in calls] == list(range(1, total + 1))
+    assert total >= 10 and calls == [(d, total) for d in range(1, total + 1)]
 
 
 def test_report_section_contents(default_report):

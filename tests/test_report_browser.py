@@ -11,6 +11,7 @@ the report itself."""
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 from pathlib import Path
@@ -26,12 +27,14 @@ pytestmark = needs(missing_browser())
 from skewpend import Parameters  # noqa: E402
 from skewpend.views import report as R  # noqa: E402
 
-#: The reports opened: the built-in case (every default: the very file tests/test_report.py reads,
-#: built once per session) and a user's case (alpha = 30 deg, damping: damped modes, other equations).
+#: The reports opened: docs/getting-started.md's built-in case (`skewpend report`, every default: the very
+#: file tests/test_report.py reads) and its user's case (alpha = 30 deg, damping: damped modes, other
+#: equations), each the documented command's own run, made once per session (tests/helpers.py).
 CASES = {
-    "default": dict(params=None, fps=R.CLIP_FPS),
-    "alpha30-damped": dict(params=Parameters(a=1.0, b=1.0, m1=1.0, m2=0.5, alpha=0.5235987755982988, g=9.81, c1=0.05),
-                           t_end=5.0, clip_seconds=2.0, fps=10.0, sweep_points=37, y0=(0.6, -0.3, 0.0, 0.0)),
+    "default": dict(command="skewpend report", params=None, fps=R.CLIP_FPS),
+    "alpha30-damped": dict(command="skewpend report --alpha 30deg --c1 0.05 --out damped.html",
+                           params=Parameters(**R.DEFAULT_PARAMETERS).replace(alpha=math.radians(30), c1=0.05),
+                           fps=R.CLIP_FPS),
 }
 
 
@@ -50,23 +53,12 @@ def browser():
         yield b
 
 
-#: The reports built in this process, by case.
-_BUILT: dict = {}
-
-
 @pytest.fixture(scope="module", params=list(CASES))
 def opened(request, browser, tmp_path_factory):
     """The report built, opened offline, typeset, its screenshots taken: (page, records, folder)."""
-    html = _BUILT.get(request.param)
-    if html is None and request.param == "default":
-        from helpers import default_report
+    from helpers import shared_report
 
-        html = _BUILT[request.param] = default_report(tmp_path_factory)[0]
-    elif html is None:  # built once per process: a worker may set a module's parametrised fixture up twice
-        case = dict(CASES[request.param])
-        params = case.pop("params")
-        html = _BUILT[request.param] = tmp_path_factory.mktemp("report") / "report.html"
-        R.build_report(params, out=html, **case)
+    html = shared_report(tmp_path_factory, CASES[request.param]["command"])
     folder = _artifacts() / f"report-browser-{request.param}"
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
