@@ -51,6 +51,16 @@ def only_sections(monkeypatch, *keep):
         monkeypatch.setattr(R, "live_figure", lambda ctx: "")
 
 
+def symbolic_sections_stubbed(monkeypatch):
+    """Sections 2 and 3 as if read from the cache (stubs): for a test of other sections, with parameters
+    whose symbolic sections no other test computes (a second process's SymPy work, seconds)."""
+    from skewpend.views.report import cache
+
+    monkeypatch.setattr(cache, "load", lambda params: {"bodies": {"derivation": "<p>derivation: not under test</p>",
+                                                                  "check": "<p>check: not under test</p>"},
+                                                       "notes": {}, "timings": {}})
+
+
 # -- display forms -------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def planar():
@@ -196,11 +206,8 @@ def test_report_has_every_section_in_order(default_report):
 def test_progress_counts_every_part_once_in_order(monkeypatch):
     """``progress(done, total)``: 1, 2, ..., total, one call per part (the numeric sections stubbed,
     the symbolic ones as if read from the cache: what is counted, not what is computed)."""
-    from skewpend.views.report import cache
-
     only_sections(monkeypatch)
-    monkeypatch.setattr(cache, "load", lambda params: {"bodies": {"derivation": "<p>d</p>", "check": "<p>c</p>"},
-                                                         "notes": {}, "timings": {}})
+    symbolic_sections_stubbed(monkeypatch)
     calls: list = []
     R.build_report(progress=lambda done, total: calls.append((done, total)), **SMALL)
     total = calls[-1][1]
@@ -279,6 +286,7 @@ def test_the_live_view_replays_the_simulated_motion(default_report):
 
 def test_report_returns_html_without_out(monkeypatch):
     only_sections(monkeypatch, "section_modes", "section_system", "section_simulation")  # 1 draws 5's motion
+    symbolic_sections_stubbed(monkeypatch)
     page = R.build_report(Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=math.radians(30), g=9.81, c1=0.05), **SMALL)
     assert isinstance(page, str) and page.startswith("<!DOCTYPE html>")
     modes = _section(page, "modes")
