@@ -98,7 +98,9 @@ class Page:
     """A page of the explorer at ``site + query`` with what it logged and requested; a request
     anywhere else than the site is blocked (and kept in ``blocked``)."""
 
-    def __init__(self, browser, site: str, query: str = "", viewport=(1400, 950)):
+    def __init__(self, browser, site: str, query: str = "", viewport=(1400, 950), frames: int = 6):
+        """Opened, with ``frames`` frames drawn (the motion running) and the equations typeset; a test
+        that pauses at once asks for 1 (each further frame is ~0.1 s of software WebGL)."""
         self.page = browser.new_page(viewport={"width": viewport[0], "height": viewport[1]})
         self.console, self.requests, self.blocked = [], [], []
         self.page.on("console", lambda m: self.console.append((m.type, m.text)))
@@ -115,7 +117,7 @@ class Page:
 
         self.page.route("**/*", route)
         self.page.goto(site + query)
-        self.page.wait_for_function("() => window.explorer && window.explorer.state().frames > 5", timeout=30000)
+        self.page.wait_for_function(f"() => window.explorer && window.explorer.state().frames >= {frames}", timeout=30000)
         self.page.wait_for_function("() => document.querySelector('#equations .katex') !== null", timeout=30000)
 
     def state(self):
@@ -364,7 +366,7 @@ def test_no_console_errors_and_no_request_leaves_the_site(opened, site):
 
 
 def test_a_bad_address_is_reported_on_the_page_not_ignored(browser, site):
-    p = Page(browser, site, "?a=abc&alpha=999&zeta=1")
+    p = Page(browser, site, "?a=abc&alpha=999&zeta=1", frames=1)
     try:
         text = p.page.text_content("#notice")
         assert "a=abc" in text and "alpha=999" in text and "zeta" in text
@@ -551,7 +553,7 @@ def test_at_an_address_the_page_computes_what_the_library_does(browser, site, qu
     """The page opened at ``query`` (the parameters in its address): the modes (MODES), the
     equations (EQUATIONS) and the flip map (FLIP_MAPS) it computes are the library's, and without
     gravity (GRAVITY_FREE) its console stays clean -- each check as its docstring above says."""
-    p = Page(browser, site, query)
+    p = Page(browser, site, query, frames=1)
     try:
         p.pause()  # no motion is checked here: a paused page draws nothing (and leaves the cores to the checks)
         _check_page(p, query)
