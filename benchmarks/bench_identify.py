@@ -21,7 +21,12 @@ the skew angle freed, and on synthetic skewed data -- the figures of docs/benchm
    each simulated from its first measured state with the measured torques.  Printed: every base
    parameter with its 95 % interval beside the lab's three models and the deviations, the spread
    between the lab's models, the held-out angle RMS of skewpend's fit and of each lab model under the
-   same protocol, the time; then how the estimate moves with the segment length, with the centres of
+   same protocol, the time; the range of the lab's models per base parameter (over the models that
+   estimate it) and where skewpend's estimate lies against it; the lab's own protocol -- skewpend's
+   linear estimate (its regressor, least squares) on the signals filtered as the lab's code does
+   (Butterworth order 3 at 0.02 of Nyquist, forwards and backwards), with all 9 free or with model
+   3.0's fixed friction, on the six runs and on all nine, and with a free torque gain of motor 2 --
+   with each estimate's held-out prediction; then how the estimate moves with the segment length, with the centres of
    mass freed off the rods, from a crude start (uniform rods), with motor 2's measured torques rescaled
    (a relative torque calibration the model does not have), and without each fitting run in turn.
 
@@ -54,6 +59,15 @@ DRIVEN_HORIZON = 1.0
 DRIVEN_SEGMENT = 0.25
 DRIVEN_FREE = ("J1zz_b", "h1y_b", "J2zz", "h2y", "c1", "c2", "cf1", "cf2", "Ir")
 LAB_MODELS = ("3.0", "3.1", "h1.0")
+#: The lab's filter for its inverse dynamics (dfki-ric-underactuated-lab/double_pendulum,
+#: src/python/double_pendulum/system_identification/data_prep.py, filt="butterworth", unchanged since
+#: 2022-08-18, before the runs of 2022-09-14): scipy.signal.butter(3, 0.02) applied forwards and
+#: backwards (filtfilt) per sample, i.e. about 5 Hz at the runs' 500 Hz.
+LAB_WN = 0.02
+#: Model 3.0's fit (examples/paper/system_identification_M2.py there, fix_friction=True): the friction
+#: and damping are held at these values, not identified; m1r1, I1, Ir, m2r2, m2, I2 are fitted by bounded
+#: least squares on all fourteen runs 00-13 of 2022-09-14 (nine are in data/).
+LAB_30_FIXED = {"c1": 0.001, "c2": 0.001, "cf1": 0.093, "cf2": 0.078}
 
 
 def published():
@@ -236,6 +250,145 @@ def heldout_rms(params, held):
     return float(np.median(per)), math.sqrt(sq / n), np.array(per)
 
 
+def _range_verdict(v, values):
+    """Where ``v`` lies against the lab's values: 'inside' their range, else its distance [%] from the
+    nearest end of it (negative below)."""
+    lo, hi = min(values), max(values)
+    if lo <= v <= hi:
+        return 0.0, "inside"
+    end = lo if v < lo else hi
+    d = 100 * (v / end - 1)
+    return d, ("within 5 %" if abs(d) <= 5 else "outside")
+
+
+def lab_estimates(n):
+    """The lab's models that estimate base parameter ``n``: model 3.1 is 3.0 with friction, damping and
+    rotor set to 0 (not estimates of them), and 3.0's friction and damping were held fixed in its fit
+    (LAB_30_FIXED), so only h1.0 estimated those."""
+    if n in LAB_30_FIXED:
+        return ["h1.0"]
+    return ["3.0", "h1.0"] if n == "Ir" else ["3.0", "3.1", "h1.0"]
+
+
+def _spread(r, lab, held) -> None:
+    """The issue's yardstick: the spread between the lab's own models, per base parameter, and where
+    skewpend's estimate lies against their range."""
+    print("  the lab's models' spread per base parameter (range over the models that estimate it) and "
+          "skewpend's estimate against it:")
+    print(f"    {'base':7} {'lab min':>10} {'lab max':>10} {'spread':>8}   {'skewpend':>10}  verdict")
+    for n in DRIVEN_FREE:
+        j = r.names.index(n)
+        models = lab_estimates(n)
+        vals = [lab[m][j] for m in models]
+        lo, hi = min(vals), max(vals)
+        spread = 100 * (hi / lo - 1) if lo > 0 else math.nan
+        d, verdict = _range_verdict(r.values[j], vals)
+        print(f"    {n:7} {lo:10.4g} {hi:10.4g} {spread:7.1f}%   {r.values[j]:10.4g}  {verdict}"
+              + ("" if verdict == "inside" else f" ({d:+.1f} % from the nearest)") + f"  [{', '.join(models)}]")
+
+
+def lab_signals(pc, wn=LAB_WN):
+    """(q, dq, ddq, u) of one run filtered as the lab does (data_prep.py, filt="butterworth"): the
+    measured speeds and torques low-passed; the accelerations from the raw angles by np.gradient
+    (measured times), low-passed, np.gradient again, low-passed; the angles raw.  The filter is
+    applied per sample (the runs' uneven steps ignored), forwards and backwards."""
+    from scipy.signal import butter, filtfilt
+
+    b, a = butter(3, wn)
+    f = lambda x: filtfilt(b, a, np.asarray(x, float), axis=0)  # noqa: E731
+    t = np.asarray(pc.t, float)
+    ddq = f(np.gradient(f(np.gradient(np.asarray(pc.q, float), t, axis=0)), t, axis=0))
+    return np.asarray(pc.q, float), f(pc.dq), ddq, f(pc.u)
+
+
+def lab_linear(runs, p0, free, fixed=None, gain2=False, wn=LAB_WN):
+    """skewpend's linear estimate with the lab's filter (:func:`lab_signals`): skewpend's base
+    regressor (generated from the derivation, friction and rotor columns included), least squares
+    ``Y_b beta = tau`` over every sample of ``runs`` for the base parameters ``free``; the others at
+    ``fixed`` (name -> value) or p0's.  ``gain2``: also a relative torque gain of motor 2 (its row
+    reads ``Y_b beta = k u2``; linear in beta and k alike).  Returns (base values, k or None)."""
+    from skewpend.analysis.identify import model_terms, standard_vector
+
+    B = model_terms(p0)
+    a, g = float(p0.a), float(p0.g)
+    beta = B.values(standard_vector(p0), a, 0.0, g).copy()
+    for n, v in (fixed or {}).items():
+        beta[B.names.index(n)] = v
+    fi = [B.names.index(n) for n in free]
+    xi = [j for j in range(len(B.names)) if j not in fi]
+    A, rhs = [], []
+    for pc in runs:
+        q, dq, ddq, u = lab_signals(pc, wn)
+        Y = B.regressor(q, dq, ddq, a, 0.0, g)
+        tau = u - np.einsum("nij,j->ni", Y[:, :, xi], beta[xi])
+        cols = Y[:, :, fi]
+        if gain2:
+            extra = np.zeros(Y.shape[:2] + (1,))
+            extra[:, 1, 0] = -u[:, 1]
+            cols = np.concatenate([cols, extra], axis=2)
+            tau = tau * [1.0, 0.0] - np.einsum("nij,j->ni", Y[:, :, xi], beta[xi]) * [0.0, 1.0]
+        A.append(cols.reshape(-1, cols.shape[2]))
+        rhs.append(tau.reshape(-1))
+    A, rhs = np.concatenate(A), np.concatenate(rhs)
+    scale = np.sqrt(np.mean(A**2, axis=0))
+    x = np.linalg.lstsq(A / scale, rhs, rcond=None)[0] / scale
+    beta[fi] = x[:len(fi)]
+    return beta, (float(x[-1]) if gain2 else None)
+
+
+def _lab_protocol(fit, held, labs, r) -> None:
+    """2. The lab's protocol: inverse dynamics on the lab's filtered signals (skewpend's regressor and
+    least squares), on the same six runs and on all nine in data/; the held-out angle RMS of each
+    estimate's model under the protocol above."""
+    from skewpend import Measurements
+    from skewpend.analysis.identify import _realise_masses, model_terms, standard_vector
+
+    p0 = labs["h1.0"]
+    B = model_terms(p0)
+    a, g = float(p0.a), float(p0.g)
+    lab = {n: B.values(standard_vector(P), a, 0.0, g) for n, P in labs.items()}
+    nine = Measurements.from_dfki([DFKI / f"trajectory_{i:02d}.csv" for i in DRIVEN_FIT + DRIVEN_HELD])
+    inertial5 = [n for n in DRIVEN_FREE if n not in LAB_30_FIXED]  # J1zz_b, h1y_b, J2zz, h2y, Ir
+    cases = [("lab filter, 6 runs, 9 free", fit, list(DRIVEN_FREE), None, False),
+             ("lab filter, 6 runs, 3.0's fixed friction", fit, inertial5, LAB_30_FIXED, False),
+             ("lab filter, 9 runs, 3.0's fixed friction", nine, inertial5, LAB_30_FIXED, False),
+             ("lab filter, 9 runs, 9 free", nine, list(DRIVEN_FREE), None, False),
+             ("lab filter, 6 runs, 9 free + motor-2 gain", fit, list(DRIVEN_FREE), None, True)]
+    print(f"  the lab's protocol: skewpend's linear estimate on the lab's filtered signals (Butterworth 3, Wn "
+          f"{LAB_WN:g}, filtfilt); deviation from lab h1.0 [%], held-out median [rad]")
+    print(f"    {'':44} " + " ".join(f"{n:>7}" for n in DRIVEN_FREE) + "   held out")
+    dev = lambda v, ref: 100 * (v / ref - 1) if ref else math.nan  # noqa: E731
+    rows = [("skewpend output error", r.values, r.heldout_median, {})]
+    for label, runs, free, fixed, gain in cases:
+        beta, k = lab_linear(runs, p0, free, fixed, gain)
+        try:
+            model, _ = _realise_masses(p0, B, beta, a, 0.0, g, held=("h1x", "h2x"))
+            med = heldout_rms(model, held)[0]
+        except Exception as exc:  # not physical: no model to predict with
+            med = math.nan
+            label += f" (no model: {str(exc)[:40]})"
+        if k is not None:
+            label = label.replace("motor-2 gain", f"k2 {k:.3f}")
+        rows.append((label, beta, med, fixed or {}))
+    for n in ("3.0", "h1.0"):
+        rows.append((f"lab {n}", lab[n], heldout_rms(labs[n], held)[0], {}))
+    for label, beta, med, _ in rows:
+        print(f"    {label:44} " + " ".join(f"{dev(beta[B.names.index(n)], lab['h1.0'][B.names.index(n)]):+6.1f}%"
+                                            for n in DRIVEN_FREE) + f"   {med:.4f}")
+    print("    the same against the range of the lab's models that estimate each (0 = inside it; '*' within 5 % of it):")
+    for label, beta, med, fixed in rows[:-2]:
+        cells = []
+        for n in DRIVEN_FREE:
+            j = B.names.index(n)
+            d, verdict = _range_verdict(beta[j], [lab[m][j] for m in lab_estimates(n)])
+            cells.append("  fixed" if n in fixed else "     in" if verdict == "inside"
+                         else f"{d:+6.1f}" + ("*" if verdict == "within 5 %" else " "))
+        print(f"    {label[:44]:44} " + " ".join(cells))
+    print("    values:")
+    for label, beta, med, _ in rows:
+        print(f"    {label[:44]:44} " + " ".join(f"{beta[B.names.index(n)]:7.4g}" for n in DRIVEN_FREE))
+
+
 def _driven(args) -> None:
     import skewpend
     from skewpend.analysis.identify import model_terms, standard_vector
@@ -274,6 +427,9 @@ def _driven(args) -> None:
     best = min(m[1][0] for m in models[1:])
     print(f"  goal: held-out at least as good as the lab's model: median {ours[0]:.4f} vs lab h1.0 {models[3][1][0]:.4f}, "
           f"3.0 {models[1][1][0]:.4f} ({'PASS' if ours[0] <= best else 'FAIL'})")
+
+    _spread(r, lab, held)
+    _lab_protocol(fit, held, labs, r)
 
     print("  how the estimate moves (deviation from lab h1.0 of " + ", ".join(DRIVEN_FREE[:4]) + "; held-out median):")
 

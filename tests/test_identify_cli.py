@@ -185,6 +185,42 @@ def test_free_alpha_reaches_the_fit_and_its_angle_the_table_and_the_run_file(res
     assert Run("simulate", str(tmp_path / "alpha.toml")).parameters().alpha == angle
 
 
+@pytest.mark.parametrize("extra", [[], ["--validate", "KAHEMAN"]], ids=["own held-out pieces", "--validate"])
+def test_horizon_cuts_the_held_out_pieces(result, tmp_path, monkeypatch, extra):
+    """--horizon 1 hands the fit the held-out pieces cut into pieces of about 1 s (Measurements.cut, as
+    the driven rig's protocol): each of the 4 Kaheman pieces of 2.66 s into 3.  The fit is stood in for
+    by the module's (the cutting is what is tested); the table names the cut pieces."""
+    import skewpend.analysis.identify as I
+    from skewpend.analysis.measurements import Measurements
+
+    asked = {}
+
+    def fit(measurements, params0, **kw):
+        asked.update(kw)
+        v = kw["validation"]
+        return dataclasses.replace(result, validation=tuple(p.name for p in v), heldout_kind=("angle",) * len(v),
+                                   heldout_rms=np.full(len(v), 0.003), heldout_rms0=np.full(len(v), 0.004))
+
+    monkeypatch.setattr(I, "identify", fit)
+    argv = [str(KAHEMAN) if a == "KAHEMAN" else a for a in extra]
+    ran = run_cli(["identify", KAHEMAN, *argv, "--horizon", "1", "--quiet"], cwd=tmp_path)
+    assert ran.code == 0, ran.report()
+    held = asked["validation"]
+    whole = Measurements.from_kaheman(KAHEMAN, which="validation")
+    assert len(held) == 12 and [p.name for p in held][:3] == ["Y_vad[0] [0]", "Y_vad[0] [1]", "Y_vad[0] [2]"]
+    assert all(0.85 < p.duration < 0.9 for p in held)
+    assert [p.name for p in held] == [p.name for p in whole.cut(1.0)]
+    assert "held out Y_vad[3] [2]" in ran.out and "cut into pieces of about 1 s" in held.metadata["actions"][-1]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_horizon_help_shows_its_default():
+    ran = run_cli(["identify", "--help"])
+    assert ran.code == 0
+    line = " ".join(ran.out.split())  # the help wraps its lines
+    assert re.search(r"--horizon SECONDS cut every held-out piece [^-]*?\(default: whole pieces\)", line), line[:3000]
+
+
 @pytest.mark.slow
 def test_other_formats_from_a_skewpend_run(tmp_path):
     """A run of skewpend as CSV (with --columns) and as NetCDF (--format from the suffix), params0 from
@@ -244,6 +280,14 @@ def test_plot_and_report_when_the_views_have_them(tmp_path):
     (["run.csv", "--columns", "t=t,phi=phi,psi=psi", "--a", "1"], ["--b, --m1, --m2, --g", "params0"]),
     (["KAHEMAN", "--which", "all", "--format", "dfki"], ["--which goes with --format kaheman"]),
     (["KAHEMAN", "--out", "fit.txt"], ["--out", ".toml"]),
+    (["KAHEMAN", "--horizon", "0"], ["--horizon", "positive"]),
+    (["KAHEMAN", "--horizon", "-1"], ["--horizon", "positive"]),
+    (["KAHEMAN", "--horizon", "nan"], ["--horizon"]),
+    (["KAHEMAN", "--horizon", "1e9"], ["--horizon", "at most"]),
+    (["KAHEMAN", "--horizon", "1e-5"], ["--horizon 1e-05", "no piece of 10 samples"]),
+    (["KAHEMAN", "--which", "all", "--horizon", "1"], ["--horizon cuts the held-out pieces", "--validate"]),
+    (["run.csv", "--columns", "t=t,phi=phi,psi=psi", "--a", "1", "--b", "1", "--m1", "1", "--m2", "1", "--g", "9.8",
+      "--horizon", "1"], ["--horizon cuts the held-out pieces"]),
 ], ids=lambda v: " ".join(v) if isinstance(v, list) and v and v[0] in ("KAHEMAN", "run.csv", "nowhere/kaheman2023") else "")
 def test_bad_input_is_one_line_exit_2_and_leaves_nothing(args, fragments, tmp_path):
     (tmp_path / "run.csv").write_text("t,phi,psi\n" + "".join(f"{k * 0.01},{0.1 * math.sin(k / 9)},0.0\n"

@@ -677,7 +677,8 @@ class Measurements:
         seconds = positive("seconds", seconds, cap=1e6)
         out = []
         for p in self.pieces:
-            count = max(1, int(round(p.duration / seconds)))
+            # at most one part per sample (the parts of a tiny horizon are all dropped below anyway)
+            count = min(max(1, int(round(p.duration / seconds))), len(p))
             if count == 1:
                 out.append(p)
                 continue

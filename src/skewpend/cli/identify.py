@@ -89,6 +89,8 @@ def _start_model(func):
 
 
 _SECONDS = T.Positive("number of seconds")
+_HORIZON = T.Positive("number of seconds", at_most=1e6)
+_HORIZON.metavar = "SECONDS"
 _DATA_HELP = ("measured motion: files or folders, combined (kaheman: the folder data/kaheman2023 or its .mat file; "
               "dfki: trajectory_NN.csv files or their folder; csv: CSV files with a header line, see --columns; mat: "
               "MATLAB files, see --variables; trajectory: skewpend's own .nc/.csv runs)")
@@ -103,6 +105,7 @@ def identify(
     which: Annotated[Optional[Which], typer.Option("--which", help="--format kaheman: the pieces of DATA to fit (default fit: the 26 fitting pieces, and without --validate the 4 held-out ones of the same file are predicted)", rich_help_panel=RUN)] = None,
     free: Annotated[Optional[str], typer.Option("--free", metavar="NAMES", help="the base parameters to estimate, comma-separated (e.g. J2zz,h2y), and/or alpha to estimate the skew angle too (default: every base parameter, alpha held at params0's)", rich_help_panel=RUN)] = None,
     validate: Annotated[Optional[str], typer.Option("--validate", metavar="DATA[,DATA...]", help="held-out data to predict, read like DATA (--format kaheman: their validation pieces); default: none, or with --format kaheman the validation pieces of DATA", rich_help_panel=RUN)] = None,
+    horizon: option("--horizon", _HORIZON, "cut every held-out piece into pieces of about SECONDS each (Measurements.cut), each predicted from its own first measured state, as the driven rig's protocol does with 1 (default: whole pieces)") = None,
     method: Annotated[FitMethod, typer.Option("--method", help="output-error: the linear estimate, then multiple shooting on the angles; linear: the linear estimate (inverse dynamics on filtered signals) alone", show_default=False, rich_help_panel=RUN)] = FitMethod.output_error,
     segment: option("--segment", _SECONDS, "output-error: the shooting segments' length [s], at most 60 (default 0.5)") = None,
     smoothing: option("--smoothing", _SECONDS, "the Savitzky-Golay window of the linear estimate and the segments' starts [s] (default 0.05)") = None,
@@ -143,12 +146,17 @@ def identify(
         require_netcdf()
 
     pick = (which.value if which is not None else "fit") if kind == "kaheman" else None
+    if horizon is not None and validate is None and pick != "fit":
+        raise UsageError("--horizon cuts the held-out pieces: give them with --validate DATA (with --format kaheman "
+                         "and --which fit, the default, the file's own held-out pieces)")
     measurements = reader(paths, pick)
     validation = None
     if validate is not None:
         validation = reader(_split_paths(validate), "validation" if kind == "kaheman" else None)
     elif kind == "kaheman" and pick == "fit":
         validation = reader(paths, "validation")
+    if horizon is not None:
+        validation = _cut(validation, horizon)
 
     from ..analysis.identify import identify as fit
     from ..interrupts import Interrupts
@@ -186,6 +194,17 @@ def identify(
     lines += [f"{what:10s}{path}" for what, path in written]
     sys.stdout.write("\n".join(lines) + "\n")
     return result, note
+
+
+def _cut(validation, horizon: float):
+    """The held-out pieces cut into pieces of about ``horizon`` seconds (:meth:`Measurements.cut`);
+    a horizon that leaves no piece is refused naming the option."""
+    from ..errors import ParameterError
+
+    try:
+        return validation.cut(horizon)
+    except ParameterError as exc:
+        raise UsageError(f"--horizon {horizon:g}: {exc}") from None
 
 
 # -- input ----------------------------------------------------------------------------------------------
