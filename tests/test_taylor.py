@@ -194,3 +194,46 @@ def test_long_run_goes_on_in_chunks_with_progress_and_keep_false():
     for name in ("t", "y", "energy", "work"):  # arrays of their own, contiguous
         arr = getattr(full, name)
         assert arr.flags.c_contiguous and arr.flags.owndata
+
+
+def test_step_rows_carry_the_model_energy_and_do_not_depend_on_the_chunking():
+    """At the integrator's own steps (sp_taylor_rows) each row's energy comes from the series' order 0
+    (generated from T + Pi of the derivation): it equals the model kernel's energy to rounding, and
+    the rows, energies and account are the same bits however the run is split into calls."""
+    from skewpend.numeric import simulation
+    from skewpend.numeric.kernels import TaylorState, kernel_module, parameter_vector, taylor_kernel, taylor_order
+
+    Pd = P.replace(c1=0.05, tau2=-0.05)
+    p = parameter_vector(Pd)
+    tr = simulate(Pd, Y0, 3.0, method="taylor", rtol=1e-10, atol=1e-10)
+    rows = np.column_stack([tr.t, tr.y, tr.work])
+    energy, acc = np.empty(len(rows)), np.zeros(4)
+    kernel_module(Pd).lib.sp_energy_account(rows.ctypes.data, len(rows), 6, p.ctypes.data, energy.ctypes.data,
+                                            acc.ctypes.data)
+    np.testing.assert_allclose(tr.energy, energy, rtol=0, atol=1e-13 * np.max(np.abs(energy)))
+    assert abs(tr.energy_drift - acc[0] / acc[1]) < 1e-12
+
+    fn = simulation._rows_fn(taylor_kernel(Pd, taylor_order(1e-10)))
+    y0 = (ctypes.c_double * 4)(*Y0)
+
+    def run(budget, cap):
+        s, m = TaylorState(), ctypes.c_int64(0)
+        rows, e, acc = np.empty((cap, 6)), np.empty(cap), np.zeros(4)
+        out, first = [], True
+        while True:
+            rc = fn(ctypes.addressof(s), ctypes.addressof(y0) if first else None, p.ctypes.data, 3.0, 1e-10, 1e-10,
+                    10**6, budget, rows.ctypes.data, cap, e.ctypes.data, acc.ctypes.data, ctypes.byref(m))
+            first = False
+            out.append(np.column_stack([rows[: m.value], e[: m.value]]))
+            if rc >= 0:
+                return rc, np.concatenate(out), acc
+
+    rc1, a, acc1 = run(10**6, 1000)
+    rc2, b, acc2 = run(1, 2)
+    assert rc1 == rc2 == 0 and np.array_equal(a, b) and np.array_equal(acc1, acc2)
+    assert np.array_equal(a[:, :6], rows) and np.array_equal(a[:, 6], tr.energy)
+
+
+def test_an_initial_state_that_overflows_is_refused():
+    with pytest.raises(ParameterError, match="not finite"):
+        simulate(P, (0.5, 0.5, 1e200, -1e200), 1.0, method="taylor", rtol=1e-8, atol=1e-8)

@@ -237,10 +237,11 @@ def _memory_limit() -> float:
 class _Accumulator:
     """Consumes output rows chunk by chunk: the energy balance, the kept rows, the file."""
 
-    def __init__(self, kernel, p, keep: bool, writer):
+    def __init__(self, kernel, p, keep: bool, writer, acc: Optional[np.ndarray] = None):
         self.kernel, self.p, self.keep, self.writer = kernel, p, keep, writer
         # the energy account in C, one call per chunk: acc = (max |E - W - E0|, max |E|, E0, E0 set)
-        self.acc = np.zeros(4)
+        # (given: the array the Taylor integrator keeps the account of its rows in)
+        self.acc = np.zeros(4) if acc is None else acc
         self._addr = (p.ctypes.data, self.acc.ctypes.data)  # (array.ctypes is slow)
         self.blocks: List[np.ndarray] = []  # kept rows (t, y(4), W), copies
         self.eblocks: List[np.ndarray] = []  # ... and their energies
@@ -259,6 +260,16 @@ class _Accumulator:
         energy = np.empty(k)  # each block's own (kept as it is)
         p_addr, acc_addr = self._addr
         self.kernel.lib.sp_energy_account(rows.ctypes.data, k, rows.strides[0] // 8, p_addr, energy.ctypes.data, acc_addr)
+        self._keep(rows, energy, final)
+
+    def add_accounted(self, rows: np.ndarray, energy: np.ndarray, final: bool = False) -> None:
+        """As :meth:`add`, for rows whose energies (``energy``, a buffer: copied) and account in
+        ``acc`` the integrator made itself (the Taylor integrator)."""
+        if rows.shape[0]:
+            self._keep(rows, energy.copy(), final)
+
+    def _keep(self, rows: np.ndarray, energy: np.ndarray, final: bool) -> None:
+        k = rows.shape[0]
         if self.keep:
             self.blocks.append(rows if final else rows.copy())
             self.eblocks.append(energy)
@@ -503,12 +514,100 @@ def simulate(
             except ValueError as exc:  # a function in the equations without a series recurrence
                 raise ParameterError(f"method taylor: {exc}; use dop853") from None
             entry.taylor[order] = tk
-    _check_start(kernel, entry, y)
-
     state: Any
-    if method == "taylor":
+    if method == "taylor" and dt_out is None:
+        # the integrator's own steps: sp_taylor_rows (each row's energy and the account in C, the state
+        # reset from y there), buffers from a pool; a run done in its first call returns at once
+        buf = _TAYLOR_BUFFERS.pop() if _TAYLOR_BUFFERS else _TaylorBuffers(K)
+        rows_fn = tk.__dict__.get("rows_fn") or _rows_fn(tk)
+        state, rows, ebuf, acc_arr = buf.state, buf.rows, buf.energy, buf.acc
+        acc_arr[:] = 0.0
+        buf.y0[0], buf.y0[1], buf.y0[2], buf.y0[3] = y
+        rows_addr, e_addr, acc_addr, s_addr, p_addr = buf.rows_addr, buf.e_addr, buf.acc_addr, buf.s_addr, entry.p_addr
+        m = buf.m
+        budget = min(2000, max(10, max_steps // 20))
+        start = time.perf_counter()
+        code = rows_fn(s_addr, buf.y0_addr, p_addr, t_end, rtol, atol, max_steps, budget, rows_addr, _CHUNK_ROWS, e_addr,
+                       acc_addr, buf.m_ref)
+        k = m.value
+        if code == Status.NONFINITE or not (k and math.isfinite(ebuf[0])):
+            _check_start(kernel, entry, y)  # an initial state that overflows: refused, as before any run
+        if code >= 0 and keep and out is None:
+            wall = time.perf_counter() - start
+            traj = _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code, wall, kernel, tk)
+            _TAYLOR_BUFFERS.append(buf)
+            if progress is not None:
+                progress(state.t, t_end)
+            if code != 0 and throw:
+                raise IntegrationError(f"{method}: {traj.message} at t = {state.t:.6g} s")
+            return traj
+        return _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max_steps, throw, out, keep,
+                                progress, controller, kernel, p, entry, tk, K, 0, 0, 0, n_grid,
+                                first=(buf, code, start))
+    _check_start(kernel, entry, y)
+    return _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max_steps, throw, out, keep,
+                            progress, controller, kernel, p, entry, tk, K, nsteps, stride, step if method not in ADAPTIVE
+                            else None, n_grid)
+
+
+class _TaylorBuffers:
+    """One Taylor run's state, row and energy buffers and their addresses, kept in a pool between
+    runs (nothing of a returned trajectory refers to them: its columns are copies)."""
+
+    __slots__ = ("state", "rows", "energy", "acc", "y0", "m", "m_ref", "s_addr", "rows_addr", "e_addr", "acc_addr",
+                 "y0_addr")
+
+    def __init__(self, K):
+        self.state = K.TaylorState()
+        self.rows = np.empty((_CHUNK_ROWS, 6))
+        self.energy = np.empty(_CHUNK_ROWS)
+        self.acc = np.zeros(4)
+        self.y0 = (ctypes.c_double * 4)()
+        self.m = ctypes.c_int64(0)
+        self.m_ref = ctypes.byref(self.m)
+        self.s_addr, self.y0_addr = ctypes.addressof(self.state), ctypes.addressof(self.y0)
+        self.rows_addr, self.e_addr, self.acc_addr = self.rows.ctypes.data, self.energy.ctypes.data, self.acc.ctypes.data
+
+
+#: Taylor buffers not in use (a list: pop and append are atomic, so threads never share one).
+_TAYLOR_BUFFERS: List[_TaylorBuffers] = []
+
+
+def _rows_fn(tk):
+    """``sp_taylor_rows`` of a Taylor library (taylor.c), its prototype set once."""
+    vp, d, i64 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int64
+    fn = tk.lib.sp_taylor_rows
+    fn.argtypes = [vp, vp, vp, d, d, d, i64, i64, vp, i64, vp, vp, vp]
+    fn.restype = ctypes.c_int
+    tk.rows_fn = fn
+    return fn
+
+
+def _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code, wall, kernel, tk) -> "Trajectory":
+    """The trajectory of a Taylor run done in one call: its ``k`` rows and energies copied out."""
+    status = Status.of(code)
+    stats = {"nfev": state.nfev, "steps": state.naccept, "rejected": state.nreject, "wall_time": wall,
+             "kernel": kernel.origin, "kernel_build_time": kernel.build_time, "compiler": kernel.compiler, "rows": k,
+             "order": state.order}
+    if tk.origin == "compiled":
+        stats["kernel"] = "compiled"
+        stats["kernel_build_time"] = kernel.build_time + tk.build_time
+    err, scale = float(acc_arr[0]), float(acc_arr[1])
+    block = rows[:k]
+    return Trajectory(t=block[:, 0].copy(), y=block[:, 1:5].copy(), energy=ebuf[:k].copy(), work=block[:, 5].copy(),
+                      params=params, method=method, settings=settings, stats=stats, status=status,
+                      message=status.message, energy_drift=err / scale if scale > 0 else err, kept=True, _kernel=kernel)
+
+
+def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max_steps, throw, out, keep, progress,
+                     controller, kernel, p, entry, tk, K, nsteps, stride, step, n_grid, first=None) -> "Trajectory":
+    """simulate's general path: the run in bounded chunks (``first``: a Taylor run's buffers, the
+    code of its first call and its start time, the run begun by simulate)."""
+    if method == "taylor" and first is None:
         state = K.TaylorState()
         state.y[0], state.y[1], state.y[2], state.y[3] = y
+    elif method == "taylor":
+        state = first[0].state
     elif method == "gauss":
         y5 = np.array(y + [0.0])
         mom = np.empty(2)
@@ -524,11 +623,23 @@ def simulate(
     cstruct = None if controller is None else controller.struct()
     cref = None if cstruct is None else ctypes.byref(cstruct)
 
-    rows = np.empty((_CHUNK_ROWS, n + 1))
-    m = ctypes.c_int64(0)
     k_out = ctypes.c_int64(0)
+    if first is not None:  # the Taylor integrator's steps, with their energies (sp_taylor_rows)
+        buf = first[0]
+        rows, m, ebuf = buf.rows, buf.m, buf.energy
+        rows_fn, s_addr, p_addr, rows_addr, e_addr, acc_addr = (tk.rows_fn, buf.s_addr, entry.p_addr, buf.rows_addr,
+                                                                 buf.e_addr, buf.acc_addr)
 
-    if method == "taylor":
+        def call(budget: int) -> int:
+            return rows_fn(s_addr, None, p_addr, t_end, rtol, atol, max_steps, budget, rows_addr, _CHUNK_ROWS, e_addr,
+                           acc_addr, buf.m_ref)
+    else:
+        rows = np.empty((_CHUNK_ROWS, n + 1))
+        m = ctypes.c_int64(0)
+
+    if first is not None:
+        pass
+    elif method == "taylor":
         taylor_fn, s_addr, p_addr, rows_addr = tk.lib.sp_taylor, ctypes.addressof(state), entry.p_addr, rows.ctypes.data
         m_ref, k_ref, dense_dt = ctypes.byref(m), ctypes.byref(k_out), dt_out or 0.0
 
@@ -560,10 +671,12 @@ def simulate(
     with contextlib.ExitStack() as stack:
         if out is not None:
             writer = stack.enter_context(TrajectoryWriter(out))
-        acc = _Accumulator(kernel, p, keep, writer)
+        acc = _Accumulator(kernel, p, keep, writer, acc=None if first is None else buf.acc)
 
         def take(final: bool = False) -> None:
-            if m.value:
+            if first is not None:
+                acc.add_accounted(rows[: m.value], ebuf[: m.value], final)
+            elif m.value:
                 chunk = rows[: m.value, :6]
                 if method == "gauss":
                     chunk = kernel.speeds_many(chunk, p, offset=1)
@@ -580,13 +693,16 @@ def simulate(
                 progress(state.t, t_end)
 
         budget = min(2000, max(10, max_steps // 20))
-        start = time.perf_counter()
         # The first bounded call (at most 2000 steps: a few ms) runs without Interrupts' signal
         # handlers (installing and restoring them costs more than a short run takes): a Ctrl-C
         # during it raises as Python's handler does, when the call returns.  A run that goes on
         # continues in drive(), inside Interrupts, as drive() would have (its budget adapted to
         # ~0.05 s a call after drive's first call; results do not depend on the chunks).
-        code = int(call(budget))
+        if first is None:
+            start = time.perf_counter()
+            code = int(call(budget))
+        else:  # made by simulate
+            code, start = first[1], first[2]
         if code == CallCode.BAD_ARGUMENTS:  # pragma: no cover - the arguments are checked above
             raise RuntimeError(f"internal error: bad arguments to sp_{method}")
         if code >= 0:
@@ -647,6 +763,8 @@ def simulate(
             metadata = trajectory_metadata(traj)
             metadata["t_reached"] = float(state.t)
             writer.finish(metadata)
+    if first is not None:
+        _TAYLOR_BUFFERS.append(first[0])
     if traj.status != 0 and throw:
         raise IntegrationError(f"{method}: {message} at t = {state.t:.6g} s")
     return traj

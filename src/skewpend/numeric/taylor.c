@@ -2,8 +2,9 @@
  *
  * Contract with taylor_source.py (generated, before this file): the SP_STATUS_* and SP_CALL_* codes,
  * SP_TN (5: phi, psi, dphi, dpsi, W), SP_TPMAX, SP_TORDER (the order p of this library),
- * SP_TAYLOR_NPC, taylor_work(p), taylor_prepare(p, pc) and taylor_jet(x, pc, work), which fills the
- * Taylor coefficients x[i][1 .. p] of the solution through x[i][0].
+ * SP_TAYLOR_NPC, taylor_work(p), taylor_prepare(p, pc) and taylor_jet(x, pc, work, e_out), which fills
+ * the Taylor coefficients x[i][1 .. p] of the solution through x[i][0] (and, e_out not NULL, the energy
+ * T + Pi at x[.][0] into *e_out).
  *
  * Order and step as Jorba & Zou (2005) and heyoka: the caller picks p = ceil(-ln(rtol) / 2) + 1;
  * step h = rho exp(-2) exp(-0.7 / (p - 1)), rho = min over m = p - 1, p of (scale / max_i |x_i[m]|)^(1/m),
@@ -81,7 +82,7 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         if (s->naccept >= max_steps) { *m_out = m; return SP_STATUS_MAX_STEPS; }
 
         for (int i = 0; i < n; i++) x[i][0] = s->y[i];
-        taylor_jet(x, pc, s->work);
+        taylor_jet(x, pc, s->work, NULL);
         s->nfev++;
         double big = 0.0, d1 = 0.0, d2 = 0.0;
         for (int i = 0; i < nc; i++) {
@@ -115,4 +116,102 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         memcpy(s->y, ynew, (size_t)n * sizeof(double));
         if (!dense) put_row(rows, m++, n, s->t, s->y);
     }
+}
+
+/* The account of rows m0 .. m - 1 (their energies in e[]): as sp_energy_account in the model's kernel
+ * (acc[0] = max |E - W - E0|, acc[1] = max |E|, E0 = acc[2] from the first row ever, acc[3] = 1 then). */
+static void taylor_account(const double *rows, const double *e, int64_t m0, int64_t m, double *acc)
+{
+    for (int64_t r = m0; r < m; r++) {
+        const double en = e[r], w = rows[r * (SP_TN + 1) + SP_TN];
+        if (acc[3] == 0.0) {
+            acc[2] = en;
+            acc[3] = 1.0;
+        }
+        const double d = fabs((en - w) - acc[2]);
+        if (d > acc[0] || d != d) acc[0] = d;
+        if (fabs(en) > acc[1] || en != en) acc[1] = fabs(en);
+    }
+}
+
+/* sp_taylor at the integrator's own steps (dt_out = 0), with each row's energy T + Pi into e[row] (from
+ * the order 0 of the next step's series: the sines and cosines shared; the last row's by one more
+ * series evaluation) and the rows' energy account into acc[4] (taylor_account).  y0 not NULL: the run
+ * starts here, from t = 0, y = (y0[0..3], W = 0) (the state is reset).  The same steps, rows and codes
+ * as sp_taylor. */
+int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double t_end, double rtol, double atol,
+                   int64_t max_steps, int64_t budget, double *rows, int64_t cap, double *e, double *acc,
+                   int64_t *m_out)
+{
+    const int n = SP_TN;
+    double pc[SP_TAYLOR_NPC], x[SP_TN][SP_TPMAX + 2], ynew[SP_TN];
+    int64_t m = 0, done = 0;
+    int code, pending = 0; /* pending: row m - 1 is the current state, its energy not yet known */
+    *m_out = 0;
+    if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0)) return SP_CALL_BAD_ARGUMENTS;
+    if (y0) {
+        memset(s, 0, sizeof *s);
+        memcpy(s->y, y0, 4 * sizeof(double));
+    }
+    taylor_prepare(p, pc);
+    const int order = SP_TORDER;
+    const double fac = exp(-2.0) * exp(-0.7 / (double)(order - 1));
+    const double floor_scale = atol / rtol;
+    const double e1 = 1.0 / (double)(order - 1), e2 = 1.0 / (double)order;
+    if (!s->started) {
+        s->started = 1;
+        s->order = order;
+        s->work = taylor_work(p);
+        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
+        put_row(rows, m++, n, s->t, s->y);
+        pending = 1;
+    }
+    const int nc = s->work ? n : n - 1;
+    for (;;) {
+        if (s->t >= t_end) { code = SP_STATUS_SUCCESS; break; }
+        if (done >= budget) { code = SP_CALL_BUDGET; break; }
+        if (m >= cap) { code = SP_CALL_BUFFER_FULL; break; }
+        if (s->naccept >= max_steps) { code = SP_STATUS_MAX_STEPS; break; }
+
+        for (int i = 0; i < n; i++) x[i][0] = s->y[i];
+        double en;
+        taylor_jet(x, pc, s->work, pending ? &en : NULL);
+        if (pending) { e[m - 1] = en; pending = 0; }
+        s->nfev++;
+        double big = 0.0, d1 = 0.0, d2 = 0.0;
+        for (int i = 0; i < nc; i++) {
+            big = fmax(big, fabs(x[i][0]));
+            d1 = fmax(d1, fabs(x[i][order - 1]));
+            d2 = fmax(d2, fabs(x[i][order]));
+        }
+        const double scale = fmax(floor_scale, big);
+        double lrho = INFINITY;
+        if (d1 > 0.0) lrho = log(scale / d1) * e1;
+        if (d2 > 0.0) lrho = fmin(lrho, log(scale / d2) * e2);
+        double h = exp(lrho) * fac;
+        if (!(h == h)) { code = SP_STATUS_NONFINITE; break; }
+        const double left = t_end - s->t;
+        int last = 0;
+        if (h >= left) { h = left; last = 1; }
+        if (!last && s->t + h == s->t) { code = SP_STATUS_STEP_UNDERFLOW; break; }
+        taylor_eval((const double (*)[SP_TPMAX + 2])x, order, nc, h, ynew);
+        if (nc < n) ynew[4] = s->y[4];
+        if (!all_finite(ynew, n)) { code = SP_STATUS_NONFINITE; break; }
+        s->naccept++;
+        done++;
+        s->dense_ok = 0;
+        s->t = last ? t_end : s->t + h;
+        memcpy(s->y, ynew, (size_t)n * sizeof(double));
+        put_row(rows, m++, n, s->t, s->y);
+        pending = 1;
+    }
+    if (pending) { /* the last row's energy: one more series evaluation (its coefficients unused) */
+        double en;
+        for (int i = 0; i < n; i++) x[i][0] = s->y[i];
+        taylor_jet(x, pc, s->work, &en);
+        e[m - 1] = en;
+    }
+    taylor_account(rows, e, 0, m, acc);
+    *m_out = m;
+    return code;
 }
