@@ -385,7 +385,7 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
     def work_lines(k: int) -> List[str]:
         """W' = Q1 q1' + Q2 q2' (its series products written out too)."""
         lines = []
-        for op in g.ops[n_main:]:
+        for op in g.ops[n_main:n_work]:
             lines += _op_lines(op, k, I + "    ")
         w = []
         for q, v in ((Q1, "x[2]"), (Q2, "x[3]")):
