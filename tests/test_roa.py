@@ -131,9 +131,35 @@ def test_a_cell_is_the_start_it_names(ref, design):
     for a, b in ((0, 5), (11, 17), (23, 2)):
         y0 = target.copy()
         y0[0], y0[1] = ref.x0[a], ref.y0[b]
-        t, _, status = capture_many(kernel_module(BENCH), parameter_vector(BENCH), design.controller(), y0[None, :],
+        t, _, status = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :],
                                     t_end=6.0, rtol=1e-8, atol=1e-8, max_steps=200_000, P=design.P, rho=design.rho)
         assert status[0] == 0 and t.tobytes() == ref.capture_time[a:a + 1, b].tobytes()
+
+
+def test_the_lanes_agree_with_the_scalar_integration(ref, design):
+    """The map's starts run eight side by side in SIMD lanes (sp_capture_lanes, on the flip map's
+    trigonometry-free state); the scalar DOP853 of simulate's kernel (sp_capture_many, one start at
+    a time) classifies every cell the same, and the capture times agree to the integration's
+    accuracy; a start's bits do not depend on the lane or on the other starts."""
+    from skewpend.numeric.control import capture_lanes_available, capture_many
+    from skewpend.numeric.kernels import kernel_module, parameter_vector
+
+    ctl, pv = design.controller(), parameter_vector(BENCH)
+    lanes, scalar = kernel_module(BENCH, flip=True), kernel_module(BENCH)
+    assert capture_lanes_available(lanes, ctl) and not capture_lanes_available(scalar, ctl)
+    X, Y = np.meshgrid(ref.x0, ref.y0, indexing="ij")
+    starts = np.tile(design.linearization.target, (X.size, 1))
+    starts[:, 0], starts[:, 1] = X.ravel(), Y.ravel()
+    kw = dict(t_end=6.0, rtol=1e-8, atol=1e-8, max_steps=200_000, P=design.P, rho=design.rho)
+    t1, s1, st1 = capture_many(lanes, pv, ctl, starts, **kw)
+    t0, s0, st0 = capture_many(scalar, pv, ctl, starts, **kw)
+    assert t1.tobytes() == ref.capture_time.ravel().tobytes()
+    assert not st0.any() and not st1.any() and np.array_equal(np.isnan(t0), np.isnan(t1))
+    both = np.isfinite(t0) & (t0 > 0)
+    assert both.sum() > 100 and np.max(np.abs(t0 - t1)[both]) < 1e-4
+    order = np.random.default_rng(3).permutation(len(starts))  # other lanes, other neighbours
+    t2, s2, _ = capture_many(lanes, pv, ctl, starts[order], **kw)
+    assert t2.tobytes() == t1[order].tobytes() and np.array_equal(s2, s1[order])
 
 
 def test_other_planes_vary_the_speeds(design):
@@ -152,7 +178,7 @@ def test_other_planes_vary_the_speeds(design):
 
     y0 = design.linearization.target.copy()
     y0[0], y0[2] = r.x0[2], r.y0[6]
-    t, _, _ = capture_many(kernel_module(BENCH), parameter_vector(BENCH), design.controller(), y0[None, :], t_end=6.0,
+    t, _, _ = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :], t_end=6.0,
                            rtol=1e-8, atol=1e-8, max_steps=200_000, P=design.P, rho=design.rho)
     assert t.tobytes() == r.capture_time[2:3, 6].tobytes()
 
@@ -167,7 +193,7 @@ def test_failed_cells_are_reported_not_guessed(design):
     from skewpend.numeric.kernels import kernel_module, parameter_vector
 
     y0 = np.array([0.0, -0.648, 0.0, 0.0])  # phi - pi wraps to -pi: the jump
-    t, steps, status = capture_many(kernel_module(BENCH), parameter_vector(BENCH), design.controller(), y0[None, :],
+    t, steps, status = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :],
                                     t_end=10.0, rtol=1e-8, atol=1e-8, max_steps=20_000, P=design.P, rho=design.rho)
     assert status[0] != 0 and math.isnan(t[0])
 

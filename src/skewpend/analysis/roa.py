@@ -5,7 +5,9 @@
 ``n x n`` grid of cells on a 2-D slice of the state space through the target -- two of
 ``phi, psi, phi', psi'`` (``plane``) varied over ``window`` about their target values, the other
 two at theirs.  Each start is integrated by DOP853 with the inputs inside the compiled code
-(``sp_capture_many`` in ``integrators.c``; no Python per step) until it enters the LQR's inner
+(``sp_capture_lanes`` in ``integrators.c``: eight starts side by side in SIMD lanes, on the flip
+map's trigonometry-free state; ``sp_capture_many``, one by one, for a model the lanes cannot
+print; no Python per step) until it enters the LQR's inner
 estimate ``dx^T P dx < rho`` (:func:`skewpend.lqr`: inside it ``V = dx^T P dx`` decreases along
 the saturated nonlinear loop, so a start that gets there is captured) -- its *capture time* --
 or until ``t_end``.  A start entering the estimate is captured (the estimate is an inner bound);
@@ -235,9 +237,9 @@ class RoaJob(GridJob):
 
     def setup(self):
         from ..errors import SkewpendError
-        from ..numeric.kernels import kernel_module, parameter_vector
+        from ..numeric.kernels import parameter_vector
 
-        kernel = kernel_module(self.params)
+        kernel = roa_kernel(self.params)
         if kernel.path.name != self.kernel_name:
             raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
                                 "install the same skewpend on every worker")
@@ -327,7 +329,6 @@ def region_of_attraction(
     from .. import __version__
     from ..numeric.control import torque_limits
     from ..numeric.grid import check_run_options, run_grid
-    from ..numeric.kernels import kernel_module
     from .control import LQR, equilibrium_argument, lqr
     from .flipmap import check_n
 
@@ -363,7 +364,7 @@ def region_of_attraction(
     lin = design.linearization
     x_star = lin.target
     ia, ib = COORDINATES[a], COORDINATES[b]
-    kernel = kernel_module(params)
+    kernel = roa_kernel(params)
     job = RoaJob(params=params, n=n, plane=(a, b), x_range=(x_star[ia] + wa[0], x_star[ia] + wa[1]),
                  y_range=(x_star[ib] + wb[0], x_star[ib] + wb[1]), target=tuple(float(v) for v in x_star),
                  K=tuple(float(v) for v in design.gain.ravel()), P=tuple(float(v) for v in np.ravel(design.P)),
@@ -373,6 +374,21 @@ def region_of_attraction(
     _check_feasible(job, state)
     return run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress,
                     chunk_size=chunk_size, state=state)
+
+
+def roa_kernel(params: Parameters):
+    """The kernel of a map: the flip kernel (``sp_capture_lanes``, the starts in SIMD lanes), or
+    the simulation kernel (``sp_capture_many``) for a model the lanes cannot print (Coulomb
+    friction: not polynomial in the speeds)."""
+    from ..numeric.kernels import kernel_module
+
+    if params.has_friction:
+        return kernel_module(params)
+    try:
+        kernel = kernel_module(params, flip=True)
+    except ValueError:  # the lanes' code generator refused the model
+        return kernel_module(params)
+    return kernel if hasattr(kernel.lib, "sp_capture_lanes") else kernel_module(params)
 
 
 def _check_feasible(job: RoaJob, state) -> None:

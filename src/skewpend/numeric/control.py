@@ -36,7 +36,8 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["Controller", "ACTUATION", "KINDS", "CALLBACK", "torque_limits", "capture_many", "raise_law_error"]
+__all__ = ["Controller", "ACTUATION", "KINDS", "CALLBACK", "torque_limits", "capture_many", "capture_lanes_available",
+           "raise_law_error"]
 
 #: Which joints a motor drives: bit 0 the shoulder (joint 1), bit 1 the elbow (joint 2).
 ACTUATION = {"both": 3, "pendubot": 1, "acrobot": 2}
@@ -325,14 +326,42 @@ def raise_law_error(struct) -> None:
         raise errors[0]
 
 
+def capture_lanes_available(kernel, controller: Controller) -> bool:
+    """Whether :func:`capture_many` runs ``controller`` on ``kernel`` in SIMD lanes
+    (``sp_capture_lanes``: a flip kernel, ``kernel_module(params, flip=True)``, of a model the lanes
+    can print, and a feedback law)."""
+    return controller.kind == "feedback" and hasattr(kernel.lib, "sp_capture_lanes")
+
+
+def _bind_capture_lanes(lib) -> None:
+    if getattr(lib, "_sp_capture_lanes_bound", False):
+        return
+    dp, i64 = ctypes.POINTER(ctypes.c_double), ctypes.c_int64
+    d = ctypes.c_double
+    lib.sp_capture_lanes.argtypes = [ctypes.c_void_p, ctypes.c_void_p, dp, dp, i64, d, d, d, i64, dp, d, i64, dp,
+                                     ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int8)]
+    lib.sp_capture_lanes.restype = ctypes.c_int
+    lib.sp_capture_ws_size.argtypes, lib.sp_capture_ws_size.restype = [], ctypes.c_int64
+    lib._sp_capture_lanes_bound = True
+
+
+#: Steps (of all lanes at once) per call of ``sp_capture_lanes`` between two checks of ``cancel``.
+LANE_BUDGET = 20_000
+
+
 def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarray, *, t_end: float, rtol: float,
                  atol: float, max_steps: int, P: np.ndarray, rho: float, cancel=None, group: int = 16):
     """The closed loop of ``controller`` from each of ``starts`` (m, 4), integrated by DOP853 until
-    it enters the region ``dx^T P dx < rho`` about the controller's target (``sp_capture_many``):
-    ``(time, steps, status)`` -- the capture time [s] (NaN: not by ``t_end``, or failed), the
-    accepted and rejected steps, and the integration's status code (0: completed).  ``group``
-    starts per compiled call, ``cancel`` (a ``threading.Event``) checked between calls; each
-    start's result does not depend on the grouping."""
+    it enters the region ``dx^T P dx < rho`` about the controller's target: ``(time, steps,
+    status)`` -- the capture time [s] (NaN: not by ``t_end``, or failed), the accepted and rejected
+    steps, and the integration's status code (0: completed).
+
+    On a flip kernel (``kernel_module(params, flip=True)``) with a feedback law, the starts run in
+    SIMD lanes (``sp_capture_lanes``, the trigonometry-free state of the flip map, a lane refilled
+    as soon as its start is done), the compiled call resumed every :data:`LANE_BUDGET` steps;
+    otherwise one by one (``sp_capture_many``), ``group`` starts per compiled call.  ``cancel`` (a
+    ``threading.Event``) is checked between calls; each start's result does not depend on the
+    grouping, the lane or the other starts."""
     from .ensemble import Cancelled
 
     starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 4)
@@ -345,6 +374,21 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
     c = controller.struct()
     dp = ctypes.POINTER(ctypes.c_double)
     i64p, i8p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int8)
+    if capture_lanes_available(kernel, controller):
+        lib = kernel.lib
+        _bind_capture_lanes(lib)
+        ws = ctypes.create_string_buffer(int(lib.sp_capture_ws_size()))
+        while True:
+            if cancel is not None and cancel.is_set():
+                raise Cancelled()
+            rc = lib.sp_capture_lanes(ws, ctypes.byref(c), pp.ctypes.data_as(dp), starts.ctypes.data_as(dp), m,
+                                      float(t_end), float(rtol), float(atol), int(max_steps),
+                                      region.ctypes.data_as(dp), float(rho), LANE_BUDGET, time.ctypes.data_as(dp),
+                                      steps.ctypes.data_as(i64p), status.ctypes.data_as(i8p))
+            if rc == 0:
+                return time, steps, status
+            if rc != -1:
+                raise RuntimeError(f"sp_capture_lanes refused its arguments (code {rc})")
     fn = kernel.lib.sp_capture_many
     for a in range(0, m, group):
         if cancel is not None and cancel.is_set():

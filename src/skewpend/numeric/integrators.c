@@ -956,4 +956,300 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
     memcpy(w->f, f, sizeof(f));
     return status;
 }
+#ifdef SP_CAPTURE_LANES
+/* ---- regions of attraction: the closed loop of a feedback law over SP_LANES starts at once -------------
+ *
+ * Contract with the code generator (kernel_source.capture_c_source): cap_prepare, cap_rhs (flip_rhs's
+ * trigonometry-free state, with the joint inputs u[2][SP_LANES] added to the torques) and cap_init (a
+ * start (phi, psi, dphi, dpsi) as that state).
+ *
+ * sp_capture_lanes does what sp_capture_many does for the feedback law u = clip(u* - K dx) (angles of
+ * dx wrapped to [-pi, pi)), with sp_flip's lanes: each lane carries one start with its own time, step
+ * size and accept/reject decisions, DOP853 with sp_flip's error norm (over the 8 components) and
+ * step-size rule; a lane whose start is captured, reaches t_end or fails takes the next start.  After
+ * each accepted step the region dx' P dx < rho is tested at the step's end, and where it holds the
+ * entry is located by bisection on the 7th-order dense output (the 3 extra stages computed only when
+ * a lane needs them).  Element-wise IEEE arithmetic in fixed-trip lane loops: a start's result is
+ * bitwise the same whichever lane, call or instruction set computes it.  Resumable like sp_flip
+ * (a zeroed sp_capture_ws, at most `budget` steps per call; -1 call again, 0 all done).
+ * Per start: time (NaN: not captured by t_end, or failed), steps (accepted + rejected), status
+ * (SP_STATUS_*). */
+typedef struct {
+    int64_t started, next;
+    int64_t cell[SP_LANES];
+    double t[SP_LANES], h[SP_LANES];
+    int64_t nacc[SP_LANES], nrej[SP_LANES], last_rejected[SP_LANES], nonfinite[SP_LANES];
+    double y[SP_FLIP_N][SP_LANES];
+    double f[SP_FLIP_N][SP_LANES];
+    double pp[SP_CAP_NPP];
+} sp_capture_ws;
+
+int64_t sp_capture_ws_size(void) { return (int64_t)sizeof(sp_capture_ws); }
+
+/* x wrapped to [-pi, pi) (up to rounding at the ends), in lane loops: floor, not fmod, vectorises */
+static inline __attribute__((always_inline)) double cap_wrap(double x)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    const double w = x + pi;
+    return (w - two_pi * floor(w / two_pi)) - pi;
+}
+
+/* the feedback law's inputs u[2][SP_LANES] at the states y */
+static inline __attribute__((always_inline)) void cap_law(const sp_control *restrict c, const double (*restrict y)[SP_LANES],
+                                                          double (*restrict u)[SP_LANES])
+{
+    const double K0 = c->K[0], K1 = c->K[1], K2 = c->K[2], K3 = c->K[3];
+    const double K4 = c->K[4], K5 = c->K[5], K6 = c->K[6], K7 = c->K[7];
+    const double x0 = c->xs[0], x1 = c->xs[1], x2 = c->xs[2], x3 = c->xs[3];
+    const double us0 = c->us[0], us1 = c->us[1], U0 = c->umax[0], U1 = c->umax[1];
+    const double on0 = (c->actuated & 1) ? 1.0 : 0.0, on1 = (c->actuated & 2) ? 1.0 : 0.0;
+    SP_LANE_LOOP {
+        const double d0 = cap_wrap(y[0][l] - x0), d1 = cap_wrap(y[1][l] - x1), d2 = y[2][l] - x2, d3 = y[3][l] - x3;
+        double a = us0, b = us1;
+        a = a - K0 * d0; a = a - K1 * d1; a = a - K2 * d2; a = a - K3 * d3;
+        b = b - K4 * d0; b = b - K5 * d1; b = b - K6 * d2; b = b - K7 * d3;
+        a = on0 * a; b = on1 * b;  /* a joint not actuated gets 0 */
+        a = a > U0 ? U0 : a; a = a < -U0 ? -U0 : a;
+        b = b > U1 ? U1 : b; b = b < -U1 ? -U1 : b;
+        u[0][l] = a;
+        u[1][l] = b;
+    }
+}
+
+/* the closed loop's y' at the states y, every lane */
+static inline __attribute__((always_inline)) void cap_f(const sp_control *restrict c, const double (*restrict y)[SP_LANES],
+                                                        const double *restrict pp, double (*restrict out)[SP_LANES])
+{
+    double u[2][SP_LANES];
+    cap_law(c, y, u);
+    cap_rhs(y, (const double (*)[SP_LANES])u, pp, out);
+}
+
+/* dx' P dx (angles wrapped) of one state given by its 4 first components */
+static inline double cap_region1(const sp_control *c, const double *P, double q0, double q1, double v0, double v1)
+{
+    const double dx[4] = {cap_wrap(q0 - c->xs[0]), cap_wrap(q1 - c->xs[1]), v0 - c->xs[2], v1 - c->xs[3]};
+    double v = 0.0;
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 4; j++) v = v + dx[i] * P[4 * i + j] * dx[j];
+    return v;
+}
+
+SP_MULTIVERSION
+int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, const double *starts, int64_t m,
+                     double t_end, double rtol, double atol, int64_t max_steps, const double *P, double rho,
+                     int64_t budget, double *time, int64_t *steps, int8_t *status)
+{
+    const int n = SP_FLIP_N;
+    double y[SP_FLIP_N][SP_LANES], f[SP_FLIP_N][SP_LANES], ynew[SP_FLIP_N][SP_LANES], ytmp[SP_FLIP_N][SP_LANES];
+    double K[DOP_NSTAGES][SP_FLIP_N][SP_LANES];
+    double H[SP_LANES], tnew[SP_LANES], e5[SP_LANES], e3[SP_LANES], bad[SP_LANES], err[SP_LANES], root[SP_LANES];
+    double vend[SP_LANES];
+    int accept[SP_LANES], fail[SP_LANES], event[SP_LANES];
+    flip_tables T;
+    if (m < 0 || !(t_end > 0.0) || !(rtol > 0.0) || !(atol > 0.0) || budget < 1 || c->kind != SP_CTL_FEEDBACK)
+        return SP_CALL_BAD_ARGUMENTS;
+    flip_tables_init(&T);
+    if (!w->started) {
+        cap_prepare(p, w->pp);
+        for (int l = 0; l < SP_LANES; l++) w->cell[l] = -1;
+        w->next = 0;
+        w->started = 1;
+    }
+    const double *pp = w->pp;
+    memcpy(y, w->y, sizeof(y));
+    memcpy(f, w->f, sizeof(f));
+    int rc;
+    for (int64_t it = 0;; it++) {
+        /* idle lanes take the next starts (one inside the region at once is captured at t = 0) */
+        int fresh[SP_LANES], nfresh = 0;
+        for (int l = 0; l < SP_LANES; l++) {
+            fresh[l] = 0;
+            while (w->cell[l] < 0 && w->next < m) {
+                int64_t k = w->next++;
+                const double *x = starts + 4 * k;
+                steps[k] = 0;
+                if (!(isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]) && isfinite(x[3]))) {
+                    time[k] = NAN;
+                    status[k] = SP_STATUS_NONFINITE;
+                    continue;
+                }
+                if (cap_region1(c, P, x[0], x[1], x[2], x[3]) < rho) {
+                    time[k] = 0.0;
+                    status[k] = SP_STATUS_SUCCESS;
+                    continue;
+                }
+                double y0[SP_FLIP_N];
+                cap_init(x, y0);
+                for (int i = 0; i < n; i++) y[i][l] = y0[i];
+                w->cell[l] = k;
+                w->t[l] = 0.0;
+                w->h[l] = 0.0;
+                w->nacc[l] = w->nrej[l] = w->last_rejected[l] = w->nonfinite[l] = 0;
+                fresh[l] = 1;
+                nfresh++;
+            }
+        }
+        if (nfresh) {
+            double ha[SP_LANES], d1[SP_LANES], sc[SP_FLIP_N][SP_LANES];
+            cap_f(c, (const double (*)[SP_LANES])y, pp, K[0]);
+            for (int l = 0; l < SP_LANES; l++) {  /* Hairer's initial step, as dop_initial_step, lane by lane */
+                ha[l] = 0.0;
+                if (!fresh[l]) continue;
+                int finite = 1;
+                for (int i = 0; i < n; i++) {
+                    f[i][l] = K[0][i][l];
+                    if (!isfinite(f[i][l]) || !isfinite(y[i][l])) finite = 0;
+                    sc[i][l] = atol + fabs(y[i][l]) * rtol;
+                }
+                if (!finite) { fresh[l] = 0; w->h[l] = -1.0; w->nonfinite[l] = 1; continue; }  /* fails below */
+                d1[l] = dop_rms(&f[0][l], SP_LANES, &sc[0][l], SP_LANES, n);
+                ha[l] = dop_trial_step(dop_rms(&y[0][l], SP_LANES, &sc[0][l], SP_LANES, n), d1[l], t_end);
+            }
+            for (int i = 0; i < n; i++) SP_LANE_LOOP ytmp[i][l] = y[i][l] + ha[l] * f[i][l];
+            cap_f(c, (const double (*)[SP_LANES])ytmp, pp, K[1]);
+            for (int l = 0; l < SP_LANES; l++) {
+                if (!fresh[l]) continue;
+                double df[SP_FLIP_N];
+                for (int i = 0; i < n; i++) df[i] = K[1][i][l] - f[i][l];
+                w->h[l] = dop_first_step(ha[l], d1[l], dop_rms(df, 1, &sc[0][l], SP_LANES, n) / ha[l], t_end);
+            }
+        }
+        int active = 0;
+        for (int l = 0; l < SP_LANES; l++) active += w->cell[l] >= 0;
+        if (!active) { rc = SP_STATUS_SUCCESS; break; }
+        if (it >= budget) { rc = SP_CALL_BUDGET; break; }
+
+        /* one trial step in every lane (idle or failing lanes: h = 0) */
+        for (int l = 0; l < SP_LANES; l++) {
+            H[l] = 0.0;
+            tnew[l] = w->t[l];
+            fail[l] = 0;
+            if (w->cell[l] < 0) continue;
+            double min_step = 10.0 * (nextafter(w->t[l], INFINITY) - w->t[l]);
+            if (w->nacc[l] + w->nrej[l] >= max_steps) { fail[l] = SP_STATUS_MAX_STEPS; continue; }
+            if (!(w->h[l] >= min_step)) {
+                fail[l] = w->nonfinite[l] ? SP_STATUS_NONFINITE : SP_STATUS_STEP_UNDERFLOW;
+                continue;
+            }
+            tnew[l] = w->t[l] + w->h[l];
+            if (tnew[l] >= t_end) tnew[l] = t_end;
+            H[l] = tnew[l] - w->t[l];
+        }
+        memcpy(K[0], f, sizeof(f));
+        for (int s = 1; s < DOP_NS; s++) {
+            flip_stage_arg((const double (*)[SP_LANES])y, H, &T, s, (const double (*)[SP_FLIP_N][SP_LANES])K, ytmp);
+            cap_f(c, (const double (*)[SP_LANES])ytmp, pp, K[s]);
+        }
+        flip_stage_arg((const double (*)[SP_LANES])y, H, &T, DOP_NS, (const double (*)[SP_FLIP_N][SP_LANES])K, ynew);
+        cap_f(c, (const double (*)[SP_LANES])ynew, pp, K[DOP_NS]);
+        /* Hairer's combined 5th/3rd-order error norm, per lane (as sp_flip) */
+        SP_LANE_LOOP e5[l] = e3[l] = bad[l] = 0.0;
+        for (int i = 0; i < n; i++) {
+            double a5[SP_LANES], a3[SP_LANES];
+            SP_LANE_LOOP { a5[l] = T.e5[0] * K[T.je5[0]][i][l]; a3[l] = T.e3[0] * K[T.je3[0]][i][l]; }
+            for (int k = 1; k < T.ne5; k++) {
+                const double cc = T.e5[k], *Kk = K[T.je5[k]][i];
+                SP_LANE_LOOP a5[l] = a5[l] + cc * Kk[l];
+            }
+            for (int k = 1; k < T.ne3; k++) {
+                const double cc = T.e3[k], *Kk = K[T.je3[k]][i];
+                SP_LANE_LOOP a3[l] = a3[l] + cc * Kk[l];
+            }
+            SP_LANE_LOOP {
+                double ay = y[i][l] < 0.0 ? -y[i][l] : y[i][l], an = ynew[i][l] < 0.0 ? -ynew[i][l] : ynew[i][l];
+                double r = 1.0 / (atol + rtol * (ay > an ? ay : an));
+                double uu = a5[l] * r, vv = a3[l] * r;
+                e5[l] = e5[l] + uu * uu;
+                e3[l] = e3[l] + vv * vv;
+                bad[l] = bad[l] + 0.0 * ynew[i][l] + 0.0 * K[DOP_NS][i][l];
+            }
+        }
+        SP_LANE_LOOP {
+            err[l] = fabs(H[l]) * e5[l] / sqrt((e5[l] + 0.01 * e3[l]) * n);
+            root[l] = sqrt(sqrt(sqrt(err[l])));
+        }
+        /* the region at each step's end, every lane */
+        SP_LANE_LOOP {
+            const double dx0 = cap_wrap(ynew[0][l] - c->xs[0]), dx1 = cap_wrap(ynew[1][l] - c->xs[1]);
+            const double dx2 = ynew[2][l] - c->xs[2], dx3 = ynew[3][l] - c->xs[3];
+            const double dx[4] = {dx0, dx1, dx2, dx3};
+            double v = 0.0;
+            for (int i = 0; i < 4; i++)
+                for (int j = 0; j < 4; j++) v = v + dx[i] * P[4 * i + j] * dx[j];
+            vend[l] = v;
+        }
+        int nevent = 0;
+        for (int l = 0; l < SP_LANES; l++) {
+            event[l] = accept[l] = 0;
+            if (w->cell[l] < 0 || fail[l]) continue;
+            int nonfinite = !isfinite(bad[l]) || !isfinite(e5[l]) || !isfinite(e3[l]);
+            w->nonfinite[l] = nonfinite;
+            if (nonfinite) err[l] = INFINITY;
+            else if (e5[l] == 0.0 && e3[l] == 0.0) err[l] = 0.0;
+            if (err[l] < 1.0) {
+                const double fac = DOP_FACTOR_ACCEPTED(err[l], SP_FLIP_SAFETY / root[l], w->last_rejected[l]);
+                w->h[l] = H[l] * fac;
+                w->last_rejected[l] = 0;
+                w->nacc[l]++;
+                accept[l] = 1;
+                if (vend[l] < rho) { event[l] = 1; nevent++; }
+            } else {
+                const double fac = DOP_FACTOR_REJECTED(nonfinite, SP_FLIP_SAFETY / root[l]);
+                w->h[l] = H[l] * fac;
+                w->last_rejected[l] = 1;
+                w->nrej[l]++;
+            }
+        }
+        if (nevent) {
+            /* entered during this step: the dense output's 3 extra stages (every lane), then the first
+             * point inside by bisection, lane by lane */
+            for (int s = DOP_NS + 1; s < DOP_NSTAGES; s++) {
+                flip_stage_arg((const double (*)[SP_LANES])y, H, &T, s, (const double (*)[SP_FLIP_N][SP_LANES])K, ytmp);
+                cap_f(c, (const double (*)[SP_LANES])ytmp, pp, K[s]);
+            }
+            for (int l = 0; l < SP_LANES; l++) {
+                if (!event[l]) continue;
+                double F[7][4], h = H[l], lo = 0.0, hi = 1.0;
+                for (int i = 0; i < 4; i++)
+                    dop_dense_component(y[i][l], ynew[i][l], h, &K[0][i][l], SP_FLIP_N * SP_LANES, &F[0][i], 4);
+                for (int k2 = 0; k2 < 60 && (hi - lo) * h > 1e-14 * fmax(1.0, tnew[l]); k2++) {
+                    double mid = 0.5 * (lo + hi), z[4];
+                    int finite = 1;
+                    for (int i = 0; i < 4; i++) {
+                        z[i] = dop_dense_value(y[i][l], &F[0][i], 4, mid);
+                        if (!isfinite(z[i])) finite = 0;
+                    }
+                    if (finite && cap_region1(c, P, z[0], z[1], z[2], z[3]) < rho) hi = mid; else lo = mid;
+                }
+                int64_t k = w->cell[l];
+                time[k] = w->t[l] + hi * h;
+                steps[k] = w->nacc[l] + w->nrej[l];
+                status[k] = SP_STATUS_SUCCESS;
+                w->cell[l] = -1;
+            }
+        }
+        /* advance the accepted lanes; finish those at t_end, or failed */
+        for (int i = 0; i < n; i++)
+            SP_LANE_LOOP {
+                y[i][l] = accept[l] ? ynew[i][l] : y[i][l];
+                f[i][l] = accept[l] ? K[DOP_NS][i][l] : f[i][l];
+            }
+        for (int l = 0; l < SP_LANES; l++) {
+            int64_t k = w->cell[l];
+            if (k < 0) continue;
+            if (accept[l]) w->t[l] = tnew[l];
+            if (fail[l] || w->t[l] >= t_end) {
+                time[k] = NAN;
+                steps[k] = w->nacc[l] + w->nrej[l];
+                status[k] = (int8_t)(fail[l] ? fail[l] : SP_STATUS_SUCCESS);
+                w->cell[l] = -1;
+            }
+        }
+    }
+    memcpy(w->y, y, sizeof(y));
+    memcpy(w->f, f, sizeof(f));
+    return rc;
+}
+#endif /* SP_CAPTURE_LANES */
 #endif /* SP_FLIP_KERNEL */

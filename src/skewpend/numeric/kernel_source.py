@@ -26,7 +26,7 @@ from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["kernel_c_source", "flip_c_source", "status_defines", "SP_LANES"]
+__all__ = ["kernel_c_source", "flip_c_source", "capture_c_source", "status_defines", "SP_LANES"]
 
 _STATE = ("phi", "psi", "dphi", "dpsi")
 
@@ -183,6 +183,10 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
     if flip:
         out += flip_c_source(ex, geometry)
+        try:
+            out += capture_c_source(ex, geometry)
+        except ValueError:  # a model the lanes cannot print: regions of attraction take the scalar path
+            pass
     out.append(_EXPORTS)
     return "\n".join(out) + "\n"
 
@@ -430,4 +434,96 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
         "}",
         "",
     ]
+    return out
+
+
+#: The inputs of the closed loop in ``cap_rhs``: added to the constant joint torques tau1, tau2.
+_INPUTS = ("ctl_u1", "ctl_u2")
+
+
+def capture_c_source(ex, geometry: Parameters) -> List[str]:
+    """The closed loop's functions for ``sp_capture_lanes`` (integrators.c, regions of
+    attraction): as :func:`flip_c_source`'s ``flip_rhs`` on the same trigonometry-free state
+    ``(phi, psi, dphi, dpsi, sin phi, cos phi, sin psi, cos psi)``, with the joint inputs
+    ``u[2][SP_LANES]`` (evaluated by the law in C) added to the torques ``tau1, tau2`` of the
+    derivation (substituted symbolically, so the equations are still only the derivation's), and
+    the state of a start ``(phi, psi, dphi, dpsi)``.  Defines ``SP_CAPTURE_LANES``; raises
+    ValueError for a model the lanes cannot print (then the scalar ``sp_capture_many`` is used)."""
+    s = SYMBOLS
+    q = {n: s[n] for n in _STATE}
+    trig = {getattr(sp, fn)(q[arg]): sp.Symbol(name) for name, fn, arg in _TRIG}
+    u = [sp.Symbol(n) for n in _INPUTS]
+    plus_u = {s["tau1"]: s["tau1"] + u[0], s["tau2"]: s["tau2"] + u[1]}
+    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
+    f = [sp.sympify(x).xreplace(plus_u) for x in (ex.f[0], ex.f[1])]
+    if not all(sp.sympify(x).has(*u) for x in f):
+        raise ValueError("capture lanes: the forcing does not hold the joint torques tau1, tau2")
+    dtrig = [sp.diff(getattr(sp, fn)(q[arg]), q[arg]) * q["d" + arg] for _, fn, arg in _TRIG]
+    exprs = []
+    for e in M + f + dtrig:
+        e = sp.sympify(e)
+        r = e.xreplace(trig)
+        if r.has(q["phi"]) or r.has(q["psi"]):
+            r = sp.expand_trig(e).xreplace(trig)
+        if r.has(q["phi"]) or r.has(q["psi"]):
+            raise ValueError(f"capture lanes: the equations depend on the angles other than through sin and cos: {e}")
+        exprs.append(r)
+    state = [sp.Symbol(n) if n not in q else q[n] for n in _FLIP_STATE[2:]] + u
+    hoisted, defs = _hoist(exprs, state)
+    c = Lang("c", c_printer(), "const double ", ";")
+    v = _ArithmeticPrinter()
+    I = "    "
+    J = I * 2
+    out: List[str] = [
+        "/* ---- regions of attraction (sp_capture_lanes in integrators.c): the closed loop in SP_LANES lanes ---- */",
+        "#define SP_CAPTURE_LANES 1",
+        f"#define SP_CAP_NPP {max(len(defs), 1)}  /* prepared parameter constants */",
+        "",
+        "/* the parameter-only subexpressions of cap_rhs, once per run, into pp[SP_CAP_NPP] */",
+        "static void cap_prepare(const double *p, double *pp)",
+        "{",
+    ]
+    out += param_lines(c, I, used_names([e for _, e in defs]))
+    if defs:
+        block = cse_block(c, [e for _, e in defs], [f"pp[{i}]" for i in range(len(defs))], I, prefix="w")
+        out += [ln.replace(f"{I}const double pp[", f"{I}pp[") for ln in block]
+    else:
+        out.append(f"{I}pp[0] = 0.0;")
+    out += ["}", ""]
+    names = ["M11", "M12", "M22", "f1", "f2"] + [f"d{t[0]}" for t in _TRIG]
+    replacements, reduced = sp.cse(hoisted, symbols=sp.numbered_symbols("x"), optimizations="basic")
+    used = used_names(list(reduced) + [e for _, e in replacements])
+    out += [
+        "/* dy/dt of SP_LANES states y with the inputs u (component k of lane l is y[k][l], input r u[r][l]) */",
+        "static inline __attribute__((always_inline)) void cap_rhs(const double (*restrict y)[SP_LANES],",
+        "                                                         const double (*restrict u)[SP_LANES],",
+        "                                                         const double *restrict pp,",
+        "                                                         double (*restrict out)[SP_LANES])",
+        "{",
+    ]
+    out += [f"{I}const double {sym} = pp[{i}];" for i, (sym, _) in enumerate(defs) if sym.name in used]
+    out += [f"{I}for (int l = 0; l < SP_LANES; l++) {{"]
+    out += [f"{J}const double {n} = y[{i}][l];" for i, n in enumerate(_FLIP_STATE) if n in used]
+    out += [f"{J}const double {n} = u[{i}][l];" for i, n in enumerate(_INPUTS) if n in used]
+    out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
+    out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
+    out += [
+        f"{J}const double det = M11 * M22 - M12 * M12;",  # M q'' = f + u, the 2x2 solve
+        f"{J}const double rdet = 1.0 / det;",
+        f"{J}out[0][l] = y[2][l];",
+        f"{J}out[1][l] = y[3][l];",
+        f"{J}out[2][l] = (M22 * f1 - M12 * f2) * rdet;",
+        f"{J}out[3][l] = (M11 * f2 - M12 * f1) * rdet;",
+    ]
+    out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
+    out += [f"{I}}}", "}", ""]
+    init = [q[n] for n in _STATE] + [getattr(sp, fn)(q[arg]) for _, fn, arg in _TRIG]
+    out += [
+        "/* a start x = (phi, psi, dphi, dpsi) as a state of cap_rhs, into y[SP_FLIP_N] */",
+        "static void cap_init(const double *x, double *y)",
+        "{",
+    ]
+    out += [f"{I}const double {n} = x[{i}];" for i, n in enumerate(_STATE)]
+    out += [f"{I}y[{i}] = {c.printer(e)};" for i, e in enumerate(init)]
+    out += ["}", ""]
     return out
