@@ -312,13 +312,14 @@ class _Prepared:
     so its id cannot be reused while it is here); another object, even an equal one, is prepared
     afresh -- never a stale kernel or parameter array."""
 
-    __slots__ = ("params", "kernel", "p", "p_ptr", "p_addr", "taylor")
+    __slots__ = ("params", "kernel", "p", "p_ptr", "p_addr", "taylor", "taylor_tol")
 
     def __init__(self, params: Parameters, kernel, p: np.ndarray):
         self.params, self.kernel, self.p = params, kernel, p
         self.p_ptr = p.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
         self.p_addr = p.ctypes.data
         self.taylor: Dict[int, Any] = {}
+        self.taylor_tol: Dict[float, Any] = {}  # the same kernels by rtol (a run skips the order's formula)
 
 
 #: The prepared Parameters objects, by id (at most :data:`_PREPARED_MAX`, the oldest dropped first).
@@ -506,14 +507,18 @@ def simulate(
     kernel, p = entry.kernel, entry.p
     tk: Any = None
     if method == "taylor":
-        order = K.taylor_order(rtol)
-        tk = entry.taylor.get(order)
+        tk = entry.taylor_tol.get(rtol)
+        if tk is None:
+            order = K.taylor_order(rtol)
+            tk = entry.taylor.get(order)
         if tk is None:
             try:
                 tk = K.taylor_kernel(params, order, model=kernel)
             except ValueError as exc:  # a function in the equations without a series recurrence
                 raise ParameterError(f"method taylor: {exc}; use dop853") from None
             entry.taylor[order] = tk
+        if len(entry.taylor_tol) < 64:
+            entry.taylor_tol[rtol] = tk
     state: Any
     if method == "taylor" and dt_out is None:
         # the integrator's own steps: sp_taylor_rows (each row's energy and the account in C, the state
