@@ -448,6 +448,20 @@ def _driven(args) -> None:
                                cfs=100.0, Ir=1e-4, gr=p0.gr)
     line("start: uniform rods (35-70 % off)", skewpend.identify(fit, rods, validation=held, segment=DRIVEN_SEGMENT,
                                                                 free=list(DRIVEN_FREE), bootstrap=0))
+    # J2zz and Ir: the fit from another start (uniform rods of 0.7 kg, Ir 6e-5, no damping) against the
+    # one from h1.0; and with the gear's sign reversed (gr = +6: the rotor's coupling -gr Ir in the mass
+    # matrix's off-diagonal flips), which the data barely tell apart; J2zz + gr^2 Ir is the second
+    # joint's inertia as its motor sees it
+    other = skewpend.Parameters(a=p0.a, b=p0.b, m1=0.7, m2=0.7, alpha=0.0, g=p0.g, cf1=0.09, cf2=0.08, Ir=6e-5,
+                                gr=p0.gr)
+    ro = skewpend.identify(fit, other, validation=held, segment=DRIVEN_SEGMENT, free=list(DRIVEN_FREE), bootstrap=0)
+    rs = skewpend.identify(fit, other.replace(gr=-p0.gr), validation=held, segment=DRIVEN_SEGMENT,
+                           free=list(DRIVEN_FREE), bootstrap=0)
+    for label, res in (("from h1.0", r), ("from uniform rods of 0.7 kg, Ir 6e-5", ro),
+                       (f"the same, gear's sign reversed (gr {-p0.gr:+g})", rs)):
+        v = dict(zip(res.names, res.values))
+        print(f"    {label:44} J2zz {v['J2zz']:.5f}  Ir {v['Ir']:.4g}  J2zz + gr^2 Ir {v['J2zz'] + p0.gr**2 * v['Ir']:.5f}"
+              f"  cost {res.stats['cost']:.5f}  held out {res.heldout_median:.4f} rad")
     # inverse dynamics on filtered signals (the lab's kind of method; a 0.3 s Savitzky-Golay window:
     # the default 0.05 s leaves the encoders' steps in the accelerations and is not physical here)
     line("linear: inverse dynamics, window 0.3 s", skewpend.identify(fit, p0, validation=held, method="linear",
