@@ -205,6 +205,12 @@ def _val(v, k: int) -> str:
 #: 1.52 / 0.94, order 19 2.05 / 1.26).
 INLINE_ORDER = 16
 INLINE_TERMS = 8
+#: Partial sums per long sum: its terms j = lo, lo + 2, ... and lo + 1, lo + 3, ... added in two chains,
+#: then the two together -- two additions in flight instead of one long dependent chain (measured, ms
+#: for issue 3's 20 s, one chain / two: order 6 0.119 / 0.115, 10 0.193 / 0.178, 13 0.302 / 0.278, 16
+#: 0.413 / 0.376, 17 0.572 / 0.519, 20 0.727 / 0.624; three or four chains were slower than two).  A
+#: fixed order written in the C: the same bits on every machine.
+LANES = 2
 _inline_terms = INLINE_TERMS
 
 
@@ -213,16 +219,31 @@ def _sub(k: int, j) -> str:
 
 
 def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+") -> str:
-    """C for ``init op term(lo) op ... op term(hi)``, added left to right (``init`` empty: start
-    with ``term(lo)``): written out, or a loop with fixed bounds for a long sum (the same additions
-    in the same order: the same bits)."""
+    """C for ``init op term(lo) op ... op term(hi)`` (``init`` empty: start with ``term(lo)``):
+    written out, or a loop with fixed bounds for a long sum; from 2 * :data:`LANES` terms on, the
+    sum is taken as :data:`LANES` partial sums (written out and in the loop alike: the same
+    additions in the same order, the same bits), else left to right."""
     if hi < lo:
         return init or "0.0"
     if hi - lo + 1 <= _inline_terms:
         parts = [term(j) for j in range(lo, hi + 1)]
+        if LANES > 1 and len(parts) >= 2 * LANES:  # LANES partial sums (terms j mod LANES), then their sum
+            sums = [f"({' + '.join(parts[i::LANES])})" for i in range(LANES)]
+            while len(sums) > 1:  # pairwise
+                sums = [f"({a} + {b})" for a, b in zip(sums[0::2], sums[1::2])] + (sums[-1:] if len(sums) % 2 else [])
+            pair = sums[0]
+            if not init:
+                return pair if op == "+" else "-" + pair
+            return f"{init} {op} {pair}"
         if not init:
             return " + ".join(parts) if op == "+" else "-" + " - ".join(parts)
         return init + "".join(f" {op} {t}" for t in parts)
+    if LANES == 2:  # the same two partial sums as written out, in a loop
+        t = term("j")
+        result = "a0_ + a1_" if not init and op == "+" else f"{init} {op} (a0_ + a1_)"
+        return (f"({{ double a0_ = 0.0, a1_ = 0.0; int j0_ = {lo}; for (; j0_ + 1 <= {hi}; j0_ += 2) {{ "
+                f"{{ const int j = j0_; a0_ += {t}; }} {{ const int j = j0_ + 1; a1_ += {t}; }} }} "
+                f"if (j0_ <= {hi}) {{ const int j = j0_; a0_ += {t}; }} {result}; }})")
     if not init and op == "+":
         return f"({{ double acc_ = {term(lo)}; for (int j = {lo + 1}; j <= {hi}; j++) acc_ += {term('j')}; acc_; }})"
     return f"({{ double acc_ = {init or '0.0'}; for (int j = {lo}; j <= {hi}; j++) acc_ {op}= {term('j')}; acc_; }})"
@@ -300,11 +321,12 @@ def _derivative_of(a):
 def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
     """C of the Taylor kernel of ``geometry`` at one ``order`` (a small library of its own,
     :func:`skewpend.numeric.kernels.taylor_kernel`): ``taylor_work(p)`` (whether W needs
-    integrating), ``taylor_prepare(p, pc)`` (the constants), ``taylor_jet(x, pc, work)`` (the
-    coefficients 1 .. order of the state ``x[SP_TN][SP_TPMAX + 2]`` from its coefficients 0,
-    written out order by order: straight-line code without loops, each sum in the order a loop
-    from j = 0 would add it -- measured 0.61 against 0.94 us a step at order 15 for the loops,
-    whose trip counts change with the order and defeat branch prediction), then the driver
+    integrating), ``taylor_prepare(p, pc)`` (the constants), ``taylor_jet(x, pc, work, e_out)``
+    (the coefficients 1 .. order of the state ``x[SP_TN][SP_TPMAX + 2]`` from its coefficients 0,
+    and the energy at them into ``*e_out`` when asked, written out order by order: straight-line
+    code up to :data:`INLINE_ORDER`, each long sum as :data:`LANES` partial sums in a fixed order
+    -- measured 0.61 against 0.94 us a step at order 15 for loops whose trip counts change with the
+    order and defeat branch prediction), then the driver
     ``taylor.c``.  Raises ValueError for a function without a recurrence here."""
     from .kernel_source import status_defines
 
@@ -321,6 +343,9 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
     # the energy T + Pi at order 0 only (the rows' energy account: sin/cos of the angles shared with
     # the series), its operations after those of the main block and of W
     n_work = len(g.ops)
+    # (not through W's nodes: those are evaluated only when W is integrated)
+    in_work = {op[1] + x for op in g.ops[n_main:n_work] for x in ("", "c", "d")}
+    g.memo = {e: v for e, v in g.memo.items() if v[1] not in in_work}
     energy = g.node(ex.T + ex.Pi)
     c = Lang("c", c_printer(), "const double ", ";")
     I = "    "
