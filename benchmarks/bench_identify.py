@@ -427,6 +427,13 @@ def _driven(args) -> None:
     best = min(m[1][0] for m in models[1:])
     print(f"  goal: held-out at least as good as the lab's model: median {ours[0]:.4f} vs lab h1.0 {models[3][1][0]:.4f}, "
           f"3.0 {models[1][1][0]:.4f} ({'PASS' if ours[0] <= best else 'FAIL'})")
+    # the skew angle freed beside friction and the rotor: is the planar rig planar?
+    secs_a, ra = timed(lambda: skewpend.identify(fit, p0, validation=held, segment=DRIVEN_SEGMENT,
+                                                 free=list(DRIVEN_FREE) + ["alpha"], bootstrap=0), 1)
+    lo_a, hi_a = (math.degrees(x) for x in ra.alpha_interval)
+    print(f"  alpha freed too: {math.degrees(ra.alpha):+.2f} deg, 95 % interval [{lo_a:+.2f}, {hi_a:+.2f}] deg "
+          f"(covers 0: {'yes' if lo_a <= 0 <= hi_a else 'NO'}); held-out median {heldout_rms(ra.params, held)[0]:.4f} rad; "
+          f"{secs_a:.2f} s; {ra.status.name}")
 
     _spread(r, lab, held)
     _lab_protocol(fit, held, labs, r)

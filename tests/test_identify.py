@@ -258,7 +258,6 @@ def test_bad_input_one_line_errors(kaheman_fit):
         (lambda: identify(M, p0, free=["J1xx"]), "J1xx is not a base parameter"),
         (lambda: identify(M, p0, free=[]), "free names no parameter"),
         (lambda: identify(M, p0, free=["cf1"]), "cf1 is not in params0.s model"),
-        (lambda: identify(M, p0.replace(cf1=0.1), free=["alpha"]), "alpha cannot be freed together with Coulomb"),
         (lambda: identify(M, p0, smoothing=-1), "smoothing"),
         (lambda: identify(M, p0, smoothing=3.0), "too few for the smoothing window"),
         (lambda: identify(M, p0, validation="x"), "validation must be"),

@@ -619,9 +619,6 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
         names_free = [f for f in names_free if f != "alpha"]
         if alpha_free and method == "linear":
             raise ParameterError("free: alpha enters the equations nonlinearly: free it with method='output-error'")
-        if alpha_free and isinstance(params0, Parameters) and (params0.has_friction or params0.has_rotor):
-            raise ParameterError("free: alpha cannot be freed together with Coulomb friction or rotor inertia yet "
-                                 "(set cf1 = cf2 = Ir = 0 in params0, or hold alpha)")
         if alpha_free and not names_free:
             names_free = None  # alpha alone: with every base parameter
     from ..checks import positive
