@@ -211,6 +211,8 @@ INLINE_TERMS = 8
 #: 0.413 / 0.376, 17 0.572 / 0.519, 20 0.727 / 0.624; three or four chains were slower than two).  A
 #: fixed order written in the C: the same bits on every machine.
 LANES = 2
+#: Whether the terms with this order's coefficients are added last (:func:`_reduce`).
+LATE = True
 _inline_terms = INLINE_TERMS
 
 
@@ -218,40 +220,58 @@ def _sub(k: int, j) -> str:
     return str(k - j) if isinstance(j, int) else f"{k} - j"
 
 
-def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+") -> str:
-    """C for ``init op term(lo) op ... op term(hi)`` (``init`` empty: start with ``term(lo)``):
-    written out, or a loop with fixed bounds for a long sum; from 2 * :data:`LANES` terms on, the
-    sum is taken as :data:`LANES` partial sums (written out and in the loop alike: the same
-    additions in the same order, the same bits), else left to right."""
+def _lanes(parts: List[str]) -> str:
+    """The sum of ``parts`` (C expressions): from 2 * :data:`LANES` terms on as :data:`LANES`
+    partial sums (terms i, i + LANES, ...), then those pairwise; else left to right."""
+    if LANES > 1 and len(parts) >= 2 * LANES:
+        sums = [f"({' + '.join(parts[i::LANES])})" for i in range(LANES)]
+        while len(sums) > 1:
+            sums = [f"({a} + {b})" for a, b in zip(sums[0::2], sums[1::2])] + (sums[-1:] if len(sums) % 2 else [])
+        return sums[0]
+    return " + ".join(parts) if len(parts) == 1 else "(" + " + ".join(parts) + ")"
+
+
+def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+", late=()) -> str:
+    """C for ``init op (term(lo) + ... + term(hi))`` (``init`` empty: the sum, or its negative).
+    The terms ``late`` (at the ends of the range: those with a coefficient of this order, computed
+    just before) are added last, after the others (which need only older coefficients, so the
+    processor sums them while this order's coefficients are still being computed: the chain of
+    dependent additions of one order shrinks from the length of the sums to two or three terms);
+    the others written out, or a loop with fixed bounds for a long sum, as :data:`LANES` partial
+    sums from 2 * LANES terms on (written out and in the loop alike: the same additions in the
+    same order, the same bits)."""
     if hi < lo:
         return init or "0.0"
-    if hi - lo + 1 <= _inline_terms:
-        parts = [term(j) for j in range(lo, hi + 1)]
-        if LANES > 1 and len(parts) >= 2 * LANES:  # LANES partial sums (terms j mod LANES), then their sum
-            sums = [f"({' + '.join(parts[i::LANES])})" for i in range(LANES)]
-            while len(sums) > 1:  # pairwise
-                sums = [f"({a} + {b})" for a, b in zip(sums[0::2], sums[1::2])] + (sums[-1:] if len(sums) % 2 else [])
-            pair = sums[0]
-            if not init:
-                return pair if op == "+" else "-" + pair
-            return f"{init} {op} {pair}"
-        if not init:
-            return " + ".join(parts) if op == "+" else "-" + " - ".join(parts)
-        return init + "".join(f" {op} {t}" for t in parts)
-    if LANES == 2:  # the same two partial sums as written out, in a loop
+    late = sorted(j for j in set(late if LATE else ()) if lo <= j <= hi)
+    a, b = lo, hi  # the range of the early terms
+    while a in late:
+        a += 1
+    while b in late and b >= a:
+        b -= 1
+    assert all(j < a or j > b for j in late), (lo, hi, late)
+    tail = [term(j) for j in late]
+    if b < a:
+        early = ""
+    elif b - a + 1 <= _inline_terms:
+        early = _lanes([term(j) for j in range(a, b + 1)])
+    elif LANES == 2:  # the same two partial sums as written out, in a loop
         t = term("j")
-        result = "a0_ + a1_" if not init and op == "+" else f"{init} {op} (a0_ + a1_)"
-        return (f"({{ double a0_ = 0.0, a1_ = 0.0; int j0_ = {lo}; for (; j0_ + 1 <= {hi}; j0_ += 2) {{ "
-                f"{{ const int j = j0_; a0_ += {t}; }} {{ const int j = j0_ + 1; a1_ += {t}; }} }} "
-                f"if (j0_ <= {hi}) {{ const int j = j0_; a0_ += {t}; }} {result}; }})")
-    if not init and op == "+":
-        return f"({{ double acc_ = {term(lo)}; for (int j = {lo + 1}; j <= {hi}; j++) acc_ += {term('j')}; acc_; }})"
-    return f"({{ double acc_ = {init or '0.0'}; for (int j = {lo}; j <= {hi}; j++) acc_ {op}= {term('j')}; acc_; }})"
+        early = (f"({{ double a0_ = 0.0, a1_ = 0.0; int j0_ = {a}; for (; j0_ + 1 <= {b}; j0_ += 2) {{ "
+                 f"{{ const int j = j0_; a0_ += {t}; }} {{ const int j = j0_ + 1; a1_ += {t}; }} }} "
+                 f"if (j0_ <= {b}) {{ const int j = j0_; a0_ += {t}; }} a0_ + a1_; }})")
+    else:
+        early = f"({{ double acc_ = {term(a)}; for (int j = {a + 1}; j <= {b}; j++) acc_ += {term('j')}; acc_; }})"
+    parts = ([early] if early else []) + tail
+    if op == "+":
+        return (f"{init} + " if init else "") + " + ".join(parts)
+    return (init if init else "") + "".join(f" - {p}" for p in parts) if init else "-" + " - ".join(parts)
 
 
 def _dot(a: str, b: str, k: int, lo: int = 0, hi=None) -> str:
-    """``a[lo] * b[k - lo] + ... + a[hi] * b[k - hi]`` (hi default k)."""
-    return _reduce(lambda j: f"{a}[{j}] * {b}[{_sub(k, j)}]", lo, k if hi is None else hi)
+    """``a[lo] * b[k - lo] + ... + a[hi] * b[k - hi]`` (hi default k); the terms with ``a[k]`` or
+    ``b[k]`` last."""
+    hi = k if hi is None else hi
+    return _reduce(lambda j: f"{a}[{j}] * {b}[{_sub(k, j)}]", lo, hi, late=(0, k) if k > 0 else ())
 
 
 def _op_lines(op, k: int, I: str) -> List[str]:
@@ -286,14 +306,14 @@ def _op_lines(op, k: int, I: str) -> List[str]:
         if k == 0:
             return [f"{I}r{t} = 1.0 / {at(b)};", f"{I}{t}[0] = {at(a)} * r{t};"]
         num = at(a) if a[0] == "s" else "0.0"
-        return [f"{I}{t}[{k}] = ({_reduce(lambda j: f'{b[1]}[{j}] * {t}[{_sub(k, j)}]', 1, k, num, '-')}) * r{t};"]
+        return [f"{I}{t}[{k}] = ({_reduce(lambda j: f'{b[1]}[{j}] * {t}[{_sub(k, j)}]', 1, k, num, '-', late=(k,))}) * r{t};"]
     if kind == "sincos":  # s' = c u', c' = -s u': k s[k] = sum_{j=1..k} j u[j] c[k-j]
         c = t + "c"
         if k == 0:
             return [f"{I}{t}[0] = sin({at(a)});", f"{I}{c}[0] = cos({at(a)});"]
         du = _derivative_of(a)
-        ss = _reduce(lambda j: f"{du(j)} * {c}[{_sub(k, j)}]", 1, k)
-        cs = _reduce(lambda j: f"{du(j)} * {t}[{_sub(k, j)}]", 1, k)
+        ss = _reduce(lambda j: f"{du(j)} * {c}[{_sub(k, j)}]", 1, k, late=(k,))
+        cs = _reduce(lambda j: f"{du(j)} * {t}[{_sub(k, j)}]", 1, k, late=(k,))
         return [f"{I}{t}[{k}] = ({ss}) * inv[{k}];", f"{I}{c}[{k}] = -({cs}) * inv[{k}];"]
     if kind == "atan":  # t' (1 + u^2) = u': d = 1 + u^2, k t[k] d[0] = k u[k] - sum_{j=1..k-1} d[j] (k-j) t[k-j]
         d = t + "d"
@@ -400,7 +420,7 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
             def term(j, series=series):
                 return "(" + " + ".join(f"{m[1]}[{j}] * {q}[{_sub(k, j)}]" for m, q in series) + ")"
 
-            value = _reduce(term, 1, k, _val(rhs, k), "-") if series else _val(rhs, k)
+            value = _reduce(term, 1, k, _val(rhs, k), "-", late=(k,)) if series else _val(rhs, k)
             lines.append(f"{I}const double {name}_{k} = {value};")
         lines += [f"{I}a1[{k}] = (m22 * r1_{k} - m12 * r2_{k}) * rdet;", f"{I}a2[{k}] = (m11 * r2_{k} - m12 * r1_{k}) * rdet;",
                   f"{I}x[0][{k + 1}] = x[2][{k}] * inv[{k + 1}];", f"{I}x[1][{k + 1}] = x[3][{k}] * inv[{k + 1}];",
