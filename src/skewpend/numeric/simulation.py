@@ -322,9 +322,11 @@ class _Prepared:
         self.taylor_tol: Dict[float, Any] = {}  # the same kernels by rtol (a run skips the order's formula)
 
 
-#: The prepared Parameters objects, by id (at most :data:`_PREPARED_MAX`, the oldest dropped first).
+#: The prepared Parameters objects, by id (at most :data:`_PREPARED_MAX`, the oldest dropped first;
+#: an entry is a few hundred bytes, and preparing one again costs about 0.03 ms a call: a sweep over
+#: a few dozen objects, e.g. one per method and tolerance, stays prepared).
 _PREPARED: Dict[int, _Prepared] = {}
-_PREPARED_MAX = 16
+_PREPARED_MAX = 64
 
 
 def _prepare(params: Parameters) -> _Prepared:
