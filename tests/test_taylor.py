@@ -237,3 +237,17 @@ def test_step_rows_carry_the_model_energy_and_do_not_depend_on_the_chunking():
 def test_an_initial_state_that_overflows_is_refused():
     with pytest.raises(ParameterError, match="not finite"):
         simulate(P, (0.5, 0.5, 1e200, -1e200), 1.0, method="taylor", rtol=1e-8, atol=1e-8)
+
+
+def test_a_trajectory_made_in_one_call_has_every_field():
+    """simulate's quick Taylor result sets the Trajectory's fields at once: all of them, as its
+    dataclass would (a field added later must be added there too)."""
+    import dataclasses
+
+    from skewpend.numeric.simulation import Trajectory
+
+    tr = simulate(P, Y0, 1.0, method="taylor", rtol=1e-8, atol=1e-8)
+    assert set(vars(tr)) == {f.name for f in dataclasses.fields(Trajectory)}
+    assert type(tr.status).__name__ == "Status" and tr.ok and tr.controller is None and tr.kept
+    same = Trajectory(**vars(tr))
+    assert same.status is tr.status and repr(same) == repr(tr)

@@ -137,8 +137,8 @@ static void taylor_account(const double *rows, const double *e, int64_t m0, int6
 /* sp_taylor at the integrator's own steps (dt_out = 0), with each row's energy T + Pi into e[row] (from
  * the order 0 of the next step's series: the sines and cosines shared; the last row's by one more
  * series evaluation) and the rows' energy account into acc[4] (taylor_account).  y0 not NULL: the run
- * starts here, from t = 0, y = (y0[0..3], W = 0) (the state is reset).  The same steps, rows and codes
- * as sp_taylor. */
+ * starts here, from t = 0, y = (y0[0..3], W = 0) (the state and acc are reset).  The same steps, rows
+ * and codes as sp_taylor. */
 int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double t_end, double rtol, double atol,
                    int64_t max_steps, int64_t budget, double *rows, int64_t cap, double *e, double *acc,
                    int64_t *m_out)
@@ -152,6 +152,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
     if (y0) {
         memset(s, 0, sizeof *s);
         memcpy(s->y, y0, 4 * sizeof(double));
+        memset(acc, 0, 4 * sizeof(double));
     }
     taylor_prepare(p, pc);
     const int order = SP_TORDER;
