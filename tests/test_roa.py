@@ -162,6 +162,31 @@ def test_the_lanes_agree_with_the_scalar_integration(ref, design):
     assert t2.tobytes() == t1[order].tobytes() and np.array_equal(s2, s1[order])
 
 
+def test_the_law_s_switches_are_stepped_to_not_rejected_around(ref, design):
+    """The lanes stop each DOP853 step at the law's switches (saturation kinks, wrap jumps; cut where
+    the switch functions' chord crosses zero), where the scalar integration rejects steps around
+    every switch until they are small enough: at the same tolerance (1e-8) fewer steps in all (about
+    26 % fewer measured), and capture times closer to a tight reference (the scalar integration at
+    1e-12, independent of the lanes): a few 1e-9 s typical, every one within 1e3 x the tolerance."""
+    from skewpend.numeric.control import capture_many
+    from skewpend.numeric.kernels import kernel_module, parameter_vector
+
+    ctl, pv = design.controller(), parameter_vector(BENCH)
+    X, Y = np.meshgrid(ref.x0, ref.y0, indexing="ij")
+    starts = np.tile(design.linearization.target, (X.size, 1))
+    starts[:, 0], starts[:, 1] = X.ravel(), Y.ravel()
+    kw = dict(t_end=6.0, max_steps=2_000_000, P=design.P, rho=design.rho)
+    t1, s1, _ = capture_many(kernel_module(BENCH, flip=True), pv, ctl, starts, rtol=1e-8, atol=1e-8, **kw)
+    t0, s0, _ = capture_many(kernel_module(BENCH), pv, ctl, starts, rtol=1e-8, atol=1e-8, **kw)
+    tr, _, st = capture_many(kernel_module(BENCH), pv, ctl, starts, rtol=1e-12, atol=1e-12, **kw)
+    assert not st.any() and np.array_equal(np.isnan(t1), np.isnan(tr))
+    assert s1.sum() < 0.85 * s0.sum()
+    moved = np.isfinite(tr) & (tr > 0)
+    e1, e0 = np.abs(t1 - tr)[moved], np.abs(t0 - tr)[moved]
+    assert moved.sum() > 100 and np.median(e1) < 0.5 * np.median(e0) and np.median(e1) < 1e-8
+    assert e1.max() < 1e3 * 1e-8
+
+
 def test_other_planes_vary_the_speeds(design):
     r = region_of_attraction(BENCH, n=8, design=design, plane=("phi", "dphi"), window=((-0.5, 0.5), (-40.0, 40.0)),
                              t_end=6.0)

@@ -966,10 +966,10 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
  * sp_capture_lanes does what sp_capture_many does for the feedback law u = clip(u* - K dx) (angles of
  * dx wrapped to [-pi, pi)), with sp_flip's lanes: each lane carries one start with its own time, step
  * size and accept/reject decisions, DOP853 with sp_flip's error norm (over the 8 components) and
- * step-size rule; a lane whose start is captured, reaches t_end or fails takes the next start.  After
- * each accepted step the region dx' P dx < rho is tested at the step's end, and where it holds the
- * entry is located by bisection on the 7th-order dense output (the 3 extra stages computed only when
- * a lane needs them).  Element-wise IEEE arithmetic in fixed-trip lane loops: a start's result is
+ * step-size rule, each step stopped at the law's switches (cap_switch, below); a lane whose start is
+ * captured, reaches t_end or fails takes the next start.  After each accepted step the region
+ * dx' P dx < rho is tested at the step's end, and where it holds the entry is located by bisection on
+ * the 7th-order dense output (the 3 extra stages computed only when a lane needs them).  Element-wise IEEE arithmetic in fixed-trip lane loops: a start's result is
  * bitwise the same whichever lane, call or instruction set computes it.  Resumable like sp_flip
  * (a zeroed sp_capture_ws, at most `budget` steps per call; -1 call again, 0 all done).
  * Per start: time (NaN: not captured by t_end, or failed), steps (accepted + rejected), status
@@ -986,12 +986,25 @@ typedef struct {
 
 int64_t sp_capture_ws_size(void) { return (int64_t)sizeof(sp_capture_ws); }
 
-/* x wrapped to [-pi, pi) (up to rounding at the ends), in lane loops: floor, not fmod, vectorises */
+/* floor(q), exactly, in IEEE additions and comparisons that vectorise (GCC does not vectorise floor
+ * without -ffast-math): (q + 1.5 2^52) - 1.5 2^52 is q rounded to an integer, for |q| < 2^51 (larger
+ * doubles are integers already) */
+static inline __attribute__((always_inline)) double cap_floor(double q)
+{
+    const double M = 6755399441055744.0;
+    double r = (q + M) - M;
+    r = r > q ? r - 1.0 : r;
+    return fabs(q) < 2251799813685248.0 ? r : q;
+}
+
+#define CAP_INV_TWO_PI 0.15915494309189535 /* 1 / (2 pi): a product, not a division, in every evaluation of the law */
+
+/* x wrapped to [-pi, pi) (up to rounding at the ends), in lane loops (not fmod: it does not vectorise) */
 static inline __attribute__((always_inline)) double cap_wrap(double x)
 {
     const double pi = 3.141592653589793, two_pi = 6.283185307179586;
     const double w = x + pi;
-    return (w - two_pi * floor(w / two_pi)) - pi;
+    return (w - two_pi * cap_floor(w * CAP_INV_TWO_PI)) - pi;
 }
 
 /* the feedback law's inputs u[2][SP_LANES] at the states y */
@@ -1033,6 +1046,93 @@ static inline double cap_region1(const sp_control *c, const double *P, double q0
     for (int i = 0; i < 4; i++)
         for (int j = 0; j < 4; j++) v = v + dx[i] * P[4 * i + j] * dx[j];
     return v;
+}
+
+/* The law's switches as events (issue 28): the wrap's jumps (an angle error through +-pi, where the
+ * feedback jumps) and the saturation kinks (raw_r = u*_r - K_r dx = +-umax_r).  A DOP853 step across
+ * one is inaccurate (the method's order assumes a smooth right-hand side), so the error control
+ * rejects it and shrinks the step blindly, several times around every switch.  Instead each step
+ * stops at the switch:
+ *   - before a trial, the switch functions are evaluated at both ends of the Euler step y + h f: if
+ *     one changes sign, the trial is cut to the fraction theta of h where the chord crosses zero
+ *     (if theta > CAP_PREDICT_MIN: a switch closer than that is at the step's start, stepped over);
+ *   - a rejected trial that crossed a switch is tried again up to the chord's crossing on that
+ *     trial (at most CAP_SWITCH_MAX of it, so a chord that misses converges; at least
+ *     CAP_SWITCH_MIN x the usual rejection factor), not counted as a rejection for the growth of
+ *     the next step.
+ * The step to the switch lies on one branch of the law and is accepted; the next one starts on the
+ * switch, where the right-hand side is continuous (a kink) or its jump is crossed within a tiny
+ * first part of the step.  The error control still decides every step, so the solution is the
+ * same to the tolerance -- with fewer steps (a 128 x 128 map: 16 % fewer, 45 % fewer rejected) and
+ * capture times closer to a tight reference (tests/test_roa.py).  cap_switch gives theta in (0, 1)
+ * per lane, or -1 where no switch function changes sign between y and ynew; where an angle error
+ * jumps in the step, only the jumps count (the raw inputs are not continuous across it). */
+#define CAP_PREDICT_MIN 0.001
+#define CAP_SWITCH_MAX 0.9
+#define CAP_SWITCH_MIN 0.1
+static inline __attribute__((always_inline)) void cap_switch(const sp_control *restrict c,
+                                                             const double (*restrict y)[SP_LANES],
+                                                             const double (*restrict ynew)[SP_LANES],
+                                                             double *restrict theta)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    const double K0 = c->K[0], K1 = c->K[1], K2 = c->K[2], K3 = c->K[3];
+    const double K4 = c->K[4], K5 = c->K[5], K6 = c->K[6], K7 = c->K[7];
+    const double x0 = c->xs[0], x1 = c->xs[1], x2 = c->xs[2], x3 = c->xs[3];
+    const double us0 = c->us[0], us1 = c->us[1], U0 = c->umax[0], U1 = c->umax[1];
+    const double on0 = (c->actuated & 1) ? 1.0 : 0.0, on1 = (c->actuated & 2) ? 1.0 : 0.0;
+    double k[4][SP_LANES], g[4][2][SP_LANES], any[SP_LANES];
+    /* first, without a division, every lane: the branch k of each angle error (unwrapped) at both
+     * ends, the saturation functions raw_r -+ umax_r at both ends, and whether anything changed */
+    SP_LANE_LOOP {
+        const double a0 = y[0][l] - x0, a1 = ynew[0][l] - x0, b0 = y[1][l] - x1, b1 = ynew[1][l] - x1;
+        const double ka0 = cap_floor((a0 + pi) * CAP_INV_TWO_PI), ka1 = cap_floor((a1 + pi) * CAP_INV_TWO_PI);
+        const double kb0 = cap_floor((b0 + pi) * CAP_INV_TWO_PI), kb1 = cap_floor((b1 + pi) * CAP_INV_TWO_PI);
+        const double e00 = ((a0 + pi) - two_pi * ka0) - pi, e01 = ((b0 + pi) - two_pi * kb0) - pi;
+        const double e10 = ((a1 + pi) - two_pi * ka1) - pi, e11 = ((b1 + pi) - two_pi * kb1) - pi;
+        const double v00 = y[2][l] - x2, v01 = y[3][l] - x3, v10 = ynew[2][l] - x2, v11 = ynew[3][l] - x3;
+        double r00 = us0, r01 = us1, r10 = us0, r11 = us1;
+        r00 = r00 - K0 * e00; r00 = r00 - K1 * e01; r00 = r00 - K2 * v00; r00 = r00 - K3 * v01;
+        r01 = r01 - K4 * e00; r01 = r01 - K5 * e01; r01 = r01 - K6 * v00; r01 = r01 - K7 * v01;
+        r10 = r10 - K0 * e10; r10 = r10 - K1 * e11; r10 = r10 - K2 * v10; r10 = r10 - K3 * v11;
+        r11 = r11 - K4 * e10; r11 = r11 - K5 * e11; r11 = r11 - K6 * v10; r11 = r11 - K7 * v11;
+        k[0][l] = ka0; k[1][l] = ka1; k[2][l] = kb0; k[3][l] = kb1;
+        g[0][0][l] = on0 * (r00 - U0); g[0][1][l] = on0 * (r10 - U0);  /* 0 * 0: an unactuated joint never switches */
+        g[1][0][l] = on0 * (r00 + U0); g[1][1][l] = on0 * (r10 + U0);
+        g[2][0][l] = on1 * (r01 - U1); g[2][1][l] = on1 * (r11 - U1);
+        g[3][0][l] = on1 * (r01 + U1); g[3][1][l] = on1 * (r11 + U1);
+        double ch = ka0 != ka1 ? 1.0 : 0.0;  /* selects, not branches: the loop vectorises */
+        ch = kb0 != kb1 ? 1.0 : ch;
+        ch = (g[0][0][l] > 0.0) != (g[0][1][l] > 0.0) ? 1.0 : ch;
+        ch = (g[1][0][l] > 0.0) != (g[1][1][l] > 0.0) ? 1.0 : ch;
+        ch = (g[2][0][l] > 0.0) != (g[2][1][l] > 0.0) ? 1.0 : ch;
+        ch = (g[3][0][l] > 0.0) != (g[3][1][l] > 0.0) ? 1.0 : ch;
+        any[l] = ch;
+    }
+    /* then, where something changed (a few steps in a hundred), the fraction of the step */
+    for (int l = 0; l < SP_LANES; l++) {
+        theta[l] = -1.0;
+        if (any[l] == 0.0) continue;
+        double th = 2.0;
+        int jump = 0;
+        for (int i = 0; i < 2; i++) {
+            const double k0 = k[2 * i][l], k1 = k[2 * i + 1][l], d0 = y[i][l] - c->xs[i], d1 = ynew[i][l] - c->xs[i];
+            if (k0 != k1 && d1 != d0) {
+                const double t = (two_pi * fmax(k0, k1) - pi - d0) / (d1 - d0);
+                jump = 1;
+                if (t > 0.0 && t < th) th = t;
+            }
+        }
+        if (!jump) /* the raw inputs are continuous only where no angle error jumps */
+            for (int q = 0; q < 4; q++) {
+                const double g0 = g[q][0][l], g1 = g[q][1][l];
+                if ((g0 > 0.0) != (g1 > 0.0) && g0 != g1) {
+                    const double t = g0 / (g0 - g1);
+                    if (t > 0.0 && t < th) th = t;
+                }
+            }
+        theta[l] = th < 1.0 ? th : -1.0;
+    }
 }
 
 SP_MULTIVERSION
@@ -1132,9 +1232,19 @@ int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, con
                 fail[l] = w->nonfinite[l] ? SP_STATUS_NONFINITE : SP_STATUS_STEP_UNDERFLOW;
                 continue;
             }
-            tnew[l] = w->t[l] + w->h[l];
-            if (tnew[l] >= t_end) tnew[l] = t_end;
-            H[l] = tnew[l] - w->t[l];
+            H[l] = w->h[l];
+        }
+        {   /* a switch of the law predicted inside the step (on the Euler step): stop the step there */
+            double yp[4][SP_LANES], th[SP_LANES];
+            for (int i = 0; i < 4; i++) SP_LANE_LOOP yp[i][l] = y[i][l] + H[l] * f[i][l];
+            cap_switch(c, y, (const double (*)[SP_LANES])yp, th);
+            for (int l = 0; l < SP_LANES; l++) {
+                if (!(H[l] > 0.0)) continue;
+                const double hl = th[l] > CAP_PREDICT_MIN ? H[l] * th[l] : H[l];
+                tnew[l] = w->t[l] + hl;
+                if (tnew[l] >= t_end) tnew[l] = t_end;
+                H[l] = tnew[l] - w->t[l];
+            }
         }
         memcpy(K[0], f, sizeof(f));
         for (int s = 1; s < DOP_NS; s++) {
@@ -1170,15 +1280,21 @@ int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, con
             root[l] = sqrt(sqrt(sqrt(err[l])));
         }
         /* the region at each step's end, every lane */
+        double Pr[16];
+        memcpy(Pr, P, sizeof Pr);
         SP_LANE_LOOP {
             const double dx0 = cap_wrap(ynew[0][l] - c->xs[0]), dx1 = cap_wrap(ynew[1][l] - c->xs[1]);
             const double dx2 = ynew[2][l] - c->xs[2], dx3 = ynew[3][l] - c->xs[3];
             const double dx[4] = {dx0, dx1, dx2, dx3};
             double v = 0.0;
+#pragma GCC unroll 4
             for (int i = 0; i < 4; i++)
-                for (int j = 0; j < 4; j++) v = v + dx[i] * P[4 * i + j] * dx[j];
+#pragma GCC unroll 4
+                for (int j = 0; j < 4; j++) v = v + dx[i] * Pr[4 * i + j] * dx[j];
             vend[l] = v;
         }
+        double thsw[SP_LANES];
+        cap_switch(c, y, (const double (*)[SP_LANES])ynew, thsw);
         int nevent = 0;
         for (int l = 0; l < SP_LANES; l++) {
             event[l] = accept[l] = 0;
@@ -1196,8 +1312,15 @@ int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, con
                 if (vend[l] < rho) { event[l] = 1; nevent++; }
             } else {
                 const double fac = DOP_FACTOR_REJECTED(nonfinite, SP_FLIP_SAFETY / root[l]);
-                w->h[l] = H[l] * fac;
-                w->last_rejected[l] = 1;
+                const double theta = nonfinite ? -1.0 : thsw[l];
+                if (theta > 0.0) {
+                    /* the trial crossed a switch of the law: try again up to (about) the switch */
+                    w->h[l] = H[l] * fmax(fmin(theta, CAP_SWITCH_MAX), fac * CAP_SWITCH_MIN);
+                    w->last_rejected[l] = 0;
+                } else {
+                    w->h[l] = H[l] * fac;
+                    w->last_rejected[l] = 1;
+                }
                 w->nrej[l]++;
             }
         }
