@@ -241,6 +241,39 @@ def test_save_figure_png_svg_pdf_atomically(tr, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["angles.SVG", "angles.pdf", "angles.png"]  # no temp files
 
 
+def test_print_figure_same_pixels_as_savefig_with_plain_tick_labels(tr):
+    """print_figure (save_figure's and the report's way to write a figure) lays a PNG out once instead of
+    savefig's dry draw plus draw: the same pixels; its tick labels are plain text, an offset stays mathtext."""
+    from PIL import Image
+
+    from skewpend.views.figures.base import plain_tick_labels, print_figure
+    from skewpend.views.style import style
+
+    def pixels(data):
+        with Image.open(io.BytesIO(data)) as im:
+            return np.asarray(im.convert("RGB"))
+
+    for make in (F.angles_figure, F.tips_figure):  # 2D panels, and a 3D axes with its z axis
+        ours, theirs = make(tr), make(tr)
+        a, b = io.BytesIO(), io.BytesIO()
+        print_figure(ours, a, "png", 110, {})
+        plain_tick_labels(theirs)
+        with style():
+            theirs.savefig(b, format="png", dpi=110, metadata={})
+        np.testing.assert_array_equal(pixels(a.getvalue()), pixels(b.getvalue()))
+        assert ours.get_layout_engine() is not None  # the layout engine is given back after the save
+    labels = [t.get_text() for t in ours.axes[0].get_xticklabels()] + [t.get_text() for t in ours.axes[0].get_yticklabels()]
+    assert labels and all(s and "$" not in s for s in labels), labels
+    fig = F.energy_figure(tr)
+    ax = fig.axes[0]
+    with style():  # (its new formatter takes the style's mathtext setting, as the figures' own do)
+        ax.set_yscale("linear")
+    ax.set_ylim(1e-7, 5e-7)  # a power of ten above the axis: written as mathtext, as before
+    print_figure(fig, io.BytesIO(), "png", 60, {})
+    assert "$" in ax.yaxis.get_offset_text().get_text()
+    assert all("$" not in t.get_text() for t in ax.get_yticklabels() if t.get_text())
+
+
 def test_save_figure_refuses_unknown_formats_and_cleans_up(tr, tmp_path):
     fig = F.energy_figure(tr)
     for name in ("plot.txt", "plot", "plot.jpg"):

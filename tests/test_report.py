@@ -578,3 +578,23 @@ def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monke
     for key in ("derivation", "check"):
         assert _section(third, key) == _section(first, key)
     assert cache.load(p) is not None  # and stored again
+
+
+def test_timings_table_has_a_row_for_each_kernel_compiled_in_the_run():
+    """Section 10's timings name each kernel compiled in this run and the section that needed it, before the
+    total (the compilations are inside the parts' times); no such row when every kernel was loaded."""
+    from skewpend.views.report import common
+
+    p = Parameters(**common.DEFAULT_PARAMETERS)
+    ctx = common.Context(p, common.DEFAULT_INITIAL_STATE, 20.0, "dop853", None, None, None, None, 10.0, 30.0, (720, 480),
+                         181, None, None)
+    ctx.timings.update({"simulation": 2.5, "flipmap": 6.0, "total": 12.0})
+    loaded = html.unescape(R.section_provenance(ctx))
+    assert "compiling" not in loaded and "no kernel was compiled in this run" in loaded
+    ctx.compiled = {"a.so": ("the model's kernel", "simulation", 2.25), "b.so": ("the flip-map kernel", "flipmap", 5.5)}
+    text = html.unescape(R.section_provenance(ctx))
+    rows = re.findall(r"<tr><td>(.*?)</td><td class=num>([0-9.]+)</td></tr>", text)
+    names = [name for name, _ in rows]
+    assert ("compiling the model's kernel, within section 5", "2.25") in rows
+    assert ("compiling the flip-map kernel, within section 6", "5.50") in rows
+    assert names[-1] == "total"  # the compilations are inside the parts: listed before the total, not added to it

@@ -54,6 +54,7 @@ from ... import __version__
 from ...errors import ParameterError, SkewpendError
 from ...symbolic.model import Parameters
 
+from .common import compiled_kernels
 from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
 from .orbits import section_orbits
 from .analyses import chaos_jobs, mujoco_installed, section_chaos, section_flipmap, section_provenance, section_validation  # noqa: F401
@@ -252,6 +253,15 @@ def build_report(
         raise ParameterError("progress must be a callable progress(done, total)")
     ctx = Context(params, y0, t_end, method, rtol, atol, dt, max_steps, min(clip_seconds, t_end), fps, clip_size,
                    int(sweep_points), validate, command)
+    seen = set(compiled_kernels())  # kernels compiled in this process before this report
+
+    def note_compiled(part: str) -> None:
+        """Kernels compiled since the last call: by ``part`` (the section just built), except the flip
+        and chaos kernels, which only sections 6 and 7 (its ensembles run from the start) compile."""
+        for name, (kind, what, seconds) in compiled_kernels().items():
+            if name not in seen:
+                seen.add(name)
+                ctx.compiled[name] = (what, {"flip": "flipmap", "chaos": "chaos"}.get(kind, part), seconds)
     # sections 2 and 3 are symbolic work (SymPy, a few seconds): on a machine with more than one
     # core they are computed by a second Python process while this one simulates and draws.
     # Ctrl-C and SIGTERM are recorded and raised between the sections and the compiled calls, never
@@ -297,6 +307,7 @@ def build_report(
                 t0 = time.perf_counter()
                 bodies[key] = build(ctx)
                 ctx.timings[key] = time.perf_counter() - t0
+                note_compiled(key)
                 done += 1
                 if progress is not None:
                     progress(done, total)

@@ -232,7 +232,7 @@ def section_flipmap(ctx: Context) -> str:
     how += (f", {fmt_count(skipped)} skipped by the energy bound; {fmt_count(st['steps'])} steps on {st['workers']} "
             f"thread{'s' if st['workers'] != 1 else ''}")
     facts.append(("work", how))
-    facts.append(("time to compute the map", f"{st['wall_time']:.2f} s" + (f" (including {st['kernel_build_time']:.2f} s to compile its "
+    facts.append(("time to compute the map", f"{st['wall_time']:.2f} s" + (f" (plus {st['kernel_build_time']:.2f} s to compile its "
                                                          "kernel, now cached)" if st.get("kernel_build_time") else "")))
     if st.get("failed"):  # (flip_map's warning is caught: said here instead)
         facts.append(("failed", f'<span class="verdict bad">{st["failed"]} starts could not be integrated</span> '
@@ -345,6 +345,12 @@ def section_provenance(ctx: Context) -> str:
         ("total", "total"),
     ]
     trows = [[esc(label), f"{ctx.timings[key]:.2f}"] for key, label in labels if key in ctx.timings]
+    # kernels compiled in this run (first use): each inside the part that first needed it, not added to the total
+    number = {key: n for n, (key, _) in enumerate(SECTIONS, 1)}
+    compiled = list(ctx.compiled.values())
+    at = len(trows) - 1 if "total" in ctx.timings else len(trows)  # before the total
+    trows[at:at] = [[esc(f"compiling {what}, within section {number.get(part, '?')}"), f"{seconds:.2f}"]
+                    for what, part, seconds in compiled]
     return (
         "<h3>Software</h3>" + table_html(["package", "version"], rows, compact=True)
         + "<h3>Settings</h3>" + facts_html(settings)
@@ -352,7 +358,9 @@ def section_provenance(ctx: Context) -> str:
         + table_html(["part", "seconds"], trows, numeric=(1,), compact=True,
                  caption="Wall time of each part in this run" + (
                      " (sections 2 and 3 in a second process, in parallel with the others)" if ctx.notes.get("parallel")
-                     else " (sections 2 and 3 read from the cache)" if ctx.notes.get("cached") else ""))
+                     else " (sections 2 and 3 read from the cache)" if ctx.notes.get("cached") else "")
+                 + ("; no kernel was compiled in this run" if not compiled else
+                    "; the rows “compiling …”: kernels compiled in this run (first use), the others were loaded"))
         + "<p class=\"note\">Everything here was computed when this file was made"
         + (" (sections 2 and 3 by an earlier run with the same parameters and the same skewpend, kept in the cache "
            "directory like the compiled kernels)" if ctx.notes.get("cached") else "")

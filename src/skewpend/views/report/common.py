@@ -10,6 +10,7 @@ import io
 import math
 from dataclasses import dataclass, field
 from importlib import resources
+from pathlib import Path
 from typing import Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
@@ -125,11 +126,11 @@ def fmt_deg(x: float) -> str:
 
 
 def fig_png(fig, dpi: int = FIGURE_DPI) -> bytes:
-    from ..style import style
+    """The figure as PNG bytes (:func:`skewpend.views.figures.base.print_figure`); the figure is cleared."""
+    from ..figures.base import print_figure
 
     buf = io.BytesIO()
-    with style():
-        fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": f"skewpend {__version__}"})
+    print_figure(fig, buf, "png", dpi, {"Software": f"skewpend {__version__}"})
     fig.clear()
     return buf.getvalue()
 
@@ -261,6 +262,30 @@ def vector_tex(v, digits: int = 4) -> str:
 
 
 # -- the report -------------------------------------------------------------------------------
+def compiled_kernels() -> Dict[str, Tuple[str, str, float]]:
+    """The model's libraries compiled (not loaded from the cache) in this process so far, in the
+    order they were made: ``{file name: (kind, what it is, seconds to build)}`` with kind ``"flip"``,
+    ``"chaos"``, ``"taylor"`` or ``"model"`` -- for the timings of section 10."""
+    from ...numeric import kernels
+
+    out: Dict[str, Tuple[str, str, float]] = {}
+    for kernel in list(getattr(kernels, "_LOADED", {}).values()):
+        if getattr(kernel, "origin", None) != "compiled":
+            continue
+        name = Path(kernel.path).name
+        stem = name.split(".")[0]
+        if stem.endswith("_flip"):
+            kind, what = "flip", "the flip-map kernel"
+        elif stem.endswith("_chaos"):
+            kind, what = "chaos", "the chaos kernel"
+        elif "_taylor" in stem:
+            kind, what = "taylor", f"the Taylor kernel of order {getattr(kernel, 'order', '?')}"
+        else:
+            kind, what = "model", "the model's kernel"
+        out[name] = (kind, what, float(kernel.build_time))
+    return out
+
+
 class Prefetch:
     """Computations of later sections started at once in a daemon thread, so that their compiled
     work (which releases the GIL, on every core) overlaps the main thread's drawing of the earlier
@@ -337,4 +362,5 @@ class Context:
     clip: object = None  # the animation's trajectory (row 0: the initial state)
     live: Optional[dict] = None  # the live view's frames: t, tips, axes, size
     still: Optional[bytes] = None  # section 1's picture of the initial state (also the live view's poster)
+    compiled: Dict[str, Tuple[str, str, float]] = field(default_factory=dict)  # kernels compiled: (what, part, s)
     prefetch: Prefetch = field(default_factory=Prefetch)

@@ -261,14 +261,13 @@ def _section_heldout(r) -> str:
 def _section_figure(r, measurements, validation) -> Tuple[str, float]:
     import io
 
+    from ..figures.base import print_figure
     from ..figures.identification import plot_identification
-    from ..style import style
 
     t0 = time.perf_counter()
     fig = plot_identification(r, measurements, validation)
     buf = io.BytesIO()
-    with style():
-        fig.savefig(buf, format="png", dpi=FIGURE_DPI, metadata={"Software": f"skewpend {__version__}"})
+    print_figure(fig, buf, "png", FIGURE_DPI, {"Software": f"skewpend {__version__}"})
     fig.clear()
     panels = ["(a) measured (wide pale lines) and predicted angles (thin: the fitted model; dashed: params0) of a "
               "few fitting pieces and the held-out ones, each simulated from its first measured state",
