@@ -412,6 +412,8 @@ def simulate(
     step; ``stats["order"]`` is ``p``); dense output evaluates the step's polynomial.  The
     coefficient recurrences are generated from the derivation (Coulomb friction's ``atan``
     included), each order a small library compiled on its first use; it takes no ``controller``.
+    At its own steps (``dt_out=None``) the energies of the rows come from the series' order 0 (T + Pi
+    generated with them, in one C call with the steps), equal to the model kernel's to rounding.
 
     The compiled integrator works in bounded chunks: between chunks Ctrl-C raises
     :class:`KeyboardInterrupt` (within about 0.05 s) and ``progress(t, t_end)`` is called.
