@@ -9,7 +9,9 @@ two angle components wrapped to (-pi, pi]; a start is *captured* at the first ti
 ``dx^T P dx < rho`` (its integration stops there), else it runs to t_end.
 
 * skewpend: ``region_of_attraction(params, n=n, design=design, t_end=10, workers=<cores>)`` at its
-  defaults (DOP853, rtol = atol = 1e-8, the inputs inside the compiled code, ``sp_capture_many``);
+  defaults (DOP853, rtol = atol = 1e-8, the inputs inside the compiled code: ``sp_capture_lanes``,
+  eight starts side by side in SIMD lanes on the flip map's trigonometry-free state, each step
+  stopped at the law's switches -- saturation kinks predicted, wrap jumps on rejection);
   warm (the kernel is compiled or loaded by an untimed small map first).  It locates the entry
   within the step that enters (on DOP853's dense output).
 * heyoka.py: ``taylor_adaptive_batch`` (batch size = ``hy.recommended_simd_size()``, tol 1e-8 --
@@ -38,8 +40,8 @@ angle is opposite its target), and a Taylor step does not see them: the Taylor c
 ``relu`` and ``atan2(sin, cos)`` at the start of a step are those of the branch it starts on, so
 the step's polynomial carries that branch across the switch, and the error estimate (from the
 last coefficients) does not notice -- the rest of the step integrates the wrong branch, whatever
-the tolerance (DOP853's error control does see a switch: rejected steps shrink around it).  So
-heyoka is timed twice:
+the tolerance (DOP853's error control does see a switch: rejected steps shrink around it, and
+skewpend cuts its steps at the switches besides).  So heyoka is timed twice:
 
 * "heyoka batch": the law as written above (what a user would write first);
 * "heyoka batch + switch events": the same integrator with four more terminal events at the
