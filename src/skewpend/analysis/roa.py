@@ -6,8 +6,9 @@
 ``phi, psi, phi', psi'`` (``plane``) varied over ``window`` about their target values, the other
 two at theirs.  Each start is integrated by DOP853 with the inputs inside the compiled code
 (``sp_capture_lanes`` in ``integrators.c``: eight starts side by side in SIMD lanes, on the flip
-map's trigonometry-free state; ``sp_capture_many``, one by one, for a model the lanes cannot
-print; no Python per step) until it enters the LQR's inner
+map's trigonometry-free state, each step stopped at the law's switches -- the saturation kinks and
+the wrap's jumps -- rather than rejected around them; ``sp_capture_many``, one by one, for a model
+the lanes cannot print; no Python per step) until it enters the LQR's inner
 estimate ``dx^T P dx < rho`` (:func:`skewpend.lqr`: inside it ``V = dx^T P dx`` decreases along
 the saturated nonlinear loop, so a start that gets there is captured) -- its *capture time* --
 or until ``t_end``.  A start entering the estimate is captured (the estimate is an inner bound);

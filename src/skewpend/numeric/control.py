@@ -358,7 +358,9 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
 
     On a flip kernel (``kernel_module(params, flip=True)``) with a feedback law, the starts run in
     SIMD lanes (``sp_capture_lanes``, the trigonometry-free state of the flip map, a lane refilled
-    as soon as its start is done), the compiled call resumed every :data:`LANE_BUDGET` steps;
+    as soon as its start is done, each step stopped at the law's switches -- saturation kinks, wrap
+    jumps -- instead of rejected around them), the compiled call resumed every
+    :data:`LANE_BUDGET` steps;
     otherwise one by one (``sp_capture_many``), ``group`` starts per compiled call.  ``cancel`` (a
     ``threading.Event``) is checked between calls; each start's result does not depend on the
     grouping, the lane or the other starts."""
