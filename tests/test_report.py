@@ -595,6 +595,6 @@ def test_timings_table_has_a_row_for_each_kernel_compiled_in_the_run():
     text = html.unescape(R.section_provenance(ctx))
     rows = re.findall(r"<tr><td>(.*?)</td><td class=num>([0-9.]+)</td></tr>", text)
     names = [name for name, _ in rows]
-    assert ("compiling the model's kernel, within section 5", "2.25") in rows
-    assert ("compiling the flip-map kernel, within section 6", "5.50") in rows
+    assert ("5 · compiling the model's kernel", "2.25") in rows
+    assert ("6 · compiling the flip-map kernel", "5.50") in rows
     assert names[-1] == "total"  # the compilations are inside the parts: listed before the total, not added to it

@@ -349,8 +349,8 @@ def section_provenance(ctx: Context) -> str:
     number = {key: n for n, (key, _) in enumerate(SECTIONS, 1)}
     compiled = list(ctx.compiled.values())
     at = len(trows) - 1 if "total" in ctx.timings else len(trows)  # before the total
-    trows[at:at] = [[esc(f"compiling {what}, within section {number.get(part, '?')}"), f"{seconds:.2f}"]
-                    for what, part, seconds in compiled]
+    trows[at:at] = [[esc(f"{number.get(part, '?')} · compiling {what}"), f"{seconds:.2f}"]
+                    for what, part, seconds in sorted(compiled, key=lambda c: number.get(c[1], 99))]
     return (
         "<h3>Software</h3>" + table_html(["package", "version"], rows, compact=True)
         + "<h3>Settings</h3>" + facts_html(settings)
@@ -360,7 +360,8 @@ def section_provenance(ctx: Context) -> str:
                      " (sections 2 and 3 in a second process, in parallel with the others)" if ctx.notes.get("parallel")
                      else " (sections 2 and 3 read from the cache)" if ctx.notes.get("cached") else "")
                  + ("; no kernel was compiled in this run" if not compiled else
-                    "; the rows “compiling …”: kernels compiled in this run (first use), the others were loaded"))
+                    "; the rows “compiling …”: kernels compiled in this run (first use), each part of its "
+                    "section's work, the others were loaded"))
         + "<p class=\"note\">Everything here was computed when this file was made"
         + (" (sections 2 and 3 by an earlier run with the same parameters and the same skewpend, kept in the cache "
            "directory like the compiled kernels)" if ctx.notes.get("cached") else "")
