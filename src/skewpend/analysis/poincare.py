@@ -121,19 +121,16 @@ def require_conservative(params: Parameters, what: str) -> None:
 
 
 def mass_matrices(kernel, p, q: np.ndarray) -> np.ndarray:
-    """M(q) for rows of angles q (m, 2): shape (m, 2, 2), from the generated momenta p = M q'."""
+    """M(q) for rows of angles q (m, 2): shape (m, 2, 2), from the generated momenta p = M q' with
+    q' the unit vectors (column j of M is the momenta of q' = e_j), in one compiled call."""
+    q = np.asarray(q, dtype=float)
     m = q.shape[0]
-    out = np.empty((m, 2, 2))
-    buf = np.empty(2)
-    y = np.zeros(5)
-    for i in range(m):
-        y[:2] = q[i]
-        for j in range(2):
-            y[2:4] = 0.0
-            y[2 + j] = 1.0
-            kernel.momenta(y, p, buf)
-            out[i, :, j] = buf
-    return out
+    rows = np.zeros((m, 2, 5))
+    rows[:, :, :2] = q[:, None, :]
+    rows[:, 0, 2] = 1.0
+    rows[:, 1, 3] = 1.0
+    columns = kernel.momenta_many(rows.reshape(2 * m, 5), p).reshape(m, 2, 2)  # [i, j, :] = M(q_i) e_j
+    return np.ascontiguousarray(columns.transpose(0, 2, 1))
 
 
 def potential(kernel, p, q: np.ndarray) -> np.ndarray:

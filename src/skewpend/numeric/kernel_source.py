@@ -240,6 +240,11 @@ void sp_energy_account(const double *rows, int64_t nrows, int64_t stride, const 
     }
 }
 
+void sp_momenta_many(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
+{
+    for (int64_t r = 0; r < nrows; r++) momenta(rows + r * stride, p, out + 2 * r);
+}
+
 void sp_tips_many(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
 {
     for (int64_t r = 0; r < nrows; r++) tips(rows + r * stride, p, out + 6 * r);

@@ -346,6 +346,7 @@ class Kernel:
         vp = ctypes.c_void_p  # addresses: the quickest ctypes call (simulate's per-chunk account)
         lib.sp_energy_account.argtypes, lib.sp_energy_account.restype = [vp, i64, i64, vp, vp, vp], None
         lib.sp_tips_many.argtypes, lib.sp_tips_many.restype = [dp, i64, i64, dp, dp], None
+        lib.sp_momenta_many.argtypes, lib.sp_momenta_many.restype = [dp, i64, i64, dp, dp], None
         lib.sp_axes_many.argtypes, lib.sp_axes_many.restype = [dp, i64, i64, dp, dp], None
         lib.sp_speeds_many.argtypes, lib.sp_speeds_many.restype = [dp, i64, i64, dp], None
         lib.sp_state_size.argtypes, lib.sp_state_size.restype = [], i64
@@ -454,6 +455,11 @@ class Kernel:
     def energies(self, ys, p, *, offset: int = 0):
         """Energy of each row ``ys[i, offset:]`` (a state) [J], shape (n,)."""
         return self._per_row(self.lib.sp_energies, ys, p, offset, 1)[:, 0]
+
+    def momenta_many(self, ys, p, *, offset: int = 0):
+        """Canonical momenta ``M(q) q'`` of each row ``ys[i, offset:]``: shape (n, 2) (the same C
+        function as :meth:`momenta`, row by row: the same bits)."""
+        return self._per_row(self.lib.sp_momenta_many, ys, p, offset, 2)
 
     def tips_many(self, ys, p, *, offset: int = 0):
         """Rod ends of each row ``ys[i, offset:]``: shape (n, 6) [m]."""
