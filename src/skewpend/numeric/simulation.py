@@ -511,6 +511,7 @@ def simulate(
     kernel, p = entry.kernel, entry.p
     tk: Any = None
     if method == "taylor":
+        assert rtol is not None  # an adaptive method's tolerances are set above
         tk = entry.taylor_tol.get(rtol)
         if tk is None:
             order = K.taylor_order(rtol)
