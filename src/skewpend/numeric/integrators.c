@@ -713,6 +713,42 @@ static inline __attribute__((always_inline)) void flip_stage_arg(
     }
 }
 
+/* Hairer's combined 5th/3rd-order error norm of a DOP853 step, per lane: its sums e5, e3, err, root =
+ * err^(1/8) for the step-size factor (special cases by the caller), bad = NaN where anything is not finite */
+static inline __attribute__((always_inline)) void flip_error_norm(
+    const double (*restrict y)[SP_LANES], const double (*restrict ynew)[SP_LANES],
+    const double (*restrict K)[SP_FLIP_N][SP_LANES], const flip_tables *restrict T, const double *restrict H,
+    double rtol, double atol, double *restrict e5, double *restrict e3, double *restrict err, double *restrict root,
+    double *restrict bad)
+{
+    const int n = SP_FLIP_N;
+    SP_LANE_LOOP e5[l] = e3[l] = bad[l] = 0.0;
+    for (int i = 0; i < n; i++) {
+        double a5[SP_LANES], a3[SP_LANES];
+        SP_LANE_LOOP { a5[l] = T->e5[0] * K[T->je5[0]][i][l]; a3[l] = T->e3[0] * K[T->je3[0]][i][l]; }
+        for (int k = 1; k < T->ne5; k++) {
+            const double c = T->e5[k], *Kk = K[T->je5[k]][i];
+            SP_LANE_LOOP a5[l] = a5[l] + c * Kk[l];
+        }
+        for (int k = 1; k < T->ne3; k++) {
+            const double c = T->e3[k], *Kk = K[T->je3[k]][i];
+            SP_LANE_LOOP a3[l] = a3[l] + c * Kk[l];
+        }
+        SP_LANE_LOOP {
+            double ay = y[i][l] < 0.0 ? -y[i][l] : y[i][l], an = ynew[i][l] < 0.0 ? -ynew[i][l] : ynew[i][l];
+            double r = 1.0 / (atol + rtol * (ay > an ? ay : an));
+            double u = a5[l] * r, v = a3[l] * r;
+            e5[l] = e5[l] + u * u;
+            e3[l] = e3[l] + v * v;
+            bad[l] = bad[l] + 0.0 * ynew[i][l] + 0.0 * K[DOP_NS][i][l];
+        }
+    }
+    SP_LANE_LOOP {
+        err[l] = fabs(H[l]) * e5[l] / sqrt((e5[l] + 0.01 * e3[l]) * n);
+        root[l] = sqrt(sqrt(sqrt(err[l])));
+    }
+}
+
 /* the interpolant of one component at x in [0, 1] (as dop_dense_eval) from its 7 coefficients */
 static double flip_dense(double y0, const double *F, double x) { return dop_dense_value(y0, F, 1, x); }
 
@@ -852,33 +888,8 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
         }
         flip_stage_arg((const double (*)[SP_LANES])y, H, &T, DOP_NS, (const double (*)[SP_FLIP_N][SP_LANES])K, ynew);
         flip_rhs((const double (*)[SP_LANES])ynew, pp, K[DOP_NS]);
-        /* Hairer's combined 5th/3rd-order error norm, per lane; bad: NaN if anything is not finite */
-        SP_LANE_LOOP e5[l] = e3[l] = bad[l] = 0.0;
-        for (int i = 0; i < n; i++) {
-            double a5[SP_LANES], a3[SP_LANES];
-            SP_LANE_LOOP { a5[l] = T.e5[0] * K[T.je5[0]][i][l]; a3[l] = T.e3[0] * K[T.je3[0]][i][l]; }
-            for (int k = 1; k < T.ne5; k++) {
-                const double c = T.e5[k], *Kk = K[T.je5[k]][i];
-                SP_LANE_LOOP a5[l] = a5[l] + c * Kk[l];
-            }
-            for (int k = 1; k < T.ne3; k++) {
-                const double c = T.e3[k], *Kk = K[T.je3[k]][i];
-                SP_LANE_LOOP a3[l] = a3[l] + c * Kk[l];
-            }
-            SP_LANE_LOOP {
-                double ay = y[i][l] < 0.0 ? -y[i][l] : y[i][l], an = ynew[i][l] < 0.0 ? -ynew[i][l] : ynew[i][l];
-                double r = 1.0 / (atol + rtol * (ay > an ? ay : an));
-                double u = a5[l] * r, v = a3[l] * r;
-                e5[l] = e5[l] + u * u;
-                e3[l] = e3[l] + v * v;
-                bad[l] = bad[l] + 0.0 * ynew[i][l] + 0.0 * K[DOP_NS][i][l];
-            }
-        }
-        /* err^(1/8) for the step-size factor, in every lane at once (special cases below) */
-        SP_LANE_LOOP {
-            err[l] = fabs(H[l]) * e5[l] / sqrt((e5[l] + 0.01 * e3[l]) * n);
-            root[l] = sqrt(sqrt(sqrt(err[l])));
-        }
+        flip_error_norm((const double (*)[SP_LANES])y, (const double (*)[SP_LANES])ynew,
+                        (const double (*)[SP_FLIP_N][SP_LANES])K, &T, H, rtol, atol, e5, e3, err, root, bad);
         int nevent = 0;
         for (int l = 0; l < SP_LANES; l++) {
             event[l] = accept[l] = 0;
@@ -1264,32 +1275,8 @@ int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, con
         }
         flip_stage_arg((const double (*)[SP_LANES])y, H, &T, DOP_NS, (const double (*)[SP_FLIP_N][SP_LANES])K, ynew);
         cap_f(c, (const double (*)[SP_LANES])ynew, pp, K[DOP_NS]);
-        /* Hairer's combined 5th/3rd-order error norm, per lane (as sp_flip) */
-        SP_LANE_LOOP e5[l] = e3[l] = bad[l] = 0.0;
-        for (int i = 0; i < n; i++) {
-            double a5[SP_LANES], a3[SP_LANES];
-            SP_LANE_LOOP { a5[l] = T.e5[0] * K[T.je5[0]][i][l]; a3[l] = T.e3[0] * K[T.je3[0]][i][l]; }
-            for (int k = 1; k < T.ne5; k++) {
-                const double cc = T.e5[k], *Kk = K[T.je5[k]][i];
-                SP_LANE_LOOP a5[l] = a5[l] + cc * Kk[l];
-            }
-            for (int k = 1; k < T.ne3; k++) {
-                const double cc = T.e3[k], *Kk = K[T.je3[k]][i];
-                SP_LANE_LOOP a3[l] = a3[l] + cc * Kk[l];
-            }
-            SP_LANE_LOOP {
-                double ay = y[i][l] < 0.0 ? -y[i][l] : y[i][l], an = ynew[i][l] < 0.0 ? -ynew[i][l] : ynew[i][l];
-                double r = 1.0 / (atol + rtol * (ay > an ? ay : an));
-                double uu = a5[l] * r, vv = a3[l] * r;
-                e5[l] = e5[l] + uu * uu;
-                e3[l] = e3[l] + vv * vv;
-                bad[l] = bad[l] + 0.0 * ynew[i][l] + 0.0 * K[DOP_NS][i][l];
-            }
-        }
-        SP_LANE_LOOP {
-            err[l] = fabs(H[l]) * e5[l] / sqrt((e5[l] + 0.01 * e3[l]) * n);
-            root[l] = sqrt(sqrt(sqrt(err[l])));
-        }
+        flip_error_norm((const double (*)[SP_LANES])y, (const double (*)[SP_LANES])ynew,  /* as sp_flip */
+                        (const double (*)[SP_FLIP_N][SP_LANES])K, &T, H, rtol, atol, e5, e3, err, root, bad);
         /* the region at each step's end, every lane */
         double Pr[16];
         memcpy(Pr, P, sizeof Pr);
