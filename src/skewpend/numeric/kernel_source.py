@@ -269,6 +269,21 @@ void sp_speeds_many(double *rows, int64_t nrows, int64_t stride, const double *p
 """
 
 
+def _prepare_function(c, name: str, rhs: str, npp: str, defs) -> List[str]:
+    """``static void name(p, pp)``: the parameter-only subexpressions ``defs`` of ``rhs``, computed once
+    per run into ``pp[npp]`` (the flip map's and the region of attraction's lanes)."""
+    I = "    "
+    out = [f"/* the parameter-only subexpressions of {rhs}, once per run, into pp[{npp}] */",
+           f"static void {name}(const double *p, double *pp)", "{"]
+    out += param_lines(c, I, used_names([e for _, e in defs]))
+    if defs:
+        block = cse_block(c, [e for _, e in defs], [f"pp[{i}]" for i in range(len(defs))], I, prefix="w")
+        out += [ln.replace(f"{I}const double pp[", f"{I}pp[") for ln in block]
+    else:
+        out.append(f"{I}pp[0] = 0.0;")
+    return out + ["}", ""]
+
+
 # -- flip-time ensembles: the model in SIMD lanes, without trigonometric functions ---------------------
 #: Trajectories integrated side by side by ``sp_flip`` (integrators.c): the lane loops have this
 #: fixed trip count, so the compiler turns them into SIMD instructions (8 doubles: one AVX-512
@@ -370,17 +385,8 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
         "/* 1: without torques the equations are odd under (q, q') -> -(q, q') (checked symbolically) */",
         f"#define SP_FLIP_ODD {1 if odd_under_reflection(ex) else 0}",
         "",
-        "/* the parameter-only subexpressions of flip_rhs, once per run, into pp[SP_FLIP_NPP] */",
-        "static void flip_prepare(const double *p, double *pp)",
-        "{",
     ]
-    out += param_lines(c, I, used_names([e for _, e in defs]))
-    if defs:
-        block = cse_block(c, [e for _, e in defs], [f"pp[{i}]" for i in range(len(defs))], I, prefix="w")
-        out += [ln.replace(f"{I}const double pp[", f"{I}pp[") for ln in block]
-    else:
-        out.append(f"{I}pp[0] = 0.0;")
-    out += ["}", ""]
+    out += _prepare_function(c, "flip_prepare", "flip_rhs", "SP_FLIP_NPP", defs)
     # the right-hand side, a loop over lanes
     names = ["M11", "M12", "M22", "f1", "f2"] + [f"d{t[0]}" for t in _TRIG]
     replacements, reduced = sp.cse(hoisted, symbols=sp.numbered_symbols("x"), optimizations="basic")
@@ -484,17 +490,8 @@ def capture_c_source(ex, geometry: Parameters) -> List[str]:
         "#define SP_CAPTURE_LANES 1",
         f"#define SP_CAP_NPP {max(len(defs), 1)}  /* prepared parameter constants */",
         "",
-        "/* the parameter-only subexpressions of cap_rhs, once per run, into pp[SP_CAP_NPP] */",
-        "static void cap_prepare(const double *p, double *pp)",
-        "{",
     ]
-    out += param_lines(c, I, used_names([e for _, e in defs]))
-    if defs:
-        block = cse_block(c, [e for _, e in defs], [f"pp[{i}]" for i in range(len(defs))], I, prefix="w")
-        out += [ln.replace(f"{I}const double pp[", f"{I}pp[") for ln in block]
-    else:
-        out.append(f"{I}pp[0] = 0.0;")
-    out += ["}", ""]
+    out += _prepare_function(c, "cap_prepare", "cap_rhs", "SP_CAP_NPP", defs)
     names = ["M11", "M12", "M22", "f1", "f2"] + [f"d{t[0]}" for t in _TRIG]
     replacements, reduced = sp.cse(hoisted, symbols=sp.numbered_symbols("x"), optimizations="basic")
     used = used_names(list(reduced) + [e for _, e in replacements])
