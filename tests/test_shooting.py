@@ -82,6 +82,19 @@ def test_the_regressor_dynamics_are_the_simulations(generic):
     assert (np.abs(q1 - seg.q) * seg.mask[:, :, None]).max() > 1e-4
 
 
+def _central_differences(cost, beta, alpha, fi):
+    """d cost / d beta_j (j in fi, steps 1e-6 relative) and d cost / d alpha (step 1e-6), central."""
+    num = []
+    for j in fi:
+        h = 1e-6 * abs(beta[j])
+        bp, bm = beta.copy(), beta.copy()
+        bp[j] += h
+        bm[j] -= h
+        num.append((cost(bp, alpha) - cost(bm, alpha)) / (2 * h))
+    num.append((cost(beta, alpha + 1e-6) - cost(beta, alpha - 1e-6)) / 2e-6)
+    return num
+
+
 def test_the_sensitivities_are_the_exact_gradient_of_the_discrete_model(generic):
     """g = J^T e from the variational equations (starts, free base parameters, alpha) against central
     differences of the cost 1/2 sum e^2 of the same RK4 map, on data 2 % off the model (so e != 0).
@@ -101,15 +114,7 @@ def test_the_sensitivities_are_the_exact_gradient_of_the_discrete_model(generic)
         return 0.5 * float(np.sum(((qq - seg.q) * seg.mask[:, :, None]) ** 2))
 
     assert cost(seg.y0, beta, alpha) == pytest.approx(0.5 * float(np.sum(e**2)), rel=1e-12)
-    num = []
-    for j in fi:
-        h = 1e-6 * abs(beta[j])
-        bp, bm = beta.copy(), beta.copy()
-        bp[j] += h
-        bm[j] -= h
-        num.append((cost(seg.y0, bp, alpha) - cost(seg.y0, bm, alpha)) / (2 * h))
-    h = 1e-6
-    num.append((cost(seg.y0, beta, alpha + h) - cost(seg.y0, beta, alpha - h)) / (2 * h))
+    num = _central_differences(lambda b, al: cost(seg.y0, b, al), beta, alpha, fi)
     exact = gg.sum(0)
     np.testing.assert_allclose(exact, num, rtol=1e-6, atol=1e-9 * np.abs(exact).max())
     # one start value of one segment
@@ -225,14 +230,7 @@ def test_sensitivities_with_friction_rotor_and_alpha_are_exact(extended):
         qq = shooting._simulate(model, seg, seg.y0, b, al)
         return 0.5 * float(np.sum(((qq - seg.q) * seg.mask[:, :, None]) ** 2))
 
-    num = []
-    for j in fi:
-        h = 1e-6 * abs(beta[j])
-        bp, bm = beta.copy(), beta.copy()
-        bp[j] += h
-        bm[j] -= h
-        num.append((cost(bp, alpha) - cost(bm, alpha)) / (2 * h))
-    num.append((cost(beta, alpha + 1e-6) - cost(beta, alpha - 1e-6)) / 2e-6)
+    num = _central_differences(cost, beta, alpha, fi)
     exact = gg.sum(0)
     np.testing.assert_allclose(exact, num, rtol=1e-6, atol=1e-9 * np.abs(exact).max())
 
