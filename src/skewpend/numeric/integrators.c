@@ -713,6 +713,47 @@ static inline __attribute__((always_inline)) void flip_stage_arg(
     }
 }
 
+/* Hairer's initial step (as dop_initial_step), lane by lane, for the lanes marked fresh: first half,
+ * from f = K0 (the derivative at y): the Euler point ytmp = y + ha f; a fresh lane whose state or
+ * derivative is not finite gets h = -1 (it fails at its first step), dropped[l] = 1 and fresh[l] = 0 */
+static inline __attribute__((always_inline)) void lanes_first_step_begin(
+    const double (*restrict y)[SP_LANES], const double (*restrict K0)[SP_LANES], double (*restrict f)[SP_LANES],
+    int *restrict fresh, int *restrict dropped, double rtol, double atol, double t_end, double *restrict ha,
+    double *restrict d1, double (*restrict sc)[SP_LANES], double (*restrict ytmp)[SP_LANES], double *restrict h)
+{
+    const int n = SP_FLIP_N;
+    for (int l = 0; l < SP_LANES; l++) {
+        ha[l] = 0.0;
+        dropped[l] = 0;
+        if (!fresh[l]) continue;
+        int finite = 1;
+        for (int i = 0; i < n; i++) {
+            f[i][l] = K0[i][l];
+            if (!isfinite(f[i][l]) || !isfinite(y[i][l])) finite = 0;
+            sc[i][l] = atol + fabs(y[i][l]) * rtol;
+        }
+        if (!finite) { fresh[l] = 0; h[l] = -1.0; dropped[l] = 1; continue; }  /* fails below */
+        d1[l] = dop_rms(&f[0][l], SP_LANES, &sc[0][l], SP_LANES, n);
+        ha[l] = dop_trial_step(dop_rms(&y[0][l], SP_LANES, &sc[0][l], SP_LANES, n), d1[l], t_end);
+    }
+    for (int i = 0; i < n; i++) SP_LANE_LOOP ytmp[i][l] = y[i][l] + ha[l] * f[i][l];
+}
+
+/* ... second half, from K1 (the derivative at ytmp): the first step h of every fresh lane */
+static inline __attribute__((always_inline)) void lanes_first_step_end(
+    const double (*restrict K1)[SP_LANES], const double (*restrict f)[SP_LANES], const int *restrict fresh,
+    double t_end, const double *restrict ha, const double *restrict d1, const double (*restrict sc)[SP_LANES],
+    double *restrict h)
+{
+    const int n = SP_FLIP_N;
+    for (int l = 0; l < SP_LANES; l++) {
+        if (!fresh[l]) continue;
+        double df[SP_FLIP_N];
+        for (int i = 0; i < n; i++) df[i] = K1[i][l] - f[i][l];
+        h[l] = dop_first_step(ha[l], d1[l], dop_rms(df, 1, &sc[0][l], SP_LANES, n) / ha[l], t_end);
+    }
+}
+
 /* Hairer's combined 5th/3rd-order error norm of a DOP853 step, per lane: its sums e5, e3, err, root =
  * err^(1/8) for the step-size factor (special cases by the caller), bad = NaN where anything is not finite */
 static inline __attribute__((always_inline)) void flip_error_norm(
@@ -841,28 +882,13 @@ int sp_flip(sp_flip_ws *w, const double *p, const double *cells, int64_t m, doub
         }
         if (nfresh) {
             double ha[SP_LANES], d1[SP_LANES], sc[SP_FLIP_N][SP_LANES];
+            int dropped[SP_LANES];
             flip_rhs((const double (*)[SP_LANES])y, pp, K[0]);
-            for (int l = 0; l < SP_LANES; l++) {  /* Hairer's initial step, as dop_initial_step, lane by lane */
-                ha[l] = 0.0;
-                if (!fresh[l]) continue;
-                int finite = 1;
-                for (int i = 0; i < n; i++) {
-                    f[i][l] = K[0][i][l];
-                    if (!isfinite(f[i][l]) || !isfinite(y[i][l])) finite = 0;
-                    sc[i][l] = atol + fabs(y[i][l]) * rtol;
-                }
-                if (!finite) { fresh[l] = 0; w->h[l] = -1.0; continue; }  /* fails below */
-                d1[l] = dop_rms(&f[0][l], SP_LANES, &sc[0][l], SP_LANES, n);
-                ha[l] = dop_trial_step(dop_rms(&y[0][l], SP_LANES, &sc[0][l], SP_LANES, n), d1[l], t_end);
-            }
-            for (int i = 0; i < n; i++) SP_LANE_LOOP ytmp[i][l] = y[i][l] + ha[l] * f[i][l];
+            lanes_first_step_begin((const double (*)[SP_LANES])y, (const double (*)[SP_LANES])K[0], f, fresh, dropped,
+                                   rtol, atol, t_end, ha, d1, sc, ytmp, w->h);
             flip_rhs((const double (*)[SP_LANES])ytmp, pp, K[1]);
-            for (int l = 0; l < SP_LANES; l++) {
-                if (!fresh[l]) continue;
-                double df[SP_FLIP_N];
-                for (int i = 0; i < n; i++) df[i] = K[1][i][l] - f[i][l];
-                w->h[l] = dop_first_step(ha[l], d1[l], dop_rms(df, 1, &sc[0][l], SP_LANES, n) / ha[l], t_end);
-            }
+            lanes_first_step_end((const double (*)[SP_LANES])K[1], (const double (*)[SP_LANES])f, fresh, t_end, ha, d1,
+                                 (const double (*)[SP_LANES])sc, w->h);
         }
         int active = 0;
         for (int l = 0; l < SP_LANES; l++) active += w->cell[l] >= 0;
@@ -1211,28 +1237,14 @@ int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, con
         }
         if (nfresh) {
             double ha[SP_LANES], d1[SP_LANES], sc[SP_FLIP_N][SP_LANES];
+            int dropped[SP_LANES];
             cap_f(c, (const double (*)[SP_LANES])y, pp, K[0]);
-            for (int l = 0; l < SP_LANES; l++) {  /* Hairer's initial step, as dop_initial_step, lane by lane */
-                ha[l] = 0.0;
-                if (!fresh[l]) continue;
-                int finite = 1;
-                for (int i = 0; i < n; i++) {
-                    f[i][l] = K[0][i][l];
-                    if (!isfinite(f[i][l]) || !isfinite(y[i][l])) finite = 0;
-                    sc[i][l] = atol + fabs(y[i][l]) * rtol;
-                }
-                if (!finite) { fresh[l] = 0; w->h[l] = -1.0; w->nonfinite[l] = 1; continue; }  /* fails below */
-                d1[l] = dop_rms(&f[0][l], SP_LANES, &sc[0][l], SP_LANES, n);
-                ha[l] = dop_trial_step(dop_rms(&y[0][l], SP_LANES, &sc[0][l], SP_LANES, n), d1[l], t_end);
-            }
-            for (int i = 0; i < n; i++) SP_LANE_LOOP ytmp[i][l] = y[i][l] + ha[l] * f[i][l];
+            lanes_first_step_begin((const double (*)[SP_LANES])y, (const double (*)[SP_LANES])K[0], f, fresh, dropped,
+                                   rtol, atol, t_end, ha, d1, sc, ytmp, w->h);
+            SP_LANE_LOOP if (dropped[l]) w->nonfinite[l] = 1;
             cap_f(c, (const double (*)[SP_LANES])ytmp, pp, K[1]);
-            for (int l = 0; l < SP_LANES; l++) {
-                if (!fresh[l]) continue;
-                double df[SP_FLIP_N];
-                for (int i = 0; i < n; i++) df[i] = K[1][i][l] - f[i][l];
-                w->h[l] = dop_first_step(ha[l], d1[l], dop_rms(df, 1, &sc[0][l], SP_LANES, n) / ha[l], t_end);
-            }
+            lanes_first_step_end((const double (*)[SP_LANES])K[1], (const double (*)[SP_LANES])f, fresh, t_end, ha, d1,
+                                 (const double (*)[SP_LANES])sc, w->h);
         }
         int active = 0;
         for (int l = 0; l < SP_LANES; l++) active += w->cell[l] >= 0;
