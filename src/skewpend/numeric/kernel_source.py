@@ -269,6 +269,26 @@ void sp_speeds_many(double *rows, int64_t nrows, int64_t stride, const double *p
 """
 
 
+def _trig_free(ex, f, what: str) -> List[sp.Expr]:
+    """The lanes' right-hand side on the trigonometry-free state: ``M11, M12, M22``, the forcing ``f``
+    (two entries) and ``d/dt`` of the four sines and cosines, with ``sin phi`` ... replaced by state
+    symbols (ValueError, naming ``what``, where an angle enters otherwise)."""
+    q = {n: SYMBOLS[n] for n in _STATE}
+    trig = {getattr(sp, fn)(q[arg]): sp.Symbol(name) for name, fn, arg in _TRIG}
+    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
+    dtrig = [sp.diff(getattr(sp, fn)(q[arg]), q[arg]) * q["d" + arg] for _, fn, arg in _TRIG]
+    exprs = []
+    for e in M + list(f) + dtrig:
+        e = sp.sympify(e)
+        r = e.xreplace(trig)
+        if r.has(q["phi"]) or r.has(q["psi"]):
+            r = sp.expand_trig(e).xreplace(trig)
+        if r.has(q["phi"]) or r.has(q["psi"]):
+            raise ValueError(f"{what}: the equations depend on the angles other than through sin and cos: {e}")
+        exprs.append(r)
+    return exprs
+
+
 def _prepare_function(c, name: str, rhs: str, npp: str, defs) -> List[str]:
     """``static void name(p, pp)``: the parameter-only subexpressions ``defs`` of ``rhs``, computed once
     per run into ``pp[npp]`` (the flip map's and the region of attraction's lanes)."""
@@ -359,19 +379,7 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
     """
     s = SYMBOLS
     q = {n: s[n] for n in _STATE}
-    trig = {getattr(sp, fn)(q[arg]): sp.Symbol(name) for name, fn, arg in _TRIG}
-    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
-    f = [ex.f[0], ex.f[1]]
-    dtrig = [sp.diff(getattr(sp, fn)(q[arg]), q[arg]) * q["d" + arg] for _, fn, arg in _TRIG]
-    exprs = []
-    for e in M + f + dtrig:
-        e = sp.sympify(e)
-        r = e.xreplace(trig)
-        if r.has(q["phi"]) or r.has(q["psi"]):
-            r = sp.expand_trig(e).xreplace(trig)
-        if r.has(q["phi"]) or r.has(q["psi"]):
-            raise ValueError(f"flip kernel: the equations depend on the angles other than through sin and cos: {e}")
-        exprs.append(r)
+    exprs = _trig_free(ex, [ex.f[0], ex.f[1]], "flip kernel")
     state = [sp.Symbol(n) if n not in q else q[n] for n in _FLIP_STATE[2:]]
     hoisted, defs = _hoist(exprs, state)
     c = Lang("c", c_printer(), "const double ", ";")
@@ -462,23 +470,12 @@ def capture_c_source(ex, geometry: Parameters) -> List[str]:
     ValueError for a model the lanes cannot print (then the scalar ``sp_capture_many`` is used)."""
     s = SYMBOLS
     q = {n: s[n] for n in _STATE}
-    trig = {getattr(sp, fn)(q[arg]): sp.Symbol(name) for name, fn, arg in _TRIG}
     u = [sp.Symbol(n) for n in _INPUTS]
     plus_u = {s["tau1"]: s["tau1"] + u[0], s["tau2"]: s["tau2"] + u[1]}
-    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
     f = [sp.sympify(x).xreplace(plus_u) for x in (ex.f[0], ex.f[1])]
     if not all(sp.sympify(x).has(*u) for x in f):
         raise ValueError("capture lanes: the forcing does not hold the joint torques tau1, tau2")
-    dtrig = [sp.diff(getattr(sp, fn)(q[arg]), q[arg]) * q["d" + arg] for _, fn, arg in _TRIG]
-    exprs = []
-    for e in M + f + dtrig:
-        e = sp.sympify(e)
-        r = e.xreplace(trig)
-        if r.has(q["phi"]) or r.has(q["psi"]):
-            r = sp.expand_trig(e).xreplace(trig)
-        if r.has(q["phi"]) or r.has(q["psi"]):
-            raise ValueError(f"capture lanes: the equations depend on the angles other than through sin and cos: {e}")
-        exprs.append(r)
+    exprs = _trig_free(ex, f, "capture lanes")
     state = [sp.Symbol(n) if n not in q else q[n] for n in _FLIP_STATE[2:]] + u
     hoisted, defs = _hoist(exprs, state)
     c = Lang("c", c_printer(), "const double ", ";")
