@@ -36,6 +36,17 @@ static void taylor_eval(const double (*jet)[SP_TPMAX + 2], int order, int n, dou
     }
 }
 
+/* the step rule's constants (Jorba and Zou, as heyoka): the safety factor, the floor of the norm
+ * (atol / rtol) and the exponents 1/(order - 1), 1/order */
+static inline void taylor_step_rule(int order, double rtol, double atol, double *fac, double *floor_scale, double *e1,
+                                    double *e2)
+{
+    *fac = exp(-2.0) * exp(-0.7 / (double)(order - 1));
+    *floor_scale = atol / rtol;
+    *e1 = 1.0 / (double)(order - 1);
+    *e2 = 1.0 / (double)order;
+}
+
 int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
               int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
               int64_t *m_out)
@@ -47,9 +58,8 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
     if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0)) return SP_CALL_BAD_ARGUMENTS;
     taylor_prepare(p, pc);
     const int order = SP_TORDER;
-    const double fac = exp(-2.0) * exp(-0.7 / (double)(order - 1));
-    const double floor_scale = atol / rtol;
-    const double e1 = 1.0 / (double)(order - 1), e2 = 1.0 / (double)order;
+    double fac, floor_scale, e1, e2;
+    taylor_step_rule(order, rtol, atol, &fac, &floor_scale, &e1, &e2);
     if (!s->started) {
         s->started = 1;
         s->order = order;
@@ -156,9 +166,8 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
     }
     taylor_prepare(p, pc);
     const int order = SP_TORDER;
-    const double fac = exp(-2.0) * exp(-0.7 / (double)(order - 1));
-    const double floor_scale = atol / rtol;
-    const double e1 = 1.0 / (double)(order - 1), e2 = 1.0 / (double)order;
+    double fac, floor_scale, e1, e2;
+    taylor_step_rule(order, rtol, atol, &fac, &floor_scale, &e1, &e2);
     if (!s->started) {
         s->started = 1;
         s->order = order;
