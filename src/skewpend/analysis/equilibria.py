@@ -61,33 +61,39 @@ def linearisation_functions(geometry: Parameters) -> Callable:
     """``f(*scalars, phi, psi) -> (Pi, grad Pi, Hessian of Pi, M, C)`` generated (SymPy
     ``lambdify``) from the derivation of ``geometry`` (scalars in :data:`SCALAR_NAMES` order;
     ``C = -df/dq'`` at rest, the damping)."""
-    import sympy as sp
+    from ..numeric.pyfunctions import cached_lambdify
 
-    from ..symbolic.derivation import SYMBOLS, derive
+    def build():
+        import sympy as sp
 
-    eom = derive(geometry)
-    phi, psi, dphi, dpsi = (SYMBOLS[n] for n in ("phi", "psi", "dphi", "dpsi"))
-    q = [phi, psi]
-    Pi = eom.potential_energy
-    grad = [sp.diff(Pi, x) for x in q]
-    hess = [[sp.diff(g, x) for x in q] for g in grad]
-    rest = {dphi: 0, dpsi: 0}
-    C = [[-sp.diff(eom.forcing[i], v).subs(rest) for v in (dphi, dpsi)] for i in range(2)]
-    args = [SYMBOLS[n] for n in SCALAR_NAMES] + q
-    return sp.lambdify(args, [Pi, grad, hess, eom.mass_matrix.tolist(), C], "numpy")
+        from ..symbolic.derivation import SYMBOLS, derive
+
+        eom = derive(geometry)
+        phi, psi, dphi, dpsi = (SYMBOLS[n] for n in ("phi", "psi", "dphi", "dpsi"))
+        q = [phi, psi]
+        Pi = eom.potential_energy
+        grad = [sp.diff(Pi, x) for x in q]
+        hess = [[sp.diff(g, x) for x in q] for g in grad]
+        rest = {dphi: 0, dpsi: 0}
+        C = [[-sp.diff(eom.forcing[i], v).subs(rest) for v in (dphi, dpsi)] for i in range(2)]
+        return [SYMBOLS[n] for n in SCALAR_NAMES] + q, [Pi, grad, hess, eom.mass_matrix.tolist(), C]
+
+    return cached_lambdify("linearisation", "analysis/equilibria.py", geometry, build)
 
 
 @lru_cache(maxsize=32)
 def _direction_functions(geometry: Parameters) -> Callable:
     """``f(alpha, phi, psi) -> (j . P1 j, j . P j)``: the vertical component of each rod's
     direction (``j`` points down: positive = hanging, negative = pointing up)."""
-    import sympy as sp
+    from ..numeric.pyfunctions import cached_lambdify
 
-    from ..symbolic.derivation import SYMBOLS, derive
+    def build():
+        from ..symbolic.derivation import SYMBOLS, derive
 
-    steps = derive(geometry).steps
-    args = [SYMBOLS[n] for n in SCALAR_NAMES] + [SYMBOLS["phi"], SYMBOLS["psi"]]
-    return sp.lambdify(args, [steps["P1"][1, 1], steps["P"][1, 1]], "numpy")
+        steps = derive(geometry).steps
+        return [SYMBOLS[n] for n in SCALAR_NAMES] + [SYMBOLS["phi"], SYMBOLS["psi"]], [steps["P1"][1, 1], steps["P"][1, 1]]
+
+    return cached_lambdify("directions", "analysis/equilibria.py", geometry, build)
 
 
 def _scalars(params: Parameters) -> List[float]:

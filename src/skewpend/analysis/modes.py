@@ -45,13 +45,15 @@ __all__ = [
 # -- the linear matrices, numerically -------------------------------------------------------------
 @lru_cache(maxsize=32)
 def _matrix_function(geometry: Parameters) -> Callable:
-    import sympy as sp
+    from ..numeric.pyfunctions import cached_lambdify
 
-    from ..symbolic.derivation import SYMBOLS, derive
+    def build():
+        from ..symbolic.derivation import SYMBOLS, derive
 
-    lin = derive(geometry).linearize()
-    args = [SYMBOLS[n] for n in SCALAR_NAMES]
-    return sp.lambdify(args, [lin.M, lin.C, lin.K], "numpy")
+        lin = derive(geometry).linearize()
+        return [SYMBOLS[n] for n in SCALAR_NAMES], [lin.M, lin.C, lin.K]
+
+    return cached_lambdify("linear_matrices", "analysis/modes.py", geometry, build)
 
 
 def _geometry(params: Parameters) -> Parameters:

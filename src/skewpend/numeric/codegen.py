@@ -44,6 +44,7 @@ __all__ = [
 ]
 
 from .conventions import PARAMETER_ORDER, STATE_ORDER, geometry_of, parameter_vector
+from .tableau import dop853_js  # noqa: F401 - part of this module's interface
 
 
 # -- the expressions to print -------------------------------------------------------------------
@@ -385,19 +386,6 @@ def classic_js(module: str, name: str) -> str:
     if "export " in re.sub(r"/\*.*?\*/", "", body, flags=re.S):
         raise ValueError("classic_js: an export that is not a top-level const or function")
     return f"self.{name} = (() => {{\n{body}\nreturn {{ {', '.join(exported)} }};\n}})();\n"
-
-
-def dop853_js() -> str:
-    """The DOP853 tableau (Hairer's Dormand-Prince 8(5,3), as tabulated in SciPy -- the same
-    numbers as ``integrators.c``'s) as a classic script defining ``self.DOP853`` (A, C, E3, E5,
-    D), for the flip-map workers of the explorer."""
-    from scipy.integrate._ivp import dop853_coefficients as t
-
-    def arr(x):
-        return json.dumps([float(v) for v in x]) if x.ndim == 1 else "[" + ", ".join(arr(r) for r in x) + "]"
-
-    return ("self.DOP853 = {" + ", ".join(f"{k}: {arr(getattr(t, k))}" for k in ("A", "C", "E3", "E5", "D")) +
-            ", NS: 12, NSTAGES: 16};\n")
 
 
 def _standalone_python(ex: _Expressions, geometry: Parameters, values=None) -> str:

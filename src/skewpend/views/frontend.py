@@ -64,7 +64,7 @@ def _checked(src: Source) -> Source:
 @lru_cache(maxsize=1)
 def _static_sources() -> tuple:
     """The sources that do not depend on the bodies: three.js and the page's own scripts."""
-    from ..numeric.codegen import dop853_js
+    from ..numeric.tableau import dop853_js
 
     out = [
         Source("three-core", _read(_THREE / "three.core.js")),

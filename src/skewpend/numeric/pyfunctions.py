@@ -1,0 +1,96 @@
+"""NumPy functions generated from the derivation by SymPy's ``lambdify``, kept on disk.
+
+A few analyses evaluate small symbolic results numerically -- the linearised matrices of the
+normal modes, the potential's gradient and Hessian of the equilibria -- through ``lambdify``.
+Making one takes SymPy (a quarter of a second to import) and the derivation of the geometry;
+the printed function does not.  So, like the compiled kernels
+(:func:`skewpend.numeric.kernels.kernel_module`), the printed source is kept in the cache directory
+(``$SKEWPEND_CACHE_DIR``, folder ``python``) under a key that is the SHA-256 of skewpend's and
+SymPy's versions, the text of the modules that shape it (``skewpend/symbolic``, the caller's
+module) and the geometry; the next process reads and compiles it without importing SymPy.  The
+function is the same text either way, so it computes the same bits.  A missing or damaged entry
+is made again; a cache that cannot be written is skipped.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from functools import lru_cache
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Callable, Sequence, Tuple
+
+__all__ = ["cached_lambdify"]
+
+_PACKAGE = Path(__file__).resolve().parent.parent
+#: The namespace ``lambdify(..., "numpy")`` evaluates its printed source in.
+_NUMPY_IMPORTS = "import numpy; from numpy import *; from numpy.linalg import *"
+
+
+@lru_cache(maxsize=None)
+def _code_digest(caller: str) -> str:
+    from .. import __version__
+
+    h = hashlib.sha256(__version__.encode())
+    try:
+        h.update(version("sympy").encode())
+    except PackageNotFoundError:  # pragma: no cover - sympy is a dependency
+        pass
+    paths = sorted((_PACKAGE / "symbolic").glob("*.py")) + [_PACKAGE / caller, Path(__file__)]
+    for path in paths:
+        h.update(path.relative_to(_PACKAGE).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def _key(name: str, caller: str, geometry) -> str:
+    text = json.dumps({"name": name, "code": _code_digest(caller), "geometry": geometry.to_dict()}, sort_keys=True,
+                      default=repr)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:24]
+
+
+def _compile(source: str, filename: str) -> Callable:
+    namespace: dict = {}
+    exec(_NUMPY_IMPORTS, namespace)  # noqa: S102 - the namespace lambdify itself uses
+    exec(compile(source, filename, "exec"), namespace)  # noqa: S102 - text printed by lambdify, see the module
+    fn = namespace.get("_lambdifygenerated")
+    if not callable(fn):
+        raise ValueError("no _lambdifygenerated in the cached source")
+    return fn
+
+
+def cached_lambdify(name: str, caller: str, geometry, build: Callable[[], Tuple[Sequence, object]]) -> Callable:
+    """``lambdify(args, exprs, "numpy")`` for ``(args, exprs) = build()``, read from the cache when
+    there.  ``name``: what the function is (part of the key and the file name); ``caller``: the
+    module that builds it, relative to the package (``"analysis/modes.py"``), whose text is part of
+    the key; ``geometry``: the :class:`~skewpend.Parameters` it was derived for."""
+    from .kernels import cache_dir
+
+    folder = cache_dir() / "python"
+    path = folder / f"{name}_{_key(name, caller, geometry)}.py"
+    try:
+        return _compile(path.read_text(encoding="utf-8"), str(path))
+    except (OSError, UnicodeDecodeError, SyntaxError, ValueError, NameError, TypeError):
+        pass  # not there, or damaged: made again below
+    import inspect
+
+    import sympy as sp
+
+    args, exprs = build()
+    fn = sp.lambdify(args, exprs, "numpy")
+    source = inspect.getsource(fn)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")  # exclusive: never a planted link
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(source)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    except OSError:
+        pass  # an unwritable cache: this process keeps its function
+    return fn
