@@ -546,11 +546,7 @@ def poincare(
     rows5 = np.zeros((states.shape[0], 5))
     rows5[:, :4] = states
     e = kernel.energies(rows5, p)
-    mom = np.empty((states.shape[0], 2))
-    buf = np.empty(2)
-    for i in range(states.shape[0]):
-        kernel.momenta(rows5[i], p, buf)
-        mom[i] = buf
+    mom = kernel.momenta_many(rows5, p)  # one compiled call (the same C as kernel.momenta, row by row)
     q_other = np.mod(states[:, o] + math.pi, _TWO_PI) - math.pi
     failed = int(np.count_nonzero((status != 0) & (status != 5)))
     settings = {

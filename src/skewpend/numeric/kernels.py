@@ -493,6 +493,15 @@ class Kernel:
 
 # -- the cache ----------------------------------------------------------------------------------------
 _LOCK = threading.Lock()
+_KEY_LOCKS: Dict[str, threading.Lock] = {}
+
+
+def _key_lock(key: str) -> threading.Lock:
+    """One lock per library: two threads wanting the same library build it once, while different
+    libraries (the model's, the flip map's, the chaos kernel) compile at the same time (a report
+    starts its builds together: issue 28's cold report)."""
+    with _LOCK:
+        return _KEY_LOCKS.setdefault(key, threading.Lock())
 _LOADED: Dict[str, Kernel] = {}
 _BYGEOMETRY: Dict[str, Kernel] = {}
 _SOURCE_DIGEST: Optional[str] = None
@@ -522,7 +531,6 @@ def _key(geometry_repr: str) -> str:
 
 def _writable_directory() -> Path:
     """The kernel directory, created if needed; a private temporary one if that is impossible."""
-    global _FALLBACK_DIR
     directory = cache_dir() / "kernels"
     try:
         directory.mkdir(parents=True, exist_ok=True)
@@ -530,19 +538,26 @@ def _writable_directory() -> Path:
         probe.close()
         return directory
     except OSError as exc:
-        if _FALLBACK_DIR is None:
-            import atexit
+        with _LOCK:  # one private directory, whichever thread gets here first
+            return _fallback_directory(directory, exc)
 
-            _FALLBACK_DIR = Path(tempfile.mkdtemp(prefix="skewpend-kernels-"))
-            # a private directory for this run only: removed at exit (the loaded libraries stay mapped)
-            atexit.register(shutil.rmtree, _FALLBACK_DIR, ignore_errors=True)
-            warnings.warn(
-                f"cannot write the kernel cache {directory} ({exc.strerror or exc}); using {_FALLBACK_DIR} "
-                "for this run (set SKEWPEND_CACHE_DIR to a writable directory to keep compiled kernels)",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-        return _FALLBACK_DIR
+
+def _fallback_directory(directory: Path, exc: OSError) -> Path:
+    """A private temporary directory for this run's libraries (made once, with a warning)."""
+    global _FALLBACK_DIR
+    if _FALLBACK_DIR is None:
+        import atexit
+
+        _FALLBACK_DIR = Path(tempfile.mkdtemp(prefix="skewpend-kernels-"))
+        # a private directory for this run only: removed at exit (the loaded libraries stay mapped)
+        atexit.register(shutil.rmtree, _FALLBACK_DIR, ignore_errors=True)
+        warnings.warn(
+            f"cannot write the kernel cache {directory} ({exc.strerror or exc}); using {_FALLBACK_DIR} "
+            "for this run (set SKEWPEND_CACHE_DIR to a writable directory to keep compiled kernels)",
+            RuntimeWarning,
+            stacklevel=4,
+        )
+    return _FALLBACK_DIR
 
 
 def _intact(path: Path) -> bool:
@@ -604,7 +619,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
         return kernel
     geometry = geometry_of(params)
     key = _key(repr(geometry.to_dict())) + ("_" + kind if kind else "")
-    with _LOCK:
+    with _key_lock(key):
         if key in _LOADED:
             _BYGEOMETRY[gkey] = _LOADED[key]
             return _LOADED[key]
@@ -676,7 +691,7 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
     # the Taylor library's text also depends on its generator and driver (not part of the others' key)
     extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h"))
     key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest()) + f"_taylor{order}"
-    with _LOCK:
+    with _key_lock(key):
         if key in _LOADED:
             _BYGEOMETRY[gkey] = _LOADED[key]
             return _LOADED[key]  # type: ignore[return-value]
@@ -714,7 +729,7 @@ def source_library(source: str, name: str) -> ctypes.CDLL:
     batched regressor functions), cached like the kernels under ``name`` and the text's digest:
     compiled once per text, announced on stderr as the kernels are."""
     key = hashlib.sha256(source.encode("utf-8")).hexdigest()[:20]
-    with _LOCK:
+    with _key_lock(key):
         if key in _LIBRARIES:
             return _LIBRARIES[key]
         path = cache_dir() / "kernels" / f"skewpend_{name}_{key}{LIB_SUFFIX}"

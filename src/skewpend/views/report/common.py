@@ -125,12 +125,17 @@ def fmt_deg(x: float) -> str:
     return f"{fmt_num(math.degrees(x), 5)}°"
 
 
+#: zlib level of the report's PNGs: 3 writes them in about half the time of Pillow's default 6 (and a
+#: fifth of ``optimize=True``) for files a few per cent larger.
+PNG_LEVEL = 3
+
+
 def fig_png(fig, dpi: int = FIGURE_DPI) -> bytes:
     """The figure as PNG bytes (:func:`skewpend.views.figures.base.print_figure`); the figure is cleared."""
     from ..figures.base import print_figure
 
     buf = io.BytesIO()
-    print_figure(fig, buf, "png", dpi, {"Software": f"skewpend {__version__}"})
+    print_figure(fig, buf, "png", dpi, {"Software": f"skewpend {__version__}"}, pil_kwargs={"compress_level": PNG_LEVEL})
     fig.clear()
     return buf.getvalue()
 
@@ -139,7 +144,7 @@ def rgb_png(rgb: np.ndarray) -> bytes:
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(rgb, "RGB").save(buf, format="PNG", optimize=True)
+    Image.fromarray(rgb, "RGB").save(buf, format="PNG", compress_level=PNG_LEVEL)
     return buf.getvalue()
 
 
