@@ -110,3 +110,46 @@ def test_the_packaged_compiler_gives_the_system_compilers_results(tmp_path):
     assert np.array_equal(np.isnan(a), np.isnan(b))  # the same cells flip (3 s, far from the boundaries' scale)
     np.testing.assert_allclose(a[~np.isnan(a)], b[~np.isnan(b)], rtol=0, atol=1e-6)
     np.testing.assert_allclose(out["zig"]["lam"], out["system"]["lam"], rtol=0, atol=1e-6)
+
+
+_HANDSHAKE_CC = """#!/bin/sh
+# a compiler that waits (up to 60 s) until a second build has started, then compiles
+d="{marks}"
+touch "$d/start.$$"
+i=0
+while [ "$(ls "$d" | grep -c '^start[.]')" -lt 2 ] && [ $i -lt 600 ]; do sleep 0.1; i=$((i + 1)); done
+[ $i -ge 600 ] && touch "$d/alone.$$"
+exec {real} "$@"
+"""
+
+
+def test_two_libraries_build_side_by_side_and_one_library_once(tmp_path):
+    """One lock per library (issue 28, the cold report): the model's kernel and the chaos kernel,
+    asked for by two threads, compile at the same time -- each compiler run waits for the other
+    to start, so builds one after the other would wait 60 s and leave a mark -- while a third
+    thread asking for the model's kernel again waits for that build instead of starting its own."""
+    import shlex
+
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    cc = tmp_path / "handshake-cc"
+    cc.write_text(_HANDSHAKE_CC.format(marks=marks, real=" ".join(shlex.quote(x) for x in K.find_compiler())))
+    cc.chmod(0o755)
+    code = (
+        "import threading, skewpend\n"
+        "from skewpend.numeric.kernels import kernel_module\n"
+        "p = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.5, alpha=0.7, g=9.81)\n"
+        "got = {}\n"
+        "jobs = {'model': lambda: kernel_module(p), 'chaos': lambda: kernel_module(p, chaos=True),\n"
+        "        'model again': lambda: kernel_module(p)}\n"
+        "threads = [threading.Thread(target=lambda k=k, f=f: got.__setitem__(k, f())) for k, f in jobs.items()]\n"
+        "[t.start() for t in threads]; [t.join() for t in threads]\n"
+        "assert got['model'] is got['model again'] and got['chaos'] is not got['model']\n"
+        "print(got['model'].origin, got['chaos'].origin)\n"
+    )
+    env = {**os.environ, "CC": str(cc), "SKEWPEND_CACHE_DIR": str(tmp_path / "cache"), "SKEWPEND_QUIET": "1"}
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["compiled", "compiled"]
+    names = sorted(x.name.split(".")[0] for x in marks.iterdir())
+    assert names == ["start", "start"], names  # two builds, neither alone
