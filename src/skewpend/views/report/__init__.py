@@ -141,8 +141,8 @@ PARALLEL = True
 #: Python's thread switch interval [s] while a report is built (restored after; the default is
 #: 0.005).  Section 7's ensembles run in worker threads whose compiled calls release the GIL and
 #: need it back between calls, while the main thread draws with it; at the default a worker waits up
-#: to 5 ms each time, and a core stands idle.  At 0.5 ms a warm report takes about 0.3 s less on
-#: 2 cores (7.1 -> 6.8 s in one process, benchmarks/bench_report.py for the whole process).
+#: to 5 ms each time, and a core stands idle.  At 0.5 ms, 6 interleaved pairs of warm whole-process
+#: reports on 2 cores: wall 0.978x (0.91-1.00) for 1.03x the CPU.
 SWITCH_INTERVAL = 0.0005
 
 
