@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 from functools import lru_cache
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -66,7 +64,7 @@ def cached_lambdify(name: str, caller: str, geometry, build: Callable[[], Tuple[
     there.  ``name``: what the function is (part of the key and the file name); ``caller``: the
     module that builds it, relative to the package (``"analysis/modes.py"``), whose text is part of
     the key; ``geometry``: the :class:`~skewpend.Parameters` it was derived for."""
-    from .kernels import cache_dir
+    from .kernels import _atomic_text, cache_dir
 
     folder = cache_dir() / "python"
     path = folder / f"{name}_{_key(name, caller, geometry)}.py"
@@ -83,14 +81,7 @@ def cached_lambdify(name: str, caller: str, geometry, build: Callable[[], Tuple[
     source = inspect.getsource(fn)
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")  # exclusive: never a planted link
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(source)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        _atomic_text(path, source)  # a temporary file made exclusively (never a planted link), then renamed
     except OSError:
         pass  # an unwritable cache: this process keeps its function
     return fn
