@@ -47,6 +47,33 @@ static inline void taylor_step_rule(int order, double rtol, double atol, double 
     *e2 = 1.0 / (double)order;
 }
 
+/* the step: rho = min over m = p - 1, p of (scale / d_m)^(1/m) (e1, e2: the exponents), times fac, as
+ * two logarithms and one exponential, not two powers; a d_m = 0 gives no bound (both 0: an infinite
+ * step, cut at the end of the run) */
+static inline double taylor_step(double scale, double d1, double d2, double e1, double e2, double fac)
+{
+    double lrho = INFINITY;
+    if (d1 > 0.0) lrho = log(scale / d1) * e1;
+    if (d2 > 0.0) lrho = fmin(lrho, log(scale / d2) * e2);
+    return exp(lrho) * fac;
+}
+
+/* max_i |x_i[0]|, |x_i[order - 1]|, |x_i[order]| over the first n components: as fmax from 0 (a NaN
+ * skipped), written as comparisons (fmax is a library call without -ffinite-math-only) */
+static inline void taylor_norms(const double (*x)[SP_TPMAX + 2], int order, int n, double *big, double *d1, double *d2)
+{
+    double b = 0.0, e1 = 0.0, e2 = 0.0;
+    for (int i = 0; i < n; i++) {
+        const double u = fabs(x[i][0]), v = fabs(x[i][order - 1]), w = fabs(x[i][order]);
+        b = u > b ? u : b;
+        e1 = v > e1 ? v : e1;
+        e2 = w > e2 ? w : e2;
+    }
+    *big = b;
+    *d1 = e1;
+    *d2 = e2;
+}
+
 int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
               int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
               int64_t *m_out)
@@ -94,17 +121,10 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         for (int i = 0; i < n; i++) x[i][0] = s->y[i];
         taylor_jet(x, pc, s->work, NULL);
         s->nfev++;
-        double big = 0.0, d1 = 0.0, d2 = 0.0;
-        for (int i = 0; i < nc; i++) {
-            big = fmax(big, fabs(x[i][0]));
-            d1 = fmax(d1, fabs(x[i][order - 1]));
-            d2 = fmax(d2, fabs(x[i][order]));
-        }
-        const double scale = fmax(floor_scale, big);
-        double lrho = INFINITY; /* ln rho: two logarithms and one exponential, not two powers */
-        if (d1 > 0.0) lrho = log(scale / d1) * e1;
-        if (d2 > 0.0) lrho = fmin(lrho, log(scale / d2) * e2);
-        double h = exp(lrho) * fac;
+        double big, d1, d2;
+        taylor_norms((const double (*)[SP_TPMAX + 2])x, order, nc, &big, &d1, &d2);
+        const double scale = big > floor_scale ? big : floor_scale; /* fmax: neither is a NaN */
+        double h = taylor_step(scale, d1, d2, e1, e2, fac);
         if (!(h == h)) { *m_out = m; return SP_STATUS_NONFINITE; }
         const double left = t_end - s->t;
         int last = 0;
@@ -188,17 +208,10 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
         taylor_jet(x, pc, s->work, pending ? &en : NULL);
         if (pending) { e[m - 1] = en; pending = 0; }
         s->nfev++;
-        double big = 0.0, d1 = 0.0, d2 = 0.0;
-        for (int i = 0; i < nc; i++) {
-            big = fmax(big, fabs(x[i][0]));
-            d1 = fmax(d1, fabs(x[i][order - 1]));
-            d2 = fmax(d2, fabs(x[i][order]));
-        }
-        const double scale = fmax(floor_scale, big);
-        double lrho = INFINITY;
-        if (d1 > 0.0) lrho = log(scale / d1) * e1;
-        if (d2 > 0.0) lrho = fmin(lrho, log(scale / d2) * e2);
-        double h = exp(lrho) * fac;
+        double big, d1, d2;
+        taylor_norms((const double (*)[SP_TPMAX + 2])x, order, nc, &big, &d1, &d2);
+        const double scale = big > floor_scale ? big : floor_scale; /* fmax: neither is a NaN */
+        double h = taylor_step(scale, d1, d2, e1, e2, fac);
         if (!(h == h)) { code = SP_STATUS_NONFINITE; break; }
         const double left = t_end - s->t;
         int last = 0;

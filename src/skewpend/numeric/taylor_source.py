@@ -430,9 +430,11 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
     zero = {SYMBOLS[n]: 0 for n in qparams}
     vanishes = all(sp.simplify(sp.sympify(e).xreplace(zero)) == 0 for e in ex.Q)
     idx = [PARAMETER_ORDER.index(n) for n in qparams] if vanishes else []
+    zero_q = all(v == ("c", "0.0") for v in work)  # Q = 0 already (a model without its terms): W' = 0
     out += ["/* W' = Q . q' needs integrating unless these parameters are all 0 (then Q = 0 identically) */",
             "static int taylor_work(const double *p)", "{",
-            f"{I}return {' || '.join(f'p[{i}] != 0.0' for i in idx) if idx else '1'};", "}", ""]
+            f"{I}(void)p;" if zero_q else "",
+            f"{I}return {'0' if zero_q else ' || '.join(f'p[{i}] != 0.0' for i in idx) if idx else '1'};", "}", ""]
     out += ["/* the state-free subexpressions, once per call, into pc[SP_TAYLOR_NPC] */",
             "static void taylor_prepare(const double *p, double *pc)", "{"]
     out += param_lines(c, I, used_names(g.consts))
