@@ -18,9 +18,11 @@ power series:
 * the work ``W' = Q . q'`` is a separate block, skipped at run time when the parameters ``Q``
   depends on are all 0 (then ``Q`` is identically 0: checked symbolically here).
 
-Two forms of the equations are tried -- the derivation's own, and the entries expanded as
-polynomials in ``sin``/``cos`` of the angles and the speeds -- and the one with fewer series
-products is printed.  Nothing here is an equation of motion typed by hand.
+Several algebraic forms of the equations are tried -- the derivation's own; the entries expanded as
+polynomials in ``sin``/``cos`` of the angles and the speeds, and collected in one of them; and nested
+(greedy multivariate Horner) forms with monic factors, so that a factor two entries share is one
+series -- and the one with fewest series products is printed (issue 3's rods: 10.5 an order, was
+11.5; the solve of ``M q'' = f`` adds 3).  Nothing here is an equation of motion typed by hand.
 """
 
 from __future__ import annotations
@@ -88,6 +90,16 @@ class _Graph:
         self.cost += cost
         return ("s", name)
 
+    def _reuse(self, e: sp.Expr):
+        """``x^n R`` (n >= 2) as ``x^(n-1) (x R)`` when ``x R`` is a series already (one product, not
+        a square and a product): ``(x R, x^n)``; else None."""
+        for a in e.args:
+            if a.is_Pow and a.exp.is_Integer and a.exp >= 2:
+                key = sp.Mul(a.base, *(b for b in e.args if b is not a))
+                if key in self.memo:
+                    return key, a
+        return None
+
     def node(self, e: sp.Expr) -> Tuple[str, str]:
         e = sp.sympify(e)
         if e in self.memo:
@@ -109,6 +121,16 @@ class _Graph:
             if consts:
                 acc = self.new("addc", acc, self.const(sp.Add(*consts)))
             out = acc
+        elif e.is_Mul and len([a for a in e.args if not self.is_const(a)]) > 1 and any(self.is_const(a) for a in e.args):
+            # c * (the product of the series): the product a node of its own, shared with every other
+            # multiple of it
+            consts = [a for a in e.args if self.is_const(a)]
+            acc = self.node(sp.Mul(*(a for a in e.args if not self.is_const(a))))
+            c = sp.Mul(*consts)
+            out = self.new("neg", acc) if c == -1 else self.new("scale", acc, self.const(c))
+        elif e.is_Mul and not any(self.is_const(a) for a in e.args) and self._reuse(e) is not None:
+            key, a = self._reuse(e)
+            out = self.new("mul", self.memo[key], self.node(a.base ** (a.exp - 1)), cost=1.0)
         elif e.is_Mul:
             consts = [a for a in e.args if self.is_const(a)]
             series = sorted((a for a in e.args if not self.is_const(a)), key=sp.default_sort_key)
@@ -170,8 +192,10 @@ def _build(ex, main):
 
 def _forms(ex):
     """Algebraic forms of M and f to try: the derivation's own; expanded as polynomials in the
-    sines, cosines and speeds; and that polynomial collected in each one of them (for issue 3's
-    rods, collected in sin(psi): 11.5 series products an order against 13.5 and 16.5)."""
+    sines, cosines and speeds; that polynomial collected in each one of them (for issue 3's rods,
+    collected in sin(psi): 11.5 series products an order against 13.5 and 16.5); and its nested
+    forms (:func:`_horner_forms`: 10.5 for issue 3's rods, 14 against 17.5 for a skewed second
+    axis with an offset centre of mass)."""
     s = SYMBOLS
     angles = {s["phi"], s["psi"]}
     main = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1], ex.f[0], ex.f[1]]
@@ -184,6 +208,87 @@ def _forms(ex):
     gens |= {s["dphi"], s["dpsi"]}
     for gen in sorted(gens, key=sp.default_sort_key):
         yield [sp.collect(e, gen) for e in expanded]
+    yield from _horner_forms(expanded, sorted(gens, key=sp.default_sort_key))
+
+
+def _horner(exprs, gens, protect=()):
+    """``exprs`` (polynomials in ``gens`` with constant coefficients) in a nested form: each one
+    split greedily as ``g * Q + R`` by the generator ``g`` in the most of its terms (then ``Q`` and
+    ``R`` so), every factor ``Q`` made monic (its constant term, else its first term, 1: a constant
+    times it outside), so that the same factor in two expressions is one series (``phi' (1 + r cos
+    psi)`` in both f's of issue 3's rods).  ``protect``: monomials (exponent tuples over ``gens``)
+    taken as one generator of their own first, e.g. ``sin(phi) cos(psi)`` when two expressions have
+    it.  Raises sympy's PolynomialError for an expression that is not such a polynomial."""
+    syms = [sp.Dummy(f"g{i}") for i in range(len(gens))]
+    psyms = [sp.Dummy(f"p{i}") for i in range(len(protect))]
+    allsyms = syms + psyms
+    back = dict(zip(syms, gens))
+    for d, mono in zip(psyms, protect):
+        back[d] = sp.Mul(*(g ** k for g, k in zip(gens, mono)))
+
+    def mono_expr(m):
+        return sp.Mul(*(x ** k for x, k in zip(allsyms, m)))
+
+    def monic(x):
+        if x.is_Add:
+            nums = [a for a in x.args if a.is_Number]
+            k = nums[0] if nums else sorted(x.args, key=sp.default_sort_key)[0].as_coeff_Mul()[0]
+            if k in (0, 1):
+                return x, sp.Integer(1)
+            return sp.Add(*(a / k for a in x.args)), k
+        k, rest = x.as_coeff_Mul()
+        return rest, k
+
+    def build(terms):
+        if not terms:
+            return sp.Integer(0)
+        n = len(allsyms)
+        counts = [sum(1 for m, _ in terms if m[i] > 0) for i in range(n)]
+        i = max(range(n), key=lambda j: (counts[j], -j))
+        if counts[i] <= 1:
+            return sp.Add(*(c * mono_expr(m) for m, c in terms))
+        inner = [(m[:i] + (m[i] - 1,) + m[i + 1:], c) for m, c in terms if m[i] > 0]
+        rest = [(m, c) for m, c in terms if m[i] == 0]
+        q, k = monic(build(inner))
+        return sp.Mul(k, allsyms[i], q) + build(rest)
+
+    out = []
+    for e in exprs:
+        poly = sp.Poly(e.xreplace(dict(zip(gens, syms))), *syms)
+        terms = []
+        for m, c in poly.terms():
+            m, extra = list(m), [0] * len(protect)
+            for j, pm in enumerate(protect):
+                while all(a >= b for a, b in zip(m, pm)):
+                    m = [a - b for a, b in zip(m, pm)]
+                    extra[j] += 1
+            terms.append((tuple(m) + tuple(extra), c))
+        out.append(build(terms).xreplace(back))
+    return out
+
+
+def _horner_forms(expanded, gens):
+    """:func:`_horner` of the expanded M and f: as they are, and with each product of two generators
+    that two or more of them contain (and all those together) taken as one."""
+    gens = list(gens)
+    try:
+        polys = [sp.Poly(e, *gens) for e in expanded]
+    except sp.PolynomialError:
+        return
+    seen = {}
+    for i, p in enumerate(polys):
+        for m in p.monoms():
+            for a in range(len(gens)):
+                for b in range(a, len(gens)):
+                    pm = tuple((1 if j == a else 0) + (1 if j == b else 0) for j in range(len(gens)))
+                    if all(x >= y for x, y in zip(m, pm)):
+                        seen.setdefault(pm, set()).add(i)
+    shared = sorted((pm for pm, ids in seen.items() if len(ids) > 1), reverse=True)
+    for protect in [()] + [(pm,) for pm in shared] + ([tuple(shared)] if len(shared) > 1 else []):
+        try:
+            yield _horner(expanded, gens, protect)
+        except sp.PolynomialError:
+            return
 
 
 def _graph(ex):
@@ -217,6 +322,7 @@ LATE = True
 #: vector extensions: SSE2 on x86-64; the same additions in the same order as two scalar chains, so the
 #: same bits, with half the loads and arithmetic instructions).
 VECTOR = True
+VECTOR_SHORT = True
 _inline_terms = INLINE_TERMS
 
 
@@ -266,6 +372,10 @@ def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+", late=(), vter
     tail = [term(j) for j in late]
     if b < a:
         early = ""
+    elif vterm is not None and VECTOR and LANES == 2 and VECTOR_SHORT and 2 <= b - a + 1 <= 3:
+        # left to right as _lanes: (t_a + t_a+1) (+ t_b)
+        odd = f" + {term(b)}" if (b - a + 1) % 2 else ""
+        early = f"({{ sp_v2 v_ = {vterm(a)}; (v_[0] + v_[1]){odd}; }})"
     elif vterm is not None and VECTOR and LANES == 2 and 4 <= b - a + 1 <= _inline_terms:
         # the two partial sums of _lanes as the two lanes of one vector (the same additions in the same order)
         steps = "".join(f" v_ += {vterm(j)};" for j in range(a + 2, b, 2))
