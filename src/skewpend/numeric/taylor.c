@@ -69,9 +69,26 @@ static inline void taylor_step_rule(int order, double rtol, double atol, double 
 /* the step: rho = min over m = p - 1, p of (scale / d_m)^(1/m) (e1, e2: the exponents), times fac, as
  * two logarithms and one exponential, not two powers; a d_m = 0 gives no bound (both 0: an infinite
  * step, cut at the end of the run) */
+static inline double taylor_log2_floor(double x) /* a lower bound of log2 x within 0.0861 (x normal, > 0) */
+{
+    uint64_t b;
+    memcpy(&b, &x, sizeof b);
+    return (double)((int)(b >> 52) - 1023) + (double)(b & 0x000fffffffffffffULL) * 0x1p-52;
+}
+
 static inline double taylor_step(double scale, double d1, double d2, double e1, double e2, double fac)
 {
     double lrho = INFINITY;
+    if (d1 > 0.0 && d2 > 0.0) {
+        /* the smaller of the two bounds, when the exponents alone tell (one logarithm, not two: the
+         * same value as the minimum of both, which is then this one); else both */
+        const double x1 = scale / d1, x2 = scale / d2;
+        if (x1 >= 0x1p-1000 && x1 <= 0x1p1000 && x2 >= 0x1p-1000 && x2 <= 0x1p1000) {
+            const double l1 = taylor_log2_floor(x1), l2 = taylor_log2_floor(x2);
+            if ((l1 + 0.087) * e1 < l2 * e2 - 1e-6) return exp(log(x1) * e1) * fac;
+            if ((l2 + 0.087) * e2 < l1 * e1 - 1e-6) return exp(log(x2) * e2) * fac;
+        }
+    }
     if (d1 > 0.0) lrho = log(scale / d1) * e1;
     if (d2 > 0.0) lrho = fmin(lrho, log(scale / d2) * e2);
     return exp(lrho) * fac;

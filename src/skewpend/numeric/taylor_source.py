@@ -336,6 +336,11 @@ VECTOR_C = [
 ]
 
 
+#: Where each series is computed in the order's operations (its index; the state's coefficients of
+#: the order, from the order before: -1), for :func:`_dot` (set by :func:`taylor_c_source`).
+_RANK: Dict[str, int] = {}
+
+
 def _sub(k: int, j) -> str:
     return str(k - j) if isinstance(j, int) else f"{k} - j"
 
@@ -362,14 +367,15 @@ def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+", late=(), vter
     same order, the same bits)."""
     if hi < lo:
         return init or "0.0"
-    late = sorted(j for j in set(late if LATE else ()) if lo <= j <= hi)
+    late_in = [j for j in dict.fromkeys(late if LATE else ()) if lo <= j <= hi]  # added in this order
+    late = sorted(late_in)
     a, b = lo, hi  # the range of the early terms
     while a in late:
         a += 1
     while b in late and b >= a:
         b -= 1
     assert all(j < a or j > b for j in late), (lo, hi, late)
-    tail = [term(j) for j in late]
+    tail = [term(j) for j in late_in]
     if b < a:
         early = ""
     elif vterm is not None and VECTOR and LANES == 2 and VECTOR_SHORT and 2 <= b - a + 1 <= 3:
@@ -416,7 +422,9 @@ def _dot(a: str, b: str, k: int, lo: int = 0, hi=None) -> str:
     """``a[lo] * b[k - lo] + ... + a[hi] * b[k - hi]`` (hi default k); the terms with ``a[k]`` or
     ``b[k]`` last."""
     hi = k if hi is None else hi
-    return _reduce(lambda j: f"{a}[{j}] * {b}[{_sub(k, j)}]", lo, hi, late=(0, k) if k > 0 else (),
+    # of the two terms with an order-k coefficient, the one whose series is computed later goes last
+    late = ((k, 0) if _RANK.get(b, -1) > _RANK.get(a, -1) else (0, k)) if k > 0 else ()
+    return _reduce(lambda j: f"{a}[{j}] * {b}[{_sub(k, j)}]", lo, hi, late=late,
                    vterm=_vprod(a, b, k))
 
 
@@ -514,6 +522,9 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
     if ex is None:
         ex = expressions(geometry)
     g, main, n_main, work = _graph(ex)
+    _RANK.clear()
+    for i, op in enumerate(g.ops):
+        _RANK[op[1]] = _RANK[op[1] + "c"] = i
     M11, M12, M22, f1, f2 = main
     Q1, Q2 = work
     cost = g.cost
@@ -582,11 +593,21 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
             def vterm(j, series=series):
                 return "(" + " + ".join(_vprod(m[1], q, k)(j) for m, q in series) + ")"
 
-            value = _reduce(term, 1, k, _val(rhs, k), "-", late=(k,), vterm=vterm) if series else _val(rhs, k)
+            # f[k] (the last value of the order) minus the sum of the M[j] q''[k-j] (known before it)
+            value = (f"{_val(rhs, k)} - ({_reduce(term, 1, k, late=(k,), vterm=vterm)})" if series and k > 0
+                     else _val(rhs, k))
             lines.append(f"{I}const double {name}_{k} = {value};")
-        lines += [f"{I}a1[{k}] = (m22 * r1_{k} - m12 * r2_{k}) * rdet;", f"{I}a2[{k}] = (m11 * r2_{k} - m12 * r1_{k}) * rdet;",
-                  f"{I}x[0][{k + 1}] = x[2][{k}] * inv[{k + 1}];", f"{I}x[1][{k + 1}] = x[3][{k}] * inv[{k + 1}];",
-                  f"{I}x[2][{k + 1}] = a1[{k}] * inv[{k + 1}];", f"{I}x[3][{k + 1}] = a2[{k}] * inv[{k + 1}];"]
+        if k == 0:  # M[0]^-1 = [[c11, -c12], [-c12, c22]]
+            lines.append(f"{I}const double c11 = m22 * rdet, c12 = m12 * rdet, c22 = m11 * rdet;")
+        # q''[k] and x[2..3][k + 1] = q''[k] / (k + 1) each straight from r (two products and a difference
+        # after r, not four operations)
+        lines += [f"{I}a1[{k}] = c11 * r1_{k} - c12 * r2_{k};", f"{I}a2[{k}] = c22 * r2_{k} - c12 * r1_{k};",
+                  f"{I}x[0][{k + 1}] = x[2][{k}] * inv[{k + 1}];", f"{I}x[1][{k + 1}] = x[3][{k}] * inv[{k + 1}];"]
+        if k == 0:
+            lines += [f"{I}x[2][1] = a1[0];", f"{I}x[3][1] = a2[0];"]
+        else:
+            lines += [f"{I}x[2][{k + 1}] = (c11 * inv[{k + 1}]) * r1_{k} - (c12 * inv[{k + 1}]) * r2_{k};",
+                      f"{I}x[3][{k + 1}] = (c22 * inv[{k + 1}]) * r2_{k} - (c12 * inv[{k + 1}]) * r1_{k};"]
         return lines
 
     def work_lines(k: int) -> List[str]:
