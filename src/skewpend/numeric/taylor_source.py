@@ -336,9 +336,37 @@ VECTOR_C = [
 ]
 
 
-#: Where each series is computed in the order's operations (its index; the state's coefficients of
-#: the order, from the order before: -1), for :func:`_dot` (set by :func:`taylor_c_source`).
+#: How late each series' coefficient of an order is known, in dependent operations after the speeds'
+#: coefficients of that order (x[2][k], x[3][k]: 0, the end of the order before -- the path from them
+#: to x[2..3][k + 1] is the order's critical path); a series computed from older coefficients alone
+#: (sines and cosines of the angles, their combinations): -1000.  For :func:`_dot` (of its two terms
+#: with an order-k coefficient, the later one added last); set by :func:`taylor_c_source`.
 _RANK: Dict[str, int] = {}
+
+
+def _depths(ops) -> Dict[str, int]:
+    """:data:`_RANK` of the series of ``ops`` (in evaluation order)."""
+    early = -1000
+    d: Dict[str, int] = {"x[0]": early, "x[1]": early, "x[2]": 0, "x[3]": 0}
+
+    def of(v):
+        return d.get(v[1], early) if v[0] == "s" else early
+
+    for op in ops:
+        kind, t = op[0], op[1]
+        args = [of(v) for v in op[2:] if isinstance(v, tuple)]
+        if kind == "sincos":  # s[k] from u[k] (j u[j], j <= k); of an angle, from its speed at k - 1
+            a = op[2]
+            depth = early if a[1] in ("x[0]", "x[1]") else args[0] + 2
+            d[t] = d[t + "c"] = depth
+            continue
+        cost = {"add": 1, "sub": 1, "addc": 1, "neg": 1, "scale": 1, "mul": 2, "sqr": 3, "div": 3, "rdiv": 3,
+                "atan": 4}.get(kind, 2)
+        top = max(args) if args else early
+        d[t] = early if top <= early else top + cost
+        if kind == "atan":
+            d[t + "d"] = d[t]
+    return d
 
 
 def _sub(k: int, j) -> str:
@@ -423,7 +451,7 @@ def _dot(a: str, b: str, k: int, lo: int = 0, hi=None) -> str:
     ``b[k]`` last."""
     hi = k if hi is None else hi
     # of the two terms with an order-k coefficient, the one whose series is computed later goes last
-    late = ((k, 0) if _RANK.get(b, -1) > _RANK.get(a, -1) else (0, k)) if k > 0 else ()
+    late = ((k, 0) if _RANK.get(b, -1000) > _RANK.get(a, -1000) else (0, k)) if k > 0 else ()
     return _reduce(lambda j: f"{a}[{j}] * {b}[{_sub(k, j)}]", lo, hi, late=late,
                    vterm=_vprod(a, b, k))
 
@@ -523,8 +551,7 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
         ex = expressions(geometry)
     g, main, n_main, work = _graph(ex)
     _RANK.clear()
-    for i, op in enumerate(g.ops):
-        _RANK[op[1]] = _RANK[op[1] + "c"] = i
+    _RANK.update(_depths(g.ops))
     M11, M12, M22, f1, f2 = main
     Q1, Q2 = work
     cost = g.cost
@@ -594,7 +621,7 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
                 return "(" + " + ".join(_vprod(m[1], q, k)(j) for m, q in series) + ")"
 
             # f[k] (the last value of the order) minus the sum of the M[j] q''[k-j] (known before it)
-            value = (f"{_val(rhs, k)} - ({_reduce(term, 1, k, late=(k,), vterm=vterm)})" if series and k > 0
+            value = (f"{_val(rhs, k)} - ({_reduce(term, 1, k, late=(k, 1), vterm=vterm)})" if series and k > 0
                      else _val(rhs, k))
             lines.append(f"{I}const double {name}_{k} = {value};")
         if k == 0:  # M[0]^-1 = [[c11, -c12], [-c12, c22]]
