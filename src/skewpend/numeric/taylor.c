@@ -36,31 +36,22 @@ static void taylor_eval(const double (*jet)[SP_TPMAX + 2], int order, int n, dou
     }
 }
 
-/* the step's polynomial at h for the four components side by side (independent chains: the processor
- * overlaps them), each as its even and odd parts in h^2, y = E(h^2) + h O(h^2): two chains of half the
- * length (the step's value is on the path to the next step); then W's when it is integrated (n = 5) */
+/* taylor_eval at this library's order for the step: the four chains of the angles and speeds side by
+ * side (independent: the processor overlaps them; each value as taylor_eval's, the same operations in
+ * the same order), then W's when it is integrated (n = 5) */
 static inline void taylor_eval_step(const double (*jet)[SP_TPMAX + 2], int n, double h, double *out)
 {
-    enum { KE = SP_TORDER % 2 == 0 ? SP_TORDER : SP_TORDER - 1, KO = SP_TORDER % 2 == 1 ? SP_TORDER : SP_TORDER - 1 };
-    const double h2 = h * h;
-    double e0 = jet[0][KE], e1 = jet[1][KE], e2 = jet[2][KE], e3 = jet[3][KE];
-    double o0 = jet[0][KO], o1 = jet[1][KO], o2 = jet[2][KO], o3 = jet[3][KO];
-    for (int k = KE - 2; k >= 0; k -= 2) {
-        e0 = e0 * h2 + jet[0][k];
-        e1 = e1 * h2 + jet[1][k];
-        e2 = e2 * h2 + jet[2][k];
-        e3 = e3 * h2 + jet[3][k];
+    double a0 = jet[0][SP_TORDER], a1 = jet[1][SP_TORDER], a2 = jet[2][SP_TORDER], a3 = jet[3][SP_TORDER];
+    for (int k = SP_TORDER - 1; k >= 0; k--) {
+        a0 = a0 * h + jet[0][k];
+        a1 = a1 * h + jet[1][k];
+        a2 = a2 * h + jet[2][k];
+        a3 = a3 * h + jet[3][k];
     }
-    for (int k = KO - 2; k >= 1; k -= 2) {
-        o0 = o0 * h2 + jet[0][k];
-        o1 = o1 * h2 + jet[1][k];
-        o2 = o2 * h2 + jet[2][k];
-        o3 = o3 * h2 + jet[3][k];
-    }
-    out[0] = e0 + h * o0;
-    out[1] = e1 + h * o1;
-    out[2] = e2 + h * o2;
-    out[3] = e3 + h * o3;
+    out[0] = a0;
+    out[1] = a1;
+    out[2] = a2;
+    out[3] = a3;
     if (n > 4) taylor_eval(jet + 4, SP_TORDER, n - 4, h, out + 4);
 }
 
