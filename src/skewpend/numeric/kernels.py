@@ -281,8 +281,8 @@ def _compile(source: str, target: Path) -> str:
                                 "working C compiler (gcc or clang)")
         digest = hashlib.sha256(Path(so_tmp).read_bytes()).hexdigest()
         os.replace(so_tmp, target)
-        _atomic_text(target.with_suffix(".sha256"), digest + "\n")
-        _atomic_text(target.with_suffix(".compiler"), name + "\n")
+        write_text_atomically(target.with_suffix(".sha256"), digest + "\n")
+        write_text_atomically(target.with_suffix(".compiler"), name + "\n")
         os.replace(c_tmp, target.with_suffix(".c"))  # kept for reading, not used
     finally:
         for tmp in (c_tmp, so_tmp):
@@ -299,7 +299,9 @@ def built_by(path: Path) -> Optional[str]:
         return None
 
 
-def _atomic_text(path: Path, text: str) -> None:
+def write_text_atomically(path: Path, text: str) -> None:
+    """``text`` into ``path``: a temporary file beside it made exclusively (never a planted link), then
+    renamed over it, so a reader sees the old file or the whole new one."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w") as fh:

@@ -64,7 +64,7 @@ def cached_lambdify(name: str, caller: str, geometry, build: Callable[[], Tuple[
     there.  ``name``: what the function is (part of the key and the file name); ``caller``: the
     module that builds it, relative to the package (``"analysis/modes.py"``), whose text is part of
     the key; ``geometry``: the :class:`~skewpend.Parameters` it was derived for."""
-    from .kernels import _atomic_text, cache_dir
+    from .kernels import cache_dir, write_text_atomically
 
     folder = cache_dir() / "python"
     path = folder / f"{name}_{_key(name, caller, geometry)}.py"
@@ -81,7 +81,7 @@ def cached_lambdify(name: str, caller: str, geometry, build: Callable[[], Tuple[
     source = inspect.getsource(fn)
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        _atomic_text(path, source)  # a temporary file made exclusively (never a planted link), then renamed
+        write_text_atomically(path, source)  # a temporary file made exclusively (never a planted link), then renamed
     except OSError:
         pass  # an unwritable cache: this process keeps its function
     return fn
