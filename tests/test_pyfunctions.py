@@ -64,6 +64,25 @@ def test_cached_functions_are_the_printed_ones(empty_cache):
     assert np.allclose(C, np.diag([0.02, 0.05]), rtol=0, atol=1e-15)
 
 
+def test_friction_and_rotor_terms_read_back_the_same(empty_cache):
+    """The optional terms (Coulomb friction's atan, the rotor) print other NumPy functions: read back,
+    the same bits; the linearised damping is c + cf cfs (the friction's slope at rest)."""
+    p = skewpend.Parameters(a=0.9, b=0.6, m1=1.3, m2=0.7, alpha=0.6, g=9.81, c1=0.02, c2=0.05, cf1=0.03, cf2=0.01,
+                            Ir=1e-4, gr=-6.0)
+    values = [0.0 if (n == "alpha" and not p.uses_alpha) else float(getattr(p, n)) for n in modes.SCALAR_NAMES]
+    geometry = modes._geometry(p)
+    first = [np.asarray(x) for x in modes._matrix_function(geometry)(*values)]
+    lin_first = equilibria.linearisation_functions(equilibria._geometry_only(p))(*values, 0.3, 0.2)
+    modes._matrix_function.cache_clear()
+    equilibria.linearisation_functions.cache_clear()
+    again = [np.asarray(x) for x in modes._matrix_function(geometry)(*values)]
+    lin_again = equilibria.linearisation_functions(equilibria._geometry_only(p))(*values, 0.3, 0.2)
+    assert all(np.array_equal(a, b) for a, b in zip(first, again))
+    assert repr(lin_first) == repr(lin_again)
+    C = again[1]
+    assert np.allclose(np.diag(C), [0.02 + 0.03 * p.cfs, 0.05 + 0.01 * p.cfs], rtol=1e-14, atol=0)
+
+
 def test_a_damaged_entry_is_made_again(empty_cache):
     p, values = _values()
     geometry = modes._geometry(p)
