@@ -21,17 +21,17 @@ import skewpend
 from skewpend.analysis import equilibria, modes
 
 
-def _fresh(module, tmp_path, monkeypatch):
-    monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path))
-    for f in (modes._matrix_function, equilibria.linearisation_functions, equilibria._direction_functions):
-        f.cache_clear()
+_CACHED = (modes._matrix_function, equilibria.linearisation_functions, equilibria._direction_functions)
 
 
 @pytest.fixture
 def empty_cache(tmp_path, monkeypatch):
-    _fresh(None, tmp_path, monkeypatch)
+    """An empty cache directory, and the functions' in-process caches cleared before and after."""
+    monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path))
+    for f in _CACHED:
+        f.cache_clear()
     yield tmp_path
-    for f in (modes._matrix_function, equilibria.linearisation_functions, equilibria._direction_functions):
+    for f in _CACHED:
         f.cache_clear()
 
 
@@ -50,7 +50,7 @@ def test_cached_functions_are_the_printed_ones(empty_cache):
     dir_first = equilibria._direction_functions(equilibria._geometry_only(p))(*values, 0.4, -1.1)
     files = sorted(x.name.split("_")[0] for x in (empty_cache / "python").glob("*.py"))
     assert files == ["directions", "linear", "linearisation"]
-    for f in (modes._matrix_function, equilibria.linearisation_functions, equilibria._direction_functions):
+    for f in _CACHED:
         f.cache_clear()
     again = [np.asarray(x) for x in modes._matrix_function(geometry)(*values)]
     lin_again = equilibria.linearisation_functions(equilibria._geometry_only(p))(*values, 0.4, -1.1)
