@@ -94,6 +94,22 @@ static inline double taylor_step(double scale, double d1, double d2, double e1, 
     return exp(lrho) * fac;
 }
 
+/* What both drivers do on entry: the prepared constants, the step rule's constants, and on a run's first
+ * call (*first set to 1, else 0) its order and work flag; returns 0, or SP_STATUS_NONFINITE for a start
+ * that is not finite. */
+static int taylor_enter(sp_taylor_state *s, const double *p, double rtol, double atol, double *pc, double *fac,
+                        double *floor_scale, double *e1, double *e2, int *first)
+{
+    taylor_prepare(p, pc);
+    taylor_step_rule(SP_TORDER, rtol, atol, fac, floor_scale, e1, e2);
+    *first = !s->started;
+    if (s->started) return 0;
+    s->started = 1;
+    s->order = SP_TORDER;
+    s->work = taylor_work(p);
+    return all_finite(s->y, SP_TN) ? 0 : SP_STATUS_NONFINITE;
+}
+
 /* max_i |x_i[0]|, |x_i[order - 1]|, |x_i[order]| over the first n components: as fmax from 0 (a NaN
  * skipped), written as comparisons (fmax is a library call without -ffinite-math-only) */
 static inline void taylor_norms(const double (*x)[SP_TPMAX + 2], int order, int n, double *big, double *d1, double *d2)
@@ -119,17 +135,11 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
     int64_t m = 0, done = 0;
     *m_out = 0;
     if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0)) return SP_CALL_BAD_ARGUMENTS;
-    taylor_prepare(p, pc);
     const int order = SP_TORDER;
     double fac, floor_scale, e1, e2;
-    taylor_step_rule(order, rtol, atol, &fac, &floor_scale, &e1, &e2);
-    if (!s->started) {
-        s->started = 1;
-        s->order = order;
-        s->work = taylor_work(p);
-        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
-        if (!dense) put_row(rows, m++, n, s->t, s->y);
-    }
+    int first;
+    if (taylor_enter(s, p, rtol, atol, pc, &fac, &floor_scale, &e1, &e2, &first)) return SP_STATUS_NONFINITE;
+    if (first && !dense) put_row(rows, m++, n, s->t, s->y);
     const int nc = s->work ? n : n - 1; /* W is left out of the norms when it is not integrated */
     for (;;) {
         if (dense) {
@@ -220,15 +230,11 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
         memcpy(s->y, y0, 4 * sizeof(double));
         memset(acc, 0, 4 * sizeof(double));
     }
-    taylor_prepare(p, pc);
     const int order = SP_TORDER;
     double fac, floor_scale, e1, e2;
-    taylor_step_rule(order, rtol, atol, &fac, &floor_scale, &e1, &e2);
-    if (!s->started) {
-        s->started = 1;
-        s->order = order;
-        s->work = taylor_work(p);
-        if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
+    int first;
+    if (taylor_enter(s, p, rtol, atol, pc, &fac, &floor_scale, &e1, &e2, &first)) return SP_STATUS_NONFINITE;
+    if (first) {
         put_row(rows, m++, n, s->t, s->y);
         pending = 1;
     }
