@@ -28,7 +28,7 @@ import threading
 import time
 import warnings
 from pathlib import Path
-from typing import Dict, Optional
+from typing import Dict, Optional, Tuple
 
 from .. import __version__
 from ..errors import SkewpendError
@@ -50,6 +50,8 @@ __all__ = ["ControlStruct",
     "taylor_kernel",
     "source_library",
     "taylor_order",
+    "taylor_rule",
+    "TAYLOR_L_BANDS",
     "CompilerError",
     "find_compiler",
     "LIB_SUFFIX",
@@ -125,11 +127,32 @@ class State(ctypes.Structure):
 SP_TN, SP_TPMAX = 5, 32
 
 
+#: The step factor's exponent L of the Taylor rule by tolerance band (:func:`taylor_rule`): (the
+#: smallest rtol of the band, L).  Jorba & Zou's (and heyoka's) L = 2 is the optimum when a step's cost
+#: grows as p^2 (the series products); skewpend's generated series cost nearly linearly in p up to order
+#: 16 (the fixed parts of a step -- sincos, the step rule, the polynomial, the row -- weigh as much as
+#: the products), where larger steps at a higher order cost less for the same error: measured over
+#: five motions (chaotic, regular, skewed, spinning; docs/benchmarks.md), L = 1.5 down to 1e-9
+#: (orders <= 15) and 1.75 down to 1e-11 (orders 13-16) took 0.71x heyoka's time at equal error on
+#: average, against 0.77x with L = 2 throughout.
+TAYLOR_L_BANDS = ((1e-9, 1.5), (1e-11, 1.75), (0.0, 2.0))
+
+
+def taylor_rule(rtol: float) -> Tuple[int, float]:
+    """The Taylor method's order p and step exponent L for a relative tolerance: L from
+    :data:`TAYLOR_L_BANDS`, ``p = ceil(-ln(rtol) / L) + 1`` (at least 2, at most ``SP_TPMAX``); the
+    step is ``rho exp(-L) exp(-0.7 / (p - 1))`` (``taylor.c``), so that the series' last terms
+    estimate a local error of ``exp(-L (p - 1)) <= rtol`` (relative to max(1, |y|)).  Here, not in
+    :mod:`~skewpend.numeric.taylor_source`, so that a run from cached kernels does not import SymPy."""
+    for lowest, L in TAYLOR_L_BANDS:
+        if rtol >= lowest:
+            break
+    return min(max(int(math.ceil(-math.log(rtol) / L)) + 1, 2), SP_TPMAX), L
+
+
 def taylor_order(rtol: float) -> int:
-    """The Taylor order for a relative tolerance: Jorba & Zou's ``ceil(-ln(rtol) / 2) + 1``, at
-    least 2 and at most ``SP_TPMAX`` (here, not in :mod:`~skewpend.numeric.taylor_source`, so that
-    a run from cached kernels does not import SymPy)."""
-    return min(max(int(math.ceil(-math.log(rtol) / 2.0)) + 1, 2), SP_TPMAX)
+    """The Taylor order for a relative tolerance (:func:`taylor_rule`'s p)."""
+    return taylor_rule(rtol)[0]
 
 
 class TaylorState(ctypes.Structure):
@@ -665,7 +688,7 @@ class TaylorKernel:
         i64, d = ctypes.c_int64, ctypes.c_double
         vp, ip = ctypes.c_void_p, ctypes.POINTER(i64)
         # pointers as addresses (c_void_p): the fastest call ctypes makes
-        lib.sp_taylor.argtypes = [vp, vp, d, d, d, i64, i64, d, i64, ip, vp, i64, ip]
+        lib.sp_taylor.argtypes = [vp, vp, d, d, d, d, i64, i64, d, i64, ip, vp, i64, ip]
         lib.sp_taylor.restype = ctypes.c_int
         lib.sp_taylor_state_size.argtypes, lib.sp_taylor_state_size.restype = [], i64
         if lib.sp_taylor_state_size() != ctypes.sizeof(TaylorState):

@@ -402,15 +402,19 @@ def simulate(
     fixed-step methods ``dt_out`` must be a multiple of ``dt``).
 
     ``"taylor"`` is an adaptive Taylor series method (Jorba & Zou's order and step rule, as
-    heyoka's ``taylor_adaptive``): order ``p = ceil(-ln(rtol)/2) + 1`` (6 at 1e-4, 13 at
-    1e-10, 19 at 1e-15), step ``h = rho exp(-2) exp(-0.7/(p-1))`` with ``rho = min over m = p-1, p
-    of (s / max_i |y_i[m]|)^(1/m)``, ``y_i[m]`` the Taylor coefficients and
-    ``s = max(atol/rtol, max_i |y_i|)``.  With ``rtol = atol = tol`` this is heyoka's rule for
-    its ``tol`` (absolute error control while the state's largest component is below 1,
-    relative above); ``atol`` enters only through that floor of the scale.  Every step is
-    accepted (``stats["rejected"]`` is 0; ``stats["nfev"]`` counts series evaluations, one per
-    step; ``stats["order"]`` is ``p``); dense output evaluates the step's polynomial.  The
-    coefficient recurrences are generated from the derivation (Coulomb friction's ``atan``
+    heyoka's ``taylor_adaptive``, with skewpend's step factor): order ``p = ceil(-ln(rtol)/L) + 1``,
+    step ``h = rho exp(-L) exp(-0.7/(p-1))`` with ``rho = min over m = p-1, p of
+    (s / max_i |y_i[m]|)^(1/m)``, ``y_i[m]`` the Taylor coefficients and ``s = max(atol/rtol,
+    max_i |y_i|)``: the series' last terms estimate a local error ``exp(-L (p-1)) <= rtol``.  heyoka
+    takes ``L = 2`` (the optimum when a step's cost grows as ``p^2``); skewpend's steps cost nearly
+    linearly in ``p`` up to order 16, so it takes larger steps at a higher order there: ``L = 1.5``
+    for ``rtol >= 1e-9``, ``1.75`` down to ``1e-11``, ``2`` below (orders 8 at 1e-4, 15 at 1e-9
+    and at 1e-10, 19 at 1e-15; :func:`skewpend.numeric.kernels.taylor_rule`).  With
+    ``rtol = atol = tol`` the scale is heyoka's for its ``tol`` (absolute error control while the
+    state's largest component is below 1, relative above); ``atol`` enters only through that floor
+    of the scale.  Every step is accepted (``stats["rejected"]`` is 0; ``stats["nfev"]`` counts
+    series evaluations, one per step; ``stats["order"]`` is ``p``, ``stats["step_exponent"]`` is
+    ``L``); dense output evaluates the step's polynomial.  The coefficient recurrences are generated from the derivation (Coulomb friction's ``atan``
     included), each order a small library compiled on its first use; it takes no ``controller``.
     At its own steps (``dt_out=None``) the energies of the rows come from the series' order 0 (T + Pi
     generated with them, in one C call with the steps), equal to the model kernel's to rounding.
@@ -512,18 +516,20 @@ def simulate(
     tk: Any = None
     if method == "taylor":
         assert rtol is not None  # an adaptive method's tolerances are set above
-        tk = entry.taylor_tol.get(rtol)
-        if tk is None:
-            order = K.taylor_order(rtol)
+        rule = entry.taylor_tol.get(rtol)
+        if rule is None:
+            order, step_l = K.taylor_rule(rtol)
             tk = entry.taylor.get(order)
-        if tk is None:
-            try:
-                tk = K.taylor_kernel(params, order, model=kernel)
-            except ValueError as exc:  # a function in the equations without a series recurrence
-                raise ParameterError(f"method taylor: {exc}; use dop853") from None
-            entry.taylor[order] = tk
-        if len(entry.taylor_tol) < 64:
-            entry.taylor_tol[rtol] = tk
+            if tk is None:
+                try:
+                    tk = K.taylor_kernel(params, order, model=kernel)
+                except ValueError as exc:  # a function in the equations without a series recurrence
+                    raise ParameterError(f"method taylor: {exc}; use dop853") from None
+                entry.taylor[order] = tk
+            if len(entry.taylor_tol) < 64:
+                entry.taylor_tol[rtol] = (tk, step_l)
+        else:
+            tk, step_l = rule
     state: Any
     if method == "taylor" and dt_out is None:
         # the integrator's own steps: sp_taylor_rows (each row's energy and the account in C, the state
@@ -536,14 +542,14 @@ def simulate(
         m = buf.m
         budget = min(2000, max(10, max_steps // 20))
         start = time.perf_counter()
-        code = rows_fn(s_addr, buf.y0_addr, p_addr, t_end, rtol, atol, max_steps, budget, rows_addr, _CHUNK_ROWS, e_addr,
-                       acc_addr, buf.m_ref)
+        code = rows_fn(s_addr, buf.y0_addr, p_addr, t_end, rtol, atol, step_l, max_steps, budget, rows_addr, _CHUNK_ROWS,
+                       e_addr, acc_addr, buf.m_ref)
         k = m.value
         if code == Status.NONFINITE or not (k and math.isfinite(ebuf[0])):
             _check_start(kernel, entry, y)  # an initial state that overflows: refused, as before any run
         if code >= 0 and keep and out is None:
             wall = time.perf_counter() - start
-            traj = _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code, wall, kernel, tk)
+            traj = _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code, wall, kernel, tk, step_l)
             _TAYLOR_BUFFERS.append(buf)
             if progress is not None:
                 progress(state.t, t_end)
@@ -586,18 +592,18 @@ def _rows_fn(tk):
     """``sp_taylor_rows`` of a Taylor library (taylor.c), its prototype set once."""
     vp, d, i64 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int64
     fn = tk.lib.sp_taylor_rows
-    fn.argtypes = [vp, vp, vp, d, d, d, i64, i64, vp, i64, vp, vp, vp]
+    fn.argtypes = [vp, vp, vp, d, d, d, d, i64, i64, vp, i64, vp, vp, vp]
     fn.restype = ctypes.c_int
     tk.rows_fn = fn
     return fn
 
 
-def _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code, wall, kernel, tk) -> "Trajectory":
+def _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code, wall, kernel, tk, step_l) -> "Trajectory":
     """The trajectory of a Taylor run done in one call: its ``k`` rows and energies copied out."""
     status = Status.of(code)
     stats = {"nfev": state.nfev, "steps": state.naccept, "rejected": state.nreject, "wall_time": wall,
              "kernel": kernel.origin, "kernel_build_time": kernel.build_time, "compiler": kernel.compiler, "rows": k,
-             "order": state.order}
+             "order": state.order, "step_exponent": step_l}
     if tk.origin == "compiled":
         stats["kernel"] = "compiled"
         stats["kernel_build_time"] = kernel.build_time + tk.build_time
@@ -638,6 +644,7 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
     cref = None if cstruct is None else ctypes.byref(cstruct)
 
     k_out = ctypes.c_int64(0)
+    step_l = K.taylor_rule(rtol)[1] if method == "taylor" else 0.0
     if first is not None:  # the Taylor integrator's steps, with their energies (sp_taylor_rows)
         buf = first[0]
         rows, m, ebuf = buf.rows, buf.m, buf.energy
@@ -645,8 +652,8 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
                                                                  buf.e_addr, buf.acc_addr)
 
         def call(budget: int) -> int:
-            return rows_fn(s_addr, None, p_addr, t_end, rtol, atol, max_steps, budget, rows_addr, _CHUNK_ROWS, e_addr,
-                           acc_addr, buf.m_ref)
+            return rows_fn(s_addr, None, p_addr, t_end, rtol, atol, step_l, max_steps, budget, rows_addr, _CHUNK_ROWS,
+                           e_addr, acc_addr, buf.m_ref)
     else:
         rows = np.empty((_CHUNK_ROWS, n + 1))
         m = ctypes.c_int64(0)
@@ -658,8 +665,8 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
         m_ref, k_ref, dense_dt = ctypes.byref(m), ctypes.byref(k_out), dt_out or 0.0
 
         def call(budget: int) -> int:
-            return taylor_fn(s_addr, p_addr, t_end, rtol, atol, max_steps, budget, dense_dt, n_grid, k_ref, rows_addr,
-                             _CHUNK_ROWS, m_ref)
+            return taylor_fn(s_addr, p_addr, t_end, rtol, atol, step_l, max_steps, budget, dense_dt, n_grid, k_ref,
+                             rows_addr, _CHUNK_ROWS, m_ref)
     else:
         rows_ptr, p_ptr = rows.ctypes.data_as(_DP), entry.p_ptr
         sref = ctypes.byref(state)
@@ -749,7 +756,7 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
             "rows": acc.rows,
         }
         if method == "taylor":
-            stats["order"] = int(state.order)
+            stats["order"], stats["step_exponent"] = int(state.order), step_l
             if tk.origin == "compiled":  # this process built the Taylor library of this order
                 stats["kernel"] = "compiled"
                 stats["kernel_build_time"] = kernel.build_time + tk.build_time

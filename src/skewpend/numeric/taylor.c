@@ -6,8 +6,9 @@
  * the Taylor coefficients x[i][1 .. p] of the solution through x[i][0] (and, e_out not NULL, the energy
  * T + Pi at x[.][0] into *e_out).
  *
- * Order and step as Jorba & Zou (2005) and heyoka: the caller picks p = ceil(-ln(rtol) / 2) + 1;
- * step h = rho exp(-2) exp(-0.7 / (p - 1)), rho = min over m = p - 1, p of (scale / max_i |x_i[m]|)^(1/m),
+ * Order and step as Jorba & Zou (2005) and heyoka, with the step factor's exponent L a parameter: the
+ * caller picks L and p = ceil(-ln(rtol) / L) + 1 (kernels.taylor_rule; heyoka: L = 2); step
+ * h = rho exp(-L) exp(-0.7 / (p - 1)), rho = min over m = p - 1, p of (scale / max_i |x_i[m]|)^(1/m),
  * scale = max(atol / rtol, max_i |x_i[0]|) (heyoka's absolute / relative switch when atol = rtol).
  * Every step is accepted; the new state is the polynomial at h (Horner).  Dense output evaluates
  * the last step's polynomial.  Same resumable contract, rows and return codes as sp_dop853
@@ -55,12 +56,12 @@ static inline void taylor_eval_step(const double (*jet)[SP_TPMAX + 2], int n, do
     if (n > 4) taylor_eval(jet + 4, SP_TORDER, n - 4, h, out + 4);
 }
 
-/* the step rule's constants (Jorba and Zou, as heyoka): the safety factor, the floor of the norm
- * (atol / rtol) and the exponents 1/(order - 1), 1/order */
-static inline void taylor_step_rule(int order, double rtol, double atol, double *fac, double *floor_scale, double *e1,
-                                    double *e2)
+/* the step rule's constants (Jorba and Zou, as heyoka, whose L is 2): the safety factor, the floor of the
+ * norm (atol / rtol) and the exponents 1/(order - 1), 1/order */
+static inline void taylor_step_rule(int order, double rtol, double atol, double L, double *fac, double *floor_scale,
+                                    double *e1, double *e2)
 {
-    *fac = exp(-2.0) * exp(-0.7 / (double)(order - 1));
+    *fac = exp(-L) * exp(-0.7 / (double)(order - 1));
     *floor_scale = atol / rtol;
     *e1 = 1.0 / (double)(order - 1);
     *e2 = 1.0 / (double)order;
@@ -97,11 +98,11 @@ static inline double taylor_step(double scale, double d1, double d2, double e1, 
 /* What both drivers do on entry: the prepared constants, the step rule's constants, and on a run's first
  * call (*first set to 1, else 0) its order and work flag; returns 0, or SP_STATUS_NONFINITE for a start
  * that is not finite. */
-static int taylor_enter(sp_taylor_state *s, const double *p, double rtol, double atol, double *pc, double *fac,
-                        double *floor_scale, double *e1, double *e2, int *first)
+static int taylor_enter(sp_taylor_state *s, const double *p, double rtol, double atol, double L, double *pc,
+                        double *fac, double *floor_scale, double *e1, double *e2, int *first)
 {
     taylor_prepare(p, pc);
-    taylor_step_rule(SP_TORDER, rtol, atol, fac, floor_scale, e1, e2);
+    taylor_step_rule(SP_TORDER, rtol, atol, L, fac, floor_scale, e1, e2);
     *first = !s->started;
     if (s->started) return 0;
     s->started = 1;
@@ -126,7 +127,7 @@ static inline void taylor_norms(const double (*x)[SP_TPMAX + 2], int order, int 
     *d2 = e2;
 }
 
-int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
+int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, double atol, double L, int64_t max_steps,
               int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
               int64_t *m_out)
 {
@@ -134,11 +135,11 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
     double pc[SP_TAYLOR_NPC], x[SP_TN][SP_TPMAX + 2], ynew[SP_TN];
     int64_t m = 0, done = 0;
     *m_out = 0;
-    if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0)) return SP_CALL_BAD_ARGUMENTS;
+    if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0) || !(L > 0.0 && L < 64.0)) return SP_CALL_BAD_ARGUMENTS;
     const int order = SP_TORDER;
     double fac, floor_scale, e1, e2;
     int first;
-    if (taylor_enter(s, p, rtol, atol, pc, &fac, &floor_scale, &e1, &e2, &first)) return SP_STATUS_NONFINITE;
+    if (taylor_enter(s, p, rtol, atol, L, pc, &fac, &floor_scale, &e1, &e2, &first)) return SP_STATUS_NONFINITE;
     if (first && !dense) put_row(rows, m++, n, s->t, s->y);
     const int nc = s->work ? n : n - 1; /* W is left out of the norms when it is not integrated */
     for (;;) {
@@ -216,7 +217,7 @@ static void taylor_account(const double *rows, const double *e, int64_t m0, int6
  * starts here, from t = 0, y = (y0[0..3], W = 0) (the state and acc are reset).  The same steps, rows
  * and codes as sp_taylor. */
 int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double t_end, double rtol, double atol,
-                   int64_t max_steps, int64_t budget, double *rows, int64_t cap, double *e, double *acc,
+                   double L, int64_t max_steps, int64_t budget, double *rows, int64_t cap, double *e, double *acc,
                    int64_t *m_out)
 {
     const int n = SP_TN;
@@ -224,7 +225,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
     int64_t m = 0, done = 0;
     int code, pending = 0; /* pending: row m - 1 is the current state, its energy not yet known */
     *m_out = 0;
-    if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0)) return SP_CALL_BAD_ARGUMENTS;
+    if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0) || !(L > 0.0 && L < 64.0)) return SP_CALL_BAD_ARGUMENTS;
     if (y0) {
         memset(s, 0, sizeof *s);
         memcpy(s->y, y0, 4 * sizeof(double));
@@ -233,7 +234,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
     const int order = SP_TORDER;
     double fac, floor_scale, e1, e2;
     int first;
-    if (taylor_enter(s, p, rtol, atol, pc, &fac, &floor_scale, &e1, &e2, &first)) return SP_STATUS_NONFINITE;
+    if (taylor_enter(s, p, rtol, atol, L, pc, &fac, &floor_scale, &e1, &e2, &first)) return SP_STATUS_NONFINITE;
     if (first) {
         put_row(rows, m++, n, s->t, s->y);
         pending = 1;
