@@ -220,13 +220,14 @@ def test_step_rows_carry_the_model_energy_and_do_not_depend_on_the_chunking():
 
     def run(budget, cap):
         s, m = TaylorState(), ctypes.c_int64(0)
-        rows, e, acc = np.empty((cap, 6)), np.empty(cap), np.zeros(4)
+        cols, e, acc = np.empty(6 * cap), np.empty(cap), np.zeros(4)  # t, y (cap x 4), W as columns
         out, first = [], True
         while True:
             rc = fn(ctypes.addressof(s), ctypes.addressof(y0) if first else None, p.ctypes.data, 3.0, 1e-10, 1e-10,
-                    step_l, 10**6, budget, rows.ctypes.data, cap, e.ctypes.data, acc.ctypes.data, ctypes.byref(m))
+                    step_l, 10**6, budget, cols.ctypes.data, cap, e.ctypes.data, acc.ctypes.data, ctypes.byref(m))
             first = False
-            out.append(np.column_stack([rows[: m.value], e[: m.value]]))
+            k = m.value
+            out.append(np.column_stack([cols[:k], cols[cap:5 * cap].reshape(cap, 4)[:k], cols[5 * cap:][:k], e[:k]]))
             if rc >= 0:
                 return rc, np.concatenate(out), acc
 

@@ -536,20 +536,20 @@ def simulate(
         # reset from y there), buffers from a pool; a run done in its first call returns at once
         buf = _TAYLOR_BUFFERS.pop() if _TAYLOR_BUFFERS else _TaylorBuffers(K)
         rows_fn = tk.__dict__.get("rows_fn") or _rows_fn(tk)
-        state, rows, ebuf, acc_arr = buf.state, buf.rows, buf.energy, buf.acc
+        state, ebuf, acc_arr = buf.state, buf.energy, buf.acc
         buf.y0[0], buf.y0[1], buf.y0[2], buf.y0[3] = y
-        rows_addr, e_addr, acc_addr, s_addr, p_addr = buf.rows_addr, buf.e_addr, buf.acc_addr, buf.s_addr, entry.p_addr
+        cols_addr, e_addr, acc_addr, s_addr, p_addr = buf.cols_addr, buf.e_addr, buf.acc_addr, buf.s_addr, entry.p_addr
         m = buf.m
         budget = min(2000, max(10, max_steps // 20))
         start = time.perf_counter()
-        code = rows_fn(s_addr, buf.y0_addr, p_addr, t_end, rtol, atol, step_l, max_steps, budget, rows_addr, _CHUNK_ROWS,
+        code = rows_fn(s_addr, buf.y0_addr, p_addr, t_end, rtol, atol, step_l, max_steps, budget, cols_addr, _CHUNK_ROWS,
                        e_addr, acc_addr, buf.m_ref)
         k = m.value
         if code == Status.NONFINITE or not (k and math.isfinite(ebuf[0])):
             _check_start(kernel, entry, y)  # an initial state that overflows: refused, as before any run
         if code >= 0 and keep and out is None:
             wall = time.perf_counter() - start
-            traj = _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code, wall, kernel, tk, step_l)
+            traj = _taylor_result(params, method, settings, buf, k, code, wall, kernel, tk, step_l)
             _TAYLOR_BUFFERS.append(buf)
             if progress is not None:
                 progress(state.t, t_end)
@@ -567,22 +567,32 @@ def simulate(
 
 class _TaylorBuffers:
     """One Taylor run's state, row and energy buffers and their addresses, kept in a pool between
-    runs (nothing of a returned trajectory refers to them: its columns are copies)."""
+    runs (nothing of a returned trajectory refers to them: its columns are copies).  The rows come as
+    columns (``sp_taylor_rows``' layout): ``t`` (cap,), ``y`` (cap, 4), ``w`` (cap,), views of ``cols``."""
 
-    __slots__ = ("state", "rows", "energy", "acc", "y0", "m", "m_ref", "s_addr", "rows_addr", "e_addr", "acc_addr",
-                 "y0_addr")
+    __slots__ = ("state", "cols", "t", "y", "w", "energy", "acc", "y0", "m", "m_ref", "s_addr", "cols_addr", "e_addr",
+                 "acc_addr", "y0_addr")
 
     def __init__(self, K):
+        cap = _CHUNK_ROWS
         self.state = K.TaylorState()
-        self.rows = np.empty((_CHUNK_ROWS, 6))
-        self.energy = np.empty(_CHUNK_ROWS)
+        self.cols = np.empty(6 * cap)
+        self.t, self.y, self.w = self.cols[:cap], self.cols[cap:5 * cap].reshape(cap, 4), self.cols[5 * cap:]
+        self.energy = np.empty(cap)
         self.acc = np.zeros(4)
         self.y0 = (ctypes.c_double * 4)()
         self.m = ctypes.c_int64(0)
         self.m_ref = ctypes.byref(self.m)
         self.s_addr, self.y0_addr = ctypes.addressof(self.state), ctypes.addressof(self.y0)
-        self.rows_addr, self.e_addr, self.acc_addr = self.rows.ctypes.data, self.energy.ctypes.data, self.acc.ctypes.data
+        self.cols_addr, self.e_addr, self.acc_addr = self.cols.ctypes.data, self.energy.ctypes.data, self.acc.ctypes.data
 
+    def rows(self, m: int) -> np.ndarray:
+        """The first ``m`` rows as (m, 6): t, the state, W (for the general path's accumulator)."""
+        return np.column_stack((self.t[:m], self.y[:m], self.w[:m]))
+
+
+#: Status by code (Status.of without its checks, for the quick path).
+_STATUS_OF: Dict[int, Status] = {int(v): v for v in Status}
 
 #: Taylor buffers not in use (a list: pop and append are atomic, so threads never share one).
 _TAYLOR_BUFFERS: List[_TaylorBuffers] = []
@@ -598,9 +608,13 @@ def _rows_fn(tk):
     return fn
 
 
-def _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code, wall, kernel, tk, step_l) -> "Trajectory":
-    """The trajectory of a Taylor run done in one call: its ``k`` rows and energies copied out."""
-    status = Status.of(code)
+def _taylor_result(params, method, settings, buf, k, code, wall, kernel, tk, step_l) -> "Trajectory":
+    """The trajectory of a Taylor run done in one call: its ``k`` rows and energies copied out (each
+    column in one piece)."""
+    status = _STATUS_OF.get(code)
+    if status is None:
+        status = Status.of(code)
+    state, acc_arr = buf.state, buf.acc
     stats = {"nfev": state.nfev, "steps": state.naccept, "rejected": state.nreject, "wall_time": wall,
              "kernel": kernel.origin, "kernel_build_time": kernel.build_time, "compiler": kernel.compiler, "rows": k,
              "order": state.order, "step_exponent": step_l}
@@ -608,11 +622,10 @@ def _taylor_result(params, method, settings, state, rows, ebuf, acc_arr, k, code
         stats["kernel"] = "compiled"
         stats["kernel_build_time"] = kernel.build_time + tk.build_time
     err, scale = float(acc_arr[0]), float(acc_arr[1])
-    block = rows[:k]
     # every field set at once (what the dataclass's __init__ does one object.__setattr__ at a time,
     # and __post_init__'s Status: status is one already): test_taylor checks the fields are all here
     traj = object.__new__(Trajectory)
-    traj.__dict__.update(t=block[:, 0].copy(), y=block[:, 1:5].copy(), energy=ebuf[:k].copy(), work=block[:, 5].copy(),
+    traj.__dict__.update(t=buf.t[:k].copy(), y=buf.y[:k].copy(), energy=buf.energy[:k].copy(), work=buf.w[:k].copy(),
                          params=params, method=method, settings=settings, stats=stats, status=status,
                          message=status.message, energy_drift=err / scale if scale > 0 else err, kept=True,
                          _kernel=kernel, controller=None)
@@ -647,12 +660,12 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
     step_l = K.taylor_rule(rtol)[1] if method == "taylor" else 0.0
     if first is not None:  # the Taylor integrator's steps, with their energies (sp_taylor_rows)
         buf = first[0]
-        rows, m, ebuf = buf.rows, buf.m, buf.energy
-        rows_fn, s_addr, p_addr, rows_addr, e_addr, acc_addr = (tk.rows_fn, buf.s_addr, entry.p_addr, buf.rows_addr,
+        m, ebuf = buf.m, buf.energy
+        rows_fn, s_addr, p_addr, cols_addr, e_addr, acc_addr = (tk.rows_fn, buf.s_addr, entry.p_addr, buf.cols_addr,
                                                                  buf.e_addr, buf.acc_addr)
 
         def call(budget: int) -> int:
-            return rows_fn(s_addr, None, p_addr, t_end, rtol, atol, step_l, max_steps, budget, rows_addr, _CHUNK_ROWS,
+            return rows_fn(s_addr, None, p_addr, t_end, rtol, atol, step_l, max_steps, budget, cols_addr, _CHUNK_ROWS,
                            e_addr, acc_addr, buf.m_ref)
     else:
         rows = np.empty((_CHUNK_ROWS, n + 1))
@@ -696,7 +709,7 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
 
         def take(final: bool = False) -> None:
             if first is not None:
-                acc.add_accounted(rows[: m.value], ebuf[: m.value], final)
+                acc.add_accounted(buf.rows(m.value), ebuf[: m.value], final)
             elif m.value:
                 chunk = rows[: m.value, :6]
                 if method == "gauss":

@@ -195,29 +195,43 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
     }
 }
 
-/* The account of rows m0 .. m - 1 (their energies in e[]): as sp_energy_account in the model's kernel
- * (acc[0] = max |E - W - E0|, acc[1] = max |E|, E0 = acc[2] from the first row ever, acc[3] = 1 then). */
-static void taylor_account(const double *rows, const double *e, int64_t m0, int64_t m, double *acc)
+/* The account of rows m0 .. m - 1 (their energies in e[], their works in w[]): as sp_energy_account in
+ * the model's kernel (acc[0] = max |E - W - E0|, acc[1] = max |E|, E0 = acc[2] from the first row ever,
+ * acc[3] = 1 then). */
+static void taylor_account(const double *w, const double *e, int64_t m0, int64_t m, double *acc)
 {
     for (int64_t r = m0; r < m; r++) {
-        const double en = e[r], w = rows[r * (SP_TN + 1) + SP_TN];
+        const double en = e[r], wr = w[r];
         if (acc[3] == 0.0) {
             acc[2] = en;
             acc[3] = 1.0;
         }
-        const double d = fabs((en - w) - acc[2]);
+        const double d = fabs((en - wr) - acc[2]);
         if (d > acc[0] || d != d) acc[0] = d;
         if (fabs(en) > acc[1] || en != en) acc[1] = fabs(en);
     }
 }
 
-/* sp_taylor at the integrator's own steps (dt_out = 0), with each row's energy T + Pi into e[row] (from
- * the order 0 of the next step's series: the sines and cosines shared; the last row's by one more
- * series evaluation) and the rows' energy account into acc[4] (taylor_account).  y0 not NULL: the run
- * starts here, from t = 0, y = (y0[0..3], W = 0) (the state and acc are reset).  The same steps, rows
- * and codes as sp_taylor. */
+/* a row of sp_taylor_rows: the time, the state and W as columns (cols: t at [0, cap), the four state
+ * components at [cap, 5 cap) a row after another, W at [5 cap, 6 cap)) */
+static inline void put_cols(double *cols, int64_t cap, int64_t m, double t, const double *y)
+{
+    double *yr = cols + cap + 4 * m;
+    cols[m] = t;
+    yr[0] = y[0];
+    yr[1] = y[1];
+    yr[2] = y[2];
+    yr[3] = y[3];
+    cols[5 * cap + m] = y[4];
+}
+
+/* sp_taylor at the integrator's own steps (dt_out = 0), the rows as columns into cols (put_cols: the
+ * caller copies each out in one piece), each row's energy T + Pi into e[row] (from the order 0 of the
+ * next step's series: the sines and cosines shared; the last row's by one more series evaluation) and
+ * the rows' energy account into acc[4] (taylor_account).  y0 not NULL: the run starts here, from t = 0,
+ * y = (y0[0..3], W = 0) (the state and acc are reset).  The same steps, rows and codes as sp_taylor. */
 int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double t_end, double rtol, double atol,
-                   double L, int64_t max_steps, int64_t budget, double *rows, int64_t cap, double *e, double *acc,
+                   double L, int64_t max_steps, int64_t budget, double *cols, int64_t cap, double *e, double *acc,
                    int64_t *m_out)
 {
     const int n = SP_TN;
@@ -236,7 +250,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
     int first;
     if (taylor_enter(s, p, rtol, atol, L, pc, &fac, &floor_scale, &e1, &e2, &first)) return SP_STATUS_NONFINITE;
     if (first) {
-        put_row(rows, m++, n, s->t, s->y);
+        put_cols(cols, cap, m++, s->t, s->y);
         pending = 1;
     }
     const int nc = s->work ? n : n - 1;
@@ -268,7 +282,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
         s->dense_ok = 0;
         s->t = last ? t_end : s->t + h;
         memcpy(s->y, ynew, (size_t)n * sizeof(double));
-        put_row(rows, m++, n, s->t, s->y);
+        put_cols(cols, cap, m++, s->t, s->y);
         pending = 1;
     }
     if (pending) { /* the last row's energy: one more series evaluation (its coefficients unused) */
@@ -277,7 +291,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
         taylor_jet(x, pc, s->work, &en);
         e[m - 1] = en;
     }
-    taylor_account(rows, e, 0, m, acc);
+    taylor_account(cols + 5 * cap, e, 0, m, acc);
     *m_out = m;
     return code;
 }
