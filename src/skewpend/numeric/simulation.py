@@ -536,7 +536,7 @@ def simulate(
         # reset from y there), buffers from a pool; a run done in its first call returns at once
         buf = _TAYLOR_BUFFERS.pop() if _TAYLOR_BUFFERS else _TaylorBuffers(K)
         rows_fn = tk.__dict__.get("rows_fn") or _rows_fn(tk)
-        state, ebuf, acc_arr = buf.state, buf.energy, buf.acc
+        state, ebuf = buf.state, buf.energy
         buf.y0[0], buf.y0[1], buf.y0[2], buf.y0[3] = y
         cols_addr, e_addr, acc_addr, s_addr, p_addr = buf.cols_addr, buf.e_addr, buf.acc_addr, buf.s_addr, entry.p_addr
         m = buf.m
