@@ -254,3 +254,22 @@ def test_a_trajectory_made_in_one_call_has_every_field():
     assert type(tr.status).__name__ == "Status" and tr.ok and tr.controller is None and tr.kept
     same = Trajectory(**vars(tr))
     assert same.status is tr.status and repr(same) == repr(tr)
+
+
+def test_the_rule_by_tolerance_band_and_the_summary_line():
+    """The order and step exponent follow kernels.taylor_rule (L = 1.5 to 1e-9, 1.75 to 1e-11, 2 below:
+    heyoka's rule there, so its orders), the run reports them, and the CLI's summary says them."""
+    from skewpend.cli.simulate import summary
+    from skewpend.numeric.kernels import taylor_rule
+
+    assert [taylor_rule(t) for t in (1e-4, 1e-9, 1e-10, 1e-12, 1e-15)] == [(8, 1.5), (15, 1.5), (15, 1.75), (15, 2.0),
+                                                                          (19, 2.0)]
+    for tol in (1e-12, 1e-14):  # heyoka.py's ceil(-ln(tol) / 2) + 1
+        assert taylor_rule(tol)[0] == math.ceil(-math.log(tol) / 2) + 1
+    for tol in (1e-6, 1e-9, 1e-12):  # the bound the series' last terms estimate: e^(-L (p - 1)) <= tol
+        p, L = taylor_rule(tol)
+        assert math.exp(-L * (p - 1)) <= tol < math.exp(-L * (p - 2))
+    tr = simulate(P, Y0, 1.0, method="taylor", rtol=1e-9, atol=1e-9)
+    assert (tr.stats["order"], tr.stats["step_exponent"]) == (15, 1.5)
+    assert "(order 15, step factor e^-1.5)" in summary(tr, None)
+    assert "order" not in summary(simulate(P, Y0, 1.0), None).split("steps")[1].split("\n")[0]

@@ -87,7 +87,8 @@ def summary(traj, out_path) -> str:
         f"final state   t={traj.t[-1]:.6g} s  phi={y[0]:.12g}  psi={y[1]:.12g}  dphi={y[2]:.12g}  dpsi={y[3]:.12g}",
         f"energy        E0={traj.energy[0]:.12g} J  E={traj.energy[-1]:.12g} J  work of Q={traj.work[-1]:.6g} J",
         f"energy drift  {traj.energy_drift:.3e} (max |E - W - E0| / max |E|)",
-        f"steps         {st['steps']} accepted, {st['rejected']} rejected, {st['nfev']} evaluations",
+        f"steps         {st['steps']} accepted, {st['rejected']} rejected, {st['nfev']} evaluations"
+        + (f" (order {st['order']}, step factor e^-{st['step_exponent']:g})" if "order" in st else ""),
         f"wall time     {st['wall_time'] * 1e3:.2f} ms (compiled integration)",
         f"kernel        {kernel}",
     ]
