@@ -414,8 +414,9 @@ def simulate(
     state's largest component is below 1, relative above); ``atol`` enters only through that floor
     of the scale.  Every step is accepted (``stats["rejected"]`` is 0; ``stats["nfev"]`` counts
     series evaluations, one per step; ``stats["order"]`` is ``p``, ``stats["step_exponent"]`` is
-    ``L``); dense output evaluates the step's polynomial.  The coefficient recurrences are generated from the derivation (Coulomb friction's ``atan``
-    included), each order a small library compiled on its first use; it takes no ``controller``.
+    ``L``); dense output evaluates the step's polynomial.  The coefficient recurrences are generated
+    from the derivation (Coulomb friction's ``atan`` included), each order a small library compiled
+    on its first use; it takes no ``controller``.
     At its own steps (``dt_out=None``) the energies of the rows come from the series' order 0 (T + Pi
     generated with them, in one C call with the steps), equal to the model kernel's to rounding.
 

@@ -127,9 +127,9 @@ static inline void taylor_norms(const double (*x)[SP_TPMAX + 2], int order, int 
     *d2 = e2;
 }
 
-int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, double atol, double L, int64_t max_steps,
-              int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
-              int64_t *m_out)
+int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, double atol, double L,
+              int64_t max_steps, int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows,
+              int64_t cap, int64_t *m_out)
 {
     const int n = SP_TN, dense = dt_out > 0.0;
     double pc[SP_TAYLOR_NPC], x[SP_TN][SP_TPMAX + 2], ynew[SP_TN];
