@@ -26,6 +26,7 @@ Run:  python benchmarks/bench_taylor_rule.py [--repeat 9]
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -73,7 +74,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=9, help="interleaved rounds (median)")
     args = ap.parse_args()
-    hy = heyoka_header(1, sympy=True)
+    hy = heyoka_header(len(os.sched_getaffinity(0)), sympy=True)
     if hy is None:
         sys.exit("heyoka.py is not installed (pip install heyoka): nothing to compare with")
     from skewpend import Parameters, derive, simulate
@@ -152,7 +153,7 @@ def main():
         allr = [r for _, line in rows for r in line[who] if r is not None]
         print(f"all motions, {who:14s}: max {max(allr):.2f}, median {statistics.median(allr):.2f}, "
               f"mean {statistics.fmean(allr):.2f} ({len(allr)} errors)")
-    print(f"load avg    {' '.join(f'{x:.2f}' for x in __import__('os').getloadavg())} (1, 5, 15 min) at end")
+    print(f"load avg    {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min) at end")
 
 
 if __name__ == "__main__":
