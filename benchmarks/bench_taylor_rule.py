@@ -36,7 +36,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import heyoka_first_order, heyoka_header  # noqa: E402
-from bench_precision import front, reference_system, time_at  # noqa: E402
+from bench_precision import front, max_error, reference_system, time_at  # noqa: E402
 
 NAMES = ("phi", "psi", "dphi", "dpsi")
 RODS = dict(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
@@ -61,13 +61,6 @@ def reference(eom, y0, t):
     ta.propagate_until(hy.real128(t))
     with mpmath.workprec(200):
         return [mpmath.mpf(str(v)) for v in ta.state]
-
-
-def error(y, ref) -> float:
-    import mpmath
-
-    with mpmath.workprec(200):
-        return float(max(abs(mpmath.mpf(float(a)) - b) for a, b in zip(y, ref)))
 
 
 def main():
@@ -118,7 +111,7 @@ def main():
         err = {}
         for (who, tol) in methods:
             y = hey(tol, t_err) if who == "heyoka" else sk(who, tol, t_err)
-            err[who, tol] = error(y, ref)
+            err[who, tol] = max_error(y, ref)
         times = {k: [] for k in methods}
         order = [(w, tol) for tol in TOLS for w in ("skewpend", "heyoka's rule", "heyoka")]
         for key in order:
