@@ -153,3 +153,44 @@ def test_two_libraries_build_side_by_side_and_one_library_once(tmp_path):
     assert r.stdout.split() == ["compiled", "compiled"]
     names = sorted(x.name.split(".")[0] for x in marks.iterdir())
     assert names == ["start", "start"], names  # two builds, neither alone
+
+
+@pytest.mark.slow
+def test_taylor_bits_are_the_same_with_or_without_fma_hardware_and_with_either_compiler(tmp_path, monkeypatch):
+    """The Taylor kernels fuse each product with its addition by explicit ``fma`` calls (issue 28),
+    never by contraction: ``fma`` is correctly rounded, so the processor's instruction (-mfma), the C
+    library's routine (no flag: what a processor without the instruction runs) and the packaged zig cc
+    give the same bits -- checked here on a chaotic run, where any difference in one rounding would
+    grow to the last digits."""
+    import ctypes
+
+    from skewpend import Parameters
+    from skewpend.numeric import simulation
+    from skewpend.numeric.taylor_source import taylor_c_source
+
+    P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+    order, step_l = K.taylor_rule(1e-9)
+    source = taylor_c_source(K.geometry_of(P), order)
+    p = K.parameter_vector(P)
+    fma = K.fma_flags()
+    system = K.find_compiler()
+    variants = [("system, no flag", system, ()), ("zig cc, no flag", list(K.packaged_compiler()), ())]
+    if fma:
+        variants += [("system, -mfma", system, fma), ("zig cc, -mfma", list(K.packaged_compiler()), fma)]
+    results = {}
+    for i, (name, cc, flags) in enumerate(variants):
+        monkeypatch.setenv("CC", " ".join(cc))
+        path = tmp_path / f"taylor{i}{K.LIB_SUFFIX}"
+        K._compile(source, path, flags)
+        fn = simulation._rows_fn(K.TaylorKernel(path, "compiled", 0.0, order))
+        s, m, cap = K.TaylorState(), ctypes.c_int64(0), 4096
+        cols, e, acc = np.empty(6 * cap), np.empty(cap), np.zeros(4)
+        y0 = (ctypes.c_double * 4)(1.2, -0.8, 0.0, 0.0)
+        rc = fn(ctypes.addressof(s), ctypes.addressof(y0), p.ctypes.data, 5.0, 1e-9, 1e-9, step_l, 10**6, 10**6,
+                cols.ctypes.data, cap, e.ctypes.data, acc.ctypes.data, ctypes.byref(m))
+        k = m.value
+        assert rc == 0 and k > 50
+        results[name] = np.concatenate([cols[:k], cols[cap:cap + 4 * k], e[:k]])
+    first = next(iter(results.values()))
+    for name, r in results.items():
+        assert r.shape == first.shape and np.array_equal(r, first), name

@@ -51,6 +51,7 @@ __all__ = ["ControlStruct",
     "source_library",
     "taylor_order",
     "taylor_rule",
+    "fma_flags",
     "TAYLOR_L_BANDS",
     "CompilerError",
     "find_compiler",
@@ -271,9 +272,37 @@ def compiler_name(cc: list) -> str:
     return " ".join(cc)
 
 
-def _compile(source: str, target: Path) -> str:
+def fma_flags() -> Tuple[str, ...]:
+    """``("-mfma",)`` on an x86-64 processor with fused multiply-add instructions (Linux: the ``fma``
+    flag of /proc/cpuinfo), else ``()``: the Taylor kernels' explicit ``fma`` calls are then one
+    instruction each, not the C library's function.  The result is the same either way (``fma`` is
+    correctly rounded: the instruction, or the library's exact routine on a processor without one,
+    slower); the flag is part of the Taylor kernels' cache key, so a library built with it is never
+    loaded on a processor without the instructions.  Other processors (aarch64 has the instruction
+    always and compilers use it for ``fma`` without a flag): ``()``."""
+    global _FMA_FLAGS
+    if _FMA_FLAGS is None:
+        flags: Tuple[str, ...] = ()
+        if platform.machine().lower() in ("x86_64", "amd64"):
+            try:
+                text = Path("/proc/cpuinfo").read_text(errors="replace")
+            except OSError:
+                text = ""
+            for line in text.splitlines():
+                if line.startswith("flags"):
+                    flags = ("-mfma",) if "fma" in line.split(":", 1)[-1].split() else ()
+                    break
+        _FMA_FLAGS = flags
+    return _FMA_FLAGS
+
+
+_FMA_FLAGS: Optional[Tuple[str, ...]] = None
+
+
+def _compile(source: str, target: Path, flags: Tuple[str, ...] = ()) -> str:
     """Compile ``source`` into the shared library ``target`` (written atomically, with the
-    records ``.sha256`` and ``.compiler`` beside it); returns the compiler's name."""
+    records ``.sha256`` and ``.compiler`` beside it), ``flags`` added to :data:`CFLAGS`; returns the
+    compiler's name."""
     cc = find_compiler()
     name = compiler_name(cc)
     directory = target.parent
@@ -286,7 +315,7 @@ def _compile(source: str, target: Path) -> str:
         # the packaged zig cc builds its compiler runtime (compiler_rt) on its first use, 4-7 s, for
         # builtins no kernel calls (double and 64-bit integer arithmetic are instructions; only libm is used)
         extra = ["-rtlib=none"] if tuple(cc[1:]) == PACKAGED_COMPILER else []
-        cmd = [*cc, *CFLAGS, *extra, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
+        cmd = [*cc, *CFLAGS, *flags, *extra, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
         # the compiler's own temporary files (gcc's .s) go to a directory of ours, removed even when
         # Ctrl-C kills the compiler mid-way (it could not clean up after itself)
         scratch = tempfile.mkdtemp(dir=directory, prefix=f".{target.stem}.", suffix=".cc-tmp")
@@ -713,9 +742,11 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
             _TAYLOR_OF[model.path, order] = kernel  # type: ignore[assignment]
         return kernel  # type: ignore[return-value]
     geometry = geometry_of(params)
-    # the Taylor library's text also depends on its generator and driver (not part of the others' key)
+    # the Taylor library's text also depends on its generator and driver (not part of the others' key),
+    # and its machine code on whether the processor's fused multiply-add is used (fma_flags)
     extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h"))
-    key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest()) + f"_taylor{order}"
+    flags = fma_flags()
+    key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest() + " ".join(flags)) + f"_taylor{order}"
     with _key_lock(key):
         if key in _LOADED:
             _BYGEOMETRY[gkey] = _LOADED[key]
@@ -736,7 +767,7 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
             path = directory / f"skewpend_{key}{LIB_SUFFIX}"
             _remove_stale_temporaries(directory)
             _announce("taylor", cached=directory == cache_dir() / "kernels")
-            _compile(source, path)
+            _compile(source, path, flags)
             loaded = TaylorKernel(path, "compiled", time.perf_counter() - start, order)
         _LOADED[key] = loaded  # type: ignore[assignment]
         _BYGEOMETRY[gkey] = loaded  # type: ignore[assignment]

@@ -416,7 +416,9 @@ def simulate(
     series evaluations, one per step; ``stats["order"]`` is ``p``, ``stats["step_exponent"]`` is
     ``L``); dense output evaluates the step's polynomial.  The coefficient recurrences are generated
     from the derivation (Coulomb friction's ``atan`` included), each order a small library compiled
-    on its first use; it takes no ``controller``.
+    on its first use, every product fused with its addition by an explicit ``fma`` (correctly
+    rounded: the same bits with the processor's instruction, used where it has one, or without it,
+    and with either compiler); it takes no ``controller``.
     At its own steps (``dt_out=None``) the energies of the rows come from the series' order 0 (T + Pi
     generated with them, in one C call with the steps), equal to the model kernel's to rounding.
 

@@ -367,11 +367,22 @@ _inline_terms = INLINE_TERMS
 
 
 #: The vector of two doubles of the long sums (:data:`VECTOR`): a load of ``p[0], p[1]`` and one
-#: reversed, ``p[1], p[0]`` (the second factor of a Cauchy product runs backwards).
+#: reversed, ``p[1], p[0]`` (the second factor of a Cauchy product runs backwards), and the fused
+#: multiply-add of two lanes: the processor's instruction where the kernel is compiled with -mfma
+#: (:func:`skewpend.numeric.kernels.fma_flags`), else ``fma`` lane by lane -- the same bits (``fma`` is
+#: correctly rounded).  Every product of the series is fused with the addition that follows it
+#: (:func:`_chain`): about 10 % less time a step than separate products and sums (measured at orders
+#: 8-15 on issue 3's case), and never by the compiler's contraction, which differs between compilers.
 VECTOR_C = [
     "typedef double sp_v2 __attribute__((vector_size(16)));",
     "static inline sp_v2 sp_ld(const double *p) { sp_v2 v; memcpy(&v, p, sizeof v); return v; }",
     "static inline sp_v2 sp_ldr(const double *p) { sp_v2 v = {p[1], p[0]}; return v; }",
+    "#if defined(__FMA__) && (defined(__x86_64__) || defined(__i386__))",
+    "#include <immintrin.h>",
+    "static inline sp_v2 sp_fma2(sp_v2 a, sp_v2 b, sp_v2 c) { return (sp_v2)_mm_fmadd_pd((__m128d)a, (__m128d)b, (__m128d)c); }",
+    "#else",
+    "static inline sp_v2 sp_fma2(sp_v2 a, sp_v2 b, sp_v2 c) { sp_v2 r = {fma(a[0], b[0], c[0]), fma(a[1], b[1], c[1])}; return r; }",
+    "#endif",
     f"static const double sp_jd[SP_TPMAX + 2] __attribute__((unused)) = {{{', '.join(f'{i}.0' for i in range(SP_TPMAX + 2))}}};",
 ]
 
@@ -418,26 +429,45 @@ def _sub(k: int, j) -> str:
     return str(k - j) if isinstance(j, int) else f"{k} - j"
 
 
-def _lanes(parts: List[str]) -> str:
-    """The sum of ``parts`` (C expressions): from 2 * :data:`LANES` terms on as :data:`LANES`
-    partial sums (terms i, i + LANES, ...), then those pairwise; else left to right."""
-    if LANES > 1 and len(parts) >= 2 * LANES:
-        sums = [f"({' + '.join(parts[i::LANES])})" for i in range(LANES)]
+def _chain(pairs, acc: str = "") -> str:
+    """``acc + A1 B1 + A2 B2 + ...`` for the factor pairs ``(A, B)`` as fused multiply-adds, each
+    rounded once (``fma``: correctly rounded on every machine, so the same bits everywhere);
+    ``acc`` empty: the first pair a product."""
+    for a, b in pairs:
+        acc = f"fma({a}, {b}, {acc})" if acc else f"{a} * {b}"
+    return acc
+
+
+def _vchain(pairs, acc: str = "") -> str:
+    """:func:`_chain` for vectors of two lanes (``sp_fma2``)."""
+    for a, b in pairs:
+        acc = f"sp_fma2({a}, {b}, {acc})" if acc else f"{a} * {b}"
+    return acc
+
+
+def _lanes(terms) -> str:
+    """The sum of ``terms`` (each a list of factor pairs): from 2 * :data:`LANES` terms on as
+    :data:`LANES` partial sums (terms i, i + LANES, ...: each a chain of fused multiply-adds), then
+    those pairwise; else one chain left to right."""
+    if LANES > 1 and len(terms) >= 2 * LANES:
+        sums = [f"({_chain([p for t in terms[i::LANES] for p in t])})" for i in range(LANES)]
         while len(sums) > 1:
             sums = [f"({a} + {b})" for a, b in zip(sums[0::2], sums[1::2])] + (sums[-1:] if len(sums) % 2 else [])
         return sums[0]
-    return " + ".join(parts) if len(parts) == 1 else "(" + " + ".join(parts) + ")"
+    return f"({_chain([p for t in terms for p in t])})"
 
 
 def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+", late=(), vterm=None) -> str:
     """C for ``init op (term(lo) + ... + term(hi))`` (``init`` empty: the sum, or its negative).
-    The terms ``late`` (at the ends of the range: those with a coefficient of this order, computed
-    just before) are added last, after the others (which need only older coefficients, so the
-    processor sums them while this order's coefficients are still being computed: the chain of
-    dependent additions of one order shrinks from the length of the sums to two or three terms);
-    the others written out, or a loop with fixed bounds for a long sum, as :data:`LANES` partial
-    sums from 2 * LANES terms on (written out and in the loop alike: the same additions in the
-    same order, the same bits)."""
+    ``term(j)``: the factor pairs ``[(A, B), ...]`` of term j (a term is ``A B + ...``), ``vterm(j)``
+    those of terms j and j + 1 as vectors of two lanes; every product is fused with the addition
+    that follows it (``fma``).  The terms ``late`` (at the ends of the range: those with a
+    coefficient of this order, computed just before) are added last, after the others (which need
+    only older coefficients, so the processor sums them while this order's coefficients are still
+    being computed: the chain of dependent operations of one order shrinks from the length of the
+    sums to two or three terms); the others written out, or a loop with fixed bounds for a long sum,
+    as :data:`LANES` partial sums from 2 * LANES terms on (written out and in the loop alike: the
+    same operations in the same order, the same bits)."""
     if hi < lo:
         return init or "0.0"
     late_in = [j for j in dict.fromkeys(late if LATE else ()) if lo <= j <= hi]  # added in this order
@@ -448,35 +478,39 @@ def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+", late=(), vter
     while b in late and b >= a:
         b -= 1
     assert all(j < a or j > b for j in late), (lo, hi, late)
-    tail = [term(j) for j in late_in]
+    tail = [p for j in late_in for p in term(j)]
     if b < a:
         early = ""
     elif vterm is not None and VECTOR and LANES == 2 and VECTOR_SHORT and 2 <= b - a + 1 <= 3:
         # left to right as _lanes: (t_a + t_a+1) (+ t_b)
-        odd = f" + {term(b)}" if (b - a + 1) % 2 else ""
-        early = f"({{ sp_v2 v_ = {vterm(a)}; (v_[0] + v_[1]){odd}; }})"
+        sum2 = "(v_[0] + v_[1])"
+        early = f"({{ sp_v2 v_ = {_vchain(vterm(a))}; {_chain(term(b), sum2) if (b - a + 1) % 2 else sum2}; }})"
     elif vterm is not None and VECTOR and LANES == 2 and 4 <= b - a + 1 <= _inline_terms:
-        # the two partial sums of _lanes as the two lanes of one vector (the same additions in the same order)
-        steps = "".join(f" v_ += {vterm(j)};" for j in range(a + 2, b, 2))
-        odd = f" + {term(b)}" if (b - a + 1) % 2 else ""
-        early = f"({{ sp_v2 v_ = {vterm(a)};{steps} (v_[0]{odd}) + v_[1]; }})"
+        # the two partial sums of _lanes as the two lanes of one vector (the same operations in the same order)
+        steps = "".join(f" v_ = {_vchain(vterm(j), 'v_')};" for j in range(a + 2, b, 2))
+        lane0 = _chain(term(b), "v_[0]") if (b - a + 1) % 2 else "v_[0]"
+        early = f"({{ sp_v2 v_ = {_vchain(vterm(a))};{steps} ({lane0}) + v_[1]; }})"
     elif vterm is not None and VECTOR and LANES == 2 and b - a + 1 > _inline_terms:  # as the loop below
         early = (f"({{ sp_v2 v_ = {{0.0, 0.0}}; int j0_ = {a}; for (; j0_ + 1 <= {b}; j0_ += 2) {{ "
-                 f"const int j = j0_; v_ += {vterm('j')}; }} double a0_ = v_[0]; "
-                 f"if (j0_ <= {b}) {{ const int j = j0_; a0_ += {term('j')}; }} a0_ + v_[1]; }})")
+                 f"const int j = j0_; v_ = {_vchain(vterm('j'), 'v_')}; }} double a0_ = v_[0]; "
+                 f"if (j0_ <= {b}) {{ const int j = j0_; a0_ = {_chain(term('j'), 'a0_')}; }} a0_ + v_[1]; }})")
     elif b - a + 1 <= _inline_terms:
         early = _lanes([term(j) for j in range(a, b + 1)])
     elif LANES == 2:  # the same two partial sums as written out, in a loop
-        t = term("j")
         early = (f"({{ double a0_ = 0.0, a1_ = 0.0; int j0_ = {a}; for (; j0_ + 1 <= {b}; j0_ += 2) {{ "
-                 f"{{ const int j = j0_; a0_ += {t}; }} {{ const int j = j0_ + 1; a1_ += {t}; }} }} "
-                 f"if (j0_ <= {b}) {{ const int j = j0_; a0_ += {t}; }} a0_ + a1_; }})")
+                 f"{{ const int j = j0_; a0_ = {_chain(term('j'), 'a0_')}; }} "
+                 f"{{ const int j = j0_ + 1; a1_ = {_chain(term('j'), 'a1_')}; }} }} "
+                 f"if (j0_ <= {b}) {{ const int j = j0_; a0_ = {_chain(term('j'), 'a0_')}; }} a0_ + a1_; }})")
     else:
-        early = f"({{ double acc_ = {term(a)}; for (int j = {a + 1}; j <= {b}; j++) acc_ += {term('j')}; acc_; }})"
-    parts = ([early] if early else []) + tail
+        early = (f"({{ double acc_ = {_chain(term(a))}; for (int j = {a + 1}; j <= {b}; j++) "
+                 f"acc_ = {_chain(term('j'), 'acc_')}; acc_; }})")
     if op == "+":
-        return (f"{init} + " if init else "") + " + ".join(parts)
-    return (init if init else "") + "".join(f" - {p}" for p in parts) if init else "-" + " - ".join(parts)
+        base = f"{init} + {early}" if init and early else (init or early)
+        return _chain(tail, base)
+    neg = [(f"-{x}", y) for x, y in tail]  # init - early - A B ...: fma(-A, B, .), the negation exact
+    if init:
+        return _chain(neg, f"{init} - {early}" if early else init)
+    return _chain(neg, f"-{early}") if early else f"-({_chain(tail)})"
 
 
 def _sub1(k: int, j) -> str:
@@ -484,10 +518,10 @@ def _sub1(k: int, j) -> str:
 
 
 def _vprod(a: str, b: str, k: int, shift: int = 0):
-    """The vector term of ``a[j + shift] * b[k - j]`` for the lanes ``j, j + 1``."""
+    """The vector term of ``a[j + shift] * b[k - j]`` for the lanes ``j, j + 1`` (its factor pair)."""
     def v(j):
         aj = j + shift if isinstance(j, int) else (f"j - {-shift}" if shift < 0 else "j")
-        return f"sp_ld(&{a}[{aj}]) * sp_ldr(&{b}[{_sub1(k, j)}])"
+        return [(f"sp_ld(&{a}[{aj}])", f"sp_ldr(&{b}[{_sub1(k, j)}])")]
     return v
 
 
@@ -497,8 +531,7 @@ def _dot(a: str, b: str, k: int, lo: int = 0, hi=None) -> str:
     hi = k if hi is None else hi
     # of the two terms with an order-k coefficient, the one whose series is computed later goes last
     late = ((k, 0) if _RANK.get(b, -1000) > _RANK.get(a, -1000) else (0, k)) if k > 0 else ()
-    return _reduce(lambda j: f"{a}[{j}] * {b}[{_sub(k, j)}]", lo, hi, late=late,
-                   vterm=_vprod(a, b, k))
+    return _reduce(lambda j: [(f"{a}[{j}]", f"{b}[{_sub(k, j)}]")], lo, hi, late=late, vterm=_vprod(a, b, k))
 
 
 def _op_lines(op, k: int, I: str) -> List[str]:
@@ -527,23 +560,24 @@ def _op_lines(op, k: int, I: str) -> List[str]:
         if k == 0:
             return [f"{I}{t}[0] = {x}[0] * {x}[0];"]
         half = _dot(x, x, k, 0, (k + 1) // 2 - 1)
-        mid = f" + {x}[{k // 2}] * {x}[{k // 2}]" if k % 2 == 0 else ""
-        return [f"{I}{{ const double h = {half}; {t}[{k}] = h + h{mid}; }}"]
+        value = _chain([(f"{x}[{k // 2}]", f"{x}[{k // 2}]")], "h + h") if k % 2 == 0 else "h + h"
+        return [f"{I}{{ const double h = {half}; {t}[{k}] = {value}; }}"]
     if kind in ("div", "rdiv"):  # t = a / b: t[k] = (a[k] - sum_{j=1..k} b[j] t[k-j]) / b[0]
         if k == 0:
             return [f"{I}r{t} = 1.0 / {at(b)};", f"{I}{t}[0] = {at(a)} * r{t};"]
         num = at(a) if a[0] == "s" else "0.0"
-        red = _reduce(lambda j: f'{b[1]}[{j}] * {t}[{_sub(k, j)}]', 1, k, num, '-', late=(k,), vterm=_vprod(b[1], t, k))
+        red = _reduce(lambda j: [(f"{b[1]}[{j}]", f"{t}[{_sub(k, j)}]")], 1, k, num, "-", late=(k,),
+                      vterm=_vprod(b[1], t, k))
         return [f"{I}{t}[{k}] = ({red}) * r{t};"]
     if kind == "sincos":  # s' = c u', c' = -s u': k s[k] = sum_{j=1..k} j u[j] c[k-j]
         c = t + "c"
         if k == 0:
             return [f"{I}{t}[0] = sin({at(a)});", f"{I}{c}[0] = cos({at(a)});"]
         du, vdu = _derivative_of(a), _vderivative_of(a)
-        ss = _reduce(lambda j: f"{du(j)} * {c}[{_sub(k, j)}]", 1, k, late=(k,),
-                     vterm=lambda j: f"{vdu(j)} * sp_ldr(&{c}[{_sub1(k, j)}])")
-        cs = _reduce(lambda j: f"{du(j)} * {t}[{_sub(k, j)}]", 1, k, late=(k,),
-                     vterm=lambda j: f"{vdu(j)} * sp_ldr(&{t}[{_sub1(k, j)}])")
+        ss = _reduce(lambda j: [(du(j), f"{c}[{_sub(k, j)}]")], 1, k, late=(k,),
+                     vterm=lambda j: [(vdu(j), f"sp_ldr(&{c}[{_sub1(k, j)}])")])
+        cs = _reduce(lambda j: [(du(j), f"{t}[{_sub(k, j)}]")], 1, k, late=(k,),
+                     vterm=lambda j: [(vdu(j), f"sp_ldr(&{t}[{_sub1(k, j)}])")])
         return [f"{I}{t}[{k}] = ({ss}) * inv[{k}];", f"{I}{c}[{k}] = -({cs}) * inv[{k}];"]
     if kind == "atan":  # t' (1 + u^2) = u': d = 1 + u^2, k t[k] d[0] = k u[k] - sum_{j=1..k-1} d[j] (k-j) t[k-j]
         d = t + "d"
@@ -552,9 +586,10 @@ def _op_lines(op, k: int, I: str) -> List[str]:
             return [f"{I}{d}[0] = 1.0 + {at(a)} * {at(a)};", f"{I}r{t} = 1.0 / {d}[0];",
                     f"{I}{t}[0] = atan({at(a)});"]
         half = _dot(x, x, k, 0, (k + 1) // 2 - 1)
-        mid = f" + {x}[{k // 2}] * {x}[{k // 2}]" if k % 2 == 0 else ""
-        acc = _reduce(lambda j: f"{d}[{j}] * (double)({_sub(k, j)}) * {t}[{_sub(k, j)}]", 1, k - 1, _derivative_of(a)(k), "-")
-        return [f"{I}{{ const double h = {half}; {d}[{k}] = h + h{mid}; }}",
+        value = _chain([(f"{x}[{k // 2}]", f"{x}[{k // 2}]")], "h + h") if k % 2 == 0 else "h + h"
+        acc = _reduce(lambda j: [(f"({d}[{j}] * (double)({_sub(k, j)}))", f"{t}[{_sub(k, j)}]")], 1, k - 1,
+                      _derivative_of(a)(k), "-")
+        return [f"{I}{{ const double h = {half}; {d}[{k}] = {value}; }}",
                 f"{I}{t}[{k}] = ({acc}) * r{t} * inv[{k}];"]
     raise AssertionError(kind)
 
@@ -564,7 +599,7 @@ def _vderivative_of(a):
     deriv = {"x[0]": "x[2]", "x[1]": "x[3]"}
     if a[1] in deriv:
         return lambda j: f"sp_ld(&{deriv[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}])"
-    return lambda j: f"sp_ld(&sp_jd[{j}]) * sp_ld(&{a[1]}[{j}])"
+    return lambda j: f"(sp_ld(&sp_jd[{j}]) * sp_ld(&{a[1]}[{j}]))"
 
 
 def _derivative_of(a):
@@ -573,7 +608,7 @@ def _derivative_of(a):
     deriv = {"x[0]": "x[2]", "x[1]": "x[3]"}
     if a[1] in deriv:
         return lambda j: f"{deriv[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}]"
-    return lambda j: f"(double)({j}) * {a[1]}[{j}]"
+    return lambda j: f"((double)({j}) * {a[1]}[{j}])"
 
 
 def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
@@ -661,10 +696,10 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
             series = [(m, q) for m, q in terms if m[0] == "s"]
 
             def term(j, series=series):
-                return "(" + " + ".join(f"{m[1]}[{j}] * {q}[{_sub(k, j)}]" for m, q in series) + ")"
+                return [(f"{m[1]}[{j}]", f"{q}[{_sub(k, j)}]") for m, q in series]
 
             def vterm(j, series=series):
-                return "(" + " + ".join(_vprod(m[1], q, k)(j) for m, q in series) + ")"
+                return [p for m, q in series for p in _vprod(m[1], q, k)(j)]
 
             # f[k] (the last value of the order) minus the sum of the M[j] q''[k-j] (known before it)
             value = (f"{_val(rhs, k)} - ({_reduce(term, 1, k, late=(k, 1), vterm=vterm)})" if series and k > 0
@@ -674,13 +709,13 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
             lines.append(f"{I}const double c11 = m22 * rdet, c12 = m12 * rdet, c22 = m11 * rdet;")
         # q''[k] and x[2..3][k + 1] = q''[k] / (k + 1) each straight from r (two products and a difference
         # after r, not four operations)
-        lines += [f"{I}a1[{k}] = c11 * r1_{k} - c12 * r2_{k};", f"{I}a2[{k}] = c22 * r2_{k} - c12 * r1_{k};",
+        lines += [f"{I}a1[{k}] = fma(c11, r1_{k}, -(c12 * r2_{k}));", f"{I}a2[{k}] = fma(c22, r2_{k}, -(c12 * r1_{k}));",
                   f"{I}x[0][{k + 1}] = x[2][{k}] * inv[{k + 1}];", f"{I}x[1][{k + 1}] = x[3][{k}] * inv[{k + 1}];"]
         if k == 0:
             lines += [f"{I}x[2][1] = a1[0];", f"{I}x[3][1] = a2[0];"]
         else:
-            lines += [f"{I}x[2][{k + 1}] = (c11 * inv[{k + 1}]) * r1_{k} - (c12 * inv[{k + 1}]) * r2_{k};",
-                      f"{I}x[3][{k + 1}] = (c22 * inv[{k + 1}]) * r2_{k} - (c12 * inv[{k + 1}]) * r1_{k};"]
+            lines += [f"{I}x[2][{k + 1}] = fma(c11 * inv[{k + 1}], r1_{k}, -((c12 * inv[{k + 1}]) * r2_{k}));",
+                      f"{I}x[3][{k + 1}] = fma(c22 * inv[{k + 1}], r2_{k}, -((c12 * inv[{k + 1}]) * r1_{k}));"]
         return lines
 
     def work_lines(k: int) -> List[str]:
