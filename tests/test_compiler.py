@@ -172,10 +172,10 @@ def test_taylor_bits_are_the_same_with_or_without_fma_hardware_and_with_either_c
     order, step_l = K.taylor_rule(1e-9)
     source = taylor_c_source(K.geometry_of(P), order)
     p = K.parameter_vector(P)
-    fma = K.fma_flags()
+    fused, fma = K.fused_multiply_add()
     system = K.find_compiler()
     variants = [("system, no flag", system, ()), ("zig cc, no flag", list(K.packaged_compiler()), ())]
-    if fma:
+    if fused and fma:
         variants += [("system, -mfma", system, fma), ("zig cc, -mfma", list(K.packaged_compiler()), fma)]
     results = {}
     for i, (name, cc, flags) in enumerate(variants):
@@ -194,3 +194,38 @@ def test_taylor_bits_are_the_same_with_or_without_fma_hardware_and_with_either_c
     first = next(iter(results.values()))
     for name, r in results.items():
         assert r.shape == first.shape and np.array_equal(r, first), name
+
+
+@pytest.mark.slow
+def test_taylor_without_fused_multiply_add_agrees_to_rounding(tmp_path):
+    """A processor without fused multiply-add gets Taylor kernels that round each product and sum
+    (``taylor_c_source(..., fused=False)``): the same steps' values to rounding on a regular swing
+    (non-chaotic: rounding differences stay near 1e-14 over 2 s; 1e-11 allowed), other bits."""
+    import ctypes
+
+    from skewpend import Parameters
+    from skewpend.numeric import simulation
+    from skewpend.numeric.taylor_source import taylor_c_source
+
+    P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+    order, step_l = K.taylor_rule(1e-9)
+    p = K.parameter_vector(P)
+    out = []
+    for fused in (True, False):
+        source = taylor_c_source(K.geometry_of(P), order, fused=fused)
+        assert f"#define SP_FUSED {int(fused)}" in source
+        path = tmp_path / f"taylor_fused{int(fused)}{K.LIB_SUFFIX}"
+        K._compile(source, path, K.fused_multiply_add()[1] if fused else ())
+        fn = simulation._rows_fn(K.TaylorKernel(path, "compiled", 0.0, order))
+        s, m, cap = K.TaylorState(), ctypes.c_int64(0), 4096
+        cols, e, acc = np.empty(6 * cap), np.empty(cap), np.zeros(4)
+        y0 = (ctypes.c_double * 4)(0.7, -0.4, 0.3, -0.2)
+        rc = fn(ctypes.addressof(s), ctypes.addressof(y0), p.ctypes.data, 2.0, 1e-9, 1e-9, step_l, 10**6, 10**6,
+                cols.ctypes.data, cap, e.ctypes.data, acc.ctypes.data, ctypes.byref(m))
+        k = m.value
+        assert rc == 0
+        out.append(np.column_stack([cols[:k], cols[cap:cap + 4 * k].reshape(k, 4)]))
+    a, b = out
+    assert a.shape == b.shape
+    np.testing.assert_allclose(b, a, rtol=0, atol=1e-11)
+    assert not np.array_equal(a, b)  # a code path of its own

@@ -51,7 +51,7 @@ __all__ = ["ControlStruct",
     "source_library",
     "taylor_order",
     "taylor_rule",
-    "fma_flags",
+    "fused_multiply_add",
     "TAYLOR_L_BANDS",
     "CompilerError",
     "find_compiler",
@@ -272,31 +272,37 @@ def compiler_name(cc: list) -> str:
     return " ".join(cc)
 
 
-def fma_flags() -> Tuple[str, ...]:
-    """``("-mfma",)`` on an x86-64 processor with fused multiply-add instructions (Linux: the ``fma``
-    flag of /proc/cpuinfo), else ``()``: the Taylor kernels' explicit ``fma`` calls are then one
-    instruction each, not the C library's function.  The result is the same either way (``fma`` is
-    correctly rounded: the instruction, or the library's exact routine on a processor without one,
-    slower); the flag is part of the Taylor kernels' cache key, so a library built with it is never
-    loaded on a processor without the instructions.  Other processors (aarch64 has the instruction
-    always and compilers use it for ``fma`` without a flag): ``()``."""
-    global _FMA_FLAGS
-    if _FMA_FLAGS is None:
-        flags: Tuple[str, ...] = ()
-        if platform.machine().lower() in ("x86_64", "amd64"):
+def fused_multiply_add() -> Tuple[bool, Tuple[str, ...]]:
+    """Whether this processor has fused multiply-add instructions, and the compiler flags that use
+    them: ``(True, ("-mfma",))`` on x86-64 with them (Linux: the ``fma`` flag of /proc/cpuinfo),
+    ``(True, ())`` on aarch64 (always there; compilers use it for ``fma`` unasked), else
+    ``(False, ())``.  The Taylor kernels fuse every product of their series with the addition that
+    follows (``fma``, about 10 % less time a step) where it is there; ``fma`` is correctly rounded, so
+    their bits are the same on every such processor and with either compiler.  Where it is not, the C
+    library's exact ``fma`` would take ~100x the time, so those kernels round each product and sum
+    separately (other bits, the same accuracy).  Part of the Taylor kernels' cache key: a library
+    built for one is never loaded on the other."""
+    global _FMA
+    if _FMA is None:
+        machine = platform.machine().lower()
+        fma: Tuple[bool, Tuple[str, ...]] = (False, ())
+        if machine in ("aarch64", "arm64"):
+            fma = (True, ())
+        elif machine in ("x86_64", "amd64"):
             try:
                 text = Path("/proc/cpuinfo").read_text(errors="replace")
             except OSError:
                 text = ""
             for line in text.splitlines():
                 if line.startswith("flags"):
-                    flags = ("-mfma",) if "fma" in line.split(":", 1)[-1].split() else ()
+                    if "fma" in line.split(":", 1)[-1].split():
+                        fma = (True, ("-mfma",))
                     break
-        _FMA_FLAGS = flags
-    return _FMA_FLAGS
+        _FMA = fma
+    return _FMA
 
 
-_FMA_FLAGS: Optional[Tuple[str, ...]] = None
+_FMA: Optional[Tuple[bool, Tuple[str, ...]]] = None
 
 
 def _compile(source: str, target: Path, flags: Tuple[str, ...] = ()) -> str:
@@ -743,10 +749,11 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
         return kernel  # type: ignore[return-value]
     geometry = geometry_of(params)
     # the Taylor library's text also depends on its generator and driver (not part of the others' key),
-    # and its machine code on whether the processor's fused multiply-add is used (fma_flags)
+    # and on whether the processor's fused multiply-add is used (fused_multiply_add)
     extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h"))
-    flags = fma_flags()
-    key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest() + " ".join(flags)) + f"_taylor{order}"
+    fused, flags = fused_multiply_add()
+    key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}")
+    key += f"_taylor{order}"
     with _key_lock(key):
         if key in _LOADED:
             _BYGEOMETRY[gkey] = _LOADED[key]
@@ -762,7 +769,7 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
             from .taylor_source import taylor_c_source
 
             start = time.perf_counter()
-            source = taylor_c_source(geometry, order)  # a model without recurrences is refused here
+            source = taylor_c_source(geometry, order, fused=fused)  # a model without recurrences is refused here
             directory = _writable_directory()
             path = directory / f"skewpend_{key}{LIB_SUFFIX}"
             _remove_stale_temporaries(directory)

@@ -10,8 +10,8 @@
  * caller picks L and p = ceil(-ln(rtol) / L) + 1 (kernels.taylor_rule; heyoka: L = 2); step
  * h = rho exp(-L) exp(-0.7 / (p - 1)), rho = min over m = p - 1, p of (scale / max_i |x_i[m]|)^(1/m),
  * scale = max(atol / rtol, max_i |x_i[0]|) (heyoka's absolute / relative switch when atol = rtol).
- * Every step is accepted; the new state is the polynomial at h (Horner, each step one fma: correctly rounded,
- * so the same bits with the processor's instruction or the C library's routine).  Dense output evaluates
+ * Every step is accepted; the new state is the polynomial at h (Horner, each step an SP_FMA: a fused
+ * multiply-add where the processor has one, see taylor_source.VECTOR_C).  Dense output evaluates
  * the last step's polynomial.  Same resumable contract, rows and return codes as sp_dop853
  * (integrators.c); results do not depend on how the work is split into calls.
  */
@@ -33,7 +33,7 @@ static void taylor_eval(const double (*jet)[SP_TPMAX + 2], int order, int n, dou
 {
     for (int i = 0; i < n; i++) {
         double acc = jet[i][order];
-        for (int k = order - 1; k >= 0; k--) acc = fma(acc, h, jet[i][k]);
+        for (int k = order - 1; k >= 0; k--) acc = SP_FMA(acc, h, jet[i][k]);
         out[i] = acc;
     }
 }
@@ -45,10 +45,10 @@ static inline void taylor_eval_step(const double (*jet)[SP_TPMAX + 2], int n, do
 {
     double a0 = jet[0][SP_TORDER], a1 = jet[1][SP_TORDER], a2 = jet[2][SP_TORDER], a3 = jet[3][SP_TORDER];
     for (int k = SP_TORDER - 1; k >= 0; k--) {
-        a0 = fma(a0, h, jet[0][k]);
-        a1 = fma(a1, h, jet[1][k]);
-        a2 = fma(a2, h, jet[2][k]);
-        a3 = fma(a3, h, jet[3][k]);
+        a0 = SP_FMA(a0, h, jet[0][k]);
+        a1 = SP_FMA(a1, h, jet[1][k]);
+        a2 = SP_FMA(a2, h, jet[2][k]);
+        a3 = SP_FMA(a3, h, jet[3][k]);
     }
     out[0] = a0;
     out[1] = a1;

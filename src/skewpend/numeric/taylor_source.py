@@ -368,20 +368,27 @@ _inline_terms = INLINE_TERMS
 
 #: The vector of two doubles of the long sums (:data:`VECTOR`): a load of ``p[0], p[1]`` and one
 #: reversed, ``p[1], p[0]`` (the second factor of a Cauchy product runs backwards), and the fused
-#: multiply-add of two lanes: the processor's instruction where the kernel is compiled with -mfma
-#: (:func:`skewpend.numeric.kernels.fma_flags`), else ``fma`` lane by lane -- the same bits (``fma`` is
-#: correctly rounded).  Every product of the series is fused with the addition that follows it
-#: (:func:`_chain`): about 10 % less time a step than separate products and sums (measured at orders
-#: 8-15 on issue 3's case), and never by the compiler's contraction, which differs between compilers.
+#: multiply-adds ``SP_FMA`` and ``sp_fma2`` (two lanes).  Every product of the series is fused with the
+#: addition that follows it (:func:`_chain`): about 10 % less time a step than a product and a sum
+#: (measured at orders 8-15 on issue 3's case), written as ``fma`` calls, never left to the compiler's
+#: contraction (which differs between compilers).  ``fma`` is correctly rounded, so the processor's
+#: instruction (-mfma, :func:`skewpend.numeric.kernels.fused_multiply_add`) and the C library's routine
+#: give the same bits; a processor without the instruction gets a product and a sum (``SP_FUSED`` 0).
 VECTOR_C = [
     "typedef double sp_v2 __attribute__((vector_size(16)));",
     "static inline sp_v2 sp_ld(const double *p) { sp_v2 v; memcpy(&v, p, sizeof v); return v; }",
     "static inline sp_v2 sp_ldr(const double *p) { sp_v2 v = {p[1], p[0]}; return v; }",
+    "#if SP_FUSED",
+    "#define SP_FMA(a, b, c) fma(a, b, c)",
     "#if defined(__FMA__) && (defined(__x86_64__) || defined(__i386__))",
     "#include <immintrin.h>",
     "static inline sp_v2 sp_fma2(sp_v2 a, sp_v2 b, sp_v2 c) { return (sp_v2)_mm_fmadd_pd((__m128d)a, (__m128d)b, (__m128d)c); }",
     "#else",
     "static inline sp_v2 sp_fma2(sp_v2 a, sp_v2 b, sp_v2 c) { sp_v2 r = {fma(a[0], b[0], c[0]), fma(a[1], b[1], c[1])}; return r; }",
+    "#endif",
+    "#else /* a processor without fused multiply-add: a product, then a sum (each rounded) */",
+    "#define SP_FMA(a, b, c) ((a) * (b) + (c))",
+    "static inline sp_v2 sp_fma2(sp_v2 a, sp_v2 b, sp_v2 c) { return a * b + c; }",
     "#endif",
     f"static const double sp_jd[SP_TPMAX + 2] __attribute__((unused)) = {{{', '.join(f'{i}.0' for i in range(SP_TPMAX + 2))}}};",
 ]
@@ -434,7 +441,7 @@ def _chain(pairs, acc: str = "") -> str:
     rounded once (``fma``: correctly rounded on every machine, so the same bits everywhere);
     ``acc`` empty: the first pair a product."""
     for a, b in pairs:
-        acc = f"fma({a}, {b}, {acc})" if acc else f"{a} * {b}"
+        acc = f"SP_FMA({a}, {b}, {acc})" if acc else f"{a} * {b}"
     return acc
 
 
@@ -611,7 +618,7 @@ def _derivative_of(a):
     return lambda j: f"((double)({j}) * {a[1]}[{j}])"
 
 
-def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
+def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = True) -> str:
     """C of the Taylor kernel of ``geometry`` at one ``order`` (a small library of its own,
     :func:`skewpend.numeric.kernels.taylor_kernel`): ``taylor_work(p)`` (whether W needs
     integrating), ``taylor_prepare(p, pc)`` (the constants), ``taylor_jet(x, pc, work, e_out)``
@@ -620,7 +627,9 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
     code up to :data:`INLINE_ORDER`, each long sum as :data:`LANES` partial sums in a fixed order
     -- measured 0.61 against 0.94 us a step at order 15 for loops whose trip counts change with the
     order and defeat branch prediction), then the driver
-    ``taylor.c``.  Raises ValueError for a function without a recurrence here."""
+    ``taylor.c``.  ``fused``: each product fused with its addition (``SP_FMA``, ``sp_fma2``: for a
+    processor with fused multiply-add, :func:`skewpend.numeric.kernels.fused_multiply_add`), else a product
+    and a sum.  Raises ValueError for a function without a recurrence here."""
     from .kernel_source import status_defines
 
     global _inline_terms, _short_path
@@ -653,7 +662,7 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
            f" * Series products per order: {cost:g} (a square counts 1/2, sin/cos 2). */",
            "#include <math.h>", "#include <stdint.h>", "#include <string.h>", "", *status_defines(), "",
            f"#define SP_TN {SP_TN}", f"#define SP_TPMAX {SP_TPMAX}", f"#define SP_TORDER {order}",
-           f"#define SP_TAYLOR_NPC {npc}", "", *VECTOR_C, ""]
+           f"#define SP_TAYLOR_NPC {npc}", f"#define SP_FUSED {int(bool(fused))}", "", *VECTOR_C, ""]
     # whether W needs integrating: the parameters Q depends on, and whether Q vanishes when they do
     qparams = sorted(used_names([ex.Q[0], ex.Q[1]]) & set(PARAMETER_ORDER), key=PARAMETER_ORDER.index)
     zero = {SYMBOLS[n]: 0 for n in qparams}
@@ -709,13 +718,13 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None) -> str:
             lines.append(f"{I}const double c11 = m22 * rdet, c12 = m12 * rdet, c22 = m11 * rdet;")
         # q''[k] and x[2..3][k + 1] = q''[k] / (k + 1) each straight from r (two products and a difference
         # after r, not four operations)
-        lines += [f"{I}a1[{k}] = fma(c11, r1_{k}, -(c12 * r2_{k}));", f"{I}a2[{k}] = fma(c22, r2_{k}, -(c12 * r1_{k}));",
+        lines += [f"{I}a1[{k}] = SP_FMA(c11, r1_{k}, -(c12 * r2_{k}));", f"{I}a2[{k}] = SP_FMA(c22, r2_{k}, -(c12 * r1_{k}));",
                   f"{I}x[0][{k + 1}] = x[2][{k}] * inv[{k + 1}];", f"{I}x[1][{k + 1}] = x[3][{k}] * inv[{k + 1}];"]
         if k == 0:
             lines += [f"{I}x[2][1] = a1[0];", f"{I}x[3][1] = a2[0];"]
         else:
-            lines += [f"{I}x[2][{k + 1}] = fma(c11 * inv[{k + 1}], r1_{k}, -((c12 * inv[{k + 1}]) * r2_{k}));",
-                      f"{I}x[3][{k + 1}] = fma(c22 * inv[{k + 1}], r2_{k}, -((c12 * inv[{k + 1}]) * r1_{k}));"]
+            lines += [f"{I}x[2][{k + 1}] = SP_FMA(c11 * inv[{k + 1}], r1_{k}, -((c12 * inv[{k + 1}]) * r2_{k}));",
+                      f"{I}x[3][{k + 1}] = SP_FMA(c22 * inv[{k + 1}], r2_{k}, -((c12 * inv[{k + 1}]) * r1_{k}));"]
         return lines
 
     def work_lines(k: int) -> List[str]:
