@@ -353,15 +353,18 @@ LATE = True
 #: vector extensions: SSE2 on x86-64; the same additions in the same order as two scalar chains, so the
 #: same bits, with half the loads and arithmetic instructions).
 VECTOR = True
-VECTOR_SHORT = True
+#: ... also for sums of 2-3 terms (a vector product and its two lanes added): with fused multiply-adds a
+#: chain of scalar ones is quicker (bare C call, A/B of 1,500 pairs: 0.983-0.997x at orders 9-15).
+VECTOR_SHORT = False
 #: Whether the series operations are arranged for a short dependency chain an order (the terms of a
 #: sum known first added first; a constant factor put on the factor of a product known first; the
 #: factors known first multiplied first): the evaluation at low orders is bound by that chain.
 SHORT_PATH = True
 #: ... up to this order (above it the series products dominate: the form with fewest is taken; measured,
 #: ms for issue 3's 20 s without / with: order 7 0.111 / 0.106, 10 0.149 / 0.147, 11 0.167 / 0.164,
-#: 12 0.174 / 0.169, 13 0.197 / 0.209, 16 0.282 / 0.295).
-SHORT_PATH_MAX_ORDER = 12
+#: 12 0.174 / 0.169, 13 0.197 / 0.209, 16 0.282 / 0.295); with fused multiply-adds the fewest products
+#: win from order 11 on (bare C call, A/B of 1,500 pairs, to 10 from 12: 0.989x at order 11, 0.985x at 12).
+SHORT_PATH_MAX_ORDER = 10
 _short_path = SHORT_PATH
 _inline_terms = INLINE_TERMS
 
