@@ -133,9 +133,9 @@ SP_TN, SP_TPMAX = 5, 32
 #: grows as p^2 (the series products); skewpend's generated series cost nearly linearly in p up to order
 #: 16 (the fixed parts of a step -- sincos, the step rule, the polynomial, the row -- weigh as much as
 #: the products), where larger steps at a higher order cost less for the same error: measured over
-#: five motions (chaotic, regular, skewed, spinning; docs/benchmarks.md), L = 1.5 down to 1e-9
-#: (orders <= 15) and 1.75 down to 1e-11 (orders 13-16) took 0.71x heyoka's time at equal error on
-#: average, against 0.77x with L = 2 throughout.
+#: five motions (chaotic, regular, skewed, spinning; benchmarks/bench_taylor_rule.py), L = 1.5 down to
+#: 1e-9 (orders <= 15) and 1.75 down to 1e-11 (orders 13-16) take 0.65x heyoka's time at equal error
+#: (median; max 0.77x), against 0.70x (max 0.85x) with L = 2 throughout and the same series.
 TAYLOR_L_BANDS = ((1e-9, 1.5), (1e-11, 1.75), (0.0, 2.0))
 
 
