@@ -70,12 +70,14 @@ _LAZY = {
     "identify": "analysis.identify",
     "Identification": "analysis.identify",
     "Convention": "analysis.measurements",
+    "example_data": "datasets",
     "widget": "views.widget",
     "PendulumWidget": "views.widget",
 }
 
 __all__ = [
     "Parameters",
+    "example_data",
     "derive",
     "SYMBOLS",
     "EquationsOfMotion",
@@ -159,6 +161,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.measurements import Convention, Measurements
     from .analysis.identify import Identification, identify
     from .views.widget import PendulumWidget, widget
+    from .datasets import example_data
 
 
 #: Subpackages (the layers) and modules reachable as attributes after a plain ``import skewpend``
@@ -173,6 +176,7 @@ _SUBMODULES = {
     "flipmap": "analysis.flipmap", "chaos": "analysis.chaos", "ensemble": "numeric.ensemble", "store": "numeric.store",
     "grid": "numeric.grid", "results": "results", "status": "status", "checks": "checks",
     "io": "io", "parsing": "parsing", "progress": "progress", "interrupts": "interrupts", "errors": "errors", "cli": "cli",
+    "datasets": "datasets",
 }
 
 
