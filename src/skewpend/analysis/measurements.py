@@ -43,7 +43,8 @@ from ..errors import ParameterError
 
 __all__ = ["Measurements", "Piece", "Convention", "SKEWPEND", "convert", "convert_back",
            "MIN_SAMPLES", "GAP_FACTOR", "NONFINITE", "KAHEMAN_FILE", "KAHEMAN_PARAMETERS_FILE", "DFKI_COLUMNS",
-           "kaheman_published_parameters", "dfki_lab_parameters"]
+           "kaheman_published_parameters", "dfki_lab_parameters", "dfki_lab_values", "write_dfki_lab_parameters",
+           "TIME_UNITS", "DFKI_KEYS", "CHECKS"]
 
 #: Fewest samples a piece may have.
 MIN_SAMPLES = 10
@@ -60,7 +61,11 @@ DFKI_COLUMNS = {"t": "time", "phi": "pos_meas1", "psi": "pos_meas2", "dphi": "ve
                 "tau1": "tau_meas1", "tau2": "tau_meas2"}
 
 _COLUMN_KEYS = ("t", "phi", "psi", "dphi", "dpsi", "tau1", "tau2")
+#: The units of a file's time column a :class:`Convention` may state, in seconds.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
 _CHECKS = ("mean", "tracking", "velocities", "units")
+#: The reader checks that ``skip=`` may leave out (the heuristic ones).
+CHECKS = _CHECKS
 
 
 # -- conventions --------------------------------------------------------------------------------------
@@ -79,6 +84,8 @@ class Convention:
     * ``unit``: ``"rad"`` or ``"deg"`` (angles and angular speeds; torques are always N m);
     * ``wrapped``: the file's angles are reduced into one turn (jumps of 2 pi where they pass the
       cut); the readers unwrap them.  Without it such jumps are refused.
+    * ``time``: the unit of the file's time column, ``"s"`` (default), ``"ms"`` or ``"us"``; the
+      readers scale it to seconds (speeds stay per second).
     """
 
     second: str = "relative"
@@ -86,6 +93,7 @@ class Convention:
     sign: Tuple[int, int] = (1, 1)
     unit: str = "rad"
     wrapped: bool = False
+    time: str = "s"
 
     def __post_init__(self):
         if self.second not in ("relative", "absolute"):
@@ -96,6 +104,9 @@ class Convention:
                                  parameter="convention")
         if self.unit not in ("rad", "deg"):
             raise ParameterError(f"Convention unit must be 'rad' or 'deg', got {self.unit!r}", parameter="convention")
+        if self.time not in TIME_UNITS:
+            raise ParameterError(f"Convention time must be one of {', '.join(map(repr, TIME_UNITS))}, got {self.time!r}",
+                                 parameter="convention")
         try:
             sign = tuple(int(s) for s in self.sign)
         except (TypeError, ValueError):
@@ -115,9 +126,14 @@ class Convention:
         """One turn in the file's unit."""
         return 360.0 if self.unit == "deg" else 2 * math.pi
 
+    @property
+    def seconds(self) -> float:
+        """Seconds per unit of the file's time column."""
+        return TIME_UNITS[self.time]
+
     def to_dict(self) -> Dict[str, Any]:
         return {"second": self.second, "zero": self.zero, "sign": list(self.sign), "unit": self.unit,
-                "wrapped": self.wrapped}
+                "wrapped": self.wrapped, "time": self.time}
 
     def describe(self) -> str:
         """The conversion to skewpend's coordinates as formulas (``theta1``, ``theta2`` the file's
@@ -129,6 +145,8 @@ class Convention:
         text = f"phi = {phi}, psi = {psi}"
         if self.sign != (1, 1):
             text += f"; torques times {self.sign[0]:+d}, {self.sign[1]:+d}"
+        if self.time != "s":
+            text += f"; t = time * {self.seconds:g} s (the file's time in {self.time})"
         return text + (" (unwrapped first)" if self.wrapped else "")
 
 
@@ -313,7 +331,7 @@ class _Builder:
         source = str(raw.get("source") or self.source)
         label = f"{Path(source).name}: {name}" if source else name
         try:
-            t = np.asarray(raw["t"], dtype=float).ravel()
+            t = np.asarray(raw["t"], dtype=float).ravel() * self.convention.seconds
             q_raw = np.asarray(raw["q"], dtype=float)
         except KeyError as exc:
             raise ParameterError(f"{label}: a piece needs {exc.args[0]!r}") from None
@@ -431,6 +449,10 @@ class _Builder:
             if r < -0.5:
                 raise ParameterError(f"{label}: d{name} runs against {name}'s rate of change (correlation {r:.2f}): "
                                      "its sign or its column is wrong; check the column mapping, or skip=('velocities',)")
+            if -0.5 <= r <= 0.5:
+                raise ParameterError(f"{label}: d{name} does not follow {name}'s rate of change (correlation {r:.2f}): "
+                                     "the speeds look of another column, or shifted in time; check the column "
+                                     "mapping, or skip=('velocities',)")
             if r > 0.5 and not (1 / 3 < ratio < 3):
                 raise ParameterError(f"{label}: d{name} is {ratio:.3g} times {name}'s rate of change: the speeds look "
                                      "in other units than the angles (degrees?) or of another column; check the "
@@ -1004,19 +1026,7 @@ def dfki_lab_parameters(path):
     from ..symbolic.model import Parameters
 
     path = Path(path)
-    values: Dict[str, float] = {}
-    for line in path.read_text(encoding="utf-8").splitlines():
-        key, sep, value = line.partition(":")
-        if sep and key.strip():
-            try:
-                values[key.strip()] = float(value)
-            except ValueError:
-                raise ParameterError(f"{path}: {key.strip()} is not a number: {value.strip()!r}") from None
-    need = ("m1", "m2", "l1", "l2", "r1", "r2", "I1", "I2", "Ir", "gr", "b1", "b2", "cf1", "cf2", "g")
-    missing = [k for k in need if k not in values]
-    if missing:
-        raise ParameterError(f"{path}: missing {', '.join(missing)} (a DFKI model_*_parameters.yml has them all)")
-    v = values
+    v = _read_dfki_yml(path)
     l1 = v["l1"]
     J1, h1, J2, h2 = v["I1"] + v["m2"] * l1**2, v["m1"] * v["r1"] + v["m2"] * l1, v["I2"], v["m2"] * v["r2"]
     m2 = v["m2"] if J2 > h2**2 / v["m2"] else 1.25 * h2**2 / J2
@@ -1027,3 +1037,105 @@ def dfki_lab_parameters(path):
     return Parameters(a=l1, b=v["l2"], m1=m1, m2=m2, alpha=0.0, g=v["g"], com1=(0, r1, 0), com2=(0, r2, 0),
                       inertia1=((I1c, 0, 0), (0, 0, 0), (0, 0, I1c)), inertia2=((I2c, 0, 0), (0, 0, 0), (0, 0, I2c)),
                       c1=v["b1"], c2=v["b2"], cf1=v["cf1"], cf2=v["cf2"], cfs=100.0, Ir=v["Ir"], gr=-v["gr"])
+
+
+#: The keys of a DFKI model file that skewpend reads and writes (the lab's ``model_parameters``
+#: also has the torque limits ``tl1``, ``tl2``: read past, not written -- skewpend's model has none).
+DFKI_KEYS = ("I1", "I2", "Ir", "b1", "b2", "cf1", "cf2", "g", "gr", "l1", "l2", "m1", "m2", "r1", "r2")
+_YAML_SPECIAL = {".inf": math.inf, "+.inf": math.inf, "-.inf": -math.inf, ".nan": math.nan}
+
+
+def _read_dfki_yml(path: Path) -> Dict[str, float]:
+    """The numbers of a DFKI model file: one ``key: value`` per line, as the lab's ``yaml.dump``
+    writes them (comments and blank lines skipped; YAML's ``.inf``, ``.nan`` read)."""
+    if path.suffix.lower() not in (".yml", ".yaml"):
+        raise ParameterError(f"{path}: a DFKI model file is a .yml file (model_*_parameters.yml)")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"{path} cannot be read as text: {exc}") from None
+    values: Dict[str, float] = {}
+    for line in text.splitlines():
+        line = line.split(" #", 1)[0].strip()
+        if not line or line.startswith("#") or line == "---":
+            continue
+        key, sep, value = (x.strip() for x in line.partition(":"))
+        if not sep or not key:
+            raise ParameterError(f"{path}: expected 'key: number' lines as the lab's model files have, got {line!r}")
+        try:
+            values[key] = _YAML_SPECIAL[value.lower()] if value.lower() in _YAML_SPECIAL else float(value)
+        except ValueError:
+            raise ParameterError(f"{path}: {key} is not a number: {value!r}") from None
+    missing = [k for k in DFKI_KEYS if k not in values]
+    if missing:
+        raise ParameterError(f"{path}: missing {', '.join(missing)} (a DFKI model_*_parameters.yml has them all)")
+    bad = [k for k in DFKI_KEYS if not math.isfinite(values[k])]
+    if bad:
+        raise ParameterError(f"{path}: {bad[0]} must be a finite number, got {values[bad[0]]}")
+    return values
+
+
+def dfki_lab_values(params) -> Dict[str, float]:
+    """A planar model in the DFKI lab's terms, the inverse of :func:`dfki_lab_parameters`:
+    ``l1 = a``, ``l2 = b``, ``r`` the centre of mass along the rod, ``I = I_zz + m r^2`` about the
+    joint axis, ``b = c``, ``cf``, ``Ir``, ``gr = -gr`` (the lab's sign), ``g``.  What does not
+    enter a planar model's equations (``h1z``, the other inertia entries) is not carried.  Refused
+    (one :class:`~skewpend.errors.ParameterError` saying why) when the model is not one the lab's
+    equations describe: a skew angle or tilted axes, a centre of mass off the rod's line, a
+    friction sharpness other than the lab's ``cfs = 100``, constant torques, symbolic values."""
+    p = params.require_numeric("the DFKI lab's model file")
+    if p.axis2 is None and float(p.alpha) != 0.0:
+        raise ParameterError(f"the DFKI lab's model is planar; this model has alpha = {math.degrees(float(p.alpha)):.6g} "
+                             "deg (write a .toml run file instead)")
+    for name in ("axis1", "axis2"):
+        axis = getattr(p, name)
+        if axis is not None:
+            n = np.asarray(axis, dtype=float)
+            if np.hypot(n[0], n[1]) > 1e-12 * abs(n[2]):
+                raise ParameterError(f"the DFKI lab's model is planar: both hinge axes along k; {name} = {tuple(axis)} "
+                                     "(write a .toml run file instead)")
+    if p.tau1 or p.tau2:
+        raise ParameterError("the DFKI lab's model file has no constant joint torques; this model has tau1 = "
+                             f"{p.tau1:g}, tau2 = {p.tau2:g}")
+    if p.has_friction and p.cfs != 100.0:
+        raise ParameterError(f"the DFKI lab's Coulomb friction is cf atan(100 q'); this model has cfs = {p.cfs:g}")
+    out: Dict[str, float] = {}
+    for k, m, length, com, inertia in ((1, p.m1, p.a, p.com1, p.inertia1), (2, p.m2, p.b, p.com2, p.inertia2)):
+        x, r = (0.0, length / 2) if com is None else (float(com[0]), float(com[1]))
+        if abs(x) > 1e-12 * max(abs(r), length):
+            raise ParameterError(f"the DFKI lab's model has each centre of mass on its rod's line; com{k} is "
+                                 f"{x:.6g} m off it (identify with --free leaving out h{k}x, or write a .toml run "
+                                 "file instead)")
+        izz = m * length**2 / 12 if inertia is None else float(inertia[2][2])
+        out[f"m{k}"], out[f"l{k}"], out[f"r{k}"], out[f"I{k}"] = float(m), float(length), r, izz + m * r**2
+    out.update(b1=float(p.c1), b2=float(p.c2), cf1=float(p.cf1), cf2=float(p.cf2), g=float(p.g), Ir=float(p.Ir),
+               gr=-float(p.gr))
+    return {k: out[k] for k in DFKI_KEYS}
+
+
+def _yaml_number(x: float) -> str:
+    """``repr`` (exact on reading back), with a dot before an exponent: YAML 1.1 (PyYAML) reads
+    ``1e-05`` as text, ``1.0e-05`` as a number."""
+    text = repr(float(x))
+    if "e" in text and "." not in text.split("e")[0]:
+        mantissa, exponent = text.split("e")
+        text = f"{mantissa}.0e{exponent}"
+    return text
+
+
+def write_dfki_lab_parameters(params, path, *, header: Sequence[str] = ()) -> Path:
+    """Write ``params`` as a DFKI model file (``model_*_parameters.yml``): ``key: number`` lines in
+    the lab's order (``yaml.dump``'s sorted keys), numbers that read back exactly, after ``header``
+    lines as YAML comments (``# ...``).  The conversion and its refusals: :func:`dfki_lab_values`;
+    :func:`dfki_lab_parameters` reads the file back.  Written atomically; returns the path."""
+    from ..io import atomic_path
+
+    values = dfki_lab_values(params)
+    path = Path(path)
+    if path.suffix.lower() not in (".yml", ".yaml"):
+        raise ParameterError(f"{path}: a DFKI model file is written as .yml")
+    lines = [f"# {h}" for line in header for h in str(line).splitlines()]
+    lines += [f"{k}: {_yaml_number(v)}" for k, v in values.items()]
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import functools
 import inspect
+import re
 import sys
+from contextlib import contextmanager
 from enum import Enum
 from pathlib import Path
 from typing import Annotated, Any, Dict, List, Optional
@@ -91,6 +93,8 @@ def _start_model(func):
 _SECONDS = T.Positive("number of seconds")
 _HORIZON = T.Positive("number of seconds", at_most=1e6)
 _HORIZON.metavar = "SECONDS"
+_FRACTION = T.NonNegative("fraction of rows")
+_FRACTION.metavar = "FRACTION"
 _DATA_HELP = ("measured motion: files or folders, combined (kaheman: the folder data/kaheman2023 or its .mat file; "
               "dfki: trajectory_NN.csv files or their folder; csv: CSV files with a header line, see --columns; mat: "
               "MATLAB files, see --variables; trajectory: skewpend's own .nc/.csv runs)")
@@ -106,6 +110,11 @@ def identify(
     free: Annotated[Optional[str], typer.Option("--free", metavar="NAMES", help="the base parameters to estimate, comma-separated (e.g. J2zz,h2y), and/or alpha to estimate the skew angle too (default: every base parameter, alpha held at params0's)", rich_help_panel=RUN)] = None,
     validate: Annotated[Optional[str], typer.Option("--validate", metavar="DATA[,DATA...]", help="held-out data to predict, read like DATA (--format kaheman: their validation pieces); default: none, or with --format kaheman the validation pieces of DATA", rich_help_panel=RUN)] = None,
     horizon: option("--horizon", _HORIZON, "cut every held-out piece into pieces of about SECONDS each (Measurements.cut), each predicted from its own first measured state, as the driven rig's protocol does with 1 (default: whole pieces)") = None,
+    cut: option("--cut", _HORIZON, "cut the fitting data into pieces of about SECONDS each (Measurements.cut), e.g. one long recording into several (default: the pieces as read)") = None,
+    params0_file: Annotated[Optional[str], typer.Option("--params0", metavar="FILE.yml", help="start from a DFKI lab model file (model_*_parameters.yml), converted as skewpend.analysis.measurements.dfki_lab_parameters does (inertias to the centres of mass, the gear's sign); model options override its values (default: the model options and --config)", rich_help_panel=RUN)] = None,
+    skip: Annotated[Optional[str], typer.Option("--skip", metavar="CHECKS", help="reader checks to leave out, comma-separated: mean, tracking, velocities, units (the heuristic ones; default: none)", rich_help_panel=RUN)] = None,
+    nonfinite: option("--nonfinite", _FRACTION, "the largest fraction of a piece's rows holding NaN or inf that the readers drop (each drop said on stderr); above it the data are refused; 0 refuses any (default 0.05)") = None,
+    short: Annotated[Optional[str], typer.Option("--short", metavar="refuse|drop", help="pieces with fewer than 10 samples (after cutting at gaps): refuse the data, or drop those pieces (said on stderr) (default refuse)", rich_help_panel=RUN)] = None,
     method: Annotated[FitMethod, typer.Option("--method", help="output-error: the linear estimate, then multiple shooting on the angles; linear: the linear estimate (inverse dynamics on filtered signals) alone", show_default=False, rich_help_panel=RUN)] = FitMethod.output_error,
     segment: option("--segment", _SECONDS, "output-error: the shooting segments' length [s], at most 60 (default 0.5)") = None,
     smoothing: option("--smoothing", _SECONDS, "the Savitzky-Golay window of the linear estimate and the segments' starts [s] (default 0.05)") = None,
@@ -113,7 +122,7 @@ def identify(
     variables: Annotated[Optional[str], typer.Option("--variables", metavar="DATA_VAR,TIME_VAR|DT", help="--format mat (required with it): the variable holding the samples (a cell array of pieces or one array) and the time variable or a fixed step in seconds", rich_help_panel=RUN)] = None,
     channels: Annotated[Optional[str], typer.Option("--channels", metavar="A1,A2[,V1,V2[,T1,T2]]", help="--format mat: the channels of the two angles, then of their speeds and torques (default 0,1: angles only)", rich_help_panel=RUN)] = None,
     convention: Annotated[Optional[str], typer.Option("--convention", metavar="KEY=VALUE,...", help="csv, mat, dfki: how the file measures its angles: second=relative|absolute, zero=hanging|upright, sign=1:-1, unit=rad|deg, wrapped=yes (default skewpend's: relative, hanging, 1:1, rad)", rich_help_panel=RUN)] = None,
-    out: option("--out", T.OutPath((".toml",)), "write the fitted model as a run file FILE.toml (use it with --config in any command); not written when the fit fails", RUN, "-o") = None,
+    out: option("--out", T.OutPath((".toml", ".yml")), "write the fitted model as a run file FILE.toml (use it with --config in any command) or as a DFKI lab model file FILE.yml (planar models with the centres of mass on the rods); not written when the fit fails", RUN, "-o") = None,
     netcdf: option("--netcdf", T.OutPath((".nc",)), "write the whole result to FILE.nc (default: not written)") = None,
     plot: plot_option("the fit and the held-out prediction") = None,
     report: option("--report", T.OutPath((".html",)), "write a self-contained HTML page of the identification to FILE.html (default: not written)") = None,
@@ -136,8 +145,12 @@ def identify(
     kind = fmt.value if fmt is not None else _infer(paths, columns, variables)
     _check_combinations(kind, which, columns, variables, channels, convention)
     free_names = _free_names(free)
-    reader = _reader(kind, columns, variables, channels, convention)
-    params0 = _params0(kind, paths, model, config)
+    conv = _convention(convention)
+    reader = _reader(kind, columns, variables, channels, conv, _checks(skip, nonfinite, short))
+    params0 = _params0(kind, paths, model, config, params0_file)
+    lab_out = out is not None and out.lower().endswith(".yml")
+    if lab_out:
+        _check_lab_out(out, params0, free_names)
     plot_fn = _view("..views.figures.identification", "plot_identification", "--plot") if plot else None
     report_fn = _view("..views.report.identification", "write_identification_report", "--report") if report else None
     if netcdf is not None:
@@ -149,17 +162,27 @@ def identify(
     if horizon is not None and validate is None and pick != "fit":
         raise UsageError("--horizon cuts the held-out pieces: give them with --validate DATA (with --format kaheman "
                          "and --which fit, the default, the file's own held-out pieces)")
-    measurements = reader(paths, pick)
-    validation = None
-    if validate is not None:
-        validation = reader(_split_paths(validate), "validation" if kind == "kaheman" else None)
-    elif kind == "kaheman" and pick == "fit":
-        validation = reader(paths, "validation")
+    with _cli_messages(conv):
+        measurements = reader(paths, pick)
+        validation = None
+        if validate is not None:
+            validation = reader(_split_paths(validate), "validation" if kind == "kaheman" else None)
+        elif kind == "kaheman" and pick == "fit":
+            validation = reader(paths, "validation")
+    if cut is not None:
+        measurements = _cut(measurements, cut, "--cut")
     if horizon is not None:
-        validation = _cut(validation, horizon)
+        validation = _cut(validation, horizon, "--horizon")
+    _say_actions("data", measurements)
+    if validation is not None:
+        _say_actions("held-out data", validation)
 
+    from ..analysis import hints
     from ..analysis.identify import identify as fit
     from ..interrupts import Interrupts
+
+    with _cli_messages(conv):
+        hints.check_sampling(measurements, params0, convention=conv, interface="cli")
 
     kw: Dict[str, Any] = {"free": free_names, "validation": validation, "method": method.value}
     if segment is not None:
@@ -171,19 +194,35 @@ def identify(
             intr.check()  # Ctrl-C between the stages too (the signal is raised within 0.3 s anyway)
             bar(100.0 * fraction, 100.0)
 
-        result = fit(measurements, params0, progress=say, **kw)
+        with _cli_messages(conv):
+            result = fit(measurements, params0, progress=say, **kw)
         bar(100.0, 100.0)
+        why = hints.suspect(result, measurements)
+        if why is not None:  # a fit gone wrong: the likely data mistakes (a few linear estimates)
+            with _cli_messages(conv):
+                found = hints.diagnose(measurements, params0, convention=conv, free=free_names, interface="cli",
+                                       conventions=kind in ("csv", "mat", "dfki"))
+    if why is not None:
+        for line in hints.report(found):
+            sys.stderr.write(f"skewpend: {line}\n")
     note = ""
     written = []
+    lab_error = None
     if netcdf is not None:
         result.to_netcdf(netcdf)
         written.append(("result", netcdf))
     if out is not None:
-        if result.ok:
+        if not result.ok:
+            note = f"; {out} not written (the fit did not succeed)"
+        elif lab_out:
+            try:
+                _write_lab_file(result, out)
+                written.append(("lab model", out))
+            except ParameterError as exc:
+                lab_error = f"--out {out}: not written: {exc}"
+        else:
             result.to_run_file(out)
             written.append(("run file", out))
-        else:
-            note = f"; {out} not written (the fit did not succeed)"
     if plot_fn is not None:
         plot_fn(result, measurements, validation, plot)
         written.append(("plot", plot))
@@ -193,18 +232,132 @@ def identify(
     lines = result.summary().splitlines()[:2] + ["", result.table()]
     lines += [f"{what:10s}{path}" for what, path in written]
     sys.stdout.write("\n".join(lines) + "\n")
+    if lab_error is not None:
+        raise ParameterError(lab_error)
     return result, note
 
 
-def _cut(validation, horizon: float):
-    """The held-out pieces cut into pieces of about ``horizon`` seconds (:meth:`Measurements.cut`);
-    a horizon that leaves no piece is refused naming the option."""
+def _cut(measurements, seconds: float, flag: str):
+    """Pieces cut into pieces of about ``seconds`` (:meth:`Measurements.cut`); a length that
+    leaves no piece is refused naming the option."""
     from ..errors import ParameterError
 
     try:
-        return validation.cut(horizon)
+        return measurements.cut(seconds)
     except ParameterError as exc:
-        raise UsageError(f"--horizon {horizon:g}: {exc}") from None
+        raise UsageError(f"{flag} {seconds:g}: {exc}") from None
+
+
+def _say_actions(what: str, measurements) -> None:
+    """Every action taken on the data (rows dropped, pieces cut, angles unwrapped or shifted), a
+    line each on stderr."""
+    for action in measurements.metadata.get("actions", ()):
+        sys.stderr.write(f"skewpend: {what}: {action}\n")
+
+
+# -- the command line's spelling in the library's messages ----------------------------------------------
+def _spell(conv, **change) -> str:
+    import dataclasses
+
+    from ..analysis.hints import spell_convention
+
+    try:
+        return spell_convention(dataclasses.replace(conv, **change), "cli")
+    except Exception:  # a message naming a value no Convention takes: say it plainly
+        return "--convention " + ",".join(f"{k}={v}" for k, v in change.items())
+
+
+#: The Python spellings of the library's messages and the command line's (``Convention(...)``
+#: becomes the whole ``--convention`` with the change, the other keys as the user gave them).
+_CLI_SPELLINGS = [
+    (re.compile(r"Convention\((\w+)=True\)"), lambda m, c: _spell(c, **{m[1]: True})),
+    (re.compile(r"Convention\((\w+)='([^']*)'\)"), lambda m, c: _spell(c, **{m[1]: m[2]})),
+    (re.compile(r"Convention\(sign=\((-?1), (-?1)\)\)"), lambda m, c: _spell(c, sign=(int(m[1]), int(m[2])))),
+    (re.compile(r"skip=\('(\w+)',\)"), lambda m, c: f"--skip {m[1]}"),
+    (re.compile(r"short='drop'"), lambda m, c: "--short drop"),
+    (re.compile(r"\bnonfinite=([0-9.eE+-]+)"), lambda m, c: f"--nonfinite {m[1]}"),
+    (re.compile(r"\braise nonfinite\b"), lambda m, c: "raise --nonfinite (the largest fraction of rows dropped)"),
+    (re.compile(r"method='output-error'"), lambda m, c: "--method output-error"),
+    (re.compile(r"\bcheck zero=(?=[ ,;)]|$)"), lambda m, c: "check zero= in --convention"),
+    (re.compile(r"^(skip|columns|convention|free): "), lambda m, c: f"--{m[1]}: "),
+    (re.compile(r"the column mapping"), lambda m, c: "--columns"),
+]
+
+
+def cli_message(text: str, conv=None) -> str:
+    """A library message with its Python spellings (``Convention(wrapped=True)``,
+    ``skip=('units',)``, ``nonfinite=0.05``, ...) in the command line's (``--convention
+    wrapped=yes``, ``--skip units``, ``--nonfinite 0.05``)."""
+    from ..analysis.measurements import SKEWPEND
+
+    conv = SKEWPEND if conv is None else conv
+    for pattern, to in _CLI_SPELLINGS:
+        text = pattern.sub(lambda m: to(m, conv), text)
+    return text
+
+
+@contextmanager
+def _cli_messages(conv):
+    """Re-raise the library's errors with the command line's spellings."""
+    from ..errors import ParameterError
+
+    try:
+        yield
+    except ParameterError as exc:
+        text = cli_message(str(exc), conv)
+        if text == str(exc):
+            raise
+        raise ParameterError(text) from None
+
+
+def _checks(skip: Optional[str], nonfinite: Optional[float], short: Optional[str]) -> Dict[str, Any]:
+    """The readers' check settings from --skip, --nonfinite, --short."""
+    from ..analysis.measurements import CHECKS
+
+    out: Dict[str, Any] = {}
+    if skip is not None:
+        names = [n.strip() for n in skip.split(",") if n.strip()]
+        unknown = [n for n in names if n not in CHECKS]
+        if not names or unknown:
+            raise UsageError(f"--skip: expected checks to leave out, comma-separated, from {', '.join(CHECKS)}; "
+                             f"got {skip!r}")
+        out["skip"] = tuple(names)
+    if nonfinite is not None:
+        if not nonfinite < 1:
+            raise UsageError(f"--nonfinite: expected a fraction of rows from 0 up to (not including) 1, got {nonfinite:g}")
+        out["nonfinite"] = float(nonfinite)
+    if short is not None:
+        if short not in ("refuse", "drop"):
+            raise UsageError(f"--short: expected refuse or drop, got {short!r}")
+        out["short"] = short
+    return out
+
+
+# -- the DFKI lab's model files --------------------------------------------------------------------------
+def _check_lab_out(out: str, params0, free_names) -> None:
+    """--out FILE.yml is refused before the fit when its model cannot be one of the lab's."""
+    from ..analysis.measurements import dfki_lab_values
+    from ..errors import ParameterError
+
+    if free_names is not None and "alpha" in free_names:
+        raise UsageError(f"--out {out}: the DFKI lab's model is planar; leave alpha out of --free, or write a .toml "
+                         "run file")
+    try:
+        dfki_lab_values(params0)
+    except ParameterError as exc:
+        raise UsageError(f"--out {out}: params0 is not a model the lab's file can hold: {exc}") from None
+
+
+def _write_lab_file(result, out: str) -> None:
+    from .. import __version__
+    from ..analysis.measurements import write_dfki_lab_parameters
+
+    header = [f"a pendulum identified from measured motion by skewpend {__version__}, in the DFKI lab's terms",
+              f"method: {result.settings.get('method', result.method)}", f"status: {result.message}",
+              f"data: {len(result.pieces)} pieces",
+              "I1, I2 about the joint axes (I_com + m r^2); gr the lab's sign (skewpend's -gr); b the viscous damping",
+              "read it with: skewpend identify --params0 FILE, or the lab's model_parameters(filepath=FILE)"]
+    write_dfki_lab_parameters(result.params, out, header=header)
 
 
 # -- input ----------------------------------------------------------------------------------------------
@@ -305,8 +458,8 @@ def _convention(text: Optional[str]):
         key, eq, value = (s.strip() for s in item.partition("="))
         if key == "wrapped" and not eq:
             value, eq = "yes", "="
-        if not eq or key not in ("second", "zero", "sign", "unit", "wrapped"):
-            raise UsageError(f"--convention: expected second=, zero=, sign=, unit=, wrapped= (comma-separated), got {item.strip()!r}")
+        if not eq or key not in ("second", "zero", "sign", "unit", "wrapped", "time"):
+            raise UsageError(f"--convention: expected second=, zero=, sign=, unit=, wrapped=, time= (comma-separated), got {item.strip()!r}")
         if key == "sign":
             try:
                 kw[key] = tuple(int(s) for s in value.split(":"))
@@ -318,24 +471,28 @@ def _convention(text: Optional[str]):
             kw[key] = value.lower() in ("yes", "true", "1")
         else:
             kw[key] = value
-    return Convention(**kw)
+    from ..errors import ParameterError
+
+    try:
+        return Convention(**kw)
+    except ParameterError as exc:  # "Convention time must be one of 's', 'ms', 'us', got 'h'"
+        raise UsageError("--convention: " + str(exc).replace("Convention ", "", 1).replace(" must be", "= must be", 1)) from None
 
 
-def _reader(kind, columns, variables, channels, convention):
+def _reader(kind, columns, variables, channels, conv, checks):
     """``read(paths, which) -> Measurements`` for the format, its options parsed once (so a bad one
-    is refused before any file is read)."""
+    is refused before any file is read); ``checks``: the readers' check settings."""
     from ..analysis.measurements import Measurements
 
-    conv = _convention(convention)
     if kind == "kaheman":
-        return lambda paths, which: _combine([Measurements.from_kaheman(p, which=which) for p in paths])
+        return lambda paths, which: _combine([Measurements.from_kaheman(p, which=which, **checks) for p in paths])
     if kind == "dfki":
-        return lambda paths, which: Measurements.from_dfki(paths, convention=conv)
+        return lambda paths, which: Measurements.from_dfki(paths, convention=conv, **checks)
     if kind == "csv":
         cols = _columns(columns)
-        return lambda paths, which: Measurements.from_csv(paths, cols, convention=conv)
+        return lambda paths, which: Measurements.from_csv(paths, cols, convention=conv, **checks)
     if kind == "trajectory":
-        return lambda paths, which: _combine([Measurements.from_trajectory(p) for p in paths])
+        return lambda paths, which: _combine([Measurements.from_trajectory(p, **checks) for p in paths])
     # mat
     parts = [s.strip() for s in variables.split(",")]
     if len(parts) != 2 or not all(parts):
@@ -350,8 +507,8 @@ def _reader(kind, columns, variables, channels, convention):
         raise UsageError(f"--channels: expected 2, 4 or 6 channel indices (whole numbers from 0), got {channels!r}")
     ch = tuple(int(c) for c in ch)
     idx = {"angles": ch[0:2], "velocities": ch[2:4] or None, "torques": ch[4:6] or None}
-    return lambda paths, which: _combine([Measurements.from_mat(p, parts[0], convention=conv, **time_kw, **idx)
-                                          for p in paths])
+    return lambda paths, which: _combine([Measurements.from_mat(p, parts[0], convention=conv, **time_kw, **idx,
+                                                                **checks) for p in paths])
 
 
 def _combine(parts):
@@ -375,9 +532,24 @@ def _combine(parts):
     return Measurements(pieces=tuple(pieces), metadata=meta)
 
 
-def _params0(kind: str, paths: List[str], model: dict, config: Optional[str]):
-    """The starting model: the options and --config; the Kaheman rig's published model without them."""
+def _params0(kind: str, paths: List[str], model: dict, config: Optional[str], lab_file: Optional[str] = None):
+    """The starting model: a DFKI lab model file (--params0) under the options, or the options and
+    --config; the Kaheman rig's published model without any of them."""
     given = {k: v for k, v in model.items() if v is not None}
+    if lab_file is not None:
+        from ..analysis.measurements import dfki_lab_parameters
+
+        if config is not None:
+            raise UsageError("--params0 and --config both give params0, the starting model: give one (model options "
+                             "override either)")
+        if not lab_file.lower().endswith((".yml", ".yaml")):
+            raise UsageError(f"--params0: expected a DFKI lab model file FILE.yml (model_*_parameters.yml), got {lab_file!r}")
+        if not Path(lab_file).is_file():
+            raise UsageError(f"--params0: {lab_file} does not exist")
+        lab = {k: v for k, v in dfki_lab_parameters(lab_file).to_dict().items() if v is not None}
+        flags = {k: f"--params0 {lab_file}: {k}" for k in lab if k not in given}
+        run = resolve("identify", None, defaults=False, flags=flags, parameters={**lab, **given})
+        return run.parameters()
     if kind == "kaheman" and not given and config is None:
         from ..analysis.measurements import kaheman_published_parameters
 

@@ -1,0 +1,203 @@
+"""Hints that point at the data when an identification goes wrong (issue 36).
+
+Data can pass every reader's check (:mod:`skewpend.analysis.measurements`) and still be wrong in a
+way the fit only shows as "the estimate is not physical" or a poor prediction.  The likely
+mistakes, and the checks here, cheap ones first:
+
+* **time in milliseconds** (or microseconds): before the fit, the median time step against the
+  hanging modes' periods of ``params0`` (:func:`check_sampling`, a refusal: such data would make
+  thousands of shooting segments);
+* **far too short**: the fitting data's total duration against the slower mode's period;
+* **an encoder's sign flipped**, **the second angle absolute declared relative** (or the reverse):
+  the linear estimate (inverse dynamics, a fraction of a second) with the data re-read under
+  each alternative convention; one whose residual is three times smaller or less is named.  A
+  planar pendulum moves alike mirrored as a whole, so ``sign=1:-1`` and ``-1:1`` cannot be told
+  apart: the hint names both;
+* **speeds inconsistent** with the angles' rate of change: a reader's check already
+  (``skip=('velocities',)``).
+
+Each message names the fix in the spelling of the interface in use: ``interface="python"``
+(``Convention(sign=(1, -1))``) or ``"cli"`` (``--convention sign=1:-1``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import fields, replace
+from typing import List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..errors import ParameterError, SkewpendError
+from .measurements import SKEWPEND, Convention, Measurements, Piece, convert, convert_back
+
+__all__ = ["spell_convention", "mode_periods", "check_sampling", "suspect", "diagnose", "SAMPLES_PER_SWING",
+           "SWINGS_NEEDED", "BETTER", "CHECK_WINDOW", "report"]
+
+#: Fewer samples than this per swing of ``params0``'s faster mode: the time column is refused.
+SAMPLES_PER_SWING = 4
+#: Swings of the slower mode an identification needs, at least (the hint's advice).
+SWINGS_NEEDED = 3
+#: An alternative convention is named when its linear estimate's residual is at most this
+#: fraction of the data's as read.
+BETTER = 1 / 3
+#: The Savitzky-Golay window of the convention checks [s], at most (a quarter of the faster
+#: mode's period when shorter): wide, so that noise in the accelerations does not hide the model
+#: error of a wrong convention (on 6 s of a skewed rig with 0.5 mrad noise the residuals are
+#: 0.004 as read correctly, 0.04 with the second angle absolute, 0.13 with a sign flipped).
+CHECK_WINDOW = 0.2
+
+
+def spell_convention(convention: Convention, interface: str = "python") -> str:
+    """How a user states ``convention``: ``Convention(second='absolute', sign=(1, -1))`` in
+    Python, ``--convention second=absolute,sign=1:-1`` on the command line (only the fields that
+    differ from skewpend's own)."""
+    changed = [f.name for f in fields(Convention) if getattr(convention, f.name) != getattr(SKEWPEND, f.name)]
+    if interface == "cli":
+        parts = []
+        for k in changed:
+            v = getattr(convention, k)
+            parts.append(f"{k}={v[0]}:{v[1]}" if k == "sign" else f"{k}={'yes' if v is True else v}")
+        return "--convention " + (",".join(parts) if parts else "second=relative")
+    return "Convention(" + ", ".join(f"{k}={getattr(convention, k)!r}" for k in changed) + ")"
+
+
+def mode_periods(params0) -> Optional[Tuple[float, float]]:
+    """``(slow, fast)``: the periods [s] of ``params0``'s two modes about hanging (undamped), or
+    None when they cannot be had (symbolic or unstable)."""
+    from .modes import linear_matrices
+
+    try:
+        M, _, K = linear_matrices(params0)
+        w2 = np.linalg.eigvals(np.linalg.solve(M, K)).real
+    except (SkewpendError, np.linalg.LinAlgError, TypeError, ValueError):
+        return None
+    if not np.all(np.isfinite(w2)) or np.any(w2 <= 0):
+        return None
+    periods = 2 * math.pi / np.sqrt(np.sort(w2))
+    return float(periods[0]), float(periods[1])
+
+
+def _declared(measurements: Measurements, convention: Optional[Convention]) -> Convention:
+    if convention is not None:
+        return convention
+    stated = dict(measurements.metadata.get("convention", {}) or {})
+    try:
+        return Convention(**{k: (tuple(v) if k == "sign" else v) for k, v in stated.items()})
+    except (TypeError, ParameterError):
+        return SKEWPEND
+
+
+def check_sampling(measurements: Measurements, params0, *, convention: Optional[Convention] = None,
+                   interface: str = "python") -> None:
+    """Refuse (:class:`~skewpend.errors.ParameterError`) data sampled with fewer than
+    :data:`SAMPLES_PER_SWING` samples per swing of ``params0``'s faster mode: naming the time
+    column's unit when the steps read in milliseconds (or microseconds) make a plausible rate."""
+    periods = mode_periods(params0)
+    if periods is None:
+        return
+    fast = periods[1]
+    dt = float(np.median([p.dt for p in measurements]))
+    if dt <= fast / SAMPLES_PER_SWING:
+        return
+    conv = _declared(measurements, convention)
+    total = measurements.duration
+    what = (f"the median time step is {dt:.4g} s, {fast / dt:.2g} samples per swing of params0's faster mode "
+            f"({fast:.3g} s), over {total:.4g} s in all")
+    for unit, scale in (("ms", 1e-3), ("us", 1e-6)):
+        if conv.time == "s" and dt * scale <= fast / 20:
+            fix = spell_convention(replace(conv, time=unit), interface)
+            raise ParameterError(f"{what}: the times look in {'milliseconds' if unit == 'ms' else 'microseconds'} "
+                                 f"(steps of {dt * scale:.4g} s then); state {fix}")
+    raise ParameterError(f"{what}: too coarse to identify a pendulum (give at least {SAMPLES_PER_SWING * 5} samples "
+                         f"per swing, steps of at most {fast / 20:.3g} s), or check the time column's unit")
+
+
+def suspect(result, measurements: Optional[Measurements] = None) -> Optional[str]:
+    """Why a fit's result looks wrong, in words, or None: a status that is not success, a held-out
+    prediction worse than ``params0``'s, or (output error) an angle error above a tenth of the
+    angles' spread."""
+    if not result.ok:
+        return result.message
+    if len(result.validation) and math.isfinite(result.heldout_median0) and \
+            not result.heldout_median <= result.heldout_median0:
+        return (f"the held-out prediction ({result.heldout_median:.4g} rad) is worse than params0's "
+                f"({result.heldout_median0:.4g} rad)")
+    if len(result.fit_rms) and measurements is not None:
+        spread = float(np.median([np.std(p.q) for p in measurements]))
+        if float(np.median(result.fit_rms)) > 0.1 * spread:
+            return (f"the fitted model misses the angles by {float(np.median(result.fit_rms)):.3g} rad, more than a "
+                    f"tenth of their spread ({spread:.3g} rad)")
+    return None
+
+
+def _reread(measurements: Measurements, declared: Convention, other: Convention) -> Measurements:
+    """The measurements as if the file had been read with ``other`` instead of ``declared``."""
+    pieces = []
+    for p in measurements:
+        raw = convert_back(p.q, p.dq, p.u, convention=declared)
+        q, dq, u = convert(*raw, convention=other)
+        pieces.append(Piece(t=p.t, q=q, dq=dq, u=u, name=p.name, source=p.source, group=p.group, note=p.note))
+    return Measurements(pieces=tuple(pieces), metadata={"format": measurements.metadata.get("format", ""),
+                                                        "convention": other.to_dict()})
+
+
+def _residual(measurements: Measurements, params0, free, window: float) -> float:
+    from .identify import identify
+
+    try:
+        r = identify(measurements, params0, free=free, method="linear", smoothing=window, bootstrap=0)
+    except SkewpendError:
+        return math.nan
+    rms = np.asarray(r.residual_rms, dtype=float)
+    return float(np.median(rms)) if rms.size and np.all(np.isfinite(rms)) else math.nan
+
+
+def diagnose(measurements: Measurements, params0, *, convention: Optional[Convention] = None,
+             free: Optional[Sequence[str]] = None, interface: str = "python",
+             conventions: bool = True) -> List[str]:
+    """The likely data mistakes behind a fit that went wrong, each one line naming the fix (empty:
+    none found).  ``convention``: how the data were read (default: as their metadata says);
+    ``conventions=False`` leaves out the sign and second-angle checks (data whose convention is
+    the reader's own, as the Kaheman rig's)."""
+    hints: List[str] = []
+    periods = mode_periods(params0)
+    total = measurements.duration
+    if periods is not None and total < SWINGS_NEEDED * periods[0]:
+        hints.append(f"far too short: the fitting data last {total:.3g} s in all, "
+                     f"{total / periods[0]:.2g} swings of params0's slower mode ({periods[0]:.3g} s); record at least "
+                     f"{SWINGS_NEEDED * periods[0]:.2g} s ({SWINGS_NEEDED} swings) of motion")
+    if not conventions:
+        return hints
+    declared = _declared(measurements, convention)
+    window = CHECK_WINDOW if periods is None else min(CHECK_WINDOW, periods[1] / 4)
+    window = max(window, 7 * float(np.median([p.dt for p in measurements])))
+    if window > 0.5 * min(p.duration for p in measurements):
+        return hints
+    base = _residual(measurements, params0, free, window)
+    if not math.isfinite(base) or base <= 0:
+        return hints
+    flipped = replace(declared, sign=(declared.sign[0], -declared.sign[1]))
+    other = replace(declared, second="absolute" if declared.second == "relative" else "relative")
+    found: List[Tuple[float, str]] = []
+    for cand, what in ((flipped, "an encoder's sign looks flipped"),
+                       (other, f"the second angle looks {other.second}, not {declared.second}")):
+        r = _residual(_reread(measurements, declared, cand), params0, free, window)
+        if math.isfinite(r) and r <= BETTER * base:
+            fix = spell_convention(cand, interface)
+            if cand is flipped:
+                mirror = replace(cand, sign=(-cand.sign[0], -cand.sign[1]))
+                fix += f" (or {spell_convention(mirror, interface)}: the mirror image moves alike)"
+            found.append((r, f"{what}: read so, the inverse dynamics fit {base / r:.3g} times better; state {fix}"))
+    found.sort()
+    hints += [text for _, text in found[:1]]
+    return hints
+
+
+def report(hints: Sequence[str], checked: bool = True) -> List[str]:
+    """Lines to show: the hints, or that none of the checks found a data mistake."""
+    if hints:
+        return [f"hint: {h}" for h in hints]
+    return ["hint: the data checks (time unit, duration, encoder signs, second angle absolute or relative) found "
+            "no mistake"] if checked else []
+
