@@ -3,7 +3,8 @@
 Case (issue 3): a=1, b=0.8, m1=1, m2=0.7, alpha=0.6, g=9.81, y0=(1.2, -0.8, 0, 0),
 20 s of motion, warm (compiled code loaded before timing), in process.
 
-* skewpend dop853 at rtol = atol = 1e-10 (the default), own steps;
+* skewpend's default, ``simulate(P, y0, 20, rtol=1e-10, atol=1e-10)`` with no method named (``"auto"``:
+  taylor here), and dop853 and taylor named, at rtol = atol = 1e-10, own steps;
 * skewpend rk4, dt = 1e-3 (compiled fixed step) and gauss (symplectic), dt = 1e-3;
 * SciPy ``solve_ivp(method="DOP853", rtol=atol=1e-10)`` on skewpend's generated
   standalone Python right-hand side (math/NumPy scalar code, no compilation);
@@ -12,6 +13,9 @@ Case (issue 3): a=1, b=0.8, m1=1, m2=0.7, alpha=0.6, g=9.81, y0=(1.2, -0.8, 0, 0
 
 The error is the max-norm state error at t = 5 s against SciPy DOP853 at rtol = atol = 1e-13.
 (For MuJoCo the thin rods carry the tiny axial inertia it needs; its reference uses the same.)
+
+Last, issue 36's goal: the default against heyoka.py, timed in pairs (default, heyoka.py, default,
+...: both see the same load), the ratio of the medians (goal <= 1.0).
 
 Run:  python benchmarks/bench_simulate.py [--repeat 7]
 """
@@ -60,12 +64,15 @@ def main():
     rows = []
     ref5 = reference(P, T_ERR)
 
-    # skewpend (warm-up loads or compiles the machine code)
-    for method, kw in (("dop853", {}), ("rk4", {"dt": 1e-3}), ("gauss", {"dt": 1e-3})):
-        simulate(P, Y0, 1.0, method=method, **kw)
-        best, med, tr = best_of(lambda: simulate(P, Y0, T_END, method=method, **kw), args.repeat)
-        err = np.max(np.abs(simulate(P, Y0, T_ERR, method=method, **kw).y[-1] - ref5))
-        label = f"skewpend {method}" + (" rtol=atol=1e-10" if method == "dop853" else " dt=1e-3")
+    # skewpend (warm-up loads or compiles the machine code); the default first: the ratios' base
+    tol = {"rtol": 1e-10, "atol": 1e-10}
+    for method, kw in ((None, tol), ("dop853", tol), ("taylor", tol), ("rk4", {"dt": 1e-3}), ("gauss", {"dt": 1e-3})):
+        kw = kw if method is None else {"method": method, **kw}
+        simulate(P, Y0, 1.0, **kw)
+        best, med, tr = best_of(lambda: simulate(P, Y0, T_END, **kw), args.repeat)
+        err = np.max(np.abs(simulate(P, Y0, T_ERR, **kw).y[-1] - ref5))
+        label = (f"skewpend default (auto: {tr.method})" if method is None else f"skewpend {method}") + \
+            (" rtol=atol=1e-10" if "rtol" in kw else " dt=1e-3")
         rows.append((label, best, med, err, tr.stats["steps"]))
 
     # SciPy DOP853 with the generated (uncompiled) Python right-hand side
@@ -125,13 +132,29 @@ def main():
         err = np.max(np.abs(run_heyoka(T_ERR) - ref5))
         rows.append((f"heyoka.py {hy.__version__} taylor tol=1e-10", best, med, err, 0))
     except ImportError:
+        run_heyoka = None
         print("(heyoka.py not installed: pip install '.[bench]')")
 
     base = rows[0][2]
     print(f"20 s of motion, warm; best and median of {args.repeat} runs; error = max |y(5 s) - reference|")
-    print(f"{'method':36s} {'best ms':>9s} {'median ms':>10s} {'error@5s':>10s} {'steps':>7s} {'median / skewpend dop853':>25s}")
+    print(f"{'method':50s} {'best ms':>9s} {'median ms':>10s} {'error@5s':>10s} {'steps':>7s} {'median / skewpend default':>26s}")
     for name, best, med, err, steps in rows:
-        print(f"{name:36s} {best * 1e3:9.2f} {med * 1e3:10.2f} {err:10.1e} {steps:7d} {med / base:25.1f}")
+        print(f"{name:50s} {best * 1e3:9.2f} {med * 1e3:10.3f} {err:10.1e} {steps:7d} {med / base:26.2f}")
+
+    if run_heyoka is not None:  # issue 36's goal, in pairs
+        ours, theirs = [], []
+        for _ in range(max(args.repeat, 21)):
+            t0 = time.perf_counter()
+            simulate(P, Y0, T_END, rtol=1e-10, atol=1e-10)
+            t1 = time.perf_counter()
+            run_heyoka(T_END)
+            t2 = time.perf_counter()
+            ours.append(t1 - t0)
+            theirs.append(t2 - t1)
+        ratio = float(np.median(ours) / np.median(theirs))
+        print(f"goal (issue 36): simulate(P, y0, 20, rtol=1e-10, atol=1e-10), no method named, against heyoka.py at tol "
+              f"1e-10, {len(ours)} pairs: {np.median(ours) * 1e3:.3f} ms / {np.median(theirs) * 1e3:.3f} ms = "
+              f"{ratio:.2f}x ({'PASS' if ratio <= 1.0 else 'FAIL'}: <= 1.0)")
 
 
 if __name__ == "__main__":

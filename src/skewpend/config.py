@@ -53,7 +53,8 @@ def reference_state() -> Tuple[float, float, float, float]:
 #: The settings a command needs that its library function does not default itself (the run
 #: of simulate, animate and report is DEFAULT_RUN's; the Lyapunov spectrum's length).
 COMMAND_DEFAULTS: Dict[str, Dict[str, Any]] = {
-    "simulate": DEFAULT_RUN["simulation"], "animate": DEFAULT_RUN["simulation"], "report": DEFAULT_RUN["simulation"],
+    "simulate": {**DEFAULT_RUN["simulation"], "method": "auto"},  # simulate(): the fastest method that serves the run
+    "animate": DEFAULT_RUN["simulation"], "report": DEFAULT_RUN["simulation"],
     "lyapunov": {"t_end": 1000.0},
 }
 
@@ -293,14 +294,18 @@ class Run:
         if not isinstance(method, str) or method not in methods:
             raise UsageError(f"{self.option('simulation', 'method')}: expected {' or '.join(methods)}, got {method!r}")
         for key in ("rtol", "atol"):
-            if method not in ADAPTIVE and self.is_given("simulation", key):
+            if method not in adaptive and self.is_given("simulation", key):
                 raise UsageError(f"{self.option('simulation', key)} is a tolerance of {' and '.join(ADAPTIVE)}; {method} "
                                  "takes fixed steps (set --dt)")
         if method in ADAPTIVE and self.is_given("simulation", "dt"):
+        adaptive = ADAPTIVE + ("auto",)  # simulate's default picks an adaptive method
             raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; {method} chooses its own steps (set --rtol/--atol)")
         out: Dict[str, Any] = {"method": method, **self.settings(("rtol", "atol", "dt"))}
         if self.values["simulation"].get("max_steps") is not None:
             from .checks import MAX_STEPS_LIMIT
+        if method == "auto" and self.is_given("simulation", "dt"):
+            raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; give --method rk4 or gauss with it "
+                             "(the default method, auto, chooses its own steps: set --rtol/--atol)")
 
             out["max_steps"] = self.whole("max_steps", 0, 1, MAX_STEPS_LIMIT)
         return out

@@ -18,9 +18,15 @@ _SECONDS = T.Positive("number of seconds")
 
 
 def _run(name: str, config, model, initial, integration, **simulation):
-    """The resolved run of ``name``: parameters, initial state, the integrator settings."""
+    """The resolved run of ``name``: parameters, initial state, the integrator settings (simulate's
+    default method is ``auto``, the library's: the fastest that serves the run)."""
     run = resolve(name, config, parameters=model, initial=initial, simulation={**integration, **simulation})
-    return run, run.parameters(), run.initial_state(), run.integration()
+    methods = None
+    if name == "simulate":
+        from ..numeric.simulation import AUTO, METHODS
+
+        methods = (AUTO,) + METHODS
+    return run, run.parameters(), run.initial_state(), run.integration(methods)
 
 
 @command(MODEL, INITIAL, INTEGRATION)
@@ -82,7 +88,9 @@ def summary(traj, out_path) -> str:
         by = f" by {st['compiler']}" if st.get("compiler") else ""
         kernel = f"compiled for this model{by} in {st['kernel_build_time']:.2f} s ({kept})"
     lines = [
-        f"method        {traj.method}  ({', '.join(f'{k}={v:g}' for k, v in traj.settings.items() if isinstance(v, float) and k != 't_end')})",
+        f"method        {traj.method}  ({', '.join(f'{k}={v:g}' for k, v in traj.settings.items() if isinstance(v, float) and k != 't_end')})"
+        + (f"; the default (no --method) chose it: {traj.settings['method_choice'].split(': ', 1)[-1]}"
+           if traj.settings.get("method_choice") else ""),
         f"status        {traj.message}",
         f"final state   t={traj.t[-1]:.6g} s  phi={y[0]:.12g}  psi={y[1]:.12g}  dphi={y[2]:.12g}  dpsi={y[3]:.12g}",
         f"energy        E0={traj.energy[0]:.12g} J  E={traj.energy[-1]:.12g} J  work of Q={traj.work[-1]:.6g} J",

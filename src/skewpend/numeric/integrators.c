@@ -304,9 +304,9 @@ static inline void model_rhs(const double *y, const double *p, double *out)
  * dt_out > 0 -- the grid k dt_out, k = 0 .. n_grid - 1, by the 7th-order dense output (grid
  * points up to rounding beyond t_end get the final state).  *k_out is the next grid index.
  * max_steps bounds accepted + rejected steps over the whole run. */
-int sp_dop853(sp_state *s, int n, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
-              int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
-              int64_t *m_out)
+static int dop853_run(sp_state *s, int n, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
+                      int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
+                      int64_t *m_out)
 {
     double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX];
     const int dense = dt_out > 0.0;
@@ -386,8 +386,8 @@ static int fixed_stop(const sp_state *s, const double *z, int n, double t0, doub
 
 /* Classical Runge-Kutta of order 4.  On a non-finite state the output ends with the last
  * finite state (stored even if it is not on the stride). */
-int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t nsteps, int64_t stride,
-           int64_t budget, double *rows, int64_t cap, int64_t *m_out)
+static int rk4_run(sp_state *s, int n, const double *p, double t0, double dt, int64_t nsteps, int64_t stride,
+                   int64_t budget, double *rows, int64_t cap, int64_t *m_out)
 {
     double k1[SP_NMAX], k2[SP_NMAX], k3[SP_NMAX], k4[SP_NMAX], tmp[SP_NMAX];
     const double half = 0.5 * dt, sixth = dt / 6.0;
@@ -423,14 +423,39 @@ int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t ns
     return SP_STATUS_SUCCESS;
 }
 
-/* sp_dop853 and sp_rk4 with inputs: c is this thread's active control for the call */
+/* The entry points: each makes its control (none for the plain ones) this thread's active control
+ * for the duration of the call and gives the caller's back on return.  The active control is thus
+ * scoped to one call, never shared between calls: a Python law (SP_CTL_CALLBACK) that runs a
+ * simulation of its own -- with inputs or without -- runs it with that simulation's inputs, and
+ * the outer run resumes with its own (issue 36; test_simulate's re-entrancy test). */
+int sp_dop853(sp_state *s, int n, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
+              int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows, int64_t cap,
+              int64_t *m_out)
+{
+    const sp_control *outer = sp_ctl;
+    sp_ctl = 0;
+    int rc = dop853_run(s, n, p, t_end, rtol, atol, max_steps, budget, dt_out, n_grid, k_out, rows, cap, m_out);
+    sp_ctl = outer;
+    return rc;
+}
+
+int sp_rk4(sp_state *s, int n, const double *p, double t0, double dt, int64_t nsteps, int64_t stride,
+           int64_t budget, double *rows, int64_t cap, int64_t *m_out)
+{
+    const sp_control *outer = sp_ctl;
+    sp_ctl = 0;
+    int rc = rk4_run(s, n, p, t0, dt, nsteps, stride, budget, rows, cap, m_out);
+    sp_ctl = outer;
+    return rc;
+}
+
 int sp_dop853_ctl(const sp_control *c, sp_state *s, int n, const double *p, double t_end, double rtol, double atol,
                   int64_t max_steps, int64_t budget, double dt_out, int64_t n_grid, int64_t *k_out, double *rows,
                   int64_t cap, int64_t *m_out)
 {
-    const sp_control *outer = sp_ctl; /* a Python law may run a simulation of its own: restore the caller's */
+    const sp_control *outer = sp_ctl;
     sp_ctl = c;
-    int rc = sp_dop853(s, n, p, t_end, rtol, atol, max_steps, budget, dt_out, n_grid, k_out, rows, cap, m_out);
+    int rc = dop853_run(s, n, p, t_end, rtol, atol, max_steps, budget, dt_out, n_grid, k_out, rows, cap, m_out);
     sp_ctl = outer;
     return rc;
 }
@@ -440,7 +465,7 @@ int sp_rk4_ctl(const sp_control *c, sp_state *s, int n, const double *p, double 
 {
     const sp_control *outer = sp_ctl;
     sp_ctl = c;
-    int rc = sp_rk4(s, n, p, t0, dt, nsteps, stride, budget, rows, cap, m_out);
+    int rc = rk4_run(s, n, p, t0, dt, nsteps, stride, budget, rows, cap, m_out);
     sp_ctl = outer;
     return rc;
 }

@@ -45,9 +45,34 @@ from ..errors import IntegrationError, ParameterError
 from ..symbolic.model import Parameters
 from ..parsing import MAX_ANGLE, initial_state
 
-__all__ = ["simulate", "Trajectory", "open_trajectory", "METHODS", "STATUS_MESSAGES", "MAX_STEPS", "check_start"]
+__all__ = ["simulate", "Trajectory", "open_trajectory", "METHODS", "AUTO", "AUTO_RULE", "STATUS_MESSAGES", "MAX_STEPS",
+           "check_start"]
 
 from .conventions import ADAPTIVE, METHODS  # noqa: E402  (the CLI's --help reads them without NumPy)
+
+#: The default ``method`` of :func:`simulate`: the fastest integrator that serves the request (:data:`AUTO_RULE`).
+AUTO = "auto"
+#: Why ``method="auto"`` chose what it chose (``settings["method_choice"]`` of the trajectory; the
+#: summary says it).  The rule, in this order:
+#:
+#: * inputs that vary (``controller=``, a law or a Python function) -> dop853: taylor's series are
+#:   generated for the model with constant torques, and dop853 is the adaptive method that takes them;
+#: * equations with a function that has no series recurrence -> dop853 (no model of skewpend has one
+#:   today: sin, cos and Coulomb friction's atan all have theirs);
+#: * otherwise -> taylor, at every tolerance, own steps or a dense grid (``dt_out``), kept or streamed:
+#:   the adaptive Taylor method takes 2-4x less time than dop853 at the same tolerance and reaches a
+#:   smaller error (docs/benchmarks.md, work-precision: 0.085 against 0.18 ms at 1e-3, 0.20 against
+#:   0.60 ms at 1e-10, 0.41 against 1.46 ms at 1e-14), and 0.6-0.7x heyoka.py's time at tol 1e-10
+#:   (benchmarks/bench_simulate.py).  Its one cost: the first run at a new order (one per tolerance
+#:   band, see :func:`skewpend.numeric.kernels.taylor_rule`) builds that order's small library, about
+#:   1-3 s once, cached on disk like the model's kernel.
+#:
+#: A fixed step ``dt`` is refused with ``auto`` (it is a setting of rk4 and gauss: name the method).
+AUTO_RULE = {
+    "controller": "dop853: inputs that vary (taylor's series are generated for constant torques)",
+    "no series": "dop853: {reason}",
+    "taylor": "taylor: the fastest method that serves this request (2-4x dop853's speed at the same tolerance)",
+}
 
 #: Deprecated: the messages of :class:`skewpend.status.Status` by code (use ``Status(code).message``).
 STATUS_MESSAGES = {int(s): s.message for s in Status if s <= Status.NO_CONVERGENCE}
@@ -152,7 +177,9 @@ class Trajectory(ResultProtocol):
         st = self.stats
         return "\n".join([
             f"{self.result_kind}: {self.message}",
-            f"{self.method}, t = {self.t[0]:g} .. {self.t[-1]:g} s, {len(self.t)} rows{'' if self.kept else ' (first and last kept)'}",
+            f"{self.method}, t = {self.t[0]:g} .. {self.t[-1]:g} s, {len(self.t)} rows{'' if self.kept else ' (first and last kept)'}"
+            + (f"; chosen by method 'auto': {self.settings['method_choice'].split(': ', 1)[-1]}"
+               if self.settings.get("method_choice") else ""),
             f"energy drift {self.energy_drift:.3g}; {st.get('steps', 0)} steps ({st.get('rejected', 0)} rejected)",
         ])
 
@@ -381,7 +408,7 @@ def simulate(
     t_end: float,
     *,
     dt_out: Optional[float] = None,
-    method: str = "dop853",
+    method: str = AUTO,
     rtol: Optional[float] = None,
     atol: Optional[float] = None,
     dt: Optional[float] = None,
@@ -394,8 +421,12 @@ def simulate(
 ) -> Trajectory:
     """Integrate the equations of motion from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``.
 
-    ``method``: ``"dop853"`` or ``"taylor"`` (adaptive; ``rtol``, ``atol``, default 1e-10),
-    ``"rk4"`` or ``"gauss"`` (fixed step ``dt`` [s], default 1e-3).  A setting that does not
+    ``method``: ``"auto"`` (the default), ``"dop853"`` or ``"taylor"`` (adaptive; ``rtol``, ``atol``,
+    default 1e-10), ``"rk4"`` or ``"gauss"`` (fixed step ``dt`` [s], default 1e-3).  ``"auto"`` picks
+    the fastest method that serves the request (:data:`AUTO_RULE`): ``"taylor"``, or ``"dop853"`` for
+    inputs that vary (``controller``); ``Trajectory.method`` is the method that ran,
+    ``settings["method"]`` is ``"auto"`` and ``settings["method_choice"]`` says why (so does
+    ``summary()``).  With ``"auto"`` a fixed step ``dt`` is refused (name ``"rk4"`` or ``"gauss"``).  A setting that does not
     apply to the method (``dt`` with dop853 or taylor, ``rtol``/``atol`` with rk4 or gauss) is
     refused.  ``dt_out=None`` returns the integrator's own steps; otherwise the states on the
     grid ``0, dt_out, 2 dt_out, ... <= t_end`` (dense output for dop853 and taylor; for the
@@ -452,8 +483,17 @@ def simulate(
     if not (type(t_end) is float and _FLOAT_MIN <= t_end < math.inf):
         t_end = checks.positive("t_end", t_end)
     dt_out = None if dt_out is None else checks.positive("dt_out", dt_out)
-    if method not in METHODS:
-        raise ParameterError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
+    choice = None
+    if method == AUTO:  # the rule of AUTO_RULE (a model without series recurrences: below, with the kernel)
+        if dt is not None:
+            raise ParameterError("dt is the step of rk4 and gauss; the default method 'auto' chooses its own steps (set "
+                                 "rtol/atol), or name method='rk4' or 'gauss' with dt")
+        if controller is None:
+            method, choice = "taylor", AUTO_RULE["taylor"]
+        else:
+            method, choice = "dop853", AUTO_RULE["controller"]
+    elif method not in METHODS:
+        raise ParameterError(f"unknown method {method!r}; allowed: {AUTO}, {', '.join(METHODS)}")
     if dt_out is not None and dt_out > t_end:
         raise ParameterError(f"dt_out ({dt_out:g}) must not exceed t_end ({t_end:g})")
     if not (type(max_steps) is int and 1 <= max_steps <= checks.MAX_STEPS_LIMIT):
@@ -475,6 +515,8 @@ def simulate(
     if out is not None:
         out = check_output_path(out, TRAJECTORY_SUFFIXES, option="out")
     settings: Dict[str, Any] = {"t_end": t_end, "dt_out": dt_out, "max_steps": max_steps}
+    if choice is not None:
+        settings["method"], settings["method_choice"] = AUTO, choice
     if method in ADAPTIVE:
         if dt is not None:
             raise ParameterError(f"dt is the step of rk4 and gauss; {method} chooses its own steps (set rtol/atol instead)")
@@ -527,9 +569,13 @@ def simulate(
                 try:
                     tk = K.taylor_kernel(params, order, model=kernel)
                 except ValueError as exc:  # a function in the equations without a series recurrence
-                    raise ParameterError(f"method taylor: {exc}; use dop853") from None
-                entry.taylor[order] = tk
-            if len(entry.taylor_tol) < 64:
+                    if choice is None:
+                        raise ParameterError(f"method taylor: {exc}; use dop853") from None
+                    method, tk = "dop853", None  # auto: the adaptive method that takes any equations
+                    settings["method_choice"] = AUTO_RULE["no series"].format(reason=exc)
+                if tk is not None:
+                    entry.taylor[order] = tk
+            if tk is not None and len(entry.taylor_tol) < 64:
                 entry.taylor_tol[rtol] = (tk, step_l)
         else:
             tk, step_l = rule
@@ -543,7 +589,7 @@ def simulate(
         buf.y0[0], buf.y0[1], buf.y0[2], buf.y0[3] = y
         cols_addr, e_addr, acc_addr, s_addr, p_addr = buf.cols_addr, buf.e_addr, buf.acc_addr, buf.s_addr, entry.p_addr
         m = buf.m
-        budget = min(2000, max(10, max_steps // 20))
+        budget = _first_budget(max_steps)
         start = time.perf_counter()
         code = rows_fn(s_addr, buf.y0_addr, p_addr, t_end, rtol, atol, step_l, max_steps, budget, cols_addr, _CHUNK_ROWS,
                        e_addr, acc_addr, buf.m_ref)
@@ -729,7 +775,7 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
             if progress is not None:
                 progress(state.t, t_end)
 
-        budget = min(2000, max(10, max_steps // 20))
+        budget = _first_budget(max_steps)
         # The first bounded call (at most 2000 steps: a few ms) runs without Interrupts' signal
         # handlers (installing and restoring them costs more than a short run takes): a Ctrl-C
         # during it raises as Python's handler does, when the call returns.  A run that goes on
@@ -805,6 +851,15 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
     if traj.status != 0 and throw:
         raise IntegrationError(f"{method}: {message} at t = {state.t:.6g} s")
     return traj
+
+
+def _first_budget(max_steps: int) -> int:
+    """The step budget of a run's first bounded call: a few ms of work (at most 2000 steps), and past
+    ``max_steps`` when the cap is that small -- so a run whose whole cap fits in the first call stops
+    at the cap with its status (every method alike), never at the budget (which would refuse it by
+    the estimate)."""
+    budget = min(2000, max(10, max_steps // 20))
+    return max_steps + 1 if budget >= max_steps else budget
 
 
 def _check_room(rows: float, keep: bool, out) -> None:
