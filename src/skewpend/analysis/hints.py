@@ -92,7 +92,8 @@ def check_sampling(measurements: Measurements, params0, *, convention: Optional[
                    interface: str = "python") -> None:
     """Refuse (:class:`~skewpend.errors.ParameterError`) data sampled with fewer than
     :data:`SAMPLES_PER_SWING` samples per swing of ``params0``'s faster mode: naming the time
-    column's unit when the steps read in milliseconds (or microseconds) make a plausible rate."""
+    column's unit when the steps read in milliseconds (or microseconds) make a plausible rate (at
+    least 20 samples per swing) over a plausible duration (at least half a swing)."""
     periods = mode_periods(params0)
     if periods is None:
         return
@@ -105,7 +106,7 @@ def check_sampling(measurements: Measurements, params0, *, convention: Optional[
     what = (f"the median time step is {dt:.4g} s, {fast / dt:.2g} samples per swing of params0's faster mode "
             f"({fast:.3g} s), over {total:.4g} s in all")
     for unit, scale in (("ms", 1e-3), ("us", 1e-6)):
-        if conv.time == "s" and dt * scale <= fast / 20:
+        if conv.time == "s" and dt * scale <= fast / 20 and total * scale >= fast / 2:
             fix = spell_convention(replace(conv, time=unit), interface)
             raise ParameterError(f"{what}: the times look in {'milliseconds' if unit == 'ms' else 'microseconds'} "
                                  f"(steps of {dt * scale:.4g} s then); state {fix}")
@@ -195,7 +196,8 @@ def diagnose(measurements: Measurements, params0, *, convention: Optional[Conven
 
 
 def report(hints: Sequence[str], checked: bool = True) -> List[str]:
-    """Lines to show: the hints, or that none of the checks found a data mistake."""
+    """Lines to show: the hints, or (``checked``: the convention checks ran) that none of the
+    checks found a data mistake."""
     if hints:
         return [f"hint: {h}" for h in hints]
     return ["hint: the data checks (time unit, duration, encoder signs, second angle absolute or relative) found "

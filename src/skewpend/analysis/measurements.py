@@ -1092,7 +1092,8 @@ def dfki_lab_values(params) -> Dict[str, float]:
         if axis is not None:
             n = np.asarray(axis, dtype=float)
             if np.hypot(n[0], n[1]) > 1e-12 * abs(n[2]):
-                raise ParameterError(f"the DFKI lab's model is planar: both hinge axes along k; {name} = {tuple(axis)} "
+                raise ParameterError(f"the DFKI lab's model is planar: both hinge axes along k; {name} = "
+                                     f"({', '.join(f'{float(x):.6g}' for x in axis)}) "
                                      "(write a .toml run file instead)")
     if p.tau1 or p.tau2:
         raise ParameterError("the DFKI lab's model file has no constant joint torques; this model has tau1 = "

@@ -203,7 +203,7 @@ def identify(
                 found = hints.diagnose(measurements, params0, convention=conv, free=free_names, interface="cli",
                                        conventions=kind in ("csv", "mat", "dfki"))
     if why is not None:
-        for line in hints.report(found):
+        for line in hints.report(found, checked=kind in ("csv", "mat", "dfki")):
             sys.stderr.write(f"skewpend: {line}\n")
     note = ""
     written = []
@@ -280,7 +280,7 @@ _CLI_SPELLINGS = [
     (re.compile(r"method='output-error'"), lambda m, c: "--method output-error"),
     (re.compile(r"\bcheck zero=(?=[ ,;)]|$)"), lambda m, c: "check zero= in --convention"),
     (re.compile(r"^(skip|columns|convention|free): "), lambda m, c: f"--{m[1]}: "),
-    (re.compile(r"the column mapping"), lambda m, c: "--columns"),
+    (re.compile(r"the (?:column )?mapping\b"), lambda m, c: "--columns"),
 ]
 
 

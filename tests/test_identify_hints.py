@@ -1,0 +1,344 @@
+"""Bad data at ``skewpend identify`` (issue 36): each kind of mistake in the issue's list gets one line
+naming the data problem and its fix in the command line's spelling, exit 2 (refused) or 1 (a fit that
+did not succeed, with the hint); every action on the data is a line on stderr; ``--cut``, ``--skip``,
+``--nonfinite``, ``--short``.  The data are made by skewpend: a skewed rig (alpha = 20 deg) swinging
+freely for 4 s, sampled at 500 Hz with 0.5 mrad of seeded noise, written as CSV the way a user's
+logger might get it wrong.  The hints' own checks are tested in Python too (``skewpend.analysis.hints``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import assert_refused, run_cli, snapshot
+
+from skewpend.analysis.measurements import Convention, Measurements
+from skewpend.errors import ParameterError
+
+ALPHA = 20.0
+MODEL = ["--a", "0.2", "--b", "0.25", "--m1", "0.3", "--m2", "0.25", "--alpha", f"{ALPHA}deg", "--g", "9.81"]
+COLUMNS = ["--columns", "t=time,phi=th1,psi=th2"]
+#: What a message on the command line must not say: the Python spellings.
+PYTHON_SPELLING = re.compile(r"Convention\(|skip=\(|short='|nonfinite=|raise nonfinite\b|method='")
+
+
+def params():
+    import skewpend
+
+    return skewpend.Parameters(a=0.2, b=0.25, m1=0.3, m2=0.25, alpha=math.radians(ALPHA), g=9.81, c1=0.002, c2=0.001)
+
+
+@pytest.fixture(scope="module")
+def swing():
+    """``(t, q, dq)``: the rig's free swing from phi = 1, psi = -0.6 rad, 4 s at 500 Hz, noisy angles."""
+    import skewpend
+
+    tr = skewpend.simulate(params(), (1.0, -0.6, 0.0, 0.0), 4.0, dt_out=0.002)
+    y = np.asarray(tr.y)
+    q = y[:, :2] + 5e-4 * np.random.default_rng(0).standard_normal((len(tr.t), 2))
+    return np.asarray(tr.t), q, y[:, 2:]
+
+
+def write(path: Path, t, **cols) -> Path:
+    names = list(cols)
+    np.savetxt(path, np.column_stack([t] + [cols[k] for k in names]), delimiter=",",
+               header=",".join(["time"] + names), comments="")
+    return path
+
+
+def identify(tmp_path, name, *extra):
+    return run_cli(["identify", name, *COLUMNS, *MODEL, "--method", "linear", "--quiet", *extra], cwd=tmp_path)
+
+
+def hint_lines(ran):
+    return [line for line in ran.err.splitlines() if line.startswith("skewpend: hint:")]
+
+
+def assert_fit_failed_with_hint(ran, *fragments):
+    """Exit 1: the hint lines, the table on stdout, and the failure's one line last."""
+    assert ran.code == 1, ran.report()
+    hints = hint_lines(ran)
+    assert len(hints) == 1, ran.report()
+    for f in fragments:
+        assert f in hints[0], (f, ran.report())
+    assert not PYTHON_SPELLING.search(ran.err), ran.report()
+    assert ran.err.splitlines()[-1].startswith("skewpend: identify: "), ran.report()
+    assert "base parameter" in ran.out and "Traceback" not in ran.err
+
+
+# -- the mistakes the fit shows: exit 1 with the hint -------------------------------------------------
+@pytest.mark.slow
+def test_a_flipped_encoder_sign_is_named(swing, tmp_path):
+    t, q, _ = swing
+    write(tmp_path / "flip.csv", t, th1=q[:, 0], th2=-q[:, 1])
+    ran = identify(tmp_path, "flip.csv")
+    assert_fit_failed_with_hint(ran, "an encoder's sign looks flipped", "--convention sign=1:-1",
+                                "--convention sign=-1:1")
+
+
+@pytest.mark.slow
+def test_an_absolute_second_angle_declared_relative_is_named(swing, tmp_path):
+    t, q, _ = swing
+    write(tmp_path / "abs.csv", t, th1=q[:, 0], th2=q[:, 0] + q[:, 1])
+    ran = identify(tmp_path, "abs.csv")
+    assert_fit_failed_with_hint(ran, "the second angle looks absolute", "--convention second=absolute")
+
+
+@pytest.mark.slow
+def test_a_relative_second_angle_declared_absolute_is_named(swing, tmp_path):
+    """The reverse, with the user's other convention keys kept in the fix (degrees here)."""
+    t, q, _ = swing
+    d = np.degrees(q)
+    write(tmp_path / "rel.csv", t, th1=d[:, 0], th2=d[:, 1])
+    ran = identify(tmp_path, "rel.csv", "--convention", "second=absolute,unit=deg")
+    assert_fit_failed_with_hint(ran, "the second angle looks relative", "--convention unit=deg")
+
+
+@pytest.mark.slow
+def test_far_too_short_data_say_how_long_is_needed(swing, tmp_path):
+    t, q, _ = swing
+    keep = t <= 0.2
+    write(tmp_path / "short.csv", t[keep], th1=q[keep, 0], th2=q[keep, 1])
+    ran = identify(tmp_path, "short.csv")
+    assert_fit_failed_with_hint(ran, "far too short", "0.2 s in all", "record at least 3.3 s")
+
+
+@pytest.mark.slow
+def test_right_data_get_no_hint_naming_a_mistake(swing, tmp_path):
+    """The linear estimate alone lands just outside the physical bodies on these noisy data (a damping
+    a little below 0): the checks run and find nothing -- no false alarm."""
+    t, q, _ = swing
+    write(tmp_path / "ok.csv", t, th1=q[:, 0], th2=q[:, 1])
+    ran = identify(tmp_path, "ok.csv")
+    assert ran.code in (0, 1), ran.report()
+    assert not any("looks" in line or "too short" in line for line in hint_lines(ran)), ran.report()
+
+
+# -- refused before the fit: exit 2, one line --------------------------------------------------------
+def test_time_in_milliseconds_is_refused_naming_the_unit(swing, tmp_path):
+    t, q, _ = swing
+    write(tmp_path / "ms.csv", t * 1000, th1=q[:, 0], th2=q[:, 1])
+    before = snapshot(tmp_path)
+    ran = identify(tmp_path, "ms.csv", "--out", "fit.toml")
+    assert_refused(ran, ["the times look in milliseconds", "--convention time=ms", "median time step is 2 s"],
+                   tmp_path, before)
+
+
+@pytest.mark.parametrize("case, fragments", [
+    ("wrapped", ["look wrapped into one turn", "--convention wrapped=yes"]),
+    ("degrees", ["look like degrees", "--convention unit=deg", "--skip units"]),
+    ("speed sign", ["dphi runs against phi's rate", "--columns", "--skip velocities"]),
+    ("speed column", ["dpsi does not follow psi's rate", "--skip velocities"]),
+    ("speed unit", [re.compile(r"dphi is 5\d\.\d times phi's rate"), "check --columns", "--skip velocities"]),
+    ("nan", ["3 of 2001 rows hold NaN or inf", "--nonfinite 0 allows", "raise --nonfinite"]),
+    ("upright", ["zero upright", "--convention zero=upright", "--skip mean"]),
+    ("tracking", ["psi follows phi", "--convention second=absolute", "--skip tracking"]),
+])
+def test_reader_refusals_name_the_command_lines_spelling(swing, tmp_path, case, fragments):
+    t, q, dq = swing
+    speeds = ["--columns", "t=time,phi=th1,psi=th2,dphi=w1,dpsi=w2"]
+    cols, extra = dict(th1=q[:, 0], th2=q[:, 1]), []
+    if case == "wrapped":
+        cols["th1"] = np.mod(4 * q[:, 0] + math.pi, 2 * math.pi) - math.pi
+    elif case == "degrees":
+        cols = dict(th1=np.degrees(q[:, 0]), th2=np.degrees(q[:, 1]))
+    elif case.startswith("speed"):
+        w1, w2 = dq[:, 0], dq[:, 1]
+        w1, w2 = {"speed sign": (-w1, w2), "speed column": (w1, np.std(w2) * np.random.default_rng(1).standard_normal(len(w2))),
+                  "speed unit": (np.degrees(w1), w2)}[case]
+        cols.update(w1=w1, w2=w2)
+        extra = speeds
+    elif case == "nan":
+        cols["th1"] = cols["th1"].copy()
+        cols["th1"][[5, 50, 500]] = np.nan
+        extra = ["--nonfinite", "0"]
+    elif case == "upright":
+        cols["th1"] = q[:, 0] + math.pi
+    elif case == "tracking":
+        cols = dict(th1=q[:, 0], th2=1.05 * q[:, 0] + 0.01 * q[:, 1])
+    write(tmp_path / "data.csv", t, **cols)
+    before = snapshot(tmp_path)
+    ran = run_cli(["identify", "data.csv", *(extra if "--columns" in extra else COLUMNS + extra), *MODEL,
+                   "--quiet", "--out", "fit.toml"], cwd=tmp_path)
+    line = assert_refused(ran, fragments, tmp_path, before)
+    assert not PYTHON_SPELLING.search(line), line
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["--skip", "nothing"], ["--skip", "mean, tracking, velocities, units"]),
+    (["--skip", ","], ["--skip"]),
+    (["--nonfinite", "1"], ["--nonfinite", "up to (not including) 1"]),
+    (["--nonfinite", "-0.1"], ["--nonfinite", "non-negative"]),
+    (["--short", "keep"], ["--short", "refuse or drop"]),
+    (["--cut", "0"], ["--cut", "positive"]),
+    (["--cut", "1e-5"], ["--cut 1e-05", "no piece of 10 samples"]),
+    (["--convention", "time=h"], ["--convention", "time= must be one of 's', 'ms', 'us'"]),
+    (["--params0", "nowhere.yml"], ["--params0", "nowhere.yml does not exist"]),
+    (["--params0", "model.toml"], ["--params0", "FILE.yml"]),
+    (["--params0", "lab.yml", "--config", "run.toml"], ["--params0 and --config both give params0"]),
+    (["--out", "fit.yml", "--free", "alpha"], ["--out fit.yml", "planar", "alpha"]),
+    (["--out", "fit.yml"], ["--out fit.yml", "params0", "planar", "alpha = 20 deg"]),
+])
+def test_the_new_options_refuse_bad_values_in_one_line(swing, tmp_path, args, fragments):
+    t, q, _ = swing
+    write(tmp_path / "ok.csv", t, th1=q[:, 0], th2=q[:, 1])
+    (tmp_path / "run.toml").write_text("[parameters]\na = 0.2\n")
+    (tmp_path / "model.toml").write_text("[parameters]\na = 0.2\n")
+    lab = Path(__file__).resolve().parent.parent / "data" / "dfki-design-C.0" / "model_h1.0_parameters.yml"
+    (tmp_path / "lab.yml").write_text(lab.read_text())
+    before = snapshot(tmp_path)
+    ran = identify(tmp_path, "ok.csv", *args)
+    assert_refused(ran, fragments, tmp_path, before)
+
+
+# -- every action on the data is a line on stderr -----------------------------------------------------
+def test_dropped_rows_and_cut_pieces_are_said_on_stderr(swing, tmp_path, monkeypatch):
+    """NaN rows dropped and --cut's pieces: each a line on stderr; the fit gets the pieces cut to about
+    1 s (the fit is stood in for: what it is handed is tested)."""
+    import skewpend.analysis.identify as I
+    from skewpend import Status
+    from skewpend.analysis.identify import Identification
+
+    t, q, _ = swing
+    th1 = q[:, 0].copy()
+    th1[[5, 50, 500]] = np.nan
+    write(tmp_path / "nan.csv", t, th1=th1, th2=q[:, 1])
+    handed = {}
+
+    def fit(measurements, params0, **kw):
+        handed["m"] = measurements
+        return Identification(params=params0, params0=params0, status=Status.SUCCESS, message="stood in",
+                              settings={})
+
+    monkeypatch.setattr(I, "identify", fit)
+    ran = identify(tmp_path, "nan.csv", "--cut", "1")
+    assert ran.code == 0, ran.report()
+    assert "skewpend: data: nan.csv: nan: dropped 3 of 2001 rows holding NaN or inf" in ran.err.splitlines()
+    assert "skewpend: data: cut into pieces of about 1 s" in ran.err.splitlines()
+    m = handed["m"]
+    assert len(m) == 4 and all(0.95 < p.duration < 1.05 for p in m)
+    assert m.samples == 2001 - 3 + 3  # neighbours share their boundary sample
+
+
+def test_short_drop_and_skip_reach_the_readers(swing, tmp_path, monkeypatch):
+    """--short drop drops a piece of fewer than 10 samples after a gap (said on stderr); --skip units
+    lets degrees declared radians through (said, as the check the user turned off)."""
+    import skewpend.analysis.identify as I
+    from skewpend import Status
+    from skewpend.analysis.identify import Identification
+
+    t, q, _ = swing
+    tt = np.concatenate([t, t[-1] + 1.0 + 0.002 * np.arange(5)])  # 5 samples after a 1 s gap
+    qq = np.vstack([q, q[-5:]])
+    write(tmp_path / "gap.csv", tt, th1=qq[:, 0], th2=qq[:, 1])
+    handed = {}
+
+    def fit(measurements, params0, **kw):
+        handed["m"] = measurements
+        return Identification(params=params0, params0=params0, status=Status.SUCCESS, message="stood in",
+                              settings={})
+
+    monkeypatch.setattr(I, "identify", fit)
+    ran = identify(tmp_path, "gap.csv")
+    line = assert_refused(ran, ["fewer than 10", "--short drop"])
+    assert not PYTHON_SPELLING.search(line)
+    ran = identify(tmp_path, "gap.csv", "--short", "drop", "--skip", "units,mean")
+    assert ran.code == 0, ran.report()
+    assert any("gap part 2: dropped, 5 samples" in line for line in ran.err.splitlines()), ran.err
+    assert len(handed["m"]) == 1 and handed["m"].metadata["checks"]["skip"] == ("units", "mean")
+
+
+# -- the hints' checks, in Python ----------------------------------------------------------------------
+@pytest.mark.slow
+def test_diagnose_names_each_convention_mistake_in_pythons_spelling(swing):
+    """The checks behind the hints, on the data re-read three wrong ways and the right one: each
+    mistake named with the Python fix, the right data with none."""
+    from skewpend.analysis.hints import diagnose
+
+    t, q, _ = swing
+    p0 = params().replace(c1=0.0, c2=0.0)
+    cases = [(q, Convention(), None),
+             (q * [1, -1], Convention(), "Convention(sign=(1, -1)) (or Convention(sign=(-1, 1))"),
+             (q * [-1, 1], Convention(), "Convention(sign=(1, -1))"),
+             (np.column_stack([q[:, 0], q.sum(axis=1)]), Convention(), "Convention(second='absolute')"),
+             (q, Convention(second="absolute"), "Convention()")]
+    for qq, conv, fix in cases:
+        m = Measurements.from_arrays([{"t": t, "q": qq}], convention=conv, skip=("tracking", "mean"))
+        found = diagnose(m, p0)
+        if fix is None:
+            assert found == [], found
+        else:
+            assert len(found) == 1 and f"state {fix}" in found[0], (fix, found)
+
+
+def test_check_sampling_names_the_time_unit(swing):
+    from skewpend.analysis.hints import check_sampling
+
+    t, q, _ = swing
+    p0 = params()
+    check_sampling(Measurements.from_arrays([{"t": t, "q": q}]), p0)  # seconds: passes
+    for scale, says in ((1e3, "look in milliseconds (steps of 0.002 s then); state Convention(time='ms')"),
+                        (1e6, "look in microseconds (steps of 0.002 s then); state Convention(time='us')")):
+        with pytest.raises(ParameterError, match=re.escape(says)):
+            check_sampling(Measurements.from_arrays([{"t": t * scale, "q": q}]), p0)
+        m = Measurements.from_arrays([{"t": t * scale, "q": q}], convention=Convention(time="ms" if scale == 1e3 else "us"))
+        assert np.allclose(m[0].t, t, rtol=1e-12, atol=0)
+        check_sampling(m, p0)
+    coarse = Measurements.from_arrays([{"t": t[::200], "q": q[::200]}])  # 0.4 s steps: no unit makes it right
+    with pytest.raises(ParameterError, match="too coarse to identify"):
+        check_sampling(coarse, p0)
+
+
+@pytest.mark.parametrize("conv", [Convention(), Convention(second="absolute", unit="deg"),
+                                  Convention(sign=(1, -1), wrapped=True, time="ms"),
+                                  Convention(zero="upright", sign=(-1, -1), second="absolute")])
+def test_the_spelled_conventions_are_what_the_command_line_reads(conv):
+    """spell_convention(..., "cli") is --convention's own syntax: parsed back, the same Convention;
+    the Python spelling evaluates to it too."""
+    from skewpend.analysis.hints import spell_convention
+    from skewpend.cli.identify import _convention
+
+    text = spell_convention(conv, "cli")
+    assert text.startswith("--convention ")
+    assert _convention(text[len("--convention "):]) == conv
+    assert eval(spell_convention(conv), {"Convention": Convention}) == conv
+
+
+def test_every_python_spelling_of_the_readers_has_the_command_lines():
+    """Each refusal of the readers that names a Python spelling, mapped for the command line, names
+    none (cli_message); the user's other convention keys are kept in the fix."""
+    from skewpend.cli.identify import cli_message
+
+    t = np.linspace(0, 2, 401)
+    phi, psi = 0.3 * np.sin(6 * t), 0.2 * np.sin(11 * t)
+    base = {"t": t, "q": np.column_stack([phi, psi])}
+    cases = [
+        (dict(base, q=np.column_stack([np.mod(12 * phi + math.pi, 2 * math.pi) - math.pi, psi])), {}),
+        (dict(base, q=np.degrees(base["q"])), {}),
+        (dict(base, q=base["q"] + [math.pi, 0]), {}),
+        (dict(base, q=base["q"] + [0, math.pi]), {}),
+        (dict(base, q=np.column_stack([phi, 1.05 * phi])), {}),
+        (dict(base, dq=np.column_stack([-6 * 0.3 * np.cos(6 * t), 11 * 0.2 * np.cos(11 * t)])), {}),
+        (dict(base, dq=np.column_stack([6 * 0.3 * np.cos(6 * t), np.random.default_rng(1).standard_normal(401)])), {}),
+        (dict(base, dq=np.column_stack([600 * 0.3 * np.cos(6 * t), 11 * 0.2 * np.cos(11 * t)])), {}),
+        (dict(base, q=np.where(np.arange(401)[:, None] < 40, np.nan, base["q"])), {}),
+        ({"t": np.concatenate([t, [5.0, 5.001]]), "q": np.vstack([base["q"], [[0, 0], [0.1, 0.1]]])}, {}),
+    ]
+    seen = set()
+    for raw, kw in cases:
+        with pytest.raises(ParameterError) as info:
+            Measurements.from_arrays(raw, **kw)
+        text = str(info.value)
+        found = PYTHON_SPELLING.findall(text)
+        assert found, text  # each of these names a Python spelling
+        seen.update(found)
+        mapped = cli_message(text)
+        assert not PYTHON_SPELLING.search(mapped), mapped
+        assert "--" in mapped, mapped
+    assert {"Convention(", "skip=(", "short='", "nonfinite=", "raise nonfinite"} <= seen
+    wrapped = cli_message("state Convention(wrapped=True)", Convention(unit="deg", second="absolute"))
+    assert wrapped == "state --convention second=absolute,unit=deg,wrapped=yes"
