@@ -131,7 +131,7 @@ def test_a_cell_is_the_start_it_names(ref, design):
     for a, b in ((0, 5), (11, 17), (23, 2)):
         y0 = target.copy()
         y0[0], y0[1] = ref.x0[a], ref.y0[b]
-        t, _, status = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :],
+        t, _, _, status = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :],
                                     t_end=6.0, rtol=1e-8, atol=1e-8, max_steps=200_000, P=design.P, rho=design.rho)
         assert status[0] == 0 and t.tobytes() == ref.capture_time[a:a + 1, b].tobytes()
 
@@ -151,14 +151,14 @@ def test_the_lanes_agree_with_the_scalar_integration(ref, design):
     starts = np.tile(design.linearization.target, (X.size, 1))
     starts[:, 0], starts[:, 1] = X.ravel(), Y.ravel()
     kw = dict(t_end=6.0, rtol=1e-8, atol=1e-8, max_steps=200_000, P=design.P, rho=design.rho)
-    t1, s1, st1 = capture_many(lanes, pv, ctl, starts, **kw)
-    t0, s0, st0 = capture_many(scalar, pv, ctl, starts, **kw)
+    t1, s1, _, st1 = capture_many(lanes, pv, ctl, starts, **kw)
+    t0, s0, _, st0 = capture_many(scalar, pv, ctl, starts, **kw)
     assert t1.tobytes() == ref.capture_time.ravel().tobytes()
     assert not st0.any() and not st1.any() and np.array_equal(np.isnan(t0), np.isnan(t1))
     both = np.isfinite(t0) & (t0 > 0)
     assert both.sum() > 100 and np.max(np.abs(t0 - t1)[both]) < 1e-4
     order = np.random.default_rng(3).permutation(len(starts))  # other lanes, other neighbours
-    t2, s2, _ = capture_many(lanes, pv, ctl, starts[order], **kw)
+    t2, s2, _, _ = capture_many(lanes, pv, ctl, starts[order], **kw)
     assert t2.tobytes() == t1[order].tobytes() and np.array_equal(s2, s1[order])
 
 
@@ -176,15 +176,47 @@ def test_the_law_s_switches_are_stepped_to_not_rejected_around(ref, design):
     starts = np.tile(design.linearization.target, (X.size, 1))
     starts[:, 0], starts[:, 1] = X.ravel(), Y.ravel()
     kw = dict(t_end=6.0, max_steps=2_000_000, P=design.P, rho=design.rho)
-    t1, s1, _ = capture_many(kernel_module(BENCH, flip=True), pv, ctl, starts, rtol=1e-8, atol=1e-8, **kw)
-    t0, s0, _ = capture_many(kernel_module(BENCH), pv, ctl, starts, rtol=1e-8, atol=1e-8, **kw)
-    tr, _, st = capture_many(kernel_module(BENCH), pv, ctl, starts, rtol=1e-12, atol=1e-12, **kw)
+    t1, s1, r1, _ = capture_many(kernel_module(BENCH, flip=True), pv, ctl, starts, rtol=1e-8, atol=1e-8, **kw)
+    t0, s0, r0, _ = capture_many(kernel_module(BENCH), pv, ctl, starts, rtol=1e-8, atol=1e-8, **kw)
+    tr, _, _, st = capture_many(kernel_module(BENCH), pv, ctl, starts, rtol=1e-12, atol=1e-12, **kw)
     assert not st.any() and np.array_equal(np.isnan(t1), np.isnan(tr))
-    assert s1.sum() < 0.85 * s0.sum()
+    assert (s1 + r1).sum() < 0.85 * (s0 + r0).sum()  # the steps attempted
     moved = np.isfinite(tr) & (tr > 0)
     e1, e0 = np.abs(t1 - tr)[moved], np.abs(t0 - tr)[moved]
     assert moved.sum() > 100 and np.median(e1) < 0.5 * np.median(e0) and np.median(e1) < 1e-8
     assert e1.max() < 1e3 * 1e-8
+
+
+def test_steps_count_accepted_steps_and_rejected_the_rejected(design):
+    """The result protocol's statistics (issue 36: the rejected steps were counted as steps, in the
+    lanes too): a start's ``steps`` are its accepted steps, as simulate() counts them for the same
+    start, law and tolerance (DOP853 there on the state and W, here on the state alone; the lanes
+    also stop steps at the law's switches: a few steps either way, measured <= 3 of 22-50), and
+    ``rejected`` its rejected ones -- their sum is what ``max_steps`` caps, so a start stopped by
+    the cap has attempted exactly ``max_steps``.  A map's stats add the cells' counts."""
+    from skewpend.numeric.control import capture_many
+    from skewpend.numeric.kernels import kernel_module, parameter_vector
+
+    ctl, pv = design.controller(), parameter_vector(BENCH)
+    starts = np.tile(design.linearization.target, (12, 1))
+    starts[:, :2] += np.random.default_rng(5).uniform(-2.5, 2.5, (12, 2))
+    kw = dict(t_end=3.0, rtol=1e-8, atol=1e-8, P=design.P, rho=0.0)  # rho = 0: never captured, run to t_end
+    alone = [skewpend.simulate(BENCH, y0, 3.0, controller=ctl, method="dop853", rtol=1e-8, atol=1e-8).stats
+             for y0 in starts]
+    accepted = np.array([st["steps"] for st in alone])
+    assert sum(st["rejected"] for st in alone) > 0.2 * accepted.sum()  # enough rejections to tell the counts apart
+    for kernel in (kernel_module(BENCH, flip=True), kernel_module(BENCH)):
+        t, steps, rejected, status = capture_many(kernel, pv, ctl, starts, max_steps=200_000, **kw)
+        assert not status.any() and np.isnan(t).all() and (rejected >= 0).all()
+        assert np.all(np.abs(steps - accepted) <= np.maximum(3, 0.1 * accepted)), (steps, accepted)
+        assert abs(steps.sum() - accepted.sum()) < 0.05 * accepted.sum()
+        cap = 40
+        t, steps, rejected, status = capture_many(kernel, pv, ctl, starts, max_steps=cap, **kw)
+        stopped = status == skewpend.Status.MAX_STEPS
+        assert stopped.any() and np.all(steps[stopped] + rejected[stopped] == cap)
+        assert np.all(steps[~stopped] + rejected[~stopped] <= cap)
+    r = region_of_attraction(BENCH, n=4, design=design, t_end=2.0)
+    assert r.stats["steps"] > 0 and r.stats["rejected"] >= 0 and {"steps", "rejected"} <= set(r.stats)
 
 
 def test_no_cell_fails_at_a_tight_tolerance(design):
@@ -212,7 +244,7 @@ def test_other_planes_vary_the_speeds(design):
 
     y0 = design.linearization.target.copy()
     y0[0], y0[2] = r.x0[2], r.y0[6]
-    t, _, _ = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :], t_end=6.0,
+    t, _, _, _ = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :], t_end=6.0,
                            rtol=1e-8, atol=1e-8, max_steps=200_000, P=design.P, rho=design.rho)
     assert t.tobytes() == r.capture_time[2:3, 6].tobytes()
 
@@ -227,7 +259,7 @@ def test_failed_cells_are_reported_not_guessed(design):
     from skewpend.numeric.kernels import kernel_module, parameter_vector
 
     y0 = np.array([0.0, -0.648, 0.0, 0.0])  # phi - pi wraps to -pi: the jump
-    t, steps, status = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :],
+    t, steps, rejected, status = capture_many(kernel_module(BENCH, flip=True), parameter_vector(BENCH), design.controller(), y0[None, :],
                                     t_end=10.0, rtol=1e-8, atol=1e-8, max_steps=20_000, P=design.P, rho=design.rho)
     assert status[0] != 0 and math.isnan(t[0])
 

@@ -55,7 +55,7 @@ MAX_STEPS_ROA = 200_000
 #: Largest grid side.
 MAX_N = 4096
 #: Statistics per row (and per store chunk).
-CHUNK_STATS = ("cells", "captured", "failed", "steps")
+CHUNK_STATS = ("cells", "captured", "failed", "steps", "rejected")
 
 
 def _plane(plane) -> Tuple[str, str]:
@@ -93,8 +93,8 @@ class RegionOfAttraction(Result):
     * ``target`` (the equilibrium's state), ``K`` (2 x 4), ``P``, ``rho`` -- the feedback and its
       estimate ``dx^T P dx < rho``; :meth:`ellipse` is its slice in ``plane``;
     * ``captured_fraction``, ``inner_fraction`` (cells inside the estimate at the start);
-    * ``params``, ``settings``, ``stats`` (``cells``, ``captured``, ``failed``, ``steps``, the run's
-      chunks, store and cluster), ``status`` (PARTIAL when cells failed), ``message``, ``ok``,
+    * ``params``, ``settings``, ``stats`` (``cells``, ``captured``, ``failed``, ``steps`` -- accepted
+      steps, ``rejected`` -- rejected ones, as in every result; the run's chunks, store and cluster), ``status`` (PARTIAL when cells failed), ``message``, ``ok``,
       ``to_xarray()``, ``to_netcdf()``, ``summary()``.
     """
 
@@ -261,7 +261,7 @@ class RoaJob(GridJob):
 
         kernel, p, ctl = state
         rows = np.asarray(rows, dtype=np.int64)
-        time_, steps, status = capture_many(kernel, p, ctl, self.starts(rows), t_end=self.t_end, rtol=self.rtol,
+        time_, steps, rejected, status = capture_many(kernel, p, ctl, self.starts(rows), t_end=self.t_end, rtol=self.rtol,
                                             atol=self.atol, max_steps=self.max_steps, P=np.reshape(self.P, (4, 4)),
                                             rho=self.rho, cancel=cancel)
         shape = (rows.size, self.n)
@@ -269,7 +269,7 @@ class RoaJob(GridJob):
         captured = np.isfinite(time_).reshape(shape)
         outcome = np.where(failed, -1, np.where(captured, 1, 0)).astype(np.int8)
         stats = np.column_stack([np.full(rows.size, self.n), captured.sum(1), failed.sum(1),
-                                 steps.reshape(shape).sum(1)]).astype(float)
+                                 steps.reshape(shape).sum(1), rejected.reshape(shape).sum(1)]).astype(float)
         return {"capture_time": time_.reshape(shape), "outcome": outcome}, stats
 
     def result(self, run) -> RegionOfAttraction:
@@ -279,7 +279,7 @@ class RoaJob(GridJob):
         totals = run.totals(CHUNK_STATS)
         settings = {k: v for k, v in self.settings().items() if k not in ("kind", "params", "skewpend_version")}
         stats = {"cells": n * n, "captured": int(totals["captured"]), "failed": int(totals["failed"]),
-                 "steps": int(totals["steps"]), **run.info}
+                 "steps": int(totals["steps"]), "rejected": int(totals["rejected"]), **run.info}
         status, message = grid_status(stats["failed"], n * n, "cells")
         if stats["failed"]:
             message += " (a start that chatters where the wrapped feedback jumps, at the angle opposite the target)"
@@ -409,11 +409,11 @@ def _check_feasible(job: RoaJob, state) -> None:
     starts[:, ia], starts[:, ib] = zip(*corners)
     rate, ok = 0.0, False
     for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
-        time_, steps, status = capture_many(kernel, p, ctl, starts, t_end=t, rtol=job.rtol, atol=job.atol,
-                                            max_steps=PROBE_STEPS, P=np.reshape(job.P, (4, 4)), rho=job.rho)
+        time_, steps, rejected, status = capture_many(kernel, p, ctl, starts, t_end=t, rtol=job.rtol, atol=job.atol,
+                                                      max_steps=PROBE_STEPS, P=np.reshape(job.P, (4, 4)), rho=job.rho)
         moved = ~(time_ == 0)  # a start inside the estimate is captured at once: no steps, no rate
         lived = np.where(np.isfinite(time_), time_, t)[moved]  # a captured start stops early: its rate until then
-        rate = steps_per_second(steps[moved], lived)
+        rate = steps_per_second((steps + rejected)[moved], lived)  # attempted steps: what max_steps bounds
         ok = not np.any(status != 0)
         if ok or refused_already(rate, job.t_end, job.max_steps):
             break

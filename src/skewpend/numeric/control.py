@@ -339,7 +339,8 @@ def _bind_capture_lanes(lib) -> None:
     dp, i64 = ctypes.POINTER(ctypes.c_double), ctypes.c_int64
     d = ctypes.c_double
     lib.sp_capture_lanes.argtypes = [ctypes.c_void_p, ctypes.c_void_p, dp, dp, i64, d, d, d, i64, dp, d, i64, dp,
-                                     ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int8)]
+                                     ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int64),
+                                     ctypes.POINTER(ctypes.c_int8)]
     lib.sp_capture_lanes.restype = ctypes.c_int
     lib.sp_capture_ws_size.argtypes, lib.sp_capture_ws_size.restype = [], ctypes.c_int64
     lib._sp_capture_lanes_bound = True
@@ -353,8 +354,9 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
                  atol: float, max_steps: int, P: np.ndarray, rho: float, cancel=None, group: int = 16):
     """The closed loop of ``controller`` from each of ``starts`` (m, 4), integrated by DOP853 until
     it enters the region ``dx^T P dx < rho`` about the controller's target: ``(time, steps,
-    status)`` -- the capture time [s] (NaN: not by ``t_end``, or failed), the accepted and rejected
-    steps, and the integration's status code (0: completed).
+    rejected, status)`` -- the capture time [s] (NaN: not by ``t_end``, or failed), the accepted
+    steps, the rejected steps (``max_steps`` bounds their sum) and the integration's status code
+    (0: completed).
 
     On a flip kernel (``kernel_module(params, flip=True)``) with a feedback law, the starts run in
     SIMD lanes (``sp_capture_lanes``, the trigonometry-free state of the flip map, a lane refilled
@@ -370,6 +372,7 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
     m = starts.shape[0]
     time = np.full(m, np.nan)
     steps = np.zeros(m, dtype=np.int64)
+    rejected = np.zeros(m, dtype=np.int64)
     status = np.zeros(m, dtype=np.int8)
     region = np.ascontiguousarray(P, dtype=np.float64).reshape(4, 4)
     pp = np.ascontiguousarray(p, dtype=np.float64)
@@ -386,9 +389,10 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
             rc = lib.sp_capture_lanes(ws, ctypes.byref(c), pp.ctypes.data_as(dp), starts.ctypes.data_as(dp), m,
                                       float(t_end), float(rtol), float(atol), int(max_steps),
                                       region.ctypes.data_as(dp), float(rho), LANE_BUDGET, time.ctypes.data_as(dp),
-                                      steps.ctypes.data_as(i64p), status.ctypes.data_as(i8p))
+                                      steps.ctypes.data_as(i64p), rejected.ctypes.data_as(i64p),
+                                      status.ctypes.data_as(i8p))
             if rc == 0:
-                return time, steps, status
+                return time, steps, rejected, status
             if rc != -1:
                 raise RuntimeError(f"sp_capture_lanes refused its arguments (code {rc})")
     fn = kernel.lib.sp_capture_many
@@ -398,5 +402,5 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
         b = min(m, a + group)
         fn(ctypes.byref(c), pp.ctypes.data_as(dp), starts[a:].ctypes.data_as(dp), b - a, float(t_end), float(rtol),
            float(atol), int(max_steps), region.ctypes.data_as(dp), float(rho), time[a:].ctypes.data_as(dp),
-           steps[a:].ctypes.data_as(i64p), status[a:].ctypes.data_as(i8p))
-    return time, steps, status
+           steps[a:].ctypes.data_as(i64p), rejected[a:].ctypes.data_as(i64p), status[a:].ctypes.data_as(i8p))
+    return time, steps, rejected, status

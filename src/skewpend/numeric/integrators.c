@@ -501,11 +501,11 @@ int64_t sp_control_size(void) { return (int64_t)sizeof(sp_control); }
  * is the entry, located by bisection on the 7th-order dense output of the first step that ends
  * inside -- or reaches t_end (time[k] = NaN).  status[k] is
  * SP_STATUS_SUCCESS, or the code of a failed integration (time NaN); steps[k] counts its accepted
- * and rejected steps.  Every start's arithmetic is its own: the results do not depend on m or on
+ * steps, rejected[k] its rejected ones (the result protocol's steps and rejected).  Every start's arithmetic is its own: the results do not depend on m or on
  * which starts share a call. */
 void sp_capture_many(const sp_control *c, const double *p, const double *starts, int64_t m, double t_end,
                      double rtol, double atol, int64_t max_steps, const double *P, double rho, double *time,
-                     int64_t *steps, int8_t *status)
+                     int64_t *steps, int64_t *rejected, int8_t *status)
 {
     double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX], y[SP_NMAX], f[SP_NMAX], F[7 * SP_NMAX];
     const int n = 4;
@@ -541,7 +541,8 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
             memcpy(f, K[DOP_NS], (size_t)n * sizeof(double));
         }
         time[k] = when;
-        steps[k] = nacc + nrej;
+        steps[k] = nacc;
+        rejected[k] = nrej;
         status[k] = (int8_t)rc;
     }
     sp_ctl = outer;
@@ -1208,7 +1209,7 @@ static inline __attribute__((always_inline)) void cap_switch(const sp_control *r
 SP_MULTIVERSION
 int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, const double *starts, int64_t m,
                      double t_end, double rtol, double atol, int64_t max_steps, const double *P, double rho,
-                     int64_t budget, double *time, int64_t *steps, int8_t *status)
+                     int64_t budget, double *time, int64_t *steps, int64_t *rejected, int8_t *status)
 {
     const int n = SP_FLIP_N;
     double y[SP_FLIP_N][SP_LANES], f[SP_FLIP_N][SP_LANES], ynew[SP_FLIP_N][SP_LANES], ytmp[SP_FLIP_N][SP_LANES];
@@ -1238,7 +1239,7 @@ int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, con
             while (w->cell[l] < 0 && w->next < m) {
                 int64_t k = w->next++;
                 const double *x = starts + 4 * k;
-                steps[k] = 0;
+                steps[k] = rejected[k] = 0;
                 if (!(isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]) && isfinite(x[3]))) {
                     time[k] = NAN;
                     status[k] = SP_STATUS_NONFINITE;
@@ -1383,7 +1384,8 @@ int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, con
                 }
                 int64_t k = w->cell[l];
                 time[k] = w->t[l] + hi * h;
-                steps[k] = w->nacc[l] + w->nrej[l];
+                steps[k] = w->nacc[l];
+                rejected[k] = w->nrej[l];
                 status[k] = SP_STATUS_SUCCESS;
                 w->cell[l] = -1;
             }
@@ -1400,7 +1402,8 @@ int sp_capture_lanes(sp_capture_ws *w, const sp_control *c, const double *p, con
             if (accept[l]) w->t[l] = tnew[l];
             if (fail[l] || w->t[l] >= t_end) {
                 time[k] = NAN;
-                steps[k] = w->nacc[l] + w->nrej[l];
+                steps[k] = w->nacc[l];
+                rejected[k] = w->nrej[l];
                 status[k] = (int8_t)(fail[l] ? fail[l] : SP_STATUS_SUCCESS);
                 w->cell[l] = -1;
             }
