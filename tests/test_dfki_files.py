@@ -137,6 +137,7 @@ def test_numbers_read_back_exactly_and_as_yaml_numbers(tmp_path):
 
 
 # -- the command line -------------------------------------------------------------------------------------
+@pytest.mark.slow  # 3-4 s alone: the first linear matrices of params0's geometry
 def test_params0_from_a_lab_file_with_options_over_it(tmp_path, monkeypatch):
     """--params0 FILE.yml is the reader's model; a model option overrides one value (--g here); the fit
     is stood in for (what it starts from is tested)."""

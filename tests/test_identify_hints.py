@@ -98,7 +98,7 @@ def test_a_relative_second_angle_declared_absolute_is_named(swing, tmp_path):
     assert_fit_failed_with_hint(ran, "the second angle looks relative", "--convention unit=deg")
 
 
-@pytest.mark.slow
+@pytest.mark.slow  # 0.1 s after another fit, 13 s alone (the base regressor's derivation)
 def test_far_too_short_data_say_how_long_is_needed(swing, tmp_path):
     t, q, _ = swing
     keep = t <= 0.2
@@ -119,6 +119,7 @@ def test_right_data_get_no_hint_naming_a_mistake(swing, tmp_path):
 
 
 # -- refused before the fit: exit 2, one line --------------------------------------------------------
+@pytest.mark.slow  # 3-4 s alone: the first linear matrices of params0's geometry
 def test_time_in_milliseconds_is_refused_naming_the_unit(swing, tmp_path):
     t, q, _ = swing
     write(tmp_path / "ms.csv", t * 1000, th1=q[:, 0], th2=q[:, 1])
