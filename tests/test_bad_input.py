@@ -90,7 +90,16 @@ case("derive-torque-code-needs-values", ["derive", "--tau1", "1", "--format", "p
 case("derive-unknown-option", ["derive", "--bogus"], "--bogus")
 case("derive-option-without-value", ["derive", "--a"], "--a", "requires an argument")
 case("derive-extra-argument", ["derive", "extra"], "extra")
-case("derive-no-config-option", ["derive", "--config", "x.toml"], "--config")
+case("derive-config-missing", ["derive", "--config", "x.toml"], "x.toml", "does not exist")
+case("derive-config-unread-key", ["derive", "--config", "r.toml"], "r.toml: [simulation] t_end", "skewpend derive",
+     files={"r.toml": "[simulation]\nt_end = 3\n"})
+case("derive-coulomb-without-linear", ["derive", "--coulomb", "smoothed"], "--coulomb", "--linear")
+case("serve-config-speed", ["serve", "--config", "r.toml"], "r.toml: [initial] dphi0", "at rest",
+     files={"r.toml": "[initial]\ndphi0 = 1\n"})
+case("serve-config-friction", ["serve", "--config", "r.toml"], "r.toml: [parameters] cf1", "Coulomb friction",
+     files={"r.toml": "[parameters]\ncf1 = 0.1\n"})
+case("serve-config-beyond-slider", ["serve", "--config", "r.toml"], "r.toml: [parameters] a", "slider range",
+     files={"r.toml": "[parameters]\na = 0.05\n"})
 
 # -- simulate -------------------------------------------------------------------------------------------------
 case("sim-t-end-zero", ["simulate", "--t-end", "0"], opt("t-end"), "positive")

@@ -68,8 +68,11 @@ def test_friction_is_a_generalised_force_and_linearises_as_damping():
     Q = eom.generalized_forces
     for i, (c, cf, v) in enumerate((("c1", "cf1", "dphi"), ("c2", "cf2", "dpsi"))):
         assert sp.simplify(Q[i] - (-S[c] * S[v] - S[cf] * sp.atan(S["cfs"] * S[v]))) == 0
+    # Coulomb friction is non-smooth at rest: left out of C0 by default (issue 36), its smoothed slope on request
     lin = eom.linearize()
-    assert lin.C == sp.diag(S["c1"] + S["cf1"] * S["cfs"], S["c2"] + S["cf2"] * S["cfs"])
+    assert lin.C == sp.diag(S["c1"], S["c2"]) and lin.coulomb == "exclude" and "cf1, cf2 excluded" in lin.note
+    smoothed = eom.linearize(coulomb="smoothed")
+    assert smoothed.C == sp.diag(S["c1"] + S["cf1"] * S["cfs"], S["c2"] + S["cf2"] * S["cfs"])
 
 
 def test_validation_and_defaults():
@@ -165,7 +168,9 @@ def test_modes_see_rotor_and_friction():
     m = skewpend.normal_modes(p)
     M0 = derive(p.replace(cf1=0.0, cf2=0.0, c1=0.0, c2=0.0)).linearize().M
     assert np.allclose(m.M, np.array(M0, dtype=float), rtol=1e-12)
-    assert np.allclose(np.diag(m.C), [p.c1 + p.cf1 * p.cfs, p.c2 + p.cf2 * p.cfs], rtol=1e-12)
+    assert np.allclose(np.diag(m.C), [p.c1, p.c2], rtol=1e-12)  # Coulomb friction left out by default (issue 36)
+    smoothed = skewpend.normal_modes(p, coulomb="smoothed")
+    assert np.allclose(np.diag(smoothed.C), [p.c1 + p.cf1 * p.cfs, p.c2 + p.cf2 * p.cfs], rtol=1e-12)
     assert not np.allclose(m.M, skewpend.normal_modes(p.replace(Ir=0.0)).M)
 
 

@@ -84,6 +84,9 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "nnm": {"parameters": MODEL_KEYS},
     "control": {"parameters": MODEL_KEYS},
     "identify": {"parameters": MODEL_KEYS},  # params0, the fit's start
+    "derive": {"parameters": MODEL_KEYS},  # the values given; the others stay symbolic
+    # the bodies and axes -> the generated physics; the scalars and the start -> the page's sliders
+    "serve": {"parameters": MODEL_KEYS, "initial": frozenset(("phi0", "psi0"))},
 }
 
 #: Why a command does not read a key that some other command does (the refusal says it).
@@ -95,6 +98,8 @@ _WHY_NOT = {
     ("report", "out"): "the report is written to --out FILE.html",
     ("report", "dt_out"): "the report draws the integrator's own steps",
     ("poincare", "t_end"): "each orbit runs until its crossings are recorded, or --t-max",
+    ("serve", "dphi0"): "the explorer starts at rest (its sliders set phi0 and psi0)",
+    ("serve", "dpsi0"): "the explorer starts at rest (its sliders set phi0 and psi0)",
 }
 
 

@@ -47,31 +47,53 @@ def _columns(actuated: str) -> Tuple[int, ...]:
 @dataclass(frozen=True)
 class Linearization:
     """``d/dt dx = A dx + B du`` about ``equilibrium`` (its state ``x*``); ``actuated`` and the
-    joints ``B``'s columns drive (0: the shoulder, 1: the elbow)."""
+    joints ``B``'s columns drive (0: the shoulder, 1: the elbow); ``coulomb``: how Coulomb friction
+    entered ``A`` (``"smoothed"``, the control default: its smoothed slope ``cfs cf`` as viscous
+    damping; ``"exclude"``: not at all), ``coulomb_note`` says it."""
 
     A: np.ndarray
     B: np.ndarray
     equilibrium: Any = field(repr=False)
     actuated: str = "both"
     joints: Tuple[int, ...] = (0, 1)
+    coulomb: str = "smoothed"
+    params: Any = field(repr=False, default=None)
 
     @property
     def target(self) -> np.ndarray:
         return self.equilibrium.state
 
+    @property
+    def coulomb_note(self) -> str:
+        """How the Coulomb friction was treated, one line ('' for a model without it)."""
+        from ..symbolic.friction import coulomb_note
 
-def linearization(params: Parameters, equilibrium="up-up", actuated: str = "both") -> Linearization:
+        return "" if self.params is None else coulomb_note(self.params, self.coulomb)
+
+
+def linearization(params: Parameters, equilibrium="up-up", actuated: str = "both", *,
+                  coulomb: str = "smoothed") -> Linearization:
     """The state-space linearisation about an equilibrium (a label, an ``Equilibrium`` or
     ``(phi, psi)`` near one) with the input matrix of the actuated joints:
-    ``B = [0; M^-1 S]``, ``S`` the columns of the actuated joints."""
+    ``B = [0; M^-1 S]``, ``S`` the columns of the actuated joints.
+
+    Coulomb friction: unlike the modes and the equilibria (which leave it out, as non-smooth at
+    rest), a controller's linearisation takes the smoothed slope ``cfs cf`` by default
+    (``coulomb="smoothed"``): the LQR's region of attraction is certified on the model that is
+    simulated, whose friction *is* the smooth ``cf atan(cfs q')``, and a design that leaves its
+    slope out gives a ``V = dx^T P dx`` that grows arbitrarily close to the target there (no
+    region).  ``coulomb="exclude"`` leaves it out; ``coulomb_note`` says which was done."""
+    from ..symbolic.friction import check_coulomb
+
     params = numeric_params(params, "a linearisation")
     joints = _columns(actuated)
+    coulomb = check_coulomb(coulomb)
     from .equilibria import find_equilibrium
 
-    eq = find_equilibrium(params, equilibrium_argument(equilibrium), "equilibrium")
+    eq = find_equilibrium(params, equilibrium_argument(equilibrium), "equilibrium", coulomb=coulomb)
     S = np.eye(2)[:, list(joints)]
     B = np.vstack([np.zeros((2, len(joints))), np.linalg.solve(eq.M, S)])
-    return Linearization(eq.A.copy(), B, eq, actuated, joints)
+    return Linearization(eq.A.copy(), B, eq, actuated, joints, coulomb, params)
 
 
 def equilibrium_argument(which, name: str = "equilibrium"):
@@ -321,7 +343,7 @@ def _weights(Q, R, m: int) -> Tuple[np.ndarray, np.ndarray]:
 
 
 def lqr(params: Parameters, equilibrium="up-up", actuated: str = "both", Q=None, R=None, *, umax=None,
-        estimate: bool = True) -> LQR:
+        estimate: bool = True, coulomb: str = "smoothed") -> LQR:
     """The LQR about ``equilibrium`` (a label, an ``Equilibrium`` or angles ``(phi, psi)`` near one,
     reduced modulo 2 pi) with the ``actuated`` joints (see the module).
 
@@ -333,7 +355,9 @@ def lqr(params: Parameters, equilibrium="up-up", actuated: str = "both", Q=None,
     singular ``P`` gives no region estimate (``rho = 0``: ``V = dx^T P dx`` is no Lyapunov
     function).  Refused with one line too: an uncontrollable pair (the PBH distance in the
     message), a non-finite solution.  ``umax``: torque limits for the region estimate
-    (``estimate=False`` skips it); ``rho`` is certified as the module says."""
+    (``estimate=False`` skips it); ``rho`` is certified as the module says.  ``coulomb``: how the
+    linearisation treats Coulomb friction (:func:`linearization`: by its smoothed slope by default;
+    ``result.linearization.coulomb_note``)."""
     from scipy.linalg import solve_continuous_are
 
     from ..numeric.control import torque_limits
@@ -344,7 +368,7 @@ def lqr(params: Parameters, equilibrium="up-up", actuated: str = "both", Q=None,
     joints = _columns(actuated)
     Qm, Rm = _weights(Q, R, len(joints))
     limits = torque_limits(umax)
-    lin = linearization(params, equilibrium_argument(equilibrium), actuated)
+    lin = linearization(params, equilibrium_argument(equilibrium), actuated, coulomb=coulomb)
     ctrb = controllability(lin.A, lin.B)
     if not ctrb["controllable"] or ctrb["distance"] < 1e-10:
         raise EquilibriumError(

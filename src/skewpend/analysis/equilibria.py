@@ -18,7 +18,9 @@ Each :class:`Equilibrium` carries its linearisation ``M q'' + C q' + K q = 0`` (
 ``K`` the Hessian of ``V``, ``C`` the damping), the eigenvalues of the state matrix, the Morse
 index (the number of negative eigenvalues of ``K``: 0 for a minimum of ``V``, a stable
 equilibrium), the natural frequencies of its oscillating directions and the growth rates of its
-unstable ones, with their directions.
+unstable ones, with their directions.  Coulomb friction is left out of ``C`` by default, as
+non-smooth at rest (``coulomb="exclude"``, said in the result's message; see
+:mod:`skewpend.symbolic.friction`); ``coulomb="smoothed"`` adds its smoothed slope ``cfs cf``.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import numpy as np
 from ..errors import EquilibriumError, ParameterError
 from ..results import DatasetSpec, Result
 from ..status import Status
+from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
 __all__ = ["Equilibrium", "Equilibria", "equilibria", "equilibrium_at", "find_equilibrium", "linearisation_functions",
@@ -152,7 +155,9 @@ class Equilibrium:
       ``w^2 > 0``), ascending; ``growth_rates`` [1/s] and ``unstable_directions`` -- the
       directions of ``K v = -s^2 M v`` along which a small disturbance grows like ``exp(s t)``
       (without damping; with damping the rates are the positive real parts of ``eigenvalues``).
-      Shapes and directions are columns ``[phi, psi]`` with ``v^T M v = 1``.
+      Shapes and directions are columns ``[phi, psi]`` with ``v^T M v = 1``;
+    * ``coulomb`` -- how Coulomb friction entered ``C`` (``"exclude"``, the default: not at all;
+      ``"smoothed"``: its smoothed slope ``cfs cf``).
     """
 
     q: Tuple[float, float]
@@ -168,6 +173,7 @@ class Equilibrium:
     shapes: np.ndarray = field(default_factory=lambda: np.zeros((2, 0)), repr=False)
     growth_rates: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     unstable_directions: np.ndarray = field(default_factory=lambda: np.zeros((2, 0)), repr=False)
+    coulomb: str = field(default=DEFAULT_COULOMB, repr=False)
 
     @property
     def stable(self) -> bool:
@@ -190,10 +196,13 @@ class Equilibrium:
         return ";  ".join(parts)
 
 
-def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], functions) -> Equilibrium:
+def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], functions,
+               coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
     """The :class:`Equilibrium` at ``q`` (already a root)."""
     from scipy.linalg import LinAlgError, eig, eigh
 
+    if coulomb != "smoothed":  # Coulomb friction enters C only (its slope cfs cf): excluded, evaluated at cf = 0
+        values = [0.0 if n in ("cf1", "cf2") else v for n, v in zip(SCALAR_NAMES, values)]
     Pi, _, H, M, C = functions(*values, float(q[0]), float(q[1]))
     M = np.array(M, dtype=float)
     C = np.array(C, dtype=float) * np.ones((2, 2))
@@ -230,7 +239,7 @@ def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], funct
     return Equilibrium(
         q=(float(q[0]), float(q[1])), label=label, potential=potential, M=M, C=C, K=K, A=A, eigenvalues=ev,
         morse_index=index, frequencies=np.sqrt(lam[osc]), shapes=V[:, osc], growth_rates=np.asarray(growth, dtype=float),
-        unstable_directions=directions,
+        unstable_directions=directions, coulomb=coulomb,
     )
 
 
@@ -258,6 +267,16 @@ class Equilibria(Result):
 
     def __getitem__(self, k):
         return self.points[k]
+
+    @property
+    def coulomb(self) -> str:
+        """How Coulomb friction entered each point's ``C`` (``"exclude"`` or ``"smoothed"``)."""
+        return self.settings.get("coulomb", DEFAULT_COULOMB)
+
+    @property
+    def coulomb_note(self) -> str:
+        """How the Coulomb friction was treated, one line ('' for a model without it)."""
+        return coulomb_note(self.params, self.coulomb)
 
     @property
     def index_sum(self) -> int:
@@ -357,11 +376,13 @@ def _newton(grad_hess, q: np.ndarray, tau: np.ndarray, iterations: int = 60, *,
     return q, converged, its
 
 
-def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibria:
+def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS, coulomb: str = DEFAULT_COULOMB) -> Equilibria:
     """Every equilibrium of the numeric model ``params`` on the torus (see the module).
 
     ``starts``: Newton starts per side of the first grid (doubled, up to 128, while the
-    Poincare-Hopf check fails).  Refused: a symbolic parameter, and ``g = 0`` without torques
+    Poincare-Hopf check fails).  ``coulomb``: Coulomb friction left out of each linearisation
+    (``"exclude"``, the default: non-smooth at rest) or linearised by its smoothed slope
+    (``"smoothed"``); the message says which.  Refused: a symbolic parameter, and ``g = 0`` without torques
     (then every configuration is an equilibrium).  Without gravity but with torques there is no
     equilibrium (an empty result).
     """
@@ -369,6 +390,7 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibri
 
     params = numeric_params(params, "equilibria")
     starts = whole("starts", starts, lo=2, hi=MAX_STARTS)
+    coulomb = check_coulomb(coulomb)
     tau = np.array([params.tau1, params.tau2], dtype=float)
     values = _scalars(params)
     functions = linearisation_functions(_geometry_only(params))
@@ -401,7 +423,7 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibri
                 continue
             if all(np.max(np.abs(wrap(r - f))) > SAME_ROOT for f in found):
                 found.append(r)
-        points = [_linearise(params, wrap(r), values, functions) for r in found]
+        points = [_linearise(params, wrap(r), values, functions, coulomb) for r in found]
         points.sort(key=lambda e: (e.potential, e.q))
         index_sum = sum((-1) ** e.morse_index for e in points)
         if index_sum == 0 or n >= MAX_STARTS:
@@ -419,18 +441,23 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS) -> Equilibri
                 f"{len(degenerate)} of them degenerate (K singular): the index check does not apply" if degenerate else
                 f"their indices sum to {index_sum}, not 0: an equilibrium may be missed"))
     settings = {"starts": starts, "final_starts": n, "tau": tau.tolist()}
+    note = coulomb_note(params, coulomb)
+    if note:  # only where it matters (a model without friction keeps its fingerprint)
+        settings["coulomb"] = coulomb
+        message = f"{message}; {note}"
     stats = {"starts": total_starts, "converged": int(len(points)), "newton_iterations": int(total_its)}
     return Equilibria(points=points, params=params, settings=settings, stats=stats, status=status, message=message)
 
 
-def equilibrium_at(params: Parameters, q: Sequence[float], name: str = "q") -> Equilibrium:
+def equilibrium_at(params: Parameters, q: Sequence[float], name: str = "q", *, coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
     """The equilibrium at ``q = (phi, psi)`` (angles reduced modulo 2 pi, :func:`skewpend.checks.angles`:
     at most 1e6 rad in magnitude), polished by Newton's method from there; refused with one line
     when ``q`` is not near an equilibrium (the residual names how far).  ``name``: the
-    argument's name in a refusal."""
+    argument's name in a refusal; ``coulomb`` as for :func:`equilibria`."""
     from ..checks import angles, numeric_params
 
     params = numeric_params(params, "an equilibrium")
+    coulomb = check_coulomb(coulomb)
     q0 = np.array(angles(name, q, 2), dtype=float).reshape(1, 2)
     values = _scalars(params)
     functions = linearisation_functions(_geometry_only(params))
@@ -452,20 +479,25 @@ def equilibrium_at(params: Parameters, q: Sequence[float], name: str = "q") -> E
         raise EquilibriumError(
             f"(phi, psi) = ({q0[0, 0]:.6g}, {q0[0, 1]:.6g}) rad is not an equilibrium: dV/dq = {residual:.3g} N m there; "
             "choose one of skewpend.equilibria(params)")
-    return _linearise(params, wrap(root[0]), values, functions)
+    return _linearise(params, wrap(root[0]), values, functions, coulomb)
 
 
-def find_equilibrium(params: Parameters, which, name: str = "equilibrium") -> Equilibrium:
+def find_equilibrium(params: Parameters, which, name: str = "equilibrium", *, coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
     """An equilibrium given as an :class:`Equilibrium`, a label (``"up-up"``: one of
     :func:`equilibria`'s) or angles ``(phi, psi)`` near one (:func:`equilibrium_at`; reduced
-    modulo 2 pi, refused beyond 1e6 rad); ``name`` is the argument's name in the refusal."""
+    modulo 2 pi, refused beyond 1e6 rad); ``name`` is the argument's name in the refusal.  Its
+    linearisation treats Coulomb friction as ``coulomb`` says (an :class:`Equilibrium` made with
+    the other choice is linearised again)."""
     from ..checks import numeric_params
 
     params = numeric_params(params, "an equilibrium")
+    coulomb = check_coulomb(coulomb)
     if isinstance(which, Equilibrium):
-        return which
+        if which.coulomb == coulomb or not friction_terms(params):
+            return which
+        return equilibrium_at(params, which.q, name, coulomb=coulomb)
     if isinstance(which, str):
-        return equilibria(params).find(which)
+        return equilibria(params, coulomb=coulomb).find(which)
     if which is None or isinstance(which, (bytes, dict, set)):
         raise ParameterError(f"{name} must be an equilibrium, a label such as 'up-up', or (phi, psi), got {which!r}")
-    return equilibrium_at(params, which, name)
+    return equilibrium_at(params, which, name, coulomb=coulomb)

@@ -11,7 +11,9 @@ From the linearised equations ``M0 q'' + C0 q' + K0 q = 0`` of
 * :func:`sweep` -- the modes along a parameter (α, a length, a mass or a ratio), with
   internal resonances ``w2/w1 ~ 1, 2, 3`` located.
 
-The linear matrices are derived once per body geometry and evaluated numerically.
+The linear matrices are derived once per body geometry and evaluated numerically.  Coulomb
+friction is left out of them by default, as non-smooth at rest (``coulomb="exclude"``; see
+:mod:`skewpend.symbolic.friction`); ``coulomb="smoothed"`` linearises its smoothed form.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from ..errors import EquilibriumError, NotNumericError, ParameterError, Skewpend
 from ..results import DatasetSpec, ResultProtocol
 from .qep import NotFinite, pair_by_shape, quadratic_eigen
 from ..status import Status
+from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
 __all__ = [
@@ -50,7 +53,8 @@ def _matrix_function(geometry: Parameters) -> Callable:
     def build():
         from ..symbolic.derivation import SYMBOLS, derive
 
-        lin = derive(geometry).linearize()
+        # C with Coulomb friction's smoothed slope cfs cf: _matrices evaluates it at cf = 0 to exclude it
+        lin = derive(geometry).linearize(coulomb="smoothed")
         return [SYMBOLS[n] for n in SCALAR_NAMES], [lin.M, lin.C, lin.K]
 
     return cached_lambdify("linear_matrices", "analysis/modes.py", geometry, build)
@@ -86,15 +90,17 @@ def _require_finite(**arrays: np.ndarray) -> None:
             raise NotFinite(f"{name} {'are' if plural else 'is'} not finite (overflow)")
 
 
-def _matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _matrices(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     params.require_numeric("normal modes")
     if params.tau1 or params.tau2:
         raise EquilibriumError(
             "phi = psi = 0 is not an equilibrium with constant joint torques; normal modes need tau1 = tau2 = 0"
         )
     f = _matrix_function(_geometry(params))
+    # Coulomb friction enters C0 only (its slope cfs cf); excluded, it is evaluated at cf = 0
+    left_out = () if coulomb == "smoothed" else ("cf1", "cf2")
     values = [
-        np.float64(0.0 if (n == "alpha" and not params.uses_alpha) else float(getattr(params, n)))
+        np.float64(0.0 if (n == "alpha" and not params.uses_alpha) or n in left_out else float(getattr(params, n)))
         for n in SCALAR_NAMES
     ]
     with np.errstate(all="ignore"):
@@ -110,13 +116,15 @@ def _matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     return M, C, K
 
 
-def linear_matrices(params: Parameters) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Numeric ``(M0, C0, K0)`` (2x2 each, SI units) of the linearisation about ``q = 0``.
+def linear_matrices(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Numeric ``(M0, C0, K0)`` (2x2 each, SI units) of the linearisation about ``q = 0``
+    (Coulomb friction in ``C0`` only with ``coulomb="smoothed"``, see :func:`normal_modes`).
 
     Raises :class:`~skewpend.errors.ParameterError` when they are not finite (overflow).
     """
+    coulomb = check_coulomb(coulomb)
     try:
-        return _matrices(params)
+        return _matrices(params, coulomb)
     except NotFinite as exc:
         raise ParameterError(_not_finite_message(exc, params)) from None
 
@@ -149,6 +157,10 @@ class Modes(ResultProtocol):
       Undamped: 0;
     * ``M``, ``C``, ``K`` -- the linear matrices; ``state_matrix`` -- the 4 x 4 matrix of
       ``(dq, dq')``; ``params``;
+    * ``coulomb`` -- how Coulomb friction entered ``C`` (``"exclude"``: not at all, the default,
+      as it is non-smooth at rest; ``"smoothed"``: its smoothed slope ``cfs cf``);
+      ``coulomb_note`` says it in one line ('' without Coulomb friction), and ``message`` and
+      ``summary()`` include it;
     * ``equilibrium`` -- ``(phi, psi)`` [rad] the modes are about; ``growth_rates`` [1/s] --
       0 for an oscillating mode; about an unstable equilibrium (``normal_modes(params,
       about=...)``) a mode along which a disturbance grows like ``exp(s t)`` has growth rate
@@ -174,16 +186,25 @@ class Modes(ResultProtocol):
     params: Parameters = field(repr=False)
     growth_rates: np.ndarray = field(default_factory=lambda: np.zeros(2))
     equilibrium: Tuple[float, float] = (0.0, 0.0)
+    coulomb: str = DEFAULT_COULOMB
 
     result_kind: ClassVar[str] = "normal modes"
     status: ClassVar[Status] = Status.SUCCESS
 
     @property
+    def coulomb_note(self) -> str:
+        """How the Coulomb friction was treated, one line ('' for a model without it)."""
+        return coulomb_note(self.params, self.coulomb)
+
+    @property
     def message(self) -> str:
         if self.equilibrium == (0.0, 0.0):
-            return "the modes of the linearised equations about the hanging equilibrium"
-        return (f"the modes of the linearised equations about the equilibrium phi = {self.equilibrium[0]:.6g}, "
-                f"psi = {self.equilibrium[1]:.6g} rad")
+            text = "the modes of the linearised equations about the hanging equilibrium"
+        else:
+            text = (f"the modes of the linearised equations about the equilibrium phi = {self.equilibrium[0]:.6g}, "
+                    f"psi = {self.equilibrium[1]:.6g} rad")
+        note = self.coulomb_note
+        return f"{text}; {note}" if note else text
 
     @property
     def unstable(self) -> np.ndarray:
@@ -198,7 +219,10 @@ class Modes(ResultProtocol):
 
     @property
     def settings(self) -> Dict:
-        return {"equilibrium": [float(self.equilibrium[0]), float(self.equilibrium[1])]}
+        settings: Dict = {"equilibrium": [float(self.equilibrium[0]), float(self.equilibrium[1])]}
+        if friction_terms(self.params):  # only where it matters (a model without friction keeps its fingerprint)
+            settings["coulomb"] = self.coulomb
+        return settings
 
     @property
     def stats(self) -> Dict:
@@ -282,6 +306,9 @@ class Modes(ResultProtocol):
             "equilibrium": [float(x) for x in self.equilibrium],
             "growth_rates": self.growth_rates.tolist(),
         }
+        if self.coulomb_note:
+            d["coulomb"] = self.coulomb
+            d["coulomb_note"] = self.coulomb_note
         d["periods"] = [None if not np.isfinite(x) else float(x) for x in self.periods]
         if self.damped:
             d["C0"] = self.C.tolist()
@@ -294,7 +321,7 @@ class Modes(ResultProtocol):
 
 
 def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Parameters,
-                         equilibrium: Optional[Tuple[float, float]] = None) -> Modes:
+                         equilibrium: Optional[Tuple[float, float]] = None, coulomb: str = DEFAULT_COULOMB) -> Modes:
     """Raises :class:`NotFinite` (short reason) when a result is not finite."""
     from scipy.linalg import LinAlgError, eigh
 
@@ -371,31 +398,38 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         params=params,
         growth_rates=growth,
         equilibrium=(0.0, 0.0) if equilibrium is None else (float(equilibrium[0]), float(equilibrium[1])),
+        coulomb=coulomb,
     )
 
 
-def _modes_about(params: Parameters, about) -> Modes:
+def _modes_about(params: Parameters, about, coulomb: str = DEFAULT_COULOMB) -> Modes:
     from .equilibria import find_equilibrium
 
-    eq = find_equilibrium(params, about, "about")
+    eq = find_equilibrium(params, about, "about", coulomb=coulomb)
     try:
-        return _modes_from_matrices(eq.M, eq.C, eq.K, params, equilibrium=eq.q)
+        return _modes_from_matrices(eq.M, eq.C, eq.K, params, equilibrium=eq.q, coulomb=coulomb)
     except NotFinite as exc:
         raise ParameterError(_not_finite_message(exc, params)) from None
 
 
-def _modes(params: Parameters) -> Modes:
-    M, C, K = _matrices(params)
-    return _modes_from_matrices(M, C, K, params)
+def _modes(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Modes:
+    M, C, K = _matrices(params, coulomb)
+    return _modes_from_matrices(M, C, K, params, coulomb=coulomb)
 
 
-def normal_modes(params: Parameters, about=None) -> Modes:
+def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB) -> Modes:
     """Normal modes of the numeric model ``params`` about ``phi = psi = 0``, or about another
     equilibrium: ``about`` an :class:`~skewpend.analysis.equilibria.Equilibrium`, a label of one
     (``"up-up"``, see :func:`skewpend.equilibria`) or a pair ``(phi, psi)`` near one (polished by
     Newton's method).  There M, C, K are ``M(q*)``, the damping and the Hessian of
     ``V = Pi - tau . q``, constant torques are allowed, and a direction along which the
     equilibrium is unstable is a mode with a growth rate (``growth_rates``), frequency 0.
+
+    Coulomb friction (``cf1``, ``cf2``) is non-smooth at rest: ``cf sign(q')`` has no slope at
+    ``q' = 0``, and the slope ``cfs cf`` of its smoothed form ``cf atan(cfs q')`` is an artefact of
+    the smoothing.  By default (``coulomb="exclude"``) it is left out of ``C``, so a model whose
+    only damping is Coulomb friction has undamped modes, and the result says so
+    (``coulomb_note``, ``message``); ``coulomb="smoothed"`` adds the slope as viscous damping.
 
     Raises :class:`~skewpend.errors.EquilibriumError` when the hanging position is not an
     equilibrium (torques, offset centres of mass) or not stable (``g = 0``), and
@@ -413,10 +447,11 @@ def normal_modes(params: Parameters, about=None) -> Modes:
     """
     if not isinstance(params, Parameters):  # one line, not an AttributeError (issue 29, item 8)
         raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
+    coulomb = check_coulomb(coulomb)
     if about is not None:
-        return _modes_about(params, about)
+        return _modes_about(params, about, coulomb)
     try:
-        return _modes(params)
+        return _modes(params, coulomb)
     except NotFinite as exc:
         raise ParameterError(_not_finite_message(exc, params)) from None
 
@@ -715,7 +750,7 @@ def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -
     ``amplitude`` [rad], at rest; measure the frequency of the modal coordinate by upward
     zero crossings (linearly interpolated) over ``cycles`` periods.
 
-    Needs an undamped model (``c1 = c2 = 0``: the check compares undamped frequencies) and an
+    Needs an undamped model (``c1 = c2 = 0``, ``cf1 = cf2 = 0``: the check compares undamped frequencies) and an
     amplitude in (0, pi) rad small enough that the motion stays an oscillation about the
     hanging position: the hinges never pass the upright position and the modal coordinate
     crosses zero at least once per two linear periods; otherwise a
@@ -732,10 +767,10 @@ def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -
     if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 4:
         raise ParameterError(f"the nonlinear check needs a whole number of at least 4 cycles, got {cycles!r}")
     modes = normal_modes(params)
-    if modes.damped:
+    if modes.damped or friction_terms(params):
         raise ParameterError(
-            f"the nonlinear check measures undamped oscillation frequencies, so it needs c1 = c2 = 0 "
-            f"(got c1 = {params.c1:g}, c2 = {params.c2:g})"
+            f"the nonlinear check measures undamped oscillation frequencies, so it needs c1 = c2 = 0 and no Coulomb "
+            f"friction (got c1 = {params.c1:g}, c2 = {params.c2:g}, cf1 = {params.cf1:g}, cf2 = {params.cf2:g})"
         )
     measured = np.empty(2)
     used = np.empty(2, dtype=int)

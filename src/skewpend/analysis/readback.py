@@ -193,15 +193,16 @@ def _modes(path, variables, attrs):
     proto = _protocol(path, attrs)
     params = proto["params"]
     eq = tuple(float(x) for x in proto["settings"].get("equilibrium", (0.0, 0.0)))
+    coulomb = proto["settings"].get("coulomb", "smoothed")  # recorded since the default is "exclude"; before: smoothed
     pairs = np.asarray(variables["eigenvalue_real"], dtype=float) + 1j * np.asarray(variables["eigenvalue_imag"], dtype=float)
     try:
         if eq == (0.0, 0.0):
             try:
-                rebuilt = normal_modes(params)
+                rebuilt = normal_modes(params, coulomb=coulomb)
             except EquilibriumError:
-                rebuilt = normal_modes(params, about=eq)
+                rebuilt = normal_modes(params, about=eq, coulomb=coulomb)
         else:
-            rebuilt = normal_modes(params, about=eq)
+            rebuilt = normal_modes(params, about=eq, coulomb=coulomb)
     except SkewpendError as exc:
         raise ParameterError(f"{path} was written by another model: its parameters give no modes there ({exc})") from None
     stored = {"M": variables["M0"], "C": variables["C0"], "K": variables["K0"], "frequencies": variables["frequency"],
@@ -457,7 +458,9 @@ def _identification(path, variables, attrs):
         alpha=float(attrs.get("alpha", math.nan)), alpha_interval=(alpha_iv[0], alpha_iv[-1]),
         alpha_note=str(attrs.get("alpha_note", "")),
         profile_alpha=np.asarray(variables["profile"], dtype=float) if "profile" in variables else np.zeros(0),
-        profile_cost=get("profile_cost"), **proto)
+        profile_cost=get("profile_cost"),
+        correlation=np.asarray(variables["correlation"], dtype=float) if "correlation" in variables else np.zeros((0, 0)),
+        **proto)
     # the stored base parameters are those of the stored model (a model projected onto the nearest
     # physical body, or one that failed, keeps the estimate itself)
     if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):

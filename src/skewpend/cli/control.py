@@ -140,6 +140,8 @@ def control(
             lines.append("region      none: P is singular (Q leaves modes unweighted), so dx' P dx bounds no region"
                          if np.linalg.eigvalsh(design.P)[0] <= 1e-12 * np.linalg.eigvalsh(design.P)[-1] else
                          f"region      none ({limit}): V' >= 0 arbitrarily close to the target")
+        if lin.coulomb_note:  # how the linearisation treated Coulomb friction (left out by default)
+            lines.append(lin.coulomb_note)
         sys.stdout.write("\n".join(lines) + "\n")
         return design
     kw = given_only(umax=umax, t_end=t_end, energy_gain=energy_gain, elbow_gains=elbow_gains)  # else the library's

@@ -16,6 +16,11 @@ from .options import CONFIG, INITIAL, MODEL, command, option, resolve
 COMMANDS = ("derive", "export", "validate")
 
 
+class Coulomb(str, Enum):
+    exclude = "exclude"
+    smoothed = "smoothed"
+
+
 class DeriveFormat(str, Enum):
     text = "text"
     latex = "latex"
@@ -34,13 +39,21 @@ def derive(
     linear: Annotated[bool, typer.Option("--linear", help="add the equations linearised about phi = psi = 0")] = False,
     steps: Annotated[bool, typer.Option("--steps", help="print the derivation step by step (P1, e, P, omega2, v_c, Theta2, T, Pi)")] = False,
     fmt: Annotated[DeriveFormat, typer.Option("--format", "-f", help="output format: equations (text, latex, json) or generated code (python, c, javascript)")] = DeriveFormat.text,
+    coulomb: Annotated[Optional[Coulomb], typer.Option("--coulomb", help="with --linear: Coulomb friction (cf1, cf2) left out of C0 (exclude, the default: non-smooth at rest) or linearised by its smoothed slope cfs*cf (smoothed)")] = None,
+    config: CONFIG = None,
 ) -> None:
-    """Derive the equations of motion M(q) q'' = f(q, q') by the specification's method."""
-    params = resolve("derive", None, defaults=False, parameters=model).parameters()
+    """Derive the equations of motion M(q) q'' = f(q, q') by the specification's method.
+
+    From a --config run file it takes [parameters] (the values it gives; the others stay symbolic).
+    """
+    run = resolve("derive", config, defaults=False, parameters=model)
+    params = run.parameters()
+    if coulomb is not None and not linear:
+        raise UsageError("--coulomb sets how Coulomb friction enters the linearised equations; give it with --linear")
     if fmt.value in _CODE:
         if linear or steps:
             raise UsageError("--linear and --steps go with --format text|latex|json, not with generated code")
-        _check_code_parameters(model, params, fmt.value)
+        _check_code_parameters(run, params, fmt.value)
         from ..numeric.codegen import generate
 
         sys.stdout.write(generate(params, fmt.value))
@@ -48,8 +61,14 @@ def derive(
     from ..symbolic import render
     from ..symbolic.derivation import derive as derive_eom
 
+    from ..errors import EquilibriumError
+
     eom = derive_eom(params)
-    lin = eom.linearize() if linear else None
+    try:
+        lin = eom.linearize("exclude" if coulomb is None else coulomb.value) if linear else None
+    except EquilibriumError as exc:  # the library names about='down-down', which derive does not have
+        raise EquilibriumError(f"--linear: {str(exc).split(';')[0]}; derive --linear linearises about phi = psi = 0 only "
+                               "(skewpend modes takes a model's modes about its hanging rest)") from None
     if fmt is DeriveFormat.json:
         import json
 
@@ -59,10 +78,11 @@ def derive(
     sys.stdout.write(text)
 
 
-def _check_code_parameters(model: dict, params, fmt: str) -> None:
+def _check_code_parameters(run, params, fmt: str) -> None:
     """Numeric values become the code's default parameter vector P, all of them or none; a typed
-    --c1/--c2/--tau1/--tau2 needs that vector."""
-    typed = [f"--{k}" for k in ("c1", "c2", "tau1", "tau2") if model.get(k) is not None and getattr(params, k) is not None]
+    --c1/--c2/--tau1/--tau2 (or one in the run file) needs that vector."""
+    typed = [run.option("parameters", k) for k in ("c1", "c2", "tau1", "tau2")
+             if run.is_given("parameters", k) and getattr(params, k) is not None]
     core = [f"--{k}" for k in ("a", "b", "m1", "m2", "alpha", "g") if k != "alpha" or params.uses_alpha]
     if typed and all(getattr(params, k[2:]) is None for k in core):
         raise UsageError(

@@ -22,6 +22,11 @@ class ModesFormat(str, Enum):
     latex = "latex"
 
 
+class Coulomb(str, Enum):
+    exclude = "exclude"
+    smoothed = "smoothed"
+
+
 @command(MODEL_NO_TORQUE)
 def modes(
     model: dict,
@@ -33,11 +38,20 @@ def modes(
     tolerance: Annotated[Optional[str], typer.Option("--tolerance", metavar="NUMBER", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3 (a positive number; default 0.01)")] = None,
     check_nonlinear: option("--check-nonlinear", T.Angle("ANGLE"), "AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep; default: not measured)", None) = None,
     about: option("--about", T.EquilibriumChoice(), "the modes about another equilibrium: a label (down-up, up-down, up-up; see skewpend equilibria) or PHI,PSI near one; an unstable direction is given as a growth rate (not with --sweep, --check-nonlinear, --format latex)", None) = None,
+    coulomb: Annotated[Optional[Coulomb], typer.Option("--coulomb", help="Coulomb friction (cf1, cf2) in the linearisation: exclude (default: it is non-smooth at rest, cf sign(q') has no slope there) or smoothed (the slope cfs*cf of its smoothed form cf atan(cfs q') as viscous damping); not with --sweep, --format latex")] = None,
     config: CONFIG = None,
 ) -> None:
-    """Normal modes of the small oscillations about the hanging equilibrium or another one (and how alpha shapes them)."""
+    """Normal modes of the small oscillations about the hanging equilibrium or another one (and how alpha shapes them).
+
+    A model whose centres of mass lie a little off the rods' lines (a fitted one: skewpend identify
+    --out fit.toml) hangs at rest slightly away from phi = psi = 0: its modes are taken about that
+    rest (down-down), and the output says so.
+    """
     given = model
     # every option takes effect or is refused, before any work is done
+    if coulomb is not None and (fmt is ModesFormat.latex or sweep_spec is not None):
+        raise UsageError("--coulomb sets how Coulomb friction enters the damping; --format latex and --sweep give undamped "
+                         "frequencies, so it has no effect there: leave it out")
     if fmt is ModesFormat.latex:
         extra = [o for o, v in (("--sweep", sweep_spec), ("--plot", plot), ("--out", out), ("--tolerance", tolerance),
                                 ("--check-nonlinear", check_nonlinear), ("--about", about)) if v is not None]
@@ -69,12 +83,17 @@ def modes(
         raise UsageError(
             f"--check-nonlinear: expected an amplitude between 0 and 180 deg exclusive (radians, or e.g. 10deg), got {amplitude!r}"
         )
-    result = md.normal_modes(params, about=about)
+    how = "exclude" if coulomb is None else coulomb.value
+    result, rest = _modes_of(md, params, about, how, amplitude is None)
     check = md.check_nonlinear(params, amplitude) if amplitude is not None else None
     if fmt is ModesFormat.json:
         import json
 
         data = result.to_dict()
+        if rest:
+            data["about"] = rest
+        if "coulomb_note" in data:
+            data["coulomb_note"] = _coulomb_line(result)
         if check is not None:
             data["nonlinear_check"] = {
                 "amplitude": check.amplitude,
@@ -83,14 +102,46 @@ def modes(
             }
         sys.stdout.write(json.dumps(data, indent=2) + "\n")
         return
-    sys.stdout.write(_modes_text(result, check))
+    sys.stdout.write(_modes_text(result, check, rest))
 
 
-def _modes_text(m, check) -> str:
+def _modes_of(md, params, about, coulomb: str, fallback: bool):
+    """The modes the user meant, and why they are about another point ('' when not): without
+    --about, a model with no torques whose phi = psi = 0 is no equilibrium (its centres of mass a
+    little off the rods' lines, as a fitted model's are) is taken about its hanging rest,
+    down-down."""
+    from ..errors import EquilibriumError, SkewpendError
+
+    if about is not None or not fallback:
+        return md.normal_modes(params, about=about, coulomb=coulomb), ""
+    try:
+        return md.normal_modes(params, coulomb=coulomb), ""
+    except EquilibriumError as exc:
+        if params.tau1 or params.tau2 or "not an equilibrium" not in str(exc):
+            raise
+        try:
+            result = md.normal_modes(params, about="down-down", coulomb=coulomb)
+        except SkewpendError:
+            raise exc from None
+    return result, "down-down"
+
+
+def _coulomb_line(m) -> str:
+    """The result's Coulomb friction note, naming the option in the command line's spelling."""
+    from ..symbolic.friction import coulomb_note
+
+    return coulomb_note(m.params, m.coulomb, option="--coulomb smoothed")
+
+
+def _modes_text(m, check, rest: str = "") -> str:
     import numpy as np
 
     if m.equilibrium == (0.0, 0.0):
         lines = ["Normal modes about the hanging equilibrium (phi = psi = 0)", ""]
+    elif rest:
+        lines = [f"Normal modes about the hanging rest ({rest}) at phi = {np.degrees(m.equilibrium[0]):.6g} deg, "
+                 f"psi = {np.degrees(m.equilibrium[1]):.6g} deg: phi = psi = 0 is no equilibrium of this model (its "
+                 "centres of mass lie off the rods' lines)", ""]
     else:
         lines = [f"Modes about the equilibrium phi = {np.degrees(m.equilibrium[0]):.6g} deg, "
                  f"psi = {np.degrees(m.equilibrium[1]):.6g} deg", ""]
@@ -126,6 +177,8 @@ def _modes_text(m, check) -> str:
                     f"  mode {k + 1}: lambda = {l1.real:.6g} +/- {abs(l1.imag):.6g} i, "
                     f"damped omega = {m.damped_frequencies[k]:.6g} rad/s, zeta = {m.damping_ratios[k]:.4g}"
                 )
+    if m.coulomb_note:
+        lines.append(_coulomb_line(m))
     if check is not None:
         lines.append("")
         lines.append(f"nonlinear check, largest initial angle {check.amplitude:.6g} rad ({np.degrees(check.amplitude):.4g} deg):")

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from . import types as T
-from .options import command, option
+from .options import CONFIG, command, option, resolve
 
 COMMANDS = ("serve",)
 
@@ -25,22 +25,38 @@ def serve(
                                              "host, with no server and no network")] = None,
     force: Annotated[bool, typer.Option("--force", help="with --export: replace an earlier export in DIR (only the files its "
                                                    "manifest lists; anything else there is refused or left alone)")] = False,
+    config: CONFIG = None,
 ) -> None:
     """The live explorer in the browser: the pendulum in 3D with sliders, equations, plots, normal
     modes and a flip map, on physics generated from the derivation (needs skewpend[web]; with
     --export, nothing beyond skewpend itself).
 
+    A --config run file sets the page's start: its [parameters]' bodies and axes (com1, inertia1,
+    axis2, ...) the generated physics; a, b, m1, m2, alpha, g, c1, c2 and [initial] phi0, psi0 the
+    sliders (within their ranges; the page's address holds them).  The explorer has no joint
+    torques, Coulomb friction or rotor inertia: non-zero ones are refused.
+
     Ctrl-C stops the server.
     """
     from ..parsing import UsageError
 
+    run = resolve("serve", config, defaults=False)
+    params, query = _page_start(run)
     if export is None:
         if force:
             raise UsageError("--force: only with --export DIR (it replaces an earlier export)")
         from ..views import explorer
 
-        _announce(explorer, host, port)
-        explorer.serve(host, port, open_browser=open_browser)
+        url = _announce(explorer, host, port, query)
+        kw = {} if config is None else {"physics_params": params}
+        if open_browser and query:  # the page opened at the address that holds the run's values
+            def ready(address, url=url):
+                import threading
+                import webbrowser
+
+                threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
+            kw["ready"] = ready
+        explorer.serve(host, port, open_browser=open_browser and not query, **kw)
         return
     given = [flag for flag, value, default in (("--host", host, "127.0.0.1"), ("--port", port, "8000")) if str(value) != default]
     if given:
@@ -49,19 +65,72 @@ def serve(
         raise UsageError("--export -: a static site is a directory, not standard output; give its name")
     from ..views.frontend import export_explorer
 
-    index = export_explorer(export, force=force)
-    sys.stderr.write(f"skewpend: wrote the static explorer to {index.parent}/ (open {index.name} in a browser)\n")
+    index = export_explorer(export, None if config is None else params, force=force)
+    page = index.name + (f"?{query}" if query else "")
+    sys.stderr.write(f"skewpend: wrote the static explorer to {index.parent}/ (open {page} in a browser)\n")
     if open_browser:
         import webbrowser
 
-        webbrowser.open(index.resolve().as_uri())
+        webbrowser.open(index.resolve().as_uri() + (f"?{query}" if query else ""))
 
 
-def _announce(explorer, host: str, port: int) -> None:
+def _announce(explorer, host: str, port: int, query: str = "") -> str:
     """A bad or busy address in one line before starting (the library's check), a warning when
-    serving beyond this machine, the address to open."""
+    serving beyond this machine, the address to open (with the run's values)."""
     explorer.require_web("skewpend serve")
     address = explorer.check_address(host, port)
     if address.warning:
         sys.stderr.write(f"skewpend: warning: {address.warning}\n")
-    sys.stderr.write(f"skewpend explorer on {address.url} (Ctrl-C to stop)\n")
+    url = address.url + (f"?{query}" if query else "")
+    sys.stderr.write(f"skewpend explorer on {url} (Ctrl-C to stop)\n")
+    return url
+
+
+#: What the page's sliders take (web/live.js SLIDERS), by section: the keys a run sets there.
+_SLIDER_KEYS = {"parameters": ("alpha", "a", "b", "m1", "m2", "g", "c1", "c2"), "initial": ("phi0", "psi0")}
+_DEGREES = ("alpha", "phi0", "psi0")  # shown (and held in the address) in degrees
+
+
+def _slider_ranges() -> dict:
+    """key -> (min, max) of the page's sliders, read from web/live.js (the one place they are written)."""
+    import re
+
+    from ..views.frontend import WEB_DIR
+
+    text = (WEB_DIR / "live.js").read_text(encoding="utf-8")
+    return {m.group(1): (float(m.group(2)), float(m.group(3)))
+            for m in re.finditer(r'\[\s*"(\w+)",\s*"[^"]*",\s*(-?[\d.]+),\s*(-?[\d.]+),', text)}
+
+
+def _page_start(run):
+    """The run's model (its bodies and axes make the page's physics) and the page's address query
+    of the slider values it sets; what the explorer cannot show is refused in one line."""
+    import math
+    from urllib.parse import urlencode
+
+    from ..parsing import UsageError
+
+    params = run.parameters()
+    absent = [run.option("parameters", k) for k in ("tau1", "tau2", "cf1", "cf2", "Ir")
+              if run.is_given("parameters", k) and getattr(params, k) != 0]
+    if absent:
+        raise UsageError(f"{', '.join(absent)}: the explorer has no joint torques, Coulomb friction or rotor inertia (its "
+                         "sliders cannot set them); leave them out or 0, and simulate the full model with skewpend simulate")
+    ranges = _slider_ranges()
+    values = {}
+    for section, keys in _SLIDER_KEYS.items():
+        for k in keys:
+            if not run.is_given(section, k):
+                continue
+            where = run.option(section, k)
+            value = run.scalar(section, k, angle=k in _DEGREES)
+            if value is None:
+                raise UsageError(f"{where}: the explorer's sliders need a number, not 'sym'")
+            shown = math.degrees(value) if k in _DEGREES else value
+            lo, hi = ranges[k]
+            if not lo <= shown <= hi:
+                unit = " deg" if k in _DEGREES else ""
+                raise UsageError(f"{where} = {shown:.6g}{unit} is outside the explorer's slider range {lo:g} to {hi:g}{unit}; "
+                                 "give a value within it")
+            values[k] = repr(float(f"{shown:.15g}"))  # 30deg -> 30.0 (not the rounding of its radians)
+    return params, urlencode(values)

@@ -69,13 +69,23 @@ class LinearEquations:
     """Linearisation about the hanging equilibrium: ``M0 q'' + C0 q' + K0 q = 0``.
 
     ``M0`` (mass), ``C0`` (damping) and ``K0`` (stiffness) are 2x2 SymPy matrices in
-    the coordinates ``q = (phi, psi)``; SI units.
+    the coordinates ``q = (phi, psi)``; SI units.  ``coulomb`` says how the Coulomb friction
+    entered ``C0`` (``"exclude"``: not at all, the default; ``"smoothed"``: its slope ``cfs cf``),
+    :attr:`note` says it in one line ('' for a model without Coulomb friction).
     """
 
     M: sp.Matrix
     C: sp.Matrix
     K: sp.Matrix
     params: Parameters
+    coulomb: str = "exclude"
+
+    @property
+    def note(self) -> str:
+        """How the Coulomb friction was treated, one line ('' without Coulomb friction)."""
+        from .friction import coulomb_note
+
+        return coulomb_note(self.params, self.coulomb)
 
     def equations(self) -> Tuple[sp.Expr, sp.Expr]:
         """The two left-hand sides ``(M0 q'' + C0 q' + K0 q)_i`` (each ``= 0``)."""
@@ -149,13 +159,19 @@ class EquationsOfMotion:
         """
         return self._ctx.steps(self)
 
-    def linearize(self) -> LinearEquations:
+    def linearize(self, coulomb: str = "exclude") -> LinearEquations:
         """Linearise about ``phi = psi = 0`` (both rods hanging): ``M0 q'' + C0 q' + K0 q = 0``.
+
+        Coulomb friction ``cf atan(cfs q')`` is non-smooth at rest (it smooths ``cf sign(q')``),
+        so by default it is left out of ``C0`` (``coulomb="exclude"``); ``coulomb="smoothed"``
+        adds its smoothed slope ``cf cfs`` as viscous damping.  The result's ``note`` says which.
 
         Raises :class:`~skewpend.errors.EquilibriumError` if ``q = 0`` is not an
         equilibrium (e.g. constant torques, or centres of mass off the vertical).
         """
-        return self._ctx.linearize(self)
+        from .friction import check_coulomb
+
+        return self._ctx.linearize(self, check_coulomb(coulomb))
 
     def _repr_latex_(self) -> str:
         from .render import to_latex
@@ -419,25 +435,28 @@ class _Context:
         }
 
     # -- linearisation -----------------------------------------------------------------------------
-    def linearize(self, eom: EquationsOfMotion) -> LinearEquations:
+    def linearize(self, eom: EquationsOfMotion, coulomb: str = "exclude") -> LinearEquations:
         zero = self._zero()
         v = self.val
         grad = [self.d_dq(self.Pi, i) for i in range(2)]
         static = [self.finish(v[f"tau{i + 1}"] - grad[i].subs(zero)) for i in range(2)]
         if any(sp.simplify(x) != 0 for x in static):
+            torques = any(sp.simplify(self.finish(v[f"tau{i + 1}"])) != 0 for i in range(2))
+            why = ("constant joint torques hold it elsewhere" if torques else
+                   "its centres of mass do not hang straight below their hinges there")
             raise EquilibriumError(
-                "phi = psi = 0 is not an equilibrium of this model (static generalised forces "
-                f"{[str(x) for x in static]}); linearisation needs zero joint torques and centres "
-                "of mass hanging straight below their hinges, or the equilibrium named: modes about "
-                "this model's hanging rest with about='down-down' (--about down-down)"
+                f"phi = psi = 0 is not an equilibrium of this model ({why}); linearise about its "
+                "hanging rest instead: about='down-down' (--about down-down)"
             )
         M0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.M[i][j].subs(zero)))
         K0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.d_dq(grad[i], j).subs(zero)))
-        # damping: -dQ/dq' at rest; Coulomb friction's smooth sign has slope cfs there, so it acts
-        # on small motions (|q'| << 1/cfs) as a viscous damping cf_i cfs.
-        friction = (lambda i: v[f"cf{i + 1}"] * v["cfs"]) if self.friction else (lambda i: 0)
+        # damping: -dQ/dq' at rest.  Coulomb friction cf_i sign(q_i') has no slope there; its smoothed
+        # form cf_i atan(cfs q_i') has slope cf_i cfs, a viscous damping only with coulomb="smoothed"
+        # (symbolic/friction.py says why the default leaves it out).
+        smoothed = self.friction and coulomb == "smoothed"
+        friction = (lambda i: v[f"cf{i + 1}"] * v["cfs"]) if smoothed else (lambda i: 0)
         C0 = sp.Matrix(2, 2, lambda i, j: self.finish(v[f"c{i + 1}"] + friction(i)) if i == j else sp.S.Zero)
-        return LinearEquations(M=M0, C=C0, K=K0, params=self.params)
+        return LinearEquations(M=M0, C=C0, K=K0, params=self.params, coulomb=coulomb)
 
 
 def derive(params: Optional[Parameters] = None) -> EquationsOfMotion:

@@ -164,6 +164,8 @@ def to_text(
     if linear is not None:
         out.append("")
         out.append("Linearised about φ = ψ = 0:  M₀ q̈ + C₀ q̇ + K₀ q = 0")
+        if linear.note:
+            out.append(linear.note)
         out.append(_pretty("M₀", linear.M, width))
         if linear.C != sp.zeros(2, 2):
             out.append(_pretty("C₀", linear.C, width))
@@ -207,7 +209,8 @@ def to_latex(
     body = "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
     if display:
         return body
-    return "\\[\n" + body + "\n\\]\n"
+    note = f"% {linear.note}\n" if linear is not None and linear.note else ""
+    return note + "\\[\n" + body + "\n\\]\n"
 
 
 # -- JSON -----------------------------------------------------------------------------------------
@@ -230,7 +233,8 @@ def to_json(
     Keys: ``coordinates``, ``speeds``, ``parameters`` (names of the symbolic parameters),
     ``values`` (the numeric ones), ``mass_matrix`` (2x2), ``forcing`` (2) with
     ``mass_matrix . [phi'', psi''] = forcing``, ``kinetic_energy``, ``potential_energy``;
-    with ``linear`` a ``linearized`` object with ``M``, ``C``, ``K`` (2x2); with ``steps``
+    with ``linear`` a ``linearized`` object with ``M``, ``C``, ``K`` (2x2) (and, for a model with
+    Coulomb friction, ``coulomb`` and ``note``: how it entered ``C``); with ``steps``
     a ``steps`` object; ``skewpend_version``.
     """
     params = eom.params.to_dict()
@@ -248,6 +252,8 @@ def to_json(
     }
     if linear is not None:
         data["linearized"] = {"M": _matrix(linear.M), "C": _matrix(linear.C), "K": _matrix(linear.K)}
+        if linear.note:  # how the Coulomb friction entered C
+            data["linearized"].update(coulomb=linear.coulomb, note=linear.note)
     if steps:
         data["steps"] = {
             k: (_matrix(v) if isinstance(v, sp.MatrixBase) else _s(v)) for k, v in eom.steps.items()

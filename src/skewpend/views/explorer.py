@@ -221,6 +221,7 @@ def _models():
         t_end: float = Field(10.0, gt=0, le=LIMITS["simulate_t_end"], description="length [s]")
         dt_out: float = Field(0.01, gt=0, le=LIMITS["simulate_t_end"], description="output interval [s]")
         rtol: float = Field(1e-10, ge=1e-14, le=1e-3, description="relative tolerance of DOP853")
+        atol: float = Field(1e-10, ge=1e-14, le=1e-3, description="absolute tolerance of DOP853")
 
     class ModesRequest(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
@@ -404,7 +405,7 @@ def create_app(*, physics_params=None, hosts=None, port=None):
         def run(check):
             from ..numeric.simulation import simulate as sim
 
-            tr = sim(params, req.y0, req.t_end, dt_out=req.dt_out, rtol=req.rtol, atol=req.rtol,
+            tr = sim(params, req.y0, req.t_end, dt_out=req.dt_out, method="dop853", rtol=req.rtol, atol=req.atol,
                      max_steps=LIMITS["simulate_steps"], progress=check)
             return {"t": _finite(tr.t), "y": _finite(tr.y), "energy": _finite(tr.energy),
                     "status": tr.status, "message": tr.message, "steps": int(tr.stats.get("steps", 0))}
@@ -631,7 +632,7 @@ def _protocol():
 
 
 def serve(host: str = "127.0.0.1", port: int = 8000, *, open_browser: bool = False, log_level: str = "warning",
-          ready=None, stop=None) -> None:
+          ready=None, stop=None, physics_params=None) -> None:
     """Run the explorer with uvicorn on ``host:port`` until Ctrl-C or SIGTERM.
 
     ``host``: an IP address (``::1`` or ``[::1]``) or a host name (see :func:`check_host`);
@@ -639,7 +640,8 @@ def serve(host: str = "127.0.0.1", port: int = 8000, *, open_browser: bool = Fal
     is one :class:`ParameterError` naming ``host`` or ``port``, raised before anything starts.
     ``ready``: called with the :class:`Address` once listening (the front end announces it);
     ``open_browser``: open the page then.  ``stop``: a :class:`threading.Event` that stops the
-    server as Ctrl-C does when set (for a server run in a thread).  Requests whose ``Host`` header does not name this
+    server as Ctrl-C does when set (for a server run in a thread).  ``physics_params``: the bodies
+    and axes of the page's physics (:func:`create_app`; default the thin rods).  Requests whose ``Host`` header does not name this
     server get 400 (for a loopback address: also ``localhost``, ``127.0.0.1``, ``[::1]``).  At
     the signal, in-flight computations are cancelled (answered 503) and the server stops within
     about :data:`SHUTDOWN_GRACE` s; the signal is then raised again by uvicorn (a
@@ -651,7 +653,7 @@ def serve(host: str = "127.0.0.1", port: int = 8000, *, open_browser: bool = Fal
     sockets = _bind(host, port)
     try:
         address = Address(host, sockets[0].getsockname()[1])
-        app = create_app(hosts=_allowed_hosts(host), port=address.port)
+        app = create_app(physics_params=physics_params, hosts=_allowed_hosts(host), port=address.port)
         stopping = app.state.stopping
 
         class Server(uvicorn.Server):
