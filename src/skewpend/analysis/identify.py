@@ -59,7 +59,8 @@ from ..symbolic.model import Parameters
 from ..symbolic.regressor import PI_NAMES, SCALE_DIRECTION, base_parameters, linear_estimate, standard_parameters
 from .measurements import Measurements, Piece
 
-__all__ = ["identify", "Identification", "SMOOTHING", "ORDER", "BOOTSTRAP", "REFERENCE", "RANK_TOL", "METHODS"]
+__all__ = ["identify", "Identification", "SMOOTHING", "ORDER", "BOOTSTRAP", "REFERENCE", "RANK_TOL", "METHODS",
+           "CLUSTER_PIECES", "BLOCK", "MIN_CLUSTERS", "clusters"]
 
 #: Default Savitzky-Golay window [s].
 SMOOTHING = 0.05
@@ -72,6 +73,16 @@ REFERENCE = "J1zz_b"
 #: Smallest singular value (of the column-scaled regressor, relative to the largest) for a direction
 #: to count as determined.
 RANK_TOL = 1e-7
+#: The intervals' clusters: with at least this many pieces, each piece is one cluster; with fewer (one
+#: long recording is the common case), every piece is cut into blocks of about :data:`BLOCK` seconds of
+#: consecutive samples (or shooting segments), each block a cluster.
+CLUSTER_PIECES = 5
+#: The length of one block [s] when pieces are cut for the intervals (about two swings of a
+#: laboratory pendulum: the residuals' correlation -- model error -- decays within it).
+BLOCK = 2.0
+#: The fewest clusters an interval is computed from (the resampled re-fits need them; 4 degrees of
+#: freedom of Student's t); with fewer, the intervals are reported as not available, with the reason.
+MIN_CLUSTERS = 5
 
 #: Fields of Parameters that are not base parameters (they enter the equations nonlinearly or are not
 #: in them); ``alpha`` is freed by the output-error fit.
@@ -213,10 +224,21 @@ class Identification(Result):
     def heldout_overall0(self) -> float:
         return float(self.stats.get("heldout_overall0", math.nan))
 
+    @property
+    def intervals_note(self) -> str:
+        """What the 95 % intervals were computed from (``clusters: ...``), or why they are not available."""
+        return str(self.settings.get("intervals", "")) if isinstance(self.settings, dict) else ""
+
     def table(self) -> str:
         lines = [f"{'base parameter':<14} {'value':>13} {'95 % interval':>30}   expression"]
+
+        def interval(lo, hi, width=28):
+            if math.isfinite(lo) and math.isfinite(hi):
+                return f"[{lo:>12.6g}, {hi:>12.6g}]"
+            return f"{'(not available)' if self.intervals_note.startswith('95 %') else '(undetermined)':>{width}}"
+
         for n, e, v, (lo, hi) in zip(self.names, self.expressions, self.values, self.intervals):
-            iv = f"{'(params0: the scale)':>28}" if n == self.reference else f"[{lo:>12.6g}, {hi:>12.6g}]"
+            iv = f"{'(params0: the scale)':>28}" if n == self.reference else interval(lo, hi)
             if n not in self.free:
                 iv = f"{'(held at params0)':>28}"
             lines.append(f"{n:<14} {v:>13.6g}  {iv}   {e}")
@@ -224,11 +246,17 @@ class Identification(Result):
             lines.append(f"ratios to {self.reference} (what a free swing determines):")
             for n, v in self.ratios.items():
                 lo, hi = self.ratio_intervals[n]
-                lines.append(f"  {n:<18} {v:>13.6g}  [{lo:>12.6g}, {hi:>12.6g}]")
+                lines.append(f"  {n:<18} {v:>13.6g}  {interval(lo, hi)}")
         if math.isfinite(self.alpha):
             lo, hi = self.alpha_interval
-            lines.append(f"skew angle alpha: {math.degrees(self.alpha):.3f} deg, 95 % interval "
-                         f"[{math.degrees(lo):.3f}, {math.degrees(hi):.3f}] deg" + (f" ({self.alpha_note})" if self.alpha_note else ""))
+            iv = (f"95 % interval [{math.degrees(lo):.3f}, {math.degrees(hi):.3f}] deg" if math.isfinite(lo) and
+                  math.isfinite(hi) else "95 % interval not available")
+            lines.append(f"skew angle alpha: {math.degrees(self.alpha):.3f} deg, {iv}"
+                         + (f" ({self.alpha_note})" if self.alpha_note else ""))
+        if self.intervals_note.startswith("clusters"):
+            lines.append(f"95 % intervals: cluster-robust over {self.intervals_note[len('clusters: '):]}")
+        elif self.intervals_note:
+            lines.append(self.intervals_note)
         for u in self.undetermined:
             lines.append(f"undetermined: {u}")
         if len(self.fit_rms):
@@ -237,13 +265,20 @@ class Identification(Result):
         if len(self.pieces) and self.method == "linear":
             lines.append(f"residual RMS per fitting piece: median {np.median(self.residual_rms):.3g}, "
                          f"max {np.max(self.residual_rms):.3g} N m over {len(self.pieces)} pieces")
+        fitted = self.params is not self.params0 and self.params != self.params0
         for n, k, r, r0 in zip(self.validation, self.heldout_kind, self.heldout_rms, self.heldout_rms0):
             unit = "rad" if k == "angle" else "N m"
-            lines.append(f"held out {n}: {k} RMS {r:.4g} {unit} (params0: {r0:.4g})")
+            got = f"{r:.4g} {unit}" if math.isfinite(r) else ("not simulated (no fitted model)" if not fitted
+                                                             else "the simulation failed")
+            lines.append(f"held out {n}: {k} RMS {got} (params0: {r0:.4g})")
         if len(self.validation):
-            lines.append(f"held out angle RMS: median over pieces {self.heldout_median:.4g} rad "
-                         f"(params0: {self.heldout_median0:.4g}); overall {self.heldout_overall:.4g} rad "
-                         f"(params0: {self.heldout_overall0:.4g})")
+            if fitted:
+                lines.append(f"held out angle RMS: median over pieces {self.heldout_median:.4g} rad "
+                             f"(params0: {self.heldout_median0:.4g}); overall {self.heldout_overall:.4g} rad "
+                             f"(params0: {self.heldout_overall0:.4g})")
+            else:
+                lines.append(f"held out angle RMS of params0 (no fitted model): median over pieces "
+                             f"{self.heldout_median0:.4g} rad; overall {self.heldout_overall0:.4g} rad")
         return "\n".join(lines)
 
     def summary(self) -> str:
@@ -253,9 +288,12 @@ class Identification(Result):
         if math.isfinite(self.alpha):
             lo, hi = self.alpha_interval
             lines.append(f"alpha = {math.degrees(self.alpha):.3f} deg, 95 % [{math.degrees(lo):.3f}, {math.degrees(hi):.3f}] deg")
-        if len(self.validation):
+        if len(self.validation) and math.isfinite(self.heldout_median):
             lines.append(f"held out: angle RMS median {self.heldout_median:.4g} rad (params0 {self.heldout_median0:.4g}), "
                          f"overall {self.heldout_overall:.4g} rad (params0 {self.heldout_overall0:.4g})")
+        elif len(self.validation):
+            lines.append(f"held out: no prediction of a fitted model; params0's angle RMS median "
+                         f"{self.heldout_median0:.4g} rad, overall {self.heldout_overall0:.4g} rad")
         return "\n".join(lines)
 
     def _dataset(self) -> DatasetSpec:
@@ -275,6 +313,8 @@ class Identification(Result):
                  "alpha_interval": [float(x) for x in self.alpha_interval], "alpha_note": self.alpha_note,
                  **self._base_attrs()}
         vals = np.asarray(self.values, dtype=float).reshape(r)
+        corr = np.asarray(self.correlation, dtype=float)
+        corr = corr.copy() if corr.ndim == 2 and corr.shape[0] == corr.shape[1] else np.zeros((0, 0))
         iv = np.asarray(self.intervals, dtype=float).reshape(r, 2)
         return DatasetSpec(
             variables={
@@ -291,13 +331,17 @@ class Identification(Result):
                             {"units": "rad", "long_name": "output-error angle RMS per fitting piece"}),
                 "profile_cost": (("profile",), np.asarray(self.profile_cost, dtype=float).copy(),
                                  {"units": "rad2", "long_name": "profiled sum of squared angle residuals"}),
+                "correlation": (("theta", "theta_2"), corr,
+                                {"long_name": "correlation of the free parameters (settings' free, in order)"}),
             },
             coords={"base": (("base",), np.arange(r), {"long_name": "index into attribute base_names"}),
                     "piece": (("piece",), np.arange(n), {"long_name": "index into attribute pieces"}),
                     "held_out": (("held_out",), np.arange(v), {"long_name": "index into attribute validation"}),
                     "fit_piece": (("fit_piece",), np.arange(len(self.fit_rms)), {"long_name": "index into attribute pieces"}),
                     "profile": (("profile",), np.asarray(self.profile_alpha, dtype=float).copy(),
-                                {"units": "rad", "long_name": "skew angle of the profile"})},
+                                {"units": "rad", "long_name": "skew angle of the profile"}),
+                    "theta": (("theta",), np.arange(len(corr)), {"long_name": "index into settings' free"}),
+                    "theta_2": (("theta_2",), np.arange(len(corr)), {"long_name": "index into settings' free"})},
             attrs=attrs,
         )
 
@@ -358,6 +402,48 @@ def _filtered(piece: Piece, smoothing: float):
     e = w // 2
     s = slice(e, len(t) - e)
     return t[s], qs[s], dq[s], ddq[s], (None if us is None else us[s]), w, dt
+
+
+# -- the intervals' clusters -------------------------------------------------------------------------
+def clusters(piece: np.ndarray, t: np.ndarray, spans: Sequence[Tuple[float, float]]) -> Tuple[np.ndarray, int, str]:
+    """The clusters of the intervals for items (samples or shooting segments) of the pieces.
+
+    ``piece`` (n,): each item's piece index; ``t`` (n,): its time; ``spans``: each piece's (first,
+    last) time.  Returns ``(cluster, count, text)``: each item's cluster index, the number of
+    clusters and a sentence saying what they are.  With at least :data:`CLUSTER_PIECES` pieces the
+    clusters are the pieces; with fewer, each piece is cut into ``max(1, floor(duration / BLOCK))``
+    blocks of equal length (items by their time), so that one long recording gives a cluster every
+    :data:`BLOCK` seconds.  Residuals of different clusters are taken as independent: a block is long
+    against the correlation of the noise and, for the output-error fit, holds whole segments, each
+    started from its own free state."""
+    piece = np.asarray(piece, dtype=int)
+    t = np.asarray(t, dtype=float)
+    n_pieces = len(spans)
+    if n_pieces >= CLUSTER_PIECES:
+        return piece.copy(), n_pieces, f"{n_pieces} pieces"
+    out = np.zeros(len(piece), dtype=int)
+    count = 0
+    for k, (t0, t1) in enumerate(spans):
+        sel = np.flatnonzero(piece == k)
+        if not len(sel):
+            continue
+        blocks = int(min(max(1, math.floor((t1 - t0) / BLOCK + 1e-9)), len(np.unique(t[sel]))))
+        edges = np.linspace(t0, t1, blocks + 1)
+        out[sel] = count + np.clip(np.searchsorted(edges, t[sel], side="right") - 1, 0, blocks - 1)
+        count += blocks
+    # renumber the clusters that hold items 0..count-1
+    used, out = np.unique(out, return_inverse=True)
+    count = len(used)
+    what = "piece" if n_pieces == 1 else f"{n_pieces} pieces"
+    return out, count, (f"{count} blocks of about {BLOCK:g} s cut from {'the one' if n_pieces == 1 else 'the'} {what} "
+                        f"(fewer than {CLUSTER_PIECES} pieces: the pieces are cut for the intervals)")
+
+
+def _no_intervals(count: int, text: str, seconds: float) -> str:
+    """Why the intervals are not available (fewer than :data:`MIN_CLUSTERS` clusters)."""
+    return (f"95 % intervals not available: the data give {count} independent "
+            f"{'cluster' if count == 1 else 'clusters'} ({text}; {seconds:.3g} s in all), at least {MIN_CLUSTERS} "
+            f"needed -- record at least {MIN_CLUSTERS * BLOCK:g} s of motion, or {CLUSTER_PIECES} or more pieces")
 
 
 # -- the fit ------------------------------------------------------------------------------------------
@@ -459,9 +545,11 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     # 1-2: filtered signals and the base regressor, per piece
     rows: List[np.ndarray] = []
     rhs: List[np.ndarray] = []
+    times: List[np.ndarray] = []
     windows = set()
     for p in measurements:
-        _, q, dq, ddq, u, w, _ = _filtered(p, smoothing)
+        tf, q, dq, ddq, u, w, _ = _filtered(p, smoothing)
+        times.append(tf)
         windows.add(w)
         Y = B.regressor(q, dq, ddq, a, alpha, g)  # (N, 2, r)
         tau = np.zeros(q.shape) if u is None else u
@@ -504,7 +592,8 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
         worst = free_names[int(np.argmax(np.abs(v)))]
         return failed(f"the data do not determine {worst}; free fewer parameters or add excitation")
 
-    # 3: the estimate (scaled columns), nominal intervals, then the piece bootstrap
+    # 3: the estimate (scaled columns), nominal intervals, then the bootstrap over clusters (pieces, or
+    # blocks of them when there are few)
     Ys = Yf / scale
     T = np.concatenate(rhs).reshape(-1)
     est = linear_estimate(Ys, None if homogeneous else T, reference=fi.index(k) if homogeneous else None,
@@ -513,15 +602,25 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     unit = scale[fi.index(k)] / scale if homogeneous else 1.0 / scale
     x = est.values * unit
     half = (est.intervals[:, 1] - est.intervals[:, 0]) / 2 * unit
-    z = float(stats_t.ppf(0.975, est.dof))
-    if bootstrap and len(rows) >= 5:
-        As = [Y[:, :, fi].reshape(-1, len(fi)) / scale for Y in rows]
-        G = np.array([A.T @ A for A in As])
-        bv = np.array([A.T @ t.reshape(-1) for A, t in zip(As, rhs)])
+    owner = np.concatenate([np.full(len(Y), j) for j, Y in enumerate(rows)])
+    cl, n_cl, cl_text = clusters(owner, np.concatenate(times), [(float(p.t[0]), float(p.t[-1])) for p in measurements])
+    seconds = float(sum(p.t[-1] - p.t[0] for p in measurements))
+    settings["intervals"] = f"clusters: {cl_text}"
+    if n_cl < MIN_CLUSTERS:
+        half = np.full(len(fi), np.nan)
+        settings["intervals"] = _no_intervals(n_cl, cl_text, seconds)
+    elif bootstrap:
+        rows_cl = np.repeat(cl, 2)  # two equations a sample
+        G = np.zeros((n_cl, len(fi), len(fi)))
+        bv = np.zeros((n_cl, len(fi)))
+        for c in range(n_cl):
+            A = Ys[rows_cl == c]
+            G[c] = A.T @ A
+            bv[c] = A.T @ T[rows_cl == c]
         rng = np.random.default_rng(seed)
         draws = []
         for _ in range(int(bootstrap)):
-            pick = rng.integers(0, len(rows), len(rows))
+            pick = rng.integers(0, n_cl, n_cl)
             try:
                 yb = _solve(G[pick].sum(0), bv[pick].sum(0), homogeneous, fi.index(k) if homogeneous else 0)
             except np.linalg.LinAlgError:
@@ -529,7 +628,8 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
             draws.append(yb * unit)
         if len(draws) >= 20:
             sd = np.std(np.array(draws), axis=0, ddof=1)
-            half = np.maximum(half, z * sd)
+            # the spread over G resampled clusters has G - 1 degrees of freedom (as the output-error sandwich)
+            half = np.maximum(half, float(stats_t.ppf(0.975, n_cl - 1)) * sd)
             settings["bootstrap_used"] = len(draws)
     # in params0's units: free swing scaled by params0's reference
     values = beta0.copy()
@@ -568,6 +668,8 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
 
     # held-out prediction
     status, message = Status.SUCCESS, "identified (linear first estimate)"
+    if not settings["intervals"].startswith("clusters"):
+        message += f"; {settings['intervals']}"
     vnames, kinds, hr, hr0, heldout = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha, g)
     failed_pieces = [n for n, x, x0 in zip(vnames, hr, hr0) if not (math.isfinite(x) and math.isfinite(x0))]
     if failed_pieces:
@@ -632,7 +734,7 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
     if method == "linear" or not np.all(np.isfinite(np.asarray(lin.values, float))):
         return lin  # (a linear estimate that is not physical still starts the output-error fit)
     return _output_error(lin, measurements, params0, alpha_free, validation, smoothing, seg_len, bootstrap, seed,
-                         say, t_start)
+                         say, t_start, all_free=names_free is None)
 
 
 def _signals(piece: Piece, smoothing: float, step: Optional[float] = None):
@@ -661,7 +763,7 @@ def _stem(name: str) -> str:
 
 
 def _output_error(lin: Identification, measurements, params0, alpha_free, validation, smoothing, segment,
-                  bootstrap, seed, say, t_start) -> Identification:
+                  bootstrap, seed, say, t_start, all_free: bool = True) -> Identification:
     from . import shooting
     from ..symbolic.regressor import independent_columns
 
@@ -675,9 +777,13 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     seg = shooting.segments(signals, [p.name for p in measurements], segment)
     n_pieces = len(measurements)
     start_y0 = seg.y0.copy()
+    spans = [(float(s[0][0]), float(s[0][-1])) for s in signals]
+    cl, n_cl, cl_text = clusters(seg.piece, seg.t0, spans)
     settings = dict(lin.settings)
     settings.update(method="output-error (multiple shooting, RK4 with exact sensitivities)", segment=segment,
-                    step=seg.h, segments=len(seg), alpha_free=bool(alpha_free))
+                    step=seg.h, segments=len(seg), alpha_free=bool(alpha_free),
+                    intervals=f"clusters: {cl_text}" if n_cl >= MIN_CLUSTERS else
+                    _no_intervals(n_cl, cl_text, float(sum(b - a for a, b in spans))))
     if not alpha_free:
         B = model_terms(params0)
         names = B.names
@@ -716,8 +822,11 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
 
     def run(beta, alpha, free_alpha, y0, iterations=60, boot=0, tol=1e-10):
         seg.y0[:] = y0
-        return shooting.fit(Yb, names, beta, free, alpha, free_alpha, seg, a, g, pieces=n_pieces,
-                            max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol)
+        sf = shooting.fit(Yb, names, beta, free, alpha, free_alpha, seg, a, g, pieces=n_pieces,
+                          max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol, cluster=cl)
+        if n_cl < MIN_CLUSTERS:  # too few clusters for an interval: none (the reason is in settings)
+            sf.half = np.full_like(sf.half, np.nan)
+        return sf
 
     say("output-error fit", 0.1)
     try:
@@ -794,14 +903,18 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         status, message = Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer "
                                                   "parameters or add excitation")
     say("held-out prediction", 0.9)
-    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted if fitted is not None else params0, params0, validation, smoothing, B, values, beta0, a,
+    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a,
                                                    alpha_fit, g)
     if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
         status, message = Status.NONFINITE, "a held-out simulation failed"
+    if status is Status.SUCCESS and not settings["intervals"].startswith("clusters"):
+        message += f"; {settings['intervals']}"
     undetermined = list(lin.undetermined)
-    if held:
+    # what the user freed: a parameter the user held is not a finding about the data
+    not_determined = [n for n in held if all_free or _stem(n) in {_stem(f) for f in lin.free}]
+    if not_determined:
         undetermined.append("held at the start's values (the data do not determine them near alpha = "
-                            f"{math.degrees(alpha0):g} deg): " + ", ".join(held))
+                            f"{math.degrees(alpha0):g} deg): " + ", ".join(not_determined))
     settings.update(iterations=sf.iterations, converged=sf.converged, free=list(sf.theta_names))
     stats = dict(lin.stats)
     stats.update(seconds=time.perf_counter() - t_start, fit_seconds=sf.seconds, cost=sf.cost, **stats_extra)
@@ -826,23 +939,27 @@ def _oe_failed(lin: Identification, message: str, settings, t_start) -> Identifi
 
 
 def _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha, g):
+    """The held-out prediction of ``fitted`` and of ``params0``; ``fitted`` None (no fitted model: the
+    fit failed): its figures are NaN, never params0's under the fit's name."""
     vnames, kinds, hr, hr0 = [], [], [], []
-    sq, sq0, count = 0.0, 0.0, 0
+    sq, sq0, count, count0 = 0.0, 0.0, 0, 0
     if validation is not None:
         for p in validation:
             vnames.append(p.name)
             kinds.append("angle")  # driven pieces too: simulated with their measured torques
-            e1, e0 = _predict(fitted, p, smoothing), _predict(params0, p, smoothing)
-            if e1 is None or e0 is None:
-                hr.append(math.nan)
-                hr0.append(math.nan)
-                continue
-            hr.append(float(np.sqrt(np.mean(e1**2))))
-            hr0.append(float(np.sqrt(np.mean(e0**2))))
-            sq, sq0, count = sq + float(np.sum(e1**2)), sq0 + float(np.sum(e0**2)), count + e1.size
+            e0 = _predict(params0, p, smoothing)
+            e1 = None if fitted is None else _predict(fitted, p, smoothing)
+            hr0.append(math.nan if e0 is None else float(np.sqrt(np.mean(e0**2))))
+            hr.append(math.nan if e1 is None else float(np.sqrt(np.mean(e1**2))))
+            if e0 is not None:
+                sq0, count0 = sq0 + float(np.sum(e0**2)), count0 + e0.size
+            if e1 is not None:
+                sq, count = sq + float(np.sum(e1**2)), count + e1.size
     extra = {}
-    if count:
-        extra = {"heldout_overall": math.sqrt(sq / count), "heldout_overall0": math.sqrt(sq0 / count)}
+    if count0 and all(math.isfinite(x) for x in hr0):
+        extra["heldout_overall0"] = math.sqrt(sq0 / count0)
+    if count and all(math.isfinite(x) for x in hr):
+        extra["heldout_overall"] = math.sqrt(sq / count)
     return vnames, kinds, hr, hr0, extra
 
 
@@ -894,14 +1011,14 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree):
                 fits[x] = fits[2 * alpha0 - x]
     grid = sorted(set(grid))
     costs = np.array([fits[x].cost for x in grid])
-    ssr = np.array([fits[x].ssr_piece for x in grid])  # (grid, pieces)
+    ssr = np.array([fits[x].ssr_cluster for x in grid])  # (grid, clusters of the intervals)
     best = int(np.argmin(costs))
     if 0 < best < len(grid) - 1 and abs(grid[best] - alpha0) > steps[1] * 1.01:
         # a minimum away from alpha0: a regular fit with alpha free from there
         say("fit with the skew angle free", 0.7)
         refree(grid[best])
         sf = run(fits[grid[best]].beta, grid[best], True, fits[grid[best]].y0, boot=bootstrap)
-        if sf.converged and "alpha" not in sf.flat and math.isfinite(sf.half[-1]):
+        if sf.converged and "alpha" not in sf.flat and not math.isnan(sf.alpha):
             h = float(sf.half[-1])
             est = sf.alpha
             note = ""
@@ -909,7 +1026,13 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree):
                 side = math.copysign(1.0, alpha0) if alpha0 != 0 else 1.0
                 est = alpha0 + side * abs(est - alpha0)
                 note = "the sign of alpha - alpha0 is not determined (the mirror image fits as well)"
-            return sf, est, (est - h, est + h), note, grid, list(costs)
+            # the profile with the fit's own point (the grid's fits stop after a few iterations: their
+            # lowest point is near the minimum, the fit with alpha free at it), mirrored where it is even
+            extra = {est: sf.cost}
+            if even:
+                extra[2 * alpha0 - est] = sf.cost
+            pts = sorted({**dict(zip(grid, costs)), **extra}.items())
+            return sf, est, (est - h, est + h), note, [x for x, _ in pts], [c for _, c in pts]
     if even:
         # alpha - alpha0 enters to second order only: its square u is the quantity the data determine.
         # Linearised at d = the first grid step, d y/d u = (d y/d alpha) / (2 d); u's estimate is the
@@ -939,8 +1062,8 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree):
     for _ in range(int(bootstrap) or 200):
         w = np.bincount(rng.integers(0, n, n), minlength=n)
         draws.append(_vertex(x, ssr @ w))
-    lo, hi = np.percentile(draws, [2.5, 97.5])
-    note = "95 % interval from the profile of the cost, re-minimised on resampled pieces"
+    lo, hi = np.percentile(draws, [2.5, 97.5]) if n >= MIN_CLUSTERS else (math.nan, math.nan)
+    note = "95 % interval from the profile of the cost, re-minimised on resampled clusters"
     if even:
         m = max(abs(lo - alpha0), abs(hi - alpha0), abs(est - alpha0))
         lo, hi = alpha0 - m, alpha0 + m
@@ -1011,6 +1134,9 @@ def _realise_masses(params0: Parameters, W, values: np.ndarray, a: float, alpha:
     except ParameterError as exc:
         first = exc
     B = W.B if isinstance(W, _Terms) else W
+    free_entry = _realise_free_entries(params0, W, values, a, alpha, g, held)
+    if free_entry is not None:
+        return free_entry
     if any(n in ("m1", "m2") for n in B.names):  # a mass is itself determined: it cannot be chosen
         raise first
     for k in MASS_FACTORS:
@@ -1027,6 +1153,41 @@ def _realise_masses(params0: Parameters, W, values: np.ndarray, a: float, alpha:
                        "inertia about its centre of mass would be negative; the data determine the masses only "
                        "in the base parameters' combinations)")
     raise first
+
+
+#: Steps (fractions of the body's trace) tried for a diagonal inertia entry that the data do not determine.
+_FREE_ENTRY_STEPS = (1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3)
+
+
+def _realise_free_entries(params0: Parameters, W, values: np.ndarray, a: float, alpha: float, g: float,
+                          held: Sequence[str]) -> Optional[Tuple[Parameters, str]]:
+    """Where ``params0``'s inertia entries that the data do not determine (a skewed slender rod's moment
+    about its own axis) make the estimate's body unphysical, the same base parameters realised with one
+    such diagonal entry (about the centre of mass) moved; every base parameter kept exactly.  None if no
+    step of :data:`_FREE_ENTRY_STEPS` does."""
+    B = W.B if isinstance(W, _Terms) else W
+    free_names = {PI_NAMES[j] for j in range(len(PI_NAMES)) if j not in set(B.pivots)}
+    for i in (1, 2):
+        I0 = np.array(getattr(params0, f"inertia{i}"), dtype=float)
+        scale = float(np.trace(I0))
+        if not scale > 0:
+            continue
+        for k, p in ((1, "yy"), (0, "xx"), (2, "zz")):
+            if f"J{i}{p}" not in free_names:
+                continue
+            for frac in _FREE_ENTRY_STEPS:
+                for sign in (1.0, -1.0):
+                    I = I0.copy()
+                    I[k, k] += sign * frac * scale
+                    try:
+                        start = params0.replace(**{f"inertia{i}": tuple(tuple(float(x) for x in row) for row in I)})
+                        fitted = _realise(start, W, values, a, alpha, g, held=held)
+                    except ParameterError:
+                        continue
+                    return fitted, (f"J{i}{p} about the centre of mass, which the data do not determine, set to "
+                                    f"{I[k, k]:.4g} (params0's {I0[k, k]:.4g} gives no physical body with these "
+                                    "base parameters)")
+    return None
 
 
 def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float, g: float,
@@ -1089,7 +1250,10 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
         if project:  # onto the nearest physical body: moments >= 0, each at most the sum of the others
             w, V = np.linalg.eigh(0.5 * (ic + ic.T))
             w = np.maximum(w, 0.0)
-            w[2] = min(w[2], w[0] + w[1])
+            d = w[2] - w[0] - w[1]
+            if d > 0:  # the nearest point of the plane w0 + w1 = w2 (a slender rod's transverse moments
+                # 1.5 % apart: each moment moves by d / 3, not the largest by d)
+                w = w + d / 3.0 * np.array([1.0, 1.0, -1.0])
             ic = (V * w) @ V.T
         changes[f"com{i}"] = tuple(float(v) for v in c)
         changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))

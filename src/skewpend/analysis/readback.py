@@ -458,7 +458,9 @@ def _identification(path, variables, attrs):
         alpha=float(attrs.get("alpha", math.nan)), alpha_interval=(alpha_iv[0], alpha_iv[-1]),
         alpha_note=str(attrs.get("alpha_note", "")),
         profile_alpha=np.asarray(variables["profile"], dtype=float) if "profile" in variables else np.zeros(0),
-        profile_cost=get("profile_cost"), **proto)
+        profile_cost=get("profile_cost"),
+        correlation=np.asarray(variables["correlation"], dtype=float) if "correlation" in variables else np.zeros((0, 0)),
+        **proto)
     # the stored base parameters are those of the stored model (a model projected onto the nearest
     # physical body, or one that failed, keeps the estimate itself)
     if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):

@@ -33,7 +33,9 @@ Gauss-Newton covariance ``sigma^2 (J^T J)^-1`` is far too narrow.  The covarianc
 *cluster-robust sandwich* over pieces, ``S^-1 (sum_c g_c g_c^T) S^-1`` (``S`` the reduced
 Gauss-Newton matrix, ``g_c`` piece ``c``'s reduced gradient at the optimum), which holds for any
 correlation within a piece, with Student's t quantile at ``pieces - 1`` degrees of freedom; it is checked against one-step re-fits on the pieces resampled with
-replacement (seeded), and each half-width is the larger of the two.  A direction whose reduced
+replacement (seeded), and each half-width is the larger of the two.  With few pieces (one long
+recording), the clusters are blocks of consecutive segments instead of pieces
+(:func:`skewpend.analysis.identify.clusters`, the ``cluster`` argument of :func:`fit`).  A direction whose reduced
 curvature is below :data:`FLAT` of the largest (column-scaled) is undetermined: it gets no interval.
 """
 
@@ -354,7 +356,8 @@ STALLED = 3
 
 
 def _halves(Hll, Hlg, Hgg, gl, gg, owner: np.ndarray, pieces: int):
-    """The undamped Gauss-Newton step from here and the 95 % half-widths of the sandwich over pieces
+    """The undamped Gauss-Newton step from here and the 95 % half-widths of the sandwich over clusters
+    (``owner``: each segment's cluster, ``pieces`` of them: the pieces, or blocks of them)
     (as reported at the end); None where they are not defined.
 
     Why a stopping rule on this scale: on real data the residuals are mostly model error and the
@@ -406,14 +409,23 @@ class ShootingFit:
     sandwich_half: np.ndarray = field(default_factory=lambda: np.zeros(0))
     bootstrap_half: np.ndarray = field(default_factory=lambda: np.zeros(0))
     newton_step: np.ndarray = field(default_factory=lambda: np.zeros(0))  # undamped Gauss-Newton step at the end
+    ssr_cluster: np.ndarray = field(default_factory=lambda: np.zeros(0))  # per cluster of the intervals [rad^2]
 
 
 def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[str], alpha0: float,
         alpha_free: bool, seg: Segments, a: float, g: float, *, pieces: int, max_iterations: int = 60,
         bootstrap: int = 200, seed: int = 0, tol: float = 1e-10, progress: Optional[Callable[[int, float], None]] = None,
-        alpha_bounds: Tuple[float, float] = (-math.pi / 2, math.pi / 2)) -> ShootingFit:
-    """Levenberg-Marquardt on the segments' residuals; see the module."""
+        alpha_bounds: Tuple[float, float] = (-math.pi / 2, math.pi / 2),
+        cluster: Optional[np.ndarray] = None) -> ShootingFit:
+    """Levenberg-Marquardt on the segments' residuals; see the module.  ``cluster``: each segment's
+    cluster of the intervals (default its piece; :func:`skewpend.analysis.identify.clusters` cuts few
+    pieces into blocks)."""
     from scipy.stats import t as student_t
+
+    owner = np.asarray(seg.piece if cluster is None else cluster, dtype=int)
+    if owner.shape != (len(seg),):
+        raise ParameterError(f"cluster must give one cluster a segment ({len(seg)}), got shape {owner.shape}")
+    n_cl = int(owner.max()) + 1 if len(owner) else 0
 
     t_start = time.perf_counter()
     model = _Model(Yb, a, g)
@@ -474,7 +486,7 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
         if rel < tol or step_small:
             converged, message = True, "converged"
             break
-        sh = _halves(Hll, Hlg, Hgg, gl, gg, seg.piece, pieces)
+        sh = _halves(Hll, Hlg, Hgg, gl, gg, owner, n_cl)
         if sh is not None:
             stalled = stalled + 1 if np.all(np.abs(dg) <= STEP_HALF * sh[1]) else 0
             if np.all(np.abs(sh[0]) <= STEP_HALF * sh[1]) or stalled >= STALLED:
@@ -493,8 +505,8 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
     lam_e, vec = np.linalg.eigh(Sn)
     flat_dirs = lam_e < FLAT * lam_e.max()
     flat = tuple(theta_names[int(np.argmax(np.abs(vec[:, k])))] for k in np.flatnonzero(flat_dirs))
-    # the sandwich over G pieces has G - 1 degrees of freedom: Student's t (8 pieces: 2.36, not 1.96)
-    z = float(student_t.ppf(0.975, max(pieces - 1, 1)))
+    # the sandwich over G clusters has G - 1 degrees of freedom: Student's t (8 clusters: 2.36, not 1.96)
+    z = float(student_t.ppf(0.975, max(n_cl - 1, 1)))
     half = np.full(p, np.nan)
     sand = np.full(p, np.nan)
     boot = np.full(p, np.nan)
@@ -503,20 +515,20 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
     if not flat:
         Sinv = np.linalg.inv(Ssum)
         step = -Sinv @ gred.sum(0)
-        gc = np.zeros((pieces, p))
-        Sc = np.zeros((pieces, p, p))
-        np.add.at(gc, seg.piece, gred)
-        np.add.at(Sc, seg.piece, Sred)
-        meat = gc.T @ gc * pieces / max(pieces - 1, 1)
+        gc = np.zeros((n_cl, p))
+        Sc = np.zeros((n_cl, p, p))
+        np.add.at(gc, owner, gred)
+        np.add.at(Sc, owner, Sred)
+        meat = gc.T @ gc * n_cl / max(n_cl - 1, 1)
         cov = Sinv @ meat @ Sinv
         sand = z * np.sqrt(np.maximum(np.diag(cov), 0))
         d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
         corr = cov / np.outer(d, d)
-        if bootstrap and pieces >= 5:
+        if bootstrap and n_cl >= 5:
             rng = np.random.default_rng(seed)
             draws = []
             for _ in range(int(bootstrap)):
-                pick = rng.integers(0, pieces, pieces)
+                pick = rng.integers(0, n_cl, n_cl)
                 try:
                     draws.append(-np.linalg.solve(Sc[pick].sum(0), gc[pick].sum(0)))
                 except np.linalg.LinAlgError:
@@ -531,8 +543,10 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
     np.add.at(sq, seg.piece, res)
     np.add.at(cnt, seg.piece, npts)
     rms = np.sqrt(sq / np.maximum(cnt, 1))
+    sq_cl = np.zeros(n_cl)
+    np.add.at(sq_cl, owner, res)
     b, al = unpack(theta)
     return ShootingFit(beta=b, alpha=al, y0=y0, theta_names=theta_names, theta=theta, half=half, flat=flat, cost=cost,
                        rms_piece=rms, ssr_piece=sq, iterations=it, converged=converged, message=message,
                        seconds=time.perf_counter() - t_start, segments=len(seg), step=seg.h, correlation=corr,
-                       sandwich_half=sand, bootstrap_half=boot, newton_step=step)
+                       sandwich_half=sand, bootstrap_half=boot, newton_step=step, ssr_cluster=sq_cl)

@@ -188,7 +188,7 @@ def _panel_residuals(ax, result, predictions) -> None:
         ax.set_ylim(0, 1.5 * top)
         ax.margins(x=0)
     else:
-        ax.text(0.5, 0.5, "no held-out pieces with angles to predict\n(pass validation=...)", ha="center",
+        ax.text(0.5, 0.5, "no held-out pieces with angles to predict\n(CLI: --validate DATA; Python: validation=...)", ha="center",
                 va="center", transform=ax.transAxes, color="0.4", fontsize=8.5)
     ax.set_title("(b) Held-out prediction error", loc="left")
     ax.set_xlabel("time from the piece's start [s]")
@@ -233,7 +233,8 @@ def _panel_precision(ax, result) -> None:
             ax.hlines(yi, left, r, color=COLORS["phi"], lw=5, alpha=0.75)
             ax.text(r * 1.25, yi, plus_minus(v, h), va="center", fontsize=7, color="0.2")
         else:
-            ax.text(left * 1.3, yi, "not determined", va="center", fontsize=7, color=COLORS["psi"])
+            why = "not available" if getattr(result, "intervals_note", "").startswith("95 %") else "not determined"
+            ax.text(left * 1.3, yi, why, va="center", fontsize=7, color=COLORS["psi"])
     ax.set_xscale("log")
     ax.set_xlim(left, right)
     ax.set_yticks(y, [name for name, _, _ in rows], fontsize=7.5)
@@ -270,7 +271,7 @@ def _panel_correlation(fig, ax, result) -> None:
     ax.grid(False)
     for s in ax.spines.values():
         s.set_visible(False)
-    if n <= 12:
+    if n <= 10:  # the coefficients written in the cells (more would overlap: the colours alone)
         for i in range(n):
             for j in range(n):
                 if i != j and math.isfinite(C[i, j]):
@@ -304,6 +305,10 @@ def _panel_profile(ax, result) -> None:
     ax.legend(fontsize=7, loc="upper center", framealpha=0.92)
 
 
+#: The heading's longest line [characters] (the figure is 1600 px wide; the heading's font 8.5 pt).
+HEADING_WIDTH = 160
+
+
 def _heading_text(result, measurements, validation) -> str:
     n_fit = len(result.pieces) if result.pieces else (len(measurements) if measurements is not None else 0)
     parts = [f"Identification ({result.method}) from {n_fit} fitting piece{'s' if n_fit != 1 else ''}"]
@@ -319,7 +324,11 @@ def _heading_text(result, measurements, validation) -> str:
     seconds = result.stats.get("seconds") if isinstance(result.stats, dict) else None
     if seconds is not None:
         line2.append(f"{float(seconds):.3g} s")
-    return line1 + ("\n" + "; ".join(line2) if line2 else "")
+    import textwrap
+
+    # wrapped: a long status message (a projection's note) must not run off the figure's edges
+    lines = textwrap.wrap(line1, HEADING_WIDTH) + (textwrap.wrap("; ".join(line2), HEADING_WIDTH) if line2 else [])
+    return "\n".join(lines)
 
 
 # -- the figure ----------------------------------------------------------------------------------------

@@ -130,9 +130,13 @@ def _section_fit(r, measurements, validation, drawn: float) -> str:
         details.append(f"shooting segments of {fmt_num(st['segment'])} s ({st.get('segments', '?')} segments)")
     if st.get("iterations") is not None:
         details.append(f"{st['iterations']} iterations, " + ("converged" if st.get("converged") else "not converged"))
-    if st.get("bootstrap"):
-        details.append(f"intervals: sandwich and {st.get('bootstrap_used', st['bootstrap'])} piece-bootstrap re-fits "
-                       f"(seed {st.get('seed', 0)})")
+    note = r.intervals_note if hasattr(r, "intervals_note") else ""
+    if note.startswith("95 %"):
+        details.append(note)
+    elif st.get("bootstrap"):
+        over = note[len("clusters: "):] if note.startswith("clusters: ") else "pieces"
+        details.append(f"intervals: sandwich and {st.get('bootstrap_used', st['bootstrap'])} bootstrap re-fits over "
+                       f"{over} (seed {st.get('seed', 0)})")
     free = [n for n in r.free if n != r.reference]
     if st.get("alpha_free"):
         free.append("alpha")
@@ -143,7 +147,7 @@ def _section_fit(r, measurements, validation, drawn: float) -> str:
         ("fitted on", _describe(measurements) if measurements is not None else f"{len(r.pieces)} pieces"),
         ("fitting pieces", _names(r.pieces)),
         ("held out", (_describe(validation) + "<br>" + _names(r.validation)) if len(r.validation)
-         else '<span class="muted">no pieces held out (pass validation=... to predict motion the fit never saw)</span>'),
+         else '<span class="muted">no pieces held out (give them with --validate DATA on the command line, validation=... in Python, to predict motion the fit never saw)</span>'),
         ("method", esc(method) + (f"<br><span class=\"note\">{esc('; '.join(details))}</span>" if details else "")),
         ("freed", _names(free, 20) + (f" (the scale: {esc(r.reference)} from params0)" if r.reference else "")),
         ("start (params0)", esc(parameter_text(r.params0))),
