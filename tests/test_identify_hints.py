@@ -343,3 +343,29 @@ def test_every_python_spelling_of_the_readers_has_the_command_lines():
     assert {"Convention(", "skip=(", "short='", "nonfinite=", "raise nonfinite"} <= seen
     wrapped = cli_message("state Convention(wrapped=True)", Convention(unit="deg", second="absolute"))
     assert wrapped == "state --convention second=absolute,unit=deg,wrapped=yes"
+
+
+def test_suspect_says_why_a_fit_looks_wrong(swing):
+    """The triggers of the checks: a status that is not success, a held-out prediction worse than
+    params0's, an output error above a tenth of the angles' spread or ten times their noise (0.5 mrad
+    here, estimated within 30 %); a good fit gives None."""
+    import dataclasses
+
+    from skewpend import Status
+    from skewpend.analysis.hints import noise_level, suspect
+    from skewpend.analysis.identify import Identification
+
+    t, q, _ = swing
+    m = Measurements.from_arrays([{"t": t, "q": q}], skip=("tracking", "mean"))
+    assert 0.7 * 5e-4 < noise_level(m) < 1.3 * 5e-4
+    p = params()
+    good = Identification(params=p, params0=p, status=Status.SUCCESS, message="ok", settings={},
+                          fit_rms=np.array([5.5e-4]), validation=("v",), heldout_kind=("angle",),
+                          heldout_rms=np.array([0.01]), heldout_rms0=np.array([0.02]))
+    assert suspect(good, m) is None
+    cases = [(dict(status=Status.NO_CONVERGENCE, message="the estimate is not physical"), "not physical"),
+             (dict(heldout_rms=np.array([0.03])), "worse than params0's"),
+             (dict(fit_rms=np.array([0.2])), "more than a tenth of their spread"),
+             (dict(fit_rms=np.array([0.018])), "times their noise")]
+    for change, says in cases:
+        assert says in suspect(dataclasses.replace(good, **change), m), change

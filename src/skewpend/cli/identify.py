@@ -198,12 +198,16 @@ def identify(
             result = fit(measurements, params0, progress=say, **kw)
         bar(100.0, 100.0)
         why = hints.suspect(result, measurements)
-        if why is not None:  # a fit gone wrong: the likely data mistakes (a few linear estimates)
+        found: List[str] = []
+        if why is not None:  # a fit gone wrong, or it may have: the likely data mistakes (a few linear estimates)
+            if kind in ("csv", "mat", "dfki") and not quiet:
+                sys.stderr.write("skewpend: identify: checking the data for likely mistakes (a few inverse-dynamics "
+                                 "fits)...\n")
             with _cli_messages(conv):
                 found = hints.diagnose(measurements, params0, convention=conv, free=free_names, interface="cli",
                                        conventions=kind in ("csv", "mat", "dfki"))
-    if why is not None:
-        for line in hints.report(found, checked=kind in ("csv", "mat", "dfki")):
+    if why is not None:  # a fit that succeeded gets a line only when a mistake is found
+        for line in hints.report(found, checked=kind in ("csv", "mat", "dfki") and not result.ok):
             sys.stderr.write(f"skewpend: {line}\n")
     note = ""
     written = []
