@@ -188,7 +188,7 @@ def _residual(measurements: Measurements, params0, free, window: float) -> float
 
     try:
         r = identify(measurements, params0, free=free, method="linear", smoothing=window, bootstrap=0)
-    except SkewpendError:
+    except (SkewpendError, ValueError, np.linalg.LinAlgError):  # a check never stops the run: no answer
         return math.nan
     rms = np.asarray(r.residual_rms, dtype=float)
     return float(np.median(rms)) if rms.size and np.all(np.isfinite(rms)) else math.nan
