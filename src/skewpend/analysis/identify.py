@@ -1168,7 +1168,11 @@ def _realise_free_entries(params0: Parameters, W, values: np.ndarray, a: float, 
     B = W.B if isinstance(W, _Terms) else W
     free_names = {PI_NAMES[j] for j in range(len(PI_NAMES)) if j not in set(B.pivots)}
     for i in (1, 2):
-        I0 = np.array(getattr(params0, f"inertia{i}"), dtype=float)
+        given = getattr(params0, f"inertia{i}")
+        if given is None:  # the specification's thin rod: m l^2 / 12 (E - j j)
+            m, length = float(getattr(params0, f"m{i}")), float(params0.a if i == 1 else params0.b)
+            given = m * length**2 / 12.0 * np.diag([1.0, 0.0, 1.0])
+        I0 = np.array(given, dtype=float)
         scale = float(np.trace(I0))
         if not scale > 0:
             continue

@@ -33,7 +33,8 @@ Gauss-Newton covariance ``sigma^2 (J^T J)^-1`` is far too narrow.  The covarianc
 *cluster-robust sandwich* over pieces, ``S^-1 (sum_c g_c g_c^T) S^-1`` (``S`` the reduced
 Gauss-Newton matrix, ``g_c`` piece ``c``'s reduced gradient at the optimum), which holds for any
 correlation within a piece, with Student's t quantile at ``pieces - 1`` degrees of freedom; it is checked against one-step re-fits on the pieces resampled with
-replacement (seeded), and each half-width is the larger of the two.  With few pieces (one long
+replacement (seeded) and against the jackknife over pieces (each left out in turn, one step from the
+optimum: the sandwich is too narrow with few clusters), and each half-width is the largest of the three.  With few pieces (one long
 recording), the clusters are blocks of consecutive segments instead of pieces
 (:func:`skewpend.analysis.identify.clusters`, the ``cluster`` argument of :func:`fit`).  A direction whose reduced
 curvature is below :data:`FLAT` of the largest (column-scaled) is undetermined: it gets no interval.
@@ -535,7 +536,22 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
                     continue
             if len(draws) >= 20:
                 boot = z * np.std(np.array(draws), axis=0, ddof=1)
-        half = np.fmax(sand, boot)
+        # the jackknife over clusters (CR3: each cluster left out in turn, one step from the optimum):
+        # the sandwich underestimates the spread with few clusters (a single recording cut into ten
+        # blocks: by about a quarter, measured over 20 noise seeds); the jackknife does not
+        jack = np.full(p, np.nan)
+        if n_cl >= 3:
+            gsum = gc.sum(0)
+            leave = []
+            for c in range(n_cl):
+                try:
+                    leave.append(-np.linalg.solve(Ssum - Sc[c], gsum - gc[c]))
+                except np.linalg.LinAlgError:
+                    continue
+            if len(leave) == n_cl:
+                L = np.array(leave)
+                jack = z * np.sqrt((n_cl - 1) / n_cl * np.sum((L - L.mean(0)) ** 2, axis=0))
+        half = np.fmax(np.fmax(sand, boot), jack)
     res = (e**2).sum(axis=(1, 2))
     npts = seg.mask.sum(1) * 2
     sq = np.zeros(pieces)
