@@ -268,6 +268,8 @@ def test_plot_and_report_when_the_views_have_them(tmp_path):
     (["KAHEMAN", "--format", "foo"], ["--format", "foo"]),
     (["nowhere/kaheman2023"], ["DATA", "nowhere/kaheman2023 does not exist"]),
     (["KAHEMAN", "--validate", "nowhere.mat"], ["nowhere.mat does not exist"]),
+    (["kaheman2024"], ["DATA: kaheman2024 does not exist", "kaheman2023, dfki-design-C.0"]),
+    (["dfki-design-C.0/trajectory_99.csv"], ["trajectory_99.csv"]),
     (["KAHEMAN", "--free", "J9zz"], ["--free", "unknown name 'J9zz'"]),
     (["KAHEMAN", "--free", "alpha", "--method", "linear"], ["alpha", "output-error"]),
     (["KAHEMAN", "--segment", "-1"], ["--segment", "positive"]),
@@ -298,6 +300,16 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(args, fragments, tmp_pa
         argv += ["--out", "fit.toml"]
     ran = run_cli(["identify", *argv], cwd=tmp_path)
     assert_refused(ran, fragments, tmp_path, before)
+
+
+def test_a_shipped_data_set_is_found_by_its_name(capsys):
+    """``skewpend identify kaheman2023`` (no such path here) reads the data shipped with skewpend, and says so."""
+    from skewpend.cli.identify import _data_path
+    from skewpend.datasets import example_data
+
+    assert _data_path("kaheman2023", "DATA") == str(example_data("kaheman2023"))
+    assert "the example data shipped with skewpend" in capsys.readouterr().err
+    assert _data_path(str(KAHEMAN), "DATA") == str(KAHEMAN)  # an existing path is taken as it is
 
 
 @pytest.mark.slow

@@ -121,7 +121,7 @@ def identify(
     columns: Annotated[Optional[str], typer.Option("--columns", metavar="KEY=COLUMN,...", help="--format csv (required with it): the columns of t, phi, psi and optionally dphi,dpsi and tau1,tau2 (pairs; a torque may be a number, e.g. tau2=0)", rich_help_panel=RUN)] = None,
     variables: Annotated[Optional[str], typer.Option("--variables", metavar="DATA_VAR,TIME_VAR|DT", help="--format mat (required with it): the variable holding the samples (a cell array of pieces or one array) and the time variable or a fixed step in seconds", rich_help_panel=RUN)] = None,
     channels: Annotated[Optional[str], typer.Option("--channels", metavar="A1,A2[,V1,V2[,T1,T2]]", help="--format mat: the channels of the two angles, then of their speeds and torques (default 0,1: angles only)", rich_help_panel=RUN)] = None,
-    convention: Annotated[Optional[str], typer.Option("--convention", metavar="KEY=VALUE,...", help="csv, mat, dfki: how the file measures its angles: second=relative|absolute, zero=hanging|upright, sign=1:-1, unit=rad|deg, wrapped=yes (default skewpend's: relative, hanging, 1:1, rad)", rich_help_panel=RUN)] = None,
+    convention: Annotated[Optional[str], typer.Option("--convention", metavar="KEY=VALUE,...", help="csv, mat, dfki: how the file measures its angles and times: second=relative|absolute, zero=hanging|upright, sign=1:-1, unit=rad|deg, wrapped=yes, time=s|ms|us (default skewpend's: relative, hanging, 1:1, rad, s)", rich_help_panel=RUN)] = None,
     out: option("--out", T.OutPath((".toml", ".yml")), "write the fitted model as a run file FILE.toml (use it with --config in any command) or as a DFKI lab model file FILE.yml (planar models with the centres of mass on the rods); not written when the fit fails", RUN, "-o") = None,
     netcdf: option("--netcdf", T.OutPath((".nc",)), "write the whole result to FILE.nc (default: not written)") = None,
     plot: plot_option("the fit and the held-out prediction") = None,
@@ -138,10 +138,9 @@ def identify(
     """
     from ..errors import ParameterError
 
-    paths = [str(p) for p in data]
-    for p in paths + _split_paths(validate):
-        if not Path(p).exists():
-            raise ParameterError(f"DATA: {p} does not exist")
+    paths = [_data_path(str(p), "DATA") for p in data]
+    if validate is not None:
+        validate = ",".join(_data_path(p, "--validate") for p in _split_paths(validate))
     kind = fmt.value if fmt is not None else _infer(paths, columns, variables)
     _check_combinations(kind, which, columns, variables, channels, convention)
     free_names = _free_names(free)
@@ -365,6 +364,22 @@ def _write_lab_file(result, out: str) -> None:
 
 
 # -- input ----------------------------------------------------------------------------------------------
+def _data_path(text: str, where: str) -> str:
+    """A path of measured data, or the name of a data set shipped with skewpend (``kaheman2023``,
+    ``dfki-design-C.0/trajectory_00.csv``: :func:`skewpend.example_data`), said on stderr."""
+    from ..datasets import EXAMPLE_DATA, example_data
+    from ..errors import ParameterError
+
+    if Path(text).exists():
+        return text
+    if text.replace("\\", "/").split("/")[0] in EXAMPLE_DATA:
+        found = str(example_data(text))
+        sys.stderr.write(f"skewpend: {where} {text}: the example data shipped with skewpend ({found})\n")
+        return found
+    raise ParameterError(f"{where}: {text} does not exist (the example data shipped with skewpend: "
+                         f"{', '.join(EXAMPLE_DATA)})")
+
+
 def _split_paths(text: Optional[str]) -> List[str]:
     """``--validate``'s paths: one path (that exists, commas and all) or several, comma-separated."""
     if text is None:
