@@ -557,23 +557,26 @@ def test_bad_input_in_a_real_process(argv, fragments, files, tmp_path):
 
 
 # -- the library under the command line: validation and export refuse up front ---------------------------------
-def test_validation_refuses_too_many_mujoco_steps_at_once():
-    """No time is spent on a comparison that could not finish (1e13 MuJoCo steps)."""
-    import time
-
+def test_validation_refuses_too_many_mujoco_steps_at_once(monkeypatch):
+    """No work is spent on a comparison that could not finish (1e13 MuJoCo steps): refused before
+    MuJoCo is imported or either side simulates -- the work counted, not timed (issue 36)."""
+    import skewpend.interop.export as export
+    import skewpend.numeric.simulation as simulation
     from skewpend import Parameters
     from skewpend.errors import ParameterError
     from skewpend.interop.validation import compare_with_mujoco
 
+    work = []
+    for module, name in ((export, "import_mujoco"), (export, "mujoco_trajectory"), (simulation, "simulate")):
+        monkeypatch.setattr(module, name, lambda *a, _name=name, **k: work.append(_name) or pytest.fail(_name))
     p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
-    start = time.monotonic()
     for t_end, dt in ((1e9, 1e-4), (2.0, 1e-300), (1e308, 1e-4)):
         with pytest.raises(ParameterError, match="MuJoCo steps"):
             compare_with_mujoco(p, (1.2, -0.8, 0, 0), t_end, dt=dt)
     for t_end, dt in ((0.0, 1e-4), (2.0, 0.0), (-1.0, 1e-4), (2.0, float("nan")), (None, 1e-4)):
         with pytest.raises(ParameterError):
             compare_with_mujoco(p, (1.2, -0.8, 0, 0), t_end, dt=dt)
-    assert time.monotonic() - start < 5.0
+    assert work == []
 
 
 def test_export_never_writes_a_non_finite_number(tmp_path):
@@ -595,7 +598,7 @@ def test_export_never_writes_a_non_finite_number(tmp_path):
 
 
 def test_ctrl_c_stops_a_long_validation_promptly(tmp_path):
-    """MuJoCo is stepped in bounded chunks, so SIGINT is honoured within a fraction of a second."""
+    """MuJoCo is stepped in bounded chunks, so SIGINT is honoured long before the comparison's end."""
     import signal
     import time
 
@@ -609,7 +612,8 @@ def test_ctrl_c_stops_a_long_validation_promptly(tmp_path):
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     assert err.strip().splitlines() == ["skewpend: interrupted"], err
-    assert time.monotonic() - sent < 3.0
+    # a hang guard, not a speed test: the whole comparison (5e7 MuJoCo steps) takes about half an hour
+    assert time.monotonic() - sent < 20.0
     assert list(tmp_path.iterdir()) == []
 
 
