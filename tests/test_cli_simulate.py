@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from helpers import completed
 
+import skewpend
+
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
@@ -31,7 +33,35 @@ def test_csv_output_columns_and_content(tmp_path):
     np.testing.assert_allclose(data[:, 0], np.linspace(0, 1, 11), atol=1e-12)
     np.testing.assert_allclose(data[0, 1:5], [1.2, -0.8, 0, 0])
     assert np.ptp(data[:, 5]) < 1e-8  # energy conserved
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]  # no temporary files left
+    # no temporary files left; the metadata beside the CSV (issue 36: not comment lines in it)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.csv.json"]
+    assert "#" not in path.read_text()
+
+
+def test_csv_reads_as_plain_numeric_columns_with_pandas_and_numpy(tmp_path):
+    """pandas.read_csv(path) and numpy.genfromtxt(path, delimiter=",", names=True) with no options
+    give the 13 named float columns and exactly the rows written (issue 36: trailing '# key: value'
+    lines gave 35 junk rows and a text column); how the run was made is in run.csv.json."""
+    import json
+
+    pd = pytest.importorskip("pandas")
+    path = tmp_path / "run.csv"
+    run("simulate", "--t-end", "1", "--dt-out", "0.1", "--c1", "0.1", "--out", path)
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    df = pd.read_csv(path)
+    assert list(df.columns) == ["t", "phi", "psi", "dphi", "dpsi", "energy", "work", "x1", "y1", "z1", "x2", "y2", "z2"]
+    assert df.shape == (11, 13) and all(dtype == np.float64 for dtype in df.dtypes)  # z1 = 0 too: floats
+    np.testing.assert_array_equal(df.to_numpy(), data)
+    arr = np.genfromtxt(path, delimiter=",", names=True)
+    assert arr.dtype.names == tuple(df.columns) and arr.shape == (11,)
+    assert not np.isnan(arr.view((np.float64, 13))).any()
+    np.testing.assert_array_equal(np.column_stack([arr[n] for n in arr.dtype.names]), data)
+    meta = json.loads((tmp_path / "run.csv.json").read_text())
+    assert meta["kind"] == "skewpend trajectory" and meta["status"] == 0 and meta["param_c1"] == 0.1
+    assert meta["columns"] == list(df.columns) and meta["units"][:2] == ["s", "rad"] and meta["csv_rows"] == 11
+    back = skewpend.open_trajectory(path)  # the library reads both files back
+    np.testing.assert_array_equal(back.y, data[:, 1:5])
+    assert back.params.c1 == 0.1 and back.method == meta["method"]
 
 
 def test_netcdf_output_has_metadata(tmp_path):
@@ -104,9 +134,11 @@ def test_failed_run_writes_what_it_computed(tmp_path):
     proc = run("simulate", "--dphi0", "1e150", "--t-end", "0.01", "--method", "dop853", "--out", "x.csv", cwd=tmp_path,
                check=False)
     assert proc.returncode == 1 and "wrote the 1 rows computed to x.csv" in proc.stderr
-    assert [p.name for p in tmp_path.iterdir()] == ["x.csv"]
-    text = (tmp_path / "x.csv").read_text()
-    assert "# status: 2" in text and "# message: stopped: step size underflow" in text
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.csv", "x.csv.json"]
+    import json
+
+    meta = json.loads((tmp_path / "x.csv.json").read_text())
+    assert meta["status"] == 2 and meta["message"] == "stopped: step size underflow"
     data = np.loadtxt(tmp_path / "x.csv", delimiter=",", skiprows=1, ndmin=2)
     assert data.shape == (1, 13) and np.all(np.isfinite(data))
 

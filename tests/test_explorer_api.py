@@ -182,6 +182,8 @@ BOUNDS = [
     ("/api/simulate", {"t_end": 120, "dt_out": 5e-324}, "dt_out"),
     ("/api/simulate", {"rtol": 1e-15}, "rtol"),
     ("/api/simulate", {"rtol": 1e-2}, "rtol"),
+    ("/api/simulate", {"atol": 1e-15}, "atol"),
+    ("/api/simulate", {"atol": 1e-2}, "atol"),
     ("/api/simulate", {"y0": [0, 0, 0]}, "y0"),
     ("/api/simulate", {"y0": [0, 0, 0, 0, 0]}, "y0"),
     ("/api/simulate", {"y0": [0.0] * 2_000}, "y0"),
@@ -290,8 +292,8 @@ def test_simulation_refused_by_the_library_is_422_with_its_message(body):
     model = {**DEFAULT_MODEL, **body.get("model", {})}
     rtol = body.get("rtol", 1e-10)
     message = _library_message(lambda: skewpend.simulate(  # the parameters are built inside: they may be what is refused
-        Parameters(**model), body.get("y0", [1.2, -0.8, 0, 0]), body["t_end"], dt_out=body["dt_out"], rtol=rtol, atol=rtol,
-        max_steps=explorer.LIMITS["simulate_steps"]))
+        Parameters(**model), body.get("y0", [1.2, -0.8, 0, 0]), body["t_end"], dt_out=body["dt_out"], rtol=rtol, atol=1e-10,
+        max_steps=explorer.LIMITS["simulate_steps"], method="dop853"))
     r, seconds = post("/api/simulate", body)
     assert r.status_code == 422, r.text[:300]
     assert [d["msg"] for d in details(r)] == [message]
@@ -310,9 +312,29 @@ def test_simulate_grid_energy_and_agreement_with_the_library():
     assert y.shape == (301, 4) and energy.shape == (301,)
     np.testing.assert_array_equal(y[0], body["y0"])
     assert np.max(np.abs(energy - energy[0])) / abs(energy[0]) < 1e-8  # undamped, rtol = 1e-10
-    direct = skewpend.simulate(Parameters(**DEFAULT_MODEL), body["y0"], 3.0, dt_out=0.01, rtol=1e-10, atol=1e-10)
+    direct = skewpend.simulate(Parameters(**DEFAULT_MODEL), body["y0"], 3.0, dt_out=0.01, rtol=1e-10, atol=1e-10,
+                               method="dop853")  # the endpoint's method
     np.testing.assert_allclose(y[-1], direct.y[-1], rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(energy, direct.energy, rtol=1e-9)
+
+
+def test_simulate_takes_the_requested_atol():
+    """The request's atol is the integration's (issue 36: it was given rtol): a loose atol with a tight
+    rtol is the library's run with those two tolerances, bit for bit (DOP853, as the endpoint says),
+    and not the run with atol = rtol (a state of size ~1 is then controlled by atol: far fewer steps)."""
+    body = {"model": DEFAULT_MODEL, "y0": [1.2, -0.8, 0.3, -0.1], "t_end": 3.0, "dt_out": 0.01, "rtol": 1e-10,
+            "atol": 1e-3}
+    r, _ = post("/api/simulate", body)
+    assert r.status_code == 200, r.text[:300]
+    out = r.json()
+    params = Parameters(**DEFAULT_MODEL)
+    loose = skewpend.simulate(params, body["y0"], 3.0, dt_out=0.01, rtol=1e-10, atol=1e-3, method="dop853")
+    tight = skewpend.simulate(params, body["y0"], 3.0, dt_out=0.01, rtol=1e-10, atol=1e-10, method="dop853")
+    np.testing.assert_array_equal(np.array(out["y"]), loose.y)
+    assert out["steps"] == loose.stats["steps"] < tight.stats["steps"] / 2
+    default = post("/api/simulate", {**body, "atol": 1e-10})[0].json()  # the default atol is 1e-10
+    assert default == post("/api/simulate", {k: v for k, v in body.items() if k != "atol"})[0].json()
+    np.testing.assert_array_equal(np.array(default["y"]), tight.y)
 
 
 def test_modes_closed_form_for_equal_rods_in_a_plane():

@@ -263,10 +263,11 @@ def test_truncated_files(results, tmp_path):
     _refused(tmp_path / "cut.nc", "cut.nc")
     run = tmp_path / "run.csv"
     sp.simulate(results["skewpend trajectory"].params, (1.0, 0.5, 0, 0), 0.5, out=run)
-    lines = run.read_text().splitlines(keepends=True)
-    rows = [line for line in lines if not line.startswith("#")]
+    rows = run.read_text().splitlines(keepends=True)
     (tmp_path / "cut.csv").write_text("".join(rows[: len(rows) // 2]))
-    _refused(tmp_path / "cut.csv", "truncated")
+    _refused(tmp_path / "cut.csv", "cut.csv.json", "keep the two files together")  # the metadata file not copied
+    shutil.copy(tmp_path / "run.csv.json", tmp_path / "cut.csv.json")
+    _refused(tmp_path / "cut.csv", "truncated")  # the metadata records the rows written
 
 
 def test_misnamed_files_and_directories(results, tmp_path):

@@ -172,8 +172,8 @@ def test_run_stopped_by_max_steps_writes_what_it_computed(tmp_path):
     steps get shorter later: it then stops at the cap, writes what it computed, exits 1."""
     out = tmp_path / "partial.nc"
     # started near the upright position: the first seconds are slow, the motion then turns wild
-    proc = run(cli("simulate", "--phi0", "3.14", "--psi0", "0", "--t-end", "60", "--max-steps", "3000", "--out", out),
-               cwd=tmp_path)
+    proc = run(cli("simulate", "--phi0", "3.14", "--psi0", "0", "--t-end", "60", "--max-steps", "3000", "--method", "dop853",
+                   "--out", out), cwd=tmp_path)  # dop853: its steps get shorter later (taylor's do not)
     assert proc.returncode == 1, proc.stderr
     assert "maximum number of steps exceeded" in proc.stderr and f"to {out}" in proc.stderr
     import netCDF4
@@ -187,13 +187,15 @@ def test_run_stopped_by_max_steps_writes_what_it_computed(tmp_path):
 
 
 def test_stop_early_status_is_in_the_csv_metadata(tmp_path):
-    tr = skewpend.simulate(P, (3.14, 0.0, 0.0, 0.0), 60.0, max_steps=3000, out=tmp_path / "x.csv", keep=False)
+    tr = skewpend.simulate(P, (3.14, 0.0, 0.0, 0.0), 60.0, max_steps=3000, out=tmp_path / "x.csv", keep=False,
+                           method="dop853")  # dop853: its steps get shorter later (taylor's do not)
     assert tr.status == 3 and not tr.success
-    lines = (tmp_path / "x.csv").read_text().splitlines()
-    meta = dict(line[2:].split(": ", 1) for line in lines if line.startswith("# "))
-    assert meta["status"] == "3" and meta["message"] == "stopped: maximum number of steps exceeded"
+    import json
+
+    meta = json.loads((tmp_path / "x.csv.json").read_text())  # the CSV's metadata, beside it (issue 36)
+    assert meta["status"] == 3 and meta["message"] == "stopped: maximum number of steps exceeded"
     data = np.loadtxt(tmp_path / "x.csv", delimiter=",", skiprows=1)
-    assert data.shape[0] == tr.stats["rows"] and float(meta["t_reached"]) == data[-1, 0]
+    assert data.shape[0] == tr.stats["rows"] and meta["t_reached"] == data[-1, 0]
 
 
 # -- progress -------------------------------------------------------------------------------------------
@@ -252,7 +254,7 @@ def test_a_temporary_file_left_by_kill_9_is_removed(tmp_path):
     alive = tmp_path / f".run.csv.skewpend-{os.getppid()}.tmp"  # a live process's: left alone
     alive.write_text("in progress")
     skewpend.simulate(P, Y0, 0.1, out=tmp_path / "run.csv")
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["run.csv", alive.name])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["run.csv", "run.csv.json", alive.name])
 
 
 def test_killed_writer_leaves_no_output_and_the_next_run_cleans_up(tmp_path):
@@ -264,9 +266,10 @@ def test_killed_writer_leaves_no_output_and_the_next_run_cleans_up(tmp_path):
     time.sleep(0.5)
     proc.kill()
     proc.wait()
-    assert not (tmp_path / "big.csv").exists() and len(list(tmp_path.glob(".big.csv.*.tmp"))) == 1
+    assert not (tmp_path / "big.csv").exists() and not (tmp_path / "big.csv.json").exists()
+    assert len(list(tmp_path.glob(".big.csv.skewpend-*.tmp"))) == 1 and len(list(tmp_path.glob(".big.csv.json.*.tmp"))) == 1
     assert run(cli("simulate", "--t-end", "0.1", "--dt-out", "0.05", "--out", "big.csv"), cwd=tmp_path).returncode == 0
-    assert [p.name for p in tmp_path.iterdir()] == ["big.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.csv", "big.csv.json"]
 
 
 # -- the kernel cache -------------------------------------------------------------------------------------
@@ -275,7 +278,7 @@ GEOMETRY = dict(com2=(0.0, 0.37, 0.01))  # a model of its own: its own library i
 
 def test_damaged_kernel_is_rebuilt(tmp_path):
     env = {"SKEWPEND_CACHE_DIR": str(tmp_path / "cache")}
-    args = cli("simulate", "--t-end", "1", "--com2", "0,0.37,0.01")
+    args = cli("simulate", "--t-end", "1", "--com2", "0,0.37,0.01", "--method", "dop853")  # the model's kernel alone
     first = run(args, env=env)
     assert first.returncode == 0 and "compiled for this model" in first.stdout
     [lib] = (tmp_path / "cache" / "kernels").glob("*.so")
@@ -304,7 +307,8 @@ def test_unwritable_cache_falls_back_with_one_warning(tmp_path):
         cache = tmp_path / "ro"
         cache.mkdir()
         cache.chmod(0o500)
-    proc = run(cli("simulate", "--t-end", "1", "--com2", "0,0.36,0.01"), env={"SKEWPEND_CACHE_DIR": str(cache)})
+    proc = run(cli("simulate", "--t-end", "1", "--com2", "0,0.36,0.01", "--method", "dop853"),  # the model's kernel alone
+               env={"SKEWPEND_CACHE_DIR": str(cache)})
     assert proc.returncode == 0, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 2 and lines[0].startswith("skewpend: warning: cannot write the kernel cache"), proc.stderr
@@ -314,7 +318,7 @@ def test_unwritable_cache_falls_back_with_one_warning(tmp_path):
 
 
 def test_missing_compiler_is_one_clear_line(tmp_path):
-    proc = run(cli("simulate", "--t-end", "1", "--com2", "0,0.35,0.01"),
+    proc = run(cli("simulate", "--t-end", "1", "--com2", "0,0.35,0.01", "--method", "dop853"),
                env={"SKEWPEND_CACHE_DIR": str(tmp_path), "CC": "/nonexistent/cc"})
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]

@@ -92,3 +92,35 @@ def test_a_lyapunov_map_counts_accepted_and_rejected_steps_as_lyapunov_does():
             assert r.exponents[0] == m.exponent[i, j]
             steps, rejected = steps + r.stats["steps"], rejected + r.stats["rejected"]
     assert (m.stats["steps"], m.stats["rejected"]) == (steps, rejected) and rejected > 0
+
+
+@pytest.mark.parametrize("how", ["streamed", "written"])
+def test_csv_is_plain_numeric_columns_and_its_metadata_is_beside_it(tr, tmp_path, how):
+    """issue 36: pandas.read_csv(path) and numpy.genfromtxt(path, delimiter=",", names=True), with no
+    options, read exactly the rows as float columns named as the header says -- how the run was made
+    is in path.json beside the CSV, which open_trajectory reads back; without it, one clear error."""
+    import json
+    import shutil
+
+    pd = pytest.importorskip("pandas")
+    path = tmp_path / "run.csv"
+    if how == "streamed":
+        simulate(P, Y0, 3.0, dt_out=0.01, out=path, keep=False)
+    else:
+        skewpend.io.write_trajectory(tr, path)
+    df = pd.read_csv(path)
+    arr = np.genfromtxt(path, delimiter=",", names=True)
+    assert df.shape == (301, 13) and all(dtype == np.float64 for dtype in df.dtypes)
+    assert arr.dtype.names == tuple(df.columns) == skewpend.io.CSV_COLUMNS
+    np.testing.assert_array_equal(df["t"].to_numpy(), tr.t)
+    np.testing.assert_array_equal(arr["phi"], tr.y[:, 0])
+    np.testing.assert_array_equal(df[["phi", "psi", "dphi", "dpsi"]].to_numpy(), tr.y)
+    np.testing.assert_array_equal(df["energy"].to_numpy(), tr.energy)
+    meta = json.loads((tmp_path / "run.csv.json").read_text())
+    assert meta["kind"] == "skewpend trajectory" and meta["csv_rows"] == 301 and meta["setting_rtol"] == 1e-10
+    back = open_trajectory(path)
+    np.testing.assert_array_equal(back.y, tr.y)
+    assert back.params == P and back.method == tr.method and back.settings["method"] == "auto"
+    shutil.copy(path, tmp_path / "alone.csv")
+    with pytest.raises(ParameterError, match=r"alone.csv: its metadata file alone.csv.json .* is missing"):
+        open_trajectory(tmp_path / "alone.csv")

@@ -32,6 +32,8 @@ __all__ = [
     "write_netcdf",
     "read_netcdf",
     "CSV_COLUMNS",
+    "csv_metadata_path",
+    "has_trajectory_metadata",
     "CONFIG_SECTIONS",
     "TRAJECTORY_SUFFIXES",
 ]
@@ -274,16 +276,53 @@ def _flat_attrs(metadata: Dict[str, Any]) -> Dict[str, Any]:
     return {k: _attr_value(v) for k, v in metadata.items() if v is not None}
 
 
+def csv_metadata_path(path) -> Path:
+    """The metadata file of a trajectory CSV: ``run.csv`` -> ``run.csv.json`` (beside it)."""
+    path = Path(path)
+    return path.with_name(path.name + ".json")
+
+
+def has_trajectory_metadata(path) -> bool:
+    """Whether the trajectory CSV ``path`` has its record of how it was made: the metadata file
+    beside it (:func:`csv_metadata_path`) naming the kind, or -- a file of skewpend before 0.x that
+    kept it in the CSV -- ``# kind:`` among its last lines."""
+    import json
+
+    meta = csv_metadata_path(path)
+    if meta.is_file():
+        try:
+            return json.loads(meta.read_text()).get("kind") == TRAJECTORY_KIND
+        except (OSError, ValueError, AttributeError, UnicodeDecodeError):
+            return False
+    with open(path, "rb") as fh:
+        fh.seek(0, 2)
+        fh.seek(max(0, fh.tell() - 65536))
+        tail = fh.read()
+    return b"\n# kind: " in tail
+
+
+_CSV_ROW = ",".join(["%r"] * len(CSV_COLUMNS)) + "\n"
+
+
+def _json_value(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not JSON")
+
+
 class TrajectoryWriter:
     """Rows of a trajectory streamed to ``.csv`` or ``.nc`` as they are computed.
 
     Use as a context manager: ``write(block)`` appends rows (columns :data:`CSV_COLUMNS`),
     ``finish(metadata)`` records how the run ended; leaving the block without an exception
-    moves the file into place, with one it is removed.  CSV: a header line, the rows, then
-    ``# key: value`` lines with the metadata (read with ``numpy.loadtxt(path,
-    delimiter=",", skiprows=1)`` or ``pandas.read_csv(path, comment="#")``).  NetCDF 4
-    (``netCDF4``): one variable per column along the unlimited dimension ``t``, with units;
-    metadata as global attributes.
+    moves the file into place, with one it is removed.  CSV: a header line and the rows, plain
+    numbers only (``pandas.read_csv(path)``, ``numpy.genfromtxt(path, delimiter=",",
+    names=True)``, ``numpy.loadtxt(path, delimiter=",", skiprows=1)`` read it as it is), the
+    metadata in a JSON file beside it, ``run.csv.json`` (:func:`csv_metadata_path`), written and
+    moved into place with it.  NetCDF 4 (``netCDF4``): one variable per column along the unlimited
+    dimension ``t``, with units; metadata as global attributes.
     """
 
     def __init__(self, path, metadata: Optional[Dict[str, Any]] = None):
@@ -301,6 +340,10 @@ class TrajectoryWriter:
         try:
             tmp = self._stack.enter_context(atomic_path(self.path))
             if self.suffix == ".csv":
+                # the metadata file's block is entered last, so it is moved into place first (then the
+                # CSV): a reader that finds the CSV finds its metadata; an error removes both
+                self._meta_tmp = self._stack.enter_context(atomic_path(csv_metadata_path(self.path)))
+                self._stack.callback(self._write_metadata)
                 self._fh = self._stack.enter_context(open(tmp, "w"))
                 self._fh.write(",".join(CSV_COLUMNS) + "\n")
             else:
@@ -329,8 +372,9 @@ class TrajectoryWriter:
             raise SkewpendError("refusing to write non-finite values")
         if block.shape[0] == 0:
             return
-        if self.suffix == ".csv":
-            np.savetxt(self._fh, block, delimiter=",", fmt="%.17g")
+        if self.suffix == ".csv":  # each number as Python's repr: the shortest text that reads back to the same
+            # double, and always a float's ("0.0", not "0": pandas reads every column as float64)
+            self._fh.write("".join(_CSV_ROW % tuple(row) for row in block.tolist()))
         else:
             lo = self.rows
             for i, v in enumerate(self._vars):
@@ -339,13 +383,17 @@ class TrajectoryWriter:
 
     def finish(self, metadata: Optional[Dict[str, Any]] = None) -> None:
         self.metadata.update(metadata or {})
-        attrs = _flat_attrs(self.metadata)
-        if self.suffix == ".csv":
-            for k, v in attrs.items():
-                text = " ".join(map(repr, v.tolist())) if isinstance(v, np.ndarray) else v
-                self._fh.write(f"# {k}: {text}\n")
-        else:
-            self._ds.setncatts({"title": "skewpend trajectory of the skewed double pendulum", **attrs})
+        if self.suffix != ".csv":  # (the CSV's metadata file is written when the block closes)
+            self._ds.setncatts({"title": "skewpend trajectory of the skewed double pendulum",
+                                **_flat_attrs(self.metadata)})
+
+    def _write_metadata(self) -> None:
+        import json
+
+        with open(self._meta_tmp, "w") as fh:
+            json.dump({"columns": list(CSV_COLUMNS), "units": [UNITS[c] for c in CSV_COLUMNS], "csv_rows": self.rows,
+                       **_flat_attrs(self.metadata)}, fh, indent=1, default=_json_value)
+            fh.write("\n")
 
     def __exit__(self, *exc) -> bool:
         return self._stack.__exit__(*exc)
@@ -411,7 +459,7 @@ def read_trajectory(path) -> "tuple[np.ndarray, Dict[str, Any]]":
     try:
         with open(path) as fh:
             header = fh.readline().strip()
-            for line in fh:
+            for line in fh:  # (a file of an older skewpend: its metadata in '# key: value' lines at the end)
                 if line.startswith("# ") and ": " in line:
                     key, _, value = line[2:].rstrip("\n").partition(": ")
                     meta[key] = _csv_value(value)
@@ -422,6 +470,25 @@ def read_trajectory(path) -> "tuple[np.ndarray, Dict[str, Any]]":
         raise ParameterError(f"{path} is not a skewpend trajectory CSV file ({exc})") from None
     if rows.shape[1:] != (len(CSV_COLUMNS),):
         raise ParameterError(f"{path} is not a skewpend trajectory CSV file (expected {len(CSV_COLUMNS)} columns)")
+    sidecar = csv_metadata_path(path)
+    if not meta:
+        import json
+
+        try:
+            meta = json.loads(sidecar.read_text())
+            if not isinstance(meta, dict):
+                raise ValueError("not a JSON object")
+        except FileNotFoundError:
+            raise ParameterError(f"{path}: its metadata file {sidecar.name} (how the run was made, written beside the "
+                                 "CSV) is missing; keep the two files together") from None
+        except (OSError, ValueError, UnicodeDecodeError) as exc:
+            raise ParameterError(f"{path}: its metadata file {sidecar.name} cannot be read ({exc})") from None
+        meta.pop("columns", None)
+        meta.pop("units", None)
+    expected = meta.pop("csv_rows", None)
+    if isinstance(expected, (int, float)) and expected != rows.shape[0]:
+        raise ParameterError(f"{path} has {rows.shape[0]} rows where its metadata records {int(expected)}: truncated "
+                             "or edited")
     return rows, meta
 
 

@@ -117,13 +117,11 @@ def _zarr_kind(path: Path) -> Any:
 
 
 def _csv_has_metadata(path: Path) -> bool:
-    """A trajectory CSV ends with its ``# key: value`` lines (written last): the ``kind`` among them."""
-    with open(path, "rb") as fh:
-        fh.seek(0, 2)
-        size = fh.tell()
-        fh.seek(max(0, size - 65536))
-        tail = fh.read()
-    return b"\n# kind: " in tail
+    """A trajectory CSV has its metadata file beside it (``run.csv.json``; an older skewpend's CSV
+    ends with ``# key: value`` lines): the ``kind`` in it."""
+    from ..io import has_trajectory_metadata
+
+    return has_trajectory_metadata(path)
 
 
 # -- helpers -----------------------------------------------------------------------------------------
@@ -597,8 +595,8 @@ def open_result(path):
                                  f"it reads stores of {', '.join(sorted(_store_kinds()))}")
     else:
         if not _csv_has_metadata(path):
-            raise ParameterError(f"{path} is a trajectory CSV without its metadata (written last): truncated, or the "
-                                 "run did not finish")
+            raise ParameterError(f"{path} is a trajectory CSV without its metadata file {path.name}.json beside it (how "
+                                 "the run was made): keep the two files together")
         kind = "skewpend trajectory"
     reader = _READERS.get(str(kind))
     if reader is None:

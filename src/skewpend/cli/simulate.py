@@ -101,7 +101,10 @@ def summary(traj, out_path) -> str:
         f"kernel        {kernel}",
     ]
     if out_path is not None:
-        lines.append(f"written       {out_path} ({st['rows']} rows)")
+        from ..io import csv_metadata_path
+
+        beside = f"; how it was made in {csv_metadata_path(out_path).name}" if str(out_path).lower().endswith(".csv") else ""
+        lines.append(f"written       {out_path} ({st['rows']} rows{beside})")
     return "\n".join(lines) + "\n"
 
 

@@ -221,6 +221,7 @@ def _models():
         t_end: float = Field(10.0, gt=0, le=LIMITS["simulate_t_end"], description="length [s]")
         dt_out: float = Field(0.01, gt=0, le=LIMITS["simulate_t_end"], description="output interval [s]")
         rtol: float = Field(1e-10, ge=1e-14, le=1e-3, description="relative tolerance of DOP853")
+        atol: float = Field(1e-10, ge=1e-14, le=1e-3, description="absolute tolerance of DOP853")
 
     class ModesRequest(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
@@ -404,7 +405,7 @@ def create_app(*, physics_params=None, hosts=None, port=None):
         def run(check):
             from ..numeric.simulation import simulate as sim
 
-            tr = sim(params, req.y0, req.t_end, dt_out=req.dt_out, rtol=req.rtol, atol=req.rtol,
+            tr = sim(params, req.y0, req.t_end, dt_out=req.dt_out, method="dop853", rtol=req.rtol, atol=req.atol,
                      max_steps=LIMITS["simulate_steps"], progress=check)
             return {"t": _finite(tr.t), "y": _finite(tr.y), "energy": _finite(tr.energy),
                     "status": tr.status, "message": tr.message, "steps": int(tr.stats.get("steps", 0))}
