@@ -148,11 +148,19 @@ SKEWPEND = [sys.executable, "-m", "skewpend"]
 
 @dataclass
 class Ran:
-    """What a run of the command line gave: exit status, stdout, stderr."""
+    """What a run of the command line gave: exit status, stdout, stderr -- without the lines that
+    say a stage of the work (``skewpend CMD: STAGE... (T s)``, :data:`skewpend.progress.STAGE_LINE`;
+    a slow check or a long run says them before its error or result line), which are in ``stages``."""
 
     code: int
     out: str
     err: str
+    stages: tuple = ()
+
+    @classmethod
+    def split(cls, code: int, out: str, err: str) -> "Ran":
+        kept, stages = without_stages(err)
+        return cls(code, out, kept, stages)
 
     def report(self) -> str:
         return f"exit status {self.code}\nstderr: {self.err!r}\nstdout: {self.out[:300]!r}"
@@ -181,7 +189,17 @@ def run_cli(argv: Sequence[str], cwd: Optional[os.PathLike] = None) -> Ran:
         warnings.showwarning = shown
         if debug is not None:
             os.environ["SKEWPEND_DEBUG"] = debug
-    return Ran(code, out.getvalue(), err.getvalue())
+    return Ran.split(code, out.getvalue(), err.getvalue())
+
+
+def without_stages(err: str):
+    """``err`` without the stage lines (issue 36: off a terminal a command says each stage of its work
+    on stderr), and those lines."""
+    from skewpend.progress import STAGE_LINE
+
+    lines = err.splitlines(keepends=True)
+    stages = tuple(line.rstrip("\n") for line in lines if STAGE_LINE.match(line.rstrip("\n")))
+    return "".join(line for line in lines if not STAGE_LINE.match(line.rstrip("\n"))), stages
 
 
 def completed(argv: Sequence, cwd: Optional[os.PathLike] = None, *, timeout: float = 300, env=None,
@@ -190,6 +208,7 @@ def completed(argv: Sequence, cwd: Optional[os.PathLike] = None, *, timeout: flo
     process's environment; ``check``: assert exit status 0, showing stderr)."""
     proc = subprocess.run([*SKEWPEND, *map(str, argv)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
                           env={**os.environ, "SKEWPEND_DEBUG": "", **(env or {})})
+    proc.stderr, proc.stages = without_stages(proc.stderr)  # the stage lines apart (see Ran)
     if check:
         assert proc.returncode == 0, proc.stderr
     return proc
@@ -198,7 +217,7 @@ def completed(argv: Sequence, cwd: Optional[os.PathLike] = None, *, timeout: flo
 def run_process(argv: Sequence[str], cwd: Optional[os.PathLike] = None, *, timeout: float = 120, env=None) -> Ran:
     """``python -m skewpend ARGV`` as a real process, as a :class:`Ran`."""
     proc = completed(argv, cwd, timeout=timeout, env=env)
-    return Ran(proc.returncode, proc.stdout, proc.stderr)
+    return Ran(proc.returncode, proc.stdout, proc.stderr, proc.stages)
 
 
 def signal_process(argv: Sequence[str], cwd: os.PathLike, *, after: float, signum: int = signal.SIGINT,
@@ -219,7 +238,7 @@ def signal_process(argv: Sequence[str], cwd: os.PathLike, *, after: float, signu
     sent = time.monotonic()
     proc.send_signal(signum)
     out, err = proc.communicate(timeout=60)
-    return Ran(proc.returncode, out, err), time.monotonic() - sent
+    return Ran.split(proc.returncode, out, err), time.monotonic() - sent
 
 
 def snapshot(root: Path) -> set:

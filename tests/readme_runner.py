@@ -463,7 +463,11 @@ def run_cli(example: CliExample, workdir: Path, timeout: float = TIMEOUT) -> Out
 
 
 def output_lines(text: str) -> list[str]:
-    lines = [line.rstrip() for line in text.splitlines()]
+    """The lines a transcript shows: on a terminal a command's stages are one live line that goes when
+    it ends, so the stage lines it writes to a pipe (skewpend.progress.STAGE_LINE) are not shown."""
+    from skewpend.progress import STAGE_LINE
+
+    lines = [line.rstrip() for line in text.splitlines() if not STAGE_LINE.match(line.rstrip())]
     while lines and not lines[-1]:
         lines.pop()
     return lines

@@ -59,9 +59,13 @@ def _assert_close(got, want):
 
 
 def _run(*args):
-    return subprocess.run(
+    from helpers import without_stages
+
+    proc = subprocess.run(
         [sys.executable, "-m", "skewpend.cli", *args], capture_output=True, text=True, timeout=120
     )
+    proc.stderr = without_stages(proc.stderr)[0]  # the stage lines (issue 36) apart from the message
+    return proc
 
 
 @pytest.mark.parametrize("name", list(CASES))

@@ -39,10 +39,12 @@ REFERENCE = 0.709  # long-run lambda_1 of the tour case [1/s], +-0.006 (see the 
 
 
 def run_cli(capsys, *args):
+    from helpers import without_stages
+
     with pytest.raises(SystemExit) as exc:
         main(list(args))
     out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
+    return exc.value.code, out.out, without_stages(out.err)[0]  # the stage lines (issue 36) apart
 
 
 # -- (a) the intervals cover at the rate they claim -------------------------------------------------------------

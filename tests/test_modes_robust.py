@@ -220,10 +220,12 @@ def test_range_unit_rule():
 
 
 def run_cli(args, capsys):
+    from helpers import without_stages
+
     with pytest.raises(SystemExit) as exc:
         main([str(a) for a in args])
     out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
+    return exc.value.code, out.out, without_stages(out.err)[0]  # the stage lines (issue 36) apart
 
 
 def test_sweep_outputs_agree_on_alpha_units(tmp_path, capsys):

@@ -217,6 +217,30 @@ def test_progress_counts_every_part_once_in_order(monkeypatch):
     assert total >= 10 and calls == [(d, total) for d in range(1, total + 1)]
 
 
+def test_each_part_is_said_as_it_begins_in_order(monkeypatch, tmp_path):
+    """In a command (skewpend.progress.Stages active), the report says each part as it begins, counted
+    k of 10, in the order it builds them, after the start of its background work (issue 36: a report
+    was silent for 45 s)."""
+    import io
+    import sys
+
+    from skewpend.progress import STAGE_LINE, Stages
+
+    only_sections(monkeypatch)
+    symbolic_sections_stubbed(monkeypatch)
+    calls: list = []
+    err = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    with Stages("report", terminal=False, grace=60.0) as st:
+        R.build_report(out=tmp_path / "r.html", progress=lambda done, total: calls.append(done), **SMALL)
+    said = [line.split("... (")[0].removeprefix("skewpend report: ") for line in st.lines]
+    order = ("simulation", "system", "modes", "flipmap", "orbits", "validation", "chaos", "cached", "live")
+    assert said == [R.PARTS["start"]] + [f"[{k}/10] {R.PARTS[key]}" for k, key in enumerate(order, 1)] + [
+        "[10/10] writing r.html"]
+    assert err.getvalue().splitlines() == st.lines and all(STAGE_LINE.match(line) for line in st.lines)
+    assert calls == list(range(1, 11))  # progress(k, 10) as part k ends, as before
+
+
 def test_report_section_contents(default_report):
     _, page, _ = default_report
     system = _section(page, "system")

@@ -113,7 +113,11 @@ def test_the_export_refuses_what_it_must_not_overwrite(tmp_path):
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "skewpend", *args], capture_output=True, text=True, cwd=cwd, timeout=300)
+    from helpers import without_stages
+
+    r = subprocess.run([sys.executable, "-m", "skewpend", *args], capture_output=True, text=True, cwd=cwd, timeout=300)
+    r.stderr = without_stages(r.stderr)[0]  # the stage lines (issue 36) apart from the messages
+    return r
 
 
 def test_the_command_line_export(tmp_path):

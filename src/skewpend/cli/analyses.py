@@ -13,6 +13,7 @@ import typer
 
 from ..parsing import UsageError
 from . import types as T
+from ..progress import stage
 from .options import CONFIG, ENSEMBLE, INITIAL, INTEGRATION, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve, tolerances
 
 COMMANDS = ("flipmap", "lyapunov", "poincare", "chaos_diagram")
@@ -52,6 +53,7 @@ def _written(*pairs) -> list:
 
 def draw_figure(plot, figure: str, *args, **kwargs) -> None:
     if plot is not None:
+        stage(f"drawing {plot}")
         from ..views import figures
 
         figures.save_figure(getattr(figures, figure)(*args, **kwargs), plot)
@@ -95,7 +97,7 @@ def flipmap(
     kw = run.settings(("t_end", "rtol", "atol"))
     if window is not None:
         kw["phi_range"], kw["psi_range"] = window
-    with progress("flip map", "cells", quiet) as bar, warnings.catch_warnings():
+    with progress(f"computing the flip map ({256 if n is None else n} x {256 if n is None else n} starts)", "cells", quiet) as bar, warnings.catch_warnings():
         # flip_map also warns of failed cells; its status says so, and main() prints it once
         warnings.filterwarnings("ignore", message="flip_map: ", category=RuntimeWarning)
         fm = flip_map(params, 256 if n is None else n, progress=bar, store=store, resume=resume, **ensemble, **kw)
@@ -167,7 +169,7 @@ def lyapunov(
                                 windows=windows).items() if v is not None}
     kw.update(run.integration(methods=("dop853",)))
     kw.pop("method")
-    with progress("Lyapunov", "s", quiet) as bar:
+    with progress(f"computing the Lyapunov exponents over {run.number('t_end'):g} s", "s", quiet) as bar:
         spec = run_lyapunov(params, y0, t_end=run.number("t_end"), progress=bar, throw=False, **kw)
     if out is not None:
         _write_lyapunov(spec, out)
@@ -260,7 +262,7 @@ def poincare(
     sign = {"+1": 1, "-1": -1, "both": 0}[direction.value]
     kw = {k: v for k, v in dict(section=section, n_orbits=orbits, n_crossings=crossings, t_max=t_max,
                                 workers=workers).items() if v is not None}
-    with progress("Poincare section", "crossings", quiet) as bar:
+    with progress("computing the Poincare section", "crossings", quiet) as bar:
         sec = run_poincare(params, energy, direction=sign, locate=locate.value, progress=bar, **kw,
                            **run.settings(("rtol", "atol")))
     if out is not None:
@@ -316,7 +318,7 @@ def chaos_diagram(
 
     kw = {k: v for k, v in dict(alpha=alphas, energy=energies, samples=samples, threshold=threshold).items() if v is not None}
     kw.update(run.settings(("t_end", "rtol", "atol")))
-    with progress("chaos diagram", "alphas", quiet) as bar:
+    with progress("computing the chaos diagram", "alphas", quiet) as bar:
         d = run_diagram(params, progress=bar, store=store, resume=resume, **ensemble, **kw)
     if out is not None and store is None:
         d.to_netcdf(out)

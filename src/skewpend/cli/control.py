@@ -13,6 +13,7 @@ import typer
 from ..parsing import UsageError
 from . import types as T
 from .analyses import ATOL_E8, RTOL_E8, RESUME, draw_figure, ensemble_outputs
+from ..progress import stage
 from .options import CONFIG, ENSEMBLE, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
 
 COMMANDS = ("control",)
@@ -145,7 +146,7 @@ def control(
         sys.stdout.write("\n".join(lines) + "\n")
         return design
     kw = given_only(umax=umax, t_end=t_end, energy_gain=energy_gain, elbow_gains=elbow_gains)  # else the library's
-    with progress("swing-up", "s", quiet) as bar:
+    with progress("simulating the swing-up", "s", quiet) as bar:
         run = swingup(params, goal, actuated.value, Q=Q, R=R, progress=bar, **kw)
     tr = run.trajectory
     u = tr.inputs()
@@ -160,6 +161,7 @@ def control(
         tr.to_netcdf(out) if str(out).lower().endswith(".nc") else _write_csv(tr, u, out)
         lines.append(f"written     {out}")
     if plot is not None:
+        stage(f"drawing {plot}")
         from ..views import figures
 
         figures.save_figure(figures.control_figure(run), plot)
@@ -168,7 +170,8 @@ def control(
         from ..views.animation import animate as render
 
         shown, fps = _frames(tr)
-        render(shown, animate, fps=fps)
+        with progress(f"rendering {animate}", "frames", quiet) as bar:
+            render(shown, animate, fps=fps, progress=bar)
         lines.append(f"animation   {animate}")
     sys.stdout.write("\n".join(lines) + "\n")
     return run
@@ -211,7 +214,7 @@ def _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol
             raise UsageError(f"--window ({name}): an angle's offsets from the target must lie within -180..180 deg, "
                              f"got {lo:.6g}:{hi:.6g} rad")
     kw = given_only(n=n, plane=plane, window=window, t_end=t_end, rtol=rtol, atol=atol, umax=umax)  # else the library's
-    with progress("region of attraction", "cells", quiet) as bar:
+    with progress(f"mapping the region of attraction ({kw.get('n', 64)} x {kw.get('n', 64)} starts)", "cells", quiet) as bar:
         roa = region_of_attraction(params, goal, actuated, Q=Q, R=R, progress=bar, store=store, resume=resume,
                                    **{k: v for k, v in ensemble.items() if v is not None}, **kw)
     if out is not None and store is None:

@@ -97,7 +97,7 @@ ENSEMBLE: Dict[str, Any] = {
 }
 
 CONFIG = Annotated[Optional[str], typer.Option("--config", metavar="FILE", help="TOML run file with [parameters], [initial], [simulation]; options override it; a key this command does not read is refused", rich_help_panel=RUN)]
-QUIET = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar (it is shown on a terminal for work over ~1 s)", rich_help_panel=RUN)]
+QUIET = Annotated[bool, typer.Option("--quiet", "-q", help="say nothing while working (on a terminal a live line with the stage, a bar and the time; otherwise a line per stage on stderr)", rich_help_panel=RUN)]
 
 
 def plot_option(what: str):
@@ -118,8 +118,26 @@ def _flag(annotation, name: str) -> str:
     return decls[0] if decls else "--" + name.replace("_", "-")
 
 
+#: What each command does first, said for it if it names no stage of its own within
+#: :data:`skewpend.progress.GRACE` seconds (its checks and imports; the stages it names follow).
+FIRST_STAGE = {
+    "derive": "deriving the equations of motion", "export": "building the model", "validate": "comparing with MuJoCo",
+    "simulate": "preparing the run", "animate": "preparing the run", "report": "checking the inputs",
+    "modes": "computing the normal modes", "equilibria": "finding the equilibria", "orbit": "preparing the orbit",
+    "nnm": "preparing the continuation", "serve": "starting the explorer", "identify": "reading the data",
+    "control": "designing the controller", "flipmap": "preparing the flip map", "lyapunov": "preparing the run",
+    "poincare": "preparing the section", "chaos-diagram": "preparing the diagram",
+}
+#: Commands that say their stages as lines on a terminal too (a server's console is a log: a live
+#: line would stay under its address line while it serves).
+LINES_ONLY = frozenset({"serve"})
+
+
 def command(*groups: Dict[str, Any]):
-    """Give a command the option ``groups`` and parse every typed value (see the module)."""
+    """Give a command the option ``groups`` and parse every typed value (see the module); a command
+    without ``--quiet`` of its own gets it here.  The command runs inside its
+    :class:`~skewpend.progress.Stages` (started before any heavy import: within a second of its
+    start, the command says what it does; ``--quiet`` silences it)."""
 
     def decorate(func):
         sig = inspect.signature(func, eval_str=True)
@@ -129,19 +147,28 @@ def command(*groups: Dict[str, Any]):
             inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=None, annotation=ann)
             for group in groups for name, ann in group.items()
         ]
+        takes_quiet = "quiet" in sig.parameters
+        if not takes_quiet:
+            own.append(inspect.Parameter("quiet", inspect.Parameter.KEYWORD_ONLY, default=False, annotation=QUIET))
         annotations = {p.name: p.annotation for p in extra + own}
+        name = func.__name__.replace("_", "-")
 
         @functools.wraps(func)
         def run(**kwargs):
-            for name, value in kwargs.items():
-                kind = _kind(annotations.get(name))
+            from ..progress import Stages
+
+            quiet = bool(kwargs.get("quiet")) if takes_quiet else bool(kwargs.pop("quiet", False))
+            for key, value in kwargs.items():
+                kind = _kind(annotations.get(key))
                 if kind is not None and value is not None:
-                    kwargs[name] = kind.convert(value, _flag(annotations[name], name))
+                    kwargs[key] = kind.convert(value, _flag(annotations[key], key))
             for target, group in names.items():
                 kwargs[target] = {k: kwargs.pop(k) for k in group if k in kwargs}
             if "integration" in kwargs and kwargs["integration"].get("method") is not None:
                 kwargs["integration"]["method"] = kwargs["integration"]["method"].value
-            return func(**kwargs)
+            with Stages(name, enabled=not quiet, first=FIRST_STAGE.get(name, "starting"),
+                        terminal=False if name in LINES_ONLY else None):
+                return func(**kwargs)
 
         run.__signature__ = sig.replace(parameters=extra + own)
         return run
@@ -165,9 +192,15 @@ def resolve(command_name: str, config: Optional[str] = None, *, defaults: bool =
 
 
 def progress(label: str, unit: str, quiet: bool):
-    """The progress bar of a long computation (on a terminal, unless ``--quiet``)."""
-    from ..progress import ProgressBar
+    """The stage ``label`` of a long computation and its bar, a ``progress(done, total)`` callable:
+    in a command, a stage of its :class:`~skewpend.progress.Stages` (said when its work begins -- its
+    first progress call -- or after :data:`~skewpend.progress.GRACE` seconds; its bar moves on a
+    terminal); elsewhere a :class:`~skewpend.progress.ProgressBar` (on a terminal, unless ``quiet``)."""
+    from ..progress import ProgressBar, active
 
+    stages = active()
+    if stages is not None and not quiet:
+        return stages.bar(label, unit)
     return ProgressBar(label, unit=unit, enabled=None if not quiet else False)
 
 

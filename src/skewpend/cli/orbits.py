@@ -12,6 +12,7 @@ import typer
 
 from ..parsing import UsageError
 from . import types as T
+from ..progress import stage
 from .options import CONFIG, INITIAL, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
 
 COMMANDS = ("equilibria", "orbit", "nnm")
@@ -93,17 +94,18 @@ def orbit(
     run = resolve("orbit", config, parameters=model, initial=initial)
     params = run.parameters()
     if mode is not None:
-        with progress(f"nonlinear normal mode {mode} up to {energy:g} J", "J", quiet) as bar:
+        with progress(f"continuing nonlinear normal mode {mode} up to {energy:g} J", "J", quiet) as bar:
             result = periodic_orbit(params, mode=mode, energy=energy, progress=bar)
     else:
         turns = (0, 0) if rotation is None else tuple(rotation)  # whole numbers of turns: the library checks them
-        with progress("periodic orbit (Newton iterations)", "", quiet) as bar:
+        with progress("finding the periodic orbit (Newton iterations)", "", quiet) as bar:
             result = periodic_orbit(params, run.initial_state(), period, energy=energy, rotation=turns, progress=bar)
     sys.stdout.write(result.table() + "\n")
     if result.ok:
         if out is not None:
             result.to_netcdf(out)
         if plot is not None:
+            stage(f"drawing {plot}")
             from ..views import figures
 
             figures.save_figure(figures.simulation_figure(result.trajectory()), plot)
@@ -146,7 +148,7 @@ def nnm(
         check_plot(plot)
     params = resolve("nnm", config, parameters=model).parameters()
     kw = {} if resolution is None else {"resolution": resolution}
-    with progress("nonlinear normal modes", "J", quiet) as bar:
+    with progress("continuing the nonlinear normal modes" if mode is None else f"continuing nonlinear normal mode {mode}", "J", quiet) as bar:
         if mode is None:
             result = backbones(params, energy_max=energy_max, progress=bar, **kw)
             fams, resonances = result.families, result.resonances
@@ -162,6 +164,7 @@ def nnm(
         fams[0].to_netcdf(out)
         lines.append(f"written       {out}")
     if plot is not None:
+        stage(f"drawing {plot}")
         from ..views import figures
 
         energies = list(orbits_at) if orbits_at is not None else [0.2 * fams[0].energy_max, 0.9 * fams[0].energy_max]
@@ -193,13 +196,14 @@ def _along_alpha(model, mode, alphas, energy, energy_max, resolution, orbits_at,
 
         check_plot(plot)
     params = resolve("nnm", config, parameters={**model, "alpha": float(alphas[0])}).parameters()
-    with progress("nonlinear normal mode along alpha", "angles", quiet) as bar:
+    with progress(f"following nonlinear normal mode {mode} along alpha", "angles", quiet) as bar:
         fam = nnm_alpha(params, mode, energy=energy, alphas=alphas, progress=bar)
     lines = [f"mode {fam.mode} at E = {fam.energy:g} J: {fam.message}", fam.table()]
     if out is not None:
         fam.to_netcdf(out)
         lines.append(f"written       {out}")
     if plot is not None:
+        stage(f"drawing {plot}")
         from ..views import figures
 
         figures.save_figure(figures.alpha_family_figure(fam), plot)

@@ -52,6 +52,7 @@ import numpy as np
 
 from ... import __version__
 from ...errors import ParameterError, SkewpendError
+from ...progress import stage
 from ...symbolic.model import Parameters
 
 from .common import compiled_kernels
@@ -138,6 +139,23 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
 
 #: Compute the symbolic sections in a second process when the machine has more than one core.
 PARALLEL = True
+#: What each part of the report is, as said when it begins (:func:`skewpend.progress.stage`), in the
+#: order it is built: the start of the background work (not counted: it has no section), the
+#: numeric sections, sections 2 and 3, then the live view and section 10.
+PARTS = {
+    "start": "starting the work in the background: sections 2 and 3, the kernels, section 7's ensembles",
+    "simulation": "section 5, the simulation",
+    "system": "section 1, pictures of the system",
+    "modes": "section 4, the normal modes against alpha",
+    "flipmap": "section 6, the flip-time map",
+    "orbits": "section 8, equilibria and nonlinear normal modes",
+    "validation": "section 9, the comparison with MuJoCo",
+    "chaos": "section 7, Lyapunov exponents, Poincare sections and the chaos diagram",
+    "parallel": "sections 2 and 3, the derivation and its check (SymPy, in a second process)",
+    "symbolic": "sections 2 and 3, deriving the equations and checking them (SymPy)",
+    "cached": "sections 2 and 3, read from the cache",
+    "live": "the live 3D view and section 10",
+}
 #: Python's thread switch interval [s] while a report is built (restored after; the default is
 #: 0.005).  Section 7's ensembles run in worker threads whose compiled calls release the GIL and
 #: need it back between calls, while the main thread draws with it; at the default a worker waits up
@@ -267,7 +285,10 @@ def build_report(
     a canvas of ``clip_size`` pixels).  ``sweep_points``: values of alpha in
     0..180 deg for the frequency curves.  ``validate``: compare with MuJoCo (None: when MuJoCo is
     installed; True: it must be).  ``command``: the command line that made the report, shown in
-    section 10.  ``progress(done, total)`` is called as each part is finished.
+    section 10.  ``progress(done, total)`` is called as each of the ten parts is finished
+    (the seven numeric sections, sections 2 and 3, the live view with section 10, the page); in a
+    ``skewpend`` command each part is also said as it begins (:data:`PARTS`,
+    :func:`skewpend.progress.stage`: a line per part off a terminal, the live line on one).
 
     Every argument is checked before any work starts (:class:`~skewpend.ParameterError`).
     """
@@ -323,7 +344,7 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
         "validation": section_validation,
         "chaos": section_chaos,  # last: its ensembles (prefetched) run while the others draw
     }
-    total = len(numeric) + 3
+    total = len(numeric) + 3  # the numeric sections, sections 2 and 3, the live view with section 10, the page
     done = 0
     bodies: Dict[str, str] = {}
     from . import cache
@@ -331,6 +352,7 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     t0 = time.perf_counter()
     cached = cache.load(params)  # sections 2 and 3 made earlier for these parameters by this code
     loaded = time.perf_counter() - t0
+    stage(PARTS["start"])
     # drawing and SymPy run seconds between checks: a signal no check took within 0.3 s is raised where it is
     with Interrupts(on_signal=stop_background, escalate_after=0.3) as intr:
         background = _Background.start(params) if cached is None and PARALLEL and (os.cpu_count() or 1) > 1 else None
@@ -342,6 +364,7 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
             ctx.prefetch.start(chaos_jobs(ctx))
             for key, build in numeric.items():
                 intr.check()
+                stage(PARTS[key], done + 1, total)
                 t0 = time.perf_counter()
                 bodies[key] = build(ctx)
                 ctx.timings[key] = time.perf_counter() - t0
@@ -350,6 +373,8 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
                 if progress is not None:
                     progress(done, total)
             intr.check()
+            stage(PARTS["cached" if cached is not None else "parallel" if background is not None else "symbolic"],
+                  done + 1, total)
             symbolic = background.result() if background is not None else None
             intr.check()
             if cached is not None:
@@ -357,6 +382,8 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
                 ctx.notes["cached"] = ("sections 2 and 3 read from the cache (computed earlier for these parameters by "
                                        "this skewpend)")
             elif symbolic is None:  # serial, or the second process failed: compute it here
+                if background is not None:
+                    stage(PARTS["symbolic"], done + 1, total)
                 symbolic = _symbolic_sections(params)
             else:
                 ctx.notes["parallel"] = "sections 2 and 3 computed by a second process, in parallel"
@@ -369,13 +396,17 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     bodies.update(symbolic["bodies"])
     ctx.notes.update(symbolic["notes"])
     ctx.timings.update(symbolic["timings"])
-    for _ in ("derivation", "check"):
-        done += 1
-        if progress is not None:
-            progress(done, total)
+    done += 1
+    if progress is not None:
+        progress(done, total)
+    stage(PARTS["live"], done + 1, total)
     bodies["simulation"] = bodies["simulation"].replace(LIVE_SLOT, live_figure(ctx))
     ctx.timings["total"] = time.perf_counter() - start
     bodies["provenance"] = section_provenance(ctx)
+    done += 1
+    if progress is not None:
+        progress(done, total)
+    stage(f"writing {Path(out).name}" if out is not None else "assembling the page", done + 1, total)
     page = _assemble(ctx, bodies)
     result: Union[Path, str] = page
     if out is not None:
