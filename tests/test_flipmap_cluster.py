@@ -116,21 +116,25 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_an_unreachable_scheduler_is_refused_quickly(tmp_path):
+def test_an_unreachable_scheduler_is_refused_quickly(tmp_path, monkeypatch):
+    """Refused by the probe's one plain connection, never by dask's retries until its timeout (the
+    dask client is never made) -- the path checked, not the seconds (issue 36)."""
+    monkeypatch.setattr(distributed, "Client", lambda *a, **k: pytest.fail("a dask Client was made"))
     address = f"tcp://127.0.0.1:{_free_port()}"
-    start = time.monotonic()
     with pytest.raises(ParameterError, match=f"cannot reach the Dask scheduler at {address}") as exc:
         flip_map(BENCH, 8, t_end=1.0, scheduler=address, store=tmp_path / "map.zarr")
-    assert time.monotonic() - start < 2 and "connection refused" in str(exc.value)
+    assert "connection refused" in str(exc.value)
     assert "\n" not in str(exc.value)
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
 def test_a_port_that_is_not_a_scheduler_is_refused_within_the_timeout(monkeypatch):
-    """Something listens there but never speaks dask: refused after the connect timeout."""
+    """Something listens there but never speaks dask: refused after the connect timeout (its 1 s named
+    in the message), never handed to a dask Client (which would wait for ever)."""
     import skewpend.numeric.ensemble as ensemble
 
     monkeypatch.setattr(ensemble, "CONNECT_TIMEOUT", 1.0)
+    monkeypatch.setattr(distributed, "Client", lambda *a, **k: pytest.fail("a dask Client was made"))
     with socket.socket() as server:
         server.bind(("127.0.0.1", 0))
         server.listen(8)
@@ -138,7 +142,8 @@ def test_a_port_that_is_not_a_scheduler_is_refused_within_the_timeout(monkeypatc
         start = time.monotonic()
         with pytest.raises(ParameterError, match=f"no Dask scheduler answered at {address} within 1 s") as exc:
             flip_map(BENCH, 8, t_end=1.0, scheduler=address)
-        assert time.monotonic() - start < 6 and "\n" not in str(exc.value)
+        # a hang guard, not a speed test (dask's own connect timeout is 30 s)
+        assert time.monotonic() - start < 20 and "\n" not in str(exc.value)
 
 
 def test_a_scheduler_without_workers_is_refused(monkeypatch, tmp_path):
@@ -165,11 +170,13 @@ def test_a_worker_address_is_not_a_scheduler(cluster):
     (dict(scheduler=8786), "address like tcp://HOST:PORT or a dask.distributed Client"),
     (dict(scheduler="tcp://127.0.0.1:8786", workers=2), "workers or scheduler, not both"),
 ])
-def test_bad_scheduler_input(kwargs, match):
-    start = time.monotonic()
+def test_bad_scheduler_input(kwargs, match, monkeypatch):
+    tried = []  # refused before any connection is tried: counted, not timed (issue 36)
+    monkeypatch.setattr(socket, "create_connection", lambda *a, **k: tried.append(a) or pytest.fail("connected"))
+    monkeypatch.setattr(distributed, "Client", lambda *a, **k: tried.append(a) or pytest.fail("a dask Client"))
     with pytest.raises(ParameterError, match=match):
         flip_map(BENCH, 8, t_end=1.0, **kwargs)
-    assert time.monotonic() - start < 1.0  # refused before any connection is tried
+    assert tried == []
 
 
 def test_tasks_are_batches_of_chunks():
