@@ -191,7 +191,7 @@ def identify(
     with progress("identify", "%", quiet) as bar, Interrupts(escalate_after=0.3) as intr:
         def say(stage: str, fraction: float) -> None:
             intr.check()  # Ctrl-C between the stages too (the signal is raised within 0.3 s anyway)
-            bar(100.0 * fraction, 100.0)
+            bar(100.0 * fraction, 100.0, stage)  # the stage named: said as it begins (issue 36)
 
         with _cli_messages(conv):
             result = fit(measurements, params0, progress=say, **kw)
