@@ -53,14 +53,22 @@ def _interrupt(args, cwd, after: float, env=None):
 
 
 # -- Ctrl-C ---------------------------------------------------------------------------------------------
+#: The bound on the seconds from a signal to the exit: a hang guard, not a speed test (issue 36: no test
+#: asserts an absolute time) -- the runs below would take half an hour or more (1e9 steps of 1e-4 s), the
+#: compiled loop works in ~0.05 s chunks, and a loaded 2-core machine may delay the exit by seconds.
+STOP_LIMIT = 20.0
+#: A simulation far longer than STOP_LIMIT: 1e9 steps (max_steps raised to allow it); to a file a row a second.
+LONG_RUN = ["simulate", "--method", "gauss", "--dt", "1e-4", "--t-end", "1e5", "--max-steps", "1e12"]
+
+
 @pytest.mark.parametrize("out", ["long.csv", "long.nc", None])
 def test_ctrl_c_stops_the_cli_with_status_130_and_no_file(tmp_path, out):
     skewpend.simulate(P, Y0, 0.01)  # the kernel is compiled and cached before the clock starts
-    args = ["simulate", "--method", "gauss", "--dt", "1e-4", "--t-end", "2000"] + (["--out", out] if out else [])
+    args = LONG_RUN + (["--dt-out", "1", "--out", out] if out else [])
     proc, stdout, stderr, took = _interrupt(cli(*args), tmp_path, after=2.5)
     assert proc.returncode == 130, stderr
     assert stderr.strip().splitlines() == ["skewpend: interrupted"], stderr
-    assert took < 3.0  # the compiled loop works in ~0.05 s chunks
+    assert took < STOP_LIMIT
     assert list(tmp_path.iterdir()) == []  # neither the output nor a temporary file
 
 
@@ -78,9 +86,9 @@ def _terminated(args, tmp_path, after: float):
 @pytest.mark.parametrize("out", ["long.csv", "long.nc", None])
 def test_sigterm_stops_simulate_with_status_143_and_no_file(tmp_path, out):
     skewpend.simulate(P, Y0, 0.01, method="gauss")  # the kernel is compiled and cached before the clock starts
-    args = ["simulate", "--method", "gauss", "--dt", "1e-4", "--t-end", "2000"] + (["--out", out] if out else [])
+    args = LONG_RUN + (["--dt-out", "1", "--out", out] if out else [])
     _, took = _terminated(args, tmp_path, after=2.5)
-    assert took < 3.0  # the compiled loop works in ~0.05 s chunks
+    assert took < STOP_LIMIT
     assert list(tmp_path.iterdir()) == []  # neither the output nor a .NAME.skewpend-PID.tmp
 
 
@@ -89,7 +97,7 @@ def test_sigterm_stops_an_ensemble_with_status_143_and_no_file(tmp_path):
     """A flip map on every core (worker threads, chunks in flight) ends as on Ctrl-C: nothing written."""
     skewpend.flip_map(P, 2, t_end=1.0)  # kernels cached before the clock starts
     _, took = _terminated(["flipmap", "--n", "1500", "--t-end", "100", "--out", "map.nc"], tmp_path, after=4.0)
-    assert took < 5.0
+    assert took < STOP_LIMIT  # the whole map (2.25e6 cells) would take hours
     assert list(tmp_path.iterdir()) == []
 
 
@@ -101,7 +109,7 @@ def test_sigterm_while_rendering_an_animation_leaves_no_file_and_no_ffmpeg(tmp_p
     ran, took = signal_process(["animate", "--t-end", "60", "--out", "m.mp4"], tmp_path, after=1.0,
                                signum=signal.SIGTERM, ready=".m.mp4.*.tmp")
     assert ran.code == 143 and ran.err.strip().splitlines() == ["skewpend: terminated"], ran.report()
-    assert took < 5.0
+    assert took < STOP_LIMIT
     assert list(tmp_path.iterdir()) == []
     ps = subprocess.run(["ps", "-eo", "ppid,args"], capture_output=True, text=True).stdout
     assert "m.mp4" not in ps  # no ffmpeg left writing the video
@@ -110,7 +118,7 @@ def test_sigterm_while_rendering_an_animation_leaves_no_file_and_no_ffmpeg(tmp_p
 @pytest.mark.slow
 def test_sigterm_stops_lyapunov_with_status_143(tmp_path):
     _, took = _terminated(["lyapunov", "--t-end", "1e5", "--max-steps", "1e12", "--out", "l.json"], tmp_path, after=3.0)
-    assert took < 3.0
+    assert took < STOP_LIMIT
     assert list(tmp_path.iterdir()) == []
 
 
@@ -121,14 +129,15 @@ def test_ctrl_c_raises_keyboardinterrupt_in_the_python_api(tmp_path):
         "skewpend.simulate(p, (1.2, -0.8, 0, 0), 0.01)\n"
         "print('ready', flush=True)\n"
         "try:\n"
-        "    skewpend.simulate(p, (1.2, -0.8, 0, 0), 2000.0, method='gauss', dt=1e-4, out='x.nc')\n"
+        "    skewpend.simulate(p, (1.2, -0.8, 0, 0), 1e5, method='gauss', dt=1e-4, dt_out=1.0, max_steps=10**12,\n"
+        "                      out='x.nc')\n"
         "except KeyboardInterrupt:\n"
         "    print('KeyboardInterrupt', flush=True)\n"
     )
     proc, stdout, stderr, took = _interrupt([sys.executable, "-c", code], tmp_path, after=2.5)
     assert proc.returncode == 0, stderr
     assert stdout.split() == ["ready", "KeyboardInterrupt"]
-    assert took < 3.0
+    assert took < STOP_LIMIT
     assert list(tmp_path.iterdir()) == []
 
 
@@ -167,7 +176,7 @@ def test_streamed_file_has_every_row_and_bounded_memory(tmp_path):
 def test_max_steps_refused_up_front_with_an_estimate(tmp_path):
     t0 = time.monotonic()
     proc = run(cli("simulate", "--t-end", "1e9"), cwd=tmp_path)
-    assert proc.returncode == 2 and time.monotonic() - t0 < 30
+    assert proc.returncode == 2 and time.monotonic() - t0 < 30  # a hang guard: refused before a run to t = 1e9 s
     line = proc.stderr.strip()
     assert line.startswith("skewpend: error: t_end = 1e+09 s needs about") and "max_steps (--max-steps) = 100000000" in line
     proc = run(cli("simulate", "--method", "rk4", "--t-end", "100", "--max-steps", "1000"), cwd=tmp_path)
