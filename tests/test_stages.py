@@ -138,6 +138,17 @@ def test_a_command_that_names_no_stage_gets_its_first_said():
     assert lines == ["skewpend derive: deriving the equations", "skewpend derive: rendering"]
 
 
+def test_a_program_says_its_first_stage_soon_after_its_process_started():
+    """Run as the process's program, the command's start is the process's (``started``): a process that
+    spent its grace on imports already says its first stage at once, timed from the process's start."""
+    buf = io.StringIO()
+    with _stderr_to(buf), P.Stages("modes", terminal=False, first="computing", grace=60.0,
+                                   started=time.monotonic() - 10.0) as st:
+        assert _wait_for(lambda: st.lines, 30.0)  # not GRACE (60 s): FIRST_BY after the start is long past
+    [line] = buf.getvalue().splitlines()
+    assert line.startswith("skewpend modes: computing... (") and float(line.split("(")[1].split()[0]) >= 10.0
+
+
 def test_the_first_is_not_said_once_a_stage_was():
     buf = io.StringIO()
     with _stderr_to(buf), P.Stages("demo", terminal=False, first="starting", grace=60.0):

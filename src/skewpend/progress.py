@@ -32,7 +32,7 @@ import threading
 import time
 from typing import Any, List, Optional
 
-__all__ = ["ProgressBar", "Stages", "stage", "active", "GRACE", "STAGE_LINE"]
+__all__ = ["ProgressBar", "Stages", "stage", "active", "GRACE", "FIRST_BY", "STAGE_LINE"]
 
 #: A stage's line off a terminal, ``skewpend CMD: [k/n] STAGE... (T s)`` (T: seconds since the command
 #: started; ``[k/n]`` when the stages are counted) -- for a script that reads stderr and wants them apart.
@@ -40,6 +40,10 @@ STAGE_LINE = re.compile(r"^skewpend [a-z][a-z-]*: .*\.\.\. \(\d+\.\d s\)$")
 
 #: Seconds after a command starts by which it has said its first stage (else it is said for it).
 GRACE = 0.3
+#: A command run as a program says its first stage by this many seconds after its process started
+#: (``started``: when the command line was imported, ~0.1 s after the interpreter started; the command
+#: line's own imports take ~0.2-0.4 s of them), or ``GRACE`` after the command began if that comes first.
+FIRST_BY = 0.6
 #: The live line is redrawn at most this often by progress calls [s] (Rich also redraws it 10 times a second).
 _REDRAW = 0.1
 #: Seconds after a note on stderr before the live line is drawn again below it.
@@ -70,13 +74,15 @@ class Stages:
 
     ``enabled=False`` (``--quiet``) says nothing; ``terminal=None``: whether stderr is a terminal;
     ``first``: the stage said for the command if it names none within ``grace`` seconds (default
-    :data:`GRACE`);
+    :data:`GRACE`), or by :data:`FIRST_BY` seconds after ``started`` (a ``time.monotonic()`` time: the
+    start of the process when the command is its program) if that comes sooner;
     ``console`` (a ``rich.console.Console``) and ``clock`` are for tests.
     """
 
     def __init__(self, command: str, *, enabled: bool = True, terminal: Optional[bool] = None,
-                 first: str = "starting", grace: Optional[float] = None, console: Any = None, clock=time.monotonic):
-        self.command, self.first = command, first
+                 first: str = "starting", grace: Optional[float] = None, started: Optional[float] = None,
+                 console: Any = None, clock=time.monotonic):
+        self.command, self.first, self.started = command, first, started
         self.grace = GRACE if grace is None else grace
         self.enabled = bool(enabled) and not _quiet_environment()
         if terminal is None:
@@ -111,7 +117,10 @@ class Stages:
         _ACTIVE.append(self)
         if self.enabled and self.terminal:
             self._wrap_streams()
-        self.stage(self.first, hold=True)
+        within = self.grace
+        if self.started is not None:
+            within = min(within, max(0.05, self.started + FIRST_BY - self._start))
+        self.stage(self.first, hold=True, within=within)
         return self
 
     def __exit__(self, *exc) -> None:
@@ -128,13 +137,14 @@ class Stages:
         if self in _ACTIVE:
             _ACTIVE.remove(self)
 
-    def stage(self, name: str, step: Optional[int] = None, steps: Optional[int] = None, *, hold: bool = False) -> None:
+    def stage(self, name: str, step: Optional[int] = None, steps: Optional[int] = None, *, hold: bool = False,
+              within: Optional[float] = None) -> None:
         """The stage ``name`` begins (``step`` of ``steps`` when counted: the bar starts at
         (step - 1)/steps; otherwise its fraction is unknown until :meth:`update`).
 
         ``hold=True``: a stage whose work may still refuse its input (a library function checks its
         arguments first): said at its first :meth:`update` -- the work has begun -- or once it has
-        lasted ``grace`` seconds, so that a refusal stays one line."""
+        lasted ``grace`` seconds (``within``, if given), so that a refusal stays one line."""
         with self._lock:
             self._name, self._step, self._steps = str(name), step, steps
             self._fraction = (step - 1) / steps if step is not None and steps else None
@@ -147,7 +157,7 @@ class Stages:
             if not hold:
                 self._say()
             elif self.enabled and not self._closed:
-                self._timer = threading.Timer(self.grace, self._held, args=(self._token,))
+                self._timer = threading.Timer(self.grace if within is None else within, self._held, args=(self._token,))
                 self._timer.daemon = True
                 self._timer.start()
 
@@ -178,7 +188,8 @@ class Stages:
 
     @property
     def elapsed(self) -> float:
-        return self._clock() - self._start
+        """Seconds since the command started (its process's start when given, else since ``with``)."""
+        return self._clock() - (self._start if self.started is None else min(self.started, self._start))
 
     # -- saying it ------------------------------------------------------------------------------
     def _held(self, token: int) -> None:
@@ -236,7 +247,7 @@ class Stages:
             """Seconds since the command started; with a fraction, the time left for this stage."""
 
             def render(self, task) -> Text:
-                elapsed = owner._clock() - owner._start
+                elapsed = owner.elapsed
                 text = _clock_text(elapsed)
                 fraction, began = owner._fraction, owner._stage_start
                 if fraction is not None and 0.01 < fraction < 1.0 and owner._step is None:

@@ -25,14 +25,20 @@ Heavy modules (NumPy, SymPy, Matplotlib) are imported inside the commands, so th
 
 from __future__ import annotations
 
-import os
-import re
-import sys
-from typing import Annotated, Any, List, Optional
+import time
 
-import typer
+#: When the command line was imported (``time.monotonic()``): a process's start, to within the ~0.1 s
+#: the interpreter takes before it (see :func:`main`).
+IMPORTED = time.monotonic()
 
-from ..errors import SkewpendError
+import os  # noqa: E402
+import re  # noqa: E402
+import sys  # noqa: E402
+from typing import Annotated, Any, List, Optional  # noqa: E402
+
+import typer  # noqa: E402
+
+from ..errors import SkewpendError  # noqa: E402
 
 __all__ = ["app", "main", "build_parameters"]
 
@@ -244,11 +250,15 @@ def main(argv: Optional[List[str]] = None) -> None:
 
     from ..interrupts import Terminated, terminate_like_interrupt
 
+    from . import options
     from .options import LOCATIONS
 
     LOCATIONS.clear()  # this run's (main may run more than once in a process)
     global _AS_PROGRAM
     _AS_PROGRAM = argv is None
+    # run as the process's program, the command started with the process (here: when this module was
+    # imported, ~0.1 s in): its first stage is said by skewpend.progress.FIRST_BY after that
+    options.PROGRAM_STARTED = IMPORTED if _AS_PROGRAM else None
     if _AS_PROGRAM:
         # skewpend never draws with MuJoCo (it validates against its physics): without an OpenGL
         # context its import skips the GLFW bindings, 0.07 s of every report and `validate`

@@ -131,6 +131,10 @@ FIRST_STAGE = {
 #: Commands that say their stages as lines on a terminal too (a server's console is a log: a live
 #: line would stay under its address line while it serves).
 LINES_ONLY = frozenset({"serve"})
+#: When the process running the command line as its program started (``time.monotonic()``; set by
+#: :func:`skewpend.cli.main`, None when a program calls ``main(argv)``): its first stage is said by
+#: :data:`skewpend.progress.FIRST_BY` seconds after it.
+PROGRAM_STARTED: Optional[float] = None
 
 
 def command(*groups: Dict[str, Any]):
@@ -166,7 +170,7 @@ def command(*groups: Dict[str, Any]):
                 kwargs[target] = {k: kwargs.pop(k) for k in group if k in kwargs}
             if "integration" in kwargs and kwargs["integration"].get("method") is not None:
                 kwargs["integration"]["method"] = kwargs["integration"]["method"].value
-            with Stages(name, enabled=not quiet, first=FIRST_STAGE.get(name, "starting"),
+            with Stages(name, enabled=not quiet, first=FIRST_STAGE.get(name, "starting"), started=PROGRAM_STARTED,
                         terminal=False if name in LINES_ONLY else None):
                 return func(**kwargs)
 
