@@ -27,6 +27,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -171,6 +172,19 @@ class Harness:
         self.page.wait_for_timeout(ms)
         self.pump()
 
+    def until(self, holds, what: str, limit: float = 60.0):
+        """Carry the messages and look again until ``holds()`` is true (and return it): the test waits for
+        an event, not for a time -- ``limit`` s is only a hang guard (issue 36: a loaded machine with
+        a software-rendered WebGL may take seconds where a quiet one takes milliseconds)."""
+        end = time.monotonic() + limit
+        while True:
+            self.pump()
+            got = holds()
+            if got:
+                return got
+            assert time.monotonic() < end, f"{what}: not within {limit:g} s"
+            self.page.wait_for_timeout(50)
+
     def canvas_pixels(self, id="w0") -> np.ndarray:
         from PIL import Image
 
@@ -220,17 +234,13 @@ def harness(browser):
 def test_the_widget_draws_moves_and_is_the_library_s_motion(harness):
     w = skewpend.widget()
     harness.mount(w)
-    harness.wait(300)
-    a = harness.canvas_pixels()
-    assert a.std() > 8.0, a.std()  # a drawing: rods, axes, grid (a cleared canvas has variance 0)
-    s1 = harness.view()
-    harness.wait(400)
-    s2 = harness.view()
+    # a drawing: rods, axes, grid (a cleared canvas has variance 0)
+    harness.until(lambda: harness.canvas_pixels().std() > 8.0, "a drawing on the canvas")
+    s1 = harness.until(lambda: (lambda s: s if s["t"] > 0 else None)(harness.view()), "the clock running")
+    s2 = harness.until(lambda: (lambda s: s if s["t"] > s1["t"] else None)(harness.view()), "the clock moving on")
     assert s2["t"] > s1["t"] > 0 and s2["y"] != s1["y"]
     w.pause()
-    harness.pump()
-    harness.wait(100)
-    s = harness.view()
+    s = harness.until(lambda: (lambda s: s if not s["running"] else None)(harness.view()), "the pause")
     assert not s["running"]
     # w.state reads back exactly what the view shows (JSON carries doubles exactly)
     st = w.state
@@ -283,16 +293,10 @@ def test_python_and_the_view_stay_in_step(harness):
     harness.page.locator("#w0 button.sw-play").click()
     harness.pump()
     assert w.running
-    harness.wait(300)
-    assert harness.view()["t"] > 0
-    # restart: the clock goes back to 0 and runs on. Let the motion reach 1.5 s first, so the
-    # check holds on a loaded machine (the view's clock keeps running between the calls below)
-    for _ in range(200):
-        if harness.view()["t"] > 1.5:
-            break
-        harness.wait(50)
-    before = harness.view()["t"]
-    assert before > 1.5
+    harness.until(lambda: harness.view()["t"] > 0, "the clock running")
+    # restart: the clock goes back to 0 and runs on. Let the motion reach 3 s first, so the check
+    # holds on a loaded machine (the view's clock keeps running between the calls below: 2 s of margin)
+    before = harness.until(lambda: (lambda t: t if t > 3.0 else None)(harness.view()["t"]), "the clock at 3 s")
     w.restart()
     harness.pump()
     assert harness.view()["t"] < before - 1.0
@@ -304,8 +308,7 @@ def test_a_run_from_python_is_replayed_frame_by_frame(harness):
     harness.mount(w)
     tr = w.run(3.0)
     harness.pump()
-    harness.wait(500)
-    s = harness.view()
+    s = harness.until(lambda: (lambda s: s if s["frame"] > 0 else None)(harness.view()), "the replay moving on")
     assert s["mode"] == "replay" and s["running"] and s["frame"] > 0
     w.pause()
     harness.pump()
@@ -338,7 +341,7 @@ def test_a_run_from_python_is_replayed_frame_by_frame(harness):
 def test_a_non_finite_motion_stops_with_a_message(harness):
     w = skewpend.widget(y0=(0.0, 0.0, 1e200, 0.0))
     harness.mount(w)
-    harness.wait(300)
+    harness.until(lambda: not w.state.ok, "the non-finite motion reported")
     st = w.state
     assert not st.ok and not w.running and "non-finite" in st.message
     assert np.all(np.isfinite(st.y))  # the last finite state is kept, never NaN
@@ -346,9 +349,7 @@ def test_a_non_finite_motion_stops_with_a_message(harness):
     assert note.is_visible() and "non-finite" in note.text_content()
     w.y0 = (0.5, 0.0, 0.0, 0.0)  # a sound start clears it
     w.play()
-    harness.pump()
-    harness.wait(200)
-    assert w.state.ok and w.state.message == "" and not note.is_visible()
+    harness.until(lambda: w.state.ok and w.state.message == "" and not note.is_visible(), "the message cleared")
 
 
 def test_two_widgets_keep_their_own_bodies(harness):
