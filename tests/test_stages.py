@@ -198,3 +198,18 @@ def test_on_a_terminal_the_live_line_makes_way_for_output():
     finally:
         sys.stdout, sys.stderr = old
     assert not st._live
+
+
+def test_on_a_terminal_output_does_not_cancel_a_held_stage():
+    screen, console = _terminal()
+    out = io.StringIO()
+    old = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = out, io.StringIO()
+    try:
+        with P.Stages("demo", terminal=True, console=console, grace=60.0) as st:
+            st.stage("computing", hold=True, within=0.2)
+            sys.stdout.write("a line of output\n")  # the line makes way; the held stage is still said
+            assert _wait_for(lambda: st.lines, 30.0)
+    finally:
+        sys.stdout, sys.stderr = old
+    assert [line.split("... (")[0] for line in st.lines] == ["skewpend demo: computing"]

@@ -107,7 +107,8 @@ class Stages:
         self._live = False
         self._drawn = 0.0
         self._streams = None
-        self._token = 0
+        self._token = 0  # counts the stages (a held stage's timer says it only if it is still the current one)
+        self._made_way = 0  # counts the writes the live line made way for (the last one draws it again)
         self._pending = False
         self.lines: List[str] = []  # every stage said, as its line (for tests and the benchmark)
 
@@ -280,15 +281,15 @@ class Stages:
         after the command's own output on stdout, at its next stage or progress call."""
         with self._lock:
             self._hide()
-            self._token += 1
+            self._made_way += 1
             if stderr and self._said and not self._closed:
-                timer = threading.Timer(_RESHOW, self._reshow, args=(self._token,))
+                timer = threading.Timer(_RESHOW, self._reshow, args=(self._made_way,))
                 timer.daemon = True
                 timer.start()
 
     def _reshow(self, token: int) -> None:
         with self._lock:
-            if token == self._token and not self._live and not self._closed:
+            if token == self._made_way and not self._live and not self._closed:
                 self._draw()
 
     def _wrap_streams(self) -> None:
