@@ -109,6 +109,7 @@ class Stages:
         self._streams = None
         self._token = 0  # counts the stages (a held stage's timer says it only if it is still the current one)
         self._made_way = 0  # counts the writes the live line made way for (the last one draws it again)
+        self._drawn_stage = -1  # the stage the live line last drew
         self._pending = False
         self.lines: List[str] = []  # every stage said, as its line (for tests and the benchmark)
 
@@ -227,6 +228,9 @@ class Stages:
             description = f"skewpend {self.command}: {self._text()}"
             if self._task is None:
                 self._task = self._progress.add_task(description, total=None)
+            if self._drawn_stage != self._token:  # a new stage: not finished, whatever the last one reached
+                self._progress.reset(self._task)
+                self._drawn_stage = self._token
             total = None if self._fraction is None else 1.0
             self._progress.update(self._task, description=description, total=total,
                                   completed=0.0 if self._fraction is None else self._fraction)
