@@ -211,6 +211,7 @@ def test_the_live_view_draws_turns_and_replays_the_motion(opened, request):
     }})""")
     assert quiet[0] == quiet[1], quiet
     # dragging turns the view (paused: the pendulum stays, the camera moves)
+    drawn = quiet[1]
     box = page.locator("figure.live-view canvas").bounding_box()
     x, y = box["x"] + 0.8 * box["width"], box["y"] + 0.5 * box["height"]
     page.mouse.move(x, y)
@@ -218,7 +219,16 @@ def test_the_live_view_draws_turns_and_replays_the_motion(opened, request):
     for k in range(1, 8):
         page.mouse.move(x - 30 * k, y + 4 * k)
     page.mouse.up()
-    page.wait_for_timeout(300)
+    # the drag's drawing is waited for as an event, not for a time (issue 36): a render after the
+    # drag began, then an animation frame without one (the timeout is a hang guard)
+    page.wait_for_function(f"{view}.state().renders > {drawn}", timeout=30000)
+    page.evaluate(f"""() => new Promise((done) => {{
+        const settle = (last) => requestAnimationFrame(() => {{
+            const now = {view}.state().renders;
+            now === last ? done() : settle(now);
+        }});
+        settle({view}.state().renders);
+    }})""")
     c = _canvas(page)
     assert np.abs(c - b).mean() > 0.5
     assert page.evaluate(f"{view}.state().frame") == frames // 2  # still the same moment
