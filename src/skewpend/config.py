@@ -298,19 +298,19 @@ class Run:
         method = self.values["simulation"].get("method", "dop853")
         if not isinstance(method, str) or method not in methods:
             raise UsageError(f"{self.option('simulation', 'method')}: expected {' or '.join(methods)}, got {method!r}")
+        adaptive = ADAPTIVE + ("auto",)  # simulate's default picks an adaptive method
         for key in ("rtol", "atol"):
             if method not in adaptive and self.is_given("simulation", key):
                 raise UsageError(f"{self.option('simulation', key)} is a tolerance of {' and '.join(ADAPTIVE)}; {method} "
                                  "takes fixed steps (set --dt)")
+        if method == "auto" and self.is_given("simulation", "dt"):
+            raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; give --method rk4 or gauss with it "
+                             "(the default method, auto, chooses its own steps: set --rtol/--atol)")
         if method in ADAPTIVE and self.is_given("simulation", "dt"):
-        adaptive = ADAPTIVE + ("auto",)  # simulate's default picks an adaptive method
             raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; {method} chooses its own steps (set --rtol/--atol)")
         out: Dict[str, Any] = {"method": method, **self.settings(("rtol", "atol", "dt"))}
         if self.values["simulation"].get("max_steps") is not None:
             from .checks import MAX_STEPS_LIMIT
-        if method == "auto" and self.is_given("simulation", "dt"):
-            raise UsageError(f"{self.option('simulation', 'dt')} is the step of rk4 and gauss; give --method rk4 or gauss with it "
-                             "(the default method, auto, chooses its own steps: set --rtol/--atol)")
 
             out["max_steps"] = self.whole("max_steps", 0, 1, MAX_STEPS_LIMIT)
         return out
