@@ -208,7 +208,7 @@ class PendulumWidget(anywidget.AnyWidget):
                                  f"{MAX_FRAMES} ({MAX_FRAMES / FPS:g} s) are replayed: simulate longer runs with "
                                  "skewpend.simulate and look at them with skewpend.views")
         dt_out = 1.0 / FPS
-        if simulate_options.get("method", "dop853") != "dop853":  # fixed steps: frames on whole steps
+        if simulate_options.get("method") in ("rk4", "gauss"):  # fixed steps: frames on whole steps
             given = simulate_options.get("dt")
             step = 1e-3 if given is None else checks.positive("dt", given, cap=t_end)
             dt_out = max(1, round(dt_out / step)) * step
