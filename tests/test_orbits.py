@@ -378,8 +378,9 @@ def test_nnm_stops_on_ctrl_c_and_sigterm_leaving_nothing(signum, code, tmp_path)
     ran, seconds = signal_process(["nnm", "--mode", "2", "--resolution", "1999", "--out", "f.nc", "--plot", "f.png"],
                                   tmp_path, after=2.0, signum=signal.Signals(signum))
     assert ran.code == code, ran.report()
-    # a hang guard, not a speed test (the exit takes ~0.3 s; the whole run, capped at 2000 orbits, ~13 s on
-    # the 2-core machine): it tells "stopped" from "ran to its end" only on machines no faster than that
+    assert not any("drawing" in line for line in ran.stages), ran.stages  # stopped before the run's last stage
+    # a hang guard, not a speed test (the exit takes ~0.3 s; the whole run, capped at 2000 orbits, ~17 s on
+    # the 2-core machine): it tells "stopped" from "ran on to the drawing" only on machines no faster
     assert seconds < 10.0
     assert ran.err.strip().splitlines()[-1] in ("skewpend: interrupted", "skewpend: terminated")
     assert list(tmp_path.iterdir()) == []
