@@ -213,3 +213,13 @@ def test_on_a_terminal_output_does_not_cancel_a_held_stage():
     finally:
         sys.stdout, sys.stderr = old
     assert [line.split("... (")[0] for line in st.lines] == ["skewpend demo: computing"]
+
+
+def test_a_held_stage_does_not_put_the_first_line_off():
+    """The command's first line is due by its deadline (here GRACE = 0.1 s) even when a held stage
+    (a progress bar's, whose own hold would be 120 s) replaced its first stage before it was said."""
+    buf = io.StringIO()
+    with _stderr_to(buf), P.Stages("demo", terminal=False, first="starting", grace=0.1) as st:
+        st.stage("computing", hold=True, within=120.0)
+        assert _wait_for(lambda: st.lines, 30.0)
+    assert [line.split("... (")[0] for line in buf.getvalue().splitlines()] == ["skewpend demo: computing"]

@@ -43,7 +43,7 @@ GRACE = 0.3
 #: A command run as a program says its first stage by this many seconds after its process started
 #: (``started``: when the command line was imported, ~0.1 s after the interpreter started; the command
 #: line's own imports take ~0.2-0.4 s of them), or ``GRACE`` after the command began if that comes first.
-FIRST_BY = 0.6
+FIRST_BY = 0.5
 #: The live line is redrawn at most this often by progress calls [s] (Rich also redraws it 10 times a second).
 _REDRAW = 0.1
 #: Seconds after a note on stderr before the live line is drawn again below it.
@@ -110,6 +110,7 @@ class Stages:
         self._token = 0  # counts the stages (a held stage's timer says it only if it is still the current one)
         self._made_way = 0  # counts the writes the live line made way for (the last one draws it again)
         self._drawn_stage = -1  # the stage the live line last drew
+        self._first_by = float("inf")  # when the first line is due (set on entering)
         self._pending = False
         self.lines: List[str] = []  # every stage said, as its line (for tests and the benchmark)
 
@@ -122,6 +123,7 @@ class Stages:
         within = self.grace
         if self.started is not None:
             within = min(within, max(0.05, self.started + FIRST_BY - self._start))
+        self._first_by = self._start + within  # a held stage that follows does not put the first line off
         self.stage(self.first, hold=True, within=within)
         return self
 
@@ -159,7 +161,10 @@ class Stages:
             if not hold:
                 self._say()
             elif self.enabled and not self._closed:
-                self._timer = threading.Timer(self.grace if within is None else within, self._held, args=(self._token,))
+                delay = self.grace if within is None else within
+                if not self._said:  # nothing said yet: the command's first line is due by its deadline
+                    delay = min(delay, max(0.0, self._first_by - self._clock()))
+                self._timer = threading.Timer(delay, self._held, args=(self._token,))
                 self._timer.daemon = True
                 self._timer.start()
 
