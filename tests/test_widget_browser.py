@@ -40,6 +40,7 @@ from comm.base_comm import BaseComm  # noqa: E402
 
 import skewpend  # noqa: E402
 from skewpend import Parameters  # noqa: E402
+from skewpend.numeric.simulation import METHODS  # noqa: E402
 from helpers import chromium, missing_browser, needs  # noqa: E402
 
 # no Playwright or Chromium: skipped with the reason; under CI (CI=true) failed instead
@@ -323,7 +324,9 @@ def test_a_run_from_python_is_replayed_frame_by_frame(harness):
         np.testing.assert_allclose(drawn_axes, axes[k], atol=1e-9)
         st = w.state
         assert st.mode == "replay" and st.frame == k and st.y.tolist() == tr.y[k].tolist()
-    assert "skewpend.simulate (dop853)" in harness.page.locator("#w0 .sw-mode").text_content()
+    # the label names the method that ran (the default "auto" picks one: read from the run, not fixed here)
+    assert tr.method in METHODS  # an integrator, not "auto"
+    assert f"skewpend.simulate ({tr.method})" in harness.page.locator("#w0 .sw-mode").text_content()
     harness.page.locator("#w0 .skewpend-widget").screenshot(path=str(_artifacts() / "widget-replay.png"))
     # a slider moved during the replay: the run was for other parameters, so both sides drop it
     harness.slider("alpha", 10)
