@@ -69,12 +69,12 @@ INITIAL: Dict[str, Any] = {
 
 
 #: The integrators of ``simulate`` (the library's list: ``skewpend.numeric.simulation.METHODS``).
-Method = Enum("Method", {m: m for m in _METHODS}, type=str)  # type: ignore[misc]
+Method = Enum("Method", {m: m for m in ("auto",) + tuple(_METHODS)}, type=str)  # type: ignore[misc]
 
 
 #: The integrator (simulate, animate, report).
 INTEGRATION: Dict[str, Any] = {
-    "method": Annotated[Optional[Method], typer.Option("--method", help="integrator (default dop853)", rich_help_panel=RUN)],
+    "method": Annotated[Optional[Method], typer.Option("--method", help="integrator: auto (simulate's default: taylor, or dop853 for a controller's inputs), dop853 (the default of animate and report), rk4, gauss (fixed step --dt), taylor", rich_help_panel=RUN)],
     "rtol": option("--rtol", T.Positive(at_least=RTOL_MIN), f"relative tolerance, {' and '.join(_ADAPTIVE)} only (default 1e-10)"),
     "atol": option("--atol", T.Positive(at_least=ATOL_MIN), f"absolute tolerance, {' and '.join(_ADAPTIVE)} only (default 1e-10)"),
     "dt": option("--dt", T.Positive("number of seconds"), "step [s], rk4 and gauss only (default 1e-3)"),
