@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import re
 import selectors
 import shutil
 import socket
@@ -103,7 +104,8 @@ def run(args, env, *, tty: bool, stop_at_first: bool, timeout: float = 900.0):
     gap = max(gap, end - last) if not stop_at_first else gap
     if master is not None:
         os.close(master)
-    line = text.decode("utf-8", "replace").replace("\r", "\n").strip().splitlines()
+    shown = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text.decode("utf-8", "replace"))  # a terminal's colours and moves
+    line = shown.replace("\r", "\n").strip().splitlines()
     return first, end - start, gap, code, (line[0] if line else "")
 
 
