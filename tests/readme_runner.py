@@ -39,8 +39,12 @@ SHELL_LANGS = {"bash", "sh", "console", "shell", "shell-session"}
 # Lines in shell blocks that are not skewpend examples (reported as skipped, never run).
 SKIP_PREFIXES = ("pip ", "python -m pytest", "python benchmarks/", "bash ", "cd ")
 ERROR_PREFIX = "skewpend: error:"
-TIMEOUT = 300.0  # hard limit per command
-MAX_SECONDS = 120.0  # a README example must be cheaper than this
+TIMEOUT = 300.0  # a hang guard per command: a command still running then is killed and its example fails
+#: The documents' budget for one example, for their writers: an example should cost well under this on the
+#: development machine (small durations; a long run is described, not run).  It is a guideline, not a test
+#: (issue 36: no test asserts an absolute time): a slower or loaded machine may take longer, so an example
+#: over it is reported (:func:`over_budget`, a warning in the test run), never failed.
+MAX_SECONDS = 120.0
 _SHELL_META = set("|><;&`$")
 _FENCE = re.compile(r"^(?P<indent> *)(?P<fence>`{3,}|~{3,})(?P<info>.*)$")
 
@@ -460,6 +464,15 @@ def run_cli(example: CliExample, workdir: Path, timeout: float = TIMEOUT) -> Out
             out, _ = proc.communicate()
             return Outcome(None, (out or b"").decode("utf-8", "replace"), time.perf_counter() - start)
     return Outcome(proc.returncode, out.decode("utf-8", "replace"), time.perf_counter() - start)
+
+
+def over_budget(where: str, outcome: Outcome) -> str | None:
+    """A note when ``outcome`` took longer than the documents' budget :data:`MAX_SECONDS` (to report,
+    not to fail on: the time depends on the machine and its load), else None."""
+    if outcome.seconds <= MAX_SECONDS:
+        return None
+    return (f"{where} took {outcome.seconds:.1f} s, over the documents' budget of {MAX_SECONDS:.0f} s for an "
+            f"example (on this machine, now): consider smaller durations")
 
 
 def output_lines(text: str) -> list[str]:

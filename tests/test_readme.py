@@ -3,8 +3,8 @@ document's python blocks (one shared namespace) and the ``skewpend`` lines of it
 the order they appear, in one working directory per document; ``$ skewpend ...`` transcripts
 print what they show. (The tutorials are notebooks that Sphinx executes when the docs are built.)
 
-``python tests/readme_runner.py`` lists what is collected. An example must be cheap (under
-120 s); a long run belongs in the docs with small durations.
+``python tests/readme_runner.py`` lists what is collected. An example must be cheap (the budget is
+120 s, reported as a warning when exceeded, not failed); a long run belongs in the docs with small durations.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 import sys
 import traceback
+import warnings
 from pathlib import Path
 
 import pytest
@@ -82,7 +83,7 @@ def test_example(doc: rr.Readme, k: int, step: rr.Step, reader) -> None:
     where = f"{where}: {kind} `{example.command}`"
     tail = "\n".join(outcome.output.splitlines()[-30:])
     if outcome.returncode is None:
-        pytest.fail(f"{where} timed out after {rr.TIMEOUT:.0f} s (examples must take < "
+        pytest.fail(f"{where} timed out after {rr.TIMEOUT:.0f} s (examples should take < "
                     f"{rr.MAX_SECONDS:.0f} s)\n{tail}", pytrace=False)
     problems = []
     if example.transcript:
@@ -93,8 +94,9 @@ def test_example(doc: rr.Readme, k: int, step: rr.Step, reader) -> None:
                             + "\n  actual output:\n" + "\n".join(f"    {l}" for l in actual))
     if outcome.returncode != example.expected_status:
         problems.append(f"exit status {outcome.returncode}, expected {example.expected_status}")
-    if outcome.seconds > rr.MAX_SECONDS:
-        problems.append(f"took {outcome.seconds:.1f} s (> {rr.MAX_SECONDS:.0f} s): use smaller durations")
+    note = rr.over_budget(where, outcome)  # reported, not failed: no test asserts an absolute time (issue 36)
+    if note:
+        warnings.warn(note, stacklevel=1)
     if problems and earlier:
         problems.append(f"(earlier example(s) at {', '.join(earlier)} failed too)")
     if problems:
