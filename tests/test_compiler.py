@@ -64,7 +64,7 @@ def test_every_command_works_without_a_system_compiler(tmp_path):
     env = _no_compiler_env(tmp_path)
     saved = os.environ.pop("CC", None)
     try:
-        for argv in (["simulate", "--t-end", "2", "--out", "run.csv"], ["flipmap", "--n", "16", "--t-end", "3"],
+        for argv in (["simulate", "--method", "dop853", "--t-end", "2", "--out", "run.csv"], ["flipmap", "--n", "16", "--t-end", "3"],
                      ["lyapunov", "--t-end", "20"], ["simulate", "--method", "taylor", "--t-end", "1"]):
             r = completed(argv, tmp_path, env=env, timeout=600)
             assert r.returncode == 0, (argv, r.stderr)

@@ -28,7 +28,10 @@ cli_command = typer.main.get_command(_app)
 
 
 def _rst_escape(text: str) -> str:
-    return text.replace("\\", "\\\\").replace("*", "\\*").replace("`", "\\`").replace("|", "\\|")
+    import re
+
+    text = text.replace("\\", "\\\\").replace("*", "\\*").replace("`", "\\`").replace("|", "\\|")
+    return re.sub(r"(\w)_(?=\W|$)", r"\1\\_", text)  # a word's trailing _ (model_*) is no reference
 
 
 def cli_rst() -> list[str]:
