@@ -435,15 +435,15 @@ def clusters(piece: np.ndarray, t: np.ndarray, spans: Sequence[Tuple[float, floa
     used, out = np.unique(out, return_inverse=True)
     count = len(used)
     what = "piece" if n_pieces == 1 else f"{n_pieces} pieces"
-    return out, count, (f"{count} blocks of about {BLOCK:g} s cut from {'the one' if n_pieces == 1 else 'the'} {what} "
-                        f"(fewer than {CLUSTER_PIECES} pieces: the pieces are cut for the intervals)")
+    return out, count, (f"{count} blocks of about {BLOCK:g} s cut from {'the one' if n_pieces == 1 else 'the'} {what}, "
+                        f"as there are fewer than {CLUSTER_PIECES} pieces")
 
 
 def _no_intervals(count: int, text: str, seconds: float) -> str:
     """Why the intervals are not available (fewer than :data:`MIN_CLUSTERS` clusters)."""
     return (f"95 % intervals not available: the data give {count} independent "
-            f"{'cluster' if count == 1 else 'clusters'} ({text}; {seconds:.3g} s in all), at least {MIN_CLUSTERS} "
-            f"needed -- record at least {MIN_CLUSTERS * BLOCK:g} s of motion, or {CLUSTER_PIECES} or more pieces")
+            f"{'cluster' if count == 1 else 'clusters'} ({text}), at least {MIN_CLUSTERS} needed -- record at least "
+            f"{MIN_CLUSTERS * BLOCK:g} s of motion ({seconds:.3g} s here), or {CLUSTER_PIECES} or more pieces")
 
 
 # -- the fit ------------------------------------------------------------------------------------------
