@@ -56,7 +56,7 @@ from pathlib import Path  # noqa: E402
 PACKAGE = Path(__file__).resolve().parent.parent / "src" / "skewpend"
 #: Higher layers may import lower ones, never the reverse (the package root is the public facade).
 LAYERS = {
-    "errors": 0, "parsing": 0, "datasets": 0, "io": 0, "progress": 0, "interrupts": 0, "status": 0, "results": 0,
+    "errors": 0, "parsing": 0, "schema": 0, "datasets": 0, "io": 0, "progress": 0, "interrupts": 0, "status": 0, "results": 0,
     "symbolic": 1,
     "numeric": 2, "config": 2, "checks": 2,  # run files -> Parameters (symbolic), below the analyses and the CLI
     "analysis": 3,

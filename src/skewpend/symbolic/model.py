@@ -17,32 +17,20 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, field, replace
 from typing import Any, Mapping, Optional, Tuple
 
 from ..errors import ParameterError
 from ..parsing import MAX_ANGLE
+from ..schema import (AXIS_NAMES, COM_NAMES, FRICTION_NAMES, GEOMETRY_NAMES, INERTIA_NAMES, NAMES,  # noqa: F401
+                      NONCONSERVATIVE_NAMES, ROTOR_NAMES, SCALAR_NAMES, check_bound, default, field as schema_field,
+                      names, sym_prefix, unknown_names_message)
 
 __all__ = ["Parameters", "SCALAR_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "GEOMETRY_NAMES", "RESERVED_NAMES", "Vec3", "Mat3"]
 
 Scalar = Optional[float]
 Vec3 = Tuple[float, float, float]
 Mat3 = Tuple[Vec3, Vec3, Vec3]
-
-#: The scalar parameters, in the order used by generated code and JSON.
-SCALAR_NAMES = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "cf1", "cf2", "cfs", "Ir", "gr")
-
-#: The optional model terms, off by default (0): Coulomb friction ``cf1, cf2`` (with its
-#: smoothing rate ``cfs``) and the geared motors' rotor inertia ``Ir`` (with the gear ratio ``gr``).
-FRICTION_NAMES = ("cf1", "cf2", "cfs")
-ROTOR_NAMES = ("Ir", "gr")
-
-#: The rigid-body generalisations (numbers, or symbol names).
-GEOMETRY_NAMES = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
-
-_POSITIVE = ("a", "b", "m1", "m2", "cfs")
-_NONNEGATIVE = ("g", "c1", "c2", "cf1", "cf2", "Ir")
-
 
 def _as_real(name: str, value: Any, limit: float = None) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
@@ -152,9 +140,10 @@ def _check_inertia(name: str, mat: Mat3) -> None:
             )
 
 
-@dataclass(frozen=True)
-class Parameters:
+class _Model:
     """Parameters of the skewed double pendulum (immutable, validated when built).
+
+    The fields are declared once, in :mod:`skewpend.schema` (names, units, defaults, bounds).
 
     Scalars (``None`` = symbolic):
 
@@ -197,53 +186,31 @@ class Parameters:
       Any non-zero vectors; they are normalised.
     """
 
-    a: Scalar = None
-    b: Scalar = None
-    m1: Scalar = None
-    m2: Scalar = None
-    alpha: Scalar = None
-    g: Scalar = None
-    c1: Scalar = 0.0
-    c2: Scalar = 0.0
-    tau1: Scalar = 0.0
-    tau2: Scalar = 0.0
-    cf1: Scalar = 0.0
-    cf2: Scalar = 0.0
-    cfs: Scalar = 100.0
-    Ir: Scalar = 0.0
-    gr: Scalar = 1.0
-    com1: Optional[Vec3] = field(default=None)
-    com2: Optional[Vec3] = field(default=None)
-    inertia1: Optional[Mat3] = field(default=None)
-    inertia2: Optional[Mat3] = field(default=None)
-    axis1: Optional[Vec3] = field(default=None)
-    axis2: Optional[Vec3] = field(default=None)
-
     def __post_init__(self) -> None:
         for name in SCALAR_NAMES:
             value = getattr(self, name)
             if value is None:
                 continue
             x = _as_real(name, value)
-            if name in _POSITIVE and not x > 0:
-                raise ParameterError(f"{name} must be > 0, got {x:g}")
-            if name in _NONNEGATIVE and x < 0:
-                raise ParameterError(f"{name} must be >= 0, got {x:g}")
-            if name in _POSITIVE and isinstance(x, float) and x < 2.2250738585072014e-308:  # subnormal: 0 to the C code
+            broken = check_bound(name, x)
+            if broken:
+                raise ParameterError(broken)
+            bound = schema_field(name).bound
+            if bound == "positive" and isinstance(x, float) and x < 2.2250738585072014e-308:  # subnormal: 0 to the C code
                 raise ParameterError(f"{name} must be a normal number (at least 2.2e-308: the compiled code may flush a "
                                      f"subnormal one to 0, a degenerate model), got {x:g}")
-            if name == "alpha" and isinstance(x, float) and abs(x) > MAX_ANGLE:
-                raise ParameterError(f"alpha must be an angle of at most {MAX_ANGLE:g} rad in magnitude (its cosine "
+            if bound == "angle" and isinstance(x, float) and abs(x) > MAX_ANGLE:
+                raise ParameterError(f"{name} must be an angle of at most {MAX_ANGLE:g} rad in magnitude (its cosine "
                                      f"and sine would be digits of rounding), got {x:g}")
             object.__setattr__(self, name, x)
-        for name in ("com1", "com2"):
+        for name in COM_NAMES:
             value = getattr(self, name)
             if value is not None:
-                object.__setattr__(self, name, _as_vec3(name, value, tuple(f"r{name[-1]}{x}" for x in "xyz")))
-        for name in ("axis1", "axis2"):
+                object.__setattr__(self, name, _as_vec3(name, value, tuple(f"{sym_prefix(name)}{x}" for x in "xyz")))
+        for name in AXIS_NAMES:
             value = getattr(self, name)
             if value is not None:
-                v = _as_vec3(name, value, tuple(f"{'n1' if name == 'axis1' else 'e0'}{x}" for x in "xyz"))
+                v = _as_vec3(name, value, tuple(f"{sym_prefix(name)}{x}" for x in "xyz"))
                 if _numeric(v):
                     big = max(abs(x) for x in v)
                     norm = big * math.sqrt(sum((x / big) ** 2 for x in v)) if big > 0 else 0.0
@@ -260,10 +227,10 @@ class Parameters:
                 "alpha sets the default second axis e0 = cos(alpha) k + sin(alpha) i; with axis2 given it would have "
                 "no effect: give alpha or axis2, not both"
             )
-        for name in ("inertia1", "inertia2"):
+        for name in INERTIA_NAMES:
             value = getattr(self, name)
             if value is not None:
-                mat = _as_mat3(name, value, prefix=f"I{name[-1]}")
+                mat = _as_mat3(name, value, prefix=sym_prefix(name))
                 if _numeric(mat):
                     _check_inertia(name, mat)
                 object.__setattr__(self, name, mat)
@@ -296,17 +263,34 @@ class Parameters:
     @property
     def has_friction(self) -> bool:
         """Whether Coulomb friction enters the model (``cf1`` or ``cf2`` non-zero or symbolic)."""
-        return any(getattr(self, n) is None or getattr(self, n) != 0 for n in ("cf1", "cf2"))
+        return any(self._on(n) for n in names(stem="cf"))
 
     @property
     def has_rotor(self) -> bool:
         """Whether the rotor inertia enters the model (``Ir`` non-zero or symbolic)."""
         return self.Ir is None or self.Ir != 0
 
+    def _on(self, name: str) -> bool:
+        value = getattr(self, name)
+        return value is None or value != 0
+
     @property
     def dissipative(self) -> bool:
         """Whether energy is dissipated: viscous damping or Coulomb friction (non-zero or symbolic)."""
-        return self.has_friction or any(getattr(self, n) is None or getattr(self, n) != 0 for n in ("c1", "c2"))
+        return any(self._on(n) for n in names(role="damping") + names(stem="cf"))
+
+    @property
+    def conservative(self) -> bool:
+        """Whether the energy ``E = T + Pi`` is conserved: no viscous damping, no Coulomb friction and
+        no constant torques (each zero, not symbolic).  The one rule every analysis that needs a
+        conservative model (Poincare sections, the chaos diagram, energy checks, the report's sections)
+        asks; the rotors' inertia stores energy but loses none, so it does not count."""
+        return not any(self._on(n) for n in NONCONSERVATIVE_NAMES)
+
+    @property
+    def nonconservative_terms(self) -> Tuple[str, ...]:
+        """The parameters that make the model non-conservative (non-zero or symbolic), in the schema's order."""
+        return tuple(n for n in NONCONSERVATIVE_NAMES if self._on(n))
 
     @property
     def is_numeric(self) -> bool:
@@ -316,18 +300,13 @@ class Parameters:
     @property
     def is_thin_rods(self) -> bool:
         """True for the specification's model: thin uniform rods, default hinge axes."""
-        return all(
-            getattr(self, n) is None
-            for n in ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
-        )
+        return all(getattr(self, n) is None for n in GEOMETRY_NAMES)
 
     def replace(self, **changes: Any) -> "Parameters":
         """A copy with some fields changed (validated again)."""
-        unknown = set(changes) - {f.name for f in fields(self)}
+        unknown = [k for k in changes if k not in NAMES]
         if unknown:
-            raise ParameterError(
-                f"unknown parameter(s) {sorted(unknown)}; allowed: {[f.name for f in fields(self)]}"
-            )
+            raise ParameterError(unknown_names_message(unknown))
         return replace(self, **changes)
 
     def to_dict(self) -> dict:
@@ -341,10 +320,9 @@ class Parameters:
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> "Parameters":
         """Build from a mapping (e.g. a TOML table); unknown keys are an error."""
-        allowed = [f.name for f in fields(cls)]
-        unknown = sorted(set(data) - set(allowed))
+        unknown = [k for k in data if k not in NAMES]
         if unknown:
-            raise ParameterError(f"unknown parameter(s) {unknown}; allowed: {allowed}")
+            raise ParameterError(unknown_names_message(unknown))
         return cls(**dict(data))
 
     def require_numeric(self, what: str = "this operation") -> "Parameters":
@@ -357,3 +335,30 @@ class Parameters:
             )
         return self
 
+
+def _build_parameters():
+    """:class:`Parameters`: a frozen dataclass whose fields are the schema's, in its order."""
+    from dataclasses import make_dataclass
+
+    def annotation(name):
+        kind = schema_field(name).kind
+        return {"scalar": Scalar, "vector": Optional[Vec3], "inertia": Optional[Mat3]}[kind]
+
+    cls = make_dataclass("Parameters", [(n, annotation(n), field(default=default(n))) for n in NAMES],
+                         bases=(_Model,), frozen=True)
+    cls.__module__, cls.__doc__ = __name__, _Model.__doc__
+    generated = cls.__init__
+
+    def __init__(self, *args, **kwargs):
+        unknown = [k for k in kwargs if k not in NAMES]
+        if unknown:
+            raise ParameterError(unknown_names_message(unknown))
+        generated(self, *args, **kwargs)
+
+    __init__.__signature__ = __import__("inspect").signature(generated)
+    __init__.__doc__ = generated.__doc__
+    cls.__init__ = __init__
+    return cls
+
+
+Parameters = _build_parameters()
