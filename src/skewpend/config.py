@@ -18,6 +18,7 @@ import math
 from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
 from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
+from .schema import CORE_NAMES, GEOMETRY_NAMES, NAMES, OPTIONAL_DEFAULTS, SCALAR_NAMES, field
 
 __all__ = [
     "DEFAULT_RUN", "reference_parameters", "reference_state", "COMMAND_DEFAULTS", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
@@ -25,7 +26,7 @@ __all__ = [
 
 #: The run ``skewpend simulate`` does with no options (the reference case of the README).
 DEFAULT_RUN: Dict[str, Dict[str, Any]] = {
-    "parameters": {"a": 1.0, "b": 0.8, "m1": 1.0, "m2": 0.7, "alpha": 0.6, "g": 9.81},
+    "parameters": dict(zip(CORE_NAMES, (1.0, 0.8, 1.0, 0.7, 0.6, 9.81))),
     "initial": {"phi0": 1.2, "psi0": -0.8, "dphi0": 0.0, "dpsi0": 0.0},
     "simulation": {"t_end": 20.0, "method": "dop853"},
 }
@@ -59,8 +60,8 @@ COMMAND_DEFAULTS: Dict[str, Dict[str, Any]] = {
 }
 
 #: The model's keys ([parameters]) and the initial state's ([initial]).
-SCALAR_KEYS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "cf1", "cf2", "cfs", "Ir", "gr")
-MODEL_KEYS = frozenset(SCALAR_KEYS + ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2"))
+SCALAR_KEYS = SCALAR_NAMES
+MODEL_KEYS = frozenset(NAMES)
 INITIAL_KEYS = frozenset(("phi0", "psi0", "dphi0", "dpsi0"))
 _INTEGRATION = frozenset(("t_end", "method", "rtol", "atol", "dt", "max_steps"))
 _DOP853 = frozenset(("t_end", "method", "rtol", "atol"))  # the DOP853-only analyses
@@ -140,12 +141,12 @@ def build_parameters(values: Mapping[str, Any], where: Optional[Mapping[str, str
     def text(k):
         return as_text(values.get(k), w(k))
 
-    scalars = {k: parse_scalar(text(k), w(k), angle=(k == "alpha")) for k in ("a", "b", "m1", "m2", "alpha", "g")}
-    for k in ("c1", "c2", "tau1", "tau2", "cf1", "cf2", "cfs", "Ir", "gr"):
-        default = getattr(Parameters(), k)  # 0 (off); cfs 100 [s/rad], gr 1
-        scalars[k] = parse_scalar(default if values.get(k) is None else text(k), w(k))
-    geometry = {k: parse_vector(text(k), w(k)) for k in ("com1", "com2", "axis1", "axis2")}
-    geometry.update({k: parse_inertia(text(k), w(k)) for k in ("inertia1", "inertia2")})
+    scalars = {}
+    for k in SCALAR_NAMES:  # a default of the schema (0: off; cfs 100 [s/rad], gr 1) or symbolic
+        given = OPTIONAL_DEFAULTS.get(k) if values.get(k) is None else text(k)
+        scalars[k] = parse_scalar(given, w(k), angle=field(k).bound == "angle")
+    parse = {"vector": parse_vector, "inertia": parse_inertia}
+    geometry = {k: parse[field(k).kind](text(k), w(k)) for k in GEOMETRY_NAMES}
     return Parameters(**scalars, **geometry)
 
 

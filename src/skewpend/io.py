@@ -21,6 +21,7 @@ from typing import Any, Dict, Iterator, Optional, Sequence
 import numpy as np
 
 from .errors import ParameterError, SkewpendError
+from .schema import GEOMETRY_NAMES, NAMES, field, unknown_names_message
 
 __all__ = [
     "require_netcdf",
@@ -508,8 +509,7 @@ def write_trajectory(traj, path: os.PathLike) -> Path:
 
 # -- configuration -----------------------------------------------------------------------------------
 CONFIG_SECTIONS = {
-    "parameters": {"a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2", "com1", "com2", "inertia1", "inertia2", "axis1", "axis2",
-                   "cf1", "cf2", "cfs", "Ir", "gr"},
+    "parameters": set(NAMES),
     "initial": {"phi0", "psi0", "dphi0", "dpsi0"},
     "simulation": {"t_end", "dt_out", "method", "rtol", "atol", "dt", "max_steps", "out", "plot"},
 }
@@ -569,21 +569,23 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
             raise ParameterError(f"{path}: unknown section [{section}]; allowed: {', '.join(CONFIG_SECTIONS)}")
         if not isinstance(values, dict):
             raise ParameterError(f"{path}: [{section}] must be a table")
-        unknown = sorted(set(values) - CONFIG_SECTIONS[section])
+        unknown = [k for k in values if k not in CONFIG_SECTIONS[section]]
+        if unknown and section == "parameters":
+            raise ParameterError(unknown_names_message(unknown, NAMES, where=f"{path}: [parameters]"))
         if unknown:
             raise ParameterError(
-                f"{path}: unknown key(s) {unknown} in [{section}]; allowed: {sorted(CONFIG_SECTIONS[section])}"
+                f"{path}: unknown key(s) {sorted(unknown)} in [{section}]; allowed: {sorted(CONFIG_SECTIONS[section])}"
             )
         for key, value in values.items():
             _check_run_value(path, section, key, value)
             if isinstance(value, (datetime.date, datetime.time)):
                 raise ParameterError(f"{path}: [{section}] {key}: expected a number or a string, got a TOML date/time {value}")
-            if key.startswith(("com", "axis", "inertia")) and (
+            if key in GEOMETRY_NAMES and (
                 isinstance(value, dict) or isinstance(value, list) and any(isinstance(v, (list, dict)) for v in value)
             ):
-                matrix = key.startswith("inertia") and isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)
+                matrix = field(key).kind == "inertia" and isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)
                 if not matrix:
-                    shape = "a 3x3 matrix [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] or a flat list of 3, 6 or 9" if key.startswith("inertia") else "a flat list of 3"
+                    shape = "a 3x3 matrix [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] or a flat list of 3, 6 or 9" if matrix is False and field(key).kind == "inertia" else "a flat list of 3"
                     got = "a table" if isinstance(value, dict) else repr(value)
                     raise ParameterError(f"{path}: [{section}] {key}: expected {shape} numbers or symbol names, got {got}")
     return {s: dict(data.get(s, {})) for s in CONFIG_SECTIONS}

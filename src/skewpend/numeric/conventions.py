@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from typing import Tuple
 
-from ..symbolic.model import FRICTION_NAMES, ROTOR_NAMES, SCALAR_NAMES, Parameters
+from ..schema import FRICTION_NAMES, GEOMETRY_NAMES, ROTOR_NAMES, SCALAR_NAMES
+from ..symbolic.model import Parameters
 
 __all__ = ["METHODS", "ADAPTIVE", "PARAMETER_ORDER", "STATE_ORDER", "GEOMETRY", "geometry_of", "optional_terms", "parameter_vector"]
 
@@ -20,7 +21,7 @@ PARAMETER_ORDER: Tuple[str, ...] = SCALAR_NAMES
 #: Order of the state ``y``.
 STATE_ORDER: Tuple[str, ...] = ("phi", "psi", "dphi", "dpsi")
 #: The bodies and axes: baked into generated code as numbers (or symbols).
-GEOMETRY: Tuple[str, ...] = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
+GEOMETRY: Tuple[str, ...] = GEOMETRY_NAMES
 
 
 def optional_terms(params: Parameters) -> Tuple[bool, bool]:

@@ -33,6 +33,7 @@ import sympy as sp
 
 from ..errors import EquilibriumError
 from .kinematics import Algebra, Relation, floats_for_long_rationals
+from ..schema import AXIS_NAMES, LENGTH_NAMES, MASS_NAMES
 from .model import GEOMETRY_NAMES, SCALAR_NAMES, Parameters
 from .symbols import SYMBOLS
 
@@ -241,7 +242,7 @@ class _Context:
                     geometry_symbols.append(x)
         gens += [sp.Symbol(n, real=True) for n in geometry_symbols]
         symbolic_axes: List[Tuple[str, Tuple[str, ...], sp.Rational]] = []
-        for name in ("axis1", "axis2"):
+        for name in AXIS_NAMES:
             vec = getattr(params, name)
             if vec is None:
                 continue
@@ -292,7 +293,7 @@ class _Context:
         self.val = {n: (G[n] if n in G else alg.const(const[n])) for n in SCALAR_NAMES if n != "alpha"}
         self.cs = {ang: (G[f"c_{ang}"], G[f"s_{ang}"]) for ang in ("phi", "psi", "alpha") if f"c_{ang}" in G}
 
-        a, b, m1, m2 = (self.val[n] for n in ("a", "b", "m1", "m2"))
+        a, b, m1, m2 = (self.val[n] for n in LENGTH_NAMES + MASS_NAMES)
         I_, J_, K_ = alg.vec([1, 0, 0]), alg.vec([0, 1, 0]), alg.vec([0, 0, 1])
         self.J = J_
         self.n1 = K_ if params.axis1 is None else axis("axis1")
@@ -398,7 +399,7 @@ class _Context:
             mass_matrix=self.finish_matrix(M),
             forcing=self.finish_matrix(forcing, keys=_SPEEDS),
             kinetic_energy=self.finish(T, keys=_SPEEDS),
-            potential_energy=self.finish(Pi, keys=[n for n in ("m1", "m2") if n in alg.gens]),
+            potential_energy=self.finish(Pi, keys=[n for n in MASS_NAMES if n in alg.gens]),
             generalized_forces=self.finish_matrix(forces, keys=_SPEEDS),
             _ctx=self,
         )

@@ -32,7 +32,9 @@ def check_coulomb(coulomb, name: str = "coulomb") -> str:
 
 def friction_terms(params) -> Tuple[str, ...]:
     """The Coulomb friction parameters that enter the model (``cf1``, ``cf2``: non-zero or symbolic)."""
-    return tuple(n for n in ("cf1", "cf2") if getattr(params, n) is None or getattr(params, n) != 0)
+    from ..schema import names
+
+    return tuple(n for n in names(stem="cf") if getattr(params, n) is None or getattr(params, n) != 0)
 
 
 def _slopes(params, names) -> str:

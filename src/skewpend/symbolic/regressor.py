@@ -37,6 +37,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ParameterError
+from ..schema import DAMPING_NAMES, LENGTH_NAMES, MASS_NAMES, names
 from .model import Parameters
 from .symbols import SYMBOLS
 
@@ -65,7 +66,7 @@ def _body_names(i: int) -> Tuple[str, ...]:
 
 
 #: Names of the standard parameter vector ``pi``, in its order.
-PI_NAMES: Tuple[str, ...] = _body_names(1) + _body_names(2) + ("c1", "c2")
+PI_NAMES: Tuple[str, ...] = _body_names(1) + _body_names(2) + DAMPING_NAMES
 
 #: The direction free motion cannot determine, in physical terms.
 SCALE_DIRECTION = "one overall scale of every inertial parameter and damping"
@@ -73,13 +74,15 @@ SCALE_DIRECTION = "one overall scale of every inertial parameter and damping"
 #: The default preference for pivots (the entry a base parameter is named after): each body's
 #: inertia about its hinge axis first (``J1zz``; body 2's ``J2zz``, nearly its axis for small
 #: ``alpha``), then first moments along the rod (``y``), the mass last (it is lumped into them).
-PIVOT_ORDER: Tuple[str, ...] = (
-    "J1zz", "J1xz", "J1yz", "J1xy", "J1xx", "J1yy", "h1y", "h1x", "h1z", "m1",
-    "J2zz", "J2xz", "J2yz", "J2xy", "J2xx", "J2yy", "h2y", "h2x", "h2z", "m2",
-    "c1", "c2",
-)
+PIVOT_ORDER: Tuple[str, ...] = tuple(
+    name for i, mass in enumerate(MASS_NAMES, start=1)
+    for name in tuple(f"J{i}{p}" for p in ("zz", "xz", "yz", "xy", "xx", "yy")) + tuple(f"h{i}{x}" for x in "yxz") + (mass,)
+) + DAMPING_NAMES
 
-_ARGS = ("phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi", "a", "alpha", "g")
+#: The model's values the regressor is a function of (besides the state): where hinge 2 sits on
+#: rod 1 (its length), the skew and gravity.
+STRUCTURE: Tuple[str, ...] = (LENGTH_NAMES[0],) + names(kind="scalar", role="axis") + names(role="world")
+_ARGS = ("phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi") + STRUCTURE
 
 
 def _pi_symbol(name: str) -> sp.Symbol:
@@ -467,8 +470,8 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
         raise ParameterError(f"geometry must be a skewpend Parameters, got {geometry!r}")
     reg = regressor(geometry)
     rng = np.random.default_rng(seed + 1)
-    generic = {"a": float(rng.uniform(0.5, 1.5)), "alpha": float(rng.uniform(0.3, 1.2)), "g": float(rng.uniform(5, 15))}
-    given = {n: getattr(geometry, n) for n in ("a", "alpha", "g")}
+    generic = dict(zip(STRUCTURE, (float(rng.uniform(0.5, 1.5)), float(rng.uniform(0.3, 1.2)), float(rng.uniform(5, 15)))))
+    given = {n: getattr(geometry, n) for n in STRUCTURE}
     if not reg.uses_alpha:
         given["alpha"] = 0.0
     at = {n: (generic[n] if v is None else float(v)) for n, v in given.items()}
@@ -491,7 +494,7 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     if len(piv) < generic_rank and given["alpha"] is not None:
         ang = _exact_angle(at["alpha"])
         exact = {_C["alpha"]: sp.cos(ang), _S["alpha"]: sp.sin(ang)}
-    for n in ("a", "g"):
+    for n in STRUCTURE[::2]:  # the length and g
         if given[n] is not None and len(piv) < generic_rank:
             exact[S[n]] = sp.nsimplify(given[n], rational=True)
     Cx = C.xreplace(exact) if exact else C
@@ -535,7 +538,7 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     return BaseParameters(
         names=names, expressions=exprs, matrix=T, pivots=tuple(piv), dependent=tuple(dep), relations=K,
         regressor=lambdify_columns(Yb), symbolic_regressor=Yb,
-        where={n: (None if given[n] is None else at[n]) for n in ("a", "alpha", "g") if n != "alpha" or reg.uses_alpha},
+        where={n: (None if given[n] is None else at[n]) for n in STRUCTURE if n != "alpha" or reg.uses_alpha},
         seconds=time.perf_counter() - t0,
     )
 

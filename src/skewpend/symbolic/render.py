@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, Dict, List, Optional
 
 import sympy as sp
 
-from .. import __version__
+from .. import __version__, schema
 from .symbols import SYMBOLS
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only: the derivation imports this module
@@ -35,17 +35,13 @@ STEP_TITLES = {
 }
 
 _S = SYMBOLS
+#: The parameters' symbols as the schema writes them (``m₁``, ``τ₂``; TeX ``m_1``, ``\tau_2``).
 UNICODE = {
     _S["dphi"]: sp.Symbol("φ̇"),
     _S["dpsi"]: sp.Symbol("ψ̇"),
     _S["ddphi"]: sp.Symbol("φ̈"),
     _S["ddpsi"]: sp.Symbol("ψ̈"),
-    _S["m1"]: sp.Symbol("m₁"),
-    _S["m2"]: sp.Symbol("m₂"),
-    _S["c1"]: sp.Symbol("c₁"),
-    _S["c2"]: sp.Symbol("c₂"),
-    _S["tau1"]: sp.Symbol("τ₁"),
-    _S["tau2"]: sp.Symbol("τ₂"),
+    **{_S[n]: sp.Symbol(schema.symbol(n)) for n in schema.SCALAR_NAMES if schema.symbol(n) != n},
 }
 _LATEX_NAMES = {
     _S["phi"]: r"\varphi",
@@ -54,13 +50,7 @@ _LATEX_NAMES = {
     _S["dpsi"]: r"\dot{\psi}",
     _S["ddphi"]: r"\ddot{\varphi}",
     _S["ddpsi"]: r"\ddot{\psi}",
-    _S["alpha"]: r"\alpha",
-    _S["m1"]: "m_1",
-    _S["m2"]: "m_2",
-    _S["c1"]: "c_1",
-    _S["c2"]: "c_2",
-    _S["tau1"]: r"\tau_1",
-    _S["tau2"]: r"\tau_2",
+    **{_S[n]: schema.tex(n) for n in schema.SCALAR_NAMES if schema.tex(n) != n},
 }
 _TEXT_LABELS = {
     "P1": "P₁",
@@ -103,7 +93,7 @@ def _params_line(eom: EquationsOfMotion) -> str:
     values = {
         k: v
         for k, v in p.to_dict().items()
-        if v is not None and k in _S and not (k in ("c1", "c2", "tau1", "tau2") and v == 0)
+        if v is not None and k in _S and not (k in schema.OPTIONAL_DEFAULTS and v == schema.OPTIONAL_DEFAULTS[k])
     }
     if not p.uses_alpha:
         values.pop("alpha", None)
@@ -112,7 +102,7 @@ def _params_line(eom: EquationsOfMotion) -> str:
         shown = [f"{k}={v:g}" + (f" ({math.degrees(v):.6g}°)" if k == "alpha" else "") for k, v in values.items()]
         parts.append("values: " + ", ".join(shown))
     if not p.is_thin_rods:
-        general = [k for k in ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2") if getattr(p, k) is not None]
+        general = [k for k in schema.GEOMETRY_NAMES if getattr(p, k) is not None]
         parts.append("general bodies/axes: " + ", ".join(general))
     return "parameters -- " + "; ".join(parts)
 

@@ -32,9 +32,10 @@ __all__ = ["planar_formulas", "planar_latex", "zero_level", "Comparison", "check
 
 
 def _symbols() -> Tuple[Any, ...]:
+    from ..schema import LENGTH_NAMES, MASS_NAMES
     from .symbols import SYMBOLS as S
 
-    return tuple(S[n] for n in ("a", "b", "m1", "m2", "g", "phi", "psi", "dphi", "dpsi"))
+    return tuple(S[n] for n in LENGTH_NAMES + MASS_NAMES + ("g", "phi", "psi", "dphi", "dpsi"))
 
 
 def planar_formulas() -> Dict[str, Any]:
