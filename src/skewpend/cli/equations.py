@@ -80,10 +80,13 @@ def derive(
 
 def _check_code_parameters(run, params, fmt: str) -> None:
     """Numeric values become the code's default parameter vector P, all of them or none; a typed
-    --c1/--c2/--tau1/--tau2 (or one in the run file) needs that vector."""
-    typed = [run.option("parameters", k) for k in ("c1", "c2", "tau1", "tau2")
+    parameter beyond the core ones (--c1, --tau1, --cf1, --Ir, ...: the schema's scalars with a
+    default; or one in the run file) needs that vector."""
+    from ..schema import CORE_NAMES, OPTIONAL_DEFAULTS
+
+    typed = [run.option("parameters", k) for k in OPTIONAL_DEFAULTS
              if run.is_given("parameters", k) and getattr(params, k) is not None]
-    core = [f"--{k}" for k in ("a", "b", "m1", "m2", "alpha", "g") if k != "alpha" or params.uses_alpha]
+    core = [f"--{k}" for k in CORE_NAMES if k != "alpha" or params.uses_alpha]
     if typed and all(getattr(params, k[2:]) is None for k in core):
         raise UsageError(
             f"{', '.join(typed)} with --format {fmt} needs {' '.join(core)} as numbers too (all become the "

@@ -21,6 +21,7 @@ from typing import Annotated, Any, Dict, List, Optional
 
 import typer
 
+from .. import schema
 from ..parsing import UsageError
 from . import types as T
 from .options import CONFIG, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
@@ -49,7 +50,7 @@ class FitMethod(str, Enum):
 
 _START = "Starting model params0 (default with --format kaheman: the authors' published model)"
 #: What params0 needs as numbers (the rest has the model's defaults; alpha 0).
-NEEDED = ("a", "b", "m1", "m2", "g")
+NEEDED = schema.LENGTH_NAMES + schema.MASS_NAMES + ("g",)
 
 
 def _start_options() -> Dict[str, Any]:
@@ -457,7 +458,7 @@ def _columns(text: str) -> Dict[str, Any]:
             raise UsageError(f"--columns: expected KEY=COLUMN pairs (t=time,phi=theta1,...), got {item.strip()!r}")
         if key in out:
             raise UsageError(f"--columns: {key} is given twice")
-        if key in ("tau1", "tau2"):
+        if key in schema.TORQUE_NAMES:
             try:
                 out[key] = _number(value)
                 continue

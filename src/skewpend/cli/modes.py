@@ -195,13 +195,15 @@ def _modes_latex(given: dict, config: Optional[str]) -> None:
     the others stay symbolic.  Damping and torques do not enter det(K0 - w^2 M0): refused."""
     from ..analysis.modes import characteristic_equation
     from ..errors import EquilibriumError
+    from ..schema import DAMPING_NAMES, TORQUE_NAMES
     from ..symbolic import render
 
     tex = render.tex  # the renderer's LaTeX of one expression
     run = resolve("modes", config, defaults=False, parameters=given)
     for keys, why in (
-        (("tau1", "tau2"), "phi = psi = 0 is not an equilibrium with constant joint torques; normal modes need tau1 = tau2 = 0"),
-        (("c1", "c2"), None),
+        (TORQUE_NAMES, "phi = psi = 0 is not an equilibrium with constant joint torques; normal modes need "
+                       + " = ".join(TORQUE_NAMES) + " = 0"),
+        (DAMPING_NAMES, None),
     ):
         named = [run.option("parameters", k) for k in keys if run.is_given("parameters", k) and run.scalar("parameters", k) != 0.0]
         if named and why is not None:

@@ -19,6 +19,7 @@ from typing import Annotated, Any, Dict, Optional
 import typer
 
 from . import types as T
+from .. import schema
 from ..checks import ATOL_MIN, RTOL_MIN
 from ..numeric.conventions import ADAPTIVE as _ADAPTIVE, METHODS as _METHODS
 
@@ -32,32 +33,23 @@ def option(flag: str, kind: T.ParamType, help: str, panel: str = RUN, *aliases: 
     return Annotated[Optional[str], typer.Option(flag, *aliases, help=help, metavar=kind.metavar, rich_help_panel=panel), kind]
 
 
-#: The model's options (every command but serve).
-MODEL: Dict[str, Any] = {
-    "a": option("--a", T.Scalar(), "length of rod 1 [m]", _P),
-    "b": option("--b", T.Scalar(), "length of rod 2 [m]", _P),
-    "m1": option("--m1", T.Scalar(), "mass of rod 1 [kg]", _P),
-    "m2": option("--m2", T.Scalar(), "mass of rod 2 [kg]", _P),
-    "alpha": option("--alpha", T.Angle(), "skew angle of the hinges [rad, e.g. 30deg, or a multiple of pi]", _P),
-    "g": option("--g", T.Scalar(), "gravitational acceleration [m/s^2]", _P),
-    "c1": option("--c1", T.Scalar(), "viscous damping in hinge 1 [N m s] (default 0)", _P),
-    "c2": option("--c2", T.Scalar(), "viscous damping in hinge 2 [N m s] (default 0)", _P),
-    "tau1": option("--tau1", T.Scalar(), "constant torque in hinge 1 [N m] (default 0)", _P),
-    "tau2": option("--tau2", T.Scalar(), "constant torque in hinge 2 [N m] (default 0)", _P),
-    "cf1": option("--cf1", T.Scalar(), "Coulomb friction in hinge 1 [N m]: torque -cf1 atan(cfs dphi), at most cf1 pi/2 (default 0)", _P),
-    "cf2": option("--cf2", T.Scalar(), "Coulomb friction in hinge 2 [N m]: torque -cf2 atan(cfs dpsi) (default 0)", _P),
-    "cfs": option("--cfs", T.Scalar(), "smoothing rate of the Coulomb friction's atan [s/rad], > 0 (default 100)", _P),
-    "Ir": option("--Ir", T.Scalar(), "rotor inertia of each geared motor [kg m^2] (default 0: no motors)", _P),
-    "gr": option("--gr", T.Scalar(), "gear ratio: rotor speed over joint speed, negative if the gear reverses (default 1)", _P),
-    "com1": option("--com1", T.Vector(), "centre of mass of body 1, 'x,y,z' in its frame [m]", _G),
-    "com2": option("--com2", T.Vector(), "centre of mass of body 2, 'x,y,z' in its frame [m]", _G),
-    "inertia1": option("--inertia1", T.Inertia(), "inertia of body 1 about its centre of mass: 'Ixx,Iyy,Izz[,Ixy,Ixz,Iyz]' [kg m^2]", _G),
-    "inertia2": option("--inertia2", T.Inertia(), "inertia of body 2 about its centre of mass: 'Ixx,Iyy,Izz[,Ixy,Ixz,Iyz]' [kg m^2]", _G),
-    "axis1": option("--axis1", T.Vector(), "axis of hinge 1, 'x,y,z' (default k)", _G),
-    "axis2": option("--axis2", T.Vector(), "axis of hinge 2 with the rods vertical, 'x,y,z' (default cos(alpha) k + sin(alpha) i; replaces --alpha)", _G),
-}
+def _model_option(name: str):
+    """The option ``--name`` of the model's parameter ``name``, from the schema: its type by the
+    field's kind and bound, its help, its panel (scalars, or the bodies' and axes' geometry)."""
+    f = schema.field(name)
+    if f.kind == "inertia":
+        kind: T.ParamType = T.Inertia()
+    elif f.kind == "vector":
+        kind = T.Vector()
+    else:
+        kind = T.Angle() if f.bound == "angle" else T.Scalar()
+    return option(f"--{name}", kind, schema.help_text(name), _P if f.kind == "scalar" else _G)
+
+
+#: The model's options (every command but serve), in the schema's order: the scalars, then the geometry.
+MODEL: Dict[str, Any] = {name: _model_option(name) for name in schema.SCALAR_NAMES + schema.GEOMETRY_NAMES}
 #: The model without the constant torques (modes: the hanging rest is no equilibrium with them).
-MODEL_NO_TORQUE = {k: v for k, v in MODEL.items() if k not in ("tau1", "tau2")}
+MODEL_NO_TORQUE = {k: v for k, v in MODEL.items() if k not in schema.TORQUE_NAMES}
 
 #: The initial state.
 INITIAL: Dict[str, Any] = {
@@ -242,7 +234,7 @@ def show_defaults(group) -> Any:
                     if name in SYMBOLIC_FORMAT:
                         value += f"; symbolic with {SYMBOLIC_FORMAT[name]}"
                 else:
-                    value = "the specification's thin rod" if p.name.startswith(("com", "inertia")) else None
+                    value = "the specification's thin rod" if p.name in schema.COM_NAMES + schema.INERTIA_NAMES else None
             else:
                 value = getattr(p.default, "value", p.default)
             if value is not None:

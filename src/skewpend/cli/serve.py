@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from .. import schema
 from . import types as T
 from .options import CONFIG, command, option, resolve
 
@@ -87,7 +88,8 @@ def _announce(explorer, host: str, port: int, query: str = "") -> str:
 
 
 #: What the page's sliders take (web/live.js SLIDERS), by section: the keys a run sets there.
-_SLIDER_KEYS = {"parameters": ("alpha", "a", "b", "m1", "m2", "g", "c1", "c2"), "initial": ("phi0", "psi0")}
+_SLIDER_KEYS = {"parameters": ("alpha",) + schema.LENGTH_NAMES + schema.MASS_NAMES + ("g",) + schema.DAMPING_NAMES,
+                "initial": ("phi0", "psi0")}
 _DEGREES = ("alpha", "phi0", "psi0")  # shown (and held in the address) in degrees
 
 
@@ -111,8 +113,8 @@ def _page_start(run):
     from ..parsing import UsageError
 
     params = run.parameters()
-    absent = [run.option("parameters", k) for k in ("tau1", "tau2", "cf1", "cf2", "Ir")
-              if run.is_given("parameters", k) and getattr(params, k) != 0]
+    absent = [run.option("parameters", k) for k in schema.TORQUE_NAMES + schema.FRICTION_NAMES + schema.ROTOR_NAMES
+              if run.is_given("parameters", k) and getattr(params, k) != schema.default(k)]
     if absent:
         raise UsageError(f"{', '.join(absent)}: the explorer has no joint torques, Coulomb friction or rotor inertia (its "
                          "sliders cannot set them); leave them out or 0, and simulate the full model with skewpend simulate")

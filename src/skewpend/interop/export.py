@@ -52,6 +52,7 @@ from typing import Optional, Sequence, Tuple, Union
 from ..errors import IntegrationError, MissingExtraError, ParameterError
 from ..symbolic.model import Parameters
 from ..parsing import initial_state, positive_number
+from ..schema import CORE_NAMES, DAMPING_NAMES, LENGTH_NAMES, MASS_NAMES, ROTOR_NAMES, TORQUE_NAMES
 
 __all__ = [
     "FORMATS",
@@ -159,7 +160,7 @@ def _regularised_inertia(inertia, eps: float):
 
 
 def _default_bodies(params: Parameters):
-    a, b, m1, m2 = (float(getattr(params, n)) for n in ("a", "b", "m1", "m2"))
+    a, b, m1, m2 = (float(getattr(params, n)) for n in LENGTH_NAMES + MASS_NAMES)
     com1 = params.com1 if params.com1 is not None else (0.0, a / 2, 0.0)
     com2 = params.com2 if params.com2 is not None else (0.0, b / 2, 0.0)
 
@@ -185,7 +186,7 @@ def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None)
     """
     params.require_numeric("export")
     eps = positive_number("axial_inertia", axial_inertia, allow_none=True)
-    a, b, m1, m2 = (float(getattr(params, n)) for n in ("a", "b", "m1", "m2"))
+    a, b, m1, m2 = (float(getattr(params, n)) for n in LENGTH_NAMES + MASS_NAMES)
     eps1 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m1 * a * a, AXIAL_INERTIA_FLOOR)
     eps2 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m2 * b * b, AXIAL_INERTIA_FLOOR)
     com1, com2, inertia1, inertia2 = _default_bodies(params)
@@ -260,7 +261,7 @@ def _finite(values) -> bool:
 
 
 def _overflow(params: Parameters, what: str) -> ParameterError:
-    sizes = ", ".join(f"{n} = {float(getattr(params, n)):g}" for n in ("a", "b", "m1", "m2"))
+    sizes = ", ".join(f"{n} = {float(getattr(params, n)):g}" for n in LENGTH_NAMES + MASS_NAMES)
     return ParameterError(
         f"export: {what} is not a finite number (overflow) for {sizes}; allowed: parameters of moderate size, "
         "for which every number in the model (lengths, masses, m l^2, inertia tensors) is a finite double"
@@ -277,7 +278,7 @@ def _header(params: Parameters, fmt: str) -> str:
 
     values = ", ".join(
         f"{n}={_num(getattr(params, n))}"
-        for n in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2") + ("Ir", "gr") * params.has_rotor
+        for n in CORE_NAMES + DAMPING_NAMES + TORQUE_NAMES + ROTOR_NAMES * params.has_rotor
         if getattr(params, n) is not None
     )
     return _comment(
