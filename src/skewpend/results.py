@@ -20,22 +20,34 @@ immutable object carrying its data and how it was made -- in the manner of diffr
 (:class:`DatasetSpec`) that xarray, NetCDF (``netCDF4``, no xarray needed) and Zarr all take.
 :func:`grid_status` is the one rule for a grid of many trajectories: all ok, or
 :attr:`Status.PARTIAL` with a message naming how many failed.
+
+Reading back is the mirror of writing: each result kind reads itself in the module that writes it
+(a reader registered for its ``result_kind``, see :mod:`skewpend.analysis.readback`), with the
+helpers here -- :func:`result_container` (what a path holds, by content), :func:`protocol_fields`
+(``params``, ``settings``, ``stats``, ``status``, ``message`` of a file this protocol wrote),
+:func:`netcdf_reader` (a reader of one kind's ``*.nc`` file, every missing or bad part one line)
+and :func:`agree` (what a file stores against what its parameters give, to :data:`AGREEMENT`).
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
 import numbers
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Dict, Mapping, Tuple
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Dict, Mapping, Tuple
 
 import numpy as np
 
+from .errors import ParameterError, SkewpendError
 from .status import Status
 
-__all__ = ["Result", "ResultProtocol", "DatasetSpec", "canonical_json", "fingerprint", "plain", "grid_status"]
+__all__ = ["Result", "ResultProtocol", "DatasetSpec", "canonical_json", "fingerprint", "plain", "grid_status",
+           "AGREEMENT", "agree", "json_attr", "protocol_fields", "netcdf_reader", "result_container", "netcdf_kind",
+           "zarr_store_kind"]
 
 
 def plain(value: Any) -> Any:
@@ -201,3 +213,141 @@ class Result(ResultProtocol):
         object.__setattr__(self, "status", Status.of(self.status))
         if not self.message:
             object.__setattr__(self, "message", self.status.message)
+
+
+# -- reading a result back: what the reader of every kind shares ------------------------------------------
+#: Relative agreement required between what a file stores and what its parameters give when the
+#: missing parts are recomputed (the same model agrees to rounding, ~1e-12; another model by far
+#: more than this).
+AGREEMENT = 1e-6
+
+_HDF5 = b"\x89HDF\r\n\x1a\n"
+_NETCDF3 = (b"CDF\x01", b"CDF\x02", b"CDF\x05")
+
+
+def result_container(path: Path) -> str:
+    """``"netcdf"``, ``"zarr"`` or ``"csv"`` (a trajectory's) by content (the name's suffix must
+    agree); anything else -- missing, empty, a JSON export, another CSV table -- is one
+    :class:`ParameterError` line."""
+    if not path.exists():
+        raise ParameterError(f"{path} does not exist")
+    suffix = path.suffix.lower()
+    if path.is_dir():
+        if (path / "zarr.json").is_file() or (path / ".zgroup").is_file():
+            if suffix != ".zarr":
+                raise ParameterError(f"{path} is a Zarr store but its name does not end in .zarr; rename it")
+            return "zarr"
+        raise ParameterError(f"{path} is a directory, not a Zarr store made by skewpend (no group metadata in it)")
+    if not path.is_file():
+        raise ParameterError(f"{path} is not a regular file")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(512)
+    except OSError as exc:
+        raise ParameterError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    if not head:
+        raise ParameterError(f"{path} is empty, not a result file")
+    if head.startswith(_HDF5) or head.startswith(_NETCDF3):
+        if suffix != ".nc":
+            raise ParameterError(f"{path} is a NetCDF file but its name does not end in .nc; rename it")
+        return "netcdf"
+    from .io import CSV_COLUMNS
+
+    first = head.split(b"\n", 1)[0].strip()
+    if first == ",".join(CSV_COLUMNS).encode():
+        if suffix != ".csv":
+            raise ParameterError(f"{path} is a trajectory CSV file but its name does not end in .csv; rename it")
+        return "csv"
+    if head.lstrip()[:1] in (b"{", b"["):
+        raise ParameterError(f"{path} is a JSON export (of `--out FILE.json` or `--format json`), which keeps only part "
+                             "of a result; to read a result back, write it with to_netcdf() or `--out FILE.nc`")
+    if b"," in first and b"\0" not in head:
+        raise ParameterError(f"{path} is a CSV table without how it was made (header {first[:60].decode(errors='replace')!r}); "
+                             "only trajectories are read back from CSV: write other results with to_netcdf() or "
+                             "`--out FILE.nc`")
+    raise ParameterError(f"{path} is not a result file of skewpend (neither NetCDF, a Zarr store nor a trajectory CSV)")
+
+
+def netcdf_kind(path: Path) -> Any:
+    """The attribute ``kind`` of the NetCDF file ``path`` (None without one)."""
+    from .errors import require
+
+    netCDF4 = require("netCDF4", "reading .nc")
+    try:
+        with netCDF4.Dataset(path) as ds:
+            return ds.getncattr("kind") if "kind" in ds.ncattrs() else None
+    except (OSError, RuntimeError, KeyError) as exc:
+        raise ParameterError(f"{path} is not a readable NetCDF file, or is truncated "
+                             f"({str(exc).strip() or type(exc).__name__})") from None
+
+
+def zarr_store_kind(path: Path) -> Any:
+    """The store kind (attribute ``kind``) of a Zarr store skewpend made; another store is refused."""
+    from .errors import require
+
+    zarr = require("zarr", "a Zarr store")
+    try:
+        attrs = dict(zarr.open_group(str(path), mode="r").attrs)
+    except Exception:  # noqa: BLE001 - whatever Zarr raises for a damaged group
+        raise ParameterError(f"{path} is a damaged Zarr store: its group metadata cannot be read") from None
+    if "skewpend_store" not in attrs:
+        raise ParameterError(f"{path} is a Zarr store, but not one made by skewpend")
+    return attrs.get("kind")
+
+
+def json_attr(attrs: Mapping[str, Any], key: str) -> Any:
+    """The attribute ``key`` decoded from JSON (as :func:`canonical_json` wrote it)."""
+    return json.loads(str(attrs[key]))
+
+
+def protocol_fields(path: Path, attrs: Mapping[str, Any], parameters) -> Dict[str, Any]:
+    """``params``, ``settings``, ``stats``, ``status``, ``message`` of a file this protocol wrote
+    (:meth:`ResultProtocol._base_attrs`); ``parameters`` is the parameters' class (its
+    ``from_mapping`` reads them: this layer does not know the model)."""
+    try:
+        params = parameters.from_mapping(json_attr(attrs, "params"))
+    except SkewpendError as exc:
+        raise ParameterError(f"{path}: its parameters cannot be read back ({exc})") from None
+    return {"params": params, "settings": json_attr(attrs, "settings"), "stats": json_attr(attrs, "stats"),
+            "status": Status.of(int(attrs["status"])), "message": str(attrs["message"])}
+
+
+def agree(path: Path, what: str, stored, rebuilt, *, scale: float = 0.0) -> None:
+    """Refuse ``stored`` unless it equals ``rebuilt`` to :data:`AGREEMENT` of their scale (NaN
+    where NaN): a file written by another model is one :class:`ParameterError` line."""
+    a = np.asarray(stored, dtype=complex if np.iscomplexobj(stored) or np.iscomplexobj(rebuilt) else float)
+    b = np.asarray(rebuilt, dtype=a.dtype)
+    if a.shape != b.shape:
+        raise ParameterError(f"{path} was written by another model: its {what} has shape {a.shape}, the parameters "
+                             f"give {b.shape}")
+    nan_a, nan_b = np.isnan(a), np.isnan(b)
+    finite = np.isfinite(a) & np.isfinite(b)
+    both_inf = np.isinf(a) & np.isinf(b) & (a == b)
+    size = max(scale, float(np.max(np.abs(a[finite]))) if finite.any() else 0.0, 1e-300)
+    diff = float(np.max(np.abs(a[finite] - b[finite]))) if finite.any() else 0.0
+    if np.any(nan_a != nan_b) or not np.all(finite | both_inf | (nan_a & nan_b)) or diff > AGREEMENT * size:
+        raise ParameterError(
+            f"{path} was written by another model: its {what} differs from what its parameters give "
+            f"(by {diff:.3g}, more than {AGREEMENT:g} of {size:.3g}); it cannot be read back with these equations")
+
+
+def netcdf_reader(kind: str) -> Callable[[Callable[..., Any]], Callable[[Any], Any]]:
+    """Decorator: ``build(path, variables, attrs)`` of one result kind becomes ``read(path)``, the
+    reader of that kind's ``*.nc`` file (:func:`skewpend.io.read_netcdf`); a variable or
+    attribute missing or bad is one :class:`ParameterError` line naming the kind."""
+    def decorate(build):
+        @functools.wraps(build)
+        def read(path):
+            from .io import read_netcdf
+
+            path = Path(path)
+            variables, attrs = read_netcdf(path, kind=kind)
+            try:
+                return build(path, variables, attrs)
+            except ParameterError:
+                raise
+            except (KeyError, TypeError, ValueError, IndexError) as exc:  # json.JSONDecodeError is a ValueError
+                raise ParameterError(f"{path} is not a {kind} made by skewpend (missing or bad {type(exc).__name__}: "
+                                     f"{exc})") from None
+        return read
+    return decorate

@@ -33,7 +33,7 @@ from typing import Callable, ClassVar, List, Sequence, Tuple
 import numpy as np
 
 from ..errors import EquilibriumError, ParameterError
-from ..results import DatasetSpec, Result
+from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..status import Status
 from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
 from ..symbolic.model import SCALAR_NAMES, Parameters
@@ -329,6 +329,46 @@ class Equilibria(Result):
             attrs={"title": "equilibria of the skewed double pendulum (skewpend)",
                    "labels": ", ".join(e.label for e in self.points), "index_sum": self.index_sum, **self._base_attrs()},
         )
+
+
+@netcdf_reader(Equilibria.result_kind)
+def read_equilibria(path, variables, attrs) -> Equilibria:
+    """:class:`Equilibria` from their ``*.nc`` file (``read_equilibria(path)``, for
+    :func:`skewpend.open_result`): the file keeps each point's angles, potential, index, label and
+    frequencies; its linearisation is computed again there (:func:`equilibrium_at`), and the
+    stored values must agree with it."""
+    import dataclasses
+
+    from ..errors import SkewpendError
+
+    proto = protocol_fields(path, attrs, Parameters)
+    params = proto["params"]
+    labels = [s.strip() for s in str(attrs.get("labels", "")).split(",") if s.strip()]
+    phi, psi = (np.asarray(variables[k], dtype=float).reshape(-1) for k in ("phi", "psi"))
+    if len(labels) != phi.size:
+        raise ParameterError(f"{path} is not equilibria made by skewpend: {len(labels)} labels for {phi.size} points")
+    points = []
+    for i in range(phi.size):
+        q = (float(phi[i]), float(psi[i]))
+        try:
+            e = equilibrium_at(params, q)
+        except SkewpendError:
+            raise ParameterError(f"{path} was written by another model: ({q[0]:.6g}, {q[1]:.6g}) is not an equilibrium "
+                                 f"of its parameters") from None
+        freq = np.asarray(variables["frequency"], dtype=float)[i]
+        grow = np.asarray(variables["growth_rate"], dtype=float)[i]
+        stored = {"frequencies": freq[np.isfinite(freq)], "growth_rates": grow[np.isfinite(grow)]}
+        agree(path, f"equilibrium {i}'s angles", wrap(np.subtract(e.q, q)), np.zeros(2), scale=math.pi)
+        agree(path, f"equilibrium {i}'s potential", float(variables["potential"][i]), e.potential,
+              scale=max(abs(float(variables["potential"][i])), float(np.abs(e.K).max())))
+        for name, value in stored.items():
+            agree(path, f"equilibrium {i}'s {name.replace('_', ' ')}", value, getattr(e, name))
+        if int(variables["morse_index"][i]) != e.morse_index or labels[i] != e.label:
+            raise ParameterError(f"{path} was written by another model: equilibrium {i} is {labels[i]} of index "
+                                 f"{int(variables['morse_index'][i])} there, {e.label} of index {e.morse_index} here")
+        points.append(dataclasses.replace(e, q=q, potential=float(variables["potential"][i]),
+                                          morse_index=int(variables["morse_index"][i]), label=labels[i], **stored))
+    return Equilibria(points=points, **proto)
 
 
 def _gradient_scale(grad_hess, tau: np.ndarray) -> float:

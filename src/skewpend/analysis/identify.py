@@ -53,7 +53,7 @@ from typing import Any, ClassVar, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ..errors import ParameterError
-from ..results import DatasetSpec, Result
+from ..results import DatasetSpec, Result, agree, json_attr, netcdf_reader, protocol_fields
 from ..status import Status
 from ..symbolic.model import Parameters
 from ..symbolic.regressor import PI_NAMES, SCALE_DIRECTION, base_parameters, linear_estimate, standard_parameters
@@ -353,6 +353,58 @@ class Identification(Result):
         ``repr`` (they read back exactly).  A result whose status is not success is refused
         (:class:`~skewpend.errors.ParameterError`) unless ``force=True``.  Returns the path."""
         return _write_run_file(self, path, force=force)
+
+
+@netcdf_reader(Identification.result_kind)
+def read_identification(path, variables, attrs) -> Identification:
+    """An :class:`Identification` from its ``*.nc`` file (``read_identification(path)``, for
+    :func:`skewpend.open_result`): a successful fit's stored base parameters must be those of its
+    stored model (a model projected onto the nearest physical body, or a failed fit, keeps the
+    estimate itself)."""
+    from ..errors import SkewpendError
+
+    proto = protocol_fields(path, attrs, Parameters)
+    try:
+        params0 = Parameters.from_mapping(json_attr(attrs, "params0"))
+    except SkewpendError as exc:
+        raise ParameterError(f"{path}: its starting parameters cannot be read back ({exc})") from None
+
+    def names(key):
+        text = str(attrs.get(key, ""))
+        return tuple(x for x in text.split("; ") if x) if text else ()
+
+    def numbers(key):
+        return [float(x) for x in np.atleast_1d(np.asarray(attrs.get(key, []), dtype=float))]
+
+    ratio_names = names("ratio_names")
+    ratios = dict(zip(ratio_names, numbers("ratios")))
+    ratio_iv = {k: (lo, hi) for k, lo, hi in zip(ratio_names, numbers("ratio_lower"), numbers("ratio_upper"))}
+    values = np.asarray(variables["value"], dtype=float)
+    intervals = np.column_stack([np.asarray(variables["lower"], dtype=float), np.asarray(variables["upper"], dtype=float)])
+    alpha_iv = numbers("alpha_interval") or [math.nan, math.nan]
+    get = lambda key: np.asarray(variables[key], dtype=float) if key in variables else np.zeros(0)  # noqa: E731
+    result = Identification(
+        params0=params0, names=names("base_names"), expressions=names("base_expressions"), values=values,
+        intervals=intervals, free=names("free"), reference=str(attrs.get("reference", "")) or None, ratios=ratios,
+        ratio_intervals=ratio_iv, undetermined=names("undetermined"), not_entering=names("not_entering"),
+        pieces=names("pieces"), residual_rms=get("residual_rms"), validation=names("validation"),
+        heldout_kind=names("heldout_kind"), heldout_rms=get("heldout_rms"), heldout_rms0=get("heldout_rms0"),
+        method=str(attrs.get("method", "linear")), fit_rms=get("fit_rms"),
+        alpha=float(attrs.get("alpha", math.nan)), alpha_interval=(alpha_iv[0], alpha_iv[-1]),
+        alpha_note=str(attrs.get("alpha_note", "")),
+        profile_alpha=np.asarray(variables["profile"], dtype=float) if "profile" in variables else np.zeros(0),
+        profile_cost=get("profile_cost"),
+        correlation=np.asarray(variables["correlation"], dtype=float) if "correlation" in variables else np.zeros((0, 0)),
+        **proto)
+    if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):
+        p = result.params
+        B = model_terms(params0.replace(alpha=None)) if result.settings.get("alpha_free") else model_terms(params0)
+        if tuple(B.names) != result.names:
+            raise ParameterError(f"{path} was written by another model: its base parameters are {list(result.names)}, "
+                                 f"the model's are {list(B.names)}")
+        alpha = float(p.alpha) if p.alpha is not None else 0.0
+        agree(path, "base parameters", values, B.values(standard_vector(p), float(p.a), alpha, float(p.g)))
+    return result
 
 
 def _expression_text(expr) -> str:

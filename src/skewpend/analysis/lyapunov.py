@@ -43,7 +43,7 @@ from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numer
 from ..interrupts import Interrupts
 from ..numeric.driver import check_step_estimate, drive
 from ..numeric.grid import GridJob
-from ..results import DatasetSpec, Result, canonical_json
+from ..results import DatasetSpec, Result, canonical_json, netcdf_reader, protocol_fields
 from ..status import Status
 from ..parsing import initial_state, positive_number
 from ..symbolic.model import Parameters
@@ -213,6 +213,17 @@ class LyapunovSpectrum(Result):
             "stats": dict(self.stats),
             "params": self.params.to_dict(),
         })
+
+
+@netcdf_reader(LyapunovSpectrum.result_kind)
+def read_lyapunov_spectrum(path, variables, attrs) -> LyapunovSpectrum:
+    """A :class:`LyapunovSpectrum` from its ``*.nc`` file (every part of it is stored); called as
+    ``read_lyapunov_spectrum(path)`` by :func:`skewpend.open_result`."""
+    return LyapunovSpectrum(
+        exponents=np.asarray(variables["exponent"], dtype=float), uncertainty=np.asarray(variables["uncertainty"], dtype=float),
+        t=np.asarray(variables["time"], dtype=float), history=np.asarray(variables["history"], dtype=float),
+        window_exponents=np.asarray(variables["window_exponent"], dtype=float), y0=np.asarray(variables["y0"], dtype=float),
+        **protocol_fields(path, attrs, Parameters))
 
 
 @functools.lru_cache(maxsize=256)

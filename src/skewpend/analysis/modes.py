@@ -26,7 +26,7 @@ from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ..errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
-from ..results import DatasetSpec, ResultProtocol
+from ..results import DatasetSpec, ResultProtocol, agree, netcdf_reader, protocol_fields
 from .qep import NotFinite, pair_by_shape, quadratic_eigen
 from ..status import Status
 from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
@@ -318,6 +318,39 @@ class Modes(ResultProtocol):
             d["damped_frequencies"] = self.damped_frequencies.tolist()
             d["damping_ratios"] = self.damping_ratios.tolist()
         return d
+
+
+@netcdf_reader(Modes.result_kind)
+def read_normal_modes(path, variables, attrs) -> Modes:
+    """:class:`Modes` from their ``*.nc`` file (``read_normal_modes(path)``, for
+    :func:`skewpend.open_result`): the modes are computed again from the parameters about the
+    recorded equilibrium, and what the file stores must agree with them; the stored arrays are
+    returned as stored."""
+    import dataclasses
+
+    proto = protocol_fields(path, attrs, Parameters)
+    params = proto["params"]
+    eq = tuple(float(x) for x in proto["settings"].get("equilibrium", (0.0, 0.0)))
+    coulomb = proto["settings"].get("coulomb", "smoothed")  # recorded since the default is "exclude"; before: smoothed
+    pairs = np.asarray(variables["eigenvalue_real"], dtype=float) + 1j * np.asarray(variables["eigenvalue_imag"], dtype=float)
+    try:
+        if eq == (0.0, 0.0):
+            try:
+                rebuilt = normal_modes(params, coulomb=coulomb)
+            except EquilibriumError:
+                rebuilt = normal_modes(params, about=eq, coulomb=coulomb)
+        else:
+            rebuilt = normal_modes(params, about=eq, coulomb=coulomb)
+    except SkewpendError as exc:
+        raise ParameterError(f"{path} was written by another model: its parameters give no modes there ({exc})") from None
+    stored = {"M": variables["M0"], "C": variables["C0"], "K": variables["K0"], "frequencies": variables["frequency"],
+              "periods": variables["period"], "shapes": variables["shape"], "damping_ratios": variables["damping_ratio"],
+              "damped_frequencies": variables["damped_frequency"], "growth_rates": variables["growth_rate"]}
+    stored = {k: np.asarray(v, dtype=float) for k, v in stored.items()}
+    for name, value in stored.items():
+        agree(path, name, value, getattr(rebuilt, name))
+    agree(path, "eigenvalues", pairs, rebuilt.eigenvalue_pairs)
+    return dataclasses.replace(rebuilt, **stored, eigenvalue_pairs=pairs, eigenvalues=pairs[:, 0].copy(), equilibrium=eq)
 
 
 def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Parameters,
@@ -627,6 +660,31 @@ class Sweep(ResultProtocol):
             "resonance_tolerance": self.tolerance,
             "resonances": resonances,
         }
+
+
+@netcdf_reader(Sweep.result_kind)
+def read_modes_sweep(path, variables, attrs) -> Sweep:
+    """A :class:`Sweep` from its ``*.nc`` file (``read_modes_sweep(path)``, for
+    :func:`skewpend.open_result`): swept again from the parameters, its frequencies and mode
+    shapes checked against the stored ones, which it returns."""
+    import dataclasses
+
+    proto = protocol_fields(path, attrs, Parameters)
+    settings = proto["settings"]
+    values = np.asarray(variables["value"], dtype=float)
+    name = str(settings["swept"])
+    try:
+        rebuilt = sweep(proto["params"], name, values, tolerance=float(settings["resonance_tolerance"]))
+    except SkewpendError as exc:
+        raise ParameterError(f"{path} was written by another model: its parameters give no sweep there ({exc})") from None
+    freqs = np.column_stack([variables["omega1"], variables["omega2"]]).astype(float)
+    shapes = np.empty((values.size, 2, 2))
+    for k in (0, 1):
+        shapes[:, 0, k] = variables[f"mode{k + 1}_phi"]
+        shapes[:, 1, k] = variables[f"mode{k + 1}_psi"]
+    agree(path, "frequencies", freqs, rebuilt.frequencies)
+    agree(path, "mode shapes", shapes, rebuilt.shapes)
+    return dataclasses.replace(rebuilt, values=values, frequencies=freqs, shapes=shapes)
 
 
 def _resonances(values: np.ndarray, ratio: np.ndarray, tol: float) -> List[Resonance]:

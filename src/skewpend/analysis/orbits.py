@@ -41,7 +41,7 @@ import numpy as np
 
 from ..checks import angle, numeric_params, positive, progress_callable, tolerances, whole
 from ..errors import EquilibriumError, IntegrationError, ParameterError, SkewpendError
-from ..results import DatasetSpec, Result
+from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..status import Status
 from ..symbolic.model import Parameters
 
@@ -79,6 +79,29 @@ def _require_conservative(params: Parameters, what: str) -> None:
     if params.has_friction:
         raise ParameterError(f"{what} needs a conservative model: with Coulomb friction (cf1 = {params.cf1}, cf2 = "
                              f"{params.cf2}) the energy decays and no orbit is periodic; set cf1 = cf2 = 0")
+
+
+def energy_function(params: Parameters) -> Callable[[np.ndarray], np.ndarray]:
+    """``H(y) = T + Pi - tau . q`` of states ``y`` (n, 4), the energy an orbit keeps, from the
+    model's kernel."""
+    from ..numeric.kernels import kernel_module, parameter_vector
+
+    kernel = kernel_module(params)
+    p = parameter_vector(params)
+    tau = np.array([params.tau1, params.tau2], dtype=float)
+
+    def H(y: np.ndarray) -> np.ndarray:
+        y = np.atleast_2d(np.asarray(y, dtype=float))
+        return kernel.energies(y, p) - y[:, :2] @ tau
+
+    return H
+
+
+def _orbit_energy_check(path, params: Parameters, states: np.ndarray, energies, what: str) -> None:
+    """Refuse a file whose stored orbit energies are not ``H`` of its stored starts."""
+    ok = np.all(np.isfinite(states), axis=1) & np.isfinite(energies)
+    if ok.any():
+        agree(path, f"{what} energy", np.asarray(energies)[ok], energy_function(params)(states[ok]))
 
 
 class _Model:
@@ -315,6 +338,26 @@ class PeriodicOrbit(Result):
             attrs={"title": "periodic orbit of the skewed double pendulum (skewpend)", "components": "phi, psi, dphi, dpsi",
                    **self._base_attrs()},
         )
+
+
+@netcdf_reader(PeriodicOrbit.result_kind)
+def read_periodic_orbit(path, variables, attrs) -> PeriodicOrbit:
+    """A :class:`PeriodicOrbit` from its ``*.nc`` file (``read_periodic_orbit(path)``, for
+    :func:`skewpend.open_result`): its stored multipliers and energy must be those of its stored
+    monodromy matrix and start (a failed orbit, without a monodromy, is read as it is)."""
+    proto = protocol_fields(path, attrs, Parameters)
+    state = np.asarray(variables["state"], dtype=float)
+    energy = float(variables["energy"])
+    mono = np.asarray(variables["monodromy"], dtype=float)
+    orbit = PeriodicOrbit(state=state, period=float(variables["period"]), energy=energy,
+                          rotation=tuple(int(r) for r in proto["settings"].get("rotation", (0, 0))), monodromy=mono,
+                          **proto)
+    mu = np.asarray(variables["multiplier_real"], dtype=float) + 1j * np.asarray(variables["multiplier_imag"], dtype=float)
+    if np.all(np.isfinite(mono)):
+        agree(path, "Floquet multipliers", mu, orbit.multipliers, scale=1.0)
+        _orbit_energy_check(path, proto["params"], state[None, :], np.array([energy]), "orbit's")
+    object.__setattr__(orbit, "multipliers", mu)  # exactly as stored (the same values, to rounding)
+    return orbit
 
 
 def _scales_for(params: Parameters, T: float, E: float) -> _Scales:
@@ -612,23 +655,90 @@ class NNMFamily(_Orbits, Result):
         )
 
 
-def _events(energies, frequencies, sigma, tangents_E) -> List[BranchEvent]:
+def _stability_changes(sigma, frequencies, at_energy: Callable[[int, float], float],
+                       detail: Callable[[int, float, str, float], str]) -> List[BranchEvent]:
+    """Where ``sigma`` crosses +2 (a branch point) or -2 (a period doubling) between neighbouring
+    orbits ``k`` and ``k + 1``, at the fraction ``t`` between them (linear): the energy there is
+    ``at_energy(k, t)``, the event's text ``detail(k, t, way, level)`` (``way``: the family
+    "loses" or "regains" stability)."""
     out: List[BranchEvent] = []
-    for k in range(len(energies) - 1):
-        def at(a, b, k=k):
-            t = a / (a - b) if a != b else 0.5
-            return (float(energies[k] + t * (energies[k + 1] - energies[k])),
-                    float(frequencies[k] + t * (frequencies[k + 1] - frequencies[k])))
+    for k in range(len(sigma) - 1):
         for level, kind in ((2.0, "branch point"), (-2.0, "period doubling")):
             a, b = sigma[k] - level, sigma[k + 1] - level
             if a * b < 0:
-                E, w = at(a, b)
-                way = ("loses" if abs(sigma[k + 1]) > abs(sigma[k]) else "regains") + " stability"
-                out.append(BranchEvent(kind, k, E, w, f"the family {way} (a multiplier at {'+' if level > 0 else '-'}1)"))
-        if tangents_E[k] * tangents_E[k + 1] < 0:
-            out.append(BranchEvent("fold", k, float(energies[k + 1]), float(frequencies[k + 1]),
-                                   "the energy turns back along the family"))
+                t = a / (a - b)
+                way = "loses" if abs(sigma[k + 1]) > abs(sigma[k]) else "regains"
+                out.append(BranchEvent(kind, k, at_energy(k, t), float(frequencies[k] + t * (frequencies[k + 1] - frequencies[k])),
+                                       detail(k, t, way, level)))
     return out
+
+
+def _family_events(energies, frequencies, sigma, folds: Sequence[int]) -> List[BranchEvent]:
+    """The events of a family in energy: its stability changes, and a fold after each orbit ``k``
+    of ``folds`` (where the energy turns back), in the order of the orbits."""
+    out = _stability_changes(
+        sigma, frequencies, lambda k, t: float(energies[k] + t * (energies[k + 1] - energies[k])),
+        lambda k, t, way, level: f"the family {way} stability (a multiplier at {'+' if level > 0 else '-'}1)")
+    out += [BranchEvent("fold", k, float(energies[k + 1]), float(frequencies[k + 1]), "the energy turns back along the family")
+            for k in folds]
+    return sorted(out, key=lambda e: (e.index, e.kind == "fold"))
+
+
+def _events(energies, frequencies, sigma, tangents_E) -> List[BranchEvent]:
+    return _family_events(energies, frequencies, sigma,
+                          [k for k in range(len(energies) - 1) if tangents_E[k] * tangents_E[k + 1] < 0])
+
+
+@netcdf_reader(NNMFamily.result_kind)
+def read_nnm(path, variables, attrs) -> NNMFamily:
+    """A :class:`NNMFamily` from its ``*.nc`` file (``read_nnm(path)``, for
+    :func:`skewpend.open_result`): the monodromy matrices are not stored, so one period of the
+    variational flow from each stored start gives them (and must close the orbit); the stored
+    energies, sigma, multipliers and events must follow from them."""
+    import re
+
+    from ..numeric.variational import FlowIntegrator
+
+    proto = protocol_fields(path, attrs, Parameters)
+    params, settings = proto["params"], proto["settings"]
+    energies = np.asarray(variables["energy"], dtype=float)
+    periods = np.asarray(variables["period"], dtype=float)
+    states = np.asarray(variables["state"], dtype=float).reshape(-1, 4)
+    sigma = np.asarray(variables["sigma"], dtype=float)
+    mu = (np.asarray(variables["multiplier_real"], dtype=float)
+          + 1j * np.asarray(variables["multiplier_imag"], dtype=float)).reshape(-1, 4)
+    flow = FlowIntegrator(params, rtol=float(settings.get("rtol", 1e-12)), atol=float(settings.get("atol", 1e-12)))
+    monos = np.empty((len(energies), 4, 4))
+    for k in range(len(energies)):
+        fl = flow(states[k], float(periods[k]))
+        if fl.status != Status.SUCCESS:
+            raise ParameterError(f"{path}: orbit {k} cannot be integrated again ({fl.status.message})")
+        agree(path, f"orbit {k} (closing after one period)", fl.y, states[k], scale=1.0 + float(np.abs(states[k]).max()))
+        monos[k] = fl.stm
+    _orbit_energy_check(path, params, states, energies, "orbits'")
+    freq = 2 * np.pi / periods
+    # folds (where the energy turns back along the family) are kept in the file's event list only
+    text = str(attrs.get("events", ""))
+    folds = []
+    for m in re.finditer(r"fold at E = ([-+0-9.eEinfa]+) J", text):
+        k = next((k for k in range(len(energies) - 1) if f"{energies[k + 1]:.9g}" == m.group(1)), None)
+        if k is None:
+            raise ParameterError(f"{path} is not a nonlinear normal mode made by skewpend: its fold at E = {m.group(1)} J "
+                                 "is not one of its orbits")
+        folds.append(k)
+    events = _family_events(energies, freq, sigma, folds)
+    rebuilt_text = "; ".join(f"{e.kind} at E = {e.energy:.9g} J" for e in events)
+    if rebuilt_text != text:
+        raise ParameterError(f"{path} is not a nonlinear normal mode made by skewpend: its events ({text!r}) do not follow "
+                             f"from its orbits ({rebuilt_text!r})")
+    family = NNMFamily(mode=int(attrs["mode"]), linear_frequency=float(attrs["linear_frequency"]), energies=energies,
+                       periods=periods, states=states, monodromies=monos, events=events,
+                       energy_max=float(settings.get("energy_max", energies[-1] if energies.size else math.nan)), **proto)
+    agree(path, "sigma (trace of the monodromy - 2)", sigma, family.sigma, scale=4.0)
+    agree(path, "Floquet multipliers", mu, family.multipliers, scale=1.0)
+    object.__setattr__(family, "sigma", sigma)  # exactly as stored (the same values, to rounding)
+    object.__setattr__(family, "multipliers", mu)
+    return family
 
 
 #: The first orbit of a family lies at this fraction of the energy (``energy_max`` or the flip energy).
@@ -880,6 +990,33 @@ class AlphaFamily(_Orbits, Result):
         )
 
 
+def _alpha_events(alphas, frequencies, sigma, energy: float) -> List[BranchEvent]:
+    """The stability changes of a family along alpha at the one ``energy``."""
+    return _stability_changes(
+        sigma, frequencies, lambda k, t: energy,
+        lambda k, t, way, level: f"at alpha = {math.degrees(alphas[k] + t * (alphas[k + 1] - alphas[k])):.4g} deg the orbit "
+                                 f"{way} stability")
+
+
+@netcdf_reader(AlphaFamily.result_kind)
+def read_nnm_alpha(path, variables, attrs) -> AlphaFamily:
+    """An :class:`AlphaFamily` from its ``*.nc`` file (``read_nnm_alpha(path)``, for
+    :func:`skewpend.open_result`): each stored start must have the family's energy with its own
+    skew angle; the events follow from the stored sigma."""
+    proto = protocol_fields(path, attrs, Parameters)
+    params = proto["params"]
+    alphas = np.asarray(variables["alpha"], dtype=float)
+    periods = np.asarray(variables["period"], dtype=float)
+    states = np.asarray(variables["state"], dtype=float).reshape(-1, 4)
+    sigma = np.asarray(variables["sigma"], dtype=float)
+    energy = float(attrs["energy"])
+    for a, y in zip(alphas, states):
+        _orbit_energy_check(path, params.replace(alpha=float(a)), y[None, :], np.array([energy]),
+                            f"orbit's at alpha = {a:.6g} rad")
+    return AlphaFamily(mode=int(attrs["mode"]), energy=energy, alphas=alphas, periods=periods, states=states, sigma=sigma,
+                       events=_alpha_events(alphas, 2 * np.pi / periods, sigma, energy), **proto)
+
+
 def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Sequence[float],
               rtol: float = ORBIT_TOL, atol: float = ORBIT_TOL,
               progress: Optional[Callable[[float, float], None]] = None) -> AlphaFamily:
@@ -947,18 +1084,7 @@ def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Seque
                 k += 1
             a_prev = a
             target = float(grid[k]) if k < len(grid) else a
-    events: List[BranchEvent] = []
-    s = np.array(sigma)
-    w = 2 * np.pi / np.array(periods)
-    for j in range(len(s) - 1):
-        for level, kind in ((2.0, "branch point"), (-2.0, "period doubling")):
-            d0, d1 = s[j] - level, s[j + 1] - level
-            if d0 * d1 < 0:
-                t_ = d0 / (d0 - d1)
-                al = alphas_done[j] + t_ * (alphas_done[j + 1] - alphas_done[j])
-                way = "loses" if abs(s[j + 1]) > abs(s[j]) else "regains"
-                events.append(BranchEvent(kind, j, energy, float(w[j] + t_ * (w[j + 1] - w[j])),
-                                          f"at alpha = {math.degrees(al):.4g} deg the orbit {way} stability"))
+    events = _alpha_events(alphas_done, 2 * np.pi / np.array(periods), np.array(sigma), energy)
     if status == Status.SUCCESS:
         message = f"{len(alphas_done)} orbits at E = {energy:g} J from alpha = {math.degrees(grid[0]):.4g} to {math.degrees(grid[-1]):.4g} deg"
     settings = {"mode": int(mode), "energy": energy, "alphas": grid.tolist(), "rtol": rtol, "atol": atol}

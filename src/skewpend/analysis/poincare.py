@@ -30,7 +30,7 @@ from typing import Any, Callable, ClassVar, Dict, List, Optional, Tuple
 import numpy as np
 
 from ..errors import IntegrationError, ParameterError
-from ..results import DatasetSpec, Result
+from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..status import Status
 from ..parsing import positive_number
 from ..symbolic.model import Parameters
@@ -384,6 +384,56 @@ class PoincareSection(Result):
         table = np.column_stack([self.orbit, self.t, self.q, self.p, self.dq, self.energy_error])
         with atomic_path(path) as tmp:
             np.savetxt(tmp, table, delimiter=",", header=header, comments="", fmt=["%d"] + ["%.17g"] * 5)
+
+
+@netcdf_reader(PoincareSection.result_kind)
+def read_poincare_section(path, variables, attrs) -> PoincareSection:
+    """A :class:`PoincareSection` from its ``*.nc`` file (``read_poincare_section(path)``, for
+    :func:`skewpend.open_result`): the file keeps the other joint's angle, momentum and speed at
+    each crossing; the full states are rebuilt (the section joint at the section, its speed from
+    the momentum, or where that does not fix it from the energy) and their energies must be the
+    stored ones."""
+    from ..numeric.kernels import kernel_module, parameter_vector
+    from .orbits import energy_function
+
+    proto = protocol_fields(path, attrs, Parameters)
+    params, settings = proto["params"], proto["settings"]
+    name = str(settings["coordinate"])
+    c = 0 if name == "phi" else 1
+    o = 1 - c
+    other = ("psi", "phi")[c]
+    q = np.asarray(variables[other], dtype=float)
+    p = np.asarray(variables[f"p_{other}"], dtype=float)
+    dq = np.asarray(variables[f"d{other}"], dtype=float)
+    error = np.asarray(variables["energy_error"], dtype=float)
+    # the full states: the section joint at the section (its angle wrapped), its speed from the
+    # other joint's momentum p = M_oc q_c' + M_oo q_o' (or, where M_oc vanishes, from the energy)
+    kernel = kernel_module(params, chaos=True)
+    pv = parameter_vector(params)
+    states = np.zeros((q.size, 4))
+    states[:, c] = math.remainder(float(settings["value"]), 2 * math.pi)
+    states[:, o] = q
+    states[:, 2 + o] = dq
+    if q.size:
+        M = mass_matrices(kernel, pv, states[:, :2])
+        Moc, Moo, Mcc = M[:, o, c], M[:, o, o], M[:, c, c]
+        coupled = np.abs(Moc) > 1e-6 * np.sqrt(np.abs(Moo * Mcc))
+        with np.errstate(all="ignore"):
+            states[:, 2 + c] = np.where(coupled, (p - Moo * dq) / np.where(coupled, Moc, 1.0), 0.0)
+        H = energy_function(params)
+        if not coupled.all():
+            kinetic_rest = float(settings["energy"]) + error[~coupled] - H(states[~coupled])  # the section joint's share
+            sign = np.where(int(settings.get("direction", 1)) < 0, -1.0, 1.0)
+            states[~coupled, 2 + c] = sign * np.sqrt(np.clip(2 * kinetic_rest / Mcc[~coupled], 0.0, None))
+        agree(path, "crossings' energy", float(settings["energy"]) + error, H(states),
+              scale=abs(float(settings["energy"]) - float(proto["stats"].get("e_min", 0.0))))
+    n_unreachable = int(proto["stats"].get("unreachable", 0))
+    return PoincareSection(
+        q=q, p=p, dq=dq, t=np.asarray(variables["t"], dtype=float), states=states, energy_error=error,
+        orbit=np.asarray(variables["orbit_index"]).astype(np.int64),
+        seeds=np.column_stack([variables["seed_q"], variables["seed_p"]]).astype(float),
+        crossings=np.asarray(variables["crossings"]).astype(np.int64), orbit_status=np.asarray(variables["status"]).astype(np.int32),
+        unreachable=np.full((n_unreachable, 2), np.nan), **proto)
 
 
 def poincare(

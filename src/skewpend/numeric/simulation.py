@@ -222,6 +222,29 @@ def open_trajectory(path) -> Trajectory:
                       energy_drift=float(meta.get("energy_drift", math.nan)), kept=True)
 
 
+#: The settings every :func:`simulate` run records (None when unset: then not in its file).
+SIMULATE_SETTINGS = ("t_end", "dt_out", "max_steps")
+
+
+def read_trajectory_result(path) -> Trajectory:
+    """:func:`open_trajectory`, checked as :func:`skewpend.open_result` reads every result: the
+    parameters must be there, every setting of :data:`SIMULATE_SETTINGS` is present (None where
+    the file leaves it out), and the stored energy must be the model's at the stored states (a few
+    rows, spread over the run) to :data:`~skewpend.results.AGREEMENT`."""
+    from ..results import agree
+    from .kernels import kernel_module, parameter_vector
+
+    traj = open_trajectory(path)
+    if not traj.params.is_numeric:
+        raise ParameterError(f"{path} is not a trajectory made by skewpend: its parameters are missing")
+    for key in SIMULATE_SETTINGS:  # a file leaves out a setting that is None (dt_out when unset)
+        traj.settings.setdefault(key, None)
+    rows = np.unique(np.linspace(0, len(traj.t) - 1, min(len(traj.t), 16)).astype(int))
+    kernel, p = kernel_module(traj.params), parameter_vector(traj.params)
+    agree(path, "energy", traj.energy[rows], kernel.energies(traj.y[rows], p))
+    return traj
+
+
 def check_start(kernel, p, y) -> None:
     """Refuse an initial state ``y`` (4,) whose energy or acceleration is not finite (overflow:
     huge speeds or parameters) -- before any integration, for every computation from a start."""
