@@ -22,6 +22,7 @@ from .schema import CORE_NAMES, GEOMETRY_NAMES, NAMES, OPTIONAL_DEFAULTS, SCALAR
 
 __all__ = [
     "DEFAULT_RUN", "reference_parameters", "reference_state", "COMMAND_DEFAULTS", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
+    "parameters_toml", "toml_value",
 ]
 
 #: The run ``skewpend simulate`` does with no options (the reference case of the README).
@@ -321,3 +322,32 @@ def whole_multiple(value: float, unit: float) -> bool:
     """Whether ``value`` is a whole number of ``unit`` (to rounding)."""
     k = round(value / unit)
     return math.isclose(k * unit, value, rel_tol=1e-9, abs_tol=1e-12 * unit)
+
+
+# -- writing a model back -----------------------------------------------------------------------
+def toml_value(value: Any) -> str:
+    """A parameter's value as TOML: numbers by ``repr`` (exact round trip), vectors and 3x3
+    matrices as arrays, a symbol name as a string."""
+    import json
+
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, str):
+        return json.dumps(value)
+    return repr(float(value))
+
+
+def parameters_toml(params) -> list:
+    """The ``[parameters]`` lines of a run file for ``params`` (``key = value``, in the schema's
+    order), the inverse of :func:`build_parameters`: the keys that are set; ``alpha`` only where it
+    enters (no ``axis2``); the optional terms and the torques only where they differ from their
+    default (off), so a run file does not spell out what is off, and reads back the same."""
+    out = []
+    for key in NAMES:
+        value = getattr(params, key)
+        if value is None or (key == "alpha" and not params.uses_alpha):
+            continue
+        if key in OPTIONAL_DEFAULTS and value == OPTIONAL_DEFAULTS[key]:
+            continue
+        out.append(f"{key} = {toml_value(value)}")
+    return out

@@ -36,6 +36,7 @@ from ..errors import EquilibriumError, ParameterError
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..status import Status
 from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
+from ..schema import GEOMETRY_NAMES, names
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
 __all__ = ["Equilibrium", "Equilibria", "equilibria", "equilibrium_at", "find_equilibrium", "linearisation_functions",
@@ -55,8 +56,7 @@ DEGENERATE = 1e-9
 def _geometry_only(params: Parameters) -> Parameters:
     """``params`` with every scalar symbolic (the bodies and axes kept): one derivation serves
     every ``a, b, m1, m2, alpha, g, c, tau``."""
-    keep = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
-    return Parameters(**{k: getattr(params, k) for k in keep}, **{k: None for k in SCALAR_NAMES})
+    return Parameters(**{k: getattr(params, k) for k in GEOMETRY_NAMES}, **{k: None for k in SCALAR_NAMES})
 
 
 @lru_cache(maxsize=32)
@@ -202,7 +202,7 @@ def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], funct
     from scipy.linalg import LinAlgError, eig, eigh
 
     if coulomb != "smoothed":  # Coulomb friction enters C only (its slope cfs cf): excluded, evaluated at cf = 0
-        values = [0.0 if n in ("cf1", "cf2") else v for n, v in zip(SCALAR_NAMES, values)]
+        values = [0.0 if n in names(stem="cf") else v for n, v in zip(SCALAR_NAMES, values)]
     Pi, _, H, M, C = functions(*values, float(q[0]), float(q[1]))
     M = np.array(M, dtype=float)
     C = np.array(C, dtype=float) * np.ones((2, 2))

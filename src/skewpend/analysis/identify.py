@@ -55,6 +55,9 @@ import numpy as np
 from ..errors import ParameterError
 from ..results import DatasetSpec, Result, agree, json_attr, netcdf_reader, protocol_fields
 from ..status import Status
+from ..config import parameters_toml
+from ..schema import (CORE_NAMES, DAMPING_NAMES, FRICTION_NAMES, GEOMETRY_NAMES, MASS_NAMES, ROTOR_NAMES, TORQUE_NAMES,
+                      names)
 from ..symbolic.model import Parameters
 from ..symbolic.regressor import PI_NAMES, SCALE_DIRECTION, base_parameters, linear_estimate, standard_parameters
 from .measurements import Measurements, Piece
@@ -84,13 +87,12 @@ BLOCK = 2.0
 #: freedom of Student's t); with fewer, the intervals are reported as not available, with the reason.
 MIN_CLUSTERS = 5
 
-#: Fields of Parameters that are not base parameters (they enter the equations nonlinearly or are not
-#: in them); ``alpha`` is freed by the output-error fit.
-_NOT_LINEAR = ("a", "b", "m1", "m2", "alpha", "g", "cfs", "gr", "axis1", "axis2",
-               "com1", "com2", "inertia1", "inertia2", "tau1", "tau2")
 #: The terms beside the inertial ones that the equations are linear in: Coulomb friction and the
 #: rotors' inertia (for given cfs and gr); identified when params0 has them (nonzero).
-EXTRA = ("cf1", "cf2", "Ir")
+EXTRA = names(stem="cf") + names(stem="Ir")
+#: Fields of Parameters that are not base parameters (they enter the equations nonlinearly or are not
+#: in them); ``alpha`` is freed by the output-error fit.
+_NOT_LINEAR = CORE_NAMES + tuple(n for n in FRICTION_NAMES + ROTOR_NAMES if n not in EXTRA) + GEOMETRY_NAMES + TORQUE_NAMES
 
 _BASE_CACHE: Dict[Tuple, Any] = {}
 
@@ -1189,7 +1191,7 @@ def _realise_masses(params0: Parameters, W, values: np.ndarray, a: float, alpha:
     free_entry = _realise_free_entries(params0, W, values, a, alpha, g, held)
     if free_entry is not None:
         return free_entry
-    if any(n in ("m1", "m2") for n in B.names):  # a mass is itself determined: it cannot be chosen
+    if any(n in MASS_NAMES for n in B.names):  # a mass is itself determined: it cannot be chosen
         raise first
     for k in MASS_FACTORS:
         try:
@@ -1278,7 +1280,7 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
     rows = [k for k in range(len(piv)) if piv[k] not in held_piv]
     for k in rows:
         pi[piv[k]] = values[k] - T[k, dep] @ pi[dep]
-    changes: Dict[str, Any] = {"c1": float(pi[idx["c1"]]), "c2": float(pi[idx["c2"]])}
+    changes: Dict[str, Any] = {n: float(pi[idx[n]]) for n in DAMPING_NAMES}
     if project:  # damping, friction and rotor inertia >= 0
         changes = {k: max(v, 0.0) for k, v in changes.items()}
         extra = {k: max(v, 0.0) for k, v in extra.items()}
@@ -1318,39 +1320,6 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
 
 # -- the run file (Identification.to_run_file) ----------------------------------------------------------
 #: The [parameters] keys of a run file, in the order written.
-_RUN_FILE_KEYS = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "com1", "com2", "inertia1", "inertia2",
-                  "axis1", "axis2", "cf1", "cf2", "cfs", "Ir", "gr", "tau1", "tau2")
-
-
-def _toml_value(value) -> str:
-    """A parameter's value as TOML: numbers by ``repr`` (exact round trip), vectors and 3x3
-    matrices as arrays, a symbol name as a string."""
-    import json
-
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, str):
-        return json.dumps(value)
-    return repr(float(value))
-
-
-def _run_file_parameters(params: Parameters) -> List[Tuple[str, Any]]:
-    """The model keys of ``params`` that are set.  ``alpha`` only where it enters (no ``axis2``);
-    the optional terms ``cf1, cf2, cfs, Ir, gr`` and the torques ``tau1, tau2`` only where they
-    differ from the model's default (off): a run file does not have to spell out what is off,
-    and such a file reads back the same."""
-    default = Parameters()
-    out = []
-    for key in _RUN_FILE_KEYS:
-        value = getattr(params, key)
-        if value is None or (key == "alpha" and not params.uses_alpha):
-            continue
-        if key in ("cf1", "cf2", "cfs", "Ir", "gr", "tau1", "tau2") and value == getattr(default, key):
-            continue
-        out.append((key, value))
-    return out
-
-
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
@@ -1397,7 +1366,7 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
         lines.append(f"# undetermined: {_one_line(u)}")
     lines += ["# use it as: skewpend simulate --config FILE (any command that reads [parameters])", "",
               "[parameters]"]
-    lines += [f"{key} = {_toml_value(value)}" for key, value in _run_file_parameters(result.params)]
+    lines += parameters_toml(result.params)
     text = "\n".join(lines) + "\n"
     with atomic_path(path) as tmp:  # (it refuses a path that is not one, in one line)
         tmp.write_text(text, encoding="utf-8")

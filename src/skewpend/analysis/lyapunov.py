@@ -128,7 +128,7 @@ class LyapunovSpectrum(Result):
     def conservative(self) -> bool:
         """Without damping the flow preserves phase-space volume (constant torques derive from a
         potential): the spectrum sums to 0 and comes in pairs +-l."""
-        return float(self.params.c1 or 0.0) == 0.0 and float(self.params.c2 or 0.0) == 0.0 and not self.params.has_friction
+        return not self.params.dissipative
 
     @property
     def kaplan_yorke_dimension(self) -> float:

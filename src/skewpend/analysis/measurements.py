@@ -40,6 +40,7 @@ from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from ..errors import ParameterError
+from ..schema import AXIS_NAMES, TORQUE_NAMES
 
 __all__ = ["Measurements", "Piece", "Convention", "SKEWPEND", "convert", "convert_back",
            "MIN_SAMPLES", "GAP_FACTOR", "NONFINITE", "KAHEMAN_FILE", "KAHEMAN_PARAMETERS_FILE", "DFKI_COLUMNS",
@@ -58,9 +59,10 @@ KAHEMAN_FILE = "DoublePendulumDataForParameterEstimation.mat"
 KAHEMAN_PARAMETERS_FILE = "EstimatedParameters_DoublePendulum.mat"
 #: The columns :meth:`Measurements.from_dfki` reads (``filtered=True`` takes ``pos_filt``/``vel_filt``).
 DFKI_COLUMNS = {"t": "time", "phi": "pos_meas1", "psi": "pos_meas2", "dphi": "vel_meas1", "dpsi": "vel_meas2",
-                "tau1": "tau_meas1", "tau2": "tau_meas2"}
+                **dict(zip(TORQUE_NAMES, ("tau_meas1", "tau_meas2")))}
 
-_COLUMN_KEYS = ("t", "phi", "psi", "dphi", "dpsi", "tau1", "tau2")
+#: The keys of a recording's columns: time, angles, speeds and the joint torques (the model's ``tau1, tau2``).
+_COLUMN_KEYS = ("t", "phi", "psi", "dphi", "dpsi") + TORQUE_NAMES
 #: The units of a file's time column a :class:`Convention` may state, in seconds.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
 _CHECKS = ("mean", "tracking", "velocities", "units")
@@ -910,7 +912,7 @@ def _read_csv_piece(path: Path, columns: Mapping[str, Any], delimiter: str) -> D
     for need in ("t", "phi", "psi"):
         if columns.get(need) is None:
             raise ParameterError(f"columns must name the {need!r} column", parameter="columns")
-    for a, b in (("dphi", "dpsi"), ("tau1", "tau2")):
+    for a, b in (("dphi", "dpsi"), TORQUE_NAMES):
         if (columns.get(a) is None) != (columns.get(b) is None):
             raise ParameterError(f"columns: {a} and {b} come together (give both or neither; a torque may be "
                                  "a number such as 0.0 for an unactuated joint)", parameter="columns")
@@ -943,7 +945,7 @@ def _read_csv_piece(path: Path, columns: Mapping[str, Any], delimiter: str) -> D
             return None
         return np.column_stack([col[k] if k in col else np.full(n, float(columns[k])) for k in (a, b)])
 
-    for k in ("tau1", "tau2", "dphi", "dpsi"):
+    for k in TORQUE_NAMES + ("dphi", "dpsi"):
         v = columns.get(k)
         if v is not None and not isinstance(v, str) and not isinstance(v, (int, float)):
             raise ParameterError(f"columns: {k} must be a column name or a number", parameter="columns")
@@ -952,7 +954,7 @@ def _read_csv_piece(path: Path, columns: Mapping[str, Any], delimiter: str) -> D
         if v is not None and not isinstance(v, str):
             raise ParameterError(f"columns: {k} must be a column name, got {v!r}", parameter="columns")
     return {"t": col["t"], "q": np.column_stack([col["phi"], col["psi"]]), "dq": pair("dphi", "dpsi"),
-            "u": pair("tau1", "tau2"), "name": path.stem, "source": str(path)}
+            "u": pair(*TORQUE_NAMES), "name": path.stem, "source": str(path)}
 
 
 def _load_mat(path: Path) -> Dict[str, Any]:
@@ -1087,7 +1089,7 @@ def dfki_lab_values(params) -> Dict[str, float]:
     if p.axis2 is None and float(p.alpha) != 0.0:
         raise ParameterError(f"the DFKI lab's model is planar; this model has alpha = {math.degrees(float(p.alpha)):.6g} "
                              "deg (write a .toml run file instead)")
-    for name in ("axis1", "axis2"):
+    for name in AXIS_NAMES:
         axis = getattr(p, name)
         if axis is not None:
             n = np.asarray(axis, dtype=float)

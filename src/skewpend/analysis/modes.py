@@ -30,6 +30,7 @@ from ..results import DatasetSpec, ResultProtocol, agree, netcdf_reader, protoco
 from .qep import NotFinite, pair_by_shape, quadratic_eigen
 from ..status import Status
 from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
+from ..schema import CORE_NAMES, DAMPING_NAMES, GEOMETRY_NAMES, LENGTH_NAMES, MASS_NAMES, TORQUE_NAMES, names, unit
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
 __all__ = [
@@ -61,17 +62,15 @@ def _matrix_function(geometry: Parameters) -> Callable:
 
 
 def _geometry(params: Parameters) -> Parameters:
-    keep = ("com1", "com2", "inertia1", "inertia2", "axis1", "axis2")
     return Parameters(
-        **{k: getattr(params, k) for k in keep},
-        **{k: None for k in SCALAR_NAMES if k not in ("tau1", "tau2")},
-        tau1=0.0,
-        tau2=0.0,
+        **{k: getattr(params, k) for k in GEOMETRY_NAMES},
+        **{k: None for k in SCALAR_NAMES if k not in TORQUE_NAMES},
+        **{k: 0.0 for k in TORQUE_NAMES},
     )
 
 
 def _describe(params: Parameters) -> str:
-    names = [n for n in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2") if n != "alpha" or params.uses_alpha]
+    names = [n for n in CORE_NAMES + DAMPING_NAMES if n != "alpha" or params.uses_alpha]
     return ", ".join(f"{n} = {getattr(params, n):g}" for n in names if isinstance(getattr(params, n), float))
 
 
@@ -98,7 +97,7 @@ def _matrices(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Tuple[np.nd
         )
     f = _matrix_function(_geometry(params))
     # Coulomb friction enters C0 only (its slope cfs cf); excluded, it is evaluated at cf = 0
-    left_out = () if coulomb == "smoothed" else ("cf1", "cf2")
+    left_out = () if coulomb == "smoothed" else names(stem="cf")
     values = [
         np.float64(0.0 if (n == "alpha" and not params.uses_alpha) or n in left_out else float(getattr(params, n)))
         for n in SCALAR_NAMES
@@ -520,10 +519,11 @@ def characteristic_equation(params: Optional[Parameters] = None):
 
 # -- sweeps -----------------------------------------------------------------------------------------
 #: What ``sweep`` can vary: a parameter, or a ratio (the numerator is scaled, the denominator kept).
-SWEEPABLE = ("alpha", "a", "b", "m1", "m2", "g", "b/a", "m2/m1")
+_RATIOS = tuple(f"{pair[1]}/{pair[0]}" for pair in (LENGTH_NAMES, MASS_NAMES))  # b/a, m2/m1
+SWEEPABLE = ("alpha",) + LENGTH_NAMES + MASS_NAMES + ("g",) + _RATIOS
 #: The parameter a sweep sets (a ratio sets its numerator).
-SWEPT_PARAMETER = {"b/a": "b", "m2/m1": "m2"}
-_UNITS = {"alpha": "rad", "a": "m", "b": "m", "m1": "kg", "m2": "kg", "g": "m/s^2", "b/a": "1", "m2/m1": "1"}
+SWEPT_PARAMETER = {ratio: ratio.split("/")[0] for ratio in _RATIOS}
+_UNITS = {**{n: unit(n).replace("²", "^2") for n in SWEEPABLE if n not in _RATIOS}, **{r: "1" for r in _RATIOS}}
 
 
 def parse_sweep(spec: str) -> Tuple[str, np.ndarray]:

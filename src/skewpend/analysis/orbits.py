@@ -73,12 +73,8 @@ TRIVIAL_AMPLITUDE = 1e-6
 
 
 def _require_conservative(params: Parameters, what: str) -> None:
-    if params.c1 or params.c2:
-        raise ParameterError(f"{what} needs a conservative model: with damping (c1 = {params.c1:g}, c2 = {params.c2:g}) "
-                             "the energy decays and no orbit is periodic; set c1 = c2 = 0")
-    if params.has_friction:
-        raise ParameterError(f"{what} needs a conservative model: with Coulomb friction (cf1 = {params.cf1}, cf2 = "
-                             f"{params.cf2}) the energy decays and no orbit is periodic; set cf1 = cf2 = 0")
+    """Periodic orbits keep ``H = T + Pi - tau . q``: constant torques are allowed, losses are not."""
+    params.require_lossless(what)
 
 
 def energy_function(params: Parameters) -> Callable[[np.ndarray], np.ndarray]:

@@ -33,6 +33,7 @@ from ..errors import IntegrationError, ParameterError
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..status import Status
 from ..parsing import positive_number
+from ..schema import LENGTH_NAMES
 from ..symbolic.model import Parameters
 from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
 
@@ -111,13 +112,9 @@ def parse_section(section) -> Tuple[str, float]:
 
 
 def require_conservative(params: Parameters, what: str) -> None:
-    moving = {k: getattr(params, k) for k in ("c1", "c2", "tau1", "tau2") if getattr(params, k) != 0}
-    if moving:
-        values = ", ".join(f"{k} = {v:g}" for k, v in moving.items())
-        raise ParameterError(
-            f"{what} needs a conservative model (energy is then constant), but {values}; "
-            "set the damping c1, c2 and the torques tau1, tau2 to 0"
-        )
+    """The section's energy surface needs ``E = T + Pi`` constant: :attr:`Parameters.conservative`
+    (no damping, no Coulomb friction, no torques)."""
+    params.require_conservative(what)
 
 
 def mass_matrices(kernel, p, q: np.ndarray) -> np.ndarray:
@@ -537,8 +534,8 @@ def poincare(
     starts = surface.states(seeds_ok[:, 0], seeds_ok[:, 1], direction)
     n = starts.shape[0]
     want = int(n_crossings)
-    a, b, g = (float(getattr(params, k)) for k in ("a", "b", "g"))  # numeric: checked above
-    period = 2.0 * math.pi * math.sqrt((a + b) / max(g, 1e-12))  # a swing, roughly
+    reach = sum(float(getattr(params, k)) for k in LENGTH_NAMES)  # numeric: checked above
+    period = 2.0 * math.pi * math.sqrt(reach / max(float(params.g), 1e-12))  # a swing, roughly
     t_max = 200.0 * period * want if t_max is None else t_max
     kernel, p = surface.kernel, surface.p
     from .lyapunov import check_exponent_work

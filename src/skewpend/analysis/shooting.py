@@ -51,6 +51,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ParameterError
+from ..schema import LENGTH_NAMES
 from ..symbolic.symbols import SYMBOLS
 
 __all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit"]
@@ -101,7 +102,7 @@ def _generated(Yb: sp.Matrix) -> Tuple[Callable, Callable, int]:
 
 
 #: The inputs of the generated functions, in the order of their C arguments after the state.
-_INPUTS = ("phi", "psi", "dphi", "dpsi", "alpha", "a", "g")
+_INPUTS = ("phi", "psi", "dphi", "dpsi", "alpha") + (LENGTH_NAMES[0], "g")  # the regressor's STRUCTURE
 
 
 def _c_function(name: str, exprs: Sequence[sp.Expr]) -> str:

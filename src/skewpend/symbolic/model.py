@@ -277,7 +277,7 @@ class _Model:
     @property
     def dissipative(self) -> bool:
         """Whether energy is dissipated: viscous damping or Coulomb friction (non-zero or symbolic)."""
-        return any(self._on(n) for n in names(role="damping") + names(stem="cf"))
+        return bool(self.dissipative_terms)
 
     @property
     def conservative(self) -> bool:
@@ -291,6 +291,33 @@ class _Model:
     def nonconservative_terms(self) -> Tuple[str, ...]:
         """The parameters that make the model non-conservative (non-zero or symbolic), in the schema's order."""
         return tuple(n for n in NONCONSERVATIVE_NAMES if self._on(n))
+
+    @property
+    def dissipative_terms(self) -> Tuple[str, ...]:
+        """The parameters that dissipate energy (viscous damping, Coulomb friction; non-zero or symbolic)."""
+        return tuple(n for n in names(role="damping") + names(stem="cf") if self._on(n))
+
+    def _terms_text(self, terms) -> str:
+        return ", ".join(f"{n} = {getattr(self, n):g}" if getattr(self, n) is not None else f"{n} symbolic" for n in terms)
+
+    def require_conservative(self, what: str) -> "Parameters":
+        """Return self, or raise :class:`~skewpend.errors.ParameterError` (one line naming the terms) when
+        the energy ``E = T + Pi`` is not conserved: damping, Coulomb friction or torques."""
+        if not self.conservative:
+            terms = self.nonconservative_terms
+            raise ParameterError(f"{what} needs a conservative model (E = T + Pi constant), but "
+                                 f"{self._terms_text(terms)}; set {', '.join(terms)} to 0")
+        return self
+
+    def require_lossless(self, what: str) -> "Parameters":
+        """Return self, or raise :class:`~skewpend.errors.ParameterError` when energy is dissipated
+        (damping or Coulomb friction; constant torques derive from a potential and are allowed)."""
+        if self.dissipative:
+            terms = self.dissipative_terms
+            raise ParameterError(f"{what} needs a conservative model without losses (the energy T + Pi - tau . q decays "
+                                 f"otherwise; constant torques are allowed), but {self._terms_text(terms)}; "
+                                 f"set {', '.join(terms)} to 0")
+        return self
 
     @property
     def is_numeric(self) -> bool:
