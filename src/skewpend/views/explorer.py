@@ -40,7 +40,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any, Dict, List
 
-from .. import __version__
+from .. import __version__, schema
 from ..errors import SkewpendError
 
 __all__ = ["create_app", "serve", "check_host", "check_address", "Address", "LIMITS", "TIME_LIMIT", "HEAVY_SLOTS",
@@ -184,29 +184,34 @@ def require_web(what: str = "the explorer"):
         raise SkewpendError(f"{what} needs FastAPI and uvicorn, which are not installed: {WEB_EXTRA}") from None
 
 
+#: The parameters the API's requests take (the page integrates no Coulomb friction or rotors).
+API_PARAMETERS = schema.CORE_NAMES + schema.DAMPING_NAMES + schema.TORQUE_NAMES
+#: The largest value the API takes of a parameter, by its unit (the negative limit too for a real one).
+API_LIMITS = {"m": 10, "kg": 100, "rad": 2 * math.pi, "m/s²": 100, "N m s": 100, "N m": 1000}
+
+
 def _models():
     """The request models (pydantic), built on first use so that importing this module is cheap."""
     from typing import Annotated
 
-    from pydantic import BaseModel, ConfigDict, Field
+    from pydantic import BaseModel, ConfigDict, Field, create_model
 
-    two_pi = 2 * math.pi
+    from ..config import DEFAULT_RUN
+
     Entry = Annotated[float, Field(ge=-1000, le=1000)]
+    reference = DEFAULT_RUN["parameters"]
 
-    class Model(BaseModel):
-        """The pendulum: thin uniform rods with the specification's hinge axes (SI units, radians)."""
+    def parameter(name: str):
+        """The API's field of the parameter ``name``: the schema's bound, the explorer's limit of its unit."""
+        f = schema.field(name)
+        top = API_LIMITS[f.unit]
+        low = {"gt": 0} if f.bound == "positive" else {"ge": 0} if f.bound == "nonnegative" else {"ge": -top}
+        default = reference.get(name, schema.default(name))
+        return (float, Field(default, le=top, description=f"{schema.meaning(name)} [{f.unit}]", **low))
 
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
-        a: float = Field(1.0, gt=0, le=10, description="length of rod 1 [m]")
-        b: float = Field(0.8, gt=0, le=10, description="length of rod 2 [m]")
-        m1: float = Field(1.0, gt=0, le=100, description="mass of rod 1 [kg]")
-        m2: float = Field(0.7, gt=0, le=100, description="mass of rod 2 [kg]")
-        alpha: float = Field(0.6, ge=-two_pi, le=two_pi, description="skew angle of the hinges [rad]")
-        g: float = Field(9.81, ge=0, le=100, description="gravitational acceleration [m/s^2]")
-        c1: float = Field(0.0, ge=0, le=100, description="damping of hinge 1 [N m s]")
-        c2: float = Field(0.0, ge=0, le=100, description="damping of hinge 2 [N m s]")
-        tau1: float = Field(0.0, ge=-1000, le=1000, description="constant torque at hinge 1 [N m]")
-        tau2: float = Field(0.0, ge=-1000, le=1000, description="constant torque at hinge 2 [N m]")
+    Model = create_model("Model", __config__=ConfigDict(extra="forbid", allow_inf_nan=False, strict=True),
+                         __doc__="The pendulum: thin uniform rods with the specification's hinge axes (SI units, radians).",
+                         **{name: parameter(name) for name in API_PARAMETERS})
 
     class EquationsRequest(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
@@ -259,13 +264,13 @@ def _finite(values) -> list:
 
 @lru_cache(maxsize=256)
 def _equations(values: tuple, digits: int) -> Dict[str, Any]:
+    """The equations of the model ``values`` (its (name, value) pairs: hashable, for the cache)."""
     from ..symbolic.derivation import derive
     from ..symbolic.model import Parameters
     from ..symbolic.layout import equations_tex, numeric
     from ..symbolic.render import tex
 
-    names = ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2")
-    params = Parameters(**dict(zip(names, values)))
+    params = Parameters(**dict(values))
     eom = derive(params)
     M, f = numeric(eom.mass_matrix, digits), numeric(eom.forcing, digits)
     return {
@@ -390,7 +395,7 @@ def create_app(*, physics_params=None, hosts=None, port=None):
 
     @app.post("/api/equations", responses=_ERRORS, summary="The equations of motion M(q) q'' = f(q, q') for the given parameters (LaTeX)")
     async def equations(req: EquationsRequest) -> Dict[str, Any]:
-        values = tuple(float(v) for v in req.model.model_dump().values())
+        values = tuple((k, float(v)) for k, v in req.model.model_dump().items())
         _params(req.model)  # validated by the library first (one clear message)
         return await heavy(lambda check: _equations(values, req.digits))
 

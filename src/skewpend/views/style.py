@@ -98,36 +98,41 @@ def _vec(v) -> str:
     return "(" + ", ".join(fmt(c, 3) for c in v) + ")"
 
 
-#: The parameters' names as a picture's text writes them (``symbols=True``).
-SYMBOLS = {"m1": "m₁", "m2": "m₂", "alpha": "α", "c1": "c₁", "c2": "c₂", "tau1": "τ₁", "tau2": "τ₂"}
+def _unit_text(name: str) -> str:
+    from .. import schema
+
+    unit = schema.unit(name)
+    return "" if unit in ("", "1") else f" {unit}"
 
 
 def parameter_text(params, *, skip: tuple = (), symbols: bool = False, sep: str = ", ") -> str:
     """The parameters as ``a = 1 m, b = 0.8 m, m1 = 1 kg, m2 = 0.7 kg, alpha = 34.38°, g = 9.81 m/s²``,
-    then damping and torques if non-zero and any general body or axis that was given.
-    Names are those of :class:`skewpend.Parameters` and the command-line options, or with
-    ``symbols`` the mathematical symbols (``m₁``, ``α``, ``τ₁``: an animation's title); ``sep``
-    joins the parts."""
+    then each optional term that differs from its default (damping, torques, Coulomb friction, the
+    rotors: ``cf1 = 0.1 N m``) and any general body or axis that was given; every name, unit and
+    symbol from :mod:`skewpend.schema`.  Names are those of :class:`skewpend.Parameters` and the
+    command-line options, or with ``symbols`` the mathematical symbols (``m₁``, ``α``, ``τ₁``: an
+    animation's title); ``sep`` joins the parts."""
+    from .. import schema
+
     d = params.to_dict()
     parts: List[str] = []
-    units = {"a": "m", "b": "m", "m1": "kg", "m2": "kg", "g": "m/s²", "c1": "N m s", "c2": "N m s", "tau1": "N m", "tau2": "N m"}
-    for name in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2"):
+    for name in schema.SCALAR_NAMES:
         value = d.get(name)
         if name in skip or value is None:
             continue
-        if name in ("c1", "c2", "tau1", "tau2") and value == 0:
+        if schema.default(name) is not None and value == schema.default(name):
             continue
-        label = SYMBOLS.get(name, name) if symbols else name
+        label = schema.symbol(name) if symbols else name
         if isinstance(value, str):  # left symbolic
             parts.append(f"{label} = {value}")
-        elif name == "alpha":
+        elif schema.field(name).bound == "angle":
             parts.append(f"{label} = {fmt(math.degrees(value))}°")
         else:
-            parts.append(f"{label} = {fmt(value)} {units[name]}")
-    for name in ("axis1", "axis2"):
+            parts.append(f"{label} = {fmt(value)}{_unit_text(name)}")
+    for name in schema.AXIS_NAMES:
         if d.get(name) is not None and name not in skip:
             parts.append(f"{name} = {_vec(d[name])}")
-    custom = [n for n in ("com1", "com2", "inertia1", "inertia2") if d.get(n) is not None]
+    custom = [n for n in schema.COM_NAMES + schema.INERTIA_NAMES if d.get(n) is not None]
     if custom:
         parts.append("custom " + ", ".join(custom))
     return sep.join(parts)

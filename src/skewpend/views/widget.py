@@ -30,6 +30,7 @@ try:
 except ImportError as exc:  # pragma: no cover - the extra is part of the test install
     raise ImportError("skewpend.widget needs anywidget: pip install 'skewpend[notebook]'") from exc
 
+from .. import schema
 from ..errors import ParameterError
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
@@ -39,7 +40,7 @@ __all__ = ["widget", "PendulumWidget", "WidgetState"]
 FPS = 30
 MAX_FRAMES = 20_000
 #: The sliders shown, in this order (alpha only when the second axis is e0(alpha)).
-SLIDERS = ("alpha", "phi0", "psi0", "a", "b", "m1", "m2", "g", "c1", "c2")
+SLIDERS = ("alpha", "phi0", "psi0") + schema.LENGTH_NAMES + schema.MASS_NAMES + ("g",) + schema.DAMPING_NAMES
 
 
 @dataclass(frozen=True, eq=False)  # y is an array: compare fields
@@ -259,7 +260,8 @@ class PendulumWidget(anywidget.AnyWidget):
         self.running = False
 
     def __repr__(self) -> str:
-        values = ", ".join(f"{k}={v:g}" for k, v in self.values.items() if k not in ("tau1", "tau2") or v)
+        values = ", ".join(f"{k}={v:g}" for k, v in self.values.items()  # a term off at its default is left out
+                           if k in SLIDERS or schema.default(k) is None or v != schema.default(k))
         what = "replaying a computed run" if self.replay else "live"
         y0 = ", ".join(f"{v:g}" for v in self.y0)
         return f"<PendulumWidget {what}, {'running' if self.running else 'paused'}: {values}; y0 = ({y0})>"

@@ -9,6 +9,7 @@ import numpy as np
 
 from ... import checks
 from ...errors import SkewpendError
+from ...schema import AXIS_NAMES
 from ..style import parameter_text
 from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, HEAD_LENGTH, HEAD_RADIUS, LABEL_GAP, ROD_RADIUS,
                     SCENE_COLORS, FrameScene, Geometry, check_frame_size, check_view, choose_view, cone, cylinder, eye,
@@ -124,8 +125,8 @@ class FrameRenderer:
         handles = [
             Line2D([], [], color=SCENE_COLORS["rod1"], lw=5, solid_capstyle="round", label="rod 1 (a)"),
             Line2D([], [], color=SCENE_COLORS["rod2"], lw=5, solid_capstyle="round", label="rod 2 (b)"),
-            Line2D([], [], color=SCENE_COLORS["axis1"], lw=2, marker=">", ms=5, label="hinge 1 axis n₁ (fixed)"),
-            Line2D([], [], color=SCENE_COLORS["axis2"], lw=2, marker=">", ms=5, label="hinge 2 axis e = P₁·e₀ (turns with rod 1)"),
+            Line2D([], [], color=SCENE_COLORS["hinge1"], lw=2, marker=">", ms=5, label="hinge 1 axis n₁ (fixed)"),
+            Line2D([], [], color=SCENE_COLORS["hinge2"], lw=2, marker=">", ms=5, label="hinge 2 axis e = P₁·e₀ (turns with rod 1)"),
             Line2D([], [], color=SCENE_COLORS["trail"], lw=1.6, label=f"tip trail (last {g.trail:g} s)" if g.trail > 0 else "tip trail (off)"),
             Line2D([], [], color=(0.80, 0.80, 0.83), lw=1, label=f"floor grid {self.grid_step:g} m"),
         ]
@@ -226,14 +227,14 @@ class FrameRenderer:
         self.artists["solids"] = Poly3DCollection(np.zeros((1, 4, 3)), linewidths=0.6, animated=True)
         for name in ("shadows", "trail", "solids"):
             ax.add_collection3d(self.artists[name])
-        (self.artists["axis1"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["axis1"], lw=2.0, solid_capstyle="butt", animated=True)
-        (self.artists["axis2"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["axis2"], lw=2.0, solid_capstyle="butt", animated=True)
+        (self.artists["axis1"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["hinge1"], lw=2.0, solid_capstyle="butt", animated=True)
+        (self.artists["axis2"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["hinge2"], lw=2.0, solid_capstyle="butt", animated=True)
         self.artists["heads"] = Poly3DCollection(np.zeros((1, 4, 3)), linewidths=0.4, animated=True)
         ax.add_collection3d(self.artists["heads"])
         label_kw = dict(fontsize=small + 1, fontweight="bold", ha="center", va="center", animated=True)
-        self.artists["axis1_label"] = ax.text(0, 0, 0, "n₁", color=SCENE_COLORS["axis1"], **label_kw)
-        self.artists["axis2_label"] = ax.text(0, 0, 0, "e", color=SCENE_COLORS["axis2"], **label_kw)
-        (self.artists["axis1_ref"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["axis1"], lw=1.2, ls=(0, (2, 2)), alpha=0.9, animated=True)
+        self.artists["axis1_label"] = ax.text(0, 0, 0, "n₁", color=SCENE_COLORS["hinge1"], **label_kw)
+        self.artists["axis2_label"] = ax.text(0, 0, 0, "e", color=SCENE_COLORS["hinge2"], **label_kw)
+        (self.artists["axis1_ref"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["hinge1"], lw=1.2, ls=(0, (2, 2)), alpha=0.9, animated=True)
         (self.artists["skew_arc"],) = ax.plot([0, 0], [0, 0], [0, 0], color="0.15", lw=1.1, animated=True)
         self.artists["skew_label"] = ax.text(0, 0, 0, "α" if self.uses_alpha else "∠", color="0.1", fontsize=small + 1, ha="center", va="center", animated=True)
         self.artists["readout"] = fig.text(
@@ -305,13 +306,13 @@ class FrameRenderer:
         # hinge axes: lines through the hinges, arrow heads at the + ends, labels beyond
         heads, head_colors = [], []
         head_len, head_r = HEAD_LENGTH * g.reach, HEAD_RADIUS * g.reach
-        for i, name in ((0, "axis1"), (1, "axis2")):
+        for i, name in enumerate(AXIS_NAMES):
             seg = world_to_plot(sc.axis_segment(i))
             line = self.artists[name]
             line.set_data_3d(seg[:, 0], seg[:, 1], seg[:, 2])
             q, n = cone(seg[1], seg[1] + head_len * D[i], head_r)
             heads.append(q)
-            head_colors.append(self._shade(n, np.asarray(SCENE_COLORS[name])))
+            head_colors.append(self._shade(n, np.asarray(SCENE_COLORS[f"hinge{i + 1}"])))
             label = C[i] + (h + head_len + LABEL_GAP * g.reach) * D[i]
             self.artists[f"{name}_label"].set_position_3d(label)
         ref = world_to_plot(np.array([sc.axis_centers[1] - h * sc.axis_directions[0], sc.axis_centers[1] + h * sc.axis_directions[0]]))
@@ -363,7 +364,7 @@ class FrameRenderer:
             if art.get_visible():
                 art.do_3d_projection()
                 art.draw(renderer)
-        for name in ("axis1_ref", "skew_arc", "axis1", "axis2"):
+        for name in ("axis1_ref", "skew_arc") + AXIS_NAMES:  # the hinge axes' arrows are named as their parameters
             self.artists[name].draw(renderer)
         self.artists["heads"].do_3d_projection()
         self.artists["heads"].draw(renderer)
