@@ -10,9 +10,21 @@ from typing import Callable, Dict, List, Tuple
 import numpy as np
 
 from ... import __version__
+from ... import schema
 from ...errors import SkewpendError
 
 from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
+
+def nonconservative_text(p) -> str:
+    """The terms that make ``p`` non-conservative, as HTML: ``Coulomb friction in hinge 1 cf1 = 0.1 N m``
+    (:attr:`skewpend.Parameters.nonconservative_terms`; meanings and units from the schema)."""
+    parts = []
+    for n in p.nonconservative_terms:
+        value = getattr(p, n)
+        shown = "symbolic" if value is None else f"= {fmt_num(value)} {schema.unit(n)}"
+        parts.append(f"{esc(schema.meaning(n))} <code>{n}</code> {shown}")
+    return ", ".join(parts)
+
 
 # -- section 7: chaos ------------------------------------------------------------------------------------------
 def chaos_jobs(ctx: Context) -> Dict[str, Callable]:
@@ -25,7 +37,7 @@ def chaos_jobs(ctx: Context) -> Dict[str, Callable]:
     from ...analysis.poincare import poincare
 
     p = ctx.params
-    if not all(getattr(p, k) == 0 for k in ("c1", "c2", "tau1", "tau2")):
+    if not p.conservative:  # damping, Coulomb friction or torques: no energy surface
         return {}
     span = potential_range(p)
     jobs: Dict[str, Callable] = {}
@@ -80,12 +92,13 @@ def section_chaos(ctx: Context) -> str:
         out.append(facts_html(facts))
         notes.append(f"Lyapunov {spec.stats['wall_time']:.2f} s")
 
-    conservative = all(getattr(p, k) == 0 for k in ("c1", "c2", "tau1", "tau2"))
-    if not conservative:
-        out.append(prose("<p class=\"note\">Poincaré sections and the chaos diagram need an energy surface, that is a "
-                      "conservative model; with the damping or torques of section 1 they are left out (the Lyapunov "
-                      "exponents above include the damping: their sum is the rate of phase-space contraction).</p>"))
-        ctx.notes["chaos"] = ", ".join(notes) + "; sections and diagram skipped (not conservative)"
+    if not p.conservative:
+        terms = p.nonconservative_terms
+        out.append("<p class=\"note\">Poincaré sections and the chaos diagram need an energy surface, that is a "
+                   "conservative model; this one is not (" + nonconservative_text(p) + ": section 1), so they are left "
+                   "out (the Lyapunov exponents above are those of this model: with damping or friction their sum is "
+                   "the rate of phase-space contraction).</p>")
+        ctx.notes["chaos"] = ", ".join(notes) + f"; sections and diagram skipped (not conservative: {', '.join(terms)})"
         return "\n".join(out)
 
     span = potential_range(p)

@@ -8,19 +8,55 @@ from typing import Dict, List, Tuple
 import numpy as np
 
 from ...symbolic.layout import equations_fit, equations_tex, layout, linear_tex, numeric, rounded_linear
+from ... import schema
 from ...errors import SkewpendError
 from ...symbolic.model import Parameters
 
 from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
 
 # -- section 2: the derivation ---------------------------------------------------------------------------
+def _optional_symbolic(p: Parameters) -> Dict[str, object]:
+    """The optional terms (the schema's scalars with a default: damping, torques, Coulomb friction,
+    the rotors) as the symbolic derivation takes them: a term that is switched on (its default is 0
+    and its value is not) symbolic; a modifier of a term (a non-zero default: the friction's
+    smoothing rate, the gear ratio) symbolic when a term of its role is on; every other at its
+    default."""
+    on = {n for n, d in schema.OPTIONAL_DEFAULTS.items() if d == 0 and getattr(p, n) != 0}
+    roles_on = {schema.field(n).role for n in on}
+    out: Dict[str, object] = {}
+    for n, d in schema.OPTIONAL_DEFAULTS.items():
+        symbolic = n in on if d == 0 else schema.field(n).role in roles_on
+        out[n] = None if symbolic else d
+    return out
+
+
+def _roles_on(p: Parameters) -> Tuple[str, ...]:
+    """The roles of the optional terms the equations of ``p`` carry (non-zero or symbolic), in the schema's order."""
+    roles = []
+    for n, d in schema.OPTIONAL_DEFAULTS.items():
+        role = schema.field(n).role
+        if d == 0 and (getattr(p, n) is None or getattr(p, n) != 0) and role not in roles:
+            roles.append(role)
+    return tuple(roles)
+
+
+#: How each optional role enters: its words, and its part of the generalised forces Q_i (None: it
+#: enters the kinetic energy instead).
+_ROLE_TEXT = {
+    "damping": ("viscous damping", r"- c_i\,\dot q_i"),
+    "torque": ("joint torques", r"\tau_i"),
+    "friction": ("Coulomb friction", r"- c_{fi}\arctan(c_{fs}\,\dot q_i)"),
+    "rotor": ("the motors' rotors", None),
+}
+
+
 def _symbolic_model(p: Parameters) -> Tuple[Parameters, bool]:
     """The model the derivation is shown for, and whether it is symbolic: the specification's
-    thin rods with every scalar symbolic (damping and torques symbolic where the report's are
-    not zero, else 0); general bodies and axes with the report's values."""
+    thin rods with every scalar symbolic (the optional terms -- damping, torques, Coulomb friction,
+    the rotors -- symbolic where the report's are on, else at their defaults); general bodies and
+    axes with the report's values."""
     if p.is_thin_rods:
-        extra = {k: (None if getattr(p, k) else 0.0) for k in ("c1", "c2", "tau1", "tau2")}
-        return Parameters(**extra), True
+        return Parameters(**_optional_symbolic(p)), True
     return p, False
 
 
@@ -108,9 +144,13 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
            r"\underline{j})$ is larger by the constant $m_2 g b/2$, which no equation of motion sees):</p>")
         + display_math(layout(r"\Pi", 12, steps["Pi"], tex, prefix=r"\Pi_1 + \Pi_2 = ")),
     ))
-    forced = any(getattr(p, k) is None or getattr(p, k) != 0 for k in ("c1", "c2", "tau1", "tau2"))
-    q = (r"$Q_i = \tau_i - c_i\,\dot q_i$ (joint torques and viscous damping)" if forced
-         else r"$Q_i = 0$ (no dissipation, as in the specification)")
+    forcing = [r for r in _roles_on(p) if _ROLE_TEXT[r][1] is not None]
+    if forcing:
+        parts = sorted((_ROLE_TEXT[r][1] for r in forcing), key=lambda t: t.startswith("-"))  # tau_i - c_i q_i ...
+        terms = parts[0] + "".join(" " + t if t.startswith("-") else " + " + t for t in parts[1:])
+        q = f"$Q_i = {terms}$ ({' and '.join(_ROLE_TEXT[r][0] for r in forcing)})"
+    else:
+        q = r"$Q_i = 0$ (no dissipation, as in the specification)"
     items.append((
         "Lagrange's equations",
         prose(r"<p>With $q = (\varphi, \psi)$ and the generalised non-potential forces " + q + ":</p>")
@@ -139,8 +179,8 @@ def section_derivation(ctx: Context) -> str:
         out.append(prose(
             "<p>The derivation follows the specification: rotation tensors by Rodrigues' formula for the kinematics, "
             "Lagrange's equations for the dynamics. It is written with every parameter symbolic, "
-            r"$a, b, m_1, m_2, \alpha, g$" + (", and the damping and torques of section 1" if
-                                             any(getattr(model, k) is None for k in ("c1", "c2", "tau1", "tau2")) else "")
+            "$" + ", ".join(schema.tex(n) for n in schema.CORE_NAMES) + "$"
+            + (f", and the {' and '.join(_ROLE_TEXT[r][0] for r in _roles_on(model))} of section 1" if _roles_on(model) else "")
             + ", so that each step can be read against the specification; the values of section 1 are put in at the end. "
             "Each intermediate result is shown in the simplest form found, proved equal to the derivation's own "
             "(which the simulation uses).</p>"

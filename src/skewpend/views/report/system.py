@@ -8,62 +8,59 @@ from typing import Dict, List
 
 import numpy as np
 
+from ... import schema
 from ...errors import SkewpendError
 from ...symbolic.model import Parameters
 
 from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
 
 # -- section 1: the system ------------------------------------------------------------------------
-_UNITS = {"a": "m", "b": "m", "m1": "kg", "m2": "kg", "alpha": "", "g": "m/s²", "c1": "N m s", "c2": "N m s",
-          "tau1": "N m", "tau2": "N m"}
-_MEANING = {
-    "a": "length of rod 1", "b": "length of rod 2", "m1": "mass of rod 1", "m2": "mass of rod 2",
-    "alpha": "angle between the hinge axes with the rods hanging", "g": "gravitational acceleration",
-    "c1": "viscous damping in hinge 1", "c2": "viscous damping in hinge 2",
-    "tau1": "constant torque in hinge 1", "tau2": "constant torque in hinge 2",
-}
-_SYMBOL_TEX = {"a": "a", "b": "b", "m1": "m_1", "m2": "m_2", "alpha": r"\alpha", "g": "g", "c1": "c_1", "c2": "c_2",
-               "tau1": r"\tau_1", "tau2": r"\tau_2", "com1": r"\underline{c}_1", "com2": r"\underline{c}_2",
-               "inertia1": r"\underline{\underline{\Theta}}{}^0_1", "inertia2": r"\underline{\underline{\Theta}}{}^0_2",
-               "axis1": r"\underline{n}_1", "axis2": r"\underline{e}_0"}
-_GENERAL = {
-    "com1": ("centre of mass of body 1, in its frame", "m", "rod midpoint (0, a/2, 0)"),
-    "com2": ("centre of mass of body 2, in its frame", "m", "rod midpoint (0, b/2, 0)"),
-    "inertia1": ("inertia tensor of body 1 about its centre of mass", "kg m²", "thin rod m₁a²/12 (E − jj)"),
-    "inertia2": ("inertia tensor of body 2 about its centre of mass", "kg m²", "thin rod m₂b²/12 (E − jj)"),
-    "axis1": ("axis of hinge 1", "", "k"),
-    "axis2": ("axis of hinge 2 with the rods hanging", "", "e₀ = cos α k + sin α i"),
-}
-
-
 def _unit(unit: str) -> str:
-    return f'<span class="unit">{unit}</span>' if unit else ""
+    return f'<span class="unit">{unit}</span>' if unit and unit != "1" else ""
 
 
 def _vec_text(v) -> str:
     return "(" + ", ".join(fmt_num(x, 5) for x in v) + ")"
 
 
+def table_scalars(p: Parameters) -> List[str]:
+    """The scalars the parameters' table lists: those every model has, its damping and torques
+    (even when zero: the model has them), and each further role's (Coulomb friction with its
+    smoothing rate, the rotors) when one of its parameters differs from its default; names and
+    roles from :mod:`skewpend.schema`."""
+    always = schema.CORE_NAMES + schema.DAMPING_NAMES + schema.TORQUE_NAMES
+    shown = []
+    for name in schema.SCALAR_NAMES:
+        if name == "alpha" and not p.uses_alpha:
+            continue
+        if name not in always:
+            group = schema.names(role=schema.field(name).role)
+            if all(getattr(p, n) == schema.default(n) for n in group):
+                continue
+        shown.append(name)
+    return shown
+
+
 def _parameter_rows(p: Parameters) -> List[List[str]]:
     rows = []
-    for name in ("a", "b", "m1", "m2", "alpha", "g", "c1", "c2", "tau1", "tau2"):
+    for name in table_scalars(p):
         value = getattr(p, name)
-        if name == "alpha":
-            if not p.uses_alpha:
-                continue
-            shown = f"{fmt_deg(value)} = {fmt_num(value)} rad"
+        unit = schema.unit(name)
+        if value is not None and schema.field(name).bound == "angle":
+            shown, unit = f"{fmt_deg(value)} = {fmt_num(value)} rad", ""
         else:
             shown = fmt_num(value)
-        rows.append([inline_math(_SYMBOL_TEX[name]), f"<code>{name}</code>", _MEANING[name], shown, _unit(_UNITS[name])])
-    for name, (meaning, unit, default) in _GENERAL.items():
+        rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown, _unit(unit)])
+    for name in schema.GEOMETRY_NAMES:
         value = getattr(p, name)
         if value is None:
-            shown = f'<span class="note">default: {esc(default)}</span>'
-        elif name.startswith("inertia"):
+            shown = f'<span class="note">default: {esc(schema.default_text(name))}</span>'
+        elif schema.field(name).kind == "inertia":
             shown = "<br>".join(_vec_text(r) for r in value)
         else:
-            shown = _vec_text(value) + (" (unit vector)" if name.startswith("axis") else "")
-        rows.append([inline_math(_SYMBOL_TEX[name]), f"<code>{name}</code>", meaning, shown, _unit(unit)])
+            shown = _vec_text(value) + (" (unit vector)" if name in schema.AXIS_NAMES else "")
+        rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown,
+                     _unit(schema.unit(name))])
     return rows
 
 
@@ -121,8 +118,8 @@ def section_system(ctx: Context) -> str:
         r"they hang), $\underline{k}$ is the axis of the roof hinge, $\underline{i}$ completes the right-handed triple. "
         r"The generalised coordinates are the hinge angles $\varphi$ (hinge 1) and $\psi$ (hinge 2), both zero with the "
         r"rods hanging; gravity acts along $+\underline{j}$. "
-        + ("No dissipation unless damping is given.</p>" if not any(getattr(p, k) for k in ("c1", "c2")) else
-           "The hinges have viscous damping (below).</p>")
+        + ("No damping, friction or torques: the energy $T + \\Pi$ is conserved.</p>" if p.conservative else
+           "Not conservative: " + esc(", ".join(schema.meaning(n) for n in p.nonconservative_terms)) + " (values below).</p>")
     )
     table = table_html(["symbol", "name", "meaning", "value", "unit"], _parameter_rows(p), caption="Parameters (SI units)")
     initial = table_html(
@@ -261,7 +258,7 @@ def section_simulation(ctx: Context) -> str:
     out = [prose(
         f"<p>The nonlinear equations of section 2, integrated from the initial state of section 1 over {fmt_num(ctx.t_end)} s "
         f"with {esc(settings_text(tr.method, tr.settings))}, by compiled C generated from the derivation. "
-        r"$E$ is the energy, $W$ the work done by damping and torques; $E - W$ is conserved.</p>")]
+        r"$E$ is the energy, $W$ the work done by damping, Coulomb friction and torques; $E - W$ is conserved.</p>")]
     out.append(facts_html([
         ("status", status),
         ("energy drift", f"{fmt_num(tr.energy_drift, 3)} &nbsp;<span class=\"note\">(largest |E − W − E₀| / max |E| over every row)</span>"),
