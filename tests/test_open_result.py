@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -65,6 +66,63 @@ def test_every_kind_is_covered(results):
     assert set(result_kinds()) == set(results) and len(results) == 14
     for kind, r in results.items():
         assert r.result_kind == kind
+
+
+def _writers():
+    """``(module, class, kind, top-level functions of the module)`` of every class of the package
+    that writes a result file: it supplies the result protocol's ``_dataset`` or declares its
+    ``result_kind`` (read from the source, a top-level class at a time; a kind that is not a
+    literal, from the class itself)."""
+    import importlib
+    import re
+
+    root = Path(sp.__file__).parent
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_text()
+        if "_dataset" not in text and "result_kind" not in text:
+            continue
+        module = ".".join(("skewpend", *path.relative_to(root).with_suffix("").parts))
+        functions = set(re.findall(r"^def (\w+)\(", text, re.M))
+        for block in re.split(r"^(?=class )", text, flags=re.M)[1:]:
+            name = re.match(r"class (\w+)", block)[1]
+            body = re.split(r"^(?=\S)", block.split("\n", 1)[1], maxsplit=1, flags=re.M)[0]  # up to the next top-level line
+            kind = re.search(r"^    result_kind: ClassVar\[str\] = (.+)$", body, re.M)
+            if name == "ResultProtocol" or not (kind or re.search(r"^    def _dataset\(", body, re.M)):
+                continue
+            assert kind, f"{module}.{name} writes a result file but does not say its result_kind"
+            literal = re.fullmatch(r'"([^"]+)"', kind[1].strip())
+            found.append((module, name, literal[1] if literal else getattr(importlib.import_module(module), name).result_kind,
+                          functions))
+    return found
+
+
+def test_every_kind_is_read_where_it_is_written():
+    """Readers beside writers: the registry has a reader for every kind a class writes, and it is
+    a function of that class's own module (xarray's backends: registered by name, imported on use)."""
+    from skewpend.analysis.readback import READERS
+
+    writers = _writers()
+    assert len(writers) >= 14
+    kinds = {kind: (module, name, functions) for module, name, kind, functions in writers}
+    assert len(kinds) == len(writers)  # one kind, one class
+    assert set(kinds) == set(READERS) == set(result_kinds())
+    for kind, (module, name, functions) in kinds.items():
+        where, _, function = READERS[kind].partition(":")
+        assert where == module, f"{kind}: written by {module}.{name}, read by {READERS[kind]}"
+        assert function in functions, f"{kind}: {module} has no function {function}"
+
+
+def test_the_door_imports_no_reader():
+    """``open_result``'s module imports a reader only when a file of its kind is read: at module
+    level it imports nothing of the analyses or the numeric layer (the registry names them)."""
+    import ast
+
+    from skewpend.analysis import readback
+
+    tree = ast.parse(Path(readback.__file__).read_text())
+    imported = [node.module or "" for node in tree.body if isinstance(node, ast.ImportFrom) and node.level]
+    assert imported and all(m.split(".")[0] in ("errors", "results") for m in imported), imported
 
 
 def _same(back, orig):
