@@ -667,3 +667,18 @@ def test_serve_on_loopback_does_not_warn(capsys, monkeypatch, no_server):
     code, err = _serve(["--port", str(port)], capsys, monkeypatch)
     assert code == 0 and "warning" not in err and f"http://127.0.0.1:{port}/" in err
     assert no_server == [(("127.0.0.1", port), {"open_browser": False})]
+
+
+def test_the_api_refuses_the_terms_the_explorer_cannot_show():
+    """Issue 37: the request model is the schema's core, damping and torques (its bounds the schema's);
+    Coulomb friction and the rotors, which the page does not integrate, are refused (422 naming the
+    field), never ignored."""
+    for name in ("cf1", "cfs", "Ir", "gr"):
+        r, _ = post("/api/equations", {"model": {**DEFAULT_MODEL, name: 0.1}})
+        assert r.status_code == 422 and names_field(r, name), (name, r.text)
+    for field, value in (("a", 0.0), ("c2", -0.1)):  # a length > 0, a damping >= 0
+        r, _ = post("/api/equations", {"model": {**DEFAULT_MODEL, field: value}})
+        assert r.status_code == 422 and names_field(r, field), (field, r.text)
+    props = APP.openapi()["components"]["schemas"]["Model"]["properties"]
+    assert list(props) == list(skewpend.schema.CORE_NAMES + skewpend.schema.DAMPING_NAMES + skewpend.schema.TORQUE_NAMES)
+    assert props["tau1"]["minimum"] == -props["tau1"]["maximum"]  # a torque may be negative

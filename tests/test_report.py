@@ -537,6 +537,29 @@ def test_chaos_section_for_a_damped_model_explains_what_is_left_out():
     assert len(lam) == 4 and sum(lam) < -0.01  # damping contracts phase space
 
 
+def test_a_friction_and_rotor_model_report_shows_its_terms_and_is_not_called_conservative(monkeypatch):
+    """Issue 37: the table, the system's text, the derivation and section 7 of a model with Coulomb
+    friction and geared rotors (and no damping, no torques) name those terms; the energy-surface
+    analyses are skipped as for damping, saying which terms make the model non-conservative."""
+    only_sections(monkeypatch, "section_system", "section_simulation", "section_chaos")
+    p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81, cf1=0.12, cf2=0.05, cfs=50.0, Ir=2e-4, gr=-30.0)
+    page = R.build_report(p, **SMALL)
+    system = html.unescape(re.sub(r"<[^>]+>", " ", _section(page, "system")))
+    system = re.sub(r"\s+", " ", system)
+    assert "Not conservative: Coulomb friction in hinge 1, Coulomb friction in hinge 2" in system
+    assert "is conserved" not in system
+    for row in ("cf1 Coulomb friction in hinge 1 0.12 N m", "cfs smoothing rate of the Coulomb friction's atan 50 s/rad",
+                "Ir rotor inertia of each geared motor 0.0002 kg m²", "gr gear ratio of the motors −30"):
+        assert row in system, row
+    derivation = html.unescape(_section(page, "derivation"))
+    assert r"\arctan(c_{fs}" in derivation and "Coulomb friction and the motors' rotors of section 1" in derivation
+    assert "I_r" in derivation  # the rotors' kinetic energy, symbolic
+    chaos = re.sub(r"\s+", " ", html.unescape(re.sub(r"<[^>]+>", " ", _section(page, "chaos"))))
+    assert "need an energy surface" in chaos and "this one is not (Coulomb friction in hinge 1 cf1 = 0.12 N m" in chaos
+    assert "Poincaré section at" not in chaos and len(re.findall(r"<figure", _section(page, "chaos"))) == 1
+    assert "skipped (not conservative: cf1, cf2)" in html.unescape(_section(page, "provenance"))
+
+
 def test_report_orbits_section(default_report):
     """Section 8: the equilibria table and the frequency-energy plot, for the report's parameters."""
     import skewpend

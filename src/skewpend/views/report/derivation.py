@@ -50,6 +50,17 @@ _ROLE_TEXT = {
 }
 
 
+def forces_text(p: Parameters) -> str:
+    """The generalised non-potential forces ``Q_i`` of ``p``'s equations, as prose with TeX: one term
+    for each role of the optional terms that ``p`` carries (torques, damping, Coulomb friction)."""
+    forcing = [r for r in _roles_on(p) if _ROLE_TEXT[r][1] is not None]
+    if not forcing:
+        return r"$Q_i = 0$ (no dissipation, as in the specification)"
+    parts = sorted((_ROLE_TEXT[r][1] for r in forcing), key=lambda t: t.startswith("-"))  # tau_i - c_i q_i ...
+    terms = parts[0] + "".join(" " + t if t.startswith("-") else " + " + t for t in parts[1:])
+    return f"$Q_i = {terms}$ ({' and '.join(_ROLE_TEXT[r][0] for r in forcing)})"
+
+
 def _symbolic_model(p: Parameters) -> Tuple[Parameters, bool]:
     """The model the derivation is shown for, and whether it is symbolic: the specification's
     thin rods with every scalar symbolic (the optional terms -- damping, torques, Coulomb friction,
@@ -144,13 +155,7 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
            r"\underline{j})$ is larger by the constant $m_2 g b/2$, which no equation of motion sees):</p>")
         + display_math(layout(r"\Pi", 12, steps["Pi"], tex, prefix=r"\Pi_1 + \Pi_2 = ")),
     ))
-    forcing = [r for r in _roles_on(p) if _ROLE_TEXT[r][1] is not None]
-    if forcing:
-        parts = sorted((_ROLE_TEXT[r][1] for r in forcing), key=lambda t: t.startswith("-"))  # tau_i - c_i q_i ...
-        terms = parts[0] + "".join(" " + t if t.startswith("-") else " + " + t for t in parts[1:])
-        q = f"$Q_i = {terms}$ ({' and '.join(_ROLE_TEXT[r][0] for r in forcing)})"
-    else:
-        q = r"$Q_i = 0$ (no dissipation, as in the specification)"
+    q = forces_text(p)
     items.append((
         "Lagrange's equations",
         prose(r"<p>With $q = (\varphi, \psi)$ and the generalised non-potential forces " + q + ":</p>")

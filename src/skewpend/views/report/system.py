@@ -64,6 +64,14 @@ def _parameter_rows(p: Parameters) -> List[List[str]]:
     return rows
 
 
+def conservation_text(p: Parameters) -> str:
+    """Whether the model conserves its energy, in a sentence (:attr:`Parameters.conservative`): if
+    not, the terms that make it so (damping, Coulomb friction, torques), by their meanings."""
+    if p.conservative:
+        return prose(r"No damping, friction or torques: the energy $T + \Pi$ is conserved.")
+    return "Not conservative: " + esc(", ".join(schema.meaning(n) for n in p.nonconservative_terms)) + " (values below)."
+
+
 def _still(tr) -> bytes:
     """Frame 0 of ``tr`` as drawn by the animation (rods, both hinge axes, the angle between them)."""
     from ..animation import FrameRenderer
@@ -118,8 +126,7 @@ def section_system(ctx: Context) -> str:
         r"they hang), $\underline{k}$ is the axis of the roof hinge, $\underline{i}$ completes the right-handed triple. "
         r"The generalised coordinates are the hinge angles $\varphi$ (hinge 1) and $\psi$ (hinge 2), both zero with the "
         r"rods hanging; gravity acts along $+\underline{j}$. "
-        + ("No damping, friction or torques: the energy $T + \\Pi$ is conserved.</p>" if p.conservative else
-           "Not conservative: " + esc(", ".join(schema.meaning(n) for n in p.nonconservative_terms)) + " (values below).</p>")
+        + conservation_text(p) + "</p>"
     )
     table = table_html(["symbol", "name", "meaning", "value", "unit"], _parameter_rows(p), caption="Parameters (SI units)")
     initial = table_html(
