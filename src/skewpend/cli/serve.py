@@ -113,11 +113,14 @@ def _page_start(run):
     from ..parsing import UsageError
 
     params = run.parameters()
-    absent = [run.option("parameters", k) for k in schema.TORQUE_NAMES + schema.FRICTION_NAMES + schema.ROTOR_NAMES
+    terms = schema.TORQUE_NAMES + schema.FRICTION_NAMES + schema.ROTOR_NAMES
+    absent = [run.option("parameters", k) for k in terms
               if run.is_given("parameters", k) and getattr(params, k) != schema.default(k)]
     if absent:
+        defaults = ", ".join(f"{k} {schema.default(k):g}" for k in terms if schema.default(k) != 0)
         raise UsageError(f"{', '.join(absent)}: the explorer has no joint torques, Coulomb friction or rotor inertia (its "
-                         "sliders cannot set them); leave them out or 0, and simulate the full model with skewpend simulate")
+                         f"sliders cannot set them); leave them out or at their defaults (0; {defaults}), and simulate the "
+                         "full model with skewpend simulate")
     ranges = _slider_ranges()
     values = {}
     for section, keys in _SLIDER_KEYS.items():
