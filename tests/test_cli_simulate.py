@@ -115,7 +115,7 @@ def test_bad_config_keys(tmp_path):
     cfg = tmp_path / "bad.toml"
     cfg.write_text("[parameters]\nlength = 1\n")
     proc = run("simulate", "--config", cfg, check=False)
-    assert proc.returncode == 2 and "unknown key(s) ['length'] in [parameters]" in proc.stderr
+    assert proc.returncode == 2 and "[parameters]: unknown parameter 'length'" in proc.stderr and "allowed: a, b, m1" in proc.stderr
     cfg.write_text("[parameters\n")
     proc = run("simulate", "--config", cfg, check=False)
     assert proc.returncode == 2 and "not valid TOML" in proc.stderr
