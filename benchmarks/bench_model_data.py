@@ -104,10 +104,11 @@ def _worker(name: str, inner: int, workers: int) -> dict:
     if name == "taylor":
         times, check = {}, {}
         for tol in TAYLOR_TOLS:
-            t, _ = best(lambda: skewpend.simulate(P, Y0, 20.0, method="taylor", rtol=tol, atol=tol))
+            t, run20 = best(lambda: skewpend.simulate(P, Y0, 20.0, method="taylor", rtol=tol, atol=tol))
             tr = skewpend.simulate(P, Y0, 5.0, method="taylor", rtol=tol, atol=tol)
             times[f"taylor 20 s tol {tol:g}"] = t
             check[f"{tol:g}"] = floats(tr.y[-1][:4])
+            check[f"steps {tol:g}"] = [int(run20.stats["steps"])]
         return {"times": times, "check": check}
     if name == "taylor-ref":
         tr = skewpend.simulate(P, Y0, 5.0, method="taylor", rtol=REF_TOL, atol=REF_TOL)
@@ -115,7 +116,8 @@ def _worker(name: str, inner: int, workers: int) -> dict:
     if name == "lyapunov":
         t, ly = best(lambda: skewpend.lyapunov(P, Y0, t_end=1000.0, renorm_every=1.0, rtol=1e-10, atol=1e-10,
                                                n_exponents=4))
-        return {"times": {"Lyapunov 4 exp. 1000 s": t}, "check": {"exponents": floats(ly.exponents)}}
+        return {"times": {"Lyapunov 4 exp. 1000 s": t},
+                "check": {"exponents": floats(ly.exponents), "steps": [int(ly.stats["steps"])]}}
     raise SystemExit(f"unknown workload {name!r}; allowed: {', '.join(WORKLOADS)}")
 
 
@@ -145,6 +147,9 @@ def compare(name: str, base: dict, cur: dict, ref=None) -> list:
 
     lines = []
     for key in base:
+        if key.startswith("steps"):
+            lines.append(f"  {name} {key}: baseline {base[key][0]}, current {cur[key][0]}")
+            continue
         a, b = arr(base[key]), arr(cur[key])
         both = np.isfinite(a) & np.isfinite(b)
         differ = int(np.sum(np.isfinite(a) != np.isfinite(b)))

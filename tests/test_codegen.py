@@ -13,6 +13,7 @@ import sympy as sp
 
 from skewpend import Parameters, derive
 from skewpend.numeric.codegen import PARAMETER_ORDER, generate, parameter_vector
+from skewpend.numeric.conventions import parameter_vector as kernel_vector  # the compiled kernels' p: scalars and bodies
 from skewpend.numeric.kernels import LIB_SUFFIX, kernel_module
 from skewpend.symbolic.derivation import SYMBOLS
 
@@ -59,7 +60,7 @@ def test_python_source_matches_sympy(params):
 def test_compiled_kernel_matches_sympy(params):
     k = kernel_module(params)
     acc, en = _reference(params)
-    p = parameter_vector(params)
+    p = kernel_vector(params)
     out = np.empty(5)
     for y in _states(seed=1):
         k.rhs(np.append(y, 0.0), p, out)
@@ -74,7 +75,7 @@ def test_compiled_kernel_matches_sympy(params):
 @pytest.mark.parametrize("params", CASES, ids=["thin", "damped", "general"])
 def test_jacobian_matches_finite_differences(params):
     k = kernel_module(params)
-    p = parameter_vector(params)
+    p = kernel_vector(params)
     J = np.empty((5, 5))
     f0, f1 = np.empty(5), np.empty(5)
     for y in _states(4, seed=2):
@@ -96,7 +97,7 @@ def test_hamiltonian_form_is_consistent():
     """p = M q', q' = M^-1 p, and dp/dt from ham_rhs equals d(M q')/dt along the motion."""
     params = CASES[1]
     k = kernel_module(params)
-    p = parameter_vector(params)
+    p = kernel_vector(params)
     for y in _states(5, seed=3):
         y5 = np.append(y, 0.0)
         mom, vel = np.empty(2), np.empty(2)

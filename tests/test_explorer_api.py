@@ -461,8 +461,8 @@ def test_physics_js_is_a_module_with_the_exports():
 
 @pytest.mark.skipif(shutil.which("node") is None, reason="Node.js is not installed")
 def test_physics_js_in_node_equals_the_compiled_kernel(tmp_path):
-    from skewpend.numeric.conventions import PARAMETER_ORDER, parameter_vector
-    from skewpend.numeric.kernels import kernel_module
+    from skewpend.numeric.codegen import PARAMETER_ORDER, parameter_vector  # the explorer's p: the scalars
+    from skewpend.numeric.kernels import kernel_module, parameter_vector as kernel_parameter_vector
 
     r, _ = call("GET", "/physics.js")
     (tmp_path / "physics.mjs").write_text(r.text)
@@ -482,6 +482,7 @@ def test_physics_js_in_node_equals_the_compiled_kernel(tmp_path):
                                     timeout=60).stdout)
     assert res["order"] == list(PARAMETER_ORDER)
     kernel = kernel_module(params)
+    p = kernel_parameter_vector(params)  # the kernel's p also holds the bodies' entries
     axes = kernel.axes_many(ys, p)
 
     def close(js, c):

@@ -81,9 +81,13 @@ def test_parameters_fields_are_the_schema():
 
 
 def test_kernel_parameter_order_is_the_schemas_scalars():
-    from skewpend.numeric.conventions import PARAMETER_ORDER
+    from skewpend.numeric.conventions import BODY_ENTRIES, PARAMETER_ORDER, SCALAR_ORDER
 
-    assert PARAMETER_ORDER == schema.SCALAR_NAMES
+    # the compiled kernels' p: the schema's scalars, then each body's centre of mass and inertia tensor
+    # entries (run-time inputs, issue 37), named as the symbols name them
+    assert SCALAR_ORDER == schema.SCALAR_NAMES and PARAMETER_ORDER == schema.SCALAR_NAMES + BODY_ENTRIES
+    assert BODY_ENTRIES[:3] == ("r1x", "r1y", "r1z") and BODY_ENTRIES[6:12] == ("I1xx", "I1xy", "I1xz", "I1yy", "I1yz", "I1zz")
+    assert len(BODY_ENTRIES) == 3 * len(schema.COM_NAMES) + 6 * len(schema.INERTIA_NAMES)
     # today's layout of p (the compiled kernels and every stored result depend on it)
     assert schema.SCALAR_NAMES[:6] == ("a", "b", "m1", "m2", "alpha", "g")
     assert len(schema.SCALAR_NAMES) == 15 and schema.GEOMETRY_NAMES[0] == "com1"

@@ -21,7 +21,7 @@ from typing import List
 import sympy as sp
 
 from .. import __version__
-from .codegen import c_printer, cse_block, expressions, Lang, odd_under_reflection, param_lines, used_names
+from .codegen import c_printer, cse_block, expressions, Lang, odd_under_reflection, param_lines, spd_c_lines, used_names
 from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
@@ -54,6 +54,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
         " */",
         "#include <math.h>",
         "#include <stdint.h>",
+        '#include "spd_solve.h" /* the one linear solve: M x = b, LDL^T */',
         "",
     ]
     if flip:
@@ -70,11 +71,8 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
         lines += param_lines(c, I, used)
         return lines
 
-    solve = [
-        f"{I}const double det = M11 * M22 - M12 * M12;",
-        f"{I}const double ddphi = (M22 * f1 - M12 * f2) / det;",
-        f"{I}const double ddpsi = (M11 * f2 - M12 * f1) / det;",
-    ]
+    # M q'' = f (spd_solve.h), M's factors left in sp_m
+    solve = spd_c_lines(I, ["f1", "f2"], M=["M11", "M12", "M22"], x=["ddphi", "ddpsi"])
 
     # rhs: M q'' = f solved numerically (no symbolic inverse); W' = Q . q'
     exprs = M + f + Q
@@ -116,8 +114,9 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
         f"{I}        r1 -= dMs[col][0] * ddphi + dMs[col][1] * ddpsi;",
         f"{I}        r2 -= dMs[col][1] * ddphi + dMs[col][2] * ddpsi;",
         f"{I}    }}",
-        f"{I}    out[2 * 5 + col] = (M22 * r1 - M12 * r2) / det;",
-        f"{I}    out[3 * 5 + col] = (M11 * r2 - M12 * r1) / det;",
+        *spd_c_lines(I + "    ", ["r1", "r2"], rhs="sp_r"),  # the same factors of M
+        f"{I}    out[2 * 5 + col] = sp_r[0];",
+        f"{I}    out[3 * 5 + col] = sp_r[1];",
         f"{I}}}",
         f"{I}out[4 * 5 + 2] = Q1 + dQ1_1 * y[2] + dQ2_1 * y[3];",
         f"{I}out[4 * 5 + 3] = Q2 + dQ1_2 * y[2] + dQ2_2 * y[3];",
@@ -142,23 +141,14 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     out += [f"{I}out[0] = M11 * y[2] + M12 * y[3];", f"{I}out[1] = M12 * y[2] + M22 * y[3];", "}", ""]
     out += header("void velocities(const double *z, const double *p, double *out)", "q' = M(q)^-1 p_q into out[2]", M, state="z", names=_STATE[:2])
     out += cse_block(c, M, ["M11", "M12", "M22"], I)
-    out += [
-        f"{I}const double det = M11 * M22 - M12 * M12;",
-        f"{I}out[0] = (M22 * z[2] - M12 * z[3]) / det;",
-        f"{I}out[1] = (M11 * z[3] - M12 * z[2]) / det;",
-        "}",
-        "",
-    ]
+    out += spd_c_lines(I, ["z[2]", "z[3]"], M=["M11", "M12", "M22"])
+    out += [f"{I}out[0] = sp_x[0];", f"{I}out[1] = sp_x[1];", "}", ""]
     # Hamilton's equations: q' = M^-1 p; p' = dT/dq(q, q') - dPi/dq + Q(q'); W' = Q . q'
     ham = M + list(ex.dPi_dq)
     out += header("void ham_rhs(const double *z, const double *p, double *out)", "dz/dt of z = (phi, psi, p_phi, p_psi, W) into out[5]", ham, state="z", names=_STATE[:2])
     used = used_names(ham)
     out += cse_block(c, ham, ["M11", "M12", "M22", "dPi1", "dPi2"], I)
-    out += [
-        f"{I}const double det = M11 * M22 - M12 * M12;",
-        f"{I}const double dphi = (M22 * z[2] - M12 * z[3]) / det;",
-        f"{I}const double dpsi = (M11 * z[3] - M12 * z[2]) / det;",
-    ]
+    out += spd_c_lines(I, ["z[2]", "z[3]"], M=["M11", "M12", "M22"], x=["dphi", "dpsi"])
     more = list(ex.dT_dq) + Q
     out += param_lines(c, I, used_names(more) - used - set(_STATE))
     out += cse_block(c, more, ["dT1", "dT2", "Q1", "Q2"], I, prefix="u")
@@ -413,12 +403,11 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
     out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
     out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
     out += [
-        f"{J}const double det = M11 * M22 - M12 * M12;",  # M q'' = f, the 2x2 solve
-        f"{J}const double rdet = 1.0 / det;",
+        *spd_c_lines(J, ["f1", "f2"], M=["M11", "M12", "M22"]),  # M q'' = f (spd_solve.h), in the lane loop
         f"{J}out[0][l] = y[2][l];",
         f"{J}out[1][l] = y[3][l];",
-        f"{J}out[2][l] = (M22 * f1 - M12 * f2) * rdet;",
-        f"{J}out[3][l] = (M11 * f2 - M12 * f1) * rdet;",
+        f"{J}out[2][l] = sp_x[0];",
+        f"{J}out[3][l] = sp_x[1];",
     ]
     out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
     out += [f"{I}}}", "}", ""]
@@ -507,12 +496,11 @@ def capture_c_source(ex, geometry: Parameters) -> List[str]:
     out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
     out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
     out += [
-        f"{J}const double det = M11 * M22 - M12 * M12;",  # M q'' = f + u, the 2x2 solve
-        f"{J}const double rdet = 1.0 / det;",
+        *spd_c_lines(J, ["f1", "f2"], M=["M11", "M12", "M22"]),  # M q'' = f + u (spd_solve.h), in the lane loop
         f"{J}out[0][l] = y[2][l];",
         f"{J}out[1][l] = y[3][l];",
-        f"{J}out[2][l] = (M22 * f1 - M12 * f2) * rdet;",
-        f"{J}out[3][l] = (M11 * f2 - M12 * f1) * rdet;",
+        f"{J}out[2][l] = sp_x[0];",
+        f"{J}out[3][l] = sp_x[1];",
     ]
     out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
     out += [f"{I}}}", "}", ""]

@@ -33,7 +33,7 @@ from typing import Dict, Optional, Tuple
 from .. import __version__
 from ..errors import SkewpendError
 from ..symbolic.model import Parameters
-from .conventions import GEOMETRY, PARAMETER_ORDER, STATE_ORDER, geometry_of, optional_terms, parameter_vector
+from .conventions import GEOMETRY, PARAMETER_ORDER, STATE_ORDER, geometry_of, optional_terms, parameter_vector, structure_of
 
 __all__ = ["ControlStruct",
     "PARAMETER_ORDER",
@@ -64,7 +64,7 @@ __all__ = ["ControlStruct",
 #: Files whose text determines the generated library (part of the cache key).
 _SOURCES = (
     "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c", "numeric/chaos.c",
-    "numeric/dop853_core.h", "numeric/rows.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
+    "numeric/dop853_core.h", "numeric/rows.h", "numeric/spd_solve.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
     "symbolic/symbols.py",
 )
 _PACKAGE = Path(__file__).resolve().parent.parent
@@ -467,9 +467,17 @@ class Kernel:
         a = self._np.ascontiguousarray(a, dtype=self._np.float64)
         return a, a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
 
+    def _p(self, p):
+        """``p`` as the C code reads it: every entry of :data:`PARAMETER_ORDER` (a shorter array would be read past its end)."""
+        p, pp = self._in(p)
+        if p.ndim != 1 or p.size != len(PARAMETER_ORDER):
+            raise ValueError(f"p must hold the {len(PARAMETER_ORDER)} entries of PARAMETER_ORDER "
+                             f"(parameter_vector(params)), got shape {p.shape}")
+        return p, pp
+
     def _call3(self, fn, y, p, out, size):
         y, yp = self._in(y)
-        p, pp = self._in(p)
+        p, pp = self._p(p)
         if out.dtype != self._np.float64 or not out.flags.c_contiguous or out.size < size:
             raise ValueError(f"out must be a C-contiguous float64 array of at least {size} entries")
         fn(yp, pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
@@ -494,7 +502,7 @@ class Kernel:
 
     def energy(self, y, p) -> float:
         y, yp = self._in(y)
-        p, pp = self._in(p)
+        p, pp = self._p(p)
         return float(self.lib.sp_energy(yp, pp))
 
     def _rows(self, ys):
@@ -506,7 +514,7 @@ class Kernel:
     def _per_row(self, fn, ys, p, offset: int, width: int):
         """``fn(rows, nrows, stride, p, out)`` over the states ``ys[i, offset:]``: out (n, width)."""
         ys = self._rows(ys)
-        p, pp = self._in(p)
+        p, pp = self._p(p)
         out = self._np.empty((ys.shape[0], width))
         base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
         fn(base, ys.shape[0], ys.shape[1], pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
@@ -535,7 +543,7 @@ class Kernel:
         qs = self._np.ascontiguousarray(qs, dtype=self._np.float64)
         if qs.ndim != 2 or qs.shape[1] != 2:
             raise ValueError("expected rows of angles, shape (n, 2)")
-        p, pp = self._in(p)
+        p, pp = self._p(p)
         out = self._np.empty(qs.shape[0])
         dp = ctypes.POINTER(ctypes.c_double)
         self.lib.sp_flip_potential_many(qs.ctypes.data_as(dp), qs.shape[0], pp, out.ctypes.data_as(dp))
@@ -545,7 +553,7 @@ class Kernel:
         """Canonical rows ``(phi, psi, p_phi, p_psi, ...)`` -> ``(phi, psi, dphi, dpsi, ...)``."""
         zs = self._rows(zs)
         ys = zs if inplace else zs.copy()
-        p, pp = self._in(p)
+        p, pp = self._p(p)
         base = ctypes.cast(ys.ctypes.data + 8 * offset, ctypes.POINTER(ctypes.c_double))
         self.lib.sp_speeds_many(base, ys.shape[0], ys.shape[1], pp)
         return ys
@@ -677,7 +685,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
     kernel = _BYGEOMETRY.get(gkey)
     if kernel is not None:
         return kernel
-    geometry = geometry_of(params)
+    geometry = structure_of(params)
     key = _key(repr(geometry.to_dict())) + ("_" + kind if kind else "")
     with _key_lock(key):
         if key in _LOADED:
@@ -747,10 +755,10 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
         if model is not None:
             _TAYLOR_OF[model.path, order] = kernel  # type: ignore[assignment]
         return kernel  # type: ignore[return-value]
-    geometry = geometry_of(params)
+    geometry = structure_of(params)
     # the Taylor library's text also depends on its generator and driver (not part of the others' key),
     # and on whether the processor's fused multiply-add is used (fused_multiply_add)
-    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h"))
+    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h", "spd_solve.h"))
     fused, flags = fused_multiply_add()
     key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}")
     key += f"_taylor{order}"

@@ -257,7 +257,7 @@ def check_start(kernel, p, y) -> None:
     kernel.lib.sp_rhs(y5, pp, deriv)
     energy = kernel.lib.sp_energy(y5, pp)
     if not (all(math.isfinite(v) for v in deriv) and math.isfinite(energy)):
-        from .kernels import PARAMETER_ORDER
+        from .conventions import SCALAR_ORDER as PARAMETER_ORDER  # the scalars (the bodies' entries are not news)
 
         values = ", ".join(f"{n} = {v:g}" for n, v in zip(PARAMETER_ORDER, p) if v != 0)
         raise ParameterError(
