@@ -127,7 +127,9 @@ def test_inverse_and_product(lib, n):
 
 def test_n2_steps_are_the_documented_ones():
     steps = codegen.ldlt_steps(["M11", "M12", "M22"], ["f1", "f2"], ["ddphi", "ddpsi"])
-    assert steps == [("iD1", "1.0 / M11"), ("L21", "M12 * iD1"), ("iD2", "1.0 / (M22 - M12 * L21)"),
+    # one reciprocal for both pivots (D1 D2 = det M), then the substitutions
+    assert steps == [("dD", "M11 * M22 - M12 * M12"), ("w", "1.0 / (M11 * dD)"), ("iD1", "dD * w"),
+                     ("L21", "M12 * iD1"), ("iD2", "M11 * M11 * w"),
                      ("z2", "f2 - L21 * f1"), ("ddpsi", "z2 * iD2"), ("ddphi", "f1 * iD1 - L21 * ddpsi")]
     with pytest.raises(ValueError, match="packed triangle"):
         codegen.ldlt_steps(["M11", "M12"], ["f1", "f2"], ["x1", "x2"])

@@ -283,7 +283,8 @@ def ldlt_steps(M: Sequence[str], b: Sequence[str], x: Sequence[str]) -> List[Tup
     every compiled kernel uses), operation for operation and in the same order, so the standalone
     exports give the kernels' bits (without floating-point contraction): ``iDi = 1/D_i`` (one
     reciprocal per pivot), ``Lij`` below the diagonal, then ``L z = b``, ``D y = z``, ``L^T x = y``.
-    For n = 2: ``iD1 = 1/M11, L21 = M12 iD1, iD2 = 1/(M22 - M12 L21), z2 = b2 - L21 b1,
+    For n = 2 the two pivots share one reciprocal: ``dD = M11 M22 - M12 M12`` (``D1 D2``),
+    ``w = 1/(M11 dD)``, ``iD1 = dD w``, ``L21 = M12 iD1``, ``iD2 = M11 M11 w``, then ``z2 = b2 - L21 b1,
     x2 = z2 iD2, x1 = b1 iD1 - L21 x2``."""
     n = len(b)
     if len(M) != n * (n + 1) // 2 or len(x) != n:
@@ -295,7 +296,11 @@ def ldlt_steps(M: Sequence[str], b: Sequence[str], x: Sequence[str]) -> List[Tup
 
     steps: List[Tuple[str, str]] = []
     L, iD = {}, []
-    for i in range(n):  # sp_ldlt_factor
+    if n == 2:  # sp_ldlt_factor's n = 2: one reciprocal for both pivots
+        steps += [("dD", f"{m(0, 0)} * {m(1, 1)} - {m(1, 0)} * {m(1, 0)}"), ("w", f"1.0 / ({m(0, 0)} * dD)"),
+                  ("iD1", "dD * w"), ("L21", f"{m(1, 0)} * iD1"), ("iD2", f"{m(0, 0)} * {m(0, 0)} * w")]
+        L[1, 0], iD = "L21", ["iD1", "iD2"]
+    for i in range(n if n != 2 else 0):  # sp_ldlt_factor
         w = []  # row i of L times D
         for j in range(i):
             u = m(i, j) + "".join(f" - {w[k]} * {L[j, k]}" for k in range(j))

@@ -14,9 +14,9 @@
  * The size n is an argument: called with a constant n (as every generated kernel does) the functions
  * are inlined and their loops unrolled completely (the pragmas), so the solve is straight-line code --
  * in the flip kernel's loop over SIMD lanes the compiler vectorises it with the rest (checked with
- * -fopt-info-vec).  For n = 2 the steps are
- *     r1 = 1/M11,  l = M21 r1,  d2 = M22 - M21 l,  r2 = 1/d2,
- *     x2 = (b2 - l b1) r2,  x1 = b1 r1 - l x2.
+ * -fopt-info-vec).  For n = 2 (every kernel of the double pendulum) the two pivots share one
+ * reciprocal: dd = M11 M22 - M21^2 (= D1 D2), w = 1/(M11 dd), r1 = dd w (= 1/D1), r2 = M11^2 w (= 1/D2),
+ *     l = M21 r1,  x2 = (b2 - l b1) r2,  x1 = b1 r1 - l x2.
  * The kernels are compiled without floating-point contraction; SP_SPD_FMA(a, b, c) = a b + c may be
  * defined before the inclusion to fuse the products (the Taylor kernels do where the processor has fma).
  */
@@ -38,6 +38,16 @@
  * infinity from a singular one reaches the integrator's finiteness checks). */
 static inline __attribute__((always_inline)) void sp_ldlt_factor(int n, double *restrict a)
 {
+    if (n == 2) { /* one reciprocal for both pivots (a division costs several products; the kernels' case):
+                   * D1 D2 = M11 M22 - M21^2, w = 1/(D1 D1 D2), 1/D1 = D1 D2 w, 1/D2 = D1^2 w */
+        const double dd = SP_SPD_FMA(-a[1], a[1], a[0] * a[2]);
+        const double w = 1.0 / (a[0] * dd);
+        const double r1 = dd * w;
+        a[2] = a[0] * a[0] * w;
+        a[1] = a[1] * r1;
+        a[0] = r1;
+        return;
+    }
     double w[SP_SPD_NMAX]; /* row i of L times D: w[j] = L[i][j] D[j] */
 #pragma GCC unroll 16
     for (int i = 0; i < n; i++) {
