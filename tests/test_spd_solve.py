@@ -1,21 +1,24 @@
-"""The one linear solve (issue 37, goal 4): ``spd_solve.h`` (LDL^T of a symmetric positive-definite
-matrix; every compiled kernel and the Taylor series use it) and ``codegen.ldlt_steps`` (the same steps
-printed for the standalone Python, C and JavaScript).
+"""The one linear solve (issue 37, goal 4): LDL^T of a symmetric positive-definite matrix, printed by
+``codegen.ldlt_factor_steps`` / ``ldlt_solve_steps`` / ``ldlt_inverse_steps`` / ``spd_mul_steps`` into
+every generated function (the compiled kernels and their SIMD lanes, the Taylor series, the standalone
+Python, C and JavaScript, the explorer).
 
-* against NumPy's LU solve on seeded random SPD matrices n = 1 .. 8, within the forward-error bound of
-  a backward-stable solve, ``|x - x_ref| <= c n eps cond(M) |x|`` (c = 10);
-* ``ldlt_steps`` run as Python gives the header's bits (same operations, same order, both IEEE double,
-  the header compiled without contraction, as the kernels are);
+* the printed steps compiled as C (as the kernels are: without floating-point contraction) against
+  NumPy's LU solve on seeded random SPD matrices n = 1 .. 8, within the forward-error bound of a
+  backward-stable solve, ``|x - x_ref| <= c n eps cond(M) |x|`` (c = 10); fused (``fma``, as the
+  Taylor kernels print them) within the same bound;
+* the same steps run as Python give the C bits (same operations, same order, both IEEE double): the
+  exports give the kernels' numbers;
 * the inverse from the factors times M is the identity within the same bound; the symmetric product
   agrees with NumPy's;
-* the generated kernels and exports print no Cramer solve any more.
+* the generated kernels, the Taylor series and the exports print no Cramer solve; every kernel
+  function that solves prints the LDL^T.
 """
 
 from __future__ import annotations
 
 import ctypes
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,42 +27,62 @@ import skewpend
 from skewpend.numeric import codegen
 from skewpend.numeric.kernels import CFLAGS, LIB_SUFFIX, find_compiler
 
-HEADER_DIR = Path(skewpend.__file__).resolve().parent / "numeric"
 EPS = np.finfo(float).eps
+NMAX = 8
 
-_C = r"""
-#include "spd_solve.h"
-/* runtime n (the loops), and n = 2 as the kernels call it (constant: unrolled) */
-void t_solve(int n, double *a, double *b) { sp_spd_solve(n, a, b); }
-void t_solve2(double *a, double *b) { sp_spd_solve(2, a, b); }
-void t_inverse(int n, double *a, double *inv) { sp_ldlt_factor(n, a); sp_ldlt_inverse(n, a, inv); }
-void t_mul(int n, const double *s, const double *b, double *x) { sp_spd_mul(n, s, b, x); }
-"""
+
+def _names(n):
+    return [f"m{i}{j}" for i in range(n) for j in range(i + 1)], [f"b{i}" for i in range(n)], [f"x{i}" for i in range(n)]
+
+
+def _c_function(name, n, steps, inputs, outputs):
+    lines = [f"void {name}(const double *in, double *out) {{"]
+    lines += [f"    const double {v} = in[{k}];" for k, v in enumerate(inputs)]
+    lines += [f"    const double {t} = {e};" for t, e in steps]
+    lines += [f"    out[{k}] = {v};" for k, v in enumerate(outputs)] + ["}"]
+    return "\n".join(lines)
+
+
+def _sources():
+    out = ["#include <math.h>", "#define SP_FMA(a, b, c) fma(a, b, c)"]
+    for n in range(1, NMAX + 1):
+        M, b, x = _names(n)
+        inv = [f"s{i}{j}" for i in range(n) for j in range(i + 1)]
+        for fused in (False, True):
+            tag = "f" if fused else "p"
+            out.append(_c_function(f"solve{tag}{n}", n, codegen.ldlt_steps(M, b, x, fused=fused), M + b, x))
+            out.append(_c_function(f"inverse{tag}{n}", n, codegen.ldlt_factor_steps(M, fused=fused)
+                                   + codegen.ldlt_inverse_steps(n, inv, fused=fused), M, inv))
+            out.append(_c_function(f"mul{tag}{n}", n, codegen.spd_mul_steps(M, b, x, fused=fused), M + b, x))
+    return "\n".join(out)
 
 
 @pytest.fixture(scope="module")
 def lib(tmp_path_factory):
     d = tmp_path_factory.mktemp("spd")
     src, so = d / "t.c", d / f"t{LIB_SUFFIX}"
-    src.write_text(_C)
-    cmd = [*find_compiler(), *CFLAGS, "-I", str(HEADER_DIR), "-o", str(so), str(src), "-lm"]
+    src.write_text(_sources())
+    cmd = [*find_compiler(), *CFLAGS, "-o", str(so), str(src), "-lm"]
     subprocess.run(cmd, check=True, capture_output=True)
-    out = ctypes.CDLL(str(so))
+    return ctypes.CDLL(str(so))
+
+
+def _call(lib, name, inputs, n_out):
+    a, out = np.ascontiguousarray(inputs, dtype=float), np.zeros(n_out)
     P = ctypes.POINTER(ctypes.c_double)
-    out.t_solve.argtypes = [ctypes.c_int, P, P]
-    out.t_solve2.argtypes = [P, P]
-    out.t_inverse.argtypes = [ctypes.c_int, P, P]
-    out.t_mul.argtypes = [ctypes.c_int, P, P, P]
+    getattr(lib, name)(a.ctypes.data_as(P), out.ctypes.data_as(P))
     return out
-
-
-def _ptr(a):
-    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
 
 
 def _packed(M):
     n = M.shape[0]
     return np.array([M[i, j] for i in range(n) for j in range(i + 1)], dtype=float)
+
+
+def _unpack(v, n):
+    S = np.zeros((n, n))
+    S[np.tril_indices(n)] = v
+    return S + np.tril(S, -1).T
 
 
 def _spd(rng, n):
@@ -70,59 +93,46 @@ def _spd(rng, n):
     return (M + M.T) / 2
 
 
-def _c_solve(lib, M, b, two=False):
-    a, x = _packed(M), np.array(b, dtype=float)
-    (lib.t_solve2(_ptr(a), _ptr(x)) if two else lib.t_solve(len(b), _ptr(a), _ptr(x)))
-    return x
-
-
 def _py_solve(M, b):
+    """The printed steps run as Python (what the standalone Python export and the JavaScript do)."""
     n = len(b)
-    names = [f"m{i}{j}" for i in range(n) for j in range(i + 1)]
+    names, bs, xs = _names(n)
     env = dict(zip(names, _packed(M)))
-    env.update({f"b{i}": float(v) for i, v in enumerate(b)})
-    xs = [f"x{i}" for i in range(n)]
-    for target, expr in codegen.ldlt_steps(names, [f"b{i}" for i in range(n)], xs):
-        env[target] = eval(expr, {}, env)  # the printed arithmetic, run as Python
+    env.update(zip(bs, (float(v) for v in b)))
+    for target, expr in codegen.ldlt_steps(names, bs, xs):
+        env[target] = eval(expr, {}, env)
     return np.array([env[x] for x in xs])
 
 
-@pytest.mark.parametrize("n", range(1, 9))
+@pytest.mark.parametrize("n", range(1, NMAX + 1))
 def test_solve_against_numpy(lib, n):
     rng = np.random.default_rng(37 + n)
     for _ in range(20):
         M, b = _spd(rng, n), rng.standard_normal(n)
         ref = np.linalg.solve(M, b)
         bound = 10 * n * EPS * np.linalg.cond(M) * np.max(np.abs(ref))
-        assert np.max(np.abs(_c_solve(lib, M, b) - ref)) <= bound
-        if n == 2:
-            assert np.max(np.abs(_c_solve(lib, M, b, two=True) - ref)) <= bound
+        for tag in ("p", "f"):
+            assert np.max(np.abs(_call(lib, f"solve{tag}{n}", np.concatenate([_packed(M), b]), n) - ref)) <= bound
 
 
 @pytest.mark.parametrize("n", range(1, 6))
-def test_printed_steps_give_the_header_bits(lib, n):
+def test_printed_steps_give_the_same_bits_in_python_and_c(lib, n):
     rng = np.random.default_rng(370 + n)
     for _ in range(50):
         M, b = _spd(rng, n), rng.standard_normal(n)
-        c = _c_solve(lib, M, b)
-        assert np.array_equal(_py_solve(M, b), c)
-        if n == 2:
-            assert np.array_equal(_c_solve(lib, M, b, two=True), c)
+        assert np.array_equal(_py_solve(M, b), _call(lib, f"solvep{n}", np.concatenate([_packed(M), b]), n))
 
 
 @pytest.mark.parametrize("n", range(1, 7))
 def test_inverse_and_product(lib, n):
     rng = np.random.default_rng(3700 + n)
     M = _spd(rng, n)
-    a, inv = _packed(M), np.zeros(n * (n + 1) // 2)
-    lib.t_inverse(n, _ptr(a), _ptr(inv))
-    S = np.zeros((n, n))
-    S[np.tril_indices(n)] = inv
-    S = S + np.tril(S, -1).T
-    assert np.max(np.abs(S @ M - np.eye(n))) <= 10 * n * EPS * np.linalg.cond(M)
-    b, x = rng.standard_normal(n), np.zeros(n)
-    lib.t_mul(n, _ptr(inv), _ptr(b), _ptr(x))
-    assert np.max(np.abs(x - S @ b)) <= 4 * n * EPS * np.max(np.abs(S)) * np.max(np.abs(b))
+    for tag in ("p", "f"):
+        S = _unpack(_call(lib, f"inverse{tag}{n}", _packed(M), n * (n + 1) // 2), n)
+        assert np.max(np.abs(S @ M - np.eye(n))) <= 10 * n * EPS * np.linalg.cond(M)
+        b = rng.standard_normal(n)
+        x = _call(lib, f"mul{tag}{n}", np.concatenate([_packed(S), b]), n)
+        assert np.max(np.abs(x - S @ b)) <= 4 * n * EPS * np.max(np.abs(S)) * np.max(np.abs(b))
 
 
 def test_n2_steps_are_the_documented_ones():
@@ -131,21 +141,30 @@ def test_n2_steps_are_the_documented_ones():
     assert steps == [("dD", "M11 * M22 - M12 * M12"), ("w", "1.0 / (M11 * dD)"), ("iD1", "dD * w"),
                      ("L21", "M12 * iD1"), ("iD2", "M11 * M11 * w"),
                      ("z2", "f2 - L21 * f1"), ("ddpsi", "z2 * iD2"), ("ddphi", "f1 * iD1 - L21 * ddpsi")]
+    # fused, as the Taylor series prints it: the same operations, each product fused with its sum
+    fused = codegen.ldlt_steps(["M11", "M12", "M22"], ["f1", "f2"], ["x1", "x2"], fused=True)
+    assert fused[0] == ("dD", "SP_FMA(-M12, M12, M11 * M22)") and fused[-1] == ("x1", "SP_FMA(-L21, x2, f1 * iD1)")
+    assert codegen.spd_mul_steps(["S11", "S21", "S22"], ["r1", "r2"], ["a1", "a2"]) == [
+        ("a1", "S21 * r2 + S11 * r1"), ("a2", "S22 * r2 + S21 * r1")]
     with pytest.raises(ValueError, match="packed triangle"):
         codegen.ldlt_steps(["M11", "M12"], ["f1", "f2"], ["x1", "x2"])
 
 
 def test_no_cramer_solve_is_printed():
     """Every generated solve goes through the one LDL^T (no determinant formula left)."""
-    from skewpend.numeric.conventions import geometry_of
+    from skewpend.numeric.conventions import structure_of
     from skewpend.numeric.kernel_source import kernel_c_source
+    from skewpend.numeric.taylor_source import taylor_c_source
 
     P = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
-    src = kernel_c_source(geometry_of(P), flip=True)
-    assert '#include "spd_solve.h"' in src
+    src = kernel_c_source(structure_of(P), flip=True)
     assert "det" not in src.replace("determin", "")
-    assert src.count("sp_ldlt_factor(2,") == 6  # rhs, rhs_jac, velocities, ham_rhs, flip and capture lanes
+    # one factorisation each: rhs, rhs_jac, velocities, ham_rhs, the flip and the capture lanes
+    assert src.count("const double sp_m_iD2 = ") == 6
+    series = taylor_c_source(structure_of(P), 12)
+    assert "rdet" not in series and series.count("const double sp_fiD2 = ") == 1  # M[0], once a step
     for language in ("python", "c", "javascript"):
         code = codegen.generate(P, language)
         assert "det" not in code and "iD2" in code
     assert "det" not in codegen.explorer_js(P).replace("determin", "")
+    assert "iD2" in codegen.explorer_js(P)

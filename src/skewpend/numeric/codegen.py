@@ -3,10 +3,11 @@
 Every numeric function skewpend runs, and the standalone Python, C and JavaScript a
 user can take away, is printed here from :func:`skewpend.derive`'s expressions
 with common-subexpression elimination.  No equation of motion is typed by hand;
-the only hand-written numerics are the linear solve ``M q'' = f`` (one LDL^T solve:
-``spd_solve.h`` in the compiled kernels, :func:`ldlt_steps` -- the same steps -- in the
-standalone exports) and the integrators (``integrators.c``); the C the simulations
-compile is printed by :mod:`skewpend.numeric.kernel_source` with the helpers below.
+the only hand-written numerics are the linear solve ``M q'' = f`` (one LDL^T solve, printed
+by :func:`ldlt_factor_steps` and its companions into every generated function: the compiled
+kernels and their SIMD lanes, the Taylor series, the standalone exports, the explorer's
+JavaScript) and the integrators (``integrators.c``); the C the simulations compile is printed
+by :mod:`skewpend.numeric.kernel_source` with the helpers below.
 
 Conventions shared by every generated routine:
 
@@ -14,7 +15,9 @@ Conventions shared by every generated routine:
 * parameters ``p = (a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, cf1, cf2, cfs, Ir, gr)`` (SI
   units, radians), the order of :data:`PARAMETER_ORDER` (the optional friction and rotor terms
   are in the code only when the model has them: :func:`~skewpend.numeric.conventions.geometry_of`);
-* general-body geometry (``com``, ``inertia``, ``axis``) is baked into the code as numbers.
+* in the standalone exports and the explorer, general-body geometry (``com``, ``inertia``,
+  ``axis``) is baked into the code as numbers; the compiled kernels read the bodies' non-zero
+  entries from their ``p`` too (:func:`~skewpend.numeric.conventions.structure_of`).
 """
 
 from __future__ import annotations
@@ -273,53 +276,150 @@ def _body(lang: Lang, ex: _Expressions, indent: str) -> Tuple[List[str], List[st
 
 
 # -- the one linear solve ----------------------------------------------------------------------------
-def ldlt_steps(M: Sequence[str], b: Sequence[str], x: Sequence[str]) -> List[Tuple[str, str]]:
+# M x = b for the symmetric positive-definite mass matrix, by its LDL^T factorisation, printed as
+# straight-line assignments into every generated function (the compiled kernels, their SIMD lanes,
+# the Taylor series, the standalone exports, the explorer's JavaScript): one algorithm, one printer.
+# (Straight-line code, not calls of a C header's functions: in the long generated functions the
+# compiler kept the header's small arrays in memory, 5-7 % of a Taylor step and of the flip map's
+# lanes, measured; printed as named constants they cost what the 2 x 2 Cramer solve did.)
+
+
+def _fma(a: str, b: str, c: str, fused: bool) -> str:
+    """``a b + c``: fused (``SP_FMA``, the Taylor kernels' macro) or as a product and a sum."""
+    if fused:
+        return f"SP_FMA({a}, {b}, {c})"
+    if a.startswith("-"):  # c - a' b: the same bits as (-a') b + c
+        return f"{c} - {a[1:]} * {b}"
+    return f"{a} * {b} + {c}"
+
+
+def _packed_index(i: int, j: int) -> int:
+    return i * (i + 1) // 2 + j
+
+
+def ldlt_factor_steps(M: Sequence[str], prefix: str = "", fused: bool = False) -> List[Tuple[str, str]]:
+    """The factorisation ``M = L D L^T`` as assignments: ``{prefix}iDi = 1/D_i`` and ``{prefix}Lij``
+    below the diagonal (``M``: the packed lower triangle's names, row by row).  For n = 2 the two
+    pivots share one reciprocal: ``dD = M11 M22 - M12 M12`` (``D1 D2``), ``w = 1/(M11 dD)``,
+    ``iD1 = dD w``, ``L21 = M12 iD1``, ``iD2 = M11 M11 w``; otherwise one reciprocal per pivot."""
+    n = _order_of(M)
+
+    def m(i, j):
+        return M[_packed_index(i, j)]
+
+    P = prefix
+    if n == 2:
+        return [(f"{P}dD", _fma(f"-{m(1, 0)}", m(1, 0), f"{m(0, 0)} * {m(1, 1)}", fused)),
+                (f"{P}w", f"1.0 / ({m(0, 0)} * {P}dD)"), (f"{P}iD1", f"{P}dD * {P}w"), (f"{P}L21", f"{m(1, 0)} * {P}iD1"),
+                (f"{P}iD2", f"{m(0, 0)} * {m(0, 0)} * {P}w")]
+    steps: List[Tuple[str, str]] = []
+    for i in range(n):
+        w = []  # row i of L times D
+        for j in range(i):
+            u = m(i, j)
+            for k in range(j):
+                u = _fma(f"-{w[k]}", f"{P}L{j + 1}{k + 1}", u, fused)
+            if j:
+                steps.append((f"{P}U{i + 1}{j + 1}", u))
+                u = f"{P}U{i + 1}{j + 1}"
+            w.append(u)
+            steps.append((f"{P}L{i + 1}{j + 1}", f"{u} * {P}iD{j + 1}"))
+        d = m(i, i)
+        for k in range(i):
+            d = _fma(f"-{w[k]}", f"{P}L{i + 1}{k + 1}", d, fused)
+        steps.append((f"{P}iD{i + 1}", f"1.0 / ({d})" if i else f"1.0 / {d}"))
+    return steps
+
+
+def ldlt_solve_steps(n: int, b: Sequence[str], x: Sequence[str], factors: str = "", prefix: str = "",
+                     fused: bool = False) -> List[Tuple[str, str]]:
+    """``M x = b`` with the factors of :func:`ldlt_factor_steps` (named with ``factors``):
+    ``L z = b``, ``D y = z``, ``L^T x = y`` (temporaries ``{prefix}zi``)."""
+    F = factors
+    steps: List[Tuple[str, str]] = []
+    z = list(b)
+    for i in range(1, n):
+        v = b[i]
+        for k in range(i):
+            v = _fma(f"-{F}L{i + 1}{k + 1}", z[k], v, fused)
+        steps.append((f"{prefix}z{i + 1}", v))
+        z[i] = f"{prefix}z{i + 1}"
+    for i in reversed(range(n)):
+        v = f"{z[i]} * {F}iD{i + 1}"
+        for k in range(i + 1, n):
+            v = _fma(f"-{F}L{k + 1}{i + 1}", x[k], v, fused)
+        steps.append((x[i], v))
+    return steps
+
+
+def ldlt_inverse_steps(n: int, inv: Sequence[str], factors: str = "", prefix: str = "",
+                       fused: bool = False) -> List[Tuple[str, str]]:
+    """``M^-1`` (its packed lower triangle, named ``inv``) from the factors of :func:`ldlt_factor_steps`:
+    column j solves ``M x = e_j`` for its rows from j on (``L z = e_j``, ``D y = z``, ``L^T x = y``).
+    For one matrix applied to many right-hand sides one after another (the Taylor series: ``M[0]``
+    at every order), where each product (:func:`spd_mul_steps`) is a shorter chain of dependent
+    operations than the substitutions."""
+    F = factors
+    steps: List[Tuple[str, str]] = []
+    for j in range(n):
+        z = {}
+        for i in range(j + 1, n):  # L z = e_j (z_j = 1)
+            v = f"-{F}L{i + 1}{j + 1}"
+            for k in range(j + 1, i):
+                v = _fma(f"-{F}L{i + 1}{k + 1}", z[k], v, fused)
+            z[i] = f"{prefix}z{i + 1}_{j + 1}"
+            steps.append((z[i], v))
+        x = {}
+        for i in range(j, n):  # D y = z
+            x[i] = inv[_packed_index(i, j)] if i == n - 1 else f"{prefix}y{i + 1}_{j + 1}"
+            steps.append((x[i], f"{F}iD{i + 1}" if i == j else f"{z[i]} * {F}iD{i + 1}"))
+        for i in range(n - 2, j - 1, -1):  # L^T x = y
+            v = x[i]
+            for k in range(i + 1, n):
+                v = _fma(f"-{F}L{k + 1}{i + 1}", x[k], v, fused)
+            x[i] = inv[_packed_index(i, j)]
+            steps.append((x[i], v))
+    return steps
+
+
+def spd_mul_steps(S: Sequence[str], b: Sequence[str], x: Sequence[str], fused: bool = False) -> List[Tuple[str, str]]:
+    """``x = S b`` for a symmetric ``S`` given as its packed lower triangle (such as
+    :func:`ldlt_inverse_steps`' ``M^-1``): ``x_i = (((S_i1 b_1 + S_i2 b_2) + ...) + S_in b_n)``, each
+    addition fused with its product.  ``b_n`` enters last, through one fused add: where ``b``'s
+    entries are computed one after another (the Taylor series' orders, ``b_n`` last) the solution
+    waits for ``b_n`` by one operation, not two (measured: summing from ``b_n`` down cost 5-10 %
+    of a Taylor step at order 15)."""
+    n = len(b)
+    out = []
+    for i in range(n):
+        v = f"{S[_packed_index(i, 0)]} * {b[0]}"
+        for j in range(1, n):
+            v = _fma(S[_packed_index(max(i, j), min(i, j))], b[j], v, fused)
+        out.append((x[i], v))
+    return out
+
+
+def _order_of(M: Sequence[str]) -> int:
+    n = int(round(((8 * len(M) + 1) ** 0.5 - 1) / 2))
+    if n * (n + 1) // 2 != len(M):
+        raise ValueError(f"{len(M)} matrix entries: the packed triangle of n x n has n (n + 1) / 2")
+    return n
+
+
+def ldlt_steps(M: Sequence[str], b: Sequence[str], x: Sequence[str], fused: bool = False) -> List[Tuple[str, str]]:
     """``M x = b`` for a symmetric positive-definite ``M`` (the mass matrix) by its LDL^T factorisation,
-    as assignments ``(target, expression)`` in the arithmetic common to Python, C and JavaScript.
+    as assignments ``(target, expression)`` in the arithmetic common to Python, C and JavaScript
+    (:func:`ldlt_factor_steps`, then :func:`ldlt_solve_steps`).
 
     ``M``: the names of the packed lower triangle, row by row (``M11, M21, M22, M31, ...``; for
     n = 2 ``M11, M12, M22``); ``b``, ``x``: the names of the right-hand side and of the solution
-    (n each).  The steps are those of ``spd_solve.h`` (``sp_ldlt_factor``, ``sp_ldlt_solve``, which
-    every compiled kernel uses), operation for operation and in the same order, so the standalone
-    exports give the kernels' bits (without floating-point contraction): ``iDi = 1/D_i`` (one
-    reciprocal per pivot), ``Lij`` below the diagonal, then ``L z = b``, ``D y = z``, ``L^T x = y``.
-    For n = 2 the two pivots share one reciprocal: ``dD = M11 M22 - M12 M12`` (``D1 D2``),
-    ``w = 1/(M11 dD)``, ``iD1 = dD w``, ``L21 = M12 iD1``, ``iD2 = M11 M11 w``, then ``z2 = b2 - L21 b1,
-    x2 = z2 iD2, x1 = b1 iD1 - L21 x2``."""
+    (n each).  For n = 2: ``dD = M11 M22 - M12 M12``, ``w = 1/(M11 dD)``, ``iD1 = dD w``,
+    ``L21 = M12 iD1``, ``iD2 = M11 M11 w``, then ``z2 = b2 - L21 b1, x2 = z2 iD2, x1 = b1 iD1 - L21 x2``."""
     n = len(b)
     if len(M) != n * (n + 1) // 2 or len(x) != n:
         raise ValueError(f"ldlt_steps: {len(M)} matrix entries, {len(b)} right-hand sides and {len(x)} unknowns "
                          "(the packed triangle of n x n has n (n + 1) / 2)")
-
-    def m(i, j):
-        return M[i * (i + 1) // 2 + j]
-
-    steps: List[Tuple[str, str]] = []
-    L, iD = {}, []
-    if n == 2:  # sp_ldlt_factor's n = 2: one reciprocal for both pivots
-        steps += [("dD", f"{m(0, 0)} * {m(1, 1)} - {m(1, 0)} * {m(1, 0)}"), ("w", f"1.0 / ({m(0, 0)} * dD)"),
-                  ("iD1", "dD * w"), ("L21", f"{m(1, 0)} * iD1"), ("iD2", f"{m(0, 0)} * {m(0, 0)} * w")]
-        L[1, 0], iD = "L21", ["iD1", "iD2"]
-    for i in range(n if n != 2 else 0):  # sp_ldlt_factor
-        w = []  # row i of L times D
-        for j in range(i):
-            u = m(i, j) + "".join(f" - {w[k]} * {L[j, k]}" for k in range(j))
-            if j:
-                steps.append((f"U{i + 1}{j + 1}", u))
-                u = f"U{i + 1}{j + 1}"
-            w.append(u)
-            L[i, j] = f"L{i + 1}{j + 1}"
-            steps.append((L[i, j], f"{u} * {iD[j]}"))
-        d = m(i, i) + "".join(f" - {w[k]} * {L[i, k]}" for k in range(i))
-        iD.append(f"iD{i + 1}")
-        steps.append((iD[i], f"1.0 / ({d})" if i else f"1.0 / {d}"))
-    z = list(b)  # sp_ldlt_solve: L z = b
-    for i in range(1, n):
-        steps.append((f"z{i + 1}", b[i] + "".join(f" - {L[i, k]} * {z[k]}" for k in range(i))))
-        z[i] = f"z{i + 1}"
-    for i in reversed(range(n)):  # D y = z, L^T x = y
-        steps.append((x[i], f"{z[i]} * {iD[i]}" + "".join(f" - {L[k, i]} * {x[k]}" for k in range(i + 1, n))))
-    return steps
+    return ldlt_factor_steps(M, fused=fused) + ldlt_solve_steps(n, b, x, fused=fused)
 
 
 def solve_lines(lang: Lang, M: Sequence[str], b: Sequence[str], x: Sequence[str], indent: str) -> List[str]:
@@ -327,18 +427,15 @@ def solve_lines(lang: Lang, M: Sequence[str], b: Sequence[str], x: Sequence[str]
     return [f"{indent}{lang.declare}{t} = {e}{lang.end}" for t, e in ldlt_steps(M, b, x)]
 
 
-def spd_c_lines(indent: str, b: Sequence[str], *, M: Sequence[str] = (), x: Sequence[str] = (),
-                factors: str = "sp_m", rhs: str = "sp_x") -> List[str]:
-    """C that solves ``M x = b`` with ``spd_solve.h`` (the compiled kernels): ``M`` given (the
-    packed lower triangle's names), it is factored into the array ``factors`` first; otherwise the
-    factors are those already in ``factors``.  The solution is left in the array ``rhs`` (and in
-    the constants ``x``, when named)."""
-    n = len(b)
+def spd_c_lines(indent: str, b: Sequence[str], x: Sequence[str], *, M: Sequence[str] = (), factors: str = "sp_m_",
+                prefix: str = "sp_", fused: bool = False) -> List[str]:
+    """C constants that solve ``M x = b`` (the compiled kernels): ``M`` given (the packed lower
+    triangle's names), its factors are computed first, named with ``factors``; otherwise those of an
+    earlier call with the same ``factors`` are used (one factorisation, several right-hand sides)."""
     lines = []
     if M:
-        lines += [f"{indent}double {factors}[{len(M)}] = {{{', '.join(M)}}};", f"{indent}sp_ldlt_factor({n}, {factors});"]
-    lines += [f"{indent}double {rhs}[{n}] = {{{', '.join(b)}}};", f"{indent}sp_ldlt_solve({n}, {factors}, {rhs});"]
-    lines += [f"{indent}const double {name} = {rhs}[{i}];" for i, name in enumerate(x)]
+        lines += [f"{indent}const double {t} = {e};" for t, e in ldlt_factor_steps(M, factors, fused)]
+    lines += [f"{indent}const double {t} = {e};" for t, e in ldlt_solve_steps(len(b), b, x, factors, prefix, fused)]
     return lines
 
 

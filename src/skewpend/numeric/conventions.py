@@ -128,7 +128,6 @@ def scalar_vector(params: Parameters):
 def parameter_vector(params: Parameters):
     """The float64 parameter array ``p`` of the compiled kernels, in :data:`PARAMETER_ORDER`: the
     scalars (``alpha`` = 0 when unused), then the bodies' entries (:func:`body_values`)."""
-    import numpy as np
 
     try:
         return _vector(params).copy()

@@ -54,7 +54,6 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
         " */",
         "#include <math.h>",
         "#include <stdint.h>",
-        '#include "spd_solve.h" /* the one linear solve: M x = b, LDL^T */',
         "",
     ]
     if flip:
@@ -71,8 +70,8 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
         lines += param_lines(c, I, used)
         return lines
 
-    # M q'' = f (spd_solve.h), M's factors left in sp_m
-    solve = spd_c_lines(I, ["f1", "f2"], M=["M11", "M12", "M22"], x=["ddphi", "ddpsi"])
+    # M q'' = f (LDL^T, codegen.spd_c_lines), M's factors kept as sp_m_*
+    solve = spd_c_lines(I, ["f1", "f2"], ["ddphi", "ddpsi"], M=["M11", "M12", "M22"])
 
     # rhs: M q'' = f solved numerically (no symbolic inverse); W' = Q . q'
     exprs = M + f + Q
@@ -114,9 +113,9 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
         f"{I}        r1 -= dMs[col][0] * ddphi + dMs[col][1] * ddpsi;",
         f"{I}        r2 -= dMs[col][1] * ddphi + dMs[col][2] * ddpsi;",
         f"{I}    }}",
-        *spd_c_lines(I + "    ", ["r1", "r2"], rhs="sp_r"),  # the same factors of M
-        f"{I}    out[2 * 5 + col] = sp_r[0];",
-        f"{I}    out[3 * 5 + col] = sp_r[1];",
+        *spd_c_lines(I + "    ", ["r1", "r2"], ["sp_q1", "sp_q2"], prefix="sp_c"),  # the same factors of M
+        f"{I}    out[2 * 5 + col] = sp_q1;",
+        f"{I}    out[3 * 5 + col] = sp_q2;",
         f"{I}}}",
         f"{I}out[4 * 5 + 2] = Q1 + dQ1_1 * y[2] + dQ2_1 * y[3];",
         f"{I}out[4 * 5 + 3] = Q2 + dQ1_2 * y[2] + dQ2_2 * y[3];",
@@ -141,14 +140,14 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     out += [f"{I}out[0] = M11 * y[2] + M12 * y[3];", f"{I}out[1] = M12 * y[2] + M22 * y[3];", "}", ""]
     out += header("void velocities(const double *z, const double *p, double *out)", "q' = M(q)^-1 p_q into out[2]", M, state="z", names=_STATE[:2])
     out += cse_block(c, M, ["M11", "M12", "M22"], I)
-    out += spd_c_lines(I, ["z[2]", "z[3]"], M=["M11", "M12", "M22"])
-    out += [f"{I}out[0] = sp_x[0];", f"{I}out[1] = sp_x[1];", "}", ""]
+    out += spd_c_lines(I, ["z[2]", "z[3]"], ["sp_v1", "sp_v2"], M=["M11", "M12", "M22"])
+    out += [f"{I}out[0] = sp_v1;", f"{I}out[1] = sp_v2;", "}", ""]
     # Hamilton's equations: q' = M^-1 p; p' = dT/dq(q, q') - dPi/dq + Q(q'); W' = Q . q'
     ham = M + list(ex.dPi_dq)
     out += header("void ham_rhs(const double *z, const double *p, double *out)", "dz/dt of z = (phi, psi, p_phi, p_psi, W) into out[5]", ham, state="z", names=_STATE[:2])
     used = used_names(ham)
     out += cse_block(c, ham, ["M11", "M12", "M22", "dPi1", "dPi2"], I)
-    out += spd_c_lines(I, ["z[2]", "z[3]"], M=["M11", "M12", "M22"], x=["dphi", "dpsi"])
+    out += spd_c_lines(I, ["z[2]", "z[3]"], ["dphi", "dpsi"], M=["M11", "M12", "M22"])
     more = list(ex.dT_dq) + Q
     out += param_lines(c, I, used_names(more) - used - set(_STATE))
     out += cse_block(c, more, ["dT1", "dT2", "Q1", "Q2"], I, prefix="u")
@@ -403,11 +402,11 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
     out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
     out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
     out += [
-        *spd_c_lines(J, ["f1", "f2"], M=["M11", "M12", "M22"]),  # M q'' = f (spd_solve.h), in the lane loop
+        *spd_c_lines(J, ["f1", "f2"], ["sp_a1", "sp_a2"], M=["M11", "M12", "M22"]),  # M q'' = f (LDL^T, codegen), in the lane loop
         f"{J}out[0][l] = y[2][l];",
         f"{J}out[1][l] = y[3][l];",
-        f"{J}out[2][l] = sp_x[0];",
-        f"{J}out[3][l] = sp_x[1];",
+        f"{J}out[2][l] = sp_a1;",
+        f"{J}out[3][l] = sp_a2;",
     ]
     out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
     out += [f"{I}}}", "}", ""]
@@ -496,11 +495,11 @@ def capture_c_source(ex, geometry: Parameters) -> List[str]:
     out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
     out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
     out += [
-        *spd_c_lines(J, ["f1", "f2"], M=["M11", "M12", "M22"]),  # M q'' = f + u (spd_solve.h), in the lane loop
+        *spd_c_lines(J, ["f1", "f2"], ["sp_a1", "sp_a2"], M=["M11", "M12", "M22"]),  # M q'' = f + u (LDL^T, codegen), in the lane loop
         f"{J}out[0][l] = y[2][l];",
         f"{J}out[1][l] = y[3][l];",
-        f"{J}out[2][l] = sp_x[0];",
-        f"{J}out[3][l] = sp_x[1];",
+        f"{J}out[2][l] = sp_a1;",
+        f"{J}out[3][l] = sp_a2;",
     ]
     out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
     out += [f"{I}}}", "}", ""]

@@ -64,7 +64,7 @@ __all__ = ["ControlStruct",
 #: Files whose text determines the generated library (part of the cache key).
 _SOURCES = (
     "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c", "numeric/chaos.c",
-    "numeric/dop853_core.h", "numeric/rows.h", "numeric/spd_solve.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
+    "numeric/dop853_core.h", "numeric/rows.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
     "symbolic/symbols.py",
 )
 _PACKAGE = Path(__file__).resolve().parent.parent
@@ -758,7 +758,7 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
     geometry = structure_of(params)
     # the Taylor library's text also depends on its generator and driver (not part of the others' key),
     # and on whether the processor's fused multiply-add is used (fused_multiply_add)
-    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h", "spd_solve.h"))
+    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h"))
     fused, flags = fused_multiply_add()
     key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}")
     key += f"_taylor{order}"

@@ -15,8 +15,10 @@ power series:
   (``s' = c u'``, ``c' = -s u'``), ``atan`` (Coulomb friction) ``a' = u'/(1 + u^2)``;
 * ``M q'' = f`` is solved in series arithmetic: ``q''[k] = M[0]^-1 (f[k] - sum_{j>=1} M[j] q''[k-j])``
   (the entries of ``M`` that are constant contribute nothing beyond order 0), ``M[0]`` factored
-  once a step (LDL^T, ``spd_solve.h``, the kernels' one solve) and its inverse, formed from the
-  factors, applied at every order (``sp_spd_mul``: one product and one fused add after ``f[k]``);
+  once a step (LDL^T, :func:`~skewpend.numeric.codegen.ldlt_factor_steps`, the kernels' one solve)
+  and its inverse, formed from the factors, applied at every order
+  (:func:`~skewpend.numeric.codegen.spd_mul_steps`: one product and one fused add after ``f[k]``),
+  all printed as named constants with their products fused as the series' are;
 * the work ``W' = Q . q'`` is a separate block, skipped at run time when the parameters ``Q``
   depends on are all 0 (then ``Q`` is identically 0: checked symbolically here).
 
@@ -35,10 +37,14 @@ from typing import Dict, List, Tuple
 import sympy as sp
 
 from .. import __version__
-from .codegen import c_printer, cse_block, expressions, param_lines, used_names, Lang
+from .codegen import (c_printer, cse_block, expressions, ldlt_factor_steps, ldlt_inverse_steps, param_lines, spd_mul_steps,
+                      used_names, Lang)
 from .conventions import PARAMETER_ORDER, STATE_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
+
+#: M[0]^-1 of the series' solve (packed lower triangle), named once a step.
+_INV = ("sp_i11", "sp_i21", "sp_i22")
 
 __all__ = ["taylor_c_source", "SP_TN", "SP_TPMAX"]
 
@@ -667,9 +673,7 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = Tru
            f" * Series products per order: {cost:g} (a square counts 1/2, sin/cos 2). */",
            "#include <math.h>", "#include <stdint.h>", "#include <string.h>", "", *status_defines(), "",
            f"#define SP_TN {SP_TN}", f"#define SP_TPMAX {SP_TPMAX}", f"#define SP_TORDER {order}",
-           f"#define SP_TAYLOR_NPC {npc}", f"#define SP_FUSED {int(bool(fused))}", "", *VECTOR_C, "",
-           "/* the one linear solve (M q'' = f: LDL^T), its products fused as the series' are */",
-           "#define SP_SPD_FMA(a, b, c) SP_FMA(a, b, c)", '#include "spd_solve.h"', ""]
+           f"#define SP_TAYLOR_NPC {npc}", f"#define SP_FUSED {int(bool(fused))}", "", *VECTOR_C, ""]
     # whether W needs integrating: the parameters Q depends on, and whether Q vanishes when they do
     qparams = sorted(used_names([ex.Q[0], ex.Q[1]]) & set(PARAMETER_ORDER), key=PARAMETER_ORDER.index)
     zero = {SYMBOLS[n]: 0 for n in qparams}
@@ -703,13 +707,10 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = Tru
 
     def solve(k: int) -> List[str]:
         """M q''[k] = f[k] - sum_{j=1..k} M[j] q''[k-j] (constant entries of M: nothing beyond order 0)."""
-        if k == 0:  # M[0] = L D L^T once a step (spd_solve.h), and from its factors M[0]^-1, used at every order
-            # (the arrays in blocks of their own: the compiler keeps such small arrays in registers in
-            # this long function only when their lifetimes end)
-            lines = [f"{I}double sp_i11, sp_i21, sp_i22;",
-                     f"{I}{{ double sp_m[3] = {{{_val(M11, 0)}, {_val(M12, 0)}, {_val(M22, 0)}}}, sp_inv[3]; "
-                     "sp_ldlt_factor(2, sp_m); sp_ldlt_inverse(2, sp_m, sp_inv); "
-                     "sp_i11 = sp_inv[0]; sp_i21 = sp_inv[1]; sp_i22 = sp_inv[2]; }"]
+        if k == 0:  # M[0] = L D L^T once a step and from its factors M[0]^-1, used at every order (codegen's LDL^T)
+            m0 = [f"({_val(M11, 0)})", f"({_val(M12, 0)})", f"({_val(M22, 0)})"]
+            lines = [f"{I}const double {t} = {e};" for t, e in
+                     ldlt_factor_steps(m0, "sp_f", fused=True) + ldlt_inverse_steps(2, _INV, "sp_f", "sp_", fused=True)]
         else:
             lines = []
         for name, rhs, terms in (("r1", f1, [(M11, "a1"), (M12, "a2")]), ("r2", f2, [(M12, "a1"), (M22, "a2")])):
@@ -728,15 +729,14 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = Tru
         # q''[k] = M[0]^-1 r and x[2..3][k + 1] = q''[k] / (k + 1), each a product of M[0]^-1 (scaled by
         # 1 / (k + 1), off the critical path) with r: a product and a fused add after r, where the
         # substitutions would be three dependent operations and the scaling a fourth
-        lines += [f"{I}{{", f"{I}    const double sp_r[2] = {{r1_{k}, r2_{k}}};", f"{I}    double sp_a[2];",
-                  f"{I}    const double sp_mi[3] = {{sp_i11, sp_i21, sp_i22}};",
-                  f"{I}    sp_spd_mul(2, sp_mi, sp_r, sp_a);", f"{I}    a1[{k}] = sp_a[0];", f"{I}    a2[{k}] = sp_a[1];"]
+        r = [f"r1_{k}", f"r2_{k}"]
+        lines += [f"{I}{{"] + [f"{I}    {t} = {e};" for t, e in spd_mul_steps(_INV, r, [f"a1[{k}]", f"a2[{k}]"], fused=True)]
         if k == 0:
-            lines += [f"{I}    x[2][1] = sp_a[0];", f"{I}    x[3][1] = sp_a[1];"]
+            lines += [f"{I}    x[2][1] = a1[0];", f"{I}    x[3][1] = a2[0];"]
         else:
-            lines += [f"{I}    const double sp_s[3] = {{{', '.join(f'{c} * inv[{k + 1}]' for c in ('sp_i11', 'sp_i21', 'sp_i22'))}}};",
-                      f"{I}    double sp_q[2];", f"{I}    sp_spd_mul(2, sp_s, sp_r, sp_q);",
-                      f"{I}    x[2][{k + 1}] = sp_q[0];", f"{I}    x[3][{k + 1}] = sp_q[1];"]
+            scaled = [f"sp_s{c[-2:]}" for c in _INV]
+            lines += [f"{I}    const double {t} = {c} * inv[{k + 1}];" for t, c in zip(scaled, _INV)]
+            lines += [f"{I}    {t} = {e};" for t, e in spd_mul_steps(scaled, r, [f"x[2][{k + 1}]", f"x[3][{k + 1}]"], fused=True)]
         lines += [f"{I}}}", f"{I}x[0][{k + 1}] = x[2][{k}] * inv[{k + 1}];", f"{I}x[1][{k + 1}] = x[3][{k}] * inv[{k + 1}];"]
         return lines
 
