@@ -1,7 +1,8 @@
-"""The output-error fit's machinery (skewpend.analysis.shooting, issue 27): the dynamics generated from
-the base regressor against the compiled simulation (two paths from the derivation), the exactness of the
-sensitivities (the gradient of the discrete model against central differences of its own cost), and a
-fit recovering a known skewed model from noiseless data."""
+"""The output-error fit's machinery (skewpend.analysis.shooting, issues 27 and 37): the shooting kernel's
+parameter sensitivities against differences of the model kernel, the base parameters' dynamics on it
+against the compiled simulation of the model's own bodies, the exactness of the sensitivities (the
+gradient of the discrete model against central differences of its own cost), and a fit recovering a
+known skewed model from noiseless data."""
 
 from __future__ import annotations
 
@@ -37,43 +38,55 @@ def _segments(params, seconds=0.6, dt=1e-3, step=0.002, noise=0.0, seed=0):
     return shooting.segments(filtered, names, segment=seconds, step=step)
 
 
-def test_the_compiled_regressor_functions_are_the_expressions(generic):
-    """The C functions printed from the base regressor and its derivatives (shooting._generated)
-    against SymPy's NumPy printing of the same expressions, at random states: equal to rounding
-    (1e-12 relative to the largest entry of each matrix), and the speeds, alpha, a and g all read."""
-    import sympy as sp
+def test_the_kernels_parameter_sensitivities_are_the_derivatives():
+    """The shooting kernel's ``rhs_sens`` (generated from the derivation: d q''/d y and d q''/d p, one
+    LDL^T solve a column) against central differences of the model kernel's own right-hand side in
+    every entry of p and of the Jacobian in the state, at random states of a skewed rig with friction
+    and a rotor (every body entry read from p): steps 1e-6 relative, truncation ~1e-12, rounding ~1e-10
+    of the entries; asserted 1e-6 relative to each column's scale.  Its accelerations are those of the
+    rig's own kernel (body 1 a thin rod there, its values in p here)."""
+    import ctypes
 
-    from skewpend.symbolic.symbols import SYMBOLS as S
+    from skewpend.numeric.conventions import PARAMETER_ORDER, parameter_vector
+    from skewpend.numeric.kernels import kernel_module
 
-    B, _ = generic
-    Y = B.symbolic_regressor
-    base, full, r = shooting._generated(Y)
-    YM1, YM2 = Y.diff(S["ddphi"]), Y.diff(S["ddpsi"])
-    Yh = Y.xreplace({S["ddphi"]: 0, S["ddpsi"]: 0})
-    mats = [YM1, YM2, Yh, Yh.diff(S["phi"]), Yh.diff(S["psi"]), YM1.diff(S["phi"]), YM1.diff(S["psi"]),
-            YM2.diff(S["phi"]), YM2.diff(S["psi"]), Yh.diff(S["dphi"]), Yh.diff(S["dpsi"]), Yh.diff(S["alpha"]),
-            YM1.diff(S["alpha"]), YM2.diff(S["alpha"])]
-    args = [S[n] for n in ("phi", "psi", "dphi", "dpsi", "alpha", "a", "g")]
-    numpy = sp.lambdify(args, [e for M in mats for e in M], modules="numpy")
-    rng = np.random.default_rng(3)
-    y = rng.uniform(-3, 3, (7, 4))
-    for alpha, a, g in ((0.4, 1.0, 9.81), (-1.1, 0.37, 3.2)):
-        got = full(y, alpha, a, g)
-        want = np.array([np.broadcast_to(v, (7,)) for v in numpy(*y.T, alpha, a, g)])
-        scale = np.abs(want.reshape(14, -1)).max(axis=1).repeat(2 * r)[:, None] + 1e-300
-        assert np.all(np.abs(got - want) <= 1e-12 * scale), np.abs(got - want).max()
-        assert np.all(np.abs(base(y, alpha, a, g) - want[: 3 * 2 * r]) <= 1e-12 * scale[: 3 * 2 * r])
-    assert not np.array_equal(full(y, 0.4, 1.0, 9.81), full(y, 0.4, 1.0, 3.2))  # g is read
-    assert not np.array_equal(full(y, 0.4, 1.0, 9.81), full(y, 0.4, 0.9, 9.81))  # a is read
+    rig = P.replace(cf1=0.05, cf2=0.03, Ir=2e-4, gr=-6.0, com2=(0.02, 0.35, -0.01),
+                    inertia2=((0.03, 0.002, 0.001), (0.002, 0.004, 0.001), (0.001, 0.001, 0.03)))
+    sens, model = kernel_module(rig, shooting=True), kernel_module(rig)
+    p = parameter_vector(rig)
+    dp = ctypes.POINTER(ctypes.c_double)
+    rng = np.random.default_rng(27)
+    for y in rng.uniform(-2, 2, (4, 4)):
+        acc, A, B = np.empty(2), np.empty(8), np.empty(2 * len(p))
+        sens.lib.sp_rhs_sens(*(a.ctypes.data_as(dp) for a in (y, p, acc, A, B)))
+        out = np.empty(5)
+        model.rhs(np.append(y, 0.0), p, out)
+        np.testing.assert_allclose(acc, out[2:4], rtol=1e-13, atol=1e-13)
+        B = B.reshape(2, len(p))
+        for j, name in enumerate(PARAMETER_ORDER):
+            h = 1e-6 * max(1.0, abs(p[j]))
+            f = []
+            for sign in (1, -1):
+                pj = p.copy()
+                pj[j] += sign * h
+                sens.rhs(np.append(y, 0.0), pj, out)  # its own right-hand side: every body entry from p
+                f.append(out[2:4].copy())
+            num = (f[0] - f[1]) / (2 * h)
+            assert np.max(np.abs(B[:, j] - num)) <= 1e-6 * max(1.0, np.abs(num).max()), name
+        J = np.empty((5, 5))
+        sens.jac(np.append(y, 0.0), p, J)
+        np.testing.assert_allclose(A.reshape(2, 4), J[2:4, :4], rtol=1e-12, atol=1e-12)
+    # the derivative in a body entry is not zero (the bodies are read from p, not baked in)
+    assert np.abs(B[:, PARAMETER_ORDER.index("I2zz")]).max() > 0 and np.abs(B[:, PARAMETER_ORDER.index("r1y")]).max() > 0
 
 
 def test_the_regressor_dynamics_are_the_simulations(generic):
-    """RK4 at 1 ms on q'' = M(beta)^-1 (tau - Yh beta), generated from the base regressor, against the
-    compiled DOP853 at 1e-12 on the kernels generated from the same derivation by another route:
+    """RK4 at 1 ms on the shooting kernel (base parameters as a point of p: the representative of beta),
+    against the compiled DOP853 at 1e-12 on the model's own kernel (its bodies as given):
     RK4's global error over 0.6 s is ~1e-11 here; asserted 1e-8 rad on every sample."""
     B, beta = generic
     seg = _segments(P, step=0.001)
-    model = shooting._Model(B.symbolic_regressor, P.a, P.g)
+    model = shooting._Model(B, P)
     q = shooting._simulate(model, seg, seg.y0, beta, P.alpha)
     err = np.abs(q - seg.q) * seg.mask[:, :, None]
     assert err.max() < 1e-8, err.max()
@@ -102,7 +115,7 @@ def test_the_sensitivities_are_the_exact_gradient_of_the_discrete_model(generic)
     B, beta = generic
     truth = P.replace(c1=0.025, m2=P.m2 * 1.02)
     seg = _segments(truth, seconds=0.3)
-    model = shooting._Model(B.symbolic_regressor, P.a, P.g)
+    model = shooting._Model(B, P)
     names = list(B.names)
     free = [n for n in names if n in ("h1y_b", "J2zz_b", "h2y", "c1", "c2")]
     fi = [names.index(n) for n in free]
@@ -135,8 +148,7 @@ def test_a_fit_recovers_a_skewed_model_from_noiseless_data(generic):
     start = beta.copy()
     for n in free:
         start[names.index(n)] *= 1.05
-    r = shooting.fit(B.symbolic_regressor, names, start, free, P.alpha + math.radians(2.0), True, seg, P.a, P.g,
-                     pieces=len(STARTS), bootstrap=0)
+    r = shooting.fit(B, P, start, free, P.alpha + math.radians(2.0), True, seg, pieces=len(STARTS), bootstrap=0)
     assert r.converged, r.message
     for n in free:
         assert r.beta[names.index(n)] == pytest.approx(beta[names.index(n)], rel=1e-5), n
@@ -201,7 +213,7 @@ def test_friction_and_rotor_columns_keep_their_skew_angle(extended):
     (1.6e-6 rad at 1 ms): at 0.5 and 0.25 ms the error is below 1e-7 and falls at least 8-fold (RK4
     order 4: 16) -- the regressor's dynamics converge to the simulation's."""
     T, beta = extended
-    model = shooting._Model(T.symbolic_regressor, P.a, P.g)
+    model = shooting._Model(T, P_EXTRA)
     errors = []
     for h in (0.0005, 0.00025):
         seg = _segments(P_EXTRA, dt=h, step=h)
@@ -220,7 +232,7 @@ def test_sensitivities_with_friction_rotor_and_alpha_are_exact(extended):
     T, beta = extended
     truth = P_EXTRA.replace(m2=P.m2 * 1.02, Ir=2.4e-4)
     seg = _segments(truth, seconds=0.3)
-    model = shooting._Model(T.symbolic_regressor, P.a, P.g)
+    model = shooting._Model(T, P_EXTRA)
     names = list(T.names)
     fi = [names.index(n) for n in ("h1y_b", "J2zz_b", "cf1", "cf2", "Ir")]
     alpha = P.alpha + 0.01

@@ -844,7 +844,6 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         # the linear estimate starts the fit; where it is not physical (noisy accelerations), params0 does
         beta0 = np.asarray(lin.values if lin.status is Status.SUCCESS else B.values(standard_vector(params0), a, alpha0, g), float)
         free = [n for n in lin.free if n != ref]
-        Yb = B.symbolic_regressor
     else:
         B = model_terms(params0.replace(alpha=None))  # every skew angle: the generic base parameters
         names = B.names
@@ -862,7 +861,6 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         det = [names[j] for j in independent_columns(A, range(len(names)))]
         stems = {_stem(n) for n in lin.free}
         free = [n for n in names if n in det and _stem(n) in stems and n != ref]
-        Yb = B.symbolic_regressor
 
         def refree(alpha: float) -> None:
             """Free every base parameter the data determine at ``alpha`` (away from alpha0 the skew
@@ -876,7 +874,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
 
     def run(beta, alpha, free_alpha, y0, iterations=60, boot=0, tol=1e-10):
         seg.y0[:] = y0
-        sf = shooting.fit(Yb, names, beta, free, alpha, free_alpha, seg, a, g, pieces=n_pieces,
+        sf = shooting.fit(B, params0, beta, free, alpha, free_alpha, seg, pieces=n_pieces,
                           max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol, cluster=cl)
         if n_cl < MIN_CLUSTERS:  # too few clusters for an interval: none (the reason is in settings)
             sf.half = np.full_like(sf.half, np.nan)

@@ -1,24 +1,29 @@
-"""The output-error fit of :func:`skewpend.identify`: multiple shooting with exact sensitivities.
+"""The output-error fit of :func:`skewpend.identify`: multiple shooting with exact sensitivities,
+on the house integrator.
 
-The model is written in its base parameters ``beta`` (:mod:`skewpend.symbolic.regressor`): the
-equations ``Y_b(q, q', q''; a, alpha, g) beta = tau`` are linear in ``q''``,
-``Y_b = Yh(q, q') + YM_1(q) q1'' + YM_2(q) q2''``, so ``M(q) = [YM_1 beta, YM_2 beta]`` and
-``q'' = M^-1 (tau - Yh beta)``.  Everything a step needs -- ``YM_i``, ``Yh`` and their
-derivatives in ``q``, ``q'`` and the skew angle ``alpha`` -- is generated once from the symbolic
-base regressor (SymPy ``lambdify`` with common subexpressions); ``beta`` and ``alpha`` are run-time
-inputs, so a fit generates its functions once and never per iteration.  The sensitivities follow
-from differentiating ``Y_b beta = tau``:
-
-    d q''/d x = -M^-1 (d Y_b/d x) beta  (x = q, q', alpha; q'' held),   d q''/d beta_k = -M^-1 Y_b[:, k].
+The model is written in its base parameters ``beta`` (:mod:`skewpend.symbolic.regressor`): the data
+determine ``beta = T(a, alpha, g) pi``, the pivots of the standard parameters ``pi`` (each body's
+mass, first moment ``h = m c`` and inertia ``J`` about its hinge; damping, friction, rotor) plus the
+entries that move with them.  The dynamics are the compiled kernels' (the same derivation every
+simulation runs), for a representative of ``beta``: ``pi`` with its dependent entries held at the
+start model's and its pivots ``beta - T_D pi_D`` -- every such ``pi`` has the same equations.  The
+kernels read the bodies as centres of mass and inertias at run time (:mod:`skewpend.numeric.conventions`),
+``c = h/m``, ``I_c = J - (|h|^2 E - h h^T)/m`` (the masses are dependents: the start's, positive), so
+a fit compiles one library for its hinge axes and optional terms (``kernel_module(..., shooting=True)``,
+every body entry a run-time input) and never one per iteration or per rig.  Its sensitivities are the
+kernel's ``d q''/d y`` and ``d q''/d p`` (generated from the derivation, one LDL^T solve a column);
+the fit's parameters ``theta`` (free base parameters, then ``alpha``) enter through the chain rule
+``G = dp/dtheta`` computed here: ``d p/d beta_k`` is the column of its pivot, and a freed ``alpha`` moves
+both ``p``'s ``alpha`` and, at fixed ``beta``, the pivots (``-dT_D/dalpha pi_D``).
 
 The measured pieces are cut into segments (default :data:`SEGMENT` = 0.5 s); each segment starts
 from its own free state ``(q, q')`` (the *shooting nodes*; continuity between segments is not
 imposed, so a segment never carries another's error) and is integrated by the classical RK4 at a
 fixed step (a multiple of the sampling step near :data:`STEP`) together with its variational
-equations: applied to the state and its sensitivities at once, RK4 gives the exact derivative of
-its own discrete map, so the Jacobian of the residuals is exact for the model that is fitted.  All
-segments advance together (NumPy arrays over segments).  The residuals are the simulated minus the
-measured angles at every step.
+equations, in C (``sp_shoot``, ``numeric/shooting.c``): applied to the state and its sensitivities
+at once, RK4 gives the exact derivative of its own discrete map, so the Jacobian of the residuals is
+exact for the model that is fitted.  The residuals are the simulated minus the measured angles at
+every step.
 
 Gauss-Newton with Levenberg-Marquardt damping; each segment's 4 start values are eliminated per
 segment (Schur complement), so the linear algebra is that of the few global parameters.  It stops
@@ -45,13 +50,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Dict, Optional, Sequence, Tuple
+from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 import sympy as sp
 
 from ..errors import ParameterError
-from ..schema import LENGTH_NAMES
+from ..schema import COM_NAMES, INERTIA_NAMES, LENGTH_NAMES, MASS_NAMES, sym_prefix
+from ..symbolic.model import Parameters
 from ..symbolic.symbols import SYMBOLS
 
 __all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit"]
@@ -63,138 +69,157 @@ STEP = 0.004
 #: Smallest relative curvature (reduced, column-scaled Gauss-Newton matrix) of a determined direction.
 FLAT = 1e-9
 
-_VARS = ("phi", "psi", "dphi", "dpsi", "alpha")
-
-
-_GENERATED: Dict[str, Tuple[Callable, Callable, int]] = {}
-
-
-def _generated(Yb: sp.Matrix) -> Tuple[Callable, Callable, int]:
-    """Two compiled functions generated from ``Y_b`` (cached, on disk like the kernels), each
-    ``fn(y (S, 4), alpha, a, g) -> (entries, S)``: ``base`` gives ``[YM1, YM2, Yh]`` and ``full`` in
-    addition ``dYh/dphi, dYh/dpsi, dYM1/dphi, dYM1/dpsi, dYM2/dphi, dYM2/dpsi, dYh/ddphi, dYh/ddpsi,
-    dYh/dalpha, dYM1/dalpha, dYM2/dalpha``: each entry flattened (2 x r per matrix).  C, from the
-    expressions with common subexpressions eliminated (NumPy on a few hundred segments spent its time
-    on the calls, not the arithmetic: 0.4 ms a call against a few microseconds)."""
-    key = sp.srepr(Yb)
-    if key in _GENERATED:
-        return _GENERATED[key]
-    S = SYMBOLS
-    Y = Yb
-    YM1, YM2 = Y.diff(S["ddphi"]), Y.diff(S["ddpsi"])
-    Yh = Y.xreplace({S["ddphi"]: 0, S["ddpsi"]: 0})
-    for M in (YM1, YM2):
-        if M.free_symbols & {S["ddphi"], S["ddpsi"], S["dphi"], S["dpsi"]}:
-            raise AssertionError("the mass matrix of the base regressor depends on the speeds")
-    d = lambda M, n: M.diff(S[n])  # noqa: E731
-    mats_base = [YM1, YM2, Yh]
-    mats_full = mats_base + [d(Yh, "phi"), d(Yh, "psi"), d(YM1, "phi"), d(YM1, "psi"), d(YM2, "phi"), d(YM2, "psi"),
-                             d(Yh, "dphi"), d(Yh, "dpsi"), d(Yh, "alpha"), d(YM1, "alpha"), d(YM2, "alpha")]
-    source = "\n".join(["#include <math.h>", "#include <stdint.h>",
-                        _c_function("sp_regressor_base", [e for M in mats_base for e in M]),
-                        _c_function("sp_regressor_full", [e for M in mats_full for e in M])])
-    from ..numeric.kernels import source_library
-
-    lib = source_library(source, "regressor")
-    _GENERATED[key] = (_caller(lib.sp_regressor_base, 3 * Yb.rows * Yb.shape[1]),
-                       _caller(lib.sp_regressor_full, 14 * Yb.rows * Yb.shape[1]), Yb.shape[1])
-    return _GENERATED[key]
-
-
-#: The inputs of the generated functions, in the order of their C arguments after the state.
-_INPUTS = ("phi", "psi", "dphi", "dpsi", "alpha") + (LENGTH_NAMES[0], "g")  # the regressor's STRUCTURE
-
-
-def _c_function(name: str, exprs: Sequence[sp.Expr]) -> str:
-    """``void name(int64_t n, const double *y, double alpha, double a, double g, double *out)``: the
-    expressions at each of the ``n`` states ``y`` (n, 4), entry k of state i in ``out[k n + i]``."""
-    from sympy.printing.c import C99CodePrinter
-
-    local = sp.symbols("v_phi v_psi v_dphi v_dpsi v_alpha v_a v_g")
-    to_local = {SYMBOLS[n]: v for n, v in zip(_INPUTS, local)}
-    exprs = [sp.sympify(e).xreplace(to_local) for e in exprs]
-    if set().union(*(e.free_symbols for e in exprs)) - set(local):
-        raise AssertionError("the base regressor has symbols besides the state, alpha, a and g")
-    temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"))
-    printer = C99CodePrinter()
-    lines = [f"void {name}(int64_t n, const double *y, double v_alpha, double v_a, double v_g, double *out) {{",
-             "  (void)v_alpha; (void)v_a; (void)v_g;",
-             "  for (int64_t i = 0; i < n; i++) {",
-             "    const double v_phi = y[4 * i], v_psi = y[4 * i + 1], v_dphi = y[4 * i + 2], v_dpsi = y[4 * i + 3];",
-             "    (void)v_phi; (void)v_psi; (void)v_dphi; (void)v_dpsi;"]
-    lines += [f"    const double {t} = {printer.doprint(e)};" for t, e in temps]
-    lines += [f"    out[{k} * n + i] = {printer.doprint(e)};" for k, e in enumerate(reduced)]
-    return "\n".join(lines + ["  }", "}"])
-
-
-def _caller(fn, entries: int) -> Callable:
-    """``call(y, alpha, a, g) -> (entries, S)`` around the C function ``fn``."""
-    import ctypes
-
-    vp, d = ctypes.c_void_p, ctypes.c_double
-    fn.argtypes, fn.restype = [ctypes.c_int64, vp, d, d, d, vp], None
-
-    def call(y: np.ndarray, alpha: float, a: float, g: float) -> np.ndarray:
-        y = np.ascontiguousarray(y, dtype=float)
-        out = np.empty((entries, len(y)))
-        fn(len(y), y.ctypes.data, float(alpha), a, g, out.ctypes.data)
-        return out
-
-    return call
+#: Segments a call of the compiled integrator takes (Ctrl-C is honoured between calls).
+_CHUNK = 32
 
 
 class _Model:
-    """The segment dynamics in base parameters (see the module)."""
+    """The segment dynamics of base parameters on the compiled kernels (see the module): ``terms`` the
+    base parameters (a :class:`~skewpend.symbolic.regressor.BaseParameters`, or identification's
+    terms with friction and rotor columns beside them), ``params0`` the start model (its hinge axes,
+    optional terms, ``a``, ``g``, ``cfs``, ``gr`` and the values of the entries held)."""
 
-    def __init__(self, Yb: sp.Matrix, a: float, g: float):
-        self.base, self.full, self.r = _generated(Yb)
-        self.a, self.g = float(a), float(g)
+    def __init__(self, terms, params0: Parameters):
+        from ..numeric.conventions import PARAMETER_ORDER, parameter_vector
+        from ..numeric.kernels import kernel_module
+        from ..symbolic.regressor import PI_NAMES, standard_parameters
 
-    def _eval(self, fn, y, alpha, count):
-        return fn(y, alpha, self.a, self.g).reshape(count, 2, self.r, len(y))
+        base = getattr(terms, "B", terms)
+        self.names = tuple(terms.names)
+        self.extra = tuple(getattr(terms, "extra", ()))
+        self.pivots = list(base.pivots)
+        self.r0 = len(base.names)
+        self.n_pi = len(PI_NAMES)
+        self.dep = [j for j in range(self.n_pi) if j not in self.pivots]
+        if params0.uses_alpha and params0.alpha is None:
+            params0 = params0.replace(alpha=0.0)
+        self.a, self.g = float(getattr(params0, LENGTH_NAMES[0])), float(params0.g)
+        self.alpha_ref = float(params0.alpha) if params0.uses_alpha else 0.0
+        self.pi_ref = np.concatenate([standard_parameters(params0), [float(getattr(params0, x) or 0.0) for x in self.extra]])
+        self.kernel = kernel_module(params0, shooting=True)
+        self.p0 = parameter_vector(params0)
+        S = SYMBOLS
+        args = [S[LENGTH_NAMES[0]], S["alpha"], S["g"]]
+        self._T = sp.lambdify(args, base.matrix, modules="numpy")
+        self._dT = sp.lambdify(args, base.matrix.diff(S["alpha"]), modules="numpy")
+        order = list(PARAMETER_ORDER)
+        self.i_alpha = order.index("alpha")
+        # where each standard parameter lands in p: the scalars directly, the bodies through (c, I_c)
+        self.i_scalar = {n: order.index(n) for n in PI_NAMES if n in order}
+        self.i_scalar.update({n: order.index(n) for n in self.extra})
+        self.bodies = []
+        for i, (m, com, inertia) in enumerate(zip(MASS_NAMES, COM_NAMES, INERTIA_NAMES), start=1):
+            r = [order.index(f"{sym_prefix(com)}{x}") for x in "xyz"]
+            J = [order.index(f"{sym_prefix(inertia)}{'xyz'[a]}{'xyz'[b]}") for a, b in _PAIRS]
+            k = PI_NAMES.index(m)
+            self.bodies.append((k, list(range(k + 1, k + 4)), list(range(k + 4, k + 10)), r, J))
+        T = self.T(self.alpha_ref)
+        if not np.allclose(T[:, self.pivots], np.eye(self.r0), rtol=0, atol=1e-12):
+            raise AssertionError("the base parameters are not their pivots plus dependents")
 
-    def accel(self, y, beta, alpha, tau):
-        """q'' (S, 2) of states ``y`` (S, 4)."""
-        arr = self._eval(self.base, y, alpha, 3)
-        P = np.einsum("kirs,r->kis", arr, beta)
-        return _solve2(P[0], P[1], tau.T - P[2]).T
+    def T(self, alpha: float) -> np.ndarray:
+        return np.array(self._T(self.a, alpha, self.g), dtype=float).reshape(self.r0, self.n_pi)
 
-    def rhs(self, y, beta, alpha, tau, free_idx, alpha_free):
-        """(y', A, B): y' (S, 4); A = d y'/d y (S, 4, 4); B = d y'/d theta (S, 4, p), theta the free
-        base parameters then alpha."""
-        arr = self._eval(self.full, y, alpha, 14)
-        P = np.einsum("kirs,r->kis", arr, beta)  # (14, 2, S)
-        ddq = _solve2(P[0], P[1], tau.T - P[2])  # (2, S)
-        d1, d2 = ddq
-        n = len(y)
-        v = np.empty((4 + 1, 2, n))  # d(Y beta)/d(phi, psi, dphi, dpsi, alpha) at the current q''
-        v[0] = P[3] + P[5] * d1 + P[7] * d2
-        v[1] = P[4] + P[6] * d1 + P[8] * d2
-        v[2] = P[9]
-        v[3] = P[10]
-        v[4] = P[11] + P[12] * d1 + P[13] * d2
-        cols = [arr[2][:, j] + arr[0][:, j] * d1 + arr[1][:, j] * d2 for j in free_idx]  # Y_b[:, j], (2, S)
-        rhs_v = np.concatenate([v[:4], np.array(cols).reshape(-1, 2, n)] + ([v[4:5]] if alpha_free else []))
-        sol = -_solve2(P[0], P[1], rhs_v)  # (m, 2, S): -M^-1 v
-        dy = np.empty((n, 4))
-        dy[:, :2] = y[:, 2:]
-        dy[:, 2:] = ddq.T
-        A = np.zeros((n, 4, 4))
-        A[:, 0, 2] = A[:, 1, 3] = 1.0
-        A[:, 2:, :] = np.transpose(sol[:4], (2, 1, 0))
-        B = np.zeros((n, 4, len(sol) - 4))
-        B[:, 2:, :] = np.transpose(sol[4:], (2, 1, 0))
-        return dy, A, B
+    def standard(self, beta: np.ndarray, alpha: float) -> np.ndarray:
+        """The representative ``pi`` (with the extra terms after it) of ``beta`` at ``alpha``."""
+        pi = self.pi_ref.copy()
+        pi[self.pivots] = beta[:self.r0] - self.T(alpha)[:, self.dep] @ self.pi_ref[self.dep]
+        pi[self.n_pi:] = beta[self.r0:]
+        return pi
+
+    def p_of(self, pi: np.ndarray, alpha: float):
+        """The kernel's ``p`` of a standard vector and ``dp/dpi`` (NP x len(pi))."""
+        p = self.p0.copy()
+        D = np.zeros((len(p), len(pi)))
+        p[self.i_alpha] = alpha
+        names = _PI_NAMES_EXT(self.extra)
+        for n, i in self.i_scalar.items():
+            j = names.index(n)
+            p[i] = pi[j]
+            D[i, j] = 1.0
+        E = np.eye(3)
+        for k, hk, Jk, ri, Ii in self.bodies:
+            m, h = pi[k], pi[hk]
+            Jm = _full(pi[Jk])
+            hh = float(h @ h)
+            p[ri] = h / m
+            Ic = Jm - (hh * E - np.outer(h, h)) / m
+            p[Ii] = _packed(Ic)
+            D[ri, k] = -h / m**2  # c = h / m
+            D[np.ix_(ri, hk)] = E / m
+            D[Ii, k] = _packed((hh * E - np.outer(h, h)) / m**2)  # I_c = J - (|h|^2 E - h h^T) / m
+            for a in range(3):
+                dh = -(2 * h[a] * E - np.outer(E[a], h) - np.outer(h, E[a])) / m
+                D[Ii, hk[a]] = _packed(dh)
+            D[np.ix_(Ii, Jk)] = np.eye(6)
+        return p, D
+
+    def point(self, beta, alpha: float, free_idx: Sequence[int], alpha_free: bool):
+        """``p`` at (beta, alpha) and ``G = dp/dtheta`` (NP x k), theta the free base parameters then alpha."""
+        pi = self.standard(np.asarray(beta, float), alpha)
+        p, D = self.p_of(pi, alpha)
+        cols = [D[:, self.pivots[j]] if j < self.r0 else D[:, self.n_pi + (j - self.r0)] for j in free_idx]
+        if alpha_free:
+            dpi = np.zeros(len(pi))
+            dpi[self.pivots] = -(np.array(self._dT(self.a, alpha, self.g), dtype=float).reshape(self.r0, self.n_pi)[:, self.dep]
+                                 @ self.pi_ref[self.dep])
+            col = D @ dpi
+            col[self.i_alpha] += 1.0
+            cols.append(col)
+        G = np.ascontiguousarray(np.array(cols).T if cols else np.zeros((len(p), 0)))
+        return p, G
+
+    def shoot(self, seg: "Segments", y0, p, G=None):
+        """``sp_shoot`` over the segments: the angles (S, L+1, 2) and, with ``G``, their derivatives
+        (S, L+1, 2, 4 + k) in the start values and theta."""
+        import ctypes
+
+        from ..parsing import UsageError
+
+        S, L1 = seg.q.shape[:2]
+        k = 0 if G is None else G.shape[1]
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        p = np.ascontiguousarray(p, dtype=float)
+        tau = None if not np.any(seg.tau) else np.ascontiguousarray(seg.tau, dtype=float)
+        q = np.empty((S, L1, 2))
+        J = np.empty((S, L1, 2, 4 + k)) if G is not None else None
+        dp = ctypes.POINTER(ctypes.c_double)
+        null = ctypes.cast(None, dp)
+
+        def ptr(a, offset=0):
+            return null if a is None else ctypes.cast(a.ctypes.data + 8 * offset, dp)
+
+        Gp = ptr(None if G is None else np.ascontiguousarray(G))
+        for s0 in range(0, S, _CHUNK):
+            n = min(_CHUNK, S - s0)
+            code = self.kernel.lib.sp_shoot(
+                ptr(p), Gp, k, n, L1 - 1, seg.h, ptr(y0, 4 * s0),
+                ptr(tau, s0 * tau.shape[1] * 2) if tau is not None else null,
+                ptr(q, s0 * L1 * 2), ptr(J, s0 * L1 * 2 * (4 + k)) if J is not None else null)
+            if code != 0:
+                raise UsageError(f"multiple shooting refused its arguments (code {code}): at most 64 free parameters")
+        return q, J
 
 
-def _solve2(c1, c2, rhs):
-    """Solve [c1 c2] x = rhs for 2 x 2 matrices given by columns c1, c2 (2, S); rhs (..., 2, S)."""
-    det = c1[0] * c2[1] - c2[0] * c1[1]
-    r0, r1 = rhs[..., 0, :], rhs[..., 1, :]
-    out = np.empty(np.shape(rhs))
-    out[..., 0, :] = (c2[1] * r0 - c2[0] * r1) / det
-    out[..., 1, :] = (-c1[1] * r0 + c1[0] * r1) / det
+def _PI_NAMES_EXT(extra):
+    from ..symbolic.regressor import PI_NAMES
+
+    return tuple(PI_NAMES) + tuple(extra)
+
+
+_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def _full(v) -> np.ndarray:
+    """A symmetric tensor from its entries xx, xy, xz, yy, yz, zz."""
+    out = np.empty((3, 3))
+    for (i, j), x in zip(_PAIRS, v):
+        out[i, j] = out[j, i] = x
     return out
+
+
+def _packed(T: np.ndarray) -> np.ndarray:
+    return np.array([T[i, j] for i, j in _PAIRS])
 
 
 # -- the data cut into segments -----------------------------------------------------------------------------
@@ -268,72 +293,24 @@ def segments(filtered: Sequence[Tuple], names: Sequence[str], segment: float = S
 # -- integration ----------------------------------------------------------------------------------------------
 def _simulate(model: _Model, seg: Segments, y0, beta, alpha):
     """Angles (S, L+1, 2) by RK4 from ``y0`` (no sensitivities)."""
-    h = seg.h
-    L = seg.q.shape[1] - 1
-    y = np.array(y0, dtype=float)
-    out = np.empty(seg.q.shape)
-    out[:, 0] = y[:, :2]
-
-    def f(y, k):
-        dy = np.empty_like(y)
-        dy[:, :2] = y[:, 2:]
-        dy[:, 2:] = model.accel(y, beta, alpha, seg.tau[:, k])
-        return dy
-
-    with np.errstate(all="ignore"):
-        for i in range(L):
-            k1 = f(y, 2 * i)
-            k2 = f(y + 0.5 * h * k1, 2 * i + 1)
-            k3 = f(y + 0.5 * h * k2, 2 * i + 1)
-            k4 = f(y + h * k3, 2 * i + 2)
-            y = y + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-            out[:, i + 1] = y[:, :2]
-    return out
+    p, _ = model.point(beta, alpha, (), False)
+    return model.shoot(seg, y0, p)[0]
 
 
 def _linearise(model: _Model, seg: Segments, y0, beta, alpha, free_idx, alpha_free):
     """Residuals and the accumulated Gauss-Newton blocks per segment:
     ``e`` (S, L+1, 2), ``Hll`` (S, 4, 4), ``Hlg`` (S, 4, p), ``Hgg`` (S, p, p), ``gl`` (S, 4), ``gg`` (S, p)."""
-    h = seg.h
-    S, L1 = seg.q.shape[:2]
-    p = len(free_idx) + (1 if alpha_free else 0)
-    y = np.array(y0, dtype=float)
-    Z = np.zeros((S, 4, 4 + p))
-    Z[:, :, :4] = np.eye(4)
-    e = np.empty(seg.q.shape)
-    Hll = np.zeros((S, 4, 4))
-    Hlg = np.zeros((S, 4, p))
-    Hgg = np.zeros((S, p, p))
-    gl = np.zeros((S, 4))
-    gg = np.zeros((S, p))
-
-    def accumulate(i):
-        w = seg.mask[:, i]
-        r = (y[:, :2] - seg.q[:, i]) * w[:, None]
-        e[:, i] = r
-        Jl, Jg = Z[:, :2, :4] * w[:, None, None], Z[:, :2, 4:] * w[:, None, None]
-        Hll[:] += np.einsum("sia,sib->sab", Jl, Jl)
-        Hlg[:] += np.einsum("sia,sib->sab", Jl, Jg)
-        Hgg[:] += np.einsum("sia,sib->sab", Jg, Jg)
-        gl[:] += np.einsum("sia,si->sa", Jl, r)
-        gg[:] += np.einsum("sia,si->sa", Jg, r)
-
-    def f(y, Z, k):
-        dy, A, B = model.rhs(y, beta, alpha, seg.tau[:, k], free_idx, alpha_free)
-        dZ = A @ Z
-        dZ[:, :, 4:] += B
-        return dy, dZ
-
-    accumulate(0)
-    with np.errstate(all="ignore"):
-        for i in range(L1 - 1):
-            k1, K1 = f(y, Z, 2 * i)
-            k2, K2 = f(y + 0.5 * h * k1, Z + 0.5 * h * K1, 2 * i + 1)
-            k3, K3 = f(y + 0.5 * h * k2, Z + 0.5 * h * K2, 2 * i + 1)
-            k4, K4 = f(y + h * k3, Z + h * K3, 2 * i + 2)
-            y = y + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-            Z = Z + h / 6.0 * (K1 + 2 * K2 + 2 * K3 + K4)
-            accumulate(i + 1)
+    p, G = model.point(beta, alpha, free_idx, alpha_free)
+    q, J = model.shoot(seg, y0, p, G)
+    w = seg.mask[:, :, None]
+    e = (q - seg.q) * w
+    J = J * w[..., None]
+    Jl, Jg = J[..., :4], J[..., 4:]
+    Hll = np.einsum("slia,slib->sab", Jl, Jl)
+    Hlg = np.einsum("slia,slib->sab", Jl, Jg)
+    Hgg = np.einsum("slia,slib->sab", Jg, Jg)
+    gl = np.einsum("slia,sli->sa", Jl, e)
+    gg = np.einsum("slia,sli->sa", Jg, e)
     return e, Hll, Hlg, Hgg, gl, gg
 
 
@@ -414,12 +391,13 @@ class ShootingFit:
     ssr_cluster: np.ndarray = field(default_factory=lambda: np.zeros(0))  # per cluster of the intervals [rad^2]
 
 
-def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[str], alpha0: float,
-        alpha_free: bool, seg: Segments, a: float, g: float, *, pieces: int, max_iterations: int = 60,
+def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alpha0: float,
+        alpha_free: bool, seg: Segments, *, pieces: int, max_iterations: int = 60,
         bootstrap: int = 200, seed: int = 0, tol: float = 1e-10, progress: Optional[Callable[[int, float], None]] = None,
         alpha_bounds: Tuple[float, float] = (-math.pi / 2, math.pi / 2),
         cluster: Optional[np.ndarray] = None) -> ShootingFit:
-    """Levenberg-Marquardt on the segments' residuals; see the module.  ``cluster``: each segment's
+    """Levenberg-Marquardt on the segments' residuals; see the module.  ``terms``: the base parameters
+    (their ``names`` the order of ``beta0``), ``params0`` the start model (:class:`_Model`).  ``cluster``: each segment's
     cluster of the intervals (default its piece; :func:`skewpend.analysis.identify.clusters` cuts few
     pieces into blocks)."""
     from scipy.stats import t as student_t
@@ -430,8 +408,8 @@ def fit(Yb: sp.Matrix, names: Sequence[str], beta0: np.ndarray, free: Sequence[s
     n_cl = int(owner.max()) + 1 if len(owner) else 0
 
     t_start = time.perf_counter()
-    model = _Model(Yb, a, g)
-    names = list(names)
+    model = _Model(terms, params0)
+    names = list(model.names)
     free_idx = [names.index(n) for n in free]
     theta_names = tuple(free) + (("alpha",) if alpha_free else ())
     beta = np.array(beta0, dtype=float)

@@ -84,7 +84,7 @@ def _pattern(name: str, value):
                        for j in range(3)) for i in range(3))
 
 
-def structure_of(params: Parameters) -> Parameters:
+def structure_of(params: Parameters, *, full: bool = False) -> Parameters:
     """What keys a compiled kernel: the hinge axes, which entries of each body are zero, whether the
     optional friction and rotor terms exist; every scalar and every non-zero body entry symbolic (read
     from ``p`` at run time, :data:`PARAMETER_ORDER`).  Two rigs of the same structure share one library.
@@ -94,8 +94,14 @@ def structure_of(params: Parameters) -> Parameters:
     >>> rig = skewpend.Parameters(a=0.3, b=0.2, m1=0.5, m2=0.6, alpha=0.0, g=9.81, com1=(0, 0.15, 0))
     >>> structure_of(rig).com1, structure_of(rig.replace(com1=(0, 0.12, 0))) == structure_of(rig)
     ((0.0, 'r1y', 0.0), True)
-    """
-    bodies = {n: _pattern(n, getattr(params, n)) for n in COM_NAMES + INERTIA_NAMES}
+
+    ``full=True``: every entry of both bodies read from ``p`` whatever ``params`` holds (the
+    library of identification, whose fits may move any entry; thin rods are then general bodies
+    with the rods' values in ``p``)."""
+    if full:  # every entry of every body read from p (identification: any body the fit may reach)
+        bodies = {n: _pattern(n, ((1.0,) * 3 if n in COM_NAMES else ((1.0,) * 3,) * 3)) for n in COM_NAMES + INERTIA_NAMES}
+    else:
+        bodies = {n: _pattern(n, getattr(params, n)) for n in COM_NAMES + INERTIA_NAMES}
     return _scalars_symbolic(params, bodies)
 
 

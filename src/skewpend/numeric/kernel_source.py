@@ -23,21 +23,23 @@ import sympy as sp
 from .. import __version__
 from .codegen import c_printer, cse_block, expressions, Lang, odd_under_reflection, param_lines, spd_c_lines, used_names
 from .conventions import PARAMETER_ORDER
+from ..schema import TORQUE_NAMES
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["kernel_c_source", "flip_c_source", "capture_c_source", "status_defines", "SP_LANES"]
+__all__ = ["kernel_c_source", "flip_c_source", "capture_c_source", "sensitivity_c_source", "status_defines", "SP_LANES"]
 
 _STATE = ("phi", "psi", "dphi", "dpsi")
 
 
-def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
+def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool = False) -> str:
     """C source of the model functions for ``geometry`` (scalar parameters read from ``p``).
 
     ``flip=True`` adds the functions of the flip-time ensembles (:func:`flip_c_source`) and
     defines ``SP_FLIP_KERNEL``, which enables ``sp_flip`` in the integrator template: a separate,
     larger library built on the first flip map, so that a simulation's first use does not pay
-    for compiling it."""
+    for compiling it.  ``shooting=True`` adds the parameter sensitivities (:func:`sensitivity_c_source`)
+    that multiple shooting integrates (``shooting.c``, appended by :mod:`skewpend.numeric.kernels`)."""
     ex = expressions(geometry)
     c = Lang("c", c_printer(), "const double ", ";")
     I = "    "
@@ -61,7 +63,9 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     out[-1:-1] = status_defines()
     # where the integrators' inputs add to the constant torques (from the one parameter order)
     out[-1:-1] = [f"#define SP_NPARAM {len(PARAMETER_ORDER)}", f"#define SP_TAU1 {PARAMETER_ORDER.index('tau1')}",
-                  f"#define SP_TAU2 {PARAMETER_ORDER.index('tau2')}"]
+                  f"#define SP_TAU2 {PARAMETER_ORDER.index('tau2')}",
+                  f"#define SP_NQ {len(_STATE) // 2}  /* coordinates (the state holds them and their rates) */",
+                  f"#define SP_TAU_INDEX {{{', '.join(str(PARAMETER_ORDER.index(n)) for n in TORQUE_NAMES)}}}  /* p's torques, a coordinate each */"]
 
     def header(signature: str, doc: str, used_exprs, state: str = "y", names=_STATE) -> List[str]:
         lines = [f"/* {doc} */", f"static {signature}", "{"]
@@ -170,6 +174,8 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
     out += header("void axes(const double *y, const double *p, double *out)", "hinge axes (n1, e = P1 . e0) into out[6]", axes)
     out += cse_block(c, axes, [f"r{i}" for i in range(6)], I)
     out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
+    if shooting:
+        out += sensitivity_c_source(ex, c)
     if flip:
         out += flip_c_source(ex, geometry)
         try:
@@ -178,6 +184,61 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False) -> str:
             pass
     out.append(_EXPORTS)
     return "\n".join(out) + "\n"
+
+
+def sensitivity_c_source(ex, c: Lang) -> List[str]:
+    """``rhs_sens(y, p, acc, A, B)``: the accelerations ``q''`` (``acc[2]``) and their derivatives
+    ``A = d q''/d y`` (2 x 4, row-major) and ``B = d q''/d p`` (2 x ``SP_NPARAM``, row-major, every
+    entry of :data:`PARAMETER_ORDER`: 0 where the equations do not read it), from the derivation's
+    ``M`` and ``f`` and their derivatives (the Jacobian's ``df/dy``, ``dM/dq``, and ``dM/dp``, ``df/dp``
+    differentiated here):
+
+        d q''/d x = M^-1 (df/dx - dM/dx q''),
+
+    each column one solve with the factors of ``M`` (the LDL^T of every kernel).  The variational core
+    of multiple shooting (``shooting.c``) integrates it; a fit's parameters are any functions of ``p``
+    (their chain rule is the caller's: ``B G``)."""
+    I = "    "
+    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
+    f = [ex.f[0], ex.f[1]]
+    dM = [[d[0, 0], d[0, 1], d[1, 1]] for d in ex.dM_dq]
+    symbol = {x.name: x for e in M + f for x in sp.sympify(e).free_symbols}
+    used = sorted(set(symbol) & set(PARAMETER_ORDER), key=PARAMETER_ORDER.index)
+    dMp = [sp.diff(e, symbol[n]) for n in used for e in M]
+    dfp = [sp.diff(e, symbol[n]) for n in used for e in f]
+    exprs = M + f + list(ex.df_dy) + dM[0] + dM[1] + dMp + dfp
+    df_names = [f"df{i}{j}" for i in range(2) for j in range(4)]
+    dM_names = [f"dM{k}_{n}" for k in range(2) for n in ("11", "12", "22")]
+    dMp_names = [f"dMp{k}_{n}" for k in range(len(used)) for n in ("11", "12", "22")]
+    dfp_names = [f"dfp{k}_{i}" for k in range(len(used)) for i in (1, 2)]
+    names = used_names(exprs)
+    out = ["/* q'' into acc[2], d q''/d y into A[2 x 4] and d q''/d p into B[2 x SP_NPARAM] (row-major) */",
+           "static void rhs_sens(const double *y, const double *p, double *acc, double *A, double *B)", "{"]
+    out += [f"{I}const double {n} = y[{i}];" for i, n in enumerate(_STATE) if n in names]
+    out += param_lines(c, I, names)
+    out += cse_block(c, exprs, ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + dMp_names + dfp_names, I)
+    out += spd_c_lines(I, ["f1", "f2"], ["ddphi", "ddpsi"], M=["M11", "M12", "M22"])
+    out += [f"{I}acc[0] = ddphi;", f"{I}acc[1] = ddpsi;"]
+    for col in range(4):  # A: one solve a column, with the factors of M
+        r1, r2 = f"df0{col}", f"df1{col}"
+        if col < 2:
+            r1 = f"{r1} - (dM{col}_11 * ddphi + dM{col}_12 * ddpsi)"
+            r2 = f"{r2} - (dM{col}_12 * ddphi + dM{col}_22 * ddpsi)"
+        out += [f"{I}{{", f"{I}    const double r1 = {r1}, r2 = {r2};"]
+        out += spd_c_lines(I + "    ", ["r1", "r2"], ["x1", "x2"], prefix="sp_c")
+        out += [f"{I}    A[{col}] = x1;", f"{I}    A[4 + {col}] = x2;", f"{I}}}"]
+    out += [f"{I}for (int k = 0; k < 2 * SP_NPARAM; k++) B[k] = 0.0;"]
+    for k, n in enumerate(used):  # B: one solve an entry of p the equations read
+        j = PARAMETER_ORDER.index(n)
+        out += [f"{I}{{  /* d/d {n} */",
+                f"{I}    const double r1 = dfp{k}_1 - (dMp{k}_11 * ddphi + dMp{k}_12 * ddpsi);",
+                f"{I}    const double r2 = dfp{k}_2 - (dMp{k}_12 * ddphi + dMp{k}_22 * ddpsi);"]
+        out += spd_c_lines(I + "    ", ["r1", "r2"], ["x1", "x2"], prefix="sp_c")
+        out += [f"{I}    B[{j}] = x1;", f"{I}    B[SP_NPARAM + {j}] = x2;", f"{I}}}"]
+    out += ["}", "",
+            "void sp_rhs_sens(const double *y, const double *p, double *acc, double *A, double *B) { rhs_sens(y, p, acc, A, B); }",
+            ""]
+    return out
 
 
 def status_defines() -> List[str]:

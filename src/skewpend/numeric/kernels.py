@@ -48,7 +48,6 @@ __all__ = ["ControlStruct",
     "TaylorState",
     "TaylorKernel",
     "taylor_kernel",
-    "source_library",
     "taylor_order",
     "taylor_rule",
     "fused_multiply_add",
@@ -64,7 +63,7 @@ __all__ = ["ControlStruct",
 #: Files whose text determines the generated library (part of the cache key).
 _SOURCES = (
     "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c", "numeric/chaos.c",
-    "numeric/dop853_core.h", "numeric/rows.h", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
+    "numeric/dop853_core.h", "numeric/rows.h", "numeric/shooting.c", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
     "symbolic/symbols.py",
 )
 _PACKAGE = Path(__file__).resolve().parent.parent
@@ -389,7 +388,8 @@ class Kernel:
     library cached before that was recorded).
     """
 
-    def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False, chaos: bool = False):
+    def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False, chaos: bool = False,
+                 shooting: bool = False):
         import numpy as np
 
         self.path, self.origin, self.build_time = path, origin, build_time
@@ -458,6 +458,13 @@ class Kernel:
             lib.sp_lyap_state_size.argtypes, lib.sp_lyap_state_size.restype = [], i64
             if lib.sp_lyap_state_size() != ctypes.sizeof(LyapState):
                 raise CompilerError(f"{path}: Lyapunov state layout mismatch")
+        self.shooting = shooting
+        if shooting:  # multiple shooting: RK4 with parameter sensitivities (shooting.c)
+            if not hasattr(lib, "sp_shoot"):
+                raise CompilerError(f"{path}: not a shooting kernel (no sp_shoot)")
+            lib.sp_shoot.argtypes = [dp, dp, i64, i64, i64, d, dp, dp, dp, dp]
+            lib.sp_shoot.restype = ctypes.c_int
+            lib.sp_rhs_sens.argtypes, lib.sp_rhs_sens.restype = [dp, dp, dp, dp, dp], None
         if lib.sp_state_size() != ctypes.sizeof(State):
             raise CompilerError(f"{path}: integrator state layout mismatch ({lib.sp_state_size()} != {ctypes.sizeof(State)} bytes)")
         self._np = np
@@ -659,7 +666,7 @@ def _announce(kind: str, cached: bool) -> None:
     if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
         return
     what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels", "taylor": "the Taylor kernel of this order",
-            "regressor": "the identification's regressor functions"}.get(kind, "the model's kernels")
+            "shooting": "the identification's shooting kernels"}.get(kind, "the model's kernels")
     when = "first use only; cached for later runs" if cached else "for this run: the cache is not writable"
     try:
         sys.stderr.write(f"skewpend: compiling {what} ({when})...\n")
@@ -668,7 +675,7 @@ def _announce(kind: str, cached: bool) -> None:
         pass
 
 
-def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False) -> Kernel:
+def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False, shooting: bool = False) -> Kernel:
     """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs).
 
     Loaded from the cache when there; otherwise generated from the derivation, compiled
@@ -676,16 +683,19 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
     the larger library that also holds the flip-time ensembles (``sp_flip``), built on the
     first flip map so that simulations never wait for it.  ``chaos=True``: the library that also
     holds the Lyapunov and Poincare-section routines (``chaos.c``), built on first use.
+    ``shooting=True``: identification's library, the parameter sensitivities and multiple
+    shooting's integrator (``shooting.c``), for every entry of both bodies read from ``p``
+    (``structure_of(params, full=True)``: one library for every fit of the same axes and terms).
     (The Taylor integrator has libraries of its own, one per order: :func:`taylor_kernel`.)
     """
-    if flip and chaos:
-        raise ValueError("kernel_module: flip and chaos are separate libraries")
-    kind = "flip" if flip else ("chaos" if chaos else "")
+    if flip + chaos + shooting > 1:
+        raise ValueError("kernel_module: flip, chaos and shooting are separate libraries")
+    kind = "flip" if flip else ("chaos" if chaos else ("shooting" if shooting else ""))
     gkey = repr([getattr(params, k) for k in GEOMETRY] + list(optional_terms(params))) + ("|" + kind if kind else "")
     kernel = _BYGEOMETRY.get(gkey)
     if kernel is not None:
         return kernel
-    geometry = structure_of(params)
+    geometry = structure_of(params, full=shooting)
     key = _key(repr(geometry.to_dict())) + ("_" + kind if kind else "")
     with _key_lock(key):
         if key in _LOADED:
@@ -696,7 +706,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
         kernel = None
         if path.exists() and _intact(path):
             try:
-                kernel = Kernel(path, "cache", 0.0, flip=flip, chaos=chaos)
+                kernel = Kernel(path, "cache", 0.0, flip=flip, chaos=chaos, shooting=shooting)
             except (OSError, CompilerError):
                 kernel = None  # damaged: rebuilt below
         if kernel is None:
@@ -708,11 +718,13 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
 
             _announce(kind, cached=directory == cache_dir() / "kernels")
             integrators = (_PACKAGE / "numeric" / "integrators.c").read_text()
-            source = kernel_c_source(geometry, flip=flip) + "\n" + integrators
+            source = kernel_c_source(geometry, flip=flip, shooting=shooting) + "\n" + integrators
             if chaos:
                 source += "\n" + (_PACKAGE / "numeric" / "chaos.c").read_text()
+            if shooting:
+                source += "\n" + (_PACKAGE / "numeric" / "shooting.c").read_text()
             _compile(source, path)
-            kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip, chaos=chaos)
+            kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip, chaos=chaos, shooting=shooting)
         _LOADED[key] = kernel
         _BYGEOMETRY[gkey] = kernel
         return kernel
@@ -789,27 +801,3 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
         if model is not None:
             _TAYLOR_OF[model.path, order] = loaded
         return loaded
-
-
-# -- generated code outside the model's kernels ------------------------------------------------------
-_LIBRARIES: Dict[str, ctypes.CDLL] = {}
-
-
-def source_library(source: str, name: str) -> ctypes.CDLL:
-    """The shared library of the C text ``source`` (generated elsewhere, e.g. the identification's
-    batched regressor functions), cached like the kernels under ``name`` and the text's digest:
-    compiled once per text, announced on stderr as the kernels are."""
-    key = hashlib.sha256(source.encode("utf-8")).hexdigest()[:20]
-    with _key_lock(key):
-        if key in _LIBRARIES:
-            return _LIBRARIES[key]
-        path = cache_dir() / "kernels" / f"skewpend_{name}_{key}{LIB_SUFFIX}"
-        if not (path.exists() and _intact(path)):
-            directory = _writable_directory()
-            path = directory / f"skewpend_{name}_{key}{LIB_SUFFIX}"
-            _remove_stale_temporaries(directory)
-            _announce(name, cached=directory == cache_dir() / "kernels")
-            _compile(source, path)
-        lib = ctypes.CDLL(str(path))
-        _LIBRARIES[key] = lib
-        return lib
