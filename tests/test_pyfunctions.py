@@ -117,7 +117,7 @@ def test_halton_points_are_scipys():
 def test_quantiles_are_scipy_stats():
     from scipy.stats import norm, t
 
-    from skewpend.analysis.lyapunov import _normal_quantile, _t_quantile
+    from skewpend.results import normal_quantile as _normal_quantile, t_quantile as _t_quantile
 
     for dof in (1, 2, 4, 9, 30, 200):
         for q in (0.025, 0.9, 0.975, 0.995):

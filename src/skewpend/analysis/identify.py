@@ -156,7 +156,11 @@ def model_terms(params: Parameters) -> _Terms:
     if key not in _BASE_CACHE:
         inner = (params.axis1, params.axis2, params.a, params.alpha, params.g)
         if inner not in _BASE_CACHE:
-            _BASE_CACHE[inner] = base_parameters(params)
+            # the symbolic base parameters (seconds of SymPy) kept on disk like the kernels
+            from ..numeric.pyfunctions import cached_object
+
+            _BASE_CACHE[inner] = base_parameters(
+                params, cache=lambda key, build: cached_object("base_parameters", "symbolic/regressor.py", key, build))
         _BASE_CACHE[key] = _Terms(_BASE_CACHE[inner], params)
     return _BASE_CACHE[key]
 
@@ -577,7 +581,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     ...                         params0, validation=skewpend.Measurements.from_kaheman("data/kaheman2023",
     ...                         which="validation"))  # doctest: +SKIP
     """
-    from scipy.stats import t as stats_t
+    from ..results import t_quantile
 
     t_start = time.perf_counter()
     smoothing = _check_input(measurements, params0, free, validation, smoothing)
@@ -683,7 +687,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
         if len(draws) >= 20:
             sd = np.std(np.array(draws), axis=0, ddof=1)
             # the spread over G resampled clusters has G - 1 degrees of freedom (as the output-error sandwich)
-            half = np.maximum(half, float(stats_t.ppf(0.975, n_cl - 1)) * sd)
+            half = np.maximum(half, t_quantile(0.975, n_cl - 1) * sd)
             settings["bootstrap_used"] = len(draws)
     # in params0's units: free swing scaled by params0's reference
     values = beta0.copy()

@@ -30,7 +30,6 @@ how much longer to run.
 from __future__ import annotations
 
 import ctypes
-import functools
 import math
 import time
 from dataclasses import dataclass
@@ -43,7 +42,7 @@ from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numer
 from ..interrupts import Interrupts
 from ..numeric.driver import check_step_estimate, drive
 from ..numeric.grid import GridJob
-from ..results import DatasetSpec, Result, canonical_json, netcdf_reader, protocol_fields
+from ..results import DatasetSpec, Result, canonical_json, netcdf_reader, normal_quantile, protocol_fields, t_quantile
 from ..status import Status
 from ..parsing import initial_state, positive_number
 from ..symbolic.model import Parameters
@@ -122,7 +121,7 @@ class LyapunovSpectrum(Result):
         n = self.windows_measured
         if n < 2:
             return np.full(self.k, np.nan)
-        return _t_quantile(0.5 + CONFIDENCE / 2, n - 1) * np.asarray(self.uncertainty, dtype=float)
+        return t_quantile(0.5 + CONFIDENCE / 2, n - 1) * np.asarray(self.uncertainty, dtype=float)
 
     @property
     def conservative(self) -> bool:
@@ -226,21 +225,6 @@ def read_lyapunov_spectrum(path, variables, attrs) -> LyapunovSpectrum:
         **protocol_fields(path, attrs, Parameters))
 
 
-@functools.lru_cache(maxsize=256)
-def _t_quantile(q: float, dof: int) -> float:
-    """Student's t quantile: SciPy's ``stdtrit``, which ``scipy.stats.t.ppf`` calls (scipy.special
-    is light to import; scipy.stats takes 0.4 s, a tenth of a report's first-run overhead)."""
-    from scipy.special import stdtrit
-
-    return float(stdtrit(dof, q))
-
-
-@functools.lru_cache(maxsize=16)
-def _normal_quantile(q: float) -> float:
-    """The normal quantile: ``scipy.special.ndtri``, which ``scipy.stats.norm.ppf`` calls."""
-    from scipy.special import ndtri
-
-    return float(ndtri(q))
 
 
 def _longer(seconds: float) -> float:
@@ -290,8 +274,8 @@ def settle_check(window_exponents, *, level: float = CHECK_LEVEL):
         z_halves = np.where(s > 0, np.abs(second - first) / (s * math.sqrt(2.0 / h)), 0.0)
         ratio = np.where(dev > 0, np.sum(np.diff(x, axis=0) ** 2, axis=0) / dev, 2.0)
     z_vn = (2.0 - ratio) / math.sqrt(4.0 * (K - 2) / (K * K - 1))
-    t_crit, z_crit = _t_quantile(1 - level / 2, K - 1), _normal_quantile(1 - level)
-    checked = np.abs(x.mean(axis=0)) > _t_quantile(0.5 + CONFIDENCE / 2, K - 1) * s / math.sqrt(K)
+    t_crit, z_crit = t_quantile(1 - level / 2, K - 1), normal_quantile(1 - level)
+    checked = np.abs(x.mean(axis=0)) > t_quantile(0.5 + CONFIDENCE / 2, K - 1) * s / math.sqrt(K)
     checked[0] = True
     z_halves, z_vn = np.where(checked, z_halves, -np.inf), np.where(checked, z_vn, -np.inf)
     bad_h, bad_v = z_halves > t_crit, z_vn > z_crit

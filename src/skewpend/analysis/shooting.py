@@ -53,12 +53,10 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
-import sympy as sp
 
 from ..errors import ParameterError
 from ..schema import COM_NAMES, INERTIA_NAMES, LENGTH_NAMES, MASS_NAMES, sym_prefix
 from ..symbolic.model import Parameters
-from ..symbolic.symbols import SYMBOLS
 
 __all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit"]
 
@@ -98,10 +96,7 @@ class _Model:
         self.pi_ref = np.concatenate([standard_parameters(params0), [float(getattr(params0, x) or 0.0) for x in self.extra]])
         self.kernel = kernel_module(params0, shooting=True)
         self.p0 = parameter_vector(params0)
-        S = SYMBOLS
-        args = [S[LENGTH_NAMES[0]], S["alpha"], S["g"]]
-        self._T = sp.lambdify(args, base.matrix, modules="numpy")
-        self._dT = sp.lambdify(args, base.matrix.diff(S["alpha"]), modules="numpy")
+        self._T, self._dT = base.matrix_functions()
         order = list(PARAMETER_ORDER)
         self.i_alpha = order.index("alpha")
         # where each standard parameter lands in p: the scalars directly, the bodies through (c, I_c)
@@ -356,9 +351,9 @@ def _halves(Hll, Hlg, Hgg, gl, gg, owner: np.ndarray, pieces: int):
     gc = np.zeros((pieces, p))
     np.add.at(gc, owner, gred)
     var = np.diag(Sinv @ (gc.T @ gc * pieces / (pieces - 1)) @ Sinv)
-    from scipy.stats import t as student_t
+    from ..results import t_quantile
 
-    half = float(student_t.ppf(0.975, pieces - 1)) * np.sqrt(np.maximum(var, 0.0))
+    half = t_quantile(0.975, pieces - 1) * np.sqrt(np.maximum(var, 0.0))
     if not (np.all(np.isfinite(step)) and np.all(np.isfinite(half)) and np.all(half > 0)):
         return None
     return step, half
@@ -400,7 +395,7 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
     (their ``names`` the order of ``beta0``), ``params0`` the start model (:class:`_Model`).  ``cluster``: each segment's
     cluster of the intervals (default its piece; :func:`skewpend.analysis.identify.clusters` cuts few
     pieces into blocks)."""
-    from scipy.stats import t as student_t
+    from ..results import t_quantile
 
     owner = np.asarray(seg.piece if cluster is None else cluster, dtype=int)
     if owner.shape != (len(seg),):
@@ -486,7 +481,7 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
     flat_dirs = lam_e < FLAT * lam_e.max()
     flat = tuple(theta_names[int(np.argmax(np.abs(vec[:, k])))] for k in np.flatnonzero(flat_dirs))
     # the sandwich over G clusters has G - 1 degrees of freedom: Student's t (8 clusters: 2.36, not 1.96)
-    z = float(student_t.ppf(0.975, max(n_cl - 1, 1)))
+    z = t_quantile(0.975, max(n_cl - 1, 1))
     half = np.full(p, np.nan)
     sand = np.full(p, np.nan)
     boot = np.full(p, np.nan)

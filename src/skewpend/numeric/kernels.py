@@ -356,12 +356,13 @@ def built_by(path: Path) -> Optional[str]:
         return None
 
 
-def write_text_atomically(path: Path, text: str) -> None:
-    """``text`` into ``path``: a temporary file beside it made exclusively (never a planted link), then
-    renamed over it, so a reader sees the old file or the whole new one."""
+def write_text_atomically(path: Path, text) -> None:
+    """``text`` (a str, or bytes written as they are) into ``path``: a temporary file beside it made
+    exclusively (never a planted link), then renamed over it, so a reader sees the old file or the
+    whole new one."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w") as fh:
+        with os.fdopen(fd, "wb" if isinstance(text, bytes) else "w") as fh:
             fh.write(text)
         os.replace(tmp, path)
     finally:

@@ -21,7 +21,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Callable, Sequence, Tuple
 
-__all__ = ["cached_lambdify"]
+__all__ = ["cached_lambdify", "cached_object"]
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 #: The namespace ``lambdify(..., "numpy")`` evaluates its printed source in.
@@ -44,7 +44,8 @@ def _code_digest(caller: str) -> str:
 
 
 def _key(name: str, caller: str, geometry) -> str:
-    text = json.dumps({"name": name, "code": _code_digest(caller), "geometry": geometry.to_dict()}, sort_keys=True,
+    described = geometry.to_dict() if hasattr(geometry, "to_dict") else geometry
+    text = json.dumps({"name": name, "code": _code_digest(caller), "geometry": described}, sort_keys=True,
                       default=repr)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:24]
 
@@ -85,3 +86,31 @@ def cached_lambdify(name: str, caller: str, geometry, build: Callable[[], Tuple[
     except OSError:
         pass  # an unwritable cache: this process keeps its function
     return fn
+
+
+def cached_object(name: str, caller: str, key, build: Callable[[], object]) -> object:
+    """``build()``'s result (symbolic objects: SymPy expressions and matrices, tuples, numbers),
+    kept in the cache directory as a pickle under the same kind of key as :func:`cached_lambdify`
+    (skewpend's and SymPy's versions, the text of ``skewpend/symbolic`` and of ``caller``, and
+    ``key``: what the result was derived for, JSON-able or a :class:`~skewpend.Parameters`).  The
+    cache is the user's own directory, written only by skewpend (atomically); a missing or damaged
+    entry is built again, an unwritable cache skipped."""
+    import pickle
+
+    from .kernels import cache_dir, write_text_atomically
+
+    folder = cache_dir() / "python"
+    path = folder / f"{name}_{_key(name, caller, key)}.pickle"
+    try:
+        with open(path, "rb") as fh:
+            return pickle.load(fh)
+    except Exception:  # noqa: BLE001 - not there, or damaged (any unpickling error): built again below
+        pass
+    value = build()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        write_text_atomically(path, pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
+    except (OSError, pickle.PicklingError, TypeError, AttributeError):
+        pass  # an unwritable cache, or a value that does not pickle: this process keeps its own
+    return value
+

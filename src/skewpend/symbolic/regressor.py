@@ -422,6 +422,15 @@ class BaseParameters:
         f = sp.lambdify([S["a"], S["alpha"], S["g"]], self.matrix, modules="numpy")
         return np.array(f(a, alpha, g), dtype=float)
 
+    def matrix_functions(self) -> Tuple[Callable, Callable]:
+        """``T(a, alpha, g)`` and ``dT/dalpha(a, alpha, g)`` as NumPy functions (each r x 22): a fit
+        that frees the skew moves, at fixed ``beta``, the pivots of a representative ``pi`` by
+        ``-dT_D/dalpha pi_D``."""
+        S = SYMBOLS
+        args = [S["a"], S["alpha"], S["g"]]
+        return (sp.lambdify(args, self.matrix, modules="numpy"),
+                sp.lambdify(args, self.matrix.diff(S["alpha"]), modules="numpy"))
+
     def values(self, pi, a: float, alpha: float = 0.0, g: float = 9.81) -> np.ndarray:
         """The base parameters of a standard vector ``pi`` (:func:`standard_parameters`)."""
         return self.matrix_at(a, alpha, g) @ np.asarray(pi, dtype=float)
@@ -453,7 +462,8 @@ class BaseParameters:
 
 
 def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40, seed: int = 0,
-                    order: Optional[Sequence[str]] = None) -> BaseParameters:
+                    order: Optional[Sequence[str]] = None,
+                    cache: Optional[Callable[[Dict, Callable[[], Dict]], Dict]] = None) -> BaseParameters:
     """The base parameters of the model with ``geometry``'s hinge axes, at its ``a`` and ``alpha``.
 
     ``a``, ``alpha`` and ``g`` of ``geometry`` that are ``None`` are *generic*: the rank is found
@@ -461,6 +471,10 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     with a lower rank than the generic one (``alpha = 0``: the planar pendulum) gets its own,
     smaller set.  ``order`` is the preference for pivots (default :data:`PI_NAMES`: body 1 before
     body 2, inertias where the column is shared...); ``samples`` random states (``seed``) are stacked.
+    ``cache(key, build)``: where the symbolic result may be kept (seconds of SymPy): given ``key``
+    (what the result depends on: the hinge axes, the given ``a, alpha, g``, the sampling, the order;
+    JSON-able) it returns ``build()``'s dictionary, from a store or made (the numeric layer keeps one
+    on disk: :func:`skewpend.numeric.pyfunctions.cached_object`).
     """
     import time
 
@@ -468,6 +482,18 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     geometry = Parameters() if geometry is None else geometry
     if not isinstance(geometry, Parameters):
         raise ParameterError(f"geometry must be a skewpend Parameters, got {geometry!r}")
+    if order is not None and sorted(order) != sorted(PI_NAMES):
+        raise ParameterError(f"order must be a permutation of {list(PI_NAMES)}")
+    key = {"axes": repr(_axes_key(geometry)), "given": {n: getattr(geometry, n) for n in STRUCTURE},
+           "samples": int(samples), "seed": int(seed), "order": None if order is None else list(order)}
+    build = lambda: _base_fields(geometry, samples, seed, order)  # noqa: E731
+    fields = build() if cache is None else cache(key, build)
+    return BaseParameters(**fields, regressor=lambdify_columns(fields["symbolic_regressor"]),
+                          seconds=time.perf_counter() - t0)
+
+
+def _base_fields(geometry: Parameters, samples: int, seed: int, order) -> Dict:
+    """:func:`base_parameters`' fields, all but the numeric regressor (SymPy objects and plain values)."""
     reg = regressor(geometry)
     rng = np.random.default_rng(seed + 1)
     generic = dict(zip(STRUCTURE, (float(rng.uniform(0.5, 1.5)), float(rng.uniform(0.3, 1.2)), float(rng.uniform(5, 15)))))
@@ -480,8 +506,6 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     A = Ynum(q, dq, ddq, at["a"], at["alpha"], at["g"]).reshape(-1, len(PI_NAMES))
     A_gen = Ynum(q, dq, ddq, generic["a"], generic["alpha"], generic["g"]).reshape(-1, len(PI_NAMES))
     names_order = list(PIVOT_ORDER if order is None else order)
-    if sorted(names_order) != sorted(PI_NAMES):
-        raise ParameterError(f"order must be a permutation of {list(PI_NAMES)}")
     pref = [PI_NAMES.index(n) for n in names_order]
     piv = independent_columns(A, pref)  # in the order of preference: the base parameters' order
     generic_rank = len(independent_columns(A_gen, pref))
@@ -535,11 +559,10 @@ def base_parameters(geometry: Optional[Parameters] = None, *, samples: int = 40,
     exprs = tuple(sp.expand((T[k, :] * pi)[0]) for k in range(r))
     names = tuple(PI_NAMES[j] if exprs[k] == PI_SYMBOLS[j] else PI_NAMES[j] + "_b" for k, j in enumerate(piv))
     Yb = reg.Y[:, piv]
-    return BaseParameters(
+    return dict(
         names=names, expressions=exprs, matrix=T, pivots=tuple(piv), dependent=tuple(dep), relations=K,
-        regressor=lambdify_columns(Yb), symbolic_regressor=Yb,
+        symbolic_regressor=Yb,
         where={n: (None if given[n] is None else at[n]) for n in STRUCTURE if n != "alpha" or reg.uses_alpha},
-        seconds=time.perf_counter() - t0,
     )
 
 
@@ -602,7 +625,7 @@ def linear_estimate(Yb, tau=None, weights=None, *, names: Optional[Sequence[str]
     (an index, default 0) is 1; the covariance of the other ratios is that of the least-squares
     problem ``Y_rest x = -Y_ref`` (reference row and column zero).
     """
-    from scipy import stats
+    from ..results import t_quantile
 
     Y = np.asarray(Yb, dtype=float)
     r = Y.shape[-1]
@@ -650,7 +673,7 @@ def linear_estimate(Yb, tau=None, weights=None, *, names: Optional[Sequence[str]
         e = Yw @ beta - tw
         sigma2 = float(e @ e / dof)
         cov = sigma2 * np.linalg.inv(Yw.T @ Yw)
-    z = float(stats.t.ppf(0.5 + level / 2, dof))
+    z = t_quantile(0.5 + level / 2, dof)
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     intervals = np.column_stack([beta - z * se, beta + z * se])
     rms = float(np.sqrt(np.mean((Y @ beta - t) ** 2)))
