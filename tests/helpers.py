@@ -268,3 +268,20 @@ def assert_refused(ran: Ran, fragments: Iterable = (), root: Optional[Path] = No
         left = snapshot(root) - (before or set())
         assert not left, f"files left behind: {sorted(left)}\n{report}"
     return lines[0]
+
+
+def sympy_reference(params):
+    """Accelerations ``acc(y)`` and energy ``en(y)`` of a numeric model straight from SymPy (the
+    derivation's M and f, LU-solved and lambdified): an independent check of the generated code."""
+    import numpy as np
+    import sympy as sp
+
+    from skewpend import derive
+    from skewpend.symbolic.derivation import SYMBOLS
+
+    eom = derive(params)
+    args = [SYMBOLS[n] for n in ("phi", "psi", "dphi", "dpsi")]
+    acc = sp.lambdify(args, eom.mass_matrix.LUsolve(eom.forcing), "numpy")
+    en = sp.lambdify(args, eom.kinetic_energy + eom.potential_energy, "numpy")
+    return lambda y: np.array(acc(*y), float).ravel(), lambda y: float(en(*y))
+

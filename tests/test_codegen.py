@@ -9,13 +9,12 @@ import subprocess
 
 import numpy as np
 import pytest
-import sympy as sp
+from helpers import sympy_reference
 
-from skewpend import Parameters, derive
+from skewpend import Parameters
 from skewpend.numeric.codegen import PARAMETER_ORDER, generate, parameter_vector
 from skewpend.numeric.conventions import parameter_vector as kernel_vector  # the compiled kernels' p: scalars and bodies
 from skewpend.numeric.kernels import LIB_SUFFIX, kernel_module
-from skewpend.symbolic.derivation import SYMBOLS
 
 GENERAL = Parameters(
     a=1.1, b=0.7, m1=0.9, m2=0.6, g=9.81, c1=0.05, c2=0.02, tau1=0.1, tau2=-0.2,
@@ -24,14 +23,7 @@ GENERAL = Parameters(
 )
 
 
-def _reference(params: Parameters):
-    """Accelerations and energy straight from SymPy (lambdify), all parameters numeric."""
-    eom = derive(params)
-    s = SYMBOLS
-    args = [s["phi"], s["psi"], s["dphi"], s["dpsi"]]
-    acc = sp.lambdify(args, eom.mass_matrix.LUsolve(eom.forcing), "numpy")
-    en = sp.lambdify(args, eom.kinetic_energy + eom.potential_energy, "numpy")
-    return lambda y: np.array(acc(*y), float).ravel(), lambda y: float(en(*y))
+_reference = sympy_reference  # accelerations and energy straight from SymPy
 
 
 def _states(n=10, seed=0):

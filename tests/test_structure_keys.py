@@ -23,12 +23,11 @@ import textwrap
 
 import numpy as np
 import pytest
-import sympy as sp
+from helpers import sympy_reference
 
-from skewpend import Parameters, derive
+from skewpend import Parameters
 from skewpend.numeric.conventions import parameter_vector, structure_of
 from skewpend.numeric.kernels import kernel_module, taylor_kernel
-from skewpend.symbolic.derivation import SYMBOLS
 
 #: A general rig: both bodies off the rod axis, full inertia tensors, skewed axes given as vectors.
 RIG = Parameters(
@@ -47,14 +46,7 @@ OTHER = RIG.replace(
 )
 
 
-def _reference(params: Parameters):
-    """Accelerations and energy of ``params`` straight from SymPy (all values numeric, lambdify)."""
-    eom = derive(params)
-    s = SYMBOLS
-    args = [s["phi"], s["psi"], s["dphi"], s["dpsi"]]
-    acc = sp.lambdify(args, eom.mass_matrix.LUsolve(eom.forcing), "numpy")
-    en = sp.lambdify(args, eom.kinetic_energy + eom.potential_energy, "numpy")
-    return lambda y: np.array(acc(*y), float).ravel(), lambda y: float(en(*y))
+_reference = sympy_reference  # accelerations and energy straight from SymPy
 
 
 def test_values_do_not_key_a_library_and_structure_does():

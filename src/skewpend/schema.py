@@ -213,18 +213,24 @@ def unit(name: str) -> str:
     return field(name).unit
 
 
+def _text(name: str, attribute: str, second_axis: str, empty: Optional[str] = None) -> str:
+    """A field's text (``meaning``, ``help``, ``tex_symbol``, ...) for ``name``; the last link's axis
+    has its own (it replaces ``alpha``); ``empty``: what an empty text gives (default: itself)."""
+    if name in AXIS_NAMES and body_of(name) == LINKS:
+        return second_axis
+    text = getattr(field(name), attribute)
+    return _format(text, name) if text or empty is None else empty
+
+
 def meaning(name: str) -> str:
     """What ``name`` is, in a few words (``mass of rod 1``)."""
-    if name in AXIS_NAMES and body_of(name) == LINKS:
-        return "axis of hinge 2 with the rods hanging"
-    return _format(field(name).meaning, name)
+    return _text(name, "meaning", "axis of hinge 2 with the rods hanging")
 
 
 def help_text(name: str) -> str:
     """The command line's help of ``--name``."""
-    if name in AXIS_NAMES and body_of(name) == LINKS:
-        return "axis of hinge 2 with the rods vertical, 'x,y,z' (default cos(alpha) k + sin(alpha) i; replaces --alpha)"
-    return _format(field(name).help, name)
+    return _text(name, "help", "axis of hinge 2 with the rods vertical, 'x,y,z' (default cos(alpha) k + sin(alpha) i; "
+                               "replaces --alpha)")
 
 
 def symbol(name: str) -> str:
@@ -235,17 +241,12 @@ def symbol(name: str) -> str:
 
 def tex(name: str) -> str:
     """The symbol in TeX (``m_1``, ``\\alpha``, ``\\underline{c}_1``)."""
-    f = field(name)
-    if name in AXIS_NAMES and body_of(name) == LINKS:
-        return r"\underline{e}_0"
-    return _format(f.tex_symbol, name) if f.tex_symbol else name
+    return _text(name, "tex_symbol", r"\underline{e}_0", empty=name)
 
 
 def default_text(name: str) -> str:
     """The default of a geometry field in words (``rod midpoint (0, a/2, 0)``)."""
-    if name in AXIS_NAMES and body_of(name) == LINKS:
-        return "e₀ = cos α k + sin α i"
-    return _format(field(name).default_text, name)
+    return _text(name, "default_text", "e₀ = cos α k + sin α i")
 
 
 def sym_prefix(name: str) -> str:

@@ -100,9 +100,7 @@ def simulate_case(params, method: str, *, tight: bool = False) -> dict:
 
 def section_simulate(names=None) -> dict:
     out = {}
-    for name, p in models().items():
-        if names is not None and name not in names:
-            continue
+    for name, p in chosen(names):
         for method in ADAPTIVE + FIXED:
             out[f"{name}/{method}"] = simulate_case(p, method)
         # the global error of the adaptive runs at RTOL: against DOP853 at RTOL_TIGHT (recorded, not compared)
@@ -123,9 +121,7 @@ def kernel_and_vector(params):
 def section_kernel(names=None) -> dict:
     ys = states()
     out = {}
-    for name, p in models().items():
-        if names is not None and name not in names:
-            continue
+    for name, p in chosen(names):
         k, pv = kernel_and_vector(p)
         out[name] = {"states": ys, "energy": np.asarray(k.energies(ys, pv), float),
                      "momenta": np.asarray(k.momenta_many(ys, pv), float),
@@ -157,6 +153,11 @@ def section_derive(names=("reference", "rigid")) -> dict:
 
 
 # -- 2. the analyses ---------------------------------------------------------------------------------------
+def chosen(names=None):
+    """The models of :func:`models` named in ``names`` (all of them for None), in their order."""
+    return [(name, p) for name, p in models().items() if names is None or name in names]
+
+
 def _shapes(v) -> np.ndarray:
     """Mode shapes as columns, each with its largest-magnitude component positive (sign-consistent)."""
     v = np.array(v, dtype=float)
@@ -170,9 +171,7 @@ def section_modes(names=None) -> dict:
     import skewpend
 
     out = {}
-    for name, p in models().items():
-        if names is not None and name not in names:
-            continue
+    for name, p in chosen(names):
         m = skewpend.normal_modes(p, about="down-down")  # the hanging rest (not phi = psi = 0 for every model)
         out[name] = {"equilibrium": np.asarray(m.equilibrium, float), "frequencies": m.frequencies, "shapes": _shapes(m.shapes), "damping_ratios": m.damping_ratios,
                      "eigenvalues": _complex(m.eigenvalue_pairs.ravel())}
@@ -183,9 +182,7 @@ def section_equilibria(names=None) -> dict:
     import skewpend
 
     out = {}
-    for name, p in models().items():
-        if names is not None and name not in names:
-            continue
+    for name, p in chosen(names):
         eq = skewpend.equilibria(p)
         for e in eq:
             out[f"{name}/{e.label}"] = {"q": np.asarray(e.q, float), "potential": np.asarray(e.potential, float),

@@ -414,6 +414,39 @@ def _hoist(exprs, state):
     return out, [(sym, e) for e, sym in defs.items()]
 
 
+def _lanes(c: Lang, defs, hoisted, name: str, npp: str, doc: str, inputs=()) -> List[str]:
+    """``{name}_prepare`` (the parameter-only constants into ``pp``) and the lanes' right-hand side
+    ``{name}_rhs(y[, u], pp, out)`` (the flip map's, the regions of attraction's with their inputs)."""
+    out = _prepare_function(c, f"{name}_prepare", f"{name}_rhs", npp, defs)
+    head = f"static inline __attribute__((always_inline)) void {name}_rhs("
+    pad = " " * (len(head) - 1)
+    out += [f"/* {doc} */", f"{head}const double (*restrict y)[SP_LANES],"]
+    out += [f"{pad}const double (*restrict u)[SP_LANES],"] if inputs else []
+    out += [f"{pad}const double *restrict pp,", f"{pad}double (*restrict out)[SP_LANES])", "{"]
+    return out + _lane_loop(_ArithmeticPrinter(), defs, hoisted, "    ", inputs)
+
+
+def _lane_loop(v, defs, hoisted, I: str, inputs=()) -> List[str]:
+    """The body of a lanes' right-hand side: the hoisted parameter constants read from ``pp``, then a
+    loop over the lanes reading the state (and the ``inputs``), the expressions with common
+    subexpressions, ``M q'' = f`` (the one LDL^T) and the derivatives of the state and of its
+    trigonometric entries."""
+    names = ["M11", "M12", "M22", "f1", "f2"] + [f"d{t[0]}" for t in _TRIG]
+    replacements, reduced = sp.cse(hoisted, symbols=sp.numbered_symbols("x"), optimizations="basic")
+    used = used_names(list(reduced) + [e for _, e in replacements])
+    J = I * 2
+    out = [f"{I}const double {sym} = pp[{i}];" for i, (sym, _) in enumerate(defs) if sym.name in used]
+    out += [f"{I}for (int l = 0; l < SP_LANES; l++) {{"]
+    out += [f"{J}const double {n} = y[{i}][l];" for i, n in enumerate(_FLIP_STATE) if n in used]
+    out += [f"{J}const double {n} = u[{i}][l];" for i, n in enumerate(inputs) if n in used]
+    out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
+    out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
+    out += spd_c_lines(J, ["f1", "f2"], ["sp_a1", "sp_a2"], M=["M11", "M12", "M22"])
+    out += [f"{J}out[0][l] = y[2][l];", f"{J}out[1][l] = y[3][l];", f"{J}out[2][l] = sp_a1;", f"{J}out[3][l] = sp_a2;"]
+    out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
+    return out + [f"{I}}}", "}", ""]
+
+
 def flip_c_source(ex, geometry: Parameters) -> List[str]:
     """The model's functions for ``sp_flip`` (integrators.c): the right-hand side of
     ``SP_LANES`` trajectories at once, on the state
@@ -433,7 +466,6 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
     state = [sp.Symbol(n) if n not in q else q[n] for n in _FLIP_STATE[2:]]
     hoisted, defs = _hoist(exprs, state)
     c = Lang("c", c_printer(), "const double ", ";")
-    v = _ArithmeticPrinter()
     I = "    "
     out: List[str] = [
         "/* ---- flip-time ensembles (sp_flip in integrators.c): SP_LANES trajectories side by side ---- */",
@@ -444,33 +476,8 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
         f"#define SP_FLIP_ODD {1 if odd_under_reflection(ex) else 0}",
         "",
     ]
-    out += _prepare_function(c, "flip_prepare", "flip_rhs", "SP_FLIP_NPP", defs)
-    # the right-hand side, a loop over lanes
-    names = ["M11", "M12", "M22", "f1", "f2"] + [f"d{t[0]}" for t in _TRIG]
-    replacements, reduced = sp.cse(hoisted, symbols=sp.numbered_symbols("x"), optimizations="basic")
-    used = used_names(list(reduced) + [e for _, e in replacements])
-    J = I * 2
-    out += [
-        "/* dy/dt of SP_LANES states: component k of lane l is y[k][l] (a loop the compiler vectorises) */",
-        "static inline __attribute__((always_inline)) void flip_rhs(const double (*restrict y)[SP_LANES],",
-        "                                                          const double *restrict pp,",
-        "                                                          double (*restrict out)[SP_LANES])",
-        "{",
-    ]
-    out += [f"{I}const double {sym} = pp[{i}];" for i, (sym, _) in enumerate(defs) if sym.name in used]
-    out += [f"{I}for (int l = 0; l < SP_LANES; l++) {{"]
-    out += [f"{J}const double {n} = y[{i}][l];" for i, n in enumerate(_FLIP_STATE) if n in used]
-    out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
-    out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
-    out += [
-        *spd_c_lines(J, ["f1", "f2"], ["sp_a1", "sp_a2"], M=["M11", "M12", "M22"]),  # M q'' = f (LDL^T, codegen), in the lane loop
-        f"{J}out[0][l] = y[2][l];",
-        f"{J}out[1][l] = y[3][l];",
-        f"{J}out[2][l] = sp_a1;",
-        f"{J}out[3][l] = sp_a2;",
-    ]
-    out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
-    out += [f"{I}}}", "}", ""]
+    out += _lanes(c, defs, hoisted, "flip", "SP_FLIP_NPP",
+                  "dy/dt of SP_LANES states: component k of lane l is y[k][l] (a loop the compiler vectorises)")
     # the state at rest
     init = [q["phi"], q["psi"], sp.Integer(0), sp.Integer(0)] + [getattr(sp, fn)(q[arg]) for _, fn, arg in _TRIG]
     out += [
@@ -528,42 +535,16 @@ def capture_c_source(ex, geometry: Parameters) -> List[str]:
     state = [sp.Symbol(n) if n not in q else q[n] for n in _FLIP_STATE[2:]] + u
     hoisted, defs = _hoist(exprs, state)
     c = Lang("c", c_printer(), "const double ", ";")
-    v = _ArithmeticPrinter()
     I = "    "
-    J = I * 2
     out: List[str] = [
         "/* ---- regions of attraction (sp_capture_lanes in integrators.c): the closed loop in SP_LANES lanes ---- */",
         "#define SP_CAPTURE_LANES 1",
         f"#define SP_CAP_NPP {max(len(defs), 1)}  /* prepared parameter constants */",
         "",
     ]
-    out += _prepare_function(c, "cap_prepare", "cap_rhs", "SP_CAP_NPP", defs)
-    names = ["M11", "M12", "M22", "f1", "f2"] + [f"d{t[0]}" for t in _TRIG]
-    replacements, reduced = sp.cse(hoisted, symbols=sp.numbered_symbols("x"), optimizations="basic")
-    used = used_names(list(reduced) + [e for _, e in replacements])
-    out += [
-        "/* dy/dt of SP_LANES states y with the inputs u (component k of lane l is y[k][l], input r u[r][l]) */",
-        "static inline __attribute__((always_inline)) void cap_rhs(const double (*restrict y)[SP_LANES],",
-        "                                                         const double (*restrict u)[SP_LANES],",
-        "                                                         const double *restrict pp,",
-        "                                                         double (*restrict out)[SP_LANES])",
-        "{",
-    ]
-    out += [f"{I}const double {sym} = pp[{i}];" for i, (sym, _) in enumerate(defs) if sym.name in used]
-    out += [f"{I}for (int l = 0; l < SP_LANES; l++) {{"]
-    out += [f"{J}const double {n} = y[{i}][l];" for i, n in enumerate(_FLIP_STATE) if n in used]
-    out += [f"{J}const double {n} = u[{i}][l];" for i, n in enumerate(_INPUTS) if n in used]
-    out += [f"{J}const double {sym} = {v.doprint(e)};" for sym, e in replacements]
-    out += [f"{J}const double {n} = {v.doprint(e)};" for n, e in zip(names, reduced)]
-    out += [
-        *spd_c_lines(J, ["f1", "f2"], ["sp_a1", "sp_a2"], M=["M11", "M12", "M22"]),  # M q'' = f + u (LDL^T, codegen), in the lane loop
-        f"{J}out[0][l] = y[2][l];",
-        f"{J}out[1][l] = y[3][l];",
-        f"{J}out[2][l] = sp_a1;",
-        f"{J}out[3][l] = sp_a2;",
-    ]
-    out += [f"{J}out[{4 + i}][l] = d{t[0]};" for i, t in enumerate(_TRIG)]
-    out += [f"{I}}}", "}", ""]
+    out += _lanes(c, defs, hoisted, "cap", "SP_CAP_NPP",  # M q'' = f + u
+                  "dy/dt of SP_LANES states y with the inputs u (component k of lane l is y[k][l], input r u[r][l])",
+                  inputs=_INPUTS)
     init = [q[n] for n in _STATE] + [getattr(sp, fn)(q[arg]) for _, fn, arg in _TRIG]
     out += [
         "/* a start x = (phi, psi, dphi, dpsi) as a state of cap_rhs, into y[SP_FLIP_N] */",
