@@ -507,8 +507,10 @@ def test_report_chaos_section(default_report):
         fmt, (w, h), nbytes = _png_size(data)
         assert fmt == "PNG" and 300 <= w <= 1400 and 300 <= h <= 1400 and nbytes < 600_000
     text = html.unescape(re.sub(r"<[^>]+>", "", sec))
-    lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+) ± ", text)]
-    assert len(lam) == 4
+    # each exponent, with its interval once the windows have settled (whether a 500 s run of a chaotic
+    # motion has settled depends on its trajectory, i.e. on the rounding of the code that ran it)
+    lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+)(?: ± \S+)? 1/s", text)]
+    assert len(lam) == 4, text
     # the default model is conservative: pairs +-lambda and two zeros, up to O(1/T) with T = 500 s
     # (the finite-time sum is log(det M(q0)/det M(q(T)))/T, |log det ratio| <~ 2 for these rods)
     assert lam[0] > 0.1 and abs(lam[0] + lam[3]) < 0.01 and abs(lam[1]) < 0.02 and abs(lam[2]) < 0.02
@@ -533,8 +535,10 @@ def test_chaos_section_for_a_damped_model_explains_what_is_left_out():
     body = R.section_chaos(ctx)
     text = html.unescape(re.sub(r"<[^>]+>", "", body))
     assert "need an energy surface" in text and len(re.findall(r"<figure", body)) == 1
-    lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+) ± ", text)]
-    assert len(lam) == 4 and sum(lam) < -0.01  # damping contracts phase space
+    # each exponent, with its interval once the windows have settled (whether a 500 s run of a chaotic
+    # motion has settled depends on its trajectory, i.e. on the rounding of the code that ran it)
+    lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+)(?: ± \S+)? 1/s", text)]
+    assert len(lam) == 4, text and sum(lam) < -0.01  # damping contracts phase space
 
 
 def test_a_friction_and_rotor_model_report_shows_its_terms_and_is_not_called_conservative(monkeypatch):

@@ -137,17 +137,31 @@ def test_inverse_and_product(lib, n):
 
 def test_n2_steps_are_the_documented_ones():
     steps = codegen.ldlt_steps(["M11", "M12", "M22"], ["f1", "f2"], ["ddphi", "ddpsi"])
-    # one reciprocal for both pivots (D1 D2 = det M), then the substitutions
-    assert steps == [("dD", "M11 * M22 - M12 * M12"), ("w", "1.0 / (M11 * dD)"), ("iD1", "dD * w"),
-                     ("L21", "M12 * iD1"), ("iD2", "M11 * M11 * w"),
+    # one reciprocal a pivot, then the substitutions
+    assert steps == [("iD1", "1.0 / M11"), ("L21", "M12 * iD1"), ("iD2", "1.0 / (M22 - M12 * L21)"),
                      ("z2", "f2 - L21 * f1"), ("ddpsi", "z2 * iD2"), ("ddphi", "f1 * iD1 - L21 * ddpsi")]
     # fused, as the Taylor series prints it: the same operations, each product fused with its sum
     fused = codegen.ldlt_steps(["M11", "M12", "M22"], ["f1", "f2"], ["x1", "x2"], fused=True)
-    assert fused[0] == ("dD", "SP_FMA(-M12, M12, M11 * M22)") and fused[-1] == ("x1", "SP_FMA(-L21, x2, f1 * iD1)")
+    assert fused[2] == ("iD2", "1.0 / (SP_FMA(-M12, L21, M22))") and fused[-1] == ("x1", "SP_FMA(-L21, x2, f1 * iD1)")
     assert codegen.spd_mul_steps(["S11", "S21", "S22"], ["r1", "r2"], ["a1", "a2"]) == [
         ("a1", "S21 * r2 + S11 * r1"), ("a2", "S22 * r2 + S21 * r1")]
     with pytest.raises(ValueError, match="packed triangle"):
         codegen.ldlt_steps(["M11", "M12"], ["f1", "f2"], ["x1", "x2"])
+
+
+def test_the_solve_keeps_its_range():
+    """Masses and lengths far from 1: the pivots' own reciprocals stay finite where a shared one
+    (1/(M11 det M), ~1e600 here) would overflow to zero accelerations."""
+    M = np.array([[3e200, 1e100], [1e100, 0.5]])
+    b = np.array([2e200, 1.0])
+    names, bs, xs = _names(2)
+    env = dict(zip(names, _packed(M)))
+    env.update(zip(bs, b))
+    for target, expr in codegen.ldlt_steps(names, bs, xs):
+        env[target] = eval(expr, {}, env)
+    x = np.array([env[v] for v in xs])
+    ref = np.linalg.solve(M, b)
+    assert np.all(np.isfinite(x)) and np.allclose(x, ref, rtol=1e-12, atol=0)
 
 
 def test_no_cramer_solve_is_printed():

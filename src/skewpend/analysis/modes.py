@@ -184,7 +184,7 @@ class Modes(ResultProtocol):
     K: np.ndarray
     params: Parameters = field(repr=False)
     growth_rates: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    equilibrium: Tuple[float, float] = (0.0, 0.0)
+    equilibrium: Tuple[float, ...] = (0.0, 0.0)
     coulomb: str = DEFAULT_COULOMB
 
     result_kind: ClassVar[str] = "normal modes"
@@ -353,7 +353,7 @@ def read_normal_modes(path, variables, attrs) -> Modes:
 
 
 def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Parameters,
-                         equilibrium: Optional[Tuple[float, float]] = None, coulomb: str = DEFAULT_COULOMB) -> Modes:
+                         equilibrium: Optional[Tuple[float, ...]] = None, coulomb: str = DEFAULT_COULOMB) -> Modes:
     """Raises :class:`NotFinite` (short reason) when a result is not finite."""
     from scipy.linalg import LinAlgError, eigh
 
@@ -674,7 +674,7 @@ def read_modes_sweep(path, variables, attrs) -> Sweep:
     values = np.asarray(variables["value"], dtype=float)
     name = str(settings["swept"])
     try:
-        rebuilt = sweep(proto["params"], name, values, tolerance=float(settings["resonance_tolerance"]))
+        rebuilt = sweep(proto["params"], name, values.tolist(), tolerance=float(settings["resonance_tolerance"]))
     except SkewpendError as exc:
         raise ParameterError(f"{path} was written by another model: its parameters give no sweep there ({exc})") from None
     freqs = np.column_stack([variables["omega1"], variables["omega2"]]).astype(float)

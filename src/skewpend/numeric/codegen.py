@@ -299,19 +299,15 @@ def _packed_index(i: int, j: int) -> int:
 
 def ldlt_factor_steps(M: Sequence[str], prefix: str = "", fused: bool = False) -> List[Tuple[str, str]]:
     """The factorisation ``M = L D L^T`` as assignments: ``{prefix}iDi = 1/D_i`` and ``{prefix}Lij``
-    below the diagonal (``M``: the packed lower triangle's names, row by row).  For n = 2 the two
-    pivots share one reciprocal: ``dD = M11 M22 - M12 M12`` (``D1 D2``), ``w = 1/(M11 dD)``,
-    ``iD1 = dD w``, ``L21 = M12 iD1``, ``iD2 = M11 M11 w``; otherwise one reciprocal per pivot."""
+    below the diagonal (``M``: the packed lower triangle's names, row by row), one reciprocal per
+    pivot.  (Sharing one reciprocal between the pivots, ``1/(M11 det M)``, overflows for masses or
+    lengths far from 1 -- a = 1e100 gave zero accelerations -- where each pivot's own does not.)"""
     n = _order_of(M)
 
     def m(i, j):
         return M[_packed_index(i, j)]
 
     P = prefix
-    if n == 2:
-        return [(f"{P}dD", _fma(f"-{m(1, 0)}", m(1, 0), f"{m(0, 0)} * {m(1, 1)}", fused)),
-                (f"{P}w", f"1.0 / ({m(0, 0)} * {P}dD)"), (f"{P}iD1", f"{P}dD * {P}w"), (f"{P}L21", f"{m(1, 0)} * {P}iD1"),
-                (f"{P}iD2", f"{m(0, 0)} * {m(0, 0)} * {P}w")]
     steps: List[Tuple[str, str]] = []
     for i in range(n):
         w = []  # row i of L times D
@@ -413,8 +409,8 @@ def ldlt_steps(M: Sequence[str], b: Sequence[str], x: Sequence[str], fused: bool
 
     ``M``: the names of the packed lower triangle, row by row (``M11, M21, M22, M31, ...``; for
     n = 2 ``M11, M12, M22``); ``b``, ``x``: the names of the right-hand side and of the solution
-    (n each).  For n = 2: ``dD = M11 M22 - M12 M12``, ``w = 1/(M11 dD)``, ``iD1 = dD w``,
-    ``L21 = M12 iD1``, ``iD2 = M11 M11 w``, then ``z2 = b2 - L21 b1, x2 = z2 iD2, x1 = b1 iD1 - L21 x2``."""
+    (n each).  For n = 2: ``iD1 = 1/M11, L21 = M12 iD1, iD2 = 1/(M22 - M12 L21)``, then
+    ``z2 = b2 - L21 b1, x2 = z2 iD2, x1 = b1 iD1 - L21 x2``."""
     n = len(b)
     if len(M) != n * (n + 1) // 2 or len(x) != n:
         raise ValueError(f"ldlt_steps: {len(M)} matrix entries, {len(b)} right-hand sides and {len(x)} unknowns "
