@@ -538,7 +538,7 @@ def test_chaos_section_for_a_damped_model_explains_what_is_left_out():
     # each exponent, with its interval once the windows have settled (whether a 500 s run of a chaotic
     # motion has settled depends on its trajectory, i.e. on the rounding of the code that ran it)
     lam = [float(x) for x in re.findall(r"λ[1-4]([+-][0-9.]+)(?: ± \S+)? 1/s", text)]
-    assert len(lam) == 4, text and sum(lam) < -0.01  # damping contracts phase space
+    assert len(lam) == 4 and sum(lam) < -0.01, text  # damping contracts phase space
 
 
 def test_a_friction_and_rotor_model_report_shows_its_terms_and_is_not_called_conservative(monkeypatch):
