@@ -690,9 +690,15 @@ typedef struct {
     double pp[SP_FLIP_NPP];
 } sp_flip_ws;
 
-int64_t sp_flip_ws_size(void) { return (int64_t)sizeof(sp_flip_ws); }
-int64_t sp_flip_lanes(void) { return SP_LANES; }
-int64_t sp_flip_odd(void) { return SP_FLIP_ODD; }
+/* the flip library's layout in one call: out[0] the bytes of the sp_flip workspace, out[1] the lanes
+ * (trajectories side by side), out[2] whether the equations without torques are odd under
+ * (q, q') -> -(q, q') (a symbolic check of the generator) */
+void sp_flip_layout(int64_t *out)
+{
+    out[0] = (int64_t)sizeof(sp_flip_ws);
+    out[1] = SP_LANES;
+    out[2] = SP_FLIP_ODD;
+}
 
 /* the non-zero coefficients of the DOP853 tables as (index, value) lists */
 typedef struct {

@@ -434,14 +434,13 @@ class Kernel:
             i32p = ctypes.POINTER(ctypes.c_int32)
             lib.sp_flip.argtypes = [ctypes.c_void_p, dp, dp, i64, d, d, d, i64, i64, dp, i32p, ip, ip]
             lib.sp_flip.restype = ctypes.c_int
-            for name in ("sp_flip_ws_size", "sp_flip_lanes", "sp_flip_odd"):
-                getattr(lib, name).argtypes, getattr(lib, name).restype = [], i64
+            lib.sp_flip_layout.argtypes, lib.sp_flip_layout.restype = [ctypes.POINTER(i64)], None
             lib.sp_flip_potential_many.argtypes, lib.sp_flip_potential_many.restype = [dp, i64, dp, dp], None
             #: bytes of the sp_flip workspace, trajectories side by side, and whether the model's
             #: equations without torques are odd under (q, q') -> -(q, q') (a symbolic check)
-            self.flip_ws_size = int(lib.sp_flip_ws_size())
-            self.flip_lanes = int(lib.sp_flip_lanes())
-            self.flip_odd = bool(lib.sp_flip_odd())
+            layout = (i64 * 3)()
+            lib.sp_flip_layout(layout)
+            self.flip_ws_size, self.flip_lanes, self.flip_odd = int(layout[0]), int(layout[1]), bool(layout[2])
         self.chaos = chaos
         if chaos:  # the chaos kernel: Lyapunov exponents and Poincare sections (chaos.c)
             if not hasattr(lib, "sp_lyap"):
