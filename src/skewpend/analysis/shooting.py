@@ -56,6 +56,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..schema import COM_NAMES, INERTIA_NAMES, LENGTH_NAMES, MASS_NAMES, sym_prefix
+from ..numeric.conventions import TENSOR_INDICES
 from ..symbolic.model import Parameters
 
 __all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit"]
@@ -78,7 +79,7 @@ class _Model:
     optional terms, ``a``, ``g``, ``cfs``, ``gr`` and the values of the entries held)."""
 
     def __init__(self, terms, params0: Parameters):
-        from ..numeric.conventions import PARAMETER_ORDER, parameter_vector
+        from ..numeric.conventions import PARAMETER_ORDER, TENSOR_ENTRIES, parameter_vector
         from ..numeric.kernels import kernel_module
         from ..symbolic.regressor import PI_NAMES, standard_parameters
 
@@ -102,12 +103,16 @@ class _Model:
         # where each standard parameter lands in p: the scalars directly, the bodies through (c, I_c)
         self.i_scalar = {n: order.index(n) for n in PI_NAMES if n in order}
         self.i_scalar.update({n: order.index(n) for n in self.extra})
+        self.pi_names = tuple(PI_NAMES) + self.extra
+        # each body: where its mass, first moment and hinge inertia are in pi, where its centre of mass
+        # and inertia about it are in p (the names of both: the regressor's and the schema's)
         self.bodies = []
         for i, (m, com, inertia) in enumerate(zip(MASS_NAMES, COM_NAMES, INERTIA_NAMES), start=1):
             r = [order.index(f"{sym_prefix(com)}{x}") for x in "xyz"]
-            J = [order.index(f"{sym_prefix(inertia)}{'xyz'[a]}{'xyz'[b]}") for a, b in _PAIRS]
-            k = PI_NAMES.index(m)
-            self.bodies.append((k, list(range(k + 1, k + 4)), list(range(k + 4, k + 10)), r, J))
+            J = [order.index(f"{sym_prefix(inertia)}{e}") for e in TENSOR_ENTRIES]
+            h_pi = [PI_NAMES.index(f"h{i}{x}") for x in "xyz"]
+            J_pi = [PI_NAMES.index(f"J{i}{e}") for e in TENSOR_ENTRIES]
+            self.bodies.append((PI_NAMES.index(m), h_pi, J_pi, r, J))
         T = self.T(self.alpha_ref)
         if not np.allclose(T[:, self.pivots], np.eye(self.r0), rtol=0, atol=1e-12):
             raise AssertionError("the base parameters are not their pivots plus dependents")
@@ -127,9 +132,8 @@ class _Model:
         p = self.p0.copy()
         D = np.zeros((len(p), len(pi)))
         p[self.i_alpha] = alpha
-        names = _PI_NAMES_EXT(self.extra)
         for n, i in self.i_scalar.items():
-            j = names.index(n)
+            j = self.pi_names.index(n)
             p[i] = pi[j]
             D[i, j] = 1.0
         E = np.eye(3)
@@ -184,7 +188,8 @@ class _Model:
         def ptr(a, offset=0):
             return null if a is None else ctypes.cast(a.ctypes.data + 8 * offset, dp)
 
-        Gp = ptr(None if G is None else np.ascontiguousarray(G))
+        G = None if G is None else np.ascontiguousarray(G, dtype=float)  # held here while C reads it
+        Gp = ptr(G)
         for s0 in range(0, S, _CHUNK):
             n = min(_CHUNK, S - s0)
             code = self.kernel.lib.sp_shoot(
@@ -196,25 +201,16 @@ class _Model:
         return q, J
 
 
-def _PI_NAMES_EXT(extra):
-    from ..symbolic.regressor import PI_NAMES
-
-    return tuple(PI_NAMES) + tuple(extra)
-
-
-_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-
-
 def _full(v) -> np.ndarray:
     """A symmetric tensor from its entries xx, xy, xz, yy, yz, zz."""
     out = np.empty((3, 3))
-    for (i, j), x in zip(_PAIRS, v):
+    for (i, j), x in zip(TENSOR_INDICES, v):
         out[i, j] = out[j, i] = x
     return out
 
 
 def _packed(T: np.ndarray) -> np.ndarray:
-    return np.array([T[i, j] for i, j in _PAIRS])
+    return np.array([T[i, j] for i, j in TENSOR_INDICES])
 
 
 # -- the data cut into segments -----------------------------------------------------------------------------

@@ -21,19 +21,20 @@ from typing import Tuple
 from ..schema import COM_NAMES, FRICTION_NAMES, GEOMETRY_NAMES, INERTIA_NAMES, ROTOR_NAMES, SCALAR_NAMES, sym_prefix
 from ..symbolic.model import Parameters
 
-__all__ = ["METHODS", "ADAPTIVE", "PARAMETER_ORDER", "SCALAR_ORDER", "BODY_ENTRIES", "STATE_ORDER", "GEOMETRY", "geometry_of",
+__all__ = ["METHODS", "ADAPTIVE", "PARAMETER_ORDER", "SCALAR_ORDER", "BODY_ENTRIES", "TENSOR_ENTRIES", "TENSOR_INDICES", "STATE_ORDER", "GEOMETRY", "geometry_of",
            "structure_of", "optional_terms", "parameter_vector", "scalar_vector", "body_values"]
 
 #: The integrators of ``simulate`` (here, where the command line's --help reads them without NumPy).
 METHODS: Tuple[str, ...] = ("dop853", "rk4", "gauss", "taylor")
 #: The methods that choose their own steps (rtol, atol); the others take a fixed step dt.
 ADAPTIVE: Tuple[str, ...] = ("dop853", "taylor")
-#: The entries of the symmetric inertia tensor, in the order of ``p``.
-_PAIRS = ("xx", "xy", "xz", "yy", "yz", "zz")
+#: The entries of a symmetric tensor (the inertia) in the order of ``p``, and their (row, column).
+TENSOR_ENTRIES: Tuple[str, ...] = ("xx", "xy", "xz", "yy", "yz", "zz")
+TENSOR_INDICES: Tuple[Tuple[int, int], ...] = tuple(("xyz".index(e[0]), "xyz".index(e[1])) for e in TENSOR_ENTRIES)
 #: The bodies' entries that compiled kernels read at run time: each body's centre of mass
 #: (``r1x, r1y, r1z``, ...) and inertia tensor (``I1xx, I1xy, ...``), named as ``"sym"`` names them.
 BODY_ENTRIES: Tuple[str, ...] = (tuple(f"{sym_prefix(n)}{x}" for n in COM_NAMES for x in "xyz")
-                                 + tuple(f"{sym_prefix(n)}{ij}" for n in INERTIA_NAMES for ij in _PAIRS))
+                                 + tuple(f"{sym_prefix(n)}{ij}" for n in INERTIA_NAMES for ij in TENSOR_ENTRIES))
 #: Order of the parameter array ``p`` of the compiled kernels: the scalars, then the bodies' entries.
 PARAMETER_ORDER: Tuple[str, ...] = SCALAR_NAMES + BODY_ENTRIES
 #: Order of the parameter array of the standalone exports and the explorer (bodies baked in).
@@ -119,7 +120,7 @@ def body_values(params: Parameters):
         if J is None:
             rod = float(getattr(params, mass)) * float(getattr(params, length)) ** 2 / 12.0
             J = ((rod, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, rod))
-        out += [float(J["xyz".index(ij[0])]["xyz".index(ij[1])]) for ij in _PAIRS]
+        out += [float(J[i][j]) for i, j in TENSOR_INDICES]
     return out
 
 
