@@ -36,7 +36,9 @@
 #include <stdint.h>
 #include <string.h>
 
-#define SP_NMAX 8
+#ifndef SP_NMAX
+#define SP_NMAX 8 /* the largest state: the double pendulum's 5 (6 with a controller's clock); a chain defines its own */
+#endif
 
 typedef struct {
     double t;                 /* current time */

@@ -27,7 +27,7 @@ from ..schema import TORQUE_NAMES
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["kernel_c_source", "flip_c_source", "capture_c_source", "sensitivity_c_source", "status_defines", "SP_LANES"]
+__all__ = ["kernel_c_source", "exports", "flip_c_source", "capture_c_source", "sensitivity_c_source", "status_defines", "SP_LANES"]
 
 _STATE = ("phi", "psi", "dphi", "dpsi")
 
@@ -65,6 +65,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
     out[-1:-1] = [f"#define SP_NPARAM {len(PARAMETER_ORDER)}", f"#define SP_TAU1 {PARAMETER_ORDER.index('tau1')}",
                   f"#define SP_TAU2 {PARAMETER_ORDER.index('tau2')}",
                   f"#define SP_NQ {len(_STATE) // 2}  /* coordinates (the state holds them and their rates) */",
+                  "#define SP_NMAX 8  /* the integrators' largest state: 5, 6 with a controller's clock */",
                   f"#define SP_TAU_INDEX {{{', '.join(str(PARAMETER_ORDER.index(n)) for n in TORQUE_NAMES)}}}  /* p's torques, a coordinate each */"]
 
     def header(signature: str, doc: str, used_exprs, state: str = "y", names=_STATE) -> List[str]:
@@ -182,7 +183,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
             out += capture_c_source(ex, geometry)
         except ValueError:  # a model the lanes cannot print: regions of attraction take the scalar path
             pass
-    out.append(_EXPORTS)
+    out.append(exports())
     return "\n".join(out) + "\n"
 
 
@@ -256,14 +257,25 @@ def status_defines() -> List[str]:
     return lines
 
 
+def exports() -> str:
+    """The exported entry points (ctypes) of every model library, generic in the number of
+    coordinates ``SP_NQ`` (the double pendulum's 2, a chain's n)."""
+    return _EXPORTS
+
+
 _EXPORTS = r"""/* ---- exported entry points (ctypes) ---- */
 void sp_rhs(const double *y, const double *p, double *out) { rhs(y, p, out); }
 void sp_ham_rhs(const double *z, const double *p, double *out) { ham_rhs(z, p, out); }
+#ifndef SP_NO_JAC
 void sp_jac(const double *y, const double *p, double *out) { jac(y, p, out); }
+#endif
 double sp_energy(const double *y, const double *p) { return energy(y, p); }
 void sp_momenta(const double *y, const double *p, double *out) { momenta(y, p, out); }
 void sp_velocities(const double *z, const double *p, double *out) { velocities(z, p, out); }
 void sp_tips(const double *y, const double *p, double *out) { tips(y, p, out); }
+
+/* the layout: coordinates, entries of p, the largest state of the integrators */
+void sp_layout(int64_t *out) { out[0] = SP_NQ; out[1] = SP_NPARAM; out[2] = SP_NMAX; }
 
 /* rows: nrows states, `stride` doubles apart (a state may be preceded by t in its row) */
 void sp_energies(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
@@ -271,8 +283,8 @@ void sp_energies(const double *rows, int64_t nrows, int64_t stride, const double
     for (int64_t r = 0; r < nrows; r++) out[r] = energy(rows + r * stride, p);
 }
 
-/* simulate's energy account of a block of rows (t, y[0..4], ...), `stride` doubles apart: each row's
- * energy into out[r], and the running maxima acc[0] = max |E - W - E0|, acc[1] = max |E|, with
+/* simulate's energy account of a block of rows (t, y[0..2 SP_NQ], ...), `stride` doubles apart: each
+ * row's energy into out[r], and the running maxima acc[0] = max |E - W - E0|, acc[1] = max |E|, with
  * E0 = acc[2], taken from the first row ever when acc[3] == 0 (then acc[3] = 1) */
 void sp_energy_account(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out, double *acc)
 {
@@ -284,7 +296,7 @@ void sp_energy_account(const double *rows, int64_t nrows, int64_t stride, const 
             acc[2] = e;
             acc[3] = 1.0;
         }
-        const double d = fabs((e - y[4]) - acc[2]);
+        const double d = fabs((e - y[2 * SP_NQ]) - acc[2]);
         if (d > acc[0] || d != d) acc[0] = d;
         if (fabs(e) > acc[1] || e != e) acc[1] = fabs(e);
     }
@@ -292,28 +304,27 @@ void sp_energy_account(const double *rows, int64_t nrows, int64_t stride, const 
 
 void sp_momenta_many(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
 {
-    for (int64_t r = 0; r < nrows; r++) momenta(rows + r * stride, p, out + 2 * r);
+    for (int64_t r = 0; r < nrows; r++) momenta(rows + r * stride, p, out + SP_NQ * r);
 }
 
 void sp_tips_many(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
 {
-    for (int64_t r = 0; r < nrows; r++) tips(rows + r * stride, p, out + 6 * r);
+    for (int64_t r = 0; r < nrows; r++) tips(rows + r * stride, p, out + 3 * SP_NQ * r);
 }
 
 void sp_axes_many(const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
 {
-    for (int64_t r = 0; r < nrows; r++) axes(rows + r * stride, p, out + 6 * r);
+    for (int64_t r = 0; r < nrows; r++) axes(rows + r * stride, p, out + 3 * SP_NQ * r);
 }
 
-/* canonical rows (phi, psi, p_phi, p_psi, ...) -> (phi, psi, dphi, dpsi, ...), in place */
+/* canonical rows (q, p_q, ...) -> (q, q', ...), in place */
 void sp_speeds_many(double *rows, int64_t nrows, int64_t stride, const double *p)
 {
-    double v[2];
+    double v[SP_NQ];
     for (int64_t r = 0; r < nrows; r++) {
         double *z = rows + r * stride;
         velocities(z, p, v);
-        z[2] = v[0];
-        z[3] = v[1];
+        for (int k = 0; k < SP_NQ; k++) z[SP_NQ + k] = v[k];
     }
 }
 """

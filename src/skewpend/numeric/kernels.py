@@ -64,7 +64,7 @@ __all__ = ["ControlStruct",
 _SOURCES = (
     "numeric/kernel_source.py", "numeric/codegen.py", "numeric/conventions.py", "numeric/integrators.c", "numeric/chaos.c",
     "numeric/dop853_core.h", "numeric/rows.h", "numeric/shooting.c", "numeric/kernels.py", "status.py", "symbolic/derivation.py", "symbolic/kinematics.py",
-    "symbolic/symbols.py",
+    "symbolic/symbols.py", "numeric/recursive.py", "symbolic/chain.py",
 )
 _PACKAGE = Path(__file__).resolve().parent.parent
 #: Compiler flags: no floating-point contraction, so results do not depend on FMA availability.
@@ -90,37 +90,51 @@ def cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("skewpend"))
 
 
-class State(ctypes.Structure):
-    """Mirror of ``sp_state`` in ``integrators.c``: everything an integrator needs to resume."""
+def state_type(nmax: int):
+    """The mirror of ``sp_state`` (``integrators.c``) for states of at most ``nmax`` components
+    (``SP_NMAX``: 8 for the double pendulum, ``2 n + 2`` for a chain of ``n`` links)."""
+    if nmax in _STATE_TYPES:
+        return _STATE_TYPES[nmax]
 
-    _fields_ = [
-        ("t", ctypes.c_double),
-        ("h", ctypes.c_double),
-        ("y", ctypes.c_double * SP_NMAX),
-        ("f", ctypes.c_double * SP_NMAX),
-        ("g", ctypes.c_double * SP_NMAX),
-        ("comp", ctypes.c_double * SP_NMAX),
-        ("told", ctypes.c_double),
-        ("hseg", ctypes.c_double),
-        ("yold", ctypes.c_double * SP_NMAX),
-        ("F", ctypes.c_double * (7 * SP_NMAX)),
-        ("nfev", ctypes.c_int64),
-        ("naccept", ctypes.c_int64),
-        ("nreject", ctypes.c_int64),
-        ("step", ctypes.c_int64),
-        ("started", ctypes.c_int32),
-        ("have_f", ctypes.c_int32),
-        ("dense_ok", ctypes.c_int32),
-        ("aux", ctypes.c_int32),
-    ]
+    class _State(ctypes.Structure):
+        """Mirror of ``sp_state`` in ``integrators.c``: everything an integrator needs to resume."""
 
-    @classmethod
-    def at(cls, t0: float, y0) -> "State":
-        s = cls()
-        s.t = float(t0)
-        for i, v in enumerate(y0):
-            s.y[i] = float(v)
-        return s
+        _fields_ = [
+            ("t", ctypes.c_double),
+            ("h", ctypes.c_double),
+            ("y", ctypes.c_double * nmax),
+            ("f", ctypes.c_double * nmax),
+            ("g", ctypes.c_double * nmax),
+            ("comp", ctypes.c_double * nmax),
+            ("told", ctypes.c_double),
+            ("hseg", ctypes.c_double),
+            ("yold", ctypes.c_double * nmax),
+            ("F", ctypes.c_double * (7 * nmax)),
+            ("nfev", ctypes.c_int64),
+            ("naccept", ctypes.c_int64),
+            ("nreject", ctypes.c_int64),
+            ("step", ctypes.c_int64),
+            ("started", ctypes.c_int32),
+            ("have_f", ctypes.c_int32),
+            ("dense_ok", ctypes.c_int32),
+            ("aux", ctypes.c_int32),
+        ]
+
+        @classmethod
+        def at(cls, t0: float, y0) -> "_State":
+            s = cls()
+            s.t = float(t0)
+            for i, v in enumerate(y0):
+                s.y[i] = float(v)
+            return s
+
+    _State.__name__ = _State.__qualname__ = "State" if nmax == SP_NMAX else f"State{nmax}"
+    _STATE_TYPES[nmax] = _State
+    return _State
+
+
+_STATE_TYPES: Dict[int, type] = {}
+State = state_type(SP_NMAX)
 
 
 #: Mirror of ``SP_TN`` and ``SP_TPMAX`` in the Taylor kernel (:mod:`skewpend.numeric.taylor_source`).
@@ -398,8 +412,18 @@ class Kernel:
         lib = ctypes.CDLL(str(path))
         self.lib = lib
         dp = ctypes.POINTER(ctypes.c_double)
-        i64, sp = ctypes.c_int64, ctypes.POINTER(State)
+        i64 = ctypes.c_int64
+        layout = (i64 * 3)()
+        lib.sp_layout.argtypes, lib.sp_layout.restype = [ctypes.POINTER(i64)], None
+        lib.sp_layout(layout)
+        #: the number of coordinates (2 for the double pendulum, n for a chain), of p's entries, and the
+        #: integrators' largest state; ``State`` is the resumable state's mirror of that size
+        self.nq, self.nparam, self.nmax = int(layout[0]), int(layout[1]), int(layout[2])
+        self.State = state_type(self.nmax)
+        sp = ctypes.POINTER(self.State)
         for name in ("sp_rhs", "sp_ham_rhs", "sp_jac", "sp_momenta", "sp_velocities", "sp_tips"):
+            if not hasattr(lib, name):  # a chain's library has no Jacobian (yet)
+                continue
             getattr(lib, name).argtypes = [dp, dp, dp]
             getattr(lib, name).restype = None
         lib.sp_energy.argtypes, lib.sp_energy.restype = [dp, dp], ctypes.c_double
@@ -465,8 +489,9 @@ class Kernel:
             lib.sp_shoot.argtypes = [dp, dp, i64, i64, i64, d, dp, dp, dp, dp]
             lib.sp_shoot.restype = ctypes.c_int
             lib.sp_rhs_sens.argtypes, lib.sp_rhs_sens.restype = [dp, dp, dp, dp, dp], None
-        if lib.sp_state_size() != ctypes.sizeof(State):
-            raise CompilerError(f"{path}: integrator state layout mismatch ({lib.sp_state_size()} != {ctypes.sizeof(State)} bytes)")
+        if lib.sp_state_size() != ctypes.sizeof(self.State):
+            raise CompilerError(f"{path}: integrator state layout mismatch ({lib.sp_state_size()} != "
+                                f"{ctypes.sizeof(self.State)} bytes)")
         self._np = np
 
     # -- helpers -------------------------------------------------------------------------------
@@ -477,9 +502,9 @@ class Kernel:
     def _p(self, p):
         """``p`` as the C code reads it: every entry of :data:`PARAMETER_ORDER` (a shorter array would be read past its end)."""
         p, pp = self._in(p)
-        if p.ndim != 1 or p.size != len(PARAMETER_ORDER):
-            raise ValueError(f"p must hold the {len(PARAMETER_ORDER)} entries of PARAMETER_ORDER "
-                             f"(parameter_vector(params)), got shape {p.shape}")
+        if p.ndim != 1 or p.size != self.nparam:
+            raise ValueError(f"p must hold the {self.nparam} entries of the model's parameter order "
+                             f"(parameter_vector), got shape {p.shape}")
         return p, pp
 
     def _call3(self, fn, y, p, out, size):
@@ -490,22 +515,22 @@ class Kernel:
         fn(yp, pp, out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
 
     def rhs(self, y, p, out) -> None:
-        self._call3(self.lib.sp_rhs, y, p, out, 5)
+        self._call3(self.lib.sp_rhs, y, p, out, 2 * self.nq + 1)
 
     def ham_rhs(self, z, p, out) -> None:
-        self._call3(self.lib.sp_ham_rhs, z, p, out, 5)
+        self._call3(self.lib.sp_ham_rhs, z, p, out, 2 * self.nq + 1)
 
     def jac(self, y, p, out) -> None:
-        self._call3(self.lib.sp_jac, y, p, out, 25)
+        self._call3(self.lib.sp_jac, y, p, out, (2 * self.nq + 1) ** 2)
 
     def momenta(self, y, p, out) -> None:
-        self._call3(self.lib.sp_momenta, y, p, out, 2)
+        self._call3(self.lib.sp_momenta, y, p, out, self.nq)
 
     def velocities(self, z, p, out) -> None:
-        self._call3(self.lib.sp_velocities, z, p, out, 2)
+        self._call3(self.lib.sp_velocities, z, p, out, self.nq)
 
     def tips(self, y, p, out) -> None:
-        self._call3(self.lib.sp_tips, y, p, out, 6)
+        self._call3(self.lib.sp_tips, y, p, out, 3 * self.nq)
 
     def energy(self, y, p) -> float:
         y, yp = self._in(y)
@@ -514,8 +539,8 @@ class Kernel:
 
     def _rows(self, ys):
         ys = self._np.ascontiguousarray(ys, dtype=self._np.float64)
-        if ys.ndim != 2 or ys.shape[1] < 4:
-            raise ValueError("expected rows of states, shape (n, >= 4)")
+        if ys.ndim != 2 or ys.shape[1] < 2 * self.nq:
+            raise ValueError(f"expected rows of states, shape (n, >= {2 * self.nq})")
         return ys
 
     def _per_row(self, fn, ys, p, offset: int, width: int):
@@ -534,15 +559,15 @@ class Kernel:
     def momenta_many(self, ys, p, *, offset: int = 0):
         """Canonical momenta ``M(q) q'`` of each row ``ys[i, offset:]``: shape (n, 2) (the same C
         function as :meth:`momenta`, row by row: the same bits)."""
-        return self._per_row(self.lib.sp_momenta_many, ys, p, offset, 2)
+        return self._per_row(self.lib.sp_momenta_many, ys, p, offset, self.nq)
 
     def tips_many(self, ys, p, *, offset: int = 0):
         """Rod ends of each row ``ys[i, offset:]``: shape (n, 6) [m]."""
-        return self._per_row(self.lib.sp_tips_many, ys, p, offset, 6)
+        return self._per_row(self.lib.sp_tips_many, ys, p, offset, 3 * self.nq)
 
     def axes_many(self, ys, p, *, offset: int = 0):
         """Hinge axes of each row: ``(n1, e)`` in the world frame, shape (n, 6) (unit vectors)."""
-        return self._per_row(self.lib.sp_axes_many, ys, p, offset, 6)
+        return self._per_row(self.lib.sp_axes_many, ys, p, offset, 3 * self.nq)
 
     def flip_potential_many(self, qs, p):
         """``V = Pi - tau . q`` at each row ``qs[i] = (phi, psi)`` [J], shape (n,): the potential
@@ -666,7 +691,7 @@ def _announce(kind: str, cached: bool) -> None:
     if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
         return
     what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels", "taylor": "the Taylor kernel of this order",
-            "shooting": "the identification's shooting kernels"}.get(kind, "the model's kernels")
+            "shooting": "the identification's shooting kernels", "chain": "the chain's kernels"}.get(kind, "the model's kernels")
     when = "first use only; cached for later runs" if cached else "for this run: the cache is not writable"
     try:
         sys.stderr.write(f"skewpend: compiling {what} ({when})...\n")
@@ -727,6 +752,41 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
             kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip, chaos=chaos, shooting=shooting)
         _LOADED[key] = kernel
         _BYGEOMETRY[gkey] = kernel
+        return kernel
+
+
+def chain_kernel(chain) -> Kernel:
+    """The compiled model functions of a chain of links (:class:`skewpend.symbolic.chain.Chain`): its
+    equations by the recursive algorithms (:mod:`skewpend.numeric.recursive`), keyed by the chain's
+    structure (the number of links, the hinge axes, whether friction and rotors exist); every value
+    is the run-time array ``recursive.parameter_vector(chain)``.  Cached like :func:`kernel_module`."""
+    from .recursive import structure_of_chain
+
+    structure = structure_of_chain(chain)
+    key = _key(structure.key()) + "_chain"
+    with _key_lock(key):
+        if key in _LOADED:
+            return _LOADED[key]
+        directory = cache_dir() / "kernels"
+        path = directory / f"skewpend_{key}{LIB_SUFFIX}"
+        kernel = None
+        if path.exists() and _intact(path):
+            try:
+                kernel = Kernel(path, "cache", 0.0)
+            except (OSError, CompilerError):
+                kernel = None
+        if kernel is None:
+            start = time.perf_counter()
+            directory = _writable_directory()
+            path = directory / f"skewpend_{key}{LIB_SUFFIX}"
+            _remove_stale_temporaries(directory)
+            from .recursive import chain_c_source
+
+            _announce("chain", cached=directory == cache_dir() / "kernels")
+            source = chain_c_source(structure) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
+            _compile(source, path)
+            kernel = Kernel(path, "compiled", time.perf_counter() - start)
+        _LOADED[key] = kernel
         return kernel
 
 

@@ -389,3 +389,9 @@ def _build_parameters():
 
 
 Parameters = _build_parameters()
+
+
+#: The checks of one scalar, vector and inertia entry, shared with the chains' links (:mod:`.chain`).
+as_real = _as_real
+as_vector = _as_vec3
+check_inertia = _check_inertia

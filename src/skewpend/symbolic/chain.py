@@ -1,0 +1,309 @@
+"""A chain of links on skewed hinges: the model as data, of any length.
+
+A :class:`Chain` is a list of :class:`Link` objects and the gravitational acceleration.  Link ``i``
+hangs from hinge ``i``; its hinge axis and the hinge's position are given in the frame of the link
+before it (the roof for the first link), with the whole chain hanging straight down (the
+specification's reference configuration: every body frame parallel to ``i, j, k``, ``j`` down).
+Its coordinate ``q_i`` is the rotation in hinge ``i`` relative to the link before, zero hanging.
+
+The double pendulum is the chain of two (:meth:`Chain.from_parameters`): link 1 is rod ``a`` on the
+roof hinge (axis ``k`` or ``axis1``), link 2 rod ``b`` on the hinge at ``a j`` (axis
+``e0 = cos(alpha) k + sin(alpha) i`` or ``axis2``), ``q = (phi, psi)``.
+
+Per link (SI units; the defaults are the specification's thin uniform rods):
+
+* ``axis`` -- the hinge axis in the parent's frame (any non-zero vector, normalised; default ``k``);
+* ``offset`` -- the hinge's position in the parent's frame, from the parent's hinge (default: the
+  parent's end ``(0, l_parent, 0)``; the roof hinge at the origin);
+* ``length`` -- the rod's length ``l`` > 0 (its end carries the next hinge by default and is the
+  chain's tip for the last link);
+* ``mass`` > 0; ``com`` -- the centre of mass in the link's frame (default ``(0, l/2, 0)``);
+  ``inertia`` -- about the centre of mass, in the link's frame (default ``m l^2/12 (E - j j)``);
+* per joint: ``damping`` (viscous, N m s, >= 0), ``coulomb`` (N m, >= 0: the torque
+  ``-coulomb atan(cfs q_i')``), ``torque`` (constant, N m), ``rotor`` (the axial inertia of a
+  geared motor's rotor carried by the parent, kg m^2, >= 0) and ``gear`` (its speed relative to the
+  parent over the joint's, default 1).
+
+Everything is numeric: a chain is a model to compute with (the two-link :class:`~skewpend.Parameters`
+keep symbolic values for the derivation's display).  This module imports nothing heavy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Iterable, Mapping, Optional, Tuple
+
+from ..errors import ParameterError
+from .model import Mat3, Parameters, Vec3, as_real, as_vector, check_inertia
+
+__all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS"]
+
+#: The largest chain the generated code is built for (the state of 2 N + 1 numbers).
+MAX_LINKS = 32
+
+#: A link's keys, as run files and :meth:`Link.from_mapping` spell them.
+LINK_KEYS = ("axis", "offset", "length", "mass", "com", "inertia", "damping", "coulomb", "torque", "rotor", "gear")
+_CHAIN_KEYS = ("links", "g", "cfs")
+_BOUNDS = {"length": "positive", "mass": "positive", "damping": "nonnegative", "coulomb": "nonnegative",
+           "rotor": "nonnegative", "torque": "real", "gear": "real"}
+
+
+def _unit(name: str, v) -> Vec3:
+    v = tuple(as_real(f"{name}[{i}]", x) for i, x in enumerate(as_vector(name, v)))
+    big = max(abs(x) for x in v)
+    norm = big * math.sqrt(sum((x / big) ** 2 for x in v)) if big > 0 else 0.0
+    if not norm > 1e-12:
+        raise ParameterError(f"{name} must be a non-zero vector (a hinge axis), got {v}")
+    return tuple(x / norm for x in v)  # type: ignore[return-value]
+
+
+def _inertia(name: str, value) -> Mat3:
+    """A 3x3 tensor, or 3 (principal: Ixx, Iyy, Izz) or 6 numbers (Ixx, Iyy, Izz, Ixy, Ixz, Iyz)."""
+    try:
+        items = list(value)
+    except TypeError:
+        raise ParameterError(f"{name} must be a 3x3 matrix or 3 or 6 numbers (Ixx, Iyy, Izz[, Ixy, Ixz, Iyz]), "
+                             f"got {value!r}") from None
+    if len(items) in (3, 6) and not any(isinstance(x, (list, tuple)) for x in items):
+        e = [as_real(f"{name}[{i}]", x, 1e300) for i, x in enumerate(items)] + [0.0] * (6 - len(items))
+        mat = ((e[0], e[3], e[4]), (e[3], e[1], e[5]), (e[4], e[5], e[2]))
+    elif len(items) == 3:
+        mat = tuple(tuple(as_real(f"{name}[{i}][{j}]", x, 1e300) for j, x in enumerate(as_vector(f"{name}[{i}]", r)))
+                    for i, r in enumerate(items))
+    else:
+        raise ParameterError(f"{name} must be a 3x3 matrix or 3 or 6 numbers (Ixx, Iyy, Izz[, Ixy, Ixz, Iyz]), "
+                             f"got {len(items)} entries")
+    check_inertia(name, mat)  # type: ignore[arg-type]
+    return mat  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class Link:
+    """One link of a :class:`Chain` (validated when built; see the module's text for the fields).
+
+    ``offset``, ``com`` and ``inertia`` may be None: the chain fills in the thin rod's values
+    (:attr:`Chain.links` holds them resolved)."""
+
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    offset: Optional[Vec3] = None
+    length: float = 1.0
+    mass: float = 1.0
+    com: Optional[Vec3] = None
+    inertia: Optional[Mat3] = None
+    damping: float = 0.0
+    coulomb: float = 0.0
+    torque: float = 0.0
+    rotor: float = 0.0
+    gear: float = 1.0
+    #: the place of the link in its chain (1-based) for messages; 0 when alone
+    index: int = field(default=0, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        at = f"link {self.index}" if self.index else "link"
+        for key, bound in _BOUNDS.items():
+            x = as_real(f"{at} {key}", getattr(self, key))
+            if bound == "positive" and not x > 0 or bound == "nonnegative" and x < 0:
+                raise ParameterError(f"{at} {key} must be {'> 0' if bound == 'positive' else '>= 0'}, got {x:g}")
+            object.__setattr__(self, key, x)
+        object.__setattr__(self, "axis", _unit(f"{at} axis", self.axis))
+        for key in ("offset", "com"):
+            if getattr(self, key) is not None:
+                v = as_vector(f"{at} {key}", getattr(self, key))
+                object.__setattr__(self, key, tuple(as_real(f"{at} {key}[{i}]", x) for i, x in enumerate(v)))
+        if self.inertia is not None:
+            object.__setattr__(self, "inertia", _inertia(f"{at} inertia", self.inertia))
+
+    @property
+    def rod_inertia(self) -> Mat3:
+        """The thin rod's inertia about its midpoint, ``m l^2/12 (E - j j)``."""
+        k = self.mass * self.length ** 2 / 12.0
+        return ((k, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, k))
+
+    def to_dict(self) -> dict:
+        """Plain-data form, a run file's ``[[links]]`` table."""
+        out: dict = {}
+        for key in LINK_KEYS:
+            v = getattr(self, key)
+            if v is not None:
+                out[key] = [list(r) for r in v] if key == "inertia" else (list(v) if isinstance(v, tuple) else v)
+        return out
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], index: int = 0) -> "Link":
+        """A link from a mapping (a run file's ``[[links]]`` table); an unknown key is an error."""
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"link {index or ''} must be a table of {', '.join(LINK_KEYS)}, got {data!r}".replace("  ", " "))
+        unknown = [k for k in data if k not in LINK_KEYS]
+        if unknown:
+            raise ParameterError(f"link {index}: unknown key {unknown[0]!r}; a link takes {', '.join(LINK_KEYS)}")
+        return cls(**dict(data), index=index)
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A chain of ``n`` links hanging from the roof (``n >= 1``), the gravitational acceleration
+    ``g`` (along ``+j``, down) and the Coulomb friction's smoothing rate ``cfs``.
+
+    The links are stored resolved: every ``offset``, ``com`` and ``inertia`` has its value (the thin
+    rods' where none was given), each link knows its place (``index``)."""
+
+    links: Tuple[Link, ...]
+    g: float = 9.81
+    cfs: float = 100.0
+
+    def __post_init__(self) -> None:
+        try:
+            links = list(self.links)
+        except TypeError:
+            raise ParameterError(f"a chain's links must be a list of links, got {self.links!r}") from None
+        if not links:
+            raise ParameterError("a chain needs at least 1 link, got 0")
+        if len(links) > MAX_LINKS:
+            raise ParameterError(f"a chain may have at most {MAX_LINKS} links, got {len(links)}")
+        out = []
+        parent_length = 0.0
+        for i, link in enumerate(links, start=1):
+            if isinstance(link, Mapping):
+                link = Link.from_mapping(link, i)
+            elif not isinstance(link, Link):
+                raise ParameterError(f"link {i} must be a Link or a table, got {link!r}")
+            link = replace(link, index=i)
+            offset = link.offset if link.offset is not None else (0.0, parent_length, 0.0)
+            com = link.com if link.com is not None else (0.0, link.length / 2.0, 0.0)
+            inertia = link.inertia if link.inertia is not None else link.rod_inertia
+            out.append(replace(link, offset=offset, com=com, inertia=inertia, index=i))
+            parent_length = link.length
+        object.__setattr__(self, "links", tuple(out))
+        g = as_real("g", self.g)
+        if g < 0:
+            raise ParameterError(f"g must be >= 0, got {g:g}")
+        cfs = as_real("cfs", self.cfs)
+        if not cfs > 0:
+            raise ParameterError(f"cfs must be > 0, got {cfs:g}")
+        object.__setattr__(self, "g", g)
+        object.__setattr__(self, "cfs", cfs)
+
+    # -- queries ----------------------------------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        """The number of links (and of coordinates)."""
+        return len(self.links)
+
+    def __len__(self) -> int:
+        return self.n
+
+    @property
+    def coordinates(self) -> Tuple[str, ...]:
+        """The coordinates' names: ``phi, psi`` for two links (the specification's), ``q1 ... qn`` otherwise."""
+        return ("phi", "psi") if self.n == 2 else tuple(f"q{i}" for i in range(1, self.n + 1))
+
+    @property
+    def has_friction(self) -> bool:
+        return any(link.coulomb != 0 for link in self.links)
+
+    @property
+    def has_rotor(self) -> bool:
+        return any(link.rotor != 0 for link in self.links)
+
+    @property
+    def conservative(self) -> bool:
+        """No damping, Coulomb friction or constant torque in any joint (E = T + Pi conserved)."""
+        return not any(link.damping or link.coulomb or link.torque for link in self.links)
+
+    def require_links(self, allowed: Iterable[int], what: str) -> "Chain":
+        """Return self, or raise one line: ``what`` is defined for these numbers of links only."""
+        allowed = tuple(allowed)
+        if self.n not in allowed:
+            counts = " or ".join(str(k) for k in allowed)
+            raise ParameterError(f"{what} is defined for a chain of {counts} links, this chain has {self.n}",
+                                 parameter="links")
+        return self
+
+    def replace_link(self, i: int, **changes: Any) -> "Chain":
+        """A copy with link ``i`` (1-based) changed (validated again)."""
+        links = list(self.links)
+        links[i - 1] = replace(links[i - 1], **changes)
+        return replace(self, links=tuple(links))
+
+    # -- plain data ---------------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """Plain-data form (a run file: ``g``, ``cfs`` and a ``[[links]]`` table per link)."""
+        return {"g": self.g, "cfs": self.cfs, "links": [link.to_dict() for link in self.links]}
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any]) -> "Chain":
+        """A chain from a mapping with ``links`` (a list of tables), ``g`` and ``cfs``; unknown keys
+        are an error."""
+        unknown = [k for k in data if k not in _CHAIN_KEYS]
+        if unknown:
+            raise ParameterError(f"unknown key {unknown[0]!r} in a chain; a chain takes {', '.join(_CHAIN_KEYS)} "
+                                 f"(each link: {', '.join(LINK_KEYS)})")
+        if "links" not in data:
+            raise ParameterError("a chain needs its links: a list of [[links]] tables")
+        links = data["links"]
+        if isinstance(links, (str, bytes)) or not isinstance(links, Iterable):
+            raise ParameterError(f"a chain's links must be a list of tables, got {links!r}")
+        return cls(links=tuple(Link.from_mapping(d, i) if not isinstance(d, Link) else d
+                               for i, d in enumerate(links, start=1)),
+                   **{k: data[k] for k in ("g", "cfs") if k in data})
+
+    @classmethod
+    def from_lists(cls, n: Optional[int] = None, *, g: float = 9.81, cfs: float = 100.0, **per_link: Any) -> "Chain":
+        """A chain from per-link lists (``mass=[1, 1, 0.5]``, ``axis=[(0, 0, 1), ...]``); every list has
+        the same length (``n`` links; a single value is every link's)."""
+        lengths = {k: len(v) for k, v in per_link.items() if isinstance(v, (list, tuple)) and
+                   not (k in ("axis", "offset", "com") and len(v) == 3 and not isinstance(v[0], (list, tuple)))
+                   and not (k == "inertia" and len(v) in (3, 6) and not isinstance(v[0], (list, tuple)))}
+        unknown = [k for k in per_link if k not in LINK_KEYS]
+        if unknown:
+            raise ParameterError(f"unknown per-link key {unknown[0]!r}; a link takes {', '.join(LINK_KEYS)}")
+        counts = set(lengths.values()) | ({n} if n is not None else set())
+        if len(counts) > 1:
+            told = ", ".join(f"{k}: {v}" for k, v in lengths.items())
+            raise ParameterError(f"per-link lists of different lengths ({told}{', links: ' + str(n) if n else ''}); "
+                                 "give one value a link, or one value for all")
+        if not counts:
+            raise ParameterError("a chain from per-link values needs the number of links or a list")
+        count = counts.pop()
+        links = [Link(**{k: (v[i] if k in lengths else v) for k, v in per_link.items()}, index=i + 1)
+                 for i in range(count)]
+        return cls(links=tuple(links), g=g, cfs=cfs)
+
+    # -- the double pendulum --------------------------------------------------------------------------------
+    @classmethod
+    def from_parameters(cls, params: Parameters) -> "Chain":
+        """The double pendulum ``params`` as the chain of two (numeric parameters only): link 1 rod ``a``
+        on the roof hinge, link 2 rod ``b`` on the hinge at ``a j`` with the axis ``e0``."""
+        params = params.require_numeric("a chain")
+        e0 = params.axis2 if params.axis2 is not None else (math.sin(params.alpha), 0.0, math.cos(params.alpha))
+        links = []
+        for i, (length, axis) in enumerate(((params.a, params.axis1 or (0.0, 0.0, 1.0)), (params.b, e0)), start=1):
+            links.append(Link(axis=axis, length=length, mass=getattr(params, f"m{i}"), com=getattr(params, f"com{i}"),
+                              inertia=getattr(params, f"inertia{i}"), damping=getattr(params, f"c{i}"),
+                              coulomb=getattr(params, f"cf{i}"), torque=getattr(params, f"tau{i}"),
+                              rotor=params.Ir, gear=params.gr, index=i))
+        return cls(links=tuple(links), g=params.g, cfs=params.cfs)
+
+    def to_parameters(self) -> Parameters:
+        """The chain of two as :class:`~skewpend.Parameters` (one line if it is not a double pendulum of
+        that form: hinge 1 at the roof's origin, hinge 2 on rod 1's end, equal rotors)."""
+        self.require_links((2,), "the double pendulum's parameters")
+        one, two = self.links
+        if one.offset != (0.0, 0.0, 0.0) or two.offset != (0.0, one.length, 0.0):
+            raise ParameterError("the double pendulum's parameters need hinge 1 at the origin and hinge 2 at the end of "
+                                 f"rod 1 (0, a, 0); this chain's offsets are {one.offset} and {two.offset}")
+        if (one.rotor, one.gear) != (two.rotor, two.gear):
+            raise ParameterError("the double pendulum's parameters have one rotor inertia and gear for both joints; "
+                                 f"this chain has ({one.rotor:g}, {one.gear:g}) and ({two.rotor:g}, {two.gear:g})")
+        return Parameters(a=one.length, b=two.length, m1=one.mass, m2=two.mass, g=self.g, axis1=one.axis,
+                          axis2=two.axis, com1=one.com, com2=two.com, inertia1=one.inertia, inertia2=two.inertia,
+                          c1=one.damping, c2=two.damping, tau1=one.torque, tau2=two.torque, cf1=one.coulomb,
+                          cf2=two.coulomb, cfs=self.cfs, Ir=one.rotor, gr=one.gear)
+
+
+def _link_fields() -> Tuple[str, ...]:
+    return tuple(f.name for f in fields(Link) if f.name != "index")
+
+
+assert _link_fields() == LINK_KEYS, "LINK_KEYS must list Link's fields in order"
