@@ -641,3 +641,68 @@ def mujoco_trajectory(
     finally:
         mujoco.set_mju_user_warning(previous)
     return marks * dt, out
+
+
+# -- chains of any length ------------------------------------------------------------------------------
+def mujoco_compatible_chain(chain, axial_inertia: Optional[float] = None):
+    """``chain`` with each link's inertia made acceptable to MuJoCo (the tiny inertia of the module's
+    text: ``axial_inertia``, default ``max(1e-9 m l^2, 1e-12)`` per link, along the principal axes that
+    need it); bodies MuJoCo accepts are unchanged.  The system :func:`chain_to_mjcf` exports."""
+    eps = positive_number("axial_inertia", axial_inertia, allow_none=True)
+    out = chain
+    for link in chain.links:
+        eps_k = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * link.mass * link.length ** 2, AXIAL_INERTIA_FLOOR)
+        inertia = _regularised_inertia(link.inertia, eps_k)
+        if not _finite(inertia):
+            raise ParameterError(f"export: the inertia of link {link.index} overflows in MuJoCo's terms: {link.inertia}")
+        if inertia != link.inertia:
+            out = out.replace_link(link.index, inertia=inertia)
+    return out
+
+
+def chain_to_mjcf(chain, *, timestep: float = 1e-4, integrator: str = "RK4",
+                  axial_inertia: Optional[float] = None) -> str:
+    """A MuJoCo MJCF model (XML text) of a chain of links (:class:`skewpend.symbolic.chain.Chain`): the
+    conventions of :func:`to_mjcf` (gravity along +y, bodies nested link by link, each at its hinge's
+    offset in its parent, ``<inertial>`` of :func:`mujoco_compatible_chain`, hinge ``axis``, ``damping``,
+    a ``<general>`` actuator with the constant torque as its affine bias).  Coulomb friction and rotors
+    are refused: MuJoCo's ``frictionloss`` is another model, and a rotor's coupling to its carrier is no
+    joint armature."""
+    if chain.has_friction:
+        raise ParameterError("export: MuJoCo's frictionloss is not skewpend's smooth Coulomb friction; export the chain "
+                             "with coulomb = 0 on every link")
+    if chain.has_rotor:
+        raise ParameterError("export: a rotor carried by its parent link couples the joints, which MuJoCo's armature "
+                             "cannot hold; export the chain with rotor = 0 on every link")
+    from .. import __version__
+
+    c = mujoco_compatible_chain(chain, axial_inertia)
+    timestep = positive_number("timestep", timestep)
+    integrator = _integrator(integrator)
+    radius = 0.01 * sum(link.length for link in c.links) / max(1, c.n) * 2
+    colours = ("0.2 0.4 0.8 1", "0.8 0.3 0.2 1", "0.3 0.7 0.3 1", "0.7 0.6 0.2 1")
+    lines = [
+        '<mujoco model="skewpend-chain">',
+        f"  <!-- {_comment(f'A chain of {c.n} links exported by skewpend {__version__} (MJCF). Frame: x, y, z = i, j, k with y pointing DOWN; gravity g acts along +y. Joint q_i is hinge i, relative to link i-1, zero with the chain hanging along +y.')} -->",
+        '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
+        f'  <option gravity="0 {_num(c.g)} 0" timestep="{_num(timestep)}" integrator="{integrator}">',
+        '    <flag contact="disable" energy="enable"/>',
+        "  </option>",
+        "  <worldbody>",
+    ]
+    for link in c.links:
+        pad = "  " * (link.index + 1)
+        lines += [
+            f'{pad}<body name="link{link.index}" pos="{_vec(link.offset)}">',
+            f'{pad}  <joint name="hinge{link.index}" type="hinge" pos="0 0 0" axis="{_vec(link.axis)}" '
+            f'damping="{_num(link.damping)}" limited="false" armature="0" frictionloss="0" stiffness="0"/>',
+            f'{pad}  <inertial pos="{_vec(link.com)}" mass="{_num(link.mass)}" fullinertia="{_fullinertia(link.inertia)}"/>',
+            f'{pad}  <geom name="link{link.index}" type="capsule" fromto="0 0 0 0 {_num(link.length)} 0" '
+            f'size="{_num(radius)}" contype="0" conaffinity="0" rgba="{colours[(link.index - 1) % len(colours)]}"/>',
+        ]
+    lines += ["  " * (k + 1) + "</body>" for k in range(c.n, 0, -1)]
+    lines += ["  </worldbody>", "  <actuator>"]
+    lines += [f'    <general name="tau{link.index}" joint="hinge{link.index}" gainprm="1" biastype="affine" '
+              f'biasprm="{_num(link.torque)} 0 0" ctrllimited="false" forcelimited="false"/>' for link in c.links]
+    lines += ["  </actuator>", "</mujoco>", ""]
+    return "\n".join(lines)

@@ -117,7 +117,7 @@ class _Graph:
         self.link = [{name: P[i * w + k] for k, name in enumerate(PER_LINK)} for i in range(n)]
         R = ca.SX.eye(3)
         o = ca.SX.zeros(3, 1)
-        self.R, self.o, self.a, self.c, self.Iw = [], [], [], [], []
+        self.R, self.o, self.a, self.c, self.Iw, self.oa = [], [], [], [], [], []
         for i in range(n):
             L = self.link[i]
             o = o + ca.mtimes(R, ca.vertcat(L["hx"], L["hy"], L["hz"]))
@@ -128,6 +128,7 @@ class _Graph:
             self.R.append(R)
             self.o.append(o)
             self.a.append(a)
+            self.oa.append(_cross(ca, o, a))  # the moment part of hinge i's unit twist (a_i, o_i x a_i)
             self.c.append(o + ca.mtimes(R, ca.vertcat(L["rx"], L["ry"], L["rz"])))
             self.Iw.append(ca.mtimes(ca.mtimes(R, Ib), R.T))
         # velocities: omega_i = omega_{i-1} + a_i q_i'; the centres of mass' velocities
@@ -155,11 +156,11 @@ class _Graph:
             hC = hC + m * c
             JC = JC + self.Iw[l] + m * (ca.dot(c, c) * ca.SX.eye(3) - ca.mtimes(c, c.T))
             # the momentum of the composite l..n under the unit twist of hinge l: omega = a_l, v(0) = o_l x a_l
-            w, v0 = self.a[l], _cross(ca, self.o[l], self.a[l])
+            w, v0 = self.a[l], self.oa[l]
             lin = mC * v0 + _cross(ca, w, hC)
             ang = ca.mtimes(JC, w) + _cross(ca, hC, v0)
             for k in range(l + 1):
-                M[k][l] = M[l][k] = ca.dot(self.a[k], ang) + ca.dot(_cross(ca, self.o[k], self.a[k]), lin)
+                M[k][l] = M[l][k] = ca.dot(self.a[k], ang) + ca.dot(self.oa[k], lin)
         if self.structure.rotor:
             for i in range(n):
                 u = self._rotor_row(i)
@@ -237,6 +238,42 @@ class _Graph:
             tau = [tau[i] + extra[i] for i in range(n)]
         return tau
 
+    def lagrangian_gradient(self):
+        """``dT/dq - dPi/dq`` at fixed ``q'`` (Hamilton's equations' ``p'`` without ``Q``), link by link:
+        turning hinge ``i`` at fixed speeds turns the links ``i ... n`` and their joints' twists, so
+        ``dT/dq_i = (V_{i-1} x S_i) . H_i`` with ``V_{i-1}`` the parent's twist, ``S_i`` hinge ``i``'s unit
+        twist and ``H_i`` the spatial momentum of the links ``i ... n``; ``dPi/dq_i = -g j . (a_i x (h_i -
+        m_i o_i))`` with ``m_i``, ``h_i`` their mass and first moment.  The rotors' part by CasADi's
+        automatic differentiation of their energy."""
+        ca, n = self.ca, self.n
+        L = [None] * n
+        lin = ca.SX.zeros(3, 1)
+        ang = ca.SX.zeros(3, 1)
+        mC, hC = 0, ca.SX.zeros(3, 1)
+        for i in reversed(range(n)):
+            m, c = self.link[i]["m"], self.c[i]
+            p_lin = m * self.v[i]
+            lin = lin + p_lin
+            ang = ang + _cross(ca, c, p_lin) + ca.mtimes(self.Iw[i], self.omega[i])
+            mC, hC = mC + m, hC + m * c
+            L[i] = (lin, ang, mC, hC)
+        out = []
+        w_prev, v0_prev = ca.SX.zeros(3, 1), ca.SX.zeros(3, 1)  # the parent's twist at the origin
+        for i in range(n):
+            lin, ang, mC, hC = L[i]
+            a, oa = self.a[i], self.oa[i]
+            dS_ang = _cross(ca, w_prev, a)
+            dS_lin = _cross(ca, w_prev, oa) + _cross(ca, v0_prev, a)
+            dT = ca.dot(dS_ang, ang) + ca.dot(dS_lin, lin)
+            dPi = -self.g * _cross(ca, a, hC - mC * self.o[i])[1]
+            out.append(dT - dPi)
+            w_prev, v0_prev = w_prev + a * self.dq[i], v0_prev + oa * self.dq[i]
+        if self.structure.rotor:
+            Tr = self.rotor_energy()
+            g = ca.gradient(Tr, self.q)
+            out = [out[i] + g[i] for i in range(n)]
+        return out
+
     # -- energies ------------------------------------------------------------------------------------------
     def kinetic_energy(self):
         ca = self.ca
@@ -287,7 +324,7 @@ def chain_functions(structure: ChainStructure) -> Dict[str, object]:
         "model": ca.Function("model", [y, G.p], [ca.vertcat(*_packed(M, n)), ca.vertcat(*f), ca.vertcat(*Q)]),
         "mass": ca.Function("mass", [G.q, G.p], [ca.vertcat(*_packed(M, n))]),
         "energy": ca.Function("energy", [y, G.p], [T + Pi]),
-        "hamilton": ca.Function("hamilton", [y, G.p], [ca.gradient(T, G.q) - ca.gradient(Pi, G.q), ca.vertcat(*Q)]),
+        "hamilton": ca.Function("hamilton", [y, G.p], [ca.vertcat(*G.lagrangian_gradient()), ca.vertcat(*Q)]),
         "ends": ca.Function("ends", [G.q, G.p], [ca.vertcat(*G.ends())]),
         "axes": ca.Function("axes", [G.q, G.p], [ca.vertcat(*G.a)]),
     }
@@ -373,19 +410,25 @@ def chain_c_source(structure: ChainStructure) -> str:
     out += [f"{I}out[{2 * n}] = " + " + ".join(f"Q{i} * y[{n + i}]" for i in range(n)) + ";", "}", ""]
     out += ["/* mechanical energy T + Pi [J] */", "static double energy(const double *y, const double *p)", "{"]
     out += c_function_lines(fns["energy"], ["y", "p"], [["E"]], I) + [f"{I}return E;", "}", ""]
+    out += ["/* the mass matrix M(q), its packed lower triangle, into out[n (n + 1) / 2] */",
+            "static void mass(const double *q, const double *p, double *out)", "{"]
+    out += c_function_lines(fns["mass"], ["q", "p"], [[f"out[{k}]" for k in range(len(Mn))]], I, declare=False)
+    out += ["}", ""]
+    load_mass = [f"{I}double sp_M[{len(Mn)}];", f"{I}mass(%s, p, sp_M);"] + \
+        [f"{I}const double {name} = sp_M[{k}];" for k, name in enumerate(Mn)]
     out += ["/* p_q = M(q) q' into out[n] */", "static void momenta(const double *y, const double *p, double *out)", "{"]
-    out += c_function_lines(fns["mass"], ["y", "p"], [Mn], I)
+    out += [line.replace("%s", "y") for line in load_mass]
     M = lambda i, j: Mn[max(i, j) * (max(i, j) + 1) // 2 + min(i, j)]  # noqa: E731
     out += [f"{I}out[{i}] = " + " + ".join(f"{M(i, j)} * y[{n + j}]" for j in range(n)) + ";" for i in range(n)]
     out += ["}", ""]
     v = [f"v{i}" for i in range(n)]
     out += ["/* q' = M(q)^-1 p_q into out[n] */", "static void velocities(const double *z, const double *p, double *out)", "{"]
-    out += c_function_lines(fns["mass"], ["z", "p"], [Mn], I)
+    out += [line.replace("%s", "z") for line in load_mass]
     out += spd_c_lines(I, [f"z[{n + i}]" for i in range(n)], v, M=Mn)
     out += [f"{I}out[{i}] = {v[i]};" for i in range(n)] + ["}", ""]
     out += ["/* dz/dt of z = (q, p_q, W) into out[2 n + 1]: q' = M^-1 p_q, p_q' = dT/dq - dPi/dq + Q */",
             "static void ham_rhs(const double *z, const double *p, double *out)", "{"]
-    out += c_function_lines(fns["mass"], ["z", "p"], [Mn], I)
+    out += [line.replace("%s", "z") for line in load_mass]
     out += spd_c_lines(I, [f"z[{n + i}]" for i in range(n)], v, M=Mn)
     out += [f"{I}double yv[{2 * n}];"] + [f"{I}yv[{i}] = z[{i}]; yv[{n + i}] = {v[i]};" for i in range(n)]
     dT = [f"dL{i}" for i in range(n)]
