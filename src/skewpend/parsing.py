@@ -151,21 +151,24 @@ def positive_number(name: str, value: Any, *, allow_none: bool = False) -> Optio
 MAX_ANGLE = 1e6
 
 
-def initial_state(y0: Sequence[float]):
-    """``y0 = (phi, psi, dphi, dpsi)`` as a finite float array of shape (4,); angles at most
-    :data:`MAX_ANGLE` in magnitude."""
+def initial_state(y0: Sequence[float], coordinates: Sequence[str] = ("phi", "psi")):
+    """``y0 = (phi, psi, dphi, dpsi)`` (a chain's ``(q1 ... qn, dq1 ... dqn)``: ``coordinates``) as a
+    finite float array of shape (2 n,); angles at most :data:`MAX_ANGLE` in magnitude."""
     import numpy as np
 
+    n = len(coordinates)
+    names = ", ".join(list(coordinates) + [f"d{c}" for c in coordinates]) if n <= 3 else \
+        f"{coordinates[0]} ... {coordinates[-1]}, d{coordinates[0]} ... d{coordinates[-1]}"
     try:
         y = np.asarray(y0, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y0!r}") from None
-    if y.shape != (4,):
-        raise ParameterError(f"y0 must be 4 numbers (phi, psi, dphi, dpsi), got {y.size}")
+        raise ParameterError(f"y0 must be {2 * n} numbers ({names}), got {y0!r}") from None
+    if y.shape != (2 * n,):
+        raise ParameterError(f"y0 must be {2 * n} numbers ({names}), got {y.size}")
     if not np.all(np.isfinite(y)):
         raise ParameterError(f"y0 must be finite, got {y.tolist()}")
-    if np.any(np.abs(y[:2]) > MAX_ANGLE):
-        raise ParameterError(f"the initial angles must be at most {MAX_ANGLE:g} rad in magnitude, got {y[:2].tolist()}")
+    if np.any(np.abs(y[:n]) > MAX_ANGLE):
+        raise ParameterError(f"the initial angles must be at most {MAX_ANGLE:g} rad in magnitude, got {y[:n].tolist()}")
     return y
 
 

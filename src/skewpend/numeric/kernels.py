@@ -790,6 +790,21 @@ def chain_kernel(chain) -> Kernel:
         return kernel
 
 
+def model_kernel(model) -> Kernel:
+    """The model library of the double pendulum's :class:`Parameters` (:func:`kernel_module`) or of a
+    chain of links (:func:`chain_kernel`)."""
+    return kernel_module(model) if isinstance(model, Parameters) else chain_kernel(model)
+
+
+def model_vector(model):
+    """The run-time array ``p`` of the double pendulum's :class:`Parameters` or of a chain of links."""
+    if isinstance(model, Parameters):
+        return parameter_vector(model)
+    from .recursive import parameter_vector as chain_vector
+
+    return chain_vector(model)
+
+
 # -- the Taylor integrator: one small library per geometry and order ------------------------------
 class TaylorKernel:
     """The Taylor integrator of one geometry at one order (``lib.sp_taylor``, see ``taylor.c``):

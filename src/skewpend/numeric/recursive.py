@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Dict, List, Sequence, Tuple
+from typing import Any, Dict, List, Sequence, Tuple
 
 from ..errors import require
 from ..symbolic.chain import Chain
@@ -76,8 +76,10 @@ def parameter_vector(chain: Chain):
 
     out: List[float] = []
     for link in chain.links:
-        I = link.inertia
-        out += [*link.offset, link.length, link.mass, *link.com, I[0][0], I[1][1], I[2][2], I[0][1], I[0][2], I[1][2],
+        I: Any = link.inertia  # resolved by the chain (never None there), as are offset and com
+        offset: Any = link.offset
+        com: Any = link.com
+        out += [*offset, link.length, link.mass, *com, I[0][0], I[1][1], I[2][2], I[0][1], I[0][2], I[1][2],
                 link.damping, link.coulomb, link.torque, link.rotor, link.gear]
     out += [chain.g, chain.cfs]
     return np.array(out, dtype=float)
@@ -298,7 +300,6 @@ class _Graph:
 
     def ends(self):
         """The rods' ends ``o_i + R_i (0, l_i, 0)`` (the last one is the chain's tip)."""
-        ca = self.ca
         return [self.o[i] + self.R[i][:, 1] * self.link[i]["l"] for i in range(self.n)]
 
 

@@ -189,16 +189,16 @@ class Trajectory(ResultProtocol):
 
     def tips(self) -> np.ndarray:
         """World positions of the rod ends ``(x1, y1, z1, x2, y2, z2)`` [m], shape (n, 6)."""
-        from .kernels import parameter_vector
+        from .kernels import model_vector
 
-        return self._kernel_or_load().tips_many(self.y, parameter_vector(self.params))
+        return self._kernel_or_load().tips_many(self.y, model_vector(self.params))
 
     def axes(self) -> np.ndarray:
         """The hinge axes in the world frame at each row: ``(n1, e)`` with ``e = P1·e0`` the
         second hinge's current axis (it turns with rod 1), shape (n, 6), unit vectors."""
-        from .kernels import parameter_vector
+        from .kernels import model_vector
 
-        return self._kernel_or_load().axes_many(self.y, parameter_vector(self.params))
+        return self._kernel_or_load().axes_many(self.y, model_vector(self.params))
 
 
 def open_trajectory(path) -> Trajectory:
@@ -250,8 +250,9 @@ def check_start(kernel, p, y) -> None:
     huge speeds or parameters) -- before any integration, for every computation from a start."""
     # ctypes arrays straight into the C functions (NumPy's wrappers cost more than the calls: this
     # runs once per simulate)
-    y5 = (ctypes.c_double * 5)(*[float(v) for v in y][:4], 0.0)
-    deriv = (ctypes.c_double * 5)()
+    ns = 2 * kernel.nq + 1
+    y5 = (ctypes.c_double * ns)(*[float(v) for v in y][:ns - 1], 0.0)
+    deriv = (ctypes.c_double * ns)()
     pa = np.ascontiguousarray(p, dtype=np.float64)
     pp = ctypes.cast(pa.ctypes.data, ctypes.POINTER(ctypes.c_double))
     kernel.lib.sp_rhs(y5, pp, deriv)
@@ -259,6 +260,10 @@ def check_start(kernel, p, y) -> None:
     if not (all(math.isfinite(v) for v in deriv) and math.isfinite(energy)):
         from .conventions import SCALAR_ORDER as PARAMETER_ORDER  # the scalars (the bodies' entries are not news)
 
+        if kernel.nq != 2:  # a chain: its entries' names
+            from .recursive import parameter_names as chain_names
+
+            PARAMETER_ORDER = chain_names(kernel.nq)
         values = ", ".join(f"{n} = {v:g}" for n, v in zip(PARAMETER_ORDER, p) if v != 0)
         raise ParameterError(
             f"the energy or acceleration at the initial state {np.asarray(y).tolist()} is not finite (overflow) for "
@@ -287,8 +292,9 @@ def _memory_limit() -> float:
 class _Accumulator:
     """Consumes output rows chunk by chunk: the energy balance, the kept rows, the file."""
 
-    def __init__(self, kernel, p, keep: bool, writer, acc: Optional[np.ndarray] = None):
+    def __init__(self, kernel, p, keep: bool, writer, acc: Optional[np.ndarray] = None, nq: int = 2):
         self.kernel, self.p, self.keep, self.writer = kernel, p, keep, writer
+        self.nq = nq  # coordinates: a row is (t, q, q', W)
         # the energy account in C, one call per chunk: acc = (max |E - W - E0|, max |E|, E0, E0 set)
         # (given: the array the Taylor integrator keeps the account of its rows in)
         self.acc = np.zeros(4) if acc is None else acc
@@ -324,9 +330,10 @@ class _Accumulator:
             self.blocks.append(rows if final else rows.copy())
             self.eblocks.append(energy)
         else:
+            w = 2 * self.nq + 2
             if self.first is None:
-                self.first = np.append(rows[0, :6], energy[0])
-            self.last = np.append(rows[k - 1, :6], energy[k - 1])
+                self.first = np.append(rows[0, :w], energy[0])
+            self.last = np.append(rows[k - 1, :w], energy[k - 1])
         if self.writer is not None:
             tips = self.kernel.tips_many(rows, self.p, offset=1)
             self.writer.write(np.column_stack([rows[:, :5], energy, rows[:, 5], tips]))
@@ -334,21 +341,22 @@ class _Accumulator:
 
     def columns(self):
         """``(t, y, energy, work)`` of the kept rows, each a contiguous array of its own."""
+        s = 2 * self.nq + 1  # the column of W
         if self.keep:
             if len(self.blocks) == 1:
                 rows, energy = self.blocks[0], self.eblocks[0]
             elif self.blocks:
                 rows, energy = np.concatenate(self.blocks), np.concatenate(self.eblocks)
             else:
-                rows, energy = np.empty((0, 6)), np.empty(0)
+                rows, energy = np.empty((0, s + 1)), np.empty(0)
             if len(self.blocks) == 1:  # the energies are an array of their own already
-                return rows[:, 0].copy(), rows[:, 1:5].copy(), energy, rows[:, 5].copy()
-            return rows[:, 0].copy(), rows[:, 1:5].copy(), energy.copy(), rows[:, 5].copy()
+                return rows[:, 0].copy(), rows[:, 1:s].copy(), energy, rows[:, s].copy()
+            return rows[:, 0].copy(), rows[:, 1:s].copy(), energy.copy(), rows[:, s].copy()
         parts = [b for b in (self.first, self.last) if b is not None]
         if len(parts) == 2 and parts[0][0] == parts[1][0]:
             parts = parts[:1]
-        table = np.array(parts) if parts else np.empty((0, 7))
-        return table[:, 0].copy(), table[:, 1:5].copy(), table[:, 6].copy(), table[:, 5].copy()
+        table = np.array(parts) if parts else np.empty((0, s + 2))
+        return table[:, 0].copy(), table[:, 1:s].copy(), table[:, s + 1].copy(), table[:, s].copy()
 
 
 def _progress_noop(t: float, t_end: float) -> None:
@@ -379,10 +387,10 @@ _PREPARED: Dict[int, _Prepared] = {}
 _PREPARED_MAX = 64
 
 
-def _prepare(params: Parameters) -> _Prepared:
+def _prepare(params) -> _Prepared:
     K = _KERNELS or _kernels()
-    kernel = K.kernel_module(params)
-    p = K.parameter_vector(params)
+    kernel = K.model_kernel(params)
+    p = K.model_vector(params)
     p.flags.writeable = False
     entry = _Prepared(params, kernel, p)
     while len(_PREPARED) >= _PREPARED_MAX:
@@ -403,6 +411,9 @@ def _initial_state(y0) -> List[float]:
 
 def _check_start(kernel, entry: _Prepared, y: List[float]) -> None:
     """:func:`check_start` with the prepared parameter pointer (the same test, a few times quicker)."""
+    if kernel.nq != 2:
+        check_start(kernel, entry.p, y)
+        return
     y5 = (ctypes.c_double * 5)(y[0], y[1], y[2], y[3], 0.0)
     deriv = (ctypes.c_double * 5)()
     kernel.lib.sp_rhs(y5, entry.p_ptr, deriv)
@@ -499,10 +510,26 @@ def simulate(
     # per Parameters object, once (_Prepared); then the quick checks of the common argument types,
     # the library's own checks (same messages) for everything else
     entry = _PREPARED.get(id(params))
+    chain = not isinstance(params, Parameters)
+    if chain:
+        from ..symbolic.chain import Chain
+
+        if not isinstance(params, Chain):
+            raise ParameterError(f"simulate takes Parameters or a Chain, got {type(params).__name__}")
+        if controller is not None:
+            raise ParameterError("a controller drives the double pendulum's two joints; a chain of links takes constant "
+                                 "torques only (each link's torque)")
+        if out is not None:
+            raise ParameterError("out: a trajectory file holds the double pendulum's columns; a chain's run is kept in "
+                                 "memory (write Trajectory.y yourself)")
+        if method == "taylor":
+            raise ParameterError("method taylor: its series are generated for the double pendulum; a chain takes "
+                                 "dop853, rk4 or gauss (or auto)")
     if entry is None or entry.params is not params:
         entry = None
-        params.require_numeric("simulation")
-    y = _initial_state(y0)
+        if not chain:
+            params.require_numeric("simulation")
+    y = initial_state(y0, params.coordinates).tolist() if chain else _initial_state(y0)
     if not (type(t_end) is float and _FLOAT_MIN <= t_end < math.inf):
         t_end = checks.positive("t_end", t_end)
     dt_out = None if dt_out is None else checks.positive("dt_out", dt_out)
@@ -511,7 +538,9 @@ def simulate(
         if dt is not None:
             raise ParameterError("dt is the step of rk4 and gauss; the default method 'auto' chooses its own steps (set "
                                  "rtol/atol), or name method='rk4' or 'gauss' with dt")
-        if controller is None:
+        if chain:
+            method, choice = "dop853", "dop853: a chain of links (its Taylor series are not generated yet)"
+        elif controller is None:
             method, choice = "taylor", AUTO_RULE["taylor"]
         else:
             method, choice = "dop853", AUTO_RULE["controller"]
@@ -714,17 +743,18 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
     elif method == "taylor":
         state = first[0].state
     elif method == "gauss":
+        nq = kernel.nq
         y5 = np.array(y + [0.0])
-        mom = np.empty(2)
+        mom = np.empty(nq)
         kernel.momenta(y5, p, mom)
         z5 = y5.copy()
-        z5[2:4] = mom
-        state = K.State.at(0.0, z5)
+        z5[nq:2 * nq] = mom
+        state = kernel.State.at(0.0, z5)
         tol, max_iter = 1e-15, 100
         settings.update(implicit_tol=tol, implicit_max_iter=max_iter)
     else:
-        state = K.State.at(0.0, y + [0.0] if controller is None or controller.state_size == 5 else y + [0.0, 0.0])
-    n = 5 if controller is None else controller.state_size
+        state = kernel.State.at(0.0, y + [0.0] if controller is None or controller.state_size == 5 else y + [0.0, 0.0])
+    n = 2 * kernel.nq + 1 if controller is None else controller.state_size
     cstruct = None if controller is None else controller.struct()
     cref = None if cstruct is None else ctypes.byref(cstruct)
 
@@ -765,11 +795,11 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
                 return lib.sp_rk4_ctl(cref, sref, n, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS,
                                       ctypes.byref(m))
             if method == "dop853":
-                return lib.sp_dop853(sref, 5, p_ptr, t_end, rtol, atol, max_steps, budget,
+                return lib.sp_dop853(sref, n, p_ptr, t_end, rtol, atol, max_steps, budget,
                                      dt_out or 0.0, n_grid, ctypes.byref(k_out), rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
             if method == "rk4":
-                return lib.sp_rk4(sref, 5, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
-            return lib.sp_gauss(sref, 5, p_ptr, 0.0, step, nsteps, stride, tol, max_iter, budget, rows_ptr, _CHUNK_ROWS,
+                return lib.sp_rk4(sref, n, p_ptr, 0.0, step, nsteps, stride, budget, rows_ptr, _CHUNK_ROWS, ctypes.byref(m))
+            return lib.sp_gauss(sref, n, p_ptr, 0.0, step, nsteps, stride, tol, max_iter, budget, rows_ptr, _CHUNK_ROWS,
                                 ctypes.byref(m))
 
     writer = None
@@ -777,13 +807,13 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
     with contextlib.ExitStack() as stack:
         if out is not None:
             writer = stack.enter_context(TrajectoryWriter(out))
-        acc = _Accumulator(kernel, p, keep, writer, acc=None if first is None else buf.acc)
+        acc = _Accumulator(kernel, p, keep, writer, acc=None if first is None else buf.acc, nq=kernel.nq)
 
         def take(final: bool = False) -> None:
             if first is not None:
                 acc.add_accounted(buf.rows(m.value), ebuf[: m.value], final)
             elif m.value:
-                chunk = rows[: m.value, :6]
+                chunk = rows[: m.value, :2 * kernel.nq + 2]
                 if method == "gauss":
                     chunk = kernel.speeds_many(chunk, p, offset=1)
                 acc.add(chunk, final)

@@ -65,6 +65,7 @@ def _inertia(name: str, value) -> Mat3:
     except TypeError:
         raise ParameterError(f"{name} must be a 3x3 matrix or 3 or 6 numbers (Ixx, Iyy, Izz[, Ixy, Ixz, Iyz]), "
                              f"got {value!r}") from None
+    mat: Any
     if len(items) in (3, 6) and not any(isinstance(x, (list, tuple)) for x in items):
         e = [as_real(f"{name}[{i}]", x, 1e300) for i, x in enumerate(items)] + [0.0] * (6 - len(items))
         mat = ((e[0], e[3], e[4]), (e[3], e[1], e[5]), (e[4], e[5], e[2]))

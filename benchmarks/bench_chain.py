@@ -1,0 +1,137 @@
+"""Chains of links side by side with MuJoCo: build time, accelerations, and a run at equal error.
+
+For chains of ``--links`` (default 3 5 10) random links (general bodies, hinge axes near k, tilted at random,
+no damping: a conservative motion whose reference is DOP853 at 1e-13):
+
+* **build**: a fresh process with an empty kernel cache derives the chain's equations (CasADi graphs of
+  the recursive algorithms), prints and compiles them -- seconds, median of ``--repeat``;
+* **fidelity**: the largest relative difference of the accelerations from MuJoCo's ``mj_forward`` on the
+  exported MJCF over 100 random states;
+* **equal error**: the 20 s run's final-state error and wall time for skewpend's dop853 at rtol 1e-6 ...
+  1e-12 and MuJoCo's RK4 (``mj_step``, the model's own integrator) at dt 4e-3 ... 1.25e-4; the ratio
+  skewpend/MuJoCo at MuJoCo's errors (skewpend's time interpolated in log-log).
+
+    python benchmarks/bench_chain.py [--links 3 5 10] [--repeat 3] [--t-end 20]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from _common import cpu_model, version  # noqa: E402
+
+
+def random_chain(n, seed):
+    from skewpend.symbolic.chain import Chain, Link
+
+    rng = np.random.default_rng(seed)
+    links = []
+    for i in range(n):
+        d = rng.uniform(0.05, 0.3, 3)
+        D = np.diag([d[1] ** 2 + d[2] ** 2, d[0] ** 2 + d[2] ** 2, d[0] ** 2 + d[1] ** 2]) / 12
+        R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        axis = np.array([0.0, 0.0, 1.0]) + rng.normal(scale=0.4, size=3)
+        links.append(Link(axis=tuple(axis), length=0.5, mass=1.0, offset=(0.0, 0.5, 0.0) if i else (0, 0, 0),
+                          com=(0.0, 0.25, 0.0) + rng.normal(scale=0.03, size=3), inertia=(R @ D @ R.T).tolist()))
+    return Chain(links=tuple(links), g=9.81)
+
+
+_BUILD = """
+import time, sys
+sys.path.insert(0, {bench!r})
+t = time.perf_counter()
+from bench_chain import random_chain
+from skewpend.numeric.kernels import chain_kernel
+chain_kernel(random_chain({n}, 1))
+print(time.perf_counter() - t)
+"""
+
+
+def build_seconds(n, repeat):
+    out = []
+    for _ in range(repeat):
+        with tempfile.TemporaryDirectory() as cache:
+            env = {**os.environ, "SKEWPEND_CACHE_DIR": cache, "SKEWPEND_QUIET": "1"}
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-c", _BUILD.format(bench=os.path.dirname(os.path.abspath(__file__)), n=n)],
+                           check=True, env=env, capture_output=True)
+            out.append(time.perf_counter() - t)
+    return float(np.median(out))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--links", type=int, nargs="+", default=[3, 5, 10])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--t-end", type=float, default=20.0)
+    args = ap.parse_args(argv)
+    import mujoco
+
+    import skewpend
+    from skewpend.interop.export import chain_to_mjcf, mujoco_compatible_chain
+    from skewpend.numeric import kernels, recursive
+
+    print(f"# {cpu_model()}, {os.cpu_count()} cores; skewpend {skewpend.__version__}, casadi {version('casadi')}, "
+          f"mujoco {version('mujoco')}; load {os.getloadavg()[0]:.2f}")
+    for n in args.links:
+        chain = mujoco_compatible_chain(random_chain(n, 1))
+        build = build_seconds(n, args.repeat)
+        K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
+        model = mujoco.MjModel.from_xml_string(chain_to_mjcf(chain))
+        data = mujoco.MjData(model)
+        rng = np.random.default_rng(2)
+        worst = 0.0
+        for _ in range(100):
+            q, dq = rng.uniform(-3, 3, n), rng.normal(scale=2, size=n)
+            data.qpos[:], data.qvel[:] = q, dq
+            mujoco.mj_forward(model, data)
+            out = np.zeros(2 * n + 1)
+            K.rhs(np.r_[q, dq, 0.0], p, out)
+            worst = max(worst, float(np.max(np.abs(out[n:2 * n] - data.qacc)) / np.max(np.abs(data.qacc))))
+        y0 = np.r_[np.full(n, 0.6 * min(1.0, 3.0 / n)), np.zeros(n)]  # regular swings (a 10-link chain at 0.6 rad is chaotic)
+        T = args.t_end
+        ref = skewpend.simulate(chain, y0, T, method="dop853", rtol=1e-13, atol=1e-13, dt_out=T).y[-1]
+        ours = []
+        for rtol in (1e-6, 1e-8, 1e-10, 1e-12):
+            times = []
+            for _ in range(args.repeat):
+                t = time.perf_counter()
+                tr = skewpend.simulate(chain, y0, T, method="dop853", rtol=rtol, atol=rtol, dt_out=T)
+                times.append(time.perf_counter() - t)
+            ours.append((float(np.max(np.abs(tr.y[-1] - ref))), float(np.median(times))))
+        theirs = []
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+        for dt in (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4):
+            model.opt.timestep = dt
+            steps = int(round(T / dt))
+            times = []
+            for _ in range(args.repeat):
+                mujoco.mj_resetData(model, data)
+                data.qpos[:], data.qvel[:] = y0[:n], y0[n:]
+                t = time.perf_counter()
+                for _ in range(steps):
+                    mujoco.mj_step(model, data)
+                times.append(time.perf_counter() - t)
+            theirs.append((float(np.max(np.abs(np.r_[data.qpos, data.qvel] - ref))), float(np.median(times))))
+        print(f"\n## {n} links: build (fresh process, empty cache) {build:.2f} s; accelerations vs MuJoCo: max rel "
+              f"{worst:.1e}")
+        print("skewpend dop853: " + ", ".join(f"err {e:.1e} in {t * 1e3:.1f} ms" for e, t in ours))
+        print("MuJoCo RK4:      " + ", ".join(f"err {e:.1e} in {t * 1e3:.1f} ms" for e, t in theirs))
+        le, lt = np.log([e for e, _ in ours]), np.log([t for _, t in ours])
+        order = np.argsort(le)
+        for e, t in theirs:
+            if le.min() <= np.log(e) <= le.max():
+                ratio = float(np.exp(np.interp(np.log(e), le[order], lt[order]))) / t
+                print(f"  at MuJoCo's error {e:.1e}: skewpend/MuJoCo time = {ratio:.3f} ({1 / ratio:.0f}x faster)")
+
+
+if __name__ == "__main__":
+    main()

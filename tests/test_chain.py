@@ -1,0 +1,210 @@
+"""Chains of links (issue 38): the chain as data, its equations by recursive algorithms, checked against
+the symbolic derivation (the double pendulum as the chain of two), MuJoCo (3 to 8 links), a physical
+pendulum's known period, and the energy account of the integrators."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import skewpend
+from skewpend.errors import ParameterError
+from skewpend.numeric import kernels, recursive
+from skewpend.numeric.conventions import parameter_vector
+from skewpend.symbolic.chain import Chain, Link
+
+
+
+def _body(rng):
+    """A physical inertia tensor: a box of random sides, turned at random (the triangle inequality holds)."""
+    d = rng.uniform(0.05, 0.5, 3)
+    D = np.diag([d[1] ** 2 + d[2] ** 2, d[0] ** 2 + d[2] ** 2, d[0] ** 2 + d[1] ** 2]) * rng.uniform(0.2, 2.0) / 12
+    R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    return (R @ D @ R.T).tolist()
+
+
+def random_chain(n, rng, *, damping=True, torque=True) -> Chain:
+    links = []
+    for i in range(n):
+        links.append(Link(axis=tuple(rng.normal(size=3)), offset=tuple(rng.normal(scale=0.3, size=3)) if i else (0, 0, 0),
+                          length=float(rng.uniform(0.3, 1.2)), mass=float(rng.uniform(0.2, 2.0)),
+                          com=tuple(rng.normal(scale=0.3, size=3)), inertia=_body(rng),
+                          damping=float(rng.uniform(0, 0.3)) if damping else 0.0,
+                          torque=float(rng.normal(scale=0.5)) if torque else 0.0))
+    return Chain(links=tuple(links), g=9.81)
+
+
+# -- the chain as data ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("build, words", [
+    (lambda: Chain(links=()), "at least 1 link, got 0"),
+    (lambda: Link(axis=(0, 0, 0)), "link axis must be a non-zero vector"),
+    (lambda: Chain.from_mapping({"links": [{}, {"axis": [0, 0, 0]}]}), "link 2 axis must be a non-zero vector"),
+    (lambda: Chain.from_mapping({"links": [{}, {"mass": -1.0}]}), "link 2 mass must be > 0, got -1"),
+    (lambda: Chain.from_lists(mass=[1.0, -2.0]), "link 2 mass must be > 0, got -2"),
+    (lambda: Chain(links=(Link(inertia=(1.0, 1.0, 5.0)),)), "triangle inequality"),
+    (lambda: Chain(links=(Link(inertia=(-1.0, 1.0, 1.0)),)), "positive semi-definite"),
+    (lambda: Chain.from_lists(1, length=0.0), "link 1 length must be > 0"),
+    (lambda: Chain.from_lists(mass=[1, 2, 3], length=[1, 2]), "per-link lists of different lengths"),
+    (lambda: Chain.from_mapping({"links": [{"mass": 1.0, "colour": "red"}]}), "unknown key 'colour'"),
+    (lambda: Chain.from_mapping({"g": 9.8}), "needs its links"),
+    (lambda: Chain(links=(Link(),), g=-1.0), "g must be >= 0"),
+    (lambda: Chain(links=(Link(),) * 3).require_links((2,), "a Poincare section"),
+     "a Poincare section is defined for a chain of 2 links, this chain has 3"),
+])
+def test_bad_chains_are_one_line(build, words):
+    with pytest.raises(ParameterError) as info:
+        build()
+    message = str(info.value)
+    assert words in message and "\n" not in message
+
+
+def test_defaults_are_the_thin_rods_hanging_end_to_end():
+    chain = Chain.from_lists(3, length=[1.0, 0.5, 0.25], mass=[1.0, 2.0, 3.0])
+    one, two, three = chain.links
+    assert (one.offset, two.offset, three.offset) == ((0, 0, 0), (0, 1.0, 0), (0, 0.5, 0))
+    assert two.com == (0, 0.25, 0) and two.inertia == ((2.0 * 0.25 / 12, 0, 0), (0, 0, 0), (0, 0, 2.0 * 0.25 / 12))
+    assert chain.coordinates == ("q1", "q2", "q3")
+    again = Chain.from_mapping(chain.to_dict())
+    assert again == chain
+
+
+def test_the_double_pendulum_is_the_chain_of_two():
+    params = skewpend.Parameters(a=1.0, b=0.7, m1=1.1, m2=0.6, alpha=0.4, g=9.81, c1=0.1, tau2=0.3)
+    chain = Chain.from_parameters(params)
+    assert chain.n == 2 and chain.coordinates == ("phi", "psi")
+    assert chain.links[1].axis == pytest.approx((math.sin(0.4), 0.0, math.cos(0.4)), abs=1e-16)
+    assert chain.links[1].offset == (0.0, 1.0, 0.0)
+    back = chain.to_parameters()
+    assert Chain.from_parameters(back) == chain
+
+
+# -- the recursive algorithms against the symbolic derivation (two links) -----------------------------------
+_TWO_LINK_CASES = {
+    "thin rods, skewed": dict(a=1.0, b=0.8, m1=1.2, m2=0.7, alpha=0.5, g=9.81),
+    "general bodies, given axes": dict(a=0.9, b=1.3, m1=0.8, m2=1.5, g=9.81, axis1=(0.2, 0.1, 1.0), axis2=(1.0, -0.3, 0.4),
+                                       com1=(0.05, 0.4, -0.02), com2=(-0.1, 0.6, 0.08),
+                                       inertia1=((0.09, 0.01, 0.0), (0.01, 0.02, 0.005), (0.0, 0.005, 0.1)),
+                                       inertia2=((0.2, 0.0, 0.03), (0.0, 0.15, 0.0), (0.03, 0.0, 0.22))),
+    "damping, torques, friction, rotors": dict(a=0.3, b=0.2, m1=0.6, m2=0.6, alpha=1.2, g=9.81, c1=0.08, c2=0.02,
+                                               tau1=0.4, tau2=-0.25, cf1=0.05, cf2=0.03, cfs=50.0, Ir=6e-5, gr=-6.0),
+}
+
+
+@pytest.mark.parametrize("case", list(_TWO_LINK_CASES))
+def test_two_links_equal_the_symbolic_derivation(case):
+    """Two independent derivations: the specification's (rotation tensors, Lagrange's equations, SymPy) and
+    the recursive algorithms (composite rigid bodies, Newton-Euler), equal to rounding."""
+    params = skewpend.Parameters(**_TWO_LINK_CASES[case])
+    chain = Chain.from_parameters(params)
+    K1, p1 = kernels.kernel_module(params), parameter_vector(params)
+    K2, p2 = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        y = np.r_[rng.uniform(-3, 3, 2), rng.normal(scale=3, size=2), 0.0]
+        for name, size in (("rhs", 5), ("ham_rhs", 5), ("momenta", 2), ("velocities", 2), ("tips", 6)):
+            a, b = np.zeros(size), np.zeros(size)
+            getattr(K1, name)(y, p1, a)
+            getattr(K2, name)(y, p2, b)
+            assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, np.max(np.abs(a))), (name, a, b)
+        e1, e2 = K1.energy(y, p1), K2.energy(y, p2)
+        assert abs(e1 - e2) <= 1e-12 * max(1.0, abs(e1))
+
+
+# -- MuJoCo, 3 to 8 links -------------------------------------------------------------------------------------
+@pytest.mark.parametrize("n", [3, 5, 8])
+def test_chains_equal_mujoco(n):
+    """Random chains (general bodies, arbitrary axes and hinge offsets, damping, torques): the accelerations
+    equal MuJoCo's from the exported MJCF to 1e-12 relative."""
+    mujoco = pytest.importorskip("mujoco")
+    from skewpend.interop.export import chain_to_mjcf, mujoco_compatible_chain
+
+    rng = np.random.default_rng(100 + n)
+    chain = mujoco_compatible_chain(random_chain(n, rng))
+    K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
+    model = mujoco.MjModel.from_xml_string(chain_to_mjcf(chain))
+    data = mujoco.MjData(model)
+    for _ in range(10):
+        q, dq = rng.uniform(-3, 3, n), rng.normal(scale=2, size=n)
+        data.qpos[:], data.qvel[:] = q, dq
+        mujoco.mj_forward(model, data)
+        out = np.zeros(2 * n + 1)
+        K.rhs(np.r_[q, dq, 0.0], p, out)
+        assert np.max(np.abs(out[n:2 * n] - data.qacc)) <= 1e-12 * np.max(np.abs(data.qacc))
+        # the energy: MuJoCo's potential is zero at the origin, skewpend's with the chain hanging
+        mujoco.mj_energyPos(model, data)
+        mujoco.mj_energyVel(model, data)
+        hanging = mujoco.MjData(model)
+        mujoco.mj_forward(model, hanging)
+        mujoco.mj_energyPos(model, hanging)
+        e_mj = data.energy[0] - hanging.energy[0] + data.energy[1]
+        assert abs(K.energy(np.r_[q, dq, 0.0], p) - e_mj) <= 1e-12 * max(1.0, abs(e_mj))
+
+
+def test_chain_export_refuses_what_mujoco_cannot_hold():
+    from skewpend.interop.export import chain_to_mjcf
+
+    for change, words in ((dict(coulomb=0.1), "frictionloss"), (dict(rotor=1e-4), "armature")):
+        chain = Chain.from_lists(3).replace_link(2, **change)
+        with pytest.raises(ParameterError, match=words):
+            chain_to_mjcf(chain)
+
+
+# -- known values and conservation ---------------------------------------------------------------------------
+def test_one_link_is_a_physical_pendulum():
+    """Small swings of one link: the period 2 pi sqrt(J / (m g d)), J about the hinge, d the centre of mass's
+    distance below it (here the axis is turned out of the plane: J = n . J_hinge n, d the projection)."""
+    axis = np.array([0.3, 0.0, 1.0]) / math.hypot(0.3, 1.0)
+    chain = Chain(links=(Link(axis=tuple(axis), length=1.0, mass=2.0),), g=9.81)
+    link = chain.links[0]
+    c = np.array(link.com)
+    J_hinge = np.array(link.inertia) + link.mass * (c @ c * np.eye(3) - np.outer(c, c))
+    J = axis @ J_hinge @ axis
+    d = np.linalg.norm(c - (c @ axis) * axis)  # the centre of mass's distance from the axis
+    # gravity's component across the axis acts: g_eff = g |j x n|
+    g_eff = 9.81 * np.linalg.norm(np.cross([0.0, 1.0, 0.0], axis))
+    period = 2 * math.pi * math.sqrt(J / (link.mass * g_eff * d))
+    amplitude = 1e-4
+    traj = skewpend.simulate(chain, [amplitude, 0.0], 3 * period, method="dop853", rtol=1e-12, atol=1e-14,
+                             dt_out=period / 200)
+    q = traj.y[:, 0]
+    crossings = [traj.t[k] - q[k] * (traj.t[k + 1] - traj.t[k]) / (q[k + 1] - q[k])
+                 for k in range(len(q) - 1) if q[k] > 0 >= q[k + 1]]
+    measured = crossings[-1] - crossings[-2]
+    # the finite amplitude lengthens the period by amplitude^2 / 16: 6e-10 relative
+    assert measured == pytest.approx(period, rel=1e-8)
+
+
+@pytest.mark.parametrize("method, settings, tol", [
+    ("dop853", dict(rtol=1e-12, atol=1e-12), 1e-10),
+    ("gauss", dict(dt=1e-3), 1e-8),
+])
+def test_energy_minus_work_is_conserved(method, settings, tol):
+    """A damped, driven chain of 4 links: E - W stays at E(0) to the integrator's tolerance (dop853 at 1e-12;
+    gauss, symplectic of order 4 at dt = 1e-3: its error ~ (dt omega)^4 with omega ~ 10 rad/s)."""
+    chain = random_chain(4, np.random.default_rng(7))
+    traj = skewpend.simulate(chain, [0.4, -0.3, 0.2, 0.1, 1.0, 0.0, -1.0, 0.5], 5.0, method=method, **settings)
+    assert traj.ok and traj.y.shape[1] == 8
+    assert traj.energy_drift <= tol
+    assert np.all(np.diff(traj.work) <= 1e-9) or any(link.torque for link in chain.links)
+
+
+def test_rk4_converges_at_order_four():
+    chain = random_chain(3, np.random.default_rng(3), damping=False, torque=False)
+    y0 = [0.5, -0.3, 0.2, 1.0, 0.0, -0.5]
+    ref = skewpend.simulate(chain, y0, 2.0, method="dop853", rtol=1e-14, atol=1e-14, dt_out=2.0).y[-1]
+    errors = [np.max(np.abs(skewpend.simulate(chain, y0, 2.0, method="rk4", dt=dt, dt_out=2.0).y[-1] - ref))
+              for dt in (5e-4, 2.5e-4)]
+    # the observed order approaches 4 from above as dt shrinks (measured: 4.85, 4.75, 4.61, 4.47 from
+    # dt = 4e-3 down: a fifth-order term still weighs); a method of order 3 or 5 would fall outside
+    assert 3.7 < math.log2(errors[0] / errors[1]) < 4.7
+
+
+def test_simulate_refuses_for_a_chain_in_one_line():
+    chain = Chain.from_lists(3)
+    for kwargs, words in ((dict(method="taylor"), "dop853, rk4 or gauss"), (dict(out="x.nc"), "kept in memory")):
+        with pytest.raises(ParameterError, match=words):
+            skewpend.simulate(chain, [0.1] * 6, 1.0, **kwargs)
+    with pytest.raises(ParameterError, match=r"y0 must be 6 numbers \(q1, q2, q3, dq1, dq2, dq3\), got 4"):
+        skewpend.simulate(chain, [0.1] * 4, 1.0)
