@@ -208,3 +208,64 @@ def test_simulate_refuses_for_a_chain_in_one_line():
             skewpend.simulate(chain, [0.1] * 6, 1.0, **kwargs)
     with pytest.raises(ParameterError, match=r"y0 must be 6 numbers \(q1, q2, q3, dq1, dq2, dq3\), got 4"):
         skewpend.simulate(chain, [0.1] * 4, 1.0)
+
+
+# -- the specification's method for any number of links ---------------------------------------------------------
+def _three_links(torque=0.2):
+    return Chain(links=(
+        Link(axis=(0, 0, 1), length=0.5, mass=0.8, com=(0.02, 0.2, 0.0), inertia=(0.02, 0.004, 0.021), damping=0.1),
+        Link(axis=(0.3, 0, 1), length=0.4, mass=0.6, torque=torque),
+        Link(axis=(1, 0.2, 0.5), length=0.3, mass=0.3, com=(0.0, 0.15, 0.01),
+             inertia=((0.003, 0.0002, 0), (0.0002, 0.0005, 0), (0, 0, 0.003))),
+    ), g=9.81)
+
+
+def test_three_links_by_rotation_tensors_equal_the_recursive_algorithms():
+    """derive(chain): rotation tensors composed link by link and Lagrange's equations, exact (SymPy); the
+    recursive algorithms' compiled code agrees with it to rounding at random states."""
+    import sympy as sp
+    from skewpend.symbolic.derivation import coordinate_symbol
+
+    chain = _three_links()
+    eom = skewpend.derive(chain)
+    assert eom.coordinates == ("q1", "q2", "q3") and eom.mass_matrix.shape == (3, 3)
+    K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
+    names = [coordinate_symbol(n) for n in ("q1", "q2", "q3", "dq1", "dq2", "dq3")]
+    M, f = sp.lambdify(names, eom.mass_matrix), sp.lambdify(names, eom.forcing)
+    E = sp.lambdify(names, eom.kinetic_energy + eom.potential_energy)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        y = np.r_[rng.uniform(-3, 3, 3), rng.normal(scale=2, size=3)]
+        acc = np.linalg.solve(np.array(M(*y), float), np.array(f(*y), float).ravel())
+        out = np.zeros(7)
+        K.rhs(np.r_[y, 0.0], p, out)
+        assert np.max(np.abs(out[3:6] - acc)) <= 1e-12 * np.max(np.abs(acc))
+        assert abs(K.energy(np.r_[y, 0.0], p) - E(*y)) <= 1e-12 * abs(E(*y))
+    steps = eom.steps
+    assert [k for k in steps][:3] == ["P1", "e1", "omega1"] and "P3" in steps
+
+
+def test_a_chain_of_two_derives_the_double_pendulums_equations():
+    import sympy as sp
+
+    params = skewpend.Parameters(a=1, b=0.5, m1=2, m2=1, alpha=0.3, g=9.81, c2=0.1)
+    one, two = skewpend.derive(params), skewpend.derive(Chain.from_parameters(params))
+    assert two.coordinates == ("phi", "psi")
+    for x, y in zip(list(one.mass_matrix) + list(one.forcing), list(two.mass_matrix) + list(two.forcing)):
+        d = sp.lambdify(list(one.q) + list(one.dq), x - y)
+        for state in ((0.3, -1.0, 0.5, 2.0), (2.0, 0.7, -1.0, 0.1)):
+            assert abs(d(*state)) <= 1e-12
+
+
+def test_linearising_a_chain_needs_its_rest_and_gives_the_small_swings():
+    from skewpend.errors import EquilibriumError
+
+    with pytest.raises(EquilibriumError, match="q = 0 is not an equilibrium"):
+        skewpend.derive(_three_links()).linearize()
+    # planar thin rods, equal: the stiffness of the hanging rest is the gravity moments of the links below
+    chain = Chain.from_lists(3, length=1.0, mass=1.0, g=9.81)
+    lin = skewpend.derive(chain).linearize()
+    # relative angles: K0 = g * [[5/2, 3/2, 1/2], [3/2, 3/2, 1/2], [1/2, 1/2, 1/2]] (absolute angles: diag(5/2, 3/2, 1/2))
+    T = np.tril(np.ones((3, 3)))  # absolute = T relative
+    expected = 9.81 * T.T @ np.diag([2.5, 1.5, 0.5]) @ T
+    assert np.allclose(np.array(lin.K, dtype=float), expected, rtol=1e-14, atol=1e-12)

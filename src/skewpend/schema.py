@@ -29,7 +29,7 @@ __all__ = [
     "TORQUE_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "NONCONSERVATIVE_NAMES", "LENGTH_NAMES", "MASS_NAMES",
     "COM_NAMES", "INERTIA_NAMES", "AXIS_NAMES", "OPTIONAL_DEFAULTS", "field", "names", "unit", "meaning",
     "symbol", "tex", "help_text", "default", "nearest", "unknown_names_message", "check_bound", "body_of",
-    "name_of",
+    "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound",
 ]
 
 #: The links of today's model: the double pendulum is the chain of two.
@@ -197,6 +197,27 @@ ROTOR_NAMES: Tuple[str, ...] = names(role="rotor")
 NONCONSERVATIVE_NAMES: Tuple[str, ...] = tuple(n for f in FIELDS if f.role in NONCONSERVATIVE_ROLES and f.per_body
                                                for n in f.names)
 #: The scalars with a numeric default (the others are symbolic unless given).
+#: A chain's link (:class:`skewpend.symbolic.chain.Chain`): its keys as run files' ``[[links]]`` tables
+#: spell them, each with the stem of the double pendulum's field it is per link (``length`` is ``a, b``,
+#: ``mass`` is ``m1, m2``; the rotors' ``Ir``, ``gr``, one pair for both joints there, are per joint in a
+#: chain) and its kind; ``offset`` -- the hinge's position in the parent's frame -- is the chain's own (the
+#: double pendulum's second hinge sits at ``(0, a, 0)``).
+LINK_FIELDS: Tuple[Tuple[str, str, str], ...] = (
+    ("axis", "axis", "vector"), ("offset", "h", "vector"), ("length", "l", "scalar"), ("mass", "m", "scalar"),
+    ("com", "com", "vector"), ("inertia", "inertia", "inertia"), ("damping", "c", "scalar"),
+    ("coulomb", "cf", "scalar"), ("torque", "tau", "scalar"), ("rotor", "Ir", "scalar"), ("gear", "gr", "scalar"),
+)
+#: The chain's own fields (the whole chain's, not a link's): the global scalars that are no axis and no rotor.
+CHAIN_NAMES: Tuple[str, ...] = tuple(f.stem for f in FIELDS if f.kind == "scalar" and not f.per_body
+                                     and f.role not in ("axis", "rotor"))
+
+
+def link_bound(key: str) -> str:
+    """The bound of a chain link's scalar ``key`` (``mass`` -> ``positive``), the double pendulum's field's."""
+    stem = next(stem for k, stem, _ in LINK_FIELDS if k == key)
+    return next(f.bound for f in FIELDS if f.stem == stem)
+
+
 OPTIONAL_DEFAULTS: Dict[str, float] = {n: field(n).default for n in SCALAR_NAMES if field(n).default is not None}
 
 

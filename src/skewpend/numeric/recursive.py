@@ -31,16 +31,31 @@ from functools import lru_cache
 from typing import Any, Dict, List, Sequence, Tuple
 
 from ..errors import require
+from ..schema import CHAIN_NAMES, LINK_FIELDS
 from ..symbolic.chain import Chain
 
 __all__ = ["ChainStructure", "structure_of_chain", "parameter_names", "parameter_vector", "PER_LINK",
            "chain_functions", "c_function_lines"]
 
-#: One link's entries of ``p``, in order (the hinge offset, the body, the joint).
-PER_LINK = ("hx", "hy", "hz", "l", "m", "rx", "ry", "rz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz",
-            "c", "cf", "tau", "Ir", "gr")
+def _per_link() -> Tuple[str, ...]:
+    """One link's entries of ``p``, from the schema's link fields in their order: every field but the
+    axis (the structure), a vector as its three components, an inertia as its six entries."""
+    from .conventions import TENSOR_ENTRIES
+
+    out: List[str] = []
+    for key, stem, kind in LINK_FIELDS:
+        if key == "axis":
+            continue
+        short = {"com": "r", "inertia": "I"}.get(stem, stem)
+        out += {"vector": [f"{short}{x}" for x in "xyz"], "inertia": [f"{short}{e}" for e in TENSOR_ENTRIES],
+                "scalar": [stem]}[kind]
+    return tuple(out)
+
+
+#: One link's entries of ``p``, in order (the hinge offset, the rod's length, the body, the joint).
+PER_LINK = _per_link()
 #: The chain's own entries, after the links'.
-GLOBAL = ("g", "cfs")
+GLOBAL = CHAIN_NAMES
 
 
 @dataclass(frozen=True)
@@ -74,14 +89,21 @@ def parameter_vector(chain: Chain):
     """The run-time array ``p`` of ``chain`` (float64, :func:`parameter_names`' order)."""
     import numpy as np
 
+    from .conventions import TENSOR_INDICES
+
     out: List[float] = []
     for link in chain.links:
-        I: Any = link.inertia  # resolved by the chain (never None there), as are offset and com
-        offset: Any = link.offset
-        com: Any = link.com
-        out += [*offset, link.length, link.mass, *com, I[0][0], I[1][1], I[2][2], I[0][1], I[0][2], I[1][2],
-                link.damping, link.coulomb, link.torque, link.rotor, link.gear]
-    out += [chain.g, chain.cfs]
+        for key, _, kind in LINK_FIELDS:
+            value: Any = getattr(link, key)
+            if key == "axis":
+                continue
+            if kind == "vector":
+                out += [float(x) for x in value]
+            elif kind == "inertia":
+                out += [float(value[i][j]) for i, j in TENSOR_INDICES]
+            else:
+                out.append(float(value))
+    out += [float(getattr(chain, k)) for k in CHAIN_NAMES]
     return np.array(out, dtype=float)
 
 
@@ -115,7 +137,8 @@ class _Graph:
         self.p = ca.SX.sym("p", len(parameter_names(n)))
         P = self.p
         w = len(PER_LINK)
-        self.g, self.cfs = P[n * w], P[n * w + 1]
+        chain_values = {k: P[n * w + i] for i, k in enumerate(GLOBAL)}
+        self.g, self.cfs = chain_values["g"], chain_values["cfs"]
         self.link = [{name: P[i * w + k] for k, name in enumerate(PER_LINK)} for i in range(n)]
         R = ca.SX.eye(3)
         o = ca.SX.zeros(3, 1)

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any, Iterable, Mapping, Optional, Tuple
 
 from ..errors import ParameterError
+from ..schema import CHAIN_NAMES, LINK_FIELDS, link_bound
 from .model import Mat3, Parameters, Vec3, as_real, as_vector, check_inertia
 
 __all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS"]
@@ -42,11 +43,10 @@ __all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS"]
 #: The largest chain the generated code is built for (the state of 2 N + 1 numbers).
 MAX_LINKS = 32
 
-#: A link's keys, as run files and :meth:`Link.from_mapping` spell them.
-LINK_KEYS = ("axis", "offset", "length", "mass", "com", "inertia", "damping", "coulomb", "torque", "rotor", "gear")
-_CHAIN_KEYS = ("links", "g", "cfs")
-_BOUNDS = {"length": "positive", "mass": "positive", "damping": "nonnegative", "coulomb": "nonnegative",
-           "rotor": "nonnegative", "torque": "real", "gear": "real"}
+#: A link's keys, as run files and :meth:`Link.from_mapping` spell them (declared in the schema).
+LINK_KEYS: Tuple[str, ...] = tuple(key for key, _, _ in LINK_FIELDS)
+_CHAIN_KEYS = ("links",) + CHAIN_NAMES
+_BOUNDS = {key: link_bound(key) for key, _, kind in LINK_FIELDS if kind == "scalar"}
 
 
 def _unit(name: str, v) -> Vec3:
@@ -230,7 +230,7 @@ class Chain:
     # -- plain data ---------------------------------------------------------------------------------------
     def to_dict(self) -> dict:
         """Plain-data form (a run file: ``g``, ``cfs`` and a ``[[links]]`` table per link)."""
-        return {"g": self.g, "cfs": self.cfs, "links": [link.to_dict() for link in self.links]}
+        return {**{k: getattr(self, k) for k in CHAIN_NAMES}, "links": [link.to_dict() for link in self.links]}
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> "Chain":
@@ -247,7 +247,7 @@ class Chain:
             raise ParameterError(f"a chain's links must be a list of tables, got {links!r}")
         return cls(links=tuple(Link.from_mapping(d, i) if not isinstance(d, Link) else d
                                for i, d in enumerate(links, start=1)),
-                   **{k: data[k] for k in ("g", "cfs") if k in data})
+                   **{k: data[k] for k in CHAIN_NAMES if k in data})
 
     @classmethod
     def from_lists(cls, n: Optional[int] = None, *, g: float = 9.81, cfs: float = 100.0, **per_link: Any) -> "Chain":
@@ -307,4 +307,5 @@ def _link_fields() -> Tuple[str, ...]:
     return tuple(f.name for f in fields(Link) if f.name != "index")
 
 
-assert _link_fields() == LINK_KEYS, "LINK_KEYS must list Link's fields in order"
+assert _link_fields() == LINK_KEYS, "Link's fields must be the schema's LINK_FIELDS, in order"
+assert tuple(f.name for f in fields(Chain) if f.name != "links") == CHAIN_NAMES, "Chain's fields must be the schema's"

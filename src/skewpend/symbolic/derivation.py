@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Sequence, Tuple
 
 import sympy as sp
 
@@ -41,6 +41,12 @@ __all__ = ["derive", "EquationsOfMotion", "LinearEquations", "SYMBOLS"]
 
 
 _SPEEDS = ("dphi", "dpsi")
+
+
+def coordinate_symbol(name: str) -> sp.Symbol:
+    """The symbol of a coordinate, speed or acceleration: the double pendulum's ``phi, dpsi, ...``
+    (:data:`SYMBOLS`) or a chain's ``q3, dq3, ddq3`` (real)."""
+    return SYMBOLS[name] if name in SYMBOLS else sp.Symbol(name, real=True)
 
 
 def _number(x: float) -> sp.Rational:
@@ -88,14 +94,14 @@ class LinearEquations:
 
         return coulomb_note(self.params, self.coulomb)
 
-    def equations(self) -> Tuple[sp.Expr, sp.Expr]:
-        """The two left-hand sides ``(M0 q'' + C0 q' + K0 q)_i`` (each ``= 0``)."""
-        s = SYMBOLS
-        q = sp.Matrix([s["phi"], s["psi"]])
-        dq = sp.Matrix([s["dphi"], s["dpsi"]])
-        ddq = sp.Matrix([s["ddphi"], s["ddpsi"]])
+    def equations(self) -> Tuple[sp.Expr, ...]:
+        """The left-hand sides ``(M0 q'' + C0 q' + K0 q)_i`` (each ``= 0``), one a coordinate."""
+        names = getattr(self.params, "coordinates", ("phi", "psi"))
+        q = sp.Matrix([coordinate_symbol(c) for c in names])
+        dq = sp.Matrix([coordinate_symbol(f"d{c}") for c in names])
+        ddq = sp.Matrix([coordinate_symbol(f"dd{c}") for c in names])
         lhs = self.M * ddq + self.C * dq + self.K * q
-        return (sp.expand(lhs[0]), sp.expand(lhs[1]))
+        return tuple(sp.expand(x) for x in lhs)
 
 
 @dataclass(frozen=True)
@@ -126,30 +132,36 @@ class EquationsOfMotion:
     _ctx: "_Context" = field(repr=False, compare=False)
 
     # -- names ---------------------------------------------------------------------
-    coordinates = ("phi", "psi")
-    speeds = ("dphi", "dpsi")
+    @property
+    def coordinates(self) -> Tuple[str, ...]:
+        """The coordinates' names: ``phi, psi`` for the double pendulum, ``q1 ... qn`` for a chain."""
+        return self._ctx.coords
+
+    @property
+    def speeds(self) -> Tuple[str, ...]:
+        return tuple(f"d{c}" for c in self._ctx.coords)
 
     @property
     def parameter_names(self) -> Tuple[str, ...]:
         """Names of the parameters left symbolic."""
-        return self.params.symbolic_names
+        return getattr(self.params, "symbolic_names", ())
 
     @property
     def q(self) -> sp.Matrix:
-        return sp.Matrix([SYMBOLS["phi"], SYMBOLS["psi"]])
+        return sp.Matrix([coordinate_symbol(c) for c in self.coordinates])
 
     @property
     def dq(self) -> sp.Matrix:
-        return sp.Matrix([SYMBOLS["dphi"], SYMBOLS["dpsi"]])
+        return sp.Matrix([coordinate_symbol(f"d{c}") for c in self.coordinates])
 
     @property
     def ddq(self) -> sp.Matrix:
-        return sp.Matrix([SYMBOLS["ddphi"], SYMBOLS["ddpsi"]])
+        return sp.Matrix([coordinate_symbol(f"dd{c}") for c in self.coordinates])
 
-    def equations(self) -> Tuple[sp.Eq, sp.Eq]:
-        """The two equations ``(M q'')_i = f_i`` as SymPy ``Eq`` objects."""
+    def equations(self) -> Tuple[sp.Eq, ...]:
+        """The equations ``(M q'')_i = f_i`` as SymPy ``Eq`` objects, one a coordinate."""
         lhs = self.mass_matrix * self.ddq
-        return tuple(sp.Eq(lhs[i], self.forcing[i]) for i in range(2))  # type: ignore[return-value]
+        return tuple(sp.Eq(lhs[i], self.forcing[i]) for i in range(len(self.coordinates)))
 
     @cached_property
     def steps(self) -> Dict[str, sp.Basic]:
@@ -194,8 +206,70 @@ class _Context:
     ``1/|v|`` are substituted only after reduction (:meth:`finish`).
     """
 
-    def __init__(self, params: Parameters):
+    def __init__(self, params):
+        from .chain import Chain
+
+        if isinstance(params, Chain):
+            self._from_chain(params)
+        else:
+            self._from_parameters(params)
+        self.n = len(self.coords)
+
+    def _from_chain(self, chain) -> None:
+        """A chain of numeric links: every value exact (short decimals as typed), each coordinate's
+        cosine and sine a generator, ``1/|e|`` a generator for an axis whose rational components are
+        not of length 1 (the double pendulum's rule)."""
+        self.params = chain
+        self.coords = chain.coordinates
+        gens: List[sp.Symbol] = []
+        unit_pairs = []
+        self.late_exact, self.late_expr, self.restore = {}, {}, {}
+        for name in self.coords:
+            c, s = sp.Symbol(f"c_{name}", real=True), sp.Symbol(f"s_{name}", real=True)
+            gens += [c, s]
+            unit_pairs.append((c.name, s.name))
+            sym = coordinate_symbol(name)
+            self.restore.update({c: sp.cos(sym), s: sp.sin(sym)})
+        fixed = []
+        axes = []
+        for link in chain.links:
+            v = [_number(x) for x in link.axis]
+            norm2 = sum(x * x for x in v)
+            if norm2 != 1:
+                r = sp.Symbol(f"e{link.index}_r", positive=True)
+                gens.append(r)
+                fixed.append((r.name, 1 / norm2))
+                self.late_expr[r] = sp.Float(1 / math.sqrt(float(norm2)))
+            axes.append((v, None if norm2 == 1 else f"e{link.index}_r"))
+        gens += [coordinate_symbol(f"d{c}") for c in self.coords]
+        self.friction = chain.has_friction
+        if self.friction:
+            for c in self.coords:
+                placeholder = sp.Symbol(f"atan_d{c}", real=True)
+                gens.append(placeholder)
+                self.restore[placeholder] = sp.atan(_number(chain.cfs) * coordinate_symbol(f"d{c}"))
+        self.alg = alg = Algebra(gens)
+        self.relations = [Relation(tuple(alg.index[n] for n in pair)) for pair in unit_pairs]
+        self.relations += [Relation((alg.index[n],), 1 - v) for n, v in fixed]
+        G = alg.gens
+        num = lambda x: alg.const(_number(x))  # noqa: E731
+        self.val = {"g": num(chain.g)}
+        self.cs = {c: (G[f"c_{c}"], G[f"s_{c}"]) for c in self.coords}
+        self.J = alg.vec([0, 1, 0])
+        self.links = []
+        for link, (v, r) in zip(chain.links, axes):
+            axis = alg.vec(v)
+            if r is not None:
+                axis = alg.scale(G[r], axis)
+            self.links.append(dict(axis=axis, offset=[num(x) for x in link.offset], com=[num(x) for x in link.com],
+                                   inertia=[[num(x) for x in row] for row in link.inertia], m=num(link.mass),
+                                   c=num(link.damping), tau=num(link.torque), cf=num(link.coulomb), Ir=num(link.rotor),
+                                   gr=num(link.gear)))
+        self.P1 = alg.rotation(*self.cs[self.coords[0]], self.links[0]["axis"])
+
+    def _from_parameters(self, params: Parameters) -> None:
         self.params = params
+        self.coords = ("phi", "psi")
         S = SYMBOLS
         gens: List[sp.Symbol] = []
         self.relations: List[Relation] = []
@@ -316,6 +390,12 @@ class _Context:
         self.I2 = inertia(params.inertia2, m2, b)
         self.P1 = alg.rotation(*self.cs["phi"], self.n1)  # P1 = P(phi, n1)
         self.R2 = alg.rotation(*self.cs["psi"], self.e0)  # P(psi, e0)
+        # the chain of two: rod 1 on the roof hinge, rod 2 on the hinge at a j
+        v = self.val
+        zero = alg.scale(0 * a, J_)
+        joint = lambda i: {n: v[f"{n}{i}"] for n in ("c", "tau", "cf")}  # noqa: E731
+        self.links = [dict(axis=self.n1, offset=zero, com=self.c1, inertia=self.I1, m=m1, Ir=v["Ir"], gr=v["gr"], **joint(1)),
+                      dict(axis=self.e0, offset=self.h, com=self.c2, inertia=self.I2, m=m2, Ir=v["Ir"], gr=v["gr"], **joint(2))]
 
     # -- reduction and output ------------------------------------------------------------------
     def finish(self, p, keys: Sequence[str] = ()) -> sp.Expr:
@@ -334,82 +414,121 @@ class _Context:
         return sp.Matrix([self.finish(x, keys) for x in m])
 
     def d_dq(self, p, i: int):
-        ang = ("phi", "psi")[i]
+        ang = self.coords[i]
         return self.alg.d_dangle(p, f"c_{ang}", f"s_{ang}")
 
+    @property
+    def has_rotor(self) -> bool:
+        return bool(self.params.has_rotor)
+
     # -- the derivation ----------------------------------------------------------------
+    def kinematics(self):
+        """Each link's hinge ``o_k``, axis ``a_k``, rotation ``R_k`` and centre of mass, in the frame of
+        link 1 (the specification's ``P = P1 . P(psi, e0)`` with ``P1`` taken out: ``T`` does not depend on
+        the first angle), composed link by link ``R_k = R_{k-1} P(q_k, e_k)``."""
+        alg = self.alg
+        R, o, a, com = [], [], [], []
+        for k, link in enumerate(self.links):
+            if k == 0:
+                o.append(alg.scale(0 * link["m"], self.J))
+                a.append(link["axis"])
+                R.append(None)  # E: the frame of link 1
+                com.append(link["com"])
+                continue
+            prev = R[k - 1]
+            o.append(alg.add(o[k - 1], link["offset"] if prev is None else alg.matvec(prev, link["offset"])))
+            a.append(link["axis"] if prev is None else alg.matvec(prev, link["axis"]))
+            P = alg.rotation(*self.cs[self.coords[k]], link["axis"])
+            R.append(P if prev is None else alg.matmul(prev, P))
+            com.append(alg.add(o[k], alg.matvec(R[k], link["com"])))
+        return R, o, a, com
+
     def derive(self) -> EquationsOfMotion:
-        alg, v = self.alg, self.val
-        dphi, dpsi = alg.gens["dphi"], alg.gens["dpsi"]
-        speeds = (dphi, dpsi)
-        n1, e0 = self.n1, self.e0
+        alg, v, n = self.alg, self.val, self.n
+        speeds = [alg.gens[f"d{c}"] for c in self.coords]
+        R, o, a, com = self.kinematics()
 
-        # Kinetic energy, in the frame of rod 1 (T is invariant; there it depends on psi only).
-        #   rod 1: omega1 = phi' n1,  v_c1 = omega1 x c1
-        #   rod 2: omega2 = phi' n1 + psi' e0,  v_c2 = omega1 x (h + R2 c2) + psi' e0 x R2 c2
-        arm = alg.matvec(self.R2, self.c2)
-        v_c1 = alg.scale(dphi, alg.cross(n1, self.c1))
-        v_c2 = alg.add(
-            alg.scale(dphi, alg.cross(n1, alg.add(self.h, arm))),
-            alg.scale(dpsi, alg.cross(e0, arm)),
-        )
-        omega2_body = alg.matvec(alg.transpose(self.R2), alg.add(alg.scale(dphi, n1), alg.scale(dpsi, e0)))
-        T = (
-            v["m1"] * alg.dot(v_c1, v_c1)
-            + dphi**2 * alg.dot(n1, alg.matvec(self.I1, n1))
-            + v["m2"] * alg.dot(v_c2, v_c2)
-            + alg.dot(omega2_body, alg.matvec(self.I2, omega2_body))
-        ) / 2
-        # Geared motors (optional, Ir = 0 by default): a rotor of axial inertia Ir fixed to the
-        # roof turns about n1 at gr phi'; the rotor at hinge 2, carried by rod 1, spins about e0 at
-        # gr psi' relative to rod 1, so its axial speed is (n1 . e0) phi' + gr psi' (its transverse
-        # inertia belongs to rod 1's).
-        if self.params.has_rotor:
-            Ir, gr = v["Ir"], v["gr"]
-            spin2 = alg.dot(n1, e0) * dphi + gr * dpsi
-            T = T + Ir * (gr**2 * dphi**2 + spin2**2) / 2
+        # Kinetic energy, in the frame of link 1 (T is invariant; there it does not depend on q1):
+        #   omega_k = sum_{j <= k} q_j' a_j,  v_ck = sum_{j <= k} q_j' a_j x (c_k - o_j)
+        T = alg.R.zero
+        omega = None
+        for k, link in enumerate(self.links):
+            term = alg.scale(speeds[k], a[k])
+            omega = term if omega is None else alg.add(omega, term)
+            v_c = None
+            for j in range(k + 1):
+                arm = com[k] if j == 0 else alg.add(com[k], alg.scale(-1, o[j]))
+                if j == k and k > 0:  # the link's own centre of mass about its hinge: R_k c_k
+                    arm = alg.matvec(R[k], link["com"])
+                t = alg.scale(speeds[j], alg.cross(a[j], arm))
+                v_c = t if v_c is None else alg.add(v_c, t)
+            body = omega if R[k] is None else alg.matvec(alg.transpose(R[k]), omega)
+            if k == 0:
+                T = T + link["m"] * alg.dot(v_c, v_c) + speeds[0] ** 2 * alg.dot(a[0], alg.matvec(link["inertia"], a[0]))
+            else:
+                T = T + link["m"] * alg.dot(v_c, v_c) + alg.dot(body, alg.matvec(link["inertia"], body))
+        T = T / 2
+        # Geared motors (optional, Ir = 0 by default): the rotor of hinge k, carried by link k - 1 (the
+        # roof for k = 1), spins about the hinge's axis at (omega_{k-1} . a_k) + gr q_k' (its transverse
+        # inertia belongs to its carrier's).
+        if self.has_rotor:
+            rot = alg.R.zero
+            omega_prev = None
+            for k, link in enumerate(self.links):
+                spin = link["gr"] * speeds[k] + (0 if omega_prev is None else alg.dot(omega_prev, a[k]))
+                rot = rot + link["Ir"] * spin**2
+                term = alg.scale(speeds[k], a[k])
+                omega_prev = term if omega_prev is None else alg.add(omega_prev, term)
+            T = T + rot / 2
 
-        # Potential energy: Pi = -g sum m j . r_c, zero with both rods hanging (phi = psi = 0).
+        # Potential energy: Pi = -g sum m j . r_c, zero with the chain hanging (every q = 0).
         #   j . (P1 x) = (P1^T j) . x
         down = alg.matvec(alg.transpose(self.P1), self.J)
-        Pi = -v["g"] * (v["m1"] * alg.dot(down, self.c1) + v["m2"] * alg.dot(down, alg.add(self.h, arm)))
+        Pi = alg.R.zero
+        for k, link in enumerate(self.links):
+            Pi = Pi + link["m"] * alg.dot(down, com[k])
+        Pi = -v["g"] * Pi
         Pi = Pi - Pi.subs(self._zero())
 
         # Mass matrix: Hessian of T in the speeds.
-        M = [[T.diff(speeds[i]).diff(speeds[j]) for j in range(2)] for i in range(2)]
+        M = [[T.diff(speeds[i]).diff(speeds[j]) for j in range(n)] for i in range(n)]
 
         # Lagrange: M q'' = -sum_jk (dM_ij/dq_k - 1/2 dM_jk/dq_i) q'_j q'_k - dPi/dq_i + Q_i,
         # Q_i = tau_i - c_i q'_i - cf_i atan(cfs q'_i).
-        dM = [[[self.d_dq(M[i][j], k) for k in range(2)] for j in range(2)] for i in range(2)]
+        dM = [[[self.d_dq(M[i][j], k) for k in range(n)] for j in range(n)] for i in range(n)]
         forcing, forces = [], []
-        for i in range(2):
+        for i in range(n):
             vel = alg.R.zero
-            for j in range(2):
-                for k in range(2):
+            for j in range(n):
+                for k in range(n):
                     vel += (dM[i][j][k] - dM[j][k][i] / 2) * speeds[j] * speeds[k]
-            Q = v[f"tau{i + 1}"] - v[f"c{i + 1}"] * speeds[i]
+            link = self.links[i]
+            Q = link["tau"] - link["c"] * speeds[i]
             if self.friction:
-                Q = Q - v[f"cf{i + 1}"] * alg.gens[("atan_dphi", "atan_dpsi")[i]]
+                Q = Q - link["cf"] * alg.gens[f"atan_d{self.coords[i]}"]
             forces.append(Q)
             forcing.append(-vel - self.d_dq(Pi, i) + Q)
 
         self.T, self.Pi, self.M, self.f, self.Q = T, Pi, M, forcing, forces
+        keys = [f"d{c}" for c in self.coords]
         return EquationsOfMotion(
             params=self.params,
             mass_matrix=self.finish_matrix(M),
-            forcing=self.finish_matrix(forcing, keys=_SPEEDS),
-            kinetic_energy=self.finish(T, keys=_SPEEDS),
-            potential_energy=self.finish(Pi, keys=[n for n in MASS_NAMES if n in alg.gens]),
-            generalized_forces=self.finish_matrix(forces, keys=_SPEEDS),
+            forcing=self.finish_matrix(forcing, keys=keys),
+            kinetic_energy=self.finish(T, keys=keys),
+            potential_energy=self.finish(Pi, keys=[m for m in MASS_NAMES if m in alg.gens]),
+            generalized_forces=self.finish_matrix(forces, keys=keys),
             _ctx=self,
         )
 
     def _zero(self):
         G = self.alg.gens
-        return [(G["c_phi"], 1), (G["s_phi"], 0), (G["c_psi"], 1), (G["s_psi"], 0)]
+        return [x for c in self.coords for x in ((G[f"c_{c}"], 1), (G[f"s_{c}"], 0))]
 
     # -- intermediate results, world frame -------------------------------------------------------
     def steps(self, eom: EquationsOfMotion) -> Dict[str, sp.Basic]:
+        if not hasattr(self, "R2"):
+            return self.chain_steps(eom)
         alg = self.alg
         dphi, dpsi = alg.gens["dphi"], alg.gens["dpsi"]
         P1 = self.P1
@@ -435,33 +554,58 @@ class _Context:
             "f": eom.forcing,
         }
 
+    def chain_steps(self, eom: EquationsOfMotion) -> Dict[str, sp.Basic]:
+        """A chain's intermediate results in the world frame: per link ``k`` its rotation tensor ``P{k}``
+        (``P_k = P_{k-1} . P(q_k, e_k)``), its hinge's current axis ``e{k}`` and angular velocity
+        ``omega{k}``; then ``T``, ``Pi``, ``M``, ``f``."""
+        alg = self.alg
+        R, o, a, com = self.kinematics()
+        keys = [f"d{c}" for c in self.coords]
+        out: Dict[str, sp.Basic] = {}
+        omega = None
+        for k in range(self.n):
+            P = self.P1 if R[k] is None else alg.matmul(self.P1, R[k])
+            axis = alg.matvec(self.P1, a[k])
+            term = alg.scale(alg.gens[keys[k]], axis)
+            omega = term if omega is None else alg.add(omega, term)
+            out[f"P{k + 1}"] = self.finish_matrix(P)
+            out[f"e{k + 1}"] = self.finish_matrix(axis)
+            out[f"omega{k + 1}"] = self.finish_matrix(omega, keys=keys)
+        out.update(T=eom.kinetic_energy, Pi=eom.potential_energy, M=eom.mass_matrix, f=eom.forcing)
+        return out
+
     # -- linearisation -----------------------------------------------------------------------------
     def linearize(self, eom: EquationsOfMotion, coulomb: str = "exclude") -> LinearEquations:
         zero = self._zero()
-        v = self.val
-        grad = [self.d_dq(self.Pi, i) for i in range(2)]
-        static = [self.finish(v[f"tau{i + 1}"] - grad[i].subs(zero)) for i in range(2)]
+        n = self.n
+        grad = [self.d_dq(self.Pi, i) for i in range(n)]
+        static = [self.finish(self.links[i]["tau"] - grad[i].subs(zero)) for i in range(n)]
         if any(sp.simplify(x) != 0 for x in static):
-            torques = any(sp.simplify(self.finish(v[f"tau{i + 1}"])) != 0 for i in range(2))
+            torques = any(sp.simplify(self.finish(self.links[i]["tau"])) != 0 for i in range(n))
             why = ("constant joint torques hold it elsewhere" if torques else
                    "its centres of mass do not hang straight below their hinges there")
+            where = "phi = psi = 0" if self.coords == ("phi", "psi") else "q = 0"
             raise EquilibriumError(
-                f"phi = psi = 0 is not an equilibrium of this model ({why}); linearise about its "
+                f"{where} is not an equilibrium of this model ({why}); linearise about its "
                 "hanging rest instead: about='down-down' (--about down-down)"
             )
-        M0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.M[i][j].subs(zero)))
-        K0 = sp.Matrix(2, 2, lambda i, j: self.finish(self.d_dq(grad[i], j).subs(zero)))
+        M0 = sp.Matrix(n, n, lambda i, j: self.finish(self.M[i][j].subs(zero)))
+        K0 = sp.Matrix(n, n, lambda i, j: self.finish(self.d_dq(grad[i], j).subs(zero)))
         # damping: -dQ/dq' at rest.  Coulomb friction cf_i sign(q_i') has no slope there; its smoothed
         # form cf_i atan(cfs q_i') has slope cf_i cfs, a viscous damping only with coulomb="smoothed"
         # (symbolic/friction.py says why the default leaves it out).
         smoothed = self.friction and coulomb == "smoothed"
-        friction = (lambda i: v[f"cf{i + 1}"] * v["cfs"]) if smoothed else (lambda i: 0)
-        C0 = sp.Matrix(2, 2, lambda i, j: self.finish(v[f"c{i + 1}"] + friction(i)) if i == j else sp.S.Zero)
+        rate = self.val["cfs"] if "cfs" in self.val else self.alg.const(_number(self.params.cfs))
+        friction = (lambda i: self.links[i]["cf"] * rate) if smoothed else (lambda i: 0)
+        C0 = sp.Matrix(n, n, lambda i, j: self.finish(self.links[i]["c"] + friction(i)) if i == j else sp.S.Zero)
         return LinearEquations(M=M0, C=C0, K=K0, params=self.params, coulomb=coulomb)
 
 
-def derive(params: Optional[Parameters] = None) -> EquationsOfMotion:
-    """Derive the equations of motion ``M(q) q'' = f(q, q')`` for ``params``.
+def derive(params=None) -> EquationsOfMotion:
+    """Derive the equations of motion ``M(q) q'' = f(q, q')`` for ``params``: the double pendulum's
+    :class:`Parameters` or a chain of links (:class:`skewpend.symbolic.chain.Chain`, numeric; exact while
+    its size allows -- three links take seconds, each further link about ten times longer: the recursive
+    algorithms of :mod:`skewpend.numeric.recursive` compute larger chains, checked against this).
 
     ``params`` defaults to ``Parameters()``: the specification's thin rods with every
     parameter symbolic (``a, b, m1, m2, alpha, g``) and no damping or torques.
