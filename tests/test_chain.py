@@ -269,3 +269,23 @@ def test_linearising_a_chain_needs_its_rest_and_gives_the_small_swings():
     T = np.tril(np.ones((3, 3)))  # absolute = T relative
     expected = 9.81 * T.T @ np.diag([2.5, 1.5, 0.5]) @ T
     assert np.allclose(np.array(lin.K, dtype=float), expected, rtol=1e-14, atol=1e-12)
+
+
+def test_the_compact_and_straight_forms_agree():
+    """The two printings of the same recursions (straight-line code for short chains, one step of each
+    recursion looped over the links for long ones) give the same functions to rounding."""
+    chain = random_chain(4, np.random.default_rng(4))
+    p = recursive.parameter_vector(chain)
+    A, B = kernels.chain_kernel(chain, "straight"), kernels.chain_kernel(chain, "compact")
+    assert recursive.chain_form(recursive.structure_of_chain(chain)) == "compact"
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        y = np.r_[rng.uniform(-3, 3, 4), rng.normal(scale=2, size=4), 0.0]
+        for name, size in (("rhs", 9), ("ham_rhs", 9), ("momenta", 4), ("velocities", 4), ("tips", 12)):
+            a, b = np.zeros(size), np.zeros(size)
+            getattr(A, name)(y, p, a)
+            getattr(B, name)(y, p, b)
+            assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, np.max(np.abs(a))), name
+        assert abs(A.energy(y, p) - B.energy(y, p)) <= 1e-12 * max(1.0, abs(A.energy(y, p)))
+    with_rotor = chain.replace_link(2, rotor=1e-3, gear=-3.0)
+    assert recursive.chain_form(recursive.structure_of_chain(with_rotor)) == "straight"

@@ -755,15 +755,19 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
         return kernel
 
 
-def chain_kernel(chain) -> Kernel:
+def chain_kernel(chain, form: str = "") -> Kernel:
     """The compiled model functions of a chain of links (:class:`skewpend.symbolic.chain.Chain`): its
     equations by the recursive algorithms (:mod:`skewpend.numeric.recursive`), keyed by the chain's
     structure (the number of links, the hinge axes, whether friction and rotors exist); every value
-    is the run-time array ``recursive.parameter_vector(chain)``.  Cached like :func:`kernel_module`."""
-    from .recursive import structure_of_chain
+    is the run-time array ``recursive.parameter_vector(chain)``.  Cached like :func:`kernel_module`.
+    ``form``: ``"straight"`` or ``"compact"`` code (default: ``recursive.chain_form``, by the length)."""
+    from .recursive import chain_form, structure_of_chain
 
     structure = structure_of_chain(chain)
-    key = _key(structure.key()) + "_chain"
+    form = form or chain_form(structure)
+    if form not in ("straight", "compact"):
+        raise ValueError(f"form must be 'straight' or 'compact', got {form!r}")
+    key = _key(structure.key() + "|" + form) + "_chain"
     with _key_lock(key):
         if key in _LOADED:
             return _LOADED[key]
@@ -780,10 +784,10 @@ def chain_kernel(chain) -> Kernel:
             directory = _writable_directory()
             path = directory / f"skewpend_{key}{LIB_SUFFIX}"
             _remove_stale_temporaries(directory)
-            from .recursive import chain_c_source
+            from .recursive import chain_source
 
             _announce("chain", cached=directory == cache_dir() / "kernels")
-            source = chain_c_source(structure) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
+            source = chain_source(structure, form) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
             _compile(source, path)
             kernel = Kernel(path, "compiled", time.perf_counter() - start)
         _LOADED[key] = kernel

@@ -76,6 +76,23 @@ class ChainStructure:
         return f"chain{self.n}|{axes}|f{int(self.friction)}|r{int(self.rotor)}"
 
 
+#: Chains of this many links and more take the compact form (:func:`compact_c_source`): its code does
+#: not grow with the links, so it compiles in about 1.5 s at any length, where the straight-line code of
+#: :func:`chain_c_source` grows by ~1 s a link (docs/benchmarks.md: the measured times of both).
+COMPACT_FROM = 4
+
+
+def chain_form(structure: "ChainStructure") -> str:
+    """``"compact"`` or ``"straight"``: the form of the chain's compiled code (rotors: straight only)."""
+    return "compact" if structure.n >= COMPACT_FROM and not structure.rotor else "straight"
+
+
+def chain_source(structure: "ChainStructure", form: str = "") -> str:
+    """The C source of the chain's model functions in ``form`` (default :func:`chain_form`)."""
+    form = form or chain_form(structure)
+    return compact_c_source(structure) if form == "compact" else chain_c_source(structure)
+
+
 def structure_of_chain(chain: Chain) -> ChainStructure:
     return ChainStructure(tuple(link.axis for link in chain.links), chain.has_friction, chain.has_rotor)
 
@@ -466,5 +483,256 @@ def chain_c_source(structure: ChainStructure) -> str:
         out += [f"/* {doc} */", f"static void {c_name}(const double *y, const double *p, double *out)", "{"]
         out += c_function_lines(fns[name], ["y", "p"], [[f"out[{k}]" for k in range(3 * n)]], I, declare=False)
         out += ["}", ""]
+    out.append(exports())
+    return "\n".join(out) + "\n"
+
+
+# -- compact code: one step of each recursion, looped over the links ----------------------------------------
+#: The forward step's carried state: the link frame's rotation R (row-major), its hinge o, angular velocity
+#: w, the hinge's velocity vo, angular acceleration al and the hinge's acceleration ao at q'' = 0, and the
+#: hinge's height with the chain hanging (for Pi = 0 there).
+_STATE = (("R", 9), ("o", 3), ("w", 3), ("vo", 3), ("al", 3), ("ao", 3), ("y0", 1))
+#: What the forward step leaves for the backward step and the callers, per link.
+_BODY = (("a", 3), ("oa", 3), ("F", 3), ("NO", 3), ("m", 1), ("mc", 3), ("JO", 6), ("pl", 3), ("pa", 3),
+         ("T", 1), ("Pi", 1), ("Q", 1), ("dSa", 3), ("dSl", 3), ("o", 3), ("end", 3))
+#: The backward step's carried composite of the links i ... n: mass, first moment, inertia about the
+#: origin (6), force and moment about the origin, linear and angular momentum.
+_COMPOSITE = (("m", 1), ("h", 3), ("J", 6), ("f", 3), ("n", 3), ("pl", 3), ("pa", 3))
+#: The backward step's outputs per link: the bias, hinge i's unit twist's momentum in the composite
+#: (ang, lin: the mass matrix's column), and dT/dq - dPi/dq at fixed speeds.
+_OUT = (("bias", 1), ("ang", 3), ("lin", 3), ("dL", 1))
+
+
+def _size(layout) -> int:
+    return sum(k for _, k in layout)
+
+
+def _split(ca, x, layout):
+    out, k = {}, 0
+    for name, size in layout:
+        out[name] = x[k:k + size]
+        k += size
+    return out
+
+
+def _sym6(ca, v):
+    """The symmetric 3x3 of its entries in TENSOR_ENTRIES' order (xx, xy, xz, yy, yz, zz)."""
+    return ca.vertcat(ca.horzcat(v[0], v[1], v[2]), ca.horzcat(v[1], v[3], v[4]), ca.horzcat(v[2], v[4], v[5]))
+
+
+def _entries6(ca, M):
+    return ca.vertcat(M[0, 0], M[0, 1], M[0, 2], M[1, 1], M[1, 2], M[2, 2])
+
+
+@lru_cache(maxsize=4)
+def compact_functions(friction: bool) -> Dict[str, object]:
+    """The forward and backward steps of the recursions for one link with its axis as an input (CasADi
+    functions): ``fwd(state, link, axis, q, dq, g, cfs) -> (state, body)`` and
+    ``bwd(composite, body, g) -> (composite, out)``; the formulas are :class:`_Graph`'s, link by link."""
+    ca = _ca()
+    S = ca.SX.sym("S", _size(_STATE))
+    Lp = ca.SX.sym("L", len(PER_LINK))
+    e = ca.SX.sym("e", 3)
+    q, dq, g, cfs = ca.SX.sym("q"), ca.SX.sym("dq"), ca.SX.sym("g"), ca.SX.sym("cfs")
+    s = _split(ca, S, _STATE)
+    L = {name: Lp[k] for k, name in enumerate(PER_LINK)}
+    Rp = ca.reshape(s["R"], 3, 3).T  # row-major
+    o = s["o"] + ca.mtimes(Rp, ca.vertcat(L["hx"], L["hy"], L["hz"]))
+    a = ca.mtimes(Rp, e)
+    c_, s_ = ca.cos(q), ca.sin(q)
+    k = 1 - c_
+    x, y, z = e[0], e[1], e[2]
+    P = ca.vertcat(ca.horzcat(c_ + k * x * x, k * x * y - s_ * z, k * x * z + s_ * y),
+                   ca.horzcat(k * y * x + s_ * z, c_ + k * y * y, k * y * z - s_ * x),
+                   ca.horzcat(k * z * x - s_ * y, k * z * y + s_ * x, c_ + k * z * z))
+    R = ca.mtimes(Rp, P)
+    r = ca.mtimes(R, ca.vertcat(L["rx"], L["ry"], L["rz"]))
+    c = o + r
+    Iw = ca.mtimes(ca.mtimes(R, _sym6(ca, [L[f"I{t}"] for t in ("xx", "xy", "xz", "yy", "yz", "zz")])), R.T)
+    d = o - s["o"]
+    wp = s["w"]
+    vo = s["vo"] + _cross(ca, wp, d)
+    w = wp + a * dq
+    ao = s["ao"] + _cross(ca, s["al"], d) + _cross(ca, wp, _cross(ca, wp, d))
+    al = s["al"] + _cross(ca, wp, a * dq)
+    vc = vo + _cross(ca, w, r)
+    ac = ao + _cross(ca, al, r) + _cross(ca, w, _cross(ca, w, r))
+    m = L["m"]
+    down = ca.DM([0.0, 1.0, 0.0])
+    F = m * (ac - g * down)
+    Iww = ca.mtimes(Iw, w)
+    N = ca.mtimes(Iw, al) + _cross(ca, w, Iww)
+    pl = m * vc
+    y0 = s["y0"] + L["hy"]
+    Q = L["tau"] - L["c"] * dq
+    if friction:
+        Q = Q - L["cf"] * ca.atan(cfs * dq)
+    oa = _cross(ca, o, a)
+    v0p = s["vo"] - _cross(ca, wp, s["o"])  # the parent's twist at the origin: (wp, v0p)
+    state = ca.vertcat(R.T.reshape((9, 1)), o, w, vo, al, ao, y0)
+    body = ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c, _entries6(ca, Iw + m * (ca.dot(c, c) * ca.SX.eye(3) - ca.mtimes(c, c.T))),
+                      pl, _cross(ca, c, pl) + Iww, (m * ca.dot(vc, vc) + ca.dot(w, Iww)) / 2,
+                      -g * m * (c[1] - (y0 + L["ry"])), Q, _cross(ca, wp, a), _cross(ca, wp, oa) + _cross(ca, v0p, a), o,
+                      o + R[:, 1] * L["l"])
+    fwd = ca.Function("fwd", [S, Lp, e, q, dq, g, cfs], [state, body])
+    C = ca.SX.sym("C", _size(_COMPOSITE))
+    B = ca.SX.sym("B", _size(_BODY))
+    cc, b = _split(ca, C, _COMPOSITE), _split(ca, B, _BODY)
+    mC, hC = cc["m"] + b["m"], cc["h"] + b["mc"]
+    JC = cc["J"] + b["JO"]
+    f, nO = cc["f"] + b["F"], cc["n"] + b["NO"]
+    plC, paC = cc["pl"] + b["pl"], cc["pa"] + b["pa"]
+    a, oa = b["a"], b["oa"]
+    lin = mC * oa + _cross(ca, a, hC)
+    ang = ca.mtimes(_sym6(ca, [JC[i] for i in range(6)]), a) + _cross(ca, hC, oa)
+    dT = ca.dot(b["dSa"], paC) + ca.dot(b["dSl"], plC)
+    dPi = -g * _cross(ca, a, hC - mC * b["o"])[1]
+    composite = ca.vertcat(mC, hC, JC, f, nO, plC, paC)
+    out = ca.vertcat(ca.dot(a, nO) + ca.dot(oa, f), ang, lin, dT - dPi)
+    bwd = ca.Function("bwd", [C, B, g], [composite, out])
+    return {"fwd": fwd, "bwd": bwd}
+
+
+def _c_static(fn, name: str, args: Sequence[str], outs: Sequence[str], doc: str) -> List[str]:
+    """``fn`` as a static C function of arrays: ``static void name(const double *args..., double *outs...)``."""
+    sig = ", ".join([f"const double *{a}" for a in args] + [f"double *{o}" for o in outs])
+    n_out = [fn.nnz_out(k) for k in range(fn.n_out())]
+    body = c_function_lines(fn, [f"{a}" for a in args], [[f"{o}[{j}]" for j in range(n_out[k])] for k, o in enumerate(outs)],
+                            declare=False)
+    return [f"/* {doc} */", f"static inline void {name}({sig})", "{"] + body + ["}", ""]
+
+
+def compact_c_source(structure: ChainStructure) -> str:
+    """C source of a chain's model functions in compact form: the forward and backward steps of the
+    recursions printed once (:func:`compact_functions`, the axis an argument) and looped over the links,
+    the axes a constant table; then the mass matrix's entries ``M_kl = a_k . ang_l + oa_k . lin_l``, the
+    kernels' LDL^T solve, and the integrators' contract as :func:`chain_c_source`'s.  Its size does not
+    grow with the number of links but for the printed solve (n (n + 1) / 2 factor steps), so a long chain
+    compiles in about the time of a short one.  Rotors are not in this form (their energy couples the
+    links through the parent's angular velocity: :func:`chain_c_source` holds them)."""
+    from .. import __version__
+    from .codegen import spd_c_lines
+    from .kernel_source import exports, status_defines
+
+    if structure.rotor:
+        raise ValueError("compact chain code has no rotors")
+    fns = compact_functions(structure.friction)
+    n = structure.n
+    names = parameter_names(n)
+    w = len(PER_LINK)
+    I = "    "
+    NS, NB, NC, NO = _size(_STATE), _size(_BODY), _size(_COMPOSITE), _size(_OUT)
+    at = {}
+    for layout, tag in ((_BODY, "B"), (_OUT, "O")):
+        k = 0
+        for nm, size in layout:
+            at[(tag, nm)] = k
+            k += size
+    Mn = [f"sp_Mk[{k}]" for k in range(n * (n + 1) // 2)]
+    f = [f"sp_f[{i}]" for i in range(n)]
+    acc = [f"acc{i}" for i in range(n)]
+    torque = [names.index(f"tau{i}") for i in range(1, n + 1)]
+    gi, ci = len(names) - len(GLOBAL) + GLOBAL.index("g"), len(names) - len(GLOBAL) + GLOBAL.index("cfs")
+    axes = ", ".join("{" + ", ".join(repr(float(x)) for x in e) + "}" for e in structure.axes)
+    out = [
+        f"/* Generated by skewpend {__version__} from a chain's recursive algorithms (compact form) -- do not edit.",
+        f" * {n} links; State y = (q1..q{n}, dq1..dq{n}, W); parameters p = ({', '.join(names)}).",
+        " */",
+        "#include <math.h>",
+        "#include <stdint.h>",
+        *status_defines(),
+        f"#define SP_NQ {n}",
+        f"#define SP_NPARAM {len(names)}",
+        f"#define SP_NMAX {max(8, 2 * n + 2)}",
+        f"#define SP_TAU1 {torque[0]}",
+        f"#define SP_TAU2 {torque[min(1, n - 1)]}  /* two inputs of the integrators' controllers (links 1 and 2) */",
+        "#define SP_NO_JAC 1",
+        f"#define SP_NS {NS}",
+        f"#define SP_NB {NB}",
+        f"#define SP_NC {NC}",
+        f"#define SP_NO {NO}",
+        f"static const double SP_AXES[{n}][3] = {{{axes}}};",
+        "",
+    ]
+    out += _c_static(fns["fwd"], "fwd", ["S", "L", "e", "q", "dq", "g", "cfs"], ["S1", "B"],
+                     "one link forward: the parent's state S -> the link's S1 and its body quantities B")
+    out += _c_static(fns["bwd"], "bwd", ["C", "B", "g"], ["C1", "O"],
+                     "one link backward: the composite of the links after it C -> with it C1, and its outputs O")
+    out += [
+        "/* the recursions over the links at y = (q, q'): body quantities B[n][SP_NB], outputs O[n][SP_NO] */",
+        "static void sweep(const double *y, const double *p, double B[][SP_NB], double O[][SP_NO])",
+        "{",
+        f"{I}double S[SP_NS] = {{1, 0, 0, 0, 1, 0, 0, 0, 1}}, S1[SP_NS], C[SP_NC] = {{0}}, C1[SP_NC];",
+        f"{I}const double g = p[{gi}], cfs = p[{ci}];",
+        f"{I}for (int i = 0; i < SP_NQ; i++) {{",
+        f"{I}{I}fwd(S, p + {w} * i, SP_AXES[i], y + i, y + SP_NQ + i, &g, &cfs, S1, B[i]);",
+        f"{I}{I}for (int k = 0; k < SP_NS; k++) S[k] = S1[k];",
+        f"{I}}}",
+        f"{I}for (int i = SP_NQ - 1; i >= 0; i--) {{",
+        f"{I}{I}bwd(C, B[i], &g, C1, O[i]);",
+        f"{I}{I}for (int k = 0; k < SP_NC; k++) C[k] = C1[k];",
+        f"{I}}}",
+        "}",
+        "",
+        "/* the mass matrix's packed lower triangle from the sweep: M_kl = a_k . ang_l + oa_k . lin_l (k <= l) */",
+        "static void mass_from(double B[][SP_NB], double O[][SP_NO], double *Mk)",
+        "{",
+        f"{I}for (int l = 0; l < SP_NQ; l++)",
+        f"{I}{I}for (int k = 0; k <= l; k++) {{",
+        f"{I}{I}{I}const double *a = B[k] + {at[('B', 'a')]}, *oa = B[k] + {at[('B', 'oa')]};",
+        f"{I}{I}{I}const double *ang = O[l] + {at[('O', 'ang')]}, *lin = O[l] + {at[('O', 'lin')]};",
+        f"{I}{I}{I}Mk[l * (l + 1) / 2 + k] = a[0] * ang[0] + a[1] * ang[1] + a[2] * ang[2] + oa[0] * lin[0] + oa[1] * lin[1] + oa[2] * lin[2];",
+        f"{I}{I}}}",
+        "}",
+        "",
+        "static void rhs(const double *y, const double *p, double *out)",
+        "{",
+        f"{I}double B[SP_NQ][SP_NB], O[SP_NQ][SP_NO], sp_Mk[{len(Mn)}], sp_f[SP_NQ];",
+        f"{I}sweep(y, p, B, O);",
+        f"{I}mass_from(B, O, sp_Mk);",
+        f"{I}double W = 0.0;",
+        f"{I}for (int i = 0; i < SP_NQ; i++) {{",
+        f"{I}{I}const double Q = B[i][{at[('B', 'Q')]}];",
+        f"{I}{I}sp_f[i] = Q - O[i][{at[('O', 'bias')]}];",
+        f"{I}{I}W += Q * y[SP_NQ + i];",
+        f"{I}}}",
+    ]
+    out += spd_c_lines(I, f, acc, M=Mn)
+    out += [f"{I}out[{i}] = y[{n + i}];" for i in range(n)] + [f"{I}out[{n + i}] = {acc[i]};" for i in range(n)]
+    out += [f"{I}out[{2 * n}] = W;", "}", ""]
+    out += ["static double energy(const double *y, const double *p)", "{",
+            f"{I}double B[SP_NQ][SP_NB], O[SP_NQ][SP_NO], E = 0.0;", f"{I}sweep(y, p, B, O);",
+            f"{I}for (int i = 0; i < SP_NQ; i++) E += B[i][{at[('B', 'T')]}] + B[i][{at[('B', 'Pi')]}];",
+            f"{I}return E;", "}", ""]
+    out += ["/* M(q) into the packed lower triangle out[n (n + 1) / 2] */",
+            "static void mass(const double *q, const double *p, double *out)", "{",
+            f"{I}double y[2 * SP_NQ] = {{0}}, B[SP_NQ][SP_NB], O[SP_NQ][SP_NO];",
+            f"{I}for (int i = 0; i < SP_NQ; i++) y[i] = q[i];",
+            f"{I}sweep(y, p, B, O);", f"{I}mass_from(B, O, out);", "}", ""]
+    load = [f"{I}double sp_Mk[{len(Mn)}];", f"{I}mass(%s, p, sp_Mk);"]
+    out += ["static void momenta(const double *y, const double *p, double *out)", "{"]
+    out += [line.replace("%s", "y") for line in load]
+    out += [f"{I}for (int i = 0; i < SP_NQ; i++) {{", f"{I}{I}double s = 0.0;",
+            f"{I}{I}for (int j = 0; j < SP_NQ; j++) s += sp_Mk[i > j ? i * (i + 1) / 2 + j : j * (j + 1) / 2 + i] * y[SP_NQ + j];",
+            f"{I}{I}out[i] = s;", f"{I}}}", "}", ""]
+    v = [f"v{i}" for i in range(n)]
+    out += ["static void velocities(const double *z, const double *p, double *out)", "{"]
+    out += [line.replace("%s", "z") for line in load]
+    out += spd_c_lines(I, [f"z[{n + i}]" for i in range(n)], v, M=Mn)
+    out += [f"{I}out[{i}] = {v[i]};" for i in range(n)] + ["}", ""]
+    out += ["static void ham_rhs(const double *z, const double *p, double *out)", "{"]
+    out += [line.replace("%s", "z") for line in load]
+    out += spd_c_lines(I, [f"z[{n + i}]" for i in range(n)], v, M=Mn)
+    out += [f"{I}double yv[2 * SP_NQ], B[SP_NQ][SP_NB], O[SP_NQ][SP_NO], W = 0.0;"]
+    out += [f"{I}yv[{i}] = z[{i}]; yv[{n + i}] = {v[i]};" for i in range(n)]
+    out += [f"{I}sweep(yv, p, B, O);", f"{I}for (int i = 0; i < SP_NQ; i++) {{",
+            f"{I}{I}const double Q = B[i][{at[('B', 'Q')]}];",
+            f"{I}{I}out[i] = yv[SP_NQ + i];", f"{I}{I}out[SP_NQ + i] = O[i][{at[('O', 'dL')]}] + Q;",
+            f"{I}{I}W += Q * yv[SP_NQ + i];", f"{I}}}", f"{I}out[2 * SP_NQ] = W;", "}", ""]
+    for name, key in (("tips", "end"), ("axes", "a")):
+        out += [f"static void {name}(const double *y, const double *p, double *out)", "{",
+                f"{I}double B[SP_NQ][SP_NB], O[SP_NQ][SP_NO];", f"{I}sweep(y, p, B, O);",
+                f"{I}for (int i = 0; i < SP_NQ; i++)",
+                f"{I}{I}for (int k = 0; k < 3; k++) out[3 * i + k] = B[i][{at[('B', key)]} + k];", "}", ""]
     out.append(exports())
     return "\n".join(out) + "\n"
