@@ -289,3 +289,47 @@ def test_the_compact_and_straight_forms_agree():
         assert abs(A.energy(y, p) - B.energy(y, p)) <= 1e-12 * max(1.0, abs(A.energy(y, p)))
     with_rotor = chain.replace_link(2, rotor=1e-3, gear=-3.0)
     assert recursive.chain_form(recursive.structure_of_chain(with_rotor)) == "straight"
+
+
+# -- the command line: a chain from a run file ---------------------------------------------------------------
+def test_simulate_a_chain_from_a_run_file(tmp_path):
+    from helpers import run_cli
+
+    ran = run_cli(["simulate", "--config", EXAMPLES / "skewed_triple.toml", "--t-end", "2", "--rtol", "1e-12",
+                   "--atol", "1e-12"])
+    assert ran.code == 0, ran.err
+    assert "final state   t=2 s  q1=" in ran.out and "dq3=" in ran.out
+    # the same run from the library: the run file's chain and start
+    chain = Chain.from_mapping({"g": 9.81, "links": [
+        dict(length=0.5, mass=1.0), dict(length=0.4, mass=0.8, axis=(0.5, 0, 1)),
+        dict(length=0.3, mass=0.5, axis=(1, 0, 0), damping=0.01)]})
+    traj = skewpend.simulate(chain, [math.radians(60), -0.3, 0.2, 0, 0, 0], 2.0, rtol=1e-12, atol=1e-12)
+    q1 = float(ran.out.split("q1=")[1].split()[0])
+    assert q1 == pytest.approx(traj.y[-1, 0], abs=1e-11)
+
+
+@pytest.mark.parametrize("text, extra, words", [
+    ("[[links]]\nmass = -1\n", [], "link 1 mass must be > 0"),
+    ("[[links]]\nmass = 1\ncolour = 2\n", [], "[[links]] 1: unknown key 'colour'"),
+    ("[[links]]\n[[links]]\n[initial]\nq0 = [1, 2, 3]\n", [], "q0: expected 2 values (one a link), got 3"),
+    ("[[links]]\n[[links]]\n", ["--m1", "2"], "--m1: a run file with [[links]] gives a chain"),
+    ("[[links]]\n[[links]]\n", ["--plot", "x.png"], "--plot: the figure draws the double pendulum"),
+    ("[[links]]\n[[links]]\n[initial]\nphi0 = 1\n", [], "a chain's start is [initial] q0 and dq0"),
+])
+def test_bad_chain_run_files_are_one_line_exit_2(tmp_path, text, extra, words):
+    from helpers import run_cli
+
+    path = tmp_path / "chain.toml"
+    path.write_text(text)
+    ran = run_cli(["simulate", "--config", path, *extra], cwd=tmp_path)
+    assert ran.code == 2 and words in ran.err and len(ran.err.strip().splitlines()) == 1, ran.err
+
+
+def test_commands_of_the_double_pendulum_refuse_links(tmp_path):
+    from helpers import run_cli
+
+    ran = run_cli(["modes", "--config", EXAMPLES / "skewed_triple.toml"], cwd=tmp_path)
+    assert ran.code == 2 and "[[links]] (a chain of links) is not read by skewpend modes" in ran.err
+
+
+EXAMPLES = __import__("pathlib").Path(__file__).resolve().parent.parent / "examples"

@@ -17,8 +17,9 @@ from __future__ import annotations
 import math
 from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
+from .errors import ParameterError
 from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
-from .schema import CORE_NAMES, GEOMETRY_NAMES, NAMES, OPTIONAL_DEFAULTS, SCALAR_NAMES, field
+from .schema import CHAIN_NAMES, CORE_NAMES, GEOMETRY_NAMES, LINK_FIELDS, NAMES, OPTIONAL_DEFAULTS, SCALAR_NAMES, field
 
 __all__ = [
     "DEFAULT_RUN", "reference_parameters", "reference_state", "COMMAND_DEFAULTS", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
@@ -64,14 +65,21 @@ COMMAND_DEFAULTS: Dict[str, Dict[str, Any]] = {
 SCALAR_KEYS = SCALAR_NAMES
 MODEL_KEYS = frozenset(NAMES)
 INITIAL_KEYS = frozenset(("phi0", "psi0", "dphi0", "dpsi0"))
+#: A chain's model (``[chain]``: g, cfs; ``[[links]]``: one table a link) and its start (``[initial]``:
+#: the lists ``q0``, ``dq0``); the commands whose ``READS`` list them take a chain.
+CHAIN_KEYS = frozenset(CHAIN_NAMES)
+LINK_KEYS = frozenset(key for key, _, _ in LINK_FIELDS)
+CHAIN_INITIAL_KEYS = frozenset(("q0", "dq0"))
+#: A chain's start when the run file gives none: every link turned by this angle [rad], at rest.
+CHAIN_Q0 = 0.5
 _INTEGRATION = frozenset(("t_end", "method", "rtol", "atol", "dt", "max_steps"))
 _DOP853 = frozenset(("t_end", "method", "rtol", "atol"))  # the DOP853-only analyses
 
 #: What each command reads of a run file, by section.  The one rule: a key listed takes effect,
 #: any other key of a run file is refused, naming the key and the command.
 READS: Dict[str, Dict[str, frozenset]] = {
-    "simulate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS,
-                 "simulation": _INTEGRATION | {"dt_out", "out", "plot"}},
+    "simulate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS,
+                 "simulation": _INTEGRATION | {"dt_out", "out", "plot"}, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "animate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": _INTEGRATION},
     "report": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": _INTEGRATION},
     "validate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": frozenset({"t_end"})},
@@ -186,18 +194,28 @@ class Run:
         from .io import read_config
 
         self.command = command
-        self.values: Dict[str, Dict[str, Any]] = {k: {} for k in DEFAULT_RUN}
-        self.where: Dict[str, Dict[str, str]] = {k: {} for k in DEFAULT_RUN}
-        self.given: Dict[str, set] = {k: set() for k in DEFAULT_RUN}
+        sections = (*DEFAULT_RUN, "chain")
+        self.values: Dict[str, Dict[str, Any]] = {k: {} for k in sections}
+        self.where: Dict[str, Dict[str, str]] = {k: {} for k in sections}
+        self.given: Dict[str, set] = {k: set() for k in sections}
         self._flags = dict(flags or {})
         if defaults:  # the reference case, and the settings the command's library function needs
             for section, values in {**DEFAULT_RUN, "simulation": COMMAND_DEFAULTS.get(command, {})}.items():
                 for k, v in values.items():
                     self._set(section, k, v, f"default {k}", given=False)
+        self.links: Optional[list] = None  # a chain's [[links]] tables, as written
+        self.config = config
         if config is not None:
             _check_run_file(config)
             reads = READS.get(command, {})
-            for section, values in read_config(config).items():
+            sections = read_config(config)
+            if "links" in sections and "links" not in reads:
+                raise UsageError(f"{config}: [[links]] (a chain of links) is not read by skewpend {command}: it "
+                                 "computes the double pendulum's [parameters] (chains: skewpend simulate)")
+            for section, values in sections.items():
+                if section == "links":
+                    self.links = values
+                    continue
                 for k, v in values.items():
                     if k not in reads.get(section, ()):
                         why = _WHY_NOT.get((command, k), "it is a setting of another command")
@@ -273,12 +291,51 @@ class Run:
         return {k: self.number(k, section=section) for k in keys if self.values[section].get(k) is not None}
 
     # -- the model and the start ------------------------------------------------------------------
+    @property
+    def is_chain(self) -> bool:
+        """Whether the run file gives a chain of links (``[[links]]``) instead of the double pendulum."""
+        return self.links is not None
+
     def parameters(self):
-        """The :class:`~skewpend.Parameters` of the run (see :func:`build_parameters`)."""
+        """The :class:`~skewpend.Parameters` of the run (see :func:`build_parameters`), or the chain of
+        links of a run file's ``[[links]]`` (:meth:`chain`)."""
+        if self.is_chain:
+            return self.chain()
         return build_parameters(self.values["parameters"], self.where["parameters"])
 
+    def chain(self):
+        """The :class:`~skewpend.symbolic.chain.Chain` of the run file's ``[chain]`` and ``[[links]]``; the
+        double pendulum's parameters given beside it (in the file or as options) are refused."""
+        from .symbolic.chain import Chain
+
+        given = sorted(self.given.get("parameters", ()))
+        if given:
+            raise UsageError(f"{self.option('parameters', given[0])}: a run file with [[links]] gives a chain of links; "
+                             "the double pendulum's parameters do not apply to it (give each link's values in its "
+                             "[[links]] table)")
+        values = {k: parse_scalar(self.text("chain", k), self.option("chain", k)) for k in CHAIN_NAMES
+                  if self.values.get("chain", {}).get(k) is not None}
+        if any(v is None for v in values.values()):
+            raise UsageError(f"{self.config}: [chain] values must be numeric (a chain is a model to compute with)")
+        links = []
+        for i, table in enumerate(self.links or [], start=1):
+            link = {}
+            for key, value in table.items():
+                where = f"{self.config}: [[links]] {i} {key}"
+                if isinstance(value, str):
+                    value = parse_scalar(value, where, angle=False)
+                link[key] = value
+            links.append(link)
+        try:
+            return Chain.from_mapping({"links": links, **values})
+        except ParameterError as exc:
+            raise UsageError(f"{self.config}: {exc}") from None
+
     def initial_state(self):
-        """``[phi0, psi0, dphi0, dpsi0]``: numeric, the angles at most :data:`MAX_ANGLE` rad."""
+        """``[phi0, psi0, dphi0, dpsi0]``: numeric, the angles at most :data:`MAX_ANGLE` rad; for a chain
+        ``q0 + dq0`` (``[initial]``'s lists; default every link at :data:`CHAIN_Q0` rad, at rest)."""
+        if self.is_chain:
+            return self._chain_state()
         y0 = []
         for k in ("phi0", "psi0", "dphi0", "dpsi0"):
             value = self.scalar("initial", k, angle=k in ("phi0", "psi0"))
@@ -288,6 +345,30 @@ class Run:
                 raise UsageError(f"{self.option('initial', k)}: expected an angle of at most {MAX_ANGLE:g} rad in magnitude, got {value:g}")
             y0.append(value)
         return y0
+
+    def _chain_state(self):
+        n = len(self.links or [])
+        out = []
+        for key, default in (("q0", CHAIN_Q0), ("dq0", 0.0)):
+            value = self.values["initial"].get(key)
+            where = self.option("initial", key)
+            if value is None:
+                out += [default] * n
+                continue
+            items = value if isinstance(value, list) else [value]
+            if len(items) != n:
+                raise UsageError(f"{where}: expected {n} values (one a link), got {len(items)}")
+            for x in items:
+                v = parse_scalar(as_text(x, where), where, angle=key == "q0")
+                if v is None:
+                    raise UsageError(f"{where}: the initial state must be numeric, not 'sym'")
+                if key == "q0" and abs(v) > MAX_ANGLE:
+                    raise UsageError(f"{where}: expected angles of at most {MAX_ANGLE:g} rad in magnitude, got {v:g}")
+                out.append(v)
+        for k in ("phi0", "psi0", "dphi0", "dpsi0"):
+            if self.is_given("initial", k):
+                raise UsageError(f"{self.option('initial', k)}: a chain's start is [initial] q0 and dq0 (one value a link)")
+        return out
 
     def integration(self, methods: Optional[Iterable[str]] = None) -> Dict[str, Any]:
         """The integrator settings (method, rtol, atol, dt, max_steps) that are set, checked

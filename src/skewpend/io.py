@@ -21,7 +21,7 @@ from typing import Any, Dict, Iterator, Optional, Sequence
 import numpy as np
 
 from .errors import ParameterError, SkewpendError
-from .schema import GEOMETRY_NAMES, NAMES, field, unknown_names_message
+from .schema import CHAIN_NAMES, GEOMETRY_NAMES, LINK_FIELDS, NAMES, field, unknown_names_message
 
 __all__ = [
     "require_netcdf",
@@ -510,9 +510,12 @@ def write_trajectory(traj, path: os.PathLike) -> Path:
 # -- configuration -----------------------------------------------------------------------------------
 CONFIG_SECTIONS = {
     "parameters": set(NAMES),
-    "initial": {"phi0", "psi0", "dphi0", "dpsi0"},
+    "initial": {"phi0", "psi0", "dphi0", "dpsi0", "q0", "dq0"},
     "simulation": {"t_end", "dt_out", "method", "rtol", "atol", "dt", "max_steps", "out", "plot"},
+    "chain": set(CHAIN_NAMES),
 }
+#: A chain's links: an array of tables ``[[links]]``, one a link (its keys: the schema's LINK_FIELDS).
+LINKS_SECTION = "links"
 
 
 def _check_run_value(path, section: str, key: str, value: Any, depth: int = 0) -> None:
@@ -564,9 +567,20 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
         raise ParameterError(
             f"config file {path} is empty; expected one or more of the sections [{'], ['.join(CONFIG_SECTIONS)}]"
         )
+    links = data.pop(LINKS_SECTION, None)
+    if links is not None:
+        keys = [key for key, _, _ in LINK_FIELDS]
+        if not isinstance(links, list) or not all(isinstance(t, dict) for t in links):
+            raise ParameterError(f"{path}: links must be an array of tables, one [[links]] table a link")
+        for i, table in enumerate(links, start=1):
+            unknown = [k for k in table if k not in keys]
+            if unknown:
+                raise ParameterError(f"{path}: [[links]] {i}: unknown key {unknown[0]!r}; a link takes {', '.join(keys)}")
+            for key, value in table.items():
+                _check_run_value(path, f"links {i}", key, value)
     for section, values in data.items():
         if section not in CONFIG_SECTIONS:
-            raise ParameterError(f"{path}: unknown section [{section}]; allowed: {', '.join(CONFIG_SECTIONS)}")
+            raise ParameterError(f"{path}: unknown section [{section}]; allowed: {', '.join(CONFIG_SECTIONS)}, [[links]]")
         if not isinstance(values, dict):
             raise ParameterError(f"{path}: [{section}] must be a table")
         unknown = [k for k in values if k not in CONFIG_SECTIONS[section]]
@@ -588,4 +602,7 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
                     shape = "a 3x3 matrix [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] or a flat list of 3, 6 or 9" if matrix is False and field(key).kind == "inertia" else "a flat list of 3"
                     got = "a table" if isinstance(value, dict) else repr(value)
                     raise ParameterError(f"{path}: [{section}] {key}: expected {shape} numbers or symbol names, got {got}")
-    return {s: dict(data.get(s, {})) for s in CONFIG_SECTIONS}
+    out: Dict[str, Any] = {s: dict(data.get(s, {})) for s in CONFIG_SECTIONS}
+    if links is not None:
+        out[LINKS_SECTION] = links
+    return out

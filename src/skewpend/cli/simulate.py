@@ -56,6 +56,9 @@ def simulate(
     if out_path is not None:
         check_output_path(out_path, TRAJECTORY_SUFFIXES, option=run.option("simulation", "out"))
     check_plot(plot_path, run.option("simulation", "plot"))
+    if run.is_chain and plot_path is not None:
+        raise UsageError(f"{run.option('simulation', 'plot')}: the figure draws the double pendulum's two angles; a chain "
+                         "of links prints its summary (its figures are not made yet)")
     from ..numeric.simulation import simulate as run_simulation
 
     with progress("simulating", "s", quiet) as bar:
@@ -80,6 +83,12 @@ def check_plot(plot, option: str = "--plot") -> None:
         check_output_path(plot, FIGURE_SUFFIXES, option=option)
 
 
+def _state_names(model):
+    """The state's names: ``phi, psi, dphi, dpsi``, or a chain's ``q1 ... qn, dq1 ... dqn``."""
+    names = getattr(model, "coordinates", ("phi", "psi"))
+    return list(names) + [f"d{c}" for c in names]
+
+
 def summary(traj, out_path) -> str:
     y, st = traj.final_state, traj.stats
     kernel = "loaded from the cache"
@@ -92,7 +101,8 @@ def summary(traj, out_path) -> str:
         + (f"; the default (no --method) chose it: {traj.settings['method_choice'].split(': ', 1)[-1]}"
            if traj.settings.get("method_choice") else ""),
         f"status        {traj.message}",
-        f"final state   t={traj.t[-1]:.6g} s  phi={y[0]:.12g}  psi={y[1]:.12g}  dphi={y[2]:.12g}  dpsi={y[3]:.12g}",
+        f"final state   t={traj.t[-1]:.6g} s  " + "  ".join(
+            f"{name}={value:.12g}" for name, value in zip(_state_names(traj.params), y)),
         f"energy        E0={traj.energy[0]:.12g} J  E={traj.energy[-1]:.12g} J  work of Q={traj.work[-1]:.6g} J",
         f"energy drift  {traj.energy_drift:.3e} (max |E - W - E0| / max |E|)",
         f"steps         {st['steps']} accepted, {st['rejected']} rejected, {st['nfev']} evaluations"
