@@ -333,3 +333,42 @@ def test_commands_of_the_double_pendulum_refuse_links(tmp_path):
 
 
 EXAMPLES = __import__("pathlib").Path(__file__).resolve().parent.parent / "examples"
+
+
+# -- normal modes of a chain -------------------------------------------------------------------------------------
+def test_the_compound_triple_pendulum_has_its_textbook_modes():
+    """Three equal uniform rods, planar: the linear matrices in absolute angles are the textbook's,
+    M_ij = l^2 (m/3 + m (n - i - 1)) on the diagonal and l^2 m (1/2 + n - j - 1) off it (i < j),
+    K = g l m diag(1/2 + n - i - 1); relative angles are absolute = T relative."""
+    from scipy.linalg import eigh
+
+    n, g = 3, 9.81
+    chain = Chain.from_lists(n, length=1.0, mass=1.0, g=g)
+    modes = skewpend.normal_modes(chain)
+    M = np.array([[(1 / 3 + n - i - 1) if i == j else (0.5 + n - max(i, j) - 1) for j in range(n)] for i in range(n)])
+    K = g * np.diag([0.5 + n - i - 1 for i in range(n)])
+    expected = np.sqrt(eigh(K, M, eigvals_only=True))  # absolute and relative angles: the same frequencies
+    assert np.allclose(modes.frequencies, expected, rtol=1e-13)
+    assert modes.shapes.shape == (3, 3) and len(modes.equilibrium) == 3
+    assert modes.to_xarray()["frequency"].size == 3
+
+
+def test_a_chains_damped_modes_are_the_state_matrixs_eigenvalues():
+    chain = Chain.from_lists(4, length=0.5, mass=[1.0, 0.8, 0.6, 0.4], damping=[0.3, 0.1, 0.05, 0.02],
+                             axis=[(0, 0, 1), (0.3, 0, 1), (0, 0.2, 1), (1, 0, 1)])
+    modes = skewpend.normal_modes(chain)
+    expected = np.linalg.eigvals(modes.state_matrix)
+    got = modes.eigenvalue_pairs.ravel()
+    assert np.allclose(np.sort_complex(got), np.sort_complex(expected), rtol=1e-10, atol=1e-12)
+    assert np.all((modes.damping_ratios > 0) & (modes.damping_ratios < 1))
+    # each pair is the one its undamped mode's frequency is nearest to (light damping)
+    assert np.allclose(modes.damped_frequencies, modes.frequencies, rtol=0.05)
+
+
+def test_the_double_pendulums_modes_from_its_chain():
+    params = skewpend.Parameters(a=1, b=0.8, m1=1, m2=0.7, alpha=0.6, g=9.81, c1=0.3, c2=0.1)
+    one, two = skewpend.normal_modes(params), skewpend.normal_modes(Chain.from_parameters(params))
+    assert np.allclose(one.frequencies, two.frequencies, rtol=1e-13)
+    assert np.allclose(one.eigenvalue_pairs, two.eigenvalue_pairs, rtol=1e-12)
+    with pytest.raises(skewpend.errors.EquilibriumError, match="q = 0 is not an equilibrium of this chain"):
+        skewpend.normal_modes(_three_links())

@@ -36,6 +36,8 @@ from ..symbolic.model import SCALAR_NAMES, Parameters
 __all__ = [
     "Modes",
     "normal_modes",
+    "chain_modes",
+    "pairs_of_chain",
     "linear_matrices",
     "characteristic_equation",
     "Sweep",
@@ -193,11 +195,17 @@ class Modes(ResultProtocol):
     @property
     def coulomb_note(self) -> str:
         """How the Coulomb friction was treated, one line ('' for a model without it)."""
+        if not isinstance(self.params, Parameters):  # a chain: its links' Coulomb friction, by link
+            if not self.params.has_friction:
+                return ""
+            return ("Coulomb friction " + ("linearised by its smoothed slope cfs cf (viscous damping added to C)"
+                                           if self.coulomb == "smoothed" else
+                                           "excluded from the linearisation (non-smooth at rest)"))
         return coulomb_note(self.params, self.coulomb)
 
     @property
     def message(self) -> str:
-        if self.equilibrium == (0.0, 0.0):
+        if not any(self.equilibrium):
             text = "the modes of the linearised equations about the hanging equilibrium"
         else:
             text = (f"the modes of the linearised equations about the equilibrium phi = {self.equilibrium[0]:.6g}, "
@@ -214,12 +222,13 @@ class Modes(ResultProtocol):
     def state_matrix(self) -> np.ndarray:
         """``[[0, I], [-M^-1 K, -M^-1 C]]``: ``d/dt (dq, dq') = A (dq, dq')``."""
         Minv = np.linalg.inv(self.M)
-        return np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ self.K, -Minv @ self.C]])
+        n = self.M.shape[0]
+        return np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ self.K, -Minv @ self.C]])
 
     @property
     def settings(self) -> Dict:
-        settings: Dict = {"equilibrium": [float(self.equilibrium[0]), float(self.equilibrium[1])]}
-        if friction_terms(self.params):  # only where it matters (a model without friction keeps its fingerprint)
+        settings: Dict = {"equilibrium": [float(x) for x in self.equilibrium]}
+        if isinstance(self.params, Parameters) and friction_terms(self.params):  # only where it matters (a model without friction keeps its fingerprint)
             settings["coulomb"] = self.coulomb
         return settings
 
@@ -243,7 +252,7 @@ class Modes(ResultProtocol):
                 "K0": (("coordinate", "coordinate_2"), self.K, {"long_name": "linear stiffness matrix"}),
                 "growth_rate": (("mode",), self.growth_rates, {"units": "1/s", "long_name": "growth rate (0: oscillating)"}),
             },
-            coords={"mode": (("mode",), np.array([1, 2]), {})},
+            coords={"mode": (("mode",), np.arange(1, len(self.frequencies) + 1), {})},
             attrs={"title": "normal modes of the skewed double pendulum (skewpend)", **self._base_attrs()},
         )
 
@@ -363,7 +372,8 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         except (LinAlgError, ValueError):
             raise NotFinite("the eigenproblem K0 v = w^2 M0 v cannot be solved in double precision (M0 not positive definite)") from None
         _require_finite(**{"the frequencies": lam, "the mode shapes": V})
-        if equilibrium is None and lam[0] <= 1e-12 * max(abs(lam[1]), 1e-300):
+        n = M.shape[0]
+        if equilibrium is None and lam[0] <= 1e-12 * max(abs(lam[-1]), 1e-300):
             raise EquilibriumError(
                 f"the hanging position is not a stable equilibrium (w^2 = {lam.tolist()}); normal modes need g > 0"
                 + ("" if lam[0] < 0 or float(params.g or 0) <= 0 else
@@ -371,9 +381,9 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
             )
         if equilibrium is not None and np.any(np.abs(lam) <= 1e-12 * max(np.abs(lam).max(), 1e-300)):
             raise EquilibriumError(
-                f"the equilibrium ({equilibrium[0]:.6g}, {equilibrium[1]:.6g}) is degenerate (w^2 = {lam.tolist()}): "
+                f"the equilibrium ({', '.join(f'{x:.6g}' for x in equilibrium)}) is degenerate (w^2 = {lam.tolist()}): "
                 "its linearisation has a zero eigenvalue")
-        for k in range(2):
+        for k in range(n):
             col = V[:, k]
             col[np.abs(col) < 1e-13 * np.abs(col).max()] = 0.0  # round-off where a hinge stands still
             if col[np.argmax(np.abs(col))] < 0:
@@ -382,18 +392,22 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         growth = np.sqrt(np.maximum(-lam, 0.0))
         with np.errstate(divide="ignore"):
             periods = np.where(w > 0, 2 * np.pi / np.where(w > 0, w, 1), np.inf)
-        ratios = np.where(np.abs(V[0]) > 1e-14 * np.abs(V).max(), V[1] / np.where(V[0] == 0, 1, V[0]), np.inf)
-        beat = 2 * np.pi / (w[1] - w[0]) if w[1] > w[0] and w[0] > 0 else np.inf
+        # the last coordinate's amplitude over the first's (the double pendulum's psi/phi)
+        ratios = np.where(np.abs(V[0]) > 1e-14 * np.abs(V).max(), V[-1] / np.where(V[0] == 0, 1, V[0]), np.inf)
+        beat = 2 * np.pi / (w[1] - w[0]) if n > 1 and w[1] > w[0] and w[0] > 0 else np.inf  # of the two lowest modes
         _require_finite(**{"the frequencies": w, "the periods": periods[w > 0]})
         if np.any(np.isnan(ratios)) or np.isnan(beat):
             raise NotFinite("the amplitude ratios are not numbers")
         if np.any(C != 0):
-            try:
-                ev, X = quadratic_eigen(M, C, K, stable=equilibrium is None or bool(lam[0] > 0))
-            except (np.linalg.LinAlgError, ValueError):
-                raise NotFinite("the state-space eigenvalues are not finite (overflow)") from None
-            _require_finite(**{"the state-space eigenvalues": ev, "the state-space eigenvectors": X})
-            pairs = pair_by_shape(ev, X, M, V)
+            if n == 2:
+                try:
+                    ev, X = quadratic_eigen(M, C, K, stable=equilibrium is None or bool(lam[0] > 0))
+                except (np.linalg.LinAlgError, ValueError):
+                    raise NotFinite("the state-space eigenvalues are not finite (overflow)") from None
+                _require_finite(**{"the state-space eigenvalues": ev, "the state-space eigenvectors": X})
+                pairs = pair_by_shape(ev, X, M, V)
+            else:
+                pairs = pairs_of_chain(M, C, K, V)
             eig = pairs[:, 0]
             damped_w = np.abs(eig.imag)
             prod = (pairs[:, 0] * pairs[:, 1]).real
@@ -413,7 +427,7 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
             eig = np.where(growth > 0, growth + 0j, 1j * w)
             pairs = np.column_stack([eig, np.where(growth > 0, -growth + 0j, -1j * w)])
             damped_w = w.copy()
-            zeta = np.zeros(2)
+            zeta = np.zeros(n)
     return Modes(
         frequencies=w,
         periods=periods,
@@ -429,7 +443,7 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         K=K,
         params=params,
         growth_rates=growth,
-        equilibrium=(0.0, 0.0) if equilibrium is None else (float(equilibrium[0]), float(equilibrium[1])),
+        equilibrium=tuple([0.0] * n) if equilibrium is None else tuple(float(x) for x in equilibrium),
         coulomb=coulomb,
     )
 
@@ -447,6 +461,54 @@ def _modes_about(params: Parameters, about, coulomb: str = DEFAULT_COULOMB) -> M
 def _modes(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Modes:
     M, C, K = _matrices(params, coulomb)
     return _modes_from_matrices(M, C, K, params, coulomb=coulomb)
+
+
+def pairs_of_chain(M: np.ndarray, C: np.ndarray, K: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """The 2 n state-space eigenvalues of ``l^2 M + l C + K`` (the state matrix's, SciPy's ``eig``) as a pair
+    per undamped mode (rows, the modes of ``V``): each eigenvalue's displacement part is compared with the
+    undamped shapes by the M-weighted similarity of :func:`~skewpend.analysis.qep.pair_by_shape`, and the
+    most similar (eigenvalue, mode) are matched first -- a conjugate pair fills a mode, a real eigenvalue
+    half of one (an overdamped mode has two)."""
+    from scipy.linalg import eig
+
+    n = M.shape[0]
+    Minv = np.linalg.inv(M)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ C]])
+    lam, Z = eig(A)
+    if not np.all(np.isfinite(lam)):
+        raise NotFinite("the state-space eigenvalues are not finite (overflow)")
+    X = Z[:n]
+    norm = np.sqrt(np.abs(np.einsum("ij,ik,kj->j", X.conj(), M, X).real))
+    S = np.where(norm > 0, np.abs(V.T @ M @ X) / np.where(norm > 0, norm, 1.0), 0.5)
+    units = [j for j in range(2 * n) if lam[j].imag > 0 or lam[j].imag == 0]
+    need = {j: (2 if lam[j].imag > 0 else 1) for j in units}
+    room = [2] * n
+    chosen: List[List[complex]] = [[] for _ in range(n)]
+    for score, j, k in sorted(((-S[k, j], j, k) for j in units for k in range(n))):
+        if need[j] and room[k] >= need[j]:
+            z = lam[j]
+            chosen[k] += [complex(z.real, abs(z.imag)), complex(z.real, -abs(z.imag))] if need[j] == 2 else [complex(z.real, 0.0)]
+            room[k] -= need[j]
+            need[j] = 0
+    if any(r for r in room) or any(need.values()):
+        raise NotFinite("the state-space eigenvalues do not form conjugate or real pairs (numerical failure)")
+    pairs = np.empty((n, 2), complex)
+    for k, z in enumerate(chosen):
+        z = np.array(z)
+        pairs[k] = z if z[0].imag != 0 else z[np.argsort(np.abs(z))]
+    return pairs
+
+
+def chain_modes(chain, coulomb: str = DEFAULT_COULOMB) -> Modes:
+    """The normal modes of a chain of links about its hanging rest (``n`` modes; the linear matrices from
+    the chain's recursive algorithms, :func:`skewpend.numeric.recursive.linear_matrices`)."""
+    from ..numeric.recursive import linear_matrices as chain_matrices
+
+    M, C, K = chain_matrices(chain, coulomb)
+    try:
+        return _modes_from_matrices(M, C, K, chain, coulomb=coulomb)
+    except NotFinite as exc:
+        raise ParameterError(f"normal modes of this chain: {exc.reason}") from None
 
 
 def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB) -> Modes:
@@ -477,8 +539,14 @@ def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB)
     >>> [round(float(w) ** 2, 6) for w in modes.frequencies]
     [0.732213, 5.267787]
     """
+    from ..symbolic.chain import Chain
+
+    if isinstance(params, Chain):
+        if about is not None:
+            raise ParameterError("about: a chain's modes are about its hanging rest (its other equilibria are not found yet)")
+        return chain_modes(params, check_coulomb(coulomb))
     if not isinstance(params, Parameters):  # one line, not an AttributeError (issue 29, item 8)
-        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
+        raise ParameterError(f"params must be a skewpend.Parameters or a Chain, got {type(params).__name__}")
     coulomb = check_coulomb(coulomb)
     if about is not None:
         return _modes_about(params, about, coulomb)

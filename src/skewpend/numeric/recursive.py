@@ -736,3 +736,44 @@ def compact_c_source(structure: ChainStructure) -> str:
                 f"{I}{I}for (int k = 0; k < 3; k++) out[3 * i + k] = B[i][{at[('B', key)]} + k];", "}", ""]
     out.append(exports())
     return "\n".join(out) + "\n"
+
+
+@lru_cache(maxsize=16)
+def _linear_function(structure: ChainStructure):
+    """CasADi function ``p -> (M0, dbias/dq, dbias/dq', f)`` at the hanging rest ``q = q' = 0``."""
+    ca = _ca()
+    G = _Graph(structure)
+    n = G.n
+    M = G.mass_matrix()
+    b = ca.vertcat(*G.bias())
+    Q = ca.vertcat(*G.joint_forces())
+    f = Q - b
+    Mm = ca.vertcat(*[ca.horzcat(*row) for row in M])
+    outs = [Mm, ca.jacobian(f, G.q), ca.jacobian(f, G.dq), f]
+    outs = [ca.substitute(x, ca.vertcat(G.q, G.dq), ca.DM.zeros(2 * n)) for x in outs]
+    return ca.Function("linear", [G.p], outs)
+
+
+def linear_matrices(chain: Chain, coulomb: str = "exclude"):
+    """``(M0, C0, K0)`` of the chain's linearisation about its hanging rest (``q = q' = 0``): exact
+    derivatives of the recursive algorithms (CasADi's), evaluated at ``parameter_vector(chain)``.
+    Coulomb friction enters ``C0`` only with ``coulomb="smoothed"`` (its slope ``cfs cf``), as for the
+    double pendulum.  Raises :class:`~skewpend.errors.EquilibriumError` when the rest is no equilibrium."""
+    import numpy as np
+
+    from ..errors import EquilibriumError
+
+    structure = structure_of_chain(chain)
+    fn = _linear_function(structure)
+    p = parameter_vector(chain)
+    if coulomb != "smoothed" and chain.has_friction:  # the friction's slope at rest left out
+        w = len(PER_LINK)
+        for i in range(chain.n):
+            p[i * w + PER_LINK.index("cf")] = 0.0
+    M, dfdq, dfdv, f = (np.array(x, dtype=float) for x in fn(p))
+    scale = max(1.0, float(np.abs(dfdq).max()))
+    if np.max(np.abs(f)) > 1e-12 * scale:
+        why = ("constant joint torques hold it elsewhere" if any(link.torque for link in chain.links) else
+               "its centres of mass do not hang straight below their hinges there")
+        raise EquilibriumError(f"q = 0 is not an equilibrium of this chain ({why}); its modes need the hanging rest")
+    return M, -dfdv, -dfdq
