@@ -654,9 +654,9 @@ def compact_c_source(structure: ChainStructure) -> str:
         f"static const double SP_AXES[{n}][3] = {{{axes}}};",
         "",
     ]
-    out += _c_static(fns["fwd"], "fwd", ["S", "L", "e", "q", "dq", "g", "cfs"], ["S1", "B"],
+    out += _c_static(fns["fwd"], "fwd", ["S", "L", "e", "q", "dq", "gravity", "rate"], ["S1", "B"],
                      "one link forward: the parent's state S -> the link's S1 and its body quantities B")
-    out += _c_static(fns["bwd"], "bwd", ["C", "B", "g"], ["C1", "O"],
+    out += _c_static(fns["bwd"], "bwd", ["C", "B", "gravity"], ["C1", "O"],
                      "one link backward: the composite of the links after it C -> with it C1, and its outputs O")
     out += [
         "/* the recursions over the links at y = (q, q'): body quantities B[n][SP_NB], outputs O[n][SP_NO] */",
