@@ -142,6 +142,31 @@ def test_chains_equal_mujoco(n):
         assert abs(K.energy(np.r_[q, dq, 0.0], p) - e_mj) <= 1e-12 * max(1.0, abs(e_mj))
 
 
+@pytest.mark.parametrize("n", [3, 5, 8])
+def test_chains_equal_pinocchio(n):
+    """The same random chains exported to URDF: Pinocchio's articulated-body algorithm (a third derivation,
+    another code base) gives the same accelerations to 1e-12 relative (its continuous joints take
+    (cos q, sin q); the damping and the constant torques are applied as joint torques, as URDF holds neither)."""
+    pin = pytest.importorskip("pinocchio")
+    from skewpend.interop.export import chain_to_urdf, mujoco_compatible_chain
+
+    rng = np.random.default_rng(100 + n)
+    chain = mujoco_compatible_chain(random_chain(n, rng))
+    model = pin.buildModelFromXML(chain_to_urdf(chain))
+    data = model.createData()
+    model.gravity.linear = np.array([0.0, chain.g, 0.0])
+    K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
+    c = np.array([link.damping for link in chain.links])
+    tau = np.array([link.torque for link in chain.links])
+    assert model.nv == n
+    for _ in range(10):
+        q, v = rng.uniform(-3, 3, n), rng.normal(scale=2, size=n)
+        expected = pin.aba(model, data, np.ravel(np.column_stack([np.cos(q), np.sin(q)])), v, tau - c * v)
+        out = np.zeros(2 * n + 1)
+        K.rhs(np.r_[q, v, 0.0], p, out)
+        assert np.max(np.abs(out[n:2 * n] - expected)) <= 1e-12 * np.max(np.abs(expected))
+
+
 def test_chain_export_refuses_what_mujoco_cannot_hold():
     from skewpend.interop.export import chain_to_mjcf
 

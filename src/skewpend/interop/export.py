@@ -372,6 +372,39 @@ def to_mjcf(
     return "\n".join(lines)
 
 
+def _urdf_inertial(com, mass, m) -> list:
+    return [
+        "    <inertial>",
+        f'      <origin xyz="{_vec(com)}" rpy="0 0 0"/>',
+        f'      <mass value="{_num(mass)}"/>',
+        f'      <inertia ixx="{_num(m[0][0])}" ixy="{_num(m[0][1])}" ixz="{_num(m[0][2])}" '
+        f'iyy="{_num(m[1][1])}" iyz="{_num(m[1][2])}" izz="{_num(m[2][2])}"/>',
+        "    </inertial>",
+    ]
+
+
+def _urdf_visual(length, radius) -> list:
+    # a URDF cylinder lies along its z axis; turn it onto y, centred on the rod
+    return [
+        "    <visual>",
+        f'      <origin xyz="0 {_num(length / 2)} 0" rpy="{_num(math.pi / 2)} 0 0"/>',
+        f'      <geometry><cylinder radius="{_num(radius)}" length="{_num(length)}"/></geometry>',
+        "    </visual>",
+    ]
+
+
+def _urdf_joint(name, parent, child, xyz, axis, damping) -> list:
+    return [
+        f'  <joint name="{name}" type="continuous">',
+        f'    <parent link="{parent}"/>',
+        f'    <child link="{child}"/>',
+        f'    <origin xyz="{xyz}" rpy="0 0 0"/>',
+        f'    <axis xyz="{_vec(axis)}"/>',
+        f'    <dynamics damping="{_num(damping)}" friction="0"/>',
+        "  </joint>",
+    ]
+
+
 def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: bool = False) -> str:
     """A URDF model (XML text) of the pendulum ``params`` (all numeric).
 
@@ -403,36 +436,6 @@ def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: 
     gravity = f"0 0 {_num(-p.g)}" if z_up else f"0 {_num(p.g)} 0"
     root = "roof" if z_up else "world"
 
-    def inertial(com, mass, m) -> list:
-        return [
-            "    <inertial>",
-            f'      <origin xyz="{_vec(com)}" rpy="0 0 0"/>',
-            f'      <mass value="{_num(mass)}"/>',
-            f'      <inertia ixx="{_num(m[0][0])}" ixy="{_num(m[0][1])}" ixz="{_num(m[0][2])}" '
-            f'iyy="{_num(m[1][1])}" iyz="{_num(m[1][2])}" izz="{_num(m[2][2])}"/>',
-            "    </inertial>",
-        ]
-
-    def visual(length) -> list:
-        # a URDF cylinder lies along its z axis; turn it onto y, centred on the rod
-        return [
-            "    <visual>",
-            f'      <origin xyz="0 {_num(length / 2)} 0" rpy="{_num(math.pi / 2)} 0 0"/>',
-            f'      <geometry><cylinder radius="{_num(radius)}" length="{_num(length)}"/></geometry>',
-            "    </visual>",
-        ]
-
-    def joint(name, parent, child, xyz, axis, damping) -> list:
-        return [
-            f'  <joint name="{name}" type="continuous">',
-            f'    <parent link="{parent}"/>',
-            f'    <child link="{child}"/>',
-            f'    <origin xyz="{xyz}" rpy="0 0 0"/>',
-            f'    <axis xyz="{_vec(axis)}"/>',
-            f'    <dynamics damping="{_num(damping)}" friction="0"/>',
-            "  </joint>",
-        ]
-
     frame_note = (
         "Frame z_up: link roof carries skewpend's frame (y down) turned so that +y is the world's -z; "
         "apply gravity (0, 0, -g)."
@@ -462,10 +465,10 @@ def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: 
             f'    <origin xyz="0 0 0" rpy="{_num(-math.pi / 2)} 0 0"/>',
             "  </joint>",
         ]
-    lines += ['  <link name="rod1">', *inertial(p.com1, p.m1, p.inertia1), *visual(a), "  </link>"]
-    lines += ['  <link name="rod2">', *inertial(p.com2, p.m2, p.inertia2), *visual(b), "  </link>"]
-    lines += joint("hinge1", root, "rod1", "0 0 0", axis1, p.c1)
-    lines += joint("hinge2", "rod1", "rod2", f"0 {_num(a)} 0", axis2, p.c2)
+    lines += ['  <link name="rod1">', *_urdf_inertial(p.com1, p.m1, p.inertia1), *_urdf_visual(a, radius), "  </link>"]
+    lines += ['  <link name="rod2">', *_urdf_inertial(p.com2, p.m2, p.inertia2), *_urdf_visual(b, radius), "  </link>"]
+    lines += _urdf_joint("hinge1", root, "rod1", "0 0 0", axis1, p.c1)
+    lines += _urdf_joint("hinge2", "rod1", "rod2", f"0 {_num(a)} 0", axis2, p.c2)
     lines += ["</robot>", ""]
     return "\n".join(lines)
 
@@ -705,4 +708,35 @@ def chain_to_mjcf(chain, *, timestep: float = 1e-4, integrator: str = "RK4",
     lines += [f'    <general name="tau{link.index}" joint="hinge{link.index}" gainprm="1" biastype="affine" '
               f'biasprm="{_num(link.torque)} 0 0" ctrllimited="false" forcelimited="false"/>' for link in c.links]
     lines += ["  </actuator>", "</mujoco>", ""]
+    return "\n".join(lines)
+
+
+def chain_to_urdf(chain, *, axial_inertia: Optional[float] = None) -> str:
+    """A URDF model (XML text) of a chain of links in skewpend's frame (``y`` down: apply gravity
+    ``(0, +g, 0)``), the conventions of :func:`to_urdf`: links ``link1 ... linkn`` with the inertials of
+    :func:`mujoco_compatible_chain`, ``continuous`` joints ``hinge1 ... hingen`` at each hinge's offset in
+    its parent, with the link's axis and ``<dynamics damping>``.  Constant torques are listed in a comment
+    (URDF has no place for them); Coulomb friction and rotors are refused, as for MJCF."""
+    if chain.has_friction or chain.has_rotor:
+        chain_to_mjcf(chain)  # the same refusals, one line each
+    from .. import __version__
+
+    c = mujoco_compatible_chain(chain, axial_inertia)
+    radius = 0.02 * sum(link.length for link in c.links) / c.n
+    torques = ", ".join(f"hinge{link.index} {_num(link.torque)} N m" for link in c.links)
+    lines = [
+        '<?xml version="1.0"?>',
+        '<robot name="skewpend-chain">',
+        f"  <!-- {_comment(f'A chain of {c.n} links exported by skewpend {__version__} (URDF). Apply gravity (0, +g, 0) with g = {_num(c.g)}: this URDF uses skewpend frame, y pointing DOWN.')} -->",
+        f"  <!-- {_comment(f'Constant joint torques (not representable in URDF; apply them in the simulator): {torques}.')} -->",
+        '  <link name="world"/>',
+    ]
+    for link in c.links:
+        lines += [f'  <link name="link{link.index}">', *_urdf_inertial(link.com, link.mass, link.inertia),
+                  *_urdf_visual(link.length, radius), "  </link>"]
+    for link in c.links:
+        parent = "world" if link.index == 1 else f"link{link.index - 1}"
+        lines += _urdf_joint(f"hinge{link.index}", parent, f"link{link.index}", _vec(link.offset), link.axis,
+                             link.damping)
+    lines += ["</robot>", ""]
     return "\n".join(lines)
