@@ -11,7 +11,13 @@ no damping: a conservative motion whose reference is DOP853 at 1e-13):
   1e-12 and MuJoCo's RK4 (``mj_step``, the model's own integrator) at dt 4e-3 ... 1.25e-4; the ratio
   skewpend/MuJoCo at MuJoCo's errors (skewpend's time interpolated in log-log).
 
-    python benchmarks/bench_chain.py [--links 3 5 10] [--repeat 3] [--t-end 20]
+* **heyoka.py** (``--heyoka``): the same chain's Lagrangian written in heyoka's expressions (the kinematics
+  below, ``heyoka_chain``; Euler-Lagrange equations by ``hy.lagrangian``), its Taylor integrator at tol
+  1e-6 ... 1e-12 -- the default full mode up to ``--compact-from`` links (default 4), the compact mode
+  beyond (the full mode does not finish compiling for 10 links) -- and the ratio skewpend/heyoka.py at
+  heyoka's errors; its JIT compile time beside skewpend's build.
+
+    python benchmarks/bench_chain.py [--links 3 5 10] [--repeat 3] [--t-end 20] [--heyoka]
 """
 
 from __future__ import annotations
@@ -55,6 +61,73 @@ print(time.perf_counter() - t)
 """
 
 
+def _rodrigues(c, s, e):
+    x, y, z = e
+    k = 1 - c
+    return [[c + k * x * x, k * x * y - s * z, k * x * z + s * y],
+            [k * y * x + s * z, c + k * y * y, k * y * z - s * x],
+            [k * z * x - s * y, k * z * y + s * x, c + k * z * z]]
+
+
+def _mat(A, B):
+    return [[sum(A[i][k] * B[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
+
+
+def _vec(A, v):
+    return [sum(A[i][k] * v[k] for k in range(3)) for i in range(3)]
+
+
+def heyoka_chain(chain):
+    """The chain's Euler-Lagrange equations in heyoka.py: T and V from the world-frame kinematics (each
+    link's rotation composed with Rodrigues' formula, its centre of mass's velocity by differentiating its
+    position along the motion), written here for the peer."""
+    import heyoka as hy
+
+    n = chain.n
+    qs = [hy.expression(f"q{i}") for i in range(n)]
+    vs = [hy.expression(f"v{i}") for i in range(n)]
+    R = [[1.0 if i == j else 0.0 for j in range(3)] for i in range(3)]
+    o = [0.0, 0.0, 0.0]
+    T, V = 0.0, 0.0
+    hanging = 0.0
+    for k, link in enumerate(chain.links):
+        o = [o[i] + x for i, x in enumerate(_vec(R, link.offset))]
+        hanging += link.offset[1]
+        R = _mat(R, _rodrigues(hy.cos(qs[k]), hy.sin(qs[k]), link.axis))
+        c = [o[i] + x for i, x in enumerate(_vec(R, link.com))]
+        # velocities by the chain rule over the coordinates (heyoka differentiates expressions)
+        vc = [sum(hy.diff(c[i], qs[j]) * vs[j] for j in range(k + 1)) for i in range(3)]
+        Rd = [[sum(hy.diff(R[i][m], qs[j]) * vs[j] for j in range(k + 1)) for m in range(3)] for i in range(3)]
+        # omega's skew matrix W = Rd R^T; the body-frame angular velocity R^T omega from W
+        W = [[sum(Rd[i][m] * R[j][m] for m in range(3)) for j in range(3)] for i in range(3)]
+        w = [W[2][1], W[0][2], W[1][0]]
+        wb = [sum(R[m][i] * w[m] for m in range(3)) for i in range(3)]
+        J = link.inertia
+        T += 0.5 * link.mass * sum(x * x for x in vc) + 0.5 * sum(wb[i] * J[i][j] * wb[j] for i in range(3) for j in range(3))
+        V += -chain.g * link.mass * (c[1] - (hanging + link.com[1]))
+    return hy.lagrangian(T - V, qs, vs), qs + vs
+
+
+def heyoka_runs(chain, y0, T, tols, compact, repeat):
+    import heyoka as hy
+
+    sys_, state = heyoka_chain(chain)
+    out, build = [], []
+    for tol in tols:
+        t = time.perf_counter()
+        ta = hy.taylor_adaptive(sys_, list(y0), tol=tol, compact_mode=compact)
+        build.append(time.perf_counter() - t)
+        times = []
+        for _ in range(repeat):
+            ta.time = 0.0
+            ta.state[:] = y0
+            t = time.perf_counter()
+            ta.propagate_until(T)
+            times.append(time.perf_counter() - t)
+        out.append((np.array(ta.state, dtype=float), float(np.median(times))))
+    return out, float(np.median(build))
+
+
 def build_seconds(n, repeat):
     out = []
     for _ in range(repeat):
@@ -72,6 +145,8 @@ def main(argv=None):
     ap.add_argument("--links", type=int, nargs="+", default=[3, 5, 10])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--t-end", type=float, default=20.0)
+    ap.add_argument("--heyoka", action="store_true", help="also heyoka.py's Taylor integrator on the same chains")
+    ap.add_argument("--compact-from", type=int, default=4, help="heyoka's compact mode from this many links")
     args = ap.parse_args(argv)
     import mujoco
 
@@ -131,6 +206,16 @@ def main(argv=None):
             if le.min() <= np.log(e) <= le.max():
                 ratio = float(np.exp(np.interp(np.log(e), le[order], lt[order]))) / t
                 print(f"  at MuJoCo's error {e:.1e}: skewpend/MuJoCo time = {ratio:.3f} ({1 / ratio:.0f}x faster)")
+        if args.heyoka:
+            compact = n >= args.compact_from
+            runs, jit = heyoka_runs(chain, y0, T, (1e-6, 1e-8, 1e-10, 1e-12), compact, args.repeat)
+            hy_pts = [(float(np.max(np.abs(state[:2 * n] - ref))), t) for state, t in runs]
+            print(f"heyoka.py Taylor ({'compact' if compact else 'full'} mode, JIT {jit:.2f} s): "
+                  + ", ".join(f"err {e:.1e} in {t * 1e3:.1f} ms" for e, t in hy_pts))
+            for e, t in hy_pts:
+                if le.min() <= np.log(e) <= le.max():
+                    ratio = float(np.exp(np.interp(np.log(e), le[order], lt[order]))) / t
+                    print(f"  at heyoka's error {e:.1e}: skewpend/heyoka.py time = {ratio:.2f}")
 
 
 if __name__ == "__main__":

@@ -397,3 +397,14 @@ def test_the_double_pendulums_modes_from_its_chain():
     assert np.allclose(one.eigenvalue_pairs, two.eigenvalue_pairs, rtol=1e-12)
     with pytest.raises(skewpend.errors.EquilibriumError, match="q = 0 is not an equilibrium of this chain"):
         skewpend.normal_modes(_three_links())
+
+
+@pytest.mark.parametrize("call", [
+    lambda c: skewpend.equilibria(c), lambda c: skewpend.flip_map(c, 8), lambda c: skewpend.lqr(c),
+    lambda c: skewpend.poincare(c, energy=1.0), lambda c: skewpend.chaos_diagram(c), lambda c: skewpend.sweep(c, "alpha", [0, 1]),
+    lambda c: skewpend.lyapunov(c, [0.1] * 6, t_end=10.0), lambda c: skewpend.region_of_attraction(c),
+])
+def test_what_is_not_for_chains_yet_says_so_in_one_line(call):
+    with pytest.raises(ParameterError) as info:
+        call(skewpend.Chain.from_lists(3))
+    assert "not a chain of 3 links" in str(info.value) and "\n" not in str(info.value)

@@ -19,6 +19,8 @@ __version__ = "0.1.0"
 
 _LAZY = {
     "derive": "symbolic.derivation",
+    "Chain": "symbolic.chain",
+    "Link": "symbolic.chain",
     "EquationsOfMotion": "symbolic.derivation",
     "LinearEquations": "symbolic.derivation",
     "SYMBOLS": "symbolic.symbols",
@@ -77,6 +79,8 @@ _LAZY = {
 
 __all__ = [
     "Parameters",
+    "Chain",
+    "Link",
     "example_data",
     "derive",
     "SYMBOLS",

@@ -32,13 +32,28 @@ DEFAULT_TOL = 1e-10
 RTOL_MIN, ATOL_MIN = 1e-15, 1e-300
 
 
+#: What takes a chain of links today (the rest computes the double pendulum's Parameters).
+CHAIN_TAKERS = "derive, simulate, normal_modes and the MJCF/URDF export"
+
+
+def not_parameters(params, what: str) -> str:
+    """The one line for a model that is not the double pendulum's :class:`~skewpend.Parameters`: a
+    chain of links says what it can do instead."""
+    from .symbolic.chain import Chain
+
+    if isinstance(params, Chain):
+        return (f"{what} computes the double pendulum's Parameters, not a chain of {params.n} links (a chain "
+                f"takes {CHAIN_TAKERS} so far)")
+    return f"params must be a skewpend.Parameters, got {type(params).__name__}"
+
+
 def numeric_params(params, what: str):
     """``params`` if it is a :class:`~skewpend.Parameters` with every value numeric (``what``
     needs them: "a flip map", ...), else a :class:`ParameterError`."""
     from .symbolic.model import Parameters
 
     if not isinstance(params, Parameters):
-        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
+        raise ParameterError(not_parameters(params, what))
     try:
         params.require_numeric(what)
     except NotNumericError as exc:

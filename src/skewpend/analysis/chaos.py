@@ -31,7 +31,7 @@ from ..errors import ParameterError
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json
 from ..symbolic.model import Parameters
-from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
+from ..checks import MAX_STEPS, max_steps as check_max_steps, not_parameters, numeric_params, tolerances
 from .lyapunov import check_times, largest_exponents
 
 __all__ = ["chaos_diagram", "ChaosDiagram", "ChaosJob", "open_chaos_diagram", "default_threshold", "STORE_KIND"]
@@ -326,7 +326,7 @@ def chaos_diagram(
     from .poincare import require_conservative
 
     if not isinstance(params, Parameters):
-        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
+        raise ParameterError(not_parameters(params, "a chaos diagram"))
     if params.uses_alpha and params.alpha is None:  # alpha is the diagram's own axis
         params = params.replace(alpha=0.0)
     params = numeric_params(params, "a chaos diagram")

@@ -25,6 +25,7 @@ from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .. import checks
 from ..errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
 from ..results import DatasetSpec, ResultProtocol, agree, netcdf_reader, protocol_fields
 from .qep import NotFinite, pair_by_shape, quadratic_eigen
@@ -805,7 +806,7 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
     :class:`~skewpend.errors.ParameterError` naming the failing values.
     """
     if not isinstance(params, Parameters):
-        raise ParameterError(f"params must be a skewpend.Parameters, got {type(params).__name__}")
+        raise ParameterError(checks.not_parameters(params, "a sweep of the modes"))
     if name not in SWEEPABLE:
         raise ParameterError(f"cannot sweep {name!r}; allowed: {', '.join(SWEEPABLE)}")
     if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.floating)) or not (
