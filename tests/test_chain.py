@@ -400,7 +400,7 @@ def test_the_double_pendulums_modes_from_its_chain():
 
 
 @pytest.mark.parametrize("call", [
-    lambda c: skewpend.equilibria(c), lambda c: skewpend.flip_map(c, 8), lambda c: skewpend.lqr(c),
+    lambda c: skewpend.flip_map(c, 8), lambda c: skewpend.lqr(c),
     lambda c: skewpend.poincare(c, energy=1.0), lambda c: skewpend.chaos_diagram(c), lambda c: skewpend.sweep(c, "alpha", [0, 1]),
     lambda c: skewpend.lyapunov(c, [0.1] * 6, t_end=10.0), lambda c: skewpend.region_of_attraction(c),
 ])
@@ -408,3 +408,43 @@ def test_what_is_not_for_chains_yet_says_so_in_one_line(call):
     with pytest.raises(ParameterError) as info:
         call(skewpend.Chain.from_lists(3))
     assert "not a chain of 3 links" in str(info.value) and "\n" not in str(info.value)
+
+
+# -- equilibria of a chain ---------------------------------------------------------------------------------------
+def test_a_chain_has_its_two_to_the_n_equilibria():
+    """Three equal uniform rods in a plane: 8 equilibria, every rod down or up; the potential of each is
+    g times the rise of the centres of mass (rod k's centre k + 1/2 below the roof hanging, the rods above
+    it turned with their own directions); the Morse index counts the upright rods; the indices sum to 0 as
+    on the 3-torus."""
+    chain = Chain.from_lists(3, length=1.0, mass=1.0, g=9.81)
+    eq = skewpend.equilibria(chain)
+    assert eq.ok and len(eq) == 8 and eq.index_sum == 0
+    for e in eq:
+        d = [1.0 if word == "down" else -1.0 for word in e.label.split("-")]  # each rod's direction along j
+        y = [sum(d[:k]) + d[k] / 2 for k in range(3)]  # the centres of mass below the roof
+        assert e.morse_index == d.count(-1.0)
+        assert e.potential == pytest.approx(-9.81 * sum(y[k] - (k + 0.5) for k in range(3)), abs=1e-9)
+    hanging = eq.find("down-down-down")
+    assert np.allclose(hanging.frequencies, skewpend.normal_modes(chain).frequencies, rtol=1e-12)
+    top = skewpend.normal_modes(chain, about="up-up-up")
+    assert np.all(top.growth_rates > 0) and top.growth_rates.size == 3
+
+
+def test_the_double_pendulums_equilibria_from_its_chain():
+    params = skewpend.Parameters(a=1, b=0.8, m1=1, m2=0.7, alpha=0.6, g=9.81, com2=(0.05, 0.4, 0.0))
+    one, two = skewpend.equilibria(params), skewpend.equilibria(Chain.from_parameters(params))
+    assert [e.label for e in one] == [e.label for e in two]
+    for x, y in zip(one, two):
+        assert np.max(np.abs(np.array(x.q) - np.array(y.q))) < 1e-10
+        assert np.allclose(x.frequencies, y.frequencies, rtol=1e-10)
+
+
+def test_a_skewed_chain_of_four_finds_all_sixteen():
+    chain = Chain.from_lists(4, length=0.5, mass=[1.0, 0.8, 0.6, 0.4],
+                             axis=[(0, 0, 1), (0.3, 0, 1), (0, 0.2, 1), (1, 0, 1)],
+                             com=[(0.05, 0.25, 0), (0, 0.25, 0.02), (0, 0.25, 0), (0.01, 0.25, 0)])
+    eq = skewpend.equilibria(chain)
+    assert eq.ok and len(eq) == 16 and eq.index_sum == 0
+    terms = recursive.potential_terms(chain)
+    for e in eq:
+        assert np.max(np.abs(terms(e.q)[1])) < 1e-10  # grad V = 0 there (no torques)

@@ -33,7 +33,7 @@ RTOL_MIN, ATOL_MIN = 1e-15, 1e-300
 
 
 #: What takes a chain of links today (the rest computes the double pendulum's Parameters).
-CHAIN_TAKERS = "derive, simulate, normal_modes and the MJCF/URDF export"
+CHAIN_TAKERS = "derive, simulate, equilibria, normal_modes and the MJCF/URDF export"
 
 
 def not_parameters(params, what: str) -> str:

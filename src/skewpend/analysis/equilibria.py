@@ -39,7 +39,7 @@ from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, fr
 from ..schema import GEOMETRY_NAMES, names
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
-__all__ = ["Equilibrium", "Equilibria", "equilibria", "equilibrium_at", "find_equilibrium", "linearisation_functions",
+__all__ = ["Equilibrium", "Equilibria", "equilibria", "chain_equilibria", "equilibrium_at", "find_equilibrium", "linearisation_functions",
            "potential_function"]
 
 #: Grid of Newton starts per side (refined up to :data:`MAX_STARTS` while the index check fails).
@@ -182,13 +182,15 @@ class Equilibrium:
 
     @property
     def state(self) -> np.ndarray:
-        """The equilibrium as a state ``(phi, psi, 0, 0)``."""
-        return np.array([self.q[0], self.q[1], 0.0, 0.0])
+        """The equilibrium as a state ``(phi, psi, 0, 0)`` (a chain's ``(q1 ... qn, 0 ... 0)``)."""
+        return np.r_[np.asarray(self.q, dtype=float), np.zeros(len(self.q))]
 
     def describe(self) -> str:
-        kind = {0: "stable (minimum of V)", 1: "saddle (index 1)", 2: "maximum of V (index 2)"}[self.morse_index]
-        parts = [f"{self.label:>9}  phi = {math.degrees(self.q[0]):8.3f} deg, psi = {math.degrees(self.q[1]):8.3f} deg"
-                 f"  V = {self.potential:11.6g} J  {kind}"]
+        n, k = len(self.q), self.morse_index
+        kind = "stable (minimum of V)" if k == 0 else f"{'maximum of V' if k == n else 'saddle'} (index {k})"
+        names = ("phi", "psi") if n == 2 else tuple(f"q{k + 1}" for k in range(n))
+        where = ", ".join(f"{c} = {math.degrees(x):8.3f} deg" for c, x in zip(names, self.q))
+        parts = [f"{self.label:>9}  {where}  V = {self.potential:11.6g} J  {kind}"]
         if self.frequencies.size:
             parts.append("frequencies " + ", ".join(f"{w:.6g}" for w in self.frequencies) + " rad/s")
         if self.growth_rates.size:
@@ -291,6 +293,16 @@ class Equilibria(Result):
         return found[0]
 
     def table(self) -> str:
+        if not isinstance(self.params, Parameters):  # a chain: its angles in one column
+            width = max([len(e.label) for e in self.points] + [5])
+            lines = [f"{'label':>{width}}  {'q [deg]':<{8 * len(self.points[0].q) if self.points else 8}}  {'V [J]':>12}  index  "
+                     "frequencies [rad/s]; growth rates [1/s]"]
+            for e in self.points:
+                freq = ", ".join(f"{w:.6g}" for w in e.frequencies) or "--"
+                grow = ", ".join(f"{s:.6g}" for s in e.growth_rates) or "--"
+                q = " ".join(f"{math.degrees(x):7.2f}" for x in e.q)
+                lines.append(f"{e.label:>{width}}  {q}  {e.potential:12.6g}  {e.morse_index:>5}  {freq}; {grow}")
+            return "\n".join(lines)
         lines = [f"{'label':>9}  {'phi [deg]':>10}  {'psi [deg]':>10}  {'V [J]':>12}  index  "
                  f"{'frequencies [rad/s]':<24}  growth rates [1/s]"]
         for e in self.points:
@@ -427,7 +439,10 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS, coulomb: str
     equilibrium (an empty result).
     """
     from ..checks import numeric_params, whole
+    from ..symbolic.chain import Chain
 
+    if isinstance(params, Chain):
+        return chain_equilibria(params, coulomb=coulomb)
     params = numeric_params(params, "equilibria")
     starts = whole("starts", starts, lo=2, hi=MAX_STARTS)
     coulomb = check_coulomb(coulomb)
@@ -487,6 +502,93 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS, coulomb: str
         message = f"{message}; {note}"
     stats = {"starts": total_starts, "converged": int(len(points)), "newton_iterations": int(total_its)}
     return Equilibria(points=points, params=params, settings=settings, stats=stats, status=status, message=message)
+
+
+#: The most links whose 2^n up-down configurations seed the equilibria of a chain.
+MAX_CHAIN_SEEDS = 12
+
+
+def chain_equilibria(chain, *, coulomb: str = DEFAULT_COULOMB) -> Equilibria:
+    """Every equilibrium of a chain of links on the n-torus: Newton's method on ``grad V = tau`` (``V`` the
+    potential energy from the recursive algorithms, its gradient and Hessian exact by automatic
+    differentiation) from each of the 2^n configurations with every relative angle 0 or pi, and from 64
+    seeded random starts; the roots deduplicated and linearised as the double pendulum's
+    (:class:`Equilibrium`, labels ``down``/``up``/``level`` per link).  The check that none is missed is
+    the same: on the n-torus the Morse indices sum to 0, ``sum (-1)^index = 0``."""
+    from scipy.linalg import eig, eigh
+
+    from ..numeric.recursive import potential_terms
+
+    coulomb = check_coulomb(coulomb)
+    n = chain.n
+    if n > MAX_CHAIN_SEEDS:
+        raise ParameterError(f"equilibria of a chain seed Newton's method at its 2^n up-down configurations: at most "
+                             f"{MAX_CHAIN_SEEDS} links, this chain has {n}")
+    terms = potential_terms(chain)
+    tau = np.array([link.torque for link in chain.links], dtype=float)
+    rng = np.random.default_rng(0)
+    seeds = [np.array([(k >> i) & 1 for i in range(n)], dtype=float) * np.pi for k in range(2 ** n)]
+    seeds += list(rng.uniform(-np.pi, np.pi, (64, n)))
+    gscale = max(max(np.abs(terms(q)[1]).max() for q in seeds[:: max(1, len(seeds) // 32)]), np.abs(tau).max())
+    if not gscale > 0:
+        raise EquilibriumError("every configuration is an equilibrium without gravity and torques (g = 0, tau = 0); "
+                               "equilibria need g > 0 or a torque")
+    found: List[np.ndarray] = []
+    its_total = 0
+    for q0 in seeds:
+        q = np.array(q0, dtype=float)
+        for its in range(60):
+            _, g, H, _, _ = terms(q)
+            r = g - tau
+            try:
+                d = -np.linalg.solve(H, r)
+            except np.linalg.LinAlgError:
+                break
+            step = float(np.max(np.abs(d)))
+            q = wrap(q + d * min(1.0, 0.5 / max(step, 1e-300)))
+            its_total += 1
+            if step < 1e-13 * (1 + np.pi) and np.max(np.abs(r)) <= RESIDUAL * gscale:
+                if all(np.max(np.abs(wrap(q - f))) > SAME_ROOT for f in found):
+                    found.append(q)
+                break
+    c = np.diag([link.damping + (link.coulomb * chain.cfs if coulomb == "smoothed" else 0.0) for link in chain.links])
+    points = []
+    for q in found:
+        Pi, _, H, M, down = terms(q)
+        K = 0.5 * (H + H.T)
+        lam, V = eigh(K, M)
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, c)]])
+        ev = eig(A, right=False)
+        ev = ev[np.lexsort((-ev.imag, -ev.real))]
+        scale = max(np.abs(lam).max(), np.finfo(float).tiny)
+        index = int(np.sum(lam < -DEGENERATE * scale))
+        for k in range(n):
+            if V[np.argmax(np.abs(V[:, k])), k] < 0:
+                V[:, k] = -V[:, k]
+        osc, unstable = lam > DEGENERATE * scale, lam < -DEGENERATE * scale
+        growth = (np.sort(ev.real[ev.real > 1e-12 * np.abs(ev).max()])[::-1][:index] if np.any(c) and index
+                  else np.sqrt(-lam[unstable])[::-1])
+        label = "-".join("level" if abs(d) < 1e-9 else ("down" if d > 0 else "up") for d in down)
+        points.append(Equilibrium(q=tuple(float(x) for x in q), label=label, potential=Pi - float(tau @ q) + 0.0, M=M, C=c, K=K,
+                                  A=A, eigenvalues=ev, morse_index=index, frequencies=np.sqrt(lam[osc]), shapes=V[:, osc],
+                                  growth_rates=np.asarray(growth, dtype=float), unstable_directions=V[:, unstable][:, ::-1],
+                                  coulomb=coulomb))
+    points.sort(key=lambda e: (e.potential, e.q))
+    index_sum = sum((-1) ** e.morse_index for e in points)
+    degenerate = [e for e in points
+                  if np.min(np.abs(np.linalg.eigvalsh(e.K))) <= DEGENERATE * max(np.abs(np.linalg.eigvalsh(e.K)).max(), 1e-300)]
+    if index_sum == 0 and not degenerate:
+        status, message = Status.SUCCESS, (f"{len(points)} equilibria; their Morse indices sum to 0 as on the "
+                                           f"{n}-torus (none missed)")
+    else:
+        status, message = Status.PARTIAL, (f"{len(points)} equilibria found, but " + (
+            f"{len(degenerate)} of them degenerate (K singular): the index check does not apply" if degenerate else
+            f"their indices sum to {index_sum}, not 0: an equilibrium may be missed"))
+    settings = {"seeds": len(seeds), "tau": tau.tolist()}
+    if chain.has_friction:
+        settings["coulomb"] = coulomb
+    stats = {"starts": len(seeds), "converged": len(points), "newton_iterations": its_total}
+    return Equilibria(points=points, params=chain, settings=settings, stats=stats, status=status, message=message)
 
 
 def equilibrium_at(params: Parameters, q: Sequence[float], name: str = "q", *, coulomb: str = DEFAULT_COULOMB) -> Equilibrium:

@@ -543,9 +543,19 @@ def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB)
     from ..symbolic.chain import Chain
 
     if isinstance(params, Chain):
-        if about is not None:
-            raise ParameterError("about: a chain's modes are about its hanging rest (its other equilibria are not found yet)")
-        return chain_modes(params, check_coulomb(coulomb))
+        if about is None:
+            return chain_modes(params, check_coulomb(coulomb))
+        from .equilibria import Equilibrium, chain_equilibria
+
+        if isinstance(about, str):
+            about = chain_equilibria(params, coulomb=check_coulomb(coulomb)).find(about)
+        if not isinstance(about, Equilibrium) or len(about.q) != params.n:
+            raise ParameterError(f"about: a chain's modes are about one of its equilibria (an Equilibrium of "
+                                 f"skewpend.equilibria(chain), or its label such as 'up-down-down'), got {about!r}")
+        try:
+            return _modes_from_matrices(about.M, about.C, about.K, params, equilibrium=about.q, coulomb=coulomb)
+        except NotFinite as exc:
+            raise ParameterError(f"normal modes of this chain: {exc.reason}") from None
     if not isinstance(params, Parameters):  # one line, not an AttributeError (issue 29, item 8)
         raise ParameterError(f"params must be a skewpend.Parameters or a Chain, got {type(params).__name__}")
     coulomb = check_coulomb(coulomb)

@@ -777,3 +777,33 @@ def linear_matrices(chain: Chain, coulomb: str = "exclude"):
                "its centres of mass do not hang straight below their hinges there")
         raise EquilibriumError(f"q = 0 is not an equilibrium of this chain ({why}); its modes need the hanging rest")
     return M, -dfdv, -dfdq
+
+
+@lru_cache(maxsize=16)
+def _potential_function(structure: ChainStructure):
+    """CasADi function ``(q, p) -> (Pi, dPi/dq, d2Pi/dq2, M packed... as a matrix, the rods' downward
+    components j . R_k j)``: what equilibria need, exact (automatic differentiation)."""
+    ca = _ca()
+    G = _Graph(structure)
+    Pi = G.potential_energy()
+    M = G.mass_matrix()
+    grad = ca.gradient(Pi, G.q)
+    return ca.Function("potential", [G.q, G.p], [Pi, grad, ca.jacobian(grad, G.q),
+                                                 ca.vertcat(*[ca.horzcat(*row) for row in M]),
+                                                 ca.vertcat(*[G.R[k][1, 1] for k in range(G.n)])])
+
+
+def potential_terms(chain: Chain):
+    """``f(q) -> (Pi, grad Pi, Hessian of Pi, M(q), the rods' downward components)`` of a chain, numeric
+    (NumPy arrays; CasADi evaluates the recursive algorithms' graph, no compiling)."""
+    import numpy as np
+
+    fn = _potential_function(structure_of_chain(chain))
+    p = parameter_vector(chain)
+
+    def evaluate(q):
+        Pi, g, H, M, down = fn(np.asarray(q, dtype=float), p)
+        return (float(Pi), np.array(g, dtype=float).ravel(), np.array(H, dtype=float), np.array(M, dtype=float),
+                np.array(down, dtype=float).ravel())
+
+    return evaluate
