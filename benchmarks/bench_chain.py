@@ -13,7 +13,7 @@ no damping: a conservative motion whose reference is DOP853 at 1e-13):
 
 * **heyoka.py** (``--heyoka``): the same chain's Lagrangian written in heyoka's expressions (the kinematics
   below, ``heyoka_chain``; Euler-Lagrange equations by ``hy.lagrangian``), its Taylor integrator at tol
-  1e-6 ... 1e-12 -- the default full mode up to ``--compact-from`` links (default 4), the compact mode
+  ``--heyoka-tols`` (default 1e-6, 1e-9, 1e-12) -- the default full mode up to ``--compact-from`` links (default 4), the compact mode
   beyond (the full mode does not finish compiling for 10 links) -- and the ratio skewpend/heyoka.py at
   heyoka's errors; its JIT compile time beside skewpend's build.
 
@@ -77,10 +77,14 @@ def _vec(A, v):
     return [sum(A[i][k] * v[k] for k in range(3)) for i in range(3)]
 
 
+def _cross(u, v):
+    return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+
+
 def heyoka_chain(chain):
-    """The chain's Euler-Lagrange equations in heyoka.py: T and V from the world-frame kinematics (each
-    link's rotation composed with Rodrigues' formula, its centre of mass's velocity by differentiating its
-    position along the motion), written here for the peer."""
+    """The chain's Euler-Lagrange equations in heyoka.py, written here for the peer: each link's rotation
+    composed with Rodrigues' formula, its hinge's axis a_k = R_{k-1} e_k, angular velocity
+    omega_k = sum_j a_j v_j, centre-of-mass velocity sum_j v_j a_j x (c_k - o_j); T and V from them."""
     import heyoka as hy
 
     n = chain.n
@@ -90,18 +94,20 @@ def heyoka_chain(chain):
     o = [0.0, 0.0, 0.0]
     T, V = 0.0, 0.0
     hanging = 0.0
+    axes, hinges = [], []
     for k, link in enumerate(chain.links):
         o = [o[i] + x for i, x in enumerate(_vec(R, link.offset))]
         hanging += link.offset[1]
+        axes.append(_vec(R, link.axis))
+        hinges.append(o)
         R = _mat(R, _rodrigues(hy.cos(qs[k]), hy.sin(qs[k]), link.axis))
         c = [o[i] + x for i, x in enumerate(_vec(R, link.com))]
-        # velocities by the chain rule over the coordinates (heyoka differentiates expressions)
-        vc = [sum(hy.diff(c[i], qs[j]) * vs[j] for j in range(k + 1)) for i in range(3)]
-        Rd = [[sum(hy.diff(R[i][m], qs[j]) * vs[j] for j in range(k + 1)) for m in range(3)] for i in range(3)]
-        # omega's skew matrix W = Rd R^T; the body-frame angular velocity R^T omega from W
-        W = [[sum(Rd[i][m] * R[j][m] for m in range(3)) for j in range(3)] for i in range(3)]
-        w = [W[2][1], W[0][2], W[1][0]]
-        wb = [sum(R[m][i] * w[m] for m in range(3)) for i in range(3)]
+        w = [sum(axes[j][i] * vs[j] for j in range(k + 1)) for i in range(3)]
+        vc = [0.0, 0.0, 0.0]
+        for j in range(k + 1):
+            arm = _cross(axes[j], [c[i] - hinges[j][i] for i in range(3)])
+            vc = [vc[i] + vs[j] * arm[i] for i in range(3)]
+        wb = [sum(R[m][i] * w[m] for m in range(3)) for i in range(3)]  # R^T omega, the body frame's
         J = link.inertia
         T += 0.5 * link.mass * sum(x * x for x in vc) + 0.5 * sum(wb[i] * J[i][j] * wb[j] for i in range(3) for j in range(3))
         V += -chain.g * link.mass * (c[1] - (hanging + link.com[1]))
@@ -147,6 +153,8 @@ def main(argv=None):
     ap.add_argument("--t-end", type=float, default=20.0)
     ap.add_argument("--heyoka", action="store_true", help="also heyoka.py's Taylor integrator on the same chains")
     ap.add_argument("--compact-from", type=int, default=4, help="heyoka's compact mode from this many links")
+    ap.add_argument("--heyoka-tols", type=float, nargs="+", default=[1e-6, 1e-9, 1e-12],
+                    help="heyoka's tolerances (each a JIT compile: 2 min for 3 general links in full mode)")
     args = ap.parse_args(argv)
     import mujoco
 
@@ -208,7 +216,7 @@ def main(argv=None):
                 print(f"  at MuJoCo's error {e:.1e}: skewpend/MuJoCo time = {ratio:.3f} ({1 / ratio:.0f}x faster)")
         if args.heyoka:
             compact = n >= args.compact_from
-            runs, jit = heyoka_runs(chain, y0, T, (1e-6, 1e-8, 1e-10, 1e-12), compact, args.repeat)
+            runs, jit = heyoka_runs(chain, y0, T, tuple(args.heyoka_tols), compact, args.repeat)
             hy_pts = [(float(np.max(np.abs(state[:2 * n] - ref))), t) for state, t in runs]
             print(f"heyoka.py Taylor ({'compact' if compact else 'full'} mode, JIT {jit:.2f} s): "
                   + ", ".join(f"err {e:.1e} in {t * 1e3:.1f} ms" for e, t in hy_pts))

@@ -48,6 +48,25 @@ def require_netcdf():
 
 #: Columns of a trajectory CSV, in order.
 CSV_COLUMNS = ("t", "phi", "psi", "dphi", "dpsi", "energy", "work", "x1", "y1", "z1", "x2", "y2", "z2")
+
+
+def trajectory_columns(coordinates=("phi", "psi")) -> tuple:
+    """A trajectory file's columns for these coordinates: ``t``, the angles, their rates, ``energy``,
+    ``work``, then each rod end's ``x, y, z`` (:data:`CSV_COLUMNS` for the double pendulum; a chain of
+    ``n`` links has ``q1 ... qn``, ``dq1 ... dqn`` and ``x1 ... zn``)."""
+    n = len(coordinates)
+    return (("t",) + tuple(coordinates) + tuple(f"d{c}" for c in coordinates) + ("energy", "work")
+            + tuple(f"{x}{k}" for k in range(1, n + 1) for x in "xyz"))
+
+
+def column_unit(name: str) -> str:
+    """The unit of a trajectory file's column (any number of links)."""
+    if name in UNITS:
+        return UNITS[name]
+    if name[:1] in "xyz" and name[1:].isdigit():
+        return "m"
+    return "rad/s" if name.startswith("d") else "rad"
+
 #: Units of the columns.
 UNITS = {"t": "s", "phi": "rad", "psi": "rad", "dphi": "rad/s", "dpsi": "rad/s", "energy": "J", "work": "J",
          **{k: "m" for k in ("x1", "y1", "z1", "x2", "y2", "z2")}}
@@ -302,9 +321,6 @@ def has_trajectory_metadata(path) -> bool:
     return b"\n# kind: " in tail
 
 
-_CSV_ROW = ",".join(["%r"] * len(CSV_COLUMNS)) + "\n"
-
-
 def _json_value(value):
     if isinstance(value, np.ndarray):
         return value.tolist()
@@ -326,8 +342,10 @@ class TrajectoryWriter:
     dimension ``t``, with units; metadata as global attributes.
     """
 
-    def __init__(self, path, metadata: Optional[Dict[str, Any]] = None):
+    def __init__(self, path, metadata: Optional[Dict[str, Any]] = None, columns: Sequence[str] = CSV_COLUMNS):
         self.path = Path(path)
+        self.columns = tuple(columns)
+        self._row = ",".join(["%r"] * len(self.columns)) + "\n"
         self.suffix = self.path.suffix.lower()
         if self.suffix not in TRAJECTORY_SUFFIXES:
             raise ParameterError(f"unknown output format {self.path.suffix!r} for {self.path}; allowed: .csv, .nc")
@@ -346,16 +364,16 @@ class TrajectoryWriter:
                 self._meta_tmp = self._stack.enter_context(atomic_path(csv_metadata_path(self.path)))
                 self._stack.callback(self._write_metadata)
                 self._fh = self._stack.enter_context(open(tmp, "w"))
-                self._fh.write(",".join(CSV_COLUMNS) + "\n")
+                self._fh.write(",".join(self.columns) + "\n")
             else:
                 netCDF4 = require_netcdf()
                 ds = netCDF4.Dataset(tmp, "w", format="NETCDF4")
                 self._stack.callback(ds.close)
                 ds.createDimension("t", None)
                 self._vars = []
-                for name in CSV_COLUMNS:
+                for name in self.columns:
                     v = ds.createVariable(name, "f8", ("t",))
-                    v.units = UNITS[name]
+                    v.units = column_unit(name)
                     self._vars.append(v)
                 self._ds = ds
         except BaseException:
@@ -365,17 +383,17 @@ class TrajectoryWriter:
         return self
 
     def write(self, block: np.ndarray) -> None:
-        """Append rows, shape (k, 13), all finite."""
+        """Append rows, shape (k, columns), all finite."""
         block = np.asarray(block, dtype=float)
-        if block.ndim != 2 or block.shape[1] != len(CSV_COLUMNS):
-            raise ValueError(f"expected rows of {len(CSV_COLUMNS)} columns")
+        if block.ndim != 2 or block.shape[1] != len(self.columns):
+            raise ValueError(f"expected rows of {len(self.columns)} columns")
         if not np.all(np.isfinite(block)):
             raise SkewpendError("refusing to write non-finite values")
         if block.shape[0] == 0:
             return
         if self.suffix == ".csv":  # each number as Python's repr: the shortest text that reads back to the same
             # double, and always a float's ("0.0", not "0": pandas reads every column as float64)
-            self._fh.write("".join(_CSV_ROW % tuple(row) for row in block.tolist()))
+            self._fh.write("".join(self._row % tuple(row) for row in block.tolist()))
         else:
             lo = self.rows
             for i, v in enumerate(self._vars):
@@ -392,7 +410,7 @@ class TrajectoryWriter:
         import json
 
         with open(self._meta_tmp, "w") as fh:
-            json.dump({"columns": list(CSV_COLUMNS), "units": [UNITS[c] for c in CSV_COLUMNS], "csv_rows": self.rows,
+            json.dump({"columns": list(self.columns), "units": [column_unit(c) for c in self.columns], "csv_rows": self.rows,
                        **_flat_attrs(self.metadata)}, fh, indent=1, default=_json_value)
             fh.write("\n")
 
@@ -412,9 +430,14 @@ def trajectory_metadata(traj) -> Dict[str, Any]:
         "message": traj.message,
         "energy_drift": traj.energy_drift,
     }
-    for key, value in traj.params.to_dict().items():
-        if value is not None:
-            md[f"param_{key}"] = np.asarray(value, dtype=float).ravel().tolist() if isinstance(value, list) else float(value)
+    if hasattr(traj.params, "links"):  # a chain of links: its plain data as one JSON text
+        import json
+
+        md["chain"] = json.dumps(traj.params.to_dict())
+    else:
+        for key, value in traj.params.to_dict().items():
+            if value is not None:
+                md[f"param_{key}"] = np.asarray(value, dtype=float).ravel().tolist() if isinstance(value, list) else float(value)
     for key, value in traj.settings.items():
         if value is not None:
             md[f"setting_{key}"] = value
@@ -450,10 +473,12 @@ def read_trajectory(path) -> "tuple[np.ndarray, Dict[str, Any]]":
         raise ParameterError(f"{path} does not exist")
     if suffix == ".nc":
         variables, attrs = read_netcdf(path, kind=TRAJECTORY_KIND)
-        missing = [c for c in CSV_COLUMNS if c not in variables]
+        columns = CSV_COLUMNS if "chain" not in attrs else trajectory_columns(
+            tuple(c for c in variables if c.startswith("q") and c[1:].isdigit()))
+        missing = [c for c in columns if c not in variables]
         if missing:
             raise ParameterError(f"{path} is not a skewpend trajectory: it lacks {', '.join(missing)}")
-        rows = np.column_stack([np.asarray(variables[c], dtype=float) for c in CSV_COLUMNS])
+        rows = np.column_stack([np.asarray(variables[c], dtype=float) for c in columns])
         meta = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in attrs.items()}
         return rows, meta
     meta: Dict[str, Any] = {}
@@ -464,13 +489,14 @@ def read_trajectory(path) -> "tuple[np.ndarray, Dict[str, Any]]":
                 if line.startswith("# ") and ": " in line:
                     key, _, value = line[2:].rstrip("\n").partition(": ")
                     meta[key] = _csv_value(value)
-        if header != ",".join(CSV_COLUMNS):
+        columns = chain_columns(header) or CSV_COLUMNS
+        if header != ",".join(columns):
             raise ValueError("its header is not skewpend's")
         rows = np.loadtxt(path, delimiter=",", skiprows=1, comments="#", ndmin=2)
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         raise ParameterError(f"{path} is not a skewpend trajectory CSV file ({exc})") from None
-    if rows.shape[1:] != (len(CSV_COLUMNS),):
-        raise ParameterError(f"{path} is not a skewpend trajectory CSV file (expected {len(CSV_COLUMNS)} columns)")
+    if rows.shape[1:] != (len(columns),):
+        raise ParameterError(f"{path} is not a skewpend trajectory CSV file (expected {len(columns)} columns)")
     sidecar = csv_metadata_path(path)
     if not meta:
         import json
@@ -493,6 +519,16 @@ def read_trajectory(path) -> "tuple[np.ndarray, Dict[str, Any]]":
     return rows, meta
 
 
+def chain_columns(header: str):
+    """The columns of a chain's trajectory CSV whose header is ``header`` (None: not a chain's)."""
+    names = header.split(",")
+    n = sum(1 for c in names if c.startswith("q") and c[1:].isdigit())
+    if n < 1:
+        return None
+    columns = trajectory_columns(tuple(f"q{k}" for k in range(1, n + 1)))
+    return columns if header == ",".join(columns) else None
+
+
 def write_trajectory(traj, path: os.PathLike) -> Path:
     """Write a kept :class:`~skewpend.integrate.Trajectory` to ``.csv`` or ``.nc``.
 
@@ -501,7 +537,7 @@ def write_trajectory(traj, path: os.PathLike) -> Path:
     """
     path = Path(path)
     table = trajectory_table(traj.t, traj.y, traj.energy, traj.work, traj.tips())
-    with TrajectoryWriter(path) as w:
+    with TrajectoryWriter(path, columns=trajectory_columns(getattr(traj.params, "coordinates", ("phi", "psi")))) as w:
         w.write(table)
         w.finish(trajectory_metadata(traj))
     return path

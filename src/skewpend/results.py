@@ -251,10 +251,10 @@ def result_container(path: Path) -> str:
         if suffix != ".nc":
             raise ParameterError(f"{path} is a NetCDF file but its name does not end in .nc; rename it")
         return "netcdf"
-    from .io import CSV_COLUMNS
+    from .io import CSV_COLUMNS, chain_columns
 
     first = head.split(b"\n", 1)[0].strip()
-    if first == ",".join(CSV_COLUMNS).encode():
+    if first == ",".join(CSV_COLUMNS).encode() or chain_columns(first.decode(errors="replace")):
         if suffix != ".csv":
             raise ParameterError(f"{path} is a trajectory CSV file but its name does not end in .csv; rename it")
         return "csv"

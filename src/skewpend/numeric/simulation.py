@@ -136,25 +136,29 @@ class Trajectory(ResultProtocol):
 
     def _kernel_or_load(self):
         if self._kernel is None:  # a reopened trajectory: the model's kernel from the cache
-            from .kernels import kernel_module
+            from .kernels import model_kernel
 
-            object.__setattr__(self, "_kernel", kernel_module(self.params))
+            object.__setattr__(self, "_kernel", model_kernel(self.params))
         return self._kernel
 
     def _dataset(self):
-        from ..io import CSV_COLUMNS, UNITS
+        from ..io import column_unit, trajectory_columns
         from ..results import DatasetSpec
 
-        names = {"phi": "hinge angle 1", "psi": "hinge angle 2", "dphi": "angular speed of hinge 1",
-                 "dpsi": "angular speed of hinge 2", "energy": "mechanical energy T + Pi (Pi = 0 hanging)",
-                 "work": "work of damping and joint torques since t[0]"}
-        columns = {"phi": self.y[:, 0], "psi": self.y[:, 1], "dphi": self.y[:, 2], "dpsi": self.y[:, 3],
-                   "energy": self.energy, "work": self.work}
+        coords = getattr(self.params, "coordinates", ("phi", "psi"))
+        n = len(coords)
+        all_columns = trajectory_columns(coords)
+        names = {"energy": "mechanical energy T + Pi (Pi = 0 hanging)", "work": "work of damping and joint torques since t[0]"}
+        columns = {"energy": self.energy, "work": self.work}
+        for k, c in enumerate(coords):
+            columns[c], names[c] = self.y[:, k], f"hinge angle {k + 1}"
+            columns[f"d{c}"], names[f"d{c}"] = self.y[:, n + k], f"angular speed of hinge {k + 1}"
         tips = self.tips()
-        for k, name in enumerate(CSV_COLUMNS[7:]):
+        for k, name in enumerate(all_columns[2 * n + 3:]):
             columns[name] = tips[:, k]
-            names[name] = f"world {name[0]} of the end of rod {name[1]}"
-        variables = {k: (("t",), np.asarray(v, dtype=float), {"units": UNITS[k], "long_name": names[k]})
+            names[name] = f"world {name[0]} of the end of rod {name[1:]}"
+        columns = {k: columns[k] for k in all_columns[1:]}  # the file's order
+        variables = {k: (("t",), np.asarray(v, dtype=float), {"units": column_unit(k), "long_name": names[k]})
                      for k, v in columns.items()}
         attrs = {**self._base_attrs(), "method": self.method, "energy_drift": float(self.energy_drift),
                  "kept": int(self.kept)}
@@ -210,13 +214,21 @@ def open_trajectory(path) -> Trajectory:
     rows, meta = read_trajectory(path)
     values = {k[len("param_"):]: v for k, v in meta.items() if k.startswith("param_")}
     try:
-        params = Parameters(**values)
+        if "chain" in meta:  # a chain of links: its plain data
+            import json
+
+            from ..symbolic.chain import Chain
+
+            params = Chain.from_mapping(json.loads(meta["chain"]))
+        else:
+            params = Parameters(**values)
     except (TypeError, ValueError) as exc:
         raise ParameterError(f"{path}: its parameters cannot be read back ({exc})") from None
+    s = 2 * getattr(params, "n", 2) + 1  # the column of the energy
     settings = {k[len("setting_"):]: v for k, v in meta.items() if k.startswith("setting_")}
     stats = {k[len("stat_"):]: v for k, v in meta.items() if k.startswith("stat_")}
     code = meta.get("status", 0)
-    return Trajectory(t=rows[:, 0].copy(), y=rows[:, 1:5].copy(), energy=rows[:, 5].copy(), work=rows[:, 6].copy(),
+    return Trajectory(t=rows[:, 0].copy(), y=rows[:, 1:s].copy(), energy=rows[:, s].copy(), work=rows[:, s + 1].copy(),
                       params=params, method=str(meta.get("method", "")), settings=settings, stats=stats,
                       status=int(code), message=str(meta.get("message", Status.of(int(code)).message)),
                       energy_drift=float(meta.get("energy_drift", math.nan)), kept=True)
@@ -232,15 +244,16 @@ def read_trajectory_result(path) -> Trajectory:
     the file leaves it out), and the stored energy must be the model's at the stored states (a few
     rows, spread over the run) to :data:`~skewpend.results.AGREEMENT`."""
     from ..results import agree
-    from .kernels import kernel_module, parameter_vector
 
     traj = open_trajectory(path)
-    if not traj.params.is_numeric:
+    if not getattr(traj.params, "is_numeric", True):
         raise ParameterError(f"{path} is not a trajectory made by skewpend: its parameters are missing")
     for key in SIMULATE_SETTINGS:  # a file leaves out a setting that is None (dt_out when unset)
         traj.settings.setdefault(key, None)
     rows = np.unique(np.linspace(0, len(traj.t) - 1, min(len(traj.t), 16)).astype(int))
-    kernel, p = kernel_module(traj.params), parameter_vector(traj.params)
+    from .kernels import model_kernel, model_vector
+
+    kernel, p = model_kernel(traj.params), model_vector(traj.params)
     agree(path, "energy", traj.energy[rows], kernel.energies(traj.y[rows], p))
     return traj
 
@@ -336,7 +349,8 @@ class _Accumulator:
             self.last = np.append(rows[k - 1, :w], energy[k - 1])
         if self.writer is not None:
             tips = self.kernel.tips_many(rows, self.p, offset=1)
-            self.writer.write(np.column_stack([rows[:, :5], energy, rows[:, 5], tips]))
+            s = 2 * self.nq + 1
+            self.writer.write(np.column_stack([rows[:, :s], energy, rows[:, s], tips]))
         self.rows += k
 
     def columns(self):
@@ -519,9 +533,6 @@ def simulate(
         if controller is not None:
             raise ParameterError("a controller drives the double pendulum's two joints; a chain of links takes constant "
                                  "torques only (each link's torque)")
-        if out is not None:
-            raise ParameterError("out: a trajectory file holds the double pendulum's columns; a chain's run is kept in "
-                                 "memory (write Trajectory.y yourself)")
         if method == "taylor":
             raise ParameterError("method taylor: its series are generated for the double pendulum; a chain takes "
                                  "dop853, rk4 or gauss (or auto)")
@@ -806,7 +817,10 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
     metadata = {}
     with contextlib.ExitStack() as stack:
         if out is not None:
-            writer = stack.enter_context(TrajectoryWriter(out))
+            from ..io import trajectory_columns
+
+            writer = stack.enter_context(TrajectoryWriter(out, columns=trajectory_columns(
+                getattr(params, "coordinates", ("phi", "psi")))))
         acc = _Accumulator(kernel, p, keep, writer, acc=None if first is None else buf.acc, nq=kernel.nq)
 
         def take(final: bool = False) -> None:
