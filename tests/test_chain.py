@@ -338,7 +338,6 @@ def test_simulate_a_chain_from_a_run_file(tmp_path):
     ("[[links]]\nmass = 1\ncolour = 2\n", [], "[[links]] 1: unknown key 'colour'"),
     ("[[links]]\n[[links]]\n[initial]\nq0 = [1, 2, 3]\n", [], "q0: expected 2 values (one a link), got 3"),
     ("[[links]]\n[[links]]\n", ["--m1", "2"], "--m1: a run file with [[links]] gives a chain"),
-    ("[[links]]\n[[links]]\n", ["--plot", "x.png"], "--plot: the figure draws the double pendulum"),
     ("[[links]]\n[[links]]\n[initial]\nphi0 = 1\n", [], "a chain's start is [initial] q0 and dq0"),
 ])
 def test_bad_chain_run_files_are_one_line_exit_2(tmp_path, text, extra, words):
@@ -465,3 +464,18 @@ def test_a_chains_run_streams_to_a_file_and_reads_back(tmp_path, suffix):
     assert again.params.n == 3
     if suffix == ".csv":
         assert path.read_text().splitlines()[0] == "t,q1,q2,q3,dq1,dq2,dq3,energy,work,x1,y1,z1,x2,y2,z2,x3,y3,z3"
+
+
+def test_a_chains_run_is_drawn(tmp_path):
+    """skewpend simulate --plot for a chain: its angles, speeds, energy error and tip in one figure (a PNG
+    with a drawing: the pixels vary), the trajectory beside it in a file."""
+    from helpers import run_cli
+
+    ran = run_cli(["simulate", "--config", EXAMPLES / "skewed_triple.toml", "--t-end", "3", "--plot", "run.png",
+                   "--out", "run.nc", "--dt-out", "0.01"], cwd=tmp_path)
+    assert ran.code == 0, ran.err
+    import matplotlib.image
+
+    image = matplotlib.image.imread(tmp_path / "run.png")
+    assert image.shape[0] > 500 and float(np.std(image[..., :3])) > 0.05
+    assert skewpend.open_trajectory(tmp_path / "run.nc").y.shape == (301, 6)

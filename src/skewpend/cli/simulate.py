@@ -56,9 +56,6 @@ def simulate(
     if out_path is not None:
         check_output_path(out_path, TRAJECTORY_SUFFIXES, option=run.option("simulation", "out"))
     check_plot(plot_path, run.option("simulation", "plot"))
-    if run.is_chain and plot_path is not None:
-        raise UsageError(f"{run.option('simulation', 'plot')}: the figure draws the double pendulum's two angles; a chain "
-                         "of links prints its summary (its figures are not made yet)")
     from ..numeric.simulation import simulate as run_simulation
 
     with progress("simulating", "s", quiet) as bar:

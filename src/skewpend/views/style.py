@@ -156,8 +156,29 @@ def settings_text(method: str, settings: Mapping[str, Any]) -> str:
     return ", ".join(parts)
 
 
+def chain_text(chain, sep: str = ", ") -> str:
+    """A chain of links in one line: its length, each link's length, mass and hinge axis, g, and the
+    joints' terms that are on (``3 links; l = 0.5, 0.4, 0.3 m; m = 1, 0.8, 0.5 kg; ...``)."""
+    def listed(values, unit=""):
+        return ", ".join(fmt(v) for v in values) + unit
+
+    links = chain.links
+    parts = [f"{chain.n} links", f"l = {listed([k.length for k in links], ' m')}", f"m = {listed([k.mass for k in links], ' kg')}",
+             "axes " + "; ".join("(" + ", ".join(fmt(x) for x in k.axis) + ")" for k in links), f"g = {fmt(chain.g)} m/s²"]
+    for key, unit in (("damping", " N m s"), ("torque", " N m"), ("coulomb", " N m"), ("rotor", " kg m²")):
+        values = [getattr(k, key) for k in links]
+        if any(values):
+            parts.append(f"{key} {listed(values, unit)}")
+    return sep.join(parts)
+
+
 def initial_text(y0) -> str:
-    """``phi0 = 68.75°, psi0 = -45.84°, dphi0 = 0 rad/s, dpsi0 = 0 rad/s``."""
+    """``phi0 = 68.75°, psi0 = -45.84°, dphi0 = 0 rad/s, dpsi0 = 0 rad/s`` (a chain's ``q0 = (...)°,
+    dq0 = (...) rad/s``)."""
+    if len(y0) != 4:
+        n = len(y0) // 2
+        return (f"q0 = ({', '.join(fmt(math.degrees(float(v))) for v in y0[:n])})°, "
+                f"dq0 = ({', '.join(fmt(float(v)) for v in y0[n:])}) rad/s")
     phi, psi, dphi, dpsi = (float(v) for v in y0)
     return (
         f"phi0 = {fmt(math.degrees(phi))}°, psi0 = {fmt(math.degrees(psi))}°, "
@@ -168,7 +189,8 @@ def initial_text(y0) -> str:
 def caption(tr) -> str:
     """What a trajectory figure shows, in three lines: the parameters; the initial state;
     the method and its settings (and a fourth if the run stopped early: why)."""
-    lines = [parameter_text(tr.params), initial_text(tr.y[0]), settings_text(tr.method, tr.settings)]
+    model = chain_text(tr.params) if hasattr(tr.params, "links") else parameter_text(tr.params)
+    lines = [model, initial_text(tr.y[0]), settings_text(tr.method, tr.settings)]
     if getattr(tr, "status", 0) != 0:
         lines.append(f"run stopped early at t = {fmt(tr.t[-1])} s: {tr.message}")
     return "\n".join(lines)

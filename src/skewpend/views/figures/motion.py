@@ -113,11 +113,24 @@ def _angle_ticks(ax, which: str) -> None:
 
 
 # -- panels (draw into a given Axes) -------------------------------------------------------------
+def _links(tr) -> List[tuple]:
+    """Per coordinate: (colour, angle label, speed label) -- the double pendulum's phi and psi, or a
+    chain's q1 ... qn in the colours of a qualitative colour map."""
+    n = tr.y.shape[1] // 2
+    if n == 2:
+        return [(COLORS["phi"], f"{SYMBOL['phi']} (hinge 1)", SYMBOL["dphi"]),
+                (COLORS["psi"], f"{SYMBOL['psi']} (hinge 2)", SYMBOL["dpsi"])]
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10"]
+    return [(cmap(k % 10), f"$q_{{{k + 1}}}$", f"$\\dot q_{{{k + 1}}}$") for k in range(n)]
+
+
 def _draw_angles(ax, tr) -> None:
-    phi, psi = np.degrees(np.unwrap(tr.y[:, 0])), np.degrees(np.unwrap(tr.y[:, 1]))
-    ax.plot(tr.t, phi, color=COLORS["phi"], label=f"{SYMBOL['phi']} (hinge 1)")
-    ax.plot(tr.t, psi, color=COLORS["psi"], label=f"{SYMBOL['psi']} (hinge 2)")
-    _turn_ticks(ax.yaxis, np.concatenate([phi, psi]))
+    angles = [np.degrees(np.unwrap(tr.y[:, k])) for k in range(tr.y.shape[1] // 2)]
+    for (color, label, _), a in zip(_links(tr), angles):
+        ax.plot(tr.t, a, color=color, label=label)
+    _turn_ticks(ax.yaxis, np.concatenate(angles))
     ax.set_ylabel("angle [deg]")
     ax.set_title("Hinge angles (unwrapped)", loc="left")
     _legend_above(ax)
@@ -125,8 +138,9 @@ def _draw_angles(ax, tr) -> None:
 
 
 def _draw_speeds(ax, tr) -> None:
-    ax.plot(tr.t, tr.y[:, 2], color=COLORS["phi"], label=SYMBOL["dphi"])
-    ax.plot(tr.t, tr.y[:, 3], color=COLORS["psi"], label=SYMBOL["dpsi"])
+    n = tr.y.shape[1] // 2
+    for k, (color, _, label) in enumerate(_links(tr)):
+        ax.plot(tr.t, tr.y[:, n + k], color=color, label=label)
     ax.set_ylabel("angular speed [rad/s]")
     ax.set_title("Angular speeds", loc="left")
     _legend_above(ax)
@@ -199,23 +213,30 @@ def _draw_torus(ax, tr) -> None:
 
 
 def tips_view(tips: np.ndarray) -> np.ndarray:
-    """World rod ends ``(x1, y1, z1, x2, y2, z2)`` as drawn by :func:`tips_figure`: each end at
+    """World rod ends ``(x1, y1, z1, x2, y2, z2, ...)`` as drawn by :func:`tips_figure`: each end at
     ``(x, z, -y)`` (``-y`` up, since the world's ``y`` points down)."""
     tips = np.asarray(tips, dtype=float)
-    return np.column_stack([tips[:, 0], tips[:, 2], -tips[:, 1], tips[:, 3], tips[:, 5], -tips[:, 4]])
+    return np.column_stack([col for k in range(tips.shape[1] // 3)
+                            for col in (tips[:, 3 * k], tips[:, 3 * k + 2], -tips[:, 3 * k + 1])])
 
 
 def _draw_tips(ax, tr, zoom: float = 1.0) -> None:
     from matplotlib.ticker import MaxNLocator
 
     v = tips_view(tr.tips())
-    ax.plot(v[:, 0], v[:, 1], v[:, 2], color=COLORS["phi"], label="end of rod 1", **_thin(len(v)))
-    ax.plot(v[:, 3], v[:, 4], v[:, 5], color=COLORS["psi"], label="end of rod 2", **_thin(len(v)))
+    n = v.shape[1] // 3
+    # a chain's ends: the last (its tip) drawn, the inner ones lighter
+    for k, (color, _, _) in enumerate(_links(tr)):
+        if n > 2 and k < n - 1:
+            continue
+        ax.plot(v[:, 3 * k], v[:, 3 * k + 1], v[:, 3 * k + 2], color=color,
+                label=f"end of rod {k + 1}" if n == 2 or k < n - 1 else f"tip (end of rod {n})", **_thin(len(v)))
     # the rods at t = 0 and the pivot on the first hinge axis
-    ax.plot([0, v[0, 0], v[0, 3]], [0, v[0, 1], v[0, 4]], [0, v[0, 2], v[0, 5]], color=COLORS["rods"], lw=2.2,
-            marker="o", ms=3, alpha=0.8, label="rods at t = 0")
+    ax.plot([0] + [v[0, 3 * k] for k in range(n)], [0] + [v[0, 3 * k + 1] for k in range(n)],
+            [0] + [v[0, 3 * k + 2] for k in range(n)], color=COLORS["rods"], lw=2.2, marker="o", ms=3, alpha=0.8,
+            label="rods at t = 0")
     ax.plot([0], [0], [0], marker="s", color="black", ms=5, ls="none", label="pivot")
-    pts = np.vstack([np.zeros((1, 3)), v[:, :3], v[:, 3:]])
+    pts = np.vstack([np.zeros((1, 3))] + [v[:, 3 * k:3 * k + 3] for k in range(n)])
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2 * 1.05, 1e-9)
@@ -304,6 +325,17 @@ def simulation_figure(tr):
     energy error against time on the left; the two phase portraits in the middle; the torus
     and the 3D paths of the rod ends on the right."""
     _check(tr)
+    if tr.y.shape[1] != 4:  # a chain: the angles, speeds and energy error, and its tip's path in 3D
+        with style():
+            fig = new_figure((14.0, 10.0))
+            left, right = fig.subfigures(1, 2, width_ratios=[1.55, 1.0], wspace=0.01)
+            a1, a2, a3 = left.subplots(3, 1, sharex=True)
+            _draw_angles(a1, tr)
+            _draw_speeds(a2, tr)
+            _draw_energy(a3, tr)
+            _draw_tips(right.add_subplot(1, 1, 1, projection="3d"), tr, zoom=0.9)
+            heading(fig, caption(tr))
+        return fig
     with style():
         fig = new_figure((17.0, 10.0))
         left, middle, right = fig.subfigures(1, 3, width_ratios=[1.55, 1.0, 1.0], wspace=0.01)
