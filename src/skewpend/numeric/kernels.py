@@ -90,6 +90,15 @@ def cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("skewpend"))
 
 
+def _state_at(cls, t0: float, y0):
+    """A resumable state of ``cls`` (an integrator's mirror) at time ``t0`` and state ``y0``."""
+    s = cls()
+    s.t = float(t0)
+    for i, v in enumerate(y0):
+        s.y[i] = float(v)
+    return s
+
+
 def state_type(nmax: int):
     """The mirror of ``sp_state`` (``integrators.c``) for states of at most ``nmax`` components
     (``SP_NMAX``: 8 for the double pendulum, ``2 n + 2`` for a chain of ``n`` links)."""
@@ -120,13 +129,7 @@ def state_type(nmax: int):
             ("aux", ctypes.c_int32),
         ]
 
-        @classmethod
-        def at(cls, t0: float, y0) -> "_State":
-            s = cls()
-            s.t = float(t0)
-            for i, v in enumerate(y0):
-                s.y[i] = float(v)
-            return s
+        at = classmethod(_state_at)
 
     _State.__name__ = _State.__qualname__ = "State" if nmax == SP_NMAX else f"State{nmax}"
     _STATE_TYPES[nmax] = _State
@@ -188,13 +191,7 @@ class TaylorState(ctypes.Structure):
         ("pad", ctypes.c_int32),
     ]
 
-    @classmethod
-    def at(cls, t0: float, y0) -> "TaylorState":
-        s = cls()
-        s.t = float(t0)
-        for i, v in enumerate(y0):
-            s.y[i] = float(v)
-        return s
+    at = classmethod(_state_at)
 
 
 class ControlStruct(ctypes.Structure):
