@@ -352,8 +352,8 @@ def test_bad_chain_run_files_are_one_line_exit_2(tmp_path, text, extra, words):
 def test_commands_of_the_double_pendulum_refuse_links(tmp_path):
     from helpers import run_cli
 
-    ran = run_cli(["modes", "--config", EXAMPLES / "skewed_triple.toml"], cwd=tmp_path)
-    assert ran.code == 2 and "[[links]] (a chain of links) is not read by skewpend modes" in ran.err
+    ran = run_cli(["flipmap", "--config", EXAMPLES / "skewed_triple.toml"], cwd=tmp_path)
+    assert ran.code == 2 and "[[links]] (a chain of links) is not read by skewpend flipmap" in ran.err
 
 
 EXAMPLES = __import__("pathlib").Path(__file__).resolve().parent.parent / "examples"
@@ -479,3 +479,26 @@ def test_a_chains_run_is_drawn(tmp_path):
     image = matplotlib.image.imread(tmp_path / "run.png")
     assert image.shape[0] > 500 and float(np.std(image[..., :3])) > 0.05
     assert skewpend.open_trajectory(tmp_path / "run.nc").y.shape == (301, 6)
+
+
+def test_modes_and_equilibria_of_a_chain_from_the_command_line(tmp_path):
+    from helpers import run_cli
+
+    path = tmp_path / "chain.toml"
+    path.write_text("[chain]\ng = 9.81\n" + "[[links]]\nlength = 1.0\nmass = 1.0\n" * 3)
+    ran = run_cli(["modes", "--config", path], cwd=tmp_path)
+    assert ran.code == 0, ran.err
+    assert "Normal modes of the chain of 3 links about the hanging equilibrium (q = 0)" in ran.out
+    first = float(ran.out.splitlines()[3].split()[1])
+    assert first == pytest.approx(skewpend.normal_modes(Chain.from_lists(3)).frequencies[0], rel=1e-7)
+    ran = run_cli(["modes", "--config", path, "--about", "up-up-up"], cwd=tmp_path)
+    assert ran.code == 0 and ran.out.count("unstable: grows like") == 3, ran.out + ran.err
+    ran = run_cli(["equilibria", "--config", path], cwd=tmp_path)
+    assert ran.code == 0 and "8 equilibria" in ran.out and "up-up-up" in ran.out
+    ran = run_cli(["equilibria", "--config", path, "--format", "json"], cwd=tmp_path)
+    import json
+
+    data = json.loads(ran.out)
+    assert len(data["equilibria"]) == 8 and len(data["equilibria"][0]["q"]) == 3
+    ran = run_cli(["modes", "--config", path, "--sweep", "alpha=0:90deg:3"], cwd=tmp_path)
+    assert ran.code == 2 and "a chain of links takes its modes about an equilibrium" in ran.err

@@ -88,8 +88,8 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "poincare": {"parameters": MODEL_KEYS, "simulation": frozenset(("method", "rtol", "atol"))},
     "chaos-diagram": {"parameters": MODEL_KEYS - {"alpha"}, "simulation": _DOP853},
     "export": {"parameters": MODEL_KEYS},
-    "modes": {"parameters": MODEL_KEYS},
-    "equilibria": {"parameters": MODEL_KEYS},
+    "modes": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
+    "equilibria": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS},
     "nnm": {"parameters": MODEL_KEYS},
     "control": {"parameters": MODEL_KEYS},
@@ -211,7 +211,8 @@ class Run:
             sections = read_config(config)
             if "links" in sections and "links" not in reads:
                 raise UsageError(f"{config}: [[links]] (a chain of links) is not read by skewpend {command}: it "
-                                 "computes the double pendulum's [parameters] (chains: skewpend simulate)")
+                                 "computes the double pendulum's [parameters] (chains: skewpend simulate, modes, "
+                                 "equilibria)")
             for section, values in sections.items():
                 if section == "links":
                     self.links = values

@@ -53,7 +53,7 @@ CSV_COLUMNS = ("t", "phi", "psi", "dphi", "dpsi", "energy", "work", "x1", "y1", 
 def trajectory_columns(coordinates=("phi", "psi")) -> tuple:
     """A trajectory file's columns for these coordinates: ``t``, the angles, their rates, ``energy``,
     ``work``, then each rod end's ``x, y, z`` (:data:`CSV_COLUMNS` for the double pendulum; a chain of
-    ``n`` links has ``q1 ... qn``, ``dq1 ... dqn`` and ``x1 ... zn``)."""
+    ``n`` links has ``q1`` to ``qn``, ``dq1`` to ``dqn`` and ``x1`` to ``zn``)."""
     n = len(coordinates)
     return (("t",) + tuple(coordinates) + tuple(f"d{c}" for c in coordinates) + ("energy", "work")
             + tuple(f"{x}{k}" for k in range(1, n + 1) for x in "xyz"))

@@ -152,7 +152,7 @@ MAX_ANGLE = 1e6
 
 
 def initial_state(y0: Sequence[float], coordinates: Sequence[str] = ("phi", "psi")):
-    """``y0 = (phi, psi, dphi, dpsi)`` (a chain's ``(q1 ... qn, dq1 ... dqn)``: ``coordinates``) as a
+    """``y0 = (phi, psi, dphi, dpsi)`` (a chain's angles and speeds: ``coordinates``) as a
     finite float array of shape (2 n,); angles at most :data:`MAX_ANGLE` in magnitude."""
     import numpy as np
 

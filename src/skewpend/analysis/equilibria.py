@@ -182,7 +182,7 @@ class Equilibrium:
 
     @property
     def state(self) -> np.ndarray:
-        """The equilibrium as a state ``(phi, psi, 0, 0)`` (a chain's ``(q1 ... qn, 0 ... 0)``)."""
+        """The equilibrium as a state ``(phi, psi, 0, 0)`` (a chain's angles followed by zero speeds)."""
         return np.r_[np.asarray(self.q, dtype=float), np.zeros(len(self.q))]
 
     def describe(self) -> str:

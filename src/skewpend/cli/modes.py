@@ -73,7 +73,11 @@ def modes(
         raise UsageError("--about goes without --sweep and --check-nonlinear (they are about the hanging equilibrium)")
     from ..analysis import modes as md
 
-    params = resolve("modes", config, parameters=given).parameters()
+    run = resolve("modes", config, parameters=given)
+    params = run.parameters()
+    if run.is_chain and (sweep_spec is not None or check_nonlinear is not None):
+        raise UsageError(f"{'--sweep' if sweep_spec is not None else '--check-nonlinear'} computes the double pendulum's "
+                         "Parameters; a chain of links takes its modes about an equilibrium (--about) only so far")
     if sweep_spec is not None:
         tol = 0.01 if tolerance is None else T.Positive().convert(tolerance, "--tolerance")
         _modes_sweep(params, sweep_spec, plot, out, tol, fmt, given)
@@ -112,7 +116,7 @@ def _modes_of(md, params, about, coulomb: str, fallback: bool):
     down-down."""
     from ..errors import EquilibriumError, SkewpendError
 
-    if about is not None or not fallback:
+    if about is not None or not fallback or not hasattr(params, "tau1"):  # (a chain: about its hanging rest)
         return md.normal_modes(params, about=about, coulomb=coulomb), ""
     try:
         return md.normal_modes(params, coulomb=coulomb), ""
@@ -136,7 +140,21 @@ def _coulomb_line(m) -> str:
 def _modes_text(m, check, rest: str = "") -> str:
     import numpy as np
 
-    if m.equilibrium == (0.0, 0.0):
+    n = m.shapes.shape[0]
+    if n != 2:  # a chain of links: its n modes, shapes over q1 ... qn
+        where = ("about the hanging equilibrium (q = 0)" if not any(m.equilibrium) else
+                 "about the equilibrium q = (" + ", ".join(f"{np.degrees(x):.6g}" for x in m.equilibrium) + ") deg")
+        lines = [f"Normal modes of the chain of {n} links {where}", "",
+                 f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  shape (q1 ... q{n}), M0-normalised"]
+        for k in range(n):
+            shape = "(" + ", ".join(f"{x:+.5f}" for x in m.shapes[:, k]) + ")"
+            if m.unstable[k]:
+                lines.append(f"{k + 1:>4}  {'--':>14}  {'--':>10}  {'--':>11}  {shape}  unstable: grows like "
+                             f"exp({m.growth_rates[k]:.8g} t / s)")
+            else:
+                lines.append(f"{k + 1:>4}  {m.frequencies[k]:14.8g}  {m.frequencies[k] / (2 * np.pi):10.6g}  "
+                             f"{m.periods[k]:11.6g}  {shape}")
+    elif m.equilibrium == (0.0, 0.0):
         lines = ["Normal modes about the hanging equilibrium (phi = psi = 0)", ""]
     elif rest:
         lines = [f"Normal modes about the hanging rest ({rest}) at phi = {np.degrees(m.equilibrium[0]):.6g} deg, "
@@ -145,8 +163,9 @@ def _modes_text(m, check, rest: str = "") -> str:
     else:
         lines = [f"Modes about the equilibrium phi = {np.degrees(m.equilibrium[0]):.6g} deg, "
                  f"psi = {np.degrees(m.equilibrium[1]):.6g} deg", ""]
-    lines.append(f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  {'shape (phi, psi), M0-normalised':>34}  {'psi/phi':>9}")
-    for k in range(2):
+    if n == 2:
+        lines.append(f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  {'shape (phi, psi), M0-normalised':>34}  {'psi/phi':>9}")
+    for k in range(2 if n == 2 else 0):
         v = m.shapes[:, k]
         ratio = "inf" if not np.isfinite(m.ratios[k]) else f"{m.ratios[k]:.5g}"
         shape = f"({v[0]:+.6f}, {v[1]:+.6f})"
@@ -158,12 +177,12 @@ def _modes_text(m, check, rest: str = "") -> str:
             f"{k + 1:>4}  {m.frequencies[k]:14.8g}  {m.frequencies[k] / (2 * np.pi):10.6g}  {m.periods[k]:11.6g}  "
             f"{shape:>34}  {ratio:>9}"
         )
-    if not np.any(m.unstable):
+    if n == 2 and not np.any(m.unstable):
         beat = "inf (1:1)" if not np.isfinite(m.beat_period) else f"{m.beat_period:.6g} s"
         lines.append(f"beat period 2 pi/(w2 - w1) = {beat};  w2/w1 = {m.frequencies[1] / m.frequencies[0]:.6g}")
     if m.damped:
         lines.append("with damping (eigenvalues matched to the modes by shape; zeta = -(l1 + l2)/(2 sqrt(l1 l2))):")
-        for k in range(2):
+        for k in range(n):
             l1, l2 = m.eigenvalue_pairs[k]
             if m.unstable[k]:
                 lines.append(f"  mode {k + 1}: unstable, lambda = {l1.real:.6g} and {l2.real:.6g} (real), "

@@ -45,7 +45,8 @@ def equilibria(
 
         data = {
             "equilibria": [
-                {"label": e.label, "phi": e.q[0], "psi": e.q[1], "potential": e.potential, "morse_index": e.morse_index,
+                {"label": e.label, **({"phi": e.q[0], "psi": e.q[1]} if len(e.q) == 2 else {"q": list(e.q)}),
+                 "potential": e.potential, "morse_index": e.morse_index,
                  "stable": e.stable, "frequencies": e.frequencies, "growth_rates": e.growth_rates,
                  "unstable_directions": e.unstable_directions.T, "eigenvalues": [[z.real, z.imag] for z in e.eigenvalues],
                  "M": e.M, "C": e.C, "K": e.K}

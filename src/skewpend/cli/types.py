@@ -183,10 +183,11 @@ class Window(Offsets):
 
 class EquilibriumChoice(ParamType):
     """An equilibrium: a label (``down-down``, ``down-up``, ``up-down``, ``up-up``, ...: rod 1 then
-    rod 2) or ``PHI,PSI`` angles near one (radians, ``deg`` suffix or multiples of pi)."""
+    rod 2; a chain's ``up-down-down``, a word a link) or ``PHI,PSI`` angles near one (radians, ``deg``
+    suffix or multiples of pi)."""
 
     metavar = "LABEL|PHI,PSI"
-    LABEL = re.compile(r"^(down|up|level)-(down|up|level)$")
+    LABEL = re.compile(r"^(down|up|level)(-(down|up|level))+$")  # a chain's labels have a word per link
 
     def convert(self, text, flag):
         from ..parsing import parse_scalar

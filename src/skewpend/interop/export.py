@@ -713,8 +713,8 @@ def chain_to_mjcf(chain, *, timestep: float = 1e-4, integrator: str = "RK4",
 
 def chain_to_urdf(chain, *, axial_inertia: Optional[float] = None) -> str:
     """A URDF model (XML text) of a chain of links in skewpend's frame (``y`` down: apply gravity
-    ``(0, +g, 0)``), the conventions of :func:`to_urdf`: links ``link1 ... linkn`` with the inertials of
-    :func:`mujoco_compatible_chain`, ``continuous`` joints ``hinge1 ... hingen`` at each hinge's offset in
+    ``(0, +g, 0)``), the conventions of :func:`to_urdf`: links ``link1`` to ``linkn`` with the inertials of
+    :func:`mujoco_compatible_chain`, ``continuous`` joints ``hinge1`` to ``hingen`` at each hinge's offset in
     its parent, with the link's axis and ``<dynamics damping>``.  Constant torques are listed in a comment
     (URDF has no place for them); Coulomb friction and rotors are refused, as for MJCF."""
     if chain.has_friction or chain.has_rotor:

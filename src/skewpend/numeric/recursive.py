@@ -327,7 +327,7 @@ class _Graph:
         return T
 
     def potential_energy(self):
-        """``Pi = -g sum m_i j . c_i``, zero with the chain hanging."""
+        """``Pi = -g sum m_i (j c_i)``, zero with the chain hanging."""
         ca = self.ca
         Pi = 0
         o = ca.SX.zeros(3, 1)
@@ -776,8 +776,8 @@ def linear_matrices(chain: Chain, coulomb: str = "exclude"):
 
 @lru_cache(maxsize=16)
 def _potential_function(structure: ChainStructure):
-    """CasADi function ``(q, p) -> (Pi, dPi/dq, d2Pi/dq2, M packed... as a matrix, the rods' downward
-    components j . R_k j)``: what equilibria need, exact (automatic differentiation)."""
+    """CasADi function ``(q, p) -> (Pi, dPi/dq, d2Pi/dq2, M, the rods' downward components)``: what
+    equilibria need, exact (automatic differentiation)."""
     ca = _ca()
     G = _Graph(structure)
     Pi = G.potential_energy()

@@ -196,7 +196,7 @@ class Chain:
 
     @property
     def coordinates(self) -> Tuple[str, ...]:
-        """The coordinates' names: ``phi, psi`` for two links (the specification's), ``q1 ... qn`` otherwise."""
+        """The coordinates' names: ``phi, psi`` for two links (the specification's), ``q1`` to ``qn`` otherwise."""
         return ("phi", "psi") if self.n == 2 else tuple(f"q{i}" for i in range(1, self.n + 1))
 
     @property
@@ -251,7 +251,7 @@ class Chain:
 
     @classmethod
     def from_lists(cls, n: Optional[int] = None, *, g: float = 9.81, cfs: float = 100.0, **per_link: Any) -> "Chain":
-        """A chain from per-link lists (``mass=[1, 1, 0.5]``, ``axis=[(0, 0, 1), ...]``); every list has
+        """A chain from per-link lists (``mass=[1, 1, 0.5]``, ``axis=[(0, 0, 1), (1, 0, 0)]``); every list has
         the same length (``n`` links; a single value is every link's)."""
         lengths = {k: len(v) for k, v in per_link.items() if isinstance(v, (list, tuple)) and
                    not (k in ("axis", "offset", "com") and len(v) == 3 and not isinstance(v[0], (list, tuple)))

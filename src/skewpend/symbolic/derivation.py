@@ -134,7 +134,7 @@ class EquationsOfMotion:
     # -- names ---------------------------------------------------------------------
     @property
     def coordinates(self) -> Tuple[str, ...]:
-        """The coordinates' names: ``phi, psi`` for the double pendulum, ``q1 ... qn`` for a chain."""
+        """The coordinates' names: ``phi, psi`` for the double pendulum, ``q1`` to ``qn`` for a chain."""
         return self._ctx.coords
 
     @property
@@ -556,7 +556,7 @@ class _Context:
 
     def chain_steps(self, eom: EquationsOfMotion) -> Dict[str, sp.Basic]:
         """A chain's intermediate results in the world frame: per link ``k`` its rotation tensor ``P{k}``
-        (``P_k = P_{k-1} . P(q_k, e_k)``), its hinge's current axis ``e{k}`` and angular velocity
+        (``P_k = P_{k-1} P(q_k, e_k)``), its hinge's current axis ``e{k}`` and angular velocity
         ``omega{k}``; then ``T``, ``Pi``, ``M``, ``f``."""
         alg = self.alg
         R, o, a, com = self.kinematics()
