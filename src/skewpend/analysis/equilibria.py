@@ -39,7 +39,7 @@ from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, fr
 from ..schema import GEOMETRY_NAMES, names
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
-__all__ = ["Equilibrium", "Equilibria", "equilibria", "chain_equilibria", "equilibrium_at", "find_equilibrium", "linearisation_functions",
+__all__ = ["Equilibrium", "Equilibria", "equilibria", "chain_equilibria", "linear_point", "equilibrium_at", "find_equilibrium", "linearisation_functions",
            "potential_function"]
 
 #: Grid of Newton starts per side (refined up to :data:`MAX_STARTS` while the index check fails).
@@ -201,7 +201,7 @@ class Equilibrium:
 def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], functions,
                coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
     """The :class:`Equilibrium` at ``q`` (already a root)."""
-    from scipy.linalg import LinAlgError, eig, eigh
+    from scipy.linalg import LinAlgError, eigh
 
     if coulomb != "smoothed":  # Coulomb friction enters C only (its slope cfs cf): excluded, evaluated at cf = 0
         values = [0.0 if n in names(stem="cf") else v for n, v in zip(SCALAR_NAMES, values)]
@@ -213,14 +213,27 @@ def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], funct
     tau = np.array([params.tau1, params.tau2], dtype=float)
     potential = float(Pi) - float(tau @ q)
     try:
-        Minv = np.linalg.inv(M)
+        np.linalg.inv(M)  # (linear_point's state matrix needs it)
         lam, V = eigh(K, M)
     except (LinAlgError, np.linalg.LinAlgError, ValueError):  # M not positive definite to rounding: scales too far apart
         raise ParameterError(
             f"the mass matrix at phi = {float(q[0]):.6g}, psi = {float(q[1]):.6g} is not positive definite in double "
             f"precision (condition number {np.linalg.cond(M):.3g}): the model's lengths, masses and inertias span too "
             f"many orders of magnitude") from None
-    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ K, -Minv @ C]])
+    dirs = _direction_functions(_geometry_only(params))(*values, float(q[0]), float(q[1]))
+    return linear_point(q, dirs, potential, M, C, K, lam, V, coulomb)
+
+
+def linear_point(q, down, potential: float, M, C, K, lam, V, coulomb: str) -> Equilibrium:
+    """The :class:`Equilibrium` at ``q`` from its linearisation ``M, C, K`` and ``K v = lam M v``
+    (``lam, V`` ascending, any number of coordinates): the state matrix and its eigenvalues, the Morse
+    index, the oscillating and the unstable directions, the label from each rod's downward component
+    ``down`` (``down``, ``up`` or ``level``)."""
+    from scipy.linalg import eig
+
+    n = len(q)
+    Minv = np.linalg.inv(M)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ C]])
     ev = eig(A, right=False)
     ev = ev[np.lexsort((-ev.imag, -ev.real))]
     scale = max(np.abs(lam).max(), np.finfo(float).tiny)
@@ -235,13 +248,11 @@ def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], funct
         growth = np.sort(ev.real[ev.real > 1e-12 * np.abs(ev).max()])[::-1][:index] if index else np.zeros(0)
     else:
         growth = np.sqrt(-lam[unstable])[::-1]
-    directions = V[:, unstable][:, ::-1]
-    dirs = _direction_functions(_geometry_only(params))(*values, float(q[0]), float(q[1]))
-    label = "-".join("level" if abs(float(d)) < 1e-9 else ("down" if float(d) > 0 else "up") for d in dirs)
+    label = "-".join("level" if abs(float(d)) < 1e-9 else ("down" if float(d) > 0 else "up") for d in down)
     return Equilibrium(
-        q=(float(q[0]), float(q[1])), label=label, potential=potential, M=M, C=C, K=K, A=A, eigenvalues=ev,
+        q=tuple(float(x) for x in q), label=label, potential=potential, M=M, C=C, K=K, A=A, eigenvalues=ev,
         morse_index=index, frequencies=np.sqrt(lam[osc]), shapes=V[:, osc], growth_rates=np.asarray(growth, dtype=float),
-        unstable_directions=directions, coulomb=coulomb,
+        unstable_directions=V[:, unstable][:, ::-1], coulomb=coulomb,
     )
 
 
@@ -515,7 +526,7 @@ def chain_equilibria(chain, *, coulomb: str = DEFAULT_COULOMB) -> Equilibria:
     seeded random starts; the roots deduplicated and linearised as the double pendulum's
     (:class:`Equilibrium`, labels ``down``/``up``/``level`` per link).  The check that none is missed is
     the same: on the n-torus the Morse indices sum to 0, ``sum (-1)^index = 0``."""
-    from scipy.linalg import eig, eigh
+    from scipy.linalg import eigh
 
     from ..numeric.recursive import potential_terms
 
@@ -557,22 +568,7 @@ def chain_equilibria(chain, *, coulomb: str = DEFAULT_COULOMB) -> Equilibria:
         Pi, _, H, M, down = terms(q)
         K = 0.5 * (H + H.T)
         lam, V = eigh(K, M)
-        A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, c)]])
-        ev = eig(A, right=False)
-        ev = ev[np.lexsort((-ev.imag, -ev.real))]
-        scale = max(np.abs(lam).max(), np.finfo(float).tiny)
-        index = int(np.sum(lam < -DEGENERATE * scale))
-        for k in range(n):
-            if V[np.argmax(np.abs(V[:, k])), k] < 0:
-                V[:, k] = -V[:, k]
-        osc, unstable = lam > DEGENERATE * scale, lam < -DEGENERATE * scale
-        growth = (np.sort(ev.real[ev.real > 1e-12 * np.abs(ev).max()])[::-1][:index] if np.any(c) and index
-                  else np.sqrt(-lam[unstable])[::-1])
-        label = "-".join("level" if abs(d) < 1e-9 else ("down" if d > 0 else "up") for d in down)
-        points.append(Equilibrium(q=tuple(float(x) for x in q), label=label, potential=Pi - float(tau @ q) + 0.0, M=M, C=c, K=K,
-                                  A=A, eigenvalues=ev, morse_index=index, frequencies=np.sqrt(lam[osc]), shapes=V[:, osc],
-                                  growth_rates=np.asarray(growth, dtype=float), unstable_directions=V[:, unstable][:, ::-1],
-                                  coulomb=coulomb))
+        points.append(linear_point(q, down, Pi - float(tau @ q) + 0.0, M, c, K, lam, V, coulomb))
     points.sort(key=lambda e: (e.potential, e.q))
     index_sum = sum((-1) ** e.morse_index for e in points)
     degenerate = [e for e in points
