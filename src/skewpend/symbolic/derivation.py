@@ -215,6 +215,21 @@ class _Context:
             self._from_parameters(params)
         self.n = len(self.coords)
 
+    def _exact_axis(self, components, name: str, gens: List[sp.Symbol], fixed: list):
+        """A numeric hinge axis as the exact rationals ``v`` of its (normalised) floats, and, when
+        ``|v|`` is 1 only to rounding, the generator ``r = 1/|v|`` (named ``{name}_r``; appended to
+        ``gens``, its relation ``r**2 = 1/|v|**2`` to ``fixed``, its value substituted after reduction),
+        so the Rodrigues products stay exact.  Returns ``(v, r's name or None)``."""
+        v = [_number(x) for x in components]
+        norm2 = sum(x * x for x in v)
+        if norm2 == 1:
+            return v, None
+        r = sp.Symbol(f"{name}_r", positive=True)
+        gens.append(r)
+        fixed.append((r.name, 1 / norm2))
+        self.late_expr[r] = sp.Float(1 / math.sqrt(float(norm2)))
+        return v, r.name
+
     def _from_chain(self, chain) -> None:
         """A chain of numeric links: every value exact (short decimals as typed), each coordinate's
         cosine and sine a generator, ``1/|e|`` a generator for an axis whose rational components are
@@ -233,14 +248,8 @@ class _Context:
         fixed = []
         axes = []
         for link in chain.links:
-            v = [_number(x) for x in link.axis]
-            norm2 = sum(x * x for x in v)
-            if norm2 != 1:
-                r = sp.Symbol(f"e{link.index}_r", positive=True)
-                gens.append(r)
-                fixed.append((r.name, 1 / norm2))
-                self.late_expr[r] = sp.Float(1 / math.sqrt(float(norm2)))
-            axes.append((v, None if norm2 == 1 else f"e{link.index}_r"))
+            v, r = self._exact_axis(link.axis, f"e{link.index}", gens, fixed)
+            axes.append((v, r))
         gens += [coordinate_symbol(f"d{c}") for c in self.coords]
         self.friction = chain.has_friction
         if self.friction:
@@ -325,14 +334,7 @@ class _Context:
                 offset = sum((_number(x) ** 2 for x in vec if not isinstance(x, str)), sp.Integer(0))
                 symbolic_axes.append((name, names, offset))
                 continue
-            v = [_number(x) for x in vec]
-            axis_dirs[name] = v
-            norm2 = sum(x * x for x in v)
-            if norm2 != 1:
-                r = sp.Symbol(f"{name}_r", positive=True)
-                gens.append(r)
-                fixed_names.append((r.name, 1 / norm2))
-                self.late_expr[r] = sp.Float(1 / math.sqrt(float(norm2)))
+            axis_dirs[name], _ = self._exact_axis(vec, name, gens, fixed_names)
         gens += [S["dphi"], S["dpsi"]]
         # Coulomb friction: atan(cfs q_i') stands in the ring as a generator of its own, restored
         # to the function by finish() (only when the friction enters: today's ring otherwise).
