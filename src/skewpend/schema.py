@@ -29,7 +29,7 @@ __all__ = [
     "TORQUE_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "NONCONSERVATIVE_NAMES", "LENGTH_NAMES", "MASS_NAMES",
     "COM_NAMES", "INERTIA_NAMES", "AXIS_NAMES", "OPTIONAL_DEFAULTS", "field", "names", "unit", "meaning",
     "symbol", "tex", "help_text", "default", "nearest", "unknown_names_message", "check_bound", "body_of",
-    "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound",
+    "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound", "coordinate_names",
 ]
 
 #: The links of today's model: the double pendulum is the chain of two.
@@ -210,6 +210,12 @@ LINK_FIELDS: Tuple[Tuple[str, str, str], ...] = (
 #: The chain's own fields (the whole chain's, not a link's): the global scalars that are no axis and no rotor.
 CHAIN_NAMES: Tuple[str, ...] = tuple(f.stem for f in FIELDS if f.kind == "scalar" and not f.per_body
                                      and f.role not in ("axis", "rotor"))
+
+
+def coordinate_names(n: int) -> Tuple[str, ...]:
+    """The coordinates of a chain of ``n`` links: ``phi, psi`` for two (the specification's), ``q1`` to ``qn``
+    otherwise."""
+    return ("phi", "psi") if n == 2 else tuple(f"q{i}" for i in range(1, n + 1))
 
 
 def link_bound(key: str) -> str:

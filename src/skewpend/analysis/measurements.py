@@ -40,10 +40,11 @@ from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from ..errors import ParameterError
-from ..schema import AXIS_NAMES, TORQUE_NAMES
+from ..schema import AXIS_NAMES, TORQUE_NAMES, coordinate_names
 
 __all__ = ["Measurements", "Piece", "Convention", "SKEWPEND", "convert", "convert_back",
            "MIN_SAMPLES", "GAP_FACTOR", "NONFINITE", "KAHEMAN_FILE", "KAHEMAN_PARAMETERS_FILE", "DFKI_COLUMNS",
+           "KAHEMAN_TRIPLE_FILE", "KAHEMAN_TRIPLE_PARAMETERS_FILE", "kaheman_published_chain",
            "kaheman_published_parameters", "dfki_lab_parameters", "dfki_lab_values", "write_dfki_lab_parameters",
            "TIME_UNITS", "DFKI_KEYS", "CHECKS"]
 
@@ -57,6 +58,10 @@ NONFINITE = 0.05
 KAHEMAN_FILE = "DoublePendulumDataForParameterEstimation.mat"
 #: The authors' identified parameters beside it (:func:`kaheman_published_parameters`).
 KAHEMAN_PARAMETERS_FILE = "EstimatedParameters_DoublePendulum.mat"
+#: The free-swing triple pendulum's data file (the same rig with a third arm) in ``data/kaheman2023-triple/``.
+KAHEMAN_TRIPLE_FILE = "TriplePendulumDataForParameterEstimation.mat"
+#: The authors' identified parameters of the triple pendulum (:func:`kaheman_published_chain`).
+KAHEMAN_TRIPLE_PARAMETERS_FILE = "EstimatedParameters_TriplePendulum.mat"
 #: The columns :meth:`Measurements.from_dfki` reads (``filtered=True`` takes ``pos_filt``/``vel_filt``).
 DFKI_COLUMNS = {"t": "time", "phi": "pos_meas1", "psi": "pos_meas2", "dphi": "vel_meas1", "dpsi": "vel_meas2",
                 **dict(zip(TORQUE_NAMES, ("tau_meas1", "tau_meas2")))}
@@ -73,16 +78,17 @@ CHECKS = _CHECKS
 # -- conventions --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Convention:
-    """How a file measures its two angles (and the torques that go with them).
+    """How a file measures its angles (and the torques that go with them).
 
-    * ``second``: ``"relative"`` (the second angle is measured from rod 1, as skewpend's ``psi``)
-      or ``"absolute"`` (from the vertical, like the first);
+    * ``second``: ``"relative"`` (the second angle is measured from rod 1, as skewpend's ``psi``;
+      every later angle from the rod before) or ``"absolute"`` (from the vertical, like the first);
     * ``zero``: ``"hanging"`` (0 with the rods hanging, as skewpend) or ``"upright"`` (0 with the
       rods up; hanging is pi) -- it applies to absolute angles (a relative angle is 0 with the rods
       in line either way);
     * ``sign``: per angle, +1 when the file's angle turns the same way as skewpend's (about the
       hinge axis, right-handed), -1 when it turns the other way; a joint torque takes its angle's
-      sign;
+      sign; ``(1, 1)`` (the default) keeps every angle's sense for any number of angles, otherwise
+      one sign per angle;
     * ``unit``: ``"rad"`` or ``"deg"`` (angles and angular speeds; torques are always N m);
     * ``wrapped``: the file's angles are reduced into one turn (jumps of 2 pi where they pass the
       cut); the readers unwrap them.  Without it such jumps are refused.
@@ -113,8 +119,9 @@ class Convention:
             sign = tuple(int(s) for s in self.sign)
         except (TypeError, ValueError):
             sign = ()
-        if len(sign) != 2 or any(s not in (1, -1) for s in sign) or any(s != x for s, x in zip(sign, self.sign)):
-            raise ParameterError(f"Convention sign must be two of +1/-1, got {self.sign!r}", parameter="convention")
+        if len(sign) < 2 or any(s not in (1, -1) for s in sign) or any(s != x for s, x in zip(sign, self.sign)):
+            raise ParameterError(f"Convention sign must be +1/-1 per angle (two or more), got {self.sign!r}",
+                                 parameter="convention")
         object.__setattr__(self, "sign", sign)
         object.__setattr__(self, "wrapped", bool(self.wrapped))
 
@@ -133,20 +140,32 @@ class Convention:
         """Seconds per unit of the file's time column."""
         return TIME_UNITS[self.time]
 
+    def signs(self, n: int) -> np.ndarray:
+        """The sign of each of ``n`` angles (one line when the convention gives another number)."""
+        if all(s == 1 for s in self.sign):
+            return np.ones(n)
+        if len(self.sign) != n:
+            raise ParameterError(f"Convention sign gives {len(self.sign)} signs for {n} angles: give one sign per angle",
+                                 parameter="convention")
+        return np.asarray(self.sign, dtype=float)
+
     def to_dict(self) -> Dict[str, Any]:
         return {"second": self.second, "zero": self.zero, "sign": list(self.sign), "unit": self.unit,
                 "wrapped": self.wrapped, "time": self.time}
 
-    def describe(self) -> str:
-        """The conversion to skewpend's coordinates as formulas (``theta1``, ``theta2`` the file's
-        angles), e.g. ``phi = theta1 - pi, psi = theta2 - theta1``."""
+    def describe(self, n: int = 2) -> str:
+        """The conversion of ``n`` angles to skewpend's coordinates as formulas (``theta1``, ``theta2``
+        the file's angles), e.g. ``phi = theta1 - pi, psi = theta2 - theta1``."""
         k = " * pi/180" if self.unit == "deg" else ""
-        t1, t2 = (("-" if self.sign[i] < 0 else "") + f"theta{i + 1}{k}" for i in range(2))
-        phi = t1 + (" - pi" if self.zero == "upright" else "")
-        psi = (f"{t2} - ({t1})" if t1.startswith("-") else f"{t2} - {t1}") if self.second == "absolute" else t2
-        text = f"phi = {phi}, psi = {psi}"
-        if self.sign != (1, 1):
-            text += f"; torques times {self.sign[0]:+d}, {self.sign[1]:+d}"
+        signs = self.signs(n)
+        th = [("-" if signs[i] < 0 else "") + f"theta{i + 1}{k}" for i in range(n)]
+        parts = [th[0] + (" - pi" if self.zero == "upright" else "")]
+        for i in range(1, n):
+            prev = f"({th[i - 1]})" if th[i - 1].startswith("-") else th[i - 1]
+            parts.append(f"{th[i]} - {prev}" if self.second == "absolute" else th[i])
+        text = ", ".join(f"{name} = {x}" for name, x in zip(coordinate_names(n), parts))
+        if np.any(signs < 0):
+            text += "; torques times " + ", ".join(f"{int(x):+d}" for x in signs)
         if self.time != "s":
             text += f"; t = time * {self.seconds:g} s (the file's time in {self.time})"
         return text + (" (unwrapped first)" if self.wrapped else "")
@@ -171,19 +190,18 @@ def convert(q, dq=None, u=None, *, convention: Convention = SKEWPEND):
     ([0.1, 0.2], None, None)
     """
     c = convention
-    sign = np.asarray(c.sign, dtype=float)
-    a = np.asarray(q, dtype=float) * c.scale * sign
+    q = np.asarray(q, dtype=float)
+    sign = c.signs(q.shape[1])
+    a = q * c.scale * sign
     if c.zero == "upright":
-        a[:, 0] -= math.pi
-        if c.second == "absolute":
-            a[:, 1] -= math.pi
-    if c.second == "absolute":
-        a[:, 1] = a[:, 1] - a[:, 0]
+        a[:, 0 if c.second == "relative" else slice(None)] -= math.pi
+    if c.second == "absolute":  # each angle from the rod before: differences of the absolute ones
+        a[:, 1:] = a[:, 1:] - a[:, :-1].copy()
     v = None
     if dq is not None:
         v = np.asarray(dq, dtype=float) * c.scale * sign
         if c.second == "absolute":
-            v[:, 1] = v[:, 1] - v[:, 0]
+            v[:, 1:] = v[:, 1:] - v[:, :-1].copy()
     w = None if u is None else np.asarray(u, dtype=float) * sign
     return a, v, w
 
@@ -191,20 +209,18 @@ def convert(q, dq=None, u=None, *, convention: Convention = SKEWPEND):
 def convert_back(q, dq=None, u=None, *, convention: Convention = SKEWPEND):
     """Inverse of :func:`convert`: skewpend's ``(q, dq, u)`` -> the file's, in ``convention``."""
     c = convention
-    sign = np.asarray(c.sign, dtype=float)
     a = np.array(q, dtype=float)
+    sign = c.signs(a.shape[1])
     if c.second == "absolute":
-        a[:, 1] = a[:, 1] + a[:, 0]
+        a = np.cumsum(a, axis=1)
     if c.zero == "upright":
-        a[:, 0] += math.pi
-        if c.second == "absolute":
-            a[:, 1] += math.pi
+        a[:, 0 if c.second == "relative" else slice(None)] += math.pi
     a = a * sign / c.scale
     v = None
     if dq is not None:
         v = np.array(dq, dtype=float)
         if c.second == "absolute":
-            v[:, 1] = v[:, 1] + v[:, 0]
+            v = np.cumsum(v, axis=1)
         v = v * sign / c.scale
     w = None if u is None else np.asarray(u, dtype=float) * sign
     return a, v, w
@@ -222,8 +238,9 @@ def _frozen(x: Optional[np.ndarray]) -> Optional[np.ndarray]:
 @dataclass(frozen=True, eq=False)
 class Piece:
     """One stretch of contiguous samples, in skewpend's coordinates: ``t`` (n,) [s], strictly
-    increasing, steps possibly uneven; ``q`` (n, 2) ``(phi, psi)`` [rad]; ``dq`` (n, 2) [rad/s] or
-    None (not measured); ``u`` (n, 2) joint torques [N m] or None (not measured; a free swing);
+    increasing, steps possibly uneven; ``q`` (n, k) the k angles ``(phi, psi)`` of the double pendulum,
+    ``(q1 .. qk)`` of a chain [rad]; ``dq`` (n, k) [rad/s] or None (not measured); ``u`` (n, k) joint
+    torques [N m] or None (not measured; a free swing);
     ``name``, ``source`` (the file), ``group`` (``"fit"``/``"validation"`` where the file says),
     ``note`` (what was done to it: cut at a gap, ...).  Arrays are read-only."""
 
@@ -253,8 +270,13 @@ class Piece:
         return float(np.median(np.diff(self.t)))
 
     @property
+    def nq(self) -> int:
+        """The number of angles (2 for the double pendulum, a chain's links)."""
+        return int(self.q.shape[1])
+
+    @property
     def y(self) -> Optional[np.ndarray]:
-        """States ``(phi, psi, dphi, dpsi)`` (n, 4), or None without measured speeds."""
+        """States ``(q, q')`` (n, 2 k; ``(phi, psi, dphi, dpsi)`` for two angles), or None without measured speeds."""
         return None if self.dq is None else np.hstack([self.q, self.dq])
 
     def sampling(self) -> Dict[str, Any]:
@@ -285,15 +307,21 @@ class Piece:
 
 
 # -- checks -------------------------------------------------------------------------------------------
-def _as_pairs(value, n: int, what: str, label: str) -> Optional[np.ndarray]:
+def _as_pairs(value, n: int, what: str, label: str, k: Optional[int] = None) -> Optional[np.ndarray]:
+    """``value`` as an (n, k) array: n samples like the times, k angles (``k`` None: the angles' own,
+    two or more)."""
     if value is None:
         return None
     try:
         a = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise ParameterError(f"{label}: {what} must be numbers") from None
-    if a.shape != (n, 2):
-        raise ParameterError(f"{label}: {what} must have shape ({n}, 2) like the times, got {a.shape}")
+    if k is None:
+        if a.ndim != 2 or a.shape[0] != n or a.shape[1] < 2:
+            raise ParameterError(f"{label}: {what} must have shape ({n}, k) like the times, k >= 2 angles, got {a.shape}")
+    elif a.shape != (n, k):
+        raise ParameterError(f"{label}: {what} must have shape ({n}, {k}) like the times and the {k} angles, "
+                             f"got {a.shape}")
     return a
 
 
@@ -342,8 +370,8 @@ class _Builder:
         n = len(t)
         q = _as_pairs(q_raw, n, "angles q", label)
         assert q is not None
-        dq = _as_pairs(raw.get("dq"), n, "speeds dq", label)
-        u = _as_pairs(raw.get("u"), n, "torques u", label)
+        dq = _as_pairs(raw.get("dq"), n, "speeds dq", label, q.shape[1])
+        u = _as_pairs(raw.get("u"), n, "torques u", label, q.shape[1])
         # NaN / inf rows
         good = np.isfinite(t) & np.isfinite(q).all(axis=1)
         for x in (dq, u):
@@ -403,18 +431,19 @@ class _Builder:
             if not c.wrapped:
                 i, k = np.argwhere(jumps)[0]
                 raise ParameterError(
-                    f"{label}: the {('first', 'second')[k]} angle jumps by {q[i + 1, k] - q[i, k]:+.4g} {c.unit} between samples at "
+                    f"{label}: the {_ordinal(k)} angle jumps by {q[i + 1, k] - q[i, k]:+.4g} {c.unit} between samples at "
                     f"t = {t[i]:.6g} s ({count} such jumps): the angles look wrapped into one turn; state "
                     "Convention(wrapped=True) to unwrap them")
             q = np.unwrap(q, axis=0, period=c.period)
             self.actions.append(f"{label}: unwrapped {count} jump(s) of one turn")
         q, dq, u = convert(q, dq, u, convention=c)
-        for k, name in enumerate(("phi", "psi")):
+        angles = coordinate_names(q.shape[1])
+        for k, name in enumerate(angles):
             turns = round(float(np.median(q[:, k])) / (2 * math.pi))
             if turns:
                 q[:, k] -= 2 * math.pi * turns
                 self.actions.append(f"{label}: {name} shifted by {-turns:+d} turn(s) to put its median in (-pi, pi]")
-        for k, name in enumerate(("phi", "psi")):
+        for k, name in enumerate(angles):
             x = q[:, k]
             if np.ptp(x) <= 1e-12 * max(1.0, float(np.abs(x).max())):
                 raise ParameterError(f"{label}: {name} is constant ({x[0]:.6g} rad) over the piece: a measurement "
@@ -430,7 +459,7 @@ class _Builder:
         return q, dq, u
 
     def _check_units(self, q, label):
-        for k, name in enumerate(("phi", "psi")):
+        for k, name in enumerate(coordinate_names(q.shape[1])):
             x = q[:, k]
             if np.ptp(x) <= 4 * math.pi:
                 continue
@@ -442,7 +471,7 @@ class _Builder:
                     "Convention(unit='deg'), or skip=('units',) if the rig really turns over and back")
 
     def _check_velocities(self, t, q, dq, label):
-        for k, name in enumerate(("phi", "psi")):
+        for k, name in enumerate(coordinate_names(q.shape[1])):
             rate = np.gradient(q[:, k], t)
             if np.std(rate) == 0 or np.std(dq[:, k]) == 0:
                 continue
@@ -462,7 +491,7 @@ class _Builder:
 
     def _check_mean(self, q, label):
         c = self.convention
-        for k, name in enumerate(("phi", "psi")):
+        for k, name in enumerate(coordinate_names(q.shape[1])):
             x = q[:, k]
             if np.ptp(x) >= 2 * math.pi:  # turns over: no mean to judge
                 continue
@@ -477,21 +506,30 @@ class _Builder:
                     "or skip=('mean',) if the rig really swings about the top")
             other = "absolute" if c.second == "relative" else "relative"
             raise ParameterError(
-                f"{label}: a free swing's psi has mean {m:.3g} rad, near rod 2 folded up, not about any rest "
+                f"{label}: a free swing's {name} has mean {m:.3g} rad, near rod {k + 1} folded up, not about any rest "
                 f"of a free swing: the second angle looks {other} (or zeroed the other way); state "
                 f"Convention(second={other!r}) or check zero=, or skip=('mean',)")
 
     def _check_tracking(self, q, label):
-        phi, psi = q[:, 0], q[:, 1]
-        if np.std(phi) == 0 or np.std(psi) == 0:
-            return
-        r = float(np.corrcoef(phi, psi)[0, 1])
-        ratio = float(np.std(psi - phi) / np.std(phi))
-        if r > 0.95 and ratio < 0.25:
-            raise ParameterError(
-                f"{label}: psi follows phi (correlation {r:.3f}; psi - phi varies {ratio:.2g} times as much as phi), "
-                "as an absolute second angle does: state Convention(second='absolute'), or skip=('tracking',) "
-                "if rod 2 really turns about twice as far as rod 1")
+        names = coordinate_names(q.shape[1])
+        for k in range(1, q.shape[1]):
+            one, two = q[:, k - 1], q[:, k]
+            if np.std(one) == 0 or np.std(two) == 0:
+                continue
+            r = float(np.corrcoef(one, two)[0, 1])
+            ratio = float(np.std(two - one) / np.std(one))
+            if r > 0.95 and ratio < 0.25:
+                a, b = names[k - 1], names[k]
+                raise ParameterError(
+                    f"{label}: {b} follows {a} (correlation {r:.3f}; {b} - {a} varies {ratio:.2g} times as much as {a}), "
+                    "as an absolute angle does: state Convention(second='absolute'), or skip=('tracking',) "
+                    f"if rod {k + 1} really turns about twice as far as rod {k}")
+
+
+def _ordinal(k: int) -> str:
+    """``0 -> "first"``, ``1 -> "second"``, ... (an angle's place)."""
+    words = ("first", "second", "third", "fourth", "fifth", "sixth", "seventh", "eighth")
+    return words[k] if k < len(words) else f"{k + 1}th"
 
 
 # -- the measurements ---------------------------------------------------------------------------------
@@ -524,6 +562,9 @@ class Measurements:
         pieces = tuple(self.pieces)
         if not pieces or not all(isinstance(p, Piece) for p in pieces):
             raise ParameterError("Measurements need at least one Piece")
+        if len({p.nq for p in pieces}) > 1:
+            raise ParameterError("Measurements' pieces must all have the same number of angles, got "
+                                 + ", ".join(str(n) for n in sorted({p.nq for p in pieces})))
         object.__setattr__(self, "pieces", pieces)
         meta = dict(self.metadata)
         meta["sampling"] = [p.sampling() for p in pieces]
@@ -547,6 +588,16 @@ class Measurements:
     @property
     def names(self) -> Tuple[str, ...]:
         return tuple(p.name for p in self.pieces)
+
+    @property
+    def nq(self) -> int:
+        """The number of angles each piece holds (2: the double pendulum; a chain's links)."""
+        return self.pieces[0].nq
+
+    @property
+    def coordinates(self) -> Tuple[str, ...]:
+        """The angles' names (``phi, psi``; ``q1 .. qk`` for another number)."""
+        return coordinate_names(self.nq)
 
     @property
     def samples(self) -> int:
@@ -736,9 +787,14 @@ class Measurements:
             built.extend(builder.build(raw))
         if not built:
             raise ParameterError(f"{source or 'the data'}: no piece is left after the checks (see short=)")
+        counts = sorted({p.nq for p in built})
+        if len(counts) > 1:
+            odd = next(p for p in built if p.nq != built[0].nq)
+            raise ParameterError(f"{source or 'the data'}: pieces with different numbers of angles ({built[0].name}: "
+                                 f"{built[0].nq}, {odd.name}: {odd.nq}); one recording is of one pendulum")
         sources = sorted({p.source for p in built if p.source}) or ([source] if source else [])
         meta: Dict[str, Any] = {"format": format, "sources": sources, "convention": convention.to_dict(),
-                                "conversion": convention.describe(), "checks": builder.settings(),
+                                "conversion": convention.describe(built[0].nq), "checks": builder.settings(),
                                 "actions": builder.actions}
         if extra:
             meta.update(extra)
@@ -773,15 +829,16 @@ class Measurements:
 
     @classmethod
     def from_mat(cls, path, data: Union[str, Mapping[str, str]], time: Union[str, Mapping[str, str], None] = None,
-                 *, dt: Union[float, str, None] = None, angles: Tuple[int, int] = (0, 1),
-                 velocities: Optional[Tuple[int, int]] = None, torques: Optional[Tuple[int, int]] = None,
+                 *, dt: Union[float, str, None] = None, angles: Tuple[int, ...] = (0, 1),
+                 velocities: Optional[Tuple[int, ...]] = None, torques: Optional[Tuple[int, ...]] = None,
                  convention: Convention = SKEWPEND, format: str = "mat", **checks) -> "Measurements":
         """Measurements from a MATLAB ``.mat`` file (v5/v7; ``scipy.io.loadmat``).  ``data`` names
         the variable holding the samples -- a cell array of pieces or one array, channels along
         one axis and samples along the other -- or maps group names to variables
         (``{"fit": "Y_id", "validation": "Y_vad"}``); ``time`` names the matching time
         variable(s), or ``dt`` gives a fixed step (a number, or a variable's name).  ``angles``,
-        ``velocities``, ``torques``: the channel indices.  Pieces are named ``VAR[i]``."""
+        ``velocities``, ``torques``: the channel indices (two or more angles: a chain's; speeds and
+        torques one per angle).  Pieces are named ``VAR[i]``."""
         path = Path(path)
         mat = _load_mat(path)
         groups = {"": data} if isinstance(data, str) else dict(data)
@@ -817,9 +874,13 @@ class Measurements:
                     x = x if x.shape[1] >= x.shape[0] else x.T
                     tt = float(step or 0.0) * np.arange(x.shape[1])
                 channels = x.shape[0]
+                k = len(angles)
                 for what, idx in (("angles", angles), ("velocities", velocities), ("torques", torques)):
-                    if idx is not None and (len(idx) != 2 or not all(0 <= int(j) < channels for j in idx)):
-                        raise ParameterError(f"{path}: {what}={tuple(idx)!r} are not two of the {channels} channels "
+                    if idx is None:
+                        continue
+                    wanted = "two or more" if what == "angles" else ("two" if k == 2 else f"{k}, one per angle,")
+                    if (len(idx) < 2 if what == "angles" else len(idx) != k) or not all(0 <= int(j) < channels for j in idx):
+                        raise ParameterError(f"{path}: {what}={tuple(idx)!r} are not {wanted} of the {channels} channels "
                                              f"of {name}", parameter=what)
                 raws.append({"t": tt, "q": x[list(angles)].T,
                              "dq": None if velocities is None else x[list(velocities)].T,
@@ -833,16 +894,27 @@ class Measurements:
         ``.mat`` file or its folder): ``which="fit"`` (26 pieces, ``Y_id``), ``"validation"``
         (4 pieces, ``Y_vad``) or ``"all"``, grouped ``fit``/``validation``.  The file's state
         ``[theta1, theta2, dtheta1, dtheta2]`` holds absolute angles from the upright; converted:
-        ``phi = theta1 - pi``, ``psi = theta2 - theta1`` (sense kept; see the guide's Conventions)."""
+        ``phi = theta1 - pi``, ``psi = theta2 - theta1`` (sense kept; see the guide's Conventions).
+
+        Their triple pendulum (``TriplePendulumDataForParameterEstimation.mat``, a folder holding it:
+        22 fitting and 4 validation pieces of ``[theta1, theta2, theta3, dtheta1, dtheta2, dtheta3]``)
+        is read the same way, as three angles ``q1 = theta1 - pi``, ``q2 = theta2 - theta1``,
+        ``q3 = theta3 - theta2``: the chain of three links."""
         path = Path(path)
         if path.is_dir():
-            path = path / KAHEMAN_FILE
+            path = path / (KAHEMAN_TRIPLE_FILE if (path / KAHEMAN_TRIPLE_FILE).is_file() and
+                           not (path / KAHEMAN_FILE).is_file() else KAHEMAN_FILE)
         layout = {"fit": ("Y_id", "Time_id"), "validation": ("Y_vad", "Time_vad")}
         if which not in ("fit", "validation", "all"):
             raise ParameterError(f"which must be 'fit', 'validation' or 'all', got {which!r}", parameter="which")
         chosen = layout if which == "all" else {which: layout[which]}
+        first = _cells(_variable(_load_mat(path), "Y_id", path))[0]
+        k = min(np.shape(first)) // 2  # the state holds k angles and their speeds
+        if k < 2:
+            raise ParameterError(f"{path}: Y_id's pieces hold {min(np.shape(first))} channels, not the angles and "
+                                 "speeds of two or more arms")
         return cls.from_mat(path, {g: v[0] for g, v in chosen.items()}, {g: v[1] for g, v in chosen.items()},
-                            angles=(0, 1), velocities=(2, 3), format="kaheman",
+                            angles=tuple(range(k)), velocities=tuple(range(k, 2 * k)), format="kaheman",
                             convention=Convention(second="absolute", zero="upright"), **checks)
 
     @classmethod
@@ -1010,6 +1082,38 @@ def kaheman_published_parameters(path):
     m1, m2, a1, a2, L1, I1, I2, k1, k2, g = (float(x) for x in values)
     return Parameters(a=L1, b=2 * a2, m1=m1, m2=m2, alpha=0, g=g, c1=k1, c2=k2, com1=(0, a1, 0), com2=(0, a2, 0),
                       inertia1=((I1, 0, 0), (0, 0, 0), (0, 0, I1)), inertia2=((I2, 0, 0), (0, 0, 0), (0, 0, I2)))
+
+
+def kaheman_published_chain(path, g: float = 9.8083):
+    """The model Kaheman et al. (2023) identified for their free-swing triple pendulum, as a chain of
+    three links, from ``EstimatedParameters_TriplePendulum.mat`` (``path``: that file, the data file
+    beside it or their folder, ``kaheman2023-triple``).  Their ``[m1 m2 m3 a1 a2 a3 L1 L2 I1 I2 I3 k1
+    k2 k3 g]`` (``a_i`` joint ``i`` to arm ``i``'s centre of mass, ``L1``, ``L2`` joint to joint, ``I_i``
+    about each centre of mass, ``k1`` on ``dtheta1``, ``k2`` on ``dtheta2 - dtheta1``, ``k3`` on
+    ``dtheta3 - dtheta2``) become links on parallel axes ``k`` of lengths ``L1``, ``L2``, ``2 a3`` (the
+    last only places the tip), ``com = (0, a_i, 0)``, inertia ``I_i`` about ``k`` and ``i`` (a rod's
+    moment about its own axis ``j`` is 0) and joint damping ``k_i`` on the relative speeds, which are
+    skewpend's coordinates.  ``g``: their scripts pass the stored 15th value only for vectors of
+    length 10 or 14, so their fit and validation used 9.8083 (the default here); pass ``g=None`` for
+    the stored value."""
+    from ..symbolic.chain import Chain, Link
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / KAHEMAN_TRIPLE_PARAMETERS_FILE
+    elif path.name == KAHEMAN_TRIPLE_FILE:
+        path = path.parent / KAHEMAN_TRIPLE_PARAMETERS_FILE
+    mat = _load_mat(path)
+    values = np.asarray(_variable(mat, "EstimatedParameters", path), dtype=float).ravel()
+    if values.size != 15 or not np.all(np.isfinite(values)):
+        raise ParameterError(f"{path}: EstimatedParameters must hold 15 finite numbers [m1 m2 m3 a1 a2 a3 L1 L2 I1 I2 "
+                             f"I3 k1 k2 k3 g], got {values.size}")
+    m, a, (L1, L2), inertia, k = values[0:3], values[3:6], values[6:8], values[8:11], values[11:14]
+    lengths = (L1, L2, 2 * a[2])
+    links = tuple(Link(length=float(lengths[i]), mass=float(m[i]), com=(0.0, float(a[i]), 0.0),
+                       inertia=((float(inertia[i]), 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, float(inertia[i]))),
+                       damping=float(k[i])) for i in range(3))
+    return Chain(links=links, g=float(values[14]) if g is None else float(g))
 
 
 def dfki_lab_parameters(path):

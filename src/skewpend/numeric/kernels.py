@@ -752,19 +752,22 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
         return kernel
 
 
-def chain_kernel(chain, form: str = "") -> Kernel:
+def chain_kernel(chain, form: str = "", *, shooting: bool = False) -> Kernel:
     """The compiled model functions of a chain of links (:class:`skewpend.symbolic.chain.Chain`): its
     equations by the recursive algorithms (:mod:`skewpend.numeric.recursive`), keyed by the chain's
     structure (the number of links, the hinge axes, whether friction and rotors exist); every value
     is the run-time array ``recursive.parameter_vector(chain)``.  Cached like :func:`kernel_module`.
-    ``form``: ``"straight"`` or ``"compact"`` code (default: ``recursive.chain_form``, by the length)."""
+    ``form``: ``"straight"`` or ``"compact"`` code (default: ``recursive.chain_form``, by the length).
+    ``shooting=True``: identification's library, the straight-line code with the parameter
+    sensitivities (``recursive.chain_sensitivity_c_source``) and multiple shooting's integrator
+    (``shooting.c``), as :func:`kernel_module`'s for the double pendulum."""
     from .recursive import chain_form, structure_of_chain
 
     structure = structure_of_chain(chain)
-    form = form or chain_form(structure)
+    form = "straight" if shooting else (form or chain_form(structure))
     if form not in ("straight", "compact"):
         raise ValueError(f"form must be 'straight' or 'compact', got {form!r}")
-    key = _key(structure.key() + "|" + form) + "_chain"
+    key = _key(structure.key() + "|" + form + ("|shooting" if shooting else "")) + "_chain"
     with _key_lock(key):
         if key in _LOADED:
             return _LOADED[key]
@@ -773,7 +776,7 @@ def chain_kernel(chain, form: str = "") -> Kernel:
         kernel = None
         if path.exists() and _intact(path):
             try:
-                kernel = Kernel(path, "cache", 0.0)
+                kernel = Kernel(path, "cache", 0.0, shooting=shooting)
             except (OSError, CompilerError):
                 kernel = None
         if kernel is None:
@@ -781,12 +784,15 @@ def chain_kernel(chain, form: str = "") -> Kernel:
             directory = _writable_directory()
             path = directory / f"skewpend_{key}{LIB_SUFFIX}"
             _remove_stale_temporaries(directory)
-            from .recursive import chain_source
+            from .recursive import chain_sensitivity_c_source, chain_source
 
-            _announce("chain", cached=directory == cache_dir() / "kernels")
+            _announce("shooting" if shooting else "chain", cached=directory == cache_dir() / "kernels")
             source = chain_source(structure, form) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
+            if shooting:
+                source += "\n" + chain_sensitivity_c_source(structure)
+                source += "\n" + (_PACKAGE / "numeric" / "shooting.c").read_text()
             _compile(source, path)
-            kernel = Kernel(path, "compiled", time.perf_counter() - start)
+            kernel = Kernel(path, "compiled", time.perf_counter() - start, shooting=shooting)
         _LOADED[key] = kernel
         return kernel
 

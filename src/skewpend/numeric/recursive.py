@@ -496,6 +496,70 @@ def chain_c_source(structure: ChainStructure) -> str:
     return "\n".join(out) + "\n"
 
 
+@lru_cache(maxsize=8)
+def _sensitivity_function(structure: ChainStructure):
+    """``(y, a, p) -> (d r/d y, d r/d p)`` of the residual ``r = f(y, p) - M(q, p) a`` at fixed ``a``
+    (n x 2 n and n x len(p), column-major as CasADi keeps them)."""
+    ca = _ca()
+    G = _Graph(structure)
+    n = G.n
+    y = ca.vertcat(G.q, G.dq)
+    a = ca.SX.sym("a", n)
+    M = G.mass_matrix()
+    Q = G.joint_forces()
+    b = G.bias()
+    r = ca.vertcat(*[Q[i] - b[i] - sum((M[i][j] * a[j] for j in range(n)), ca.SX(0)) for i in range(n)])
+    return ca.Function("sens", [y, a, G.p], [ca.densify(ca.jacobian(r, y)), ca.densify(ca.jacobian(r, G.p))])
+
+
+def chain_sensitivity_c_source(structure: ChainStructure) -> str:
+    """``rhs_sens(y, p, acc, A, B)`` of a chain (multiple shooting's core, ``shooting.c``): the
+    accelerations ``q''`` and their derivatives ``A = d q''/d y`` (n x 2 n) and ``B = d q''/d p``
+    (n x ``SP_NPARAM``, row-major), from the residual of the equations at the solved accelerations:
+
+        d q''/d x = M^-1 d(f - M a)/d x  at  a = q'',
+
+    the derivative of ``f - M a`` by CasADi's automatic differentiation of the recursive algorithms
+    (the same graphs as ``rhs``), each column one solve with the factors of ``M``.  Appended to the
+    straight-line source (:func:`chain_c_source`), with ``SP_TAU_INDEX``."""
+    from .codegen import spd_c_lines
+
+    fns = chain_functions(structure)
+    sens = _sensitivity_function(structure)
+    n = structure.n
+    names = parameter_names(n)
+    npar = len(names)
+    I = "    "
+    Mn = [f"M{i}_{j}" for i in range(n) for j in range(i + 1)]
+    f = [f"f{i}" for i in range(n)]
+    Q = [f"Q{i}" for i in range(n)]
+    acc = [f"a{i}" for i in range(n)]
+    Ry = [f"Ry{k}" for k in range(n * 2 * n)]  # column-major: entry (i, c) at c n + i
+    Rp = [f"Rp{k}" for k in range(n * npar)]
+    tau = ", ".join(str(names.index(f"tau{i}")) for i in range(1, n + 1))
+    out = [f"#define SP_TAU_INDEX {{{tau}}}  /* p's torques, a coordinate each */", "",
+           f"/* q'' into acc[{n}], d q''/d y into A[{n} x {2 * n}] and d q''/d p into B[{n} x SP_NPARAM] (row-major) */",
+           "static void rhs_sens(const double *y, const double *p, double *acc, double *A, double *B)", "{"]
+    out += c_function_lines(fns["model"], ["y", "p"], [Mn, f, Q], I)
+    out += spd_c_lines(I, f, acc, M=Mn, factors="sp_m_")
+    out += [f"{I}double sp_a[{n}];"] + [f"{I}sp_a[{i}] = {acc[i]}; acc[{i}] = {acc[i]};" for i in range(n)]
+    out += [f"{I}double Ry[{n * 2 * n}], Rp[{n * npar}];", f"{I}{{"]
+    out += c_function_lines(sens, ["y", "sp_a", "p"], [[f"Ry[{k}]" for k in range(len(Ry))],
+                                                         [f"Rp[{k}]" for k in range(len(Rp))]], I + I, declare=False)
+    out += [f"{I}}}"]
+    rs = [f"r{i}" for i in range(n)]
+    xs = [f"x{i}" for i in range(n)]
+    for what, cols, R, row in (("A", 2 * n, "Ry", 2 * n), ("B", npar, "Rp", "SP_NPARAM")):
+        out += [f"{I}for (int c = 0; c < {cols}; c++) {{"]
+        out += [f"{I}    const double {rs[i]} = {R}[c * {n} + {i}];" for i in range(n)]
+        out += spd_c_lines(I + "    ", rs, xs, prefix="sp_c")
+        out += [f"{I}    {what}[{i} * {row} + c] = {xs[i]};" for i in range(n)] + [f"{I}}}"]
+    out += ["}", "",
+            "void sp_rhs_sens(const double *y, const double *p, double *acc, double *A, double *B) { rhs_sens(y, p, acc, A, B); }",
+            ""]
+    return "\n".join(out) + "\n"
+
+
 # -- compact code: one step of each recursion, looped over the links ----------------------------------------
 #: The forward step's carried state: the link frame's rotation R (row-major), its hinge o, angular velocity
 #: w, the hinge's velocity vo, angular acceleration al and the hinge's acceleration ao at q'' = 0, and the

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any, Iterable, Mapping, Optional, Tuple
 
 from ..errors import ParameterError
-from ..schema import CHAIN_NAMES, LINK_FIELDS, link_bound
+from ..schema import CHAIN_NAMES, LINK_FIELDS, coordinate_names, link_bound
 from .model import Mat3, Parameters, Vec3, as_real, as_vector, check_inertia
 
 __all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS"]
@@ -197,7 +197,7 @@ class Chain:
     @property
     def coordinates(self) -> Tuple[str, ...]:
         """The coordinates' names: ``phi, psi`` for two links (the specification's), ``q1`` to ``qn`` otherwise."""
-        return ("phi", "psi") if self.n == 2 else tuple(f"q{i}" for i in range(1, self.n + 1))
+        return coordinate_names(self.n)
 
     @property
     def has_friction(self) -> bool:
