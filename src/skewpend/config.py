@@ -93,7 +93,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS},
     "nnm": {"parameters": MODEL_KEYS},
     "control": {"parameters": MODEL_KEYS},
-    "identify": {"parameters": MODEL_KEYS},  # params0, the fit's start
+    "identify": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # params0, the fit's start
     "derive": {"parameters": MODEL_KEYS},  # the values given; the others stay symbolic
     # the bodies and axes -> the generated physics; the scalars and the start -> the page's sliders
     "serve": {"parameters": MODEL_KEYS, "initial": frozenset(("phi0", "psi0"))},
@@ -417,6 +417,16 @@ def toml_value(value: Any) -> str:
     if isinstance(value, str):
         return json.dumps(value)
     return repr(float(value))
+
+
+def chain_toml(chain) -> list:
+    """The ``[chain]`` and ``[[links]]`` lines of a run file for a chain of links (the inverse of the
+    run file's chain: ``Chain.from_mapping``), every value written with ``repr`` (it reads back exactly)."""
+    data = chain.to_dict()
+    out = ["[chain]"] + [f"{k} = {toml_value(v)}" for k, v in data.items() if k != "links"]
+    for link in data["links"]:
+        out += ["", "[[links]]"] + [f"{k} = {toml_value(v)}" for k, v in link.items()]
+    return out
 
 
 def parameters_toml(params) -> list:

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -63,7 +63,7 @@ from ..symbolic.regressor import PI_NAMES, SCALE_DIRECTION, base_parameters, lin
 from .measurements import Measurements, Piece
 
 __all__ = ["identify", "Identification", "SMOOTHING", "ORDER", "BOOTSTRAP", "REFERENCE", "RANK_TOL", "METHODS",
-           "CLUSTER_PIECES", "BLOCK", "MIN_CLUSTERS", "clusters"]
+           "CLUSTER_PIECES", "BLOCK", "MIN_CLUSTERS", "clusters", "ChainTerms", "chain_terms", "CHAIN_SAMPLES"]
 
 #: Default Savitzky-Golay window [s].
 SMOOTHING = 0.05
@@ -369,9 +369,12 @@ def read_identification(path, variables, attrs) -> Identification:
     estimate itself)."""
     from ..errors import SkewpendError
 
-    proto = protocol_fields(path, attrs, Parameters)
+    from ..symbolic.chain import Chain
+
+    model = Chain if "links" in json_attr(attrs, "params0") else Parameters
+    proto = protocol_fields(path, attrs, model)
     try:
-        params0 = Parameters.from_mapping(json_attr(attrs, "params0"))
+        params0 = model.from_mapping(json_attr(attrs, "params0"))
     except SkewpendError as exc:
         raise ParameterError(f"{path}: its starting parameters cannot be read back ({exc})") from None
 
@@ -402,6 +405,14 @@ def read_identification(path, variables, attrs) -> Identification:
         profile_cost=get("profile_cost"),
         correlation=np.asarray(variables["correlation"], dtype=float) if "correlation" in variables else np.zeros((0, 0)),
         **proto)
+    if model is Chain:
+        if result.status is Status.SUCCESS and len(values):
+            terms = chain_terms(params0)
+            if tuple(terms.names) != result.names:
+                raise ParameterError(f"{path} was written by another chain: its base parameters are {list(result.names)}, "
+                                     f"the chain's are {list(terms.names)}")
+            agree(path, "base parameters", values, terms.values(terms.standard(result.params)))
+        return result
     if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):
         p = result.params
         B = model_terms(params0.replace(alpha=None)) if result.settings.get("alpha_free") else model_terms(params0)
@@ -513,9 +524,13 @@ def _check_input(measurements, params0, free, validation, smoothing):
     if validation is not None and not isinstance(validation, Measurements):
         raise ParameterError(f"validation must be a skewpend Measurements or None, got {type(validation).__name__}")
     if not isinstance(params0, Parameters):
-        raise ParameterError(f"params0 must be a skewpend Parameters, got {type(params0).__name__}")
+        raise ParameterError(f"params0 must be a skewpend Parameters or Chain, got {type(params0).__name__}")
     if not params0.is_numeric:
         raise ParameterError(f"params0 must be numeric; symbolic: {', '.join(params0.symbolic_names)}")
+    for data in (measurements, validation):
+        if data is not None and data.nq != 2:
+            raise ParameterError(f"the measurements hold {data.nq} angles, the double pendulum has 2: identify a chain "
+                                 f"of {data.nq} links (params0 a skewpend.Chain)")
     from ..checks import positive
 
     return positive("smoothing", smoothing, cap=60.0)  # a window in seconds
@@ -748,7 +763,7 @@ PROFILE_GRID = (1.0, 2.0, 4.0)
 def identify(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
              validation: Optional[Measurements] = None, method: str = "output-error", smoothing: float = SMOOTHING,
              segment: float = 0.5, bootstrap: int = BOOTSTRAP, seed: int = 0,
-             progress: Optional[Any] = None) -> Identification:
+             progress: Optional[Any] = None, angles: str = "relative") -> Identification:
     """Identify a measured pendulum's base parameters (and, freed, its skew angle).
 
     ``measurements``: the motion to fit (:class:`~skewpend.Measurements`; torques where measured, a
@@ -760,7 +775,14 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
     then multiple shooting with exact sensitivities, :mod:`skewpend.analysis.shooting`) or
     ``"linear"`` (the first estimate alone); ``smoothing``: the Savitzky-Golay window [s];
     ``segment``: the shooting segments' length [s]; ``bootstrap``, ``seed``: the resampled
-    pieces of the intervals; ``progress``: ``callable(stage: str, fraction: float)``.
+    pieces of the intervals; ``progress``: ``callable(stage: str, fraction: float)``; ``angles``: the
+    angles the output error and the held-out RMS are measured in, ``"relative"`` (the joint angles,
+    skewpend's coordinates) or ``"absolute"`` (each rod's from the vertical, as a rig with absolute
+    encoders measures them; :func:`skewpend.analysis.shooting.angle_frame`).
+
+    ``params0`` may be a :class:`~skewpend.Chain` of any number of links (the measurements one
+    angle a link): the same output-error fit on the chain's base parameters
+    (:func:`chain_terms`, found numerically from the recursive model's regressor).
 
     >>> import skewpend  # doctest: +SKIP
     >>> fit = skewpend.identify(skewpend.Measurements.from_kaheman("data/kaheman2023", which="fit"),
@@ -769,6 +791,15 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
     """
     if method not in METHODS:
         raise ParameterError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    from ..symbolic.chain import Chain
+
+    from .shooting import angle_frame
+
+    angle_frame(2, angles)  # one line for a wrong name, before any work
+    if isinstance(params0, Chain):
+        return _identify_chain(measurements, params0, free=free, validation=validation, method=method,
+                               smoothing=smoothing, segment=segment, bootstrap=bootstrap, seed=seed, progress=progress,
+                               angles=angles)
     if validation is not None and not isinstance(validation, Measurements):
         raise ParameterError(f"validation must be a skewpend Measurements or None, got {type(validation).__name__}")
     names_free = None
@@ -792,7 +823,274 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
     if method == "linear" or not np.all(np.isfinite(np.asarray(lin.values, float))):
         return lin  # (a linear estimate that is not physical still starts the output-error fit)
     return _output_error(lin, measurements, params0, alpha_free, validation, smoothing, seg_len, bootstrap, seed,
-                         say, t_start, all_free=names_free is None)
+                         say, t_start, all_free=names_free is None, angles=angles)
+
+
+# -- a chain of links: the same fit on the recursive model ---------------------------------------------------
+@dataclass(frozen=True)
+class ChainTerms:
+    """The base parameters of a chain of links (its hinge axes and offsets fixed), found numerically:
+    the regressor of the standard parameters (``recursive.regressor_function``: ``M q'' - f + tau =
+    Y pi``) at seeded random states, its columns taken greedily in the pivot order of the double
+    pendulum's base parameters (each link's ``J zz, xz, yz, xy, xx, yy``, then ``h y, x, z``, ``m``;
+    the joints' damping, friction and rotor last), the dependent columns as least-squares
+    combinations of the pivots': ``beta = matrix pi``.  ``names``: the pivot's name, ``_b`` appended
+    when others move with it; ``expressions`` as text (``J1zz + 0.02986*m2 + ...``);
+    ``unidentifiable`` the entries whose columns are zero (they do not enter the equations)."""
+
+    names: Tuple[str, ...]
+    pi_names: Tuple[str, ...]
+    pivots: Tuple[int, ...]
+    matrix: np.ndarray
+    expressions: Tuple[str, ...]
+    unidentifiable: Tuple[str, ...]
+
+    @property
+    def rank(self) -> int:
+        return len(self.names)
+
+    @staticmethod
+    def standard(chain) -> np.ndarray:
+        from ..numeric.recursive import standard_vector as chain_standard
+
+        return chain_standard(chain)
+
+    def values(self, pi) -> np.ndarray:
+        return self.matrix @ np.asarray(pi, dtype=float)
+
+    def representative(self, beta, pi_ref) -> np.ndarray:
+        """The standard vector of ``beta`` with the dependent entries held at ``pi_ref``'s."""
+        pi = np.array(pi_ref, dtype=float)
+        dep = [j for j in range(len(pi)) if j not in self.pivots]
+        pi[list(self.pivots)] = np.asarray(beta, float) - self.matrix[:, dep] @ pi[dep]
+        return pi
+
+
+#: States at which a chain's regressor is sampled to find its base parameters (seeded).
+CHAIN_SAMPLES = 60
+
+
+def chain_terms(chain) -> ChainTerms:
+    """The base parameters of ``chain``'s structure and offsets (:class:`ChainTerms`)."""
+    from ..numeric.recursive import parameter_vector, regressor_function, standard_names, structure_of_chain
+    from ..symbolic.regressor import independent_columns
+
+    structure = structure_of_chain(chain)
+    key = ("chain", structure.key(), tuple(link.offset for link in chain.links), chain.g, chain.cfs,
+           tuple(link.gear for link in chain.links))
+    if key in _BASE_CACHE:
+        return _BASE_CACHE[key]
+    names = standard_names(structure)
+    fn = regressor_function(structure)
+    p, pi = parameter_vector(chain), standard_vector_of_chain(chain)
+    rng = np.random.default_rng(0)
+    n = chain.n
+    rows = []
+    for _ in range(CHAIN_SAMPLES):
+        y = np.concatenate([rng.uniform(-math.pi, math.pi, n), rng.normal(0.0, 3.0, n)])
+        rows.append(np.array(fn(y, rng.normal(0.0, 10.0, n), p, pi), dtype=float))
+    W = np.vstack(rows)
+    prefer = []
+    for i in range(1, n + 1):
+        prefer += [f"J{i}{e}" for e in ("zz", "xz", "yz", "xy", "xx", "yy")] + [f"h{i}{x}" for x in "yxz"] + [f"m{i}"]
+    prefer += [x for x in names if x not in prefer]
+    pivots = independent_columns(W, [names.index(x) for x in prefer])
+    scale = np.linalg.norm(W, axis=0)
+    zero = scale <= 1e-10 * scale.max()
+    dep = [j for j in range(len(names)) if j not in pivots]
+    K = np.linalg.lstsq(W[:, pivots], W[:, dep], rcond=None)[0] if dep else np.zeros((len(pivots), 0))
+    K[np.abs(K) < 1e-10 * max(1.0, float(np.abs(K).max(initial=0.0)))] = 0.0
+    miss = float(np.linalg.norm(W[:, dep] - W[:, pivots] @ K)) if dep else 0.0
+    if miss > 1e-8 * float(np.linalg.norm(W)):
+        raise AssertionError(f"a chain's dependent regressor columns are not combinations of the pivots' ({miss:.3g})")
+    order = sorted(range(len(pivots)), key=lambda k: pivots[k])  # the base parameters in pi's order
+    pivots = [pivots[k] for k in order]
+    K = K[order]
+    matrix = np.zeros((len(pivots), len(names)))
+    out_names, texts = [], []
+    for r, j in enumerate(pivots):
+        matrix[r, j] = 1.0
+        terms = [names[j]]
+        for c, d in enumerate(dep):
+            if K[r, c] != 0.0:
+                matrix[r, d] = K[r, c]
+                terms.append(f"{K[r, c]:+.6g}*{names[d]}")
+        out_names.append(names[j] + ("_b" if len(terms) > 1 else ""))
+        texts.append(" ".join(terms).replace(" +", " + ").replace(" -", " - "))
+    result = ChainTerms(names=tuple(out_names), pi_names=names, pivots=tuple(pivots), matrix=matrix,
+                        expressions=tuple(texts), unidentifiable=tuple(names[j] for j in np.flatnonzero(zero)))
+    _BASE_CACHE[key] = result
+    return result
+
+
+def standard_vector_of_chain(chain) -> np.ndarray:
+    return ChainTerms.standard(chain)
+
+
+def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray):
+    """The chain whose standard parameters are ``pi`` (bodies through ``c = h/m``, ``I_c = J - (|h|^2 E -
+    h h^T)/m``); one ParameterError when a body is no body.  The entries of ``J`` that do not enter the
+    equations (:attr:`ChainTerms.unidentifiable`) are set so that the inertia about the centre of mass
+    keeps ``chain0``'s there (a rod's moment about its normal ``x`` moves with the one about ``z``)."""
+    from ..numeric.conventions import TENSOR_ENTRIES, TENSOR_INDICES
+
+    at = dict(zip(terms.pi_names, pi))
+    links = []
+    for i, link in enumerate(chain0.links, start=1):
+        m = at[f"m{i}"]
+        h = np.array([at[f"h{i}{x}"] for x in "xyz"])
+        shift = (float(h @ h) * np.eye(3) - np.outer(h, h)) / m
+        J = np.zeros((3, 3))
+        held = {e for e in TENSOR_ENTRIES if f"J{i}{e}" in terms.unidentifiable}
+        for e, (r, c) in zip(TENSOR_ENTRIES, TENSOR_INDICES):
+            J[r, c] = J[c, r] = at[f"J{i}{e}"]
+        Ic = J - shift
+        I0 = np.asarray(link.inertia, dtype=float)
+        for e, (r, c) in zip(TENSOR_ENTRIES, TENSOR_INDICES):
+            if e in held:
+                Ic[r, c] = Ic[c, r] = I0[r, c]
+        for e, other, k in (("xx", "zz", 0), ("zz", "xx", 2)):  # across the rod: the held one moves with the other
+            if e in held and other not in held:
+                j = 2 - k
+                Ic[k, k] = I0[k, k] + (Ic[j, j] - I0[j, j])
+        changes = dict(mass=float(m), com=tuple(float(x) for x in h / m), inertia=tuple(tuple(float(x) for x in row) for row in Ic),
+                       damping=float(at[f"c{i}"]))
+        for stem, key in (("cf", "coulomb"), ("Ir", "rotor")):
+            if f"{stem}{i}" in at:
+                changes[key] = float(at[f"{stem}{i}"])
+        links.append(replace(link, **changes))
+    return replace(chain0, links=tuple(links))
+
+
+def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray):
+    """A physical chain with the base parameters ``beta``: ``chain0``'s masses first, else every mass
+    raised by the first of :data:`MASS_FACTORS` that realises it (the masses are not determined by the
+    equations where they are lumped into the first moments and inertias; the base parameters are
+    kept exactly).  Returns ``(chain, note)``, or ``(None, why)``."""
+    masses = [terms.pi_names.index(f"m{i}") for i in range(1, chain0.n + 1)]
+    first, last = "", ""
+    for k in (1.0,) + MASS_FACTORS:
+        ref = pi0.copy()
+        ref[masses] *= k
+        try:
+            chain = _chain_of(chain0, terms, terms.representative(beta, ref))
+        except ParameterError as exc:
+            first, last = first or str(exc), str(exc)
+            continue
+        return chain, ("" if k == 1.0 else f"every mass raised x{k:g} from params0's, which cannot realise the "
+                       f"estimate ({first}); a free swing does not determine the masses themselves")
+    return None, first if last == first else f"{first} (with the masses raised x{MASS_FACTORS[-1]:g}: {last})"
+
+
+def _identify_chain(measurements, chain0, *, free, validation, method, smoothing, segment, bootstrap, seed, progress,
+                    angles="relative"):
+    """:func:`identify` for a chain of links: the output-error fit of :mod:`skewpend.analysis.shooting` on
+    the chain's base parameters (:func:`chain_terms`), from ``chain0``'s values."""
+    from . import shooting
+    from ..checks import positive
+
+    if not isinstance(measurements, Measurements):
+        raise ParameterError(f"measurements must be a skewpend Measurements, got {type(measurements).__name__}")
+    for what, data in (("measurements", measurements), ("validation", validation)):
+        if data is None:
+            continue
+        if not isinstance(data, Measurements):
+            raise ParameterError(f"{what} must be a skewpend Measurements or None, got {type(data).__name__}")
+        if data.nq != chain0.n:
+            raise ParameterError(f"the {what} hold {data.nq} angles, the chain has {chain0.n} links: one angle a link")
+    if method != "output-error":
+        raise ParameterError("a chain is identified by the output-error fit only (method='output-error')")
+    if validation is not None and any(p.u is not None for p in validation):
+        raise ParameterError("held-out pieces with measured torques: a chain's simulation takes no measured torques "
+                             "yet; hold out free-swing pieces")
+    smoothing = positive("smoothing", smoothing, cap=60.0)
+    seg_len = positive("segment", segment, cap=60.0)
+    t_start = time.perf_counter()
+    say = progress if callable(progress) else (lambda stage, fraction: None)
+    say("base parameters", 0.0)
+    terms = chain_terms(chain0)
+    names = terms.names
+    homogeneous = not measurements.has_torques
+    ref = next((n for n in names if _stem(n) == "J1zz"), names[0]) if homogeneous else None
+    if free is None:
+        chosen = [n for n in names if n != ref]
+    else:
+        wanted = _name_list(free)
+        unknown = [f for f in wanted if f not in names]
+        if unknown:
+            raise ParameterError(f"free: {unknown[0]!r} is not a base parameter of this chain; its base parameters: "
+                                 f"{', '.join(names)}")
+        if ref in wanted:
+            raise ParameterError(f"free: {ref} is the scale of a free swing (free motion determines ratios only); "
+                                 "it stays at params0's value")
+        chosen = [n for n in names if n in wanted]
+        if not chosen:
+            raise ParameterError("free names no parameter")
+    pi0 = terms.standard(chain0)
+    beta0 = terms.values(pi0)
+    step = max(float(np.median(np.diff(np.asarray(p.t, float)))) for p in measurements)
+    signals = [_signals(p, smoothing, step) for p in measurements]
+    seg = shooting.segments(signals, [p.name for p in measurements], seg_len)
+    spans = [(float(x[0][0]), float(x[0][-1])) for x in signals]
+    cl, n_cl, cl_text = clusters(seg.piece, seg.t0, spans)
+    settings = {"method": "output-error (multiple shooting, RK4 with exact sensitivities)", "segment": seg_len,
+                "step": seg.h, "segments": len(seg), "smoothing": smoothing, "links": chain0.n, "angles": angles,
+                "intervals": f"clusters: {cl_text}" if n_cl >= MIN_CLUSTERS else
+                _no_intervals(n_cl, cl_text, float(sum(b - a for a, b in spans)))}
+    say("output-error fit", 0.1)
+    try:
+        sf = shooting.fit(terms, chain0, beta0, chosen, 0.0, False, seg, pieces=len(measurements),
+                          bootstrap=bootstrap, seed=seed, cluster=cl, frame=shooting.angle_frame(chain0.n, angles))
+    except FloatingPointError as exc:
+        raise ParameterError(f"the output-error fit cannot start: {exc}") from None
+    if n_cl < MIN_CLUSTERS:
+        sf.half = np.full_like(sf.half, np.nan)
+    values = np.asarray(sf.beta, float)
+    half = dict(zip(sf.theta_names, sf.half))
+    halves = np.array([half.get(n, math.nan) for n in names])
+    intervals = np.column_stack([values - halves, values + halves])
+    ratios, ratio_iv = {}, {}
+    if homogeneous:
+        k = names.index(ref)
+        intervals[k] = (math.nan, math.nan)
+        for j, n in enumerate(names):
+            if n in half:
+                ratios[f"{n}/{ref}"] = float(values[j] / values[k])
+                ratio_iv[f"{n}/{ref}"] = (float(intervals[j, 0] / values[k]), float(intervals[j, 1] / values[k]))
+    status, message = Status.SUCCESS, "identified (output error, multiple shooting)"
+    fitted, note = _realise_chain(chain0, terms, values, pi0)
+    if fitted is None:
+        status, message = Status.NO_CONVERGENCE, f"the output-error estimate is not physical: {note}"
+    elif note:
+        message += f"; {note}"
+    if fitted is not None:
+        check = terms.values(terms.standard(fitted))
+        if np.abs(check - values).max() > 1e-9 * np.abs(values).max():
+            status, message, fitted = Status.NO_CONVERGENCE, "the fitted chain does not reproduce the estimate", None
+    if not sf.converged:
+        status, message = Status.NO_CONVERGENCE, f"the output-error fit did not converge: {sf.message}"
+    elif sf.flat:
+        status, message = Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer "
+                                                  "parameters or add excitation")
+    say("held-out prediction", 0.9)
+    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, chain0, validation, smoothing, terms, values, beta0, 0.0,
+                                                   0.0, chain0.g, frame=shooting.angle_frame(chain0.n, angles))
+    if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
+        status, message = Status.NONFINITE, "a held-out simulation failed"
+    if status is Status.SUCCESS and not settings["intervals"].startswith("clusters"):
+        message += f"; {settings['intervals']}"
+    undetermined = ([SCALE_DIRECTION + f" (held at params0's {ref})"] if homogeneous else [])
+    settings.update(iterations=sf.iterations, converged=sf.converged, free=list(sf.theta_names), alpha_free=False)
+    stats = {"samples": int(sum(len(p) for p in measurements)), "seconds": time.perf_counter() - t_start,
+             "fit_seconds": sf.seconds, "cost": sf.cost, **stats_extra}
+    return Identification(
+        params=fitted if fitted is not None else chain0, params0=chain0, status=status, message=message, stats=stats,
+        settings=settings, names=names, expressions=terms.expressions, values=values, intervals=intervals,
+        free=tuple(n for n in names if n in half or n == ref), reference=ref, ratios=ratios, ratio_intervals=ratio_iv,
+        undetermined=tuple(undetermined), not_entering=terms.unidentifiable, pieces=measurements.names,
+        residual_rms=np.full(len(measurements), math.nan), validation=tuple(vnames), heldout_kind=tuple(kinds),
+        heldout_rms=np.array(hr), heldout_rms0=np.array(hr0), method="output-error", fit_rms=sf.rms_piece,
+        correlation=sf.correlation)
 
 
 def _signals(piece: Piece, smoothing: float, step: Optional[float] = None):
@@ -821,7 +1119,7 @@ def _stem(name: str) -> str:
 
 
 def _output_error(lin: Identification, measurements, params0, alpha_free, validation, smoothing, segment,
-                  bootstrap, seed, say, t_start, all_free: bool = True) -> Identification:
+                  bootstrap, seed, say, t_start, all_free: bool = True, angles: str = "relative") -> Identification:
     from . import shooting
     from ..symbolic.regressor import independent_columns
 
@@ -838,7 +1136,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     spans = [(float(s[0][0]), float(s[0][-1])) for s in signals]
     cl, n_cl, cl_text = clusters(seg.piece, seg.t0, spans)
     settings = dict(lin.settings)
-    settings.update(method="output-error (multiple shooting, RK4 with exact sensitivities)", segment=segment,
+    settings.update(method="output-error (multiple shooting, RK4 with exact sensitivities)", segment=segment, angles=angles,
                     step=seg.h, segments=len(seg), alpha_free=bool(alpha_free),
                     intervals=f"clusters: {cl_text}" if n_cl >= MIN_CLUSTERS else
                     _no_intervals(n_cl, cl_text, float(sum(b - a for a, b in spans))))
@@ -879,7 +1177,8 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     def run(beta, alpha, free_alpha, y0, iterations=60, boot=0, tol=1e-10):
         seg.y0[:] = y0
         sf = shooting.fit(B, params0, beta, free, alpha, free_alpha, seg, pieces=n_pieces,
-                          max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol, cluster=cl)
+                          max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol, cluster=cl,
+                          frame=shooting.angle_frame(2, angles))
         if n_cl < MIN_CLUSTERS:  # too few clusters for an interval: none (the reason is in settings)
             sf.half = np.full_like(sf.half, np.nan)
         return sf
@@ -960,7 +1259,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
                                                   "parameters or add excitation")
     say("held-out prediction", 0.9)
     vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a,
-                                                   alpha_fit, g)
+                                                   alpha_fit, g, frame=shooting.angle_frame(2, angles))
     if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
         status, message = Status.NONFINITE, "a held-out simulation failed"
     if status is Status.SUCCESS and not settings["intervals"].startswith("clusters"):
@@ -994,9 +1293,10 @@ def _oe_failed(lin: Identification, message: str, settings, t_start) -> Identifi
                                params=lin.params0, method="output-error")
 
 
-def _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha, g):
+def _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha, g, frame=None):
     """The held-out prediction of ``fitted`` and of ``params0``; ``fitted`` None (no fitted model: the
-    fit failed): its figures are NaN, never params0's under the fit's name."""
+    fit failed): its figures are NaN, never params0's under the fit's name.  ``frame``: the angles the
+    errors are measured in (:func:`skewpend.analysis.shooting.angle_frame`; None: the joint angles)."""
     vnames, kinds, hr, hr0 = [], [], [], []
     sq, sq0, count, count0 = 0.0, 0.0, 0, 0
     if validation is not None:
@@ -1005,6 +1305,9 @@ def _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha,
             kinds.append("angle")  # driven pieces too: simulated with their measured torques
             e0 = _predict(params0, p, smoothing)
             e1 = None if fitted is None else _predict(fitted, p, smoothing)
+            if frame is not None:
+                e0 = None if e0 is None else e0 @ frame.T
+                e1 = None if e1 is None else e1 @ frame.T
             hr0.append(math.nan if e0 is None else float(np.sqrt(np.mean(e0**2))))
             hr.append(math.nan if e1 is None else float(np.sqrt(np.mean(e1**2))))
             if e0 is not None:
@@ -1144,8 +1447,9 @@ def _vertex(x: np.ndarray, c: np.ndarray) -> float:
     return float(min(max(-Bq / (2 * A), x0), x2))
 
 
-def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.ndarray]:
-    """Angle errors (n, 2) of ``params`` simulated from the piece's first measured state."""
+def _predict(params, piece: Piece, smoothing: float) -> Optional[np.ndarray]:
+    """Angle errors (n, nq) of ``params`` (the double pendulum's or a chain) simulated from the piece's
+    first measured state."""
     from ..numeric.simulation import simulate
 
     t = np.asarray(piece.t, float) - float(piece.t[0])
@@ -1156,7 +1460,7 @@ def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.
 
         w = min(_window(piece.dt, smoothing), len(t) - (len(t) + 1) % 2)
         dq0 = savgol_filter(np.asarray(piece.q, float), w, ORDER, deriv=1, delta=piece.dt, axis=0)[0]
-    y0 = [float(piece.q[0, 0]), float(piece.q[0, 1]), float(dq0[0]), float(dq0[1])]
+    y0 = [float(x) for x in piece.q[0]] + [float(x) for x in dq0]
     try:
         if piece.u is None:
             tr = simulate(params, y0, float(t[-1]) + piece.dt, dt_out=piece.dt)
@@ -1169,7 +1473,7 @@ def _predict(params: Parameters, piece: Piece, smoothing: float) -> Optional[np.
     ts, ys = np.asarray(tr.t, float), np.asarray(tr.y, float)
     if not tr.ok or ts[-1] < t[-1] - 1e-9 or not np.all(np.isfinite(ys)):
         return None
-    sim = np.column_stack([np.interp(t, ts, ys[:, 0]), np.interp(t, ts, ys[:, 1])])
+    sim = np.column_stack([np.interp(t, ts, ys[:, k]) for k in range(piece.nq)])
     return sim - np.asarray(piece.q, float)
 
 
@@ -1366,9 +1670,15 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
                  + ("" if status is Status.SUCCESS else " -- written with force=True: NOT a fitted model"))
     for u in result.undetermined:
         lines.append(f"# undetermined: {_one_line(u)}")
-    lines += ["# use it as: skewpend simulate --config FILE (any command that reads [parameters])", "",
-              "[parameters]"]
-    lines += parameters_toml(result.params)
+    if isinstance(result.params, Parameters):
+        lines += ["# use it as: skewpend simulate --config FILE (any command that reads [parameters])", "",
+                  "[parameters]"]
+        lines += parameters_toml(result.params)
+    else:  # a chain of links
+        from ..config import chain_toml
+
+        lines += ["# use it as: skewpend simulate --config FILE (the commands that take a chain's [[links]])", ""]
+        lines += chain_toml(result.params)
     text = "\n".join(lines) + "\n"
     with atomic_path(path) as tmp:  # (it refuses a path that is not one, in one line)
         tmp.write_text(text, encoding="utf-8")

@@ -59,7 +59,7 @@ from ..schema import COM_NAMES, INERTIA_NAMES, LENGTH_NAMES, MASS_NAMES, sym_pre
 from ..numeric.conventions import TENSOR_INDICES
 from ..symbolic.model import Parameters
 
-__all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit"]
+__all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit", "angle_frame"]
 
 #: Default length of a shooting segment [s].
 SEGMENT = 0.5
@@ -78,11 +78,15 @@ class _Model:
     terms with friction and rotor columns beside them), ``params0`` the start model (its hinge axes,
     optional terms, ``a``, ``g``, ``cfs``, ``gr`` and the values of the entries held)."""
 
-    def __init__(self, terms, params0: Parameters):
+    def __init__(self, terms, params0):
         from ..numeric.conventions import PARAMETER_ORDER, TENSOR_ENTRIES, parameter_vector
         from ..numeric.kernels import kernel_module
         from ..symbolic.regressor import PI_NAMES, standard_parameters
 
+        if not isinstance(params0, Parameters):  # a chain of links: its base parameters are numeric
+            self._chain(terms, params0)
+            return
+        self.nq = 2
         base = getattr(terms, "B", terms)
         self.names = tuple(terms.names)
         self.extra = tuple(getattr(terms, "extra", ()))
@@ -117,6 +121,40 @@ class _Model:
         if not np.allclose(T[:, self.pivots], np.eye(self.r0), rtol=0, atol=1e-12):
             raise AssertionError("the base parameters are not their pivots plus dependents")
 
+    def _chain(self, terms, chain) -> None:
+        """The same map for a chain of links (:mod:`skewpend.analysis.chainfit`'s base parameters, one
+        constant ``T``: the hinge axes and offsets are not fitted): ``pi`` link by link
+        (``recursive.standard_names``), ``p`` the chain's (``recursive.parameter_names``)."""
+        from ..numeric.conventions import TENSOR_ENTRIES
+        from ..numeric.kernels import chain_kernel
+        from ..numeric.recursive import parameter_names, parameter_vector
+
+        self.nq = chain.n
+        self.names, self.extra = tuple(terms.names), ()
+        self.pivots = list(terms.pivots)
+        self.r0 = len(terms.names)
+        self.pi_names = tuple(terms.pi_names)
+        self.n_pi = len(self.pi_names)
+        self.dep = [j for j in range(self.n_pi) if j not in self.pivots]
+        self.a = self.g = 0.0
+        self.alpha_ref = 0.0
+        self.i_alpha = None
+        self.pi_ref = terms.standard(chain)
+        self.kernel = chain_kernel(chain, shooting=True)
+        self.p0 = parameter_vector(chain)
+        matrix = np.asarray(terms.matrix, dtype=float)
+        self._T = lambda a, alpha, g: matrix
+        self._dT = None
+        order = list(parameter_names(chain.n))
+        self.i_scalar = {n: order.index(n) for n in self.pi_names if n in order}
+        self.bodies = []
+        for i in range(1, chain.n + 1):
+            r = [order.index(f"r{x}{i}") for x in "xyz"]
+            J = [order.index(f"I{e}{i}") for e in TENSOR_ENTRIES]
+            h_pi = [self.pi_names.index(f"h{i}{x}") for x in "xyz"]
+            J_pi = [self.pi_names.index(f"J{i}{e}") for e in TENSOR_ENTRIES]
+            self.bodies.append((self.pi_names.index(f"m{i}"), h_pi, J_pi, r, J))
+
     def T(self, alpha: float) -> np.ndarray:
         return np.array(self._T(self.a, alpha, self.g), dtype=float).reshape(self.r0, self.n_pi)
 
@@ -131,7 +169,8 @@ class _Model:
         """The kernel's ``p`` of a standard vector and ``dp/dpi`` (NP x len(pi))."""
         p = self.p0.copy()
         D = np.zeros((len(p), len(pi)))
-        p[self.i_alpha] = alpha
+        if self.i_alpha is not None:
+            p[self.i_alpha] = alpha
         for n, i in self.i_scalar.items():
             j = self.pi_names.index(n)
             p[i] = pi[j]
@@ -169,19 +208,20 @@ class _Model:
         return p, G
 
     def shoot(self, seg: "Segments", y0, p, G=None):
-        """``sp_shoot`` over the segments: the angles (S, L+1, 2) and, with ``G``, their derivatives
-        (S, L+1, 2, 4 + k) in the start values and theta."""
+        """``sp_shoot`` over the segments: the angles (S, L+1, nq) and, with ``G``, their derivatives
+        (S, L+1, nq, 2 nq + k) in the start values and theta."""
         import ctypes
 
         from ..parsing import UsageError
 
         S, L1 = seg.q.shape[:2]
+        nq, n2 = self.nq, 2 * self.nq
         k = 0 if G is None else G.shape[1]
         y0 = np.ascontiguousarray(y0, dtype=float)
         p = np.ascontiguousarray(p, dtype=float)
         tau = None if not np.any(seg.tau) else np.ascontiguousarray(seg.tau, dtype=float)
-        q = np.empty((S, L1, 2))
-        J = np.empty((S, L1, 2, 4 + k)) if G is not None else None
+        q = np.empty((S, L1, nq))
+        J = np.empty((S, L1, nq, n2 + k)) if G is not None else None
         dp = ctypes.POINTER(ctypes.c_double)
         null = ctypes.cast(None, dp)
 
@@ -193,9 +233,9 @@ class _Model:
         for s0 in range(0, S, _CHUNK):
             n = min(_CHUNK, S - s0)
             code = self.kernel.lib.sp_shoot(
-                ptr(p), Gp, k, n, L1 - 1, seg.h, ptr(y0, 4 * s0),
-                ptr(tau, s0 * tau.shape[1] * 2) if tau is not None else null,
-                ptr(q, s0 * L1 * 2), ptr(J, s0 * L1 * 2 * (4 + k)) if J is not None else null)
+                ptr(p), Gp, k, n, L1 - 1, seg.h, ptr(y0, n2 * s0),
+                ptr(tau, s0 * tau.shape[1] * nq) if tau is not None else null,
+                ptr(q, s0 * L1 * nq), ptr(J, s0 * L1 * nq * (n2 + k)) if J is not None else null)
             if code != 0:
                 raise UsageError(f"multiple shooting refused its arguments (code {code}): at most 64 free parameters")
         return q, J
@@ -216,9 +256,9 @@ def _packed(T: np.ndarray) -> np.ndarray:
 # -- the data cut into segments -----------------------------------------------------------------------------
 @dataclass
 class Segments:
-    """Every segment of every piece, padded to one length: ``q`` (S, L+1, 2) the measured angles at
-    the steps, ``mask`` (S, L+1), ``tau`` (S, 2L+1, 2) torques at the steps and half steps (zeros
-    for a free swing), ``y0`` (S, 4) the filtered start states, ``piece`` (S,) the piece index,
+    """Every segment of every piece, padded to one length: ``q`` (S, L+1, nq) the measured angles at
+    the steps, ``mask`` (S, L+1), ``tau`` (S, 2L+1, nq) torques at the steps and half steps (zeros
+    for a free swing), ``y0`` (S, 2 nq) the filtered start states, ``piece`` (S,) the piece index,
     ``h`` the RK4 step, ``every`` sampling steps per RK4 step, ``t0`` (S,) start times."""
 
     q: np.ndarray
@@ -255,16 +295,17 @@ def segments(filtered: Sequence[Tuple], names: Sequence[str], segment: float = S
     if not cuts:
         raise ParameterError("no piece is long enough for one shooting segment")
     Lmax = max(s1 - s0 for _, s0, s1 in cuts)
+    nq = np.shape(filtered[0][1])[1]
     qs, masks, taus, y0s, owner, t0s = [], [], [], [], [], []
     for k, s0, s1 in cuts:
         t, q, qf, dqf, u = filtered[k]
         idx = np.arange(s0, s1 + 1) * every
         m = len(idx)
-        Q = np.zeros((Lmax + 1, 2))
+        Q = np.zeros((Lmax + 1, nq))
         Q[:m] = q[idx]
         M = np.zeros(Lmax + 1)
         M[:m] = 1.0
-        T = np.zeros((2 * Lmax + 1, 2))
+        T = np.zeros((2 * Lmax + 1, nq))
         if u is not None:
             half = np.arange(s0 * 2, s1 * 2 + 1) * every / 2.0  # sample index of the steps and half steps
             lo = np.floor(half).astype(int)
@@ -281,22 +322,37 @@ def segments(filtered: Sequence[Tuple], names: Sequence[str], segment: float = S
                     y0=np.array(y0s), piece=np.array(owner), t0=np.array(t0s), h=h, every=every, names=tuple(names))
 
 
+def angle_frame(nq: int, angles: str = "relative") -> Optional[np.ndarray]:
+    """The matrix taking the relative joint angles (skewpend's coordinates) to the angles an output
+    error is measured in: None for ``"relative"``; for ``"absolute"`` (each rod's angle from the
+    vertical, the sum of the joint angles up to it) the lower triangle of ones."""
+    if angles == "relative":
+        return None
+    if angles == "absolute":
+        return np.tril(np.ones((nq, nq)))
+    raise ParameterError(f"angles must be 'relative' or 'absolute', got {angles!r}", parameter="angles")
+
+
 # -- integration ----------------------------------------------------------------------------------------------
 def _simulate(model: _Model, seg: Segments, y0, beta, alpha):
-    """Angles (S, L+1, 2) by RK4 from ``y0`` (no sensitivities)."""
+    """Angles (S, L+1, nq) by RK4 from ``y0`` (no sensitivities)."""
     p, _ = model.point(beta, alpha, (), False)
     return model.shoot(seg, y0, p)[0]
 
 
-def _linearise(model: _Model, seg: Segments, y0, beta, alpha, free_idx, alpha_free):
-    """Residuals and the accumulated Gauss-Newton blocks per segment:
-    ``e`` (S, L+1, 2), ``Hll`` (S, 4, 4), ``Hlg`` (S, 4, p), ``Hgg`` (S, p, p), ``gl`` (S, 4), ``gg`` (S, p)."""
+def _linearise(model: _Model, seg: Segments, y0, beta, alpha, free_idx, alpha_free, frame=None):
+    """Residuals and the accumulated Gauss-Newton blocks per segment (``n2 = 2 nq`` start values):
+    ``e`` (S, L+1, nq), ``Hll`` (S, n2, n2), ``Hlg`` (S, n2, p), ``Hgg`` (S, p, p), ``gl`` (S, n2), ``gg`` (S, p)."""
     p, G = model.point(beta, alpha, free_idx, alpha_free)
     q, J = model.shoot(seg, y0, p, G)
     w = seg.mask[:, :, None]
     e = (q - seg.q) * w
     J = J * w[..., None]
-    Jl, Jg = J[..., :4], J[..., 4:]
+    if frame is not None:  # the residuals in the angles the rig measured (absolute: sums of the relative)
+        e = np.einsum("ij,slj->sli", frame, e)
+        J = np.einsum("ij,sljc->slic", frame, J)
+    n2 = 2 * model.nq
+    Jl, Jg = J[..., :n2], J[..., n2:]
     Hll = np.einsum("slia,slib->sab", Jl, Jl)
     Hlg = np.einsum("slia,slib->sab", Jl, Jg)
     Hgg = np.einsum("slia,slib->sab", Jg, Jg)
@@ -309,7 +365,7 @@ def _reduce(Hll, Hlg, Hgg, gl, gg, lam):
     """Eliminate each segment's start values: the reduced matrix and gradient per segment, and the
     factors to recover the local steps."""
     D = np.einsum("sii->si", Hll)
-    A = Hll + lam * D[:, :, None] * np.eye(4)
+    A = Hll + lam * D[:, :, None] * np.eye(Hll.shape[1])
     Ainv = np.linalg.inv(A)
     AinvB = Ainv @ Hlg
     Sred = Hgg - np.einsum("sab,sac->sbc", Hlg, AinvB)
@@ -386,11 +442,12 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
         alpha_free: bool, seg: Segments, *, pieces: int, max_iterations: int = 60,
         bootstrap: int = 200, seed: int = 0, tol: float = 1e-10, progress: Optional[Callable[[int, float], None]] = None,
         alpha_bounds: Tuple[float, float] = (-math.pi / 2, math.pi / 2),
-        cluster: Optional[np.ndarray] = None) -> ShootingFit:
+        cluster: Optional[np.ndarray] = None, frame: Optional[np.ndarray] = None) -> ShootingFit:
     """Levenberg-Marquardt on the segments' residuals; see the module.  ``terms``: the base parameters
     (their ``names`` the order of ``beta0``), ``params0`` the start model (:class:`_Model`).  ``cluster``: each segment's
     cluster of the intervals (default its piece; :func:`skewpend.analysis.identify.clusters` cuts few
-    pieces into blocks)."""
+    pieces into blocks).  ``frame``: a matrix taking the model's angles to those the residuals are
+    measured in (None: the model's own; :func:`angle_frame`)."""
     from ..results import t_quantile
 
     owner = np.asarray(seg.piece if cluster is None else cluster, dtype=int)
@@ -414,7 +471,7 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
 
     theta = np.concatenate([beta[free_idx], [alpha] if alpha_free else []])
     lam = 1e-3
-    e, Hll, Hlg, Hgg, gl, gg = _linearise(model, seg, y0, *unpack(theta), free_idx, alpha_free)
+    e, Hll, Hlg, Hgg, gl, gg = _linearise(model, seg, y0, *unpack(theta), free_idx, alpha_free, frame)
     cost = float(np.sum(e**2))
     if not math.isfinite(cost):
         raise FloatingPointError("the start model's simulation is not finite")
@@ -437,7 +494,8 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
                 new_theta[-1] = min(max(new_theta[-1], alpha_bounds[0]), alpha_bounds[1])
             new_y0 = y0 + dl
             q_new = _simulate(model, seg, new_y0, *unpack(new_theta))
-            new_cost = float(np.sum(((q_new - seg.q) * seg.mask[:, :, None]) ** 2))
+            resid = (q_new - seg.q) * seg.mask[:, :, None]
+            new_cost = float(np.sum((resid if frame is None else resid @ frame.T) ** 2))
             if math.isfinite(new_cost) and new_cost < cost:
                 accepted = True
                 break
@@ -449,7 +507,7 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
         rel = (cost - new_cost) / max(cost, 1e-300)
         theta, y0, cost = new_theta, new_y0, new_cost
         lam = max(lam / 10, 1e-12)
-        e, Hll, Hlg, Hgg, gl, gg = _linearise(model, seg, y0, *unpack(theta), free_idx, alpha_free)
+        e, Hll, Hlg, Hgg, gl, gg = _linearise(model, seg, y0, *unpack(theta), free_idx, alpha_free, frame)
         cost = float(np.sum(e**2))
         if progress is not None:
             progress(it, cost)

@@ -118,6 +118,7 @@ def identify(
     short: Annotated[Optional[str], typer.Option("--short", metavar="refuse|drop", help="pieces with fewer than 10 samples (after cutting at gaps): refuse the data, or drop those pieces (said on stderr) (default refuse)", rich_help_panel=RUN)] = None,
     method: Annotated[FitMethod, typer.Option("--method", help="output-error: the linear estimate, then multiple shooting on the angles; linear: the linear estimate (inverse dynamics on filtered signals) alone", show_default=False, rich_help_panel=RUN)] = FitMethod.output_error,
     segment: option("--segment", _SECONDS, "output-error: the shooting segments' length [s], at most 60 (default 0.5)") = None,
+    angles: Annotated[Optional[str], typer.Option("--angles", metavar="relative|absolute", help="output-error: the angles the fit and the held-out RMS measure, relative (the joint angles, skewpend's coordinates; default) or absolute (each rod's from the vertical)", rich_help_panel=RUN)] = None,
     smoothing: option("--smoothing", _SECONDS, "the Savitzky-Golay window of the linear estimate and the segments' starts [s] (default 0.05)") = None,
     columns: Annotated[Optional[str], typer.Option("--columns", metavar="KEY=COLUMN,...", help="--format csv (required with it): the columns of t, phi, psi and optionally dphi,dpsi and tau1,tau2 (pairs; a torque may be a number, e.g. tau2=0)", rich_help_panel=RUN)] = None,
     variables: Annotated[Optional[str], typer.Option("--variables", metavar="DATA_VAR,TIME_VAR|DT", help="--format mat (required with it): the variable holding the samples (a cell array of pieces or one array) and the time variable or a fixed step in seconds", rich_help_panel=RUN)] = None,
@@ -148,6 +149,19 @@ def identify(
     conv = _convention(convention)
     reader = _reader(kind, columns, variables, channels, conv, _checks(skip, nonfinite, short))
     params0 = _params0(kind, paths, model, config, params0_file)
+    from ..symbolic.chain import Chain
+
+    is_chain = isinstance(params0, Chain)
+    if is_chain:
+        for flag, given in (("--plot", plot), ("--report", report), ("--out FILE.yml", out is not None and
+                                                                      out.lower().endswith(".yml"))):
+            if given:
+                raise UsageError(f"{flag}: drawn for the double pendulum's two angles only; a chain of {params0.n} links "
+                                 "writes its result with --out FILE.toml or --netcdf FILE.nc")
+        if method.value != "output-error":
+            raise UsageError("--method linear: a chain is identified by the output-error fit only")
+    if angles is not None and angles not in ("relative", "absolute"):
+        raise UsageError(f"--angles must be relative or absolute, got {angles!r}")
     lab_out = out is not None and out.lower().endswith(".yml")
     if lab_out:
         _check_lab_out(out, params0, free_names)
@@ -181,10 +195,13 @@ def identify(
     from ..analysis.identify import identify as fit
     from ..interrupts import Interrupts
 
-    with _cli_messages(conv):
-        hints.check_sampling(measurements, params0, convention=conv, interface="cli")
+    if not is_chain:
+        with _cli_messages(conv):
+            hints.check_sampling(measurements, params0, convention=conv, interface="cli")
 
     kw: Dict[str, Any] = {"free": free_names, "validation": validation, "method": method.value}
+    if angles is not None:
+        kw["angles"] = angles
     if segment is not None:
         kw["segment"] = segment
     if smoothing is not None:
@@ -197,7 +214,7 @@ def identify(
         with _cli_messages(conv):
             result = fit(measurements, params0, progress=say, **kw)
         bar(100.0, 100.0)
-        why = hints.suspect(result, measurements)
+        why = None if is_chain else hints.suspect(result, measurements)
         found: List[str] = []
         if why is not None:  # a fit gone wrong, or it may have: the likely data mistakes (a few linear estimates)
             if kind in ("csv", "mat", "dfki") and not quiet:
@@ -571,10 +588,19 @@ def _params0(kind: str, paths: List[str], model: dict, config: Optional[str], la
         run = resolve("identify", None, defaults=False, flags=flags, parameters={**lab, **given})
         return run.parameters()
     if kind == "kaheman" and not given and config is None:
-        from ..analysis.measurements import kaheman_published_parameters
+        from ..analysis.measurements import KAHEMAN_FILE, KAHEMAN_TRIPLE_FILE, kaheman_published_chain, kaheman_published_parameters
 
+        where = Path(paths[0])
+        if where.name == KAHEMAN_TRIPLE_FILE or (where.is_dir() and (where / KAHEMAN_TRIPLE_FILE).is_file()
+                                                 and not (where / KAHEMAN_FILE).is_file()):
+            return kaheman_published_chain(where)  # the triple pendulum: the chain of three links
         return kaheman_published_parameters(paths[0])
     run = resolve("identify", config, defaults=False, parameters=model)
+    if run.is_chain:
+        if given:
+            raise UsageError(f"{', '.join(sorted(given))}: the double pendulum's model options do not apply to a chain "
+                             "of links ([[links]] in --config); set the links' values in the run file")
+        return run.chain()
     params = run.parameters()
     missing = [run.option("parameters", k) for k in NEEDED if getattr(params, k) is None]
     if missing:

@@ -35,7 +35,7 @@ from ..schema import CHAIN_NAMES, LINK_FIELDS
 from ..symbolic.chain import Chain
 
 __all__ = ["ChainStructure", "structure_of_chain", "parameter_names", "parameter_vector", "PER_LINK",
-           "chain_functions", "c_function_lines"]
+           "chain_functions", "c_function_lines", "standard_names", "standard_vector", "regressor_function"]
 
 def _per_link() -> Tuple[str, ...]:
     """One link's entries of ``p``, from the schema's link fields in their order: every field but the
@@ -558,6 +558,78 @@ def chain_sensitivity_c_source(structure: ChainStructure) -> str:
             "void sp_rhs_sens(const double *y, const double *p, double *acc, double *A, double *B) { rhs_sens(y, p, acc, A, B); }",
             ""]
     return "\n".join(out) + "\n"
+
+
+# -- identification: the standard parameters and the regressor ---------------------------------------------
+def standard_names(structure: ChainStructure) -> Tuple[str, ...]:
+    """The chain's standard parameters ``pi``, link by link, in which the equations are linear:
+    ``m_i``, the first moment ``h_i = m_i c_i`` (``h{i}x`` ...) and the inertia ``J_i`` about the hinge
+    (``J{i}xx`` ...; both in the link's frame), the damping ``c_i``, and where the structure has them
+    the Coulomb friction ``cf_i`` (at the chain's ``cfs``) and the rotor's inertia ``Ir_i`` (at its gear)
+    -- the double pendulum's names (:data:`skewpend.symbolic.regressor.PI_NAMES`) for any length."""
+    from .conventions import TENSOR_ENTRIES
+
+    out: List[str] = []
+    for i in range(1, structure.n + 1):
+        out += [f"m{i}"] + [f"h{i}{x}" for x in "xyz"] + [f"J{i}{e}" for e in TENSOR_ENTRIES] + [f"c{i}"]
+        out += [f"cf{i}"] * structure.friction + [f"Ir{i}"] * structure.rotor
+    return tuple(out)
+
+
+def standard_vector(chain: Chain):
+    """``pi`` of ``chain`` (:func:`standard_names`' order): ``h = m c``, ``J = I_c + m (|c|^2 E - c c^T)``."""
+    import numpy as np
+
+    from .conventions import TENSOR_INDICES
+
+    structure = structure_of_chain(chain)
+    out: List[float] = []
+    for link in chain.links:
+        c = np.asarray(link.com, dtype=float)
+        J = np.asarray(link.inertia, dtype=float) + link.mass * (float(c @ c) * np.eye(3) - np.outer(c, c))
+        out += [link.mass, *(link.mass * c), *(J[i, j] for i, j in TENSOR_INDICES), link.damping]
+        out += [link.coulomb] * structure.friction + [link.rotor] * structure.rotor
+    return np.array(out, dtype=float)
+
+
+@lru_cache(maxsize=8)
+def regressor_function(structure: ChainStructure):
+    """``(y, a, p, pi) -> Y`` (n x len(pi)): the equations ``M(q) a - f(q, q') + tau = Y(q, q', a) pi``
+    are linear in the standard parameters (:func:`standard_names`); ``Y`` is their derivative, by
+    CasADi's automatic differentiation of the recursive algorithms with ``p``'s bodies written in
+    ``pi`` (``c = h/m``, ``I_c = J - (|h|^2 E - h h^T)/m``).  ``p`` supplies what is not in ``pi`` (the
+    hinge offsets, ``g``, ``cfs``, gears); ``Y`` does not depend on ``pi``'s value (any positive masses)."""
+    from .conventions import TENSOR_ENTRIES, TENSOR_INDICES
+
+    ca = _ca()
+    G = _Graph(structure)
+    n = G.n
+    y = ca.vertcat(G.q, G.dq)
+    a = ca.SX.sym("a", n)
+    names = standard_names(structure)
+    pi = ca.SX.sym("pi", len(names))
+    at = {name: pi[k] for k, name in enumerate(names)}
+    pnames = parameter_names(n)
+    new = [G.p[k] for k in range(len(pnames))]
+    for i in range(1, n + 1):
+        m = at[f"m{i}"]
+        h = [at[f"h{i}{x}"] for x in "xyz"]
+        J = {e: at[f"J{i}{e}"] for e in TENSOR_ENTRIES}
+        hh = h[0] * h[0] + h[1] * h[1] + h[2] * h[2]
+        new[pnames.index(f"m{i}")] = m
+        for k, x in enumerate("xyz"):
+            new[pnames.index(f"r{x}{i}")] = h[k] / m
+        for e, (r, c) in zip(TENSOR_ENTRIES, TENSOR_INDICES):
+            new[pnames.index(f"I{e}{i}")] = J[e] - ((hh if r == c else 0) - h[r] * h[c]) / m
+        for stem in ("c", "cf", "Ir"):
+            if f"{stem}{i}" in at:
+                new[pnames.index(f"{stem}{i}")] = at[f"{stem}{i}"]
+    M = G.mass_matrix()
+    Q = G.joint_forces()
+    b = G.bias()
+    r = ca.vertcat(*[sum((M[i][j] * a[j] for j in range(n)), ca.SX(0)) + b[i] - Q[i] for i in range(n)])
+    r = ca.substitute(r, G.p, ca.vertcat(*new))
+    return ca.Function("regressor", [y, a, G.p, pi], [ca.densify(ca.jacobian(r, pi))])
 
 
 # -- compact code: one step of each recursion, looped over the links ----------------------------------------
