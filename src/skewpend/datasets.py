@@ -1,4 +1,4 @@
-"""The example data shipped with skewpend: measured motion of two real double pendulums.
+"""The example data shipped with skewpend: measured motion of two real double pendulums and a triple.
 
 The files are package data (``src/skewpend/data/``; its README gives their sources and
 licences), installed by ``pip install .`` like the code, so the guide's examples run from any
@@ -15,6 +15,8 @@ __all__ = ["EXAMPLE_DATA", "example_data", "data_root"]
 #: The shipped data sets: name -> what it holds (the names are folders of ``skewpend/data``).
 EXAMPLE_DATA: Dict[str, str] = {
     "kaheman2023": "free swing of Kaheman et al. 2023, 1 kHz, 26 pieces to fit and 4 held out (MIT)",
+    "kaheman2023-triple": "free swing of their triple pendulum (the same rig, a third arm), 1 kHz, 22 pieces to fit "
+                          "and 4 held out (MIT)",
     "dfki-design-C.0": "the DFKI lab's acrobot/pendubot driven by measured torques, trajectory_00-06, 12, 13 "
                        "and the lab's model_*_parameters.yml (BSD-3-Clause)",
 }
