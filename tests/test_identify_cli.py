@@ -271,7 +271,7 @@ def test_plot_and_report_when_the_views_have_them(tmp_path):
     (["KAHEMAN", "--format", "foo"], ["--format", "foo"]),
     (["nowhere/kaheman2023"], ["DATA", "nowhere/kaheman2023 does not exist"]),
     (["KAHEMAN", "--validate", "nowhere.mat"], ["nowhere.mat does not exist"]),
-    (["kaheman2024"], ["DATA: kaheman2024 does not exist", "kaheman2023, dfki-design-C.0"]),
+    (["kaheman2024"], ["DATA: kaheman2024 does not exist", "kaheman2023, kaheman2023-triple, dfki-design-C.0"]),
     (["dfki-design-C.0/trajectory_99.csv"], ["trajectory_99.csv"]),
     (["KAHEMAN", "--free", "J9zz"], ["--free", "unknown name 'J9zz'"]),
     (["KAHEMAN", "--free", "alpha", "--method", "linear"], ["alpha", "output-error"]),

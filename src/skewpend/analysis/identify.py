@@ -406,7 +406,7 @@ def read_identification(path, variables, attrs) -> Identification:
         correlation=np.asarray(variables["correlation"], dtype=float) if "correlation" in variables else np.zeros((0, 0)),
         **proto)
     if model is Chain:
-        if result.status is Status.SUCCESS and len(values):
+        if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):
             terms = chain_terms(params0)
             if tuple(terms.names) != result.names:
                 raise ParameterError(f"{path} was written by another chain: its base parameters are {list(result.names)}, "
@@ -927,11 +927,13 @@ def standard_vector_of_chain(chain) -> np.ndarray:
     return ChainTerms.standard(chain)
 
 
-def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray):
+def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False):
     """The chain whose standard parameters are ``pi`` (bodies through ``c = h/m``, ``I_c = J - (|h|^2 E -
     h h^T)/m``); one ParameterError when a body is no body.  The entries of ``J`` that do not enter the
     equations (:attr:`ChainTerms.unidentifiable`) are set so that the inertia about the centre of mass
-    keeps ``chain0``'s there (a rod's moment about its normal ``x`` moves with the one about ``z``)."""
+    keeps ``chain0``'s there (a rod's moment about its normal ``x`` moves with the one about ``z``).
+    ``project``: each inertia about the centre of mass replaced by the nearest physical one (negative
+    principal moments raised to 0, then the two smaller raised alike to meet the triangle inequality)."""
     from ..numeric.conventions import TENSOR_ENTRIES, TENSOR_INDICES
 
     at = dict(zip(terms.pi_names, pi))
@@ -953,6 +955,13 @@ def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray):
             if e in held and other not in held:
                 j = 2 - k
                 Ic[k, k] = I0[k, k] + (Ic[j, j] - I0[j, j])
+        if project:
+            w, V = np.linalg.eigh((Ic + Ic.T) / 2)
+            w = np.maximum(w, 0.0)
+            short = w[2] - w[0] - w[1]
+            if short > 0:
+                w[:2] += short / 2
+            Ic = (V * w) @ V.T
         changes = dict(mass=float(m), com=tuple(float(x) for x in h / m), inertia=tuple(tuple(float(x) for x in row) for row in Ic),
                        damping=float(at[f"c{i}"]))
         for stem, key in (("cf", "coulomb"), ("Ir", "rotor")):
@@ -962,24 +971,48 @@ def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray):
     return replace(chain0, links=tuple(links))
 
 
-def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray):
-    """A physical chain with the base parameters ``beta``: ``chain0``'s masses first, else every mass
-    raised by the first of :data:`MASS_FACTORS` that realises it (the masses are not determined by the
-    equations where they are lumped into the first moments and inertias; the base parameters are
-    kept exactly).  Returns ``(chain, note)``, or ``(None, why)``."""
+def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray, halves: Optional[np.ndarray] = None):
+    """A physical chain with the base parameters ``beta``: ``chain0``'s masses first; else the masses
+    that do not enter the equations at all (the first link's, whose first moment and inertia about its
+    fixed hinge say everything) raised by the first of :data:`MASS_FACTORS` that realises it, else every
+    mass so (the masses are not determined where they are lumped into the first moments and inertias;
+    the base parameters are kept exactly).  A body on the edge of the physical (a slender rod: no
+    moment about its own axis) may land a little outside: then the nearest physical bodies, accepted
+    when they move no base parameter both by more than 1 % and beyond its 95 % half-width ``halves``
+    (the note says by how much).  Returns ``(chain, note)``, or ``(None, why)``."""
+    pi = terms.representative(beta, pi0)
+    for j, name in enumerate(terms.pi_names):  # the joints' terms do not move with the masses
+        stem = name.rstrip("0123456789")
+        if stem in ("c", "cf", "Ir") and pi[j] < 0:
+            what = {"c": "viscous damping", "cf": "Coulomb friction", "Ir": "rotor inertia"}[stem]
+            return None, (f"{name} = {pi[j]:.4g} < 0: the data want a negative {what} in joint {name[len(stem):]} "
+                          f"(the model's joint terms do not fit there); hold {name} at params0's value (free=)")
     masses = [terms.pi_names.index(f"m{i}") for i in range(1, chain0.n + 1)]
+    loose = [j for j in masses if terms.pi_names[j] in terms.unidentifiable]
+    factors = [x for k in MASS_FACTORS for x in (k, 1.0 / k)]  # nearest to params0's first
+    trials = [(1.0, masses)] + [(k, loose) for k in factors if loose] + [(k, masses) for k in factors]
     first, last = "", ""
-    for k in (1.0,) + MASS_FACTORS:
+    for k, which in trials:
         ref = pi0.copy()
-        ref[masses] *= k
+        ref[which] *= k
         try:
             chain = _chain_of(chain0, terms, terms.representative(beta, ref))
         except ParameterError as exc:
             first, last = first or str(exc), str(exc)
             continue
-        return chain, ("" if k == 1.0 else f"every mass raised x{k:g} from params0's, which cannot realise the "
-                       f"estimate ({first}); a free swing does not determine the masses themselves")
-    return None, first if last == first else f"{first} (with the masses raised x{MASS_FACTORS[-1]:g}: {last})"
+        what = "every mass" if which is masses else ", ".join(terms.pi_names[j] for j in which)
+        return chain, ("" if k == 1.0 else f"{what} scaled x{k:.3g} from params0's, which cannot realise the "
+                       f"estimate ({first}); a free swing does not determine {'the masses' if which is masses else 'it'}")
+    chain = _chain_of(chain0, terms, pi, project=True)
+    moved = terms.values(terms.standard(chain)) - np.asarray(beta, float)
+    big = 1e-2 * float(np.max(np.abs(beta)))  # a near-zero entry (a product of inertia) on the others' scale
+    rel = np.abs(moved) / np.maximum(np.abs(beta), big)
+    half = np.full(len(beta), np.inf) if halves is None else np.where(np.isfinite(halves), halves, np.inf)
+    over = [terms.names[j] for j in range(len(beta)) if rel[j] > 0.01 and abs(moved[j]) > half[j]]
+    if not over:
+        return chain, (f"the estimate lies just outside the physical bodies ({first}); the model is the nearest "
+                       f"physical body (base parameters moved by at most {100 * float(rel.max()):.2g} %)")
+    return None, first if last == first else f"{first} (with the masses scaled x{factors[-1]:g}: {last})"
 
 
 def _identify_chain(measurements, chain0, *, free, validation, method, smoothing, segment, bootstrap, seed, progress,
@@ -1058,12 +1091,12 @@ def _identify_chain(measurements, chain0, *, free, validation, method, smoothing
                 ratios[f"{n}/{ref}"] = float(values[j] / values[k])
                 ratio_iv[f"{n}/{ref}"] = (float(intervals[j, 0] / values[k]), float(intervals[j, 1] / values[k]))
     status, message = Status.SUCCESS, "identified (output error, multiple shooting)"
-    fitted, note = _realise_chain(chain0, terms, values, pi0)
+    fitted, note = _realise_chain(chain0, terms, values, pi0, halves)
     if fitted is None:
         status, message = Status.NO_CONVERGENCE, f"the output-error estimate is not physical: {note}"
     elif note:
         message += f"; {note}"
-    if fitted is not None:
+    if fitted is not None and "nearest physical body" not in note:
         check = terms.values(terms.standard(fitted))
         if np.abs(check - values).max() > 1e-9 * np.abs(values).max():
             status, message, fitted = Status.NO_CONVERGENCE, "the fitted chain does not reproduce the estimate", None

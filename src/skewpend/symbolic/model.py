@@ -130,13 +130,13 @@ def _check_inertia(name: str, mat: Mat3) -> None:
     lam = np.linalg.eigvalsh(0.5 * (m + m.T))
     if lam.min() < -tol:
         raise ParameterError(
-            f"{name} must be positive semi-definite; its principal moments are {lam.tolist()}"
+            f"{name} must be positive semi-definite; its principal moments are [{', '.join(f'{x:.4g}' for x in lam)}]"
         )
     for i in range(3):
         if lam[i] > lam[(i + 1) % 3] + lam[(i + 2) % 3] + tol:
             raise ParameterError(
                 f"{name} breaks the triangle inequality of principal moments "
-                f"(each at most the sum of the other two): {lam.tolist()}"
+                f"(each at most the sum of the other two): [{', '.join(f'{x:.4g}' for x in lam)}]"
             )
 
 
