@@ -45,6 +45,7 @@ from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json, netcdf_reader, normal_quantile, protocol_fields, t_quantile
 from ..status import Status
 from ..parsing import initial_state, positive_number
+from ..symbolic.chain import AnyModel, Chain
 from ..symbolic.model import Parameters
 
 __all__ = ["lyapunov", "LyapunovSpectrum", "lyapunov_map", "LyapunovMap", "LyapunovMapJob", "open_lyapunov_map",
@@ -106,8 +107,13 @@ class LyapunovSpectrum(Result):
 
     @property
     def sum(self) -> float:
-        """Sum of the exponents [1/s] (the rate of phase-space volume change, for k = 4)."""
+        """Sum of the exponents [1/s] (the rate of phase-space volume change, for the full spectrum)."""
         return float(np.sum(self.exponents))
+
+    @property
+    def full(self) -> bool:
+        """Whether every exponent was measured (as many as the state has components: 4, or 2 n for a chain)."""
+        return self.k == int(np.size(self.y0))
 
     @property
     def windows_measured(self) -> int:
@@ -136,7 +142,7 @@ class LyapunovSpectrum(Result):
         conservative system (no damping: the phase-space volume is preserved, there is no
         attractor, and the formula would give about 4 whatever the motion) and NaN without the
         full spectrum."""
-        if self.k != 4 or self.conservative:
+        if not self.full or self.conservative:
             return math.nan
         lam = np.sort(self.exponents)[::-1]
         partial = np.cumsum(lam)
@@ -160,9 +166,9 @@ class LyapunovSpectrum(Result):
             value = f"{v:+.6f}" if math.isfinite(v) else "not measured"
             spread = f" +- {u:.2g}" if settled and math.isfinite(u) and math.isfinite(v) else ""
             lines.append(f"lambda_{i + 1} = {value}{spread} 1/s" if math.isfinite(v) else f"lambda_{i + 1} = {value}")
-        if self.k == 4 and math.isfinite(self.sum):
+        if self.full and math.isfinite(self.sum):
             lines.append(f"sum      = {self.sum:+.3e} 1/s")
-        if self.k == 4:
+        if self.full:
             if self.conservative:
                 lines.append("Kaplan-Yorke dimension: not meaningful for a conservative system "
                              "(no damping: the phase-space volume is preserved)")
@@ -188,11 +194,18 @@ class LyapunovSpectrum(Result):
                 "interval": (("k",), self.interval, {"units": "1/s", "long_name": "half-width of the 95 % interval"}),
                 "history": (("time", "k"), self.history, {"units": "1/s", "long_name": "running estimate"}),
                 "window_exponent": (("window", "k"), self.window_exponents, {"units": "1/s"}),
-                "y0": (("state",), self.y0, {"long_name": "initial state (phi, psi, dphi, dpsi)"}),
+                "y0": (("state",), self.y0, {"long_name": "initial state (" + ", ".join(self._state_names()) + ")"}),
             },
             coords={"k": (("k",), k, {}), "time": (("time",), self.t, {"units": "s"})},
-            attrs={"title": "Lyapunov spectrum of the skewed double pendulum (skewpend)", **self._base_attrs()},
+            attrs={"title": f"Lyapunov spectrum of {self._what()} (skewpend)", **self._base_attrs()},
         )
+
+    def _state_names(self):
+        names = getattr(self.params, "coordinates", ("phi", "psi"))
+        return list(names) + [f"d{c}" for c in names]
+
+    def _what(self) -> str:
+        return "the skewed double pendulum" if isinstance(self.params, Parameters) else f"a chain of {self.params.n} links"
 
     def to_dict(self) -> Dict[str, Any]:
         """Plain data (JSON-ready): exponents, uncertainties, settings, statistics, parameters."""
@@ -222,7 +235,7 @@ def read_lyapunov_spectrum(path, variables, attrs) -> LyapunovSpectrum:
         exponents=np.asarray(variables["exponent"], dtype=float), uncertainty=np.asarray(variables["uncertainty"], dtype=float),
         t=np.asarray(variables["time"], dtype=float), history=np.asarray(variables["history"], dtype=float),
         window_exponents=np.asarray(variables["window_exponent"], dtype=float), y0=np.asarray(variables["y0"], dtype=float),
-        **protocol_fields(path, attrs, Parameters))
+        **protocol_fields(path, attrs, AnyModel))
 
 
 
@@ -330,7 +343,7 @@ def lyapunov(
     t_end: float,
     renorm_every: float = 1.0,
     transient: float = 0.0,
-    n_exponents: int = 4,
+    n_exponents: Optional[int] = None,
     rtol: Optional[float] = None,
     atol: Optional[float] = None,
     windows: int = 10,
@@ -340,9 +353,13 @@ def lyapunov(
 ) -> LyapunovSpectrum:
     """The Lyapunov spectrum [1/s] of the motion from ``y0 = (phi, psi, dphi, dpsi)``.
 
-    Benettin's method on the variational equations: the state and ``n_exponents`` (1 to 4)
-    tangent vectors -- starting as the first columns of the identity (one vector: the unit
-    diagonal ``(1, 1, 1, 1)/2``) -- integrated together by adaptive DOP853 (``rtol``/``atol``,
+    ``params`` may be a :class:`~skewpend.Chain` of ``n`` links (``y0`` its ``2 n`` angles and speeds):
+    the same method on the chain's compiled variational equations (the Jacobian from CasADi's
+    derivative of the recursive algorithms), ``2 n`` exponents.
+
+    Benettin's method on the variational equations: the state and ``n_exponents`` (1 to 4, or
+    ``2 n``; default all) tangent vectors -- starting as the first columns of the identity (one
+    vector: the unit diagonal ``(1, 1, 1, 1)/2``) -- integrated together by adaptive DOP853 (``rtol``/``atol``,
     default 1e-10, on every component), re-orthonormalised by QR every ``renorm_every``
     seconds.  The first ``transient`` seconds align the vectors and are not counted (the
     measurement starts at the last renormalisation at or before ``transient``).  The
@@ -358,13 +375,20 @@ def lyapunov(
     (:func:`skewpend.simulate` too); with ``throw=True`` it raises
     :class:`~skewpend.errors.IntegrationError` instead.
     """
-    from ..numeric.kernels import LyapState, kernel_module, parameter_vector
+    from ..numeric.kernels import chain_kernel, kernel_module, model_vector
 
-    params = numeric_params(params, "Lyapunov exponents")
-    y = initial_state(y0)
+    if isinstance(params, Chain):
+        y = initial_state(y0, params.coordinates)
+    else:
+        params = numeric_params(params, "Lyapunov exponents")
+        y = initial_state(y0)
+    n2 = y.size
     t_end, renorm_every, transient = check_times(t_end, renorm_every, transient)
-    if isinstance(n_exponents, bool) or n_exponents not in (1, 2, 3, 4):
-        raise ParameterError(f"n_exponents must be 1, 2, 3 or 4, got {n_exponents!r}")
+    if n_exponents is None:
+        n_exponents = n2
+    if isinstance(n_exponents, bool) or n_exponents not in range(1, n2 + 1):
+        raise ParameterError(f"n_exponents must be a whole number from 1 to {n2} (the state's components), "
+                             f"got {n_exponents!r}")
     rtol, atol = tolerances(rtol, atol)
     max_steps = check_max_steps(max_steps)
     if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or not 1 <= windows <= 1000:
@@ -373,19 +397,19 @@ def lyapunov(
         raise ParameterError("progress must be a callable progress(t, t_end)")
     k = int(n_exponents)
 
-    kernel = kernel_module(params, chaos=True)
-    p = parameter_vector(params)
+    kernel = chain_kernel(params, chaos=True) if isinstance(params, Chain) else kernel_module(params, chaos=True)
+    p = model_vector(params)
     from ..numeric.simulation import check_start
 
     check_start(kernel, p, y)
-    state = LyapState()
+    state = kernel.LyapState()
     state.k, state.every, state.t0 = k, renorm_every, 0.0
-    for i in range(4):
+    for i in range(n2):
         state.y[i] = float(y[i])
-    tangent = np.eye(4)[:, :k] if k > 1 else np.full((4, 1), 0.5)
+    tangent = np.eye(n2)[:, :k] if k > 1 else np.full((n2, 1), 1.0 / math.sqrt(n2))
     for j in range(k):
-        for r in range(4):
-            state.y[4 + 4 * j + r] = float(tangent[r, j])
+        for r in range(n2):
+            state.y[n2 + n2 * j + r] = float(tangent[r, j])
 
     # the measured part: renormalisations after the transient, cut into windows of whole intervals
     n_total = int(math.ceil(t_end / renorm_every * (1 - 1e-12)))

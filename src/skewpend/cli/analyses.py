@@ -129,7 +129,7 @@ def lyapunov(
     t_end: option("--t-end", _SECONDS, "length of the run [s] (default 1000)") = None,
     renorm_every: option("--renorm-every", _SECONDS, "QR re-orthonormalisation interval [s] (default 1)") = None,
     transient: option("--transient", T.NonNegative("number of seconds"), "seconds at the start not counted, a whole number of --renorm-every intervals (default 0)") = None,
-    exponents: option("--exponents", T.Whole(1, 4), "how many exponents: 4 (the spectrum, default) or 1 (the largest, cheaper)") = None,
+    exponents: option("--exponents", T.Whole(1, 64), "how many exponents: all (the spectrum: 4, or 2 n for a chain of n links; default) or 1 (the largest, cheaper)") = None,
     rtol: RTOL_E10 = None,
     atol: ATOL_E10 = None,
     windows: option("--windows", T.Whole(1, 1000), "time windows for the 95 % intervals and the check that the exponents settled, at least 4 for the check (default 10)") = None,
@@ -146,7 +146,8 @@ def lyapunov(
     exponents have not settled (its two halves disagree, or its windows are correlated) prints its
     numbers without error bars and exits 1 with one line saying so and how long to run.
 
-    From a --config run file it takes [parameters], [initial] and [simulation] t_end, rtol, atol, max_steps.
+    From a --config run file it takes [parameters], [initial] and [simulation] t_end, rtol, atol, max_steps;
+    or a chain of links ([[links]], [chain], [initial] q0, dq0): its 2 n exponents.
     """
     from ..config import whole_multiple
 

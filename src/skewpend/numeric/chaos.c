@@ -8,33 +8,39 @@
  * Ctrl-C between calls; return codes are the SP_STATUS_* / SP_CALL_* of integrators.c.
  */
 
-/* State size of the variational systems: the state and up to 4 tangent vectors (kernels.SP_VMAX;
- * the layout check of sp_lyap_state_size catches a mismatch). */
-#define SP_VMAX 20
+/* The state's size SP_N2 = 2 SP_NQ (4 for the double pendulum, 2 n for a chain of n links; the model
+ * code defines SP_NQ) and that of the variational systems: the state and up to SP_N2 tangent vectors
+ * (kernels.lyap_state_type; the layout check of sp_lyap_state_size catches a mismatch). */
+#define SP_N2 (2 * SP_NQ)
+#define SP_VMAX (SP_N2 * (SP_N2 + 1))
 static void var_rhs(int n, const double *y, const double *p, double *out);
 #define DOP_NAME(x) x##_v
 #define DOP_NDIM SP_VMAX
 #define DOP_RHS(y, p, out) var_rhs(n, y, p, out)
 #include "dop853_core.h"
 
-/* ---- variational equations: the state y[0..3] and k tangent vectors y[4 + 4 j .. 4 + 4 j + 3] ---- */
+/* ---- variational equations: the state y[0 .. N2-1] and k tangent vectors y[N2 + N2 j .. N2 + N2 j + N2-1] ---- */
 
 /* d/dt of (y, v_1 .. v_k): (F(y), J(y) v_1, ..., J(y) v_k), with J the generated Jacobian
- * evaluated at the current state -- integrated together with the state, so the tangent
- * dynamics are as accurate as the trajectory (not a Jacobian frozen over a step). */
+ * ((N2 + 1) x (N2 + 1) with the work's row and column) evaluated at the current state --
+ * integrated together with the state, so the tangent dynamics are as accurate as the trajectory
+ * (not a Jacobian frozen over a step). */
 static void var_rhs(int n, const double *y, const double *p, double *out)
 {
-    double ys[5], f[5], J[25];
-    const int k = (n - 4) / 4;
-    for (int i = 0; i < 4; i++) ys[i] = y[i];
-    ys[4] = 0.0;
+    double ys[SP_N2 + 1], f[SP_N2 + 1], J[(SP_N2 + 1) * (SP_N2 + 1)];
+    const int k = (n - SP_N2) / SP_N2, w = SP_N2 + 1;
+    for (int i = 0; i < SP_N2; i++) ys[i] = y[i];
+    ys[SP_N2] = 0.0;
     rhs_jac(ys, p, f, J);
-    for (int i = 0; i < 4; i++) out[i] = f[i];
+    for (int i = 0; i < SP_N2; i++) out[i] = f[i];
     for (int j = 0; j < k; j++) {
-        const double *v = y + 4 + 4 * j;
-        double *o = out + 4 + 4 * j;
-        for (int r = 0; r < 4; r++)
-            o[r] = J[r * 5 + 0] * v[0] + J[r * 5 + 1] * v[1] + J[r * 5 + 2] * v[2] + J[r * 5 + 3] * v[3];
+        const double *v = y + SP_N2 + SP_N2 * j;
+        double *o = out + SP_N2 + SP_N2 * j;
+        for (int r = 0; r < SP_N2; r++) {
+            double acc = J[r * w + 0] * v[0];
+            for (int c = 1; c < SP_N2; c++) acc += J[r * w + c] * v[c];
+            o[r] = acc;
+        }
     }
 }
 
@@ -43,17 +49,20 @@ static void var_rhs(int n, const double *y, const double *p, double *out)
 static int lyap_qr(double *y, int k, double *logs)
 {
     for (int j = 0; j < k; j++) {
-        double *v = y + 4 + 4 * j;
+        double *v = y + SP_N2 + SP_N2 * j;
         for (int pass = 0; pass < 2; pass++) {
             for (int i = 0; i < j; i++) {
-                const double *q = y + 4 + 4 * i;
-                double d = q[0] * v[0] + q[1] * v[1] + q[2] * v[2] + q[3] * v[3];
-                for (int r = 0; r < 4; r++) v[r] -= d * q[r];
+                const double *q = y + SP_N2 + SP_N2 * i;
+                double d = q[0] * v[0];
+                for (int r = 1; r < SP_N2; r++) d += q[r] * v[r];
+                for (int r = 0; r < SP_N2; r++) v[r] -= d * q[r];
             }
         }
-        double nrm = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]);
+        double nrm2 = v[0] * v[0];
+        for (int r = 1; r < SP_N2; r++) nrm2 += v[r] * v[r];
+        double nrm = sqrt(nrm2);
         if (!(nrm > 0.0) || !isfinite(nrm)) return 0;
-        for (int r = 0; r < 4; r++) v[r] /= nrm;
+        for (int r = 0; r < SP_N2; r++) v[r] /= nrm;
         logs[j] = log(nrm);
     }
     return 1;
@@ -94,11 +103,11 @@ static int var_start(sp_lyap_state *s, const double *p, int n)
 int sp_lyap(sp_lyap_state *s, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
             int64_t budget, double *rows, int64_t cap, int64_t *m_out)
 {
-    const int k = s->k, n = 4 + 4 * k;
+    const int k = s->k, n = SP_N2 + SP_N2 * k;
     double K[DOP_NSTAGES][SP_VMAX], ynew[SP_VMAX], ytmp[SP_VMAX];
     int64_t m = 0, done = 0;
     *m_out = 0;
-    if (k < 1 || k > 4 || cap < 1 || !(s->every > 0.0)) return SP_CALL_BAD_ARGUMENTS;
+    if (k < 1 || k > SP_N2 || cap < 1 || !(s->every > 0.0)) return SP_CALL_BAD_ARGUMENTS;
     if (!var_start(s, p, n)) return SP_STATUS_NONFINITE;
     for (;;) {
         double t_next = s->t0 + (double)(s->nrenorm + 1) * s->every;
@@ -141,10 +150,10 @@ int sp_lyap(sp_lyap_state *s, const double *p, double t_end, double rtol, double
 int sp_flow(sp_lyap_state *s, const double *p, double t_end, double rtol, double atol, int64_t max_steps,
             int64_t budget)
 {
-    const int k = s->k, n = 4 + 4 * k;
+    const int k = s->k, n = SP_N2 + SP_N2 * k;
     double K[DOP_NSTAGES][SP_VMAX], ynew[SP_VMAX], ytmp[SP_VMAX];
     int64_t done = 0;
-    if (k < 1 || k > 4 || !(t_end >= s->t)) return SP_CALL_BAD_ARGUMENTS;
+    if (k < 1 || k > SP_N2 || !(t_end >= s->t)) return SP_CALL_BAD_ARGUMENTS;
     if (!var_start(s, p, n)) return SP_STATUS_NONFINITE;
     while (s->t < t_end) {
         if (done >= budget) return SP_CALL_BUDGET;
@@ -162,8 +171,8 @@ int sp_flow(sp_lyap_state *s, const double *p, double t_end, double rtol, double
     return SP_STATUS_SUCCESS;
 }
 
-/* The largest exponent of m starts y0s[m][4] (rows of 4 doubles): one tangent vector from
- * (1, 1, 1, 1)/2, renormalised every `every` seconds up to t_end; the growth after the first
+/* The largest exponent of m starts y0s[m][N2] (rows of N2 doubles): one tangent vector from
+ * (1, ..., 1)/sqrt(N2) ((1, 1, 1, 1)/2 for the double pendulum), renormalised every `every` seconds up to t_end; the growth after the first
  * n_skip renormalisations (the transient) divided by the time it covers.  out_lambda[i] is
  * NaN, and status[i] the failure code (1..3), when a trajectory fails; steps[i] counts its
  * accepted steps, rejected[i] its rejected ones. */
@@ -177,8 +186,8 @@ void sp_lyap1_many(const double *p, const double *y0s, int64_t m, double t_end, 
         memset(&s, 0, sizeof s);
         s.k = 1;
         s.every = every;
-        for (int r = 0; r < 4; r++) s.y[r] = y0s[4 * i + r];
-        for (int r = 0; r < 4; r++) s.y[4 + r] = 0.5;
+        for (int r = 0; r < SP_N2; r++) s.y[r] = y0s[SP_N2 * i + r];
+        for (int r = 0; r < SP_N2; r++) s.y[SP_N2 + r] = 1.0 / sqrt((double)SP_N2);
         double sum = 0.0, t_from = 0.0;
         int64_t seen = 0;
         int rc;
@@ -197,7 +206,9 @@ void sp_lyap1_many(const double *p, const double *y0s, int64_t m, double t_end, 
     }
 }
 
-/* ---- Poincare sections: crossings of y[coord] = level (mod period) ---- */
+/* ---- Poincare sections: crossings of y[coord] = level (mod period); two-dimensional by definition:
+ * the double pendulum's only ---- */
+#if SP_NQ == 2
 
 /* Hénon's trick: from y (the start of the step that crossed) integrate with the crossing
  * coordinate as the independent variable, d(t, y)/dy_c = (1, F(y)) / F_c(y), from y[coord] to
@@ -351,3 +362,4 @@ int sp_section(sp_state *s, const double *p, int coord, double level, double per
         memcpy(s->f, K[DOP_NS], (size_t)n * sizeof(double));
     }
 }
+#endif /* SP_NQ == 2 */

@@ -28,7 +28,7 @@ import threading
 import time
 import warnings
 from pathlib import Path
-from typing import Dict, Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 from .. import __version__
 from ..errors import SkewpendError
@@ -45,6 +45,7 @@ __all__ = ["ControlStruct",
     "Kernel",
     "State",
     "LyapState",
+    "lyap_state_type",
     "TaylorState",
     "TaylorKernel",
     "taylor_kernel",
@@ -72,7 +73,7 @@ CFLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
 SP_NMAX = 8
 #: Shared libraries are named as the platform expects (``.dylib`` on macOS, ``.so`` elsewhere).
 LIB_SUFFIX = ".dylib" if sys.platform == "darwin" else ".so"
-#: State size of the chaos kernel's variational systems: the state and up to 4 tangent vectors.
+#: State size of the double pendulum's chaos kernel's variational systems: the state and up to 4 tangent vectors.
 SP_VMAX = 20
 
 
@@ -217,25 +218,42 @@ class ControlStruct(ctypes.Structure):
     ]
 
 
-class LyapState(ctypes.Structure):
-    """Mirror of ``sp_lyap_state`` in ``chaos.c``: a resumable Benettin run."""
+_LYAP_TYPES: Dict[int, Any] = {}
 
-    _fields_ = [
-        ("t", ctypes.c_double),
-        ("h", ctypes.c_double),
-        ("t0", ctypes.c_double),
-        ("every", ctypes.c_double),
-        ("y", ctypes.c_double * SP_VMAX),
-        ("f", ctypes.c_double * SP_VMAX),
-        ("nfev", ctypes.c_int64),
-        ("naccept", ctypes.c_int64),
-        ("nreject", ctypes.c_int64),
-        ("nrenorm", ctypes.c_int64),
-        ("k", ctypes.c_int32),
-        ("have_f", ctypes.c_int32),
-        ("pad0", ctypes.c_int32),
-        ("pad1", ctypes.c_int32),
-    ]
+
+def lyap_state_type(n2: int):
+    """The mirror of ``sp_lyap_state`` (``chaos.c``) for states of ``n2`` components (4 for the double
+    pendulum, ``2 n`` for a chain of ``n`` links): the state and up to ``n2`` tangent vectors."""
+    if n2 in _LYAP_TYPES:
+        return _LYAP_TYPES[n2]
+    vmax = n2 * (n2 + 1)
+
+    class _LyapState(ctypes.Structure):
+        """Mirror of ``sp_lyap_state`` in ``chaos.c``: a resumable Benettin run."""
+
+        _fields_ = [
+            ("t", ctypes.c_double),
+            ("h", ctypes.c_double),
+            ("t0", ctypes.c_double),
+            ("every", ctypes.c_double),
+            ("y", ctypes.c_double * vmax),
+            ("f", ctypes.c_double * vmax),
+            ("nfev", ctypes.c_int64),
+            ("naccept", ctypes.c_int64),
+            ("nreject", ctypes.c_int64),
+            ("nrenorm", ctypes.c_int64),
+            ("k", ctypes.c_int32),
+            ("have_f", ctypes.c_int32),
+            ("pad0", ctypes.c_int32),
+            ("pad1", ctypes.c_int32),
+        ]
+
+    _LYAP_TYPES[n2] = _LyapState
+    return _LyapState
+
+
+#: The double pendulum's resumable Benettin run (``sp_lyap_state`` with 4 state components).
+LyapState = lyap_state_type(4)
 
 
 # -- the compiler -----------------------------------------------------------------------------------
@@ -466,18 +484,21 @@ class Kernel:
         if chaos:  # the chaos kernel: Lyapunov exponents and Poincare sections (chaos.c)
             if not hasattr(lib, "sp_lyap"):
                 raise CompilerError(f"{path}: not a chaos kernel (no sp_lyap)")
+            #: the resumable Benettin run's mirror for this model's state (2 nq components)
+            self.LyapState = lyap_state_type(2 * self.nq)
             i32p = ctypes.POINTER(ctypes.c_int32)
-            lib.sp_lyap.argtypes = [ctypes.POINTER(LyapState), dp, d, d, d, i64, i64, dp, i64, ip]
+            lib.sp_lyap.argtypes = [ctypes.POINTER(self.LyapState), dp, d, d, d, i64, i64, dp, i64, ip]
             lib.sp_lyap.restype = ctypes.c_int
-            lib.sp_flow.argtypes = [ctypes.POINTER(LyapState), dp, d, d, d, i64, i64]
+            lib.sp_flow.argtypes = [ctypes.POINTER(self.LyapState), dp, d, d, d, i64, i64]
             lib.sp_flow.restype = ctypes.c_int
             lib.sp_lyap1_many.argtypes = [dp, dp, i64, d, d, i64, d, d, i64, dp, i32p, ip, ip]
             lib.sp_lyap1_many.restype = None
-            lib.sp_section.argtypes = [sp, dp, ctypes.c_int, d, d, ctypes.c_int, ctypes.c_int, i64, d, d, d, i64, i64,
-                                       dp, i64, ip]
-            lib.sp_section.restype = ctypes.c_int
+            if hasattr(lib, "sp_section"):  # Poincare sections: the double pendulum's only (two-dimensional)
+                lib.sp_section.argtypes = [sp, dp, ctypes.c_int, d, d, ctypes.c_int, ctypes.c_int, i64, d, d, d, i64,
+                                           i64, dp, i64, ip]
+                lib.sp_section.restype = ctypes.c_int
             lib.sp_lyap_state_size.argtypes, lib.sp_lyap_state_size.restype = [], i64
-            if lib.sp_lyap_state_size() != ctypes.sizeof(LyapState):
+            if lib.sp_lyap_state_size() != ctypes.sizeof(self.LyapState):
                 raise CompilerError(f"{path}: Lyapunov state layout mismatch")
         self.shooting = shooting
         if shooting:  # multiple shooting: RK4 with parameter sensitivities (shooting.c)
@@ -752,7 +773,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
         return kernel
 
 
-def chain_kernel(chain, form: str = "", *, shooting: bool = False) -> Kernel:
+def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool = False) -> Kernel:
     """The compiled model functions of a chain of links (:class:`skewpend.symbolic.chain.Chain`): its
     equations by the recursive algorithms (:mod:`skewpend.numeric.recursive`), keyed by the chain's
     structure (the number of links, the hinge axes, whether friction and rotors exist); every value
@@ -760,14 +781,18 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False) -> Kernel:
     ``form``: ``"straight"`` or ``"compact"`` code (default: ``recursive.chain_form``, by the length).
     ``shooting=True``: identification's library, the straight-line code with the parameter
     sensitivities (``recursive.chain_sensitivity_c_source``) and multiple shooting's integrator
-    (``shooting.c``), as :func:`kernel_module`'s for the double pendulum."""
+    (``shooting.c``), as :func:`kernel_module`'s for the double pendulum; ``chaos=True``: the
+    Lyapunov routines and the state-transition flow (``chaos.c``) on the same sensitivities."""
     from .recursive import chain_form, structure_of_chain
 
+    if shooting and chaos:
+        raise ValueError("chain_kernel: shooting and chaos are separate libraries")
     structure = structure_of_chain(chain)
-    form = "straight" if shooting else (form or chain_form(structure))
+    form = "straight" if (shooting or chaos) else (form or chain_form(structure))
     if form not in ("straight", "compact"):
         raise ValueError(f"form must be 'straight' or 'compact', got {form!r}")
-    key = _key(structure.key() + "|" + form + ("|shooting" if shooting else "")) + "_chain"
+    extra = "|shooting" if shooting else ("|chaos" if chaos else "")
+    key = _key(structure.key() + "|" + form + extra) + "_chain"
     with _key_lock(key):
         if key in _LOADED:
             return _LOADED[key]
@@ -776,7 +801,7 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False) -> Kernel:
         kernel = None
         if path.exists() and _intact(path):
             try:
-                kernel = Kernel(path, "cache", 0.0, shooting=shooting)
+                kernel = Kernel(path, "cache", 0.0, shooting=shooting, chaos=chaos)
             except (OSError, CompilerError):
                 kernel = None
         if kernel is None:
@@ -786,13 +811,13 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False) -> Kernel:
             _remove_stale_temporaries(directory)
             from .recursive import chain_sensitivity_c_source, chain_source
 
-            _announce("shooting" if shooting else "chain", cached=directory == cache_dir() / "kernels")
+            _announce("shooting" if shooting else ("chaos" if chaos else "chain"), cached=directory == cache_dir() / "kernels")
             source = chain_source(structure, form) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
-            if shooting:
+            if shooting or chaos:
                 source += "\n" + chain_sensitivity_c_source(structure)
-                source += "\n" + (_PACKAGE / "numeric" / "shooting.c").read_text()
+                source += "\n" + (_PACKAGE / "numeric" / ("shooting.c" if shooting else "chaos.c")).read_text()
             _compile(source, path)
-            kernel = Kernel(path, "compiled", time.perf_counter() - start, shooting=shooting)
+            kernel = Kernel(path, "compiled", time.perf_counter() - start, shooting=shooting, chaos=chaos)
         _LOADED[key] = kernel
         return kernel
 

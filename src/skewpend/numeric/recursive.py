@@ -497,9 +497,9 @@ def chain_c_source(structure: ChainStructure) -> str:
 
 
 @lru_cache(maxsize=8)
-def _sensitivity_function(structure: ChainStructure):
-    """``(y, a, p) -> (d r/d y, d r/d p)`` of the residual ``r = f(y, p) - M(q, p) a`` at fixed ``a``
-    (n x 2 n and n x len(p), column-major as CasADi keeps them)."""
+def _sensitivity_functions(structure: ChainStructure):
+    """``(y, a, p) -> d r/d y`` and ``(y, a, p) -> d r/d p`` of the residual ``r = f(y, p) - M(q, p) a``
+    at fixed ``a`` (n x 2 n and n x len(p), column-major as CasADi keeps them)."""
     ca = _ca()
     G = _Graph(structure)
     n = G.n
@@ -509,54 +509,90 @@ def _sensitivity_function(structure: ChainStructure):
     Q = G.joint_forces()
     b = G.bias()
     r = ca.vertcat(*[Q[i] - b[i] - sum((M[i][j] * a[j] for j in range(n)), ca.SX(0)) for i in range(n)])
-    return ca.Function("sens", [y, a, G.p], [ca.densify(ca.jacobian(r, y)), ca.densify(ca.jacobian(r, G.p))])
+    return (ca.Function("sens_y", [y, a, G.p], [ca.densify(ca.jacobian(r, y))]),
+            ca.Function("sens_p", [y, a, G.p], [ca.densify(ca.jacobian(r, G.p))]))
+
+
+def _solved_columns(I: str, n: int, what: str, cols, R: str, row) -> List[str]:
+    """C loop: column c of ``what`` (row length ``row``) is ``M^-1`` column c of ``R`` (column-major, n rows),
+    with the factors of ``M`` (``sp_m_``) computed before."""
+    from .codegen import spd_c_lines
+
+    rs, xs = [f"r{i}" for i in range(n)], [f"x{i}" for i in range(n)]
+    out = [f"{I}for (int c = 0; c < {cols}; c++) {{"]
+    out += [f"{I}    const double {rs[i]} = {R}[c * {n} + {i}];" for i in range(n)]
+    out += spd_c_lines(I + "    ", rs, xs, prefix="sp_c")
+    return out + [f"{I}    {what}[{i} * {row} + c] = {xs[i]};" for i in range(n)] + [f"{I}}}"]
+
+
+def _solved_model(structure: ChainStructure, I: str) -> List[str]:
+    """C statements: the model (``M``, ``f``, ``Q``), the LDL^T solve for the accelerations ``a0 ..``, and
+    ``sp_a[n]`` holding them."""
+    from .codegen import spd_c_lines
+
+    n = structure.n
+    Mn = [f"M{i}_{j}" for i in range(n) for j in range(i + 1)]
+    out = c_function_lines(chain_functions(structure)["model"], ["y", "p"], [Mn, [f"f{i}" for i in range(n)],
+                                                                             [f"Q{i}" for i in range(n)]], I)
+    out += spd_c_lines(I, [f"f{i}" for i in range(n)], [f"a{i}" for i in range(n)], M=Mn, factors="sp_m_")
+    return out + [f"{I}double sp_a[{n}];"] + [f"{I}sp_a[{i}] = a{i};" for i in range(n)]
 
 
 def chain_sensitivity_c_source(structure: ChainStructure) -> str:
-    """``rhs_sens(y, p, acc, A, B)`` of a chain (multiple shooting's core, ``shooting.c``): the
-    accelerations ``q''`` and their derivatives ``A = d q''/d y`` (n x 2 n) and ``B = d q''/d p``
-    (n x ``SP_NPARAM``, row-major), from the residual of the equations at the solved accelerations:
+    """``rhs_sens(y, p, acc, A, B)`` of a chain (multiple shooting's core, ``shooting.c``) and
+    ``rhs_jac(y, p, f, J)`` (the variational equations of ``chaos.c``): the accelerations ``q''`` and
+    their derivatives ``A = d q''/d y`` (n x 2 n) and ``B = d q''/d p`` (n x ``SP_NPARAM``, row-major),
+    from the residual of the equations at the solved accelerations:
 
         d q''/d x = M^-1 d(f - M a)/d x  at  a = q'',
 
     the derivative of ``f - M a`` by CasADi's automatic differentiation of the recursive algorithms
-    (the same graphs as ``rhs``), each column one solve with the factors of ``M``.  Appended to the
-    straight-line source (:func:`chain_c_source`), with ``SP_TAU_INDEX``."""
-    from .codegen import spd_c_lines
-
-    fns = chain_functions(structure)
-    sens = _sensitivity_function(structure)
+    (the same graphs as ``rhs``), each column one solve with the factors of ``M``.  ``rhs_jac`` is the
+    whole right-hand side ``(q', q'', W')`` and its Jacobian, (2 n + 1) x (2 n + 1) row-major, the work
+    ``W' = Q . q'`` included (its derivative in the speeds ``Q_i + q_i' dQ_i/dq_i'``; nothing depends
+    on ``W``).  Appended to the straight-line source (:func:`chain_c_source`), with ``SP_TAU_INDEX``."""
+    sens_y, sens_p = _sensitivity_functions(structure)
     n = structure.n
     names = parameter_names(n)
     npar = len(names)
     I = "    "
-    Mn = [f"M{i}_{j}" for i in range(n) for j in range(i + 1)]
-    f = [f"f{i}" for i in range(n)]
-    Q = [f"Q{i}" for i in range(n)]
-    acc = [f"a{i}" for i in range(n)]
-    Ry = [f"Ry{k}" for k in range(n * 2 * n)]  # column-major: entry (i, c) at c n + i
-    Rp = [f"Rp{k}" for k in range(n * npar)]
     tau = ", ".join(str(names.index(f"tau{i}")) for i in range(1, n + 1))
     out = [f"#define SP_TAU_INDEX {{{tau}}}  /* p's torques, a coordinate each */", "",
            f"/* q'' into acc[{n}], d q''/d y into A[{n} x {2 * n}] and d q''/d p into B[{n} x SP_NPARAM] (row-major) */",
            "static void rhs_sens(const double *y, const double *p, double *acc, double *A, double *B)", "{"]
-    out += c_function_lines(fns["model"], ["y", "p"], [Mn, f, Q], I)
-    out += spd_c_lines(I, f, acc, M=Mn, factors="sp_m_")
-    out += [f"{I}double sp_a[{n}];"] + [f"{I}sp_a[{i}] = {acc[i]}; acc[{i}] = {acc[i]};" for i in range(n)]
+    out += _solved_model(structure, I) + [f"{I}for (int i = 0; i < {n}; i++) acc[i] = sp_a[i];"]
     out += [f"{I}double Ry[{n * 2 * n}], Rp[{n * npar}];", f"{I}{{"]
-    out += c_function_lines(sens, ["y", "sp_a", "p"], [[f"Ry[{k}]" for k in range(len(Ry))],
-                                                         [f"Rp[{k}]" for k in range(len(Rp))]], I + I, declare=False)
+    out += c_function_lines(sens_y, ["y", "sp_a", "p"], [[f"Ry[{k}]" for k in range(2 * n * n)]], I + I, declare=False)
+    out += [f"{I}}}", f"{I}{{"]
+    out += c_function_lines(sens_p, ["y", "sp_a", "p"], [[f"Rp[{k}]" for k in range(n * npar)]], I + I, declare=False)
     out += [f"{I}}}"]
-    rs = [f"r{i}" for i in range(n)]
-    xs = [f"x{i}" for i in range(n)]
-    for what, cols, R, row in (("A", 2 * n, "Ry", 2 * n), ("B", npar, "Rp", "SP_NPARAM")):
-        out += [f"{I}for (int c = 0; c < {cols}; c++) {{"]
-        out += [f"{I}    const double {rs[i]} = {R}[c * {n} + {i}];" for i in range(n)]
-        out += spd_c_lines(I + "    ", rs, xs, prefix="sp_c")
-        out += [f"{I}    {what}[{i} * {row} + c] = {xs[i]};" for i in range(n)] + [f"{I}}}"]
+    out += _solved_columns(I, n, "A", 2 * n, "Ry", 2 * n) + _solved_columns(I, n, "B", npar, "Rp", "SP_NPARAM")
     out += ["}", "",
             "void sp_rhs_sens(const double *y, const double *p, double *acc, double *A, double *B) { rhs_sens(y, p, acc, A, B); }",
             ""]
+    w = 2 * n + 1
+    out += [f"/* (q', q'', W') into f[{w}] and its Jacobian into J[{w} x {w}] (row-major; the work's column is 0) */",
+            "static void rhs_jac(const double *y, const double *p, double *f, double *J)", "{"]
+    out += _solved_model(structure, I)
+    out += [f"{I}double Ry[{n * 2 * n}], A[{n * 2 * n}];", f"{I}{{"]
+    out += c_function_lines(sens_y, ["y", "sp_a", "p"], [[f"Ry[{k}]" for k in range(2 * n * n)]], I + I, declare=False)
+    out += [f"{I}}}"] + _solved_columns(I, n, "A", 2 * n, "Ry", 2 * n)
+    out += [f"{I}for (int k = 0; k < {w * w}; k++) J[k] = 0.0;"]
+    for i in range(n):
+        out += [f"{I}f[{i}] = y[{n + i}];", f"{I}f[{n + i}] = a{i};", f"{I}J[{i * w + n + i}] = 1.0;"]
+        out += [f"{I}for (int c = 0; c < {2 * n}; c++) J[{(n + i) * w} + c] = A[{i * 2 * n} + c];"]
+    out += [f"{I}f[{2 * n}] = " + " + ".join(f"Q{i} * y[{n + i}]" for i in range(n)) + ";"]
+    # d(Q_i q_i')/d q_i' = Q_i + q_i' dQ_i/dq_i' with dQ_i/dq_i' = -c_i - cf_i cfs / (1 + (cfs q_i')^2)
+    width = len(PER_LINK)
+    cfs = f"p[{names.index('cfs')}]"
+    for i in range(n):
+        c = f"p[{i * width + PER_LINK.index('c')}]"
+        dQ = f"-{c}"
+        if structure.friction:
+            cf = f"p[{i * width + PER_LINK.index('cf')}]"
+            dQ += f" - {cf} * {cfs} / (1.0 + ({cfs} * y[{n + i}]) * ({cfs} * y[{n + i}]))"
+        out += [f"{I}J[{2 * n * w + n + i}] = Q{i} + y[{n + i}] * ({dQ});"]
+    out += ["}", ""]
     return "\n".join(out) + "\n"
 
 

@@ -25,7 +25,7 @@ _BUDGET = 20_000
 
 @dataclass(frozen=True)
 class Flow:
-    """``y`` (4,): the state at ``t``; ``stm`` (4, 4): ``d y(t) / d y(0)``; ``status``; ``steps``
+    """``y`` (4,) (a chain's: (2 n,)): the state at ``t``; ``stm`` (4, 4): ``d y(t) / d y(0)``; ``status``; ``steps``
     (accepted) and ``rejected``; ``evaluations`` of the right-hand side."""
 
     t: float
@@ -38,33 +38,35 @@ class Flow:
 
 
 class FlowIntegrator:
-    """One model's compiled flow, for many calls (the kernel loaded once)."""
+    """One model's compiled flow, for many calls (the kernel loaded once): the double pendulum's or a
+    chain's (:class:`~skewpend.Chain`)."""
 
     def __init__(self, params, *, rtol: float = 1e-11, atol: float = 1e-11, max_steps: int = 10_000_000):
-        from .kernels import kernel_module, parameter_vector
+        from ..symbolic.chain import Chain
+        from .kernels import chain_kernel, kernel_module, model_vector
 
-        self.kernel = kernel_module(params, chaos=True)
-        self.p = parameter_vector(params)
+        self.kernel = chain_kernel(params, chaos=True) if isinstance(params, Chain) else kernel_module(params, chaos=True)
+        self.p = model_vector(params)
         self.rtol, self.atol, self.max_steps = float(rtol), float(atol), int(max_steps)
 
     def __call__(self, y0: Sequence[float], t: float, *, check=None) -> Flow:
         from .driver import drive
-        from .kernels import LyapState
 
-        state = LyapState()
-        state.k, state.every, state.t0 = 4, 1.0, 0.0
+        n2 = 2 * self.kernel.nq
+        state = self.kernel.LyapState()
+        state.k, state.every, state.t0 = n2, 1.0, 0.0
         y0 = np.asarray(y0, dtype=float)
-        for i in range(4):
+        for i in range(n2):
             state.y[i] = float(y0[i])
-        for j in range(4):
-            for r in range(4):
-                state.y[4 + 4 * j + r] = 1.0 if r == j else 0.0
+        for j in range(n2):
+            for r in range(n2):
+                state.y[n2 + n2 * j + r] = 1.0 if r == j else 0.0
         dp = ctypes.POINTER(ctypes.c_double)
         args = (ctypes.byref(state), self.p.ctypes.data_as(dp), float(t), self.rtol, self.atol, self.max_steps)
         status = drive(lambda budget: self.kernel.lib.sp_flow(*args, budget), budget=_BUDGET, check=check,
                        name="sp_flow")
-        values = np.array(state.y[:20])
-        return Flow(t=float(state.t), y=values[:4].copy(), stm=values[4:].reshape(4, 4).T.copy(), status=status,
+        values = np.array(state.y[:n2 * (n2 + 1)])
+        return Flow(t=float(state.t), y=values[:n2].copy(), stm=values[n2:].reshape(n2, n2).T.copy(), status=status,
                     steps=int(state.naccept), rejected=int(state.nreject), evaluations=int(state.nfev))
 
 

@@ -38,7 +38,7 @@ from ..errors import ParameterError
 from ..schema import CHAIN_NAMES, LINK_FIELDS, coordinate_names, link_bound
 from .model import Mat3, Parameters, Vec3, as_real, as_vector, check_inertia
 
-__all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS"]
+__all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS", "model_from_mapping", "AnyModel"]
 
 #: The largest chain the generated code is built for (the state of 2 N + 1 numbers).
 MAX_LINKS = 32
@@ -208,6 +208,12 @@ class Chain:
         return any(link.rotor != 0 for link in self.links)
 
     @property
+    def dissipative(self) -> bool:
+        """Viscous damping or Coulomb friction in some joint: the flow shrinks phase-space volume (constant
+        torques derive from a potential and keep it)."""
+        return any(link.damping or link.coulomb for link in self.links)
+
+    @property
     def conservative(self) -> bool:
         """No damping, Coulomb friction or constant torque in any joint (E = T + Pi conserved)."""
         return not any(link.damping or link.coulomb or link.torque for link in self.links)
@@ -309,3 +315,16 @@ def _link_fields() -> Tuple[str, ...]:
 
 assert _link_fields() == LINK_KEYS, "Link's fields must be the schema's LINK_FIELDS, in order"
 assert tuple(f.name for f in fields(Chain) if f.name != "links") == CHAIN_NAMES, "Chain's fields must be the schema's"
+
+
+def model_from_mapping(data: Mapping[str, Any]):
+    """The model a result file stores: a :class:`Chain` (its mapping has ``links``) or the double
+    pendulum's :class:`~skewpend.Parameters`."""
+    return Chain.from_mapping(data) if "links" in data else Parameters.from_mapping(data)
+
+
+class AnyModel:
+    """For readers of results (``results.protocol_fields``): ``from_mapping`` gives the stored model,
+    a chain or the double pendulum (:func:`model_from_mapping`)."""
+
+    from_mapping = staticmethod(model_from_mapping)

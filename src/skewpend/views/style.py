@@ -114,6 +114,8 @@ def parameter_text(params, *, skip: tuple = (), symbols: bool = False, sep: str 
     animation's title); ``sep`` joins the parts."""
     from .. import schema
 
+    if hasattr(params, "links"):  # a chain of links
+        return chain_text(params, sep=sep)
     d = params.to_dict()
     parts: List[str] = []
     for name in schema.SCALAR_NAMES:

@@ -82,7 +82,9 @@ def _lyapunov_caption(spec) -> str:
     lines = [wrap_list(parameter_text(spec.params)), "released from " + initial_text(spec.y0),
              wrap_list(", ".join(run), 110)]
     if getattr(spec, "status", 0) != 0:
-        lines.append(f"run {spec.message}")
+        import textwrap
+
+        lines.append(textwrap.fill(f"run {spec.message}", 110))
     return "\n".join(lines)
 
 
@@ -103,9 +105,10 @@ def lyapunov_figure(spec):
         fig = new_figure((9.0, 5.0))
         ax = fig.subplots()
         ax.axhline(0.0, color=COLORS["reference"], lw=0.9, zorder=1)
+        colors = LYAPUNOV_COLORS if k <= len(LYAPUNOV_COLORS) else _orbit_colors(k)  # a chain's 2 n exponents
         for j in range(k):
             value, err = float(spec.exponents[j]), float(spec.uncertainty[j])
-            ax.plot(t, hist[:, j], color=LYAPUNOV_COLORS[j % 4],
+            ax.plot(t, hist[:, j], color=colors[j],
                     lw=1.3, label=f"{symbols[j]} = {_value_pm(value, err)} 1/s", zorder=2 + (k - j) / 10)
         if len(t) and t[0] > 0:
             ax.set_xscale("log")
@@ -122,7 +125,7 @@ def lyapunov_figure(spec):
                     va="center", color="0.35")
             ax.set_xlim(0.0, float(spec.settings.get("t_end") or 1.0))
         handles, labels = ax.get_legend_handles_labels()
-        if k == 4:
+        if k == int(np.size(spec.y0)):  # the full spectrum
             handles.append(Line2D([], [], ls="none"))
             labels.append(f"sum = {_signed(float(np.sum(spec.exponents)), 3)} 1/s")
         ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,

@@ -1,0 +1,106 @@
+"""Lyapunov spectra and the state-transition flow of a chain of links (issue 38): the chain's variational
+equations against differences of its flow, the exact volume identity of the Lagrangian flow in
+``(q, q')``, the chain of two against the double pendulum's own chaos kernel, and the command line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import skewpend
+from skewpend.errors import ParameterError
+from skewpend.numeric import recursive
+from skewpend.numeric.variational import flow
+from skewpend.symbolic.chain import Chain
+
+
+def _triple(damping=0.0) -> Chain:
+    return Chain.from_lists(3, axis=[(0, 0, 1), (0.3, 0.1, 1), (1, 0.2, 0.4)], mass=[0.3, 0.25, 0.1],
+                            length=[0.2, 0.25, 0.24], damping=damping,
+                            com=[(0.01, 0.1, 0.0), (0.0, 0.12, 0.01), (0.002, 0.1, 0.0)])
+
+
+Y0 = [1.2, -0.8, 0.6, 0.5, 0.0, -1.0]
+
+
+def _log_det_mass(chain, q) -> float:
+    fn = recursive.chain_functions(recursive.structure_of_chain(chain))["mass"]
+    n = chain.n
+    M = np.zeros((n, n))
+    M[np.tril_indices(n)] = np.array(fn(q, recursive.parameter_vector(chain)), dtype=float).ravel()
+    M = M + np.tril(M, -1).T
+    return float(np.linalg.slogdet(M)[1])
+
+
+def test_the_chains_state_transition_matrix_equals_differences_of_its_flow():
+    """``d y(t)/d y0`` of the variational equations (rhs_jac from CasADi's derivative) against central
+    differences of the flow itself (step 1e-6, tolerance 1e-10: the difference quotient's error is
+    ~h^2 |y'''| + tol/h ~ 1e-7 of the entries)."""
+    chain = _triple(damping=[0.01, 0.02, 0.005])
+    t = 1.5
+    got = flow(chain, Y0, t, rtol=1e-13, atol=1e-13)
+    assert got.status == 0 and got.stm.shape == (6, 6)
+    h = 1e-6
+    diff = np.column_stack([(flow(chain, np.add(Y0, h * e), t, rtol=1e-13, atol=1e-13).y
+                             - flow(chain, np.subtract(Y0, h * e), t, rtol=1e-13, atol=1e-13).y) / (2 * h)
+                            for e in np.eye(6)])
+    assert np.abs(got.stm - diff).max() <= 1e-6 * np.abs(got.stm).max()
+    sim = skewpend.simulate(chain, Y0, t, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(got.y, np.asarray(sim.y)[-1, :6], rtol=0, atol=1e-10)
+
+
+def test_a_conservative_chains_spectrum_obeys_the_volume_identity():
+    """Without damping the flow keeps phase-space volume in (q, p); in (q, q') the volume element is
+    dq dp / det M(q), so the whole spectrum times the time it covers is exactly
+    ``log det M(q0) - log det M(q(T))`` (to the integration's error), whatever the motion."""
+    chain = _triple()
+    T = 3.0
+    spec = skewpend.lyapunov(chain, Y0, t_end=T, renorm_every=0.5, windows=4, rtol=1e-12, atol=1e-12)
+    assert spec.k == 6 and spec.full
+    end = flow(chain, Y0, T, rtol=1e-13, atol=1e-13).y
+    expected = _log_det_mass(chain, Y0[:3]) - _log_det_mass(chain, end[:3])
+    assert abs(expected) > 0.05  # the identity is tested, not a zero
+    assert abs(spec.sum * T - expected) <= 1e-7
+
+
+def test_the_chain_of_two_has_the_double_pendulums_exponents():
+    """The double pendulum's chaos kernel (its Jacobian from the symbolic derivation) and the chain of two
+    (CasADi's derivative of the recursive algorithms): the same exponents over a short run, before
+    rounding differences grow (to 1e-7 of the largest)."""
+    params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.4, g=9.81, c1=0.02)
+    y0 = [2.0, 1.0, 0.0, 0.5]
+    a = skewpend.lyapunov(params, y0, t_end=6, renorm_every=0.5, windows=4, rtol=1e-12, atol=1e-12)
+    b = skewpend.lyapunov(Chain.from_parameters(params), y0, t_end=6, renorm_every=0.5, windows=4, rtol=1e-12,
+                          atol=1e-12)
+    np.testing.assert_allclose(b.exponents, a.exponents, rtol=0, atol=1e-7 * np.abs(a.exponents).max())
+
+
+def test_a_chains_lyapunov_refuses_what_it_cannot_do():
+    chain = _triple()
+    with pytest.raises(ParameterError, match="n_exponents must be a whole number from 1 to 6"):
+        skewpend.lyapunov(chain, Y0, t_end=10, n_exponents=7)
+    with pytest.raises(ParameterError, match=r"y0 must be 6 numbers \(q1, q2, q3, dq1, dq2, dq3\)"):
+        skewpend.lyapunov(chain, [1, 2, 0, 0], t_end=10)
+
+
+def test_the_cli_gives_a_chains_spectrum(tmp_path):
+    out = tmp_path / "spectrum.json"
+    run = subprocess.run([sys.executable, "-m", "skewpend", "lyapunov", "--config", "examples/skewed_triple.toml",
+                          "--t-end", "20", "--out", str(out)], capture_output=True, text=True)
+    assert run.returncode in (0, 1), run.stderr  # 1: not settled in 20 s (said in one line)
+    assert "lambda_6" in run.stdout and "Traceback" not in run.stderr
+    data = json.loads(out.read_text())
+    assert len(data["exponents"]) == 6 and len(data["params"]["links"]) == 3
+
+
+def test_a_chains_spectrum_reads_back(tmp_path):
+    chain = _triple(damping=0.01)
+    spec = skewpend.lyapunov(chain, Y0, t_end=8, windows=4)
+    back = skewpend.open_result(spec.to_netcdf(tmp_path / "spectrum.nc"))
+    assert back.params == chain and back.k == 6
+    np.testing.assert_array_equal(back.exponents, spec.exponents)
+    assert np.isfinite(spec.kaplan_yorke_dimension)  # damped: an attractor's dimension
