@@ -245,3 +245,63 @@ def test_missing_imageio_ffmpeg_gives_an_install_hint(clip, tmp_path, monkeypatc
     with pytest.raises(skewpend.SkewpendError, match="pip install imageio-ffmpeg"):
         animate(clip, tmp_path / "m.mp4", fps=FPS, size=SIZE)
     assert _files(tmp_path) == []
+
+
+# ---------------------------------------------------------------------------------------------
+# a chain of links: N rods
+
+
+def _chain_clip():
+    from skewpend.symbolic.chain import Chain
+
+    chain = Chain.from_lists(3, axis=[(0, 0, 1), (1, 0, 2), (1, 0, 0)], length=[0.5, 0.4, 0.3], mass=[1, 0.8, 0.5])
+    return chain, skewpend.simulate(chain, [1.0, -0.3, 0.2, 0, 0, 0], 1.0, dt_out=1 / FPS)
+
+
+def test_a_chains_frame_draws_every_rod_and_hinge_axis():
+    """Three skewed links: the scene's rods end where the rotation tensors composed here put them
+    (R_k = R_(k-1) P(q_k, e_k), rod k's end o_k + R_k l_k j), each hinge axis is R_(k-1) e_k at the rod
+    before's end, and every rod's colour is on screen."""
+    chain, clip = _chain_clip()
+    k = clip.t.size // 2
+    renderer = FrameRenderer(clip, size=(320, 240))
+    sc = renderer.draw(k)
+    R, o = np.eye(3), np.zeros(3)
+    for i, link in enumerate(chain.links):
+        axis = np.asarray(link.axis)
+        np.testing.assert_allclose(sc.axis_directions[i], R @ axis, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(sc.axis_centers[i], o, rtol=0, atol=1e-12)
+        R = R @ _rodrigues(clip.y[k, i], axis)
+        o = o + R @ np.array([0.0, link.length, 0.0])
+        np.testing.assert_allclose(sc.rods[i + 1], o, rtol=0, atol=1e-12)
+    assert sc.rods.shape == (4, 3) and len(sc.skew_arcs) == 2 and sc.q == tuple(clip.y[k, :3])
+    for i in range(1, 3):  # each arc spans the angle between consecutive axes
+        arc, c = sc.skew_arcs[i - 1], sc.axis_centers[i]
+        ends = [(arc[j] - c) / np.linalg.norm(arc[j] - c) for j in (0, -1)]
+        np.testing.assert_allclose(ends[0], sc.axis_directions[i - 1], atol=1e-12)
+        np.testing.assert_allclose(ends[1], sc.axis_directions[i], atol=1e-12)
+    image = renderer.rgb().reshape(-1, 3).astype(float)
+    from skewpend.views.animation.scene import rod_color
+
+    # the rods are shaded (ambient + Lambert: the base colour scaled) -- look for its hue, not its value
+    dark = image[(image.max(axis=1) > 40) & (image.min(axis=1) < 200)]
+    hue = dark / np.linalg.norm(dark, axis=1)[:, None]
+    for i in range(3):
+        base = np.array(rod_color(i)) / np.linalg.norm(rod_color(i))
+        assert np.count_nonzero(hue @ base > 0.999) >= 10, f"rod {i + 1}'s colour is not on screen"
+    assert image.std() > 20 and [renderer.artists[f"axis{i}"].get_visible() for i in (1, 2, 3)] == [True] * 3
+    renderer.close()
+
+
+def test_a_chain_animates_to_a_gif_and_refuses_hinges_off_the_rod_ends(tmp_path):
+    from PIL import Image
+
+    chain, clip = _chain_clip()
+    out = animate(clip, tmp_path / "chain.gif", fps=FPS, speed=SPEED, size=SIZE)
+    with Image.open(out) as im:
+        assert im.n_frames == clip.t.size and im.size == SIZE
+    moved = chain.replace_link(3, offset=(0.05, 0.4, 0.0))
+    clip2 = skewpend.simulate(moved, [1.0, -0.3, 0.2, 0, 0, 0], 1.0, dt_out=1 / FPS)
+    with pytest.raises(skewpend.ParameterError, match="draws each hinge at the end of the rod before; link 3"):
+        animate(clip2, tmp_path / "moved.gif", fps=FPS, speed=SPEED, size=SIZE)
+    assert _files(tmp_path) == ["chain.gif"]

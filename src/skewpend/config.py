@@ -80,7 +80,8 @@ _DOP853 = frozenset(("t_end", "method", "rtol", "atol"))  # the DOP853-only anal
 READS: Dict[str, Dict[str, frozenset]] = {
     "simulate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS,
                  "simulation": _INTEGRATION | {"dt_out", "out", "plot"}, "chain": CHAIN_KEYS, "links": LINK_KEYS},
-    "animate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": _INTEGRATION},
+    "animate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS, "simulation": _INTEGRATION,
+                "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "report": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": _INTEGRATION},
     "validate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": frozenset({"t_end"})},
     "lyapunov": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS, "simulation": _DOP853 | {"max_steps"},

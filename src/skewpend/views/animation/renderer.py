@@ -13,7 +13,9 @@ from ...schema import AXIS_NAMES
 from ..style import parameter_text
 from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, HEAD_LENGTH, HEAD_RADIUS, LABEL_GAP, ROD_RADIUS,
                     SCENE_COLORS, FrameScene, Geometry, check_frame_size, check_view, choose_view, cone, cylinder, eye,
-                    unit, world_to_plot)
+                    hinge_color, rod_color, unit, world_to_plot)
+
+_SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
 
 # --------------------------------------------------------------------------------------------
 # the renderer
@@ -36,6 +38,8 @@ def _deg_wrapped(angle: float) -> float:
 
 def _alpha_is_skew(params) -> bool:
     """Whether ``alpha`` is the angle between the hinge axes (default axes ``k`` and ``e0(alpha)``)."""
+    if hasattr(params, "links"):  # a chain of links: no alpha
+        return False
     return (getattr(params, "alpha", None) is not None and getattr(params, "axis1", None) is None
             and getattr(params, "axis2", None) is None)
 
@@ -45,11 +49,23 @@ def _skew_angle(params, axes: np.ndarray) -> float:
     which every row keeps (``e = P1 . e0`` turns about ``n1``, so ``n1 . e`` is constant)."""
     if _alpha_is_skew(params):
         return float(params.alpha)
+    if axes.shape[1] < 6:  # one link: no second axis
+        return 0.0
     c = float(np.clip(np.dot(axes[0, 0:3], axes[0, 3:6]), -1.0, 1.0))
     return math.acos(c)
 
 
+def _chain_skews(chain) -> str:
+    """A chain's angles between consecutive hinge axes, as text (``∠ = 0°, 26.57°, 90°``)."""
+    angles = [math.degrees(math.acos(float(np.clip(np.dot(a.axis, b.axis), -1.0, 1.0))))
+              for a, b in zip(chain.links, chain.links[1:])]
+    return ", ".join(f"{x:.4g}°" for x in angles)
+
+
 def _title(params, skew: float) -> Tuple[str, str]:
+    if hasattr(params, "links"):
+        skews = f":  ∠ between the hinge axes {_chain_skews(params)}" if params.n > 1 else ""
+        return f"Chain of {params.n} links{skews}", parameter_text(params, sep=",  ")
     if _alpha_is_skew(params):
         line1 = f"Double pendulum with skewed hinge axes:  α = {math.degrees(skew):.4g}°"
     else:
@@ -122,11 +138,23 @@ class FrameRenderer:
         ticks = MaxNLocator(8, steps=[1, 2, 2.5, 5, 10]).tick_values(-R, R)
         self.grid_step = float(ticks[1] - ticks[0])
         self._ticks = ticks[np.abs(ticks) <= R + 1e-12]
-        handles = [
-            Line2D([], [], color=SCENE_COLORS["rod1"], lw=5, solid_capstyle="round", label="rod 1 (a)"),
-            Line2D([], [], color=SCENE_COLORS["rod2"], lw=5, solid_capstyle="round", label="rod 2 (b)"),
-            Line2D([], [], color=SCENE_COLORS["hinge1"], lw=2, marker=">", ms=5, label="hinge 1 axis n₁ (fixed)"),
-            Line2D([], [], color=SCENE_COLORS["hinge2"], lw=2, marker=">", ms=5, label="hinge 2 axis e = P₁·e₀ (turns with rod 1)"),
+        self.n = n = g.n
+        if n == 2 and not hasattr(tr.params, "links"):
+            handles = [
+                Line2D([], [], color=SCENE_COLORS["rod1"], lw=5, solid_capstyle="round", label="rod 1 (a)"),
+                Line2D([], [], color=SCENE_COLORS["rod2"], lw=5, solid_capstyle="round", label="rod 2 (b)"),
+                Line2D([], [], color=SCENE_COLORS["hinge1"], lw=2, marker=">", ms=5, label="hinge 1 axis n₁ (fixed)"),
+                Line2D([], [], color=SCENE_COLORS["hinge2"], lw=2, marker=">", ms=5, label="hinge 2 axis e = P₁·e₀ (turns with rod 1)"),
+            ]
+            self.axis_labels = ["n₁", "e"]
+        else:  # a chain: its rods and hinge axes numbered (eᵢ the axis of hinge i, on rod i - 1)
+            handles = [Line2D([], [], color=rod_color(i), lw=5, solid_capstyle="round", label=f"rod {i + 1}")
+                       for i in range(n)]
+            handles += [Line2D([], [], color=hinge_color(i), lw=2, marker=">", ms=5,
+                               label=f"hinge {i + 1} axis e{str(i + 1).translate(_SUB)}" + (" (fixed)" if i == 0 else ""))
+                        for i in range(n)]
+            self.axis_labels = [f"e{str(i + 1).translate(_SUB)}" for i in range(n)]
+        handles += [
             Line2D([], [], color=SCENE_COLORS["trail"], lw=1.6, label=f"tip trail (last {g.trail:g} s)" if g.trail > 0 else "tip trail (off)"),
             Line2D([], [], color=(0.80, 0.80, 0.83), lw=1, label=f"floor grid {self.grid_step:g} m"),
         ]
@@ -150,7 +178,8 @@ class FrameRenderer:
         n1 = g.axes[0, 0:3]
         # the second axis where rod 1 hangs most nearly vertical (phi nearest 0): about e0
         hanging = int(np.argmin(np.abs(np.angle(np.exp(1j * g.y[:, 0])))))
-        self.view = check_view(view) if view is not None else choose_view(n1, g.axes[hanging, 3:6])
+        second = g.axes[hanging, 3:6] if n >= 2 else np.array([1.0, 0.0, 0.0])
+        self.view = check_view(view) if view is not None else choose_view(n1, second)
         ax.view_init(elev=self.view[0], azim=self.view[1], roll=0)
 
         # camera-fixed directions (plot coordinates) and the light
@@ -179,12 +208,12 @@ class FrameRenderer:
         content += [triad_origin + 1.3 * tl * v for v, _ in triad]
         # upwards only as far as this run's rods and hinge axes (with arrow heads, labels) reach
         reach_axis = g.half + (HEAD_LENGTH + LABEL_GAP) * R
-        tips = world_to_plot(g.tips.reshape(-1, 2, 3))
-        e = world_to_plot(g.axes[:, 3:6])
-        moving = np.concatenate([
-            tips.reshape(-1, 3), tips[:, 0] + reach_axis * e, tips[:, 0] - reach_axis * e,
-            reach_axis * world_to_plot(g.axes[:, 0:3]), -reach_axis * world_to_plot(g.axes[:, 0:3]),
-        ])
+        tips = world_to_plot(g.tips.reshape(-1, n, 3))
+        moving = [tips.reshape(-1, 3), reach_axis * world_to_plot(g.axes[:, 0:3]), -reach_axis * world_to_plot(g.axes[:, 0:3])]
+        for i in range(1, n):  # hinge i + 1's axis on rod i's end
+            e = world_to_plot(g.axes[:, 3 * i:3 * i + 3])
+            moving += [tips[:, i - 1] + reach_axis * e, tips[:, i - 1] - reach_axis * e]
+        moving = np.concatenate(moving)
         content.append(moving[np.argmax(moving @ screen_up)])
         sr = np.array([c @ right for c in content])
         su = np.array([c @ screen_up for c in content])
@@ -222,21 +251,29 @@ class FrameRenderer:
         # moving artists (animated: left out of the cached background)
         lw_rod = 2.0 * self.radius * self.pixels_per_metre * 72.0 / self.dpi
         self.artists: Dict[str, object] = {}
-        self.artists["shadows"] = Line3DCollection([np.zeros((2, 3))] * 2, colors=[SCENE_COLORS["shadow"]], linewidths=max(1.0, lw_rod), capstyle="round", animated=True)
+        self.artists["shadows"] = Line3DCollection([np.zeros((2, 3))] * n, colors=[SCENE_COLORS["shadow"]], linewidths=max(1.0, lw_rod), capstyle="round", animated=True)
         self.artists["trail"] = Line3DCollection([np.zeros((2, 3))], linewidths=1.6, animated=True)
         self.artists["solids"] = Poly3DCollection(np.zeros((1, 4, 3)), linewidths=0.6, animated=True)
         for name in ("shadows", "trail", "solids"):
             ax.add_collection3d(self.artists[name])
-        (self.artists["axis1"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["hinge1"], lw=2.0, solid_capstyle="butt", animated=True)
-        (self.artists["axis2"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["hinge2"], lw=2.0, solid_capstyle="butt", animated=True)
+        #: the hinge axes' line artists ("axis1", "axis2": named as the double pendulum's parameters; a chain's
+        #: "axis1" ... "axisN"), their labels, and at every hinge after the first the parent's axis (dotted,
+        #: "axis1_ref" at hinge 2) and the arc of the skew angle ("skew_arc" at hinge 2)
+        self.axis_names = [AXIS_NAMES[i] if i < len(AXIS_NAMES) else f"axis{i + 1}" for i in range(n)]
+        self.ref_names = ["axis1_ref"] + [f"axis{i}_ref" for i in range(2, n)]
+        self.arc_names = ["skew_arc"] + [f"skew_arc{i + 1}" for i in range(2, n)]
+        self.arc_label_names = ["skew_label"] + [f"skew_label{i + 1}" for i in range(2, n)]
+        for i, name in enumerate(self.axis_names):
+            (self.artists[name],) = ax.plot([0, 0], [0, 0], [0, 0], color=hinge_color(i), lw=2.0, solid_capstyle="butt", animated=True)
         self.artists["heads"] = Poly3DCollection(np.zeros((1, 4, 3)), linewidths=0.4, animated=True)
         ax.add_collection3d(self.artists["heads"])
         label_kw = dict(fontsize=small + 1, fontweight="bold", ha="center", va="center", animated=True)
-        self.artists["axis1_label"] = ax.text(0, 0, 0, "n₁", color=SCENE_COLORS["hinge1"], **label_kw)
-        self.artists["axis2_label"] = ax.text(0, 0, 0, "e", color=SCENE_COLORS["hinge2"], **label_kw)
-        (self.artists["axis1_ref"],) = ax.plot([0, 0], [0, 0], [0, 0], color=SCENE_COLORS["hinge1"], lw=1.2, ls=(0, (2, 2)), alpha=0.9, animated=True)
-        (self.artists["skew_arc"],) = ax.plot([0, 0], [0, 0], [0, 0], color="0.15", lw=1.1, animated=True)
-        self.artists["skew_label"] = ax.text(0, 0, 0, "α" if self.uses_alpha else "∠", color="0.1", fontsize=small + 1, ha="center", va="center", animated=True)
+        for i, name in enumerate(self.axis_names):
+            self.artists[f"{name}_label"] = ax.text(0, 0, 0, self.axis_labels[i], color=hinge_color(i), **label_kw)
+        for i in range(1, n):
+            (self.artists[self.ref_names[i - 1]],) = ax.plot([0, 0], [0, 0], [0, 0], color=hinge_color(i - 1), lw=1.2, ls=(0, (2, 2)), alpha=0.9, animated=True)
+            (self.artists[self.arc_names[i - 1]],) = ax.plot([0, 0], [0, 0], [0, 0], color="0.15", lw=1.1, animated=True)
+            self.artists[self.arc_label_names[i - 1]] = ax.text(0, 0, 0, "α" if self.uses_alpha else "∠", color="0.1", fontsize=small + 1, ha="center", va="center", animated=True)
         self.artists["readout"] = fig.text(
             0.015, top - 0.01, "", ha="left", va="top", family="DejaVu Sans Mono", fontsize=small, animated=True,
             bbox=dict(boxstyle="round,pad=0.35", fc=(1, 1, 1, 0.85), ec="0.75", lw=0.6),
@@ -289,13 +326,12 @@ class FrameRenderer:
         D = world_to_plot(sc.axis_directions)
         h = sc.axis_half_length
 
-        # solids: two rods, two hinge pins along their axes
-        parts = []
-        parts.append(self._visible(*cylinder(P[0], P[1], r, D[0]), SCENE_COLORS["rod1"]))
-        parts.append(self._visible(*cylinder(P[1], P[2], r, D[1]), SCENE_COLORS["rod2"]))
+        # solids: the rods, a hinge pin along each axis
+        n = self.n
+        parts = [self._visible(*cylinder(P[i], P[i + 1], r, D[i]), rod_color(i)) for i in range(n)]
         pin = 2.6 * r
-        parts.append(self._visible(*cylinder(C[0] - pin * D[0], C[0] + pin * D[0], 1.45 * r, P[1] - P[0], 1), SCENE_COLORS["pin"]))
-        parts.append(self._visible(*cylinder(C[1] - pin * D[1], C[1] + pin * D[1], 1.45 * r, P[2] - P[1], 1), SCENE_COLORS["pin"]))
+        parts += [self._visible(*cylinder(C[i] - pin * D[i], C[i] + pin * D[i], 1.45 * r, P[i + 1] - P[i], 1), SCENE_COLORS["pin"])
+                  for i in range(n)]
         quads = np.concatenate([q for q, _ in parts])
         colors = np.concatenate([c for _, c in parts])
         solids = self.artists["solids"]
@@ -306,21 +342,23 @@ class FrameRenderer:
         # hinge axes: lines through the hinges, arrow heads at the + ends, labels beyond
         heads, head_colors = [], []
         head_len, head_r = HEAD_LENGTH * g.reach, HEAD_RADIUS * g.reach
-        for i, name in enumerate(AXIS_NAMES):
+        for i, name in enumerate(self.axis_names):
             seg = world_to_plot(sc.axis_segment(i))
             line = self.artists[name]
             line.set_data_3d(seg[:, 0], seg[:, 1], seg[:, 2])
-            q, n = cone(seg[1], seg[1] + head_len * D[i], head_r)
+            q, normals = cone(seg[1], seg[1] + head_len * D[i], head_r)
             heads.append(q)
-            head_colors.append(self._shade(n, np.asarray(SCENE_COLORS[f"hinge{i + 1}"])))
+            head_colors.append(self._shade(normals, np.asarray(hinge_color(i))))
             label = C[i] + (h + head_len + LABEL_GAP * g.reach) * D[i]
             self.artists[f"{name}_label"].set_position_3d(label)
-        ref = world_to_plot(np.array([sc.axis_centers[1] - h * sc.axis_directions[0], sc.axis_centers[1] + h * sc.axis_directions[0]]))
-        self.artists["axis1_ref"].set_data_3d(ref[:, 0], ref[:, 1], ref[:, 2])
-        arc = world_to_plot(sc.skew_arc)
-        self.artists["skew_arc"].set_data_3d(arc[:, 0], arc[:, 1], arc[:, 2])
-        mid = arc[arc.shape[0] // 2]
-        self.artists["skew_label"].set_position_3d(C[1] + 1.35 * (mid - C[1]))
+        for i in range(1, n):  # at hinge i + 1: the parent's axis (dotted) and the arc of the angle between them
+            ref = world_to_plot(np.array([sc.axis_centers[i] - h * sc.axis_directions[i - 1],
+                                          sc.axis_centers[i] + h * sc.axis_directions[i - 1]]))
+            self.artists[self.ref_names[i - 1]].set_data_3d(ref[:, 0], ref[:, 1], ref[:, 2])
+            arc = world_to_plot(sc.skew_arcs[i - 1])
+            self.artists[self.arc_names[i - 1]].set_data_3d(arc[:, 0], arc[:, 1], arc[:, 2])
+            mid = arc[arc.shape[0] // 2]
+            self.artists[self.arc_label_names[i - 1]].set_position_3d(C[i] + 1.35 * (mid - C[i]))
         hq = np.concatenate(heads)
         hc = np.concatenate(head_colors)
         self.artists["heads"].set_verts(hq)
@@ -341,15 +379,15 @@ class FrameRenderer:
             trail.set_visible(False)
         fl = P.copy()
         fl[:, 2] = self.floor
-        self.artists["shadows"].set_segments([fl[0:2], fl[1:3]])
+        self.artists["shadows"].set_segments([fl[i:i + 2] for i in range(n)])
 
         # readout
-        lines = [
-            f"t = {sc.t:{8 + self.t_decimals - 3}.{self.t_decimals}f} s" + (f"   ({self.speed:g}× speed)" if self.speed != 1.0 else ""),
-            f"φ = {_deg_wrapped(sc.phi):+7.1f}°",
-            f"ψ = {_deg_wrapped(sc.psi):+7.1f}°",
-            f"E = {sc.energy:+.5g} J",
-        ]
+        lines = [f"t = {sc.t:{8 + self.t_decimals - 3}.{self.t_decimals}f} s" + (f"   ({self.speed:g}× speed)" if self.speed != 1.0 else "")]
+        if n == 2 and not hasattr(g.tr.params, "links"):
+            lines += [f"φ = {_deg_wrapped(sc.phi):+7.1f}°", f"ψ = {_deg_wrapped(sc.psi):+7.1f}°"]
+        else:
+            lines.append("q = " + ", ".join(f"{_deg_wrapped(x):+.1f}°" for x in sc.q))
+        lines.append(f"E = {sc.energy:+.5g} J")
         if np.any(g.work != 0.0):
             lines.append(f"W = {sc.work:+.5g} J  (damping, torques)")
         self.artists["readout"].set_text("\n".join(lines))
@@ -364,11 +402,11 @@ class FrameRenderer:
             if art.get_visible():
                 art.do_3d_projection()
                 art.draw(renderer)
-        for name in ("axis1_ref", "skew_arc") + AXIS_NAMES:  # the hinge axes' arrows are named as their parameters
+        for name in self.ref_names[:n - 1] + self.arc_names[:n - 1] + self.axis_names:  # the double's axes: named as their parameters
             self.artists[name].draw(renderer)
         self.artists["heads"].do_3d_projection()
         self.artists["heads"].draw(renderer)
-        for name in ("axis1_label", "axis2_label", "skew_label", "readout"):
+        for name in [f"{a}_label" for a in self.axis_names] + self.arc_label_names[:n - 1] + ["readout"]:
             self.artists[name].draw(renderer)
         return sc
 

@@ -49,6 +49,23 @@ SCENE_COLORS = {
     "shadow": (0.0, 0.0, 0.0, 0.22),
     "roof": (0.55, 0.55, 0.58),
 }
+#: A chain's rods and hinge axes beyond the double pendulum's two, in turn (rod k, hinge k).
+CHAIN_ROD_COLORS = ((0.23, 0.43, 0.68), (0.90, 0.50, 0.13), (0.17, 0.60, 0.33), (0.58, 0.40, 0.74),
+                    (0.55, 0.34, 0.29), (0.84, 0.38, 0.61), (0.50, 0.50, 0.50), (0.74, 0.74, 0.13))
+CHAIN_HINGE_COLORS = ((0.05, 0.55, 0.40), (0.80, 0.08, 0.40), (0.12, 0.35, 0.75), (0.85, 0.45, 0.0),
+                      (0.45, 0.20, 0.60), (0.10, 0.55, 0.65), (0.60, 0.45, 0.10), (0.35, 0.35, 0.35))
+
+
+def rod_color(i: int):
+    """Rod ``i``'s colour (0-based): the double pendulum's two, then the chain's palette in turn."""
+    return SCENE_COLORS[f"rod{i + 1}"] if i < 2 else CHAIN_ROD_COLORS[i % len(CHAIN_ROD_COLORS)]
+
+
+def hinge_color(i: int):
+    """Hinge axis ``i``'s colour (0-based)."""
+    return SCENE_COLORS[f"hinge{i + 1}"] if i < 2 else CHAIN_HINGE_COLORS[i % len(CHAIN_HINGE_COLORS)]
+
+
 _SIDES = 12  # facets around a rod
 _SEGMENTS = 4  # pieces along a rod (keeps the painter's sort right where rods meet)
 
@@ -121,17 +138,20 @@ def choose_view(n1_world, e_world) -> Tuple[float, float]:
 class FrameScene:
     """The 3-D geometry of frame ``k`` in WORLD coordinates (``y`` down), as it is drawn.
 
-    * ``rods`` -- (3, 3): the pivot (origin), the end of rod 1 (``tip1``), the end of rod 2;
-      rod 1 is drawn from ``rods[0]`` to ``rods[1]``, rod 2 from ``rods[1]`` to ``rods[2]``;
-    * ``axis_centers`` -- (2, 3): where the hinge axes are drawn: the origin and ``tip1``;
-    * ``axis_directions`` -- (2, 3): unit vectors ``n1`` and ``e = P1 . e0`` (``tr.axes()[k]``);
+    * ``rods`` -- (n + 1, 3): the pivot (origin) and each rod's end (``n = 2`` rods for the double
+      pendulum, a chain's links); rod ``i`` is drawn from ``rods[i]`` to ``rods[i + 1]``;
+    * ``axis_centers`` -- (n, 3): where the hinge axes are drawn: the origin and the rods' ends;
+    * ``axis_directions`` -- (n, 3): unit vectors ``n1`` and ``e = P1 . e0`` (``tr.axes()[k]``; a
+      chain's every hinge axis);
     * ``axis_half_length`` -- each axis is drawn from ``centre - h d`` to ``centre + h d``
       (:meth:`axis_segment`), the arrow head at the ``+`` end;
     * ``trail`` -- (m, 3): rod 2's tip over the last ``trail`` seconds, oldest first, ending at
       ``rods[2]``; ``trail_alpha`` -- (m - 1,): opacity of each trail segment (fading out);
     * ``skew_arc`` -- (m, 3): the arc at ``tip1`` from the direction ``n1`` (drawn there as a dotted
       reference line, ``centre = tip1``, ``direction = n1``) to ``e``: the skew angle;
-    * ``t``, ``phi``, ``psi``, ``energy``, ``work`` -- the readout's values.
+    * ``skew_arcs`` -- one such arc at every hinge after the first (from the parent's axis to the
+      hinge's: a chain's skew angles), ``skew_arc`` the first;
+    * ``t``, ``phi``, ``psi``, ``energy``, ``work`` -- the readout's values (``q`` every angle).
     """
 
     k: int
@@ -147,6 +167,12 @@ class FrameScene:
     trail: np.ndarray
     trail_alpha: np.ndarray
     skew_arc: np.ndarray
+    skew_arcs: Tuple[np.ndarray, ...] = ()
+    q: Tuple[float, ...] = ()
+
+    @property
+    def rods_count(self) -> int:
+        return int(self.rods.shape[0] - 1)
 
     def axis_segment(self, i: int) -> np.ndarray:
         """End points (2, 3) of hinge axis ``i`` (0: the roof hinge, 1: the second hinge), world."""
@@ -170,11 +196,20 @@ class Geometry:
         self.y = np.asarray(tr.y, dtype=float)
         self.energy = np.asarray(tr.energy, dtype=float)
         self.work = np.asarray(tr.work, dtype=float)
-        self.tips = np.asarray(tr.tips(), dtype=float).reshape(-1, 6)
-        self.axes = np.asarray(tr.axes(), dtype=float).reshape(-1, 6)
+        self.n = n = self.y.shape[1] // 2  # rods: 2, or a chain's links
+        self.tips = np.asarray(tr.tips(), dtype=float).reshape(-1, 3 * n)
+        self.axes = np.asarray(tr.axes(), dtype=float).reshape(-1, 3 * n)
         if self.tips.shape[0] != t.size or self.axes.shape[0] != t.size:
             raise SkewpendError("the trajectory's rod ends or axes do not match its rows")
-        self.reach = float(p.a) + float(p.b)
+        if hasattr(p, "links"):  # a chain: each hinge drawn at the end of the rod before
+            for i in range(1, n):
+                offset, parent = p.links[i].offset, p.links[i - 1].length
+                if np.abs(np.subtract(offset, (0.0, parent, 0.0))).max() > 1e-12 * max(parent, 1.0):
+                    raise ParameterError(f"the animation draws each hinge at the end of the rod before; link {i + 1}'s "
+                                         f"hinge sits at {tuple(offset)} on link {i} (its end is (0, {parent:g}, 0))")
+            self.reach = float(sum(link.length for link in p.links))
+        else:
+            self.reach = float(p.a) + float(p.b)
         self.half = AXIS_HALF_LENGTH * self.reach
         self.trail = trail
         # first row of each frame's trail: the earliest row with t >= t_k - trail
@@ -188,19 +223,20 @@ class Geometry:
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not -n <= k < n:
             raise ParameterError(f"frame index must be a whole number in 0..{n - 1}, got {k!r}")
         k = int(k) % n
-        tips = self.tips
-        rods = np.array([[0.0, 0.0, 0.0], tips[k, 0:3], tips[k, 3:6]])
-        centers = np.array([[0.0, 0.0, 0.0], tips[k, 0:3]])
-        dirs = np.array([self.axes[k, 0:3], self.axes[k, 3:6]])
+        tips, m = self.tips, self.n
+        rods = np.vstack([np.zeros(3), tips[k].reshape(m, 3)])
+        centers = rods[:m].copy()
+        dirs = self.axes[k].reshape(m, 3).copy()
         j0 = int(self.trail_start[k])
-        trail = tips[j0 : k + 1, 3:6].copy()
-        m = trail.shape[0]
-        alpha = np.linspace(0.0, 0.9, m)[1:] if m > 1 else np.zeros(0)
+        trail = tips[j0 : k + 1, 3 * (m - 1):3 * m].copy()
+        count = trail.shape[0]
+        alpha = np.linspace(0.0, 0.9, count)[1:] if count > 1 else np.zeros(0)
+        arcs = tuple(self._arc(centers[i], dirs[i - 1], dirs[i]) for i in range(1, m))
         return FrameScene(
             k=k,
             t=float(self.t[k]),
             phi=float(self.y[k, 0]),
-            psi=float(self.y[k, 1]),
+            psi=float(self.y[k, 1]) if m >= 2 else math.nan,
             energy=float(self.energy[k]),
             work=float(self.work[k]),
             rods=rods,
@@ -209,7 +245,9 @@ class Geometry:
             axis_half_length=self.half,
             trail=trail,
             trail_alpha=alpha,
-            skew_arc=self._arc(tips[k, 0:3], dirs[0], dirs[1]),
+            skew_arc=arcs[0] if arcs else np.zeros((0, 3)),
+            skew_arcs=arcs,
+            q=tuple(float(x) for x in self.y[k, :m]),
         )
 
 
