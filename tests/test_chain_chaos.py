@@ -104,3 +104,58 @@ def test_a_chains_spectrum_reads_back(tmp_path):
     assert back.params == chain and back.k == 6
     np.testing.assert_array_equal(back.exponents, spec.exponents)
     assert np.isfinite(spec.kaplan_yorke_dimension)  # damped: an attractor's dimension
+
+
+# -- periodic orbits -------------------------------------------------------------------------------------------
+def _orbit_chain() -> Chain:
+    return Chain.from_lists(3, length=1.0, mass=1.0, axis=[(0, 0, 1), (0.2, 0, 1), (0, 0.3, 1)])
+
+
+def _mode_guess(chain, k, amplitude):
+    modes = skewpend.normal_modes(chain)
+    v = np.real(np.asarray(modes.shapes)[:, k])
+    return list(v / np.abs(v).max() * amplitude) + [0.0] * chain.n, 2 * np.pi / modes.frequencies[k]
+
+
+@pytest.mark.parametrize("k", [0, 2])
+def test_a_chains_small_orbits_approach_the_linear_modes(k):
+    """Orbits of a skewed triple pendulum from its linear modes' shapes: each closes (simulate, another
+    integrator, returns to the start over the period to 1e-8), its multipliers' product is 1
+    (det of the monodromy = det M(q0)/det M(q(T)) = 1 on a closed orbit), and its period tends to the
+    linear one as the amplitude squared (halving the amplitude divides the deviation by about 4)."""
+    chain = _orbit_chain()
+    deviation = []
+    for amplitude in (0.1, 0.05):
+        y0, T0 = _mode_guess(chain, k, amplitude)
+        orbit = skewpend.periodic_orbit(chain, y0, T0)
+        assert orbit.ok, orbit.message
+        assert orbit.stable and orbit.multipliers.shape == (6,)
+        assert abs(np.prod(orbit.multipliers) - 1) <= 1e-8
+        sim = skewpend.simulate(chain, orbit.state, orbit.period, rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(np.asarray(sim.y)[-1, :6], orbit.state, rtol=0, atol=1e-8)
+        deviation.append(orbit.period / T0 - 1)
+    assert 3.5 < deviation[0] / deviation[1] < 4.5
+
+
+def test_the_chain_of_twos_orbit_is_the_double_pendulums():
+    params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
+    guess, period = [0.6, 0.5, 0.0, 0.0], 2.3
+    a = skewpend.periodic_orbit(params, guess, period)
+    b = skewpend.periodic_orbit(Chain.from_parameters(params), guess, period)
+    assert a.ok and b.ok
+    assert abs(a.period - b.period) <= 1e-9 * a.period
+    np.testing.assert_allclose(b.state, a.state, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(np.sort(np.abs(b.multipliers)), np.sort(np.abs(a.multipliers)), rtol=0, atol=1e-6)
+
+
+def test_a_chains_orbit_refuses_losses_and_other_shapes(tmp_path):
+    with pytest.raises(ParameterError, match="needs a conservative model without losses .* link 2 damping = 0.1"):
+        skewpend.periodic_orbit(_triple(damping=[0.0, 0.1, 0.0]), Y0, 2.0)
+    with pytest.raises(ParameterError, match=r"y0 must be 6 numbers \(the 3 angles, then their speeds\)"):
+        skewpend.periodic_orbit(_orbit_chain(), [0.1, 0.1, 0, 0], 2.0)
+    with pytest.raises(ParameterError, match="mode=: a chain's orbits are found from a guess"):
+        skewpend.periodic_orbit(_orbit_chain(), mode=1, energy=0.1)
+    y0, T0 = _mode_guess(_orbit_chain(), 0, 0.05)
+    orbit = skewpend.periodic_orbit(_orbit_chain(), y0, T0)
+    back = skewpend.open_result(orbit.to_netcdf(tmp_path / "orbit.nc"))
+    assert back.params == orbit.params and back.period == orbit.period and back.stable

@@ -92,7 +92,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "export": {"parameters": MODEL_KEYS},
     "modes": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "equilibria": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
-    "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS},
+    "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "nnm": {"parameters": MODEL_KEYS},
     "control": {"parameters": MODEL_KEYS},
     "identify": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # params0, the fit's start

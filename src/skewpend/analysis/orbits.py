@@ -43,6 +43,7 @@ from ..checks import angle, numeric_params, positive, progress_callable, toleran
 from ..errors import EquilibriumError, IntegrationError, ParameterError, SkewpendError
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..status import Status
+from ..symbolic.chain import AnyModel, Chain
 from ..symbolic.model import Parameters
 
 __all__ = ["PeriodicOrbit", "periodic_orbit", "NNMFamily", "nnm", "Backbones", "backbones", "flip_energy",
@@ -80,15 +81,16 @@ def _require_conservative(params: Parameters, what: str) -> None:
 def energy_function(params: Parameters) -> Callable[[np.ndarray], np.ndarray]:
     """``H(y) = T + Pi - tau . q`` of states ``y`` (n, 4), the energy an orbit keeps, from the
     model's kernel."""
-    from ..numeric.kernels import kernel_module, parameter_vector
+    from ..numeric.kernels import model_kernel, model_vector
 
-    kernel = kernel_module(params)
-    p = parameter_vector(params)
-    tau = np.array([params.tau1, params.tau2], dtype=float)
+    kernel = model_kernel(params)
+    p = model_vector(params)
+    tau = (np.array([link.torque for link in params.links], dtype=float) if isinstance(params, Chain)
+           else np.array([params.tau1, params.tau2], dtype=float))
 
     def H(y: np.ndarray) -> np.ndarray:
         y = np.atleast_2d(np.asarray(y, dtype=float))
-        return kernel.energies(y, p) - y[:, :2] @ tau
+        return kernel.energies(y, p) - y[:, :tau.size] @ tau
 
     return H
 
@@ -103,31 +105,35 @@ def _orbit_energy_check(path, params: Parameters, states: np.ndarray, energies, 
 class _Model:
     """What shooting needs of one model: the flow with its derivative, the vector field, the energy."""
 
-    def __init__(self, params: Parameters, rtol: float, atol: float):
-        from ..numeric.kernels import kernel_module, parameter_vector
+    def __init__(self, params, rtol: float, atol: float):
+        from ..numeric.kernels import model_kernel, model_vector
         from ..numeric.variational import FlowIntegrator
 
         self.params = params
         self.flow = FlowIntegrator(params, rtol=rtol, atol=atol, max_steps=ORBIT_MAX_STEPS)
-        self.kernel = kernel_module(params)
-        self.p = parameter_vector(params)
-        self.tau = np.array([params.tau1, params.tau2], dtype=float)
+        self.kernel = model_kernel(params)
+        self.p = model_vector(params)
+        self.nq = self.kernel.nq  # 2, or a chain's links
+        self.tau = (np.array([link.torque for link in params.links], dtype=float) if isinstance(params, Chain)
+                    else np.array([params.tau1, params.tau2], dtype=float))
         self.calls = 0
         self.steps = 0
 
     def field(self, y: np.ndarray) -> np.ndarray:
-        out = np.empty(5)
+        n2 = 2 * self.nq
+        out = np.empty(n2 + 1)
         self.kernel.rhs(np.append(y, 0.0), self.p, out)
-        return out[:4]
+        return out[:n2]
 
     def energy(self, y: np.ndarray) -> float:
-        return self.kernel.energy(np.append(y, 0.0), self.p) - float(self.tau @ y[:2])
+        return self.kernel.energy(np.append(y, 0.0), self.p) - float(self.tau @ y[:self.nq])
 
     def energy_gradient(self, y: np.ndarray) -> np.ndarray:
-        g = np.empty(4)
-        for i in range(4):  # central differences of the energy
+        n2 = 2 * self.nq
+        g = np.empty(n2)
+        for i in range(n2):  # central differences of the energy
             h = 1e-6 * max(1.0, abs(y[i]))
-            e = np.zeros(4)
+            e = np.zeros(n2)
             e[i] = h
             g[i] = (self.energy(y + e) - self.energy(y - e)) / (2 * h)
         return g
@@ -137,7 +143,7 @@ class _Model:
         acceleration there: ``|q'| / w + |q''| / w^2``, ``w = 2 pi / T`` (0 at an equilibrium)."""
         f = self.field(y)
         w = 2 * math.pi / T
-        return float(np.max(np.abs(f[:2])) / w + np.max(np.abs(f[2:])) / w ** 2)
+        return float(np.max(np.abs(f[:self.nq])) / w + np.max(np.abs(f[self.nq:])) / w ** 2)
 
     def check_work(self, x0: np.ndarray, T: float) -> float:
         """Refuse, before any work, a shooting over the period ``T`` that could not finish within
@@ -184,9 +190,10 @@ class _Scales:
     speed: float
     period: float
     energy: float
+    nq: int = 2
 
     def vector(self) -> np.ndarray:
-        return np.array([self.angle, self.angle, self.speed, self.speed, self.period, self.energy])
+        return np.array([self.angle] * self.nq + [self.speed] * self.nq + [self.period, self.energy])
 
 
 def _newton(model: _Model, x0: np.ndarray, T: float, E: float, shift: np.ndarray, ref: np.ndarray, scales: _Scales,
@@ -197,21 +204,23 @@ def _newton(model: _Model, x0: np.ndarray, T: float, E: float, shift: np.ndarray
     Returns ``(x0, T, E, flow, iterations, residual)`` or None when it does not converge;
     ``progress(iteration, max_iterations)`` after each iteration."""
     f_ref = model.field(ref)
-    n_ref = float(np.linalg.norm(f_ref / np.r_[scales.angle, scales.angle, scales.speed, scales.speed])) or 1.0
+    n2 = 2 * model.nq
     su = scales.vector()
+    n_ref = float(np.linalg.norm(f_ref / su[:n2])) or 1.0
     x0, T, E = np.array(x0, dtype=float), float(T), float(E)
     residual = math.inf
     for it in range(1, max_iterations + 1):
         fl = model.shoot(x0, T, check)
         if fl is None:
             return None
-        r_close = (fl.y - x0 - shift) / su[:4]
+        r_close = (fl.y - x0 - shift) / su[:n2]
         r_phase = float(f_ref @ (x0 - ref)) / (n_ref * scales.angle)
         r_energy = (model.energy(x0) - E) / scales.energy
         rows = [r_close, [r_phase], [r_energy]]
-        J_close = np.hstack([(fl.stm - np.eye(4)) * su[None, :4] / su[:4, None], (model.field(fl.y) * su[4] / su[:4])[:, None]])
-        J_phase = np.r_[f_ref * su[:4] / (n_ref * scales.angle), 0.0]
-        J_energy = np.r_[model.energy_gradient(x0) * su[:4] / scales.energy, 0.0]
+        J_close = np.hstack([(fl.stm - np.eye(n2)) * su[None, :n2] / su[:n2, None],
+                             (model.field(fl.y) * su[n2] / su[:n2])[:, None]])
+        J_phase = np.r_[f_ref * su[:n2] / (n_ref * scales.angle), 0.0]
+        J_energy = np.r_[model.energy_gradient(x0) * su[:n2] / scales.energy, 0.0]
         J = np.vstack([J_close, J_phase, J_energy])
         if free_energy:
             J = np.hstack([J, np.zeros((J.shape[0], 1))])
@@ -229,10 +238,10 @@ def _newton(model: _Model, x0: np.ndarray, T: float, E: float, shift: np.ndarray
         step = float(np.max(np.abs(du)))
         if step > 0.5:  # a wild step: damp it (the corrector is a local method)
             du *= 0.5 / step
-        x0 = x0 + du[:4] * su[:4]
-        T = T + du[4] * su[4]
+        x0 = x0 + du[:n2] * su[:n2]
+        T = T + du[n2] * su[n2]
         if free_energy:
-            E = E + du[5] * su[5]
+            E = E + du[n2 + 1] * su[n2 + 1]
         if progress is not None:
             progress(it, max_iterations)
         if residual < tol and step < 1e3 * tol:
@@ -253,15 +262,22 @@ def _stable(sigma: float) -> bool:
     return abs(sigma) <= 2.0 + STABILITY_MARGIN
 
 
+def _stable_multipliers(mu: np.ndarray) -> bool:
+    """Linear stability for any number of degrees of freedom: every Floquet multiplier on or inside the
+    unit circle (a Hamiltonian flow's come in pairs mu, 1/mu: on it), within :data:`STABILITY_MARGIN`."""
+    return bool(np.all(np.isfinite(mu)) and np.max(np.abs(mu)) <= 1.0 + STABILITY_MARGIN)
+
+
 @dataclass(frozen=True)
 class PeriodicOrbit(Result):
     """A periodic orbit (:func:`periodic_orbit`), or the failure to find one (``ok`` False).
 
-    * ``state`` -- the start ``(phi, psi, phi', psi')`` on the orbit; ``period`` [s];
-      ``frequency`` ``2 pi / T`` [rad/s]; ``energy`` ``H = T + Pi - tau . q`` [J];
-      ``rotation`` -- whole turns of ``(phi, psi)`` per period (``(0, 0)``: a libration);
+    * ``state`` -- the start ``(phi, psi, phi', psi')`` on the orbit (a chain's ``2 n`` angles and
+      speeds); ``period`` [s]; ``frequency`` ``2 pi / T`` [rad/s]; ``energy`` ``H = T + Pi - tau . q``
+      [J]; ``rotation`` -- whole turns of each angle per period (``(0, 0)``: a libration);
     * ``monodromy`` (4, 4), ``multipliers`` (4,) complex, largest modulus first; ``sigma`` --
-      ``trace - 2``; ``stable`` -- ``|sigma| <= 2`` (within :data:`STABILITY_MARGIN`);
+      ``trace - 2``; ``stable`` -- ``|sigma| <= 2`` (within :data:`STABILITY_MARGIN`); a chain's: every
+      multiplier on the unit circle (``sigma`` is then NaN: the criterion of two degrees of freedom);
     * ``trajectory(rows)`` -- the orbit over one period as a :class:`~skewpend.Trajectory`
       (integrated anew by :func:`skewpend.simulate`);
     * the result protocol: ``params``, ``settings``, ``stats`` (``newton_iterations``,
@@ -272,7 +288,7 @@ class PeriodicOrbit(Result):
     state: np.ndarray
     period: float
     energy: float
-    rotation: Tuple[int, int]
+    rotation: Tuple[int, ...]
     monodromy: np.ndarray = field(repr=False)
     multipliers: np.ndarray = field(init=False, repr=False)
     sigma: float = field(init=False)
@@ -285,7 +301,10 @@ class PeriodicOrbit(Result):
         object.__setattr__(self, "state", np.asarray(self.state, dtype=float))
         object.__setattr__(self, "rotation", tuple(int(r) for r in self.rotation))
         object.__setattr__(self, "monodromy", mono)
-        mu, sigma = _multipliers(mono) if np.all(np.isfinite(mono)) else (np.full(4, np.nan + 0j), math.nan)
+        n2 = mono.shape[0] if mono.ndim == 2 else 4
+        mu, sigma = _multipliers(mono) if np.all(np.isfinite(mono)) else (np.full(n2, np.nan + 0j), math.nan)
+        if n2 != 4:
+            sigma = math.nan
         object.__setattr__(self, "multipliers", mu)
         object.__setattr__(self, "sigma", sigma)
 
@@ -295,6 +314,8 @@ class PeriodicOrbit(Result):
 
     @property
     def stable(self) -> bool:
+        if np.size(self.state) != 4:  # a chain: every multiplier on the unit circle
+            return bool(self.ok and _stable_multipliers(self.multipliers))
         return bool(self.ok and _stable(self.sigma))
 
     def trajectory(self, rows: int = 400, *, rtol: float = 1e-12, atol: float = 1e-12):
@@ -310,6 +331,17 @@ class PeriodicOrbit(Result):
             return f"no periodic orbit: {self.message}"
         mu = ", ".join(f"{abs(m):.6g}" + (f" (arg {math.degrees(np.angle(m)):.3g} deg)" if abs(m.imag) > 1e-12 else "")
                        for m in self.multipliers)
+        if np.size(self.state) != 4:
+            n = np.size(self.state) // 2
+            return "\n".join([
+                "start      q = (" + ", ".join(f"{x:.9g}" for x in self.state[:n]) + ") rad, q' = ("
+                + ", ".join(f"{x:.9g}" for x in self.state[n:]) + ") rad/s",
+                f"period     {self.period:.12g} s (frequency {self.frequency:.9g} rad/s)",
+                f"energy     {self.energy:.9g} J" + (f"; rotation {self.rotation}" if any(self.rotation) else ""),
+                f"Floquet    |mu| = {mu}",
+                f"stability  {'stable' if self.stable else 'unstable'} (largest |mu| = {np.max(np.abs(self.multipliers)):.9g}; "
+                "stable when every |mu| <= 1)",
+            ])
         return "\n".join([
             f"start      phi = {self.state[0]:.9g}, psi = {self.state[1]:.9g} rad, "
             f"phi' = {self.state[2]:.9g}, psi' = {self.state[3]:.9g} rad/s",
@@ -323,7 +355,7 @@ class PeriodicOrbit(Result):
     def _dataset(self) -> DatasetSpec:
         return DatasetSpec(
             variables={
-                "state": (("component",), self.state, {"long_name": "start on the orbit (phi, psi, phi', psi')"}),
+                "state": (("component",), self.state, {"long_name": "start on the orbit (the angles, then their speeds)"}),
                 "period": ((), np.float64(self.period), {"units": "s"}),
                 "energy": ((), np.float64(self.energy), {"units": "J"}),
                 "monodromy": (("component", "component_2"), self.monodromy, {}),
@@ -331,7 +363,9 @@ class PeriodicOrbit(Result):
                 "multiplier_imag": (("multiplier",), self.multipliers.imag, {}),
             },
             coords={},
-            attrs={"title": "periodic orbit of the skewed double pendulum (skewpend)", "components": "phi, psi, dphi, dpsi",
+            attrs={"title": "periodic orbit of " + ("the skewed double pendulum" if isinstance(self.params, Parameters)
+                                                    else f"a chain of {self.params.n} links") + " (skewpend)",
+                   "components": ", ".join(_names(self.params) + [f"d{c}" for c in _names(self.params)]),
                    **self._base_attrs()},
         )
 
@@ -341,7 +375,7 @@ def read_periodic_orbit(path, variables, attrs) -> PeriodicOrbit:
     """A :class:`PeriodicOrbit` from its ``*.nc`` file (``read_periodic_orbit(path)``, for
     :func:`skewpend.open_result`): its stored multipliers and energy must be those of its stored
     monodromy matrix and start (a failed orbit, without a monodromy, is read as it is)."""
-    proto = protocol_fields(path, attrs, Parameters)
+    proto = protocol_fields(path, attrs, AnyModel)
     state = np.asarray(variables["state"], dtype=float)
     energy = float(variables["energy"])
     mono = np.asarray(variables["monodromy"], dtype=float)
@@ -361,19 +395,24 @@ def _scales_for(params: Parameters, T: float, E: float) -> _Scales:
     return _Scales(angle=1.0, speed=w, period=T, energy=max(abs(E), 1e-300))
 
 
-def _state(y0) -> np.ndarray:
-    """``y0 = (phi, psi, phi', psi')``: four real numbers (NumPy's too), the angles reduced modulo
-    2 pi (:func:`skewpend.checks.angle`: at most 1e6 rad), the speeds finite."""
+def _names(params) -> list:
+    return list(getattr(params, "coordinates", ("phi", "psi")))
+
+
+def _state(y0, n: int = 2) -> np.ndarray:
+    """``y0 = (phi, psi, phi', psi')`` (a chain's ``n`` angles, then their speeds): real numbers (NumPy's
+    too), the angles reduced modulo 2 pi (:func:`skewpend.checks.angle`: at most 1e6 rad), the speeds finite."""
     try:
         items = [v.item() if hasattr(v, "item") else v for v in list(y0)]
     except (TypeError, ValueError):
         items = None
-    if items is None or len(items) != 4:
-        raise ParameterError(f"y0 must be four numbers (phi, psi, phi', psi'), got {y0!r}")
-    for i, v in enumerate(items[2:], start=2):
+    if items is None or len(items) != 2 * n:
+        what = "four numbers (phi, psi, phi', psi')" if n == 2 else f"{2 * n} numbers (the {n} angles, then their speeds)"
+        raise ParameterError(f"y0 must be {what}, got {y0!r}")
+    for i, v in enumerate(items[n:], start=n):
         if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(float(v)):
             raise ParameterError(f"y0[{i}] must be a finite speed [rad/s] (a real number), got {v!r}")
-    return np.array([angle("y0[0]", items[0]), angle("y0[1]", items[1]), float(items[2]), float(items[3])])
+    return np.array([angle(f"y0[{i}]", items[i]) for i in range(n)] + [float(v) for v in items[n:]])
 
 
 def _real(name: str, value, unit: str) -> float:
@@ -385,19 +424,20 @@ def _real(name: str, value, unit: str) -> float:
     return float(value)
 
 
-def _rotation(rotation) -> Tuple[int, int]:
-    """Two whole numbers of turns (NumPy's integers too) of at most :data:`ROTATION_LIMIT`."""
+def _rotation(rotation, n: int = 2) -> Tuple[int, ...]:
+    """``n`` whole numbers of turns (NumPy's integers too; two for the double pendulum) of at most
+    :data:`ROTATION_LIMIT`."""
     try:
         turns = [v.item() if hasattr(v, "item") else v for v in list(rotation)]
     except (TypeError, ValueError):
         turns = []
-    ok = len(turns) == 2 and all(isinstance(r, numbers.Integral) and not isinstance(r, bool) for r in turns)
+    ok = len(turns) == n and all(isinstance(r, numbers.Integral) and not isinstance(r, bool) for r in turns)
     if not ok or any(abs(int(r)) > ROTATION_LIMIT for r in turns):
         shown = ", ".join((f"{float(r):.3g}" if abs(int(r)) < 10**308 else "beyond 1e308") if ok else repr(r)
                           for r in turns) if turns else repr(rotation)
-        raise ParameterError(f"rotation must be two whole numbers of turns (r1, r2) from {-ROTATION_LIMIT} to "
-                             f"{ROTATION_LIMIT}, got ({shown})")
-    return int(turns[0]), int(turns[1])
+        what = "two whole numbers of turns (r1, r2)" if n == 2 else f"{n} whole numbers of turns (one an angle)"
+        raise ParameterError(f"rotation must be {what} from {-ROTATION_LIMIT} to {ROTATION_LIMIT}, got ({shown})")
+    return tuple(int(r) for r in turns)
 
 
 def _newton_settings(tol, max_iterations) -> Tuple[float, int]:
@@ -416,6 +456,8 @@ def _trivial(model: "_Model", x: np.ndarray, T: float, tol: float) -> Optional[s
     if amp >= threshold:
         return None
     where = f"(phi, psi) = ({x[0]:.6g}, {x[1]:.6g}) rad"
+    if isinstance(model.params, Chain):
+        where = "q = (" + ", ".join(f"{v:.6g}" for v in x[:model.nq]) + ") rad"
     try:
         from .equilibria import equilibrium_at
 
@@ -453,8 +495,15 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
     """
     from ..interrupts import Interrupts
 
-    params = numeric_params(params, "periodic orbits")
-    _require_conservative(params, "a periodic orbit")
+    if isinstance(params, Chain):
+        if mode is not None:
+            raise ParameterError("mode=: a chain's orbits are found from a guess (y0, period); the nonlinear normal "
+                                 "modes' continuation (nnm) is the double pendulum's")
+        params.require_lossless("a periodic orbit")
+    else:
+        params = numeric_params(params, "periodic orbits")
+        _require_conservative(params, "a periodic orbit")
+    nq = params.n if isinstance(params, Chain) else 2
     rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
     tol, max_iterations = _newton_settings(tol, max_iterations)
     if throw not in (True, False):
@@ -473,11 +522,13 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
         return family.orbit(len(family.energies) - 1)
     if y0 is None or period is None:
         raise ParameterError("a periodic orbit needs a guess: y0 (phi, psi, phi', psi') and period [s], or mode= and energy=")
-    x0 = _state(y0)
+    x0 = _state(y0, nq)
     period = positive("period", period)
     if not period < 1e6:
         raise ParameterError(f"period must be a positive number of seconds below 1e6, got {period:g}")
-    rotation = _rotation(rotation)
+    if nq != 2 and tuple(rotation) == (0, 0):
+        rotation = (0,) * nq
+    rotation = _rotation(rotation, nq)
     if energy is not None:
         energy = _real("energy", energy, "joules")
     model = _Model(params, rtol, atol)
@@ -485,8 +536,9 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
     E = model.energy(x0) if energy is None else energy
     if not math.isfinite(E):
         raise ParameterError(f"y0: the energy of the guess is not finite ({E!r}); give a slower start")
-    shift = np.array([2 * math.pi * rotation[0], 2 * math.pi * rotation[1], 0.0, 0.0])
+    shift = np.array([2 * math.pi * r for r in rotation] + [0.0] * nq)
     scales = _scales_for(params, period, E if E != 0 else 1.0)
+    scales.nq = nq
     with Interrupts() as intr:
         out = _newton(model, x0, period, E, shift, x0, scales, tol=tol, max_iterations=max_iterations,
                       check=intr.check, progress=progress)
@@ -509,8 +561,9 @@ def _failed(params, why, rotation, throw, settings=None, model=None, status=Stat
     if throw:
         raise IntegrationError(why)
     stats = {} if model is None else {"flows": model.calls, "steps": model.steps}
-    return PeriodicOrbit(state=np.full(4, np.nan), period=math.nan, energy=math.nan, rotation=rotation,
-                         monodromy=np.full((4, 4), np.nan), params=params, settings=settings or {}, stats=stats,
+    n2 = 2 * len(rotation)
+    return PeriodicOrbit(state=np.full(n2, np.nan), period=math.nan, energy=math.nan, rotation=rotation,
+                         monodromy=np.full((n2, n2), np.nan), params=params, settings=settings or {}, stats=stats,
                          status=status, message=why)
 
 

@@ -213,6 +213,16 @@ class Chain:
         torques derive from a potential and keep it)."""
         return any(link.damping or link.coulomb for link in self.links)
 
+    def require_lossless(self, what: str) -> "Chain":
+        """Return self, or one line when energy is dissipated (damping or Coulomb friction in a joint;
+        constant torques derive from a potential and are allowed)."""
+        lossy = [f"link {link.index} {key} = {getattr(link, key):g}" for link in self.links
+                 for key in ("damping", "coulomb") if getattr(link, key)]
+        if lossy:
+            raise ParameterError(f"{what} needs a conservative model without losses (the energy T + Pi - tau . q decays "
+                                 f"otherwise; constant torques are allowed), but {', '.join(lossy)}; set them to 0")
+        return self
+
     @property
     def conservative(self) -> bool:
         """No damping, Coulomb friction or constant torque in any joint (E = T + Pi conserved)."""
