@@ -96,7 +96,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "nnm": {"parameters": MODEL_KEYS},
     "control": {"parameters": MODEL_KEYS},
     "identify": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # params0, the fit's start
-    "derive": {"parameters": MODEL_KEYS},  # the values given; the others stay symbolic
+    "derive": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # the values given; the others stay symbolic
     # the bodies and axes -> the generated physics; the scalars and the start -> the page's sliders
     "serve": {"parameters": MODEL_KEYS, "initial": frozenset(("phi0", "psi0"))},
 }

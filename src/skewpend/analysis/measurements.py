@@ -239,7 +239,7 @@ def _frozen(x: Optional[np.ndarray]) -> Optional[np.ndarray]:
 class Piece:
     """One stretch of contiguous samples, in skewpend's coordinates: ``t`` (n,) [s], strictly
     increasing, steps possibly uneven; ``q`` (n, k) the k angles ``(phi, psi)`` of the double pendulum,
-    ``(q1 .. qk)`` of a chain [rad]; ``dq`` (n, k) [rad/s] or None (not measured); ``u`` (n, k) joint
+    ``q1`` to ``qk`` of a chain [rad]; ``dq`` (n, k) [rad/s] or None (not measured); ``u`` (n, k) joint
     torques [N m] or None (not measured; a free swing);
     ``name``, ``source`` (the file), ``group`` (``"fit"``/``"validation"`` where the file says),
     ``note`` (what was done to it: cut at a gap, ...).  Arrays are read-only."""
@@ -596,7 +596,7 @@ class Measurements:
 
     @property
     def coordinates(self) -> Tuple[str, ...]:
-        """The angles' names (``phi, psi``; ``q1 .. qk`` for another number)."""
+        """The angles' names (``phi``, ``psi``; ``q1`` to ``qk`` for another number)."""
         return coordinate_names(self.nq)
 
     @property

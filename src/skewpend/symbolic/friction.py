@@ -31,16 +31,26 @@ def check_coulomb(coulomb, name: str = "coulomb") -> str:
 
 
 def friction_terms(params) -> Tuple[str, ...]:
-    """The Coulomb friction parameters that enter the model (``cf1``, ``cf2``: non-zero or symbolic)."""
+    """The Coulomb friction parameters that enter the model (``cf1``, ``cf2``: non-zero or symbolic; a
+    chain's joints with friction, ``cf1`` ... ``cfn``)."""
     from ..schema import names
 
+    if hasattr(params, "links"):
+        return tuple(f"cf{link.index}" for link in params.links if link.coulomb)
     return tuple(n for n in names(stem="cf") if getattr(params, n) is None or getattr(params, n) != 0)
+
+
+def _coulomb_value(params, name: str):
+    if hasattr(params, "links"):
+        return params.links[int(name[2:]) - 1].coulomb
+    return getattr(params, name)
 
 
 def _slopes(params, names) -> str:
     """``cfs*cf`` of each term, numerically where the model is numeric."""
     cfs = params.cfs
-    values = [None if (cfs is None or getattr(params, n) is None) else float(cfs) * float(getattr(params, n)) for n in names]
+    values = [None if (cfs is None or _coulomb_value(params, n) is None) else float(cfs) * float(_coulomb_value(params, n))
+              for n in names]
     if any(v is None for v in values):
         return "cfs*" + ", cfs*".join(names)
     return "cfs*cf = " + ", ".join(f"{v:.4g}" for v in values) + " N m s"

@@ -78,6 +78,114 @@ LATEX_LABELS = {
 }
 
 
+# -- a chain of links: n coordinates q1 .. qn ---------------------------------------------------
+_SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
+
+
+def _is_chain(eom: "EquationsOfMotion") -> bool:
+    return hasattr(eom.params, "links")
+
+
+def _chain_symbols(eom: "EquationsOfMotion"):
+    """A chain's Unicode and LaTeX names of ``q_i``, ``dq_i``, ``ddq_i``."""
+    from .derivation import coordinate_symbol
+
+    uni, tex_names = {}, {}
+    for i, name in enumerate(eom.coordinates, start=1):
+        sub = str(i).translate(_SUB)
+        for prefix, mark, latex in (("", "", "q_{%d}"), ("d", "\u0307", "\\dot{q}_{%d}"), ("dd", "\u0308", "\\ddot{q}_{%d}")):
+            sym = coordinate_symbol(prefix + name)
+            uni[sym] = sp.Symbol("q" + mark + sub)
+            tex_names[sym] = latex % i
+    return uni, tex_names
+
+
+def _chain_step_title(key: str) -> str:
+    k = key.lstrip("Peomega")
+    return {"P": f"rotation tensor of link {k}, P{k} = P{int(k) - 1} . P(q{k}, e{k}0)" if k != "1" else
+            "rotation tensor of link 1, P1 = P(q1, e10)",
+            "e": f"current axis of hinge {k}, e{k} = P{int(k) - 1} . e{k}0" if k != "1" else "axis of the roof hinge, e1 = e10",
+            "omega": f"angular velocity of link {k}, omega{k} = omega{int(k) - 1} + q{k}' e{k}" if k != "1" else
+            "angular velocity of link 1, omega1 = q1' e1"}[key[:len(key) - len(k)]]
+
+
+def _chain_label(key: str) -> str:
+    k = key.lstrip("Peomega")
+    stem = key[:len(key) - len(k)]
+    return {"P": "P", "e": "e", "omega": "ω"}[stem] + k.translate(_SUB)
+
+
+def _chain_text(eom, linear, steps: bool, width: int) -> str:
+    uni, _ = _chain_symbols(eom)
+
+    def pretty(label, expr):
+        expr = expr.xreplace(uni) if isinstance(expr, sp.MatrixBase) else sp.sympify(expr).xreplace(uni)
+        return sp.pretty(sp.Eq(sp.Symbol(label), expr, evaluate=False), use_unicode=True, num_columns=width)
+
+    n = len(eom.coordinates)
+    chain = eom.params
+    out = [f"Chain of {n} links -- equations of motion  M(q) q̈ = f(q, q̇),  q = (q₁ … q{str(n).translate(_SUB)})",
+           "links -- " + "; ".join(f"{link.index}: axis ({', '.join(f'{x:.6g}' for x in link.axis)}), l = {link.length:g}, "
+                                   f"m = {link.mass:g}" for link in chain.links) + f"; g = {chain.g:g}", ""]
+    if steps:
+        out.append("Derivation, step by step (world basis i, j, k; j points down):")
+        keys = [k for k in eom.steps if k not in ("M", "f")]
+        for i, key in enumerate(keys, 1):
+            title = STEP_TITLES[key] if key in ("T", "Pi") else _chain_step_title(key)
+            label = _TEXT_LABELS[key] if key in ("T", "Pi") else _chain_label(key)
+            out += [f"{i}. {title}", pretty(label, eom.steps[key]), ""]
+        out.append("Lagrange's equations  d/dt ∂T/∂q̇ − ∂T/∂q = −∂Π/∂q + Q,  Q = τ − c q̇:")
+    M, f = eom.mass_matrix, eom.forcing
+    for i in range(n):
+        for j in range(i, n):
+            a, b = str(i + 1).translate(_SUB), str(j + 1).translate(_SUB)
+            out.append(pretty(f"M{a}{b}" + (f" = M{b}{a}" if i != j else ""), M[i, j]))
+    for i in range(n):
+        out.append(pretty(f"f{str(i + 1).translate(_SUB)}", f[i]))
+    out += ["", pretty("T", eom.kinetic_energy), pretty("Π", eom.potential_energy)]
+    if linear is not None:
+        out += ["", "Linearised about the hanging rest q = 0:  M₀ q̈ + C₀ q̇ + K₀ q = 0"]
+        if linear.note:
+            out.append(linear.note)
+        out.append(pretty("M₀", linear.M))
+        if linear.C != sp.zeros(n, n):
+            out.append(pretty("C₀", linear.C))
+        out.append(pretty("K₀", linear.K))
+    return "\n".join(out) + "\n"
+
+
+def _chain_latex(eom, linear, steps: bool, display: bool) -> str:
+    from .derivation import coordinate_symbol
+
+    _, names = _chain_symbols(eom)
+
+    def t(expr):
+        return sp.latex(expr, symbol_names=names)
+
+    n = len(eom.coordinates)
+    M, f = eom.mass_matrix, eom.forcing
+    rows = []
+    if steps:
+        for key, value in eom.steps.items():
+            if key in ("M", "f"):
+                continue
+            label = LATEX_LABELS[key] if key in ("T", "Pi") else {
+                "P": r"\underline{\underline{P}}", "e": r"\underline{e}", "omega": r"\underline{\omega}"}[key.rstrip("0123456789")] + "_{" + key.lstrip("Peomega") + "}"
+            rows.append(f"{label} &= {t(value)}")
+    dd = [coordinate_symbol("dd" + c) for c in eom.coordinates]
+    for i in range(n):
+        lhs = " + ".join(r"\left(" + t(M[i, j]) + r"\right)" + t(dd[j]) for j in range(n))
+        rows.append(f"{lhs} &= {t(f[i])}")
+    rows += [f"T &= {t(eom.kinetic_energy)}", rf"\Pi &= {t(eom.potential_energy)}"]
+    if linear is not None:
+        rows += [rf"M_0 &= {t(linear.M)}", rf"C_0 &= {t(linear.C)}", rf"K_0 &= {t(linear.K)}"]
+    body = "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
+    if display:
+        return body
+    note = f"% {linear.note}\n" if linear is not None and linear.note else ""
+    return note + "\\[\n" + body + "\n\\]\n"
+
+
 # -- text ----------------------------------------------------------------------------------
 def _pretty(label: str, expr: Any, width: int) -> str:
     if isinstance(expr, sp.MatrixBase):
@@ -128,6 +236,8 @@ def to_text(
         import shutil
 
         width = max(100, shutil.get_terminal_size((160, 24)).columns)
+    if _is_chain(eom):
+        return _chain_text(eom, linear, steps, width)
     out = [
         "Skewed double pendulum -- equations of motion  M(q) q̈ = f(q, q̇),  q = (φ, ψ)",
         _params_line(eom),
@@ -178,6 +288,8 @@ def to_latex(
     display: bool = False,
 ) -> str:
     """LaTeX (an ``aligned`` block; ``display`` gives the body only, for Jupyter)."""
+    if _is_chain(eom):
+        return _chain_latex(eom, linear, steps, display)
     M, f = eom.mass_matrix, eom.forcing
     ddphi, ddpsi = _S["ddphi"], _S["ddpsi"]
     rows = []
@@ -228,13 +340,17 @@ def to_json(
     a ``steps`` object; ``skewpend_version``.
     """
     params = eom.params.to_dict()
-    if not eom.params.uses_alpha:
-        params.pop("alpha")
+    if _is_chain(eom):  # a chain: its links as given (numeric), no symbolic parameters
+        values: Dict[str, Any] = params
+    else:
+        if not eom.params.uses_alpha:
+            params.pop("alpha")
+        values = {k: v for k, v in params.items() if v is not None}
     data: Dict[str, Any] = {
         "coordinates": list(eom.coordinates),
         "speeds": list(eom.speeds),
         "parameters": list(eom.parameter_names),
-        "values": {k: v for k, v in params.items() if v is not None},
+        "values": values,
         "mass_matrix": _matrix(eom.mass_matrix),
         "forcing": [_s(x) for x in eom.forcing],
         "kinetic_energy": _s(eom.kinetic_energy),
