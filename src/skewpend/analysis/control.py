@@ -29,9 +29,41 @@ import numpy as np
 
 from ..checks import angles, numeric_params
 from ..errors import EquilibriumError, ParameterError
+from ..symbolic.chain import Chain
 from ..symbolic.model import Parameters
 
 __all__ = ["Linearization", "linearization", "controllability", "LQR", "lqr", "SwingUp", "swingup"]
+
+
+def _chain_columns(actuated, n: int) -> Tuple[int, ...]:
+    """A chain's actuated joints (0-based) from ``"all"`` or the joints' numbers 1 .. n with a motor."""
+    if isinstance(actuated, str) and actuated in ("all", "both"):
+        return tuple(range(n))
+    try:
+        joints = sorted({int(j) for j in actuated}) if not isinstance(actuated, (str, bytes)) else None
+        ok = joints is not None and all(float(j) == int(j) for j in actuated)
+    except (TypeError, ValueError):
+        joints, ok = None, False
+    if not ok or not joints or not all(1 <= j <= n for j in joints):
+        raise ParameterError(f"actuated must be 'all' or the numbers of the joints with a motor, 1 to {n} (e.g. (2,) for "
+                             f"an elbow only, (1, 3)), got {actuated!r}")
+    return tuple(j - 1 for j in joints)
+
+
+def _chain_limits(umax, n: int) -> Tuple[float, ...]:
+    """A chain's torque limits: one for every joint or one per joint (inf: none)."""
+    if umax is None:
+        return (math.inf,) * n
+    refusal = ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint: {n}; inf: none), got {umax!r}")
+    if isinstance(umax, (str, bytes, bool)):
+        raise refusal
+    try:
+        values = np.broadcast_to(np.asarray(umax, dtype=float), (n,))
+    except (TypeError, ValueError, OverflowError):
+        raise refusal from None
+    if not np.all(values > 0) or np.any(values < 2.2250738585072014e-308):
+        raise refusal
+    return tuple(float(v) for v in values)
 
 
 def _columns(actuated: str) -> Tuple[int, ...]:
@@ -82,9 +114,15 @@ def linearization(params: Parameters, equilibrium="up-up", actuated: str = "both
     (``coulomb="smoothed"``): the LQR's region of attraction is certified on the model that is
     simulated, whose friction *is* the smooth ``cf atan(cfs q')``, and a design that leaves its
     slope out gives a ``V = dx^T P dx`` that grows arbitrarily close to the target there (no
-    region).  ``coulomb="exclude"`` leaves it out; ``coulomb_note`` says which was done."""
+    region).  ``coulomb="exclude"`` leaves it out; ``coulomb_note`` says which was done.
+
+    A :class:`~skewpend.Chain` of ``n`` links: ``equilibrium`` one of its ``2^n`` labels
+    (``"up-up-up"``; ``"up-up"``, the default, means every link up) or its ``Equilibrium``,
+    ``actuated`` ``"all"`` or the numbers of the joints with a motor (``(2,)``, ``(1, 3)``)."""
     from ..symbolic.friction import check_coulomb
 
+    if isinstance(params, Chain):
+        return _chain_linearization(params, equilibrium, actuated, check_coulomb(coulomb))
     params = numeric_params(params, "a linearisation")
     joints = _columns(actuated)
     coulomb = check_coulomb(coulomb)
@@ -94,6 +132,26 @@ def linearization(params: Parameters, equilibrium="up-up", actuated: str = "both
     S = np.eye(2)[:, list(joints)]
     B = np.vstack([np.zeros((2, len(joints))), np.linalg.solve(eq.M, S)])
     return Linearization(eq.A.copy(), B, eq, actuated, joints, coulomb, params)
+
+
+def _chain_linearization(chain: Chain, equilibrium, actuated, coulomb: str) -> Linearization:
+    from .equilibria import Equilibrium, equilibria
+
+    n = chain.n
+    joints = _chain_columns(actuated, n)
+    if isinstance(equilibrium, str) and equilibrium == "up-up" and n != 2:
+        equilibrium = "-".join(["up"] * n)
+    if isinstance(equilibrium, Equilibrium):
+        eq = equilibrium
+    elif isinstance(equilibrium, str):
+        eq = equilibria(chain, coulomb=coulomb).find(equilibrium)
+    else:
+        raise ParameterError(f"equilibrium of a chain must be one of its labels ({'-'.join(['up'] * n)}, ...) or an "
+                             f"Equilibrium of skewpend.equilibria(chain), got {equilibrium!r}")
+    S = np.eye(n)[:, list(joints)]
+    B = np.vstack([np.zeros((n, len(joints))), np.linalg.solve(eq.M, S)])
+    label = "all" if len(joints) == n else "joint" + ("s " if len(joints) > 1 else " ") + ", ".join(str(j + 1) for j in joints)
+    return Linearization(eq.A.copy(), B, eq, label, joints, coulomb, chain)
 
 
 def equilibrium_argument(which, name: str = "equilibrium"):
@@ -173,13 +231,14 @@ class LQR:
     Q: np.ndarray = field(repr=False, default=None)
     R: np.ndarray = field(repr=False, default=None)
     rho: float = math.inf
-    umax: Tuple[float, float] = (math.inf, math.inf)
+    umax: Tuple[float, ...] = (math.inf, math.inf)
     params: Any = field(repr=False, default=None)
 
     @property
     def gain(self) -> np.ndarray:
-        """``K`` as a 2 x 4 matrix (a row of zeros for a joint without a motor)."""
-        G = np.zeros((2, 4))
+        """``K`` as a 2 x 4 matrix (a chain's: n x 2 n; a row of zeros for a joint without a motor)."""
+        n2 = self.linearization.A.shape[0]
+        G = np.zeros((n2 // 2, n2))
         for row, j in enumerate(self.linearization.joints):
             G[j] = self.K[row]
         return G
@@ -188,26 +247,61 @@ class LQR:
         from ..numeric.control import Controller
 
         lin = self.linearization
+        if isinstance(self.params, Chain):
+            raise ParameterError("a chain's LQR has no compiled controller yet: simulate takes no controller for a chain "
+                                 "(the gain K, P and the region estimate rho are the design)")
         return Controller.feedback(self.gain, lin.target, _u_target(self.params, lin), actuated=lin.actuated,
                                    umax=self.umax if umax is None else umax)
 
     def inside(self, x) -> np.ndarray:
-        """Whether states ``x`` (..., 4) lie inside the estimate ``dx^T P dx < rho`` (angles wrapped)."""
+        """Whether states ``x`` (..., 4; a chain's ..., 2 n) lie inside the estimate ``dx^T P dx < rho`` (angles wrapped)."""
         dx = _deviation(np.asarray(x, dtype=float), self.linearization.target)
         return np.einsum("...i,ij,...j->...", dx, self.P, dx) < self.rho
 
 
 def _u_target(params: Parameters, lin: Linearization) -> np.ndarray:
     # the equilibrium holds with the constant torques of params; the inputs add nothing there
-    return np.zeros(2)
+    return np.zeros(lin.A.shape[0] // 2)
 
 
 def _deviation(x: np.ndarray, target: np.ndarray) -> np.ndarray:
     from .equilibria import wrap
 
     dx = x - target
-    dx[..., :2] = wrap(dx[..., :2])
+    n = dx.shape[-1] // 2
+    dx[..., :n] = wrap(dx[..., :n])
     return dx
+
+
+def _chain_closed_loop(chain: Chain, K2: np.ndarray, target: np.ndarray, umax):
+    """The saturated closed loop of a chain, ``x' = f(x, u)`` with ``u = clip(-K dx)`` added to the joints'
+    constant torques, for rows of states (the compiled right-hand side row by row)."""
+    from ..numeric.kernels import chain_kernel
+    from ..numeric.recursive import parameter_names, parameter_vector
+
+    kernel = chain_kernel(chain)
+    p0 = parameter_vector(chain)
+    n = chain.n
+    names = parameter_names(n)
+    tau = np.array([names.index(f"tau{i}") for i in range(1, n + 1)])
+    limit = np.asarray(umax, dtype=float)
+
+    def rhs(X: np.ndarray) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        dx = _deviation(X, target)
+        U = np.clip(-dx @ K2.T, -limit, limit)
+        out = np.empty((len(X), 2 * n))
+        y = np.zeros(2 * n + 1)
+        res = np.empty(2 * n + 1)
+        p = p0.copy()
+        for k in range(len(X)):
+            y[:2 * n] = X[k]
+            p[tau] = p0[tau] + U[k]
+            kernel.rhs(y, p, res)
+            out[k] = res[:2 * n]
+        return out
+
+    return rhs
 
 
 #: rho is this fraction of the smallest level V at which the search found V' >= 0 (see _rho_estimate).
@@ -229,22 +323,27 @@ def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.
     ``P`` is not positive definite (V is no Lyapunov function then)."""
     from scipy.optimize import minimize
 
-    from ..numeric.control import Controller
-    from ..numeric.kernels import kernel_module, parameter_vector
-
     w = np.linalg.eigvalsh(P)
     if not (w[0] > 1e-12 * w[-1] > 0):
         return 0.0
-    kernel = kernel_module(params)
-    p = parameter_vector(params)
-    ctl = Controller.feedback(K2, lin.target, np.zeros(2), actuated=lin.actuated, umax=umax)
     target = lin.target
+    n2 = P.shape[0]
+    if isinstance(params, Chain):
+        rhs = _chain_closed_loop(params, K2, target, umax)
+        if samples == RHO_SAMPLES:  # row by row from Python: a smaller search (rays as many)
+            samples = RHO_SAMPLES // 4
+    else:
+        from ..numeric.control import Controller
+        from ..numeric.kernels import kernel_module, parameter_vector
+
+        kernel = kernel_module(params)
+        p = parameter_vector(params)
+        ctl = Controller.feedback(K2, lin.target, np.zeros(2), actuated=lin.actuated, umax=umax)
+        rhs = ctl.closed_loop_function(kernel, p)
     Pinv = np.linalg.inv(P)
-    ceiling = math.pi ** 2 / max(Pinv[0, 0], Pinv[1, 1])  # the ellipsoid's angle errors reach pi there
+    ceiling = math.pi ** 2 / max(Pinv[i, i] for i in range(n2 // 2))  # the ellipsoid's angle errors reach pi there
     L = np.linalg.cholesky(P)
     rng = np.random.default_rng(seed)
-
-    rhs = ctl.closed_loop_function(kernel, p)
 
     def vdot(dx: np.ndarray) -> np.ndarray:
         dx = np.atleast_2d(dx)
@@ -261,7 +360,7 @@ def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.
         V'/V before its crossing) and that ratio."""
         top = math.sqrt(ceiling)
         radii = top * np.geomspace(1e-4, 1.0, RHO_RADII)
-        vd = vdot((d[:, None, :] * radii[None, :, None]).reshape(-1, 4)).reshape(len(d), RHO_RADII)
+        vd = vdot((d[:, None, :] * radii[None, :, None]).reshape(-1, n2)).reshape(len(d), RHO_RADII)
         bad = ~(vd < 0)  # NaN counts as growing
         hit = bad.any(axis=1)
         k = np.argmax(bad, axis=1)
@@ -279,11 +378,11 @@ def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.
         j = np.argmax(ratio, axis=1)
         return crossing, d * radii[j][:, None], ratio[np.arange(len(d)), j]
 
-    d = unit(rng.normal(size=(RHO_RAYS, 4)))
+    d = unit(rng.normal(size=(RHO_RAYS, n2)))
     s, near, ratio = first_crossing(d, search=True)
     best = [float(v) ** 2 for v in s[np.isfinite(s)]]
     # points uniform in the ball V < ceiling
-    x = unit(rng.normal(size=(samples, 4))) * (math.sqrt(ceiling) * rng.uniform(0, 1, samples) ** 0.25)[:, None]
+    x = unit(rng.normal(size=(samples, n2))) * (math.sqrt(ceiling) * rng.uniform(0, 1, samples) ** (1.0 / n2))[:, None]
     grow = ~(vdot(x) < 0)
     vx = np.einsum("ki,ij,kj->k", x, P, x)
     best += [float(v) for v in vx[grow]]
@@ -303,8 +402,8 @@ def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.
 
     def constraint_gradient(z):  # central differences, one compiled call
         h = 1e-7 * max(1e-3, float(np.abs(z).max()))
-        v = growth(np.vstack([z + h * np.eye(4), z - h * np.eye(4)]))
-        return (v[:4] - v[4:]) / (2 * h)
+        v = growth(np.vstack([z + h * np.eye(n2), z - h * np.eye(n2)]))
+        return (v[:n2] - v[n2:]) / (2 * h)
 
     found = []
     for z0 in candidates:
@@ -322,10 +421,10 @@ def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.
     return float(RHO_MARGIN * min(smallest, ceiling))
 
 
-def _weights(Q, R, m: int) -> Tuple[np.ndarray, np.ndarray]:
-    """``Q`` (4 x 4, default identity) symmetric positive semi-definite and ``R`` (m x m, a number
-    for one input; default identity) symmetric positive definite, else one ParameterError."""
-    Qm = np.eye(4) if Q is None else _matrix("Q", Q, (4, 4))
+def _weights(Q, R, m: int, n2: int = 4) -> Tuple[np.ndarray, np.ndarray]:
+    """``Q`` (n2 x n2: 4 x 4, a chain's 2 n x 2 n; default identity) symmetric positive semi-definite and
+    ``R`` (m x m, a number for one input; default identity) symmetric positive definite, else one ParameterError."""
+    Qm = np.eye(n2) if Q is None else _matrix("Q", Q, (n2, n2))
     if R is None:
         Rm = np.eye(m)
     else:
@@ -336,7 +435,7 @@ def _weights(Q, R, m: int) -> Tuple[np.ndarray, np.ndarray]:
         Rm = _matrix("R", [[R]] if scalar else R, (m, m))
     scale = max(float(np.abs(Qm).max()), 1e-300)
     if not np.allclose(Qm, Qm.T, rtol=1e-12, atol=1e-12 * scale) or np.linalg.eigvalsh(Qm).min() < -1e-12 * scale:
-        raise ParameterError("Q must be a finite, symmetric, positive semi-definite 4 x 4 matrix")
+        raise ParameterError(f"Q must be a finite, symmetric, positive semi-definite {n2} x {n2} matrix")
     if not np.allclose(Rm, Rm.T, rtol=1e-12, atol=0) or not np.linalg.eigvalsh(Rm).min() > 0:
         raise ParameterError(f"R must be a finite, symmetric, positive definite {m} x {m} matrix")
     return Qm, Rm
@@ -362,18 +461,27 @@ def lqr(params: Parameters, equilibrium="up-up", actuated: str = "both", Q=None,
 
     from ..numeric.control import torque_limits
 
-    params = numeric_params(params, "an LQR")
     if not isinstance(estimate, (bool, np.bool_)):
         raise ParameterError(f"estimate must be True or False, got {estimate!r}")
-    joints = _columns(actuated)
-    Qm, Rm = _weights(Q, R, len(joints))
-    limits = torque_limits(umax)
-    lin = linearization(params, equilibrium_argument(equilibrium), actuated, coulomb=coulomb)
+    if isinstance(params, Chain):
+        n = params.n
+        joints = _chain_columns(actuated, n)
+        Qm, Rm = _weights(Q, R, len(joints), 2 * n)
+        limits = _chain_limits(umax, n)
+        lin = linearization(params, equilibrium, actuated, coulomb=coulomb)
+        who = "chain with " + ("every joint actuated" if lin.actuated == "all" else f"{lin.actuated} actuated")
+    else:
+        params = numeric_params(params, "an LQR")
+        joints = _columns(actuated)
+        Qm, Rm = _weights(Q, R, len(joints))
+        limits = torque_limits(umax)
+        lin = linearization(params, equilibrium_argument(equilibrium), actuated, coulomb=coulomb)
+        who = actuated
     ctrb = controllability(lin.A, lin.B)
     if not ctrb["controllable"] or ctrb["distance"] < 1e-10:
         raise EquilibriumError(
-            f"the {actuated} is not controllable at {lin.equilibrium.label} for these parameters (rank {ctrb['rank']} of 4, "
-            f"PBH distance {ctrb['distance']:.2e}): no linear feedback can stabilise it")
+            f"the {who} is not controllable at {lin.equilibrium.label} for these parameters (rank {ctrb['rank']} of "
+            f"{lin.A.shape[0]}, PBH distance {ctrb['distance']:.2e}): no linear feedback can stabilise it")
     w = np.linalg.eigvalsh(Qm)
     singular_q = not (w[0] > 1e-12 * max(w[-1], 1e-300))
     undetectable = ParameterError(

@@ -1,6 +1,7 @@
-"""Lyapunov spectra and the state-transition flow of a chain of links (issue 38): the chain's variational
-equations against differences of its flow, the exact volume identity of the Lagrangian flow in
-``(q, q')``, the chain of two against the double pendulum's own chaos kernel, and the command line."""
+"""Lyapunov spectra, the state-transition flow, periodic orbits and LQR of a chain of links (issue 38): the
+chain's variational equations against differences of its flow, the exact volume identity of the Lagrangian
+flow in ``(q, q')``, the chain of two against the double pendulum's own kernels, a region of attraction
+against the nonlinear loop, and the command line."""
 
 from __future__ import annotations
 
@@ -159,3 +160,56 @@ def test_a_chains_orbit_refuses_losses_and_other_shapes(tmp_path):
     orbit = skewpend.periodic_orbit(_orbit_chain(), y0, T0)
     back = skewpend.open_result(orbit.to_netcdf(tmp_path / "orbit.nc"))
     assert back.params == orbit.params and back.period == orbit.period and back.stable
+
+
+# -- LQR ---------------------------------------------------------------------------------------------------------
+def _balance_chain() -> Chain:
+    return Chain.from_lists(3, length=[0.5, 0.4, 0.3], mass=[1.0, 0.8, 0.5], axis=[(0, 0, 1), (0.5, 0, 1), (1, 0, 0)])
+
+
+def test_the_chain_of_twos_lqr_is_the_double_pendulums():
+    """The double pendulum's LQR (its linearisation from the symbolic derivation) and the chain of two's
+    (CasADi's exact linearisation of the recursive algorithms): the same gain, for both robots' joints."""
+    params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81, c1=0.05)
+    chain = Chain.from_parameters(params)
+    for actuated, joints in (("both", "all"), ("acrobot", (2,)), ("pendubot", (1,))):
+        a = skewpend.lqr(params, "up-up", actuated, estimate=False)
+        b = skewpend.lqr(chain, "up-up", joints, estimate=False)
+        np.testing.assert_allclose(b.K, a.K, rtol=1e-8, atol=1e-8 * np.abs(a.K).max())
+        np.testing.assert_allclose(np.sort_complex(b.eigenvalues), np.sort_complex(a.eigenvalues), rtol=1e-8)
+
+
+def test_a_chains_lqr_region_holds_for_the_saturated_nonlinear_loop():
+    """A skewed triple pendulum balanced upright by its elbow joint alone (joint 2), torques limited: from
+    starts on the estimate's boundary (V = 0.9 rho) the saturated nonlinear closed loop converges to the
+    top (SciPy's DOP853 on the compiled right-hand side, another integrator than the estimate's search)."""
+    from scipy.integrate import solve_ivp
+
+    from skewpend.analysis.control import _chain_closed_loop
+
+    chain = _balance_chain()
+    design = skewpend.lqr(chain, "up-up-up", (2,), umax=20.0)
+    assert design.K.shape == (1, 6) and design.eigenvalues.real.max() < 0 and 0 < design.rho < np.inf
+    loop = _chain_closed_loop(chain, design.gain, design.linearization.target, (20.0,) * 3)
+    rng = np.random.default_rng(2)
+    L = np.linalg.cholesky(design.P)
+    for _ in range(4):
+        z = rng.normal(size=6)
+        dx = np.linalg.solve(L.T, z / np.linalg.norm(z)) * np.sqrt(0.9 * design.rho)
+        x0 = design.linearization.target + dx
+        assert design.inside(x0)
+        sol = solve_ivp(lambda t, x: loop(x[None, :])[0], (0, 8), x0, method="DOP853", rtol=1e-9, atol=1e-9)
+        end = sol.y[:, -1] - design.linearization.target
+        assert np.abs(end).max() < 1e-3, end
+
+
+def test_a_chains_lqr_refuses_what_it_cannot_take():
+    chain = _balance_chain()
+    with pytest.raises(ParameterError, match=r"actuated must be 'all' or the numbers of the joints with a motor, 1 to 3"):
+        skewpend.lqr(chain, actuated=(4,), estimate=False)
+    with pytest.raises(ParameterError, match="Q must be a 6x6 matrix"):
+        skewpend.lqr(chain, Q=np.eye(4), estimate=False)
+    with pytest.raises(ParameterError, match="one of its labels"):
+        skewpend.lqr(chain, equilibrium=(3.1, 0.0, 0.0), estimate=False)
+    with pytest.raises(ParameterError, match="no compiled controller yet"):
+        skewpend.lqr(chain, estimate=False).controller()
