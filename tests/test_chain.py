@@ -399,9 +399,9 @@ def test_the_double_pendulums_modes_from_its_chain():
 
 
 @pytest.mark.parametrize("call", [
-    lambda c: skewpend.flip_map(c, 8), lambda c: skewpend.lqr(c),
+    lambda c: skewpend.flip_map(c, 8), lambda c: skewpend.swingup(c),
     lambda c: skewpend.poincare(c, energy=1.0), lambda c: skewpend.chaos_diagram(c), lambda c: skewpend.sweep(c, "alpha", [0, 1]),
-    lambda c: skewpend.lyapunov(c, [0.1] * 6, t_end=10.0), lambda c: skewpend.region_of_attraction(c),
+    lambda c: skewpend.nnm(c), lambda c: skewpend.region_of_attraction(c),
 ])
 def test_what_is_not_for_chains_yet_says_so_in_one_line(call):
     with pytest.raises(ParameterError) as info:

@@ -19,7 +19,7 @@ from skewpend.analysis.measurements import Convention, convert, convert_back, ka
 from skewpend.errors import ParameterError
 from skewpend.numeric import recursive
 from skewpend.numeric.kernels import chain_kernel
-from skewpend.symbolic.chain import Chain, Link
+from skewpend.symbolic.chain import Chain
 
 TRIPLE = skewpend.example_data("kaheman2023-triple")
 

@@ -86,15 +86,18 @@ def _is_chain(eom: "EquationsOfMotion") -> bool:
     return hasattr(eom.params, "links")
 
 
+def _coordinate_symbol(name: str) -> sp.Symbol:
+    """The derivation's symbol of a coordinate, speed or acceleration (``derivation.coordinate_symbol``'s rule)."""
+    return _S[name] if name in _S else sp.Symbol(name, real=True)
+
+
 def _chain_symbols(eom: "EquationsOfMotion"):
     """A chain's Unicode and LaTeX names of ``q_i``, ``dq_i``, ``ddq_i``."""
-    from .derivation import coordinate_symbol
-
     uni, tex_names = {}, {}
     for i, name in enumerate(eom.coordinates, start=1):
         sub = str(i).translate(_SUB)
         for prefix, mark, latex in (("", "", "q_{%d}"), ("d", "\u0307", "\\dot{q}_{%d}"), ("dd", "\u0308", "\\ddot{q}_{%d}")):
-            sym = coordinate_symbol(prefix + name)
+            sym = _coordinate_symbol(prefix + name)
             uni[sym] = sp.Symbol("q" + mark + sub)
             tex_names[sym] = latex % i
     return uni, tex_names
@@ -155,8 +158,6 @@ def _chain_text(eom, linear, steps: bool, width: int) -> str:
 
 
 def _chain_latex(eom, linear, steps: bool, display: bool) -> str:
-    from .derivation import coordinate_symbol
-
     _, names = _chain_symbols(eom)
 
     def t(expr):
@@ -172,7 +173,7 @@ def _chain_latex(eom, linear, steps: bool, display: bool) -> str:
             label = LATEX_LABELS[key] if key in ("T", "Pi") else {
                 "P": r"\underline{\underline{P}}", "e": r"\underline{e}", "omega": r"\underline{\omega}"}[key.rstrip("0123456789")] + "_{" + key.lstrip("Peomega") + "}"
             rows.append(f"{label} &= {t(value)}")
-    dd = [coordinate_symbol("dd" + c) for c in eom.coordinates]
+    dd = [_coordinate_symbol("dd" + c) for c in eom.coordinates]
     for i in range(n):
         lhs = " + ".join(r"\left(" + t(M[i, j]) + r"\right)" + t(dd[j]) for j in range(n))
         rows.append(f"{lhs} &= {t(f[i])}")
