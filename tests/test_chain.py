@@ -400,7 +400,7 @@ def test_the_double_pendulums_modes_from_its_chain():
 
 @pytest.mark.parametrize("call", [
     lambda c: skewpend.flip_map(c, 8), lambda c: skewpend.swingup(c),
-    lambda c: skewpend.poincare(c, energy=1.0), lambda c: skewpend.chaos_diagram(c), lambda c: skewpend.sweep(c, "alpha", [0, 1]),
+    lambda c: skewpend.poincare(c, energy=1.0), lambda c: skewpend.chaos_diagram(c),
     lambda c: skewpend.nnm(c), lambda c: skewpend.region_of_attraction(c),
 ])
 def test_what_is_not_for_chains_yet_says_so_in_one_line(call):
@@ -501,4 +501,8 @@ def test_modes_and_equilibria_of_a_chain_from_the_command_line(tmp_path):
     data = json.loads(ran.out)
     assert len(data["equilibria"]) == 8 and len(data["equilibria"][0]["q"]) == 3
     ran = run_cli(["modes", "--config", path, "--sweep", "alpha=0:90deg:3"], cwd=tmp_path)
-    assert ran.code == 2 and "a chain of links takes its modes about an equilibrium" in ran.err
+    assert ran.code == 2 and "cannot sweep 'alpha' of a chain of 3 links" in ran.err
+    ran = run_cli(["modes", "--config", path, "--sweep", "tilt3=0:90deg:4"], cwd=tmp_path)
+    assert ran.code == 0 and "tilt3 [deg]" in ran.out and "omega3" in ran.out
+    ran = run_cli(["modes", "--config", path, "--check-nonlinear", "5deg"], cwd=tmp_path)
+    assert ran.code == 2 and "a chain of links takes its modes about an equilibrium (--about) and their --sweep" in ran.err

@@ -213,3 +213,34 @@ def test_a_chains_lqr_refuses_what_it_cannot_take():
         skewpend.lqr(chain, equilibrium=(3.1, 0.0, 0.0), estimate=False)
     with pytest.raises(ParameterError, match="no compiled controller yet"):
         skewpend.lqr(chain, estimate=False).controller()
+
+
+# -- mode sweeps ---------------------------------------------------------------------------------------------------
+def test_the_chain_of_twos_tilt_sweep_is_the_double_pendulums_alpha_sweep():
+    """Hinge 2 of the chain of two turned from k towards i by t is the double pendulum's skew alpha = t:
+    the same frequencies, shapes and resonances along the sweep (the symbolic model against the recursive one)."""
+    params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.0, g=9.81)
+    grid = np.radians(np.linspace(0, 180, 19))
+    a = skewpend.sweep(params, "alpha", grid)
+    b = skewpend.sweep(Chain.from_parameters(params), "tilt2", grid)
+    np.testing.assert_allclose(b.frequencies, a.frequencies, rtol=1e-10)
+    np.testing.assert_allclose(np.abs(b.shapes), np.abs(a.shapes), rtol=1e-8, atol=1e-10)
+    assert [(r.order, r.crossed) for r in b.resonances] == [(r.order, r.crossed) for r in a.resonances]
+    np.testing.assert_allclose([r.value for r in b.resonances], [r.value for r in a.resonances], rtol=1e-8)
+
+
+def test_a_chains_sweep_finds_the_crossings_of_neighbouring_modes(tmp_path):
+    chain = _balance_chain()
+    sw = skewpend.sweep(chain, "tilt2", np.radians(np.linspace(0, 90, 31)))
+    assert sw.frequencies.shape == (31, 3) and sw.shapes.shape == (31, 3, 3)
+    crossing = [r for r in sw.resonances if r.crossed and r.pair == (2, 3) and r.order == 2]
+    assert len(crossing) == 1
+    # at the crossing the ratio is 2: a sweep through it from the modes there
+    at = skewpend.normal_modes(chain.replace_link(2, axis=(np.sin(crossing[0].value), 0.0, np.cos(crossing[0].value))))
+    assert abs(at.frequencies[2] / at.frequencies[1] - 2) < 2e-3
+    back = skewpend.open_result(sw.to_netcdf(tmp_path / "sweep.nc"))
+    np.testing.assert_array_equal(back.frequencies, sw.frequencies)
+    with pytest.raises(ParameterError, match="cannot sweep 'alpha' of a chain of 3 links"):
+        skewpend.sweep(chain, "alpha", [0, 1])
+    with pytest.raises(ParameterError, match="cannot sweep 'mass4' of a chain of 3 links"):
+        skewpend.sweep(chain, "mass4", [0.1, 1])

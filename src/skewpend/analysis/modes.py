@@ -621,6 +621,21 @@ def parse_sweep(spec: str) -> Tuple[str, np.ndarray]:
     return name, parse_range(rng, f"--sweep {name}", angle=name == "alpha")
 
 
+def parse_chain_sweep(spec: str, n: int) -> Tuple[str, np.ndarray]:
+    """A chain's ``"tilt2=0:90deg:31"`` or ``"mass3=0.1:2:20"`` -> ``(name, values)`` (tilt in radians;
+    :data:`CHAIN_SWEEPABLE` and a link's number, 1 to ``n``)."""
+    from ..parsing import parse_range
+
+    if not isinstance(spec, str) or "=" not in spec:
+        raise ParameterError(f"--sweep: expected NAME=START:STOP:COUNT (e.g. tilt2=0:90deg:31), got {spec!r}")
+    name, rng = (x.strip() for x in spec.split("=", 1))
+    stem, index = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
+    if stem not in CHAIN_SWEEPABLE or not index or not 1 <= int(index) <= n:
+        raise ParameterError(f"--sweep: cannot sweep {name!r} of a chain of {n} links; allowed: a link's "
+                             f"{', '.join(CHAIN_SWEEPABLE)} and its number 1 to {n} (mass3, tilt2)")
+    return name, parse_range(rng, f"--sweep {name}", angle=stem == "tilt")
+
+
 def _with_value(params: Parameters, name: str, value: float, base: Parameters) -> Parameters:
     if name == "b/a":
         return params.replace(b=value * float(base.a))  # type: ignore[arg-type]  # numeric: a sweep checks it
@@ -637,12 +652,14 @@ def _show(name: str, value: float) -> str:
 
 @dataclass(frozen=True)
 class Resonance:
-    """An internal resonance ``w2/w1 ~ n`` along a sweep: where it is closest (or crossed)."""
+    """An internal resonance ``w2/w1 ~ n`` along a sweep: where it is closest (or crossed); a chain's
+    between neighbouring modes ``pair = (k, k + 1)``: ``w_(k+1)/w_k ~ n``."""
 
     order: int
     value: float  # the swept variable there (radians for alpha)
     ratio: float  # w2/w1 there
     crossed: bool  # the ratio passes through n (exact resonance, interpolated)
+    pair: Tuple[int, int] = (1, 2)
 
 
 @dataclass(frozen=True)
@@ -682,10 +699,27 @@ class Sweep(ResultProtocol):
             attrs={"title": "normal modes along a sweep (skewpend)", **self._base_attrs()},
         )
 
+    @property
+    def modes_count(self) -> int:
+        return int(self.frequencies.shape[1])
+
+    def _degrees(self) -> bool:
+        return self.name == "alpha" or self.name.startswith("tilt")
+
     def table(self) -> str:
-        """A text table: the swept value, both frequencies and their ratio."""
-        unit = "deg" if self.name == "alpha" else _UNITS[self.name]
-        values = np.degrees(self.values) if self.name == "alpha" else self.values
+        """A text table: the swept value, both frequencies and their ratio (a chain's: every
+        frequency and the ratios of neighbours)."""
+        unit = "deg" if self._degrees() else _unit_of(self.name)
+        values = np.degrees(self.values) if self._degrees() else self.values
+        n = self.modes_count
+        if n != 2:
+            head = f"{self.name + ' [' + unit + ']':>14} " + " ".join(f"{'omega' + str(k + 1):>10}" for k in range(n))
+            head += " " + " ".join(f"{'w%d/w%d' % (k + 2, k + 1):>8}" for k in range(n - 1))
+            lines = [head]
+            for v, w in zip(values, self.frequencies):
+                lines.append(f"{v:14.6g} " + " ".join(f"{x:10.6g}" for x in w) + " "
+                             + " ".join(f"{w[k + 1] / w[k]:8.4f}" for k in range(n - 1)))
+            return "\n".join(lines)
         lines = [f"{self.name + ' [' + unit + ']':>14} {'omega1':>10} {'omega2':>10} {'w2/w1':>8}"]
         for v, (w1, w2) in zip(values, self.frequencies):
             lines.append(f"{v:14.6g} {w1:10.6g} {w2:10.6g} {w2 / w1:8.4f}")
@@ -698,6 +732,17 @@ class Sweep(ResultProtocol):
     def columns(self) -> Tuple[List[str], np.ndarray]:
         """Columns and rows for CSV output (SI units: the swept alpha in radians, with an
         ``alpha_deg`` column last; see :meth:`units`)."""
+        n = self.modes_count
+        if n != 2:  # a chain: q1 .. qn
+            cols = [self.name] + [f"omega{k + 1}" for k in range(n)] + [f"period{k + 1}" for k in range(n)]
+            cols += [f"omega{k + 2}_over_omega{k + 1}" for k in range(n - 1)]
+            cols += [f"mode{k + 1}_q{i + 1}" for k in range(n) for i in range(n)]
+            rows = [self.values, self.frequencies, 2 * np.pi / self.frequencies,
+                    self.frequencies[:, 1:] / self.frequencies[:, :-1]] + [self.shapes[:, :, k] for k in range(n)]
+            if self._degrees():
+                cols.append(f"{self.name}_deg")
+                rows.append(np.degrees(self.values))
+            return cols, np.column_stack(rows)
         cols = [
             self.name, "omega1", "omega2", "period1", "period2", "omega2_over_omega1",
             "mode1_phi", "mode1_psi", "mode2_phi", "mode2_psi",
@@ -714,6 +759,11 @@ class Sweep(ResultProtocol):
     def units(self) -> Dict[str, str]:
         """The unit of each column of :meth:`columns`."""
         shape = "kg^-1/2 m^-1 (v^T M0 v = 1)"
+        if self.modes_count != 2:
+            cols, _ = self.columns()
+            return {c: (_unit_of(self.name) if c == self.name else "deg" if c.endswith("_deg") else "rad/s"
+                        if c.startswith("omega") and "_over_" not in c else "s" if c.startswith("period") else "1"
+                        if "_over_" in c else shape) for c in cols}
         u = {self.name: _UNITS[self.name], "omega1": "rad/s", "omega2": "rad/s", "period1": "s", "period2": "s",
              "omega2_over_omega1": "1", "mode1_phi": shape, "mode1_psi": shape, "mode2_phi": shape, "mode2_psi": shape}
         if self.name == "alpha":
@@ -728,7 +778,8 @@ class Sweep(ResultProtocol):
         resonances = []
         for r in self.resonances:
             d = dict(r.__dict__)
-            if self.name == "alpha":
+            d["pair"] = list(r.pair)
+            if self._degrees():
                 d["value_deg"] = math.degrees(r.value)
             resonances.append(d)
         return {
@@ -748,7 +799,9 @@ def read_modes_sweep(path, variables, attrs) -> Sweep:
     shapes checked against the stored ones, which it returns."""
     import dataclasses
 
-    proto = protocol_fields(path, attrs, Parameters)
+    from ..symbolic.chain import AnyModel
+
+    proto = protocol_fields(path, attrs, AnyModel)
     settings = proto["settings"]
     values = np.asarray(variables["value"], dtype=float)
     name = str(settings["swept"])
@@ -756,24 +809,29 @@ def read_modes_sweep(path, variables, attrs) -> Sweep:
         rebuilt = sweep(proto["params"], name, values.tolist(), tolerance=float(settings["resonance_tolerance"]))
     except SkewpendError as exc:
         raise ParameterError(f"{path} was written by another model: its parameters give no sweep there ({exc})") from None
-    freqs = np.column_stack([variables["omega1"], variables["omega2"]]).astype(float)
-    shapes = np.empty((values.size, 2, 2))
-    for k in (0, 1):
-        shapes[:, 0, k] = variables[f"mode{k + 1}_phi"]
-        shapes[:, 1, k] = variables[f"mode{k + 1}_psi"]
+    n = rebuilt.modes_count
+    freqs = np.column_stack([variables[f"omega{k + 1}"] for k in range(n)]).astype(float)
+    shapes = np.empty((values.size, n, n))
+    for k in range(n):
+        if n == 2:
+            shapes[:, 0, k] = variables[f"mode{k + 1}_phi"]
+            shapes[:, 1, k] = variables[f"mode{k + 1}_psi"]
+        else:
+            for i in range(n):
+                shapes[:, i, k] = variables[f"mode{k + 1}_q{i + 1}"]
     agree(path, "frequencies", freqs, rebuilt.frequencies)
     agree(path, "mode shapes", shapes, rebuilt.shapes)
     return dataclasses.replace(rebuilt, values=values, frequencies=freqs, shapes=shapes)
 
 
-def _resonances(values: np.ndarray, ratio: np.ndarray, tol: float) -> List[Resonance]:
+def _resonances(values: np.ndarray, ratio: np.ndarray, tol: float, pair: Tuple[int, int] = (1, 2)) -> List[Resonance]:
     found: List[Resonance] = []
     for n in (1, 2, 3):
         d = ratio - n
         # exact crossings, interpolated
         for i in np.nonzero(np.sign(d[:-1]) * np.sign(d[1:]) < 0)[0].tolist():
             s = d[i] / (d[i] - d[i + 1])
-            found.append(Resonance(n, float(values[i] + s * (values[i + 1] - values[i])), float(n), True))
+            found.append(Resonance(n, float(values[i] + s * (values[i + 1] - values[i])), float(n), True, pair))
         # near approaches: local minima of |d| within tolerance (relative to n), not at a crossing
         near = np.abs(d) <= tol * n
         i = 0
@@ -787,7 +845,7 @@ def _resonances(values: np.ndarray, ratio: np.ndarray, tol: float) -> List[Reson
             k = i + int(np.argmin(np.abs(d[i : j + 1])))
             lo, hi = sorted((float(values[max(i - 1, 0)]), float(values[min(j + 1, len(values) - 1)])))
             if not any(r.order == n and r.crossed and lo <= r.value <= hi for r in found):
-                found.append(Resonance(n, float(values[k]), float(ratio[k]), False))
+                found.append(Resonance(n, float(values[k]), float(ratio[k]), False, pair))
             i = j + 1
     return sorted(found, key=lambda r: (r.value, r.order))
 
@@ -815,6 +873,10 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
     results not finite) the whole sweep is refused with a
     :class:`~skewpend.errors.ParameterError` naming the failing values.
     """
+    from ..symbolic.chain import Chain
+
+    if isinstance(params, Chain):
+        return _chain_sweep(params, name, values, tolerance)
     if not isinstance(params, Parameters):
         raise ParameterError(checks.not_parameters(params, "a sweep of the modes"))
     if name not in SWEEPABLE:
@@ -858,6 +920,62 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
     if np.any(bad):  # pragma: no cover - every point was checked by _modes
         raise ParameterError(_failure_message(name, [(float(v), "results not finite") for v in grid[bad]], grid.size))
     return Sweep(name, grid, freqs, shapes, ratios, _resonances(grid, ratio, float(tolerance)), float(tolerance), params)
+
+
+#: What a chain's sweep can vary: a link's ``length``, ``mass`` or ``damping`` (``mass3``), or ``tilt``:
+#: hinge ``i``'s axis turned from ``k`` towards ``i`` by the angle (``e_i = (sin t, 0, cos t)`` with the
+#: chain hanging: the specification's skew angle, hinge by hinge; ``tilt2``).
+CHAIN_SWEEPABLE = ("length", "mass", "damping", "tilt")
+
+
+def _unit_of(name: str) -> str:
+    stem = name.rstrip("0123456789")
+    return {"length": "m", "mass": "kg", "damping": "N m s", "tilt": "rad"}.get(stem) or _UNITS[name]
+
+
+def _chain_sweep(chain, name: str, values, tolerance: float) -> Sweep:
+    """:func:`sweep` for a chain of links (``name``: :data:`CHAIN_SWEEPABLE` and a link's number)."""
+    stem, index = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
+    if stem not in CHAIN_SWEEPABLE or not index or not 1 <= int(index) <= chain.n:
+        raise ParameterError(f"cannot sweep {name!r} of a chain of {chain.n} links; allowed: a link's "
+                             f"{', '.join(CHAIN_SWEEPABLE)} and its number 1 to {chain.n} (mass3, tilt2)")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.floating)) or not (
+        math.isfinite(tolerance) and tolerance > 0
+    ):
+        raise ParameterError(f"the resonance tolerance must be a positive number, got {tolerance!r}")
+    try:
+        if isinstance(values, (str, bytes)) or any(isinstance(v, (str, bytes, bool)) for v in values):
+            raise TypeError
+        grid = np.asarray(values, float)
+    except (TypeError, ValueError):
+        grid = np.zeros(0)
+    if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
+        raise ParameterError("sweep values must be at least 2 finite numbers")
+    i, n = int(index), chain.n
+    freqs, shapes = np.empty((grid.size, n)), np.empty((grid.size, n, n))
+    failures: List[Tuple[float, str]] = []
+    for k, v in enumerate(grid):
+        try:
+            if stem == "tilt":
+                changed = chain.replace_link(i, axis=(math.sin(v), 0.0, math.cos(v)))
+            else:
+                changed = chain.replace_link(i, **{stem: float(v)})
+            m = normal_modes(changed)
+            if not m.ok or not np.all(np.isfinite(m.frequencies)):
+                raise ParameterError(m.message)
+        except SkewpendError as exc:
+            failures.append((float(v), str(exc)))
+            continue
+        freqs[k], shapes[k] = m.frequencies, m.shapes
+    if failures:
+        raise ParameterError(_failure_message(name, failures, grid.size))
+    with np.errstate(all="ignore"):  # a mode that leaves q1 still: an infinite ratio, as the double pendulum's
+        ratios = shapes[:, 1, :] / shapes[:, 0, :] if n >= 2 else np.ones((grid.size, n))
+    resonances: List[Resonance] = []
+    for k in range(n - 1):
+        resonances += _resonances(grid, freqs[:, k + 1] / freqs[:, k], float(tolerance), (k + 1, k + 2))
+    return Sweep(name, grid, freqs, shapes, ratios, sorted(resonances, key=lambda r: (r.value, r.pair, r.order)),
+                 float(tolerance), chain)
 
 
 # -- linear versus nonlinear ---------------------------------------------------------------------------

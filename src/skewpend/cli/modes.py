@@ -75,9 +75,12 @@ def modes(
 
     run = resolve("modes", config, parameters=given)
     params = run.parameters()
-    if run.is_chain and (sweep_spec is not None or check_nonlinear is not None):
-        raise UsageError(f"{'--sweep' if sweep_spec is not None else '--check-nonlinear'} computes the double pendulum's "
-                         "Parameters; a chain of links takes its modes about an equilibrium (--about) only so far")
+    if run.is_chain and check_nonlinear is not None:
+        raise UsageError("--check-nonlinear computes the double pendulum's Parameters; a chain of links takes its modes "
+                         "about an equilibrium (--about) and their --sweep")
+    if run.is_chain and sweep_spec is not None and plot is not None:
+        raise UsageError("--plot draws the double pendulum's two frequencies along a sweep; a chain's sweep is written "
+                         "with --out FILE.csv|.json or printed")
     if sweep_spec is not None:
         tol = 0.01 if tolerance is None else T.Positive().convert(tolerance, "--tolerance")
         _modes_sweep(params, sweep_spec, plot, out, tol, fmt, given)
@@ -246,7 +249,10 @@ def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
 
     from ..analysis import modes as md
 
-    name, values = md.parse_sweep(spec)
+    if hasattr(params, "links"):  # a chain: a link's field or a hinge's tilt
+        name, values = md.parse_chain_sweep(spec, params.n)
+    else:
+        name, values = md.parse_sweep(spec)
     swept = md.SWEPT_PARAMETER.get(name, name)
     if given.get(swept) is not None:
         raise UsageError(f"--{swept} and --sweep {name}=... both set {swept}; the sweep gives every value, so leave out --{swept}")
@@ -278,20 +284,24 @@ def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
         sys.stdout.write(json.dumps(sw.to_dict(), indent=2) + "\n")
         return
     # alpha is reported in radians (the SI unit of the files) and in degrees (the plot's axis)
-    show = (lambda v: f"{v:.6g} rad ({np.degrees(v):.4g} deg)") if name == "alpha" else (lambda v: f"{v:.6g}")
-    lines = [
-        f"swept {name} over {show(values[0])} .. {show(values[-1])} ({values.size} values)",
-        f"omega1: {sw.frequencies[:, 0].min():.6g} .. {sw.frequencies[:, 0].max():.6g} rad/s;  "
-        f"omega2: {sw.frequencies[:, 1].min():.6g} .. {sw.frequencies[:, 1].max():.6g} rad/s;  "
-        f"w2/w1: {sw.frequency_ratio.min():.6g} .. {sw.frequency_ratio.max():.6g}",
-    ]
+    angle = name == "alpha" or name.startswith("tilt")
+    show = (lambda v: f"{v:.6g} rad ({np.degrees(v):.4g} deg)") if angle else (lambda v: f"{v:.6g}")
+    n = sw.modes_count
+    lines = [f"swept {name} over {show(values[0])} .. {show(values[-1])} ({values.size} values)",
+             ";  ".join(f"omega{k + 1}: {sw.frequencies[:, k].min():.6g} .. {sw.frequencies[:, k].max():.6g} rad/s"
+                        for k in range(n)) + (f";  w2/w1: {sw.frequency_ratio.min():.6g} .. {sw.frequency_ratio.max():.6g}"
+                                              if n == 2 else "")]
+    if n != 2:
+        lines.append(sw.table())
+    which = "w2/w1" if n == 2 else "w(k+1)/w(k) of neighbouring modes"
     if sw.resonances:
-        lines.append(f"internal resonances (w2/w1 within {tolerance:g}*n of n):")
+        lines.append(f"internal resonances ({which} within {tolerance:g}*n of n):")
         for r in sw.resonances:
             how = "crossed at" if r.crossed else f"closest ({r.ratio:.5g}) at"
-            lines.append(f"  {r.order}:1  {how} {name} = {show(r.value)}")
+            pair = "" if n == 2 else f"  w{r.pair[1]}/w{r.pair[0]}"
+            lines.append(f"  {r.order}:1{pair}  {how} {name} = {show(r.value)}")
     else:
-        lines.append(f"no internal resonance 1:1, 2:1, 3:1 within {tolerance:g}*n")
+        lines.append(f"no internal resonance 1:1, 2:1, 3:1 ({which}) within {tolerance:g}*n")
     for what, path in (("table", out), ("plot", plot)):
         if path is not None:
             lines.append(f"wrote {what} {path}")
