@@ -974,9 +974,9 @@ def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False):
 def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray, halves: Optional[np.ndarray] = None):
     """A physical chain with the base parameters ``beta``: ``chain0``'s masses first; else the masses
     that do not enter the equations at all (the first link's, whose first moment and inertia about its
-    fixed hinge say everything) raised by the first of :data:`MASS_FACTORS` that realises it, else every
-    mass so (the masses are not determined where they are lumped into the first moments and inertias;
-    the base parameters are kept exactly).  A body on the edge of the physical (a slender rod: no
+    fixed hinge say everything) scaled by the factor nearest to 1 that realises it (81 factors from 1/5
+    to 5, the range of :data:`MASS_FACTORS`), else every mass so (the masses are not determined where
+    they are lumped into the first moments and inertias; the base parameters are kept exactly).  A body on the edge of the physical (a slender rod: no
     moment about its own axis) may land a little outside: then the nearest physical bodies, accepted
     when they move no base parameter both by more than 1 % and beyond its 95 % half-width ``halves``
     (the note says by how much).  Returns ``(chain, note)``, or ``(None, why)``."""
@@ -989,7 +989,9 @@ def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray,
                           f"(the model's joint terms do not fit there); hold {name} at params0's value (free=)")
     masses = [terms.pi_names.index(f"m{i}") for i in range(1, chain0.n + 1)]
     loose = [j for j in masses if terms.pi_names[j] in terms.unidentifiable]
-    factors = [x for k in MASS_FACTORS for x in (k, 1.0 / k)]  # nearest to params0's first
+    # a fine grid of factors from 1/5 to 5, the nearest to params0's first (MASS_FACTORS' range)
+    grid = np.geomspace(1.0 / MASS_FACTORS[-1], MASS_FACTORS[-1], 81)
+    factors = [float(x) for x in grid[np.argsort(np.abs(np.log(grid)))] if abs(math.log(x)) > 1e-12]
     trials = [(1.0, masses)] + [(k, loose) for k in factors if loose] + [(k, masses) for k in factors]
     first, last = "", ""
     for k, which in trials:
@@ -1003,11 +1005,19 @@ def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray,
         what = "every mass" if which is masses else ", ".join(terms.pi_names[j] for j in which)
         return chain, ("" if k == 1.0 else f"{what} scaled x{k:.3g} from params0's, which cannot realise the "
                        f"estimate ({first}); a free swing does not determine {'the masses' if which is masses else 'it'}")
-    chain = _chain_of(chain0, terms, pi, project=True)
-    moved = terms.values(terms.standard(chain)) - np.asarray(beta, float)
+    # the nearest physical bodies, at the masses (of those tried) where they move the base parameters least
     big = 1e-2 * float(np.max(np.abs(beta)))  # a near-zero entry (a product of inertia) on the others' scale
-    rel = np.abs(moved) / np.maximum(np.abs(beta), big)
     half = np.full(len(beta), np.inf) if halves is None else np.where(np.isfinite(halves), halves, np.inf)
+    best = None
+    for k, which in trials:
+        ref = pi0.copy()
+        ref[which] *= k
+        chain = _chain_of(chain0, terms, terms.representative(beta, ref), project=True)
+        moved = terms.values(terms.standard(chain)) - np.asarray(beta, float)
+        rel = np.abs(moved) / np.maximum(np.abs(beta), big)
+        if best is None or rel.max() < best[1].max():
+            best = (chain, rel, moved)
+    chain, rel, moved = best
     over = [terms.names[j] for j in range(len(beta)) if rel[j] > 0.01 and abs(moved[j]) > half[j]]
     if not over:
         return chain, (f"the estimate lies just outside the physical bodies ({first}); the model is the nearest "

@@ -920,8 +920,9 @@ class Measurements:
     @classmethod
     def from_trajectory(cls, source, **checks) -> "Measurements":
         """skewpend's own trajectory -- a :class:`~skewpend.Trajectory` or its ``.nc``/``.csv``
-        file -- as measurements: its ``t``, angles, speeds, and as torques the controller's plus
-        the constant ``tau1``, ``tau2`` when there are any (None for a free run).  A file of a
+        file -- as measurements: its ``t``, angles, speeds (a chain's ``n`` of each), and as torques
+        the controller's plus the constant ``tau1``, ``tau2`` (a chain's joints') when there are any
+        (None for a free run).  A file of a
         controlled run is refused (its torques are not stored): pass the Trajectory itself."""
         from ..numeric.simulation import Trajectory, open_trajectory
 
@@ -936,7 +937,11 @@ class Measurements:
         if not traj.kept:
             raise ParameterError(f"{src or 'the trajectory'}: only its first and last rows were kept (keep=False); "
                                  "simulate with keep=True")
-        tau = np.array([float(traj.params.tau1 or 0.0), float(traj.params.tau2 or 0.0)])
+        if hasattr(traj.params, "links"):  # a chain of links: its n angles, its joints' constant torques
+            tau = np.array([link.torque for link in traj.params.links], dtype=float)
+        else:
+            tau = np.array([float(traj.params.tau1 or 0.0), float(traj.params.tau2 or 0.0)])
+        n = tau.size
         u = None
         if traj.controller is not None:
             u = traj.inputs() + tau
@@ -944,7 +949,7 @@ class Measurements:
             u = np.tile(tau, (len(traj.t), 1))
         y = np.asarray(traj.y, dtype=float)
         extra = {"params": traj.params.to_dict(), "run": traj.message}
-        return cls.from_arrays([{"t": traj.t, "q": y[:, :2], "dq": y[:, 2:4], "u": u, "name": name}],
+        return cls.from_arrays([{"t": traj.t, "q": y[:, :n], "dq": y[:, n:2 * n], "u": u, "name": name}],
                                source=src, format="trajectory", extra=extra, **checks)
 
 
