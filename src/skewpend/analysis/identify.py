@@ -1110,11 +1110,7 @@ def _identify_chain(measurements, chain0, *, free, validation, method, smoothing
         check = terms.values(terms.standard(fitted))
         if np.abs(check - values).max() > 1e-9 * np.abs(values).max():
             status, message, fitted = Status.NO_CONVERGENCE, "the fitted chain does not reproduce the estimate", None
-    if not sf.converged:
-        status, message = Status.NO_CONVERGENCE, f"the output-error fit did not converge: {sf.message}"
-    elif sf.flat:
-        status, message = Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer "
-                                                  "parameters or add excitation")
+    status, message = _fit_status(sf, status, message)
     say("held-out prediction", 0.9)
     vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, chain0, validation, smoothing, terms, values, beta0, 0.0,
                                                    0.0, chain0.g, frame=shooting.angle_frame(chain0.n, angles))
@@ -1295,11 +1291,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     status, message = Status.SUCCESS, "identified (output error, multiple shooting)" + (f"; {projected}" if projected else "")
     if fitted is None:  # the estimate and its intervals are reported; the model stays params0
         status, message = Status.NO_CONVERGENCE, unphysical
-    if not sf.converged:
-        status, message = Status.NO_CONVERGENCE, f"the output-error fit did not converge: {sf.message}"
-    elif sf.flat:
-        status, message = Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer "
-                                                  "parameters or add excitation")
+    status, message = _fit_status(sf, status, message)
     say("held-out prediction", 0.9)
     vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a,
                                                    alpha_fit, g, frame=shooting.angle_frame(2, angles))
@@ -1325,6 +1317,17 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         heldout_rms=np.array(hr), heldout_rms0=np.array(hr0), method="output-error", fit_rms=sf.rms_piece,
         alpha=float(alpha_hat), alpha_interval=(float(a_lo), float(a_hi)), alpha_note=note,
         profile_alpha=np.array(prof_a), profile_cost=np.array(prof_c), correlation=sf.correlation)
+
+
+def _fit_status(sf, status: Status, message: str) -> Tuple[Status, str]:
+    """The status of an output-error fit: the realisation's, unless the fit did not converge or left a
+    direction undetermined."""
+    if not sf.converged:
+        return Status.NO_CONVERGENCE, f"the output-error fit did not converge: {sf.message}"
+    if sf.flat:
+        return Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer parameters or add "
+                                       "excitation")
+    return status, message
 
 
 def _oe_failed(lin: Identification, message: str, settings, t_start) -> Identification:

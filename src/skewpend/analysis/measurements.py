@@ -1064,6 +1064,22 @@ def _cells(value) -> List[np.ndarray]:
 
 
 # -- the published model of the Kaheman rig ------------------------------------------------------------
+def _estimated(path, data_file: str, parameters_file: str, names: str) -> np.ndarray:
+    """The authors' ``EstimatedParameters`` (``path``: their file, the data file beside it or their folder),
+    refused in one line unless it holds the finite numbers ``names`` lists."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / parameters_file
+    elif path.name == data_file:
+        path = path.parent / parameters_file
+    mat = _load_mat(path)
+    values = np.asarray(_variable(mat, "EstimatedParameters", path), dtype=float).ravel()
+    count = len(names.split())
+    if values.size != count or not np.all(np.isfinite(values)):
+        raise ParameterError(f"{path}: EstimatedParameters must hold {count} finite numbers [{names}], got {values.size}")
+    return values
+
+
 def kaheman_published_parameters(path):
     """The model Kaheman et al. (2023) identified for their free-swing pendulum, in skewpend's terms,
     from ``EstimatedParameters_DoublePendulum.mat`` (``path``: that file, the data file beside it or
@@ -1074,16 +1090,7 @@ def kaheman_published_parameters(path):
     The start ``params0`` of ``skewpend identify --format kaheman``."""
     from ..symbolic.model import Parameters
 
-    path = Path(path)
-    if path.is_dir():
-        path = path / KAHEMAN_PARAMETERS_FILE
-    elif path.name == KAHEMAN_FILE:
-        path = path.parent / KAHEMAN_PARAMETERS_FILE
-    mat = _load_mat(path)
-    values = np.asarray(_variable(mat, "EstimatedParameters", path), dtype=float).ravel()
-    if values.size != 10 or not np.all(np.isfinite(values)):
-        raise ParameterError(f"{path}: EstimatedParameters must hold 10 finite numbers [m1 m2 a1 a2 L1 I1 I2 k1 k2 g], "
-                             f"got {values.size}")
+    values = _estimated(path, KAHEMAN_FILE, KAHEMAN_PARAMETERS_FILE, "m1 m2 a1 a2 L1 I1 I2 k1 k2 g")
     m1, m2, a1, a2, L1, I1, I2, k1, k2, g = (float(x) for x in values)
     return Parameters(a=L1, b=2 * a2, m1=m1, m2=m2, alpha=0, g=g, c1=k1, c2=k2, com1=(0, a1, 0), com2=(0, a2, 0),
                       inertia1=((I1, 0, 0), (0, 0, 0), (0, 0, I1)), inertia2=((I2, 0, 0), (0, 0, 0), (0, 0, I2)))
@@ -1103,16 +1110,8 @@ def kaheman_published_chain(path, g: float = 9.8083):
     the stored value."""
     from ..symbolic.chain import Chain, Link
 
-    path = Path(path)
-    if path.is_dir():
-        path = path / KAHEMAN_TRIPLE_PARAMETERS_FILE
-    elif path.name == KAHEMAN_TRIPLE_FILE:
-        path = path.parent / KAHEMAN_TRIPLE_PARAMETERS_FILE
-    mat = _load_mat(path)
-    values = np.asarray(_variable(mat, "EstimatedParameters", path), dtype=float).ravel()
-    if values.size != 15 or not np.all(np.isfinite(values)):
-        raise ParameterError(f"{path}: EstimatedParameters must hold 15 finite numbers [m1 m2 m3 a1 a2 a3 L1 L2 I1 I2 "
-                             f"I3 k1 k2 k3 g], got {values.size}")
+    values = _estimated(path, KAHEMAN_TRIPLE_FILE, KAHEMAN_TRIPLE_PARAMETERS_FILE,
+                        "m1 m2 m3 a1 a2 a3 L1 L2 I1 I2 I3 k1 k2 k3 g")
     m, a, (L1, L2), inertia, k = values[0:3], values[3:6], values[6:8], values[8:11], values[11:14]
     lengths = (L1, L2, 2 * a[2])
     links = tuple(Link(length=float(lengths[i]), mass=float(m[i]), com=(0.0, float(a[i]), 0.0),

@@ -881,18 +881,7 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
         raise ParameterError(checks.not_parameters(params, "a sweep of the modes"))
     if name not in SWEEPABLE:
         raise ParameterError(f"cannot sweep {name!r}; allowed: {', '.join(SWEEPABLE)}")
-    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.floating)) or not (
-        math.isfinite(tolerance) and tolerance > 0
-    ):
-        raise ParameterError(f"the resonance tolerance must be a positive number, got {tolerance!r}")
-    try:
-        if isinstance(values, (str, bytes)) or any(isinstance(v, (str, bytes, bool)) for v in values):
-            raise TypeError
-        grid = np.asarray(values, float)
-    except (TypeError, ValueError):
-        grid = np.zeros(0)
-    if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
-        raise ParameterError("sweep values must be at least 2 finite numbers")
+    grid = _sweep_grid(values, tolerance)
     if name == "alpha" and not params.uses_alpha:
         raise ParameterError("cannot sweep alpha: the hinge-2 axis is given explicitly (axis2), so alpha has no effect")
     freqs = np.empty((grid.size, 2))
@@ -933,12 +922,9 @@ def _unit_of(name: str) -> str:
     return {"length": "m", "mass": "kg", "damping": "N m s", "tilt": "rad"}.get(stem) or _UNITS[name]
 
 
-def _chain_sweep(chain, name: str, values, tolerance: float) -> Sweep:
-    """:func:`sweep` for a chain of links (``name``: :data:`CHAIN_SWEEPABLE` and a link's number)."""
-    stem, index = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
-    if stem not in CHAIN_SWEEPABLE or not index or not 1 <= int(index) <= chain.n:
-        raise ParameterError(f"cannot sweep {name!r} of a chain of {chain.n} links; allowed: a link's "
-                             f"{', '.join(CHAIN_SWEEPABLE)} and its number 1 to {chain.n} (mass3, tilt2)")
+def _sweep_grid(values, tolerance) -> np.ndarray:
+    """A sweep's values as a float array (at least 2, finite) and its resonance tolerance checked, each
+    refused in one line."""
     if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.floating)) or not (
         math.isfinite(tolerance) and tolerance > 0
     ):
@@ -951,6 +937,16 @@ def _chain_sweep(chain, name: str, values, tolerance: float) -> Sweep:
         grid = np.zeros(0)
     if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
         raise ParameterError("sweep values must be at least 2 finite numbers")
+    return grid
+
+
+def _chain_sweep(chain, name: str, values, tolerance: float) -> Sweep:
+    """:func:`sweep` for a chain of links (``name``: :data:`CHAIN_SWEEPABLE` and a link's number)."""
+    stem, index = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
+    if stem not in CHAIN_SWEEPABLE or not index or not 1 <= int(index) <= chain.n:
+        raise ParameterError(f"cannot sweep {name!r} of a chain of {chain.n} links; allowed: a link's "
+                             f"{', '.join(CHAIN_SWEEPABLE)} and its number 1 to {chain.n} (mass3, tilt2)")
+    grid = _sweep_grid(values, tolerance)
     i, n = int(index), chain.n
     freqs, shapes = np.empty((grid.size, n)), np.empty((grid.size, n, n))
     failures: List[Tuple[float, str]] = []
