@@ -13,10 +13,15 @@ authors' own model.
 2. The same over the segment length (0.5, 1.0, 1.6 s: one segment a piece) and the angles the output
    error measures (``angles="relative"`` / ``"absolute"``).
 
+3. ``--coverage SEEDS``: the intervals' coverage -- the authors' model as the truth, free swings from the
+   22 fitting pieces' first states (1.54 s at 1 kHz, angles only, white noise ``--noise`` rad), fitted from
+   a wrong start (masses x1.1, damping x1.5) over SEEDS noise seeds: how often each ratio's 95 % interval
+   covers the truth's ratio.
+
 The goal (issue 38): a held-out median angle RMS <= 0.0028 rad, the authors' own model's figure under
 the same protocol, and the whole fit <= 30 s on 2 cores.
 
-    python benchmarks/bench_identify_triple.py [--repeat 3] [--cold]
+    python benchmarks/bench_identify_triple.py [--repeat 3] [--cold] [--coverage 20] [--noise 5e-4]
 """
 
 from __future__ import annotations
@@ -52,6 +57,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--cold", action="store_true", help="also time a fresh process with an empty kernel cache")
+    ap.add_argument("--coverage", type=int, default=0, help="noise seeds of the intervals' coverage check (0: none)")
+    ap.add_argument("--noise", type=float, default=5e-4, help="the coverage check's angle noise [rad]")
     args = ap.parse_args()
 
     import skewpend
@@ -84,6 +91,8 @@ def main() -> None:
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True)
             print(f"fresh process, empty kernel cache (import, read, compile, fit, predict): {time.perf_counter() - t0:.2f} s")
+    if args.coverage:
+        coverage(fit, authors, args.coverage, args.noise)
     print("\nsegment [s]  angles    fit RMS     held out (fitted / authors), joint angles   absolute angles")
     for angles in ("relative", "absolute"):
         for segment in (0.5, 1.0, 1.6):
@@ -91,6 +100,41 @@ def main() -> None:
             print(f"{segment:>10.1f}  {angles:<9} {np.median(r.fit_rms):.5f}   {r.heldout_median:.5f} / "
                   f"{r.heldout_median0:.5f} ({angles})        {absolute_median(r.params, val):.5f} / "
                   f"{absolute_median(authors, val):.5f}" + ("" if r.ok else f"  [{r.message}]"))
+
+
+def coverage(fit, truth, seeds: int, noise: float) -> None:
+    import skewpend
+    from skewpend.analysis.identify import chain_terms
+
+    runs = [skewpend.simulate(truth, np.concatenate([p.q[0], p.dq[0]]), float(p.t[-1] - p.t[0]), dt_out=float(p.dt),
+                              rtol=1e-12, atol=1e-12) for p in fit]
+    start = truth
+    for i, link in enumerate(truth.links, start=1):
+        start = start.replace_link(i, mass=link.mass * 1.1, damping=link.damping * 1.5)
+    terms = chain_terms(truth)
+    beta = terms.values(terms.standard(truth))
+    ref = terms.names.index("J1zz_b")
+    hits, count, times = {}, 0, []
+    for seed in range(seeds):
+        rng = np.random.default_rng(seed)
+        pieces = [{"t": r.t, "q": np.asarray(r.y)[:, :3] + noise * rng.normal(size=(len(r.t), 3)), "name": f"p{k}"}
+                  for k, r in enumerate(runs)]
+        data = skewpend.Measurements.from_arrays(pieces, skip=("mean",))
+        t0 = time.perf_counter()
+        result = skewpend.identify(data, start, bootstrap=200, seed=seed)
+        times.append(time.perf_counter() - t0)
+        if not result.ok:
+            print(f"seed {seed}: {result.message}")
+            continue
+        count += 1
+        for name, (lo, hi) in result.ratio_intervals.items():
+            j = terms.names.index(name.split("/")[0])
+            want = beta[j] / beta[ref]
+            hits[name] = hits.get(name, 0) + int(lo <= want <= hi)
+    print(f"\ncoverage over {count} of {seeds} seeds (noise {noise:g} rad, {np.median(times):.2f} s a fit): "
+          + ", ".join(f"{k} {v}/{count}" for k, v in hits.items()))
+    print(f"all ratios together: {sum(hits.values())}/{count * len(hits)} "
+          f"({100 * sum(hits.values()) / max(count * len(hits), 1):.1f} %; nominal 95 %)")
 
 
 if __name__ == "__main__":
