@@ -882,7 +882,7 @@ def chain_terms(chain) -> ChainTerms:
         return _BASE_CACHE[key]
     names = standard_names(structure)
     fn = regressor_function(structure)
-    p, pi = parameter_vector(chain), standard_vector_of_chain(chain)
+    p, pi = parameter_vector(chain), ChainTerms.standard(chain)
     rng = np.random.default_rng(0)
     n = chain.n
     rows = []
@@ -921,10 +921,6 @@ def chain_terms(chain) -> ChainTerms:
                         expressions=tuple(texts), unidentifiable=tuple(names[j] for j in np.flatnonzero(zero)))
     _BASE_CACHE[key] = result
     return result
-
-
-def standard_vector_of_chain(chain) -> np.ndarray:
-    return ChainTerms.standard(chain)
 
 
 def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False):
