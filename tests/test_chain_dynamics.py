@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import skewpend
+from skewpend.analysis.modes import check_nonlinear
 from skewpend.errors import ParameterError
 from skewpend.numeric import recursive
 from skewpend.numeric.variational import flow
@@ -244,3 +245,17 @@ def test_a_chains_sweep_finds_the_crossings_of_neighbouring_modes(tmp_path):
         skewpend.sweep(chain, "alpha", [0, 1])
     with pytest.raises(ParameterError, match="cannot sweep 'mass4' of a chain of 3 links"):
         skewpend.sweep(chain, "mass4", [0.1, 1])
+
+
+def test_a_chains_nonlinear_frequencies_tend_to_its_linear_modes():
+    """Started from each linear mode's shape, the nonlinear chain oscillates at the mode's frequency up to a
+    shift that scales as the amplitude squared (halving it divides the shift by about 4, every mode)."""
+    chain = _balance_chain()
+    big = check_nonlinear(chain, np.radians(4.0))
+    small = check_nonlinear(chain, np.radians(2.0))
+    assert big.measured.shape == (3,)
+    ratio = big.relative_shift / small.relative_shift
+    assert np.all((3.3 < ratio) & (ratio < 4.7)), ratio
+    assert np.all(np.abs(small.relative_shift) < 1e-3)
+    with pytest.raises(ParameterError, match="needs a conservative model without losses"):
+        check_nonlinear(_balance_chain().replace_link(1, damping=0.01), 0.05)

@@ -980,7 +980,7 @@ class NonlinearCheck:
     """Frequencies measured on the full nonlinear equations started from each mode shape."""
 
     amplitude: float  # largest initial angle [rad]
-    linear: np.ndarray  # (2,) rad/s
+    linear: np.ndarray  # (2,) rad/s (a chain's: (n,))
     measured: np.ndarray  # (2,) rad/s
     cycles: np.ndarray  # (2,) cycles used
 
@@ -999,7 +999,7 @@ def _upward_crossings(t: np.ndarray, x: np.ndarray) -> np.ndarray:
 def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -> NonlinearCheck:
     """Start the nonlinear equations from each mode shape scaled so its largest angle is
     ``amplitude`` [rad], at rest; measure the frequency of the modal coordinate by upward
-    zero crossings (linearly interpolated) over ``cycles`` periods.
+    zero crossings (linearly interpolated) over ``cycles`` periods (a chain: each of its ``n`` modes).
 
     Needs an undamped model (``c1 = c2 = 0``, ``cf1 = cf2 = 0``: the check compares undamped frequencies) and an
     amplitude in (0, pi) rad small enough that the motion stays an oscillation about the
@@ -1018,24 +1018,28 @@ def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -
     if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 4:
         raise ParameterError(f"the nonlinear check needs a whole number of at least 4 cycles, got {cycles!r}")
     modes = normal_modes(params)
-    if modes.damped or friction_terms(params):
+    if hasattr(params, "links"):  # a chain: every joint undamped
+        if params.dissipative:
+            params.require_lossless("the nonlinear check (it measures undamped oscillation frequencies)")
+    elif modes.damped or friction_terms(params):
         raise ParameterError(
             f"the nonlinear check measures undamped oscillation frequencies, so it needs c1 = c2 = 0 and no Coulomb "
             f"friction (got c1 = {params.c1:g}, c2 = {params.c2:g}, cf1 = {params.cf1:g}, cf2 = {params.cf2:g})"
         )
-    measured = np.empty(2)
-    used = np.empty(2, dtype=int)
+    n = int(np.shape(modes.shapes)[0])
+    measured = np.empty(n)
+    used = np.empty(n, dtype=int)
     deg = math.degrees(amplitude)
     allowed = (
         "the check needs an amplitude small enough for oscillation about the hanging position "
         "(typically up to a few tens of degrees; the allowed range is 0 < amplitude < 180 deg)"
     )
-    for k in range(2):
+    for k in range(n):
         v = modes.shapes[:, k]
         q0 = amplitude * v / np.max(np.abs(v))
         T = modes.periods[k]
-        tr = simulate(params, (q0[0], q0[1], 0.0, 0.0), cycles * T, dt_out=T / 400, rtol=1e-11, atol=1e-12, throw=True)
-        q = tr.y[:, :2]
+        tr = simulate(params, list(q0) + [0.0] * n, cycles * T, dt_out=T / 400, rtol=1e-11, atol=1e-12, throw=True)
+        q = tr.y[:, :n]
         if not np.all(np.isfinite(q)):
             raise ParameterError(f"the nonlinear motion from mode {k + 1} at {deg:.4g} deg is not finite; {allowed}")
         if np.max(np.abs(q)) >= math.pi:

@@ -75,9 +75,6 @@ def modes(
 
     run = resolve("modes", config, parameters=given)
     params = run.parameters()
-    if run.is_chain and check_nonlinear is not None:
-        raise UsageError("--check-nonlinear computes the double pendulum's Parameters; a chain of links takes its modes "
-                         "about an equilibrium (--about) and their --sweep")
     if run.is_chain and sweep_spec is not None and plot is not None:
         raise UsageError("--plot draws the double pendulum's two frequencies along a sweep; a chain's sweep is written "
                          "with --out FILE.csv|.json or printed")
@@ -204,7 +201,7 @@ def _modes_text(m, check, rest: str = "") -> str:
     if check is not None:
         lines.append("")
         lines.append(f"nonlinear check, largest initial angle {check.amplitude:.6g} rad ({np.degrees(check.amplitude):.4g} deg):")
-        for k in range(2):
+        for k in range(len(check.measured)):
             lines.append(
                 f"  mode {k + 1}: linear {check.linear[k]:.8g} rad/s, measured {check.measured[k]:.8g} rad/s "
                 f"over {check.cycles[k]} cycles, shift {check.relative_shift[k]:+.3e}"
