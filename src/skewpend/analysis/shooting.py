@@ -25,7 +25,7 @@ at once, RK4 gives the exact derivative of its own discrete map, so the Jacobian
 exact for the model that is fitted.  The residuals are the simulated minus the measured angles at
 every step.
 
-Gauss-Newton with Levenberg-Marquardt damping; each segment's 4 start values are eliminated per
+Gauss-Newton with Levenberg-Marquardt damping; each segment's 2 nq start values (4 for the double pendulum) are eliminated per
 segment (Schur complement), so the linear algebra is that of the few global parameters.  It stops
 when the cost stops falling (relative ``tol``), or when the undamped Gauss-Newton step, or each of
 the last :data:`STALLED` accepted steps, moves every free parameter by less than :data:`STEP_HALF`
@@ -122,7 +122,7 @@ class _Model:
             raise AssertionError("the base parameters are not their pivots plus dependents")
 
     def _chain(self, terms, chain) -> None:
-        """The same map for a chain of links (:mod:`skewpend.analysis.chainfit`'s base parameters, one
+        """The same map for a chain of links (:func:`skewpend.analysis.identify.chain_terms`' base parameters, one
         constant ``T``: the hinge axes and offsets are not fitted): ``pi`` link by link
         (``recursive.standard_names``), ``p`` the chain's (``recursive.parameter_names``)."""
         from ..numeric.conventions import TENSOR_ENTRIES
