@@ -250,13 +250,28 @@ def test_the_cli_identifies_the_triple_pendulum(tmp_path):
                           str(out)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     assert "held out angle RMS: median over pieces" in run.stdout and "[[links]]" in out.read_text()
-    for extra, words in ((["--plot", str(tmp_path / "x.png")], "--plot: drawn for the double pendulum's two angles"),
+    for extra, words in ((["--report", str(tmp_path / "x.html")], "--report: the identification's report is the double"),
                          (["--angles", "sideways"], "--angles must be relative or absolute")):
         bad = subprocess.run([sys.executable, "-m", "skewpend", "identify", "--format", "kaheman", str(TRIPLE), *extra],
                              capture_output=True, text=True)
         assert bad.returncode == 2 and words in bad.stderr and "Traceback" not in bad.stderr
         assert [line for line in bad.stderr.splitlines() if "error" in line] == [bad.stderr.strip().splitlines()[-1]]
-    assert not (tmp_path / "x.png").exists()
+    assert not (tmp_path / "x.html").exists()
+
+
+def test_a_chains_identification_is_drawn(triple_fit, tmp_path):
+    """The identification figure takes a chain's angles: q1 .. q3 measured and predicted, the held-out error."""
+    from skewpend.views.figures.identification import plot_identification
+
+    fit, val, result = triple_fit
+    fig = plot_identification(result, fit, val, tmp_path / "triple.png")
+    assert (tmp_path / "triple.png").stat().st_size > 50_000
+
+    def labels(figure):  # every legend's entries, the subfigures' too
+        out = [t.get_text() for leg in figure.legends for t in leg.get_texts()]
+        return out + [x for sub in figure.subfigs for x in labels(sub)]
+
+    assert {"q₁ measured", "q₃ fitted model"} <= set(labels(fig))
 
 
 def test_a_chains_joint_terms_that_the_data_want_negative_are_named():

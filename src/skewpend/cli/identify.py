@@ -153,11 +153,12 @@ def identify(
 
     is_chain = isinstance(params0, Chain)
     if is_chain:
-        for flag, given in (("--plot", plot), ("--report", report), ("--out FILE.yml", out is not None and
-                                                                      out.lower().endswith(".yml"))):
+        for flag, given, what in (("--report", report, "the identification's report is the double pendulum's"),
+                                  ("--out FILE.yml", out is not None and out.lower().endswith(".yml"),
+                                   "a DFKI lab model file holds a double pendulum")):
             if given:
-                raise UsageError(f"{flag}: drawn for the double pendulum's two angles only; a chain of {params0.n} links "
-                                 "writes its result with --out FILE.toml or --netcdf FILE.nc")
+                raise UsageError(f"{flag}: {what}; a chain of {params0.n} links writes its result with --out FILE.toml, "
+                                 "--netcdf FILE.nc or --plot FILE.png")
         if method.value != "output-error":
             raise UsageError("--method linear: a chain is identified by the output-error fit only")
     if angles is not None and angles not in ("relative", "absolute"):
