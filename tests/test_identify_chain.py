@@ -250,13 +250,19 @@ def test_the_cli_identifies_the_triple_pendulum(tmp_path):
                           str(out)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     assert "held out angle RMS: median over pieces" in run.stdout and "[[links]]" in out.read_text()
-    for extra, words in ((["--report", str(tmp_path / "x.html")], "--report: the identification's report is the double"),
+    for extra, words in ((["--out", str(tmp_path / "x.yml")], "--out FILE.yml: a DFKI lab model file holds a double"),
                          (["--angles", "sideways"], "--angles must be relative or absolute")):
         bad = subprocess.run([sys.executable, "-m", "skewpend", "identify", "--format", "kaheman", str(TRIPLE), *extra],
                              capture_output=True, text=True)
         assert bad.returncode == 2 and words in bad.stderr and "Traceback" not in bad.stderr
         assert [line for line in bad.stderr.splitlines() if "error" in line] == [bad.stderr.strip().splitlines()[-1]]
-    assert not (tmp_path / "x.html").exists()
+    assert not (tmp_path / "x.yml").exists()
+    page = tmp_path / "triple.html"
+    ran = subprocess.run([sys.executable, "-m", "skewpend", "identify", "--format", "kaheman", str(TRIPLE), "--report",
+                          str(page)], capture_output=True, text=True)
+    assert ran.returncode == 0, ran.stderr
+    text = page.read_text()
+    assert "Identification of a measured chain of 3 links" in text and "skewpend.Chain</code> of 3 links" in text
 
 
 def test_a_chains_identification_is_drawn(triple_fit, tmp_path):

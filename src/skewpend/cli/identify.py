@@ -153,12 +153,9 @@ def identify(
 
     is_chain = isinstance(params0, Chain)
     if is_chain:
-        for flag, given, what in (("--report", report, "the identification's report is the double pendulum's"),
-                                  ("--out FILE.yml", out is not None and out.lower().endswith(".yml"),
-                                   "a DFKI lab model file holds a double pendulum")):
-            if given:
-                raise UsageError(f"{flag}: {what}; a chain of {params0.n} links writes its result with --out FILE.toml, "
-                                 "--netcdf FILE.nc or --plot FILE.png")
+        if out is not None and out.lower().endswith(".yml"):
+            raise UsageError(f"--out FILE.yml: a DFKI lab model file holds a double pendulum; a chain of {params0.n} "
+                             "links writes its result with --out FILE.toml, --netcdf FILE.nc, --plot or --report")
         if method.value != "output-error":
             raise UsageError("--method linear: a chain is identified by the output-error fit only")
     if angles is not None and angles not in ("relative", "absolute"):

@@ -156,7 +156,8 @@ def _section_fit(r, measurements, validation, drawn: float) -> str:
     ]
     if isinstance(r.stats, dict) and r.stats.get("samples"):
         facts.insert(3, ("samples fitted", f"{r.stats['samples']} (after the filter's ends are dropped)"))
-    lead = ("<p class=\"lead\">The measured motion of a real double pendulum, fitted by skewpend's model: the "
+    what = f"chain of {r.params0.n} links" if hasattr(r.params0, "links") else "double pendulum"
+    lead = (f"<p class=\"lead\">The measured motion of a real {what}, fitted by skewpend's model: the "
             "combinations of its parameters that the motion determines (the <b>base parameters</b>) with 95 % "
             "intervals, then each held-out piece predicted by simulation from its first measured state.</p>")
     warn = "" if ok else f'<p class="callout warn"><b>The identification did not succeed:</b> {esc(r.message)}</p>'
@@ -219,6 +220,10 @@ def _section_undetermined(r) -> str:
 
 
 def _section_skew(r) -> str:
+    if hasattr(r.params0, "links"):  # a chain: its hinge axes are its structure, not fitted
+        axes = "; ".join("(" + ", ".join(f"{x:.4g}" for x in link.axis) + ")" for link in r.params0.links)
+        return (f"<p>A chain's hinge axes are its structure: the fit holds them at params0's, {esc(axes)} (the "
+                "skew angle is freed for the double pendulum's model only).</p>")
     alpha0 = r.params0.alpha if r.params0.alpha is not None else 0.0
     if not math.isfinite(r.alpha):
         return (f"<p>The skew angle was not freed: the fit held it at params0's α = {_deg(alpha0)}. "
@@ -295,11 +300,21 @@ def _section_use(r) -> str:
 
     p = r.params
     fitted = esc(parameter_text(p))
-    com = ", ".join(f"com{i} = ({', '.join(f'{c:.4g}' for c in getattr(p, f'com{i}'))}) m" for i in (1, 2)
-                    if getattr(p, f"com{i}", None) is not None)
+    if hasattr(p, "links"):  # a chain: each link's centre of mass
+        com = ", ".join(f"com{link.index} = ({', '.join(f'{c:.4g}' for c in link.com)}) m" for link in p.links)
+    else:
+        com = ", ".join(f"com{i} = ({', '.join(f'{c:.4g}' for c in getattr(p, f'com{i}'))}) m" for i in (1, 2)
+                        if getattr(p, f"com{i}", None) is not None)
     ok = r.ok
     warn = "" if ok else ('<p class="callout warn">The identification did not succeed, so the model below is the start '
                           "(params0), not a fit.</p>")
+    if hasattr(p, "links"):
+        return (warn + f"<p>The fitted model is a complete <code>skewpend.Chain</code> of {p.n} links: the base "
+                "parameters above, with the entries the data do not determine taken from params0. Write it as a run "
+                "file (<code>[[links]]</code> tables) and simulate it like any other chain:</p>"
+                "<pre><code>skewpend identify ... --out fit.toml\nskewpend simulate --config fit.toml</code></pre>"
+                + facts_html([("fitted model", fitted + (f"<br><span class=\"note\">{esc(com)}</span>" if com else "")),
+                              ("params0", esc(parameter_text(r.params0)))]))
     return (warn + "<p>The fitted model is a complete <code>skewpend.Parameters</code>: the base parameters above, "
             "with the entries the data do not determine taken from params0. Write it as a run file and simulate it "
             "like any other model:</p>"
@@ -394,7 +409,9 @@ def identification_html(result, measurements=None, validation=None) -> str:
                 f"piece{'s' if n_fit != 1 else ''}" + (f", {len(result.validation)} held out" if len(result.validation)
                                                         else "") + f": {esc(result.message)}")
     return PAGE.format(
-        version=esc(__version__), title="Identification of a measured double pendulum", subtitle=subtitle,
+        version=esc(__version__), subtitle=subtitle,
+        title="Identification of a measured " + (f"chain of {result.params0.n} links" if hasattr(result.params0, "links")
+                                                 else "double pendulum"),
         css=template("report.css") + EXTRA_CSS, toc=toc, body="\n".join(parts),
         footer=esc(f"Made by skewpend {__version__}. This one file holds its figure and its style: it opens offline "
                    "and fetches nothing."))
