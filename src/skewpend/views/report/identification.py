@@ -254,8 +254,9 @@ def _section_heldout(r) -> str:
             cls = "better" if d < 0 else "worse"
             change = f'<span class="{cls}">{d:+.1f} %</span>'.replace("-", "−")
         rows.append([f"<code>{esc(n)}</code>", esc(k), _rms(x, k), _rms(x0, k), change])
+    which = f"all {r.params0.n} angles" if hasattr(r.params0, "links") else "both angles"
     body = ("<p>Each held-out piece simulated from its first measured state (angles, and speeds as measured or "
-            "estimated) with the fitted model and with params0; the RMS of the angle error over both angles and all "
+            f"estimated) with the fitted model and with params0; the RMS of the angle error over {which} and all "
             "samples (pieces with measured torques: the RMS of the torque prediction).</p>"
             + table_html(["held-out piece", "kind", "RMS, fitted model", "RMS, params0", "change"], rows,
                          numeric=(2, 3, 4)))
