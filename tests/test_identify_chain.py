@@ -324,3 +324,18 @@ def test_a_driven_chain_is_identified_in_absolute_terms():
     want = terms.values(terms.standard(truth))
     assert np.abs(result.values - want).max() <= 1e-3 * np.abs(want).max()
     assert isinstance(result.params, Chain)
+
+
+def test_absolute_angles_measure_the_held_out_error_of_every_method():
+    """``angles="absolute"`` measures the held-out RMS in the rods' absolute angles for the linear estimate too
+    (it is not silently ignored): the median equals the one recomputed here from the fitted model's predictions."""
+    data = skewpend.example_data("kaheman2023")
+    fit = skewpend.Measurements.from_kaheman(data, which="fit").select(range(6))
+    val = skewpend.Measurements.from_kaheman(data, which="validation")
+    from skewpend.analysis.measurements import kaheman_published_parameters
+
+    result = skewpend.identify(fit, kaheman_published_parameters(data), validation=val, method="linear",
+                               angles="absolute", bootstrap=0)
+    assert result.ok, result.message
+    mine = [float(np.sqrt(np.mean(np.cumsum(predict_piece(result.params, p) - p.q, axis=1) ** 2))) for p in val]
+    assert result.heldout_median == pytest.approx(float(np.median(mine)), rel=1e-9)

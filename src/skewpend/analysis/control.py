@@ -36,7 +36,8 @@ __all__ = ["Linearization", "linearization", "controllability", "LQR", "lqr", "S
 
 
 def _chain_columns(actuated, n: int) -> Tuple[int, ...]:
-    """A chain's actuated joints (0-based) from ``"all"`` or the joints' numbers 1 .. n with a motor."""
+    """A chain's actuated joints (0-based) from ``"all"`` (or ``"both"``, the functions' default: every joint)
+    or the joints' numbers 1 .. n with a motor."""
     if isinstance(actuated, str) and actuated in ("all", "both"):
         return tuple(range(n))
     try:

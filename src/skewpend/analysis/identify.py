@@ -580,7 +580,7 @@ def _solve(G, b, homogeneous, k):
 
 def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
             validation: Optional[Measurements] = None, smoothing: float = SMOOTHING,
-            bootstrap: int = BOOTSTRAP, seed: int = 0) -> Identification:
+            bootstrap: int = BOOTSTRAP, seed: int = 0, angles: str = "relative") -> Identification:
     """Identify the base parameters of a measured pendulum: the linear first estimate.
 
     ``measurements``: the motion to fit (:class:`~skewpend.Measurements`; torques where measured, a
@@ -743,7 +743,9 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     status, message = Status.SUCCESS, "identified (linear first estimate)"
     if not settings["intervals"].startswith("clusters"):
         message += f"; {settings['intervals']}"
-    vnames, kinds, hr, hr0, heldout = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha, g)
+    from .shooting import angle_frame
+
+    vnames, kinds, hr, hr0, heldout = _heldout(fitted, params0, validation, smoothing, frame=angle_frame(2, angles))
     failed_pieces = [n for n, x, x0 in zip(vnames, hr, hr0) if not (math.isfinite(x) and math.isfinite(x0))]
     if failed_pieces:
         status, message = Status.NONFINITE, f"the held-out simulation of {failed_pieces[0]} failed"
@@ -819,7 +821,7 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
     say = progress if callable(progress) else (lambda stage, fraction: None)
     say("linear estimate", 0.0)
     lin = _linear(measurements, params0, free=names_free, validation=validation if method == "linear" else None,
-                  smoothing=smoothing, bootstrap=bootstrap, seed=seed)
+                  smoothing=smoothing, bootstrap=bootstrap, seed=seed, angles=angles)
     if method == "linear" or not np.all(np.isfinite(np.asarray(lin.values, float))):
         return lin  # (a linear estimate that is not physical still starts the output-error fit)
     return _output_error(lin, measurements, params0, alpha_free, validation, smoothing, seg_len, bootstrap, seed,
@@ -1090,12 +1092,8 @@ def _identify_chain(measurements, chain0, *, free, validation, method, smoothing
     intervals = np.column_stack([values - halves, values + halves])
     ratios, ratio_iv = {}, {}
     if homogeneous:
-        k = names.index(ref)
-        intervals[k] = (math.nan, math.nan)
-        for j, n in enumerate(names):
-            if n in half:
-                ratios[f"{n}/{ref}"] = float(values[j] / values[k])
-                ratio_iv[f"{n}/{ref}"] = (float(intervals[j, 0] / values[k]), float(intervals[j, 1] / values[k]))
+        intervals[names.index(ref)] = (math.nan, math.nan)
+        ratios, ratio_iv = _ratios(names, values, intervals, ref, half)
     status, message = Status.SUCCESS, "identified (output error, multiple shooting)"
     fitted, note = _realise_chain(chain0, terms, values, pi0, halves)
     if fitted is None:
@@ -1108,8 +1106,8 @@ def _identify_chain(measurements, chain0, *, free, validation, method, smoothing
             status, message, fitted = Status.NO_CONVERGENCE, "the fitted chain does not reproduce the estimate", None
     status, message = _fit_status(sf, status, message)
     say("held-out prediction", 0.9)
-    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, chain0, validation, smoothing, terms, values, beta0, 0.0,
-                                                   0.0, chain0.g, frame=shooting.angle_frame(chain0.n, angles))
+    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, chain0, validation, smoothing,
+                                                   frame=shooting.angle_frame(chain0.n, angles))
     if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
         status, message = Status.NONFINITE, "a held-out simulation failed"
     if status is Status.SUCCESS and not settings["intervals"].startswith("clusters"):
@@ -1238,13 +1236,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     for j, n in enumerate(names):
         if n in sf.flat or (n in half and not math.isfinite(half[n])):
             intervals[j] = (math.nan, math.nan)
-    k = names.index(ref) if homogeneous else 0
-    ratios, ratio_iv = {}, {}
-    if homogeneous:
-        for j, n in enumerate(names):
-            if n in theta:
-                ratios[f"{n}/{ref}"] = float(values[j] / values[k])
-                ratio_iv[f"{n}/{ref}"] = (float(intervals[j, 0] / values[k]), float(intervals[j, 1] / values[k]))
+    ratios, ratio_iv = _ratios(names, values, intervals, ref, theta) if homogeneous else ({}, {})
     alpha_fit = alpha_hat if alpha_free else alpha0
     unphysical, projected = "", ""
     try:
@@ -1289,8 +1281,8 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         status, message = Status.NO_CONVERGENCE, unphysical
     status, message = _fit_status(sf, status, message)
     say("held-out prediction", 0.9)
-    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing, B, values, beta0, a,
-                                                   alpha_fit, g, frame=shooting.angle_frame(2, angles))
+    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing,
+                                                   frame=shooting.angle_frame(2, angles))
     if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
         status, message = Status.NONFINITE, "a held-out simulation failed"
     if status is Status.SUCCESS and not settings["intervals"].startswith("clusters"):
@@ -1315,6 +1307,17 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         profile_alpha=np.array(prof_a), profile_cost=np.array(prof_c), correlation=sf.correlation)
 
 
+def _ratios(names, values, intervals, ref: str, freed) -> Tuple[Dict[str, float], Dict[str, Tuple[float, float]]]:
+    """What a free swing determines: each freed base parameter over the reference ``ref``, with its interval."""
+    k = list(names).index(ref)
+    ratios, iv = {}, {}
+    for j, n in enumerate(names):
+        if n in freed:
+            ratios[f"{n}/{ref}"] = float(values[j] / values[k])
+            iv[f"{n}/{ref}"] = (float(intervals[j, 0] / values[k]), float(intervals[j, 1] / values[k]))
+    return ratios, iv
+
+
 def _fit_status(sf, status: Status, message: str) -> Tuple[Status, str]:
     """The status of an output-error fit: the realisation's, unless the fit did not converge or left a
     direction undetermined."""
@@ -1335,7 +1338,7 @@ def _oe_failed(lin: Identification, message: str, settings, t_start) -> Identifi
                                params=lin.params0, method="output-error")
 
 
-def _heldout(fitted, params0, validation, smoothing, B, values, beta0, a, alpha, g, frame=None):
+def _heldout(fitted, params0, validation, smoothing, frame=None):
     """The held-out prediction of ``fitted`` and of ``params0``; ``fitted`` None (no fitted model: the
     fit failed): its figures are NaN, never params0's under the fit's name.  ``frame``: the angles the
     errors are measured in (:func:`skewpend.analysis.shooting.angle_frame`; None: the joint angles)."""
