@@ -29,8 +29,7 @@ from skewpend.numeric.kernels import State, _compile
 HEADER = r"""
 #include <math.h>
 #define SP_NPARAM 4
-#define SP_TAU1 2
-#define SP_TAU2 3
+#define SP_TAU_INDEX {2, 3}
 static double energy(const double *y, const double *p) { return 0.5 * y[1] * y[1]; }
 static void rhs(const double *y, const double *p, double *out)
 {

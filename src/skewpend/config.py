@@ -94,7 +94,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "equilibria": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "nnm": {"parameters": MODEL_KEYS},
-    "control": {"parameters": MODEL_KEYS},
+    "control": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "identify": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # params0, the fit's start
     "derive": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # the values given; the others stay symbolic
     # the bodies and axes -> the generated physics; the scalars and the start -> the page's sliders

@@ -248,10 +248,7 @@ class LQR:
         from ..numeric.control import Controller
 
         lin = self.linearization
-        if isinstance(self.params, Chain):
-            raise ParameterError("a chain's LQR has no compiled controller yet: simulate takes no controller for a chain "
-                                 "(the gain K, P and the region estimate rho are the design)")
-        return Controller.feedback(self.gain, lin.target, _u_target(self.params, lin), actuated=lin.actuated,
+        return Controller.feedback(self.gain, lin.target, _u_target(self.params, lin), actuated=_actuated(lin),
                                    umax=self.umax if umax is None else umax)
 
     def inside(self, x) -> np.ndarray:
@@ -274,35 +271,9 @@ def _deviation(x: np.ndarray, target: np.ndarray) -> np.ndarray:
     return dx
 
 
-def _chain_closed_loop(chain: Chain, K2: np.ndarray, target: np.ndarray, umax):
-    """The saturated closed loop of a chain, ``x' = f(x, u)`` with ``u = clip(-K dx)`` added to the joints'
-    constant torques, for rows of states (the compiled right-hand side row by row)."""
-    from ..numeric.kernels import chain_kernel
-    from ..numeric.recursive import parameter_names, parameter_vector
-
-    kernel = chain_kernel(chain)
-    p0 = parameter_vector(chain)
-    n = chain.n
-    names = parameter_names(n)
-    tau = np.array([names.index(f"tau{i}") for i in range(1, n + 1)])
-    limit = np.asarray(umax, dtype=float)
-
-    def rhs(X: np.ndarray) -> np.ndarray:
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        dx = _deviation(X, target)
-        U = np.clip(-dx @ K2.T, -limit, limit)
-        out = np.empty((len(X), 2 * n))
-        y = np.zeros(2 * n + 1)
-        res = np.empty(2 * n + 1)
-        p = p0.copy()
-        for k in range(len(X)):
-            y[:2 * n] = X[k]
-            p[tau] = p0[tau] + U[k]
-            kernel.rhs(y, p, res)
-            out[k] = res[:2 * n]
-        return out
-
-    return rhs
+def _actuated(lin: Linearization):
+    """The controller's ``actuated`` for a linearisation: the double pendulum's label, a chain's joint numbers."""
+    return tuple(j + 1 for j in lin.joints) if isinstance(lin.params, Chain) else lin.actuated
 
 
 #: rho is this fraction of the smallest level V at which the search found V' >= 0 (see _rho_estimate).
@@ -327,20 +298,13 @@ def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.
     w = np.linalg.eigvalsh(P)
     if not (w[0] > 1e-12 * w[-1] > 0):
         return 0.0
+    from ..numeric.control import Controller
+    from ..numeric.kernels import model_kernel, model_vector
+
     target = lin.target
     n2 = P.shape[0]
-    if isinstance(params, Chain):
-        rhs = _chain_closed_loop(params, K2, target, umax)
-        if samples == RHO_SAMPLES:  # row by row from Python: a smaller search (rays as many)
-            samples = RHO_SAMPLES // 4
-    else:
-        from ..numeric.control import Controller
-        from ..numeric.kernels import kernel_module, parameter_vector
-
-        kernel = kernel_module(params)
-        p = parameter_vector(params)
-        ctl = Controller.feedback(K2, lin.target, np.zeros(2), actuated=lin.actuated, umax=umax)
-        rhs = ctl.closed_loop_function(kernel, p)
+    ctl = Controller.feedback(K2, lin.target, actuated=_actuated(lin), umax=umax)
+    rhs = ctl.closed_loop_function(model_kernel(params), model_vector(params))
     Pinv = np.linalg.inv(P)
     ceiling = math.pi ** 2 / max(Pinv[i, i] for i in range(n2 // 2))  # the ellipsoid's angle errors reach pi there
     L = np.linalg.cholesky(P)

@@ -3,8 +3,8 @@
 ``region_of_attraction(params, target, actuated, n)`` designs (or takes) the LQR about
 ``target`` with the torque limit ``umax`` and releases the closed loop from the centres of an
 ``n x n`` grid of cells on a 2-D slice of the state space through the target -- two of
-``phi, psi, phi', psi'`` (``plane``) varied over ``window`` about their target values, the other
-two at theirs.  Each start is integrated by DOP853 with the inputs inside the compiled code
+``phi, psi, phi', psi'`` (``plane``; a chain of links': two of ``q1 .. qn, dq1 .. dqn``) varied over
+``window`` about their target values, the others at theirs.  Each start is integrated by DOP853 with the inputs inside the compiled code
 (``sp_capture_lanes`` in ``integrators.c``: eight starts side by side in SIMD lanes, on the flip
 map's trigonometry-free state, each step stopped at the law's switches -- the saturation kinks and
 the wrap's jumps -- rather than rejected around them; ``sp_capture_many``, one by one, for a model
@@ -44,11 +44,17 @@ from ..symbolic.model import Parameters
 __all__ = ["region_of_attraction", "RegionOfAttraction", "RoaJob", "open_region_of_attraction", "COORDINATES",
            "STORE_KIND", "MAX_STEPS_ROA"]
 
-#: The state's coordinates a slice may vary (their index in x = (phi, psi, phi', psi')).
-COORDINATES = {"phi": 0, "psi": 1, "dphi": 2, "dpsi": 3}
-_UNITS = {"phi": "rad", "psi": "rad", "dphi": "rad/s", "dpsi": "rad/s"}
-_LONG = {"phi": "initial angle of hinge 1", "psi": "initial angle of hinge 2",
-         "dphi": "initial angular speed of hinge 1", "dpsi": "initial angular speed of hinge 2"}
+def state_coordinates(nq: int) -> Dict[str, int]:
+    """The state's coordinates a slice may vary, by their index in ``x``: the double pendulum's ``phi,
+    psi, dphi, dpsi``; a chain of ``n`` links' ``q1 .. qn, dq1 .. dqn``."""
+    from ..schema import coordinate_names
+
+    names = coordinate_names(nq)
+    return {**{c: i for i, c in enumerate(names)}, **{f"d{c}": nq + i for i, c in enumerate(names)}}
+
+
+#: The double pendulum's coordinates a slice may vary (their index in x = (phi, psi, phi', psi')).
+COORDINATES = state_coordinates(2)
 STORE_KIND = "skewpend region of attraction"
 #: Default cap on the steps of one start (a normal one takes hundreds; see the module on chattering).
 MAX_STEPS_ROA = 200_000
@@ -58,13 +64,14 @@ MAX_N = 4096
 CHUNK_STATS = ("cells", "captured", "failed", "steps", "rejected")
 
 
-def _plane(plane) -> Tuple[str, str]:
+def _plane(plane, nq: int = 2) -> Tuple[str, str]:
+    names = state_coordinates(nq)
     try:
         a, b = plane
     except (TypeError, ValueError):
-        raise ParameterError(f"plane must be two of {', '.join(COORDINATES)}, got {plane!r}") from None
-    if a not in COORDINATES or b not in COORDINATES or a == b:
-        raise ParameterError(f"plane must be two different coordinates of {', '.join(COORDINATES)}, got {plane!r}")
+        raise ParameterError(f"plane must be two of {', '.join(names)}, got {plane!r}") from None
+    if a not in names or b not in names or a == b:
+        raise ParameterError(f"plane must be two different coordinates of {', '.join(names)}, got {plane!r}")
     return str(a), str(b)
 
 
@@ -85,12 +92,12 @@ def _window(name: str, value, angle: bool) -> Tuple[float, float]:
 class RegionOfAttraction(Result):
     """The result of :func:`region_of_attraction`.
 
-    * ``plane`` -- the two coordinates varied (of ``phi, psi, dphi, dpsi``); ``x0``, ``y0`` -- their
+    * ``plane`` -- the two coordinates varied (of ``phi, psi, dphi, dpsi``; a chain's ``q1 .. dqn``); ``x0``, ``y0`` -- their
       starting values (cell centres; ``x0`` along axis 0, ``y0`` along axis 1) [rad or rad/s];
     * ``capture_time`` (n, n) [s] -- when the start entered the LQR's estimate (0: it starts
       inside), NaN if not by ``t_end`` or failed; ``outcome`` (n, n) -- 1 captured, 0 not
       captured by ``t_end``, -1 failed;
-    * ``target`` (the equilibrium's state), ``K`` (2 x 4), ``P``, ``rho`` -- the feedback and its
+    * ``target`` (the equilibrium's state), ``K`` (2 x 4; a chain's n x 2 n), ``P``, ``rho`` -- the feedback and its
       estimate ``dx^T P dx < rho``; :meth:`ellipse` is its slice in ``plane``;
     * ``captured_fraction``, ``inner_fraction`` (cells inside the estimate at the start);
     * ``params``, ``settings``, ``stats`` (``cells``, ``captured``, ``failed``, ``steps`` -- accepted
@@ -119,6 +126,10 @@ class RegionOfAttraction(Result):
         return self.outcome == 1
 
     @property
+    def _index(self) -> Dict[str, int]:
+        return state_coordinates(len(self.target) // 2)
+
+    @property
     def captured_fraction(self) -> float:
         """The fraction of the cells captured by ``t_end``: the region's share of the window."""
         return float(np.count_nonzero(self.captured)) / self.capture_time.size
@@ -127,17 +138,17 @@ class RegionOfAttraction(Result):
         """The axes as offsets from the target (angles wrapped to (-pi, pi])."""
         from .equilibria import wrap
 
-        out = []
+        out, index, nq = [], self._index, len(self.target) // 2
         for name, values in zip(self.plane, (self.x0, self.y0)):
-            d = np.asarray(values, dtype=float) - self.target[COORDINATES[name]]
-            out.append(wrap(d) if COORDINATES[name] < 2 else d)
+            d = np.asarray(values, dtype=float) - self.target[index[name]]
+            out.append(wrap(d) if index[name] < nq else d)
         return out[0], out[1]
 
     @property
     def inner_fraction(self) -> float:
         """The fraction of the cells inside the LQR's estimate at the start (all captured at t = 0)."""
         dx, dy = self.deviations()
-        i, j = (COORDINATES[c] for c in self.plane)
+        i, j = (self._index[c] for c in self.plane)
         S = self.P[np.ix_([i, j], [i, j])]
         X, Y = np.meshgrid(dx, dy, indexing="ij")
         v = S[0, 0] * X * X + 2 * S[0, 1] * X * Y + S[1, 1] * Y * Y
@@ -146,7 +157,7 @@ class RegionOfAttraction(Result):
     def ellipse(self, points: int = 361) -> np.ndarray:
         """The boundary of the estimate's slice ``dx^T P dx = rho`` in ``plane`` (other offsets 0),
         as offsets from the target: an array (points, 2)."""
-        i, j = (COORDINATES[c] for c in self.plane)
+        i, j = (self._index[c] for c in self.plane)
         S = self.P[np.ix_([i, j], [i, j])]
         L = np.linalg.cholesky(S)
         s = np.linspace(0.0, 2 * np.pi, points)
@@ -161,8 +172,8 @@ class RegionOfAttraction(Result):
         return DatasetSpec(
             variables={"capture_time": ((a, b), self.capture_time, dict(_VARIABLES["capture_time"])),
                        "outcome": ((a, b), self.outcome, dict(_VARIABLES["outcome"]))},
-            coords={a: ((a,), np.asarray(self.x0, dtype=float).copy(), _coord_attrs(self.plane[0])),
-                    b: ((b,), np.asarray(self.y0, dtype=float).copy(), _coord_attrs(self.plane[1]))},
+            coords={a: ((a,), np.asarray(self.x0, dtype=float).copy(), _coord_attrs(self.plane[0], len(self.target) // 2)),
+                    b: ((b,), np.asarray(self.y0, dtype=float).copy(), _coord_attrs(self.plane[1], len(self.target) // 2))},
             attrs=attrs,
         )
 
@@ -173,25 +184,28 @@ _VARIABLES = {
 }
 
 
-def _coord_attrs(name: str) -> Dict[str, str]:
-    return {"units": _UNITS[name], "long_name": _LONG[name]}
+def _coord_attrs(name: str, nq: int = 2) -> Dict[str, str]:
+    i = state_coordinates(nq)[name]
+    speed = i >= nq
+    return {"units": "rad/s" if speed else "rad",
+            "long_name": f"initial {'angular speed' if speed else 'angle'} of hinge {i % nq + 1}"}
 
 
 @dataclass(frozen=True)
 class RoaJob(GridJob):
     """A region-of-attraction map as a job of the grid driver (small and picklable)."""
 
-    params: Parameters
+    params: Any  # Parameters, or a chain of links
     n: int
     plane: Tuple[str, str]
     x_range: Tuple[float, float]  # absolute values of the plane's first coordinate (cell edges)
     y_range: Tuple[float, float]
     target: Tuple[float, ...]
-    K: Tuple[float, ...]  # 2 x 4, row-major
-    P: Tuple[float, ...]  # 4 x 4, row-major
+    K: Tuple[float, ...]  # nq x 2 nq (the double pendulum's 2 x 4), row-major
+    P: Tuple[float, ...]  # 2 nq x 2 nq, row-major
     rho: float
-    actuated: str
-    umax: Tuple[float, float]
+    actuated: Any  # the double pendulum's label, a chain's joint numbers
+    umax: Tuple[float, ...]
     t_end: float
     rtol: float
     atol: float
@@ -217,13 +231,18 @@ class RoaJob(GridJob):
         from .flipmap import cell_centres
 
         a, b = self.plane
-        return {f"{a}0": (cell_centres(*self.x_range, self.n), _coord_attrs(a)),
-                f"{b}0": (cell_centres(*self.y_range, self.n), _coord_attrs(b))}
+        return {f"{a}0": (cell_centres(*self.x_range, self.n), _coord_attrs(a, self.nq)),
+                f"{b}0": (cell_centres(*self.y_range, self.n), _coord_attrs(b, self.nq))}
+
+    @property
+    def nq(self) -> int:
+        return len(self.target) // 2
 
     def settings(self) -> Dict[str, Any]:
         return {"kind": "region_of_attraction", "params": self.params.to_dict(), "n": self.n, "plane": list(self.plane),
                 "x_range": list(self.x_range), "y_range": list(self.y_range), "target": list(self.target),
-                "K": list(self.K), "P": list(self.P), "rho": self.rho, "actuated": self.actuated,
+                "K": list(self.K), "P": list(self.P), "rho": self.rho,
+                "actuated": self.actuated if isinstance(self.actuated, str) else list(self.actuated),
                 "umax": [u if math.isfinite(u) else None for u in self.umax], "t_end": self.t_end, "rtol": self.rtol,
                 "atol": self.atol, "max_steps": self.max_steps, "method": "dop853", "skewpend_version": self.version}
 
@@ -233,23 +252,23 @@ class RoaJob(GridJob):
     def controller(self):
         from ..numeric.control import Controller
 
-        return Controller.feedback(np.reshape(self.K, (2, 4)), np.asarray(self.target), actuated=self.actuated,
-                                   umax=self.umax)
+        return Controller.feedback(np.reshape(self.K, (self.nq, 2 * self.nq)), np.asarray(self.target),
+                                   actuated=self.actuated, umax=self.umax)
 
     def setup(self):
         from ..errors import SkewpendError
-        from ..numeric.kernels import parameter_vector
+        from ..numeric.kernels import model_vector
 
         kernel = roa_kernel(self.params)
         if kernel.path.name != self.kernel_name:
             raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
                                 "install the same skewpend on every worker")
-        return kernel, parameter_vector(self.params), self.controller()
+        return kernel, model_vector(self.params), self.controller()
 
     def starts(self, rows: np.ndarray) -> np.ndarray:
-        """The starts of whole rows of cells, (rows * n, 4)."""
+        """The starts of whole rows of cells, (rows * n, 2 nq)."""
         xs, ys = (values for values, _ in self.coords().values())
-        i, j = (COORDINATES[c] for c in self.plane)
+        i, j = (state_coordinates(self.nq)[c] for c in self.plane)
         rows = np.asarray(rows, dtype=np.int64)
         out = np.tile(np.asarray(self.target, dtype=float), (rows.size * self.n, 1))
         out[:, i] = np.repeat(xs[rows], self.n)
@@ -262,7 +281,7 @@ class RoaJob(GridJob):
         kernel, p, ctl = state
         rows = np.asarray(rows, dtype=np.int64)
         time_, steps, rejected, status = capture_many(kernel, p, ctl, self.starts(rows), t_end=self.t_end, rtol=self.rtol,
-                                            atol=self.atol, max_steps=self.max_steps, P=np.reshape(self.P, (4, 4)),
+                                            atol=self.atol, max_steps=self.max_steps, P=self._P,
                                             rho=self.rho, cancel=cancel)
         shape = (rows.size, self.n)
         failed = (status != 0).reshape(shape)
@@ -286,8 +305,12 @@ class RoaJob(GridJob):
         xs, ys = (values for values, _ in self.coords().values())
         return RegionOfAttraction(plane=tuple(self.plane), x0=xs, y0=ys, capture_time=run.data["capture_time"],
                                   outcome=run.data["outcome"], target=np.asarray(self.target, dtype=float),
-                                  K=np.reshape(self.K, (2, 4)), P=np.reshape(self.P, (4, 4)), rho=self.rho,
+                                  K=np.reshape(self.K, (self.nq, 2 * self.nq)), P=self._P, rho=self.rho,
                                   params=self.params, settings=settings, stats=stats, status=status, message=message)
+
+    @property
+    def _P(self) -> np.ndarray:
+        return np.reshape(self.P, (2 * self.nq, 2 * self.nq))
 
     def result_attrs(self, result: RegionOfAttraction) -> Dict[str, Any]:
         return {"roa_settings": canonical_json(result.settings), "roa_stats": canonical_json(result.stats)}
@@ -296,11 +319,11 @@ class RoaJob(GridJob):
 def region_of_attraction(
     params: Parameters,
     target="up-up",
-    actuated: str = "both",
+    actuated="both",
     n: int = 64,
     *,
     design=None,
-    plane: Sequence[str] = ("phi", "psi"),
+    plane: Optional[Sequence[str]] = None,
     window: Optional[Sequence[Sequence[float]]] = None,
     umax=10.0,
     Q=None,
@@ -317,7 +340,9 @@ def region_of_attraction(
     scheduler=None,
 ) -> RegionOfAttraction:
     """The region of attraction of the LQR about ``target`` with the ``actuated`` joints and the
-    torque limit ``umax`` [N m] (see the module), on ``n x n`` cells of the slice ``plane``.
+    torque limit ``umax`` [N m] (see the module), on ``n x n`` cells of the slice ``plane`` (default
+    the two angles, ``("phi", "psi")``; a chain of links': ``("q1", "q2")`` of ``q1 .. qn, dq1 .. dqn``,
+    ``actuated`` ``"all"`` or the joints' numbers, ``target`` one of its labels, e.g. ``"up-up-up"``).
 
     ``design``: an :class:`~skewpend.analysis.control.LQR` from :func:`skewpend.lqr` (then
     ``target``, ``actuated``, ``Q``, ``R`` and ``umax`` come from it); otherwise it is designed
@@ -333,20 +358,27 @@ def region_of_attraction(
     from .control import LQR, equilibrium_argument, lqr
     from .flipmap import check_n
 
-    params = numeric_params(params, "a region of attraction")
-    target = equilibrium_argument(target, "target")  # angles reduced modulo 2 pi, refused beyond 1e6 rad
+    from ..symbolic.chain import Chain
+
+    if isinstance(params, Chain):
+        nq = params.n
+    else:
+        params = numeric_params(params, "a region of attraction")
+        target = equilibrium_argument(target, "target")  # angles reduced modulo 2 pi, refused beyond 1e6 rad
+        nq = 2
+    index = state_coordinates(nq)
     n = check_n(n)
     if n > MAX_N:
         raise ParameterError(f"n must be at most {MAX_N} for a region of attraction, got {n}")
-    a, b = _plane(plane)
+    a, b = _plane(tuple(index)[:2] if plane is None else plane, nq)
     if window is None:
-        window = [(-math.pi, math.pi) if COORDINATES[c] < 2 else (-5.0, 5.0) for c in (a, b)]
+        window = [(-math.pi, math.pi) if index[c] < nq else (-5.0, 5.0) for c in (a, b)]
     try:
         wa, wb = window
     except (TypeError, ValueError):
         raise ParameterError(f"window must be two ranges ((lo, hi), (lo, hi)) of offsets from the target, got {window!r}") from None
-    wa = _window(f"window of {a}", wa, COORDINATES[a] < 2)
-    wb = _window(f"window of {b}", wb, COORDINATES[b] < 2)
+    wa = _window(f"window of {a}", wa, index[a] < nq)
+    wb = _window(f"window of {b}", wb, index[b] < nq)
     t_end = positive("t_end", t_end)
     rtol, atol = tolerances(rtol, atol)
     max_steps = check_max_steps(max_steps)
@@ -364,12 +396,13 @@ def region_of_attraction(
                                "bounds no region)")
     lin = design.linearization
     x_star = lin.target
-    ia, ib = COORDINATES[a], COORDINATES[b]
+    ia, ib = index[a], index[b]
     kernel = roa_kernel(params)
     job = RoaJob(params=params, n=n, plane=(a, b), x_range=(x_star[ia] + wa[0], x_star[ia] + wa[1]),
                  y_range=(x_star[ib] + wb[0], x_star[ib] + wb[1]), target=tuple(float(v) for v in x_star),
                  K=tuple(float(v) for v in design.gain.ravel()), P=tuple(float(v) for v in np.ravel(design.P)),
-                 rho=float(design.rho), actuated=lin.actuated, umax=torque_limits(design.umax), t_end=t_end, rtol=rtol,
+                 rho=float(design.rho), actuated=design.controller().actuated,
+                 umax=torque_limits(design.umax, nq), t_end=t_end, rtol=rtol,
                  atol=atol, max_steps=int(max_steps), version=__version__, kernel_name=kernel.path.name)
     state = job.setup()
     _check_feasible(job, state)
@@ -380,9 +413,11 @@ def region_of_attraction(
 def roa_kernel(params: Parameters):
     """The kernel of a map: the flip kernel (``sp_capture_lanes``, the starts in SIMD lanes), or
     the simulation kernel (``sp_capture_many``) for a model the lanes cannot print (Coulomb
-    friction: not polynomial in the speeds)."""
-    from ..numeric.kernels import kernel_module
+    friction: not polynomial in the speeds; a chain of links)."""
+    from ..numeric.kernels import kernel_module, model_kernel
 
+    if not isinstance(params, Parameters):
+        return model_kernel(params)
     if params.has_friction:
         return kernel_module(params)
     try:
@@ -404,13 +439,13 @@ def _check_feasible(job: RoaJob, state) -> None:
     kernel, p, ctl = state
     xs, ys = (values for values, _ in job.coords().values())
     corners = [(xs[i], ys[j]) for i in (0, -1, len(xs) // 2) for j in (0, -1, len(ys) // 2) if (i, j) != (len(xs) // 2,) * 2]
-    ia, ib = (COORDINATES[c] for c in job.plane)
+    ia, ib = (state_coordinates(job.nq)[c] for c in job.plane)
     starts = np.tile(np.asarray(job.target, dtype=float), (len(corners), 1))
     starts[:, ia], starts[:, ib] = zip(*corners)
     rate, ok = 0.0, False
     for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
         time_, steps, rejected, status = capture_many(kernel, p, ctl, starts, t_end=t, rtol=job.rtol, atol=job.atol,
-                                                      max_steps=PROBE_STEPS, P=np.reshape(job.P, (4, 4)), rho=job.rho)
+                                                      max_steps=PROBE_STEPS, P=job._P, rho=job.rho)
         moved = ~(time_ == 0)  # a start inside the estimate is captured at once: no steps, no rate
         lived = np.where(np.isfinite(time_), time_, t)[moved]  # a captured start stops early: its rate until then
         rate = steps_per_second((steps + rejected)[moved], lived)  # attempted steps: what max_steps bounds
@@ -425,18 +460,20 @@ def open_region_of_attraction(path) -> RegionOfAttraction:
     """A :class:`RegionOfAttraction` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
     from ..numeric.grid import read_grid_result
     from ..results import grid_status
+    from ..symbolic.chain import model_from_mapping
 
     arrays, attrs, settings, stats = read_grid_result(path, store_kind=STORE_KIND, result_kind=RegionOfAttraction.result_kind,
                                                       what="a region-of-attraction map", store_keys=("roa_settings", "roa_stats"))
     try:
-        params = Parameters.from_mapping(json.loads(attrs["params"]))
+        params = model_from_mapping(json.loads(attrs["params"]))
         a, b = settings["plane"]
         x0, y0 = (np.asarray(arrays[f"{c}0"], dtype=float) for c in (a, b))
         capture_time = np.asarray(arrays["capture_time"], dtype=float)
         outcome = np.asarray(arrays["outcome"]).astype(np.int8)
         target = np.asarray(settings["target"], dtype=float)
-        K = np.reshape(np.asarray(settings["K"], dtype=float), (2, 4))
-        P = np.reshape(np.asarray(settings["P"], dtype=float), (4, 4))
+        nq = len(target) // 2
+        K = np.reshape(np.asarray(settings["K"], dtype=float), (nq, 2 * nq))
+        P = np.reshape(np.asarray(settings["P"], dtype=float), (2 * nq, 2 * nq))
         rho = float(settings["rho"])
     except (KeyError, TypeError, ValueError) as exc:
         raise ParameterError(f"{path} is not a region of attraction made by skewpend (missing or bad attribute: {exc})") from None

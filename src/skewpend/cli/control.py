@@ -25,12 +25,6 @@ class Action(str, Enum):
     roa = "roa"
 
 
-class Actuated(str, Enum):
-    both = "both"
-    acrobot = "acrobot"
-    pendubot = "pendubot"
-
-
 #: The options that belong to some actions only (the others refuse them with one line).
 ONLY = {
     "--t-end": ("swingup", "roa"), "--energy-gain": ("swingup",), "--elbow-gains": ("swingup",), "--out": ("swingup", "roa"),
@@ -45,15 +39,15 @@ def control(
     ensemble: dict,
     action: Annotated[Optional[Action], typer.Argument(help="lqr: the gain at the target, its closed-loop eigenvalues and region estimate; swingup: from hanging to the target and capture by the LQR; roa: the LQR's region of attraction on a grid of starts", show_default=False)] = None,
     target: option("--target", T.EquilibriumChoice(), "the equilibrium to balance at: a label (default up-up) or PHI,PSI near one") = None,
-    actuated: Annotated[Actuated, typer.Option("--actuated", help="both joints, acrobot (the elbow only) or pendubot (the shoulder only)", rich_help_panel=RUN)] = Actuated.both,
-    q: option("--q", T.Numbers(4, metavar="Q1,Q2,Q3,Q4"), "LQR state weights: the diagonal of Q for (phi, psi, phi', psi') (default 1,1,1,1)") = None,
-    r: option("--r", T.Numbers(most=2, metavar="R1[,R2]"), "LQR input weights: the diagonal of R, one per actuated joint (default 1)") = None,
+    actuated: option("--actuated", T.Actuation(), "the joints with a motor: both (default), acrobot (the elbow only), pendubot (the shoulder only); a chain of links: all or the joints' numbers, e.g. 2 or 1,3") = None,
+    q: option("--q", T.Numbers(most=64, metavar="Q1,Q2,..."), "LQR state weights: the diagonal of Q for (phi, psi, phi', psi') (default 1,1,1,1; a chain's 2 n)") = None,
+    r: option("--r", T.Numbers(most=31, metavar="R1[,R2,...]"), "LQR input weights: the diagonal of R, one per actuated joint (default 1)") = None,
     umax: option("--umax", T.Positive("number of N m"), "torque limit of each motor [N m] (default: none for lqr, 10 for swingup and roa)") = None,
     t_end: option("--t-end", T.Positive("number of seconds"), "swingup: length of the run [s] (default 20); roa: longest time each start is followed (default 10)") = None,
     energy_gain: option("--energy-gain", T.Positive(), "swingup: gain of the energy shaping [N m s/J] (default 2)") = None,
     elbow_gains: option("--elbow-gains", T.Numbers(2, metavar="KP,KD"), "swingup: the elbow's PD gains holding rod 2 in line while the energy is pumped (default 20,4)") = None,
     n: option("--n", T.Whole(1, 4096), "roa: cells per side, an n x n grid of starts (default 64)") = None,
-    plane: option("--plane", T.Plane(), "roa: the two coordinates varied, of phi, psi, dphi, dpsi (default phi,psi; the others at the target's)") = None,
+    plane: option("--plane", T.Plane(), "roa: the two coordinates varied, of phi, psi, dphi, dpsi (a chain's q1 .. qn, dq1 .. dqn; default the first two angles; the others at the target's)") = None,
     window: option("--window", T.Offsets(), "roa: their ranges as offsets from the target, LO:HI,LO:HI (radians or deg; rad/s or deg/s; default -180:180deg for an angle, -5:5 for a speed)") = None,
     rtol: RTOL_E8 = None,
     atol: ATOL_E8 = None,
@@ -66,7 +60,8 @@ def control(
 ):
     """Balance it and swing it up: LQR at any equilibrium (controllability, gain, closed-loop eigenvalues, region estimate), energy-shaping swing-up captured by the LQR, and the region of attraction on a grid of starts -- with skewed axes.
 
-    From a --config run file it takes [parameters].
+    From a --config run file it takes [parameters]; or a chain of links ([[links]], [chain]): lqr and roa with
+    any set of actuated joints (--actuated 2, --actuated 1,3), --plane of its q1 .. qn, dq1 .. dqn.
     """
     import numpy as np
 
@@ -95,9 +90,21 @@ def control(
 
         check_plot(plot)
     params = resolve("control", config, parameters=model).parameters()
-    joints = 2 if actuated is Actuated.both else 1
+    from ..symbolic.chain import Chain
+
+    chain = isinstance(params, Chain)
+    nq = params.n if chain else 2
+    actuated = _actuation(actuated or "both", nq, chain)
+    if chain and action is Action.swingup:
+        raise UsageError("control swingup: the energy-shaping swing-up is the double pendulum's; a chain of links "
+                         "takes control lqr or control roa")
+    shown = actuated if isinstance(actuated, str) else "joint" + ("s " if len(actuated) > 1 else " ") + ",".join(
+        map(str, actuated))
+    joints = nq if actuated in ("both", "all") else (1 if isinstance(actuated, str) else len(actuated))
+    if q is not None and len(q) != 2 * nq:
+        raise UsageError(f"--q: give {2 * nq} state weights, one per coordinate and speed, got {len(q)}")
     if r is not None and len(r) != joints:
-        raise UsageError(f"--r: give {joints} weight(s), one per actuated joint ({actuated.value}), got {len(r)}")
+        raise UsageError(f"--r: give {joints} weight(s), one per actuated joint ({shown}), got {len(r)}")
     if q is not None and any(x < 0 for x in q):
         raise UsageError("--q: state weights must not be negative")
     if r is not None and any(not x > 0 for x in r):
@@ -106,7 +113,18 @@ def control(
     R = None if r is None else np.diag(r)
     defaults = library_defaults(action)
     goal = defaults["target"] if target is None else target
-    if target is not None:
+    if target is not None and chain and not isinstance(goal, str):
+        raise UsageError(f"--target: a chain of links takes an equilibrium's label, a word a link (e.g. "
+                         f"{'-'.join(['up'] * nq)}), got angles")
+    if target is not None and chain:
+        from ..analysis.equilibria import equilibria
+        from ..errors import EquilibriumError, ParameterError
+
+        try:
+            equilibria(params).find(goal)
+        except (EquilibriumError, ParameterError) as exc:
+            raise UsageError(f"--target: {exc}") from None
+    elif target is not None:
         from ..analysis.equilibria import find_equilibrium
         from ..checks import angles
         from ..errors import EquilibriumError, ParameterError
@@ -118,22 +136,26 @@ def control(
         except (EquilibriumError, ParameterError) as exc:
             raise UsageError(f"--target: {exc}") from None
     if action is Action.roa:
-        return _roa(params, goal, actuated.value, Q, R, umax, t_end, n, plane, window, rtol, atol, out, store, plot, resume,
-                    ensemble, quiet)
+        return _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol, out, store, plot, resume,
+                    ensemble, quiet, shown)
     if action is Action.lqr:
-        design = lqr(params, goal, actuated.value, Q=Q, R=R, **({} if umax is None else {"umax": umax}))
+        from ..schema import coordinate_names
+
+        design = lqr(params, goal, actuated, Q=Q, R=R, **({} if umax is None else {"umax": umax}))
         lin = design.linearization
         c = controllability(lin.A, lin.B)
+        names = coordinate_names(nq)
         lines = [
-            f"target      {lin.equilibrium.label}: phi = {math.degrees(lin.target[0]):.6g} deg, psi = {math.degrees(lin.target[1]):.6g} deg",
-            f"actuated    {actuated.value}; controllable (rank {c['rank']} of 4, PBH distance {c['distance']:.3g})",
-            "gain K      u = -K (x - x*), x = (phi, psi, phi', psi')",
+            f"target      {lin.equilibrium.label}: " + ", ".join(f"{x} = {math.degrees(v):.6g} deg"
+                                                              for x, v in zip(names, lin.target)),
+            f"actuated    {shown}; controllable (rank {c['rank']} of {2 * nq}, PBH distance {c['distance']:.3g})",
+            f"gain K      u = -K (x - x*), x = ({', '.join(names)}, {', '.join(x + chr(39) for x in names)})",
         ]
         for row, j in enumerate(lin.joints):
             lines.append(f"  joint {j + 1}   " + "  ".join(f"{v:12.6g}" for v in design.K[row]))
         lines.append("closed loop " + ", ".join(f"{z.real:.6g}{z.imag:+.6g}i" if abs(z.imag) > 1e-12 else f"{z.real:.6g}"
                                                 for z in design.eigenvalues) + " [1/s]")
-        limit = "no torque limit" if not math.isfinite(design.umax[0]) else f"|u| <= {design.umax[0]:g} N m"
+        limit = "no torque limit" if not math.isfinite(design.umax[0]) else f"|u| <= {_limits(design.umax)} N m"
         if design.rho > 0:
             lines.append(f"region      dx' P dx < {design.rho:.6g} ({limit}; V decreases inside wherever a seeded search "
                          "looked: 0.95 of the smallest level where it found V' >= 0)")
@@ -147,11 +169,11 @@ def control(
         return design
     kw = given_only(umax=umax, t_end=t_end, energy_gain=energy_gain, elbow_gains=elbow_gains)  # else the library's
     with progress("simulating the swing-up", "s", quiet) as bar:
-        run = swingup(params, goal, actuated.value, Q=Q, R=R, progress=bar, **kw)
+        run = swingup(params, goal, actuated, Q=Q, R=R, progress=bar, **kw)
     tr = run.trajectory
     u = tr.inputs()
     lines = [
-        f"swing-up    {actuated.value} to {run.lqr.linearization.equilibrium.label}, |u| <= {run.controller.umax[0]:g} N m, "
+        f"swing-up    {actuated} to {run.lqr.linearization.equilibrium.label}, |u| <= {run.controller.umax[0]:g} N m, "
         f"{tr.t[-1] if len(tr.t) else 0.0:g} s",
         f"result      {run.message}",
     ]
@@ -205,12 +227,38 @@ def _write_csv(tr, u, out) -> None:
                    header="t,phi,psi,dphi,dpsi,energy,work,u1,u2", comments="")
 
 
+def _actuation(actuated, nq: int, chain: bool):
+    """``--actuated`` as the library takes it: the double pendulum's label (joint numbers named by theirs), a
+    chain's ``"all"`` or joint numbers."""
+    if chain:
+        if actuated in ("acrobot", "pendubot"):
+            raise UsageError(f"--actuated: {actuated} names a joint of the double pendulum; a chain of links takes all "
+                             "or the joints' numbers (e.g. 2 or 1,3)")
+        if not isinstance(actuated, str) and max(actuated) > nq:
+            raise UsageError(f"--actuated: the chain has joints 1 to {nq}, got {','.join(map(str, actuated))}")
+        return "all" if actuated == "both" else actuated
+    if actuated == "all":
+        return "both"
+    if isinstance(actuated, str):
+        return actuated
+    labels = {(1,): "pendubot", (2,): "acrobot", (1, 2): "both"}
+    if actuated not in labels:
+        raise UsageError(f"--actuated: the double pendulum has joints 1 and 2, got {','.join(map(str, actuated))}")
+    return labels[actuated]
+
+
+def _limits(umax) -> str:
+    """Torque limits for a line: one number when every joint has the same."""
+    values = [u for u in umax if math.isfinite(u)]
+    return f"{values[0]:g}" if len(set(values)) == 1 else ",".join(f"{u:g}" for u in umax)
+
+
 def _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol, out, store, plot, resume, ensemble,
-         quiet):
+         quiet, shown=None):
     from ..analysis.roa import region_of_attraction
 
     for name, (lo, hi) in zip(plane or ("phi", "psi"), window or ()):
-        if name in ("phi", "psi") and (lo < -math.pi - 1e-12 or hi > math.pi + 1e-12):
+        if not name.startswith("d") and (lo < -math.pi - 1e-12 or hi > math.pi + 1e-12):
             raise UsageError(f"--window ({name}): an angle's offsets from the target must lie within -180..180 deg, "
                              f"got {lo:.6g}:{hi:.6g} rad")
     kw = given_only(n=n, plane=plane, window=window, t_end=t_end, rtol=rtol, atol=atol, umax=umax)  # else the library's
@@ -223,7 +271,8 @@ def _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol
     st, se = roa.stats, roa.settings
     a, b = roa.plane
     lines = [
-        f"target      {', '.join(f'{math.degrees(v):.6g} deg' for v in roa.target[:2])} ({actuated}, |u| <= {se['umax'][0]:g} N m)",
+        f"target      {', '.join(f'{math.degrees(v):.6g} deg' for v in roa.target[:len(roa.target) // 2])} "
+        f"({shown or actuated}, |u| <= {_limits([math.inf if u is None else u for u in se['umax']])} N m)",
         f"grid        {roa.n} x {roa.n} starts over {a} x {b} about the target, followed up to {se['t_end']:g} s",
         f"captured    {st['captured']} of {st['cells']} ({100 * roa.captured_fraction:.1f} %); inside the LQR estimate "
         f"dx' P dx < {roa.rho:.4g} at the start: {100 * roa.inner_fraction:.2f} %",

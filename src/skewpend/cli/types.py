@@ -136,17 +136,37 @@ class Interval(ParamType):
 
 
 class Plane(ParamType):
-    """``A,B``: two different coordinates of the state, of ``phi, psi, dphi, dpsi``."""
+    """``A,B``: two different coordinates of the state, of ``phi, psi, dphi, dpsi`` (a chain of links':
+    ``q1 .. qn, dq1 .. dqn``; the model's own are checked by the library)."""
 
     metavar = "A,B"
     NAMES = ("phi", "psi", "dphi", "dpsi")
+    NAME = re.compile(r"^d?(phi|psi|q[1-9][0-9]*)$")
 
     def convert(self, text, flag):
         parts = [p.strip().lower() for p in text.split(",")]
-        if len(parts) != 2 or any(p not in self.NAMES for p in parts) or parts[0] == parts[1]:
+        if len(parts) != 2 or any(not self.NAME.match(p) for p in parts) or parts[0] == parts[1]:
             raise UsageError(f"{flag}: expected two different coordinates of {', '.join(self.NAMES)} "
-                             f"(e.g. phi,psi or phi,dphi), got {text!r}")
+                             f"(e.g. phi,psi or phi,dphi; a chain's q1,q3 or q2,dq2), got {text!r}")
         return tuple(parts)
+
+
+class Actuation(ParamType):
+    """Which joints have a motor: ``both``, ``acrobot`` (the elbow), ``pendubot`` (the shoulder), ``all``, or the
+    joints' numbers ``2`` / ``1,3`` (a chain of links)."""
+
+    metavar = "both|acrobot|pendubot|all|J1,J2,..."
+    LABELS = ("both", "acrobot", "pendubot", "all")
+
+    def convert(self, text, flag):
+        t = text.strip().lower()
+        if t in self.LABELS:
+            return t
+        parts = [p.strip() for p in t.split(",")]
+        if not all(p.isdigit() and int(p) >= 1 for p in parts) or len(set(parts)) != len(parts):
+            raise UsageError(f"{flag}: expected {', '.join(self.LABELS)} or the numbers of the joints with a motor "
+                             f"(e.g. 2 or 1,3), got {text!r}")
+        return tuple(sorted(int(p) for p in parts))
 
 
 class Offsets(ParamType):

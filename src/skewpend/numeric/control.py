@@ -20,6 +20,11 @@ A :class:`Controller` says which joints are actuated (``"both"``, ``"acrobot"`` 
 
 The inputs add to the model's constant torques ``tau``; the work ``W`` of ``Q = tau + u - c q'``
 then includes theirs, so ``E - W`` stays conserved (the energy balance of every run).
+
+A chain of ``n`` links takes the same laws for its ``n`` joints (``Controller.nq``): a gain of shape
+``(n, 2 n)``, a table of ``n`` columns, a Python law of ``(q1 .. qn, q1' .. qn')`` returning ``n``
+torques (``nq=n``), ``actuated="all"`` or the joints' numbers (``(2,)``, ``(1, 3)``); the compiled
+``sp_control`` is laid out for the model's ``SP_NQ`` (``kernels.control_struct_type``).
 """
 
 from __future__ import annotations
@@ -36,37 +41,72 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["Controller", "ACTUATION", "KINDS", "CALLBACK", "torque_limits", "capture_many", "capture_lanes_available",
-           "raise_law_error"]
+__all__ = ["Controller", "ACTUATION", "KINDS", "CALLBACK", "MAX_JOINTS", "actuation_mask", "torque_limits",
+           "capture_many", "capture_lanes_available", "raise_law_error"]
 
-#: Which joints a motor drives: bit 0 the shoulder (joint 1), bit 1 the elbow (joint 2).
+#: Which joints a motor drives: bit 0 the shoulder (joint 1), bit 1 the elbow (joint 2).  A chain's
+#: controller takes ``"all"`` (``"both"``: every joint, the default) or the joints' numbers ``(1, 3)``.
 ACTUATION = {"both": 3, "pendubot": 1, "acrobot": 2}
 #: The laws (the ``SP_CTL_*`` codes of ``integrators.c``).
 KINDS = {"feedback": 1, "swingup": 2, "table": 3, "function": 4}
-#: The C signature of a Python law: u[2] at time t and state y[4] (``sp_control.callback``).
+#: The C signature of a Python law: u[n] at time t and state y[2 n] (``sp_control.callback``).
 CALLBACK = ctypes.CFUNCTYPE(None, ctypes.c_double, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double))
+#: The most joints a controller drives (the actuated set is one 32-bit mask in ``sp_control``).
+MAX_JOINTS = 31
 
 
-def _actuation(actuated: str) -> int:
-    if not isinstance(actuated, str) or actuated not in ACTUATION:
-        raise ParameterError(f"actuated must be one of {', '.join(ACTUATION)} (acrobot: the elbow only, pendubot: "
-                             f"the shoulder only), got {actuated!r}")
-    return ACTUATION[actuated]
+def actuation_mask(actuated, nq: int = 2) -> int:
+    """The actuated joints of a model of ``nq`` coordinates as ``sp_control``'s bit mask (bit j: joint
+    j + 1): ``"both"`` or ``"all"`` every joint, ``"acrobot"`` / ``"pendubot"`` (two joints only) the
+    elbow / the shoulder, or the joints' numbers 1 .. nq (``(2,)``, ``(1, 3)``)."""
+    if isinstance(actuated, str):
+        if actuated in ("both", "all"):
+            return (1 << nq) - 1
+        if actuated in ACTUATION and nq == 2:
+            return ACTUATION[actuated]
+    elif not isinstance(actuated, (bytes, bool)):
+        try:
+            joints = [operator_index(j) for j in actuated]
+        except TypeError:
+            joints = []
+        if joints and all(1 <= j <= nq for j in joints) and len(set(joints)) == len(joints):
+            return sum(1 << (j - 1) for j in joints)
+    if nq == 2:
+        raise ParameterError(f"actuated must be one of {', '.join(ACTUATION)} (acrobot: the elbow only, pendubot: the "
+                             f"shoulder only) or the joints' numbers, (1,) or (2,), got {actuated!r}")
+    raise ParameterError(f"actuated must be 'all' or the numbers of the joints with a motor, 1 to {nq} (e.g. (2,)), "
+                         f"got {actuated!r}")
 
 
-def torque_limits(umax) -> Tuple[float, float]:
+def operator_index(value) -> int:
+    """``value`` as an int (ints and NumPy's integers; not a bool or a float), else TypeError."""
+    import operator
+
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError("a bool is no joint number")
+    return operator.index(value)
+
+
+def _actuated_setting(actuated):
+    """``actuated`` as stored: a label, or the sorted tuple of joint numbers."""
+    return actuated if isinstance(actuated, str) else tuple(sorted(int(j) for j in actuated))
+
+
+def torque_limits(umax, n: int = 2) -> Tuple[float, ...]:
+    """Positive torque limits [N m], one for every joint or one per joint (``n`` joints; None or inf: none)."""
     if umax is None:
-        return (math.inf, math.inf)
-    refusal = ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint; inf: none), got {umax!r}")
+        return (math.inf,) * n
+    refusal = ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint"
+                             f"{'' if n == 2 else f': {n}'}; inf: none), got {umax!r}")
     if isinstance(umax, (str, bytes, bool)):
         raise refusal
     try:
-        values = np.broadcast_to(np.asarray(umax, dtype=float), (2,))
+        values = np.broadcast_to(np.asarray(umax, dtype=float), (n,))
     except (TypeError, ValueError, OverflowError):
         raise refusal from None
     if not np.all(values > 0) or np.any(values < 2.2250738585072014e-308):  # NaN fails the first, subnormals the second
         raise refusal
-    return float(values[0]), float(values[1])
+    return tuple(float(v) for v in values)
 
 
 def _array(name: str, value) -> np.ndarray:
@@ -95,14 +135,35 @@ def _finite(name: str, value, shape) -> np.ndarray:
     return a
 
 
+def _joints(nq) -> int:
+    """A number of coordinates (the double pendulum's 2, a chain's n), checked."""
+    try:
+        n = operator_index(nq)
+    except TypeError:
+        n = 0
+    if not 1 <= n <= MAX_JOINTS:
+        raise ParameterError(f"nq must be the model's number of coordinates, 1 to {MAX_JOINTS}, got {nq!r}")
+    return n
+
+
+def _gain_joints(K) -> int:
+    """The number of joints of a feedback gain ``K`` (n x 2 n)."""
+    a = _array("K", K)
+    if a.ndim != 2 or a.shape[1] != 2 * a.shape[0] or not 1 <= a.shape[0] <= MAX_JOINTS:
+        raise ParameterError(f"K must have shape (n, 2 n): a row per joint, a column per state (2, 4 for the double "
+                             f"pendulum), got {a.shape}")
+    return a.shape[0]
+
+
 @dataclass(frozen=True)
 class Controller:
     """The inputs of a run (see the module); build one with :meth:`feedback`, :meth:`swingup` or
-    :meth:`table`, pass it to :func:`skewpend.simulate` as ``controller=``."""
+    :meth:`table`, pass it to :func:`skewpend.simulate` as ``controller=``.  ``nq`` is the number of
+    joints it drives (the double pendulum's 2, a chain's n; the gain's or the table's shape says)."""
 
     kind: str
-    actuated: str = "both"
-    umax: Tuple[float, float] = (math.inf, math.inf)
+    actuated: Any = "both"
+    umax: Tuple[float, ...] = (math.inf, math.inf)
     K: np.ndarray = field(default_factory=lambda: np.zeros((2, 4)), repr=False)
     target: np.ndarray = field(default_factory=lambda: np.zeros(4))
     u_target: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -114,23 +175,30 @@ class Controller:
     times: Optional[np.ndarray] = field(default=None, repr=False)
     torques: Optional[np.ndarray] = field(default=None, repr=False)
     law: Any = field(default=None, repr=False)  #: a Python law (Controller.function)
+    nq: int = 2
 
     # -- constructors ------------------------------------------------------------------------
     @classmethod
-    def feedback(cls, K, target, u_target=(0.0, 0.0), *, actuated: str = "both", umax=None) -> "Controller":
-        """``u = u* - K (x - x*)``, ``K`` (2, 4) (rows for the joints; an unactuated joint's row is
-        ignored), ``target`` the state ``x*`` (4,), ``u_target`` the input there."""
-        _actuation(actuated)
-        return cls("feedback", actuated, torque_limits(umax), _finite("K", K, (2, 4)), _finite("target", target, (4,)),
-                   _finite("u_target", u_target, (2,)))
+    def feedback(cls, K, target, u_target=None, *, actuated="both", umax=None) -> "Controller":
+        """``u = u* - K (x - x*)``, ``K`` (n, 2 n) (rows for the joints -- (2, 4) for the double
+        pendulum; an unactuated joint's row is ignored), ``target`` the state ``x*`` (2 n,),
+        ``u_target`` the input there (default zeros)."""
+        n = _gain_joints(K)
+        actuation_mask(actuated, n)
+        return cls("feedback", _actuated_setting(actuated), torque_limits(umax, n), _finite("K", K, (n, 2 * n)),
+                   _finite("target", target, (2 * n,)),
+                   _finite("u_target", np.zeros(n) if u_target is None else u_target, (n,)), P=np.zeros((2 * n, 2 * n)),
+                   nq=n)
 
     @classmethod
-    def swingup(cls, energy_gain: float, target_energy: float, K, target, P, rho: float, u_target=(0.0, 0.0), *,
-                elbow_gains=(0.0, 0.0), actuated: str = "both", umax=None) -> "Controller":
-        """Energy shaping ``u_j = energy_gain (E* - E) q'_j`` on the actuated joints, switched to the
-        feedback ``u* - K (x - x*)`` inside ``(x - x*)^T P (x - x*) < rho``."""
-        _actuation(actuated)
-        energy_gain, target_energy, rho = (_real(n, v) for n, v in (("energy_gain", energy_gain),
+    def swingup(cls, energy_gain: float, target_energy: float, K, target, P, rho: float, u_target=None, *,
+                elbow_gains=(0.0, 0.0), actuated="both", umax=None) -> "Controller":
+        """Energy shaping ``u_j = energy_gain (E* - E) q'_j`` on the actuated joints (joints 2 .. n also held
+        towards their targets by the PD ``elbow_gains``), switched to the feedback ``u* - K (x - x*)`` inside
+        ``(x - x*)^T P (x - x*) < rho``."""
+        n = _gain_joints(K)
+        actuation_mask(actuated, n)
+        energy_gain, target_energy, rho = (_real(k, v) for k, v in (("energy_gain", energy_gain),
                                                                       ("target_energy", target_energy), ("rho", rho)))
         if not (math.isfinite(energy_gain) and energy_gain > 0):
             raise ParameterError(f"energy_gain must be a positive number, got {energy_gain!r}")
@@ -141,59 +209,79 @@ class Controller:
         gains = _finite("elbow_gains", elbow_gains, (2,))
         if np.any(gains < 0):
             raise ParameterError(f"elbow_gains (kp, kd) must not be negative, got {elbow_gains!r}")
-        return cls("swingup", actuated, torque_limits(umax), _finite("K", K, (2, 4)), _finite("target", target, (4,)),
-                   _finite("u_target", u_target, (2,)), float(energy_gain), (float(gains[0]), float(gains[1])),
-                   float(target_energy), _finite("P", P, (4, 4)), float(rho))
+        return cls("swingup", _actuated_setting(actuated), torque_limits(umax, n), _finite("K", K, (n, 2 * n)),
+                   _finite("target", target, (2 * n,)),
+                   _finite("u_target", np.zeros(n) if u_target is None else u_target, (n,)), float(energy_gain),
+                   (float(gains[0]), float(gains[1])), float(target_energy), _finite("P", P, (2 * n, 2 * n)),
+                   float(rho), nq=n)
 
     @classmethod
-    def table(cls, times: Sequence[float], torques, *, actuated: str = "both", umax=None) -> "Controller":
-        """``u(t)`` linear between the rows ``(times[k], torques[k])`` (``torques`` (n, 2) [N m]; a
-        1-D ``torques`` is the actuated joint's for the acrobot or pendubot), held at the ends."""
-        code = _actuation(actuated)
+    def table(cls, times: Sequence[float], torques, *, actuated="both", umax=None, nq: Optional[int] = None
+              ) -> "Controller":
+        """``u(t)`` linear between the rows ``(times[k], torques[k])`` (``torques`` (rows, n) [N m], a
+        column per joint; a 1-D ``torques`` is the one actuated joint's -- the acrobot's or pendubot's,
+        or a chain's ``actuated=(j,)`` with ``nq`` its joints), held at the ends."""
         t = _array("times", times)
         u = _array("torques", torques)
+        n = _joints(nq) if nq is not None else (u.shape[1] if u.ndim == 2 and u.shape[1] >= 1 else 2)
+        code = actuation_mask(actuated, n)
         if u.ndim == 1:
-            if actuated == "both":
-                raise ParameterError("torques must have two columns (one per joint) when both joints are actuated")
-            u = np.column_stack([u, np.zeros_like(u)] if code == 1 else [np.zeros_like(u), u])
-        if t.ndim != 1 or t.size < 1 or u.shape != (t.size, 2):
-            raise ParameterError(f"a torque table needs n times and n x 2 torques, got {t.shape} and {u.shape}")
+            if bin(code).count("1") != 1:
+                raise ParameterError(f"torques must have {n} columns (one per joint) when more than one joint is "
+                                     "actuated")
+            full = np.zeros((u.size, n))
+            full[:, code.bit_length() - 1] = u
+            u = full
+        if t.ndim != 1 or t.size < 1 or u.shape != (t.size, n):
+            raise ParameterError(f"a torque table needs k times and k x {n} torques, got {t.shape} and {u.shape}")
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(u))):
             raise ParameterError("a torque table must hold finite numbers")
         if t.size > 1 and np.any(np.diff(t) <= 0):
             raise ParameterError("a torque table's times must increase strictly")
-        return cls("table", actuated, torque_limits(umax), times=t, torques=u)
+        return cls("table", _actuated_setting(actuated), torque_limits(umax, n), times=t, torques=u, nq=n,
+                   K=np.zeros((n, 2 * n)), target=np.zeros(2 * n), u_target=np.zeros(n), P=np.zeros((2 * n, 2 * n)))
 
     @classmethod
-    def function(cls, f, *, actuated: str = "both", umax=None) -> "Controller":
+    def function(cls, f, *, actuated="both", umax=None, nq: int = 2) -> "Controller":
         """``u = f(t, x)``: a Python callable of the time [s] and the state ``x = (phi, psi, phi',
-        psi')`` (a NumPy array) returning the two joint torques [N m] (the joints not actuated get
-        0, then the limits apply).  The slow path (see the module): for laws the built-in ones
-        cannot express."""
-        _actuation(actuated)
+        psi')`` (a chain's ``(q1 .. qn, q1' .. qn')``, ``nq`` = n; a NumPy array) returning the joints'
+        torques [N m] (the joints not actuated get 0, then the limits apply).  The slow path (see the
+        module): for laws the built-in ones cannot express."""
+        n = _joints(nq)
+        actuation_mask(actuated, n)
         if not callable(f):
-            raise ParameterError(f"the law must be a callable f(t, x) -> (u1, u2), got {f!r}")
+            raise ParameterError(f"the law must be a callable f(t, x) -> (u1, ..., u{n}), got {f!r}")
         try:
-            inspect.signature(f).bind(0.0, np.zeros(4))
+            inspect.signature(f).bind(0.0, np.zeros(2 * n))
         except TypeError:
-            raise ParameterError(f"the law must take two arguments, f(t, x) -> (u1, u2); {f!r} does not") from None
+            raise ParameterError(f"the law must take two arguments, f(t, x) -> (u1, ..., u{n}); {f!r} does not") from None
         except ValueError:  # no signature to read (some built-ins): its first call says
             pass
-        return cls("function", actuated, torque_limits(umax), law=f)
+        return cls("function", _actuated_setting(actuated), torque_limits(umax, n), law=f, nq=n,
+                   K=np.zeros((n, 2 * n)), target=np.zeros(2 * n), u_target=np.zeros(n), P=np.zeros((2 * n, 2 * n)))
+
+    def check_model(self, nq: int) -> None:
+        """Refuse (one ParameterError) running this controller on a model of ``nq`` coordinates when it
+        drives another number of joints."""
+        if nq != self.nq:
+            what = "the double pendulum" if nq == 2 else f"a chain of {nq} links"
+            raise ParameterError(f"this controller drives {self.nq} joints; {what} has {nq} (build it with a gain "
+                                 f"of shape ({nq}, {2 * nq}), a table of {nq} columns, or nq={nq})")
 
     # -- what the integrators get --------------------------------------------------------------
     @property
     def state_size(self) -> int:
-        """5 (angles, speeds, W), or 6 with the time for a table or a Python law."""
-        return 6 if self.kind in ("table", "function") else 5
+        """2 n + 1 (angles, speeds, W; the double pendulum's 5), or 2 n + 2 with the time for a table or
+        a Python law."""
+        return 2 * self.nq + (2 if self.kind in ("table", "function") else 1)
 
     def struct(self):
         """The ``sp_control`` the compiled code reads (keep it alive during the call)."""
-        from .kernels import ControlStruct
+        from .kernels import control_struct_type
 
-        c = ControlStruct()
+        c = control_struct_type(self.nq)()
         c.kind = KINDS[self.kind]
-        c.actuated = ACTUATION[self.actuated]
+        c.actuated = actuation_mask(self.actuated, self.nq)
         c.umax[:] = list(self.umax)
         c.K[:] = np.ravel(self.K).tolist()
         c.xs[:] = np.asarray(self.target, dtype=float).tolist()
@@ -209,58 +297,68 @@ class Controller:
             c._keep = table  # the array lives as long as the struct
         if self.kind == "function":
             c.errors = []
-            c._keep = CALLBACK(_python_law(self.law, c.errors))
+            c._keep = CALLBACK(_python_law(self.law, c.errors, self.nq))
             c.callback = ctypes.cast(c._keep, ctypes.c_void_p)
         return c
 
+    def _rows(self, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """States and times as the compiled row functions read them: (k, 2 n + 2), the time last."""
+        nx = 2 * self.nq
+        rows = np.zeros((len(t), nx + 2))
+        rows[:, :nx] = np.asarray(y, dtype=float)[:, :nx]
+        rows[:, nx + 1] = t
+        return rows
+
     def inputs(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """The inputs ``u`` (n, 2) [N m] at the states ``y`` (n, 4) and times ``t`` (n,)."""
-        rows = np.zeros((len(t), 6))
-        rows[:, :4] = y
-        rows[:, 5] = t
-        out = np.empty((len(t), 2))
+        """The inputs ``u`` (k, n) [N m] at the states ``y`` (k, 2 n) and times ``t`` (k,)."""
+        self.check_model(kernel.nq)
+        rows = self._rows(t, y)
+        out = np.empty((len(t), self.nq))
         dp = ctypes.POINTER(ctypes.c_double)
         c = self.struct()
-        kernel.lib.sp_inputs_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), 6, p.ctypes.data_as(dp),
-                                  out.ctypes.data_as(dp))
+        kernel.lib.sp_inputs_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), rows.shape[1],
+                                  np.ascontiguousarray(p, dtype=float).ctypes.data_as(dp), out.ctypes.data_as(dp))
         raise_law_error(c)
         return out
 
     def closed_loop(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """The closed loop's ``y'`` (n, 4) at the states ``y`` (n, 4) and times ``t`` (n,): the
+        """The closed loop's ``y'`` (k, 2 n) at the states ``y`` (k, 2 n) and times ``t`` (k,): the
         generated right-hand side with these inputs added to the torques (``sp_rhs_ctl_many``)."""
-        rows = np.zeros((len(t), 6))
-        rows[:, :4] = y
-        rows[:, 5] = t
+        self.check_model(kernel.nq)
+        rows = self._rows(t, y)
         out = np.empty_like(rows)
         dp = ctypes.POINTER(ctypes.c_double)
         c = self.struct()
-        kernel.lib.sp_rhs_ctl_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), 6, p.ctypes.data_as(dp),
-                                   out.ctypes.data_as(dp))
-        return out[:, :4]
+        kernel.lib.sp_rhs_ctl_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), rows.shape[1],
+                                   np.ascontiguousarray(p, dtype=float).ctypes.data_as(dp), out.ctypes.data_as(dp))
+        raise_law_error(c)
+        return out[:, :2 * self.nq]
 
     def closed_loop_function(self, kernel, p: np.ndarray):
-        """:meth:`closed_loop` as a function ``f(y) -> y'`` of states ``y`` (n, 4) at t = 0, the
+        """:meth:`closed_loop` as a function ``f(y) -> y'`` of states ``y`` (k, 2 n) at t = 0, the
         ``sp_control`` built once (for searches that call it thousands of times)."""
+        self.check_model(kernel.nq)
         c = self.struct()
         pp = np.ascontiguousarray(p, dtype=np.float64)
         dp = ctypes.POINTER(ctypes.c_double)
         fn, ref, p_ptr = kernel.lib.sp_rhs_ctl_many, ctypes.byref(c), pp.ctypes.data_as(dp)
+        nx = 2 * self.nq
 
         def f(y: np.ndarray) -> np.ndarray:
-            rows = np.zeros((len(y), 6))
-            rows[:, :4] = y
+            rows = np.zeros((len(y), nx + 2))
+            rows[:, :nx] = y
             out = np.empty_like(rows)
-            fn(ref, rows.ctypes.data_as(dp), len(rows), 6, p_ptr, out.ctypes.data_as(dp))
+            fn(ref, rows.ctypes.data_as(dp), len(rows), nx + 2, p_ptr, out.ctypes.data_as(dp))
             raise_law_error(c)
-            return out[:, :4]
+            return out[:, :nx]
 
         f.keep = (c, pp)  # alive as long as f
         return f
 
     def settings(self) -> Dict[str, Any]:
         """Plain JSON data describing the inputs (part of a run's settings)."""
-        d: Dict[str, Any] = {"kind": self.kind, "actuated": self.actuated,
+        d: Dict[str, Any] = {"kind": self.kind,
+                             "actuated": self.actuated if isinstance(self.actuated, str) else list(self.actuated),
                              "umax": [x if math.isfinite(x) else None for x in self.umax]}
         if self.kind in ("feedback", "swingup"):
             d.update(K=np.asarray(self.K).tolist(), target=np.asarray(self.target).tolist(),
@@ -273,6 +371,8 @@ class Controller:
             d.update(times=self.times.tolist(), torques=self.torques.tolist())
         if self.kind == "function":
             d.update(function=getattr(self.law, "__qualname__", repr(self.law)))
+        if self.nq != 2:
+            d.update(nq=self.nq)
         return d
 
 
@@ -286,35 +386,41 @@ def _interrupt_pending() -> Optional[type]:
     return owner.pending if isinstance(owner, Interrupts) else None
 
 
-def _python_law(f, errors: list):
+def _python_law(f, errors: list, nq: int = 2):
     """The C callback around ``f(t, x)``: the torques, or NaN (which stops the integration) with
     the exception kept in ``errors`` -- an exception must not cross the C frames.  A Ctrl-C (or
     SIGTERM) recorded by the caller's :class:`~skewpend.interrupts.Interrupts` stops it the same
     way at the next call of the law; the caller's check then raises it."""
     nan = float("nan")
+    what = "two torques (u1, u2)" if nq == 2 else f"{nq} torques (u1, ..., u{nq})"
+
+    def stop(u):
+        for r in range(nq):
+            u[r] = nan
 
     def law(t, y, u):
         if errors:
-            u[0] = u[1] = nan
+            stop(u)
             return
         pending = _interrupt_pending()
         if pending is not None:
             errors.append(pending())
-            u[0] = u[1] = nan
+            stop(u)
             return
         try:
-            got = f(t, np.array([y[0], y[1], y[2], y[3]]))
+            got = f(t, np.array(y[:2 * nq]))
             try:
                 v = np.asarray(got, dtype=float).reshape(-1)
             except (TypeError, ValueError, OverflowError):
                 v = None
-            if v is None or v.shape != (2,):
-                raise ParameterError("the controller function must return two torques (u1, u2) [N m], got "
+            if v is None or v.shape != (nq,):
+                raise ParameterError(f"the controller function must return {what} [N m], got "
                                      + (f"shape {v.shape}" if v is not None else repr(got)[:60]))
-            u[0], u[1] = float(v[0]), float(v[1])
+            for r in range(nq):
+                u[r] = float(v[r])
         except BaseException as exc:  # noqa: BLE001 - raised again by the caller (KeyboardInterrupt too)
             errors.append(exc)
-            u[0] = u[1] = nan
+            stop(u)
 
     return law
 
@@ -352,7 +458,7 @@ LANE_BUDGET = 20_000
 
 def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarray, *, t_end: float, rtol: float,
                  atol: float, max_steps: int, P: np.ndarray, rho: float, cancel=None, group: int = 16):
-    """The closed loop of ``controller`` from each of ``starts`` (m, 4), integrated by DOP853 until
+    """The closed loop of ``controller`` from each of ``starts`` (m, 2 n), integrated by DOP853 until
     it enters the region ``dx^T P dx < rho`` about the controller's target: ``(time, steps,
     rejected, status)`` -- the capture time [s] (NaN: not by ``t_end``, or failed), the accepted
     steps, the rejected steps (``max_steps`` bounds their sum) and the integration's status code
@@ -368,13 +474,15 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
     grouping, the lane or the other starts."""
     from .ensemble import Cancelled
 
-    starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 4)
+    controller.check_model(kernel.nq)
+    nx = 2 * kernel.nq
+    starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, nx)
     m = starts.shape[0]
     time = np.full(m, np.nan)
     steps = np.zeros(m, dtype=np.int64)
     rejected = np.zeros(m, dtype=np.int64)
     status = np.zeros(m, dtype=np.int8)
-    region = np.ascontiguousarray(P, dtype=np.float64).reshape(4, 4)
+    region = np.ascontiguousarray(P, dtype=np.float64).reshape(nx, nx)
     pp = np.ascontiguousarray(p, dtype=np.float64)
     c = controller.struct()
     dp = ctypes.POINTER(ctypes.c_double)

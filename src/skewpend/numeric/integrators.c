@@ -5,7 +5,8 @@
  *     static void rhs(const double *y, const double *p, double *out);      y' = F(y; p)
  *     static void ham_rhs(const double *z, const double *p, double *out);  the same in (q, p_q)
  *     static double energy(const double *y, const double *p);              E = T + Pi (swing-up inputs)
- *     #define SP_NPARAM, SP_TAU1, SP_TAU2   the length of p and where its constant torques are
+ *     #define SP_NQ, SP_NPARAM, SP_TAU_INDEX the coordinates, the length of p and where its constant
+ *                                          torques are ({i_1, ..., i_n}: one per coordinate)
  *
  * for states of at most SP_NMAX components.  Everything here is generic in the state size n.
  * The flip kernel (SP_FLIP_KERNEL defined) also has sp_flip at the end, for ensembles of starts
@@ -36,6 +37,11 @@
 #include <stdint.h>
 #include <string.h>
 
+#ifndef SP_NQ
+#define SP_NQ 2 /* coordinates: the double pendulum's 2; a chain defines its own */
+#endif
+#define SP_NX (2 * SP_NQ) /* the mechanical state: angles and speeds */
+#define SP_NT (SP_NX + 1)  /* the time's place in the state of a run whose inputs read it (after W) */
 #ifndef SP_NMAX
 #define SP_NMAX 8 /* the largest state: the double pendulum's 5 (6 with a controller's clock); a chain defines its own */
 #endif
@@ -189,19 +195,19 @@ static inline double dop_dense_value(double y, const double *F, ptrdiff_t fs, do
 #define SP_CTL_CALLBACK 4
 typedef struct {
     int32_t kind;              /* SP_CTL_* */
-    int32_t actuated;          /* bit 0: joint 1 (the shoulder), bit 1: joint 2 (the elbow) */
-    double umax[2];            /* saturation of each joint's input [N m] (inf: none) */
-    double K[8];               /* feedback gain, 2 x 4 row-major */
-    double xs[4];              /* target state x* */
-    double us[2];              /* feedforward input u* at the target */
+    int32_t actuated;          /* bit j: joint j + 1 driven (the double pendulum's bit 0 the shoulder, bit 1 the elbow) */
+    double umax[SP_NQ];        /* saturation of each joint's input [N m] (inf: none) */
+    double K[SP_NQ * SP_NX];   /* feedback gain, SP_NQ x SP_NX row-major */
+    double xs[SP_NX];          /* target state x* */
+    double us[SP_NQ];          /* feedforward input u* at the target */
     double ke;                 /* swing-up: energy gain [N m s / J] */
-    double kp, kd;             /* swing-up: the elbow's PD gains [N m, N m s] */
+    double kp, kd;             /* swing-up: the PD gains holding joints 2.. [N m, N m s] */
     double E_target;           /* swing-up: the energy E* [J] */
-    double P[16];              /* swing-up: the region (x - x*)' P (x - x*) < rho where the feedback takes over */
+    double P[SP_NX * SP_NX];   /* swing-up: the region (x - x*)' P (x - x*) < rho where the feedback takes over */
     double rho;
-    int64_t n_table;           /* table: n_table rows of (t, u1, u2) */
+    int64_t n_table;           /* table: n_table rows of (t, u1 .. u_SP_NQ) */
     const double *table;
-    void (*callback)(double t, const double *y, double *u); /* callback: u[2] at time t and state y[4] */
+    void (*callback)(double t, const double *y, double *u); /* callback: u[SP_NQ] at time t and state y[SP_NX] */
 } sp_control;
 
 /* the active control of this thread (a run with inputs sets it for the duration of a call); the
@@ -221,53 +227,61 @@ static double sp_wrap(double x)
     return w - pi;
 }
 
+/* the state's deviation from the target of c, the angles wrapped */
+static inline void sp_deviation(const sp_control *c, const double *y, double *dx)
+{
+    for (int i = 0; i < SP_NQ; i++) dx[i] = sp_wrap(y[i] - c->xs[i]);
+    for (int i = SP_NQ; i < SP_NX; i++) dx[i] = y[i] - c->xs[i];
+}
+
 /* dx' P dx about the target of c, the angles of dx wrapped */
 static double sp_region(const sp_control *c, const double *P, const double *y)
 {
-    double dx[4] = {sp_wrap(y[0] - c->xs[0]), sp_wrap(y[1] - c->xs[1]), y[2] - c->xs[2], y[3] - c->xs[3]}, v = 0.0;
-    for (int i = 0; i < 4; i++)
-        for (int j = 0; j < 4; j++) v += dx[i] * P[4 * i + j] * dx[j];
+    double dx[SP_NX], v = 0.0;
+    sp_deviation(c, y, dx);
+    for (int i = 0; i < SP_NX; i++)
+        for (int j = 0; j < SP_NX; j++) v += dx[i] * P[SP_NX * i + j] * dx[j];
     return v;
 }
 
-/* the input u[2] at state y (y[5] the time for a table) */
+/* the input u[SP_NQ] at state y (y[SP_NT] the time for a table or a callback) */
 static void sp_input(const sp_control *c, const double *y, const double *p, double *u)
 {
-    double dx[4] = {sp_wrap(y[0] - c->xs[0]), sp_wrap(y[1] - c->xs[1]), y[2] - c->xs[2], y[3] - c->xs[3]};
+    double dx[SP_NX];
+    sp_deviation(c, y, dx);
     int feedback = c->kind == SP_CTL_FEEDBACK;
-    u[0] = u[1] = 0.0;
+    for (int r = 0; r < SP_NQ; r++) u[r] = 0.0;
     if (c->kind == SP_CTL_SWINGUP) {
         if (sp_region(c, c->P, y) < c->rho) {
             feedback = 1;
         } else {
             double e = c->E_target - energy(y, p);
-            u[0] = c->ke * e * y[2];
-            u[1] = c->ke * e * y[3] - c->kp * dx[1] - c->kd * y[3];
+            u[0] = c->ke * e * y[SP_NQ];
+            for (int r = 1; r < SP_NQ; r++) u[r] = c->ke * e * y[SP_NQ + r] - c->kp * dx[r] - c->kd * y[SP_NQ + r];
         }
     } else if (c->kind == SP_CTL_CALLBACK) {
-        c->callback(y[5], y, u);
+        c->callback(y[SP_NT], y, u);
     } else if (c->kind == SP_CTL_TABLE) {
         const double *T = c->table;
-        const int64_t n = c->n_table;
-        const double t = y[5];
-        if (t <= T[0]) { u[0] = T[1]; u[1] = T[2]; }
-        else if (t >= T[3 * (n - 1)]) { u[0] = T[3 * (n - 1) + 1]; u[1] = T[3 * (n - 1) + 2]; }
+        const int64_t n = c->n_table, w = SP_NQ + 1;
+        const double t = y[SP_NT];
+        if (t <= T[0]) { for (int r = 0; r < SP_NQ; r++) u[r] = T[1 + r]; }
+        else if (t >= T[w * (n - 1)]) { for (int r = 0; r < SP_NQ; r++) u[r] = T[w * (n - 1) + 1 + r]; }
         else {
-            int64_t lo = 0, hi = n - 1;  /* T[3 lo] <= t < T[3 hi] */
-            while (hi - lo > 1) { int64_t mid = (lo + hi) / 2; if (T[3 * mid] <= t) lo = mid; else hi = mid; }
-            const double w = (t - T[3 * lo]) / (T[3 * hi] - T[3 * lo]);
-            u[0] = T[3 * lo + 1] + w * (T[3 * hi + 1] - T[3 * lo + 1]);
-            u[1] = T[3 * lo + 2] + w * (T[3 * hi + 2] - T[3 * lo + 2]);
+            int64_t lo = 0, hi = n - 1;  /* T[w lo] <= t < T[w hi] */
+            while (hi - lo > 1) { int64_t mid = (lo + hi) / 2; if (T[w * mid] <= t) lo = mid; else hi = mid; }
+            const double a = (t - T[w * lo]) / (T[w * hi] - T[w * lo]);
+            for (int r = 0; r < SP_NQ; r++) u[r] = T[w * lo + 1 + r] + a * (T[w * hi + 1 + r] - T[w * lo + 1 + r]);
         }
     }
     if (feedback) {
-        for (int r = 0; r < 2; r++) {
+        for (int r = 0; r < SP_NQ; r++) {
             double acc = c->us[r];
-            for (int j = 0; j < 4; j++) acc -= c->K[4 * r + j] * dx[j];
+            for (int j = 0; j < SP_NX; j++) acc -= c->K[SP_NX * r + j] * dx[j];
             u[r] = acc;
         }
     }
-    for (int r = 0; r < 2; r++) {
+    for (int r = 0; r < SP_NQ; r++) {
         if (!(c->actuated & (1 << r))) u[r] = 0.0;
         if (u[r] > c->umax[r]) u[r] = c->umax[r];
         if (u[r] < -c->umax[r]) u[r] = -c->umax[r];
@@ -281,13 +295,13 @@ static inline void model_rhs(const double *y, const double *p, double *out)
         rhs(y, p, out);
         return;
     }
-    double q[SP_NPARAM], u[2];
+    static const int tau_index[SP_NQ] = SP_TAU_INDEX;
+    double q[SP_NPARAM], u[SP_NQ];
     memcpy(q, p, sizeof q);
     sp_input(sp_ctl, y, p, u);
-    q[SP_TAU1] += u[0];
-    q[SP_TAU2] += u[1];
+    for (int r = 0; r < SP_NQ; r++) q[tau_index[r]] += u[r];
     rhs(y, q, out);
-    if (sp_ctl->kind >= SP_CTL_TABLE) out[5] = 1.0; /* a table or callback reads the time, a sixth state */
+    if (sp_ctl->kind >= SP_CTL_TABLE) out[SP_NT] = 1.0; /* a table or callback reads the time, a state after W */
 }
 
 /* the DOP853 core for the model's own state (chaos.c includes it again for the variational systems) */
@@ -472,14 +486,15 @@ int sp_rk4_ctl(const sp_control *c, sp_state *s, int n, const double *p, double 
     return rc;
 }
 
-/* the inputs at nrows states (`stride` doubles apart, the time at offset 5 for a table) into out[2 nrows] */
+/* the inputs at nrows states (`stride` doubles apart, the time at offset SP_NT for a table) into
+ * out[SP_NQ nrows] */
 void sp_inputs_many(const sp_control *c, const double *rows, int64_t nrows, int64_t stride, const double *p, double *out)
 {
-    for (int64_t r = 0; r < nrows; r++) sp_input(c, rows + r * stride, p, out + 2 * r);
+    for (int64_t r = 0; r < nrows; r++) sp_input(c, rows + r * stride, p, out + SP_NQ * r);
 }
 
 /* the closed loop's right-hand side y' (SP_NMAX doubles per row, of which the state's) at nrows states
- * (`stride` doubles apart, 5 or 6 components each) into out[nrows * stride] */
+ * (`stride` doubles apart, SP_NX + 1 or SP_NX + 2 components each) into out[nrows * stride] */
 void sp_rhs_ctl_many(const sp_control *c, const double *rows, int64_t nrows, int64_t stride, const double *p,
                      double *out)
 {
@@ -497,7 +512,7 @@ void sp_rhs_ctl_many(const sp_control *c, const double *rows, int64_t nrows, int
 
 int64_t sp_control_size(void) { return (int64_t)sizeof(sp_control); }
 
-/* Capture of m closed-loop starts (regions of attraction): each start (4 doubles: angles and speeds)
+/* Capture of m closed-loop starts (regions of attraction): each start (SP_NX doubles: angles and speeds)
  * is integrated with the control c by DOP853 (the core above, on the 4 mechanical components) until
  * it enters the region dx' P dx < rho about the target c->xs (angles wrapped) -- captured: time[k]
  * is the entry, located by bisection on the 7th-order dense output of the first step that ends
@@ -510,7 +525,7 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
                      int64_t *steps, int64_t *rejected, int8_t *status)
 {
     double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX], y[SP_NMAX], f[SP_NMAX], F[7 * SP_NMAX];
-    const int n = 4;
+    const int n = SP_NX;
     const sp_control *outer = sp_ctl;
     sp_ctl = c;
     for (int64_t k = 0; k < m; k++) {
@@ -518,7 +533,7 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
         int64_t nacc = 0, nrej = 0, nfev = 0;
         int rc = SP_STATUS_SUCCESS;
         memset(y, 0, sizeof y);
-        memcpy(y, starts + 4 * k, 4 * sizeof(double));
+        memcpy(y, starts + SP_NX * k, SP_NX * sizeof(double));
         model_rhs(y, p, f);
         if (!all_finite(y, n) || !all_finite(f, n)) rc = SP_STATUS_NONFINITE;
         else if (sp_region(c, P, y) < rho) when = 0.0;

@@ -62,8 +62,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
         out[-1:-1] = ["#define SP_FLIP_KERNEL 1"]
     out[-1:-1] = status_defines()
     # where the integrators' inputs add to the constant torques (from the one parameter order)
-    out[-1:-1] = [f"#define SP_NPARAM {len(PARAMETER_ORDER)}", f"#define SP_TAU1 {PARAMETER_ORDER.index('tau1')}",
-                  f"#define SP_TAU2 {PARAMETER_ORDER.index('tau2')}",
+    out[-1:-1] = [f"#define SP_NPARAM {len(PARAMETER_ORDER)}",
                   f"#define SP_NQ {len(_STATE) // 2}  /* coordinates (the state holds them and their rates) */",
                   "#define SP_NMAX 8  /* the integrators' largest state: 5, 6 with a controller's clock */",
                   f"#define SP_TAU_INDEX {{{', '.join(str(PARAMETER_ORDER.index(n)) for n in TORQUE_NAMES)}}}  /* p's torques, a coordinate each */"]

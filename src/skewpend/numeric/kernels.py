@@ -35,7 +35,7 @@ from ..errors import SkewpendError
 from ..symbolic.model import Parameters
 from .conventions import GEOMETRY, PARAMETER_ORDER, STATE_ORDER, geometry_of, optional_terms, parameter_vector, structure_of
 
-__all__ = ["ControlStruct",
+__all__ = ["ControlStruct", "control_struct_type",
     "PARAMETER_ORDER",
     "STATE_ORDER",
     "geometry_of",
@@ -195,27 +195,45 @@ class TaylorState(ctypes.Structure):
     at = classmethod(_state_at)
 
 
-class ControlStruct(ctypes.Structure):
-    """Mirror of ``sp_control`` in ``integrators.c``: the inputs applied inside the integrators
-    (:mod:`skewpend.numeric.control` fills it)."""
+_CONTROL_TYPES: Dict[int, Any] = {}
 
-    _fields_ = [
-        ("kind", ctypes.c_int32),
-        ("actuated", ctypes.c_int32),
-        ("umax", ctypes.c_double * 2),
-        ("K", ctypes.c_double * 8),
-        ("xs", ctypes.c_double * 4),
-        ("us", ctypes.c_double * 2),
-        ("ke", ctypes.c_double),
-        ("kp", ctypes.c_double),
-        ("kd", ctypes.c_double),
-        ("E_target", ctypes.c_double),
-        ("P", ctypes.c_double * 16),
-        ("rho", ctypes.c_double),
-        ("n_table", ctypes.c_int64),
-        ("table", ctypes.POINTER(ctypes.c_double)),
-        ("callback", ctypes.c_void_p),
-    ]
+
+def control_struct_type(nq: int):
+    """The mirror of ``sp_control`` (``integrators.c``) for a model of ``nq`` coordinates (2 for the
+    double pendulum, ``n`` for a chain of ``n`` links): the inputs applied inside the integrators
+    (:mod:`skewpend.numeric.control` fills it)."""
+    if nq in _CONTROL_TYPES:
+        return _CONTROL_TYPES[nq]
+    nx = 2 * nq
+
+    class _Control(ctypes.Structure):
+        """Mirror of ``sp_control`` in ``integrators.c``."""
+
+        _fields_ = [
+            ("kind", ctypes.c_int32),
+            ("actuated", ctypes.c_int32),
+            ("umax", ctypes.c_double * nq),
+            ("K", ctypes.c_double * (nq * nx)),
+            ("xs", ctypes.c_double * nx),
+            ("us", ctypes.c_double * nq),
+            ("ke", ctypes.c_double),
+            ("kp", ctypes.c_double),
+            ("kd", ctypes.c_double),
+            ("E_target", ctypes.c_double),
+            ("P", ctypes.c_double * (nx * nx)),
+            ("rho", ctypes.c_double),
+            ("n_table", ctypes.c_int64),
+            ("table", ctypes.POINTER(ctypes.c_double)),
+            ("callback", ctypes.c_void_p),
+        ]
+
+    _Control.__name__ = _Control.__qualname__ = "ControlStruct" if nq == 2 else f"ControlStruct{nq}"
+    _CONTROL_TYPES[nq] = _Control
+    return _Control
+
+
+#: The double pendulum's ``sp_control``.
+ControlStruct = control_struct_type(2)
 
 
 _LYAP_TYPES: Dict[int, Any] = {}
@@ -454,7 +472,8 @@ class Kernel:
         lib.sp_dop853.argtypes = [sp, ctypes.c_int, dp, d, d, d, i64, i64, d, i64, ip, dp, i64, ip]
         lib.sp_rk4.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, i64, dp, i64, ip]
         lib.sp_gauss.argtypes = [sp, ctypes.c_int, dp, d, d, i64, i64, d, i64, i64, dp, i64, ip]
-        cp = ctypes.POINTER(ControlStruct)
+        self.ControlStruct = control_struct_type(self.nq)  #: this model's ``sp_control``
+        cp = ctypes.POINTER(self.ControlStruct)
         lib.sp_dop853_ctl.argtypes = [cp, sp, ctypes.c_int, dp, d, d, d, i64, i64, d, i64, ip, dp, i64, ip]
         lib.sp_rk4_ctl.argtypes = [cp, sp, ctypes.c_int, dp, d, d, i64, i64, i64, dp, i64, ip]
         lib.sp_inputs_many.argtypes, lib.sp_inputs_many.restype = [cp, dp, i64, i64, dp, dp], None
@@ -464,8 +483,9 @@ class Kernel:
         lib.sp_rhs_ctl_many.argtypes, lib.sp_rhs_ctl_many.restype = [cp, dp, i64, i64, dp, dp], None
         for name in ("sp_dop853", "sp_rk4", "sp_gauss", "sp_dop853_ctl", "sp_rk4_ctl"):
             getattr(lib, name).restype = ctypes.c_int
-        if lib.sp_control_size() != ctypes.sizeof(ControlStruct):
-            raise CompilerError(f"{path}: control layout mismatch ({lib.sp_control_size()} != {ctypes.sizeof(ControlStruct)} bytes)")
+        if lib.sp_control_size() != ctypes.sizeof(self.ControlStruct):
+            raise CompilerError(f"{path}: control layout mismatch ({lib.sp_control_size()} != "
+                                f"{ctypes.sizeof(self.ControlStruct)} bytes)")
         self.flip = flip
         if flip:  # the flip kernel: sp_flip, many starts at rest side by side (integrators.c)
             if not hasattr(lib, "sp_flip"):

@@ -426,8 +426,7 @@ def _header(structure: ChainStructure, form: str) -> List[str]:
         f"#define SP_NQ {n}",
         f"#define SP_NPARAM {len(names)}",
         f"#define SP_NMAX {max(8, 2 * n + 2)}",
-        f"#define SP_TAU1 {torque[0]}",
-        f"#define SP_TAU2 {torque[min(1, n - 1)]}  /* two inputs of the integrators' controllers (links 1 and 2) */",
+        f"#define SP_TAU_INDEX {{{', '.join(map(str, torque))}}}  /* p's torques, a coordinate each */",
         "#define SP_NO_JAC 1",
     ]
 
@@ -550,15 +549,13 @@ def chain_sensitivity_c_source(structure: ChainStructure) -> str:
     (the same graphs as ``rhs``), each column one solve with the factors of ``M``.  ``rhs_jac`` is the
     whole right-hand side ``(q', q'', W')`` and its Jacobian, (2 n + 1) x (2 n + 1) row-major, the work
     ``W' = Q . q'`` included (its derivative in the speeds ``Q_i + q_i' dQ_i/dq_i'``; nothing depends
-    on ``W``).  Appended to the straight-line source (:func:`chain_c_source`), with ``SP_TAU_INDEX``."""
+    on ``W``).  Appended to the straight-line source (:func:`chain_c_source`), which defines ``SP_TAU_INDEX``."""
     sens_y, sens_p = _sensitivity_functions(structure)
     n = structure.n
     names = parameter_names(n)
     npar = len(names)
     I = "    "
-    tau = ", ".join(str(names.index(f"tau{i}")) for i in range(1, n + 1))
-    out = [f"#define SP_TAU_INDEX {{{tau}}}  /* p's torques, a coordinate each */", "",
-           f"/* q'' into acc[{n}], d q''/d y into A[{n} x {2 * n}] and d q''/d p into B[{n} x SP_NPARAM] (row-major) */",
+    out = [f"/* q'' into acc[{n}], d q''/d y into A[{n} x {2 * n}] and d q''/d p into B[{n} x SP_NPARAM] (row-major) */",
            "static void rhs_sens(const double *y, const double *p, double *acc, double *A, double *B)", "{"]
     out += _solved_model(structure, I) + [f"{I}for (int i = 0; i < {n}; i++) acc[i] = sp_a[i];"]
     out += [f"{I}double Ry[{n * 2 * n}], Rp[{n * npar}];", f"{I}{{"]

@@ -115,14 +115,15 @@ class Trajectory(ResultProtocol):
     controller: Any = field(default=None, repr=False, compare=False)
 
     def inputs(self) -> np.ndarray:
-        """The joint torques the run's ``controller`` applied at each row, (n, 2) [N m] (the
-        constant torques ``tau`` of the parameters not included; zeros without a controller)."""
+        """The joint torques the run's ``controller`` applied at each row, (k, n) [N m] -- the double
+        pendulum's (k, 2) -- (the constant torques ``tau`` of the parameters not included; zeros without a
+        controller)."""
         if self.controller is None:
-            return np.zeros((len(self.t), 2))
-        from .kernels import kernel_module, parameter_vector
+            return np.zeros((len(self.t), self.y.shape[1] // 2))
+        from .kernels import model_kernel, model_vector
 
-        kernel = self._kernel if self._kernel is not None else kernel_module(self.params)
-        return self.controller.inputs(kernel, parameter_vector(self.params), self.t, self.y)
+        kernel = self._kernel if self._kernel is not None else model_kernel(self.params)
+        return self.controller.inputs(kernel, model_vector(self.params), self.t, self.y)
 
     result_kind: ClassVar[str] = TRAJECTORY_KIND
 
@@ -530,9 +531,6 @@ def simulate(
 
         if not isinstance(params, Chain):
             raise ParameterError(f"simulate takes Parameters or a Chain, got {type(params).__name__}")
-        if controller is not None:
-            raise ParameterError("a controller drives the double pendulum's two joints; a chain of links takes constant "
-                                 "torques only (each link's torque)")
         if method == "taylor":
             raise ParameterError("method taylor: its series are generated for the double pendulum; a chain takes "
                                  "dop853, rk4 or gauss (or auto)")
@@ -567,6 +565,7 @@ def simulate(
         if not isinstance(controller, Controller):
             raise ParameterError(f"controller must be a skewpend Controller (feedback, swing-up, a table or a Python "
                                  f"function: Controller.function), got {controller!r}")
+        controller.check_model(params.n if chain else 2)
         if method == "gauss":
             raise ParameterError("inputs that vary need dop853 or rk4 (gauss integrates Hamilton's equations of the "
                                  "model with constant torques)")
@@ -764,7 +763,7 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
         tol, max_iter = 1e-15, 100
         settings.update(implicit_tol=tol, implicit_max_iter=max_iter)
     else:
-        state = kernel.State.at(0.0, y + [0.0] if controller is None or controller.state_size == 5 else y + [0.0, 0.0])
+        state = kernel.State.at(0.0, y + [0.0] * (1 if controller is None else controller.state_size - len(y)))
     n = 2 * kernel.nq + 1 if controller is None else controller.state_size
     cstruct = None if controller is None else controller.struct()
     cref = None if cstruct is None else ctypes.byref(cstruct)

@@ -40,8 +40,33 @@ def new_figure(figsize):
     return figure_class()(figsize=figsize, layout="constrained")
 
 
+#: Characters of the heading's 8.5 pt text per inch of figure width (a longer line is wrapped, not clipped).
+HEADING_CHARS_PER_INCH = 16.0
+
+
+def _wrap_items(line: str, width: int) -> list:
+    """``line`` in lines of at most ``width`` characters, broken only after a ``, `` or ``; `` (an item
+    such as ``t_end = 10 s`` is never split); an item longer than ``width`` stands on a line of its own."""
+    import re
+
+    items = re.split(r"(?<=[,;]) ", line)
+    lines, current = [], ""
+    for item in items:
+        if current and len(current) + 1 + len(item) > width:
+            lines.append(current)
+            current = item
+        else:
+            current = f"{current} {item}" if current else item
+    return lines + [current]
+
+
 def heading(fig, text: str) -> None:
-    fig.suptitle(text, fontsize=8.5, color="0.25", linespacing=1.45)
+    """The figure's heading, each line longer than the figure is wide wrapped after a comma or semicolon."""
+    width = max(40, int(fig.get_figwidth() * HEADING_CHARS_PER_INCH))
+    lines = []
+    for line in text.split("\n"):
+        lines += _wrap_items(line, width) if len(line) > width else [line]
+    fig.suptitle("\n".join(lines), fontsize=8.5, color="0.25", linespacing=1.45)
 
 
 def wrap_angle(x):

@@ -66,9 +66,25 @@ ROA_COLORS = {"cmap": "viridis", "not_captured": "#f2f2f2", "failed": "#e4572e",
 
 
 def _axis_label(name: str) -> str:
-    unit = "deg" if name in ("phi", "psi") else "deg/s"
-    sym = SYMBOL["phi" if "phi" in name else "psi"]
-    return f"{sym}{chr(0x2032) if name.startswith('d') else ''} − {sym}{chr(0x2032) if name.startswith('d') else ''}* [{unit}]"
+    speed = name.startswith("d")
+    unit = "deg/s" if speed else "deg"
+    base = name[1:] if speed else name
+    if base in ("phi", "psi"):
+        sym = SYMBOL[base]
+    else:  # a chain's q<k>
+        sym = "q" + base[1:].translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
+    sym += chr(0x2032) if speed else ""
+    return f"{sym} − {sym}* [{unit}]"
+
+
+def _actuated_text(actuated, nq: int) -> str:
+    """A map's actuated joints for its heading: the double pendulum's label, a chain's joints."""
+    if isinstance(actuated, str):
+        return actuated
+    joints = list(actuated)
+    if len(joints) == nq:
+        return "every joint driven"
+    return ("joints " if len(joints) > 1 else "joint ") + ", ".join(str(j) for j in joints) + " driven"
 
 
 def roa_figure(roa):
@@ -110,10 +126,11 @@ def roa_figure(roa):
         ax.set_ylabel(_axis_label(roa.plane[1]))
         ax.set_xlim(x[0] - 0.5 * (x[1] - x[0]) if x.size > 1 else x[0] - 1, x[-1] + 0.5 * (x[-1] - x[-2]) if x.size > 1 else x[-1] + 1)
         ax.set_ylim(y[0] - 0.5 * (y[1] - y[0]) if y.size > 1 else y[0] - 1, y[-1] + 0.5 * (y[-1] - y[-2]) if y.size > 1 else y[-1] + 1)
+        nq = len(roa.target) // 2
         umax = settings.get("umax") or [None, None]
         limit = "no torque limit" if umax[0] is None else f"|u| ≤ {umax[0]:g} N m"
-        tgt = ", ".join(f"{math.degrees(v):.4g}°" for v in roa.target[:2])
-        heading(fig, f"Region of attraction of the LQR at ({tgt}), {settings['actuated']}, {limit}\n"
+        tgt = ", ".join(f"{math.degrees(v):.4g}°" for v in roa.target[:nq])
+        heading(fig, f"Region of attraction of the LQR at ({tgt}), {_actuated_text(settings['actuated'], nq)}, {limit}\n"
                 + parameter_text(roa.params)
                 + f"\ncaptured: {100 * roa.captured_fraction:.1f} % of {roa.n} × {roa.n} starts "
                 f"(the estimate holds {100 * roa.inner_fraction:.2f} %)")
