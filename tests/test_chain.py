@@ -352,8 +352,9 @@ def test_bad_chain_run_files_are_one_line_exit_2(tmp_path, text, extra, words):
 def test_commands_of_the_double_pendulum_refuse_links(tmp_path):
     from helpers import run_cli
 
-    ran = run_cli(["flipmap", "--config", EXAMPLES / "skewed_triple.toml"], cwd=tmp_path)
-    assert ran.code == 2 and "[[links]] (a chain of links) is not read by skewpend flipmap" in ran.err
+    ran = run_cli(["poincare", "--config", EXAMPLES / "skewed_triple.toml"], cwd=tmp_path)
+    assert ran.code == 2 and "[[links]] (a chain of links) is not read by skewpend poincare" in ran.err
+    assert "(chains: skewpend simulate, animate, lyapunov, flipmap, modes" in ran.err
 
 
 EXAMPLES = __import__("pathlib").Path(__file__).resolve().parent.parent / "examples"
@@ -399,7 +400,7 @@ def test_the_double_pendulums_modes_from_its_chain():
 
 
 @pytest.mark.parametrize("call", [
-    lambda c: skewpend.flip_map(c, 8), lambda c: skewpend.swingup(c),
+    lambda c: skewpend.swingup(c),
     lambda c: skewpend.poincare(c, energy=1.0), lambda c: skewpend.chaos_diagram(c),
     lambda c: skewpend.nnm(c),
 ])

@@ -241,3 +241,76 @@ def test_the_cli_refuses_what_a_chain_cannot_take(tmp_path, argv, message):
     ran = run_cli([*argv, "--config", _chain_toml(tmp_path)])
     assert ran.code == 2 and message in ran.err and "Traceback" not in ran.err, ran.report()
     assert len(ran.err.strip().splitlines()) == 1
+
+
+# -- flip maps over a plane of two angles ---------------------------------------------------------------------------
+def test_the_chain_of_twos_flip_map_is_the_double_pendulums():
+    """The double pendulum's flip map (SIMD lanes, its energy bound and mirror symmetry) and the chain of two's
+    over the plane (phi, psi) (``sp_flip_many``, every cell integrated): the same cells flip, by the same joint,
+    at the same times (1e-6 s: DOP853 at 1e-10 on two kernels, the crossing on each one's dense output)."""
+    params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.3, g=9.81)
+    a = skewpend.flip_map(params, 16, t_end=4.0, workers=1)
+    b = skewpend.flip_map(Chain.from_parameters(params), 16, t_end=4.0, plane=("phi", "psi"), workers=1)
+    assert type(b).__name__ == "ChainFlipMap" and b.ok and 0.2 < b.flipped_fraction < 0.9
+    np.testing.assert_array_equal(b.flipped, a.flipped)
+    np.testing.assert_array_equal(b.which, np.where(a.which >= 0, a.which + 1, 0))
+    np.testing.assert_allclose(b.flip_time[b.flipped], a.flip_time[a.flipped], rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(b.x0, a.phi0[:, 0])
+
+
+def test_a_triple_pendulums_flip_map_against_simulate(tmp_path):
+    """A skewed triple pendulum over (q1, q3), q2 held at 0.5 rad: a flipped cell's run by ``simulate`` (another
+    driver, the same kernel) has its flipping joint at +-pi at the map's flip time (1e-6 rad) and every angle
+    inside (-pi, pi) before; a cell that does not flip keeps every angle inside to t_end.  Reads back from
+    NetCDF with its chain."""
+    chain = _balance_chain()
+    fm = skewpend.flip_map(chain, 9, plane=("q1", "q3"), held=[0.0, 0.5, 0.0], t_end=4.0, workers=1)
+    assert fm.ok and fm.held.tolist() == [0.0, 0.5, 0.0] and 0.1 < fm.flipped_fraction < 0.95
+    for want in (True, False):
+        i, j = np.argwhere(fm.flipped == want)[-1]
+        y0 = [fm.x0[i], 0.5, fm.y0[j], 0.0, 0.0, 0.0]
+        if want:
+            t, joint = fm.flip_time[i, j], fm.which[i, j] - 1
+            tr = skewpend.simulate(chain, y0, t, dt_out=t / 400, rtol=1e-10, atol=1e-10)
+            assert abs(abs(tr.y[-1, joint]) - np.pi) < 1e-6
+            assert np.abs(tr.y[:-1, :3]).max() < np.pi
+        else:
+            tr = skewpend.simulate(chain, y0, 4.0, dt_out=0.01, rtol=1e-10, atol=1e-10)
+            assert np.abs(tr.y[:, :3]).max() < np.pi and fm.which[i, j] == 0
+    back = skewpend.open_result(fm.to_netcdf(tmp_path / "flip.nc"))
+    assert back.params == chain and back.plane == ("q1", "q3")
+    np.testing.assert_array_equal(back.which, fm.which)
+    from skewpend.views.figures import flipmap_figure
+
+    fig = flipmap_figure(fm)
+    assert fig.axes[0].get_xlabel() == "q₁ at release [deg]" and "held q2 = 28.65°" in fig._suptitle.get_text()
+
+
+def test_flip_maps_refuse_the_others_options_in_one_line():
+    chain = _balance_chain()
+    with pytest.raises(ParameterError, match=r"plane must be two different angles of q1, q2, q3 \(a flip map starts at rest\)"):
+        skewpend.flip_map(chain, 4, plane=("q1", "dq2"))
+    with pytest.raises(ParameterError, match=r"held must be the chain's 3 angles, each within \(-pi, pi\)"):
+        skewpend.flip_map(chain, 4, held=[0.0, 0.1])
+    with pytest.raises(ParameterError, match=r"phi_range is the double pendulum's; a chain's flip map takes plane="):
+        skewpend.flip_map(chain, 4, phi_range=(-1.0, 1.0))
+    with pytest.raises(ParameterError, match=r"plane, ranges and held are a chain's"):
+        skewpend.flip_map(PARAMS, 4, plane=("phi", "psi"))
+
+
+def test_the_cli_maps_a_chains_flips(tmp_path):
+    from helpers import run_cli
+
+    config, out = _chain_toml(tmp_path), tmp_path / "flip.nc"
+    ran = run_cli(["flipmap", "--config", config, "--n", "8", "--plane", "q1,q3", "--held", "0,30deg,0", "--t-end", "3",
+                   "--out", out])
+    assert ran.code == 0, ran.report()
+    assert "starts at rest over q1 x q3" in ran.out and "by joint      q1: " in ran.out
+    fm = skewpend.open_result(out)
+    assert fm.plane == ("q1", "q3") and fm.held[1] == pytest.approx(np.radians(30))
+    for argv, message in ((["--plane", "q1,dq3"], "--plane: a flip map starts at rest"),
+                          (["--held", "0,0"], "--held: held must be the chain's 3 angles")):
+        ran = run_cli(["flipmap", "--config", config, "--n", "4", *argv])
+        assert ran.code == 2 and message in ran.err and len(ran.err.strip().splitlines()) == 1, ran.report()
+    ran = run_cli(["flipmap", "--n", "4", "--plane", "phi,psi"])
+    assert ran.code == 2 and "--plane goes with a chain of links" in ran.err, ran.report()

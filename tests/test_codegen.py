@@ -215,7 +215,7 @@ def test_templates_return_only_named_codes():
     import skewpend
 
     numeric = Path(skewpend.__file__).parent / "numeric"
-    boolean = {"all_finite", "lyap_qr", "var_start", "henon_locate", "dense_locate", "dop_dense_eval"}
+    boolean = {"all_finite", "lyap_qr", "var_start", "henon_locate", "dense_locate", "dop_dense_eval", "sp_flipped"}
     for name in ("integrators.c", "chaos.c", "dop853_core.h"):
         fn = None
         for line in (numeric / name).read_text().splitlines():

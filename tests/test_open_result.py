@@ -40,6 +40,7 @@ def results(reference, damped):
         "normal modes": sp.normal_modes(damped.replace(tau1=0.0, tau2=0.0)),
         "modes sweep": sp.sweep(P, "alpha", np.linspace(0.0, 1.0, 5)),
         "flip map": sp.flip_map(P, 4, t_end=2.0),
+        "chain flip map": sp.flip_map(_chain(), 4, plane=("q1", "q3"), held=[0.0, 0.3, 0.0], t_end=2.0),
         "equilibria": sp.equilibria(damped),
         "periodic orbit": fam.orbit(len(fam) - 1),
         "nonlinear normal mode": fam,
@@ -49,6 +50,10 @@ def results(reference, damped):
         "chaos diagram": sp.chaos_diagram(P, n_alpha=2, n_energy=2, samples=2, t_end=5.0),
         "identification": _identification(damped.replace(tau1=0.0, tau2=0.0)),
     }
+
+
+def _chain():
+    return sp.Chain.from_lists(3, length=[0.5, 0.4, 0.3], mass=[1.0, 0.8, 0.5], axis=[(0, 0, 1), (0.5, 0, 1), (1, 0, 0)])
 
 
 def _identification(P):
@@ -63,7 +68,7 @@ def _identification(P):
 
 
 def test_every_kind_is_covered(results):
-    assert set(result_kinds()) == set(results) and len(results) == 14
+    assert set(result_kinds()) == set(results) and len(results) == 15
     for kind, r in results.items():
         assert r.result_kind == kind
 
@@ -103,7 +108,7 @@ def test_every_kind_is_read_where_it_is_written():
     from skewpend.analysis.readback import READERS
 
     writers = _writers()
-    assert len(writers) >= 14
+    assert len(writers) >= 15
     kinds = {kind: (module, name, functions) for module, name, kind, functions in writers}
     assert len(kinds) == len(writers)  # one kind, one class
     assert set(kinds) == set(READERS) == set(result_kinds())
@@ -144,7 +149,8 @@ def _methods(back):
 
 
 @pytest.mark.parametrize("kind", ["skewpend trajectory", "Lyapunov spectrum", "Lyapunov map", "normal modes",
-                                  "modes sweep", "flip map", "equilibria", "periodic orbit", "nonlinear normal mode",
+                                  "modes sweep", "flip map", "chain flip map", "equilibria", "periodic orbit",
+                                  "nonlinear normal mode",
                                   "nonlinear normal mode along alpha", "Poincare section", "region of attraction",
                                   "chaos diagram", "identification"])
 def test_netcdf_round_trip(results, kind, tmp_path):
@@ -169,6 +175,7 @@ def test_trajectory_csv(damped, tmp_path):
 
 @pytest.mark.parametrize("kind, make", [
     ("flip map", lambda P, s: sp.flip_map(P, 4, t_end=2.0, store=s)),
+    ("chain flip map", lambda P, s: sp.flip_map(_chain(), 4, plane=("q1", "q3"), t_end=2.0, store=s)),
     ("Lyapunov map", lambda P, s: sp.lyapunov_map(P, 4, t_end=2.0, store=s)),
     ("region of attraction", lambda P, s: sp.region_of_attraction(P, n=4, t_end=1.0, store=s)),
     ("chaos diagram", lambda P, s: sp.chaos_diagram(P, n_alpha=2, n_energy=2, samples=2, t_end=5.0, store=s)),

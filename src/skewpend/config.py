@@ -86,7 +86,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "validate": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS, "simulation": frozenset({"t_end"})},
     "lyapunov": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS, "simulation": _DOP853 | {"max_steps"},
                  "chain": CHAIN_KEYS, "links": LINK_KEYS},
-    "flipmap": {"parameters": MODEL_KEYS, "simulation": _DOP853},
+    "flipmap": {"parameters": MODEL_KEYS, "simulation": _DOP853, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "poincare": {"parameters": MODEL_KEYS, "simulation": frozenset(("method", "rtol", "atol"))},
     "chaos-diagram": {"parameters": MODEL_KEYS - {"alpha"}, "simulation": _DOP853},
     "export": {"parameters": MODEL_KEYS},
@@ -212,9 +212,9 @@ class Run:
             reads = READS.get(command, {})
             sections = read_config(config)
             if "links" in sections and "links" not in reads:
+                takers = ", ".join(c for c, r in READS.items() if "links" in r)
                 raise UsageError(f"{config}: [[links]] (a chain of links) is not read by skewpend {command}: it "
-                                 "computes the double pendulum's [parameters] (chains: skewpend simulate, modes, "
-                                 "equilibria)")
+                                 f"computes the double pendulum's [parameters] (chains: skewpend {takers})")
             for section, values in sections.items():
                 if section == "links":
                     self.links = values

@@ -29,7 +29,7 @@ __all__ = [
     "TORQUE_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "NONCONSERVATIVE_NAMES", "LENGTH_NAMES", "MASS_NAMES",
     "COM_NAMES", "INERTIA_NAMES", "AXIS_NAMES", "OPTIONAL_DEFAULTS", "field", "names", "unit", "meaning",
     "symbol", "tex", "help_text", "default", "nearest", "unknown_names_message", "check_bound", "body_of",
-    "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound", "coordinate_names",
+    "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound", "coordinate_names", "state_coordinates",
 ]
 
 #: The links of today's model: the double pendulum is the chain of two.
@@ -216,6 +216,13 @@ def coordinate_names(n: int) -> Tuple[str, ...]:
     """The coordinates of a chain of ``n`` links: ``phi, psi`` for two (the specification's), ``q1`` to ``qn``
     otherwise."""
     return ("phi", "psi") if n == 2 else tuple(f"q{i}" for i in range(1, n + 1))
+
+
+def state_coordinates(nq: int) -> Dict[str, int]:
+    """The state's coordinates a slice may vary, by their index in ``x``: the double pendulum's ``phi,
+    psi, dphi, dpsi``; a chain of ``n`` links' ``q1 .. qn, dq1 .. dqn``."""
+    names = coordinate_names(nq)
+    return {**{c: i for i, c in enumerate(names)}, **{f"d{c}": nq + i for i, c in enumerate(names)}}
 
 
 def link_bound(key: str) -> str:

@@ -64,23 +64,24 @@ import math
 import os
 import warnings
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..checks import DEFAULT_TOL, MAX_STEPS  # noqa: F401 - the module's documented defaults
 from ..checks import max_steps as check_max_steps, numeric_params, positive, tolerances
 from ..errors import ParameterError
-from ..numeric.grid import GridJob
+from ..numeric.grid import MAX_N, GridJob, cell_centres, check_n, check_range  # noqa: F401 - the last four: this module's API
 from ..results import DatasetSpec, Result, canonical_json, fingerprint
 from ..status import Status
 from ..symbolic.model import Parameters
 
+if TYPE_CHECKING:
+    from .chainflip import ChainFlipMap
+
 __all__ = ["flip_map", "flip_time", "FlipOfStart", "FlipMap", "FlipJob", "open_flip_map", "cell_centres", "energy_barrier", "flip_settings",
            "fingerprint", "MAX_N"]
 
-#: Largest grid: n x n cells (16384^2 = 2.7e8 cells, about 4 GB of results).
-MAX_N = 16384
 #: Points per side of the square sampled for the energy barrier.
 _BARRIER_SAMPLES = 4097
 #: Safety margin of the energy bound, relative to the potential's scale.
@@ -251,44 +252,7 @@ def flip_time(params: Parameters, phi0: float, psi0: float, *, t_end: float = 10
 
 
 # -- input checks ---------------------------------------------------------------------------------
-def check_n(n) -> int:
-    """``n`` cells per side: a whole number from 1 to :data:`MAX_N`."""
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-        raise ParameterError(f"n must be a whole number of cells per side, got {n!r}")
-    if not 1 <= n <= MAX_N:
-        raise ParameterError(f"n must be from 1 to {MAX_N} (cells per side), got {n}")
-    return int(n)
-
-
-def check_range(name: str, value) -> Tuple[float, float]:
-    """A window ``(start, stop)`` of angles within ``[-pi, pi]``, start < stop."""
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a pair (start, stop) of angles in radians, got {value!r}") from None
-    if any(isinstance(v, bool) for v in value):
-        raise ParameterError(f"{name} must be a pair (start, stop) of angles in radians, got {value!r}")
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise ParameterError(f"{name} must be finite, got ({lo:g}, {hi:g})")
-    if not lo < hi:
-        raise ParameterError(f"{name} must have start < stop, got ({lo:g}, {hi:g})" +
-                             (" (zero width)" if lo == hi else " (inverted)"))
-    if lo < -math.pi or hi > math.pi:
-        raise ParameterError(
-            f"{name} must lie within [-pi, pi] (a start outside has already flipped), got ({lo:g}, {hi:g})"
-        )
-    return lo, hi
-
-
 # -- the grid and the energy bound ----------------------------------------------------------------------
-def cell_centres(lo: float, hi: float, n: int) -> np.ndarray:
-    """The ``n`` cell centres ``lo + (k + 1/2) (hi - lo) / n``, computed as
-    ``(lo (2n - 2k - 1) + hi (2k + 1)) / 2n`` so that in a window symmetric about 0
-    (``lo = -hi``) mirror cells are exact negatives: ``c[n - 1 - k] == -c[k]``."""
-    k = np.arange(n, dtype=np.float64)
-    return (lo * (2 * n - 2 * k - 1) + hi * (2 * k + 1)) / (2 * n)
-
-
 def energy_barrier(kernel, p, *, samples: int = _BARRIER_SAMPLES) -> Tuple[float, float]:
     """``(V_min, scale)``: the minimum of ``V = Pi - tau·q`` over the boundary of the square
     ``[-pi, pi]^2`` (the four sides), and the potential's scale (its largest magnitude there).
@@ -340,9 +304,16 @@ def flip_map(
     store=None,
     resume: bool = False,
     scheduler=None,
-) -> FlipMap:
+    plane: Optional[Sequence[str]] = None,
+    ranges=None,
+    held=None,
+) -> "FlipMap | ChainFlipMap":
     """The flip-time map of ``params`` on the ``n x n`` grid of cell centres over
     ``phi_range x psi_range`` [rad] (each within ``[-pi, pi]``), released at rest.
+
+    A chain of links is mapped over a ``plane`` of two of its angles (``("q1", "q3")``), over ``ranges``
+    (``((lo, hi), (lo, hi))``), the others at ``held``: :func:`skewpend.analysis.chainflip.chain_flip_map`,
+    a :class:`~skewpend.analysis.chainflip.ChainFlipMap` (no shortcuts: every cell integrated).
 
     ``flip_time[i, j]``: the first time [s] either joint angle leaves ``(-pi, pi)`` starting
     from ``(phi0[i], psi0[j], 0, 0)``, NaN if not by ``t_end``; ``which``: 0 (phi), 1 (psi), -1.
@@ -372,7 +343,22 @@ def flip_map(
     from .. import __version__
     from ..numeric.grid import check_run_options, run_grid
     from ..numeric.kernels import kernel_module, parameter_vector
+    from ..symbolic.chain import Chain
 
+    if isinstance(params, Chain):
+        from .chainflip import chain_flip_map
+
+        full = (-math.pi, math.pi)
+        given = [k for k, v in (("phi_range", phi_range), ("psi_range", psi_range)) if tuple(v) != full]
+        if given or shortcuts is not True:
+            raise ParameterError(f"{(given or ['shortcuts'])[0]} is the double pendulum's; a chain's flip map takes "
+                                 "plane=, ranges= and held= (and has no shortcuts: every cell is integrated)")
+        return chain_flip_map(params, n, plane=plane, ranges=ranges, held=held, t_end=t_end, rtol=rtol, atol=atol,
+                              workers=workers, progress=progress, chunk_size=chunk_size, max_steps=max_steps,
+                              store=store, resume=resume, scheduler=scheduler)
+    if plane is not None or ranges is not None or held is not None:
+        raise ParameterError("plane, ranges and held are a chain's; the double pendulum's flip map is over "
+                             "phi_range x psi_range")
     params = numeric_params(params, "a flip map")
     n = check_n(n)
     t_end = positive("t_end", t_end)

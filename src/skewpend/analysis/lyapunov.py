@@ -605,7 +605,7 @@ class LyapunovMapJob(GridJob):
         return {"exponent": ArraySpec("float64", np.nan, _MAP_VARIABLES["exponent"])}
 
     def coords(self):
-        from .flipmap import cell_centres
+        from ..numeric.grid import cell_centres
 
         return {"phi0": (cell_centres(*self.phi_range, self.n), _MAP_VARIABLES["phi0"]),
                 "psi0": (cell_centres(*self.psi_range, self.n), _MAP_VARIABLES["psi0"])}
@@ -687,7 +687,7 @@ def lyapunov_map(
     the chunking or the cluster."""
     from .. import __version__
     from ..numeric.grid import check_run_options, run_grid
-    from .flipmap import check_n, check_range
+    from ..numeric.grid import check_n, check_range
 
     params = numeric_params(params, "a Lyapunov map")
     n = check_n(n)

@@ -44,6 +44,7 @@ READERS: Dict[str, str] = {
     "normal modes": "skewpend.analysis.modes:read_normal_modes",
     "modes sweep": "skewpend.analysis.modes:read_modes_sweep",
     "flip map": "skewpend.analysis.flipmap:open_flip_map",
+    "chain flip map": "skewpend.analysis.chainflip:open_chain_flip_map",
     "equilibria": "skewpend.analysis.equilibria:read_equilibria",
     "periodic orbit": "skewpend.analysis.orbits:read_periodic_orbit",
     "nonlinear normal mode": "skewpend.analysis.orbits:read_nnm",
@@ -63,12 +64,13 @@ def reader(kind: str) -> Callable[[Any], Any]:
 
 def _store_kinds() -> Dict[str, str]:
     """Zarr store kind -> result kind, from the jobs that write them."""
+    from .chainflip import STORE_KIND as CHAIN_FLIP
     from .chaos import STORE_KIND as CHAOS
     from .flipmap import STORE_KIND as FLIP
     from .lyapunov import LyapunovMapJob
     from .roa import STORE_KIND as ROA
 
-    return {FLIP: "flip map", CHAOS: "chaos diagram", LyapunovMapJob.kind: "Lyapunov map", ROA: "region of attraction"}
+    return {FLIP: "flip map", CHAIN_FLIP: "chain flip map", CHAOS: "chaos diagram", LyapunovMapJob.kind: "Lyapunov map", ROA: "region of attraction"}
 
 
 def result_kinds() -> Tuple[str, ...]:

@@ -39,19 +39,11 @@ from ..checks import max_steps as check_max_steps, numeric_params, positive, tol
 from ..errors import EquilibriumError, ParameterError
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json
+from ..schema import state_coordinates
 from ..symbolic.model import Parameters
 
 __all__ = ["region_of_attraction", "RegionOfAttraction", "RoaJob", "open_region_of_attraction", "COORDINATES",
            "STORE_KIND", "MAX_STEPS_ROA"]
-
-def state_coordinates(nq: int) -> Dict[str, int]:
-    """The state's coordinates a slice may vary, by their index in ``x``: the double pendulum's ``phi,
-    psi, dphi, dpsi``; a chain of ``n`` links' ``q1 .. qn, dq1 .. dqn``."""
-    from ..schema import coordinate_names
-
-    names = coordinate_names(nq)
-    return {**{c: i for i, c in enumerate(names)}, **{f"d{c}": nq + i for i, c in enumerate(names)}}
-
 
 #: The double pendulum's coordinates a slice may vary (their index in x = (phi, psi, phi', psi')).
 COORDINATES = state_coordinates(2)
@@ -228,7 +220,7 @@ class RoaJob(GridJob):
                 "outcome": ArraySpec("int8", -1, _VARIABLES["outcome"])}
 
     def coords(self):
-        from .flipmap import cell_centres
+        from ..numeric.grid import cell_centres
 
         a, b = self.plane
         return {f"{a}0": (cell_centres(*self.x_range, self.n), _coord_attrs(a, self.nq)),
@@ -356,7 +348,7 @@ def region_of_attraction(
     from ..numeric.control import torque_limits
     from ..numeric.grid import check_run_options, run_grid
     from .control import LQR, equilibrium_argument, lqr
-    from .flipmap import check_n
+    from ..numeric.grid import check_n
 
     from ..symbolic.chain import Chain
 

@@ -75,7 +75,9 @@ def flipmap(
     ensemble: dict,
     n: option("--n", T.Whole(1, 16384), "cells per side: an n x n map (default 256)") = None,
     t_end: option("--t-end", _SECONDS, "longest time looked at [s] (default 10)") = None,
-    window: option("--window", T.Window(), "PHI0:PHI1,PSI0:PSI1 (radians, or e.g. -90:90deg,-180:180deg; default the whole square)") = None,
+    window: option("--window", T.Window(), "PHI0:PHI1,PSI0:PSI1 (radians, or e.g. -90:90deg,-180:180deg; default the whole square; a chain's: the plane's two angles)") = None,
+    plane: option("--plane", T.Plane(), "a chain of links: the two angles varied, e.g. q1,q3 (default q1,q2)") = None,
+    held: option("--held", T.Angles(), "a chain of links: every angle at release, the plane's two ignored (radians or deg; default 0: hanging)") = None,
     rtol: RTOL_E10 = None,
     atol: ATOL_E10 = None,
     out: option("--out", _STORE, "write the map to FILE.zarr (chunk by chunk, resumable) or FILE.nc", RUN, "-o") = None,
@@ -87,15 +89,26 @@ def flipmap(
     """The flip-time map: for each start (phi0, psi0) at rest on an n x n grid, the first time either
     hinge angle leaves (-180 deg, 180 deg) -- on every core, or on a Dask cluster.
 
-    From a --config run file it takes [parameters] and [simulation] t_end, rtol, atol.
+    From a --config run file it takes [parameters] and [simulation] t_end, rtol, atol; or a chain of links
+    ([[links]], [chain]): the map over --plane of two of its angles, the others at --held.
     """
     run = _dop853("flipmap", config, model, t_end=t_end, rtol=rtol, atol=atol)
     params = run.parameters()
+    from ..symbolic.chain import Chain
+
+    chain = isinstance(params, Chain)
+    if not chain and (plane is not None or held is not None):
+        raise UsageError(f"{'--plane' if plane is not None else '--held'} goes with a chain of links (--config with "
+                         "[[links]]); the double pendulum's map is over phi0 x psi0 (--window)")
+    if chain and plane is not None and any(name.startswith("d") for name in plane):
+        raise UsageError(f"--plane: a flip map starts at rest; give two angles (e.g. q1,q3), got {','.join(plane)}")
     store = ensemble_outputs(ensemble["workers"], ensemble["scheduler"], out, resume, plot)
     from ..analysis.flipmap import flip_map
 
     kw = run.settings(("t_end", "rtol", "atol"))
-    if window is not None:
+    if chain:
+        kw.update({k: v for k, v in (("plane", plane), ("held", held), ("ranges", window)) if v is not None})
+    elif window is not None:
         kw["phi_range"], kw["psi_range"] = window
     with progress(f"computing the flip map ({256 if n is None else n} x {256 if n is None else n} starts)", "cells", quiet) as bar, warnings.catch_warnings():
         # flip_map also warns of failed cells; its status says so, and main() prints it once
@@ -112,6 +125,15 @@ def flipmap(
         f"work          {st.get('integrated', '?')} cells integrated, {st.get('skipped_energy', 0)} ruled out by energy, "
         f"{st.get('mirrored', 0)} by symmetry; {st.get('wall_time', float('nan')):.3g} s on {st.get('workers', '?')} workers",
     ]
+    if chain:
+        import numpy as np
+
+        counts = np.bincount(np.asarray(fm.which).ravel().clip(0), minlength=params.n + 1)[1:]
+        lines[0] = (f"flip map      {fm.n} x {fm.n} starts at rest over {fm.plane[0]} x {fm.plane[1]}, t_end = "
+                    f"{fm.settings['t_end']:g} s")
+        lines[2] = (f"work          {st['cells']} cells integrated, {st['steps']} steps; {st.get('wall_time', float('nan')):.3g} s "
+                    f"on {st.get('workers', '?')} workers")
+        lines.insert(2, "by joint      " + ", ".join(f"q{i + 1}: {c}" for i, c in enumerate(counts)))
     if "chunks_computed" in st:
         lines.append(f"store         {st['chunks_computed']} chunks computed now, {st.get('chunks_resumed', 0)} already done"
                      + (f"; {st['tasks']} tasks on {st['scheduler']}" if st.get("scheduler") else ""))

@@ -227,6 +227,29 @@ class EquilibriumChoice(ParamType):
         return tuple(values)
 
 
+class Angles(ParamType):
+    """``A1,A2,...``: angles (radians, a ``deg`` suffix or multiples of pi), 1 to ``most`` of them."""
+
+    metavar = "A1,A2,..."
+
+    def __init__(self, most: int = 64) -> None:
+        self.most = most
+
+    def convert(self, text, flag):
+        from ..parsing import parse_scalar
+
+        parts = [s.strip() for s in text.split(",")]
+        if not 1 <= len(parts) <= self.most:
+            raise UsageError(f"{flag}: expected 1 to {self.most} comma-separated angles, got {text!r}")
+        values = []
+        for part in parts:
+            v = parse_scalar(part, flag, angle=True)
+            if v is None:
+                raise UsageError(f"{flag}: expected angles, not 'sym'")
+            values.append(v)
+        return tuple(values)
+
+
 class Numbers(ParamType):
     """``X1,X2,...``: finite numbers, ``count`` of them (or 1 to ``most``), whole ones with ``whole``."""
 

@@ -40,7 +40,8 @@ import numpy as np
 from ..errors import ParameterError
 
 __all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "read_grid_result", "open_store_for", "chunk_rows", "work_units", "check_workers",
-           "check_run_options", "check_feasible", "steps_per_second", "probe_time", "UNITS_PER_WORKER"]
+           "check_run_options", "check_feasible", "steps_per_second", "probe_time", "UNITS_PER_WORKER", "MAX_N", "check_n",
+           "check_range", "cell_centres"]
 
 #: Default store chunk: at most this many cells (whole rows) ...
 CHUNK_CELLS = 65536
@@ -517,3 +518,45 @@ def read_grid_result(path, *, store_kind: str, result_kind: str, what: str, stor
         raise ParameterError(f"{path} is not {what} made by skewpend (missing or bad attribute: {exc})") from None
     return arrays, attrs, settings, stats
 
+
+
+# -- the cells of a map over a window of starts (flip maps, regions of attraction, Lyapunov maps) ---------------
+#: Largest grid: n x n cells (16384^2 = 2.7e8 cells, about 4 GB of results).
+MAX_N = 16384
+
+
+def check_n(n) -> int:
+    """``n`` cells per side: a whole number from 1 to :data:`MAX_N`."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+        raise ParameterError(f"n must be a whole number of cells per side, got {n!r}")
+    if not 1 <= n <= MAX_N:
+        raise ParameterError(f"n must be from 1 to {MAX_N} (cells per side), got {n}")
+    return int(n)
+
+
+def check_range(name: str, value) -> Tuple[float, float]:
+    """A window ``(start, stop)`` of angles within ``[-pi, pi]``, start < stop."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a pair (start, stop) of angles in radians, got {value!r}") from None
+    if any(isinstance(v, bool) for v in value):
+        raise ParameterError(f"{name} must be a pair (start, stop) of angles in radians, got {value!r}")
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ParameterError(f"{name} must be finite, got ({lo:g}, {hi:g})")
+    if not lo < hi:
+        raise ParameterError(f"{name} must have start < stop, got ({lo:g}, {hi:g})" +
+                             (" (zero width)" if lo == hi else " (inverted)"))
+    if lo < -math.pi or hi > math.pi:
+        raise ParameterError(
+            f"{name} must lie within [-pi, pi] (a start outside has already flipped), got ({lo:g}, {hi:g})"
+        )
+    return lo, hi
+
+
+def cell_centres(lo: float, hi: float, n: int) -> np.ndarray:
+    """The ``n`` cell centres ``lo + (k + 1/2) (hi - lo) / n``, computed as
+    ``(lo (2n - 2k - 1) + hi (2k + 1)) / 2n`` so that in a window symmetric about 0
+    (``lo = -hi``) mirror cells are exact negatives: ``c[n - 1 - k] == -c[k]``."""
+    k = np.arange(n, dtype=np.float64)
+    return (lo * (2 * n - 2 * k - 1) + hi * (2 * k + 1)) / (2 * n)

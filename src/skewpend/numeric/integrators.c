@@ -512,17 +512,19 @@ void sp_rhs_ctl_many(const sp_control *c, const double *rows, int64_t nrows, int
 
 int64_t sp_control_size(void) { return (int64_t)sizeof(sp_control); }
 
-/* Capture of m closed-loop starts (regions of attraction): each start (SP_NX doubles: angles and speeds)
- * is integrated with the control c by DOP853 (the core above, on the 4 mechanical components) until
- * it enters the region dx' P dx < rho about the target c->xs (angles wrapped) -- captured: time[k]
- * is the entry, located by bisection on the 7th-order dense output of the first step that ends
- * inside -- or reaches t_end (time[k] = NaN).  status[k] is
- * SP_STATUS_SUCCESS, or the code of a failed integration (time NaN); steps[k] counts its accepted
- * steps, rejected[k] its rejected ones (the result protocol's steps and rejected).  Every start's arithmetic is its own: the results do not depend on m or on
- * which starts share a call. */
-void sp_capture_many(const sp_control *c, const double *p, const double *starts, int64_t m, double t_end,
-                     double rtol, double atol, int64_t max_steps, const double *P, double rho, double *time,
-                     int64_t *steps, int64_t *rejected, int8_t *status)
+/* Each of m starts (SP_NX doubles: angles and speeds) integrated by DOP853 (the core above, on the SP_NX
+ * mechanical components; the active control c, if any, inside) until the test stop(y, data, &which) holds
+ * -- time[k] is the first point where it does, located by bisection on the 7th-order dense output of the
+ * first step that ends where it holds (0 when it holds at the start) -- or until t_end (time[k] = NaN).
+ * status[k] is SP_STATUS_SUCCESS, or the code of a failed integration (time NaN); steps[k] counts its
+ * accepted steps, rejected[k] its rejected ones (the result protocol's steps and rejected); which[k] (if
+ * given) is what the test said when it held (-1: it did not).  Every start's arithmetic is its own: the
+ * results do not depend on m or on which starts share a call. */
+typedef int (*sp_stop_test)(const double *y, const void *data, int *which);
+
+static void sp_until_many(const sp_control *c, sp_stop_test stop, const void *data, const double *p,
+                          const double *starts, int64_t m, double t_end, double rtol, double atol, int64_t max_steps,
+                          double *time, int32_t *which_out, int64_t *steps, int64_t *rejected, int8_t *status)
 {
     double K[DOP_NSTAGES][SP_NMAX], ynew[SP_NMAX], ytmp[SP_NMAX], y[SP_NMAX], f[SP_NMAX], F[7 * SP_NMAX];
     const int n = SP_NX;
@@ -531,25 +533,26 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
     for (int64_t k = 0; k < m; k++) {
         double t = 0.0, h = 0.0, hused, t_new, when = NAN;
         int64_t nacc = 0, nrej = 0, nfev = 0;
-        int rc = SP_STATUS_SUCCESS;
+        int rc = SP_STATUS_SUCCESS, which = -1, w;
         memset(y, 0, sizeof y);
         memcpy(y, starts + SP_NX * k, SP_NX * sizeof(double));
         model_rhs(y, p, f);
         if (!all_finite(y, n) || !all_finite(f, n)) rc = SP_STATUS_NONFINITE;
-        else if (sp_region(c, P, y) < rho) when = 0.0;
+        else if (stop(y, data, &which)) when = 0.0;
         while (rc == SP_STATUS_SUCCESS && isnan(when) && t < t_end) {
             if (h <= 0.0) h = dop_initial_step(y, f, p, t_end - t, rtol, atol, &nfev, n);
             rc = dop_advance(t, y, f, p, t_end, rtol, atol, max_steps, &h, nacc, &nrej, &nfev, K, ynew, ytmp, n,
                              &t_new, &hused);
             if (rc) break;
             nacc++;
-            if (sp_region(c, P, ynew) < rho) {
-                /* entered during this step: bisect the dense output for the first point inside */
+            if (stop(ynew, data, &which)) {
+                /* it held at the step's end: bisect the dense output for the first point where it does */
                 double lo = 0.0, hi = 1.0;
                 dop_dense_coeffs(y, ynew, hused, p, K, F, ytmp, n);
                 for (int it = 0; it < 60 && (hi - lo) * hused > 1e-14 * fmax(1.0, t_new); it++) {
                     double mid = 0.5 * (lo + hi);
-                    if (dop_dense_eval(y, F, mid, ytmp, n) && sp_region(c, P, ytmp) < rho) hi = mid; else lo = mid;
+                    if (dop_dense_eval(y, F, mid, ytmp, n) && stop(ytmp, data, &w)) { hi = mid; which = w; }
+                    else lo = mid;
                 }
                 when = t + hi * hused;
             }
@@ -558,11 +561,51 @@ void sp_capture_many(const sp_control *c, const double *p, const double *starts,
             memcpy(f, K[DOP_NS], (size_t)n * sizeof(double));
         }
         time[k] = when;
+        if (which_out) which_out[k] = isnan(when) ? -1 : which;
         steps[k] = nacc;
         rejected[k] = nrej;
         status[k] = (int8_t)rc;
     }
     sp_ctl = outer;
+}
+
+typedef struct { const sp_control *c; const double *P; double rho; } sp_region_test;
+
+static int sp_in_region(const double *y, const void *data, int *which)
+{
+    const sp_region_test *r = (const sp_region_test *)data;
+    *which = 0;
+    return sp_region(r->c, r->P, y) < r->rho;
+}
+
+/* Capture of m closed-loop starts (regions of attraction): sp_until_many with the control c until the
+ * state enters the region dx' P dx < rho about the target c->xs (angles wrapped) -- captured: time[k] is
+ * the entry -- or reaches t_end (time[k] = NaN). */
+void sp_capture_many(const sp_control *c, const double *p, const double *starts, int64_t m, double t_end,
+                     double rtol, double atol, int64_t max_steps, const double *P, double rho, double *time,
+                     int64_t *steps, int64_t *rejected, int8_t *status)
+{
+    const sp_region_test region = {c, P, rho};
+    sp_until_many(c, sp_in_region, &region, p, starts, m, t_end, rtol, atol, max_steps, time, 0, steps, rejected,
+                  status);
+}
+
+static int sp_flipped(const double *y, const void *data, int *which)
+{
+    (void)data;
+    const double pi = 3.141592653589793;
+    for (int i = 0; i < SP_NQ; i++)
+        if (fabs(y[i]) >= pi) { *which = i; return 1; }
+    return 0;
+}
+
+/* Flips of m starts without inputs (a chain's flip map; the double pendulum's runs in SIMD lanes, sp_flip):
+ * sp_until_many until an angle leaves (-pi, pi) -- time[k] the first such time, which[k] that joint (0 ..
+ * SP_NQ - 1; -1 none) -- or t_end (time[k] = NaN). */
+void sp_flip_many(const double *p, const double *starts, int64_t m, double t_end, double rtol, double atol,
+                  int64_t max_steps, double *time, int32_t *which, int64_t *steps, int64_t *rejected, int8_t *status)
+{
+    sp_until_many(0, sp_flipped, 0, p, starts, m, t_end, rtol, atol, max_steps, time, which, steps, rejected, status);
 }
 
 /* 2-stage Gauss-Legendre collocation (order 4, symplectic) for z' = ham_rhs(z, p).

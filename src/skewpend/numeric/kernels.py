@@ -480,6 +480,9 @@ class Kernel:
         lib.sp_control_size.argtypes, lib.sp_control_size.restype = [], i64
         lib.sp_capture_many.argtypes = [cp, dp, dp, i64, d, d, d, i64, dp, d, dp, ip, ip, ctypes.POINTER(ctypes.c_int8)]
         lib.sp_capture_many.restype = None
+        lib.sp_flip_many.argtypes = [dp, dp, i64, d, d, d, i64, dp, ctypes.POINTER(ctypes.c_int32), ip, ip,
+                                     ctypes.POINTER(ctypes.c_int8)]
+        lib.sp_flip_many.restype = None
         lib.sp_rhs_ctl_many.argtypes, lib.sp_rhs_ctl_many.restype = [cp, dp, i64, i64, dp, dp], None
         for name in ("sp_dop853", "sp_rk4", "sp_gauss", "sp_dop853_ctl", "sp_rk4_ctl"):
             getattr(lib, name).restype = ctypes.c_int

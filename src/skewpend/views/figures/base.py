@@ -12,7 +12,7 @@ import numpy as np
 
 from ... import __version__
 from ...errors import SkewpendError
-from ..style import DPI, style
+from ..style import DPI, SYMBOL, style
 
 __all__ = ["FIGURE_SUFFIXES", "FORMATS", "ENERGY_FLOOR", "TWO_PI", "figure_class", "new_figure", "heading",
            "wrap_angle", "plain_tick_labels", "print_figure", "save_figure"]
@@ -163,3 +163,16 @@ def save_figure(fig, path) -> Path:
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         print_figure(fig, fh, fmt_name, DPI, metadata)
     return path
+
+
+def coordinate_label(name: str) -> str:
+    """An axis label of a state coordinate's offset from a target: ``φ − φ* [deg]``, ``q₃′ − q₃′* [deg/s]``."""
+    speed = name.startswith("d")
+    unit = "deg/s" if speed else "deg"
+    base = name[1:] if speed else name
+    if base in ("phi", "psi"):
+        sym = SYMBOL[base]
+    else:  # a chain's q<k>
+        sym = "q" + base[1:].translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
+    sym += chr(0x2032) if speed else ""
+    return f"{sym} − {sym}* [{unit}]"

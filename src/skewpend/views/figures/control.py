@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ..style import COLORS, SYMBOL, parameter_text, style
-from .base import heading, new_figure
+from .base import coordinate_label, heading, new_figure
 
 __all__ = ["control_figure", "roa_figure", "ROA_COLORS"]
 
@@ -65,18 +65,6 @@ ROA_COLORS = {"cmap": "viridis", "not_captured": "#f2f2f2", "failed": "#e4572e",
               "target": "#e4572e"}
 
 
-def _axis_label(name: str) -> str:
-    speed = name.startswith("d")
-    unit = "deg/s" if speed else "deg"
-    base = name[1:] if speed else name
-    if base in ("phi", "psi"):
-        sym = SYMBOL[base]
-    else:  # a chain's q<k>
-        sym = "q" + base[1:].translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
-    sym += chr(0x2032) if speed else ""
-    return f"{sym} − {sym}* [{unit}]"
-
-
 def _actuated_text(actuated, nq: int) -> str:
     """A map's actuated joints for its heading: the double pendulum's label, a chain's joints."""
     if isinstance(actuated, str):
@@ -122,8 +110,8 @@ def roa_figure(roa):
         if np.any(outcome == -1):
             handles.append(Patch(color=ROA_COLORS["failed"], label="failed (chatters on the law's jump)"))
         ax.legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.9)
-        ax.set_xlabel(_axis_label(roa.plane[0]))
-        ax.set_ylabel(_axis_label(roa.plane[1]))
+        ax.set_xlabel(coordinate_label(roa.plane[0]))
+        ax.set_ylabel(coordinate_label(roa.plane[1]))
         ax.set_xlim(x[0] - 0.5 * (x[1] - x[0]) if x.size > 1 else x[0] - 1, x[-1] + 0.5 * (x[-1] - x[-2]) if x.size > 1 else x[-1] + 1)
         ax.set_ylim(y[0] - 0.5 * (y[1] - y[0]) if y.size > 1 else y[0] - 1, y[-1] + 0.5 * (y[-1] - y[-2]) if y.size > 1 else y[-1] + 1)
         nq = len(roa.target) // 2

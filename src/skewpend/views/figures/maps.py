@@ -136,6 +136,10 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
 
     import matplotlib
 
+    if getattr(fm, "result_kind", None) == "chain flip map":
+        if mark is not None or forbidden != "auto":
+            raise ParameterError("mark and forbidden are the double pendulum's map's (a chain's has no energy bound)")
+        return _chain_flipmap_figure(fm)
     ft = np.asarray(fm.flip_time, dtype=float)
     if ft.ndim != 2 or ft.size == 0:
         raise ParameterError(f"a flip map needs a 2-D array of flip times, got shape {ft.shape}")
@@ -201,4 +205,58 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=len(handles),
                   frameon=False, handlelength=1.4, columnspacing=1.4, borderaxespad=0.0)
         heading(fig, flipmap_caption(fm))
+    return fig
+
+
+def _chain_flipmap_figure(fm):
+    """A chain's flip map (:class:`skewpend.analysis.chainflip.ChainFlipMap`): the flip time over the plane's
+    two angles at release (degrees), on the logarithmic scale of the double pendulum's map, the cells that do
+    not flip by ``t_end`` white; the chain, the held angles and the settings in the heading."""
+    from matplotlib.colors import LogNorm
+    from matplotlib.patches import Patch
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+
+    import matplotlib
+
+    from ..style import chain_text
+    from .base import coordinate_label
+
+    ft = np.asarray(fm.flip_time, dtype=float)
+    st = fm.settings
+    extent = [math.degrees(v) for v in (*st["x_range"], *st["y_range"])]
+    finite = ft[np.isfinite(ft)]
+    t_end = float(st["t_end"])
+    vmin = float(np.min(finite)) if finite.size else t_end / 100.0
+    if not 0 < vmin < t_end:
+        vmin = t_end / 100.0
+    colors = FLIPMAP_COLORS
+    with style():
+        fig = new_figure((6.6, 6.9))
+        ax = fig.subplots()
+        ax.grid(False)
+        cmap = matplotlib.colormaps[colors["cmap"]].with_extremes(bad=colors["no_flip"])
+        im = ax.imshow(np.ma.masked_invalid(ft.T), origin="lower", extent=extent, cmap=cmap,
+                       norm=LogNorm(vmin=vmin, vmax=t_end), interpolation="nearest", aspect="auto")
+        ax.legend(handles=[Patch(facecolor=colors["no_flip"], edgecolor="0.45", lw=0.6,
+                                 label=f"no flip by t_end = {fmt(t_end)} s")], loc="upper right", fontsize=8)
+        ax.set_xlim(extent[0], extent[1])
+        ax.set_ylim(extent[2], extent[3])
+        _degree_ticks(ax.xaxis, extent[0], extent[1])
+        _degree_ticks(ax.yaxis, extent[2], extent[3])
+        ax.tick_params(which="both", direction="out")
+        ax.set_xlabel(coordinate_label(fm.plane[0]).split(" − ")[0] + " at release [deg]")
+        ax.set_ylabel(coordinate_label(fm.plane[1]).split(" − ")[0] + " at release [deg]")
+        ax.set_title("Flip time: when any hinge angle first leaves (−180°, 180°)", loc="left")
+        bar = fig.colorbar(im, cax=ax.inset_axes([1.035, 0.0, 0.04, 1.0]))
+        bar.set_label("flip time [s]")
+        bar.ax.yaxis.set_major_locator(FixedLocator(_log_ticks(vmin, t_end)))
+        bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: fmt(v, 3)))
+        bar.ax.yaxis.set_minor_formatter(NullFormatter())
+        nq = len(fm.held)
+        others = [i for i in range(nq) if f"q{i + 1}" not in fm.plane and (nq != 2)]
+        held = ", ".join(f"q{i + 1} = {fmt(math.degrees(fm.held[i]))}°" for i in others)
+        heading(fig, chain_text(fm.params) + "\n"
+                + f"released at rest, {fm.n} × {fm.n} cells" + (f", held {held}" if held else "")
+                + f"; dop853, rtol = {st['rtol']:g}, atol = {st['atol']:g}; "
+                f"{100 * fm.flipped_fraction:.1f} % of the cells flip")
     return fig
