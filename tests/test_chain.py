@@ -402,7 +402,7 @@ def test_the_double_pendulums_modes_from_its_chain():
 @pytest.mark.parametrize("call", [
     lambda c: skewpend.swingup(c),
     lambda c: skewpend.poincare(c, energy=1.0), lambda c: skewpend.chaos_diagram(c),
-    lambda c: skewpend.nnm(c),
+    lambda c: skewpend.nnm_alpha(c, 1, energy=0.1, alphas=[0.0, 0.1]),
 ])
 def test_what_is_not_for_chains_yet_says_so_in_one_line(call):
     with pytest.raises(ParameterError) as info:

@@ -93,7 +93,7 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "modes": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "equilibria": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "orbit": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
-    "nnm": {"parameters": MODEL_KEYS},
+    "nnm": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "control": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},
     "identify": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # params0, the fit's start
     "derive": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # the values given; the others stay symbolic

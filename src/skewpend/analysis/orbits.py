@@ -42,6 +42,7 @@ import numpy as np
 from ..checks import angle, numeric_params, positive, progress_callable, tolerances, whole
 from ..errors import EquilibriumError, IntegrationError, ParameterError, SkewpendError
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
+from ..schema import state_coordinates
 from ..status import Status
 from ..symbolic.chain import AnyModel, Chain
 from ..symbolic.model import Parameters
@@ -570,10 +571,50 @@ def _failed(params, why, rotation, throw, settings=None, model=None, status=Stat
 # -- nonlinear normal modes ------------------------------------------------------------------------
 
 
+#: A chain's flip energy: seeded samples on each face of the cube, and the local minimisations from the best.
+FLIP_SAMPLES, FLIP_STARTS = 4000, 6
+
+
+def _chain_flip_energy(chain) -> float:
+    """The minimum of ``V = Pi - tau . q`` on the boundary of the cube ``|q_i| <= pi`` of a chain of links:
+    on each face (one angle at +-pi) :data:`FLIP_SAMPLES` seeded samples, then L-BFGS-B (bounded to the face)
+    from the :data:`FLIP_STARTS` lowest.  A two-link chain's faces are the square's sides (:func:`flip_energy`)."""
+    from scipy.optimize import minimize
+
+    H = energy_function(chain)
+    n = chain.n
+    rng = np.random.default_rng(0)
+    best = math.inf
+
+    def V(q):
+        return H(np.concatenate([np.atleast_2d(q), np.zeros((np.atleast_2d(q).shape[0], n))], axis=1))
+
+    for i in range(n):
+        for side in (-math.pi, math.pi):
+            free = [j for j in range(n) if j != i]
+            Q = rng.uniform(-math.pi, math.pi, size=(FLIP_SAMPLES, n))
+            Q[:, i] = side
+            values = V(Q)
+            for k in np.argsort(values)[:FLIP_STARTS]:
+                def f(x, k=k):
+                    q = Q[k].copy()
+                    q[free] = x
+                    return float(V(q)[0])
+
+                res = minimize(f, Q[k, free], method="L-BFGS-B", bounds=[(-math.pi, math.pi)] * len(free),
+                               options={"ftol": 1e-15, "gtol": 1e-12})
+                best = min(best, float(values[k]), float(res.fun))
+    return best
+
+
 def flip_energy(params: Parameters) -> float:
     """The lowest energy at which a joint can flip: the minimum of ``V = Pi - tau . q`` on the
-    boundary of the square ``|phi|, |psi| <= pi`` (sampled densely, then refined)."""
+    boundary of the square ``|phi|, |psi| <= pi`` (sampled densely, then refined); a chain of links':
+    on the boundary of the cube ``|q_i| <= pi`` (:func:`_chain_flip_energy`)."""
     from scipy.optimize import minimize_scalar
+
+    if isinstance(params, Chain):
+        return _chain_flip_energy(params)
 
     from .equilibria import potential_function, potential_on_arrays
 
@@ -653,11 +694,22 @@ class NNMFamily(_Orbits, Result):
         super().__post_init__()
         object.__setattr__(self, "energies", np.asarray(self.energies, dtype=float))
         object.__setattr__(self, "periods", np.asarray(self.periods, dtype=float))
-        object.__setattr__(self, "states", np.asarray(self.states, dtype=float).reshape(-1, 4))
-        object.__setattr__(self, "monodromies", np.asarray(self.monodromies, dtype=float).reshape(-1, 4, 4))
+        n2 = 2 * (self.params.n if isinstance(self.params, Chain) else 2)
+        object.__setattr__(self, "states", np.asarray(self.states, dtype=float).reshape(-1, n2))
+        object.__setattr__(self, "monodromies", np.asarray(self.monodromies, dtype=float).reshape(-1, n2, n2))
         mus = [_multipliers(m) for m in self.monodromies]
-        object.__setattr__(self, "multipliers", np.array([m for m, _ in mus]).reshape(-1, 4))
-        object.__setattr__(self, "sigma", np.array([s for _, s in mus], dtype=float))
+        object.__setattr__(self, "multipliers", np.array([m for m, _ in mus]).reshape(-1, n2))
+        # trace - 2 decides stability with two degrees of freedom only; a chain's: every multiplier (NaN here)
+        sigma = [s for _, s in mus] if n2 == 4 else [math.nan] * len(mus)
+        object.__setattr__(self, "sigma", np.array(sigma, dtype=float))
+
+    @property
+    def stable(self) -> np.ndarray:
+        """Each orbit's linear stability: ``|sigma| <= 2`` (the double pendulum), every Floquet multiplier on
+        the unit circle (a chain), within :data:`STABILITY_MARGIN`."""
+        if self.states.shape[1] == 4:
+            return np.abs(self.sigma) <= 2.0 + STABILITY_MARGIN
+        return np.array([_stable_multipliers(mu) for mu in self.multipliers], dtype=bool)
 
 
     def __len__(self) -> int:
@@ -676,10 +728,13 @@ class NNMFamily(_Orbits, Result):
     def table(self, every: int = 0) -> str:
         n = len(self)
         step = every or max(1, n // 12)
-        lines = [f"{'energy [J]':>12}  {'frequency [rad/s]':>17}  {'period [s]':>11}  {'sigma':>10}  stability"]
+        double = self.states.shape[1] == 4  # sigma = trace - 2; a chain's: the largest multiplier's modulus
+        lines = [f"{'energy [J]':>12}  {'frequency [rad/s]':>17}  {'period [s]':>11}  {'sigma' if double else 'max |mu|':>10}  "
+                 "stability"]
         for k in list(range(0, n, step)) + ([n - 1] if (n - 1) % step else []):
+            shown = self.sigma[k] if double else float(np.max(np.abs(self.multipliers[k])))
             lines.append(f"{self.energies[k]:12.6g}  {self.frequencies[k]:17.9g}  {self.periods[k]:11.7g}  "
-                         f"{self.sigma[k]:10.6g}  {'stable' if self.stable[k] else 'unstable'}")
+                         f"{shown:10.6g}  {'stable' if self.stable[k] else 'unstable'}")
         for e in self.events:
             lines.append(f"{e.kind} at E = {e.energy:.6g} J (frequency {e.frequency:.6g} rad/s){': ' + e.detail if e.detail else ''}")
         return "\n".join(lines)
@@ -690,14 +745,16 @@ class NNMFamily(_Orbits, Result):
                 "energy": (("orbit",), self.energies, {"units": "J"}),
                 "period": (("orbit",), self.periods, {"units": "s"}),
                 "frequency": (("orbit",), self.frequencies, {"units": "rad/s"}),
-                "state": (("orbit", "component"), self.states, {"long_name": "start on the orbit (phi, psi, phi', psi')"}),
+                "state": (("orbit", "component"), self.states, {"long_name": "start on the orbit (angles, then speeds)"}),
                 "sigma": (("orbit",), self.sigma, {"long_name": "trace of the monodromy matrix - 2"}),
                 "stable": (("orbit",), self.stable.astype(np.int8), {}),
                 "multiplier_real": (("orbit", "multiplier"), self.multipliers.real, {}),
                 "multiplier_imag": (("orbit", "multiplier"), self.multipliers.imag, {}),
             },
             coords={},
-            attrs={"components": "phi, psi, dphi, dpsi", "title": f"nonlinear normal mode {self.mode} of the skewed double pendulum (skewpend)",
+            attrs={"components": ", ".join(state_coordinates(self.states.shape[1] // 2)),
+                   "title": f"nonlinear normal mode {self.mode} of "
+                            f"{'the skewed double pendulum' if self.states.shape[1] == 4 else 'a chain of links'} (skewpend)",
                    "mode": self.mode, "linear_frequency": self.linear_frequency,
                    "events": "; ".join(f"{e.kind} at E = {e.energy:.9g} J" for e in self.events),
                    **self._base_attrs()},
@@ -722,20 +779,51 @@ def _stability_changes(sigma, frequencies, at_energy: Callable[[int, float], flo
     return out
 
 
-def _family_events(energies, frequencies, sigma, folds: Sequence[int]) -> List[BranchEvent]:
-    """The events of a family in energy: its stability changes, and a fold after each orbit ``k``
-    of ``folds`` (where the energy turns back), in the order of the orbits."""
-    out = _stability_changes(
-        sigma, frequencies, lambda k, t: float(energies[k] + t * (energies[k + 1] - energies[k])),
-        lambda k, t, way, level: f"the family {way} stability (a multiplier at {'+' if level > 0 else '-'}1)")
+def _multiplier_changes(energies, frequencies, multipliers) -> List[BranchEvent]:
+    """A chain's stability changes along a family in energy: between orbits ``k`` and ``k + 1`` where the
+    largest Floquet multiplier's modulus crosses ``1 + STABILITY_MARGIN``, at the fraction ``t`` of the crossing
+    (linear in the modulus); the kind by that multiplier on the unstable side -- near +1 a branch point, near -1
+    a period doubling, off the real axis a pair leaving the circle (a Krein collision)."""
+    out: List[BranchEvent] = []
+    r = np.array([np.max(np.abs(mu)) for mu in multipliers])
+    level = 1.0 + STABILITY_MARGIN
+    for k in range(len(r) - 1):
+        a, b = r[k] - level, r[k + 1] - level
+        if a * b < 0:
+            t = a / (a - b)
+            mu = multipliers[k + 1] if b > 0 else multipliers[k]
+            lead = mu[np.argmax(np.abs(mu))]
+            if abs(lead.imag) > 1e-6 * abs(lead):
+                kind, where = "Krein collision", "a pair of multipliers off the real axis"
+            elif lead.real > 0:
+                kind, where = "branch point", "a multiplier at +1"
+            else:
+                kind, where = "period doubling", "a multiplier at -1"
+            way = "loses" if b > 0 else "regains"
+            out.append(BranchEvent(kind, k, float(energies[k] + t * (energies[k + 1] - energies[k])),
+                                   float(frequencies[k] + t * (frequencies[k + 1] - frequencies[k])),
+                                   f"the family {way} stability ({where})"))
+    return out
+
+
+def _family_events(energies, frequencies, sigma, folds: Sequence[int], multipliers=None) -> List[BranchEvent]:
+    """The events of a family in energy: its stability changes (from ``sigma``; a chain's from its
+    ``multipliers``), and a fold after each orbit ``k`` of ``folds`` (where the energy turns back), in the
+    order of the orbits."""
+    if multipliers is not None and np.shape(multipliers)[1] != 4:
+        out = _multiplier_changes(energies, frequencies, multipliers)
+    else:
+        out = _stability_changes(
+            sigma, frequencies, lambda k, t: float(energies[k] + t * (energies[k + 1] - energies[k])),
+            lambda k, t, way, level: f"the family {way} stability (a multiplier at {'+' if level > 0 else '-'}1)")
     out += [BranchEvent("fold", k, float(energies[k + 1]), float(frequencies[k + 1]), "the energy turns back along the family")
             for k in folds]
     return sorted(out, key=lambda e: (e.index, e.kind == "fold"))
 
 
-def _events(energies, frequencies, sigma, tangents_E) -> List[BranchEvent]:
+def _events(energies, frequencies, sigma, tangents_E, multipliers=None) -> List[BranchEvent]:
     return _family_events(energies, frequencies, sigma,
-                          [k for k in range(len(energies) - 1) if tangents_E[k] * tangents_E[k + 1] < 0])
+                          [k for k in range(len(energies) - 1) if tangents_E[k] * tangents_E[k + 1] < 0], multipliers)
 
 
 @netcdf_reader(NNMFamily.result_kind)
@@ -748,16 +836,17 @@ def read_nnm(path, variables, attrs) -> NNMFamily:
 
     from ..numeric.variational import FlowIntegrator
 
-    proto = protocol_fields(path, attrs, Parameters)
+    proto = protocol_fields(path, attrs, AnyModel)
     params, settings = proto["params"], proto["settings"]
+    n2 = 2 * (params.n if isinstance(params, Chain) else 2)
     energies = np.asarray(variables["energy"], dtype=float)
     periods = np.asarray(variables["period"], dtype=float)
-    states = np.asarray(variables["state"], dtype=float).reshape(-1, 4)
+    states = np.asarray(variables["state"], dtype=float).reshape(-1, n2)
     sigma = np.asarray(variables["sigma"], dtype=float)
     mu = (np.asarray(variables["multiplier_real"], dtype=float)
-          + 1j * np.asarray(variables["multiplier_imag"], dtype=float)).reshape(-1, 4)
+          + 1j * np.asarray(variables["multiplier_imag"], dtype=float)).reshape(-1, n2)
     flow = FlowIntegrator(params, rtol=float(settings.get("rtol", 1e-12)), atol=float(settings.get("atol", 1e-12)))
-    monos = np.empty((len(energies), 4, 4))
+    monos = np.empty((len(energies), n2, n2))
     for k in range(len(energies)):
         fl = flow(states[k], float(periods[k]))
         if fl.status != Status.SUCCESS:
@@ -775,7 +864,7 @@ def read_nnm(path, variables, attrs) -> NNMFamily:
             raise ParameterError(f"{path} is not a nonlinear normal mode made by skewpend: its fold at E = {m.group(1)} J "
                                  "is not one of its orbits")
         folds.append(k)
-    events = _family_events(energies, freq, sigma, folds)
+    events = _family_events(energies, freq, sigma, folds, mu)
     rebuilt_text = "; ".join(f"{e.kind} at E = {e.energy:.9g} J" for e in events)
     if rebuilt_text != text:
         raise ParameterError(f"{path} is not a nonlinear normal mode made by skewpend: its events ({text!r}) do not follow "
@@ -783,7 +872,8 @@ def read_nnm(path, variables, attrs) -> NNMFamily:
     family = NNMFamily(mode=int(attrs["mode"]), linear_frequency=float(attrs["linear_frequency"]), energies=energies,
                        periods=periods, states=states, monodromies=monos, events=events,
                        energy_max=float(settings.get("energy_max", energies[-1] if energies.size else math.nan)), **proto)
-    agree(path, "sigma (trace of the monodromy - 2)", sigma, family.sigma, scale=4.0)
+    if n2 == 4:
+        agree(path, "sigma (trace of the monodromy - 2)", sigma, family.sigma, scale=4.0)
     agree(path, "Floquet multipliers", mu, family.multipliers, scale=1.0)
     object.__setattr__(family, "sigma", sigma)  # exactly as stored (the same values, to rounding)
     object.__setattr__(family, "multipliers", mu)
@@ -837,12 +927,17 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     from .modes import normal_modes
     from ..interrupts import Interrupts
 
-    params = numeric_params(params, "nonlinear normal modes")
+    chain = isinstance(params, Chain)
+    if not chain:
+        params = numeric_params(params, "nonlinear normal modes")
     _require_conservative(params, "a nonlinear normal mode")
-    if params.tau1 or params.tau2:
+    if any(link.torque for link in params.links) if chain else (params.tau1 or params.tau2):
         raise EquilibriumError("nonlinear normal modes start from the modes about the hanging equilibrium; "
                                "with torques use skewpend.periodic_orbit about skewpend.equilibria(params)")
-    mode = whole("mode", mode, 1, 2, what="1: the lower linear frequency, 2: the higher")
+    nq = params.n if chain else 2
+    n2 = 2 * nq
+    mode = whole("mode", mode, 1, nq, what="1: the lowest linear frequency" + (", 2: the higher" if nq == 2 else
+                                                                                f", ..., {nq}: the highest"))
     max_orbits = whole("max_orbits", max_orbits, lo=2, hi=100_000)
     resolution = whole("resolution", resolution, lo=1, hi=100_000)
     if resolution >= max_orbits:
@@ -858,23 +953,24 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     v = linear.shapes[:, mode - 1]
     model = _Model(params, rtol, atol)
     T0 = 2 * math.pi / w0
-    scales = _Scales(angle=1.0, speed=w0, period=T0, energy=max(E_max, 1e-300))
+    scales = _Scales(angle=1.0, speed=w0, period=T0, energy=max(E_max, 1e-300), nq=nq)
     su = scales.vector()
     # the first orbit: the linear mode at a small energy (1/2 w^2 A^2 = E with v^T M v = 1)
     E = FIRST_ORBIT * min(E_max, barrier)
     A = math.sqrt(2 * E) / w0
-    x = np.r_[A * v, 0.0, 0.0]
+    x = np.r_[A * np.real(v), np.zeros(nq)]
+    zero = np.zeros(n2)
     energies, periods, states, monos, tangE = [], [], [], [], []
     settings = {"mode": mode, "energy_max": E_max, "step": step, "rtol": rtol, "atol": atol, "max_orbits": max_orbits}
     status, message = Status.SUCCESS, ""
     with Interrupts() as intr:
-        out = _newton(model, x, T0, E, np.zeros(4), x, scales, check=intr.check)
+        out = _newton(model, x, T0, E, zero, x, scales, check=intr.check)
         if out is None:
             raise IntegrationError("the continuation could not start from the linear mode (Newton failed at the first orbit)")
         x, T, E, fl, _, _ = out
         energies.append(E), periods.append(T), states.append(x), monos.append(fl.stm)
         # the first tangent: along increasing energy (a second orbit at twice the energy)
-        out2 = _newton(model, x * math.sqrt(2.0), T, 2 * E, np.zeros(4), x, scales, check=intr.check)
+        out2 = _newton(model, x * math.sqrt(2.0), T, 2 * E, zero, x, scales, check=intr.check)
         if out2 is None:
             raise IntegrationError("the continuation could not take its first step from the linear mode")
         x2, T2, E2, fl2, _, _ = out2
@@ -893,8 +989,8 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
                 status, message = Status.MAX_STEPS, f"stopped after max_orbits = {max_orbits} orbits at E = {energies[-1]:.6g} J"
                 break
             u_pred = u_cur + ds * tangent
-            x_p, T_p, E_p = u_pred[:4] * su[:4], u_pred[4] * su[4], u_pred[5] * su[5]
-            res = _newton(model, x_p, T_p, E_p, np.zeros(4), states[-1], scales, arclength=(u_pred, tangent),
+            x_p, T_p, E_p = u_pred[:n2] * su[:n2], u_pred[n2] * su[n2], u_pred[n2 + 1] * su[n2 + 1]
+            res = _newton(model, x_p, T_p, E_p, zero, states[-1], scales, arclength=(u_pred, tangent),
                           free_energy=True, check=intr.check, max_iterations=8)
             if res is None:
                 ds /= 2
@@ -914,7 +1010,7 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
                 # the last orbit exactly at energy_max (energy fixed, from the interpolated orbit)
                 t_ = (E_max - energies[-1]) / (E_n - energies[-1])
                 guess = states[-1] + t_ * (x_n - states[-1])
-                fixed = _newton(model, guess, periods[-1] + t_ * (T_n - periods[-1]), E_max, np.zeros(4), states[-1],
+                fixed = _newton(model, guess, periods[-1] + t_ * (T_n - periods[-1]), E_max, zero, states[-1],
                                 scales, check=intr.check)
                 if fixed is not None:
                     x_n, T_n, E_n, fl_n = fixed[0], fixed[1], fixed[2], fixed[3]
@@ -927,8 +1023,8 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     tangE.append(tangE[-1] if tangE else 1.0)
     energies_a = np.array(energies)
     family_freq = 2 * np.pi / np.array(periods)
-    sig = np.array([np.trace(m) - 2 for m in monos])
-    events = _events(energies_a, family_freq, sig, np.array(tangE))
+    sig = np.array([np.trace(m) - 2 if n2 == 4 else math.nan for m in monos])
+    events = _events(energies_a, family_freq, sig, np.array(tangE), np.array([_multipliers(m)[0] for m in monos]))
     if status == Status.SUCCESS:
         message = (f"{len(energies)} orbits from E = {energies[0]:.3g} J to {energies[-1]:.6g} J"
                    + (" (the lowest energy at which a joint can flip)" if energy_max is None else ""))
@@ -961,29 +1057,37 @@ class Backbones:
 
 
 def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_order: int = 3, **kw) -> Backbones:
-    """Both families (:func:`nnm`) and their internal resonances up to order ``max_order`` (1 to 12)."""
+    """Every family (:func:`nnm`: both of the double pendulum, a chain's n) and their internal resonances up to
+    order ``max_order`` (1 to 12): where the frequency ratio ``w_j(E) / w_i(E)`` of two families (``i < j``)
+    crosses ``p/q`` with ``p, q <= max_order``."""
     max_order = whole("max_order", max_order, 1, 12)
-    fams = [nnm(params, mode=m, energy_max=energy_max, **kw) for m in (1, 2)]
+    n = params.n if isinstance(params, Chain) else 2
+    fams = [nnm(params, mode=m, energy_max=energy_max, **kw) for m in range(1, n + 1)]
     ratios = sorted({Fraction(p, q) for p in range(1, max_order + 1) for q in range(1, max_order + 1)})
     res: List[BranchEvent] = []
-    f1, f2 = fams
-    lo = max(f1.energies.min(), f2.energies.min())
-    hi = min(f1.energies.max(), f2.energies.max())
-    if hi > lo:
-        E = np.linspace(lo, hi, 4001)
-        # each family as a function of energy (valid where its energy increases along the family)
-        def along(f):
-            order = np.argsort(f.energies)
-            return np.interp(E, f.energies[order], f.frequencies[order])
-        ratio = along(f2) / along(f1)
-        for r in ratios:
-            d = ratio - float(r)
-            for k in np.nonzero(d[:-1] * d[1:] < 0)[0]:
-                t = d[k] / (d[k] - d[k + 1])
-                Ek = float(E[k] + t * (E[k + 1] - E[k]))
-                w1 = float(np.interp(Ek, E, along(f1)))
-                res.append(BranchEvent("resonance", int(k), Ek, w1, f"w2/w1 = {r.numerator}/{r.denominator}"))
-    return Backbones(fams, res)
+
+    def along(f, E):  # a family as a function of energy (valid where its energy increases along the family)
+        order = np.argsort(f.energies)
+        return np.interp(E, f.energies[order], f.frequencies[order])
+
+    for i in range(n):
+        for j in range(i + 1, n):
+            f1, f2 = fams[i], fams[j]
+            lo = max(f1.energies.min(), f2.energies.min())
+            hi = min(f1.energies.max(), f2.energies.max())
+            if not hi > lo:
+                continue
+            E = np.linspace(lo, hi, 4001)
+            w1 = along(f1, E)
+            ratio = along(f2, E) / w1
+            for r in ratios:
+                d = ratio - float(r)
+                for k in np.nonzero(d[:-1] * d[1:] < 0)[0]:
+                    t = d[k] / (d[k] - d[k + 1])
+                    Ek = float(E[k] + t * (E[k + 1] - E[k]))
+                    res.append(BranchEvent("resonance", int(k), Ek, float(np.interp(Ek, E, w1)),
+                                           f"w{j + 1}/w{i + 1} = {r.numerator}/{r.denominator}"))
+    return Backbones(fams, sorted(res, key=lambda e: e.energy) if n > 2 else res)
 
 
 # -- continuation in alpha at fixed energy ---------------------------------------------------------

@@ -116,7 +116,7 @@ def orbit(
 @command(MODEL)
 def nnm(
     model: dict,
-    mode: option("--mode", T.Whole(1, 2), "the family: 1 (from the lower linear mode) or 2; default both, with their internal resonances") = None,
+    mode: option("--mode", T.Whole(1, 64), "the family: 1 (from the lower linear mode) or 2 (a chain's 1 to n); default every one, with their internal resonances") = None,
     energy_max: option("--energy-max", _ENERGY, "continue up to this energy [J] (default: the lowest energy at which a joint can flip)") = None,
     resolution: option("--resolution", T.Whole(1, 100000), "at least this many orbits per family up to --energy-max (default 200)") = None,
     orbits_at: option("--orbits-at", T.Numbers(most=4, metavar="E1,E2,..."), "with --plot: draw the orbits at these energies E1,E2,... [J] beside the curves (at most 4; default two)") = None,
@@ -129,7 +129,7 @@ def nnm(
 ):
     """Nonlinear normal modes: the families of periodic orbits continuing the linear modes as the energy grows (the backbones), their stability, bifurcations and internal resonances.
 
-    From a --config run file it takes [parameters].
+    From a --config run file it takes [parameters]; or a chain of links ([[links]], [chain]): its n families.
     """
     from ..analysis.orbits import backbones, nnm as continue_mode
 

@@ -11,9 +11,12 @@ from .base import heading, new_figure
 
 __all__ = ["fep_figure", "alpha_family_figure", "FAMILY_COLORS"]
 
-#: The colour of each family (mode 1, mode 2): those of phi and psi elsewhere.
-FAMILY_COLORS = {1: COLORS["phi"], 2: COLORS["psi"]}
+#: The colour of each family (mode 1, mode 2): those of phi and psi elsewhere; a chain's further modes from
+#: Matplotlib's tab10 (by mode number).
+FAMILY_COLORS = {1: COLORS["phi"], 2: COLORS["psi"], 3: "#2ca02c", 4: "#9467bd", 5: "#8c564b", 6: "#e377c2",
+                 7: "#7f7f7f", 8: "#bcbd22", 9: "#17becf", 10: "#d62728"}
 _EVENT_MARKERS = {"branch point": ("o", "branch point (multiplier +1)"), "period doubling": ("s", "period doubling (multiplier −1)"),
+                  "Krein collision": ("^", "Krein collision (a complex pair leaves the circle)"),
                   "fold": ("D", "fold"), "resonance": ("*", "internal resonance")}
 
 
@@ -80,8 +83,9 @@ def fep_figure(families, *, orbits: Optional[Sequence] = None, resonances: Seque
             sub.plot(np.degrees(tr.y[:, 0]), np.degrees(tr.y[:, 1]), color=color, lw=1.3)
             sub.plot(np.degrees(tr.y[0, 0]), np.degrees(tr.y[0, 1]), "o", color=color, ms=3)
             sub.set_title(f"({chr(ord('a') + k)}) mode {mode}, E = {energy:.3g} J", fontsize=9, loc="left")
-            sub.set_xlabel(f"{SYMBOL['phi']} [deg]", fontsize=8)
-            sub.set_ylabel(f"{SYMBOL['psi']} [deg]", fontsize=8)
+            double = tr.y.shape[1] <= 5  # a chain's orbit is drawn in (q1, q2)
+            sub.set_xlabel(f"{SYMBOL['phi'] if double else 'q₁'} [deg]", fontsize=8)
+            sub.set_ylabel(f"{SYMBOL['psi'] if double else 'q₂'} [deg]", fontsize=8)
             sub.tick_params(labelsize=7)
             lim = max(np.abs(np.degrees(tr.y[:, :2])).max() * 1.15, 1e-9)
             sub.set_xlim(-lim, lim)
