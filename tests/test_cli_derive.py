@@ -201,5 +201,9 @@ def test_a_chains_text_latex_and_code(chain_file):
     assert r"\ddot{q}_{3}" in latex and r"\begin{aligned}" in latex
     c = run("derive", "--config", str(chain_file), "--format", "c").stdout
     assert "from a chain's recursive algorithms" in c and "#define SP_NQ 3" in c
-    bad = run("derive", "--config", str(chain_file), "--format", "python", check=False)
-    assert bad.returncode == 2 and "a chain's generated code is C" in bad.stderr and "Traceback" not in bad.stderr
+    py = run("derive", "--config", str(chain_file), "--format", "python").stdout
+    assert "def rhs(t, y, p=P):" in py and "N = 3" in py
+    js = run("derive", "--config", str(chain_file), "--format", "javascript").stdout
+    assert "export function rhs(y, p = P) {" in js and "export const N = 3;" in js
+    bad = run("derive", "--config", str(chain_file), "--format", "python", "--steps", check=False)
+    assert bad.returncode == 2 and "--steps go with --format text" in bad.stderr and "Traceback" not in bad.stderr

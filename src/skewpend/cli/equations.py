@@ -45,21 +45,19 @@ def derive(
     """Derive the equations of motion M(q) q'' = f(q, q') by the specification's method.
 
     From a --config run file it takes [parameters] (the values it gives; the others stay symbolic),
-    or a chain of links ([[links]], [chain]): its equations by the same method (C code with --format c).
+    or a chain of links ([[links]], [chain]): its equations by the same method, and its code (--format c: the
+    kernels' recursive algorithms; python, javascript: standalone modules from the same graphs).
     """
     run = resolve("derive", config, defaults=False, parameters=model)
     params = run.parameters()
     if coulomb is not None and not linear:
         raise UsageError("--coulomb sets how Coulomb friction enters the linearised equations; give it with --linear")
     if run.is_chain and fmt.value in _CODE:
-        if fmt.value != "c":
-            raise UsageError(f"--format {fmt.value}: a chain's generated code is C (--format c: its recursive algorithms "
-                             "as straight-line or compact code); Python and JavaScript are the double pendulum's")
         if linear or steps:
             raise UsageError("--linear and --steps go with --format text|latex|json, not with generated code")
-        from ..numeric.recursive import chain_source, structure_of_chain
+        from ..numeric.recursive import chain_code, chain_source, structure_of_chain
 
-        sys.stdout.write(chain_source(structure_of_chain(params)))
+        sys.stdout.write(chain_source(structure_of_chain(params)) if fmt.value == "c" else chain_code(params, fmt.value))
         return
     if fmt.value in _CODE:
         if linear or steps:

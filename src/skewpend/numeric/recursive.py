@@ -35,7 +35,8 @@ from ..schema import CHAIN_NAMES, LINK_FIELDS
 from ..symbolic.chain import Chain
 
 __all__ = ["ChainStructure", "structure_of_chain", "parameter_names", "parameter_vector", "PER_LINK",
-           "chain_functions", "c_function_lines", "standard_names", "standard_vector", "regressor_function"]
+           "chain_functions", "c_function_lines", "function_lines", "chain_code", "CODE_LANGUAGES", "standard_names",
+           "standard_vector", "regressor_function"]
 
 def _per_link() -> Tuple[str, ...]:
     """One link's entries of ``p``, from the schema's link fields in their order: every field but the
@@ -372,39 +373,61 @@ def chain_functions(structure: ChainStructure) -> Dict[str, object]:
     return fns
 
 
-# -- printing CasADi's instructions as C -------------------------------------------------------------------
-def c_function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], indent: str = "    ",
-                     declare: bool = True) -> List[str]:
-    """C statements evaluating the CasADi SX function ``fn``: ``inputs[k]`` is the C array expression
-    of its input ``k``, ``outputs[k][j]`` the name that receives entry ``j`` of output ``k`` (declared
-    ``double`` when ``declare``).  Work registers are ``double`` locals ``w0, w1, ...``."""
+# -- printing CasADi's instructions as C, JavaScript and Python ---------------------------------------------
+#: How each language writes CasADi's operations (``{0}``, ``{1}``: the operands), declares its work registers
+#: and ends a statement.
+_LANGUAGES = {
+    "c": dict(fn=lambda f: f, fabs="fabs({0})", pow="pow({0}, {1})", declare="double ", end=";"),
+    "javascript": dict(fn=lambda f: f"Math.{f}", fabs="Math.abs({0})", pow="Math.pow({0}, {1})", declare="let ", end=";"),
+    "python": dict(fn=lambda f: f"math.{f}", fabs="abs({0})", pow="({0}) ** ({1})", declare="", end=""),
+}
+
+
+def function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], indent: str = "    ",
+                   declare: bool = True, language: str = "c") -> List[str]:
+    """Statements in ``language`` (``"c"``, ``"javascript"``, ``"python"``) evaluating the CasADi SX function
+    ``fn``: ``inputs[k]`` is the array expression of its input ``k``, ``outputs[k][j]`` the name that receives
+    entry ``j`` of output ``k`` (declared when ``declare``: C's ``double``, JavaScript's ``let``).  Work
+    registers are locals ``w0, w1, ...``; every language evaluates the same operations in the same order."""
     ca = _ca()
+    L = _LANGUAGES[language]
+    call = L["fn"]
     ops = {ca.OP_ADD: "{0} + {1}", ca.OP_SUB: "{0} - {1}", ca.OP_MUL: "{0} * {1}", ca.OP_DIV: "{0} / {1}",
-           ca.OP_NEG: "-{0}", ca.OP_SQ: "{0} * {0}", ca.OP_TWICE: "2.0 * {0}", ca.OP_SIN: "sin({0})",
-           ca.OP_COS: "cos({0})", ca.OP_ATAN: "atan({0})", ca.OP_SQRT: "sqrt({0})", ca.OP_INV: "1.0 / {0}",
-           ca.OP_ASSIGN: "{0}", ca.OP_FABS: "fabs({0})", ca.OP_EXP: "exp({0})", ca.OP_LOG: "log({0})",
-           ca.OP_TAN: "tan({0})", ca.OP_POW: "pow({0}, {1})", ca.OP_CONSTPOW: "pow({0}, {1})"}
+           ca.OP_NEG: "-{0}", ca.OP_SQ: "{0} * {0}", ca.OP_TWICE: "2.0 * {0}", ca.OP_SIN: call("sin") + "({0})",
+           ca.OP_COS: call("cos") + "({0})", ca.OP_ATAN: call("atan") + "({0})", ca.OP_SQRT: call("sqrt") + "({0})",
+           ca.OP_INV: "1.0 / {0}", ca.OP_ASSIGN: "{0}", ca.OP_FABS: L["fabs"], ca.OP_EXP: call("exp") + "({0})",
+           ca.OP_LOG: call("log") + "({0})", ca.OP_TAN: call("tan") + "({0})", ca.OP_POW: L["pow"],
+           ca.OP_CONSTPOW: L["pow"]}
+    end = L["end"]
     lines: List[str] = []
-    if declare:
-        lines += [f"{indent}double {', '.join(name for out in outputs for name in out)};"]
+    if declare and L["declare"]:
+        lines += [f"{indent}{L['declare']}{', '.join(name for out in outputs for name in out)}{end}"]
     nw = fn.sz_w()
-    if nw:
-        lines += [f"{indent}double " + ", ".join(f"w{k}" for k in range(nw)) + ";"]
+    if nw and L["declare"]:
+        lines += [f"{indent}{L['declare']}" + ", ".join(f"w{k}" for k in range(nw)) + end]
     for k in range(fn.n_instructions()):
         op = fn.instruction_id(k)
         ins, outs = fn.instruction_input(k), fn.instruction_output(k)
         if op == ca.OP_INPUT:
-            lines.append(f"{indent}w{outs[0]} = {inputs[ins[0]]}[{ins[1]}];")
+            lines.append(f"{indent}w{outs[0]} = {inputs[ins[0]]}[{ins[1]}]{end}")
         elif op == ca.OP_OUTPUT:
-            lines.append(f"{indent}{outputs[outs[0]][outs[1]]} = w{ins[0]};")
+            lines.append(f"{indent}{outputs[outs[0]][outs[1]]} = w{ins[0]}{end}")
         elif op == ca.OP_CONST:
-            lines.append(f"{indent}w{outs[0]} = {float(fn.instruction_constant(k))!r};")
+            lines.append(f"{indent}w{outs[0]} = {float(fn.instruction_constant(k))!r}{end}")
         elif op in ops:
             args = [f"w{i}" for i in ins]
-            lines.append(f"{indent}w{outs[0]} = {ops[op].format(*args)};")
+            lines.append(f"{indent}w{outs[0]} = {ops[op].format(*args)}{end}")
         else:
-            raise NotImplementedError(f"CasADi operation {op} has no C form here")
+            raise NotImplementedError(f"CasADi operation {op} has no {language} form here")
     return lines
+
+
+def c_function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], indent: str = "    ",
+                     declare: bool = True) -> List[str]:
+    """C statements evaluating the CasADi SX function ``fn`` (:func:`function_lines` in C): ``inputs[k]`` is
+    the C array expression of its input ``k``, ``outputs[k][j]`` the name that receives entry ``j`` of output
+    ``k`` (declared ``double`` when ``declare``).  Work registers are ``double`` locals ``w0, w1, ...``."""
+    return function_lines(fn, inputs, outputs, indent, declare, "c")
 
 
 def _header(structure: ChainStructure, form: str) -> List[str]:
@@ -493,6 +516,74 @@ def chain_c_source(structure: ChainStructure) -> str:
         out += ["}", ""]
     out.append(exports())
     return "\n".join(out) + "\n"
+
+
+#: The languages of :func:`chain_code` (the C is the kernels', :func:`chain_source`).
+CODE_LANGUAGES = ("python", "javascript")
+
+
+def chain_code(chain: Chain, language: str) -> str:
+    """A standalone module of ``chain``'s model in ``language`` (``"python"``: plain ``math``, ``rhs(t, y, p=P)``
+    with SciPy's ``solve_ivp`` signature; ``"javascript"``: an ES module, ``rhs(y, p = P)``), printed from the
+    same CasADi graphs of the recursive algorithms as the kernels' C: ``P`` (the chain's parameter vector, in
+    ``PARAMETER_ORDER``), ``rhs`` (``dy/dt = (q1' .. qn', q1'' .. qn'')``, ``M q'' = f`` solved by LDL^T),
+    ``energy`` (``T + Pi`` [J]), ``ends`` (the rods' ends, 3 n [m], j pointing down) and ``axes`` (the hinge
+    axes in the world frame, 3 n) of the angles ``q``."""
+    from .. import __version__
+    from .codegen import ldlt_steps
+
+    if language not in CODE_LANGUAGES:
+        raise ValueError(f"language must be one of {', '.join(CODE_LANGUAGES)}, got {language!r}")
+    structure = structure_of_chain(chain)
+    fns = chain_functions(structure)
+    n = structure.n
+    names = parameter_names(n)
+    values = [float(v) for v in parameter_vector(chain)]
+    py = language == "python"
+    I = "    " if py else "  "
+    decl, end = ("", "") if py else ("const ", ";")
+    Mn = [f"M{i}_{j}" for i in range(n) for j in range(i + 1)]
+    f = [f"f{i}" for i in range(n)]
+    acc = [f"a{i}" for i in range(n)]
+    doc = [f"Generated by skewpend {__version__} from a chain's recursive algorithms (CasADi graphs) -- do not edit.",
+           f"{n} links; hinge axes (each in its parent's frame, the chain hanging): "
+           + "; ".join("(" + ", ".join(f"{x:.17g}" for x in a) + ")" for a in structure.axes) + ".",
+           f"State y = (q1 .. q{n}, dq1 .. dq{n}): the joint angles [rad] (zero with every rod hanging) and their rates.",
+           "Parameters p (PARAMETER_ORDER) in SI units, the default P the chain's values.",
+           "Equations: M(q) q'' = f(q, q'), solved numerically (LDL^T of the symmetric positive-definite M)."]
+
+    def body(name, args, fn, inputs, outputs, ret, comment):
+        lines = function_lines(fn, inputs, outputs, I, True, language)
+        if py:
+            return [f"def {name}({args}):", f'{I}"""{comment}"""', *lines, f"{I}return {ret}", "", ""]
+        return [f"/** {comment} */", f"export function {name}({args}) {{", *lines, f"{I}return {ret};", "}", ""]
+
+    rhs_lines = function_lines(fns["model"], ["y", "p"], [Mn, f, [f"Q{i}" for i in range(n)]], I, True, language)
+    rhs_lines += [f"{I}{decl}{t} = {e}{end}" for t, e in ldlt_steps(Mn, f, acc)]
+    ret_rhs = "[" + ", ".join([f"y[{n + i}]" for i in range(n)] + acc) + "]"
+    vec = lambda k: "[" + ", ".join(f"r{i}" for i in range(k)) + "]"  # noqa: E731
+    rest = (body("energy", "y, p=P" if py else "y, p = P", fns["energy"], ["y", "p"], [["E"]], "E",
+                 "mechanical energy T + Pi [J]; Pi = 0 with every rod hanging")
+            + body("ends", "q, p=P" if py else "q, p = P", fns["ends"], ["q", "p"], [[f"r{i}" for i in range(3 * n)]],
+                   vec(3 * n), "the rods' ends [x1, y1, z1, ..., zn] [m] at the angles q (j points down)")
+            + body("axes", "q, p=P" if py else "q, p = P", fns["axes"], ["q", "p"], [[f"r{i}" for i in range(3 * n)]],
+                   vec(3 * n), "the hinge axes in the world frame [a1x, a1y, a1z, ..., anz] at the angles q"))
+    if py:
+        head = ['"""' + "\n".join(doc) + '\n"""', "import math", "", "",
+                "#: The parameter vector's entries, in order.",
+                f"PARAMETER_ORDER = ({', '.join(repr(x) for x in names)})",
+                "#: The chain's values (the default parameter vector).",
+                f"P = ({', '.join(repr(v) for v in values)})", "#: Links.", f"N = {n}", "", "",
+                "def rhs(t, y, p=P):", f'{I}"""dy/dt = (dq1 .. dq{n}, ddq1 .. ddq{n}); signature of scipy.integrate.solve_ivp."""',
+                *rhs_lines, f"{I}return {ret_rhs}", "", ""]
+    else:
+        head = ["/**", *(" * " + line for line in doc), " */", "",
+                f"export const PARAMETER_ORDER = [{', '.join(repr(x) for x in names)}];",
+                "/** the chain's values (the default parameter vector) */",
+                f"export const P = [{', '.join(repr(v) for v in values)}];", f"export const N = {n};", "",
+                f"/** dy/dt = [dq1 .. dq{n}, ddq1 .. ddq{n}] */", "export function rhs(y, p = P) {", *rhs_lines,
+                f"{I}return {ret_rhs};", "}", ""]
+    return "\n".join(head + rest).rstrip() + "\n"
 
 
 @lru_cache(maxsize=8)
