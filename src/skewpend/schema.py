@@ -220,7 +220,7 @@ def coordinate_names(n: int) -> Tuple[str, ...]:
 
 def state_coordinates(nq: int) -> Dict[str, int]:
     """The state's coordinates a slice may vary, by their index in ``x``: the double pendulum's ``phi,
-    psi, dphi, dpsi``; a chain of ``n`` links' ``q1 .. qn, dq1 .. dqn``."""
+    psi, dphi, dpsi``; a chain of ``n`` links' ``q1 … qn, dq1 … dqn``."""
     names = coordinate_names(nq)
     return {**{c: i for i, c in enumerate(names)}, **{f"d{c}": nq + i for i, c in enumerate(names)}}
 

@@ -57,7 +57,7 @@ class ChainFlipMap(Result):
       centres, ``x0`` along axis 0) [rad]; ``held`` -- the start's angles at the plane's origin (the others
       as held) [rad];
     * ``flip_time`` (n, n) [s] -- the first time any angle leaves ``(-pi, pi)``, NaN if not by ``t_end`` or
-      failed; ``which`` (n, n) -- the joint that flipped, 1 .. n (0 none, -1 failed);
+      failed; ``which`` (n, n) -- the joint that flipped, 1 … n (0 none, -1 failed);
     * ``params`` (the chain), ``settings``, ``stats`` (``cells``, ``flipped``, ``failed``, ``steps``,
       ``rejected``, the run's chunks, store and cluster), ``status`` (PARTIAL when cells failed), ``message``;
       ``flipped``, ``flipped_fraction``, ``to_xarray()``, ``to_netcdf()``, ``summary()``.

@@ -3,7 +3,7 @@
 ``region_of_attraction(params, target, actuated, n)`` designs (or takes) the LQR about
 ``target`` with the torque limit ``umax`` and releases the closed loop from the centres of an
 ``n x n`` grid of cells on a 2-D slice of the state space through the target -- two of
-``phi, psi, phi', psi'`` (``plane``; a chain of links': two of ``q1 .. qn, dq1 .. dqn``) varied over
+``phi, psi, phi', psi'`` (``plane``; a chain of links': two of ``q1 … qn, dq1 … dqn``) varied over
 ``window`` about their target values, the others at theirs.  Each start is integrated by DOP853 with the inputs inside the compiled code
 (``sp_capture_lanes`` in ``integrators.c``: eight starts side by side in SIMD lanes, on the flip
 map's trigonometry-free state, each step stopped at the law's switches -- the saturation kinks and
@@ -84,7 +84,7 @@ def _window(name: str, value, angle: bool) -> Tuple[float, float]:
 class RegionOfAttraction(Result):
     """The result of :func:`region_of_attraction`.
 
-    * ``plane`` -- the two coordinates varied (of ``phi, psi, dphi, dpsi``; a chain's ``q1 .. dqn``); ``x0``, ``y0`` -- their
+    * ``plane`` -- the two coordinates varied (of ``phi, psi, dphi, dpsi``; a chain's ``q1 … dqn``); ``x0``, ``y0`` -- their
       starting values (cell centres; ``x0`` along axis 0, ``y0`` along axis 1) [rad or rad/s];
     * ``capture_time`` (n, n) [s] -- when the start entered the LQR's estimate (0: it starts
       inside), NaN if not by ``t_end`` or failed; ``outcome`` (n, n) -- 1 captured, 0 not
@@ -333,7 +333,7 @@ def region_of_attraction(
 ) -> RegionOfAttraction:
     """The region of attraction of the LQR about ``target`` with the ``actuated`` joints and the
     torque limit ``umax`` [N m] (see the module), on ``n x n`` cells of the slice ``plane`` (default
-    the two angles, ``("phi", "psi")``; a chain of links': ``("q1", "q2")`` of ``q1 .. qn, dq1 .. dqn``,
+    the two angles, ``("phi", "psi")``; a chain of links': ``("q1", "q2")`` of ``q1 … qn, dq1 … dqn``,
     ``actuated`` ``"all"`` or the joints' numbers, ``target`` one of its labels, e.g. ``"up-up-up"``).
 
     ``design``: an :class:`~skewpend.analysis.control.LQR` from :func:`skewpend.lqr` (then

@@ -137,7 +137,7 @@ class Interval(ParamType):
 
 class Plane(ParamType):
     """``A,B``: two different coordinates of the state, of ``phi, psi, dphi, dpsi`` (a chain of links':
-    ``q1 .. qn, dq1 .. dqn``; the model's own are checked by the library)."""
+    ``q1 … qn, dq1 … dqn``; the model's own are checked by the library)."""
 
     metavar = "A,B"
     NAMES = ("phi", "psi", "dphi", "dpsi")

@@ -22,7 +22,7 @@ The inputs add to the model's constant torques ``tau``; the work ``W`` of ``Q = 
 then includes theirs, so ``E - W`` stays conserved (the energy balance of every run).
 
 A chain of ``n`` links takes the same laws for its ``n`` joints (``Controller.nq``): a gain of shape
-``(n, 2 n)``, a table of ``n`` columns, a Python law of ``(q1 .. qn, q1' .. qn')`` returning ``n``
+``(n, 2 n)``, a table of ``n`` columns, a Python law of ``(q1 … qn, q1' … qn')`` returning ``n``
 torques (``nq=n``), ``actuated="all"`` or the joints' numbers (``(2,)``, ``(1, 3)``); the compiled
 ``sp_control`` is laid out for the model's ``SP_NQ`` (``kernels.control_struct_type``).
 """
@@ -58,7 +58,7 @@ MAX_JOINTS = 31
 def actuation_mask(actuated, nq: int = 2) -> int:
     """The actuated joints of a model of ``nq`` coordinates as ``sp_control``'s bit mask (bit j: joint
     j + 1): ``"both"`` or ``"all"`` every joint, ``"acrobot"`` / ``"pendubot"`` (two joints only) the
-    elbow / the shoulder, or the joints' numbers 1 .. nq (``(2,)``, ``(1, 3)``)."""
+    elbow / the shoulder, or the joints' numbers 1 … nq (``(2,)``, ``(1, 3)``)."""
     if isinstance(actuated, str):
         if actuated in ("both", "all"):
             return (1 << nq) - 1
@@ -193,7 +193,7 @@ class Controller:
     @classmethod
     def swingup(cls, energy_gain: float, target_energy: float, K, target, P, rho: float, u_target=None, *,
                 elbow_gains=(0.0, 0.0), actuated="both", umax=None) -> "Controller":
-        """Energy shaping ``u_j = energy_gain (E* - E) q'_j`` on the actuated joints (joints 2 .. n also held
+        """Energy shaping ``u_j = energy_gain (E* - E) q'_j`` on the actuated joints (joints 2 … n also held
         towards their targets by the PD ``elbow_gains``), switched to the feedback ``u* - K (x - x*)`` inside
         ``(x - x*)^T P (x - x*) < rho``."""
         n = _gain_joints(K)
@@ -244,7 +244,7 @@ class Controller:
     @classmethod
     def function(cls, f, *, actuated="both", umax=None, nq: int = 2) -> "Controller":
         """``u = f(t, x)``: a Python callable of the time [s] and the state ``x = (phi, psi, phi',
-        psi')`` (a chain's ``(q1 .. qn, q1' .. qn')``, ``nq`` = n; a NumPy array) returning the joints'
+        psi')`` (a chain's ``(q1 … qn, q1' … qn')``, ``nq`` = n; a NumPy array) returning the joints'
         torques [N m] (the joints not actuated get 0, then the limits apply).  The slow path (see the
         module): for laws the built-in ones cannot express."""
         n = _joints(nq)

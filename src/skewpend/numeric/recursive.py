@@ -526,7 +526,7 @@ def chain_code(chain: Chain, language: str) -> str:
     """A standalone module of ``chain``'s model in ``language`` (``"python"``: plain ``math``, ``rhs(t, y, p=P)``
     with SciPy's ``solve_ivp`` signature; ``"javascript"``: an ES module, ``rhs(y, p = P)``), printed from the
     same CasADi graphs of the recursive algorithms as the kernels' C: ``P`` (the chain's parameter vector, in
-    ``PARAMETER_ORDER``), ``rhs`` (``dy/dt = (q1' .. qn', q1'' .. qn'')``, ``M q'' = f`` solved by LDL^T),
+    ``PARAMETER_ORDER``), ``rhs`` (``dy/dt = (q1' … qn', q1'' … qn'')``, ``M q'' = f`` solved by LDL^T),
     ``energy`` (``T + Pi`` [J]), ``ends`` (the rods' ends, 3 n [m], j pointing down) and ``axes`` (the hinge
     axes in the world frame, 3 n) of the angles ``q``."""
     from .. import __version__

@@ -1,4 +1,4 @@
-// skewpend's 3D pendulum (three.js): the roof, both rods, the joints, both hinge axes and the tip's
+// skewpend's 3D pendulum (three.js): the roof, the rods (two, or a chain's n), the joints, the hinge axes and the tip's
 // trail, turnable with the mouse.  Shared by the explorer, the report's live view and the notebook
 // widget.  It draws what it is given -- the rod ends and the hinge axes in the model's frame (j
 // points down), computed by the generated physics or replayed from a computed trajectory -- and
@@ -19,7 +19,8 @@ function placeSegment(mesh, from, to) {
 }
 
 /** The scene on `canvas`: {pose(tips, axes, size), pushTrail(), clearTrail(), render(), resize(),
- *  geometry, camera, controls, renderer, rods: {rod1, rod2, joint1, bob}}.  `trail`: points kept. */
+ *  geometry, camera, controls, renderer, rods: {rod1, rod2, joint1, bob, all}}.  `trail`: points kept.
+ *  Any number of rods (a chain of links): the pose's arrays say how many. */
 export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}) {
   const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
   renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
@@ -41,20 +42,38 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
   roof.position.y = 0.06;
   scene.add(roof);
 
-  const rodMat1 = new THREE.MeshStandardMaterial({ color: 0x4f8fe8, roughness: 0.45 });
-  const rodMat2 = new THREE.MeshStandardMaterial({ color: 0xe8864f, roughness: 0.45 });
+  // the rods, the joints between them, the bob and the hinge axes: the double pendulum's two (rod1, rod2, joint1,
+  // axis1, axis2), more as a chain's pose asks for them (rod3, joint2, axis3, ...)
+  const ROD_COLORS = [0x4f8fe8, 0xe8864f, 0x59c08f, 0xb78be0, 0xe0c35a, 0x5ec8d8, 0xe06a8c, 0x9aa7b8];
+  const AXIS_COLORS = [[0x7ee787, 0x1d4d22], [0xf2cc60, 0x4d3d10], [0x79c0ff, 0x12365a], [0xff9bce, 0x5a1436]];
   const unitRod = new THREE.CylinderGeometry(0.025, 0.025, 1, 20);
-  const rod1 = new THREE.Mesh(unitRod, rodMat1); rod1.name = "rod1";
-  const rod2 = new THREE.Mesh(unitRod, rodMat2); rod2.name = "rod2";
-  const jointMat = new THREE.MeshStandardMaterial({ color: 0xdfe6ee });
-  const joint0 = new THREE.Mesh(new THREE.SphereGeometry(0.045, 20, 14), jointMat);
-  const joint1 = new THREE.Mesh(new THREE.SphereGeometry(0.045, 20, 14), jointMat);
-  const bob = new THREE.Mesh(new THREE.SphereGeometry(0.05, 20, 14), rodMat2);
   const unitAxis = new THREE.CylinderGeometry(0.012, 0.012, 1, 12);
-  const axis1 = new THREE.Mesh(unitAxis, new THREE.MeshStandardMaterial({ color: 0x7ee787, emissive: 0x1d4d22 }));
-  const axis2 = new THREE.Mesh(unitAxis, new THREE.MeshStandardMaterial({ color: 0xf2cc60, emissive: 0x4d3d10 }));
-  axis1.name = "axis1"; axis2.name = "axis2";
-  scene.add(rod1, rod2, joint0, joint1, bob, axis1, axis2);
+  const jointGeom = new THREE.SphereGeometry(0.045, 20, 14);
+  const jointMat = new THREE.MeshStandardMaterial({ color: 0xdfe6ee });
+  const rodList = [], jointList = [], axisList = [];
+  const rodColor = (k, n) => (k === n - 1 && n > 1 ? ROD_COLORS[1] : k === 0 ? ROD_COLORS[0] : ROD_COLORS[2 + ((k - 1) % 6)]);
+  const joint0 = new THREE.Mesh(jointGeom, jointMat);
+  const bob = new THREE.Mesh(new THREE.SphereGeometry(0.05, 20, 14), new THREE.MeshStandardMaterial({ color: ROD_COLORS[1], roughness: 0.45 }));
+  scene.add(joint0, bob);
+  function ensure(n) { // rods, joints and axes for a pose of n links (the double pendulum's 2 made at once)
+    while (rodList.length < n) {
+      const k = rodList.length;
+      const rod = new THREE.Mesh(unitRod, new THREE.MeshStandardMaterial({ color: ROD_COLORS[Math.min(k, 1)], roughness: 0.45 }));
+      rod.name = `rod${k + 1}`;
+      const [c, glow] = AXIS_COLORS[k % AXIS_COLORS.length];
+      const axis = new THREE.Mesh(unitAxis, new THREE.MeshStandardMaterial({ color: c, emissive: glow }));
+      axis.name = `axis${k + 1}`;
+      rodList.push(rod); axisList.push(axis);
+      scene.add(rod, axis);
+      if (k > 0) { const j = new THREE.Mesh(jointGeom, jointMat); j.name = `joint${k}`; jointList.push(j); scene.add(j); }
+    }
+    rodList.forEach((rod, k) => { rod.visible = k < n; rod.material.color.setHex(rodColor(k, n)); });
+    axisList.forEach((axis, k) => { axis.visible = k < n; });
+    jointList.forEach((j, k) => { j.visible = k < n - 1; });
+    bob.material.color.setHex(rodColor(n - 1, n));
+  }
+  ensure(2);
+  const [rod1, rod2] = rodList, [joint1] = jointList;
 
   const trailGeom = new THREE.BufferGeometry();
   const trailPos = new Float32Array(trail * 3);
@@ -68,20 +87,26 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
   controls.addEventListener("change", () => { stale = true; });
 
   const view = {
-    renderer, camera, controls, rods: { rod1, rod2, joint1, bob },
-    geometry: null, // the last pose: {o, t1, t2, n1, e} in three.js coordinates
-    /** Place the pendulum: `tips` = [x1, y1, z1, x2, y2, z2] (rod ends), `axes` = [n1, e] (hinge
-     *  axes), both in the model's frame; `size`: the length scale of the drawn hinge axes [m]. */
+    renderer, camera, controls, rods: { rod1, rod2, joint1, bob, all: rodList },
+    geometry: null, // the last pose: {o, t1, t2, n1, e, tips, axes} in three.js coordinates (t2: the last rod's end)
+    /** Place the pendulum: `tips` = [x1, y1, z1, x2, y2, z2, ...] (the rods' ends), `axes` = [n1, e, ...] (the
+     *  hinge axes, one a rod), both in the model's frame -- the double pendulum's two rods or a chain's n;
+     *  `size`: the length scale of the drawn hinge axes [m]. */
     pose(tips, axes, size) {
-      const G = { o: world(0, 0, 0), t1: world(tips[0], tips[1], tips[2]), t2: world(tips[3], tips[4], tips[5]),
-                  n1: world(axes[0], axes[1], axes[2]).normalize(), e: world(axes[3], axes[4], axes[5]).normalize() };
-      placeSegment(rod1, G.o, G.t1);
-      placeSegment(rod2, G.t1, G.t2);
-      joint1.position.copy(G.t1);
-      bob.position.copy(G.t2);
+      const n = Math.floor(tips.length / 3);
+      ensure(n);
+      const at = (v, k) => world(v[3 * k], v[3 * k + 1], v[3 * k + 2]);
+      const ends = Array.from({ length: n }, (_, k) => at(tips, k));
+      const dirs = Array.from({ length: Math.floor(axes.length / 3) }, (_, k) => at(axes, k).normalize());
+      const G = { o: world(0, 0, 0), t1: ends[0], t2: ends[n - 1], n1: dirs[0], e: dirs[1], tips: ends, axes: dirs };
       const half = 0.35 * Math.max(size, 0.5);
-      placeSegment(axis1, G.o.clone().addScaledVector(G.n1, -half), G.o.clone().addScaledVector(G.n1, half));
-      placeSegment(axis2, G.t1.clone().addScaledVector(G.e, -half), G.t1.clone().addScaledVector(G.e, half));
+      for (let k = 0; k < n; k++) {
+        const from = k === 0 ? G.o : ends[k - 1];
+        placeSegment(rodList[k], from, ends[k]);
+        if (k > 0) jointList[k - 1].position.copy(ends[k - 1]);
+        if (dirs[k]) placeSegment(axisList[k], from.clone().addScaledVector(dirs[k], -half), from.clone().addScaledVector(dirs[k], half));
+      }
+      bob.position.copy(G.t2);
       view.geometry = G;
       stale = true;
       return G;
