@@ -764,7 +764,7 @@ class Sweep(ResultProtocol):
             return {c: (_unit_of(self.name) if c == self.name else "deg" if c.endswith("_deg") else "rad/s"
                         if c.startswith("omega") and "_over_" not in c else "s" if c.startswith("period") else "1"
                         if "_over_" in c else shape) for c in cols}
-        u = {self.name: _UNITS[self.name], "omega1": "rad/s", "omega2": "rad/s", "period1": "s", "period2": "s",
+        u = {self.name: _UNITS[self.name] if self.name in _UNITS else _unit_of(self.name), "omega1": "rad/s", "omega2": "rad/s", "period1": "s", "period2": "s",
              "omega2_over_omega1": "1", "mode1_phi": shape, "mode1_psi": shape, "mode2_phi": shape, "mode2_psi": shape}
         if self.name == "alpha":
             u["alpha_deg"] = "deg"

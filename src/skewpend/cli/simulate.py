@@ -188,7 +188,10 @@ def report(
     figures and an animation, the comparison with MuJoCo (when installed), how it was made.
 
     From a --config run file it takes [parameters], [initial] and the integrator settings of
-    [simulation] (t_end, method, rtol, atol, dt, max_steps).
+    [simulation] (t_end, method, rtol, atol, dt, max_steps); or a chain of links ([[links]], [chain],
+    [initial] q0, dq0): its report (the equations displayed up to 3 links, checked against the
+    recursive algorithms; modes against each hinge's tilt; simulation and live view; flip map over
+    q1, q2; Lyapunov spectrum; equilibria and nonlinear normal modes; MuJoCo).
     """
     import shlex
     import time

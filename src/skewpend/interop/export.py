@@ -570,9 +570,10 @@ def mujoco_trajectory(
     n_out: Optional[int] = None,
     axial_inertia: Optional[float] = None,
 ):
-    """Simulate the exported MJCF in MuJoCo from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``.
+    """Simulate the exported MJCF in MuJoCo from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``
+    (a chain of links' ``y0 = (q1 … qn, dq1 … dqn)``).
 
-    Builds :func:`to_mjcf` (``timestep=dt``, ``integrator``), loads it with
+    Builds :func:`to_mjcf` (a chain's :func:`chain_to_mjcf`; ``timestep=dt``, ``integrator``), loads it with
     ``mujoco.MjModel.from_xml_string``, sets ``qpos = (phi, psi)``, ``qvel = (dphi, dpsi)``
     and steps with ``mj_step``.  The constant torques are in the model (actuators with an
     affine bias, see :func:`to_mjcf`); ``ctrl`` and ``qfrc_applied`` stay zero.  ``t_end``
@@ -591,8 +592,13 @@ def mujoco_trajectory(
     """
     import numpy as np
 
-    params.require_numeric("export")
-    y = initial_state(y0)
+    from ..symbolic.chain import Chain
+
+    chain = isinstance(params, Chain)
+    if not chain:
+        params.require_numeric("export")
+    y = initial_state(y0, params.coordinates if chain else ("phi", "psi"))
+    nq = y.size // 2
     t_end = positive_number("t_end", t_end)
     dt = positive_number("dt", dt)
     integrator = _integrator(integrator)
@@ -605,7 +611,8 @@ def mujoco_trajectory(
         marks = np.unique(np.rint(np.linspace(0, nsteps, int(n_out))).astype(np.int64))
 
     mujoco = import_mujoco()
-    xml = to_mjcf(params, timestep=dt, integrator=integrator, axial_inertia=axial_inertia)
+    make = chain_to_mjcf if chain else to_mjcf
+    xml = make(params, timestep=dt, integrator=integrator, axial_inertia=axial_inertia)
     try:
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:  # MuJoCo's compiler refuses the model (e.g. a mass below its minimum)
@@ -615,11 +622,11 @@ def mujoco_trajectory(
             "accepts (masses and principal moments above its minimum of about 1e-15)"
         ) from None
     data = mujoco.MjData(model)
-    data.qpos[:] = y[:2]
-    data.qvel[:] = y[2:]
+    data.qpos[:] = y[:nq]
+    data.qvel[:] = y[nq:]
     mujoco.mj_forward(model, data)
 
-    out = np.empty((marks.size, 4))
+    out = np.empty((marks.size, 2 * nq))
     out[0] = y
     done = 0
     bad = mujoco.mjtWarning.mjWARN_BADQACC
@@ -634,8 +641,8 @@ def mujoco_trajectory(
                 n = int(min(mark - done, _MUJOCO_CHUNK))
                 mujoco.mj_step(model, data, nstep=n)
                 done += n
-            out[row, :2] = data.qpos
-            out[row, 2:] = data.qvel
+            out[row, :nq] = data.qpos
+            out[row, nq:] = data.qvel
             if data.warning[bad].number > 0 or not np.all(np.isfinite(out[row])):
                 detail = f" ({messages[0]})" if messages else ""
                 raise IntegrationError(

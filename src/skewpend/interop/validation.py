@@ -18,8 +18,9 @@ __all__ = ["ValidationReport", "compare_with_mujoco"]
 class ValidationReport:
     """skewpend against MuJoCo on the same time grid.
 
-    ``max_abs_diff`` maps ``phi, psi, dphi, dpsi`` to the largest absolute difference
-    [rad, rad/s]; ``t``, ``skewpend``, ``mujoco`` hold the compared samples (n,), (n, 4).
+    ``max_abs_diff`` maps ``phi, psi, dphi, dpsi`` (a chain's ``q1 … qn, dq1 … dqn``) to the
+    largest absolute difference [rad, rad/s]; ``t``, ``skewpend``, ``mujoco`` hold the compared
+    samples (k,), (k, 4) (a chain's (k, 2 n)).
     """
 
     t: np.ndarray
@@ -43,11 +44,12 @@ def _segments(nsteps: int, most: int = 200) -> int:
 
 
 def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 2.0, *, dt: float = 1e-4) -> ValidationReport:
-    """Simulate ``params`` from ``y0`` with skewpend (dop853, rtol = atol = 1e-12) and with
+    """Simulate ``params`` (or a chain of links) from ``y0`` with skewpend (dop853, rtol = atol = 1e-12) and with
     MuJoCo (exported MJCF, RK4, step ``dt``) and compare on a common grid.
 
-    Both simulate :func:`skewpend.export.mujoco_compatible` ``(params)``: the thin rods get
-    the same tiny axial inertia MuJoCo needs.
+    Both simulate :func:`skewpend.export.mujoco_compatible` ``(params)`` (a chain's
+    :func:`~skewpend.interop.export.mujoco_compatible_chain`): the thin rods get the same tiny
+    axial inertia MuJoCo needs.
 
     Everything is checked before any work starts: ``t_end`` and ``dt`` must be positive and
     finite, ``t_end`` a whole number of steps ``dt``, and ``t_end / dt`` at most
@@ -55,11 +57,15 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     :class:`~skewpend.errors.ParameterError`.  MuJoCo is stepped in bounded chunks, so
     Ctrl-C (``KeyboardInterrupt``) stops a long comparison promptly.
     """
-    from .export import import_mujoco, mujoco_compatible, mujoco_steps, mujoco_trajectory
+    from .export import import_mujoco, mujoco_compatible, mujoco_compatible_chain, mujoco_steps, mujoco_trajectory
     from ..numeric.simulation import simulate
 
-    params.require_numeric("validation")
-    y0 = initial_state(y0)
+    from ..symbolic.chain import Chain
+
+    chain = isinstance(params, Chain)
+    if not chain:
+        params.require_numeric("validation")
+    y0 = initial_state(y0, params.coordinates if chain else ("phi", "psi"))
     for name, value in (("t_end (--t-end)", t_end), ("dt (--dt)", dt)):
         if value is None:
             raise ParameterError(f"{name} must be a positive number of seconds, not symbolic")
@@ -67,14 +73,16 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     mujoco = import_mujoco()
     n_seg = _segments(max(nsteps, 1))
     t_mj, y_mj = mujoco_trajectory(params, y0, t_end, dt=dt, n_out=n_seg + 1)
-    same = mujoco_compatible(params)
+    same = mujoco_compatible_chain(params) if chain else mujoco_compatible(params)
     tr = simulate(same, y0, t_end, dt_out=t_end / n_seg, rtol=1e-12, atol=1e-12)
     if not tr.success:
         raise IntegrationError(f"skewpend: {tr.message}")
     if tr.t.size != t_mj.size or not np.allclose(tr.t, t_mj, rtol=0, atol=1e-9 * max(1.0, t_end)):
         raise IntegrationError("internal error: the sample times of skewpend and MuJoCo differ")
     diff = np.max(np.abs(tr.y - y_mj), axis=0)
-    names = ("phi", "psi", "dphi", "dpsi")
+    from ..schema import state_coordinates
+
+    names = state_coordinates(params.n) if chain else ("phi", "psi", "dphi", "dpsi")
     return ValidationReport(
         t=tr.t,
         skewpend=tr.y,

@@ -116,10 +116,12 @@ def inline_page_scripts(order=REPLAY_ORDER, entry: str = "replay", physics_param
 def replay_data(trajectory) -> dict:
     """What a browser view replays of a computed run (``web/replay.js``, the widget): the rows'
     times ``t`` [s], states ``y``, the library's rod ends ``tips`` and hinge axes ``axes`` at
-    each row, and the length scale ``size`` [m] of the drawn axes -- plain lists, written exactly."""
+    each row (a chain's n rods and axes), and the length scale ``size`` [m] of the drawn axes -- plain
+    lists, written exactly."""
     p = trajectory.params
+    lengths = [link.length for link in p.links] if hasattr(p, "links") else [p.a, p.b]  # a chain's n rods
     return {"t": trajectory.t.tolist(), "y": trajectory.y.tolist(), "tips": trajectory.tips().tolist(),
-            "axes": trajectory.axes().tolist(), "size": max(float(p.a), float(p.b))}
+            "axes": trajectory.axes().tolist(), "size": max(float(v) for v in lengths)}
 
 
 def module_bundle(order=WIDGET_ORDER, entry: str = "widget", physics_params=None) -> str:

@@ -12,7 +12,7 @@ import numpy as np
 
 from ... import __version__
 from ...errors import SkewpendError
-from ..style import DPI, SYMBOL, style
+from ..style import COLORS, DPI, SYMBOL, style
 
 __all__ = ["FIGURE_SUFFIXES", "FORMATS", "ENERGY_FLOOR", "TWO_PI", "figure_class", "new_figure", "heading",
            "wrap_angle", "plain_tick_labels", "print_figure", "save_figure"]
@@ -24,6 +24,11 @@ FIGURE_SUFFIXES = FORMATS = (".png", ".svg", ".pdf")
 ENERGY_FLOOR = 1e-17
 
 TWO_PI = 2.0 * math.pi
+
+#: The colour of mode k (and of its family of nonlinear normal modes): mode 1 and 2 those of phi and psi
+#: elsewhere; a chain's further modes from Matplotlib's tab10.
+MODE_COLORS = {1: COLORS["phi"], 2: COLORS["psi"], 3: "#2ca02c", 4: "#9467bd", 5: "#8c564b", 6: "#e377c2",
+               7: "#7f7f7f", 8: "#bcbd22", 9: "#17becf", 10: "#d62728"}
 
 
 def figure_class():

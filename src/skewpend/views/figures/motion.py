@@ -10,7 +10,7 @@ import numpy as np
 
 from ...errors import ParameterError
 from ..style import COLORS, SYMBOL, caption, fmt, style, sweep_caption
-from .base import ENERGY_FLOOR, TWO_PI, heading, new_figure, wrap_angle
+from .base import ENERGY_FLOOR, MODE_COLORS, TWO_PI, heading, new_figure, wrap_angle
 
 __all__ = ["angles_figure", "phase_figure", "energy_figure", "torus_figure", "tips_figure", "simulation_figure",
            "plot_sweep", "wrapped_path", "tips_view"]
@@ -181,14 +181,21 @@ def _draw_energy(ax, tr) -> None:
     ax.legend(loc="lower left", bbox_to_anchor=(0.015, 0.0))
 
 
+def _angle_name(tr, k: int) -> str:
+    """Joint k's angle as an axis label: the double pendulum's phi and psi, a chain's q1 ... qn."""
+    n = tr.y.shape[1] // 2
+    return SYMBOL[("phi", "psi")[k]] if n == 2 else f"$q_{{{k + 1}}}$"
+
+
 def _draw_phase(ax, tr, k: int) -> None:
-    name, speed = ("phi", "dphi") if k == 0 else ("psi", "dpsi")
-    path = wrapped_path([np.unwrap(tr.y[:, k]), tr.y[:, k + 2]], [True, False])
-    ax.plot(np.degrees(path[:, 0]), path[:, 1], color=COLORS[name], **_thin(len(tr.t)))
-    ax.plot([math.degrees(wrap_angle(tr.y[0, k]))], [tr.y[0, k + 2]], "o", color=COLORS["start"], ms=5,
+    n = tr.y.shape[1] // 2
+    color, _, speed = _links(tr)[k]
+    path = wrapped_path([np.unwrap(tr.y[:, k]), tr.y[:, n + k]], [True, False])
+    ax.plot(np.degrees(path[:, 0]), path[:, 1], color=color, **_thin(len(tr.t)))
+    ax.plot([math.degrees(wrap_angle(tr.y[0, k]))], [tr.y[0, n + k]], "o", color=COLORS["start"], ms=5,
             label="start (t = 0)", zorder=3)
-    ax.set_xlabel(f"{SYMBOL[name]} (wrapped) [deg]")
-    ax.set_ylabel(f"{SYMBOL[speed]} [rad/s]")
+    ax.set_xlabel(f"{_angle_name(tr, k)} (wrapped) [deg]")
+    ax.set_ylabel(f"{speed} [rad/s]")
     ax.set_title(f"Phase portrait, hinge {k + 1}", loc="left")
     if np.any(np.isnan(path[:, 0])):  # it went over the top: show the whole circle
         ax.set_xlim(-180, 180)
@@ -206,9 +213,9 @@ def _draw_torus(ax, tr) -> None:
     ax.set_aspect("equal")
     _angle_ticks(ax, "x")
     _angle_ticks(ax, "y")
-    ax.set_xlabel(f"{SYMBOL['phi']} (wrapped) [deg]")
-    ax.set_ylabel(f"{SYMBOL['psi']} (wrapped) [deg]")
-    ax.set_title("Configuration space (torus)", loc="left")
+    ax.set_xlabel(f"{_angle_name(tr, 0)} (wrapped) [deg]")
+    ax.set_ylabel(f"{_angle_name(tr, 1)} (wrapped) [deg]")
+    ax.set_title("Configuration space (torus)" if tr.y.shape[1] == 4 else "The first two angles (a torus)", loc="left")
     _legend_above(ax)
 
 
@@ -273,13 +280,19 @@ def angles_figure(tr):
 
 
 def phase_figure(tr):
-    """Phase portraits (phi, dphi) and (psi, dpsi): angle wrapped to (-180, 180] [deg], speed [rad/s]."""
+    """Phase portraits (phi, dphi) and (psi, dpsi): angle wrapped to (-180, 180] [deg], speed [rad/s];
+    a chain's (q_k, dq_k) for each joint, three to a row."""
     _check(tr)
+    n = tr.y.shape[1] // 2
+    cols = 2 if n == 2 else min(n, 3)
+    rows = -(-n // cols)
     with style():
-        fig = new_figure((10.0, 4.9))
-        ax1, ax2 = fig.subplots(1, 2)
-        _draw_phase(ax1, tr, 0)
-        _draw_phase(ax2, tr, 1)
+        fig = new_figure((10.0 if cols == 2 else 12.0, 4.9 + 3.9 * (rows - 1)))
+        axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
+        for k in range(n):
+            _draw_phase(axes[k], tr, k)
+        for ax in axes[n:]:
+            ax.set_visible(False)
         heading(fig, caption(tr))
     return fig
 
@@ -357,40 +370,54 @@ def simulation_figure(tr):
 def plot_sweep(sw, *, title: Optional[str] = None):
     """Frequencies and mode-shape directions along a :class:`~skewpend.modes.Sweep`.
 
-    Top: ``w1, w2`` [rad/s] against the swept variable (degrees for alpha), internal
-    resonances marked.  Bottom: the direction of each mode shape in the (phi, psi) plane
+    Top: ``w1, w2`` [rad/s] against the swept variable (degrees for alpha and a chain's tilts),
+    internal resonances marked.  Bottom: the direction of each mode shape in the (phi, psi) plane
     [deg] (modulo 180, unwrapped), which shows how the modes turn at a veering without the
-    infinite ``psi/phi`` ratios of a mode where phi stands still.
+    infinite ``psi/phi`` ratios of a mode where phi stands still.  A chain of more than two links:
+    its n frequencies, the resonances between neighbouring modes marked (a shape of n angles has
+    no direction in a plane: no bottom panel).
     """
-    if sw.name == "alpha":
-        x, xlabel = np.degrees(sw.values), r"$\alpha$ [deg]"
+    n = sw.frequencies.shape[1]
+    angle_like = sw.name == "alpha" or sw.name.startswith("tilt")
+    if angle_like:
+        x, xlabel = np.degrees(sw.values), (r"$\alpha$" if sw.name == "alpha" else sw.name) + " [deg]"
     else:
         unit = sw.units().get(sw.name, "")
         x, xlabel = np.asarray(sw.values, dtype=float), f"{sw.name} [{unit or '1'}]"
     with style():
-        fig = new_figure((7.5, 7.0))
-        ax1, ax2 = fig.subplots(2, 1, sharex=True)
-        ax1.plot(x, sw.frequencies[:, 0], label=r"$\omega_1$ (lower mode)", color=COLORS["phi"])
-        ax1.plot(x, sw.frequencies[:, 1], label=r"$\omega_2$ (upper mode)", color=COLORS["psi"])
-        for r in sw.resonances:
-            xv = math.degrees(r.value) if sw.name == "alpha" else r.value
+        fig = new_figure((7.5, 7.0) if n == 2 else (7.5, 4.6))
+        if n == 2:
+            ax1, ax2 = fig.subplots(2, 1, sharex=True)
+            names = (r"$\omega_1$ (lower mode)", r"$\omega_2$ (upper mode)")
+        else:
+            ax1, ax2 = fig.subplots(1, 1), None
+            names = tuple(rf"$\omega_{{{k + 1}}}$" for k in range(n))
+        for k in range(n):
+            ax1.plot(x, sw.frequencies[:, k], label=names[k], color=MODE_COLORS.get(k + 1, "0.3"))
+        for i, r in enumerate(sw.resonances):
+            xv = math.degrees(r.value) if angle_like else r.value
             ax1.axvline(xv, color=COLORS["reference"], lw=0.8, ls="--")
-            ax1.annotate(f"{r.order}:1", (xv, 1.0), xycoords=ax1.get_xaxis_transform(), textcoords="offset points",
-                         xytext=(3, -12), fontsize=8, color="0.3")
+            mark = f"{r.order}:1" if n == 2 else f"ω{r.pair[1]}:ω{r.pair[0]} = {r.order}:1"
+            ax1.annotate(mark, (xv, 1.0), xycoords=ax1.get_xaxis_transform(), textcoords="offset points",
+                         xytext=(3, -12 - (11 * (i % 3) if n > 2 else 0)), fontsize=8, color="0.3")
         ax1.set_ylabel("natural frequency [rad/s]")
-        ax1.set_title("Natural frequencies (dashed: internal resonances " + r"$\omega_2 = n\,\omega_1$)", loc="left")
-        ax1.legend(loc="best")
-        # a mode shape is a direction: defined modulo 180 deg; unwrap to continuous curves
-        angle = np.degrees(np.arctan2(sw.shapes[:, 1, :], sw.shapes[:, 0, :]))
-        angle = np.unwrap((angle + 90.0) % 180.0 - 90.0, period=180.0, axis=0)
-        ax2.plot(x, angle[:, 0], color=COLORS["phi"], label="mode 1")
-        ax2.plot(x, angle[:, 1], color=COLORS["psi"], label="mode 2")
-        ax2.set_ylabel(f"direction in the ({SYMBOL['phi']}, {SYMBOL['psi']}) plane [deg]")
-        ax2.set_title(f"Mode shapes: direction of ({SYMBOL['phi']}, {SYMBOL['psi']}), modulo 180°", loc="left")
-        ax2.set_xlabel(xlabel)
+        ax1.set_title("Natural frequencies (dashed: internal resonances " + (
+            r"$\omega_2 = n\,\omega_1$)" if n == 2 else r"$\omega_{k+1} = n\,\omega_k$)"), loc="left")
+        ax1.legend(loc="best", ncol=1 if n <= 4 else 2)
+        last = ax1
+        if ax2 is not None:
+            # a mode shape is a direction: defined modulo 180 deg; unwrap to continuous curves
+            angle = np.degrees(np.arctan2(sw.shapes[:, 1, :], sw.shapes[:, 0, :]))
+            angle = np.unwrap((angle + 90.0) % 180.0 - 90.0, period=180.0, axis=0)
+            ax2.plot(x, angle[:, 0], color=COLORS["phi"], label="mode 1")
+            ax2.plot(x, angle[:, 1], color=COLORS["psi"], label="mode 2")
+            ax2.set_ylabel(f"direction in the ({SYMBOL['phi']}, {SYMBOL['psi']}) plane [deg]")
+            ax2.set_title(f"Mode shapes: direction of ({SYMBOL['phi']}, {SYMBOL['psi']}), modulo 180°", loc="left")
+            ax2.legend(loc="best")
+            last = ax2
+        last.set_xlabel(xlabel)
         if len(x) > 1 and x[0] != x[-1]:
-            ax2.set_xlim(x[0], x[-1])
-        ax2.legend(loc="best")
+            last.set_xlim(x[0], x[-1])
         text = sweep_caption(sw)
         heading(fig, f"{title}\n{text}" if title else text)
     return fig

@@ -6,15 +6,13 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..style import COLORS, SYMBOL, parameter_text, style
-from .base import heading, new_figure
+from ..style import SYMBOL, parameter_text, style
+from .base import MODE_COLORS, heading, new_figure
 
 __all__ = ["fep_figure", "alpha_family_figure", "FAMILY_COLORS"]
 
-#: The colour of each family (mode 1, mode 2): those of phi and psi elsewhere; a chain's further modes from
-#: Matplotlib's tab10 (by mode number).
-FAMILY_COLORS = {1: COLORS["phi"], 2: COLORS["psi"], 3: "#2ca02c", 4: "#9467bd", 5: "#8c564b", 6: "#e377c2",
-                 7: "#7f7f7f", 8: "#bcbd22", 9: "#17becf", 10: "#d62728"}
+#: The colour of each family: :data:`~skewpend.views.figures.base.MODE_COLORS`.
+FAMILY_COLORS = MODE_COLORS
 _EVENT_MARKERS = {"branch point": ("o", "branch point (multiplier +1)"), "period doubling": ("s", "period doubling (multiplier −1)"),
                   "Krein collision": ("^", "Krein collision (a complex pair leaves the circle)"),
                   "fold": ("D", "fold"), "resonance": ("*", "internal resonance")}

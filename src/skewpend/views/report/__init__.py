@@ -91,13 +91,21 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
     from ...numeric.simulation import METHODS
     from ...parsing import initial_state, positive_number
 
+    from ...symbolic.chain import Chain
+
     _require_libraries()
     if params is None:
         params = Parameters(**DEFAULT_PARAMETERS)
-    from ... import checks
+    if isinstance(params, Chain):  # a chain of links: its start q1 … qn, dq1 … dqn (default every link turned, at rest)
+        from ...config import CHAIN_Q0
 
-    params = checks.numeric_params(params, "a report")
-    y = initial_state(DEFAULT_INITIAL_STATE if y0 is None else y0)
+        n = params.n
+        y = initial_state((CHAIN_Q0,) * n + (0.0,) * n if y0 is None else y0, params.coordinates)
+    else:
+        from ... import checks
+
+        params = checks.numeric_params(params, "a report")
+        y = initial_state(DEFAULT_INITIAL_STATE if y0 is None else y0)
     t_end = positive_number("t_end", t_end)
     if t_end > MAX_T_END:
         raise ParameterError(
@@ -311,6 +319,8 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
         raise ParameterError("progress must be a callable progress(done, total)")
     ctx = Context(params, y0, t_end, method, rtol, atol, dt, max_steps, min(clip_seconds, t_end), fps, clip_size,
                    int(sweep_points), validate, command)
+    if hasattr(params, "links"):  # a chain of links: its own sections (views.report.chain)
+        return _build_chain_report(ctx, out, progress, start)
     seen = set(compiled_kernels())  # kernels compiled in this process before this report
 
     def note_compiled(part: str) -> None:
@@ -407,7 +417,39 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     if progress is not None:
         progress(done, total)
     stage(f"writing {Path(out).name}" if out is not None else "assembling the page", done + 1, total)
-    page = _assemble(ctx, bodies)
+    return _write(_assemble(ctx, bodies), out, progress, total)
+
+
+def _build_chain_report(ctx: Context, out, progress, start: float) -> Union[Path, str]:
+    """A chain of links' report (:mod:`.chain`): its sections one after the other in this process (no SymPy
+    in a second one: the chain's derivation is displayed only for short chains), Ctrl-C taken between them."""
+    from ...interrupts import Interrupts
+    from ...numeric.kernels import chain_kernel
+    from .analyses import provenance_html
+    from .chain import CHAIN_BUILDERS, CHAIN_SECTIONS, CHAIN_TIMING_LABELS, build_chain_sections, chain_settings
+
+    total = len(CHAIN_BUILDERS) + 2  # the sections, the live view with section 10, the page
+    stage("compiling or loading the chain's kernels")
+    chain_kernel(ctx.params)
+    with Interrupts(escalate_after=0.3) as intr:
+        bodies = build_chain_sections(ctx, intr, progress, total)
+        intr.check()
+    done = len(CHAIN_BUILDERS)
+    stage(PARTS["live"], done + 1, total)
+    bodies["simulation"] = bodies["simulation"].replace(LIVE_SLOT, live_figure(ctx))
+    ctx.timings["total"] = time.perf_counter() - start
+    bodies["provenance"] = provenance_html(ctx, chain_settings(ctx), CHAIN_TIMING_LABELS, CHAIN_SECTIONS)
+    if progress is not None:
+        progress(done + 1, total)
+    stage(f"writing {Path(out).name}" if out is not None else "assembling the page", done + 2, total)
+    n = ctx.params.n
+    page = _assemble(ctx, bodies, CHAIN_SECTIONS, page_title=f"A chain of {n} links on skewed hinges",
+                     subtitle=f"{n} rigid bodies, each on a hinge with its own axis: the equations of motion derived "
+                              "step by step, checked, analysed and simulated")
+    return _write(page, out, progress, total)
+
+
+def _write(page: str, out, progress, total: int) -> Union[Path, str]:
     result: Union[Path, str] = page
     if out is not None:
         from ...io import atomic_path
@@ -420,25 +462,27 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     return result
 
 
-def _assemble(ctx: Context, bodies: Dict[str, str]) -> str:
+def _assemble(ctx: Context, bodies: Dict[str, str], sections=SECTIONS, *, page_title: str = "", subtitle: str = "") -> str:
     from string import Template
 
     css, js, _ = katex_assets()
-    toc = "\n".join(f'    <li><a href="#{key}">{esc(title)}</a></li>' for key, title in SECTIONS)
+    toc = "\n".join(f'    <li><a href="#{key}">{esc(title)}</a></li>' for key, title in sections)
     parts = []
-    for n, (key, title) in enumerate(SECTIONS, 1):
+    for n, (key, title) in enumerate(sections, 1):
         parts.append(
             f'<section class="report-section" id="{key}" aria-labelledby="{key}-title">\n'
             f'<h2 id="{key}-title"><span class="num">{n}</span>{esc(title)}</h2>\n{bodies[key]}\n</section>'
         )
     p = ctx.params
-    if p.uses_alpha and p.is_thin_rods:
+    if subtitle:  # a chain's, given
+        pass
+    elif p.uses_alpha and p.is_thin_rods:
         subtitle = (f"Two thin rods whose hinge axes are skewed by α = {fmt_deg(p.alpha)}: the equations of motion derived "
                     "step by step, checked, analysed and simulated")
     else:
         subtitle = "Two rigid bodies on skewed hinges: the equations of motion derived step by step, checked, analysed and simulated"
     page = Template(template("report.html")).substitute(
-        title="The double pendulum with skewed hinge axes",
+        title=page_title or "The double pendulum with skewed hinge axes",
         subtitle=subtitle,
         version=esc(__version__),
         katex_css=css,

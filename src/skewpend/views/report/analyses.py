@@ -323,8 +323,6 @@ def _versions() -> List[Tuple[str, str]]:
 def section_provenance(ctx: Context) -> str:
     from ..style import settings_text
 
-    _, _, katex_version = katex_assets()
-    rows = [[esc(k), esc(v)] for k, v in _versions() + [("KaTeX (bundled)", katex_version)]]
     sim = {"t_end": ctx.t_end, "rtol": ctx.rtol, "atol": ctx.atol, "dt": ctx.dt}
     settings = [
         ("simulation", esc(settings_text(ctx.method, {k: v for k, v in sim.items() if v is not None}))
@@ -338,10 +336,7 @@ def section_provenance(ctx: Context) -> str:
         ("derivation shown for", esc(ctx.notes.get("derivation", ""))),
         ("check at α = 0", esc(ctx.notes.get("check", ""))),
         ("model code", esc(ctx.notes.get("kernel", ""))),
-        ("platform", esc(f"{platform.system()} {platform.machine()}, {platform.python_implementation()} {platform.python_version()}")),
     ]
-    if ctx.command:
-        settings.insert(0, ("command", f"<code>{esc(ctx.command)}</code>"))
     labels = [
         ("system", "1 · the system: pictures"),
         ("derivation", "2 · derivation and display forms"),
@@ -357,9 +352,21 @@ def section_provenance(ctx: Context) -> str:
         ("validation", "9 · validation against MuJoCo"),
         ("total", "total"),
     ]
+    return provenance_html(ctx, settings, labels, SECTIONS)
+
+
+def provenance_html(ctx: Context, settings: List[Tuple[str, str]], labels: List[Tuple[str, str]], sections) -> str:
+    """The last section of a report: the software's versions, ``settings`` (label, HTML) with the command and the
+    platform, the wall time of each part (``labels``: timing key, label; section numbers from ``sections``)."""
+    _, _, katex_version = katex_assets()
+    rows = [[esc(k), esc(v)] for k, v in _versions() + [("KaTeX (bundled)", katex_version)]]
+    settings = list(settings) + [
+        ("platform", esc(f"{platform.system()} {platform.machine()}, {platform.python_implementation()} {platform.python_version()}"))]
+    if ctx.command:
+        settings.insert(0, ("command", f"<code>{esc(ctx.command)}</code>"))
     trows = [[esc(label), f"{ctx.timings[key]:.2f}"] for key, label in labels if key in ctx.timings]
     # kernels compiled in this run (first use): each inside the part that first needed it, not added to the total
-    number = {key: n for n, (key, _) in enumerate(SECTIONS, 1)}
+    number = {key: n for n, (key, _) in enumerate(sections, 1)}
     compiled = list(ctx.compiled.values())
     at = len(trows) - 1 if "total" in ctx.timings else len(trows)  # before the total
     trows[at:at] = [[esc(f"{number.get(part, '?')} · compiling {what}"), f"{seconds:.2f}"]

@@ -258,7 +258,10 @@ def tex_of(expr) -> str:
 
 
 def array_tex(a: np.ndarray, digits: int = 5) -> str:
-    rows = [" & ".join(fmt_num_tex(x, digits) for x in row) for row in np.asarray(a, dtype=float)]
+    a = np.asarray(a, dtype=float)
+    scale = float(np.max(np.abs(a))) if a.size else 0.0
+    a = np.where(np.abs(a) <= 1e-13 * scale, 0.0, a)  # rounding's -0 and 1e-17 entries: exact zeros of the model
+    rows = [" & ".join(fmt_num_tex(x, digits) for x in row) for row in a]
     return r"\begin{bmatrix}" + r" \\ ".join(rows) + r"\end{bmatrix}"
 
 
@@ -348,8 +351,8 @@ class Prefetch:
 
 @dataclass
 class Context:
-    params: Parameters
-    y0: Tuple[float, float, float, float]
+    params: Parameters  # or a chain of links (its report: views.report.chain)
+    y0: Tuple[float, ...]
     t_end: float
     method: str
     rtol: Optional[float]
@@ -369,3 +372,4 @@ class Context:
     still: Optional[bytes] = None  # section 1's picture of the initial state (also the live view's poster)
     compiled: Dict[str, Tuple[str, str, float]] = field(default_factory=dict)  # kernels compiled: (what, part, s)
     prefetch: Prefetch = field(default_factory=Prefetch)
+    eom: object = None  # a chain report's symbolic equations (section 2), compared in section 3

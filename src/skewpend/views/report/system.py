@@ -242,6 +242,7 @@ def section_simulation(ctx: Context) -> str:
     from ..frontend import replay_data
 
     p, y0 = ctx.params, ctx.y0
+    chain = hasattr(p, "links")  # a chain of links (its report: views.report.chain): the same calls, q1 … qn
     dt_out = max(FIGURE_DT, ctx.t_end / FIGURE_MAX_ROWS)
     kw: Dict[str, object] = dict(method=ctx.method, rtol=ctx.rtol, atol=ctx.atol, dt=ctx.dt)
     if ctx.max_steps is not None:
@@ -270,24 +271,27 @@ def section_simulation(ctx: Context) -> str:
         ("status", status),
         ("energy drift", f"{fmt_num(tr.energy_drift, 3)} &nbsp;<span class=\"note\">(largest |E − W − E₀| / max |E| over every row)</span>"),
         ("initial energy E₀", f"{fmt_num(tr.energy[0], 8)} J"),
-        ("final state", f"φ = {fmt_deg(fin[0])}, ψ = {fmt_deg(fin[1])}, φ̇ = {fmt_num(fin[2], 5)} rad/s, ψ̇ = {fmt_num(fin[3], 5)} rad/s "
-                        f"at t = {fmt_num(tr.t[-1])} s"),
+        ("final state", _final_state(fin, chain) + f" at t = {fmt_num(tr.t[-1])} s"),
         ("steps", f"{st['steps']} accepted, {st.get('rejected', 0)} rejected, {st['nfev']} evaluations of the equations"),
         ("integration time", f"{st['wall_time'] * 1e3:.2f} ms"),
         ("model code", kernel),
     ]))
     ctx.notes["energy_drift"] = f"{tr.energy_drift:.3e}"
     t0 = time.perf_counter()
+    angles = r"$q_1, \dots, q_n$" if chain else r"$\varphi, \psi$"
     figs = [
-        (F.angles_figure, prose(r"The hinge angles $\varphi, \psi$ (unwrapped, degrees) and their speeds against time."),
+        (F.angles_figure, prose(f"The hinge angles {angles} (unwrapped, degrees) and their speeds against time."),
          "hinge angles and speeds against time"),
         (F.energy_figure, prose(r"Energy error $|E - W - E_0| / \max|E|$ on a log scale; dashed: the reported drift ")
          + fmt_num(tr.energy_drift, 3) + ".", "relative energy error against time"),
-        (F.phase_figure, prose(r"Phase portraits $(\varphi, \dot\varphi)$ and $(\psi, \dot\psi)$, angles wrapped to ±180°."),
+        (F.phase_figure, prose(r"Phase portraits $(q_i, \dot q_i)$ of each joint, angles wrapped to ±180°." if chain else
+                               r"Phase portraits $(\varphi, \dot\varphi)$ and $(\psi, \dot\psi)$, angles wrapped to ±180°."),
          "phase portraits"),
-        (F.torus_figure, prose(r"The path in configuration space: $(\varphi, \psi)$ wrapped to ±180°, opposite edges "
-                            "identified (a torus)."), "path on the configuration torus"),
-        (F.tips_figure, prose(r"Paths of both rod ends in 3D; the pendulum hangs down, $z$ is the first hinge axis $\underline{k}$."),
+        (F.torus_figure, prose((r"The path in the plane of the first two angles $(q_1, q_2)$" if chain else
+                                r"The path in configuration space: $(\varphi, \psi)$")
+                               + " wrapped to ±180°, opposite edges identified (a torus)."), "path on the configuration torus"),
+        (F.tips_figure, prose(("The path of the chain's tip" if chain else "Paths of both rod ends")
+                              + r" in 3D; the pendulum hangs down, $z$ is the first hinge axis $\underline{k}$."),
          "3D paths of the rod ends"),
     ]
     for make, caption, alt in figs:
@@ -309,13 +313,26 @@ def section_simulation(ctx: Context) -> str:
     return "\n".join(out)
 
 
+def _final_state(fin, chain: bool) -> str:
+    """The final state in words: ``phi, psi`` and their speeds, a chain's ``q1 … qn`` (its speeds left to the figures)."""
+    if chain:
+        n = fin.size // 2
+        return ", ".join(f"q{k + 1} = {fmt_deg(fin[k])}" for k in range(n))
+    return f"φ = {fmt_deg(fin[0])}, ψ = {fmt_deg(fin[1])}, φ̇ = {fmt_num(fin[2], 5)} rad/s, ψ̇ = {fmt_num(fin[3], 5)} rad/s"
+
+
 def live_figure(ctx: Context) -> str:
     clip = ctx.clip
+    if hasattr(ctx.params, "links"):
+        what = (f"all {ctx.params.n} rods, their hinge axes (green: the roof's; the others turn with the links above them) "
+                "and the trail of the last rod's tip")
+    else:
+        what = ("both rods, both hinge axes (green: the roof's, yellow: the second, turning with rod 1) and the trail of "
+                "rod 2's tip")
     return live_view_html(
         ctx.live,
         f"The first {fmt_num(clip.t[-1])} s of the motion, replayed in real time in 3D from the computed states "
-        f"({ctx.fps:g} frames per second; drag to turn the view, scroll to zoom, the slider picks a moment): both rods, both "
-        "hinge axes (green: the roof's, yellow: the second, turning with rod 1) and the trail of rod 2's tip"
+        f"({ctx.fps:g} frames per second; drag to turn the view, scroll to zoom, the slider picks a moment): " + what
         + (" (computed by DOP853, whose dense output gives the states at the frame times)" if ctx.method != "dop853" else "")
         + ". A video of the motion: <code>skewpend animate</code>.",
         ctx.still, ctx.clip_size,

@@ -62,13 +62,14 @@ function setup(figure) {
   requestAnimationFrame(tick);
   return {
     figure, view, frames: n,
-    /** show frame k (paused) and return the drawn rod ends and axes, in the model's frame */
+    /** show frame k (paused) and return the drawn rod ends and axes (every rod's: two, or a chain's n), in the
+     *  model's frame */
     show(k) {
       setRunning(false);
       const G = pose(k);
       view.render();
       const back = (v) => [v.x, -v.y, v.z];
-      return { frame, tips: [...back(G.t1), ...back(G.t2)], axes: [...back(G.n1), ...back(G.e)] };
+      return { frame, tips: G.tips.flatMap(back), axes: G.axes.flatMap(back) };
     },
     state: () => ({ frame, running, renders, t: data.t[frame] }),
     play: () => setRunning(true),
