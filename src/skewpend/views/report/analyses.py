@@ -286,9 +286,13 @@ def section_validation(ctx: Context) -> str:
         return f'<p class="callout warn">The comparison with MuJoCo could not be made: {esc(exc)}</p>'
     ok = rep.max_difference <= VALIDATION_TOL
     ctx.notes["validation"] = f"{'AGREE' if ok else 'DISAGREE'}, largest difference {rep.max_difference:.2e}"
-    units = {"phi": "rad", "psi": "rad", "dphi": "rad/s", "dpsi": "rad/s"}
     labels = {"phi": r"\varphi", "psi": r"\psi", "dphi": r"\dot\varphi", "dpsi": r"\dot\psi"}
-    rows = [[inline_math(labels[k]), fmt_num(v, 3), units[k]] for k, v in rep.max_abs_diff.items()]
+
+    def label(k: str) -> str:  # a chain's q_k and its rate
+        return labels.get(k) or (rf"\dot q_{{{k[2:]}}}" if k.startswith("d") else f"q_{{{k[1:]}}}")
+
+    rows = [[inline_math(label(k)), fmt_num(v, 3), "rad/s" if k.startswith("d") else "rad"]
+            for k, v in rep.max_abs_diff.items()]
     if ok:
         verdict = (f'<p class="callout good"><span class="verdict ok">AGREE</span> — the largest difference, '
                    f"{fmt_num(rep.max_difference, 3)}, is within the tolerance {fmt_num(VALIDATION_TOL)}.</p>")
@@ -297,7 +301,8 @@ def section_validation(ctx: Context) -> str:
                    f"{fmt_num(rep.max_difference, 3)}, exceeds the tolerance {fmt_num(VALIDATION_TOL)}.</p>")
     return (
         "<p>An independent engine: the model exported as MuJoCo MJCF (full inertia tensors, hinge axes, damping and "
-        "torques; thin rods get the tiny axial inertia MuJoCo needs, in both models) is simulated by MuJoCo "
+        "torques; a chain's bodies nested link by link; thin rods get the tiny axial inertia MuJoCo needs, in both "
+        "models) is simulated by MuJoCo "
         f"{esc(rep.mujoco_version)} with RK4 at dt = {fmt_num(rep.dt)} s, and by skewpend with DOP853 at rtol = atol = "
         f"10<sup>−12</sup>, from the initial state of section 1 over {fmt_num(rep.t_end)} s; the states are compared at "
         f"{rep.samples} common times.</p>"

@@ -430,7 +430,7 @@ def section_orbits(ctx: Context) -> str:
     from ...analysis.equilibria import equilibria
     from ...analysis.orbits import backbones
     from .. import figures as F
-    from .orbits import REPORT_RESOLUTION
+    from .orbits import REPORT_RESOLUTION, backbone_facts
 
     chain, n = ctx.params, ctx.params.n
     out = [prose("<p>Between the small oscillations of section 4 and the chaos of section 7 lie the other equilibria and "
@@ -490,17 +490,7 @@ def section_orbits(ctx: Context) -> str:
     if damped:
         caption += " Drawn for the undamped chain: with damping no motion is periodic."
     out.append(figure_html(fig_png(F.fep_figure(bb)), caption, "frequency-energy plot of the nonlinear normal modes"))
-    facts = []
-    for fam in bb.families:
-        drop = 100 * (1 - fam.frequencies[-1] / fam.linear_frequency)
-        facts.append((f"mode {fam.mode}", f"{len(fam)} orbits; frequency {fmt_num(fam.linear_frequency, 5)} → "
-                                          f"{fmt_num(fam.frequencies[-1], 5)} rad/s ({fmt_num(abs(drop), 3)} % "
-                                          f"{'lower' if drop > 0 else 'higher'}) at {fmt_num(fam.energies[-1], 4)} J"))
-        for ev in fam.events:
-            facts.append((f"mode {fam.mode}: {esc(ev.kind)}", f"E = {fmt_num(ev.energy, 4)} J — {esc(ev.detail)}"))
-    for r in bb.resonances:
-        facts.append(("internal resonance", f"{esc(r.detail)} at E = {fmt_num(r.energy, 4)} J"))
-    out.append(facts_html(facts))
+    out.append(facts_html(backbone_facts(bb)))
     ctx.notes["orbits"] = (" + ".join(str(len(f)) for f in bb.families) + f" orbits up to {fmt_num(E_max, 4)} J"
                            + (" (undamped chain)" if damped else ""))
     return "\n".join(out)
@@ -508,39 +498,9 @@ def section_orbits(ctx: Context) -> str:
 
 # -- section 9 --------------------------------------------------------------------------------------------
 def section_validation(ctx: Context) -> str:
-    from .analyses import mujoco_installed
+    from .analyses import section_validation as validation
 
-    chain = ctx.params
-    if ctx.validate is False or (ctx.validate is None and not mujoco_installed()):
-        ctx.notes["validation"] = "not run" + (" (MuJoCo not installed)" if ctx.validate is None else "")
-        return ('<p class="callout">Not run: MuJoCo is not installed. <code>pip install "skewpend[validation]"</code> '
-                "and make the report again to simulate the exported model in MuJoCo and compare.</p>")
-    if chain.has_friction or chain.has_rotor:
-        ctx.notes["validation"] = "not run (Coulomb friction or rotors: no MuJoCo equivalent)"
-        return ('<p class="callout">Not run: skewpend\'s smooth Coulomb friction and rotors carried by the parent link '
-                "have no exact MuJoCo equivalent.</p>")
-    from ...interop.validation import compare_with_mujoco
-
-    horizon = min(VALIDATION_T_END, ctx.t_end)
-    try:
-        rep = compare_with_mujoco(chain, ctx.y0, horizon, dt=VALIDATION_DT)
-    except SkewpendError as exc:
-        ctx.notes["validation"] = "failed"
-        return f'<p class="callout warn">The comparison with MuJoCo failed: {esc(exc)}</p>'
-    worst = rep.max_difference
-    ok = worst <= VALIDATION_TOL
-    ctx.notes["validation"] = f"largest difference {worst:.2e} ({'agrees' if ok else 'DISAGREES'})"
-    rows = [[esc(k), fmt_num(v, 3), "rad/s" if k.startswith("d") else "rad"] for k, v in rep.max_abs_diff.items()]
-    return (f"<p>The chain is exported as MJCF (<code>skewpend export --config</code>: nested bodies, hinge joints "
-            "with their axes, damping and constant torques) and simulated by MuJoCo "
-            f"{esc(rep.mujoco_version)} with RK4 at dt = {fmt_num(rep.dt)} s, and by skewpend with DOP853 at rtol = atol = "
-            f"10<sup>−12</sup>, from the initial state of section 1 over {fmt_num(rep.t_end)} s; the states are compared at "
-            f"{rep.samples} common times — an independent engine against both of skewpend's derivations.</p>"
-            + f'<p class="verdict {"ok" if ok else "bad"}">' + ("✓ skewpend and MuJoCo agree" if ok else
-                                                               "✗ skewpend and MuJoCo disagree")
-            + f": largest difference {fmt_num(worst, 3)} (required: {fmt_num(VALIDATION_TOL, 2)})</p>"
-            + table_html(["state", "largest |skewpend − MuJoCo|", "unit"], rows, numeric=(1,), caption="Largest differences",
-                         compact=True))
+    return validation(ctx)  # the same comparison: compare_with_mujoco takes a chain
 
 
 #: The numeric sections in the order they are built (the simulation first: section 1's pictures use it).

@@ -39,6 +39,26 @@ def _equilibria_html(ctx: Context) -> List[str]:
     ]
 
 
+def backbone_facts(bb) -> List:
+    """What the families of nonlinear normal modes found (the double pendulum's two or a chain's n): each
+    family's orbits and frequency change, its stability changes, the internal resonances (label, HTML)."""
+    import re
+
+    facts = []
+    for fam in bb.families:
+        drop = 100 * (1 - fam.frequencies[-1] / fam.linear_frequency)
+        facts.append((f"mode {fam.mode}", f"{len(fam)} orbits; frequency {fmt_num(fam.linear_frequency, 5)} → "
+                                          f"{fmt_num(fam.frequencies[-1], 5)} rad/s ({fmt_num(abs(drop), 3)} % "
+                                          f"{'lower' if drop > 0 else 'higher'}) at {fmt_num(fam.energies[-1], 4)} J"))
+        for ev in fam.events:
+            facts.append((f"mode {fam.mode}: {esc(ev.kind)}", f"E = {fmt_num(ev.energy, 4)} J — {esc(ev.detail)}"))
+    sub = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
+    for r in bb.resonances:
+        detail = re.sub(r"w(\d+)", lambda m: "ω" + m.group(1).translate(sub), r.detail)
+        facts.append(("internal resonance", f"{esc(detail)} at E = {fmt_num(r.energy, 4)} J"))
+    return facts
+
+
 def section_orbits(ctx: Context) -> str:
     from dataclasses import replace
 
@@ -88,17 +108,7 @@ def section_orbits(ctx: Context) -> str:
         "(the same compiled code as the Lyapunov exponents); the family is followed by pseudo-arclength continuation. "
         "The eigenvalues of the monodromy matrix (the flow's derivative over one period) decide the stability.</p>"))
     out.append(figure_html(fig_png(fig), caption, "frequency-energy plot of the nonlinear normal modes"))
-    facts = []
-    for fam in (f1, f2):
-        drop = 100 * (1 - fam.frequencies[-1] / fam.linear_frequency)
-        facts.append((f"mode {fam.mode}", f"{len(fam)} orbits; frequency {fmt_num(fam.linear_frequency, 5)} → "
-                                          f"{fmt_num(fam.frequencies[-1], 5)} rad/s ({fmt_num(drop, 3)} % "
-                                          f"{'lower' if drop > 0 else 'higher'}) at {fmt_num(fam.energies[-1], 4)} J"))
-        for ev in fam.events:
-            facts.append((f"mode {fam.mode}: {esc(ev.kind)}", f"E = {fmt_num(ev.energy, 4)} J — {esc(ev.detail)}"))
-    for r in bb.resonances:
-        facts.append(("internal resonance", f"{esc(r.detail.replace('w2/w1', 'ω₂/ω₁'))} at E = {fmt_num(r.energy, 4)} J"))
-    out.append(facts_html(facts))
+    out.append(facts_html(backbone_facts(bb)))
     ctx.notes["orbits"] = (f"{len(f1)} + {len(f2)} orbits up to {fmt_num(E_max, 4)} J"
                            + (" (undamped model)" if damped else ""))
     return "\n".join(out)
