@@ -34,6 +34,11 @@ Sections:
 9. the validation against MuJoCo (or how to install it);
 10. how the report was made: versions, settings, timings.
 
+A chain of links gets the same kind of report from the same library calls (:mod:`.chain`): its
+derivation displayed up to three links and checked against the recursive algorithms, its modes
+against each hinge's tilt, simulation, flip map, Lyapunov spectrum, equilibria and nonlinear normal
+modes, MuJoCo.
+
 Sections 2 and 3 are symbolic work (SymPy); on a machine with more than one core a second Python
 process computes them while this one simulates and draws (:data:`PARALLEL`; if that process
 cannot run, they are computed here).  The file is written atomically (:func:`skewpend.io.atomic_path`):
@@ -284,9 +289,11 @@ def build_report(
     """Build the report; write it to ``out`` (``.html``/``.htm``, atomically: the file appears
     complete or not at all) and return the path, or return the HTML text when ``out`` is None.
 
-    ``params``: numeric :class:`~skewpend.Parameters` (default :data:`DEFAULT_PARAMETERS`);
-    ``y0 = (phi, psi, dphi, dpsi)``: the simulation's initial state (default
-    :data:`DEFAULT_INITIAL_STATE`); ``t_end`` [s]: its length (at most :data:`MAX_T_END`);
+    ``params``: numeric :class:`~skewpend.Parameters` (default :data:`DEFAULT_PARAMETERS`), or a
+    chain of links (:class:`~skewpend.symbolic.chain.Chain`: its own sections,
+    :mod:`skewpend.views.report.chain`); ``y0 = (phi, psi, dphi, dpsi)``: the simulation's initial
+    state (default :data:`DEFAULT_INITIAL_STATE`; a chain's ``(q1 … qn, dq1 … dqn)``, default every
+    link turned by 0.5 rad, at rest); ``t_end`` [s]: its length (at most :data:`MAX_T_END`);
     ``method``, ``rtol``, ``atol``, ``dt``, ``max_steps``: as for :func:`skewpend.simulate`.
     ``clip_seconds``, ``fps``, ``clip_size``: the live 3D view (the first ``clip_seconds`` of the
     motion, at most ``t_end``, replayed from ``fps`` computed states per second, at most 1200, on
