@@ -231,3 +231,39 @@ def test_without_anywidget_the_error_says_what_to_install():
             "try:\n    skewpend.widget\nexcept ImportError as e:\n    print('ERR', e)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120).stdout
     assert "ERR skewpend.widget needs anywidget: pip install 'skewpend[notebook]'" in out
+
+
+def test_a_chain_of_links_gets_its_own_widget():
+    from skewpend.symbolic.chain import Chain
+
+    chain = Chain.from_lists(3, length=[0.5, 0.4, 0.3], mass=[1.0, 0.8, 0.5], axis=[(0, 0, 1), (0.5, 0, 1), (1, 0, 0)],
+                             damping=[0.0, 0.0, 0.01])
+    w = skewpend.widget(chain)
+    assert w.sliders == ["q1_0", "q2_0", "q3_0", "g", "c1", "c2", "c3"] and len(w.specs) == 7
+    assert w.values == {"g": 9.81, "c1": 0.0, "c2": 0.0, "c3": 0.01}
+    assert w.y0 == [0.5, 0.5, 0.5, 0.0, 0.0, 0.0] and w.size == 0.5
+    assert w.params == chain
+    # its physics is the chain's module (printed from the recursive algorithms), not the double pendulum's
+    assert "from a chain's recursive algorithms" in w._esm and "export const tips = ends;" in w._esm
+    assert repr(w) == "<PendulumWidget live, running: a chain of 3 links, g=9.81, c3=0.01; y0 = (0.5, 0.5, 0.5, 0, 0, 0)>"
+    w.values = {**w.values, "g": 3.7}
+    assert w.params.g == 3.7 and w.params.links == chain.links
+    # a run replays the library's states of this chain
+    tr = w.run(1.0)
+    assert tr.params == w.params and np.array(w.replay["tips"]).shape == (len(tr.t), 9)
+    assert w.replay["size"] == 0.5
+    # refused in one line: a start of the wrong size, a negative damping, another chain, an unknown value
+    with pytest.raises(ParameterError, match=r"y0 must be 6 numbers \(q1, q2, q3, dq1, dq2, dq3\)"):
+        w.y0 = [0.1, 0.2, 0.0, 0.0]
+    with pytest.raises(ParameterError, match="link 2 damping must be >= 0"):
+        w.values = {**w.values, "c2": -1.0}
+    with pytest.raises(ParameterError, match="chain is fixed when it is made"):
+        w.params = chain.replace_link(2, mass=2.0)
+    with pytest.raises(ParameterError, match="unknown alpha"):
+        w.values = {**w.values, "alpha": 0.3}
+    other = skewpend.simulate(chain.replace_link(1, length=0.6), [0.1] * 3 + [0.0] * 3, 0.1, dt_out=0.05)
+    with pytest.raises(ParameterError, match="the trajectory's chain differs"):
+        w.show(other)
+    # what a view reports has the chain's 2 n numbers
+    with pytest.raises(ParameterError, match=r"6 numbers"):
+        w.shown = {"t": 0.0, "y": [0.0] * 4, "mode": "live"}

@@ -583,6 +583,8 @@ def chain_code(chain: Chain, language: str) -> str:
                 f"export const P = [{', '.join(repr(v) for v in values)}];", f"export const N = {n};", "",
                 f"/** dy/dt = [dq1 .. dq{n}, ddq1 .. ddq{n}] */", "export function rhs(y, p = P) {", *rhs_lines,
                 f"{I}return {ret_rhs};", "}", ""]
+        rest += ["/** the rods' ends of a state y (ends reads its first n entries): the name the front end's scenes "
+                 "call */", "export const tips = ends;", ""]
     return "\n".join(head + rest).rstrip() + "\n"
 
 

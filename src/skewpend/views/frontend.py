@@ -88,7 +88,12 @@ def _physics_sources(physics_params) -> tuple:
     from ..numeric.codegen import classic_js, explorer_js
     from ..symbolic.model import Parameters
 
-    module = explorer_js(physics_params if physics_params is not None else Parameters())
+    if hasattr(physics_params, "links"):  # a chain of links: its module from the recursive algorithms
+        from ..numeric.recursive import chain_code
+
+        module = chain_code(physics_params, "javascript")
+    else:
+        module = explorer_js(physics_params if physics_params is not None else Parameters())
     return (Source("physics", module), Source("physics-classic", classic_js(module, "physics"), classic=True))
 
 

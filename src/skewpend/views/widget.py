@@ -8,6 +8,12 @@ In a notebook cell::
     w.y0 = (2.0, 0.0, 0.0, 0.0)                # and starts again from there
     w.state.t, w.state.y                       # what the view shows now
     tr = w.run(20.0)                           # skewpend.simulate computes; the view replays it
+    skewpend.widget(chain)                     # a chain of links: its n rods, q0 a joint, g and damping
+
+A chain of links (:class:`~skewpend.symbolic.chain.Chain`) gets the same view with its own physics
+(the JavaScript printed from the recursive algorithms' graphs, :func:`~skewpend.numeric.recursive.chain_code`):
+sliders for each joint's start angle, ``g`` and each joint's damping (its bodies and axes are fixed at
+creation, as the double pendulum's), ``y0 = (q1 … qn, dq1 … dqn)``.
 
 The view is the same front end as the explorer's and the report's (``web/scene.js``); its live
 motion is the JavaScript generated from the derivation for these bodies and axes, advanced by
@@ -63,7 +69,35 @@ class WidgetValueError(ParameterError, traitlets.TraitError):
     also knows as its own (it then rolls back the change's other traits)."""
 
 
-def _front_end(geometry: Parameters) -> Tuple[str, str]:
+#: A chain's sliders: [key, label, min, max, step, default, unit, degrees] (the double pendulum's are live.js's).
+CHAIN_START = (-180.0, 180.0, 0.5)
+CHAIN_DAMPING = (0.0, 2.0, 0.01)
+
+
+def _chain_specs(chain) -> list:
+    n = chain.n
+    specs = [[f"q{k}_0", f"q{k} start", *CHAIN_START, 0.0, "°", True] for k in range(1, n + 1)]
+    specs.append(["g", "g", 0.0, 20.0, 0.01, 9.81, "m/s²", False])
+    specs += [[f"c{k}", f"c{k} damping", *CHAIN_DAMPING, 0.0, "N m s", False] for k in range(1, n + 1)]
+    return specs
+
+
+def _chain_values(chain) -> dict:
+    """What a chain's sliders change: ``g`` and each joint's damping ``c<k>`` (the physics' own names)."""
+    return {"g": float(chain.g), **{f"c{link.index}": float(link.damping) for link in chain.links}}
+
+
+def _chain_with(chain, values: dict):
+    """``chain`` with ``values`` (``g``, ``c<k>``) applied, validated by the chain itself."""
+    from dataclasses import replace
+
+    out = replace(chain, g=values["g"])
+    for link in chain.links:
+        out = out.replace_link(link.index, damping=values[f"c{link.index}"])
+    return out
+
+
+def _front_end(geometry) -> Tuple[str, str]:
     from .frontend import WEB_DIR, WIDGET_ORDER, module_bundle
 
     return module_bundle(WIDGET_ORDER, "widget", geometry), (WEB_DIR / "widget.css").read_text(encoding="utf-8")
@@ -85,22 +119,39 @@ class PendulumWidget(anywidget.AnyWidget):
     sliders = traitlets.List(traitlets.Unicode()).tag(sync=True)
     height = traitlets.Int(420).tag(sync=True)
     shown = traitlets.Dict().tag(sync=True)
+    specs = traitlets.List().tag(sync=True)  # a chain's sliders (the double pendulum's: live.js's)
+    size = traitlets.Float(0.0).tag(sync=True)  # a chain's length scale [m] (the double pendulum's: from a, b)
 
     def __init__(self, params: Optional[Parameters] = None, y0: Optional[Sequence[float]] = None, *,
                  height: int = 420) -> None:
         from .. import checks
         from ..config import reference_parameters, reference_state
         from ..numeric.conventions import geometry_of
+        from ..symbolic.chain import Chain
 
-        params = reference_parameters() if params is None else checks.numeric_params(params, "the widget")
         height = checks.whole("height", height, 160, 4000, what="the view's height in pixels")
+        self._chain = params if isinstance(params, Chain) else None
+        if self._chain is not None:  # a chain of links: the bodies and axes fixed, g and damping its sliders
+            from ..config import CHAIN_Q0
+
+            shape = _chain_with(params, {k: 0.0 for k in _chain_values(params)} | {"g": 9.81})
+            self._geometry = shape
+            self._esm, self._css = _front_end(shape)
+            n = params.n
+            specs = _chain_specs(params)
+            super().__init__(values=_chain_values(params),
+                             y0=self._start((CHAIN_Q0,) * n + (0.0,) * n if y0 is None else y0),
+                             sliders=[spec[0] for spec in specs], specs=specs,
+                             size=max(link.length for link in params.links), height=height)
+            return
+        params = reference_parameters() if params is None else checks.numeric_params(params, "the widget")
         geometry = geometry_of(params)
         self._geometry = geometry
         self._esm, self._css = _front_end(geometry)
         names = [n for n in SCALAR_NAMES if n != "alpha" or geometry.uses_alpha]
         super().__init__(
             values={n: float(getattr(params, n)) for n in names},
-            y0=_start(reference_state() if y0 is None else y0),
+            y0=self._start(reference_state() if y0 is None else y0),
             sliders=[n for n in SLIDERS if n in names or n in ("phi0", "psi0")],
             height=height,
         )
@@ -115,36 +166,42 @@ class PendulumWidget(anywidget.AnyWidget):
 
     def _checked_values(self, given: Any) -> dict:
         values = dict(given)
-        allowed = [n for n in SCALAR_NAMES if n != "alpha" or self._geometry.uses_alpha]
+        chain = self._chain
+        allowed = (list(_chain_values(chain)) if chain is not None else
+                   [n for n in SCALAR_NAMES if n != "alpha" or self._geometry.uses_alpha])
         unknown = sorted(set(values) - set(allowed))
         missing = [n for n in allowed if n not in values]
         if unknown or missing:
             what = "; ".join(([f"unknown {', '.join(unknown)}"] if unknown else []) +
                              ([f"missing {', '.join(missing)}"] if missing else []))
             raise ParameterError(f"widget values: {what}; expected all of {', '.join(allowed)} (set w.params to change some)")
+        if chain is not None:
+            return _chain_values(_chain_with(chain, values))  # checks each value (damping >= 0, ...)
         params = self._geometry.replace(**values)  # checks each value (positive masses, ...)
         return {n: float(getattr(params, n)) for n in allowed}
 
     @traitlets.validate("y0")
     def _valid_y0(self, proposal: Any) -> list:
         try:
-            return _start(proposal["value"])
+            return self._start(proposal["value"])
         except ParameterError as exc:
             raise WidgetValueError(str(exc)) from None
 
     @traitlets.validate("shown")
     def _valid_shown(self, proposal: Any) -> dict:
-        """What a view reports: a time, a state of 4 numbers, a mode (or nothing yet)."""
+        """What a view reports: a time, a state of 4 numbers (a chain's 2 n), a mode (or nothing yet)."""
         shown = dict(proposal["value"])
         if not shown:
             return shown
+        size = 2 * self._chain.n if self._chain is not None else 4
         try:
             t, y = float(shown["t"]), [float(v) for v in shown["y"]]
-            ok = len(y) == 4 and shown.get("mode") in ("live", "replay") and math.isfinite(t)
+            ok = len(y) == size and shown.get("mode") in ("live", "replay") and math.isfinite(t)
         except (KeyError, TypeError, ValueError):
             ok = False
         if not ok:
-            raise WidgetValueError(f"a view's report must hold t, y (4 numbers) and mode (live or replay), got {shown!r}")
+            raise WidgetValueError(f"a view's report must hold t, y ({size} numbers) and mode (live or replay), "
+                                   f"got {shown!r}")
         return shown
 
     @traitlets.observe("values", "y0")
@@ -166,7 +223,10 @@ class PendulumWidget(anywidget.AnyWidget):
     # -- the public face ------------------------------------------------------------------------------
     @property
     def params(self) -> Parameters:
-        """The pendulum shown: the bodies and axes given at creation with the current scalars."""
+        """The pendulum shown: the bodies and axes given at creation with the current scalars (a chain's: with
+        the current ``g`` and damping)."""
+        if self._chain is not None:
+            return _chain_with(self._chain, self.values)
         return self._geometry.replace(**self.values)
 
     @params.setter
@@ -174,6 +234,12 @@ class PendulumWidget(anywidget.AnyWidget):
         from .. import checks
         from ..numeric.conventions import geometry_of
 
+        if self._chain is not None:
+            if not hasattr(params, "links") or not self._same_body(params):
+                raise ParameterError("the widget's chain is fixed when it is made (its physics is generated for its "
+                                     "bodies and axes); change g and the damping only, or make a new skewpend.widget")
+            self.values = _chain_values(params)
+            return
         checks.numeric_params(params, "the widget")
         if geometry_of(params) != self._geometry:
             raise ParameterError("the widget's bodies and axes are fixed when it is made (its physics is generated for "
@@ -229,7 +295,11 @@ class PendulumWidget(anywidget.AnyWidget):
 
         if not isinstance(trajectory, Trajectory):
             raise ParameterError(f"widget.show: expected a skewpend.Trajectory, got {type(trajectory).__name__}")
-        if geometry_of(trajectory.params) != self._geometry:
+        if self._chain is not None:
+            if not hasattr(trajectory.params, "links") or not self._same_body(trajectory.params):
+                raise ParameterError("widget.show: the trajectory's chain differs from the widget's; "
+                                     "make a skewpend.widget(trajectory.params)")
+        elif geometry_of(trajectory.params) != self._geometry:
             raise ParameterError("widget.show: the trajectory's bodies and axes differ from the widget's; "
                                  "make a skewpend.widget(trajectory.params)")
         n = len(trajectory.t)
@@ -249,6 +319,17 @@ class PendulumWidget(anywidget.AnyWidget):
             self.replay = data
             self.running = True
 
+    def _same_body(self, chain) -> bool:
+        """Whether ``chain`` is the widget's up to its sliders' values (g and each joint's damping)."""
+        return (chain.n == self._chain.n
+                and _chain_with(chain, {k: 0.0 for k in _chain_values(chain)} | {"g": 9.81}) == self._geometry)
+
+    def _start(self, y0: Sequence[float]) -> list:
+        from ..parsing import initial_state
+
+        coordinates = self._chain.coordinates if self._chain is not None else ("phi", "psi")
+        return [float(v) for v in initial_state(y0, coordinates)]
+
     def restart(self) -> None:
         """Start the motion again from ``y0`` (a replay: from its first frame)."""
         self.send({"cmd": "restart"})
@@ -260,23 +341,22 @@ class PendulumWidget(anywidget.AnyWidget):
         self.running = False
 
     def __repr__(self) -> str:
-        values = ", ".join(f"{k}={v:g}" for k, v in self.values.items()  # a term off at its default is left out
-                           if k in SLIDERS or schema.default(k) is None or v != schema.default(k))
+        if self._chain is not None:
+            values = f"a chain of {self._chain.n} links, " + ", ".join(f"{k}={v:g}" for k, v in self.values.items()
+                                                                       if k == "g" or v)
+        else:
+            values = ", ".join(f"{k}={v:g}" for k, v in self.values.items()  # a term off at its default is left out
+                               if k in SLIDERS or schema.default(k) is None or v != schema.default(k))
         what = "replaying a computed run" if self.replay else "live"
         y0 = ", ".join(f"{v:g}" for v in self.y0)
         return f"<PendulumWidget {what}, {'running' if self.running else 'paused'}: {values}; y0 = ({y0})>"
 
 
-def _start(y0: Sequence[float]) -> list:
-    from ..parsing import initial_state
-
-    return [float(v) for v in initial_state(y0)]
-
-
 def widget(params: Optional[Parameters] = None, y0: Optional[Sequence[float]] = None, *,
            height: int = 420) -> PendulumWidget:
     """The live 3D pendulum in a notebook cell (an anywidget): the bodies and axes of ``params``
-    (default: :func:`skewpend.reference_parameters`) from ``y0 = (phi, psi, dphi, dpsi)``
-    (default: :func:`skewpend.reference_state`), ``height`` pixels tall.  See
+    (default: :func:`skewpend.reference_parameters`; or a chain of links, its n rods) from
+    ``y0 = (phi, psi, dphi, dpsi)`` (default: :func:`skewpend.reference_state`; a chain's
+    ``(q1 … qn, dq1 … dqn)``, default every joint at 0.5 rad, at rest), ``height`` pixels tall.  See
     :class:`PendulumWidget` for what it syncs; needs ``pip install 'skewpend[notebook]'``."""
     return PendulumWidget(params, y0, height=height)

@@ -5,6 +5,11 @@
 //   running bool                                            playing or paused
 //   run     {} or {t, tips, axes, y, size, label}           a computed run to replay (Python's simulate)
 //   sliders [names]                                         the sliders to show
+//   specs   [] or [[key, label, min, max, step, default, unit, degrees]]  a chain's sliders (else live.js's)
+//   size    0 or the length scale of the drawn axes [m]     a chain's longest link (else from a, b)
+// A chain of links: its physics (the recursive algorithms' module) takes the full parameter vector;
+// `values` holds what its sliders change (g, each joint's damping), the rest comes from physics.P;
+// its start is y0 = [q1 .. qn, dq1 .. dqn], the sliders "q<k>_0" the angles.
 //   height  the view's height [px]
 //   state   {t, y, mode, frame, ok, message}                written here: what is shown now
 // A slider moved here changes `values` or `y0` (and drops a replay of other parameters); Python's
@@ -19,6 +24,14 @@ const DEG = Math.PI / 180;
 const ORDER = physics.PARAMETER_ORDER;
 const REPORT_MS = 250; // how often the shown state is written back while it moves
 const ANGLES = new Set(["alpha", "phi0", "psi0"]);
+/** The index in y0 of a start slider ("phi0", "psi0", a chain's "q<k>_0"), or -1. */
+function startIndex(key) {
+  if (key === "phi0") return 0;
+  if (key === "psi0") return 1;
+  const m = /^q(\d+)_0$/.exec(key);
+  return m ? parseInt(m[1], 10) - 1 : -1;
+}
+const DISSIPATIVE = /^(c|cf|tau)\d+$/; // damping, Coulomb friction, torques: the energy is not conserved
 
 function element(tag, props = {}, ...children) {
   const node = Object.assign(document.createElement(tag), props);
@@ -59,21 +72,25 @@ export function render({ model, el }) {
   let running = true, run = null, frame = 0, origin = null, lastStamp = 0, lastReport = -Infinity, visible = true;
   let raf = 0;
 
-  function vector(v) { return ORDER.map((k) => (Number.isFinite(v[k]) ? v[k] : 0)); }
-  function size() { return Math.max(values.a || 1, values.b || 1); }
+  // a value not among `values` (a chain's bodies and axes) is the generated module's own
+  function vector(v) { return ORDER.map((k, i) => (Number.isFinite(v[k]) ? v[k] : physics.P ? physics.P[i] : 0)); }
+  function size() { return +model.get("size") || Math.max(values.a || 1, values.b || 1); }
+  function specs() { const given = model.get("specs"); return given && given.length ? given : SLIDERS; }
+  function isAngle(key) { return ANGLES.has(key) || startIndex(key) >= 0; }
   function showMessage(text) { message = text; note.textContent = text; note.hidden = !text; }
 
   // ---- the sliders ----------------------------------------------------------------------------------
   const inputs = {};
   function shown(key) { // a slider's value as shown (degrees for angles)
-    if (key === "phi0") return y0[0] / DEG;
-    if (key === "psi0") return y0[1] / DEG;
-    return ANGLES.has(key) ? values[key] / DEG : values[key];
+    const k = startIndex(key);
+    if (k >= 0) return y0[k] / DEG;
+    return isAngle(key) ? values[key] / DEG : values[key];
   }
   function buildSliders() {
     sliderBox.replaceChildren();
-    for (const key of model.get("sliders") || SLIDERS.map((s) => s[0])) { // Python's choice and order
-      const spec = SLIDERS.find((s) => s[0] === key);
+    const all = specs();
+    for (const key of model.get("sliders") || all.map((s) => s[0])) { // Python's choice and order
+      const spec = all.find((s) => s[0] === key);
       if (!spec) continue;
       const [, label, min, max, step, , unit] = spec;
       const input = element("input", { type: "range", min, max, step });
@@ -98,12 +115,13 @@ export function render({ model, el }) {
     }
   }
   function moved(key, v) { // the user moved a slider: the model changes, its events do the rest
-    if (key === "phi0" || key === "psi0") {
+    const k = startIndex(key);
+    if (k >= 0) {
       const next = y0.slice();
-      next[key === "phi0" ? 0 : 1] = v * DEG;
+      next[k] = v * DEG;
       model.set("y0", next);
     } else {
-      model.set("values", { ...values, [key]: ANGLES.has(key) ? v * DEG : v });
+      model.set("values", { ...values, [key]: isAngle(key) ? v * DEG : v });
     }
     if (run) model.set("replay", {}); // a computed run of other parameters is not replayed any more
     model.save_changes();
@@ -155,7 +173,7 @@ export function render({ model, el }) {
       return;
     }
     const E = physics.energy(y, p);
-    const damped = (values.c1 || 0) > 0 || (values.c2 || 0) > 0 || (values.tau1 || 0) !== 0 || (values.tau2 || 0) !== 0;
+    const damped = Object.entries(values).some(([k, v]) => DISSIPATIVE.test(k) && v !== 0);
     hud.textContent = `t = ${fmt(t)} s · E = ${E.toFixed(4)} J` + (damped ? "" : ` · drift ${(E - E0).toExponential(1)} J`);
     mode.textContent = "live: the generated equations, RK4";
   }
