@@ -23,7 +23,7 @@ import numpy as np
 
 from ..checks import max_steps as check_max_steps, positive, tolerances
 from ..errors import ParameterError
-from ..numeric.grid import GridJob
+from ..numeric.grid import PlaneJob, plane_attrs
 from ..results import DatasetSpec, Result, canonical_json
 
 __all__ = ["ChainFlipMap", "ChainFlipJob", "chain_flip_map", "open_chain_flip_map", "STORE_KIND"]
@@ -43,10 +43,6 @@ def _index(name: str, nq: int) -> int:
     from ..schema import state_coordinates
 
     return state_coordinates(nq)[name]
-
-
-def _angle_attrs(name: str, nq: int) -> Dict[str, str]:
-    return {"units": "rad", "long_name": f"initial angle of hinge {_index(name, nq) + 1}"}
 
 
 @dataclass(frozen=True)
@@ -91,14 +87,14 @@ class ChainFlipMap(Result):
         return DatasetSpec(
             variables={"flip_time": ((a, b), self.flip_time, dict(_VARIABLES["flip_time"])),
                        "which": ((a, b), self.which, dict(_VARIABLES["which"]))},
-            coords={a: ((a,), np.asarray(self.x0, dtype=float).copy(), _angle_attrs(self.plane[0], len(self.held))),
-                    b: ((b,), np.asarray(self.y0, dtype=float).copy(), _angle_attrs(self.plane[1], len(self.held)))},
+            coords={a: ((a,), np.asarray(self.x0, dtype=float).copy(), plane_attrs(self.plane[0], len(self.held))),
+                    b: ((b,), np.asarray(self.y0, dtype=float).copy(), plane_attrs(self.plane[1], len(self.held)))},
             attrs=attrs,
         )
 
 
 @dataclass(frozen=True)
-class ChainFlipJob(GridJob):
+class ChainFlipJob(PlaneJob):
     """A chain's flip map as a job of the grid driver (small and picklable)."""
 
     params: Any  # a Chain
@@ -119,8 +115,9 @@ class ChainFlipJob(GridJob):
     stat_names: ClassVar[Tuple[str, ...]] = CHUNK_STATS
     title: ClassVar[str] = "flip-time map of a chain of links (skewpend)"
 
-    def shape(self):
-        return self.n, self.n
+    def base_state(self) -> np.ndarray:
+        """Every start: the held angles, at rest."""
+        return np.r_[np.asarray(self.held, dtype=float), np.zeros(len(self.held))]
 
     def arrays(self):
         from ..numeric.grid import ArraySpec
@@ -128,44 +125,16 @@ class ChainFlipJob(GridJob):
         return {"flip_time": ArraySpec("float64", np.nan, _VARIABLES["flip_time"]),
                 "which": ArraySpec("int8", -1, _VARIABLES["which"])}
 
-    def coords(self):
-        from ..numeric.grid import cell_centres
-
-        a, b = self.plane
-        nq = len(self.held)
-        return {f"{a}0": (cell_centres(*self.x_range, self.n), _angle_attrs(a, nq)),
-                f"{b}0": (cell_centres(*self.y_range, self.n), _angle_attrs(b, nq))}
-
     def settings(self) -> Dict[str, Any]:
         return {"kind": "chain_flip_map", "params": self.params.to_dict(), "n": self.n, "plane": list(self.plane),
                 "x_range": list(self.x_range), "y_range": list(self.y_range), "held": list(self.held),
                 "t_end": self.t_end, "rtol": self.rtol, "atol": self.atol, "max_steps": self.max_steps,
                 "method": "dop853", "skewpend_version": self.version}
 
-    def store_attrs(self):
-        return {"params": json.dumps(self.params.to_dict())}
-
     def setup(self):
-        from ..errors import SkewpendError
         from ..numeric.kernels import model_kernel, model_vector
 
-        kernel = model_kernel(self.params)
-        if kernel.path.name != self.kernel_name:
-            raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
-                                "install the same skewpend on every worker")
-        return kernel, model_vector(self.params)
-
-    def starts(self, rows: np.ndarray) -> np.ndarray:
-        """The starts of whole rows of cells at rest, (rows * n, 2 nq)."""
-        xs, ys = (values for values, _ in self.coords().values())
-        nq = len(self.held)
-        i, j = (_index(c, nq) for c in self.plane)
-        rows = np.asarray(rows, dtype=np.int64)
-        out = np.zeros((rows.size * self.n, 2 * nq))
-        out[:, :nq] = self.held
-        out[:, i] = np.repeat(xs[rows], self.n)
-        out[:, j] = np.tile(ys, rows.size)
-        return out
+        return self.checked_kernel(model_kernel(self.params)), model_vector(self.params)
 
     def compute(self, state, rows, cancel=None):
         from ..numeric.ensemble import Cancelled

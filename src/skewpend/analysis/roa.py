@@ -37,7 +37,7 @@ import numpy as np
 
 from ..checks import max_steps as check_max_steps, numeric_params, positive, tolerances
 from ..errors import EquilibriumError, ParameterError
-from ..numeric.grid import GridJob
+from ..numeric.grid import PlaneJob, plane_attrs
 from ..results import DatasetSpec, Result, canonical_json
 from ..schema import state_coordinates
 from ..symbolic.model import Parameters
@@ -164,8 +164,8 @@ class RegionOfAttraction(Result):
         return DatasetSpec(
             variables={"capture_time": ((a, b), self.capture_time, dict(_VARIABLES["capture_time"])),
                        "outcome": ((a, b), self.outcome, dict(_VARIABLES["outcome"]))},
-            coords={a: ((a,), np.asarray(self.x0, dtype=float).copy(), _coord_attrs(self.plane[0], len(self.target) // 2)),
-                    b: ((b,), np.asarray(self.y0, dtype=float).copy(), _coord_attrs(self.plane[1], len(self.target) // 2))},
+            coords={a: ((a,), np.asarray(self.x0, dtype=float).copy(), plane_attrs(self.plane[0], len(self.target) // 2)),
+                    b: ((b,), np.asarray(self.y0, dtype=float).copy(), plane_attrs(self.plane[1], len(self.target) // 2))},
             attrs=attrs,
         )
 
@@ -176,15 +176,8 @@ _VARIABLES = {
 }
 
 
-def _coord_attrs(name: str, nq: int = 2) -> Dict[str, str]:
-    i = state_coordinates(nq)[name]
-    speed = i >= nq
-    return {"units": "rad/s" if speed else "rad",
-            "long_name": f"initial {'angular speed' if speed else 'angle'} of hinge {i % nq + 1}"}
-
-
 @dataclass(frozen=True)
-class RoaJob(GridJob):
+class RoaJob(PlaneJob):
     """A region-of-attraction map as a job of the grid driver (small and picklable)."""
 
     params: Any  # Parameters, or a chain of links
@@ -210,25 +203,15 @@ class RoaJob(GridJob):
     stat_names: ClassVar[Tuple[str, ...]] = CHUNK_STATS
     title: ClassVar[str] = "region of attraction of a saturated LQR (skewpend)"
 
-    def shape(self):
-        return self.n, self.n
+    def base_state(self) -> np.ndarray:
+        """Every start: the target, the plane's two coordinates set."""
+        return np.asarray(self.target, dtype=float)
 
     def arrays(self):
         from ..numeric.grid import ArraySpec
 
         return {"capture_time": ArraySpec("float64", np.nan, _VARIABLES["capture_time"]),
                 "outcome": ArraySpec("int8", -1, _VARIABLES["outcome"])}
-
-    def coords(self):
-        from ..numeric.grid import cell_centres
-
-        a, b = self.plane
-        return {f"{a}0": (cell_centres(*self.x_range, self.n), _coord_attrs(a, self.nq)),
-                f"{b}0": (cell_centres(*self.y_range, self.n), _coord_attrs(b, self.nq))}
-
-    @property
-    def nq(self) -> int:
-        return len(self.target) // 2
 
     def settings(self) -> Dict[str, Any]:
         return {"kind": "region_of_attraction", "params": self.params.to_dict(), "n": self.n, "plane": list(self.plane),
@@ -238,9 +221,6 @@ class RoaJob(GridJob):
                 "umax": [u if math.isfinite(u) else None for u in self.umax], "t_end": self.t_end, "rtol": self.rtol,
                 "atol": self.atol, "max_steps": self.max_steps, "method": "dop853", "skewpend_version": self.version}
 
-    def store_attrs(self):
-        return {"params": json.dumps(self.params.to_dict())}
-
     def controller(self):
         from ..numeric.control import Controller
 
@@ -248,24 +228,9 @@ class RoaJob(GridJob):
                                    actuated=self.actuated, umax=self.umax)
 
     def setup(self):
-        from ..errors import SkewpendError
         from ..numeric.kernels import model_vector
 
-        kernel = roa_kernel(self.params)
-        if kernel.path.name != self.kernel_name:
-            raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
-                                "install the same skewpend on every worker")
-        return kernel, model_vector(self.params), self.controller()
-
-    def starts(self, rows: np.ndarray) -> np.ndarray:
-        """The starts of whole rows of cells, (rows * n, 2 nq)."""
-        xs, ys = (values for values, _ in self.coords().values())
-        i, j = (state_coordinates(self.nq)[c] for c in self.plane)
-        rows = np.asarray(rows, dtype=np.int64)
-        out = np.tile(np.asarray(self.target, dtype=float), (rows.size * self.n, 1))
-        out[:, i] = np.repeat(xs[rows], self.n)
-        out[:, j] = np.tile(ys, rows.size)
-        return out
+        return self.checked_kernel(roa_kernel(self.params)), model_vector(self.params), self.controller()
 
     def compute(self, state, rows, cancel=None):
         from ..numeric.control import capture_many

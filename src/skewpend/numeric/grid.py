@@ -41,7 +41,7 @@ from ..errors import ParameterError
 
 __all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "read_grid_result", "open_store_for", "chunk_rows", "work_units", "check_workers",
            "check_run_options", "check_feasible", "steps_per_second", "probe_time", "UNITS_PER_WORKER", "MAX_N", "check_n",
-           "check_range", "cell_centres"]
+           "check_range", "cell_centres", "PlaneJob", "plane_attrs"]
 
 #: Default store chunk: at most this many cells (whole rows) ...
 CHUNK_CELLS = 65536
@@ -145,6 +145,66 @@ class GridJob:
     def result_attrs(self, result: Any) -> Dict[str, Any]:
         """What a complete store records about the result (JSON strings, numbers)."""
         return {}
+
+
+def plane_attrs(name: str, nq: int) -> Dict[str, str]:
+    """The attributes of a plane's coordinate ``name`` of a state of ``nq`` joints (``phi``, ``dq3``): its
+    units and what it is."""
+    from ..schema import state_coordinates
+
+    i = state_coordinates(nq)[name]
+    speed = i >= nq
+    return {"units": "rad/s" if speed else "rad",
+            "long_name": f"initial {'angular speed' if speed else 'angle'} of hinge {i % nq + 1}"}
+
+
+class PlaneJob(GridJob):
+    """A map over starts on a plane of two state coordinates, ``n`` x ``n`` cells (a chain's flip map, a
+    region of attraction): the layout, the coordinates, the store's parameters, the starts of whole rows and
+    the workers' kernel check.  Subclasses are frozen dataclasses with the fields ``params``, ``n``,
+    ``plane``, ``x_range``, ``y_range`` and ``kernel_name``, and say the state every start shares
+    (:meth:`base_state`, of ``2 nq`` numbers)."""
+
+    def base_state(self) -> np.ndarray:
+        raise NotImplementedError
+
+    @property
+    def nq(self) -> int:
+        return self.base_state().size // 2
+
+    def shape(self):
+        return self.n, self.n
+
+    def coords(self):
+        a, b = self.plane
+        return {f"{a}0": (cell_centres(*self.x_range, self.n), plane_attrs(a, self.nq)),
+                f"{b}0": (cell_centres(*self.y_range, self.n), plane_attrs(b, self.nq))}
+
+    def store_attrs(self):
+        import json
+
+        return {"params": json.dumps(self.params.to_dict())}
+
+    def checked_kernel(self, kernel):
+        """``kernel`` if it is the one this run generated, else an error (a worker with another skewpend)."""
+        from ..errors import SkewpendError
+
+        if kernel.path.name != self.kernel_name:
+            raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
+                                "install the same skewpend on every worker")
+        return kernel
+
+    def starts(self, rows: np.ndarray) -> np.ndarray:
+        """The starts of whole rows of cells, (rows * n, 2 nq): the base state, the plane's two coordinates set."""
+        from ..schema import state_coordinates
+
+        xs, ys = (values for values, _ in self.coords().values())
+        i, j = (state_coordinates(self.nq)[c] for c in self.plane)
+        rows = np.asarray(rows, dtype=np.int64)
+        out = np.tile(self.base_state(), (rows.size * self.n, 1))
+        out[:, i] = np.repeat(xs[rows], self.n)
+        out[:, j] = np.tile(ys, rows.size)
+        return out
 
 
 # -- shared checks of the run options -------------------------------------------------------------

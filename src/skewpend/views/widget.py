@@ -77,7 +77,7 @@ CHAIN_DAMPING = (0.0, 2.0, 0.01)
 def _chain_specs(chain) -> list:
     n = chain.n
     specs = [[f"q{k}_0", f"q{k} start", *CHAIN_START, 0.0, "°", True] for k in range(1, n + 1)]
-    specs.append(["g", "g", 0.0, 20.0, 0.01, 9.81, "m/s²", False])
+    specs.append(["g", "gravity g", 0.0, 20.0, 0.01, 9.81, "m/s²", False])
     specs += [[f"c{k}", f"c{k} damping", *CHAIN_DAMPING, 0.0, "N m s", False] for k in range(1, n + 1)]
     return specs
 

@@ -122,13 +122,13 @@ def _conservation_text(chain) -> str:
 
 def section_system(ctx: Context) -> str:
     from ...numeric.simulation import simulate
-    from .system import _still
+    from .system import still_png
 
     chain, y0, n = ctx.params, ctx.y0, ctx.params.n
     rest = simulate(chain, (0.0,) * (2 * n), 0.01, dt_out=0.01, method="dop853")
-    ctx.still = _still(ctx.clip)
+    ctx.still = still_png(ctx.clip)
     fig_rest = figure_html(
-        _still(rest),
+        still_png(rest),
         prose(f"Reference configuration: all {n} rods hang along $\\underline{{j}}$ (down), every $q_i = 0$. "
               "Each hinge's axis is drawn at its joint (green: the roof's, fixed)."),
         "the chain hanging at rest, with its hinge axes drawn")
@@ -191,7 +191,7 @@ def section_derivation(ctx: Context) -> str:
             "numeric code is generated for any length from the same model by the recursive algorithms — the composite-"
             "rigid-body mass matrix and recursive Newton–Euler — as straight-line code (CasADi's graphs printed as C); "
             "<code>skewpend derive --config</code> prints them, section 9 checks them against MuJoCo.</p>")
-    from ... import derive
+    from ...symbolic.derivation import derive
 
     eom = derive(chain)
     names = _chain_names(eom)

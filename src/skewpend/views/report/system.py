@@ -72,7 +72,7 @@ def conservation_text(p: Parameters) -> str:
     return "Not conservative: " + esc(", ".join(schema.meaning(n) for n in p.nonconservative_terms)) + " (values below)."
 
 
-def _still(tr) -> bytes:
+def still_png(tr) -> bytes:
     """Frame 0 of ``tr`` as drawn by the animation (rods, both hinge axes, the angle between them)."""
     from ..animation import FrameRenderer
 
@@ -90,8 +90,8 @@ def section_system(ctx: Context) -> str:
     p, y0 = ctx.params, ctx.y0
     # the reference configuration, for its picture (the report's own method: no other kernel compiled)
     rest = simulate(p, (0.0, 0.0, 0.0, 0.0), 0.01, dt_out=0.01, method="dop853")
-    rest_png = _still(rest)
-    ctx.still = _still(ctx.clip)
+    rest_png = still_png(rest)
+    ctx.still = still_png(ctx.clip)
     thin = p.is_thin_rods
     if p.uses_alpha and p.axis1 is None:
         skew = prose(r"the hinge axes $\underline{k}$ and $\underline{e}_0$ make the angle $\alpha$ = ") + fmt_deg(p.alpha)
