@@ -72,19 +72,21 @@ class WidgetValueError(ParameterError, traitlets.TraitError):
 #: A chain's sliders: [key, label, min, max, step, default, unit, degrees] (the double pendulum's are live.js's).
 CHAIN_START = (-180.0, 180.0, 0.5)
 CHAIN_DAMPING = (0.0, 2.0, 0.01)
+#: A joint's damping in the chain's parameter vector: ``c<k>`` (the schema's stem of the links' ``damping``).
+_DAMPING = next(stem for key, stem, _ in schema.LINK_FIELDS if key == "damping")
 
 
 def _chain_specs(chain) -> list:
     n = chain.n
     specs = [[f"q{k}_0", f"q{k} start", *CHAIN_START, 0.0, "°", True] for k in range(1, n + 1)]
     specs.append(["g", "gravity g", 0.0, 20.0, 0.01, 9.81, "m/s²", False])
-    specs += [[f"c{k}", f"c{k} damping", *CHAIN_DAMPING, 0.0, "N m s", False] for k in range(1, n + 1)]
+    specs += [[f"{_DAMPING}{k}", f"{_DAMPING}{k} damping", *CHAIN_DAMPING, 0.0, "N m s", False] for k in range(1, n + 1)]
     return specs
 
 
 def _chain_values(chain) -> dict:
     """What a chain's sliders change: ``g`` and each joint's damping ``c<k>`` (the physics' own names)."""
-    return {"g": float(chain.g), **{f"c{link.index}": float(link.damping) for link in chain.links}}
+    return {"g": float(chain.g), **{f"{_DAMPING}{link.index}": float(link.damping) for link in chain.links}}
 
 
 def _chain_with(chain, values: dict):
@@ -93,7 +95,7 @@ def _chain_with(chain, values: dict):
 
     out = replace(chain, g=values["g"])
     for link in chain.links:
-        out = out.replace_link(link.index, damping=values[f"c{link.index}"])
+        out = out.replace_link(link.index, damping=values[f"{_DAMPING}{link.index}"])
     return out
 
 
