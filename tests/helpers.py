@@ -285,3 +285,18 @@ def sympy_reference(params):
     en = sp.lambdify(args, eom.kinetic_energy + eom.potential_energy, "numpy")
     return lambda y: np.array(acc(*y), float).ravel(), lambda y: float(en(*y))
 
+
+
+def artifacts(folder: str) -> Path:
+    """Where a browser test keeps its screenshots: ``$SKEWPEND_ARTIFACTS/folder`` (default ``tests/artifacts/folder``)."""
+    root = Path(os.environ.get("SKEWPEND_ARTIFACTS") or Path(__file__).resolve().parent / "artifacts")
+    out = root / folder
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def example_model(name: str = "skewed_triple.toml") -> str:
+    """The model part of a shipped run file (``examples/NAME`` up to its ``[initial]``: ``[chain]`` and the
+    ``[[links]]``), for a test's own run file to add its start and settings to."""
+    text = (Path(__file__).resolve().parent.parent / "examples" / name).read_text(encoding="utf-8")
+    return text.split("\n[initial]", 1)[0].rstrip() + "\n"

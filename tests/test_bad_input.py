@@ -100,6 +100,15 @@ case("serve-config-friction", ["serve", "--config", "r.toml"], "r.toml: [paramet
      files={"r.toml": "[parameters]\ncf1 = 0.1\n"})
 case("serve-config-beyond-slider", ["serve", "--config", "r.toml"], "r.toml: [parameters] a", "slider range",
      files={"r.toml": "[parameters]\na = 0.05\n"})
+_TRIPLE = "[[links]]\nlength = 0.5\n[[links]]\nlength = 0.4\naxis = [1, 0, 0]\n[[links]]\nlength = 0.3\n"
+case("serve-chain-speed", ["serve", "--config", "r.toml"], "r.toml: [initial] dq0", "at rest",
+     files={"r.toml": _TRIPLE + "[initial]\ndq0 = [1, 0, 0]\n"})
+case("serve-chain-start-beyond-slider", ["serve", "--config", "r.toml"], "r.toml: [initial] q0", "joint 2", "slider range",
+     files={"r.toml": _TRIPLE + "[initial]\nq0 = [0, 3.5, 0]\n"})
+case("serve-chain-start-count", ["serve", "--config", "r.toml"], "r.toml: [initial] q0", "expected 3 values",
+     files={"r.toml": _TRIPLE + "[initial]\nq0 = [0, 1]\n"})
+case("serve-chain-with-alpha", ["serve", "--config", "r.toml"], "alpha", "[[links]]",
+     files={"r.toml": _TRIPLE + "[parameters]\nalpha = 0.3\n"})
 
 # -- simulate -------------------------------------------------------------------------------------------------
 case("sim-t-end-zero", ["simulate", "--t-end", "0"], opt("t-end"), "positive")

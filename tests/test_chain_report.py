@@ -27,26 +27,10 @@ from skewpend import Parameters, normal_modes  # noqa: E402
 from skewpend.symbolic.chain import Chain  # noqa: E402
 from skewpend.views.report import build_report  # noqa: E402
 from skewpend.views.report.chain import CHAIN_SECTIONS, CHECK_TOL, SYMBOLIC_MAX_LINKS  # noqa: E402
+from helpers import example_model  # noqa: E402
 
-RUN = """# a skewed triple pendulum, damped in its last joint
-[chain]
-g = 9.81
-
-[[links]]
-length = 0.5
-mass = 1.0
-
-[[links]]
-length = 0.4
-mass = 0.8
-axis = [0.5, 0, 1]
-
-[[links]]
-length = 0.3
-mass = 0.5
-axis = [1, 0, 0]
-damping = 0.01
-
+#: examples/skewed_triple.toml's chain (damped in its last joint), from a start with q2 moving, for 3 s.
+RUN = example_model() + """
 [initial]
 q0 = ["60deg", -0.3, 0.2]
 dq0 = [0, 0.5, 0]

@@ -99,7 +99,8 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "identify": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # params0, the fit's start
     "derive": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # the values given; the others stay symbolic
     # the bodies and axes -> the generated physics; the scalars and the start -> the page's sliders
-    "serve": {"parameters": MODEL_KEYS, "initial": frozenset(("phi0", "psi0"))},
+    "serve": {"parameters": MODEL_KEYS, "initial": frozenset(("phi0", "psi0", "q0")), "chain": CHAIN_KEYS,
+              "links": LINK_KEYS},
 }
 
 #: Why a command does not read a key that some other command does (the refusal says it).
@@ -113,6 +114,7 @@ _WHY_NOT = {
     ("poincare", "t_end"): "each orbit runs until its crossings are recorded, or --t-max",
     ("serve", "dphi0"): "the explorer starts at rest (its sliders set phi0 and psi0)",
     ("serve", "dpsi0"): "the explorer starts at rest (its sliders set phi0 and psi0)",
+    ("serve", "dq0"): "the explorer starts at rest (its sliders set each joint's start angle, q0)",
 }
 
 

@@ -35,7 +35,9 @@ def serve(
     A --config run file sets the page's start: its [parameters]' bodies and axes (com1, inertia1,
     axis2, ...) the generated physics; a, b, m1, m2, alpha, g, c1, c2 and [initial] phi0, psi0 the
     sliders (within their ranges; the page's address holds them).  The explorer has no joint
-    torques, Coulomb friction or rotor inertia: non-zero ones are refused.
+    torques, Coulomb friction or rotor inertia: non-zero ones are refused.  A chain of links
+    ([[links]], [chain]) gets its own page: its n rods, a start slider for each joint ([initial] q0),
+    g and each joint's damping, its modes and a flip map over (q1, q2).
 
     Ctrl-C stops the server.
     """
@@ -104,6 +106,29 @@ def _slider_ranges() -> dict:
             for m in re.finditer(r'\[\s*"(\w+)",\s*"[^"]*",\s*(-?[\d.]+),\s*(-?[\d.]+),', text)}
 
 
+def _chain_query(run, chain) -> str:
+    """The address query of a chain's start angles ([initial] q0, in degrees: the sliders ``q<k>_0``)."""
+    import math
+    from urllib.parse import urlencode
+
+    from ..parsing import UsageError
+    from ..views.frontend import CHAIN_START
+
+    if not run.is_given("initial", "q0"):
+        return ""
+    where = run.option("initial", "q0")
+    q0 = run.initial_state()[:chain.n]
+    lo, hi, _ = CHAIN_START
+    values = {}
+    for k, q in enumerate(q0, start=1):
+        shown = math.degrees(q)
+        if not lo <= shown <= hi:
+            raise UsageError(f"{where}: joint {k}'s start {shown:.6g} deg is outside the explorer's slider range {lo:g} to "
+                             f"{hi:g} deg; give angles within it")
+        values[f"q{k}_0"] = repr(float(f"{shown:.15g}"))
+    return urlencode(values)
+
+
 def _page_start(run):
     """The run's model (its bodies and axes make the page's physics) and the page's address query
     of the slider values it sets; what the explorer cannot show is refused in one line."""
@@ -113,6 +138,8 @@ def _page_start(run):
     from ..parsing import UsageError
 
     params = run.parameters()
+    if run.is_chain:  # a chain of links: its bodies, axes and joint terms are the page's physics, [initial] q0 its sliders
+        return params, _chain_query(run, params)
     terms = schema.TORQUE_NAMES + schema.FRICTION_NAMES + schema.ROTOR_NAMES
     absent = [run.option("parameters", k) for k in terms
               if run.is_given("parameters", k) and getattr(params, k) != schema.default(k)]

@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Dict, List, Optional
 
 __all__ = ["Source", "sources", "registration", "export_explorer", "inline_page_scripts", "WEB_DIR", "katex_dir",
-           "SOURCE_ORDER", "REPLAY_ORDER", "MANIFEST", "EXPORT_ENTRIES", "WIDGET_ORDER", "module_bundle", "replay_data"]
+           "SOURCE_ORDER", "REPLAY_ORDER", "MANIFEST", "EXPORT_ENTRIES", "WIDGET_ORDER", "module_bundle", "replay_data",
+           "page_settings", "chain_sliders", "chain_slider_values", "chain_with"]
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 _THREE = WEB_DIR / "vendor" / "three"
@@ -41,8 +42,8 @@ class Source:
 
 #: The explorer's sources in the order its page loads them (any order works; this one is the
 #: dependencies' order).
-SOURCE_ORDER = ("three-core", "three", "three-orbit", "physics", "scene", "live", "explorer", "physics-classic", "dop853",
-                "flipworker")
+SOURCE_ORDER = ("three-core", "three", "three-orbit", "physics", "page", "scene", "live", "explorer", "physics-classic",
+                "dop853", "flipworker")
 #: The live replay's sources (the report's 3D view of a computed motion): no physics at all.
 REPLAY_ORDER = ("three-core", "three", "three-orbit", "scene", "live", "replay")
 #: The notebook widget's sources (:mod:`skewpend.views.widget`): the live motion, no flip map.
@@ -74,7 +75,7 @@ def _static_sources() -> tuple:
                {"three": "three", "three/addons/controls/OrbitControls.js": "three-orbit"}),
         Source("live", _read(WEB_DIR / "live.js")),
         Source("explorer", _read(WEB_DIR / "app.js"),
-               {"three": "three", "./scene.js": "scene", "./physics.js": "physics", "./live.js": "live"}),
+               {"three": "three", "./scene.js": "scene", "./physics.js": "physics", "./page.js": "page", "./live.js": "live"}),
         Source("replay", _read(WEB_DIR / "replay.js"), {"./scene.js": "scene", "./live.js": "live"}),
         Source("widget", _read(WEB_DIR / "widget.js"), {"./scene.js": "scene", "./physics.js": "physics", "./live.js": "live"}),
         Source("dop853", dop853_js(), classic=True),
@@ -94,7 +95,85 @@ def _physics_sources(physics_params) -> tuple:
         module = chain_code(physics_params, "javascript")
     else:
         module = explorer_js(physics_params if physics_params is not None else Parameters())
-    return (Source("physics", module), Source("physics-classic", classic_js(module, "physics"), classic=True))
+    page = f"// the explorer's settings for these bodies (skewpend.views.frontend.page_settings)\nexport const PAGE = " \
+        f"{json.dumps(page_settings(physics_params), ensure_ascii=False)};\n"
+    return (Source("physics", module), Source("page", page),
+            Source("physics-classic", classic_js(module, "physics"), classic=True))
+
+
+#: A chain's sliders on the explorer and in the widget: [key, label, min, max, step, default, unit, degrees]
+#: (the double pendulum's are web/live.js's SLIDERS): each joint's start angle, g, each joint's damping.
+CHAIN_START = (-180.0, 180.0, 0.5)
+CHAIN_DAMPING = (0.0, 2.0, 0.01)
+#: g at which the explorer's chain modes are computed (their frequencies scale as sqrt(g): K0 is g times a
+#: matrix of the bodies, M0 does not hold g).
+MODES_G = 9.81
+
+
+def _damping_stem() -> str:
+    from .. import schema
+
+    return next(stem for key, stem, _ in schema.LINK_FIELDS if key == "damping")  # c<k>: the schema's stem
+
+
+def chain_sliders(chain) -> list:
+    """A chain's sliders (see :data:`CHAIN_START`): ``q<k>_0`` (degrees), ``g``, and ``c<k>``, the schema's
+    name of joint k's damping in the chain's parameter vector."""
+    from ..config import CHAIN_Q0
+
+    import math
+
+    stem, n = _damping_stem(), chain.n
+    specs = [[f"q{k}_0", f"q{k} start", *CHAIN_START, round(math.degrees(CHAIN_Q0), 2), "°", True] for k in range(1, n + 1)]
+    specs.append(["g", "gravity g", 0.0, 20.0, 0.01, 9.81, "m/s²", False])
+    specs += [[f"{stem}{k}", f"{stem}{k} damping", *CHAIN_DAMPING, 0.0, "N m s", False] for k in range(1, n + 1)]
+    return specs
+
+
+def chain_slider_values(chain) -> dict:
+    """What a chain's sliders change, at the chain's values: ``g`` and each joint's damping ``c<k>``."""
+    stem = _damping_stem()
+    return {"g": float(chain.g), **{f"{stem}{link.index}": float(link.damping) for link in chain.links}}
+
+
+def chain_with(chain, values: dict):
+    """``chain`` with the sliders' ``values`` (``g``, ``c<k>``) applied, validated by the chain itself."""
+    from dataclasses import replace
+
+    stem = _damping_stem()
+    out = replace(chain, g=values["g"])
+    for link in chain.links:
+        out = out.replace_link(link.index, damping=values[f"{stem}{link.index}"])
+    return out
+
+
+def page_settings(physics_params=None) -> dict:
+    """What the explorer's page (web/app.js) needs beside the generated physics: nothing for the double
+    pendulum (its sliders are web/live.js's, its modes and equations from the physics' linearisation);
+    for a chain of links its ``n``, ``coordinates``, sliders (:func:`chain_sliders`) and their values at the
+    chain's, the drawn axes' length scale ``size`` and the chain's reach [m], its links' table, and its normal
+    modes about the hanging position (:func:`skewpend.normal_modes` at g = :data:`MODES_G`, undamped:
+    ``frequencies`` [rad/s], ``shapes`` (one list per mode), ``M0``, ``K0``) -- or, where the hanging position
+    is no stable equilibrium, the library's reason in ``modes.error``."""
+    if not hasattr(physics_params, "links"):
+        return {}
+    from ..errors import SkewpendError
+    from ..analysis.modes import normal_modes
+
+    chain = physics_params
+    values = chain_slider_values(chain)
+    try:
+        m = normal_modes(chain_with(chain, {k: 0.0 for k in values} | {"g": MODES_G}))
+        modes = {"g": MODES_G, "frequencies": [float(w) for w in m.frequencies],
+                 "shapes": [[float(v) for v in col] for col in m.shapes.T],
+                 "M0": [[float(v) for v in row] for row in m.M], "K0": [[float(v) for v in row] for row in m.K]}
+    except SkewpendError as exc:
+        modes = {"error": str(exc)}
+    links = [{"axis": [float(v) for v in link.axis], "length": float(link.length), "mass": float(link.mass)}
+             for link in chain.links]
+    return {"n": chain.n, "coordinates": list(chain.coordinates), "specs": chain_sliders(chain), "values": values,
+            "size": max(float(link.length) for link in chain.links),
+            "reach": float(sum(link.length for link in chain.links)), "links": links, "modes": modes}
 
 
 def sources(physics_params=None, order=SOURCE_ORDER) -> Dict[str, Source]:
@@ -197,7 +276,8 @@ def export_explorer(directory, params=None, *, force: bool = False) -> Path:
     page's scripts as registrations; ``LICENSES/``; ``.skewpend-explorer``, the manifest of every
     file written).  It runs entirely in the browser, opened from the file system or any static
     web host, with the network off; the physics is generated for the bodies and axes of
-    ``params`` (a :class:`~skewpend.Parameters`; default: the specification's thin rods).
+    ``params`` (a :class:`~skewpend.Parameters`; default: the specification's thin rods), or for a chain
+    of links (a :class:`~skewpend.symbolic.chain.Chain`: its page, :func:`page_settings`).
 
     ``directory`` may be new, or an existing directory (``"."`` too) in which none of those five
     names exists -- or, with ``force=True``, in which they are an earlier export's, holding only
@@ -215,8 +295,10 @@ def export_explorer(directory, params=None, *, force: bool = False) -> Path:
     from ..errors import ParameterError, SkewpendError
     from ..symbolic.model import Parameters
 
-    if params is not None and not isinstance(params, Parameters):
-        raise ParameterError(f"params must be a skewpend.Parameters or None, got {type(params).__name__}")
+    from ..symbolic.chain import Chain
+
+    if params is not None and not isinstance(params, (Parameters, Chain)):
+        raise ParameterError(f"params must be a skewpend.Parameters, a Chain or None, got {type(params).__name__}")
     if isinstance(force, str) or not isinstance(force, (bool, int)):
         raise ParameterError(f"force must be True or False, got {force!r}")
     try:

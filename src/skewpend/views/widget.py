@@ -39,6 +39,7 @@ except ImportError as exc:  # pragma: no cover - the extra is part of the test i
 from .. import schema
 from ..errors import ParameterError
 from ..symbolic.model import SCALAR_NAMES, Parameters
+from .frontend import chain_slider_values, chain_sliders, chain_with
 
 __all__ = ["widget", "PendulumWidget", "WidgetState"]
 
@@ -67,36 +68,6 @@ class WidgetState:
 class WidgetValueError(ParameterError, traitlets.TraitError):
     """A refused value of a synced trait: a :class:`~skewpend.ParameterError` that traitlets
     also knows as its own (it then rolls back the change's other traits)."""
-
-
-#: A chain's sliders: [key, label, min, max, step, default, unit, degrees] (the double pendulum's are live.js's).
-CHAIN_START = (-180.0, 180.0, 0.5)
-CHAIN_DAMPING = (0.0, 2.0, 0.01)
-#: A joint's damping in the chain's parameter vector: ``c<k>`` (the schema's stem of the links' ``damping``).
-_DAMPING = next(stem for key, stem, _ in schema.LINK_FIELDS if key == "damping")
-
-
-def _chain_specs(chain) -> list:
-    n = chain.n
-    specs = [[f"q{k}_0", f"q{k} start", *CHAIN_START, 0.0, "°", True] for k in range(1, n + 1)]
-    specs.append(["g", "gravity g", 0.0, 20.0, 0.01, 9.81, "m/s²", False])
-    specs += [[f"{_DAMPING}{k}", f"{_DAMPING}{k} damping", *CHAIN_DAMPING, 0.0, "N m s", False] for k in range(1, n + 1)]
-    return specs
-
-
-def _chain_values(chain) -> dict:
-    """What a chain's sliders change: ``g`` and each joint's damping ``c<k>`` (the physics' own names)."""
-    return {"g": float(chain.g), **{f"{_DAMPING}{link.index}": float(link.damping) for link in chain.links}}
-
-
-def _chain_with(chain, values: dict):
-    """``chain`` with ``values`` (``g``, ``c<k>``) applied, validated by the chain itself."""
-    from dataclasses import replace
-
-    out = replace(chain, g=values["g"])
-    for link in chain.links:
-        out = out.replace_link(link.index, damping=values[f"{_DAMPING}{link.index}"])
-    return out
 
 
 def _front_end(geometry) -> Tuple[str, str]:
@@ -136,12 +107,12 @@ class PendulumWidget(anywidget.AnyWidget):
         if self._chain is not None:  # a chain of links: the bodies and axes fixed, g and damping its sliders
             from ..config import CHAIN_Q0
 
-            shape = _chain_with(params, {k: 0.0 for k in _chain_values(params)} | {"g": 9.81})
+            shape = chain_with(params, {k: 0.0 for k in chain_slider_values(params)} | {"g": 9.81})
             self._geometry = shape
             self._esm, self._css = _front_end(shape)
             n = params.n
-            specs = _chain_specs(params)
-            super().__init__(values=_chain_values(params),
+            specs = chain_sliders(params)
+            super().__init__(values=chain_slider_values(params),
                              y0=self._start((CHAIN_Q0,) * n + (0.0,) * n if y0 is None else y0),
                              sliders=[spec[0] for spec in specs], specs=specs,
                              size=max(link.length for link in params.links), height=height)
@@ -169,7 +140,7 @@ class PendulumWidget(anywidget.AnyWidget):
     def _checked_values(self, given: Any) -> dict:
         values = dict(given)
         chain = self._chain
-        allowed = (list(_chain_values(chain)) if chain is not None else
+        allowed = (list(chain_slider_values(chain)) if chain is not None else
                    [n for n in SCALAR_NAMES if n != "alpha" or self._geometry.uses_alpha])
         unknown = sorted(set(values) - set(allowed))
         missing = [n for n in allowed if n not in values]
@@ -178,7 +149,7 @@ class PendulumWidget(anywidget.AnyWidget):
                              ([f"missing {', '.join(missing)}"] if missing else []))
             raise ParameterError(f"widget values: {what}; expected all of {', '.join(allowed)} (set w.params to change some)")
         if chain is not None:
-            return _chain_values(_chain_with(chain, values))  # checks each value (damping >= 0, ...)
+            return chain_slider_values(chain_with(chain, values))  # checks each value (damping >= 0, ...)
         params = self._geometry.replace(**values)  # checks each value (positive masses, ...)
         return {n: float(getattr(params, n)) for n in allowed}
 
@@ -228,7 +199,7 @@ class PendulumWidget(anywidget.AnyWidget):
         """The pendulum shown: the bodies and axes given at creation with the current scalars (a chain's: with
         the current ``g`` and damping)."""
         if self._chain is not None:
-            return _chain_with(self._chain, self.values)
+            return chain_with(self._chain, self.values)
         return self._geometry.replace(**self.values)
 
     @params.setter
@@ -240,7 +211,7 @@ class PendulumWidget(anywidget.AnyWidget):
             if not hasattr(params, "links") or not self._same_body(params):
                 raise ParameterError("the widget's chain is fixed when it is made (its physics is generated for its "
                                      "bodies and axes); change g and the damping only, or make a new skewpend.widget")
-            self.values = _chain_values(params)
+            self.values = chain_slider_values(params)
             return
         checks.numeric_params(params, "the widget")
         if geometry_of(params) != self._geometry:
@@ -324,7 +295,7 @@ class PendulumWidget(anywidget.AnyWidget):
     def _same_body(self, chain) -> bool:
         """Whether ``chain`` is the widget's up to its sliders' values (g and each joint's damping)."""
         return (chain.n == self._chain.n
-                and _chain_with(chain, {k: 0.0 for k in _chain_values(chain)} | {"g": 9.81}) == self._geometry)
+                and chain_with(chain, {k: 0.0 for k in chain_slider_values(chain)} | {"g": 9.81}) == self._geometry)
 
     def _start(self, y0: Sequence[float]) -> list:
         from ..parsing import initial_state

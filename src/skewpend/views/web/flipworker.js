@@ -4,7 +4,7 @@
 //
 // The method is the library's flip kernel (sp_flip in integrators.c), one trajectory at a time:
 // DOP853 with Hairer's error norm and step-size rule (safety factor 0.8), Hairer's initial step,
-// until t_end or until |phi| or |psi| reaches pi; the crossing is located on the step's 7th-order
+// until t_end or until any angle (phi or psi; a chain's q1 .. qn) reaches pi in magnitude; the crossing is located on the step's 7th-order
 // dense output by sampling and bisection (a step that turns around close to pi is searched by
 // golden section).  Nothing here is an equation of motion.
 "use strict";
@@ -81,10 +81,11 @@ function nextAfter(t) { // the next double above t >= 0
   return b[0];
 }
 
-// One start at rest: [flip time (NaN: none by t_end), which (0 phi, 1 psi, -1 none, -2 failed), steps]
-function flipCell(phi0, psi0, p, tEnd, rtol, atol, maxSteps) {
-  const rhs = self.physics.rhs, n = 4;
-  let y = [phi0, psi0, 0, 0], f = rhs(y, p), t = 0;
+// One start at rest from the angles q0 (phi0, psi0; a chain's n): [flip time (NaN: none by t_end), which (the
+// angle's index: 0 phi, 1 psi, ...; -1 none, -2 failed), steps]
+function flipCell(q0, p, tEnd, rtol, atol, maxSteps) {
+  const rhs = self.physics.rhs, nq = q0.length, n = 2 * nq;
+  let y = [...q0, ...new Array(nq).fill(0)], f = rhs(y, p), t = 0;
   if (!y.concat(f).every(Number.isFinite)) return [NaN, -2, 0];
   // Hairer's initial step
   const sc = y.map((v) => atol + Math.abs(v) * rtol), d0 = rms(y, sc), d1 = rms(f, sc);
@@ -123,10 +124,10 @@ function flipCell(phi0, psi0, p, tEnd, rtol, atol, maxSteps) {
     h = H * (lastRejected ? Math.min(1, up) : up);
     lastRejected = false; nacc++;
     let best = Infinity, who = -1;
-    for (let c = 0; c < 2; c++) {
-      const q0 = Math.abs(y[c]), q1 = Math.abs(ynew[c]), v0 = y[2 + c], v1 = ynew[2 + c];
-      const crossed = q1 >= PI;
-      if (!crossed && !(v0 * v1 <= 0 && Math.max(q0, q1) + H * Math.max(Math.abs(v0), Math.abs(v1)) >= PI)) continue;
+    for (let c = 0; c < nq; c++) {
+      const a0 = Math.abs(y[c]), a1 = Math.abs(ynew[c]), v0 = y[nq + c], v1 = ynew[nq + c];
+      const crossed = a1 >= PI;
+      if (!crossed && !(v0 * v1 <= 0 && Math.max(a0, a1) + H * Math.max(Math.abs(v0), Math.abs(v1)) >= PI)) continue;
       for (let s = NS + 1; s < NSTAGES; s++) if (!K[s]) K[s] = rhs(stage(y, H, K, s), p);
       const x = locate(y[c], denseCoefficients(y, ynew, H, K, c), H, crossed);
       if (x >= 0 && t + x * H < best) { best = t + x * H; who = c; }
@@ -139,13 +140,13 @@ function flipCell(phi0, psi0, p, tEnd, rtol, atol, maxSteps) {
 }
 self.flipCell = flipCell;
 
-// a task: {id, p, cells: [[phi0, psi0], ...], tEnd, rtol, atol, maxSteps} -> {id, time, which, steps}
+// a task: {id, p, cells: [[phi0, psi0], ...] (a chain's: [q1, .., qn]), tEnd, rtol, atol, maxSteps} -> {id, time, which, steps}
 self.onmessage = (ev) => {
   const { id, p, cells, tEnd, rtol, atol, maxSteps } = ev.data;
   const time = new Float64Array(cells.length), which = new Int8Array(cells.length);
   let steps = 0;
-  cells.forEach(([a, b], k) => {
-    const [ft, w, s] = flipCell(a, b, p, tEnd, rtol, atol, maxSteps);
+  cells.forEach((q0, k) => {
+    const [ft, w, s] = flipCell(q0, p, tEnd, rtol, atol, maxSteps);
     time[k] = ft; which[k] = w; steps += s;
   });
   self.postMessage({ id, time, which, steps }, [time.buffer, which.buffer]);
