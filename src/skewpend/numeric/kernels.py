@@ -173,15 +173,14 @@ def taylor_order(rtol: float) -> int:
     return taylor_rule(rtol)[0]
 
 
-class TaylorState(ctypes.Structure):
-    """Mirror of ``sp_taylor_state`` in ``taylor.c``: a resumable Taylor run."""
-
-    _fields_ = [
+def _taylor_fields(tn: int) -> list:
+    """``sp_taylor_state``'s fields for a state of ``tn`` components (taylor.c's ``SP_TN``)."""
+    return [
         ("t", ctypes.c_double),
-        ("y", ctypes.c_double * SP_TN),
+        ("y", ctypes.c_double * tn),
         ("told", ctypes.c_double),
         ("hold", ctypes.c_double),
-        ("jet", ctypes.c_double * (SP_TN * (SP_TPMAX + 2))),
+        ("jet", ctypes.c_double * (tn * (SP_TPMAX + 2))),
         ("nfev", ctypes.c_int64),
         ("naccept", ctypes.c_int64),
         ("nreject", ctypes.c_int64),
@@ -192,7 +191,23 @@ class TaylorState(ctypes.Structure):
         ("pad", ctypes.c_int32),
     ]
 
+
+class TaylorState(ctypes.Structure):
+    """Mirror of ``sp_taylor_state`` in ``taylor.c``: a resumable Taylor run."""
+
+    _fields_ = _taylor_fields(SP_TN)
     at = classmethod(_state_at)
+
+
+_TAYLOR_STATES: Dict[int, Any] = {SP_TN: TaylorState}
+
+
+def taylor_state_type(tn: int):
+    """The ctypes mirror of ``sp_taylor_state`` for ``SP_TN = tn`` (a chain of n links: 2 n + 1)."""
+    if tn not in _TAYLOR_STATES:
+        _TAYLOR_STATES[tn] = type(f"TaylorState{tn}", (ctypes.Structure,), {"_fields_": _taylor_fields(tn),
+                                                                           "at": classmethod(_state_at)})
+    return _TAYLOR_STATES[tn]
 
 
 _CONTROL_TYPES: Dict[int, Any] = {}
@@ -866,8 +881,9 @@ class TaylorKernel:
     its loops are unrolled for that order, so each order is a library of its own, a fraction of a
     second to build.  ``origin``, ``build_time``, ``compiler`` as :class:`Kernel`'s."""
 
-    def __init__(self, path: Path, origin: str, build_time: float, order: int):
+    def __init__(self, path: Path, origin: str, build_time: float, order: int, tn: int = SP_TN):
         self.path, self.origin, self.build_time, self.order = path, origin, build_time, order
+        self.State = taylor_state_type(tn)  # the run's state (a chain's is larger)
         self.compiler = built_by(path)
         lib = ctypes.CDLL(str(path))
         i64, d = ctypes.c_int64, ctypes.c_double
@@ -876,7 +892,7 @@ class TaylorKernel:
         lib.sp_taylor.argtypes = [vp, vp, d, d, d, d, i64, i64, d, i64, ip, vp, i64, ip]
         lib.sp_taylor.restype = ctypes.c_int
         lib.sp_taylor_state_size.argtypes, lib.sp_taylor_state_size.restype = [], i64
-        if lib.sp_taylor_state_size() != ctypes.sizeof(TaylorState):
+        if lib.sp_taylor_state_size() != ctypes.sizeof(self.State):
             raise CompilerError(f"{path}: Taylor state layout mismatch")
         self.lib = lib
 
@@ -888,7 +904,54 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
     """The Taylor integrator of order ``order`` for the bodies and axes of ``params``, from the
     cache or generated (:mod:`skewpend.numeric.taylor_source`) and compiled on first use.  Raises
     ValueError (before compiling) for equations with a function that has no series recurrence.
-    ``model``: the model's :func:`kernel_module` when the caller has it (a quicker look-up)."""
+    ``model``: the model's :func:`kernel_module` when the caller has it (a quicker look-up).  A chain of links
+    (:class:`~skewpend.symbolic.chain.Chain`): its recurrences from the recursive algorithms' graph
+    (:mod:`skewpend.numeric.chain_taylor`)."""
+    if model is not None and (model.path, order) in _TAYLOR_OF:
+        return _TAYLOR_OF[model.path, order]
+    if hasattr(params, "links"):
+        return _chain_taylor_kernel(params, order, model)
+    return _taylor_kernel(params, order, model)
+
+
+def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
+    from .chain_taylor import chain_tn
+    from .recursive import structure_of_chain
+
+    structure = structure_of_chain(chain)
+    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("chain_taylor.py", "recursive.py", "taylor.c",
+                                                                            "rows.h"))
+    fused, flags = fused_multiply_add()
+    key = _key(structure.key() + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}") + f"_ctaylor{order}"
+    tn = chain_tn(structure.n)
+    with _key_lock(key):
+        if key in _LOADED:
+            return _LOADED[key]  # type: ignore[return-value]
+        path = cache_dir() / "kernels" / f"skewpend_{key}{LIB_SUFFIX}"
+        loaded = None
+        if path.exists() and _intact(path):
+            try:
+                loaded = TaylorKernel(path, "cache", 0.0, order, tn)
+            except (OSError, CompilerError):
+                loaded = None  # damaged: rebuilt below
+        if loaded is None:
+            from .chain_taylor import chain_taylor_c_source
+
+            start = time.perf_counter()
+            source = chain_taylor_c_source(structure, order, fused=fused)
+            directory = _writable_directory()
+            path = directory / f"skewpend_{key}{LIB_SUFFIX}"
+            _remove_stale_temporaries(directory)
+            _announce("taylor", cached=directory == cache_dir() / "kernels")
+            _compile(source, path, flags)
+            loaded = TaylorKernel(path, "compiled", time.perf_counter() - start, order, tn)
+        _LOADED[key] = loaded  # type: ignore[assignment]
+        if model is not None:
+            _TAYLOR_OF[model.path, order] = loaded
+        return loaded
+
+
+def _taylor_kernel(params: Parameters, order: int, model) -> TaylorKernel:
     if model is not None and (model.path, order) in _TAYLOR_OF:
         return _TAYLOR_OF[model.path, order]
     gkey = repr([getattr(params, k) for k in GEOMETRY] + list(optional_terms(params))) + f"|taylor{order}"

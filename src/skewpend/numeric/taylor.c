@@ -1,7 +1,7 @@
 /* skewpend Taylor integrator -- appended to the generated recurrences of one order (taylor_source.py).
  *
  * Contract with taylor_source.py (generated, before this file): the SP_STATUS_* and SP_CALL_* codes,
- * SP_TN (5: phi, psi, dphi, dpsi, W), SP_TPMAX, SP_TORDER (the order p of this library),
+ * SP_TN (5: phi, psi, dphi, dpsi, W; a chain of n links' 2 n + 1: q, q', W), SP_TPMAX, SP_TORDER (the order p of this library),
  * SP_TAYLOR_NPC, taylor_work(p), taylor_prepare(p, pc) and taylor_jet(x, pc, work, e_out), which fills
  * the Taylor coefficients x[i][1 .. p] of the solution through x[i][0] (and, e_out not NULL, the energy
  * T + Pi at x[.][0] into *e_out).
@@ -179,7 +179,7 @@ int sp_taylor(sp_taylor_state *s, const double *p, double t_end, double rtol, do
         if (h >= left) { h = left; last = 1; }
         if (!last && s->t + h == s->t) { *m_out = m; return SP_STATUS_STEP_UNDERFLOW; }
         taylor_eval_step((const double (*)[SP_TPMAX + 2])x, nc, h, ynew);
-        if (nc < n) ynew[4] = s->y[4]; /* W' = 0 identically: W stays */
+        if (nc < n) ynew[SP_TN - 1] = s->y[SP_TN - 1]; /* W' = 0 identically: W stays */
         if (!all_finite(ynew, n)) { *m_out = m; return SP_STATUS_NONFINITE; }
         s->naccept++;
         done++;
@@ -213,24 +213,21 @@ static void taylor_account(const double *w, const double *e, int64_t m0, int64_t
     }
 }
 
-/* a row of sp_taylor_rows: the time, the state and W as columns (cols: t at [0, cap), the four state
- * components at [cap, 5 cap) a row after another, W at [5 cap, 6 cap)) */
+/* a row of sp_taylor_rows: the time, the state and W as columns (cols: t at [0, cap), the SP_TN - 1 state
+ * components at [cap, SP_TN cap) a row after another, W at [SP_TN cap, (SP_TN + 1) cap)) */
 static inline void put_cols(double *cols, int64_t cap, int64_t m, double t, const double *y)
 {
-    double *yr = cols + cap + 4 * m;
+    double *yr = cols + cap + (SP_TN - 1) * m;
     cols[m] = t;
-    yr[0] = y[0];
-    yr[1] = y[1];
-    yr[2] = y[2];
-    yr[3] = y[3];
-    cols[5 * cap + m] = y[4];
+    for (int i = 0; i < SP_TN - 1; i++) yr[i] = y[i];
+    cols[SP_TN * cap + m] = y[SP_TN - 1];
 }
 
 /* sp_taylor at the integrator's own steps (dt_out = 0), the rows as columns into cols (put_cols: the
  * caller copies each out in one piece), each row's energy T + Pi into e[row] (from the order 0 of the
  * next step's series: the sines and cosines shared; the last row's by one more series evaluation) and
  * the rows' energy account into acc[4] (taylor_account).  y0 not NULL: the run starts here, from t = 0,
- * y = (y0[0..3], W = 0) (the state and acc are reset).  The same steps, rows and codes as sp_taylor. */
+ * y = (y0[0 .. SP_TN - 2], W = 0) (the state and acc are reset).  The same steps, rows and codes as sp_taylor. */
 int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double t_end, double rtol, double atol,
                    double L, int64_t max_steps, int64_t budget, double *cols, int64_t cap, double *e, double *acc,
                    int64_t *m_out)
@@ -243,7 +240,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
     if (cap < 2 || !(rtol > 0.0) || !(atol > 0.0) || !(L > 0.0 && L < 64.0)) return SP_CALL_BAD_ARGUMENTS;
     if (y0) {
         memset(s, 0, sizeof *s);
-        memcpy(s->y, y0, 4 * sizeof(double));
+        memcpy(s->y, y0, (SP_TN - 1) * sizeof(double));
         memset(acc, 0, 4 * sizeof(double));
     }
     const int order = SP_TORDER;
@@ -276,7 +273,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
         if (h >= left) { h = left; last = 1; }
         if (!last && s->t + h == s->t) { code = SP_STATUS_STEP_UNDERFLOW; break; }
         taylor_eval_step((const double (*)[SP_TPMAX + 2])x, nc, h, ynew);
-        if (nc < n) ynew[4] = s->y[4];
+        if (nc < n) ynew[SP_TN - 1] = s->y[SP_TN - 1];
         if (!all_finite(ynew, n)) { code = SP_STATUS_NONFINITE; break; }
         s->naccept++;
         done++;
@@ -292,7 +289,7 @@ int sp_taylor_rows(sp_taylor_state *s, const double *y0, const double *p, double
         taylor_jet(x, pc, s->work, &en);
         e[m - 1] = en;
     }
-    taylor_account(cols + 5 * cap, e, 0, m, acc);
+    taylor_account(cols + SP_TN * cap, e, 0, m, acc);
     *m_out = m;
     return code;
 }
