@@ -8,8 +8,9 @@ no damping: a conservative motion whose reference is DOP853 at 1e-13):
 * **fidelity**: the largest relative difference of the accelerations from MuJoCo's ``mj_forward`` on the
   exported MJCF over 100 random states;
 * **equal error**: the 20 s run's final-state error and wall time for skewpend's dop853 at rtol 1e-6 ...
-  1e-12 and MuJoCo's RK4 (``mj_step``, the model's own integrator) at dt 4e-3 ... 1.25e-4; the ratio
-  skewpend/MuJoCo at MuJoCo's errors (skewpend's time interpolated in log-log).
+  1e-12 and MuJoCo's RK4 (``mj_step``, the model's own integrator) at dt ``--mujoco-dts`` (default 4e-3 ...
+  3.125e-5); the ratio skewpend/MuJoCo at MuJoCo's errors (skewpend's time interpolated in log-log), and the
+  error below which skewpend is at least 50x faster (where the ratio, interpolated in log-log, crosses 1/50).
 
 * **heyoka.py** (``--heyoka``): the same chain's Lagrangian written in heyoka's expressions (the kinematics
   below, ``heyoka_chain``; Euler-Lagrange equations by ``hy.lagrangian``), its Taylor integrator at tol
@@ -155,6 +156,8 @@ def main(argv=None):
     ap.add_argument("--compact-from", type=int, default=4, help="heyoka's compact mode from this many links")
     ap.add_argument("--heyoka-tols", type=float, nargs="+", default=[1e-6, 1e-9, 1e-12],
                     help="heyoka's tolerances (each a JIT compile: 2 min for 3 general links in full mode)")
+    ap.add_argument("--mujoco-dts", type=float, nargs="+", default=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5, 3.125e-5],
+                    help="MuJoCo RK4's steps [s]")
     args = ap.parse_args(argv)
     import mujoco
 
@@ -192,7 +195,7 @@ def main(argv=None):
             ours.append((float(np.max(np.abs(tr.y[-1] - ref))), float(np.median(times))))
         theirs = []
         model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
-        for dt in (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4):
+        for dt in args.mujoco_dts:
             model.opt.timestep = dt
             steps = int(round(T / dt))
             times = []
@@ -210,10 +213,20 @@ def main(argv=None):
         print("MuJoCo RK4:      " + ", ".join(f"err {e:.1e} in {t * 1e3:.1f} ms" for e, t in theirs))
         le, lt = np.log([e for e, _ in ours]), np.log([t for _, t in ours])
         order = np.argsort(le)
+        at = []  # (log error, log ratio) at MuJoCo's errors within skewpend's range
         for e, t in theirs:
             if le.min() <= np.log(e) <= le.max():
                 ratio = float(np.exp(np.interp(np.log(e), le[order], lt[order]))) / t
+                at.append((np.log(e), np.log(ratio)))
                 print(f"  at MuJoCo's error {e:.1e}: skewpend/MuJoCo time = {ratio:.3f} ({1 / ratio:.0f}x faster)")
+        goal = np.log(1 / 50)
+        cross = [np.exp(a0 + (goal - r0) * (a1 - a0) / (r1 - r0)) for (a0, r0), (a1, r1) in zip(at, at[1:])
+                 if (r0 - goal) * (r1 - goal) < 0]
+        if cross:
+            print(f"  >= 50x faster below an error of {cross[-1]:.1e} (the ratio interpolated between MuJoCo's runs)")
+        elif at:
+            print(f"  >= 50x faster: {'at every' if max(r for _, r in at) <= goal else 'at none'} of MuJoCo's errors "
+                  "within skewpend's range")
         if args.heyoka:
             compact = n >= args.compact_from
             runs, jit = heyoka_runs(chain, y0, T, tuple(args.heyoka_tols), compact, args.repeat)

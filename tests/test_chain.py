@@ -369,8 +369,10 @@ def test_simulate_a_chain_from_a_run_file(tmp_path):
     ("[[links]]\nmass = -1\n", [], "link 1 mass must be > 0"),
     ("[[links]]\nmass = 1\ncolour = 2\n", [], "[[links]] 1: unknown key 'colour'"),
     ("[[links]]\n[[links]]\n[initial]\nq0 = [1, 2, 3]\n", [], "q0: expected 2 values (one a link), got 3"),
-    ("[[links]]\n[[links]]\n", ["--m1", "2"], "--m1: a run file with [[links]] gives a chain"),
-    ("[[links]]\n[[links]]\n[initial]\nphi0 = 1\n", [], "a chain's start is [initial] q0 and dq0"),
+    ("[[links]]\n[[links]]\n", ["--m1", "2"], "--m1: a chain of links ([[links]] or --links) does not take"),
+    ("[[links]]\n[[links]]\n[initial]\nphi0 = 1\n", [], "a chain's start is --q0 and --dq0 or [initial] q0 and dq0"),
+    ("[[links]]\n[[links]]\n", ["--links", "3"], "--links 3: the run file"),
+    ("[[links]]\n[[links]]\n", ["--link-mass", "1,2,3"], "--link-mass: expected 1 or 2 values"),
 ])
 def test_bad_chain_run_files_are_one_line_exit_2(tmp_path, text, extra, words):
     from helpers import run_cli
@@ -378,6 +380,53 @@ def test_bad_chain_run_files_are_one_line_exit_2(tmp_path, text, extra, words):
     path = tmp_path / "chain.toml"
     path.write_text(text)
     ran = run_cli(["simulate", "--config", path, *extra], cwd=tmp_path)
+    assert ran.code == 2 and words in ran.err and len(ran.err.strip().splitlines()) == 1, ran.err
+
+
+def test_a_chain_from_per_link_options_is_the_run_file_s(tmp_path):
+    """``--links N`` and ``--link-FIELD`` values (one for every link, or one a link), ``--g`` and ``--q0``: the same
+    chain and start as examples/skewed_triple.toml, so the same final state (to the digits printed); over a run
+    file, the options replace a field for every link."""
+    from helpers import run_cli
+
+    common = ["--t-end", "2", "--rtol", "1e-12", "--atol", "1e-12"]
+    a = run_cli(["simulate", "--config", EXAMPLES / "skewed_triple.toml", *common])
+    b = run_cli(["simulate", "--links", "3", "--link-length", "0.5,0.4,0.3", "--link-mass", "1,0.8,0.5",
+                 "--link-axis", "0,0,1;0.5,0,1;1,0,0", "--link-damping", "0,0,0.01", "--g", "9.81",
+                 "--q0", "60deg,-0.3,0.2", *common])
+    assert a.code == 0 and b.code == 0, (a.err, b.err)
+    final = lambda out: out.split("final state", 1)[1].splitlines()[0]  # noqa: E731
+    assert final(a.out) == final(b.out)
+    # over the run file: every link's damping 0.2, g = 5 (the library's run of that chain)
+    c = run_cli(["simulate", "--config", EXAMPLES / "skewed_triple.toml", "--link-damping", "0.2", "--g", "5", *common])
+    assert c.code == 0, c.err
+    chain = Chain.from_mapping({"g": 5.0, "links": [
+        dict(length=0.5, mass=1.0, damping=0.2), dict(length=0.4, mass=0.8, axis=(0.5, 0, 1), damping=0.2),
+        dict(length=0.3, mass=0.5, axis=(1, 0, 0), damping=0.2)]})
+    traj = skewpend.simulate(chain, [math.radians(60), -0.3, 0.2, 0, 0, 0], 2.0, rtol=1e-12, atol=1e-12)
+    assert float(c.out.split("q1=")[1].split()[0]) == pytest.approx(traj.y[-1, 0], abs=1e-11)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["simulate", "--link-mass", "1"], "--link-mass: how many links? give --links N"),
+    (["simulate", "--links", "3", "--link-mass", "1,2"], "--link-mass: expected 1 or 3 values"),
+    (["simulate", "--links", "3", "--link-mass", "1,-1,1"], "--link-mass: link 2 mass must be > 0, got -1"),
+    (["simulate", "--links", "3", "--link-axis", "0,0,0"], "--link-axis: link 1 axis must be a non-zero vector"),
+    (["simulate", "--links", "3", "--link-axis", "0,0,1;1,0"], "--link-axis"),
+    (["simulate", "--links", "3", "--link-inertia", "1,1,5"], "triangle inequality"),
+    (["simulate", "--links", "3", "--link-com", "a,0,0"], "a chain's values are numbers"),
+    (["simulate", "--links", "0"], "--links: expected a whole number from 1 to 64"),
+    (["simulate", "--links", "3", "--a", "1"], "--a: a chain of links ([[links]] or --links) does not take"),
+    (["simulate", "--links", "3", "--phi0", "1"], "--phi0: a chain's start is --q0"),
+    (["simulate", "--links", "3", "--q0", "1,2"], "--q0: expected 3 values (one a link), got 2"),
+    (["simulate", "--q0", "1,2"], "--q0: a chain's start (one value a link); the double pendulum's is phi0"),
+    (["poincare", "--links", "3"], "--links: a chain of links is not taken by skewpend poincare"),
+    (["modes", "--links", "3", "--link-torque", "1"], "--link-torque"),
+])
+def test_bad_per_link_options_are_one_line_exit_2(tmp_path, argv, words):
+    from helpers import run_cli
+
+    ran = run_cli(argv, cwd=tmp_path)
     assert ran.code == 2 and words in ran.err and len(ran.err.strip().splitlines()) == 1, ran.err
 
 

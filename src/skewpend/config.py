@@ -228,13 +228,47 @@ class Run:
                         raise UsageError(f"{config}: [{section}] {k} is not read by skewpend {command}: {why}; "
                                          f"remove it from the run file, or give this command its own")
                     self._set(section, k, v, f"{config}: [{section}] {k}")
-        for section, values in (given or {}).items():
+        given = {section: dict(values) for section, values in (given or {}).items()}
+        per_link = {k: given["parameters"].pop(k) for k in list(given.get("parameters", {}))
+                    if (k == "links" or k.startswith("link_")) and given["parameters"][k] is not None}
+        self._cli_link_keys: set = set()  # the links' fields given on the command line (--link-mass, ...)
+        if per_link:
+            self._links_from_options(per_link)
+        for section, values in given.items():
             for k, v in values.items():
                 if v is not None:
                     self._set(section, k, v, self.flag(k))
         P = self.values["parameters"]
         if "axis2" in P and "alpha" in P and "alpha" not in self.given["parameters"]:
             del P["alpha"]  # the built-in alpha gives way to a user's axis2
+
+    def _links_from_options(self, per_link: Dict[str, Any]) -> None:
+        """A chain from ``--links N`` and ``--link-FIELD`` values (one for every link, or one a link), over a run
+        file's [[links]] when there is one."""
+        first = self.flag(next(iter(per_link)))
+        if "links" not in READS.get(self.command, {}):
+            takers = ", ".join(c for c, r in READS.items() if "links" in r)
+            raise UsageError(f"{first}: a chain of links is not taken by skewpend {self.command}: it computes the double "
+                             f"pendulum (chains: skewpend {takers})")
+        count = per_link.pop("links", None)
+        lists = {k[len("link_"):]: v for k, v in per_link.items()}
+        many = sorted({len(v) for v in lists.values() if len(v) > 1})
+        n = count or (len(self.links) if self.links else None) or (many[-1] if many else None)
+        if n is None:
+            raise UsageError(f"{first}: how many links? give --links N (or one value a link)")
+        for key, values in lists.items():
+            if len(values) not in (1, n):
+                raise UsageError(f"{self.flag('link_' + key)}: expected 1 or {n} values (one for every link, or one a link "
+                                 f"of the {n}), got {len(values)}")
+        if self.links is not None and len(self.links) != n:
+            raise UsageError(f"--links {n}: the run file {self.config} has {len(self.links)} [[links]]; give as many, or "
+                             "leave --links out")
+        tables = [dict(t) for t in self.links] if self.links else [{} for _ in range(n)]
+        for key, values in lists.items():
+            for i, table in enumerate(tables):
+                table[key] = values[0] if len(values) == 1 else values[i]
+        self.links = tables
+        self._cli_link_keys = set(lists)
 
     def flag(self, key: str) -> str:
         """The command-line option of ``key``."""
@@ -314,20 +348,25 @@ class Run:
         double pendulum's parameters given beside it (in the file or as options) are refused."""
         from .symbolic.chain import Chain
 
-        given = sorted(self.given.get("parameters", ()))
+        # the chain's own g, cfs typed on the command line (--g) are its; the double pendulum's others are not
+        typed = {k for k in self.given.get("parameters", ()) if self.option("parameters", k).startswith("--")}
+        given = sorted(k for k in self.given.get("parameters", ()) if k not in CHAIN_NAMES or k not in typed)
         if given:
-            raise UsageError(f"{self.option('parameters', given[0])}: a run file with [[links]] gives a chain of links; "
-                             "the double pendulum's parameters do not apply to it (give each link's values in its "
-                             "[[links]] table)")
+            raise UsageError(f"{self.option('parameters', given[0])}: a chain of links ([[links]] or --links) does not take "
+                             "the double pendulum's parameters (give each link's values in its [[links]] table or as "
+                             "--link-FIELD; the chain's g is --g or [chain] g)")
         values = {k: parse_scalar(self.text("chain", k), self.option("chain", k)) for k in CHAIN_NAMES
                   if self.values.get("chain", {}).get(k) is not None}
+        values.update({k: parse_scalar(self.text("parameters", k), self.option("parameters", k)) for k in CHAIN_NAMES
+                       if k in typed})
         if any(v is None for v in values.values()):
-            raise UsageError(f"{self.config}: [chain] values must be numeric (a chain is a model to compute with)")
+            raise UsageError(f"{self.config or '--g'}: a chain's values must be numeric (a chain is a model to compute with)")
         links = []
         for i, table in enumerate(self.links or [], start=1):
             link = {}
             for key, value in table.items():
-                where = f"{self.config}: [[links]] {i} {key}"
+                where = (f"{self.flag('link_' + key)} (link {i})" if key in self._cli_link_keys
+                         else f"{self.config}: [[links]] {i} {key}")
                 if isinstance(value, str):
                     value = parse_scalar(value, where, angle=False)
                 link[key] = value
@@ -335,13 +374,18 @@ class Run:
         try:
             return Chain.from_mapping({"links": links, **values})
         except ParameterError as exc:
-            raise UsageError(f"{self.config}: {exc}") from None
+            where = ", ".join([*([self.config] if self.config else []), *sorted(self.flag("link_" + k) for k in self._cli_link_keys)])
+            raise UsageError(f"{where}: {exc}") from None
 
     def initial_state(self):
         """``[phi0, psi0, dphi0, dpsi0]``: numeric, the angles at most :data:`MAX_ANGLE` rad; for a chain
         ``q0 + dq0`` (``[initial]``'s lists; default every link at :data:`CHAIN_Q0` rad, at rest)."""
         if self.is_chain:
             return self._chain_state()
+        for k in CHAIN_INITIAL_KEYS:
+            if self.is_given("initial", k):
+                raise UsageError(f"{self.option('initial', k)}: a chain's start (one value a link); the double pendulum's "
+                                 "is phi0, psi0, dphi0, dpsi0")
         y0 = []
         for k in ("phi0", "psi0", "dphi0", "dpsi0"):
             value = self.scalar("initial", k, angle=k in ("phi0", "psi0"))
@@ -361,7 +405,7 @@ class Run:
             if value is None:
                 out += [default] * n
                 continue
-            items = value if isinstance(value, list) else [value]
+            items = list(value) if isinstance(value, (list, tuple)) else [value]
             if len(items) != n:
                 raise UsageError(f"{where}: expected {n} values (one a link), got {len(items)}")
             for x in items:
@@ -373,7 +417,7 @@ class Run:
                 out.append(v)
         for k in ("phi0", "psi0", "dphi0", "dpsi0"):
             if self.is_given("initial", k):
-                raise UsageError(f"{self.option('initial', k)}: a chain's start is [initial] q0 and dq0 (one value a link)")
+                raise UsageError(f"{self.option('initial', k)}: a chain's start is --q0 and --dq0 or [initial] q0 and dq0 (one value a link)")
         return out
 
     def integration(self, methods: Optional[Iterable[str]] = None) -> Dict[str, Any]:

@@ -65,7 +65,7 @@ def _start_options() -> Dict[str, Any]:
             text += " (required, from the option or --config, unless --format kaheman gives the published model)"
         elif key == "alpha":
             text += " (default 0: parallel hinges, as both rigs in data/ are)"
-        out[key] = option("--" + key, kind, text, _START)
+        out[key] = option("--" + key.replace("_", "-"), kind, text, _START)
     return out
 
 

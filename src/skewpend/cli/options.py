@@ -46,10 +46,43 @@ def _model_option(name: str):
     return option(f"--{name}", kind, schema.help_text(name), _P if f.kind == "scalar" else _G)
 
 
-#: The model's options (every command but serve), in the schema's order: the scalars, then the geometry.
-MODEL: Dict[str, Any] = {name: _model_option(name) for name in schema.SCALAR_NAMES + schema.GEOMETRY_NAMES}
+_L = "A chain of links (each value one for every link, or one a link; a run file's [[links]] too)"
+
+
+def _link_default(key: str) -> str:
+    """What a link's ``key`` is when not given (the Link's own default; None: the thin rod's)."""
+    import dataclasses
+
+    from ..symbolic.chain import Link
+
+    value = next(f.default for f in dataclasses.fields(Link) if f.name == key)
+    if value is None:  # the hinge at the end of the parent's rod; the centre of mass and inertia a thin rod's
+        return "the parent rod's end" if next(stem for k, stem, _ in schema.LINK_FIELDS if k == key) == "h" else "the thin rod's"
+    return ",".join(f"{x:g}" for x in value) if isinstance(value, tuple) else f"{value:g}"
+
+
+def _link_help(key: str, kind: str) -> str:
+    form = {"scalar": "", "vector": "x,y,z, ", "inertia": "Ixx,Iyy,Izz[,Ixy,Ixz,Iyz], "}[kind]
+    return (f"each link's {key} ({form}{'a comma' if kind == 'scalar' else 'a semicolon'} between links; "
+            f"default {_link_default(key)})")
+
+
+#: A chain of links given on the command line: ``--links N`` and each field of the schema's links as
+#: ``--link-FIELD`` (one value for every link, or one a link), the chain's g as ``--g``.
+LINK_OPTIONS: Dict[str, Any] = {
+    "links": option("--links", T.Whole(1, 64), "a chain of N links (default: the double pendulum, or a run file's "
+                                               "[[links]]; the double pendulum's --a, --m1, ... do not apply to it)", _L),
+    **{f"link_{key}": option(f"--link-{key}", T.PerLink(kind), _link_help(key, kind), _L)
+       for key, _, kind in schema.LINK_FIELDS},
+}
+
+#: The model's options (every command but serve), in the schema's order: the scalars, then the geometry; then
+#: a chain's (:data:`LINK_OPTIONS`: a command that takes no chain refuses them in one line).
+MODEL: Dict[str, Any] = {**{name: _model_option(name) for name in schema.SCALAR_NAMES + schema.GEOMETRY_NAMES},
+                         **LINK_OPTIONS}
 #: The model without the constant torques (modes: the hanging rest is no equilibrium with them).
-MODEL_NO_TORQUE = {k: v for k, v in MODEL.items() if k not in schema.TORQUE_NAMES}
+_TORQUE_KEY = next(key for key, stem, _ in schema.LINK_FIELDS if stem == "tau")
+MODEL_NO_TORQUE = {k: v for k, v in MODEL.items() if k not in schema.TORQUE_NAMES and k != f"link_{_TORQUE_KEY}"}
 
 #: The initial state.
 INITIAL: Dict[str, Any] = {
@@ -57,6 +90,8 @@ INITIAL: Dict[str, Any] = {
     "psi0": option("--psi0", T.Angle("ANGLE"), "initial psi [rad, or deg] (default -0.8)"),
     "dphi0": option("--dphi0", T.Scalar("NUMBER"), "initial dphi/dt [rad/s] (default 0)"),
     "dpsi0": option("--dpsi0", T.Scalar("NUMBER"), "initial dpsi/dt [rad/s] (default 0)"),
+    "q0": option("--q0", T.Angles(), "a chain's initial angles, one a link [rad, or deg] (default 0.5 each)"),
+    "dq0": option("--dq0", T.Numbers(most=64), "a chain's initial rates, one a link [rad/s] (default 0)"),
 }
 
 

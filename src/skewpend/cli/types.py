@@ -273,6 +273,37 @@ class Numbers(ParamType):
         return tuple(values)
 
 
+class PerLink(ParamType):
+    """A chain's values of one link field, one for every link or one a link, as a list (1 to ``most``
+    entries): numbers ``1,0.8,0.5`` (``kind`` ``"scalar"``), vectors ``x,y,z;x,y,z`` (``"vector"``) or
+    inertias ``Ixx,Iyy,Izz[,Ixy,Ixz,Iyz];...`` (``"inertia"``: 3x3 lists) -- numbers only: a chain is a
+    model to compute with."""
+
+    def __init__(self, kind: str, most: int = 64) -> None:
+        self.kind, self.most = kind, most
+        self.metavar = {"scalar": "V1,V2,...", "vector": "X,Y,Z;X,Y,Z;...", "inertia": "I1;I2;..."}[kind]
+
+    def convert(self, text, flag):
+        sep = "," if self.kind == "scalar" else ";"
+        parts = [s.strip() for s in text.split(sep)]
+        if not 1 <= len(parts) <= self.most or any(not s for s in parts):
+            raise UsageError(f"{flag}: expected one value for every link or one a link ({'comma' if sep == ',' else 'semicolon'}"
+                             f"-separated, at most {self.most}), got {text!r}")
+        out = []
+        for part in parts:
+            if self.kind == "scalar":
+                value = parse_scalar(part, flag, angle=False)
+            else:
+                value = parse_vector(part, flag) if self.kind == "vector" else parse_inertia(part, flag)
+                flat = [] if value in (None, "sym") else [x for row in value for x in row] if self.kind == "inertia" else list(value)
+                if value in (None, "sym") or not all(isinstance(x, (int, float)) for x in flat):
+                    value = None
+            if value is None:
+                raise UsageError(f"{flag}: a chain's values are numbers (not symbol names or 'sym'), got {part!r}")
+            out.append(value)
+        return out
+
+
 class Vector(ParamType):
     """``x,y,z`` numbers or symbol names, or ``sym``."""
 

@@ -127,7 +127,7 @@ def _chain_text(eom, linear, steps: bool, width: int) -> str:
 
     n = len(eom.coordinates)
     chain = eom.params
-    out = [f"Chain of {n} links -- equations of motion  M(q) q̈ = f(q, q̇),  q = (q₁ … q{str(n).translate(_SUB)})",
+    out = [f"Chain of {n} links -- equations of motion  M(q) q̈ = f(q, q̇),  q = ({', '.join(f'q{str(k).translate(_SUB)}' for k in range(1, n + 1)) if n <= 3 else f'q₁ … q{str(n).translate(_SUB)}'})",
            "links -- " + "; ".join(f"{link.index}: axis ({', '.join(f'{x:.6g}' for x in link.axis)}), l = {link.length:g}, "
                                    f"m = {link.mass:g}" for link in chain.links) + f"; g = {chain.g:g}", ""]
     if steps:
