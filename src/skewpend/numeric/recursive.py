@@ -772,6 +772,11 @@ _COMPOSITE = (("m", 1), ("h", 3), ("J", 6), ("f", 3), ("n", 3), ("pl", 3), ("pa"
 #: The backward step's outputs per link: the bias, hinge i's unit twist's momentum in the composite
 #: (ang, lin: the mass matrix's column), and dT/dq - dPi/dq at fixed speeds.
 _OUT = (("bias", 1), ("ang", 3), ("lin", 3), ("dL", 1))
+#: The same for the equations of motion alone (the integrators' right-hand side and the mass matrix): what
+#: M and the bias need, without the momenta, energies, ends and Hamilton's terms.
+_BODY_R = (("a", 3), ("oa", 3), ("F", 3), ("NO", 3), ("m", 1), ("mc", 3), ("JO", 6), ("Q", 1))
+_COMPOSITE_R = (("m", 1), ("h", 3), ("J", 6), ("f", 3), ("n", 3))
+_OUT_R = (("bias", 1), ("ang", 3), ("lin", 3))
 
 
 def _size(layout) -> int:
@@ -799,7 +804,9 @@ def _entries6(ca, M):
 def compact_functions(friction: bool) -> Dict[str, object]:
     """The forward and backward steps of the recursions for one link with its axis as an input (CasADi
     functions): ``fwd(state, link, axis, q, dq, g, cfs) -> (state, body)`` and
-    ``bwd(composite, body, g) -> (composite, out)``; the formulas are :class:`_Graph`'s, link by link."""
+    ``bwd(composite, body, g) -> (composite, out)``; the formulas are :class:`_Graph`'s, link by link.
+    ``fwd_r`` and ``bwd_r``: the same steps for the equations of motion alone (the layouts ``_BODY_R``,
+    ``_COMPOSITE_R``, ``_OUT_R``: no momenta, energies, ends or Hamilton's terms)."""
     ca = _ca()
     S = ca.SX.sym("S", _size(_STATE))
     Lp = ca.SX.sym("L", len(PER_LINK))
@@ -846,6 +853,9 @@ def compact_functions(friction: bool) -> Dict[str, object]:
                       -g * m * (c[1] - (y0 + L["ry"])), Q, _cross(ca, wp, a), _cross(ca, wp, oa) + _cross(ca, v0p, a), o,
                       o + R[:, 1] * L["l"])
     fwd = ca.Function("fwd", [S, Lp, e, q, dq, g, cfs], [state, body])
+    body_r = ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c,
+                        _entries6(ca, Iw + m * (ca.dot(c, c) * ca.SX.eye(3) - ca.mtimes(c, c.T))), Q)
+    fwd_r = ca.Function("fwd_r", [S, Lp, e, q, dq, g, cfs], [state, body_r])
     C = ca.SX.sym("C", _size(_COMPOSITE))
     B = ca.SX.sym("B", _size(_BODY))
     cc, b = _split(ca, C, _COMPOSITE), _split(ca, B, _BODY)
@@ -861,7 +871,15 @@ def compact_functions(friction: bool) -> Dict[str, object]:
     composite = ca.vertcat(mC, hC, JC, f, nO, plC, paC)
     out = ca.vertcat(ca.dot(a, nO) + ca.dot(oa, f), ang, lin, dT - dPi)
     bwd = ca.Function("bwd", [C, B, g], [composite, out])
-    return {"fwd": fwd, "bwd": bwd}
+    Cr, Br = ca.SX.sym("Cr", _size(_COMPOSITE_R)), ca.SX.sym("Br", _size(_BODY_R))
+    cr, br = _split(ca, Cr, _COMPOSITE_R), _split(ca, Br, _BODY_R)
+    mC, hC, JC = cr["m"] + br["m"], cr["h"] + br["mc"], cr["J"] + br["JO"]
+    f, nO, a, oa = cr["f"] + br["F"], cr["n"] + br["NO"], br["a"], br["oa"]
+    lin = mC * oa + _cross(ca, a, hC)
+    ang = ca.mtimes(_sym6(ca, [JC[i] for i in range(6)]), a) + _cross(ca, hC, oa)
+    bwd_r = ca.Function("bwd_r", [Cr, Br, g], [ca.vertcat(mC, hC, JC, f, nO),
+                                               ca.vertcat(ca.dot(a, nO) + ca.dot(oa, f), ang, lin)])
+    return {"fwd": fwd, "bwd": bwd, "fwd_r": fwd_r, "bwd_r": bwd_r}
 
 
 def _c_static(fn, name: str, args: Sequence[str], outs: Sequence[str], doc: str) -> List[str]:
@@ -891,9 +909,9 @@ def compact_c_source(structure: ChainStructure) -> str:
     names = parameter_names(n)
     w = len(PER_LINK)
     I = "    "
-    NS, NB, NC, NO = _size(_STATE), _size(_BODY), _size(_COMPOSITE), _size(_OUT)
+    NS = _size(_STATE)
     at = {}
-    for layout, tag in ((_BODY, "B"), (_OUT, "O")):
+    for layout, tag in ((_BODY, "B"), (_OUT, "O"), (_BODY_R, "Br"), (_OUT_R, "Or")):
         k = 0
         for nm, size in layout:
             at[(tag, nm)] = k
@@ -905,9 +923,12 @@ def compact_c_source(structure: ChainStructure) -> str:
     axes = ", ".join("{" + ", ".join(repr(float(x)) for x in e) + "}" for e in structure.axes)
     out = _header(structure, " (compact form)") + [
         f"#define SP_NS {NS}",
-        f"#define SP_NB {NB}",
-        f"#define SP_NC {NC}",
-        f"#define SP_NO {NO}",
+        f"#define SP_NB {_size(_BODY)}",
+        f"#define SP_NC {_size(_COMPOSITE)}",
+        f"#define SP_NO {_size(_OUT)}",
+        f"#define SP_NB_R {_size(_BODY_R)}",
+        f"#define SP_NC_R {_size(_COMPOSITE_R)}",
+        f"#define SP_NO_R {_size(_OUT_R)}",
         f"static const double SP_AXES[{n}][3] = {{{axes}}};",
         "",
     ]
@@ -915,42 +936,50 @@ def compact_c_source(structure: ChainStructure) -> str:
                      "one link forward: the parent's state S -> the link's S1 and its body quantities B")
     out += _c_static(fns["bwd"], "bwd", ["C", "B", "gravity"], ["C1", "O"],
                      "one link backward: the composite of the links after it C -> with it C1, and its outputs O")
+    out += _c_static(fns["fwd_r"], "fwd_r", ["S", "L", "e", "q", "dq", "gravity", "rate"], ["S1", "B"],
+                     "fwd for the equations of motion alone (the body quantities M and the bias need)")
+    out += _c_static(fns["bwd_r"], "bwd_r", ["C", "B", "gravity"], ["C1", "O"],
+                     "bwd for the equations of motion alone (the composite and outputs M and the bias need)")
+    for r, what in (("", "every body quantity and output"), ("_r", "what the equations of motion need")):
+        B, C, O = f"SP_NB{r.upper()}", f"SP_NC{r.upper()}", f"SP_NO{r.upper()}"
+        out += [
+            f"/* the recursions over the links at y = (q, q'), {what}: body quantities B[n][{B}], outputs O[n][{O}] */",
+            f"static void sweep{r}(const double *y, const double *p, double B[][{B}], double O[][{O}])",
+            "{",
+            f"{I}double S[SP_NS] = {{1, 0, 0, 0, 1, 0, 0, 0, 1}}, S1[SP_NS], C[{C}] = {{0}}, C1[{C}];",
+            f"{I}const double g = p[{gi}], cfs = p[{ci}];",
+            f"{I}for (int i = 0; i < SP_NQ; i++) {{",
+            f"{I}{I}fwd{r}(S, p + {w} * i, SP_AXES[i], y + i, y + SP_NQ + i, &g, &cfs, S1, B[i]);",
+            f"{I}{I}for (int k = 0; k < SP_NS; k++) S[k] = S1[k];",
+            f"{I}}}",
+            f"{I}for (int i = SP_NQ - 1; i >= 0; i--) {{",
+            f"{I}{I}bwd{r}(C, B[i], &g, C1, O[i]);",
+            f"{I}{I}for (int k = 0; k < {C}; k++) C[k] = C1[k];",
+            f"{I}}}",
+            "}",
+            "",
+        ]
     out += [
-        "/* the recursions over the links at y = (q, q'): body quantities B[n][SP_NB], outputs O[n][SP_NO] */",
-        "static void sweep(const double *y, const double *p, double B[][SP_NB], double O[][SP_NO])",
-        "{",
-        f"{I}double S[SP_NS] = {{1, 0, 0, 0, 1, 0, 0, 0, 1}}, S1[SP_NS], C[SP_NC] = {{0}}, C1[SP_NC];",
-        f"{I}const double g = p[{gi}], cfs = p[{ci}];",
-        f"{I}for (int i = 0; i < SP_NQ; i++) {{",
-        f"{I}{I}fwd(S, p + {w} * i, SP_AXES[i], y + i, y + SP_NQ + i, &g, &cfs, S1, B[i]);",
-        f"{I}{I}for (int k = 0; k < SP_NS; k++) S[k] = S1[k];",
-        f"{I}}}",
-        f"{I}for (int i = SP_NQ - 1; i >= 0; i--) {{",
-        f"{I}{I}bwd(C, B[i], &g, C1, O[i]);",
-        f"{I}{I}for (int k = 0; k < SP_NC; k++) C[k] = C1[k];",
-        f"{I}}}",
-        "}",
-        "",
         "/* the mass matrix's packed lower triangle from the sweep: M_kl = a_k . ang_l + oa_k . lin_l (k <= l) */",
-        "static void mass_from(double B[][SP_NB], double O[][SP_NO], double *Mk)",
+        "static void mass_from(double B[][SP_NB_R], double O[][SP_NO_R], double *Mk)",
         "{",
         f"{I}for (int l = 0; l < SP_NQ; l++)",
         f"{I}{I}for (int k = 0; k <= l; k++) {{",
-        f"{I}{I}{I}const double *a = B[k] + {at[('B', 'a')]}, *oa = B[k] + {at[('B', 'oa')]};",
-        f"{I}{I}{I}const double *ang = O[l] + {at[('O', 'ang')]}, *lin = O[l] + {at[('O', 'lin')]};",
+        f"{I}{I}{I}const double *a = B[k] + {at[('Br', 'a')]}, *oa = B[k] + {at[('Br', 'oa')]};",
+        f"{I}{I}{I}const double *ang = O[l] + {at[('Or', 'ang')]}, *lin = O[l] + {at[('Or', 'lin')]};",
         f"{I}{I}{I}Mk[l * (l + 1) / 2 + k] = a[0] * ang[0] + a[1] * ang[1] + a[2] * ang[2] + oa[0] * lin[0] + oa[1] * lin[1] + oa[2] * lin[2];",
         f"{I}{I}}}",
         "}",
         "",
         "static void rhs(const double *y, const double *p, double *out)",
         "{",
-        f"{I}double B[SP_NQ][SP_NB], O[SP_NQ][SP_NO], sp_Mk[{len(Mn)}], sp_f[SP_NQ];",
-        f"{I}sweep(y, p, B, O);",
+        f"{I}double B[SP_NQ][SP_NB_R], O[SP_NQ][SP_NO_R], sp_Mk[{len(Mn)}], sp_f[SP_NQ];",
+        f"{I}sweep_r(y, p, B, O);",
         f"{I}mass_from(B, O, sp_Mk);",
         f"{I}double W = 0.0;",
         f"{I}for (int i = 0; i < SP_NQ; i++) {{",
-        f"{I}{I}const double Q = B[i][{at[('B', 'Q')]}];",
-        f"{I}{I}sp_f[i] = Q - O[i][{at[('O', 'bias')]}];",
+        f"{I}{I}const double Q = B[i][{at[('Br', 'Q')]}];",
+        f"{I}{I}sp_f[i] = Q - O[i][{at[('Or', 'bias')]}];",
         f"{I}{I}W += Q * y[SP_NQ + i];",
         f"{I}}}",
     ]
@@ -963,9 +992,9 @@ def compact_c_source(structure: ChainStructure) -> str:
             f"{I}return E;", "}", ""]
     out += ["/* M(q) into the packed lower triangle out[n (n + 1) / 2] */",
             "static void mass(const double *q, const double *p, double *out)", "{",
-            f"{I}double y[2 * SP_NQ] = {{0}}, B[SP_NQ][SP_NB], O[SP_NQ][SP_NO];",
+            f"{I}double y[2 * SP_NQ] = {{0}}, B[SP_NQ][SP_NB_R], O[SP_NQ][SP_NO_R];",
             f"{I}for (int i = 0; i < SP_NQ; i++) y[i] = q[i];",
-            f"{I}sweep(y, p, B, O);", f"{I}mass_from(B, O, out);", "}", ""]
+            f"{I}sweep_r(y, p, B, O);", f"{I}mass_from(B, O, out);", "}", ""]
     load = [f"{I}double sp_Mk[{len(Mn)}];", f"{I}mass(%s, p, sp_Mk);"]
     out += ["static void momenta(const double *y, const double *p, double *out)", "{"]
     out += [line.replace("%s", "y") for line in load]
