@@ -152,7 +152,10 @@ def chain_taylor_c_source(structure, order: int, fused: bool = True) -> str:
            f"#define SP_TN {tn}", f"#define SP_TPMAX {SP_TPMAX}", f"#define SP_TORDER {order}",
            f"#define SP_TAYLOR_NPC {npar + max(len(consts), 1)}", f"#define SP_FUSED {int(bool(fused))}",
            f"#define SP_NS {max(nseries[0], 1)}", "", *VECTOR_C, ""]
-    joint = [k for k, name in enumerate(names) if name.rstrip("0123456789") in ("c", "cf", "tau")]
+    from ..schema import FIELDS, NONCONSERVATIVE_ROLES
+
+    stems = {f.stem for f in FIELDS if f.role in NONCONSERVATIVE_ROLES and f.per_body}  # each joint's damping, ...
+    joint = [k for k, name in enumerate(names) if name.rstrip("0123456789") in stems]
     zero_q = all(v == ("k", "0.0") for v in Q)
     out += ["/* W' = Q . q' needs integrating unless every joint's damping, friction and torque is 0 */",
             "static int taylor_work(const double *p)", "{",

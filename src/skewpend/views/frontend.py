@@ -151,7 +151,8 @@ def page_settings(physics_params=None) -> dict:
     """What the explorer's page (web/app.js) needs beside the generated physics: nothing for the double
     pendulum (its sliders are web/live.js's, its modes and equations from the physics' linearisation);
     for a chain of links its ``n``, ``coordinates``, sliders (:func:`chain_sliders`) and their values at the
-    chain's, the drawn axes' length scale ``size`` and the chain's reach [m], its links' table, and its normal
+    chain's, the drawn axes' length scale ``size`` and the chain's reach [m], its links' table, ``dissipative``
+    (the parameter vector's joint terms that make the energy not conserved, from the schema), and its normal
     modes about the hanging position (:func:`skewpend.normal_modes` at g = :data:`MODES_G`, undamped:
     ``frequencies`` [rad/s], ``shapes`` (one list per mode), ``M0``, ``K0``) -- or, where the hanging position
     is no stable equilibrium, the library's reason in ``modes.error``."""
@@ -171,7 +172,13 @@ def page_settings(physics_params=None) -> dict:
         modes = {"error": str(exc)}
     links = [{"axis": [float(v) for v in link.axis], "length": float(link.length), "mass": float(link.mass)}
              for link in chain.links]
+    from .. import schema
+    from ..numeric.recursive import parameter_names
+
+    stems = {f.stem for f in schema.FIELDS if f.role in schema.NONCONSERVATIVE_ROLES and f.per_body}
+    dissipative = [k for k, name in enumerate(parameter_names(chain.n)) if name.rstrip("0123456789") in stems]
     return {"n": chain.n, "coordinates": list(chain.coordinates), "specs": chain_sliders(chain), "values": values,
+            "dissipative": dissipative,
             "size": max(float(link.length) for link in chain.links),
             "reach": float(sum(link.length for link in chain.links)), "links": links, "modes": modes}
 

@@ -56,7 +56,8 @@ function energyScale() {
   up[0] = Math.PI;
   return Math.max(1e-9, Math.abs(physics.energy(up, pv) - physics.energy(new Array(2 * N).fill(0), pv)));
 }
-const damped = () => ORDER.some((k, i) => /^(c|cf|tau)\d+$/.test(k) && paramVector()[i] !== 0); // E is not conserved
+// E is not conserved: damping (the double pendulum's), a chain's joint terms (PAGE.dissipative: the schema's)
+const damped = () => (CHAIN ? PAGE.dissipative.some((i) => paramVector()[i] !== 0) : values.c1 > 0 || values.c2 > 0);
 
 // ---- three.js scene (scene.js) ------------------------------------------------------------------------
 const canvas = document.getElementById("scene");
