@@ -213,7 +213,7 @@ def test_cli_control(tmp_path):
 
 
 @pytest.mark.parametrize("argv, text", [
-    (["control"], "lqr, swingup or roa"),
+    (["control"], "lqr, swingup, roa or leaderboard"),
     (["control", "balance"], "action"),
     (["control", "lqr", "--actuated", "elbow"], "--actuated"),
     (["control", "lqr", "--actuated", "acrobot", "--alpha", "90deg"], "not controllable"),

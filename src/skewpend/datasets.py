@@ -19,6 +19,7 @@ EXAMPLE_DATA: Dict[str, str] = {
                           "and 4 held out (MIT)",
     "dfki-design-C.0": "the DFKI lab's acrobot/pendubot driven by measured torques, trajectory_00-06, 12, 13 "
                        "and the lab's model_*_parameters.yml (BSD-3-Clause)",
+    "dfki-design-C.1": "the DFKI lab's model 1.1 of its design C.1, the RealAIGym leaderboard's plant (BSD-3-Clause)",
 }
 
 

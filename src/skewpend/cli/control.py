@@ -23,12 +23,20 @@ class Action(str, Enum):
     lqr = "lqr"
     swingup = "swingup"
     roa = "roa"
+    leaderboard = "leaderboard"
+
+
+class Robot(str, Enum):
+    acrobot = "acrobot"
+    pendubot = "pendubot"
 
 
 #: The options that belong to some actions only (the others refuse them with one line).
 ONLY = {
-    "--t-end": ("swingup", "roa"), "--energy-gain": ("swingup",), "--elbow-gains": ("swingup",), "--out": ("swingup", "roa"),
-    "--plot": ("swingup", "roa"), "--animate": ("swingup",), "--n": ("roa",), "--plane": ("roa",), "--window": ("roa",),
+    "--robot": ("leaderboard",), "--target": ("lqr", "swingup", "roa"), "--actuated": ("lqr", "swingup", "roa"),
+    "--q": ("lqr", "swingup", "roa"), "--r": ("lqr", "swingup", "roa"),
+    "--t-end": ("swingup", "roa"), "--energy-gain": ("swingup",), "--elbow-gains": ("swingup",), "--out": ("swingup", "roa", "leaderboard"),
+    "--plot": ("swingup", "roa", "leaderboard"), "--animate": ("swingup",), "--n": ("roa",), "--plane": ("roa",), "--window": ("roa",),
     "--rtol": ("roa",), "--atol": ("roa",), "--resume": ("roa",), "--workers": ("roa",), "--scheduler": ("roa",),
 }
 
@@ -37,12 +45,13 @@ ONLY = {
 def control(
     model: dict,
     ensemble: dict,
-    action: Annotated[Optional[Action], typer.Argument(help="lqr: the gain at the target, its closed-loop eigenvalues and region estimate; swingup: from hanging to the target and capture by the LQR; roa: the LQR's region of attraction on a grid of starts", show_default=False)] = None,
+    action: Annotated[Optional[Action], typer.Argument(help="lqr: the gain at the target, its closed-loop eigenvalues and region estimate; swingup: from hanging to the target and capture by the LQR; roa: the LQR's region of attraction on a grid of starts; leaderboard: an optimal swing-up of the RealAIGym leaderboard's plant, tracked by time-varying LQR, run and scored by the leaderboard's protocol", show_default=False)] = None,
+    robot: Annotated[Optional[Robot], typer.Option("--robot", help="leaderboard: acrobot (the motor on the elbow) or pendubot (on the shoulder); required", show_default=False)] = None,
     target: option("--target", T.EquilibriumChoice(), "the equilibrium to balance at: a label (default up-up) or PHI,PSI near one") = None,
     actuated: option("--actuated", T.Actuation(), "the joints with a motor: both (default), acrobot (the elbow only), pendubot (the shoulder only); a chain of links: all or the joints' numbers, e.g. 2 or 1,3") = None,
     q: option("--q", T.Numbers(most=64, metavar="Q1,Q2,..."), "LQR state weights: the diagonal of Q for (phi, psi, phi', psi') (default 1,1,1,1; a chain's 2 n)") = None,
     r: option("--r", T.Numbers(most=31, metavar="R1[,R2,...]"), "LQR input weights: the diagonal of R, one per actuated joint (default 1)") = None,
-    umax: option("--umax", T.Positive("number of N m"), "torque limit of each motor [N m] (default: none for lqr, 10 for swingup and roa)") = None,
+    umax: option("--umax", T.Positive("number of N m"), "torque limit of each motor [N m] (default: none for lqr, 10 for swingup and roa, 6 for leaderboard)") = None,
     t_end: option("--t-end", T.Positive("number of seconds"), "swingup: length of the run [s] (default 20); roa: longest time each start is followed (default 10)") = None,
     energy_gain: option("--energy-gain", T.Positive(), "swingup: gain of the energy shaping [N m s/J] (default 2)") = None,
     elbow_gains: option("--elbow-gains", T.Numbers(2, metavar="KP,KD"), "swingup: the elbow's PD gains holding rod 2 in line while the energy is pumped (default 20,4)") = None,
@@ -68,8 +77,9 @@ def control(
     from ..analysis.control import controllability, lqr, swingup
 
     if action is None:
-        raise UsageError("control: give what to do, lqr, swingup or roa (e.g. skewpend control lqr --actuated acrobot)")
-    given = {"--t-end": t_end, "--energy-gain": energy_gain, "--elbow-gains": elbow_gains, "--out": out, "--plot": plot,
+        raise UsageError("control: give what to do, lqr, swingup, roa or leaderboard (e.g. skewpend control lqr "
+                         "--actuated acrobot)")
+    given = {"--robot": robot, "--target": target, "--actuated": actuated, "--q": q, "--r": r, "--t-end": t_end, "--energy-gain": energy_gain, "--elbow-gains": elbow_gains, "--out": out, "--plot": plot,
              "--animate": animate, "--n": n, "--plane": plane, "--window": window, "--rtol": rtol, "--atol": atol,
              "--resume": resume or None, "--workers": ensemble.get("workers"), "--scheduler": ensemble.get("scheduler")}
     used = [flag for flag, value in given.items() if value is not None and action.value not in ONLY[flag]]
@@ -77,6 +87,14 @@ def control(
         goes = " or ".join(f"'control {a}'" for a in ONLY[used[0]])
         raise UsageError(f"{used[0]} goes with {goes}, not 'control {action.value}'")
     store = None
+    if action is Action.leaderboard:
+        from .leaderboard import check_model_options, run_leaderboard
+
+        alpha = check_model_options(model, config)
+        code = run_leaderboard(robot.value if robot is not None else None, alpha, umax, out, plot, quiet)
+        if code:
+            raise typer.Exit(code)
+        return None
     if action is Action.roa:
         if out is not None and not out.lower().endswith((".zarr", ".nc")):
             raise UsageError(f"--out: control roa writes FILE.zarr or FILE.nc, got {out!r}")

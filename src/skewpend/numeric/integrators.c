@@ -512,6 +512,28 @@ void sp_rhs_ctl_many(const sp_control *c, const double *rows, int64_t nrows, int
 
 int64_t sp_control_size(void) { return (int64_t)sizeof(sp_control); }
 
+/* Sampled inputs (a digital controller's zero-order hold): one classical RK4 step of dt from the
+ * mechanical state y[SP_NX] with the torques u[SP_NQ] added to p's constant torques and held over the
+ * step, into out[SP_NX] (y and out may be the same array) -- the step of the RealAIGym leaderboard's
+ * simulator.  The work W is not carried. */
+void sp_rk4_hold(const double *y, const double *p, const double *u, double dt, double *out)
+{
+    static const int tau_index[SP_NQ] = SP_TAU_INDEX;
+    double q[SP_NPARAM], y0[SP_NMAX], k[4][SP_NMAX], s[SP_NMAX];
+    memcpy(q, p, sizeof q);
+    for (int r = 0; r < SP_NQ; r++) q[tau_index[r]] += u[r];
+    memset(y0, 0, sizeof y0);
+    memcpy(y0, y, SP_NX * sizeof(double));
+    const double c[3] = {0.5 * dt, 0.5 * dt, dt};
+    rhs(y0, q, k[0]);
+    for (int st = 0; st < 3; st++) {
+        memcpy(s, y0, sizeof s);
+        for (int i = 0; i < SP_NX; i++) s[i] = y0[i] + c[st] * k[st][i];
+        rhs(s, q, k[st + 1]);
+    }
+    for (int i = 0; i < SP_NX; i++) out[i] = y0[i] + dt / 6.0 * (k[0][i] + 2.0 * (k[1][i] + k[2][i]) + k[3][i]);
+}
+
 /* Each of m starts (SP_NX doubles: angles and speeds) integrated by DOP853 (the core above, on the SP_NX
  * mechanical components; the active control c, if any, inside) until the test stop(y, data, &which) holds
  * -- time[k] is the first point where it does, located by bisection on the 7th-order dense output of the

@@ -499,6 +499,7 @@ class Kernel:
                                      ctypes.POINTER(ctypes.c_int8)]
         lib.sp_flip_many.restype = None
         lib.sp_rhs_ctl_many.argtypes, lib.sp_rhs_ctl_many.restype = [cp, dp, i64, i64, dp, dp], None
+        lib.sp_rk4_hold.argtypes, lib.sp_rk4_hold.restype = [dp, dp, dp, d, dp], None
         for name in ("sp_dop853", "sp_rk4", "sp_gauss", "sp_dop853_ctl", "sp_rk4_ctl"):
             getattr(lib, name).restype = ctypes.c_int
         if lib.sp_control_size() != ctypes.sizeof(self.ControlStruct):

@@ -21,7 +21,7 @@ from __future__ import annotations
 from .base import ENERGY_FLOOR, FIGURE_SUFFIXES, FORMATS, save_figure, wrap_angle
 from .chaos import (CHAOS_COLORS, LYAPUNOV_COLORS, chaos_diagram_figure, lyapunov_figure, lyapunov_map_figure,
                     poincare_boundary, poincare_figure)
-from .control import ROA_COLORS, control_figure, roa_figure
+from .control import ROA_COLORS, control_figure, leaderboard_figure, roa_figure
 from .orbits import FAMILY_COLORS, alpha_family_figure, fep_figure
 from .maps import FLIPMAP_COLORS, flipmap_energy_margin, flipmap_figure, flipmap_forbidden
 from .motion import (angles_figure, energy_figure, phase_figure, plot_sweep, simulation_figure, tips_figure,
@@ -63,6 +63,7 @@ for _fn, _what in ((angles_figure, _TRAJECTORY), (phase_figure, _TRAJECTORY), (e
                    (chaos_diagram_figure, "a skewpend.ChaosDiagram"), (lyapunov_map_figure, "a skewpend.LyapunovMap"),
                    (control_figure, "a swing-up run (skewpend.swingup)"),
                    (roa_figure, "a skewpend.RegionOfAttraction"),
+                   (leaderboard_figure, "a run by the leaderboard's protocol (leaderboard.run_protocol)"),
                    (fep_figure, "a sequence of nonlinear normal mode families (skewpend.nnm)"),
                    (alpha_family_figure, "a sequence of families in alpha (skewpend.nnm_alpha)")):
     globals()[_fn.__name__] = _refusing_wrong_types(_fn, _what)
@@ -73,5 +74,5 @@ __all__ = [
     "flipmap_figure", "flipmap_forbidden", "flipmap_energy_margin", "FLIPMAP_COLORS", "save_figure", "FORMATS",
     "FIGURE_SUFFIXES", "ENERGY_FLOOR", "wrap_angle", "wrapped_path", "tips_view", "lyapunov_figure", "poincare_figure",
     "poincare_boundary", "chaos_diagram_figure", "lyapunov_map_figure", "LYAPUNOV_COLORS", "CHAOS_COLORS", "fmt",
-    "fep_figure", "alpha_family_figure", "FAMILY_COLORS", "control_figure", "roa_figure", "ROA_COLORS",
+    "fep_figure", "alpha_family_figure", "FAMILY_COLORS", "control_figure", "roa_figure", "leaderboard_figure", "ROA_COLORS",
 ]

@@ -9,7 +9,7 @@ import numpy as np
 from ..style import COLORS, SYMBOL, parameter_text, style
 from .base import coordinate_label, heading, new_figure
 
-__all__ = ["control_figure", "roa_figure", "ROA_COLORS"]
+__all__ = ["control_figure", "roa_figure", "leaderboard_figure", "ROA_COLORS"]
 
 
 def control_figure(run):
@@ -122,4 +122,54 @@ def roa_figure(roa):
                 + parameter_text(roa.params)
                 + f"\ncaptured: {100 * roa.captured_fraction:.1f} % of {roa.n} × {roa.n} starts "
                 f"(the estimate holds {100 * roa.inner_fraction:.2f} %)")
+    return fig
+
+
+def leaderboard_figure(run, reference=None, title: str = ""):
+    """A run by the RealAIGym leaderboard's protocol (:func:`skewpend.analysis.leaderboard.run_protocol`):
+    the joint angles (unwrapped, degrees), the end effector's height with the success line, and the
+    motors' torques, against time over the swing-up and the first seconds held; the optimised
+    reference (a :class:`~skewpend.analysis.trajopt.Tracking`'s) dashed when given."""
+    c = run.criteria
+    n = run.x.shape[1] // 2
+    shown = min(run.t[-1], max(3.0, (c.swingup_time if math.isfinite(c.swingup_time) else 0.0) + 2.0))
+    keep = run.t <= shown
+    t = run.t[keep]
+    palette = [COLORS["phi"], COLORS["psi"], COLORS["path"], "#6a4c93", "#1982c4"]
+    with style():
+        fig = new_figure((8.5, 8.0))
+        ax1, ax2, ax3 = fig.subplots(3, 1, sharex=True)
+        for j in range(n):
+            ax1.plot(t, np.degrees(np.unwrap(run.x[keep, j])), color=palette[j % len(palette)], label=f"q{j + 1}")
+            if reference is not None:
+                rt = np.arange(len(reference.x_ref)) * reference.dt
+                ax1.plot(rt, np.degrees(reference.x_ref[:, j]), color=palette[j % len(palette)], ls="--", lw=0.9,
+                         label=f"q{j + 1}, optimised")
+        ax1.set_ylabel("angle [deg]")
+        ax1.set_title("Joint angles (unwrapped; q2 relative to rod 1)", loc="left")
+        ax1.legend(loc="best", fontsize=8, ncol=2)
+        ax2.plot(t, run.heights[keep], color=COLORS["path"], label="end effector")
+        line = run.protocol.height * run.reach
+        ax2.axhline(line, color="0.4", ls="--", lw=0.9, label=f"success line {run.protocol.height:g} x reach")
+        if c.success:
+            ax2.axvline(c.swingup_time, color="0.3", ls=":", lw=0.8)
+            ax2.annotate(f"swing-up time {c.swingup_time:.3g} s", (c.swingup_time, 0.05), xycoords=ax2.get_xaxis_transform(),
+                         textcoords="offset points", xytext=(4, 0), fontsize=8, color="0.3")
+        ax2.set_ylabel("height [m]")
+        ax2.set_title("End effector's height above the roof hinge", loc="left")
+        ax2.legend(loc="lower right", fontsize=8)
+        for j in range(n):
+            if np.any(run.u[:, j]):
+                ax3.plot(t, run.u[keep, j], color=palette[j % len(palette)], lw=1.0, label=f"u{j + 1} (joint {j + 1})")
+        ax3.axhline(run.protocol.umax, color="0.5", ls="--", lw=0.8)
+        ax3.axhline(-run.protocol.umax, color="0.5", ls="--", lw=0.8)
+        ax3.set_ylabel("torque [N m]")
+        ax3.set_xlabel("t [s]")
+        ax3.set_title(f"Motor torques, held over each {run.protocol.dt * 1e3:g} ms step (dashed: the limits)", loc="left")
+        ax3.legend(loc="best", fontsize=8)
+        crit = (f"score {c.score:.3f}: swing-up {c.swingup_time:.3g} s, energy {c.energy:.3g} J, torque cost "
+                f"{c.tau_cost:.3g}, smoothness {c.tau_smoothness:.3g}, velocity cost {c.velocity_cost:.4g}"
+                if c.success else "no success: the end effector does not stay above the line")
+        heading(fig, (title or "A swing-up by the RealAIGym leaderboard's protocol") + "\n" + crit
+                + f"\nshown: the first {shown:.3g} s of {run.t[-1] + run.protocol.dt:g} s")
     return fig

@@ -1,0 +1,325 @@
+"""The RealAIGym leaderboard's protocol and score (the DFKI lab's double-pendulum benchmark), for any model.
+
+The leaderboard (``dfki-ric-underactuated-lab/double_pendulum``, ``leaderboard/*/simulation_v2``;
+its ``analysis/leaderboard.py`` defines the criteria) runs a controller on its plant by fixed-step
+RK4 (``dt`` 0.002 s for 10 s), the controller asked once a step for the torques at the state, the
+torques clipped to the motors' limits and held over the step; it starts hanging at rest and scores
+the rows ``(t_k, x_k, u_k)``, ``u_k`` the torques held from ``t_k`` to ``t_k + dt``:
+
+* **swing-up time** -- the first time of the last unbroken run of rows whose end effector (the tip
+  of the last rod) is above ``0.9`` times the reach (the sum of the rods' lengths) (the last row
+  not looked at); infinite when the run ended early;
+* **success** -- that time is before the last row's;
+* **energy** ``sum_k sum_j |(q_j,k+1 - q_j,k) u_j,k|`` [J];
+* **torque cost** ``sum_k dt u_k . u_k`` [N^2 m^2 s], **velocity cost** ``sum_k dt q'_k . q'_k``
+  (both over the rows but the last);
+* **torque smoothness** ``sum_j std_k(u_j,k+1 - u_j,k)`` [N m];
+* the **score** (``"v2"``): ``success * (1 - 1/5 sum_i tanh(pi c_i / n_i))`` over the swing-up
+  time (``n`` 20 s), energy (60 J), torque cost (20), smoothness (0.1) and velocity cost (400).
+
+:func:`criteria` and :func:`score` compute them from any rows (a published trajectory's, a run's);
+:func:`run_protocol` runs a law by the protocol on any model (the double pendulum, a chain) with the
+compiled model's RK4 step (``sp_rk4_hold``); :data:`PROTOCOL` holds the leaderboard's settings;
+:func:`read_csv` and :func:`write_csv` the leaderboard's trajectory files
+(``time,pos_meas1,pos_meas2,vel_meas1,vel_meas2,tau_con1,tau_con2``).
+"""
+
+from __future__ import annotations
+
+import csv
+import ctypes
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Dict, Optional, Tuple
+
+import numpy as np
+
+from ..errors import ParameterError
+
+__all__ = ["PROTOCOL", "Protocol", "NORMALISATION", "Criteria", "criteria", "score", "ProtocolRun", "run_protocol",
+           "read_csv", "write_csv", "CSV_COLUMNS", "dfki_model", "ROBOTS", "PUBLISHED"]
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """The leaderboard's simulation settings: the step ``dt`` [s], the run's length ``t_final`` [s],
+    the motors' torque limit ``umax`` [N m], the height fraction of the success test."""
+
+    dt: float = 0.002
+    t_final: float = 10.0
+    umax: float = 6.0
+    height: float = 0.9
+
+    @property
+    def steps(self) -> int:
+        """The rows of a run (5000): the leaderboard's simulator steps until ``t >= t_final``."""
+        return int(round(self.t_final / self.dt))
+
+
+#: The simulation leaderboard v2's settings.
+PROTOCOL = Protocol()
+#: The v2 score's criteria and their normalisation constants (``calculate_leaderboard_score.py``).
+NORMALISATION: Dict[str, float] = {"swingup_time": 20.0, "energy": 60.0, "tau_cost": 20.0, "tau_smoothness": 0.1,
+                                   "velocity_cost": 400.0}
+#: The leaderboard's robots: which joint has the motor (1: the shoulder, 2: the elbow).
+ROBOTS: Dict[str, Tuple[int, ...]] = {"acrobot": (2,), "pendubot": (1,)}
+#: The best published entries (leaderboards v2, real_ai_gym_leaderboard at 81ea5bc): robot -> board -> (name, score).
+PUBLISHED: Dict[str, Dict[str, Tuple[str, float]]] = {
+    "acrobot": {"simulation": ("History SAC", 0.655), "robustness": ("History SAC", 0.751)},
+    "pendubot": {"simulation": ("History SAC", 0.682), "robustness": ("AR-EAPO", 0.913)},
+}
+#: The columns of the leaderboard's trajectory files.
+CSV_COLUMNS = ("time", "pos_meas1", "pos_meas2", "vel_meas1", "vel_meas2", "tau_con1", "tau_con2")
+
+
+@dataclass(frozen=True)
+class Criteria:
+    """The leaderboard's criteria of one run (see the module); ``score`` its v2 score."""
+
+    success: bool
+    swingup_time: float
+    energy: float
+    max_tau: float
+    integ_tau: float
+    tau_cost: float
+    tau_smoothness: float
+    velocity_cost: float
+
+    @property
+    def score(self) -> float:
+        return score(self)
+
+    def to_dict(self) -> Dict[str, Any]:
+        return {"success": bool(self.success), "swingup_time": self.swingup_time, "energy": self.energy,
+                "max_tau": self.max_tau, "integ_tau": self.integ_tau, "tau_cost": self.tau_cost,
+                "tau_smoothness": self.tau_smoothness, "velocity_cost": self.velocity_cost, "score": self.score}
+
+
+def _rows(name: str, value, width: Optional[int] = None) -> np.ndarray:
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be numbers (an array), got {type(value).__name__}") from None
+    if a.ndim == 1 and width is None:
+        return a
+    if a.ndim != 2 or (width is not None and a.shape[1] != width):
+        raise ParameterError(f"{name} must be an array of rows" + (f" of {width}" if width else "") + f", got shape {a.shape}")
+    return a
+
+
+def criteria(t, x, u, heights, reach: float, *, t_final: float = PROTOCOL.t_final,
+             height: float = PROTOCOL.height) -> Criteria:
+    """The leaderboard's criteria of the rows ``t`` (k,), states ``x`` (k, 2 n: angles, then speeds),
+    torques ``u`` (k, n) held from each row to the next, and the end effector's heights ``heights``
+    (k,) [m] above the roof hinge; ``reach`` the sum of the rods' lengths [m] (the success line is
+    ``height * reach``).  Non-finite rows are refused."""
+    t = _rows("t", t)
+    x = _rows("x", x)
+    u = _rows("u", u)
+    h = _rows("heights", heights)
+    k = t.size
+    if t.ndim != 1 or k < 3 or x.ndim != 2 or x.shape[0] != k or x.shape[1] % 2 or u.ndim != 2 or u.shape[0] != k \
+            or u.shape[1] != x.shape[1] // 2 or h.shape != (k,):
+        raise ParameterError(f"criteria need k >= 3 rows of times (k,), states (k, 2 n), torques (k, n) and heights (k,); "
+                             f"got {t.shape}, {x.shape}, {u.shape}, {h.shape}")
+    for name, a in (("t", t), ("x", x), ("u", u), ("heights", h)):
+        if not np.all(np.isfinite(a)):
+            raise ParameterError(f"{name} holds non-finite numbers: a run that failed has no leaderboard criteria")
+    if not (math.isfinite(reach) and reach > 0):
+        raise ParameterError(f"reach must be a positive length [m], got {reach!r}")
+    n = x.shape[1] // 2
+    if t[-1] < 0.99 * t_final:
+        up_time = math.inf
+    else:
+        up = h > height * reach
+        index = k - 1
+        for i in range(k - 2, 0, -1):  # the leaderboard's loop: the last row is not looked at, nor the first
+            if up[i]:
+                index = i
+            else:
+                break
+        up_time = float(t[index])
+    dt = np.diff(t)
+    energy = float(sum(np.sum(np.abs(np.diff(x[:, j]) * u[:-1, j])) for j in range(n)))
+    tau_cost = float(np.einsum("ij,i,ij->", u[:-1], dt, u[:-1]))
+    velocity_cost = float(np.einsum("ij,i,ij->", x[:-1, n:], dt, x[:-1, n:]))
+    smooth = float(sum(np.std(np.diff(u[:, j])) for j in range(n)))
+    return Criteria(success=bool(up_time < t[-1]), swingup_time=up_time, energy=energy,
+                    max_tau=float(np.max(np.abs(u))), integ_tau=float(np.sum(np.abs(u[:-1]) * dt[:, None])),
+                    tau_cost=tau_cost, tau_smoothness=smooth, velocity_cost=velocity_cost)
+
+
+def score(c, version: str = "v2") -> float:
+    """The leaderboard's v2 score of :class:`Criteria` (or a mapping of the five criteria and
+    ``success``): ``success * (1 - 1/5 sum_i tanh(pi c_i / n_i))``, :data:`NORMALISATION`'s ``n_i``."""
+    if version != "v2":
+        raise ParameterError(f"version must be 'v2' (the current leaderboards' score), got {version!r}")
+    get = (lambda k: c[k]) if isinstance(c, dict) else (lambda k: getattr(c, k))
+    try:
+        values = {k: float(get(k)) for k in NORMALISATION}
+        success = bool(get("success"))
+    except (KeyError, AttributeError, TypeError, ValueError):
+        raise ParameterError(f"score needs success and the criteria {', '.join(NORMALISATION)}") from None
+    if not success:
+        return 0.0
+    total = sum(math.tanh(math.pi * values[k] / NORMALISATION[k]) for k in NORMALISATION)
+    return 1.0 - total / len(NORMALISATION)
+
+
+@dataclass(frozen=True)
+class ProtocolRun:
+    """A run by the protocol: rows ``t`` (k,), ``x`` (k, 2 n), ``u`` (k, n) the torques applied over
+    each step, ``heights`` (k,) of the end effector, the model's ``reach``; ``criteria`` and ``score``."""
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    heights: np.ndarray
+    reach: float
+    protocol: Protocol = PROTOCOL
+    message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.message
+
+    @property
+    def criteria(self) -> Criteria:
+        if not self.ok:
+            return Criteria(False, math.inf, *(math.nan,) * 6)
+        return criteria(self.t, self.x, self.u, self.heights, self.reach, t_final=self.protocol.t_final,
+                        height=self.protocol.height)
+
+    @property
+    def score(self) -> float:
+        return self.criteria.score if self.ok else 0.0
+
+
+def model_reach(model) -> float:
+    """The sum of the rods' lengths of a model (the double pendulum's ``a + b``)."""
+    from ..symbolic.chain import Chain
+
+    chain = model if isinstance(model, Chain) else Chain.from_parameters(model)
+    return float(sum(link.length for link in chain.links))
+
+
+def tip_heights(kernel, p, x: np.ndarray) -> np.ndarray:
+    """The heights [m] above the roof hinge of the last rod's end at the states ``x`` (k, 2 n) (``j`` points down)."""
+    ends = kernel.tips_many(np.ascontiguousarray(x, dtype=float), p)
+    return -ends[:, 3 * kernel.nq - 2]
+
+
+def run_protocol(model, law: Callable[[float, np.ndarray], Any], *, actuated=(2,), umax: float = PROTOCOL.umax,
+                 protocol: Protocol = PROTOCOL, x0=None, plant=None, measure: Optional[Callable] = None,
+                 apply: Optional[Callable] = None, cancel=None) -> ProtocolRun:
+    """``law(t, x) -> torques`` (one per joint, or one for a single actuated joint) run by the protocol on
+    ``model`` (or on ``plant``, another model of the same joints, when given: the controller's model
+    and the simulated one differ), from ``x0`` (default hanging at rest) for ``protocol.steps`` steps.
+    ``actuated``: the joints' numbers with a motor (the others get 0); every torque clipped to ``umax``.
+    ``measure(k, x, history) -> x_meas`` and ``apply(k, u, last) -> u`` change what the law sees and
+    what the motors do (the robustness tests); ``cancel`` (an Event) stops the run (``message``)."""
+    from ..numeric.kernels import model_kernel, model_vector
+
+    sim = model if plant is None else plant
+    kernel = model_kernel(sim)
+    p = np.ascontiguousarray(model_vector(sim), dtype=float)
+    n = kernel.nq
+    joints = sorted({int(j) for j in actuated})
+    if not joints or not all(1 <= j <= n for j in joints):
+        raise ParameterError(f"actuated must be the numbers of the joints with a motor, 1 to {n}, got {actuated!r}")
+    mask = np.zeros(n, dtype=bool)
+    mask[[j - 1 for j in joints]] = True
+    steps = protocol.steps
+    t = np.arange(steps) * protocol.dt
+    x = np.zeros((steps, 2 * n))
+    u = np.zeros((steps, n))
+    state = np.zeros(2 * n) if x0 is None else np.array(x0, dtype=float).reshape(2 * n)
+    dp = ctypes.POINTER(ctypes.c_double)
+    pp = p.ctypes.data_as(dp)
+    ub = np.zeros(n)
+    buf = state.copy()
+    step_fn = kernel.lib.sp_rk4_hold
+    message = ""
+    last = np.zeros(n)
+    for k in range(steps):
+        if cancel is not None and k % 500 == 0 and cancel.is_set():
+            message = "cancelled"
+            break
+        x[k] = buf
+        seen = buf if measure is None else measure(k, buf.copy(), x[:k + 1])
+        raw = np.asarray(law(float(t[k]), np.array(seen)), dtype=float).reshape(-1)
+        if raw.size == 1 and len(joints) == 1:
+            full = np.zeros(n)
+            full[joints[0] - 1] = raw[0]
+            raw = full
+        if raw.shape != (n,):
+            raise ParameterError(f"the law must return {n} torques (or one for the one actuated joint), got shape {raw.shape}")
+        cmd = np.where(mask, np.clip(raw, -umax, umax), 0.0)
+        if apply is not None:
+            cmd = np.where(mask, np.asarray(apply(k, cmd, last), dtype=float), 0.0)
+        if not np.all(np.isfinite(cmd)):
+            message = f"the law returned non-finite torques at t = {t[k]:.4g} s"
+            break
+        u[k] = cmd
+        last = cmd
+        ub[:] = cmd
+        step_fn(buf.ctypes.data_as(dp), pp, ub.ctypes.data_as(dp), protocol.dt, buf.ctypes.data_as(dp))
+        if not np.all(np.isfinite(buf)):
+            message = f"the run failed at t = {t[k]:.4g} s (a non-finite state)"
+            break
+    if message:
+        rows = k
+        t, x, u = t[:rows], x[:rows], u[:rows]
+    heights = tip_heights(kernel, p, x) if len(x) else np.zeros(0)
+    return ProtocolRun(t, x, u, heights, model_reach(sim), protocol, message)
+
+
+def read_csv(path) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A leaderboard trajectory file (:data:`CSV_COLUMNS`) as ``(t, x, u)``."""
+    path = Path(path)
+    try:
+        with path.open(newline="") as fh:
+            reader = csv.reader(fh)
+            header = [h.strip() for h in next(reader)]
+            body = [r for r in reader if r]
+    except (OSError, StopIteration, UnicodeDecodeError) as exc:
+        raise ParameterError(f"{path}: cannot read a leaderboard trajectory file ({exc.__class__.__name__})") from None
+    missing = [c for c in CSV_COLUMNS if c not in header]
+    if missing:
+        raise ParameterError(f"{path}: a leaderboard trajectory file needs the columns {', '.join(CSV_COLUMNS)}; "
+                             f"{missing[0]} is missing")
+    index = [header.index(c) for c in CSV_COLUMNS]
+    try:
+        rows = np.array([[float(r[i]) for i in index] for r in body], dtype=float)
+    except (ValueError, IndexError):
+        raise ParameterError(f"{path}: every row of a leaderboard trajectory file needs a number in each column") from None
+    if rows.ndim != 2 or len(rows) < 3:
+        raise ParameterError(f"{path}: a leaderboard trajectory file needs at least 3 rows")
+    return rows[:, 0], rows[:, 1:5], rows[:, 5:7]
+
+
+def write_csv(path, t, x, u) -> None:
+    """The rows as a leaderboard trajectory file (:data:`CSV_COLUMNS`; the double pendulum's columns), atomically."""
+    from ..io import atomic_path
+
+    x = np.asarray(x, dtype=float)
+    if x.shape[1] != 4:
+        raise ParameterError(f"a leaderboard trajectory file holds a double pendulum's rows (4 states), got {x.shape[1]}")
+    data = np.column_stack([np.asarray(t, dtype=float), x, np.asarray(u, dtype=float)])
+    with atomic_path(Path(path)) as tmp:
+        np.savetxt(tmp, data, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.18e")
+
+
+def dfki_model(alpha: float = 0.0):
+    """The leaderboard's plant: the DFKI lab's design C.1, model 1.1 (model 1.0 without its motor
+    inertia, damping and friction), as :class:`~skewpend.Parameters` -- centres of mass on the rods, the
+    inertias about them ``I - m r^2`` across the rod (none along it) -- with the second hinge turned by
+    ``alpha`` [rad] (0: the lab's planar rig)."""
+    from dataclasses import replace
+
+    from ..datasets import example_data
+    from .measurements import dfki_lab_parameters
+
+    params = dfki_lab_parameters(example_data("dfki-design-C.1/model_1.1_parameters.yml"))
+    return replace(params, alpha=float(alpha))

@@ -1,0 +1,435 @@
+"""Optimal swing-ups: trajectory optimisation on the generated dynamics, tracked by time-varying LQR.
+
+:func:`optimal_swingup` solves, by direct multiple shooting with IPOPT (through CasADi, on the chain's
+equations from the recursive algorithms -- :mod:`skewpend.numeric.recursive` -- with their exact
+derivatives), for the torques that take any model (the double pendulum as the chain of two, any
+chain, any skew) from a start to an equilibrium with the actuated joints inside their limits:
+
+* the state at ``N`` knots over a free duration ``T`` (bounded by ``horizon``), the torques linear
+  between the knots (a first-order hold), each interval one classical RK4 step;
+* the cost (:class:`Cost`) weighs the RealAIGym leaderboard's criteria -- swing-up time, energy,
+  torque cost, torque smoothness, velocity cost -- each through ``tanh(pi c / n)`` as the score does
+  (plus a hundredth of its linear part, which keeps a saturated term's gradient alive); the default
+  weights are the v2 score's, so the optimum is the best score the model allows;
+* from ``hold`` x ``T`` on the end effector stays above ``height`` x its height at the goal (the
+  leaderboard's success line), and the run ends at the goal at rest.
+
+:func:`tvlqr` designs the tracking: the optimised motion resampled on a fixed step (the leaderboard's
+0.002 s), the discrete-time Riccati recursion along it ending in the goal's discrete LQR, and hands
+over to that LQR at the end -- a :class:`Tracking` controller, a law ``u(t, x)`` that
+:func:`skewpend.analysis.leaderboard.run_protocol` runs, with the DFKI lab's ``get_control_output(x,
+t)`` (their state order and angles: the double pendulum's ``(q1, q2, q1', q2')``, ``q2`` relative,
+zero hanging -- skewpend's own) so their ``Simulator`` can run it unchanged.
+
+Honest status: a solve that does not converge is reported as such (``ok`` False, IPOPT's status in
+``message``) and never returned as an optimum.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Dict, Tuple
+
+import numpy as np
+
+from ..errors import EquilibriumError, ParameterError, require
+from .leaderboard import NORMALISATION, PROTOCOL
+
+__all__ = ["Cost", "OptimalTrajectory", "optimal_swingup", "Tracking", "tvlqr", "COST_TERMS"]
+
+#: The cost's terms, in order: the leaderboard's criteria (their normalisation: ``leaderboard.NORMALISATION``).
+COST_TERMS = ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_cost")
+#: The linear part's share in each term (see the module).
+LINEAR_SHARE = 0.01
+#: The seeded starts' spread of the guessed angles [rad] (a swing of random size and sense).
+SPREAD = 0.6
+
+
+@dataclass(frozen=True)
+class Cost:
+    """Weights of the leaderboard's criteria in the optimisation (each ``>= 0``; the default: the v2
+    score's, every weight 1): ``time`` (the swing-up time), ``energy``, ``torque`` (the torque cost),
+    ``smoothness`` (the torque's smoothness) and ``velocity`` (the velocity cost)."""
+
+    time: float = 1.0
+    energy: float = 1.0
+    torque: float = 1.0
+    smoothness: float = 1.0
+    velocity: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("time", "energy", "torque", "smoothness", "velocity"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v) or v < 0:
+                raise ParameterError(f"the cost's weight {name} must be a finite number >= 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not any(self.weights):
+            raise ParameterError("the cost needs at least one positive weight (time, energy, torque, smoothness, velocity)")
+
+    @property
+    def weights(self) -> Tuple[float, ...]:
+        return (self.time, self.energy, self.torque, self.smoothness, self.velocity)
+
+
+@dataclass(frozen=True)
+class OptimalTrajectory:
+    """An optimised swing-up: knots ``t`` (N + 1,), states ``x`` (N + 1, 2 n), torques ``u`` (N + 1, n)
+    (linear between knots), the model (``chain``), ``actuated`` joints, ``goal`` state, ``umax``;
+    ``ok`` and IPOPT's ``message``; the criteria the optimiser saw (``predicted``) and ``solve_time`` [s]."""
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    chain: Any = field(repr=False)
+    actuated: Tuple[int, ...]
+    goal: np.ndarray
+    umax: float
+    ok: bool
+    message: str
+    predicted: Dict[str, float] = field(default_factory=dict)
+    solve_time: float = 0.0
+    attempts: int = 1
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+
+def _dynamics(chain, actuated: Tuple[int, ...]):
+    """CasADi functions of the chain: ``f(y, u) -> y'`` (u: the actuated joints' torques) and the RK4
+    step ``step(y, u0, u1, h)`` with the torque linear from u0 to u1 over the step; ``tip(q)`` the end
+    effector's height."""
+    ca = require("casadi", "optimal swing-ups (CasADi and IPOPT)")
+    from ..numeric.recursive import chain_functions, parameter_names, parameter_vector, structure_of_chain
+
+    n = chain.n
+    fns = chain_functions(structure_of_chain(chain))
+    names = parameter_names(n)
+    pnum = parameter_vector(chain)
+    y = ca.SX.sym("y", 2 * n)
+    u = ca.SX.sym("u", len(actuated))
+    p = ca.SX(ca.DM(pnum))
+    for r, j in enumerate(actuated):
+        i = names.index(f"tau{j}")
+        p[i] = p[i] + u[r]
+    Mp, f, _ = fns["model"](y, p)
+    M = ca.SX(n, n)
+    k = 0
+    for i in range(n):
+        for j in range(i + 1):
+            M[i, j] = M[j, i] = Mp[k]
+            k += 1
+    qdd = ca.solve(M, f)
+    rhs = ca.Function("f", [y, u], [ca.vertcat(y[n:], qdd)])
+    u1 = ca.SX.sym("u1", len(actuated))
+    h = ca.SX.sym("h")
+    um = 0.5 * (u + u1)
+    k1 = rhs(y, u)
+    k2 = rhs(y + h / 2 * k1, um)
+    k3 = rhs(y + h / 2 * k2, um)
+    k4 = rhs(y + h * k3, u1)
+    step = ca.Function("step", [y, u, u1, h], [y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
+    q = ca.SX.sym("q", n)
+    ends = fns["ends"](q, ca.SX(ca.DM(pnum)))
+    tip = ca.Function("tip", [q], [-ends[3 * n - 2]])
+    return ca, rhs, step, tip
+
+
+def _as_chain(model):
+    from ..symbolic.chain import Chain
+    from ..symbolic.model import Parameters
+
+    if isinstance(model, Chain):
+        return model
+    if isinstance(model, Parameters):
+        return Chain.from_parameters(model.require_numeric("an optimal swing-up"))
+    raise ParameterError(f"model must be a skewpend.Parameters or a Chain, got {type(model).__name__}")
+
+
+def _actuated(actuated, n: int) -> Tuple[int, ...]:
+    from .leaderboard import ROBOTS
+
+    if isinstance(actuated, str):
+        if actuated in ROBOTS and n == 2:
+            return ROBOTS[actuated]
+        if actuated in ("all", "both"):
+            return tuple(range(1, n + 1))
+    else:
+        try:
+            joints = tuple(sorted({int(j) for j in actuated}))
+        except (TypeError, ValueError):
+            joints = ()
+        if joints and all(1 <= j <= n for j in joints):
+            return joints
+    raise ParameterError(f"actuated must be acrobot, pendubot, all or the numbers of the joints with a motor (1 to {n}), "
+                         f"got {actuated!r}")
+
+
+def _goal_state(chain, goal) -> Tuple[np.ndarray, str]:
+    from .equilibria import Equilibrium, equilibria
+
+    n = chain.n
+    if isinstance(goal, Equilibrium):
+        return np.asarray(goal.state, dtype=float), goal.label
+    if isinstance(goal, str):
+        label = "-".join(["up"] * n) if goal == "up-up" and n != 2 else goal
+        eq = equilibria(chain).find(label)
+        return np.asarray(eq.state, dtype=float), label
+    raise ParameterError(f"goal must be an equilibrium's label (e.g. {'-'.join(['up'] * n)}) or an Equilibrium, got {goal!r}")
+
+
+def _check_controllable(chain, label: str, actuated: Tuple[int, ...]) -> None:
+    from .control import controllability, linearization
+
+    lin = linearization(chain, label, actuated, coulomb="smoothed")
+    c = controllability(lin.A, lin.B)
+    if not c["controllable"] or c["distance"] < 1e-10:
+        raise EquilibriumError(f"the goal {label} cannot be held with the joints {', '.join(map(str, actuated))} actuated: "
+                               f"the linearisation is not controllable (rank {c['rank']} of {lin.A.shape[0]})")
+
+
+def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="up-up", start=None,
+                    cost: Cost = Cost(), horizon: Tuple[float, float] = (0.5, 4.0), guess: float = 1.5,
+                    knots: int = 150, hold: float = 0.8, height: float = PROTOCOL.height, attempts: int = 4,
+                    seed: int = 0, dt_score: float = PROTOCOL.dt, steps_score: int = PROTOCOL.steps,
+                    max_iter: int = 1500, progress=None) -> OptimalTrajectory:
+    """The swing-up of ``model`` from ``start`` (default: hanging at rest) to ``goal`` (an equilibrium's
+    label or an ``Equilibrium``) that minimises ``cost`` with the ``actuated`` joints' torques within
+    ``umax`` [N m] (see the module).  ``horizon`` bounds the duration [s], ``guess`` starts it;
+    ``knots`` intervals; ``hold``: the fraction of the duration after which the end effector stays above
+    ``height`` x its goal height (when the goal's end effector is above the roof; otherwise no such
+    constraint and the time term is the duration).  ``attempts`` seeded starts (the best converged one is
+    returned); the criteria are those of rows ``dt_score`` apart over ``steps_score`` rows (the
+    leaderboard's).  ``progress(k, attempts)`` is told of each start.
+
+    Refused with one line: an uncontrollable goal, a horizon too short to reach it under the torque limit
+    (no start converges to a feasible motion: ``ok`` False, exit status 1 on the command line), negative
+    weights (:class:`Cost`)."""
+    import time as _time
+
+    chain = _as_chain(model)
+    n = chain.n
+    joints = _actuated(actuated, n)
+    if not isinstance(cost, Cost):
+        raise ParameterError(f"cost must be a skewpend Cost, got {type(cost).__name__}")
+    if not (isinstance(umax, (int, float)) and math.isfinite(umax) and umax > 0):
+        raise ParameterError(f"umax must be a positive torque limit [N m], got {umax!r}")
+    try:
+        lo, hi = (float(v) for v in horizon)
+    except (TypeError, ValueError):
+        raise ParameterError(f"horizon must be (shortest, longest) durations [s], got {horizon!r}") from None
+    if not (0 < lo < hi <= 60):
+        raise ParameterError(f"horizon must be 0 < shortest < longest <= 60 s, got {horizon!r}")
+    guess = min(max(float(guess), lo), hi)
+    if not (isinstance(knots, int) and 10 <= knots <= 5000):
+        raise ParameterError(f"knots must be a whole number of intervals, 10 to 5000, got {knots!r}")
+    if not (0 < hold <= 1) or not (0 < height <= 1):
+        raise ParameterError(f"hold and height must be fractions in (0, 1], got {hold!r} and {height!r}")
+    x_goal, label = _goal_state(chain, goal)
+    _check_controllable(chain, label, joints)
+    x_start = np.zeros(2 * n) if start is None else np.array(start, dtype=float).reshape(2 * n)
+    ca, rhs, step, tip = _dynamics(chain, joints)
+    m = len(joints)
+    N = knots
+    up_line = height * float(tip(x_goal[:n]))
+    use_height = up_line > 0
+    X = ca.MX.sym("X", 2 * n, N + 1)
+    U = ca.MX.sym("U", m, N + 1)
+    T = ca.MX.sym("T", 2)  # the phases' durations: up to the crossing of the success line, then to the goal
+    C = ca.MX.sym("C", 5)  # energy, torque cost, velocity cost, variance and mean of the torque's steps
+    N1 = max(1, min(N - 1, int(round(hold * N)))) if use_height else N
+    N2 = N - N1
+    h = ca.vertcat(ca.repmat(T[0] / N1, N1, 1), ca.repmat(T[1] / max(N2, 1), N2, 1)).T if N2 else ca.repmat(T[0] / N1, 1, N)
+    F = step.map(N)
+    g = [ca.vec(F(X[:, :N], U[:, :N], U[:, 1:], h) - X[:, 1:]), T[0] + T[1]]
+    lbg = [np.zeros(2 * n * N), [lo]]
+    ubg = [np.zeros(2 * n * N), [hi]]
+    if use_height:
+        H = tip.map(N + 1 - N1)
+        g.append(ca.vec(H(X[:n, N1:]) - up_line))
+        lbg.append(np.zeros(N + 1 - N1))
+        ubg.append(np.full(N + 1 - N1, np.inf))
+    # the criteria on rows dt_score apart: each knot interval holds h / dt_score rows
+    per = h / dt_score
+    energy = 0
+    for r, j in enumerate(joints):
+        w = (X[j - 1, 1:] - X[j - 1, :N]) * 0.5 * (U[r, :N] + U[r, 1:])
+        energy = energy + ca.sum2(ca.sqrt(w ** 2 + 1e-8))
+    diffs = U[:, 1:] - U[:, :N]
+    nd = steps_score - 1
+    g.append(C - ca.vertcat(energy, ca.sum2(h * ca.sum1(U[:, :N] ** 2)), ca.sum2(h * ca.sum1(X[n:, :N] ** 2)),
+                            ca.sum2(ca.sum1(diffs ** 2) / per) / nd - C[4] ** 2, ca.sum1(ca.sum2(diffs)) / nd))
+    lbg.append(np.zeros(5))
+    ubg.append(np.zeros(5))
+    values = {"swingup_time": T[0] if use_height else T[0] + T[1], "energy": C[0], "tau_cost": C[1],
+              "velocity_cost": C[2], "tau_smoothness": ca.sqrt(C[3] + 1e-14)}
+    weights = dict(zip(COST_TERMS, cost.weights))
+    objective = 0
+    for key in COST_TERMS:
+        if weights[key]:
+            s = math.pi * values[key] / NORMALISATION[key]
+            objective = objective + weights[key] * (ca.tanh(s) + LINEAR_SHARE * s)
+    z = ca.vertcat(ca.vec(X), ca.vec(U), C, T)
+    nz = z.shape[0]
+    nX, nU = 2 * n * (N + 1), m * (N + 1)
+    lbz, ubz = np.full(nz, -np.inf), np.full(nz, np.inf)
+    lbz[:2 * n], ubz[:2 * n] = x_start, x_start
+    lbz[2 * n * N:nX], ubz[2 * n * N:nX] = x_goal, x_goal
+    lbz[nX:nX + nU], ubz[nX:nX + nU] = -umax, umax
+    lbz[nX + nU - m:nX + nU] = ubz[nX + nU - m:nX + nU] = 0.0  # the goal is held by no torque (an equilibrium)
+    lbz[nX + nU:nX + nU + 4] = 0.0
+    lbz[-2:], ubz[-2:] = 0.02 * lo, hi
+    if not N2:
+        lbz[-1] = ubz[-1] = 0.0
+    solver = ca.nlpsol("swingup", "ipopt", {"x": z, "f": objective, "g": ca.vertcat(*g)},
+                       {"expand": True, "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                        "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-8, "ipopt.acceptable_iter": 200,
+                        "ipopt.bound_relax_factor": 0.0})
+    evaluate = ca.Function("criteria", [z], [ca.vertcat(*[values[k] for k in COST_TERMS]), objective])
+    rng = np.random.default_rng(seed)
+    best = None
+    t0 = _time.perf_counter()
+    tau_grid = np.linspace(0.0, 1.0, N + 1)
+    for attempt in range(int(attempts)):
+        if progress is not None:
+            progress(attempt, attempts)
+        X0 = x_start[:, None] + (x_goal - x_start)[:, None] * tau_grid[None, :]
+        X0[n:] = ((x_goal - x_start)[:n] / guess)[:, None]
+        U0 = np.zeros((m, N + 1))
+        duration = guess
+        if attempt:  # a seeded start: a swing of random size and sense, torques along it, another duration
+            duration = min(max(guess * (1.0 + 0.25 * rng.uniform(-1, 1)), lo), hi)
+            X0[:n] += rng.normal(scale=SPREAD, size=(n, 1)) * np.sin(np.pi * tau_grid)[None, :]
+            U0[:, :N] = rng.uniform(-0.5, 0.5, size=(m, 1)) * umax * np.sin(2 * np.pi * tau_grid[:N])
+        z0 = np.concatenate([X0.T.ravel(), U0.T.ravel(), np.zeros(5), [duration * N1 / N, duration * N2 / N]])
+        sol = solver(x0=z0, lbx=lbz, ubx=ubz, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
+        status = solver.stats()["return_status"]
+        ok = status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+        zs = np.array(sol["x"]).ravel()
+        crit, obj = evaluate(zs)
+        obj = float(obj)
+        if best is None or (ok and (not best[0] or obj < best[1])):
+            best = (ok, obj, zs, status, np.array(crit).ravel())
+    ok, obj, zs, status, crit = best
+    T1, T2 = float(zs[-2]), float(zs[-1])
+    x = zs[:nX].reshape(N + 1, 2 * n)
+    u = zs[nX:nX + nU].reshape(N + 1, m)
+    full = np.zeros((N + 1, n))
+    full[:, [j - 1 for j in joints]] = u
+    predicted = {k: float(v) for k, v in zip(COST_TERMS, crit)}
+    if ok:
+        # the discretisation's own check: the optimised torques replayed by RK4 reach the goal
+        message = f"optimal ({status}, objective {obj:.4g})"
+    else:
+        message = (f"no optimal swing-up found: IPOPT ended with {status} in each of {attempts} starts (a horizon "
+                   f"{lo:g}..{hi:g} s too short for the torque limit {umax:g} N m, or a goal out of reach)")
+    knots_t = np.concatenate([np.linspace(0.0, T1, N1 + 1), T1 + np.linspace(0.0, T2, N2 + 1)[1:]])
+    return OptimalTrajectory(knots_t, x, full, chain, joints, x_goal, float(umax), ok, message,
+                             predicted, _time.perf_counter() - t0, int(attempts))
+
+
+# -- tracking -------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Tracking:
+    """Time-varying LQR along an optimised swing-up, then the goal's LQR (see the module): the law
+    ``u(t, x)`` -- ``u_k - K_k (x - x_k)`` at the step ``k = round(t / dt)`` of the resampled reference,
+    ``-K_goal (x - x_goal)`` after it (angle errors wrapped to (-pi, pi]) -- clipped to ``umax``; the
+    joints not actuated get 0."""
+
+    dt: float
+    x_ref: np.ndarray = field(repr=False)
+    u_ref: np.ndarray = field(repr=False)
+    K: np.ndarray = field(repr=False)
+    K_goal: np.ndarray = field(repr=False)
+    goal: np.ndarray
+    umax: float
+    actuated: Tuple[int, ...]
+    trajectory: Any = field(repr=False, default=None)
+
+    @property
+    def duration(self) -> float:
+        return len(self.K) * self.dt
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        n = x.size // 2
+        k = int(math.floor(t / self.dt + 0.5))
+        if 0 <= k < len(self.K):
+            dx = x - self.x_ref[k]
+            dx[:n] = np.mod(dx[:n] + np.pi, 2 * np.pi) - np.pi
+            v = self.u_ref[k] - self.K[k] @ dx
+        else:
+            dx = x - self.goal
+            dx[:n] = np.mod(dx[:n] + np.pi, 2 * np.pi) - np.pi
+            v = -self.K_goal @ dx
+        out = np.zeros(n)
+        idx = [j - 1 for j in self.actuated]
+        out[idx] = np.clip(v, -self.umax, self.umax)
+        return out
+
+    # the DFKI lab's controller interface (double_pendulum.controller.abstract_controller)
+    def get_control_output(self, x, t=None):
+        """The torques at the DFKI state ``x = (q1, q2, q1', q2')`` and time ``t`` [s] (their convention
+        is skewpend's: q2 relative to rod 1, zero hanging)."""
+        return self(0.0 if t is None else float(t), x)
+
+    def init(self) -> None:
+        """The DFKI interface's initialisation (nothing to do)."""
+
+    def reset(self) -> None:
+        """The DFKI interface's reset (nothing to do)."""
+
+
+def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=None, Qf=None) -> Tracking:
+    """The tracking of ``trajectory`` (:class:`Tracking`): the reference resampled every ``dt`` [s] (states
+    by cubic Hermite interpolation, torques linearly), the discrete step (RK4, torques held) linearised
+    along it, the Riccati recursion ``P_k = Q + A^T P (A - B K_k)`` from the goal's discrete LQR (``Qf``
+    its state weight; ``R`` the torques')."""
+    from scipy.linalg import solve_discrete_are
+
+    if not trajectory.ok:
+        raise ParameterError(f"cannot track a swing-up that was not optimised: {trajectory.message}")
+    chain = trajectory.chain
+    n = chain.n
+    joints = trajectory.actuated
+    m = len(joints)
+    ca, rhs, step, _ = _dynamics(chain, joints)
+    idx = [j - 1 for j in joints]
+    Qm = np.diag([10.0] * n + [1.0] * n) if Q is None else np.asarray(Q, dtype=float)
+    Rm = np.eye(m) * 0.1 if R is None else np.atleast_2d(np.asarray(R, dtype=float))
+    Qfm = Qm if Qf is None else np.asarray(Qf, dtype=float)
+    t_knots, xk, uk = trajectory.t, trajectory.x, trajectory.u[:, idx]
+    K_steps = int(math.ceil(trajectory.duration / dt - 1e-9))
+    ts = np.arange(K_steps) * dt
+    # reference: Hermite cubic of the knots' states with their derivatives
+    fk = np.array([np.array(rhs(xk[i], uk[i])).ravel() for i in range(len(t_knots))])
+    i = np.clip(np.searchsorted(t_knots, ts, side="right") - 1, 0, len(t_knots) - 2)
+    H = (t_knots[i + 1] - t_knots[i])[:, None]
+    s = (ts - t_knots[i]) / H[:, 0]
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+    x_ref = h00[:, None] * xk[i] + h10[:, None] * H * fk[i] + h01[:, None] * xk[i + 1] + h11[:, None] * H * fk[i + 1]
+    u_ref = uk[i] + s[:, None] * (uk[i + 1] - uk[i])
+    y = ca.SX.sym("y", 2 * n)
+    u = ca.SX.sym("u", m)
+    nxt = step(y, u, u, dt)
+    jac = ca.Function("linear_step", [y, u], [ca.jacobian(nxt, y), ca.jacobian(nxt, u)])
+    goal = trajectory.goal
+    Ag, Bg = (np.array(v) for v in jac(goal, np.zeros(m)))
+    try:
+        P = solve_discrete_are(Ag, Bg, Qfm, Rm)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise EquilibriumError(f"the goal's discrete LQR has no solution: {exc}") from None
+    K_goal = np.linalg.solve(Rm + Bg.T @ P @ Bg, Bg.T @ P @ Ag)
+    Ks = np.zeros((K_steps, m, 2 * n))
+    jm = jac.map(K_steps)
+    A_all, B_all = (np.array(v) for v in jm(x_ref.T, u_ref.T))
+    A_all = A_all.reshape(2 * n, K_steps, 2 * n).transpose(1, 0, 2)
+    B_all = B_all.reshape(2 * n, K_steps, m).transpose(1, 0, 2)
+    for k in range(K_steps - 1, -1, -1):
+        A, B = A_all[k], B_all[k]
+        Kk = np.linalg.solve(Rm + B.T @ P @ B, B.T @ P @ A)
+        P = Qm + A.T @ P @ (A - B @ Kk)
+        P = 0.5 * (P + P.T)
+        Ks[k] = Kk
+    return Tracking(dt, x_ref, u_ref, Ks, K_goal, goal, trajectory.umax, joints, trajectory)

@@ -1,0 +1,89 @@
+"""``control leaderboard``: optimise a swing-up of the RealAIGym leaderboard's plant, track it, run and score it
+by the leaderboard's protocol (the library: :mod:`skewpend.analysis.trajopt`, :mod:`skewpend.analysis.leaderboard`)."""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import Optional
+
+from ..parsing import UsageError
+from ..progress import stage
+
+__all__ = ["run_leaderboard", "ROBOT_NAMES"]
+
+#: The leaderboard's robots (``--robot``).
+ROBOT_NAMES = ("acrobot", "pendubot")
+
+
+def check_model_options(model: dict, config: Optional[str]) -> float:
+    """The skew angle of the leaderboard's plant (``--alpha``, default 0); every other model option and a run
+    file refused in one line: the plant is the leaderboard's."""
+    other = sorted(k for k, v in model.items() if v is not None and k != "alpha")
+    if other or config is not None:
+        what = f"--{other[0].replace('_', '-')}" if other else "--config"
+        raise UsageError(f"{what}: control leaderboard runs the leaderboard's plant (the DFKI lab's design C.1, "
+                         "model 1.1); only --alpha changes it (the second hinge turned by that angle)")
+    alpha = model.get("alpha")
+    return 0.0 if alpha is None else float(alpha)
+
+
+def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], out: Optional[str],
+                    plot: Optional[str], quiet: bool) -> int:
+    """Optimise, track, run by the protocol, score; print the criteria beside the best published entry.
+    Exit status 0 on success, 1 when the optimisation fails or the run does not stay up."""
+    import numpy as np
+
+    from ..analysis import leaderboard as lb
+    from ..analysis.trajopt import optimal_swingup, tvlqr
+
+    if robot is None:
+        raise UsageError("control leaderboard: give --robot acrobot or --robot pendubot (the joint with the motor: "
+                         "the elbow, the shoulder)")
+    if out is not None:
+        from ..io import check_output_path
+
+        check_output_path(out, (".csv",), option="--out")
+    if plot is not None:
+        from .simulate import check_plot
+
+        check_plot(plot)
+    limit = lb.PROTOCOL.umax if umax is None else float(umax)
+    model = lb.dfki_model(alpha)
+    joints = lb.ROBOTS[robot]
+    skew = f", alpha = {math.degrees(alpha):.4g} deg" if alpha else ""
+    stage(f"optimising the {robot}'s swing-up (IPOPT, {limit:g} N m{skew})")
+    traj = optimal_swingup(model, actuated=joints, umax=limit)
+    if not traj.ok:
+        sys.stderr.write(f"skewpend: {traj.message}\n")
+        return 1
+    stage("designing the time-varying LQR along it")
+    tracking = tvlqr(traj)
+    stage(f"running the leaderboard's protocol ({lb.PROTOCOL.steps} RK4 steps of {lb.PROTOCOL.dt:g} s)")
+    protocol = lb.Protocol(umax=limit)
+    run = lb.run_protocol(model, tracking, actuated=joints, umax=limit, protocol=protocol)
+    c = run.criteria
+    name, best = lb.PUBLISHED[robot]["simulation"]
+    lines = [
+        f"robot        {robot} (motor on joint {joints[0]}), the DFKI lab's design C.1, model 1.1{skew}; |u| <= {limit:g} N m",
+        f"optimised    {traj.message}; {traj.duration:.4g} s to the goal, {traj.solve_time:.3g} s",
+        f"{'criterion':<22} {'skewpend':>12}",
+    ]
+    for key, label in (("swingup_time", "swing-up time [s]"), ("energy", "energy [J]"), ("tau_cost", "torque cost"),
+                       ("tau_smoothness", "torque smoothness"), ("velocity_cost", "velocity cost")):
+        lines.append(f"{label:<22} {getattr(c, key):12.5g}")
+    lines.append(f"{'success':<22} {'yes' if c.success else 'no':>12}")
+    lines.append(f"{'score (v2)':<22} {c.score:12.4f}   best published: {best:.3f} ({name})")
+    if out is not None:
+        lb.write_csv(out, run.t, run.x, run.u)
+        lines.append(f"written      {out} (the leaderboard's columns)")
+    if plot is not None:
+        stage(f"drawing {plot}")
+        from ..views import figures
+
+        title = f"The {robot}'s optimal swing-up, tracked by time-varying LQR{skew}"
+        figures.save_figure(figures.leaderboard_figure(run, tracking, title), plot)
+        lines.append(f"plot         {plot}")
+    sys.stdout.write("\n".join(lines) + "\n")
+    del np
+    return 0 if c.success else 1
