@@ -18,8 +18,10 @@ the rows ``(t_k, x_k, u_k)``, ``u_k`` the torques held from ``t_k`` to ``t_k + d
   time (``n`` 20 s), energy (60 J), torque cost (20), smoothness (0.1) and velocity cost (400).
 
 :func:`criteria` and :func:`score` compute them from any rows (a published trajectory's, a run's);
-:func:`run_protocol` runs a law by the protocol on any model (the double pendulum, a chain) with the
-compiled model's RK4 step (``sp_rk4_hold``); :data:`PROTOCOL` holds the leaderboard's settings;
+:func:`run_protocol` runs a law by the protocol on any model (the double pendulum, a chain) in one
+compiled loop (``sp_protocol``: the law, the model's RK4 step with the torques held), with the
+robustness tests' delay, noise, torque response and perturbations when asked (:class:`Disturbance`);
+:data:`PROTOCOL` holds the leaderboard's settings;
 :func:`read_csv` and :func:`write_csv` the leaderboard's trajectory files
 (``time,pos_meas1,pos_meas2,vel_meas1,vel_meas2,tau_con1,tau_con2``).
 """
@@ -31,13 +33,14 @@ import ctypes
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Dict, Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
 
 from ..errors import ParameterError
 
 __all__ = ["PROTOCOL", "Protocol", "NORMALISATION", "Criteria", "criteria", "score", "ProtocolRun", "run_protocol",
+           "Disturbance",
            "read_csv", "write_csv", "CSV_COLUMNS", "dfki_model", "ROBOTS", "PUBLISHED"]
 
 
@@ -210,67 +213,119 @@ def tip_heights(kernel, p, x: np.ndarray) -> np.ndarray:
     return -ends[:, 3 * kernel.nq - 2]
 
 
-def run_protocol(model, law: Callable[[float, np.ndarray], Any], *, actuated=(2,), umax: float = PROTOCOL.umax,
-                 protocol: Protocol = PROTOCOL, x0=None, plant=None, measure: Optional[Callable] = None,
-                 apply: Optional[Callable] = None, cancel=None) -> ProtocolRun:
-    """``law(t, x) -> torques`` (one per joint, or one for a single actuated joint) run by the protocol on
-    ``model`` (or on ``plant``, another model of the same joints, when given: the controller's model
-    and the simulated one differ), from ``x0`` (default hanging at rest) for ``protocol.steps`` steps.
-    ``actuated``: the joints' numbers with a motor (the others get 0); every torque clipped to ``umax``.
-    ``measure(k, x, history) -> x_meas`` and ``apply(k, u, last) -> u`` change what the law sees and
-    what the motors do (the robustness tests); ``cancel`` (an Event) stops the run (``message``)."""
+@dataclass(frozen=True)
+class Disturbance:
+    """What the leaderboard's robustness tests change in a run (:func:`run_protocol`; all off by default):
+    the law sees the state ``delay`` steps old (the start's before) with Gaussian noise of standard
+    deviation ``velocity_noise`` [rad/s] on its speeds; the motors apply the previous torque plus
+    ``responsiveness`` times the change to the law's, plus Gaussian noise ``torque_noise`` [N m], clipped to
+    the limit, plus ``perturbation`` (an array (steps, n) [N m], added after the clip) -- the actuated
+    joints only.  ``seed`` seeds NumPy's generator that draws the noise (the lab's is not seeded)."""
+
+    delay: int = 0
+    velocity_noise: float = 0.0
+    torque_noise: float = 0.0
+    responsiveness: float = 1.0
+    perturbation: Optional[np.ndarray] = None
+    seed: int = 0
+
+    def __post_init__(self):
+        if isinstance(self.delay, bool) or not isinstance(self.delay, (int, np.integer)) or self.delay < 0:
+            raise ParameterError(f"delay must be a whole number of steps >= 0, got {self.delay!r}")
+        for name in ("velocity_noise", "torque_noise"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v) and v >= 0):
+                raise ParameterError(f"{name} must be a standard deviation >= 0, got {v!r}")
+        r = self.responsiveness
+        if not (isinstance(r, (int, float, np.floating)) and math.isfinite(r) and r > 0):
+            raise ParameterError(f"responsiveness must be a positive number (1: the motor follows at once), got {r!r}")
+
+
+def _compiled_law(law, joints, umax: float, n: int):
+    """``law`` as a compiled :class:`~skewpend.Controller` with the protocol's actuated joints and limit: a
+    :class:`~skewpend.analysis.trajopt.Tracking` (or anything with ``controller()``) compiled, a
+    Controller as given, a Python ``law(t, x)`` on the slow path."""
+    from dataclasses import replace
+
+    from ..numeric.control import Controller, torque_limits
+
+    limits = torque_limits(umax, n)
+    if isinstance(law, Controller):
+        law.check_model(n)
+        return replace(law, actuated=tuple(joints), umax=limits)
+    if callable(getattr(law, "controller", None)):
+        return replace(law.controller(), actuated=tuple(joints), umax=limits)
+    if not callable(law):
+        raise ParameterError(f"the law must be a callable law(t, x) -> torques, a Tracking or a Controller, got {law!r}")
+
+    def full(t, x):
+        raw = np.asarray(law(t, x), dtype=float).reshape(-1)
+        if raw.size == 1 and len(joints) == 1:
+            out = np.zeros(n)
+            out[joints[0] - 1] = raw[0]
+            return out
+        if raw.shape != (n,):
+            raise ParameterError(f"the law must return {n} torques (or one for the one actuated joint), got shape "
+                                 f"{raw.shape}")
+        return raw
+
+    return Controller.function(full, actuated=tuple(joints), umax=limits, nq=n)
+
+
+def run_protocol(model, law, *, actuated=(2,), umax: float = PROTOCOL.umax, protocol: Protocol = PROTOCOL, x0=None,
+                 plant=None, disturbance: Optional[Disturbance] = None) -> ProtocolRun:
+    """``law`` run by the protocol on ``model`` (or on ``plant``, another model of the same joints, when given:
+    the controller's model and the simulated one differ), from ``x0`` (default hanging at rest) for
+    ``protocol.steps`` steps, in one compiled loop (``sp_protocol``).  ``law``: a
+    :class:`~skewpend.analysis.trajopt.Tracking` or a :class:`~skewpend.Controller` (compiled: no Python per
+    step), or a Python ``law(t, x) -> torques`` (one per joint, or one for a single actuated joint; the slow
+    path).  ``actuated``: the joints' numbers with a motor (the others get 0); every torque clipped to
+    ``umax``; ``disturbance`` the robustness tests' changes (:class:`Disturbance`)."""
+    from ..numeric.control import raise_law_error
     from ..numeric.kernels import model_kernel, model_vector
 
     sim = model if plant is None else plant
     kernel = model_kernel(sim)
     p = np.ascontiguousarray(model_vector(sim), dtype=float)
     n = kernel.nq
-    joints = sorted({int(j) for j in actuated})
+    try:
+        joints = sorted({int(j) for j in actuated})
+    except (TypeError, ValueError):
+        joints = []
     if not joints or not all(1 <= j <= n for j in joints):
         raise ParameterError(f"actuated must be the numbers of the joints with a motor, 1 to {n}, got {actuated!r}")
-    mask = np.zeros(n, dtype=bool)
-    mask[[j - 1 for j in joints]] = True
+    controller = _compiled_law(law, joints, umax, n)
     steps = protocol.steps
-    t = np.arange(steps) * protocol.dt
+    state = np.zeros(2 * n) if x0 is None else np.array(x0, dtype=float).reshape(2 * n)
+    if not np.all(np.isfinite(state)):
+        raise ParameterError(f"x0 must be {2 * n} finite numbers (angles [rad], then speeds [rad/s])")
+    d = Disturbance() if disturbance is None else disturbance
+    rng = np.random.default_rng(d.seed)
+    vnoise = rng.normal(0.0, d.velocity_noise, (steps, n)) if d.velocity_noise > 0 else None
+    unoise = rng.normal(0.0, d.torque_noise, (steps, n)) if d.torque_noise > 0 else None
+    pert = None
+    if d.perturbation is not None:
+        pert = np.ascontiguousarray(d.perturbation, dtype=float)
+        if pert.shape != (steps, n) or not np.all(np.isfinite(pert)):
+            raise ParameterError(f"perturbation must be finite torques of shape ({steps}, {n}) [N m] (a row per step)")
     x = np.zeros((steps, 2 * n))
     u = np.zeros((steps, n))
-    state = np.zeros(2 * n) if x0 is None else np.array(x0, dtype=float).reshape(2 * n)
     dp = ctypes.POINTER(ctypes.c_double)
-    pp = p.ctypes.data_as(dp)
-    ub = np.zeros(n)
-    buf = state.copy()
-    step_fn = kernel.lib.sp_rk4_hold
+
+    def ptr(a):
+        return None if a is None else a.ctypes.data_as(dp)
+
+    c = controller.struct()
+    done = kernel.lib.sp_protocol(ctypes.byref(c), ptr(p), ptr(state), steps, protocol.dt, int(d.delay),
+                                  float(d.responsiveness), ptr(vnoise), ptr(unoise), ptr(pert), ptr(x), ptr(u))
+    raise_law_error(c)
     message = ""
-    last = np.zeros(n)
-    for k in range(steps):
-        if cancel is not None and k % 500 == 0 and cancel.is_set():
-            message = "cancelled"
-            break
-        x[k] = buf
-        seen = buf if measure is None else measure(k, buf.copy(), x[:k + 1])
-        raw = np.asarray(law(float(t[k]), np.array(seen)), dtype=float).reshape(-1)
-        if raw.size == 1 and len(joints) == 1:
-            full = np.zeros(n)
-            full[joints[0] - 1] = raw[0]
-            raw = full
-        if raw.shape != (n,):
-            raise ParameterError(f"the law must return {n} torques (or one for the one actuated joint), got shape {raw.shape}")
-        cmd = np.where(mask, np.clip(raw, -umax, umax), 0.0)
-        if apply is not None:
-            cmd = np.where(mask, np.asarray(apply(k, cmd, last), dtype=float), 0.0)
-        if not np.all(np.isfinite(cmd)):
-            message = f"the law returned non-finite torques at t = {t[k]:.4g} s"
-            break
-        u[k] = cmd
-        last = cmd
-        ub[:] = cmd
-        step_fn(buf.ctypes.data_as(dp), pp, ub.ctypes.data_as(dp), protocol.dt, buf.ctypes.data_as(dp))
-        if not np.all(np.isfinite(buf)):
-            message = f"the run failed at t = {t[k]:.4g} s (a non-finite state)"
-            break
-    if message:
-        rows = k
-        t, x, u = t[:rows], x[:rows], u[:rows]
+    if done < steps:
+        t_bad = done * protocol.dt
+        message = (f"the law returned non-finite torques at t = {t_bad:.4g} s" if not np.all(np.isfinite(u[done]))
+                   else f"the run failed at t = {t_bad:.4g} s (a non-finite state)")
+        x, u = x[:done], u[:done]
+    t = np.arange(len(x)) * protocol.dt
     heights = tip_heights(kernel, p, x) if len(x) else np.zeros(0)
     return ProtocolRun(t, x, u, heights, model_reach(sim), protocol, message)
 

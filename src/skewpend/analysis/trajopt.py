@@ -333,9 +333,10 @@ def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="
 @dataclass(frozen=True)
 class Tracking:
     """Time-varying LQR along an optimised swing-up, then the goal's LQR (see the module): the law
-    ``u(t, x)`` -- ``u_k - K_k (x - x_k)`` at the step ``k = round(t / dt)`` of the resampled reference,
-    ``-K_goal (x - x_goal)`` after it (angle errors wrapped to (-pi, pi]) -- clipped to ``umax``; the
-    joints not actuated get 0."""
+    ``u(t, x)`` -- sample ``k``'s ``u_k - K_k (x - x_k)`` of the resampled reference at ``t = k dt`` (the
+    sample after the last one is the goal's ``-K_goal (x - x_goal)``), the two samples' laws around ``t``
+    blended linearly between them (angle errors wrapped to (-pi, pi]) -- clipped to ``umax``; the joints
+    not actuated get 0.  :meth:`controller` is the same law compiled for :func:`skewpend.simulate`."""
 
     dt: float
     x_ref: np.ndarray = field(repr=False)
@@ -351,22 +352,48 @@ class Tracking:
     def duration(self) -> float:
         return len(self.K) * self.dt
 
+    def _law(self, k: int, x: np.ndarray) -> np.ndarray:
+        """Sample ``k``'s law at ``x`` (``k = len(K)``: the goal's LQR), the actuated joints' torques."""
+        n = x.size // 2
+        ref, u, K = (self.goal, 0.0, self.K_goal) if k >= len(self.K) else (self.x_ref[k], self.u_ref[k], self.K[k])
+        dx = x - ref
+        dx[:n] = np.mod(dx[:n] + np.pi, 2 * np.pi) - np.pi
+        return u - K @ dx
+
     def __call__(self, t: float, x) -> np.ndarray:
         x = np.asarray(x, dtype=float)
         n = x.size // 2
-        k = int(math.floor(t / self.dt + 0.5))
-        if 0 <= k < len(self.K):
-            dx = x - self.x_ref[k]
-            dx[:n] = np.mod(dx[:n] + np.pi, 2 * np.pi) - np.pi
-            v = self.u_ref[k] - self.K[k] @ dx
+        s = t / self.dt
+        k = math.floor(s)
+        if k >= len(self.K):
+            v = self._law(len(self.K), x)
+        elif k < 0:
+            v = self._law(0, x)
         else:
-            dx = x - self.goal
-            dx[:n] = np.mod(dx[:n] + np.pi, 2 * np.pi) - np.pi
-            v = -self.K_goal @ dx
+            v = self._law(k, x)
+            if s > k:
+                v = v + (s - k) * (self._law(k + 1, x) - v)
         out = np.zeros(n)
         idx = [j - 1 for j in self.actuated]
         out[idx] = np.clip(v, -self.umax, self.umax)
         return out
+
+    def controller(self):
+        """This law compiled (:class:`skewpend.Controller`, kind ``tracking``) for :func:`skewpend.simulate`:
+        the same samples, gains and goal LQR, evaluated inside the integrators with no Python call per step."""
+        from ..numeric.control import Controller
+
+        steps, n2 = self.x_ref.shape
+        n = n2 // 2
+        idx = [j - 1 for j in self.actuated]
+        inputs = np.zeros((steps, n))
+        inputs[:, idx] = self.u_ref
+        gains = np.zeros((steps, n, n2))
+        gains[:, idx, :] = self.K
+        K_goal = np.zeros((n, n2))
+        K_goal[idx, :] = self.K_goal
+        return Controller.tracking(self.dt, self.x_ref, inputs, gains, K_goal, self.goal, actuated=self.actuated,
+                                   umax=self.umax)
 
     # the DFKI lab's controller interface (double_pendulum.controller.abstract_controller)
     def get_control_output(self, x, t=None):

@@ -13,6 +13,10 @@ A :class:`Controller` says which joints are actuated (``"both"``, ``"acrobot"`` 
   inside the region ``(x - x*)^T P (x - x*) < rho``;
 * ``Controller.table(times, torques)``: ``u(t)`` interpolated linearly in a table (held at its
   ends);
+* ``Controller.tracking(dt, states, inputs, gains, K, target)``: time-varying feedback along a
+  reference sampled every ``dt``: ``u = u_k - K_k (x - x_k)`` at ``t = k dt``, blended linearly
+  between samples, then the feedback ``-K (x - x*)`` of the goal after the last sample (a TVLQR's
+  law, :func:`skewpend.analysis.trajopt.tvlqr`);
 * ``Controller.function(f)``: any law ``u = f(t, x)`` written in Python -- the slow path: the
   compiled integrator calls back into Python at every stage (about a microsecond or two each,
   tens of times the cost of the built-in laws); an exception in ``f`` stops the run and is
@@ -48,7 +52,7 @@ __all__ = ["Controller", "ACTUATION", "KINDS", "CALLBACK", "MAX_JOINTS", "actuat
 #: controller takes ``"all"`` (``"both"``: every joint, the default) or the joints' numbers ``(1, 3)``.
 ACTUATION = {"both": 3, "pendubot": 1, "acrobot": 2}
 #: The laws (the ``SP_CTL_*`` codes of ``integrators.c``).
-KINDS = {"feedback": 1, "swingup": 2, "table": 3, "function": 4}
+KINDS = {"feedback": 1, "swingup": 2, "table": 3, "function": 4, "tracking": 5}
 #: The C signature of a Python law: u[n] at time t and state y[2 n] (``sp_control.callback``).
 CALLBACK = ctypes.CFUNCTYPE(None, ctypes.c_double, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double))
 #: The most joints a controller drives (the actuated set is one 32-bit mask in ``sp_control``).
@@ -176,6 +180,9 @@ class Controller:
     torques: Optional[np.ndarray] = field(default=None, repr=False)
     law: Any = field(default=None, repr=False)  #: a Python law (Controller.function)
     nq: int = 2
+    #: tracking: the rows (x_k, u_k, K_k) of the reference, sampled every ``dt`` [s]
+    reference: Optional[np.ndarray] = field(default=None, repr=False)
+    dt: float = 0.0
 
     # -- constructors ------------------------------------------------------------------------
     @classmethod
@@ -242,6 +249,34 @@ class Controller:
                    K=np.zeros((n, 2 * n)), target=np.zeros(2 * n), u_target=np.zeros(n), P=np.zeros((2 * n, 2 * n)))
 
     @classmethod
+    def tracking(cls, dt: float, states, inputs, gains, K, target, u_target=None, *, actuated="both", umax=None
+                 ) -> "Controller":
+        """Time-varying feedback along a reference sampled every ``dt`` [s]: sample ``k``'s law ``inputs[k] -
+        gains[k] (x - states[k])`` at ``t = k dt`` (the angles of the deviation wrapped to (-pi, pi]), the
+        sample after the last one the feedback ``u* - K (x - x*)`` about ``target``; between two samples
+        their laws blended linearly (sample 0's before it, the goal's from ``len(states) dt`` on).
+        ``states`` (k, 2 n), ``inputs`` (k, n) and ``gains`` (k, n, 2 n) hold every joint (an unactuated joint's
+        rows are ignored)."""
+        n = _gain_joints(K)
+        actuation_mask(actuated, n)
+        dt = _real("dt", dt)
+        if not (math.isfinite(dt) and dt > 0):
+            raise ParameterError(f"dt must be a positive sampling step [s], got {dt!r}")
+        x = _array("states", states)
+        if x.ndim != 2 or x.shape[0] < 1 or x.shape[1] != 2 * n:
+            raise ParameterError(f"states must have shape (k, {2 * n}): a sample per row, got {x.shape}")
+        k = x.shape[0]
+        u = _finite("inputs", inputs, (k, n))
+        g = _finite("gains", gains, (k, n, 2 * n))
+        if not np.all(np.isfinite(x)):
+            raise ParameterError("states must be finite")
+        reference = np.ascontiguousarray(np.column_stack([x, u, g.reshape(k, -1)]), dtype=float)
+        return cls("tracking", _actuated_setting(actuated), torque_limits(umax, n), _finite("K", K, (n, 2 * n)),
+                   _finite("target", target, (2 * n,)),
+                   _finite("u_target", np.zeros(n) if u_target is None else u_target, (n,)), P=np.zeros((2 * n, 2 * n)),
+                   nq=n, reference=reference, dt=dt)
+
+    @classmethod
     def function(cls, f, *, actuated="both", umax=None, nq: int = 2) -> "Controller":
         """``u = f(t, x)``: a Python callable of the time [s] and the state ``x = (phi, psi, phi',
         psi')`` (a chain's ``(q1 … qn, q1' … qn')``, ``nq`` = n; a NumPy array) returning the joints'
@@ -273,7 +308,7 @@ class Controller:
     def state_size(self) -> int:
         """2 n + 1 (angles, speeds, W; the double pendulum's 5), or 2 n + 2 with the time for a table or
         a Python law."""
-        return 2 * self.nq + (2 if self.kind in ("table", "function") else 1)
+        return 2 * self.nq + (2 if self.kind in ("table", "function", "tracking") else 1)
 
     def struct(self):
         """The ``sp_control`` the compiled code reads (keep it alive during the call)."""
@@ -295,6 +330,11 @@ class Controller:
             c.n_table = len(table)
             c.table = table.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
             c._keep = table  # the array lives as long as the struct
+        if self.kind == "tracking":
+            c.n_table = len(self.reference)
+            c.table = self.reference.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+            c.dt_table = self.dt
+            c._keep = self.reference
         if self.kind == "function":
             c.errors = []
             c._keep = CALLBACK(_python_law(self.law, c.errors, self.nq))
@@ -360,7 +400,7 @@ class Controller:
         d: Dict[str, Any] = {"kind": self.kind,
                              "actuated": self.actuated if isinstance(self.actuated, str) else list(self.actuated),
                              "umax": [x if math.isfinite(x) else None for x in self.umax]}
-        if self.kind in ("feedback", "swingup"):
+        if self.kind in ("feedback", "swingup", "tracking"):
             d.update(K=np.asarray(self.K).tolist(), target=np.asarray(self.target).tolist(),
                      u_target=np.asarray(self.u_target).tolist())
         if self.kind == "swingup":
@@ -369,6 +409,11 @@ class Controller:
                      rho=self.rho)
         if self.kind == "table":
             d.update(times=self.times.tolist(), torques=self.torques.tolist())
+        if self.kind == "tracking":
+            import hashlib
+
+            d.update(dt=self.dt, samples=len(self.reference),
+                     reference_sha256=hashlib.sha256(self.reference.tobytes()).hexdigest())
         if self.kind == "function":
             d.update(function=getattr(self.law, "__qualname__", repr(self.law)))
         if self.nq != 2:

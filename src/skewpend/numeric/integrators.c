@@ -187,12 +187,19 @@ static inline double dop_dense_value(double y, const double *F, ptrdiff_t fs, do
  *   SP_CTL_TABLE     u(t) interpolated linearly in a table (held at its ends); the state then has a
  *                    sixth component, the time (t' = 1), which the input reads;
  *   SP_CTL_CALLBACK  u = callback(t, y): a function of the caller's (Python's slow path), with the time
- *                    as a sixth state too.
+ *                    as a sixth state too;
+ *   SP_CTL_TRACK     tracking of a reference sampled every dt_table: sample k's law u_k - K_k (x - x_k)
+ *                    (the angles of x - x_k wrapped; table row k: x_k[SP_NX], u_k[SP_NQ], K_k[SP_NQ x
+ *                    SP_NX] row-major), the sample n_table's the goal's feedback u* - K (x - x*); at time
+ *                    t the laws of the samples floor(t / dt_table) and the next blended linearly (sample 0
+ *                    before it, the goal's from n_table dt_table on); the time is a state too.
  * Then the joints not actuated get u = 0 and every u_j is clipped to [-umax_j, umax_j]. */
 #define SP_CTL_FEEDBACK 1
 #define SP_CTL_SWINGUP 2
 #define SP_CTL_TABLE 3
 #define SP_CTL_CALLBACK 4
+#define SP_CTL_TRACK 5
+#define SP_TRACK_W (SP_NX + SP_NQ + SP_NQ * SP_NX) /* a tracking table's row */
 typedef struct {
     int32_t kind;              /* SP_CTL_* */
     int32_t actuated;          /* bit j: joint j + 1 driven (the double pendulum's bit 0 the shoulder, bit 1 the elbow) */
@@ -208,6 +215,7 @@ typedef struct {
     int64_t n_table;           /* table: n_table rows of (t, u1 .. u_SP_NQ) */
     const double *table;
     void (*callback)(double t, const double *y, double *u); /* callback: u[SP_NQ] at time t and state y[SP_NX] */
+    double dt_table;           /* tracking: the reference's sampling step [s] */
 } sp_control;
 
 /* the active control of this thread (a run with inputs sets it for the duration of a call); the
@@ -244,6 +252,23 @@ static double sp_region(const sp_control *c, const double *P, const double *y)
     return v;
 }
 
+/* a tracking law's sample k at state y: u_k - K_k (x - x_k), the goal's u* - K (x - x*) for k = n_table */
+static void sp_track_law(const sp_control *c, int64_t k, const double *y, double *u)
+{
+    const int goal = k >= c->n_table;
+    const double *row = goal ? 0 : c->table + k * SP_TRACK_W;
+    const double *xk = goal ? c->xs : row, *uk = goal ? c->us : row + SP_NX;
+    double e[SP_NX];
+    for (int i = 0; i < SP_NQ; i++) e[i] = sp_wrap(y[i] - xk[i]);
+    for (int i = SP_NQ; i < SP_NX; i++) e[i] = y[i] - xk[i];
+    for (int r = 0; r < SP_NQ; r++) {
+        const double *Kr = goal ? c->K + SP_NX * r : row + SP_NX + SP_NQ + SP_NX * r;
+        double acc = uk[r];
+        for (int j = 0; j < SP_NX; j++) acc -= Kr[j] * e[j];
+        u[r] = acc;
+    }
+}
+
 /* the input u[SP_NQ] at state y (y[SP_NT] the time for a table or a callback) */
 static void sp_input(const sp_control *c, const double *y, const double *p, double *u)
 {
@@ -261,6 +286,22 @@ static void sp_input(const sp_control *c, const double *y, const double *p, doub
         }
     } else if (c->kind == SP_CTL_CALLBACK) {
         c->callback(y[SP_NT], y, u);
+    } else if (c->kind == SP_CTL_TRACK) {
+        /* the laws of the samples k and k + 1 around t blended linearly (sample n_table: the goal's) */
+        const double tk = y[SP_NT] / c->dt_table;
+        const double k = floor(tk);
+        if (!(k < (double)c->n_table)) {
+            feedback = 1;
+        } else {
+            double a = tk - k, v[SP_NQ];
+            int64_t lo = (int64_t)k;
+            if (k < 0.0) { lo = 0; a = 0.0; }
+            sp_track_law(c, lo, y, u);
+            if (a > 0.0) {
+                sp_track_law(c, lo + 1, y, v);
+                for (int r = 0; r < SP_NQ; r++) u[r] += a * (v[r] - u[r]);
+            }
+        }
     } else if (c->kind == SP_CTL_TABLE) {
         const double *T = c->table;
         const int64_t n = c->n_table, w = SP_NQ + 1;
@@ -532,6 +573,48 @@ void sp_rk4_hold(const double *y, const double *p, const double *u, double dt, d
         rhs(s, q, k[st + 1]);
     }
     for (int i = 0; i < SP_NX; i++) out[i] = y0[i] + dt / 6.0 * (k[0][i] + 2.0 * (k[1][i] + k[2][i]) + k[3][i]);
+}
+
+/* The RealAIGym leaderboard's simulator loop with the compiled law c (sp_input: its limits and actuated
+ * joints), from x0[SP_NX] for `steps` steps of dt: at step k (t = k dt) the law sees the state of step
+ * max(k - delay, 0), its speeds plus vnoise[k] (SP_NQ per step; NULL: none); the applied torque is the
+ * previous one (0 at first) plus resp times the change to the law's, plus unoise[k] on the actuated
+ * joints (NULL: none), clipped to the limits, plus pert[k] on the actuated joints (NULL: none, after the
+ * clip), held over the RK4 step (sp_rk4_hold).  xs[k] (SP_NX) and us[k] (SP_NQ) are the state and the
+ * applied torques at step k.  Returns the steps done: `steps`, or the first k whose torque or next state
+ * is not finite. */
+int64_t sp_protocol(const sp_control *c, const double *p, const double *x0, int64_t steps, double dt, int64_t delay,
+                    double resp, const double *vnoise, const double *unoise, const double *pert, double *xs, double *us)
+{
+    double y[SP_NMAX], u[SP_NQ], last[SP_NQ], x[SP_NX];
+    memcpy(x, x0, sizeof x);
+    for (int r = 0; r < SP_NQ; r++) last[r] = 0.0;
+    for (int64_t k = 0; k < steps; k++) {
+        memcpy(xs + k * SP_NX, x, sizeof x);
+        const int64_t seen = k - delay > 0 ? k - delay : 0;
+        memset(y, 0, sizeof y);
+        memcpy(y, xs + seen * SP_NX, sizeof x);
+        if (vnoise)
+            for (int r = 0; r < SP_NQ; r++) y[SP_NQ + r] += vnoise[k * SP_NQ + r];
+        y[SP_NT] = (double)k * dt;
+        sp_input(c, y, p, u);
+        for (int r = 0; r < SP_NQ; r++) {
+            double v = last[r] + resp * (u[r] - last[r]);
+            if (!(c->actuated & (1 << r))) { u[r] = 0.0; continue; }
+            if (unoise) v += unoise[k * SP_NQ + r];
+            if (v > c->umax[r]) v = c->umax[r];
+            if (v < -c->umax[r]) v = -c->umax[r];
+            if (pert) v += pert[k * SP_NQ + r];
+            u[r] = v;
+        }
+        int finite = 1;
+        for (int r = 0; r < SP_NQ; r++) { finite &= isfinite(u[r]) != 0; last[r] = u[r]; us[k * SP_NQ + r] = u[r]; }
+        if (!finite) return k;
+        sp_rk4_hold(x, p, u, dt, x);
+        for (int i = 0; i < SP_NX; i++) finite &= isfinite(x[i]) != 0;
+        if (!finite) return k;
+    }
+    return steps;
 }
 
 /* Each of m starts (SP_NX doubles: angles and speeds) integrated by DOP853 (the core above, on the SP_NX

@@ -240,6 +240,7 @@ def control_struct_type(nq: int):
             ("n_table", ctypes.c_int64),
             ("table", ctypes.POINTER(ctypes.c_double)),
             ("callback", ctypes.c_void_p),
+            ("dt_table", ctypes.c_double),
         ]
 
     _Control.__name__ = _Control.__qualname__ = "ControlStruct" if nq == 2 else f"ControlStruct{nq}"
@@ -500,6 +501,7 @@ class Kernel:
         lib.sp_flip_many.restype = None
         lib.sp_rhs_ctl_many.argtypes, lib.sp_rhs_ctl_many.restype = [cp, dp, i64, i64, dp, dp], None
         lib.sp_rk4_hold.argtypes, lib.sp_rk4_hold.restype = [dp, dp, dp, d, dp], None
+        lib.sp_protocol.argtypes, lib.sp_protocol.restype = [cp, dp, dp, i64, d, i64, d, dp, dp, dp, dp, dp], i64
         for name in ("sp_dop853", "sp_rk4", "sp_gauss", "sp_dop853_ctl", "sp_rk4_ctl"):
             getattr(lib, name).restype = ctypes.c_int
         if lib.sp_control_size() != ctypes.sizeof(self.ControlStruct):
