@@ -29,6 +29,7 @@ ROOT = PACKAGE.parent.parent
 #: Literal collections that hold parameter names by coincidence: another program's names.
 FOREIGN = {
     ("analysis/measurements.py", "DFKI_KEYS"): "the DFKI lab's model-file keys (its own schema; some coincide with ours)",
+    ("analysis/robustness.py", "LAB_VARIATIONS"): "the DFKI lab's robustness board's varied parameters (its names)",
 }
 
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 import csv
 import ctypes
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Optional, Tuple
 
@@ -41,7 +41,7 @@ from ..errors import ParameterError
 
 __all__ = ["PROTOCOL", "Protocol", "NORMALISATION", "Criteria", "criteria", "score", "ProtocolRun", "run_protocol",
            "Disturbance",
-           "read_csv", "write_csv", "CSV_COLUMNS", "dfki_model", "ROBOTS", "PUBLISHED"]
+           "read_csv", "write_csv", "CSV_COLUMNS", "dfki_model", "lab_values", "ROBOTS", "PUBLISHED"]
 
 
 @dataclass(frozen=True)
@@ -173,7 +173,8 @@ def score(c, version: str = "v2") -> float:
 @dataclass(frozen=True)
 class ProtocolRun:
     """A run by the protocol: rows ``t`` (k,), ``x`` (k, 2 n), ``u`` (k, n) the torques applied over
-    each step, ``heights`` (k,) of the end effector, the model's ``reach``; ``criteria`` and ``score``."""
+    each step, ``heights`` (k,) of the end effector, the model's ``reach``, the ``final`` state after the
+    last step (NaN when the run stopped early); ``criteria`` and ``score``."""
 
     t: np.ndarray
     x: np.ndarray
@@ -182,6 +183,7 @@ class ProtocolRun:
     reach: float
     protocol: Protocol = PROTOCOL
     message: str = ""
+    final: Optional[np.ndarray] = field(default=None, repr=False)  #: the state after the last step (2 n,)
 
     @property
     def ok(self) -> bool:
@@ -273,20 +275,35 @@ def _compiled_law(law, joints, umax: float, n: int):
 
 
 def run_protocol(model, law, *, actuated=(2,), umax: float = PROTOCOL.umax, protocol: Protocol = PROTOCOL, x0=None,
-                 plant=None, disturbance: Optional[Disturbance] = None) -> ProtocolRun:
+                 plant=None, plant_values: Optional[Dict[str, float]] = None,
+                 disturbance: Optional[Disturbance] = None, speeds: str = "measured") -> ProtocolRun:
     """``law`` run by the protocol on ``model`` (or on ``plant``, another model of the same joints, when given:
     the controller's model and the simulated one differ), from ``x0`` (default hanging at rest) for
     ``protocol.steps`` steps, in one compiled loop (``sp_protocol``).  ``law``: a
     :class:`~skewpend.analysis.trajopt.Tracking` or a :class:`~skewpend.Controller` (compiled: no Python per
     step), or a Python ``law(t, x) -> torques`` (one per joint, or one for a single actuated joint; the slow
     path).  ``actuated``: the joints' numbers with a motor (the others get 0); every torque clipped to
-    ``umax``; ``disturbance`` the robustness tests' changes (:class:`Disturbance`)."""
+    ``umax``; ``disturbance`` the robustness tests' changes (:class:`Disturbance`).  ``plant_values``: entries of
+    the simulated plant's run-time array set by name (``c1``, ``cf1``, ...) -- values the model itself refuses,
+    as the robustness test's negative damping and friction (the plant's code must read them: its friction
+    or rotor terms present).  ``speeds``: what the law takes for the speeds, ``"measured"`` (the state's)
+    or ``"positions"`` (its own observer's backward differences of the positions it has seen, second order:
+    no noise from the speeds, a lag of order dt^2)."""
     from ..numeric.control import raise_law_error
     from ..numeric.kernels import model_kernel, model_vector
 
     sim = model if plant is None else plant
     kernel = model_kernel(sim)
     p = np.ascontiguousarray(model_vector(sim), dtype=float)
+    if plant_values:
+        from ..numeric.kernels import model_vector_names
+
+        names = model_vector_names(sim)
+        for name, value in plant_values.items():
+            if name not in names or not math.isfinite(float(value)):
+                raise ParameterError(f"plant_values: {name!r} is not a finite entry of the plant's run-time array "
+                                     f"({', '.join(names)})")
+            p[names.index(name)] = float(value)
     n = kernel.nq
     try:
         joints = sorted({int(j) for j in actuated})
@@ -294,6 +311,8 @@ def run_protocol(model, law, *, actuated=(2,), umax: float = PROTOCOL.umax, prot
         joints = []
     if not joints or not all(1 <= j <= n for j in joints):
         raise ParameterError(f"actuated must be the numbers of the joints with a motor, 1 to {n}, got {actuated!r}")
+    if speeds not in ("measured", "positions"):
+        raise ParameterError(f"speeds must be 'measured' or 'positions' (estimated from the positions), got {speeds!r}")
     controller = _compiled_law(law, joints, umax, n)
     steps = protocol.steps
     state = np.zeros(2 * n) if x0 is None else np.array(x0, dtype=float).reshape(2 * n)
@@ -315,9 +334,11 @@ def run_protocol(model, law, *, actuated=(2,), umax: float = PROTOCOL.umax, prot
     def ptr(a):
         return None if a is None else a.ctypes.data_as(dp)
 
+    final = np.full(2 * n, np.nan)
     c = controller.struct()
     done = kernel.lib.sp_protocol(ctypes.byref(c), ptr(p), ptr(state), steps, protocol.dt, int(d.delay),
-                                  float(d.responsiveness), ptr(vnoise), ptr(unoise), ptr(pert), ptr(x), ptr(u))
+                                  float(d.responsiveness), ptr(vnoise), ptr(unoise), ptr(pert), int(speeds == "positions"),
+                                  ptr(x), ptr(u), ptr(final))
     raise_law_error(c)
     message = ""
     if done < steps:
@@ -327,7 +348,7 @@ def run_protocol(model, law, *, actuated=(2,), umax: float = PROTOCOL.umax, prot
         x, u = x[:done], u[:done]
     t = np.arange(len(x)) * protocol.dt
     heights = tip_heights(kernel, p, x) if len(x) else np.zeros(0)
-    return ProtocolRun(t, x, u, heights, model_reach(sim), protocol, message)
+    return ProtocolRun(t, x, u, heights, model_reach(sim), protocol, message, final)
 
 
 def read_csv(path) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -366,15 +387,24 @@ def write_csv(path, t, x, u) -> None:
         np.savetxt(tmp, data, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.18e")
 
 
-def dfki_model(alpha: float = 0.0):
+def dfki_model(alpha: float = 0.0, values=None):
     """The leaderboard's plant: the DFKI lab's design C.1, model 1.1 (model 1.0 without its motor
     inertia, damping and friction), as :class:`~skewpend.Parameters` -- centres of mass on the rods, the
     inertias about them ``I - m r^2`` across the rod (none along it) -- with the second hinge turned by
-    ``alpha`` [rad] (0: the lab's planar rig)."""
+    ``alpha`` [rad] (0: the lab's planar rig).  ``values``: other numbers by the lab's names (the
+    robustness test's varied models; default the model file's, :func:`lab_values`)."""
     from dataclasses import replace
 
-    from ..datasets import example_data
-    from .measurements import dfki_lab_parameters
+    from .measurements import dfki_parameters
 
-    params = dfki_lab_parameters(example_data("dfki-design-C.1/model_1.1_parameters.yml"))
+    params = dfki_parameters(lab_values() if values is None else values)
     return replace(params, alpha=float(alpha))
+
+
+def lab_values():
+    """The numbers of the leaderboard's model (design C.1, model 1.1) by the lab's names (``m1``, ``r1``,
+    ``I1`` about the joint, ``b1``, ``cf1``, ``Ir``, ``gr``, ...)."""
+    from ..datasets import example_data
+    from .measurements import read_dfki_lab_values
+
+    return read_dfki_lab_values(example_data("dfki-design-C.1/model_1.1_parameters.yml"))

@@ -45,7 +45,8 @@ from ..schema import AXIS_NAMES, TORQUE_NAMES, coordinate_names
 __all__ = ["Measurements", "Piece", "Convention", "SKEWPEND", "convert", "convert_back",
            "MIN_SAMPLES", "GAP_FACTOR", "NONFINITE", "KAHEMAN_FILE", "KAHEMAN_PARAMETERS_FILE", "DFKI_COLUMNS",
            "KAHEMAN_TRIPLE_FILE", "KAHEMAN_TRIPLE_PARAMETERS_FILE", "kaheman_published_chain",
-           "kaheman_published_parameters", "dfki_lab_parameters", "dfki_lab_values", "write_dfki_lab_parameters",
+           "kaheman_published_parameters", "dfki_lab_parameters", "dfki_lab_values",
+           "read_dfki_lab_values", "dfki_parameters", "write_dfki_lab_parameters",
            "TIME_UNITS", "DFKI_KEYS", "CHECKS"]
 
 #: Fewest samples a piece may have.
@@ -1133,10 +1134,20 @@ def dfki_lab_parameters(path):
     negative inertia about the centre of mass) the masses are raised until it is (each body's inertia
     about its centre of mass then a fifth of its inertia about the joint), keeping every base
     parameter: the model moves exactly as the lab's."""
+    return dfki_parameters(read_dfki_lab_values(path))
+
+
+def read_dfki_lab_values(path) -> Dict[str, float]:
+    """The numbers of one of the DFKI lab's model files (``model_*_parameters.yml``), by the lab's names
+    (:data:`DFKI_KEYS`, and the torque limits ``tl1``, ``tl2`` when there)."""
+    return _read_dfki_yml(Path(path))
+
+
+def dfki_parameters(v):
+    """The lab's model numbers ``v`` (a mapping by the lab's names, :data:`DFKI_KEYS`) in skewpend's terms:
+    see :func:`dfki_lab_parameters`."""
     from ..symbolic.model import Parameters
 
-    path = Path(path)
-    v = _read_dfki_yml(path)
     l1 = v["l1"]
     J1, h1, J2, h2 = v["I1"] + v["m2"] * l1**2, v["m1"] * v["r1"] + v["m2"] * l1, v["I2"], v["m2"] * v["r2"]
     m2 = v["m2"] if J2 > h2**2 / v["m2"] else 1.25 * h2**2 / J2

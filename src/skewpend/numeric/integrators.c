@@ -577,14 +577,17 @@ void sp_rk4_hold(const double *y, const double *p, const double *u, double dt, d
 
 /* The RealAIGym leaderboard's simulator loop with the compiled law c (sp_input: its limits and actuated
  * joints), from x0[SP_NX] for `steps` steps of dt: at step k (t = k dt) the law sees the state of step
- * max(k - delay, 0), its speeds plus vnoise[k] (SP_NQ per step; NULL: none); the applied torque is the
+ * max(k - delay, 0), its speeds plus vnoise[k] (SP_NQ per step; NULL: none) -- or, with estimate = 1, the
+ * speeds the law's own observer takes from the positions it has seen (backward differences of second
+ * order, of first order at the second step); the applied torque is the
  * previous one (0 at first) plus resp times the change to the law's, plus unoise[k] on the actuated
  * joints (NULL: none), clipped to the limits, plus pert[k] on the actuated joints (NULL: none, after the
  * clip), held over the RK4 step (sp_rk4_hold).  xs[k] (SP_NX) and us[k] (SP_NQ) are the state and the
- * applied torques at step k.  Returns the steps done: `steps`, or the first k whose torque or next state
- * is not finite. */
+ * applied torques at step k, xf (SP_NX) the state after the last step.  Returns the steps done: `steps`,
+ * or the first k whose torque or next state is not finite. */
 int64_t sp_protocol(const sp_control *c, const double *p, const double *x0, int64_t steps, double dt, int64_t delay,
-                    double resp, const double *vnoise, const double *unoise, const double *pert, double *xs, double *us)
+                    double resp, const double *vnoise, const double *unoise, const double *pert, int32_t estimate,
+                    double *xs, double *us, double *xf)
 {
     double y[SP_NMAX], u[SP_NQ], last[SP_NQ], x[SP_NX];
     memcpy(x, x0, sizeof x);
@@ -596,6 +599,11 @@ int64_t sp_protocol(const sp_control *c, const double *p, const double *x0, int6
         memcpy(y, xs + seen * SP_NX, sizeof x);
         if (vnoise)
             for (int r = 0; r < SP_NQ; r++) y[SP_NQ + r] += vnoise[k * SP_NQ + r];
+        if (estimate && seen >= 1) {
+            const double *q0 = xs + seen * SP_NX, *q1 = q0 - SP_NX, *q2 = q0 - 2 * SP_NX;
+            for (int r = 0; r < SP_NQ; r++)
+                y[SP_NQ + r] = seen >= 2 ? (3.0 * q0[r] - 4.0 * q1[r] + q2[r]) / (2.0 * dt) : (q0[r] - q1[r]) / dt;
+        }
         y[SP_NT] = (double)k * dt;
         sp_input(c, y, p, u);
         for (int r = 0; r < SP_NQ; r++) {
@@ -614,6 +622,7 @@ int64_t sp_protocol(const sp_control *c, const double *p, const double *x0, int6
         for (int i = 0; i < SP_NX; i++) finite &= isfinite(x[i]) != 0;
         if (!finite) return k;
     }
+    memcpy(xf, x, sizeof x);
     return steps;
 }
 

@@ -501,7 +501,7 @@ class Kernel:
         lib.sp_flip_many.restype = None
         lib.sp_rhs_ctl_many.argtypes, lib.sp_rhs_ctl_many.restype = [cp, dp, i64, i64, dp, dp], None
         lib.sp_rk4_hold.argtypes, lib.sp_rk4_hold.restype = [dp, dp, dp, d, dp], None
-        lib.sp_protocol.argtypes, lib.sp_protocol.restype = [cp, dp, dp, i64, d, i64, d, dp, dp, dp, dp, dp], i64
+        lib.sp_protocol.argtypes, lib.sp_protocol.restype = [cp, dp, dp, i64, d, i64, d, dp, dp, dp, ctypes.c_int32, dp, dp, dp], i64
         for name in ("sp_dop853", "sp_rk4", "sp_gauss", "sp_dop853_ctl", "sp_rk4_ctl"):
             getattr(lib, name).restype = ctypes.c_int
         if lib.sp_control_size() != ctypes.sizeof(self.ControlStruct):
@@ -867,6 +867,17 @@ def model_kernel(model) -> Kernel:
     """The model library of the double pendulum's :class:`Parameters` (:func:`kernel_module`) or of a
     chain of links (:func:`chain_kernel`)."""
     return kernel_module(model) if isinstance(model, Parameters) else chain_kernel(model)
+
+
+def model_vector_names(model) -> tuple:
+    """The names of :func:`model_vector`'s entries, in its order."""
+    if isinstance(model, Parameters):
+        from .conventions import PARAMETER_ORDER
+
+        return tuple(PARAMETER_ORDER)
+    from .recursive import parameter_names
+
+    return parameter_names(model.n)
 
 
 def model_vector(model):
