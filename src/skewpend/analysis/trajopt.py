@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Dict, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
 
@@ -136,6 +136,50 @@ def _dynamics(chain, actuated: Tuple[int, ...]):
     return ca, rhs, step, tip
 
 
+_SOLVER: list = []  # the solver a forked worker inherits (set only while its pool lives)
+
+
+def _solve_one(job):
+    """One start ``(z0, bounds)`` solved by the inherited solver: IPOPT's status and the solution."""
+    z0, bounds = job
+    solver = _SOLVER[0]
+    sol = solver(x0=z0, **bounds)
+    return solver.stats()["return_status"], np.array(sol["x"]).ravel()
+
+
+def _solve_starts(solver, starts, bounds, workers, progress):
+    """IPOPT from each start, in order: in this process, or in forked workers that inherit the built solver
+    (CasADi's solvers cannot be pickled or shared by threads; building one is most of a design's time)."""
+    import multiprocessing
+    import os
+
+    count = len(starts)
+    if workers is None:
+        workers = min(os.cpu_count() or 1, count)
+    elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
+    forking = "fork" in multiprocessing.get_all_start_methods()
+    if workers == 1 or count == 1 or not forking:
+        out = []
+        for k, z0 in enumerate(starts):
+            sol = solver(x0=z0, **bounds)
+            out.append((solver.stats()["return_status"], np.array(sol["x"]).ravel()))
+            if progress is not None:
+                progress(k, count)
+        return out
+    _SOLVER[:] = [solver]
+    try:
+        with multiprocessing.get_context("fork").Pool(min(workers, count)) as pool:
+            out = []
+            for k, result in enumerate(pool.imap(_solve_one, [(z0, bounds) for z0 in starts])):
+                out.append(result)
+                if progress is not None:
+                    progress(k, count)
+            return out
+    finally:
+        _SOLVER.clear()
+
+
 def _as_chain(model):
     from ..symbolic.chain import Chain
     from ..symbolic.model import Parameters
@@ -193,7 +237,7 @@ def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="
                     cost: Cost = Cost(), horizon: Tuple[float, float] = (0.5, 4.0), guess: float = 1.5,
                     knots: int = 150, hold: float = 0.8, height: float = PROTOCOL.height, attempts: int = 4,
                     seed: int = 0, dt_score: float = PROTOCOL.dt, steps_score: int = PROTOCOL.steps,
-                    max_iter: int = 1500, progress=None) -> OptimalTrajectory:
+                    max_iter: int = 1500, workers: Optional[int] = None, progress=None) -> OptimalTrajectory:
     """The swing-up of ``model`` from ``start`` (default: hanging at rest) to ``goal`` (an equilibrium's
     label or an ``Equilibrium``) that minimises ``cost`` with the ``actuated`` joints' torques within
     ``umax`` [N m] (see the module).  ``horizon`` bounds the duration [s], ``guess`` starts it;
@@ -201,7 +245,9 @@ def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="
     ``height`` x its goal height (when the goal's end effector is above the roof; otherwise no such
     constraint and the time term is the duration).  ``attempts`` seeded starts (the best converged one is
     returned); the criteria are those of rows ``dt_score`` apart over ``steps_score`` rows (the
-    leaderboard's).  ``progress(k, attempts)`` is told of each start.
+    leaderboard's).  ``workers`` processes solve the starts side by side (default: one per core, at most
+    ``attempts``; 1: in this process) -- the result is the same.  ``progress(k, attempts)`` is told of each
+    start solved.
 
     Refused with one line: an uncontrollable goal, a horizon too short to reach it under the torque limit
     (no start converges to a feasible motion: ``ok`` False, exit status 1 on the command line), negative
@@ -288,12 +334,9 @@ def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="
                         "ipopt.bound_relax_factor": 0.0})
     evaluate = ca.Function("criteria", [z], [ca.vertcat(*[values[k] for k in COST_TERMS]), objective])
     rng = np.random.default_rng(seed)
-    best = None
-    t0 = _time.perf_counter()
     tau_grid = np.linspace(0.0, 1.0, N + 1)
+    starts = []
     for attempt in range(int(attempts)):
-        if progress is not None:
-            progress(attempt, attempts)
         X0 = x_start[:, None] + (x_goal - x_start)[:, None] * tau_grid[None, :]
         X0[n:] = ((x_goal - x_start)[:n] / guess)[:, None]
         U0 = np.zeros((m, N + 1))
@@ -302,11 +345,12 @@ def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="
             duration = min(max(guess * (1.0 + 0.25 * rng.uniform(-1, 1)), lo), hi)
             X0[:n] += rng.normal(scale=SPREAD, size=(n, 1)) * np.sin(np.pi * tau_grid)[None, :]
             U0[:, :N] = rng.uniform(-0.5, 0.5, size=(m, 1)) * umax * np.sin(2 * np.pi * tau_grid[:N])
-        z0 = np.concatenate([X0.T.ravel(), U0.T.ravel(), np.zeros(5), [duration * N1 / N, duration * N2 / N]])
-        sol = solver(x0=z0, lbx=lbz, ubx=ubz, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
-        status = solver.stats()["return_status"]
+        starts.append(np.concatenate([X0.T.ravel(), U0.T.ravel(), np.zeros(5), [duration * N1 / N, duration * N2 / N]]))
+    bounds = dict(lbx=lbz, ubx=ubz, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
+    t0 = _time.perf_counter()
+    best = None
+    for attempt, (status, zs) in enumerate(_solve_starts(solver, starts, bounds, workers, progress)):
         ok = status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-        zs = np.array(sol["x"]).ravel()
         crit, obj = evaluate(zs)
         obj = float(obj)
         if best is None or (ok and (not best[0] or obj < best[1])):
