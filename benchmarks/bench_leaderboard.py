@@ -4,7 +4,9 @@ For each robot (acrobot, pendubot) and skew angle (``--alphas``, default 0 15 30
 swing-up (``optimal_swingup``: IPOPT on the generated dynamics) tracked by time-varying LQR (``tvlqr``), run
 and scored by the leaderboard's protocol (``run_protocol``: RK4, 0.002 s, 10 s, 6 N m); the design's wall
 time (2 cores), the criteria, the score, the ratio to the best published score (leaderboards v2), whether the
-end effector stays up through the last second, and the time the tracking law takes per second simulated.
+end effector stays up through the last second, the robustness board's score (v2, 722 runs, seed 0, the speeds
+from the positions) and its ratio to the best published one, and how many times faster than real time the
+compiled tracking law runs in ``skewpend.simulate`` (RK4 at 0.002 s; DOP853 at its default tolerances).
 
 ``--published DIR`` (a clone of dfki-ric-underactuated-lab/real_ai_gym_leaderboard) also recomputes the
 criteria of every published simulation_v2 trajectory (``sim_swingup.csv``) with skewpend's scorer and prints
@@ -55,8 +57,11 @@ def main() -> None:
     from skewpend.analysis.trajopt import optimal_swingup, tvlqr
 
     print(f"skewpend {version('skewpend')}, {cpu_model()}, {os.cpu_count()} cores")
+    from skewpend import simulate
+    from skewpend.analysis import robustness as rb
+
     print(f"{'robot':9s} {'alpha':>6s} {'design s':>8s} {'time s':>7s} {'energy':>7s} {'tau':>6s} {'smooth':>8s} "
-          f"{'vel':>7s} {'score':>6s} {'/best':>6s} {'up':>3s} {'law us/s':>8s}")
+          f"{'vel':>7s} {'score':>6s} {'/best':>6s} {'up':>3s} {'robust':>6s} {'/best':>6s} {'rk4 x':>6s} {'dop x':>6s}")
     for robot in ("acrobot", "pendubot"):
         name, best = lb.PUBLISHED[robot]["simulation"]
         for alpha in args.alphas:
@@ -73,15 +78,20 @@ def main() -> None:
             c = run.criteria
             last = run.t >= run.t[-1] - 1.0
             up = bool(np.all(run.heights[last] > 0.9 * run.reach))
-            x = np.zeros(4)
-            t1 = time.perf_counter()
-            for k in range(5000):
-                tracking(k * 0.002, x)
-            law = (time.perf_counter() - t1) / 10.0 * 1e6
+            r = rb.robustness(tracking, actuated=lb.ROBOTS[robot], alpha=math.radians(alpha), speeds="positions")
+            rname, _, rbest = rb.PUBLISHED_ROBUSTNESS[robot]
+            ctl = tracking.controller()
+            speed = []
+            for kw in (dict(method="rk4", dt=0.002), dict(method="dop853")):
+                simulate(model, t_end=10.0, y0=(0, 0, 0, 0), controller=ctl, dt_out=0.01, **kw)  # warm
+                t1 = time.perf_counter()
+                simulate(model, t_end=10.0, y0=(0, 0, 0, 0), controller=ctl, dt_out=0.01, **kw)
+                speed.append(10.0 / (time.perf_counter() - t1))
             print(f"{robot:9s} {alpha:6.0f} {design:8.1f} {c.swingup_time:7.3f} {c.energy:7.3f} {c.tau_cost:6.3f} "
                   f"{c.tau_smoothness:8.5f} {c.velocity_cost:7.2f} {c.score:6.3f} {c.score / best:6.3f} "
-                  f"{'yes' if up else 'no':>3s} {law:8.0f}")
-        print(f"  best published ({robot}): {name} {best:.3f}")
+                  f"{'yes' if up else 'no':>3s} {r.score:6.3f} {r.score / rbest:6.3f} {speed[0]:6.0f} {speed[1]:6.0f}",
+                  flush=True)
+        print(f"  best published ({robot}): simulation {name} {best:.3f}, robustness {rname} {rbest:.3f}")
     if args.published is not None:
         published(args.published)
 

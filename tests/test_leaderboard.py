@@ -251,6 +251,7 @@ def test_bad_input_of_the_optimiser():
 @pytest.mark.parametrize("argv, text", [
     (["control", "leaderboard"], "give --robot acrobot or --robot pendubot"),
     (["control", "lqr", "--robot", "acrobot"], "--robot goes with 'control leaderboard'"),
+    (["control", "swingup", "--robustness"], "--robustness goes with 'control leaderboard'"),
     (["control", "leaderboard", "--robot", "acrobot", "--m1", "2"], "--m1: control leaderboard runs the leaderboard's plant"),
     (["control", "leaderboard", "--robot", "acrobot", "--target", "up-up"], "--target goes with"),
     (["control", "leaderboard", "--robot", "acrobot", "--out", "r.nc"], "--out"),
@@ -281,3 +282,31 @@ def test_cli_leaderboard_writes_the_leaderboards_file(tmp_path):
     c = lb.criteria(t, x, u, lb.tip_heights(model_kernel(model), model_vector(model), x), 0.5)
     assert c.score == pytest.approx(shown, abs=1e-4) and shown >= 0.70
     assert (tmp_path / "run.png").stat().st_size > 10_000
+
+
+def test_cli_leaderboard_at_a_skew_with_the_robustness_board(tmp_path):
+    """The skewed rig (--alpha 30deg, the pendubot): the optimised swing-up succeeds by the protocol and stays
+    up through the last second (the CSV's rows); the robustness board's six criteria and score are printed,
+    each a fraction, the score their mean."""
+    from helpers import run_cli
+
+    ran = run_cli(["control", "leaderboard", "--robot", "pendubot", "--alpha", "30deg", "--robustness", "--out",
+                   "run.csv"], cwd=tmp_path)
+    assert ran.code == 0, ran.report()
+    assert "alpha = 30 deg" in ran.out
+    t, x, u = lb.read_csv(tmp_path / "run.csv")
+    model = lb.dfki_model(math.radians(30))
+    from skewpend.numeric.kernels import model_kernel, model_vector
+
+    heights = lb.tip_heights(model_kernel(model), model_vector(model), x)
+    c = lb.criteria(t, x, u, heights, 0.5)
+    assert c.success and np.all(heights[t >= 9.0] > 0.45) and np.all(u[:, 1] == 0.0)
+    rows = {}
+    for line in ran.out.splitlines():
+        for label in ("model errors", "speed noise", "torque noise", "torque response", "delay", "perturbations",
+                      "robustness score"):
+            if line.startswith(label + " "):
+                rows[label] = float(line[len(label):].split()[0])
+    assert len(rows) == 7 and all(0.0 <= v <= 1.0 for v in rows.values())
+    assert rows["robustness score"] == pytest.approx(np.mean([v for k, v in rows.items() if k != "robustness score"]),
+                                                     abs=6e-4)

@@ -456,9 +456,9 @@ def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=N
     """The tracking of ``trajectory`` (:class:`Tracking`): the reference resampled every ``dt`` [s] (states
     by cubic Hermite interpolation, torques linearly), the discrete step (RK4, torques held) linearised
     along it, the Riccati recursion ``P_k = Q + A^T P (A - B K_k)`` from the goal's discrete LQR (``Qf``
-    its state weight; ``R`` the torques').  Defaults: ``Q = diag(10, ..., 1, ...)`` (angles, speeds),
-    ``R = 10`` per motor -- soft gains, which keep the swing-up through delays and model errors (the
-    robustness board: at ``R = 0.1`` the acrobot stays up with 3 of 21 delays, at 10 with 15) -- and
+    its state weight; ``R`` the torques').  Defaults: ``Q = diag(10, ..., 3, ...)`` (angles, speeds),
+    ``R = 20`` per motor -- soft gains, which keep the swing-up through delays and model errors (the
+    robustness board: at ``R = 0.1`` the acrobot stays up with 5 of 21 delays, at 20 with 13) -- and
     ``Qf = Q``."""
     from scipy.linalg import solve_discrete_are
 
@@ -470,8 +470,8 @@ def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=N
     m = len(joints)
     ca, rhs, step, _ = _dynamics(chain, joints)
     idx = [j - 1 for j in joints]
-    Qm = np.diag([10.0] * n + [1.0] * n) if Q is None else np.asarray(Q, dtype=float)
-    Rm = np.eye(m) * 10.0 if R is None else np.atleast_2d(np.asarray(R, dtype=float))
+    Qm = np.diag([10.0] * n + [3.0] * n) if Q is None else np.asarray(Q, dtype=float)
+    Rm = np.eye(m) * 20.0 if R is None else np.atleast_2d(np.asarray(R, dtype=float))
     Qfm = Qm if Qf is None else np.asarray(Qf, dtype=float)
     t_knots, xk, uk = trajectory.t, trajectory.x, trajectory.u[:, idx]
     K_steps = int(math.ceil(trajectory.duration / dt - 1e-9))

@@ -28,10 +28,30 @@ def check_model_options(model: dict, config: Optional[str]) -> float:
     return 0.0 if alpha is None else float(alpha)
 
 
+def _robustness_lines(robot: str, joints, alpha: float, limit: float, tracking) -> list:
+    """The robustness board's evaluation of ``tracking`` (the speeds from the positions), as report lines."""
+    from ..analysis import robustness as rb
+    from ..progress import stage
+
+    stage(f"the robustness board: {rb.ROBUSTNESS.values} model variations of each of {len(rb.LAB_VARIATIONS)} "
+          "parameters, noise, response, delay and perturbations (722 runs)")
+    r = rb.robustness(tracking, actuated=joints, alpha=alpha, umax=limit, speeds="positions")
+    name, published, best = rb.PUBLISHED_ROBUSTNESS[robot]
+    labels = {"model": "model errors", "velocity_noise": "speed noise", "torque_noise": "torque noise",
+              "torque_response": "torque response", "delay": "delay", "perturbation": "perturbations"}
+    lines = [f"{'robustness (v2)':<22} {'skewpend':>12}   {name}"]
+    for key, theirs in zip(rb.CRITERIA, published):
+        lines.append(f"{labels[key]:<22} {r.criteria[key]:12.3f}   {theirs:.3f}")
+    lines.append(f"{'robustness score':<22} {r.score:12.4f}   best published: {best:.3f} ({name}); "
+                 f"{r.simulations} runs, seed 0")
+    return lines
+
+
 def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], out: Optional[str],
-                    plot: Optional[str], quiet: bool) -> int:
-    """Optimise, track, run by the protocol, score; print the criteria beside the best published entry.
-    Exit status 0 on success, 1 when the optimisation fails or the run does not stay up."""
+                    plot: Optional[str], quiet: bool, robustness: bool = False) -> int:
+    """Optimise, track, run by the protocol, score; print the criteria beside the best published entry (and,
+    with ``robustness``, the robustness board's six criteria and score beside its best entry's).  Exit
+    status 0 on success, 1 when the optimisation fails or the run does not stay up."""
     import numpy as np
 
     from ..analysis import leaderboard as lb
@@ -74,6 +94,8 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
         lines.append(f"{label:<22} {getattr(c, key):12.5g}")
     lines.append(f"{'success':<22} {'yes' if c.success else 'no':>12}")
     lines.append(f"{'score (v2)':<22} {c.score:12.4f}   best published: {best:.3f} ({name})")
+    if robustness:
+        lines += _robustness_lines(robot, joints, alpha, limit, tracking)
     if out is not None:
         lb.write_csv(out, run.t, run.x, run.u)
         lines.append(f"written      {out} (the leaderboard's columns)")
