@@ -156,8 +156,6 @@ def _solve_starts(solver, starts, bounds, workers, progress):
     count = len(starts)
     if workers is None:
         workers = min(os.cpu_count() or 1, count)
-    elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
     forking = "fork" in multiprocessing.get_all_start_methods()
     if workers == 1 or count == 1 or not forking:
         out = []
@@ -259,6 +257,8 @@ def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="
     joints = _actuated(actuated, n)
     if not isinstance(cost, Cost):
         raise ParameterError(f"cost must be a skewpend Cost, got {type(cost).__name__}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
     if not (isinstance(umax, (int, float)) and math.isfinite(umax) and umax > 0):
         raise ParameterError(f"umax must be a positive torque limit [N m], got {umax!r}")
     try:
