@@ -119,6 +119,26 @@ def test_the_disturbed_loop_is_the_labs():
         lb.run_protocol(lb.dfki_model(), _law, protocol=short, disturbance=lb.Disturbance(perturbation=np.ones(3)))
 
 
+def test_the_observer_is_the_same_in_the_labs_loop():
+    """SpeedObserver (the DFKI interface's observer, for the lab's Simulator) in the NumPy loop of the lab's
+    order of operations, with a delay and speed noise, gives run_protocol's speeds="positions" rows to 1e-9."""
+    from skewpend.analysis.trajopt import SpeedObserver
+
+    protocol = lb.Protocol(t_final=1.0)
+    steps = protocol.steps
+    d = lb.Disturbance(delay=5, velocity_noise=0.3, seed=8)
+    run = lb.run_protocol(lb.dfki_model(), _law, actuated=(2,), protocol=protocol, disturbance=d, speeds="positions")
+    vnoise = np.random.default_rng(8).normal(0, 0.3, (steps, 2))
+    observer = SpeedObserver(_law, protocol.dt)
+    xs, us = _lab_loop(lb.lab_values(), lambda t, x: observer.get_control_output(x, t), steps, protocol.dt, delay=5,
+                       vnoise=vnoise)
+    assert np.allclose(run.x, xs[:-1], rtol=0, atol=1e-9) and np.allclose(run.u, us, rtol=0, atol=1e-9)
+    assert np.ptp(run.x[:, 1]) > 1.0
+    observer.reset()  # forgets the positions: the first call takes the given speeds
+    x = np.array([0.1, 0.2, 0.7, -0.4])
+    assert np.array_equal(observer.get_control_output(x, 0.3), _law(0.3, x))
+
+
 def test_the_speed_observer_differentiates_the_positions():
     """speeds="positions": the law sees second-order backward differences of the positions (exact for a
     quadratic motion), whatever noise the measured speeds carry."""

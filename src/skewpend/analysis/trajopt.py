@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import EquilibriumError, ParameterError, require
 from .leaderboard import NORMALISATION, PROTOCOL
 
-__all__ = ["Cost", "OptimalTrajectory", "optimal_swingup", "Tracking", "tvlqr", "COST_TERMS"]
+__all__ = ["Cost", "OptimalTrajectory", "optimal_swingup", "Tracking", "tvlqr", "COST_TERMS", "SpeedObserver"]
 
 #: The cost's terms, in order: the leaderboard's criteria (their normalisation: ``leaderboard.NORMALISATION``).
 COST_TERMS = ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_cost")
@@ -450,6 +450,35 @@ class Tracking:
 
     def reset(self) -> None:
         """The DFKI interface's reset (nothing to do)."""
+
+
+class SpeedObserver:
+    """A law whose speeds come from the positions it is given (the DFKI interface, for the lab's ``Simulator``):
+    at each call the backward difference of second order of this position and the two before, ``(3 q_k -
+    4 q_k-1 + q_k-2) / (2 dt)`` (first order at the second call, the given speeds at the first) -- the
+    observer of :func:`~skewpend.analysis.leaderboard.run_protocol`'s ``speeds="positions"``, call for call.
+    ``reset()``/``init()`` forget the positions."""
+
+    def __init__(self, law, dt: float = PROTOCOL.dt):
+        self.law, self.dt = law, float(dt)
+        self._seen: list = []
+
+    def get_control_output(self, x, t=None):
+        x = np.array(x, dtype=float)
+        n = x.size // 2
+        self._seen = (self._seen + [x[:n].copy()])[-3:]
+        if len(self._seen) == 3:
+            q0, q1, q2 = self._seen[2], self._seen[1], self._seen[0]
+            x[n:] = (3.0 * q0 - 4.0 * q1 + q2) / (2.0 * self.dt)
+        elif len(self._seen) == 2:
+            x[n:] = (self._seen[1] - self._seen[0]) / self.dt
+        return self.law(0.0 if t is None else float(t), x)
+
+    def init(self) -> None:
+        self._seen = []
+
+    def reset(self) -> None:
+        self._seen = []
 
 
 def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=None, Qf=None) -> Tracking:

@@ -578,8 +578,9 @@ void sp_rk4_hold(const double *y, const double *p, const double *u, double dt, d
 /* The RealAIGym leaderboard's simulator loop with the compiled law c (sp_input: its limits and actuated
  * joints), from x0[SP_NX] for `steps` steps of dt: at step k (t = k dt) the law sees the state of step
  * max(k - delay, 0), its speeds plus vnoise[k] (SP_NQ per step; NULL: none) -- or, with estimate = 1, the
- * speeds the law's own observer takes from the positions it has seen (backward differences of second
- * order, of first order at the second step); the applied torque is the
+ * speeds the law's own observer takes from the positions it has seen at this step and the two before
+ * (backward differences of second order, of first order at the second step, the measured speeds at the
+ * first); the applied torque is the
  * previous one (0 at first) plus resp times the change to the law's, plus unoise[k] on the actuated
  * joints (NULL: none), clipped to the limits, plus pert[k] on the actuated joints (NULL: none, after the
  * clip), held over the RK4 step (sp_rk4_hold).  xs[k] (SP_NX) and us[k] (SP_NQ) are the state and the
@@ -599,10 +600,11 @@ int64_t sp_protocol(const sp_control *c, const double *p, const double *x0, int6
         memcpy(y, xs + seen * SP_NX, sizeof x);
         if (vnoise)
             for (int r = 0; r < SP_NQ; r++) y[SP_NQ + r] += vnoise[k * SP_NQ + r];
-        if (estimate && seen >= 1) {
-            const double *q0 = xs + seen * SP_NX, *q1 = q0 - SP_NX, *q2 = q0 - 2 * SP_NX;
+        if (estimate && k >= 1) { /* the positions the law saw at this step and the two before */
+            const int64_t s1 = k - 1 - delay > 0 ? k - 1 - delay : 0, s2 = k - 2 - delay > 0 ? k - 2 - delay : 0;
+            const double *q0 = xs + seen * SP_NX, *q1 = xs + s1 * SP_NX, *q2 = xs + s2 * SP_NX;
             for (int r = 0; r < SP_NQ; r++)
-                y[SP_NQ + r] = seen >= 2 ? (3.0 * q0[r] - 4.0 * q1[r] + q2[r]) / (2.0 * dt) : (q0[r] - q1[r]) / dt;
+                y[SP_NQ + r] = k >= 2 ? (3.0 * q0[r] - 4.0 * q1[r] + q2[r]) / (2.0 * dt) : (q0[r] - q1[r]) / dt;
         }
         y[SP_NT] = (double)k * dt;
         sp_input(c, y, p, u);
