@@ -358,3 +358,21 @@ def test_cache_hit_loads_without_sympy_or_compiler(tmp_path):
     proc = run([sys.executable, "-c", code], env={**env, "CC": "/nonexistent/cc", "PATH": "/nonexistent"})
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ["cache", "False"]
+
+
+def test_a_signal_inside_an_extensions_import_is_the_signal():
+    """CPython reports a Ctrl-C or SIGTERM that lands while an extension module initialises as ImportError
+    ("initialization failed") raised from the signal's exception: the CLI finds the signal in the chain and
+    exits as for the signal (130 / 143), not as an internal error (70)."""
+    from skewpend.cli import _signal_in_chain
+    from skewpend.interrupts import Terminated
+
+    for signal_exc in (Terminated(), KeyboardInterrupt()):
+        try:
+            try:
+                raise signal_exc
+            except KeyboardInterrupt:
+                raise ImportError("initialization failed")  # noqa: B904 - the implicit chain, as CPython's
+        except ImportError as exc:
+            assert _signal_in_chain(exc) is signal_exc
+    assert _signal_in_chain(ImportError("no module named x")) is None

@@ -244,6 +244,18 @@ def _quick_exit(status: int) -> None:
 _AS_PROGRAM = False
 
 
+def _signal_in_chain(exc: BaseException):
+    """The KeyboardInterrupt (Terminated included) that caused ``exc``, if any: an extension module whose
+    initialisation is interrupted raises ImportError ("initialization failed") from the signal's exception."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 def main(argv: Optional[List[str]] = None) -> None:
     """Entry point: run a command and exit with its status (see the module)."""
     import warnings
@@ -290,6 +302,10 @@ def main(argv: Optional[List[str]] = None) -> None:
     except typer.TyperException as exc:  # the parser's usage errors (typer's click)
         _fail(_usage_message(exc), getattr(exc, "exit_code", 2))
     except Exception as exc:
+        signal_exc = _signal_in_chain(exc)
+        if signal_exc is not None:  # a Ctrl-C or SIGTERM inside an extension's import surfaces as ImportError
+            sys.stderr.write("skewpend: terminated\n" if isinstance(signal_exc, Terminated) else "skewpend: interrupted\n")
+            _quick_exit(143 if isinstance(signal_exc, Terminated) else 130)
         if os.environ.get("SKEWPEND_DEBUG"):
             raise
         if isinstance(exc, (OSError, MemoryError)):
