@@ -339,3 +339,23 @@ def test_the_pendubot_beats_the_published_best():
     assert run.criteria.success and run.score >= 0.70 and np.all(run.u[:, 1] == 0.0)
     r = rb.robustness(tracking, actuated=(1,), speeds="positions")
     assert r.score >= 0.93, r.criteria
+
+
+@pytest.mark.parametrize("signum, code", [(2, 130), (15, 143)])
+def test_cli_leaderboard_stops_on_ctrl_c_and_sigterm(signum, code, tmp_path):
+    """Ctrl-C or SIGTERM during the optimisation (CasADi building or IPOPT solving, in this process or in the
+    forked workers) ends the command with 130 / 143, nothing written, no worker left behind; the hang guard:
+    the build of the skewed problem is not interruptible (about 10-15 s on 2 cores), the exit comes at its end
+    or sooner."""
+    import signal
+    import subprocess
+
+    from helpers import signal_process
+
+    argv = ["control", "leaderboard", "--robot", "pendubot", "--alpha", "30deg", "--umax", "5.5", "--out", "r.csv"]
+    ran, seconds = signal_process(argv, tmp_path, after=6.0, signum=signal.Signals(signum))
+    assert ran.code == code, ran.report()
+    assert ran.err.strip().splitlines()[-1] in ("skewpend: interrupted", "skewpend: terminated")
+    assert not list(tmp_path.iterdir()) and seconds < 60.0
+    left = subprocess.run(["pgrep", "-f", " ".join(argv)], capture_output=True, text=True).stdout.split()
+    assert not left, left

@@ -137,6 +137,22 @@ def _dynamics(chain, actuated: Tuple[int, ...]):
 
 
 _SOLVER: list = []  # the solver a forked worker inherits (set only while its pool lives)
+#: IPOPT's statuses when a Ctrl-C reached it: CasADi catches the signal inside the solve and returns (the
+#: interrupt would be lost; the caller raises it).
+INTERRUPTED = ("NonIpopt_Exception_Thrown", "User_Requested_Stop")
+
+
+def _interrupted(status: str) -> None:
+    if status in INTERRUPTED:
+        raise KeyboardInterrupt("the optimisation was interrupted")
+
+
+def _worker_init() -> None:
+    """A forked worker leaves Ctrl-C to the parent (which stops the pool) and ends at the pool's SIGTERM."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _solve_one(job):
@@ -153,23 +169,30 @@ def _solve_starts(solver, starts, bounds, workers, progress):
     import multiprocessing
     import os
 
+    from ..interrupts import Interrupts
+
     count = len(starts)
     if workers is None:
         workers = min(os.cpu_count() or 1, count)
     forking = "fork" in multiprocessing.get_all_start_methods()
     if workers == 1 or count == 1 or not forking:
         out = []
-        for k, z0 in enumerate(starts):
-            sol = solver(x0=z0, **bounds)
-            out.append((solver.stats()["return_status"], np.array(sol["x"]).ravel()))
-            if progress is not None:
-                progress(k, count)
+        with Interrupts() as intr:
+            for k, z0 in enumerate(starts):
+                intr.check()
+                sol = solver(x0=z0, **bounds)
+                _interrupted(solver.stats()["return_status"])
+                out.append((solver.stats()["return_status"], np.array(sol["x"]).ravel()))
+                if progress is not None:
+                    progress(k, count)
         return out
     _SOLVER[:] = [solver]
     try:
-        with multiprocessing.get_context("fork").Pool(min(workers, count)) as pool:
+        with Interrupts() as intr, multiprocessing.get_context("fork").Pool(min(workers, count), _worker_init) as pool:
             out = []
             for k, result in enumerate(pool.imap(_solve_one, [(z0, bounds) for z0 in starts])):
+                intr.check()
+                _interrupted(result[0])
                 out.append(result)
                 if progress is not None:
                     progress(k, count)
@@ -231,7 +254,7 @@ def _check_controllable(chain, label: str, actuated: Tuple[int, ...]) -> None:
                                f"the linearisation is not controllable (rank {c['rank']} of {lin.A.shape[0]})")
 
 
-def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="up-up", start=None,
+def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="up-up", start=None,
                     cost: Cost = Cost(), horizon: Tuple[float, float] = (0.5, 4.0), guess: float = 1.5,
                     knots: int = 150, hold: float = 0.8, height: float = PROTOCOL.height, attempts: int = 4,
                     seed: int = 0, dt_score: float = PROTOCOL.dt, steps_score: int = PROTOCOL.steps,
@@ -371,6 +394,27 @@ def optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="
     knots_t = np.concatenate([np.linspace(0.0, T1, N1 + 1), T1 + np.linspace(0.0, T2, N2 + 1)[1:]])
     return OptimalTrajectory(knots_t, x, full, chain, joints, x_goal, float(umax), ok, message,
                              predicted, _time.perf_counter() - t0, int(attempts))
+
+
+def _interruptible(solve):
+    """``solve`` with Ctrl-C and SIGTERM taken within 0.3 s of CasADi's build or IPOPT's solve returning
+    (``Interrupts(escalate_after=0.3)``: inside a command they are only recorded until a check)."""
+    import functools
+
+    @functools.wraps(solve)
+    def run(*args, **kwargs):
+        from ..interrupts import Interrupts
+
+        with Interrupts(escalate_after=0.3) as intr:
+            result = solve(*args, **kwargs)
+            intr.check()
+        return result
+
+    run.__name__ = run.__qualname__ = solve.__name__.lstrip("_")
+    return run
+
+
+optimal_swingup = _interruptible(_optimal_swingup)
 
 
 # -- tracking -------------------------------------------------------------------------------------------
