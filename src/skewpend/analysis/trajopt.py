@@ -12,7 +12,11 @@ chain, any skew) from a start to an equilibrium with the actuated joints inside 
   (plus a hundredth of its linear part, which keeps a saturated term's gradient alive); the default
   weights are the v2 score's, so the optimum is the best score the model allows;
 * from ``hold`` x ``T`` on the end effector stays above ``height`` x its height at the goal (the
-  leaderboard's success line), and the run ends at the goal at rest.
+  leaderboard's success line), and the run ends at the goal at rest;
+* IPOPT's exact derivatives are built from the transcription's structure: one knot interval's RK4
+  step differentiated once (Jacobian and Lagrangian Hessian), mapped over the intervals and scattered
+  into the sparse matrices -- a build of about a second, where CasADi's own colouring of the whole
+  expanded NLP took 5-17 s for a skewed rig.
 
 :func:`tvlqr` designs the tracking: the optimised motion resampled on a fixed step (the leaderboard's
 0.002 s), the discrete-time Riccati recursion along it ending in the goal's discrete LQR, and hands
@@ -134,6 +138,142 @@ def _dynamics(chain, actuated: Tuple[int, ...]):
     ends = fns["ends"](q, ca.SX(ca.DM(pnum)))
     tip = ca.Function("tip", [q], [-ends[3 * n - 2]])
     return ca, rhs, step, tip
+
+
+def _split(z, n: int, m: int, N: int):
+    """The decision vector's parts: states X (2 n, N + 1), torques U (m, N + 1), the criteria's slacks C (5),
+    the phases' durations T (2)."""
+    import casadi as ca
+
+    nX, nU = 2 * n * (N + 1), m * (N + 1)
+    return (ca.reshape(z[:nX], 2 * n, N + 1), ca.reshape(z[nX:nX + nU], m, N + 1), z[nX + nU:nX + nU + 5],
+            z[nX + nU + 5:nX + nU + 7])
+
+
+def _steps(ca, T, N: int, N1: int):
+    """The knot intervals' lengths (a row of N): ``T0 / N1`` for the first N1, then ``T1 / (N - N1)``."""
+    N2 = N - N1
+    return ca.horzcat(ca.repmat(T[0] / N1, 1, N1), ca.repmat(T[1] / N2, 1, N2)) if N2 else ca.repmat(T[0] / N1, 1, N)
+
+
+def _rest(ca, z, tip, *, n, m, N, N1, joints, up_line, weights, dt_score, steps_score):
+    """The transcription's constraints other than the knots' RK4 steps (the duration, the success line, the
+    criteria's definitions), the objective and the criteria, as expressions of ``z``."""
+    X, U, C, T = _split(z, n, m, N)
+    h = _steps(ca, T, N, N1)
+    g = [T[0] + T[1]]
+    if up_line > 0:
+        g.append(ca.vec(tip.map(N + 1 - N1)(X[:n, N1:]) - up_line))
+    # the criteria on rows dt_score apart: each knot interval holds h / dt_score rows
+    per = h / dt_score
+    energy = 0
+    for r, j in enumerate(joints):
+        w = (X[j - 1, 1:] - X[j - 1, :N]) * 0.5 * (U[r, :N] + U[r, 1:])
+        energy = energy + ca.sum2(ca.sqrt(w ** 2 + 1e-8))
+    diffs = U[:, 1:] - U[:, :N]
+    nd = steps_score - 1
+    g.append(C - ca.vertcat(energy, ca.sum2(h * ca.sum1(U[:, :N] ** 2)), ca.sum2(h * ca.sum1(X[n:, :N] ** 2)),
+                            ca.sum2(ca.sum1(diffs ** 2) / per) / nd - C[4] ** 2, ca.sum1(ca.sum2(diffs)) / nd))
+    values = {"swingup_time": T[0] if up_line > 0 else T[0] + T[1], "energy": C[0], "tau_cost": C[1],
+              "velocity_cost": C[2], "tau_smoothness": ca.sqrt(C[3] + 1e-14)}
+    objective = 0
+    for key in COST_TERMS:
+        if weights[key]:
+            s = math.pi * values[key] / NORMALISATION[key]
+            objective = objective + weights[key] * (ca.tanh(s) + LINEAR_SHARE * s)
+    return ca.vertcat(*g), objective, ca.vertcat(*[values[k] for k in COST_TERMS])
+
+
+def _assembly(ca, shape, rows, cols, sources, coefficients, width):
+    """A sparse matrix of ``shape`` whose entry ``(rows[t], cols[t])`` sums ``coefficients[t]`` times entry
+    ``sources[t]`` of a vector of ``width``: its sparsity and the constant (nnz x width) matrix that maps
+    the vector to its nonzeros (CasADi's column-major order)."""
+    nr, nc = shape
+    keys = np.asarray(cols, dtype=np.int64) * nr + np.asarray(rows, dtype=np.int64)
+    unique, where = np.unique(keys, return_inverse=True)
+    colind = np.searchsorted(unique // nr, np.arange(nc + 1))
+    sparsity = ca.Sparsity(nr, nc, colind.tolist(), (unique % nr).tolist())
+    from scipy.sparse import csc_matrix
+
+    A = csc_matrix((np.asarray(coefficients, dtype=float), (where, np.asarray(sources))), shape=(unique.size, width))
+    A.sum_duplicates()
+    return sparsity, ca.DM(ca.Sparsity(A.shape[0], A.shape[1], A.indptr.tolist(), A.indices.tolist()), A.data)
+
+
+def _transcription(ca, step, tip, *, n, m, N, N1, joints, up_line, weights, dt_score, steps_score):
+    """The multiple-shooting NLP ``{x, f, g}`` with its constraints' Jacobian and its Lagrangian's Hessian
+    built from their structure (``nlpsol`` options ``jac_g`` and ``hess_lag``): the RK4 step's derivatives
+    of one knot interval (state, torques at both ends, the phase's duration) derived once, mapped over the
+    intervals and scattered into the sparse matrices; the rest (a few expressions per knot) by CasADi's own
+    derivatives.  The same matrices as CasADi's automatic ones of the expanded NLP (``tests/test_trajopt.py``),
+    built in a fraction of a second where those take 5-15 s (the whole graph's colouring) and evaluated no
+    slower.  Also the criteria as expressions of ``x``."""
+    N2 = N - N1
+    nX, nU = 2 * n * (N + 1), m * (N + 1)
+    nz = nX + nU + 7
+    nd = 2 * n * N  # the RK4 steps' constraints
+    # one interval: w = (y, u0, u1, Tp), h = Tp * c
+    y, u0, u1 = ca.SX.sym("y", 2 * n), ca.SX.sym("u0", m), ca.SX.sym("u1", m)
+    Tp, c, lam = ca.SX.sym("Tp"), ca.SX.sym("c"), ca.SX.sym("lam", 2 * n)
+    w = ca.vertcat(y, u0, u1, Tp)
+    nw = w.shape[0]
+    nxt = step(y, u0, u1, Tp * c)
+    jac_block = ca.Function("jac_block", [y, u0, u1, Tp, c], [ca.densify(ca.jacobian(nxt, w))]).map(N)
+    hess_block = ca.Function("hess_block", [y, u0, u1, Tp, c, lam],
+                             [ca.densify(ca.hessian(ca.dot(lam, nxt), w)[0])]).map(N)
+    # the global column of each interval's local variable
+    k = np.arange(N)
+    phase = (k >= N1).astype(int)
+    col = np.empty((N, nw), dtype=np.int64)
+    col[:, :2 * n] = k[:, None] * 2 * n + np.arange(2 * n)
+    col[:, 2 * n:2 * n + m] = nX + k[:, None] * m + np.arange(m)
+    col[:, 2 * n + m:2 * n + 2 * m] = nX + (k[:, None] + 1) * m + np.arange(m)
+    col[:, -1] = nz - 2 + phase
+    # the Jacobian of the steps: block (i, a) of interval k at (2n k + i, col[k, a]); -1 at X_k+1
+    i, a = np.meshgrid(np.arange(2 * n), np.arange(nw), indexing="ij")
+    rows = (k[:, None, None] * 2 * n + i[None]).ravel()
+    cols = np.broadcast_to(col[:, None, :], (N, 2 * n, nw)).ravel()
+    src = (k[:, None, None] * (2 * n * nw) + a[None] * 2 * n + i[None]).ravel()
+    width = N * 2 * n * nw
+    rows = np.concatenate([rows, np.arange(nd)])
+    cols = np.concatenate([cols, 2 * n + np.arange(nd)])
+    src = np.concatenate([src, np.full(nd, width)])
+    coef = np.concatenate([np.ones(N * 2 * n * nw), -np.ones(nd)])
+    jac_sparsity, jac_map = _assembly(ca, (nd, nz), rows, cols, src, coef, width + 1)
+    # the Hessian of the steps' part of the Lagrangian: the upper triangle of each interval's block
+    a, b = np.triu_indices(nw)
+    hrows = col[:, a].ravel()
+    hcols = col[:, b].ravel()
+    hsrc = (k[:, None] * nw * nw + b[None] * nw + a[None]).ravel()
+    hess_sparsity, hess_map = _assembly(ca, (nz, nz), hrows, hcols, hsrc, np.ones(hsrc.size), N * nw * nw)
+    # the rest, in SX: small
+    zs = ca.SX.sym("z", nz)
+    g_rest, f_rest, values = _rest(ca, zs, tip, n=n, m=m, N=N, N1=N1, joints=joints, up_line=up_line, weights=weights,
+                                   dt_score=dt_score, steps_score=steps_score)
+    ng_rest = g_rest.shape[0]
+    lam_f_s, lam_r_s = ca.SX.sym("lam_f"), ca.SX.sym("lam_r", ng_rest)
+    rest = ca.Function("rest", [zs], [g_rest, f_rest, values])
+    rest_jac = ca.Function("rest_jac", [zs], [ca.jacobian(g_rest, zs)])
+    rest_hess = ca.Function("rest_hess", [zs, lam_f_s, lam_r_s],
+                            [ca.triu(ca.hessian(lam_f_s * f_rest + ca.dot(lam_r_s, g_rest), zs)[0])])
+    # the NLP in MX
+    z = ca.MX.sym("z", nz)
+    X, U, C, T = _split(z, n, m, N)
+    h = _steps(ca, T, N, N1)
+    Tk = ca.horzcat(ca.repmat(T[0], 1, N1), ca.repmat(T[1], 1, N2)) if N2 else ca.repmat(T[0], 1, N)
+    ck = ca.DM(np.where(phase == 0, 1.0 / N1, 1.0 / max(N2, 1))).T
+    defects = ca.vec(step.map(N)(X[:, :N], U[:, :N], U[:, 1:], h) - X[:, 1:])
+    g_r, f, vals = rest(z)
+    g = ca.vertcat(defects, g_r)
+    p = ca.MX.sym("p", 0, 1)
+    J_steps = ca.MX(jac_sparsity, ca.mtimes(jac_map, ca.vertcat(ca.vec(jac_block(X[:, :N], U[:, :N], U[:, 1:], Tk, ck)), 1)))
+    jac_g = ca.Function("nlp_jac_g", [z, p], [g, ca.vertcat(J_steps, rest_jac(z))], ["x", "p"], ["g", "jac_g_x"])
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", nd + ng_rest)
+    Lam = ca.reshape(lam_g[:nd], 2 * n, N)
+    H_steps = ca.MX(hess_sparsity, ca.mtimes(hess_map, ca.vec(hess_block(X[:, :N], U[:, :N], U[:, 1:], Tk, ck, Lam))))
+    hess_lag = ca.Function("nlp_hess_l", [z, p, lam_f, lam_g], [H_steps + rest_hess(z, lam_f, lam_g[nd:])],
+                           ["x", "p", "lam_f", "lam_g"], ["hess_gamma_x_x"])
+    return {"x": z, "f": f, "g": g}, {"jac_g": jac_g, "hess_lag": hess_lag}, vals
 
 
 _SOLVER: list = []  # the solver a forked worker inherits (set only while its pool lives)
@@ -303,43 +443,20 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     N = knots
     up_line = height * float(tip(x_goal[:n]))
     use_height = up_line > 0
-    X = ca.MX.sym("X", 2 * n, N + 1)
-    U = ca.MX.sym("U", m, N + 1)
-    T = ca.MX.sym("T", 2)  # the phases' durations: up to the crossing of the success line, then to the goal
-    C = ca.MX.sym("C", 5)  # energy, torque cost, velocity cost, variance and mean of the torque's steps
     N1 = max(1, min(N - 1, int(round(hold * N)))) if use_height else N
     N2 = N - N1
-    h = ca.vertcat(ca.repmat(T[0] / N1, N1, 1), ca.repmat(T[1] / max(N2, 1), N2, 1)).T if N2 else ca.repmat(T[0] / N1, 1, N)
-    F = step.map(N)
-    g = [ca.vec(F(X[:, :N], U[:, :N], U[:, 1:], h) - X[:, 1:]), T[0] + T[1]]
+    weights = dict(zip(COST_TERMS, cost.weights))
+    nlp, options, values = _transcription(ca, step, tip, n=n, m=m, N=N, N1=N1, joints=joints, up_line=up_line,
+                                          weights=weights, dt_score=dt_score, steps_score=steps_score)
+    objective = nlp["f"]
     lbg = [np.zeros(2 * n * N), [lo]]
     ubg = [np.zeros(2 * n * N), [hi]]
     if use_height:
-        H = tip.map(N + 1 - N1)
-        g.append(ca.vec(H(X[:n, N1:]) - up_line))
         lbg.append(np.zeros(N + 1 - N1))
         ubg.append(np.full(N + 1 - N1, np.inf))
-    # the criteria on rows dt_score apart: each knot interval holds h / dt_score rows
-    per = h / dt_score
-    energy = 0
-    for r, j in enumerate(joints):
-        w = (X[j - 1, 1:] - X[j - 1, :N]) * 0.5 * (U[r, :N] + U[r, 1:])
-        energy = energy + ca.sum2(ca.sqrt(w ** 2 + 1e-8))
-    diffs = U[:, 1:] - U[:, :N]
-    nd = steps_score - 1
-    g.append(C - ca.vertcat(energy, ca.sum2(h * ca.sum1(U[:, :N] ** 2)), ca.sum2(h * ca.sum1(X[n:, :N] ** 2)),
-                            ca.sum2(ca.sum1(diffs ** 2) / per) / nd - C[4] ** 2, ca.sum1(ca.sum2(diffs)) / nd))
     lbg.append(np.zeros(5))
     ubg.append(np.zeros(5))
-    values = {"swingup_time": T[0] if use_height else T[0] + T[1], "energy": C[0], "tau_cost": C[1],
-              "velocity_cost": C[2], "tau_smoothness": ca.sqrt(C[3] + 1e-14)}
-    weights = dict(zip(COST_TERMS, cost.weights))
-    objective = 0
-    for key in COST_TERMS:
-        if weights[key]:
-            s = math.pi * values[key] / NORMALISATION[key]
-            objective = objective + weights[key] * (ca.tanh(s) + LINEAR_SHARE * s)
-    z = ca.vertcat(ca.vec(X), ca.vec(U), C, T)
+    z = nlp["x"]
     nz = z.shape[0]
     nX, nU = 2 * n * (N + 1), m * (N + 1)
     lbz, ubz = np.full(nz, -np.inf), np.full(nz, np.inf)
@@ -351,11 +468,11 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     lbz[-2:], ubz[-2:] = 0.02 * lo, hi
     if not N2:
         lbz[-1] = ubz[-1] = 0.0
-    solver = ca.nlpsol("swingup", "ipopt", {"x": z, "f": objective, "g": ca.vertcat(*g)},
-                       {"expand": True, "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                        "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-8, "ipopt.acceptable_iter": 200,
-                        "ipopt.bound_relax_factor": 0.0})
-    evaluate = ca.Function("criteria", [z], [ca.vertcat(*[values[k] for k in COST_TERMS]), objective])
+    solver = ca.nlpsol("swingup", "ipopt", nlp,
+                       dict(options, **{"expand": True, "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                                        "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-8,
+                                        "ipopt.acceptable_iter": 200, "ipopt.bound_relax_factor": 0.0}))
+    evaluate = ca.Function("criteria", [z], [values, objective])
     rng = np.random.default_rng(seed)
     tau_grid = np.linspace(0.0, 1.0, N + 1)
     starts = []
