@@ -31,6 +31,15 @@ sys.path.insert(0, os.path.dirname(__file__))
 from _common import cpu_model, version  # noqa: E402
 
 
+KNOTS = 150  # optimal_swingup's default
+
+
+def model_links(model) -> int:
+    from skewpend.symbolic.chain import Chain
+
+    return Chain.from_parameters(model).n
+
+
 def predicted_score(criteria) -> float:
     from skewpend.analysis.leaderboard import NORMALISATION
 
@@ -82,12 +91,13 @@ def main() -> None:
     t0 = time.perf_counter()
     for guess in args.guesses:
         for seed in range(*args.seeds):
-            record(trajopt.optimal_swingup(model, actuated=joints, attempts=4, seed=seed, guess=guess),
+            record(trajopt.optimal_swingup(model, actuated=joints, attempts=4, seed=seed, guess=guess,
+                                           knots=KNOTS),
                    f"start: guess {guess:g} s, seed {seed}")
     print(f"starts: {sum(found.values())} optima of {4 * len(args.guesses) * (args.seeds[1] - args.seeds[0])} "
           f"starts in {time.perf_counter() - t0:.0f} s; best {best[0]:.4f} ({best[2]})", flush=True)
     rng = np.random.default_rng(0)
-    N, n, m = 150, 2, len(joints)
+    N, n, m = KNOTS, model_links(model), len(joints)
     nX, nU = 2 * n * (N + 1), m * (N + 1)
     s = np.linspace(0.0, 1.0, N + 1)
     t0 = time.perf_counter()
@@ -106,7 +116,7 @@ def main() -> None:
             z[-2:] *= 1.0 + 0.15 * rng.normal()
             starts.append(z)
         box["starts"] = starts
-        record(trajopt.optimal_swingup(model, actuated=joints, attempts=2), f"hop {hop}")
+        record(trajopt.optimal_swingup(model, actuated=joints, attempts=2, knots=KNOTS), f"hop {hop}")
         box["starts"] = None
     print(f"hops: {2 * args.hops} perturbed starts in {time.perf_counter() - t0:.0f} s")
     print("distinct optima (predicted v2 score: how many; criteria):")
