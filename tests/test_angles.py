@@ -80,3 +80,38 @@ def test_parameters_refuse_subnormal_sizes(name):
 ])
 def test_scales_too_far_apart_are_one_line(tmp_path, argv, fragment):
     assert_refused(run_cli(argv, cwd=tmp_path), [fragment])
+
+
+# -- issue 51: an angle typed without a unit beyond one turn is a likely slip of degrees -----------------
+@pytest.mark.parametrize("argv,flag,meant", [
+    (["derive", "--alpha", "30"], "--alpha", "30deg"),
+    (["simulate", "--phi0", "-120"], "--phi0", "-120deg"),
+    (["control", "leaderboard", "--robot", "acrobot", "--alpha", "30"], "--alpha", "30deg"),
+    (["chaos-diagram", "--alphas", "0:90:7"], "--alphas", "0:90deg:7"),
+])
+def test_a_bare_angle_beyond_one_turn_is_refused_with_the_likely_spelling(tmp_path, argv, flag, meant):
+    """``--alpha 30`` was 30 rad (1719 deg), silently; the leaderboard optimised at that skew."""
+    err = assert_refused(run_cli(argv, cwd=tmp_path), [flag, "no unit", meant])
+    assert "rad if radians are meant" in err or "rad:7 if radians are meant" in err
+
+
+def test_a_bare_angle_in_a_run_file_follows_the_same_rule(tmp_path):
+    (tmp_path / "run.toml").write_text("[parameters]\nalpha = 35\n", encoding="utf-8")
+    assert_refused(run_cli(["derive", "--config", "run.toml"], cwd=tmp_path), ["alpha", "35deg"])
+
+
+@pytest.mark.parametrize("text,radians", [("6.2", 6.2), ("-6.28", -6.28), ("30rad", 30.0), ("30 rad", 30.0), ("3pi", 3 * math.pi),
+                                          ("400deg", 400 * math.pi / 180), ("2pi", 2 * math.pi)])
+def test_angles_within_a_turn_or_with_a_unit_are_taken(text, radians):
+    from skewpend.parsing import parse_scalar
+
+    assert parse_scalar(text, "--alpha", angle=True) == pytest.approx(radians, rel=1e-15)
+
+
+def test_a_number_from_python_keeps_its_radians(tmp_path):
+    """The rule is about what a person writes (a flag, a run file): Python's numbers are radians by the
+    API's contract; a run file says radians beyond a turn as a string with the unit."""
+    (tmp_path / "run.toml").write_text('[parameters]\nalpha = "35rad"\n', encoding="utf-8")
+    ran = run_cli(["derive", "--config", "run.toml"], cwd=tmp_path)
+    assert ran.code == 0 and "alpha=35" in ran.out
+    assert skewpend.Parameters(a=1.0, b=1.0, m1=1.0, m2=1.0, alpha=30.0, g=9.81).alpha == 30.0

@@ -35,8 +35,12 @@ def _number(t: str) -> float:
 
 
 def parse_scalar(text: Any, option: str, *, angle: bool = False) -> Optional[float]:
-    """A number; for angles radians, a ``deg`` suffix or a multiple of pi (``pi/2``); ``sym``
-    leaves it symbolic (None).  A number already parsed (int or float, not bool) is checked only."""
+    """A number; for angles radians, a ``deg`` or ``rad`` suffix or a multiple of pi (``pi/2``); ``sym``
+    leaves it symbolic (None).  A number already parsed (a run file's int or float, not bool) is checked only.
+
+    An angle given as a bare number (typed, or a run file's number) is radians, and beyond one turn
+    (2 pi) it is refused with the spelling that was likely meant (``30`` -> ``30deg``); ``30rad``
+    (in a run file ``"30rad"``) keeps 30 rad.  Python's API takes radians and never comes here."""
     if text is None:
         return None
     if isinstance(text, (int, float)) and not isinstance(text, bool):
@@ -47,13 +51,15 @@ def parse_scalar(text: Any, option: str, *, angle: bool = False) -> Optional[flo
     if value is None and t in _SYMBOLIC:
         return None
     scale = 1.0
+    unit = None  # an angle's unit as written: 'deg', 'rad' or 'pi' (None: a bare number, radians)
     if value is None and angle:
-        for suffix in ("deg", "°"):
+        for suffix, name, factor in (("deg", "deg", math.pi / 180), ("°", "deg", math.pi / 180), ("rad", "rad", 1.0)):
             if t.endswith(suffix):
-                t, scale = t[: -len(suffix)].strip(), math.pi / 180
+                t, scale, unit = t[: -len(suffix)].strip(), factor, name
                 break
-        m = _PI.fullmatch(t) if scale == 1.0 else None
+        m = _PI.fullmatch(t) if unit is None else None
         if m:
+            unit = "pi"
             factor = m.group(1)
             factor = -1.0 if factor == "-" else (1.0 if factor in ("", "+") else float(factor))
             divisor = float(m.group(2)) if m.group(2) else 1.0
@@ -64,14 +70,22 @@ def parse_scalar(text: Any, option: str, *, angle: bool = False) -> Optional[flo
         try:
             value = _number(t)
         except ValueError:
-            allowed = "a number in radians, with a deg suffix (e.g. 30deg) or a multiple of pi (e.g. pi/2)" if angle else "a number"
+            allowed = "a number in radians, with a deg or rad suffix (e.g. 30deg) or a multiple of pi (e.g. pi/2)" if angle else "a number"
             raise UsageError(f"{option}: expected {allowed}, or 'sym' for symbolic; got {text!r}") from None
     value *= scale
     if not math.isfinite(value):
         raise UsageError(f"{option}: expected a finite number, got {text!r}")
     if angle and abs(value) > MAX_ANGLE:  # cos and sin of it would be digits of rounding
         raise UsageError(f"{option}: expected an angle of at most {MAX_ANGLE:g} rad in magnitude, got {text!r}")
+    if angle and unit is None and abs(value) > _TURN:
+        raise UsageError(f"{option}: {str(text).strip()!r} has no unit, so it would be {value:g} rad (more than one turn); "
+                         f"write {t}deg for degrees, or {t}rad if radians are meant")
     return value
+
+
+#: One turn [rad], with a margin of rounding: an angle typed without a unit beyond it is refused as a
+#: likely slip of degrees for radians (``--alpha 30`` would be 1719 deg); ``30deg`` or ``30rad`` say which.
+_TURN = 2 * math.pi * (1 + 1e-12)
 
 
 def parse_whole(text: Any, option: str, lo: int, hi: int) -> int:
@@ -178,8 +192,10 @@ _RANGE_UNITS = (("deg", "deg"), ("°", "deg"), ("rad", "rad"))
 _MAX_RANGE_COUNT = 100_000
 
 
-def parse_interval(text: Optional[str], option: str, *, angle: bool, example: str = "-90:90deg") -> Tuple[float, float]:
-    """``START:STOP`` -> ``(start, stop)`` in SI units, with the unit rule of :func:`parse_range`."""
+def parse_interval(text: Optional[str], option: str, *, angle: bool, example: str = "-90:90deg",
+                   tail: str = "") -> Tuple[float, float]:
+    """``START:STOP`` -> ``(start, stop)`` in SI units, with the unit rule of :func:`parse_range`
+    (``tail``: what followed the interval as typed, e.g. a range's ``:COUNT``, for the messages)."""
     if not isinstance(text, str) or len(text.split(":")) != 2:
         raise UsageError(f"{option}: expected START:STOP (e.g. {example}), got {text!r}")
     ends, units = [], []
@@ -207,6 +223,10 @@ def parse_interval(text: Optional[str], option: str, *, angle: bool, example: st
             "on either end or both (it applies to the whole range)"
         )
     scale = math.pi / 180 if explicit == ["deg"] else 1.0  # the factor parse_scalar uses for 'deg'
+    if angle and not explicit and max(abs(e) for e in ends) > _TURN:
+        plain = ":".join(part.strip() for part in text.split(":"))
+        raise UsageError(f"{option}: {plain + tail!r} has no unit, so it would be radians beyond one turn; write "
+                         f"{plain}deg{tail} for degrees, or {plain}rad{tail} if radians are meant")
     return ends[0] * scale, ends[1] * scale
 
 
@@ -227,7 +247,7 @@ def parse_range(text: Optional[str], option: str, *, angle: bool):
     if not isinstance(text, str) or len(text.split(":")) != 3:
         raise UsageError(f"{option}: expected START:STOP:COUNT (e.g. {example}), got {text!r}")
     head, count = text.rsplit(":", 1)
-    lo, hi = parse_interval(head, option, angle=angle, example=example)
+    lo, hi = parse_interval(head, option, angle=angle, example=example, tail=":" + count.strip())
     count = count.strip()
     try:
         n = int(count)
