@@ -73,6 +73,7 @@ _LAZY = {
     "Identification": "analysis.identify",
     "Convention": "analysis.measurements",
     "example_data": "datasets",
+    "example_run_file": "datasets",
     "widget": "views.widget",
     "PendulumWidget": "views.widget",
 }
@@ -82,6 +83,7 @@ __all__ = [
     "Chain",
     "Link",
     "example_data",
+    "example_run_file",
     "derive",
     "SYMBOLS",
     "EquationsOfMotion",
@@ -165,7 +167,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.measurements import Convention, Measurements
     from .analysis.identify import Identification, identify
     from .views.widget import PendulumWidget, widget
-    from .datasets import example_data
+    from .datasets import example_data, example_run_file
 
 
 #: Subpackages (the layers) and modules reachable as attributes after a plain ``import skewpend``

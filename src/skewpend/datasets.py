@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Dict
 
-__all__ = ["EXAMPLE_DATA", "example_data", "data_root"]
+__all__ = ["EXAMPLE_DATA", "example_data", "data_root", "example_run_file", "example_run_files"]
 
 #: The shipped data sets: name -> what it holds (the names are folders of ``skewpend/data``).
 EXAMPLE_DATA: Dict[str, str] = {
@@ -63,3 +63,30 @@ def example_data(name: str) -> Path:
         files = sorted(p.name for p in (root / parts[0]).iterdir() if p.is_file())
         raise ParameterError(f"example data: {parts[0]} has no {'/'.join(parts[1:])}; its files: {', '.join(files)}")
     return path
+
+
+def example_run_files() -> Dict[str, Path]:
+    """The shipped run files (``--config``): name (the file's stem, e.g. ``"skewed_triple"``) -> path.
+
+    They are package data (``skewpend/data/examples``; the repository's ``examples/`` links there),
+    so an installed copy has them too: ``skewpend simulate --config "$(python -c 'import skewpend;
+    print(skewpend.example_run_file("skewed_triple"))')"`` works from any folder."""
+    folder = data_root() / "examples"
+    return {p.stem: p for p in sorted(folder.glob("*.toml"))} if folder.is_dir() else {}
+
+
+def example_run_file(name: str) -> Path:
+    """The path of a shipped run file by its name (``"skewed_triple"`` or ``"skewed_triple.toml"``);
+    :class:`~skewpend.errors.ParameterError` in one line naming the ones there are.
+
+    >>> import skewpend
+    >>> skewpend.example_run_file("skewed_triple").name
+    'skewed_triple.toml'
+    """
+    from .errors import ParameterError
+
+    files = example_run_files()
+    stem = name[: -len(".toml")] if isinstance(name, str) and name.endswith(".toml") else name
+    if not isinstance(stem, str) or stem not in files:
+        raise ParameterError(f"example run file: no {name!r}; available: {', '.join(files) or 'none installed'}")
+    return files[stem]

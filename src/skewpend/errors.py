@@ -53,7 +53,7 @@ class MissingExtraError(SkewpendError, ImportError):
 #: The extras of ``pyproject.toml`` and what each brings, by importable module name.
 EXTRAS = {
     "netCDF4": "netcdf", "mujoco": "validate", "zarr": "cluster", "distributed": "cluster", "dask": "cluster",
-    "fastapi": "web", "uvicorn": "web", "heyoka": "bench", "casadi": "chains", "pinocchio": "validate", "xarray": None,
+    "fastapi": "web", "uvicorn": "web", "heyoka": "bench", "anywidget": "notebook", "casadi": None, "pinocchio": "validate", "xarray": None,
 }
 
 
