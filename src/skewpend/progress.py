@@ -6,8 +6,8 @@ the command before any heavy import; the command and the library name each stage
 (:func:`stage`, a no-op when no command runs, so library functions may call it freely), and the
 progress callbacks of long computations (``progress(done, total)``) move the current stage's bar.
 
-* On a terminal (stderr is one): one live line on stderr, drawn by Rich -- a spinner, the stage, a
-  bar (its real fraction; a pulse where the fraction is not known), the time elapsed and, with a
+* On a terminal (stderr is one): one live line on stderr, drawn by Rich -- a spinner, the stage and
+  its sub-step (:func:`detail`), a bar (its real fraction; a pulse where the fraction is not known), the time elapsed and, with a
   fraction, the time left -- redrawn ten times a second, gone when the command ends or writes its
   own output (the next stage draws it again).
 * Off a terminal (pipes, files, CI): one line per stage on stderr, ``skewpend CMD: [k/n] STAGE...
@@ -32,7 +32,7 @@ import threading
 import time
 from typing import Any, List, Optional
 
-__all__ = ["ProgressBar", "Stages", "stage", "active", "GRACE", "FIRST_BY", "STAGE_LINE"]
+__all__ = ["ProgressBar", "Stages", "stage", "detail", "active", "GRACE", "FIRST_BY", "STAGE_LINE"]
 
 #: A stage's line off a terminal, ``skewpend CMD: [k/n] STAGE... (T s)`` (T: seconds since the command
 #: started; ``[k/n]`` when the stages are counted) -- for a script that reads stderr and wants them apart.
@@ -63,6 +63,15 @@ def stage(name: str, step: Optional[int] = None, steps: Optional[int] = None) ->
     reporter = active()
     if reporter is not None:
         reporter.stage(name, step, steps)
+
+
+def detail(text: str) -> None:
+    """Say what the current stage is doing now -- its iteration, continuation step, frame or
+    sub-step (issue 51: no silence over 2 s on a terminal) -- shown after the stage on the live line;
+    nothing off a terminal (a line per stage there), when no command runs, or when it is quiet."""
+    reporter = active()
+    if reporter is not None:
+        reporter.detail(text)
 
 
 def _quiet_environment() -> bool:
@@ -113,6 +122,10 @@ class Stages:
         self._first_by = float("inf")  # when the first line is due (set on entering)
         self._pending = False
         self.lines: List[str] = []  # every stage said, as its line (for tests and the benchmark)
+        self._detail: Optional[str] = None
+        #: when the live line's text or fraction last changed (a clock time per change: stages, bars,
+        #: details) -- on a terminal only; for tests and the benchmark (the longest gap is a silence)
+        self.moves: List[float] = []
 
     # -- the command's side ------------------------------------------------------------------
     def __enter__(self) -> "Stages":
@@ -153,6 +166,7 @@ class Stages:
         lasted ``grace`` seconds (``within``, if given), so that a refusal stays one line."""
         with self._lock:
             self._name, self._step, self._steps = str(name), step, steps
+            self._detail = None
             self._fraction = (step - 1) / steps if step is not None and steps else None
             self._stage_start = self._clock()
             self._token += 1
@@ -186,9 +200,31 @@ class Stages:
         except (TypeError, ValueError, ZeroDivisionError):
             fraction = None
         with self._lock:
+            if fraction != self._fraction:
+                self.moves.append(self._clock())
             self._fraction = fraction
             now = self._clock()
             if self._said and (now - self._drawn >= _REDRAW or fraction == 1.0):
+                self._draw()
+
+    def detail(self, text: str) -> None:
+        """The current stage's sub-step now (``"orbit 12, Newton iteration 3"``, ``"frame 40 of 120"``):
+        on a terminal shown after the stage on the live line (redrawn at most ten times a second);
+        off a terminal nothing (a line per stage there).  A stage held until its work began is said now."""
+        if not self.enabled or self._closed or not self.terminal:
+            return
+        if self._pending:
+            with self._lock:
+                if self._pending:
+                    self._say()
+        text = str(text)
+        with self._lock:
+            if text == self._detail:
+                return
+            self._detail = text
+            now = self._clock()
+            self.moves.append(now)
+            if self._said and now - self._drawn >= _REDRAW:
                 self._draw()
 
     def bar(self, label: str, unit: str = "") -> "StageBar":
@@ -211,6 +247,9 @@ class Stages:
         count = f"[{self._step}/{self._steps}] " if self._step is not None and self._steps else ""
         return f"{count}{self._name}"
 
+    def _live_text(self) -> str:
+        return self._text() + (f": {self._detail}" if self._detail else "")
+
     def _say(self) -> None:
         self._pending = False
         if not self.enabled or self._closed or self._name is None:
@@ -219,6 +258,7 @@ class Stages:
         self.lines.append(line)
         self._said = True
         if self.terminal:
+            self.moves.append(self._clock())
             self._draw()
             return
         try:
@@ -232,7 +272,7 @@ class Stages:
         try:
             if self._progress is None:
                 self._progress = self._make_progress()
-            description = f"skewpend {self.command}: {self._text()}"
+            description = f"skewpend {self.command}: {self._live_text()}"
             if self._task is None:
                 self._task = self._progress.add_task(description, total=None)
             if self._drawn_stage != self._token:  # a new stage: not finished, whatever the last one reached
@@ -260,7 +300,7 @@ class Stages:
 
     def _make_progress(self):
         from rich.console import Console
-        from rich.progress import BarColumn, Progress, ProgressColumn, SpinnerColumn, TextColumn
+        from rich.progress import BarColumn, Progress, ProgressColumn, SpinnerColumn
         from rich.text import Text
 
         owner = self
@@ -277,6 +317,12 @@ class Stages:
                     text += f"  ETA {_clock_text(spent * (1.0 - fraction) / fraction)}"
                 return Text(text, style="progress.elapsed")
 
+        class Description(ProgressColumn):
+            """The stage and its sub-step as they are now (a detail said between two draws shows at the next refresh)."""
+
+            def render(self, task) -> Text:
+                return Text(f"skewpend {owner.command}: {owner._live_text()}")
+
         class Share(ProgressColumn):
             def render(self, task) -> Text:
                 fraction = owner._fraction
@@ -284,7 +330,7 @@ class Stages:
 
         real = self._streams[1] if self._streams else sys.stderr
         console = self._console or Console(file=real)
-        return Progress(SpinnerColumn(), TextColumn("{task.description}", markup=False), BarColumn(), Share(), Clock(),
+        return Progress(SpinnerColumn(), Description(), BarColumn(), Share(), Clock(),
                         console=console, transient=True, redirect_stdout=False, redirect_stderr=False,
                         refresh_per_second=10)
 

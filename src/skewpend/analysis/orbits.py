@@ -41,6 +41,7 @@ import numpy as np
 
 from ..checks import angle, numeric_params, positive, progress_callable, tolerances, whole
 from ..errors import EquilibriumError, IntegrationError, ParameterError, SkewpendError
+from ..progress import detail as say_detail, stage as say_stage
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..schema import state_coordinates
 from ..status import Status
@@ -579,6 +580,9 @@ def _chain_flip_energy(chain) -> float:
     """The minimum of ``V = Pi - tau . q`` on the boundary of the cube ``|q_i| <= pi`` of a chain of links:
     on each face (one angle at +-pi) :data:`FLIP_SAMPLES` seeded samples, then L-BFGS-B (bounded to the face)
     from the :data:`FLIP_STARTS` lowest.  A two-link chain's faces are the square's sides (:func:`flip_energy`)."""
+    cached = _FLIP_ENERGIES.get(chain)
+    if cached is not None:
+        return cached
     from scipy.optimize import minimize
 
     H = energy_function(chain)
@@ -590,12 +594,13 @@ def _chain_flip_energy(chain) -> float:
         return H(np.concatenate([np.atleast_2d(q), np.zeros((np.atleast_2d(q).shape[0], n))], axis=1))
 
     for i in range(n):
-        for side in (-math.pi, math.pi):
+        for half, side in enumerate((-math.pi, math.pi)):
             free = [j for j in range(n) if j != i]
             Q = rng.uniform(-math.pi, math.pi, size=(FLIP_SAMPLES, n))
             Q[:, i] = side
             values = V(Q)
-            for k in np.argsort(values)[:FLIP_STARTS]:
+            for start, k in enumerate(np.argsort(values)[:FLIP_STARTS], 1):
+                say_detail(f"the lowest flip energy: face {2 * i + half + 1} of {2 * n}, search {start} of {FLIP_STARTS}")
                 def f(x, k=k):
                     q = Q[k].copy()
                     q[free] = x
@@ -604,7 +609,15 @@ def _chain_flip_energy(chain) -> float:
                 res = minimize(f, Q[k, free], method="L-BFGS-B", bounds=[(-math.pi, math.pi)] * len(free),
                                options={"ftol": 1e-15, "gtol": 1e-12})
                 best = min(best, float(values[k]), float(res.fun))
+    if len(_FLIP_ENERGIES) >= 16:  # a few chains at a time (a continuation asks for its chain's more than once)
+        _FLIP_ENERGIES.pop(next(iter(_FLIP_ENERGIES)))
+    _FLIP_ENERGIES[chain] = best
     return best
+
+
+#: The flip energies of the chains met last (seconds each for a long chain: nnm, its energy check and
+#: backbones' families ask for the same chain's).
+_FLIP_ENERGIES: Dict[Chain, float] = {}
 
 
 def flip_energy(params: Parameters) -> float:
@@ -892,6 +905,7 @@ def _energy_limit(params: Parameters, name: str, value, *, mode: Optional[int] =
     from .equilibria import equilibria
 
     E = positive(name, value)
+    say_detail("the equilibria (the highest bounds the energy)")
     points = equilibria(params).points
     if points:
         top = max(points, key=lambda e: e.potential)
@@ -946,8 +960,10 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     step = positive("step", step, cap=0.5)
     rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
     progress = progress_callable(progress, "progress(energy, energy_max)")
+    say_detail("the lowest energy at which a joint can flip")
     barrier = flip_energy(params)
     E_max = barrier if energy_max is None else _energy_limit(params, "energy_max", energy_max, mode=mode)
+    say_detail("the linear modes")
     linear = normal_modes(params)
     w0 = float(linear.frequencies[mode - 1])
     v = linear.shapes[:, mode - 1]
@@ -963,14 +979,18 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     energies, periods, states, monos, tangE = [], [], [], [], []
     settings = {"mode": mode, "energy_max": E_max, "step": step, "rtol": rtol, "atol": atol, "max_orbits": max_orbits}
     status, message = Status.SUCCESS, ""
+
+    def told(what: str):  # a Newton iteration said on the live line (issue 51: no silence over 2 s)
+        return lambda it, _n: say_detail(f"{what}: Newton iteration {it}")
+
     with Interrupts() as intr:
-        out = _newton(model, x, T0, E, zero, x, scales, check=intr.check)
+        out = _newton(model, x, T0, E, zero, x, scales, check=intr.check, progress=told("orbit 1 (the linear mode)"))
         if out is None:
             raise IntegrationError("the continuation could not start from the linear mode (Newton failed at the first orbit)")
         x, T, E, fl, _, _ = out
         energies.append(E), periods.append(T), states.append(x), monos.append(fl.stm)
         # the first tangent: along increasing energy (a second orbit at twice the energy)
-        out2 = _newton(model, x * math.sqrt(2.0), T, 2 * E, zero, x, scales, check=intr.check)
+        out2 = _newton(model, x * math.sqrt(2.0), T, 2 * E, zero, x, scales, check=intr.check, progress=told("orbit 2"))
         if out2 is None:
             raise IntegrationError("the continuation could not take its first step from the linear mode")
         x2, T2, E2, fl2, _, _ = out2
@@ -990,11 +1010,13 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
                 break
             u_pred = u_cur + ds * tangent
             x_p, T_p, E_p = u_pred[:n2] * su[:n2], u_pred[n2] * su[n2], u_pred[n2 + 1] * su[n2 + 1]
+            here = f"orbit {len(energies) + 1} near E = {E_p:.4g} J ({100 * min(E_p / E_max, 1.0):.1f}%)"
             res = _newton(model, x_p, T_p, E_p, zero, states[-1], scales, arclength=(u_pred, tangent),
-                          free_energy=True, check=intr.check, max_iterations=8)
+                          free_energy=True, check=intr.check, max_iterations=8, progress=told(here))
             if res is None:
                 ds /= 2
                 failures += 1
+                say_detail(f"{here}: the corrector failed, the step halved")
                 if ds < 1e-7:
                     status = Status.NO_CONVERGENCE
                     message = (f"the continuation stopped at E = {energies[-1]:.6g} J (frequency "
@@ -1011,7 +1033,7 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
                 t_ = (E_max - energies[-1]) / (E_n - energies[-1])
                 guess = states[-1] + t_ * (x_n - states[-1])
                 fixed = _newton(model, guess, periods[-1] + t_ * (T_n - periods[-1]), E_max, zero, states[-1],
-                                scales, check=intr.check)
+                                scales, check=intr.check, progress=told(f"the last orbit, at E = {E_max:.4g} J"))
                 if fixed is not None:
                     x_n, T_n, E_n, fl_n = fixed[0], fixed[1], fixed[2], fixed[3]
             energies.append(E_n), periods.append(T_n), states.append(x_n), monos.append(fl_n.stm)
@@ -1062,7 +1084,10 @@ def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_ord
     crosses ``p/q`` with ``p, q <= max_order``."""
     max_order = whole("max_order", max_order, 1, 12)
     n = params.n if isinstance(params, Chain) else 2
-    fams = [nnm(params, mode=m, energy_max=energy_max, **kw) for m in range(1, n + 1)]
+    fams = []
+    for m in range(1, n + 1):  # a stage per family: a chain's families take minutes (issue 51)
+        say_stage(f"continuing nonlinear normal mode {m} of {n}")
+        fams.append(nnm(params, mode=m, energy_max=energy_max, **kw))
     ratios = sorted({Fraction(p, q) for p in range(1, max_order + 1) for q in range(1, max_order + 1)})
     res: List[BranchEvent] = []
 
@@ -1218,7 +1243,8 @@ def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Seque
             q = replace(params, alpha=a)
             model = model_cache.setdefault(a, _Model(q, rtol, atol))
             scales = _scales_for(q, T, energy)
-            out = _newton(model, x, T, energy, np.zeros(4), x, scales, check=intr.check)
+            out = _newton(model, x, T, energy, np.zeros(4), x, scales, check=intr.check,
+                          progress=lambda it, _n, a=a: say_detail(f"alpha = {math.degrees(a):.4g} deg: Newton iteration {it}"))
             calls += model.calls
             if out is None:
                 h = (a - a_prev) / 2

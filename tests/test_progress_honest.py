@@ -1,0 +1,155 @@
+"""No silence over 2 s on a terminal (issue 51, item 5): while work runs, the live line's text moves at
+each of its sub-steps -- a continuation's Newton iterations and steps, the flip energy's searches, an
+animation's frames, a report section's parts (:func:`skewpend.progress.detail`); off a terminal a line per
+stage as before.  Nothing here is timed: the live line's moves (``Stages.moves``) are counted against the
+work's own steps (flows, searches, frames), which each take well under a second."""
+
+from __future__ import annotations
+
+import io
+import sys
+
+import numpy as np
+import pytest
+
+from skewpend import progress as P
+
+
+class _Streams:
+    """stdout and stderr swapped for buffers (a terminal Stages wraps them)."""
+
+    def __enter__(self):
+        self.old = sys.stdout, sys.stderr
+        self.out, self.err = io.StringIO(), io.StringIO()
+        sys.stdout, sys.stderr = self.out, self.err
+        return self
+
+    def __exit__(self, *exc):
+        sys.stdout, sys.stderr = self.old
+
+
+def _terminal_stages(command: str) -> "tuple[P.Stages, io.StringIO]":
+    from rich.console import Console
+
+    screen = io.StringIO()
+    console = Console(file=screen, force_terminal=True, width=160, color_system=None)
+    return P.Stages(command, terminal=True, console=console), screen
+
+
+# -- the reporter ----------------------------------------------------------------------------------------
+def test_a_detail_is_drawn_on_the_live_line_after_its_stage():
+    with _Streams() as streams:
+        st, screen = _terminal_stages("demo")
+        with st:
+            P.stage("working")
+            before = len(st.moves)
+            P.detail("step 3 of 7")
+            st._progress.refresh()
+            drawn = screen.getvalue()
+            P.detail("step 3 of 7")  # the same text again: no move
+            assert len(st.moves) == before + 1
+            P.stage("writing")  # a new stage forgets the last one's detail
+            st._progress.refresh()
+            assert st._live_text() == "writing"
+    assert "skewpend demo: working: step 3 of 7" in drawn
+    assert streams.err.getvalue() == ""  # the live line only, no line of its own
+
+
+def test_off_a_terminal_a_detail_is_no_line():
+    buf = io.StringIO()
+    old, sys.stderr = sys.stderr, buf
+    try:
+        with P.Stages("demo", terminal=False) as st:
+            P.stage("working")
+            for k in range(5):
+                P.detail(f"step {k}")
+    finally:
+        sys.stderr = old
+    assert [line.split("... (")[0] for line in buf.getvalue().splitlines()] == ["skewpend demo: working"]
+    assert st.moves == []
+    P.detail("no command runs")  # nothing, nowhere
+
+
+def test_a_detail_says_a_held_stage():
+    """A held stage (said when its work begins) is said at its first detail: the work has begun."""
+    with _Streams():
+        st, _ = _terminal_stages("demo")
+        with st:
+            st.stage("computing", hold=True, within=600.0)
+            assert st.lines == [] or st.lines[-1].startswith("skewpend demo: starting")
+            P.detail("iteration 1")
+            assert st.lines[-1].startswith("skewpend demo: computing... (")
+
+
+# -- the continuation of a nonlinear normal mode (nnm on a 4-link chain: 105 s without a word) --------------
+def _moves_between(monkeypatch, target, name, st):
+    """Record len(st.moves) at each call of ``target.name``."""
+    seen = []
+    original = getattr(target, name)
+
+    def counted(*args, **kw):
+        seen.append(len(st.moves))
+        return original(*args, **kw)
+
+    monkeypatch.setattr(target, name, counted)
+    return seen
+
+
+def _longest_run_without_a_move(seen) -> int:
+    """The most calls in a row with no move of the live line between them."""
+    run = longest = 1 if seen else 0
+    for a, b in zip(seen, seen[1:]):
+        run = run + 1 if b == a else 1
+        longest = max(longest, run)
+    return longest
+
+
+def test_nnm_on_a_chain_moves_the_line_at_every_newton_iteration(monkeypatch):
+    """Every flow (one shooting: a Newton iteration, ~10-170 ms on a 4-link chain) and every search of the
+    flip energy (an L-BFGS-B run, ~0.2 s) is followed by a move of the live line before the next but one."""
+    import scipy.optimize
+
+    from skewpend.analysis import orbits as O
+    from skewpend.symbolic.chain import Chain
+
+    monkeypatch.setattr(O, "FLIP_STARTS", 1)  # searches enough to see each move the line, not more
+    chain = Chain.from_lists(3, length=[0.5, 0.4, 0.3], mass=[1.0, 0.8, 0.5], g=7.3)  # a chain no other test met
+    O._FLIP_ENERGIES.pop(chain, None)
+    with _Streams():
+        st, _ = _terminal_stages("nnm")
+        flows = _moves_between(monkeypatch, O._Model, "shoot", st)
+        searches = _moves_between(monkeypatch, scipy.optimize, "minimize", st)
+        texts = []
+        said = st.detail
+        monkeypatch.setattr(st, "detail", lambda text: (texts.append(text), said(text)))
+        with st:
+            with st.bar("continuing nonlinear normal mode 1", "J") as bar:
+                family = O.nnm(chain, mode=1, energy_max=0.05, resolution=2, progress=bar)
+    assert family.ok, family.message
+    assert len(flows) >= 3 * len(family.energies) and len(searches) == 2 * 3 * O.FLIP_STARTS
+    # a shooting's last flow (its converged orbit) and the next one's first may meet without a move between
+    assert _longest_run_without_a_move(flows) <= 2, flows
+    assert _longest_run_without_a_move(searches) == 1, searches
+    # and the line said what it did: the search, the orbit, its energy, the iteration
+    assert "the lowest flip energy: face 6 of 6, search 1 of 1" in texts
+    assert any(t.startswith("orbit 3 near E = ") and t.endswith(": Newton iteration 1") for t in texts), texts
+    assert O._FLIP_ENERGIES[chain] == O.flip_energy(chain)  # computed once per chain, then remembered
+
+
+def test_backbones_say_a_stage_per_family():
+    """Off a terminal a chain's families are a line each (each takes up to a minute on a long chain)."""
+    from skewpend.analysis import orbits as O
+    from skewpend.symbolic.chain import Chain
+
+    chain = Chain.from_lists(3, length=[0.5, 0.4, 0.3], mass=[1.0, 0.8, 0.5])
+    O.flip_energy(chain)  # (seconds; remembered for the chain: the families below do not search again)
+    buf = io.StringIO()
+    old, sys.stderr = sys.stderr, buf
+    try:
+        with P.Stages("nnm", terminal=False):
+            result = O.backbones(chain, energy_max=0.05, resolution=3)
+    finally:
+        sys.stderr = old
+    said = [line.split("... (")[0] for line in buf.getvalue().splitlines()]
+    assert said[-3:] == [f"skewpend nnm: continuing nonlinear normal mode {m} of 3" for m in (1, 2, 3)], said
+    assert len(result.families) == 3
