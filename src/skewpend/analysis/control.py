@@ -35,19 +35,33 @@ from ..symbolic.model import Parameters
 __all__ = ["Linearization", "linearization", "controllability", "LQR", "lqr", "SwingUp", "swingup"]
 
 
+class EveryLinkUp(str):
+    """The default equilibrium, spelled ``"up-up"``: every link up, whatever the number of links (a chain of three:
+    ``"up-up-up"``).  Only this default reads so: a ``"up-up"`` given for a chain of three is refused."""
+
+    __slots__ = ()
+
+
+#: The equilibrium when none is given (see :class:`EveryLinkUp`).
+EVERY_LINK_UP = EveryLinkUp("up-up")
+
+
 def _chain_columns(actuated, n: int) -> Tuple[int, ...]:
     """A chain's actuated joints (0-based) from ``"all"`` (or ``"both"``, the functions' default: every joint)
     or the joints' numbers 1 .. n with a motor."""
     if isinstance(actuated, str) and actuated in ("all", "both"):
         return tuple(range(n))
+    from ..numeric.control import operator_index
+
     try:
-        joints = sorted({int(j) for j in actuated}) if not isinstance(actuated, (str, bytes)) else None
-        ok = joints is not None and all(float(j) == int(j) for j in actuated)
-    except (TypeError, ValueError):
-        joints, ok = None, False
+        given = [operator_index(j) for j in actuated] if not isinstance(actuated, (str, bytes, dict)) else None
+    except TypeError:  # a float, a bool (True is no joint number), a string among them
+        given = None
+    joints = sorted(set(given)) if given is not None else None
+    ok = joints is not None and len(joints) == len(given)  # each joint once
     if not ok or not joints or not all(1 <= j <= n for j in joints):
-        raise ParameterError(f"actuated must be 'all' or the numbers of the joints with a motor, 1 to {n} (e.g. (2,) for "
-                             f"an elbow only, (1, 3)), got {actuated!r}")
+            raise ParameterError(f"actuated must be 'all' or the numbers of the joints with a motor, 1 to {n}, each once "
+                             f"(whole numbers, e.g. (2,) for an elbow only, (1, 3)), got {actuated!r}")
     return tuple(j - 1 for j in joints)
 
 
@@ -104,7 +118,7 @@ class Linearization:
         return "" if self.params is None else coulomb_note(self.params, self.coulomb)
 
 
-def linearization(params: Parameters, equilibrium="up-up", actuated: str = "both", *,
+def linearization(params: Parameters, equilibrium=EVERY_LINK_UP, actuated: str = "both", *,
                   coulomb: str = "smoothed") -> Linearization:
     """The state-space linearisation about an equilibrium (a label, an ``Equilibrium`` or
     ``(phi, psi)`` near one) with the input matrix of the actuated joints:
@@ -118,7 +132,7 @@ def linearization(params: Parameters, equilibrium="up-up", actuated: str = "both
     region).  ``coulomb="exclude"`` leaves it out; ``coulomb_note`` says which was done.
 
     A :class:`~skewpend.Chain` of ``n`` links: ``equilibrium`` one of its ``2^n`` labels
-    (``"up-up-up"``; ``"up-up"``, the default, means every link up) or its ``Equilibrium``,
+    (``"up-up-up"``, a word per link; the default, :data:`EVERY_LINK_UP`, every link up) or its ``Equilibrium``,
     ``actuated`` ``"all"`` or the numbers of the joints with a motor (``(2,)``, ``(1, 3)``)."""
     from ..symbolic.friction import check_coulomb
 
@@ -140,8 +154,7 @@ def _chain_linearization(chain: Chain, equilibrium, actuated, coulomb: str) -> L
 
     n = chain.n
     joints = _chain_columns(actuated, n)
-    if isinstance(equilibrium, str) and equilibrium == "up-up" and n != 2:
-        equilibrium = "-".join(["up"] * n)
+    equilibrium = chain_label(equilibrium, n)
     if isinstance(equilibrium, Equilibrium):
         eq = equilibrium
     elif isinstance(equilibrium, str):
@@ -153,6 +166,20 @@ def _chain_linearization(chain: Chain, equilibrium, actuated, coulomb: str) -> L
     B = np.vstack([np.zeros((n, len(joints))), np.linalg.solve(eq.M, S)])
     label = "all" if len(joints) == n else "joint" + ("s " if len(joints) > 1 else " ") + ", ".join(str(j + 1) for j in joints)
     return Linearization(eq.A.copy(), B, eq, label, joints, coulomb, chain)
+
+
+def chain_label(label, n: int, name: str = "equilibrium"):
+    """A chain's equilibrium label checked against its ``n`` links: :data:`EVERY_LINK_UP` (the default) is every
+    link up; a label must have a word per link (``"up-up"`` names two links, so a chain of three refuses it
+    rather than reading it as ``"up-up-up"``).  Anything but a string is returned as given."""
+    if label is EVERY_LINK_UP:
+        return "-".join(["up"] * n)
+    if isinstance(label, str):
+        words = label.split("-")
+        if len(words) != n:
+            raise ParameterError(f"{name} {label!r} names {len(words)} link{'s' if len(words) != 1 else ''}; this chain "
+                                 f"has {n}: give a word per link, e.g. {'-'.join(['up'] * n)}")
+    return label
 
 
 def equilibrium_argument(which, name: str = "equilibrium"):
@@ -386,10 +413,11 @@ def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.
     return float(RHO_MARGIN * min(smallest, ceiling))
 
 
-def _weights(Q, R, m: int, n2: int = 4) -> Tuple[np.ndarray, np.ndarray]:
+def check_weights(Q, R, m: int, n2: int = 4, *, q_name: str = "Q") -> Tuple[np.ndarray, np.ndarray]:
     """``Q`` (n2 x n2: 4 x 4, a chain's 2 n x 2 n; default identity) symmetric positive semi-definite and
-    ``R`` (m x m, a number for one input; default identity) symmetric positive definite, else one ParameterError."""
-    Qm = np.eye(n2) if Q is None else _matrix("Q", Q, (n2, n2))
+    ``R`` (m x m, a number for one input; default identity) symmetric positive definite, else one ParameterError
+    (``q_name``: the state weight's name in it)."""
+    Qm = np.eye(n2) if Q is None else _matrix(q_name, Q, (n2, n2))
     if R is None:
         Rm = np.eye(m)
     else:
@@ -400,13 +428,13 @@ def _weights(Q, R, m: int, n2: int = 4) -> Tuple[np.ndarray, np.ndarray]:
         Rm = _matrix("R", [[R]] if scalar else R, (m, m))
     scale = max(float(np.abs(Qm).max()), 1e-300)
     if not np.allclose(Qm, Qm.T, rtol=1e-12, atol=1e-12 * scale) or np.linalg.eigvalsh(Qm).min() < -1e-12 * scale:
-        raise ParameterError(f"Q must be a finite, symmetric, positive semi-definite {n2} x {n2} matrix")
+        raise ParameterError(f"{q_name} must be a finite, symmetric, positive semi-definite {n2} x {n2} matrix")
     if not np.allclose(Rm, Rm.T, rtol=1e-12, atol=0) or not np.linalg.eigvalsh(Rm).min() > 0:
         raise ParameterError(f"R must be a finite, symmetric, positive definite {m} x {m} matrix")
     return Qm, Rm
 
 
-def lqr(params: Parameters, equilibrium="up-up", actuated: str = "both", Q=None, R=None, *, umax=None,
+def lqr(params: Parameters, equilibrium=EVERY_LINK_UP, actuated: str = "both", Q=None, R=None, *, umax=None,
         estimate: bool = True, coulomb: str = "smoothed") -> LQR:
     """The LQR about ``equilibrium`` (a label, an ``Equilibrium`` or angles ``(phi, psi)`` near one,
     reduced modulo 2 pi) with the ``actuated`` joints (see the module).
@@ -431,14 +459,14 @@ def lqr(params: Parameters, equilibrium="up-up", actuated: str = "both", Q=None,
     if isinstance(params, Chain):
         n = params.n
         joints = _chain_columns(actuated, n)
-        Qm, Rm = _weights(Q, R, len(joints), 2 * n)
+        Qm, Rm = check_weights(Q, R, len(joints), 2 * n)
         limits = _chain_limits(umax, n)
         lin = linearization(params, equilibrium, actuated, coulomb=coulomb)
         who = "chain with " + ("every joint actuated" if lin.actuated == "all" else f"{lin.actuated} actuated")
     else:
         params = numeric_params(params, "an LQR")
         joints = _columns(actuated)
-        Qm, Rm = _weights(Q, R, len(joints))
+        Qm, Rm = check_weights(Q, R, len(joints))
         limits = torque_limits(umax)
         lin = linearization(params, equilibrium_argument(equilibrium), actuated, coulomb=coulomb)
         who = actuated

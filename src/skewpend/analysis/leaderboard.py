@@ -191,8 +191,12 @@ class ProtocolRun:
 
     @property
     def criteria(self) -> Criteria:
+        """The leaderboard's criteria of the rows; a run that failed (``ok`` False) has none: IntegrationError
+        with its ``message`` (its score is 0)."""
         if not self.ok:
-            return Criteria(False, math.inf, *(math.nan,) * 6)
+            from ..errors import IntegrationError
+
+            raise IntegrationError(f"a failed run has no leaderboard criteria (its score is 0): {self.message}")
         return criteria(self.t, self.x, self.u, self.heights, self.reach, t_final=self.protocol.t_final,
                         height=self.protocol.height)
 
@@ -243,6 +247,20 @@ class Disturbance:
             raise ParameterError(f"responsiveness must be a positive number (1: the motor follows at once), got {r!r}")
 
 
+def _same_actuation(designed, joints, n: int) -> None:
+    """Refuse running a law designed for other motors than the protocol's ``actuated`` (an acrobot's law scored
+    as a pendubot's would be scored for torques its design never planned)."""
+    from ..numeric.control import actuation_mask
+
+    mask = actuation_mask(designed if isinstance(designed, str) else tuple(designed), n)
+    if mask != actuation_mask(tuple(joints), n):
+        def named(bits):
+            return ", ".join(str(j + 1) for j in range(n) if bits >> j & 1)
+
+        raise ParameterError(f"actuated ({named(actuation_mask(tuple(joints), n))}) must be the joints the law was "
+                             f"designed for ({named(mask)}): a law for other motors is not this robot's")
+
+
 def _compiled_law(law, joints, umax: float, n: int):
     """``law`` as a compiled :class:`~skewpend.Controller` with the protocol's actuated joints and limit: a
     :class:`~skewpend.analysis.trajopt.Tracking` (or anything with ``controller()``) compiled, a
@@ -254,9 +272,13 @@ def _compiled_law(law, joints, umax: float, n: int):
     limits = torque_limits(umax, n)
     if isinstance(law, Controller):
         law.check_model(n)
+        _same_actuation(law.actuated, joints, n)
         return replace(law, actuated=tuple(joints), umax=limits)
     if callable(getattr(law, "controller", None)):
-        return replace(law.controller(), actuated=tuple(joints), umax=limits)
+        compiled = law.controller()
+        compiled.check_model(n)
+        _same_actuation(getattr(law, "actuated", compiled.actuated), joints, n)
+        return replace(compiled, actuated=tuple(joints), umax=limits)
     if not callable(law):
         raise ParameterError(f"the law must be a callable law(t, x) -> torques, a Tracking or a Controller, got {law!r}")
 
@@ -305,12 +327,16 @@ def run_protocol(model, law, *, actuated=(2,), umax: float = PROTOCOL.umax, prot
                                      f"({', '.join(names)})")
             p[names.index(name)] = float(value)
     n = kernel.nq
+    from ..numeric.control import operator_index
+
     try:
-        joints = sorted({int(j) for j in actuated})
-    except (TypeError, ValueError):
-        joints = []
-    if not joints or not all(1 <= j <= n for j in joints):
-        raise ParameterError(f"actuated must be the numbers of the joints with a motor, 1 to {n}, got {actuated!r}")
+        given = [operator_index(j) for j in actuated] if not isinstance(actuated, (str, bytes, dict)) else []
+    except TypeError:
+        given = []
+    joints = sorted(set(given))
+    if not joints or len(joints) != len(given) or not all(1 <= j <= n for j in joints):
+        raise ParameterError(f"actuated must be the numbers of the joints with a motor, 1 to {n}, each once, got "
+                             f"{actuated!r}")
     if speeds not in ("measured", "positions"):
         raise ParameterError(f"speeds must be 'measured' or 'positions' (estimated from the positions), got {speeds!r}")
     controller = _compiled_law(law, joints, umax, n)

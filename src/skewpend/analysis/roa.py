@@ -41,6 +41,7 @@ from ..numeric.grid import PlaneJob, plane_attrs
 from ..results import DatasetSpec, Result, canonical_json
 from ..schema import state_coordinates
 from ..symbolic.model import Parameters
+from .control import EVERY_LINK_UP
 
 __all__ = ["region_of_attraction", "RegionOfAttraction", "RoaJob", "open_region_of_attraction", "COORDINATES",
            "STORE_KIND", "MAX_STEPS_ROA"]
@@ -275,7 +276,7 @@ class RoaJob(PlaneJob):
 
 def region_of_attraction(
     params: Parameters,
-    target="up-up",
+    target=EVERY_LINK_UP,
     actuated="both",
     n: int = 64,
     *,
@@ -299,7 +300,7 @@ def region_of_attraction(
     """The region of attraction of the LQR about ``target`` with the ``actuated`` joints and the
     torque limit ``umax`` [N m] (see the module), on ``n x n`` cells of the slice ``plane`` (default
     the two angles, ``("phi", "psi")``; a chain of links': ``("q1", "q2")`` of ``q1 … qn, dq1 … dqn``,
-    ``actuated`` ``"all"`` or the joints' numbers, ``target`` one of its labels, e.g. ``"up-up-up"``).
+    ``actuated`` ``"all"`` or the joints' numbers, ``target`` one of its labels, a word per link, e.g. ``"up-up-up"``; default every link up).
 
     ``design``: an :class:`~skewpend.analysis.control.LQR` from :func:`skewpend.lqr` (then
     ``target``, ``actuated``, ``Q``, ``R`` and ``umax`` come from it); otherwise it is designed
@@ -318,7 +319,10 @@ def region_of_attraction(
     from ..symbolic.chain import Chain
 
     if isinstance(params, Chain):
+        from .control import chain_label
+
         nq = params.n
+        target = chain_label(target, nq, "target")  # a word per link ("up-up" is not a chain of three's)
     else:
         params = numeric_params(params, "a region of attraction")
         target = equilibrium_argument(target, "target")  # angles reduced modulo 2 pi, refused beyond 1e6 rad

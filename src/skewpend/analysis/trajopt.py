@@ -38,6 +38,7 @@ from typing import Any, Dict, Optional, Tuple
 import numpy as np
 
 from ..errors import EquilibriumError, ParameterError, require
+from .control import EVERY_LINK_UP
 from .leaderboard import NORMALISATION, PROTOCOL
 
 __all__ = ["Cost", "OptimalTrajectory", "optimal_swingup", "Tracking", "tvlqr", "COST_TERMS", "SpeedObserver"]
@@ -48,6 +49,8 @@ COST_TERMS = ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_
 LINEAR_SHARE = 0.01
 #: The seeded starts' spread of the guessed angles [rad] (a swing of random size and sense).
 SPREAD = 0.6
+#: The most samples of a tracking's reference (:func:`tvlqr`'s ``duration / dt``).
+MAX_SAMPLES = 1e6
 
 
 @dataclass(frozen=True)
@@ -295,17 +298,76 @@ def _worker_init() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+#: How often [s] the iteration counts of starts solved in forked workers are read and reported.
+POLL = 0.2
+_TICK: list = []  # the count of the solve running in this process: called by IPOPT's iteration callback
+_SHARED: list = []  # (iterations, finished): the workers' counts per start, shared memory set up before the fork
+
+
+def _iteration_callback(ca, nx: int, ng: int):
+    """IPOPT's iteration callback (CasADi's ``iteration_callback``): at each iteration it calls the tick of the
+    solve running in this process (``_TICK``), whose answer 1 stops IPOPT (``User_Requested_Stop``)."""
+
+    class Iterations(ca.Callback):
+        def __init__(self):
+            ca.Callback.__init__(self)
+            self.construct("iterations", {})
+
+        def get_n_in(self):
+            return ca.nlpsol_n_out()
+
+        def get_n_out(self):
+            return 1
+
+        def get_name_in(self, i):
+            return ca.nlpsol_out(i)
+
+        def get_name_out(self, i):
+            return "stop"
+
+        def get_sparsity_in(self, i):
+            name = ca.nlpsol_out(i)
+            if name == "f":
+                return ca.Sparsity.scalar()
+            if name in ("x", "lam_x"):
+                return ca.Sparsity.dense(nx)
+            if name in ("g", "lam_g"):
+                return ca.Sparsity.dense(ng)
+            return ca.Sparsity(0, 0)
+
+        def eval(self, arg):
+            return [_TICK[0]() if _TICK else 0]
+
+    return Iterations()
+
+
 def _solve_one(job):
-    """One start ``(z0, bounds)`` solved by the inherited solver: IPOPT's status and the solution."""
-    z0, bounds = job
+    """One start ``(k, z0, bounds)`` solved by the inherited solver, its iterations counted in the shared
+    memory: IPOPT's status and the solution."""
+    k, z0, bounds = job
     solver = _SOLVER[0]
-    sol = solver(x0=z0, **bounds)
+    counts, finished = _SHARED
+
+    def tick() -> int:
+        counts[k] += 1
+        return 0
+
+    counts[k] = 0
+    _TICK[:] = [tick]
+    try:
+        sol = solver(x0=z0, **bounds)
+    finally:
+        _TICK.clear()
+        finished[k] = 1
     return solver.stats()["return_status"], np.array(sol["x"]).ravel()
 
 
-def _solve_starts(solver, starts, bounds, workers, progress):
+def _solve_starts(solver, starts, bounds, workers, progress, iterations):
     """IPOPT from each start, in order: in this process, or in forked workers that inherit the built solver
-    (CasADi's solvers cannot be pickled or shared by threads; building one is most of a design's time)."""
+    (CasADi's solvers cannot be pickled or shared by threads; building one is most of a design's time).
+    ``progress(done, count)`` after each start solved; ``iterations(running, solved, count)`` -- ``running``
+    the starts being solved (0-based) and the IPOPT iterations each has reached -- at every iteration in this
+    process, every :data:`POLL` s (when a count moved) from the workers."""
     import multiprocessing
     import os
 
@@ -320,25 +382,59 @@ def _solve_starts(solver, starts, bounds, workers, progress):
         with Interrupts() as intr:
             for k, z0 in enumerate(starts):
                 intr.check()
-                sol = solver(x0=z0, **bounds)
+                reached = [-1]
+                failed: list = []
+
+                def tick(k=k, reached=reached, failed=failed, solved=len(out)) -> int:
+                    reached[0] += 1
+                    if iterations is not None and not failed:
+                        try:
+                            iterations({k: reached[0]}, solved, count)
+                        except BaseException as exc:  # noqa: BLE001 - raised again once IPOPT has returned
+                            failed.append(exc)
+                    return 1 if failed else 0
+
+                _TICK[:] = [tick]
+                try:
+                    sol = solver(x0=z0, **bounds)
+                finally:
+                    _TICK.clear()
+                if failed:
+                    raise failed[0]
                 _interrupted(solver.stats()["return_status"])
                 out.append((solver.stats()["return_status"], np.array(sol["x"]).ravel()))
                 if progress is not None:
-                    progress(k, count)
+                    progress(k + 1, count)
         return out
     _SOLVER[:] = [solver]
+    _SHARED[:] = [multiprocessing.Array("q", [-1] * count, lock=False), multiprocessing.Array("b", count, lock=False)]
+    counts, finished = _SHARED
     try:
         with Interrupts() as intr, multiprocessing.get_context("fork").Pool(min(workers, count), _worker_init) as pool:
             out = []
-            for k, result in enumerate(pool.imap(_solve_one, [(z0, bounds) for z0 in starts])):
+            results = pool.imap(_solve_one, [(k, z0, bounds) for k, z0 in enumerate(starts)])
+            said = None
+            while len(out) < count:
+                try:
+                    result = results.next(timeout=POLL)
+                except multiprocessing.TimeoutError:
+                    result = None
                 intr.check()
-                _interrupted(result[0])
-                out.append(result)
-                if progress is not None:
-                    progress(k, count)
+                if result is not None:
+                    _interrupted(result[0])
+                    out.append(result)
+                    if progress is not None:
+                        progress(len(out), count)
+                if iterations is not None:
+                    running = {k: int(counts[k]) for k in range(count) if counts[k] >= 0 and not finished[k]}
+                    solved = int(sum(finished[:]))
+                    if (running, solved) != said:
+                        said = (running, solved)
+                        iterations(running, solved, count)
             return out
     finally:
         _SOLVER.clear()
+        _SHARED.clear()
 
 
 def _as_chain(model):
@@ -360,15 +456,33 @@ def _actuated(actuated, n: int) -> Tuple[int, ...]:
             return ROBOTS[actuated]
         if actuated in ("all", "both"):
             return tuple(range(1, n + 1))
-    else:
+    elif not isinstance(actuated, (bytes, dict)):
+        from ..numeric.control import operator_index
+
         try:
-            joints = tuple(sorted({int(j) for j in actuated}))
-        except (TypeError, ValueError):
-            joints = ()
-        if joints and all(1 <= j <= n for j in joints):
+            given = [operator_index(j) for j in actuated]
+        except TypeError:  # a float, a bool, a string among them, or no sequence
+            given = []
+        joints = tuple(sorted(set(given)))
+        if joints and len(joints) == len(given) and all(1 <= j <= n for j in joints):
             return joints
-    raise ParameterError(f"actuated must be acrobot, pendubot, all or the numbers of the joints with a motor (1 to {n}), "
-                         f"got {actuated!r}")
+    raise ParameterError(f"actuated must be acrobot, pendubot, all or the numbers of the joints with a motor (1 to {n}, "
+                         f"each once), got {actuated!r}")
+
+
+def _state(name: str, value, n: int) -> np.ndarray:
+    """A state of ``n`` joints (2 n finite numbers: angles [rad], then speeds [rad/s]), else one ParameterError."""
+    bad = ParameterError(f"{name} must be {2 * n} finite numbers (the angles [rad], then the speeds [rad/s]), got "
+                         f"{value!r}")
+    if isinstance(value, (str, bytes)):
+        raise bad
+    try:
+        x = np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise bad from None
+    if x.shape != (2 * n,) or not np.all(np.isfinite(x)):
+        raise bad
+    return x
 
 
 def _goal_state(chain, goal) -> Tuple[np.ndarray, str]:
@@ -376,9 +490,11 @@ def _goal_state(chain, goal) -> Tuple[np.ndarray, str]:
 
     n = chain.n
     if isinstance(goal, Equilibrium):
-        return np.asarray(goal.state, dtype=float), goal.label
+        return _state("goal's state", goal.state, n), goal.label
     if isinstance(goal, str):
-        label = "-".join(["up"] * n) if goal == "up-up" and n != 2 else goal
+        from .control import chain_label
+
+        label = chain_label(goal, n, "goal")
         eq = equilibria(chain).find(label)
         return np.asarray(eq.state, dtype=float), label
     raise ParameterError(f"goal must be an equilibrium's label (e.g. {'-'.join(['up'] * n)}) or an Equilibrium, got {goal!r}")
@@ -394,11 +510,12 @@ def _check_controllable(chain, label: str, actuated: Tuple[int, ...]) -> None:
                                f"the linearisation is not controllable (rank {c['rank']} of {lin.A.shape[0]})")
 
 
-def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal="up-up", start=None,
+def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP, start=None,
                     cost: Cost = Cost(), horizon: Tuple[float, float] = (0.5, 4.0), guess: float = 1.5,
                     knots: int = 150, hold: float = 0.8, height: float = PROTOCOL.height, attempts: int = 4,
                     seed: int = 0, dt_score: float = PROTOCOL.dt, steps_score: int = PROTOCOL.steps,
-                    max_iter: int = 1500, workers: Optional[int] = None, progress=None) -> OptimalTrajectory:
+                    max_iter: int = 1500, workers: Optional[int] = None, progress=None,
+                    iterations=None) -> OptimalTrajectory:
     """The swing-up of ``model`` from ``start`` (default: hanging at rest) to ``goal`` (an equilibrium's
     label or an ``Equilibrium``) that minimises ``cost`` with the ``actuated`` joints' torques within
     ``umax`` [N m] (see the module).  ``horizon`` bounds the duration [s], ``guess`` starts it;
@@ -407,8 +524,10 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     constraint and the time term is the duration).  ``attempts`` seeded starts (the best converged one is
     returned); the criteria are those of rows ``dt_score`` apart over ``steps_score`` rows (the
     leaderboard's).  ``workers`` processes solve the starts side by side (default: one per core, at most
-    ``attempts``; 1: in this process) -- the result is the same.  ``progress(k, attempts)`` is told of each
-    start solved.
+    ``attempts``; 1: in this process) -- the result is the same.  ``progress(done, attempts)`` is told of each
+    start solved; ``iterations(running, solved, attempts)`` of IPOPT's progress inside them -- ``running`` maps
+    each start being solved (0-based) to the iterations it has reached -- at each iteration of a start solved in
+    this process, every :data:`POLL` s (when a count moved) of those solved by workers.
 
     Refused with one line: an uncontrollable goal, a horizon too short to reach it under the torque limit
     (no start converges to a feasible motion: ``ok`` False, exit status 1 on the command line), negative
@@ -422,7 +541,14 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
         raise ParameterError(f"cost must be a skewpend Cost, got {type(cost).__name__}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
-    if not (isinstance(umax, (int, float)) and math.isfinite(umax) and umax > 0):
+    for name, value, low in (("attempts", attempts, 1), ("max_iter", max_iter, 1), ("seed", seed, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ParameterError(f"{name} must be a whole number >= {low}, got {value!r}")
+    if progress is not None and not callable(progress):
+        raise ParameterError(f"progress must be a callable progress(done, total), got {progress!r}")
+    if iterations is not None and not callable(iterations):
+        raise ParameterError(f"iterations must be a callable iterations(running, solved, total), got {iterations!r}")
+    if isinstance(umax, bool) or not (isinstance(umax, (int, float)) and math.isfinite(umax) and umax > 0):
         raise ParameterError(f"umax must be a positive torque limit [N m], got {umax!r}")
     try:
         lo, hi = (float(v) for v in horizon)
@@ -430,14 +556,20 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
         raise ParameterError(f"horizon must be (shortest, longest) durations [s], got {horizon!r}") from None
     if not (0 < lo < hi <= 60):
         raise ParameterError(f"horizon must be 0 < shortest < longest <= 60 s, got {horizon!r}")
+    if isinstance(guess, bool) or not isinstance(guess, (int, float)) or not math.isfinite(guess):
+        raise ParameterError(f"guess must be a duration [s], got {guess!r}")
     guess = min(max(float(guess), lo), hi)
     if not (isinstance(knots, int) and 10 <= knots <= 5000):
         raise ParameterError(f"knots must be a whole number of intervals, 10 to 5000, got {knots!r}")
     if not (0 < hold <= 1) or not (0 < height <= 1):
         raise ParameterError(f"hold and height must be fractions in (0, 1], got {hold!r} and {height!r}")
+    x_start = np.zeros(2 * n) if start is None else _state("start", start, n)
+    from ..progress import stage
+
+    stage("optimal swing-up: the goal's equilibrium and its controllability")
     x_goal, label = _goal_state(chain, goal)
     _check_controllable(chain, label, joints)
-    x_start = np.zeros(2 * n) if start is None else np.array(start, dtype=float).reshape(2 * n)
+    stage(f"optimal swing-up: building IPOPT's problem and its derivatives (CasADi, {knots} knots)")
     ca, rhs, step, tip = _dynamics(chain, joints)
     m = len(joints)
     N = knots
@@ -468,8 +600,9 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     lbz[-2:], ubz[-2:] = 0.02 * lo, hi
     if not N2:
         lbz[-1] = ubz[-1] = 0.0
+    counter = _iteration_callback(ca, nz, int(nlp["g"].shape[0]))
     solver = ca.nlpsol("swingup", "ipopt", nlp,
-                       dict(options, **{"expand": True, "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                       dict(options, **{"iteration_callback": counter, "expand": True, "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
                                         "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-8,
                                         "ipopt.acceptable_iter": 200, "ipopt.bound_relax_factor": 0.0}))
     evaluate = ca.Function("criteria", [z], [values, objective])
@@ -489,7 +622,7 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     bounds = dict(lbx=lbz, ubx=ubz, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     t0 = _time.perf_counter()
     best = None
-    for attempt, (status, zs) in enumerate(_solve_starts(solver, starts, bounds, workers, progress)):
+    for attempt, (status, zs) in enumerate(_solve_starts(solver, starts, bounds, workers, progress, iterations)):
         ok = status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
         crit, obj = evaluate(zs)
         obj = float(obj)
@@ -552,6 +685,9 @@ class Tracking:
     umax: float
     actuated: Tuple[int, ...]
     trajectory: Any = field(repr=False, default=None)
+    Q: Optional[np.ndarray] = field(repr=False, default=None)   #: the design's state weight
+    R: Optional[np.ndarray] = field(repr=False, default=None)   #: the design's torque weight
+    Qf: Optional[np.ndarray] = field(repr=False, default=None)  #: the goal's LQR's state weight
 
     @property
     def duration(self) -> float:
@@ -602,15 +738,112 @@ class Tracking:
 
     # the DFKI lab's controller interface (double_pendulum.controller.abstract_controller)
     def get_control_output(self, x, t=None):
-        """The torques at the DFKI state ``x = (q1, q2, q1', q2')`` and time ``t`` [s] (their convention
-        is skewpend's: q2 relative to rod 1, zero hanging)."""
-        return self(0.0 if t is None else float(t), x)
+        """The torques at the DFKI state ``x = (q1, q2, q1', q2')`` (a chain's ``2 n`` entries) and time ``t``
+        [s] (their convention is skewpend's: q2 relative to rod 1, zero hanging).  ``t`` is required: the law
+        varies along the motion (the lab's ``Simulator`` passes it)."""
+        return self(_time_argument(t), _state_argument(x, len(self.goal)))
 
     def init(self) -> None:
-        """The DFKI interface's initialisation (nothing to do)."""
+        """The DFKI interface's initialisation: nothing to set up (the law keeps no state between calls)."""
 
     def reset(self) -> None:
-        """The DFKI interface's reset (nothing to do)."""
+        """The DFKI interface's reset: nothing to forget (the law keeps no state between calls)."""
+
+    def save(self, save_dir) -> Tuple[Any, Any]:
+        """The DFKI interface's ``save(save_dir)`` (the lab's benchmark scripts call it): the controller's
+        parameters as ``controller_tvlqr_parameters.yml`` and its reference with its gains as
+        ``controller_tvlqr_reference.csv`` (a row per sample ``k``: ``time = k dt``, the state, the actuated
+        joints' torques, the gain's entries ``K<row>_<column>``), written atomically into ``save_dir`` (made if
+        missing); the two paths."""
+        directory = _save_directory(save_dir)
+        steps, n2 = self.x_ref.shape
+        n = n2 // 2
+        m = len(self.actuated)
+        entries = {
+            "controller": "skewpend.analysis.trajopt.Tracking (time-varying LQR along an optimised swing-up)",
+            "dt": self.dt, "samples": steps, "duration": self.duration, "torque_limit": self.umax,
+            "actuated_joints": list(self.actuated), "goal": self.goal.tolist(), "K_goal": self.K_goal.tolist(),
+            "Q": None if self.Q is None else np.asarray(self.Q).tolist(),
+            "R": None if self.R is None else np.asarray(self.R).tolist(),
+            "Qf": None if self.Qf is None else np.asarray(self.Qf).tolist(),
+            "state": [f"q{j}" for j in range(1, n + 1)] + [f"dq{j}" for j in range(1, n + 1)],
+            "convention": "angles [rad], q2 .. qn relative to the link before, zero hanging; speeds [rad/s]; "
+                          "torques [N m]",
+            "law": "u = u_k - K_k (x - x_k) at t = k dt, blended linearly between samples, the goal's LQR "
+                   "-K_goal (x - goal) after the last; angle errors wrapped; clipped to the torque limit",
+            "reference": "controller_tvlqr_reference.csv",
+        }
+        header = (["time"] + [f"pos{j}" for j in range(1, n + 1)] + [f"vel{j}" for j in range(1, n + 1)]
+                  + [f"tau{j}" for j in self.actuated]
+                  + [f"K{self.actuated[r]}_{c + 1}" for r in range(m) for c in range(n2)])
+        rows = np.column_stack([np.arange(steps) * self.dt, self.x_ref, self.u_ref, self.K.reshape(steps, -1)])
+        return _write_yaml(directory / "controller_tvlqr_parameters.yml", entries), _write_table(
+            directory / "controller_tvlqr_reference.csv", header, rows)
+
+
+def _time_argument(t) -> float:
+    """The time of a call of the DFKI interface, required (a law that varies along the motion)."""
+    if t is None:
+        raise ParameterError("t must be given: get_control_output(x, t) of this law depends on the time [s] (the "
+                             "lab's Simulator passes it)")
+    if isinstance(t, (bool, np.bool_, str, bytes)):
+        raise ParameterError(f"t must be a time [s], got {t!r}")
+    try:
+        value = float(t)
+    except (TypeError, ValueError):
+        raise ParameterError(f"t must be a time [s], got {t!r}") from None
+    if not math.isfinite(value):
+        raise ParameterError(f"t must be a finite time [s], got {t!r}")
+    return value
+
+
+def _state_argument(x, size: int) -> np.ndarray:
+    """A state of the DFKI interface: ``size`` finite numbers."""
+    try:
+        a = np.array(x, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != (size,) or not np.all(np.isfinite(a)):
+        raise ParameterError(f"x must be the state, {size} finite numbers (angles [rad], then speeds [rad/s]), got "
+                             f"{x!r}")
+    return a
+
+
+def _save_directory(save_dir):
+    from pathlib import Path
+
+    if not isinstance(save_dir, (str, bytes)) and not hasattr(save_dir, "__fspath__"):
+        raise ParameterError(f"save_dir must be a directory's path, got {save_dir!r}")
+    directory = Path(save_dir)
+    if directory.exists() and not directory.is_dir():
+        raise ParameterError(f"save_dir {str(directory)!r} is a file, not a directory")
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"save_dir {str(directory)!r} cannot be made: {exc.strerror}") from None
+    return directory
+
+
+def _yaml_value(v) -> str:
+    import json
+
+    return json.dumps(v)  # JSON's scalars, strings and lists are YAML's flow style
+
+
+def _write_yaml(path, entries: Dict[str, Any]):
+    from ..io import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text("".join(f"{k}: {_yaml_value(v)}\n" for k, v in entries.items()))
+    return path
+
+
+def _write_table(path, header, rows: np.ndarray):
+    from ..io import atomic_path
+
+    with atomic_path(path) as tmp:
+        np.savetxt(tmp, rows, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+    return path
 
 
 class SpeedObserver:
@@ -625,6 +858,9 @@ class SpeedObserver:
         self._seen: list = []
 
     def get_control_output(self, x, t=None):
+        """The law's torques at the state ``x`` with the speeds from the positions seen, at the time ``t`` [s]
+        (required: the law it wraps may vary with time)."""
+        t = _time_argument(t)
         x = np.array(x, dtype=float)
         n = x.size // 2
         self._seen = (self._seen + [x[:n].copy()])[-3:]
@@ -633,13 +869,25 @@ class SpeedObserver:
             x[n:] = (3.0 * q0 - 4.0 * q1 + q2) / (2.0 * self.dt)
         elif len(self._seen) == 2:
             x[n:] = (self._seen[1] - self._seen[0]) / self.dt
-        return self.law(0.0 if t is None else float(t), x)
+        return self.law(t, x)
 
     def init(self) -> None:
         self._seen = []
 
     def reset(self) -> None:
         self._seen = []
+
+    def save(self, save_dir):
+        """The DFKI interface's ``save(save_dir)``: the observer's settings as
+        ``controller_observer_parameters.yml``, and the law's own files when it saves (a :class:`Tracking`)."""
+        directory = _save_directory(save_dir)
+        paths = [_write_yaml(directory / "controller_observer_parameters.yml", {
+            "observer": "skewpend.analysis.trajopt.SpeedObserver: the speeds from the positions, (3 q_k - 4 q_k-1 + "
+                        "q_k-2) / (2 dt)", "dt": self.dt,
+            "law": getattr(type(self.law), "__qualname__", repr(self.law))})]
+        if callable(getattr(self.law, "save", None)):
+            paths += list(self.law.save(directory))
+        return tuple(paths)
 
 
 def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=None, Qf=None) -> Tracking:
@@ -649,20 +897,36 @@ def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=N
     its state weight; ``R`` the torques').  Defaults: ``Q = diag(10, ..., 3, ...)`` (angles, speeds),
     ``R = 20`` per motor -- soft gains, which keep the swing-up through delays and model errors (the
     robustness board: at ``R = 0.1`` the acrobot stays up with 5 of 21 delays, at 20 with 13) -- and
-    ``Qf = Q``."""
+    ``Qf = Q``.  ``Q`` and ``Qf`` (2 n x 2 n) must be symmetric positive semi-definite, ``R`` (m x m, a number
+    for one motor) symmetric positive definite, ``dt`` positive and at most the duration; else one
+    ParameterError naming the argument."""
     from scipy.linalg import solve_discrete_are
 
+    from .control import check_weights
+
+    if not isinstance(trajectory, OptimalTrajectory):
+        raise ParameterError(f"trajectory must be an OptimalTrajectory from optimal_swingup, got "
+                             f"{type(trajectory).__name__}")
     if not trajectory.ok:
         raise ParameterError(f"cannot track a swing-up that was not optimised: {trajectory.message}")
+    if isinstance(dt, (bool, np.bool_)) or not isinstance(dt, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(dt) and dt > 0):
+        raise ParameterError(f"dt must be a positive sampling step [s], got {dt!r}")
+    dt = float(dt)
+    if not dt <= trajectory.duration:
+        raise ParameterError(f"dt must be at most the swing-up's duration, {trajectory.duration:.4g} s, got {dt:g}")
+    if trajectory.duration / dt > MAX_SAMPLES:
+        raise ParameterError(f"dt = {dt:g} s samples the {trajectory.duration:.4g} s swing-up {trajectory.duration / dt:.3g} "
+                             f"times; at most {MAX_SAMPLES:g}: use a larger dt")
     chain = trajectory.chain
     n = chain.n
     joints = trajectory.actuated
     m = len(joints)
+    Qm, Rm = check_weights(np.diag([10.0] * n + [3.0] * n) if Q is None else Q, 20.0 * np.eye(m) if R is None else R,
+                           m, 2 * n)
+    Qfm = Qm if Qf is None else check_weights(Qf, None, m, 2 * n, q_name="Qf")[0]
     ca, rhs, step, _ = _dynamics(chain, joints)
     idx = [j - 1 for j in joints]
-    Qm = np.diag([10.0] * n + [3.0] * n) if Q is None else np.asarray(Q, dtype=float)
-    Rm = np.eye(m) * 20.0 if R is None else np.atleast_2d(np.asarray(R, dtype=float))
-    Qfm = Qm if Qf is None else np.asarray(Qf, dtype=float)
     t_knots, xk, uk = trajectory.t, trajectory.x, trajectory.u[:, idx]
     K_steps = int(math.ceil(trajectory.duration / dt - 1e-9))
     ts = np.arange(K_steps) * dt
@@ -696,4 +960,7 @@ def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=N
         P = Qm + A.T @ P @ (A - B @ Kk)
         P = 0.5 * (P + P.T)
         Ks[k] = Kk
-    return Tracking(dt, x_ref, u_ref, Ks, K_goal, goal, trajectory.umax, joints, trajectory)
+    if not (np.all(np.isfinite(Ks)) and np.all(np.isfinite(K_goal))):
+        raise EquilibriumError("the time-varying LQR's gains are not finite (extreme weights or a stiff motion: try a "
+                               "smaller dt)")
+    return Tracking(dt, x_ref, u_ref, Ks, K_goal, goal, trajectory.umax, joints, trajectory, Qm, Rm, Qfm)

@@ -516,9 +516,8 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
     :data:`LANE_BUDGET` steps;
     otherwise one by one (``sp_capture_many``), ``group`` starts per compiled call.  ``cancel`` (a
     ``threading.Event``) is checked between calls; each start's result does not depend on the
-    grouping, the lane or the other starts."""
-    from .ensemble import Cancelled
-
+    grouping, the lane or the other starts; a cancel stops a compiled call within a step (see
+    :class:`_stopped_on_cancel`)."""
     controller.check_model(kernel.nq)
     nx = 2 * kernel.nq
     starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, nx)
@@ -530,6 +529,55 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
     region = np.ascontiguousarray(P, dtype=np.float64).reshape(nx, nx)
     pp = np.ascontiguousarray(p, dtype=np.float64)
     c = controller.struct()
+    with _stopped_on_cancel(c, cancel, kernel.nq):
+        return _capture(kernel, controller, c, pp, starts, m, t_end, rtol, atol, max_steps, region, rho, cancel, group,
+                        time, steps, rejected, status)
+
+
+#: How often [s] a compiled capture's watcher looks at the cancel event (:func:`capture_many`).
+CANCEL_POLL = 0.05
+
+
+class _stopped_on_cancel:
+    """While a compiled capture runs, a watcher thread that, once ``cancel`` is set, makes the law's torques NaN
+    in the ``sp_control`` the compiled code reads at every stage (its ``us``): the integration of the current
+    start stops at its next step as non-finite and every later start at its first, so the compiled call returns
+    within a step of the cancel -- a chain's start can take seconds (thousands of steps where the wrapped feedback
+    chatters), and a call holds a group of them.  The caller discards what the call returned (Cancelled)."""
+
+    def __init__(self, struct, cancel, nq: int):
+        self.struct, self.cancel, self.nq = struct, cancel, nq
+        self.done = None
+
+    def __enter__(self):
+        import threading
+
+        if self.cancel is None:
+            return self
+        self.done = threading.Event()
+        done, cancel, struct, nq = self.done, self.cancel, self.struct, self.nq
+
+        def watch():
+            while not done.is_set():
+                if cancel.wait(CANCEL_POLL):
+                    if not done.is_set():
+                        for r in range(nq):
+                            struct.us[r] = math.nan
+                    return
+
+        threading.Thread(target=watch, name="skewpend-capture-cancel", daemon=True).start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.done is not None:
+            self.done.set()
+
+
+def _capture(kernel, controller, c, pp, starts, m, t_end, rtol, atol, max_steps, region, rho, cancel, group, time,
+             steps, rejected, status):
+    """:func:`capture_many`'s compiled calls (``cancel`` checked before and after each)."""
+    from .ensemble import Cancelled
+
     dp = ctypes.POINTER(ctypes.c_double)
     i64p, i8p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int8)
     if capture_lanes_available(kernel, controller):
@@ -544,6 +592,8 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
                                       region.ctypes.data_as(dp), float(rho), LANE_BUDGET, time.ctypes.data_as(dp),
                                       steps.ctypes.data_as(i64p), rejected.ctypes.data_as(i64p),
                                       status.ctypes.data_as(i8p))
+            if cancel is not None and cancel.is_set():
+                raise Cancelled()
             if rc == 0:
                 return time, steps, rejected, status
             if rc != -1:
@@ -556,4 +606,6 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
         fn(ctypes.byref(c), pp.ctypes.data_as(dp), starts[a:].ctypes.data_as(dp), b - a, float(t_end), float(rtol),
            float(atol), int(max_steps), region.ctypes.data_as(dp), float(rho), time[a:].ctypes.data_as(dp),
            steps[a:].ctypes.data_as(i64p), rejected[a:].ctypes.data_as(i64p), status[a:].ctypes.data_as(i8p))
+        if cancel is not None and cancel.is_set():  # the call may have been stopped by the watcher: not a result
+            raise Cancelled()
     return time, steps, rejected, status
