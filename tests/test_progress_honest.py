@@ -153,3 +153,27 @@ def test_backbones_say_a_stage_per_family():
     said = [line.split("... (")[0] for line in buf.getvalue().splitlines()]
     assert said[-3:] == [f"skewpend nnm: continuing nonlinear normal mode {m} of 3" for m in (1, 2, 3)], said
     assert len(result.families) == 3
+
+
+# -- an animation's frames (a GIF: 15 s of rendering said as one stage) --------------------------------------
+def test_an_animation_moves_the_line_at_every_frame(monkeypatch, tmp_path):
+    import skewpend
+    from skewpend.config import reference_parameters
+    from skewpend.views.animation import FrameRenderer, animate
+
+    clip = skewpend.simulate(reference_parameters(), (1.2, -0.8, 0.0, 0.0), 1.0, dt_out=1.0 / 12)
+    with _Streams():
+        st, _ = _terminal_stages("animate")
+        draws = _moves_between(monkeypatch, FrameRenderer, "draw", st)
+        texts = []
+        said = st.detail
+        monkeypatch.setattr(st, "detail", lambda text: (texts.append(text), said(text)))
+        with st:
+            with st.bar("rendering", "frames") as bar:
+                animate(clip, tmp_path / "a.gif", fps=12, size=(160, 120), progress=bar)
+    frames = clip.t.size
+    assert len(draws) == frames + 4  # every frame, and the four that choose the GIF's palette
+    assert _longest_run_without_a_move(draws) == 1, draws
+    assert texts[0] == "setting up the scene (Matplotlib)" and texts[-1] == "finishing the GIF file"
+    assert [t for t in texts if t.startswith("frame ")] == [f"frame {k} of {frames}" for k in range(1, frames + 1)]
+    assert (tmp_path / "a.gif").stat().st_size > 0

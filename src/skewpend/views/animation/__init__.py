@@ -33,6 +33,7 @@ import numpy as np
 from ... import checks
 from ...errors import ParameterError, SkewpendError
 from ...io import atomic_path
+from ...progress import detail as say_detail
 from .renderer import FrameRenderer
 from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, DEFAULT_VIEW, MIN_EDGE, SUFFIXES, FrameScene,  # noqa: F401
                     check_frame_size, check_view, choose_view, eye, frame_scene, plot_to_world, world_to_plot)
@@ -233,15 +234,18 @@ def animate(
         raise ParameterError("the trajectory kept only its first and last rows (keep=False); animate needs every row")
     check_frame_times(tr.t, fps, speed)
 
+    say_detail("setting up the scene (Matplotlib)")  # the checks passed: the work begins (issue 51: no silence)
     renderer = FrameRenderer(tr, size=(w, h), dpi=dpi, trail=trail, speed=speed, view=view)
     total = renderer.geometry.t.size
 
     def frames():
         for k in range(total):
+            say_detail(f"frame {k + 1} of {total}")
             renderer.draw(k)
             yield renderer.rgb()
             if progress is not None:
                 progress(k + 1, total)
+        say_detail(f"finishing the {fmt[1:].upper()} file")
 
     try:
         with atomic_path(path) as tmp:
@@ -249,7 +253,9 @@ def animate(
                 _write_mp4(tmp, frames(), (w, h), fps)
             else:
                 sample = []
-                for k in sorted({0, total // 3, (2 * total) // 3, total - 1}):  # for the palette
+                picked = sorted({0, total // 3, (2 * total) // 3, total - 1})
+                for i, k in enumerate(picked, 1):  # for the palette
+                    say_detail(f"the GIF's palette: frame {i} of {len(picked)}")
                     renderer.draw(k)
                     sample.append(renderer.rgb())
                 _write_gif(tmp, frames(), fps, np.concatenate(sample, axis=0))
