@@ -9,8 +9,6 @@ from __future__ import annotations
 import io
 import sys
 
-import numpy as np
-import pytest
 
 from skewpend import progress as P
 
@@ -136,23 +134,34 @@ def test_nnm_on_a_chain_moves_the_line_at_every_newton_iteration(monkeypatch):
     assert O._FLIP_ENERGIES[chain] == O.flip_energy(chain)  # computed once per chain, then remembered
 
 
-def test_backbones_say_a_stage_per_family():
-    """Off a terminal a chain's families are a line each (each takes up to a minute on a long chain)."""
+def test_backbones_name_each_family_on_the_live_line_and_add_no_line_off_it(monkeypatch):
+    """A chain's families take up to a minute each: the live line names the family it follows; off a
+    terminal they are the command's one stage (a report's section stays one line)."""
     from skewpend.analysis import orbits as O
     from skewpend.symbolic.chain import Chain
 
     chain = Chain.from_lists(3, length=[0.5, 0.4, 0.3], mass=[1.0, 0.8, 0.5])
     O.flip_energy(chain)  # (seconds; remembered for the chain: the families below do not search again)
+    with _Streams():
+        st, _ = _terminal_stages("nnm")
+        texts = []
+        said = st.detail
+        monkeypatch.setattr(st, "detail", lambda text: (texts.append(text), said(text)))
+        with st:
+            result = O.backbones(chain, energy_max=0.05, resolution=3)
+    assert len(result.families) == 3
+    for m in (1, 2, 3):
+        assert any(t.startswith(f"mode {m} of 3: orbit ") for t in texts), (m, texts)
     buf = io.StringIO()
     old, sys.stderr = sys.stderr, buf
     try:
         with P.Stages("nnm", terminal=False):
-            result = O.backbones(chain, energy_max=0.05, resolution=3)
+            P.stage("continuing the nonlinear normal modes")
+            O.backbones(chain, energy_max=0.05, resolution=3)
     finally:
         sys.stderr = old
     said = [line.split("... (")[0] for line in buf.getvalue().splitlines()]
-    assert said[-3:] == [f"skewpend nnm: continuing nonlinear normal mode {m} of 3" for m in (1, 2, 3)], said
-    assert len(result.families) == 3
+    assert said == ["skewpend nnm: continuing the nonlinear normal modes"], said
 
 
 # -- an animation's frames (a GIF: 15 s of rendering said as one stage) --------------------------------------
@@ -177,3 +186,43 @@ def test_an_animation_moves_the_line_at_every_frame(monkeypatch, tmp_path):
     assert texts[0] == "setting up the scene (Matplotlib)" and texts[-1] == "finishing the GIF file"
     assert [t for t in texts if t.startswith("frame ")] == [f"frame {k} of {frames}" for k in range(1, frames + 1)]
     assert (tmp_path / "a.gif").stat().st_size > 0
+
+
+# -- a chain report's sections (up to 45 s each said as one stage) ---------------------------------------------
+def test_a_chain_reports_sections_say_their_sub_steps(monkeypatch):
+    """Sections 2, 3, 4 and 6 of a chain's report: the live line names each typeset row, each random state of
+    the check, each hinge's sweep and the flip map's cells as they finish (each well under a second here)."""
+    from skewpend.symbolic.chain import Chain
+    from skewpend.views.report import chain as R
+    from skewpend.views.report.common import Context
+
+    monkeypatch.setattr(R, "CHAIN_SWEEP_POINTS", 5)  # the sub-steps, not the pictures' resolution, are checked
+    monkeypatch.setattr(R, "CHAIN_FLIPMAP_N", 8)
+    chain = Chain.from_lists(2, length=[0.5, 0.4], mass=[1.0, 0.8], axis=[(0, 0, 1), (0.5, 0, 1)])
+    ctx = Context(chain, (0.5, -0.3, 0.0, 0.0), 1.0, "dop853", None, None, None, None, 0.5, 10.0, (160, 120), 5,
+                  False, None)
+    with _Streams():
+        st, _ = _terminal_stages("report")
+        texts, moves = [], []
+        said = st.detail
+
+        def record(text):
+            texts.append(text)
+            said(text)
+            moves.append(len(st.moves))
+
+        monkeypatch.setattr(st, "detail", record)
+        with st:
+            for key in ("derivation", "check", "modes", "flipmap"):
+                P.stage(key)
+                R.CHAIN_BUILDERS[key](ctx)
+    assert "deriving the equations of 2 links (SymPy)" in texts
+    assert [t for t in texts if t.startswith("typesetting row")] == ["typesetting row 1 of 2 of M and f",
+                                                                     "typesetting row 2 of 2 of M and f"]
+    assert [t for t in texts if t.startswith("random state")] == [f"random state {k} of {R.CHECK_STATES}"
+                                                                   for k in range(1, R.CHECK_STATES + 1)]
+    assert "hinge 2's tilt: 5 values (sweep 1 of 1)" in texts
+    cells = [t for t in texts if t.startswith("8×8 starts: ")]
+    assert cells and cells[-1] == "8×8 starts: 64 of 64 cells", texts
+    for k in range(1, len(texts)):  # each new text moved the line
+        assert (moves[k] > moves[k - 1]) == (texts[k] != texts[k - 1]), (texts[k - 1], texts[k])

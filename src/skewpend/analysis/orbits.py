@@ -31,6 +31,7 @@ frequency crossing a small rational multiple of the other's at the same energy).
 
 from __future__ import annotations
 
+import contextvars
 import math
 import numbers
 from dataclasses import dataclass, field
@@ -41,7 +42,7 @@ import numpy as np
 
 from ..checks import angle, numeric_params, positive, progress_callable, tolerances, whole
 from ..errors import EquilibriumError, IntegrationError, ParameterError, SkewpendError
-from ..progress import detail as say_detail, stage as say_stage
+from ..progress import detail as _detail
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..schema import state_coordinates
 from ..status import Status
@@ -73,6 +74,15 @@ ROTATION_LIMIT = 1000
 #: equilibrium: the amplitude ``|q'| / w + |q''| / w^2`` at its start (``w = 2 pi / T``), in
 #: the angle unit of the shooting (1 rad).
 TRIVIAL_AMPLITUDE = 1e-6
+
+
+#: The family :func:`backbones` is following (``"mode 2 of 4: "``), said before each sub-step.
+_FAMILY: "contextvars.ContextVar[str]" = contextvars.ContextVar("skewpend_nnm_family", default="")
+
+
+def _say(text: str) -> None:
+    """The sub-step on the running command's live line (:func:`skewpend.progress.detail`), after its family."""
+    _detail(_FAMILY.get() + text)
 
 
 def _require_conservative(params: Parameters, what: str) -> None:
@@ -600,7 +610,7 @@ def _chain_flip_energy(chain) -> float:
             Q[:, i] = side
             values = V(Q)
             for start, k in enumerate(np.argsort(values)[:FLIP_STARTS], 1):
-                say_detail(f"the lowest flip energy: face {2 * i + half + 1} of {2 * n}, search {start} of {FLIP_STARTS}")
+                _say(f"the lowest flip energy: face {2 * i + half + 1} of {2 * n}, search {start} of {FLIP_STARTS}")
                 def f(x, k=k):
                     q = Q[k].copy()
                     q[free] = x
@@ -905,7 +915,7 @@ def _energy_limit(params: Parameters, name: str, value, *, mode: Optional[int] =
     from .equilibria import equilibria
 
     E = positive(name, value)
-    say_detail("the equilibria (the highest bounds the energy)")
+    _say("the equilibria (the highest bounds the energy)")
     points = equilibria(params).points
     if points:
         top = max(points, key=lambda e: e.potential)
@@ -960,10 +970,10 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     step = positive("step", step, cap=0.5)
     rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
     progress = progress_callable(progress, "progress(energy, energy_max)")
-    say_detail("the lowest energy at which a joint can flip")
+    _say("the lowest energy at which a joint can flip")
     barrier = flip_energy(params)
     E_max = barrier if energy_max is None else _energy_limit(params, "energy_max", energy_max, mode=mode)
-    say_detail("the linear modes")
+    _say("the linear modes")
     linear = normal_modes(params)
     w0 = float(linear.frequencies[mode - 1])
     v = linear.shapes[:, mode - 1]
@@ -981,7 +991,7 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     status, message = Status.SUCCESS, ""
 
     def told(what: str):  # a Newton iteration said on the live line (issue 51: no silence over 2 s)
-        return lambda it, _n: say_detail(f"{what}: Newton iteration {it}")
+        return lambda it, _n: _say(f"{what}: Newton iteration {it}")
 
     with Interrupts() as intr:
         out = _newton(model, x, T0, E, zero, x, scales, check=intr.check, progress=told("orbit 1 (the linear mode)"))
@@ -1016,7 +1026,7 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
             if res is None:
                 ds /= 2
                 failures += 1
-                say_detail(f"{here}: the corrector failed, the step halved")
+                _say(f"{here}: the corrector failed, the step halved")
                 if ds < 1e-7:
                     status = Status.NO_CONVERGENCE
                     message = (f"the continuation stopped at E = {energies[-1]:.6g} J (frequency "
@@ -1085,9 +1095,12 @@ def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_ord
     max_order = whole("max_order", max_order, 1, 12)
     n = params.n if isinstance(params, Chain) else 2
     fams = []
-    for m in range(1, n + 1):  # a stage per family: a chain's families take minutes (issue 51)
-        say_stage(f"continuing nonlinear normal mode {m} of {n}")
-        fams.append(nnm(params, mode=m, energy_max=energy_max, **kw))
+    for m in range(1, n + 1):  # a chain's families take minutes: the live line names each (issue 51)
+        token = _FAMILY.set(f"mode {m} of {n}: ")
+        try:
+            fams.append(nnm(params, mode=m, energy_max=energy_max, **kw))
+        finally:
+            _FAMILY.reset(token)
     ratios = sorted({Fraction(p, q) for p in range(1, max_order + 1) for q in range(1, max_order + 1)})
     res: List[BranchEvent] = []
 
@@ -1244,7 +1257,7 @@ def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Seque
             model = model_cache.setdefault(a, _Model(q, rtol, atol))
             scales = _scales_for(q, T, energy)
             out = _newton(model, x, T, energy, np.zeros(4), x, scales, check=intr.check,
-                          progress=lambda it, _n, a=a: say_detail(f"alpha = {math.degrees(a):.4g} deg: Newton iteration {it}"))
+                          progress=lambda it, _n, a=a: _say(f"alpha = {math.degrees(a):.4g} deg: Newton iteration {it}"))
             calls += model.calls
             if out is None:
                 h = (a - a_prev) / 2

@@ -23,7 +23,7 @@ import numpy as np
 from ...errors import SkewpendError
 from .common import (CHAOS_LYAPUNOV_T_END, FIGURE_DT, FIGURE_MAX_ROWS, FLIPMAP_T_END, VALIDATION_DT, VALIDATION_T_END,
                      VALIDATION_TOL, Context, display_math, esc, facts_html, fig_png, figure_html, fmt_deg, fmt_num,
-                     inline_math, prose, table_html)
+                     inline_math, prose, table_html, detail, telling)
 
 #: (id, title) of a chain report's sections, in order.
 CHAIN_SECTIONS = (
@@ -125,8 +125,10 @@ def section_system(ctx: Context) -> str:
     from .system import still_png
 
     chain, y0, n = ctx.params, ctx.y0, ctx.params.n
+    detail("picture 1 of 2: the chain hanging at rest")
     rest = simulate(chain, (0.0,) * (2 * n), 0.01, dt_out=0.01, method="dop853")
     ctx.still = still_png(ctx.clip)
+    detail("picture 2 of 2: the chain at the start")
     fig_rest = figure_html(
         still_png(rest),
         prose(f"Reference configuration: all {n} rods hang along $\\underline{{j}}$ (down), every $q_i = 0$. "
@@ -193,6 +195,7 @@ def section_derivation(ctx: Context) -> str:
             "<code>skewpend derive --config</code> prints them, section 9 checks them against MuJoCo.</p>")
     from ...symbolic.derivation import derive
 
+    detail(f"deriving the equations of {n} links (SymPy)")
     eom = derive(chain)
     names = _chain_names(eom)
     long = []
@@ -213,17 +216,21 @@ def section_derivation(ctx: Context) -> str:
     for key, value in eom.steps.items():
         if key in ("M", "f", "T", "Pi"):
             continue
+        detail(f"typesetting the step {key}")
         stem = key.rstrip("0123456789")
         rows.append(f"{labels[stem]}_{{{key[len(stem):]}}} &= {t(value, key)}")
     out.append(display_math("\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"))
+    detail("typesetting T and Pi")
     out.append(display_math(f"T = {t(eom.kinetic_energy, 'T')}"))
     out.append(display_math(rf"\Pi = {t(eom.potential_energy, 'Pi')}"))
     out.append(prose("<p>Lagrange's equations, $M(q)\\,\\ddot q = f(q, \\dot q)$, entry by entry:</p>"))
     M, f = eom.mass_matrix, eom.forcing
     for i in range(n):  # one block per row of M and its f: each scrolls on its own when wide
+        detail(f"typesetting row {i + 1} of {n} of M and f")
         eqs = [f"M_{{{i + 1}{j + 1}}} &= {t(M[i, j], f'M{i + 1}{j + 1}')}" for j in range(i, n)]
         eqs.append(f"f_{{{i + 1}}} &= {t(f[i], f'f{i + 1}')}")
         out.append(display_math("\\begin{aligned}\n" + " \\\\\n".join(eqs) + "\n\\end{aligned}"))
+    detail("linearising about the hanging rest")
     try:
         lin = eom.linearize()
     except SkewpendError as exc:
@@ -261,12 +268,14 @@ def section_check(ctx: Context) -> str:
         return intro + f"For {n} links the check is section 9's: the same model simulated by MuJoCo.</p>"
     K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
     symbols = [coordinate_symbol(c) for c in eom.coordinates] + [coordinate_symbol("d" + c) for c in eom.coordinates]
+    detail("turning section 2's expressions into functions (SymPy's lambdify)")
     M, f = sp.lambdify(symbols, eom.mass_matrix), sp.lambdify(symbols, eom.forcing)
     E = sp.lambdify(symbols, eom.kinetic_energy + eom.potential_energy)
     rng = np.random.default_rng(2026)
     acc_err = energy_err = 0.0
     out = np.zeros(2 * n + 1)
-    for _ in range(CHECK_STATES):
+    for k in range(CHECK_STATES):
+        detail(f"random state {k + 1} of {CHECK_STATES}")
         y = np.r_[rng.uniform(-math.pi, math.pi, n), rng.normal(scale=2.0, size=n)]
         acc = np.linalg.solve(np.array(M(*y), float), np.array(f(*y), float).ravel())
         K.rhs(np.r_[y, 0.0], p, out)
@@ -291,6 +300,7 @@ def section_modes(ctx: Context) -> str:
     from .common import array_tex
 
     chain, n = ctx.params, ctx.params.n
+    detail("the normal modes")
     try:
         m = normal_modes(chain)
         if not m.ok:
@@ -323,11 +333,13 @@ def section_modes(ctx: Context) -> str:
     values = np.radians(np.linspace(0.0, 180.0, points))
     notes = []
     for i in range(2, n + 1):
+        detail(f"hinge {i}'s tilt: {points} values (sweep {i - 1} of {n - 1})")
         try:
             sw = sweep(chain, f"tilt{i}", values)
         except SkewpendError as exc:
             out.append(f'<p class="callout warn">The sweep of hinge {i}\'s tilt failed: {esc(exc)}</p>')
             continue
+        detail(f"hinge {i}'s tilt: the figure (sweep {i - 1} of {n - 1})")
         fig = plot_sweep(sw)
         axis = chain.links[i - 1].axis
         if abs(axis[1]) < 1e-12:  # this chain's own tilt, if its axis lies in the (k, i) plane
@@ -360,10 +372,11 @@ def section_flipmap(ctx: Context) -> str:
     chain, n = ctx.params, ctx.params.n
     cells = CHAIN_FLIPMAP_N if n <= SHORT_CHAIN else LONG_FLIPMAP_N
     try:
-        fm = flip_map(chain, cells, t_end=FLIPMAP_T_END)
+        fm = flip_map(chain, cells, t_end=FLIPMAP_T_END, progress=telling(f"{cells}×{cells} starts", "cells"))
     except SkewpendError as exc:
         ctx.notes["flipmap"] = "could not be computed"
         return f'<p class="callout warn">The flip-time map could not be computed: {esc(exc)}</p>'
+    detail("the figure")
     fig = flipmap_figure(fm)
     flipped = float(fm.flipped_fraction)
     held = ("" if n == 2 else prose(f" The other {n - 2} angle" + ("s are" if n > 3 else " is")
@@ -401,10 +414,11 @@ def section_chaos(ctx: Context) -> str:
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         try:
-            spec = lyapunov(chain, y0, t_end=horizon, throw=False)
+            spec = lyapunov(chain, y0, t_end=horizon, throw=False, progress=telling(f"{2 * n} Lyapunov exponents", "s"))
         except SkewpendError as exc:
             ctx.notes["chaos"] = "could not be computed"
             return "\n".join(out) + f'<p class="callout warn">The Lyapunov spectrum could not be computed: {esc(exc)}</p>'
+    detail("the figure")
     out.append(figure_html(fig_png(F.lyapunov_figure(spec)), prose(
         f"Running estimates of the {spec.k} Lyapunov exponents of the simulation's initial state (section 5), over "
         f"{fmt_num(horizon)} s (± is the 95 % interval from the spread over 10 time windows, once settled)."),
@@ -436,6 +450,7 @@ def section_orbits(ctx: Context) -> str:
     out = [prose("<p>Between the small oscillations of section 4 and the chaos of section 7 lie the other equilibria and "
                  "the <b>nonlinear normal modes</b>: the families of periodic orbits that continue each linear mode as the "
                  "energy grows.</p>")]
+    detail("the equilibria")
     try:
         eq = equilibria(chain)
     except SkewpendError as exc:
@@ -489,6 +504,7 @@ def section_orbits(ctx: Context) -> str:
                "collision); dotted: internal resonances.")
     if damped:
         caption += " Drawn for the undamped chain: with damping no motion is periodic."
+    detail("the frequency-energy plot")
     out.append(figure_html(fig_png(F.fep_figure(bb)), caption, "frequency-energy plot of the nonlinear normal modes"))
     out.append(facts_html(backbone_facts(bb)))
     ctx.notes["orbits"] = (" + ".join(str(len(f)) for f in bb.families) + f" orbits up to {fmt_num(E_max, 4)} J"

@@ -76,6 +76,26 @@ FIGURE_MAX_ROWS = 20000
 
 
 # -- small helpers ----------------------------------------------------------------------------
+def telling(what: str, unit: str = "") -> Callable[[float, float], None]:
+    """A ``progress(done, total)`` for a library call inside a section: its progress said as the section's
+    sub-step on the live line (``what: 40 of 128 unit``; issue 51: no silence over 2 s on a terminal)."""
+    from ...progress import detail
+
+    suffix = f" {unit}" if unit else ""
+
+    def told(done, total, label=None):
+        detail(f"{what}: {float(done):.4g} of {float(total):.4g}{suffix}" if label is None else f"{what}: {label}")
+
+    return told
+
+
+def detail(text: str) -> None:
+    """A section's sub-step, said on the live line (:func:`skewpend.progress.detail`)."""
+    from ...progress import detail as say
+
+    say(text)
+
+
 def esc(text) -> str:
     return html.escape(str(text), quote=True)
 

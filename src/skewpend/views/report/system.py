@@ -12,7 +12,7 @@ from ... import schema
 from ...errors import SkewpendError
 from ...symbolic.model import Parameters
 
-from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
+from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context, detail, telling)  # noqa: F401
 
 # -- section 1: the system ------------------------------------------------------------------------
 def _unit(unit: str) -> str:
@@ -251,7 +251,7 @@ def section_simulation(ctx: Context) -> str:
         step = ctx.dt if ctx.dt is not None else 1e-3
         dt_out = max(step, round(dt_out / step) * step)
     t0 = time.perf_counter()
-    tr = simulate(p, y0, ctx.t_end, dt_out=min(dt_out, ctx.t_end), **kw)
+    tr = simulate(p, y0, ctx.t_end, dt_out=min(dt_out, ctx.t_end), progress=telling("integrating", "s"), **kw)
     ctx.timings["simulation: integration"] = time.perf_counter() - t0
     st = tr.stats
     if st.get("kernel") == "compiled":
@@ -294,7 +294,8 @@ def section_simulation(ctx: Context) -> str:
                               + r" in 3D; the pendulum hangs down, $z$ is the first hinge axis $\underline{k}$."),
          "3D paths of the rod ends"),
     ]
-    for make, caption, alt in figs:
+    for k, (make, caption, alt) in enumerate(figs, 1):
+        detail(f"figure {k} of {len(figs)}: {alt}")
         out.append(figure_html(fig_png(make(tr)), caption, alt))
     ctx.timings["simulation: figures"] = time.perf_counter() - t0
 
@@ -304,6 +305,7 @@ def section_simulation(ctx: Context) -> str:
     frame = 1.0 / ctx.fps
     clip_t = max(frame, math.floor(ctx.clip_seconds / frame + 1e-9) * frame)
     clip_kw = {"max_steps": int(ctx.max_steps)} if ctx.max_steps is not None else {}
+    detail("the live view's frames")
     ctx.clip = clip = simulate(p, y0, clip_t, dt_out=frame, method="dop853", **clip_kw)
     ctx.live = replay_data(clip)
     ctx.timings["simulation: live view"] = time.perf_counter() - t0
