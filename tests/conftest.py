@@ -7,6 +7,10 @@ import os
 from pathlib import Path
 
 os.environ.setdefault("SKEWPEND_CACHE_DIR", str(Path(__file__).resolve().parent.parent / ".skewpend-test-cache"))
+# method="auto" takes taylor whatever the cache holds (a first use would otherwise run dop853 while a
+# detached process builds the Taylor library): the tests of the rule see one choice; tests/test_first_use.py
+# tests the background build itself
+os.environ.setdefault("SKEWPEND_TAYLOR_BUILD", "foreground")
 
 
 import pytest  # noqa: E402

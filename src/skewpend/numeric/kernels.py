@@ -759,6 +759,17 @@ def _announce(kind: str, cached: bool) -> None:
         pass
 
 
+def announce_background(what: str, meanwhile: str) -> None:
+    """One line on stderr when a library is built in the background (``SKEWPEND_QUIET=1`` silences it)."""
+    if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
+        return
+    try:
+        sys.stderr.write(f"skewpend: building {what} in the background (first use only; {meanwhile})\n")
+        sys.stderr.flush()
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False, shooting: bool = False) -> Kernel:
     """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs).
 
@@ -965,22 +976,106 @@ def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
         return loaded
 
 
-def _taylor_kernel(params: Parameters, order: int, model) -> TaylorKernel:
-    if model is not None and (model.path, order) in _TAYLOR_OF:
-        return _TAYLOR_OF[model.path, order]
-    gkey = repr([getattr(params, k) for k in GEOMETRY] + list(optional_terms(params))) + f"|taylor{order}"
-    kernel = _BYGEOMETRY.get(gkey)
-    if kernel is not None:
-        if model is not None:
-            _TAYLOR_OF[model.path, order] = kernel  # type: ignore[assignment]
-        return kernel  # type: ignore[return-value]
+def _taylor_gkey(params: Parameters, order: int) -> str:
+    return repr([getattr(params, k) for k in GEOMETRY] + list(optional_terms(params))) + f"|taylor{order}"
+
+
+def _taylor_key(params: Parameters, order: int):
+    """The Taylor library's cache key, with the structure and the compiler flags it is built from."""
     geometry = structure_of(params)
     # the Taylor library's text also depends on its generator and driver (not part of the others' key),
     # and on whether the processor's fused multiply-add is used (fused_multiply_add)
     extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h"))
     fused, flags = fused_multiply_add()
     key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}")
-    key += f"_taylor{order}"
+    return key + f"_taylor{order}", geometry, fused, flags
+
+
+def built_taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = None) -> Optional[TaylorKernel]:
+    """The Taylor library of ``params``' structure and ``order`` if it is built (loaded in this process,
+    or in the cache on disk: then loaded), else None -- it never builds (the double pendulum's; a
+    chain's Taylor libraries are not looked up here: None)."""
+    if model is not None and (model.path, order) in _TAYLOR_OF:
+        return _TAYLOR_OF[model.path, order]
+    if hasattr(params, "links"):
+        return None
+    if _BYGEOMETRY.get(_taylor_gkey(params, order)) is not None:
+        return _taylor_kernel(params, order, model)
+    key = _taylor_key(params, order)[0]
+    path = cache_dir() / "kernels" / f"skewpend_{key}{LIB_SUFFIX}"
+    if key in _LOADED or path.exists() and _intact(path):
+        return _taylor_kernel(params, order, model)
+    return None
+
+
+#: How a first use builds the Taylor library that ``method="auto"`` would choose: ``background`` (the
+#: default: the run takes dop853 at once and a detached process builds the library for later runs) or
+#: ``foreground`` (the run waits for the library and takes taylor: one choice whatever the cache holds).
+TAYLOR_BUILD_ENV = "SKEWPEND_TAYLOR_BUILD"
+#: A background build younger than this [s] is not started again (its marker file says it runs).
+_BUILD_MARK_AGE = 300.0
+
+
+def taylor_build_in_foreground() -> bool:
+    """Whether ``SKEWPEND_TAYLOR_BUILD=foreground`` asks a first use to wait for the Taylor library."""
+    value = os.environ.get(TAYLOR_BUILD_ENV, "background").strip().lower()
+    if value not in ("background", "foreground", ""):
+        from ..errors import ParameterError
+
+        raise ParameterError(f"{TAYLOR_BUILD_ENV} must be 'background' or 'foreground', got {value!r}")
+    return value == "foreground"
+
+
+def build_taylor_in_background(params: Parameters, order: int) -> bool:
+    """Start building the Taylor library of ``params``' structure and ``order`` in a detached process
+    (its own session: a Ctrl-C of this one does not stop it, and it outlives a command that ends
+    first), unless one is building it already (a marker file beside the library, under
+    :data:`_BUILD_MARK_AGE` s old) or the cache is not writable.  True if a build was started or runs."""
+    import json
+    import subprocess
+
+    key = _taylor_key(params, order)[0]
+    directory = cache_dir() / "kernels"
+    mark = directory / f".skewpend_{key}.building"
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        if mark.exists() and time.time() - mark.stat().st_mtime < _BUILD_MARK_AGE:
+            return True
+        mark.write_text(str(os.getpid()), encoding="utf-8")
+        code = ("import json, sys\nfrom skewpend.numeric.kernels import _build_taylor_from_json\n"
+                "_build_taylor_from_json(sys.argv[1], int(sys.argv[2]), sys.argv[3])\n")
+        env = {**os.environ, "SKEWPEND_QUIET": "1", TAYLOR_BUILD_ENV: "foreground"}
+        subprocess.Popen([sys.executable, "-c", code, json.dumps(params.to_dict()), str(order), str(mark)],
+                         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                         start_new_session=True, close_fds=True, env=env)
+    except OSError:
+        return False
+    return True
+
+
+def _build_taylor_from_json(params_json: str, order: int, mark: str) -> None:
+    """The detached builder's body: build (or find) the library, then remove the marker."""
+    import json
+
+    try:
+        _taylor_kernel(Parameters(**json.loads(params_json)), order, None)
+    finally:
+        try:
+            os.unlink(mark)
+        except OSError:
+            pass
+
+
+def _taylor_kernel(params: Parameters, order: int, model) -> TaylorKernel:
+    if model is not None and (model.path, order) in _TAYLOR_OF:
+        return _TAYLOR_OF[model.path, order]
+    gkey = _taylor_gkey(params, order)
+    kernel = _BYGEOMETRY.get(gkey)
+    if kernel is not None:
+        if model is not None:
+            _TAYLOR_OF[model.path, order] = kernel  # type: ignore[assignment]
+        return kernel  # type: ignore[return-value]
+    key, geometry, fused, flags = _taylor_key(params, order)
     with _key_lock(key):
         if key in _LOADED:
             _BYGEOMETRY[gkey] = _LOADED[key]

@@ -67,11 +67,18 @@ AUTO = "auto"
 #:   band, see :func:`skewpend.numeric.kernels.taylor_rule`) builds that order's small library, about
 #:   1-3 s once, cached on disk like the model's kernel.
 #:
+#: * the first run of a model's structure at a tolerance band, before taylor's library of that order is
+#:   built -> dop853, while a detached process builds the library for later runs (``"building"``; a
+#:   first ``skewpend simulate`` took 7-8 s building both libraries; ``SKEWPEND_TAYLOR_BUILD=foreground``
+#:   waits for it instead, one choice whatever the cache holds).
+#:
 #: A fixed step ``dt`` is refused with ``auto`` (it is a setting of rk4 and gauss: name the method).
 AUTO_RULE = {
     "controller": "dop853: inputs that vary (taylor's series are generated for constant torques)",
     "no series": "dop853: {reason}",
     "taylor": "taylor: the fastest method that serves this request (2-4x dop853's speed at the same tolerance)",
+    "building": "dop853: taylor's library for this model and tolerance is being built in the background (first use; "
+                "later runs take taylor, SKEWPEND_TAYLOR_BUILD=foreground waits for it instead)",
 }
 
 #: Deprecated: the messages of :class:`skewpend.status.Status` by code (use ``Status(code).message``).
@@ -421,6 +428,7 @@ def _initial_state(y0) -> List[float]:
         if type(a) is float and type(b) is float and type(c) is float and type(d) is float and abs(a) <= MAX_ANGLE \
                 and abs(b) <= MAX_ANGLE and math.isfinite(c) and math.isfinite(d):  # (NaN fails the comparisons)
             return [a, b, c, d]
+    checks.real_sequence("y0", y0)
     return initial_state(y0).tolist()
 
 
@@ -535,7 +543,11 @@ def simulate(
         entry = None
         if not chain:
             params.require_numeric("simulation")
-    y = initial_state(y0, params.coordinates).tolist() if chain else _initial_state(y0)
+    if chain:
+        checks.real_sequence("y0", y0)
+        y = initial_state(y0, params.coordinates).tolist()
+    else:
+        y = _initial_state(y0)
     if not (type(t_end) is float and _FLOAT_MIN <= t_end < math.inf):
         t_end = checks.positive("t_end", t_end)
     dt_out = None if dt_out is None else checks.positive("dt_out", dt_out)
@@ -544,6 +556,7 @@ def simulate(
         if dt is not None:
             raise ParameterError("dt is the step of rk4 and gauss; the default method 'auto' chooses its own steps (set "
                                  "rtol/atol), or name method='rk4' or 'gauss' with dt")
+        K.taylor_build_in_foreground()  # a bad SKEWPEND_TAYLOR_BUILD refused before any build
         if chain:
             method, choice = "dop853", "dop853: a chain of links (6-45x faster than its Taylor series, measured)"
         elif controller is None:
@@ -624,7 +637,14 @@ def simulate(
         if rule is None:
             order, step_l = K.taylor_rule(rtol)
             tk = entry.taylor.get(order)
-            if tk is None:
+            if tk is None and choice is not None and not chain and not K.taylor_build_in_foreground():
+                tk = K.built_taylor_kernel(params, order, model=kernel)
+                if tk is None:  # auto's first use of this order: dop853 now, the library built for later runs
+                    method = "dop853"
+                    settings["method_choice"] = AUTO_RULE["building"]
+                    if K.build_taylor_in_background(params, order):
+                        K.announce_background("the Taylor kernel of this order", "this run uses dop853")
+            if tk is None and method == "taylor":
                 try:
                     tk = K.taylor_kernel(params, order, model=kernel)
                 except ValueError as exc:  # a function in the equations without a series recurrence
@@ -632,8 +652,8 @@ def simulate(
                         raise ParameterError(f"method taylor: {exc}; use dop853") from None
                     method, tk = "dop853", None  # auto: the adaptive method that takes any equations
                     settings["method_choice"] = AUTO_RULE["no series"].format(reason=exc)
-                if tk is not None:
-                    entry.taylor[order] = tk
+            if tk is not None:
+                entry.taylor[order] = tk
             if tk is not None and len(entry.taylor_tol) < 64:
                 entry.taylor_tol[rtol] = (tk, step_l)
         else:
