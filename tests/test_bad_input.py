@@ -91,8 +91,6 @@ case("derive-unknown-option", ["derive", "--bogus"], "--bogus")
 case("derive-option-without-value", ["derive", "--a"], "--a", "requires an argument")
 case("derive-extra-argument", ["derive", "extra"], "extra")
 case("derive-config-missing", ["derive", "--config", "x.toml"], "x.toml", "does not exist")
-case("derive-config-unread-key", ["derive", "--config", "r.toml"], "r.toml: [simulation] t_end", "skewpend derive",
-     files={"r.toml": "[simulation]\nt_end = 3\n"})
 case("derive-coulomb-without-linear", ["derive", "--coulomb", "smoothed"], "--coulomb", "--linear")
 case("serve-config-speed", ["serve", "--config", "r.toml"], "r.toml: [initial] dphi0", "at rest",
      files={"r.toml": "[initial]\ndphi0 = 1\n"})
@@ -463,7 +461,8 @@ case("serve-port-twice", ["serve", "--port", "8001", "--port", "8002"], "--port"
 case("derive-format-twice", ["derive", "-f", "json", "--format", "latex"], "twice")
 
 # -- issue 20, class 7: a run file's key takes effect or is refused ---------------------------------------------
-config_case("cfg-flipmap-initial-refused", "[initial]\nphi0 = 1\n", "[initial] phi0", "flipmap", command="flipmap")
+# (issue 51: a section a command does not use at all -- [initial] for flipmap, poincare, chaos-diagram, export,
+# modes; [simulation] for derive, modes -- is left aside with one note: tests/test_config_one_file.py)
 config_case("cfg-flipmap-dt-out-refused", "[simulation]\ndt_out = 0.1\n", "dt_out", "flipmap", command="flipmap")
 config_case("cfg-flipmap-rk4-refused", '[simulation]\nmethod = "rk4"\n', "[simulation] method", "dop853", command="flipmap")
 config_case("cfg-flipmap-t-end-zero", "[simulation]\nt_end = 0\n", "[simulation] t_end", "positive", command="flipmap")
@@ -473,16 +472,12 @@ config_case("cfg-lyapunov-rtol-zero", "[simulation]\nrtol = 0\n", "[simulation] 
 config_case("cfg-lyapunov-out-refused", '[simulation]\nout = "x.csv"\n', "[simulation] out", "lyapunov", command="lyapunov")
 config_case("cfg-lyapunov-max-steps-fraction", "[simulation]\nmax_steps = 2.5\n", "[simulation] max_steps", command="lyapunov")
 config_case("cfg-poincare-t-end-refused", "[simulation]\nt_end = 5\n", "[simulation] t_end", "poincare", "--t-max", command="poincare", extra=["--energy", "5"])
-config_case("cfg-poincare-initial-refused", "[initial]\npsi0 = 1\n", "[initial] psi0", "poincare", command="poincare", extra=["--energy", "5"])
 config_case("cfg-poincare-rtol-negative", "[simulation]\nrtol = -1\n", "[simulation] rtol", command="poincare", extra=["--energy", "5"])
 config_case("cfg-chaos-alpha-refused", "[parameters]\nalpha = 0.3\n", "[parameters] alpha", "--alphas", command="chaos-diagram")
-config_case("cfg-chaos-initial-refused", "[initial]\nphi0 = 0.3\n", "[initial] phi0", command="chaos-diagram")
 config_case("cfg-animate-out-refused", '[simulation]\nout = "x.csv"\n', "[simulation] out", "animate", command="animate", extra=["--out", "m.gif"])
 config_case("cfg-animate-dt-out-refused", "[simulation]\ndt_out = 0.1\n", "[simulation] dt_out", "speed/fps", command="animate", extra=["--out", "m.gif"])
 config_case("cfg-report-plot-refused", '[simulation]\nplot = "p.png"\n', "[simulation] plot", "report", command="report")
 config_case("cfg-validate-method-refused", '[simulation]\nmethod = "rk4"\n', "[simulation] method", "validate", command="validate")
-config_case("cfg-export-initial-refused", "[initial]\nphi0 = 1\n", "[initial] phi0", "export", command="export")
-config_case("cfg-modes-simulation-refused", "[simulation]\nt_end = 1\n", "[simulation] t_end", "modes", command="modes")
 
 
 # -- the checks -----------------------------------------------------------------------------------------------

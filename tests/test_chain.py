@@ -415,7 +415,7 @@ def test_a_chain_from_per_link_options_is_the_run_file_s(tmp_path):
     (["simulate", "--links", "3", "--link-axis", "0,0,1;1,0"], "--link-axis"),
     (["simulate", "--links", "3", "--link-inertia", "1,1,5"], "triangle inequality"),
     (["simulate", "--links", "3", "--link-com", "a,0,0"], "a chain's values are numbers"),
-    (["simulate", "--links", "0"], "--links: expected a whole number from 1 to 64"),
+    (["simulate", "--links", "0"], "--links: expected a whole number from 1 to 32"),
     (["simulate", "--links", "3", "--a", "1"], "--a: a chain of links ([[links]] or --links) does not take"),
     (["simulate", "--links", "3", "--phi0", "1"], "--phi0: a chain's start is --q0"),
     (["simulate", "--links", "3", "--q0", "1,2"], "--q0: expected 3 values (one a link), got 2"),

@@ -19,7 +19,7 @@ from .errors import NotNumericError, ParameterError
 
 __all__ = [
     "MAX_STEPS", "MAX_STEPS_LIMIT", "DEFAULT_TOL", "RTOL_MIN", "ATOL_MIN", "numeric_params", "tolerances", "max_steps", "whole", "positive",
-    "progress_callable", "flag", "finite_seconds", "angle", "angles", "ANGLE_LIMIT",
+    "progress_callable", "flag", "finite_seconds", "angle", "angles", "ANGLE_LIMIT", "real_sequence",
 ]
 
 #: Default cap on the attempted steps (accepted + rejected) of one trajectory.
@@ -166,3 +166,31 @@ def angles(name: str, values: Any, n: int) -> Tuple[float, ...]:
     if len(items) != n:
         raise ParameterError(f"{name} must be {n} angles in radians, got {len(items)} values")
     return tuple(angle(f"{name}[{i}]", v) for i, v in enumerate(items))
+
+
+def real_sequence(name: str, value: Any) -> None:
+    """Refuse what NumPy would convert with a loss or a reshape: a sequence of real numbers in one row
+    (a state ``y0``), not complex numbers (their imaginary part would be dropped with a warning only),
+    booleans or text, and not a 2-D array (flattened, its layout guessed).  The count and finiteness are
+    the caller's to check."""
+    import numpy as np
+
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):  # ragged or not a sequence: the caller's conversion says so
+        return
+    if arr.ndim != 1:
+        shape = "a single number" if arr.ndim == 0 else f"an array of shape {arr.shape}"
+        raise ParameterError(f"{name} must be one row of real numbers, got {shape}", parameter=name)
+    items = list(value) if isinstance(value, (list, tuple)) else []  # NumPy turns (True, 0.5) into floats
+    if arr.dtype.kind in "fiu" and not any(isinstance(x, (bool, np.bool_)) for x in items):  # the common case
+        return
+    entries = arr.tolist() + items
+    # the entry to name: one with an imaginary part, else the first that is no real number
+    entries.sort(key=lambda x: not (isinstance(x, (complex, np.complexfloating)) and x.imag != 0))
+    for x in entries:
+        kind = ("a complex number" if isinstance(x, (complex, np.complexfloating)) else
+                "a boolean" if isinstance(x, (bool, np.bool_)) else
+                "text" if isinstance(x, (str, bytes)) else None)
+        if kind:
+            raise ParameterError(f"{name} must be real numbers, got {kind}: {x!r}", parameter=name)

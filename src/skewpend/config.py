@@ -4,9 +4,14 @@ A *run* resolves, key by key, the built-in defaults, then a run file (``--config
 values given on the command line; every value remembers where it came from, so a message can
 name what the user typed (``--a``, or ``run.toml: [parameters] a``).
 
-**The rule for run files, written once** (:data:`READS`): every key a command reads takes
-effect; a key it does not read is refused in one line naming the key and the command, as
-unknown keys are.  Nothing in a run file is ever silently ignored.
+**The rule for run files, written once** (:data:`READS`): one run file serves every command.
+Every key a command reads takes effect.  A run's sections a command does not use (``[initial]``,
+``[simulation]``: a flip map starts on its grid, the modes need no start) are left aside with one
+note (:attr:`Run.notes`, which the command line prints); in a section it does use, a key it does not
+read is refused in one line naming the key and the command, as unknown keys are.  The model's
+sections (``[parameters]``, ``[chain]``, ``[[links]]``) are never left aside: a command that does not
+take a chain refuses them, and ``[chain]`` without links is refused.  Nothing in a run file is
+ever silently ignored.
 
 The parameters of the model are built in one way, :func:`build_parameters`, from values as the
 user spelled them (numbers, ``"30deg"``, ``"pi/2"``, ``"sym"``, vectors, matrices).
@@ -19,7 +24,8 @@ from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
 from .errors import ParameterError
 from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
-from .schema import CHAIN_NAMES, CORE_NAMES, GEOMETRY_NAMES, LINK_FIELDS, NAMES, OPTIONAL_DEFAULTS, SCALAR_NAMES, field
+from .schema import (CHAIN_NAMES, CORE_NAMES, GEOMETRY_NAMES, LINK_FIELDS, MAX_LINKS, NAMES, OPTIONAL_DEFAULTS, SCALAR_NAMES,
+                     check_bound, field)
 
 __all__ = [
     "DEFAULT_RUN", "reference_parameters", "reference_state", "COMMAND_DEFAULTS", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
@@ -99,9 +105,14 @@ READS: Dict[str, Dict[str, frozenset]] = {
     "identify": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # params0, the fit's start
     "derive": {"parameters": MODEL_KEYS, "chain": CHAIN_KEYS, "links": LINK_KEYS},  # the values given; the others stay symbolic
     # the bodies and axes -> the generated physics; the scalars and the start -> the page's sliders
-    "serve": {"parameters": MODEL_KEYS, "initial": frozenset(("phi0", "psi0", "q0")), "chain": CHAIN_KEYS,
+    # the start's rates: the explorer starts at rest, so they are read to be checked 0 (skewpend serve)
+    "serve": {"parameters": MODEL_KEYS, "initial": INITIAL_KEYS | CHAIN_INITIAL_KEYS, "chain": CHAIN_KEYS,
               "links": LINK_KEYS},
 }
+
+#: The sections a command may leave aside (with one note) when it does not use them: the run's start and
+#: its integration.  The model's sections are never left aside.
+IGNORABLE_SECTIONS = ("initial", "simulation")
 
 #: Why a command does not read a key that some other command does (the refusal says it).
 _WHY_NOT = {
@@ -112,9 +123,6 @@ _WHY_NOT = {
     ("report", "out"): "the report is written to --out FILE.html",
     ("report", "dt_out"): "the report draws the integrator's own steps",
     ("poincare", "t_end"): "each orbit runs until its crossings are recorded, or --t-max",
-    ("serve", "dphi0"): "the explorer starts at rest (its sliders set phi0 and psi0)",
-    ("serve", "dpsi0"): "the explorer starts at rest (its sliders set phi0 and psi0)",
-    ("serve", "dq0"): "the explorer starts at rest (its sliders set each joint's start angle, q0)",
 }
 
 
@@ -209,18 +217,27 @@ class Run:
                 for k, v in values.items():
                     self._set(section, k, v, f"default {k}", given=False)
         self.links: Optional[list] = None  # a chain's [[links]] tables, as written
+        #: What the command line says before the work (one line each): the sections of the run file left aside.
+        self.notes: list = []
         self.config = config
         if config is not None:
             _check_run_file(config)
             reads = READS.get(command, {})
             sections = read_config(config)
-            if "links" in sections and "links" not in reads:
+            if ("links" in sections or sections.get("chain")) and "links" not in reads:
                 takers = ", ".join(c for c, r in READS.items() if "links" in r)
-                raise UsageError(f"{config}: [[links]] (a chain of links) is not read by skewpend {command}: it "
+                what = "[[links]]" if "links" in sections else "[chain]"
+                raise UsageError(f"{config}: {what} (a chain of links) is not read by skewpend {command}: it "
                                  f"computes the double pendulum's [parameters] (chains: skewpend {takers})")
+            unused = [s for s in IGNORABLE_SECTIONS if sections.get(s) and s not in reads]
+            if unused:
+                self.notes.append(f"{config}: {' and '.join(f'[{s}]' for s in unused)} {'is' if len(unused) == 1 else 'are'} "
+                                  f"not used by skewpend {command}; ignored")
             for section, values in sections.items():
                 if section == "links":
                     self.links = values
+                    continue
+                if section in unused:
                     continue
                 for k, v in values.items():
                     if k not in reads.get(section, ()):
@@ -232,12 +249,17 @@ class Run:
         per_link = {k: given["parameters"].pop(k) for k in list(given.get("parameters", {}))
                     if (k == "links" or k.startswith("link_")) and given["parameters"][k] is not None}
         self._cli_link_keys: set = set()  # the links' fields given on the command line (--link-mass, ...)
+        self._links_count_given = False  # --links N typed
         if per_link:
             self._links_from_options(per_link)
         for section, values in given.items():
             for k, v in values.items():
                 if v is not None:
                     self._set(section, k, v, self.flag(k))
+        if self.links is None and self.given["chain"]:  # a chain's g without its links: never the double pendulum's g
+            key = sorted(self.given["chain"])[0]
+            raise UsageError(f"{self.option('chain', key)} is a chain's value, but the run has no links ([[links]] tables "
+                             f"or --links N): give the chain's links, or the double pendulum's {key} as [parameters] {key}")
         P = self.values["parameters"]
         if "axis2" in P and "alpha" in P and "alpha" not in self.given["parameters"]:
             del P["alpha"]  # the built-in alpha gives way to a user's axis2
@@ -251,6 +273,7 @@ class Run:
             raise UsageError(f"{first}: a chain of links is not taken by skewpend {self.command}: it computes the double "
                              f"pendulum (chains: skewpend {takers})")
         count = per_link.pop("links", None)
+        self._links_count_given = count is not None
         lists = {k[len("link_"):]: v for k, v in per_link.items()}
         many = sorted({len(v) for v in lists.values() if len(v) > 1})
         n = count or (len(self.links) if self.links else None) or (many[-1] if many else None)
@@ -343,6 +366,12 @@ class Run:
             return self.chain()
         return build_parameters(self.values["parameters"], self.where["parameters"])
 
+    def links_source(self) -> str:
+        """Where the chain's links came from, as the user knows it: ``--links`` or the run file's ``[[links]]``."""
+        if self.config is not None and self.links is not None and not self._cli_link_keys and not self._links_count_given:
+            return f"{self.config}: [[links]]"
+        return self.flag("links")
+
     def chain(self):
         """The :class:`~skewpend.symbolic.chain.Chain` of the run file's ``[chain]`` and ``[[links]]``; the
         double pendulum's parameters given beside it (in the file or as options) are refused."""
@@ -359,8 +388,15 @@ class Run:
                   if self.values.get("chain", {}).get(k) is not None}
         values.update({k: parse_scalar(self.text("parameters", k), self.option("parameters", k)) for k in CHAIN_NAMES
                        if k in typed})
-        if any(v is None for v in values.values()):
-            raise UsageError(f"{self.config or '--g'}: a chain's values must be numeric (a chain is a model to compute with)")
+        for k, v in values.items():  # named as the user gave them (--g, or the run file's [chain] g)
+            where = self.option("parameters", k) if k in typed else self.option("chain", k)
+            if v is None:
+                raise UsageError(f"{where}: a chain's values must be numeric, not 'sym' (a chain is a model to compute with)")
+            problem = check_bound(k, v)
+            if problem:
+                raise UsageError(f"{where}: {problem}")
+        if len(self.links or []) > MAX_LINKS:
+            raise UsageError(f"{self.config}: [[links]]: a chain may have at most {MAX_LINKS} links, got {len(self.links)}")
         links = []
         for i, table in enumerate(self.links or [], start=1):
             link = {}
@@ -375,7 +411,7 @@ class Run:
             return Chain.from_mapping({"links": links, **values})
         except ParameterError as exc:
             where = ", ".join([*([self.config] if self.config else []), *sorted(self.flag("link_" + k) for k in self._cli_link_keys)])
-            raise UsageError(f"{where}: {exc}") from None
+            raise UsageError(f"{where or self.flag('links')}: {exc}") from None
 
     def initial_state(self):
         """``[phi0, psi0, dphi0, dpsi0]``: numeric, the angles at most :data:`MAX_ANGLE` rad; for a chain

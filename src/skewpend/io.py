@@ -21,7 +21,7 @@ from typing import Any, Dict, Iterator, Optional, Sequence
 import numpy as np
 
 from .errors import ParameterError, SkewpendError
-from .schema import CHAIN_NAMES, GEOMETRY_NAMES, LINK_FIELDS, NAMES, field, unknown_names_message
+from .schema import CHAIN_NAMES, GEOMETRY_NAMES, LINK_FIELDS, NAMES, did_you_mean, field, nearest, nearest_link_key, unknown_names_message
 
 __all__ = [
     "require_netcdf",
@@ -611,12 +611,15 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
         for i, table in enumerate(links, start=1):
             unknown = [k for k in table if k not in keys]
             if unknown:
-                raise ParameterError(f"{path}: [[links]] {i}: unknown key {unknown[0]!r}; a link takes {', '.join(keys)}")
+                raise ParameterError(f"{path}: [[links]] {i}: unknown key {unknown[0]!r}{did_you_mean(nearest_link_key(unknown[0]))}; "
+                                     f"a link takes {', '.join(keys)}")
             for key, value in table.items():
                 _check_run_value(path, f"links {i}", key, value)
     for section, values in data.items():
         if section not in CONFIG_SECTIONS:
-            raise ParameterError(f"{path}: unknown section [{section}]; allowed: {', '.join(CONFIG_SECTIONS)}, [[links]]")
+            close = nearest(section, [*CONFIG_SECTIONS, LINKS_SECTION])
+            raise ParameterError(f"{path}: unknown section [{section}]{did_you_mean(close and ('[[links]]' if close == LINKS_SECTION else f'[{close}]'))}; "
+                                 f"allowed: {', '.join(CONFIG_SECTIONS)}, [[links]]")
         if not isinstance(values, dict):
             raise ParameterError(f"{path}: [{section}] must be a table")
         unknown = [k for k in values if k not in CONFIG_SECTIONS[section]]
@@ -624,7 +627,8 @@ def read_config(path: os.PathLike) -> Dict[str, Dict[str, Any]]:
             raise ParameterError(unknown_names_message(unknown, NAMES, where=f"{path}: [parameters]"))
         if unknown:
             raise ParameterError(
-                f"{path}: unknown key(s) {sorted(unknown)} in [{section}]; allowed: {sorted(CONFIG_SECTIONS[section])}"
+                f"{path}: unknown key(s) {sorted(unknown)}{did_you_mean(nearest(sorted(unknown)[0], CONFIG_SECTIONS[section]))} "
+                f"in [{section}]; allowed: {sorted(CONFIG_SECTIONS[section])}"
             )
         for key, value in values.items():
             _check_run_value(path, section, key, value)

@@ -30,6 +30,7 @@ __all__ = [
     "COM_NAMES", "INERTIA_NAMES", "AXIS_NAMES", "OPTIONAL_DEFAULTS", "field", "names", "unit", "meaning",
     "symbol", "tex", "help_text", "default", "nearest", "unknown_names_message", "check_bound", "body_of",
     "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound", "coordinate_names", "state_coordinates",
+    "MAX_LINKS", "LINK_KEYS", "nearest_link_key", "did_you_mean",
 ]
 
 #: The links of today's model: the double pendulum is the chain of two.
@@ -207,6 +208,10 @@ LINK_FIELDS: Tuple[Tuple[str, str, str], ...] = (
     ("com", "com", "vector"), ("inertia", "inertia", "inertia"), ("damping", "c", "scalar"),
     ("coulomb", "cf", "scalar"), ("torque", "tau", "scalar"), ("rotor", "Ir", "scalar"), ("gear", "gr", "scalar"),
 )
+#: A link's keys, in order.
+LINK_KEYS: Tuple[str, ...] = tuple(key for key, _, _ in LINK_FIELDS)
+#: The largest chain of links (the generated code is built for it; the command line's --links takes 1 to it).
+MAX_LINKS = 32
 #: The chain's own fields (the whole chain's, not a link's): the global scalars that are no axis and no rotor.
 CHAIN_NAMES: Tuple[str, ...] = tuple(f.stem for f in FIELDS if f.kind == "scalar" and not f.per_body
                                      and f.role not in ("axis", "rotor"))
@@ -314,6 +319,24 @@ def nearest(name: str, allowed: Iterable[str]) -> Optional[str]:
                 return guess
     match = difflib.get_close_matches(str(name), allowed, n=1, cutoff=0.6)
     return match[0] if match else None
+
+
+def nearest_link_key(name: str) -> Optional[str]:
+    """The link key a misspelled one likely meant: a near spelling (``lenght`` -> ``length``), or the double
+    pendulum's name of the field (``m``, ``m1`` -> ``mass``; ``a`` -> ``length``; ``tau2`` -> ``torque``)."""
+    text = str(name)
+    stem = text.rstrip("0123456789") or text
+    by_stem = {s: key for key, s, _ in LINK_FIELDS}
+    if stem in by_stem:
+        return by_stem[stem]
+    if text in LENGTH_NAMES:
+        return "length"
+    return nearest(text, LINK_KEYS)
+
+
+def did_you_mean(close: Optional[str]) -> str:
+    """`` (did you mean 'x'?)`` when there is a close name, else nothing."""
+    return f" (did you mean {close!r}?)" if close else ""
 
 
 def unknown_names_message(unknown: Iterable[str], allowed: Iterable[str] = NAMES, where: str = "") -> str:

@@ -67,6 +67,8 @@ def derive(
 
         sys.stdout.write(generate(params, fmt.value))
         return
+    if run.is_chain:
+        _check_symbolic_size(run, params)
     from ..symbolic import render
     from ..symbolic.derivation import derive as derive_eom
 
@@ -85,6 +87,37 @@ def derive(
     else:
         text = (render.to_latex if fmt is DeriveFormat.latex else render.to_text)(eom, linear=lin, steps=steps)
     sys.stdout.write(text)
+
+
+#: From this many links on, derive says up front how long the exact symbolic equations take.
+_SYMBOLIC_NOTE_LINKS = 5
+
+
+def _duration(seconds: float) -> str:
+    if seconds > 365 * 86400.0:
+        return "more than a year"
+    for unit, size in (("days", 86400.0), ("hours", 3600.0), ("min", 60.0)):
+        if seconds >= 1.5 * size or unit == "min" and seconds >= 60:
+            return f"about {seconds / size:.0f} {unit}"
+    return f"about {seconds:.0f} s"
+
+
+def _check_symbolic_size(run, chain) -> None:
+    """The exact symbolic equations of a long chain take minutes to days (about five-fold a link): said up
+    front from 5 links, refused beyond :data:`~skewpend.symbolic.chain.SYMBOLIC_LINKS_MAX`, the code named."""
+    from ..symbolic.chain import SYMBOLIC_GROWTH, SYMBOLIC_LINKS_MAX, symbolic_seconds
+
+    n = chain.n
+    if n < _SYMBOLIC_NOTE_LINKS:
+        return
+    estimate = _duration(symbolic_seconds(n))
+    code = "--format c|python|javascript prints the chain's equations as code from the recursive algorithms at once"
+    if n > SYMBOLIC_LINKS_MAX:
+        raise UsageError(f"{run.links_source()}: the exact symbolic equations of a chain of {n} links would take "
+                         f"{estimate} on a 2-core machine (they grow about {SYMBOLIC_GROWTH:g}-fold a link; derive prints them up to "
+                         f"{SYMBOLIC_LINKS_MAX} links); {code}")
+    sys.stderr.write(f"skewpend: note: the exact symbolic equations of a chain of {n} links take {estimate} on a 2-core machine "
+                     f"(about {SYMBOLIC_GROWTH:g}-fold a link); {code}\n")
 
 
 def _check_code_parameters(run, params, fmt: str) -> None:

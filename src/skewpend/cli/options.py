@@ -70,9 +70,9 @@ def _link_help(key: str, kind: str) -> str:
 #: A chain of links given on the command line: ``--links N`` and each field of the schema's links as
 #: ``--link-FIELD`` (one value for every link, or one a link), the chain's g as ``--g``.
 LINK_OPTIONS: Dict[str, Any] = {
-    "links": option("--links", T.Whole(1, 64), "a chain of N links (default: the double pendulum, or a run file's "
+    "links": option("--links", T.Whole(1, schema.MAX_LINKS), "a chain of N links (default: the double pendulum, or a run file's "
                                                "[[links]]; the double pendulum's --a, --m1, ... do not apply to it)", _L),
-    **{f"link_{key}": option(f"--link-{key}", T.PerLink(kind), _link_help(key, kind), _L)
+    **{f"link_{key}": option(f"--link-{key}", T.PerLink(kind, most=schema.MAX_LINKS), _link_help(key, kind), _L)
        for key, _, kind in schema.LINK_FIELDS},
 }
 
@@ -90,8 +90,8 @@ INITIAL: Dict[str, Any] = {
     "psi0": option("--psi0", T.Angle("ANGLE"), "initial psi [rad, or deg] (default -0.8)"),
     "dphi0": option("--dphi0", T.Scalar("NUMBER"), "initial dphi/dt [rad/s] (default 0)"),
     "dpsi0": option("--dpsi0", T.Scalar("NUMBER"), "initial dpsi/dt [rad/s] (default 0)"),
-    "q0": option("--q0", T.Angles(), "a chain's initial angles, one a link [rad, or deg] (default 0.5 each)"),
-    "dq0": option("--dq0", T.Numbers(most=64), "a chain's initial rates, one a link [rad/s] (default 0)"),
+    "q0": option("--q0", T.Angles(most=schema.MAX_LINKS), "a chain's initial angles, one a link [rad, or deg] (default 0.5 each)"),
+    "dq0": option("--dq0", T.Numbers(most=schema.MAX_LINKS), "a chain's initial rates, one a link [rad/s] (default 0)"),
 }
 
 
@@ -189,6 +189,7 @@ def command(*groups: Dict[str, Any]):
             from ..progress import Stages
 
             quiet = bool(kwargs.get("quiet")) if takes_quiet else bool(kwargs.pop("quiet", False))
+            _NOTED.clear()  # a command's notes are said once per command
             for key, value in kwargs.items():
                 kind = _kind(annotations.get(key))
                 if kind is not None and value is not None:
@@ -214,12 +215,23 @@ LOCATIONS: Dict[str, str] = {}
 
 def resolve(command_name: str, config: Optional[str] = None, *, defaults: bool = True, flags=None, **sections):
     """The :class:`~skewpend.config.Run` of a command (defaults, run file, options); its
-    locations are remembered for the messages."""
+    locations are remembered for the messages, its notes (the run file's sections the command leaves
+    aside) said once on stderr."""
+    import sys
+
     from ..config import Run
 
     run = Run(command_name, config, sections, defaults=defaults, flags=flags)
     LOCATIONS.update(run.locations())
+    for note in run.notes:
+        if note not in _NOTED:
+            _NOTED.add(note)
+            sys.stderr.write(f"skewpend: note: {note}\n")
     return run
+
+
+#: The notes said by the running command (one resolving its run twice says each once).
+_NOTED: set = set()
 
 
 def progress(label: str, unit: str, quiet: bool):

@@ -34,10 +34,12 @@ def serve(
 
     A --config run file sets the page's start: its [parameters]' bodies and axes (com1, inertia1,
     axis2, ...) the generated physics; a, b, m1, m2, alpha, g, c1, c2 and [initial] phi0, psi0 the
-    sliders (within their ranges; the page's address holds them).  The explorer has no joint
-    torques, Coulomb friction or rotor inertia: non-zero ones are refused.  A chain of links
-    ([[links]], [chain]) gets its own page: its n rods, a start slider for each joint ([initial] q0),
-    g and each joint's damping, its modes and a flip map over (q1, q2).
+    sliders (within their ranges; the page's address holds them).  The double pendulum's page has
+    no joint torques, Coulomb friction or rotor inertia: non-zero ones are refused.  A chain of
+    links ([[links]], [chain]) gets its own page: its n rods, a start slider for each joint
+    ([initial] q0), g and each joint's damping, its modes and a flip map over (q1, q2); its links'
+    torques, Coulomb friction and rotors are in its physics as the file gives them (no sliders).
+    The page starts at rest: [initial] dq0 (dphi0, dpsi0) may only be 0; [simulation] is not used.
 
     Ctrl-C stops the server.
     """
@@ -135,9 +137,19 @@ def _page_start(run):
     import math
     from urllib.parse import urlencode
 
-    from ..parsing import UsageError
+    from ..config import as_text
+    from ..parsing import UsageError, parse_scalar
 
     params = run.parameters()
+    for k in ("dphi0", "dpsi0", "dq0"):  # the page starts at rest: a start's rates are read to be checked 0
+        if not run.is_given("initial", k):
+            continue
+        value, where = run.raw("initial", k), run.option("initial", k)
+        items = [parse_scalar(as_text(x, where), where) for x in (value if isinstance(value, (list, tuple)) else [value])]
+        if any(x != 0 for x in items):
+            sliders = "each joint's start angle, q0" if k == "dq0" else "phi0 and psi0"
+            raise UsageError(f"{where}: the explorer starts at rest (its sliders set {sliders}); give 0 "
+                             "or leave it out, and simulate a start with speeds with skewpend simulate")
     if run.is_chain:  # a chain of links: its bodies, axes and joint terms are the page's physics, [initial] q0 its sliders
         return params, _chain_query(run, params)
     terms = schema.TORQUE_NAMES + schema.FRICTION_NAMES + schema.ROTOR_NAMES

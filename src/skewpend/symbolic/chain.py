@@ -31,20 +31,37 @@ keep symbolic values for the derivation's display).  This module imports nothing
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, Iterable, Mapping, Optional, Tuple
 
 from ..errors import ParameterError
-from ..schema import CHAIN_NAMES, LINK_FIELDS, coordinate_names, link_bound
+from ..schema import CHAIN_NAMES, LINK_FIELDS, LINK_KEYS, MAX_LINKS, coordinate_names, did_you_mean, link_bound, nearest, nearest_link_key
 from .model import Mat3, Parameters, Vec3, as_real, as_vector, check_inertia
 
 __all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS", "model_from_mapping", "AnyModel"]
 
-#: The largest chain the generated code is built for (the state of 2 N + 1 numbers).
-MAX_LINKS = 32
+# MAX_LINKS: the largest chain the generated code is built for (the state of 2 N + 1 numbers); LINK_KEYS: a
+# link's keys, as run files and Link.from_mapping spell them -- both declared in the schema.
+#: The exact symbolic equations of a chain (``derive(chain)`` by SymPy, then printed) grow about
+#: :data:`SYMBOLIC_GROWTH`-fold in time a link: measured on a 2-core machine (``skewpend derive --links N
+#: --format text``, derivation and printing) 4 links 2 s, 5 links 11 s, 6 links 60 s.  Beyond
+#: :data:`SYMBOLIC_LINKS_MAX` the command line refuses them (the recursive algorithms' code is the way).
+SYMBOLIC_SECONDS = {4: 2.0, 5: 11.0, 6: 60.0}
+SYMBOLIC_GROWTH = 5.5
+SYMBOLIC_LINKS_MAX = 7
 
-#: A link's keys, as run files and :meth:`Link.from_mapping` spell them (declared in the schema).
-LINK_KEYS: Tuple[str, ...] = tuple(key for key, _, _ in LINK_FIELDS)
+
+def symbolic_seconds(n: int) -> float:
+    """The estimated time [s] of a chain of ``n`` links' exact symbolic equations (see :data:`SYMBOLIC_SECONDS`)."""
+    last = max(SYMBOLIC_SECONDS)
+    if n in SYMBOLIC_SECONDS:
+        return SYMBOLIC_SECONDS[n]
+    if n < min(SYMBOLIC_SECONDS):
+        return SYMBOLIC_SECONDS[min(SYMBOLIC_SECONDS)]
+    return SYMBOLIC_SECONDS[last] * SYMBOLIC_GROWTH ** (n - last)
+
+
 _CHAIN_KEYS = ("links",) + CHAIN_NAMES
 _BOUNDS = {key: link_bound(key) for key, _, kind in LINK_FIELDS if kind == "scalar"}
 
@@ -137,7 +154,8 @@ class Link:
             raise ParameterError(f"link {index or ''} must be a table of {', '.join(LINK_KEYS)}, got {data!r}".replace("  ", " "))
         unknown = [k for k in data if k not in LINK_KEYS]
         if unknown:
-            raise ParameterError(f"link {index}: unknown key {unknown[0]!r}; a link takes {', '.join(LINK_KEYS)}")
+            raise ParameterError(f"link {index}: unknown key {unknown[0]!r}{did_you_mean(nearest_link_key(unknown[0]))}; "
+                                 f"a link takes {', '.join(LINK_KEYS)}")
         return cls(**dict(data), index=index)
 
 
@@ -254,7 +272,8 @@ class Chain:
         are an error."""
         unknown = [k for k in data if k not in _CHAIN_KEYS]
         if unknown:
-            raise ParameterError(f"unknown key {unknown[0]!r} in a chain; a chain takes {', '.join(_CHAIN_KEYS)} "
+            raise ParameterError(f"unknown key {unknown[0]!r}{did_you_mean(nearest(unknown[0], _CHAIN_KEYS))} in a chain; "
+                                 f"a chain takes {', '.join(_CHAIN_KEYS)} "
                                  f"(each link: {', '.join(LINK_KEYS)})")
         if "links" not in data:
             raise ParameterError("a chain needs its links: a list of [[links]] tables")
@@ -268,13 +287,17 @@ class Chain:
     @classmethod
     def from_lists(cls, n: Optional[int] = None, *, g: float = 9.81, cfs: float = 100.0, **per_link: Any) -> "Chain":
         """A chain from per-link lists (``mass=[1, 1, 0.5]``, ``axis=[(0, 0, 1), (1, 0, 0)]``); every list has
-        the same length (``n`` links; a single value is every link's)."""
+        the same length (``n`` links, a whole number from 1 to :data:`MAX_LINKS`; a single value is every link's)."""
+        if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or not 1 <= n <= MAX_LINKS):
+            raise ParameterError(f"n must be the number of links, a whole number from 1 to {MAX_LINKS}, got {n!r}",
+                                 parameter="n")
         lengths = {k: len(v) for k, v in per_link.items() if isinstance(v, (list, tuple)) and
                    not (k in ("axis", "offset", "com") and len(v) == 3 and not isinstance(v[0], (list, tuple)))
                    and not (k == "inertia" and len(v) in (3, 6) and not isinstance(v[0], (list, tuple)))}
         unknown = [k for k in per_link if k not in LINK_KEYS]
         if unknown:
-            raise ParameterError(f"unknown per-link key {unknown[0]!r}; a link takes {', '.join(LINK_KEYS)}")
+            raise ParameterError(f"unknown per-link key {unknown[0]!r}{did_you_mean(nearest_link_key(unknown[0]))}; "
+                                 f"a link takes {', '.join(LINK_KEYS)}")
         counts = set(lengths.values()) | ({n} if n is not None else set())
         if len(counts) > 1:
             told = ", ".join(f"{k}: {v}" for k, v in lengths.items())
