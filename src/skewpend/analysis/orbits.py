@@ -488,13 +488,13 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
                    max_iterations: int = NEWTON_MAX, throw: bool = False,
                    progress: Optional[Callable[[float, float], None]] = None) -> PeriodicOrbit:
     """A periodic orbit near a guess ``(y0, period)`` at the energy ``energy`` (default: the
-    guess's), or, with ``mode=1|2`` and ``energy``, the orbit of that nonlinear normal mode at
-    that energy (continued from the linear mode by :func:`nnm`).
+    guess's), or, with ``mode`` (1 or 2; a chain's 1 to n) and ``energy``, the orbit of that nonlinear
+    normal mode at that energy (continued from the linear mode by :func:`nnm`).
 
     ``y0``'s angles are reduced modulo 2 pi (at most 1e6 rad); ``period`` [s] is refused before
     any work when one shooting over it would need more than :data:`ORBIT_MAX_STEPS` steps (a
     trial flow from ``y0`` estimates them).  ``rotation = (r1, r2)``: whole turns of
-    ``(phi, psi)`` per period (a rotating orbit; at most :data:`ROTATION_LIMIT`).  ``tol``:
+    ``(phi, psi)`` per period (a chain's: one a link) (a rotating orbit; at most :data:`ROTATION_LIMIT`).  ``tol``:
     Newton's tolerance on the scaled residual (1e-15 to 1e-6); ``max_iterations`` (1 to 1000).
     ``progress(iteration, max_iterations)`` after each Newton iteration (with ``mode``:
     ``progress(energy, energy)`` along the continuation).
@@ -508,9 +508,6 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
     from ..interrupts import Interrupts
 
     if isinstance(params, Chain):
-        if mode is not None:
-            raise ParameterError("mode=: a chain's orbits are found from a guess (y0, period); the nonlinear normal "
-                                 "modes' continuation (nnm) is the double pendulum's")
         params.require_lossless("a periodic orbit")
     else:
         params = numeric_params(params, "periodic orbits")
@@ -526,7 +523,8 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
             raise ParameterError("give either a guess (y0, period) or mode=, not both")
         if energy is None:
             raise ParameterError("mode= needs energy= (the energy of the orbit wanted) [J]")
-        mode = whole("mode", mode, 1, 2, what="1: the lower linear frequency, 2: the higher")
+        mode = whole("mode", mode, 1, nq, what="1: the lowest linear frequency, " + (
+            "2: the higher" if nq == 2 else f"..., {nq}: the highest (a chain of {nq} links)"))
         energy = _energy_limit(params, "energy", energy)
         family = nnm(params, mode=mode, energy_max=energy, rtol=rtol, atol=atol, progress=progress)
         if not family.energies.size or family.energies[-1] < energy * (1 - 1e-9):

@@ -66,10 +66,10 @@ def equilibria(
 def orbit(
     model: dict,
     initial: dict,
-    mode: option("--mode", T.Whole(1, 2), "the orbit of nonlinear normal mode 1 or 2 at --energy (continued from the linear mode; default: none, the orbit through the guess --phi0 --psi0 --dphi0 --dpsi0)") = None,
+    mode: option("--mode", T.Whole(1, 64), "the orbit of nonlinear normal mode 1 or 2 (a chain's 1 to n) at --energy (continued from the linear mode; default: none, the orbit through the guess: --phi0 --psi0 --dphi0 --dpsi0, a chain's --q0 --dq0)") = None,
     energy: option("--energy", _ENERGY, "the orbit's energy [J] (with --mode; with a guess, default the guess's energy)") = None,
-    period: option("--period", T.Positive("number of seconds"), "with a guess (--phi0 --psi0 --dphi0 --dpsi0): its period [s] (required with a guess)") = None,
-    rotation: option("--rotation", T.Numbers(2, whole=True, metavar="R1,R2"), "whole turns of phi and psi per period, R1,R2 (a rotating orbit; default 0,0)") = None,
+    period: option("--period", T.Positive("number of seconds"), "with a guess (--phi0 --psi0 --dphi0 --dpsi0, a chain's --q0 --dq0): its period [s] (required with a guess)") = None,
+    rotation: option("--rotation", T.Numbers(most=64, whole=True, metavar="R1,R2,..."), "whole turns of each joint per period: phi and psi, R1,R2 (a chain's one a link; a rotating orbit; default none)") = None,
     out: option("--out", T.OutPath((".nc",)), "write the orbit (start, period, monodromy matrix, multipliers) to FILE.nc", RUN, "-o") = None,
     plot: plot_option("the orbit over one period") = None,
     quiet: QUIET = False,
@@ -77,17 +77,19 @@ def orbit(
 ):
     """A periodic orbit and its stability (Floquet multipliers): from a guess (the initial-state options and --period) or as a nonlinear normal mode at an energy (--mode, --energy).
 
-    From a --config run file it takes [parameters] and [initial].
+    From a --config run file it takes [parameters] and [initial]; or a chain of links ([[links]], [chain], or --links N: its guess --q0 --dq0, --mode 1 to n), conservative (no damping, friction or torques).
     """
     from ..analysis.orbits import periodic_orbit
 
     guessed = any(v is not None for v in initial.values())
+    chain = _is_chain(model, config)
+    start = "--q0 --dq0" if chain else "--phi0 --psi0 --dphi0 --dpsi0"
     if mode is not None and (guessed or period is not None or rotation is not None):
-        raise UsageError("--mode finds the orbit of a nonlinear normal mode; a guess (--phi0 ... --period, --rotation) goes without it")
+        raise UsageError(f"--mode finds the orbit of a nonlinear normal mode; a guess ({start}, --period, --rotation) goes without it")
     if mode is not None and energy is None:
         raise UsageError("--mode needs --energy (the energy of the orbit wanted) [J]")
     if mode is None and period is None:
-        raise UsageError("an orbit needs a guess (--phi0 --psi0 --dphi0 --dpsi0 and --period) or --mode and --energy")
+        raise UsageError(f"an orbit needs a guess ({start} and --period) or --mode and --energy")
     if plot is not None:
         from .simulate import check_plot
 
@@ -98,7 +100,7 @@ def orbit(
         with progress(f"continuing nonlinear normal mode {mode} up to {energy:g} J", "J", quiet) as bar:
             result = periodic_orbit(params, mode=mode, energy=energy, progress=bar)
     else:
-        turns = (0, 0) if rotation is None else tuple(rotation)  # whole numbers of turns: the library checks them
+        turns = (0, 0) if rotation is None else tuple(rotation)  # whole numbers of turns, one a joint: the library checks them
         with progress("finding the periodic orbit (Newton iterations)", "", quiet) as bar:
             result = periodic_orbit(params, run.initial_state(), period, energy=energy, rotation=turns, progress=bar)
     sys.stdout.write(result.table() + "\n")
@@ -179,6 +181,22 @@ def nnm(
         lines.append(f"plot          {plot}")
     sys.stdout.write("\n".join(lines).rstrip() + "\n")
     return result
+
+
+def _is_chain(model: dict, config) -> bool:
+    """Whether the command runs a chain of links (--links, or a run file's [[links]] / [chain]): for its messages only."""
+    if model.get("links") is not None:
+        return True
+    if config is None:
+        return False
+    try:
+        import tomllib
+
+        with open(config, "rb") as fh:
+            data = tomllib.load(fh)
+    except (OSError, ValueError):
+        return False  # the run file's own check says what is wrong with it
+    return "links" in data or "chain" in data
 
 
 def _along_alpha(model, mode, alphas, energy, energy_max, resolution, orbits_at, out, plot, quiet, config):
