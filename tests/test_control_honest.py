@@ -291,3 +291,27 @@ def test_a_cancel_stops_a_chains_compiled_capture_within_a_step():
     worker.join(timeout=30.0)
     assert outcome and outcome[0] != "finished", outcome
     assert outcome[0] - set_at < 2.0  # generous: one step and the watcher's poll (0.05 s)
+
+
+def test_the_leaderboard_figure_shows_the_reference_beside_the_run(held):
+    """The optimised reference is drawn as a wide light band under each run curve of its colour (a dashed line of
+    the same colour and width hid under a run that follows it)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.colors import to_rgba
+
+    from skewpend.views import figures
+
+    _, tracking = held
+    run = lb.run_protocol(lb.dfki_model(), tracking, actuated=(2,), x0=GOAL, protocol=lb.Protocol(t_final=1.0))
+    fig = figures.leaderboard_figure(run, tracking)
+    angles, _, torques = fig.axes[:3]
+    for ax in (angles, torques):
+        bands = [ln for ln in ax.get_lines() if "optimised" in ln.get_label()]
+        runs = [ln for ln in ax.get_lines() if "optimised" not in ln.get_label() and len(ln.get_xdata()) > 2]
+        assert bands, [ln.get_label() for ln in ax.get_lines()]
+        for band in bands:
+            same = [ln for ln in runs if to_rgba(ln.get_color())[:3] == to_rgba(band.get_color())[:3]]
+            assert same and all(band.get_linewidth() >= 4 * ln.get_linewidth() for ln in same)
+            assert band.get_alpha() is not None and band.get_alpha() < 0.5 and band.get_linestyle() == "-"

@@ -11,6 +11,7 @@ trajectories, ``sim_swingup.csv``, give the same numbers to 1e-14: benchmarks/be
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -297,6 +298,10 @@ def test_cli_leaderboard_writes_the_leaderboards_file(tmp_path):
     c = lb.criteria(t, x, u, lb.tip_heights(model_kernel(model), model_vector(model), x), 0.5)
     assert c.score == pytest.approx(shown, abs=1e-4) and shown >= 0.70
     assert (tmp_path / "run.png").stat().st_size > 10_000
+    # the planar rig is compared with the published board; every duration is labelled (issue 51)
+    assert "best published: 0.655 (History SAC)" in line
+    optimised = next(s for s in ran.out.splitlines() if s.startswith("optimised"))
+    assert re.search(r"the motion takes [0-9.]+ s to the goal; solved in [0-9.]+ s \(4 seeded starts\)$", optimised)
 
 
 def test_cli_leaderboard_at_a_skew_with_the_robustness_board(tmp_path):
@@ -309,6 +314,11 @@ def test_cli_leaderboard_at_a_skew_with_the_robustness_board(tmp_path):
                    "run.csv"], cwd=tmp_path)
     assert ran.code == 0, ran.report()
     assert "alpha = 30 deg" in ran.out
+    # like with like: the published boards are the planar rig's, named as not compared (issue 51)
+    assert "best published" not in ran.out
+    for start in ("score (v2)", "robustness score"):
+        line = next(s for s in ran.out.splitlines() if s.startswith(start))
+        assert "not compared: the published boards are the planar rig's (alpha = 0)" in line, line
     t, x, u = lb.read_csv(tmp_path / "run.csv")
     model = lb.dfki_model(math.radians(30))
     from skewpend.numeric.kernels import model_kernel, model_vector

@@ -129,7 +129,7 @@ def leaderboard_figure(run, reference=None, title: str = ""):
     """A run by the RealAIGym leaderboard's protocol (:func:`skewpend.analysis.leaderboard.run_protocol`):
     the joint angles (unwrapped, degrees), the end effector's height with the success line, and the
     motors' torques, against time over the swing-up and the first seconds held; the optimised
-    reference (a :class:`~skewpend.analysis.trajopt.Tracking`'s) dashed when given."""
+    reference (a :class:`~skewpend.analysis.trajopt.Tracking`'s) when given, a wide light band under the run."""
     c = run.criteria
     n = run.x.shape[1] // 2
     shown = min(run.t[-1], max(3.0, (c.swingup_time if math.isfinite(c.swingup_time) else 0.0) + 2.0))
@@ -139,12 +139,15 @@ def leaderboard_figure(run, reference=None, title: str = ""):
     with style():
         fig = new_figure((8.5, 8.0))
         ax1, ax2, ax3 = fig.subplots(3, 1, sharex=True)
+        # the optimised reference as a wide light band under the run (a dashed line of the same colour hid under
+        # a run that follows it, issue 51): the run inside its band is the motion tracked
+        rt = None if reference is None else np.arange(len(reference.x_ref)) * reference.dt
         for j in range(n):
-            ax1.plot(t, np.degrees(np.unwrap(run.x[keep, j])), color=palette[j % len(palette)], label=f"q{j + 1}")
             if reference is not None:
-                rt = np.arange(len(reference.x_ref)) * reference.dt
-                ax1.plot(rt, np.degrees(reference.x_ref[:, j]), color=palette[j % len(palette)], ls="--", lw=0.9,
-                         label=f"q{j + 1}, optimised")
+                ax1.plot(rt, np.degrees(reference.x_ref[:, j]), color=palette[j % len(palette)], lw=6, alpha=0.28,
+                         solid_capstyle="butt", label=f"q{j + 1}, optimised")
+            ax1.plot(t, np.degrees(np.unwrap(run.x[keep, j])), color=palette[j % len(palette)], lw=1.2,
+                     label=f"q{j + 1}, run")
         ax1.set_ylabel("angle [deg]")
         ax1.set_title("Joint angles (unwrapped; q2 relative to rod 1)", loc="left")
         ax1.legend(loc="best", fontsize=8, ncol=2)
@@ -160,6 +163,9 @@ def leaderboard_figure(run, reference=None, title: str = ""):
         ax2.legend(loc="lower right", fontsize=8)
         for j in range(n):
             if np.any(run.u[:, j]):
+                if reference is not None and j + 1 in reference.actuated:
+                    ax3.plot(rt, reference.u_ref[:, list(reference.actuated).index(j + 1)], color=palette[j % len(palette)],
+                             lw=6, alpha=0.28, solid_capstyle="butt", label=f"u{j + 1}, optimised")
                 ax3.plot(t, run.u[keep, j], color=palette[j % len(palette)], lw=1.0, label=f"u{j + 1} (joint {j + 1})")
         ax3.axhline(run.protocol.umax, color="0.5", ls="--", lw=0.8)
         ax3.axhline(-run.protocol.umax, color="0.5", ls="--", lw=0.8)
