@@ -93,3 +93,18 @@ def test_a_bad_setting_is_one_line(tmp_path):
     ran = run_process(["simulate", "--t-end", "1"], tmp_path, env={"SKEWPEND_CACHE_DIR": str(tmp_path / "cache"),
                                                                 "SKEWPEND_TAYLOR_BUILD": "later"})
     assert_refused(ran, ["SKEWPEND_TAYLOR_BUILD", "'background' or 'foreground'", "'later'"])
+
+
+def test_two_processes_wanting_one_library_build_it_once(tmp_path):
+    """pytest-xdist's workers (or two commands started together) on a cold cache: the second waits for
+    the first's build (a file lock beside the library) and loads it, instead of compiling it again."""
+    code = ("import sys\nfrom skewpend import reference_parameters\nfrom skewpend.numeric import kernels\n"
+            "k = kernels.kernel_module(reference_parameters().replace(com2=(0.0, 0.37, 0.0)))\nprint(k.origin)\n")
+    env = _env(tmp_path / "cache")
+    env["SKEWPEND_QUIET"] = "1"
+    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=600) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [err for _, err in outs]
+    assert sorted(out.strip() for out, _ in outs) == ["cache", "compiled"]
+    assert len(list((tmp_path / "cache" / "kernels").glob("skewpend_*.so"))) == 1

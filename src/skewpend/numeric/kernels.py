@@ -655,12 +655,52 @@ _LOCK = threading.Lock()
 _KEY_LOCKS: Dict[str, threading.Lock] = {}
 
 
-def _key_lock(key: str) -> threading.Lock:
-    """One lock per library: two threads wanting the same library build it once, while different
-    libraries (the model's, the flip map's, the chaos kernel) compile at the same time (a report
-    starts its builds together: issue 28's cold report)."""
+class _LibraryLock:
+    """A library's lock across threads and processes: the thread lock of this process, then an
+    exclusive ``flock`` on ``.skewpend_KEY.lock`` in the cache's folder, so two processes (pytest-xdist's
+    workers, two commands started together) wanting the same library build it once -- the second
+    waits and loads what the first built.  Where the folder is not writable or ``fcntl`` is missing
+    (Windows) the process lock alone holds, as before (the atomic rename keeps either build whole)."""
+
+    def __init__(self, key: str, thread_lock: threading.Lock) -> None:
+        self.key, self.thread_lock, self.fd = key, thread_lock, None
+
+    def __enter__(self):
+        self.thread_lock.acquire()
+        try:
+            import fcntl
+
+            directory = cache_dir() / "kernels"
+            directory.mkdir(parents=True, exist_ok=True)
+            self.fd = os.open(directory / f".skewpend_{self.key}.lock", os.O_RDWR | os.O_CREAT, 0o644)
+            fcntl.flock(self.fd, fcntl.LOCK_EX)
+        except (ImportError, OSError):
+            if self.fd is not None:
+                os.close(self.fd)
+            self.fd = None
+        except BaseException:  # Ctrl-C while waiting: nothing held
+            if self.fd is not None:
+                os.close(self.fd)
+            self.fd = None
+            self.thread_lock.release()
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        try:
+            if self.fd is not None:
+                os.close(self.fd)  # closing the descriptor releases the flock
+        finally:
+            self.fd = None
+            self.thread_lock.release()
+
+
+def _key_lock(key: str) -> _LibraryLock:
+    """One lock per library: two threads or processes wanting the same library build it once, while
+    different libraries (the model's, the flip map's, the chaos kernel) compile at the same time (a
+    report starts its builds together: issue 28's cold report)."""
     with _LOCK:
-        return _KEY_LOCKS.setdefault(key, threading.Lock())
+        return _LibraryLock(key, _KEY_LOCKS.setdefault(key, threading.Lock()))
 _LOADED: Dict[str, Kernel] = {}
 _BYGEOMETRY: Dict[str, Kernel] = {}
 _SOURCE_DIGEST: Optional[str] = None
