@@ -70,7 +70,7 @@ def serve(
         raise UsageError("--export -: a static site is a directory, not standard output; give its name")
     from ..views.frontend import export_explorer
 
-    index = export_explorer(export, None if config is None else params, force=force)
+    index = export_explorer(export, None if config is None else params, force=force, start=query)
     page = index.name + (f"?{query}" if query else "")
     sys.stderr.write(f"skewpend: wrote the static explorer to {index.parent}/ (open {page} in a browser)\n")
     if open_browser:

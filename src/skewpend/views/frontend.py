@@ -277,14 +277,16 @@ MANIFEST = ".skewpend-explorer"
 EXPORT_ENTRIES = ("index.html", "static", "sources", "LICENSES", MANIFEST)
 
 
-def export_explorer(directory, params=None, *, force: bool = False) -> Path:
+def export_explorer(directory, params=None, *, force: bool = False, start: str = "") -> Path:
     """Write the static explorer to ``directory``: ``index.html`` with the page's files beside it
     (``static/``: styles, KaTeX, the loader; ``sources/``: three.js, the generated physics and the
     page's scripts as registrations; ``LICENSES/``; ``.skewpend-explorer``, the manifest of every
     file written).  It runs entirely in the browser, opened from the file system or any static
     web host, with the network off; the physics is generated for the bodies and axes of
     ``params`` (a :class:`~skewpend.Parameters`; default: the specification's thin rods), or for a chain
-    of links (a :class:`~skewpend.symbolic.chain.Chain`: its page, :func:`page_settings`).
+    of links (a :class:`~skewpend.symbolic.chain.Chain`: its page, :func:`page_settings`).  ``start``: the
+    sliders' values the page opens with, as an address query (``alpha=30&phi0=60``: a run file's, from
+    ``skewpend serve --config --export``); an address's own query, if any, goes over it.
 
     ``directory`` may be new, or an existing directory (``"."`` too) in which none of those five
     names exists -- or, with ``force=True``, in which they are an earlier export's, holding only
@@ -316,7 +318,13 @@ def export_explorer(directory, params=None, *, force: bool = False) -> Path:
         raise ParameterError("explorer export: the directory is empty text; give a directory name")
     what = "explorer export"
     replaced = _export_plan(target, bool(force), what)  # refusals first: nothing is written yet
+    if not isinstance(start, str):
+        raise ParameterError(f"start must be an address query (text), got {type(start).__name__}")
     srcs = sources(params)  # generated before anything is written: an error leaves nothing behind
+    if start:  # the page opens at the run's values with or without the query in its address (issue 51)
+        settings = dict(page_settings(params), start=start)
+        srcs["page"] = Source("page", "// the explorer's settings for these bodies (skewpend.views.frontend.page_settings)\n"
+                                      f"export const PAGE = {json.dumps(settings, ensure_ascii=False)};\n")
     exists = os.path.lexists(target)
     parent = target if exists else (target.parent if str(target.parent) else Path("."))
     try:

@@ -227,9 +227,20 @@ function buildSliders() {
     input.addEventListener("input", () => setValue(key, parseFloat(input.value), true));
   }
 }
+function shown(v, step) {
+  // the value the physics uses: to the slider's step when it lies on it, else in full (0.005, not 0.01)
+  const digits = step < 0.1 ? 2 : 1, fixed = v.toFixed(digits);
+  return Math.abs(+fixed - v) <= 1e-9 * Math.max(1, Math.abs(v)) ? fixed : String(+v.toPrecision(6));
+}
 function showValue(key) {
   const spec = SLIDERS.find((s) => s[0] === key);
-  document.getElementById(`s-${key}-out`).textContent = `${(+values[key]).toFixed(spec[4] < 0.1 ? 2 : 1)} ${spec[6]}`;
+  const input = document.getElementById(`s-${key}`);
+  // a value between the slider's steps (a run file's damping 0.005): the slider takes it as it is
+  if (input && input.step !== "any" && Math.abs(parseFloat(input.value) - values[key]) > 1e-12) {
+    input.step = "any";
+    input.value = values[key];
+  }
+  document.getElementById(`s-${key}-out`).textContent = `${shown(+values[key], spec[4])} ${spec[6]}`;
 }
 function setValue(key, v, fromUser) {
   values[key] = v;
@@ -602,7 +613,9 @@ function saveUrl() {
   document.getElementById("share-link").href = url;
 }
 function loadUrl() {
-  const q = new URLSearchParams(location.search);
+  // the page's own start (an export of a run file: PAGE.start), then the address's query over it
+  const q = new URLSearchParams(PAGE.start || "");
+  for (const [key, value] of new URLSearchParams(location.search)) q.set(key, value);
   for (const [key, , min, max] of SLIDERS) {
     if (!q.has(key)) continue;
     const raw = q.get(key), v = Number(raw);
