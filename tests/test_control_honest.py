@@ -241,7 +241,7 @@ def test_the_leaderboard_says_ipopts_iterations_on_a_terminal_and_a_line_a_stage
             report(running, solved, 2)
     said = [line for line in off.lines if "optimising" in line]
     assert [s.split("optimising: ")[1].split("...")[0] for s in said] == [
-        "IPOPT on start 1 of 2 (0 solved)", "IPOPT on starts 1, 2 of 2 (0 solved)", "IPOPT on start 2 of 2 (1 solved)"]
+        "IPOPT on start 1 of 2 (0 solved)", "IPOPT on starts 1, 2 of 2 (0 solved)"]  # a line as a start begins
     with Stages("control", terminal=True, console=Console(file=io.StringIO(), force_terminal=True)) as on:
         report = ipopt_reporter("optimising", stages=on, clock=lambda: now[0])
         for k, (running, solved) in enumerate(calls):

@@ -42,8 +42,8 @@ PLANAR_NOTE = "the published boards are the planar rig's (alpha = 0)"
 def ipopt_reporter(what: str, stages=None, clock=None):
     """``iterations(running, solved, total)`` for :func:`~skewpend.analysis.trajopt.optimal_swingup`: IPOPT's
     progress as the command's stage ``what``.  On a terminal the iterations each running start has reached
-    (redrawn at most every :data:`REDRAW` s) and the bar at the starts solved; off one, a line as the starts
-    being solved change (a line per stage).  None when no command runs."""
+    (redrawn at most every :data:`REDRAW` s) and the bar at the starts solved; off one, a line as a start begins
+    (a line per stage).  None when no command runs."""
     import time
 
     from ..progress import active
@@ -52,7 +52,7 @@ def ipopt_reporter(what: str, stages=None, clock=None):
     if stages is None:
         return None
     clock = time.monotonic if clock is None else clock
-    last = {"at": -math.inf, "starts": None}
+    last = {"at": -math.inf, "starts": None, "begun": set()}
 
     def report(running, solved, total):
         starts = tuple(sorted(running))
@@ -64,8 +64,8 @@ def ipopt_reporter(what: str, stages=None, clock=None):
             each = "; ".join(f"start {k + 1} of {total} at iteration {running[k]}" for k in starts)
             stages.stage(f"{what}: {each or f'{solved} of {total} starts solved'}")
             stages.update(solved, total)
-        elif starts and starts != last["starts"]:
-            last["starts"] = starts
+        elif not set(starts) <= last["begun"]:  # a start began: a line (a start that ends adds none)
+            last["begun"].update(starts)
             word = "start" if len(starts) == 1 else "starts"
             stages.stage(f"{what}: IPOPT on {word} {', '.join(str(k + 1) for k in starts)} of {total} "
                          f"({solved} solved)")
