@@ -333,7 +333,7 @@ def test_unwritable_cache_falls_back_with_one_warning(tmp_path):
     assert proc.returncode == 0, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 2 and lines[0].startswith("skewpend: warning: cannot write the kernel cache"), proc.stderr
-    assert lines[1] == "skewpend: compiling the model's kernels (for this run: the cache is not writable)..."
+    assert lines[1] == "skewpend: compiling the model's kernels for general bodies (for this run: the cache is not writable)..."
     assert "reached t_end" in proc.stdout
     assert "not cached" in proc.stdout and "cached for later runs" not in proc.stdout  # the summary says so too
 

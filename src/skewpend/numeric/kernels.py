@@ -779,7 +779,7 @@ def _remove_stale_temporaries(directory: Path, age: float = 3600.0) -> None:
             pass
 
 
-def _announce(kind: str, cached: bool) -> None:
+def _announce(kind: str, cached: bool, which: str = "") -> None:
     """One line on stderr before a build (seconds with the packaged compiler; silent otherwise, a new
     user waited 16 s for a first simulate without a word), in a terminal and in a pipe;
     ``SKEWPEND_QUIET=1`` silences it.  A compiler that cannot be run is said first, alone."""
@@ -789,11 +789,11 @@ def _announce(kind: str, cached: bool) -> None:
                             "or clang, or set CC")
     if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
         return
-    what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels", "taylor": "the Taylor kernel of this order",
+    what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels", "taylor": "the Taylor kernel",
             "shooting": "the identification's shooting kernels", "chain": "the chain's kernels"}.get(kind, "the model's kernels")
     when = "first use only; cached for later runs" if cached else "for this run: the cache is not writable"
-    try:
-        sys.stderr.write(f"skewpend: compiling {what} ({when})...\n")
+    try:  # ``which``: what tells two builds of one kind apart (a report builds the rig's and MuJoCo's bodies)
+        sys.stderr.write(f"skewpend: compiling {what}{which} ({when})...\n")
         sys.stderr.flush()
     except (OSError, ValueError, AttributeError):  # a closed or missing stderr: nothing to say it on
         pass
@@ -808,6 +808,14 @@ def announce_background(what: str, meanwhile: str) -> None:
         sys.stderr.flush()
     except (OSError, ValueError, AttributeError):
         pass
+
+
+def _bodies_words(geometry) -> str:
+    """Nothing for thin rods, `` for general bodies`` otherwise (a report's MuJoCo check builds both)."""
+    from .conventions import COM_NAMES, INERTIA_NAMES
+
+    rods = all(getattr(geometry, n, None) is None for n in COM_NAMES + INERTIA_NAMES)
+    return "" if rods else " for general bodies"
 
 
 def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False, shooting: bool = False) -> Kernel:
@@ -851,7 +859,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
             _remove_stale_temporaries(directory)
             from .kernel_source import kernel_c_source
 
-            _announce(kind, cached=directory == cache_dir() / "kernels")
+            _announce(kind, cached=directory == cache_dir() / "kernels", which=_bodies_words(geometry))
             integrators = (_PACKAGE / "numeric" / "integrators.c").read_text()
             source = kernel_c_source(geometry, flip=flip, shooting=shooting) + "\n" + integrators
             if chaos:
@@ -1007,7 +1015,7 @@ def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
             directory = _writable_directory()
             path = directory / f"skewpend_{key}{LIB_SUFFIX}"
             _remove_stale_temporaries(directory)
-            _announce("taylor", cached=directory == cache_dir() / "kernels")
+            _announce("taylor", cached=directory == cache_dir() / "kernels", which=f" of order {order}")
             _compile(source, path, flags)
             loaded = TaylorKernel(path, "compiled", time.perf_counter() - start, order, tn)
         _LOADED[key] = loaded  # type: ignore[assignment]
@@ -1135,7 +1143,7 @@ def _taylor_kernel(params: Parameters, order: int, model) -> TaylorKernel:
             directory = _writable_directory()
             path = directory / f"skewpend_{key}{LIB_SUFFIX}"
             _remove_stale_temporaries(directory)
-            _announce("taylor", cached=directory == cache_dir() / "kernels")
+            _announce("taylor", cached=directory == cache_dir() / "kernels", which=f" of order {order}" + _bodies_words(geometry))
             _compile(source, path, flags)
             loaded = TaylorKernel(path, "compiled", time.perf_counter() - start, order)
         _LOADED[key] = loaded  # type: ignore[assignment]
