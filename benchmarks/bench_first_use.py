@@ -141,6 +141,14 @@ def final_state(stdout: str) -> tuple[float, ...] | None:
     return None
 
 
+def wait_for_background(kernels: Path, limit: float = 300.0) -> float:
+    """Seconds until no background build's marker (``.skewpend_*.building``) is left in ``kernels``."""
+    start = time.perf_counter()
+    while list(kernels.glob(".skewpend_*.building")) and time.perf_counter() - start < limit:
+        time.sleep(0.05)
+    return time.perf_counter() - start
+
+
 def dir_bytes(path: Path) -> int:
     return sum(f.stat().st_size for f in path.rglob("*") if f.is_file()) if path.exists() else 0
 
@@ -398,6 +406,12 @@ def main() -> int:
                 print(f"  skewpend cold #{i + 1}: {r[0]:6.2f} s   caches written: SKEWPEND_CACHE_DIR "
                       f"{dir_bytes(root / 'skewpend')} B, NUMBA_CACHE_DIR {dir_bytes(root / 'numba')} B, "
                       f"XDG_CACHE_HOME {dir_bytes(root / 'xdg')} B", flush=True)
+                # since issue 51 the first run takes dop853 and a detached process builds the Taylor library:
+                # wait for it (it would load the next run's machine) and say when it was ready
+                ready = wait_for_background(root / "skewpend" / "kernels")
+                method = "taylor" if "method        taylor" in r[1].stdout else "dop853"
+                print(f"      (this run: {method}; the Taylor library built in the background, ready "
+                      f"{ready:.1f} s after the run ended)", flush=True)
             if hy_cmd:
                 root = work / f"cold-heyoka-{i}"
                 r = measure("heyoka", "heyoka cold", hy_cmd, cache_env(root))
@@ -419,8 +433,11 @@ def main() -> int:
         for i in range(n_warm):
             r = measure("skewpend", "skewpend warm", sk_cmd, sk_env)
             if r:
-                if final_state(r[1].stdout) != states.get("skewpend"):
-                    notes.append("skewpend warm final state differs from the cold one")
+                warm, cold = final_state(r[1].stdout), states.get("skewpend")
+                if warm is None or cold is None or max(abs(a - b) for a, b in zip(warm, cold)) > 1e-3:
+                    # cold: dop853 (the Taylor library builds in the background), warm: taylor, both at 1e-10;
+                    # over 20 s of chaos their difference grows to 1e-6..1e-4
+                    notes.append("skewpend warm final state differs from the cold one by more than 1e-3")
                 print(f"  skewpend warm #{i + 1}: {r[0]:6.2f} s", flush=True)
             if hy_cmd:
                 r = measure("heyoka", "heyoka warm", hy_cmd, hy_env)
