@@ -591,6 +591,7 @@ def _chain_flip_energy(chain) -> float:
     cached = _FLIP_ENERGIES.get(chain)
     if cached is not None:
         return cached
+    _say("the lowest flip energy: loading SciPy's minimiser")
     from scipy.optimize import minimize
 
     H = energy_function(chain)
@@ -606,6 +607,7 @@ def _chain_flip_energy(chain) -> float:
             free = [j for j in range(n) if j != i]
             Q = rng.uniform(-math.pi, math.pi, size=(FLIP_SAMPLES, n))
             Q[:, i] = side
+            _say(f"the lowest flip energy: face {2 * i + half + 1} of {2 * n}, {FLIP_SAMPLES} samples")
             values = V(Q)
             for start, k in enumerate(np.argsort(values)[:FLIP_STARTS], 1):
                 _say(f"the lowest flip energy: face {2 * i + half + 1} of {2 * n}, search {start} of {FLIP_STARTS}")
