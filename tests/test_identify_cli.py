@@ -278,8 +278,10 @@ def test_plot_and_report_when_the_views_have_them(tmp_path):
     (["KAHEMAN", "--segment", "-1"], ["--segment", "positive"]),
     (["KAHEMAN", "--segment", "100"], ["--segment", "60"]),
     (["KAHEMAN", "--method", "x"], ["--method", "'x'"]),
-    (["run.csv", "--format", "csv"], ["--format csv needs --columns"]),
-    (["run.csv"], ["cannot tell how", "--format"]),
+    (["run.csv", "--format", "csv"], ["(--format csv) needs --columns"]),
+    (["user.csv"], ["a CSV file (--format csv) needs --columns"]),  # the format inferred from .csv
+    (["run.csv"], ["params0", "--a, --b"]),  # a header t,phi,psi: skewpend's own run, read as one
+    (["run.bin"], ["cannot tell how", "--format"]),
     (["run.csv", "--columns", "t=t,phi=nope,psi=psi", "--a", "1", "--b", "1", "--m1", "1", "--m2", "1", "--g", "9.8"],
      ["--columns", "no column 'nope'"]),
     (["run.csv", "--columns", "t=t,phi=phi,psi=psi", "--a", "1"], ["--b, --m1, --m2, --g", "params0"]),
@@ -293,10 +295,12 @@ def test_plot_and_report_when_the_views_have_them(tmp_path):
     (["KAHEMAN", "--which", "all", "--horizon", "1"], ["--horizon cuts the held-out pieces", "--validate"]),
     (["run.csv", "--columns", "t=t,phi=phi,psi=psi", "--a", "1", "--b", "1", "--m1", "1", "--m2", "1", "--g", "9.8",
       "--horizon", "1"], ["--horizon cuts the held-out pieces"]),
-], ids=lambda v: " ".join(v) if isinstance(v, list) and v and v[0] in ("KAHEMAN", "run.csv", "nowhere/kaheman2023") else "")
+], ids=lambda v: " ".join(v) if isinstance(v, list) and v and v[0] in ("KAHEMAN", "run.csv", "user.csv", "run.bin", "nowhere/kaheman2023") else "")
 def test_bad_input_is_one_line_exit_2_and_leaves_nothing(args, fragments, tmp_path):
     (tmp_path / "run.csv").write_text("t,phi,psi\n" + "".join(f"{k * 0.01},{0.1 * math.sin(k / 9)},0.0\n"
                                                                  for k in range(200)))
+    (tmp_path / "user.csv").write_text((tmp_path / "run.csv").read_text().replace("t,phi,psi", "time,a,b", 1))
+    (tmp_path / "run.bin").write_text("x")
     before = snapshot(tmp_path)
     argv = [str(KAHEMAN) if a == "KAHEMAN" else a for a in args]
     if "--out" not in argv:

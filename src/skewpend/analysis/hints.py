@@ -125,15 +125,11 @@ NOISE_FACTOR = 10.0
 
 
 def noise_level(measurements: Measurements) -> float:
-    """The angles' noise [rad]: the median over pieces of the RMS of what a short Savitzky-Golay
-    filter (21 samples, order 3) removes from them."""
-    from scipy.signal import savgol_filter
+    """The angles' noise [rad] (:func:`skewpend.analysis.identify.angle_noise`: what a short
+    Savitzky-Golay filter removes, corrected for the noise it keeps)."""
+    from .identify import angle_noise
 
-    levels = []
-    for p in measurements:
-        if len(p) >= 21:
-            levels.append(float(np.sqrt(np.mean((p.q - savgol_filter(p.q, 21, 3, axis=0)) ** 2))))
-    return float(np.median(levels)) if levels else math.nan
+    return angle_noise(measurements)
 
 
 def suspect(result, measurements: Optional[Measurements] = None) -> Optional[str]:
@@ -186,6 +182,9 @@ def _first_seconds(measurements: Measurements, seconds: float) -> Measurements:
 def _residual(measurements: Measurements, params0, free, window: float) -> float:
     from .identify import identify
 
+    if free is not None:  # the linear estimate holds alpha at params0's (a wrong skew is a small model error
+        # beside a flipped sign or a wrong second angle): freed alpha is left out, the rest kept
+        free = [f for f in ([free] if isinstance(free, str) else list(free)) if f != "alpha"] or None
     try:
         r = identify(measurements, params0, free=free, method="linear", smoothing=window, bootstrap=0)
     except (SkewpendError, ValueError, np.linalg.LinAlgError):  # a check never stops the run: no answer

@@ -246,7 +246,7 @@ class Identification(Result):
         for n, e, v, (lo, hi) in zip(self.names, self.expressions, self.values, self.intervals):
             iv = f"{'(params0: the scale)':>28}" if n == self.reference else interval(lo, hi)
             if n not in self.free:
-                iv = f"{'(held at params0)':>28}"
+                iv = f"{'(held at 0: its bound)' if n in (self.settings or {}).get('bounded', ()) else '(held at params0)':>28}"
             lines.append(f"{n:<14} {v:>13.6g}  {iv}   {e}")
         if self.ratios:
             lines.append(f"ratios to {self.reference} (what a free swing determines):")
@@ -270,7 +270,7 @@ class Identification(Result):
                          f"max {np.max(self.fit_rms):.4g} rad")
         if len(self.pieces) and self.method == "linear":
             lines.append(f"residual RMS per fitting piece: median {np.median(self.residual_rms):.3g}, "
-                         f"max {np.max(self.residual_rms):.3g} N m over {len(self.pieces)} pieces")
+                         f"max {np.max(self.residual_rms):.3g} N m over {_count(len(self.pieces), 'piece')}")
         fitted = self.params is not self.params0 and self.params != self.params0
         for n, k, r, r0 in zip(self.validation, self.heldout_kind, self.heldout_rms, self.heldout_rms0):
             unit = "rad" if k == "angle" else "N m"
@@ -289,7 +289,7 @@ class Identification(Result):
 
     def summary(self) -> str:
         lines = [f"identification ({self.settings.get('method', '')}): {self.message}",
-                 f"{len(self.names)} base parameters from {len(self.pieces)} pieces, "
+                 f"{_count(len(self.names), 'base parameter')} from {_count(len(self.pieces), 'piece')}, "
                  f"{self.stats.get('samples', 0)} samples, {self.stats.get('seconds', 0.0):.3g} s"]
         if math.isfinite(self.alpha):
             lo, hi = self.alpha_interval
@@ -504,7 +504,7 @@ def clusters(piece: np.ndarray, t: np.ndarray, spans: Sequence[Tuple[float, floa
     used, out = np.unique(out, return_inverse=True)
     count = len(used)
     what = "piece" if n_pieces == 1 else f"{n_pieces} pieces"
-    return out, count, (f"{count} blocks of about {BLOCK:g} s cut from {'the one' if n_pieces == 1 else 'the'} {what}, "
+    return out, count, (f"{_count(count, 'block')} of about {BLOCK:g} s cut from {'the one' if n_pieces == 1 else 'the'} {what}, "
                         f"as there are fewer than {CLUSTER_PIECES} pieces")
 
 
@@ -580,7 +580,8 @@ def _solve(G, b, homogeneous, k):
 
 def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
             validation: Optional[Measurements] = None, smoothing: float = SMOOTHING,
-            bootstrap: int = BOOTSTRAP, seed: int = 0, angles: str = "relative") -> Identification:
+            bootstrap: int = BOOTSTRAP, seed: int = 0, angles: str = "relative",
+            _at_bound: Tuple[str, ...] = ()) -> Identification:
     """Identify the base parameters of a measured pendulum: the linear first estimate.
 
     ``measurements``: the motion to fit (:class:`~skewpend.Measurements`; torques where measured, a
@@ -612,7 +613,9 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     if any(driven) and not all(driven):
         raise ParameterError("measurements mix pieces with and without torques: identify them separately")
     has_tau = all(driven)
-    homogeneous = not has_tau and not xi
+    # a free swing stays homogeneous when the held base parameters are all 0 (a joint term held at its
+    # bound): they add nothing to either side
+    homogeneous = not has_tau and not np.any(beta0[xi])
     k = names.index(REFERENCE) if REFERENCE in names else 0
 
     # 1-2: filtered signals and the base regressor, per piece
@@ -734,6 +737,16 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     try:
         fitted = _realise(params0, B, values, a, alpha, g)
     except ParameterError as exc:
+        # a joint term (damping, friction, rotor) below zero with 0 inside its interval: held at the bound
+        # and the rest re-estimated (once), as the output-error fit does
+        neg = [n for j, n in enumerate(names) if n in free_names and n.rstrip("0123456789") in ("c", "cf", "Ir")
+               and values[j] < 0 and values[j] + halves[j] >= 0]
+        if neg and not _at_bound:
+            again = _linear(measurements, params0.replace(**{n: 0.0 for n in neg}),
+                            free=[n for n in free_names if n not in neg], validation=validation, smoothing=smoothing,
+                            bootstrap=bootstrap, seed=seed, angles=angles, _at_bound=tuple(neg))
+            if again.status is not Status.NO_CONVERGENCE or not again.message.startswith("the estimate is not physical"):
+                return again
         return failed(f"the estimate is not physical: {exc}")
     check = B.values(standard_vector(fitted), a, alpha, g)
     if np.abs(check - values).max() > 1e-9 * max(np.abs(values).max(), 1e-300):
@@ -741,6 +754,10 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
 
     # held-out prediction
     status, message = Status.SUCCESS, "identified (linear first estimate)"
+    if _at_bound:
+        message += (f"; held at 0, the bound their estimates crossed within their 95 % intervals (no physical joint "
+                    f"has a negative one): {', '.join(_at_bound)}")
+        settings["bounded"] = list(_at_bound)
     if not settings["intervals"].startswith("clusters"):
         message += f"; {settings['intervals']}"
     from .shooting import angle_frame
@@ -1178,7 +1195,8 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         names = B.names
         # the linear estimate starts the fit; where it is not physical (noisy accelerations), params0 does
         beta0 = np.asarray(lin.values if lin.status is Status.SUCCESS else B.values(standard_vector(params0), a, alpha0, g), float)
-        free = [n for n in lin.free if n != ref]
+        freed = set(lin.free) | set(lin.settings.get("bounded", ()))  # (the linear estimate's bound freed again)
+        free = [n for n in names if n in freed and n != ref]
     else:
         B = model_terms(params0.replace(alpha=None))  # every skew angle: the generic base parameters
         names = B.names
@@ -1194,7 +1212,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         q, dq, ddq = sample_states(40, 0)
         A = B.regressor(q, dq, ddq, a, alpha0, g).reshape(-1, len(names))
         det = [names[j] for j in independent_columns(A, range(len(names)))]
-        stems = {_stem(n) for n in lin.free}
+        stems = {_stem(n) for n in tuple(lin.free) + tuple(lin.settings.get("bounded", ()))}
         free = [n for n in names if n in det and _stem(n) in stems and n != ref]
 
         def refree(alpha: float) -> None:
@@ -1206,6 +1224,30 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
 
         lin_names = set(lin.names)
     held = [n for n in names if n not in free and n != ref]
+    # the start: the linear estimate where it is usable, else params0 (said in the message).  At a
+    # nonzero skew with noisy accelerations the linear estimate can be far off or no body at all; the
+    # start whose segments miss the data less (before any iteration) is taken
+    beta_p0 = np.asarray(B.values(standard_vector(params0), a, alpha0, g), float)
+    frame = shooting.angle_frame(2, angles)
+    start_note = ""
+    if not np.array_equal(np.asarray(beta0, float), beta_p0):
+        c_lin = shooting.start_cost(B, params0, beta0, alpha0, seg, frame)
+        c_p0 = shooting.start_cost(B, params0, beta_p0, alpha0, seg, frame)
+        if not c_lin <= c_p0:
+            npts = 2.0 * float(seg.mask.sum())
+            if not math.isfinite(c_lin) or lin.status is not Status.SUCCESS:
+                why = "; ".join(x for x in ((_one_line(lin.message) if lin.status is not Status.SUCCESS else ""),
+                                            ("" if math.isfinite(c_lin) else "its simulation is not finite")) if x)
+                start_note = (f"the linear estimate is unusable as the start ({why}): the output-error fit started "
+                              "from params0")
+            else:
+                start_note = (f"the output-error fit started from params0, whose segments miss the angles less than the "
+                              f"linear estimate's ({math.sqrt(c_p0 / npts):.3g} against {math.sqrt(c_lin / npts):.3g} rad)")
+            beta0 = beta_p0
+    elif lin.status is not Status.SUCCESS:
+        start_note = (f"the linear estimate is unusable as the start ({_one_line(lin.message)}): the output-error fit "
+                      "started from params0")
+    settings["start"] = "params0" if start_note else "linear estimate"
 
     def run(beta, alpha, free_alpha, y0, iterations=60, boot=0, tol=1e-10):
         seg.y0[:] = y0
@@ -1226,7 +1268,33 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     prof_c: List[float] = []
     if alpha_free:
         sf, alpha_hat, (a_lo, a_hi), note, prof_a, prof_c = _skew_search(run, sf, alpha0, bootstrap, seed, say, refree)
+    # a joint term (damping, friction, rotor inertia) estimated below zero with 0 inside its interval: no
+    # physical joint has it, so it is held at the bound 0 and the rest re-fitted -- the model is then that
+    # fit's estimate, not the estimate with one entry clipped (which misses the data by more)
+    bounded: List[str] = []
+    if sf.converged and not sf.flat:
+        th, hw = dict(zip(sf.theta_names, sf.theta)), dict(zip(sf.theta_names, sf.half))
+        neg = [n for n in free if _stem(n).rstrip("0123456789") in ("c", "cf", "Ir") and th.get(n, 0.0) < 0]
+        if neg and all(math.isfinite(hw.get(n, math.nan)) and th[n] + hw[n] >= 0 for n in neg):
+            b = np.array(sf.beta, float)
+            b[[names.index(n) for n in neg]] = 0.0
+            kept = list(free)
+            free[:] = [n for n in free if n not in neg]
+            refit = run(b, sf.alpha, "alpha" in sf.theta_names, sf.y0, boot=bootstrap)
+            if refit.converged and not refit.flat:
+                bounded = [f"{n} (estimate {th[n]:.3g} +- {hw[n]:.2g})" for n in neg]
+                sf = refit
+                if "alpha" in sf.theta_names and math.isfinite(float(sf.half[-1])):
+                    h = float(sf.half[-1])
+                    est = float(sf.alpha)
+                    if "mirror" in note:  # reported on alpha0's side, as the skew search does
+                        est = alpha0 + (math.copysign(1.0, alpha0) if alpha0 != 0 else 1.0) * abs(est - alpha0)
+                    alpha_hat, a_lo, a_hi = est, est - h, est + h
+            else:
+                free[:] = kept
+    at_bound = {b.split(" ")[0] for b in bounded}
     held = [n for n in names if n not in free and n != ref]
+    stems_freed = {_stem(f) for f in tuple(lin.free) + tuple(lin.settings.get("bounded", ()))}
     beta = sf.beta
     theta = dict(zip(sf.theta_names, sf.theta))
     half = dict(zip(sf.theta_names, sf.half))
@@ -1280,16 +1348,38 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     if fitted is None:  # the estimate and its intervals are reported; the model stays params0
         status, message = Status.NO_CONVERGENCE, unphysical
     status, message = _fit_status(sf, status, message)
+    # the claim: the model returned (the estimate, or its nearest physical body) explains the data to
+    # their noise, or to a model error small beside the motion (see consistency)
+    seg.y0[:] = sf.y0
+    model_beta = B.values(standard_vector(fitted), a, alpha_fit, g) if fitted is not None else np.asarray(sf.beta, float)
+    model_cost = shooting.start_cost(B, params0, model_beta, alpha_fit, seg, frame) if projected else float(sf.cost)
+    verdict = consistency(model_cost, seg, measurements, frame,
+                          what="the model (the nearest physical body)" if projected else "the fitted model")
+    if status is Status.SUCCESS and not verdict.ok:
+        status, message = Status.NO_CONVERGENCE, verdict.text
+    elif status is Status.SUCCESS and verdict.text:
+        message += f"; {verdict.text}"
+    if bounded and status is Status.SUCCESS:
+        message += (f"; held at 0, the bound their estimates crossed within their 95 % intervals (no physical joint "
+                    f"has a negative one): {', '.join(bounded)}")
+    settings["bounded"] = sorted(at_bound) if bounded else []
+    if start_note:
+        message += f"; {start_note}"
     say("held-out prediction", 0.9)
     vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing,
                                                    frame=shooting.angle_frame(2, angles))
+    stats_extra.update(verdict.stats)
     if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
         status, message = Status.NONFINITE, "a held-out simulation failed"
     if status is Status.SUCCESS and not settings["intervals"].startswith("clusters"):
         message += f"; {settings['intervals']}"
-    undetermined = list(lin.undetermined)
+    # the entries that do not enter the equations are the fitted model's (with alpha freed, the generic
+    # skew's: a near-planar start's list would name entries the fit estimated, J2xy ...)
+    undetermined = [u for u in lin.undetermined if not u.startswith("do not enter the equations")]
+    if B.unidentifiable:
+        undetermined.append("do not enter the equations: " + ", ".join(B.unidentifiable))
     # what the user freed: a parameter the user held is not a finding about the data
-    not_determined = [n for n in held if all_free or _stem(n) in {_stem(f) for f in lin.free}]
+    not_determined = [n for n in held if n not in at_bound and (all_free or _stem(n) in stems_freed)]
     if not_determined:
         undetermined.append("held at the start's values (the data do not determine them near alpha = "
                             f"{math.degrees(alpha0):g} deg): " + ", ".join(not_determined))
@@ -1305,6 +1395,85 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         heldout_rms=np.array(hr), heldout_rms0=np.array(hr0), method="output-error", fit_rms=sf.rms_piece,
         alpha=float(alpha_hat), alpha_interval=(float(a_lo), float(a_hi)), alpha_note=note,
         profile_alpha=np.array(prof_a), profile_cost=np.array(prof_c), correlation=sf.correlation)
+
+
+#: The output error is consistent with the noise when its mean square is at most the noise's times
+#: 1 + this many standard deviations of a chi-square's mean (sqrt(2 / n) for n residuals) -- and at
+#: least :data:`NOISE_SLACK` (the noise estimate's own bias: a filter's residual, quantised encoders).
+CHI2_SIGMAS = 4.0
+#: The smallest allowance over the noise's mean square (a fraction of it) in the test above.
+NOISE_SLACK = 0.1
+#: Beyond the noise, a model error is accepted up to this fraction of the motion the segments predict
+#: (the RMS of the measured angles about each segment's straight line ``q0 + q0' t``, what the dynamics
+#: explain): measured 0.05 % on the Kaheman rig's free swing (23 times its noise), 1.6 % on the DFKI rig
+#: driven (21 times; segments of 0.25 s); a fit of a skewed rig in a wrong minimum 4 % (200 times).
+MODEL_ERROR = 0.025
+
+
+@dataclass(frozen=True)
+class Consistency:
+    """The output-error test of :func:`consistency`: ``ok``, ``text`` (empty when the output error is
+    the noise's), ``stats`` (``output_error``, ``noise``, ``motion`` [rad])."""
+
+    ok: bool
+    text: str
+    stats: Dict[str, float]
+
+
+def angle_noise(measurements: Measurements) -> float:
+    """The angles' noise [rad]: the median over pieces of the RMS of what a Savitzky-Golay filter of
+    21 samples (order 3) removes from them, divided by ``sqrt(1 - c0)`` (``c0`` the filter's central
+    weight: the fraction of white noise the filter keeps at its own sample), so that white noise of
+    standard deviation ``s`` gives ``s``."""
+    from scipy.signal import savgol_coeffs, savgol_filter
+
+    keep = float(savgol_coeffs(21, 3)[10])
+    levels = []
+    for p in measurements:
+        if len(p) >= 21:
+            q = np.asarray(p.q, float)
+            levels.append(float(np.sqrt(np.mean((q - savgol_filter(q, 21, 3, axis=0)) ** 2) / (1.0 - keep))))
+    return float(np.median(levels)) if levels else math.nan
+
+
+def consistency(cost: float, seg, measurements: Measurements, frame=None, what: str = "the fitted model") -> Consistency:
+    """Whether an output error (``cost``: the sum of squared angle residuals over the segments ``seg``)
+    is one of a fit: its mean square ``r^2`` against the data's noise ``s^2`` (:func:`angle_noise`).
+
+    * ``r^2 <= s^2 (1 + max(CHI2_SIGMAS sqrt(2 / n), NOISE_SLACK))`` (``n`` residuals): consistent with
+      the noise (a chi-square of ``n`` degrees of freedom has mean ``n``, standard deviation
+      ``sqrt(2 n)``);
+    * else ``r <= MODEL_ERROR * D`` (``D`` the motion the segments predict, see :data:`MODEL_ERROR`): a
+      model error beside the noise, said in the text (real rigs: friction, flexible links);
+    * else not a fit of these data (a local minimum, a wrong structure, data read wrongly)."""
+    mask = np.asarray(seg.mask, float)
+    n = float(mask.sum()) * seg.q.shape[2]
+    r = math.sqrt(cost / n) if math.isfinite(cost) and n > 0 else math.inf
+    noise = angle_noise(measurements)
+    t = np.arange(seg.q.shape[1]) * seg.h
+    nq = seg.q.shape[2]
+    line = seg.y0[:, None, :nq] + t[None, :, None] * seg.y0[:, None, nq:]
+    dev = (np.asarray(seg.q, float) - line) * mask[:, :, None]
+    if frame is not None:
+        dev = dev @ np.asarray(frame).T
+    motion = float(np.sqrt(np.sum(dev**2) / n)) if n > 0 else math.nan
+    stats = {"output_error": r, "noise": noise, "motion": motion}
+    if not math.isfinite(r):
+        return Consistency(False, "the fitted model's simulation is not finite", stats)
+    if math.isfinite(noise) and noise > 0:
+        allow = max(CHI2_SIGMAS * math.sqrt(2.0 / n), NOISE_SLACK)
+        if r**2 <= noise**2 * (1.0 + allow):
+            return Consistency(True, "", stats)
+        times = f"{r / noise:.3g} times the data's noise ({noise:.3g} rad)"
+    else:
+        times = "the data's noise unknown"
+    share = r / motion if motion > 0 else math.inf
+    if share <= MODEL_ERROR:
+        return Consistency(True, f"{what} misses the angles by {r:.3g} rad, {times}: {100 * share:.2g} % of the "
+                                 f"motion over a segment (a model error up to {100 * MODEL_ERROR:g} % is accepted)", stats)
+    return Consistency(False, f"{what} misses the angles by {r:.3g} rad, {times} and {100 * share:.2g} % of "
+                              f"the motion over a segment (at most {100 * MODEL_ERROR:g} % is a model error): not a fit "
+                              "of these data (a local minimum, a wrong model, or the data read wrongly)", stats)
 
 
 def _ratios(names, values, intervals, ref: str, freed) -> Tuple[Dict[str, float], Dict[str, Tuple[float, float]]]:
@@ -1522,6 +1691,9 @@ def _predict(params, piece: Piece, smoothing: float) -> Optional[np.ndarray]:
     return sim - np.asarray(piece.q, float)
 
 
+#: A body's principal moment below zero (or over the sum of the others) by at most this fraction of its
+#: inertia about the hinge is round-off, set on the edge: the physical check's tolerance.
+ROUND_OFF = 1e-9
 #: The factors both masses are raised by, in turn, where params0's cannot realise an estimate.
 MASS_FACTORS = (1.25, 1.5, 2.0, 3.0, 5.0)
 
@@ -1635,6 +1807,10 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
     if project:  # damping, friction and rotor inertia >= 0
         changes = {k: max(v, 0.0) for k, v in changes.items()}
         extra = {k: max(v, 0.0) for k, v in extra.items()}
+    else:  # below zero by round-off (relative to the base parameters' scale): on the bound
+        tiny = 0.1 * ROUND_OFF * max(float(np.abs(values).max()), 1e-300)
+        changes = {k: (0.0 if -tiny <= v < 0 else v) for k, v in changes.items()}
+        extra = {k: (0.0 if -tiny <= v < 0 else v) for k, v in extra.items()}
     pairs = list(zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))))
     for i in (1, 2):
         m = pi[idx[f"m{i}"]]
@@ -1664,6 +1840,17 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
                 # 1.5 % apart: each moment moves by d / 3, not the largest by d)
                 w = w + d / 3.0 * np.array([1.0, 1.0, -1.0])
             ic = (V * w) @ V.T
+        else:  # round-off: a slender rod's moment about its own axis a few ulps of the hinge's inertia below 0
+            w, V = np.linalg.eigh(0.5 * (ic + ic.T))
+            # (a tenth of the realisation's own check, 1e-9 of the base parameters: a clip moves up to
+            # three entries of a combination)
+            tol = 0.1 * ROUND_OFF * max(float(np.abs(J).max()), float(np.abs(ic).max()), 1e-300)
+            clipped = np.maximum(w, 0.0)
+            d = clipped[2] - clipped[0] - clipped[1]
+            if w[0] >= -tol and d <= tol and (w[0] < 0 or d > 0):  # only round-off is moved, never more
+                if d > 0:
+                    clipped = clipped + d / 3.0 * np.array([1.0, 1.0, -1.0])
+                ic = (V * clipped) @ V.T
         changes[f"com{i}"] = tuple(float(v) for v in c)
         changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))
     return params0.replace(**changes, **extra)
@@ -1671,6 +1858,11 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
 
 # -- the run file (Identification.to_run_file) ----------------------------------------------------------
 #: The [parameters] keys of a run file, in the order written.
+def _count(n: int, noun: str) -> str:
+    """``1 piece``, ``2 pieces``."""
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
@@ -1693,12 +1885,12 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
                              "written (force=True writes it anyway)")
     lines = [f"# skewpend run file: a pendulum identified from measured motion (skewpend {__version__})",
              f"# method: {_one_line(result.settings.get('method', result.method))}",
-             f"# data: {len(result.pieces)} pieces ({_names_text(result.pieces)}), "
+             f"# data: {_count(len(result.pieces), 'piece')} ({_names_text(result.pieces)}), "
              f"{result.stats.get('samples', 0)} samples after filtering"]
     if result.free:
         lines.append(f"# free: {', '.join(result.free)}" + (", alpha" if math.isfinite(result.alpha) else ""))
     if len(result.validation):
-        lines.append(f"# held out: {len(result.validation)} pieces ({_names_text(result.validation)})")
+        lines.append(f"# held out: {_count(len(result.validation), 'piece')} ({_names_text(result.validation)})")
         if any(k == "angle" for k in result.heldout_kind):
             lines.append(f"# held-out angle RMS: median over pieces {result.heldout_median:.4g} rad "
                          f"(params0: {result.heldout_median0:.4g}), overall {result.heldout_overall:.4g} rad "

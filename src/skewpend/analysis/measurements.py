@@ -426,6 +426,8 @@ class _Builder:
     def _convert(self, t, q, dq, u, label):
         c = self.convention
         q = np.array(q, dtype=float)
+        if "units" not in self.skip:  # before the wraps: degrees read as radians jump like wrapped angles
+            self._check_units_raw(q, label)
         jumps = np.abs(np.diff(q, axis=0)) > c.period / 2
         if jumps.any():
             count = int(jumps.sum())
@@ -449,8 +451,6 @@ class _Builder:
             if np.ptp(x) <= 1e-12 * max(1.0, float(np.abs(x).max())):
                 raise ParameterError(f"{label}: {name} is constant ({x[0]:.6g} rad) over the piece: a measurement "
                                      "needs motion; drop the piece or check the column mapping")
-        if c.unit == "rad" and "units" not in self.skip:
-            self._check_units(q, label)
         if dq is not None and "velocities" not in self.skip:
             self._check_velocities(t, q, dq, label)
         if u is None and "mean" not in self.skip:
@@ -459,17 +459,28 @@ class _Builder:
             self._check_tracking(q, label)
         return q, dq, u
 
-    def _check_units(self, q, label):
+    def _check_units_raw(self, q, label):
+        """The angles' unit, on the numbers as written (before unwrapping, conversion, shifting): radians
+        that swing back and forth over more than two turns look like degrees; degrees that stay within
+        one radian's turn (|x| <= 2 pi) while swinging back and forth over at least
+        :data:`RADIAN_SWING` look like radians."""
+        c = self.convention
         for k, name in enumerate(coordinate_names(q.shape[1])):
             x = q[:, k]
-            if np.ptp(x) <= 4 * math.pi:
-                continue
             crossings = int(np.count_nonzero(np.diff(np.sign(x - x.mean())) != 0))
-            if crossings >= 4:
+            if crossings < 4:
+                continue
+            turns = _reversals(x, 2 * math.pi) if c.unit == "rad" else 0
+            if c.unit == "rad" and turns >= 4:
                 raise ParameterError(
-                    f"{label}: {name} swings back and forth over {np.ptp(x):.3g} rad (more than two turns, "
-                    f"{crossings} times across its mean): the angles look like degrees; state "
+                    f"{label}: {name} swings back and forth over {np.ptp(x):.3g} rad, {turns} times by more than a "
+                    "turn between its turning points: the angles look like degrees; state "
                     "Convention(unit='deg'), or skip=('units',) if the rig really turns over and back")
+            if c.unit == "deg" and float(np.abs(x).max()) <= 2 * math.pi and np.ptp(x) >= RADIAN_SWING:
+                raise ParameterError(
+                    f"{label}: {name} swings back and forth between {x.min():.3g} and {x.max():.3g} (read as degrees: "
+                    f"a swing of {np.ptp(x):.2g} deg, within one radian's turn): the angles look like radians; state "
+                    "Convention(unit='rad'), or skip=('units',) if the rig really swings by so little")
 
     def _check_velocities(self, t, q, dq, label):
         for k, name in enumerate(coordinate_names(q.shape[1])):
@@ -525,6 +536,37 @@ class _Builder:
                     f"{label}: {b} follows {a} (correlation {r:.3f}; {b} - {a} varies {ratio:.2g} times as much as {a}), "
                     "as an absolute angle does: state Convention(second='absolute'), or skip=('tracking',) "
                     f"if rod {k + 1} really turns about twice as far as rod {k}")
+
+
+#: Degrees that stay within +-2 pi and swing back and forth over at least this many (as numbers) look
+#: like radians (a swing of 0.5 rad is a real one; of 0.5 deg, hardly a recording to identify from).
+RADIAN_SWING = 0.5
+
+
+def _reversals(x: np.ndarray, h: float) -> int:
+    """How many times ``x`` turns back after moving more than ``h`` from its last turning point (a
+    zigzag with threshold ``h``: noise and smaller swings do not count)."""
+    values = np.asarray(x, float)[:: max(1, len(x) // 20000)]
+    count, direction = 0, 0
+    lo = hi = ext = float(values[0])
+    for v in values:
+        if direction == 0:
+            lo, hi = min(lo, v), max(hi, v)
+            if v > lo + h:
+                direction, ext = 1, v
+            elif v < hi - h:
+                direction, ext = -1, v
+        elif direction > 0:
+            if v > ext:
+                ext = v
+            elif v < ext - h:
+                count, direction, ext = count + 1, -1, v
+        else:
+            if v < ext:
+                ext = v
+            elif v > ext + h:
+                count, direction, ext = count + 1, 1, v
+    return count
 
 
 def _ordinal(k: int) -> str:
@@ -994,12 +1036,13 @@ def _read_csv_piece(path: Path, columns: Mapping[str, Any], delimiter: str) -> D
         if (columns.get(a) is None) != (columns.get(b) is None):
             raise ParameterError(f"columns: {a} and {b} come together (give both or neither; a torque may be "
                                  "a number such as 0.0 for an unactuated joint)", parameter="columns")
+    _check_text_file(path)
     try:
         with open(path, newline="") as fh:
             header = [h.strip() for h in next(csv.reader(fh, delimiter=delimiter))]
     except StopIteration:
         raise ParameterError(f"{path} is empty") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ParameterError(f"{path} cannot be read as text: {exc}") from None
     wanted = {k: v for k, v in columns.items() if isinstance(v, str)}
     missing = [v for v in wanted.values() if v not in header]
@@ -1008,13 +1051,24 @@ def _read_csv_piece(path: Path, columns: Mapping[str, Any], delimiter: str) -> D
                              parameter="columns")
     index = {k: header.index(v) for k, v in wanted.items()}
     use = sorted(set(index.values()))
+    import warnings
+
     try:
-        table = np.loadtxt(path, delimiter=delimiter, skiprows=1, usecols=use, ndmin=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a header and no rows: said below, in one line
+            table = np.loadtxt(path, delimiter=delimiter, skiprows=1, usecols=use, ndmin=2)
     except ValueError:
-        try:  # empty fields: NaN (then counted and dropped or refused by the checks)
-            table = np.genfromtxt(path, delimiter=delimiter, skip_header=1, usecols=use, ndmin=2)
+        # say which line and column is not a number, or too short; empty fields are NaN (then counted and
+        # dropped or refused by the checks)
+        _scan_csv(path, delimiter, use, header)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                table = np.genfromtxt(path, delimiter=delimiter, skip_header=1, usecols=use, ndmin=2)
         except ValueError as exc:
-            raise ParameterError(f"{path}: not a table of numbers ({exc})") from None
+            raise ParameterError(f"{path}: not a table of numbers ({_first_line(exc)})") from None
+    if table.size == 0:
+        raise ParameterError(f"{path}: a header line and no rows of data")
     col = {k: table[:, use.index(i)] for k, i in index.items()}
     n = len(table)
 
@@ -1033,6 +1087,65 @@ def _read_csv_piece(path: Path, columns: Mapping[str, Any], delimiter: str) -> D
             raise ParameterError(f"columns: {k} must be a column name, got {v!r}", parameter="columns")
     return {"t": col["t"], "q": np.column_stack([col["phi"], col["psi"]]), "dq": pair("dphi", "dpsi"),
             "u": pair(*TORQUE_NAMES), "name": path.stem, "source": str(path)}
+
+
+#: The longest first line (the header) a CSV file may have [bytes]; and how much of its start and end
+#: is looked at for NUL bytes (a binary or sparse file) before any parsing.
+HEADER_BYTES = 1 << 20
+PROBE_BYTES = 1 << 16
+
+
+def _first_line(exc) -> str:
+    return " ".join(str(exc).split("\n")[0].split())
+
+
+def _check_text_file(path: Path) -> None:
+    """Refuse, in a line and at once, a file that is no text table: NUL bytes near its start or end (a
+    binary file, or a sparse one of holes), or a first line longer than :data:`HEADER_BYTES`."""
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as fh:
+            head = fh.read(PROBE_BYTES)
+            tail = b""
+            if size > 2 * PROBE_BYTES:
+                fh.seek(size - PROBE_BYTES)
+                tail = fh.read(PROBE_BYTES)
+            if b"\0" in head or b"\0" in tail:
+                raise ParameterError(f"{path} holds NUL bytes ({size:,} bytes in all): not a text table (a binary "
+                                     "or sparse file?)")
+            fh.seek(0)
+            first = fh.readline(HEADER_BYTES + 1)
+    except OSError as exc:
+        raise ParameterError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    if len(first) > HEADER_BYTES:
+        raise ParameterError(f"{path}: its first line is longer than {HEADER_BYTES:,} bytes: not a CSV header "
+                             "(a header line names the columns)")
+
+
+def _scan_csv(path: Path, delimiter: str, use: Sequence[int], header: Sequence[str]) -> None:
+    """The first line of ``path`` whose used fields are not numbers or too few, as one ParameterError
+    naming the line and the column (empty fields pass: NaN)."""
+    with open(path, newline="") as fh:
+        reader = csv.reader(fh, delimiter=delimiter)
+        try:
+            next(reader)
+            for line, row in enumerate(reader, start=2):
+                if not row:
+                    continue
+                if len(row) <= max(use):
+                    raise ParameterError(f"{path}: line {line} has {len(row)} field(s), the header {len(header)}: "
+                                         "a row cut short or a wrong delimiter")
+                for i in use:
+                    text = row[i].strip()
+                    if not text:
+                        continue
+                    try:
+                        float(text)
+                    except ValueError:
+                        raise ParameterError(f"{path}: line {line}, column {header[i]!r}: {text[:40]!r} is not a "
+                                             "number") from None
+        except csv.Error as exc:
+            raise ParameterError(f"{path}: not a CSV table ({exc})") from None
 
 
 def _load_mat(path: Path) -> Dict[str, Any]:

@@ -59,7 +59,8 @@ from ..schema import COM_NAMES, INERTIA_NAMES, LENGTH_NAMES, MASS_NAMES, sym_pre
 from ..numeric.conventions import TENSOR_INDICES
 from ..symbolic.model import Parameters
 
-__all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit", "angle_frame"]
+__all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit", "angle_frame",
+           "start_cost"]
 
 #: Default length of a shooting segment [s].
 SEGMENT = 0.5
@@ -338,6 +339,23 @@ def _simulate(model: _Model, seg: Segments, y0, beta, alpha):
     """Angles (S, L+1, nq) by RK4 from ``y0`` (no sensitivities)."""
     p, _ = model.point(beta, alpha, (), False)
     return model.shoot(seg, y0, p)[0]
+
+
+def start_cost(terms, params0: Parameters, beta, alpha: float, seg: Segments, frame=None) -> float:
+    """The cost (sum of squared angle residuals [rad^2]) of the segments simulated from their start states
+    with the base parameters ``beta`` at ``alpha``: how well a start of the fit explains the data before any
+    iteration; ``inf`` where the simulation is not finite (a start that is no body, or one that runs away)."""
+    try:
+        model = _Model(terms, params0)
+        with np.errstate(all="ignore"):
+            q = _simulate(model, seg, seg.y0, np.asarray(beta, float), float(alpha))
+            e = (q - seg.q) * seg.mask[:, :, None]
+            if frame is not None:
+                e = e @ np.asarray(frame).T
+            cost = float(np.sum(e**2))
+    except (ParameterError, FloatingPointError, ZeroDivisionError, ValueError, np.linalg.LinAlgError):
+        return math.inf
+    return cost if math.isfinite(cost) else math.inf
 
 
 def _linearise(model: _Model, seg: Segments, y0, beta, alpha, free_idx, alpha_free, frame=None):

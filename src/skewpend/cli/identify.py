@@ -185,17 +185,16 @@ def identify(
         measurements = _cut(measurements, cut, "--cut")
     if horizon is not None:
         validation = _cut(validation, horizon, "--horizon")
-    _say_actions("data", measurements)
-    if validation is not None:
-        _say_actions("held-out data", validation)
-
     from ..analysis import hints
     from ..analysis.identify import identify as fit
     from ..interrupts import Interrupts
 
-    if not is_chain:
+    if not is_chain:  # a refusal is its one line: before the actions on the data are said
         with _cli_messages(conv):
             hints.check_sampling(measurements, params0, convention=conv, interface="cli")
+    _say_actions("data", measurements)
+    if validation is not None:
+        _say_actions("held-out data", validation)
 
     kw: Dict[str, Any] = {"free": free_names, "validation": validation, "method": method.value}
     if angles is not None:
@@ -227,27 +226,41 @@ def identify(
     note = ""
     written = []
     lab_error = None
-    if netcdf is not None:
-        result.to_netcdf(netcdf)
-        written.append(("result", netcdf))
-    if out is not None:
-        if not result.ok:
-            note = f"; {out} not written (the fit did not succeed)"
-        elif lab_out:
-            try:
-                _write_lab_file(result, out)
-                written.append(("lab model", out))
-            except ParameterError as exc:
-                lab_error = f"--out {out}: not written: {exc}"
-        else:
-            result.to_run_file(out)
-            written.append(("run file", out))
-    if plot_fn is not None:
-        plot_fn(result, measurements, validation, plot)
-        written.append(("plot", plot))
-    if report_fn is not None:
-        report_fn(result, measurements, validation, report)
-        written.append(("report", report))
+    # the files, under Ctrl-C's protection to the end: a signal in their last moments is raised at the
+    # next check (exit 130, one line), and every file this run wrote is removed again (each is written
+    # atomically: the one being written is never left either)
+    try:
+        with Interrupts(escalate_after=0.3) as intr:
+            intr.check()
+            if netcdf is not None:
+                result.to_netcdf(netcdf)
+                written.append(("result", netcdf))
+                intr.check()
+            if out is not None:
+                if not result.ok:
+                    note = f"; {out} not written (the fit did not succeed)"
+                elif lab_out:
+                    try:
+                        _write_lab_file(result, out)
+                        written.append(("lab model", out))
+                    except ParameterError as exc:
+                        lab_error = f"--out {out}: not written: {exc}"
+                else:
+                    result.to_run_file(out)
+                    written.append(("run file", out))
+                intr.check()
+            if plot_fn is not None:
+                plot_fn(result, measurements, validation, plot)
+                written.append(("plot", plot))
+                intr.check()
+            if report_fn is not None:
+                report_fn(result, measurements, validation, report)
+                written.append(("report", report))
+            intr.check()
+    except KeyboardInterrupt:
+        for _, path in written:
+            Path(path).unlink(missing_ok=True)
+        raise
     lines = result.summary().splitlines()[:2] + ["", result.table()]
     lines += [f"{what:10s}{path}" for what, path in written]
     sys.stdout.write("\n".join(lines) + "\n")
@@ -281,9 +294,17 @@ def _spell(conv, **change) -> str:
     from ..analysis.hints import spell_convention
 
     try:
-        return spell_convention(dataclasses.replace(conv, **change), "cli")
+        text = spell_convention(dataclasses.replace(conv, **change), "cli")
     except Exception:  # a message naming a value no Convention takes: say it plainly
         return "--convention " + ",".join(f"{k}={v}" for k, v in change.items())
+    # the key the message is about is always named, also when it goes back to skewpend's default
+    # (unit=rad): never a key the user did not ask about in its place
+    missing = [f"{k}={'yes' if v is True else v}" for k, v in change.items() if f"{k}=" not in text]
+    if missing:
+        body = text[len("--convention "):]
+        stated = [] if body == "second=relative" and conv.second == "relative" else [body]
+        text = "--convention " + ",".join(stated + missing)
+    return text
 
 
 #: The Python spellings of the library's messages and the command line's (``Convention(...)``
@@ -335,9 +356,9 @@ def _checks(skip: Optional[str], nonfinite: Optional[float], short: Optional[str
 
     out: Dict[str, Any] = {}
     if skip is not None:
-        names = [n.strip() for n in skip.split(",") if n.strip()]
+        names = [n.strip() for n in skip.split(",")]
         unknown = [n for n in names if n not in CHECKS]
-        if not names or unknown:
+        if not all(names) or unknown:
             raise UsageError(f"--skip: expected checks to leave out, comma-separated, from {', '.join(CHECKS)}; "
                              f"got {skip!r}")
         out["skip"] = tuple(names)
@@ -410,15 +431,15 @@ def _split_paths(text: Optional[str]) -> List[str]:
 
 def _infer(paths: List[str], columns, variables) -> str:
     """The format of DATA from its first path (the others are read alike)."""
-    from ..analysis.measurements import KAHEMAN_FILE
+    from ..analysis.measurements import KAHEMAN_FILE, KAHEMAN_TRIPLE_FILE
 
     p = Path(paths[0])
     if p.is_dir():
-        if (p / KAHEMAN_FILE).is_file():
+        if (p / KAHEMAN_FILE).is_file() or (p / KAHEMAN_TRIPLE_FILE).is_file():
             return "kaheman"
         if any(p.glob("trajectory_*.csv")):
             return "dfki"
-    elif p.name == KAHEMAN_FILE:
+    elif p.name in (KAHEMAN_FILE, KAHEMAN_TRIPLE_FILE):
         return "kaheman"
     elif p.suffix.lower() == ".nc":
         return "trajectory"
@@ -428,8 +449,22 @@ def _infer(paths: List[str], columns, variables) -> str:
         return "csv"
     elif p.suffix.lower() == ".csv" and p.name.startswith("trajectory_"):
         return "dfki"
+    elif p.suffix.lower() == ".csv":  # skewpend's own run (its header), else a CSV of the user's (--columns)
+        return "trajectory" if _header(p)[:3] == ["t", "phi", "psi"] else "csv"
+    elif p.suffix.lower() == ".mat":
+        return "mat"
     raise UsageError(f"DATA: cannot tell how {p} is written; give --format kaheman|dfki|csv|mat|trajectory "
                      "(csv with --columns, mat with --variables)")
+
+
+def _header(path: Path) -> List[str]:
+    """The first line of a CSV file, split at commas (empty when it cannot be read)."""
+    try:
+        with open(path, "rb") as fh:
+            line = fh.readline(65536)
+        return [x.strip() for x in line.decode("utf-8", "replace").strip().split(",")]
+    except OSError:
+        return []
 
 
 def _check_combinations(kind, which, columns, variables, channels, convention) -> None:
@@ -441,10 +476,10 @@ def _check_combinations(kind, which, columns, variables, channels, convention) -
         if value is not None and kind not in own[flag]:
             raise UsageError(f"{flag} goes with --format {' or '.join(own[flag])}, not {kind}")
     if kind == "csv" and columns is None:
-        raise UsageError("--format csv needs --columns t=COLUMN,phi=COLUMN,psi=COLUMN[,dphi=..,dpsi=..][,tau1=..,tau2=..]: "
+        raise UsageError("a CSV file (--format csv) needs --columns t=COLUMN,phi=COLUMN,psi=COLUMN[,dphi=..,dpsi=..][,tau1=..,tau2=..]: "
                          "the columns holding time and the two angles")
     if kind == "mat" and variables is None:
-        raise UsageError("--format mat needs --variables DATA_VAR,TIME_VAR (or DATA_VAR,DT): the variable holding "
+        raise UsageError("a MATLAB file (--format mat) needs --variables DATA_VAR,TIME_VAR (or DATA_VAR,DT): the variable holding "
                          "the samples and the times")
 
 

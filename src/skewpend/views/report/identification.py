@@ -144,7 +144,7 @@ def _section_fit(r, measurements, validation, drawn: float) -> str:
     facts: List[Tuple[str, str]] = [
         ("status", f'<span class="status {"ok" if ok else "bad"}">{"success" if ok else "not successful"}</span> '
                    f"{esc(r.message)}"),
-        ("fitted on", _describe(measurements) if measurements is not None else f"{len(r.pieces)} pieces"),
+        ("fitted on", _describe(measurements) if measurements is not None else f"{len(r.pieces)} piece{'' if len(r.pieces) == 1 else 's'}"),
         ("fitting pieces", _names(r.pieces)),
         ("held out", (_describe(validation) + "<br>" + _names(r.validation)) if len(r.validation)
          else '<span class="muted">no pieces held out (give them with --validate DATA on the command line, validation=... in Python, to predict motion the fit never saw)</span>'),
