@@ -156,8 +156,8 @@ def test_a_chains_orbit_refuses_losses_and_other_shapes(tmp_path):
         skewpend.periodic_orbit(_triple(damping=[0.0, 0.1, 0.0]), Y0, 2.0)
     with pytest.raises(ParameterError, match=r"y0 must be 6 numbers \(the 3 angles, then their speeds\)"):
         skewpend.periodic_orbit(_orbit_chain(), [0.1, 0.1, 0, 0], 2.0)
-    with pytest.raises(ParameterError, match="mode=: a chain's orbits are found from a guess"):
-        skewpend.periodic_orbit(_orbit_chain(), mode=1, energy=0.1)
+    with pytest.raises(ParameterError, match=r"mode must be a whole number from 1 to 3 .*got 4"):
+        skewpend.periodic_orbit(_orbit_chain(), mode=4, energy=0.1)  # modes 1 to n work since issue 51
     y0, T0 = _mode_guess(_orbit_chain(), 0, 0.05)
     orbit = skewpend.periodic_orbit(_orbit_chain(), y0, T0)
     back = skewpend.open_result(orbit.to_netcdf(tmp_path / "orbit.nc"))

@@ -131,7 +131,7 @@ def test_a_tutorial_names_the_install_of_each_extra_it_needs(path):
     for module, patterns in USES.items():
         if any(re.search(p, code, flags=re.M) for p in patterns):
             extra = EXTRAS[module]
-            line = f'pip install "skewpend[' if extra else f"pip install {module.lower()}"
+            line = 'pip install "skewpend[' if extra else f"pip install {module.lower()}"
             named = re.search(re.escape(line) + (rf"[a-z,]*{extra}" if extra else ""), page)
             if not named:
                 missing.append(f"{module} ({line}{extra + ']' if extra else ''})")

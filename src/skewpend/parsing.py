@@ -223,7 +223,7 @@ def parse_interval(text: Optional[str], option: str, *, angle: bool, example: st
             "on either end or both (it applies to the whole range)"
         )
     scale = math.pi / 180 if explicit == ["deg"] else 1.0  # the factor parse_scalar uses for 'deg'
-    if angle and not explicit and max(abs(e) for e in ends) > _TURN:
+    if angle and not explicit and _TURN < max(abs(e) for e in ends) <= MAX_ANGLE:  # beyond: refused as absurd below
         plain = ":".join(part.strip() for part in text.split(":"))
         raise UsageError(f"{option}: {plain + tail!r} has no unit, so it would be radians beyond one turn; write "
                          f"{plain}deg{tail} for degrees, or {plain}rad{tail} if radians are meant")
