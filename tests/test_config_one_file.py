@@ -63,14 +63,23 @@ def test_unused_sections_are_left_aside_with_one_note(tmp_path, command):
     assert run.is_given("initial", "phi0") == (command in USES_INITIAL)
 
 
-def test_a_used_section_is_still_strict(tmp_path):
-    """flipmap uses [simulation] (its horizon and tolerances): a key of another command there is refused."""
+def test_a_used_sections_keys_of_other_commands_are_left_aside_with_a_note(tmp_path):
+    """flipmap uses [simulation] (its horizon and tolerances): simulate's dt_out and out there are left aside,
+    said in one note (examples/chaotic.toml serves simulate and flipmap alike); an unknown key is refused."""
     from skewpend.config import Run
     from skewpend.parsing import UsageError
 
-    config = _file(tmp_path, "[initial]\nphi0 = 0.3\n\n[simulation]\ndt_out = 0.1\n")
-    with pytest.raises(UsageError, match=r"\[simulation\] dt_out is not read by skewpend flipmap"):
-        Run("flipmap", config)
+    config = _file(tmp_path, "[initial]\nphi0 = 0.3\n\n[simulation]\nt_end = 7.0\ndt_out = 0.1\nout = 'x.csv'\n")
+    run = Run("flipmap", config)
+    assert run.raw("simulation", "t_end") == 7.0 and run.raw("simulation", "dt_out") is None
+    assert run.raw("simulation", "out") is None
+    assert len(run.notes) == 2 and "[initial] is not used by skewpend flipmap" in run.notes[0]
+    assert "[simulation] dt_out, [simulation] out are settings of other commands, not used by skewpend flipmap; " \
+        "ignored" in run.notes[1]
+    animate = Run("animate", _file(tmp_path, "[simulation]\nout = 'x.csv'\n"))
+    assert "the video is written to --out FILE.mp4|.gif" in animate.notes[0]  # why, where the command knows it
+    with pytest.raises((UsageError, ParameterError), match="did you mean 'dt_out'"):
+        Run("flipmap", _file(tmp_path, "[simulation]\ndt_ot = 0.1\n"))
 
 
 @pytest.mark.parametrize("text, words", [
@@ -277,3 +286,23 @@ def test_chain_mappings_suggest_the_key_meant():
         Chain.from_lists(2, masses=[1.0, 2.0])
     with pytest.raises(ParameterError, match=r"unknown key 'gravity' \(did you mean 'g'\?\)"):
         Chain.from_mapping({"links": [{}], "gravity": 1.0})
+
+
+@pytest.mark.parametrize("command, text, key, why", [
+    ("lyapunov", '[simulation]\nout = "x.csv"\n', "out", None),
+    ("flipmap", "[simulation]\ndt_out = 0.1\n", "dt_out", None),
+    ("poincare", "[simulation]\nt_end = 5\n", "t_end", "each orbit runs until its crossings are recorded, or --t-max"),
+    ("animate", '[simulation]\nout = "x.csv"\n', "out", "the video is written to --out FILE.mp4|.gif"),
+    ("animate", "[simulation]\ndt_out = 0.1\n", "dt_out", "speed/fps"),
+    ("report", '[simulation]\nplot = "p.png"\n', "plot", None),
+    ("validate", '[simulation]\nmethod = "rk4"\n', "method", None),
+])
+def test_another_commands_setting_takes_no_effect_and_is_said(tmp_path, command, text, key, why):
+    """Were refused until issue 51 (one run file for every command): left aside, never silently."""
+    from skewpend.config import Run
+
+    run = Run(command, _file(tmp_path, text))
+    note = " ".join(run.notes)
+    assert f"[simulation] {key} is a setting of other commands, not used by skewpend {command}; ignored" in note
+    assert why is None or why in note
+    assert not run.is_given("simulation", key)

@@ -311,7 +311,7 @@ def test_damaged_kernel_is_rebuilt(tmp_path):
         again = run(args, env=env)
         # rebuilt, and said so in one line (the first-use notice: a build takes seconds)
         assert again.returncode == 0 and again.stderr.splitlines() == [
-            "skewpend: compiling the model's kernels (first use only; cached for later runs)..."], again.stderr
+            "skewpend: compiling the model's kernels for general bodies (first use only; cached for later runs)..."], again.stderr
         assert "compiled for this model" in again.stdout  # rebuilt, not loaded
         assert again.stdout.split("final state")[1].splitlines()[0] == final
     hit = run(args, env=env)

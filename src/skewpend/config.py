@@ -233,6 +233,7 @@ class Run:
             if unused:
                 self.notes.append(f"{config}: {' and '.join(f'[{s}]' for s in unused)} {'is' if len(unused) == 1 else 'are'} "
                                   f"not used by skewpend {command}; ignored")
+            aside = []  # keys of another command in a section this one uses (read_config refused unknown keys)
             for section, values in sections.items():
                 if section == "links":
                     self.links = values
@@ -241,10 +242,18 @@ class Run:
                     continue
                 for k, v in values.items():
                     if k not in reads.get(section, ()):
-                        why = _WHY_NOT.get((command, k), "it is a setting of another command")
-                        raise UsageError(f"{config}: [{section}] {k} is not read by skewpend {command}: {why}; "
-                                         f"remove it from the run file, or give this command its own")
+                        if section not in IGNORABLE_SECTIONS:  # the model's sections are never left aside
+                            why = _WHY_NOT.get((command, k), "it is a setting of another command")
+                            raise UsageError(f"{config}: [{section}] {k} is not read by skewpend {command}: {why}; "
+                                             f"remove it from the run file, or give this command its own")
+                        aside.append((section, k))
+                        continue
                     self._set(section, k, v, f"{config}: [{section}] {k}")
+            if aside:  # one file serves every command: another command's settings are left aside, said once
+                whys = [_WHY_NOT[(command, k)] for _, k in aside if (command, k) in _WHY_NOT]
+                self.notes.append(f"{config}: {', '.join(f'[{s}] {k}' for s, k in aside)} "
+                                  f"{'is a setting' if len(aside) == 1 else 'are settings'} of other commands, not used by "
+                                  f"skewpend {command}; ignored" + (f" ({'; '.join(whys)})" if whys else ""))
         given = {section: dict(values) for section, values in (given or {}).items()}
         per_link = {k: given["parameters"].pop(k) for k in list(given.get("parameters", {}))
                     if (k == "links" or k.startswith("link_")) and given["parameters"][k] is not None}

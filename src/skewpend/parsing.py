@@ -193,9 +193,11 @@ _MAX_RANGE_COUNT = 100_000
 
 
 def parse_interval(text: Optional[str], option: str, *, angle: bool, example: str = "-90:90deg",
-                   tail: str = "") -> Tuple[float, float]:
+                   tail: str = "", turn: bool = True) -> Tuple[float, float]:
     """``START:STOP`` -> ``(start, stop)`` in SI units, with the unit rule of :func:`parse_range`
-    (``tail``: what followed the interval as typed, e.g. a range's ``:COUNT``, for the messages)."""
+    (``tail``: what followed the interval as typed, e.g. a range's ``:COUNT``, for the messages).
+    ``turn``: bare numbers beyond one turn refused as a likely slip of degrees (off for an interval
+    that may be a speed's, rad/s: a region of attraction's window over any plane)."""
     if not isinstance(text, str) or len(text.split(":")) != 2:
         raise UsageError(f"{option}: expected START:STOP (e.g. {example}), got {text!r}")
     ends, units = [], []
@@ -223,7 +225,7 @@ def parse_interval(text: Optional[str], option: str, *, angle: bool, example: st
             "on either end or both (it applies to the whole range)"
         )
     scale = math.pi / 180 if explicit == ["deg"] else 1.0  # the factor parse_scalar uses for 'deg'
-    if angle and not explicit and _TURN < max(abs(e) for e in ends) <= MAX_ANGLE:  # beyond: refused as absurd below
+    if angle and turn and not explicit and _TURN < max(abs(e) for e in ends) <= MAX_ANGLE:  # beyond: refused as absurd below
         plain = ":".join(part.strip() for part in text.split(":"))
         raise UsageError(f"{option}: {plain + tail!r} has no unit, so it would be radians beyond one turn; write "
                          f"{plain}deg{tail} for degrees, or {plain}rad{tail} if radians are meant")

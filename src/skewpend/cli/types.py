@@ -184,7 +184,9 @@ class Offsets(ParamType):
         if len(parts) != 2:
             raise UsageError(f"{flag}: expected {self.metavar} (e.g. -90:90deg,-180:180deg), got {text!r}")
         where = [f"{flag} ({name})" if name else flag for name in self.names]
-        ranges = tuple(parse_interval(part, at, angle=True) for part, at in zip(parts, where))
+        # the unit rule for bare numbers beyond a turn where both are angles (a Window); an Offsets plane
+        # may hold speeds (rad/s), whose bare numbers beyond 2 pi are ordinary
+        ranges = tuple(parse_interval(part, at, angle=True, turn=self.within is not None) for part, at in zip(parts, where))
         for (lo, hi), at in zip(ranges, where):
             if not lo < hi:
                 raise UsageError(f"{at}: expected START < STOP, got {lo:.6g}:{hi:.6g}")
