@@ -27,7 +27,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Dict, List, Sequence, Tuple
+from collections.abc import Mapping
+from typing import Callable, Dict, List, Sequence, Tuple
 
 import sympy as sp
 
@@ -69,6 +70,32 @@ def _angle_value(x: float) -> sp.Expr:
         if not (sp.cos(exact).has(sp.cos) or sp.sin(exact).has(sp.sin)):
             return exact
     return sp.Float(x)
+
+
+class LazySteps(Mapping):
+    """The derivation's intermediate results (:attr:`EquationsOfMotion.steps`) as a read-only mapping whose
+    values are reduced when first read, then kept; in the specification's order.  It pickles as the plain
+    dict of every value."""
+
+    def __init__(self, thunks: Dict[str, Callable[[], sp.Basic]]) -> None:
+        self._thunks, self._values = dict(thunks), {}
+
+    def __getitem__(self, key: str) -> sp.Basic:
+        if key not in self._values:
+            self._values[key] = self._thunks[key]()  # KeyError for an unknown key, as a dict's
+        return self._values[key]
+
+    def __iter__(self):
+        return iter(self._thunks)
+
+    def __len__(self) -> int:
+        return len(self._thunks)
+
+    def __reduce__(self):
+        return (dict, (dict(self.items()),))
+
+    def __repr__(self) -> str:
+        return f"LazySteps({list(self._thunks)})"
 
 
 @dataclass(frozen=True)
@@ -164,7 +191,7 @@ class EquationsOfMotion:
         return tuple(sp.Eq(lhs[i], self.forcing[i]) for i in range(len(self.coordinates)))
 
     @cached_property
-    def steps(self) -> Dict[str, sp.Basic]:
+    def steps(self) -> Mapping:
         """The specification's intermediate results, in its order (world frame ``i, j, k``).
 
         Keys: ``P1``, ``e``, ``P``, ``omega2``, ``v_c``, ``Theta2``, ``T``, ``Pi``, and the
@@ -528,7 +555,7 @@ class _Context:
         return [x for c in self.coords for x in ((G[f"c_{c}"], 1), (G[f"s_{c}"], 0))]
 
     # -- intermediate results, world frame -------------------------------------------------------
-    def steps(self, eom: EquationsOfMotion) -> Dict[str, sp.Basic]:
+    def steps(self, eom: EquationsOfMotion) -> Mapping:
         if not hasattr(self, "R2"):
             return self.chain_steps(eom)
         alg = self.alg
@@ -538,23 +565,27 @@ class _Context:
         P = alg.matmul(P1, self.R2)
         omega1 = alg.scale(dphi, self.n1)
         omega2 = alg.add(omega1, alg.scale(dpsi, e))
-        a_vec = alg.matvec(P1, self.h)
-        c2_world = alg.matvec(P, self.c2)
-        v_c = alg.add(alg.cross(omega1, a_vec), alg.cross(omega2, c2_world))
-        Theta2 = alg.matmul(alg.matmul(P, self.I2), alg.transpose(P))
         fin = self.finish_matrix
-        return {
-            "P1": fin(P1),
-            "e": fin(e),
-            "P": fin(P),
-            "omega2": fin(omega2, keys=_SPEEDS),
-            "v_c": fin(v_c, keys=_SPEEDS),
-            "Theta2": fin(Theta2),
-            "T": eom.kinetic_energy,
-            "Pi": eom.potential_energy,
-            "M": eom.mass_matrix,
-            "f": eom.forcing,
-        }
+
+        def v_c():
+            a_vec = alg.matvec(P1, self.h)
+            c2_world = alg.matvec(P, self.c2)
+            return fin(alg.add(alg.cross(omega1, a_vec), alg.cross(omega2, c2_world)), keys=_SPEEDS)
+
+        # each step reduced when first read: the generated code reads P1, P, e and omega2 (rod ends,
+        # axes); v_c and Theta2 (a general body's P I2 P^T: half a minute of reduction) only the report
+        return LazySteps({
+            "P1": lambda: fin(P1),
+            "e": lambda: fin(e),
+            "P": lambda: fin(P),
+            "omega2": lambda: fin(omega2, keys=_SPEEDS),
+            "v_c": v_c,
+            "Theta2": lambda: fin(alg.matmul(alg.matmul(P, self.I2), alg.transpose(P))),
+            "T": lambda: eom.kinetic_energy,
+            "Pi": lambda: eom.potential_energy,
+            "M": lambda: eom.mass_matrix,
+            "f": lambda: eom.forcing,
+        })
 
     def chain_steps(self, eom: EquationsOfMotion) -> Dict[str, sp.Basic]:
         """A chain's intermediate results in the world frame: per link ``k`` its rotation tensor ``P{k}``
