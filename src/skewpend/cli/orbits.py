@@ -82,8 +82,8 @@ def orbit(
     from ..analysis.orbits import periodic_orbit
 
     guessed = any(v is not None for v in initial.values())
-    chain = _is_chain(model, config)
-    start = "--q0 --dq0" if chain else "--phi0 --psi0 --dphi0 --dpsi0"
+    run = resolve("orbit", config, parameters=model, initial=initial)  # the model, once: it spells its start
+    start = "--q0 --dq0" if run.is_chain else "--phi0 --psi0 --dphi0 --dpsi0"
     if mode is not None and (guessed or period is not None or rotation is not None):
         raise UsageError(f"--mode finds the orbit of a nonlinear normal mode; a guess ({start}, --period, --rotation) goes without it")
     if mode is not None and energy is None:
@@ -94,7 +94,6 @@ def orbit(
         from .simulate import check_plot
 
         check_plot(plot)
-    run = resolve("orbit", config, parameters=model, initial=initial)
     params = run.parameters()
     if mode is not None:
         with progress(f"continuing nonlinear normal mode {mode} up to {energy:g} J", "J", quiet) as bar:
@@ -181,22 +180,6 @@ def nnm(
         lines.append(f"plot          {plot}")
     sys.stdout.write("\n".join(lines).rstrip() + "\n")
     return result
-
-
-def _is_chain(model: dict, config) -> bool:
-    """Whether the command runs a chain of links (--links, or a run file's [[links]] / [chain]): for its messages only."""
-    if model.get("links") is not None:
-        return True
-    if config is None:
-        return False
-    try:
-        import tomllib
-
-        with open(config, "rb") as fh:
-            data = tomllib.load(fh)
-    except (OSError, ValueError):
-        return False  # the run file's own check says what is wrong with it
-    return "links" in data or "chain" in data
 
 
 def _along_alpha(model, mode, alphas, energy, energy_max, resolution, orbits_at, out, plot, quiet, config):
