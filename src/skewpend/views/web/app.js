@@ -679,7 +679,11 @@ function screenOf(name) {
   // the pixel position (in the page) of the middle of a rod or a joint, for pointing at it
   const G = geometry();
   const at = { joint: G.t1, tip: G.t2 };
-  G.tips.forEach((end, k) => { at[`rod${k + 1}`] = (k === 0 ? G.o : G.tips[k - 1]).clone().lerp(end, 0.6); });
+  G.tips.forEach((end, k) => {
+    const pivot = k === 0 ? G.o : G.tips[k - 1];
+    at[`rod${k + 1}`] = pivot.clone().lerp(end, 0.6);
+    at[`hinge${k + 1}`] = pivot; // where rod k + 1 hangs from
+  });
   return view.toPage(at[name]);
 }
 window.explorer = {
