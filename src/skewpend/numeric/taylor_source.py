@@ -239,6 +239,21 @@ def _forms(ex):
     yield from _horner_forms(expanded, sorted(gens, key=sp.default_sort_key))
 
 
+def _large_forms(ex):
+    """The forms tried for large M and f (:data:`SEARCH_OPS`): the derivation's and the plain nested one."""
+    forms = _forms(ex)
+    yield next(forms)
+    expanded = next(forms)
+    gens = set()
+    for e in expanded:
+        gens |= {a for a in e.atoms(sp.sin, sp.cos) if a.free_symbols & {SYMBOLS["phi"], SYMBOLS["psi"]}}
+    gens |= {SYMBOLS["dphi"], SYMBOLS["dpsi"]}
+    try:
+        yield _horner(expanded, sorted(gens, key=sp.default_sort_key))
+    except sp.PolynomialError:
+        return
+
+
 def _horner(exprs, gens, protect=()):
     """``exprs`` (polynomials in ``gens`` with constant coefficients) in a nested form: each one
     split greedily as ``g * Q + R`` by the generator ``g`` in the most of its terms (then ``Q`` and
@@ -330,9 +345,23 @@ def _horner_forms(expanded, gens):
             return
 
 
+#: Above this many operations in M and f (:func:`sympy.count_ops`, the derivation's form) only the
+#: derivation's form and the plain nested one (:func:`_horner`, nothing protected) are tried: each form
+#: costs a common-subexpression pass of seconds at that size, and for bodies whose values are symbols
+#: (a general rigid body: 6,434 operations) the collected forms cost 7-26x the series products of the
+#: nested one and the protected nested forms 1.0-1.4x (measured on tests/golden's skewed rigid body:
+#: the derivation's 67.5, expanded 369.5, collected 109.5-382.5, nested 14.5, protected 16.5-20; the
+#: search took 90 s of its kernel's 100 s, now 10 s).  Thin rods and numeric bodies (under 2,000) search all.
+SEARCH_OPS = 3000
+
+
 def _graph(ex):
     best = None
-    for main in _forms(ex):
+    main0 = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1], ex.f[0], ex.f[1]]
+    forms = _forms(ex)
+    if sum(sp.count_ops(e) for e in main0) > SEARCH_OPS:
+        forms = _large_forms(ex)
+    for main in forms:
         built = _build(ex, main)
         if best is None or built[0].cost < best[0].cost:
             best = built
