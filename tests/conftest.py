@@ -38,7 +38,7 @@ def reference_state():
 #: examples (a page's examples run in reading order, each after the ones above it, so a quick selection
 #: of them would run the slow ones anyway).
 SLOW_MODULES = {"test_report_browser.py", "test_explorer_browser.py", "test_widget_browser.py", "test_report.py",
-                "test_chain_report.py",
+                "test_chain_report.py", "test_chain_explorer.py",
                 "test_readme.py", "test_docs.py"}
 
 

@@ -282,6 +282,7 @@ def test_a_mode_button_starts_that_mode(opened):
 
 def test_dragging_rod_one_sets_phi0(opened):
     opened.pause()
+    opened.page.click("#reset")  # drawn at the start, not where the motion had got to: the drag turns the drawn rod
     before = opened.state()["values"]["phi0"]
     start = opened.page.evaluate("() => window.explorer.screenOf('rod1')")
     opened.page.mouse.move(start["x"], start["y"])
@@ -317,6 +318,7 @@ def test_dragging_rod_two_sets_psi0_about_the_skewed_axis(opened):
         opened.set_slider(key, value)
     p = opened
     p.pause()
+    p.page.click("#reset")
     # the layout settled (fonts in, two frames drawn) before the rod's place on screen is read:
     # under load a late font swap moved the canvas after it was read
     p.page.evaluate("() => document.fonts.ready.then(() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r))))")
