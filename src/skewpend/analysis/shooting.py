@@ -362,6 +362,11 @@ def _linearise(model: _Model, seg: Segments, y0, beta, alpha, free_idx, alpha_fr
     """Residuals and the accumulated Gauss-Newton blocks per segment (``n2 = 2 nq`` start values):
     ``e`` (S, L+1, nq), ``Hll`` (S, n2, n2), ``Hlg`` (S, n2, p), ``Hgg`` (S, p, p), ``gl`` (S, n2), ``gg`` (S, p)."""
     p, G = model.point(beta, alpha, free_idx, alpha_free)
+    return _linearise_at(model, seg, y0, p, G, frame)
+
+
+def _linearise_at(model: _Model, seg: Segments, y0, p, G, frame=None):
+    """:func:`_linearise` at the kernel's parameters ``p``, with ``G = dp/dtheta``."""
     q, J = model.shoot(seg, y0, p, G)
     w = seg.mask[:, :, None]
     e = (q - seg.q) * w
@@ -612,3 +617,245 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
                        rms_piece=rms, ssr_piece=sq, iterations=it, converged=converged, message=message,
                        seconds=time.perf_counter() - t_start, segments=len(seg), step=seg.h, correlation=corr,
                        sandwich_half=sand, bootstrap_half=boot, newton_step=step, ssr_cluster=sq_cl)
+
+
+# -- the fit constrained to physical bodies ---------------------------------------------------------------------
+_TRIL = tuple(zip(*np.tril_indices(4)))
+
+
+def pseudo_inertia(m: float, h, J) -> np.ndarray:
+    """A body's 4 x 4 pseudo-inertia ``[[S, h], [h^T, m]]`` (``S = int r r^T dm = tr(J)/2 E - J``, about the
+    hinge, as ``h`` and ``J``): positive semi-definite exactly when the body is physical -- mass >= 0, every
+    moment about the centre of mass >= 0 and at most the sum of the other two (Wensing, Kim and Slotine 2017,
+    "Linear matrix inequalities for physically consistent inertial parameter identification")."""
+    J = _full(J) if np.ndim(J) == 1 else np.asarray(J, float)
+    P = np.empty((4, 4))
+    P[:3, :3] = 0.5 * np.trace(J) * np.eye(3) - J
+    P[:3, 3] = P[3, :3] = np.asarray(h, float)
+    P[3, 3] = float(m)
+    return P
+
+
+def _body_of(P: np.ndarray):
+    """``(m, h, J packed)`` of a pseudo-inertia (the inverse of :func:`pseudo_inertia`; linear in ``P``)."""
+    S = P[:3, :3]
+    return P[3, 3], P[:3, 3].copy(), _packed(np.trace(S) * np.eye(3) - S)
+
+
+class _Physical:
+    """``theta -> pi``: each body's pseudo-inertia ``L L^T`` (``L`` lower triangular, its 10 entries in
+    ``theta``: every ``L`` gives a physical body, and every physical body, the semi-definite edge included --
+    a thin rod's zero moment about its axis -- is some ``L L^T``), then the joint terms (damping, Coulomb
+    friction, rotor inertia: held at >= 0 by the step), then ``alpha`` when freed."""
+
+    def __init__(self, model: _Model, alpha_free: bool):
+        self.model = model
+        self.bodies = [(k, list(hk), list(Jk)) for k, hk, Jk, _, _ in model.bodies]
+        in_body = {j for k, hk, Jk in self.bodies for j in [k, *hk, *Jk]}
+        self.scalars = [j for j in range(len(model.pi_names)) if j not in in_body]
+        self.alpha_free = alpha_free and model.i_alpha is not None
+        self.n = 10 * len(self.bodies) + len(self.scalars) + (1 if self.alpha_free else 0)
+
+    def theta_of(self, pi: np.ndarray, alpha: float, edge: float = 1e-8) -> np.ndarray:
+        """``theta`` of a physical ``pi``: each pseudo-inertia's eigenvalues raised to at least ``edge`` of
+        its largest (a Cholesky factor needs them > 0; the body moves by that fraction) and factored."""
+        out = []
+        for k, hk, Jk in self.bodies:
+            w, V = np.linalg.eigh(pseudo_inertia(pi[k], pi[hk], pi[Jk]))
+            w = np.maximum(w, edge * max(float(w.max()), 1e-300))
+            L = np.linalg.cholesky((V * w) @ V.T)
+            out += [L[i, j] for i, j in _TRIL]
+        out += [max(float(pi[j]), 0.0) for j in self.scalars]
+        if self.alpha_free:
+            out.append(float(alpha))
+        return np.array(out, float)
+
+    def pi_of(self, theta: np.ndarray, alpha: float):
+        """``(pi, alpha, dpi/dtheta)`` (the last column of the derivative is zero when alpha is freed: ``pi``
+        does not move with it)."""
+        n_pi = len(self.model.pi_names)
+        pi = np.zeros(n_pi)
+        D = np.zeros((n_pi, self.n))
+        for b, (k, hk, Jk) in enumerate(self.bodies):
+            L = np.zeros((4, 4))
+            for v, (i, j) in zip(theta[10 * b:10 * b + 10], _TRIL):
+                L[i, j] = v
+            m, h, J = _body_of(L @ L.T)
+            pi[k], pi[hk], pi[Jk] = m, h, J
+            for c, (i, j) in enumerate(_TRIL):
+                E = np.zeros((4, 4))
+                E[i, j] = 1.0
+                dm, dh, dJ = _body_of(E @ L.T + L @ E.T)
+                col = 10 * b + c
+                D[k, col], D[hk, col], D[Jk, col] = dm, dh, dJ
+        off = 10 * len(self.bodies)
+        for c, j in enumerate(self.scalars):
+            pi[j] = theta[off + c]
+            D[j, off + c] = 1.0
+        if self.alpha_free:
+            alpha = float(theta[-1])
+        return pi, alpha, D
+
+    def point(self, theta: np.ndarray, alpha: float):
+        """The kernel's ``p`` and ``G = dp/dtheta`` (``pi`` itself, not a representative: it is a body)."""
+        pi, alpha, Dpi = self.pi_of(theta, alpha)
+        p, D = self.model.p_of(pi, alpha)
+        G = D @ Dpi
+        if self.alpha_free:
+            G[self.model.i_alpha, -1] = 1.0
+        return p, np.ascontiguousarray(G), pi, alpha
+
+    def beta(self, pi: np.ndarray, alpha: float) -> np.ndarray:
+        m = self.model
+        return np.concatenate([m.T(alpha) @ pi[:m.n_pi], pi[m.n_pi:]])
+
+
+@dataclass
+class PhysicalFit:
+    """What :func:`fit_physical` returns: the standard parameters ``pi`` of a physical model (every body's
+    pseudo-inertia positive semi-definite, the joint terms >= 0), its ``alpha``, base parameters ``beta``, the
+    shooting nodes ``y0`` and its own ``cost`` (sum of squared angle residuals)."""
+
+    pi: np.ndarray
+    alpha: float
+    beta: np.ndarray
+    y0: np.ndarray
+    cost: float
+    iterations: int
+    converged: bool
+    message: str
+    seconds: float
+
+
+def fit_physical(terms, params0, pi0: np.ndarray, alpha0: float, alpha_free: bool, seg: Segments, y0: np.ndarray, *,
+                 held: Sequence[int] = (), reference: Optional[int] = None, max_iterations: int = 100,
+                 tol: float = 1e-10, alpha_bounds: Tuple[float, float] = (-math.pi / 2, math.pi / 2),
+                 frame: Optional[np.ndarray] = None, tol_cost: float = 0.0) -> PhysicalFit:
+    """The output-error fit of :func:`fit` over the physical models only: Levenberg-Marquardt (the shooting
+    nodes eliminated per segment as there) in the parametrisation of :class:`_Physical`, so that every iterate
+    is a physical body and no estimate has to be projected onto one.  ``pi0``: a physical start (its
+    standard parameters with the joint terms after them, as :class:`_Model`'s ``pi_ref``), ``y0`` the
+    shooting nodes' start.  The base parameters ``held`` (indices into ``terms.names``) stay at ``pi0``'s
+    (a stiff penalty, exact to about 1e-9 of their size); a free swing's ``reference`` is kept exactly by
+    scaling the whole model (a free swing's cost does not depend on the scale).  The parametrisation is
+    redundant (more entries than base parameters): the damping keeps the step finite along the
+    directions the equations do not see, and any point of them is a physical model.  It stops when an
+    iteration lowers the cost by less than ``tol`` of it or by at most ``tol_cost`` [rad^2]."""
+    t_start = time.perf_counter()
+    model = _Model(terms, params0)
+    phys = _Physical(model, alpha_free)
+    theta = phys.theta_of(np.asarray(pi0, float), alpha0)
+    alpha = float(alpha0)
+    y0 = np.array(y0, dtype=float)
+    pi_start, a_start, _ = phys.pi_of(theta, alpha)
+    target = phys.beta(pi_start, a_start)
+    nb = 10 * len(phys.bodies)
+    lower = np.full(phys.n, -np.inf)
+    lower[nb:nb + len(phys.scalars)] = 0.0
+    upper = np.full(phys.n, np.inf)
+    # a held joint term (a base parameter that is one scalar: c1 ...) is held by its bounds; the others by a penalty
+    scalar_names = [model.pi_names[j] for j in phys.scalars]
+    held = [int(k) for k in held if k != reference]
+    for k in list(held):
+        if model.names[k] in scalar_names:
+            c = nb + scalar_names.index(model.names[k])
+            lower[c] = upper[c] = theta[c]
+            held.remove(k)
+    if phys.alpha_free:
+        lower[-1], upper[-1] = alpha_bounds
+
+    def rescale(th):
+        """A free swing: the whole model scaled so that the reference is the start's (pi is linear in L L^T)."""
+        if reference is None:
+            return th
+        pi, al, _ = phys.pi_of(th, alpha)
+        k = target[reference] / phys.beta(pi, al)[reference]
+        if not (math.isfinite(k) and k > 0):
+            return th
+        out = th.copy()
+        out[:nb] *= math.sqrt(k)
+        out[nb:nb + len(phys.scalars)] *= k
+        return out
+
+    def penalty(th):
+        """Residuals (and their derivative in theta) holding the base parameters ``held``."""
+        if not held:
+            return np.zeros(0), np.zeros((0, phys.n))
+        pi, al, Dpi = phys.pi_of(th, alpha)
+        T = model.T(al)
+        Tx = np.zeros((len(target), len(pi)))
+        Tx[:model.r0, :model.n_pi] = T
+        Tx[model.r0:, model.n_pi:] = np.eye(len(pi) - model.n_pi)
+        r = (Tx @ pi - target)[held]
+        dr = (Tx @ Dpi)[held]
+        if phys.alpha_free and model._dT is not None:
+            dT = np.array(model._dT(model.a, al, model.g), float).reshape(model.r0, model.n_pi)
+            dTx = np.zeros_like(Tx)
+            dTx[:model.r0, :model.n_pi] = dT
+            dr[:, -1] = (dTx @ pi)[held]
+        return w_pen * r, w_pen[:, None] * dr
+
+    def data_cost(th, y):
+        p, _, _, _ = phys.point(th, alpha)
+        with np.errstate(all="ignore"):
+            q = model.shoot(seg, y, p)[0]
+        resid = (q - seg.q) * seg.mask[:, :, None]
+        return float(np.sum((resid if frame is None else resid @ np.asarray(frame).T) ** 2))
+
+    theta = rescale(theta)
+    p, G, _, _ = phys.point(theta, alpha)
+    e, Hll, Hlg, Hgg, gl, gg = _linearise_at(model, seg, y0, p, G, frame)
+    cost = float(np.sum(e**2))
+    if not math.isfinite(cost):
+        raise FloatingPointError("the physical start's simulation is not finite")
+    # a deviation of 1e-6 of a held base parameter's size (at least 1e-6 of the largest) costs as much as the
+    # whole output error
+    scale_h = np.maximum(np.abs(target[held]), 1e-6 * max(float(np.abs(target).max()), 1e-300)) if held else np.zeros(0)
+    w_pen = math.sqrt(max(cost, 1e-300)) / (1e-6 * scale_h) if held else np.zeros(0)
+    rp, dp_ = penalty(theta)
+    total = cost + float(rp @ rp)
+    lam, converged, message, it = 1e-3, False, "", 0
+    for it in range(1, max_iterations + 1):
+        accepted = False
+        while lam < 1e12:
+            Sred, gred, Ainv, AinvB = _reduce(Hll, Hlg, Hgg, gl, gg, lam)
+            Ssum = Sred.sum(0) + dp_.T @ dp_
+            gsum = gred.sum(0) + dp_.T @ rp
+            dgg = np.diag(Hgg.sum(0))  # (the floor on the data's scale: a penalty's stiffness would freeze the rest)
+            dgg = np.maximum(dgg, 1e-9 * max(float(dgg.max()), 1e-300)) + np.diag(dp_.T @ dp_)
+            Ssum = Ssum + lam * np.diag(dgg)
+            try:
+                dg = -np.linalg.solve(Ssum, gsum)
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            dl = -np.einsum("sab,sb->sa", Ainv, gl) - np.einsum("sab,b->sa", AinvB, dg)
+            new_theta = rescale(np.clip(theta + dg, lower, upper))
+            new_y0 = y0 + dl
+            new_cost = data_cost(new_theta, new_y0)
+            rp_new, _ = penalty(new_theta)
+            new_total = new_cost + float(rp_new @ rp_new)
+            if math.isfinite(new_total) and new_total < total:
+                accepted = True
+                break
+            lam *= 10
+        if not accepted:
+            converged, message = True, "no step lowers the cost (a local minimum or the limit of rounding)"
+            break
+        rel = (total - new_total) / max(total, 1e-300)
+        gain = total - new_total
+        theta, y0 = new_theta, new_y0
+        lam = max(lam / 10, 1e-12)
+        p, G, _, _ = phys.point(theta, alpha)
+        e, Hll, Hlg, Hgg, gl, gg = _linearise_at(model, seg, y0, p, G, frame)
+        cost = float(np.sum(e**2))
+        rp, dp_ = penalty(theta)
+        total = cost + float(rp @ rp)
+        if rel < tol or gain <= tol_cost:
+            converged, message = True, "converged"
+            break
+    else:
+        message = f"not converged in {max_iterations} iterations"
+    pi, alpha_hat, _ = phys.pi_of(theta, alpha)
+    return PhysicalFit(pi=pi, alpha=float(alpha_hat), beta=phys.beta(pi, alpha_hat), y0=y0, cost=cost, iterations=it,
+                       converged=converged, message=message, seconds=time.perf_counter() - t_start)
