@@ -355,16 +355,24 @@ def _horner_forms(expanded, gens):
 SEARCH_OPS = 3000
 
 
+#: The form chosen for each M and f (the search's result does not depend on the order: a second order
+#: of the same bodies in this process builds that form alone).
+_CHOSEN: Dict[Tuple, list] = {}
+
+
 def _graph(ex):
-    best = None
-    main0 = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1], ex.f[0], ex.f[1]]
+    main0 = (ex.M[0, 0], ex.M[0, 1], ex.M[1, 1], ex.f[0], ex.f[1], ex.Q[0], ex.Q[1])
+    if main0 in _CHOSEN:
+        return _build(ex, _CHOSEN[main0])
+    best, chosen = None, None
     forms = _forms(ex)
-    if sum(sp.count_ops(e) for e in main0) > SEARCH_OPS:
+    if sum(sp.count_ops(e) for e in main0[:5]) > SEARCH_OPS:
         forms = _large_forms(ex)
     for main in forms:
         built = _build(ex, main)
         if best is None or built[0].cost < best[0].cost:
-            best = built
+            best, chosen = built, main
+    _CHOSEN[main0] = chosen
     return best
 
 
