@@ -18,7 +18,7 @@ from skewpend.analysis.measurements import Piece
 from skewpend.status import Status
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_identify import kaheman_parameters  # noqa: E402
+from test_identify import chi2_bound, kaheman_parameters  # noqa: E402
 
 ALPHA = math.radians(20.0)
 NOISE = 5e-4
@@ -98,7 +98,8 @@ def test_one_recording_skew_angle_intervals_cover_the_truth():
     interval had zero width here.  bench_identify.py --only onefile runs 20 seeds through the CLI;
     here four seeds: each interval has a positive width below 1 deg and covers 20 deg (the chance
     that a correct 95 % interval misses in at least one of four is 19 %: the seeds are fixed and were
-    checked; a miss would be a change of the method, to be judged against the benchmark's 20)."""
+    checked; a miss would be a change of the method, to be judged against the benchmark's 20).  The
+    model returned misses the angles by the noise (identify.consistency's chi-square test)."""
     for seed in range(4):
         truth, M = _one_recording(20.0, seed)
         r = identify(M, kaheman_parameters(), free=["alpha"], bootstrap=50, seed=seed)
@@ -110,3 +111,6 @@ def test_one_recording_skew_angle_intervals_cover_the_truth():
         # the profile's minimum is the estimate (the fit's own point is in it; mirrored: alpha0 = 0)
         k = int(np.argmin(r.profile_cost))
         assert abs(r.profile_alpha[k]) == pytest.approx(r.alpha, abs=1e-12)
+        # the model returned misses the angles by the noise (chi-square test; measured 0.98-1.00 times: a
+        # fit over physical bodies where the estimate is none or on the mirror side; before, up to 2.4 times)
+        assert r.stats["output_error"] <= chi2_bound(r.stats["residuals"]) * r.stats["noise"], (seed, r.message)
