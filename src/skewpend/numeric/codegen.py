@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import dataclass
+from functools import cached_property, lru_cache
 from typing import Callable, List, Sequence, Tuple
 
 import sympy as sp
@@ -59,40 +59,59 @@ parameter_vector = scalar_vector
 
 
 # -- the expressions to print -------------------------------------------------------------------
-@dataclass(frozen=True)
 class _Expressions:
-    M: sp.Matrix  # 2x2
-    f: sp.Matrix  # 2x1
-    T: sp.Expr
-    Pi: sp.Expr
-    Q: sp.Matrix  # 2x1 generalised non-potential forces
-    dT_dq: sp.Matrix  # 2x1, partial derivative of T in q at fixed speeds
-    dPi_dq: sp.Matrix
-    df_dy: sp.Matrix  # 2x4
-    dM_dq: Tuple[sp.Matrix, sp.Matrix]
-    tips: sp.Matrix  # 6x1: rod 1's end a j and rod 2's end, world frame
-    axes: sp.Matrix  # 6x1: hinge 1's axis and hinge 2's current axis e = P1 . e0, world frame
+    """What the printers read of one derivation: M, f, T, Pi and Q at once; the derivatives (``dT_dq``,
+    ``dPi_dq``, ``df_dy``, ``dM_dq``), the rod ends and the hinge axes when first read (a Taylor kernel
+    reads none of them: for a general body their differentiation was 4 of its 11 s)."""
+
+    def __init__(self, eom):
+        self._eom = eom
+        # immutable: one derivation is shared by every printer of the process (expressions' cache)
+        self.M = sp.ImmutableMatrix(eom.mass_matrix)  # 2x2
+        self.f = sp.ImmutableMatrix(eom.forcing)  # 2x1
+        self.T: sp.Expr = eom.kinetic_energy
+        self.Pi: sp.Expr = eom.potential_energy
+        self.Q = sp.ImmutableMatrix(eom.generalized_forces)  # 2x1 generalised non-potential forces
+
+    @cached_property
+    def dT_dq(self) -> sp.Matrix:  # 2x1, partial derivative of T in q at fixed speeds
+        return sp.ImmutableMatrix([self.T.diff(x) for x in _q()])
+
+    @cached_property
+    def dPi_dq(self) -> sp.Matrix:
+        return sp.ImmutableMatrix([self.Pi.diff(x) for x in _q()])
+
+    @cached_property
+    def df_dy(self) -> sp.Matrix:  # 2x4
+        return sp.ImmutableMatrix(self.f.jacobian(_q() + _dq()))
+
+    @cached_property
+    def dM_dq(self) -> Tuple[sp.Matrix, sp.Matrix]:
+        q = _q()
+        return (sp.ImmutableMatrix(self.M.diff(q[0])), sp.ImmutableMatrix(self.M.diff(q[1])))
+
+    @cached_property
+    def tips(self) -> sp.Matrix:  # 6x1: rod 1's end a j and rod 2's end, world frame
+        return sp.ImmutableMatrix(_tips(self._eom))
+
+    @cached_property
+    def axes(self) -> sp.Matrix:  # 6x1: hinge 1's axis and hinge 2's current axis e = P1 . e0, world frame
+        return sp.ImmutableMatrix(sp.Matrix.vstack(self._eom.steps["omega2"].diff(_dq()[0]), self._eom.steps["e"]))  # omega2 = phi' n1 + psi' e
 
 
+def _q():
+    return [SYMBOLS["phi"], SYMBOLS["psi"]]
+
+
+def _dq():
+    return [SYMBOLS["dphi"], SYMBOLS["dpsi"]]
+
+
+@lru_cache(maxsize=16)
 def expressions(geometry: Parameters) -> _Expressions:
-    eom = derive(geometry)
-    s = SYMBOLS
-    q = [s["phi"], s["psi"]]
-    dq = [s["dphi"], s["dpsi"]]
-    Q = eom.generalized_forces
-    return _Expressions(
-        M=eom.mass_matrix,
-        f=eom.forcing,
-        T=eom.kinetic_energy,
-        Pi=eom.potential_energy,
-        Q=Q,
-        dT_dq=sp.Matrix([eom.kinetic_energy.diff(x) for x in q]),
-        dPi_dq=sp.Matrix([eom.potential_energy.diff(x) for x in q]),
-        df_dy=eom.forcing.jacobian(q + dq),
-        dM_dq=(eom.mass_matrix.diff(q[0]), eom.mass_matrix.diff(q[1])),
-        tips=_tips(eom),
-        axes=sp.Matrix.vstack(eom.steps["omega2"].diff(dq[0]), eom.steps["e"]),  # omega2 = phi' n1 + psi' e
-    )
+    """The derivation of ``geometry`` for the printers, once per process and bodies (a model's kernel,
+    its Taylor orders and its JavaScript read the same one)."""
+    return _Expressions(derive(geometry))
 
 
 def _tips(eom) -> sp.Matrix:
