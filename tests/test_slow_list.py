@@ -14,7 +14,7 @@ def test_every_entry_names_a_test_function_that_exists():
         if not line.strip() or line.startswith("#"):
             continue
         seconds, node = line.split(None, 1)
-        float(seconds.rstrip("qofn"))  # the measured seconds, with their source letter
+        float(seconds.rstrip("qofnd"))  # the measured seconds, with their source letter
         path, _, name = node.strip().partition("::")
         function = re.sub(r"\[.*\]$", "", name)
         source = HERE.parent / path
