@@ -942,13 +942,14 @@ def chain_terms(chain) -> ChainTerms:
     return result
 
 
-def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False):
+def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False, as_is: bool = False):
     """The chain whose standard parameters are ``pi`` (bodies through ``c = h/m``, ``I_c = J - (|h|^2 E -
     h h^T)/m``); one ParameterError when a body is no body.  The entries of ``J`` that do not enter the
     equations (:attr:`ChainTerms.unidentifiable`) are set so that the inertia about the centre of mass
     keeps ``chain0``'s there (a rod's moment about its normal ``x`` moves with the one about ``z``).
     ``project``: each inertia about the centre of mass replaced by the nearest physical one (negative
-    principal moments raised to 0, then the two smaller raised alike to meet the triangle inequality)."""
+    principal moments raised to 0, then the two smaller raised alike to meet the triangle inequality).
+    ``as_is``: every entry ``pi``'s own (a body the fit over physical bodies made)."""
     from ..numeric.conventions import TENSOR_ENTRIES, TENSOR_INDICES
 
     at = dict(zip(terms.pi_names, pi))
@@ -958,7 +959,7 @@ def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False):
         h = np.array([at[f"h{i}{x}"] for x in "xyz"])
         shift = (float(h @ h) * np.eye(3) - np.outer(h, h)) / m
         J = np.zeros((3, 3))
-        held = {e for e in TENSOR_ENTRIES if f"J{i}{e}" in terms.unidentifiable}
+        held = set() if as_is else {e for e in TENSOR_ENTRIES if f"J{i}{e}" in terms.unidentifiable}
         for e, (r, c) in zip(TENSOR_ENTRIES, TENSOR_INDICES):
             J[r, c] = J[c, r] = at[f"J{i}{e}"]
         Ic = J - shift
@@ -986,7 +987,8 @@ def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False):
     return replace(chain0, links=tuple(links))
 
 
-def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray, halves: Optional[np.ndarray] = None):
+def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray, halves: Optional[np.ndarray] = None,
+                   start: bool = False):
     """A physical chain with the base parameters ``beta``: ``chain0``'s masses first; else the masses
     that do not enter the equations at all (the first link's, whose first moment and inertia about its
     fixed hinge say everything) scaled by the factor nearest to 1 that realises it (81 factors from 1/5
@@ -994,7 +996,8 @@ def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray,
     they are lumped into the first moments and inertias; the base parameters are kept exactly).  A body on the edge of the physical (a slender rod: no
     moment about its own axis) may land a little outside: then the nearest physical bodies, accepted
     when they move no base parameter both by more than 1 % and beyond its 95 % half-width ``halves``
-    (the note says by how much).  Returns ``(chain, note)``, or ``(None, why)``."""
+    (the note says by how much); ``start``: the nearest physical bodies whatever they move (the start of
+    the fit over physical bodies, not a model).  Returns ``(chain, note)``, or ``(None, why)``."""
     pi = terms.representative(beta, pi0)
     for j, name in enumerate(terms.pi_names):  # the joints' terms do not move with the masses
         stem = name.rstrip("0123456789")
@@ -1034,7 +1037,7 @@ def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray,
             best = (chain, rel, moved)
     chain, rel, moved = best
     over = [terms.names[j] for j in range(len(beta)) if rel[j] > 0.01 and abs(moved[j]) > half[j]]
-    if not over:
+    if not over or start:
         return chain, (f"the estimate lies just outside the physical bodies ({first}); the model is the nearest "
                        f"physical body (base parameters moved by at most {100 * float(rel.max()):.2g} %)")
     return None, first if last == first else f"{first} (with the masses scaled x{factors[-1]:g}: {last})"
@@ -1112,12 +1115,36 @@ def _identify_chain(measurements, chain0, *, free, validation, method, smoothing
         intervals[names.index(ref)] = (math.nan, math.nan)
         ratios, ratio_iv = _ratios(names, values, intervals, ref, half)
     status, message = Status.SUCCESS, "identified (output error, multiple shooting)"
-    fitted, note = _realise_chain(chain0, terms, values, pi0, halves)
+    fitted, note = _realise_chain(chain0, terms, values, pi0, halves, start=True)
+    if fitted is not None and "nearest physical body" in note:
+        # no physical chain has the estimate's base parameters (thin rods on the edge): the nearest one starts
+        # the output-error fit over physical bodies only, whose estimate is the model (see _output_error)
+        frame = shooting.angle_frame(chain0.n, angles)
+        n_res = float(seg.mask.sum()) * seg.q.shape[2]
+        try:
+            phys = shooting.fit_physical(terms, chain0, terms.standard(fitted), 0.0, False, seg, sf.y0,
+                                         held=[names.index(n) for n in names if n not in sf.theta_names and n != ref],
+                                         reference=names.index(ref) if ref else None, frame=frame,
+                                         tol_cost=1e-3 * _allowance(n_res) * n_res * angle_noise(measurements) ** 2)
+            fitted = _chain_of(chain0, terms, phys.pi, as_is=True)
+        except (FloatingPointError, ParameterError, np.linalg.LinAlgError) as exc:
+            fitted, note = None, f"{note.split(';')[0]}; the fit over physical bodies failed: {exc}"
+        else:
+            settings["physical_fit"] = {"iterations": phys.iterations, "converged": phys.converged,
+                                        "message": phys.message, "seconds": phys.seconds}
+            intervals = phys.beta[:, None] + (intervals - values[:, None])
+            values = np.asarray(phys.beta, float)
+            if homogeneous:
+                ratios, ratio_iv = _ratios(names, values, intervals, ref, half)
+            excess = physical_excess(phys.cost, float(sf.cost), seg, measurements)
+            note = excess.text
+            if not excess.ok:
+                status, message = Status.NO_CONVERGENCE, excess.text
     if fitted is None:
         status, message = Status.NO_CONVERGENCE, f"the output-error estimate is not physical: {note}"
-    elif note:
+    elif note and status is Status.SUCCESS:
         message += f"; {note}"
-    if fitted is not None and "nearest physical body" not in note:
+    if fitted is not None and status is Status.SUCCESS:
         check = terms.values(terms.standard(fitted))
         if np.abs(check - values).max() > 1e-9 * np.abs(values).max():
             status, message, fitted = Status.NO_CONVERGENCE, "the fitted chain does not reproduce the estimate", None
