@@ -43,6 +43,12 @@ optimum: the sandwich is too narrow with few clusters), and each half-width is t
 recording), the clusters are blocks of consecutive segments instead of pieces
 (:func:`skewpend.analysis.identify.clusters`, the ``cluster`` argument of :func:`fit`).  A direction whose reduced
 curvature is below :data:`FLAT` of the largest (column-scaled) is undetermined: it gets no interval.
+
+Physical bodies: the fit above is in the base parameters, and its estimate may be no body at all (a
+slender rod is on the edge of the physical ones: no moment about its own axis).  :func:`fit_physical`
+runs the same Levenberg-Marquardt over physical models only: each body's 4 x 4 pseudo-inertia is
+``L L^T`` (``L`` lower triangular, :func:`pseudo_inertia`), so that every iterate is a body and every
+body, the semidefinite edge included, is reached (Wensing, Kim and Slotine 2017).
 """
 
 from __future__ import annotations
@@ -60,7 +66,7 @@ from ..numeric.conventions import TENSOR_INDICES
 from ..symbolic.model import Parameters
 
 __all__ = ["SEGMENT", "STEP", "FLAT", "STEP_HALF", "STALLED", "ShootingFit", "Segments", "segments", "fit", "angle_frame",
-           "start_cost"]
+           "start_cost", "fit_physical", "PhysicalFit", "pseudo_inertia"]
 
 #: Default length of a shooting segment [s].
 SEGMENT = 0.5
