@@ -1116,7 +1116,7 @@ def _identify_chain(measurements, chain0, *, free, validation, method, smoothing
         ratios, ratio_iv = _ratios(names, values, intervals, ref, half)
     status, message = Status.SUCCESS, "identified (output error, multiple shooting)"
     fitted, note = _realise_chain(chain0, terms, values, pi0, halves, start=True)
-    if fitted is not None and "nearest physical body" in note:
+    if fitted is not None and "nearest physical body" in note and sf.converged and not sf.flat:
         # no physical chain has the estimate's base parameters (thin rods on the edge): the nearest one starts
         # the output-error fit over physical bodies only, whose estimate is the model (see _output_error)
         frame = shooting.angle_frame(chain0.n, angles)
@@ -1342,7 +1342,14 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
                                            alpha_fit, g, held=held)
     except ParameterError as exc:
         fitted, why = None, exc
-    if why is not None or mirrored:
+    # the estimate is the best the data allow near here: where even it is no fit of the data (a wrong model, the
+    # data read wrongly), no physical model is either, and the fit over physical bodies is not run
+    seg.y0[:] = sf.y0
+    estimate = consistency(float(sf.cost), seg, measurements, frame)
+    hopeless = not (sf.converged and not sf.flat and estimate.ok)
+    if hopeless and why is not None:
+        unphysical = estimate.text if not estimate.ok else f"the output-error estimate is not physical: {why}"
+    if (why is not None or mirrored) and not hopeless:
         # no physical body has these base parameters (a slender rod is on the edge of the physical: no moment
         # about its own axis, and the estimate lands a little outside), or the model is the mirror image: the
         # output-error fit again over the physical bodies only, from the nearest one (a projection or a
