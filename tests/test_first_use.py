@@ -89,6 +89,24 @@ def test_the_background_build_is_started_once(tmp_path, monkeypatch):
     assert kernels.built_taylor_kernel(p, 12) is None  # nothing built: never built by the look-up
 
 
+def test_the_background_build_is_said_once_per_library(tmp_path, monkeypatch, capsys):
+    """Runs of one process that each find the library missing (identify's held-out pieces: eight) say the
+    background build once."""
+    from skewpend import reference_parameters, reference_state, simulate
+    from skewpend.numeric import kernels
+
+    monkeypatch.setenv("SKEWPEND_TAYLOR_BUILD", "background")
+    monkeypatch.delenv("SKEWPEND_QUIET", raising=False)
+    monkeypatch.setattr(kernels, "_ANNOUNCED", set())
+    monkeypatch.setattr(kernels, "built_taylor_kernel", lambda *a, **k: None)  # never built: every run asks
+    monkeypatch.setattr(kernels, "build_taylor_in_background", lambda *a, **k: True)  # a build runs
+    p, y0 = reference_parameters().replace(alpha=0.3), reference_state()
+    for _ in range(3):
+        assert simulate(p, y0, 0.5).method == "dop853"
+    err = capsys.readouterr().err
+    assert err.count("building the Taylor kernel of order 15 in the background") == 1, err
+
+
 def test_a_bad_setting_is_one_line(tmp_path):
     ran = run_process(["simulate", "--t-end", "1"], tmp_path, env={"SKEWPEND_CACHE_DIR": str(tmp_path / "cache"),
                                                                 "SKEWPEND_TAYLOR_BUILD": "later"})

@@ -74,7 +74,7 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     n_seg = _segments(max(nsteps, 1))
     t_mj, y_mj = mujoco_trajectory(params, y0, t_end, dt=dt, n_out=n_seg + 1)
     same = mujoco_compatible_chain(params) if chain else mujoco_compatible(params)
-    tr = simulate(same, y0, t_end, dt_out=t_end / n_seg, rtol=1e-12, atol=1e-12)
+    tr = simulate(same, y0, t_end, dt_out=t_end / n_seg, method="dop853", rtol=1e-12, atol=1e-12)  # as documented
     if not tr.success:
         raise IntegrationError(f"skewpend: {tr.message}")
     if tr.t.size != t_mj.size or not np.allclose(tr.t, t_mj, rtol=0, atol=1e-9 * max(1.0, t_end)):

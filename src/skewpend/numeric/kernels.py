@@ -799,15 +799,21 @@ def _announce(kind: str, cached: bool, which: str = "") -> None:
         pass
 
 
-def announce_background(what: str, meanwhile: str) -> None:
-    """One line on stderr when a library is built in the background (``SKEWPEND_QUIET=1`` silences it)."""
-    if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
+def announce_background(what: str, meanwhile: str, key: str = "") -> None:
+    """One line on stderr when a library is built in the background (``SKEWPEND_QUIET=1`` silences it),
+    once per process and library ``key`` (identify's held-out pieces asked eight times in one call)."""
+    if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0") or (key or what) in _ANNOUNCED:
         return
+    _ANNOUNCED.add(key or what)
     try:
         sys.stderr.write(f"skewpend: building {what} in the background (first use only; {meanwhile})\n")
         sys.stderr.flush()
     except (OSError, ValueError, AttributeError):
         pass
+
+
+#: The background builds said in this process (:func:`announce_background`).
+_ANNOUNCED: set = set()
 
 
 def _bodies_words(geometry) -> str:

@@ -643,7 +643,8 @@ def simulate(
                     method = "dop853"
                     settings["method_choice"] = AUTO_RULE["building"]
                     if K.build_taylor_in_background(params, order):
-                        K.announce_background(f"the Taylor kernel of order {order}", "this run uses dop853")
+                        K.announce_background(f"the Taylor kernel of order {order}" + K._bodies_words(params),
+                                              "this run uses dop853", key=K._taylor_key(params, order)[0])
             if tk is None and method == "taylor":
                 try:
                     tk = K.taylor_kernel(params, order, model=kernel)
