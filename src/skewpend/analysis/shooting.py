@@ -390,6 +390,24 @@ def _linearise_at(model: _Model, seg: Segments, y0, p, G, frame=None):
     return e, Hll, Hlg, Hgg, gl, gg
 
 
+def _damped_step(Hll, Hlg, Hgg, gl, gg, lam: float, floor: float, extra=None):
+    """One Levenberg-Marquardt step with the segments' start states eliminated (:func:`_reduce`): the
+    parameters' step ``dg`` and the starts' ``dl``, damped by ``lam`` times the diagonal of the parameters'
+    normal matrix (floored at ``floor`` times its largest entry); ``extra``: a penalty's normal matrix and
+    gradient ``(S, g)``, added to the system and to the damping's diagonal. None when singular."""
+    Sred, gred, Ainv, AinvB = _reduce(Hll, Hlg, Hgg, gl, gg, lam)
+    Ssum, gsum = Sred.sum(0), gred.sum(0)
+    dgg = np.diag(Hgg.sum(0))
+    dgg = np.maximum(dgg, floor * max(float(dgg.max()), 1e-300))
+    if extra is not None:
+        Ssum, gsum, dgg = Ssum + extra[0], gsum + extra[1], dgg + np.diag(extra[0])
+    try:
+        dg = -np.linalg.solve(Ssum + lam * np.diag(dgg), gsum)
+    except np.linalg.LinAlgError:
+        return None
+    return dg, -np.einsum("sab,sb->sa", Ainv, gl) - np.einsum("sab,b->sa", AinvB, dg)
+
+
 def _reduce(Hll, Hlg, Hgg, gl, gg, lam):
     """Eliminate each segment's start values: the reduced matrix and gradient per segment, and the
     factors to recover the local steps."""
@@ -508,16 +526,11 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
     for it in range(1, max_iterations + 1):
         accepted = False
         while lam < 1e12:
-            Sred, gred, Ainv, AinvB = _reduce(Hll, Hlg, Hgg, gl, gg, lam)
-            Ssum, gsum = Sred.sum(0), gred.sum(0)
-            dgg = np.diag(Hgg.sum(0))
-            Ssum = Ssum + lam * np.diag(np.maximum(dgg, 1e-12 * max(dgg.max(), 1e-300)))
-            try:
-                dg = -np.linalg.solve(Ssum, gsum)
-            except np.linalg.LinAlgError:
+            step = _damped_step(Hll, Hlg, Hgg, gl, gg, lam, 1e-12)
+            if step is None:
                 lam *= 10
                 continue
-            dl = -np.einsum("sab,sb->sa", Ainv, gl) - np.einsum("sab,b->sa", AinvB, dg)
+            dg, dl = step
             new_theta = theta + dg
             if alpha_free:
                 new_theta[-1] = min(max(new_theta[-1], alpha_bounds[0]), alpha_bounds[1])
@@ -824,18 +837,12 @@ def fit_physical(terms, params0, pi0: np.ndarray, alpha0: float, alpha_free: boo
     for it in range(1, max_iterations + 1):
         accepted = False
         while lam < 1e12:
-            Sred, gred, Ainv, AinvB = _reduce(Hll, Hlg, Hgg, gl, gg, lam)
-            Ssum = Sred.sum(0) + dp_.T @ dp_
-            gsum = gred.sum(0) + dp_.T @ rp
-            dgg = np.diag(Hgg.sum(0))  # (the floor on the data's scale: a penalty's stiffness would freeze the rest)
-            dgg = np.maximum(dgg, 1e-9 * max(float(dgg.max()), 1e-300)) + np.diag(dp_.T @ dp_)
-            Ssum = Ssum + lam * np.diag(dgg)
-            try:
-                dg = -np.linalg.solve(Ssum, gsum)
-            except np.linalg.LinAlgError:
+            # (the floor on the data's scale: a penalty's stiffness would freeze the rest)
+            step = _damped_step(Hll, Hlg, Hgg, gl, gg, lam, 1e-9, extra=(dp_.T @ dp_, dp_.T @ rp))
+            if step is None:
                 lam *= 10
                 continue
-            dl = -np.einsum("sab,sb->sa", Ainv, gl) - np.einsum("sab,b->sa", AinvB, dg)
+            dg, dl = step
             new_theta = rescale(np.clip(theta + dg, lower, upper))
             new_y0 = y0 + dl
             new_cost = data_cost(new_theta, new_y0)
