@@ -351,7 +351,8 @@ def _horner_forms(expanded, gens):
 #: (a general rigid body: 6,434 operations) the collected forms cost 7-26x the series products of the
 #: nested one and the protected nested forms 1.0-1.4x (measured on tests/golden's skewed rigid body:
 #: the derivation's 67.5, expanded 369.5, collected 109.5-382.5, nested 14.5, protected 16.5-20; the
-#: search took 90 s of its kernel's 100 s, now 10 s).  Thin rods and numeric bodies (under 2,000) search all.
+#: search took 90 s of its kernel's 100 s, now 10 s).  Thin rods, tilted axes, friction and an offset centre
+#: of mass (130-520 operations) search every form as before.
 SEARCH_OPS = 3000
 
 
