@@ -227,14 +227,14 @@ def test_lyapunov_flip_map_poincare_orbit_and_chaos_point(dynamics):
 
 
 # -- 3. identification ----------------------------------------------------------------------------------------
-def _same_fit(got: dict, case: str) -> None:
-    names = S["identify"][case]["names"]
+def _same_fit(got: dict, case: str, section: str = "identify") -> None:
+    names = S[section][case]["names"]
     assert list(got["names"]) == names, f"{case}: base parameters {got['names']}, golden {names}"
     for key, hw_key, label in (("values", "half_width", "names"), ("ratios", "ratio_half_width", "ratio_names")):
-        if key not in S["identify"][case]:
+        if key not in S[section][case]:
             continue
-        labels = S["identify"][case][label]
-        want, hw = _get("identify", case, key), _get("identify", case, hw_key)
+        labels = S[section][case][label]
+        want, hw = _get(section, case, key), _get(section, case, hw_key)
         assert list(got[label]) == labels
         for n, g, w, h, gh in zip(labels, got[key], want, hw, got[hw_key]):
             if h == 0:  # held fixed by the fit
@@ -257,6 +257,74 @@ def test_identification_of_the_dfki_driven_rig():
 @pytest.mark.slow
 def test_identification_of_a_synthetic_skewed_rig():
     _same_fit(G.fit_synthetic(), "synthetic")
+
+
+# -- 5. chains of links (pinned before issue 52 made them and the double pendulum one model) ----------------------
+#: A chain's end state (DOP853 at 1e-10): within TOL_ADAPTIVE or 20x the recorded global error (the lossy
+#: triple's Coulomb terms and the ten-link chain reach 1.5e-8 and 2.2e-8 against a 1e-13 run), whichever is
+#: larger; RK4 at 1e-3 s: TOL_FIXED.  Closed formulas (energy, momenta, ends): TOL_FORMULA.
+CHAIN_ERROR_FACTOR = 20.0
+
+
+@pytest.fixture(scope="module")
+def chain_models():
+    return G.chain_models()
+
+
+@pytest.mark.parametrize("name", ["triple", "lossy", "pair", "ten"])
+def test_chain_simulate_and_kernel(chain_models, name):
+    chain = chain_models[name]
+    for method in (("dop853", "rk4") if name != "ten" else ("dop853",)):
+        case = f"{name}/{method}"
+        got = G.chain_simulate(chain, method)
+        tol = (max(TOL_ADAPTIVE, CHAIN_ERROR_FACTOR * float(_get("chain", case, "global_error")))
+               if method == "dop853" else TOL_FIXED)
+        _close(got["end_state"], _get("chain", case, "end_state"), atol=tol, what=f"chain {case} end state")
+        _close(got["energy0"], _get("chain", case, "energy0"), rtol=TOL_FORMULA, what=f"chain {case} energy at t = 0")
+        _close(got["end_energy"], _get("chain", case, "end_energy"), atol=ENERGY_PER_STATE * tol,
+               what=f"chain {case} end energy")
+    got = G.chain_kernel_values(chain)
+    _close(got["states"], _get("chain", f"{name}/kernel", "states"), what="seeded states")
+    for q in ("energy", "momenta", "tips"):
+        _scaled(got[q], _get("chain", f"{name}/kernel", q), TOL_FORMULA, f"chain {name} kernel {q}")
+
+
+def test_chain_modes_equilibria_lqr_lyapunov_and_flip_map(chain_models):
+    import skewpend
+
+    triple = chain_models["triple"]
+    damped = triple
+    for i, c in enumerate((0.03, 0.02, 0.01), start=1):
+        damped = damped.replace_link(i, damping=c, rotor=2e-4, gear=-6.0)
+    for name, chain in (("triple", triple), ("damped", damped)):
+        got = G.chain_modes(chain)
+        case = f"{name}/modes"
+        _scaled(got["frequencies"], _get("chain", case, "frequencies"), TOL_EIG, f"chain {case} frequencies")
+        _close(got["damping_ratios"], _get("chain", case, "damping_ratios"), atol=TOL_EIG, what=f"chain {case} damping ratios")
+        _scaled(got["shapes"], _get("chain", case, "shapes"), 1e-8, f"chain {case} shapes")
+    eq = G.chain_equilibria(triple)
+    assert float(eq["count"]["points"]) == float(_get("chain", "triple/equilibria/count", "points"))
+    for label, v in eq.items():
+        if label == "count":
+            continue
+        case = f"triple/equilibria/{label}"
+        d = np.angle(np.exp(1j * (v["q"] - _get("chain", case, "q"))))
+        assert np.abs(d).max() <= TOL_EQUILIBRIUM, f"{case}: {v['q']}"
+        _close(v["morse_index"], _get("chain", case, "morse_index"), what=f"{case} Morse index")
+        _same_set(v["eigenvalues"], _get("chain", case, "eigenvalues"), TOL_EIG, f"{case} eigenvalues")
+    d = G.chain_dynamics(triple)
+    for q in ("gain", "P"):
+        _scaled(d["lqr"][q], _get("chain", "triple/lqr", q), TOL_RICCATI, f"chain LQR {q}")
+    _close(d["lyapunov"]["exponents"], _get("chain", "triple/lyapunov", "exponents"), atol=TOL_LYAPUNOV,
+           what="chain Lyapunov spectrum (5 s)")
+    _close(d["flip_map"]["which"], _get("chain", "triple/flip_map", "which"), what="chain flip map: which joint")
+    _close(d["flip_map"]["flip_time"], _get("chain", "triple/flip_map", "flip_time"), atol=TOL_FLIP,
+           what="chain flip times")
+
+
+@pytest.mark.slow
+def test_identification_of_the_kaheman_triple_pendulum():
+    _same_fit(G.fit_kaheman_triple(), "kaheman_triple/identify", section="chain")
 
 
 def test_the_golden_file_names_its_commit_and_every_section():

@@ -314,9 +314,129 @@ def section_identify() -> dict:
     return {"kaheman": fit_kaheman(), "dfki": fit_dfki(), "synthetic": fit_synthetic()}
 
 
+# -- 5. chains of links (issue 52: pinned before the chain and the double pendulum become one model) ------
+#: Chain models: a skewed triple pendulum (tilted axes, unequal rods), the triple with every term (an offset
+#: centre of mass, a full inertia tensor, an offset hinge, damping, Coulomb friction, a geared rotor, constant
+#: torques), the golden ``rigid`` double pendulum as the chain of two, and a ten-link chain (the compact form).
+CHAIN_Y0 = {3: (1.0, -0.7, 0.5, 0.0, 0.4, -0.3), 10: tuple([0.4, -0.3] * 5 + [0.0] * 10)}
+
+
+def chain_models() -> dict:
+    from skewpend.symbolic.chain import Chain
+
+    triple = Chain.from_lists(3, axis=[(0, 0, 1), (0.35, 0.0, 1.0), (0.0, 0.3, 1.0)], mass=[1.0, 0.7, 0.5],
+                              length=[0.8, 0.6, 0.5])
+    lossy = triple.replace_link(1, damping=0.03, coulomb=0.01, torque=0.15, rotor=2e-4, gear=-6.0,
+                                com=(0.02, 0.38, -0.01))
+    lossy = lossy.replace_link(2, damping=0.02, coulomb=0.005, torque=-0.1, rotor=2e-4, gear=-6.0,
+                               inertia=((0.022, 0.001, -0.002), (0.001, 0.006, 0.001), (-0.002, 0.001, 0.020)))
+    lossy = lossy.replace_link(3, offset=(0.01, 0.58, 0.02), damping=0.01)
+    pair = Chain.from_parameters(models()["rigid"])
+    ten = Chain.from_lists(10, axis=[(0.1 * (i % 3), 0.05 * (i % 2), 1.0) for i in range(10)],
+                           length=[0.3] * 10, mass=[0.2 + 0.02 * i for i in range(10)])
+    return {"triple": triple, "lossy": lossy, "pair": pair, "ten": ten}
+
+
+def chain_simulate(chain, method: str, *, tight: bool = False) -> dict:
+    import skewpend
+
+    y0 = CHAIN_Y0.get(chain.n, Y0)
+    t_end = 1.0 if chain.n == 10 else T_END
+    if method in ADAPTIVE:
+        tol = RTOL_TIGHT if tight else RTOL
+        tr = skewpend.simulate(chain, y0, t_end, method=method, rtol=tol, atol=tol, throw=True)
+    else:
+        tr = skewpend.simulate(chain, y0, t_end, method=method, dt=DT, throw=True)
+    return {"end_state": np.asarray(tr.y[-1], float), "energy0": np.asarray(tr.energy[0], float),
+            "end_energy": np.asarray(tr.energy[-1], float)}
+
+
+def chain_states(n: int, count: int = 4) -> np.ndarray:
+    rng = np.random.default_rng(STATE_SEED + n)
+    return np.column_stack([rng.uniform(-math.pi, math.pi, (count, n)), rng.uniform(-3.0, 3.0, (count, n))])
+
+
+def chain_kernel_values(chain) -> dict:
+    from skewpend.numeric.kernels import model_kernel, model_vector
+
+    k, pv = model_kernel(chain), model_vector(chain)
+    ys = chain_states(chain.n)
+    return {"states": ys, "energy": np.asarray(k.energies(ys, pv), float),
+            "momenta": np.asarray(k.momenta_many(ys, pv), float), "tips": np.asarray(k.tips_many(ys, pv), float)}
+
+
+def chain_modes(chain) -> dict:
+    import skewpend
+
+    m = skewpend.normal_modes(chain)
+    return {"equilibrium": np.asarray(m.equilibrium, float), "frequencies": np.asarray(m.frequencies, float),
+            "damping_ratios": np.asarray(m.damping_ratios, float), "shapes": _shapes(m.shapes)}
+
+
+def chain_equilibria(chain) -> dict:
+    import skewpend
+
+    eq = skewpend.equilibria(chain)
+    out = {"count": {"points": np.asarray(len(eq), float)}}
+    for e in eq:
+        out[e.label] = {"q": np.asarray(e.q, float), "potential": np.asarray(e.potential, float),
+                        "morse_index": np.asarray(e.morse_index, float), "eigenvalues": _complex(e.eigenvalues)}
+    return out
+
+
+def chain_dynamics(chain) -> dict:
+    """The LQR gain at the upright (identity weights, every joint driven), the finite-time Lyapunov spectrum
+    (5 s) and a 4 x 4 flip map (3 s) of the triple pendulum."""
+    import skewpend
+
+    y0 = CHAIN_Y0[chain.n]
+    d = skewpend.lqr(chain, "-".join(["up"] * chain.n), "all")
+    ly = skewpend.lyapunov(chain, y0, t_end=5.0, n_exponents=2 * chain.n, windows=1)
+    f = skewpend.flip_map(chain, 4, t_end=3.0, workers=1)
+    return {"lqr": {"gain": d.gain, "P": d.P, "closed_loop": _complex(d.eigenvalues)},
+            "lyapunov": {"exponents": ly.exponents},
+            "flip_map": {"flip_time": np.asarray(f.flip_time, float), "which": np.asarray(f.which, float)}}
+
+
+def fit_kaheman_triple() -> dict:
+    """The authors' triple pendulum: their model as the start, the default output-error fit, 4 held out."""
+    import skewpend
+    from skewpend.analysis.measurements import kaheman_published_chain
+
+    data = skewpend.example_data("kaheman2023-triple")
+    fit = skewpend.Measurements.from_kaheman(data, which="fit")
+    val = skewpend.Measurements.from_kaheman(data, which="validation")
+    return _fit_values(skewpend.identify(fit, kaheman_published_chain(data), validation=val))
+
+
+def section_chain() -> dict:
+    out: dict = {}
+    for name, chain in chain_models().items():
+        for method in (("dop853", "rk4") if name != "ten" else ("dop853",)):
+            out[f"{name}/{method}"] = chain_simulate(chain, method)
+        # the global error at RTOL against DOP853 at RTOL_TIGHT (recorded: the test's tolerance scales with it)
+        tight = chain_simulate(chain, "dop853", tight=True)["end_state"]
+        out[f"{name}/dop853"]["global_error"] = np.asarray(float(np.abs(out[f"{name}/dop853"]["end_state"] - tight).max()))
+        out[f"{name}/kernel"] = chain_kernel_values(chain)
+
+    # a chain's modes are about q = 0: the triple, and the triple with damping and geared rotors
+    triple = chain_models()["triple"]
+    damped = triple
+    for i, c in enumerate((0.03, 0.02, 0.01), start=1):
+        damped = damped.replace_link(i, damping=c, rotor=2e-4, gear=-6.0)
+    out["triple/modes"] = chain_modes(triple)
+    out["damped/modes"] = chain_modes(damped)
+    for label, v in chain_equilibria(triple).items():
+        out[f"triple/equilibria/{label}"] = v
+    for key, v in chain_dynamics(chain_models()["triple"]).items():
+        out[f"triple/{key}"] = v
+    out["kaheman_triple/identify"] = fit_kaheman_triple()
+    return out
+
+
 SECTIONS = {"simulate": section_simulate, "kernel": section_kernel, "derive": section_derive,
             "modes": section_modes, "equilibria": section_equilibria, "control": section_control,
-            "dynamics": section_dynamics, "identify": section_identify}
+            "dynamics": section_dynamics, "identify": section_identify, "chain": section_chain}
 
 
 # -- JSON ----------------------------------------------------------------------------------------------------
@@ -380,10 +500,13 @@ def main(argv=None) -> int:
          f"({source}, commit {commit[:12]})")
     doc = load(args.out) if (args.only and args.out.exists()) else {}
     sections = doc.get("sections", {})
+    # the commit each section was computed at (sections recomputed alone keep the others' commits)
+    made_at = doc.get("section_commits", {name: doc.get("commit", commit) for name in sections})
     for name in args.only or SECTIONS:
         start = time.perf_counter()
         _say(f"section {name} ...")
         sections[name] = encode(SECTIONS[name]())
+        made_at[name] = commit
         _say(f"section {name}: {time.perf_counter() - start:.1f} s")
     if "simulate" in sections:
         for key, v in sections["simulate"].items():
@@ -393,7 +516,7 @@ def main(argv=None) -> int:
     doc = {"about": "golden values of skewpend's N = 2 results (issue 37); made by tests/golden/make_golden.py, "
                     "compared by tests/test_golden.py within tolerances derived from each method",
            "commit": commit, "source": source, "skewpend_version": skewpend.__version__,
-           "numpy": np.__version__, "python": sys.version.split()[0], "sections": sections}
+           "numpy": np.__version__, "python": sys.version.split()[0], "section_commits": made_at, "sections": sections}
     tmp = args.out.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n", encoding="utf-8")
     tmp.replace(args.out)
