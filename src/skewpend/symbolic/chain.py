@@ -212,6 +212,11 @@ class Chain:
     def __len__(self) -> int:
         return self.n
 
+    def as_chain(self) -> "Chain":
+        """The model as a chain: itself (the double pendulum's :class:`~skewpend.Parameters` answer the same
+        question with the chain of two)."""
+        return self
+
     @property
     def coordinates(self) -> Tuple[str, ...]:
         """The coordinates' names: ``phi, psi`` for two links (the specification's), ``q1`` to ``qn`` otherwise."""

@@ -329,6 +329,26 @@ class _Model:
         """True for the specification's model: thin uniform rods, default hinge axes."""
         return all(getattr(self, n) is None for n in GEOMETRY_NAMES)
 
+    # -- the model's questions, answered as a chain answers them (issue 52: ask the model, never its type) --
+    @property
+    def n(self) -> int:
+        """The number of links (and of coordinates): 2."""
+        return 2
+
+    @property
+    def coordinates(self) -> Tuple[str, ...]:
+        """The coordinates' names, ``phi, psi``."""
+        from ..schema import coordinate_names
+
+        return coordinate_names(2)
+
+    def as_chain(self):
+        """The double pendulum as the chain of two (:meth:`skewpend.symbolic.chain.Chain.from_parameters`;
+        numeric parameters only)."""
+        from .chain import Chain
+
+        return Chain.from_parameters(self)
+
     def replace(self, **changes: Any) -> "Parameters":
         """A copy with some fields changed (validated again)."""
         unknown = [k for k in changes if k not in NAMES]
