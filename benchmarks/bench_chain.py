@@ -162,16 +162,16 @@ def main(argv=None):
     import mujoco
 
     import skewpend
-    from skewpend.interop.export import chain_to_mjcf, mujoco_compatible_chain
+    from skewpend.interop.export import mujoco_compatible, to_mjcf
     from skewpend.numeric import kernels, recursive
 
     print(f"# {cpu_model()}, {os.cpu_count()} cores; skewpend {skewpend.__version__}, casadi {version('casadi')}, "
           f"mujoco {version('mujoco')}; load {os.getloadavg()[0]:.2f}")
     for n in args.links:
-        chain = mujoco_compatible_chain(random_chain(n, 1))
+        chain = mujoco_compatible(random_chain(n, 1))
         build = build_seconds(n, args.repeat)
         K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
-        model = mujoco.MjModel.from_xml_string(chain_to_mjcf(chain))
+        model = mujoco.MjModel.from_xml_string(to_mjcf(chain))
         data = mujoco.MjData(model)
         rng = np.random.default_rng(2)
         worst = 0.0

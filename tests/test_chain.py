@@ -118,12 +118,12 @@ def test_chains_equal_mujoco(n):
     """Random chains (general bodies, arbitrary axes and hinge offsets, damping, torques): the accelerations
     equal MuJoCo's from the exported MJCF to 1e-12 relative."""
     mujoco = pytest.importorskip("mujoco")
-    from skewpend.interop.export import chain_to_mjcf, mujoco_compatible_chain
+    from skewpend.interop.export import mujoco_compatible, to_mjcf
 
     rng = np.random.default_rng(100 + n)
-    chain = mujoco_compatible_chain(random_chain(n, rng))
+    chain = mujoco_compatible(random_chain(n, rng))
     K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
-    model = mujoco.MjModel.from_xml_string(chain_to_mjcf(chain))
+    model = mujoco.MjModel.from_xml_string(to_mjcf(chain))
     data = mujoco.MjData(model)
     for _ in range(10):
         q, dq = rng.uniform(-3, 3, n), rng.normal(scale=2, size=n)
@@ -148,11 +148,11 @@ def test_chains_equal_pinocchio(n):
     another code base) gives the same accelerations to 1e-12 relative (its continuous joints take
     (cos q, sin q); the damping and the constant torques are applied as joint torques, as URDF holds neither)."""
     pin = pytest.importorskip("pinocchio")
-    from skewpend.interop.export import chain_to_urdf, mujoco_compatible_chain
+    from skewpend.interop.export import mujoco_compatible, to_urdf
 
     rng = np.random.default_rng(100 + n)
-    chain = mujoco_compatible_chain(random_chain(n, rng))
-    model = pin.buildModelFromXML(chain_to_urdf(chain))
+    chain = mujoco_compatible(random_chain(n, rng))
+    model = pin.buildModelFromXML(to_urdf(chain))
     data = model.createData()
     model.gravity.linear = np.array([0.0, chain.g, 0.0])
     K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
@@ -168,12 +168,39 @@ def test_chains_equal_pinocchio(n):
 
 
 def test_chain_export_refuses_what_mujoco_cannot_hold():
-    from skewpend.interop.export import chain_to_mjcf
+    from skewpend.interop.export import to_mjcf, to_urdf
 
-    for change, words in ((dict(coulomb=0.1), "frictionloss"), (dict(rotor=1e-4), "armature")):
+    for change, words in ((dict(coulomb=0.1), "frictionloss"), (dict(rotor=1e-4, gear=0.5), "armature")):
         chain = Chain.from_lists(3).replace_link(2, **change)
         with pytest.raises(ParameterError, match=words):
-            chain_to_mjcf(chain)
+            to_mjcf(chain)
+    with pytest.raises(ParameterError, match="link 2 rotor = 0.0001, link 2 gear = 1.*export MJCF"):
+        to_urdf(Chain.from_lists(3).replace_link(2, rotor=1e-4))
+
+
+@pytest.mark.parametrize("n", [3, 5])
+def test_chain_rotors_equal_mujoco(n):
+    """Geared motors' rotors on every hinge (gears reversing, speeding up, or 1): the exported MJCF holds them
+    exactly (armatures and axial inertias), the accelerations equal skewpend's to 1e-12 relative."""
+    mujoco = pytest.importorskip("mujoco")
+    from skewpend.interop.export import mujoco_compatible, to_mjcf
+
+    rng = np.random.default_rng(200 + n)
+    chain = random_chain(n, rng)
+    for i, gear in enumerate(rng.choice([-6.0, -1.5, 1.0, 2.5, 6.0], size=n), start=1):
+        chain = chain.replace_link(i, rotor=float(rng.uniform(1e-6, 5e-6)), gear=float(gear))
+    chain = mujoco_compatible(chain)
+    K, p = kernels.chain_kernel(chain), recursive.parameter_vector(chain)
+    model = mujoco.MjModel.from_xml_string(to_mjcf(chain))
+    assert np.all(model.dof_armature >= 0) and np.any(model.dof_armature > 0)
+    data = mujoco.MjData(model)
+    for _ in range(10):
+        q, dq = rng.uniform(-3, 3, n), rng.normal(scale=2, size=n)
+        data.qpos[:], data.qvel[:] = q, dq
+        mujoco.mj_forward(model, data)
+        out = np.zeros(2 * n + 1)
+        K.rhs(np.r_[q, dq, 0.0], p, out)
+        assert np.max(np.abs(out[n:2 * n] - data.qacc)) <= 1e-12 * np.max(np.abs(data.qacc))
 
 
 # -- known values and conservation ---------------------------------------------------------------------------

@@ -1,23 +1,29 @@
-"""Export the skewed double pendulum to MuJoCo (MJCF) and URDF, and simulate it in MuJoCo.
+"""Export a model -- the double pendulum or a chain of links -- to MuJoCo (MJCF) and URDF, and
+simulate it in MuJoCo.
 
-The exported models are the system skewpend derives its equations for (see
-:class:`~skewpend.Parameters`): basis ``i, j, k`` = ``x, y, z`` with ``j = +y`` pointing
-**down**, gravity ``g`` along ``+y``; rod 1 turns about ``axis1`` through the origin, rod 2
-about ``axis2`` (fixed in rod 1) through ``a j`` on rod 1; each body frame has its origin at
-its hinge and is aligned with ``x, y, z`` when both rods hang (``phi = psi = 0``).  Joint
-angles are right-handed about the axes, as in skewpend and MuJoCo.
+One writer per format takes any model and works on its chain (``model.as_chain()``: the double
+pendulum is the chain of two).  The exported models are the system skewpend derives its equations
+for: basis ``i, j, k`` = ``x, y, z`` with ``j = +y`` pointing **down**, gravity ``g`` along ``+y``;
+link ``i`` turns about its hinge's axis (given in the frame of the link before it, the roof's for the
+first) through the hinge's offset in that frame (the double pendulum's rod 1 about ``axis1`` through the
+origin, rod 2 about ``axis2`` through ``a j``); each body frame has its origin at its hinge and is
+aligned with ``x, y, z`` when the chain hangs (every coordinate zero).  Joint angles are right-handed
+about the axes, as in skewpend and MuJoCo; bodies are named ``rod1`` to ``rodn``, hinges ``hinge1`` to
+``hingen``.
 
 Functions:
 
-* :func:`mujoco_compatible` -- the parameters with explicit centres of mass and inertia
-  tensors, including the tiny inertia MuJoCo needs (below); simulate *these* in skewpend to
-  compare with MuJoCo;
-* :func:`to_mjcf` -- MuJoCo MJCF XML (self-contained: gravity, damping and constant torques
-  are all in the file);
+* :func:`mujoco_compatible` -- the model with explicit centres of mass and inertia tensors,
+  including the tiny inertia MuJoCo needs (below); simulate *this* in skewpend to compare with
+  MuJoCo;
+* :func:`to_mjcf` -- MuJoCo MJCF XML (self-contained: gravity, damping, constant torques and the
+  geared motors' rotors are all in the file);
 * :func:`to_urdf` -- URDF (gravity and constant torques are not part of URDF; see there);
 * :func:`write_model` -- either of them to a file, atomically;
 * :func:`mujoco_trajectory` -- load the MJCF in MuJoCo and step it (``mujoco`` is an
   optional dependency, imported only there: ``pip install skewpend[validate]``).
+
+Coulomb friction has no exact counterpart in either format and is refused.
 
 The tiny inertia
 ----------------
@@ -25,9 +31,9 @@ MuJoCo refuses a body whose inertia tensor is not positive definite ("inertia mu
 positive eigenvalues") and checks the triangle inequality of the principal moments
 ``A + B >= C`` exactly (no tolerance).  A thin rod has zero moment about its own axis, so
 skewpend's default bodies cannot be exported as they are.  :func:`mujoco_compatible` adds
-``eps`` = ``axial_inertia`` [kg m^2] (default ``max(1e-9 m l^2, 1e-12)`` per body, ``l = a``
-for rod 1, ``b`` for rod 2; the floor keeps ``eps`` above MuJoCo's smallest accepted principal
-moment, about 1e-14) along the principal axes that need it:
+``eps`` = ``axial_inertia`` [kg m^2] (default ``max(1e-9 m l^2, 1e-12)`` per body, ``l`` the
+link's length: ``a`` for rod 1, ``b`` for rod 2 of the double pendulum; the floor keeps ``eps`` above
+MuJoCo's smallest accepted principal moment, about 1e-14) along the principal axes that need it:
 
 * every principal moment below ``eps / 2`` is raised by ``eps`` (the thin rod's axial
   moment ``0 -> eps``; a point mass gets ``eps`` about every axis);
@@ -36,10 +42,10 @@ moment, about 1e-14) along the principal axes that need it:
   so rounding in MuJoCo's eigen-decomposition cannot break the check.
 
 Bodies that need none of this are exported unchanged.  The change is of relative size
-``~1e-8`` and only matters when rod 2 spins about its own axis (skewed hinges): over 2 s of
+``~1e-8`` and only matters when a rod spins about its own axis (skewed hinges): over 2 s of
 large swings it moves the state by a few 1e-9.  A comparison to round-off precision must
-nevertheless simulate the identical system, ``derive(mujoco_compatible(params))`` -- which
-is what the exported files contain.
+nevertheless simulate the identical system, ``mujoco_compatible(model)`` -- which is what the
+exported files contain.
 """
 
 from __future__ import annotations
@@ -47,23 +53,14 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Optional, Sequence, Tuple, Union
+from typing import Callable, Optional, Sequence, Union
 
-from ..errors import IntegrationError, MissingExtraError, ParameterError
-from ..symbolic.model import Parameters
+from ..errors import IntegrationError, MissingExtraError, NotNumericError, ParameterError
 from ..parsing import initial_state, positive_number
-from ..schema import CORE_NAMES, DAMPING_NAMES, LENGTH_NAMES, MASS_NAMES, ROTOR_NAMES, TORQUE_NAMES
+from ..schema import LINK_FIELDS, name_of
 
-__all__ = [
-    "FORMATS",
-    "INTEGRATORS",
-    "MujocoMissingError",
-    "mujoco_compatible",
-    "to_mjcf",
-    "to_urdf",
-    "write_model",
-    "mujoco_trajectory",
-]
+__all__ = ["FORMATS", "INTEGRATORS", "MujocoMissingError", "mujoco_compatible", "to_mjcf", "to_urdf", "write_model",
+           "mujoco_trajectory"]
 
 #: Export formats accepted by :func:`write_model`, and the file suffixes that imply them.
 FORMATS = ("mjcf", "urdf")
@@ -82,6 +79,9 @@ _MUJOCO_CHUNK = 20_000
 AXIAL_INERTIA_FACTOR = 1e-9
 #: Floor of the default tiny inertia [kg m^2] (MuJoCo rejects principal moments below ~1e-14).
 AXIAL_INERTIA_FLOOR = 1e-12
+
+#: The bodies' colours in the MJCF (link 1, 2, ... in turn).
+_COLOURS = ("0.2 0.4 0.8 1", "0.8 0.3 0.2 1", "0.3 0.7 0.3 1", "0.7 0.6 0.2 1")
 
 
 class MujocoMissingError(MissingExtraError):
@@ -118,14 +118,38 @@ def _integrator(name: str) -> str:
     raise ParameterError(f"unknown MuJoCo integrator {name!r}; allowed: {', '.join(INTEGRATORS)}")
 
 
-def _axes(params: Parameters) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]:
-    axis1 = params.axis1 if params.axis1 is not None else (0.0, 0.0, 1.0)
-    if params.axis2 is not None:
-        axis2 = params.axis2
-    else:
-        alpha = float(params.alpha)
-        axis2 = (math.sin(alpha), 0.0, math.cos(alpha))  # e0 = cos(alpha) k + sin(alpha) i
-    return tuple(map(float, axis1)), tuple(map(float, axis2))  # type: ignore[return-value]
+def numeric_chain(model, what: str = "export"):
+    """The model as a chain (``model.as_chain()``); a model with symbolic values is refused as
+    ``what`` needing numeric values."""
+    try:
+        return model.as_chain()
+    except NotNumericError as exc:
+        raise NotNumericError(f"{what} needs{str(exc).partition(' needs')[2]}") from None
+
+
+def _namer(model) -> Callable[[str, int], str]:
+    """How ``model`` names link ``i``'s field ``key`` in messages: by its own parameter's name where it
+    has one (the double pendulum's ``a``, ``m2``, ``cf1``, ``Ir``: the keys of its dict), else as
+    ``link i key``."""
+    own = model.to_dict()
+    stems = {key: stem for key, stem, _ in LINK_FIELDS}
+
+    def name(key: str, i: int) -> str:
+        try:
+            alias = name_of(stems[key], i)
+        except (KeyError, IndexError):
+            alias = None
+        return alias if alias in own else f"link {i} {key}"
+
+    return name
+
+
+def _listed(pairs) -> str:
+    """``name = value`` for each distinct name, in order (the double pendulum's ``Ir`` is both links')."""
+    seen: dict = {}
+    for name, value in pairs:
+        seen.setdefault(name, value)
+    return ", ".join(f"{name} = {value:g}" for name, value in seen.items())
 
 
 def _regularised_inertia(inertia, eps: float):
@@ -159,100 +183,6 @@ def _regularised_inertia(inertia, eps: float):
         return tuple(tuple(float(x) for x in row) for row in out)
 
 
-def _default_bodies(params: Parameters):
-    a, b, m1, m2 = (float(getattr(params, n)) for n in LENGTH_NAMES + MASS_NAMES)
-    com1 = params.com1 if params.com1 is not None else (0.0, a / 2, 0.0)
-    com2 = params.com2 if params.com2 is not None else (0.0, b / 2, 0.0)
-
-    def rod(m, length):
-        k = m * (length * length) / 12  # inf, not OverflowError, when it overflows (refused by the caller)
-        return ((k, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, k))
-
-    inertia1 = params.inertia1 if params.inertia1 is not None else rod(m1, a)
-    inertia2 = params.inertia2 if params.inertia2 is not None else rod(m2, b)
-    return com1, com2, inertia1, inertia2
-
-
-# -- public API --------------------------------------------------------------------------------
-def mujoco_compatible(params: Parameters, axial_inertia: Optional[float] = None) -> Parameters:
-    """``params`` with explicit ``com1, com2, inertia1, inertia2`` that MuJoCo accepts.
-
-    The thin-rod defaults are written out, and each body gets the tiny inertia described
-    in the module docstring: ``axial_inertia`` [kg m^2] for both bodies if given, otherwise
-    ``max(1e-9 m1 a^2, 1e-12)`` for rod 1 and ``max(1e-9 m2 b^2, 1e-12)`` for rod 2.  Everything else (scalars,
-    axes, ``alpha``) is unchanged.  This is exactly the system :func:`to_mjcf` and
-    :func:`to_urdf` export; ``derive(mujoco_compatible(p))`` is the reference for comparing
-    skewpend with MuJoCo.  Idempotent for the default ``axial_inertia``.
-    """
-    params.require_numeric("export")
-    eps = positive_number("axial_inertia", axial_inertia, allow_none=True)
-    a, b, m1, m2 = (float(getattr(params, n)) for n in LENGTH_NAMES + MASS_NAMES)
-    eps1 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m1 * a * a, AXIAL_INERTIA_FLOOR)
-    eps2 = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * m2 * b * b, AXIAL_INERTIA_FLOOR)
-    com1, com2, inertia1, inertia2 = _default_bodies(params)
-    bodies = []
-    for k, (inertia, eps_k) in enumerate(((inertia1, eps1), (inertia2, eps2)), start=1):
-        given = getattr(params, f"inertia{k}") is not None
-        what = f"the inertia tensor of body {k}" + ("" if given else f" (thin rod m{k} l^2/12)")
-        if not _finite(inertia):
-            raise _overflow(params, what)
-        if not math.isfinite(eps_k):
-            raise _overflow(params, f"the tiny axial inertia of body {k} (1e-9 m{k} l^2)")
-        try:
-            regularised = _regularised_inertia(inertia, eps_k)
-        except (ArithmeticError, ValueError):  # numpy.linalg.LinAlgError is a ValueError
-            raise _overflow(params, what) from None
-        if not _finite(regularised):
-            raise _overflow(params, what)
-        bodies.append(regularised)
-    return params.replace(
-        com1=tuple(map(float, com1)),
-        com2=tuple(map(float, com2)),
-        inertia1=bodies[0],
-        inertia2=bodies[1],
-    )
-
-
-def _no_friction(params: Parameters, fmt: str) -> None:
-    if params.has_friction:
-        raise ParameterError(
-            f"export {fmt}: Coulomb friction (cf1 = {params.cf1:g}, cf2 = {params.cf2:g}) has no exact counterpart: "
-            "skewpend's torque is the smooth -cf atan(cfs q'), MuJoCo's frictionloss a dry-friction constraint "
-            "(up to frictionloss, sticking exactly) and URDF's <dynamics friction> is left to the simulator; export "
-            "the model with cf1 = cf2 = 0 (set frictionloss yourself if you want MuJoCo's model: cf pi/2 is the "
-            "same largest torque)")
-
-
-def _rotor_split(p: Parameters) -> Tuple[Parameters, Tuple[float, float]]:
-    """The rotors' kinetic energy as MuJoCo can hold it, exactly: ``armature`` on the hinges
-    and an axial inertia about the second hinge's axis ``e0`` in each rod.  With ``c = n1 . e0``
-    the rotors add ``Ir gr^2 + Ir c^2``, ``Ir gr c``, ``Ir gr^2`` to ``M``; an inertia ``J e0 e0^T``
-    in rod 2 adds ``J (c^2, c, 1)``, in rod 1 ``J (c^2, 0, 0)``, an armature ``A_i`` adds to
-    ``M_ii`` alone; so ``J2 = Ir gr``, ``J1 = Ir (1 - gr)``, ``A1 = Ir gr^2``, ``A2 = Ir gr (gr - 1)``.
-    Returns the model with those inertias added (``Ir = 0``) and ``(A1, A2)``; refuses a split a
-    simulator cannot take (a negative armature, a body inertia no longer physical)."""
-    import numpy as np
-
-    if not p.has_rotor:
-        return p, (0.0, 0.0)
-    Ir, gr = float(p.Ir), float(p.gr)
-    _, e0 = _axes(p)
-    ee = np.outer(e0, e0)
-    A1, A2 = Ir * gr * gr, Ir * gr * (gr - 1.0)
-    J1, J2 = Ir * (1.0 - gr), Ir * gr
-    why = ("the rotors' inertia Ir (reflected through the gear gr) maps exactly onto MuJoCo only as armature "
-           f"A1 = Ir gr^2, A2 = Ir gr (gr - 1) and axial inertias Ir (1 - gr) (rod 1) and Ir gr (rod 2) about "
-           f"hinge 2's axis; for Ir = {Ir:g}, gr = {gr:g}")
-    if A2 < 0:
-        raise ParameterError(f"export: {why} the armature A2 = {A2:g} would be negative (0 < gr < 1)")
-    try:
-        q = p.replace(Ir=0.0, inertia1=(np.array(p.inertia1, dtype=float) + J1 * ee).tolist(),
-                      inertia2=(np.array(p.inertia2, dtype=float) + J2 * ee).tolist())
-    except ParameterError as exc:
-        raise ParameterError(f"export: {why} a body's inertia would not be physical: {exc}") from None
-    return q, (A1, A2)
-
-
 def _finite(values) -> bool:
     """Every number in a (nested) sequence of floats is finite."""
     if isinstance(values, (list, tuple)):
@@ -260,12 +190,123 @@ def _finite(values) -> bool:
     return math.isfinite(float(values))
 
 
-def _overflow(params: Parameters, what: str) -> ParameterError:
-    sizes = ", ".join(f"{n} = {float(getattr(params, n)):g}" for n in LENGTH_NAMES + MASS_NAMES)
+def _overflow(chain, name, what: str) -> ParameterError:
+    sizes = ", ".join(f"{name(key, link.index)} = {getattr(link, key):g}"
+                      for key in ("length", "mass") for link in chain.links)
     return ParameterError(
         f"export: {what} is not a finite number (overflow) for {sizes}; allowed: parameters of moderate size, "
         "for which every number in the model (lengths, masses, m l^2, inertia tensors) is a finite double"
     )
+
+
+def _compatible_chain(model, axial_inertia: Optional[float]):
+    """``(chain, name)``: the model's chain with each body made acceptable to MuJoCo (the tiny inertia),
+    and the model's :func:`_namer`."""
+    chain = numeric_chain(model)
+    eps = positive_number("axial_inertia", axial_inertia, allow_none=True)
+    name = _namer(model)
+    for link in chain.links:
+        k = link.index
+        eps_k = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * link.mass * link.length * link.length,
+                                                AXIAL_INERTIA_FLOOR)
+        what = f"the inertia tensor of body {k}"
+        if not _finite(link.inertia):
+            raise _overflow(chain, name, what)
+        if not math.isfinite(eps_k):
+            raise _overflow(chain, name, f"the tiny axial inertia of body {k} (1e-9 {name('mass', k)} l^2)")
+        try:
+            regularised = _regularised_inertia(link.inertia, eps_k)
+        except (ArithmeticError, ValueError):  # numpy.linalg.LinAlgError is a ValueError
+            raise _overflow(chain, name, what) from None
+        if not _finite(regularised):
+            raise _overflow(chain, name, what)
+        if regularised != link.inertia:
+            chain = chain.replace_link(k, inertia=regularised)
+    return chain, name
+
+
+# -- public API --------------------------------------------------------------------------------
+def mujoco_compatible(model, axial_inertia: Optional[float] = None):
+    """``model`` (the double pendulum's :class:`~skewpend.Parameters` or a chain of links) with explicit
+    centres of mass and inertia tensors that MuJoCo accepts, in the model's own form.
+
+    The thin-rod defaults are written out, and each body gets the tiny inertia described
+    in the module docstring: ``axial_inertia`` [kg m^2] for every body if given, otherwise
+    ``max(1e-9 m l^2, 1e-12)`` per body (``max(1e-9 m1 a^2, 1e-12)`` for the double pendulum's rod 1).
+    Everything else (scalars, axes, ``alpha``) is unchanged.  This is exactly the system
+    :func:`to_mjcf` and :func:`to_urdf` export; ``derive(mujoco_compatible(p))`` is the reference for
+    comparing skewpend with MuJoCo.  Idempotent for the default ``axial_inertia``.
+    """
+    chain, _ = _compatible_chain(model, axial_inertia)
+    # the double pendulum keeps its own names for the bodies (com1, inertia2, ...; its dict's keys)
+    bodies = {}
+    for link in chain.links:
+        for key in ("com", "inertia"):
+            try:
+                bodies[name_of(key, link.index)] = getattr(link, key)
+            except IndexError:
+                pass
+    return model.replace(**bodies) if set(bodies) <= set(model.to_dict()) else chain
+
+
+def _no_friction(chain, name, fmt: str) -> None:
+    if chain.has_friction:
+        names = [name("coulomb", link.index) for link in chain.links]
+        raise ParameterError(
+            f"export {fmt}: Coulomb friction ({_listed((n, link.coulomb) for n, link in zip(names, chain.links))}) "
+            "has no exact counterpart: skewpend's torque is the smooth -cf atan(cfs q'), MuJoCo's frictionloss a "
+            "dry-friction constraint (up to frictionloss, sticking exactly) and URDF's <dynamics friction> is left to "
+            f"the simulator; export the model with {' = '.join(dict.fromkeys(names))} = 0 (set frictionloss yourself "
+            "if you want MuJoCo's model: cf pi/2 is the same largest torque)")
+
+
+def _rotor_split(chain, name):
+    """The rotors' kinetic energy as MuJoCo can hold it, exactly: ``armature`` on the hinges and axial
+    inertias about the hinges' axes in the links.  The rotor of hinge ``k`` rides on link ``k - 1`` and
+    spins at ``w + gr q_k'`` about the axis ``e`` (``w = omega_{k-1} . e``): its energy
+    ``Ir/2 (w + gr q_k')^2`` is that of an inertia ``Ir gr e e^T`` in link ``k`` (which spins at
+    ``w + q_k'``), ``Ir (1 - gr) e e^T`` in link ``k - 1`` and an armature ``Ir gr (gr - 1)``; on the
+    roof (``k = 1``, ``w = 0``) the armature ``Ir gr^2`` alone.  Returns the chain with those inertias
+    added and the armatures; refuses a split a simulator cannot take (a negative armature, a body
+    inertia no longer physical)."""
+    import numpy as np
+
+    from ..symbolic.model import check_inertia
+
+    armature = [0.0] * chain.n
+    if not chain.has_rotor:
+        return chain, armature
+    extra = [np.array(link.inertia, dtype=float) for link in chain.links]
+
+    def why(k):
+        link = chain.links[k - 1]
+        return ("the rotors' inertia Ir (reflected through the gear gr) maps exactly onto MuJoCo only as armature "
+                f"A1 = Ir gr^2, A{k} = Ir gr (gr - 1) and axial inertias Ir (1 - gr) (rod {k - 1}) and Ir gr (rod {k}) "
+                f"about hinge {k}'s axis; for {_listed(((name('rotor', k), link.rotor), (name('gear', k), link.gear)))}")
+
+    for link in chain.links:
+        k, Ir, gr = link.index, link.rotor, link.gear
+        if k == 1:  # the roof carries the first rotor
+            armature[0] = Ir * gr * gr
+            continue
+        armature[k - 1] = Ir * gr * (gr - 1.0)
+        if armature[k - 1] < 0:
+            raise ParameterError(f"export: {why(k)} the armature A{k} = {armature[k - 1]:g} would be negative "
+                                 "(0 < gr < 1)")
+        if Ir:
+            ee = np.outer(link.axis, link.axis)
+            extra[k - 2] = extra[k - 2] + Ir * (1.0 - gr) * ee
+            extra[k - 1] = extra[k - 1] + Ir * gr * ee
+    for link, inertia in zip(chain.links, extra):
+        k = link.index
+        tensor = tuple(tuple(float(x) for x in row) for row in inertia)
+        try:
+            check_inertia(name("inertia", k), tensor)
+        except ParameterError as exc:
+            culprit = k if k > 1 and link.rotor else k + 1
+            raise ParameterError(f"export: {why(culprit)} a body's inertia would not be physical: {exc}") from None
+        chain = chain.replace_link(k, inertia=tensor)
+    return chain, armature
 
 
 def _fullinertia(m) -> str:
@@ -273,48 +314,40 @@ def _fullinertia(m) -> str:
     return _vec((m[0][0], m[1][1], m[2][2], m[0][1], m[0][2], m[1][2]))
 
 
-def _header(params: Parameters, fmt: str) -> str:
+def _header(model, chain, fmt: str) -> str:
     from .. import __version__
 
-    values = ", ".join(
-        f"{n}={_num(getattr(params, n))}"
-        for n in CORE_NAMES + DAMPING_NAMES + TORQUE_NAMES + ROTOR_NAMES * params.has_rotor
-        if getattr(params, n) is not None
-    )
+    values = ", ".join(f"{key}={_num(value)}" for key, value in model.to_dict().items()
+                       if isinstance(value, (int, float)) and not isinstance(value, bool))
+    angles = ", ".join(f"hinge{i} = {c}" for i, c in enumerate(model.coordinates, start=1))
     return _comment(
-        f"Skewed double pendulum exported by skewpend {__version__} ({fmt}). "
-        f"Parameters: {values}. Frame: x, y, z = i, j, k of skewpend with y pointing DOWN; "
-        "gravity g acts along +y. Joint angles hinge1 = phi, hinge2 = psi (right-handed, "
-        "zero with both rods hanging along +y). Inertias include skewpend's tiny axial "
-        "inertia (skewpend.export.mujoco_compatible)."
+        f"A chain of {chain.n} links exported by skewpend {__version__} ({fmt}). Parameters: {values}. "
+        "Frame: x, y, z = i, j, k of skewpend with y pointing DOWN; gravity g acts along +y. "
+        f"Joint angles {angles} (right-handed, each relative to the link before, zero with the chain hanging "
+        "along +y). Inertias include skewpend's tiny axial inertia (skewpend.interop.export.mujoco_compatible)."
     )
 
 
-def to_mjcf(
-    params: Parameters,
-    *,
-    timestep: float = 1e-4,
-    integrator: str = "RK4",
-    axial_inertia: Optional[float] = None,
-) -> str:
-    """A MuJoCo MJCF model (XML text) of the pendulum ``params`` (all numeric).
+def to_mjcf(model, *, timestep: float = 1e-4, integrator: str = "RK4", axial_inertia: Optional[float] = None) -> str:
+    """A MuJoCo MJCF model (XML text) of ``model``: the double pendulum's
+    :class:`~skewpend.Parameters` (all numeric) or a chain of links.
 
     * ``<option gravity="0 g 0">`` -- gravity along **+y** (skewpend's ``j`` points down);
       ``timestep`` [s] and ``integrator`` (``RK4`` default; ``Euler``, ``implicit``,
       ``implicitfast``); contacts disabled (``<flag contact="disable"/>``), energy enabled.
-    * Bodies ``rod1`` (child of the world, origin at the roof hinge) and ``rod2`` (at
-      ``0 a 0`` in rod1), each with an explicit ``<inertial pos=com mass=m
-      fullinertia="Ixx Iyy Izz Ixy Ixz Iyz"/>`` from :func:`mujoco_compatible` (so
-      including the tiny ``axial_inertia``; see the module docstring) and
+    * Bodies ``rod1`` (child of the world, origin at the roof hinge) to ``rodn``, nested link by link,
+      each at its hinge's offset in its parent (the double pendulum's ``rod2`` at ``0 a 0`` in rod1),
+      each with an explicit ``<inertial pos=com mass=m fullinertia="Ixx Iyy Izz Ixy Ixz Iyz"/>`` from
+      :func:`mujoco_compatible` (so including the tiny ``axial_inertia``; see the module docstring) and
       ``<compiler inertiafromgeom="false">``: the capsules drawn along the rods
       (``contype=conaffinity=0``) are for viewing only and carry no mass.
-    * Hinge joints ``hinge1`` (axis ``axis1``, default ``0 0 1``) and ``hinge2`` (axis
-      ``axis2``, default ``sin(alpha) 0 cos(alpha)``) at the body origins, ``damping`` =
-      ``c1``, ``c2`` (passive torque ``-c qdot``), ``limited="false"``, ``frictionloss=0``,
-      ``stiffness=0``, ``armature=0`` -- or, with the geared motors' rotors (``Ir``), the exact split
-      of their kinetic energy into armature and axial inertias of the rods (:func:`_rotor_split`).
-      Coulomb friction (``cf1, cf2``) is refused: MuJoCo's ``frictionloss`` is another model.
-    * Constant joint torques: two ``<general>`` actuators ``tau1``, ``tau2`` on the hinges
+    * Hinge joints ``hinge1`` to ``hingen`` at the body origins with the links' axes (the double
+      pendulum's ``axis1``, default ``0 0 1``, and ``axis2``, default ``sin(alpha) 0 cos(alpha)``),
+      ``damping`` (``c1``, ``c2``: passive torque ``-c qdot``), ``limited="false"``, ``frictionloss=0``,
+      ``stiffness=0``, ``armature=0`` -- or, with the geared motors' rotors, the exact split of their
+      kinetic energy into armatures and axial inertias of the rods (:func:`_rotor_split`).
+      Coulomb friction is refused: MuJoCo's ``frictionloss`` is another model.
+    * Constant joint torques: ``<general>`` actuators ``tau1`` to ``taun`` on the hinges
       with ``biastype="affine" biasprm="tau_i 0 0"`` and ``gainprm="1"``, unlimited: the
       actuator force is ``ctrl + tau_i``, and ``ctrl`` is 0 unless set.  So the file is
       self-contained: loading it and calling ``mj_step`` reproduces skewpend's model,
@@ -326,49 +359,40 @@ def to_mjcf(
     symbolic parameters and :class:`~skewpend.errors.ParameterError` for a bad
     ``timestep``, ``integrator`` or ``axial_inertia``.
     """
-    p = mujoco_compatible(params, axial_inertia)
-    _no_friction(p, "MJCF")
-    header = _header(p, "MJCF")
-    p, (arm1, arm2) = _rotor_split(p)
+    c, name = _compatible_chain(model, axial_inertia)
+    _no_friction(c, name, "MJCF")
+    header = _header(model, c, "MJCF")
+    c, armature = _rotor_split(c, name)
     timestep = positive_number("timestep", timestep)
     integrator = _integrator(integrator)
-    axis1, axis2 = _axes(p)
-    a, b = float(p.a), float(p.b)
-    radius = 0.01 * a + 0.01 * b
+    radius = sum(0.01 * link.length for link in c.links)
+    actuators = ", ".join(f"tau{link.index}" for link in c.links)
     lines = [
         '<mujoco model="skewpend">',
         f"  <!-- {header} -->",
-        "  <!-- Constant joint torques: actuators tau1, tau2 with force = ctrl + tau_i "
+        f"  <!-- Constant joint torques: actuators {actuators} with force = ctrl + tau_i "
         "(affine bias); ctrl defaults to 0. -->",
         '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
-        f'  <option gravity="0 {_num(p.g)} 0" timestep="{_num(timestep)}" integrator="{integrator}">',
+        f'  <option gravity="0 {_num(c.g)} 0" timestep="{_num(timestep)}" integrator="{integrator}">',
         '    <flag contact="disable" energy="enable"/>',
         "  </option>",
         "  <worldbody>",
-        '    <body name="rod1" pos="0 0 0">',
-        f'      <joint name="hinge1" type="hinge" pos="0 0 0" axis="{_vec(axis1)}" '
-        f'damping="{_num(p.c1)}" limited="false" armature="{_num(arm1)}" frictionloss="0" stiffness="0"/>',
-        f'      <inertial pos="{_vec(p.com1)}" mass="{_num(p.m1)}" fullinertia="{_fullinertia(p.inertia1)}"/>',
-        f'      <geom name="rod1" type="capsule" fromto="0 0 0 0 {_num(a)} 0" size="{_num(radius)}" '
-        'contype="0" conaffinity="0" rgba="0.2 0.4 0.8 1"/>',
-        f'      <body name="rod2" pos="0 {_num(a)} 0">',
-        f'        <joint name="hinge2" type="hinge" pos="0 0 0" axis="{_vec(axis2)}" '
-        f'damping="{_num(p.c2)}" limited="false" armature="{_num(arm2)}" frictionloss="0" stiffness="0"/>',
-        f'        <inertial pos="{_vec(p.com2)}" mass="{_num(p.m2)}" fullinertia="{_fullinertia(p.inertia2)}"/>',
-        f'        <geom name="rod2" type="capsule" fromto="0 0 0 0 {_num(b)} 0" size="{_num(radius)}" '
-        'contype="0" conaffinity="0" rgba="0.8 0.3 0.2 1"/>',
-        "      </body>",
-        "    </body>",
-        "  </worldbody>",
-        "  <actuator>",
-        f'    <general name="tau1" joint="hinge1" gainprm="1" biastype="affine" biasprm="{_num(p.tau1)} 0 0" '
-        'ctrllimited="false" forcelimited="false"/>',
-        f'    <general name="tau2" joint="hinge2" gainprm="1" biastype="affine" biasprm="{_num(p.tau2)} 0 0" '
-        'ctrllimited="false" forcelimited="false"/>',
-        "  </actuator>",
-        "</mujoco>",
-        "",
     ]
+    for link, arm in zip(c.links, armature):
+        k, pad = link.index, "  " * (link.index + 1)
+        lines += [
+            f'{pad}<body name="rod{k}" pos="{_vec(link.offset)}">',
+            f'{pad}  <joint name="hinge{k}" type="hinge" pos="0 0 0" axis="{_vec(link.axis)}" '
+            f'damping="{_num(link.damping)}" limited="false" armature="{_num(arm)}" frictionloss="0" stiffness="0"/>',
+            f'{pad}  <inertial pos="{_vec(link.com)}" mass="{_num(link.mass)}" fullinertia="{_fullinertia(link.inertia)}"/>',
+            f'{pad}  <geom name="rod{k}" type="capsule" fromto="0 0 0 0 {_num(link.length)} 0" size="{_num(radius)}" '
+            f'contype="0" conaffinity="0" rgba="{_COLOURS[(k - 1) % len(_COLOURS)]}"/>',
+        ]
+    lines += ["  " * (k + 1) + "</body>" for k in range(c.n, 0, -1)]
+    lines += ["  </worldbody>", "  <actuator>"]
+    lines += [f'    <general name="tau{link.index}" joint="hinge{link.index}" gainprm="1" biastype="affine" '
+              f'biasprm="{_num(link.torque)} 0 0" ctrllimited="false" forcelimited="false"/>' for link in c.links]
+    lines += ["  </actuator>", "</mujoco>", ""]
     return "\n".join(lines)
 
 
@@ -405,14 +429,16 @@ def _urdf_joint(name, parent, child, xyz, axis, damping) -> list:
     ]
 
 
-def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: bool = False) -> str:
-    """A URDF model (XML text) of the pendulum ``params`` (all numeric).
+def to_urdf(model, *, axial_inertia: Optional[float] = None, z_up: bool = False) -> str:
+    """A URDF model (XML text) of ``model``: the double pendulum's :class:`~skewpend.Parameters`
+    (all numeric) or a chain of links.
 
-    Links ``world`` (fixed), ``rod1``, ``rod2``; ``continuous`` (unlimited revolute) joints
-    ``hinge1`` (``world -> rod1``, origin 0, axis ``axis1``) and ``hinge2`` (``rod1 ->
-    rod2``, origin ``0 a 0``, axis ``axis2``) with ``<dynamics damping=c_i friction=0>``.
-    Inertials: ``<origin xyz=com rpy="0 0 0">``, mass, and the full tensor about the centre
-    of mass in link axes, from :func:`mujoco_compatible` (tiny ``axial_inertia`` included).
+    Links ``world`` (fixed), ``rod1`` to ``rodn``; ``continuous`` (unlimited revolute) joints
+    ``hinge1`` (``world -> rod1``) to ``hingen`` (``rod(n-1) -> rodn``), each at its hinge's offset in
+    its parent (the double pendulum's ``hinge2`` at ``0 a 0``) with the link's axis (``axis1``,
+    ``axis2``) and ``<dynamics damping=c_i friction=0>``.  Inertials: ``<origin xyz=com rpy="0 0 0">``,
+    mass, and the full tensor about the centre of mass in link axes, from :func:`mujoco_compatible`
+    (tiny ``axial_inertia`` included).
 
     **Gravity** is not part of URDF.  With ``z_up=False`` (default) the URDF's frame is
     skewpend's, ``y`` pointing down: the simulator must apply gravity ``(0, +g, 0)``.
@@ -422,18 +448,19 @@ def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: 
     (MuJoCo's URDF extension, ignored by other tools) sets MuJoCo's ``<option gravity>``
     accordingly, with ``RK4``, ``timestep=1e-4`` and contacts disabled.
 
-    **Constant torques** ``tau1, tau2`` have no place in URDF: they are listed in a comment
-    and must be applied by the simulator (e.g. MuJoCo ``data.qfrc_applied``).
+    **Constant torques** have no place in URDF: they are listed in a comment and must be applied by
+    the simulator (e.g. MuJoCo ``data.qfrc_applied``).  Neither have the geared motors' rotors
+    (refused: export MJCF, which holds them exactly) nor Coulomb friction (refused).
     """
-    p = mujoco_compatible(params, axial_inertia)
-    _no_friction(p, "URDF")
-    if p.has_rotor:
-        raise ParameterError(f"export URDF: the geared motors' rotor inertia (Ir = {p.Ir:g}, gr = {p.gr:g}) has no place "
+    c, name = _compatible_chain(model, axial_inertia)
+    _no_friction(c, name, "URDF")
+    if c.has_rotor:
+        rotors = _listed((name(key, link.index), getattr(link, key)) for link in c.links if link.rotor
+                         for key in ("rotor", "gear"))
+        raise ParameterError(f"export URDF: the geared motors' rotor inertia ({rotors}) has no place "
                              "in URDF (no armature, no coupling of joint inertias); export MJCF, which holds it exactly")
-    axis1, axis2 = _axes(p)
-    a, b = float(p.a), float(p.b)
-    radius = 0.01 * a + 0.01 * b
-    gravity = f"0 0 {_num(-p.g)}" if z_up else f"0 {_num(p.g)} 0"
+    radius = sum(0.01 * link.length for link in c.links)
+    gravity = f"0 0 {_num(-c.g)}" if z_up else f"0 {_num(c.g)} 0"
     root = "roof" if z_up else "world"
 
     frame_note = (
@@ -442,12 +469,13 @@ def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: 
         if z_up
         else "Apply gravity (0, +g, 0): this URDF uses skewpend's frame, y pointing DOWN."
     )
+    torques = ", ".join(f"hinge{link.index} {_num(link.torque)} N m" for link in c.links)
     lines = [
         '<?xml version="1.0"?>',
         '<robot name="skewpend">',
-        f"  <!-- {_header(p, 'URDF')} -->",
+        f"  <!-- {_header(model, c, 'URDF')} -->",
         f"  <!-- {_comment(frame_note)} -->",
-        f"  <!-- {_comment(f'Constant joint torques (not representable in URDF; apply them in the simulator): hinge1 {_num(p.tau1)} N m, hinge2 {_num(p.tau2)} N m.')} -->",
+        f"  <!-- {_comment(f'Constant joint torques (not representable in URDF; apply them in the simulator): {torques}.')} -->",
         "  <mujoco>",
         '    <compiler angle="radian" discardvisual="true" fusestatic="true"/>',
         f'    <option gravity="{gravity}" timestep="0.0001" integrator="RK4">',
@@ -465,10 +493,13 @@ def to_urdf(params: Parameters, *, axial_inertia: Optional[float] = None, z_up: 
             f'    <origin xyz="0 0 0" rpy="{_num(-math.pi / 2)} 0 0"/>',
             "  </joint>",
         ]
-    lines += ['  <link name="rod1">', *_urdf_inertial(p.com1, p.m1, p.inertia1), *_urdf_visual(a, radius), "  </link>"]
-    lines += ['  <link name="rod2">', *_urdf_inertial(p.com2, p.m2, p.inertia2), *_urdf_visual(b, radius), "  </link>"]
-    lines += _urdf_joint("hinge1", root, "rod1", "0 0 0", axis1, p.c1)
-    lines += _urdf_joint("hinge2", "rod1", "rod2", f"0 {_num(a)} 0", axis2, p.c2)
+    for link in c.links:
+        lines += [f'  <link name="rod{link.index}">', *_urdf_inertial(link.com, link.mass, link.inertia),
+                  *_urdf_visual(link.length, radius), "  </link>"]
+    for link in c.links:
+        parent = root if link.index == 1 else f"rod{link.index - 1}"
+        lines += _urdf_joint(f"hinge{link.index}", parent, f"rod{link.index}", _vec(link.offset), link.axis,
+                             link.damping)
     lines += ["</robot>", ""]
     return "\n".join(lines)
 
@@ -487,13 +518,9 @@ def _format_for(path: Path, fmt: Optional[str]) -> str:
     return fmt.lower()
 
 
-def write_model(
-    params: Parameters,
-    path: Union[str, os.PathLike],
-    format: Optional[str] = None,
-    **options,
-) -> Path:
-    """Write :func:`to_mjcf` or :func:`to_urdf` of ``params`` to ``path``; return the path.
+def write_model(model, path: Union[str, os.PathLike], format: Optional[str] = None, **options) -> Path:
+    """Write :func:`to_mjcf` or :func:`to_urdf` of ``model`` (the double pendulum or a chain of links) to
+    ``path``; return the path.
 
     ``format``: ``"mjcf"`` or ``"urdf"``; ``None`` infers it from the suffix (``.xml``,
     ``.mjcf`` -> MJCF; ``.urdf`` -> URDF).  ``options`` go to the exporter (``timestep``,
@@ -525,7 +552,7 @@ def write_model(
         raise ParameterError(
             f"unknown {fmt} export option(s) {', '.join(unknown)}; allowed: {', '.join(_OPTIONS[fmt])}"
         )
-    text = exporter(params, **options)
+    text = exporter(model, **options)
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
             fh.write(text)
@@ -560,31 +587,24 @@ def mujoco_steps(t_end: float, dt: float) -> int:
     return nsteps
 
 
-def mujoco_trajectory(
-    params: Parameters,
-    y0: Sequence[float],
-    t_end: float,
-    *,
-    dt: float = 1e-4,
-    integrator: str = "RK4",
-    n_out: Optional[int] = None,
-    axial_inertia: Optional[float] = None,
-):
-    """Simulate the exported MJCF in MuJoCo from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``
-    (a chain of links' ``y0 = (q1 … qn, dq1 … dqn)``).
+def mujoco_trajectory(model, y0: Sequence[float], t_end: float, *, dt: float = 1e-4, integrator: str = "RK4",
+                      n_out: Optional[int] = None, axial_inertia: Optional[float] = None):
+    """Simulate the exported MJCF of ``model`` in MuJoCo from ``y0`` over ``[0, t_end]``: the model's
+    coordinates and their speeds (the double pendulum's ``(phi, psi, dphi, dpsi)``, a chain's
+    ``(q1 … qn, dq1 … dqn)``).
 
-    Builds :func:`to_mjcf` (a chain's :func:`chain_to_mjcf`; ``timestep=dt``, ``integrator``), loads it with
-    ``mujoco.MjModel.from_xml_string``, sets ``qpos = (phi, psi)``, ``qvel = (dphi, dpsi)``
+    Builds :func:`to_mjcf` (``timestep=dt``, ``integrator``), loads it with
+    ``mujoco.MjModel.from_xml_string``, sets ``qpos`` to the angles, ``qvel`` to the speeds
     and steps with ``mj_step``.  The constant torques are in the model (actuators with an
     affine bias, see :func:`to_mjcf`); ``ctrl`` and ``qfrc_applied`` stay zero.  ``t_end``
     must be a whole number of steps ``dt``.
 
-    Returns ``(t, y)``: times [s], shape (n,), and states ``(phi, psi, dphi, dpsi)``, shape
-    (n, 4), starting with ``t = 0, y0``.  ``n_out=None`` returns every step
+    Returns ``(t, y)``: times [s], shape (n,), and states (angles, speeds), shape
+    (n, 2 N) for N links, starting with ``t = 0, y0``.  ``n_out=None`` returns every step
     (``n = t_end/dt + 1``); otherwise ``n_out >= 2`` samples at the steps nearest to
     ``linspace(0, t_end, n_out)`` (``t`` holds the exact step times).
 
-    The system simulated is :func:`mujoco_compatible` ``(params, axial_inertia)``.  Raises
+    The system simulated is :func:`mujoco_compatible` ``(model, axial_inertia)``.  Raises
     :class:`MujocoMissingError` (a ``SkewpendError`` and ``ImportError``) without
     ``mujoco``, :class:`~skewpend.errors.ParameterError` for bad arguments, and
     :class:`~skewpend.errors.IntegrationError` if the state becomes non-finite or MuJoCo
@@ -592,12 +612,8 @@ def mujoco_trajectory(
     """
     import numpy as np
 
-    from ..symbolic.chain import Chain
-
-    chain = isinstance(params, Chain)
-    if not chain:
-        params.require_numeric("export")
-    y = initial_state(y0, params.coordinates if chain else ("phi", "psi"))
+    numeric_chain(model)  # symbolic values are refused first
+    y = initial_state(y0, model.coordinates)
     nq = y.size // 2
     t_end = positive_number("t_end", t_end)
     dt = positive_number("dt", dt)
@@ -611,8 +627,7 @@ def mujoco_trajectory(
         marks = np.unique(np.rint(np.linspace(0, nsteps, int(n_out))).astype(np.int64))
 
     mujoco = import_mujoco()
-    make = chain_to_mjcf if chain else to_mjcf
-    xml = make(params, timestep=dt, integrator=integrator, axial_inertia=axial_inertia)
+    xml = to_mjcf(model, timestep=dt, integrator=integrator, axial_inertia=axial_inertia)
     try:
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:  # MuJoCo's compiler refuses the model (e.g. a mass below its minimum)
@@ -651,99 +666,3 @@ def mujoco_trajectory(
     finally:
         mujoco.set_mju_user_warning(previous)
     return marks * dt, out
-
-
-# -- chains of any length ------------------------------------------------------------------------------
-def mujoco_compatible_chain(chain, axial_inertia: Optional[float] = None):
-    """``chain`` with each link's inertia made acceptable to MuJoCo (the tiny inertia of the module's
-    text: ``axial_inertia``, default ``max(1e-9 m l^2, 1e-12)`` per link, along the principal axes that
-    need it); bodies MuJoCo accepts are unchanged.  The system :func:`chain_to_mjcf` exports."""
-    eps = positive_number("axial_inertia", axial_inertia, allow_none=True)
-    out = chain
-    for link in chain.links:
-        eps_k = eps if eps is not None else max(AXIAL_INERTIA_FACTOR * link.mass * link.length ** 2, AXIAL_INERTIA_FLOOR)
-        inertia = _regularised_inertia(link.inertia, eps_k)
-        if not _finite(inertia):
-            raise ParameterError(f"export: the inertia of link {link.index} overflows in MuJoCo's terms: {link.inertia}")
-        if inertia != link.inertia:
-            out = out.replace_link(link.index, inertia=inertia)
-    return out
-
-
-def chain_to_mjcf(chain, *, timestep: float = 1e-4, integrator: str = "RK4",
-                  axial_inertia: Optional[float] = None) -> str:
-    """A MuJoCo MJCF model (XML text) of a chain of links (:class:`skewpend.symbolic.chain.Chain`): the
-    conventions of :func:`to_mjcf` (gravity along +y, bodies nested link by link, each at its hinge's
-    offset in its parent, ``<inertial>`` of :func:`mujoco_compatible_chain`, hinge ``axis``, ``damping``,
-    a ``<general>`` actuator with the constant torque as its affine bias).  Coulomb friction and rotors
-    are refused: MuJoCo's ``frictionloss`` is another model, and a rotor's coupling to its carrier is no
-    joint armature."""
-    if chain.has_friction:
-        raise ParameterError("export: MuJoCo's frictionloss is not skewpend's smooth Coulomb friction; export the chain "
-                             "with coulomb = 0 on every link")
-    if chain.has_rotor:
-        raise ParameterError("export: a rotor carried by its parent link couples the joints, which MuJoCo's armature "
-                             "cannot hold; export the chain with rotor = 0 on every link")
-    from .. import __version__
-
-    c = mujoco_compatible_chain(chain, axial_inertia)
-    timestep = positive_number("timestep", timestep)
-    integrator = _integrator(integrator)
-    radius = 0.01 * sum(link.length for link in c.links) / max(1, c.n) * 2
-    colours = ("0.2 0.4 0.8 1", "0.8 0.3 0.2 1", "0.3 0.7 0.3 1", "0.7 0.6 0.2 1")
-    lines = [
-        '<mujoco model="skewpend-chain">',
-        f"  <!-- {_comment(f'A chain of {c.n} links exported by skewpend {__version__} (MJCF). Frame: x, y, z = i, j, k with y pointing DOWN; gravity g acts along +y. Joint q_i is hinge i, relative to link i-1, zero with the chain hanging along +y.')} -->",
-        '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
-        f'  <option gravity="0 {_num(c.g)} 0" timestep="{_num(timestep)}" integrator="{integrator}">',
-        '    <flag contact="disable" energy="enable"/>',
-        "  </option>",
-        "  <worldbody>",
-    ]
-    for link in c.links:
-        pad = "  " * (link.index + 1)
-        lines += [
-            f'{pad}<body name="link{link.index}" pos="{_vec(link.offset)}">',
-            f'{pad}  <joint name="hinge{link.index}" type="hinge" pos="0 0 0" axis="{_vec(link.axis)}" '
-            f'damping="{_num(link.damping)}" limited="false" armature="0" frictionloss="0" stiffness="0"/>',
-            f'{pad}  <inertial pos="{_vec(link.com)}" mass="{_num(link.mass)}" fullinertia="{_fullinertia(link.inertia)}"/>',
-            f'{pad}  <geom name="link{link.index}" type="capsule" fromto="0 0 0 0 {_num(link.length)} 0" '
-            f'size="{_num(radius)}" contype="0" conaffinity="0" rgba="{colours[(link.index - 1) % len(colours)]}"/>',
-        ]
-    lines += ["  " * (k + 1) + "</body>" for k in range(c.n, 0, -1)]
-    lines += ["  </worldbody>", "  <actuator>"]
-    lines += [f'    <general name="tau{link.index}" joint="hinge{link.index}" gainprm="1" biastype="affine" '
-              f'biasprm="{_num(link.torque)} 0 0" ctrllimited="false" forcelimited="false"/>' for link in c.links]
-    lines += ["  </actuator>", "</mujoco>", ""]
-    return "\n".join(lines)
-
-
-def chain_to_urdf(chain, *, axial_inertia: Optional[float] = None) -> str:
-    """A URDF model (XML text) of a chain of links in skewpend's frame (``y`` down: apply gravity
-    ``(0, +g, 0)``), the conventions of :func:`to_urdf`: links ``link1`` to ``linkn`` with the inertials of
-    :func:`mujoco_compatible_chain`, ``continuous`` joints ``hinge1`` to ``hingen`` at each hinge's offset in
-    its parent, with the link's axis and ``<dynamics damping>``.  Constant torques are listed in a comment
-    (URDF has no place for them); Coulomb friction and rotors are refused, as for MJCF."""
-    if chain.has_friction or chain.has_rotor:
-        chain_to_mjcf(chain)  # the same refusals, one line each
-    from .. import __version__
-
-    c = mujoco_compatible_chain(chain, axial_inertia)
-    radius = 0.02 * sum(link.length for link in c.links) / c.n
-    torques = ", ".join(f"hinge{link.index} {_num(link.torque)} N m" for link in c.links)
-    lines = [
-        '<?xml version="1.0"?>',
-        '<robot name="skewpend-chain">',
-        f"  <!-- {_comment(f'A chain of {c.n} links exported by skewpend {__version__} (URDF). Apply gravity (0, +g, 0) with g = {_num(c.g)}: this URDF uses skewpend frame, y pointing DOWN.')} -->",
-        f"  <!-- {_comment(f'Constant joint torques (not representable in URDF; apply them in the simulator): {torques}.')} -->",
-        '  <link name="world"/>',
-    ]
-    for link in c.links:
-        lines += [f'  <link name="link{link.index}">', *_urdf_inertial(link.com, link.mass, link.inertia),
-                  *_urdf_visual(link.length, radius), "  </link>"]
-    for link in c.links:
-        parent = "world" if link.index == 1 else f"link{link.index - 1}"
-        lines += _urdf_joint(f"hinge{link.index}", parent, f"link{link.index}", _vec(link.offset), link.axis,
-                             link.damping)
-    lines += ["</robot>", ""]
-    return "\n".join(lines)

@@ -47,8 +47,7 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     """Simulate ``params`` (or a chain of links) from ``y0`` with skewpend (dop853, rtol = atol = 1e-12) and with
     MuJoCo (exported MJCF, RK4, step ``dt``) and compare on a common grid.
 
-    Both simulate :func:`skewpend.export.mujoco_compatible` ``(params)`` (a chain's
-    :func:`~skewpend.interop.export.mujoco_compatible_chain`): the thin rods get the same tiny
+    Both simulate :func:`skewpend.export.mujoco_compatible` ``(params)``: the thin rods get the same tiny
     axial inertia MuJoCo needs.
 
     Everything is checked before any work starts: ``t_end`` and ``dt`` must be positive and
@@ -57,15 +56,12 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     :class:`~skewpend.errors.ParameterError`.  MuJoCo is stepped in bounded chunks, so
     Ctrl-C (``KeyboardInterrupt``) stops a long comparison promptly.
     """
-    from .export import import_mujoco, mujoco_compatible, mujoco_compatible_chain, mujoco_steps, mujoco_trajectory
+    from .export import import_mujoco, mujoco_compatible, mujoco_steps, mujoco_trajectory, numeric_chain
     from ..numeric.simulation import simulate
+    from ..schema import state_coordinates
 
-    from ..symbolic.chain import Chain
-
-    chain = isinstance(params, Chain)
-    if not chain:
-        params.require_numeric("validation")
-    y0 = initial_state(y0, params.coordinates if chain else ("phi", "psi"))
+    numeric_chain(params, "validation")  # symbolic values are refused first
+    y0 = initial_state(y0, params.coordinates)
     for name, value in (("t_end (--t-end)", t_end), ("dt (--dt)", dt)):
         if value is None:
             raise ParameterError(f"{name} must be a positive number of seconds, not symbolic")
@@ -73,16 +69,14 @@ def compare_with_mujoco(params: Parameters, y0: Sequence[float], t_end: float = 
     mujoco = import_mujoco()
     n_seg = _segments(max(nsteps, 1))
     t_mj, y_mj = mujoco_trajectory(params, y0, t_end, dt=dt, n_out=n_seg + 1)
-    same = mujoco_compatible_chain(params) if chain else mujoco_compatible(params)
+    same = mujoco_compatible(params)
     tr = simulate(same, y0, t_end, dt_out=t_end / n_seg, method="dop853", rtol=1e-12, atol=1e-12)  # as documented
     if not tr.success:
         raise IntegrationError(f"skewpend: {tr.message}")
     if tr.t.size != t_mj.size or not np.allclose(tr.t, t_mj, rtol=0, atol=1e-9 * max(1.0, t_end)):
         raise IntegrationError("internal error: the sample times of skewpend and MuJoCo differ")
     diff = np.max(np.abs(tr.y - y_mj), axis=0)
-    from ..schema import state_coordinates
-
-    names = state_coordinates(params.n) if chain else ("phi", "psi", "dphi", "dpsi")
+    names = state_coordinates(params.n)
     return ValidationReport(
         t=tr.t,
         skewpend=tr.y,
