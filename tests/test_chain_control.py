@@ -245,17 +245,21 @@ def test_the_cli_refuses_what_a_chain_cannot_take(tmp_path, argv, message):
 
 # -- flip maps over a plane of two angles ---------------------------------------------------------------------------
 def test_the_chain_of_twos_flip_map_is_the_double_pendulums():
-    """The double pendulum's flip map (SIMD lanes, its energy bound and mirror symmetry) and the chain of two's
-    over the plane (phi, psi) (``sp_flip_many``, every cell integrated): the same cells flip, by the same joint,
-    at the same times (1e-6 s: DOP853 at 1e-10 on two kernels, the crossing on each one's dense output)."""
+    """One flip map, two strategies: the double pendulum's (the flip kernel's SIMD lanes, its energy bound and
+    mirror symmetry) and the chain of two's over the plane (phi, psi) (the model kernel's ``sp_flip_many``, every
+    cell integrated): the same cells flip, by the same joint, at the same times (1e-6 s: DOP853 at 1e-10 on two
+    kernels, the crossing on each one's dense output)."""
     params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.3, g=9.81)
     a = skewpend.flip_map(params, 16, t_end=4.0, workers=1)
     b = skewpend.flip_map(Chain.from_parameters(params), 16, t_end=4.0, plane=("phi", "psi"), workers=1)
-    assert type(b).__name__ == "ChainFlipMap" and b.ok and 0.2 < b.flipped_fraction < 0.9
+    assert type(b) is type(a) is skewpend.FlipMap and b.ok and 0.2 < b.flipped_fraction < 0.9
+    assert a.stats["lanes"] == 8 and a.settings["symmetry"] and b.stats["lanes"] == 1 and not b.settings["energy_bound"]
     np.testing.assert_array_equal(b.flipped, a.flipped)
-    np.testing.assert_array_equal(b.which, np.where(a.which >= 0, a.which + 1, 0))
+    np.testing.assert_array_equal(b.which, a.which)
     np.testing.assert_allclose(b.flip_time[b.flipped], a.flip_time[a.flipped], rtol=0, atol=1e-6)
     np.testing.assert_array_equal(b.x0, a.phi0[:, 0])
+    np.testing.assert_array_equal(b.phi0, a.phi0)
+    assert b.settings.keys() == a.settings.keys() and b.stats.keys() == a.stats.keys()
 
 
 def test_a_triple_pendulums_flip_map_against_simulate(tmp_path):
@@ -270,20 +274,21 @@ def test_a_triple_pendulums_flip_map_against_simulate(tmp_path):
         i, j = np.argwhere(fm.flipped == want)[-1]
         y0 = [fm.x0[i], 0.5, fm.y0[j], 0.0, 0.0, 0.0]
         if want:
-            t, joint = fm.flip_time[i, j], fm.which[i, j] - 1
+            t, joint = fm.flip_time[i, j], fm.which[i, j]
             tr = skewpend.simulate(chain, y0, t, dt_out=t / 400, rtol=1e-10, atol=1e-10)
             assert abs(abs(tr.y[-1, joint]) - np.pi) < 1e-6
             assert np.abs(tr.y[:-1, :3]).max() < np.pi
         else:
             tr = skewpend.simulate(chain, y0, 4.0, dt_out=0.01, rtol=1e-10, atol=1e-10)
-            assert np.abs(tr.y[:, :3]).max() < np.pi and fm.which[i, j] == 0
+            assert np.abs(tr.y[:, :3]).max() < np.pi and fm.which[i, j] == -1
     back = skewpend.open_result(fm.to_netcdf(tmp_path / "flip.nc"))
     assert back.params == chain and back.plane == ("q1", "q3")
     np.testing.assert_array_equal(back.which, fm.which)
     from skewpend.views.figures import flipmap_figure
 
     fig = flipmap_figure(fm)
-    assert fig.axes[0].get_xlabel() == "q₁ at release [deg]" and "held q2 = 28.65°" in fig._suptitle.get_text()
+    assert fig.axes[0].get_xlabel() == "q₁, hinge 1 at release [deg]" and "held q2 = 28.65°" in fig._suptitle.get_text()
+    assert "q1(0) in [-180°, 180°], q3(0) in [-180°, 180°]" in fig._suptitle.get_text()
 
 
 def test_flip_maps_refuse_the_others_options_in_one_line():
@@ -292,10 +297,23 @@ def test_flip_maps_refuse_the_others_options_in_one_line():
         skewpend.flip_map(chain, 4, plane=("q1", "dq2"))
     with pytest.raises(ParameterError, match=r"held must be the chain's 3 angles, each within \(-pi, pi\)"):
         skewpend.flip_map(chain, 4, held=[0.0, 0.1])
-    with pytest.raises(ParameterError, match=r"phi_range is the double pendulum's; a chain's flip map takes plane="):
+    with pytest.raises(ParameterError, match=r"phi_range is the double pendulum's \(the range of its angle phi\); this "
+                                              r"model's flip map takes plane=, ranges= and held= \(of q1, q2, q3\)"):
         skewpend.flip_map(chain, 4, phi_range=(-1.0, 1.0))
-    with pytest.raises(ParameterError, match=r"plane, ranges and held are a chain's"):
-        skewpend.flip_map(PARAMS, 4, plane=("phi", "psi"))
+    with pytest.raises(ParameterError, match=r"give the ranges either as ranges= or as phi_range, not both"):
+        skewpend.flip_map(PARAMS, 4, ranges=((-1.0, 1.0), (-1.0, 1.0)), phi_range=(-1.0, 1.0))
+    with pytest.raises(ParameterError, match=r"plane must be two different angles of phi, psi"):
+        skewpend.flip_map(PARAMS, 4, plane=("phi", "phi"))
+
+
+def test_the_double_pendulums_map_over_either_plane():
+    """The double pendulum's plane is a choice too: (psi, phi) is the transposed map, bit for bit (each cell's
+    arithmetic is its own), its ranges named by the angles either way."""
+    a = skewpend.flip_map(PARAMS, 12, t_end=3.0, phi_range=(-3.0, 2.0), workers=1)
+    c = skewpend.flip_map(PARAMS, 12, t_end=3.0, plane=("psi", "phi"), phi_range=(-3.0, 2.0), workers=1)
+    assert c.flip_time.T.tobytes() == a.flip_time.tobytes() and c.which.T.tobytes() == a.which.tobytes()
+    assert c.plane == ("psi", "phi") and c.settings["phi_range"] == (-3.0, 2.0) and c.settings["plane"] == ("psi", "phi")
+    np.testing.assert_array_equal(c.phi0, a.phi0.T)
 
 
 def test_the_cli_maps_a_chains_flips(tmp_path):

@@ -190,8 +190,8 @@ def test_tasks_are_batches_of_chunks():
 def test_a_worker_with_another_skewpend_is_refused():
     from skewpend.numeric.kernels import kernel_module
 
-    job = dict(params=BENCH, n=4, t_end=1.0, phi_range=(-3.0, 3.0), psi_range=(-3.0, 3.0), rtol=1e-10, atol=1e-10,
-               max_steps=1000, symmetric=True, threshold=None)
+    job = dict(params=BENCH, n=4, t_end=1.0, plane=("phi", "psi"), x_range=(-3.0, 3.0), y_range=(-3.0, 3.0),
+               held=(0.0, 0.0), rtol=1e-10, atol=1e-10, max_steps=1000, symmetric=True, threshold=None)
     name = kernel_module(BENCH, flip=True).path.name
     with pytest.raises(SkewpendError, match=f"skewpend {re.escape(_version())}, this run 0.0.1"):
         cluster_task(FlipJob(**job, version="0.0.1", kernel_name=name), [[0, 3]])

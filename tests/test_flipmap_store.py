@@ -60,8 +60,8 @@ def test_store_is_the_in_memory_map_and_reads_back(tmp_path, ref36):
     assert fm.stats["chunks_resumed"] == 0 and not (path / LOCK_NAME).exists()  # lock released
     # the template: arrays, coordinates, settings and their fingerprint
     g = zarr.open_group(str(path), mode="r")
-    settings = flip_settings(BENCH, 36, t_end=6.0, phi_range=(-math.pi, math.pi), psi_range=(-math.pi, math.pi),
-                             rtol=1e-10, atol=1e-10, max_steps=fm.settings["max_steps"], shortcuts=True)
+    settings = flip_settings(BENCH, 36, t_end=6.0, plane=("phi", "psi"), ranges=((-math.pi, math.pi), (-math.pi, math.pi)),
+                             held=(0.0, 0.0), rtol=1e-10, atol=1e-10, max_steps=fm.settings["max_steps"], shortcuts=True)
     assert g.attrs["fingerprint"] == fingerprint(settings) == fm.stats["fingerprint"]
     assert json.loads(g.attrs["settings"]) == settings and g.attrs["complete"] is True
     assert settings["params"]["alpha"] == 0.6 and settings["skewpend_version"]

@@ -395,7 +395,8 @@ def chain_dynamics(chain) -> dict:
     f = skewpend.flip_map(chain, 4, t_end=3.0, workers=1)
     return {"lqr": {"gain": d.gain, "P": d.P, "closed_loop": _complex(d.eigenvalues)},
             "lyapunov": {"exponents": ly.exponents},
-            "flip_map": {"flip_time": np.asarray(f.flip_time, float), "which": np.asarray(f.which, float)}}
+            # the joint numbered 1 .. n (0 none), as pinned at f3bff08 (a flip map's which is the angle's index since issue 52)
+            "flip_map": {"flip_time": np.asarray(f.flip_time, float), "which": np.where(f.which >= 0, f.which + 1.0, 0.0)}}
 
 
 def fit_kaheman_triple() -> dict:

@@ -1,20 +1,24 @@
 """Flip-time maps: how long a start at rest takes until a joint flips over, on a grid of starts.
 
-``flip_map(params, n)`` releases the pendulum at rest from the centres of an ``n x n`` grid of
-cells over the window ``phi_range x psi_range`` and records, for each, the *flip time*: the
-first time either joint angle leaves ``(-pi, pi)`` -- NaN when that does not happen by
-``t_end``.  For the planar double pendulum this is the well-known fractal picture; here it
-is computed for any skew ``alpha`` and any bodies.
+``flip_map(model, n)`` releases the model at rest from the centres of an ``n x n`` grid of cells over a
+``plane`` of two of its angles (default its first two: the double pendulum's ``(phi, psi)``, a chain's
+``(q1, q2)``), each over its range (default ``(-pi, pi)``), the other angles at ``held`` (default 0:
+hanging), and records, for each cell, the *flip time*: the first time any joint angle leaves
+``(-pi, pi)`` -- NaN when that does not happen by ``t_end`` -- and ``which`` angle it was (its index in
+``model.coordinates``: 0 phi, 1 psi for the double pendulum).  For the planar double pendulum this is the
+well-known fractal picture; here it is computed for any skew, any bodies and any chain of links.
 
-How (see :mod:`skewpend.numeric.ensemble` and ``sp_flip`` in ``integrators.c``):
+One job on the grid driver (:class:`FlipJob`, a :class:`~skewpend.numeric.grid.PlaneJob` as the region of
+attraction's): every cell integrated by DOP853 (as ``simulate``'s default method) in compiled code, stopped
+at its flip, located on the 7th-order dense output of the step in which an angle reaches pi (not at the
+first step past it); rows of cells on every core, or as tasks on a Dask cluster, bitwise the same result
+whatever the chunking, the workers or the cluster.  How the cells are integrated is a *strategy*, chosen by
+what the model's kernel can print (:func:`flip_kernel`, as :func:`skewpend.analysis.roa.roa_kernel`
+chooses), never by the model's type:
 
-* every trajectory is integrated by DOP853 (as ``simulate``'s default method) in compiled code
-  generated from the derivation, ``SP_LANES`` trajectories side by side in SIMD registers, and
-  stopped at its flip, located on the 7th-order dense output of the step in which an angle
-  reaches pi (not at the first step past it);
-* the cells are integrated in chunks on a thread pool, one thread per core: bitwise the same
-  result whatever the chunk size or worker count;
-* what no general integrator knows is used first:
+* **lanes** -- the flip kernel (``sp_flip`` in ``integrators.c``; the specification's derivation, the
+  double pendulum's today): ``SP_LANES`` starts side by side in SIMD registers, on a trigonometry-free
+  state, and what no general integrator knows used first:
 
   - **energy bound.**  With constant torques ``tau`` and damping ``c >= 0``, ``T + V`` with
     ``V = Pi - tau·q`` never increases (``d/dt (T + V) = -c q'^2``), and released at rest it
@@ -27,11 +31,13 @@ How (see :mod:`skewpend.numeric.ensemble` and ``sp_flip`` in ``integrators.c``):
     sampled local minimum, less a safety margin of 1e-9 of the potential's scale.
   - **symmetry.**  When the equations (without torques) are odd under ``(q, q') -> -(q, q')``
     -- checked symbolically when the kernel is generated: true for thin rods and default axes,
-    false e.g. for a centre of mass off the rod's plane -- and there are no torques, the start
-    ``-q0`` is the mirror image of ``q0``: the same flip time and joint.  In a window symmetric
-    about 0 only half the cells are integrated (the cell centres are computed so that mirror
-    cells are exact negatives).
-  - **early exit**: a trajectory stops at its flip.
+    false e.g. for a centre of mass off the rod's plane -- and there are no torques (nor a held
+    angle off 0), the start ``-q0`` is the mirror image of ``q0``: the same flip time and joint.
+    In a window symmetric about 0 only half the cells are integrated (the cell centres are
+    computed so that mirror cells are exact negatives).
+
+* **one by one** -- any other model (a chain of links): the model's own kernel integrates each start
+  (``sp_flip_many``), every cell integrated.
 
 ``shortcuts=False`` turns off the energy bound and the symmetry (every cell integrated), for
 checking them.
@@ -46,15 +52,16 @@ Stored, resumable and distributed runs (``store=``, ``resume=``, ``scheduler=``;
   themselves, and the results come back to this process);
 * a unit computes exactly the cells, with exactly the arithmetic, of the in-memory map, so
   the result is bitwise the same whatever the chunking, the workers or the cluster;
-* the store (:class:`~skewpend.numeric.store.RowStore`, a ``*.zarr`` directory) is cut into
-  chunks of whole rows, at most 65536 cells and at least 8 chunks by default, a divisor of
-  ``n`` so that mirror chunks are chunks: its template (arrays, coordinates, the settings
-  and their SHA-256 fingerprint, :func:`flip_settings` / :func:`fingerprint`) is written
-  first, then each chunk once all its rows are in, its ``done`` flag last.  ``resume=True``
-  computes only the rows of chunks not done, and refuses a store made with other settings,
-  naming what differs;
+* the store (:class:`~skewpend.numeric.store.RowStore`, a ``*.zarr`` directory, of one kind for
+  every model) is cut into chunks of whole rows, at most 65536 cells and at least 8 chunks by
+  default, a divisor of ``n`` so that mirror chunks are chunks: its template (arrays,
+  coordinates, the settings and their SHA-256 fingerprint, :func:`flip_settings` /
+  :func:`fingerprint`) is written first, then each chunk once all its rows are in, its ``done``
+  flag last.  ``resume=True`` computes only the rows of chunks not done, and refuses a store
+  made with other settings, naming what differs;
 * :func:`open_flip_map` reads a complete store (or a NetCDF file written by
-  :meth:`FlipMap.to_netcdf`) back into a :class:`FlipMap`.
+  :meth:`FlipMap.to_netcdf`) back into a :class:`FlipMap` -- also the chain flip maps that
+  skewpend wrote before the two were one (kind ``chain flip map``).
 """
 
 from __future__ import annotations
@@ -62,51 +69,63 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import warnings
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
+from functools import cached_property
+from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..checks import DEFAULT_TOL, MAX_STEPS  # noqa: F401 - the module's documented defaults
-from ..checks import max_steps as check_max_steps, numeric_params, positive, tolerances
-from ..errors import ParameterError
-from ..numeric.grid import MAX_N, GridJob, cell_centres, check_n, check_range  # noqa: F401 - the last four: this module's API
+from ..checks import max_steps as check_max_steps, not_parameters, numeric_params, positive, tolerances
+from ..errors import NotNumericError, ParameterError
+from ..numeric.grid import MAX_N, PlaneJob, cell_centres, check_n, check_range, plane_attrs  # noqa: F401 - MAX_N, check_n: this module's API
 from ..results import DatasetSpec, Result, canonical_json, fingerprint
 from ..status import Status
 from ..symbolic.model import Parameters
 
-if TYPE_CHECKING:
-    from .chainflip import ChainFlipMap
-
-__all__ = ["flip_map", "flip_time", "FlipOfStart", "FlipMap", "FlipJob", "open_flip_map", "cell_centres", "energy_barrier", "flip_settings",
-           "fingerprint", "MAX_N"]
+__all__ = ["flip_map", "flip_time", "FlipOfStart", "FlipMap", "FlipJob", "open_flip_map", "flip_kernel", "cell_centres",
+           "energy_barrier", "flip_settings", "fingerprint", "MAX_N"]
 
 #: Points per side of the square sampled for the energy barrier.
 _BARRIER_SAMPLES = 4097
 #: Safety margin of the energy bound, relative to the potential's scale.
 BARRIER_MARGIN = 1e-9
 _BARRIER_MARGIN = BARRIER_MARGIN
+#: The store's kind (its attribute ``kind``): stores of anything else are refused.
+STORE_KIND = "skewpend flip map"
+#: What skewpend wrote for a chain's flip map before the two were one: the result kind of its files and
+#: the kind of its stores (read back by :func:`open_flip_map`, ``which`` then numbered 1 .. n, 0 none).
+FORMER_KIND, FORMER_STORE_KIND = "chain flip map", "skewpend chain flip map"
+#: Columns of the per-chunk statistics kept in a store.
+CHUNK_STATS = ("integrated", "skipped_energy", "mirrored", "failed", "steps", "rejected", "integrated_time")
 
 
 @dataclass(frozen=True)
 class FlipMap(Result):
     """The result of :func:`flip_map`.
 
-    * ``phi0``, ``psi0`` -- the starting angles (cell centres) [rad], shape ``(n, n)``: ``phi0``
-      varies along axis 0, ``psi0`` along axis 1 (read-only broadcast views of the two axes);
-    * ``flip_time`` -- first time either angle leaves ``(-pi, pi)`` [s], NaN if not by ``t_end``;
-    * ``which`` -- the joint that flipped: 0 (phi), 1 (psi), -1 none;
-    * ``params``, ``settings`` (n, t_end, window, tolerances, which shortcuts were used),
-      ``stats`` (cells integrated / skipped by the energy bound / mirrored, ``failed``, ``steps``
-      (accepted), ``rejected``, ``energy_barrier`` [J], wall time, the run's chunks, store and
-      cluster);
+    * ``plane`` -- the two angles varied (the double pendulum's ``("phi", "psi")``, a chain's e.g.
+      ``("q1", "q3")``); ``x0``, ``y0`` -- their starting values, the cell centres [rad] (``x0`` along
+      axis 0, ``y0`` along axis 1); ``held`` -- every angle at the plane's origin (the others as held) [rad];
+      ``phi0``, ``psi0`` -- the starting angles named so, shape ``(n, n)`` (read-only broadcast views;
+      :meth:`start` gives any angle's);
+    * ``flip_time`` -- first time any angle leaves ``(-pi, pi)`` [s], NaN if not by ``t_end``;
+    * ``which`` -- the angle that flipped, its index in ``params.coordinates`` (0 phi, 1 psi), -1 none;
+    * ``params``, ``settings`` (n, t_end, the plane's ranges ``phi_range``/``psi_range`` or ``q1_range``...,
+      tolerances, which shortcuts were used; ``plane`` and ``held`` when not the defaults), ``stats``
+      (cells integrated / skipped by the energy bound / mirrored, ``failed``, ``steps`` (accepted),
+      ``rejected``, ``energy_barrier`` [J], wall time, the run's chunks, store and cluster);
     * ``status`` (:class:`~skewpend.status.Status`: PARTIAL when cells failed), ``message``,
-      ``ok``; ``to_xarray()``, ``to_netcdf(path)``, ``summary()`` (the result protocol).
+      ``ok``; ``flipped``, ``flipped_fraction``, ``to_xarray()``, ``to_netcdf(path)``, ``summary()``
+      (the result protocol).
     """
 
-    phi0: np.ndarray
-    psi0: np.ndarray
+    plane: Tuple[str, str]
+    x0: np.ndarray
+    y0: np.ndarray
+    held: np.ndarray
     flip_time: np.ndarray
     which: np.ndarray
 
@@ -121,27 +140,72 @@ class FlipMap(Result):
         """Boolean mask of the cells that flipped by ``t_end``."""
         return np.isfinite(self.flip_time)
 
+    @property
+    def flipped_fraction(self) -> float:
+        return float(np.count_nonzero(self.flipped)) / self.flip_time.size
+
+    def start(self, name: str) -> np.ndarray:
+        """The starting value of the angle ``name`` in every cell, shape ``(n, n)`` [rad]: an axis of the
+        plane broadcast, or a held angle."""
+        shape = np.shape(self.flip_time)
+        if name == self.plane[0]:
+            return np.broadcast_to(np.asarray(self.x0, dtype=float)[:, None], shape)
+        if name == self.plane[1]:
+            return np.broadcast_to(np.asarray(self.y0, dtype=float)[None, :], shape)
+        coordinates = tuple(self.params.coordinates)
+        if name not in coordinates:
+            raise ParameterError(f"{name!r} is not an angle of this model ({', '.join(coordinates)})")
+        return np.broadcast_to(float(self.held[coordinates.index(name)]), shape)
+
+    @property
+    def phi0(self) -> np.ndarray:
+        return self.start("phi")
+
+    @property
+    def psi0(self) -> np.ndarray:
+        return self.start("psi")
+
+    def window(self) -> Tuple[Tuple[float, float], Tuple[float, float]]:
+        """The plane's two ranges [rad] (the cells' outer edges), from the settings or else the cell centres."""
+        out = []
+        for name, centres in zip(self.plane, (self.x0, self.y0)):
+            given = self.settings.get(f"{name}_range")
+            if given is None:
+                c = [float(v) for v in centres]
+                half = 0.5 * (c[-1] - c[0]) / (len(c) - 1) if len(c) > 1 else 0.0
+                given = (c[0] - half, c[-1] + half)
+            out.append((float(given[0]), float(given[1])))
+        return out[0], out[1]
+
+    def positions(self) -> np.ndarray:
+        """Every cell's start as angles, ``(n * n, nq)`` (row-major: ``x0`` slowest)."""
+        return np.column_stack([self.start(c).ravel() for c in self.params.coordinates])
+
     def energy_margin(self) -> np.ndarray:
         """``V(q0) - V_threshold`` [J] on the cells, laid out like ``flip_time``: the potential
         ``V = Pi - tau·q`` at each start less the energy bound's threshold (its minimum on the
         boundary of the square ``(-pi, pi)^2``, less the safety margin); negative where energy
         alone forbids a flip.  The threshold the map used (``stats["energy_threshold"]``), or,
-        for a map made without the shortcuts, the same computed now."""
-        from ..numeric.kernels import kernel_module, parameter_vector
+        for a map made without the shortcuts, the same computed now.  A model whose kernel prints
+        no flip potential (a chain of links) has no energy bound: :class:`ParameterError`."""
+        from ..numeric.kernels import model_vector
 
-        kernel = kernel_module(self.params, flip=True)
-        p = parameter_vector(self.params)
+        kernel = flip_kernel(self.params)
+        if not kernel.flip:
+            raise ParameterError("this model's flip map has no energy bound (its kernel prints no flip potential)")
+        p = model_vector(self.params)
         threshold = self.stats.get("energy_threshold")
         if threshold is None:
             barrier, scale = energy_barrier(kernel, p)
             threshold = barrier - BARRIER_MARGIN * max(scale, 1e-300)
-        q = np.column_stack([np.asarray(self.phi0, dtype=float).ravel(), np.asarray(self.psi0, dtype=float).ravel()])
-        return kernel.flip_potential_many(np.ascontiguousarray(q), p).reshape(np.shape(self.flip_time)) - threshold
+        q = np.ascontiguousarray(self.positions())
+        return kernel.flip_potential_many(q, p).reshape(np.shape(self.flip_time)) - threshold
 
     def _dataset(self) -> DatasetSpec:
-        """Variables ``flip_time`` [s] and ``which`` over ``phi0``, ``psi0`` [rad]; attributes: the
-        protocol's (params, settings, stats as JSON, status, message) and the settings and
-        statistics one by one (numbers, strings and lists only, so NetCDF and Zarr take them)."""
+        """Variables ``flip_time`` [s] and ``which`` over the plane's two angles (``phi0``, ``psi0``;
+        ``q10``...) [rad]; attributes: the protocol's (params, settings, stats as JSON, status, message),
+        the settings and statistics one by one (numbers, strings and lists only, so NetCDF and Zarr take
+        them), the plane and the held angles."""
         attrs: Dict[str, Any] = {"title": FlipJob.title}
         for group in (self.settings, self.stats):
             for key, value in group.items():
@@ -149,67 +213,93 @@ class FlipMap(Result):
                     continue
                 attrs[key] = int(value) if isinstance(value, bool) else (list(value) if isinstance(value, tuple)
                                                                          else value)
+        attrs["plane"], attrs["held"] = ",".join(self.plane), [float(v) for v in self.held]
         attrs.update(self._base_attrs())
         attrs["flip_map_settings"] = canonical_json(self.settings)
         attrs["flip_map_stats"] = canonical_json(self.stats)
-        dims = ("phi0", "psi0")
+        names = tuple(self.params.coordinates)
+        dims = tuple(f"{c}0" for c in self.plane)
         return DatasetSpec(
-            variables={"flip_time": (dims, self.flip_time, dict(_VARIABLES["flip_time"])),
-                       "which": (dims, self.which, dict(_VARIABLES["which"]))},
-            coords={"phi0": (("phi0",), self.phi0[:, 0].copy(), dict(_VARIABLES["phi0"])),
-                    "psi0": (("psi0",), self.psi0[0, :].copy(), dict(_VARIABLES["psi0"]))},
+            variables={"flip_time": (dims, self.flip_time, _flip_time_attrs()),
+                       "which": (dims, self.which, _which_attrs(names))},
+            coords={d: ((d,), np.asarray(v, dtype=float).copy(), plane_attrs(c, len(names)))
+                    for d, c, v in zip(dims, self.plane, (self.x0, self.y0))},
             attrs=attrs,
         )
 
 
-#: Attributes of the variables in files (NetCDF, Zarr, xarray).
-_VARIABLES = {
-    "flip_time": {"units": "s",
-                  "long_name": "first time either joint angle leaves (-pi, pi), released at rest; NaN: not by t_end"},
-    "which": {"long_name": "joint that flipped: 0 phi, 1 psi, -1 none"},
-    "phi0": {"units": "rad", "long_name": "initial angle of hinge 1"},
-    "psi0": {"units": "rad", "long_name": "initial angle of hinge 2"},
-}
+def _flip_time_attrs() -> Dict[str, str]:
+    return {"units": "s", "long_name": "first time any joint angle leaves (-pi, pi), released at rest; NaN: not by t_end"}
+
+
+def _which_attrs(coordinates: Sequence[str]) -> Dict[str, str]:
+    """``joint that flipped: 0 phi, 1 psi, -1 none`` (a chain's ``0 q1, 1 q2, ...``)."""
+    return {"long_name": "joint that flipped: " + ", ".join(f"{i} {c}" for i, c in enumerate(coordinates)) + ", -1 none"}
 
 
 def open_flip_map(path) -> FlipMap:
     """A :class:`FlipMap` read back from a complete store ``*.zarr`` (made with ``flip_map(...,
     store=path)``; needs the ``cluster`` extra) or a file ``*.nc`` (:meth:`FlipMap.to_netcdf`;
-    needs ``netCDF4``).  A store whose run has not finished, or that is damaged, is refused
-    (resume it first)."""
+    needs ``netCDF4``) -- of any model, also a chain's flip map written before the two were one.  A
+    store whose run has not finished, or that is damaged, is refused (resume it first)."""
     from pathlib import Path
+
+    from ..results import grid_status
+    from ..symbolic.chain import model_from_mapping
 
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".zarr":
         from ..numeric.grid import read_store
 
-        arrays, attrs = read_store(STORE_KIND, path, what="a flip map")
+        kind = _former_store(path) or STORE_KIND
+        arrays, attrs = read_store(kind, path, what="a flip map")
+        keys = ("flip_settings", "flip_stats") if kind == FORMER_STORE_KIND else ("flip_map_settings", "flip_map_stats")
     elif suffix == ".nc":
         from ..io import read_netcdf
+        from ..results import netcdf_kind
 
-        arrays, attrs = read_netcdf(path, kind=FlipMap.result_kind)
+        kind = FORMER_KIND if path.is_file() and netcdf_kind(path) == FORMER_KIND else FlipMap.result_kind
+        arrays, attrs = read_netcdf(path, kind=kind)
+        keys = ("settings", "stats")
     else:
         raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
+    former = kind in (FORMER_KIND, FORMER_STORE_KIND)
     try:
-        settings = json.loads(attrs["flip_map_settings"])
-        stats = json.loads(attrs["flip_map_stats"])
-        params = Parameters.from_mapping(json.loads(attrs["params"]))
-        arrays = {name: arrays[name] for name in ("flip_time", "which", "phi0", "psi0")}
+        settings, stats = (json.loads(attrs[k]) for k in keys)
+        params = model_from_mapping(json.loads(attrs["params"]))
+        coordinates = tuple(params.coordinates)
+        plane = tuple(settings.get("plane") or coordinates[:2])
+        if former:  # x_range, y_range -> the plane's names; which 1 .. n (0 none) -> the angle's index
+            for name, key in zip(plane, ("x_range", "y_range")):
+                settings[f"{name}_range"] = settings.pop(key)
+            settings = {"shortcuts": True, "energy_bound": False, "symmetry": False, **settings}
+            stats = {"integrated": stats.get("cells"), "skipped_energy": 0, "mirrored": 0, **stats}
+        x0, y0 = (np.asarray(arrays[f"{c}0"], dtype=np.float64) for c in plane)
+        flip_time = np.asarray(arrays["flip_time"], dtype=np.float64)
+        which = np.asarray(arrays["which"]).astype(np.int8)
+        held = np.asarray(settings.get("held") or np.zeros(len(coordinates)), dtype=np.float64)
     except (KeyError, TypeError, ValueError) as exc:
         raise ParameterError(f"{path} is not a flip map made by skewpend (missing or bad attribute: {exc})") from None
-    for key in ("phi_range", "psi_range"):
-        settings[key] = tuple(settings[key])
-    phi, psi = arrays["phi0"].astype(np.float64), arrays["psi0"].astype(np.float64)
-    n = phi.size
-    from ..results import grid_status
+    if former:
+        which = np.where(which > 0, which - 1, -1).astype(np.int8)
+    for key in ("plane", "held", *(f"{c}_range" for c in plane)):
+        if key in settings:
+            settings[key] = tuple(settings[key])
+    status, message = grid_status(int(stats.get("failed", 0)), flip_time.size, "cells")
+    return FlipMap(plane=(str(plane[0]), str(plane[1])), x0=x0, y0=y0, held=held, flip_time=flip_time, which=which,
+                   params=params, settings=settings, stats=stats, status=status, message=message)
 
-    status, message = grid_status(int(stats.get("failed", 0)), n * n, "cells")
-    return FlipMap(
-        phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
-        flip_time=arrays["flip_time"].astype(np.float64), which=arrays["which"].astype(np.int8),
-        params=params, settings=settings, stats=stats, status=status, message=message,
-    )
+
+def _former_store(path) -> Optional[str]:
+    """:data:`FORMER_STORE_KIND` if ``path`` is a store of that kind, else None (the reader then says
+    what is wrong with it)."""
+    from ..results import zarr_store_kind
+
+    try:
+        return FORMER_STORE_KIND if os.path.isdir(path) and zarr_store_kind(path) == FORMER_STORE_KIND else None
+    except ParameterError:
+        return None
 
 
 @dataclass(frozen=True)
@@ -251,8 +341,7 @@ def flip_time(params: Parameters, phi0: float, psi0: float, *, t_end: float = 10
     return FlipOfStart(float(out.time[0]), which, False)
 
 
-# -- input checks ---------------------------------------------------------------------------------
-# -- the grid and the energy bound ----------------------------------------------------------------------
+# -- the energy bound -----------------------------------------------------------------------------------
 def energy_barrier(kernel, p, *, samples: int = _BARRIER_SAMPLES) -> Tuple[float, float]:
     """``(V_min, scale)``: the minimum of ``V = Pi - tau·q`` over the boundary of the square
     ``[-pi, pi]^2`` (the four sides), and the potential's scale (its largest magnitude there).
@@ -286,14 +375,71 @@ def energy_barrier(kernel, p, *, samples: int = _BARRIER_SAMPLES) -> Tuple[float
     return best, scale
 
 
+# -- the strategies: how the cells are integrated ------------------------------------------------------
+def flip_kernel(model):
+    """The kernel a flip map of ``model`` runs on, which chooses its strategy (see the module): the flip
+    kernel (``sp_flip``: SIMD lanes, the flip potential of the energy bound, the symmetry check of the
+    mirror) where its generator prints the model -- it reads the run-time vector in the specification's
+    order (:data:`~skewpend.numeric.conventions.PARAMETER_ORDER`) -- else the model's own kernel
+    (``sp_flip_many``, one start at a time).  As :func:`skewpend.analysis.roa.roa_kernel` chooses."""
+    from ..numeric.conventions import PARAMETER_ORDER
+    from ..numeric.kernels import kernel_module, model_kernel, model_vector_names
+
+    if tuple(model_vector_names(model)) == tuple(PARAMETER_ORDER):
+        try:
+            return kernel_module(model, flip=True)
+        except ValueError:  # the lanes' code generator refused the model
+            pass
+    return model_kernel(model)
+
+
+def _integrator(kernel, p, **settings):
+    """The integrator of the kernel's strategy, ``run(starts, cancel) -> FlipChunk``: the flip kernel's SIMD
+    lanes (:class:`~skewpend.numeric.ensemble.FlipIntegrator`), or the model kernel's one start after the other."""
+    from ..numeric.ensemble import FlipIntegrator
+
+    return (FlipIntegrator if kernel.flip else _OneByOne)(kernel, p, **settings)
+
+
+class _OneByOne:
+    """The model kernel's integrator: one start after the other (``sp_flip_many``), ``row`` starts a call
+    with ``cancel`` checked between calls; ``which`` as the lanes' (-2 failed)."""
+
+    def __init__(self, kernel, p, *, t_end: float, rtol: float, atol: float, max_steps: int, row: int = 64):
+        self.kernel, self.p = kernel, np.ascontiguousarray(p, dtype=np.float64)
+        self.t_end, self.rtol, self.atol, self.max_steps, self.row = float(t_end), float(rtol), float(atol), int(max_steps), row
+
+    def run(self, q: np.ndarray, cancel=None):
+        import ctypes
+
+        from ..numeric.ensemble import Cancelled, FlipChunk
+
+        m, nq = q.shape
+        starts = np.ascontiguousarray(np.hstack([q, np.zeros((m, nq))]), dtype=np.float64)
+        time_, which = np.full(m, np.nan), np.full(m, -1, dtype=np.int32)
+        steps, rejected = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
+        status = np.zeros(m, dtype=np.int8)
+        dp, i64p = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int64)
+        for a in range(0, m, self.row):
+            if cancel is not None and cancel.is_set():
+                raise Cancelled()
+            self.kernel.lib.sp_flip_many(
+                self.p.ctypes.data_as(dp), starts[a:].ctypes.data_as(dp), min(m, a + self.row) - a, self.t_end,
+                self.rtol, self.atol, self.max_steps, time_[a:].ctypes.data_as(dp),
+                which[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int32)), steps[a:].ctypes.data_as(i64p),
+                rejected[a:].ctypes.data_as(i64p), status[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int8)))
+        which = np.where(status != 0, -2, np.where(np.isfinite(time_), which, -1)).astype(np.int32)
+        return FlipChunk(time_, which, steps, rejected)
+
+
 # -- the map ---------------------------------------------------------------------------------------
 def flip_map(
-    params: Parameters,
+    params,
     n: int,
     *,
     t_end: float = 10.0,
-    phi_range: Sequence[float] = (-math.pi, math.pi),
-    psi_range: Sequence[float] = (-math.pi, math.pi),
+    phi_range: Optional[Sequence[float]] = None,
+    psi_range: Optional[Sequence[float]] = None,
     rtol: Optional[float] = None,
     atol: Optional[float] = None,
     workers: Optional[int] = None,
@@ -307,22 +453,25 @@ def flip_map(
     plane: Optional[Sequence[str]] = None,
     ranges=None,
     held=None,
-) -> "FlipMap | ChainFlipMap":
-    """The flip-time map of ``params`` on the ``n x n`` grid of cell centres over
-    ``phi_range x psi_range`` [rad] (each within ``[-pi, pi]``), released at rest.
+) -> FlipMap:
+    """The flip-time map of the model ``params`` (the double pendulum's :class:`~skewpend.Parameters` or a
+    :class:`~skewpend.Chain` of links) on the ``n x n`` grid of cell centres over a ``plane`` of two of
+    its angles (default its first two, ``("phi", "psi")`` or ``("q1", "q2")``), each over its range of
+    ``ranges`` (``((lo, hi), (lo, hi))`` [rad], each within ``[-pi, pi]``; default the whole circle) --
+    ``phi_range``/``psi_range`` give the range of the angle so named, the double pendulum's -- the other
+    angles at ``held`` (every angle [rad], each within ``(-pi, pi)``, the plane's own entries ignored;
+    default 0: hanging), released at rest.
 
-    A chain of links is mapped over a ``plane`` of two of its angles (``("q1", "q3")``), over ``ranges``
-    (``((lo, hi), (lo, hi))``), the others at ``held``: :func:`skewpend.analysis.chainflip.chain_flip_map`,
-    a :class:`~skewpend.analysis.chainflip.ChainFlipMap` (no shortcuts: every cell integrated).
-
-    ``flip_time[i, j]``: the first time [s] either joint angle leaves ``(-pi, pi)`` starting
-    from ``(phi0[i], psi0[j], 0, 0)``, NaN if not by ``t_end``; ``which``: 0 (phi), 1 (psi), -1.
+    ``flip_time[i, j]``: the first time [s] any joint angle leaves ``(-pi, pi)`` starting from
+    ``x0[i]``, ``y0[j]`` (the double pendulum's ``(phi0[i, j], psi0[i, j], 0, 0)``), NaN if not by
+    ``t_end``; ``which``: the angle's index in ``params.coordinates`` (0 phi, 1 psi), -1 none.
     DOP853 with ``rtol``/``atol`` (default 1e-10 each); the crossing is located on the dense
     output.  ``workers`` threads (default: the cores this process may use) integrate units of
     whole rows (with their mirror rows); the result does not depend on their number.
     ``progress(done_cells, total_cells)`` is called in the calling thread as units finish.
     Ctrl-C stops within a few milliseconds (:class:`KeyboardInterrupt`).
-    ``shortcuts=False`` integrates every cell (no energy bound, no mirror symmetry).
+    ``shortcuts=False`` integrates every cell (no energy bound, no mirror symmetry; a model whose
+    kernel has no SIMD lanes -- a chain of links -- integrates every cell anyway).
     ``max_steps`` caps the attempted steps of one trajectory (a cell that hits it, or fails
     otherwise, is counted in ``stats["failed"]``, left NaN, and makes the map's ``status``
     PARTIAL, with a warning).
@@ -342,45 +491,32 @@ def flip_map(
     """
     from .. import __version__
     from ..numeric.grid import check_run_options, run_grid
-    from ..numeric.kernels import kernel_module, parameter_vector
-    from ..symbolic.chain import Chain
+    from ..numeric.kernels import model_vector, model_vector_names
 
-    if isinstance(params, Chain):
-        from .chainflip import chain_flip_map
-
-        full = (-math.pi, math.pi)
-        given = [k for k, v in (("phi_range", phi_range), ("psi_range", psi_range)) if tuple(v) != full]
-        if given or shortcuts is not True:
-            raise ParameterError(f"{(given or ['shortcuts'])[0]} is the double pendulum's; a chain's flip map takes "
-                                 "plane=, ranges= and held= (and has no shortcuts: every cell is integrated)")
-        return chain_flip_map(params, n, plane=plane, ranges=ranges, held=held, t_end=t_end, rtol=rtol, atol=atol,
-                              workers=workers, progress=progress, chunk_size=chunk_size, max_steps=max_steps,
-                              store=store, resume=resume, scheduler=scheduler)
-    if plane is not None or ranges is not None or held is not None:
-        raise ParameterError("plane, ranges and held are a chain's; the double pendulum's flip map is over "
-                             "phi_range x psi_range")
-    params = numeric_params(params, "a flip map")
+    params = _numeric_model(params, "a flip map")
+    (a, b), (ra, rb), q = _plane(tuple(params.coordinates), plane, ranges, held, phi_range=phi_range, psi_range=psi_range)
     n = check_n(n)
     t_end = positive("t_end", t_end)
-    phi_lo, phi_hi = check_range("phi_range", phi_range)
-    psi_lo, psi_hi = check_range("psi_range", psi_range)
     rtol, atol = tolerances(rtol, atol)
     workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress,
                                 chunk_size=chunk_size)
-    max_steps = check_max_steps(max_steps)
+    max_steps = check_max_steps(MAX_STEPS if max_steps is None else max_steps)
     _check_memory(n)
-    kernel = kernel_module(params, flip=True)
-    p = parameter_vector(params)
-    no_torque = params.tau1 == 0.0 and params.tau2 == 0.0
-    symmetric = bool(shortcuts and kernel.flip_odd and no_torque and phi_lo == -phi_hi and psi_lo == -psi_hi)
+    kernel = flip_kernel(params)
+    p = model_vector(params)
     barrier = threshold = None
-    if shortcuts:
+    symmetric = False
+    if shortcuts and kernel.flip:
+        torques = [i for i, name in enumerate(model_vector_names(params)) if _TORQUE.fullmatch(name)]
+        symmetric = bool(kernel.flip_odd and not np.any(p[torques]) and not np.any(q)
+                         and ra[0] == -ra[1] and rb[0] == -rb[1])
         barrier, scale = energy_barrier(kernel, p)
         threshold = barrier - _BARRIER_MARGIN * max(scale, 1e-300)
-    job = FlipJob(params=params, n=n, t_end=t_end, phi_range=(phi_lo, phi_hi), psi_range=(psi_lo, psi_hi), rtol=rtol,
-                  atol=atol, max_steps=int(max_steps), symmetric=symmetric, threshold=threshold, version=__version__,
-                  kernel_name=kernel.path.name, shortcuts=bool(shortcuts), barrier=barrier)
-    state = (kernel, p, job.integrator(kernel, p))
+    job = FlipJob(params=params, n=n, plane=(a, b), x_range=ra, y_range=rb, held=tuple(float(v) for v in q),
+                  t_end=t_end, rtol=rtol, atol=atol, max_steps=int(max_steps), symmetric=symmetric,
+                  threshold=threshold, version=__version__, kernel_name=kernel.path.name, shortcuts=bool(shortcuts),
+                  barrier=barrier)
+    state = job.state(kernel, p)
     _check_feasible(job, state)
     result = run_grid(job, workers=workers, scheduler=scheduler, store=store, resume=bool(resume), progress=progress,
                       chunk_size=chunk_size, state=state)
@@ -389,18 +525,81 @@ def flip_map(
     return result
 
 
+#: The run-time vector's constant joint torques (``tau1``, ``tau2``, ...: the link field ``torque``).
+_TORQUE = re.compile(r"tau\d+")
+
+
+def _numeric_model(params, what: str):
+    """``params`` if it is a model (it answers with its coordinates) whose values are numbers."""
+    try:
+        params.coordinates
+        numeric = getattr(params, "is_numeric", True)  # a model that may hold symbols says so
+    except AttributeError:
+        raise ParameterError(not_parameters(params, what)) from None
+    if not numeric:
+        try:
+            params.require_numeric(what)
+        except NotNumericError as exc:
+            raise ParameterError(str(exc)) from None
+    return params
+
+
+def _plane(coordinates: Tuple[str, ...], plane, ranges, held, **named):
+    """``((a, b), (range_a, range_b), held)``: the plane's two angles, their ranges and every angle at the
+    plane's origin (the plane's own entries 0), checked."""
+    nq = len(coordinates)
+    if plane is None:
+        plane = coordinates[:2]
+    try:
+        a, b = plane
+    except (TypeError, ValueError):
+        a = b = None
+    if a not in coordinates or b not in coordinates or a == b:
+        raise ParameterError(f"plane must be two different angles of {', '.join(coordinates)} (a flip map starts at "
+                             f"rest), got {plane!r}")
+    given = {key: value for key, value in named.items() if value is not None}
+    for key in given:
+        name = key[:-len("_range")]
+        if name not in (a, b):
+            raise ParameterError(f"{key} is the double pendulum's (the range of its angle {name}); this model's flip map "
+                                 f"takes plane=, ranges= and held= (of {', '.join(coordinates)})")
+    if given and ranges is not None:
+        raise ParameterError(f"give the ranges either as ranges= or as {' and '.join(given)}, not both")
+    full = (-math.pi, math.pi)
+    if ranges is None:
+        out = [check_range(f"{c}_range", given[f"{c}_range"]) if f"{c}_range" in given else full for c in (a, b)]
+    else:
+        try:
+            ra, rb = ranges
+        except (TypeError, ValueError):
+            raise ParameterError(f"ranges must be two ranges ((lo, hi), (lo, hi)) of the plane's angles, got {ranges!r}") from None
+        out = [check_range(f"range of {a}", ra), check_range(f"range of {b}", rb)]
+    if held is None:
+        q = np.zeros(nq)
+    else:
+        try:
+            q = np.array(held, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            q = np.zeros(0)
+        if q.shape != (nq,) or not np.all(np.isfinite(q)) or np.any(np.abs(q) >= math.pi):
+            raise ParameterError(f"held must be the chain's {nq} angles, each within (-pi, pi) [rad], got {held!r}")
+        q = q.copy()
+    q[[coordinates.index(a), coordinates.index(b)]] = 0.0
+    return (str(a), str(b)), (out[0], out[1]), q
+
+
 def _check_feasible(job: "FlipJob", state) -> None:
-    """Refuse a map whose cells could not finish within ``max_steps`` (a trial run of the flip
-    kernel from energetic starts of the window: the ones that flip last the longest)."""
-    from ..numeric.ensemble import FlipIntegrator
+    """Refuse a map whose cells could not finish within ``max_steps`` (a trial run of the map's own
+    integrator from energetic starts of the window: the ones that flip last the longest)."""
     from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, refused_already, steps_per_second
 
     kernel, p, _ = state
-    corner = (max(map(abs, job.phi_range)), max(map(abs, job.psi_range)))
-    cells = np.array([(0.9 * corner[0], 0.9 * corner[1]), (0.9 * corner[0], -0.9 * corner[1]), (0.5 * corner[0], 0.0)])
+    corner = (max(map(abs, job.x_range)), max(map(abs, job.y_range)))
+    cells = job.positions(np.array([(0.9 * corner[0], 0.9 * corner[1]), (0.9 * corner[0], -0.9 * corner[1]),
+                                    (0.5 * corner[0], 0.0)]))
     rate, ok = 0.0, False
     for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
-        out = FlipIntegrator(kernel, p, t_end=t, rtol=job.rtol, atol=job.atol, max_steps=PROBE_STEPS).run(cells)
+        out = _integrator(kernel, p, t_end=t, rtol=job.rtol, atol=job.atol, max_steps=PROBE_STEPS).run(cells)
         lived = np.where(np.isfinite(out.time), out.time, t)  # a failed trial: a lower bound of the rate
         rate = steps_per_second(out.steps + out.rejected, lived)
         ok = not np.any(out.which == -2)
@@ -429,31 +628,35 @@ def _check_memory(n: int) -> None:
 
 
 # -- the job ------------------------------------------------------------------------------------------
-#: The store's kind (its attribute ``kind``): stores of anything else are refused.
-STORE_KIND = "skewpend flip map"
-#: Columns of the per-chunk statistics kept in a store.
-CHUNK_STATS = ("integrated", "skipped_energy", "mirrored", "failed", "steps", "rejected", "integrated_time")
+def _plain(v):
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if v is None or isinstance(v, str):
+        return v
+    return float(v)
 
 
-def flip_settings(params: Parameters, n: int, *, t_end: float, phi_range, psi_range, rtol: float, atol: float,
+def flip_settings(params, n: int, *, plane: Sequence[str], ranges, held, t_end: float, rtol: float, atol: float,
                   max_steps: int, shortcuts: bool) -> Dict[str, Any]:
     """The resolved settings that determine a map's every bit (and this skewpend's version),
-    as plain JSON data: what a store's fingerprint is the SHA-256 of."""
+    as plain JSON data: what a store's fingerprint is the SHA-256 of.  The ranges are named by the
+    plane's angles (``phi_range``, ``q3_range``); ``plane`` and ``held`` are recorded where they are not
+    the defaults (the first two angles; every other angle 0)."""
     from .. import __version__
 
-    def plain(v):
-        if isinstance(v, (list, tuple)):
-            return [plain(x) for x in v]
-        if v is None or isinstance(v, str):
-            return v
-        return float(v)
+    return {"kind": "flip_map", "params": _plain(params.to_dict()), "n": int(n), "t_end": float(t_end),
+            **{f"{c}_range": [float(x) for x in r] for c, r in zip(plane, ranges)},
+            "rtol": float(rtol), "atol": float(atol), "max_steps": int(max_steps), "shortcuts": bool(shortcuts),
+            "method": "dop853", "skewpend_version": __version__, **_placement(params.coordinates, plane, held)}
 
-    return {
-        "kind": "flip_map", "params": {k: plain(v) for k, v in params.to_dict().items()}, "n": int(n),
-        "t_end": float(t_end), "phi_range": [float(x) for x in phi_range], "psi_range": [float(x) for x in psi_range],
-        "rtol": float(rtol), "atol": float(atol), "max_steps": int(max_steps), "shortcuts": bool(shortcuts),
-        "method": "dop853", "skewpend_version": __version__,
-    }
+
+def _placement(coordinates, plane, held) -> Dict[str, list]:
+    """``plane`` and ``held`` as settings record them: only where they are not the defaults."""
+    if tuple(plane) == tuple(coordinates)[:2] and not any(held):
+        return {}
+    return {"plane": [str(c) for c in plane], "held": [float(v) for v in held]}
 
 
 def chunk_rows(n: int, *, chunk_size: Optional[int] = None) -> int:
@@ -476,74 +679,74 @@ def row_groups(n: int, symmetric: bool) -> list:
 
 
 @dataclass(frozen=True)
-class FlipJob(GridJob):
+class FlipJob(PlaneJob):
     """A flip map as a job of the grid driver: small and picklable (sent with each cluster task)."""
 
-    params: Parameters
+    params: Any  # any model: the double pendulum's Parameters, a chain of links
     n: int
+    plane: Tuple[str, str]
+    x_range: Tuple[float, float]
+    y_range: Tuple[float, float]
+    held: Tuple[float, ...]  # every angle at the plane's origin
     t_end: float
-    phi_range: Tuple[float, float]
-    psi_range: Tuple[float, float]
     rtol: float
     atol: float
     max_steps: int
     symmetric: bool
     threshold: Optional[float]  # energy bound: cells with V(q0) below it never flip (None: not used)
     version: str
-    kernel_name: str  # the compiled kernel's file name: the same generated code everywhere
+    kernel_name: str  # the compiled kernel's file name: the same generated code (and strategy) everywhere
     shortcuts: bool = True
     barrier: Optional[float] = None
 
     kind: ClassVar[str] = STORE_KIND
     what: ClassVar[str] = "a flip map"
     stat_names: ClassVar[Tuple[str, ...]] = CHUNK_STATS
-    title: ClassVar[str] = "flip-time map of the skewed double pendulum (skewpend)"
+    title: ClassVar[str] = "flip-time map of starts at rest (skewpend)"
 
-    def shape(self) -> Tuple[int, int]:
-        return self.n, self.n
+    def base_state(self) -> np.ndarray:
+        """Every start: the held angles, at rest."""
+        return np.r_[np.asarray(self.held, dtype=float), np.zeros(len(self.held))]
 
     def arrays(self):
         from ..numeric.grid import ArraySpec
 
-        return {"flip_time": ArraySpec("float64", np.nan, _VARIABLES["flip_time"]),
-                "which": ArraySpec("int8", -1, _VARIABLES["which"])}
-
-    def coords(self):
-        return {"phi0": (cell_centres(*self.phi_range, self.n), _VARIABLES["phi0"]),
-                "psi0": (cell_centres(*self.psi_range, self.n), _VARIABLES["psi0"])}
+        return {"flip_time": ArraySpec("float64", np.nan, _flip_time_attrs()),
+                "which": ArraySpec("int8", -1, _which_attrs(self.params.coordinates))}
 
     def settings(self) -> Dict[str, Any]:
-        return flip_settings(self.params, self.n, t_end=self.t_end, phi_range=self.phi_range,
-                             psi_range=self.psi_range, rtol=self.rtol, atol=self.atol, max_steps=self.max_steps,
-                             shortcuts=self.shortcuts)
+        return flip_settings(self.params, self.n, plane=self.plane, ranges=(self.x_range, self.y_range),
+                             held=self.held, t_end=self.t_end, rtol=self.rtol, atol=self.atol,
+                             max_steps=self.max_steps, shortcuts=self.shortcuts)
 
     def store_attrs(self) -> Dict[str, Any]:
         s = self.settings()
         return {"params": json.dumps(s["params"]), "shortcuts": int(self.shortcuts),
-                **{k: s[k] for k in ("n", "t_end", "phi_range", "psi_range", "rtol", "atol", "max_steps", "method")}}
+                **{k: v for k, v in s.items() if k not in ("kind", "params", "shortcuts", "skewpend_version")}}
 
     def row_groups(self):
         return row_groups(self.n, self.symmetric)
 
-    def chunk_rows(self, chunk_size):
-        return chunk_rows(self.n, chunk_size=chunk_size)
-
-    def integrator(self, kernel, p):
-        from ..numeric.ensemble import FlipIntegrator
-
-        return FlipIntegrator(kernel, p, t_end=self.t_end, rtol=self.rtol, atol=self.atol, max_steps=self.max_steps)
+    def state(self, kernel, p):
+        """What :meth:`compute` needs: the kernel, ``p`` and the integrator of the kernel's strategy."""
+        return kernel, p, _integrator(kernel, p, t_end=self.t_end, rtol=self.rtol, atol=self.atol,
+                                      max_steps=self.max_steps)
 
     def setup(self):
         """The kernel (compiled or loaded here), checked to be the very code of this run."""
-        from ..errors import SkewpendError
-        from ..numeric.kernels import kernel_module, parameter_vector
+        from ..numeric.kernels import model_vector
 
-        kernel = kernel_module(self.params, flip=True)
-        if kernel.path.name != self.kernel_name:
-            raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
-                                "install the same skewpend on every worker")
-        p = parameter_vector(self.params)
-        return kernel, p, self.integrator(kernel, p)
+        return self.state(self.checked_kernel(flip_kernel(self.params)), model_vector(self.params))
+
+    @cached_property
+    def _axes(self) -> List[int]:
+        return [tuple(self.params.coordinates).index(c) for c in self.plane]
+
+    def positions(self, xy: np.ndarray) -> np.ndarray:
+        """Starts as angles ``(m, nq)``: the held angles, the plane's two from ``xy`` ``(m, 2)``."""
+        q = np.tile(np.asarray(self.held, dtype=np.float64), (len(xy), 1))
+        q[:, self._axes] = xy
+        return q
 
     def compute(self, state, rows, cancel=None):
         """The cells of whole ``rows`` (closed under the mirror when the map is symmetric): the
@@ -552,26 +755,26 @@ class FlipJob(GridJob):
         kernel, p, integrator = state
         n = self.n
         total = n * n
-        phi = cell_centres(*self.phi_range, n)
-        psi = cell_centres(*self.psi_range, n)
+        xs = cell_centres(*self.x_range, n)
+        ys = cell_centres(*self.y_range, n)
         rows = np.asarray(rows, dtype=np.int64)
         ids = (rows[:, None] * n + np.arange(n, dtype=np.int64)[None, :]).ravel()
         reps = ids[ids <= total - 1 - ids] if self.symmetric else ids
 
         def starts(f):
-            return np.column_stack([phi[f // n], psi[f % n]])
+            return self.positions(np.column_stack([xs[f // n], ys[f % n]]))
 
-        V = kernel.flip_potential_many(starts(reps), p)
-        if self.threshold is not None:
-            forbidden = V < self.threshold
-            if self.symmetric:
-                forbidden &= kernel.flip_potential_many(starts(total - 1 - reps), p) < self.threshold
-            todo, V = reps[~forbidden], V[~forbidden]
-        else:
-            todo = reps
-        # the long-lived (low-energy) cells first: the lanes' last cells are then the quick ones, so
-        # few lanes idle at the end of the unit (each cell's bits do not depend on the order)
-        todo = todo[np.argsort(V, kind="stable")]
+        todo = reps
+        if kernel.flip:  # the flip potential: the energy test, and the order of the cells
+            V = kernel.flip_potential_many(starts(reps), p)
+            if self.threshold is not None:
+                forbidden = V < self.threshold
+                if self.symmetric:
+                    forbidden &= kernel.flip_potential_many(starts(total - 1 - reps), p) < self.threshold
+                todo, V = reps[~forbidden], V[~forbidden]
+            # the long-lived (low-energy) cells first: the lanes' last cells are then the quick ones, so
+            # few lanes idle at the end of the unit (each cell's bits do not depend on the order)
+            todo = todo[np.argsort(V, kind="stable")]
         out = integrator.run(starts(todo), cancel)
 
         pos = np.full(n, -1, dtype=np.int64)
@@ -608,9 +811,11 @@ class FlipJob(GridJob):
         totals = run.totals(CHUNK_STATS)
         flip_time, which = run.data["flip_time"], run.data["which"]
         settings = {
-            "n": n, "t_end": self.t_end, "phi_range": tuple(self.phi_range), "psi_range": tuple(self.psi_range),
+            "n": n, "t_end": self.t_end,
+            **{f"{c}_range": tuple(r) for c, r in zip(self.plane, (self.x_range, self.y_range))},
+            **{k: tuple(v) for k, v in _placement(self.params.coordinates, self.plane, self.held).items()},
             "rtol": self.rtol, "atol": self.atol, "max_steps": int(self.max_steps), "method": "dop853",
-            "shortcuts": self.shortcuts, "energy_bound": self.shortcuts, "symmetry": self.symmetric,
+            "shortcuts": self.shortcuts, "energy_bound": self.threshold is not None, "symmetry": self.symmetric,
         }
         kernel = run.state[0] if run.state is not None else None
         stats = {
@@ -619,14 +824,14 @@ class FlipJob(GridJob):
             "failed": int(totals["failed"]), "steps": int(totals["steps"]), "rejected": int(totals["rejected"]),
             "integrated_time": float(totals["integrated_time"]), "energy_barrier": self.barrier,
             "energy_threshold": self.threshold,
-            "lanes": None if kernel is None else kernel.flip_lanes,
+            "lanes": None if kernel is None else (kernel.flip_lanes if kernel.flip else 1),
             "kernel": None if kernel is None else kernel.origin,
             "kernel_build_time": None if kernel is None else kernel.build_time,
             **run.info,
         }
         status, message = grid_status(stats["failed"], n * n, "cells")
-        phi, psi = (values for values, _ in self.coords().values())
-        return FlipMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
+        xs, ys = (values for values, _ in self.coords().values())
+        return FlipMap(plane=self.plane, x0=xs, y0=ys, held=np.asarray(self.held, dtype=float),
                        flip_time=flip_time, which=which, params=self.params, settings=settings, stats=stats,
                        status=status, message=message)
 

@@ -44,7 +44,7 @@ READERS: Dict[str, str] = {
     "normal modes": "skewpend.analysis.modes:read_normal_modes",
     "modes sweep": "skewpend.analysis.modes:read_modes_sweep",
     "flip map": "skewpend.analysis.flipmap:open_flip_map",
-    "chain flip map": "skewpend.analysis.chainflip:open_chain_flip_map",
+    "chain flip map": "skewpend.analysis.flipmap:open_flip_map",  # a chain's, written before flip maps were one
     "equilibria": "skewpend.analysis.equilibria:read_equilibria",
     "periodic orbit": "skewpend.analysis.orbits:read_periodic_orbit",
     "nonlinear normal mode": "skewpend.analysis.orbits:read_nnm",
@@ -64,9 +64,8 @@ def reader(kind: str) -> Callable[[Any], Any]:
 
 def _store_kinds() -> Dict[str, str]:
     """Zarr store kind -> result kind, from the jobs that write them."""
-    from .chainflip import STORE_KIND as CHAIN_FLIP
     from .chaos import STORE_KIND as CHAOS
-    from .flipmap import STORE_KIND as FLIP
+    from .flipmap import FORMER_STORE_KIND as CHAIN_FLIP, STORE_KIND as FLIP
     from .lyapunov import LyapunovMapJob
     from .roa import STORE_KIND as ROA
 

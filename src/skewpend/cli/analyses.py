@@ -94,22 +94,18 @@ def flipmap(
     """
     run = _dop853("flipmap", config, model, t_end=t_end, rtol=rtol, atol=atol)
     params = run.parameters()
-    from ..symbolic.chain import Chain
-
-    chain = isinstance(params, Chain)
-    if not chain and (plane is not None or held is not None):
+    angles = params.coordinates
+    sliced = len(angles) > 2  # angles beyond a plane's two: the map is a slice, --plane and --held choose it
+    if not sliced and (plane is not None or held is not None):
         raise UsageError(f"{'--plane' if plane is not None else '--held'} goes with a chain of links (--config with "
                          "[[links]]); the double pendulum's map is over phi0 x psi0 (--window)")
-    if chain and plane is not None and any(name.startswith("d") for name in plane):
+    if plane is not None and any(name.startswith("d") for name in plane):
         raise UsageError(f"--plane: a flip map starts at rest; give two angles (e.g. q1,q3), got {','.join(plane)}")
     store = ensemble_outputs(ensemble["workers"], ensemble["scheduler"], out, resume, plot)
     from ..analysis.flipmap import flip_map
 
     kw = run.settings(("t_end", "rtol", "atol"))
-    if chain:
-        kw.update({k: v for k, v in (("plane", plane), ("held", held), ("ranges", window)) if v is not None})
-    elif window is not None:
-        kw["phi_range"], kw["psi_range"] = window
+    kw.update({k: v for k, v in (("plane", plane), ("held", held), ("ranges", window)) if v is not None})
     with progress(f"computing the flip map ({256 if n is None else n} x {256 if n is None else n} starts)", "cells", quiet) as bar, warnings.catch_warnings():
         # flip_map also warns of failed cells; its status says so, and main() prints it once
         warnings.filterwarnings("ignore", message="flip_map: ", category=RuntimeWarning)
@@ -117,23 +113,22 @@ def flipmap(
     if out is not None and store is None:
         fm.to_netcdf(out)
     draw_figure(plot, "flipmap_figure", fm)
-    flipped = int(fm.flipped.sum()) if hasattr(fm, "flipped") else int((fm.which >= 0).sum())
+    flipped = int(fm.flipped.sum())
     st = fm.stats
+    wall = f"{st.get('wall_time', float('nan')):.3g} s on {st.get('workers', '?')} workers"
     lines = [
-        f"flip map      {fm.n} x {fm.n} starts at rest, t_end = {fm.settings.get('t_end', kw.get('t_end', 10.0)):g} s",
+        f"flip map      {fm.n} x {fm.n} starts at rest" + (f" over {fm.plane[0]} x {fm.plane[1]}" if sliced else "")
+        + f", t_end = {fm.settings['t_end']:g} s",
         f"flipped       {flipped} of {fm.n * fm.n} ({100 * flipped / (fm.n * fm.n):.1f} %)",
-        f"work          {st.get('integrated', '?')} cells integrated, {st.get('skipped_energy', 0)} ruled out by energy, "
-        f"{st.get('mirrored', 0)} by symmetry; {st.get('wall_time', float('nan')):.3g} s on {st.get('workers', '?')} workers",
+        f"work          {st['integrated']} cells integrated, " + (
+            f"{st['skipped_energy']} ruled out by energy, {st['mirrored']} by symmetry; " if fm.settings["energy_bound"]
+            else f"{st['steps']} steps; ") + wall,
     ]
-    if chain:
+    if sliced:  # which angle flipped: the plane's or a held one
         import numpy as np
 
-        counts = np.bincount(np.asarray(fm.which).ravel().clip(0), minlength=params.n + 1)[1:]
-        lines[0] = (f"flip map      {fm.n} x {fm.n} starts at rest over {fm.plane[0]} x {fm.plane[1]}, t_end = "
-                    f"{fm.settings['t_end']:g} s")
-        lines[2] = (f"work          {st['cells']} cells integrated, {st['steps']} steps; {st.get('wall_time', float('nan')):.3g} s "
-                    f"on {st.get('workers', '?')} workers")
-        lines.insert(2, "by joint      " + ", ".join(f"q{i + 1}: {c}" for i, c in enumerate(counts)))
+        counts = np.bincount(np.asarray(fm.which).ravel() + 1, minlength=len(angles) + 1)[1:]
+        lines.insert(2, "by joint      " + ", ".join(f"{c}: {k}" for c, k in zip(angles, counts)))
     if "chunks_computed" in st:
         lines.append(f"store         {st['chunks_computed']} chunks computed now, {st.get('chunks_resumed', 0)} already done"
                      + (f"; {st['tasks']} tasks on {st['scheduler']}" if st.get("scheduler") else ""))

@@ -231,11 +231,12 @@ def flipmap_window(fm):
     return tuple(out)
 
 
-def window_text(phi_range, psi_range) -> str:
-    """``phi0 in [-180°, 180°], psi0 in [-90°, 45°]`` (a flip map's window, given in radians)."""
-    (p0, p1), (q0, q1) = phi_range, psi_range
+def window_text(phi_range, psi_range, names=("phi", "psi")) -> str:
+    """``phi0 in [-180°, 180°], psi0 in [-90°, 45°]`` (a flip map's window, given in radians; ``names``: the
+    plane's two angles, a chain's ``q1(0) in [...]``)."""
     deg = lambda x: fmt(math.degrees(float(x)))  # noqa: E731
-    return f"phi0 in [{deg(p0)}°, {deg(p1)}°], psi0 in [{deg(q0)}°, {deg(q1)}°]"
+    return ", ".join(f"{name}{'(0)' if name[-1].isdigit() else '0'} in [{deg(lo)}°, {deg(hi)}°]"
+                     for name, (lo, hi) in zip(names, (phi_range, psi_range)))
 
 
 def wrap_list(text: str, width: int = 100) -> str:
@@ -252,13 +253,15 @@ def wrap_list(text: str, width: int = 100) -> str:
 
 
 def flipmap_caption(fm) -> str:
-    """What a flip-time map shows, in three lines: the parameters; the grid (window, cells,
+    """What a flip-time map shows, in three lines: the model; the grid (window, the angles held, cells,
     released at rest, ``t_end``); the method, its tolerances and how many cells flipped."""
     st, stats = fm.settings, fm.stats
     n0, n1 = fm.flip_time.shape
-    phi_range, psi_range = flipmap_window(fm)
     t_end = st.get("t_end")
-    grid = f"released at rest from {window_text(phi_range, psi_range)}, n = {n0} x {n1} cells"
+    held = ", ".join(f"{c} = {fmt(math.degrees(float(v)))}°" for c, v in zip(fm.params.coordinates, fm.held)
+                     if c not in fm.plane)
+    grid = (f"released at rest from {window_text(*fm.window(), names=fm.plane)}" + (f", held {held}" if held else "")
+            + f", n = {n0} x {n1} cells")
     if t_end is not None:
         grid += f", t_end = {fmt(t_end)} s"
     parts = [str(st.get("method", "dop853"))]

@@ -98,9 +98,21 @@ def degree_extent(result) -> list:
     return [math.degrees(phi_lo), math.degrees(phi_hi), math.degrees(psi_lo), math.degrees(psi_hi)]
 
 
-def start_map_axes(ax, extent, title: str) -> None:
+#: The double pendulum's angles at release as axis labels (another angle's: its symbol, :func:`start_label`).
+_START_SYMBOLS = {"phi": r"$\varphi_0$", "psi": r"$\psi_0$"}
+
+
+def start_label(name: str, coordinates) -> str:
+    """The axis label of the angle ``name`` at release: ``$\varphi_0$, hinge 1 at release [deg]``, ``q₃, hinge 3 ...``."""
+    from .base import coordinate_label
+
+    symbol = _START_SYMBOLS.get(name) or coordinate_label(name).split(" − ")[0]
+    return f"{symbol}, hinge {tuple(coordinates).index(name) + 1} at release [deg]"
+
+
+def start_map_axes(ax, extent, title: str, labels=(start_label("phi", ("phi", "psi")), start_label("psi", ("phi", "psi")))) -> None:
     """The axes of a map over starts at rest (flip map, Lyapunov map): limits, degree ticks
-    outwards, a closed frame, the hinge labels and the title."""
+    outwards, a closed frame, the hinge labels (``labels``: x, y; the double pendulum's by default) and the title."""
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
     _degree_ticks(ax.xaxis, extent[0], extent[1])
@@ -108,26 +120,26 @@ def start_map_axes(ax, extent, title: str) -> None:
     ax.tick_params(which="both", direction="out")
     for side in ("top", "right"):
         ax.spines[side].set_visible(True)
-    ax.set_xlabel(r"$\varphi_0$, hinge 1 at release [deg]")
-    ax.set_ylabel(r"$\psi_0$, hinge 2 at release [deg]")
+    ax.set_xlabel(labels[0])
+    ax.set_ylabel(labels[1])
     ax.set_title(title, loc="left")
 
 
 def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: str = "start",
                    forbidden="auto"):
-    """The flip-time map of a :class:`skewpend.FlipMap`, the classic picture.
+    """The flip-time map of a :class:`skewpend.FlipMap` (of any model), the classic picture.
 
-    The image is ``fm.flip_time`` **transposed**, drawn with ``origin="lower"``: ``phi0`` on the
-    x axis, ``psi0`` on the y axis, both in degrees over the map's window (the image's extent
-    is the cells' outer edges).  Flip times on a logarithmic colour scale (:class:`LogNorm`)
-    from the shortest flip time to ``t_end``, with a colour bar "flip time [s]"; the cells that
-    do not flip by ``t_end`` (NaN) in flat white; the cells that energy alone forbids to flip
-    (:func:`flipmap_forbidden`) in light grey with a line around them (``forbidden``: "auto"
-    computes them, None leaves them white; or an array like ``fm.flip_time``: boolean, or
-    :func:`flipmap_energy_margin`, negative where forbidden, whose zero line is the edge).  ``mark``:
-    a point ``(phi0, psi0)`` [rad, wrapped to (-180, 180]] drawn with the legend entry
-    ``mark_label``.  The heading states the parameters, the grid and the integrator settings
-    (:func:`skewpend.views.style.flipmap_caption`).
+    The image is ``fm.flip_time`` **transposed**, drawn with ``origin="lower"``: the plane's first
+    angle (``phi0``; a chain's e.g. ``q1``) on the x axis, its second on the y axis, both in degrees over
+    the map's window (the image's extent is the cells' outer edges).  Flip times on a logarithmic colour
+    scale (:class:`LogNorm`) from the shortest flip time to ``t_end``, with a colour bar "flip time [s]";
+    the cells that do not flip by ``t_end`` (NaN) in flat white; the cells that energy alone forbids to
+    flip (:func:`flipmap_forbidden`; a model whose kernel prints no flip potential has none) in light
+    grey with a line around them (``forbidden``: "auto" computes them, None leaves them white; or an
+    array like ``fm.flip_time``: boolean, or :func:`flipmap_energy_margin`, negative where forbidden,
+    whose zero line is the edge).  ``mark``: a point of the plane [rad, wrapped to (-180, 180]] drawn
+    with the legend entry ``mark_label``.  The heading states the model, the grid (and the angles held)
+    and the integrator settings (:func:`skewpend.views.style.flipmap_caption`).
     """
     from matplotlib.colors import ListedColormap, LogNorm
     from matplotlib.lines import Line2D
@@ -136,14 +148,10 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
 
     import matplotlib
 
-    if getattr(fm, "result_kind", None) == "chain flip map":
-        if mark is not None or forbidden != "auto":
-            raise ParameterError("mark and forbidden are the double pendulum's map's (a chain's has no energy bound)")
-        return _chain_flipmap_figure(fm)
     ft = np.asarray(fm.flip_time, dtype=float)
     if ft.ndim != 2 or ft.size == 0:
         raise ParameterError(f"a flip map needs a 2-D array of flip times, got shape {ft.shape}")
-    extent = degree_extent(fm)
+    extent = [math.degrees(v) for v in (*fm.window()[0], *fm.window()[1])]
     finite = ft[np.isfinite(ft)]
     t_end = float(fm.settings.get("t_end") or (np.max(finite) if finite.size else 1.0))
     vmin = float(np.min(finite)) if finite.size else t_end / 100.0
@@ -161,7 +169,6 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
         if forbidden.dtype != bool:  # the energy margin: negative where forbidden, and a smooth edge
             margin, forbidden = forbidden.astype(float), forbidden < 0
     colors = FLIPMAP_COLORS
-    n_phi, n_psi = ft.shape
     with style():
         fig = new_figure((6.6, 6.9))
         ax = fig.subplots()
@@ -177,8 +184,8 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
                 # the region where the margin is negative, with a smooth edge (its zero line), over the
                 # whole window: the margin is extended linearly from the cell centres to the window's edges
                 k = max(1, -(-max(ft.shape) // 1024))  # at most about 1024 points a side: plenty for a smooth line
-                x = _to_edges(np.degrees(np.asarray(fm.phi0, dtype=float)[::k, 0]), extent[0], extent[1])
-                y = _to_edges(np.degrees(np.asarray(fm.psi0, dtype=float)[0, ::k]), extent[2], extent[3])
+                x = _to_edges(np.degrees(np.asarray(fm.x0, dtype=float)[::k]), extent[0], extent[1])
+                y = _to_edges(np.degrees(np.asarray(fm.y0, dtype=float)[::k]), extent[2], extent[3])
                 field = _extend(_extend(margin[::k, ::k], x, 0), y, 1).T
                 ax.contourf(x, y, field, levels=[float(np.min(field)) - 1.0, 0.0], colors=[colors["forbidden"]])
                 ax.contour(x, y, field, levels=[0.0], colors=[colors["boundary"]], linewidths=0.8)
@@ -193,7 +200,8 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
             ax.plot([x], [y], marker="o", ms=7.5, mfc=colors["mark"], mec="white", mew=1.4, ls="none", zorder=4)
             handles.append(Line2D([], [], marker="o", ms=7.5, mfc=colors["mark"], mec="white", mew=1.4, ls="none",
                                   label=mark_label))
-        start_map_axes(ax, extent, "Flip time: when either hinge angle first leaves (−180°, 180°)")
+        start_map_axes(ax, extent, "Flip time: when any hinge angle first leaves (−180°, 180°)",
+                       tuple(start_label(c, fm.params.coordinates) for c in fm.plane))
         # the colour bar exactly as tall as the (square) map
         bar = fig.colorbar(im, cax=ax.inset_axes([1.035, 0.0, 0.04, 1.0]))
         bar.set_label("flip time [s]")
@@ -205,58 +213,4 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=len(handles),
                   frameon=False, handlelength=1.4, columnspacing=1.4, borderaxespad=0.0)
         heading(fig, flipmap_caption(fm))
-    return fig
-
-
-def _chain_flipmap_figure(fm):
-    """A chain's flip map (:class:`skewpend.analysis.chainflip.ChainFlipMap`): the flip time over the plane's
-    two angles at release (degrees), on the logarithmic scale of the double pendulum's map, the cells that do
-    not flip by ``t_end`` white; the chain, the held angles and the settings in the heading."""
-    from matplotlib.colors import LogNorm
-    from matplotlib.patches import Patch
-    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
-
-    import matplotlib
-
-    from ..style import chain_text
-    from .base import coordinate_label
-
-    ft = np.asarray(fm.flip_time, dtype=float)
-    st = fm.settings
-    extent = [math.degrees(v) for v in (*st["x_range"], *st["y_range"])]
-    finite = ft[np.isfinite(ft)]
-    t_end = float(st["t_end"])
-    vmin = float(np.min(finite)) if finite.size else t_end / 100.0
-    if not 0 < vmin < t_end:
-        vmin = t_end / 100.0
-    colors = FLIPMAP_COLORS
-    with style():
-        fig = new_figure((6.6, 6.9))
-        ax = fig.subplots()
-        ax.grid(False)
-        cmap = matplotlib.colormaps[colors["cmap"]].with_extremes(bad=colors["no_flip"])
-        im = ax.imshow(np.ma.masked_invalid(ft.T), origin="lower", extent=extent, cmap=cmap,
-                       norm=LogNorm(vmin=vmin, vmax=t_end), interpolation="nearest", aspect="auto")
-        ax.legend(handles=[Patch(facecolor=colors["no_flip"], edgecolor="0.45", lw=0.6,
-                                 label=f"no flip by t_end = {fmt(t_end)} s")], loc="upper right", fontsize=8)
-        ax.set_xlim(extent[0], extent[1])
-        ax.set_ylim(extent[2], extent[3])
-        _degree_ticks(ax.xaxis, extent[0], extent[1])
-        _degree_ticks(ax.yaxis, extent[2], extent[3])
-        ax.tick_params(which="both", direction="out")
-        ax.set_xlabel(coordinate_label(fm.plane[0]).split(" − ")[0] + " at release [deg]")
-        ax.set_ylabel(coordinate_label(fm.plane[1]).split(" − ")[0] + " at release [deg]")
-        ax.set_title("Flip time: when any hinge angle first leaves (−180°, 180°)", loc="left")
-        bar = fig.colorbar(im, cax=ax.inset_axes([1.035, 0.0, 0.04, 1.0]))
-        bar.set_label("flip time [s]")
-        bar.ax.yaxis.set_major_locator(FixedLocator(_log_ticks(vmin, t_end)))
-        bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: fmt(v, 3)))
-        bar.ax.yaxis.set_minor_formatter(NullFormatter())
-        nq = len(fm.held)
-        others = [i for i in range(nq) if f"q{i + 1}" not in fm.plane and (nq != 2)]
-        held = ", ".join(f"q{i + 1} = {fmt(math.degrees(fm.held[i]))}°" for i in others)
-        heading(fig, chain_text(fm.params) + "\n"
-                + f"released at rest, {fm.n} × {fm.n} cells" + (f", held {held}" if held else "")
-                + f"; dop853, rtol = {st['rtol']:g}, atol = {st['atol']:g}; "
-                f"{100 * fm.flipped_fraction:.1f} % of the cells flip")
     return fig
