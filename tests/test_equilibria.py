@@ -147,6 +147,26 @@ def test_equilibrium_at_polishes_and_refuses():
         equilibrium_at(p, (0.7, 0.2))
 
 
+def test_one_search_for_any_model(tmp_path):
+    """A chain of three and the double pendulum go through the same search (issue 52): a chain's point is
+    polished and refused as the double pendulum's, its table and file name q1 .. q3, its file reads back as
+    the chain; each result keeps the model it was given."""
+    pytest.importorskip("netCDF4")
+    chain = skewpend.Chain.from_lists(3, length=1.0, mass=1.0, axis=[(0, 0, 1), (0.3, 0, 1), (0, 0, 1)])
+    eq = equilibria(chain)
+    assert eq.ok and len(eq) == 8 and eq.params is chain
+    e = eq.find("down-up-down")
+    again = equilibrium_at(chain, np.array(e.q) + 1e-4)
+    assert again.label == "down-up-down" and np.allclose(again.q, e.q, rtol=0, atol=1e-12)
+    with pytest.raises(EquilibriumError, match=r"^\(q1, q2, q3\) = \(0.7, 0.2, 0.1\) rad is not an equilibrium"):
+        equilibrium_at(chain, (0.7, 0.2, 0.1))
+    assert eq.table().splitlines()[0].split()[1:7] == ["q1", "[deg]", "q2", "[deg]", "q3", "[deg]"]
+    back = skewpend.open_result(eq.to_netcdf(tmp_path / "chain.nc"))
+    assert back.params == chain and [x.label for x in back] == [x.label for x in eq]
+    p = skewpend.reference_parameters()
+    assert equilibria(p).params is p and "phi [deg]" in equilibria(p).table()
+
+
 def test_refusals():
     with pytest.raises(EquilibriumError, match="every configuration"):
         equilibria(thin(g=0.0))

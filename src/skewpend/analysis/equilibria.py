@@ -1,18 +1,24 @@
-"""Every equilibrium of the skewed double pendulum on the torus, and the linearisation about each.
+"""Every equilibrium of a model on the n-torus, and the linearisation about each.
 
 At rest the equations of motion ``M(q) q'' = f(q, q')`` reduce to ``dPi/dq = tau``: an equilibrium
 is a critical point of ``V(q) = Pi(q) - tau . q``, the potential energy with the work of the
-constant torques.  ``Pi`` is a trigonometric polynomial of degree one in each angle (its
-gradient too), so there are finitely many isolated equilibria (at most eight) unless gravity and
-the torques both vanish.  :func:`equilibria` finds them all:
+constant torques.  The model is any of skewpend's (the double pendulum's
+:class:`~skewpend.Parameters`, a :class:`~skewpend.Chain` of ``n`` links): the search asks it for its
+coordinates and its chain, never its type.  :func:`equilibria` finds them all:
 
-* Newton's method on ``grad V = 0`` (gradient and Hessian generated from the derivation, one
-  vectorised iteration for every start) from an ``n x n`` grid of starts over the torus;
+* Newton's method on ``grad V = 0`` (one vectorised iteration for every start) from the ``2^n``
+  configurations with every relative angle 0 or pi and a grid of about ``starts^2`` points over the
+  n-torus (``starts^(2/n)`` per side: the double pendulum's ``starts x starts`` grid);
 * the roots deduplicated on the torus (angles modulo 2 pi) and polished;
-* a check that none is missed: on the torus the Morse indices of nondegenerate critical points
-  satisfy ``sum (-1)^index = 0`` (Poincare-Hopf: the Euler characteristic of the torus); if the
-  sum is not 0 the grid is refined, and a result that still fails the check says so
-  (:attr:`~skewpend.Status.PARTIAL`).
+* a check that none is missed: on the n-torus the Morse indices of nondegenerate critical points
+  satisfy ``sum (-1)^index = 0`` (Poincare-Hopf: its Euler characteristic); if the sum is not 0 the
+  grid is refined, and a result that still fails the check says so (:attr:`~skewpend.Status.PARTIAL`).
+
+``V``'s gradient and Hessian come from the cheapest printer of the model (a strategy, not its type):
+the exact derivation (SymPy ``lambdify``, in NumPy over every start) where the model keeps its bodies'
+geometry apart from its scalars -- one derivation, cached on disk, serves every value -- else the
+recursive algorithms' graph (CasADi, mapped over the starts: a chain's values are numeric data, so an
+exact derivation would be made again for each).
 
 Each :class:`Equilibrium` carries its linearisation ``M q'' + C q' + K q = 0`` (``M = M(q*)``,
 ``K`` the Hessian of ``V``, ``C`` the damping), the eigenvalues of the state matrix, the Morse
@@ -27,32 +33,38 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from typing import Callable, ClassVar, List, Sequence, Tuple
 
 import numpy as np
 
-from ..errors import EquilibriumError, ParameterError
+from ..errors import EquilibriumError, NotNumericError, ParameterError
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
+from ..schema import GEOMETRY_NAMES, coordinate_names
 from ..status import Status
 from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
-from ..schema import GEOMETRY_NAMES, names
 from ..symbolic.model import SCALAR_NAMES, Parameters
 
-__all__ = ["Equilibrium", "Equilibria", "equilibria", "chain_equilibria", "linear_point", "equilibrium_at", "find_equilibrium", "linearisation_functions",
-           "potential_function"]
+__all__ = ["Equilibrium", "Equilibria", "equilibria", "linear_point", "equilibrium_at", "find_equilibrium",
+           "linearisation_functions", "potential_function", "potential_on_arrays"]
 
-#: Grid of Newton starts per side (refined up to :data:`MAX_STARTS` while the index check fails).
+#: Newton starts per side of the double pendulum's grid, ``starts^2`` points on any torus (refined up to
+#: :data:`MAX_STARTS` while the index check fails).
 DEFAULT_STARTS = 16
 MAX_STARTS = 128
+#: The most links whose 2^n configurations with every relative angle 0 or pi seed the search.
+MAX_SEEDED_LINKS = 12
 #: Two roots closer than this on the torus [rad] are one equilibrium.
 SAME_ROOT = 1e-6
 #: How far [rad] a point given as "near an equilibrium" may lie from it.
 NEAR = 0.2
 #: An eigenvalue of K below this fraction of the largest is taken as zero (a degenerate point).
 DEGENERATE = 1e-9
+#: A root's residual ``|grad Pi - tau|`` must be below this fraction of the gradient's scale.
+RESIDUAL = 1e-9
 
 
+# -- the model's potential: two printers, one contract -----------------------------------------------------
 def _geometry_only(params: Parameters) -> Parameters:
     """``params`` with every scalar symbolic (the bodies and axes kept): one derivation serves
     every ``a, b, m1, m2, alpha, g, c, tau``."""
@@ -61,24 +73,24 @@ def _geometry_only(params: Parameters) -> Parameters:
 
 @lru_cache(maxsize=32)
 def linearisation_functions(geometry: Parameters) -> Callable:
-    """``f(*scalars, phi, psi) -> (Pi, grad Pi, Hessian of Pi, M, C)`` generated (SymPy
-    ``lambdify``) from the derivation of ``geometry`` (scalars in :data:`SCALAR_NAMES` order;
+    """``f(*scalars, *q) -> (Pi, grad Pi, Hessian of Pi, M, C)`` generated (SymPy ``lambdify``) from the
+    derivation of ``geometry`` (scalars in :data:`SCALAR_NAMES` order, then its coordinates;
     ``C = -df/dq'`` at rest, the damping)."""
     from ..numeric.pyfunctions import cached_lambdify
 
     def build():
         import sympy as sp
 
-        from ..symbolic.derivation import SYMBOLS, derive
+        from ..symbolic.derivation import SYMBOLS, coordinate_symbol, derive
 
         eom = derive(geometry)
-        phi, psi, dphi, dpsi = (SYMBOLS[n] for n in ("phi", "psi", "dphi", "dpsi"))
-        q = [phi, psi]
+        q = [coordinate_symbol(c) for c in geometry.coordinates]
+        dq = [coordinate_symbol("d" + c) for c in geometry.coordinates]
         Pi = eom.potential_energy
         grad = [sp.diff(Pi, x) for x in q]
         hess = [[sp.diff(g, x) for x in q] for g in grad]
-        rest = {dphi: 0, dpsi: 0}
-        C = [[-sp.diff(eom.forcing[i], v).subs(rest) for v in (dphi, dpsi)] for i in range(2)]
+        rest = {v: 0 for v in dq}
+        C = [[-sp.diff(eom.forcing[i], v).subs(rest) for v in dq] for i in range(len(q))]
         return [SYMBOLS[n] for n in SCALAR_NAMES] + q, [Pi, grad, hess, eom.mass_matrix.tolist(), C]
 
     return cached_lambdify("linearisation", "analysis/equilibria.py", geometry, build)
@@ -86,15 +98,16 @@ def linearisation_functions(geometry: Parameters) -> Callable:
 
 @lru_cache(maxsize=32)
 def _direction_functions(geometry: Parameters) -> Callable:
-    """``f(alpha, phi, psi) -> (j . P1 j, j . P j)``: the vertical component of each rod's
-    direction (``j`` points down: positive = hanging, negative = pointing up)."""
+    """``f(*scalars, *q) -> (j . P1 j, j . P j)``: the vertical component of each rod's direction (``j``
+    points down: positive = hanging, negative = pointing up)."""
     from ..numeric.pyfunctions import cached_lambdify
 
     def build():
-        from ..symbolic.derivation import SYMBOLS, derive
+        from ..symbolic.derivation import SYMBOLS, coordinate_symbol, derive
 
         steps = derive(geometry).steps
-        return [SYMBOLS[n] for n in SCALAR_NAMES] + [SYMBOLS["phi"], SYMBOLS["psi"]], [steps["P1"][1, 1], steps["P"][1, 1]]
+        return ([SYMBOLS[n] for n in SCALAR_NAMES] + [coordinate_symbol(c) for c in geometry.coordinates],
+                [steps["P1"][1, 1], steps["P"][1, 1]])
 
     return cached_lambdify("directions", "analysis/equilibria.py", geometry, build)
 
@@ -103,31 +116,183 @@ def _scalars(params: Parameters) -> List[float]:
     return [0.0 if (n == "alpha" and not params.uses_alpha) else float(getattr(params, n)) for n in SCALAR_NAMES]
 
 
-def potential_function(params: Parameters) -> Callable[[float, float], float]:
-    """``V(phi, psi) = Pi - tau . q`` [J] of the numeric model (generated from the derivation)."""
-    params.require_numeric("the potential")
-    values = _scalars(params)
-    functions = linearisation_functions(_geometry_only(params))
-    tau1, tau2 = float(params.tau1), float(params.tau2)
-
-    def V(phi: float, psi: float) -> float:
-        return float(functions(*values, phi, psi)[0]) - tau1 * phi - tau2 * psi
-
-    return V
+def _columns(values, m: int) -> np.ndarray:
+    """A generated function's outputs (numbers where an entry is constant) as an ``(m, ...)`` array."""
+    return np.moveaxis(np.array([[np.broadcast_to(np.asarray(x, dtype=float), (m,)) for x in row] for row in values]),
+                       -1, 0)
 
 
-def potential_on_arrays(params: Parameters) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """``V(phi, psi)`` of :func:`potential_function` on arrays of angles at once (the same
-    generated function, broadcast)."""
-    params.require_numeric("the potential")
-    values = _scalars(params)
-    functions = linearisation_functions(_geometry_only(params))
-    tau1, tau2 = float(params.tau1), float(params.tau2)
+class _Exact:
+    """``V``'s derivatives printed by SymPy from the model's exact derivation, its scalars run-time values:
+    NumPy evaluates every start at once."""
 
-    def V(phi: np.ndarray, psi: np.ndarray) -> np.ndarray:
-        phi, psi = np.broadcast_arrays(np.asarray(phi, dtype=float), np.asarray(psi, dtype=float))
-        Pi = np.broadcast_to(np.asarray(functions(*values, phi, psi)[0], dtype=float), phi.shape)
-        return Pi - tau1 * phi - tau2 * psi
+    def __init__(self, model, geometry: Parameters):
+        self.values = _scalars(model)
+        self.functions = linearisation_functions(geometry)
+        self.geometry = geometry
+
+    def grad_hess(self, Q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        _, g, H, _, _ = self.functions(*self.values, *Q.T)
+        return _columns([g], len(Q))[:, 0], _columns(H, len(Q))
+
+    def potential(self, Q: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(np.asarray(self.functions(*self.values, *Q.T)[0], dtype=float), (len(Q),))
+
+    def at(self, q: np.ndarray):
+        """``(Pi, Hessian of Pi, M, each rod's downward component)`` at one point."""
+        Pi, _, H, M, _ = self.functions(*self.values, *q)
+        down = _direction_functions(self.geometry)(*self.values, *q)
+        return float(Pi), np.array(H, dtype=float), np.array(M, dtype=float), np.asarray(down, dtype=float)
+
+
+@lru_cache(maxsize=16)
+def _newton_function(structure):
+    """``(q, p) -> (Pi, grad Pi, Hessian of Pi)`` of the recursive algorithms: their energy at rest (CasADi),
+    differentiated by CasADi."""
+    import casadi as ca
+
+    from ..numeric.recursive import chain_functions
+
+    energy = chain_functions(structure)["energy"]
+    n = structure.n
+    q, p = ca.SX.sym("q", n), ca.SX.sym("p", energy.size1_in(1))
+    Pi = energy(ca.vertcat(q, ca.SX.zeros(n)), p)
+    grad = ca.gradient(Pi, q)
+    return ca.Function("newton", [q, p], [Pi, grad, ca.jacobian(grad, q)])
+
+
+@lru_cache(maxsize=64)
+def _mapped(structure, m: int):
+    """:func:`_newton_function` mapped over ``m`` points (columns)."""
+    return _newton_function(structure).map(m)
+
+
+class _Recursive:
+    """``V``'s derivatives from the recursive algorithms' graph (CasADi, exact by automatic differentiation, no
+    compiling), mapped over the starts: any chain."""
+
+    def __init__(self, chain):
+        from ..numeric.recursive import parameter_vector, potential_terms, structure_of_chain
+
+        self.structure = structure_of_chain(chain)
+        self.terms = potential_terms(chain)
+        self.p = parameter_vector(chain)
+
+    def grad_hess(self, Q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        m, n = Q.shape
+        _, g, H = _mapped(self.structure, m)(Q.T, self.p)
+        return np.array(g, dtype=float).T, np.array(H, dtype=float).reshape(n, m, n).transpose(1, 0, 2)
+
+    def potential(self, Q: np.ndarray) -> np.ndarray:
+        return np.array(_mapped(self.structure, len(Q))(Q.T, self.p)[0], dtype=float).ravel()
+
+    def at(self, q: np.ndarray):
+        Pi, _, H, M, down = self.terms(q)
+        return Pi, H, M, down
+
+
+def _numeric_model(model, what: str):
+    """The model's chain (:meth:`as_chain`), or one :class:`ParameterError` line: not a model, or a model with
+    symbolic values (``what`` needs numbers)."""
+    try:
+        as_chain = model.as_chain
+    except AttributeError:
+        raise ParameterError(f"params must be a skewpend.Parameters or a Chain, got {type(model).__name__}") from None
+    try:
+        return as_chain()
+    except NotNumericError as exc:
+        raise ParameterError(f"{what} needs numeric values; {str(exc).partition('; ')[2]}") from None
+
+
+class _Search:
+    """What every search on one model shares: its chain, its potential's printer (the cheapest, see the
+    module), its torques and damping."""
+
+    def __init__(self, model, what: str):
+        self.chain = _numeric_model(model, what)
+        self.n, self.coordinates = model.n, tuple(model.coordinates)
+        try:
+            geometry = _geometry_only(model)
+        except AttributeError:  # no symbolic form
+            geometry = None
+        self.land = _Exact(model, geometry) if geometry is not None else _Recursive(self.chain)
+        self.tau = np.array([link.torque for link in self.chain.links], dtype=float)
+
+    @cached_property
+    def gscale(self) -> float:
+        """The size of grad Pi over the torus (64 seeded points) and of the torques: the unit in which a root's
+        residual ``grad Pi - tau`` is judged (0: no gravity and no torque)."""
+        probe = wrap(np.random.default_rng(0).uniform(-np.pi, np.pi, (64, self.n)))
+        return float(max(np.abs(self.land.grad_hess(probe)[0]).max(), np.abs(self.tau).max()))
+
+    def damping(self, coulomb: str) -> np.ndarray:
+        """``C = -df/dq'`` at rest: each joint's viscous damping, with ``coulomb="smoothed"`` its friction's slope."""
+        smoothed = coulomb == "smoothed"
+        return np.diag([link.damping + (link.coulomb * self.chain.cfs if smoothed else 0.0) for link in self.chain.links])
+
+    def newton(self, q: np.ndarray, iterations: int = 60) -> Tuple[np.ndarray, np.ndarray, int]:
+        """Vectorised Newton on ``grad Pi(q) = tau`` from every row of ``q``: (roots, converged, its).
+
+        The angles are kept in (-pi, pi] after every step, so a step is measured against angles of at
+        most pi; a step is at most 0.5 rad long; a row converges when its step is below 1e-13 rad *and* its
+        residual is below :data:`RESIDUAL` x the gradient's scale (a step lost to rounding is never taken for
+        convergence)."""
+        converged = np.zeros(len(q), dtype=bool)
+        active = np.ones(len(q), dtype=bool)
+        q = wrap(q)
+        its = 0
+        with np.errstate(all="ignore"):
+            for its in range(1, iterations + 1):
+                rows = np.flatnonzero(active)
+                g, H = self.land.grad_hess(q[rows])
+                g = g - self.tau
+                det = np.linalg.det(H)
+                ok = np.isfinite(det) & (np.abs(det) > 0) & np.all(np.isfinite(g), axis=1)
+                # (det's LU is solve's: no zero pivot where det != 0; the other rows solve with E and stop)
+                d = -np.linalg.solve(np.where(ok[:, None, None], H, np.eye(self.n)), g[..., None])[..., 0]
+                d = np.where(ok[:, None], d, 0.0)
+                step = np.sqrt(np.sum(d * d, axis=1))
+                shrink = np.where(step > 0.5, 0.5 / np.maximum(step, 1e-300), 1.0)  # at most 0.5 rad a step
+                q[rows] = wrap(q[rows] + d * shrink[:, None])
+                small = np.max(np.abs(g), axis=1) <= RESIDUAL * self.gscale  # the residual before this (tiny) step
+                done = ok & (step < 1e-13 * (1 + np.pi)) & small
+                converged[rows[done]] = True
+                active[rows[~ok | done]] = False
+                if not active.any():
+                    break
+        return q, converged, its
+
+    def linearise(self, q: np.ndarray, coulomb: str) -> "Equilibrium":
+        """The :class:`Equilibrium` at ``q`` (already a root)."""
+        from scipy.linalg import LinAlgError, eigh
+
+        Pi, H, M, down = self.land.at(q)
+        K = 0.5 * (H + H.T)
+        try:
+            np.linalg.inv(M)  # (linear_point's state matrix needs it)
+            lam, V = eigh(K, M)
+        except (LinAlgError, np.linalg.LinAlgError, ValueError):  # M not positive definite to rounding
+            raise ParameterError(
+                f"the mass matrix at {', '.join(f'{c} = {x:.6g}' for c, x in zip(self.coordinates, q))} is not positive definite in double precision (condition number "
+                f"{np.linalg.cond(M):.3g}): the model's lengths, masses and inertias span too many orders of magnitude"
+            ) from None
+        return linear_point(q, down, Pi - float(self.tau @ q) + 0.0, M, self.damping(coulomb), K, lam, V, coulomb)
+
+
+def potential_function(params) -> Callable[..., float]:
+    """``V(*q) = Pi - tau . q`` [J] of the numeric model (``V(phi, psi)`` for the double pendulum)."""
+    V = potential_on_arrays(params)
+    return lambda *q: float(V(*q))
+
+
+def potential_on_arrays(params) -> Callable[..., np.ndarray]:
+    """``V(*q)`` of :func:`potential_function` on arrays of angles at once (broadcast)."""
+    search = _Search(params, "the potential")
+
+    def V(*q: np.ndarray) -> np.ndarray:
+        q = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in q))
+        Q = np.stack([x.ravel() for x in q], axis=1)
+        return (search.land.potential(Q) - Q @ search.tau).reshape(q[0].shape)
 
     return V
 
@@ -140,27 +305,28 @@ def wrap(q: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Equilibrium:
-    """One equilibrium ``q* = (phi, psi)`` and the linearised motion about it.
+    """One equilibrium ``q*`` and the linearised motion about it.
 
-    * ``q`` -- ``(phi, psi)`` [rad] in ``(-pi, pi]``; ``label`` -- which way each rod points,
-      rod 1 then rod 2: ``down``, ``up`` or ``level`` (horizontal) -- ``"down-down"`` is the
-      hanging position, ``"up-up"`` both rods upright in line;
-    * ``potential`` -- ``V(q*) = Pi(q*) - tau . q*`` [J] (Pi = 0 with both rods hanging);
+    * ``q`` -- the model's coordinates [rad] in ``(-pi, pi]`` (``(phi, psi)`` for the double pendulum);
+      ``label`` -- which way each rod points, rod 1 first: ``down``, ``up`` or ``level`` (horizontal)
+      -- ``"down-down"`` is the double pendulum hanging, ``"up-up"`` both rods upright in line,
+      ``"down-up-down"`` a chain of three with its middle rod upright;
+    * ``potential`` -- ``V(q*) = Pi(q*) - tau . q*`` [J] (Pi = 0 with every rod hanging);
     * ``M``, ``C``, ``K`` -- the linearisation ``M dq'' + C dq' + K dq = 0`` about ``q*``
-      (``K`` the Hessian of ``V``); ``A`` -- the 4 x 4 state matrix of ``(dq, dq')``;
+      (``K`` the Hessian of ``V``); ``A`` -- the ``2n x 2n`` state matrix of ``(dq, dq')``;
       ``eigenvalues`` -- its eigenvalues (descending real part);
     * ``morse_index`` -- the number of negative eigenvalues of ``K`` (0: a minimum of ``V``,
-      stable; 1: a saddle; 2: a maximum of ``V``); ``stable`` -- index 0;
+      stable; n: a maximum of ``V``; between: a saddle); ``stable`` -- index 0;
     * ``frequencies`` [rad/s] and ``shapes`` -- the oscillating directions (``K v = w^2 M v``,
       ``w^2 > 0``), ascending; ``growth_rates`` [1/s] and ``unstable_directions`` -- the
       directions of ``K v = -s^2 M v`` along which a small disturbance grows like ``exp(s t)``
       (without damping; with damping the rates are the positive real parts of ``eigenvalues``).
-      Shapes and directions are columns ``[phi, psi]`` with ``v^T M v = 1``;
+      Shapes and directions are columns over the coordinates with ``v^T M v = 1``;
     * ``coulomb`` -- how Coulomb friction entered ``C`` (``"exclude"``, the default: not at all;
       ``"smoothed"``: its smoothed slope ``cfs cf``).
     """
 
-    q: Tuple[float, float]
+    q: Tuple[float, ...]
     label: str
     potential: float
     M: np.ndarray = field(repr=False)
@@ -182,46 +348,19 @@ class Equilibrium:
 
     @property
     def state(self) -> np.ndarray:
-        """The equilibrium as a state ``(phi, psi, 0, 0)`` (a chain's angles followed by zero speeds)."""
+        """The equilibrium as a state: its angles followed by zero speeds."""
         return np.r_[np.asarray(self.q, dtype=float), np.zeros(len(self.q))]
 
     def describe(self) -> str:
         n, k = len(self.q), self.morse_index
         kind = "stable (minimum of V)" if k == 0 else f"{'maximum of V' if k == n else 'saddle'} (index {k})"
-        names = ("phi", "psi") if n == 2 else tuple(f"q{k + 1}" for k in range(n))
-        where = ", ".join(f"{c} = {math.degrees(x):8.3f} deg" for c, x in zip(names, self.q))
+        where = ", ".join(f"{c} = {math.degrees(x):8.3f} deg" for c, x in zip(coordinate_names(n), self.q))
         parts = [f"{self.label:>9}  {where}  V = {self.potential:11.6g} J  {kind}"]
         if self.frequencies.size:
             parts.append("frequencies " + ", ".join(f"{w:.6g}" for w in self.frequencies) + " rad/s")
         if self.growth_rates.size:
             parts.append("growth rates " + ", ".join(f"{s:.6g}" for s in self.growth_rates) + " 1/s")
         return ";  ".join(parts)
-
-
-def _linearise(params: Parameters, q: np.ndarray, values: Sequence[float], functions,
-               coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
-    """The :class:`Equilibrium` at ``q`` (already a root)."""
-    from scipy.linalg import LinAlgError, eigh
-
-    if coulomb != "smoothed":  # Coulomb friction enters C only (its slope cfs cf): excluded, evaluated at cf = 0
-        values = [0.0 if n in names(stem="cf") else v for n, v in zip(SCALAR_NAMES, values)]
-    Pi, _, H, M, C = functions(*values, float(q[0]), float(q[1]))
-    M = np.array(M, dtype=float)
-    C = np.array(C, dtype=float) * np.ones((2, 2))
-    K = np.array(H, dtype=float)
-    K = 0.5 * (K + K.T)
-    tau = np.array([params.tau1, params.tau2], dtype=float)
-    potential = float(Pi) - float(tau @ q)
-    try:
-        np.linalg.inv(M)  # (linear_point's state matrix needs it)
-        lam, V = eigh(K, M)
-    except (LinAlgError, np.linalg.LinAlgError, ValueError):  # M not positive definite to rounding: scales too far apart
-        raise ParameterError(
-            f"the mass matrix at phi = {float(q[0]):.6g}, psi = {float(q[1]):.6g} is not positive definite in double "
-            f"precision (condition number {np.linalg.cond(M):.3g}): the model's lengths, masses and inertias span too "
-            f"many orders of magnitude") from None
-    dirs = _direction_functions(_geometry_only(params))(*values, float(q[0]), float(q[1]))
-    return linear_point(q, dirs, potential, M, C, K, lam, V, coulomb)
 
 
 def linear_point(q, down, potential: float, M, C, K, lam, V, coulomb: str) -> Equilibrium:
@@ -261,10 +400,10 @@ class Equilibria(Result):
     """Every equilibrium of a model (:func:`equilibria`), ordered by potential energy.
 
     * ``points`` -- the :class:`Equilibrium` objects (``len``, iteration and indexing reach them);
-    * ``index_sum`` -- ``sum (-1)^index`` over them: 0 on the torus when none is missed
+    * ``index_sum`` -- ``sum (-1)^index`` over them: 0 on the n-torus when none is missed
       (Poincare-Hopf), the check behind ``status``;
-    * the result protocol: ``params``, ``settings`` (the grid of starts), ``stats`` (``starts``,
-      ``converged``, ``newton_iterations``), ``status``, ``message``, ``ok``, ``to_xarray()``,
+    * the result protocol: ``params`` (the model as given), ``settings`` (the grid of starts), ``stats``
+      (``starts``, ``converged``, ``newton_iterations``), ``status``, ``message``, ``ok``, ``to_xarray()``,
       ``to_netcdf()``, ``summary()``, ``table()``.
     """
 
@@ -296,7 +435,7 @@ class Equilibria(Result):
         return int(sum((-1) ** e.morse_index for e in self.points))
 
     def find(self, label: str) -> Equilibrium:
-        """The equilibrium with this ``label`` (``"down-down"``, ``"up-up"``, ...)."""
+        """The equilibrium with this ``label`` (``"down-down"``, ``"up-up"``, ``"down-up-down"``, ...)."""
         found = [e for e in self.points if e.label == label]
         if not found:
             have = ", ".join(e.label for e in self.points) or "none"
@@ -304,52 +443,39 @@ class Equilibria(Result):
         return found[0]
 
     def table(self) -> str:
-        if not isinstance(self.params, Parameters):  # a chain: its angles in one column
-            width = max([len(e.label) for e in self.points] + [5])
-            lines = [f"{'label':>{width}}  {'q [deg]':<{8 * len(self.points[0].q) if self.points else 8}}  {'V [J]':>12}  index  "
-                     "frequencies [rad/s]; growth rates [1/s]"]
-            for e in self.points:
-                freq = ", ".join(f"{w:.6g}" for w in e.frequencies) or "--"
-                grow = ", ".join(f"{s:.6g}" for s in e.growth_rates) or "--"
-                q = " ".join(f"{math.degrees(x):7.2f}" for x in e.q)
-                lines.append(f"{e.label:>{width}}  {q}  {e.potential:12.6g}  {e.morse_index:>5}  {freq}; {grow}")
-            return "\n".join(lines)
-        lines = [f"{'label':>9}  {'phi [deg]':>10}  {'psi [deg]':>10}  {'V [J]':>12}  index  "
-                 f"{'frequencies [rad/s]':<24}  growth rates [1/s]"]
+        width = max([9] + [len(e.label) for e in self.points])
+        lines = [f"{'label':>{width}}  " + "  ".join(f"{c + ' [deg]':>10}" for c in self.params.coordinates) +
+                 f"  {'V [J]':>12}  index  {'frequencies [rad/s]':<24}  growth rates [1/s]"]
         for e in self.points:
             freq = ", ".join(f"{w:.6g}" for w in e.frequencies) or "--"
             grow = ", ".join(f"{s:.6g}" for s in e.growth_rates) or "--"
-            lines.append(f"{e.label:>9}  {math.degrees(e.q[0]):10.4f}  {math.degrees(e.q[1]):10.4f}  "
-                         f"{e.potential:12.6g}  {e.morse_index:>5}  {freq:<24}  {grow}")
+            lines.append(f"{e.label:>{width}}  " + "  ".join(f"{math.degrees(x):10.4f}" for x in e.q) +
+                         f"  {e.potential:12.6g}  {e.morse_index:>5}  {freq:<24}  {grow}")
         return "\n".join(lines)
 
     def _dataset(self) -> DatasetSpec:
-        n = len(self.points)
+        n, coordinates = len(self.points), tuple(self.params.coordinates)
 
-        def col(fn, k):
-            out = np.full(n, np.nan)
+        def directions(fn):  # a row an equilibrium, NaN beyond its directions
+            out = np.full((n, len(coordinates)), np.nan)
             for i, e in enumerate(self.points):
-                arr = fn(e)
-                if arr.size > k:
-                    out[i] = arr[k]
+                out[i, :fn(e).size] = fn(e)
             return out
 
         return DatasetSpec(
             variables={
-                "phi": (("equilibrium",), np.array([e.q[0] for e in self.points]), {"units": "rad"}),
-                "psi": (("equilibrium",), np.array([e.q[1] for e in self.points]), {"units": "rad"}),
+                **{c: (("equilibrium",), np.array([e.q[k] for e in self.points]), {"units": "rad"})
+                   for k, c in enumerate(coordinates)},
                 "potential": (("equilibrium",), np.array([e.potential for e in self.points]),
                               {"units": "J", "long_name": "V = Pi - tau . q"}),
                 "morse_index": (("equilibrium",), np.array([e.morse_index for e in self.points], dtype=np.int32), {}),
-                "frequency": (("equilibrium", "direction"),
-                              np.stack([col(lambda e: e.frequencies, k) for k in range(2)], axis=1) if n else np.zeros((0, 2)),
+                "frequency": (("equilibrium", "direction"), directions(lambda e: e.frequencies),
                               {"units": "rad/s", "long_name": "natural angular frequency (NaN: not oscillating)"}),
-                "growth_rate": (("equilibrium", "direction"),
-                                np.stack([col(lambda e: e.growth_rates, k) for k in range(2)], axis=1) if n else np.zeros((0, 2)),
+                "growth_rate": (("equilibrium", "direction"), directions(lambda e: e.growth_rates),
                                 {"units": "1/s", "long_name": "growth rate of an unstable direction (NaN: none)"}),
             },
             coords={},
-            attrs={"title": "equilibria of the skewed double pendulum (skewpend)",
+            attrs={"title": f"equilibria on the {len(coordinates)}-torus (skewpend)",
                    "labels": ", ".join(e.label for e in self.points), "index_sum": self.index_sum, **self._base_attrs()},
         )
 
@@ -363,25 +489,26 @@ def read_equilibria(path, variables, attrs) -> Equilibria:
     import dataclasses
 
     from ..errors import SkewpendError
+    from ..symbolic.chain import AnyModel
 
-    proto = protocol_fields(path, attrs, Parameters)
+    proto = protocol_fields(path, attrs, AnyModel)
     params = proto["params"]
     labels = [s.strip() for s in str(attrs.get("labels", "")).split(",") if s.strip()]
-    phi, psi = (np.asarray(variables[k], dtype=float).reshape(-1) for k in ("phi", "psi"))
-    if len(labels) != phi.size:
-        raise ParameterError(f"{path} is not equilibria made by skewpend: {len(labels)} labels for {phi.size} points")
+    angles = np.array([np.asarray(variables[c], dtype=float).reshape(-1) for c in params.coordinates]).T
+    if len(labels) != len(angles):
+        raise ParameterError(f"{path} is not equilibria made by skewpend: {len(labels)} labels for {len(angles)} points")
     points = []
-    for i in range(phi.size):
-        q = (float(phi[i]), float(psi[i]))
+    for i, q in enumerate(angles):
+        q = tuple(float(x) for x in q)
         try:
             e = equilibrium_at(params, q)
         except SkewpendError:
-            raise ParameterError(f"{path} was written by another model: ({q[0]:.6g}, {q[1]:.6g}) is not an equilibrium "
-                                 f"of its parameters") from None
+            raise ParameterError(f"{path} was written by another model: ({', '.join(f'{x:.6g}' for x in q)}) is not an "
+                                 f"equilibrium of its parameters") from None
         freq = np.asarray(variables["frequency"], dtype=float)[i]
         grow = np.asarray(variables["growth_rate"], dtype=float)[i]
         stored = {"frequencies": freq[np.isfinite(freq)], "growth_rates": grow[np.isfinite(grow)]}
-        agree(path, f"equilibrium {i}'s angles", wrap(np.subtract(e.q, q)), np.zeros(2), scale=math.pi)
+        agree(path, f"equilibrium {i}'s angles", wrap(np.subtract(e.q, q)), np.zeros(len(q)), scale=math.pi)
         agree(path, f"equilibrium {i}'s potential", float(variables["potential"][i]), e.potential,
               scale=max(abs(float(variables["potential"][i])), float(np.abs(e.K).max())))
         for name, value in stored.items():
@@ -394,119 +521,74 @@ def read_equilibria(path, variables, attrs) -> Equilibria:
     return Equilibria(points=points, **proto)
 
 
-def _gradient_scale(grad_hess, tau: np.ndarray) -> float:
-    """The size of ``grad Pi`` over the torus (64 seeded points) and of the torques: the unit in
-    which a root's residual ``grad Pi - tau`` is judged."""
-    probe = wrap(np.random.default_rng(0).uniform(-np.pi, np.pi, (64, 2)))
-    return float(max(np.abs(grad_hess(probe)[0]).max(), np.abs(tau).max()))
+def _starts(n: int, per_side: int) -> np.ndarray:
+    """Newton's starts on the n-torus: a grid of ``per_side^(2/n)`` points a side (about ``per_side^2`` in all:
+    the double pendulum's ``per_side x per_side``), then the ``2^n`` configurations with every relative angle 0
+    or pi."""
+    side = max(1, int(math.floor(per_side ** (2.0 / n) + 1e-9)))
+    axis = (np.arange(side) + 0.5) / side * 2 * np.pi - np.pi
+    grid = np.array(np.meshgrid(*([axis] * n), indexing="ij")).reshape(n, -1).T
+    corners = (np.arange(2 ** n)[:, None] >> np.arange(n) & 1) * np.pi
+    return np.vstack([grid, corners])
 
 
-#: A root's residual ``|grad Pi - tau|`` must be below this fraction of the gradient's scale.
-RESIDUAL = 1e-9
+def equilibria(params, *, starts: int = DEFAULT_STARTS, coulomb: str = DEFAULT_COULOMB) -> Equilibria:
+    """Every equilibrium of the numeric model ``params`` (the double pendulum's :class:`~skewpend.Parameters` or
+    a :class:`~skewpend.Chain`) on the n-torus (see the module).
 
-
-def _newton(grad_hess, q: np.ndarray, tau: np.ndarray, iterations: int = 60, *,
-            gscale: float = 0.0) -> Tuple[np.ndarray, np.ndarray, int]:
-    """Vectorised Newton on ``grad Pi(q) = tau`` from every row of ``q``: (roots, converged, its).
-
-    The angles are kept in (-pi, pi] after every step, so a step is measured against angles of
-    at most pi; a row converges when its step is below 1e-13 rad *and* its residual is below
-    :data:`RESIDUAL` x ``gscale`` (a step lost to rounding is never taken for convergence)."""
-    converged = np.zeros(len(q), dtype=bool)
-    active = np.ones(len(q), dtype=bool)
-    q = wrap(q)
-    its = 0
-    with np.errstate(all="ignore"):
-        for its in range(1, iterations + 1):
-            g, H = grad_hess(q)
-            g = g - tau
-            det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] * H[:, 1, 0]
-            ok = active & np.isfinite(det) & (np.abs(det) > 0)
-            d0 = np.where(ok, -(H[:, 1, 1] * g[:, 0] - H[:, 0, 1] * g[:, 1]) / np.where(ok, det, 1.0), 0.0)
-            d1 = np.where(ok, -(-H[:, 1, 0] * g[:, 0] + H[:, 0, 0] * g[:, 1]) / np.where(ok, det, 1.0), 0.0)
-            step = np.hypot(d0, d1)
-            shrink = np.where(step > 0.5, 0.5 / np.maximum(step, 1e-300), 1.0)  # at most 0.5 rad a step
-            q[:, 0] += d0 * shrink
-            q[:, 1] += d1 * shrink
-            q = wrap(q)
-            active &= ok
-            small = np.max(np.abs(g), axis=1) <= RESIDUAL * gscale  # the residual before this (tiny) step
-            done = active & (step < 1e-13 * (1 + np.pi)) & small
-            converged |= done
-            active &= ~done
-            if not active.any():
-                break
-    return q, converged, its
-
-
-def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS, coulomb: str = DEFAULT_COULOMB) -> Equilibria:
-    """Every equilibrium of the numeric model ``params`` on the torus (see the module).
-
-    ``starts``: Newton starts per side of the first grid (doubled, up to 128, while the
-    Poincare-Hopf check fails).  ``coulomb``: Coulomb friction left out of each linearisation
-    (``"exclude"``, the default: non-smooth at rest) or linearised by its smoothed slope
-    (``"smoothed"``); the message says which.  Refused: a symbolic parameter, and ``g = 0`` without torques
-    (then every configuration is an equilibrium).  Without gravity but with torques there is no
-    equilibrium (an empty result).
+    ``starts``: Newton starts per side of the first grid of the double pendulum, ``starts^2`` points on any
+    torus (doubled, up to 128 a side, while the Poincare-Hopf check fails), besides the ``2^n`` configurations
+    with every relative angle 0 or pi (at most :data:`MAX_SEEDED_LINKS` links).  ``coulomb``: Coulomb friction
+    left out of each linearisation (``"exclude"``, the default: non-smooth at rest) or linearised by its
+    smoothed slope (``"smoothed"``); the message says which.  Refused: a symbolic parameter, and ``g = 0``
+    without torques (then every configuration is an equilibrium).  Without gravity but with torques there is
+    no equilibrium (an empty result).
     """
-    from ..checks import numeric_params, whole
-    from ..symbolic.chain import Chain
+    from ..checks import whole
 
-    if isinstance(params, Chain):
-        return chain_equilibria(params, coulomb=coulomb)
-    params = numeric_params(params, "equilibria")
+    search = _Search(params, "equilibria")
     starts = whole("starts", starts, lo=2, hi=MAX_STARTS)
     coulomb = check_coulomb(coulomb)
-    tau = np.array([params.tau1, params.tau2], dtype=float)
-    values = _scalars(params)
-    functions = linearisation_functions(_geometry_only(params))
-
-    def grad_hess(q):
-        _, g, H, _, _ = functions(*values, q[:, 0], q[:, 1])
-        n = len(q)
-        g = np.stack([np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in g], axis=1)
-        H = np.array([[np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in row] for row in H]).transpose(2, 0, 1)
-        return g, H
-
-    # the scale of the gradient (to tell "no equilibrium" and degenerate models apart)
-    gscale = _gradient_scale(grad_hess, tau)
-    if not (gscale > 0):
+    n = search.n
+    if n > MAX_SEEDED_LINKS:
+        raise ParameterError(f"equilibria seed Newton's method at the 2^n configurations with every relative angle 0 or "
+                             f"pi: at most {MAX_SEEDED_LINKS} links, this model has {n}")
+    if not (search.gscale > 0):
         raise EquilibriumError("every configuration is an equilibrium without gravity and torques (g = 0, tau = 0); "
                                "equilibria need g > 0 or a torque")
-    total_its = 0
-    total_starts = 0
-    n = starts
+    total_its = total_starts = 0
+    per_side = starts
     while True:
-        grid = (np.arange(n) + 0.5) / n * 2 * np.pi - np.pi
-        q0 = np.array(np.meshgrid(grid, grid, indexing="ij")).reshape(2, -1).T.copy()
-        roots, conv, its = _newton(grad_hess, q0, tau, gscale=gscale)
+        q0 = _starts(n, per_side)
+        roots, conv, its = search.newton(q0)
         total_its += its
         total_starts += len(q0)
-        found: List[np.ndarray] = []
-        for r in wrap(roots[conv]):
-            g, _ = grad_hess(r[None, :])
-            if not np.all(np.abs(g[0] - tau) <= 1e-9 * max(gscale, np.abs(tau).max())):
-                continue
-            if all(np.max(np.abs(wrap(r - f))) > SAME_ROOT for f in found):
-                found.append(r)
-        points = [_linearise(params, wrap(r), values, functions, coulomb) for r in found]
+        roots = wrap(roots[conv])
+        if len(roots):  # the residual where each ended
+            g, _ = search.land.grad_hess(roots)
+            roots = roots[np.all(np.abs(g - search.tau) <= 1e-9 * max(search.gscale, np.abs(search.tau).max()), axis=1)]
+        found, k = np.empty_like(roots), 0
+        for r in roots:
+            if not k or np.min(np.max(np.abs(wrap(r - found[:k])), axis=1)) > SAME_ROOT:
+                found[k], k = r, k + 1
+        points = [search.linearise(r, coulomb) for r in found[:k]]
         points.sort(key=lambda e: (e.potential, e.q))
         index_sum = sum((-1) ** e.morse_index for e in points)
-        if index_sum == 0 or n >= MAX_STARTS:
+        if index_sum == 0 or per_side >= MAX_STARTS:
             break
-        n = min(2 * n, MAX_STARTS)
+        per_side = min(2 * per_side, MAX_STARTS)
     degenerate = [e for e in points
                   if np.min(np.abs(np.linalg.eigvalsh(e.K))) <= DEGENERATE * max(np.abs(np.linalg.eigvalsh(e.K)).max(), 1e-300)]
     if index_sum == 0 and not degenerate:
         status, message = Status.SUCCESS, (
-            f"{len(points)} equilibria; their Morse indices sum to 0 as on the torus (none missed)" if points else
+            f"{len(points)} equilibria; their Morse indices sum to 0 as on the {n}-torus (none missed)" if points else
             "no equilibrium: the torques are not balanced by gravity anywhere")
     else:
         status, message = Status.PARTIAL, (
             f"{len(points)} equilibria found, but " + (
                 f"{len(degenerate)} of them degenerate (K singular): the index check does not apply" if degenerate else
                 f"their indices sum to {index_sum}, not 0: an equilibrium may be missed"))
-    settings = {"starts": starts, "final_starts": n, "tau": tau.tolist()}
+    settings = {"starts": starts, "final_starts": per_side, "tau": search.tau.tolist()}
     note = coulomb_note(params, coulomb)
     if note:  # only where it matters (a model without friction keeps its fingerprint)
         settings["coulomb"] = coulomb
@@ -515,120 +597,33 @@ def equilibria(params: Parameters, *, starts: int = DEFAULT_STARTS, coulomb: str
     return Equilibria(points=points, params=params, settings=settings, stats=stats, status=status, message=message)
 
 
-#: The most links whose 2^n up-down configurations seed the equilibria of a chain.
-MAX_CHAIN_SEEDS = 12
+def equilibrium_at(params, q: Sequence[float], name: str = "q", *, coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
+    """The equilibrium at ``q`` (the model's coordinates, ``(phi, psi)`` for the double pendulum; angles
+    reduced modulo 2 pi, :func:`skewpend.checks.angles`: at most 1e6 rad in magnitude), polished by Newton's
+    method from there; refused with one line when ``q`` is not near an equilibrium (the residual names how
+    far).  ``name``: the argument's name in a refusal; ``coulomb`` as for :func:`equilibria`."""
+    from ..checks import angles
 
-
-def chain_equilibria(chain, *, coulomb: str = DEFAULT_COULOMB) -> Equilibria:
-    """Every equilibrium of a chain of links on the n-torus: Newton's method on ``grad V = tau`` (``V`` the
-    potential energy from the recursive algorithms, its gradient and Hessian exact by automatic
-    differentiation) from each of the 2^n configurations with every relative angle 0 or pi, and from 64
-    seeded random starts; the roots deduplicated and linearised as the double pendulum's
-    (:class:`Equilibrium`, labels ``down``/``up``/``level`` per link).  The check that none is missed is
-    the same: on the n-torus the Morse indices sum to 0, ``sum (-1)^index = 0``."""
-    from scipy.linalg import eigh
-
-    from ..numeric.recursive import potential_terms
-
+    search = _Search(params, "an equilibrium")
     coulomb = check_coulomb(coulomb)
-    n = chain.n
-    if n > MAX_CHAIN_SEEDS:
-        raise ParameterError(f"equilibria of a chain seed Newton's method at its 2^n up-down configurations: at most "
-                             f"{MAX_CHAIN_SEEDS} links, this chain has {n}")
-    terms = potential_terms(chain)
-    tau = np.array([link.torque for link in chain.links], dtype=float)
-    rng = np.random.default_rng(0)
-    seeds = [np.array([(k >> i) & 1 for i in range(n)], dtype=float) * np.pi for k in range(2 ** n)]
-    seeds += list(rng.uniform(-np.pi, np.pi, (64, n)))
-    gscale = max(max(np.abs(terms(q)[1]).max() for q in seeds[:: max(1, len(seeds) // 32)]), np.abs(tau).max())
-    if not gscale > 0:
-        raise EquilibriumError("every configuration is an equilibrium without gravity and torques (g = 0, tau = 0); "
-                               "equilibria need g > 0 or a torque")
-    found: List[np.ndarray] = []
-    its_total = 0
-    for q0 in seeds:
-        q = np.array(q0, dtype=float)
-        for its in range(60):
-            _, g, H, _, _ = terms(q)
-            r = g - tau
-            try:
-                d = -np.linalg.solve(H, r)
-            except np.linalg.LinAlgError:
-                break
-            step = float(np.max(np.abs(d)))
-            q = wrap(q + d * min(1.0, 0.5 / max(step, 1e-300)))
-            its_total += 1
-            if step < 1e-13 * (1 + np.pi) and np.max(np.abs(r)) <= RESIDUAL * gscale:
-                if all(np.max(np.abs(wrap(q - f))) > SAME_ROOT for f in found):
-                    found.append(q)
-                break
-    c = np.diag([link.damping + (link.coulomb * chain.cfs if coulomb == "smoothed" else 0.0) for link in chain.links])
-    points = []
-    for q in found:
-        Pi, _, H, M, down = terms(q)
-        K = 0.5 * (H + H.T)
-        lam, V = eigh(K, M)
-        points.append(linear_point(q, down, Pi - float(tau @ q) + 0.0, M, c, K, lam, V, coulomb))
-    points.sort(key=lambda e: (e.potential, e.q))
-    index_sum = sum((-1) ** e.morse_index for e in points)
-    degenerate = [e for e in points
-                  if np.min(np.abs(np.linalg.eigvalsh(e.K))) <= DEGENERATE * max(np.abs(np.linalg.eigvalsh(e.K)).max(), 1e-300)]
-    if index_sum == 0 and not degenerate:
-        status, message = Status.SUCCESS, (f"{len(points)} equilibria; their Morse indices sum to 0 as on the "
-                                           f"{n}-torus (none missed)")
-    else:
-        status, message = Status.PARTIAL, (f"{len(points)} equilibria found, but " + (
-            f"{len(degenerate)} of them degenerate (K singular): the index check does not apply" if degenerate else
-            f"their indices sum to {index_sum}, not 0: an equilibrium may be missed"))
-    settings = {"seeds": len(seeds), "tau": tau.tolist()}
-    if chain.has_friction:
-        settings["coulomb"] = coulomb
-    stats = {"starts": len(seeds), "converged": len(points), "newton_iterations": its_total}
-    return Equilibria(points=points, params=chain, settings=settings, stats=stats, status=status, message=message)
-
-
-def equilibrium_at(params: Parameters, q: Sequence[float], name: str = "q", *, coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
-    """The equilibrium at ``q = (phi, psi)`` (angles reduced modulo 2 pi, :func:`skewpend.checks.angles`:
-    at most 1e6 rad in magnitude), polished by Newton's method from there; refused with one line
-    when ``q`` is not near an equilibrium (the residual names how far).  ``name``: the
-    argument's name in a refusal; ``coulomb`` as for :func:`equilibria`."""
-    from ..checks import angles, numeric_params
-
-    params = numeric_params(params, "an equilibrium")
-    coulomb = check_coulomb(coulomb)
-    q0 = np.array(angles(name, q, 2), dtype=float).reshape(1, 2)
-    values = _scalars(params)
-    functions = linearisation_functions(_geometry_only(params))
-    tau = np.array([params.tau1, params.tau2], dtype=float)
-
-    def grad_hess(qq):
-        _, g, H, _, _ = functions(*values, qq[:, 0], qq[:, 1])
-        n = len(qq)
-        g = np.stack([np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in g], axis=1)
-        H = np.array([[np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in row] for row in H]).transpose(2, 0, 1)
-        return g, H
-
-    gscale = _gradient_scale(grad_hess, tau)
-    g0, _ = grad_hess(q0.copy())
-    root, conv, _ = _newton(grad_hess, q0.copy(), tau, iterations=30, gscale=gscale)
+    q0 = np.array(angles(name, q, search.n), dtype=float).reshape(1, -1)
+    g0, _ = search.land.grad_hess(q0.copy())
+    root, conv, _ = search.newton(q0.copy(), iterations=30)
     moved = float(np.max(np.abs(wrap(root[0] - q0[0]))))
     if not conv[0] or moved > NEAR:
-        residual = float(np.max(np.abs(g0[0] - tau)))
+        residual = float(np.max(np.abs(g0[0] - search.tau)))
         raise EquilibriumError(
-            f"(phi, psi) = ({q0[0, 0]:.6g}, {q0[0, 1]:.6g}) rad is not an equilibrium: dV/dq = {residual:.3g} N m there; "
-            "choose one of skewpend.equilibria(params)")
-    return _linearise(params, wrap(root[0]), values, functions, coulomb)
+            f"({', '.join(search.coordinates)}) = ({', '.join(f'{x:.6g}' for x in q0[0])}) rad is not an equilibrium: "
+            f"dV/dq = {residual:.3g} N m there; choose one of skewpend.equilibria(params)")
+    return search.linearise(wrap(root[0]), coulomb)
 
 
-def find_equilibrium(params: Parameters, which, name: str = "equilibrium", *, coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
-    """An equilibrium given as an :class:`Equilibrium`, a label (``"up-up"``: one of
-    :func:`equilibria`'s) or angles ``(phi, psi)`` near one (:func:`equilibrium_at`; reduced
-    modulo 2 pi, refused beyond 1e6 rad); ``name`` is the argument's name in the refusal.  Its
-    linearisation treats Coulomb friction as ``coulomb`` says (an :class:`Equilibrium` made with
-    the other choice is linearised again)."""
-    from ..checks import numeric_params
-
-    params = numeric_params(params, "an equilibrium")
+def find_equilibrium(params, which, name: str = "equilibrium", *, coulomb: str = DEFAULT_COULOMB) -> Equilibrium:
+    """An equilibrium given as an :class:`Equilibrium`, a label (``"up-up"``: one of :func:`equilibria`'s) or
+    angles near one (:func:`equilibrium_at`; reduced modulo 2 pi, refused beyond 1e6 rad); ``name`` is the
+    argument's name in the refusal.  Its linearisation treats Coulomb friction as ``coulomb`` says (an
+    :class:`Equilibrium` made with the other choice is linearised again)."""
+    _numeric_model(params, "an equilibrium")
     coulomb = check_coulomb(coulomb)
     if isinstance(which, Equilibrium):
         if which.coulomb == coulomb or not friction_terms(params):
@@ -637,5 +632,6 @@ def find_equilibrium(params: Parameters, which, name: str = "equilibrium", *, co
     if isinstance(which, str):
         return equilibria(params, coulomb=coulomb).find(which)
     if which is None or isinstance(which, (bytes, dict, set)):
-        raise ParameterError(f"{name} must be an equilibrium, a label such as 'up-up', or (phi, psi), got {which!r}")
+        raise ParameterError(f"{name} must be an equilibrium, a label such as '{'-'.join(['up'] * params.n)}', or "
+                             f"({', '.join(params.coordinates)}), got {which!r}")
     return equilibrium_at(params, which, name, coulomb=coulomb)

@@ -545,10 +545,10 @@ def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB)
     if isinstance(params, Chain):
         if about is None:
             return chain_modes(params, check_coulomb(coulomb))
-        from .equilibria import Equilibrium, chain_equilibria
+        from .equilibria import Equilibrium, equilibria
 
         if isinstance(about, str):
-            about = chain_equilibria(params, coulomb=check_coulomb(coulomb)).find(about)
+            about = equilibria(params, coulomb=check_coulomb(coulomb)).find(about)
         if not isinstance(about, Equilibrium) or len(about.q) != params.n:
             raise ParameterError(f"about: a chain's modes are about one of its equilibria (an Equilibrium of "
                                  f"skewpend.equilibria(chain), or its label such as 'up-down-down'), got {about!r}")
