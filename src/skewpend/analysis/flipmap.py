@@ -494,9 +494,9 @@ def flip_map(
     from ..numeric.kernels import model_vector, model_vector_names
 
     params = _numeric_model(params, "a flip map")
-    (a, b), (ra, rb), q = _plane(tuple(params.coordinates), plane, ranges, held, phi_range=phi_range, psi_range=psi_range)
     n = check_n(n)
     t_end = positive("t_end", t_end)
+    (a, b), (ra, rb), q = _plane(tuple(params.coordinates), plane, ranges, held, phi_range=phi_range, psi_range=psi_range)
     rtol, atol = tolerances(rtol, atol)
     workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress,
                                 chunk_size=chunk_size)
@@ -594,9 +594,8 @@ def _check_feasible(job: "FlipJob", state) -> None:
     from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, refused_already, steps_per_second
 
     kernel, p, _ = state
-    corner = (max(map(abs, job.x_range)), max(map(abs, job.y_range)))
-    cells = job.positions(np.array([(0.9 * corner[0], 0.9 * corner[1]), (0.9 * corner[0], -0.9 * corner[1]),
-                                    (0.5 * corner[0], 0.0)]))
+    cx, cy = max(map(abs, job.x_range)), max(map(abs, job.y_range))
+    cells = job.positions(np.array([0.9 * cx, 0.9 * cx, 0.5 * cx]), np.array([0.9 * cy, -0.9 * cy, 0.0]))
     rate, ok = 0.0, False
     for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
         out = _integrator(kernel, p, t_end=t, rtol=job.rtol, atol=job.atol, max_steps=PROBE_STEPS).run(cells)
@@ -739,13 +738,16 @@ class FlipJob(PlaneJob):
         return self.state(self.checked_kernel(flip_kernel(self.params)), model_vector(self.params))
 
     @cached_property
-    def _axes(self) -> List[int]:
-        return [tuple(self.params.coordinates).index(c) for c in self.plane]
+    def _axes(self) -> Tuple[int, int]:
+        i, j = (tuple(self.params.coordinates).index(c) for c in self.plane)
+        return i, j
 
-    def positions(self, xy: np.ndarray) -> np.ndarray:
-        """Starts as angles ``(m, nq)``: the held angles, the plane's two from ``xy`` ``(m, 2)``."""
-        q = np.tile(np.asarray(self.held, dtype=np.float64), (len(xy), 1))
-        q[:, self._axes] = xy
+    def positions(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Starts as angles ``(m, nq)``: the held angles, the plane's two ``x`` and ``y``."""
+        i, j = self._axes
+        q = np.empty((len(x), len(self.held)))
+        q[:] = self.held
+        q[:, i], q[:, j] = x, y
         return q
 
     def compute(self, state, rows, cancel=None):
@@ -762,7 +764,7 @@ class FlipJob(PlaneJob):
         reps = ids[ids <= total - 1 - ids] if self.symmetric else ids
 
         def starts(f):
-            return self.positions(np.column_stack([xs[f // n], ys[f % n]]))
+            return self.positions(xs[f // n], ys[f % n])
 
         todo = reps
         if kernel.flip:  # the flip potential: the energy test, and the order of the cells
