@@ -116,3 +116,64 @@ def test_a_new_rig_of_the_same_structure_compiles_nothing(tmp_path):
         if method == "dop853":  # the fresh cache's first model compiles
             assert "compiling the model's kernels" in first
         assert "compiling" not in second, second
+
+
+# -- chains: the hinge axes' components are values (issue 52) ------------------------------------------------
+def test_a_chains_axes_are_values_within_their_pattern():
+    """The zero pattern of each axis keys the straight-line library, not its components: chains tilted
+    differently within the patterns share one library, whose model with another chain's ``p`` is that
+    chain's (its energy and accelerations equal the library built for it alone, by the symbolic
+    derivation's check in test_chain); an axis along k is another pattern; the compact form has none."""
+    from skewpend.numeric.kernels import chain_kernel
+    from skewpend.numeric.recursive import axis_pattern, parameter_vector as chain_vector, structure_of_chain
+    from skewpend.symbolic.chain import Chain
+
+    a = Chain.from_lists(3, axis=[(0, 0, 1), (0.35, 0.0, 1.0), (0.1, 0.3, 1.0)], mass=[1.0, 0.7, 0.5])
+    b = Chain.from_lists(3, axis=[(0, 0, 1), (-0.9, 0.0, 0.4), (0.5, -0.2, 1.0)], mass=[1.2, 0.4, 0.9])
+    assert [axis_pattern(link.axis) for link in a.links] == ["+z", "xz", "xyz"]
+    sa, sb = structure_of_chain(a), structure_of_chain(b)
+    assert sa == sb and sa.key() == sb.key()
+    planar = Chain.from_lists(3, axis=[(0, 0, 1)] * 3)
+    assert structure_of_chain(planar).key() != sa.key()
+    assert structure_of_chain(planar).key("compact") == sa.key("compact")
+    assert chain_kernel(a) is chain_kernel(b)
+    rng = np.random.default_rng(52)
+    ys = np.column_stack([rng.uniform(-2, 2, (5, 3)), rng.uniform(-2, 2, (5, 3))])
+    k = chain_kernel(a)
+    energies = k.energies(ys, chain_vector(b))
+    tips = k.tips_many(ys, chain_vector(b))
+    # b's own model, through the symbolic derivation (SymPy, independent of the generated C)
+    import sympy as sp
+
+    import skewpend
+
+    eom = skewpend.derive(b)
+    energy = sp.lambdify(list(eom.q) + list(eom.dq), eom.kinetic_energy + eom.potential_energy, "numpy")
+    want = np.array([float(energy(*y)) for y in ys])
+    np.testing.assert_allclose(energies, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    assert np.all(np.isfinite(tips))
+
+
+def test_tilting_a_chains_axis_compiles_nothing(tmp_path):
+    """A fresh cache: the first chain compiles; tilting its skewed axes (and alpha-like turns in a plane)
+    compiles nothing, in the straight form (3 links) and the compact one (10 links)."""
+    script = textwrap.dedent("""
+        import sys
+        import skewpend
+        from skewpend.symbolic.chain import Chain
+        n = int(sys.argv[1])
+        def chain(t):
+            return Chain.from_lists(n, axis=[(0, 0, 1)] + [(t * (i % 3 + 1), 0.1 * t * (i % 2 + 1), 1.0) for i in range(n - 1)])
+        skewpend.simulate(chain(0.3), [0.5] * n + [0.0] * n, 0.5, method="dop853")
+        print("SECOND", file=sys.stderr, flush=True)
+        for t in (0.1, 0.7, -1.4):
+            skewpend.simulate(chain(t), [0.5] * n + [0.0] * n, 0.5, method="dop853")
+    """)
+    env = dict(os.environ, SKEWPEND_CACHE_DIR=str(tmp_path / "cache"))
+    for n in (3, 10):
+        proc = subprocess.run([sys.executable, "-c", script, str(n)], capture_output=True, text=True, env=env,
+                              timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        first, second = proc.stderr.split("SECOND")
+        assert "compiling" in first
+        assert "compiling" not in second, second

@@ -882,8 +882,9 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
 def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool = False) -> Kernel:
     """The compiled model functions of a chain of links (:class:`skewpend.symbolic.chain.Chain`): its
     equations by the recursive algorithms (:mod:`skewpend.numeric.recursive`), keyed by the chain's
-    structure (the number of links, the hinge axes, whether friction and rotors exist); every value
-    is the run-time array ``recursive.parameter_vector(chain)``.  Cached like :func:`kernel_module`.
+    structure (the number of links, the hinge axes' patterns -- ``recursive.axis_pattern``; none in the
+    compact form -- whether friction and rotors exist); every value, the axes' components included, is
+    the run-time array ``recursive.parameter_vector(chain)``.  Cached like :func:`kernel_module`.
     ``form``: ``"straight"`` or ``"compact"`` code (default: ``recursive.chain_form``, by the length).
     ``shooting=True``: identification's library, the straight-line code with the parameter
     sensitivities (``recursive.chain_sensitivity_c_source``) and multiple shooting's integrator
@@ -898,7 +899,7 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool =
     if form not in ("straight", "compact"):
         raise ValueError(f"form must be 'straight' or 'compact', got {form!r}")
     extra = "|shooting" if shooting else ("|chaos" if chaos else "")
-    key = _key(structure.key() + "|" + form + extra) + "_chain"
+    key = _key(structure.key(form) + "|" + form + extra) + "_chain"
     with _key_lock(key):
         if key in _LOADED:
             return _LOADED[key]

@@ -17,9 +17,11 @@ frame parallel to ``i, j, k`` when the chain hangs (the specification's conventi
   automatic differentiation; the rotors' kinetic energy ``Ir/2 (omega_parent . a_i + gr q_i')^2``
   enters through Lagrange's equations (differentiated the same way).
 
-The structure compiles (the number of links, the hinge axes, whether friction and rotor terms exist);
-every value -- hinge offsets, masses, centres of mass, inertias, damping, friction, torques, rotors,
-``g`` -- is the run-time array ``p`` in :func:`parameter_names`' order.  The checks: the two-link chain
+The structure compiles (the number of links, the hinge axes' patterns -- which components are zero,
+:func:`axis_pattern` -- and whether friction and rotor terms exist); every value -- the hinge axes'
+components, offsets, masses, centres of mass, inertias, damping, friction, torques, rotors, ``g`` -- is
+the run-time array ``p`` in :func:`parameter_names`' order, so tilting an axis within its pattern
+compiles nothing.  The checks: the two-link chain
 against the symbolic derivation (:func:`skewpend.derive`), every chain against MuJoCo
 (``tests/test_chain.py``).  The linear solve is the kernels' one LDL^T (``codegen.spd_c_lines``).
 """
@@ -34,20 +36,18 @@ from ..errors import require
 from ..schema import CHAIN_NAMES, LINK_FIELDS
 from ..symbolic.chain import Chain
 
-__all__ = ["ChainStructure", "structure_of_chain", "parameter_names", "parameter_vector", "PER_LINK",
+__all__ = ["ChainStructure", "axis_pattern", "axis_of", "structure_of_chain", "parameter_names", "parameter_vector", "PER_LINK",
            "chain_functions", "c_function_lines", "function_lines", "chain_code", "CODE_LANGUAGES", "standard_names",
            "standard_vector", "regressor_function"]
 
 def _per_link() -> Tuple[str, ...]:
-    """One link's entries of ``p``, from the schema's link fields in their order: every field but the
-    axis (the structure), a vector as its three components, an inertia as its six entries."""
+    """One link's entries of ``p``, from the schema's link fields in their order: a vector as its three
+    components (the hinge axis ``ex, ey, ez`` first), an inertia as its six entries."""
     from .conventions import TENSOR_ENTRIES
 
     out: List[str] = []
     for key, stem, kind in LINK_FIELDS:
-        if key == "axis":
-            continue
-        short = {"com": "r", "inertia": "I"}.get(stem, stem)
+        short = {"com": "r", "inertia": "I", "axis": "e"}.get(stem, stem)
         out += {"vector": [f"{short}{x}" for x in "xyz"], "inertia": [f"{short}{e}" for e in TENSOR_ENTRIES],
                 "scalar": [stem]}[kind]
     return tuple(out)
@@ -59,21 +59,44 @@ PER_LINK = _per_link()
 GLOBAL = CHAIN_NAMES
 
 
+def axis_pattern(axis) -> str:
+    """What of a unit hinge axis is structure: its components that are not zero (``"xz"``: an axis in the
+    ``i, k`` plane, ``"xyz"``: any) -- their values are entries of ``p`` -- or, for an axis along a
+    coordinate direction, that direction (``"+z"``: ``k``; ``"-x"``: ``-i``), a constant.  A tilt within
+    the pattern compiles nothing; the pattern keys only the straight-line code, where the zeros fold
+    (a generic axis in ``p`` costs a planar triple pendulum 5.5x its operations, the zero pattern a
+    skewed one 2.7 %: ``docs/benchmarks.md``)."""
+    nonzero = [(c, float(x)) for c, x in zip("xyz", axis) if float(x) != 0.0]
+    if len(nonzero) == 1:
+        return ("+" if nonzero[0][1] > 0 else "-") + nonzero[0][0]
+    return "".join(c for c, _ in nonzero)
+
+
+def axis_of(pattern: str, link: Dict[str, Any]):
+    """The hinge axis of ``pattern`` as three entries: constants, zeros, or ``link``'s ``ex, ey, ez``."""
+    if pattern[0] in "+-":
+        sign = 1.0 if pattern[0] == "+" else -1.0
+        return tuple(sign if c == pattern[1] else 0.0 for c in "xyz")
+    return tuple(link[f"e{c}"] if c in pattern else 0.0 for c in "xyz")
+
+
 @dataclass(frozen=True)
 class ChainStructure:
-    """What a chain's compiled code depends on: its hinge axes and which optional terms exist.
-    Everything else is read from ``p``."""
+    """What a chain's compiled code depends on: its hinge axes' patterns (:func:`axis_pattern`) and
+    which optional terms exist.  Everything else, the axes' components included, is read from ``p``."""
 
-    axes: Tuple[Tuple[float, float, float], ...]
+    patterns: Tuple[str, ...]
     friction: bool
     rotor: bool
 
     @property
     def n(self) -> int:
-        return len(self.axes)
+        return len(self.patterns)
 
-    def key(self) -> str:
-        axes = ";".join(",".join(repr(float(x)) for x in a) for a in self.axes)
+    def key(self, form: str = "straight") -> str:
+        """The compile key of ``form``'s code: the compact form loops over the links with each axis read
+        from ``p``, so its key has no patterns."""
+        axes = "" if form == "compact" else ";".join(self.patterns)
         return f"chain{self.n}|{axes}|f{int(self.friction)}|r{int(self.rotor)}"
 
 
@@ -95,7 +118,7 @@ def chain_source(structure: "ChainStructure", form: str = "") -> str:
 
 
 def structure_of_chain(chain: Chain) -> ChainStructure:
-    return ChainStructure(tuple(link.axis for link in chain.links), chain.has_friction, chain.has_rotor)
+    return ChainStructure(tuple(axis_pattern(link.axis) for link in chain.links), chain.has_friction, chain.has_rotor)
 
 
 def parameter_names(n: int) -> Tuple[str, ...]:
@@ -113,8 +136,6 @@ def parameter_vector(chain: Chain):
     for link in chain.links:
         for key, _, kind in LINK_FIELDS:
             value: Any = getattr(link, key)
-            if key == "axis":
-                continue
             if kind == "vector":
                 out += [float(x) for x in value]
             elif kind == "inertia":
@@ -134,7 +155,8 @@ def _cross(ca, u, v):
 
 
 def _rotation(ca, c, s, e):
-    """Rodrigues' formula ``P(q, e) = cos q E + sin q [e]x + (1 - cos q) e e^T`` for a numeric unit ``e``."""
+    """Rodrigues' formula ``P(q, e) = cos q E + sin q [e]x + (1 - cos q) e e^T`` for a unit ``e`` (its entries
+    constants or entries of ``p``; a zero folds away)."""
     x, y, z = e
     k = 1 - c
     return ca.vertcat(
@@ -164,8 +186,9 @@ class _Graph:
         for i in range(n):
             L = self.link[i]
             o = o + ca.mtimes(R, ca.vertcat(L["hx"], L["hy"], L["hz"]))
-            a = ca.mtimes(R, ca.DM(list(structure.axes[i])))
-            R = ca.mtimes(R, _rotation(ca, ca.cos(self.q[i]), ca.sin(self.q[i]), structure.axes[i]))
+            e = axis_of(structure.patterns[i], L)
+            a = ca.mtimes(R, ca.vertcat(*e))
+            R = ca.mtimes(R, _rotation(ca, ca.cos(self.q[i]), ca.sin(self.q[i]), e))
             Ib = ca.vertcat(ca.horzcat(L["Ixx"], L["Ixy"], L["Ixz"]), ca.horzcat(L["Ixy"], L["Iyy"], L["Iyz"]),
                             ca.horzcat(L["Ixz"], L["Iyz"], L["Izz"]))
             self.R.append(R)
@@ -440,7 +463,7 @@ def _header(structure: ChainStructure, form: str) -> List[str]:
     torque = [names.index(f"tau{i}") for i in range(1, n + 1)]
     return [
         f"/* Generated by skewpend {__version__} from a chain's recursive algorithms{form} -- do not edit.",
-        f" * {n} links; hinge axes {'; '.join('(' + ', '.join(f'{x:.17g}' for x in a) + ')' for a in structure.axes)}.",
+        f" * {n} links; hinge axes' patterns {'; '.join(structure.patterns) if 'compact' not in form else '(every axis from p)'}.",
         f" * State y = (q1..q{n}, dq1..dq{n}, W); parameters p = ({', '.join(names)}).",
         " */",
         "#include <math.h>",
@@ -547,7 +570,7 @@ def chain_code(chain: Chain, language: str) -> str:
     acc = [f"a{i}" for i in range(n)]
     doc = [f"Generated by skewpend {__version__} from a chain's recursive algorithms (CasADi graphs) -- do not edit.",
            f"{n} links; hinge axes (each in its parent's frame, the chain hanging): "
-           + "; ".join("(" + ", ".join(f"{x:.17g}" for x in a) + ")" for a in structure.axes) + ".",
+           + "; ".join("(" + ", ".join(f"{x:.17g}" for x in link.axis) + ")" for link in chain.links) + ".",
            f"State y = (q1 .. q{n}, dq1 .. dq{n}): the joint angles [rad] (zero with every rod hanging) and their rates.",
            "Parameters p (PARAMETER_ORDER) in SI units, the default P the chain's values.",
            "Equations: M(q) q'' = f(q, q'), solved numerically (LDL^T of the symmetric positive-definite M)."]
@@ -894,7 +917,7 @@ def _c_static(fn, name: str, args: Sequence[str], outs: Sequence[str], doc: str)
 def compact_c_source(structure: ChainStructure) -> str:
     """C source of a chain's model functions in compact form: the forward and backward steps of the
     recursions printed once (:func:`compact_functions`, the axis an argument) and looped over the links,
-    the axes a constant table; then the mass matrix's entries ``M_kl = a_k . ang_l + oa_k . lin_l``, the
+    each axis read from ``p``; then the mass matrix's entries ``M_kl = a_k . ang_l + oa_k . lin_l``, the
     kernels' LDL^T solve, and the integrators' contract as :func:`chain_c_source`'s.  Its size does not
     grow with the number of links but for the printed solve (n (n + 1) / 2 factor steps), so a long chain
     compiles in about the time of a short one.  Rotors are not in this form (their energy couples the
@@ -920,7 +943,7 @@ def compact_c_source(structure: ChainStructure) -> str:
     f = [f"sp_f[{i}]" for i in range(n)]
     acc = [f"acc{i}" for i in range(n)]
     gi, ci = len(names) - len(GLOBAL) + GLOBAL.index("g"), len(names) - len(GLOBAL) + GLOBAL.index("cfs")
-    axes = ", ".join("{" + ", ".join(repr(float(x)) for x in e) + "}" for e in structure.axes)
+    ax = PER_LINK.index("ex")  # ex, ey, ez: the link's hinge axis, three entries of p
     out = _header(structure, " (compact form)") + [
         f"#define SP_NS {NS}",
         f"#define SP_NB {_size(_BODY)}",
@@ -929,7 +952,6 @@ def compact_c_source(structure: ChainStructure) -> str:
         f"#define SP_NB_R {_size(_BODY_R)}",
         f"#define SP_NC_R {_size(_COMPOSITE_R)}",
         f"#define SP_NO_R {_size(_OUT_R)}",
-        f"static const double SP_AXES[{n}][3] = {{{axes}}};",
         "",
     ]
     out += _c_static(fns["fwd"], "fwd", ["S", "L", "e", "q", "dq", "gravity", "rate"], ["S1", "B"],
@@ -949,7 +971,7 @@ def compact_c_source(structure: ChainStructure) -> str:
             f"{I}double S[SP_NS] = {{1, 0, 0, 0, 1, 0, 0, 0, 1}}, S1[SP_NS], C[{C}] = {{0}}, C1[{C}];",
             f"{I}const double g = p[{gi}], cfs = p[{ci}];",
             f"{I}for (int i = 0; i < SP_NQ; i++) {{",
-            f"{I}{I}fwd{r}(S, p + {w} * i, SP_AXES[i], y + i, y + SP_NQ + i, &g, &cfs, S1, B[i]);",
+            f"{I}{I}fwd{r}(S, p + {w} * i, p + {w} * i + {ax}, y + i, y + SP_NQ + i, &g, &cfs, S1, B[i]);",
             f"{I}{I}for (int k = 0; k < SP_NS; k++) S[k] = S1[k];",
             f"{I}}}",
             f"{I}for (int i = SP_NQ - 1; i >= 0; i--) {{",
