@@ -76,7 +76,7 @@ def test_the_double_pendulum_is_the_chain_of_two():
     assert chain.n == 2 and chain.coordinates == ("phi", "psi")
     assert chain.links[1].axis == pytest.approx((math.sin(0.4), 0.0, math.cos(0.4)), abs=1e-16)
     assert chain.links[1].offset == (0.0, 1.0, 0.0)
-    back = chain.to_parameters()
+    back = skewpend.Parameters.from_chain(chain)
     assert Chain.from_parameters(back) == chain
 
 

@@ -154,7 +154,7 @@ def test_the_chain_of_twos_orbit_is_the_double_pendulums():
 def test_a_chains_orbit_refuses_losses_and_other_shapes(tmp_path):
     with pytest.raises(ParameterError, match="needs a conservative model without losses .* link 2 damping = 0.1"):
         skewpend.periodic_orbit(_triple(damping=[0.0, 0.1, 0.0]), Y0, 2.0)
-    with pytest.raises(ParameterError, match=r"y0 must be 6 numbers \(the 3 angles, then their speeds\)"):
+    with pytest.raises(ParameterError, match=r"y0 must be six numbers \(q1, q2, q3, q1', q2', q3'\)"):
         skewpend.periodic_orbit(_orbit_chain(), [0.1, 0.1, 0, 0], 2.0)
     with pytest.raises(ParameterError, match=r"mode must be a whole number from 1 to 3 .*got 4"):
         skewpend.periodic_orbit(_orbit_chain(), mode=4, energy=0.1)  # modes 1 to n work since issue 51

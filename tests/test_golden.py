@@ -290,8 +290,6 @@ def test_chain_simulate_and_kernel(chain_models, name):
 
 
 def test_chain_modes_equilibria_lqr_lyapunov_and_flip_map(chain_models):
-    import skewpend
-
     triple = chain_models["triple"]
     damped = triple
     for i, c in enumerate((0.03, 0.02, 0.01), start=1):

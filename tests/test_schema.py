@@ -196,3 +196,41 @@ def test_poincare_refuses_coulomb_friction():
     """The section needs E = T + Pi constant; before the schema the check ignored cf1, cf2."""
     with pytest.raises(ParameterError, match=r"needs a conservative model .* cf1 = 0.05; set cf1 to 0"):
         skewpend.poincare(Parameters(**BASE, cf1=0.05), energy=-5.0)
+
+
+# -- the facade's names are aliases of the links' fields (issue 52) ----------------------------------------------
+def test_every_facade_name_is_a_link_field_or_the_chains():
+    """Each of the double pendulum's names (``a``, ``m1``, ``alpha``, ``com2``, ``Ir``, ...) names one field of the
+    chain's links (and the link: 1 or 2, or every link's for the one rotor and gear), or a field of the chain
+    itself (``g``, ``cfs``): the facade adds no quantity of its own, and the link fields keep their names."""
+    from skewpend.schema import CHAIN_NAMES, LINK_KEYS, NAMES, link_field_of
+
+    assert LINK_KEYS == ("axis", "offset", "length", "mass", "com", "inertia", "damping", "coulomb", "torque",
+                         "rotor", "gear")
+    for name in NAMES:
+        alias = link_field_of(name)
+        if name in CHAIN_NAMES:
+            assert alias is None, name
+            continue
+        assert alias is not None, f"{name} is neither a link field nor the chain's"
+        key, i = alias
+        assert key in LINK_KEYS and i in (1, 2, None), (name, alias)
+    assert [link_field_of(n) for n in ("a", "b", "m2", "alpha", "axis1", "c1", "tau2", "cf1", "com2", "inertia1", "Ir", "gr")] == [
+        ("length", 1), ("length", 2), ("mass", 2), ("axis", 2), ("axis", 1), ("damping", 1), ("torque", 2),
+        ("coulomb", 1), ("com", 2), ("inertia", 1), ("rotor", None), ("gear", None)]
+
+
+def test_a_facade_name_beside_a_chain_names_the_link_field(tmp_path):
+    """``--m1`` beside ``--links 3`` is one line naming the link field to use (exit 2, nothing written)."""
+    import subprocess
+    import sys
+
+    for flag, want in (("--m1=2", "give link 1's mass as --link-mass"), ("--alpha=10deg", "give link 2's axis"),
+                       ("--Ir=1e-4", "give each link's rotor as --link-rotor")):
+        proc = subprocess.run([sys.executable, "-m", "skewpend", "simulate", "--links", "3", flag, "--t-end", "1",
+                               "--out", str(tmp_path / "t.csv")], capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2, proc.stderr
+        last = proc.stderr.strip().splitlines()[-1]
+        assert last.startswith(f"skewpend: error: {flag.split('=')[0]}:") and want in last, last
+        assert "Traceback" not in proc.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -61,6 +61,18 @@ def numeric_params(params, what: str):
     return params
 
 
+def numeric_model(params, what: str):
+    """``params`` if it is a model -- a chain of links or the double pendulum's :class:`~skewpend.Parameters`
+    (anything answering ``as_chain``) -- with every value numeric (``what`` needs them), else one
+    :class:`ParameterError`."""
+    if not hasattr(params, "as_chain") or not hasattr(params, "require_numeric"):
+        raise ParameterError(f"params must be a skewpend.Parameters or a Chain, got {type(params).__name__}")
+    try:
+        return params.require_numeric(what)
+    except NotNumericError as exc:
+        raise ParameterError(str(exc)) from None
+
+
 def positive(name: str, value: Any, *, cap: Optional[float] = None) -> float:
     """``value`` as a finite float > 0, not subnormal (at least 2.2e-308, which the compiled code
     may flush to 0), and at most ``cap``."""

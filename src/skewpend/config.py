@@ -24,7 +24,7 @@ from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
 from .errors import ParameterError
 from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
-from .schema import (CHAIN_NAMES, CORE_NAMES, GEOMETRY_NAMES, LINK_FIELDS, MAX_LINKS, NAMES, OPTIONAL_DEFAULTS, SCALAR_NAMES,
+from .schema import (CHAIN_NAMES, link_field_of, CORE_NAMES, GEOMETRY_NAMES, LINK_FIELDS, MAX_LINKS, NAMES, OPTIONAL_DEFAULTS, SCALAR_NAMES,
                      check_bound, field)
 
 __all__ = [
@@ -390,9 +390,17 @@ class Run:
         typed = {k for k in self.given.get("parameters", ()) if self.option("parameters", k).startswith("--")}
         given = sorted(k for k in self.given.get("parameters", ()) if k not in CHAIN_NAMES or k not in typed)
         if given:
+            alias = link_field_of(given[0])
+            if alias is None:
+                instead = "give each link's values in its [[links]] table or as --link-FIELD"
+            else:
+                key, i = alias
+                which = f"link {i}'s {key}" if i else f"each link's {key}"
+                what = " (the hinge's axis, e.g. 0.5,0,0.87 for a tilt of 30 deg from k towards i)" if key == "axis" else ""
+                instead = (f"give {which}{what} as --link-{key} (one value for every link, or one a link) or as "
+                           f"{key} in its [[links]] table")
             raise UsageError(f"{self.option('parameters', given[0])}: a chain of links ([[links]] or --links) does not take "
-                             "the double pendulum's parameters (give each link's values in its [[links]] table or as "
-                             "--link-FIELD; the chain's g is --g or [chain] g)")
+                             f"the double pendulum's parameters: {instead} (the chain's g is --g or [chain] g)")
         values = {k: parse_scalar(self.text("chain", k), self.option("chain", k)) for k in CHAIN_NAMES
                   if self.values.get("chain", {}).get(k) is not None}
         values.update({k: parse_scalar(self.text("parameters", k), self.option("parameters", k)) for k in CHAIN_NAMES

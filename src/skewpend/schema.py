@@ -29,7 +29,8 @@ __all__ = [
     "TORQUE_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "NONCONSERVATIVE_NAMES", "LENGTH_NAMES", "MASS_NAMES",
     "COM_NAMES", "INERTIA_NAMES", "AXIS_NAMES", "OPTIONAL_DEFAULTS", "field", "names", "unit", "meaning",
     "symbol", "tex", "help_text", "default", "nearest", "unknown_names_message", "check_bound", "body_of",
-    "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound", "coordinate_names", "state_coordinates",
+    "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound", "link_field_of", "coordinate_names", "state_coordinates", "count_text",
+    "state_text",
     "MAX_LINKS", "LINK_KEYS", "nearest_link_key", "did_you_mean",
 ]
 
@@ -223,11 +224,41 @@ def coordinate_names(n: int) -> Tuple[str, ...]:
     return ("phi", "psi") if n == 2 else tuple(f"q{i}" for i in range(1, n + 1))
 
 
+_WORDS = ("no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten", "eleven", "twelve")
+
+
+def count_text(k: int, what: str) -> str:
+    """``k`` things in words for messages: ``count_text(4, "numbers")`` -> ``"four numbers"`` (digits from 13)."""
+    return f"{_WORDS[k] if 0 <= k < len(_WORDS) else k} {what}"
+
+
+def state_text(nq: int) -> str:
+    """The state of ``nq`` coordinates for messages: ``"four numbers (phi, psi, phi', psi')"``."""
+    names = coordinate_names(nq)
+    return f"{count_text(2 * nq, 'numbers')} ({', '.join(names)}, {', '.join(c + chr(39) for c in names)})"
+
+
 def state_coordinates(nq: int) -> Dict[str, int]:
     """The state's coordinates a slice may vary, by their index in ``x``: the double pendulum's ``phi,
     psi, dphi, dpsi``; a chain of ``n`` links' ``q1 … qn, dq1 … dqn``."""
     names = coordinate_names(nq)
     return {**{c: i for i, c in enumerate(names)}, **{f"d{c}": nq + i for i, c in enumerate(names)}}
+
+
+def link_field_of(name: str) -> Optional[Tuple[str, Optional[int]]]:
+    """The chain's link field a facade name is an alias of, and the link (1-based; None: every link's, as the
+    double pendulum's one rotor): ``m1`` -> ``("mass", 1)``, ``b`` -> ``("length", 2)``, ``alpha`` ->
+    ``("axis", 2)`` (hinge 2's tilt from ``k`` towards ``i``), ``Ir`` -> ``("rotor", None)``; None for the
+    chain's own fields (``g``, ``cfs``) and unknown names."""
+    if name == "alpha":
+        return ("axis", 2)
+    for f in FIELDS:
+        if name in f.names:
+            key = next((k for k, stem, _ in LINK_FIELDS if stem == f.stem), None)
+            if key is None:
+                return None
+            return (key, f.names.index(name) + 1 if f.per_body else None)
+    return None
 
 
 def link_bound(key: str) -> str:

@@ -489,7 +489,7 @@ def read_equilibria(path, variables, attrs) -> Equilibria:
     import dataclasses
 
     from ..errors import SkewpendError
-    from ..symbolic.chain import AnyModel
+    from ..symbolic.model import AnyModel
 
     proto = protocol_fields(path, attrs, AnyModel)
     params = proto["params"]

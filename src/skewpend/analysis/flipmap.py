@@ -245,7 +245,7 @@ def open_flip_map(path) -> FlipMap:
     from pathlib import Path
 
     from ..results import grid_status
-    from ..symbolic.chain import model_from_mapping
+    from ..symbolic.model import model_from_mapping
 
     path = Path(path)
     suffix = path.suffix.lower()

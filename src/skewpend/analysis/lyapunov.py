@@ -45,7 +45,8 @@ from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json, netcdf_reader, normal_quantile, protocol_fields, t_quantile
 from ..status import Status
 from ..parsing import initial_state, positive_number
-from ..symbolic.chain import AnyModel, Chain
+from ..symbolic.chain import Chain
+from ..symbolic.model import AnyModel
 from ..symbolic.model import Parameters
 
 __all__ = ["lyapunov", "LyapunovSpectrum", "lyapunov_map", "LyapunovMap", "LyapunovMapJob", "open_lyapunov_map",

@@ -799,7 +799,7 @@ def read_modes_sweep(path, variables, attrs) -> Sweep:
     shapes checked against the stored ones, which it returns."""
     import dataclasses
 
-    from ..symbolic.chain import AnyModel
+    from ..symbolic.model import AnyModel
 
     proto = protocol_fields(path, attrs, AnyModel)
     settings = proto["settings"]

@@ -40,13 +40,13 @@ from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..checks import angle, numeric_params, positive, progress_callable, tolerances, whole
+from ..checks import angle, numeric_model, numeric_params, positive, progress_callable, tolerances, whole
 from ..errors import EquilibriumError, IntegrationError, ParameterError, SkewpendError
 from ..progress import detail as _detail
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
-from ..schema import state_coordinates
+from ..schema import count_text, state_coordinates, state_text
 from ..status import Status
-from ..symbolic.chain import AnyModel, Chain
+from ..symbolic.model import AnyModel
 from ..symbolic.model import Parameters
 
 __all__ = ["PeriodicOrbit", "periodic_orbit", "NNMFamily", "nnm", "Backbones", "backbones", "flip_energy",
@@ -85,6 +85,11 @@ def _say(text: str) -> None:
     _detail(_FAMILY.get() + text)
 
 
+def _torques(params) -> np.ndarray:
+    """The model's constant joint torques, a coordinate each."""
+    return np.array([link.torque for link in params.as_chain().links], dtype=float)
+
+
 def _require_conservative(params: Parameters, what: str) -> None:
     """Periodic orbits keep ``H = T + Pi - tau . q``: constant torques are allowed, losses are not."""
     params.require_lossless(what)
@@ -97,8 +102,7 @@ def energy_function(params: Parameters) -> Callable[[np.ndarray], np.ndarray]:
 
     kernel = model_kernel(params)
     p = model_vector(params)
-    tau = (np.array([link.torque for link in params.links], dtype=float) if isinstance(params, Chain)
-           else np.array([params.tau1, params.tau2], dtype=float))
+    tau = _torques(params)
 
     def H(y: np.ndarray) -> np.ndarray:
         y = np.atleast_2d(np.asarray(y, dtype=float))
@@ -126,8 +130,7 @@ class _Model:
         self.kernel = model_kernel(params)
         self.p = model_vector(params)
         self.nq = self.kernel.nq  # 2, or a chain's links
-        self.tau = (np.array([link.torque for link in params.links], dtype=float) if isinstance(params, Chain)
-                    else np.array([params.tau1, params.tau2], dtype=float))
+        self.tau = _torques(params)
         self.calls = 0
         self.steps = 0
 
@@ -419,8 +422,7 @@ def _state(y0, n: int = 2) -> np.ndarray:
     except (TypeError, ValueError):
         items = None
     if items is None or len(items) != 2 * n:
-        what = "four numbers (phi, psi, phi', psi')" if n == 2 else f"{2 * n} numbers (the {n} angles, then their speeds)"
-        raise ParameterError(f"y0 must be {what}, got {y0!r}")
+        raise ParameterError(f"y0 must be {state_text(n)}, got {y0!r}")
     for i, v in enumerate(items[n:], start=n):
         if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(float(v)):
             raise ParameterError(f"y0[{i}] must be a finite speed [rad/s] (a real number), got {v!r}")
@@ -447,9 +449,16 @@ def _rotation(rotation, n: int = 2) -> Tuple[int, ...]:
     if not ok or any(abs(int(r)) > ROTATION_LIMIT for r in turns):
         shown = ", ".join((f"{float(r):.3g}" if abs(int(r)) < 10**308 else "beyond 1e308") if ok else repr(r)
                           for r in turns) if turns else repr(rotation)
-        what = "two whole numbers of turns (r1, r2)" if n == 2 else f"{n} whole numbers of turns (one an angle)"
+        what = f"{count_text(n, 'whole numbers')} of turns ({', '.join(f'r{i}' for i in range(1, n + 1))})"
         raise ParameterError(f"rotation must be {what} from {-ROTATION_LIMIT} to {ROTATION_LIMIT}, got ({shown})")
     return tuple(int(r) for r in turns)
+
+
+def _modes_text(nq: int) -> str:
+    """The modes a number may name, for messages: ``1: the lowest linear frequency, 2: the highest``."""
+    if nq == 1:
+        return "1: the only mode"
+    return "1: the lowest linear frequency, " + ("" if nq < 3 else "..., ") + f"{nq}: the highest"
 
 
 def _newton_settings(tol, max_iterations) -> Tuple[float, int]:
@@ -467,14 +476,13 @@ def _trivial(model: "_Model", x: np.ndarray, T: float, tol: float) -> Optional[s
     amp = model.amplitude(x, T)
     if amp >= threshold:
         return None
-    where = f"(phi, psi) = ({x[0]:.6g}, {x[1]:.6g}) rad"
-    if isinstance(model.params, Chain):
-        where = "q = (" + ", ".join(f"{v:.6g}" for v in x[:model.nq]) + ") rad"
+    names = ", ".join(model.params.coordinates)
+    where = f"({names}) = (" + ", ".join(f"{v:.6g}" for v in x[:model.nq]) + ") rad"
     try:
         from .equilibria import equilibrium_at
 
-        eq = equilibrium_at(model.params, x[:2])
-        where = f"{eq.label} at (phi, psi) = ({eq.q[0]:.6g}, {eq.q[1]:.6g}) rad, V = {eq.potential:.6g} J"
+        eq = equilibrium_at(model.params, x[:model.nq])
+        where = f"{eq.label} at ({names}) = (" + ", ".join(f"{v:.6g}" for v in eq.q) + f") rad, V = {eq.potential:.6g} J"
     except SkewpendError:
         pass
     return (f"no periodic orbit: Newton's method converged to the equilibrium {where}, where the motion vanishes "
@@ -507,12 +515,9 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
     """
     from ..interrupts import Interrupts
 
-    if isinstance(params, Chain):
-        params.require_lossless("a periodic orbit")
-    else:
-        params = numeric_params(params, "periodic orbits")
-        _require_conservative(params, "a periodic orbit")
-    nq = params.n if isinstance(params, Chain) else 2
+    params = numeric_model(params, "periodic orbits")
+    _require_conservative(params, "a periodic orbit")
+    nq = params.n
     rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
     tol, max_iterations = _newton_settings(tol, max_iterations)
     if throw not in (True, False):
@@ -523,8 +528,7 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
             raise ParameterError("give either a guess (y0, period) or mode=, not both")
         if energy is None:
             raise ParameterError("mode= needs energy= (the energy of the orbit wanted) [J]")
-        mode = whole("mode", mode, 1, nq, what="1: the lowest linear frequency, " + (
-            "2: the higher" if nq == 2 else f"..., {nq}: the highest (a chain of {nq} links)"))
+        mode = whole("mode", mode, 1, nq, what=_modes_text(nq))
         energy = _energy_limit(params, "energy", energy)
         family = nnm(params, mode=mode, energy_max=energy, rtol=rtol, atol=atol, progress=progress)
         if not family.energies.size or family.energies[-1] < energy * (1 - 1e-9):
@@ -536,7 +540,7 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
     period = positive("period", period)
     if not period < 1e6:
         raise ParameterError(f"period must be a positive number of seconds below 1e6, got {period:g}")
-    if nq != 2 and tuple(rotation) == (0, 0):
+    if isinstance(rotation, tuple) and rotation == (0, 0):  # the default: no turn of any joint
         rotation = (0,) * nq
     rotation = _rotation(rotation, nq)
     if energy is not None:
@@ -584,33 +588,64 @@ def _failed(params, why, rotation, throw, settings=None, model=None, status=Stat
 FLIP_SAMPLES, FLIP_STARTS = 4000, 6
 
 
-def _chain_flip_energy(chain) -> float:
-    """The minimum of ``V = Pi - tau . q`` on the boundary of the cube ``|q_i| <= pi`` of a chain of links:
-    on each face (one angle at +-pi) :data:`FLIP_SAMPLES` seeded samples, then L-BFGS-B (bounded to the face)
-    from the :data:`FLIP_STARTS` lowest.  A two-link chain's faces are the square's sides (:func:`flip_energy`)."""
-    cached = _FLIP_ENERGIES.get(chain)
+#: The flip energies of the models met last (seconds each for a long chain: nnm, its energy check and
+#: backbones' families ask for the same model's).
+_FLIP_ENERGIES: Dict[object, float] = {}
+#: A face of one free angle (two links) is sampled at this many points, then refined by a bounded
+#: scalar search; a face of more is sampled at :data:`FLIP_SAMPLES` seeded points, then L-BFGS-B from the
+#: :data:`FLIP_STARTS` lowest.
+FLIP_LINE_SAMPLES = 2049
+
+
+def flip_energy(params) -> float:
+    """The lowest energy at which a joint can flip: the minimum of ``V = Pi - tau . q`` (the kernel's energy
+    at rest minus the torques' work) on the boundary of the cube ``|q_i| <= pi``, face by face (one angle at
+    +-pi): a face of one free angle (the double pendulum's square's sides) sampled densely and refined by a
+    bounded scalar search, a face of more by seeded samples and L-BFGS-B from the lowest."""
+    cached = _FLIP_ENERGIES.get(params)
     if cached is not None:
         return cached
     _say("the lowest flip energy: loading SciPy's minimiser")
-    from scipy.optimize import minimize
+    from scipy.optimize import minimize, minimize_scalar
 
-    H = energy_function(chain)
-    n = chain.n
+    H = energy_function(params)
+    n = params.n
     rng = np.random.default_rng(0)
     best = math.inf
 
     def V(q):
-        return H(np.concatenate([np.atleast_2d(q), np.zeros((np.atleast_2d(q).shape[0], n))], axis=1))
+        q = np.atleast_2d(q)
+        return H(np.concatenate([q, np.zeros((q.shape[0], n))], axis=1))
 
     for i in range(n):
         for half, side in enumerate((-math.pi, math.pi)):
             free = [j for j in range(n) if j != i]
+            face = f"face {2 * i + half + 1} of {2 * n}"
+            if len(free) <= 1:  # a line (or a point): dense samples, then the bracketing interval refined
+                s = np.linspace(-math.pi, math.pi, FLIP_LINE_SAMPLES)
+                Q = np.full((s.size, n), side)
+                Q[:, free] = s[:, None]
+                values = V(Q)
+                k = int(np.argmin(values))
+                best = min(best, float(values[k]))
+                if free:
+                    lo, hi = s[max(k - 1, 0)], s[min(k + 1, s.size - 1)]
+
+                    def on_line(t):
+                        q = np.full(n, side)
+                        q[free] = t
+                        return float(V(q)[0])
+
+                    res = minimize_scalar(on_line, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
+                    best = min(best, float(res.fun))
+                continue
             Q = rng.uniform(-math.pi, math.pi, size=(FLIP_SAMPLES, n))
             Q[:, i] = side
-            _say(f"the lowest flip energy: face {2 * i + half + 1} of {2 * n}, {FLIP_SAMPLES} samples")
+            _say(f"the lowest flip energy: {face}, {FLIP_SAMPLES} samples")
             values = V(Q)
             for start, k in enumerate(np.argsort(values)[:FLIP_STARTS], 1):
-                _say(f"the lowest flip energy: face {2 * i + half + 1} of {2 * n}, search {start} of {FLIP_STARTS}")
+                _say(f"the lowest flip energy: {face}, search {start} of {FLIP_STARTS}")
+
                 def f(x, k=k):
                     q = Q[k].copy()
                     q[free] = x
@@ -619,41 +654,9 @@ def _chain_flip_energy(chain) -> float:
                 res = minimize(f, Q[k, free], method="L-BFGS-B", bounds=[(-math.pi, math.pi)] * len(free),
                                options={"ftol": 1e-15, "gtol": 1e-12})
                 best = min(best, float(values[k]), float(res.fun))
-    if len(_FLIP_ENERGIES) >= 16:  # a few chains at a time (a continuation asks for its chain's more than once)
+    if len(_FLIP_ENERGIES) >= 16:  # a few models at a time (a continuation asks for its model's more than once)
         _FLIP_ENERGIES.pop(next(iter(_FLIP_ENERGIES)))
-    _FLIP_ENERGIES[chain] = best
-    return best
-
-
-#: The flip energies of the chains met last (seconds each for a long chain: nnm, its energy check and
-#: backbones' families ask for the same chain's).
-_FLIP_ENERGIES: Dict[Chain, float] = {}
-
-
-def flip_energy(params: Parameters) -> float:
-    """The lowest energy at which a joint can flip: the minimum of ``V = Pi - tau . q`` on the
-    boundary of the square ``|phi|, |psi| <= pi`` (sampled densely, then refined); a chain of links':
-    on the boundary of the cube ``|q_i| <= pi`` (:func:`_chain_flip_energy`)."""
-    from scipy.optimize import minimize_scalar
-
-    if isinstance(params, Chain):
-        return _chain_flip_energy(params)
-
-    from .equilibria import potential_function, potential_on_arrays
-
-    V, V_many = potential_function(params), potential_on_arrays(params)  # V_many: on many points at once
-
-    best = math.inf
-    s = np.linspace(-math.pi, math.pi, 2049)
-    sides = [(lambda t, c=c: (np.full_like(t, c), t)) for c in (-math.pi, math.pi)] + \
-            [(lambda t, c=c: (t, np.full_like(t, c))) for c in (-math.pi, math.pi)]
-    for side in sides:
-        values_s = V_many(*side(s))
-        k = int(np.argmin(values_s))
-        lo, hi = s[max(k - 1, 0)], s[min(k + 1, len(s) - 1)]
-        res = minimize_scalar(lambda t: V(*(float(x[0]) for x in side(np.array([t])))), bounds=(lo, hi),
-                              method="bounded", options={"xatol": 1e-12})
-        best = min(best, float(values_s[k]), float(res.fun))
+    _FLIP_ENERGIES[params] = best
     return best
 
 
@@ -717,7 +720,7 @@ class NNMFamily(_Orbits, Result):
         super().__post_init__()
         object.__setattr__(self, "energies", np.asarray(self.energies, dtype=float))
         object.__setattr__(self, "periods", np.asarray(self.periods, dtype=float))
-        n2 = 2 * (self.params.n if isinstance(self.params, Chain) else 2)
+        n2 = 2 * self.params.n
         object.__setattr__(self, "states", np.asarray(self.states, dtype=float).reshape(-1, n2))
         object.__setattr__(self, "monodromies", np.asarray(self.monodromies, dtype=float).reshape(-1, n2, n2))
         mus = [_multipliers(m) for m in self.monodromies]
@@ -861,7 +864,7 @@ def read_nnm(path, variables, attrs) -> NNMFamily:
 
     proto = protocol_fields(path, attrs, AnyModel)
     params, settings = proto["params"], proto["settings"]
-    n2 = 2 * (params.n if isinstance(params, Chain) else 2)
+    n2 = 2 * params.n
     energies = np.asarray(variables["energy"], dtype=float)
     periods = np.asarray(variables["period"], dtype=float)
     states = np.asarray(variables["state"], dtype=float).reshape(-1, n2)
@@ -951,17 +954,14 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     from .modes import normal_modes
     from ..interrupts import Interrupts
 
-    chain = isinstance(params, Chain)
-    if not chain:
-        params = numeric_params(params, "nonlinear normal modes")
+    params = numeric_model(params, "nonlinear normal modes")
     _require_conservative(params, "a nonlinear normal mode")
-    if any(link.torque for link in params.links) if chain else (params.tau1 or params.tau2):
+    if np.any(_torques(params)):
         raise EquilibriumError("nonlinear normal modes start from the modes about the hanging equilibrium; "
                                "with torques use skewpend.periodic_orbit about skewpend.equilibria(params)")
-    nq = params.n if chain else 2
+    nq = params.n
     n2 = 2 * nq
-    mode = whole("mode", mode, 1, nq, what="1: the lowest linear frequency" + (", 2: the higher" if nq == 2 else
-                                                                                f", ..., {nq}: the highest"))
+    mode = whole("mode", mode, 1, nq, what=_modes_text(nq))
     max_orbits = whole("max_orbits", max_orbits, lo=2, hi=100_000)
     resolution = whole("resolution", resolution, lo=1, hi=100_000)
     if resolution >= max_orbits:
@@ -1093,7 +1093,7 @@ def backbones(params: Parameters, *, energy_max: Optional[float] = None, max_ord
     order ``max_order`` (1 to 12): where the frequency ratio ``w_j(E) / w_i(E)`` of two families (``i < j``)
     crosses ``p/q`` with ``p, q <= max_order``."""
     max_order = whole("max_order", max_order, 1, 12)
-    n = params.n if isinstance(params, Chain) else 2
+    n = params.n
     fams = []
     for m in range(1, n + 1):  # a chain's families take minutes: the live line names each (issue 51)
         token = _FAMILY.set(f"mode {m} of {n}: ")

@@ -421,7 +421,7 @@ def open_region_of_attraction(path) -> RegionOfAttraction:
     """A :class:`RegionOfAttraction` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
     from ..numeric.grid import read_grid_result
     from ..results import grid_status
-    from ..symbolic.chain import model_from_mapping
+    from ..symbolic.model import model_from_mapping
 
     arrays, attrs, settings, stats = read_grid_result(path, store_kind=STORE_KIND, result_kind=RegionOfAttraction.result_kind,
                                                       what="a region-of-attraction map", store_keys=("roa_settings", "roa_stats"))

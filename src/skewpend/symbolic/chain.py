@@ -37,9 +37,9 @@ from typing import Any, Iterable, Mapping, Optional, Tuple
 
 from ..errors import ParameterError
 from ..schema import CHAIN_NAMES, LINK_FIELDS, LINK_KEYS, MAX_LINKS, coordinate_names, did_you_mean, link_bound, nearest, nearest_link_key
-from .model import Mat3, Parameters, Vec3, as_real, as_vector, check_inertia
+from .values import Mat3, Vec3, as_real, as_vector, check_inertia
 
-__all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS", "model_from_mapping", "AnyModel"]
+__all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS"]
 
 # MAX_LINKS: the largest chain the generated code is built for (the state of 2 N + 1 numbers); LINK_KEYS: a
 # link's keys, as run files and Link.from_mapping spell them -- both declared in the schema.
@@ -212,6 +212,15 @@ class Chain:
     def __len__(self) -> int:
         return self.n
 
+    @property
+    def is_numeric(self) -> bool:
+        """True: a chain's values are numbers (the double pendulum's facade may keep symbols for display)."""
+        return True
+
+    def require_numeric(self, what: str = "this operation") -> "Chain":
+        """Return self (a chain is numeric), as :meth:`skewpend.Parameters.require_numeric` answers."""
+        return self
+
     def as_chain(self) -> "Chain":
         """The model as a chain: itself (the double pendulum's :class:`~skewpend.Parameters` answer the same
         question with the chain of two)."""
@@ -317,34 +326,10 @@ class Chain:
 
     # -- the double pendulum --------------------------------------------------------------------------------
     @classmethod
-    def from_parameters(cls, params: Parameters) -> "Chain":
-        """The double pendulum ``params`` as the chain of two (numeric parameters only): link 1 rod ``a``
-        on the roof hinge, link 2 rod ``b`` on the hinge at ``a j`` with the axis ``e0``."""
-        params = params.require_numeric("a chain")
-        e0 = params.axis2 if params.axis2 is not None else (math.sin(params.alpha), 0.0, math.cos(params.alpha))
-        links = []
-        for i, (length, axis) in enumerate(((params.a, params.axis1 or (0.0, 0.0, 1.0)), (params.b, e0)), start=1):
-            links.append(Link(axis=axis, length=length, mass=getattr(params, f"m{i}"), com=getattr(params, f"com{i}"),
-                              inertia=getattr(params, f"inertia{i}"), damping=getattr(params, f"c{i}"),
-                              coulomb=getattr(params, f"cf{i}"), torque=getattr(params, f"tau{i}"),
-                              rotor=params.Ir, gear=params.gr, index=i))
-        return cls(links=tuple(links), g=params.g, cfs=params.cfs)
-
-    def to_parameters(self) -> Parameters:
-        """The chain of two as :class:`~skewpend.Parameters` (one line if it is not a double pendulum of
-        that form: hinge 1 at the roof's origin, hinge 2 on rod 1's end, equal rotors)."""
-        self.require_links((2,), "the double pendulum's parameters")
-        one, two = self.links
-        if one.offset != (0.0, 0.0, 0.0) or two.offset != (0.0, one.length, 0.0):
-            raise ParameterError("the double pendulum's parameters need hinge 1 at the origin and hinge 2 at the end of "
-                                 f"rod 1 (0, a, 0); this chain's offsets are {one.offset} and {two.offset}")
-        if (one.rotor, one.gear) != (two.rotor, two.gear):
-            raise ParameterError("the double pendulum's parameters have one rotor inertia and gear for both joints; "
-                                 f"this chain has ({one.rotor:g}, {one.gear:g}) and ({two.rotor:g}, {two.gear:g})")
-        return Parameters(a=one.length, b=two.length, m1=one.mass, m2=two.mass, g=self.g, axis1=one.axis,
-                          axis2=two.axis, com1=one.com, com2=two.com, inertia1=one.inertia, inertia2=two.inertia,
-                          c1=one.damping, c2=two.damping, tau1=one.torque, tau2=two.torque, cf1=one.coulomb,
-                          cf2=two.coulomb, cfs=self.cfs, Ir=one.rotor, gr=one.gear)
+    def from_parameters(cls, params) -> "Chain":
+        """The double pendulum ``params`` as the chain of two: ``params.as_chain()`` (numeric parameters
+        only; :meth:`skewpend.Parameters.from_chain` is the way back)."""
+        return params.as_chain()
 
 
 def _link_fields() -> Tuple[str, ...]:
@@ -353,16 +338,3 @@ def _link_fields() -> Tuple[str, ...]:
 
 assert _link_fields() == LINK_KEYS, "Link's fields must be the schema's LINK_FIELDS, in order"
 assert tuple(f.name for f in fields(Chain) if f.name != "links") == CHAIN_NAMES, "Chain's fields must be the schema's"
-
-
-def model_from_mapping(data: Mapping[str, Any]):
-    """The model a result file stores: a :class:`Chain` (its mapping has ``links``) or the double
-    pendulum's :class:`~skewpend.Parameters`."""
-    return Chain.from_mapping(data) if "links" in data else Parameters.from_mapping(data)
-
-
-class AnyModel:
-    """For readers of results (``results.protocol_fields``): ``from_mapping`` gives the stored model,
-    a chain or the double pendulum (:func:`model_from_mapping`)."""
-
-    from_mapping = staticmethod(model_from_mapping)

@@ -16,7 +16,6 @@ import SymPy or NumPy at import time.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import asdict, field, replace
 from typing import Any, Mapping, Optional, Tuple
 
@@ -28,116 +27,9 @@ from ..schema import (AXIS_NAMES, COM_NAMES, FRICTION_NAMES, GEOMETRY_NAMES, INE
 
 __all__ = ["Parameters", "SCALAR_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "GEOMETRY_NAMES", "RESERVED_NAMES", "Vec3", "Mat3"]
 
-Scalar = Optional[float]
-Vec3 = Tuple[float, float, float]
-Mat3 = Tuple[Vec3, Vec3, Vec3]
-
-def _as_real(name: str, value: Any, limit: float = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ParameterError(f"{name} must be a real number or None (symbolic), got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise ParameterError(f"{name} must be finite, got {x}")
-    limit = MAX_MAGNITUDE if limit is None else limit
-    if abs(x) > limit:
-        raise ParameterError(
-            f"{name} must be at most {limit:g} in magnitude (SI units; larger values overflow the equations), got {x:g}"
-        )
-    return x
-
-
-#: Largest magnitude of a numeric scalar parameter, centre-of-mass or axis entry: squares and
-#: products of a few of them must stay far from the float64 overflow at 1.8e308.  Inertia
-#: entries (mass times length squared: a thin rod of the largest mass and length) go to 1e300.
-MAX_MAGNITUDE = 1e100
-MAX_INERTIA = 1e300
-
-
-#: Names a symbolic geometry entry may not take (coordinates and internal stand-ins).
-RESERVED_NAMES = frozenset({"alpha", "phi", "psi", "dphi", "dpsi", "ddphi", "ddpsi", "omega", "lam", "t",
-                            "atan_dphi", "atan_dpsi"})
-_SYMBOLIC_WORDS = ("sym", "symbolic")
-
-
-def _as_entry(name: str, value: Any):
-    """A geometry entry: a real number, or a symbol name (an identifier) left symbolic."""
-    if isinstance(value, str):
-        text = value.strip()
-        if not text.isidentifier() or text in RESERVED_NAMES or text.startswith(("c_", "s_")):
-            raise ParameterError(
-                f"{name} must be a real number or a symbol name (an identifier, not one of "
-                f"{sorted(RESERVED_NAMES)} and not starting with c_ or s_), got {value!r}"
-            )
-        return text
-    return _as_real(name, value, MAX_INERTIA if name.startswith("inertia") else None)
-
-
-def _as_vec3(name: str, value: Any, default_names: Optional[Tuple[str, str, str]] = None) -> Vec3:
-    if isinstance(value, str) and value.strip().lower() in _SYMBOLIC_WORDS and default_names:
-        return default_names  # type: ignore[return-value]
-    try:
-        items = list(value)
-    except TypeError:
-        raise ParameterError(f"{name} must be a sequence of 3 real numbers or symbol names, got {value!r}") from None
-    if len(items) != 3:
-        raise ParameterError(f"{name} must have 3 components, got {len(items)}")
-    return tuple(_as_entry(f"{name}[{i}]", v) for i, v in enumerate(items))  # type: ignore[return-value]
-
-
-def _as_mat3(name: str, value: Any, prefix: str = "") -> Mat3:
-    if isinstance(value, str) and value.strip().lower() in _SYMBOLIC_WORDS:
-        n = lambda i, j: f"{prefix}{'xyz'[min(i, j)]}{'xyz'[max(i, j)]}"  # noqa: E731
-        return tuple(tuple(n(i, j) for j in range(3)) for i in range(3))  # type: ignore[return-value]
-    try:
-        rows = list(value)
-    except TypeError:
-        raise ParameterError(f"{name} must be a 3x3 matrix of real numbers or symbol names, got {value!r}") from None
-    if len(rows) != 3:
-        raise ParameterError(f"{name} must be a 3x3 matrix, got {len(rows)} rows")
-    mat = tuple(_as_vec3(f"{name}[{i}]", r) for i, r in enumerate(rows))
-    for i in range(3):
-        for j in range(i):
-            if isinstance(mat[i][j], str) or isinstance(mat[j][i], str):
-                if mat[i][j] != mat[j][i]:
-                    raise ParameterError(f"{name} must be symmetric, got {name}[{i}][{j}] = {mat[i][j]!r} "
-                                         f"but {name}[{j}][{i}] = {mat[j][i]!r}")
-    return mat  # type: ignore[return-value]
-
-
-def _numeric(entries) -> bool:
-    flat = [x for row in entries for x in (row if isinstance(row, tuple) else (row,))]
-    return not any(isinstance(x, str) for x in flat)
-
-
-def _names(entries) -> Tuple[str, ...]:
-    flat = [x for row in entries for x in (row if isinstance(row, tuple) else (row,))]
-    out: list = []
-    for x in flat:
-        if isinstance(x, str) and x not in out:
-            out.append(x)
-    return tuple(out)
-
-
-def _check_inertia(name: str, mat: Mat3) -> None:
-    """An inertia tensor about the centre of mass: symmetric, PSD, triangle inequality."""
-    import numpy as np
-
-    m = np.array(mat, dtype=float)
-    scale = max(float(np.abs(m).max()), 1e-300)
-    tol = 1e-9 * scale
-    if not np.allclose(m, m.T, rtol=0.0, atol=tol):
-        raise ParameterError(f"{name} must be symmetric, got {mat}")
-    lam = np.linalg.eigvalsh(0.5 * (m + m.T))
-    if lam.min() < -tol:
-        raise ParameterError(
-            f"{name} must be positive semi-definite; its principal moments are [{', '.join(f'{x:.4g}' for x in lam)}]"
-        )
-    for i in range(3):
-        if lam[i] > lam[(i + 1) % 3] + lam[(i + 2) % 3] + tol:
-            raise ParameterError(
-                f"{name} breaks the triangle inequality of principal moments "
-                f"(each at most the sum of the other two): [{', '.join(f'{x:.4g}' for x in lam)}]"
-            )
+from .values import (MAX_INERTIA, MAX_MAGNITUDE, RESERVED_NAMES, SYMBOLIC_WORDS, Mat3, Scalar, Vec3,  # noqa: F401
+                     as_entry, as_matrix, as_real, as_vector, check_inertia, is_numeric, symbol_names)
+from .chain import Chain, Link
 
 
 class _Model:
@@ -191,7 +83,7 @@ class _Model:
             value = getattr(self, name)
             if value is None:
                 continue
-            x = _as_real(name, value)
+            x = as_real(name, value)
             broken = check_bound(name, x)
             if broken:
                 raise ParameterError(broken)
@@ -206,12 +98,12 @@ class _Model:
         for name in COM_NAMES:
             value = getattr(self, name)
             if value is not None:
-                object.__setattr__(self, name, _as_vec3(name, value, tuple(f"{sym_prefix(name)}{x}" for x in "xyz")))
+                object.__setattr__(self, name, as_vector(name, value, tuple(f"{sym_prefix(name)}{x}" for x in "xyz")))
         for name in AXIS_NAMES:
             value = getattr(self, name)
             if value is not None:
-                v = _as_vec3(name, value, tuple(f"{sym_prefix(name)}{x}" for x in "xyz"))
-                if _numeric(v):
+                v = as_vector(name, value, tuple(f"{sym_prefix(name)}{x}" for x in "xyz"))
+                if is_numeric(v):
                     big = max(abs(x) for x in v)
                     norm = big * math.sqrt(sum((x / big) ** 2 for x in v)) if big > 0 else 0.0
                     if not norm > 1e-12:
@@ -230,9 +122,9 @@ class _Model:
         for name in INERTIA_NAMES:
             value = getattr(self, name)
             if value is not None:
-                mat = _as_mat3(name, value, prefix=sym_prefix(name))
-                if _numeric(mat):
-                    _check_inertia(name, mat)
+                mat = as_matrix(name, value, prefix=sym_prefix(name))
+                if is_numeric(mat):
+                    check_inertia(name, mat)
                 object.__setattr__(self, name, mat)
 
     # -- queries -------------------------------------------------------------------
@@ -253,8 +145,8 @@ class _Model:
         for k in GEOMETRY_NAMES:
             value = getattr(self, k)
             if value is not None:
-                extra += [x for x in _names(value) if x not in scalars and x not in extra and x not in SCALAR_NAMES]
-        referenced = [n for k in GEOMETRY_NAMES if getattr(self, k) is not None for n in _names(getattr(self, k))]
+                extra += [x for x in symbol_names(value) if x not in scalars and x not in extra and x not in SCALAR_NAMES]
+        referenced = [n for k in GEOMETRY_NAMES if getattr(self, k) is not None for n in symbol_names(getattr(self, k))]
         scalars_used = tuple(
             n for n in SCALAR_NAMES if getattr(self, n) is None and n in referenced and n not in scalars
         )
@@ -342,12 +234,36 @@ class _Model:
 
         return coordinate_names(2)
 
-    def as_chain(self):
-        """The double pendulum as the chain of two (:meth:`skewpend.symbolic.chain.Chain.from_parameters`;
-        numeric parameters only)."""
-        from .chain import Chain
+    def as_chain(self) -> Chain:
+        """The double pendulum as the chain of two (numeric parameters only): link 1 rod ``a`` on the roof
+        hinge (axis ``k`` or ``axis1``), link 2 rod ``b`` on the hinge at ``a j`` with the axis
+        ``e0 = cos(alpha) k + sin(alpha) i`` (or ``axis2``); one rotor inertia and gear for both joints."""
+        params = self.require_numeric("a chain")
+        e0 = params.axis2 if params.axis2 is not None else (math.sin(params.alpha), 0.0, math.cos(params.alpha))
+        links = []
+        for i, (length, axis) in enumerate(((params.a, params.axis1 or (0.0, 0.0, 1.0)), (params.b, e0)), start=1):
+            links.append(Link(axis=axis, length=length, mass=getattr(params, f"m{i}"), com=getattr(params, f"com{i}"),
+                              inertia=getattr(params, f"inertia{i}"), damping=getattr(params, f"c{i}"),
+                              coulomb=getattr(params, f"cf{i}"), torque=getattr(params, f"tau{i}"),
+                              rotor=params.Ir, gear=params.gr, index=i))
+        return Chain(links=tuple(links), g=params.g, cfs=params.cfs)
 
-        return Chain.from_parameters(self)
+    @classmethod
+    def from_chain(cls, chain: Chain) -> "Parameters":
+        """The chain of two as the double pendulum's parameters (one line if it is not a double pendulum of
+        that form: hinge 1 at the roof's origin, hinge 2 on rod 1's end, equal rotors)."""
+        chain.require_links((2,), "the double pendulum's parameters")
+        one, two = chain.links
+        if one.offset != (0.0, 0.0, 0.0) or two.offset != (0.0, one.length, 0.0):
+            raise ParameterError("the double pendulum's parameters need hinge 1 at the origin and hinge 2 at the end of "
+                                 f"rod 1 (0, a, 0); this chain's offsets are {one.offset} and {two.offset}")
+        if (one.rotor, one.gear) != (two.rotor, two.gear):
+            raise ParameterError("the double pendulum's parameters have one rotor inertia and gear for both joints; "
+                                 f"this chain has ({one.rotor:g}, {one.gear:g}) and ({two.rotor:g}, {two.gear:g})")
+        return cls(a=one.length, b=two.length, m1=one.mass, m2=two.mass, g=chain.g, axis1=one.axis,
+                   axis2=two.axis, com1=one.com, com2=two.com, inertia1=one.inertia, inertia2=two.inertia,
+                   c1=one.damping, c2=two.damping, tau1=one.torque, tau2=two.torque, cf1=one.coulomb,
+                   cf2=two.coulomb, cfs=chain.cfs, Ir=one.rotor, gr=one.gear)
 
     def replace(self, **changes: Any) -> "Parameters":
         """A copy with some fields changed (validated again)."""
@@ -412,6 +328,17 @@ Parameters = _build_parameters()
 
 
 #: The checks of one scalar, vector and inertia entry, shared with the chains' links (:mod:`.chain`).
-as_real = _as_real
-as_vector = _as_vec3
-check_inertia = _check_inertia
+
+
+def model_from_mapping(data: Mapping[str, Any]):
+    """The model a result file stores: a :class:`~skewpend.symbolic.chain.Chain` (its mapping has ``links``) or
+    the double pendulum's :class:`Parameters`."""
+    return Chain.from_mapping(data) if "links" in data else Parameters.from_mapping(data)
+
+
+class AnyModel:
+    """For readers of results (``results.protocol_fields``): ``from_mapping`` gives the stored model, a chain
+    or the double pendulum (:func:`model_from_mapping`)."""
+
+    from_mapping = staticmethod(model_from_mapping)
+
