@@ -84,12 +84,20 @@ def _static_sources() -> tuple:
     return tuple(_checked(s) for s in out)
 
 
+def page_chain(model):
+    """The chain whose page the explorer and the widget show for ``model`` -- its bodies fixed, its sliders ``g``
+    and each joint's damping, its physics printed from the recursive algorithms -- or None for the double
+    pendulum's page, whose physics (its derivation's) takes every scalar live.  The one place the front end asks
+    (until one physics printer serves every model, issue 52)."""
+    return model if getattr(model, "links", None) is not None else None
+
+
 @lru_cache(maxsize=8)
 def _physics_sources(physics_params) -> tuple:
     from ..numeric.codegen import classic_js, explorer_js
     from ..symbolic.model import Parameters
 
-    if hasattr(physics_params, "links"):  # a chain of links: its module from the recursive algorithms
+    if page_chain(physics_params) is not None:  # a chain of links: its module from the recursive algorithms
         from ..numeric.recursive import chain_code
 
         module = chain_code(physics_params, "javascript")
@@ -156,12 +164,12 @@ def page_settings(physics_params=None) -> dict:
     modes about the hanging position (:func:`skewpend.normal_modes` at g = :data:`MODES_G`, undamped:
     ``frequencies`` [rad/s], ``shapes`` (one list per mode), ``M0``, ``K0``) -- or, where the hanging position
     is no stable equilibrium, the library's reason in ``modes.error``."""
-    if not hasattr(physics_params, "links"):
+    chain = page_chain(physics_params)
+    if chain is None:
         return {}
     from ..errors import SkewpendError
     from ..analysis.modes import normal_modes
 
-    chain = physics_params
     values = chain_slider_values(chain)
     try:
         m = normal_modes(chain_with(chain, {k: 0.0 for k in values} | {"g": MODES_G}))
@@ -209,8 +217,7 @@ def replay_data(trajectory) -> dict:
     times ``t`` [s], states ``y``, the library's rod ends ``tips`` and hinge axes ``axes`` at
     each row (a chain's n rods and axes), and the length scale ``size`` [m] of the drawn axes -- plain
     lists, written exactly."""
-    p = trajectory.params
-    lengths = [link.length for link in p.links] if hasattr(p, "links") else [p.a, p.b]  # a chain's n rods
+    lengths = [link.length for link in trajectory.params.as_chain().links]  # the model's n rods
     return {"t": trajectory.t.tolist(), "y": trajectory.y.tolist(), "tips": trajectory.tips().tolist(),
             "axes": trajectory.axes().tolist(), "size": max(float(v) for v in lengths)}
 
@@ -302,11 +309,8 @@ def export_explorer(directory, params=None, *, force: bool = False, start: str =
     import tempfile
 
     from ..errors import ParameterError, SkewpendError
-    from ..symbolic.model import Parameters
 
-    from ..symbolic.chain import Chain
-
-    if params is not None and not isinstance(params, (Parameters, Chain)):
+    if params is not None and not hasattr(params, "as_chain"):  # a model: the double pendulum's or a chain
         raise ParameterError(f"params must be a skewpend.Parameters, a Chain or None, got {type(params).__name__}")
     if isinstance(force, str) or not isinstance(force, (bool, int)):
         raise ParameterError(f"force must be True or False, got {force!r}")

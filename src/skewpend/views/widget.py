@@ -39,7 +39,7 @@ except ImportError as exc:  # pragma: no cover - the extra is part of the test i
 from .. import schema
 from ..errors import ParameterError
 from ..symbolic.model import SCALAR_NAMES, Parameters
-from .frontend import chain_slider_values, chain_sliders, chain_with
+from .frontend import chain_slider_values, chain_sliders, chain_with, page_chain
 
 __all__ = ["widget", "PendulumWidget", "WidgetState"]
 
@@ -100,10 +100,9 @@ class PendulumWidget(anywidget.AnyWidget):
         from .. import checks
         from ..config import reference_parameters, reference_state
         from ..numeric.conventions import geometry_of
-        from ..symbolic.chain import Chain
 
         height = checks.whole("height", height, 160, 4000, what="the view's height in pixels")
-        self._chain = params if isinstance(params, Chain) else None
+        self._chain = page_chain(params)
         if self._chain is not None:  # a chain of links: the bodies and axes fixed, g and damping its sliders
             from ..config import CHAIN_Q0
 
@@ -166,7 +165,7 @@ class PendulumWidget(anywidget.AnyWidget):
         shown = dict(proposal["value"])
         if not shown:
             return shown
-        size = 2 * self._chain.n if self._chain is not None else 4
+        size = 2 * self._geometry.n
         try:
             t, y = float(shown["t"]), [float(v) for v in shown["y"]]
             ok = len(y) == size and shown.get("mode") in ("live", "replay") and math.isfinite(t)
@@ -208,10 +207,11 @@ class PendulumWidget(anywidget.AnyWidget):
         from ..numeric.conventions import geometry_of
 
         if self._chain is not None:
-            if not hasattr(params, "links") or not self._same_body(params):
+            chain = self._same_body(params)
+            if chain is None:
                 raise ParameterError("the widget's chain is fixed when it is made (its physics is generated for its "
                                      "bodies and axes); change g and the damping only, or make a new skewpend.widget")
-            self.values = chain_slider_values(params)
+            self.values = chain_slider_values(chain)
             return
         checks.numeric_params(params, "the widget")
         if geometry_of(params) != self._geometry:
@@ -269,7 +269,7 @@ class PendulumWidget(anywidget.AnyWidget):
         if not isinstance(trajectory, Trajectory):
             raise ParameterError(f"widget.show: expected a skewpend.Trajectory, got {type(trajectory).__name__}")
         if self._chain is not None:
-            if not hasattr(trajectory.params, "links") or not self._same_body(trajectory.params):
+            if self._same_body(trajectory.params) is None:
                 raise ParameterError("widget.show: the trajectory's chain differs from the widget's; "
                                      "make a skewpend.widget(trajectory.params)")
         elif geometry_of(trajectory.params) != self._geometry:
@@ -292,16 +292,20 @@ class PendulumWidget(anywidget.AnyWidget):
             self.replay = data
             self.running = True
 
-    def _same_body(self, chain) -> bool:
-        """Whether ``chain`` is the widget's up to its sliders' values (g and each joint's damping)."""
-        return (chain.n == self._chain.n
-                and chain_with(chain, {k: 0.0 for k in chain_slider_values(chain)} | {"g": 9.81}) == self._geometry)
+    def _same_body(self, model):
+        """``model`` as a chain if it is the widget's up to its sliders' values (g and each joint's damping), else
+        None."""
+        if not hasattr(model, "as_chain"):  # not a model
+            return None
+        chain = model.as_chain()
+        same = chain.n == self._chain.n and chain_with(chain, {k: 0.0 for k in chain_slider_values(chain)}
+                                                       | {"g": 9.81}) == self._geometry
+        return chain if same else None
 
     def _start(self, y0: Sequence[float]) -> list:
         from ..parsing import initial_state
 
-        coordinates = self._chain.coordinates if self._chain is not None else ("phi", "psi")
-        return [float(v) for v in initial_state(y0, coordinates)]
+        return [float(v) for v in initial_state(y0, self._geometry.coordinates)]
 
     def restart(self) -> None:
         """Start the motion again from ``y0`` (a replay: from its first frame)."""

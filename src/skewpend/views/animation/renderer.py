@@ -16,6 +16,8 @@ from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, HEAD_LENGTH, HEAD_
                     hinge_color, rod_color, unit, world_to_plot)
 
 _SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
+#: The readout's names of the coordinates the specification names (else the coordinate's own, q₁ …).
+READOUT_NAMES = {"phi": "φ", "psi": "ψ"}
 
 # --------------------------------------------------------------------------------------------
 # the renderer
@@ -36,41 +38,50 @@ def _deg_wrapped(angle: float) -> float:
     return d - 360.0 if d > 180.0 else d
 
 
-def _alpha_is_skew(params) -> bool:
-    """Whether ``alpha`` is the angle between the hinge axes (default axes ``k`` and ``e0(alpha)``)."""
-    if hasattr(params, "links"):  # a chain of links: no alpha
-        return False
-    return (getattr(params, "alpha", None) is not None and getattr(params, "axis1", None) is None
-            and getattr(params, "axis2", None) is None)
+def _named_skew(params) -> Optional[float]:
+    """The model's own skew-angle parameter where it sets the hinge axes (``alpha``: the default axes ``k`` and
+    ``e0(alpha)``), asked of its parameters; None where the axes are given as vectors."""
+    values = params.to_dict()
+    if values.get("alpha") is None or values.get("axis1") is not None or values.get("axis2") is not None:
+        return None
+    return float(values["alpha"])
 
 
-def _skew_angle(params, axes: np.ndarray) -> float:
-    """The skew angle [rad]: ``alpha`` for the default axes, else the angle between the axes,
-    which every row keeps (``e = P1 . e0`` turns about ``n1``, so ``n1 . e`` is constant)."""
-    if _alpha_is_skew(params):
-        return float(params.alpha)
-    if axes.shape[1] < 6:  # one link: no second axis
-        return 0.0
-    c = float(np.clip(np.dot(axes[0, 0:3], axes[0, 3:6]), -1.0, 1.0))
-    return math.acos(c)
+def _skews(axes: np.ndarray) -> list:
+    """The angles [rad] between consecutive hinge axes, which every row keeps (hinge ``i + 1``'s axis turns
+    about hinge ``i``'s): from the first row's axes ``(n, 3 n)``."""
+    e = axes[0].reshape(-1, 3)
+    return [math.acos(float(np.clip(np.dot(a, b), -1.0, 1.0))) for a, b in zip(e, e[1:])]
 
 
-def _chain_skews(chain) -> str:
-    """A chain's angles between consecutive hinge axes, as text (``∠ = 0°, 26.57°, 90°``)."""
-    angles = [math.degrees(math.acos(float(np.clip(np.dot(a.axis, b.axis), -1.0, 1.0))))
-              for a, b in zip(chain.links, chain.links[1:])]
-    return ", ".join(f"{x:.4g}°" for x in angles)
+#: The specification's names of the double pendulum's rods and hinge axes, by its coordinates: (rod, axis,
+#: the axis in the legend); any other joint ``i``: rod ``i`` and the axis ``eᵢ`` of hinge ``i`` (on rod ``i - 1``).
+JOINT_LABELS = {"phi": ("rod 1 (a)", "n₁", "hinge 1 axis n₁ (fixed)"),
+                "psi": ("rod 2 (b)", "e", "hinge 2 axis e = P₁·e₀ (turns with rod 1)")}
+#: The models' names in the title, by their number of links (else a chain of n links).
+MODEL_NAMES = {2: "Double pendulum with skewed hinge axes"}
 
 
-def _title(params, skew: float) -> Tuple[str, str]:
-    if hasattr(params, "links"):
-        skews = f":  ∠ between the hinge axes {_chain_skews(params)}" if params.n > 1 else ""
-        return f"Chain of {params.n} links{skews}", parameter_text(params, sep=",  ")
-    if _alpha_is_skew(params):
-        line1 = f"Double pendulum with skewed hinge axes:  α = {math.degrees(skew):.4g}°"
+def joint_labels(coordinates) -> list:
+    """Per joint (the model's coordinates): its rod's label, its hinge axis's name and the axis's legend entry."""
+    out = []
+    for i, c in enumerate(coordinates):
+        e = f"e{str(i + 1).translate(_SUB)}"
+        out.append(JOINT_LABELS.get(c, (f"rod {i + 1}", e, f"hinge {i + 1} axis {e}" + (" (fixed)" if i == 0 else ""))))
+    return out
+
+
+def _title(params, axes: np.ndarray) -> Tuple[str, str]:
+    """The title's two lines: the model and its hinge axes' angles (its ``alpha`` where that sets them), and its
+    parameters."""
+    n, alpha = params.n, _named_skew(params)
+    names = [axis for _, axis, _ in joint_labels(params.coordinates)]
+    if alpha is not None:
+        skews = f"α = {math.degrees(alpha):.4g}°"
     else:
-        line1 = f"Double pendulum with skewed hinge axes:  ∠(n₁, e) = {math.degrees(skew):.4g}°"
-    skip = ("alpha",) if _alpha_is_skew(params) else ()  # then alpha is in the first line
+        skews = ", ".join(f"∠({a}, {b}) = {math.degrees(x):.4g}°" for a, b, x in zip(names, names[1:], _skews(axes)))
+    line1 = MODEL_NAMES.get(n, f"Chain of {n} links") + (f":  {skews}" if skews else "")
+    skip = ("alpha",) if alpha is not None else ()  # then alpha is in the first line
     return line1, parameter_text(params, skip=skip, symbols=True, sep=",  ")
 
 
@@ -122,9 +133,11 @@ class FrameRenderer:
                 text.set_fontsize(text.get_fontsize() * limit / width * 0.99)
 
         # title and parameters (static), shrunk to the frame's width
-        self.skew = _skew_angle(tr.params, g.axes)
-        self.uses_alpha = _alpha_is_skew(tr.params)
-        line1, line2 = _title(tr.params, self.skew)
+        alpha = _named_skew(tr.params)
+        #: the angle between the first two hinge axes [rad] (the model's alpha where that sets them; 0 for one link)
+        self.skew = alpha if alpha is not None else (_skews(g.axes) or [0.0])[0]
+        self.uses_alpha = alpha is not None
+        line1, line2 = _title(tr.params, g.axes)
         pad = 3.0 / h
         title = fig.text(0.5, 1.0 - pad, line1, ha="center", va="top", fontsize=small + 2, fontweight="bold")
         fit_width(title)
@@ -139,21 +152,12 @@ class FrameRenderer:
         self.grid_step = float(ticks[1] - ticks[0])
         self._ticks = ticks[np.abs(ticks) <= R + 1e-12]
         self.n = n = g.n
-        if n == 2 and not hasattr(tr.params, "links"):
-            handles = [
-                Line2D([], [], color=SCENE_COLORS["rod1"], lw=5, solid_capstyle="round", label="rod 1 (a)"),
-                Line2D([], [], color=SCENE_COLORS["rod2"], lw=5, solid_capstyle="round", label="rod 2 (b)"),
-                Line2D([], [], color=SCENE_COLORS["hinge1"], lw=2, marker=">", ms=5, label="hinge 1 axis n₁ (fixed)"),
-                Line2D([], [], color=SCENE_COLORS["hinge2"], lw=2, marker=">", ms=5, label="hinge 2 axis e = P₁·e₀ (turns with rod 1)"),
-            ]
-            self.axis_labels = ["n₁", "e"]
-        else:  # a chain: its rods and hinge axes numbered (eᵢ the axis of hinge i, on rod i - 1)
-            handles = [Line2D([], [], color=rod_color(i), lw=5, solid_capstyle="round", label=f"rod {i + 1}")
-                       for i in range(n)]
-            handles += [Line2D([], [], color=hinge_color(i), lw=2, marker=">", ms=5,
-                               label=f"hinge {i + 1} axis e{str(i + 1).translate(_SUB)}" + (" (fixed)" if i == 0 else ""))
-                        for i in range(n)]
-            self.axis_labels = [f"e{str(i + 1).translate(_SUB)}" for i in range(n)]
+        joints = joint_labels(tr.params.coordinates)
+        handles = [Line2D([], [], color=rod_color(i), lw=5, solid_capstyle="round", label=rod)
+                   for i, (rod, _, _) in enumerate(joints)]
+        handles += [Line2D([], [], color=hinge_color(i), lw=2, marker=">", ms=5, label=legend)
+                    for i, (_, _, legend) in enumerate(joints)]
+        self.axis_labels = [axis for _, axis, _ in joints]
         handles += [
             Line2D([], [], color=SCENE_COLORS["trail"], lw=1.6, label=f"tip trail (last {g.trail:g} s)" if g.trail > 0 else "tip trail (off)"),
             Line2D([], [], color=(0.80, 0.80, 0.83), lw=1, label=f"floor grid {self.grid_step:g} m"),
@@ -274,6 +278,9 @@ class FrameRenderer:
             (self.artists[self.ref_names[i - 1]],) = ax.plot([0, 0], [0, 0], [0, 0], color=hinge_color(i - 1), lw=1.2, ls=(0, (2, 2)), alpha=0.9, animated=True)
             (self.artists[self.arc_names[i - 1]],) = ax.plot([0, 0], [0, 0], [0, 0], color="0.15", lw=1.1, animated=True)
             self.artists[self.arc_label_names[i - 1]] = ax.text(0, 0, 0, "α" if self.uses_alpha else "∠", color="0.1", fontsize=small + 1, ha="center", va="center", animated=True)
+        #: the readout's names of the angles, one line each for up to three joints (the double pendulum's φ, ψ)
+        self.readout_names = ([READOUT_NAMES.get(c, c.translate(_SUB)) for c in tr.params.coordinates]
+                               if n <= 3 else [])
         self.artists["readout"] = fig.text(
             0.015, top - 0.01, "", ha="left", va="top", family="DejaVu Sans Mono", fontsize=small, animated=True,
             bbox=dict(boxstyle="round,pad=0.35", fc=(1, 1, 1, 0.85), ec="0.75", lw=0.6),
@@ -383,8 +390,8 @@ class FrameRenderer:
 
         # readout
         lines = [f"t = {sc.t:{8 + self.t_decimals - 3}.{self.t_decimals}f} s" + (f"   ({self.speed:g}× speed)" if self.speed != 1.0 else "")]
-        if n == 2 and not hasattr(g.tr.params, "links"):
-            lines += [f"φ = {_deg_wrapped(sc.phi):+7.1f}°", f"ψ = {_deg_wrapped(sc.psi):+7.1f}°"]
+        if self.readout_names:  # up to three joints: a line each
+            lines += [f"{name} = {_deg_wrapped(x):+7.1f}°" for name, x in zip(self.readout_names, sc.q)]
         else:
             lines.append("q = " + ", ".join(f"{_deg_wrapped(x):+.1f}°" for x in sc.q))
         lines.append(f"E = {sc.energy:+.5g} J")

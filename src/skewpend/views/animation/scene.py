@@ -201,15 +201,13 @@ class Geometry:
         self.axes = np.asarray(tr.axes(), dtype=float).reshape(-1, 3 * n)
         if self.tips.shape[0] != t.size or self.axes.shape[0] != t.size:
             raise SkewpendError("the trajectory's rod ends or axes do not match its rows")
-        if hasattr(p, "links"):  # a chain: each hinge drawn at the end of the rod before
-            for i in range(1, n):
-                offset, parent = p.links[i].offset, p.links[i - 1].length
-                if np.abs(np.subtract(offset, (0.0, parent, 0.0))).max() > 1e-12 * max(parent, 1.0):
-                    raise ParameterError(f"the animation draws each hinge at the end of the rod before; link {i + 1}'s "
-                                         f"hinge sits at {tuple(offset)} on link {i} (its end is (0, {parent:g}, 0))")
-            self.reach = float(sum(link.length for link in p.links))
-        else:
-            self.reach = float(p.a) + float(p.b)
+        links = p.as_chain().links  # each hinge drawn at the end of the rod before
+        for i in range(1, n):
+            offset, parent = links[i].offset, links[i - 1].length
+            if np.abs(np.subtract(offset, (0.0, parent, 0.0))).max() > 1e-12 * max(parent, 1.0):
+                raise ParameterError(f"the animation draws each hinge at the end of the rod before; link {i + 1}'s "
+                                     f"hinge sits at {tuple(offset)} on link {i} (its end is (0, {parent:g}, 0))")
+        self.reach = float(sum(link.length for link in links))
         self.half = AXIS_HALF_LENGTH * self.reach
         self.trail = trail
         # first row of each frame's trail: the earliest row with t >= t_k - trail

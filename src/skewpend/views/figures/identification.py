@@ -125,23 +125,24 @@ def _heldout_rms(result, name: str) -> Tuple[float, float]:
     return math.nan, math.nan
 
 
-def _angle_styles(nq: int) -> List[Tuple[str, str]]:
-    """Each angle's colour and symbol: the double pendulum's phi and psi, a chain's q1 .. qn (the colours of
-    the chain's figures, :func:`skewpend.views.figures.motion`'s qualitative map)."""
-    if nq == 2:
-        return [(COLORS["phi"], SYMBOL["phi"]), (COLORS["psi"], SYMBOL["psi"])]
+def _angle_styles(coordinates) -> List[Tuple[str, str]]:
+    """Each angle's colour and symbol, by the model's coordinates: the colours of the trajectory figures
+    (:func:`skewpend.views.figures.motion.coordinate_styles`), the symbols the style knows (the double pendulum's
+    phi and psi), else ``q₁`` .. ``qₙ``."""
     import matplotlib
 
-    cmap = matplotlib.colormaps["tab10"]
+    from .motion import coordinate_styles
+
     sub = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
-    return [(matplotlib.colors.to_hex(cmap(j % 10)), "q" + str(j + 1).translate(sub)) for j in range(nq)]
+    return [(matplotlib.colors.to_hex(color), SYMBOL.get(c, c.translate(sub)))
+            for c, (color, _, _) in zip(coordinates, coordinate_styles(coordinates))]
 
 
 def _panel_angles(axes, result, predictions) -> None:
     for ax, (piece, kind, pred, pred0) in zip(axes, predictions):
         t = np.asarray(piece.t, float) - float(piece.t[0])
         q = np.degrees(np.asarray(piece.q, float))
-        for j, (c, _) in enumerate(_angle_styles(q.shape[1])):
+        for j, (c, _) in enumerate(_angle_styles(result.params0.coordinates)):
             ax.plot(t, q[:, j], color=c, lw=3.2, alpha=0.28, solid_capstyle="butt")
             if pred0 is not None:
                 ax.plot(t, np.degrees(pred0[:, j]), color="0.15", lw=0.8, ls=(0, (3, 2)))
@@ -161,10 +162,11 @@ def _panel_angles(axes, result, predictions) -> None:
         ax.tick_params(labelsize=7.5)
 
 
-def _angle_legend(subfig, nq: int = 2) -> None:
+def _angle_legend(subfig, coordinates) -> None:
     from matplotlib.lines import Line2D
 
-    styles = _angle_styles(nq)
+    styles = _angle_styles(coordinates)
+    nq = len(styles)
     handles = [Line2D([], [], color=c, lw=3.2, alpha=0.28) for c, _ in styles]
     handles += [Line2D([], [], color=c, lw=0.9) for c, _ in styles]
     handles.append(Line2D([], [], color="0.15", lw=0.8, ls=(0, (3, 2))))
@@ -205,7 +207,7 @@ def _panel_residuals(ax, result, predictions) -> None:
                 va="center", transform=ax.transAxes, color="0.4", fontsize=8.5)
     ax.set_title("(b) Held-out prediction error", loc="left")
     ax.set_xlabel("time from the piece's start [s]")
-    names = [name for _, name in _angle_styles(held[0][0].nq if held else 2)]
+    names = [name for _, name in _angle_styles(result.params0.coordinates)]
     ax.set_ylabel(f"angle error, RMS of ({', '.join(names)}) [mrad]")
 
 
@@ -391,7 +393,7 @@ def plot_identification(result, measurements, validation=None, path=None):
             axes_a[0].set_ylabel("angle [deg]")
         top.suptitle("(a) Measured and predicted angles, each piece simulated from its first measured state",
                      x=0.01, ha="left", fontsize=10.5)
-        _angle_legend(top, predictions[0][0].nq if predictions else 2)
+        _angle_legend(top, result.params0.coordinates)
         _panel_correlation(corner, corner.subplots(), result)
         axes = lower.subplots(1, 3 if profile else 2, width_ratios=(1.1, 1.0, 0.9) if profile else (1.2, 1.0))
         _panel_residuals(axes[0], result, predictions)

@@ -113,22 +113,32 @@ def _angle_ticks(ax, which: str) -> None:
 
 
 # -- panels (draw into a given Axes) -------------------------------------------------------------
-def _links(tr) -> List[tuple]:
-    """Per coordinate: (colour, angle label, speed label) -- the double pendulum's phi and psi, or a
-    chain's q1 ... qn in the colours of a qualitative colour map."""
-    n = tr.y.shape[1] // 2
-    if n == 2:
-        return [(COLORS["phi"], f"{SYMBOL['phi']} (hinge 1)", SYMBOL["dphi"]),
-                (COLORS["psi"], f"{SYMBOL['psi']} (hinge 2)", SYMBOL["dpsi"])]
+def coordinate_styles(coordinates: Sequence[str]) -> List[tuple]:
+    """Per coordinate (the model's names, ``model.coordinates``): (colour, angle symbol, speed symbol) -- the
+    symbol and colour of a name the style knows (the double pendulum's phi and psi), else ``q_k`` in the colour
+    ``k`` of a qualitative colour map."""
     from matplotlib import colormaps
 
     cmap = colormaps["tab10"]
-    return [(cmap(k % 10), f"$q_{{{k + 1}}}$", f"$\\dot q_{{{k + 1}}}$") for k in range(n)]
+    return [(COLORS.get(c, cmap(k % 10)), SYMBOL.get(c, f"$q_{{{k + 1}}}$"), SYMBOL.get(f"d{c}", f"$\\dot q_{{{k + 1}}}$"))
+            for k, c in enumerate(coordinates)]
+
+
+def _coordinates(tr) -> Sequence[str]:
+    """The trajectory's coordinates: its model's names (``phi, psi``; ``q1 ... qn``)."""
+    return tr.params.coordinates
+
+
+def _labels(tr) -> List[tuple]:
+    """Per coordinate: (colour, angle label, speed label); a name that does not number itself (phi, psi)
+    says its hinge in the angle's label."""
+    return [(color, angle if c[-1].isdigit() else f"{angle} (hinge {k + 1})", speed)
+            for k, (c, (color, angle, speed)) in enumerate(zip(_coordinates(tr), coordinate_styles(_coordinates(tr))))]
 
 
 def _draw_angles(ax, tr) -> None:
     angles = [np.degrees(np.unwrap(tr.y[:, k])) for k in range(tr.y.shape[1] // 2)]
-    for (color, label, _), a in zip(_links(tr), angles):
+    for (color, label, _), a in zip(_labels(tr), angles):
         ax.plot(tr.t, a, color=color, label=label)
     _turn_ticks(ax.yaxis, np.concatenate(angles))
     ax.set_ylabel("angle [deg]")
@@ -139,7 +149,7 @@ def _draw_angles(ax, tr) -> None:
 
 def _draw_speeds(ax, tr) -> None:
     n = tr.y.shape[1] // 2
-    for k, (color, _, label) in enumerate(_links(tr)):
+    for k, (color, _, label) in enumerate(_labels(tr)):
         ax.plot(tr.t, tr.y[:, n + k], color=color, label=label)
     ax.set_ylabel("angular speed [rad/s]")
     ax.set_title("Angular speeds", loc="left")
@@ -182,14 +192,13 @@ def _draw_energy(ax, tr) -> None:
 
 
 def _angle_name(tr, k: int) -> str:
-    """Joint k's angle as an axis label: the double pendulum's phi and psi, a chain's q1 ... qn."""
-    n = tr.y.shape[1] // 2
-    return SYMBOL[("phi", "psi")[k]] if n == 2 else f"$q_{{{k + 1}}}$"
+    """Joint k's angle as an axis label: its symbol (the double pendulum's phi and psi, a chain's q1 ... qn)."""
+    return coordinate_styles(_coordinates(tr))[k][1]
 
 
 def _draw_phase(ax, tr, k: int) -> None:
     n = tr.y.shape[1] // 2
-    color, _, speed = _links(tr)[k]
+    color, _, speed = _labels(tr)[k]
     path = wrapped_path([np.unwrap(tr.y[:, k]), tr.y[:, n + k]], [True, False])
     ax.plot(np.degrees(path[:, 0]), path[:, 1], color=color, **_thin(len(tr.t)))
     ax.plot([math.degrees(wrap_angle(tr.y[0, k]))], [tr.y[0, n + k]], "o", color=COLORS["start"], ms=5,
@@ -215,7 +224,8 @@ def _draw_torus(ax, tr) -> None:
     _angle_ticks(ax, "y")
     ax.set_xlabel(f"{_angle_name(tr, 0)} (wrapped) [deg]")
     ax.set_ylabel(f"{_angle_name(tr, 1)} (wrapped) [deg]")
-    ax.set_title("Configuration space (torus)" if tr.y.shape[1] == 4 else "The first two angles (a torus)", loc="left")
+    every = tr.y.shape[1] // 2 <= 2  # the torus holds every angle: the whole configuration space
+    ax.set_title("Configuration space (torus)" if every else "The first two angles (a torus)", loc="left")
     _legend_above(ax)
 
 
@@ -232,12 +242,12 @@ def _draw_tips(ax, tr, zoom: float = 1.0) -> None:
 
     v = tips_view(tr.tips())
     n = v.shape[1] // 3
-    # a chain's ends: the last (its tip) drawn, the inner ones lighter
-    for k, (color, _, _) in enumerate(_links(tr)):
-        if n > 2 and k < n - 1:
-            continue
+    # up to two rods: each end's path; more: the tip's alone (the inner ones would crowd it)
+    drawn = list(enumerate(_labels(tr)))
+    drawn = drawn[-1:] if n > 2 else drawn
+    for k, (color, _, _) in drawn:
         ax.plot(v[:, 3 * k], v[:, 3 * k + 1], v[:, 3 * k + 2], color=color,
-                label=f"end of rod {k + 1}" if n == 2 or k < n - 1 else f"tip (end of rod {n})", **_thin(len(v)))
+                label=f"end of rod {k + 1}" if len(drawn) > 1 else f"tip (end of rod {n})", **_thin(len(v)))
     # the rods at t = 0 and the pivot on the first hinge axis
     ax.plot([0] + [v[0, 3 * k] for k in range(n)], [0] + [v[0, 3 * k + 1] for k in range(n)],
             [0] + [v[0, 3 * k + 2] for k in range(n)], color=COLORS["rods"], lw=2.2, marker="o", ms=3, alpha=0.8,
@@ -284,7 +294,7 @@ def phase_figure(tr):
     a chain's (q_k, dq_k) for each joint, three to a row."""
     _check(tr)
     n = tr.y.shape[1] // 2
-    cols = 2 if n == 2 else min(n, 3)
+    cols = min(n, 3)
     rows = -(-n // cols)
     with style():
         fig = new_figure((10.0 if cols == 2 else 12.0, 4.9 + 3.9 * (rows - 1)))
@@ -334,35 +344,28 @@ def tips_figure(tr):
 
 
 def simulation_figure(tr):
-    """Everything in one figure (for ``skewpend simulate --plot``): angles, speeds and the
-    energy error against time on the left; the two phase portraits in the middle; the torus
-    and the 3D paths of the rod ends on the right."""
+    """Everything in one figure (for ``skewpend simulate --plot``): angles, speeds and the energy error
+    against time on the left; each joint's phase portrait in the middle (up to three joints: more would
+    crowd the column); the torus of the first two angles and the 3D paths of the rod ends on the right."""
     _check(tr)
-    if tr.y.shape[1] != 4:  # a chain: the angles, speeds and energy error, and its tip's path in 3D
-        with style():
-            fig = new_figure((14.0, 10.0))
-            left, right = fig.subfigures(1, 2, width_ratios=[1.55, 1.0], wspace=0.01)
-            a1, a2, a3 = left.subplots(3, 1, sharex=True)
-            _draw_angles(a1, tr)
-            _draw_speeds(a2, tr)
-            _draw_energy(a3, tr)
-            _draw_tips(right.add_subplot(1, 1, 1, projection="3d"), tr, zoom=0.9)
-            heading(fig, caption(tr))
-        return fig
+    n = tr.y.shape[1] // 2
+    portraits = n if n <= 3 else 0
     with style():
-        fig = new_figure((17.0, 10.0))
-        left, middle, right = fig.subfigures(1, 3, width_ratios=[1.55, 1.0, 1.0], wspace=0.01)
+        fig = new_figure((17.0 if portraits else 14.0, 10.0))
+        columns = fig.subfigures(1, 3 if portraits else 2, width_ratios=[1.55, 1.0, 1.0][:3 if portraits else 2],
+                                 wspace=0.01)
+        left, right = columns[0], columns[-1]
         a1, a2, a3 = left.subplots(3, 1, sharex=True)
         _draw_angles(a1, tr)
         _draw_speeds(a2, tr)
         _draw_energy(a3, tr)
-        p1, p2 = middle.subplots(2, 1)
-        torus = right.add_subplot(2, 1, 1)
-        tips = right.add_subplot(2, 1, 2, projection="3d")
-        _draw_phase(p1, tr, 0)
-        _draw_phase(p2, tr, 1)
-        _draw_torus(torus, tr)
-        _draw_tips(tips, tr, zoom=0.88)  # room for the tick and axis labels in the small panel
+        for k, ax in enumerate(np.atleast_1d(columns[1].subplots(portraits, 1)) if portraits else ()):
+            _draw_phase(ax, tr, k)
+        if n >= 2:
+            _draw_torus(right.add_subplot(2, 1, 1), tr)
+            _draw_tips(right.add_subplot(2, 1, 2, projection="3d"), tr, zoom=0.88)  # room for the labels in the small panel
+        else:
+            _draw_tips(right.add_subplot(1, 1, 1, projection="3d"), tr, zoom=0.9)
         heading(fig, caption(tr))
     return fig
 
@@ -378,6 +381,8 @@ def plot_sweep(sw, *, title: Optional[str] = None):
     no direction in a plane: no bottom panel).
     """
     n = sw.frequencies.shape[1]
+    names = sw.params.coordinates
+    one_pair = n - 1 == 1  # two modes: one pair of neighbours (written plainly), their shapes directions in a plane
     angle_like = sw.name == "alpha" or sw.name.startswith("tilt")
     if angle_like:
         x, xlabel = np.degrees(sw.values), (r"$\alpha$" if sw.name == "alpha" else sw.name) + " [deg]"
@@ -385,34 +390,32 @@ def plot_sweep(sw, *, title: Optional[str] = None):
         unit = sw.units().get(sw.name, "")
         x, xlabel = np.asarray(sw.values, dtype=float), f"{sw.name} [{unit or '1'}]"
     with style():
-        fig = new_figure((7.5, 7.0) if n == 2 else (7.5, 4.6))
-        if n == 2:
-            ax1, ax2 = fig.subplots(2, 1, sharex=True)
-            names = (r"$\omega_1$ (lower mode)", r"$\omega_2$ (upper mode)")
-        else:
-            ax1, ax2 = fig.subplots(1, 1), None
-            names = tuple(rf"$\omega_{{{k + 1}}}$" for k in range(n))
+        fig = new_figure((7.5, 7.0) if one_pair else (7.5, 4.6))
+        ax1, ax2 = fig.subplots(2, 1, sharex=True) if one_pair else (fig.subplots(1, 1), None)
+        ends = {0: " (lower mode)", n - 1: " (upper mode)"} if one_pair else {}
         for k in range(n):
-            ax1.plot(x, sw.frequencies[:, k], label=names[k], color=MODE_COLORS.get(k + 1, "0.3"))
+            ax1.plot(x, sw.frequencies[:, k], label=rf"$\omega_{{{k + 1}}}$" + ends.get(k, ""),
+                     color=MODE_COLORS.get(k + 1, "0.3"))
         for i, r in enumerate(sw.resonances):
             xv = math.degrees(r.value) if angle_like else r.value
             ax1.axvline(xv, color=COLORS["reference"], lw=0.8, ls="--")
-            mark = f"{r.order}:1" if n == 2 else f"ω{r.pair[1]}:ω{r.pair[0]} = {r.order}:1"
+            mark = f"{r.order}:1" if one_pair else f"ω{r.pair[1]}:ω{r.pair[0]} = {r.order}:1"
             ax1.annotate(mark, (xv, 1.0), xycoords=ax1.get_xaxis_transform(), textcoords="offset points",
                          xytext=(3, -12 - (11 * (i % 3) if n > 2 else 0)), fontsize=8, color="0.3")
         ax1.set_ylabel("natural frequency [rad/s]")
         ax1.set_title("Natural frequencies (dashed: internal resonances " + (
-            r"$\omega_2 = n\,\omega_1$)" if n == 2 else r"$\omega_{k+1} = n\,\omega_k$)"), loc="left")
+            r"$\omega_2 = n\,\omega_1$)" if one_pair else r"$\omega_{k+1} = n\,\omega_k$)"), loc="left")
         ax1.legend(loc="best", ncol=1 if n <= 4 else 2)
         last = ax1
         if ax2 is not None:
             # a mode shape is a direction: defined modulo 180 deg; unwrap to continuous curves
             angle = np.degrees(np.arctan2(sw.shapes[:, 1, :], sw.shapes[:, 0, :]))
             angle = np.unwrap((angle + 90.0) % 180.0 - 90.0, period=180.0, axis=0)
-            ax2.plot(x, angle[:, 0], color=COLORS["phi"], label="mode 1")
-            ax2.plot(x, angle[:, 1], color=COLORS["psi"], label="mode 2")
-            ax2.set_ylabel(f"direction in the ({SYMBOL['phi']}, {SYMBOL['psi']}) plane [deg]")
-            ax2.set_title(f"Mode shapes: direction of ({SYMBOL['phi']}, {SYMBOL['psi']}), modulo 180°", loc="left")
+            (c1, s1, _), (c2, s2, _) = coordinate_styles(names)
+            ax2.plot(x, angle[:, 0], color=c1, label="mode 1")
+            ax2.plot(x, angle[:, 1], color=c2, label="mode 2")
+            ax2.set_ylabel(f"direction in the ({s1}, {s2}) plane [deg]")
+            ax2.set_title(f"Mode shapes: direction of ({s1}, {s2}), modulo 180°", loc="left")
             ax2.legend(loc="best")
             last = ax2
         last.set_xlabel(xlabel)

@@ -156,12 +156,21 @@ def _section_fit(r, measurements, validation, drawn: float) -> str:
     ]
     if isinstance(r.stats, dict) and r.stats.get("samples"):
         facts.insert(3, ("samples fitted", f"{r.stats['samples']} (after the filter's ends are dropped)"))
-    what = f"chain of {r.params0.n} links" if hasattr(r.params0, "links") else "double pendulum"
+    what = model_name(r.params0)
     lead = (f"<p class=\"lead\">The measured motion of a real {what}, fitted by skewpend's model: the "
             "combinations of its parameters that the motion determines (the <b>base parameters</b>) with 95 % "
             "intervals, then each held-out piece predicted by simulation from its first measured state.</p>")
     warn = "" if ok else f'<p class="callout warn"><b>The identification did not succeed:</b> {esc(r.message)}</p>'
     return lead + warn + facts_html(facts)
+
+
+#: What the model is called by its number of links (else a chain of n links).
+MODEL_NAMES = {2: "double pendulum"}
+
+
+def model_name(model) -> str:
+    """``double pendulum``, ``chain of 3 links``: the model by its number of links."""
+    return MODEL_NAMES.get(model.n, f"chain of {model.n} links")
 
 
 def _section_parameters(r) -> str:
@@ -220,11 +229,12 @@ def _section_undetermined(r) -> str:
 
 
 def _section_skew(r) -> str:
-    if hasattr(r.params0, "links"):  # a chain: its hinge axes are its structure, not fitted
-        axes = "; ".join("(" + ", ".join(f"{x:.4g}" for x in link.axis) + ")" for link in r.params0.links)
+    values = r.params0.to_dict()
+    if "alpha" not in values:  # no skew-angle parameter: the hinge axes are given as vectors, the model's structure
+        axes = "; ".join("(" + ", ".join(f"{x:.4g}" for x in link.axis) + ")" for link in r.params0.as_chain().links)
         return (f"<p>A chain's hinge axes are its structure: the fit holds them at params0's, {esc(axes)} (the "
                 "skew angle is freed for the double pendulum's model only).</p>")
-    alpha0 = r.params0.alpha if r.params0.alpha is not None else 0.0
+    alpha0 = values["alpha"] if values["alpha"] is not None else 0.0
     if not math.isfinite(r.alpha):
         return (f"<p>The skew angle was not freed: the fit held it at params0's α = {_deg(alpha0)}. "
                 "Free it (<code>free=[\"alpha\", ...]</code>) to test whether the hinges are skewed.</p>")
@@ -254,7 +264,7 @@ def _section_heldout(r) -> str:
             cls = "better" if d < 0 else "worse"
             change = f'<span class="{cls}">{d:+.1f} %</span>'.replace("-", "−")
         rows.append([f"<code>{esc(n)}</code>", esc(k), _rms(x, k), _rms(x0, k), change])
-    which = f"all {r.params0.n} angles" if hasattr(r.params0, "links") else "both angles"
+    which = "both angles" if r.params0.n < 3 else f"all {r.params0.n} angles"
     body = ("<p>Each held-out piece simulated from its first measured state (angles, and speeds as measured or "
             f"estimated) with the fitted model and with params0; the RMS of the angle error over {which} and all "
             "samples (pieces with measured torques: the RMS of the torque prediction).</p>"
@@ -301,29 +311,21 @@ def _section_use(r) -> str:
 
     p = r.params
     fitted = esc(parameter_text(p))
-    if hasattr(p, "links"):  # a chain: each link's centre of mass
-        com = ", ".join(f"com{link.index} = ({', '.join(f'{c:.4g}' for c in link.com)}) m" for link in p.links)
-    else:
-        com = ", ".join(f"com{i} = ({', '.join(f'{c:.4g}' for c in getattr(p, f'com{i}'))}) m" for i in (1, 2)
-                        if getattr(p, f"com{i}", None) is not None)
+    com = ", ".join(f"com{link.index} = ({', '.join(f'{c:.4g}' for c in link.com)}) m" for link in p.as_chain().links)
     ok = r.ok
     warn = "" if ok else ('<p class="callout warn">The identification did not succeed, so the model below is the start '
                           "(params0), not a fit.</p>")
-    if hasattr(p, "links"):
-        return (warn + f"<p>The fitted model is a complete <code>skewpend.Chain</code> of {p.n} links: the base "
-                "parameters above, with the entries the data do not determine taken from params0. Write it as a run "
-                "file (<code>[[links]]</code> tables) and simulate it like any other chain:</p>"
-                "<pre><code>skewpend identify ... --out fit.toml\nskewpend simulate --config fit.toml</code></pre>"
-                + facts_html([("fitted model", fitted + (f"<br><span class=\"note\">{esc(com)}</span>" if com else "")),
-                              ("params0", esc(parameter_text(r.params0)))]))
-    return (warn + "<p>The fitted model is a complete <code>skewpend.Parameters</code>: the base parameters above, "
-            "with the entries the data do not determine taken from params0. Write it as a run file and simulate it "
-            "like any other model:</p>"
+    names = list(p.coordinates)
+    start = [f"{c}0" for c in names] + [f"d{c}0" for c in names]
+    start = f"[{', '.join(start)}]" if len(names) <= 2 else "y0"  # a chain's 2 n numbers: y0
+    return (warn + f"<p>The fitted model is a complete <code>skewpend.{type(p).__name__}</code> of {p.n} links: the "
+            "base parameters above, with the entries the data do not determine taken from params0. Write it as a run "
+            "file and simulate it like any other model:</p>"
             "<pre><code>skewpend identify ... --out fit.toml\nskewpend simulate --config fit.toml</code></pre>"
             "<p>or, in Python, from the result:</p>"
             "<pre><code>import skewpend\n"
             "r = skewpend.identify(measurements, params0, validation=held_out)\n"
-            "tr = skewpend.simulate(r.params, [phi0, psi0, dphi0, dpsi0], t_end)\n"
+            f"tr = skewpend.simulate(r.params, {start}, t_end)\n"
             "print(r.table())</code></pre>"
             + facts_html([("fitted model", fitted + (f"<br><span class=\"note\">{esc(com)}</span>" if com else "")),
                           ("params0", esc(parameter_text(r.params0)))]))
@@ -411,8 +413,7 @@ def identification_html(result, measurements=None, validation=None) -> str:
                                                         else "") + f": {esc(result.message)}")
     return PAGE.format(
         version=esc(__version__), subtitle=subtitle,
-        title="Identification of a measured " + (f"chain of {result.params0.n} links" if hasattr(result.params0, "links")
-                                                 else "double pendulum"),
+        title="Identification of a measured " + model_name(result.params0),
         css=template("report.css") + EXTRA_CSS, toc=toc, body="\n".join(parts),
         footer=esc(f"Made by skewpend {__version__}. This one file holds its figure and its style: it opens offline "
                    "and fetches nothing."))

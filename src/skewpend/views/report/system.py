@@ -242,7 +242,8 @@ def section_simulation(ctx: Context) -> str:
     from ..frontend import replay_data
 
     p, y0 = ctx.params, ctx.y0
-    chain = hasattr(p, "links")  # a chain of links (its report: views.report.chain): the same calls, q1 … qn
+    coords = p.coordinates  # the double pendulum's phi, psi; a chain's q1 … qn (its report: views.report.chain)
+    sym = [_tex(c) for c in coords]
     dt_out = max(FIGURE_DT, ctx.t_end / FIGURE_MAX_ROWS)
     kw: Dict[str, object] = dict(method=ctx.method, rtol=ctx.rtol, atol=ctx.atol, dt=ctx.dt)
     if ctx.max_steps is not None:
@@ -271,26 +272,27 @@ def section_simulation(ctx: Context) -> str:
         ("status", status),
         ("energy drift", f"{fmt_num(tr.energy_drift, 3)} &nbsp;<span class=\"note\">(largest |E − W − E₀| / max |E| over every row)</span>"),
         ("initial energy E₀", f"{fmt_num(tr.energy[0], 8)} J"),
-        ("final state", _final_state(fin, chain) + f" at t = {fmt_num(tr.t[-1])} s"),
+        ("final state", _final_state(fin, coords) + f" at t = {fmt_num(tr.t[-1])} s"),
         ("steps", f"{st['steps']} accepted, {st.get('rejected', 0)} rejected, {st['nfev']} evaluations of the equations"),
         ("integration time", f"{st['wall_time'] * 1e3:.2f} ms"),
         ("model code", kernel),
     ]))
     ctx.notes["energy_drift"] = f"{tr.energy_drift:.3e}"
     t0 = time.perf_counter()
-    angles = r"$q_1, \dots, q_n$" if chain else r"$\varphi, \psi$"
+    few = len(sym) <= 2  # every angle named in the captions (more: the first, the last, "each joint")
+    angles = f"${', '.join(sym)}$" if few else f"${sym[0]}, \\dots, {sym[-1]}$"
     figs = [
         (F.angles_figure, prose(f"The hinge angles {angles} (unwrapped, degrees) and their speeds against time."),
          "hinge angles and speeds against time"),
         (F.energy_figure, prose(r"Energy error $|E - W - E_0| / \max|E|$ on a log scale; dashed: the reported drift ")
          + fmt_num(tr.energy_drift, 3) + ".", "relative energy error against time"),
-        (F.phase_figure, prose(r"Phase portraits $(q_i, \dot q_i)$ of each joint, angles wrapped to ±180°." if chain else
-                               r"Phase portraits $(\varphi, \dot\varphi)$ and $(\psi, \dot\psi)$, angles wrapped to ±180°."),
+        (F.phase_figure, prose("Phase portraits " + (" and ".join(f"$({x}, \\dot{{{x}}})$" for x in sym) if few else
+                                                     r"$(q_i, \dot q_i)$ of each joint") + ", angles wrapped to ±180°."),
          "phase portraits"),
-        (F.torus_figure, prose((r"The path in the plane of the first two angles $(q_1, q_2)$" if chain else
-                                r"The path in configuration space: $(\varphi, \psi)$")
+        (F.torus_figure, prose((f"The path in configuration space: $({sym[0]}, {sym[1]})$" if few else
+                                f"The path in the plane of the first two angles $({sym[0]}, {sym[1]})$")
                                + " wrapped to ±180°, opposite edges identified (a torus)."), "path on the configuration torus"),
-        (F.tips_figure, prose(("The path of the chain's tip" if chain else "Paths of both rod ends")
+        (F.tips_figure, prose(("Paths of both rod ends" if few else "The path of the chain's tip")
                               + r" in 3D; the pendulum hangs down, $z$ is the first hinge axis $\underline{k}$."),
          "3D paths of the rod ends"),
     ]
@@ -315,22 +317,36 @@ def section_simulation(ctx: Context) -> str:
     return "\n".join(out)
 
 
-def _final_state(fin, chain: bool) -> str:
-    """The final state in words: ``phi, psi`` and their speeds, a chain's ``q1 … qn`` (its speeds left to the figures)."""
-    if chain:
-        n = fin.size // 2
-        return ", ".join(f"q{k + 1} = {fmt_deg(fin[k])}" for k in range(n))
-    return f"φ = {fmt_deg(fin[0])}, ψ = {fmt_deg(fin[1])}, φ̇ = {fmt_num(fin[2], 5)} rad/s, ψ̇ = {fmt_num(fin[3], 5)} rad/s"
+#: The coordinates' symbols the report writes (TeX, text) where the specification names them (the double
+#: pendulum's); any other coordinate ``q<k>`` is written ``q_{k}`` and ``q<k>``.
+TEX = {"phi": r"\varphi", "psi": r"\psi"}
+TEXT = {"phi": "φ", "psi": "ψ"}
+
+
+def _tex(c: str) -> str:
+    stem = c.rstrip("0123456789")
+    return TEX.get(c, f"{stem}_{{{c[len(stem):]}}}" if stem != c else c)
+
+
+def _final_state(fin, coordinates) -> str:
+    """The final state in words: each angle (``φ``, ``ψ``; a chain's ``q1 … qn``), and the speeds of up to two
+    (a longer chain's left to the figures)."""
+    n = len(coordinates)
+    names = [TEXT.get(c, c) for c in coordinates]
+    angles = [f"{name} = {fmt_deg(fin[k])}" for k, name in enumerate(names)]
+    speeds = [f"{name}\u0307 = {fmt_num(fin[n + k], 5)} rad/s" for k, name in enumerate(names)] if n <= 2 else []
+    return ", ".join(angles + speeds)
 
 
 def live_figure(ctx: Context) -> str:
     clip = ctx.clip
-    if hasattr(ctx.params, "links"):
-        what = (f"all {ctx.params.n} rods, their hinge axes (green: the roof's; the others turn with the links above them) "
-                "and the trail of the last rod's tip")
-    else:
+    n = ctx.params.n
+    if n <= 2:  # each rod and axis named
         what = ("both rods, both hinge axes (green: the roof's, yellow: the second, turning with rod 1) and the trail of "
-                "rod 2's tip")
+                "rod 2's tip") if n > 1 else "the rod, its hinge axis (green) and the trail of its tip"
+    else:
+        what = (f"all {n} rods, their hinge axes (green: the roof's; the others turn with the links above them) "
+                "and the trail of the last rod's tip")
     return live_view_html(
         ctx.live,
         f"The first {fmt_num(clip.t[-1])} s of the motion, replayed in real time in 3D from the computed states "
