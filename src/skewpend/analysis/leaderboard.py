@@ -207,10 +207,7 @@ class ProtocolRun:
 
 def model_reach(model) -> float:
     """The sum of the rods' lengths of a model (the double pendulum's ``a + b``)."""
-    from ..symbolic.chain import Chain
-
-    chain = model if isinstance(model, Chain) else Chain.from_parameters(model)
-    return float(sum(link.length for link in chain.links))
+    return float(sum(link.length for link in model.as_chain().links))
 
 
 def tip_heights(kernel, p, x: np.ndarray) -> np.ndarray:

@@ -38,14 +38,13 @@ from typing import Any, Callable, ClassVar, Dict, Optional, Sequence
 import numpy as np
 
 from ..errors import IntegrationError, ParameterError
-from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
+from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_model, numeric_params, tolerances
 from ..interrupts import Interrupts
 from ..numeric.driver import check_step_estimate, drive
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json, netcdf_reader, normal_quantile, protocol_fields, t_quantile
 from ..status import Status
 from ..parsing import initial_state, positive_number
-from ..symbolic.chain import Chain
 from ..symbolic.model import AnyModel
 from ..symbolic.model import Parameters
 
@@ -376,13 +375,10 @@ def lyapunov(
     (:func:`skewpend.simulate` too); with ``throw=True`` it raises
     :class:`~skewpend.errors.IntegrationError` instead.
     """
-    from ..numeric.kernels import chain_kernel, kernel_module, model_vector
+    from ..numeric.kernels import model_kernel, model_vector
 
-    if isinstance(params, Chain):
-        y = initial_state(y0, params.coordinates)
-    else:
-        params = numeric_params(params, "Lyapunov exponents")
-        y = initial_state(y0)
+    params = numeric_model(params, "Lyapunov exponents")
+    y = initial_state(y0, params.coordinates)
     n2 = y.size
     t_end, renorm_every, transient = check_times(t_end, renorm_every, transient)
     if n_exponents is None:
@@ -398,7 +394,7 @@ def lyapunov(
         raise ParameterError("progress must be a callable progress(t, t_end)")
     k = int(n_exponents)
 
-    kernel = chain_kernel(params, chaos=True) if isinstance(params, Chain) else kernel_module(params, chaos=True)
+    kernel = model_kernel(params, chaos=True)
     p = model_vector(params)
     from ..numeric.simulation import check_start
 

@@ -438,14 +438,12 @@ def _solve_starts(solver, starts, bounds, workers, progress, iterations):
 
 
 def _as_chain(model):
-    from ..symbolic.chain import Chain
-    from ..symbolic.model import Parameters
+    from ..checks import numeric_model
 
-    if isinstance(model, Chain):
-        return model
-    if isinstance(model, Parameters):
-        return Chain.from_parameters(model.require_numeric("an optimal swing-up"))
-    raise ParameterError(f"model must be a skewpend.Parameters or a Chain, got {type(model).__name__}")
+    try:
+        return numeric_model(model, "an optimal swing-up").as_chain()
+    except ParameterError as exc:
+        raise ParameterError(str(exc).replace("params must", "model must", 1)) from None
 
 
 def _actuated(actuated, n: int) -> Tuple[int, ...]:

@@ -929,10 +929,15 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool =
         return kernel
 
 
-def model_kernel(model) -> Kernel:
-    """The model library of the double pendulum's :class:`Parameters` (:func:`kernel_module`) or of a
-    chain of links (:func:`chain_kernel`)."""
-    return kernel_module(model) if isinstance(model, Parameters) else chain_kernel(model)
+def model_kernel(model, *, chaos: bool = False, shooting: bool = False) -> Kernel:
+    """The one door to a model's compiled library (the model's own, ``chaos=True``: with the Lyapunov
+    routines and the state-transition flow, ``shooting=True``: identification's): the form of its code
+    is the loader's choice, not the caller's -- today the specification's exact derivation
+    (:func:`kernel_module`) where the model keeps it (the double pendulum's facade), the recursive
+    algorithms (:func:`chain_kernel`) otherwise (issue 52 makes the form an argument of one pipeline)."""
+    if isinstance(model, Parameters):
+        return kernel_module(model, chaos=chaos, shooting=shooting)
+    return chain_kernel(model, chaos=chaos, shooting=shooting)
 
 
 def model_vector_names(model) -> tuple:

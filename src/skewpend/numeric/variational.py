@@ -42,10 +42,9 @@ class FlowIntegrator:
     chain's (:class:`~skewpend.Chain`)."""
 
     def __init__(self, params, *, rtol: float = 1e-11, atol: float = 1e-11, max_steps: int = 10_000_000):
-        from ..symbolic.chain import Chain
-        from .kernels import chain_kernel, kernel_module, model_vector
+        from .kernels import model_kernel, model_vector
 
-        self.kernel = chain_kernel(params, chaos=True) if isinstance(params, Chain) else kernel_module(params, chaos=True)
+        self.kernel = model_kernel(params, chaos=True)
         self.p = model_vector(params)
         self.rtol, self.atol, self.max_steps = float(rtol), float(atol), int(max_steps)
 
