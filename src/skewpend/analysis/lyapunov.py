@@ -375,7 +375,7 @@ def lyapunov(
     (:func:`skewpend.simulate` too); with ``throw=True`` it raises
     :class:`~skewpend.errors.IntegrationError` instead.
     """
-    from ..numeric.kernels import model_kernel, model_vector
+    from ..numeric.kernels import model_kernel, model_vector, model_vector_names
 
     params = numeric_model(params, "Lyapunov exponents")
     y = initial_state(y0, params.coordinates)
@@ -398,7 +398,7 @@ def lyapunov(
     p = model_vector(params)
     from ..numeric.simulation import check_start
 
-    check_start(kernel, p, y)
+    check_start(kernel, p, y, model_vector_names(params))
     state = kernel.LyapState()
     state.k, state.every, state.t0 = k, renorm_every, 0.0
     for i in range(n2):

@@ -266,9 +266,10 @@ def read_trajectory_result(path) -> Trajectory:
     return traj
 
 
-def check_start(kernel, p, y) -> None:
-    """Refuse an initial state ``y`` (4,) whose energy or acceleration is not finite (overflow:
-    huge speeds or parameters) -- before any integration, for every computation from a start."""
+def check_start(kernel, p, y, names) -> None:
+    """Refuse an initial state ``y`` (2 n) whose energy or acceleration is not finite (overflow:
+    huge speeds or parameters) -- before any integration, for every computation from a start; the
+    message names ``p``'s non-zero entries by ``names`` (the model's, ``kernels.model_vector_names``)."""
     # ctypes arrays straight into the C functions (NumPy's wrappers cost more than the calls: this
     # runs once per simulate)
     ns = 2 * kernel.nq + 1
@@ -279,13 +280,7 @@ def check_start(kernel, p, y) -> None:
     kernel.lib.sp_rhs(y5, pp, deriv)
     energy = kernel.lib.sp_energy(y5, pp)
     if not (all(math.isfinite(v) for v in deriv) and math.isfinite(energy)):
-        from .conventions import SCALAR_ORDER as PARAMETER_ORDER  # the scalars (the bodies' entries are not news)
-
-        if kernel.nq != 2:  # a chain: its entries' names
-            from .recursive import parameter_names as chain_names
-
-            PARAMETER_ORDER = chain_names(kernel.nq)
-        values = ", ".join(f"{n} = {v:g}" for n, v in zip(PARAMETER_ORDER, p) if v != 0)
+        values = ", ".join(f"{n} = {v:g}" for n, v in zip(names, p) if v != 0)
         raise ParameterError(
             f"the energy or acceleration at the initial state {np.asarray(y).tolist()} is not finite (overflow) for "
             f"{values}; use parameters and initial speeds of moderate size"
@@ -434,16 +429,15 @@ def _initial_state(y0) -> List[float]:
 
 def _check_start(kernel, entry: _Prepared, y: List[float]) -> None:
     """:func:`check_start` with the prepared parameter pointer (the same test, a few times quicker)."""
-    if kernel.nq != 2:
-        check_start(kernel, entry.p, y)
-        return
-    y5 = (ctypes.c_double * 5)(y[0], y[1], y[2], y[3], 0.0)
-    deriv = (ctypes.c_double * 5)()
+    ns = 2 * kernel.nq + 1
+    y5 = (ctypes.c_double * ns)(*y[:ns - 1], 0.0)
+    deriv = (ctypes.c_double * ns)()
     kernel.lib.sp_rhs(y5, entry.p_ptr, deriv)
     energy = kernel.lib.sp_energy(y5, entry.p_ptr)
-    if not (math.isfinite(energy) and math.isfinite(deriv[0]) and math.isfinite(deriv[1]) and math.isfinite(deriv[2])
-            and math.isfinite(deriv[3]) and math.isfinite(deriv[4])):
-        check_start(kernel, entry.p, y)  # raises, with the message
+    if not (math.isfinite(energy) and all(math.isfinite(v) for v in deriv)):
+        from .kernels import model_vector_names
+
+        check_start(kernel, entry.p, y, model_vector_names(entry.params))  # raises, with the message
 
 
 _KERNELS: Any = None
