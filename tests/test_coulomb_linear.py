@@ -101,7 +101,7 @@ def test_nonlinear_check_refuses_coulomb_friction():
     """Undamped modes by default, but the nonlinear motion has the friction: the check refuses it."""
     from skewpend.analysis.modes import check_nonlinear
 
-    with pytest.raises(ParameterError, match="no Coulomb friction"):
+    with pytest.raises(ParameterError, match="without losses .* but cf1 = 0.05, cf2 = 0.03; set cf1, cf2 to 0"):
         check_nonlinear(FRICTION, 0.1)
 
 

@@ -150,7 +150,7 @@ def test_cli_json_contract():
 def test_cli_sweep_files(tmp_path):
     csv, png = tmp_path / "sweep.csv", tmp_path / "modes.png"
     out = run("modes", "--sweep", "alpha=0:180deg:37", "--out", csv, "--plot", png).stdout
-    assert "2:1  crossed at alpha" in out
+    assert "2:1  w2/w1  crossed at alpha" in out
     rows = np.loadtxt(csv, delimiter=",", skiprows=1)
     assert rows.shape == (37, 11) and np.all(np.isfinite(rows))
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

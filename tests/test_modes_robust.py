@@ -277,7 +277,7 @@ REFUSED = [
     (["--g", "1e308"], "g must be at most 1e+100"),
     (["--g", "1e308", "--format", "json"], "g must be at most 1e+100"),
     (["--sweep", "g=1:1e308:3", "--out", "{csv}", "--plot", "{png}"], "g = 5e+307: g must be at most 1e+100"),
-    (["--c1", "0.1", "--check-nonlinear", "10deg"], "c1 = c2 = 0"),
+    (["--c1", "0.1", "--check-nonlinear", "10deg"], "without losses (the energy T + Pi - tau . q decays otherwise; constant torques are allowed), but c1 = 0.1; set c1 to 0"),
     (["--check-nonlinear", "0"], "between 0 and 180 deg"),
     (["--check-nonlinear", "179deg"], "not an oscillation about the hanging position"),
 ]

@@ -18,17 +18,17 @@ friction is left out of them by default, as non-smooth at rest (``coulomb="exclu
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, ClassVar, Dict, Iterable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .. import checks
 from ..errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
 from ..results import DatasetSpec, ResultProtocol, agree, netcdf_reader, protocol_fields
-from .qep import NotFinite, pair_by_shape, quadratic_eigen
+from .qep import NotFinite
 from ..status import Status
 from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
 from ..schema import CORE_NAMES, DAMPING_NAMES, GEOMETRY_NAMES, LENGTH_NAMES, MASS_NAMES, TORQUE_NAMES, names, unit
@@ -72,9 +72,14 @@ def _geometry(params: Parameters) -> Parameters:
     )
 
 
-def _describe(params: Parameters) -> str:
-    names = [n for n in CORE_NAMES + DAMPING_NAMES if n != "alpha" or params.uses_alpha]
-    return ", ".join(f"{n} = {getattr(params, n):g}" for n in names if isinstance(getattr(params, n), float))
+def _describe(model) -> str:
+    """The model's values in its own names: the facade's scalars where it answers them, else its links'."""
+    shown = [(n, getattr(model, n, None)) for n in CORE_NAMES + DAMPING_NAMES if n != "alpha" or getattr(model, "uses_alpha", False)]
+    if all(v is not None for _, v in shown):
+        return ", ".join(f"{n} = {v:g}" for n, v in shown if isinstance(v, float))
+    links = model.as_chain().links
+    return ", ".join(f"{what} = ({', '.join(f'{getattr(link, key):g}' for link in links)})"
+                     for what, key in (("lengths", "length"), ("masses", "mass"), ("damping", "damping"))) + f", g = {model.g:g}"
 
 
 def _not_finite_message(exc: "NotFinite", params: Parameters) -> str:
@@ -92,24 +97,35 @@ def _require_finite(**arrays: np.ndarray) -> None:
             raise NotFinite(f"{name} {'are' if plural else 'is'} not finite (overflow)")
 
 
-def _matrices(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _matrices(params, coulomb: str = DEFAULT_COULOMB) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(M0, C0, K0)`` about ``q = 0`` from the cheapest printer the model provides (a strategy by what it
+    provides, as :mod:`~skewpend.analysis.equilibria` picks): the exact derivation where the model keeps its
+    bodies' geometry apart from its scalars (one generated function, cached on disk, serves every value), else
+    the recursive algorithms' exact derivatives (CasADi; a chain's values are numeric data)."""
     params.require_numeric("normal modes")
-    if params.tau1 or params.tau2:
-        raise EquilibriumError(
-            "phi = psi = 0 is not an equilibrium with constant joint torques; normal modes need tau1 = tau2 = 0"
-        )
-    f = _matrix_function(_geometry(params))
-    # Coulomb friction enters C0 only (its slope cfs cf); excluded, it is evaluated at cf = 0
-    left_out = () if coulomb == "smoothed" else names(stem="cf")
-    values = [
-        np.float64(0.0 if (n == "alpha" and not params.uses_alpha) or n in left_out else float(getattr(params, n)))
-        for n in SCALAR_NAMES
-    ]
-    with np.errstate(all="ignore"):
-        try:
-            M, C, K = (np.array(x, dtype=float) for x in f(*values))
-        except (OverflowError, ZeroDivisionError, FloatingPointError):
-            raise NotFinite("the linear matrices M0, C0, K0 are not finite (overflow)") from None
+    try:
+        geometry = _geometry(params)
+    except AttributeError:  # no symbolic form: the recursive algorithms
+        from ..numeric.recursive import linear_matrices as recursive_matrices
+
+        with np.errstate(all="ignore"):
+            M, C, K = recursive_matrices(params.as_chain(), coulomb)
+    else:
+        if any(getattr(params, n) for n in TORQUE_NAMES):
+            raise EquilibriumError(f"{' = '.join(params.coordinates)} = 0 is not an equilibrium with constant joint "
+                                   f"torques; normal modes need {' = '.join(TORQUE_NAMES)} = 0")
+        f = _matrix_function(geometry)
+        # Coulomb friction enters C0 only (its slope cfs cf); excluded, it is evaluated at cf = 0
+        left_out = () if coulomb == "smoothed" else names(stem="cf")
+        values = [
+            np.float64(0.0 if (n == "alpha" and not params.uses_alpha) or n in left_out else float(getattr(params, n)))
+            for n in SCALAR_NAMES
+        ]
+        with np.errstate(all="ignore"):
+            try:
+                M, C, K = (np.array(x, dtype=float) for x in f(*values))
+            except (OverflowError, ZeroDivisionError, FloatingPointError):
+                raise NotFinite("the linear matrices M0, C0, K0 are not finite (overflow)") from None
     _require_finite(M0=M, C0=C, K0=K)
     tiny = np.finfo(float).tiny
     for name, X in (("M0", M), ("K0", K), ("C0", C)):
@@ -119,7 +135,7 @@ def _matrices(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Tuple[np.nd
 
 
 def linear_matrices(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Numeric ``(M0, C0, K0)`` (2x2 each, SI units) of the linearisation about ``q = 0``
+    """Numeric ``(M0, C0, K0)`` (n x n each, SI units) of the linearisation about ``q = 0``
     (Coulomb friction in ``C0`` only with ``coulomb="smoothed"``, see :func:`normal_modes`).
 
     Raises :class:`~skewpend.errors.ParameterError` when they are not finite (overflow).
@@ -136,18 +152,21 @@ def linear_matrices(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Tuple
 class Modes(ResultProtocol):
     """Normal modes of the small oscillations about an equilibrium (the hanging one by default).
 
-    * ``frequencies`` -- natural (undamped) angular frequencies ``w_k`` [rad/s], ascending, (2,);
-    * ``periods`` -- ``2 pi / w_k`` [s], (2,);
-    * ``shapes`` -- mode shapes as columns ``[phi, psi]`` normalised so ``v_k^T M0 v_k = 1``
-      (sign: the larger component positive), (2, 2);
-    * ``ratios`` -- amplitude ratio ``psi/phi`` of each mode (``inf`` when phi does not move);
+    (``n`` modes of a model with ``n`` coordinates, ``model.coordinates``: ``phi, psi`` for the double pendulum)
+
+    * ``frequencies`` -- natural (undamped) angular frequencies ``w_k`` [rad/s], ascending, (n,);
+    * ``periods`` -- ``2 pi / w_k`` [s], (n,);
+    * ``shapes`` -- mode shapes as columns over the coordinates normalised so ``v_k^T M0 v_k = 1``
+      (sign: the larger component positive), (n, n);
+    * ``ratios`` -- amplitude ratio of the last coordinate over the first of each mode (``psi/phi``;
+      ``inf`` when the first does not move);
     * ``beat_period`` -- ``2 pi / (w2 - w1)`` [s] (``inf`` at a 1:1 resonance);
-    * ``eigenvalue_pairs`` -- (2, 2) complex: the two state-space eigenvalues of each mode,
-      row k for undamped mode k.  The four eigenvalues of ``l^2 M0 + l C0 + K0`` are given to
+    * ``eigenvalue_pairs`` -- (n, 2) complex: the two state-space eigenvalues of each mode,
+      row k for undamped mode k.  The 2n eigenvalues of ``l^2 M0 + l C0 + K0`` are given to
       the undamped modes by their *shapes*: the displacement part ``x`` of each eigenvector is
       compared with the undamped shapes by the M0-weighted similarity
       ``|v_k^T M0 x| / sqrt(x^H M0 x)`` (1 = same shape), and the split of the four
-      eigenvalues into two pairs (complex conjugates stay together) with the largest total
+      eigenvalues into n pairs (complex conjugates stay together) with the largest total
       similarity is taken.  An underdamped mode has a conjugate pair (positive imaginary part
       first), an overdamped mode two negative real eigenvalues (the slower first);
     * ``eigenvalues`` -- one per mode: the first of its pair (undamped: ``i w_k``);
@@ -163,7 +182,7 @@ class Modes(ResultProtocol):
       as it is non-smooth at rest; ``"smoothed"``: its smoothed slope ``cfs cf``);
       ``coulomb_note`` says it in one line ('' without Coulomb friction), and ``message`` and
       ``summary()`` include it;
-    * ``equilibrium`` -- ``(phi, psi)`` [rad] the modes are about; ``growth_rates`` [1/s] --
+    * ``equilibrium`` -- the coordinates [rad] the modes are about; ``growth_rates`` [1/s] --
       0 for an oscillating mode; about an unstable equilibrium (``normal_modes(params,
       about=...)``) a mode along which a disturbance grows like ``exp(s t)`` has growth rate
       ``s > 0``, frequency 0 and period ``inf`` (its eigenvalue pair is real, ``+s`` first) --
@@ -196,12 +215,6 @@ class Modes(ResultProtocol):
     @property
     def coulomb_note(self) -> str:
         """How the Coulomb friction was treated, one line ('' for a model without it)."""
-        if not isinstance(self.params, Parameters):  # a chain: its links' Coulomb friction, by link
-            if not self.params.has_friction:
-                return ""
-            return ("Coulomb friction " + ("linearised by its smoothed slope cfs cf (viscous damping added to C)"
-                                           if self.coulomb == "smoothed" else
-                                           "excluded from the linearisation (non-smooth at rest)"))
         return coulomb_note(self.params, self.coulomb)
 
     @property
@@ -209,14 +222,14 @@ class Modes(ResultProtocol):
         if not any(self.equilibrium):
             text = "the modes of the linearised equations about the hanging equilibrium"
         else:
-            text = (f"the modes of the linearised equations about the equilibrium phi = {self.equilibrium[0]:.6g}, "
-                    f"psi = {self.equilibrium[1]:.6g} rad")
+            text = ("the modes of the linearised equations about the equilibrium "
+                    + ", ".join(f"{c} = {x:.6g}" for c, x in zip(self.params.coordinates, self.equilibrium)) + " rad")
         note = self.coulomb_note
         return f"{text}; {note}" if note else text
 
     @property
     def unstable(self) -> np.ndarray:
-        """(2,) bool: the mode grows (a saddle direction of the potential)."""
+        """(n,) bool: the mode grows (a saddle direction of the potential)."""
         return self.growth_rates > 0
 
     @property
@@ -229,7 +242,7 @@ class Modes(ResultProtocol):
     @property
     def settings(self) -> Dict:
         settings: Dict = {"equilibrium": [float(x) for x in self.equilibrium]}
-        if isinstance(self.params, Parameters) and friction_terms(self.params):  # only where it matters (a model without friction keeps its fingerprint)
+        if friction_terms(self.params):  # only where it matters (a model without friction keeps its fingerprint)
             settings["coulomb"] = self.coulomb
         return settings
 
@@ -243,7 +256,7 @@ class Modes(ResultProtocol):
             variables={
                 "frequency": (("mode",), self.frequencies, {"units": "rad/s", "long_name": "natural angular frequency"}),
                 "period": (("mode",), self.periods, {"units": "s"}),
-                "shape": (("coordinate", "mode"), self.shapes, {"long_name": "mode shape, v^T M0 v = 1; rows phi, psi"}),
+                "shape": (("coordinate", "mode"), self.shapes, {"long_name": "mode shape, v^T M0 v = 1; rows " + ", ".join(self.params.coordinates)}),
                 "damping_ratio": (("mode",), self.damping_ratios, {"units": "1"}),
                 "damped_frequency": (("mode",), self.damped_frequencies, {"units": "rad/s"}),
                 "eigenvalue_real": (("mode", "pair"), pairs.real, {"units": "1/s"}),
@@ -254,7 +267,7 @@ class Modes(ResultProtocol):
                 "growth_rate": (("mode",), self.growth_rates, {"units": "1/s", "long_name": "growth rate (0: oscillating)"}),
             },
             coords={"mode": (("mode",), np.arange(1, len(self.frequencies) + 1), {})},
-            attrs={"title": "normal modes of the skewed double pendulum (skewpend)", **self._base_attrs()},
+            attrs={"title": "normal modes (skewpend)", **self._base_attrs()},
         )
 
     @property
@@ -263,7 +276,7 @@ class Modes(ResultProtocol):
 
     @property
     def overdamped(self) -> np.ndarray:
-        """(2,) bool: the mode's two eigenvalues are real (no oscillation)."""
+        """(n,) bool: the mode's two eigenvalues are real (no oscillation)."""
         return self.damped & (self.eigenvalue_pairs[:, 0].imag == 0)
 
     def modal_coordinates(self, q: np.ndarray) -> np.ndarray:
@@ -274,7 +287,7 @@ class Modes(ResultProtocol):
         """Modal amplitudes and phases of a small initial state (undamped linear solution).
 
         ``q(t) = sum_k v_k A_k cos(w_k t - delta_k)``; returns ``amplitude`` (A_k) and
-        ``phase`` (delta_k) [rad], each (2,).  About an unstable equilibrium there is no such
+        ``phase`` (delta_k) [rad], each (n,).  About an unstable equilibrium there is no such
         form (a growing mode has no phase): refused.
         """
         if np.any(self.unstable):
@@ -307,9 +320,9 @@ class Modes(ResultProtocol):
             "frequencies": self.frequencies.tolist(),
             "periods": self.periods.tolist(),
             "mode_shapes": self.shapes.T.tolist(),
-            "amplitude_ratios_psi_over_phi": [None if not np.isfinite(r) else float(r) for r in self.ratios],
+            f"amplitude_ratios_{self.params.coordinates[-1]}_over_{self.params.coordinates[0]}": [None if not np.isfinite(r) else float(r) for r in self.ratios],
             "beat_period": None if not np.isfinite(self.beat_period) else float(self.beat_period),
-            "frequency_ratio": float(self.frequencies[1] / self.frequencies[0]) if self.frequencies[0] > 0 else None,
+            "frequency_ratio": float(self.frequencies[1] / self.frequencies[0]) if len(self.frequencies) > 1 and self.frequencies[0] > 0 else None,
             "M0": self.M.tolist(),
             "K0": self.K.tolist(),
             "equilibrium": [float(x) for x in self.equilibrium],
@@ -337,13 +350,15 @@ def read_normal_modes(path, variables, attrs) -> Modes:
     returned as stored."""
     import dataclasses
 
-    proto = protocol_fields(path, attrs, Parameters)
+    from ..symbolic.model import AnyModel
+
+    proto = protocol_fields(path, attrs, AnyModel)
     params = proto["params"]
-    eq = tuple(float(x) for x in proto["settings"].get("equilibrium", (0.0, 0.0)))
+    eq = tuple(float(x) for x in proto["settings"].get("equilibrium", [0.0] * params.n))
     coulomb = proto["settings"].get("coulomb", "smoothed")  # recorded since the default is "exclude"; before: smoothed
     pairs = np.asarray(variables["eigenvalue_real"], dtype=float) + 1j * np.asarray(variables["eigenvalue_imag"], dtype=float)
     try:
-        if eq == (0.0, 0.0):
+        if not any(eq):
             try:
                 rebuilt = normal_modes(params, coulomb=coulomb)
             except EquilibriumError:
@@ -400,15 +415,7 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
         if np.any(np.isnan(ratios)) or np.isnan(beat):
             raise NotFinite("the amplitude ratios are not numbers")
         if np.any(C != 0):
-            if n == 2:
-                try:
-                    ev, X = quadratic_eigen(M, C, K, stable=equilibrium is None or bool(lam[0] > 0))
-                except (np.linalg.LinAlgError, ValueError):
-                    raise NotFinite("the state-space eigenvalues are not finite (overflow)") from None
-                _require_finite(**{"the state-space eigenvalues": ev, "the state-space eigenvectors": X})
-                pairs = pair_by_shape(ev, X, M, V)
-            else:
-                pairs = pairs_of_chain(M, C, K, V)
+            pairs = pairs_of_chain(M, C, K, V)
             eig = pairs[:, 0]
             damped_w = np.abs(eig.imag)
             prod = (pairs[:, 0] * pairs[:, 1]).real
@@ -464,34 +471,163 @@ def _modes(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Modes:
     return _modes_from_matrices(M, C, K, params, coulomb=coulomb)
 
 
-def pairs_of_chain(M: np.ndarray, C: np.ndarray, K: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """The 2 n state-space eigenvalues of ``l^2 M + l C + K`` (the state matrix's, SciPy's ``eig``) as a pair
-    per undamped mode (rows, the modes of ``V``): each eigenvalue's displacement part is compared with the
-    undamped shapes by the M-weighted similarity of :func:`~skewpend.analysis.qep.pair_by_shape`, and the
-    most similar (eigenvalue, mode) are matched first -- a conjugate pair fills a mode, a real eigenvalue
-    half of one (an overdamped mode has two)."""
-    from scipy.linalg import eig
+def _scaled(z: complex, M: np.ndarray, C: np.ndarray, K: np.ndarray):
+    """``Q(z) = z^2 M + z C + K`` and ``dQ/dz``, both divided by ``z^2`` when ``|z| > 1`` (nothing overflows);
+    with the power of ``z`` taken out (0 or 2)."""
+    if abs(z) > 1:
+        w = 1.0 / z
+        return M + w * C + (w * w) * K, -(w * w) * C - (2 * w ** 3) * K, 2
+    return (z * z) * M + z * C + K, (2 * z) * M + C, 0
+
+
+def _polish(z0: complex, M: np.ndarray, C: np.ndarray, K: np.ndarray, known: Sequence[complex] = ()) -> Tuple[complex, bool]:
+    """Newton's method on ``det Q(z) = 0`` from ``z0`` (``det Q / (det Q)' = 1 / tr(Q^-1 Q')``; a real start
+    stays real), the roots ``known`` deflated (Maehly: ``det Q / prod (z - r)``): the root and whether the steps
+    converged to machine precision."""
+    n = M.shape[0]
+    z = complex(z0.real, 0.0) if z0.imag == 0 else complex(z0)
+    eps, last = np.finfo(float).eps, np.inf
+    for _ in range(40):
+        Q, dQ, p = _scaled(z, M, C, K)
+        try:
+            t = np.trace(np.linalg.solve(Q, dQ))
+        except np.linalg.LinAlgError:  # Q singular: z is a root to the last bit
+            return z, True
+        try:
+            step = 1.0 / (t + p * n / z - sum(1.0 / (z - r) for r in known))
+        except ZeroDivisionError:  # at 0 or on a root already known
+            return z, False
+        if not np.isfinite(step):
+            return z, False
+        if z0.imag == 0:
+            step = complex(step.real, 0.0)
+        z -= step
+        # converged: a step at machine precision, or steps that stopped shrinking at the rounding level
+        if abs(step) <= 4 * eps * abs(z) or (abs(step) <= 64 * eps * abs(z) and abs(step) > 0.5 * last):
+            return z, True
+        last = abs(step)
+    return z, False
+
+
+def _state_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray, V: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """The ``2 n`` roots of ``det(l^2 M + l C + K) = 0`` (the state matrix's eigenvalues) and the displacement
+    parts ``x`` (n, 2n) of their eigenvectors ``[x; l x]`` (unit length; a zero column where ``Q(l) ~ 0``, a
+    double eigenvalue shared by two shapes), for any ``n``.
+
+    Starting values are the eigenvalues of the state matrix, the reciprocals of those of the reversed
+    problem ``K m^2 + C m + M`` (accurate for the large and for the small roots) and each undamped mode ``v``'s
+    one-degree-of-freedom roots ``l^2 + (v^T C v) l + v^T K v = 0`` (a lightly damped mode beside an almost
+    locked hinge, which the state matrix loses); each is polished by Newton's
+    method on ``det Q`` (scaled by ``1/l^2`` for ``|l| > 1``), so the roots keep full relative accuracy when the
+    damping spans many orders of magnitude (the slow creep ``~ k/c`` and fast decay ``~ c/m`` of heavy
+    damping).  Near a double root Newton does not converge and the state matrix's eigenvalues are used."""
+    from scipy.linalg import eigvals
 
     n = M.shape[0]
-    Minv = np.linalg.inv(M)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ C]])
-    lam, Z = eig(A)
-    if not np.all(np.isfinite(lam)):
-        raise NotFinite("the state-space eigenvalues are not finite (overflow)")
-    X = Z[:n]
+
+    def companion(A, B, D):  # the state matrix of A l^2 + B l + D
+        Ainv = np.linalg.inv(A)
+        return np.block([[np.zeros((n, n)), np.eye(n)], [-Ainv @ D, -Ainv @ B]])
+
+    with np.errstate(all="ignore"):
+        try:
+            big = eigvals(companion(M, C, K)).astype(complex)
+            small = 1.0 / eigvals(companion(K, C, M)).astype(complex)
+            c, k = np.einsum("ik,ij,jk->k", V, C, V), np.einsum("ik,ij,jk->k", V, K, V)
+            far = (-c - np.sqrt((c * c - 4 * k).astype(complex))) / 2  # the larger root; the other k / far
+            modal = np.concatenate([far, k / np.where(far == 0, 1, far)])
+        except (np.linalg.LinAlgError, ValueError):
+            raise NotFinite("the state-space eigenvalues are not finite (overflow)") from None
+        roots: List[complex] = []  # one of each conjugate pair, imaginary part >= 0
+
+        def found() -> int:
+            return len(roots) + sum(z.imag != 0 for z in roots)
+
+        def near(z: complex, tol: float) -> bool:
+            return any(abs(complex(z.real, abs(z.imag)) - r) <= tol * abs(r) for r in roots)
+
+        def polish(z0: complex, known: Sequence[complex] = ()) -> None:
+            z, converged = _polish(z0, M, C, K, known)
+            if converged and np.isfinite(z):
+                z = complex(z.real, 0.0) if abs(z.imag) <= 1e-14 * abs(z) else complex(z.real, abs(z.imag))
+                if not near(z, 1e-10):
+                    roots.append(z)
+
+        for z0 in np.concatenate([big, small, modal]):
+            if found() >= 2 * n:
+                break
+            if np.isfinite(z0) and z0 != 0 and z0.imag >= 0 and not near(z0, 1e-8):
+                polish(complex(z0))
+        # a root no start led to (a lightly damped mode beside an almost locked hinge): Newton with the roots
+        # found deflated, from each undamped frequency on the imaginary axis
+        for z0 in 1j * np.sqrt(np.abs(k)) + 1e-3 * np.sqrt(np.abs(k)):
+            if found() >= 2 * n:
+                break
+            polish(complex(z0), roots + [np.conj(r) for r in roots if r.imag != 0])
+        lam = np.array(roots + [np.conj(z) for z in roots if z.imag != 0])
+        if lam.size != 2 * n:  # a (near) double root: Newton converges slowly there
+            lam = big
+        if lam.size != 2 * n or not np.all(np.isfinite(lam)) or np.any(lam == 0):
+            raise NotFinite("the state-space eigenvalues are not finite (overflow)")
+        X = np.zeros((n, lam.size), complex)
+        nM, nC, nK = (np.abs(A).max() for A in (M, C, K))
+        for k, z in enumerate(lam):
+            Q, _, p = _scaled(z, M, C, K)
+            _, sv, Vh = np.linalg.svd(Q)
+            scale = nM + nC / abs(z) + nK / abs(z) ** 2 if p else abs(z) ** 2 * nM + abs(z) * nC + nK
+            if sv.size < 2 or sv[-2] > 1e-10 * scale:
+                X[:, k] = Vh[-1].conj()
+    return lam, X
+
+
+def pairs_of_chain(M: np.ndarray, C: np.ndarray, K: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """The ``2 n`` state-space eigenvalues of ``l^2 M + l C + K`` (:func:`_state_eigen`) as a pair per undamped
+    mode (rows, the modes of ``V``, any ``n``): each eigenvalue's displacement part ``x`` is compared with the
+    undamped shapes by the M-weighted similarity ``|v_k^T M x| / sqrt(x^H M x)`` (1 = same shape; 1/2 for an
+    eigenvalue without a shape), and the split into pairs (complex conjugates together, a conjugate pair or two
+    real eigenvalues a mode) with the largest total similarity is taken.  An underdamped mode has a conjugate
+    pair (positive imaginary part first), an overdamped mode two negative real eigenvalues (the slower first)."""
+    from scipy.optimize import linear_sum_assignment
+
+    n = M.shape[0]
+    lam, X = _state_eigen(M, C, K, V)
+    _require_finite(**{"the state-space eigenvalues": lam, "the state-space eigenvectors": X})
     norm = np.sqrt(np.abs(np.einsum("ij,ik,kj->j", X.conj(), M, X).real))
     S = np.where(norm > 0, np.abs(V.T @ M @ X) / np.where(norm > 0, norm, 1.0), 0.5)
-    units = [j for j in range(2 * n) if lam[j].imag > 0 or lam[j].imag == 0]
-    need = {j: (2 if lam[j].imag > 0 else 1) for j in units}
-    room = [2] * n
+    complex_ = [j for j in range(2 * n) if lam[j].imag > 0]
+    real = [j for j in range(2 * n) if lam[j].imag == 0]
+    if len(real) % 2 or len(complex_) + len(real) // 2 != n:
+        raise NotFinite("the state-space eigenvalues do not form conjugate or real pairs (numerical failure)")
+    best = -np.inf
     chosen: List[List[complex]] = [[] for _ in range(n)]
-    for score, j, k in sorted(((-S[k, j], j, k) for j in units for k in range(n))):
-        if need[j] and room[k] >= need[j]:
-            z = lam[j]
-            chosen[k] += [complex(z.real, abs(z.imag)), complex(z.real, -abs(z.imag))] if need[j] == 2 else [complex(z.real, 0.0)]
-            room[k] -= need[j]
-            need[j] = 0
-    if any(r for r in room) or any(need.values()):
+    # the split with the largest total similarity: the overdamped modes (two real eigenvalues each) chosen
+    # among all, the conjugate pairs and the real eigenvalues then given to their modes by linear assignment
+    # (beyond a few thousand choices -- many overdamped modes of a long chain -- the modes most like the real
+    # eigenvectors: one choice)
+    q = len(real) // 2
+    choices: Iterable[Tuple[int, ...]] = itertools.combinations(range(n), q)
+    if math.comb(n, q) > 4096:
+        lean = (np.sort(S[:, real], axis=1)[:, -2:].sum(axis=1) - 2 * S[:, complex_].max(axis=1, initial=0.0))
+        choices = [tuple(sorted(np.argsort(-lean)[:q].tolist()))]
+    for over in choices:
+        rest = [k for k in range(n) if k not in over]
+        score = 0.0
+        picks: List[List[complex]] = [[] for _ in range(n)]
+        if complex_:
+            rows, cols = linear_sum_assignment(-2 * S[np.ix_(rest, complex_)])
+            score += 2 * S[np.ix_(rest, complex_)][rows, cols].sum()
+            for r, c in zip(rows, cols):
+                z = lam[complex_[c]]
+                picks[rest[r]] = [complex(z.real, abs(z.imag)), complex(z.real, -abs(z.imag))]
+        if real:
+            slots = [k for k in over for _ in range(2)]
+            rows, cols = linear_sum_assignment(-S[np.ix_(slots, real)])
+            score += S[np.ix_(slots, real)][rows, cols].sum()
+            for r, c in zip(rows, cols):
+                picks[slots[r]].append(complex(lam[real[c]].real, 0.0))
+        if score > best:
+            best, chosen = score, picks
+    if any(len(z) != 2 for z in chosen):
         raise NotFinite("the state-space eigenvalues do not form conjugate or real pairs (numerical failure)")
     pairs = np.empty((n, 2), complex)
     for k, z in enumerate(chosen):
@@ -501,15 +637,8 @@ def pairs_of_chain(M: np.ndarray, C: np.ndarray, K: np.ndarray, V: np.ndarray) -
 
 
 def chain_modes(chain, coulomb: str = DEFAULT_COULOMB) -> Modes:
-    """The normal modes of a chain of links about its hanging rest (``n`` modes; the linear matrices from
-    the chain's recursive algorithms, :func:`skewpend.numeric.recursive.linear_matrices`)."""
-    from ..numeric.recursive import linear_matrices as chain_matrices
-
-    M, C, K = chain_matrices(chain, coulomb)
-    try:
-        return _modes_from_matrices(M, C, K, chain, coulomb=coulomb)
-    except NotFinite as exc:
-        raise ParameterError(f"normal modes of this chain: {exc.reason}") from None
+    """The normal modes of a chain of links about its hanging rest: :func:`normal_modes` (kept as a name)."""
+    return normal_modes(chain, coulomb=coulomb)
 
 
 def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB) -> Modes:
@@ -540,23 +669,7 @@ def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB)
     >>> [round(float(w) ** 2, 6) for w in modes.frequencies]
     [0.732213, 5.267787]
     """
-    from ..symbolic.chain import Chain
-
-    if isinstance(params, Chain):
-        if about is None:
-            return chain_modes(params, check_coulomb(coulomb))
-        from .equilibria import Equilibrium, equilibria
-
-        if isinstance(about, str):
-            about = equilibria(params, coulomb=check_coulomb(coulomb)).find(about)
-        if not isinstance(about, Equilibrium) or len(about.q) != params.n:
-            raise ParameterError(f"about: a chain's modes are about one of its equilibria (an Equilibrium of "
-                                 f"skewpend.equilibria(chain), or its label such as 'up-down-down'), got {about!r}")
-        try:
-            return _modes_from_matrices(about.M, about.C, about.K, params, equilibrium=about.q, coulomb=coulomb)
-        except NotFinite as exc:
-            raise ParameterError(f"normal modes of this chain: {exc.reason}") from None
-    if not isinstance(params, Parameters):  # one line, not an AttributeError (issue 29, item 8)
+    if not hasattr(params, "as_chain"):  # one line, not an AttributeError (issue 29, item 8)
         raise ParameterError(f"params must be a skewpend.Parameters or a Chain, got {type(params).__name__}")
     coulomb = check_coulomb(coulomb)
     if about is not None:
@@ -605,47 +718,72 @@ SWEPT_PARAMETER = {ratio: ratio.split("/")[0] for ratio in _RATIOS}
 _UNITS = {**{n: unit(n).replace("²", "^2") for n in SWEEPABLE if n not in _RATIOS}, **{r: "1" for r in _RATIOS}}
 
 
-def parse_sweep(spec: str) -> Tuple[str, np.ndarray]:
-    """``"alpha=0:180deg:181"`` -> ``("alpha", values in radians)``; ``"b/a=0.2:5:100"``.
+def _link_name(name: str, n: int) -> Optional[Tuple[str, int]]:
+    """``"tilt2"`` -> ``("tilt", 2)`` for a link's field of :data:`CHAIN_SWEEPABLE` and a link from 1 to ``n``."""
+    stem, index = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
+    return (stem, int(index)) if stem in CHAIN_SWEEPABLE and index and 1 <= int(index) <= n else None
+
+
+def _facade_names(model) -> Tuple[str, ...]:
+    """The names of :data:`SWEEPABLE` the model answers (the double pendulum's facade: all; a chain: none)."""
+    return SWEEPABLE if all(hasattr(model, n) for n in SWEEPABLE if "/" not in n) else ()
+
+
+def _refuse(name: str, model, prefix: str = "") -> ParameterError:
+    n = model.n
+    facade = _facade_names(model)
+    return ParameterError(f"{prefix}cannot sweep {name!r} of a chain of {n} links; allowed: "
+                          + (", ".join(facade) + ", or " if facade else "")
+                          + f"a link's {', '.join(CHAIN_SWEEPABLE)} and its number 1 to {n} (mass{n}, tilt2)")
+
+
+def parse_sweep(spec: str, model=None) -> Tuple[str, np.ndarray]:
+    """``"alpha=0:180deg:181"`` -> ``("alpha", values in radians)``; ``"b/a=0.2:5:100"``; a link's
+    ``"tilt2=0:90deg:31"`` or ``"mass3=0.1:2:20"`` (``model``: the model swept, default the double pendulum;
+    see :func:`sweep`).
 
     The range follows :func:`skewpend.parsing.parse_range`: a unit on either end (or both)
-    applies to the whole range, plain numbers are radians for alpha, mixed units are refused.
+    applies to the whole range, plain numbers are radians for alpha and a tilt, mixed units are refused.
     """
     from ..parsing import parse_range
 
+    model = Parameters() if model is None else model
     if not isinstance(spec, str) or "=" not in spec:
-        raise ParameterError(f"--sweep: expected NAME=START:STOP:COUNT (e.g. alpha=0:180deg:181), got {spec!r}")
+        raise ParameterError(f"--sweep: expected NAME=START:STOP:COUNT (e.g. alpha=0:180deg:181 or tilt2=0:90deg:31), "
+                             f"got {spec!r}")
     name, rng = (x.strip() for x in spec.split("=", 1))
-    if name not in SWEEPABLE:
-        raise ParameterError(f"--sweep: cannot sweep {name!r}; allowed: {', '.join(SWEEPABLE)}")
-    return name, parse_range(rng, f"--sweep {name}", angle=name == "alpha")
+    if name not in _facade_names(model) and _link_name(name, model.n) is None:
+        raise _refuse(name, model, "--sweep: ")
+    return name, parse_range(rng, f"--sweep {name}", angle=name == "alpha" or name.startswith("tilt"))
 
 
 def parse_chain_sweep(spec: str, n: int) -> Tuple[str, np.ndarray]:
-    """A chain's ``"tilt2=0:90deg:31"`` or ``"mass3=0.1:2:20"`` -> ``(name, values)`` (tilt in radians;
-    :data:`CHAIN_SWEEPABLE` and a link's number, 1 to ``n``)."""
-    from ..parsing import parse_range
+    """A chain's ``"tilt2=0:90deg:31"``: :func:`parse_sweep` for a chain of ``n`` links."""
+    from ..symbolic.chain import Chain
 
-    if not isinstance(spec, str) or "=" not in spec:
-        raise ParameterError(f"--sweep: expected NAME=START:STOP:COUNT (e.g. tilt2=0:90deg:31), got {spec!r}")
-    name, rng = (x.strip() for x in spec.split("=", 1))
-    stem, index = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
-    if stem not in CHAIN_SWEEPABLE or not index or not 1 <= int(index) <= n:
-        raise ParameterError(f"--sweep: cannot sweep {name!r} of a chain of {n} links; allowed: a link's "
-                             f"{', '.join(CHAIN_SWEEPABLE)} and its number 1 to {n} (mass3, tilt2)")
-    return name, parse_range(rng, f"--sweep {name}", angle=stem == "tilt")
+    return parse_sweep(spec, Chain.from_lists(n))
 
 
-def _with_value(params: Parameters, name: str, value: float, base: Parameters) -> Parameters:
-    if name == "b/a":
-        return params.replace(b=value * float(base.a))  # type: ignore[arg-type]  # numeric: a sweep checks it
-    if name == "m2/m1":
-        return params.replace(m2=value * float(base.m1))  # type: ignore[arg-type]
-    return params.replace(**{name: value})
+def _changer(model, name: str) -> Callable[[float], Any]:
+    """``value -> the model with name set to it``: a facade name by the model's own ``replace`` (a ratio scales
+    its numerator), a link's field or tilt on its chain; anything else refused in one line."""
+    if name in _facade_names(model):
+        if "/" in name:
+            top, bottom = name.split("/")
+            return lambda v: model.replace(**{top: v * float(getattr(model, bottom))})
+        return lambda v: model.replace(**{name: v})
+    link = _link_name(name, model.n)
+    if link is None:
+        raise _refuse(name, model)
+    stem, i = link
+    chain = model.as_chain()
+    if stem == "tilt":
+        return lambda v: chain.replace_link(i, axis=(math.sin(v), 0.0, math.cos(v)))
+    return lambda v: chain.replace_link(i, **{stem: float(v)})
 
 
 def _show(name: str, value: float) -> str:
-    if name == "alpha":
+    if name == "alpha" or name.startswith("tilt"):
         return f"{value:.6g} rad ({math.degrees(value):.6g} deg)"
     return f"{value:.6g}"
 
@@ -664,9 +802,10 @@ class Resonance:
 
 @dataclass(frozen=True)
 class Sweep(ResultProtocol):
-    """Modes along a swept variable: ``values`` (n,) in SI units (radians for alpha),
-    ``frequencies`` (n, 2) [rad/s], ``shapes`` (n, 2, 2) (columns = modes), ``ratios`` (n, 2)
-    psi/phi, ``resonances``; the result protocol as for :class:`Modes`.  :meth:`columns` gives
+    """Modes along a swept variable: ``values`` (m,) in SI units (radians for an angle),
+    ``frequencies`` (m, n) [rad/s], ``shapes`` (m, n, n) (columns = modes), ``ratios`` (m, n)
+    last coordinate over the first (psi/phi), ``resonances`` of neighbouring modes; the result protocol as for
+    :class:`Modes`.  :meth:`columns` gives
     the CSV columns and rows, :meth:`table` a text table (as every result's ``table()``)."""
 
     name: str
@@ -707,68 +846,47 @@ class Sweep(ResultProtocol):
         return self.name == "alpha" or self.name.startswith("tilt")
 
     def table(self) -> str:
-        """A text table: the swept value, both frequencies and their ratio (a chain's: every
-        frequency and the ratios of neighbours)."""
+        """A text table: the swept value, every frequency and the ratios of neighbouring modes (the double
+        pendulum's ``omega1, omega2, w2/w1``)."""
         unit = "deg" if self._degrees() else _unit_of(self.name)
         values = np.degrees(self.values) if self._degrees() else self.values
         n = self.modes_count
-        if n != 2:
-            head = f"{self.name + ' [' + unit + ']':>14} " + " ".join(f"{'omega' + str(k + 1):>10}" for k in range(n))
-            head += " " + " ".join(f"{'w%d/w%d' % (k + 2, k + 1):>8}" for k in range(n - 1))
-            lines = [head]
-            for v, w in zip(values, self.frequencies):
-                lines.append(f"{v:14.6g} " + " ".join(f"{x:10.6g}" for x in w) + " "
-                             + " ".join(f"{w[k + 1] / w[k]:8.4f}" for k in range(n - 1)))
-            return "\n".join(lines)
-        lines = [f"{self.name + ' [' + unit + ']':>14} {'omega1':>10} {'omega2':>10} {'w2/w1':>8}"]
-        for v, (w1, w2) in zip(values, self.frequencies):
-            lines.append(f"{v:14.6g} {w1:10.6g} {w2:10.6g} {w2 / w1:8.4f}")
+        head = f"{self.name + ' [' + unit + ']':>14} " + " ".join(f"{'omega' + str(k + 1):>10}" for k in range(n))
+        lines = [head + "".join(f" {'w%d/w%d' % (k + 2, k + 1):>8}" for k in range(n - 1))]
+        for v, w in zip(values, self.frequencies):
+            lines.append(f"{v:14.6g} " + " ".join(f"{x:10.6g}" for x in w)
+                         + "".join(f" {w[k + 1] / w[k]:8.4f}" for k in range(n - 1)))
         return "\n".join(lines)
 
     @property
     def frequency_ratio(self) -> np.ndarray:
+        """``w2/w1`` at every value: the ratio of the two lowest modes."""
         return self.frequencies[:, 1] / self.frequencies[:, 0]
 
     def columns(self) -> Tuple[List[str], np.ndarray]:
-        """Columns and rows for CSV output (SI units: the swept alpha in radians, with an
-        ``alpha_deg`` column last; see :meth:`units`)."""
+        """Columns and rows for CSV output: the swept value (SI units: an angle in radians, with a
+        ``NAME_deg`` column last), ``omega1..n``, ``period1..n``, the neighbours' ``omega(k+1)_over_omega(k)``
+        and each mode's shape over the model's coordinates (``mode1_phi``, ``mode1_psi``, ... for the double
+        pendulum; ``mode1_q1`` ... for a chain); see :meth:`units`."""
         n = self.modes_count
-        if n != 2:  # a chain: q1 .. qn
-            cols = [self.name] + [f"omega{k + 1}" for k in range(n)] + [f"period{k + 1}" for k in range(n)]
-            cols += [f"omega{k + 2}_over_omega{k + 1}" for k in range(n - 1)]
-            cols += [f"mode{k + 1}_q{i + 1}" for k in range(n) for i in range(n)]
-            rows = [self.values, self.frequencies, 2 * np.pi / self.frequencies,
-                    self.frequencies[:, 1:] / self.frequencies[:, :-1]] + [self.shapes[:, :, k] for k in range(n)]
-            if self._degrees():
-                cols.append(f"{self.name}_deg")
-                rows.append(np.degrees(self.values))
-            return cols, np.column_stack(rows)
-        cols = [
-            self.name, "omega1", "omega2", "period1", "period2", "omega2_over_omega1",
-            "mode1_phi", "mode1_psi", "mode2_phi", "mode2_psi",
-        ]
-        rows = [
-            self.values, self.frequencies, 2 * np.pi / self.frequencies, self.frequency_ratio,
-            self.shapes[:, :, 0], self.shapes[:, :, 1],
-        ]
-        if self.name == "alpha":
-            cols.append("alpha_deg")
+        coords = self.params.coordinates
+        cols = [self.name] + [f"omega{k + 1}" for k in range(n)] + [f"period{k + 1}" for k in range(n)]
+        cols += [f"omega{k + 2}_over_omega{k + 1}" for k in range(n - 1)]
+        cols += [f"mode{k + 1}_{c}" for k in range(n) for c in coords]
+        rows = [self.values, self.frequencies, 2 * np.pi / self.frequencies,
+                self.frequencies[:, 1:] / self.frequencies[:, :-1]] + [self.shapes[:, :, k] for k in range(n)]
+        if self._degrees():
+            cols.append(f"{self.name}_deg")
             rows.append(np.degrees(self.values))
         return cols, np.column_stack(rows)
 
     def units(self) -> Dict[str, str]:
         """The unit of each column of :meth:`columns`."""
         shape = "kg^-1/2 m^-1 (v^T M0 v = 1)"
-        if self.modes_count != 2:
-            cols, _ = self.columns()
-            return {c: (_unit_of(self.name) if c == self.name else "deg" if c.endswith("_deg") else "rad/s"
-                        if c.startswith("omega") and "_over_" not in c else "s" if c.startswith("period") else "1"
-                        if "_over_" in c else shape) for c in cols}
-        u = {self.name: _UNITS[self.name] if self.name in _UNITS else _unit_of(self.name), "omega1": "rad/s", "omega2": "rad/s", "period1": "s", "period2": "s",
-             "omega2_over_omega1": "1", "mode1_phi": shape, "mode1_psi": shape, "mode2_phi": shape, "mode2_psi": shape}
-        if self.name == "alpha":
-            u["alpha_deg"] = "deg"
-        return u
+        cols, _ = self.columns()
+        swept = _UNITS[self.name] if self.name in _UNITS else _unit_of(self.name)
+        return {c: (swept if c == self.name else "deg" if c.endswith("_deg") else "1" if "_over_" in c else "rad/s"
+                    if c.startswith("omega") else "s" if c.startswith("period") else shape) for c in cols}
 
     def to_dict(self) -> Dict:
         """The JSON form: ``columns``, ``units`` and ``rows`` as in :meth:`columns` (alpha in
@@ -813,12 +931,8 @@ def read_modes_sweep(path, variables, attrs) -> Sweep:
     freqs = np.column_stack([variables[f"omega{k + 1}"] for k in range(n)]).astype(float)
     shapes = np.empty((values.size, n, n))
     for k in range(n):
-        if n == 2:
-            shapes[:, 0, k] = variables[f"mode{k + 1}_phi"]
-            shapes[:, 1, k] = variables[f"mode{k + 1}_psi"]
-        else:
-            for i in range(n):
-                shapes[:, i, k] = variables[f"mode{k + 1}_q{i + 1}"]
+        for i, c in enumerate(rebuilt.params.coordinates):
+            shapes[:, i, k] = variables[f"mode{k + 1}_{c}"]
     agree(path, "frequencies", freqs, rebuilt.frequencies)
     agree(path, "mode shapes", shapes, rebuilt.shapes)
     return dataclasses.replace(rebuilt, values=values, frequencies=freqs, shapes=shapes)
@@ -865,32 +979,28 @@ def _failure_message(name: str, failures: List[Tuple[float, str]], total: int) -
 
 
 def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: float = 0.01) -> Sweep:
-    """Normal modes of ``params`` with ``name`` (see :data:`SWEEPABLE`) set to each of ``values``.
+    """Normal modes of the model ``params`` with ``name`` set to each of ``values``: a name the model answers
+    (the double pendulum's :data:`SWEEPABLE`: alpha, a, b, m1, m2, g, b/a, m2/m1; a ratio scales its
+    numerator) or a link's field of :data:`CHAIN_SWEEPABLE` and its number (``mass3``, ``tilt2``).
 
-    Resonances ``w2/w1 = n`` (n = 1, 2, 3) are reported where the ratio crosses ``n``
-    (interpolated) or comes within ``tolerance * n`` of it (``tolerance`` > 0).  If any
-    value fails (not a valid parameter, an unstable or non-equilibrium hanging position,
-    results not finite) the whole sweep is refused with a
+    Internal resonances ``w(k+1)/w(k) = n`` (n = 1, 2, 3) of neighbouring modes (the double pendulum's
+    ``w2/w1``) are reported where the ratio crosses ``n`` (interpolated) or comes within ``tolerance * n``
+    of it (``tolerance`` > 0).  If any value fails (not a valid parameter, an unstable or non-equilibrium
+    hanging position, results not finite) the whole sweep is refused with a
     :class:`~skewpend.errors.ParameterError` naming the failing values.
     """
-    from ..symbolic.chain import Chain
-
-    if isinstance(params, Chain):
-        return _chain_sweep(params, name, values, tolerance)
-    if not isinstance(params, Parameters):
-        raise ParameterError(checks.not_parameters(params, "a sweep of the modes"))
-    if name not in SWEEPABLE:
-        raise ParameterError(f"cannot sweep {name!r}; allowed: {', '.join(SWEEPABLE)}")
+    if not hasattr(params, "as_chain"):
+        raise ParameterError(f"params must be a skewpend.Parameters or a Chain, got {type(params).__name__}")
+    change = _changer(params, name)
     grid = _sweep_grid(values, tolerance)
     if name == "alpha" and not params.uses_alpha:
         raise ParameterError("cannot sweep alpha: the hinge-2 axis is given explicitly (axis2), so alpha has no effect")
-    freqs = np.empty((grid.size, 2))
-    shapes = np.empty((grid.size, 2, 2))
-    ratios = np.empty((grid.size, 2))
+    n = params.n
+    freqs, shapes, ratios = np.empty((grid.size, n)), np.empty((grid.size, n, n)), np.empty((grid.size, n))
     failures: List[Tuple[float, str]] = []
     for i, v in enumerate(grid):
         try:
-            p = _with_value(params, name, float(v), params)
+            p = change(float(v))
             p.require_numeric("a sweep")
             m = _modes(p)
         except NotNumericError:
@@ -904,11 +1014,15 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
     if failures:
         raise ParameterError(_failure_message(name, failures, grid.size))
     with np.errstate(all="ignore"):
-        ratio = freqs[:, 1] / freqs[:, 0]
-    bad = ~(np.all(np.isfinite(freqs), axis=1) & np.all(np.isfinite(shapes), axis=(1, 2)) & np.isfinite(ratio))
+        neighbours = freqs[:, 1:] / freqs[:, :-1]
+    bad = ~(np.all(np.isfinite(freqs), axis=1) & np.all(np.isfinite(shapes), axis=(1, 2)) & np.all(np.isfinite(neighbours), axis=1))
     if np.any(bad):  # pragma: no cover - every point was checked by _modes
         raise ParameterError(_failure_message(name, [(float(v), "results not finite") for v in grid[bad]], grid.size))
-    return Sweep(name, grid, freqs, shapes, ratios, _resonances(grid, ratio, float(tolerance)), float(tolerance), params)
+    resonances: List[Resonance] = []
+    for k in range(n - 1):
+        resonances += _resonances(grid, neighbours[:, k], float(tolerance), (k + 1, k + 2))
+    return Sweep(name, grid, freqs, shapes, ratios, sorted(resonances, key=lambda r: (r.value, r.pair, r.order)),
+                 float(tolerance), params)
 
 
 #: What a chain's sweep can vary: a link's ``length``, ``mass`` or ``damping`` (``mass3``), or ``tilt``:
@@ -940,49 +1054,15 @@ def _sweep_grid(values, tolerance) -> np.ndarray:
     return grid
 
 
-def _chain_sweep(chain, name: str, values, tolerance: float) -> Sweep:
-    """:func:`sweep` for a chain of links (``name``: :data:`CHAIN_SWEEPABLE` and a link's number)."""
-    stem, index = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
-    if stem not in CHAIN_SWEEPABLE or not index or not 1 <= int(index) <= chain.n:
-        raise ParameterError(f"cannot sweep {name!r} of a chain of {chain.n} links; allowed: a link's "
-                             f"{', '.join(CHAIN_SWEEPABLE)} and its number 1 to {chain.n} (mass3, tilt2)")
-    grid = _sweep_grid(values, tolerance)
-    i, n = int(index), chain.n
-    freqs, shapes = np.empty((grid.size, n)), np.empty((grid.size, n, n))
-    failures: List[Tuple[float, str]] = []
-    for k, v in enumerate(grid):
-        try:
-            if stem == "tilt":
-                changed = chain.replace_link(i, axis=(math.sin(v), 0.0, math.cos(v)))
-            else:
-                changed = chain.replace_link(i, **{stem: float(v)})
-            m = normal_modes(changed)
-            if not m.ok or not np.all(np.isfinite(m.frequencies)):
-                raise ParameterError(m.message)
-        except SkewpendError as exc:
-            failures.append((float(v), str(exc)))
-            continue
-        freqs[k], shapes[k] = m.frequencies, m.shapes
-    if failures:
-        raise ParameterError(_failure_message(name, failures, grid.size))
-    with np.errstate(all="ignore"):  # a mode that leaves q1 still: an infinite ratio, as the double pendulum's
-        ratios = shapes[:, 1, :] / shapes[:, 0, :] if n >= 2 else np.ones((grid.size, n))
-    resonances: List[Resonance] = []
-    for k in range(n - 1):
-        resonances += _resonances(grid, freqs[:, k + 1] / freqs[:, k], float(tolerance), (k + 1, k + 2))
-    return Sweep(name, grid, freqs, shapes, ratios, sorted(resonances, key=lambda r: (r.value, r.pair, r.order)),
-                 float(tolerance), chain)
-
-
 # -- linear versus nonlinear ---------------------------------------------------------------------------
 @dataclass(frozen=True)
 class NonlinearCheck:
     """Frequencies measured on the full nonlinear equations started from each mode shape."""
 
     amplitude: float  # largest initial angle [rad]
-    linear: np.ndarray  # (2,) rad/s (a chain's: (n,))
-    measured: np.ndarray  # (2,) rad/s
-    cycles: np.ndarray  # (2,) cycles used
+    linear: np.ndarray  # (n,) rad/s
+    measured: np.ndarray  # (n,) rad/s
+    cycles: np.ndarray  # (n,) cycles used
 
     @property
     def relative_shift(self) -> np.ndarray:
@@ -1001,7 +1081,8 @@ def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -
     ``amplitude`` [rad], at rest; measure the frequency of the modal coordinate by upward
     zero crossings (linearly interpolated) over ``cycles`` periods (a chain: each of its ``n`` modes).
 
-    Needs an undamped model (``c1 = c2 = 0``, ``cf1 = cf2 = 0``: the check compares undamped frequencies) and an
+    Needs a model without losses (no damping or Coulomb friction in any joint: the check compares undamped
+    frequencies) and an
     amplitude in (0, pi) rad small enough that the motion stays an oscillation about the
     hanging position: the hinges never pass the upright position and the modal coordinate
     crosses zero at least once per two linear periods; otherwise a
@@ -1018,14 +1099,7 @@ def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -
     if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 4:
         raise ParameterError(f"the nonlinear check needs a whole number of at least 4 cycles, got {cycles!r}")
     modes = normal_modes(params)
-    if hasattr(params, "links"):  # a chain: every joint undamped
-        if params.dissipative:
-            params.require_lossless("the nonlinear check (it measures undamped oscillation frequencies)")
-    elif modes.damped or friction_terms(params):
-        raise ParameterError(
-            f"the nonlinear check measures undamped oscillation frequencies, so it needs c1 = c2 = 0 and no Coulomb "
-            f"friction (got c1 = {params.c1:g}, c2 = {params.c2:g}, cf1 = {params.cf1:g}, cf2 = {params.cf2:g})"
-        )
+    params.require_lossless("the nonlinear check (it measures undamped oscillation frequencies)")
     n = int(np.shape(modes.shapes)[0])
     measured = np.empty(n)
     used = np.empty(n, dtype=int)

@@ -31,11 +31,11 @@ class Coulomb(str, Enum):
 def modes(
     model: dict,
     fmt: Annotated[ModesFormat, typer.Option("--format", "-f", help="text, json, or latex (the closed-form characteristic equation in the parameters not given; not with --sweep, --plot, --out, --tolerance, --check-nonlinear)")] = ModesFormat.text,
-    sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1 (e.g. alpha=0:180deg:181; a unit on either end applies to the whole range, plain numbers are radians; default: no sweep, the modes of the one model)")] = None,
+    sweep_spec: Annotated[Optional[str], typer.Option("--sweep", help="NAME=START:STOP:COUNT over alpha, a, b, m1, m2, g, b/a or m2/m1, or a link's length, mass, damping or tilt and its number (e.g. alpha=0:180deg:181, tilt2=0:90deg:31; a unit on either end applies to the whole range, plain numbers are radians; default: no sweep, the modes of the one model)")] = None,
     plot: Annotated[Optional[str], typer.Option("--plot", help="with --sweep: write the frequency curves to FILE (.png, .pdf, .svg)")] = None,
     out: Annotated[Optional[str], typer.Option("--out", "-o", help="with --sweep: write the table to FILE (.csv or .json; alpha in rad plus alpha_deg)")] = None,
     # parsed after the check that it goes with --sweep (a misplaced option is the first thing to say)
-    tolerance: Annotated[Optional[str], typer.Option("--tolerance", metavar="NUMBER", help="with --sweep: flag w2/w1 within tolerance*n of n = 1, 2, 3 (a positive number; default 0.01)")] = None,
+    tolerance: Annotated[Optional[str], typer.Option("--tolerance", metavar="NUMBER", help="with --sweep: flag the neighbouring modes' w(k+1)/w(k) (w2/w1) within tolerance*n of n = 1, 2, 3 (a positive number; default 0.01)")] = None,
     check_nonlinear: option("--check-nonlinear", T.Angle("ANGLE"), "AMPLITUDE [rad or deg]: measure the frequencies of the nonlinear motion started from each mode (undamped, no --sweep; default: not measured)", None) = None,
     about: option("--about", T.EquilibriumChoice(), "the modes about another equilibrium: a label (down-up, up-down, up-up; see skewpend equilibria) or PHI,PSI near one; an unstable direction is given as a growth rate (not with --sweep, --check-nonlinear, --format latex)", None) = None,
     coulomb: Annotated[Optional[Coulomb], typer.Option("--coulomb", help="Coulomb friction (cf1, cf2) in the linearisation: exclude (default: it is non-smooth at rest, cf sign(q') has no slope there) or smoothed (the slope cfs*cf of its smoothed form cf atan(cfs q') as viscous damping); not with --sweep, --format latex")] = None,
@@ -75,9 +75,6 @@ def modes(
 
     run = resolve("modes", config, parameters=given)
     params = run.parameters()
-    if run.is_chain and sweep_spec is not None and plot is not None:
-        raise UsageError("--plot draws the double pendulum's two frequencies along a sweep; a chain's sweep is written "
-                         "with --out FILE.csv|.json or printed")
     if sweep_spec is not None:
         tol = 0.01 if tolerance is None else T.Positive().convert(tolerance, "--tolerance")
         _modes_sweep(params, sweep_spec, plot, out, tol, fmt, given)
@@ -116,18 +113,19 @@ def _modes_of(md, params, about, coulomb: str, fallback: bool):
     down-down."""
     from ..errors import EquilibriumError, SkewpendError
 
-    if about is not None or not fallback or not hasattr(params, "tau1"):  # (a chain: about its hanging rest)
+    if about is not None or not fallback:
         return md.normal_modes(params, about=about, coulomb=coulomb), ""
     try:
         return md.normal_modes(params, coulomb=coulomb), ""
     except EquilibriumError as exc:
-        if params.tau1 or params.tau2 or "not an equilibrium" not in str(exc):
+        if any(link.torque for link in params.as_chain().links) or "not an equilibrium" not in str(exc):
             raise
+        rest = "-".join(["down"] * params.n)
         try:
-            result = md.normal_modes(params, about="down-down", coulomb=coulomb)
+            result = md.normal_modes(params, about=rest, coulomb=coulomb)
         except SkewpendError:
             raise exc from None
-    return result, "down-down"
+    return result, rest
 
 
 def _coulomb_line(m) -> str:
@@ -138,46 +136,36 @@ def _coulomb_line(m) -> str:
 
 
 def _modes_text(m, check, rest: str = "") -> str:
+    """The modes as text: a row a mode, its shape over the model's coordinates and the amplitude ratio of the
+    last coordinate over the first (the double pendulum's psi/phi); the beat period of the two lowest modes."""
     import numpy as np
 
-    n = m.shapes.shape[0]
-    if n != 2:  # a chain of links: its n modes, shapes over q1 ... qn
-        where = ("about the hanging equilibrium (q = 0)" if not any(m.equilibrium) else
-                 "about the equilibrium q = (" + ", ".join(f"{np.degrees(x):.6g}" for x in m.equilibrium) + ") deg")
-        lines = [f"Normal modes of the chain of {n} links {where}", "",
-                 f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  shape (q1 ... q{n}), M0-normalised"]
-        for k in range(n):
-            shape = "(" + ", ".join(f"{x:+.5f}" for x in m.shapes[:, k]) + ")"
-            if m.unstable[k]:
-                lines.append(f"{k + 1:>4}  {'--':>14}  {'--':>10}  {'--':>11}  {shape}  unstable: grows like "
-                             f"exp({m.growth_rates[k]:.8g} t / s)")
-            else:
-                lines.append(f"{k + 1:>4}  {m.frequencies[k]:14.8g}  {m.frequencies[k] / (2 * np.pi):10.6g}  "
-                             f"{m.periods[k]:11.6g}  {shape}")
-    elif m.equilibrium == (0.0, 0.0):
-        lines = ["Normal modes about the hanging equilibrium (phi = psi = 0)", ""]
+    coords = m.params.coordinates
+    n = len(coords)
+    at = ", ".join(f"{c} = {np.degrees(x):.6g} deg" for c, x in zip(coords, m.equilibrium))
+    if not any(m.equilibrium):
+        lines = [f"Normal modes about the hanging equilibrium ({' = '.join(coords)} = 0)", ""]
     elif rest:
-        lines = [f"Normal modes about the hanging rest ({rest}) at phi = {np.degrees(m.equilibrium[0]):.6g} deg, "
-                 f"psi = {np.degrees(m.equilibrium[1]):.6g} deg: phi = psi = 0 is no equilibrium of this model (its "
-                 "centres of mass lie off the rods' lines)", ""]
+        lines = [f"Normal modes about the hanging rest ({rest}) at {at}: {' = '.join(coords)} = 0 is no equilibrium of "
+                 "this model (its centres of mass lie off the rods' lines)", ""]
     else:
-        lines = [f"Modes about the equilibrium phi = {np.degrees(m.equilibrium[0]):.6g} deg, "
-                 f"psi = {np.degrees(m.equilibrium[1]):.6g} deg", ""]
-    if n == 2:
-        lines.append(f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  {'shape (phi, psi), M0-normalised':>34}  {'psi/phi':>9}")
-    for k in range(2 if n == 2 else 0):
-        v = m.shapes[:, k]
-        ratio = "inf" if not np.isfinite(m.ratios[k]) else f"{m.ratios[k]:.5g}"
-        shape = f"({v[0]:+.6f}, {v[1]:+.6f})"
+        lines = [f"Modes about the equilibrium {at}", ""]
+    head = f"shape ({', '.join(coords)}), M0-normalised"
+    width = max(34, len(head), 12 * n)
+    ratio_head = f"{coords[-1]}/{coords[0]}" if n > 1 else ""
+    lines.append(f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>10}  {'period [s]':>11}  {head:>{width}}"
+                 + (f"  {ratio_head:>9}" if ratio_head else ""))
+    for k in range(n):
+        shape = "(" + ", ".join(f"{x:+.6f}" for x in m.shapes[:, k]) + ")"
+        ratio = ("inf" if not np.isfinite(m.ratios[k]) else f"{m.ratios[k]:.5g}") if ratio_head else ""
+        columns = f"{shape:>{width}}" + (f"  {ratio:>9}" if ratio_head else "")
         if m.unstable[k]:
-            lines.append(f"{k + 1:>4}  {'--':>14}  {'--':>10}  {'--':>11}  {shape:>34}  {ratio:>9}  unstable: "
+            lines.append(f"{k + 1:>4}  {'--':>14}  {'--':>10}  {'--':>11}  {columns}  unstable: "
                          f"grows like exp({m.growth_rates[k]:.8g} t / s)")
             continue
-        lines.append(
-            f"{k + 1:>4}  {m.frequencies[k]:14.8g}  {m.frequencies[k] / (2 * np.pi):10.6g}  {m.periods[k]:11.6g}  "
-            f"{shape:>34}  {ratio:>9}"
-        )
-    if n == 2 and not np.any(m.unstable):
+        lines.append(f"{k + 1:>4}  {m.frequencies[k]:14.8g}  {m.frequencies[k] / (2 * np.pi):10.6g}  "
+                     f"{m.periods[k]:11.6g}  {columns}")
+    if n > 1 and not np.any(m.unstable):
         beat = "inf (1:1)" if not np.isfinite(m.beat_period) else f"{m.beat_period:.6g} s"
         lines.append(f"beat period 2 pi/(w2 - w1) = {beat};  w2/w1 = {m.frequencies[1] / m.frequencies[0]:.6g}")
     if m.damped:
@@ -246,10 +234,7 @@ def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
 
     from ..analysis import modes as md
 
-    if hasattr(params, "links"):  # a chain: a link's field or a hinge's tilt
-        name, values = md.parse_chain_sweep(spec, params.n)
-    else:
-        name, values = md.parse_sweep(spec)
+    name, values = md.parse_sweep(spec, params)
     swept = md.SWEPT_PARAMETER.get(name, name)
     if given.get(swept) is not None:
         raise UsageError(f"--{swept} and --sweep {name}=... both set {swept}; the sweep gives every value, so leave out --{swept}")
@@ -284,19 +269,20 @@ def _modes_sweep(params, spec, plot, out, tolerance, fmt, given) -> None:
     angle = name == "alpha" or name.startswith("tilt")
     show = (lambda v: f"{v:.6g} rad ({np.degrees(v):.4g} deg)") if angle else (lambda v: f"{v:.6g}")
     n = sw.modes_count
+    pairs = [f"w{k + 2}/w{k + 1}" for k in range(n - 1)]
+    ratios = sw.frequencies[:, 1:] / sw.frequencies[:, :-1]
     lines = [f"swept {name} over {show(values[0])} .. {show(values[-1])} ({values.size} values)",
-             ";  ".join(f"omega{k + 1}: {sw.frequencies[:, k].min():.6g} .. {sw.frequencies[:, k].max():.6g} rad/s"
-                        for k in range(n)) + (f";  w2/w1: {sw.frequency_ratio.min():.6g} .. {sw.frequency_ratio.max():.6g}"
-                                              if n == 2 else "")]
-    if n != 2:
+             ";  ".join([f"omega{k + 1}: {sw.frequencies[:, k].min():.6g} .. {sw.frequencies[:, k].max():.6g} rad/s"
+                         for k in range(n)] + [f"{pair}: {ratios[:, k].min():.6g} .. {ratios[:, k].max():.6g}"
+                                               for k, pair in enumerate(pairs)])]
+    if out is None:  # the table, unless written to a file
         lines.append(sw.table())
-    which = "w2/w1" if n == 2 else "w(k+1)/w(k) of neighbouring modes"
+    which = ", ".join(pairs)
     if sw.resonances:
         lines.append(f"internal resonances ({which} within {tolerance:g}*n of n):")
         for r in sw.resonances:
             how = "crossed at" if r.crossed else f"closest ({r.ratio:.5g}) at"
-            pair = "" if n == 2 else f"  w{r.pair[1]}/w{r.pair[0]}"
-            lines.append(f"  {r.order}:1{pair}  {how} {name} = {show(r.value)}")
+            lines.append(f"  {r.order}:1  w{r.pair[1]}/w{r.pair[0]}  {how} {name} = {show(r.value)}")
     else:
         lines.append(f"no internal resonance 1:1, 2:1, 3:1 ({which}) within {tolerance:g}*n")
     for what, path in (("table", out), ("plot", plot)):
