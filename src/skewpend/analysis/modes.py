@@ -28,7 +28,6 @@ import numpy as np
 
 from ..errors import EquilibriumError, NotNumericError, ParameterError, SkewpendError
 from ..results import DatasetSpec, ResultProtocol, agree, netcdf_reader, protocol_fields
-from .qep import NotFinite
 from ..status import Status
 from ..symbolic.friction import DEFAULT_COULOMB, check_coulomb, coulomb_note, friction_terms
 from ..schema import CORE_NAMES, DAMPING_NAMES, GEOMETRY_NAMES, LENGTH_NAMES, MASS_NAMES, TORQUE_NAMES, names, unit
@@ -47,6 +46,16 @@ __all__ = [
     "parse_sweep",
     "SWEEPABLE",
 ]
+
+
+class NotFinite(ParameterError):
+    """A result of the modes is not a finite number (``reason`` is a short phrase); the modes
+    turn it into one message naming the parameters."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
 
 
 # -- the linear matrices, numerically -------------------------------------------------------------
