@@ -113,6 +113,18 @@ def test_two_links_equal_the_symbolic_derivation(case):
 
 
 # -- MuJoCo, 3 to 8 links -------------------------------------------------------------------------------------
+def _accelerations_equal_mujocos(mujoco, model, data, K, p, n: int, rng):
+    """At a random state: the chain kernel's accelerations equal MuJoCo's (mj_forward) to 1e-12 relative;
+    returns the state."""
+    q, dq = rng.uniform(-3, 3, n), rng.normal(scale=2, size=n)
+    data.qpos[:], data.qvel[:] = q, dq
+    mujoco.mj_forward(model, data)
+    out = np.zeros(2 * n + 1)
+    K.rhs(np.r_[q, dq, 0.0], p, out)
+    assert np.max(np.abs(out[n:2 * n] - data.qacc)) <= 1e-12 * np.max(np.abs(data.qacc))
+    return q, dq
+
+
 @pytest.mark.parametrize("n", [3, 5, 8])
 def test_chains_equal_mujoco(n):
     """Random chains (general bodies, arbitrary axes and hinge offsets, damping, torques): the accelerations
@@ -126,12 +138,7 @@ def test_chains_equal_mujoco(n):
     model = mujoco.MjModel.from_xml_string(to_mjcf(chain))
     data = mujoco.MjData(model)
     for _ in range(10):
-        q, dq = rng.uniform(-3, 3, n), rng.normal(scale=2, size=n)
-        data.qpos[:], data.qvel[:] = q, dq
-        mujoco.mj_forward(model, data)
-        out = np.zeros(2 * n + 1)
-        K.rhs(np.r_[q, dq, 0.0], p, out)
-        assert np.max(np.abs(out[n:2 * n] - data.qacc)) <= 1e-12 * np.max(np.abs(data.qacc))
+        q, dq = _accelerations_equal_mujocos(mujoco, model, data, K, p, n, rng)
         # the energy: MuJoCo's potential is zero at the origin, skewpend's with the chain hanging
         mujoco.mj_energyPos(model, data)
         mujoco.mj_energyVel(model, data)
@@ -195,12 +202,7 @@ def test_chain_rotors_equal_mujoco(n):
     assert np.all(model.dof_armature >= 0) and np.any(model.dof_armature > 0)
     data = mujoco.MjData(model)
     for _ in range(10):
-        q, dq = rng.uniform(-3, 3, n), rng.normal(scale=2, size=n)
-        data.qpos[:], data.qvel[:] = q, dq
-        mujoco.mj_forward(model, data)
-        out = np.zeros(2 * n + 1)
-        K.rhs(np.r_[q, dq, 0.0], p, out)
-        assert np.max(np.abs(out[n:2 * n] - data.qacc)) <= 1e-12 * np.max(np.abs(data.qacc))
+        _accelerations_equal_mujocos(mujoco, model, data, K, p, n, rng)
 
 
 # -- known values and conservation ---------------------------------------------------------------------------
