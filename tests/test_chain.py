@@ -464,7 +464,7 @@ def test_commands_of_the_double_pendulum_refuse_links(tmp_path):
 
     ran = run_cli(["poincare", "--config", EXAMPLES / "skewed_triple.toml"], cwd=tmp_path)
     assert ran.code == 2 and "[[links]] (a chain of links) is not read by skewpend poincare" in ran.err
-    assert "(chains: skewpend simulate, animate, report, lyapunov, flipmap, modes" in ran.err
+    assert "(chains: skewpend simulate, animate, report, validate, lyapunov, flipmap, export, modes" in ran.err
 
 
 EXAMPLES = __import__("pathlib").Path(__file__).resolve().parent.parent / "examples"

@@ -410,3 +410,20 @@ def test_mujoco_is_imported_lazily_and_its_absence_is_explained(monkeypatch):
         mujoco_trajectory(TORQUES, [0, 0, 0, 0], 0.01, dt=1e-3)
     assert isinstance(info.value, SkewpendError) and isinstance(info.value, ImportError)
     to_mjcf(TORQUES)  # export itself does not need mujoco
+
+
+def test_the_command_line_exports_and_validates_a_chain(tmp_path):
+    """``skewpend export --links 3`` writes the chain's MJCF (three hinges, MuJoCo loads it) and ``skewpend
+    validate --links 3`` agrees with MuJoCo -- the one writer takes any model on the command line too."""
+    mujoco = pytest.importorskip("mujoco")
+    out = tmp_path / "triple.xml"
+    axes = "0,0,1;0.3,0,1;0,0.2,1"
+    proc = subprocess.run([sys.executable, "-m", "skewpend", "export", "--links", "3", "--link-axis", axes, "--out",
+                           str(out)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    model = mujoco.MjModel.from_xml_path(str(out))
+    assert model.njnt == 3 and model.nu == 3
+    proc = subprocess.run([sys.executable, "-m", "skewpend", "validate", "--links", "3", "--link-axis", axes,
+                           "--t-end", "0.5"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr + proc.stdout
+    assert "AGREE" in proc.stdout

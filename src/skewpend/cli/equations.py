@@ -150,7 +150,7 @@ def export(
 ) -> None:
     """Export the system as a MuJoCo MJCF model or a URDF (numeric parameters; the defaults of simulate).
 
-    From a --config run file it takes [parameters].
+    From a --config run file it takes [parameters]; or a chain of links ([[links]], [chain], or --links N).
     """
     from ..interop import export as ex
 
@@ -174,7 +174,8 @@ def validate(
 ) -> None:
     """Compare skewpend with MuJoCo (the exported MJCF, RK4) for your parameters; exit 1 if they disagree.
 
-    From a --config run file it takes [parameters], [initial] and [simulation] t_end.
+    From a --config run file it takes [parameters], [initial] and [simulation] t_end; or a chain of links
+    ([[links]], [chain], or --links N; its start --q0 --dq0).
     """
     from ..interop.validation import compare_with_mujoco
 
