@@ -232,6 +232,12 @@ def count_text(k: int, what: str) -> str:
     return f"{_WORDS[k] if 0 <= k < len(_WORDS) else k} {what}"
 
 
+def model_title(n: int) -> str:
+    """The model in words for titles and messages: ``"the skewed double pendulum"`` for two links (any
+    chain of two is the double pendulum), ``"a chain of n links"`` otherwise."""
+    return "the skewed double pendulum" if n == 2 else f"a chain of {n} links"
+
+
 def state_text(nq: int) -> str:
     """The state of ``nq`` coordinates for messages: ``"four numbers (phi, psi, phi', psi')"``."""
     names = coordinate_names(nq)

@@ -36,7 +36,8 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any, Iterable, Mapping, Optional, Tuple
 
 from ..errors import ParameterError
-from ..schema import CHAIN_NAMES, LINK_FIELDS, LINK_KEYS, MAX_LINKS, coordinate_names, did_you_mean, link_bound, nearest, nearest_link_key
+from ..schema import (CHAIN_NAMES, LINK_FIELDS, LINK_KEYS, MAX_LINKS, coordinate_names, did_you_mean, link_bound, model_title,
+                      nearest, nearest_link_key)
 from .values import Mat3, Vec3, as_real, as_vector, check_inertia
 
 __all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS"]
@@ -230,6 +231,11 @@ class Chain:
     def coordinates(self) -> Tuple[str, ...]:
         """The coordinates' names: ``phi, psi`` for two links (the specification's), ``q1`` to ``qn`` otherwise."""
         return coordinate_names(self.n)
+
+    @property
+    def title(self) -> str:
+        """The model in words: ``"the skewed double pendulum"`` for two links, ``"a chain of n links"`` otherwise."""
+        return model_title(self.n)
 
     @property
     def has_friction(self) -> bool:

@@ -234,6 +234,13 @@ class _Model:
 
         return coordinate_names(2)
 
+    @property
+    def title(self) -> str:
+        """The model in words, ``"the skewed double pendulum"`` (as the chain of two answers)."""
+        from ..schema import model_title
+
+        return model_title(2)
+
     def as_chain(self) -> Chain:
         """The double pendulum as the chain of two (numeric parameters only): link 1 rod ``a`` on the roof
         hinge (axis ``k`` or ``axis1``), link 2 rod ``b`` on the hinge at ``a j`` with the axis
