@@ -816,6 +816,35 @@ def announce_background(what: str, meanwhile: str, key: str = "") -> None:
 _ANNOUNCED: set = set()
 
 
+def _library(key: str, make, source, *, kind: str, which: str = "", flags: Tuple[str, ...] = ()):
+    """The one loader of every compiled library (a model's, its flip, chaos and shooting libraries, the Taylor
+    integrator's, of any form): under the key's lock, from this process, else from the cache (checked
+    against its recorded hash; a damaged file is rebuilt), else ``source()`` announced (:func:`_announce`
+    with ``kind`` and ``which``), compiled with ``flags`` and cached atomically (a killed build leaves no
+    partial library).  ``make(path, origin, build_time)`` binds the library (a :class:`Kernel`, a
+    :class:`TaylorKernel`)."""
+    with _key_lock(key):
+        if key in _LOADED:
+            return _LOADED[key]
+        path = cache_dir() / "kernels" / f"skewpend_{key}{LIB_SUFFIX}"
+        loaded = None
+        if path.exists() and _intact(path):
+            try:
+                loaded = make(path, "cache", 0.0)
+            except (OSError, CompilerError):
+                loaded = None  # damaged: rebuilt below
+        if loaded is None:
+            start = time.perf_counter()
+            directory = _writable_directory()
+            path = directory / f"skewpend_{key}{LIB_SUFFIX}"
+            _remove_stale_temporaries(directory)
+            _announce(kind, cached=directory == cache_dir() / "kernels", which=which)
+            _compile(source(), path, flags)  # a model without what the source needs is refused here
+            loaded = make(path, "compiled", time.perf_counter() - start)
+        _LOADED[key] = loaded
+        return loaded
+
+
 def _bodies_words(geometry) -> str:
     """Nothing for thin rods, `` for general bodies`` otherwise (a report's MuJoCo check builds both)."""
     from .conventions import COM_NAMES, INERTIA_NAMES
@@ -846,37 +875,23 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
         return kernel
     geometry = structure_of(params, full=shooting)
     key = _key(repr(geometry.to_dict())) + ("_" + kind if kind else "")
-    with _key_lock(key):
-        if key in _LOADED:
-            _BYGEOMETRY[gkey] = _LOADED[key]
-            return _LOADED[key]
-        directory = cache_dir() / "kernels"
-        path = directory / f"skewpend_{key}{LIB_SUFFIX}"
-        kernel = None
-        if path.exists() and _intact(path):
-            try:
-                kernel = Kernel(path, "cache", 0.0, flip=flip, chaos=chaos, shooting=shooting)
-            except (OSError, CompilerError):
-                kernel = None  # damaged: rebuilt below
-        if kernel is None:
-            start = time.perf_counter()
-            directory = _writable_directory()
-            path = directory / f"skewpend_{key}{LIB_SUFFIX}"
-            _remove_stale_temporaries(directory)
-            from .kernel_source import kernel_c_source
 
-            _announce(kind, cached=directory == cache_dir() / "kernels", which=_bodies_words(geometry))
-            integrators = (_PACKAGE / "numeric" / "integrators.c").read_text()
-            source = kernel_c_source(geometry, flip=flip, shooting=shooting) + "\n" + integrators
-            if chaos:
-                source += "\n" + (_PACKAGE / "numeric" / "chaos.c").read_text()
-            if shooting:
-                source += "\n" + (_PACKAGE / "numeric" / "shooting.c").read_text()
-            _compile(source, path)
-            kernel = Kernel(path, "compiled", time.perf_counter() - start, flip=flip, chaos=chaos, shooting=shooting)
-        _LOADED[key] = kernel
-        _BYGEOMETRY[gkey] = kernel
-        return kernel
+    def source() -> str:
+        from .kernel_source import kernel_c_source
+
+        text = kernel_c_source(geometry, flip=flip, shooting=shooting) + "\n" + _numeric_text("integrators.c")
+        return text + "".join("\n" + _numeric_text(name) for name, on in (("chaos.c", chaos), ("shooting.c", shooting)) if on)
+
+    kernel = _library(key, lambda path, origin, seconds: Kernel(path, origin, seconds, flip=flip, chaos=chaos,
+                                                                 shooting=shooting),
+                      source, kind=kind, which=_bodies_words(geometry))
+    _BYGEOMETRY[gkey] = kernel
+    return kernel
+
+
+def _numeric_text(name: str) -> str:
+    """The text of a C file of :mod:`skewpend.numeric` (the integrators, the chaos and shooting routines)."""
+    return (_PACKAGE / "numeric" / name).read_text()
 
 
 def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool = False) -> Kernel:
@@ -900,33 +915,17 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool =
         raise ValueError(f"form must be 'straight' or 'compact', got {form!r}")
     extra = "|shooting" if shooting else ("|chaos" if chaos else "")
     key = _key(structure.key(form) + "|" + form + extra) + "_chain"
-    with _key_lock(key):
-        if key in _LOADED:
-            return _LOADED[key]
-        directory = cache_dir() / "kernels"
-        path = directory / f"skewpend_{key}{LIB_SUFFIX}"
-        kernel = None
-        if path.exists() and _intact(path):
-            try:
-                kernel = Kernel(path, "cache", 0.0, shooting=shooting, chaos=chaos)
-            except (OSError, CompilerError):
-                kernel = None
-        if kernel is None:
-            start = time.perf_counter()
-            directory = _writable_directory()
-            path = directory / f"skewpend_{key}{LIB_SUFFIX}"
-            _remove_stale_temporaries(directory)
-            from .recursive import chain_sensitivity_c_source, chain_source
 
-            _announce("shooting" if shooting else ("chaos" if chaos else "chain"), cached=directory == cache_dir() / "kernels")
-            source = chain_source(structure, form) + "\n" + (_PACKAGE / "numeric" / "integrators.c").read_text()
-            if shooting or chaos:
-                source += "\n" + chain_sensitivity_c_source(structure)
-                source += "\n" + (_PACKAGE / "numeric" / ("shooting.c" if shooting else "chaos.c")).read_text()
-            _compile(source, path)
-            kernel = Kernel(path, "compiled", time.perf_counter() - start, shooting=shooting, chaos=chaos)
-        _LOADED[key] = kernel
-        return kernel
+    def source() -> str:
+        from .recursive import chain_sensitivity_c_source, chain_source
+
+        text = chain_source(structure, form) + "\n" + _numeric_text("integrators.c")
+        if shooting or chaos:
+            text += "\n" + chain_sensitivity_c_source(structure) + "\n" + _numeric_text("shooting.c" if shooting else "chaos.c")
+        return text
+
+    return _library(key, lambda path, origin, seconds: Kernel(path, origin, seconds, shooting=shooting, chaos=chaos),
+                    source, kind="shooting" if shooting else ("chaos" if chaos else "chain"))
 
 
 def model_kernel(model, *, chaos: bool = False, shooting: bool = False) -> Kernel:
@@ -1009,31 +1008,17 @@ def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
     fused, flags = fused_multiply_add()
     key = _key(structure.key() + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}") + f"_ctaylor{order}"
     tn = chain_tn(structure.n)
-    with _key_lock(key):
-        if key in _LOADED:
-            return _LOADED[key]  # type: ignore[return-value]
-        path = cache_dir() / "kernels" / f"skewpend_{key}{LIB_SUFFIX}"
-        loaded = None
-        if path.exists() and _intact(path):
-            try:
-                loaded = TaylorKernel(path, "cache", 0.0, order, tn)
-            except (OSError, CompilerError):
-                loaded = None  # damaged: rebuilt below
-        if loaded is None:
-            from .chain_taylor import chain_taylor_c_source
 
-            start = time.perf_counter()
-            source = chain_taylor_c_source(structure, order, fused=fused)
-            directory = _writable_directory()
-            path = directory / f"skewpend_{key}{LIB_SUFFIX}"
-            _remove_stale_temporaries(directory)
-            _announce("taylor", cached=directory == cache_dir() / "kernels", which=f" of order {order}")
-            _compile(source, path, flags)
-            loaded = TaylorKernel(path, "compiled", time.perf_counter() - start, order, tn)
-        _LOADED[key] = loaded  # type: ignore[assignment]
-        if model is not None:
-            _TAYLOR_OF[model.path, order] = loaded
-        return loaded
+    def source() -> str:
+        from .chain_taylor import chain_taylor_c_source
+
+        return chain_taylor_c_source(structure, order, fused=fused)
+
+    loaded = _library(key, lambda path, origin, seconds: TaylorKernel(path, origin, seconds, order, tn), source,
+                      kind="taylor", which=f" of order {order}", flags=flags)
+    if model is not None:
+        _TAYLOR_OF[model.path, order] = loaded
+    return loaded
 
 
 def _taylor_gkey(params: Parameters, order: int) -> str:
@@ -1136,30 +1121,15 @@ def _taylor_kernel(params: Parameters, order: int, model) -> TaylorKernel:
             _TAYLOR_OF[model.path, order] = kernel  # type: ignore[assignment]
         return kernel  # type: ignore[return-value]
     key, geometry, fused, flags = _taylor_key(params, order)
-    with _key_lock(key):
-        if key in _LOADED:
-            _BYGEOMETRY[gkey] = _LOADED[key]
-            return _LOADED[key]  # type: ignore[return-value]
-        path = cache_dir() / "kernels" / f"skewpend_{key}{LIB_SUFFIX}"
-        loaded = None
-        if path.exists() and _intact(path):
-            try:
-                loaded = TaylorKernel(path, "cache", 0.0, order)
-            except (OSError, CompilerError):
-                loaded = None  # damaged: rebuilt below
-        if loaded is None:
-            from .taylor_source import taylor_c_source
 
-            start = time.perf_counter()
-            source = taylor_c_source(geometry, order, fused=fused)  # a model without recurrences is refused here
-            directory = _writable_directory()
-            path = directory / f"skewpend_{key}{LIB_SUFFIX}"
-            _remove_stale_temporaries(directory)
-            _announce("taylor", cached=directory == cache_dir() / "kernels", which=f" of order {order}" + _bodies_words(geometry))
-            _compile(source, path, flags)
-            loaded = TaylorKernel(path, "compiled", time.perf_counter() - start, order)
-        _LOADED[key] = loaded  # type: ignore[assignment]
-        _BYGEOMETRY[gkey] = loaded  # type: ignore[assignment]
-        if model is not None:
-            _TAYLOR_OF[model.path, order] = loaded
-        return loaded
+    def source() -> str:
+        from .taylor_source import taylor_c_source
+
+        return taylor_c_source(geometry, order, fused=fused)  # a model without recurrences is refused here
+
+    loaded = _library(key, lambda path, origin, seconds: TaylorKernel(path, origin, seconds, order), source,
+                      kind="taylor", which=f" of order {order}" + _bodies_words(geometry), flags=flags)
+    _BYGEOMETRY[gkey] = loaded  # type: ignore[assignment]
+    if model is not None:
+        _TAYLOR_OF[model.path, order] = loaded
+    return loaded
