@@ -45,6 +45,7 @@ is not physical; :attr:`~skewpend.Status.NONFINITE` when a held-out simulation f
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -231,6 +232,12 @@ class Identification(Result):
         return float(self.stats.get("heldout_overall0", math.nan))
 
     @property
+    def angle(self) -> str:
+        """The name of the angle in ``alpha``, ``alpha_interval`` and the profile: the double pendulum's skew angle
+        ``alpha`` or a chain's hinge tilt ``tiltK`` (settings' ``angle``)."""
+        return str((self.settings or {}).get("angle") or "alpha") if isinstance(self.settings, dict) else "alpha"
+
+    @property
     def intervals_note(self) -> str:
         """What the 95 % intervals were computed from (``clusters: ...``), or why they are not available."""
         return str(self.settings.get("intervals", "")) if isinstance(self.settings, dict) else ""
@@ -257,7 +264,7 @@ class Identification(Result):
             lo, hi = self.alpha_interval
             iv = (f"95 % interval [{math.degrees(lo):.3f}, {math.degrees(hi):.3f}] deg" if math.isfinite(lo) and
                   math.isfinite(hi) else "95 % interval not available")
-            lines.append(f"skew angle alpha: {math.degrees(self.alpha):.3f} deg, {iv}"
+            lines.append(f"{_angle_words(self.angle)}: {math.degrees(self.alpha):.3f} deg, {iv}"
                          + (f" ({self.alpha_note})" if self.alpha_note else ""))
         if self.intervals_note.startswith("clusters"):
             lines.append(f"95 % intervals: cluster-robust over {self.intervals_note[len('clusters: '):]}")
@@ -293,7 +300,7 @@ class Identification(Result):
                  f"{self.stats.get('samples', 0)} samples, {self.stats.get('seconds', 0.0):.3g} s"]
         if math.isfinite(self.alpha):
             lo, hi = self.alpha_interval
-            lines.append(f"alpha = {math.degrees(self.alpha):.3f} deg, 95 % [{math.degrees(lo):.3f}, {math.degrees(hi):.3f}] deg")
+            lines.append(f"{self.angle} = {math.degrees(self.alpha):.3f} deg, 95 % [{math.degrees(lo):.3f}, {math.degrees(hi):.3f}] deg")
         if len(self.validation) and math.isfinite(self.heldout_median):
             lines.append(f"held out: angle RMS median {self.heldout_median:.4g} rad (params0 {self.heldout_median0:.4g}), "
                          f"overall {self.heldout_overall:.4g} rad (params0 {self.heldout_overall0:.4g})")
@@ -368,13 +375,11 @@ def read_identification(path, variables, attrs) -> Identification:
     stored model (a model projected onto the nearest physical body, or a failed fit, keeps the
     estimate itself)."""
     from ..errors import SkewpendError
+    from ..symbolic.model import AnyModel
 
-    from ..symbolic.chain import Chain
-
-    model = Chain if "links" in json_attr(attrs, "params0") else Parameters
-    proto = protocol_fields(path, attrs, model)
+    proto = protocol_fields(path, attrs, AnyModel)
     try:
-        params0 = model.from_mapping(json_attr(attrs, "params0"))
+        params0 = AnyModel.from_mapping(json_attr(attrs, "params0"))
     except SkewpendError as exc:
         raise ParameterError(f"{path}: its starting parameters cannot be read back ({exc})") from None
 
@@ -405,22 +410,13 @@ def read_identification(path, variables, attrs) -> Identification:
         profile_cost=get("profile_cost"),
         correlation=np.asarray(variables["correlation"], dtype=float) if "correlation" in variables else np.zeros((0, 0)),
         **proto)
-    if model is Chain:
-        if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):
-            terms = chain_terms(params0)
-            if tuple(terms.names) != result.names:
-                raise ParameterError(f"{path} was written by another chain: its base parameters are {list(result.names)}, "
-                                     f"the chain's are {list(terms.names)}")
-            agree(path, "base parameters", values, terms.values(terms.standard(result.params)))
-        return result
     if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):
-        p = result.params
-        B = model_terms(params0.replace(alpha=None)) if result.settings.get("alpha_free") else model_terms(params0)
+        freed = (result.settings.get("angle") or "alpha") if result.settings.get("alpha_free") else None
+        B = _basis(params0, freed)
         if tuple(B.names) != result.names:
             raise ParameterError(f"{path} was written by another model: its base parameters are {list(result.names)}, "
                                  f"the model's are {list(B.names)}")
-        alpha = float(p.alpha) if p.alpha is not None else 0.0
-        agree(path, "base parameters", values, B.values(standard_vector(p), float(p.a), alpha, float(p.g)))
+        agree(path, "base parameters", values, B.beta(B.pi_ext(result.params), B.angle_of(result.params)))
     return result
 
 
@@ -516,21 +512,23 @@ def _no_intervals(count: int, text: str, seconds: float) -> str:
 
 
 # -- the fit ------------------------------------------------------------------------------------------
-def _check_input(measurements, params0, free, validation, smoothing):
+def _check_input(measurements, params0, validation, smoothing):
     if not isinstance(measurements, Measurements):
         raise ParameterError(f"measurements must be a skewpend Measurements, got {type(measurements).__name__}")
     if len(measurements) == 0:
         raise ParameterError("measurements hold no pieces")
     if validation is not None and not isinstance(validation, Measurements):
         raise ParameterError(f"validation must be a skewpend Measurements or None, got {type(validation).__name__}")
-    if not isinstance(params0, Parameters):
+    if not callable(getattr(params0, "as_chain", None)):
         raise ParameterError(f"params0 must be a skewpend Parameters or Chain, got {type(params0).__name__}")
     if not params0.is_numeric:
         raise ParameterError(f"params0 must be numeric; symbolic: {', '.join(params0.symbolic_names)}")
-    for data in (measurements, validation):
-        if data is not None and data.nq != 2:
-            raise ParameterError(f"the measurements hold {data.nq} angles, the double pendulum has 2: identify a chain "
-                                 f"of {data.nq} links (params0 a skewpend.Chain)")
+    from ..schema import model_title
+
+    for what, data in (("measurements", measurements), ("validation", validation)):
+        if data is not None and data.nq != params0.n:
+            raise ParameterError(f"the {what} hold {data.nq} angles, {params0.title} has {params0.n} (one angle a "
+                                 f"link): identify {model_title(data.nq)} (params0 a skewpend.Chain of {data.nq} links)")
     from ..checks import positive
 
     return positive("smoothing", smoothing, cap=60.0)  # a window in seconds
@@ -578,37 +576,23 @@ def _solve(G, b, homogeneous, k):
     return np.linalg.solve(G, b)
 
 
-def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
+def _linear(measurements: Measurements, params0, basis, *, free: Optional[Sequence[str]] = None,
             validation: Optional[Measurements] = None, smoothing: float = SMOOTHING,
             bootstrap: int = BOOTSTRAP, seed: int = 0, angles: str = "relative",
             _at_bound: Tuple[str, ...] = ()) -> Identification:
-    """Identify the base parameters of a measured pendulum: the linear first estimate.
-
-    ``measurements``: the motion to fit (:class:`~skewpend.Measurements`; torques where measured, a
-    free swing without); ``params0``: a numeric model supplying the geometry (``a``, ``alpha``,
-    ``g``, the axes), the masses, the entries the data cannot determine and, for a free swing, the
-    overall scale; ``free``: the base parameters to estimate (default all; the others stay at
-    ``params0``'s values -- ``alpha`` and the other nonlinear parameters are freed by the
-    output-error fit that comes next); ``validation``: held-out pieces to predict; ``smoothing``:
-    the Savitzky-Golay window in seconds (order 4).  Method, intervals and status: see the module.
-
-    >>> import skewpend  # doctest: +SKIP
-    >>> fit = skewpend.identify(skewpend.Measurements.from_kaheman("data/kaheman2023", which="fit"),
-    ...                         params0, validation=skewpend.Measurements.from_kaheman("data/kaheman2023",
-    ...                         which="validation"))  # doctest: +SKIP
-    """
+    """The linear first estimate of :func:`identify` (see the module): the base parameters of ``basis``
+    (:func:`_basis`) by least squares on the filtered signals, their intervals, the model realising them and
+    its held-out prediction."""
     from ..results import t_quantile
 
     t_start = time.perf_counter()
-    smoothing = _check_input(measurements, params0, free, validation, smoothing)
-    B = model_terms(params0)
+    B = basis
     names = B.names
     free_names = _free(free, names)
     fi = [names.index(n) for n in free_names]
     xi = [j for j in range(len(names)) if j not in fi]
-    a, g = float(params0.a), float(params0.g)
-    alpha = float(params0.alpha) if params0.alpha is not None else 0.0
-    beta0 = B.values(standard_vector(params0), a, alpha, g)
+    angle = B.angle0
+    beta0 = B.beta(B.pi_ext(params0), angle)
     driven = [p.u is not None for p in measurements]
     if any(driven) and not all(driven):
         raise ParameterError("measurements mix pieces with and without torques: identify them separately")
@@ -616,7 +600,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     # a free swing stays homogeneous when the held base parameters are all 0 (a joint term held at its
     # bound): they add nothing to either side
     homogeneous = not has_tau and not np.any(beta0[xi])
-    k = names.index(REFERENCE) if REFERENCE in names else 0
+    k = next((j for j, n in enumerate(names) if _stem(n) == "J1zz"), 0)
 
     # 1-2: filtered signals and the base regressor, per piece
     rows: List[np.ndarray] = []
@@ -627,7 +611,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
         tf, q, dq, ddq, u, w, _ = _filtered(p, smoothing)
         times.append(tf)
         windows.add(w)
-        Y = B.regressor(q, dq, ddq, a, alpha, g)  # (N, 2, r)
+        Y = B.rows(q, dq, ddq, angle)  # (N, n, r)
         tau = np.zeros(q.shape) if u is None else u
         tau = tau - np.einsum("nij,j->ni", Y[:, :, xi], beta0[xi]) if xi else tau
         rows.append(Y)
@@ -636,7 +620,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     settings = {"method": "linear (inverse dynamics on Savitzky-Golay filtered signals)",
                 "smoothing": smoothing, "order": ORDER, "windows": sorted(windows), "free": list(free_names),
                 "reference": names[k] if homogeneous else None, "bootstrap": int(bootstrap), "seed": int(seed),
-                "pieces": [p.name for p in measurements],
+                "pieces": [p.name for p in measurements], "links": params0.n,
                 "validation": [] if validation is None else [p.name for p in validation]}
     not_entering = tuple(B.unidentifiable)
     undetermined = []
@@ -645,7 +629,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
                                                else " (fixed by the base parameters held at params0's values)"))
     if not_entering:
         undetermined.append("do not enter the equations: " + ", ".join(not_entering))
-    common = dict(params0=params0, free=free_names, names=names, expressions=tuple(_expression_text(e) for e in B.expressions),
+    common = dict(params0=params0, free=free_names, names=names, expressions=B.expressions,
                   undetermined=tuple(undetermined), not_entering=not_entering,
                   pieces=tuple(p.name for p in measurements), settings=settings)
 
@@ -686,7 +670,7 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
         half = np.full(len(fi), np.nan)
         settings["intervals"] = _no_intervals(n_cl, cl_text, seconds)
     elif bootstrap:
-        rows_cl = np.repeat(cl, 2)  # two equations a sample
+        rows_cl = np.repeat(cl, params0.n)  # one equation a joint and sample
         G = np.zeros((n_cl, len(fi), len(fi)))
         bv = np.zeros((n_cl, len(fi)))
         for c in range(n_cl):
@@ -733,27 +717,27 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
     common.update(values=values, intervals=intervals, reference=names[k] if homogeneous else None, ratios=ratios,
                   ratio_intervals=ratio_iv, residual_rms=np.array(resid))
 
-    # the fitted Parameters
+    # the fitted model
     try:
-        fitted = _realise(params0, B, values, a, alpha, g)
+        fitted, note = B.realise(params0, values, angle, exact=True)
     except ParameterError as exc:
         # a joint term (damping, friction, rotor) below zero with 0 inside its interval: held at the bound
         # and the rest re-estimated (once), as the output-error fit does
         neg = [n for j, n in enumerate(names) if n in free_names and n.rstrip("0123456789") in ("c", "cf", "Ir")
                and values[j] < 0 and values[j] + halves[j] >= 0]
         if neg and not _at_bound:
-            again = _linear(measurements, params0.replace(**{n: 0.0 for n in neg}),
-                            free=[n for n in free_names if n not in neg], validation=validation, smoothing=smoothing,
-                            bootstrap=bootstrap, seed=seed, angles=angles, _at_bound=tuple(neg))
+            again = _linear(measurements, B.zeroed(params0, neg), B, free=[n for n in free_names if n not in neg],
+                            validation=validation, smoothing=smoothing, bootstrap=bootstrap, seed=seed, angles=angles,
+                            _at_bound=tuple(neg))
             if again.status is not Status.NO_CONVERGENCE or not again.message.startswith("the estimate is not physical"):
                 return again
         return failed(f"the estimate is not physical: {exc}")
-    check = B.values(standard_vector(fitted), a, alpha, g)
+    check = B.beta(B.pi_ext(fitted), angle)
     if np.abs(check - values).max() > 1e-9 * max(np.abs(values).max(), 1e-300):
-        return failed("the fitted Parameters do not reproduce the estimated base parameters")
+        return failed("the fitted model does not reproduce the estimated base parameters")
 
     # held-out prediction
-    status, message = Status.SUCCESS, "identified (linear first estimate)"
+    status, message = Status.SUCCESS, "identified (linear first estimate)" + (f"; {note}" if note else "")
     if _at_bound:
         message += (f"; held at 0, the bound their estimates crossed within their 95 % intervals (no physical joint "
                     f"has a negative one): {', '.join(_at_bound)}")
@@ -762,11 +746,12 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
         message += f"; {settings['intervals']}"
     from .shooting import angle_frame
 
-    vnames, kinds, hr, hr0, heldout = _heldout(fitted, params0, validation, smoothing, frame=angle_frame(2, angles))
+    vnames, kinds, hr, hr0, heldout = _heldout(fitted, params0, validation, smoothing,
+                                               frame=angle_frame(params0.n, angles))
     failed_pieces = [n for n, x, x0 in zip(vnames, hr, hr0) if not (math.isfinite(x) and math.isfinite(x0))]
     if failed_pieces:
         status, message = Status.NONFINITE, f"the held-out simulation of {failed_pieces[0]} failed"
-    stats = {"seconds": time.perf_counter() - t_start, "samples": samples, "equations": 2 * samples,
+    stats = {"seconds": time.perf_counter() - t_start, "samples": samples, "equations": params0.n * samples,
              "sigma2": est.sigma2, "dof": est.dof, **heldout}
     common.pop("params0")
     return Identification(params=fitted, params0=params0, status=status, message=message, stats=stats,
@@ -775,33 +760,36 @@ def _linear(measurements: Measurements, params0: Parameters, *, free: Optional[S
 
 
 METHODS = ("output-error", "linear")
-#: The profile's grid of |alpha| [deg] near the start (extended by doubling while the cost falls).
+#: The profile's grid of |angle - angle0| [deg] near the start (extended by doubling while the cost falls).
 PROFILE_GRID = (1.0, 2.0, 4.0)
 
 
-def identify(measurements: Measurements, params0: Parameters, *, free: Optional[Sequence[str]] = None,
+def identify(measurements: Measurements, params0, *, free: Optional[Sequence[str]] = None,
              validation: Optional[Measurements] = None, method: str = "output-error", smoothing: float = SMOOTHING,
              segment: float = 0.5, bootstrap: int = BOOTSTRAP, seed: int = 0,
              progress: Optional[Any] = None, angles: str = "relative") -> Identification:
-    """Identify a measured pendulum's base parameters (and, freed, its skew angle).
+    """Identify a measured pendulum's base parameters (and, freed, a hinge's tilt): the same stages for any
+    model, the double pendulum or a chain of any number of links (the measurements one angle a link).
 
     ``measurements``: the motion to fit (:class:`~skewpend.Measurements`; torques where measured, a
-    free swing without); ``params0``: a numeric model supplying the geometry (``a``, ``alpha``,
-    ``g``, the axes), the masses, the entries the data cannot determine, the start of the fit and,
-    for a free swing, the overall scale; ``free``: the base parameters to estimate (default all),
-    and ``"alpha"`` to estimate the skew angle too; ``validation``: held-out pieces, each simulated
-    from its first measured state; ``method``: ``"output-error"`` (default: the linear estimate,
-    then multiple shooting with exact sensitivities, :mod:`skewpend.analysis.shooting`) or
-    ``"linear"`` (the first estimate alone); ``smoothing``: the Savitzky-Golay window [s];
-    ``segment``: the shooting segments' length [s]; ``bootstrap``, ``seed``: the resampled
-    pieces of the intervals; ``progress``: ``callable(stage: str, fraction: float)``; ``angles``: the
-    angles the output error and the held-out RMS are measured in, ``"relative"`` (the joint angles,
-    skewpend's coordinates) or ``"absolute"`` (each rod's from the vertical, as a rig with absolute
-    encoders measures them; :func:`skewpend.analysis.shooting.angle_frame`).
+    free swing without); ``params0``: a numeric model (:class:`~skewpend.Parameters` or
+    :class:`~skewpend.Chain`) supplying the geometry (lengths, hinge axes and offsets, ``g``), the masses,
+    the entries the data cannot determine, the start of the fit and, for a free swing, the overall scale;
+    ``free``: the base parameters to estimate (default all), and one hinge's tilt to estimate too -- ``alpha``
+    (the double pendulum's skew angle, its hinge 2's tilt) or ``tiltK`` (a chain's hinge ``K``: its axis turned
+    about the vertical ``j`` from the given one; its value is the angle of the axis's projection on the ``(k,
+    i)`` plane from ``k`` towards ``i``); ``validation``: held-out pieces, each simulated from its first
+    measured state; ``method``: ``"output-error"`` (default: the linear estimate, then multiple shooting with
+    exact sensitivities, :mod:`skewpend.analysis.shooting`) or ``"linear"`` (the first estimate alone);
+    ``smoothing``: the Savitzky-Golay window [s]; ``segment``: the shooting segments' length [s];
+    ``bootstrap``, ``seed``: the resampled pieces of the intervals; ``progress``: ``callable(stage: str,
+    fraction: float)``; ``angles``: the angles the output error and the held-out RMS are measured in,
+    ``"relative"`` (the joint angles, skewpend's coordinates) or ``"absolute"`` (each rod's from the vertical,
+    as a rig with absolute encoders measures them; :func:`skewpend.analysis.shooting.angle_frame`).
 
-    ``params0`` may be a :class:`~skewpend.Chain` of any number of links (the measurements one
-    angle a link): the same output-error fit on the chain's base parameters
-    (:func:`chain_terms`, found numerically from the recursive model's regressor).
+    The base parameters come from the cheapest printer the model provides (:func:`_basis`): the exact
+    derivation where it keeps its symbolic form (the double pendulum's facade), else the recursive algorithms'
+    regressor, found numerically (:func:`chain_terms`).
 
     >>> import skewpend  # doctest: +SKIP
     >>> fit = skewpend.identify(skewpend.Measurements.from_kaheman("data/kaheman2023", which="fit"),
@@ -810,63 +798,157 @@ def identify(measurements: Measurements, params0: Parameters, *, free: Optional[
     """
     if method not in METHODS:
         raise ParameterError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    from ..symbolic.chain import Chain
-
     from .shooting import angle_frame
-
-    angle_frame(2, angles)  # one line for a wrong name, before any work
-    if isinstance(params0, Chain):
-        return _identify_chain(measurements, params0, free=free, validation=validation, method=method,
-                               smoothing=smoothing, segment=segment, bootstrap=bootstrap, seed=seed, progress=progress,
-                               angles=angles)
-    if validation is not None and not isinstance(validation, Measurements):
-        raise ParameterError(f"validation must be a skewpend Measurements or None, got {type(validation).__name__}")
-    names_free = None
-    alpha_free = False
-    if free is not None:
-        names_free = _name_list(free)
-        alpha_free = "alpha" in names_free
-        names_free = [f for f in names_free if f != "alpha"]
-        if alpha_free and method == "linear":
-            raise ParameterError("free: alpha enters the equations nonlinearly: free it with method='output-error'")
-        if alpha_free and not names_free:
-            names_free = None  # alpha alone: with every base parameter
     from ..checks import positive
 
+    angle_frame(2, angles)  # one line for a wrong name, before any work
+    smoothing = _check_input(measurements, params0, validation, smoothing)
+    names_free = None
+    angle = None
+    if free is not None:
+        names_free = _name_list(free)
+        found = [(f, _angle_name(f, params0)) for f in names_free]
+        freed = [a for _, a in found if a is not None]
+        if len(freed) > 1:
+            raise ParameterError(f"free: one hinge's tilt at a time, got {', '.join(f for f, a in found if a)}")
+        angle = freed[0] if freed else None
+        names_free = [f for f, a in found if a is None]
+        if angle and method == "linear":
+            raise ParameterError(f"free: {angle} enters the equations nonlinearly: free it with method='output-error'")
+        if angle and not names_free:
+            names_free = None  # the angle alone: with every base parameter
     seg_len = positive("segment", segment, cap=60.0)  # a length in seconds
     t_start = time.perf_counter()
     say = progress if callable(progress) else (lambda stage, fraction: None)
     say("linear estimate", 0.0)
-    lin = _linear(measurements, params0, free=names_free, validation=validation if method == "linear" else None,
+    basis = _basis(params0)
+    lin = _linear(measurements, params0, basis, free=names_free, validation=validation if method == "linear" else None,
                   smoothing=smoothing, bootstrap=bootstrap, seed=seed, angles=angles)
     if method == "linear" or not np.all(np.isfinite(np.asarray(lin.values, float))):
         return lin  # (a linear estimate that is not physical still starts the output-error fit)
-    return _output_error(lin, measurements, params0, alpha_free, validation, smoothing, seg_len, bootstrap, seed,
+    return _output_error(lin, measurements, params0, basis, angle, validation, smoothing, seg_len, bootstrap, seed,
                          say, t_start, all_free=names_free is None, angles=angles)
 
 
-# -- a chain of links: the same fit on the recursive model ---------------------------------------------------
-@dataclass(frozen=True)
-class ChainTerms:
-    """The base parameters of a chain of links (its hinge axes and offsets fixed), found numerically:
-    the regressor of the standard parameters (``recursive.regressor_function``: ``M q'' - f + tau =
-    Y pi``) at seeded random states, its columns taken greedily in the pivot order of the double
-    pendulum's base parameters (each link's ``J zz, xz, yz, xy, xx, yy``, then ``h y, x, z``, ``m``;
-    the joints' damping, friction and rotor last), the dependent columns as least-squares
-    combinations of the pivots': ``beta = matrix pi``.  ``names``: the pivot's name, ``_b`` appended
-    when others move with it; ``expressions`` as text (``J1zz + 0.02986*m2 + ...``);
-    ``unidentifiable`` the entries whose columns are zero (they do not enter the equations)."""
+# -- a chain of links: its base parameters found numerically from the recursive model ----------------------------
+#: States at which a chain's regressor is sampled to find its base parameters (seeded).
+CHAIN_SAMPLES = 60
+#: Where a hinge's tilt is freed, its base parameters are those of a generic tilt: the given one turned by this
+#: much [rad] (a planar chain's own tilt would leave entries out that the tilted chain's equations hold).
+GENERIC_TURN = 0.7
+#: The step [rad] of the central differences of ``T(tilt)``, and the half-distance of the two sides averaged where
+#: the generic base parameters' columns are dependent (the planar tilt itself: ``T`` there is their limit).
+TILT_STEP = 1e-5
 
-    names: Tuple[str, ...]
-    pi_names: Tuple[str, ...]
-    pivots: Tuple[int, ...]
-    matrix: np.ndarray
-    expressions: Tuple[str, ...]
-    unidentifiable: Tuple[str, ...]
+
+def turned(axis, angle: float) -> Tuple[float, float, float]:
+    """``axis`` turned about the vertical ``j`` by ``angle`` (from ``k`` towards ``i``: ``k`` -> ``(sin, 0, cos)``)."""
+    x, y, z = (float(v) for v in axis)
+    c, s = math.cos(angle), math.sin(angle)
+    return (c * x + s * z, y, c * z - s * x)
+
+
+def tilt_of(axis) -> float:
+    """The tilt of a hinge axis: the angle of its projection on the ``(k, i)`` plane from ``k`` towards ``i`` (the
+    double pendulum's alpha for its second hinge, a chain sweep's ``tilt``)."""
+    return math.atan2(float(axis[0]), float(axis[2]))
+
+
+class ChainTerms:
+    """The base parameters of a chain of links (its offsets fixed), found numerically: the regressor of the
+    standard parameters (``recursive.regressor_function``: ``M q'' - f + tau = Y pi``) at seeded random states,
+    its columns taken greedily in the pivot order of the double pendulum's base parameters (each link's ``J zz,
+    xz, yz, xy, xx, yy``, then ``h y, x, z``, ``m``; the joints' damping, friction and rotor last), the dependent
+    columns as least-squares combinations of the pivots': ``beta = matrix pi``.  ``names``: the pivot's name,
+    ``_b`` appended when others move with it; ``expressions`` as text (``J1zz + 0.02986*m2 + ...``);
+    ``unidentifiable`` the entries whose columns are zero (they do not enter the equations).
+
+    ``tilt`` (a link, 1-based): that hinge's tilt is a parameter (:func:`tilt_of`; the axis turned about ``j``,
+    :func:`turned`): the base parameters are a generic tilt's and ``T(angle)`` (:meth:`T`) is found at each tilt
+    asked, its derivative by central differences; the compiled code is the generic tilt's (``generic``)."""
+
+    def __init__(self, chain, tilt: Optional[int] = None):
+        from ..numeric.recursive import parameter_names, parameter_vector, regressor_function, standard_names
+        from ..numeric.recursive import structure_of_chain
+        from ..symbolic.regressor import independent_columns
+
+        n = chain.n
+        self.tilt = tilt
+        self.angle0 = tilt_of(chain.links[tilt - 1].axis) if tilt else 0.0
+        self.axis0 = chain.links[tilt - 1].axis if tilt else None
+        self.generic = (chain.replace_link(tilt, axis=turned(self.axis0, GENERIC_TURN)) if tilt else chain)
+        structure = structure_of_chain(self.generic)
+        self.pi_names = names = standard_names(structure)
+        self._fn = regressor_function(structure)
+        self._p, self._pi = parameter_vector(chain), self.standard(chain)  # (Y does not depend on pi's value)
+        self._i_axis = [parameter_names(n).index(f"e{c}{tilt}") for c in "xyz"] if tilt else []
+        rng = np.random.default_rng(0)
+        self._states = [(np.concatenate([rng.uniform(-math.pi, math.pi, n), rng.normal(0.0, 3.0, n)]),
+                         rng.normal(0.0, 10.0, n)) for _ in range(CHAIN_SAMPLES)]
+        W = self._samples(self.angle0 + GENERIC_TURN if tilt else self.angle0)
+        prefer = []
+        for i in range(1, n + 1):
+            prefer += [f"J{i}{e}" for e in ("zz", "xz", "yz", "xy", "xx", "yy")] + [f"h{i}{x}" for x in "yxz"] + [f"m{i}"]
+        prefer += [x for x in names if x not in prefer]
+        pivots = sorted(independent_columns(W, [names.index(x) for x in prefer]))  # in pi's order
+        scale = np.linalg.norm(W, axis=0)
+        self.unidentifiable = tuple(names[j] for j in np.flatnonzero(scale <= 1e-10 * scale.max()))
+        self.pivots = tuple(pivots)
+        self.dep = [j for j in range(len(names)) if j not in pivots]
+        self._cache: Dict[float, np.ndarray] = {}
+        self.matrix = self.T(self.angle0)
+        out_names, texts = [], []
+        for r, j in enumerate(pivots):
+            terms = [names[j]] + [f"{self.matrix[r, d]:+.6g}*{names[d]}" for d in self.dep if self.matrix[r, d] != 0.0]
+            out_names.append(names[j] + ("_b" if len(terms) > 1 else ""))
+            texts.append(" ".join(terms).replace(" +", " + ").replace(" -", " - "))
+        self.names, self.expressions = tuple(out_names), tuple(texts)
+        self.extra: Tuple[str, ...] = ()
 
     @property
     def rank(self) -> int:
         return len(self.names)
+
+    def _at(self, angle: float) -> np.ndarray:
+        p = self._p.copy()
+        if self.tilt:
+            p[self._i_axis] = turned(self.axis0, angle - self.angle0)
+        return p
+
+    def _samples(self, angle: float) -> np.ndarray:
+        p, pi = self._at(angle), self._pi
+        return np.vstack([np.array(self._fn(y, a, p, pi), dtype=float) for y, a in self._states])
+
+    def T(self, angle: float) -> np.ndarray:
+        """``beta = T(angle) pi`` (r x len(pi)): the identity on the pivots, the dependents' combinations."""
+        angle = float(angle)
+        if angle in self._cache:
+            return self._cache[angle]
+        W = self._samples(angle)
+        P = W[:, list(self.pivots)]
+        norms = np.linalg.norm(P, axis=0)
+        s = np.linalg.svd(P / np.where(norms > 0, norms, 1.0), compute_uv=False)
+        if self.tilt and not s[-1] > 1e-7 * s[0]:  # the generic columns dependent here: their limit
+            T = 0.5 * (self.T(angle + TILT_STEP) + self.T(angle - TILT_STEP))
+        else:
+            K = np.linalg.lstsq(P, W[:, self.dep], rcond=None)[0] if self.dep else np.zeros((len(self.pivots), 0))
+            K[np.abs(K) < 1e-10 * max(1.0, float(np.abs(K).max(initial=0.0)))] = 0.0
+            miss = float(np.linalg.norm(W[:, self.dep] - P @ K)) if self.dep else 0.0
+            if miss > 1e-8 * float(np.linalg.norm(W)):
+                raise AssertionError(f"a chain's dependent regressor columns are not combinations of the pivots' ({miss:.3g})")
+            T = np.zeros((len(self.pivots), len(self.pi_names)))
+            T[np.arange(len(self.pivots)), list(self.pivots)] = 1.0
+            T[:, self.dep] = K
+        self._cache[angle] = T
+        return T
+
+    def dT(self, angle: float) -> np.ndarray:
+        return (self.T(angle + TILT_STEP) - self.T(angle - TILT_STEP)) / (2 * TILT_STEP)
+
+    def matrix_functions(self):
+        """``(T, dT/dangle)`` as functions of ``(a, angle, g)`` (the symbolic base parameters' signature; a chain's
+        lengths and ``g`` are fixed)."""
+        return (lambda a, angle, g: self.T(angle)), (lambda a, angle, g: self.dT(angle))
 
     @staticmethod
     def standard(chain) -> np.ndarray:
@@ -874,72 +956,48 @@ class ChainTerms:
 
         return chain_standard(chain)
 
-    def values(self, pi) -> np.ndarray:
-        return self.matrix @ np.asarray(pi, dtype=float)
+    def values(self, pi, angle: Optional[float] = None) -> np.ndarray:
+        return (self.matrix if angle is None else self.T(angle)) @ np.asarray(pi, dtype=float)
 
-    def representative(self, beta, pi_ref) -> np.ndarray:
+    def representative(self, beta, pi_ref, angle: Optional[float] = None) -> np.ndarray:
         """The standard vector of ``beta`` with the dependent entries held at ``pi_ref``'s."""
+        T = self.matrix if angle is None else self.T(angle)
         pi = np.array(pi_ref, dtype=float)
-        dep = [j for j in range(len(pi)) if j not in self.pivots]
-        pi[list(self.pivots)] = np.asarray(beta, float) - self.matrix[:, dep] @ pi[dep]
+        pi[list(self.pivots)] = np.asarray(beta, float) - T[:, self.dep] @ pi[self.dep]
         return pi
 
+    def at(self, angle: float) -> "ChainTerms":
+        """These base parameters with ``matrix`` at ``angle`` (the realisation's)."""
+        if float(angle) == self.angle0:
+            return self
+        out = copy.copy(self)
+        out.matrix = self.T(angle)
+        return out
 
-#: States at which a chain's regressor is sampled to find its base parameters (seeded).
-CHAIN_SAMPLES = 60
+    def rows(self, q, dq, ddq, angle: float) -> np.ndarray:
+        """The base regressor at the samples ``(q, q', q'')`` (N x n each): (N, n, r)."""
+        q, dq, ddq = (np.asarray(x, dtype=float) for x in (q, dq, ddq))
+        N, n = q.shape
+        out = np.empty((N, n, len(self.pivots)))
+        p, pi, piv = self._at(angle), self._pi, list(self.pivots)
+        chunk = 4096
+        for s in range(0, N, chunk):
+            k = min(chunk, N - s)
+            Y = np.array(self._fn.map(k)(np.hstack([q[s:s + k], dq[s:s + k]]).T, ddq[s:s + k].T, p, pi), dtype=float)
+            out[s:s + k] = Y.reshape(n, k, len(pi)).transpose(1, 0, 2)[:, :, piv]
+        return out
 
 
-def chain_terms(chain) -> ChainTerms:
-    """The base parameters of ``chain``'s structure and offsets (:class:`ChainTerms`)."""
-    from ..numeric.recursive import parameter_vector, regressor_function, standard_names, structure_of_chain
-    from ..symbolic.regressor import independent_columns
+def chain_terms(chain, tilt: Optional[int] = None) -> ChainTerms:
+    """The base parameters of ``chain``'s structure and offsets (:class:`ChainTerms`; ``tilt``: that hinge's
+    tilt a parameter)."""
+    from ..numeric.recursive import structure_of_chain
 
-    structure = structure_of_chain(chain)
-    key = ("chain", structure.key(), tuple(link.offset for link in chain.links), chain.g, chain.cfs,
-           tuple(link.gear for link in chain.links))
-    if key in _BASE_CACHE:
-        return _BASE_CACHE[key]
-    names = standard_names(structure)
-    fn = regressor_function(structure)
-    p, pi = parameter_vector(chain), ChainTerms.standard(chain)
-    rng = np.random.default_rng(0)
-    n = chain.n
-    rows = []
-    for _ in range(CHAIN_SAMPLES):
-        y = np.concatenate([rng.uniform(-math.pi, math.pi, n), rng.normal(0.0, 3.0, n)])
-        rows.append(np.array(fn(y, rng.normal(0.0, 10.0, n), p, pi), dtype=float))
-    W = np.vstack(rows)
-    prefer = []
-    for i in range(1, n + 1):
-        prefer += [f"J{i}{e}" for e in ("zz", "xz", "yz", "xy", "xx", "yy")] + [f"h{i}{x}" for x in "yxz"] + [f"m{i}"]
-    prefer += [x for x in names if x not in prefer]
-    pivots = independent_columns(W, [names.index(x) for x in prefer])
-    scale = np.linalg.norm(W, axis=0)
-    zero = scale <= 1e-10 * scale.max()
-    dep = [j for j in range(len(names)) if j not in pivots]
-    K = np.linalg.lstsq(W[:, pivots], W[:, dep], rcond=None)[0] if dep else np.zeros((len(pivots), 0))
-    K[np.abs(K) < 1e-10 * max(1.0, float(np.abs(K).max(initial=0.0)))] = 0.0
-    miss = float(np.linalg.norm(W[:, dep] - W[:, pivots] @ K)) if dep else 0.0
-    if miss > 1e-8 * float(np.linalg.norm(W)):
-        raise AssertionError(f"a chain's dependent regressor columns are not combinations of the pivots' ({miss:.3g})")
-    order = sorted(range(len(pivots)), key=lambda k: pivots[k])  # the base parameters in pi's order
-    pivots = [pivots[k] for k in order]
-    K = K[order]
-    matrix = np.zeros((len(pivots), len(names)))
-    out_names, texts = [], []
-    for r, j in enumerate(pivots):
-        matrix[r, j] = 1.0
-        terms = [names[j]]
-        for c, d in enumerate(dep):
-            if K[r, c] != 0.0:
-                matrix[r, d] = K[r, c]
-                terms.append(f"{K[r, c]:+.6g}*{names[d]}")
-        out_names.append(names[j] + ("_b" if len(terms) > 1 else ""))
-        texts.append(" ".join(terms).replace(" +", " + ").replace(" -", " - "))
-    result = ChainTerms(names=tuple(out_names), pi_names=names, pivots=tuple(pivots), matrix=matrix,
-                        expressions=tuple(texts), unidentifiable=tuple(names[j] for j in np.flatnonzero(zero)))
-    _BASE_CACHE[key] = result
-    return result
+    key = ("chain", structure_of_chain(chain).key(), tuple((link.offset, link.axis) for link in chain.links), chain.g, chain.cfs,
+           tuple(link.gear for link in chain.links), tilt, chain.links[tilt - 1].axis if tilt else None)
+    if key not in _BASE_CACHE:
+        _BASE_CACHE[key] = ChainTerms(chain, tilt)
+    return _BASE_CACHE[key]
 
 
 def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False, as_is: bool = False):
@@ -1043,131 +1101,182 @@ def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray,
     return None, first if last == first else f"{first} (with the masses scaled x{factors[-1]:g}: {last})"
 
 
-def _identify_chain(measurements, chain0, *, free, validation, method, smoothing, segment, bootstrap, seed, progress,
-                    angles="relative"):
-    """:func:`identify` for a chain of links: the output-error fit of :mod:`skewpend.analysis.shooting` on
-    the chain's base parameters (:func:`chain_terms`), from ``chain0``'s values."""
-    from . import shooting
-    from ..checks import positive
+# -- the model's base parameters: one interface, two printers -----------------------------------------------
+class _Exact:
+    """The base parameters from the specification's exact derivation (:mod:`skewpend.symbolic.regressor`), for a
+    model that keeps its symbolic form (the double pendulum's facade): ``generic`` -- the skew angle alpha a
+    parameter (every skew's base parameters).  The interface :func:`identify` asks (:class:`_Recursive` is the
+    other): ``names``, ``expressions``, ``unidentifiable``, ``terms`` (for the shooting), ``angle`` (the freed
+    angle's name, or None) and ``angle0``; ``standard``, ``beta``, ``rows``, ``with_angle``, ``angle_of``,
+    ``zeroed``, ``realise``, ``nearest``, ``model_of``."""
 
-    if not isinstance(measurements, Measurements):
-        raise ParameterError(f"measurements must be a skewpend Measurements, got {type(measurements).__name__}")
-    for what, data in (("measurements", measurements), ("validation", validation)):
-        if data is None:
-            continue
-        if not isinstance(data, Measurements):
-            raise ParameterError(f"{what} must be a skewpend Measurements or None, got {type(data).__name__}")
-        if data.nq != chain0.n:
-            raise ParameterError(f"the {what} hold {data.nq} angles, the chain has {chain0.n} links: one angle a link")
-    if method != "output-error":
-        raise ParameterError("a chain is identified by the output-error fit only (method='output-error')")
-    if validation is not None and any(p.u is not None for p in validation):
-        raise ParameterError("held-out pieces with measured torques: a chain's simulation takes no measured torques "
-                             "yet; hold out free-swing pieces")
-    smoothing = positive("smoothing", smoothing, cap=60.0)
-    seg_len = positive("segment", segment, cap=60.0)
-    t_start = time.perf_counter()
-    say = progress if callable(progress) else (lambda stage, fraction: None)
-    say("base parameters", 0.0)
-    terms = chain_terms(chain0)
-    names = terms.names
-    homogeneous = not measurements.has_torques
-    ref = next((n for n in names if _stem(n) == "J1zz"), names[0]) if homogeneous else None
-    if free is None:
-        chosen = [n for n in names if n != ref]
-    else:
-        wanted = _name_list(free)
-        unknown = [f for f in wanted if f not in names]
-        if unknown:
-            raise ParameterError(f"free: {unknown[0]!r} is not a base parameter of this chain; its base parameters: "
-                                 f"{', '.join(names)}")
-        if ref in wanted:
-            raise ParameterError(f"free: {ref} is the scale of a free swing (free motion determines ratios only); "
-                                 "it stays at params0's value")
-        chosen = [n for n in names if n in wanted]
-        if not chosen:
-            raise ParameterError("free names no parameter")
-    pi0 = terms.standard(chain0)
-    beta0 = terms.values(pi0)
-    step = max(float(np.median(np.diff(np.asarray(p.t, float)))) for p in measurements)
-    signals = [_signals(p, smoothing, step) for p in measurements]
-    seg = shooting.segments(signals, [p.name for p in measurements], seg_len)
-    spans = [(float(x[0][0]), float(x[0][-1])) for x in signals]
-    cl, n_cl, cl_text = clusters(seg.piece, seg.t0, spans)
-    settings = {"method": "output-error (multiple shooting, RK4 with exact sensitivities)", "segment": seg_len,
-                "step": seg.h, "segments": len(seg), "smoothing": smoothing, "links": chain0.n, "angles": angles,
-                "intervals": f"clusters: {cl_text}" if n_cl >= MIN_CLUSTERS else
-                _no_intervals(n_cl, cl_text, float(sum(b - a for a, b in spans)))}
-    say("output-error fit", 0.1)
+    def __init__(self, params, generic: bool = False):
+        self.terms = model_terms(params.replace(alpha=None) if generic else params)
+        self.a, self.g = float(params.a), float(params.g)
+        self.angle = "alpha" if generic else None
+        self.name = "alpha"  # the model's skew angle, freed or not
+        self.angle0 = self.angle_of(params)
+        self.names, self.unidentifiable = self.terms.names, tuple(self.terms.unidentifiable)
+        self.expressions = tuple(_expression_text(e) for e in self.terms.expressions)
+
+    @staticmethod
+    def angle_of(model) -> float:
+        return float(model.alpha) if model.alpha is not None else 0.0
+
+    @staticmethod
+    def standard(model) -> np.ndarray:
+        return standard_vector(model)
+
+    def beta(self, pi, angle: float) -> np.ndarray:
+        return self.terms.values(pi, self.a, angle, self.g)
+
+    def rows(self, q, dq, ddq, angle: float) -> np.ndarray:
+        return self.terms.regressor(q, dq, ddq, self.a, angle, self.g)
+
+    @staticmethod
+    def with_angle(model, angle: float):
+        return model.replace(alpha=angle)
+
+    @staticmethod
+    def zeroed(model, names: Sequence[str]):
+        return model.replace(**{n: 0.0 for n in names})
+
+    def realise(self, model0, beta, angle: float, held: Sequence[str] = (), halves=None, exact: bool = False):
+        """``(model, note)`` with the base parameters ``beta``; one ParameterError when no physical model has them
+        (``exact``: params0's masses and free entries only)."""
+        if exact:
+            return _realise(model0, self.terms, beta, self.a, angle, self.g), ""
+        return _realise_masses(model0, self.terms, beta, self.a, angle, self.g, held=held)
+
+    def nearest(self, model0, beta, angle: float, held: Sequence[str]):
+        return _realise(model0, self.terms, beta, self.a, angle, self.g, held=held, project=True)
+
+    def pi_ext(self, model) -> np.ndarray:
+        """The standard vector with the friction and rotor terms after it (the shooting's ``pi``)."""
+        return np.concatenate([standard_parameters(model), [float(getattr(model, x) or 0.0) for x in self.terms.extra]])
+
+    def model_of(self, model0, pi, angle: float):
+        """The model of a physical fit's standard vector ``pi`` (bodies as masses, centres and inertias)."""
+        idx = {n: j for j, n in enumerate(PI_NAMES)}
+        changes: Dict[str, Any] = {n: float(pi[idx[n]]) for n in DAMPING_NAMES}
+        changes.update({x: float(v) for x, v in zip(self.terms.extra, pi[len(PI_NAMES):])})
+        for i in (1, 2):
+            m = float(pi[idx[f"m{i}"]])
+            c = np.array([pi[idx[f"h{i}{x}"]] for x in "xyz"]) / m
+            J = np.empty((3, 3))
+            for p, (r, s_) in zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
+                J[r, s_] = J[s_, r] = pi[idx[f"J{i}{p}"]]
+            ic = J - m * (c @ c * np.eye(3) - np.outer(c, c))
+            changes[f"m{i}"] = m
+            changes[f"com{i}"] = tuple(float(v) for v in c)
+            changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))
+        if self.angle:
+            changes["alpha"] = float(angle)
+        return model0.replace(**changes)
+
+
+#: The joint terms of a chain's link, by the stem of their standard parameter.
+_JOINT_KEYS = {"c": "damping", "cf": "coulomb", "Ir": "rotor"}
+
+
+class _Recursive:
+    """The base parameters found numerically from the recursive algorithms (:class:`ChainTerms`), for any chain
+    of links; ``tilt`` (a link): that hinge's tilt a parameter.  The interface of :class:`_Exact`."""
+
+    def __init__(self, chain, tilt: Optional[int] = None):
+        self.terms = chain_terms(chain, tilt)
+        self.tilt = tilt
+        self.angle = f"tilt{tilt}" if tilt else None
+        self.name = self.angle
+        self.angle0 = self.terms.angle0
+        self.names, self.unidentifiable, self.expressions = self.terms.names, self.terms.unidentifiable, self.terms.expressions
+
+    def angle_of(self, model) -> float:
+        return tilt_of(model.links[self.tilt - 1].axis) if self.tilt else 0.0
+
+    def standard(self, model) -> np.ndarray:
+        return self.terms.standard(model)
+
+    pi_ext = standard
+
+    def beta(self, pi, angle: float) -> np.ndarray:
+        return self.terms.values(pi, angle)
+
+    def rows(self, q, dq, ddq, angle: float) -> np.ndarray:
+        return self.terms.rows(q, dq, ddq, angle)
+
+    def with_angle(self, model, angle: float):
+        if not self.tilt:
+            return model
+        return model.replace_link(self.tilt, axis=turned(self.terms.axis0, angle - self.angle0))
+
+    @staticmethod
+    def zeroed(model, names: Sequence[str]):
+        for n in names:
+            stem = n.rstrip("0123456789")
+            model = model.replace_link(int(n[len(stem):]), **{_JOINT_KEYS[stem]: 0.0})
+        return model
+
+    def realise(self, model0, beta, angle: float, held: Sequence[str] = (), halves=None, exact: bool = False):
+        model0 = self.with_angle(model0, angle)
+        fitted, note = _realise_chain(model0, self.terms.at(angle), beta, self.standard(model0), halves)
+        if fitted is None or "nearest physical body" in note:  # a projection is a start, never the model
+            raise ParameterError(note)
+        return fitted, note
+
+    def nearest(self, model0, beta, angle: float, held: Sequence[str]):
+        model0 = self.with_angle(model0, angle)
+        fitted, note = _realise_chain(model0, self.terms.at(angle), beta, self.standard(model0), start=True)
+        if fitted is None:
+            raise ParameterError(note)
+        return fitted
+
+    def model_of(self, model0, pi, angle: float):
+        return _chain_of(self.with_angle(model0, angle), self.terms, pi, as_is=True)
+
+
+def _basis(model, angle: Optional[str] = None):
+    """The base parameters of ``model`` (``angle``: the name of a hinge's tilt it frees, checked), from the cheapest
+    printer it provides: the exact derivation where it keeps its symbolic form, else the recursive algorithms."""
     try:
-        sf = shooting.fit(terms, chain0, beta0, chosen, 0.0, False, seg, pieces=len(measurements),
-                          bootstrap=bootstrap, seed=seed, cluster=cl, frame=shooting.angle_frame(chain0.n, angles))
-    except FloatingPointError as exc:
-        raise ParameterError(f"the output-error fit cannot start: {exc}") from None
-    if n_cl < MIN_CLUSTERS:
-        sf.half = np.full_like(sf.half, np.nan)
-    values = np.asarray(sf.beta, float)
-    half = dict(zip(sf.theta_names, sf.half))
-    halves = np.array([half.get(n, math.nan) for n in names])
-    intervals = np.column_stack([values - halves, values + halves])
-    ratios, ratio_iv = {}, {}
-    if homogeneous:
-        intervals[names.index(ref)] = (math.nan, math.nan)
-        ratios, ratio_iv = _ratios(names, values, intervals, ref, half)
-    status, message = Status.SUCCESS, "identified (output error, multiple shooting)"
-    fitted, note = _realise_chain(chain0, terms, values, pi0, halves, start=True)
-    if fitted is not None and "nearest physical body" in note and sf.converged and not sf.flat:
-        # no physical chain has the estimate's base parameters (thin rods on the edge): the nearest one starts
-        # the output-error fit over physical bodies only, whose estimate is the model (see _output_error)
-        frame = shooting.angle_frame(chain0.n, angles)
-        n_res = float(seg.mask.sum()) * seg.q.shape[2]
-        try:
-            phys = shooting.fit_physical(terms, chain0, terms.standard(fitted), 0.0, False, seg, sf.y0,
-                                         held=[names.index(n) for n in names if n not in sf.theta_names and n != ref],
-                                         reference=names.index(ref) if ref else None, frame=frame,
-                                         tol_cost=1e-3 * _allowance(n_res) * n_res * angle_noise(measurements) ** 2)
-            fitted = _chain_of(chain0, terms, phys.pi, as_is=True)
-        except (FloatingPointError, ParameterError, np.linalg.LinAlgError) as exc:
-            fitted, note = None, f"{note.split(';')[0]}; the fit over physical bodies failed: {exc}"
-        else:
-            settings["physical_fit"] = {"iterations": phys.iterations, "converged": phys.converged,
-                                        "message": phys.message, "seconds": phys.seconds}
-            intervals = phys.beta[:, None] + (intervals - values[:, None])
-            values = np.asarray(phys.beta, float)
-            if homogeneous:
-                ratios, ratio_iv = _ratios(names, values, intervals, ref, half)
-            excess = physical_excess(phys.cost, float(sf.cost), seg, measurements)
-            note = excess.text
-            if not excess.ok:
-                status, message = Status.NO_CONVERGENCE, excess.text
-    if fitted is None:
-        status, message = Status.NO_CONVERGENCE, f"the output-error estimate is not physical: {note}"
-    elif note and status is Status.SUCCESS:
-        message += f"; {note}"
-    if fitted is not None and status is Status.SUCCESS:
-        check = terms.values(terms.standard(fitted))
-        if np.abs(check - values).max() > 1e-9 * np.abs(values).max():
-            status, message, fitted = Status.NO_CONVERGENCE, "the fitted chain does not reproduce the estimate", None
-    status, message = _fit_status(sf, status, message)
-    say("held-out prediction", 0.9)
-    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, chain0, validation, smoothing,
-                                                   frame=shooting.angle_frame(chain0.n, angles))
-    if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
-        status, message = Status.NONFINITE, "a held-out simulation failed"
-    if status is Status.SUCCESS and not settings["intervals"].startswith("clusters"):
-        message += f"; {settings['intervals']}"
-    undetermined = ([SCALE_DIRECTION + f" (held at params0's {ref})"] if homogeneous else [])
-    settings.update(iterations=sf.iterations, converged=sf.converged, free=list(sf.theta_names), alpha_free=False)
-    stats = {"samples": int(sum(len(p) for p in measurements)), "seconds": time.perf_counter() - t_start,
-             "fit_seconds": sf.seconds, "cost": sf.cost, **stats_extra}
-    return Identification(
-        params=fitted if fitted is not None else chain0, params0=chain0, status=status, message=message, stats=stats,
-        settings=settings, names=names, expressions=terms.expressions, values=values, intervals=intervals,
-        free=tuple(n for n in names if n in half or n == ref), reference=ref, ratios=ratios, ratio_intervals=ratio_iv,
-        undetermined=tuple(undetermined), not_entering=terms.unidentifiable, pieces=measurements.names,
-        residual_rms=np.full(len(measurements), math.nan), validation=tuple(vnames), heldout_kind=tuple(kinds),
-        heldout_rms=np.array(hr), heldout_rms0=np.array(hr0), method="output-error", fit_rms=sf.rms_piece,
-        correlation=sf.correlation)
+        return _Exact(model, generic=angle is not None)
+    except AttributeError:  # no symbolic form (a chain of links): its numbers
+        return _Recursive(model, int(angle[len("tilt"):]) if angle else None)
+
+
+def _angle_name(name: str, model) -> Optional[str]:
+    """``name`` as the angle a fit frees (``alpha`` where the model has it in ``p``, else ``tiltK``), None if it
+    names no angle; one line when it names one this model cannot free."""
+    from ..numeric.kernels import model_vector_names
+    from ..schema import link_field_of
+
+    has_alpha = "alpha" in model_vector_names(model)
+    if name == "alpha":
+        if has_alpha:
+            return "alpha"
+        raise ParameterError(f"free: alpha is the double pendulum's skew angle; {model.title} frees its hinge "
+                             f"{link_field_of('alpha')[1]}'s tilt as tilt{link_field_of('alpha')[1]} (tilt1 to tilt{model.n})")
+    stem, digits = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
+    if stem != "tilt":
+        return None
+    k = int(digits) if digits else 0
+    if not 1 <= k <= model.n:
+        raise ParameterError(f"free: {name!r} names no hinge of {model.title}: tilt1 to tilt{model.n}")
+    if has_alpha:
+        if k == link_field_of("alpha")[1]:
+            return "alpha"
+        raise ParameterError(f"free: {name}: {model.title} frees its skew angle alpha (tilt{link_field_of('alpha')[1]}) "
+                             "only")
+    axis = model.as_chain().links[k - 1].axis
+    if abs(axis[0]) < 1e-12 and abs(axis[2]) < 1e-12:
+        raise ParameterError(f"free: {name}: hinge {k}'s axis is the vertical j, which turning about j does not move; "
+                             "free another hinge's tilt")
+    return name
+
+
+def _angle_words(name: str) -> str:
+    """The freed angle in words: ``skew angle alpha``, ``hinge 3's tilt (tilt3)``."""
+    return "skew angle alpha" if name == "alpha" else f"hinge {name[len('tilt'):]}'s tilt ({name})"
 
 
 def _signals(piece: Piece, smoothing: float, step: Optional[float] = None):
@@ -1195,13 +1304,13 @@ def _stem(name: str) -> str:
     return name[:-2] if name.endswith("_b") else name
 
 
-def _output_error(lin: Identification, measurements, params0, alpha_free, validation, smoothing, segment,
+def _output_error(lin: Identification, measurements, params0, basis, angle, validation, smoothing, segment,
                   bootstrap, seed, say, t_start, all_free: bool = True, angles: str = "relative") -> Identification:
     from . import shooting
-    from ..symbolic.regressor import independent_columns
+    from ..symbolic.regressor import independent_columns, sample_states
 
-    a, g = float(params0.a), float(params0.g)
-    alpha0 = float(params0.alpha) if params0.alpha is not None else 0.0
+    angle_free = angle is not None
+    alpha0 = basis.angle0
     homogeneous = lin.reference is not None
     ref = lin.reference
     # one sampling step for every piece (the coarsest piece's median step; finer ones resampled)
@@ -1214,38 +1323,37 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     cl, n_cl, cl_text = clusters(seg.piece, seg.t0, spans)
     settings = dict(lin.settings)
     settings.update(method="output-error (multiple shooting, RK4 with exact sensitivities)", segment=segment, angles=angles,
-                    step=seg.h, segments=len(seg), alpha_free=bool(alpha_free),
+                    step=seg.h, segments=len(seg), alpha_free=angle_free, angle=angle or basis.name,
                     intervals=f"clusters: {cl_text}" if n_cl >= MIN_CLUSTERS else
                     _no_intervals(n_cl, cl_text, float(sum(b - a for a, b in spans))))
-    if not alpha_free:
-        B = model_terms(params0)
+    if not angle_free:
+        B = basis
         names = B.names
         # the linear estimate starts the fit; where it is not physical (noisy accelerations), params0 does
-        beta0 = np.asarray(lin.values if lin.status is Status.SUCCESS else B.values(standard_vector(params0), a, alpha0, g), float)
+        beta0 = np.asarray(lin.values if lin.status is Status.SUCCESS else B.beta(B.pi_ext(params0), alpha0), float)
         freed = set(lin.free) | set(lin.settings.get("bounded", ()))  # (the linear estimate's bound freed again)
         free = [n for n in names if n in freed and n != ref]
     else:
-        B = model_terms(params0.replace(alpha=None))  # every skew angle: the generic base parameters
+        B = _basis(params0, angle)  # every tilt: the generic base parameters
+        alpha0 = B.angle0
         names = B.names
         if lin.status is Status.SUCCESS:
-            beta0 = B.values(standard_vector(lin.params), a, alpha0, g)
+            beta0 = B.beta(B.pi_ext(lin.params), alpha0)
         elif tuple(lin.names) == tuple(B.names):
             beta0 = np.asarray(lin.values, float)
         else:
-            beta0 = B.values(standard_vector(params0), a, alpha0, g)
+            beta0 = B.beta(B.pi_ext(params0), alpha0)
         # the base parameters the data determine near alpha0 (the others are held at the start's values)
-        from ..symbolic.regressor import sample_states
-
-        q, dq, ddq = sample_states(40, 0)
-        A = B.regressor(q, dq, ddq, a, alpha0, g).reshape(-1, len(names))
+        q, dq, ddq = sample_states(40, 0, params0.n)
+        A = B.rows(q, dq, ddq, alpha0).reshape(-1, len(names))
         det = [names[j] for j in independent_columns(A, range(len(names)))]
         stems = {_stem(n) for n in tuple(lin.free) + tuple(lin.settings.get("bounded", ()))}
         free = [n for n in names if n in det and _stem(n) in stems and n != ref]
 
         def refree(alpha: float) -> None:
-            """Free every base parameter the data determine at ``alpha`` (away from alpha0 the skew
+            """Free every base parameter the data determine at ``alpha`` (away from alpha0 the tilt
             brings the inertia entries the near-planar fit held into the equations)."""
-            A = B.regressor(q, dq, ddq, a, alpha, g).reshape(-1, len(names))
+            A = B.rows(q, dq, ddq, alpha).reshape(-1, len(names))
             det = [names[j] for j in independent_columns(A, range(len(names)))]
             free[:] = [n for n in names if n in det and (_stem(n) in stems or n not in lin_names) and n != ref]
 
@@ -1254,14 +1362,14 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     # the start: the linear estimate where it is usable, else params0 (said in the message).  At a
     # nonzero skew with noisy accelerations the linear estimate can be far off or no body at all; the
     # start whose segments miss the data less (before any iteration) is taken
-    beta_p0 = np.asarray(B.values(standard_vector(params0), a, alpha0, g), float)
-    frame = shooting.angle_frame(2, angles)
+    beta_p0 = np.asarray(B.beta(B.pi_ext(params0), alpha0), float)
+    frame = shooting.angle_frame(params0.n, angles)
     start_note = ""
     if not np.array_equal(np.asarray(beta0, float), beta_p0):
-        c_lin = shooting.start_cost(B, params0, beta0, alpha0, seg, frame)
-        c_p0 = shooting.start_cost(B, params0, beta_p0, alpha0, seg, frame)
+        c_lin = shooting.start_cost(B.terms, params0, beta0, alpha0, seg, frame)
+        c_p0 = shooting.start_cost(B.terms, params0, beta_p0, alpha0, seg, frame)
         if not c_lin <= c_p0:
-            npts = 2.0 * float(seg.mask.sum())
+            npts = params0.n * float(seg.mask.sum())
             if not math.isfinite(c_lin) or lin.status is not Status.SUCCESS:
                 why = "; ".join(x for x in ((_one_line(lin.message) if lin.status is not Status.SUCCESS else ""),
                                             ("" if math.isfinite(c_lin) else "its simulation is not finite")) if x)
@@ -1278,23 +1386,24 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
 
     def run(beta, alpha, free_alpha, y0, iterations=60, boot=0, tol=1e-10):
         seg.y0[:] = y0
-        sf = shooting.fit(B, params0, beta, free, alpha, free_alpha, seg, pieces=n_pieces,
-                          max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol, cluster=cl,
-                          frame=shooting.angle_frame(2, angles))
+        sf = shooting.fit(B.terms, params0, beta, free, alpha, free_alpha, seg, pieces=n_pieces,
+                          max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol, cluster=cl, frame=frame,
+                          angle_name=angle or "alpha")
         if n_cl < MIN_CLUSTERS:  # too few clusters for an interval: none (the reason is in settings)
             sf.half = np.full_like(sf.half, np.nan)
         return sf
 
     say("output-error fit", 0.1)
     try:
-        sf = run(beta0, alpha0, False, start_y0, boot=0 if alpha_free else bootstrap)
+        sf = run(beta0, alpha0, False, start_y0, boot=0 if angle_free else bootstrap)
     except FloatingPointError as exc:
         return _oe_failed(lin, f"the output-error fit failed: {exc}", settings, t_start)
     alpha_hat, a_lo, a_hi, note = math.nan, math.nan, math.nan, ""
     prof_a: List[float] = []
     prof_c: List[float] = []
-    if alpha_free:
-        sf, alpha_hat, (a_lo, a_hi), note, prof_a, prof_c = _skew_search(run, sf, alpha0, bootstrap, seed, say, refree)
+    if angle_free:
+        sf, alpha_hat, (a_lo, a_hi), note, prof_a, prof_c = _skew_search(run, sf, alpha0, bootstrap, seed, say, refree,
+                                                                          angle)
     # a joint term (damping, friction, rotor inertia) estimated below zero with 0 inside its interval: no
     # physical joint has it, so it is held at the bound 0 and the rest re-fitted -- the model is then that
     # fit's estimate, not the estimate with one entry clipped (which misses the data by more)
@@ -1307,11 +1416,11 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
             b[[names.index(n) for n in neg]] = 0.0
             kept = list(free)
             free[:] = [n for n in free if n not in neg]
-            refit = run(b, sf.alpha, "alpha" in sf.theta_names, sf.y0, boot=bootstrap)
+            refit = run(b, sf.alpha, angle in sf.theta_names, sf.y0, boot=bootstrap)
             if refit.converged and not refit.flat:
                 bounded = [f"{n} (estimate {th[n]:.3g} +- {hw[n]:.2g})" for n in neg]
                 sf = refit
-                if "alpha" in sf.theta_names and math.isfinite(float(sf.half[-1])):
+                if angle in sf.theta_names and math.isfinite(float(sf.half[-1])):
                     h = float(sf.half[-1])
                     est = float(sf.alpha)
                     if "mirror" in note:  # reported on alpha0's side, as the skew search does
@@ -1332,14 +1441,15 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         if n in sf.flat or (n in half and not math.isfinite(half[n])):
             intervals[j] = (math.nan, math.nan)
     ratios, ratio_iv = _ratios(names, values, intervals, ref, theta) if homogeneous else ({}, {})
-    alpha_fit = alpha_hat if alpha_free else alpha0
+    alpha_fit = alpha_hat if angle_free else alpha0
     unphysical, realised, phys, why = "", "", None, None
     # reported on alpha0's side of a mirror-symmetric profile, the model at alpha_fit is the estimate's mirror
     # image, which is not the estimate's base parameters at -alpha: it is fitted there (below), not assumed
-    mirrored = "alpha" in sf.theta_names and math.isfinite(alpha_hat) and alpha_hat != float(sf.alpha)
+    mirrored = angle in sf.theta_names and math.isfinite(alpha_hat) and alpha_hat != float(sf.alpha)
+    model0 = B.with_angle(params0, alpha_fit) if angle_free else params0
     try:
-        fitted, realised = _realise_masses(params0.replace(alpha=alpha_fit) if alpha_free else params0, B, values, a,
-                                           alpha_fit, g, held=held)
+        fitted, realised = B.realise(model0, values, alpha_fit, held=held,
+                                     halves=np.where(np.isfinite(halves) & (halves > 0), halves, np.inf))
     except ParameterError as exc:
         fitted, why = None, exc
     # the estimate is the best the data allow near here: where even it is no fit of the data (a wrong model, the
@@ -1356,14 +1466,14 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
         # realisation is a start, never the model)
         # (it stops when an iteration gains less than a thousandth of the noise's chi-square allowance)
         n_res = float(seg.mask.sum()) * seg.q.shape[2]
-        fitted, phys, unphysical = _fit_physical(params0, B, values, sf, seg, held, ref, alpha_fit, alpha_free, why,
-                                                 frame, a, g, fitted,
+        fitted, phys, unphysical = _fit_physical(params0, B, values, sf, seg, held, ref, alpha_fit, angle_free, why,
+                                                 frame, fitted,
                                                  1e-3 * _allowance(n_res) * n_res * angle_noise(measurements) ** 2)
         realised = ""
     if phys is not None:  # the constrained fit's estimate, the unconstrained intervals' half-widths about it
         settings["physical_fit"] = {"iterations": phys.iterations, "converged": phys.converged,
                                     "message": phys.message, "seconds": phys.seconds}
-        alpha_fit = phys.alpha
+        alpha_fit = phys.alpha if angle_free else alpha0
         values = np.asarray(phys.beta, float)
         intervals = values[:, None] + (intervals - np.asarray(beta, float)[:, None])
         if len(prof_a) and math.isfinite(alpha_hat):
@@ -1371,18 +1481,18 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
             mirror = {alpha_hat: phys.alpha, 2 * alpha0 - alpha_hat: 2 * alpha0 - phys.alpha}
             pts = sorted((mirror.get(x, x), phys.cost if x in mirror else c) for x, c in zip(prof_a, prof_c))
             prof_a, prof_c = [x for x, _ in pts], [c for _, c in pts]
-        if alpha_free and math.isfinite(alpha_hat):
+        if angle_free and math.isfinite(alpha_hat):
             a_lo, a_hi = alpha_fit + (a_lo - alpha_hat), alpha_fit + (a_hi - alpha_hat)
             alpha_hat = alpha_fit
         if homogeneous:
             ratios, ratio_iv = _ratios(names, values, intervals, ref, theta)
     if fitted is not None:
-        check = B.values(standard_vector(fitted), a, alpha_fit, g)
+        check = B.beta(B.pi_ext(fitted), alpha_fit)
         keep = [j for j, n in enumerate(names) if n not in held]
         tol = 1e-9 * max(np.abs(values).max(), 1e-300)
         values = np.where([n in held for n in names], check, values)  # held: the body's own, at its new centre
         if np.abs(check[keep] - values[keep]).max() > tol:
-            return _oe_failed(lin, "the fitted Parameters do not reproduce the estimated base parameters", settings,
+            return _oe_failed(lin, "the fitted model does not reproduce the estimated base parameters", settings,
                               t_start)
     status, message = Status.SUCCESS, "identified (output error, multiple shooting)" + (f"; {realised}" if realised else "")
     if fitted is None:  # the estimate and its intervals are reported; the model stays params0
@@ -1395,8 +1505,7 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     if phys is not None:
         model_cost = phys.cost
     elif realised:  # the same base parameters with other masses: its own simulation
-        model_cost = shooting.start_cost(B, params0, B.values(standard_vector(fitted), a, alpha_fit, g), alpha_fit,
-                                         seg, frame)
+        model_cost = shooting.start_cost(B.terms, params0, B.beta(B.pi_ext(fitted), alpha_fit), alpha_fit, seg, frame)
     else:
         model_cost = float(sf.cost)
     verdict = consistency(model_cost, seg, measurements, frame)
@@ -1407,8 +1516,8 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     if phys is not None:
         excess = physical_excess(phys.cost, float(sf.cost), seg, measurements,
                                  "the estimate lies outside the physical bodies" if why is not None else
-                                 f"the estimate is at alpha = {math.degrees(sf.alpha):.6g} deg, the mirror image of the "
-                                 "side reported")
+                                 f"the estimate is at {angle} = {math.degrees(sf.alpha):.6g} deg, the mirror image of "
+                                 "the side reported")
         verdict.stats.update(excess.stats)
         if status is Status.SUCCESS:
             if excess.ok:
@@ -1422,29 +1531,29 @@ def _output_error(lin: Identification, measurements, params0, alpha_free, valida
     if start_note:
         message += f"; {start_note}"
     say("held-out prediction", 0.9)
-    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing,
-                                                   frame=shooting.angle_frame(2, angles))
+    vnames, kinds, hr, hr0, stats_extra = _heldout(fitted, params0, validation, smoothing, frame=frame)
     stats_extra.update(verdict.stats)
     if any(not math.isfinite(x) for x in hr) and status is Status.SUCCESS:
         status, message = Status.NONFINITE, "a held-out simulation failed"
     if status is Status.SUCCESS and not settings["intervals"].startswith("clusters"):
         message += f"; {settings['intervals']}"
-    # the entries that do not enter the equations are the fitted model's (with alpha freed, the generic
-    # skew's: a near-planar start's list would name entries the fit estimated, J2xy ...)
+    # the entries that do not enter the equations are the fitted model's (with the tilt freed, the generic
+    # tilt's: a near-planar start's list would name entries the fit estimated, J2xy ...)
     undetermined = [u for u in lin.undetermined if not u.startswith("do not enter the equations")]
     if B.unidentifiable:
         undetermined.append("do not enter the equations: " + ", ".join(B.unidentifiable))
     # what the user freed: a parameter the user held is not a finding about the data
     not_determined = [n for n in held if n not in at_bound and (all_free or _stem(n) in stems_freed)]
     if not_determined:
-        undetermined.append("held at the start's values (the data do not determine them near alpha = "
-                            f"{math.degrees(alpha0):g} deg): " + ", ".join(not_determined))
+        near = f" near {basis.name} = {math.degrees(alpha0):g} deg" if basis.name else ""
+        undetermined.append(f"held at the start's values (the data do not determine them{near}): "
+                            + ", ".join(not_determined))
     settings.update(iterations=sf.iterations, converged=sf.converged, free=list(sf.theta_names))
     stats = dict(lin.stats)
     stats.update(seconds=time.perf_counter() - t_start, fit_seconds=sf.seconds, cost=sf.cost, **stats_extra)
     return Identification(
         params=fitted if fitted is not None else params0, params0=params0, status=status, message=message, stats=stats, settings=settings,
-        names=names, expressions=tuple(_expression_text(e) for e in B.expressions), values=values, intervals=intervals,
+        names=names, expressions=B.expressions, values=values, intervals=intervals,
         free=tuple(n for n in names if n in theta or n == ref), reference=ref, ratios=ratios,
         ratio_intervals=ratio_iv, undetermined=tuple(undetermined), not_entering=tuple(B.unidentifiable),
         pieces=lin.pieces, residual_rms=lin.residual_rms, validation=tuple(vnames), heldout_kind=tuple(kinds),
@@ -1563,48 +1672,32 @@ def physical_excess(cost: float, cost_free: float, seg, measurements: Measuremen
                                "model -- the skew, the joint terms -- or the data read wrongly)"), stats)
 
 
-def _fit_physical(params0, B, values, sf, seg, held, ref, alpha_fit, alpha_free, exc, frame, a, g, start=None,
+def _fit_physical(params0, B, values, sf, seg, held, ref, alpha_fit, alpha_free, exc, frame, start=None,
                   tol_cost=0.0):
     """The output-error fit over physical bodies only (:func:`skewpend.analysis.shooting.fit_physical`) at
-    ``alpha_fit``, from ``start`` (a physical model), else the nearest physical body to the estimate ``values``
-    (``exc``: why the estimate is none).  Returns ``(model, fit, '')`` or ``(None, None, why)``."""
+    ``alpha_fit`` (the freed angle's value), from ``start`` (a physical model), else the nearest physical body
+    to the estimate ``values`` (``exc``: why the estimate is none).  Returns ``(model, fit, '')`` or
+    ``(None, None, why)``."""
     from . import shooting
 
-    model0 = params0.replace(alpha=alpha_fit) if alpha_free else params0
+    model0 = B.with_angle(params0, alpha_fit) if alpha_free else params0
     what = "the output-error estimate is not physical: " + str(exc) if exc is not None else \
         "the output-error estimate's mirror image"
     if start is None:
         try:
-            start = _realise(model0, B, values, a, alpha_fit, g, held=held, project=True)
+            start = B.nearest(model0, values, alpha_fit, held)
         except ParameterError as exc2:
             return None, None, f"{what} [nearest physical: {exc2}]"
     names = list(B.names)
-    pi0 = np.concatenate([standard_parameters(start), [float(getattr(start, x) or 0.0) for x in B.extra]])
-    free_alpha = alpha_free and "alpha" in sf.theta_names
+    free_alpha = alpha_free and B.angle in sf.theta_names
     try:
-        phys = shooting.fit_physical(B, params0, pi0, alpha_fit, free_alpha, seg, sf.y0,
+        phys = shooting.fit_physical(B.terms, params0, B.pi_ext(start), alpha_fit, free_alpha, seg, sf.y0,
                                      held=[names.index(n) for n in held], reference=names.index(ref) if ref else None,
                                      frame=frame, tol_cost=tol_cost)
     except (FloatingPointError, ParameterError, np.linalg.LinAlgError) as exc2:
         return None, None, f"{what} (the fit over physical bodies failed: {exc2})"
-    pi = phys.pi
-    idx = {n: j for j, n in enumerate(PI_NAMES)}
-    changes: Dict[str, Any] = {n: float(pi[idx[n]]) for n in DAMPING_NAMES}
-    changes.update({x: float(v) for x, v in zip(B.extra, pi[len(PI_NAMES):])})
-    for i in (1, 2):
-        m = float(pi[idx[f"m{i}"]])
-        c = np.array([pi[idx[f"h{i}{x}"]] for x in "xyz"]) / m
-        J = np.empty((3, 3))
-        for p, (r, s_) in zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
-            J[r, s_] = J[s_, r] = pi[idx[f"J{i}{p}"]]
-        ic = J - m * (c @ c * np.eye(3) - np.outer(c, c))
-        changes[f"m{i}"] = m
-        changes[f"com{i}"] = tuple(float(v) for v in c)
-        changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))
-    if alpha_free:
-        changes["alpha"] = float(phys.alpha)
     try:
-        fitted = model0.replace(**changes)
+        fitted = B.model_of(model0, phys.pi, phys.alpha)
     except ParameterError as exc2:  # (round-off beyond the model's own 1e-9: a bug, said)
         return None, None, f"{what} (the fit over physical bodies: {exc2})"
     return fitted, phys, ""
@@ -1670,21 +1763,21 @@ def _heldout(fitted, params0, validation, smoothing, frame=None):
     return vnames, kinds, hr, hr0, extra
 
 
-def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree):
-    """The skew angle: a profile of the cost over alpha (every other parameter re-fitted at each
-    grid angle), then, where its minimum is away from alpha0's neighbourhood, a fit with alpha
-    free.  Returns (fit, alpha, (lo, hi), note, grid, costs)."""
+def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "alpha"):
+    """The freed angle ``name`` (the skew angle alpha, a hinge's tilt): a profile of the cost over it (every
+    other parameter re-fitted at each grid angle), then, where its minimum is away from alpha0's neighbourhood,
+    a fit with it free.  Returns (fit, angle, (lo, hi), note, grid, costs)."""
     probe = run(sf0.beta, alpha0, True, sf0.y0, iterations=0)
-    flat = "alpha" in probe.flat
+    flat = name in probe.flat
     if not flat:  # alpha is determined to first order at alpha0: a regular fit with alpha free
         sf = run(sf0.beta, alpha0, True, sf0.y0, boot=bootstrap)
-        if sf.converged and "alpha" not in sf.flat:
+        if sf.converged and name not in sf.flat:
             h = float(sf.half[-1])
             return sf, sf.alpha, (sf.alpha - h, sf.alpha + h), "", [], []
     # the profile: alpha0 + d, d from the grid, on both sides (mirror symmetry checked, not assumed)
     grid = [alpha0]
     fits = {alpha0: sf0}
-    say("profile of the skew angle", 0.3)
+    say(f"profile of the {_angle_words(name)}", 0.3)
 
     def at(alpha, start):
         if alpha not in fits:
@@ -1722,17 +1815,17 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree):
     best = int(np.argmin(costs))
     if 0 < best < len(grid) - 1 and abs(grid[best] - alpha0) > steps[1] * 1.01:
         # a minimum away from alpha0: a regular fit with alpha free from there
-        say("fit with the skew angle free", 0.7)
+        say(f"fit with the {_angle_words(name)} free", 0.7)
         refree(grid[best])
         sf = run(fits[grid[best]].beta, grid[best], True, fits[grid[best]].y0, boot=bootstrap)
-        if sf.converged and "alpha" not in sf.flat and not math.isnan(sf.alpha):
+        if sf.converged and name not in sf.flat and not math.isnan(sf.alpha):
             h = float(sf.half[-1])
             est = sf.alpha
             note = ""
             if even:  # the mirror image fits as well: reported on alpha0's side (positive from 0)
                 side = math.copysign(1.0, alpha0) if alpha0 != 0 else 1.0
                 est = alpha0 + side * abs(est - alpha0)
-                note = "the sign of alpha - alpha0 is not determined (the mirror image fits as well)"
+                note = f"the sign of {name} - {name}0 is not determined (the mirror image fits as well)"
             # the profile with the fit's own point (the grid's fits stop after a few iterations: their
             # lowest point is near the minimum, the fit with alpha free at it), mirrored where it is even
             extra = {est: sf.cost}
@@ -1748,16 +1841,16 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree):
         d = steps[0]
         at_d = fits[alpha0 + d]
         lin_u = run(at_d.beta, alpha0 + d, True, at_d.y0, iterations=0, boot=bootstrap)
-        if "alpha" not in lin_u.flat and math.isfinite(lin_u.half[-1]):
+        if name not in lin_u.flat and math.isfinite(lin_u.half[-1]):
             u = d * d + 2 * d * float(lin_u.newton_step[-1])
             hu = 2 * d * float(lin_u.half[-1])
             est = math.sqrt(max(u, 0.0))
             # an estimate below zero (no skew fits better than none) is bounded as one at zero: the
             # bound is never narrower than the interval's half-width allows
             bound = math.sqrt(max(u, 0.0) + hu)
-            note = (f"the data determine (alpha - alpha0)^2 = {u:.3g} +- {hu:.3g} rad^2"
+            note = (f"the data determine ({name} - {name}0)^2 = {u:.3g} +- {hu:.3g} rad^2"
                     + (" (below zero: no skew fits better than none)" if u < 0 else "")
-                    + "; the 95 % bound on |alpha - alpha0| is the square root of its upper end (from zero "
+                    + f"; the 95 % bound on |{name} - {name}0| is the square root of its upper end (from zero "
                     "where the estimate is below); the sign is not determined (mirror symmetry)")
             return sf0, alpha0 + est, (alpha0 - bound, alpha0 + bound), note, grid, list(costs)
     # near alpha0: the interval from the profile, re-minimised on pieces resampled with replacement
@@ -1774,7 +1867,7 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree):
     if even:
         m = max(abs(lo - alpha0), abs(hi - alpha0), abs(est - alpha0))
         lo, hi = alpha0 - m, alpha0 + m
-        note += "; the sign of alpha - alpha0 is not determined (mirror symmetry)"
+        note += f"; the sign of {name} - {name}0 is not determined (mirror symmetry)"
     sf = fits[grid[best]]
     return sf, float(est), (float(lo), float(hi)), note, grid, list(costs)
 
@@ -2022,7 +2115,7 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
              f"# data: {_count(len(result.pieces), 'piece')} ({_names_text(result.pieces)}), "
              f"{result.stats.get('samples', 0)} samples after filtering"]
     if result.free:
-        lines.append(f"# free: {', '.join(result.free)}" + (", alpha" if math.isfinite(result.alpha) else ""))
+        lines.append(f"# free: {', '.join(result.free)}" + (f", {result.angle}" if math.isfinite(result.alpha) else ""))
     if len(result.validation):
         lines.append(f"# held out: {_count(len(result.validation), 'piece')} ({_names_text(result.validation)})")
         if any(k == "angle" for k in result.heldout_kind):
@@ -2033,7 +2126,7 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
         lines.append("# held out: none (no validation data)")
     if math.isfinite(result.alpha):
         lo, hi = result.alpha_interval
-        lines.append(f"# skew angle alpha: {math.degrees(result.alpha):.4g} deg, 95 % interval "
+        lines.append(f"# {_angle_words(result.angle)}: {math.degrees(result.alpha):.4g} deg, 95 % interval "
                      f"[{math.degrees(lo):.4g}, {math.degrees(hi):.4g}] deg")
         if result.alpha_note:
             lines.append(f"#   ({_one_line(result.alpha_note)})")
@@ -2041,15 +2134,15 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
                  + ("" if status is Status.SUCCESS else " -- written with force=True: NOT a fitted model"))
     for u in result.undetermined:
         lines.append(f"# undetermined: {_one_line(u)}")
-    if isinstance(result.params, Parameters):
-        lines += ["# use it as: skewpend simulate --config FILE (any command that reads [parameters])", "",
-                  "[parameters]"]
-        lines += parameters_toml(result.params)
-    else:  # a chain of links
+    if "links" in result.params.to_dict():  # the model's own plain data: a chain of links
         from ..config import chain_toml
 
         lines += ["# use it as: skewpend simulate --config FILE (the commands that take a chain's [[links]])", ""]
         lines += chain_toml(result.params)
+    else:
+        lines += ["# use it as: skewpend simulate --config FILE (any command that reads [parameters])", "",
+                  "[parameters]"]
+        lines += parameters_toml(result.params)
     text = "\n".join(lines) + "\n"
     with atomic_path(path) as tmp:  # (it refuses a path that is not one, in one line)
         tmp.write_text(text, encoding="utf-8")

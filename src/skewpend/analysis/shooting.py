@@ -61,7 +61,7 @@ from typing import Callable, Optional, Sequence, Tuple
 import numpy as np
 
 from ..errors import ParameterError
-from ..schema import COM_NAMES, INERTIA_NAMES, LENGTH_NAMES, MASS_NAMES, sym_prefix
+from ..schema import LENGTH_NAMES
 from ..numeric.conventions import TENSOR_INDICES
 from ..symbolic.model import Parameters
 
@@ -81,86 +81,73 @@ _CHUNK = 32
 
 class _Model:
     """The segment dynamics of base parameters on the compiled kernels (see the module): ``terms`` the
-    base parameters (a :class:`~skewpend.symbolic.regressor.BaseParameters`, or identification's
-    terms with friction and rotor columns beside them), ``params0`` the start model (its hinge axes,
-    optional terms, ``a``, ``g``, ``cfs``, ``gr`` and the values of the entries held)."""
+    base parameters (a :class:`~skewpend.symbolic.regressor.BaseParameters`, identification's terms with
+    friction and rotor columns beside them, or a chain's :class:`~skewpend.analysis.identify.ChainTerms`),
+    ``params0`` the start model (its hinge axes, optional terms, lengths, ``g``, ``cfs``, gears and the values
+    of the entries held), asked for its kernel, its run-time array ``p`` and that array's names.  The angle
+    a fit may free is ``p``'s ``alpha`` (the double pendulum's skew angle) or, where ``terms`` frees a
+    hinge's tilt, that hinge's axis turned about ``j``."""
 
     def __init__(self, terms, params0):
-        from ..numeric.conventions import PARAMETER_ORDER, TENSOR_ENTRIES, parameter_vector
-        from ..numeric.kernels import kernel_module
+        from ..numeric.conventions import TENSOR_ENTRIES
+        from ..numeric.kernels import model_kernel, model_vector, model_vector_names
         from ..symbolic.regressor import PI_NAMES, standard_parameters
 
-        if not isinstance(params0, Parameters):  # a chain of links: its base parameters are numeric
-            self._chain(terms, params0)
-            return
-        self.nq = 2
+        self.nq = params0.n
         base = getattr(terms, "B", terms)
         self.names = tuple(terms.names)
         self.extra = tuple(getattr(terms, "extra", ()))
         self.pivots = list(base.pivots)
         self.r0 = len(base.names)
-        self.n_pi = len(PI_NAMES)
+        self.pi_names = tuple(getattr(base, "pi_names", PI_NAMES)) + self.extra
+        self.n_pi = len(self.pi_names) - len(self.extra)
         self.dep = [j for j in range(self.n_pi) if j not in self.pivots]
-        if params0.uses_alpha and params0.alpha is None:
-            params0 = params0.replace(alpha=0.0)
-        self.a, self.g = float(getattr(params0, LENGTH_NAMES[0])), float(params0.g)
-        self.alpha_ref = float(params0.alpha) if params0.uses_alpha else 0.0
-        self.pi_ref = np.concatenate([standard_parameters(params0), [float(getattr(params0, x) or 0.0) for x in self.extra]])
-        self.kernel = kernel_module(params0, shooting=True)
-        self.p0 = parameter_vector(params0)
+        self.p0 = model_vector(params0)
+        order = list(model_vector_names(params0))
+        at = dict(zip(order, self.p0))
+        self.a, self.g = float(at.get(LENGTH_NAMES[0], 0.0)), float(at["g"])
+        self.tilt = getattr(terms, "tilt", None)
+        self.kernel = model_kernel(getattr(terms, "generic", params0), shooting=True)
         self._T, self._dT = base.matrix_functions()
-        order = list(PARAMETER_ORDER)
-        self.i_alpha = order.index("alpha")
+        if self.tilt:  # a hinge's axis turned about j
+            self.i_axis = [order.index(f"e{c}{self.tilt}") for c in "xyz"]
+            self.axis0, self.alpha_ref = terms.axis0, terms.angle0
+            self.i_alpha = None
+        else:
+            self.i_alpha = order.index("alpha") if "alpha" in order else None
+            self.alpha_ref = float(at["alpha"]) if self.i_alpha is not None else 0.0
+        self.has_angle = bool(self.tilt) or self.i_alpha is not None
+        standard = getattr(base, "standard", None)  # a chain's numbers; else the derivation's PI_NAMES
+        self.pi_ref = (np.asarray(standard(params0), float) if standard is not None else
+                       np.concatenate([standard_parameters(params0), [float(getattr(params0, x) or 0.0) for x in self.extra]]))
         # where each standard parameter lands in p: the scalars directly, the bodies through (c, I_c)
-        self.i_scalar = {n: order.index(n) for n in PI_NAMES if n in order}
-        self.i_scalar.update({n: order.index(n) for n in self.extra})
-        self.pi_names = tuple(PI_NAMES) + self.extra
+        self.i_scalar = {n: order.index(n) for n in self.pi_names if n in order}
         # each body: where its mass, first moment and hinge inertia are in pi, where its centre of mass
-        # and inertia about it are in p (the names of both: the regressor's and the schema's)
+        # and inertia about it are in p (the facade's names r1x, I1xx or the chain's rx1, Ixx1)
         self.bodies = []
-        for i, (m, com, inertia) in enumerate(zip(MASS_NAMES, COM_NAMES, INERTIA_NAMES), start=1):
-            r = [order.index(f"{sym_prefix(com)}{x}") for x in "xyz"]
-            J = [order.index(f"{sym_prefix(inertia)}{e}") for e in TENSOR_ENTRIES]
-            h_pi = [PI_NAMES.index(f"h{i}{x}") for x in "xyz"]
-            J_pi = [PI_NAMES.index(f"J{i}{e}") for e in TENSOR_ENTRIES]
-            self.bodies.append((PI_NAMES.index(m), h_pi, J_pi, r, J))
+        for i in range(1, self.nq + 1):
+            r = [_entry(order, "r", i, x) for x in "xyz"]
+            J = [_entry(order, "I", i, e) for e in TENSOR_ENTRIES]
+            h_pi = [self.pi_names.index(f"h{i}{x}") for x in "xyz"]
+            J_pi = [self.pi_names.index(f"J{i}{e}") for e in TENSOR_ENTRIES]
+            self.bodies.append((self.pi_names.index(f"m{i}"), h_pi, J_pi, r, J))
         T = self.T(self.alpha_ref)
         if not np.allclose(T[:, self.pivots], np.eye(self.r0), rtol=0, atol=1e-12):
             raise AssertionError("the base parameters are not their pivots plus dependents")
 
-    def _chain(self, terms, chain) -> None:
-        """The same map for a chain of links (:func:`skewpend.analysis.identify.chain_terms`' base parameters, one
-        constant ``T``: the hinge axes and offsets are not fitted): ``pi`` link by link
-        (``recursive.standard_names``), ``p`` the chain's (``recursive.parameter_names``)."""
-        from ..numeric.conventions import TENSOR_ENTRIES
-        from ..numeric.kernels import chain_kernel
-        from ..numeric.recursive import parameter_names, parameter_vector
-
-        self.nq = chain.n
-        self.names, self.extra = tuple(terms.names), ()
-        self.pivots = list(terms.pivots)
-        self.r0 = len(terms.names)
-        self.pi_names = tuple(terms.pi_names)
-        self.n_pi = len(self.pi_names)
-        self.dep = [j for j in range(self.n_pi) if j not in self.pivots]
-        self.a = self.g = 0.0
-        self.alpha_ref = 0.0
-        self.i_alpha = None
-        self.pi_ref = terms.standard(chain)
-        self.kernel = chain_kernel(chain, shooting=True)
-        self.p0 = parameter_vector(chain)
-        matrix = np.asarray(terms.matrix, dtype=float)
-        self._T = lambda a, alpha, g: matrix
-        self._dT = None
-        order = list(parameter_names(chain.n))
-        self.i_scalar = {n: order.index(n) for n in self.pi_names if n in order}
-        self.bodies = []
-        for i in range(1, chain.n + 1):
-            r = [order.index(f"r{x}{i}") for x in "xyz"]
-            J = [order.index(f"I{e}{i}") for e in TENSOR_ENTRIES]
-            h_pi = [self.pi_names.index(f"h{i}{x}") for x in "xyz"]
-            J_pi = [self.pi_names.index(f"J{i}{e}") for e in TENSOR_ENTRIES]
-            self.bodies.append((self.pi_names.index(f"m{i}"), h_pi, J_pi, r, J))
+    def set_angle(self, p: np.ndarray, alpha: float) -> np.ndarray:
+        """Set the angle in ``p`` (in place); its column ``d p / d alpha``."""
+        col = np.zeros(len(p))
+        if self.tilt:
+            c, s = math.cos(alpha - self.alpha_ref), math.sin(alpha - self.alpha_ref)
+            x, y, z = self.axis0
+            e = (c * x + s * z, y, c * z - s * x)
+            p[self.i_axis] = e
+            col[self.i_axis] = (e[2], 0.0, -e[0])
+        elif self.i_alpha is not None:
+            p[self.i_alpha] = alpha
+            col[self.i_alpha] = 1.0
+        return col
 
     def T(self, alpha: float) -> np.ndarray:
         return np.array(self._T(self.a, alpha, self.g), dtype=float).reshape(self.r0, self.n_pi)
@@ -176,8 +163,7 @@ class _Model:
         """The kernel's ``p`` of a standard vector and ``dp/dpi`` (NP x len(pi))."""
         p = self.p0.copy()
         D = np.zeros((len(p), len(pi)))
-        if self.i_alpha is not None:
-            p[self.i_alpha] = alpha
+        self.set_angle(p, alpha)
         for n, i in self.i_scalar.items():
             j = self.pi_names.index(n)
             p[i] = pi[j]
@@ -209,7 +195,7 @@ class _Model:
             dpi[self.pivots] = -(np.array(self._dT(self.a, alpha, self.g), dtype=float).reshape(self.r0, self.n_pi)[:, self.dep]
                                  @ self.pi_ref[self.dep])
             col = D @ dpi
-            col[self.i_alpha] += 1.0
+            col += self.set_angle(p, alpha)
             cols.append(col)
         G = np.ascontiguousarray(np.array(cols).T if cols else np.zeros((len(p), 0)))
         return p, G
@@ -246,6 +232,11 @@ class _Model:
             if code != 0:
                 raise UsageError(f"multiple shooting refused its arguments (code {code}): at most 64 free parameters")
         return q, J
+
+
+def _entry(order: Sequence[str], stem: str, i: int, part: str) -> int:
+    """The index in ``p``'s names of body ``i``'s entry: the facade's ``r1x``, ``I1xx`` or the chain's ``rx1``, ``Ixx1``."""
+    return order.index(f"{stem}{i}{part}") if f"{stem}{i}{part}" in order else order.index(f"{stem}{part}{i}")
 
 
 def _full(v) -> np.ndarray:
@@ -489,9 +480,11 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
         alpha_free: bool, seg: Segments, *, pieces: int, max_iterations: int = 60,
         bootstrap: int = 200, seed: int = 0, tol: float = 1e-10, progress: Optional[Callable[[int, float], None]] = None,
         alpha_bounds: Tuple[float, float] = (-math.pi / 2, math.pi / 2),
-        cluster: Optional[np.ndarray] = None, frame: Optional[np.ndarray] = None) -> ShootingFit:
+        cluster: Optional[np.ndarray] = None, frame: Optional[np.ndarray] = None,
+        angle_name: str = "alpha") -> ShootingFit:
     """Levenberg-Marquardt on the segments' residuals; see the module.  ``terms``: the base parameters
-    (their ``names`` the order of ``beta0``), ``params0`` the start model (:class:`_Model`).  ``cluster``: each segment's
+    (their ``names`` the order of ``beta0``), ``params0`` the start model (:class:`_Model`); ``alpha0``,
+    ``alpha_free``: the angle (``angle_name`` in ``theta_names``: alpha, a hinge's tilt).  ``cluster``: each segment's
     cluster of the intervals (default its piece; :func:`skewpend.analysis.identify.clusters` cuts few
     pieces into blocks).  ``frame``: a matrix taking the model's angles to those the residuals are
     measured in (None: the model's own; :func:`angle_frame`)."""
@@ -506,7 +499,7 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
     model = _Model(terms, params0)
     names = list(model.names)
     free_idx = [names.index(n) for n in free]
-    theta_names = tuple(free) + (("alpha",) if alpha_free else ())
+    theta_names = tuple(free) + ((angle_name,) if alpha_free else ())
     beta = np.array(beta0, dtype=float)
     alpha = float(alpha0)
     y0 = np.array(seg.y0, dtype=float)
@@ -672,7 +665,7 @@ class _Physical:
         self.bodies = [(k, list(hk), list(Jk)) for k, hk, Jk, _, _ in model.bodies]
         in_body = {j for k, hk, Jk in self.bodies for j in [k, *hk, *Jk]}
         self.scalars = [j for j in range(len(model.pi_names)) if j not in in_body]
-        self.alpha_free = alpha_free and model.i_alpha is not None
+        self.alpha_free = alpha_free and model.has_angle
         self.n = 10 * len(self.bodies) + len(self.scalars) + (1 if self.alpha_free else 0)
 
     def theta_of(self, pi: np.ndarray, alpha: float, edge: float = 1e-8) -> np.ndarray:
@@ -721,7 +714,7 @@ class _Physical:
         p, D = self.model.p_of(pi, alpha)
         G = D @ Dpi
         if self.alpha_free:
-            G[self.model.i_alpha, -1] = 1.0
+            G[:, -1] += self.model.set_angle(p, alpha)
         return p, np.ascontiguousarray(G), pi, alpha
 
     def beta(self, pi: np.ndarray, alpha: float) -> np.ndarray:

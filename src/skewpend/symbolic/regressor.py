@@ -328,11 +328,12 @@ def _coefficients(axes: Tuple) -> Tuple[sp.Matrix, Tuple]:
     return C, tuple(keys)
 
 
-def sample_states(n: int, seed: int):
+def sample_states(n: int, seed: int, nq: int = 2):
+    """``n`` seeded random states ``(q, q', q'')`` of ``nq`` coordinates each."""
     rng = np.random.default_rng(seed)
-    q = rng.uniform(-math.pi, math.pi, (n, 2))
-    dq = rng.normal(0, 2.0, (n, 2))
-    ddq = rng.normal(0, 5.0, (n, 2))
+    q = rng.uniform(-math.pi, math.pi, (n, nq))
+    dq = rng.normal(0, 2.0, (n, nq))
+    ddq = rng.normal(0, 5.0, (n, nq))
     return q, dq, ddq
 
 
