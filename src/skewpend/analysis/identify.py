@@ -1767,6 +1767,7 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
     """The freed angle ``name`` (the skew angle alpha, a hinge's tilt): a profile of the cost over it (every
     other parameter re-fitted at each grid angle), then, where its minimum is away from alpha0's neighbourhood,
     a fit with it free.  Returns (fit, angle, (lo, hi), note, grid, costs)."""
+    start = f"{name}0" if name == "alpha" else f"{name}(params0)"  # the angle's start, in words
     probe = run(sf0.beta, alpha0, True, sf0.y0, iterations=0)
     flat = name in probe.flat
     if not flat:  # alpha is determined to first order at alpha0: a regular fit with alpha free
@@ -1825,7 +1826,7 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
             if even:  # the mirror image fits as well: reported on alpha0's side (positive from 0)
                 side = math.copysign(1.0, alpha0) if alpha0 != 0 else 1.0
                 est = alpha0 + side * abs(est - alpha0)
-                note = f"the sign of {name} - {name}0 is not determined (the mirror image fits as well)"
+                note = f"the sign of {name} - {start} is not determined (the mirror image fits as well)"
             # the profile with the fit's own point (the grid's fits stop after a few iterations: their
             # lowest point is near the minimum, the fit with alpha free at it), mirrored where it is even
             extra = {est: sf.cost}
@@ -1848,9 +1849,9 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
             # an estimate below zero (no skew fits better than none) is bounded as one at zero: the
             # bound is never narrower than the interval's half-width allows
             bound = math.sqrt(max(u, 0.0) + hu)
-            note = (f"the data determine ({name} - {name}0)^2 = {u:.3g} +- {hu:.3g} rad^2"
+            note = (f"the data determine ({name} - {start})^2 = {u:.3g} +- {hu:.3g} rad^2"
                     + (" (below zero: no skew fits better than none)" if u < 0 else "")
-                    + f"; the 95 % bound on |{name} - {name}0| is the square root of its upper end (from zero "
+                    + f"; the 95 % bound on |{name} - {start}| is the square root of its upper end (from zero "
                     "where the estimate is below); the sign is not determined (mirror symmetry)")
             return sf0, alpha0 + est, (alpha0 - bound, alpha0 + bound), note, grid, list(costs)
     # near alpha0: the interval from the profile, re-minimised on pieces resampled with replacement
@@ -1867,7 +1868,7 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
     if even:
         m = max(abs(lo - alpha0), abs(hi - alpha0), abs(est - alpha0))
         lo, hi = alpha0 - m, alpha0 + m
-        note += f"; the sign of {name} - {name}0 is not determined (mirror symmetry)"
+        note += f"; the sign of {name} - {start} is not determined (mirror symmetry)"
     sf = fits[grid[best]]
     return sf, float(est), (float(lo), float(hi)), note, grid, list(costs)
 
