@@ -1,5 +1,5 @@
-"""The report of a chain of links (``skewpend report --config`` with ``[[links]]``;
-skewpend.views.report.chain), built once from the command line for a skewed triple pendulum.
+"""The report of a chain of links (``skewpend report --config`` with ``[[links]]``: the one report, whose
+sections ask the model), built once from the command line for a skewed triple pendulum.
 
 What is checked against something independent: the live view's rod ends at the start against the
 chain's forward kinematics composed here by Rodrigues' formula; the modes table of the chain of two
@@ -25,8 +25,10 @@ pytest.importorskip("matplotlib")
 
 from skewpend import Parameters, normal_modes  # noqa: E402
 from skewpend.symbolic.chain import Chain  # noqa: E402
+from skewpend.views import report as R  # noqa: E402
 from skewpend.views.report import build_report  # noqa: E402
-from skewpend.views.report.chain import CHAIN_SECTIONS, CHECK_TOL, SYMBOLIC_MAX_LINKS  # noqa: E402
+from skewpend.views.report.common import SYMBOLIC_MAX_LINKS, sections  # noqa: E402
+from skewpend.views.report.derivation import CHECK_TOL  # noqa: E402
 from helpers import example_model  # noqa: E402
 
 #: examples/skewed_triple.toml's chain (damped in its last joint), from a start with q2 moving, for 3 s.
@@ -62,14 +64,22 @@ def _section(page: str, key: str) -> str:
 def test_every_section_is_there_and_nothing_is_fetched(triple):
     path, page, proc = triple
     assert f"wrote {path.resolve()}" in proc.stdout
-    assert "[1/11]" in proc.stderr and "section 9, the comparison with MuJoCo" in proc.stderr
-    for n, (key, title) in enumerate(CHAIN_SECTIONS, 1):
+    assert "[1/10]" in proc.stderr and "section 9, the comparison with MuJoCo" in proc.stderr
+    for n, (key, title) in enumerate(sections(_chain()), 1):
         body = _section(page, key)
         assert f'<span class="num">{n}</span>{html.escape(title)}' in body
-    assert "A chain of 3 links on skewed hinges" in page
+    assert "A chain of 3 links with skewed hinge axes" in page
+    assert "Check: two derivations of one model" in page and "How chaotic: the Lyapunov spectrum" in page
     assert not re.search(r'(src|href)="(https?:)?//', page)  # no reference outside the file
     assert path.stat().st_size < 10_000_000
     assert not list(path.parent.glob("*.tmp*"))
+
+
+def _chain() -> Chain:
+    import tomllib
+
+    run = tomllib.loads(RUN)
+    return Chain.from_mapping({"links": run["links"], **run["chain"]})
 
 
 def _fk_tips(chain: Chain, q) -> np.ndarray:
@@ -137,16 +147,16 @@ def test_the_analyses_of_a_chain_are_its_own(triple):
 
 def test_the_chain_of_two_has_the_double_pendulums_modes(monkeypatch):
     """The modes table of the chain of two (the recursive kernel) equals the double pendulum's normal modes
-    (the symbolic derivation's kernel) to the table's six digits; only section 4 is built."""
-    from skewpend.views.report import chain as C
+    (the symbolic derivation's kernel) to the table's six digits; only sections 4 and 5 are built."""
+    from skewpend.views.report import cache
 
     params = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
-    for key in C.CHAIN_BUILDERS:
-        if key not in ("modes", "simulation"):
-            monkeypatch.setitem(C.CHAIN_BUILDERS, key, lambda ctx, key=key: f"<p>{key}</p>")
-    monkeypatch.setattr(C, "CHAIN_SWEEP_POINTS", 5)
+    for name in ("section_system", "section_flipmap", "section_orbits", "section_validation", "section_chaos"):
+        monkeypatch.setattr(R, name, lambda ctx, name=name: f"<p>{name}</p>")
+    monkeypatch.setattr(cache, "load", lambda params: {"bodies": {"derivation": "<p>derivation</p>", "check": "<p>check</p>"},
+                                                        "notes": {}, "timings": {}})
     page = build_report(Chain.from_parameters(params), t_end=0.5, clip_seconds=0.5, fps=10.0, clip_size=(160, 120),
-                        validate=False)
+                        validate=False, sweep_points=5)
     rows = re.findall(r"<tr><td>(\d)</td><td class=num>([^<]+)</td>", _section(page, "modes"))
     table = [float(v.replace("−", "-")) for _, v in rows]
     expected = normal_modes(params).frequencies
@@ -154,8 +164,8 @@ def test_the_chain_of_two_has_the_double_pendulums_modes(monkeypatch):
 
 
 def test_a_long_chain_is_not_derived_by_sympy():
-    from skewpend.views.report.chain import section_derivation
     from skewpend.views.report.common import Context
+    from skewpend.views.report.derivation import section_derivation
 
     n = SYMBOLIC_MAX_LINKS + 1
     chain = Chain.from_lists(n, length=0.3, mass=0.5)

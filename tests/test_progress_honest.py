@@ -193,11 +193,11 @@ def test_a_chain_reports_sections_say_their_sub_steps(monkeypatch):
     """Sections 2, 3, 4 and 6 of a chain's report: the live line names each typeset row, each random state of
     the check, each hinge's sweep and the flip map's cells as they finish (each well under a second here)."""
     from skewpend.symbolic.chain import Chain
-    from skewpend.views.report import chain as R
+    from skewpend.views import report as R
+    from skewpend.views.report import analyses, derivation
     from skewpend.views.report.common import Context
 
-    monkeypatch.setattr(R, "CHAIN_SWEEP_POINTS", 5)  # the sub-steps, not the pictures' resolution, are checked
-    monkeypatch.setattr(R, "CHAIN_FLIPMAP_N", 8)
+    monkeypatch.setattr(analyses, "FLIPMAP_N", 8)  # the sub-steps, not the pictures' resolution, are checked
     chain = Chain.from_lists(2, length=[0.5, 0.4], mass=[1.0, 0.8], axis=[(0, 0, 1), (0.5, 0, 1)])
     ctx = Context(chain, (0.5, -0.3, 0.0, 0.0), 1.0, "dop853", None, None, None, None, 0.5, 10.0, (160, 120), 5,
                   False, None)
@@ -215,12 +215,12 @@ def test_a_chain_reports_sections_say_their_sub_steps(monkeypatch):
         with st:
             for key in ("derivation", "check", "modes", "flipmap"):
                 P.stage(key)
-                R.CHAIN_BUILDERS[key](ctx)
+                getattr(R, f"section_{key}")(ctx)
     assert "deriving the equations of 2 links (SymPy)" in texts
     assert [t for t in texts if t.startswith("typesetting row")] == ["typesetting row 1 of 2 of M and f",
                                                                      "typesetting row 2 of 2 of M and f"]
-    assert [t for t in texts if t.startswith("random state")] == [f"random state {k} of {R.CHECK_STATES}"
-                                                                   for k in range(1, R.CHECK_STATES + 1)]
+    assert [t for t in texts if t.startswith("random state")] == [f"random state {k} of {derivation.CHECK_STATES}"
+                                                                   for k in range(1, derivation.CHECK_STATES + 1)]
     assert "hinge 2's tilt: 5 values (sweep 1 of 1)" in texts
     cells = [t for t in texts if t.startswith("8×8 starts: ")]
     assert cells and cells[-1] == "8×8 starts: 64 of 64 cells", texts

@@ -430,12 +430,13 @@ def trajectory_metadata(traj) -> Dict[str, Any]:
         "message": traj.message,
         "energy_drift": traj.energy_drift,
     }
-    if hasattr(traj.params, "links"):  # a chain of links: its plain data as one JSON text
+    data = traj.params.to_dict()
+    if "links" in data:  # a model of [[links]] tables (as model_from_mapping reads it): its plain data as one JSON text
         import json
 
-        md["chain"] = json.dumps(traj.params.to_dict())
+        md["chain"] = json.dumps(data)
     else:
-        for key, value in traj.params.to_dict().items():
+        for key, value in data.items():
             if value is not None:
                 md[f"param_{key}"] = np.asarray(value, dtype=float).ravel().tolist() if isinstance(value, list) else float(value)
     for key, value in traj.settings.items():

@@ -105,6 +105,15 @@ def _unit_text(name: str) -> str:
     return "" if unit in ("", "1") else f" {unit}"
 
 
+def answers_names(model) -> bool:
+    """Whether ``model`` answers the schema's scalar names (``a``, ``b``, ``m1``, ..., ``alpha``: the double
+    pendulum's facade of the chain of two) -- what the texts and sections that read those names ask, never
+    the model's type; a model without them is told by its links."""
+    from .. import schema
+
+    return all(hasattr(model, name) for name in schema.SCALAR_NAMES)
+
+
 def parameter_text(params, *, skip: tuple = (), symbols: bool = False, sep: str = ", ") -> str:
     """The parameters as ``a = 1 m, b = 0.8 m, m1 = 1 kg, m2 = 0.7 kg, alpha = 34.38°, g = 9.81 m/s²``,
     then each optional term that differs from its default (damping, torques, Coulomb friction, the
@@ -114,7 +123,7 @@ def parameter_text(params, *, skip: tuple = (), symbols: bool = False, sep: str 
     animation's title); ``sep`` joins the parts."""
     from .. import schema
 
-    if hasattr(params, "links"):  # a chain of links
+    if not answers_names(params):  # told by its links
         return chain_text(params, sep=sep)
     d = params.to_dict()
     parts: List[str] = []
@@ -158,12 +167,13 @@ def settings_text(method: str, settings: Mapping[str, Any]) -> str:
     return ", ".join(parts)
 
 
-def chain_text(chain, sep: str = ", ") -> str:
-    """A chain of links in one line: its length, each link's length, mass and hinge axis, g, and the
+def chain_text(model, sep: str = ", ") -> str:
+    """A model told by its links in one line: their number, each link's length, mass and hinge axis, g, and the
     joints' terms that are on (``3 links; l = 0.5, 0.4, 0.3 m; m = 1, 0.8, 0.5 kg; ...``)."""
     def listed(values, unit=""):
         return ", ".join(fmt(v) for v in values) + unit
 
+    chain = model.as_chain()
     links = chain.links
     parts = [f"{chain.n} links", f"l = {listed([k.length for k in links], ' m')}", f"m = {listed([k.mass for k in links], ' kg')}",
              "axes " + "; ".join("(" + ", ".join(fmt(x) for x in k.axis) + ")" for k in links), f"g = {fmt(chain.g)} m/s²"]
@@ -191,8 +201,7 @@ def initial_text(y0) -> str:
 def caption(tr) -> str:
     """What a trajectory figure shows, in three lines: the parameters; the initial state;
     the method and its settings (and a fourth if the run stopped early: why)."""
-    model = chain_text(tr.params) if hasattr(tr.params, "links") else parameter_text(tr.params)
-    lines = [model, initial_text(tr.y[0]), settings_text(tr.method, tr.settings)]
+    lines = [parameter_text(tr.params), initial_text(tr.y[0]), settings_text(tr.method, tr.settings)]
     if getattr(tr, "status", 0) != 0:
         lines.append(f"run stopped early at t = {fmt(tr.t[-1])} s: {tr.message}")
     return "\n".join(lines)

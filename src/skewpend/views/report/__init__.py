@@ -34,10 +34,12 @@ Sections:
 9. the validation against MuJoCo (or how to install it);
 10. how the report was made: versions, settings, timings.
 
-A chain of links gets the same kind of report from the same library calls (:mod:`.chain`): its
-derivation displayed up to three links and checked against the recursive algorithms, its modes
-against each hinge's tilt, simulation, flip map, Lyapunov spectrum, equilibria and nonlinear normal
-modes, MuJoCo.
+Every section takes the model and asks it -- its coordinates, its links, the names it answers: a chain
+of links gets the same ten sections from the same library calls.  What reads the specification's names
+is drawn where the model answers them (:func:`skewpend.views.style.answers_names`): the derivation by
+the specification's steps and its check at alpha = 0, the sweep over alpha, the Poincare sections and
+the chaos diagram; a chain's equations are derived link by link (displayed up to three links) and
+checked against the recursive algorithms, its modes swept over each hinge's tilt.
 
 Sections 2 and 3 are symbolic work (SymPy); on a machine with more than one core a second Python
 process computes them while this one simulates and draws (:data:`PARALLEL`; if that process
@@ -61,7 +63,7 @@ from ...progress import stage
 from ...symbolic.model import Parameters
 
 from .common import compiled_kernels
-from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
+from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context, sections, answers_names)  # noqa: F401
 from .orbits import section_orbits
 from .analyses import chaos_jobs, mujoco_installed, section_chaos, section_flipmap, section_provenance, section_validation  # noqa: F401
 from .derivation import section_check, section_derivation
@@ -93,24 +95,17 @@ def _require_libraries() -> None:
 def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_seconds, fps, clip_size, sweep_points,
                   validate, out):
     from ...io import check_output_path
+    from ... import checks
+    from ...config import CHAIN_Q0
     from ...numeric.simulation import METHODS
     from ...parsing import initial_state, positive_number
 
-    from ...symbolic.chain import Chain
-
     _require_libraries()
-    if params is None:
-        params = Parameters(**DEFAULT_PARAMETERS)
-    if isinstance(params, Chain):  # a chain of links: its start q1 … qn, dq1 … dqn (default every link turned, at rest)
-        from ...config import CHAIN_Q0
-
-        n = params.n
-        y = initial_state((CHAIN_Q0,) * n + (0.0,) * n if y0 is None else y0, params.coordinates)
-    else:
-        from ... import checks
-
-        params = checks.numeric_params(params, "a report")
-        y = initial_state(DEFAULT_INITIAL_STATE if y0 is None else y0)
+    params = checks.numeric_model(Parameters(**DEFAULT_PARAMETERS) if params is None else params, "a report")
+    n, coordinates = params.n, tuple(params.coordinates)
+    if y0 is None:  # the built-in case's start for its coordinates; else every link turned by CHAIN_Q0, at rest
+        y0 = DEFAULT_INITIAL_STATE if coordinates == DEFAULT_COORDINATES else (CHAIN_Q0,) * n + (0.0,) * n
+    y = initial_state(y0, coordinates)
     t_end = positive_number("t_end", t_end)
     if t_end > MAX_T_END:
         raise ParameterError(
@@ -137,8 +132,9 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
         raise ParameterError(f"clip_size must be (width, height) in pixels, got {clip_size!r}") from None
     if w % 2 or h % 2 or not (64 <= w <= 1280 and 64 <= h <= 960):
         raise ParameterError(f"clip_size must be even sizes between 64x64 and 1280x960 pixels, got {clip_size!r}")
-    if isinstance(sweep_points, bool) or not isinstance(sweep_points, (int, np.integer)) or not 2 <= sweep_points <= 2001:
-        raise ParameterError(f"sweep_points must be a whole number from 2 to 2001, got {sweep_points!r}")
+    if sweep_points is not None and (isinstance(sweep_points, bool) or not isinstance(sweep_points, (int, np.integer))
+                                     or not 2 <= sweep_points <= 2001):
+        raise ParameterError(f"sweep_points must be a whole number from 2 to 2001 (or None: by the model), got {sweep_points!r}")
     if validate is not None and not isinstance(validate, bool):
         raise ParameterError(f"validate must be True, False or None (when MuJoCo is installed), got {validate!r}")
     if validate:
@@ -150,6 +146,8 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
     return params, tuple(float(v) for v in y), t_end, clip_seconds, fps, (w, h)
 
 
+#: The coordinates of the built-in case (its start is DEFAULT_INITIAL_STATE).
+DEFAULT_COORDINATES = ("phi", "psi")
 #: Compute the symbolic sections in a second process when the machine has more than one core.
 PARALLEL = True
 #: What each part of the report is, as said when it begins (:func:`skewpend.progress.stage`), in the
@@ -159,11 +157,11 @@ PARTS = {
     "start": "starting the work in the background: sections 2 and 3, the kernels, section 7's ensembles",
     "simulation": "section 5, the simulation",
     "system": "section 1, pictures of the system",
-    "modes": "section 4, the normal modes against alpha",
+    "modes": "section 4, the normal modes against the hinges' skew",
     "flipmap": "section 6, the flip-time map",
     "orbits": "section 8, equilibria and nonlinear normal modes",
     "validation": "section 9, the comparison with MuJoCo",
-    "chaos": "section 7, Lyapunov exponents, Poincare sections and the chaos diagram",
+    "chaos": "section 7, Lyapunov exponents (and the double pendulum's Poincare sections and chaos diagram)",
     "parallel": "sections 2 and 3, the derivation and its check (SymPy, in a second process)",
     "symbolic": "sections 2 and 3, deriving the equations and checking them (SymPy)",
     "cached": "sections 2 and 3, read from the cache",
@@ -177,11 +175,11 @@ PARTS = {
 SWITCH_INTERVAL = 0.0005
 
 
-def _symbolic_sections(params: Parameters) -> Dict[str, Dict]:
+def _symbolic_sections(params) -> Dict[str, Dict]:
     """Sections 2 and 3 (pure SymPy): ``{"bodies": ..., "notes": ..., "timings": ...}`` (JSON-able)."""
     from types import SimpleNamespace
 
-    ctx = SimpleNamespace(params=params, notes={})
+    ctx = SimpleNamespace(params=params, notes={}, eom=None)
     bodies, timings = {}, {}
     for key, build in (("derivation", section_derivation), ("check", section_check)):
         t0 = time.perf_counter()
@@ -191,10 +189,12 @@ def _symbolic_sections(params: Parameters) -> Dict[str, Dict]:
 
 
 def _worker_main() -> None:
-    """Entry point of the second process: parameters as JSON on stdin, the sections as JSON on stdout."""
+    """Entry point of the second process: the model as JSON on stdin, the sections as JSON on stdout."""
     import json
 
-    params = Parameters.from_mapping(json.loads(sys.stdin.read()))
+    from ...symbolic.model import model_from_mapping
+
+    params = model_from_mapping(json.loads(sys.stdin.read()))
     sys.stdout.write(json.dumps(_symbolic_sections(params)))
 
 
@@ -207,7 +207,7 @@ class _Background:
         self.error: List[str] = []
 
     @classmethod
-    def start(cls, params: Parameters) -> Optional["_Background"]:
+    def start(cls, params) -> Optional["_Background"]:
         import json
         import subprocess
 
@@ -247,7 +247,7 @@ class _Background:
                 stream.close()
 
 
-def _build_ahead(params: Parameters) -> None:
+def _build_ahead(params) -> None:
     """Load or compile the model's kernel, then the flip map's, in a daemon thread, while the main
     thread starts on section 1 and the prefetch thread on the chaos kernel: on a first run the
     builds (compiler processes) then run side by side instead of one after the other as sections 5
@@ -255,12 +255,13 @@ def _build_ahead(params: Parameters) -> None:
     says it; in a warm run the thread only loads the libraries."""
     import threading
 
-    from ...numeric.kernels import kernel_module
+    from ...analysis.flipmap import flip_kernel
+    from ...numeric.kernels import model_kernel
 
     def build() -> None:
         try:
-            kernel_module(params)
-            kernel_module(params, flip=True)
+            model_kernel(params)
+            flip_kernel(params)
         except Exception:  # noqa: BLE001 - reported by the section that needs the kernel
             pass
 
@@ -282,23 +283,24 @@ def build_report(
     clip_seconds: float = CLIP_SECONDS,
     fps: float = CLIP_FPS,
     clip_size: Sequence[int] = CLIP_SIZE,
-    sweep_points: int = SWEEP_POINTS,
+    sweep_points: Optional[int] = None,
     validate: Optional[bool] = None,
     command: Optional[str] = None,
 ) -> Union[Path, str]:
     """Build the report; write it to ``out`` (``.html``/``.htm``, atomically: the file appears
     complete or not at all) and return the path, or return the HTML text when ``out`` is None.
 
-    ``params``: numeric :class:`~skewpend.Parameters` (default :data:`DEFAULT_PARAMETERS`), or a
-    chain of links (:class:`~skewpend.symbolic.chain.Chain`: its own sections,
-    :mod:`skewpend.views.report.chain`); ``y0 = (phi, psi, dphi, dpsi)``: the simulation's initial
-    state (default :data:`DEFAULT_INITIAL_STATE`; a chain's ``(q1 … qn, dq1 … dqn)``, default every
-    link turned by 0.5 rad, at rest); ``t_end`` [s]: its length (at most :data:`MAX_T_END`);
+    ``params``: the model, numeric -- :class:`~skewpend.Parameters` (default :data:`DEFAULT_PARAMETERS`)
+    or a chain of links (:class:`~skewpend.symbolic.chain.Chain`): every section asks it;
+    ``y0 = (phi, psi, dphi, dpsi)``: the simulation's initial state over the model's coordinates
+    (default :data:`DEFAULT_INITIAL_STATE`; a chain of other coordinates ``(q1 … qn, dq1 … dqn)``,
+    default every link turned by 0.5 rad, at rest); ``t_end`` [s]: its length (at most :data:`MAX_T_END`);
     ``method``, ``rtol``, ``atol``, ``dt``, ``max_steps``: as for :func:`skewpend.simulate`.
     ``clip_seconds``, ``fps``, ``clip_size``: the live 3D view (the first ``clip_seconds`` of the
     motion, at most ``t_end``, replayed from ``fps`` computed states per second, at most 1200, on
-    a canvas of ``clip_size`` pixels).  ``sweep_points``: values of alpha in
-    0..180 deg for the frequency curves.  ``validate``: compare with MuJoCo (None: when MuJoCo is
+    a canvas of ``clip_size`` pixels).  ``sweep_points``: values of each skew (alpha, or a chain's
+    tilts) in 0..180 deg for the frequency curves (None: :data:`SWEEP_POINTS` for one skew, fewer a
+    hinge for longer chains).  ``validate``: compare with MuJoCo (None: when MuJoCo is
     installed; True: it must be).  ``command``: the command line that made the report, shown in
     section 10.  ``progress(done, total)`` is called as each of the ten parts is finished
     (the seven numeric sections, sections 2 and 3, the live view with section 10, the page); in a
@@ -325,9 +327,7 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     if progress is not None and not callable(progress):
         raise ParameterError("progress must be a callable progress(done, total)")
     ctx = Context(params, y0, t_end, method, rtol, atol, dt, max_steps, min(clip_seconds, t_end), fps, clip_size,
-                   int(sweep_points), validate, command)
-    if hasattr(params, "links"):  # a chain of links: its own sections (views.report.chain)
-        return _build_chain_report(ctx, out, progress, start)
+                   None if sweep_points is None else int(sweep_points), validate, command)
     seen = set(compiled_kernels())  # kernels compiled in this process before this report
 
     def note_compiled(part: str) -> None:
@@ -427,35 +427,6 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     return _write(_assemble(ctx, bodies), out, progress, total)
 
 
-def _build_chain_report(ctx: Context, out, progress, start: float) -> Union[Path, str]:
-    """A chain of links' report (:mod:`.chain`): its sections one after the other in this process (no SymPy
-    in a second one: the chain's derivation is displayed only for short chains), Ctrl-C taken between them."""
-    from ...interrupts import Interrupts
-    from ...numeric.kernels import chain_kernel
-    from .analyses import provenance_html
-    from .chain import CHAIN_BUILDERS, CHAIN_SECTIONS, CHAIN_TIMING_LABELS, build_chain_sections, chain_settings
-
-    total = len(CHAIN_BUILDERS) + 2  # the sections, the live view with section 10, the page
-    stage("compiling or loading the chain's kernels")
-    chain_kernel(ctx.params)
-    with Interrupts(escalate_after=0.3) as intr:
-        bodies = build_chain_sections(ctx, intr, progress, total)
-        intr.check()
-    done = len(CHAIN_BUILDERS)
-    stage(PARTS["live"], done + 1, total)
-    bodies["simulation"] = bodies["simulation"].replace(LIVE_SLOT, live_figure(ctx))
-    ctx.timings["total"] = time.perf_counter() - start
-    bodies["provenance"] = provenance_html(ctx, chain_settings(ctx), CHAIN_TIMING_LABELS, CHAIN_SECTIONS)
-    if progress is not None:
-        progress(done + 1, total)
-    stage(f"writing {Path(out).name}" if out is not None else "assembling the page", done + 2, total)
-    n = ctx.params.n
-    page = _assemble(ctx, bodies, CHAIN_SECTIONS, page_title=f"A chain of {n} links on skewed hinges",
-                     subtitle=f"{n} rigid bodies, each on a hinge with its own axis: the equations of motion derived "
-                              "step by step, checked, analysed and simulated")
-    return _write(page, out, progress, total)
-
-
 def _write(page: str, out, progress, total: int) -> Union[Path, str]:
     result: Union[Path, str] = page
     if out is not None:
@@ -469,28 +440,27 @@ def _write(page: str, out, progress, total: int) -> Union[Path, str]:
     return result
 
 
-def _assemble(ctx: Context, bodies: Dict[str, str], sections=SECTIONS, *, page_title: str = "", subtitle: str = "") -> str:
+def _assemble(ctx: Context, bodies: Dict[str, str]) -> str:
     from string import Template
 
+    from ... import schema
+
     css, js, _ = katex_assets()
-    toc = "\n".join(f'    <li><a href="#{key}">{esc(title)}</a></li>' for key, title in sections)
+    p = ctx.params
+    toc = "\n".join(f'    <li><a href="#{key}">{esc(title)}</a></li>' for key, title in sections(p))
     parts = []
-    for n, (key, title) in enumerate(sections, 1):
+    for n, (key, title) in enumerate(sections(p), 1):
         parts.append(
             f'<section class="report-section" id="{key}" aria-labelledby="{key}-title">\n'
             f'<h2 id="{key}-title"><span class="num">{n}</span>{esc(title)}</h2>\n{bodies[key]}\n</section>'
         )
-    p = ctx.params
-    if subtitle:  # a chain's, given
-        pass
-    elif p.uses_alpha and p.is_thin_rods:
-        subtitle = (f"Two thin rods whose hinge axes are skewed by α = {fmt_deg(p.alpha)}: the equations of motion derived "
-                    "step by step, checked, analysed and simulated")
+    if answers_names(p) and p.uses_alpha and p.is_thin_rods:
+        bodies_text = f"Two thin rods whose hinge axes are skewed by α = {fmt_deg(p.alpha)}"
     else:
-        subtitle = "Two rigid bodies on skewed hinges: the equations of motion derived step by step, checked, analysed and simulated"
+        bodies_text = f"{schema.count_text(p.n, 'rigid bodies').capitalize()} on skewed hinges"
     page = Template(template("report.html")).substitute(
-        title=page_title or "The double pendulum with skewed hinge axes",
-        subtitle=subtitle,
+        title=f"{p.title.replace('skewed ', '').capitalize()} with skewed hinge axes",
+        subtitle=bodies_text + ": the equations of motion derived step by step, checked, analysed and simulated",
         version=esc(__version__),
         katex_css=css,
         report_css=template("report.css"),

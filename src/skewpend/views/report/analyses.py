@@ -1,5 +1,5 @@
 """Sections 6, 7, 9 and 10 of the report: the flip-time map, chaos, the validation against
-MuJoCo, how the report was made."""
+MuJoCo, how the report was made -- for any model."""
 
 from __future__ import annotations
 
@@ -11,9 +11,15 @@ import numpy as np
 
 from ... import __version__
 from ... import schema
-from ...errors import SkewpendError
+from ...errors import ParameterError, SkewpendError
 
-from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context, detail)  # noqa: F401
+from .common import (CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, CHAOS_LYAPUNOV_T_END, CHAOS_MAP_N, CHAOS_MAP_T_END,
+                     CHAOS_SECTION_CROSSINGS, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, FIGURE_DT, FIGURE_MAX_ROWS,
+                     FLIPMAP_N, FLIPMAP_N_BY_LINKS, FLIPMAP_T_END, LONG_FLIPMAP_N, LONG_LYAPUNOV_T_END, VALIDATION_DT,
+                     VALIDATION_T_END, VALIDATION_TOL, Context, answers_names, by_links, detail, esc, facts_html, fig_png,
+                     figure_html, fmt_deg, fmt_num, inline_math, katex_assets, prose, sections, table_html, telling)
+from .system import TEXT, label, start_tex, tex
+
 
 def nonconservative_text(p) -> str:
     """The terms that make ``p`` non-conservative, as HTML: ``Coulomb friction in hinge 1 cf1 = 0.1 N m``
@@ -37,7 +43,7 @@ def chaos_jobs(ctx: Context) -> Dict[str, Callable]:
     from ...analysis.poincare import poincare
 
     p = ctx.params
-    if not p.conservative:  # damping, Coulomb friction or torques: no energy surface
+    if not answers_names(p) or not p.conservative:  # the planar pictures; no energy surface with losses or torques
         return {}
     span = potential_range(p)
     jobs: Dict[str, Callable] = {}
@@ -59,11 +65,12 @@ def section_chaos(ctx: Context) -> str:
     from ...status import Status
     from .. import figures as F
 
-    p, y0 = ctx.params, ctx.y0
+    p, y0, n = ctx.params, ctx.y0, ctx.params.n
+    horizon = CHAOS_LYAPUNOV_T_END if n <= 3 else LONG_LYAPUNOV_T_END
     out = [prose(
         "<p>Chaos, measured. The <b>Lyapunov exponents</b> are the rates at which nearby motions separate: the state is "
-        "integrated together with four tangent vectors — the variational equations "
-        r"$\dot v = J(y)\,v$ with the Jacobian $J$ generated from the derivation of section 2, in the same adaptive "
+        f"integrated together with {schema.count_text(2 * n, 'tangent vectors')} — the variational equations "
+        r"$\dot v = J(y)\,v$ with the Jacobian $J$ generated from the model of section 2, in the same adaptive "
         "DOP853 steps as the state — and every second the vectors are re-orthonormalised (QR), their logarithmic "
         "growths summed (Benettin's method). A positive largest exponent means chaos; without damping and torques "
         r"the spectrum comes in pairs $\pm\lambda$ with two zeros.</p>")]
@@ -71,17 +78,19 @@ def section_chaos(ctx: Context) -> str:
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         try:
-            spec = lyapunov(p, y0, t_end=CHAOS_LYAPUNOV_T_END, throw=False)
+            spec = lyapunov(p, y0, t_end=horizon, throw=False,
+                            progress=telling(schema.count_text(2 * n, "Lyapunov exponents"), "s"))
         except SkewpendError as exc:
             spec = None
             out.append(f'<p class="callout warn">The Lyapunov spectrum could not be computed: {esc(exc)}</p>')
     if spec is not None:
+        detail("the figure of the running estimates")
         fig = F.lyapunov_figure(spec)
         out.append(figure_html(fig_png(fig), prose(
-            "Running estimates of the four Lyapunov exponents of the simulation's initial state (section 5), "
-            f"over {fmt_num(CHAOS_LYAPUNOV_T_END)} s, QR every {fmt_num(spec.settings['renorm_every'])} s; they settle as the "
-            "time grows (± is the 95 % interval from the spread over 10 time windows, given once they have settled)."),
-            "Lyapunov exponents against time"))
+            f"Running estimates of the {schema.count_text(spec.k, 'Lyapunov exponents')} of the simulation's initial "
+            f"state (section 5), over {fmt_num(horizon)} s, QR every {fmt_num(spec.settings['renorm_every'])} s; they "
+            "settle as the time grows (± is the 95 % interval from the spread over 10 time windows, given once they "
+            "have settled)."), "Lyapunov exponents against time"))
         settled = spec.status != Status.NOT_SETTLED
         facts = [(f"λ{i + 1}", f"{spec.exponents[i]:+.4f}" + (f" ± {spec.interval[i]:.2g}" if settled else "") + " 1/s")
                  for i in range(spec.k)]
@@ -90,8 +99,15 @@ def section_chaos(ctx: Context) -> str:
         if spec.status != 0:
             facts.append(("stopped" if settled else "not settled", esc(spec.message)))
         out.append(facts_html(facts))
-        notes.append(f"Lyapunov {spec.stats['wall_time']:.2f} s")
+        notes.append(f"Lyapunov spectrum of {spec.k} exponents, {spec.stats['wall_time']:.2f} s")
 
+    if not answers_names(p):  # the planar pictures read the double pendulum's names (phi = 0, (psi, p_psi), alpha)
+        if n > 2:
+            out.append('<p class="note">Poincaré sections and the chaos diagram are planar pictures of the double '
+                       f"pendulum (a section of its three-dimensional energy surface); a chain of {n} links has a "
+                       f"{2 * n - 1}-dimensional one, and the report draws neither.</p>")
+        ctx.notes["chaos"] = ", ".join(notes)
+        return "\n".join(out)
     if not p.conservative:
         terms = p.nonconservative_terms
         out.append("<p class=\"note\">Poincaré sections and the chaos diagram need an energy surface, that is a "
@@ -173,24 +189,31 @@ def section_flipmap(ctx: Context) -> str:
     from ..figures import wrap_angle
 
     p, y0 = ctx.params, ctx.y0
-    n, t_end = FLIPMAP_N, FLIPMAP_T_END
+    q = len(p.coordinates)
+    n, t_end = by_links(q, FLIPMAP_N, FLIPMAP_N_BY_LINKS, LONG_FLIPMAP_N), FLIPMAP_T_END
+    sym = [tex(c) for c in p.coordinates[:2]]
+    s0 = [start_tex(c) for c in p.coordinates[:2]]
+    t0 = [TEXT[c] + "₀" if c in TEXT else label(c) + "(0)" for c in p.coordinates[:2]]
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         try:
-            fm = flip_map(p, n, t_end=t_end)
+            fm = flip_map(p, n, t_end=t_end, progress=telling(f"{n}×{n} starts", "cells"))
         except SkewpendError as exc:
             ctx.notes["flipmap"] = "could not be made"
             return f'<p class="callout warn">The flip-time map could not be made: {esc(exc)}</p>'
+    detail("the figure")
     st = fm.stats
-    ctx.notes["flipmap"] = (f"{n} × {n} starts at rest, t_end = {t_end:g} s, DOP853 at rtol = {fm.settings['rtol']:g}, "
+    ctx.notes["flipmap"] = (f"{n} × {n} starts at rest" + (f" over ({', '.join(p.coordinates[:2])})" if q > 2 else "")
+                            + f", t_end = {t_end:g} s, DOP853 at rtol = {fm.settings['rtol']:g}, "
                             f"atol = {fm.settings['atol']:g}: {st['flipped']} of {n * n} flip, computed in "
                             f"{st['wall_time']:.2f} s")
-    phi_s, psi_s = float(wrap_angle(y0[0])), float(wrap_angle(y0[1]))
-    at_rest = y0[2] == 0.0 and y0[3] == 0.0
+    start = [float(wrap_angle(y0[0])), float(wrap_angle(y0[1]))]
+    at_rest = not any(y0[q:])
+    in_plane = not any(y0[2:q])  # the other angles at the map's 0
     margin = F.flipmap_energy_margin(fm)
     forbidden = None if margin is None else margin < 0
-    fig = F.flipmap_figure(fm, mark=(phi_s, psi_s), mark_label="start of section 5" + ("" if at_rest else " (its angles)"),
-                           forbidden=margin)
+    fig = F.flipmap_figure(fm, mark=start if in_plane else None, forbidden=margin,
+                           mark_label="start of section 5" + ("" if at_rest else " (its angles)"))
     cells = n * n
     flipped, skipped = st["flipped"], st["skipped_energy"]
     n_forbidden = int(np.count_nonzero(forbidden)) if forbidden is not None else skipped
@@ -199,19 +222,28 @@ def section_flipmap(ctx: Context) -> str:
                  r"below the lowest $V$ on the boundary of the square (−180°, 180°)², which the angles must reach to flip; "))
     if forbidden is None or n_forbidden == 0:
         grey = ""
+    held = "" if q <= 2 else (", the other " + (schema.count_text(q - 2, "angles") if q > 3 else "angle")
+                              + " held at 0 (hanging)")
+    if in_plane:
+        red = ("red dot: the angles of the simulation's initial state (section 5)"
+               + ("." if at_rest else " — which starts with speeds, so its own motion need not follow its cell."))
+    else:
+        red = "the simulation's initial state (section 5) is not on this plane (its other angles are not 0)."
     caption = (
-        prose(r"Flip time of the pendulum released at rest from $(\varphi_0, \psi_0)$ — the first time either hinge angle "
-           r"leaves (−180°, 180°) — on a log colour scale (bright: early, dark: late), with $\varphi_0$ across and "
-           r"$\psi_0$ up, for the parameters of section 1 (") + f"{n}&nbsp;×&nbsp;{n} starts, followed for {fmt_num(t_end)} s). "
-        + f"White: no flip within {fmt_num(t_end)} s; " + grey
-        + "red dot: the angles of the simulation's initial state (section 5)"
-        + ("." if at_rest else " — which starts with speeds, so its own motion need not follow its cell.")
+        prose(f"Flip time of the {'pendulum' if q <= 2 else 'chain'} released at rest from $({s0[0]}, {s0[1]})$ — the "
+              f"first time {'either' if q <= 2 else 'any'} hinge angle leaves (−180°, 180°) — on a log colour scale "
+              f"(bright: early, dark: late), with ${s0[0]}$ across and ${s0[1]}$ up{held}, for the parameters of section "
+              "1 (") + f"{n}&nbsp;×&nbsp;{n} starts, followed for {fmt_num(t_end)} s). "
+        + f"White: no flip within {fmt_num(t_end)} s; " + grey + red
     )
+    which = (f"either ${sym[0]}$ or ${sym[1]}$" if q <= 2 else "any hinge angle")
     out = [prose(
-        "<p>The double pendulum is the textbook chaotic mechanical system. Release it at rest from hinge angles "
-        r"$(\varphi_0, \psi_0)$ and wait: does a rod go over the top, and when? The <b>flip time</b> is the first time "
-        r"either $\varphi$ or $\psi$ leaves (−180°, 180°). Below, each of " + f"{n}&nbsp;×&nbsp;{n} = {fmt_count(cells)}"
-        + " starts is one simulation of the equations of section 2 (DOP853 in compiled code generated from the derivation, "
+        "<p>The double pendulum is the textbook chaotic mechanical system" + ("" if q <= 2 else ", and a chain of links "
+        "its longer kin") + ". Release it at rest from hinge angles "
+        f"$({s0[0]}, {s0[1]})$" + ("" if q <= 2 else " (the others at 0)") + " and wait: does a rod go over the top, "
+        f"and when? The <b>flip time</b> is the first time {which} leaves (−180°, 180°). Below, each of "
+        + f"{n}&nbsp;×&nbsp;{n} = {fmt_count(cells)}"
+        + " starts is one simulation of the equations of section 2 (DOP853 in compiled code generated from the model, "
         "several trajectories side by side, each stopped at its flip, located on the dense output): smooth regions where "
         "nearby starts flip alike, and between them the fractal tangle where the outcome depends sensitively on the start."
         "</p>")]
@@ -222,26 +254,31 @@ def section_flipmap(ctx: Context) -> str:
         ("no flip", f"{fmt_count(cells - flipped)} ({fmt_num(100.0 * (cells - flipped) / cells, 3)} %)"
                     + (f", of which {fmt_count(n_forbidden)} forbidden by energy" if forbidden is not None else "")),
     ]
-    if at_rest:
+    angles = f"{t0[0]} = {fmt_deg(start[0])}, {t0[1]} = {fmt_deg(start[1])}"
+    if not in_plane:
+        facts.append(("the start of section 5", f"{angles}, off the map's plane"))
+    elif at_rest:
         try:
-            one = flip_time(p, phi_s, psi_s, t_end=FLIPMAP_T_END)
+            one = flip_time(p, *start, t_end=FLIPMAP_T_END)
             t_flip, joint, never = one.time, (one.which if one.status.ok else -2), one.forbidden
+        except ParameterError:  # not every model's single start is computed on its own: its cell says it
+            t_flip, joint, never = math.nan, -3, False
         except SkewpendError:
             t_flip, joint, never = math.nan, -2, False
         if never:
             what = "never flips: energy forbids it"
         elif joint >= 0:
-            what = f"flips at t = {fmt_num(t_flip, 5)} s ({'φ' if joint == 0 else 'ψ'}, hinge {joint + 1})"
+            what = f"flips at t = {fmt_num(t_flip, 5)} s ({label(p.coordinates[joint])}, hinge {joint + 1})"
         elif joint == -1:
             what = f"does not flip within {fmt_num(t_end)} s"
         else:
-            what = "could not be computed"
-        facts.append(("the start of section 5", f"φ₀ = {fmt_deg(phi_s)}, ψ₀ = {fmt_deg(psi_s)}, at rest: {what}"))
+            what = "could not be computed" if joint == -2 else "see its cell"
+        facts.append(("the start of section 5", f"{angles}, at rest: {what}"))
     else:
-        facts.append(("the start of section 5", f"φ₀ = {fmt_deg(phi_s)}, ψ₀ = {fmt_deg(psi_s)}, but not at rest "
-                                                "(the map is for starts at rest)"))
+        facts.append(("the start of section 5", f"{angles}, but not at rest (the map is for starts at rest)"))
     how = (f"{fmt_count(st['integrated'])} starts integrated, {fmt_count(st['mirrored'])} mirrored (the map is symmetric "
-           f"under (φ₀, ψ₀) → (−φ₀, −ψ₀))" if st["mirrored"] else f"{fmt_count(st['integrated'])} starts integrated")
+           f"under ({t0[0]}, {t0[1]}) → (−{t0[0]}, −{t0[1]}))" if st["mirrored"]
+           else f"{fmt_count(st['integrated'])} starts integrated")
     how += (f", {fmt_count(skipped)} skipped by the energy bound; {fmt_count(st['steps'])} steps on {st['workers']} "
             f"thread{'s' if st['workers'] != 1 else ''}")
     facts.append(("work", how))
@@ -329,50 +366,47 @@ def _versions() -> List[Tuple[str, str]]:
 def section_provenance(ctx: Context) -> str:
     from ..style import settings_text
 
+    named = answers_names(ctx.params)
     sim = {"t_end": ctx.t_end, "rtol": ctx.rtol, "atol": ctx.atol, "dt": ctx.dt}
     settings = [
         ("simulation", esc(settings_text(ctx.method, {k: v for k, v in sim.items() if v is not None}))
          + " (figures: rows every " + fmt_num(max(FIGURE_DT, ctx.t_end / FIGURE_MAX_ROWS)) + " s)"),
         ("animation", esc(ctx.notes.get("clip", ""))),
-        ("α sweep", esc(f"0 to 180° in {ctx.sweep_points} values: {ctx.notes.get('sweep', '')}")),
+        ("α sweep" if named else "tilt sweeps", esc(f"0 to 180° in {ctx.notes.get('sweep points', ctx.sweep_points)} values"
+                                                    f"{'' if named else ' a hinge'}: {ctx.notes.get('sweep', '')}")),
         ("flip-time map", esc(ctx.notes.get("flipmap", ""))),
         ("chaos", esc(ctx.notes.get("chaos", ""))),
+        ("orbits", esc(ctx.notes.get("orbits", ""))),
         ("validation", esc(f"MuJoCo RK4, dt = {VALIDATION_DT:g} s, {min(VALIDATION_T_END, ctx.t_end):g} s, tolerance "
                           f"{VALIDATION_TOL:g}: {ctx.notes.get('validation', '')}")),
         ("derivation shown for", esc(ctx.notes.get("derivation", ""))),
-        ("check at α = 0", esc(ctx.notes.get("check", ""))),
+        ("check at α = 0" if named else "check", esc(ctx.notes.get("check", ""))),
         ("model code", esc(ctx.notes.get("kernel", ""))),
     ]
     labels = [
         ("system", "1 · the system: pictures"),
-        ("derivation", "2 · derivation and display forms"),
-        ("check", "3 · check at α = 0"),
-        ("modes", "4 · normal modes and the α sweep"),
+        ("derivation", "2 · derivation and display forms" if named else "2 · derivation (SymPy)"),
+        ("check", "3 · check at α = 0" if named else "3 · check against the recursive algorithms"),
+        ("modes", "4 · normal modes and the α sweep" if named else "4 · normal modes and the tilt sweeps"),
         ("simulation", "5 · simulation, all of it"),
         ("simulation: integration", "5 · integration"),
         ("simulation: figures", "5 · figures"),
         ("simulation: live view", "5 · live view: frames, rod ends, axes"),
         ("flipmap", "6 · flip-time map"),
-        ("chaos", "7 · chaos: exponents, sections, diagram"),
+        ("chaos", "7 · chaos: exponents, sections, diagram" if named else "7 · Lyapunov spectrum"),
         ("orbits", "8 · equilibria and nonlinear normal modes"),
         ("validation", "9 · validation against MuJoCo"),
         ("total", "total"),
     ]
-    return provenance_html(ctx, settings, labels, SECTIONS)
-
-
-def provenance_html(ctx: Context, settings: List[Tuple[str, str]], labels: List[Tuple[str, str]], sections) -> str:
-    """The last section of a report: the software's versions, ``settings`` (label, HTML) with the command and the
-    platform, the wall time of each part (``labels``: timing key, label; section numbers from ``sections``)."""
     _, _, katex_version = katex_assets()
     rows = [[esc(k), esc(v)] for k, v in _versions() + [("KaTeX (bundled)", katex_version)]]
-    settings = list(settings) + [
+    settings += [
         ("platform", esc(f"{platform.system()} {platform.machine()}, {platform.python_implementation()} {platform.python_version()}"))]
     if ctx.command:
         settings.insert(0, ("command", f"<code>{esc(ctx.command)}</code>"))
     trows = [[esc(label), f"{ctx.timings[key]:.2f}"] for key, label in labels if key in ctx.timings]
     # kernels compiled in this run (first use): each inside the part that first needed it, not added to the total
-    number = {key: n for n, (key, _) in enumerate(sections, 1)}
+    number = {key: n for n, (key, _) in enumerate(sections(ctx.params), 1)}
     compiled = list(ctx.compiled.values())
     at = len(trows) - 1 if "total" in ctx.timings else len(trows)  # before the total
     trows[at:at] = [[esc(f"{number.get(part, '?')} · compiling {what}"), f"{seconds:.2f}"]

@@ -19,6 +19,7 @@ from ... import __version__
 from ...config import DEFAULT_RUN, reference_state
 from ...errors import SkewpendError
 from ...symbolic.model import Parameters
+from ..style import answers_names
 
 #: The built-in case (the README's benchmark case, as ``skewpend simulate`` runs it).
 DEFAULT_PARAMETERS = dict(DEFAULT_RUN["parameters"])
@@ -28,19 +29,31 @@ DEFAULT_T_END = float(DEFAULT_RUN["simulation"]["t_end"])
 MAX_T_END = 1000.0
 #: File names a report is written to.
 REPORT_SUFFIXES = (".html", ".htm")
-#: (id, title) of the sections, in order.
-SECTIONS = (
-    ("system", "The system"),
-    ("derivation", "Equations of motion, step by step"),
-    ("check", "Check: the planar case α = 0"),
-    ("modes", "Small oscillations: normal modes"),
-    ("simulation", "Simulation"),
-    ("flipmap", "Which starts flip: the flip-time map"),
-    ("chaos", "How chaotic: Lyapunov exponents, Poincaré sections and the skew"),
-    ("orbits", "Beyond small oscillations: equilibria and nonlinear normal modes"),
-    ("validation", "Validation against MuJoCo"),
-    ("provenance", "How this report was made"),
-)
+
+
+def sections(model) -> Tuple[Tuple[str, str], ...]:
+    """(id, title) of the report's sections for ``model``, in order: the same ten for every model, two titles
+    naming what the model provides -- the specification's check at alpha = 0 and its planar pictures of chaos
+    for a model that answers the specification's names (:func:`~skewpend.views.style.answers_names`), the
+    check of two derivations and the Lyapunov spectrum otherwise."""
+    named = answers_names(model)
+    return (
+        ("system", "The system"),
+        ("derivation", "Equations of motion, step by step"),
+        ("check", "Check: the planar case α = 0" if named else "Check: two derivations of one model"),
+        ("modes", "Small oscillations: normal modes"),
+        ("simulation", "Simulation"),
+        ("flipmap", "Which starts flip: the flip-time map"),
+        ("chaos", "How chaotic: Lyapunov exponents, Poincaré sections and the skew" if named
+         else "How chaotic: the Lyapunov spectrum"),
+        ("orbits", "Beyond small oscillations: equilibria and nonlinear normal modes"),
+        ("validation", "Validation against MuJoCo"),
+        ("provenance", "How this report was made"),
+    )
+
+
+#: The sections of the built-in case's report.
+SECTIONS = sections(Parameters(**DEFAULT_PARAMETERS))
 #: Animation: length of the clip [s of motion], frames per second, frame size [px].
 CLIP_SECONDS = 10.0
 CLIP_FPS = 30.0
@@ -49,19 +62,30 @@ CLIP_SIZE = (720, 480)
 PICTURE_SIZE = (560, 420)
 #: Resolution of the figures [dots per inch].
 FIGURE_DPI = 110
-#: Sweep of alpha for the frequency curves: 0..180 deg in this many points.
+#: Sweep of each hinge's skew (alpha, or a chain's tilts) for the frequency curves: 0..180 deg in this many
+#: points for one skew; a sweep a hinge takes fewer past two links (SWEEP_POINTS_BY_LINKS, else LONG_SWEEP_POINTS).
 SWEEP_POINTS = 181
+SWEEP_POINTS_BY_LINKS = {3: 61}
+LONG_SWEEP_POINTS = 31
+#: The longest chain whose equations the report derives and displays by SymPy link by link (four links take
+#: 45 s and expressions of thousands of terms; the recursive algorithms serve any length).
+SYMBOLIC_MAX_LINKS = 3
 #: Validation: MuJoCo's step and horizon, and the agreement required.
 VALIDATION_DT = 1e-4
 VALIDATION_T_END = 2.0
 VALIDATION_TOL = 1e-6
-#: The flip-time map of section 6: cells per side and how long each start is followed [s].
+#: The flip-time map of section 6: cells per side and how long each start is followed [s]; past two links
+#: fewer cells (FLIPMAP_N_BY_LINKS, else LONG_FLIPMAP_N: the work grows with the links, 16 s for 96 x 96 at six).
 FLIPMAP_N = 144
+FLIPMAP_N_BY_LINKS = {3: 96}
+LONG_FLIPMAP_N = 64
 FLIPMAP_T_END = 10.0
 #: Section 7: the Lyapunov run [s], the Poincare sections (energies as fractions of the
 #: potential's span, orbits, crossings), the largest-exponent map (cells per side, seconds) and
 #: the chaos diagram (alphas, energies, starts per cell, seconds).
 CHAOS_LYAPUNOV_T_END = 500.0
+#: ... past three links (2 n tangent vectors) [s]
+LONG_LYAPUNOV_T_END = 200.0
 CHAOS_SECTION_LEVELS = (0.15, 0.5)
 CHAOS_SECTION_ORBITS = 24
 CHAOS_SECTION_CROSSINGS = 300
@@ -73,6 +97,12 @@ CHAOS_DIAGRAM_LEVELS = (0.1, 0.17, 0.25, 0.35, 0.5, 0.75, 1.0)
 #: Rows drawn by the figures: every FIGURE_DT seconds, at most FIGURE_MAX_ROWS.
 FIGURE_DT = 0.01
 FIGURE_MAX_ROWS = 20000
+
+
+def by_links(n: int, first: float, table: Dict[int, float], long: float):
+    """A size of the report's work for a model of ``n`` links: ``first`` up to two links, ``table[n]``, else
+    ``long`` (each link multiplies the work of a run)."""
+    return first if n <= 2 else table.get(n, long)
 
 
 # -- small helpers ----------------------------------------------------------------------------
@@ -371,7 +401,7 @@ class Prefetch:
 
 @dataclass
 class Context:
-    params: Parameters  # or a chain of links (its report: views.report.chain)
+    params: Parameters  # the model: the double pendulum's Parameters or a chain of links
     y0: Tuple[float, ...]
     t_end: float
     method: str
@@ -382,7 +412,7 @@ class Context:
     clip_seconds: float
     fps: float
     clip_size: Tuple[int, int]
-    sweep_points: int
+    sweep_points: Optional[int]  # None: by the model (SWEEP_POINTS for one skew, fewer a hinge past two links)
     validate: Optional[bool]
     command: Optional[str]
     timings: Dict[str, float] = field(default_factory=dict)
@@ -392,4 +422,4 @@ class Context:
     still: Optional[bytes] = None  # section 1's picture of the initial state (also the live view's poster)
     compiled: Dict[str, Tuple[str, str, float]] = field(default_factory=dict)  # kernels compiled: (what, part, s)
     prefetch: Prefetch = field(default_factory=Prefetch)
-    eom: object = None  # a chain report's symbolic equations (section 2), compared in section 3
+    eom: object = None  # the equations derived link by link (section 2), compared in section 3

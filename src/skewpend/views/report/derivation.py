@@ -1,8 +1,12 @@
-"""Sections 2 and 3 of the report (pure SymPy, computed in a second process when there
-are two cores): the derivation step by step, and the check at alpha = 0."""
+"""Sections 2 and 3 of the report (pure SymPy, computed in a second process when there are two cores): the
+derivation step by step and its check.  A model that answers the specification's names (the double pendulum's
+facade) is derived by the specification's steps, every parameter symbolic, and checked at alpha = 0 against the
+specification's formulas; any other is derived link by link with its values (up to :data:`SYMBOLIC_MAX_LINKS`
+links) and checked against the recursive algorithms its kernels compile."""
 
 from __future__ import annotations
 
+import math
 from typing import Dict, List, Tuple
 
 import numpy as np
@@ -12,7 +16,17 @@ from ... import schema
 from ...errors import SkewpendError
 from ...symbolic.model import Parameters
 
-from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context)  # noqa: F401
+from .common import (SYMBOLIC_MAX_LINKS, Context, answers_names, array_tex, detail, display_math, esc, fmt_num,
+                     inline_math, prose, tex_of, vector_tex)
+
+#: Digits of the floating-point numbers in the expressions derived link by link, and the longest one displayed
+#: (LaTeX characters; a longer one is named by its size).
+DISPLAY_DIGITS = 4
+DISPLAY_MAX_CHARS = 2400
+#: Random states at which the two derivations are compared, and the agreement required (relative).
+CHECK_STATES = 20
+CHECK_TOL = 1e-11
+
 
 # -- section 2: the derivation ---------------------------------------------------------------------------
 def _optional_symbolic(p: Parameters) -> Dict[str, object]:
@@ -169,6 +183,8 @@ def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, s
 
 
 def section_derivation(ctx: Context) -> str:
+    if not answers_names(ctx.params):
+        return _links_derivation(ctx)
     from ...symbolic.derivation import derive
     from ...symbolic.display import display_steps
 
@@ -237,6 +253,8 @@ def section_derivation(ctx: Context) -> str:
 
 # -- section 3: the check at alpha = 0 -----------------------------------------------------------------
 def section_check(ctx: Context) -> str:
+    if not answers_names(ctx.params):
+        return _two_derivations(ctx)
     import sympy as sp
 
     from ...symbolic.derivation import derive
@@ -303,3 +321,141 @@ def section_check(ctx: Context) -> str:
         + ".</p>"
     )
     return intro + verdict + '<ol class="steps">' + "".join(blocks) + "</ol>"
+
+
+# -- a model told by its links: derived link by link, checked against the recursive algorithms -------------
+def _link_names(eom) -> Dict:
+    from ...symbolic.derivation import coordinate_symbol
+
+    names = {}
+    for i, c in enumerate(eom.coordinates, start=1):
+        names[coordinate_symbol(c)] = f"q_{{{i}}}"
+        names[coordinate_symbol("d" + c)] = rf"\dot q_{{{i}}}"
+        names[coordinate_symbol("dd" + c)] = rf"\ddot q_{{{i}}}"
+    return names
+
+
+def _links_derivation(ctx: Context) -> str:
+    import sympy as sp
+
+    chain, n = ctx.params, ctx.params.n
+    method = prose(
+        "<p>The specification's method, link by link. Link $i$ turns by $q_i$ about its hinge's axis "
+        r"$\underline{e}_{i0}$ (given with the chain hanging) relative to link $i - 1$: its rotation tensor is "
+        r"$\underline{\underline{P}}_i = \underline{\underline{P}}_{i-1}\cdot\underline{\underline{P}}(q_i, "
+        r"\underline{e}_{i0})$ with Rodrigues' tensor $\underline{\underline{P}}(q, \underline{e}) = "
+        r"\underline{\underline{E}}\cos q + (1 - \cos q)\,\underline{e}\,\underline{e} + \underline{e}\times"
+        r"\underline{\underline{E}}\sin q$; the hinge's current axis is $\underline{e}_i = \underline{\underline{P}}_{i-1}"
+        r"\cdot\underline{e}_{i0}$ and the angular velocity $\underline{\omega}_i = \underline{\omega}_{i-1} + "
+        r"\dot q_i\,\underline{e}_i$. Each body's centre of mass moves with the hinges above it; the kinetic energy is "
+        r"$T = \sum_i \tfrac12 m_i v_{Ci}^2 + \tfrac12\,\underline{\omega}_i\cdot\underline{\underline{\Theta}}_i\cdot"
+        r"\underline{\omega}_i$ (each inertia tensor turned by $\underline{\underline{P}}_i$), the potential "
+        r"$\Pi = -\sum_i m_i\,g\,y_{Ci}$, and Lagrange's equations $\frac{d}{dt}\frac{\partial T}{\partial\dot q_i} - "
+        r"\frac{\partial T}{\partial q_i} = -\frac{\partial\Pi}{\partial q_i} + Q_i$, with the generalised forces "
+        r"$Q_i = \tau_i - c_i\,\dot q_i - c_{f,i}\arctan(c_{fs}\dot q_i)$, give $M(q)\,\ddot q = f(q, \dot q)$.</p>")
+    if n > SYMBOLIC_MAX_LINKS:
+        ctx.notes["derivation"] = f"not displayed ({n} links; SymPy displays up to {SYMBOLIC_MAX_LINKS})"
+        return method + (
+            f'<p class="callout">A chain of {n} links is past what this report derives and displays by SymPy (up to '
+            f"{SYMBOLIC_MAX_LINKS} links: four already take about 45 s and expressions of thousands of terms). The "
+            "numeric code is generated for any length from the same model by the recursive algorithms — the composite-"
+            "rigid-body mass matrix and recursive Newton–Euler — as straight-line code (CasADi's graphs printed as C); "
+            "<code>skewpend derive --config</code> prints them, section 9 checks them against MuJoCo.</p>")
+    from ...symbolic.derivation import derive
+
+    detail(f"deriving the equations of {n} links (SymPy)")
+    eom = derive(chain)
+    names = _link_names(eom)
+    long = []
+
+    def t(expr, label: str = "") -> str:
+        """LaTeX of ``expr`` with its floating-point numbers shown to DISPLAY_DIGITS digits; an expression past
+        DISPLAY_MAX_CHARS is named by its size instead."""
+        shown = expr.xreplace({x: sp.Float(x, DISPLAY_DIGITS) for x in expr.atoms(sp.Float)})
+        text = sp.latex(shown, symbol_names=names)
+        if len(text) > DISPLAY_MAX_CHARS:
+            long.append(label)
+            return rf"\text{{(an expression of {sp.count_ops(expr)} operations: not displayed)}}"
+        return text
+
+    out = [method, "<h3>Step by step, with the values of section 1</h3>"]
+    labels = {"P": r"\underline{\underline{P}}", "e": r"\underline{e}", "omega": r"\underline{\omega}"}
+    rows = []
+    for key, value in eom.steps.items():
+        if key in ("M", "f", "T", "Pi"):
+            continue
+        detail(f"typesetting the step {key}")
+        stem = key.rstrip("0123456789")
+        rows.append(f"{labels[stem]}_{{{key[len(stem):]}}} &= {t(value, key)}")
+    out.append(display_math("\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"))
+    detail("typesetting T and Pi")
+    out.append(display_math(f"T = {t(eom.kinetic_energy, 'T')}"))
+    out.append(display_math(rf"\Pi = {t(eom.potential_energy, 'Pi')}"))
+    out.append(prose("<p>Lagrange's equations, $M(q)\\,\\ddot q = f(q, \\dot q)$, entry by entry:</p>"))
+    M, f = eom.mass_matrix, eom.forcing
+    for i in range(n):  # one block per row of M and its f: each scrolls on its own when wide
+        detail(f"typesetting row {i + 1} of {n} of M and f")
+        eqs = [f"M_{{{i + 1}{j + 1}}} &= {t(M[i, j], f'M{i + 1}{j + 1}')}" for j in range(i, n)]
+        eqs.append(f"f_{{{i + 1}}} &= {t(f[i], f'f{i + 1}')}")
+        out.append(display_math("\\begin{aligned}\n" + " \\\\\n".join(eqs) + "\n\\end{aligned}"))
+    detail("linearising about the hanging rest")
+    try:
+        lin = eom.linearize()
+    except SkewpendError as exc:
+        out.append(f'<p class="note">Not linearised about q = 0: {esc(exc)}</p>')
+    else:
+        out.append(prose("<p>Linearised about the hanging rest $q = 0$: $M_0\\,\\ddot q + C_0\\,\\dot q + K_0\\,q = 0$ "
+                         "with</p>"))
+        parts = [f"M_0 = {t(lin.M.evalf())}", f"K_0 = {t(lin.K.evalf())}"]
+        if lin.C != sp.zeros(n, n):
+            parts.append(f"C_0 = {t(lin.C.evalf())}")
+        out.append(display_math(r",\qquad ".join(parts)))
+    ctx.eom = eom  # section 3 compares it with the recursive algorithms
+    out.insert(2, f'<p class="note">Numbers are shown to {DISPLAY_DIGITS} digits; the derivation and section 3 use them in '
+               "full" + (f"; {len(long)} expression{'s' if len(long) > 1 else ''} of more than {DISPLAY_MAX_CHARS} characters "
+                          f"{'are' if len(long) > 1 else 'is'} named by {'their' if len(long) > 1 else 'its'} size "
+                          "(<code>skewpend derive --config</code> prints every one)" if long else "") + ".</p>")
+    ctx.notes["derivation"] = f"{n} links, exact (SymPy), with the values of section 1"
+    return "\n".join(out)
+
+
+def _two_derivations(ctx: Context) -> str:
+    import sympy as sp
+
+    from ...numeric import kernels
+    from ...symbolic.derivation import coordinate_symbol
+
+    chain, n = ctx.params, ctx.params.n
+    intro = prose(
+        "<p>The simulations of this report do not use the expressions of section 2: the compiled code is generated from "
+        "the same model by the <b>recursive algorithms</b> — the mass matrix by composite rigid bodies, the forces by "
+        "recursive Newton–Euler — a second derivation with no rotation tensor composed symbolically. ")
+    eom = ctx.eom
+    if eom is None:
+        ctx.notes["check"] = "against MuJoCo (section 9)"
+        return intro + f"For {n} links the check is section 9's: the same model simulated by MuJoCo.</p>"
+    K, p = kernels.model_kernel(chain), kernels.model_vector(chain)  # the code the simulations run
+    symbols = [coordinate_symbol(c) for c in eom.coordinates] + [coordinate_symbol("d" + c) for c in eom.coordinates]
+    detail("turning section 2's expressions into functions (SymPy's lambdify)")
+    M, f = sp.lambdify(symbols, eom.mass_matrix), sp.lambdify(symbols, eom.forcing)
+    E = sp.lambdify(symbols, eom.kinetic_energy + eom.potential_energy)
+    rng = np.random.default_rng(2026)
+    acc_err = energy_err = 0.0
+    out = np.zeros(2 * n + 1)
+    for k in range(CHECK_STATES):
+        detail(f"random state {k + 1} of {CHECK_STATES}")
+        y = np.r_[rng.uniform(-math.pi, math.pi, n), rng.normal(scale=2.0, size=n)]
+        acc = np.linalg.solve(np.array(M(*y), float), np.array(f(*y), float).ravel())
+        K.rhs(np.r_[y, 0.0], p, out)
+        acc_err = max(acc_err, float(np.max(np.abs(out[n:2 * n] - acc)) / max(np.max(np.abs(acc)), 1e-300)))
+        e_sym = float(E(*y))
+        energy_err = max(energy_err, abs(K.energy(np.r_[y, 0.0], p) - e_sym) / max(abs(e_sym), 1e-300))
+    ok = acc_err <= CHECK_TOL and energy_err <= CHECK_TOL
+    verdict = (f'<p class="verdict {"ok" if ok else "bad"}">' + ("✓ The two derivations agree" if ok else
+               "✗ The two derivations disagree") + f" at {CHECK_STATES} random states: accelerations to "
+               f"{fmt_num(acc_err, 2)}, energies to {fmt_num(energy_err, 2)} (relative; required: {fmt_num(CHECK_TOL, 2)})"
+               "</p>")
+    ctx.notes["check"] = f"accelerations {acc_err:.1e}, energies {energy_err:.1e} at {CHECK_STATES} random states"
+    return (intro + prose(f"Here both are evaluated at {CHECK_STATES} random states (angles uniform in ±180°, speeds "
+                          "normal with a spread of 2 rad/s): the accelerations $M^{-1} f$ of section 2 against the "
+                          "compiled code's, and the energies $T + \\Pi$.</p>") + verdict)

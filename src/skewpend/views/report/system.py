@@ -1,4 +1,5 @@
-"""Sections 1, 4 and 5 of the report: the system, its normal modes, a simulation."""
+"""Sections 1, 4 and 5 of the report: the system, its normal modes, a simulation -- for any model: each asks
+the model its coordinates, its links and the names it answers."""
 
 from __future__ import annotations
 
@@ -12,15 +13,17 @@ from ... import schema
 from ...errors import SkewpendError
 from ...symbolic.model import Parameters
 
-from .common import (DEFAULT_PARAMETERS, DEFAULT_INITIAL_STATE, DEFAULT_T_END, MAX_T_END, REPORT_SUFFIXES, SECTIONS, CLIP_SECONDS, CLIP_FPS, CLIP_SIZE, PICTURE_SIZE, FIGURE_DPI, SWEEP_POINTS, VALIDATION_DT, VALIDATION_T_END, VALIDATION_TOL, FLIPMAP_N, FLIPMAP_T_END, CHAOS_LYAPUNOV_T_END, CHAOS_SECTION_LEVELS, CHAOS_SECTION_ORBITS, CHAOS_SECTION_CROSSINGS, CHAOS_MAP_N, CHAOS_MAP_T_END, CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, FIGURE_DT, FIGURE_MAX_ROWS, esc, inline_math, display_math, prose, fmt_num, fmt_num_tex, fmt_deg, fig_png, rgb_png, data_uri, FIGURE_SLOT, figure_html, live_view_html, number_figures, table_html, facts_html, asset, katex_assets, template, tex_of, array_tex, vector_tex, Context, detail, telling)  # noqa: F401
+from .common import (FIGURE_DT, FIGURE_MAX_ROWS, LONG_SWEEP_POINTS, PICTURE_SIZE, SWEEP_POINTS, SWEEP_POINTS_BY_LINKS,
+                     Context, answers_names, array_tex, by_links, detail, display_math, esc, facts_html, fig_png,
+                     figure_html, fmt_deg, fmt_num, inline_math, live_view_html, prose, rgb_png, table_html, telling)
 
 # -- section 1: the system ------------------------------------------------------------------------
 def _unit(unit: str) -> str:
     return f'<span class="unit">{unit}</span>' if unit and unit != "1" else ""
 
 
-def _vec_text(v) -> str:
-    return "(" + ", ".join(fmt_num(x, 5) for x in v) + ")"
+def _vec_text(v, digits: int = 5) -> str:
+    return "(" + ", ".join(fmt_num(x, digits) for x in v) + ")"
 
 
 def table_scalars(p: Parameters) -> List[str]:
@@ -41,7 +44,8 @@ def table_scalars(p: Parameters) -> List[str]:
     return shown
 
 
-def _parameter_rows(p: Parameters) -> List[List[str]]:
+def _parameters_table(p: Parameters) -> str:
+    """The table of a model that answers the schema's names: each name with its symbol, meaning, value and unit."""
     rows = []
     for name in table_scalars(p):
         value = getattr(p, name)
@@ -61,19 +65,54 @@ def _parameter_rows(p: Parameters) -> List[List[str]]:
             shown = _vec_text(value) + (" (unit vector)" if name in schema.AXIS_NAMES else "")
         rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown,
                      _unit(schema.unit(name))])
-    return rows
+    return table_html(["symbol", "name", "meaning", "value", "unit"], rows, caption="Parameters (SI units)")
 
 
-def conservation_text(p: Parameters) -> str:
-    """Whether the model conserves its energy, in a sentence (:attr:`Parameters.conservative`): if
-    not, the terms that make it so (damping, Coulomb friction, torques), by their meanings."""
+#: The per-joint terms of the links' table, shown when a link has one: (key, header).
+_JOINT_TERMS = (("damping", "damping [N m s]"), ("coulomb", "Coulomb [N m]"), ("torque", "torque [N m]"),
+                ("rotor", "rotor [kg m²]"))
+
+
+def _links_table(model) -> str:
+    """The table of a model told by its links: each hinge's axis and place, each body's length, mass, centre of
+    mass and principal inertias, and the joints' terms that some link has."""
+    chain = model.as_chain()
+    terms = [(key, head) for key, head in _JOINT_TERMS if any(getattr(link, key) for link in chain.links)]
+    head = ["link", "hinge axis<br>(unit)", "hinge at<br>[m]", "l [m]", "m [kg]", "centre of<br>mass [m]",
+            "principal<br>inertias [kg m²]"] + [h.replace(" [", "<br>[") for _, h in terms]
+    rows = []
+    for link in chain.links:
+        principal = np.linalg.eigvalsh(np.array(link.inertia, dtype=float))
+        row = [str(link.index), _vec_text(link.axis, 4), _vec_text(link.offset, 4), fmt_num(link.length),
+               fmt_num(link.mass), _vec_text(link.com, 4), _vec_text(principal, 4)]
+        for key, _ in terms:
+            row.append(fmt_num(getattr(link, key)) + (f" (gear {fmt_num(link.gear)})" if key == "rotor" and link.rotor
+                                                      else ""))
+        rows.append(row)
+    none = [h.split(" [")[0] for k, h in _JOINT_TERMS if (k, h) not in terms]
+    return table_html(head, rows, numeric=(3, 4, *range(7, 7 + len(terms))),
+                      caption="The links (SI units): each hinge's axis and position and each body's centre of mass and "
+                              "inertia in the frame of the link before it (the roof's for link 1), with the chain hanging"
+                              + (f"; no link has {', '.join(none)}" if none else ""))
+
+
+def conservation_text(p) -> str:
+    """Whether the model conserves its energy, in a sentence: if not, the terms that make it so -- by the
+    schema's meanings where the model answers its names (:attr:`Parameters.nonconservative_terms`), else by
+    what its links have."""
     if p.conservative:
         return prose(r"No damping, friction or torques: the energy $T + \Pi$ is conserved.")
-    return "Not conservative: " + esc(", ".join(schema.meaning(n) for n in p.nonconservative_terms)) + " (values below)."
+    if answers_names(p):
+        terms = [schema.meaning(n) for n in p.nonconservative_terms]
+    else:
+        links = p.as_chain().links
+        terms = [name for name, key in (("viscous damping", "damping"), ("Coulomb friction", "coulomb"),
+                                        ("constant torques", "torque")) if any(getattr(link, key) for link in links)]
+    return "Not conservative: " + esc(", ".join(terms)) + " (values below)."
 
 
 def still_png(tr) -> bytes:
-    """Frame 0 of ``tr`` as drawn by the animation (rods, both hinge axes, the angle between them)."""
+    """Frame 0 of ``tr`` as drawn by the animation (rods, the hinge axes, the angles between them)."""
     from ..animation import FrameRenderer
 
     r = FrameRenderer(tr, size=PICTURE_SIZE, dpi=100, trail=0.0)
@@ -84,72 +123,104 @@ def still_png(tr) -> bytes:
         r.close()
 
 
+def start_tex(c: str, dot: bool = False) -> str:
+    r"""A coordinate's value (``dot``: its rate's) at the start, in TeX: ``\varphi_0``, ``\dot\varphi_0``,
+    ``q_{3}(0)``, ``\dot q_{3}(0)``."""
+    t = tex(c)
+    return ((r"\dot" + ("" if t.startswith("\\") else " ")) if dot else "") + t + ("(0)" if "_" in t else "_0")
+
+
 def section_system(ctx: Context) -> str:
     from ...numeric.simulation import simulate
 
-    p, y0 = ctx.params, ctx.y0
+    p, y0, n = ctx.params, ctx.y0, ctx.params.n
+    named = answers_names(p)
+    sym = [tex(c) for c in p.coordinates]
+    rods = schema.count_text(n, "rods") if n > 2 else "both rods"
     # the reference configuration, for its picture (the report's own method: no other kernel compiled)
-    rest = simulate(p, (0.0, 0.0, 0.0, 0.0), 0.01, dt_out=0.01, method="dop853")
-    rest_png = still_png(rest)
+    detail("picture 1 of 2: the model hanging at rest")
+    rest_png = still_png(simulate(p, (0.0,) * (2 * n), 0.01, dt_out=0.01, method="dop853"))
+    detail("picture 2 of 2: the model at the start")
     ctx.still = still_png(ctx.clip)
-    thin = p.is_thin_rods
-    if p.uses_alpha and p.axis1 is None:
+    if named and p.uses_alpha and p.axis1 is None:
         skew = prose(r"the hinge axes $\underline{k}$ and $\underline{e}_0$ make the angle $\alpha$ = ") + fmt_deg(p.alpha)
     else:
         skew = "the hinge axes are those given in the table below"
-    fig_rest = figure_html(
-        rest_png,
-        prose(r"Reference configuration $\varphi = \psi = 0$: both rods hang along $\underline{j}$ (down) and ") + skew
-        + ". Green: hinge 1's axis (fixed); magenta: hinge 2's axis; the arc marks the angle between them.",
-        "the pendulum hanging at rest, with both hinge axes drawn",
-    )
-    fig_start = figure_html(
-        ctx.still,
-        prose(r"The initial state of the simulation (section 5): $\varphi_0$ = ") + fmt_deg(y0[0]) + prose(r", $\psi_0$ = ")
-        + fmt_deg(y0[1]) + prose(r". The second axis $\underline{e} = \underline{\underline{P}}_1\cdot\underline{e}_0$ has turned with rod 1."),
-        "the pendulum in its initial state, with both hinge axes drawn",
-    )
-    if thin:
+    zero = f"${' = '.join(sym)} = 0$" if n <= 3 else "$q_1 = \\dots = q_{" + str(n) + "} = 0$"
+    axes = ("Green: hinge 1's axis (fixed); each further hinge's axis in its rod's colour at its joint; the arcs mark the "
+            "angles between consecutive axes." if n > 2 else
+            "Green: hinge 1's axis (fixed); magenta: hinge 2's axis; the arc marks the angle between them.")
+    fig_rest = figure_html(rest_png, prose(f"Reference configuration {zero}: {rods} hang along $\\underline{{j}}$ (down) and ")
+                           + skew + ". " + axes, f"the {'pendulum' if named else 'chain'} hanging at rest, with its hinge axes drawn")
+    shown = min(n, 3)
+    start = ", ".join(prose(f"${start_tex(c)}$ = ") + fmt_deg(y0[k]) for k, c in enumerate(p.coordinates[:shown]))
+    start += "" if n == shown else " … (the table below)"
+    turned = (prose(r". The second axis $\underline{e} = \underline{\underline{P}}_1\cdot\underline{e}_0$ has turned with rod 1.")
+              if named else ". Each hinge's axis turns with the links above it.")
+    fig_start = figure_html(ctx.still, "The initial state of the simulation (section 5): " + start + turned,
+                            f"the {'pendulum' if named else 'chain'} in its initial state, with its hinge axes drawn")
+    if named and p.is_thin_rods:
         intro = prose(
             r'<p class="lead">A rod hangs from the roof on a cylindrical hinge; a second rod hangs from the end of the first '
             r"on another cylindrical hinge whose axis, when both rods are vertical, makes the angle $\alpha$ with the first "
-            r"hinge's axis. Find the equations of motion — and what they predict.</p>"
-        )
+            r"hinge's axis. Find the equations of motion — and what they predict.</p>")
+    elif named:
+        intro = ('<p class="lead">Two rigid bodies hang in a chain on two cylindrical hinges whose axes are given below — the '
+                 "specification's rods generalised to arbitrary bodies and axes. Find the equations of motion — and what "
+                 "they predict.</p>")
     else:
-        intro = (
-            '<p class="lead">Two rigid bodies hang in a chain on two cylindrical hinges whose axes are given below — the '
-            "specification's rods generalised to arbitrary bodies and axes. Find the equations of motion — and what they "
-            "predict.</p>"
-        )
+        intro = (f'<p class="lead">{n} rigid bodies hang in a chain, each on a cylindrical hinge carried by the one above; '
+                 "each hinge's axis is given in the frame of the link that carries it, with the chain hanging — the "
+                 "specification's two skewed hinges generalised to a chain of any length. Find the equations of motion — "
+                 "and what they predict.</p>")
+    if n <= 3:
+        names = [f"${s}$ (hinge {k})" for k, s in enumerate(sym, 1)]
+        coords = (" and ".join(names) if n <= 2 else ", ".join(names[:-1]) + " and " + names[-1])
+        coords += f", {'all' if n > 2 else 'both'} zero with the rods hanging"
+    else:
+        coords = (r"$q_1, \dots, q_n$ — $q_i$ the turn of link $i$ relative to link $i - 1$ — all zero with the chain "
+                  "hanging")
+    roof = "" if p.as_chain().links[0].axis == (0.0, 0.0, 1.0) else " in the specification's case"
     basis = prose(
-        r"<p>Basis $\underline{i}, \underline{j}, \underline{k}$: $\underline{j}$ points <b>down</b> (along both rods when "
-        r"they hang), $\underline{k}$ is the axis of the roof hinge, $\underline{i}$ completes the right-handed triple. "
-        r"The generalised coordinates are the hinge angles $\varphi$ (hinge 1) and $\psi$ (hinge 2), both zero with the "
-        r"rods hanging; gravity acts along $+\underline{j}$. "
-        + conservation_text(p) + "</p>"
-    )
-    table = table_html(["symbol", "name", "meaning", "value", "unit"], _parameter_rows(p), caption="Parameters (SI units)")
-    initial = table_html(
-        ["", "value", "unit"],
-        [
-            [inline_math(r"\varphi_0"), f"{fmt_deg(y0[0])} = {fmt_num(y0[0])} rad", ""],
-            [inline_math(r"\psi_0"), f"{fmt_deg(y0[1])} = {fmt_num(y0[1])} rad", ""],
-            [inline_math(r"\dot\varphi_0"), fmt_num(y0[2]), "rad/s"],
-            [inline_math(r"\dot\psi_0"), fmt_num(y0[3]), "rad/s"],
-        ],
-        caption="Initial state of the simulation (section 5)",
-        compact=True,
-    )
+        r"<p>Basis $\underline{i}, \underline{j}, \underline{k}$: $\underline{j}$ points <b>down</b> (along "
+        + ("the rods" if n > 2 else "both rods") + r" when they hang), $\underline{k}$ is the axis of the roof hinge"
+        + roof + r", $\underline{i}$ completes the right-handed triple. The generalised coordinates are the hinge angles "
+        + coords + r"; gravity acts along $+\underline{j}$. " + conservation_text(p) + "</p>")
+    table = _parameters_table(p) if named else _links_table(p)
+    rows = [[inline_math(start_tex(c)), f"{fmt_deg(y0[k])} = {fmt_num(y0[k])} rad", ""] for k, c in enumerate(p.coordinates)]
+    rows += [[inline_math(start_tex(c, dot=True)), fmt_num(y0[n + k]), "rad/s"] for k, c in enumerate(p.coordinates)]
+    initial = table_html(["", "value", "unit"], rows, caption="Initial state of the simulation (section 5)", compact=True)
     return intro + basis + f'<div class="figure-row">{fig_rest}{fig_start}</div>' + table + initial
 
 
-
 # -- section 4: normal modes -------------------------------------------------------------------------
+_SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
+
+
+def _skews(p) -> List[str]:
+    """The skews of the model's hinges a sweep varies: the skew angle alpha where the model answers it and it sets
+    hinge 2's axis, else each hinge's tilt below the roof (``tilt2`` … ``tiltn``); none for a model that answers
+    the names but whose hinge 2 has an axis given (``axis2``: alpha does not enter it)."""
+    if answers_names(p):
+        return ["alpha"] if p.uses_alpha else []
+    return [f"tilt{i}" for i in range(2, p.n + 1)]
+
+
+def _here(p, name: str):
+    """The model's own value of the swept skew [deg], or None (a tilted axis out of the (k, i) plane)."""
+    if name == "alpha":
+        return math.degrees(p.alpha) % 360.0
+    axis = p.as_chain().links[int(name[4:]) - 1].axis
+    return math.degrees(math.atan2(axis[0], axis[2])) if abs(axis[1]) < 1e-12 else None
+
+
 def section_modes(ctx: Context) -> str:
     from ...analysis.modes import normal_modes, sweep
     from ..figures import plot_sweep
 
-    p = ctx.params
+    p, n = ctx.params, ctx.params.n
+    text = [label(c) for c in p.coordinates]
+    detail("the normal modes")
     try:
         m = normal_modes(p)
     except SkewpendError as exc:
@@ -160,73 +231,96 @@ def section_modes(ctx: Context) -> str:
         r"<p>Small oscillations about the hanging position obey the linearised equations $M_0\,\ddot q + C_0\,\dot q + "
         r"K_0\,q = 0$ of section 2; with the values of section 1</p>")]
     mats = r"M_0 = " + array_tex(m.M) + r"\ \mathrm{kg\,m^2},\qquad K_0 = " + array_tex(m.K) + r"\ \mathrm{N\,m}"
-    if m.damped:
-        mats += r",\qquad C_0 = " + array_tex(m.C) + r"\ \mathrm{N\,m\,s}"
-    out.append(display_math(mats))
+    damping = r"C_0 = " + array_tex(m.C) + r"\ \mathrm{N\,m\,s}"
+    if m.damped and n <= 2:
+        mats += r",\qquad " + damping
+    out.append(display_math(mats) + (display_math(damping) if m.damped and n > 2 else ""))
     out.append(prose(
-        r"<p>A normal mode $q = v\cos(\omega t - \delta)$ solves $K_0\,v = \omega^2 M_0\,v$: the two values of "
-        r"$\omega^2$ are the roots of $\det(K_0 - \omega^2 M_0) = 0$, and the shapes $v$ are normalised with "
-        r"$v^T M_0\, v = 1$.</p>"))
+        r"<p>A normal mode $q = v\cos(\omega t - \delta)$ solves $K_0\,v = \omega^2 M_0\,v$: the "
+        + schema.count_text(n, "values") + r" of $\omega^2$ are the roots of $\det(K_0 - \omega^2 M_0) = 0$, and the "
+        r"shapes $v$ are normalised with $v^T M_0\, v = 1$.</p>"))
     rows = []
-    for k in range(2):
-        v = m.shapes[:, k]
+    for k in range(n):
         ratio = "∞" if not np.isfinite(m.ratios[k]) else fmt_num(m.ratios[k], 5)
         rows.append([str(k + 1), fmt_num(m.frequencies[k]), fmt_num(m.frequencies[k] / (2 * np.pi)), fmt_num(m.periods[k]),
-                     f"({fmt_num(v[0], 5)}, {fmt_num(v[1], 5)})", ratio])
-    out.append(table_html(["mode", "ω [rad/s]", "f [Hz]", "period [s]", "shape (φ, ψ)", "ψ/φ"], rows, numeric=(1, 2, 3, 5),
-                      caption="Normal modes (undamped)"))
-    beat = "∞ (equal frequencies)" if not np.isfinite(m.beat_period) else f"{fmt_num(m.beat_period)} s"
-    out.append(facts_html([("frequency ratio ω₂/ω₁", fmt_num(m.frequencies[1] / m.frequencies[0])),
-                       ("beat period 2π/(ω₂ − ω₁)", beat)]))
+                     _vec_text(m.shapes[:, k]), ratio])
+    shape = ", ".join(text) if n <= 3 else f"{text[0]} … {text[-1]}"
+    out.append(table_html(["mode", "ω [rad/s]", "f [Hz]", "period [s]", f"shape ({shape})", f"{text[-1]}/{text[0]}"], rows,
+                          numeric=(1, 2, 3, 5), caption="Normal modes (undamped)"))
+    if n > 1:
+        beat = "∞ (equal frequencies)" if not np.isfinite(m.beat_period) else f"{fmt_num(m.beat_period)} s"
+        out.append(facts_html([("frequency ratio ω₂/ω₁", fmt_num(m.frequencies[1] / m.frequencies[0])),
+                               ("beat period 2π/(ω₂ − ω₁)", beat)]))
     if m.damped:
         drows = []
-        for k in range(2):
+        for k in range(n):
             l1, l2 = m.eigenvalue_pairs[k]
             lam = (f"{fmt_num(l1.real)} and {fmt_num(l2.real)} (overdamped)" if m.overdamped[k]
                    else f"{fmt_num(l1.real)} ± {fmt_num(abs(l1.imag))} i")
             drows.append([str(k + 1), lam, fmt_num(m.damped_frequencies[k]), fmt_num(m.damping_ratios[k], 4)])
         out.append(table_html(["mode", "eigenvalues λ [1/s]", "damped ω [rad/s]", "damping ratio ζ"], drows,
-                          numeric=(2, 3), caption="With the damping of section 1"))
-    ctx.notes["modes"] = f"ω = {m.frequencies[0]:.6g}, {m.frequencies[1]:.6g} rad/s"
-
-    out.append("<h3>The frequencies against α</h3>")
-    if not p.uses_alpha:
+                              numeric=(2, 3), caption="With the damping of section 1"))
+    ctx.notes["modes"] = "ω = " + ", ".join(f"{w:.6g}" for w in m.frequencies) + " rad/s"
+    skews = _skews(p)
+    alpha = skews == ["alpha"]
+    out.append("<h3>The frequencies against α</h3>" if alpha or not skews else
+               "<h3>The frequencies against each hinge's tilt</h3>")
+    if not skews:
         out.append(
             '<p class="callout warn">Not drawn: hinge 2\'s axis is given explicitly (<code>axis2</code>), so α does not '
             "enter this model and there is nothing to sweep. Without <code>axis2</code> (the skew is then α) the report "
             "shows how the frequencies depend on the skew angle.</p>")
         ctx.notes["sweep"] = "not applicable: axis2 given"
         return "\n".join(out)
-    values = np.radians(np.linspace(0.0, 180.0, ctx.sweep_points))
-    try:
-        sw = sweep(p.replace(alpha=None), "alpha", values)
-    except SkewpendError as exc:
-        out.append(f'<p class="callout warn">The sweep over α failed: {esc(exc)}</p>')
-        ctx.notes["sweep"] = "failed"
-        return "\n".join(out)
-    fig = plot_sweep(sw)
-    ax = fig.axes[0]
-    here = math.degrees(p.alpha) % 360.0
-    if 0.0 <= here <= 180.0:
-        ax.axvline(here, color="#1d7a3e", lw=1.4, ls=":", label=f"this report: α = {here:.4g}°")
-        ax.legend(loc="best")
-    out.append(figure_html(
-        fig_png(fig),
-        prose(f"Natural frequencies (top) and the directions of the mode shapes in the $(\\varphi, \\psi)$ plane (bottom) for "
-           f"$\\alpha$ from 0 to 180° ({ctx.sweep_points} values), the other parameters as in section 1. Dashed: internal "
-           r"resonances $\omega_2 = n\,\omega_1$; dotted green: this report's $\alpha$."),
-        "natural frequencies against the skew angle alpha",
-    ))
-    if sw.resonances:
-        items = []
-        for r in sw.resonances:
-            how = "crossed" if r.crossed else f"approached (ω₂/ω₁ = {fmt_num(r.ratio, 5)})"
-            items.append(f"<li><b>{r.order}:1</b> {how} at α = {fmt_deg(r.value)}</li>")
-        out.append(f"<p>Internal resonances ω₂/ω₁ = n (n = 1, 2, 3) along the sweep:</p><ul>{''.join(items)}</ul>")
-        ctx.notes["sweep"] = ", ".join(f"{r.order}:1 at {math.degrees(r.value):.4g}°" for r in sw.resonances)
-    else:
-        out.append(f"<p>No internal resonance ω₂/ω₁ ≈ 1, 2 or 3 for α in 0..180° (within {sw.tolerance:g}·n).</p>")
-        ctx.notes["sweep"] = "no internal resonance"
+    if not alpha:
+        out.append(prose(
+            "<p>The skew of the specification, for each hinge below the roof: hinge $i$'s axis tilted by an angle "
+            r"$\beta$ from $\underline{k}$ towards $\underline{i}$, $\underline{e}_{i0} = \cos\beta\,\underline{k} + "
+            r"\sin\beta\,\underline{i}$ (the specification's $\alpha$ for $i = 2$), from 0 to 180°, the rest of the chain "
+            "as in section 1.</p>"))
+    points = ctx.sweep_points or by_links(n, SWEEP_POINTS, SWEEP_POINTS_BY_LINKS, LONG_SWEEP_POINTS)
+    values = np.radians(np.linspace(0.0, 180.0, points))
+    pairs = "ω₂/ω₁" if n <= 2 else "ωₖ₊₁/ωₖ"
+    notes = []
+    for k, name in enumerate(skews, 1):
+        what = "α" if alpha else f"hinge {name[4:]}'s tilt"
+        detail(f"{what}: {points} values (sweep {k} of {len(skews)})")
+        try:
+            sw = sweep(p.replace(alpha=None) if alpha else p, name, values)
+        except SkewpendError as exc:
+            out.append(f'<p class="callout warn">The sweep over {what} failed: {esc(exc)}</p>')
+            notes.append(f"{name}: failed")
+            continue
+        fig = plot_sweep(sw)
+        here = _here(p, name)
+        if here is not None and 0.0 <= here <= 180.0:
+            fig.axes[0].axvline(here, color="#1d7a3e", lw=1.4, ls=":", label=f"this report: {'α = ' if alpha else ''}{here:.4g}°")
+            fig.axes[0].legend(loc="best")
+        if alpha:
+            caption = prose(f"Natural frequencies (top) and the directions of the mode shapes in the $(\\varphi, \\psi)$ "
+                            f"plane (bottom) for $\\alpha$ from 0 to 180° ({points} values), the other parameters as in "
+                            r"section 1. Dashed: internal resonances $\omega_2 = n\,\omega_1$; dotted green: this report's "
+                            r"$\alpha$.")
+        else:
+            caption = (f"The {n} natural frequencies against hinge {name[4:]}'s tilt ({points} values), the rest of the "
+                       "chain as in section 1; dashed: internal resonances of neighbouring modes; dotted green: this "
+                       "chain's tilt when its axis lies in that plane.")
+        out.append(figure_html(fig_png(fig), caption, f"natural frequencies against {'the skew angle alpha' if alpha else what}"))
+        if sw.resonances:
+            items = []
+            for r in sw.resonances:
+                i, j = r.pair
+                ratio = f"ω{str(j).translate(_SUB)}/ω{str(i).translate(_SUB)}"
+                how = "crossed" if r.crossed else f"approached ({ratio} = {fmt_num(r.ratio, 5)})"
+                items.append(f"<li><b>{'' if n <= 2 else ratio + ' = '}{r.order}:1</b> {how} at "
+                             f"{'α' if alpha else 'β'} = {fmt_deg(r.value)}</li>")
+            out.append(f"<p>Internal resonances {pairs} = n (n = 1, 2, 3) along the sweep:</p><ul>{''.join(items)}</ul>")
+            notes.append(", ".join(f"{r.order}:1 at {math.degrees(r.value):.4g}°" for r in sw.resonances))
+        else:
+            out.append(f"<p>No internal resonance {pairs} ≈ 1, 2 or 3 for {what} in 0..180° (within {sw.tolerance:g}·n).</p>")
+            notes.append("no internal resonance")
+    ctx.notes["sweep"] = "; ".join(notes) if alpha else "; ".join(f"{s}: {t}" for s, t in zip(skews, notes))
+    ctx.notes["sweep points"] = str(points)
     return "\n".join(out)
 
 
@@ -243,7 +337,7 @@ def section_simulation(ctx: Context) -> str:
 
     p, y0 = ctx.params, ctx.y0
     coords = p.coordinates  # the double pendulum's phi, psi; a chain's q1 … qn (its report: views.report.chain)
-    sym = [_tex(c) for c in coords]
+    sym = [tex(c) for c in coords]
     dt_out = max(FIGURE_DT, ctx.t_end / FIGURE_MAX_ROWS)
     kw: Dict[str, object] = dict(method=ctx.method, rtol=ctx.rtol, atol=ctx.atol, dt=ctx.dt)
     if ctx.max_steps is not None:
@@ -323,7 +417,13 @@ TEX = {"phi": r"\varphi", "psi": r"\psi"}
 TEXT = {"phi": "φ", "psi": "ψ"}
 
 
-def _tex(c: str) -> str:
+def label(c: str) -> str:
+    """A coordinate's symbol in text: ``φ``, ``ψ``; ``q₃``."""
+    stem = c.rstrip("0123456789")
+    return TEXT.get(c, stem + c[len(stem):].translate(_SUB))
+
+
+def tex(c: str) -> str:
     stem = c.rstrip("0123456789")
     return TEX.get(c, f"{stem}_{{{c[len(stem):]}}}" if stem != c else c)
 
@@ -332,7 +432,7 @@ def _final_state(fin, coordinates) -> str:
     """The final state in words: each angle (``φ``, ``ψ``; a chain's ``q1 … qn``), and the speeds of up to two
     (a longer chain's left to the figures)."""
     n = len(coordinates)
-    names = [TEXT.get(c, c) for c in coordinates]
+    names = [label(c) for c in coordinates]
     angles = [f"{name} = {fmt_deg(fin[k])}" for k, name in enumerate(names)]
     speeds = [f"{name}\u0307 = {fmt_num(fin[n + k], 5)} rad/s" for k, name in enumerate(names)] if n <= 2 else []
     return ", ".join(angles + speeds)
