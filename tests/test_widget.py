@@ -244,7 +244,7 @@ def test_a_chain_of_links_gets_its_own_widget():
     assert w.y0 == [0.5, 0.5, 0.5, 0.0, 0.0, 0.0] and w.size == 0.5
     assert w.params == chain
     # its physics is the chain's module (printed from the recursive algorithms), not the double pendulum's
-    assert "from a chain's recursive algorithms" in w._esm and "export const tips = ends;" in w._esm
+    assert "from a chain's recursive algorithms" in w._esm and "export const TERMS = [];" in w._esm
     assert repr(w) == "<PendulumWidget live, running: a chain of 3 links, g=9.81, c3=0.01; y0 = (0.5, 0.5, 0.5, 0, 0, 0)>"
     w.values = {**w.values, "g": 3.7}
     assert w.params.g == 3.7 and w.params.links == chain.links

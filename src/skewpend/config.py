@@ -70,12 +70,14 @@ COMMAND_DEFAULTS: Dict[str, Dict[str, Any]] = {
 #: The model's keys ([parameters]) and the initial state's ([initial]).
 SCALAR_KEYS = SCALAR_NAMES
 MODEL_KEYS = frozenset(NAMES)
-INITIAL_KEYS = frozenset(("phi0", "psi0", "dphi0", "dpsi0"))
+INITIAL_ORDER = ("phi0", "psi0", "dphi0", "dpsi0")
+INITIAL_KEYS = frozenset(INITIAL_ORDER)
 #: A chain's model (``[chain]``: g, cfs; ``[[links]]``: one table a link) and its start (``[initial]``:
 #: the lists ``q0``, ``dq0``); the commands whose ``READS`` list them take a chain.
 CHAIN_KEYS = frozenset(CHAIN_NAMES)
 LINK_KEYS = frozenset(key for key, _, _ in LINK_FIELDS)
-CHAIN_INITIAL_KEYS = frozenset(("q0", "dq0"))
+CHAIN_INITIAL_KEYS_ORDER = ("q0", "dq0")
+CHAIN_INITIAL_KEYS = frozenset(CHAIN_INITIAL_KEYS_ORDER)
 #: A chain's start when the run file gives none: every link turned by this angle [rad], at rest.
 CHAIN_Q0 = 0.5
 _INTEGRATION = frozenset(("t_end", "method", "rtol", "atol", "dt", "max_steps"))
@@ -366,15 +368,22 @@ class Run:
     # -- the model and the start ------------------------------------------------------------------
     @property
     def is_chain(self) -> bool:
-        """Whether the run file gives a chain of links (``[[links]]``) instead of the double pendulum."""
+        """Whether the run gives links (``[[links]]``, ``--links``); commands ask the model instead (its last
+        reader: ``skewpend identify``'s start)."""
         return self.links is not None
 
     def parameters(self):
-        """The :class:`~skewpend.Parameters` of the run (see :func:`build_parameters`), or the chain of
-        links of a run file's ``[[links]]`` (:meth:`chain`)."""
-        if self.is_chain:
+        """The model of the run: the chain of its links where it gives them (``[[links]]``, ``--links``:
+        :meth:`chain`), else the double pendulum's :class:`~skewpend.Parameters` (:func:`build_parameters`)."""
+        if self.links is not None:
             return self.chain()
         return build_parameters(self.values["parameters"], self.where["parameters"])
+
+    def start_options(self) -> Tuple[str, ...]:
+        """The options that give the run's start, as the user types them: a chain's lists ``--q0 --dq0``, or
+        one a coordinate and rate (``--phi0 --psi0 --dphi0 --dpsi0``)."""
+        keys = CHAIN_INITIAL_KEYS_ORDER if self.links is not None else tuple(INITIAL_ORDER)
+        return tuple(self.flag(k) for k in keys)
 
     def links_source(self) -> str:
         """Where the chain's links came from, as the user knows it: ``--links`` or the run file's ``[[links]]``."""
@@ -434,14 +443,14 @@ class Run:
     def initial_state(self):
         """``[phi0, psi0, dphi0, dpsi0]``: numeric, the angles at most :data:`MAX_ANGLE` rad; for a chain
         ``q0 + dq0`` (``[initial]``'s lists; default every link at :data:`CHAIN_Q0` rad, at rest)."""
-        if self.is_chain:
+        if self.links is not None:
             return self._chain_state()
         for k in CHAIN_INITIAL_KEYS:
             if self.is_given("initial", k):
                 raise UsageError(f"{self.option('initial', k)}: a chain's start (one value a link); the double pendulum's "
                                  "is phi0, psi0, dphi0, dpsi0")
         y0 = []
-        for k in ("phi0", "psi0", "dphi0", "dpsi0"):
+        for k in INITIAL_ORDER:
             value = self.scalar("initial", k, angle=k in ("phi0", "psi0"))
             if value is None:
                 raise UsageError(f"{self.option('initial', k)}: the initial state must be numeric, not 'sym'")

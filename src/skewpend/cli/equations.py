@@ -52,23 +52,12 @@ def derive(
     params = run.parameters()
     if coulomb is not None and not linear:
         raise UsageError("--coulomb sets how Coulomb friction enters the linearised equations; give it with --linear")
-    if run.is_chain and fmt.value in _CODE:
-        if linear or steps:
-            raise UsageError("--linear and --steps go with --format text|latex|json, not with generated code")
-        from ..numeric.recursive import chain_code, chain_source, structure_of_chain
-
-        sys.stdout.write(chain_source(structure_of_chain(params)) if fmt.value == "c" else chain_code(params, fmt.value))
-        return
     if fmt.value in _CODE:
         if linear or steps:
             raise UsageError("--linear and --steps go with --format text|latex|json, not with generated code")
-        _check_code_parameters(run, params, fmt.value)
-        from ..numeric.codegen import generate
-
-        sys.stdout.write(generate(params, fmt.value))
+        sys.stdout.write(_code(run, params, fmt.value))
         return
-    if run.is_chain:
-        _check_symbolic_size(run, params)
+    _check_symbolic_size(run, params)
     from ..symbolic import render
     from ..symbolic.derivation import derive as derive_eom
 
@@ -118,6 +107,20 @@ def _check_symbolic_size(run, chain) -> None:
                          f"{SYMBOLIC_LINKS_MAX} links); {code}")
     sys.stderr.write(f"skewpend: note: the exact symbolic equations of a chain of {n} links take {estimate} on a 2-core machine "
                      f"(about {SYMBOLIC_GROWTH:g}-fold a link); {code}\n")
+
+
+def _code(run, model, fmt: str) -> str:
+    """The model's code in ``fmt``: its exact derivation's standalone module where it has one (the double pendulum's
+    parameters, :func:`~skewpend.numeric.codegen.generate`), else the recursive algorithms' (C: the kernels' own)."""
+    exact = model.exact_model()
+    if exact is None:
+        from ..numeric.recursive import chain_code, chain_source, structure_of_chain
+
+        return chain_source(structure_of_chain(model)) if fmt == "c" else chain_code(model, fmt)
+    _check_code_parameters(run, exact, fmt)
+    from ..numeric.codegen import generate
+
+    return generate(exact, fmt)
 
 
 def _check_code_parameters(run, params, fmt: str) -> None:

@@ -83,7 +83,7 @@ def orbit(
 
     guessed = any(v is not None for v in initial.values())
     run = resolve("orbit", config, parameters=model, initial=initial)  # the model, once: it spells its start
-    start = "--q0 --dq0" if run.is_chain else "--phi0 --psi0 --dphi0 --dpsi0"
+    start = " ".join(run.start_options())
     if mode is not None and (guessed or period is not None or rotation is not None):
         raise UsageError(f"--mode finds the orbit of a nonlinear normal mode; a guess ({start}, --period, --rotation) goes without it")
     if mode is not None and energy is None:

@@ -36,7 +36,7 @@ def serve(
     axis2, ...) the generated physics; a, b, m1, m2, alpha, g, c1, c2 and [initial] phi0, psi0 the
     sliders (within their ranges; the page's address holds them).  The double pendulum's page has
     no joint torques, Coulomb friction or rotor inertia: non-zero ones are refused.  A chain of
-    links ([[links]], [chain]) gets its own page: its n rods, a start slider for each joint
+    links ([[links]], [chain]) gets the same page for its n rods: a start slider for each joint
     ([initial] q0), g and each joint's damping, its modes and a flip map over (q1, q2); its links'
     torques, Coulomb friction and rotors are in its physics as the file gives them (no sliders).
     The page starts at rest: [initial] dq0 (dphi0, dpsi0) may only be 0; [simulation] is not used.
@@ -91,54 +91,27 @@ def _announce(explorer, host: str, port: int, query: str = "") -> str:
     return url
 
 
-#: What the page's sliders take (web/live.js SLIDERS), by section: the keys a run sets there.
-_SLIDER_KEYS = {"parameters": ("alpha",) + schema.LENGTH_NAMES + schema.MASS_NAMES + ("g",) + schema.DAMPING_NAMES,
-                "initial": ("phi0", "psi0")}
-_DEGREES = ("alpha", "phi0", "psi0")  # shown (and held in the address) in degrees
-
-
-def _slider_ranges() -> dict:
-    """key -> (min, max) of the page's sliders, read from web/live.js (the one place they are written)."""
-    import re
-
-    from ..views.frontend import WEB_DIR
-
-    text = (WEB_DIR / "live.js").read_text(encoding="utf-8")
-    return {m.group(1): (float(m.group(2)), float(m.group(3)))
-            for m in re.finditer(r'\[\s*"(\w+)",\s*"[^"]*",\s*(-?[\d.]+),\s*(-?[\d.]+),', text)}
-
-
-def _chain_query(run, chain) -> str:
-    """The address query of a chain's start angles ([initial] q0, in degrees: the sliders ``q<k>_0``)."""
-    import math
-    from urllib.parse import urlencode
-
-    from ..parsing import UsageError
-    from ..views.frontend import CHAIN_START
-
-    if not run.is_given("initial", "q0"):
-        return ""
-    where = run.option("initial", "q0")
-    q0 = run.initial_state()[:chain.n]
-    lo, hi, _ = CHAIN_START
-    values = {}
-    for k, q in enumerate(q0, start=1):
-        shown = math.degrees(q)
-        if not lo <= shown <= hi:
-            raise UsageError(f"{where}: joint {k}'s start {shown:.6g} deg is outside the explorer's slider range {lo:g} to "
-                             f"{hi:g} deg; give angles within it")
-        values[f"q{k}_0"] = repr(float(f"{shown:.15g}"))
-    return urlencode(values)
+def _start_angles(run, coordinates) -> dict:
+    """The start angles the run gives, by coordinate: ``{k: (value [rad], where as the user knows it)}`` -- a list
+    ``[initial] q0`` (``--q0``), or one key a coordinate (``phi0``, ``psi0``)."""
+    if run.is_given("initial", "q0"):
+        where = run.option("initial", "q0")
+        return {k: (q, f"{where} (joint {k + 1})") for k, q in enumerate(run.initial_state()[:len(coordinates)])}
+    keys = {k: f"{c}0" for k, c in enumerate(coordinates)}
+    return {k: (run.scalar("initial", key, angle=True), run.option("initial", key)) for k, key in keys.items()
+            if run.is_given("initial", key)}
 
 
 def _page_start(run):
     """The run's model (its bodies and axes make the page's physics) and the page's address query
-    of the slider values it sets; what the explorer cannot show is refused in one line."""
+    of the slider values it sets (the sliders: :func:`skewpend.views.frontend.page_sliders`); what the
+    explorer cannot show is refused in one line."""
     import math
     from urllib.parse import urlencode
 
     from ..config import as_text
     from ..parsing import UsageError, parse_scalar
+    from ..views.frontend import page_sliders
 
     params = run.parameters()
     for k in ("dphi0", "dpsi0", "dq0"):  # the page starts at rest: a start's rates are read to be checked 0
@@ -150,9 +123,7 @@ def _page_start(run):
             sliders = "each joint's start angle, q0" if k == "dq0" else "phi0 and psi0"
             raise UsageError(f"{where}: the explorer starts at rest (its sliders set {sliders}); give 0 "
                              "or leave it out, and simulate a start with speeds with skewpend simulate")
-    if run.is_chain:  # a chain of links: its bodies, axes and joint terms are the page's physics, [initial] q0 its sliders
-        return params, _chain_query(run, params)
-    terms = schema.TORQUE_NAMES + schema.FRICTION_NAMES + schema.ROTOR_NAMES
+    terms = schema.TORQUE_NAMES + schema.FRICTION_NAMES + schema.ROTOR_NAMES  # a chain's are its links' (refused here)
     absent = [run.option("parameters", k) for k in terms
               if run.is_given("parameters", k) and getattr(params, k) != schema.default(k)]
     if absent:
@@ -160,21 +131,21 @@ def _page_start(run):
         raise UsageError(f"{', '.join(absent)}: the explorer has no joint torques, Coulomb friction or rotor inertia (its "
                          f"sliders cannot set them); leave them out or at their defaults (0; {defaults}), and simulate the "
                          "full model with skewpend simulate")
-    ranges = _slider_ranges()
+    sliders = page_sliders(params)
+    n = len(params.coordinates)
+    given = {key: (run.scalar("parameters", key, angle=degrees), run.option("parameters", key))
+             for key, *_, degrees in sliders[:-n] if run.is_given("parameters", key)}
+    given.update({sliders[len(sliders) - n + k][0]: v for k, v in _start_angles(run, params.coordinates).items()})
+    ranges = {key: (lo, hi, unit) for key, _, lo, hi, _, _, unit, _ in sliders}
     values = {}
-    for section, keys in _SLIDER_KEYS.items():
-        for k in keys:
-            if not run.is_given(section, k):
-                continue
-            where = run.option(section, k)
-            value = run.scalar(section, k, angle=k in _DEGREES)
-            if value is None:
-                raise UsageError(f"{where}: the explorer's sliders need a number, not 'sym'")
-            shown = math.degrees(value) if k in _DEGREES else value
-            lo, hi = ranges[k]
-            if not lo <= shown <= hi:
-                unit = " deg" if k in _DEGREES else ""
-                raise UsageError(f"{where} = {shown:.6g}{unit} is outside the explorer's slider range {lo:g} to {hi:g}{unit}; "
-                                 "give a value within it")
-            values[k] = repr(float(f"{shown:.15g}"))  # 30deg -> 30.0 (not the rounding of its radians)
+    for key, (value, where) in given.items():
+        if value is None:
+            raise UsageError(f"{where}: the explorer's sliders need a number, not 'sym'")
+        lo, hi, unit = ranges[key]
+        unit = " deg" if unit == "°" else ""
+        shown = math.degrees(value) if unit else value
+        if not lo <= shown <= hi:
+            raise UsageError(f"{where} = {shown:.6g}{unit} is outside the explorer's slider range {lo:g} to {hi:g}{unit}; "
+                             "give a value within it")
+        values[key] = repr(float(f"{shown:.15g}"))  # 30deg -> 30.0 (not the rounding of its radians)
     return params, urlencode(values)

@@ -42,6 +42,8 @@ __all__ = [
     "equation_terms",
     "odd_under_reflection",
     "explorer_js",
+    "page_form",
+    "page_vector",
     "classic_js",
     "dop853_js",
     "generate",
@@ -484,47 +486,84 @@ def equation_terms(M, f) -> List[Tuple[str, Tuple[int, ...], sp.Expr, sp.Expr]]:
     return out
 
 
-def explorer_js(params: Parameters) -> str:
-    """The JavaScript module of the web explorer (an ES module): ``rhs(y, p)``, ``energy(y, p)``,
-    the drawing's ``tips(y, p)`` (rod ends ``[x1, y1, z1, x2, y2, z2]`` [m]) and ``axes(y, p)``
-    (the hinge axes ``[n1, e]`` in the world frame, ``e = P1 . e0``), ``linear(y, p)`` (``M0``
-    and ``K0`` at rest, for the normal modes computed in the browser), the equations of motion
-    as ``TERMS`` (``[entry, exponents, LaTeX of the monomial]``, see :func:`equation_terms`) with
-    their coefficients ``coefficients(p)`` (typeset by the page for the current parameters), and
-    ``FLIP_ODD`` (without torques the equations are odd under ``(q, q') -> -(q, q')``), all
-    printed from the derivation for the bodies and axes of ``params``, every scalar read from
-    ``p`` in :data:`SCALAR_ORDER` (the sliders change ``p``, never the code)."""
-    from ..errors import ParameterError
+def page_form(model):
+    """The form of the explorer's physics for ``model`` and the model it prints: ``("exact", params)``, the
+    derivation of the double pendulum's parameters where the model has them (``model.exact_model()``: every
+    scalar in ``p``, a slider), or ``("recursive", chain)``, the recursive algorithms' graphs (its bodies
+    fixed: longer chains, and any model with Coulomb friction or rotors, which the sliders do not set)."""
+    exact = None if model.has_friction or model.has_rotor else model.exact_model()
+    if exact is not None:
+        return "exact", exact
+    if not model.is_numeric:
+        from ..errors import ParameterError
+
+        raise ParameterError("the explorer has Coulomb friction and rotor inertia in a numeric model only (its physics "
+                             "then the recursive algorithms', its sliders g and the damping); give every value, or leave "
+                             "cf1 = cf2 = Ir = 0")
+    return "recursive", model.as_chain()
+
+
+def page_vector(model):
+    """``(form, printed, names, values)``: :func:`page_form` and the parameter vector ``p`` of the page's physics,
+    its entries' names and the model's values (the reference case's where symbolic: the sliders' start)."""
+    form, printed = page_form(model)
+    if form == "exact":
+        from ..config import reference_parameters
+
+        reference = reference_parameters()
+        return form, printed, SCALAR_ORDER, [0.0 if n == "alpha" and not printed.uses_alpha else float(
+            getattr(printed, n) if getattr(printed, n) is not None else getattr(reference, n)) for n in SCALAR_ORDER]
+    from .recursive import parameter_names, parameter_vector as chain_vector
+
+    return form, printed, parameter_names(printed.n), [float(v) for v in chain_vector(printed)]
+
+
+def explorer_js(model) -> str:
+    """The explorer's physics for ``model`` (an ES module), one contract for every model and form: its
+    ``PARAMETER_ORDER``, ``P`` (:func:`page_vector`), ``N`` links, ``rhs(y, p)``, ``energy(y, p)``, the
+    drawing's ``tips(y, p)`` (the rods' ends, 3 n [m]) and ``axes(y, p)`` (the hinge axes in the world frame,
+    3 n), ``linear(y, p)`` (``[M0, K0]`` at rest, n x n: the mass matrix and the Hessian of Pi, for the
+    normal modes computed in the browser), the equations of motion as ``TERMS`` (``[entry, exponents, LaTeX
+    of the monomial]``, :func:`equation_terms`; none where the form has no symbolic equations) with
+    ``coefficients(p)``, and ``FLIP_ODD`` (without torques the equations are odd under ``(q, q') -> -(q,
+    q')``).  Printed by the model's own code generators in :func:`page_form`'s form: the derivation's
+    expressions (every scalar read from ``p`` in :data:`SCALAR_ORDER`: the sliders change ``p``, never the
+    code) or the recursive algorithms' CasADi graphs (:func:`~skewpend.numeric.recursive.chain_code`'s
+    module); nothing is typed by hand but the LDL^T solve."""
+    form, printed, _, values = page_vector(model)
+    head = [f"export const P = [{', '.join(_number(v) for v in values)}];"]
+    if form != "exact":
+        from .recursive import chain_code
+
+        return chain_code(printed, "javascript") + "\n".join(["", *_recursive_linear(printed), *_no_terms()])
     from ..symbolic.render import tex
-    if params.has_friction or params.has_rotor:
-        raise ParameterError(
-            "the explorer has no Coulomb friction or rotor inertia (its sliders cannot set cf1, cf2, Ir); "
-            "explore the model with cf1 = cf2 = Ir = 0, and simulate the full model with skewpend simulate")
-    geometry = geometry_of(params)
+
+    geometry = geometry_of(printed)
     _check_geometry_numeric(geometry)
     ex = expressions(geometry)
     lang = Lang("javascript", _js_printer(), "const ", ";")
     rhs, en = _body(lang, ex, "  ")
     doc = "\n".join(" * " + line for line in _doc_lines(geometry, None))
-    out = ["/**", doc, " */", "", f"export const PARAMETER_ORDER = [{', '.join(repr(n) for n in SCALAR_ORDER)}];", "",
-           "/** dy/dt = [dphi, dpsi, ddphi, ddpsi] */", "export function rhs(y, p) {", *rhs,
+    out = ["/**", doc, " */", "", f"export const PARAMETER_ORDER = [{', '.join(repr(n) for n in SCALAR_ORDER)}];",
+           "/** the model's values (the default parameter vector; the sliders' start) */", *head, "export const N = 2;", "",
+           "/** dy/dt = [dphi, dpsi, ddphi, ddpsi] */", "export function rhs(y, p = P) {", *rhs,
            "  return [y[2], y[3], ddphi, ddpsi];", "}", "",
-           "/** mechanical energy T + Pi [J] */", "export function energy(y, p) {", *en, "  return E;", "}", ""]
+           "/** mechanical energy T + Pi [J] */", "export function energy(y, p = P) {", *en, "  return E;", "}", ""]
     q = [SYMBOLS["phi"], SYMBOLS["psi"]]
     rest = {q[0]: 0, q[1]: 0}
     hess = sp.hessian(ex.Pi, q)
-    linear = [ex.M[0, 0].subs(rest), ex.M[0, 1].subs(rest), ex.M[1, 1].subs(rest),
-              hess[0, 0].subs(rest), hess[0, 1].subs(rest), hess[1, 1].subs(rest)]
+    linear = [ex.M[i, j].subs(rest) for i in range(2) for j in range(2)] + [hess[i, j].subs(rest) for i in range(2) for j in range(2)]
     for name, exprs, doc_line in (("tips", list(ex.tips), "rod ends [x1, y1, z1, x2, y2, z2] [m] (j points down)"),
                                   ("axes", list(ex.axes), "hinge axes [n1x, n1y, n1z, ex, ey, ez]: n1 fixed, e = P1 . e0"),
-                                  ("linear", linear, "the linearisation at rest (phi = psi = 0): [M0_11, M0_12, M0_22, "
-                                   "K0_11, K0_12, K0_22], M0 = M(0), K0 = the Hessian of Pi")):
+                                  ("linear", linear, "the linearisation at rest (phi = psi = 0): [M0, K0], M0 = M(0), "
+                                   "K0 = the Hessian of Pi (y is not read)")):
         used = used_names(exprs)
         body = [f"  const {n} = y[{i}];" for i, n in enumerate(STATE_ORDER) if n in used]
         body += param_lines(lang, "  ", used)
         body += cse_block(lang, exprs, [f"r{i}" for i in range(len(exprs))], "  ")
-        out += [f"/** {doc_line} */", f"export function {name}(y, p) {{", *body,
-                f"  return [{', '.join(f'r{i}' for i in range(len(exprs)))}];", "}", ""]
+        ret = (f"[{_rows(2, lambda i, j: f'r{2 * i + j}')}, {_rows(2, lambda i, j: f'r{4 + 2 * i + j}')}]" if name == "linear"
+               else "[" + ", ".join(f"r{i}" for i in range(len(exprs))) + "]")
+        out += [f"/** {doc_line} */", f"export function {name}(y, p = P) {{", *body, f"  return {ret};", "}", ""]
     terms = equation_terms(ex.M, ex.f)
     listed = ",\n".join(f"  [{json.dumps(name)}, {list(exps)}, {json.dumps(_compact_trig(tex(mono)) if mono != 1 else '')}]"
                         for name, exps, mono, _ in terms)
@@ -534,11 +573,41 @@ def explorer_js(params: Parameters) -> str:
     out += [f"/** the terms of the equations of motion: [entry ({', '.join(EQUATION_ENTRIES)}), exponents of "
             f"({', '.join(EQUATION_GENERATORS)}), LaTeX of the monomial] */",
             f"export const TERMS = [\n{listed}\n];", "",
-            "/** the coefficient of each of TERMS for the parameters p */", "export function coefficients(p) {", *body,
+            "/** the coefficient of each of TERMS for the parameters p */", "export function coefficients(p = P) {", *body,
             f"  return [{', '.join(f'k{i}' for i in range(len(coeffs)))}];", "}", "",
             "/** without torques the equations are odd under (q, q') -> -(q, q'): mirror starts flip alike */",
             f"export const FLIP_ODD = {'true' if odd_under_reflection(ex) else 'false'};", ""]
     return "\n".join(out)
+
+
+def _rows(n: int, entry) -> str:
+    """An n x n JavaScript array of the names ``entry(i, j)``."""
+    return "[" + ", ".join("[" + ", ".join(entry(i, j) for j in range(n)) + "]" for i in range(n)) + "]"
+
+
+def _recursive_linear(chain) -> List[str]:
+    """``linear(y, p)`` of a chain's page, from its recursive algorithms' graphs: ``[M0, K0]`` at rest (M at
+    q = 0; K0 the Hessian of the energy at rest, Pi, by CasADi's differentiation)."""
+    from .recursive import _ca, chain_functions, function_lines, structure_of_chain
+
+    ca, n = _ca(), chain.n
+    fns = chain_functions(structure_of_chain(chain))
+    q, p = ca.SX.sym("q", n), ca.SX.sym("p", fns["energy"].size1_in(1))
+    hessian = ca.hessian(fns["energy"](ca.vertcat(q, ca.SX.zeros(n)), p), q)[0]
+    at_rest = lambda e: ca.substitute(e, q, ca.DM.zeros(n))  # noqa: E731
+    linear = ca.Function("linear", [p], [at_rest(fns["mass"](q, p)), at_rest(ca.reshape(hessian, n * n, 1))])
+    packed = [f"m{i}_{j}" for i in range(n) for j in range(i + 1)]
+    return ["/** the linearisation at rest (every q = 0): [M0, K0], M0 = M(0), K0 = the Hessian of Pi (y is not read) */",
+            "export function linear(y, p = P) {",
+            *function_lines(linear, ["p"], [packed, [f"r{i}" for i in range(n * n)]], "  ", True, "javascript"),
+            f"  return [{_rows(n, lambda i, j: f'm{max(i, j)}_{min(i, j)}')}, {_rows(n, lambda i, j: f'r{i * n + j}')}];", "}", ""]
+
+
+def _no_terms() -> List[str]:
+    return ["/** the equations' terms: none (the recursive algorithms print no symbolic equations: the page shows M0, K0) */",
+            "export const TERMS = [];", "export function coefficients(p = P) { return []; }",
+            "/** mirror starts are not assumed to flip alike (a chain's bodies need not be symmetric) */",
+            "export const FLIP_ODD = false;", ""]
 
 
 def odd_under_reflection(ex) -> bool:

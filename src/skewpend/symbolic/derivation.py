@@ -234,12 +234,10 @@ class _Context:
     """
 
     def __init__(self, params):
-        from .chain import Chain
-
-        if isinstance(params, Chain):
-            self._from_chain(params)
-        else:
+        if params.exact_model() is params:  # the specification's parameters, symbols kept
             self._from_parameters(params)
+        else:  # a chain of numeric links
+            self._from_chain(params)
         self.n = len(self.coords)
 
     def _exact_axis(self, components, name: str, gens: List[sp.Symbol], fixed: list):

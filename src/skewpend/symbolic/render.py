@@ -82,8 +82,10 @@ LATEX_LABELS = {
 _SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
 
 
-def _is_chain(eom: "EquationsOfMotion") -> bool:
-    return hasattr(eom.params, "links")
+def _links_given(eom: "EquationsOfMotion") -> bool:
+    """Whether the equations are a chain's (its links' values, numeric; coordinates as the model names them), not
+    the specification's: the model is not its own exact form (the double pendulum's parameters, symbols kept)."""
+    return eom.params.exact_model() is not eom.params
 
 
 def _coordinate_symbol(name: str) -> sp.Symbol:
@@ -237,7 +239,7 @@ def to_text(
         import shutil
 
         width = max(100, shutil.get_terminal_size((160, 24)).columns)
-    if _is_chain(eom):
+    if _links_given(eom):
         return _chain_text(eom, linear, steps, width)
     out = [
         "Skewed double pendulum -- equations of motion  M(q) q̈ = f(q, q̇),  q = (φ, ψ)",
@@ -289,7 +291,7 @@ def to_latex(
     display: bool = False,
 ) -> str:
     """LaTeX (an ``aligned`` block; ``display`` gives the body only, for Jupyter)."""
-    if _is_chain(eom):
+    if _links_given(eom):
         return _chain_latex(eom, linear, steps, display)
     M, f = eom.mass_matrix, eom.forcing
     ddphi, ddpsi = _S["ddphi"], _S["ddpsi"]
@@ -341,7 +343,7 @@ def to_json(
     a ``steps`` object; ``skewpend_version``.
     """
     params = eom.params.to_dict()
-    if _is_chain(eom):  # a chain: its links as given (numeric), no symbolic parameters
+    if _links_given(eom):  # a chain: its links as given (numeric), no symbolic parameters
         values: Dict[str, Any] = params
     else:
         if not eom.params.uses_alpha:

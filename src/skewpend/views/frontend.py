@@ -23,7 +23,7 @@ from typing import Dict, List, Optional
 
 __all__ = ["Source", "sources", "registration", "export_explorer", "inline_page_scripts", "WEB_DIR", "katex_dir",
            "SOURCE_ORDER", "REPLAY_ORDER", "MANIFEST", "EXPORT_ENTRIES", "WIDGET_ORDER", "module_bundle", "replay_data",
-           "page_settings", "chain_sliders", "chain_slider_values", "chain_with"]
+           "page_settings", "page_sliders", "start_key", "SLIDER_RANGES", "START_RANGE"]
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 _THREE = WEB_DIR / "vendor" / "three"
@@ -84,111 +84,117 @@ def _static_sources() -> tuple:
     return tuple(_checked(s) for s in out)
 
 
-def page_chain(model):
-    """The chain whose page the explorer and the widget show for ``model`` -- its bodies fixed, its sliders ``g``
-    and each joint's damping, its physics printed from the recursive algorithms -- or None for the double
-    pendulum's page, whose physics (its derivation's) takes every scalar live.  The one place the front end asks
-    (until one physics printer serves every model, issue 52)."""
-    return model if getattr(model, "links", None) is not None else None
-
-
 @lru_cache(maxsize=8)
 def _physics_sources(physics_params) -> tuple:
     from ..numeric.codegen import classic_js, explorer_js
-    from ..symbolic.model import Parameters
 
-    if page_chain(physics_params) is not None:  # a chain of links: its module from the recursive algorithms
-        from ..numeric.recursive import chain_code
-
-        module = chain_code(physics_params, "javascript")
-    else:
-        module = explorer_js(physics_params if physics_params is not None else Parameters())
+    module = explorer_js(_page_model(physics_params))
     page = f"// the explorer's settings for these bodies (skewpend.views.frontend.page_settings)\nexport const PAGE = " \
         f"{json.dumps(page_settings(physics_params), ensure_ascii=False)};\n"
     return (Source("physics", module), Source("page", page),
             Source("physics-classic", classic_js(module, "physics"), classic=True))
 
 
-#: A chain's sliders on the explorer and in the widget: [key, label, min, max, step, default, unit, degrees]
-#: (the double pendulum's are web/live.js's SLIDERS): each joint's start angle, g, each joint's damping.
-CHAIN_START = (-180.0, 180.0, 0.5)
-CHAIN_DAMPING = (0.0, 2.0, 0.01)
-#: g at which the explorer's chain modes are computed (their frequencies scale as sqrt(g): K0 is g times a
-#: matrix of the bodies, M0 does not hold g).
-MODES_G = 9.81
+#: The sliders, one definition for every model and view: by the schema's stem of the parameter, its range
+#: ``(min, max, step)``, unit, whether shown in degrees, and the word after its name -- in the order shown.
+SLIDER_RANGES = {
+    "alpha": ((-180.0, 180.0, 0.5), "°", True, "skew"),
+    "l": ((0.2, 3.0, 0.05), "m", False, "rod {i}"),
+    "m": ((0.1, 5.0, 0.05), "kg", False, ""),
+    "g": ((0.0, 20.0, 0.01), "m/s²", False, ""),
+    "c": ((0.0, 2.0, 0.01), "N m s", False, "damping"),
+}
+#: Each joint's start angle [deg]: its slider's range and step.
+START_RANGE = (-180.0, 180.0, 0.5)
+#: What a slider sets alone in each form of the page's physics (:func:`~skewpend.numeric.codegen.page_form`):
+#: the derivation reads every scalar of the double pendulum's parameters; the recursive algorithms' bodies are
+#: fixed (a rod's length or mass would move its centre of mass and inertia too), their g and damping are live.
+LIVE_STEMS = {"exact": tuple(SLIDER_RANGES), "recursive": ("g", "c")}
+#: The coordinates' symbols on the page.
+_SYMBOLS = {"phi": "φ", "psi": "ψ", "alpha": "α"}
 
 
-def _damping_stem() -> str:
+def _page_model(model):
+    """The model a page shows: ``model``, or the specification's thin rods with every scalar symbolic (the
+    sliders at the reference case's values)."""
+    from ..symbolic.model import Parameters
+
+    return Parameters() if model is None else model
+
+
+def _stem(name: str) -> str:
+    """The schema's stem of a parameter of the page's physics (``a`` -> ``l``, ``c3`` -> ``c``, ``l2`` -> ``l``)."""
     from .. import schema
 
-    return next(stem for key, stem, _ in schema.LINK_FIELDS if key == "damping")  # c<k>: the schema's stem
+    return schema.field(name).stem if name in schema.NAMES else name.rstrip("0123456789")
 
 
-def chain_sliders(chain) -> list:
-    """A chain's sliders (see :data:`CHAIN_START`): ``q<k>_0`` (degrees), ``g``, and ``c<k>``, the schema's
-    name of joint k's damping in the chain's parameter vector."""
-    from ..config import CHAIN_Q0
+def start_key(coordinate: str) -> str:
+    """The start slider of a coordinate: ``phi0`` (the run file's key), ``q3_0`` (after a digit)."""
+    return f"{coordinate}_0" if coordinate[-1].isdigit() else f"{coordinate}0"
 
+
+def _vector(model):
+    """:func:`~skewpend.numeric.codegen.page_vector` of the model a page shows."""
+    from ..numeric.codegen import page_vector
+
+    return page_vector(_page_model(model))
+
+
+def page_sliders(model=None) -> list:
+    """The page's sliders for ``model``: ``[key, label, min, max, step, default, unit, degrees]`` for each
+    parameter of its physics that a slider sets alone (:data:`LIVE_STEMS`; in :data:`SLIDER_RANGES`' order;
+    the skew ``alpha`` only where it enters) at the model's values (the reference case's where symbolic),
+    then a start angle for each coordinate (``phi0``, ``psi0``; ``q<k>_0``) at the reference start
+    (:data:`~skewpend.config.DEFAULT_RUN`'s ``[initial]``; a chain's joints at ``CHAIN_Q0``)."""
     import math
 
-    stem, n = _damping_stem(), chain.n
-    specs = [[f"q{k}_0", f"q{k} start", *CHAIN_START, round(math.degrees(CHAIN_Q0), 2), "°", True] for k in range(1, n + 1)]
-    specs.append(["g", "gravity g", 0.0, 20.0, 0.01, 9.81, "m/s²", False])
-    specs += [[f"{stem}{k}", f"{stem}{k} damping", *CHAIN_DAMPING, 0.0, "N m s", False] for k in range(1, n + 1)]
-    return specs
+    from ..config import CHAIN_Q0, DEFAULT_RUN
 
-
-def chain_slider_values(chain) -> dict:
-    """What a chain's sliders change, at the chain's values: ``g`` and each joint's damping ``c<k>``."""
-    stem = _damping_stem()
-    return {"g": float(chain.g), **{f"{stem}{link.index}": float(link.damping) for link in chain.links}}
-
-
-def chain_with(chain, values: dict):
-    """``chain`` with the sliders' ``values`` (``g``, ``c<k>``) applied, validated by the chain itself."""
-    from dataclasses import replace
-
-    stem = _damping_stem()
-    out = replace(chain, g=values["g"])
-    for link in chain.links:
-        out = out.replace_link(link.index, damping=values[f"{stem}{link.index}"])
+    form, printed, order, values = _vector(model)
+    rank = list(SLIDER_RANGES)
+    live = sorted(((k, v) for k, v in zip(order, values) if _stem(k) in LIVE_STEMS[form]
+                   and (k != "alpha" or printed.uses_alpha)), key=lambda kv: rank.index(_stem(kv[0])))
+    out = []
+    for k, v in live:
+        (lo, hi, step), unit, degrees, word = SLIDER_RANGES[_stem(k)]
+        i = "".join(ch for ch in k if ch.isdigit()) or str(order.index(k) + 1)
+        label = f"{_SYMBOLS.get(k, k)} {word.format(i=i)}".strip()
+        out.append([k, label, lo, hi, step, round(math.degrees(v), 2) if degrees else v, unit, degrees])
+    for c in printed.coordinates:
+        key, start = start_key(c), float(DEFAULT_RUN["initial"].get(f"{c}0", CHAIN_Q0))
+        label = f"{_SYMBOLS.get(c, c)}{'0' if key == c + '0' else ''} start"
+        out.append([key, label, *START_RANGE, round(math.degrees(start), 2), "°", True])
     return out
 
 
 def page_settings(physics_params=None) -> dict:
-    """What the explorer's page (web/app.js) needs beside the generated physics: nothing for the double
-    pendulum (its sliders are web/live.js's, its modes and equations from the physics' linearisation);
-    for a chain of links its ``n``, ``coordinates``, sliders (:func:`chain_sliders`) and their values at the
-    chain's, the drawn axes' length scale ``size`` and the chain's reach [m], its links' table, ``dissipative``
-    (the parameter vector's joint terms that make the energy not conserved, from the schema), and its normal
-    modes about the hanging position (:func:`skewpend.normal_modes` at g = :data:`MODES_G`, undamped:
-    ``frequencies`` [rad/s], ``shapes`` (one list per mode), ``M0``, ``K0``) -- or, where the hanging position
-    is no stable equilibrium, the library's reason in ``modes.error``."""
-    chain = page_chain(physics_params)
-    if chain is None:
-        return {}
-    from ..errors import SkewpendError
-    from ..analysis.modes import normal_modes
-
-    values = chain_slider_values(chain)
-    try:
-        m = normal_modes(chain_with(chain, {k: 0.0 for k in values} | {"g": MODES_G}))
-        modes = {"g": MODES_G, "frequencies": [float(w) for w in m.frequencies],
-                 "shapes": [[float(v) for v in col] for col in m.shapes.T],
-                 "M0": [[float(v) for v in row] for row in m.M], "K0": [[float(v) for v in row] for row in m.K]}
-    except SkewpendError as exc:
-        modes = {"error": str(exc)}
-    links = [{"axis": [float(v) for v in link.axis], "length": float(link.length), "mass": float(link.mass)}
-             for link in chain.links]
+    """What the explorer's page (web/app.js) needs beside the generated physics, for any model: its ``title``
+    and ``lead`` (the header's words), its coordinates' ``names``, the ``sliders`` (:func:`page_sliders`), and
+    by their index in the physics' parameter vector its rods' ``lengths`` (the drawn axes' scale, the
+    camera's reach), the terms that make the energy not conserved (``dissipative``: damping, torques,
+    friction, from the schema's roles) and the ``torques``."""
     from .. import schema
-    from ..numeric.recursive import parameter_names
 
-    stems = {f.stem for f in schema.FIELDS if f.role in schema.NONCONSERVATIVE_ROLES and f.per_body}
-    dissipative = [k for k, name in enumerate(parameter_names(chain.n)) if name.rstrip("0123456789") in stems]
-    return {"n": chain.n, "coordinates": list(chain.coordinates), "specs": chain_sliders(chain), "values": values,
-            "dissipative": dissipative,
-            "size": max(float(link.length) for link in chain.links),
-            "reach": float(sum(link.length for link in chain.links)), "links": links, "modes": modes}
+    model = _page_model(physics_params)
+    form, printed, order, _ = _vector(model)
+    roles = {f.stem: f.role for f in schema.FIELDS if f.per_body}  # a joint's terms (cfs, the chain's, is none)
+    where = lambda *rs: [i for i, k in enumerate(order) if roles.get(_stem(k)) in rs]  # noqa: E731
+    title = printed.title
+    if form == "exact" and printed.uses_alpha:
+        whose = "The double pendulum whose second hinge axis is skewed by α"
+    else:
+        axes = [printed.axis1 or (0, 0, 1), printed.axis2] if form == "exact" else [link.axis for link in printed.links]
+        axes = ", ".join("(" + ", ".join(f"{float(x):.3g}" for x in axis) + ")" for axis in axes)
+        whose = (f"{title[0].upper()}{title[1:]} whose hinge axes are {axes}, each in its parent's frame with the chain "
+                 "hanging (j points down)")
+    source = ("the symbolic derivation (Lagrange's equations with rotation tensors)" if form == "exact" else
+              "the chain's recursive algorithms (the composite-rigid-body and Newton-Euler algorithms)")
+    return {"title": title, "lead": f"{whose} — every number here comes from {source}: the "
+            "motion, the equations, the normal modes and the flip map are computed in your browser by JavaScript generated "
+            "from it.", "names": [_SYMBOLS.get(c, c) for c in printed.coordinates], "sliders": page_sliders(model),
+            "lengths": [i for i, k in enumerate(order) if _stem(k) == "l"],
+            "dissipative": where("damping", "torque", "friction"), "torques": where("torque")}
 
 
 def sources(physics_params=None, order=SOURCE_ORDER) -> Dict[str, Source]:

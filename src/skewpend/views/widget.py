@@ -39,7 +39,7 @@ except ImportError as exc:  # pragma: no cover - the extra is part of the test i
 from .. import schema
 from ..errors import ParameterError
 from ..symbolic.model import SCALAR_NAMES, Parameters
-from .frontend import chain_slider_values, chain_sliders, chain_with, page_chain
+from .frontend import page_sliders
 
 __all__ = ["widget", "PendulumWidget", "WidgetState"]
 
@@ -70,6 +70,21 @@ class WidgetValueError(ParameterError, traitlets.TraitError):
     also knows as its own (it then rolls back the change's other traits)."""
 
 
+def chain_slider_values(chain) -> dict:
+    """What a chain's sliders change, at the chain's values: ``g`` and each joint's damping ``c<k>``."""
+    return {"g": float(chain.g), **{f"c{link.index}": float(link.damping) for link in chain.links}}
+
+
+def chain_with(chain, values: dict):
+    """``chain`` with the sliders' ``values`` (``g``, ``c<k>``) applied, validated by the chain itself."""
+    from dataclasses import replace
+
+    out = replace(chain, g=values["g"])
+    for link in chain.links:
+        out = out.replace_link(link.index, damping=values[f"c{link.index}"])
+    return out
+
+
 def _front_end(geometry) -> Tuple[str, str]:
     from .frontend import WEB_DIR, WIDGET_ORDER, module_bundle
 
@@ -92,7 +107,7 @@ class PendulumWidget(anywidget.AnyWidget):
     sliders = traitlets.List(traitlets.Unicode()).tag(sync=True)
     height = traitlets.Int(420).tag(sync=True)
     shown = traitlets.Dict().tag(sync=True)
-    specs = traitlets.List().tag(sync=True)  # a chain's sliders (the double pendulum's: live.js's)
+    specs = traitlets.List().tag(sync=True)  # the sliders (frontend.page_sliders: one definition for every model)
     size = traitlets.Float(0.0).tag(sync=True)  # a chain's length scale [m] (the double pendulum's: from a, b)
 
     def __init__(self, params: Optional[Parameters] = None, y0: Optional[Sequence[float]] = None, *,
@@ -102,7 +117,7 @@ class PendulumWidget(anywidget.AnyWidget):
         from ..numeric.conventions import geometry_of
 
         height = checks.whole("height", height, 160, 4000, what="the view's height in pixels")
-        self._chain = page_chain(params)
+        self._chain = params if getattr(params, "links", None) is not None else None
         if self._chain is not None:  # a chain of links: the bodies and axes fixed, g and damping its sliders
             from ..config import CHAIN_Q0
 
@@ -110,10 +125,10 @@ class PendulumWidget(anywidget.AnyWidget):
             self._geometry = shape
             self._esm, self._css = _front_end(shape)
             n = params.n
-            specs = chain_sliders(params)
+            specs = page_sliders(params)
             super().__init__(values=chain_slider_values(params),
                              y0=self._start((CHAIN_Q0,) * n + (0.0,) * n if y0 is None else y0),
-                             sliders=[spec[0] for spec in specs], specs=specs,
+                             sliders=[spec[0] for spec in specs[-n:] + specs[:-n]], specs=specs,  # the starts first
                              size=max(link.length for link in params.links), height=height)
             return
         params = reference_parameters() if params is None else checks.numeric_params(params, "the widget")
@@ -124,7 +139,7 @@ class PendulumWidget(anywidget.AnyWidget):
         super().__init__(
             values={n: float(getattr(params, n)) for n in names},
             y0=self._start(reference_state() if y0 is None else y0),
-            sliders=[n for n in SLIDERS if n in names or n in ("phi0", "psi0")],
+            sliders=[n for n in SLIDERS if n in names or n in ("phi0", "psi0")], specs=page_sliders(geometry),
             height=height,
         )
 

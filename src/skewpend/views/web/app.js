@@ -4,38 +4,31 @@
 // runs in Web Workers on the same generated physics (flipworker.js).  Nothing here is an equation of
 // motion.  The page needs no server: it runs from the file system as well (see loader.js).
 //
-// One page for the double pendulum and for a chain of n links.  ./page.js (PAGE, written by skewpend for
-// the bodies: skewpend.views.frontend.page_settings) is empty for the double pendulum, whose sliders are
-// live.js's and whose modes and equations come from the physics' linearisation; for a chain it holds the
-// chain's sliders (each joint's start, g, each joint's damping), its links and its normal modes from
-// skewpend.normal_modes at g = PAGE.modes.g (K0 is g times a matrix of the bodies, M0 holds no g: the
-// frequencies scale as sqrt(g), the shapes stay).  Its physics (the recursive algorithms' module) takes
-// the whole parameter vector, the values no slider sets from physics.P.
+// One page for every model: the double pendulum and a chain of n links alike.  ./page.js (PAGE, written by
+// skewpend for the model: skewpend.views.frontend.page_settings) holds its sliders (one definition: the
+// parameters a slider sets alone, then each joint's start), its coordinates' names and, by their index in
+// the parameter vector, its rods' lengths and the joint terms that make the energy not conserved.  The
+// physics (one contract for every model: rhs, energy, tips, axes, linear, TERMS, P) takes the whole
+// parameter vector, the values no slider sets from physics.P; the normal modes are computed here from its
+// M0 and K0 (physics.linear), the equations typeset from its TERMS (the linearised ones where it has none).
 import * as THREE from "three";
-import { createScene, world } from "./scene.js";
+import { createScene } from "./scene.js";
 import * as physics from "./physics.js";
 import { PAGE } from "./page.js";
-import { SLIDERS as DOUBLE_SLIDERS, advance as advanceBy } from "./live.js";
+import { advance as advanceBy } from "./live.js";
 
 const DEG = Math.PI / 180;
 const ORDER = physics.PARAMETER_ORDER; // a, b, m1, m2, alpha, g, c1, c2, tau1, tau2 (a chain's: its links')
 const TRAIL = 1200; // points of the tip trail
 const HISTORY = 20; // seconds shown in the plots
-const CHAIN = Array.isArray(PAGE.specs); // a chain of links (else the double pendulum)
-const N = CHAIN ? PAGE.n : 2; // links, and angles
-const SLIDERS = CHAIN ? PAGE.specs : DOUBLE_SLIDERS; // [key, label, min, max, step, default, unit, degrees]
-const NAMES = CHAIN ? PAGE.coordinates.map((c) => ({ phi: "φ", psi: "ψ" }[c] || c)) : ["φ", "ψ"];
+const N = physics.N; // links, and angles
+const SLIDERS = PAGE.sliders; // [key, label, min, max, step, default, unit, degrees]
+const NAMES = PAGE.names;
 // each angle's colour in the plots: its rod's in the 3D view (scene.js: rod 1 blue, the last orange)
 const ROD_HEX = ["#4f8fe8", "#e8864f", "#59c08f", "#b78be0", "#e0c35a", "#5ec8d8", "#e06a8c", "#9aa7b8"];
 const rodHex = (k) => (k === N - 1 ? ROD_HEX[1] : k === 0 ? ROD_HEX[0] : ROD_HEX[2 + ((k - 1) % 6)]);
-/** The index among the angles of a start slider ("phi0", "psi0", a chain's "q<k>_0"), or -1. */
-function startIndex(key) {
-  if (key === "phi0") return 0;
-  if (key === "psi0") return 1;
-  const m = /^q(\d+)_0$/.exec(key);
-  return m ? parseInt(m[1], 10) - 1 : -1;
-}
-const START_KEYS = Array.from({ length: N }, (_, k) => SLIDERS.find((s) => startIndex(s[0]) === k)[0]);
+const START_KEYS = SLIDERS.slice(-N).map((s) => s[0]); // each joint's start ("phi0", "psi0"; "q<k>_0"): the last N
+const startIndex = (key) => START_KEYS.indexOf(key);
 const inDegrees = (key) => !!(SLIDERS.find((s) => s[0] === key) || [])[7];
 
 // ---- state -------------------------------------------------------------------------------------------
@@ -48,31 +41,35 @@ let hist = []; // [t, q1 .. qn, dE]
 let flip = null; // the last flip map
 
 function paramVector() {
-  return ORDER.map((k, i) => (k in values ? (inDegrees(k) ? values[k] * DEG : values[k]) : CHAIN ? physics.P[i] : 0));
+  return ORDER.map((k, i) => (k in values ? (inDegrees(k) ? values[k] * DEG : values[k]) : physics.P[i]));
 }
+const GRAVITY = ORDER.indexOf("g");
+// m g L: the energy from hanging to rod 1 turned up, the rest following it, at g of at least 1 (Pi is g times
+// a function of the angles)
 function energyScale() {
-  if (!CHAIN) return Math.max(1e-9, (values.m1 * values.a + values.m2 * (2 * values.a + values.b)) * Math.max(values.g, 1));
-  const pv = paramVector(), up = new Array(2 * N).fill(0); // the chain's energy from hanging to rod 1 up
+  const pv = paramVector(), g = pv[GRAVITY], up = new Array(2 * N).fill(0);
+  pv[GRAVITY] = 1;
   up[0] = Math.PI;
-  return Math.max(1e-9, Math.abs(physics.energy(up, pv) - physics.energy(new Array(2 * N).fill(0), pv)));
+  return Math.max(1e-9, Math.abs(physics.energy(up, pv) - physics.energy(new Array(2 * N).fill(0), pv)) * Math.max(g, 1));
 }
-// E is not conserved: damping (the double pendulum's), a chain's joint terms (PAGE.dissipative: the schema's)
-const damped = () => (CHAIN ? PAGE.dissipative.some((i) => paramVector()[i] !== 0) : values.c1 > 0 || values.c2 > 0);
+// E is not conserved: the joints' damping, torques or friction (PAGE.dissipative: the schema's roles)
+const damped = () => PAGE.dissipative.some((i) => paramVector()[i] !== 0);
+const longest = (pv) => Math.max(...PAGE.lengths.map((i) => pv[i])); // the drawn axes' length scale [m]
 
 // ---- three.js scene (scene.js) ------------------------------------------------------------------------
 const canvas = document.getElementById("scene");
 const view = createScene(canvas, { trail: TRAIL });
 const { camera, controls } = view;
 const { joint1, bob } = view.rods;
-if (CHAIN) { // the whole chain in view: the camera's target at half its reach, its distance to the reach
-  const reach = Math.max(PAGE.reach, 1.8), r = reach / 1.8; // the double pendulum's view for a chain as long or shorter
+{ // the whole model in view: the camera's target at half its reach, its distance to the reach (at the start)
+  const reach = Math.max(PAGE.lengths.reduce((sum, i) => sum + physics.P[i], 0), 1.8), r = reach / 1.8;
   controls.target.set(0, -0.5 * reach, 0);
   camera.position.set(2.6 * r, 0.4 - 0.5 * (reach - 1.8), 4.2 * r);
   controls.update();
 }
 
 function geometry() {
-  return view.pose(physics.tips(y, p), physics.axes(y, p), CHAIN ? PAGE.size : Math.max(values.a, values.b));
+  return view.pose(physics.tips(y, p), physics.axes(y, p), longest(p));
 }
 function draw() {
   geometry();
@@ -194,8 +191,7 @@ function fmt(v) { return Math.abs(v) >= 1e3 || (Math.abs(v) < 1e-2 && v !== 0) ?
 const wrapDeg = (a) => ((((a / DEG) + 180) % 360) + 360) % 360 - 180;
 function plots() {
   const angles = NAMES.map((_, k) => (r) => wrapDeg(r[1 + k]));
-  const colours = CHAIN ? NAMES.map((_, k) => rodHex(k)) : ["#2f6fd0", "#d9702f"];
-  plot("angles-plot", angles, colours, NAMES, "angle [°]", false, true);
+  plot("angles-plot", angles, NAMES.map((_, k) => rodHex(k)), NAMES, "angle [°]", false, true);
   plot("energy-plot", [(r) => r[N + 1]], ["#6b4fbf"], ["E − E(0)"], "[J]", true);
 }
 
@@ -222,8 +218,8 @@ function buildSliders() {
     input.dataset.key = key;
     const out = document.createElement("output"); out.id = `${id}-out`; out.htmlFor = id;
     box.append(lab, input, out);
-    values[key] = CHAIN && key in PAGE.values ? PAGE.values[key] : def; // a chain's own g and damping
-    input.value = values[key];
+    values[key] = def; // the model's own values
+    input.value = def;
     input.addEventListener("input", () => setValue(key, parseFloat(input.value), true));
   }
 }
@@ -310,20 +306,26 @@ function equationsTex(pv) {
   }
   return `\\begin{aligned}${rows.join(" \\\\ ").replace("\\\\[0.4em] \\\\", "\\\\[0.4em]")}\\end{aligned}`;
 }
-// A chain: its linearised equations M0 q'' + K0 q = 0 about the hanging position (the library's M0 and K0,
-// K0 at the current g), or why there are none.
-const gravity = (pv) => pv[ORDER.indexOf("g")];
+// Where the physics has no symbolic equations (the recursive algorithms'): the linearised ones about the
+// hanging position, M0 q'' + K0 q = 0 from physics.linear, or null where the hanging position is no equilibrium.
 function signedTex(v) {
   const r = Number(v.toPrecision(DIGITS));
   return r === 0 ? "0" : (r < 0 ? "-" : "") + texNumber(r);
 }
 const matrixTex = (A) => `\\begin{pmatrix}${A.map((row) => row.map(signedTex).join(" & ")).join(" \\\\ ")}\\end{pmatrix}`;
-function chainEquationsTex(pv) {
-  const m = PAGE.modes;
-  if (m.error) return null;
-  const s = gravity(pv) / m.g, q = `\\begin{pmatrix}${NAMES.map((c) => c.replace(/^q(\d+)$/, "q_{$1}")).join(" \\\\ ")}\\end{pmatrix}`;
-  return `\\begin{aligned}&M_0\\,\\ddot q + K_0\\,q = 0, \\quad q = ${q}, \\\\[0.4em] &M_0 = ${matrixTex(m.M0)}` +
-    ` \\ [\\mathrm{kg\\,m^2}], \\\\[0.4em] &K_0 = ${matrixTex(m.K0.map((row) => row.map((v) => v * s)))} \\ [\\mathrm{N\\,m}]\\end{aligned}`;
+function linearTex(pv) {
+  if (restless(pv)) return null;
+  const [M0, K0] = physics.linear(y, pv), q = `\\begin{pmatrix}${NAMES.map((c) => c.replace(/^q(\d+)$/, "q_{$1}")).join(" \\\\ ")}\\end{pmatrix}`;
+  return `\\begin{aligned}&M_0\\,\\ddot q + K_0\\,q = 0, \\quad q = ${q}, \\\\[0.4em] &M_0 = ${matrixTex(M0)}` +
+    ` \\ [\\mathrm{kg\\,m^2}], \\\\[0.4em] &K_0 = ${matrixTex(K0)} \\ [\\mathrm{N\\,m}]\\end{aligned}`;
+}
+const SYMBOLIC = physics.TERMS.length > 0; // the equations of motion themselves, else the linearised ones
+const equationsLatex = (pv) => (SYMBOLIC ? equationsTex(pv) : linearTex(pv));
+// why the hanging position is no equilibrium (an acceleration at rest: torques, a centre of mass off the vertical), or ""
+function restless(pv) {
+  const acc = physics.rhs(new Array(2 * N).fill(0), pv).slice(N), scale = Math.max(1, Math.abs(pv[GRAVITY]));
+  return acc.some((a) => !(Math.abs(a) <= 1e-9 * scale)) ? "the hanging position is not an equilibrium here (the joints' " +
+    "torques, or a centre of mass off the vertical)" : "";
 }
 // the equations shrink to the panel's width (down to 60 % of the panel's type size), then scroll
 function fitEquations() {
@@ -338,10 +340,10 @@ function fitEquations() {
 new ResizeObserver(fitEquations).observe(document.getElementById("equations"));
 document.fonts.addEventListener("loadingdone", fitEquations);
 function showEquations() {
-  const el = document.getElementById("equations"), latex = CHAIN ? chainEquationsTex(paramVector()) : equationsTex(paramVector());
+  const el = document.getElementById("equations"), pv = paramVector(), latex = equationsLatex(pv);
   if (latex === null) {
     el.replaceChildren(Object.assign(document.createElement("span"), {
-      className: "note", textContent: `no linearised equations about the hanging position: ${PAGE.modes.error}` }));
+      className: "note", textContent: `no linearised equations: ${restless(pv)}` }));
   } else if (window.katex) window.katex.render(latex, el, { displayMode: true, throwOnError: false });
   else el.textContent = latex;
   el.dataset.alpha = String(values.alpha);
@@ -350,38 +352,60 @@ function showEquations() {
   document.fonts.ready.then(fitEquations);
 }
 // The normal modes about the hanging position, computed here from the generated M0 and K0
-// (physics.linear): K0 x = w^2 M0 x, a 2 x 2 generalised symmetric eigenproblem; each shape
-// normalised to x' M0 x = 1, its larger component positive (normal_modes' conventions).
+// (physics.linear): K0 x = w^2 M0 x, the generalised symmetric eigenproblem, by Cholesky M0 = L L^T and
+// Jacobi's rotations on L^-1 K0 L^-T; each shape normalised to x' M0 x = 1, its largest component
+// positive (normal_modes' conventions), in rising frequency; null where the hanging position is no stable
+// equilibrium (e.g. g = 0).
+function cholesky(A) {
+  const L = A.map((row) => row.map(() => 0));
+  for (let j = 0; j < N; j++) {
+    let d = A[j][j];
+    for (let k = 0; k < j; k++) d -= L[j][k] * L[j][k];
+    L[j][j] = Math.sqrt(d);
+    for (let i = j + 1; i < N; i++) {
+      let s = A[i][j];
+      for (let k = 0; k < j; k++) s -= L[i][k] * L[j][k];
+      L[i][j] = s / L[j][j];
+    }
+  }
+  return L;
+}
+function jacobi(A) { // the eigenvalues and eigenvectors (columns of V) of the symmetric A
+  const a = A.map((row) => [...row]), V = a.map((row, i) => row.map((_, j) => (i === j ? 1 : 0)));
+  for (let sweep = 0; sweep < 100; sweep++) {
+    let off = 0;
+    for (let i = 0; i < N; i++) for (let j = i + 1; j < N; j++) off += a[i][j] * a[i][j];
+    if (!(off > 1e-300)) break;
+    for (let i = 0; i < N; i++) for (let j = i + 1; j < N; j++) {
+      if (a[i][j] === 0) continue;
+      const th = (a[j][j] - a[i][i]) / (2 * a[i][j]), t = Math.sign(th || 1) / (Math.abs(th) + Math.hypot(th, 1));
+      const c = 1 / Math.hypot(t, 1), s = t * c;
+      for (let k = 0; k < N; k++) { const x = a[k][i], z = a[k][j]; a[k][i] = c * x - s * z; a[k][j] = s * x + c * z; }
+      for (let k = 0; k < N; k++) { const x = a[i][k], z = a[j][k]; a[i][k] = c * x - s * z; a[j][k] = s * x + c * z; }
+      for (let k = 0; k < N; k++) { const x = V[k][i], z = V[k][j]; V[k][i] = c * x - s * z; V[k][j] = s * x + c * z; }
+    }
+  }
+  return { values: a.map((row, i) => row[i]), V };
+}
 function normalModes(pv) {
-  if (CHAIN) return chainModes(pv);
-  const [m11, m12, m22, k11, k12, k22] = physics.linear(y, pv);
-  const a = m11 * m22 - m12 * m12, b = -(m11 * k22 + m22 * k11 - 2 * m12 * k12), c = k11 * k22 - k12 * k12;
-  const disc = Math.sqrt(Math.max(b * b - 4 * a * c, 0));
-  const big = (-b + Math.sign(-b || 1) * disc) / (2 * a), small = c / (a * big); // no cancellation
-  const lambdas = [Math.min(big, small), Math.max(big, small)];
-  if (!(a > 0) || !(lambdas[0] > 0)) return null; // not a stable equilibrium (e.g. g = 0)
-  const shapes = lambdas.map((l) => {
-    // the row of K0 - l M0 with the larger entries gives the better-conditioned null vector
-    const r1 = [k11 - l * m11, k12 - l * m12], r2 = [k12 - l * m12, k22 - l * m22];
-    const r = Math.hypot(...r1) >= Math.hypot(...r2) ? r1 : r2;
-    let x = [-r[1], r[0]];
-    const n = Math.sqrt(x[0] * (m11 * x[0] + m12 * x[1]) + x[1] * (m12 * x[0] + m22 * x[1]));
-    x = x.map((v) => v / n);
-    return Math.abs(x[0]) >= Math.abs(x[1]) ? (x[0] < 0 ? x.map((v) => -v) : x) : (x[1] < 0 ? x.map((v) => -v) : x);
+  if (restless(pv)) return null;
+  const [M0, K0] = physics.linear(y, pv), L = cholesky(M0);
+  if (!L.every((row, i) => row[i] > 0)) return null;
+  const solve = (b) => { const x = []; for (let i = 0; i < N; i++) { let s = b[i]; for (let k = 0; k < i; k++) s -= L[i][k] * x[k]; x.push(s / L[i][i]); } return x; };
+  const back = (b) => { const x = new Array(N); for (let i = N - 1; i >= 0; i--) { let s = b[i]; for (let k = i + 1; k < N; k++) s -= L[k][i] * x[k]; x[i] = s / L[i][i]; } return x; };
+  const W = K0.map((row) => solve(row)); // L^-1 K0 (K0 symmetric: its rows are its columns)
+  const A = W.map((_, i) => solve(W.map((row) => row[i]))); // L^-1 (L^-1 K0)^T = L^-1 K0 L^-T
+  const { values: lambdas, V } = jacobi(A.map((row, i) => row.map((v, j) => 0.5 * (v + A[j][i]))));
+  const order = lambdas.map((_, k) => k).sort((i, j) => lambdas[i] - lambdas[j]);
+  if (!(lambdas[order[0]] > 0)) return null; // not a stable equilibrium (e.g. g = 0)
+  const shapes = order.map((k) => {
+    const x = back(V.map((row) => row[k])); // L^-T v: x' M0 x = v' v = 1
+    const peak = x.reduce((m, v) => (Math.abs(v) > Math.abs(m) ? v : m), 0);
+    return peak < 0 ? x.map((v) => -v) : x;
   });
-  const w = lambdas.map(Math.sqrt);
+  const w = order.map((k) => Math.sqrt(lambdas[k]));
   return { frequencies: w, frequencies_hz: w.map((v) => v / (2 * Math.PI)), periods: w.map((v) => 2 * Math.PI / v),
            shapes, ratios: shapes.map((x) => x[1] / x[0]) };
-}
-// A chain's modes: the library's at g = PAGE.modes.g, the frequencies scaled to the current g (K0 is
-// proportional to g, M0 holds none), the shapes unchanged; none without gravity or where the hanging
-// position is no stable equilibrium.
-function chainModes(pv) {
-  const m = PAGE.modes, g = gravity(pv);
-  if (m.error || !(g > 0)) return null;
-  const w = m.frequencies.map((v) => v * Math.sqrt(g / m.g));
-  return { frequencies: w, frequencies_hz: w.map((v) => v / (2 * Math.PI)), periods: w.map((v) => 2 * Math.PI / v),
-           shapes: m.shapes, ratios: m.shapes.map((x) => x[1] / x[0]) };
 }
 // a mode's shape as shown: its components divided by the largest in magnitude
 function shapeText(x) {
@@ -389,11 +413,11 @@ function shapeText(x) {
   return `(${NAMES.join(" : ")}) = (${x.map((v) => (v / peak).toFixed(3)).join(" : ")})`;
 }
 function showModes() {
-  const el = document.getElementById("modes"), m = normalModes(paramVector());
+  const el = document.getElementById("modes"), pv = paramVector(), m = normalModes(pv);
   if (!m) {
     el.replaceChildren(Object.assign(document.createElement("span"), {
-      className: "note", textContent: CHAIN && PAGE.modes.error ? `no normal modes: ${PAGE.modes.error}`
-        : values.g > 0 ? "no normal modes: the hanging position is not a stable equilibrium here"
+      className: "note", textContent: restless(pv) ? `no normal modes: ${restless(pv)}`
+        : pv[GRAVITY] > 0 ? "no normal modes: the hanging position is not a stable equilibrium here"
         : "no normal modes for g = 0: without gravity the hanging position is not a stable equilibrium" }));
     return;
   }
@@ -402,7 +426,7 @@ function showModes() {
     const s = m.shapes[k];
     const li = document.createElement("li");
     li.innerHTML = `<span>mode ${k + 1}: <b>${m.frequencies_hz[k].toFixed(4)} Hz</b>, T = ${m.periods[k].toFixed(3)} s, ` +
-      (CHAIN ? `shape ${shapeText(s)}</span>` : `ψ/φ = ${m.ratios[k].toFixed(3)}</span>`);
+      `shape ${shapeText(s)}</span>`;
     const btn = Object.assign(document.createElement("button"), { type: "button", textContent: "start" });
     btn.dataset.mode = String(k);
     btn.addEventListener("click", () => startMode(s));
@@ -427,11 +451,12 @@ function invalidateFlipMap() {
   document.getElementById("flipmap-status").textContent = "parameters changed…";
 }
 // The flip map: starts at rest on the cell centres of [-180, 180]^2, each integrated in a Web Worker by
-// the library's flip method (flipworker.js) on the generated physics; mirror starts (-phi0, -psi0)
-// share one integration when the equations are odd (no torques).  A chain's: over its first two angles,
-// the others at 0 (skewpend.flip_map(chain)'s default plane), until any angle reaches pi, with no mirror
-// (a chain's bodies need not be symmetric).  A change of parameters cancels a map in progress.
-const FLIP = { n: CHAIN ? 32 : 48, tEnd: 10, rtol: 1e-10, atol: 1e-10, maxSteps: 20000 };
+// the library's flip method (flipworker.js) on the generated physics; mirror starts (-q0)
+// share one integration when the equations are odd (physics.FLIP_ODD, no torques).  Over the first two
+// angles, the others at 0 (skewpend.flip_map's default plane), until any angle reaches pi.  The cells a
+// side: 48 for two links, fewer for more (a cell's cost grows about as the square of the links).  A change
+// of parameters cancels a map in progress.
+const FLIP = { n: 2 * Math.round(48 / N), tEnd: 10, rtol: 1e-10, atol: 1e-10, maxSteps: 20000 };
 let flipSerial = 0, pool = [], flipWanted = false; // flipWanted: the panel was shown (or the button pressed)
 function workerSource() {
   return ["physics-classic", "dop853", "flipworker"].map((name) => self.skewpend.source(name)).join("\n");
@@ -450,7 +475,7 @@ function computeFlipMap() {
   const status = document.getElementById("flipmap-status"), serial = ++flipSerial;
   const n = FLIP.n, t0 = performance.now(), pv = paramVector();
   const c = centres(-Math.PI, Math.PI, n);
-  const odd = !CHAIN && physics.FLIP_ODD && pv[ORDER.indexOf("tau1")] === 0 && pv[ORDER.indexOf("tau2")] === 0;
+  const odd = physics.FLIP_ODD && PAGE.torques.every((i) => pv[i] === 0);
   const start = (a, b) => [a, b, ...new Array(N - 2).fill(0)]; // the angles at release
   // the cells to integrate: all, or one of each mirror pair (i, j) ~ (n-1-i, n-1-j)
   const todo = [];
@@ -578,19 +603,11 @@ canvas.addEventListener("pointermove", (ev) => {
   const plane = new THREE.Plane().setFromNormalAndCoplanarPoint(axis, pivot);
   const point = new THREE.Vector3();
   if (!pointerRay(ev).ray.intersectPlane(plane, point)) return;
-  if (!CHAIN && k === 0) {
-    const down = world(0, 1, 0);
-    setValue("phi0", angleAbout(pivot, axis, down, point) / DEG, false);
-  } else if (!CHAIN) {
-    const ref = new THREE.Vector3().subVectors(G.t1, G.o).normalize(); // rod 2 at psi = 0 continues rod 1
-    setValue("psi0", angleAbout(pivot, axis, ref, point) / DEG, false);
-  } else {
-    const rod = new THREE.Vector3().subVectors(G.tips[k], pivot);
-    rod.addScaledVector(axis, -rod.dot(axis));
-    if (rod.lengthSq() < 1e-18) return; // rod k along its own hinge axis: no angle to read
-    const key = START_KEYS[k];
-    setValue(key, wrap180(values[key] + angleAbout(pivot, axis, rod.normalize(), point) / DEG), false);
-  }
+  // the rod as drawn turns by the angle from it to the pointer about its hinge: its joint's angle y[k] plus that
+  const rod = new THREE.Vector3().subVectors(G.tips[k], pivot);
+  rod.addScaledVector(axis, -rod.dot(axis));
+  if (rod.lengthSq() < 1e-18) return; // rod k along its own hinge axis: no angle to read
+  setValue(START_KEYS[k], wrap180((y[k] + angleAbout(pivot, axis, rod.normalize(), point)) / DEG), false);
 });
 function endDrag(ev) {
   if (!dragging) return;
@@ -628,20 +645,16 @@ function loadUrl() {
 }
 
 // ---- start -----------------------------------------------------------------------------------------------
-if (CHAIN) { // the page names the chain and says what its panels show
-  const axes = PAGE.links.map((l) => `(${l.axis.map((v) => +v.toFixed(3)).join(", ")})`).join(", ");
-  document.title = `skewpend explorer — a chain of ${N} links with skewed hinge axes`;
-  document.querySelector("header p").textContent = `A chain of ${N} links whose hinge axes are ${axes}, each in its ` +
-    "parent's frame with the chain hanging (j points down): the motion, the energy and the flip map are computed in your " +
-    "browser by JavaScript generated from the chain's recursive algorithms; the linearised equations and the normal modes " +
-    "are skewpend's (normal_modes), their frequencies scaled to the slider's g.";
-  document.querySelector("#equations-panel h2").innerHTML = "Linearised equations <small>about the hanging position, " +
-    "numbers rounded</small>";
-  document.getElementById("flipmap").setAttribute("aria-label", `flip-time map: starting angles ${NAMES[0]} across, ${NAMES[1]} up`);
-  document.querySelector("#flipmap-panel .legend").textContent = `${NAMES[0]} start across, ${NAMES[1]} start up, each ` +
-    `−180° … 180°, ${NAMES.slice(2).join(", ")} at 0, released at rest. Colour: the time until any angle first reaches ` +
-    "180° — bright: early, dark: late (log scale); white: no flip within the time looked at. Green ring: the current start.";
-}
+// the page names the model and says what its panels show
+document.title = `skewpend explorer — ${PAGE.title}`;
+document.querySelector("header p").textContent = PAGE.lead;
+if (!SYMBOLIC) document.querySelector("#equations-panel h2").innerHTML = "Linearised equations <small>about the hanging " +
+  "position, numbers rounded</small>";
+document.getElementById("flipmap").setAttribute("aria-label", `flip-time map: starting angles ${NAMES[0]} across, ${NAMES[1]} up`);
+document.querySelector("#flipmap-panel .legend").textContent = `${NAMES[0]} start across, ${NAMES[1]} start up, each ` +
+  `−180° … 180°, ${NAMES.slice(2).map((c) => `${c} at 0, `).join("")}released at rest. Colour: the time until a rod first ` +
+  "goes over the top (an angle reaches 180°) — bright: early, dark: late (log scale); white: no flip within the time " +
+  "looked at. Green ring: the current start.";
 buildSliders();
 loadUrl();
 for (const [key] of SLIDERS) showValue(key);
@@ -692,8 +705,7 @@ window.explorer = {
   state: () => ({ t, y: [...y], p: [...p], running, fps, frames, E0, values: { ...values }, trail: view.trailCount,
                   frameMs: frameMs.count ? frameMs.total / frameMs.count : null }),
   flip: () => flip && { ...flip },
-  equations: () => (CHAIN ? { latex: chainEquationsTex(paramVector()) }
-    : { terms: physics.TERMS, coefficients: physics.coefficients(paramVector()), latex: equationsTex(paramVector()) }),
+  equations: () => ({ terms: physics.TERMS, coefficients: physics.coefficients(paramVector()), latex: equationsLatex(paramVector()) }),
   modes: () => normalModes(paramVector()),
   // what the 3D view draws now: the rods' ends and the hinge axes, in three.js's coordinates (y up)
   geometry: () => { const G = view.geometry; return G && { tips: G.tips.map((v) => v.toArray()), axes: G.axes.map((v) => v.toArray()) }; },

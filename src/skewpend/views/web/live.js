@@ -1,21 +1,6 @@
-// skewpend's live motion, shared by the explorer page and the notebook widget: the sliders' ranges
-// and the fixed-step RK4 that advances the generated equations (`rhs(y, p)` from ./physics.js, the
-// derivation's own code) between two screen frames.  Nothing here is an equation of motion.
-
-/** The sliders: [key, label, min, max, step, default, unit, shown in degrees].  The defaults are
- *  skewpend's reference pendulum (`skewpend.reference_parameters()`, `reference_state()`). */
-export const SLIDERS = [
-  ["alpha", "α skew", -180, 180, 0.5, 34.38, "°", true],
-  ["a", "a rod 1", 0.2, 3, 0.05, 1.0, "m"],
-  ["b", "b rod 2", 0.2, 3, 0.05, 0.8, "m"],
-  ["m1", "m1", 0.1, 5, 0.05, 1.0, "kg"],
-  ["m2", "m2", 0.1, 5, 0.05, 0.7, "kg"],
-  ["g", "g", 0, 20, 0.01, 9.81, "m/s²"],
-  ["c1", "c1 damping", 0, 2, 0.01, 0, "N m s"],
-  ["c2", "c2 damping", 0, 2, 0.01, 0, "N m s"],
-  ["phi0", "φ0 start", -180, 180, 0.5, 68.75, "°", true],
-  ["psi0", "ψ0 start", -180, 180, 0.5, -45.84, "°", true],
-];
+// skewpend's live motion, shared by the explorer page and the notebook widget: the fixed-step RK4 that
+// advances the generated equations (`rhs(y, p)` from ./physics.js, the model's own code) between two screen
+// frames.  Nothing here is an equation of motion.
 
 /** The fixed RK4 step [s] of the live motion (its energy drift is shown beside it). */
 export const DT = 1 / 1000;

@@ -5,7 +5,8 @@
 //   running bool                                            playing or paused
 //   run     {} or {t, tips, axes, y, size, label}           a computed run to replay (Python's simulate)
 //   sliders [names]                                         the sliders to show
-//   specs   [] or [[key, label, min, max, step, default, unit, degrees]]  a chain's sliders (else live.js's)
+//   specs   [[key, label, min, max, step, default, unit, degrees]]  the sliders (skewpend.views.frontend.page_sliders:
+//           the parameters a slider sets alone, then each joint's start)
 //   size    0 or the length scale of the drawn axes [m]     a chain's longest link (else from a, b)
 // A chain of links: its physics (the recursive algorithms' module) takes the full parameter vector;
 // `values` holds what its sliders change (g, each joint's damping), the rest comes from physics.P;
@@ -18,19 +19,11 @@
 // a replay shows the library's states frame by frame.  No element ids: many widgets share a page.
 import { createScene } from "./scene.js";
 import * as physics from "./physics.js";
-import { SLIDERS, advance, frameAt } from "./live.js";
+import { advance, frameAt } from "./live.js";
 
 const DEG = Math.PI / 180;
 const ORDER = physics.PARAMETER_ORDER;
 const REPORT_MS = 250; // how often the shown state is written back while it moves
-const ANGLES = new Set(["alpha", "phi0", "psi0"]);
-/** The index in y0 of a start slider ("phi0", "psi0", a chain's "q<k>_0"), or -1. */
-function startIndex(key) {
-  if (key === "phi0") return 0;
-  if (key === "psi0") return 1;
-  const m = /^q(\d+)_0$/.exec(key);
-  return m ? parseInt(m[1], 10) - 1 : -1;
-}
 const DISSIPATIVE = /^(c|cf|tau)\d+$/; // damping, Coulomb friction, torques: the energy is not conserved
 
 function element(tag, props = {}, ...children) {
@@ -75,8 +68,10 @@ export function render({ model, el }) {
   // a value not among `values` (a chain's bodies and axes) is the generated module's own
   function vector(v) { return ORDER.map((k, i) => (Number.isFinite(v[k]) ? v[k] : physics.P ? physics.P[i] : 0)); }
   function size() { return +model.get("size") || Math.max(values.a || 1, values.b || 1); }
-  function specs() { const given = model.get("specs"); return given && given.length ? given : SLIDERS; }
-  function isAngle(key) { return ANGLES.has(key) || startIndex(key) >= 0; }
+  function specs() { return model.get("specs") || []; }
+  // the index in y0 of a start slider (the last N: "phi0", "psi0"; a chain's "q<k>_0"), or -1
+  function startIndex(key) { return specs().slice(-physics.N).map((s) => s[0]).indexOf(key); }
+  function isAngle(key) { return !!(specs().find((s) => s[0] === key) || [])[7]; }
   function showMessage(text) { message = text; note.textContent = text; note.hidden = !text; }
 
   // ---- the sliders ----------------------------------------------------------------------------------
