@@ -122,7 +122,7 @@ def test_a_law_returning_nan_is_a_failed_run_without_criteria():
 def test_lqr_of_a_chain_takes_a_word_per_link_and_each_joint_once():
     chain = _three_links()
     for label in ("up-up", "up-up-up-up"):
-        with pytest.raises(ParameterError, match=f"equilibrium '{label}' names .* this chain has 3"):
+        with pytest.raises(ParameterError, match=f"equilibrium '{label}' names .* a chain of 3 links has 3"):
             skewpend.lqr(chain, label, estimate=False)
     with pytest.raises(ParameterError, match="target 'up-up' names 2 links"):
         skewpend.region_of_attraction(chain, "up-up", n=4)
@@ -146,8 +146,8 @@ def test_optimal_swingup_checks_its_arguments_before_any_work():
         (dict(start="hanging"), "start must be 4 finite numbers"),
         (dict(attempts=0), "attempts must be a whole number >= 1"),
         (dict(max_iter=2.5), "max_iter must be a whole number"),
-        (dict(actuated=(True,)), "actuated must be acrobot, pendubot"),
-        (dict(actuated=(2, 2)), "actuated must be acrobot, pendubot"),
+        (dict(actuated=(True,)), "actuated must be one of both, pendubot, acrobot"),
+        (dict(actuated=(2, 2)), "actuated must be one of both, pendubot, acrobot"),
         (dict(umax=True), "umax must be a positive torque limit"),
         (dict(guess=math.inf), "guess must be a duration"),
         (dict(iterations=3), "iterations must be a callable"),
@@ -155,7 +155,7 @@ def test_optimal_swingup_checks_its_arguments_before_any_work():
     for kwargs, words in cases:
         with pytest.raises(ParameterError, match=words):
             optimal_swingup(model, **kwargs)
-    with pytest.raises(ParameterError, match="goal 'up-up' names 2 links; this chain has 3"):
+    with pytest.raises(ParameterError, match="goal 'up-up' names 2 links; a chain of 3 links has 3"):
         optimal_swingup(_three_links(), actuated="all", goal="up-up")
 
 

@@ -1,8 +1,8 @@
 """Balance it and swing it up: linearisation with inputs, controllability, LQR, swing-up.
 
 * :func:`linearization` -- ``x' = A x + B u`` about any equilibrium (:func:`skewpend.equilibria`),
-  ``B`` for the actuated joints: ``"both"``, ``"acrobot"`` (the elbow only) or ``"pendubot"``
-  (the shoulder only);
+  any model, ``B`` for the actuated joints: ``"both"`` (every joint), the joints' numbers, or for two links
+  ``"acrobot"`` (the elbow only) or ``"pendubot"`` (the shoulder only);
 * :func:`controllability` -- the rank of ``[B, AB, A^2 B, A^3 B]`` and how close the pair is to
   uncontrollable: the smallest singular value of ``[A - lambda I, B]`` over the eigenvalues
   ``lambda`` of ``A`` (the Popov-Belevitch-Hautus test, as a distance);
@@ -27,10 +27,8 @@ from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..checks import angles, numeric_params
+from ..checks import angles, numeric_model, numeric_params
 from ..errors import EquilibriumError, ParameterError
-from ..symbolic.chain import Chain
-from ..symbolic.model import Parameters
 
 __all__ = ["Linearization", "linearization", "controllability", "LQR", "lqr", "SwingUp", "swingup"]
 
@@ -46,62 +44,17 @@ class EveryLinkUp(str):
 EVERY_LINK_UP = EveryLinkUp("up-up")
 
 
-def _chain_columns(actuated, n: int) -> Tuple[int, ...]:
-    """A chain's actuated joints (0-based) from ``"all"`` (or ``"both"``, the functions' default: every joint)
-    or the joints' numbers 1 .. n with a motor."""
-    if isinstance(actuated, str) and actuated in ("all", "both"):
-        return tuple(range(n))
-    from ..numeric.control import operator_index
-
-    try:
-        given = [operator_index(j) for j in actuated] if not isinstance(actuated, (str, bytes, dict)) else None
-    except TypeError:  # a float, a bool (True is no joint number), a string among them
-        given = None
-    joints = sorted(set(given)) if given is not None else None
-    ok = joints is not None and len(joints) == len(given)  # each joint once
-    if not ok or not joints or not all(1 <= j <= n for j in joints):
-            raise ParameterError(f"actuated must be 'all' or the numbers of the joints with a motor, 1 to {n}, each once "
-                             f"(whole numbers, e.g. (2,) for an elbow only, (1, 3)), got {actuated!r}")
-    return tuple(j - 1 for j in joints)
-
-
-def _chain_limits(umax, n: int) -> Tuple[float, ...]:
-    """A chain's torque limits: one for every joint or one per joint (inf: none)."""
-    if umax is None:
-        return (math.inf,) * n
-    refusal = ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint: {n}; inf: none), got {umax!r}")
-    if isinstance(umax, (str, bytes, bool)):
-        raise refusal
-    try:
-        values = np.broadcast_to(np.asarray(umax, dtype=float), (n,))
-    except (TypeError, ValueError, OverflowError):
-        raise refusal from None
-    if not np.all(values > 0) or np.any(values < 2.2250738585072014e-308):
-        raise refusal
-    return tuple(float(v) for v in values)
-
-
-def _columns(actuated: str) -> Tuple[int, ...]:
-    from ..numeric.control import ACTUATION
-
-    if not isinstance(actuated, str) or actuated not in ACTUATION:
-        raise ParameterError(f"actuated must be one of {', '.join(ACTUATION)} (acrobot: the elbow only, pendubot: "
-                             f"the shoulder only), got {actuated!r}")
-    code = ACTUATION[actuated]
-    return tuple(j for j in range(2) if code & (1 << j))
-
-
 @dataclass(frozen=True)
 class Linearization:
-    """``d/dt dx = A dx + B du`` about ``equilibrium`` (its state ``x*``); ``actuated`` and the
-    joints ``B``'s columns drive (0: the shoulder, 1: the elbow); ``coulomb``: how Coulomb friction
+    """``d/dt dx = A dx + B du`` about ``equilibrium`` (its state ``x*``); ``actuated`` as given (a name, or
+    the joints' numbers) and the joints ``B``'s columns drive (0-based: 0 the shoulder); ``coulomb``: how Coulomb friction
     entered ``A`` (``"smoothed"``, the control default: its smoothed slope ``cfs cf`` as viscous
     damping; ``"exclude"``: not at all), ``coulomb_note`` says it."""
 
     A: np.ndarray
     B: np.ndarray
     equilibrium: Any = field(repr=False)
-    actuated: str = "both"
+    actuated: Any = "both"
     joints: Tuple[int, ...] = (0, 1)
     coulomb: str = "smoothed"
     params: Any = field(repr=False, default=None)
@@ -118,10 +71,9 @@ class Linearization:
         return "" if self.params is None else coulomb_note(self.params, self.coulomb)
 
 
-def linearization(params: Parameters, equilibrium=EVERY_LINK_UP, actuated: str = "both", *,
-                  coulomb: str = "smoothed") -> Linearization:
+def linearization(params, equilibrium=EVERY_LINK_UP, actuated="both", *, coulomb: str = "smoothed") -> Linearization:
     """The state-space linearisation about an equilibrium (a label, an ``Equilibrium`` or
-    ``(phi, psi)`` near one) with the input matrix of the actuated joints:
+    angles near one, ``(phi, psi)`` for the double pendulum) with the input matrix of the actuated joints:
     ``B = [0; M^-1 S]``, ``S`` the columns of the actuated joints.
 
     Coulomb friction: unlike the modes and the equilibria (which leave it out, as non-smooth at
@@ -131,68 +83,46 @@ def linearization(params: Parameters, equilibrium=EVERY_LINK_UP, actuated: str =
     slope out gives a ``V = dx^T P dx`` that grows arbitrarily close to the target there (no
     region).  ``coulomb="exclude"`` leaves it out; ``coulomb_note`` says which was done.
 
-    A :class:`~skewpend.Chain` of ``n`` links: ``equilibrium`` one of its ``2^n`` labels
-    (``"up-up-up"``, a word per link; the default, :data:`EVERY_LINK_UP`, every link up) or its ``Equilibrium``,
-    ``actuated`` ``"all"`` or the numbers of the joints with a motor (``(2,)``, ``(1, 3)``)."""
+    Any model (the double pendulum, a chain of ``n`` links): ``equilibrium`` a label with a word per link
+    (``"up-up-up"``; the default, :data:`EVERY_LINK_UP`, every link up), an ``Equilibrium`` or angles near one;
+    ``actuated`` ``"both"`` or ``"all"`` (every joint), the numbers of the joints with a motor (``(2,)``,
+    ``(1, 3)``) or, for two links, ``"acrobot"`` / ``"pendubot"`` (:func:`skewpend.numeric.control.actuated_joints`)."""
+    from ..numeric.control import actuated_joints
     from ..symbolic.friction import check_coulomb
-
-    if isinstance(params, Chain):
-        return _chain_linearization(params, equilibrium, actuated, check_coulomb(coulomb))
-    params = numeric_params(params, "a linearisation")
-    joints = _columns(actuated)
-    coulomb = check_coulomb(coulomb)
     from .equilibria import find_equilibrium
 
-    eq = find_equilibrium(params, equilibrium_argument(equilibrium), "equilibrium", coulomb=coulomb)
-    S = np.eye(2)[:, list(joints)]
-    B = np.vstack([np.zeros((2, len(joints))), np.linalg.solve(eq.M, S)])
-    return Linearization(eq.A.copy(), B, eq, actuated, joints, coulomb, params)
+    model = numeric_model(params, "a linearisation")
+    n = model.n
+    joints = tuple(j - 1 for j in actuated_joints(actuated, n))
+    coulomb = check_coulomb(coulomb)
+    eq = find_equilibrium(model, equilibrium_argument(equilibrium, model), "equilibrium", coulomb=coulomb)
+    B = np.vstack([np.zeros((n, len(joints))), np.linalg.solve(eq.M, np.eye(n)[:, list(joints)])])
+    given = actuated if isinstance(actuated, str) else tuple(j + 1 for j in joints)
+    return Linearization(eq.A.copy(), B, eq, given, joints, coulomb, model)
 
 
-def _chain_linearization(chain: Chain, equilibrium, actuated, coulomb: str) -> Linearization:
-    from .equilibria import Equilibrium, equilibria
-
-    n = chain.n
-    joints = _chain_columns(actuated, n)
-    equilibrium = chain_label(equilibrium, n)
-    if isinstance(equilibrium, Equilibrium):
-        eq = equilibrium
-    elif isinstance(equilibrium, str):
-        eq = equilibria(chain, coulomb=coulomb).find(equilibrium)
-    else:
-        raise ParameterError(f"equilibrium of a chain must be one of its labels ({'-'.join(['up'] * n)}, ...) or an "
-                             f"Equilibrium of skewpend.equilibria(chain), got {equilibrium!r}")
-    S = np.eye(n)[:, list(joints)]
-    B = np.vstack([np.zeros((n, len(joints))), np.linalg.solve(eq.M, S)])
-    label = "all" if len(joints) == n else "joint" + ("s " if len(joints) > 1 else " ") + ", ".join(str(j + 1) for j in joints)
-    return Linearization(eq.A.copy(), B, eq, label, joints, coulomb, chain)
-
-
-def chain_label(label, n: int, name: str = "equilibrium"):
-    """A chain's equilibrium label checked against its ``n`` links: :data:`EVERY_LINK_UP` (the default) is every
-    link up; a label must have a word per link (``"up-up"`` names two links, so a chain of three refuses it
-    rather than reading it as ``"up-up-up"``).  Anything but a string is returned as given."""
-    if label is EVERY_LINK_UP:
-        return "-".join(["up"] * n)
-    if isinstance(label, str):
-        words = label.split("-")
-        if len(words) != n:
-            raise ParameterError(f"{name} {label!r} names {len(words)} link{'s' if len(words) != 1 else ''}; this chain "
-                                 f"has {n}: give a word per link, e.g. {'-'.join(['up'] * n)}")
-    return label
-
-
-def equilibrium_argument(which, name: str = "equilibrium"):
-    """A label or an ``Equilibrium`` as given; angles ``(phi, psi)`` reduced modulo 2 pi
-    (:func:`skewpend.checks.angles`: refused beyond 1e6 rad, where the reduction loses its digits)."""
+def equilibrium_argument(which, model, name: str = "equilibrium"):
+    """An equilibrium as given for ``model``: :data:`EVERY_LINK_UP` (the default) every link up; a label with a
+    word per link (``"up-up"`` names two links, so a chain of three refuses it rather than reading it as
+    ``"up-up-up"``); an ``Equilibrium``; angles near one, reduced modulo 2 pi (:func:`skewpend.checks.angles`:
+    refused beyond 1e6 rad, where the reduction loses its digits)."""
     from .equilibria import Equilibrium
 
-    if isinstance(which, (str, Equilibrium)):
+    n, up = model.n, "-".join(["up"] * model.n)
+    if which is EVERY_LINK_UP:
+        return up
+    if isinstance(which, str):
+        words = len(which.split("-"))
+        if words != n:
+            raise ParameterError(f"{name} {which!r} names {words} link{'s' if words != 1 else ''}; {model.title} has "
+                                 f"{n}: give a word per link, e.g. {up}")
+        return which
+    if isinstance(which, Equilibrium):
         return which
     if not hasattr(which, "__len__"):
-        raise ParameterError(f"{name} must be an equilibrium, a label such as 'up-up', or angles (phi, psi) near one, "
-                             f"got {which!r}")
-    return angles(name, which, 2)
+        raise ParameterError(f"{name} must be an equilibrium, a label such as '{up}', or angles "
+                             f"({', '.join(model.coordinates)}) near one, got {which!r}")
+    return angles(name, which, n)
 
 
 def _matrix(name: str, value, shape: Optional[Tuple[int, ...]] = None, ndim: int = 2) -> np.ndarray:
@@ -275,18 +205,12 @@ class LQR:
         from ..numeric.control import Controller
 
         lin = self.linearization
-        return Controller.feedback(self.gain, lin.target, _u_target(self.params, lin), actuated=_actuated(lin),
-                                   umax=self.umax if umax is None else umax)
+        return Controller.feedback(self.gain, lin.target, actuated=lin.actuated, umax=self.umax if umax is None else umax)
 
     def inside(self, x) -> np.ndarray:
         """Whether states ``x`` (..., 4; a chain's ..., 2 n) lie inside the estimate ``dx^T P dx < rho`` (angles wrapped)."""
         dx = _deviation(np.asarray(x, dtype=float), self.linearization.target)
         return np.einsum("...i,ij,...j->...", dx, self.P, dx) < self.rho
-
-
-def _u_target(params: Parameters, lin: Linearization) -> np.ndarray:
-    # the equilibrium holds with the constant torques of params; the inputs add nothing there
-    return np.zeros(lin.A.shape[0] // 2)
 
 
 def _deviation(x: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -298,11 +222,6 @@ def _deviation(x: np.ndarray, target: np.ndarray) -> np.ndarray:
     return dx
 
 
-def _actuated(lin: Linearization):
-    """The controller's ``actuated`` for a linearisation: the double pendulum's label, a chain's joint numbers."""
-    return tuple(j + 1 for j in lin.joints) if isinstance(lin.params, Chain) else lin.actuated
-
-
 #: rho is this fraction of the smallest level V at which the search found V' >= 0 (see _rho_estimate).
 RHO_MARGIN = 0.95
 #: The search: rays through the ellipsoids (each bisected to its first crossing), radii per ray,
@@ -310,7 +229,7 @@ RHO_MARGIN = 0.95
 RHO_RAYS, RHO_RADII, RHO_SAMPLES, RHO_STARTS = 2048, 40, 20000, 24
 
 
-def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.ndarray, umax, samples: int = RHO_SAMPLES,
+def _rho_estimate(params, lin: Linearization, K2: np.ndarray, P: np.ndarray, umax, samples: int = RHO_SAMPLES,
                   seed: int = 0) -> float:
     """The region estimate ``rho`` (see :func:`lqr`): :data:`RHO_MARGIN` times the smallest level
     ``V = dx^T P dx`` at which a seeded search finds ``V' = 2 dx^T P f(x) >= 0`` for the saturated
@@ -330,7 +249,7 @@ def _rho_estimate(params: Parameters, lin: Linearization, K2: np.ndarray, P: np.
 
     target = lin.target
     n2 = P.shape[0]
-    ctl = Controller.feedback(K2, lin.target, actuated=_actuated(lin), umax=umax)
+    ctl = Controller.feedback(K2, lin.target, actuated=lin.actuated, umax=umax)
     rhs = ctl.closed_loop_function(model_kernel(params), model_vector(params))
     Pinv = np.linalg.inv(P)
     ceiling = math.pi ** 2 / max(Pinv[i, i] for i in range(n2 // 2))  # the ellipsoid's angle errors reach pi there
@@ -434,12 +353,12 @@ def check_weights(Q, R, m: int, n2: int = 4, *, q_name: str = "Q") -> Tuple[np.n
     return Qm, Rm
 
 
-def lqr(params: Parameters, equilibrium=EVERY_LINK_UP, actuated: str = "both", Q=None, R=None, *, umax=None,
+def lqr(params, equilibrium=EVERY_LINK_UP, actuated="both", Q=None, R=None, *, umax=None,
         estimate: bool = True, coulomb: str = "smoothed") -> LQR:
-    """The LQR about ``equilibrium`` (a label, an ``Equilibrium`` or angles ``(phi, psi)`` near one,
-    reduced modulo 2 pi) with the ``actuated`` joints (see the module).
+    """The LQR of any model about ``equilibrium`` (a label, an ``Equilibrium`` or angles near one, reduced
+    modulo 2 pi) with the ``actuated`` joints (see :func:`linearization`).
 
-    ``Q`` (4 x 4, default identity) and ``R`` (m x m, default identity; a number for one motor)
+    ``Q`` (2 n x 2 n: the double pendulum's 4 x 4; default identity) and ``R`` (m x m, default identity; a number for one motor)
     must be symmetric, ``Q`` positive semi-definite and ``R`` positive definite.  A singular
     ``Q`` is accepted where the Riccati equation still has its unique stabilising solution and the
     closed loop is asymptotically stable, i.e. ``(A, Q^1/2)`` is detectable (at the top ``Q = 0``
@@ -452,28 +371,20 @@ def lqr(params: Parameters, equilibrium=EVERY_LINK_UP, actuated: str = "both", Q
     ``result.linearization.coulomb_note``)."""
     from scipy.linalg import solve_continuous_are
 
-    from ..numeric.control import torque_limits
+    from ..numeric.control import actuated_joints, actuation_text, torque_limits
 
     if not isinstance(estimate, (bool, np.bool_)):
         raise ParameterError(f"estimate must be True or False, got {estimate!r}")
-    if isinstance(params, Chain):
-        n = params.n
-        joints = _chain_columns(actuated, n)
-        Qm, Rm = check_weights(Q, R, len(joints), 2 * n)
-        limits = _chain_limits(umax, n)
-        lin = linearization(params, equilibrium, actuated, coulomb=coulomb)
-        who = "chain with " + ("every joint actuated" if lin.actuated == "all" else f"{lin.actuated} actuated")
-    else:
-        params = numeric_params(params, "an LQR")
-        joints = _columns(actuated)
-        Qm, Rm = check_weights(Q, R, len(joints))
-        limits = torque_limits(umax)
-        lin = linearization(params, equilibrium_argument(equilibrium), actuated, coulomb=coulomb)
-        who = actuated
+    params = numeric_model(params, "an LQR")
+    n = params.n
+    joints = actuated_joints(actuated, n)
+    Qm, Rm = check_weights(Q, R, len(joints), 2 * n)
+    limits = torque_limits(umax, n)
+    lin = linearization(params, equilibrium, actuated, coulomb=coulomb)
     ctrb = controllability(lin.A, lin.B)
     if not ctrb["controllable"] or ctrb["distance"] < 1e-10:
         raise EquilibriumError(
-            f"the {who} is not controllable at {lin.equilibrium.label} for these parameters (rank {ctrb['rank']} of "
+            f"{actuation_text(actuated, joints, params)} is not controllable at {lin.equilibrium.label} for these parameters (rank {ctrb['rank']} of "
             f"{lin.A.shape[0]}, PBH distance {ctrb['distance']:.2e}): no linear feedback can stabilise it")
     w = np.linalg.eigvalsh(Qm)
     singular_q = not (w[0] > 1e-12 * max(w[-1], 1e-300))
@@ -534,7 +445,7 @@ class SwingUp:
 SWINGUP_T_MAX = 3600.0
 
 
-def swingup(params: Parameters, target="up-up", actuated: str = "both", *, umax=10.0, energy_gain: float = 2.0,
+def swingup(params, target="up-up", actuated="both", *, umax=10.0, energy_gain: float = 2.0,
             elbow_gains=(20.0, 4.0), t_end: float = 20.0, y0: Optional[Sequence[float]] = None, Q=None, R=None,
             dt_out: float = 0.01, progress: Optional[Callable[[float, float], None]] = None) -> SwingUp:
     """Swing the pendulum up from ``y0`` (default: hanging, nudged by 0.05 rad) to ``target`` (a
@@ -547,9 +458,11 @@ def swingup(params: Parameters, target="up-up", actuated: str = "both", *, umax=
     from ..numeric.control import Controller
     from ..numeric.simulation import simulate
 
+    from ..numeric.control import actuated_joints
+
     params = numeric_params(params, "a swing-up")
-    _columns(actuated)
-    target = equilibrium_argument(target, "target")
+    actuated_joints(actuated, params.n)
+    target = equilibrium_argument(target, params, "target")
     t_end = positive("t_end", t_end, cap=SWINGUP_T_MAX)
     dt_out = positive("dt_out", dt_out, cap=t_end)
     if t_end / dt_out > 1e7:

@@ -38,6 +38,7 @@ from typing import Any, Dict, Optional, Tuple
 import numpy as np
 
 from ..errors import ParameterError
+from ..numeric.control import ROBOTS
 
 __all__ = ["PROTOCOL", "Protocol", "NORMALISATION", "Criteria", "criteria", "score", "ProtocolRun", "run_protocol",
            "Disturbance",
@@ -62,11 +63,13 @@ class Protocol:
 
 #: The simulation leaderboard v2's settings.
 PROTOCOL = Protocol()
+#: The form of the equations the leaderboard optimises (:mod:`~skewpend.analysis.trajopt`: CasADi's graph of the
+#: recursive algorithms, :func:`skewpend.numeric.recursive.chain_functions`) and runs by the protocol (the same
+#: algorithms printed straight, :func:`skewpend.numeric.kernels.chain_kernel`): one model, optimised and scored.
+FORM = "straight"
 #: The v2 score's criteria and their normalisation constants (``calculate_leaderboard_score.py``).
 NORMALISATION: Dict[str, float] = {"swingup_time": 20.0, "energy": 60.0, "tau_cost": 20.0, "tau_smoothness": 0.1,
                                    "velocity_cost": 400.0}
-#: The leaderboard's robots: which joint has the motor (1: the shoulder, 2: the elbow).
-ROBOTS: Dict[str, Tuple[int, ...]] = {"acrobot": (2,), "pendubot": (1,)}
 #: The best published entries (leaderboards v2, real_ai_gym_leaderboard at 81ea5bc): robot -> board -> (name, score).
 PUBLISHED: Dict[str, Dict[str, Tuple[str, float]]] = {
     "acrobot": {"simulation": ("History SAC", 0.655), "robustness": ("History SAC", 0.751)},
@@ -301,37 +304,32 @@ def run_protocol(model, law, *, actuated=(2,), umax: float = PROTOCOL.umax, prot
     ``protocol.steps`` steps, in one compiled loop (``sp_protocol``).  ``law``: a
     :class:`~skewpend.analysis.trajopt.Tracking` or a :class:`~skewpend.Controller` (compiled: no Python per
     step), or a Python ``law(t, x) -> torques`` (one per joint, or one for a single actuated joint; the slow
-    path).  ``actuated``: the joints' numbers with a motor (the others get 0); every torque clipped to
+    path).  The model runs as :func:`~skewpend.analysis.trajopt.optimal_swingup` optimises it: its chain
+    (``as_chain()``) in the recursive algorithms' :data:`FORM` -- one model, optimised and scored.
+    ``actuated``: the joints' numbers with a motor (the others get 0); every torque clipped to
     ``umax``; ``disturbance`` the robustness tests' changes (:class:`Disturbance`).  ``plant_values``: entries of
     the simulated plant's run-time array set by name (``c1``, ``cf1``, ...) -- values the model itself refuses,
     as the robustness test's negative damping and friction (the plant's code must read them: its friction
     or rotor terms present).  ``speeds``: what the law takes for the speeds, ``"measured"`` (the state's)
     or ``"positions"`` (its own observer's backward differences of the positions it has seen, second order:
     no noise from the speeds, a lag of order dt^2)."""
-    from ..numeric.control import raise_law_error
-    from ..numeric.kernels import model_kernel, model_vector
+    from ..numeric.control import joint_numbers, raise_law_error
+    from ..numeric.kernels import chain_kernel
+    from ..numeric.recursive import parameter_names, parameter_vector
 
-    sim = model if plant is None else plant
-    kernel = model_kernel(sim)
-    p = np.ascontiguousarray(model_vector(sim), dtype=float)
+    sim = (model if plant is None else plant).as_chain()
+    kernel = chain_kernel(sim, FORM)
+    p = np.ascontiguousarray(parameter_vector(sim), dtype=float)
     if plant_values:
-        from ..numeric.kernels import model_vector_names
-
-        names = model_vector_names(sim)
+        names = parameter_names(sim.n)
         for name, value in plant_values.items():
             if name not in names or not math.isfinite(float(value)):
                 raise ParameterError(f"plant_values: {name!r} is not a finite entry of the plant's run-time array "
                                      f"({', '.join(names)})")
             p[names.index(name)] = float(value)
     n = kernel.nq
-    from ..numeric.control import operator_index
-
-    try:
-        given = [operator_index(j) for j in actuated] if not isinstance(actuated, (str, bytes, dict)) else []
-    except TypeError:
-        given = []
-    joints = sorted(set(given))
-    if not joints or len(joints) != len(given) or not all(1 <= j <= n for j in joints):
+    joints = joint_numbers(actuated, n)
+    if joints is None:
         raise ParameterError(f"actuated must be the numbers of the joints with a motor, 1 to {n}, each once, got "
                              f"{actuated!r}")
     if speeds not in ("measured", "positions"):

@@ -35,19 +35,16 @@ from typing import Any, Callable, ClassVar, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..checks import max_steps as check_max_steps, numeric_params, positive, tolerances
+from ..checks import max_steps as check_max_steps, numeric_model, positive, tolerances
 from ..errors import EquilibriumError, ParameterError
 from ..numeric.grid import PlaneJob, plane_attrs
 from ..results import DatasetSpec, Result, canonical_json
 from ..schema import state_coordinates
-from ..symbolic.model import Parameters
 from .control import EVERY_LINK_UP
 
-__all__ = ["region_of_attraction", "RegionOfAttraction", "RoaJob", "open_region_of_attraction", "COORDINATES",
+__all__ = ["region_of_attraction", "RegionOfAttraction", "RoaJob", "open_region_of_attraction",
            "STORE_KIND", "MAX_STEPS_ROA"]
 
-#: The double pendulum's coordinates a slice may vary (their index in x = (phi, psi, phi', psi')).
-COORDINATES = state_coordinates(2)
 STORE_KIND = "skewpend region of attraction"
 #: Default cap on the steps of one start (a normal one takes hundreds; see the module on chattering).
 MAX_STEPS_ROA = 200_000
@@ -57,7 +54,7 @@ MAX_N = 4096
 CHUNK_STATS = ("cells", "captured", "failed", "steps", "rejected")
 
 
-def _plane(plane, nq: int = 2) -> Tuple[str, str]:
+def _plane(plane, nq: int) -> Tuple[str, str]:
     names = state_coordinates(nq)
     try:
         a, b = plane
@@ -275,7 +272,7 @@ class RoaJob(PlaneJob):
 
 
 def region_of_attraction(
-    params: Parameters,
+    params,
     target=EVERY_LINK_UP,
     actuated="both",
     n: int = 64,
@@ -298,9 +295,10 @@ def region_of_attraction(
     scheduler=None,
 ) -> RegionOfAttraction:
     """The region of attraction of the LQR about ``target`` with the ``actuated`` joints and the
-    torque limit ``umax`` [N m] (see the module), on ``n x n`` cells of the slice ``plane`` (default
-    the two angles, ``("phi", "psi")``; a chain of links': ``("q1", "q2")`` of ``q1 … qn, dq1 … dqn``,
-    ``actuated`` ``"all"`` or the joints' numbers, ``target`` one of its labels, a word per link, e.g. ``"up-up-up"``; default every link up).
+    torque limit ``umax`` [N m] (see the module), on ``n x n`` cells of the slice ``plane`` of any model: two
+    of its coordinates and their rates (the double pendulum's ``phi, psi, dphi, dpsi``, a chain's ``q1 … qn,
+    dq1 … dqn``; default the first two angles); ``target`` a label with a word per link (default every link
+    up), an equilibrium or angles near one; ``actuated`` as :func:`skewpend.linearization` takes it.
 
     ``design``: an :class:`~skewpend.analysis.control.LQR` from :func:`skewpend.lqr` (then
     ``target``, ``actuated``, ``Q``, ``R`` and ``umax`` come from it); otherwise it is designed
@@ -316,17 +314,9 @@ def region_of_attraction(
     from .control import LQR, equilibrium_argument, lqr
     from ..numeric.grid import check_n
 
-    from ..symbolic.chain import Chain
-
-    if isinstance(params, Chain):
-        from .control import chain_label
-
-        nq = params.n
-        target = chain_label(target, nq, "target")  # a word per link ("up-up" is not a chain of three's)
-    else:
-        params = numeric_params(params, "a region of attraction")
-        target = equilibrium_argument(target, "target")  # angles reduced modulo 2 pi, refused beyond 1e6 rad
-        nq = 2
+    params = numeric_model(params, "a region of attraction")
+    nq = params.n
+    target = equilibrium_argument(target, params, "target")  # a word per link; angles reduced modulo 2 pi
     index = state_coordinates(nq)
     n = check_n(n)
     if n > MAX_N:
@@ -371,21 +361,16 @@ def region_of_attraction(
                     chunk_size=chunk_size, state=state)
 
 
-def roa_kernel(params: Parameters):
-    """The kernel of a map: the flip kernel (``sp_capture_lanes``, the starts in SIMD lanes), or
-    the simulation kernel (``sp_capture_many``) for a model the lanes cannot print (Coulomb
-    friction: not polynomial in the speeds; a chain of links)."""
-    from ..numeric.kernels import kernel_module, model_kernel
+def roa_kernel(model):
+    """The kernel of a map, which chooses its strategy: the flip kernel with ``sp_capture_lanes`` (the starts in
+    SIMD lanes) where its generator prints the model (:func:`~skewpend.analysis.flipmap.flip_kernel`) and the
+    lanes can take it (not Coulomb friction: not polynomial in the speeds), else the model's own kernel
+    (``sp_capture_many``, one start at a time)."""
+    from ..numeric.kernels import model_kernel
+    from .flipmap import flip_kernel
 
-    if not isinstance(params, Parameters):
-        return model_kernel(params)
-    if params.has_friction:
-        return kernel_module(params)
-    try:
-        kernel = kernel_module(params, flip=True)
-    except ValueError:  # the lanes' code generator refused the model
-        return kernel_module(params)
-    return kernel if hasattr(kernel.lib, "sp_capture_lanes") else kernel_module(params)
+    kernel = model_kernel(model) if model.has_friction else flip_kernel(model)
+    return kernel if hasattr(kernel.lib, "sp_capture_lanes") else model_kernel(model)
 
 
 def _check_feasible(job: RoaJob, state) -> None:

@@ -183,9 +183,7 @@ def robustness(law, *, actuated=(2,), alpha: float = 0.0, values: Optional[Dict[
     plant = dfki_model(alpha, nominal)
     steps, dt = protocol.steps, protocol.dt
     rng = np.random.default_rng(seed)
-    from ..numeric.kernels import model_kernel
-
-    n = model_kernel(plant).nq  # the plant's joints (each gets its pulses)
+    n = plant.n  # the plant's joints (each gets its pulses)
     total = (len(LAB_VARIATIONS) * settings.values + 2 * settings.values * settings.repetitions
              + 2 * settings.values + settings.perturbation_runs)
     count = [0]

@@ -446,28 +446,6 @@ def _as_chain(model):
         raise ParameterError(str(exc).replace("params must", "model must", 1)) from None
 
 
-def _actuated(actuated, n: int) -> Tuple[int, ...]:
-    from .leaderboard import ROBOTS
-
-    if isinstance(actuated, str):
-        if actuated in ROBOTS and n == 2:
-            return ROBOTS[actuated]
-        if actuated in ("all", "both"):
-            return tuple(range(1, n + 1))
-    elif not isinstance(actuated, (bytes, dict)):
-        from ..numeric.control import operator_index
-
-        try:
-            given = [operator_index(j) for j in actuated]
-        except TypeError:  # a float, a bool, a string among them, or no sequence
-            given = []
-        joints = tuple(sorted(set(given)))
-        if joints and len(joints) == len(given) and all(1 <= j <= n for j in joints):
-            return joints
-    raise ParameterError(f"actuated must be acrobot, pendubot, all or the numbers of the joints with a motor (1 to {n}, "
-                         f"each once), got {actuated!r}")
-
-
 def _state(name: str, value, n: int) -> np.ndarray:
     """A state of ``n`` joints (2 n finite numbers: angles [rad], then speeds [rad/s]), else one ParameterError."""
     bad = ParameterError(f"{name} must be {2 * n} finite numbers (the angles [rad], then the speeds [rad/s]), got "
@@ -484,18 +462,12 @@ def _state(name: str, value, n: int) -> np.ndarray:
 
 
 def _goal_state(chain, goal) -> Tuple[np.ndarray, str]:
-    from .equilibria import Equilibrium, equilibria
+    """The goal's state and label: a label with a word per link, an ``Equilibrium`` or angles near one."""
+    from .control import equilibrium_argument
+    from .equilibria import find_equilibrium
 
-    n = chain.n
-    if isinstance(goal, Equilibrium):
-        return _state("goal's state", goal.state, n), goal.label
-    if isinstance(goal, str):
-        from .control import chain_label
-
-        label = chain_label(goal, n, "goal")
-        eq = equilibria(chain).find(label)
-        return np.asarray(eq.state, dtype=float), label
-    raise ParameterError(f"goal must be an equilibrium's label (e.g. {'-'.join(['up'] * n)}) or an Equilibrium, got {goal!r}")
+    eq = find_equilibrium(chain, equilibrium_argument(goal, chain, "goal"), "goal")
+    return _state("goal's state", eq.state, chain.n), eq.label
 
 
 def _check_controllable(chain, label: str, actuated: Tuple[int, ...]) -> None:
@@ -532,9 +504,11 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     weights (:class:`Cost`)."""
     import time as _time
 
+    from ..numeric.control import actuated_joints
+
     chain = _as_chain(model)
     n = chain.n
-    joints = _actuated(actuated, n)
+    joints = actuated_joints(actuated, n)
     if not isinstance(cost, Cost):
         raise ParameterError(f"cost must be a skewpend Cost, got {type(cost).__name__}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):

@@ -49,8 +49,8 @@ def control(
     robot: Annotated[Optional[Robot], typer.Option("--robot", help="leaderboard: acrobot (the motor on the elbow) or pendubot (on the shoulder); required", show_default=False)] = None,
     robustness: Annotated[bool, typer.Option("--robustness", help="leaderboard: also the robustness board's evaluation (v2: 722 runs with model errors, speed noise, torque noise, torque response, delay and perturbations); default off")] = False,
     target: option("--target", T.EquilibriumChoice(), "the equilibrium to balance at: a label (default up-up) or PHI,PSI near one") = None,
-    actuated: option("--actuated", T.Actuation(), "the joints with a motor: both (default), acrobot (the elbow only), pendubot (the shoulder only); a chain of links: all or the joints' numbers, e.g. 2 or 1,3") = None,
-    q: option("--q", T.Numbers(most=64, metavar="Q1,Q2,..."), "LQR state weights: the diagonal of Q for (phi, psi, phi', psi') (default 1,1,1,1; a chain's 2 n)") = None,
+    actuated: option("--actuated", T.Actuation(), "the joints with a motor: both or all (default: every joint), the joints' numbers, e.g. 2 or 1,3; for two links acrobot (the elbow only) or pendubot (the shoulder only)") = None,
+    q: option("--q", T.Numbers(most=64, metavar="Q1,Q2,..."), "LQR state weights: the diagonal of Q, one per coordinate and rate, (phi, psi, phi', psi') for the double pendulum (default all 1)") = None,
     r: option("--r", T.Numbers(most=31, metavar="R1[,R2,...]"), "LQR input weights: the diagonal of R, one per actuated joint (default 1)") = None,
     umax: option("--umax", T.Positive("number of N m"), "torque limit of each motor [N m] (default: none for lqr, 10 for swingup and roa, 6 for leaderboard)") = None,
     t_end: option("--t-end", T.Positive("number of seconds"), "swingup: length of the run [s] (default 20); roa: longest time each start is followed (default 10)") = None,
@@ -109,18 +109,19 @@ def control(
         from .simulate import check_plot
 
         check_plot(plot)
-    params = resolve("control", config, parameters=model).parameters()
-    from ..symbolic.chain import Chain
+    from ..errors import EquilibriumError, ParameterError
+    from ..numeric.control import actuated_joints
 
-    chain = isinstance(params, Chain)
-    nq = params.n if chain else 2
-    actuated = _actuation(actuated or "both", nq, chain)
-    if chain and action is Action.swingup:
-        raise UsageError("control swingup: the energy-shaping swing-up is the double pendulum's; a chain of links "
-                         "takes control lqr or control roa")
+    params = resolve("control", config, parameters=model).parameters()
+    nq = params.n
+    actuated = actuated or "both"
+    try:
+        joints = len(actuated_joints(actuated, nq))
+    except ParameterError as exc:  # a robot's name beside other than two links, or a joint past the last
+        raise UsageError(f"--actuated: {exc}" if isinstance(actuated, str) else
+                         f"--actuated: {params.title} has joints 1 to {nq}, got {','.join(map(str, actuated))}") from None
     shown = actuated if isinstance(actuated, str) else "joint" + ("s " if len(actuated) > 1 else " ") + ",".join(
         map(str, actuated))
-    joints = nq if actuated in ("both", "all") else (1 if isinstance(actuated, str) else len(actuated))
     if q is not None and len(q) != 2 * nq:
         raise UsageError(f"--q: give {2 * nq} state weights, one per coordinate and speed, got {len(q)}")
     if r is not None and len(r) != joints:
@@ -133,38 +134,23 @@ def control(
     R = None if r is None else np.diag(r)
     defaults = library_defaults(action)
     goal = defaults["target"] if target is None else target
-    if target is not None and chain and not isinstance(goal, str):
-        raise UsageError(f"--target: a chain of links takes an equilibrium's label, a word a link (e.g. "
-                         f"{'-'.join(['up'] * nq)}), got angles")
-    if target is not None and chain:
-        from ..analysis.equilibria import equilibria
-        from ..errors import EquilibriumError, ParameterError
-
-        try:
-            equilibria(params).find(goal)
-        except (EquilibriumError, ParameterError) as exc:
-            raise UsageError(f"--target: {exc}") from None
-    elif target is not None:
+    if target is not None:
+        from ..analysis.control import equilibrium_argument
         from ..analysis.equilibria import find_equilibrium
-        from ..checks import angles
-        from ..errors import EquilibriumError, ParameterError
 
-        try:
-            if not isinstance(goal, str):
-                goal = angles("target", goal, 2)  # reduced modulo 2 pi; refused beyond 1e6 rad
-            find_equilibrium(params, goal)
+        try:  # a word per link, or angles reduced modulo 2 pi (refused beyond 1e6 rad)
+            goal = equilibrium_argument(goal, params, "target")
+            find_equilibrium(params, goal, "target")
         except (EquilibriumError, ParameterError) as exc:
             raise UsageError(f"--target: {exc}") from None
     if action is Action.roa:
         return _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol, out, store, plot, resume,
                     ensemble, quiet, shown)
     if action is Action.lqr:
-        from ..schema import coordinate_names
-
         design = lqr(params, goal, actuated, Q=Q, R=R, **({} if umax is None else {"umax": umax}))
         lin = design.linearization
         c = controllability(lin.A, lin.B)
-        names = coordinate_names(nq)
+        names = params.coordinates
         lines = [
             f"target      {lin.equilibrium.label}: " + ", ".join(f"{x} = {math.degrees(v):.6g} deg"
                                                               for x, v in zip(names, lin.target)),
@@ -200,7 +186,7 @@ def control(
     if len(u):
         lines.append(f"largest |u| {np.abs(u).max():.4g} N m; energy balance |E - W - E0|/max|E| = {tr.energy_drift:.2g}")
     if out is not None:
-        tr.to_netcdf(out) if str(out).lower().endswith(".nc") else _write_csv(tr, u, out)
+        tr.to_netcdf(out) if str(out).lower().endswith(".nc") else _write_csv(tr, u, out, params.coordinates)
         lines.append(f"written     {out}")
     if plot is not None:
         stage(f"drawing {plot}")
@@ -237,34 +223,15 @@ def library_defaults(action: "Action") -> dict:
     return found
 
 
-def _write_csv(tr, u, out) -> None:
+def _write_csv(tr, u, out, coordinates) -> None:
     import numpy as np
 
-    from ..io import atomic_path
+    from ..io import atomic_path, trajectory_columns
 
+    header = trajectory_columns(coordinates)[:2 * len(coordinates) + 3] + tuple(f"u{j + 1}" for j in range(u.shape[1]))
     with atomic_path(out) as tmp:
-        np.savetxt(tmp, np.column_stack([tr.t, tr.y, tr.energy, tr.work, u]), delimiter=",",
-                   header="t,phi,psi,dphi,dpsi,energy,work,u1,u2", comments="")
-
-
-def _actuation(actuated, nq: int, chain: bool):
-    """``--actuated`` as the library takes it: the double pendulum's label (joint numbers named by theirs), a
-    chain's ``"all"`` or joint numbers."""
-    if chain:
-        if actuated in ("acrobot", "pendubot"):
-            raise UsageError(f"--actuated: {actuated} names a joint of the double pendulum; a chain of links takes all "
-                             "or the joints' numbers (e.g. 2 or 1,3)")
-        if not isinstance(actuated, str) and max(actuated) > nq:
-            raise UsageError(f"--actuated: the chain has joints 1 to {nq}, got {','.join(map(str, actuated))}")
-        return "all" if actuated == "both" else actuated
-    if actuated == "all":
-        return "both"
-    if isinstance(actuated, str):
-        return actuated
-    labels = {(1,): "pendubot", (2,): "acrobot", (1, 2): "both"}
-    if actuated not in labels:
-        raise UsageError(f"--actuated: the double pendulum has joints 1 and 2, got {','.join(map(str, actuated))}")
-    return labels[actuated]
+        np.savetxt(tmp, np.column_stack([tr.t, tr.y, tr.energy, tr.work, u]), delimiter=",", header=",".join(header),
+                   comments="")
 
 
 def _limits(umax) -> str:
@@ -277,7 +244,7 @@ def _roa(params, goal, actuated, Q, R, umax, t_end, n, plane, window, rtol, atol
          quiet, shown=None):
     from ..analysis.roa import region_of_attraction
 
-    for name, (lo, hi) in zip(plane or ("phi", "psi"), window or ()):
+    for name, (lo, hi) in zip(plane or params.coordinates[:2], window or ()):
         if not name.startswith("d") and (lo < -math.pi - 1e-12 or hi > math.pi + 1e-12):
             raise UsageError(f"--window ({name}): an angle's offsets from the target must lie within -180..180 deg, "
                              f"got {lo:.6g}:{hi:.6g} rad")

@@ -1,8 +1,10 @@
 """Joint torques that vary: the inputs the compiled integrators apply (``sp_control`` in
 ``integrators.c``), with no Python call per step.
 
-A :class:`Controller` says which joints are actuated (``"both"``, ``"acrobot"`` -- the elbow only --,
-``"pendubot"`` -- the shoulder only), the saturation of each joint's torque and the law:
+A :class:`Controller` drives the ``nq`` joints of a model (the double pendulum's 2, a chain's n) and says
+which have a motor (:func:`actuated_joints`: ``"both"`` or ``"all"``, the joints' numbers ``(2,)``, ``(1, 3)``,
+or a two-link robot's name, ``"acrobot"`` -- the elbow only -- or ``"pendubot"`` -- the shoulder only), the
+saturation of each joint's torque and the law:
 
 * ``Controller.feedback(K, target, u_target)``: linear state feedback ``u = u* - K (x - x*)``,
   the angles of ``x - x*`` wrapped to (-pi, pi] (a PD law is the feedback ``K = [Kp, Kd]``);
@@ -25,10 +27,9 @@ A :class:`Controller` says which joints are actuated (``"both"``, ``"acrobot"`` 
 The inputs add to the model's constant torques ``tau``; the work ``W`` of ``Q = tau + u - c q'``
 then includes theirs, so ``E - W`` stays conserved (the energy balance of every run).
 
-A chain of ``n`` links takes the same laws for its ``n`` joints (``Controller.nq``): a gain of shape
-``(n, 2 n)``, a table of ``n`` columns, a Python law of ``(q1 … qn, q1' … qn')`` returning ``n``
-torques (``nq=n``), ``actuated="all"`` or the joints' numbers (``(2,)``, ``(1, 3)``); the compiled
-``sp_control`` is laid out for the model's ``SP_NQ`` (``kernels.control_struct_type``).
+Every law has the same shape for ``n`` joints (``Controller.nq``): a gain of shape ``(n, 2 n)``, a table of
+``n`` columns, a Python law of the state (the model's coordinates, then their rates) returning ``n`` torques
+(``nq=n``); the compiled ``sp_control`` is laid out for the model's ``SP_NQ`` (``kernels.control_struct_type``).
 """
 
 from __future__ import annotations
@@ -45,12 +46,13 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["Controller", "ACTUATION", "KINDS", "CALLBACK", "MAX_JOINTS", "actuation_mask", "torque_limits",
+__all__ = ["Controller", "ROBOTS", "KINDS", "CALLBACK", "MAX_JOINTS", "actuated_joints", "actuation_mask", "torque_limits",
            "capture_many", "capture_lanes_available", "raise_law_error"]
 
-#: Which joints a motor drives: bit 0 the shoulder (joint 1), bit 1 the elbow (joint 2).  A chain's
-#: controller takes ``"all"`` (``"both"``: every joint, the default) or the joints' numbers ``(1, 3)``.
-ACTUATION = {"both": 3, "pendubot": 1, "acrobot": 2}
+#: The leaderboard's robots, chains of :data:`ROBOT_LINKS` links named by the joint with the motor (1: the
+#: shoulder, 2: the elbow); a name of the user's input, valid for a model of that many links.
+ROBOTS: Dict[str, Tuple[int, ...]] = {"pendubot": (1,), "acrobot": (2,)}
+ROBOT_LINKS = 2
 #: The laws (the ``SP_CTL_*`` codes of ``integrators.c``).
 KINDS = {"feedback": 1, "swingup": 2, "table": 3, "function": 4, "tracking": 5}
 #: The C signature of a Python law: u[n] at time t and state y[2 n] (``sp_control.callback``).
@@ -59,27 +61,54 @@ CALLBACK = ctypes.CFUNCTYPE(None, ctypes.c_double, ctypes.POINTER(ctypes.c_doubl
 MAX_JOINTS = 31
 
 
+def actuated_joints(actuated, n: int) -> Tuple[int, ...]:
+    """The joints (numbers 1 .. n) with a motor on a model of ``n`` links: ``"both"`` or ``"all"`` every joint,
+    the joints' numbers (``(2,)``, ``(1, 3)``, each once) or a robot's name (:data:`ROBOTS`, a model of two
+    links: ``"acrobot"`` the elbow, ``"pendubot"`` the shoulder); else one ParameterError."""
+    from ..schema import model_title
+
+    robot = isinstance(actuated, str) and actuated in ROBOTS
+    if isinstance(actuated, str) and actuated in ("both", "all"):
+        return tuple(range(1, n + 1))
+    if robot and n == ROBOT_LINKS:
+        return ROBOTS[actuated]
+    joints = joint_numbers(actuated, n)
+    if joints is not None:
+        return joints
+    if robot:
+        raise ParameterError(f"{actuated} names a joint of the double pendulum; {model_title(n)} takes 'all' or the "
+                             f"numbers of the joints with a motor, 1 to {n} (e.g. (2,))")
+    names = (f"one of both, {', '.join(ROBOTS)} (acrobot: the elbow only, pendubot: the shoulder only)"
+             if n == ROBOT_LINKS else "'all'")
+    raise ParameterError(f"actuated must be {names} or the numbers of the joints with a motor, 1 to {n}, each once "
+                         f"(e.g. (2,)), got {actuated!r}")
+
+
+def joint_numbers(actuated, n: int) -> Optional[Tuple[int, ...]]:
+    """``actuated`` as the sorted numbers of joints 1 .. n, each once (whole numbers, not bools), or None."""
+    if isinstance(actuated, (str, bytes, dict)):
+        return None
+    try:
+        given = [operator_index(j) for j in actuated]
+    except TypeError:  # a float, a bool, a string among them, or no collection
+        return None
+    joints = tuple(sorted(set(given)))
+    return joints if joints and len(joints) == len(given) and all(1 <= j <= n for j in joints) else None
+
+
 def actuation_mask(actuated, nq: int = 2) -> int:
-    """The actuated joints of a model of ``nq`` coordinates as ``sp_control``'s bit mask (bit j: joint
-    j + 1): ``"both"`` or ``"all"`` every joint, ``"acrobot"`` / ``"pendubot"`` (two joints only) the
-    elbow / the shoulder, or the joints' numbers 1 … nq (``(2,)``, ``(1, 3)``)."""
-    if isinstance(actuated, str):
-        if actuated in ("both", "all"):
-            return (1 << nq) - 1
-        if actuated in ACTUATION and nq == 2:
-            return ACTUATION[actuated]
-    elif not isinstance(actuated, (bytes, bool)):
-        try:
-            joints = [operator_index(j) for j in actuated]
-        except TypeError:
-            joints = []
-        if joints and all(1 <= j <= nq for j in joints) and len(set(joints)) == len(joints):
-            return sum(1 << (j - 1) for j in joints)
-    if nq == 2:
-        raise ParameterError(f"actuated must be one of {', '.join(ACTUATION)} (acrobot: the elbow only, pendubot: the "
-                             f"shoulder only) or the joints' numbers, (1,) or (2,), got {actuated!r}")
-    raise ParameterError(f"actuated must be 'all' or the numbers of the joints with a motor, 1 to {nq} (e.g. (2,)), "
-                         f"got {actuated!r}")
+    """The actuated joints (:func:`actuated_joints`) as ``sp_control``'s bit mask (bit j: joint j + 1)."""
+    return sum(1 << (j - 1) for j in actuated_joints(actuated, nq))
+
+
+def actuation_text(actuated, joints: Sequence[int], model) -> str:
+    """The actuated model in words: ``"the acrobot"`` by a robot's name, else ``"a chain of 3 links with joint 2
+    actuated"`` (``joints`` 1-based)."""
+    if isinstance(actuated, str) and actuated in ROBOTS:
+        return f"the {actuated}"
+    which = "every joint" if len(joints) == model.n else "joint" + ("s " if len(joints) > 1 else " ") + ", ".join(
+        map(str, joints))
+    return f"{model.title} with {which} actuated"
 
 
 def operator_index(value) -> int:
@@ -100,8 +129,8 @@ def torque_limits(umax, n: int = 2) -> Tuple[float, ...]:
     """Positive torque limits [N m], one for every joint or one per joint (``n`` joints; None or inf: none)."""
     if umax is None:
         return (math.inf,) * n
-    refusal = ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint"
-                             f"{'' if n == 2 else f': {n}'}; inf: none), got {umax!r}")
+    refusal = ParameterError(f"umax must be positive torque limits [N m] (one, or one per joint: {n}; inf: none), got "
+                             f"{umax!r}")
     if isinstance(umax, (str, bytes, bool)):
         raise refusal
     try:
@@ -299,8 +328,9 @@ class Controller:
         """Refuse (one ParameterError) running this controller on a model of ``nq`` coordinates when it
         drives another number of joints."""
         if nq != self.nq:
-            what = "the double pendulum" if nq == 2 else f"a chain of {nq} links"
-            raise ParameterError(f"this controller drives {self.nq} joints; {what} has {nq} (build it with a gain "
+            from ..schema import model_title
+
+            raise ParameterError(f"this controller drives {self.nq} joints; {model_title(nq)} has {nq} (build it with a gain "
                                  f"of shape ({nq}, {2 * nq}), a table of {nq} columns, or nq={nq})")
 
     # -- what the integrators get --------------------------------------------------------------
@@ -397,7 +427,7 @@ class Controller:
 
     def settings(self) -> Dict[str, Any]:
         """Plain JSON data describing the inputs (part of a run's settings)."""
-        d: Dict[str, Any] = {"kind": self.kind,
+        d: Dict[str, Any] = {"kind": self.kind, "nq": self.nq,
                              "actuated": self.actuated if isinstance(self.actuated, str) else list(self.actuated),
                              "umax": [x if math.isfinite(x) else None for x in self.umax]}
         if self.kind in ("feedback", "swingup", "tracking"):
@@ -416,8 +446,6 @@ class Controller:
                      reference_sha256=hashlib.sha256(self.reference.tobytes()).hexdigest())
         if self.kind == "function":
             d.update(function=getattr(self.law, "__qualname__", repr(self.law)))
-        if self.nq != 2:
-            d.update(nq=self.nq)
         return d
 
 
@@ -437,7 +465,9 @@ def _python_law(f, errors: list, nq: int = 2):
     SIGTERM) recorded by the caller's :class:`~skewpend.interrupts.Interrupts` stops it the same
     way at the next call of the law; the caller's check then raises it."""
     nan = float("nan")
-    what = "two torques (u1, u2)" if nq == 2 else f"{nq} torques (u1, ..., u{nq})"
+    from ..schema import count_text
+
+    what = f"{count_text(nq, 'torques')} ({', '.join(f'u{r}' for r in range(1, nq + 1))})"
 
     def stop(u):
         for r in range(nq):
