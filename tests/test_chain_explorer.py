@@ -6,7 +6,7 @@ WebGL by SwiftShader): a skewed, damped triple pendulum (``skewpend serve --conf
   page's state (1e-9), and the page's live motion (the chain's generated JavaScript, RK4) is the compiled
   DOP853 run from the page's start (1e-7);
 * the normal modes shown are ``normal_modes(chain)``'s, and after the g slider moves ``normal_modes`` of the
-  chain with that g (the page scales the frequencies by sqrt(g): the library recomputes them);
+  chain with that g (the page computes them from its generated M0 and K0: the library recomputes them);
 * the linearised equations are typeset (KaTeX, no error) with K0 at the slider's g;
 * the flip map computed in the page's workers equals ``flip_map(chain)``'s over (q1, q2) (same outcome and
   joint in every cell, flip times within 1e-3 s on 99 % of the cells that flip); a cell's click starts there;

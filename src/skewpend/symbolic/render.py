@@ -78,7 +78,7 @@ LATEX_LABELS = {
 }
 
 
-# -- a chain of links: n coordinates q1 .. qn ---------------------------------------------------
+# -- how the equations are written: the specification's, or a chain's (coordinates q1 .. qn) -------
 _SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
 
 
@@ -114,87 +114,38 @@ def _chain_step_title(key: str) -> str:
             "angular velocity of link 1, omega1 = q1' e1"}[key[:len(key) - len(k)]]
 
 
-def _chain_label(key: str) -> str:
-    k = key.lstrip("Peomega")
-    stem = key[:len(key) - len(k)]
-    return {"P": "P", "e": "e", "omega": "ω"}[stem] + k.translate(_SUB)
+class _Writing:
+    """How the equations are written: their coordinates' and parameters' names (Unicode, LaTeX), the head and
+    values lines, the steps' titles and labels, and what the linearisation adds -- the specification's for
+    the double pendulum's parameters (symbols kept), a chain's (q₁ … qₙ, its links' values) otherwise."""
 
-
-def _chain_text(eom, linear, steps: bool, width: int) -> str:
-    uni, _ = _chain_symbols(eom)
-
-    def pretty(label, expr):
-        expr = expr.xreplace(uni) if isinstance(expr, sp.MatrixBase) else sp.sympify(expr).xreplace(uni)
-        return sp.pretty(sp.Eq(sp.Symbol(label), expr, evaluate=False), use_unicode=True, num_columns=width)
-
-    n = len(eom.coordinates)
-    chain = eom.params
-    out = [f"Chain of {n} links -- equations of motion  M(q) q̈ = f(q, q̇),  q = ({', '.join(f'q{str(k).translate(_SUB)}' for k in range(1, n + 1)) if n <= 3 else f'q₁ … q{str(n).translate(_SUB)}'})",
-           "links -- " + "; ".join(f"{link.index}: axis ({', '.join(f'{x:.6g}' for x in link.axis)}), l = {link.length:g}, "
-                                   f"m = {link.mass:g}" for link in chain.links) + f"; g = {chain.g:g}", ""]
-    if steps:
-        out.append("Derivation, step by step (world basis i, j, k; j points down):")
-        keys = [k for k in eom.steps if k not in ("M", "f")]
-        for i, key in enumerate(keys, 1):
-            title = STEP_TITLES[key] if key in ("T", "Pi") else _chain_step_title(key)
-            label = _TEXT_LABELS[key] if key in ("T", "Pi") else _chain_label(key)
-            out += [f"{i}. {title}", pretty(label, eom.steps[key]), ""]
-        out.append("Lagrange's equations  d/dt ∂T/∂q̇ − ∂T/∂q = −∂Π/∂q + Q,  Q = τ − c q̇:")
-    M, f = eom.mass_matrix, eom.forcing
-    for i in range(n):
-        for j in range(i, n):
-            a, b = str(i + 1).translate(_SUB), str(j + 1).translate(_SUB)
-            out.append(pretty(f"M{a}{b}" + (f" = M{b}{a}" if i != j else ""), M[i, j]))
-    for i in range(n):
-        out.append(pretty(f"f{str(i + 1).translate(_SUB)}", f[i]))
-    out += ["", pretty("T", eom.kinetic_energy), pretty("Π", eom.potential_energy)]
-    if linear is not None:
-        out += ["", "Linearised about the hanging rest q = 0:  M₀ q̈ + C₀ q̇ + K₀ q = 0"]
-        if linear.note:
-            out.append(linear.note)
-        out.append(pretty("M₀", linear.M))
-        if linear.C != sp.zeros(n, n):
-            out.append(pretty("C₀", linear.C))
-        out.append(pretty("K₀", linear.K))
-    return "\n".join(out) + "\n"
-
-
-def _chain_latex(eom, linear, steps: bool, display: bool) -> str:
-    _, names = _chain_symbols(eom)
-
-    def t(expr):
-        return sp.latex(expr, symbol_names=names)
-
-    n = len(eom.coordinates)
-    M, f = eom.mass_matrix, eom.forcing
-    rows = []
-    if steps:
-        for key, value in eom.steps.items():
-            if key in ("M", "f"):
-                continue
-            label = LATEX_LABELS[key] if key in ("T", "Pi") else {
-                "P": r"\underline{\underline{P}}", "e": r"\underline{e}", "omega": r"\underline{\omega}"}[key.rstrip("0123456789")] + "_{" + key.lstrip("Peomega") + "}"
-            rows.append(f"{label} &= {t(value)}")
-    dd = [_coordinate_symbol("dd" + c) for c in eom.coordinates]
-    for i in range(n):
-        lhs = " + ".join(r"\left(" + t(M[i, j]) + r"\right)" + t(dd[j]) for j in range(n))
-        rows.append(f"{lhs} &= {t(f[i])}")
-    rows += [f"T &= {t(eom.kinetic_energy)}", rf"\Pi &= {t(eom.potential_energy)}"]
-    if linear is not None:
-        rows += [rf"M_0 &= {t(linear.M)}", rf"C_0 &= {t(linear.C)}", rf"K_0 &= {t(linear.K)}"]
-    body = "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
-    if display:
-        return body
-    note = f"% {linear.note}\n" if linear is not None and linear.note else ""
-    return note + "\\[\n" + body + "\n\\]\n"
+    def __init__(self, eom: "EquationsOfMotion") -> None:
+        n = len(eom.coordinates)
+        if not _links_given(eom):
+            self.uni, self.names, self.head = UNICODE, _LATEX_NAMES, "Skewed double pendulum"
+            self.q, self.values, self.rest = "φ, ψ", _params_line(eom), "φ = ψ = 0"
+            self.title, self.label, self.latex_label = STEP_TITLES.get, _TEXT_LABELS.get, LATEX_LABELS.get
+            self.lhs = _linear_lhs  # the linearised equations written out
+            return
+        self.uni, self.names = _chain_symbols(eom)
+        self.head, self.rest, self.lhs = f"Chain of {n} links", "the hanging rest q = 0", None
+        self.q = ", ".join(f"q{str(k).translate(_SUB)}" for k in range(1, n + 1)) if n <= 3 else f"q₁ … q{str(n).translate(_SUB)}"
+        self.values = "links -- " + "; ".join(f"{link.index}: axis ({', '.join(f'{x:.6g}' for x in link.axis)}), "
+                                              f"l = {link.length:g}, m = {link.mass:g}" for link in eom.params.links) + \
+            f"; g = {eom.params.g:g}"
+        stem = lambda key: key.rstrip("0123456789")  # noqa: E731
+        self.title = lambda key: STEP_TITLES[key] if key in ("T", "Pi") else _chain_step_title(key)
+        self.label = lambda key: _TEXT_LABELS[key] if key in ("T", "Pi") else \
+            {"P": "P", "e": "e", "omega": "ω"}[stem(key)] + key[len(stem(key)):].translate(_SUB)
+        self.latex_label = lambda key: LATEX_LABELS[key] if key in ("T", "Pi") else {
+            "P": r"\underline{\underline{P}}", "e": r"\underline{e}", "omega": r"\underline{\omega}"}[stem(key)] + \
+            "_{" + key[len(stem(key)):] + "}"
 
 
 # -- text ----------------------------------------------------------------------------------
-def _pretty(label: str, expr: Any, width: int) -> str:
-    if isinstance(expr, sp.MatrixBase):
-        expr = expr.xreplace(UNICODE)
-    else:
-        expr = sp.sympify(expr).xreplace(UNICODE)
+def _pretty(label: str, expr: Any, width: int, names: Optional[dict] = None) -> str:
+    names = UNICODE if names is None else names
+    expr = expr.xreplace(names) if isinstance(expr, sp.MatrixBase) else sp.sympify(expr).xreplace(names)
     return sp.pretty(sp.Eq(sp.Symbol(label), expr, evaluate=False), use_unicode=True, num_columns=width)
 
 
@@ -239,41 +190,32 @@ def to_text(
         import shutil
 
         width = max(100, shutil.get_terminal_size((160, 24)).columns)
-    if _links_given(eom):
-        return _chain_text(eom, linear, steps, width)
-    out = [
-        "Skewed double pendulum -- equations of motion  M(q) q̈ = f(q, q̇),  q = (φ, ψ)",
-        _params_line(eom),
-        "",
-    ]
+    w = _Writing(eom)
+
+    def pretty(label, expr):
+        return _pretty(label, expr, width, w.uni)
+
+    n = len(eom.coordinates)
+    out = [f"{w.head} -- equations of motion  M(q) q̈ = f(q, q̇),  q = ({w.q})", w.values, ""]
     if steps:
         out.append("Derivation, step by step (world basis i, j, k; j points down):")
-        for i, (key, value) in enumerate(eom.steps.items(), 1):
-            if key in ("M", "f"):
-                continue
-            out.append(f"{i}. {STEP_TITLES[key]}")
-            out.append(_pretty(_TEXT_LABELS[key], value, width))
-            out.append("")
+        for i, key in enumerate((k for k in eom.steps if k not in ("M", "f")), 1):
+            out += [f"{i}. {w.title(key)}", pretty(w.label(key), eom.steps[key]), ""]
         out.append("Lagrange's equations  d/dt ∂T/∂q̇ − ∂T/∂q = −∂Π/∂q + Q,  Q = τ − c q̇:")
     M, f = eom.mass_matrix, eom.forcing
-    out.append(_pretty("M₁₁", M[0, 0], width))
-    out.append(_pretty("M₁₂ = M₂₁", M[0, 1], width))
-    out.append(_pretty("M₂₂", M[1, 1], width))
-    out.append(_pretty("f₁", f[0], width))
-    out.append(_pretty("f₂", f[1], width))
-    out.append("")
-    out.append(_pretty("T", eom.kinetic_energy, width))
-    out.append(_pretty("Π", eom.potential_energy, width))
+    for i in range(n):
+        for j in range(i, n):
+            a, b = str(i + 1).translate(_SUB), str(j + 1).translate(_SUB)
+            out.append(pretty(f"M{a}{b}" + (f" = M{b}{a}" if i != j else ""), M[i, j]))
+    out += [pretty(f"f{str(i + 1).translate(_SUB)}", f[i]) for i in range(n)]
+    out += ["", pretty("T", eom.kinetic_energy), pretty("Π", eom.potential_energy)]
     if linear is not None:
-        out.append("")
-        out.append("Linearised about φ = ψ = 0:  M₀ q̈ + C₀ q̇ + K₀ q = 0")
-        if linear.note:
-            out.append(linear.note)
-        out.append(_pretty("M₀", linear.M, width))
-        if linear.C != sp.zeros(2, 2):
-            out.append(_pretty("C₀", linear.C, width))
-        out.append(_pretty("K₀", linear.K, width))
-        for i, lhs in enumerate(_linear_lhs(linear), 1):
+        out += ["", f"Linearised about {w.rest}:  M₀ q̈ + C₀ q̇ + K₀ q = 0"] + ([linear.note] if linear.note else [])
+        out.append(pretty("M₀", linear.M))
+        if linear.C != sp.zeros(n, n):
+            out.append(pretty("C₀", linear.C))
+        out.append(pretty("K₀", linear.K))
+        for lhs in w.lhs(linear) if w.lhs else ():
             out.append(sp.pretty(sp.Eq(lhs.xreplace(UNICODE), 0, evaluate=False), num_columns=width))
     return "\n".join(out) + "\n"
 
@@ -291,26 +233,20 @@ def to_latex(
     display: bool = False,
 ) -> str:
     """LaTeX (an ``aligned`` block; ``display`` gives the body only, for Jupyter)."""
-    if _links_given(eom):
-        return _chain_latex(eom, linear, steps, display)
+    w = _Writing(eom)
+
+    def t(expr):
+        return sp.latex(expr, symbol_names=w.names)
+
     M, f = eom.mass_matrix, eom.forcing
-    ddphi, ddpsi = _S["ddphi"], _S["ddpsi"]
-    rows = []
-    if steps:
-        for key, value in eom.steps.items():
-            if key in ("M", "f"):
-                continue
-            rows.append(f"{LATEX_LABELS[key]} &= {tex(value)}")
-    for i in range(2):
-        rows.append(
-            r"\left(" + tex(M[i, 0]) + r"\right)" + tex(ddphi) + " + "
-            + r"\left(" + tex(M[i, 1]) + r"\right)" + tex(ddpsi) + " &= " + tex(f[i])
-        )
-    rows.append(f"T &= {tex(eom.kinetic_energy)}")
-    rows.append(rf"\Pi &= {tex(eom.potential_energy)}")
+    rows = [f"{w.latex_label(key)} &= {t(value)}" for key, value in eom.steps.items() if key not in ("M", "f")] if steps else []
+    dd = [_coordinate_symbol("dd" + c) for c in eom.coordinates]
+    for i in range(len(dd)):
+        rows.append(" + ".join(r"\left(" + t(M[i, j]) + r"\right)" + t(dd[j]) for j in range(len(dd))) + f" &= {t(f[i])}")
+    rows += [f"T &= {t(eom.kinetic_energy)}", rf"\Pi &= {t(eom.potential_energy)}"]
     if linear is not None:
-        for lhs in _linear_lhs(linear):
-            rows.append(f"{tex(lhs)} &= 0")
+        rows += ([f"{t(lhs)} &= 0" for lhs in w.lhs(linear)] if w.lhs else
+                 [rf"M_0 &= {t(linear.M)}", rf"C_0 &= {t(linear.C)}", rf"K_0 &= {t(linear.K)}"])
     body = "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
     if display:
         return body
