@@ -486,11 +486,13 @@ def equation_terms(M, f) -> List[Tuple[str, Tuple[int, ...], sp.Expr, sp.Expr]]:
     return out
 
 
-def page_form(model):
-    """The form of the explorer's physics for ``model`` and the model it prints: ``("exact", params)``, the
+def page_form(model=None):
+    """The form of the explorer's physics for ``model`` (default: the specification's thin rods, every scalar
+    symbolic: the sliders at the reference case's values) and the model it prints: ``("exact", params)``, the
     derivation of the double pendulum's parameters where the model has them (``model.exact_model()``: every
     scalar in ``p``, a slider), or ``("recursive", chain)``, the recursive algorithms' graphs (its bodies
     fixed: longer chains, and any model with Coulomb friction or rotors, which the sliders do not set)."""
+    model = Parameters() if model is None else model
     exact = None if model.has_friction or model.has_rotor else model.exact_model()
     if exact is not None:
         return "exact", exact
@@ -503,7 +505,7 @@ def page_form(model):
     return "recursive", model.as_chain()
 
 
-def page_vector(model):
+def page_vector(model=None):
     """``(form, printed, names, values)``: :func:`page_form` and the parameter vector ``p`` of the page's physics,
     its entries' names and the model's values (the reference case's where symbolic: the sliders' start)."""
     form, printed = page_form(model)
@@ -518,7 +520,7 @@ def page_vector(model):
     return form, printed, parameter_names(printed.n), [float(v) for v in chain_vector(printed)]
 
 
-def explorer_js(model) -> str:
+def explorer_js(model=None) -> str:
     """The explorer's physics for ``model`` (an ES module), one contract for every model and form: its
     ``PARAMETER_ORDER``, ``P`` (:func:`page_vector`), ``N`` links, ``rhs(y, p)``, ``energy(y, p)``, the
     drawing's ``tips(y, p)`` (the rods' ends, 3 n [m]) and ``axes(y, p)`` (the hinge axes in the world frame,

@@ -88,7 +88,7 @@ def _static_sources() -> tuple:
 def _physics_sources(physics_params) -> tuple:
     from ..numeric.codegen import classic_js, explorer_js
 
-    module = explorer_js(_page_model(physics_params))
+    module = explorer_js(physics_params)
     page = f"// the explorer's settings for these bodies (skewpend.views.frontend.page_settings)\nexport const PAGE = " \
         f"{json.dumps(page_settings(physics_params), ensure_ascii=False)};\n"
     return (Source("physics", module), Source("page", page),
@@ -114,14 +114,6 @@ LIVE_STEMS = {"exact": tuple(SLIDER_RANGES), "recursive": ("g", "c")}
 _SYMBOLS = {"phi": "φ", "psi": "ψ", "alpha": "α"}
 
 
-def _page_model(model):
-    """The model a page shows: ``model``, or the specification's thin rods with every scalar symbolic (the
-    sliders at the reference case's values)."""
-    from ..symbolic.model import Parameters
-
-    return Parameters() if model is None else model
-
-
 def _stem(name: str) -> str:
     """The schema's stem of a parameter of the page's physics (``a`` -> ``l``, ``c3`` -> ``c``, ``l2`` -> ``l``)."""
     from .. import schema
@@ -134,13 +126,6 @@ def start_key(coordinate: str) -> str:
     return f"{coordinate}_0" if coordinate[-1].isdigit() else f"{coordinate}0"
 
 
-def _vector(model):
-    """:func:`~skewpend.numeric.codegen.page_vector` of the model a page shows."""
-    from ..numeric.codegen import page_vector
-
-    return page_vector(_page_model(model))
-
-
 def page_sliders(model=None) -> list:
     """The page's sliders for ``model``: ``[key, label, min, max, step, default, unit, degrees]`` for each
     parameter of its physics that a slider sets alone (:data:`LIVE_STEMS`; in :data:`SLIDER_RANGES`' order;
@@ -150,8 +135,9 @@ def page_sliders(model=None) -> list:
     import math
 
     from ..config import CHAIN_Q0, DEFAULT_RUN
+    from ..numeric.codegen import page_vector
 
-    form, printed, order, values = _vector(model)
+    form, printed, order, values = page_vector(model)
     rank = list(SLIDER_RANGES)
     live = sorted(((k, v) for k, v in zip(order, values) if _stem(k) in LIVE_STEMS[form]
                    and (k != "alpha" or printed.uses_alpha)), key=lambda kv: rank.index(_stem(kv[0])))
@@ -175,9 +161,9 @@ def page_settings(physics_params=None) -> dict:
     camera's reach), the terms that make the energy not conserved (``dissipative``: damping, torques,
     friction, from the schema's roles) and the ``torques``."""
     from .. import schema
+    from ..numeric.codegen import page_vector
 
-    model = _page_model(physics_params)
-    form, printed, order, _ = _vector(model)
+    form, printed, order, _ = page_vector(physics_params)
     roles = {f.stem: f.role for f in schema.FIELDS if f.per_body}  # a joint's terms (cfs, the chain's, is none)
     where = lambda *rs: [i for i, k in enumerate(order) if roles.get(_stem(k)) in rs]  # noqa: E731
     title = printed.title
@@ -192,7 +178,7 @@ def page_settings(physics_params=None) -> dict:
               "the chain's recursive algorithms (the composite-rigid-body and Newton-Euler algorithms)")
     return {"title": title, "lead": f"{whose} — every number here comes from {source}: the "
             "motion, the equations, the normal modes and the flip map are computed in your browser by JavaScript generated "
-            "from it.", "names": [_SYMBOLS.get(c, c) for c in printed.coordinates], "sliders": page_sliders(model),
+            "from it.", "names": [_SYMBOLS.get(c, c) for c in printed.coordinates], "sliders": page_sliders(physics_params),
             "lengths": [i for i, k in enumerate(order) if _stem(k) == "l"],
             "dissipative": where("damping", "torque", "friction"), "torques": where("torque")}
 
