@@ -44,7 +44,8 @@ def _equilibria_html(ctx: Context) -> List[str]:
               "alternating sum is 0 on a torus), each with the frequencies of its oscillating directions and the growth "
               "rates of its unstable ones (a disturbance grows like $e^{s t}$):</p>"),
         table_html([f"rods (1-{n})", *(f"{label(c)} [deg]" for c in ctx.params.coordinates), "V [J]", "Morse index",
-                    "frequencies [rad/s]", "growth rates s [1/s]"], rows, numeric=tuple(range(1, n + 2)),
+                    f"frequencies{sep if n > 2 else ' '}[rad/s]", f"growth rates{sep if n > 2 else ' '}s [1/s]"], rows,
+                   numeric=tuple(range(1, n + 2)),
                    caption=esc(eq.message)),
     ]
 

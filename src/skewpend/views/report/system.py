@@ -44,8 +44,8 @@ def table_scalars(p: Parameters) -> List[str]:
     return shown
 
 
-def _parameters_table(p: Parameters) -> str:
-    """The table of a model that answers the schema's names: each name with its symbol, meaning, value and unit."""
+def _parameter_rows(p: Parameters) -> List[List[str]]:
+    """The table's rows of a model that answers the schema's names: each name's symbol, meaning, value and unit."""
     rows = []
     for name in table_scalars(p):
         value = getattr(p, name)
@@ -65,7 +65,7 @@ def _parameters_table(p: Parameters) -> str:
             shown = _vec_text(value) + (" (unit vector)" if name in schema.AXIS_NAMES else "")
         rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown,
                      _unit(schema.unit(name))])
-    return table_html(["symbol", "name", "meaning", "value", "unit"], rows, caption="Parameters (SI units)")
+    return rows
 
 
 #: The per-joint terms of the links' table, shown when a link has one: (key, header).
@@ -186,7 +186,8 @@ def section_system(ctx: Context) -> str:
         + ("the rods" if n > 2 else "both rods") + r" when they hang), $\underline{k}$ is the axis of the roof hinge"
         + roof + r", $\underline{i}$ completes the right-handed triple. The generalised coordinates are the hinge angles "
         + coords + r"; gravity acts along $+\underline{j}$. " + conservation_text(p) + "</p>")
-    table = _parameters_table(p) if named else _links_table(p)
+    table = (table_html(["symbol", "name", "meaning", "value", "unit"], _parameter_rows(p), caption="Parameters (SI units)")
+             if named else _links_table(p))
     rows = [[inline_math(start_tex(c)), f"{fmt_deg(y0[k])} = {fmt_num(y0[k])} rad", ""] for k, c in enumerate(p.coordinates)]
     rows += [[inline_math(start_tex(c, dot=True)), fmt_num(y0[n + k]), "rad/s"] for k, c in enumerate(p.coordinates)]
     initial = table_html(["", "value", "unit"], rows, caption="Initial state of the simulation (section 5)", compact=True)
