@@ -386,7 +386,7 @@ def section_provenance(ctx: Context) -> str:
     labels = [
         ("system", "1 · the system: pictures"),
         ("derivation", "2 · derivation and display forms" if named else "2 · derivation (SymPy)"),
-        ("check", "3 · check at α = 0" if named else "3 · check against the recursive algorithms"),
+        ("check", "3 · check at α = 0" if named else "3 · check: two derivations of one model"),
         ("modes", "4 · normal modes and the α sweep" if named else "4 · normal modes and the tilt sweeps"),
         ("simulation", "5 · simulation, all of it"),
         ("simulation: integration", "5 · integration"),

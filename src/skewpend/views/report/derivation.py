@@ -426,15 +426,20 @@ def _two_derivations(ctx: Context) -> str:
     from ...symbolic.derivation import coordinate_symbol
 
     chain, n = ctx.params, ctx.params.n
-    intro = prose(
-        "<p>The simulations of this report do not use the expressions of section 2: the compiled code is generated from "
-        "the same model by the <b>recursive algorithms</b> — the mass matrix by composite rigid bodies, the forces by "
-        "recursive Newton–Euler — a second derivation with no rotation tensor composed symbolically. ")
     eom = ctx.eom
+    K = kernels.model_kernel(chain) if eom is not None else None  # the code the simulations run, in its form
+    if getattr(K, "form", "") == "exact":  # the loader's fastest form for this model: the specification's derivation
+        how = ("the specification's derivation of the double pendulum's parameters (SymPy, printed as C) — a second "
+               "derivation of the same bodies, its rotation tensors composed by the specification's steps. ")
+    else:
+        how = ("the <b>recursive algorithms</b> — the mass matrix by composite rigid bodies, the forces by recursive "
+               "Newton–Euler — a second derivation with no rotation tensor composed symbolically. ")
+    intro = prose("<p>The simulations of this report do not use the expressions of section 2: the compiled code is "
+                  "generated from the same model by " + how)
     if eom is None:
         ctx.notes["check"] = "against MuJoCo (section 9)"
         return intro + f"For {n} links the check is section 9's: the same model simulated by MuJoCo.</p>"
-    K, p = kernels.model_kernel(chain), kernels.model_vector(chain)  # the code the simulations run
+    p = kernels.model_vector(chain)
     symbols = [coordinate_symbol(c) for c in eom.coordinates] + [coordinate_symbol("d" + c) for c in eom.coordinates]
     detail("turning section 2's expressions into functions (SymPy's lambdify)")
     M, f = sp.lambdify(symbols, eom.mass_matrix), sp.lambdify(symbols, eom.forcing)
