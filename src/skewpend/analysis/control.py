@@ -46,10 +46,11 @@ EVERY_LINK_UP = EveryLinkUp("up-up")
 
 @dataclass(frozen=True)
 class Linearization:
-    """``d/dt dx = A dx + B du`` about ``equilibrium`` (its state ``x*``); ``actuated`` as given (a name, or
-    the joints' numbers) and the joints ``B``'s columns drive (0-based: 0 the shoulder); ``coulomb``: how Coulomb friction
-    entered ``A`` (``"smoothed"``, the control default: its smoothed slope ``cfs cf`` as viscous
-    damping; ``"exclude"``: not at all), ``coulomb_note`` says it."""
+    """``d/dt dx = A dx + B du`` about ``equilibrium`` (its state ``x*``); ``actuated``: the two-link robot's
+    word as given (both, all, acrobot, pendubot), else the joints' numbers; ``joints``: those ``B``'s columns
+    drive (0-based: 0 the shoulder); ``coulomb``: how Coulomb friction entered ``A`` (``"smoothed"``, the
+    control default: its smoothed slope ``cfs cf`` as viscous damping; ``"exclude"``: not at all),
+    ``coulomb_note`` says it."""
 
     A: np.ndarray
     B: np.ndarray
@@ -87,7 +88,7 @@ def linearization(params, equilibrium=EVERY_LINK_UP, actuated="both", *, coulomb
     (``"up-up-up"``; the default, :data:`EVERY_LINK_UP`, every link up), an ``Equilibrium`` or angles near one;
     ``actuated`` ``"both"`` or ``"all"`` (every joint), the numbers of the joints with a motor (``(2,)``,
     ``(1, 3)``) or, for two links, ``"acrobot"`` / ``"pendubot"`` (:func:`skewpend.numeric.control.actuated_joints`)."""
-    from ..numeric.control import actuated_joints
+    from ..numeric.control import ROBOT_LINKS, ROBOTS, actuated_joints
     from ..symbolic.friction import check_coulomb
     from .equilibria import find_equilibrium
 
@@ -97,7 +98,8 @@ def linearization(params, equilibrium=EVERY_LINK_UP, actuated="both", *, coulomb
     coulomb = check_coulomb(coulomb)
     eq = find_equilibrium(model, equilibrium_argument(equilibrium, model), "equilibrium", coulomb=coulomb)
     B = np.vstack([np.zeros((n, len(joints))), np.linalg.solve(eq.M, np.eye(n)[:, list(joints)])])
-    given = actuated if isinstance(actuated, str) else tuple(j + 1 for j in joints)
+    named = isinstance(actuated, str) and (actuated in ROBOTS or n == ROBOT_LINKS)  # the two-link robot's words
+    given = actuated if named else tuple(j + 1 for j in joints)
     return Linearization(eq.A.copy(), B, eq, given, joints, coulomb, model)
 
 
