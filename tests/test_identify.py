@@ -132,7 +132,9 @@ def test_kaheman_fitted_parameters_realise_the_estimate(which, request):
     assert np.abs(beta - r.values).max() <= 1e-9 * np.abs(r.values).max()
     beta0 = B.values(R.standard_parameters(p0), p0.a, 0.0, p0.g)
     assert beta[0] == pytest.approx(beta0[0], rel=1e-12)
-    assert np.all(r.intervals[:, 0] <= r.values) and np.all(r.values <= r.intervals[:, 1])
+    free = [n != r.reference for n in r.names]  # the scale is params0's: it has no interval
+    assert np.all(r.intervals[free, 0] <= r.values[free]) and np.all(r.values[free] <= r.intervals[free, 1])
+    assert np.all(np.isnan(r.intervals[r.names.index(r.reference)]))
     assert len(r.residual_rms) == 26 and np.all(r.residual_rms > 0)
 
 

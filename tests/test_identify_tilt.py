@@ -39,7 +39,7 @@ def _start() -> Chain:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
-def test_a_chains_tilt_is_recovered_within_its_interval(seed):
+def test_a_chains_tilt_is_recovered_within_its_interval(seed, tmp_path):
     """Measured (seeds 0, 1, 2): 25.032 [24.976, 25.088], 25.014 [24.940, 25.089], 24.990 [24.933, 25.048] deg.
     The start is planar, where the tilt enters to second order (mirror symmetry): the profile finds the minimum
     away from it, the fit with the tilt free the estimate, reported on the positive side."""
@@ -52,6 +52,13 @@ def test_a_chains_tilt_is_recovered_within_its_interval(seed):
     axis = result.params.links[2].axis  # the fitted chain's third hinge, turned about j
     assert abs(math.atan2(axis[0], axis[2]) - result.alpha) < 1e-9 and axis[1] == 0.0
     assert "hinge 3's tilt (tilt3): 2" in result.table()
+    from skewpend.views.report.identification import _section_skew  # noqa: PLC2701 - the report's section
+
+    assert "hinge 3's tilt tilt3" in _section_skew(result) and "tilt3₀ = 0" in _section_skew(result)
+    if seed == 0:  # read back: the stored base parameters are the fitted chain's at its tilt
+        back = skewpend.open_result(result.to_netcdf(tmp_path / "tilt.nc"))
+        assert back.params == result.params and back.angle == "tilt3" and back.alpha == result.alpha
+        assert "# hinge 3's tilt (tilt3): 25" in result.to_run_file(tmp_path / "tilt.toml").read_text()
 
 
 def test_a_freed_angle_is_spelled_as_the_model_has_it():

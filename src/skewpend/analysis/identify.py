@@ -600,7 +600,7 @@ def _linear(measurements: Measurements, params0, basis, *, free: Optional[Sequen
     # a free swing stays homogeneous when the held base parameters are all 0 (a joint term held at its
     # bound): they add nothing to either side
     homogeneous = not has_tau and not np.any(beta0[xi])
-    k = next((j for j, n in enumerate(names) if _stem(n) == "J1zz"), 0)
+    k = next((j for j, n in enumerate(names) if _stem(n) == _stem(REFERENCE)), 0)
 
     # 1-2: filtered signals and the base regressor, per piece
     rows: List[np.ndarray] = []
@@ -701,6 +701,8 @@ def _linear(measurements: Measurements, params0, basis, *, free: Optional[Sequen
         values[fi] = x
         halves[fi] = half
     intervals = np.column_stack([values - halves, values + halves])
+    if homogeneous:  # the scale is params0's: no interval
+        intervals[k] = (math.nan, math.nan)
     ratios, ratio_iv = {}, {}
     if homogeneous:
         for j, n in enumerate(free_names):
@@ -890,7 +892,10 @@ class ChainTerms:
         for i in range(1, n + 1):
             prefer += [f"J{i}{e}" for e in ("zz", "xz", "yz", "xy", "xx", "yy")] + [f"h{i}{x}" for x in "yxz"] + [f"m{i}"]
         prefer += [x for x in names if x not in prefer]
-        pivots = sorted(independent_columns(W, [names.index(x) for x in prefer]))  # in pi's order
+        greedy = independent_columns(W, [names.index(x) for x in prefer])
+        self._order = sorted(range(len(greedy)), key=lambda k: greedy[k])  # the base parameters in pi's order
+        pivots = [greedy[k] for k in self._order]
+        self._greedy = greedy  # (the least squares in the order found: the same bits as before the tilt)
         scale = np.linalg.norm(W, axis=0)
         self.unidentifiable = tuple(names[j] for j in np.flatnonzero(scale <= 1e-10 * scale.max()))
         self.pivots = tuple(pivots)
@@ -931,9 +936,11 @@ class ChainTerms:
         if self.tilt and not s[-1] > 1e-7 * s[0]:  # the generic columns dependent here: their limit
             T = 0.5 * (self.T(angle + TILT_STEP) + self.T(angle - TILT_STEP))
         else:
-            K = np.linalg.lstsq(P, W[:, self.dep], rcond=None)[0] if self.dep else np.zeros((len(self.pivots), 0))
+            Pg = W[:, self._greedy]
+            K = np.linalg.lstsq(Pg, W[:, self.dep], rcond=None)[0] if self.dep else np.zeros((len(self.pivots), 0))
             K[np.abs(K) < 1e-10 * max(1.0, float(np.abs(K).max(initial=0.0)))] = 0.0
-            miss = float(np.linalg.norm(W[:, self.dep] - P @ K)) if self.dep else 0.0
+            miss = float(np.linalg.norm(W[:, self.dep] - Pg @ K)) if self.dep else 0.0
+            K = K[self._order]
             if miss > 1e-8 * float(np.linalg.norm(W)):
                 raise AssertionError(f"a chain's dependent regressor columns are not combinations of the pivots' ({miss:.3g})")
             T = np.zeros((len(self.pivots), len(self.pi_names)))
@@ -1336,6 +1343,7 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
     else:
         B = _basis(params0, angle)  # every tilt: the generic base parameters
         alpha0 = B.angle0
+        settings["angle0"] = alpha0
         names = B.names
         if lin.status is Status.SUCCESS:
             beta0 = B.beta(B.pi_ext(lin.params), alpha0)
@@ -1438,7 +1446,7 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
     halves = np.array([half.get(n, 0.0) for n in names])
     intervals = np.column_stack([values - halves, values + halves])
     for j, n in enumerate(names):
-        if n in sf.flat or (n in half and not math.isfinite(half[n])):
+        if n in sf.flat or (n in half and not math.isfinite(half[n])) or n == ref:  # (the scale: params0's)
             intervals[j] = (math.nan, math.nan)
     ratios, ratio_iv = _ratios(names, values, intervals, ref, theta) if homogeneous else ({}, {})
     alpha_fit = alpha_hat if angle_free else alpha0
@@ -1938,7 +1946,7 @@ def _realise_masses(params0: Parameters, W, values: np.ndarray, a: float, alpha:
         return _realise(params0, W, values, a, alpha, g, held=held), ""
     except ParameterError as exc:
         first = exc
-    B = W.B if isinstance(W, _Terms) else W
+    B = W.B
     free_entry = _realise_free_entries(params0, W, values, a, alpha, g, held)
     if free_entry is not None:
         return free_entry
@@ -1951,8 +1959,7 @@ def _realise_masses(params0: Parameters, W, values: np.ndarray, a: float, alpha:
         except ParameterError:
             continue
         keep = [j for j, n in enumerate(W.names) if n not in held]
-        check = W.values(standard_vector(p), a, alpha, g) if isinstance(W, _Terms) else B.values(
-            standard_parameters(p), a, alpha, g)
+        check = W.values(standard_vector(p), a, alpha, g)
         if np.abs(check[keep] - np.asarray(values, float)[keep]).max() <= 1e-9 * max(np.abs(values).max(), 1e-300):
             return p, (f"both masses raised x{k:g} from params0's, which cannot realise the estimate (a body's "
                        "inertia about its centre of mass would be negative; the data determine the masses only "
@@ -1970,7 +1977,7 @@ def _realise_free_entries(params0: Parameters, W, values: np.ndarray, a: float, 
     about its own axis) make the estimate's body unphysical, the same base parameters realised with one
     such diagonal entry (about the centre of mass) moved; every base parameter kept exactly.  None if no
     step of :data:`_FREE_ENTRY_STEPS` does."""
-    B = W.B if isinstance(W, _Terms) else W
+    B = W.B
     free_names = {PI_NAMES[j] for j in range(len(PI_NAMES)) if j not in set(B.pivots)}
     for i in (1, 2):
         given = getattr(params0, f"inertia{i}")
@@ -2004,8 +2011,8 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
     """``params0`` with the pivot entries of ``pi`` set so that its base parameters are ``values``;
     the base parameters named in ``held`` (inertia entries the fit did not free) are instead taken
     from params0's own inertia about the (new) centre of mass, like the dependent entries."""
-    B = W.B if isinstance(W, _Terms) else W
-    extra = dict(zip(W.extra, (float(v) for v in values[B.rank:]))) if isinstance(W, _Terms) else {}
+    B = W.B
+    extra = dict(zip(W.extra, (float(v) for v in values[B.rank:])))
     values = np.asarray(values, dtype=float)[:B.rank]
     pi0 = standard_parameters(params0)
     T = B.matrix_at(a, alpha, g)

@@ -3,7 +3,7 @@
 :func:`write_identification_report` writes what an identification found, in the look of
 ``skewpend report`` (its style sheet, its tables and figures): what was fitted and how, the base
 parameters with their 95 % intervals and expressions, the ratios a free swing determines, what
-the data cannot determine, the skew angle, the held-out prediction per piece beside the start's
+the data cannot determine, the skew angle (a chain's hinge tilt), the held-out prediction per piece beside the start's
 (``params0``), the figure (:func:`~skewpend.views.figures.identification.plot_identification`,
 a PNG ``data:`` URI) and how to use the fitted model.  No mathematics is typeset (no KaTeX): the
 expressions are the library's text.  Nothing is fetched: the file references nothing outside
@@ -31,7 +31,7 @@ IDENTIFICATION_SECTIONS = (
     ("parameters", "The base parameters"),
     ("ratios", "Ratios: what a free swing determines"),
     ("undetermined", "What the data cannot determine"),
-    ("skew", "The skew angle"),
+    ("skew", "The skew angle or a hinge's tilt"),
     ("heldout", "Prediction of held-out motion"),
     ("figure", "Figure"),
     ("use", "How to use it"),
@@ -139,7 +139,7 @@ def _section_fit(r, measurements, validation, drawn: float) -> str:
                        f"{over} (seed {st.get('seed', 0)})")
     free = [n for n in r.free if n != r.reference]
     if st.get("alpha_free"):
-        free.append("alpha")
+        free.append(getattr(r, "angle", "alpha"))
     seconds = r.stats.get("seconds") if isinstance(r.stats, dict) else None
     facts: List[Tuple[str, str]] = [
         ("status", f'<span class="status {"ok" if ok else "bad"}">{"success" if ok else "not successful"}</span> '
@@ -229,25 +229,34 @@ def _section_undetermined(r) -> str:
 
 
 def _section_skew(r) -> str:
+    """The freed angle: the double pendulum's skew angle alpha or a chain's hinge tilt (``r.angle``)."""
+    name = getattr(r, "angle", "alpha")
     values = r.params0.to_dict()
-    if "alpha" not in values:  # no skew-angle parameter: the hinge axes are given as vectors, the model's structure
-        axes = "; ".join("(" + ", ".join(f"{x:.4g}" for x in link.axis) + ")" for link in r.params0.as_chain().links)
-        return (f"<p>A chain's hinge axes are its structure: the fit holds them at params0's, {esc(axes)} (the "
-                "skew angle is freed for the double pendulum's model only).</p>")
-    alpha0 = values["alpha"] if values["alpha"] is not None else 0.0
     if not math.isfinite(r.alpha):
-        return (f"<p>The skew angle was not freed: the fit held it at params0's α = {_deg(alpha0)}. "
-                "Free it (<code>free=[\"alpha\", ...]</code>) to test whether the hinges are skewed.</p>")
+        if "alpha" in values:  # the double pendulum's facade: its skew angle
+            alpha0 = values["alpha"] if values["alpha"] is not None else 0.0
+            return (f"<p>The skew angle was not freed: the fit held it at params0's α = {_deg(alpha0)}. "
+                    "Free it (<code>free=[\"alpha\", ...]</code>) to test whether the hinges are skewed.</p>")
+        axes = "; ".join("(" + ", ".join(f"{x:.4g}" for x in link.axis) + ")" for link in r.params0.as_chain().links)
+        return (f"<p>No hinge's tilt was freed: the fit held the axes at params0's, {esc(axes)}. Free one "
+                "(<code>free=[\"tilt2\", ...]</code>: hinge 2's axis turned about the vertical) to test whether it "
+                "is turned.</p>")
+    alpha0 = (r.settings or {}).get("angle0")
+    if alpha0 is None:  # (written before the start was recorded: the double pendulum's alpha)
+        alpha0 = values.get("alpha") or 0.0
+    symbol = "α" if name == "alpha" else esc(name)
     lo, hi = r.alpha_interval
-    facts = [("estimate", _deg(r.alpha)), ("95 % interval", f"[{_deg(lo)}, {_deg(hi)}]"),
-             ("start", f"α₀ = {_deg(alpha0)}")]
+    facts = [("angle", "the skew angle α" if name == "alpha" else f"hinge {esc(name[len('tilt'):])}'s tilt {symbol} "
+              "(its axis turned about the vertical j; the angle of its projection on the (k, i) plane from k)"),
+             ("estimate", _deg(r.alpha)), ("95 % interval", f"[{_deg(lo)}, {_deg(hi)}]"),
+             ("start", f"{symbol}₀ = {_deg(alpha0)}")]
     if len(r.profile_alpha):
         a = np.degrees(np.asarray(r.profile_alpha, float))
         span = f"{a.min():.3g}° to {a.max():.3g}°".replace("-", "−")
         facts.append(("profile", f"{len(a)} angles from {span}, every other parameter re-fitted at each (figure panel e)"))
     covers = lo <= alpha0 <= hi
     verdict = ('<p class="verdict ok">The interval covers the start: the data show no skew beyond it.</p>' if covers
-               else '<p class="verdict bad">The interval excludes the start\'s skew angle.</p>')
+               else '<p class="verdict bad">The interval excludes the start\'s angle.</p>')
     note = f'<p class="note">{esc(r.alpha_note)}</p>' if r.alpha_note else ""
     return facts_html(facts) + verdict + note
 
@@ -297,7 +306,7 @@ def _section_figure(r, measurements, validation) -> Tuple[str, float]:
               "(d) the correlation of the free parameters' estimates" + ("" if np.asarray(r.correlation).size else
                                                                           " (output-error fits only)")]
     if len(r.profile_alpha) > 1:
-        panels.append("(e) the cost profiled over the skew angle (every other parameter re-fitted), its 95 % "
+        panels.append(f"(e) the cost profiled over {'the skew angle' if getattr(r, 'angle', 'alpha') == 'alpha' else r.angle} (every other parameter re-fitted), its 95 % "
                       "interval shaded")
     caption = "; ".join(panels) + "."
     html = (f'<figure class="wide" id="figure-1"><img src="{data_uri(buf.getvalue(), "image/png")}" '
