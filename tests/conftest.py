@@ -33,6 +33,17 @@ def reference_state():
     return reference_state()
 
 
+@pytest.fixture
+def recursive_forms(monkeypatch):
+    """Chains run on the recursive algorithms' forms even where the exact form prints them: a chain of two
+    holds no double pendulum's parameters here (``Chain.exact_model`` None), so ``f(params)`` against
+    ``f(params.as_chain())`` compares two forms of one model through a whole capability (issue 52: one
+    model, the form of its code an argument; by default a chain of two runs as the double pendulum)."""
+    from skewpend.symbolic.chain import Chain
+
+    monkeypatch.setattr(Chain, "exact_model", lambda self: None)
+
+
 # -- the quick selection: `python -m pytest -m "not slow"` ------------------------------------------------
 #: Modules whose every test is slow: a browser, a report built per module, the docs' build, and the docs'
 #: examples (a page's examples run in reading order, each after the ones above it, so a quick selection

@@ -28,7 +28,7 @@ def _pair(double_ctl, chain_ctl, y0, t_end=3.0):
     return a, b
 
 
-def test_the_chain_of_two_under_feedback_is_the_double_pendulum_under_it():
+def test_the_chain_of_two_under_feedback_is_the_double_pendulum_under_it(recursive_forms):
     """The acrobot's saturated LQR on the double pendulum's symbolic kernel and on the chain of two's recursive
     kernel (its actuated joint named by number): the same states and inputs.  Both integrate with DOP853 at
     rtol = atol = 1e-12 near the top, where the loop is stable: the runs agree to ~1e3 times the tolerance."""
@@ -43,7 +43,7 @@ def test_the_chain_of_two_under_feedback_is_the_double_pendulum_under_it():
     assert np.abs(a.inputs()[:, 1]).max() == pytest.approx(1.0)  # the limit held
 
 
-def test_the_chain_of_two_under_a_table_and_a_swing_up_law_is_the_double_pendulum():
+def test_the_chain_of_two_under_a_table_and_a_swing_up_law_is_the_double_pendulum(recursive_forms):
     """A torque table (both joints) and the energy-shaping swing-up law (the energy from each kernel's own
     generated E): the chain of two and the double pendulum give the same runs.  The table's knots are kinks
     of u(t); every step ends on a knot (integrators.c's table_stop), so both runs are within ~3e-11 of a
@@ -162,7 +162,7 @@ def test_chain_controllers_refuse_in_one_line():
 
 
 # -- regions of attraction over a plane of two coordinates ----------------------------------------------------------
-def test_the_chain_of_twos_region_of_attraction_is_the_double_pendulums():
+def test_the_chain_of_twos_region_of_attraction_is_the_double_pendulums(recursive_forms):
     """The pendubot's region of attraction on the double pendulum (its flip kernel's SIMD lanes) and on the chain
     of two (the recursive kernel, ``sp_capture_many`` one start at a time): the same cells captured but for
     starts within the integrators' tolerance of the boundary (at most 2 of 256), and the same capture times where
@@ -249,20 +249,24 @@ def test_the_cli_refuses_what_a_chain_cannot_take(tmp_path, argv, message):
 
 
 # -- flip maps over a plane of two angles ---------------------------------------------------------------------------
-def test_the_chain_of_twos_flip_map_is_the_double_pendulums():
-    """One flip map, two strategies: the double pendulum's (the flip kernel's SIMD lanes, its energy bound and
-    mirror symmetry) and the chain of two's over the plane (phi, psi) (the model kernel's ``sp_flip_many``, every
-    cell integrated): the same cells flip, by the same joint, at the same times (1e-6 s: DOP853 at 1e-10 on two
-    kernels, the crossing on each one's dense output)."""
+def test_one_flip_map_two_strategies_and_forms(monkeypatch):
+    """One flip map, two strategies: the exact form's flip kernel (SIMD lanes, its energy bound and mirror
+    symmetry) -- which the chain of two runs as the double pendulum does -- and the straight form's model kernel
+    (``sp_flip_many``, every cell integrated): the same cells flip, by the same joint, at the same times (1e-6 s:
+    DOP853 at 1e-10 on two kernels, the crossing on each one's dense output)."""
+    from skewpend.analysis import flipmap
+    from skewpend.numeric.kernels import model_kernel
+
     params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.3, g=9.81)
-    a = skewpend.flip_map(params, 16, t_end=4.0, workers=1)
-    b = skewpend.flip_map(Chain.from_parameters(params), 16, t_end=4.0, plane=("phi", "psi"), workers=1)
+    a = skewpend.flip_map(Chain.from_parameters(params), 16, t_end=4.0, plane=("phi", "psi"), workers=1)
+    monkeypatch.setattr(flipmap, "flip_kernel", lambda model: model_kernel(model, "straight"))
+    b = skewpend.flip_map(params, 16, t_end=4.0, workers=1)
     assert type(b) is type(a) is skewpend.FlipMap and b.ok and 0.2 < b.flipped_fraction < 0.9
     assert a.stats["lanes"] == 8 and a.settings["symmetry"] and b.stats["lanes"] == 1 and not b.settings["energy_bound"]
     np.testing.assert_array_equal(b.flipped, a.flipped)
     np.testing.assert_array_equal(b.which, a.which)
     np.testing.assert_allclose(b.flip_time[b.flipped], a.flip_time[a.flipped], rtol=0, atol=1e-6)
-    np.testing.assert_array_equal(b.x0, a.phi0[:, 0])
+    np.testing.assert_array_equal(b.x0, a.x0)
     np.testing.assert_array_equal(b.phi0, a.phi0)
     assert b.settings.keys() == a.settings.keys() and b.stats.keys() == a.stats.keys()
 

@@ -70,7 +70,7 @@ def test_a_conservative_chains_spectrum_obeys_the_volume_identity():
     assert abs(spec.sum * T - expected) <= 1e-7
 
 
-def test_the_chain_of_two_has_the_double_pendulums_exponents():
+def test_the_chain_of_two_has_the_double_pendulums_exponents(recursive_forms):
     """The double pendulum's chaos kernel (its Jacobian from the symbolic derivation) and the chain of two
     (CasADi's derivative of the recursive algorithms): the same exponents over a short run, before
     rounding differences grow (to 1e-7 of the largest)."""
@@ -140,7 +140,7 @@ def test_a_chains_small_orbits_approach_the_linear_modes(k):
     assert 3.5 < deviation[0] / deviation[1] < 4.5
 
 
-def test_the_chain_of_twos_orbit_is_the_double_pendulums():
+def test_the_chain_of_twos_orbit_is_the_double_pendulums(recursive_forms):
     params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
     guess, period = [0.6, 0.5, 0.0, 0.0], 2.3
     a = skewpend.periodic_orbit(params, guess, period)
@@ -197,7 +197,7 @@ def _balance_chain() -> Chain:
     return Chain.from_lists(3, length=[0.5, 0.4, 0.3], mass=[1.0, 0.8, 0.5], axis=[(0, 0, 1), (0.5, 0, 1), (1, 0, 0)])
 
 
-def test_the_chain_of_twos_lqr_is_the_double_pendulums():
+def test_the_chain_of_twos_lqr_is_the_double_pendulums(recursive_forms):
     """The double pendulum's LQR (its linearisation from the symbolic derivation) and the chain of two's
     (CasADi's exact linearisation of the recursive algorithms): the same gain, for both robots' joints."""
     params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81, c1=0.05)
@@ -242,7 +242,7 @@ def test_a_chains_lqr_refuses_what_it_cannot_take():
 
 
 # -- mode sweeps ---------------------------------------------------------------------------------------------------
-def test_the_chain_of_twos_tilt_sweep_is_the_double_pendulums_alpha_sweep():
+def test_the_chain_of_twos_tilt_sweep_is_the_double_pendulums_alpha_sweep(recursive_forms):
     """Hinge 2 of the chain of two turned from k towards i by t is the double pendulum's skew alpha = t:
     the same frequencies, shapes and resonances along the sweep (the symbolic model against the recursive one)."""
     params = skewpend.Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.0, g=9.81)

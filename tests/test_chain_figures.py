@@ -59,7 +59,7 @@ def test_a_chains_sweep_draws_every_mode():
     assert "tilt2 [deg]" in ax.get_xlabel()
 
 
-def test_mujoco_simulates_the_exported_chain():
+def test_mujoco_simulates_the_exported_chain(recursive_forms):
     pytest.importorskip("mujoco")
     from skewpend.interop.validation import compare_with_mujoco
 

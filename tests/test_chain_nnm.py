@@ -23,7 +23,7 @@ def mode3():
     return skewpend.nnm(_triple(), 3, resolution=30)
 
 
-def test_the_chain_of_twos_nonlinear_normal_modes_are_the_double_pendulums():
+def test_the_chain_of_twos_nonlinear_normal_modes_are_the_double_pendulums(recursive_forms):
     """Both families of the skewed double pendulum from its symbolic kernel and from the chain of two's
     recursive one: the same orbits (energies, frequencies to 1e-8), the same stability and events, and the same
     flip energy (the minimum of V on the square's sides; the chain's search over the faces of its cube)."""

@@ -32,33 +32,27 @@ DEFAULT_TOL = 1e-10
 RTOL_MIN, ATOL_MIN = 1e-15, 1e-300
 
 
-#: What takes a chain of links today (the rest computes the double pendulum's Parameters).
-CHAIN_TAKERS = "derive, simulate, equilibria, normal_modes and the MJCF/URDF export"
-
-
 def not_parameters(params, what: str) -> str:
-    """The one line for a model that is not the double pendulum's :class:`~skewpend.Parameters`: a
-    chain of links says what it can do instead."""
-    from .symbolic.chain import Chain
-
-    if isinstance(params, Chain):
-        return (f"{what} computes the double pendulum's Parameters, not a chain of {params.n} links (a chain "
-                f"takes {CHAIN_TAKERS} so far)")
+    """The one line for a model that ``what`` cannot compute: it computes models of two links the double
+    pendulum's parameters hold (the specification's derivation), and says what the model is instead."""
+    if hasattr(params, "exact_model"):
+        return (f"{what} computes the double pendulum's Parameters, not {params.title} (two links the double "
+                "pendulum's parameters hold: hinge 2 on rod 1's end, one rotor for both joints)")
     return f"params must be a skewpend.Parameters, got {type(params).__name__}"
 
 
 def numeric_params(params, what: str):
-    """``params`` if it is a :class:`~skewpend.Parameters` with every value numeric (``what``
-    needs them: "a flip map", ...), else a :class:`ParameterError`."""
-    from .symbolic.model import Parameters
-
-    if not isinstance(params, Parameters):
+    """The double pendulum's :class:`~skewpend.Parameters` of ``params`` -- itself, or a chain of two that they
+    hold (:meth:`exact_model`: the chain of two *is* the double pendulum) -- with every value numeric
+    (``what`` needs them: "a flip time", ...), else a :class:`ParameterError`."""
+    exact = params.exact_model() if hasattr(params, "exact_model") else None
+    if exact is None:
         raise ParameterError(not_parameters(params, what))
     try:
-        params.require_numeric(what)
+        exact.require_numeric(what)
     except NotNumericError as exc:
         raise ParameterError(str(exc)) from None
-    return params
+    return exact
 
 
 def numeric_model(params, what: str):

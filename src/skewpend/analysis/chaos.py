@@ -325,8 +325,10 @@ def chaos_diagram(
     from ..numeric.grid import check_run_options, run_grid
     from .poincare import require_conservative
 
-    if not isinstance(params, Parameters):
+    exact = params.exact_model() if hasattr(params, "exact_model") else None  # a chain of two is the double pendulum
+    if exact is None:
         raise ParameterError(not_parameters(params, "a chaos diagram"))
+    params = exact
     if params.uses_alpha and params.alpha is None:  # alpha is the diagram's own axis
         params = params.replace(alpha=0.0)
     params = numeric_params(params, "a chaos diagram")

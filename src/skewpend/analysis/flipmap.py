@@ -193,7 +193,7 @@ class FlipMap(Result):
         kernel = flip_kernel(self.params)
         if not kernel.flip:
             raise ParameterError("this model's flip map has no energy bound (its kernel prints no flip potential)")
-        p = model_vector(self.params)
+        p = model_vector(self.params, kernel.form)
         threshold = self.stats.get("energy_threshold")
         if threshold is None:
             barrier, scale = energy_barrier(kernel, p)
@@ -379,15 +379,14 @@ def energy_barrier(kernel, p, *, samples: int = _BARRIER_SAMPLES) -> Tuple[float
 def flip_kernel(model):
     """The kernel a flip map of ``model`` runs on, which chooses its strategy (see the module): the flip
     kernel (``sp_flip``: SIMD lanes, the flip potential of the energy bound, the symmetry check of the
-    mirror) where its generator prints the model -- it reads the run-time vector in the specification's
-    order (:data:`~skewpend.numeric.conventions.PARAMETER_ORDER`) -- else the model's own kernel
-    (``sp_flip_many``, one start at a time).  As :func:`skewpend.analysis.roa.roa_kernel` chooses."""
-    from ..numeric.conventions import PARAMETER_ORDER
-    from ..numeric.kernels import kernel_module, model_kernel, model_vector_names
+    mirror) where the model's code is printed in the exact form (``kernels.model_form``) and its lanes'
+    generator prints it, else the model's own kernel (``sp_flip_many``, one start at a time).  As
+    :func:`skewpend.analysis.roa.roa_kernel` chooses."""
+    from ..numeric.kernels import model_form, model_kernel
 
-    if tuple(model_vector_names(model)) == tuple(PARAMETER_ORDER):
+    if model_form(model)[0] == "exact":
         try:
-            return kernel_module(model, flip=True)
+            return model_kernel(model, flip=True)
         except ValueError:  # the lanes' code generator refused the model
             pass
     return model_kernel(model)
@@ -503,11 +502,11 @@ def flip_map(
     max_steps = check_max_steps(MAX_STEPS if max_steps is None else max_steps)
     _check_memory(n)
     kernel = flip_kernel(params)
-    p = model_vector(params)
+    p = model_vector(params, kernel.form)
     barrier = threshold = None
     symmetric = False
     if shortcuts and kernel.flip:
-        torques = [i for i, name in enumerate(model_vector_names(params)) if _TORQUE.fullmatch(name)]
+        torques = [i for i, name in enumerate(model_vector_names(params, kernel.form)) if _TORQUE.fullmatch(name)]
         symmetric = bool(kernel.flip_odd and not np.any(p[torques]) and not np.any(q)
                          and ra[0] == -ra[1] and rb[0] == -rb[1])
         barrier, scale = energy_barrier(kernel, p)
@@ -735,7 +734,8 @@ class FlipJob(PlaneJob):
         """The kernel (compiled or loaded here), checked to be the very code of this run."""
         from ..numeric.kernels import model_vector
 
-        return self.state(self.checked_kernel(flip_kernel(self.params)), model_vector(self.params))
+        kernel = self.checked_kernel(flip_kernel(self.params))
+        return self.state(kernel, model_vector(self.params, kernel.form))
 
     @cached_property
     def _axes(self) -> Tuple[int, int]:

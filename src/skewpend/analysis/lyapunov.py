@@ -205,7 +205,7 @@ class LyapunovSpectrum(Result):
         return list(names) + [f"d{c}" for c in names]
 
     def _what(self) -> str:
-        return "the skewed double pendulum" if isinstance(self.params, Parameters) else f"a chain of {self.params.n} links"
+        return self.params.title
 
     def to_dict(self) -> Dict[str, Any]:
         """Plain data (JSON-ready): exponents, uncertainties, settings, statistics, parameters."""

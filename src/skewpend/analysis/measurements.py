@@ -980,10 +980,7 @@ class Measurements:
         if not traj.kept:
             raise ParameterError(f"{src or 'the trajectory'}: only its first and last rows were kept (keep=False); "
                                  "simulate with keep=True")
-        if hasattr(traj.params, "links"):  # a chain of links: its n angles, its joints' constant torques
-            tau = np.array([link.torque for link in traj.params.links], dtype=float)
-        else:
-            tau = np.array([float(traj.params.tau1 or 0.0), float(traj.params.tau2 or 0.0)])
+        tau = np.array([float(traj.params.value(f"tau{i}") or 0.0) for i in range(1, traj.params.n + 1)])
         n = tau.size
         u = None
         if traj.controller is not None:

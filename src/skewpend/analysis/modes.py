@@ -702,8 +702,13 @@ def characteristic_equation(params: Optional[Parameters] = None):
 
     from ..symbolic.derivation import derive
 
-    if params is not None and not isinstance(params, Parameters):
-        raise ParameterError(f"params must be a skewpend.Parameters (or None: all symbolic), got {type(params).__name__}")
+    if params is not None:  # the double pendulum's parameters, or a chain of two they hold
+        exact = params.exact_model() if hasattr(params, "exact_model") else None
+        if exact is None:
+            from ..checks import not_parameters
+
+            raise ParameterError(not_parameters(params, "the closed form of the frequencies") + "; or None: all symbolic")
+        params = exact
     lin = derive(params if params is not None else Parameters()).linearize()
     M, K = lin.M, lin.K
     w = sp.Symbol("omega", positive=True)

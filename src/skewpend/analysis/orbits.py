@@ -378,8 +378,7 @@ class PeriodicOrbit(Result):
                 "multiplier_imag": (("multiplier",), self.multipliers.imag, {}),
             },
             coords={},
-            attrs={"title": "periodic orbit of " + ("the skewed double pendulum" if isinstance(self.params, Parameters)
-                                                    else f"a chain of {self.params.n} links") + " (skewpend)",
+            attrs={"title": f"periodic orbit of {self.params.title} (skewpend)",
                    "components": ", ".join(_names(self.params) + [f"d{c}" for c in _names(self.params)]),
                    **self._base_attrs()},
         )

@@ -246,8 +246,7 @@ PROBE_TRIES = 6
 def probe_time(params) -> float:
     """How long a trial run lasts [s]: about 20 swing times ``sqrt(L / g)`` (``L = a + b``, a chain's
     summed link lengths; 1 s without gravity), long enough for a representative step rate, a few ms of work."""
-    reach = (sum(link.length for link in params.links) if hasattr(params, "links")
-             else float(params.a) + float(params.b))
+    reach = sum(link.length for link in params.as_chain().links)
     scale = math.sqrt(reach / float(params.g)) if float(params.g) > 0 else 1.0
     return 20.0 * min(max(scale, 1e-6), 1e6)
 

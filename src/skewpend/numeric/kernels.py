@@ -507,6 +507,8 @@ class Kernel:
         if lib.sp_control_size() != ctypes.sizeof(self.ControlStruct):
             raise CompilerError(f"{path}: control layout mismatch ({lib.sp_control_size()} != "
                                 f"{ctypes.sizeof(self.ControlStruct)} bytes)")
+        #: the form of the generated code (:data:`FORMS`), said by the loader
+        self.form = ""
         self.flip = flip
         if flip:  # the flip kernel: sp_flip, many starts at rest side by side (integrators.c)
             if not hasattr(lib, "sp_flip"):
@@ -885,6 +887,7 @@ def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False
     kernel = _library(key, lambda path, origin, seconds: Kernel(path, origin, seconds, flip=flip, chaos=chaos,
                                                                  shooting=shooting),
                       source, kind=kind, which=_bodies_words(geometry))
+    kernel.form = "exact"
     _BYGEOMETRY[gkey] = kernel
     return kernel
 
@@ -924,39 +927,91 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool =
             text += "\n" + chain_sensitivity_c_source(structure) + "\n" + _numeric_text("shooting.c" if shooting else "chaos.c")
         return text
 
-    return _library(key, lambda path, origin, seconds: Kernel(path, origin, seconds, shooting=shooting, chaos=chaos),
-                    source, kind="shooting" if shooting else ("chaos" if chaos else "chain"))
+    kernel = _library(key, lambda path, origin, seconds: Kernel(path, origin, seconds, shooting=shooting, chaos=chaos),
+                      source, kind="shooting" if shooting else ("chaos" if chaos else "chain"))
+    kernel.form = form
+    return kernel
 
 
-def model_kernel(model, *, chaos: bool = False, shooting: bool = False) -> Kernel:
-    """The one door to a model's compiled library (the model's own, ``chaos=True``: with the Lyapunov
-    routines and the state-transition flow, ``shooting=True``: identification's): the form of its code
-    is the loader's choice, not the caller's -- today the specification's exact derivation
-    (:func:`kernel_module`) where the model keeps it (the double pendulum's facade), the recursive
-    algorithms (:func:`chain_kernel`) otherwise (issue 52 makes the form an argument of one pipeline)."""
-    if isinstance(model, Parameters):
-        return kernel_module(model, chaos=chaos, shooting=shooting)
-    return chain_kernel(model, chaos=chaos, shooting=shooting)
+#: The forms of a model's generated code (issue 52: the form an argument of one pipeline, not the model's
+#: type): ``exact``, the specification's derivation (SymPy; two links the double pendulum's parameters hold:
+#: there the fastest -- a 20 s DOP853 run at 1e-10 takes 9.58e6 instructions, the straight form 1.53x, the
+#: compact 2.70x); ``straight`` and ``compact``, the recursive algorithms (any chain; ``recursive.chain_form``
+#: picks by the length).
+FORMS = ("exact", "straight", "compact")
 
 
-def model_vector_names(model) -> tuple:
-    """The names of :func:`model_vector`'s entries, in its order."""
-    if isinstance(model, Parameters):
-        from .conventions import PARAMETER_ORDER
+def model_form(model, form: str = "", kind: str = ""):
+    """``(form, printed)``: the form of ``model``'s code for a library of ``kind`` (``""``, ``"flip"``,
+    ``"chaos"``, ``"shooting"``) and the model that form prints (the double pendulum's parameters for
+    ``exact``, the chain otherwise).  ``form=""``: the fastest that prints it, for every kind (so that
+    :func:`model_vector` agrees with any library's default) -- ``exact`` where the model has it, the straight
+    form for chaos and shooting libraries otherwise (their sensitivities), else by the chain's length.
+    A form the model has not, or one that does not exist: one line naming the forms."""
+    from ..errors import ParameterError
 
+    exact = model.exact_model()
+    if not form:
+        if exact is not None:
+            return "exact", exact
+        if kind in ("chaos", "shooting"):
+            return "straight", model.as_chain()
+        from .recursive import chain_form, structure_of_chain
+
+        chain = model.as_chain()
+        return chain_form(structure_of_chain(chain)), chain
+    if form not in FORMS:
+        raise ParameterError(f"form must be one of {', '.join(FORMS)}, got {form!r}")
+    if form == "exact":
+        if exact is None:
+            raise ParameterError(f"the exact form (the specification's derivation) prints two links the double pendulum's "
+                                 f"parameters hold; this model is {model.title}: use form 'straight' or 'compact'")
+        return form, exact
+    if kind == "flip":
+        raise ParameterError("the flip kernel (its SIMD lanes) is printed in the exact form only")
+    if kind in ("chaos", "shooting") and form != "straight":
+        raise ParameterError(f"the {kind} library is printed in the exact or the straight form, got {form!r}")
+    chain = model.as_chain()
+    if form == "compact" and chain.has_rotor:
+        raise ParameterError("the compact form prints chains without rotors; this model has geared rotors: use form "
+                             "'exact' or 'straight'")
+    return form, chain
+
+
+def model_kernel(model, form: str = "", *, flip: bool = False, chaos: bool = False, shooting: bool = False) -> Kernel:
+    """The one door to a model's compiled library: the model's own, ``flip=True`` with the flip map's SIMD
+    lanes (exact form only), ``chaos=True`` with the Lyapunov routines and the state-transition flow,
+    ``shooting=True`` identification's.  ``form``: the generated code's form (:data:`FORMS`; default the
+    fastest that prints the model, :func:`model_form`).  The kernel says its ``form`` and the names of its
+    run-time vector (``parameter_names``; :func:`model_vector` fills it)."""
+    kind = "flip" if flip else ("chaos" if chaos else ("shooting" if shooting else ""))
+    form, printed = model_form(model, form, kind)
+    if form == "exact":
+        kernel = kernel_module(printed, flip=flip, chaos=chaos, shooting=shooting)
+    else:
+        kernel = chain_kernel(printed, form, chaos=chaos, shooting=shooting)
+    return kernel
+
+
+def model_vector_names(model, form: str = "") -> tuple:
+    """The names of :func:`model_vector`'s entries, in its order (the specification's parameters for the
+    exact form, ``recursive.parameter_names`` for the recursive ones)."""
+    form, printed = model_form(model, form)
+    if form == "exact":
         return tuple(PARAMETER_ORDER)
     from .recursive import parameter_names
 
-    return parameter_names(model.n)
+    return parameter_names(printed.n)
 
 
-def model_vector(model):
-    """The run-time array ``p`` of the double pendulum's :class:`Parameters` or of a chain of links."""
-    if isinstance(model, Parameters):
-        return parameter_vector(model)
+def model_vector(model, form: str = ""):
+    """The run-time array ``p`` of ``model`` for the kernel of ``form`` (:func:`model_kernel`'s default alike)."""
+    form, printed = model_form(model, form)
+    if form == "exact":
+        return parameter_vector(printed)
     from .recursive import parameter_vector as chain_vector
 
-    return chain_vector(model)
+    return chain_vector(printed)
 
 
 # -- the Taylor integrator: one small library per geometry and order ------------------------------
@@ -993,9 +1048,10 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
     (:mod:`skewpend.numeric.chain_taylor`)."""
     if model is not None and (model.path, order) in _TAYLOR_OF:
         return _TAYLOR_OF[model.path, order]
-    if hasattr(params, "links"):
-        return _chain_taylor_kernel(params, order, model)
-    return _taylor_kernel(params, order, model)
+    form, printed = model_form(params, model.form if model is not None else "")
+    if form != "exact":
+        return _chain_taylor_kernel(printed, order, model)
+    return _taylor_kernel(printed, order, model)
 
 
 def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
@@ -1042,7 +1098,8 @@ def built_taylor_kernel(params: Parameters, order: int, *, model: Optional[Kerne
     chain's Taylor libraries are not looked up here: None)."""
     if model is not None and (model.path, order) in _TAYLOR_OF:
         return _TAYLOR_OF[model.path, order]
-    if hasattr(params, "links"):
+    params = params.exact_model()
+    if params is None:
         return None
     if _BYGEOMETRY.get(_taylor_gkey(params, order)) is not None:
         return _taylor_kernel(params, order, model)
@@ -1079,6 +1136,7 @@ def build_taylor_in_background(params: Parameters, order: int) -> bool:
     import json
     import subprocess
 
+    params = params.exact_model()
     key = _taylor_key(params, order)[0]
     directory = cache_dir() / "kernels"
     mark = directory / f".skewpend_{key}.building"

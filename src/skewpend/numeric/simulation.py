@@ -76,6 +76,7 @@ AUTO = "auto"
 AUTO_RULE = {
     "controller": "dop853: inputs that vary (taylor's series are generated for constant torques)",
     "no series": "dop853: {reason}",
+    "recursive": "dop853: code of the recursive algorithms (a chain's Taylor series there cost 6-45x its DOP853, measured)",
     "taylor": "taylor: the fastest method that serves this request (2-4x dop853's speed at the same tolerance)",
     "building": "dop853: taylor's library for this model and tolerance is being built in the background (first use; "
                 "later runs take taylor, SKEWPEND_TAYLOR_BUILD=foreground waits for it instead)",
@@ -387,10 +388,11 @@ class _Prepared:
     so its id cannot be reused while it is here); another object, even an equal one, is prepared
     afresh -- never a stale kernel or parameter array."""
 
-    __slots__ = ("params", "kernel", "p", "p_ptr", "p_addr", "taylor", "taylor_tol")
+    __slots__ = ("params", "kernel", "p", "p_ptr", "p_addr", "taylor", "taylor_tol", "coordinates", "form")
 
     def __init__(self, params: Parameters, kernel, p: np.ndarray):
         self.params, self.kernel, self.p = params, kernel, p
+        self.coordinates, self.form = params.coordinates, kernel.form
         self.p_ptr = p.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
         self.p_addr = p.ctypes.data
         self.taylor: Dict[int, Any] = {}
@@ -404,27 +406,29 @@ _PREPARED: Dict[int, _Prepared] = {}
 _PREPARED_MAX = 64
 
 
-def _prepare(params) -> _Prepared:
+def _prepare(params, form: str = "") -> _Prepared:
     K = _KERNELS or _kernels()
-    kernel = K.model_kernel(params)
-    p = K.model_vector(params)
+    kernel = K.model_kernel(params, form)
+    p = K.model_vector(params, kernel.form)
     p.flags.writeable = False
     entry = _Prepared(params, kernel, p)
+    if form:  # a form asked for: not kept (the default's entry is what later calls look up)
+        return entry
     while len(_PREPARED) >= _PREPARED_MAX:
         _PREPARED.pop(next(iter(_PREPARED)), None)
     _PREPARED[id(params)] = entry
     return entry
 
 
-def _initial_state(y0) -> List[float]:
-    """``initial_state(y0)`` as a list, quicker for the common case of 4 Python floats."""
-    if type(y0) in (tuple, list) and len(y0) == 4:
+def _initial_state(y0, coordinates) -> List[float]:
+    """``initial_state(y0, coordinates)`` as a list, quicker for the common case of 4 Python floats."""
+    if len(coordinates) == 2 and type(y0) in (tuple, list) and len(y0) == 4:
         a, b, c, d = y0
         if type(a) is float and type(b) is float and type(c) is float and type(d) is float and abs(a) <= MAX_ANGLE \
                 and abs(b) <= MAX_ANGLE and math.isfinite(c) and math.isfinite(d):  # (NaN fails the comparisons)
             return [a, b, c, d]
     checks.real_sequence("y0", y0)
-    return initial_state(y0).tolist()
+    return initial_state(y0, coordinates).tolist()
 
 
 def _check_start(kernel, entry: _Prepared, y: List[float]) -> None:
@@ -469,6 +473,7 @@ def simulate(
     keep: bool = True,
     progress: Optional[Callable[[float, float], None]] = None,
     controller: Any = None,
+    form: str = "",
 ) -> Trajectory:
     """Integrate the equations of motion from ``y0 = (phi, psi, dphi, dpsi)`` over ``[0, t_end]``.
 
@@ -522,26 +527,25 @@ def simulate(
     (dop853 or rk4), or a Python function (``Controller.function``, the slow path: an exception
     it raises is raised here); ``Trajectory.inputs()`` gives them at the rows, and the work ``W``
     includes theirs.
+
+    ``form``: the form of the generated code the run takes (``kernels.FORMS``: ``"exact"``, the
+    specification's derivation, for two links; ``"straight"`` or ``"compact"``, the recursive algorithms,
+    for any chain); default the fastest that prints the model (``kernels.model_form``).  A chain of two
+    runs as the double pendulum: the same code, the same numbers.
     """
     K = _KERNELS or _kernels()
     # per Parameters object, once (_Prepared); then the quick checks of the common argument types,
     # the library's own checks (same messages) for everything else
-    entry = _PREPARED.get(id(params))
-    chain = not isinstance(params, Parameters)
-    if chain:
-        from ..symbolic.chain import Chain
-
-        if not isinstance(params, Chain):
-            raise ParameterError(f"simulate takes Parameters or a Chain, got {type(params).__name__}")
+    entry = _PREPARED.get(id(params)) if not form else None
     if entry is None or entry.params is not params:
         entry = None
-        if not chain:
-            params.require_numeric("simulation")
-    if chain:
-        checks.real_sequence("y0", y0)
-        y = initial_state(y0, params.coordinates).tolist()
+        if not hasattr(params, "as_chain"):
+            raise ParameterError(f"simulate takes Parameters or a Chain, got {type(params).__name__}")
+        params.require_numeric("simulation")
+        coordinates = params.coordinates
     else:
-        y = _initial_state(y0)
+        coordinates = entry.coordinates
+    y = _initial_state(y0, coordinates)
     if not (type(t_end) is float and _FLOAT_MIN <= t_end < math.inf):
         t_end = checks.positive("t_end", t_end)
     dt_out = None if dt_out is None else checks.positive("dt_out", dt_out)
@@ -551,8 +555,8 @@ def simulate(
             raise ParameterError("dt is the step of rk4 and gauss; the default method 'auto' chooses its own steps (set "
                                  "rtol/atol), or name method='rk4' or 'gauss' with dt")
         K.taylor_build_in_foreground()  # a bad SKEWPEND_TAYLOR_BUILD refused before any build
-        if chain:
-            method, choice = "dop853", "dop853: a chain of links (6-45x faster than its Taylor series, measured)"
+        if (entry.form if entry is not None else K.model_form(params, form)[0]) != "exact":
+            method, choice = "dop853", AUTO_RULE["recursive"]
         elif controller is None:
             method, choice = "taylor", AUTO_RULE["taylor"]
         else:
@@ -569,7 +573,7 @@ def simulate(
         if not isinstance(controller, Controller):
             raise ParameterError(f"controller must be a skewpend Controller (feedback, swing-up, a table or a Python "
                                  f"function: Controller.function), got {controller!r}")
-        controller.check_model(params.n if chain else 2)
+        controller.check_model(len(coordinates))
         if method == "gauss":
             raise ParameterError("inputs that vary need dop853 or rk4 (gauss integrates Hamilton's equations of the "
                                  "model with constant torques)")
@@ -622,7 +626,7 @@ def simulate(
         settings["controller"] = controller.settings()
 
     if entry is None:
-        entry = _prepare(params)
+        entry = _prepare(params, form)
     kernel, p = entry.kernel, entry.p
     tk: Any = None
     if method == "taylor":
@@ -631,14 +635,15 @@ def simulate(
         if rule is None:
             order, step_l = K.taylor_rule(rtol)
             tk = entry.taylor.get(order)
-            if tk is None and choice is not None and not chain and not K.taylor_build_in_foreground():
+            if tk is None and choice is not None and entry.form == "exact" and not K.taylor_build_in_foreground():
                 tk = K.built_taylor_kernel(params, order, model=kernel)
                 if tk is None:  # auto's first use of this order: dop853 now, the library built for later runs
                     method = "dop853"
                     settings["method_choice"] = AUTO_RULE["building"]
                     if K.build_taylor_in_background(params, order):
-                        K.announce_background(f"the Taylor kernel of order {order}" + K._bodies_words(params),
-                                              "this run uses dop853", key=K._taylor_key(params, order)[0])
+                        exact = params.exact_model()
+                        K.announce_background(f"the Taylor kernel of order {order}" + K._bodies_words(exact),
+                                              "this run uses dop853", key=K._taylor_key(exact, order)[0])
             if tk is None and method == "taylor":
                 try:
                     tk = K.taylor_kernel(params, order, model=kernel)
@@ -654,7 +659,7 @@ def simulate(
         else:
             tk, step_l = rule
     state: Any
-    if method == "taylor" and dt_out is None and not chain:
+    if method == "taylor" and dt_out is None and entry.form == "exact":
         # the integrator's own steps: sp_taylor_rows (each row's energy and the account in C, the state
         # reset from y there), buffers from a pool; a run done in its first call returns at once
         buf = _TAYLOR_BUFFERS.pop() if _TAYLOR_BUFFERS else _TaylorBuffers(K)

@@ -36,8 +36,8 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any, Iterable, Mapping, Optional, Tuple
 
 from ..errors import ParameterError
-from ..schema import (CHAIN_NAMES, LINK_FIELDS, LINK_KEYS, MAX_LINKS, coordinate_names, did_you_mean, link_bound, model_title,
-                      nearest, nearest_link_key)
+from ..schema import (CHAIN_NAMES, LINK_FIELDS, LINK_KEYS, MAX_LINKS, coordinate_names, did_you_mean, link_bound,
+                      link_field_of, model_title, nearest, nearest_link_key)
 from .values import Mat3, Vec3, as_real, as_vector, check_inertia
 
 __all__ = ["Link", "Chain", "LINK_KEYS", "MAX_LINKS"]
@@ -226,6 +226,46 @@ class Chain:
         """The model as a chain: itself (the double pendulum's :class:`~skewpend.Parameters` answer the same
         question with the chain of two)."""
         return self
+
+    def value(self, name: str):
+        """A value by its name: the chain's own (``g``, ``cfs``), a link's field by its stem and the link's
+        number (``m3``, ``l2``, ``c1``, ``cf2``, ``tau3``, ``Ir1``: ``links[k - 1]``'s), and the double pendulum's
+        names of a chain of two's fields (``a``, ``b``: ``links[0].length``, ``links[1].length``).  An unknown
+        name, or a link that does not exist: one line."""
+        if name in CHAIN_NAMES:
+            return getattr(self, name)
+        stem = name.rstrip("0123456789")
+        number = name[len(stem):]
+        key = next((k for k, st, kind in LINK_FIELDS if st == stem and kind == "scalar"), None)
+        if key is None or not number:
+            alias = link_field_of(name) if self.n == 2 and name != "alpha" else None
+            if alias is None or alias[1] is None:
+                raise ParameterError(f"unknown parameter {name!r} of {self.title}: a link's scalar is its stem and "
+                                     f"number ({', '.join(st + '1' for _, st, kind in LINK_FIELDS if kind == 'scalar')}), "
+                                     f"or {', '.join(CHAIN_NAMES)}")
+            key, number = alias[0], str(alias[1])
+        k = int(number)
+        if not 1 <= k <= self.n:
+            raise ParameterError(f"{name!r}: {self.title} has links 1 to {self.n}")
+        return getattr(self.links[k - 1], key)
+
+    def exact_model(self):
+        """The model the specification's exact derivation prints (the ``exact`` form of the generated code):
+        for two links that the double pendulum's parameters hold (hinge 2 on rod 1's end, one rotor for both
+        joints), those parameters; None otherwise (the recursive algorithms' forms print every chain)."""
+        if self.n != 2:
+            return None
+        exact = self.__dict__.get("_exact", False)  # once per chain (immutable): asked at every kernel look-up
+        if exact is False:
+            from ..errors import ParameterError
+            from .model import Parameters
+
+            try:
+                exact = Parameters.from_chain(self)
+            except ParameterError:
+                exact = None
+            object.__setattr__(self, "_exact", exact)
+        return exact
 
     @property
     def coordinates(self) -> Tuple[str, ...]:

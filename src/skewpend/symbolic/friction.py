@@ -33,17 +33,13 @@ def check_coulomb(coulomb, name: str = "coulomb") -> str:
 def friction_terms(params) -> Tuple[str, ...]:
     """The Coulomb friction parameters that enter the model (``cf1``, ``cf2``: non-zero or symbolic; a
     chain's joints with friction, ``cf1`` ... ``cfn``)."""
-    from ..schema import names
-
-    if hasattr(params, "links"):
-        return tuple(f"cf{link.index}" for link in params.links if link.coulomb)
-    return tuple(n for n in names(stem="cf") if getattr(params, n) is None or getattr(params, n) != 0)
+    cf = [(f"cf{i}", _coulomb_value(params, f"cf{i}")) for i in range(1, params.n + 1)]
+    return tuple(name for name, value in cf if value is None or value != 0)
 
 
 def _coulomb_value(params, name: str):
-    if hasattr(params, "links"):
-        return params.links[int(name[2:]) - 1].coulomb
-    return getattr(params, name)
+    """Joint ``cfK``'s Coulomb friction amplitude (None: symbolic), by the model's own name for it."""
+    return params.value(name)
 
 
 def _slopes(params, names) -> str:

@@ -241,6 +241,16 @@ class _Model:
 
         return model_title(2)
 
+    def value(self, name: str):
+        """A value by its name (None: symbolic), as a chain answers ``value``: the fields' own names."""
+        if name not in NAMES:
+            raise ParameterError(unknown_names_message([name]))
+        return getattr(self, name)
+
+    def exact_model(self) -> "Parameters":
+        """The model the specification's exact derivation prints (the ``exact`` form): itself."""
+        return self
+
     def as_chain(self) -> Chain:
         """The double pendulum as the chain of two (numeric parameters only): link 1 rod ``a`` on the roof
         hinge (axis ``k`` or ``axis1``), link 2 rod ``b`` on the hinge at ``a j`` with the axis
