@@ -1224,16 +1224,39 @@ class _Recursive:
             model = model.replace_link(int(n[len(stem):]), **{_JOINT_KEYS[stem]: 0.0})
         return model
 
+    def _held(self, model0, terms: ChainTerms, beta, held: Sequence[str]) -> np.ndarray:
+        """``beta`` with the held inertia entries (the data do not determine them here) taken from ``model0``'s own
+        inertia about each body's new centre of mass, as the double pendulum's realisation holds them (held about
+        the hinge, a centre moved by the fit would leave a slender rod no body)."""
+        from ..numeric.conventions import TENSOR_ENTRIES, TENSOR_INDICES
+
+        rows = [k for k, n in enumerate(self.names) if n in held and n.startswith("J")]
+        if not rows:
+            return np.asarray(beta, float)
+        pi = terms.representative(beta, self.standard(model0))
+        for k in rows:
+            j = terms.pivots[k]
+            name = terms.pi_names[j]  # J{i}{entry}
+            i, entry = int(name[1:-2]), name[-2:]
+            m = pi[terms.pi_names.index(f"m{i}")]
+            c = np.array([pi[terms.pi_names.index(f"h{i}{x}")] for x in "xyz"]) / m
+            J = np.asarray(model0.links[i - 1].inertia, float) + m * (float(c @ c) * np.eye(3) - np.outer(c, c))
+            pi[j] = J[TENSOR_INDICES[TENSOR_ENTRIES.index(entry)]]
+        out = np.array(beta, float)
+        out[rows] = terms.values(pi)[rows]
+        return out
+
     def realise(self, model0, beta, angle: float, held: Sequence[str] = (), halves=None, exact: bool = False):
-        model0 = self.with_angle(model0, angle)
-        fitted, note = _realise_chain(model0, self.terms.at(angle), beta, self.standard(model0), halves)
+        model0, terms = self.with_angle(model0, angle), self.terms.at(angle)
+        fitted, note = _realise_chain(model0, terms, self._held(model0, terms, beta, held), self.standard(model0), halves)
         if fitted is None or "nearest physical body" in note:  # a projection is a start, never the model
             raise ParameterError(note)
         return fitted, note
 
     def nearest(self, model0, beta, angle: float, held: Sequence[str]):
-        model0 = self.with_angle(model0, angle)
-        fitted, note = _realise_chain(model0, self.terms.at(angle), beta, self.standard(model0), start=True)
+        model0, terms = self.with_angle(model0, angle), self.terms.at(angle)
+        fitted, note = _realise_chain(model0, terms, self._held(model0, terms, beta, held), self.standard(model0),
+                                      start=True)
         if fitted is None:
             raise ParameterError(note)
         return fitted

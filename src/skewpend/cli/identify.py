@@ -628,19 +628,15 @@ def _params0(kind: str, paths: List[str], model: dict, config: Optional[str], la
             return kaheman_published_chain(where)  # the triple pendulum: the chain of three links
         return kaheman_published_parameters(paths[0])
     run = resolve("identify", config, defaults=False, parameters=model)
-    if run.is_chain:
-        if given:
-            raise UsageError(f"{', '.join(sorted(given))}: the double pendulum's model options do not apply to a chain "
-                             "of links ([[links]] in --config); set the links' values in the run file")
-        return run.chain()
-    params = run.parameters()
-    missing = [run.option("parameters", k) for k in NEEDED if getattr(params, k) is None]
+    params = run.parameters()  # the run's model (a chain where it gives links: the facade's options refused there)
+    unset = () if params.is_numeric else params.symbolic_names
+    if "alpha" in unset and run.raw("parameters", "alpha") is None:  # alpha not given: 0
+        params, unset = params.replace(alpha=0.0), tuple(n for n in unset if n != "alpha")
+    missing = [run.option("parameters", k) for k in NEEDED if k in unset]
     if missing:
         hint = "; or leave out every model option and --config to start from the published model" if kind == "kaheman" else ""
         raise UsageError(f"{', '.join(missing)}: params0, the starting model, needs numbers for a, b, m1, m2 and g "
                          f"(options or --config's [parameters]){hint}")
-    if params.alpha is None and params.axis2 is None and run.raw("parameters", "alpha") is None:
-        params = params.replace(alpha=0.0)
     return params
 
 
