@@ -207,7 +207,7 @@ def test_a_chains_identification_reads_back_and_writes_a_run_file(recovered, tmp
     from skewpend.cli.options import resolve
 
     run = resolve("identify", str(toml), defaults=False)
-    assert run.is_chain and run.chain() == result.params
+    assert run.links is not None and run.chain() == result.params  # the run file gives the chain's links
 
 
 # -- the real triple pendulum -----------------------------------------------------------------------------------

@@ -366,12 +366,6 @@ class Run:
         return {k: self.number(k, section=section) for k in keys if self.values[section].get(k) is not None}
 
     # -- the model and the start ------------------------------------------------------------------
-    @property
-    def is_chain(self) -> bool:
-        """Whether the run gives links (``[[links]]``, ``--links``); commands ask the model instead (its last
-        reader: ``skewpend identify``'s start)."""
-        return self.links is not None
-
     def parameters(self):
         """The model of the run: the chain of its links where it gives them (``[[links]]``, ``--links``:
         :meth:`chain`), else the double pendulum's :class:`~skewpend.Parameters` (:func:`build_parameters`)."""
