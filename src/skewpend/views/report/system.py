@@ -361,7 +361,7 @@ def section_simulation(ctx: Context) -> str:
               f'<span class="verdict bad">stopped early at t = {fmt_num(tr.t[-1])} s: {esc(tr.message)}</span>')
     out = [prose(
         f"<p>The nonlinear equations of section 2, integrated from the initial state of section 1 over {fmt_num(ctx.t_end)} s "
-        f"with {esc(settings_text(tr.method, tr.settings))}, by compiled C generated from the derivation. "
+        f"with {esc(settings_text(tr.method, tr.settings))}, by compiled C generated from the model. "
         r"$E$ is the energy, $W$ the work done by damping, Coulomb friction and torques; $E - W$ is conserved.</p>")]
     out.append(facts_html([
         ("status", status),
