@@ -530,21 +530,29 @@ def _state_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray, V: np.ndarray) -> 
     method on ``det Q`` (scaled by ``1/l^2`` for ``|l| > 1``), so the roots keep full relative accuracy when the
     damping spans many orders of magnitude (the slow creep ``~ k/c`` and fast decay ``~ c/m`` of heavy
     damping).  Near a double root Newton does not converge and the state matrix's eigenvalues are used."""
-    from scipy.linalg import eigvals
+    from numpy.linalg import eigvals  # (scipy's wrapper costs more than a small matrix's eigenvalues)
 
     n = M.shape[0]
 
     def companion(A, B, D):  # the state matrix of A l^2 + B l + D
         Ainv = np.linalg.inv(A)
-        return np.block([[np.zeros((n, n)), np.eye(n)], [-Ainv @ D, -Ainv @ B]])
+        S = np.zeros((2 * n, 2 * n))
+        S[:n, n:] = np.eye(n)
+        S[n:, :n], S[n:, n:] = -Ainv @ D, -Ainv @ B
+        return S
+
+    c, k = np.einsum("ik,ij,jk->k", V, C, V), np.einsum("ik,ij,jk->k", V, K, V)
+
+    def small():  # the reversed problem's, computed only when the state matrix's starts did not give every root
+        return 1.0 / eigvals(companion(K, C, M)).astype(complex)
+
+    def modal():
+        far = (-c - np.sqrt((c * c - 4 * k).astype(complex))) / 2  # the larger root; the other k / far
+        return np.concatenate([far, k / np.where(far == 0, 1, far)])
 
     with np.errstate(all="ignore"):
         try:
             big = eigvals(companion(M, C, K)).astype(complex)
-            small = 1.0 / eigvals(companion(K, C, M)).astype(complex)
-            c, k = np.einsum("ik,ij,jk->k", V, C, V), np.einsum("ik,ij,jk->k", V, K, V)
-            far = (-c - np.sqrt((c * c - 4 * k).astype(complex))) / 2  # the larger root; the other k / far
-            modal = np.concatenate([far, k / np.where(far == 0, 1, far)])
         except (np.linalg.LinAlgError, ValueError):
             raise NotFinite("the state-space eigenvalues are not finite (overflow)") from None
         roots: List[complex] = []  # one of each conjugate pair, imaginary part >= 0
@@ -562,11 +570,18 @@ def _state_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray, V: np.ndarray) -> 
                 if not near(z, 1e-10):
                     roots.append(z)
 
-        for z0 in np.concatenate([big, small, modal]):
+        for more in (lambda: big, small, modal):
             if found() >= 2 * n:
                 break
-            if np.isfinite(z0) and z0 != 0 and z0.imag >= 0 and not near(z0, 1e-8):
-                polish(complex(z0))
+            try:
+                starts = more()
+            except (np.linalg.LinAlgError, ValueError):
+                raise NotFinite("the state-space eigenvalues are not finite (overflow)") from None
+            for z0 in starts:
+                if found() >= 2 * n:
+                    break
+                if np.isfinite(z0) and z0 != 0 and z0.imag >= 0 and not near(z0, 1e-8):
+                    polish(complex(z0))
         # a root no start led to (a lightly damped mode beside an almost locked hinge): Newton with the roots
         # found deflated, from each undamped frequency on the imaginary axis
         for z0 in 1j * np.sqrt(np.abs(k)) + 1e-3 * np.sqrt(np.abs(k)):
@@ -580,12 +595,14 @@ def _state_eigen(M: np.ndarray, C: np.ndarray, K: np.ndarray, V: np.ndarray) -> 
             raise NotFinite("the state-space eigenvalues are not finite (overflow)")
         X = np.zeros((n, lam.size), complex)
         nM, nC, nK = (np.abs(A).max() for A in (M, C, K))
+        Qs, scales = np.empty((lam.size, n, n), complex), np.empty(lam.size)
         for k, z in enumerate(lam):
-            Q, _, p = _scaled(z, M, C, K)
-            _, sv, Vh = np.linalg.svd(Q)
-            scale = nM + nC / abs(z) + nK / abs(z) ** 2 if p else abs(z) ** 2 * nM + abs(z) * nC + nK
-            if sv.size < 2 or sv[-2] > 1e-10 * scale:
-                X[:, k] = Vh[-1].conj()
+            Qs[k], _, p = _scaled(z, M, C, K)
+            scales[k] = nM + nC / abs(z) + nK / abs(z) ** 2 if p else abs(z) ** 2 * nM + abs(z) * nC + nK
+        _, sv, Vh = np.linalg.svd(Qs)  # every Q(l) at once
+        for k in range(lam.size):
+            if n < 2 or sv[k, -2] > 1e-10 * scales[k]:
+                X[:, k] = Vh[k, -1].conj()
     return lam, X
 
 
