@@ -165,6 +165,27 @@ def test_the_protocols_plant_and_step_are_the_labs():
     assert np.allclose(run.heights, y, rtol=0, atol=1e-12) and run.reach == pytest.approx(0.5)
 
 
+def test_the_protocol_steps_as_the_optimiser_does():
+    """One model optimised and scored (issue 52): every step of run_protocol is the optimiser's own RK4 step
+    (trajopt's CasADi graph of the chain, the torque held) to rounding, on the planar and a skewed rig, the
+    double pendulum's facade and its chain alike -- 0.2 s of a hard swing, each row from the run's previous one."""
+    from skewpend.analysis.trajopt import _dynamics
+
+    def law(t, x):
+        return np.array([0.0, 5.0 * math.sin(7.0 * t) - 0.5 * x[3]])
+
+    protocol = lb.Protocol(t_final=0.2)
+    for model in (lb.dfki_model(), lb.dfki_model(0.4).as_chain()):
+        run = lb.run_protocol(model, law, actuated=(2,), protocol=protocol)
+        _, _, step, _ = _dynamics(model.as_chain(), (2,))
+        ends = np.vstack([run.x[1:], run.final])
+        for k in range(protocol.steps):
+            u = run.u[k, 1:]
+            want = np.array(step(run.x[k], u, u, protocol.dt)).ravel()
+            assert np.allclose(ends[k], want, rtol=1e-13, atol=1e-13), k
+        assert np.ptp(run.x[:, 1]) > 0.1
+
+
 def test_run_protocol_clips_and_refuses():
     run = lb.run_protocol(lb.dfki_model(), lambda t, x: (100.0, 100.0), actuated=(2,), protocol=lb.Protocol(t_final=0.02))
     assert np.all(run.u[:, 0] == 0.0) and np.all(run.u[:, 1] == 6.0)
