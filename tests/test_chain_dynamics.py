@@ -237,8 +237,13 @@ def test_a_chains_lqr_refuses_what_it_cannot_take():
         skewpend.lqr(chain, actuated=(4,), estimate=False)
     with pytest.raises(ParameterError, match="Q must be a 6x6 matrix"):
         skewpend.lqr(chain, Q=np.eye(4), estimate=False)
-    with pytest.raises(ParameterError, match="one of its labels"):
-        skewpend.lqr(chain, equilibrium=(3.1, 0.0, 0.0), estimate=False)
+    with pytest.raises(ParameterError, match="equilibrium must be 3 angles in radians, got 2 values"):
+        skewpend.lqr(chain, equilibrium=(3.1, 0.0), estimate=False)
+    # angles near an equilibrium are that equilibrium, as for the double pendulum (one linearisation, issue 52)
+    near = skewpend.lqr(chain, equilibrium=(3.1, 0.0, 0.0), estimate=False)
+    top = skewpend.lqr(chain, estimate=False)
+    assert near.linearization.equilibrium.label == "up-up-up"
+    np.testing.assert_allclose(near.K, top.K, rtol=1e-12, atol=1e-12 * np.abs(top.K).max())
 
 
 # -- mode sweeps ---------------------------------------------------------------------------------------------------
