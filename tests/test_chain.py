@@ -498,7 +498,6 @@ def test_the_double_pendulums_modes_from_its_chain(recursive_forms):
 
 
 @pytest.mark.parametrize("call", [
-    lambda c: skewpend.swingup(c),
     lambda c: skewpend.poincare(c, energy=1.0), lambda c: skewpend.chaos_diagram(c),
     lambda c: skewpend.nnm_alpha(c, 1, energy=0.1, alphas=[0.0, 0.1]),
 ])

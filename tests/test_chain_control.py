@@ -237,7 +237,7 @@ def test_the_cli_balances_and_maps_a_chain(tmp_path):
     (["control", "lqr", "--q", "1,1,1,1"], "--q: give 6 state weights"),
     (["control", "lqr", "--actuated", "1,3", "--r", "1"], "--r: give 2 weight(s), one per actuated joint (joints 1,3)"),
     (["control", "lqr", "--target", "180deg,0"], "--target: target must be 3 angles in radians, got 2 values"),
-    (["control", "swingup"], "a swing-up computes the double pendulum's Parameters, not a chain of 3 links"),
+    (["control", "swingup", "--actuated", "pendubot"], "--actuated: pendubot names a joint of the double pendulum"),
     (["control", "roa", "--plane", "phi,psi", "--n", "4"], "plane must be two different coordinates of q1, q2, q3"),
 ])
 def test_the_cli_refuses_what_a_chain_cannot_take(tmp_path, argv, message):
@@ -246,6 +246,24 @@ def test_the_cli_refuses_what_a_chain_cannot_take(tmp_path, argv, message):
     ran = run_cli([*argv, "--config", _chain_toml(tmp_path)])
     assert ran.code == 2 and message in ran.err and "Traceback" not in ran.err, ran.report()
     assert len(ran.err.strip().splitlines()) == 1
+
+
+def test_a_triple_pendulum_swings_up_by_energy_shaping(tmp_path):
+    """The energy-shaping swing-up on any model (issue 52): a skewed triple pendulum, every joint driven, at most
+    10 N m, from hanging nudged at the first joint -- captured by the LQR and held at the top to the end, the
+    energy balance with the inputs' work kept; on the command line the run file's columns are the chain's."""
+    from helpers import run_cli
+
+    chain = Chain.from_lists(3, length=[0.5, 0.4, 0.3], mass=[1.0, 0.8, 0.5], axis=[(0, 0, 1), (0.5, 0, 1), (1, 0, 0)])
+    run = skewpend.swingup(chain, umax=10.0)
+    tr = run.trajectory
+    assert run.captured and run.capture_time < 10.0 and run.lqr.linearization.equilibrium.label == "up-up-up"
+    assert np.abs(tr.inputs()).max() == pytest.approx(10.0) and tr.energy_drift < 1e-8
+    assert np.all(run.lqr.inside(tr.y[tr.t >= run.capture_time]))
+    out = tmp_path / "run.csv"
+    ran = run_cli(["control", "swingup", "--config", _chain_toml(tmp_path), "--out", out])
+    assert ran.code == 0 and "captured by the LQR" in ran.out, ran.report()
+    assert out.read_text().splitlines()[0] == "t,q1,q2,q3,dq1,dq2,dq3,energy,work,u1,u2,u3"
 
 
 # -- flip maps over a plane of two angles ---------------------------------------------------------------------------

@@ -14,7 +14,7 @@
   subject to ``V'/V >= 0``) finds ``V' >= 0``, at most where the ellipsoid reaches an angle error
   of pi.  A search, not a proof: a growing region thinner than it resolves could remain;
 * :func:`swingup` -- energy shaping from hanging towards the target's energy, switched to the LQR
-  inside its region, simulated with the torque limit; the run, and when it was captured.
+  inside its region, simulated with the torque limit (any model); the run, and when it was captured.
 
 The inputs act inside the compiled integrators (:mod:`skewpend.numeric.control`).
 """
@@ -27,7 +27,7 @@ from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..checks import angles, numeric_model, numeric_params
+from ..checks import angles, numeric_model
 from ..errors import EquilibriumError, ParameterError
 
 __all__ = ["Linearization", "linearization", "controllability", "LQR", "lqr", "SwingUp", "swingup"]
@@ -447,23 +447,22 @@ class SwingUp:
 SWINGUP_T_MAX = 3600.0
 
 
-def swingup(params, target="up-up", actuated="both", *, umax=10.0, energy_gain: float = 2.0,
+def swingup(params, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, energy_gain: float = 2.0,
             elbow_gains=(20.0, 4.0), t_end: float = 20.0, y0: Optional[Sequence[float]] = None, Q=None, R=None,
             dt_out: float = 0.01, progress: Optional[Callable[[float, float], None]] = None) -> SwingUp:
-    """Swing the pendulum up from ``y0`` (default: hanging, nudged by 0.05 rad) to ``target`` (a
-    label or angles near an equilibrium, reduced modulo 2 pi) with the torque limit ``umax``
-    [N m]: energy shaping towards the target's potential energy, the LQR inside its region of
-    attraction estimate; simulated over ``t_end`` (at most :data:`SWINGUP_T_MAX` s), the states
+    """Swing any model up from ``y0`` (default: hanging, nudged by 0.05 rad at the first joint) to ``target``
+    (a label with a word per link, default every link up, or angles near an equilibrium, reduced modulo 2 pi)
+    with the torque limit ``umax`` [N m]: energy shaping towards the target's potential energy (joints 2 ... n
+    held in line by ``elbow_gains``), the LQR inside its region of attraction estimate; simulated over ``t_end`` (at most :data:`SWINGUP_T_MAX` s), the states
     every ``dt_out`` s.  ``progress(t, t_end)`` is called as the run advances (first with t = 0,
     before the LQR is designed).  Every argument is checked before any work."""
     from ..checks import positive, progress_callable
-    from ..numeric.control import Controller
+    from ..numeric.control import Controller, actuated_joints
     from ..numeric.simulation import simulate
 
-    from ..numeric.control import actuated_joints
-
-    params = numeric_params(params, "a swing-up")
-    actuated_joints(actuated, params.n)
+    params = numeric_model(params, "a swing-up")
+    n = params.n
+    actuated_joints(actuated, n)
     target = equilibrium_argument(target, params, "target")
     t_end = positive("t_end", t_end, cap=SWINGUP_T_MAX)
     dt_out = positive("dt_out", dt_out, cap=t_end)
@@ -472,10 +471,10 @@ def swingup(params, target="up-up", actuated="both", *, umax=10.0, energy_gain: 
                              "1e7: use a larger dt_out")
     progress = progress_callable(progress, "progress(t, t_end)")
     # the law's own arguments, checked now rather than after the design
-    Controller.swingup(energy_gain, 0.0, np.zeros((2, 4)), np.zeros(4), np.eye(4), 0.0, elbow_gains=elbow_gains,
-                       actuated=actuated, umax=umax)
-    start = np.array([0.05, 0.0, 0.0, 0.0]) if y0 is None else _matrix("y0", y0, (4,), ndim=1)
-    angles("y0", start[:2], 2)  # refused beyond 1e6 rad (the run keeps the angles as given)
+    Controller.swingup(energy_gain, 0.0, np.zeros((n, 2 * n)), np.zeros(2 * n), np.eye(2 * n), 0.0,
+                       elbow_gains=elbow_gains, actuated=actuated, umax=umax)
+    start = np.eye(1, 2 * n)[0] * 0.05 if y0 is None else _matrix("y0", y0, (2 * n,), ndim=1)
+    angles("y0", start[:n], n)  # refused beyond 1e6 rad (the run keeps the angles as given)
     if progress is not None:
         progress(0.0, t_end)
     design = lqr(params, target, actuated, Q, R, umax=umax)

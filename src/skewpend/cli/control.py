@@ -70,8 +70,8 @@ def control(
 ):
     """Balance it and swing it up: LQR at any equilibrium (controllability, gain, closed-loop eigenvalues, region estimate), energy-shaping swing-up captured by the LQR, and the region of attraction on a grid of starts -- with skewed axes.
 
-    From a --config run file it takes [parameters]; or a chain of links ([[links]], [chain]): lqr and roa with
-    any set of actuated joints (--actuated 2, --actuated 1,3), --plane of its q1 .. qn, dq1 .. dqn.
+    From a --config run file it takes [parameters]; or a chain of links ([[links]], [chain]): lqr, swingup and roa
+    with any set of actuated joints (--actuated 2, --actuated 1,3), --plane of its q1 .. qn, dq1 .. dqn.
     """
     import numpy as np
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..style import COLORS, SYMBOL, parameter_text, style
+from ..style import COLORS, parameter_text, style
 from .base import coordinate_label, heading, new_figure
 
 __all__ = ["control_figure", "roa_figure", "leaderboard_figure", "ROA_COLORS"]
@@ -18,24 +18,25 @@ def control_figure(run):
     with the target's energy; the capture by the LQR marked.  ``run``: a
     :class:`~skewpend.analysis.control.SwingUp` (it holds the trajectory, the controller and the
     capture time; the figure computes nothing)."""
+    from ...numeric.control import actuated_joints
+    from .motion import coordinate_styles
+
     tr = run.trajectory
     ctl = run.controller
     u = tr.inputs()
     target = run.lqr.linearization.target
+    styles = coordinate_styles(tr.params.coordinates)  # the model's coordinates: phi, psi; q1 ... qn
     with style():
         fig = new_figure((8.5, 8.0))
         ax1, ax2, ax3 = fig.subplots(3, 1, sharex=True)
-        for k, name in enumerate(("phi", "psi")):
-            ang = np.degrees(np.unwrap(tr.y[:, k]))
-            ax1.plot(tr.t, ang, color=COLORS[name], label=f"{SYMBOL[name]} (hinge {k + 1})")
+        for k, (color, symbol, _) in enumerate(styles):
+            ax1.plot(tr.t, np.degrees(np.unwrap(tr.y[:, k])), color=color, label=f"{symbol} (hinge {k + 1})")
         ax1.set_ylabel("angle [deg]")
-        ax1.set_title("Hinge angles (unwrapped); the target modulo 360°: "
-                      f"{SYMBOL['phi']}* = {math.degrees(target[0]):.4g}°, {SYMBOL['psi']}* = {math.degrees(target[1]):.4g}°",
-                      loc="left")
+        ax1.set_title("Hinge angles (unwrapped); the target modulo 360°: " + ", ".join(
+            f"{symbol}* = {math.degrees(x):.4g}°" for (_, symbol, _), x in zip(styles, target)), loc="left")
         ax1.legend(loc="best", fontsize=8)
-        for j, name in enumerate(("phi", "psi")):
-            if ctl.actuated == "both" or (ctl.actuated == "pendubot") == (j == 0):
-                ax2.plot(tr.t, u[:, j], color=COLORS[name], lw=1.0, label=f"u{j + 1} (joint {j + 1})")
+        for j in actuated_joints(ctl.actuated, ctl.nq):
+            ax2.plot(tr.t, u[:, j - 1], color=styles[j - 1][0], lw=1.0, label=f"u{j} (joint {j})")
         for lim in ctl.umax:
             if math.isfinite(lim):
                 ax2.axhline(lim, color="0.5", ls="--", lw=0.8)
