@@ -143,6 +143,19 @@ def test_the_analyses_of_a_chain_are_its_own(triple):
     assert "λ6" in chaos and "λ7" not in chaos
     assert "Poincaré sections and the chaos diagram are planar pictures" in chaos
     assert "Not conservative: viscous damping" in html.unescape(_section(page, "system"))
+    # what the one report's sections give every model: the damped modes, the flip map's facts, the orbits drawn
+    assert "damping ratio ζ" in modes and "C_0 =" in modes and "q₃/q₁" in modes
+    flips = html.unescape(re.sub(r"<[^>]+>", "", _section(page, "flipmap")))
+    assert "starts that flip" in flips and "off the map's plane" in flips  # the start's q3 = 0.2 is off (q1, q2)
+    assert "0: stable (minimum of V)" in orbits and "3: maximum of V" in orbits
+    assert "four of the orbits in the (q₁, q₂) plane" in orbits
+
+
+def test_a_single_link_is_refused_in_one_line():
+    from skewpend import ParameterError
+
+    with pytest.raises(ParameterError, match="two links or more"):
+        build_report(Chain.from_lists(1, length=0.5, mass=1.0), t_end=1.0)
 
 
 def test_the_chain_of_two_has_the_double_pendulums_modes(monkeypatch):

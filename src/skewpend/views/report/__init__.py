@@ -96,16 +96,20 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
                   validate, out):
     from ...io import check_output_path
     from ... import checks
-    from ...config import CHAIN_Q0
+    from ...config import CHAIN_Q0, DEFAULT_RUN
     from ...numeric.simulation import METHODS
     from ...parsing import initial_state, positive_number
 
     _require_libraries()
     params = checks.numeric_model(Parameters(**DEFAULT_PARAMETERS) if params is None else params, "a report")
-    n, coordinates = params.n, tuple(params.coordinates)
-    if y0 is None:  # the built-in case's start for its coordinates; else every link turned by CHAIN_Q0, at rest
-        y0 = DEFAULT_INITIAL_STATE if coordinates == DEFAULT_COORDINATES else (CHAIN_Q0,) * n + (0.0,) * n
-    y = initial_state(y0, coordinates)
+    if params.n < 2:
+        raise ParameterError(f"a report draws models of two links or more (its maps and paths are over two angles); "
+                             f"this one has {params.n}", parameter="links")
+    if y0 is None:  # the built-in case's start of each coordinate it names; else turned by CHAIN_Q0, at rest
+        start = DEFAULT_RUN["initial"]
+        y0 = ([float(start.get(f"{c}0", CHAIN_Q0)) for c in params.coordinates]
+              + [float(start.get(f"d{c}0", 0.0)) for c in params.coordinates])
+    y = initial_state(y0, params.coordinates)
     t_end = positive_number("t_end", t_end)
     if t_end > MAX_T_END:
         raise ParameterError(
@@ -146,8 +150,6 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
     return params, tuple(float(v) for v in y), t_end, clip_seconds, fps, (w, h)
 
 
-#: The coordinates of the built-in case (its start is DEFAULT_INITIAL_STATE).
-DEFAULT_COORDINATES = ("phi", "psi")
 #: Compute the symbolic sections in a second process when the machine has more than one core.
 PARALLEL = True
 #: What each part of the report is, as said when it begins (:func:`skewpend.progress.stage`), in the

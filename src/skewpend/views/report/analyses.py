@@ -102,10 +102,11 @@ def section_chaos(ctx: Context) -> str:
         notes.append(f"Lyapunov spectrum of {spec.k} exponents, {spec.stats['wall_time']:.2f} s")
 
     if not answers_names(p):  # the planar pictures read the double pendulum's names (phi = 0, (psi, p_psi), alpha)
-        if n > 2:
-            out.append('<p class="note">Poincaré sections and the chaos diagram are planar pictures of the double '
-                       f"pendulum (a section of its three-dimensional energy surface); a chain of {n} links has a "
-                       f"{2 * n - 1}-dimensional one, and the report draws neither.</p>")
+        out.append('<p class="note">Poincaré sections and the chaos diagram are planar pictures of the double '
+                   + (f"pendulum (a section of its three-dimensional energy surface); a chain of {n} links has a "
+                      f"{2 * n - 1}-dimensional one, and the report draws neither.</p>" if n > 2 else
+                      "pendulum read from its parameters (a, b, m1, m2, alpha, ...): given so, as a run file's "
+                      "[parameters], this model's report draws them.</p>"))
         ctx.notes["chaos"] = ", ".join(notes)
         return "\n".join(out)
     if not p.conservative:
