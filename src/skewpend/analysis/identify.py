@@ -982,16 +982,22 @@ class ChainTerms:
         return out
 
     def rows(self, q, dq, ddq, angle: float) -> np.ndarray:
-        """The base regressor at the samples ``(q, q', q'')`` (N x n each): (N, n, r)."""
+        """The base regressor at the samples ``(q, q', q'')`` (N x n each): (N, n, r), the pivots' columns of the
+        regressor (one function of the state, mapped over the samples)."""
         q, dq, ddq = (np.asarray(x, dtype=float) for x in (q, dq, ddq))
         N, n = q.shape
-        out = np.empty((N, n, len(self.pivots)))
-        p, pi, piv = self._at(angle), self._pi, list(self.pivots)
-        chunk = 4096
+        if not hasattr(self, "_rows"):
+            import casadi as ca
+
+            y, a, p = ca.SX.sym("y", 2 * n), ca.SX.sym("a", n), ca.SX.sym("p", len(self._p))
+            self._rows = ca.Function("rows", [y, a, p], [self._fn(y, a, p, self._pi)[:, list(self.pivots)]])
+        r, chunk = len(self.pivots), 4096
+        out = np.empty((N, n, r))
+        p = self._at(angle)
         for s in range(0, N, chunk):
             k = min(chunk, N - s)
-            Y = np.array(self._fn.map(k)(np.hstack([q[s:s + k], dq[s:s + k]]).T, ddq[s:s + k].T, p, pi), dtype=float)
-            out[s:s + k] = Y.reshape(n, k, len(pi)).transpose(1, 0, 2)[:, :, piv]
+            Y = self._rows.map(k)(np.hstack([q[s:s + k], dq[s:s + k]]).T, ddq[s:s + k].T, p).full()
+            out[s:s + k] = Y.reshape(n, k, r).transpose(1, 0, 2)
         return out
 
 
