@@ -317,7 +317,7 @@ def run_protocol(model, law, *, actuated=(2,), umax: float = PROTOCOL.umax, prot
     from ..numeric.control import joint_numbers, raise_law_error
     from ..numeric.kernels import model_kernel, model_vector, model_vector_names
 
-    sim = model if plant is None else plant
+    sim = (model if plant is None else plant).as_chain()  # once: the straight form prints the chain
     kernel = model_kernel(sim, FORM)
     p = np.ascontiguousarray(model_vector(sim, FORM), dtype=float)
     if plant_values:

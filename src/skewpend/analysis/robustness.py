@@ -180,7 +180,7 @@ def robustness(law, *, actuated=(2,), alpha: float = 0.0, values: Optional[Dict[
     (:func:`~skewpend.analysis.leaderboard.run_protocol`).  ``progress(criterion, done, total)`` is called
     after each run."""
     nominal = lab_values() if values is None else dict(values)
-    plant = dfki_model(alpha, nominal)
+    plant = dfki_model(alpha, nominal).as_chain()  # the model the protocol runs (leaderboard.FORM), made once
     steps, dt = protocol.steps, protocol.dt
     rng = np.random.default_rng(seed)
     n = plant.n  # the plant's joints (each gets its pulses)
