@@ -252,7 +252,10 @@ class Chain:
     def exact_model(self):
         """The model the specification's exact derivation prints (the ``exact`` form of the generated code):
         for two links that the double pendulum's parameters hold (hinge 2 on rod 1's end, one rotor for both
-        joints), those parameters; None otherwise (the recursive algorithms' forms print every chain)."""
+        joints) with the specification's axes -- hinge 1 along ``k``, hinge 2 in the plane of ``k`` and ``i``,
+        its tilt the run-time skew ``alpha`` -- those parameters; None otherwise: the recursive algorithms'
+        forms print every chain and read every axis at run time (the exact form would compile each other
+        axis's values)."""
         if self.n != 2:
             return None
         exact = self.__dict__.get("_exact", False)  # once per chain (immutable): asked at every kernel look-up
@@ -260,10 +263,20 @@ class Chain:
             from ..errors import ParameterError
             from .model import Parameters
 
-            try:
-                exact = Parameters.from_chain(self)
-            except ParameterError:
-                exact = None
+            one, two = self.links
+            exact = None
+            if one.axis == (0.0, 0.0, 1.0) and two.axis[1] == 0.0:
+                rods = {}  # a thin rod's body as the facade's default (the exact form keys general bodies apart)
+                for i, link in enumerate(self.links, start=1):
+                    if link.com == (0.0, 0.5 * link.length, 0.0):
+                        rods[f"com{i}"] = None
+                    if link.inertia == link.rod_inertia:
+                        rods[f"inertia{i}"] = None
+                try:
+                    exact = Parameters.from_chain(self).replace(axis1=None, axis2=None, **rods,
+                                                                alpha=math.atan2(two.axis[0], two.axis[2]))
+                except ParameterError:
+                    pass
             object.__setattr__(self, "_exact", exact)
         return exact
 
