@@ -137,6 +137,7 @@ def section_system(ctx: Context) -> str:
     named = answers_names(p)
     sym = [tex(c) for c in p.coordinates]
     rods = schema.count_text(n, "rods") if n > 2 else "both rods"
+    what, axes_drawn = "pendulum" if named else "chain", "its" if n > 2 else "both"
     # the reference configuration, for its picture (the report's own method: no other kernel compiled)
     detail("picture 1 of 2: the model hanging at rest")
     rest_png = still_png(simulate(p, (0.0,) * (2 * n), 0.01, dt_out=0.01, method="dop853"))
@@ -151,14 +152,14 @@ def section_system(ctx: Context) -> str:
             "angles between consecutive axes." if n > 2 else
             "Green: hinge 1's axis (fixed); magenta: hinge 2's axis; the arc marks the angle between them.")
     fig_rest = figure_html(rest_png, prose(f"Reference configuration {zero}: {rods} hang along $\\underline{{j}}$ (down) and ")
-                           + skew + ". " + axes, f"the {'pendulum' if named else 'chain'} hanging at rest, with its hinge axes drawn")
+                           + skew + ". " + axes, f"the {what} hanging at rest, with {axes_drawn} hinge axes drawn")
     shown = min(n, 3)
     start = ", ".join(prose(f"${start_tex(c)}$ = ") + fmt_deg(y0[k]) for k, c in enumerate(p.coordinates[:shown]))
     start += "" if n == shown else " … (the table below)"
     turned = (prose(r". The second axis $\underline{e} = \underline{\underline{P}}_1\cdot\underline{e}_0$ has turned with rod 1.")
               if named else ". Each hinge's axis turns with the links above it.")
     fig_start = figure_html(ctx.still, "The initial state of the simulation (section 5): " + start + turned,
-                            f"the {'pendulum' if named else 'chain'} in its initial state, with its hinge axes drawn")
+                            f"the {what} in its initial state, with {axes_drawn} hinge axes drawn")
     if named and p.is_thin_rods:
         intro = prose(
             r'<p class="lead">A rod hangs from the roof on a cylindrical hinge; a second rod hangs from the end of the first '
