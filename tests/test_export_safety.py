@@ -505,7 +505,7 @@ def test_the_report_refuses_wrong_types_before_any_work(tmp_path):
     from skewpend.views.report import build_report
 
     (tmp_path / "d.html").mkdir()
-    for kwargs, words in (({"params": "x"}, "params must be a skewpend.Parameters, got str"),
+    for kwargs, words in (({"params": "x"}, "params must be a skewpend.Parameters or a Chain, got str"),
                           ({"y0": "abc"}, "y0 must be 4 numbers"),
                           ({"out": 3}, "--out must be a file path, got int"),
                           ({"out": ""}, "--out must be a file path"),
