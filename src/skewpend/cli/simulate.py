@@ -189,9 +189,9 @@ def report(
 
     From a --config run file it takes [parameters], [initial] and the integrator settings of
     [simulation] (t_end, method, rtol, atol, dt, max_steps); or a chain of links ([[links]], [chain],
-    [initial] q0, dq0): its report (the equations displayed up to 3 links, checked against the
-    recursive algorithms; modes against each hinge's tilt; simulation and live view; flip map over
-    q1, q2; Lyapunov spectrum; equilibria and nonlinear normal modes; MuJoCo).
+    [initial] q0, dq0, or --links N): the same sections, each asking the model (the equations displayed
+    up to 3 links and checked against the compiled code; modes against each hinge's tilt; the flip map
+    over q1, q2; equilibria, Lyapunov exponents and nonlinear normal modes).
     """
     import shlex
     import time
