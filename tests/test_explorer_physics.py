@@ -4,7 +4,7 @@
   know (alpha, a, b, m1, m2, g, c1, c2, phi0, psi0 with their ranges and the reference case's values), a
   chain's are the values its physics reads alone (g and each joint's damping) and a start for each joint;
   a chain of two is the double pendulum, and gets its page;
-* every model's generated physics (``codegen.explorer_js``) exports the same names, and its ``linear`` --
+* every model's generated physics (``explorer_source.explorer_js``) exports the same names, and its ``linear`` --
   the M0 and K0 the page's normal modes and linearised equations are computed from -- equals the library's
   ``normal_modes`` (its M and K, in Node) for the double pendulum, a skewed triple and a chain with friction.
 """
@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import skewpend
-from skewpend.numeric.codegen import explorer_js, page_vector
+from skewpend.numeric.explorer_source import explorer_js, page_vector
 from skewpend.symbolic.chain import Chain
 from skewpend.views.frontend import page_settings, page_sliders
 

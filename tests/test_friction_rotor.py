@@ -203,7 +203,7 @@ def test_mjcf_holds_the_rotor_exactly_and_refuses_friction():
 
 
 def test_explorer_refuses_the_terms():
-    from skewpend.numeric.codegen import explorer_js
+    from skewpend.numeric.explorer_source import explorer_js
 
     with pytest.raises(ParameterError, match="explorer"):
         explorer_js(Parameters(cf1=0.1))

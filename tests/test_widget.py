@@ -187,7 +187,7 @@ def test_general_bodies_get_their_own_physics_and_no_alpha_slider():
     assert w.params.axis2 == general.axis2 and w.params.com2 == general.com2
     w.params = general.replace(m2=2.0)
     assert w.params.m2 == 2.0
-    from skewpend.numeric.codegen import explorer_js
+    from skewpend.numeric.explorer_source import explorer_js
     from skewpend.numeric.conventions import geometry_of
 
     # the module carries exactly the physics generated for these bodies

@@ -76,6 +76,9 @@ class Field:
     default_text: str = ""
     #: a symbolic vector's or tensor's entry names (``"sym"``): ``r{i}`` -> ``r1x, r1y, r1z``
     sym_prefix: Tuple[str, ...] = ()
+    #: the explorer's slider (none: no slider): ``(place, (min, max, step), shown in degrees, the word after its
+    #: name)`` -- the sliders shown in the order of their places (``views.frontend.SLIDER_RANGES``)
+    slider: Tuple[Any, ...] = ()
 
     def name(self, i: Optional[int] = None) -> str:
         """The field's name for link ``i`` (1-based), or the global field's name."""
@@ -96,17 +99,17 @@ _COORD = {1: "dphi", 2: "dpsi"}
 #: The declarations, in the order of the kernels' parameter array (scalars), then the geometry.
 FIELDS: Tuple[Field, ...] = (
     Field("l", "scalar", "m", "body", "length of rod {i}", "length of rod {i} [m]", "positive", per_body=True,
-          link_names=("a", "b"), text_symbol="{name}", tex_symbol="{name}"),
+          link_names=("a", "b"), text_symbol="{name}", tex_symbol="{name}", slider=(1, (0.2, 3.0, 0.05), False, "rod {i}")),
     Field("m", "scalar", "kg", "body", "mass of rod {i}", "mass of rod {i} [kg]", "positive", per_body=True,
-          text_symbol="m{sub}", tex_symbol="m_{i}"),
+          text_symbol="m{sub}", tex_symbol="m_{i}", slider=(2, (0.1, 5.0, 0.05), False, "")),
     Field("alpha", "scalar", "rad", "axis", "angle between the hinge axes with the rods hanging",
           "skew angle of the hinges [rad, e.g. 30deg, or a multiple of pi]", "angle", text_symbol="α",
-          tex_symbol=r"\alpha"),
+          tex_symbol=r"\alpha", slider=(0, (-180.0, 180.0, 0.5), True, "skew")),
     Field("g", "scalar", "m/s²", "world", "gravitational acceleration", "gravitational acceleration [m/s^2]",
-          "nonnegative", text_symbol="g", tex_symbol="g"),
+          "nonnegative", text_symbol="g", tex_symbol="g", slider=(3, (0.0, 20.0, 0.01), False, "")),
     Field("c", "scalar", "N m s", "damping", "viscous damping in hinge {i}",
           "viscous damping in hinge {i} [N m s] (default 0)", "nonnegative", 0.0, per_body=True,
-          text_symbol="c{sub}", tex_symbol="c_{i}"),
+          text_symbol="c{sub}", tex_symbol="c_{i}", slider=(4, (0.0, 2.0, 0.01), False, "damping")),
     Field("tau", "scalar", "N m", "torque", "constant torque in hinge {i}",
           "constant torque in hinge {i} [N m] (default 0)", "real", 0.0, per_body=True,
           text_symbol="τ{sub}", tex_symbol=r"\tau_{i}"),

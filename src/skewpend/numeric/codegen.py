@@ -41,9 +41,8 @@ __all__ = [
     "EQUATION_ENTRIES",
     "equation_terms",
     "odd_under_reflection",
-    "explorer_js",
-    "page_form",
-    "page_vector",
+    "exact_explorer_js",
+    "js_rows",
     "classic_js",
     "dop853_js",
     "generate",
@@ -486,58 +485,12 @@ def equation_terms(M, f) -> List[Tuple[str, Tuple[int, ...], sp.Expr, sp.Expr]]:
     return out
 
 
-def page_form(model=None):
-    """The form of the explorer's physics for ``model`` (default: the specification's thin rods, every scalar
-    symbolic: the sliders at the reference case's values) and the model it prints: ``("exact", params)``, the
-    derivation of the double pendulum's parameters where the model has them (``model.exact_model()``: every
-    scalar in ``p``, a slider), or ``("recursive", chain)``, the recursive algorithms' graphs (its bodies
-    fixed: longer chains, and any model with Coulomb friction or rotors, which the sliders do not set)."""
-    model = Parameters() if model is None else model
-    exact = None if model.has_friction or model.has_rotor else model.exact_model()
-    if exact is not None:
-        return "exact", exact
-    if not model.is_numeric:
-        from ..errors import ParameterError
-
-        raise ParameterError("the explorer has Coulomb friction and rotor inertia in a numeric model only (its physics "
-                             "then the recursive algorithms', its sliders g and the damping); give every value, or leave "
-                             "cf1 = cf2 = Ir = 0")
-    return "recursive", model.as_chain()
-
-
-def page_vector(model=None):
-    """``(form, printed, names, values)``: :func:`page_form` and the parameter vector ``p`` of the page's physics,
-    its entries' names and the model's values (the reference case's where symbolic: the sliders' start)."""
-    form, printed = page_form(model)
-    if form == "exact":
-        from ..config import reference_parameters
-
-        reference = reference_parameters()
-        return form, printed, SCALAR_ORDER, [0.0 if n == "alpha" and not printed.uses_alpha else float(
-            getattr(printed, n) if getattr(printed, n) is not None else getattr(reference, n)) for n in SCALAR_ORDER]
-    from .recursive import parameter_names, parameter_vector as chain_vector
-
-    return form, printed, parameter_names(printed.n), [float(v) for v in chain_vector(printed)]
-
-
-def explorer_js(model=None) -> str:
-    """The explorer's physics for ``model`` (an ES module), one contract for every model and form: its
-    ``PARAMETER_ORDER``, ``P`` (:func:`page_vector`), ``N`` links, ``rhs(y, p)``, ``energy(y, p)``, the
-    drawing's ``tips(y, p)`` (the rods' ends, 3 n [m]) and ``axes(y, p)`` (the hinge axes in the world frame,
-    3 n), ``linear(y, p)`` (``[M0, K0]`` at rest, n x n: the mass matrix and the Hessian of Pi, for the
-    normal modes computed in the browser), the equations of motion as ``TERMS`` (``[entry, exponents, LaTeX
-    of the monomial]``, :func:`equation_terms`; none where the form has no symbolic equations) with
-    ``coefficients(p)``, and ``FLIP_ODD`` (without torques the equations are odd under ``(q, q') -> -(q,
-    q')``).  Printed by the model's own code generators in :func:`page_form`'s form: the derivation's
-    expressions (every scalar read from ``p`` in :data:`SCALAR_ORDER`: the sliders change ``p``, never the
-    code) or the recursive algorithms' CasADi graphs (:func:`~skewpend.numeric.recursive.chain_code`'s
-    module); nothing is typed by hand but the LDL^T solve."""
-    form, printed, _, values = page_vector(model)
+def exact_explorer_js(printed: Parameters, values: Sequence[float]) -> str:
+    """The explorer's physics in the exact form (:func:`skewpend.numeric.explorer_source.explorer_js`'s contract)
+    for the double pendulum's parameters ``printed``, ``values`` its parameter vector ``P`` in
+    :data:`SCALAR_ORDER`: the derivation's expressions, every scalar read from ``p`` (the sliders change ``p``,
+    never the code)."""
     head = [f"export const P = [{', '.join(_number(v) for v in values)}];"]
-    if form != "exact":
-        from .recursive import chain_code
-
-        return chain_code(printed, "javascript") + "\n".join(["", *_recursive_linear(printed), *_no_terms()])
     from ..symbolic.render import tex
 
     geometry = geometry_of(printed)
@@ -563,7 +516,7 @@ def explorer_js(model=None) -> str:
         body = [f"  const {n} = y[{i}];" for i, n in enumerate(STATE_ORDER) if n in used]
         body += param_lines(lang, "  ", used)
         body += cse_block(lang, exprs, [f"r{i}" for i in range(len(exprs))], "  ")
-        ret = (f"[{_rows(2, lambda i, j: f'r{2 * i + j}')}, {_rows(2, lambda i, j: f'r{4 + 2 * i + j}')}]" if name == "linear"
+        ret = (f"[{js_rows(2, lambda i, j: f'r{2 * i + j}')}, {js_rows(2, lambda i, j: f'r{4 + 2 * i + j}')}]" if name == "linear"
                else "[" + ", ".join(f"r{i}" for i in range(len(exprs))) + "]")
         out += [f"/** {doc_line} */", f"export function {name}(y, p = P) {{", *body, f"  return {ret};", "}", ""]
     terms = equation_terms(ex.M, ex.f)
@@ -582,34 +535,9 @@ def explorer_js(model=None) -> str:
     return "\n".join(out)
 
 
-def _rows(n: int, entry) -> str:
+def js_rows(n: int, entry) -> str:
     """An n x n JavaScript array of the names ``entry(i, j)``."""
     return "[" + ", ".join("[" + ", ".join(entry(i, j) for j in range(n)) + "]" for i in range(n)) + "]"
-
-
-def _recursive_linear(chain) -> List[str]:
-    """``linear(y, p)`` of a chain's page, from its recursive algorithms' graphs: ``[M0, K0]`` at rest (M at
-    q = 0; K0 the Hessian of the energy at rest, Pi, by CasADi's differentiation)."""
-    from .recursive import _ca, chain_functions, function_lines, structure_of_chain
-
-    ca, n = _ca(), chain.n
-    fns = chain_functions(structure_of_chain(chain))
-    q, p = ca.SX.sym("q", n), ca.SX.sym("p", fns["energy"].size1_in(1))
-    hessian = ca.hessian(fns["energy"](ca.vertcat(q, ca.SX.zeros(n)), p), q)[0]
-    at_rest = lambda e: ca.substitute(e, q, ca.DM.zeros(n))  # noqa: E731
-    linear = ca.Function("linear", [p], [at_rest(fns["mass"](q, p)), at_rest(ca.reshape(hessian, n * n, 1))])
-    packed = [f"m{i}_{j}" for i in range(n) for j in range(i + 1)]
-    return ["/** the linearisation at rest (every q = 0): [M0, K0], M0 = M(0), K0 = the Hessian of Pi (y is not read) */",
-            "export function linear(y, p = P) {",
-            *function_lines(linear, ["p"], [packed, [f"r{i}" for i in range(n * n)]], "  ", True, "javascript"),
-            f"  return [{_rows(n, lambda i, j: f'm{max(i, j)}_{min(i, j)}')}, {_rows(n, lambda i, j: f'r{i * n + j}')}];", "}", ""]
-
-
-def _no_terms() -> List[str]:
-    return ["/** the equations' terms: none (the recursive algorithms print no symbolic equations: the page shows M0, K0) */",
-            "export const TERMS = [];", "export function coefficients(p = P) { return []; }",
-            "/** mirror starts are not assumed to flip alike (a chain's bodies need not be symmetric) */",
-            "export const FLIP_ODD = false;", ""]
 
 
 def odd_under_reflection(ex) -> bool:

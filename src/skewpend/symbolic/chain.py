@@ -160,6 +160,11 @@ class Link:
         return cls(**dict(data), index=index)
 
 
+#: The double pendulum's parameters of a chain of two, or None (``[exact_of_chain]``: set by
+#: :mod:`skewpend.symbolic.model`, which imports this module, so that this one imports nothing of the facade).
+EXACT_OF: list = [None]
+
+
 @dataclass(frozen=True)
 class Chain:
     """A chain of ``n`` links hanging from the roof (``n >= 1``), the gravitational acceleration
@@ -255,28 +260,13 @@ class Chain:
         joints) with the specification's axes -- hinge 1 along ``k``, hinge 2 in the plane of ``k`` and ``i``,
         its tilt the run-time skew ``alpha`` -- those parameters; None otherwise: the recursive algorithms'
         forms print every chain and read every axis at run time (the exact form would compile each other
-        axis's values)."""
-        if self.n != 2:
+        axis's values).  (:func:`skewpend.symbolic.model.exact_of_chain`, which the facade's module registers
+        here: this module imports nothing of the facade.)"""
+        if self.n != 2 or EXACT_OF[0] is None:
             return None
         exact = self.__dict__.get("_exact", False)  # once per chain (immutable): asked at every kernel look-up
         if exact is False:
-            from ..errors import ParameterError
-            from .model import Parameters
-
-            one, two = self.links
-            exact = None
-            if one.axis == (0.0, 0.0, 1.0) and two.axis[1] == 0.0:
-                rods = {}  # a thin rod's body as the facade's default (the exact form keys general bodies apart)
-                for i, link in enumerate(self.links, start=1):
-                    if link.com == (0.0, 0.5 * link.length, 0.0):
-                        rods[f"com{i}"] = None
-                    if link.inertia == link.rod_inertia:
-                        rods[f"inertia{i}"] = None
-                try:
-                    exact = Parameters.from_chain(self).replace(axis1=None, axis2=None, **rods,
-                                                                alpha=math.atan2(two.axis[0], two.axis[2]))
-                except ParameterError:
-                    pass
+            exact = EXACT_OF[0](self)
             object.__setattr__(self, "_exact", exact)
         return exact
 

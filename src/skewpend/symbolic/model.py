@@ -29,7 +29,7 @@ __all__ = ["Parameters", "SCALAR_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "GEOME
 
 from .values import (MAX_INERTIA, MAX_MAGNITUDE, RESERVED_NAMES, SYMBOLIC_WORDS, Mat3, Scalar, Vec3,  # noqa: F401
                      as_entry, as_matrix, as_real, as_vector, check_inertia, is_numeric, symbol_names)
-from .chain import Chain, Link
+from .chain import EXACT_OF, Chain, Link
 
 
 class _Model:
@@ -345,6 +345,29 @@ Parameters = _build_parameters()
 
 
 #: The checks of one scalar, vector and inertia entry, shared with the chains' links (:mod:`.chain`).
+
+
+def exact_of_chain(chain: Chain) -> Optional["Parameters"]:
+    """The double pendulum's parameters that the specification's derivation prints for a chain of two
+    (:meth:`Chain.exact_model`): hinge 1 along ``k`` and hinge 2 in the plane of ``k`` and ``i`` (its tilt the
+    run-time ``alpha``), thin rods as the facade's rods; None for other axes or a chain the facade cannot hold."""
+    one, two = chain.links
+    if one.axis != (0.0, 0.0, 1.0) or two.axis[1] != 0.0:
+        return None
+    rods = {}  # a thin rod's body as the facade's default (the exact form keys general bodies apart)
+    for i, link in enumerate(chain.links, start=1):
+        if link.com == (0.0, 0.5 * link.length, 0.0):
+            rods[f"com{i}"] = None
+        if link.inertia == link.rod_inertia:
+            rods[f"inertia{i}"] = None
+    try:
+        return Parameters.from_chain(chain).replace(axis1=None, axis2=None, **rods,
+                                                    alpha=math.atan2(two.axis[0], two.axis[2]))
+    except ParameterError:
+        return None
+
+
+EXACT_OF[0] = exact_of_chain
 
 
 def model_from_mapping(data: Mapping[str, Any]):

@@ -4,7 +4,7 @@ The page (``web/index.html``, ``web/app.js``) is the same front end as the stati
 (:func:`skewpend.views.frontend.export_explorer`): it draws the moving pendulum in 3D with three.js
 -- bundled in the package from the npm ``three`` package, never loaded from a CDN -- and computes
 everything it shows in the browser with the JavaScript *generated from the derivation*
-(:func:`skewpend.numeric.codegen.explorer_js`): the motion, the equations for the current
+(:func:`skewpend.numeric.explorer_source.explorer_js`): the motion, the equations for the current
 parameters, the normal modes and the flip map (in Web Workers).  The server delivers the page's
 files (``/sources/*.js``: the registrations of :mod:`skewpend.views.frontend`; the generated
 module alone is ``/physics.js``) and, for programs, a JSON API with the library's compiled

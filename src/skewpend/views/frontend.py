@@ -3,7 +3,7 @@ browser: the served explorer (``skewpend serve``), the static explorer (:func:`e
 ``skewpend explorer``), the report's live 3D view and the notebook widget.
 
 The sources are the vendored three.js (from the npm package, never a CDN), the physics generated
-from the derivation (:func:`skewpend.numeric.codegen.explorer_js`: motion, energy, drawing,
+from the derivation (:func:`skewpend.numeric.explorer_source.explorer_js`: motion, energy, drawing,
 linearisation and the equations' coefficients), the DOP853 tableau, and the page's own scripts in
 ``web/``.  Each is delivered as a *registration*: a classic script that stores the text with its
 import specifiers (``web/loader.js`` turns the modules into ``blob:`` URLs at run time), so the
@@ -20,6 +20,8 @@ from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 from typing import Dict, List, Optional
+
+from .. import schema as _schema
 
 __all__ = ["Source", "sources", "registration", "export_explorer", "inline_page_scripts", "WEB_DIR", "katex_dir",
            "SOURCE_ORDER", "REPLAY_ORDER", "MANIFEST", "EXPORT_ENTRIES", "WIDGET_ORDER", "module_bundle", "replay_data",
@@ -86,7 +88,8 @@ def _static_sources() -> tuple:
 
 @lru_cache(maxsize=8)
 def _physics_sources(physics_params) -> tuple:
-    from ..numeric.codegen import classic_js, explorer_js
+    from ..numeric.codegen import classic_js
+    from ..numeric.explorer_source import explorer_js
 
     module = explorer_js(physics_params)
     page = f"// the explorer's settings for these bodies (skewpend.views.frontend.page_settings)\nexport const PAGE = " \
@@ -96,17 +99,13 @@ def _physics_sources(physics_params) -> tuple:
 
 
 #: The sliders, one definition for every model and view: by the schema's stem of the parameter, its range
-#: ``(min, max, step)``, unit, whether shown in degrees, and the word after its name -- in the order shown.
-SLIDER_RANGES = {
-    "alpha": ((-180.0, 180.0, 0.5), "°", True, "skew"),
-    "l": ((0.2, 3.0, 0.05), "m", False, "rod {i}"),
-    "m": ((0.1, 5.0, 0.05), "kg", False, ""),
-    "g": ((0.0, 20.0, 0.01), "m/s²", False, ""),
-    "c": ((0.0, 2.0, 0.01), "N m s", False, "damping"),
-}
+#: ``(min, max, step)``, unit, whether shown in degrees, and the word after its name -- in the order shown
+#: (the schema's ``Field.slider``).
+SLIDER_RANGES = {f.stem: (f.slider[1], "°" if f.slider[2] else f.unit, f.slider[2], f.slider[3])
+                 for f in sorted((f for f in _schema.FIELDS if f.slider), key=lambda f: f.slider[0])}
 #: Each joint's start angle [deg]: its slider's range and step.
 START_RANGE = (-180.0, 180.0, 0.5)
-#: What a slider sets alone in each form of the page's physics (:func:`~skewpend.numeric.codegen.page_form`):
+#: What a slider sets alone in each form of the page's physics (:func:`~skewpend.numeric.explorer_source.page_form`):
 #: the derivation reads every scalar of the double pendulum's parameters; the recursive algorithms' bodies are
 #: fixed (a rod's length or mass would move its centre of mass and inertia too), their g and damping are live.
 LIVE_STEMS = {"exact": tuple(SLIDER_RANGES), "recursive": ("g", "c")}
@@ -135,7 +134,7 @@ def page_sliders(model=None) -> list:
     import math
 
     from ..config import CHAIN_Q0, DEFAULT_RUN
-    from ..numeric.codegen import page_vector
+    from ..numeric.explorer_source import page_vector
 
     form, printed, order, values = page_vector(model)
     rank = list(SLIDER_RANGES)
@@ -161,7 +160,7 @@ def page_settings(physics_params=None) -> dict:
     camera's reach), the terms that make the energy not conserved (``dissipative``: damping, torques,
     friction, from the schema's roles) and the ``torques``."""
     from .. import schema
-    from ..numeric.codegen import page_vector
+    from ..numeric.explorer_source import page_vector
 
     form, printed, order, _ = page_vector(physics_params)
     roles = {f.stem: f.role for f in schema.FIELDS if f.per_body}  # a joint's terms (cfs, the chain's, is none)

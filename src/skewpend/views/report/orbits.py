@@ -9,7 +9,7 @@ from typing import List
 from ... import schema
 from ...errors import SkewpendError
 from .common import Context, answers_names, detail, esc, facts_html, fig_png, figure_html, fmt_num, prose, table_html
-from .system import _SUB, label
+from .system import SUBSCRIPTS, label
 
 #: Orbits per family in the report (the library's default is 200; the curve is as smooth), past two links
 #: LONG_RESOLUTION (each family is a continuation of shooting problems of 2 n + 1 unknowns).
@@ -122,7 +122,7 @@ def section_orbits(ctx: Context) -> str:
                 orbits.append((fam.mode, E, fam.at_energy(E).trajectory(200)))
     detail("the frequency-energy plot")
     fig = F.fep_figure(bb, orbits=orbits)
-    square = f"|{sym[0]}|, |{sym[1]}|" if n <= 2 else "|q₁|, …, |q" + str(n).translate(_SUB) + "|"
+    square = f"|{sym[0]}|, |{sym[1]}|" if n <= 2 else "|q₁|, …, |q" + str(n).translate(SUBSCRIPTS) + "|"
     caption = prose(
         "Frequency $2\\pi/T$ of each nonlinear normal mode against its energy above the hanging rest, from the linear "
         "frequencies of section 4 (◀) up to " + f"{fmt_num(E_max, 4)} J, the lowest energy at which a joint can flip "

@@ -196,7 +196,7 @@ def section_system(ctx: Context) -> str:
 
 
 # -- section 4: normal modes -------------------------------------------------------------------------
-_SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
+SUBSCRIPTS = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
 
 
 def _skews(p) -> List[str]:
@@ -312,7 +312,7 @@ def section_modes(ctx: Context) -> str:
             items = []
             for r in sw.resonances:
                 i, j = r.pair
-                ratio = f"ω{str(j).translate(_SUB)}/ω{str(i).translate(_SUB)}"
+                ratio = f"ω{str(j).translate(SUBSCRIPTS)}/ω{str(i).translate(SUBSCRIPTS)}"
                 how = "crossed" if r.crossed else f"approached ({ratio} = {fmt_num(r.ratio, 5)})"
                 items.append(f"<li><b>{'' if n <= 2 else ratio + ' = '}{r.order}:1</b> {how} at "
                              f"{'α' if alpha else 'β'} = {fmt_deg(r.value)}</li>")
@@ -422,7 +422,7 @@ TEXT = {"phi": "φ", "psi": "ψ"}
 def label(c: str) -> str:
     """A coordinate's symbol in text: ``φ``, ``ψ``; ``q₃``."""
     stem = c.rstrip("0123456789")
-    return TEXT.get(c, stem + c[len(stem):].translate(_SUB))
+    return TEXT.get(c, stem + c[len(stem):].translate(SUBSCRIPTS))
 
 
 def tex(c: str) -> str:
