@@ -10,10 +10,12 @@ In a notebook cell::
     tr = w.run(20.0)                           # skewpend.simulate computes; the view replays it
     skewpend.widget(chain)                     # a chain of links: its n rods, q0 a joint, g and damping
 
-A chain of links (:class:`~skewpend.symbolic.chain.Chain`) gets the same view with its own physics
-(the JavaScript printed from the recursive algorithms' graphs, :func:`~skewpend.numeric.recursive.chain_code`):
-sliders for each joint's start angle, ``g`` and each joint's damping (its bodies and axes are fixed at
-creation, as the double pendulum's), ``y0 = (q1 … qn, dq1 … dqn)``.
+Any model gets the same view; what its sliders set follows the form of the page's physics
+(:func:`~skewpend.numeric.explorer_source.page_form`, as the explorer's page): the double pendulum's
+parameters -- a chain of two with the specification's axes among them -- every scalar; a longer chain, or a
+model with Coulomb friction or rotors (the JavaScript printed from the recursive algorithms' graphs,
+:func:`~skewpend.numeric.recursive.chain_code`) each joint's start angle, ``g`` and each joint's damping (its
+bodies and axes are fixed at creation, as the double pendulum's), ``y0 = (q1 … qn, dq1 … dqn)``.
 
 The view is the same front end as the explorer's and the report's (``web/scene.js``); its live
 motion is the JavaScript generated from the derivation for these bodies and axes, advanced by
@@ -116,11 +118,19 @@ class PendulumWidget(anywidget.AnyWidget):
         from ..config import reference_parameters, reference_state
         from ..numeric.conventions import geometry_of
 
+        from ..numeric.explorer_source import page_form
+
         height = checks.whole("height", height, 160, 4000, what="the view's height in pixels")
-        self._chain = params if getattr(params, "links", None) is not None else None
-        if self._chain is not None:  # a chain of links: the bodies and axes fixed, g and damping its sliders
+        if params is not None and not hasattr(params, "as_chain"):
+            raise ParameterError(checks.not_parameters(params, "the widget"))
+        # the page's form decides what its sliders set (explorer_source.page_form): the exact form every scalar of
+        # the double pendulum's parameters, the recursive algorithms' g and each joint's damping (bodies fixed)
+        form, printed = page_form(params) if params is not None and params.is_numeric else ("exact", None)
+        self._chain = printed if form == "recursive" else None
+        if self._chain is not None:  # the recursive form: the bodies and axes fixed, g and damping its sliders
             from ..config import CHAIN_Q0
 
+            params = self._chain
             shape = chain_with(params, {k: 0.0 for k in chain_slider_values(params)} | {"g": 9.81})
             self._geometry = shape
             self._esm, self._css = _front_end(shape)
@@ -287,7 +297,8 @@ class PendulumWidget(anywidget.AnyWidget):
             if self._same_body(trajectory.params) is None:
                 raise ParameterError("widget.show: the trajectory's chain differs from the widget's; "
                                      "make a skewpend.widget(trajectory.params)")
-        elif geometry_of(trajectory.params) != self._geometry:
+        elif (trajectory.params.exact_model() is None
+              or geometry_of(trajectory.params.exact_model()) != self._geometry):
             raise ParameterError("widget.show: the trajectory's bodies and axes differ from the widget's; "
                                  "make a skewpend.widget(trajectory.params)")
         n = len(trajectory.t)
