@@ -14,7 +14,7 @@ trade off against each other.
 (c) the 95 % interval half-width of each estimate relative to the estimate (log scale): the
     free-swing ratios when the data determine ratios only, else the base parameters;
 (d) the correlation matrix of the free parameters (output-error fits);
-(e) the profile of the cost over the skew angle (when ``alpha`` was freed and profiled), its
+(e) the profile of the cost over the freed angle (the skew ``alpha``, or a chain's ``tiltK``), its
     95 % interval shaded.
 
 Pieces with measured torques are not simulated (their inputs vary): their held-out error is the
@@ -311,11 +311,14 @@ def _panel_profile(ax, result) -> None:
         ax.axvspan(lo, hi, color=COLORS["start"], alpha=0.15, lw=0,
                    label=f"95 % interval [{lo:.2f}°, {hi:.2f}°]")
     ax.plot(a, 1e3 * (c - base), color=COLORS["path"], marker="o", ms=3.5, lw=1.1, label="profile (others re-fitted)")
+    # the freed angle: the double pendulum's skew alpha, or a chain's hinge tilt (tiltK)
+    name = getattr(result, "angle", "alpha")
+    symbol, words = ("α", "skew angle") if name == "alpha" else (name, f"hinge {name[4:]}'s tilt")
     if math.isfinite(result.alpha):
         ax.axvline(math.degrees(result.alpha), color=COLORS["psi"], lw=1.0, ls="--",
-                   label=f"estimate α = {math.degrees(result.alpha):.2f}°")
-    ax.set_title("(e) Skew-angle profile", loc="left")
-    ax.set_xlabel("skew angle α [deg]")
+                   label=f"estimate {symbol} = {math.degrees(result.alpha):.2f}°")
+    ax.set_title(f"(e) {words[0].upper() + words[1:]} profile", loc="left")
+    ax.set_xlabel(f"{words} {symbol} [deg]")
     ax.set_ylabel(r"cost − minimum [$10^{-3}$ rad²]")
     ax.set_ylim(0, 1.45 * float(np.nanmax(1e3 * (c - base))) or 1.0)
     ax.legend(fontsize=7, loc="upper center", framealpha=0.92)
