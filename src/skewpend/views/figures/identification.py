@@ -313,11 +313,12 @@ def _panel_profile(ax, result) -> None:
     ax.plot(a, 1e3 * (c - base), color=COLORS["path"], marker="o", ms=3.5, lw=1.1, label="profile (others re-fitted)")
     # the freed angle: the double pendulum's skew alpha, or a chain's hinge tilt (tiltK)
     name = getattr(result, "angle", "alpha")
-    symbol, words = ("α", "skew angle") if name == "alpha" else (name, f"hinge {name[4:]}'s tilt")
+    symbol, words, title = (("α", "skew angle", "Skew-angle") if name == "alpha"
+                            else (name, f"hinge {name[4:]}'s tilt", f"Hinge {name[4:]}'s tilt"))
     if math.isfinite(result.alpha):
         ax.axvline(math.degrees(result.alpha), color=COLORS["psi"], lw=1.0, ls="--",
                    label=f"estimate {symbol} = {math.degrees(result.alpha):.2f}°")
-    ax.set_title(f"(e) {words[0].upper() + words[1:]} profile", loc="left")
+    ax.set_title(f"(e) {title} profile", loc="left")
     ax.set_xlabel(f"{words} {symbol} [deg]")
     ax.set_ylabel(r"cost − minimum [$10^{-3}$ rad²]")
     ax.set_ylim(0, 1.45 * float(np.nanmax(1e3 * (c - base))) or 1.0)
