@@ -238,7 +238,7 @@ def count_text(k: int, what: str) -> str:
 def model_title(n: int) -> str:
     """The model in words for titles and messages: ``"the skewed double pendulum"`` for two links (any
     chain of two is the double pendulum), ``"a chain of n links"`` otherwise."""
-    return "the skewed double pendulum" if n == 2 else f"a chain of {n} links"
+    return "the skewed double pendulum" if n == 2 else f"a chain of {n} link{'s' if n != 1 else ''}"
 
 
 def state_text(nq: int) -> str:

@@ -211,11 +211,8 @@ class _Search:
     def __init__(self, model, what: str):
         self.chain = _numeric_model(model, what)
         self.n, self.coordinates = model.n, tuple(model.coordinates)
-        try:
-            geometry = _geometry_only(model)
-        except AttributeError:  # no symbolic form
-            geometry = None
-        self.land = _Exact(model, geometry) if geometry is not None else _Recursive(self.chain)
+        exact = model.exact_model()  # the parameters the exact derivation prints, or None: the recursive algorithms
+        self.land = _Exact(exact, _geometry_only(exact)) if exact is not None else _Recursive(self.chain)
         self.tau = np.array([link.torque for link in self.chain.links], dtype=float)
 
     @cached_property

@@ -112,14 +112,14 @@ def _matrices(params, coulomb: str = DEFAULT_COULOMB) -> Tuple[np.ndarray, np.nd
     bodies' geometry apart from its scalars (one generated function, cached on disk, serves every value), else
     the recursive algorithms' exact derivatives (CasADi; a chain's values are numeric data)."""
     params.require_numeric("normal modes")
-    try:
-        geometry = _geometry(params)
-    except AttributeError:  # no symbolic form: the recursive algorithms
+    exact = params.exact_model()  # the parameters the exact derivation prints, or None: the recursive algorithms
+    if exact is None:
         from ..numeric.recursive import linear_matrices as recursive_matrices
 
         with np.errstate(all="ignore"):
             M, C, K = recursive_matrices(params.as_chain(), coulomb)
     else:
+        params, geometry = exact, _geometry(exact)
         if any(getattr(params, n) for n in TORQUE_NAMES):
             raise EquilibriumError(f"{' = '.join(params.coordinates)} = 0 is not an equilibrium with constant joint "
                                    f"torques; normal modes need {' = '.join(TORQUE_NAMES)} = 0")

@@ -235,7 +235,7 @@ class Chain:
     def value(self, name: str):
         """A value by its name: the chain's own (``g``, ``cfs``), a link's field by its stem and the link's
         number (``m3``, ``l2``, ``c1``, ``cf2``, ``tau3``, ``Ir1``: ``links[k - 1]``'s), and the double pendulum's
-        names of a chain of two's fields (``a``, ``b``: ``links[0].length``, ``links[1].length``).  An unknown
+        names of its links' fields (``a``, ``b``: ``links[0].length``, ``links[1].length``).  An unknown
         name, or a link that does not exist: one line."""
         if name in CHAIN_NAMES:
             return getattr(self, name)
@@ -243,7 +243,7 @@ class Chain:
         number = name[len(stem):]
         key = next((k for k, st, kind in LINK_FIELDS if st == stem and kind == "scalar"), None)
         if key is None or not number:
-            alias = link_field_of(name) if self.n == 2 and name != "alpha" else None
+            alias = link_field_of(name) if name != "alpha" else None  # a, b: links 1 and 2's lengths
             if alias is None or alias[1] is None:
                 raise ParameterError(f"unknown parameter {name!r} of {self.title}: a link's scalar is its stem and "
                                      f"number ({', '.join(st + '1' for _, st, kind in LINK_FIELDS if kind == 'scalar')}), "
@@ -262,7 +262,7 @@ class Chain:
         forms print every chain and read every axis at run time (the exact form would compile each other
         axis's values).  (:func:`skewpend.symbolic.model.exact_of_chain`, which the facade's module registers
         here: this module imports nothing of the facade.)"""
-        if self.n != 2 or EXACT_OF[0] is None:
+        if EXACT_OF[0] is None:
             return None
         exact = self.__dict__.get("_exact", False)  # once per chain (immutable): asked at every kernel look-up
         if exact is False:

@@ -22,7 +22,8 @@ from typing import Any, Mapping, Optional, Tuple
 from ..errors import ParameterError
 from ..parsing import MAX_ANGLE
 from ..schema import (AXIS_NAMES, COM_NAMES, FRICTION_NAMES, GEOMETRY_NAMES, INERTIA_NAMES, NAMES,  # noqa: F401
-                      NONCONSERVATIVE_NAMES, ROTOR_NAMES, SCALAR_NAMES, check_bound, default, field as schema_field,
+                      LENGTH_NAMES, NONCONSERVATIVE_NAMES, ROTOR_NAMES, SCALAR_NAMES, check_bound, default,
+                      field as schema_field,
                       names, sym_prefix, unknown_names_message)
 
 __all__ = ["Parameters", "SCALAR_NAMES", "FRICTION_NAMES", "ROTOR_NAMES", "GEOMETRY_NAMES", "RESERVED_NAMES", "Vec3", "Mat3"]
@@ -351,6 +352,8 @@ def exact_of_chain(chain: Chain) -> Optional["Parameters"]:
     """The double pendulum's parameters that the specification's derivation prints for a chain of two
     (:meth:`Chain.exact_model`): hinge 1 along ``k`` and hinge 2 in the plane of ``k`` and ``i`` (its tilt the
     run-time ``alpha``), thin rods as the facade's rods; None for other axes or a chain the facade cannot hold."""
+    if chain.n != len(LENGTH_NAMES):  # the facade's links
+        return None
     one, two = chain.links
     if one.axis != (0.0, 0.0, 1.0) or two.axis[1] != 0.0:
         return None
