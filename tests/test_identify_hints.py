@@ -369,3 +369,60 @@ def test_suspect_says_why_a_fit_looks_wrong(swing):
              (dict(fit_rms=np.array([0.018])), "times their noise")]
     for change, says in cases:
         assert says in suspect(dataclasses.replace(good, **change), m), change
+
+
+# -- a chain of three: the fastest of its three modes -------------------------------------------------
+def _planar_triple():
+    """A planar chain of three thin uniform rods, and its three periods about hanging computed here from
+    the textbook's linearisation in absolute angles (rod i's angle from the vertical): ``M_ij = m_j l_i
+    l_j / 2 + sum_{k>j} m_k l_i l_j`` (i < j), ``M_ii = m_i l_i^2 / 3 + sum_{k>i} m_k l_i^2``, ``K`` diagonal
+    ``g (m_i l_i / 2 + sum_{k>i} m_k l_i)`` -- the relative angles' matrices are congruent to these, the
+    periods the same."""
+    from skewpend.symbolic.chain import Chain
+
+    m, length, g = np.array([0.3, 0.25, 0.1]), np.array([0.2, 0.25, 0.12]), 9.81
+    M, K = np.zeros((3, 3)), np.zeros((3, 3))
+    for i in range(3):
+        below = m[i + 1:].sum()
+        M[i, i] = m[i] * length[i] ** 2 / 3 + below * length[i] ** 2
+        K[i, i] = g * (m[i] * length[i] / 2 + below * length[i])
+        for j in range(i + 1, 3):
+            M[i, j] = M[j, i] = (m[j] / 2 + m[j + 1:].sum()) * length[i] * length[j]
+    w2 = np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real)
+    return Chain.from_lists(3, mass=list(m), length=list(length), g=g), 2 * np.pi / np.sqrt(w2)
+
+
+def test_mode_periods_of_a_chain_of_three_are_its_three_slowest_first():
+    from skewpend.analysis.hints import mode_periods
+    from skewpend.analysis.modes import normal_modes
+
+    chain, periods = _planar_triple()
+    got = mode_periods(chain)
+    assert len(got) == 3
+    np.testing.assert_allclose(got, periods, rtol=1e-9)
+    np.testing.assert_allclose(got, normal_modes(chain).periods, rtol=1e-9)
+    assert periods[2] < 0.8 * periods[1]  # the third mode is the fastest by far: the second's would not do
+
+
+def test_check_sampling_of_a_chain_of_three_counts_the_fastest_mode():
+    """Steps fine for the slower two modes but fewer than four a swing of the third: refused, naming the
+    third mode's period; steps of a fifth of it pass.  The time-unit hint reads the fastest mode too."""
+    from skewpend.analysis.hints import SAMPLES_PER_SWING, check_sampling
+
+    chain, periods = _planar_triple()
+    fast, middle = periods[2], periods[1]
+
+    def data(dt, seconds=60.0):
+        t = np.arange(0.0, seconds, dt)
+        q = np.column_stack([0.2 * np.sin(2 * np.pi * t / periods[k]) for k in range(3)])
+        return Measurements.from_arrays([{"t": t, "q": q}], skip=("tracking", "mean", "units"))
+
+    dt = 0.5 * (fast + middle) / SAMPLES_PER_SWING  # 4+ samples a swing of mode 2, under 4 of mode 3
+    assert middle / dt > SAMPLES_PER_SWING > fast / dt
+    with pytest.raises(ParameterError, match=re.escape(f"per swing of params0's fastest mode ({fast:.3g} s)")):
+        check_sampling(data(dt), chain)
+    check_sampling(data(fast / 5), chain)
+    with pytest.raises(ParameterError, match=re.escape("the times look in milliseconds")):
+        check_sampling(Measurements.from_arrays([{"t": np.arange(0.0, 20.0, fast / 40) * 1e3,
+                                                  "q": data(fast / 40, 20.0)[0].q}],
+                                                skip=("tracking", "mean", "units")), chain)

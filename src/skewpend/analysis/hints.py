@@ -5,9 +5,9 @@ way the fit only shows as "the estimate is not physical" or a poor prediction.  
 mistakes, and the checks here, cheap ones first:
 
 * **time in milliseconds** (or microseconds): before the fit, the median time step against the
-  hanging modes' periods of ``params0`` (:func:`check_sampling`, a refusal: such data would make
-  thousands of shooting segments);
-* **far too short**: the fitting data's total duration against the slower mode's period;
+  period of ``params0``'s fastest mode about hanging, of its ``n`` (:func:`check_sampling`, a
+  refusal: such data would make thousands of shooting segments);
+* **far too short**: the fitting data's total duration against the slowest mode's period;
 * **an encoder's sign flipped**, **the second angle absolute declared relative** (or the reverse):
   the linear estimate (inverse dynamics, a fraction of a second) with the data re-read under
   each alternative convention; one whose residual is three times smaller or less is named.  A
@@ -34,14 +34,14 @@ from .measurements import SKEWPEND, Convention, Measurements, Piece, convert, co
 __all__ = ["spell_convention", "mode_periods", "check_sampling", "suspect", "diagnose", "SAMPLES_PER_SWING",
            "SWINGS_NEEDED", "BETTER", "CHECK_WINDOW", "CHECK_SECONDS", "NOISE_FACTOR", "noise_level", "report"]
 
-#: Fewer samples than this per swing of ``params0``'s faster mode: the time column is refused.
+#: Fewer samples than this per swing of ``params0``'s fastest mode: the time column is refused.
 SAMPLES_PER_SWING = 4
-#: Swings of the slower mode an identification needs, at least (the hint's advice).
+#: Swings of the slowest mode an identification needs, at least (the hint's advice).
 SWINGS_NEEDED = 3
 #: An alternative convention is named when its linear estimate's residual is at most this
 #: fraction of the data's as read.
 BETTER = 1 / 3
-#: The Savitzky-Golay window of the convention checks [s], at most (a quarter of the faster
+#: The Savitzky-Golay window of the convention checks [s], at most (a quarter of the fastest
 #: mode's period when shorter): wide, so that noise in the accelerations does not hide the model
 #: error of a wrong convention (on 6 s of a skewed rig with 0.5 mrad noise the residuals are
 #: 0.004 as read correctly, 0.04 with the second angle absolute, 0.13 with a sign flipped).
@@ -65,9 +65,10 @@ def spell_convention(convention: Convention, interface: str = "python") -> str:
     return "Convention(" + ", ".join(f"{k}={getattr(convention, k)!r}" for k in changed) + ")"
 
 
-def mode_periods(params0) -> Optional[Tuple[float, float]]:
-    """``(slow, fast)``: the periods [s] of ``params0``'s two modes about hanging (undamped), or
-    None when they cannot be had (symbolic or unstable)."""
+def mode_periods(params0) -> Optional[Tuple[float, ...]]:
+    """The periods [s] of ``params0``'s ``n`` modes about hanging (undamped), one a coordinate, the
+    slowest first and the fastest last (``(slow, fast)`` for the double pendulum), or None when they
+    cannot be had (symbolic or unstable)."""
     from .modes import linear_matrices
 
     try:
@@ -77,8 +78,13 @@ def mode_periods(params0) -> Optional[Tuple[float, float]]:
         return None
     if not np.all(np.isfinite(w2)) or np.any(w2 <= 0):
         return None
-    periods = 2 * math.pi / np.sqrt(np.sort(w2))
-    return float(periods[0]), float(periods[1])
+    return tuple(float(x) for x in 2 * math.pi / np.sqrt(np.sort(w2)))
+
+
+def _extreme(periods: Sequence[float], which: str) -> str:
+    """``params0``'s ``which`` (``"fast"``, ``"slow"``) mode in words: the comparative between two
+    modes (``faster``), the superlative among more (``fastest``)."""
+    return f"params0's {which}{'er' if len(periods) == 2 else 'est'} mode"
 
 
 def _declared(measurements: Measurements, convention: Optional[Convention]) -> Convention:
@@ -94,19 +100,19 @@ def _declared(measurements: Measurements, convention: Optional[Convention]) -> C
 def check_sampling(measurements: Measurements, params0, *, convention: Optional[Convention] = None,
                    interface: str = "python") -> None:
     """Refuse (:class:`~skewpend.errors.ParameterError`) data sampled with fewer than
-    :data:`SAMPLES_PER_SWING` samples per swing of ``params0``'s faster mode: naming the time
+    :data:`SAMPLES_PER_SWING` samples per swing of ``params0``'s fastest mode (of its ``n``): naming the time
     column's unit when the steps read in milliseconds (or microseconds) make a plausible rate (at
     least 20 samples per swing) over a plausible duration (at least half a swing)."""
     periods = mode_periods(params0)
     if periods is None:
         return
-    fast = periods[1]
+    fast = periods[-1]
     dt = float(np.median([p.dt for p in measurements]))
     if dt <= fast / SAMPLES_PER_SWING:
         return
     conv = _declared(measurements, convention)
     total = measurements.duration
-    what = (f"the median time step is {dt:.4g} s, {fast / dt:.2g} samples per swing of params0's faster mode "
+    what = (f"the median time step is {dt:.4g} s, {fast / dt:.2g} samples per swing of {_extreme(periods, 'fast')} "
             f"({fast:.3g} s), over {total:.4g} s in all")
     for unit, scale in (("ms", 1e-3), ("us", 1e-6)):
         if conv.time == "s" and dt * scale <= fast / 20 and total * scale >= fast / 2:
@@ -205,13 +211,13 @@ def diagnose(measurements: Measurements, params0, *, convention: Optional[Conven
     total = measurements.duration
     if periods is not None and total < SWINGS_NEEDED * periods[0]:
         hints.append(f"far too short: the fitting data last {total:.3g} s in all, "
-                     f"{total / periods[0]:.2g} swings of params0's slower mode ({periods[0]:.3g} s); record at least "
+                     f"{total / periods[0]:.2g} swings of {_extreme(periods, 'slow')} ({periods[0]:.3g} s); record at least "
                      f"{SWINGS_NEEDED * periods[0]:.2g} s ({SWINGS_NEEDED} swings) of motion")
     if not conventions:
         return hints
     declared = _declared(measurements, convention)
     measurements = _first_seconds(measurements, CHECK_SECONDS)
-    window = CHECK_WINDOW if periods is None else min(CHECK_WINDOW, periods[1] / 4)
+    window = CHECK_WINDOW if periods is None else min(CHECK_WINDOW, periods[-1] / 4)
     window = max(window, 7 * float(np.median([p.dt for p in measurements])))
     if window > 0.5 * min(p.duration for p in measurements):
         return hints
