@@ -10,9 +10,12 @@ mistakes, and the checks here, cheap ones first:
 * **far too short**: the fitting data's total duration against the slowest mode's period;
 * **an encoder's sign flipped**, **the second angle absolute declared relative** (or the reverse):
   the linear estimate (inverse dynamics, a fraction of a second) with the data re-read under
-  each alternative convention; one whose residual is three times smaller or less is named.  A
-  planar pendulum moves alike mirrored as a whole, so ``sign=1:-1`` and ``-1:1`` cannot be told
-  apart: the hint names both;
+  each alternative convention -- each joint's sign flipped alone, the later angles (the model's
+  coordinates after the first) of the other kind -- one whose residual is three times smaller or
+  less is named.  A planar pendulum moves alike mirrored as a whole (every sign turned), so of two
+  angles ``sign=1:-1`` and ``-1:1`` cannot be told apart: the hint names both, and which encoder
+  is flipped cannot be said; of more angles one joint flipped is its mirror's all the others, so
+  the hint names the joint (``the sign of q3 (joint 3) looks flipped``) and both spellings;
 * **speeds inconsistent** with the angles' rate of change: a reader's check already
   (``skip=('velocities',)``).
 
@@ -55,12 +58,13 @@ def spell_convention(convention: Convention, interface: str = "python") -> str:
     """How a user states ``convention``: ``Convention(second='absolute', sign=(1, -1))`` in
     Python, ``--convention second=absolute,sign=1:-1`` on the command line (only the fields that
     differ from skewpend's own)."""
-    changed = [f.name for f in fields(Convention) if getattr(convention, f.name) != getattr(SKEWPEND, f.name)]
+    changed = [f.name for f in fields(Convention) if (any(s != 1 for s in convention.sign) if f.name == "sign" else
+                                                       getattr(convention, f.name) != getattr(SKEWPEND, f.name))]
     if interface == "cli":
         parts = []
         for k in changed:
             v = getattr(convention, k)
-            parts.append(f"{k}={v[0]}:{v[1]}" if k == "sign" else f"{k}={'yes' if v is True else v}")
+            parts.append(f"{k}={':'.join(str(s) for s in v)}" if k == "sign" else f"{k}={'yes' if v is True else v}")
         return "--convention " + (",".join(parts) if parts else "second=relative")
     return "Convention(" + ", ".join(f"{k}={getattr(convention, k)!r}" for k in changed) + ")"
 
@@ -188,9 +192,17 @@ def _first_seconds(measurements: Measurements, seconds: float) -> Measurements:
 def _residual(measurements: Measurements, params0, free, window: float) -> float:
     from .identify import identify
 
-    if free is not None:  # the linear estimate holds alpha at params0's (a wrong skew is a small model error
-        # beside a flipped sign or a wrong second angle): freed alpha is left out, the rest kept
-        free = [f for f in ([free] if isinstance(free, str) else list(free)) if f != "alpha"] or None
+    if free is not None:  # the linear estimate holds a hinge's tilt at params0's (a wrong skew is a small model
+        # error beside a flipped sign or a wrong second angle): a freed alpha or tiltK is left out, the rest kept
+        from .identify import _angle_name
+
+        def angle(f: str) -> bool:
+            try:
+                return _angle_name(f, params0) is not None
+            except SkewpendError:
+                return True
+
+        free = [f for f in ([free] if isinstance(free, str) else list(free)) if not angle(f)] or None
     try:
         r = identify(measurements, params0, free=free, method="linear", smoothing=window, bootstrap=0)
     except (SkewpendError, ValueError, np.linalg.LinAlgError):  # a check never stops the run: no answer
@@ -205,7 +217,9 @@ def diagnose(measurements: Measurements, params0, *, convention: Optional[Conven
     """The likely data mistakes behind a fit that went wrong, each one line naming the fix (empty:
     none found).  ``convention``: how the data were read (default: as their metadata says);
     ``conventions=False`` leaves out the sign and second-angle checks (data whose convention is
-    the reader's own, as the Kaheman rig's)."""
+    the reader's own, as the Kaheman rig's).  The checks are the model's: one a joint of
+    ``params0.coordinates`` (its sign flipped alone; two angles make one check, the mirror image's),
+    and the angles after the first of the other kind (absolute or relative)."""
     hints: List[str] = []
     periods = mode_periods(params0)
     total = measurements.duration
@@ -224,16 +238,34 @@ def diagnose(measurements: Measurements, params0, *, convention: Optional[Conven
     base = _residual(measurements, params0, free, window)
     if not math.isfinite(base) or base <= 0:
         return hints
-    flipped = replace(declared, sign=(declared.sign[0], -declared.sign[1]))
+    names = tuple(params0.coordinates)
+    n = len(names)
+    sign = tuple(int(x) for x in declared.signs(n))
+    later = names[1:]
     other = replace(declared, second="absolute" if declared.second == "relative" else "relative")
+    candidates: List[Tuple[Convention, str, Optional[Convention]]] = []
+    # one joint's sign flipped at a time, the later joints first; the mirror image (every sign turned) moves
+    # alike, so flipping joint k is flipping all the others: between two angles one class (the joint cannot
+    # be told), among more each joint its own (named: its mirror flips more than one)
+    seen = set()
+    for k in [*range(1, n), 0]:
+        flip = tuple(-x if i == k else x for i, x in enumerate(sign))
+        mirror = tuple(-x for x in flip)
+        if flip in seen or mirror in seen:
+            continue
+        seen.add(flip)
+        what = (f"the sign of {names[k]} (joint {k + 1}) looks flipped" if n - 1 > 1  # the mirror flips more
+                else "an encoder's sign looks flipped")
+        candidates.append((replace(declared, sign=flip), what, replace(declared, sign=mirror)))
+    candidates.append((other, (f"the second angle looks {other.second}" if len(later) == 1 else
+                               f"the angles {', '.join(later)} look {other.second}") + f", not {declared.second}",
+                       None))
     found: List[Tuple[float, str]] = []
-    for cand, what in ((flipped, "an encoder's sign looks flipped"),
-                       (other, f"the second angle looks {other.second}, not {declared.second}")):
+    for cand, what, mirror in candidates:
         r = _residual(_reread(measurements, declared, cand), params0, free, window)
         if math.isfinite(r) and r <= BETTER * base:
             fix = spell_convention(cand, interface)
-            if cand is flipped:
-                mirror = replace(cand, sign=(-cand.sign[0], -cand.sign[1]))
+            if mirror is not None:
                 fix += f" (or {spell_convention(mirror, interface)}: the mirror image moves alike)"
             found.append((r, f"{what}: read so, the inverse dynamics fit {base / r:.3g} times better; state {fix}"))
     found.sort()

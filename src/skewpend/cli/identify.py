@@ -533,7 +533,7 @@ def _convention(text: Optional[str]):
             try:
                 kw[key] = tuple(int(s) for s in value.split(":"))
             except ValueError:
-                raise UsageError(f"--convention: sign= expects two of +1/-1 as S1:S2, e.g. 1:-1, got {value!r}") from None
+                raise UsageError(f"--convention: sign= expects one +1/-1 per angle as S1:S2 (S1:S2:S3 for three), e.g. 1:-1, got {value!r}") from None
         elif key == "wrapped":
             if value.lower() not in ("yes", "no", "true", "false", "1", "0"):
                 raise UsageError(f"--convention: wrapped= expects yes or no, got {value!r}")
