@@ -94,8 +94,8 @@ case("derive-config-missing", ["derive", "--config", "x.toml"], "x.toml", "does 
 case("derive-coulomb-without-linear", ["derive", "--coulomb", "smoothed"], "--coulomb", "--linear")
 case("serve-config-speed", ["serve", "--config", "r.toml"], "r.toml: [initial] dphi0", "at rest",
      files={"r.toml": "[initial]\ndphi0 = 1\n"})
-case("serve-config-friction", ["serve", "--config", "r.toml"], "r.toml: [parameters] cf1", "Coulomb friction",
-     files={"r.toml": "[parameters]\ncf1 = 0.1\n"})
+case("serve-config-friction-symbolic", ["serve", "--config", "r.toml"], "r.toml: [parameters] a", "Coulomb friction",
+     "give a number", files={"r.toml": "[parameters]\ncf1 = 0.1\na = \"sym\"\n"})
 case("serve-config-beyond-slider", ["serve", "--config", "r.toml"], "r.toml: [parameters] a", "slider range",
      files={"r.toml": "[parameters]\na = 0.05\n"})
 _TRIPLE = "[[links]]\nlength = 0.5\n[[links]]\nlength = 0.4\naxis = [1, 0, 0]\n[[links]]\nlength = 0.3\n"

@@ -129,15 +129,28 @@ def test_the_skewed_triple_serves_the_explorer(tmp_path):
     assert ran.code == 2 and "[initial] dq0" in _errors(ran.err)[0] and "at rest" in ran.err, ran.err
 
 
-def test_a_chain_page_runs_torques_and_friction_and_the_help_says_so(tmp_path):
+def test_a_page_runs_torques_friction_and_rotors_and_the_help_says_so(tmp_path):
     from helpers import run_cli
 
     config = _file(tmp_path, "[[links]]\nlength = 0.5\ntorque = 0.3\ncoulomb = 0.1\n\n[[links]]\nlength = 0.4\nrotor = 0.01\n")
     ran = run_cli(["serve", "--config", config, "--export", "site", "-q"], cwd=tmp_path)
     assert ran.code == 0, ran.err
     text = " ".join(run_cli(["serve", "--help"], cwd=tmp_path).out.split())
-    assert "The double pendulum's page has no joint torques, Coulomb friction or rotor inertia" in text
+    assert "no joint torques" not in text and "refused" not in text.split("A chain of links")[0]
+    assert "Constant joint torques (tau1, tau2), Coulomb friction (cf1, cf2, cfs) and rotor inertia (Ir, gr) are in the " \
+           "page's physics as the file gives them" in text
     assert "torques, Coulomb friction and rotors are in its physics" in text
+    # the double pendulum's too: the page is the recursive algorithms' (sliders g and the damping) with friction or
+    # rotors, the derivation's with torques alone; a value the file leaves out is the reference case's
+    for i, extra in enumerate(("cf1 = 0.05\nIr = 0.001\n", "tau1 = 0.3\n", "c1 = 0.01\ncf2 = 0.02\ngr = 2\n")):
+        config = _file(tmp_path, f"[parameters]\na = 0.8\n{extra}", f"dp{i}.toml")
+        ran = run_cli(["serve", "--config", config, "--export", f"dp{i}", "-q"], cwd=tmp_path)
+        assert ran.code == 0, ran.err
+        assert (tmp_path / f"dp{i}" / "index.html").is_file()
+    config = _file(tmp_path, '[parameters]\ncf1 = 0.05\nm1 = "sym"\n', "sym.toml")
+    ran = run_cli(["serve", "--config", config, "--export", "sym", "-q"], cwd=tmp_path)
+    errors = _errors(ran.err)
+    assert ran.code == 2 and len(errors) == 1 and "[parameters] m1" in errors[0] and "give a number" in errors[0], ran.err
 
 
 # -- a chain's values are never the double pendulum's -----------------------------------------------------------

@@ -66,3 +66,59 @@ def test_the_export_opens_at_the_run_files_start_and_shows_the_damping_it_runs(b
     assert errors == []
     page.close()
     assert math.isfinite(values["c1"])
+
+
+#: A double pendulum with what the page's sliders do not set, as a run file gives it (every body value given: the
+#: library's model below is the same): damping, Coulomb friction and rotors (the recursive form's physics, a
+#: chain's page), or a constant torque (the derivation's, the torque in its parameter vector).
+BODIES = 'a = 0.5\nb = 0.4\nm1 = 1.0\nm2 = 0.7\nalpha = "20deg"\ng = 9.81\n'
+LOSSES = {"friction and rotors": "c1 = 0.01\ncf1 = 0.05\ncf2 = 0.02\nIr = 0.001\ngr = 2.0\n",
+          "a constant torque": "c2 = 0.02\ntau1 = 0.2\n"}
+
+
+@pytest.mark.slow  # 8-14 s each: the export (the recursive form's code printed) and a page in software WebGL
+@pytest.mark.parametrize("case", list(LOSSES), ids=["friction-rotors", "torque"])
+def test_a_double_pendulum_with_friction_rotors_or_torques_runs_them(browser, tmp_path, case):
+    """``serve --config --export`` of the double pendulum with Coulomb friction and rotors, or with a constant
+    torque: the page opens, draws and moves, and its motion is the library's (the compiled RK4 at the page's
+    1 ms step, to rounding; DOP853 to the step's error); with friction and rotors its modes are
+    ``normal_modes``' (the rotors' inertia in M0), with a torque the page says why there are none."""
+    import numpy as np
+
+    import skewpend
+
+    (tmp_path / "run.toml").write_text(f"[parameters]\n{BODIES}{LOSSES[case]}\n[initial]\nphi0 = \"60deg\"\npsi0 = 0\n")
+    ran = run_cli(["serve", "--config", str(tmp_path / "run.toml"), "--export", str(tmp_path / "site")])
+    assert ran.code == 0, ran.report()
+    values = dict(line.split(" = ") for line in (BODIES + LOSSES[case]).splitlines())
+    model = skewpend.Parameters(**{k: math.radians(20) if k == "alpha" else float(v) for k, v in values.items()})
+    page, errors = _open(browser, (tmp_path / "site" / "index.html").resolve().as_uri())
+    page.wait_for_function("() => window.explorer.state().frames >= 3", timeout=30000)
+    sliders = sorted(k for k in page.evaluate("() => window.explorer.state().values"))
+    recursive = case == "friction and rotors"
+    assert sliders == (["c1", "c2", "g", "phi0", "psi0"] if recursive else ["a", "alpha", "b", "c1", "c2", "g", "m1", "m2",
+                                                                            "phi0", "psi0"]), sliders
+    png = page.locator("#scene").screenshot()
+    page.click("#reset")  # from the start, now
+    page.wait_for_function("() => window.explorer.state().t > 0.5", timeout=60000)
+    page.click("#play")
+    page.wait_for_function("() => !window.explorer.state().running")
+    s = page.evaluate("() => window.explorer.state()")
+    assert png != page.locator("#scene").screenshot()  # it moved
+    y0 = [math.radians(60.0), 0.0, 0.0, 0.0]
+    rk4 = skewpend.simulate(model, y0, s["t"], method="rk4", dt=1e-3)
+    assert rk4.t[-1] == pytest.approx(s["t"], abs=1e-12)
+    assert np.abs(np.array(s["y"]) - rk4.y[-1]).max() < 1e-9
+    exact = skewpend.simulate(model, y0, s["t"], rtol=1e-12, atol=1e-12)
+    assert np.abs(np.array(s["y"]) - exact.y[-1]).max() < 1e-4
+    assert abs(np.array(s["y"]) - y0).max() > 0.3  # a swing, not a rest
+    modes = page.locator("#modes").inner_text()
+    if recursive:
+        js, lib = page.evaluate("() => window.explorer.modes()"), skewpend.normal_modes(model)
+        np.testing.assert_allclose(js["frequencies"], lib.frequencies, rtol=1e-9)
+        rotorless = skewpend.normal_modes(model.replace(Ir=0.0)).frequencies
+        assert np.abs(lib.frequencies - rotorless).max() > 1e-3 * lib.frequencies.max()  # the rotors are in it
+    else:
+        assert "the hanging position is not an equilibrium" in modes, modes
+    assert errors == []
+    page.close()

@@ -7,7 +7,6 @@ from typing import Annotated
 
 import typer
 
-from .. import schema
 from . import types as T
 from .options import CONFIG, command, option, resolve
 
@@ -34,11 +33,13 @@ def serve(
 
     A --config run file sets the page's start: its [parameters]' bodies and axes (com1, inertia1,
     axis2, ...) the generated physics; a, b, m1, m2, alpha, g, c1, c2 and [initial] phi0, psi0 the
-    sliders (within their ranges; the page's address holds them).  The double pendulum's page has
-    no joint torques, Coulomb friction or rotor inertia: non-zero ones are refused.  A chain of
-    links ([[links]], [chain]) gets the same page for its n rods: a start slider for each joint
-    ([initial] q0), g and each joint's damping, its modes and a flip map over (q1, q2); its links'
-    torques, Coulomb friction and rotors are in its physics as the file gives them (no sliders).
+    sliders (within their ranges; the page's address holds them).  Constant joint torques (tau1,
+    tau2), Coulomb friction (cf1, cf2, cfs) and rotor inertia (Ir, gr) are in the page's physics as
+    the file gives them (no sliders); with friction or rotors the physics is the recursive
+    algorithms' and the sliders are g, c1, c2 and the start.  A chain of links ([[links]], [chain])
+    gets the same page for its n rods: a start slider for each joint ([initial] q0), g and each
+    joint's damping, its modes and a flip map over (q1, q2); its links' torques, Coulomb friction
+    and rotors are in its physics as the file gives them (no sliders).
     The page starts at rest: [initial] dq0 (dphi0, dpsi0) may only be 0; [simulation] is not used.
 
     Ctrl-C stops the server.
@@ -114,6 +115,17 @@ def _page_start(run):
     from ..views.frontend import page_sliders
 
     params = run.parameters()
+    if not params.is_numeric and (params.has_friction or params.has_rotor):
+        # the page's physics is then the recursive algorithms' (explorer_source.page_form), its bodies numbers: a value
+        # the file leaves out is the reference case's, as the sliders' start is where the derivation prints the page
+        from ..config import reference_parameters
+
+        named = [run.option("parameters", k) for k in params.symbolic_names if run.is_given("parameters", k)]
+        if named:
+            raise UsageError(f"{', '.join(named)}: with Coulomb friction or rotor inertia the page's bodies are numbers "
+                             "(its sliders set g and the damping); give a number")
+        reference = reference_parameters()
+        params = params.replace(**{k: getattr(reference, k) for k in params.symbolic_names})
     for k in ("dphi0", "dpsi0", "dq0"):  # the page starts at rest: a start's rates are read to be checked 0
         if not run.is_given("initial", k):
             continue
@@ -123,14 +135,8 @@ def _page_start(run):
             sliders = "each joint's start angle, q0" if k == "dq0" else "phi0 and psi0"
             raise UsageError(f"{where}: the explorer starts at rest (its sliders set {sliders}); give 0 "
                              "or leave it out, and simulate a start with speeds with skewpend simulate")
-    terms = schema.TORQUE_NAMES + schema.FRICTION_NAMES + schema.ROTOR_NAMES  # a chain's are its links' (refused here)
-    absent = [run.option("parameters", k) for k in terms
-              if run.is_given("parameters", k) and getattr(params, k) != schema.default(k)]
-    if absent:
-        defaults = ", ".join(f"{k} {schema.default(k):g}" for k in terms if schema.default(k) != 0)
-        raise UsageError(f"{', '.join(absent)}: the explorer has no joint torques, Coulomb friction or rotor inertia (its "
-                         f"sliders cannot set them); leave them out or at their defaults (0; {defaults}), and simulate the "
-                         "full model with skewpend simulate")
+    # torques, Coulomb friction and rotors are the page's physics as the file gives them (explorer_source.page_form:
+    # the derivation with the constant torques in p; with friction or rotors the recursive form, as a chain's)
     sliders = page_sliders(params)
     n = len(params.coordinates)
     given = {key: (run.scalar("parameters", key, angle=degrees), run.option("parameters", key))

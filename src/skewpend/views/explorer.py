@@ -184,7 +184,8 @@ def require_web(what: str = "the explorer"):
         raise SkewpendError(f"{what} needs FastAPI and uvicorn, which are not installed: {WEB_EXTRA}") from None
 
 
-#: The parameters the API's requests take (the page integrates no Coulomb friction or rotors).
+#: The parameters the API's requests take (no Coulomb friction or rotors: a page shows them only from its physics'
+#: model, ``skewpend serve --config``).
 API_PARAMETERS = schema.CORE_NAMES + schema.DAMPING_NAMES + schema.TORQUE_NAMES
 #: The largest value the API takes of a parameter, by its unit (the negative limit too for a real one).
 API_LIMITS = {"m": 10, "kg": 100, "rad": 2 * math.pi, "m/s²": 100, "N m s": 100, "N m": 1000}
