@@ -167,11 +167,11 @@ def test_taylor_bits_are_the_same_with_or_without_fma_hardware_and_with_either_c
 
     from skewpend import Parameters
     from skewpend.numeric import simulation
-    from skewpend.numeric.taylor_source import taylor_c_source
+    from skewpend.numeric.taylor_source import exact_system, taylor_c_source
 
     P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
     order, step_l = K.taylor_rule(1e-9)
-    source = taylor_c_source(K.geometry_of(P), order)
+    source = taylor_c_source(exact_system(K.geometry_of(P)), order)
     p = K.parameter_vector(P)
     fused, fma = K.fused_multiply_add()
     system = K.find_compiler()
@@ -206,14 +206,14 @@ def test_taylor_without_fused_multiply_add_agrees_to_rounding(tmp_path):
 
     from skewpend import Parameters
     from skewpend.numeric import simulation
-    from skewpend.numeric.taylor_source import taylor_c_source
+    from skewpend.numeric.taylor_source import exact_system, taylor_c_source
 
     P = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, alpha=0.6, g=9.81)
     order, step_l = K.taylor_rule(1e-9)
     p = K.parameter_vector(P)
     out = []
     for fused in (True, False):
-        source = taylor_c_source(K.geometry_of(P), order, fused=fused)
+        source = taylor_c_source(exact_system(K.geometry_of(P)), order, fused=fused)
         assert f"#define SP_FUSED {int(fused)}" in source
         path = tmp_path / f"taylor_fused{int(fused)}{K.LIB_SUFFIX}"
         K._compile(source, path, K.fused_multiply_add()[1] if fused else ())

@@ -1044,8 +1044,8 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
     cache or generated (:mod:`skewpend.numeric.taylor_source`) and compiled on first use.  Raises
     ValueError (before compiling) for equations with a function that has no series recurrence.
     ``model``: the model's :func:`kernel_module` when the caller has it (a quicker look-up).  A chain of links
-    (:class:`~skewpend.symbolic.chain.Chain`): its recurrences from the recursive algorithms' graph
-    (:mod:`skewpend.numeric.chain_taylor`)."""
+    (:class:`~skewpend.symbolic.chain.Chain`): its recurrences from the recursive algorithms' equations read
+    as polynomials (:mod:`skewpend.numeric.polynomial`), by the same generator."""
     if model is not None and (model.path, order) in _TAYLOR_OF:
         return _TAYLOR_OF[model.path, order]
     form, printed = model_form(params, model.form if model is not None else "")
@@ -1055,23 +1055,21 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
 
 
 def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
-    from .chain_taylor import chain_tn
     from .recursive import structure_of_chain
 
     structure = structure_of_chain(chain)
-    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("chain_taylor.py", "recursive.py", "taylor.c",
-                                                                            "rows.h"))
+    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("polynomial.py", "taylor_source.py", "recursive.py",
+                                                                            "taylor.c", "rows.h"))
     fused, flags = fused_multiply_add()
     key = _key(structure.key() + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}") + f"_ctaylor{order}"
-    tn = chain_tn(structure.n)
 
     def source() -> str:
-        from .chain_taylor import chain_taylor_c_source
+        from .taylor_source import polynomial_system, taylor_c_source
 
-        return chain_taylor_c_source(structure, order, fused=fused)
+        return taylor_c_source(polynomial_system(structure), order, fused=fused)
 
-    loaded = _library(key, lambda path, origin, seconds: TaylorKernel(path, origin, seconds, order, tn), source,
-                      kind="taylor", which=f" of order {order}", flags=flags)
+    loaded = _library(key, lambda path, origin, seconds: TaylorKernel(path, origin, seconds, order, 2 * structure.n + 1),
+                      source, kind="taylor", which=f" of order {order}", flags=flags)
     if model is not None:
         _TAYLOR_OF[model.path, order] = loaded
     return loaded
@@ -1181,9 +1179,9 @@ def _taylor_kernel(params: Parameters, order: int, model) -> TaylorKernel:
     key, geometry, fused, flags = _taylor_key(params, order)
 
     def source() -> str:
-        from .taylor_source import taylor_c_source
+        from .taylor_source import exact_system, taylor_c_source
 
-        return taylor_c_source(geometry, order, fused=fused)  # a model without recurrences is refused here
+        return taylor_c_source(exact_system(geometry), order, fused=fused)  # a model without recurrences is refused here
 
     loaded = _library(key, lambda path, origin, seconds: TaylorKernel(path, origin, seconds, order), source,
                       kind="taylor", which=f" of order {order}" + _bodies_words(geometry), flags=flags)

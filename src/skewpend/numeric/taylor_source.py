@@ -1,10 +1,13 @@
-"""C source of the Taylor integrator's coefficient recurrences, generated from the derivation.
+"""C source of the Taylor integrator's coefficient recurrences, generated from the model's equations.
 
 ``simulate(..., method="taylor")`` integrates with an adaptive Taylor series method (the
-hand-written driver is ``taylor.c``).  Its model part is printed here from the same expressions
-the other kernels use (:func:`skewpend.numeric.codegen.expressions`: ``M(q) q'' = f(q, q')`` and
-the non-potential forces ``Q``), turned into a sequence of elementary operations on truncated
-power series:
+hand-written driver is ``taylor.c``).  Its model part is printed here, for any form of the model, from
+one description (:class:`SeriesSystem`: ``M(q) q'' = f(q, q')``, the non-potential forces ``Q`` and the
+energy as SymPy expressions): the derivation's (:func:`exact_system`, the expressions the other kernels
+use, :func:`skewpend.numeric.codegen.expressions`) or a chain's recursive algorithms read as polynomials
+in its angles' sines and cosines and its speeds (:func:`polynomial_system`,
+:mod:`skewpend.numeric.polynomial`).  Either is turned into a sequence of elementary operations on
+truncated power series:
 
 * every subexpression free of the state (``m2 b^2/3``, ``sin(alpha)``, ...) is a *constant*,
   computed once per call from the parameter vector (``taylor_prepare``) -- a constant has no
@@ -31,22 +34,21 @@ series -- and the one with fewest series products is printed (issue 3's rods: 10
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
-from typing import Dict, List, Tuple
+from typing import Callable, Dict, List, Optional, Tuple
 
 import sympy as sp
 
 from .. import __version__
 from .codegen import (c_printer, cse_block, expressions, ldlt_factor_steps, ldlt_inverse_steps, param_lines, spd_mul_steps,
                       used_names, Lang)
-from .conventions import PARAMETER_ORDER, STATE_ORDER
+from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-#: M[0]^-1 of the series' solve (packed lower triangle), named once a step.
-_INV = ("sp_i11", "sp_i21", "sp_i22")
-
-__all__ = ["taylor_c_source", "SP_TN", "SP_TPMAX"]
+__all__ = ["taylor_c_source", "SeriesSystem", "exact_system", "polynomial_system", "SP_TN", "SP_TPMAX"]
 
 #: State components of the Taylor integrator: (phi, psi, dphi, dpsi, W).
 SP_TN = 5
@@ -55,21 +57,92 @@ SP_TN = 5
 SP_TPMAX = 32
 
 
+@dataclass
+class SeriesSystem:
+    """What the Taylor generator prints: a model's ``M`` (packed lower triangle, row by row), ``f``, the joint
+    forces ``Q`` and the energy ``T + Pi`` as SymPy expressions of the angles ``q``, the speeds ``dq`` and
+    state-free symbols; ``prepare(lang, indent, used)``: C declaring those of the state-free symbols in ``used``
+    (names) from the parameter vector ``p``; ``work``: the indices of ``p`` whose being all 0 makes ``Q``
+    vanish (None: ``Q`` may not vanish, ``()``: ``Q`` is 0); ``title``: the header's line on the model."""
+
+    q: Tuple[sp.Symbol, ...]
+    dq: Tuple[sp.Symbol, ...]
+    M: List[sp.Expr]
+    f: List[sp.Expr]
+    Q: List[sp.Expr]
+    energy: sp.Expr
+    prepare: Callable[[Lang, str, set], List[str]]
+    work: Optional[Tuple[int, ...]]
+    title: str
+    source: str = "symbolic derivation"
+
+    @property
+    def n(self) -> int:
+        return len(self.q)
+
+    def key(self) -> Tuple:
+        return tuple(self.M) + tuple(self.f) + tuple(self.Q)
+
+
+def exact_system(geometry: Parameters, ex=None) -> SeriesSystem:
+    """The derivation's (:func:`~skewpend.numeric.codegen.expressions`) model of ``geometry``."""
+    if ex is None:
+        ex = expressions(geometry)
+    s = SYMBOLS
+    # whether W needs integrating: the parameters Q depends on, and whether Q vanishes when they do
+    qparams = sorted(used_names([ex.Q[0], ex.Q[1]]) & set(PARAMETER_ORDER), key=PARAMETER_ORDER.index)
+    zero = {SYMBOLS[n]: 0 for n in qparams}
+    vanishes = all(sp.simplify(sp.sympify(e).xreplace(zero)) == 0 for e in ex.Q)
+    work = tuple(PARAMETER_ORDER.index(n) for n in qparams) if vanishes else None
+    geo = "thin uniform rods, default axes" if geometry.is_thin_rods else str(geometry.to_dict())
+    return SeriesSystem((s["phi"], s["psi"]), (s["dphi"], s["dpsi"]), [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]],
+                        [ex.f[0], ex.f[1]], [ex.Q[0], ex.Q[1]], ex.T + ex.Pi, param_lines, work,
+                        f"Geometry: {geo}")
+
+
+@lru_cache(maxsize=8)
+def polynomial_system(structure) -> SeriesSystem:
+    """The recursive algorithms' model of a chain of ``structure``, read as polynomials
+    (:func:`skewpend.numeric.polynomial.polynomial_model`): its constants from ``p`` by the CasADi function
+    printed into ``taylor_prepare``."""
+    from .polynomial import polynomial_model
+    from .recursive import function_lines, parameter_names
+    from ..schema import FIELDS, NONCONSERVATIVE_ROLES
+
+    pm = polynomial_model(structure)
+    names = parameter_names(structure.n)
+    stems = {f.stem for f in FIELDS if f.role in NONCONSERVATIVE_ROLES and f.per_body}  # each joint's damping, ...
+    joint = tuple(k for k, name in enumerate(names) if name.rstrip("0123456789") in stems)
+    zero_q = all(sp.sympify(e) == 0 for e in pm.Q)
+
+    def prepare(lang: Lang, indent: str, used: set) -> List[str]:
+        if not pm.names:
+            return []
+        # the constants' declaration, then the function's work registers in a block of their own
+        lines = function_lines(pm.constants, ["p"], [list(pm.names)], indent + "    ", True, "c")
+        return [lines[0][4:], f"{indent}{{", *lines[1:], f"{indent}}}"]
+
+    return SeriesSystem(pm.q, pm.dq, pm.M, pm.f, pm.Q, pm.energy, prepare, () if zero_q else joint,
+                        f"A chain of {structure.n} links, structure {structure.key()} ({len(pm.names)} constants)",
+                        "recursive algorithms' equations, read as polynomials")
+
+
 class _Graph:
     """Series operations in evaluation order.  A value is ``("c", text)`` (a constant: a C
     expression of the prepared constants) or ``("s", name)`` (a series: ``name[k]``)."""
 
-    def __init__(self):
+    def __init__(self, system: SeriesSystem):
         self.ops: List[Tuple] = []  # (kind, target, args...)
         self.memo: Dict[sp.Expr, Tuple[str, str]] = {}
         self.consts: List[sp.Expr] = []
         self.const_index: Dict[sp.Expr, int] = {}
         self.count = 0
         self.cost = 0.0
-        self.state = {SYMBOLS[n]: ("s", f"x[{i}]") for i, n in enumerate(STATE_ORDER)}
+        n = system.n
+        self.state = {v: ("s", f"x[{i}]") for i, v in enumerate(system.q + system.dq)}
         self.series_syms = set(self.state)
         self.const_expr: Dict[sp.Symbol, sp.Expr] = {}  # CSE symbols standing for constants
-        self.depth: Dict[str, int] = {"x[0]": _EARLY, "x[1]": _EARLY, "x[2]": 0, "x[3]": 0}  # see _RANK
+        self.depth: Dict[str, int] = {f"x[{i}]": _EARLY if i < n else 0 for i in range(2 * n)}  # see _RANK
 
     def dep(self, v) -> int:
         return self.depth.get(v[1], _EARLY) if v[0] == "s" else _EARLY
@@ -204,10 +277,10 @@ class _Graph:
         return out
 
 
-def _build(ex, main):
-    """The graph of ``main`` (M11, M12, M22, f1, f2, in some algebraic form) and of Q."""
-    Q = [ex.Q[0], ex.Q[1]]
-    g = _Graph()
+def _build(system: SeriesSystem, main):
+    """The graph of ``main`` (M's packed entries and f, in some algebraic form) and of Q."""
+    Q = system.Q
+    g = _Graph(system)
     # common subexpressions first (their products shared), then each as one series node
     repl, reduced = sp.cse(main, symbols=sp.numbered_symbols("z"), optimizations="basic")
     for sym, e in repl:
@@ -218,36 +291,35 @@ def _build(ex, main):
     return g, main_nodes, n_main, work_nodes
 
 
-def _forms(ex):
-    """Algebraic forms of M and f to try: the derivation's own; expanded as polynomials in the
+def _forms(system: SeriesSystem):
+    """Algebraic forms of M and f to try: the model's own; expanded as polynomials in the
     sines, cosines and speeds; that polynomial collected in each one of them (for issue 3's rods,
     collected in sin(psi): 11.5 series products an order against 13.5 and 16.5); and its nested
     forms (:func:`_horner_forms`: 10.5 for issue 3's rods, 14 against 17.5 for a skewed second
     axis with an offset centre of mass)."""
-    s = SYMBOLS
-    angles = {s["phi"], s["psi"]}
-    main = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1], ex.f[0], ex.f[1]]
+    angles = set(system.q)
+    main = [*system.M, *system.f]
     yield main
     expanded = [sp.expand(sp.expand_trig(e)) if e.free_symbols & angles else sp.expand(e) for e in main]
     yield expanded
     gens = set()
     for e in expanded:
         gens |= {a for a in e.atoms(sp.sin, sp.cos) if a.free_symbols & angles}
-    gens |= {s["dphi"], s["dpsi"]}
+    gens |= set(system.dq)
     for gen in sorted(gens, key=sp.default_sort_key):
         yield [sp.collect(e, gen) for e in expanded]
     yield from _horner_forms(expanded, sorted(gens, key=sp.default_sort_key))
 
 
-def _large_forms(ex):
-    """The forms tried for large M and f (:data:`SEARCH_OPS`): the derivation's and the plain nested one."""
-    forms = _forms(ex)
+def _large_forms(system: SeriesSystem):
+    """The forms tried for large M and f (:data:`SEARCH_OPS`): the model's and the plain nested one."""
+    forms = _forms(system)
     yield next(forms)
     expanded = next(forms)
     gens = set()
     for e in expanded:
-        gens |= {a for a in e.atoms(sp.sin, sp.cos) if a.free_symbols & {SYMBOLS["phi"], SYMBOLS["psi"]}}
-    gens |= {SYMBOLS["dphi"], SYMBOLS["dpsi"]}
+        gens |= {a for a in e.atoms(sp.sin, sp.cos) if a.free_symbols & set(system.q)}
+    gens |= set(system.dq)
     try:
         yield _horner(expanded, sorted(gens, key=sp.default_sort_key))
     except sp.PolynomialError:
@@ -321,6 +393,13 @@ def _horner(exprs, gens, protect=()):
     return out
 
 
+#: Up to this many products of two generators shared by two or more entries, each is tried as the one
+#: protected product (:func:`_horner_forms`); above it only none and all of them: a chain of three links
+#: shares 44 (each form 0.3-0.6 s of search; all together gave 81.5 series products an order, the best single
+#: one 90.5), the double pendulum's bodies 8 or fewer (an offset centre of mass).
+SINGLE_PROTECTS = 12
+
+
 def _horner_forms(expanded, gens):
     """:func:`_horner` of the expanded M and f: as they are, and with each product of two generators
     that two or more of them contain (and all those together) taken as one."""
@@ -338,7 +417,8 @@ def _horner_forms(expanded, gens):
                     if all(x >= y for x, y in zip(m, pm)):
                         seen.setdefault(pm, set()).add(i)
     shared = sorted((pm for pm, ids in seen.items() if len(ids) > 1), reverse=True)
-    for protect in [()] + [(pm,) for pm in shared] + ([tuple(shared)] if len(shared) > 1 else []):
+    singles = [(pm,) for pm in shared] if len(shared) <= SINGLE_PROTECTS else []
+    for protect in [()] + singles + ([tuple(shared)] if len(shared) > 1 else []):
         try:
             yield _horner(expanded, gens, protect)
         except sp.PolynomialError:
@@ -361,16 +441,16 @@ SEARCH_OPS = 3000
 _CHOSEN: Dict[Tuple, list] = {}
 
 
-def _graph(ex):
-    main0 = (ex.M[0, 0], ex.M[0, 1], ex.M[1, 1], ex.f[0], ex.f[1], ex.Q[0], ex.Q[1])
+def _graph(system: SeriesSystem):
+    main0 = system.key()
     if main0 in _CHOSEN:
-        return _build(ex, _CHOSEN[main0])
+        return _build(system, _CHOSEN[main0])
     best, chosen = None, None
-    forms = _forms(ex)
-    if sum(sp.count_ops(e) for e in main0[:5]) > SEARCH_OPS:
-        forms = _large_forms(ex)
+    forms = _forms(system)
+    if sum(sp.count_ops(e) for e in [*system.M, *system.f]) > SEARCH_OPS:
+        forms = _large_forms(system)
     for main in forms:
-        built = _build(ex, main)
+        built = _build(system, main)
         if best is None or built[0].cost < best[0].cost:
             best, chosen = built, main
     _CHOSEN[main0] = chosen
@@ -452,6 +532,9 @@ _RANK: Dict[str, int] = {}
 
 
 _EARLY = -1000
+#: Each angle's series and its speed's (``x[i]`` -> ``x[n + i]``: ``j q[j] = q'[j - 1]``, exact); set by
+#: :func:`taylor_c_source` for its model's ``n``.
+_DERIV: Dict[str, str] = {"x[0]": "x[2]", "x[1]": "x[3]"}
 
 
 def _op_depth(op, d: Dict[str, int]) -> None:
@@ -463,7 +546,7 @@ def _op_depth(op, d: Dict[str, int]) -> None:
     args = [of(v) for v in op[2:] if isinstance(v, tuple)]
     if kind == "sincos":  # s[k] from u[k] (j u[j], j <= k); of an angle, from its speed at k - 1
         a = op[2]
-        d[t] = d[t + "c"] = _EARLY if a[1] in ("x[0]", "x[1]") else args[0] + 2
+        d[t] = d[t + "c"] = _EARLY if a[1] in _DERIV else args[0] + 2
         return
     cost = {"add": 1, "sub": 1, "addc": 1, "neg": 1, "scale": 1, "mul": 2, "sqr": 3, "div": 3, "rdiv": 3,
             "atan": 4}.get(kind, 2)
@@ -475,7 +558,7 @@ def _op_depth(op, d: Dict[str, int]) -> None:
 
 def _depths(ops) -> Dict[str, int]:
     """:data:`_RANK` of the series of ``ops`` (in evaluation order)."""
-    d: Dict[str, int] = {"x[0]": _EARLY, "x[1]": _EARLY, "x[2]": 0, "x[3]": 0}
+    d: Dict[str, int] = {**{x: _EARLY for x in _DERIV}, **{v: 0 for v in _DERIV.values()}}
     for op in ops:
         _op_depth(op, d)
     return d
@@ -652,7 +735,7 @@ def _op_lines(op, k: int, I: str) -> List[str]:
 
 def _vderivative_of(a):
     """:func:`_derivative_of` for the lanes ``j, j + 1`` (a vector)."""
-    deriv = {"x[0]": "x[2]", "x[1]": "x[3]"}
+    deriv = _DERIV
     if a[1] in deriv:
         return lambda j: f"sp_ld(&{deriv[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}])"
     return lambda j: f"(sp_ld(&sp_jd[{j}]) * sp_ld(&{a[1]}[{j}]))"
@@ -661,14 +744,15 @@ def _vderivative_of(a):
 def _derivative_of(a):
     """``j u[j]`` as C for the series ``u``: a state variable's derivative series where there is
     one (``j phi[j] = dphi[j-1]``, exact), else the product."""
-    deriv = {"x[0]": "x[2]", "x[1]": "x[3]"}
+    deriv = _DERIV
     if a[1] in deriv:
         return lambda j: f"{deriv[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}]"
     return lambda j: f"((double)({j}) * {a[1]}[{j}])"
 
 
-def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = True) -> str:
-    """C of the Taylor kernel of ``geometry`` at one ``order`` (a small library of its own,
+def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str:
+    """C of the Taylor kernel of the model ``system`` (:func:`exact_system`: the derivation's; or
+    :func:`polynomial_system`: a chain's recursive algorithms) at one ``order`` (a small library of its own,
     :func:`skewpend.numeric.kernels.taylor_kernel`): ``taylor_work(p)`` (whether W needs
     integrating), ``taylor_prepare(p, pc)`` (the constants), ``taylor_jet(x, pc, work, e_out)``
     (the coefficients 1 .. order of the state ``x[SP_TN][SP_TPMAX + 2]`` from its coefficients 0,
@@ -686,13 +770,18 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = Tru
     _short_path = SHORT_PATH and order <= SHORT_PATH_MAX_ORDER
     if not 2 <= order <= SP_TPMAX:
         raise ValueError(f"taylor kernel: order {order} outside 2 .. {SP_TPMAX}")
-    if ex is None:
-        ex = expressions(geometry)
-    g, main, n_main, work = _graph(ex)
+    n = system.n
+    nM = n * (n + 1) // 2
+    _DERIV.clear()
+    _DERIV.update({f"x[{i}]": f"x[{n + i}]" for i in range(n)})
+    g, main, n_main, work = _graph(system)
     _RANK.clear()
     _RANK.update(_depths(g.ops))
-    M11, M12, M22, f1, f2 = main
-    Q1, Q2 = work
+    Mp, fs = main[:nM], main[nM:]
+
+    def m_at(i: int, j: int):
+        return Mp[max(i, j) * (max(i, j) + 1) // 2 + min(i, j)]
+
     cost = g.cost
     # the energy T + Pi at order 0 only (the rows' energy account: sin/cos of the angles shared with
     # the series), its operations after those of the main block and of W
@@ -700,31 +789,27 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = Tru
     # (not through W's nodes: those are evaluated only when W is integrated)
     in_work = {op[1] + x for op in g.ops[n_main:n_work] for x in ("", "c", "d")}
     g.memo = {e: v for e, v in g.memo.items() if v[1] not in in_work}
-    energy = g.node(ex.T + ex.Pi)
+    energy = g.node(system.energy)
     c = Lang("c", c_printer(), "const double ", ";")
     I = "    "
     npc = max(len(g.consts), 1)
-    geo = "thin uniform rods, default axes" if geometry.is_thin_rods else str(geometry.to_dict())
-    out = [f"/* Generated by skewpend {__version__} from the symbolic derivation -- do not edit.",
+    tn = 2 * n + 1
+    out = [f"/* Generated by skewpend {__version__} from the {system.source} -- do not edit.",
            f" * The Taylor integrator of order {order}: the model's series recurrences, then taylor.c.",
-           f" * Geometry: {geo.replace('*/', '* /')}",
+           f" * {system.title.replace('*/', '* /')}",
            f" * Series products per order: {cost:g} (a square counts 1/2, sin/cos 2). */",
            "#include <math.h>", "#include <stdint.h>", "#include <string.h>", "", *status_defines(), "",
-           f"#define SP_TN {SP_TN}", f"#define SP_TPMAX {SP_TPMAX}", f"#define SP_TORDER {order}",
+           f"#define SP_TN {tn}", f"#define SP_TPMAX {SP_TPMAX}", f"#define SP_TORDER {order}",
            f"#define SP_TAYLOR_NPC {npc}", f"#define SP_FUSED {int(bool(fused))}", "", *VECTOR_C, ""]
-    # whether W needs integrating: the parameters Q depends on, and whether Q vanishes when they do
-    qparams = sorted(used_names([ex.Q[0], ex.Q[1]]) & set(PARAMETER_ORDER), key=PARAMETER_ORDER.index)
-    zero = {SYMBOLS[n]: 0 for n in qparams}
-    vanishes = all(sp.simplify(sp.sympify(e).xreplace(zero)) == 0 for e in ex.Q)
-    idx = [PARAMETER_ORDER.index(n) for n in qparams] if vanishes else []
     zero_q = all(v == ("c", "0.0") for v in work)  # Q = 0 already (a model without its terms): W' = 0
+    idx = list(system.work or ())
     out += ["/* W' = Q . q' needs integrating unless these parameters are all 0 (then Q = 0 identically) */",
             "static int taylor_work(const double *p)", "{",
             f"{I}(void)p;" if zero_q else "",
             f"{I}return {'0' if zero_q else ' || '.join(f'p[{i}] != 0.0' for i in idx) if idx else '1'};", "}", ""]
     out += ["/* the state-free subexpressions, once per call, into pc[SP_TAYLOR_NPC] */",
             "static void taylor_prepare(const double *p, double *pc)", "{"]
-    out += param_lines(c, I, used_names(g.consts))
+    out += system.prepare(c, I, used_names(g.consts))
     if g.consts:
         block = cse_block(c, g.consts, [f"pc[{i}]" for i in range(len(g.consts))], I, prefix="w")
         out += [ln.replace(f"{I}const double pc[", f"{I}pc[") for ln in block]
@@ -733,26 +818,29 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = Tru
     out += ["}", ""]
     names = [op[1] for op in g.ops]
     extra = [op[1] + "c" for op in g.ops if op[0] == "sincos"] + [op[1] + "d" for op in g.ops if op[0] == "atan"]
+    acc = [f"a{i + 1}" for i in range(n)]
     L = "SP_TORDER"
     out += ["/* coefficients 1 .. SP_TORDER of x[SP_TN] from x[i][0]: x[i][k + 1] = (x_i')[k] / (k + 1) */",
             "static void taylor_jet(double (*restrict x)[SP_TPMAX + 2], const double *restrict pc, int work, double *e_out)",
             "{",
             f"{I}static const double inv[SP_TPMAX + 2] = {{0.0, {', '.join(f'1.0 / {i}' for i in range(1, SP_TPMAX + 2))}}};",
-            f"{I}double {', '.join(f'{n}[{L}]' for n in names + extra + ['a1', 'a2'])};"]
+            f"{I}double {', '.join(f'{n}[{L}]' for n in names + extra + acc)};"]
     recips = [op[1] for op in g.ops if op[0] in ("div", "rdiv", "atan")]
     if recips:
         out.append(f"{I}double {', '.join(f'r{n} = 0.0' for n in recips)};")
+    # M[0]^-1 of the series' solve (packed lower triangle, row by row), named once a step
+    inv_names = [f"sp_i{i + 1}{j + 1}" for i in range(n) for j in range(i + 1)]
 
     def solve(k: int) -> List[str]:
         """M q''[k] = f[k] - sum_{j=1..k} M[j] q''[k-j] (constant entries of M: nothing beyond order 0)."""
         if k == 0:  # M[0] = L D L^T once a step and from its factors M[0]^-1, used at every order (codegen's LDL^T)
-            m0 = [f"({_val(M11, 0)})", f"({_val(M12, 0)})", f"({_val(M22, 0)})"]
+            m0 = [f"({_val(m, 0)})" for m in Mp]
             lines = [f"{I}const double {t} = {e};" for t, e in
-                     ldlt_factor_steps(m0, "sp_f", fused=True) + ldlt_inverse_steps(2, _INV, "sp_f", "sp_", fused=True)]
+                     ldlt_factor_steps(m0, "sp_f", fused=True) + ldlt_inverse_steps(n, inv_names, "sp_f", "sp_", fused=True)]
         else:
             lines = []
-        for name, rhs, terms in (("r1", f1, [(M11, "a1"), (M12, "a2")]), ("r2", f2, [(M12, "a1"), (M22, "a2")])):
-            series = [(m, q) for m, q in terms if m[0] == "s"]
+        for i in range(n):
+            series = [(m_at(i, j), acc[j]) for j in range(n) if m_at(i, j)[0] == "s"]
 
             def term(j, series=series):
                 return [(f"{m[1]}[{j}]", f"{q}[{_sub(k, j)}]") for m, q in series]
@@ -761,36 +849,39 @@ def taylor_c_source(geometry: Parameters, order: int, ex=None, fused: bool = Tru
                 return [p for m, q in series for p in _vprod(m[1], q, k)(j)]
 
             # f[k] (the last value of the order) minus the sum of the M[j] q''[k-j] (known before it)
-            value = (f"{_val(rhs, k)} - ({_reduce(term, 1, k, late=(k, 1), vterm=vterm)})" if series and k > 0
-                     else _val(rhs, k))
-            lines.append(f"{I}const double {name}_{k} = {value};")
-        # q''[k] = M[0]^-1 r and x[2..3][k + 1] = q''[k] / (k + 1), each a product of M[0]^-1 (scaled by
+            value = (f"{_val(fs[i], k)} - ({_reduce(term, 1, k, late=(k, 1), vterm=vterm)})" if series and k > 0
+                     else _val(fs[i], k))
+            lines.append(f"{I}const double r{i + 1}_{k} = {value};")
+        # q''[k] = M[0]^-1 r and x[n..2n-1][k + 1] = q''[k] / (k + 1), each a product of M[0]^-1 (scaled by
         # 1 / (k + 1), off the critical path) with r: a product and a fused add after r, where the
         # substitutions would be three dependent operations and the scaling a fourth
-        r = [f"r1_{k}", f"r2_{k}"]
-        lines += [f"{I}{{"] + [f"{I}    {t} = {e};" for t, e in spd_mul_steps(_INV, r, [f"a1[{k}]", f"a2[{k}]"], fused=True)]
+        r = [f"r{i + 1}_{k}" for i in range(n)]
+        lines += [f"{I}{{"] + [f"{I}    {t} = {e};" for t, e in spd_mul_steps(inv_names, r, [f"{a}[{k}]" for a in acc],
+                                                                                fused=True)]
         if k == 0:
-            lines += [f"{I}    x[2][1] = a1[0];", f"{I}    x[3][1] = a2[0];"]
+            lines += [f"{I}    x[{n + i}][1] = {acc[i]}[0];" for i in range(n)]
         else:
-            scaled = [f"sp_s{c[-2:]}" for c in _INV]
-            lines += [f"{I}    const double {t} = {c} * inv[{k + 1}];" for t, c in zip(scaled, _INV)]
-            lines += [f"{I}    {t} = {e};" for t, e in spd_mul_steps(scaled, r, [f"x[2][{k + 1}]", f"x[3][{k + 1}]"], fused=True)]
-        lines += [f"{I}}}", f"{I}x[0][{k + 1}] = x[2][{k}] * inv[{k + 1}];", f"{I}x[1][{k + 1}] = x[3][{k}] * inv[{k + 1}];"]
+            scaled = [f"sp_s{c[4:]}" for c in inv_names]
+            lines += [f"{I}    const double {t} = {c} * inv[{k + 1}];" for t, c in zip(scaled, inv_names)]
+            lines += [f"{I}    {t} = {e};" for t, e in spd_mul_steps(scaled, r, [f"x[{n + i}][{k + 1}]" for i in range(n)],
+                                                                   fused=True)]
+        lines += [f"{I}}}"] + [f"{I}x[{i}][{k + 1}] = x[{n + i}][{k}] * inv[{k + 1}];" for i in range(n)]
         return lines
 
     def work_lines(k: int) -> List[str]:
-        """W' = Q1 q1' + Q2 q2' (its series products written out too)."""
+        """W' = Q . q' (its series products written out too)."""
         lines = []
         for op in g.ops[n_main:n_work]:
             lines += _op_lines(op, k, I + "    ")
         w = []
-        for q, v in ((Q1, "x[2]"), (Q2, "x[3]")):
+        for i, q in enumerate(work):
+            v = f"x[{n + i}]"
             if q[0] == "c":
                 w.append(f"{q[1]} * {v}[{k}]")
             else:
                 w.append(f"({_dot(q[1], v, k)})")
-        return ([f"{I}if (work) {{"] + lines + [f"{I}    x[4][{k + 1}] = ({' + '.join(w)}) * inv[{k + 1}];",
-                                                 f"{I}}} else {{", f"{I}    x[4][{k + 1}] = 0.0;", f"{I}}}"])
+        return ([f"{I}if (work) {{"] + lines + [f"{I}    x[{2 * n}][{k + 1}] = ({' + '.join(w)}) * inv[{k + 1}];",
+                                                 f"{I}}} else {{", f"{I}    x[{2 * n}][{k + 1}] = 0.0;", f"{I}}}"])
 
     for k in range(order):
         out += ["", f"{I}/* order {k} */"]
