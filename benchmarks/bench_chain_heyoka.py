@@ -19,8 +19,9 @@ the rotated inertia's 6 distinct entries only, sums as ``hy.sum``).  Checked aga
 **Runs** (chains ``bench_chain.random_chain(n, 1)``: general bodies, hinge axes near ``k``, no damping; 20 s from
 every link at ``0.6 min(1, 3/n)`` rad at rest, as ``bench_chain.py``):
 
-* skewpend ``simulate(chain, y0, 20, rtol=1e-10, atol=1e-10)`` -- the default method (``auto``: dop853 for
-  chains), its own steps returned -- and the same with ``method="dop853"`` and ``method="taylor"`` named
+* skewpend ``simulate(chain, y0, 20, rtol=1e-10, atol=1e-10)`` -- the default method (``auto``: taylor up to
+  ``conventions.SERIES_MAX_LINKS`` links, its library built before the timing, ``SKEWPEND_TAYLOR_BUILD=foreground``;
+  dop853 beyond), its own steps returned -- and the same with ``method="dop853"`` and ``method="taylor"`` named
   (``--taylor-links``, default 3: the chain's Taylor libraries compile for each order);
 * heyoka.py ``taylor_adaptive(sys, y0, tol=tol)`` at ``--tols`` (default 1e-6 ... 1e-12), full mode below
   ``--compact-from`` links (default 4), ``compact_mode=True`` from there; timed as resetting time and state and
@@ -348,6 +349,7 @@ def main(argv=None):
             return float(np.max(np.abs(np.asarray(y, dtype=float)[:2 * n] - ref)))
 
         # skewpend's configurations (kernels compiled and loaded before timing)
+        os.environ["SKEWPEND_TAYLOR_BUILD"] = "foreground"  # the default's steady state: its library built first
         methods = [("default", {}), ("dop853", {"method": "dop853"})]
         if n in args.taylor_links:
             methods.append(("taylor", {"method": "taylor"}))

@@ -1054,14 +1054,20 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
     return _taylor_kernel(printed, order, model)
 
 
-def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
-    from .recursive import structure_of_chain
-
-    structure = structure_of_chain(chain)
+def _chain_taylor_key(structure, order: int):
+    """The Taylor library's cache key of a chain's ``structure`` and ``order``, with the compiler flags."""
     extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("polynomial.py", "taylor_source.py", "recursive.py",
                                                                             "taylor.c", "rows.h"))
     fused, flags = fused_multiply_add()
     key = _key(structure.key() + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}") + f"_ctaylor{order}"
+    return key, fused, flags
+
+
+def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
+    from .recursive import structure_of_chain
+
+    structure = structure_of_chain(chain)
+    key, fused, flags = _chain_taylor_key(structure, order)
 
     def source() -> str:
         from .taylor_source import polynomial_system, taylor_c_source
@@ -1073,6 +1079,25 @@ def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
     if model is not None:
         _TAYLOR_OF[model.path, order] = loaded
     return loaded
+
+
+def taylor_library_key(model, order: int, form: str = "") -> str:
+    """The cache key of the Taylor library ``taylor_kernel(model, order)`` loads in ``form``."""
+    form, printed = model_form(model, form)
+    if form == "exact":
+        return _taylor_key(printed, order)[0]
+    from .recursive import structure_of_chain
+
+    return _chain_taylor_key(structure_of_chain(printed), order)[0]
+
+
+def series_form(model, form: str = "") -> bool:
+    """Whether ``simulate``'s ``method="auto"`` takes the Taylor series for ``model`` in ``form``: the exact
+    form's always, a chain's up to :data:`~skewpend.numeric.conventions.SERIES_MAX_LINKS` links."""
+    from .conventions import SERIES_MAX_LINKS
+
+    form, printed = model_form(model, form)
+    return form == "exact" or printed.n <= SERIES_MAX_LINKS
 
 
 def _taylor_gkey(params: Parameters, order: int) -> str:
@@ -1090,21 +1115,18 @@ def _taylor_key(params: Parameters, order: int):
     return key + f"_taylor{order}", geometry, fused, flags
 
 
-def built_taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = None) -> Optional[TaylorKernel]:
-    """The Taylor library of ``params``' structure and ``order`` if it is built (loaded in this process,
-    or in the cache on disk: then loaded), else None -- it never builds (the double pendulum's; a
-    chain's Taylor libraries are not looked up here: None)."""
+def built_taylor_kernel(params, order: int, *, model: Optional[Kernel] = None, form: str = "") -> Optional[TaylorKernel]:
+    """The Taylor library of ``params``' structure (in ``form``) and ``order`` if it is built (loaded in this
+    process, or in the cache on disk: then loaded), else None -- it never builds."""
     if model is not None and (model.path, order) in _TAYLOR_OF:
         return _TAYLOR_OF[model.path, order]
-    params = params.exact_model()
-    if params is None:
-        return None
-    if _BYGEOMETRY.get(_taylor_gkey(params, order)) is not None:
-        return _taylor_kernel(params, order, model)
-    key = _taylor_key(params, order)[0]
+    exact = params.exact_model()
+    if (form or model_form(params)[0]) == "exact" and _BYGEOMETRY.get(_taylor_gkey(exact, order)) is not None:
+        return _taylor_kernel(exact, order, model)
+    key = taylor_library_key(params, order, form)
     path = cache_dir() / "kernels" / f"skewpend_{key}{LIB_SUFFIX}"
     if key in _LOADED or path.exists() and _intact(path):
-        return _taylor_kernel(params, order, model)
+        return taylor_kernel(params, order, model=model)
     return None
 
 
@@ -1134,8 +1156,7 @@ def build_taylor_in_background(params: Parameters, order: int) -> bool:
     import json
     import subprocess
 
-    params = params.exact_model()
-    key = _taylor_key(params, order)[0]
+    key = taylor_library_key(params, order)
     directory = cache_dir() / "kernels"
     mark = directory / f".skewpend_{key}.building"
     try:
@@ -1158,8 +1179,10 @@ def _build_taylor_from_json(params_json: str, order: int, mark: str) -> None:
     """The detached builder's body: build (or find) the library, then remove the marker."""
     import json
 
+    from ..symbolic.model import model_from_mapping
+
     try:
-        _taylor_kernel(Parameters(**json.loads(params_json)), order, None)
+        taylor_kernel(model_from_mapping(json.loads(params_json)), order)
     finally:
         try:
             os.unlink(mark)

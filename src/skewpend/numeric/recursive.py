@@ -407,11 +407,13 @@ _LANGUAGES = {
 
 
 def function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], indent: str = "    ",
-                   declare: bool = True, language: str = "c") -> List[str]:
+                   declare: bool = True, language: str = "c", registers: str = "") -> List[str]:
     """Statements in ``language`` (``"c"``, ``"javascript"``, ``"python"``) evaluating the CasADi SX function
     ``fn``: ``inputs[k]`` is the array expression of its input ``k``, ``outputs[k][j]`` the name that receives
     entry ``j`` of output ``k`` (declared when ``declare``: C's ``double``, JavaScript's ``let``).  Work
-    registers are locals ``w0, w1, ...``; every language evaluates the same operations in the same order."""
+    registers are locals ``w0, w1, ...`` (or, ``registers`` naming an array, its entries, declared by the
+    caller: one statement a line after the declarations, so that a long function can be cut into several);
+    every language evaluates the same operations in the same order."""
     ca = _ca()
     L = _LANGUAGES[language]
     call = L["fn"]
@@ -426,20 +428,21 @@ def function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], 
     if declare and L["declare"]:
         lines += [f"{indent}{L['declare']}{', '.join(name for out in outputs for name in out)}{end}"]
     nw = fn.sz_w()
-    if nw and L["declare"]:
+    if nw and L["declare"] and not registers:
         lines += [f"{indent}{L['declare']}" + ", ".join(f"w{k}" for k in range(nw)) + end]
+    w = (registers + "[{}]") if registers else "w{}"
     for k in range(fn.n_instructions()):
         op = fn.instruction_id(k)
         ins, outs = fn.instruction_input(k), fn.instruction_output(k)
         if op == ca.OP_INPUT:
-            lines.append(f"{indent}w{outs[0]} = {inputs[ins[0]]}[{ins[1]}]{end}")
+            lines.append(f"{indent}{w.format(outs[0])} = {inputs[ins[0]]}[{ins[1]}]{end}")
         elif op == ca.OP_OUTPUT:
-            lines.append(f"{indent}{outputs[outs[0]][outs[1]]} = w{ins[0]}{end}")
+            lines.append(f"{indent}{outputs[outs[0]][outs[1]]} = {w.format(ins[0])}{end}")
         elif op == ca.OP_CONST:
-            lines.append(f"{indent}w{outs[0]} = {float(fn.instruction_constant(k))!r}{end}")
+            lines.append(f"{indent}{w.format(outs[0])} = {float(fn.instruction_constant(k))!r}{end}")
         elif op in ops:
-            args = [f"w{i}" for i in ins]
-            lines.append(f"{indent}w{outs[0]} = {ops[op].format(*args)}{end}")
+            args = [w.format(i) for i in ins]
+            lines.append(f"{indent}{w.format(outs[0])} = {ops[op].format(*args)}{end}")
         else:
             raise NotImplementedError(f"CasADi operation {op} has no {language} form here")
     return lines

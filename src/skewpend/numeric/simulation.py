@@ -48,7 +48,7 @@ from ..parsing import MAX_ANGLE, initial_state
 __all__ = ["simulate", "Trajectory", "open_trajectory", "METHODS", "AUTO", "AUTO_RULE", "STATUS_MESSAGES", "MAX_STEPS",
            "check_start"]
 
-from .conventions import ADAPTIVE, METHODS  # noqa: E402  (the CLI's --help reads them without NumPy)
+from .conventions import ADAPTIVE, METHODS, SERIES_MAX_LINKS  # noqa: E402  (the CLI's --help reads them without NumPy)
 
 #: The default ``method`` of :func:`simulate`: the fastest integrator that serves the request (:data:`AUTO_RULE`).
 AUTO = "auto"
@@ -59,6 +59,10 @@ AUTO = "auto"
 #:   generated for the model with constant torques, and dop853 is the adaptive method that takes them;
 #: * equations with a function that has no series recurrence -> dop853 (no model of skewpend has one
 #:   today: sin, cos and Coulomb friction's atan all have theirs);
+#: * a chain of more than :data:`~skewpend.numeric.conventions.SERIES_MAX_LINKS` links -> dop853 (its model
+#:   as polynomials, the form its series are printed from, grows too many terms); a chain of three takes
+#:   taylor at 0.25x heyoka.py's time at equal error (its dop853 0.41-0.45x; ``benchmarks/bench_chain_heyoka.py``),
+#:   its library built in 15-35 s (general bodies and axes; once, in the background);
 #: * otherwise -> taylor, at every tolerance, own steps or a dense grid (``dt_out``), kept or streamed:
 #:   the adaptive Taylor method takes 2-4x less time than dop853 at the same tolerance and reaches a
 #:   smaller error (docs/benchmarks.md, work-precision: 0.085 against 0.18 ms at 1e-3, 0.20 against
@@ -76,7 +80,8 @@ AUTO = "auto"
 AUTO_RULE = {
     "controller": "dop853: inputs that vary (taylor's series are generated for constant torques)",
     "no series": "dop853: {reason}",
-    "recursive": "dop853: code of the recursive algorithms (a chain's Taylor series there cost 6-45x its DOP853, measured)",
+    "recursive": f"dop853: a chain of more than {SERIES_MAX_LINKS} links (its Taylor series, of the model as polynomials, "
+                 f"grow too many terms)",
     "taylor": "taylor: the fastest method that serves this request (2-4x dop853's speed at the same tolerance)",
     "building": "dop853: taylor's library for this model and tolerance is being built in the background (first use; "
                 "later runs take taylor, SKEWPEND_TAYLOR_BUILD=foreground waits for it instead)",
@@ -555,7 +560,7 @@ def simulate(
             raise ParameterError("dt is the step of rk4 and gauss; the default method 'auto' chooses its own steps (set "
                                  "rtol/atol), or name method='rk4' or 'gauss' with dt")
         K.taylor_build_in_foreground()  # a bad SKEWPEND_TAYLOR_BUILD refused before any build
-        if (entry.form if entry is not None else K.model_form(params, form)[0]) != "exact":
+        if not K.series_form(params, entry.form if entry is not None else form):
             method, choice = "dop853", AUTO_RULE["recursive"]
         elif controller is None:
             method, choice = "taylor", AUTO_RULE["taylor"]
@@ -635,15 +640,16 @@ def simulate(
         if rule is None:
             order, step_l = K.taylor_rule(rtol)
             tk = entry.taylor.get(order)
-            if tk is None and choice is not None and entry.form == "exact" and not K.taylor_build_in_foreground():
-                tk = K.built_taylor_kernel(params, order, model=kernel)
+            if tk is None and choice is not None and not K.taylor_build_in_foreground():
+                tk = K.built_taylor_kernel(params, order, model=kernel, form=entry.form)
                 if tk is None:  # auto's first use of this order: dop853 now, the library built for later runs
                     method = "dop853"
                     settings["method_choice"] = AUTO_RULE["building"]
                     if K.build_taylor_in_background(params, order):
                         exact = params.exact_model()
-                        K.announce_background(f"the Taylor kernel of order {order}" + K._bodies_words(exact),
-                                              "this run uses dop853", key=K._taylor_key(exact, order)[0])
+                        K.announce_background(f"the Taylor kernel of order {order}" +
+                                              (K._bodies_words(exact) if exact is not None else f" of {params.title}"),
+                                              "this run uses dop853", key=K.taylor_library_key(params, order))
             if tk is None and method == "taylor":
                 try:
                     tk = K.taylor_kernel(params, order, model=kernel)

@@ -75,6 +75,7 @@ class SeriesSystem:
     work: Optional[Tuple[int, ...]]
     title: str
     source: str = "symbolic derivation"
+    prelude: Tuple[str, ...] = ()  # C functions before taylor_prepare (its helpers)
 
     @property
     def n(self) -> int:
@@ -100,6 +101,10 @@ def exact_system(geometry: Parameters, ex=None) -> SeriesSystem:
                         f"Geometry: {geo}")
 
 
+#: Lines of a chain's constants' C function (:func:`polynomial_system`).
+CHUNK = 200
+
+
 @lru_cache(maxsize=8)
 def polynomial_system(structure) -> SeriesSystem:
     """The recursive algorithms' model of a chain of ``structure``, read as polynomials
@@ -115,16 +120,26 @@ def polynomial_system(structure) -> SeriesSystem:
     joint = tuple(k for k, name in enumerate(names) if name.rstrip("0123456789") in stems)
     zero_q = all(sp.sympify(e) == 0 for e in pm.Q)
 
+    # the constants: CasADi's operations with the work registers an array, cut into functions of CHUNK lines
+    # each (a compiler's time grows faster than a function's length: a general triple's 49,000 operations
+    # in one function took gcc 116 s at -O2)
+    body = function_lines(pm.constants, ["p"], [[f"Kv[{k}]" for k in range(len(pm.names))]], "    ", False, "c", "w")
+    chunks = [body[i:i + CHUNK] for i in range(0, len(body), CHUNK)] if pm.names else []
+    prelude: List[str] = []
+    for g, lines in enumerate(chunks):
+        prelude += [f"static void taylor_constants{g}(const double *p, double *restrict w, double *restrict Kv)", "{",
+                    "    (void)p;", *lines, "}", ""]
+
     def prepare(lang: Lang, indent: str, used: set) -> List[str]:
         if not pm.names:
             return []
-        # the constants' declaration, then the function's work registers in a block of their own
-        lines = function_lines(pm.constants, ["p"], [list(pm.names)], indent + "    ", True, "c")
-        return [lines[0][4:], f"{indent}{{", *lines[1:], f"{indent}}}"]
+        return [f"{indent}double Kv[{len(pm.names)}], w[{max(pm.constants.sz_w(), 1)}];",
+                *(f"{indent}taylor_constants{g}(p, w, Kv);" for g in range(len(chunks))),
+                *(f"{indent}const double {name} = Kv[{k}];" for k, name in enumerate(pm.names) if name in used)]
 
     return SeriesSystem(pm.q, pm.dq, pm.M, pm.f, pm.Q, pm.energy, prepare, () if zero_q else joint,
                         f"A chain of {structure.n} links, structure {structure.key()} ({len(pm.names)} constants)",
-                        "recursive algorithms' equations, read as polynomials")
+                        "recursive algorithms' equations, read as polynomials", tuple(prelude))
 
 
 class _Graph:
@@ -750,6 +765,63 @@ def _derivative_of(a):
     return lambda j: f"((double)({j}) * {a[1]}[{j}])"
 
 
+#: Models with more series operations than this print one loop over the orders (each operation once, its
+#: sums as loops over ``j``), not every order written out: the written-out jet of a chain of three links with
+#: general axes and bodies (564 operations) was 2.3 MB of C at order 15 and took gcc 116 s (-O1 as long); the
+#: double pendulum's have 46-82 (written out: 0.61 against 0.94 us a step at order 15, :data:`INLINE_ORDER`).
+LOOP_FROM_OPS = 200
+
+
+def _loop_val(v, k: str) -> str:
+    """Coefficient ``k`` (C text) of a value: a constant's is its value at 0, else 0."""
+    return f"({k} == 0 ? {v[1]} : 0.0)" if v[0] == "c" else f"{v[1]}[{k}]"
+
+
+def _loop_sum(target: str, pairs, lo: str, hi: str, init: str = "0.0", sign: str = "") -> List[str]:
+    """``target = init + sign sum_{j=lo..hi} A_j B_j`` as a loop of fused multiply-adds (``pairs``: the factors
+    as C text of ``j``).  One chain: two partial sums, as :data:`LANES` writes out, made a triple's 20 s run
+    take 8.6 ms against 6.5 (the loops are short, k <= 15, and the second lane's indexing and tail cost more)."""
+    body = " ".join(f"acc = SP_FMA({sign}{a}, {b}, acc);" for a, b in pairs)
+    return [f"{{ double acc = {init}; for (int j = {lo}; j <= {hi}; j++) {{ {body} }} {target} = acc; }}"]
+
+
+def _loop_op_lines(op, I: str) -> List[str]:
+    """C for one operation at the run-time order ``k`` (:data:`LOOP_FROM_OPS`)."""
+    kind, t = op[0], op[1]
+    a: Tuple[str, str] = op[2] if len(op) > 2 else ("c", "0.0")
+    b: Tuple[str, str] = op[3] if len(op) > 3 else ("c", "0.0")
+    if kind in ("add", "sub"):
+        return [f"{I}{t}[k] = {_loop_val(a, 'k')} {'+' if kind == 'add' else '-'} {_loop_val(b, 'k')};"]
+    if kind == "addc":
+        return [f"{I}{t}[k] = {_loop_val(a, 'k')} + (k == 0 ? {b[1]} : 0.0);"]
+    if kind == "neg":
+        return [f"{I}{t}[k] = -{_loop_val(a, 'k')};"]
+    if kind == "scale":
+        return [f"{I}{t}[k] = {b[1]} * {_loop_val(a, 'k')};"]
+    if kind in ("mul", "sqr"):
+        y = a if kind == "sqr" else b
+        return [I + ln for ln in _loop_sum(f"{t}[k]", [(f"{a[1]}[j]", f"{y[1]}[k - j]")], "0", "k")]
+    if kind in ("div", "rdiv"):  # t = a / b: t[k] = (a[k] - sum_{j=1..k} b[j] t[k-j]) / b[0]
+        return [f"{I}if (k == 0) r{t} = 1.0 / {b[1]}[0];",
+                *(I + ln for ln in _loop_sum(f"{t}[k]", [(f"{b[1]}[j]", f"{t}[k - j]")], "1", "k", _loop_val(a, "k"), "-")),
+                f"{I}{t}[k] *= r{t};"]
+    if kind == "sincos":  # k s[k] = sum_{j=1..k} j u[j] c[k-j], k c[k] = -sum j u[j] s[k-j]
+        c, du = t + "c", _derivative_of(a)("j")
+        return [f"{I}if (k == 0) {{ {t}[0] = sin({a[1]}[0]); {c}[0] = cos({a[1]}[0]); }} else {{",
+                f"{I}    double as = 0.0, ac = 0.0;",
+                f"{I}    for (int j = 1; j <= k; j++) {{ const double ju = {du}; as = SP_FMA(ju, {c}[k - j], as); "
+                f"ac = SP_FMA(ju, {t}[k - j], ac); }}",
+                f"{I}    {t}[k] = as * inv[k]; {c}[k] = -ac * inv[k];", f"{I}}}"]
+    if kind == "atan":  # d = 1 + u^2, k t[k] d[0] = k u[k] - sum_{j=1..k-1} d[j] (k-j) t[k-j]
+        d = t + "d"
+        return [*(I + ln for ln in _loop_sum(f"{d}[k]", [(f"{a[1]}[j]", f"{a[1]}[k - j]")], "0", "k", "(k == 0 ? 1.0 : 0.0)")),
+                f"{I}if (k == 0) {{ r{t} = 1.0 / {d}[0]; {t}[0] = atan({a[1]}[0]); }} else {{",
+                *(I + "    " + ln for ln in _loop_sum(f"{t}[k]", [(f"({d}[j] * (double)(k - j))", f"{t}[k - j]")], "1",
+                                                          "k - 1", _derivative_of(a)("k"), "-")),
+                f"{I}    {t}[k] *= r{t} * inv[k];", f"{I}}}"]
+    raise AssertionError(kind)
+
+
 def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str:
     """C of the Taylor kernel of the model ``system`` (:func:`exact_system`: the derivation's; or
     :func:`polynomial_system`: a chain's recursive algorithms) at one ``order`` (a small library of its own,
@@ -807,6 +879,7 @@ def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str
             "static int taylor_work(const double *p)", "{",
             f"{I}(void)p;" if zero_q else "",
             f"{I}return {'0' if zero_q else ' || '.join(f'p[{i}] != 0.0' for i in idx) if idx else '1'};", "}", ""]
+    out += list(system.prelude)
     out += ["/* the state-free subexpressions, once per call, into pc[SP_TAYLOR_NPC] */",
             "static void taylor_prepare(const double *p, double *pc)", "{"]
     out += system.prepare(c, I, used_names(g.consts))
@@ -830,6 +903,7 @@ def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str
         out.append(f"{I}double {', '.join(f'r{n} = 0.0' for n in recips)};")
     # M[0]^-1 of the series' solve (packed lower triangle, row by row), named once a step
     inv_names = [f"sp_i{i + 1}{j + 1}" for i in range(n) for j in range(i + 1)]
+    driver = (Path(__file__).resolve().parent / "taylor.c").read_text()
 
     def solve(k: int) -> List[str]:
         """M q''[k] = f[k] - sum_{j=1..k} M[j] q''[k-j] (constant entries of M: nothing beyond order 0)."""
@@ -883,6 +957,9 @@ def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str
         return ([f"{I}if (work) {{"] + lines + [f"{I}    x[{2 * n}][{k + 1}] = ({' + '.join(w)}) * inv[{k + 1}];",
                                                  f"{I}}} else {{", f"{I}    x[{2 * n}][{k + 1}] = 0.0;", f"{I}}}"])
 
+    if len(g.ops) > LOOP_FROM_OPS:
+        return "\n".join(out + _looped_jet(g, n, n_main, n_work, Mp, fs, work, energy, inv_names, acc, I)) + "\n" + driver
+
     for k in range(order):
         out += ["", f"{I}/* order {k} */"]
         for op in g.ops[:n_main]:
@@ -892,5 +969,44 @@ def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str
             out += [f"{I}if (e_out) {{", *lines, f"{I}    *e_out = {_val(energy, 0)};", f"{I}}}"]
         out += solve(k) + work_lines(k)
     out += ["}", ""]
-    driver = (Path(__file__).resolve().parent / "taylor.c").read_text()
     return "\n".join(out) + "\n" + driver
+
+
+def _looped_jet(g, n: int, n_main: int, n_work: int, Mp, fs, work, energy, inv_names, acc, I: str) -> List[str]:
+    """The body of ``taylor_jet`` as one loop over the orders ``k`` (:data:`LOOP_FROM_OPS`); the declarations
+    before it are :func:`taylor_c_source`'s."""
+    def m_at(i: int, j: int):
+        return Mp[max(i, j) * (max(i, j) + 1) // 2 + min(i, j)]
+
+    lines = [f"{I}double {', '.join(inv_names)};", f"{I}for (int k = 0; k < SP_TORDER; k++) {{"]
+    J = I + "    "
+    for op in g.ops[:n_main]:
+        lines += _loop_op_lines(op, J)
+    energy_lines = [ln for op in g.ops[n_work:] for ln in _op_lines(op, 0, J + "    ")]
+    lines += [f"{J}if (k == 0 && e_out) {{", *energy_lines, f"{J}    *e_out = {_val(energy, 0)};", f"{J}}}"]
+    # M[0] = L D L^T and its inverse once a step, then q''[k] = M[0]^-1 (f[k] - sum_{j=1..k} M[j] q''[k-j])
+    m0 = [f"({_val(m, 0)})" for m in Mp]
+    lines += [f"{J}if (k == 0) {{"]
+    lines += [f"{J}    const double {t} = {e};" for t, e in ldlt_factor_steps(m0, "sp_f", fused=True)]
+    lines += [(f"{J}    {t} = {e};" if t in inv_names else f"{J}    const double {t} = {e};")
+              for t, e in ldlt_inverse_steps(n, inv_names, "sp_f", "sp_", fused=True)]
+    lines += [f"{J}}}"]
+    r = [f"r{i + 1}" for i in range(n)]
+    lines.append(f"{J}double {', '.join(r)};")
+    for i in range(n):
+        pairs = [(f"{m_at(i, l)[1]}[j]", f"{acc[l]}[k - j]") for l in range(n) if m_at(i, l)[0] == "s"]
+        lines += ([J + ln for ln in _loop_sum(r[i], pairs, "1", "k", _loop_val(fs[i], "k"), "-")]
+                  if pairs else [f"{J}{r[i]} = {_loop_val(fs[i], 'k')};"])
+    lines += [f"{J}{t} = {e};" for t, e in spd_mul_steps(inv_names, r, [f"{a}[k]" for a in acc], fused=True)]
+    lines += [f"{J}x[{n + i}][k + 1] = {acc[i]}[k] * inv[k + 1];" for i in range(n)]
+    lines += [f"{J}x[{i}][k + 1] = x[{n + i}][k] * inv[k + 1];" for i in range(n)]
+    wl = [ln for op in g.ops[n_main:n_work] for ln in _loop_op_lines(op, J + "    ")]
+    terms = []
+    for i, q in enumerate(work):
+        if q[0] == "c":
+            terms.append(f"{J}    w = SP_FMA({q[1]}, x[{n + i}][k], w);")
+        else:
+            terms.append(f"{J}    for (int j = 0; j <= k; j++) w = SP_FMA({q[1]}[j], x[{n + i}][k - j], w);")
+    lines += [f"{J}if (work) {{", *wl, f"{J}    double w = 0.0;", *terms, f"{J}    x[{2 * n}][k + 1] = w * inv[k + 1];",
+              f"{J}}} else {{", f"{J}    x[{2 * n}][k + 1] = 0.0;", f"{J}}}", f"{I}}}", "}", ""]
+    return lines
