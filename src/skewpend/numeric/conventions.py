@@ -154,5 +154,5 @@ def _vector(params: Parameters):
 
 #: Chains of up to this many links take the Taylor series with ``simulate``'s ``method="auto"``: their model as
 #: polynomials (:mod:`skewpend.numeric.polynomial`) is small enough (three general links: 81.5 series products
-#: an order, 0.25x heyoka.py's time at equal error, docs/benchmarks.md); each further link multiplies its terms.
+#: an order, 0.24-0.28x heyoka.py's time at equal error, docs/benchmarks.md); each further link multiplies its terms.
 SERIES_MAX_LINKS = 3

@@ -61,7 +61,7 @@ AUTO = "auto"
 #:   today: sin, cos and Coulomb friction's atan all have theirs);
 #: * a chain of more than :data:`~skewpend.numeric.conventions.SERIES_MAX_LINKS` links -> dop853 (its model
 #:   as polynomials, the form its series are printed from, grows too many terms); a chain of three takes
-#:   taylor at 0.25x heyoka.py's time at equal error (its dop853 0.41-0.45x; ``benchmarks/bench_chain_heyoka.py``),
+#:   taylor at 0.24-0.28x heyoka.py's time at equal error (its dop853 0.41-0.45x; ``benchmarks/bench_chain_heyoka.py``),
 #:   its library built in 15-35 s (general bodies and axes; once, in the background);
 #: * otherwise -> taylor, at every tolerance, own steps or a dense grid (``dt_out``), kept or streamed:
 #:   the adaptive Taylor method takes 2-4x less time than dop853 at the same tolerance and reaches a
