@@ -1039,7 +1039,7 @@ class TaylorKernel:
 _TAYLOR_OF: Dict[tuple, "TaylorKernel"] = {}
 
 
-def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = None) -> TaylorKernel:
+def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = None, form: str = "") -> TaylorKernel:
     """The Taylor integrator of order ``order`` for the bodies and axes of ``params``, from the
     cache or generated (:mod:`skewpend.numeric.taylor_source`) and compiled on first use.  Raises
     ValueError (before compiling) for equations with a function that has no series recurrence.
@@ -1048,7 +1048,7 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
     as polynomials (:mod:`skewpend.numeric.polynomial`), by the same generator."""
     if model is not None and (model.path, order) in _TAYLOR_OF:
         return _TAYLOR_OF[model.path, order]
-    form, printed = model_form(params, model.form if model is not None else "")
+    form, printed = model_form(params, model.form if model is not None else form)
     if form != "exact":
         return _chain_taylor_kernel(printed, order, model)
     return _taylor_kernel(printed, order, model)
@@ -1148,7 +1148,7 @@ def taylor_build_in_foreground() -> bool:
     return value == "foreground"
 
 
-def build_taylor_in_background(params: Parameters, order: int) -> bool:
+def build_taylor_in_background(params: Parameters, order: int, form: str = "") -> bool:
     """Start building the Taylor library of ``params``' structure and ``order`` in a detached process
     (its own session: a Ctrl-C of this one does not stop it, and it outlives a command that ends
     first), unless one is building it already (a marker file beside the library, under
@@ -1156,7 +1156,7 @@ def build_taylor_in_background(params: Parameters, order: int) -> bool:
     import json
     import subprocess
 
-    key = taylor_library_key(params, order)
+    key = taylor_library_key(params, order, form)
     directory = cache_dir() / "kernels"
     mark = directory / f".skewpend_{key}.building"
     try:
@@ -1165,9 +1165,9 @@ def build_taylor_in_background(params: Parameters, order: int) -> bool:
             return True
         mark.write_text(str(os.getpid()), encoding="utf-8")
         code = ("import json, sys\nfrom skewpend.numeric.kernels import _build_taylor_from_json\n"
-                "_build_taylor_from_json(sys.argv[1], int(sys.argv[2]), sys.argv[3])\n")
+                "_build_taylor_from_json(sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4])\n")
         env = {**os.environ, "SKEWPEND_QUIET": "1", TAYLOR_BUILD_ENV: "foreground"}
-        subprocess.Popen([sys.executable, "-c", code, json.dumps(params.to_dict()), str(order), str(mark)],
+        subprocess.Popen([sys.executable, "-c", code, json.dumps(params.to_dict()), str(order), str(mark), form],
                          stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                          start_new_session=True, close_fds=True, env=env)
     except OSError:
@@ -1175,14 +1175,14 @@ def build_taylor_in_background(params: Parameters, order: int) -> bool:
     return True
 
 
-def _build_taylor_from_json(params_json: str, order: int, mark: str) -> None:
+def _build_taylor_from_json(params_json: str, order: int, mark: str, form: str = "") -> None:
     """The detached builder's body: build (or find) the library, then remove the marker."""
     import json
 
     from ..symbolic.model import model_from_mapping
 
     try:
-        taylor_kernel(model_from_mapping(json.loads(params_json)), order)
+        taylor_kernel(model_from_mapping(json.loads(params_json)), order, form=form)
     finally:
         try:
             os.unlink(mark)

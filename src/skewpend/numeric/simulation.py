@@ -645,11 +645,11 @@ def simulate(
                 if tk is None:  # auto's first use of this order: dop853 now, the library built for later runs
                     method = "dop853"
                     settings["method_choice"] = AUTO_RULE["building"]
-                    if K.build_taylor_in_background(params, order):
+                    if K.build_taylor_in_background(params, order, entry.form):
                         exact = params.exact_model()
                         K.announce_background(f"the Taylor kernel of order {order}" +
                                               (K._bodies_words(exact) if exact is not None else f" of {params.title}"),
-                                              "this run uses dop853", key=K.taylor_library_key(params, order))
+                                              "this run uses dop853", key=K.taylor_library_key(params, order, entry.form))
             if tk is None and method == "taylor":
                 try:
                     tk = K.taylor_kernel(params, order, model=kernel)
