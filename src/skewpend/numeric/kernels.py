@@ -1126,7 +1126,7 @@ def built_taylor_kernel(params, order: int, *, model: Optional[Kernel] = None, f
     key = taylor_library_key(params, order, form)
     path = cache_dir() / "kernels" / f"skewpend_{key}{LIB_SUFFIX}"
     if key in _LOADED or path.exists() and _intact(path):
-        return taylor_kernel(params, order, model=model)
+        return taylor_kernel(params, order, model=model, form=form)
     return None
 
 
