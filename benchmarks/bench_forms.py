@@ -43,6 +43,7 @@ def main() -> None:
     args = ap.parse_args()
     import skewpend
     from skewpend.errors import ParameterError
+    from skewpend.numeric.conventions import SERIES_MAX_LINKS
     from skewpend.numeric.kernels import FORMS, model_form
 
     print(f"skewpend {version('skewpend')} on {cpu_model()}; 20 s runs, median CPU time of {args.repeat}",
@@ -53,8 +54,8 @@ def main() -> None:
         y0 = [0.6] * n + [0.0] * n
         default = model_form(model)[0]
         for method, tol in (("dop853", 1e-10), ("taylor", 1e-12)):
-            if method == "taylor" and n != 2:
-                continue  # a chain's Taylor series: see docs/benchmarks.md (the recursive graph's cost)
+            if method == "taylor" and n > SERIES_MAX_LINKS:
+                continue  # beyond, auto takes dop853 (the model as polynomials grows too many terms)
             rows, first = [], None
             for form in FORMS:
                 try:
