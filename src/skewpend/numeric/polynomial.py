@@ -44,10 +44,10 @@ _Vals = Tuple[float, ...]
 
 @dataclass
 class _Coef:
-    """A coefficient: its CasADi expression of ``p``, its values at the samples, and the magnitude of what
-    was added up to it (the scale its rounding is relative to)."""
+    """A coefficient: its node in the coefficients' graph (an expression of ``p``, :meth:`_Lifter.node`), its
+    values at the samples, and the magnitude of what was added up to it (the scale its rounding is relative to)."""
 
-    sx: object
+    sx: int
     vals: _Vals
     scale: _Vals
 
@@ -67,10 +67,6 @@ class PolynomialModel:
     energy: sp.Expr
     names: Tuple[str, ...]  # the constants' names, in constants' output order
     constants: object  # casadi.Function p -> the constants
-
-    def terms(self) -> int:
-        """The monomials of M, f and Q (a measure of the form's size)."""
-        return sum(len(sp.Add.make_args(sp.expand(e))) for e in [*self.M, *self.f, *self.Q])
 
 
 class _Lifter:
