@@ -61,8 +61,9 @@ AUTO = "auto"
 #:   today: sin, cos and Coulomb friction's atan all have theirs);
 #: * a chain of more than :data:`~skewpend.numeric.conventions.SERIES_MAX_LINKS` links -> dop853 (its model
 #:   as polynomials, the form its series are printed from, grows too many terms); a chain of three takes
-#:   taylor at 0.24-0.28x heyoka.py's time at equal error (its dop853 0.41-0.45x; ``benchmarks/bench_chain_heyoka.py``),
-#:   its library built in 15-35 s (general bodies and axes; once, in the background);
+#:   taylor at 0.24-0.28x heyoka.py's time at equal error (its dop853 0.41-0.45x; ``benchmarks/bench_chain_heyoka.py``)
+#:   and 0.6-1.0x its own dop853's at equal error (three general links 0.64x, the skewed example triple 0.96x;
+#:   100x smaller error at the same tolerance), its library built in 15-35 s (once, in the background);
 #: * otherwise -> taylor, at every tolerance, own steps or a dense grid (``dt_out``), kept or streamed:
 #:   the adaptive Taylor method takes 2-4x less time than dop853 at the same tolerance and reaches a
 #:   smaller error (docs/benchmarks.md, work-precision: 0.085 against 0.18 ms at 1e-3, 0.20 against
@@ -83,6 +84,8 @@ AUTO_RULE = {
     "recursive": f"dop853: a chain of more than {SERIES_MAX_LINKS} links (its Taylor series, of the model as polynomials, "
                  f"grow too many terms)",
     "taylor": "taylor: the fastest method that serves this request (2-4x dop853's speed at the same tolerance)",
+    "series": f"taylor: a chain of up to {SERIES_MAX_LINKS} links, its series printed from its model read as polynomials "
+              f"(at equal error 0.6-1.0x dop853's time, measured; 100x smaller error at the same tolerance)",
     "building": "dop853: taylor's library for this model and tolerance is being built in the background (first use; "
                 "later runs take taylor, SKEWPEND_TAYLOR_BUILD=foreground waits for it instead)",
 }
@@ -563,7 +566,8 @@ def simulate(
         if not K.series_form(params, entry.form if entry is not None else form):
             method, choice = "dop853", AUTO_RULE["recursive"]
         elif controller is None:
-            method, choice = "taylor", AUTO_RULE["taylor"]
+            exact = (entry.form if entry is not None else K.model_form(params, form)[0]) == "exact"
+            method, choice = "taylor", AUTO_RULE["taylor" if exact else "series"]
         else:
             method, choice = "dop853", AUTO_RULE["controller"]
     elif method not in METHODS:
