@@ -604,3 +604,21 @@ def test_modes_and_equilibria_of_a_chain_from_the_command_line(tmp_path):
     assert ran.code == 0 and "tilt3 [deg]" in ran.out and "omega3" in ran.out
     ran = run_cli(["modes", "--config", path, "--check-nonlinear", "2deg"], cwd=tmp_path)
     assert ran.code == 0 and "nonlinear check, largest initial angle" in ran.out and "  mode 3: linear" in ran.out
+
+
+def test_auto_takes_the_taylor_series_up_to_three_links_and_dop853_beyond():
+    """simulate's default on a chain: up to conventions.SERIES_MAX_LINKS links the Taylor series (printed from the
+    model read as polynomials; SKEWPEND_TAYLOR_BUILD=foreground here, so the first run waits for its library), with
+    the rule's words; a chain of four dop853, naming why. The Taylor run agrees with a tight dop853 to its tolerance."""
+    from skewpend.numeric.conventions import SERIES_MAX_LINKS
+    from skewpend.numeric.simulation import AUTO_RULE
+
+    assert SERIES_MAX_LINKS == 3
+    three, four = Chain.from_lists(3), Chain.from_lists(4)
+    tr = skewpend.simulate(three, [0.5, -0.3, 0.2, 0, 0, 0], 2.0)
+    assert tr.method == "taylor" and tr.settings["method_choice"] == AUTO_RULE["series"]
+    ref = skewpend.simulate(three, [0.5, -0.3, 0.2, 0, 0, 0], 2.0, method="dop853", rtol=1e-13, atol=1e-13)
+    assert np.max(np.abs(tr.y[-1] - ref.y[-1])) < 1e-8
+    tr4 = skewpend.simulate(four, [0.1] * 4 + [0.0] * 4, 1.0)
+    assert tr4.method == "dop853" and tr4.settings["method_choice"] == AUTO_RULE["recursive"]
+    assert "more than 3 links" in tr4.settings["method_choice"]
