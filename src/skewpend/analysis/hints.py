@@ -194,11 +194,11 @@ def _residual(measurements: Measurements, params0, free, window: float) -> float
 
     if free is not None:  # the linear estimate holds a hinge's tilt at params0's (a wrong skew is a small model
         # error beside a flipped sign or a wrong second angle): a freed alpha or tiltK is left out, the rest kept
-        from .identify import _angle_name
+        from .identify import freed_angle
 
         def angle(f: str) -> bool:
             try:
-                return _angle_name(f, params0) is not None
+                return freed_angle(f, params0) is not None
             except SkewpendError:
                 return True
 

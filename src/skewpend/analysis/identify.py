@@ -809,7 +809,7 @@ def identify(measurements: Measurements, params0, *, free: Optional[Sequence[str
     angle = None
     if free is not None:
         names_free = _name_list(free)
-        found = [(f, _angle_name(f, params0)) for f in names_free]
+        found = [(f, freed_angle(f, params0)) for f in names_free]
         freed = [a for _, a in found if a is not None]
         if len(freed) > 1:
             raise ParameterError(f"free: one hinge's tilt at a time, got {', '.join(f for f, a in found if a)}")
@@ -1280,7 +1280,7 @@ def _basis(model, angle: Optional[str] = None):
         return _Recursive(model, int(angle[len("tilt"):]) if angle else None)
 
 
-def _angle_name(name: str, model) -> Optional[str]:
+def freed_angle(name: str, model) -> Optional[str]:
     """``name`` as the angle a fit frees (``alpha`` where the model has it in ``p``, else ``tiltK``), None if it
     names no angle; one line when it names one this model cannot free."""
     from ..numeric.kernels import model_vector_names
