@@ -48,10 +48,8 @@ from .conventions import PARAMETER_ORDER
 from ..symbolic.derivation import SYMBOLS
 from ..symbolic.model import Parameters
 
-__all__ = ["taylor_c_source", "SeriesSystem", "exact_system", "polynomial_system", "SP_TN", "SP_TPMAX"]
+__all__ = ["taylor_c_source", "SeriesSystem", "exact_system", "polynomial_system", "SP_TPMAX"]
 
-#: State components of the Taylor integrator: (phi, psi, dphi, dpsi, W).
-SP_TN = 5
 #: Highest Taylor order (rtol >= 1e-15 needs at most 19).  The order of a tolerance is
 #: :func:`skewpend.numeric.kernels.taylor_order` (there: simulate does not import SymPy).
 SP_TPMAX = 32
