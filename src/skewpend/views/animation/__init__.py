@@ -22,7 +22,6 @@ pivot, the floor, and upwards as far as this run's rods and axes go.  MP4 goes t
 wheel ships, GIF through Pillow.  The file appears complete or not at all.
 """
 
-
 from __future__ import annotations
 
 from pathlib import Path
@@ -38,27 +37,9 @@ from .renderer import FrameRenderer
 from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, DEFAULT_VIEW, MIN_EDGE, SUFFIXES, FrameScene,  # noqa: F401
                     check_frame_size, check_view, choose_view, eye, frame_scene, plot_to_world, world_to_plot)
 
-__all__ = [
-    "animate",
-    "frame_scene",
-    "FrameScene",
-    "FrameRenderer",
-    "world_to_plot",
-    "plot_to_world",
-    "choose_view",
-    "check_frame_times",
-    "check_output",
-    "SUFFIXES",
-    "DEFAULT_SIZE",
-    "DEFAULT_DPI",
-    "DEFAULT_TRAIL",
-    "DEFAULT_VIEW",
-    "eye",
-]
-
-# --------------------------------------------------------------------------------------------
-# validation
-
+__all__ = ["animate", "frame_scene", "FrameScene", "FrameRenderer", "world_to_plot", "plot_to_world", "choose_view",
+           "check_frame_times", "check_output", "SUFFIXES", "DEFAULT_SIZE", "DEFAULT_DPI", "DEFAULT_TRAIL", "DEFAULT_VIEW",
+           "eye"]
 
 
 def check_frame_times(t, fps: float, speed: float) -> None:
@@ -70,10 +51,8 @@ def check_frame_times(t, fps: float, speed: float) -> None:
     bad = np.nonzero(~(np.abs(t - grid) <= tol))[0]
     if bad.size:
         k = int(bad[0])
-        raise ParameterError(
-            f"the trajectory's rows are not the frame times k*speed/fps = k*{step:.6g} s (fps={fps:g}, speed={speed:g}): "
-            f"t[{k}] = {t[k]:.9g} s, expected {grid[k]:.9g} s; simulate with dt_out=speed/fps"
-        )
+        raise ParameterError(f"the trajectory's rows are not the frame times k*speed/fps = k*{step:.6g} s (fps={fps:g}, "
+                             f"speed={speed:g}): t[{k}] = {t[k]:.9g} s, expected {grid[k]:.9g} s; simulate with dt_out=speed/fps")
 
 
 def check_output(out) -> Path:
@@ -83,18 +62,12 @@ def check_output(out) -> Path:
     return check_output_path(out, SUFFIXES, option="animation output")
 
 
-# --------------------------------------------------------------------------------------------
-# writers
-
-
 def _ffmpeg():
     try:
         import imageio_ffmpeg
     except ImportError:
-        raise SkewpendError(
-            "MP4 output needs the ffmpeg that the imageio-ffmpeg wheel ships: pip install imageio-ffmpeg "
-            "(a dependency of skewpend); or write a .gif"
-        ) from None
+        raise SkewpendError("MP4 output needs the ffmpeg that the imageio-ffmpeg wheel ships: pip install imageio-ffmpeg "
+                            "(a dependency of skewpend); or write a .gif") from None
     return imageio_ffmpeg
 
 
@@ -140,13 +113,10 @@ def _write_mp4(tmp: Path, frames, size: Tuple[int, int], fps: float) -> None:
         log.seek(0)
         messages = log.read().decode("utf-8", "replace")
     if status != 0 or not tmp.exists() or tmp.stat().st_size == 0:
-        raise OSError(_ffmpeg_errno(messages), _ffmpeg_reason(messages, status))
+        import errno
 
-
-def _ffmpeg_errno(messages: str) -> int:
-    import errno
-
-    return errno.ENOSPC if "No space left on device" in messages else errno.EIO
+        raise OSError(errno.ENOSPC if "No space left on device" in messages else errno.EIO,
+                      _ffmpeg_reason(messages, status))
 
 
 def _ffmpeg_reason(messages: str, status: int) -> str:

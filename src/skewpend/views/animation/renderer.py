@@ -19,9 +19,6 @@ _SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
 #: The readout's names of the coordinates the specification names (else the coordinate's own, q₁ …).
 READOUT_NAMES = {"phi": "φ", "psi": "ψ"}
 
-# --------------------------------------------------------------------------------------------
-# the renderer
-
 
 def _figure_module():
     try:
@@ -121,7 +118,6 @@ class FrameRenderer:
         self.canvas = FigureCanvasAgg(fig)
         # text sizes in points (so dpi scales them), by default 9 pt at 640 x 480 and 100 dpi
         small = max(5.0, min(9.0, 9.0 * min(w / 640.0, h / 480.0)))
-        self.fontsize = small
         renderer = self.canvas.get_renderer()
         px = lambda artist: artist.get_window_extent(renderer)  # noqa: E731
 
@@ -296,8 +292,6 @@ class FrameRenderer:
         self._background = self.canvas.copy_from_bbox(fig.bbox)
         self.scene: Optional[FrameScene] = None
 
-    # -- helpers -------------------------------------------------------------------------------
-
     def _pixels_per_metre(self, right: np.ndarray, screen_up: np.ndarray) -> np.ndarray:
         """Screen scale of the orthographic plot along the screen's horizontal and vertical [px/m]."""
         from mpl_toolkits.mplot3d import proj3d
@@ -321,8 +315,6 @@ class FrameRenderer:
         keep = normals @ self.eye > -0.02  # orthographic camera: back faces point away from eye
         return quads[keep], self._shade(normals[keep], np.asarray(base, dtype=float))
 
-    # -- drawing -------------------------------------------------------------------------------
-
     def draw(self, k: int) -> FrameScene:
         """Draw frame ``k`` onto the canvas; returns the scene it drew."""
         sc = self.geometry.scene(k)
@@ -339,12 +331,7 @@ class FrameRenderer:
         pin = 2.6 * r
         parts += [self._visible(*cylinder(C[i] - pin * D[i], C[i] + pin * D[i], 1.45 * r, P[i + 1] - P[i], 1), SCENE_COLORS["pin"])
                   for i in range(n)]
-        quads = np.concatenate([q for q, _ in parts])
-        colors = np.concatenate([c for _, c in parts])
-        solids = self.artists["solids"]
-        solids.set_verts(quads)
-        solids.set_facecolor(colors)
-        solids.set_edgecolor(colors)
+        _set_facets(self.artists["solids"], np.concatenate([q for q, _ in parts]), np.concatenate([c for _, c in parts]))
 
         # hinge axes: lines through the hinges, arrow heads at the + ends, labels beyond
         heads, head_colors = [], []
@@ -366,11 +353,7 @@ class FrameRenderer:
             self.artists[self.arc_names[i - 1]].set_data_3d(arc[:, 0], arc[:, 1], arc[:, 2])
             mid = arc[arc.shape[0] // 2]
             self.artists[self.arc_label_names[i - 1]].set_position_3d(C[i] + 1.35 * (mid - C[i]))
-        hq = np.concatenate(heads)
-        hc = np.concatenate(head_colors)
-        self.artists["heads"].set_verts(hq)
-        self.artists["heads"].set_facecolor(hc)
-        self.artists["heads"].set_edgecolor(hc)
+        _set_facets(self.artists["heads"], np.concatenate(heads), np.concatenate(head_colors))
 
         # trail of rod 2's tip, fading out, and the shadows of the rods on the floor
         trail = self.artists["trail"]
@@ -424,3 +407,10 @@ class FrameRenderer:
 
     def close(self) -> None:
         self.fig.clear()
+
+
+def _set_facets(collection, quads: np.ndarray, colors: np.ndarray) -> None:
+    """A Poly3DCollection's facets, filled and edged in their colours."""
+    collection.set_verts(quads)
+    collection.set_facecolor(colors)
+    collection.set_edgecolor(colors)

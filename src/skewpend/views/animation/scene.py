@@ -39,17 +39,9 @@ DEFAULT_VIEW = (30.0, -58.0)
 #: The camera keeps at least this angle [deg] to each hinge axis (else another view is chosen).
 MIN_VIEW_ANGLE = 25.0
 
-SCENE_COLORS = {
-    "rod1": (0.23, 0.43, 0.68),
-    "rod2": (0.90, 0.50, 0.13),
-    "pin": (0.35, 0.35, 0.38),
-    "hinge1": (0.05, 0.55, 0.40),  # hinge 1's axis
-    "hinge2": (0.80, 0.08, 0.40),  # hinge 2's axis
-    "trail": (0.42, 0.24, 0.60),
-    "shadow": (0.0, 0.0, 0.0, 0.22),
-    "roof": (0.55, 0.55, 0.58),
-}
-#: A chain's rods and hinge axes beyond the double pendulum's two, in turn (rod k, hinge k).
+SCENE_COLORS = {"pin": (0.35, 0.35, 0.38), "trail": (0.42, 0.24, 0.60), "shadow": (0.0, 0.0, 0.0, 0.22),
+                "roof": (0.55, 0.55, 0.58)}
+#: The rods' and hinge axes' colours in turn (rod k, hinge k; the double pendulum's two first).
 CHAIN_ROD_COLORS = ((0.23, 0.43, 0.68), (0.90, 0.50, 0.13), (0.17, 0.60, 0.33), (0.58, 0.40, 0.74),
                     (0.55, 0.34, 0.29), (0.84, 0.38, 0.61), (0.50, 0.50, 0.50), (0.74, 0.74, 0.13))
 CHAIN_HINGE_COLORS = ((0.05, 0.55, 0.40), (0.80, 0.08, 0.40), (0.12, 0.35, 0.75), (0.85, 0.45, 0.0),
@@ -57,21 +49,17 @@ CHAIN_HINGE_COLORS = ((0.05, 0.55, 0.40), (0.80, 0.08, 0.40), (0.12, 0.35, 0.75)
 
 
 def rod_color(i: int):
-    """Rod ``i``'s colour (0-based): the double pendulum's two, then the chain's palette in turn."""
-    return SCENE_COLORS[f"rod{i + 1}"] if i < 2 else CHAIN_ROD_COLORS[i % len(CHAIN_ROD_COLORS)]
+    """Rod ``i``'s colour (0-based)."""
+    return CHAIN_ROD_COLORS[i % len(CHAIN_ROD_COLORS)]
 
 
 def hinge_color(i: int):
     """Hinge axis ``i``'s colour (0-based)."""
-    return SCENE_COLORS[f"hinge{i + 1}"] if i < 2 else CHAIN_HINGE_COLORS[i % len(CHAIN_HINGE_COLORS)]
+    return CHAIN_HINGE_COLORS[i % len(CHAIN_HINGE_COLORS)]
 
 
 _SIDES = 12  # facets around a rod
 _SEGMENTS = 4  # pieces along a rod (keeps the painter's sort right where rods meet)
-
-
-# --------------------------------------------------------------------------------------------
-# coordinates
 
 
 def world_to_plot(points) -> np.ndarray:
@@ -130,10 +118,6 @@ def choose_view(n1_world, e_world) -> Tuple[float, float]:
     return best
 
 
-# --------------------------------------------------------------------------------------------
-# the scene of one frame (world coordinates)
-
-
 @dataclass(frozen=True)
 class FrameScene:
     """The 3-D geometry of frame ``k`` in WORLD coordinates (``y`` down), as it is drawn.
@@ -169,10 +153,6 @@ class FrameScene:
     skew_arc: np.ndarray
     skew_arcs: Tuple[np.ndarray, ...] = ()
     q: Tuple[float, ...] = ()
-
-    @property
-    def rods_count(self) -> int:
-        return int(self.rods.shape[0] - 1)
 
     def axis_segment(self, i: int) -> np.ndarray:
         """End points (2, 3) of hinge axis ``i`` (0: the roof hinge, 1: the second hinge), world."""
@@ -213,9 +193,6 @@ class Geometry:
         # first row of each frame's trail: the earliest row with t >= t_k - trail
         self.trail_start = np.searchsorted(t, t - trail - 1e-9 * max(trail, 1.0), side="left")
 
-    def _arc(self, centre, n1, e) -> np.ndarray:
-        return _arc_points(centre, n1, e, ARC_RADIUS * self.half)
-
     def scene(self, k: int) -> FrameScene:
         n = self.t.size
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not -n <= k < n:
@@ -229,24 +206,12 @@ class Geometry:
         trail = tips[j0 : k + 1, 3 * (m - 1):3 * m].copy()
         count = trail.shape[0]
         alpha = np.linspace(0.0, 0.9, count)[1:] if count > 1 else np.zeros(0)
-        arcs = tuple(self._arc(centers[i], dirs[i - 1], dirs[i]) for i in range(1, m))
-        return FrameScene(
-            k=k,
-            t=float(self.t[k]),
-            phi=float(self.y[k, 0]),
-            psi=float(self.y[k, 1]) if m >= 2 else math.nan,
-            energy=float(self.energy[k]),
-            work=float(self.work[k]),
-            rods=rods,
-            axis_centers=centers,
-            axis_directions=dirs,
-            axis_half_length=self.half,
-            trail=trail,
-            trail_alpha=alpha,
-            skew_arc=arcs[0] if arcs else np.zeros((0, 3)),
-            skew_arcs=arcs,
-            q=tuple(float(x) for x in self.y[k, :m]),
-        )
+        arcs = tuple(_arc_points(centers[i], dirs[i - 1], dirs[i], ARC_RADIUS * self.half) for i in range(1, m))
+        return FrameScene(k=k, t=float(self.t[k]), phi=float(self.y[k, 0]), psi=float(self.y[k, 1]) if m >= 2 else math.nan,
+                          energy=float(self.energy[k]), work=float(self.work[k]), rods=rods, axis_centers=centers,
+                          axis_directions=dirs, axis_half_length=self.half, trail=trail, trail_alpha=alpha,
+                          skew_arc=arcs[0] if arcs else np.zeros((0, 3)), skew_arcs=arcs,
+                          q=tuple(float(x) for x in self.y[k, :m]))
 
 
 def _arc_points(centre: np.ndarray, n1: np.ndarray, e: np.ndarray, radius: float, count: int = 24) -> np.ndarray:
@@ -270,16 +235,20 @@ def frame_scene(tr, k: int, *, trail: float = DEFAULT_TRAIL) -> FrameScene:
     return Geometry(tr, trail).scene(k)
 
 
-# --------------------------------------------------------------------------------------------
-# solids: shaded cylinders and cones as quadrilaterals (plot coordinates)
-
-
+# -- solids: shaded cylinders and cones as quadrilaterals (plot coordinates) --------------------
 def _frame_about(d: np.ndarray, ref: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     u = np.cross(ref, d)
     if np.linalg.norm(u) < 1e-6:
         u = np.cross(np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0]), d)
     u = unit(u)
     return u, np.cross(d, u)
+
+
+def _fan(centre: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """A disc about ``centre`` as a fan of quads (centre, v_i, v_i+1, v_i+2) over the points ``ring`` (S + 1, 3)."""
+    idx = np.arange(0, _SIDES, 2)
+    return np.stack([np.broadcast_to(centre, (idx.size, 3)), ring[idx], ring[idx + 1], ring[(idx + 2) % (_SIDES + 1)]],
+                    axis=1)
 
 
 _THETA = np.linspace(0.0, 2.0 * np.pi, _SIDES + 1)
@@ -304,14 +273,8 @@ def cylinder(p: np.ndarray, q: np.ndarray, r: float, ref: np.ndarray, segments: 
     dd = centres[1:, None, :] + ring[None, :-1, :]
     side = np.stack([a, b, c, dd], axis=2).reshape(-1, 4, 3)
     normals = np.broadcast_to(_CMID[:, None] * u + _SMID[:, None] * w, (segments, _SIDES, 3)).reshape(-1, 3)
-    # end caps as a fan of quads (centre, v_i, v_i+1, v_i+2)
-    caps, cap_normals = [], []
-    for centre, nrm in ((p, -d), (q, d)):
-        v = centre + ring
-        idx = np.arange(0, _SIDES, 2)
-        fan = np.stack([np.broadcast_to(centre, (idx.size, 3)), v[idx], v[idx + 1], v[(idx + 2) % (_SIDES + 1)]], axis=1)
-        caps.append(fan)
-        cap_normals.append(np.broadcast_to(nrm, (idx.size, 3)))
+    caps = [_fan(p, p + ring), _fan(q, q + ring)]  # the end caps
+    cap_normals = [np.broadcast_to(nrm, (caps[0].shape[0], 3)) for nrm in (-d, d)]
     return (np.concatenate([side] + caps), np.concatenate([normals] + cap_normals))
 
 
@@ -326,9 +289,8 @@ def cone(base: np.ndarray, tip: np.ndarray, r: float):
     quads = np.stack([tips, ring[:-1], ring[1:], tips], axis=1)
     radial = _CMID[:, None] * u + _SMID[:, None] * w
     normals = unit(radial * length + d * r)
-    idx = np.arange(0, _SIDES, 2)
-    disc = np.stack([np.broadcast_to(base, (idx.size, 3)), ring[idx], ring[idx + 1], ring[(idx + 2) % (_SIDES + 1)]], axis=1)
-    return np.concatenate([quads, disc]), np.concatenate([normals, np.broadcast_to(-d, (idx.size, 3))])
+    disc = _fan(base, ring)
+    return np.concatenate([quads, disc]), np.concatenate([normals, np.broadcast_to(-d, (disc.shape[0], 3))])
 
 
 def check_view(view) -> Tuple[float, float]:
