@@ -27,8 +27,9 @@ import tempfile
 import threading
 import time
 import warnings
+from functools import lru_cache
 from pathlib import Path
-from typing import Any, Dict, Optional, Tuple
+from typing import Dict, Optional, Tuple
 
 from .. import __version__
 from ..errors import SkewpendError
@@ -73,8 +74,6 @@ CFLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
 SP_NMAX = 8
 #: Shared libraries are named as the platform expects (``.dylib`` on macOS, ``.so`` elsewhere).
 LIB_SUFFIX = ".dylib" if sys.platform == "darwin" else ".so"
-#: State size of the double pendulum's chaos kernel's variational systems: the state and up to 4 tangent vectors.
-SP_VMAX = 20
 
 
 class CompilerError(SkewpendError, RuntimeError):
@@ -100,11 +99,10 @@ def _state_at(cls, t0: float, y0):
     return s
 
 
+@lru_cache(maxsize=None)
 def state_type(nmax: int):
     """The mirror of ``sp_state`` (``integrators.c``) for states of at most ``nmax`` components
     (``SP_NMAX``: 8 for the double pendulum, ``2 n + 2`` for a chain of ``n`` links)."""
-    if nmax in _STATE_TYPES:
-        return _STATE_TYPES[nmax]
 
     class _State(ctypes.Structure):
         """Mirror of ``sp_state`` in ``integrators.c``: everything an integrator needs to resume."""
@@ -133,11 +131,9 @@ def state_type(nmax: int):
         at = classmethod(_state_at)
 
     _State.__name__ = _State.__qualname__ = "State" if nmax == SP_NMAX else f"State{nmax}"
-    _STATE_TYPES[nmax] = _State
     return _State
 
 
-_STATE_TYPES: Dict[int, type] = {}
 State = state_type(SP_NMAX)
 
 
@@ -192,33 +188,22 @@ def _taylor_fields(tn: int) -> list:
     ]
 
 
-class TaylorState(ctypes.Structure):
-    """Mirror of ``sp_taylor_state`` in ``taylor.c``: a resumable Taylor run."""
-
-    _fields_ = _taylor_fields(SP_TN)
-    at = classmethod(_state_at)
-
-
-_TAYLOR_STATES: Dict[int, Any] = {SP_TN: TaylorState}
-
-
+@lru_cache(maxsize=None)
 def taylor_state_type(tn: int):
-    """The ctypes mirror of ``sp_taylor_state`` for ``SP_TN = tn`` (a chain of n links: 2 n + 1)."""
-    if tn not in _TAYLOR_STATES:
-        _TAYLOR_STATES[tn] = type(f"TaylorState{tn}", (ctypes.Structure,), {"_fields_": _taylor_fields(tn),
-                                                                           "at": classmethod(_state_at)})
-    return _TAYLOR_STATES[tn]
+    """The ctypes mirror of ``sp_taylor_state`` (``taylor.c``: a resumable Taylor run) for ``SP_TN = tn``
+    (the double pendulum's 5, a chain of n links: 2 n + 1)."""
+    name = "TaylorState" if tn == SP_TN else f"TaylorState{tn}"
+    return type(name, (ctypes.Structure,), {"_fields_": _taylor_fields(tn), "at": classmethod(_state_at)})
 
 
-_CONTROL_TYPES: Dict[int, Any] = {}
+TaylorState = taylor_state_type(SP_TN)
 
 
+@lru_cache(maxsize=None)
 def control_struct_type(nq: int):
     """The mirror of ``sp_control`` (``integrators.c``) for a model of ``nq`` coordinates (2 for the
     double pendulum, ``n`` for a chain of ``n`` links): the inputs applied inside the integrators
     (:mod:`skewpend.numeric.control` fills it)."""
-    if nq in _CONTROL_TYPES:
-        return _CONTROL_TYPES[nq]
     nx = 2 * nq
 
     class _Control(ctypes.Structure):
@@ -244,7 +229,6 @@ def control_struct_type(nq: int):
         ]
 
     _Control.__name__ = _Control.__qualname__ = "ControlStruct" if nq == 2 else f"ControlStruct{nq}"
-    _CONTROL_TYPES[nq] = _Control
     return _Control
 
 
@@ -252,14 +236,10 @@ def control_struct_type(nq: int):
 ControlStruct = control_struct_type(2)
 
 
-_LYAP_TYPES: Dict[int, Any] = {}
-
-
+@lru_cache(maxsize=None)
 def lyap_state_type(n2: int):
     """The mirror of ``sp_lyap_state`` (``chaos.c``) for states of ``n2`` components (4 for the double
     pendulum, ``2 n`` for a chain of ``n`` links): the state and up to ``n2`` tangent vectors."""
-    if n2 in _LYAP_TYPES:
-        return _LYAP_TYPES[n2]
     vmax = n2 * (n2 + 1)
 
     class _LyapState(ctypes.Structure):
@@ -282,7 +262,6 @@ def lyap_state_type(n2: int):
             ("pad1", ctypes.c_int32),
         ]
 
-    _LYAP_TYPES[n2] = _LyapState
     return _LyapState
 
 
@@ -676,16 +655,13 @@ class _LibraryLock:
             directory.mkdir(parents=True, exist_ok=True)
             self.fd = os.open(directory / f".skewpend_{self.key}.lock", os.O_RDWR | os.O_CREAT, 0o644)
             fcntl.flock(self.fd, fcntl.LOCK_EX)
-        except (ImportError, OSError):
+        except BaseException as exc:  # no flock here (the process lock alone), or Ctrl-C while waiting
             if self.fd is not None:
                 os.close(self.fd)
             self.fd = None
-        except BaseException:  # Ctrl-C while waiting: nothing held
-            if self.fd is not None:
-                os.close(self.fd)
-            self.fd = None
-            self.thread_lock.release()
-            raise
+            if not isinstance(exc, (ImportError, OSError)):  # nothing held
+                self.thread_lock.release()
+                raise
         return self
 
     def __exit__(self, *exc) -> None:
@@ -1049,46 +1025,50 @@ def taylor_kernel(params: Parameters, order: int, *, model: Optional[Kernel] = N
     if model is not None and (model.path, order) in _TAYLOR_OF:
         return _TAYLOR_OF[model.path, order]
     form, printed = model_form(params, model.form if model is not None else form)
-    if form != "exact":
-        return _chain_taylor_kernel(printed, order, model)
-    return _taylor_kernel(printed, order, model)
-
-
-def _chain_taylor_key(structure, order: int):
-    """The Taylor library's cache key of a chain's ``structure`` and ``order``, with the compiler flags."""
-    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("polynomial.py", "taylor_source.py", "recursive.py",
-                                                                            "taylor.c", "rows.h"))
-    fused, flags = fused_multiply_add()
-    key = _key(structure.key() + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}") + f"_ctaylor{order}"
-    return key, fused, flags
-
-
-def _chain_taylor_kernel(chain, order: int, model) -> TaylorKernel:
-    from .recursive import structure_of_chain
-
-    structure = structure_of_chain(chain)
-    key, fused, flags = _chain_taylor_key(structure, order)
-
-    def source() -> str:
-        from .taylor_source import polynomial_system, taylor_c_source
-
-        return taylor_c_source(polynomial_system(structure), order, fused=fused)
-
-    loaded = _library(key, lambda path, origin, seconds: TaylorKernel(path, origin, seconds, order, 2 * structure.n + 1),
-                      source, kind="taylor", which=f" of order {order}", flags=flags)
+    gkey = _taylor_gkey(printed, order) if form == "exact" else ""
+    loaded = _BYGEOMETRY.get(gkey)
+    if loaded is None:
+        key, tn, flags, source, which = _taylor_library(form, printed, order)
+        loaded = _library(key, lambda path, origin, seconds: TaylorKernel(path, origin, seconds, order, tn), source,
+                          kind="taylor", which=which, flags=flags)
+        if gkey:
+            _BYGEOMETRY[gkey] = loaded  # type: ignore[assignment]
     if model is not None:
-        _TAYLOR_OF[model.path, order] = loaded
-    return loaded
+        _TAYLOR_OF[model.path, order] = loaded  # type: ignore[assignment]
+    return loaded  # type: ignore[return-value]
+
+
+def _taylor_library(form: str, printed, order: int):
+    """``(key, tn, flags, source, which)`` of the Taylor library of ``printed`` in ``form`` at ``order``: its
+    cache key (the structure, the generator's and driver's text -- not part of the other libraries' key --
+    and whether the processor's fused multiply-add is used, :func:`fused_multiply_add`), its state size, the
+    compiler flags, the C source's maker and the words of its announcement."""
+    fused, flags = fused_multiply_add()
+    names = ("taylor_source.py", "taylor.c", "rows.h")
+    if form == "exact":
+        structure = structure_of(printed)
+        tn, tag, which, text = SP_TN, "taylor", _bodies_words(structure), repr(structure.to_dict())
+    else:
+        from .recursive import structure_of_chain
+
+        structure, tag, which = structure_of_chain(printed), "ctaylor", ""
+        tn, text, names = 2 * structure.n + 1, structure.key(), ("polynomial.py", "taylor_source.py", "recursive.py",
+                                                                 "taylor.c", "rows.h")
+    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in names)
+    key = _key(text + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}") + f"_{tag}{order}"
+
+    def source() -> str:  # a model without recurrences is refused here
+        from .taylor_source import exact_system, polynomial_system, taylor_c_source
+
+        system = exact_system(structure) if form == "exact" else polynomial_system(structure)
+        return taylor_c_source(system, order, fused=fused)
+
+    return key, tn, flags, source, f" of order {order}{which}"
 
 
 def taylor_library_key(model, order: int, form: str = "") -> str:
     """The cache key of the Taylor library ``taylor_kernel(model, order)`` loads in ``form``."""
-    form, printed = model_form(model, form)
-    if form == "exact":
-        return _taylor_key(printed, order)[0]
-    from .recursive import structure_of_chain
-
-    return _chain_taylor_key(structure_of_chain(printed), order)[0]
+    return _taylor_library(*model_form(model, form), order)[0]
 
 
 def series_form(model, form: str = "") -> bool:
@@ -1104,17 +1084,6 @@ def _taylor_gkey(params: Parameters, order: int) -> str:
     return repr([getattr(params, k) for k in GEOMETRY] + list(optional_terms(params))) + f"|taylor{order}"
 
 
-def _taylor_key(params: Parameters, order: int):
-    """The Taylor library's cache key, with the structure and the compiler flags it is built from."""
-    geometry = structure_of(params)
-    # the Taylor library's text also depends on its generator and driver (not part of the others' key),
-    # and on whether the processor's fused multiply-add is used (fused_multiply_add)
-    extra = b"".join((_PACKAGE / "numeric" / name).read_bytes() for name in ("taylor_source.py", "taylor.c", "rows.h"))
-    fused, flags = fused_multiply_add()
-    key = _key(repr(geometry.to_dict()) + hashlib.sha256(extra).hexdigest() + f"|fused={fused} {' '.join(flags)}")
-    return key + f"_taylor{order}", geometry, fused, flags
-
-
 def built_taylor_kernel(params, order: int, *, model: Optional[Kernel] = None, form: str = "") -> Optional[TaylorKernel]:
     """The Taylor library of ``params``' structure (in ``form``) and ``order`` if it is built (loaded in this
     process, or in the cache on disk: then loaded), else None -- it never builds."""
@@ -1122,7 +1091,7 @@ def built_taylor_kernel(params, order: int, *, model: Optional[Kernel] = None, f
         return _TAYLOR_OF[model.path, order]
     exact = params.exact_model()
     if (form or model_form(params)[0]) == "exact" and _BYGEOMETRY.get(_taylor_gkey(exact, order)) is not None:
-        return _taylor_kernel(exact, order, model)
+        return taylor_kernel(exact, order, model=model)
     key = taylor_library_key(params, order, form)
     path = cache_dir() / "kernels" / f"skewpend_{key}{LIB_SUFFIX}"
     if key in _LOADED or path.exists() and _intact(path):
@@ -1188,27 +1157,3 @@ def _build_taylor_from_json(params_json: str, order: int, mark: str, form: str =
             os.unlink(mark)
         except OSError:
             pass
-
-
-def _taylor_kernel(params: Parameters, order: int, model) -> TaylorKernel:
-    if model is not None and (model.path, order) in _TAYLOR_OF:
-        return _TAYLOR_OF[model.path, order]
-    gkey = _taylor_gkey(params, order)
-    kernel = _BYGEOMETRY.get(gkey)
-    if kernel is not None:
-        if model is not None:
-            _TAYLOR_OF[model.path, order] = kernel  # type: ignore[assignment]
-        return kernel  # type: ignore[return-value]
-    key, geometry, fused, flags = _taylor_key(params, order)
-
-    def source() -> str:
-        from .taylor_source import exact_system, taylor_c_source
-
-        return taylor_c_source(exact_system(geometry), order, fused=fused)  # a model without recurrences is refused here
-
-    loaded = _library(key, lambda path, origin, seconds: TaylorKernel(path, origin, seconds, order), source,
-                      kind="taylor", which=f" of order {order}" + _bodies_words(geometry), flags=flags)
-    _BYGEOMETRY[gkey] = loaded  # type: ignore[assignment]
-    if model is not None:
-        _TAYLOR_OF[model.path, order] = loaded
-    return loaded
