@@ -214,14 +214,14 @@ def _models():
                          __doc__="The pendulum: thin uniform rods with the specification's hinge axes (SI units, radians).",
                          **{name: parameter(name) for name in API_PARAMETERS})
 
-    class EquationsRequest(BaseModel):
+    class Request(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
         model: Model = Field(default_factory=Model)
+
+    class EquationsRequest(Request):
         digits: int = Field(4, ge=2, le=8, description="significant digits of the numbers shown")
 
-    class SimulateRequest(BaseModel):
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
-        model: Model = Field(default_factory=Model)
+    class SimulateRequest(Request):
         y0: List[Entry] = Field([1.2, -0.8, 0.0, 0.0], min_length=4, max_length=4,
                                 description="initial state (phi, psi, dphi, dpsi) [rad, rad/s], each at most 1000")
         t_end: float = Field(10.0, gt=0, le=LIMITS["simulate_t_end"], description="length [s]")
@@ -229,13 +229,10 @@ def _models():
         rtol: float = Field(1e-10, ge=1e-14, le=1e-3, description="relative tolerance of DOP853")
         atol: float = Field(1e-10, ge=1e-14, le=1e-3, description="absolute tolerance of DOP853")
 
-    class ModesRequest(BaseModel):
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
-        model: Model = Field(default_factory=Model)
+    class ModesRequest(Request):
+        pass
 
-    class FlipMapRequest(BaseModel):
-        model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
-        model: Model = Field(default_factory=Model)
+    class FlipMapRequest(Request):
         n: int = Field(48, ge=2, le=LIMITS["flipmap_n"], description="cells per side")
         t_end: float = Field(10.0, gt=0, le=LIMITS["flipmap_t_end"], description="longest time looked at [s]")
 
@@ -253,14 +250,9 @@ def _finite(values) -> list:
     import numpy as np
 
     arr = np.asarray(values, dtype=float)
-    out = arr.tolist()
-
-    def clean(x):
-        if isinstance(x, list):
-            return [clean(v) for v in x]
-        return x if math.isfinite(x) else None
-
-    return clean(out)
+    out = arr.astype(object)
+    out[~np.isfinite(arr)] = None
+    return out.tolist()
 
 
 @lru_cache(maxsize=256)
@@ -485,15 +477,13 @@ def check_host(host) -> str:
 
     from ..errors import ParameterError
 
-    name = host.strip() if isinstance(host, str) else None
-    if not name:
-        raise ParameterError(f"host: expected an IP address or a host name, got {host!r}", parameter="host")
+    name = host.strip() if isinstance(host, str) else ""
     bare = name[1:-1] if name.startswith("[") and name.endswith("]") else name
     try:
         return str(ipaddress.ip_address(bare))
     except ValueError:
         pass
-    if not (name.isascii() and re.fullmatch(r"[A-Za-z0-9](?:[A-Za-z0-9.-]{0,251}[A-Za-z0-9])?", name)):
+    if not (name and name.isascii() and re.fullmatch(r"[A-Za-z0-9](?:[A-Za-z0-9.-]{0,251}[A-Za-z0-9])?", name)):
         raise ParameterError(f"host: expected an IP address or a host name, got {host!r}", parameter="host")
     return name.lower()
 

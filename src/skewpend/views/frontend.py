@@ -92,10 +92,13 @@ def _physics_sources(physics_params) -> tuple:
     from ..numeric.explorer_source import explorer_js
 
     module = explorer_js(physics_params)
-    page = f"// the explorer's settings for these bodies (skewpend.views.frontend.page_settings)\nexport const PAGE = " \
-        f"{json.dumps(page_settings(physics_params), ensure_ascii=False)};\n"
-    return (Source("physics", module), Source("page", page),
+    return (Source("physics", module), _page_source(page_settings(physics_params)),
             Source("physics-classic", classic_js(module, "physics"), classic=True))
+
+
+def _page_source(settings: dict) -> Source:
+    return Source("page", "// the explorer's settings for these bodies (skewpend.views.frontend.page_settings)\n"
+                          f"export const PAGE = {json.dumps(settings, ensure_ascii=False)};\n")
 
 
 #: The sliders, one definition for every model and view: by the schema's stem of the parameter, its range
@@ -115,9 +118,7 @@ _SYMBOLS = {"phi": "φ", "psi": "ψ", "alpha": "α"}
 
 def _stem(name: str) -> str:
     """The schema's stem of a parameter of the page's physics (``a`` -> ``l``, ``c3`` -> ``c``, ``l2`` -> ``l``)."""
-    from .. import schema
-
-    return schema.field(name).stem if name in schema.NAMES else name.rstrip("0123456789")
+    return _schema.field(name).stem if name in _schema.NAMES else name.rstrip("0123456789")
 
 
 def start_key(coordinate: str) -> str:
@@ -159,11 +160,10 @@ def page_settings(physics_params=None) -> dict:
     by their index in the physics' parameter vector its rods' ``lengths`` (the drawn axes' scale, the
     camera's reach), the terms that make the energy not conserved (``dissipative``: damping, torques,
     friction, from the schema's roles) and the ``torques``."""
-    from .. import schema
     from ..numeric.explorer_source import page_vector
 
     form, printed, order, _ = page_vector(physics_params)
-    roles = {f.stem: f.role for f in schema.FIELDS if f.per_body}  # a joint's terms (cfs, the chain's, is none)
+    roles = {f.stem: f.role for f in _schema.FIELDS if f.per_body}  # a joint's terms (cfs, the chain's, is none)
     where = lambda *rs: [i for i, k in enumerate(order) if roles.get(_stem(k)) in rs]  # noqa: E731
     title = printed.title
     if form == "exact" and printed.uses_alpha:
@@ -317,9 +317,7 @@ def export_explorer(directory, params=None, *, force: bool = False, start: str =
         raise ParameterError(f"start must be an address query (text), got {type(start).__name__}")
     srcs = sources(params)  # generated before anything is written: an error leaves nothing behind
     if start:  # the page opens at the run's values with or without the query in its address (issue 51)
-        settings = dict(page_settings(params), start=start)
-        srcs["page"] = Source("page", "// the explorer's settings for these bodies (skewpend.views.frontend.page_settings)\n"
-                                      f"export const PAGE = {json.dumps(settings, ensure_ascii=False)};\n")
+        srcs["page"] = _page_source(dict(page_settings(params), start=start))
     exists = os.path.lexists(target)
     parent = target if exists else (target.parent if str(target.parent) else Path("."))
     try:
@@ -358,9 +356,8 @@ def _write_site(site: Path, srcs: Dict[str, Source]) -> None:
     mask = os.umask(0o022)
     os.umask(mask)
     os.chmod(site, 0o777 & ~mask)  # mkdtemp made it private; a site is read by web servers
-    (site / "static").mkdir()
-    (site / "sources").mkdir()
-    (site / "LICENSES").mkdir()
+    for folder in ("static", "sources", "LICENSES"):
+        (site / folder).mkdir()
     for name in ("app.css", "loader.js"):
         shutil.copyfile(WEB_DIR / name, site / "static" / name)
     shutil.copytree(katex_dir(), site / "static" / "katex", copy_function=shutil.copyfile)

@@ -11,26 +11,19 @@ import numpy as np
 from ...errors import ParameterError, SkewpendError
 from ..style import COLORS, SYMBOL, fmt, style
 from .base import heading, new_figure
-from .maps import degree_extent, start_map_axes
+from .maps import degree_extent, map_image, start_map_axes
 
 __all__ = ["LYAPUNOV_COLORS", "CHAOS_COLORS", "lyapunov_figure", "poincare_boundary", "poincare_figure",
            "chaos_diagram_figure", "lyapunov_map_figure"]
 
-
-# -- chaos: Lyapunov spectra, Poincaré sections, the chaos diagram, Lyapunov maps ---------------------------
 #: Colours of the Lyapunov exponents lambda_1 .. lambda_4 (the largest in the blue of hinge 1).
 LYAPUNOV_COLORS = ("#1f63a8", "#c8312b", "#2a9d4b", "#7b4fa0")
 
 #: Colours of the chaos figures: the chaotic fraction's colour map (0 light, 1 dark red), the lines
 #: per skew angle (sampled from ``alpha_cmap``), the Lyapunov map's colour map and the colour of cells
 #: without a value (no start reachable, or the integration failed), which neither colour map takes.
-CHAOS_COLORS = {
-    "fraction_cmap": "YlOrRd",
-    "alpha_cmap": "viridis",
-    "exponent_cmap": "magma",
-    "no_value": "#9ecae1",
-    "edge": "0.35",
-}
+CHAOS_COLORS = {"fraction_cmap": "YlOrRd", "alpha_cmap": "viridis", "exponent_cmap": "magma", "no_value": "#9ecae1",
+                "edge": "0.35"}
 
 
 def _signed(x: float, digits: int = 4) -> str:
@@ -63,6 +56,12 @@ def _settings_list(settings, keys) -> List[str]:
     return [f"{k} = {fmt(settings[k])}" for k in keys if settings.get(k) is not None]
 
 
+def _renormalised(st, transient: str = "") -> List[str]:
+    """The renormalisation interval and the transient (``transient``: said after it) of an exponent's run."""
+    out = [f"renormalised every {fmt(st['renorm_every'])} s"] if st.get("renorm_every") is not None else []
+    return out + ([f"transient {fmt(st['transient'])} s{transient}"] if st.get("transient") else [])
+
+
 def _lyapunov_caption(spec) -> str:
     """What a Lyapunov figure shows: the parameters; the start; the method, tolerances, t_end,
     renormalisation interval, transient and windows (and, if the run stopped early, why)."""
@@ -73,10 +72,7 @@ def _lyapunov_caption(spec) -> str:
     run += _settings_list(st, ("rtol", "atol"))
     if st.get("t_end") is not None:
         run.append(f"t_end = {fmt(st['t_end'])} s")
-    if st.get("renorm_every") is not None:
-        run.append(f"renormalised every {fmt(st['renorm_every'])} s")
-    if st.get("transient"):
-        run.append(f"transient {fmt(st['transient'])} s (measured from t = {fmt(st.get('measured_from', 0.0))} s)")
+    run += _renormalised(st, f" (measured from t = {fmt(st.get('measured_from', 0.0))} s)")
     if st.get("windows") is not None:
         run.append(f"uncertainty from {st['windows']} windows")
     lines = [wrap_list(parameter_text(spec.params)), "released from " + initial_text(spec.y0),
@@ -285,10 +281,7 @@ def _chaos_caption(diagram) -> str:
             f"{fmt(energy[0])} to {fmt(energy[-1])} J above the minimum ({values(energy.size)}), "
             f"{samples} starts per cell on the section phi = 0 (crossed with phi increasing)")
     run = [f"largest exponent over t_end = {fmt(st['t_end'])} s" if st.get("t_end") is not None else "largest exponent"]
-    if st.get("renorm_every") is not None:
-        run.append(f"renormalised every {fmt(st['renorm_every'])} s")
-    if st.get("transient"):
-        run.append(f"transient {fmt(st['transient'])} s")
+    run += _renormalised(st)
     run += _settings_list(st, ("rtol", "atol"))
     run.append(f"chaotic: exponent > threshold = {fmt(diagram.threshold)} 1/s")
     for key, what in (("unreachable", "starts not reachable"), ("failed", "integrations failed")):
@@ -395,10 +388,7 @@ def _lyapunov_map_caption(m) -> str:
     run = []
     if st.get("t_end") is not None:
         run.append(f"t_end = {fmt(st['t_end'])} s")
-    if st.get("renorm_every") is not None:
-        run.append(f"renormalised every {fmt(st['renorm_every'])} s")
-    if st.get("transient"):
-        run.append(f"transient {fmt(st['transient'])} s")
+    run += _renormalised(st)
     run += ["dop853 on the state and one tangent vector (Benettin)"] + _settings_list(st, ("rtol", "atol"))
     failed = int(np.count_nonzero(~np.isfinite(np.asarray(m.exponent, dtype=float))))
     run.append(f"{failed} of {n0 * n1} cells failed" if failed else "every cell integrated")
@@ -429,16 +419,9 @@ def lyapunov_map_figure(m):
     cmap = matplotlib.colormaps[CHAOS_COLORS["exponent_cmap"]].with_extremes(bad=CHAOS_COLORS["no_value"])
     with style():
         fig = new_figure((7.0, 6.9))
-        ax = fig.subplots()
-        ax.grid(False)
-        interpolation = "nearest" if max(lam.shape) <= 1024 else "antialiased"
-        im = ax.imshow(np.ma.masked_invalid(lam.T), origin="lower", extent=extent, cmap=cmap,
-                       norm=Normalize(vmin=vmin, vmax=vmax), interpolation=interpolation, aspect="equal")
+        ax, _, bar = map_image(fig, lam, extent, cmap, Normalize(vmin=vmin, vmax=vmax))
         start_map_axes(ax, extent, "Largest Lyapunov exponent of starts at rest")
-        bar = fig.colorbar(im, cax=ax.inset_axes([1.035, 0.0, 0.04, 1.0]))
         bar.set_label("largest Lyapunov exponent [1/s]")
-        bar.ax.tick_params(which="both", direction="out")
-        bar.ax.grid(False)
         if finite.size < lam.size:
             ax.legend(handles=[Patch(facecolor=CHAOS_COLORS["no_value"], edgecolor="0.45", lw=0.6,
                                      label="integration failed")],
@@ -446,13 +429,3 @@ def lyapunov_map_figure(m):
         heading(fig, _lyapunov_map_caption(m))
     return fig
 
-
-__all__ += [
-    "lyapunov_figure",
-    "poincare_figure",
-    "poincare_boundary",
-    "chaos_diagram_figure",
-    "lyapunov_map_figure",
-    "LYAPUNOV_COLORS",
-    "CHAOS_COLORS",
-]

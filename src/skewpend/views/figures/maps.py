@@ -14,17 +14,9 @@ from .base import heading, new_figure, wrap_angle
 __all__ = ["FLIPMAP_COLORS", "flipmap_figure", "flipmap_forbidden", "flipmap_energy_margin", "degree_extent",
            "start_map_axes"]
 
-
-# -- the flip-time map ----------------------------------------------------------------------------------
 #: Colours of the flip-time map: the colour map of the flip times (log scale), the cells that do not
 #: flip by t_end, the cells that energy forbids to flip and the line around them.
-FLIPMAP_COLORS = {
-    "cmap": "viridis_r",
-    "no_flip": "#ffffff",
-    "forbidden": "#d4d4d4",
-    "boundary": "0.35",
-    "mark": "#e4572e",
-}
+FLIPMAP_COLORS = {"cmap": "viridis_r", "no_flip": "#ffffff", "forbidden": "#d4d4d4", "boundary": "0.35", "mark": "#e4572e"}
 
 
 def flipmap_energy_margin(fm) -> Optional[np.ndarray]:
@@ -125,6 +117,21 @@ def start_map_axes(ax, extent, title: str, labels=(start_label("phi", ("phi", "p
     ax.set_title(title, loc="left")
 
 
+def map_image(fig, values: np.ndarray, extent, cmap, norm):
+    """A map over starts at rest drawn on a new axes of ``fig``: ``values`` **transposed** with ``origin="lower"``
+    (NaN in the colour map's "bad" colour), equal aspect, and a colour bar exactly as tall as the (square) map;
+    returns the axes, the image and the colour bar."""
+    ax = fig.subplots()
+    ax.grid(False)
+    interpolation = "nearest" if max(values.shape) <= 1024 else "antialiased"
+    im = ax.imshow(np.ma.masked_invalid(values.T), origin="lower", extent=extent, cmap=cmap, norm=norm,
+                   interpolation=interpolation, aspect="equal")
+    bar = fig.colorbar(im, cax=ax.inset_axes([1.035, 0.0, 0.04, 1.0]))
+    bar.ax.tick_params(which="both", direction="out")
+    bar.ax.grid(False)
+    return ax, im, bar
+
+
 def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: str = "start",
                    forbidden="auto"):
     """The flip-time map of a :class:`skewpend.FlipMap` (of any model), the classic picture.
@@ -171,12 +178,8 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
     colors = FLIPMAP_COLORS
     with style():
         fig = new_figure((6.6, 6.9))
-        ax = fig.subplots()
-        ax.grid(False)
         cmap = matplotlib.colormaps[colors["cmap"]].with_extremes(bad=colors["no_flip"])
-        interpolation = "nearest" if max(ft.shape) <= 1024 else "antialiased"
-        im = ax.imshow(np.ma.masked_invalid(ft.T), origin="lower", extent=extent, cmap=cmap,
-                       norm=LogNorm(vmin=vmin, vmax=t_end), interpolation=interpolation, aspect="equal")
+        ax, im, bar = map_image(fig, ft, extent, cmap, LogNorm(vmin=vmin, vmax=t_end))
         handles = [Patch(facecolor=colors["no_flip"], edgecolor="0.45", lw=0.6,
                          label=f"no flip by t_end = {fmt(t_end)} s")]
         if forbidden is not None and forbidden.any():
@@ -202,14 +205,10 @@ def flipmap_figure(fm, *, mark: Optional[Sequence[float]] = None, mark_label: st
                                   label=mark_label))
         start_map_axes(ax, extent, "Flip time: when any hinge angle first leaves (−180°, 180°)",
                        tuple(start_label(c, fm.params.coordinates) for c in fm.plane))
-        # the colour bar exactly as tall as the (square) map
-        bar = fig.colorbar(im, cax=ax.inset_axes([1.035, 0.0, 0.04, 1.0]))
         bar.set_label("flip time [s]")
         bar.ax.yaxis.set_major_locator(FixedLocator(_log_ticks(vmin, t_end)))
         bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: fmt(v, 3)))
         bar.ax.yaxis.set_minor_formatter(NullFormatter())
-        bar.ax.tick_params(which="both", direction="out")
-        bar.ax.grid(False)
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=len(handles),
                   frameon=False, handlelength=1.4, columnspacing=1.4, borderaxespad=0.0)
         heading(fig, flipmap_caption(fm))
