@@ -31,7 +31,7 @@ from ..errors import ParameterError
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json
 from ..symbolic.model import Parameters
-from ..checks import MAX_STEPS, max_steps as check_max_steps, not_parameters, numeric_params, tolerances
+from ..checks import MAX_STEPS, max_steps as check_max_steps, not_parameters, numeric_params, tolerances, whole
 from .lyapunov import check_times, largest_exponents
 
 __all__ = ["chaos_diagram", "ChaosDiagram", "ChaosJob", "open_chaos_diagram", "default_threshold", "STORE_KIND"]
@@ -73,10 +73,7 @@ class ChaosDiagram(Result):
 
     @property
     def fraction(self) -> np.ndarray:
-        chaotic = np.count_nonzero(np.nan_to_num(self.exponent, nan=-np.inf) > self.threshold, axis=2)
-        valid = self.valid
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(valid > 0, chaotic / np.maximum(valid, 1), np.nan)
+        return _fraction(self.exponent, self.threshold)
 
     @property
     def mean_exponent(self) -> np.ndarray:
@@ -264,9 +261,7 @@ class ChaosJob(GridJob):
         totals = run.totals(CHUNK_STATS)
         info = run.info
         stats = {
-            "trajectories": int(totals["trajectories"]), "failed": int(totals["failed"]),
-            "unreachable": int(totals["unreachable"]), "steps": int(totals["steps"]),
-            "rejected": int(totals["rejected"]), "wall_time": info["wall_time"],
+            **{k: int(totals[k]) for k in CHUNK_STATS if k != "wall_time"}, "wall_time": info["wall_time"],
             "workers": info["workers"], "rows_resumed": info["chunks_resumed"], "rows_computed": info["chunks_computed"],
             "rows_repaired": info["chunks_repaired"], "store": info["store"], "scheduler": info["scheduler"],
             "fingerprint": info["fingerprint"],
@@ -340,8 +335,7 @@ def chaos_diagram(
     if np.any(np.abs(alphas) > 2 * math.pi):
         raise ParameterError("alpha values must be angles in radians within [-2 pi, 2 pi]")
     t_end, renorm_every, transient = check_times(t_end, renorm_every, transient)
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 1 <= samples <= 100_000:
-        raise ParameterError(f"samples must be a whole number from 1 to 100000, got {samples!r}")
+    samples = whole("samples", samples, 1, 100_000)
     rtol, atol = tolerances(rtol, atol)
     max_steps = check_max_steps(max_steps)
     workers = check_run_options(workers=workers, scheduler=scheduler, store=store, resume=resume, progress=progress,
@@ -417,8 +411,7 @@ def _grid(name, values, n, lo, hi, *, lo_open: bool) -> np.ndarray:
         if np.any(np.diff(arr) <= 0):
             raise ParameterError(f"{name} values must be increasing")
         return arr
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 1000:
-        raise ParameterError(f"n_{name} must be a whole number from 1 to 1000, got {n!r}")
+    n = whole(f"n_{name}", n, 1, 1000)
     if lo_open:
         return lo + (hi - lo) * np.arange(1, n + 1) / n
     return np.linspace(lo, hi, n) if n > 1 else np.array([lo])
@@ -427,28 +420,14 @@ def _grid(name, values, n, lo, hi, *, lo_open: bool) -> np.ndarray:
 def open_chaos_diagram(path) -> ChaosDiagram:
     """A :class:`ChaosDiagram` read back from a complete store ``*.zarr`` or a file ``*.nc``
     (:meth:`ChaosDiagram.to_netcdf`)."""
-    from pathlib import Path
-
+    from ..numeric.grid import read_grid_result
     from ..results import grid_status
 
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".zarr":
-        from ..numeric.grid import read_store
-
-        arrays, attrs = read_store(STORE_KIND, path, what="a chaos diagram")
-        stats_key, params_key = "chaos_diagram_stats", "chaos_diagram_params"
-    elif suffix == ".nc":
-        from ..io import read_netcdf
-
-        arrays, attrs = read_netcdf(path, kind=ChaosDiagram.result_kind)
-        stats_key, params_key = "stats", "params"
-    else:
-        raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
+    arrays, attrs, settings, stats = read_grid_result(path, store_kind=STORE_KIND, result_kind=ChaosDiagram.result_kind,
+                                                      what="a chaos diagram", store_keys=("settings", "chaos_diagram_stats"))
     try:
-        settings = json.loads(attrs["settings"])
-        stats = json.loads(attrs.get(stats_key, "{}"))
-        params = Parameters.from_mapping(json.loads(attrs[params_key]) if params_key in attrs else settings["params"])
+        given = attrs.get("chaos_diagram_params") or attrs.get("params")  # the store's, the file's
+        params = Parameters.from_mapping(json.loads(given) if given else settings["params"])
         exponent = np.asarray(arrays["exponent"], dtype=float)
         threshold = float(settings["threshold"])
     except (KeyError, TypeError, ValueError) as exc:

@@ -11,10 +11,8 @@ well-known fractal picture; here it is computed for any skew, any bodies and any
 One job on the grid driver (:class:`FlipJob`, a :class:`~skewpend.numeric.grid.PlaneJob` as the region of
 attraction's): every cell integrated by DOP853 (as ``simulate``'s default method) in compiled code, stopped
 at its flip, located on the 7th-order dense output of the step in which an angle reaches pi (not at the
-first step past it); rows of cells on every core, or as tasks on a Dask cluster, bitwise the same result
-whatever the chunking, the workers or the cluster.  How the cells are integrated is a *strategy*, chosen by
-what the model's kernel can print (:func:`flip_kernel`, as :func:`skewpend.analysis.roa.roa_kernel`
-chooses), never by the model's type:
+first step past it).  How the cells are integrated is a *strategy*, chosen by what the model's kernel can
+print (:func:`flip_kernel`, as :func:`skewpend.analysis.roa.roa_kernel` chooses), never by the model's type:
 
 * **lanes** -- the flip kernel (``sp_flip`` in ``integrators.c``; the specification's derivation, the
   double pendulum's today): ``SP_LANES`` starts side by side in SIMD registers, on a trigonometry-free
@@ -42,26 +40,12 @@ chooses), never by the model's type:
 ``shortcuts=False`` turns off the energy bound and the symmetry (every cell integrated), for
 checking them.
 
-Stored, resumable and distributed runs (``store=``, ``resume=``, ``scheduler=``; the
-``cluster`` extra, Zarr and dask.distributed, imported only then):
-
-* the work is cut along whole rows: each row with its mirror row (one integration serves
-  both), grouped into about 16 units per worker thread -- units run on the local thread
-  pool, or in batches as tasks on a Dask cluster (at most
-  :data:`~skewpend.numeric.ensemble.MAX_TASKS` tasks; the workers compile or load the kernel
-  themselves, and the results come back to this process);
-* a unit computes exactly the cells, with exactly the arithmetic, of the in-memory map, so
-  the result is bitwise the same whatever the chunking, the workers or the cluster;
-* the store (:class:`~skewpend.numeric.store.RowStore`, a ``*.zarr`` directory, of one kind for
-  every model) is cut into chunks of whole rows, at most 65536 cells and at least 8 chunks by
-  default, a divisor of ``n`` so that mirror chunks are chunks: its template (arrays,
-  coordinates, the settings and their SHA-256 fingerprint, :func:`flip_settings` /
-  :func:`fingerprint`) is written first, then each chunk once all its rows are in, its ``done``
-  flag last.  ``resume=True`` computes only the rows of chunks not done, and refuses a store
-  made with other settings, naming what differs;
-* :func:`open_flip_map` reads a complete store (or a NetCDF file written by
-  :meth:`FlipMap.to_netcdf`) back into a :class:`FlipMap` -- also the chain flip maps that
-  skewpend wrote before the two were one (kind ``chain flip map``).
+Stored, resumable and distributed runs (``store=``, ``resume=``, ``scheduler=``; the ``cluster`` extra) are
+the grid driver's (:func:`skewpend.numeric.grid.run_grid`), bitwise the same whatever the chunking, the workers
+or the cluster: the work is cut along whole rows, each with its mirror row (:func:`row_groups`), the store
+into chunks of whole rows dividing ``n`` (:func:`chunk_rows`) so that mirror chunks are chunks, its settings
+fingerprinted (:func:`flip_settings`, :func:`fingerprint`).  :func:`open_flip_map` reads a complete store or
+NetCDF file back -- also the chain flip maps that skewpend wrote before the two were one (kind ``chain flip map``).
 """
 
 from __future__ import annotations
@@ -72,7 +56,6 @@ import os
 import re
 import warnings
 from dataclasses import dataclass
-from functools import cached_property
 from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -92,7 +75,6 @@ __all__ = ["flip_map", "flip_time", "FlipOfStart", "FlipMap", "FlipJob", "open_f
 _BARRIER_SAMPLES = 4097
 #: Safety margin of the energy bound, relative to the potential's scale.
 BARRIER_MARGIN = 1e-9
-_BARRIER_MARGIN = BARRIER_MARGIN
 #: The store's kind (its attribute ``kind``): stores of anything else are refused.
 STORE_KIND = "skewpend flip map"
 #: What skewpend wrote for a chain's flip map before the two were one: the result kind of its files and
@@ -207,12 +189,8 @@ class FlipMap(Result):
         the settings and statistics one by one (numbers, strings and lists only, so NetCDF and Zarr take
         them), the plane and the held angles."""
         attrs: Dict[str, Any] = {"title": FlipJob.title}
-        for group in (self.settings, self.stats):
-            for key, value in group.items():
-                if value is None:
-                    continue
-                attrs[key] = int(value) if isinstance(value, bool) else (list(value) if isinstance(value, tuple)
-                                                                         else value)
+        attrs.update({key: int(value) if isinstance(value, bool) else list(value) if isinstance(value, tuple) else value
+                      for group in (self.settings, self.stats) for key, value in group.items() if value is not None})
         attrs["plane"], attrs["held"] = ",".join(self.plane), [float(v) for v in self.held]
         attrs.update(self._base_attrs())
         attrs["flip_map_settings"] = canonical_json(self.settings)
@@ -244,29 +222,22 @@ def open_flip_map(path) -> FlipMap:
     store whose run has not finished, or that is damaged, is refused (resume it first)."""
     from pathlib import Path
 
-    from ..results import grid_status
+    from ..numeric.grid import read_grid_result
+    from ..results import grid_status, netcdf_kind, zarr_store_kind
     from ..symbolic.model import model_from_mapping
 
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix == ".zarr":
-        from ..numeric.grid import read_store
-
-        kind = _former_store(path) or STORE_KIND
-        arrays, attrs = read_store(kind, path, what="a flip map")
-        keys = ("flip_settings", "flip_stats") if kind == FORMER_STORE_KIND else ("flip_map_settings", "flip_map_stats")
-    elif suffix == ".nc":
-        from ..io import read_netcdf
-        from ..results import netcdf_kind
-
-        kind = FORMER_KIND if path.is_file() and netcdf_kind(path) == FORMER_KIND else FlipMap.result_kind
-        arrays, attrs = read_netcdf(path, kind=kind)
-        keys = ("settings", "stats")
-    else:
-        raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
-    former = kind in (FORMER_KIND, FORMER_STORE_KIND)
+    try:  # a store or file of the former kind (else the reader says what is wrong with it)
+        former = ((suffix == ".zarr" and path.is_dir() and zarr_store_kind(path) == FORMER_STORE_KIND)
+                  or (suffix == ".nc" and path.is_file() and netcdf_kind(path) == FORMER_KIND))
+    except ParameterError:
+        former = False
+    arrays, attrs, settings, stats = read_grid_result(
+        path, store_kind=FORMER_STORE_KIND if former else STORE_KIND,
+        result_kind=FORMER_KIND if former else FlipMap.result_kind, what="a flip map",
+        store_keys=("flip_settings", "flip_stats") if former else ("flip_map_settings", "flip_map_stats"))
     try:
-        settings, stats = (json.loads(attrs[k]) for k in keys)
         params = model_from_mapping(json.loads(attrs["params"]))
         coordinates = tuple(params.coordinates)
         plane = tuple(settings.get("plane") or coordinates[:2])
@@ -289,17 +260,6 @@ def open_flip_map(path) -> FlipMap:
     status, message = grid_status(int(stats.get("failed", 0)), flip_time.size, "cells")
     return FlipMap(plane=(str(plane[0]), str(plane[1])), x0=x0, y0=y0, held=held, flip_time=flip_time, which=which,
                    params=params, settings=settings, stats=stats, status=status, message=message)
-
-
-def _former_store(path) -> Optional[str]:
-    """:data:`FORMER_STORE_KIND` if ``path`` is a store of that kind, else None (the reader then says
-    what is wrong with it)."""
-    from ..results import zarr_store_kind
-
-    try:
-        return FORMER_STORE_KIND if os.path.isdir(path) and zarr_store_kind(path) == FORMER_STORE_KIND else None
-    except ParameterError:
-        return None
 
 
 @dataclass(frozen=True)
@@ -510,7 +470,7 @@ def flip_map(
         symmetric = bool(kernel.flip_odd and not np.any(p[torques]) and not np.any(q)
                          and ra[0] == -ra[1] and rb[0] == -rb[1])
         barrier, scale = energy_barrier(kernel, p)
-        threshold = barrier - _BARRIER_MARGIN * max(scale, 1e-300)
+        threshold = barrier - BARRIER_MARGIN * max(scale, 1e-300)
     job = FlipJob(params=params, n=n, plane=(a, b), x_range=ra, y_range=rb, held=tuple(float(v) for v in q),
                   t_end=t_end, rtol=rtol, atol=atol, max_steps=int(max_steps), symmetric=symmetric,
                   threshold=threshold, version=__version__, kernel_name=kernel.path.name, shortcuts=bool(shortcuts),
@@ -737,16 +697,10 @@ class FlipJob(PlaneJob):
         kernel = self.checked_kernel(flip_kernel(self.params))
         return self.state(kernel, model_vector(self.params, kernel.form))
 
-    @cached_property
-    def _axes(self) -> Tuple[int, int]:
-        i, j = (tuple(self.params.coordinates).index(c) for c in self.plane)
-        return i, j
-
     def positions(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Starts as angles ``(m, nq)``: the held angles, the plane's two ``x`` and ``y``."""
-        i, j = self._axes
-        q = np.empty((len(x), len(self.held)))
-        q[:] = self.held
+        i, j = (tuple(self.params.coordinates).index(c) for c in self.plane)
+        q = np.tile(np.asarray(self.held, dtype=float), (len(x), 1))
         q[:, i], q[:, j] = x, y
         return q
 
@@ -800,10 +754,8 @@ class FlipJob(PlaneJob):
         stats[:, 0] = np.bincount(at, minlength=m)
         stats[:, 2] = np.bincount(pos[mirror // n], minlength=m)
         stats[:, 1] = n - stats[:, 0] - stats[:, 2]
-        stats[:, 3] = np.bincount(at, weights=bad, minlength=m)
-        stats[:, 4] = np.bincount(at, weights=out.steps, minlength=m)
-        stats[:, 5] = np.bincount(at, weights=out.rejected, minlength=m)
-        stats[:, 6] = np.bincount(at, weights=lived, minlength=m)
+        for col, weights in enumerate((bad, out.steps, out.rejected, lived), start=3):
+            stats[:, col] = np.bincount(at, weights=weights, minlength=m)
         return {"flip_time": time_, "which": which}, stats
 
     def result(self, run) -> FlipMap:

@@ -39,10 +39,12 @@ import numpy as np
 
 from ..errors import IntegrationError, ParameterError
 from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_model, numeric_params, tolerances
+from ..checks import progress_callable, whole
 from ..interrupts import Interrupts
 from ..numeric.driver import check_step_estimate, drive
 from ..numeric.grid import GridJob
 from ..results import DatasetSpec, Result, canonical_json, netcdf_reader, normal_quantile, protocol_fields, t_quantile
+from ..schema import state_coordinates
 from ..status import Status
 from ..parsing import initial_state, positive_number
 from ..symbolic.model import AnyModel
@@ -194,18 +196,11 @@ class LyapunovSpectrum(Result):
                 "interval": (("k",), self.interval, {"units": "1/s", "long_name": "half-width of the 95 % interval"}),
                 "history": (("time", "k"), self.history, {"units": "1/s", "long_name": "running estimate"}),
                 "window_exponent": (("window", "k"), self.window_exponents, {"units": "1/s"}),
-                "y0": (("state",), self.y0, {"long_name": "initial state (" + ", ".join(self._state_names()) + ")"}),
+                "y0": (("state",), self.y0, {"long_name": "initial state (" + ", ".join(state_coordinates(self.y0.size // 2)) + ")"}),
             },
             coords={"k": (("k",), k, {}), "time": (("time",), self.t, {"units": "s"})},
-            attrs={"title": f"Lyapunov spectrum of {self._what()} (skewpend)", **self._base_attrs()},
+            attrs={"title": f"Lyapunov spectrum of {self.params.title} (skewpend)", **self._base_attrs()},
         )
-
-    def _state_names(self):
-        names = getattr(self.params, "coordinates", ("phi", "psi"))
-        return list(names) + [f"d{c}" for c in names]
-
-    def _what(self) -> str:
-        return self.params.title
 
     def to_dict(self) -> Dict[str, Any]:
         """Plain data (JSON-ready): exponents, uncertainties, settings, statistics, parameters."""
@@ -236,8 +231,6 @@ def read_lyapunov_spectrum(path, variables, attrs) -> LyapunovSpectrum:
         t=np.asarray(variables["time"], dtype=float), history=np.asarray(variables["history"], dtype=float),
         window_exponents=np.asarray(variables["window_exponent"], dtype=float), y0=np.asarray(variables["y0"], dtype=float),
         **protocol_fields(path, attrs, AnyModel))
-
-
 
 
 def _longer(seconds: float) -> float:
@@ -388,10 +381,8 @@ def lyapunov(
                              f"got {n_exponents!r}")
     rtol, atol = tolerances(rtol, atol)
     max_steps = check_max_steps(max_steps)
-    if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or not 1 <= windows <= 1000:
-        raise ParameterError(f"windows must be a whole number from 1 to 1000, got {windows!r}")
-    if progress is not None and not callable(progress):
-        raise ParameterError("progress must be a callable progress(t, t_end)")
+    windows = whole("windows", windows, 1, 1000)
+    progress_callable(progress, "progress(t, t_end)")
     k = int(n_exponents)
 
     kernel = model_kernel(params, chaos=True)
@@ -401,12 +392,8 @@ def lyapunov(
     check_start(kernel, p, y, model_vector_names(params))
     state = kernel.LyapState()
     state.k, state.every, state.t0 = k, renorm_every, 0.0
-    for i in range(n2):
-        state.y[i] = float(y[i])
     tangent = np.eye(n2)[:, :k] if k > 1 else np.full((n2, 1), 1.0 / math.sqrt(n2))
-    for j in range(k):
-        for r in range(n2):
-            state.y[n2 + n2 * j + r] = float(tangent[r, j])
+    state.y[:n2 * (k + 1)] = np.concatenate([y, tangent.T.ravel()]).tolist()  # the state, then each vector
 
     # the measured part: renormalisations after the transient, cut into windows of whole intervals
     n_total = int(math.ceil(t_end / renorm_every * (1 - 1e-12)))
@@ -439,17 +426,14 @@ def lyapunov(
             renorms += 1
             t = float(row[0])
             if renorms <= n_skip:
-                t_from = t_last = t
-                t_prev_row = t
+                t_from = t_last = t_prev_row = t
                 continue
             logs = row[1:]
             total[:] += logs
-            w = int(np.searchsorted(bounds, seen, side="right") - 1)
-            w = min(w, n_win - 1)
+            w = min(int(np.searchsorted(bounds, seen, side="right") - 1), n_win - 1)
             win_sum[w] += logs
             win_time[w] += t - t_prev_row
-            t_prev_row = t
-            t_last = t
+            t_prev_row = t_last = t
             seen += 1
             if seen % stride == 0 or seen == n_meas:
                 hist_t.append(t)

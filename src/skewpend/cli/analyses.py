@@ -212,22 +212,11 @@ def _write_lyapunov(spec, out: str) -> None:
 
     with atomic_path(out) as tmp:
         if out.lower().endswith(".json"):
-            tmp.write_text(json.dumps(_finite(spec.to_dict()), indent=2, allow_nan=False) + "\n")
+            tmp.write_text(json.dumps(spec.to_dict(), indent=2, allow_nan=False) + "\n")  # to_dict: NaN as null
         else:
             header = "t," + ",".join(f"lambda_{i + 1}" for i in range(spec.k))
             np.savetxt(tmp, np.column_stack([spec.t, spec.history]), delimiter=",", header=header, comments="",
                        fmt="%.17g")
-
-
-def _finite(data):
-    """JSON data with every non-finite number as null (strict JSON has no NaN)."""
-    import math
-
-    if isinstance(data, dict):
-        return {k: _finite(v) for k, v in data.items()}
-    if isinstance(data, (list, tuple)):
-        return [_finite(v) for v in data]
-    return None if isinstance(data, float) and not math.isfinite(data) else data
 
 
 class Direction(str, Enum):
