@@ -54,6 +54,7 @@ from typing import Any, ClassVar, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ..errors import ParameterError
+from ..numeric.conventions import TENSOR_ENTRIES, TENSOR_INDICES
 from ..results import DatasetSpec, Result, agree, json_attr, netcdf_reader, protocol_fields
 from ..status import Status
 from ..config import parameters_toml
@@ -96,6 +97,7 @@ EXTRA = names(stem="cf") + names(stem="Ir")
 _NOT_LINEAR = CORE_NAMES + tuple(n for n in FRICTION_NAMES + ROTOR_NAMES if n not in EXTRA) + GEOMETRY_NAMES + TORQUE_NAMES
 
 _BASE_CACHE: Dict[Tuple, Any] = {}
+_PI_INDEX = {n: j for j, n in enumerate(PI_NAMES)}
 
 
 def standard_vector(params: Parameters) -> np.ndarray:
@@ -116,9 +118,8 @@ class _Terms:
         self.B = B
         self.extra = tuple(n for n in EXTRA if getattr(params, n))
         self.names = tuple(B.names) + self.extra
-        self.pivots, self.unidentifiable, self.matrix_at = B.pivots, B.unidentifiable, B.matrix_at
+        self.unidentifiable = B.unidentifiable
         self.expressions = tuple(B.expressions) + tuple(sp.Symbol(n) for n in self.extra)
-        self.symbolic_regressor = B.symbolic_regressor
         self._fx = None
         if self.extra:
             from ..symbolic.derivation import derive
@@ -131,7 +132,6 @@ class _Terms:
             Yx = lhs.jacobian([syms[n] for n in self.extra]).applyfunc(sp.expand)
             if any(str(x) in self.extra for x in Yx.free_symbols):
                 raise AssertionError("the equations are not linear in the friction and rotor terms")
-            self.symbolic_regressor = B.symbolic_regressor.row_join(Yx)
             self._fx = lambdify_columns(Yx)
 
     @property
@@ -211,16 +211,18 @@ class Identification(Result):
 
     result_kind: ClassVar[str] = "identification"
 
-    @property
-    def heldout_median(self) -> float:
-        """The median over held-out angle pieces of each piece's RMS, fitted model [rad]."""
-        r = [x for x, k in zip(self.heldout_rms, self.heldout_kind) if k == "angle"]
+    def _median(self, rms) -> float:
+        r = [x for x, k in zip(rms, self.heldout_kind) if k == "angle"]
         return float(np.median(r)) if r else math.nan
 
     @property
+    def heldout_median(self) -> float:
+        """The median over held-out angle pieces of each piece's RMS, fitted model [rad]."""
+        return self._median(self.heldout_rms)
+
+    @property
     def heldout_median0(self) -> float:
-        r = [x for x, k in zip(self.heldout_rms0, self.heldout_kind) if k == "angle"]
-        return float(np.median(r)) if r else math.nan
+        return self._median(self.heldout_rms0)
 
     @property
     def heldout_overall(self) -> float:
@@ -396,7 +398,9 @@ def read_identification(path, variables, attrs) -> Identification:
     values = np.asarray(variables["value"], dtype=float)
     intervals = np.column_stack([np.asarray(variables["lower"], dtype=float), np.asarray(variables["upper"], dtype=float)])
     alpha_iv = numbers("alpha_interval") or [math.nan, math.nan]
-    get = lambda key: np.asarray(variables[key], dtype=float) if key in variables else np.zeros(0)  # noqa: E731
+    def get(key, empty=(0,)):
+        return np.asarray(variables[key], dtype=float) if key in variables else np.zeros(empty)
+
     result = Identification(
         params0=params0, names=names("base_names"), expressions=names("base_expressions"), values=values,
         intervals=intervals, free=names("free"), reference=str(attrs.get("reference", "")) or None, ratios=ratios,
@@ -406,10 +410,7 @@ def read_identification(path, variables, attrs) -> Identification:
         method=str(attrs.get("method", "linear")), fit_rms=get("fit_rms"),
         alpha=float(attrs.get("alpha", math.nan)), alpha_interval=(alpha_iv[0], alpha_iv[-1]),
         alpha_note=str(attrs.get("alpha_note", "")),
-        profile_alpha=np.asarray(variables["profile"], dtype=float) if "profile" in variables else np.zeros(0),
-        profile_cost=get("profile_cost"),
-        correlation=np.asarray(variables["correlation"], dtype=float) if "correlation" in variables else np.zeros((0, 0)),
-        **proto)
+        profile_alpha=get("profile"), profile_cost=get("profile_cost"), correlation=get("correlation", (0, 0)), **proto)
     if result.status is Status.SUCCESS and "nearest physical body" not in result.message and len(values):
         freed = (result.settings.get("angle") or "alpha") if result.settings.get("alpha_free") else None
         B = _basis(params0, freed)
@@ -443,27 +444,34 @@ def _window(dt: float, smoothing: float) -> int:
     return max(w, ORDER + 3 - (ORDER % 2))  # at least order + 2, odd
 
 
-def _filtered(piece: Piece, smoothing: float):
-    """Uniform grid, smoothed q, q', q'', torques, with the edges dropped; and the window."""
+def _uniform(piece: Piece, step: Optional[float] = None):
+    """``(t, q, u, dt)``: the piece on a uniform grid of ``step`` (default its median step), uneven or
+    other steps resampled by cubic interpolation."""
     from scipy.interpolate import CubicSpline
-    from scipy.signal import savgol_filter
 
     t, q, u = np.asarray(piece.t, float), np.asarray(piece.q, float), piece.u
+    u = None if u is None else np.asarray(u, float)
     d = np.diff(t)
-    dt = float(np.median(d))
-    if d.max() - d.min() > 1e-6 * dt:  # uneven: resample onto the median step, cubic
+    dt = float(np.median(d)) if step is None else float(step)
+    if d.max() - d.min() > 1e-6 * dt or abs(float(np.median(d)) - dt) > 1e-6 * dt:
         grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
         q = CubicSpline(t, q, axis=0)(grid)
-        u = None if u is None else CubicSpline(t, np.asarray(u, float), axis=0)(grid)
+        u = None if u is None else CubicSpline(t, u, axis=0)(grid)
         t = grid
+    return t, q, u, dt
+
+
+def _filtered(piece: Piece, smoothing: float):
+    """Uniform grid, smoothed q, q', q'', torques, with the edges dropped; and the window."""
+    from scipy.signal import savgol_filter
+
+    t, q, u, dt = _uniform(piece)
     w = _window(dt, smoothing)
     if len(t) < 2 * w + ORDER:
         raise ParameterError(f"piece {piece.name!r} has {len(t)} samples, too few for the smoothing window of "
                              f"{w} samples ({smoothing:g} s): pass a smaller smoothing or drop the piece")
-    qs = savgol_filter(q, w, ORDER, axis=0)
-    dq = savgol_filter(q, w, ORDER, deriv=1, delta=dt, axis=0)
-    ddq = savgol_filter(q, w, ORDER, deriv=2, delta=dt, axis=0)
-    us = None if u is None else savgol_filter(np.asarray(u, float), w, ORDER, axis=0)
+    qs, dq, ddq = (savgol_filter(q, w, ORDER, deriv=k, delta=dt, axis=0) for k in range(3))
+    us = None if u is None else savgol_filter(u, w, ORDER, axis=0)
     e = w // 2
     s = slice(e, len(t) - e)
     return t[s], qs[s], dq[s], ddq[s], (None if us is None else us[s]), w, dt
@@ -570,8 +578,7 @@ def _solve(G, b, homogeneous, k):
     """Least squares from the normal equations: homogeneous -> eigenvector of the smallest
     eigenvalue normalised so entry k is 1."""
     if homogeneous:
-        lam, vec = np.linalg.eigh(G)
-        v = vec[:, 0]
+        v = np.linalg.eigh(G)[1][:, 0]
         return v / v[k]
     return np.linalg.solve(G, b)
 
@@ -603,19 +610,16 @@ def _linear(measurements: Measurements, params0, basis, *, free: Optional[Sequen
     k = next((j for j, n in enumerate(names) if _stem(n) == _stem(REFERENCE)), 0)
 
     # 1-2: filtered signals and the base regressor, per piece
-    rows: List[np.ndarray] = []
-    rhs: List[np.ndarray] = []
-    times: List[np.ndarray] = []
-    windows = set()
+    rows, rhs, times, torques, windows = [], [], [], [], set()
     for p in measurements:
         tf, q, dq, ddq, u, w, _ = _filtered(p, smoothing)
         times.append(tf)
+        torques.append(u)
         windows.add(w)
         Y = B.rows(q, dq, ddq, angle)  # (N, n, r)
         tau = np.zeros(q.shape) if u is None else u
-        tau = tau - np.einsum("nij,j->ni", Y[:, :, xi], beta0[xi]) if xi else tau
         rows.append(Y)
-        rhs.append(tau)
+        rhs.append(tau - np.einsum("nij,j->ni", Y[:, :, xi], beta0[xi]) if xi else tau)
     samples = int(sum(len(Y) for Y in rows))
     settings = {"method": "linear (inverse dynamics on Savitzky-Golay filtered signals)",
                 "smoothing": smoothing, "order": ORDER, "windows": sorted(windows), "free": list(free_names),
@@ -633,11 +637,10 @@ def _linear(measurements: Measurements, params0, basis, *, free: Optional[Sequen
                   undetermined=tuple(undetermined), not_entering=not_entering,
                   pieces=tuple(p.name for p in measurements), settings=settings)
 
-    def failed(message: str, status: Status = Status.NO_CONVERGENCE, **extra) -> Identification:
-        stats = {"seconds": time.perf_counter() - t_start, "samples": samples}
-        data = {"values": np.full(len(names), np.nan), "intervals": np.full((len(names), 2), np.nan),
-                **common, **extra}
-        return Identification(params=params0, status=status, message=message, stats=stats, **data)
+    def failed(message: str) -> Identification:
+        data = {"values": np.full(len(names), np.nan), "intervals": np.full((len(names), 2), np.nan), **common}
+        return Identification(params=params0, status=Status.NO_CONVERGENCE, message=message,
+                              stats={"seconds": time.perf_counter() - t_start, "samples": samples}, **data)
 
     # rank: singular values of the column-scaled free regressor
     Yf = np.concatenate([Y[:, :, fi] for Y in rows]).reshape(-1, len(fi))
@@ -692,14 +695,9 @@ def _linear(measurements: Measurements, params0, basis, *, free: Optional[Sequen
             half = np.maximum(half, t_quantile(0.975, n_cl - 1) * sd)
             settings["bootstrap_used"] = len(draws)
     # in params0's units: free swing scaled by params0's reference
-    values = beta0.copy()
-    halves = np.zeros(len(names))
-    if homogeneous:
-        values[fi] = x * beta0[k]
-        halves[fi] = half * abs(beta0[k])
-    else:
-        values[fi] = x
-        halves[fi] = half
+    ref_value = beta0[k] if homogeneous else 1.0
+    values, halves = beta0.copy(), np.zeros(len(names))
+    values[fi], halves[fi] = x * ref_value, half * abs(ref_value)
     intervals = np.column_stack([values - halves, values + halves])
     if homogeneous:  # the scale is params0's: no interval
         intervals[k] = (math.nan, math.nan)
@@ -710,12 +708,9 @@ def _linear(measurements: Measurements, params0, basis, *, free: Optional[Sequen
                 ratios[f"{n}/{names[k]}"] = float(x[j])
                 ratio_iv[f"{n}/{names[k]}"] = (float(x[j] - half[j]), float(x[j] + half[j]))
     resid = []
-    for Y, p in zip(rows, measurements):
-        tau = np.zeros(Y.shape[:2]) if p.u is None else None
+    for Y, u in zip(rows, torques):  # driven: compared with the filtered torques
         pred = np.einsum("nij,j->ni", Y, values)
-        if tau is None:  # driven: compare with the filtered torques
-            tau = _filtered(p, smoothing)[4]
-        resid.append(float(np.sqrt(np.mean((pred - tau) ** 2))))
+        resid.append(float(np.sqrt(np.mean((pred - (0.0 if u is None else u)) ** 2))))
     common.update(values=values, intervals=intervals, reference=names[k] if homogeneous else None, ratios=ratios,
                   ratio_intervals=ratio_iv, residual_rms=np.array(resid))
 
@@ -1021,8 +1016,6 @@ def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False, 
     ``project``: each inertia about the centre of mass replaced by the nearest physical one (negative
     principal moments raised to 0, then the two smaller raised alike to meet the triangle inequality).
     ``as_is``: every entry ``pi``'s own (a body the fit over physical bodies made)."""
-    from ..numeric.conventions import TENSOR_ENTRIES, TENSOR_INDICES
-
     at = dict(zip(terms.pi_names, pi))
     links = []
     for i, link in enumerate(chain0.links, start=1):
@@ -1170,19 +1163,13 @@ class _Exact:
 
     def model_of(self, model0, pi, angle: float):
         """The model of a physical fit's standard vector ``pi`` (bodies as masses, centres and inertias)."""
-        idx = {n: j for j, n in enumerate(PI_NAMES)}
-        changes: Dict[str, Any] = {n: float(pi[idx[n]]) for n in DAMPING_NAMES}
+        changes: Dict[str, Any] = {n: float(pi[_PI_INDEX[n]]) for n in DAMPING_NAMES}
         changes.update({x: float(v) for x, v in zip(self.terms.extra, pi[len(PI_NAMES):])})
         for i in (1, 2):
-            m = float(pi[idx[f"m{i}"]])
-            c = np.array([pi[idx[f"h{i}{x}"]] for x in "xyz"]) / m
-            J = np.empty((3, 3))
-            for p, (r, s_) in zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
-                J[r, s_] = J[s_, r] = pi[idx[f"J{i}{p}"]]
-            ic = J - m * (c @ c * np.eye(3) - np.outer(c, c))
+            m = float(pi[_PI_INDEX[f"m{i}"]])
+            c, _, ic = _body(pi, i, m)
             changes[f"m{i}"] = m
-            changes[f"com{i}"] = tuple(float(v) for v in c)
-            changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))
+            changes.update(_body_changes(i, c, ic))
         if self.angle:
             changes["alpha"] = float(angle)
         return model0.replace(**changes)
@@ -1234,8 +1221,6 @@ class _Recursive:
         """``beta`` with the held inertia entries (the data do not determine them here) taken from ``model0``'s own
         inertia about each body's new centre of mass, as the double pendulum's realisation holds them (held about
         the hinge, a centre moved by the fit would leave a slender rod no body)."""
-        from ..numeric.conventions import TENSOR_ENTRIES, TENSOR_INDICES
-
         rows = [k for k, n in enumerate(self.names) if n in held and n.startswith("J")]
         if not rows:
             return np.asarray(beta, float)
@@ -1318,18 +1303,9 @@ def _angle_words(name: str) -> str:
 def _signals(piece: Piece, smoothing: float, step: Optional[float] = None):
     """A piece on a uniform grid of ``step`` (default its median step): ``(t, q, q_smooth,
     dq_smooth, u)`` (the whole length; smoothed start states for the shooting nodes)."""
-    from scipy.interpolate import CubicSpline
     from scipy.signal import savgol_filter
 
-    t, q, u = np.asarray(piece.t, float), np.asarray(piece.q, float), piece.u
-    u = None if u is None else np.asarray(u, float)
-    d = np.diff(t)
-    dt = float(np.median(d)) if step is None else float(step)
-    if d.max() - d.min() > 1e-6 * dt or abs(float(np.median(d)) - dt) > 1e-6 * dt:
-        grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
-        q = CubicSpline(t, q, axis=0)(grid)
-        u = None if u is None else CubicSpline(t, u, axis=0)(grid)
-        t = grid
+    t, q, u, dt = _uniform(piece, step)
     w = min(_window(dt, smoothing), len(t) - (len(t) + 1) % 2)
     qs = savgol_filter(q, w, ORDER, axis=0)
     dqs = savgol_filter(q, w, ORDER, deriv=1, delta=dt, axis=0)
@@ -1357,6 +1333,8 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
     start_y0 = seg.y0.copy()
     spans = [(float(s[0][0]), float(s[0][-1])) for s in signals]
     cl, n_cl, cl_text = clusters(seg.piece, seg.t0, spans)
+    freed = tuple(lin.free) + tuple(lin.settings.get("bounded", ()))  # (the linear estimate's bound freed again)
+    stems = {_stem(n) for n in freed}
     settings = dict(lin.settings)
     settings.update(method="output-error (multiple shooting, RK4 with exact sensitivities)", segment=segment, angles=angles,
                     step=seg.h, segments=len(seg), alpha_free=angle_free, angle=angle or basis.name,
@@ -1367,7 +1345,6 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
         names = B.names
         # the linear estimate starts the fit; where it is not physical (noisy accelerations), params0 does
         beta0 = np.asarray(lin.values if lin.status is Status.SUCCESS else B.beta(B.pi_ext(params0), alpha0), float)
-        freed = set(lin.free) | set(lin.settings.get("bounded", ()))  # (the linear estimate's bound freed again)
         free = [n for n in names if n in freed and n != ref]
     else:
         B = _basis(params0, angle)  # every tilt: the generic base parameters
@@ -1384,7 +1361,6 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
         q, dq, ddq = sample_states(40, 0, params0.n)
         A = B.rows(q, dq, ddq, alpha0).reshape(-1, len(names))
         det = [names[j] for j in independent_columns(A, range(len(names)))]
-        stems = {_stem(n) for n in tuple(lin.free) + tuple(lin.settings.get("bounded", ()))}
         free = [n for n in names if n in det and _stem(n) in stems and n != ref]
 
         def refree(alpha: float) -> None:
@@ -1395,7 +1371,6 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
             free[:] = [n for n in names if n in det and (_stem(n) in stems or n not in lin_names) and n != ref]
 
         lin_names = set(lin.names)
-    held = [n for n in names if n not in free and n != ref]
     # the start: the linear estimate where it is usable, else params0 (said in the message).  At a
     # nonzero skew with noisy accelerations the linear estimate can be far off or no body at all; the
     # start whose segments miss the data less (before any iteration) is taken
@@ -1461,13 +1436,12 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
                     h = float(sf.half[-1])
                     est = float(sf.alpha)
                     if "mirror" in note:  # reported on alpha0's side, as the skew search does
-                        est = alpha0 + (math.copysign(1.0, alpha0) if alpha0 != 0 else 1.0) * abs(est - alpha0)
+                        est = _start_side(est, alpha0)
                     alpha_hat, a_lo, a_hi = est, est - h, est + h
             else:
                 free[:] = kept
     at_bound = {b.split(" ")[0] for b in bounded}
     held = [n for n in names if n not in free and n != ref]
-    stems_freed = {_stem(f) for f in tuple(lin.free) + tuple(lin.settings.get("bounded", ()))}
     beta = sf.beta
     theta = dict(zip(sf.theta_names, sf.theta))
     half = dict(zip(sf.theta_names, sf.half))
@@ -1580,7 +1554,7 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
     if B.unidentifiable:
         undetermined.append("do not enter the equations: " + ", ".join(B.unidentifiable))
     # what the user freed: a parameter the user held is not a finding about the data
-    not_determined = [n for n in held if n not in at_bound and (all_free or _stem(n) in stems_freed)]
+    not_determined = [n for n in held if n not in at_bound and (all_free or _stem(n) in stems)]
     if not_determined:
         near = f" near {basis.name} = {math.degrees(alpha0):g} deg" if basis.name else ""
         undetermined.append(f"held at the start's values (the data do not determine them{near}): "
@@ -1663,8 +1637,7 @@ def consistency(cost: float, seg, measurements: Measurements, frame=None, what: 
     if not math.isfinite(r):
         return Consistency(False, "the fitted model's simulation is not finite", stats)
     if math.isfinite(noise) and noise > 0:
-        allow = max(CHI2_SIGMAS * math.sqrt(2.0 / n), NOISE_SLACK)
-        if r**2 <= noise**2 * (1.0 + allow):
+        if r**2 <= noise**2 * (1.0 + _allowance(n)):
             return Consistency(True, "", stats)
         times = f"{r / noise:.3g} times the data's noise ({noise:.3g} rad)"
     else:
@@ -1763,11 +1736,9 @@ def _fit_status(sf, status: Status, message: str) -> Tuple[Status, str]:
 
 
 def _oe_failed(lin: Identification, message: str, settings, t_start) -> Identification:
-    import dataclasses
-
     stats = dict(lin.stats)
     stats["seconds"] = time.perf_counter() - t_start
-    return dataclasses.replace(lin, status=Status.NO_CONVERGENCE, message=message, settings=settings, stats=stats,
+    return replace(lin, status=Status.NO_CONVERGENCE, message=message, settings=settings, stats=stats,
                                params=lin.params0, method="output-error")
 
 
@@ -1775,28 +1746,22 @@ def _heldout(fitted, params0, validation, smoothing, frame=None):
     """The held-out prediction of ``fitted`` and of ``params0``; ``fitted`` None (no fitted model: the
     fit failed): its figures are NaN, never params0's under the fit's name.  ``frame``: the angles the
     errors are measured in (:func:`skewpend.analysis.shooting.angle_frame`; None: the joint angles)."""
-    vnames, kinds, hr, hr0 = [], [], [], []
-    sq, sq0, count, count0 = 0.0, 0.0, 0, 0
-    if validation is not None:
-        for p in validation:
-            vnames.append(p.name)
-            kinds.append("angle")  # driven pieces too: simulated with their measured torques
-            e0 = _predict(params0, p, smoothing)
-            e1 = None if fitted is None else _predict(fitted, p, smoothing)
-            if frame is not None:
-                e0 = None if e0 is None else e0 @ frame.T
-                e1 = None if e1 is None else e1 @ frame.T
-            hr0.append(math.nan if e0 is None else float(np.sqrt(np.mean(e0**2))))
-            hr.append(math.nan if e1 is None else float(np.sqrt(np.mean(e1**2))))
-            if e0 is not None:
-                sq0, count0 = sq0 + float(np.sum(e0**2)), count0 + e0.size
-            if e1 is not None:
-                sq, count = sq + float(np.sum(e1**2)), count + e1.size
+    vnames, kinds, hr0, hr = [], [], [], []
+    sq, count = [0.0, 0.0], [0, 0]  # params0's, the fitted model's
+    for p in validation or ():
+        vnames.append(p.name)
+        kinds.append("angle")  # driven pieces too: simulated with their measured torques
+        for k, (model, rms) in enumerate(((params0, hr0), (fitted, hr))):
+            e = None if model is None else _predict(model, p, smoothing)
+            if e is not None and frame is not None:
+                e = e @ frame.T
+            rms.append(math.nan if e is None else float(np.sqrt(np.mean(e**2))))
+            if e is not None:
+                sq[k], count[k] = sq[k] + float(np.sum(e**2)), count[k] + e.size
     extra = {}
-    if count0 and all(math.isfinite(x) for x in hr0):
-        extra["heldout_overall0"] = math.sqrt(sq0 / count0)
-    if count and all(math.isfinite(x) for x in hr):
-        extra["heldout_overall"] = math.sqrt(sq / count)
+    for k, (key, rms) in enumerate((("heldout_overall0", hr0), ("heldout_overall", hr))):
+        if count[k] and all(math.isfinite(x) for x in rms):
+            extra[key] = math.sqrt(sq[k] / count[k])
     return vnames, kinds, hr, hr0, extra
 
 
@@ -1861,8 +1826,7 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
             est = sf.alpha
             note = ""
             if even:  # the mirror image fits as well: reported on alpha0's side (positive from 0)
-                side = math.copysign(1.0, alpha0) if alpha0 != 0 else 1.0
-                est = alpha0 + side * abs(est - alpha0)
+                est = _start_side(est, alpha0)
                 note = f"the sign of {name} - {start} is not determined (the mirror image fits as well)"
             # the profile with the fit's own point (the grid's fits stop after a few iterations: their
             # lowest point is near the minimum, the fit with alpha free at it), mirrored where it is even
@@ -1908,6 +1872,11 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
         note += f"; the sign of {name} - {start} is not determined (mirror symmetry)"
     sf = fits[grid[best]]
     return sf, float(est), (float(lo), float(hi)), note, grid, list(costs)
+
+
+def _start_side(angle: float, angle0: float) -> float:
+    """``angle`` mirrored about ``angle0`` onto ``angle0``'s side of zero (positive from 0)."""
+    return angle0 + (math.copysign(1.0, angle0) if angle0 != 0 else 1.0) * abs(angle - angle0)
 
 
 def _vertex(x: np.ndarray, c: np.ndarray) -> float:
@@ -2035,6 +2004,26 @@ def _realise_free_entries(params0: Parameters, W, values: np.ndarray, a: float, 
     return None
 
 
+def _shift(m: float, c: np.ndarray) -> np.ndarray:
+    """``m (|c|^2 E - c c^T)``: what carries an inertia about the centre of mass ``c`` to the hinge."""
+    return m * (c @ c * np.eye(3) - np.outer(c, c))
+
+
+def _body(pi: np.ndarray, i: int, m: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Body ``i`` of a standard vector (:data:`PI_NAMES`) of mass ``m``: its centre of mass ``h / m``, its
+    inertia ``J`` about the hinge and the inertia about the centre of mass."""
+    c = np.array([pi[_PI_INDEX[f"h{i}{x}"]] for x in "xyz"]) / m
+    J = np.empty((3, 3))
+    for e, (r, s) in zip(TENSOR_ENTRIES, TENSOR_INDICES):
+        J[r, s] = J[s, r] = pi[_PI_INDEX[f"J{i}{e}"]]
+    return c, J, J - _shift(m, c)
+
+
+def _body_changes(i: int, c: np.ndarray, ic: np.ndarray) -> Dict[str, Any]:
+    return {f"com{i}": tuple(float(v) for v in c),
+            f"inertia{i}": tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))}
+
+
 def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float, g: float,
              held: Sequence[str] = (), project: bool = False) -> Parameters:
     """``params0`` with the pivot entries of ``pi`` set so that its base parameters are ``values``;
@@ -2050,7 +2039,7 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
     # T[:, piv] is the identity: pi_P = beta - T_D pi_D
     dep = [j for j in range(len(pi)) if j not in piv]
     pi[piv] = values - T[:, dep] @ pi0[dep]
-    idx = {n: j for j, n in enumerate(PI_NAMES)}
+    idx = _PI_INDEX
     # an inertia entry that only moves inside a combination is held about the body's *centre of mass*
     # (params0's own inertia, carried to the new centre): held about the hinge, a centre moved by the
     # fit would leave e.g. a slender rod a negative moment about its own axis
@@ -2059,11 +2048,11 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
         m = pi[idx[f"m{i}"]]
         c_new = np.array([pi[idx[f"h{i}{x}"]] for x in "xyz"]) / m
         c_old = np.array([pi0[idx[f"h{i}{x}"]] for x in "xyz"]) / m
-        shift = lambda c: m * (c @ c * np.eye(3) - np.outer(c, c))  # noqa: E731
-        for p, (r, s_) in zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
-            j = idx[f"J{i}{p}"]
+        old, new = _shift(m, c_old), _shift(m, c_new)
+        for e, (r, s) in zip(TENSOR_ENTRIES, TENSOR_INDICES):
+            j = idx[f"J{i}{e}"]
             if j in dep or j in held_piv:
-                pi[j] = pi0[j] - shift(c_old)[r, s_] + shift(c_new)[r, s_]
+                pi[j] = pi0[j] - old[r, s] + new[r, s]
     rows = [k for k in range(len(piv)) if piv[k] not in held_piv]
     for k in rows:
         pi[piv[k]] = values[k] - T[k, dep] @ pi[dep]
@@ -2075,48 +2064,33 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
         tiny = 0.1 * ROUND_OFF * max(float(np.abs(values).max()), 1e-300)
         changes = {k: (0.0 if -tiny <= v < 0 else v) for k, v in changes.items()}
         extra = {k: (0.0 if -tiny <= v < 0 else v) for k, v in extra.items()}
-    pairs = list(zip(("xx", "xy", "xz", "yy", "yz", "zz"), ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))))
     for i in (1, 2):
         m = pi[idx[f"m{i}"]]
-        h = np.array([pi[idx[f"h{i}{x}"]] for x in "xyz"])
-        c = h / m
-        J = np.empty((3, 3))
-        for p, (r, s) in pairs:
-            J[r, s] = J[s, r] = pi[idx[f"J{i}{p}"]]
-        ic = J - m * (c @ c * np.eye(3) - np.outer(c, c))
+        c, J, ic = _body(pi, i, m)
         # entries that do not enter the equations: params0's, about the centre of mass
-        c0 = pi0[[idx[f"h{i}{x}"] for x in "xyz"]] / m
-        J0 = np.empty((3, 3))
-        for p, (r, s) in pairs:
-            J0[r, s] = J0[s, r] = pi0[idx[f"J{i}{p}"]]
-        ic0 = J0 - m * (c0 @ c0 * np.eye(3) - np.outer(c0, c0))
-        for p, (r, s) in pairs:
-            if f"J{i}{p}" in B.unidentifiable:
+        ic0 = _body(pi0, i, m)[2]
+        for e, (r, s) in zip(TENSOR_ENTRIES, TENSOR_INDICES):
+            if f"J{i}{e}" in B.unidentifiable:
                 ic[r, s] = ic[s, r] = ic0[r, s]
         if f"J{i}xx" in B.unidentifiable or any(_stem(n) == f"J{i}xx" for n in held):
             # planar (or held): x-inertia moves with z's (mass moved along the rod)
             ic[0, 0] += ic[2, 2] - ic0[2, 2]
+        w, V = np.linalg.eigh(0.5 * (ic + ic.T))
+        clipped = np.maximum(w, 0.0)
+        d = clipped[2] - clipped[0] - clipped[1]
         if project:  # onto the nearest physical body: moments >= 0, each at most the sum of the others
-            w, V = np.linalg.eigh(0.5 * (ic + ic.T))
-            w = np.maximum(w, 0.0)
-            d = w[2] - w[0] - w[1]
-            if d > 0:  # the nearest point of the plane w0 + w1 = w2 (a slender rod's transverse moments
-                # 1.5 % apart: each moment moves by d / 3, not the largest by d)
-                w = w + d / 3.0 * np.array([1.0, 1.0, -1.0])
-            ic = (V * w) @ V.T
+            moved = True
         else:  # round-off: a slender rod's moment about its own axis a few ulps of the hinge's inertia below 0
-            w, V = np.linalg.eigh(0.5 * (ic + ic.T))
             # (a tenth of the realisation's own check, 1e-9 of the base parameters: a clip moves up to
             # three entries of a combination)
             tol = 0.1 * ROUND_OFF * max(float(np.abs(J).max()), float(np.abs(ic).max()), 1e-300)
-            clipped = np.maximum(w, 0.0)
-            d = clipped[2] - clipped[0] - clipped[1]
-            if w[0] >= -tol and d <= tol and (w[0] < 0 or d > 0):  # only round-off is moved, never more
-                if d > 0:
-                    clipped = clipped + d / 3.0 * np.array([1.0, 1.0, -1.0])
-                ic = (V * clipped) @ V.T
-        changes[f"com{i}"] = tuple(float(v) for v in c)
-        changes[f"inertia{i}"] = tuple(tuple(float(v) for v in row) for row in 0.5 * (ic + ic.T))
+            moved = w[0] >= -tol and d <= tol and (w[0] < 0 or d > 0)  # only round-off is moved, never more
+        if moved:
+            if d > 0:  # the nearest point of the plane w0 + w1 = w2 (a slender rod's transverse moments
+                # 1.5 % apart: each moment moves by d / 3, not the largest by d)
+                clipped = clipped + d / 3.0 * np.array([1.0, 1.0, -1.0])
+            ic = (V * clipped) @ V.T
+        changes.update(_body_changes(i, c, ic))
     return params0.replace(**changes, **extra)
 
 

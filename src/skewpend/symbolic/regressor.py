@@ -108,10 +108,7 @@ def standard_parameters(params: Parameters) -> np.ndarray:
         com = getattr(p, f"com{i}")
         inertia = getattr(p, f"inertia{i}")
         c = np.array([0.0, length / 2, 0.0]) if com is None else np.array(com, dtype=float)
-        if inertia is None:
-            ic = m * length**2 / 12 * np.diag([1.0, 0.0, 1.0])
-        else:
-            ic = np.array(inertia, dtype=float)
+        ic = m * length**2 / 12 * np.diag([1.0, 0.0, 1.0]) if inertia is None else np.array(inertia, dtype=float)
         J = ic + m * (c @ c * np.eye(3) - np.outer(c, c))
         out += [m, *(m * c)] + [J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2], J[2, 2]]
     out += [float(p.c1), float(p.c2)]
@@ -227,30 +224,24 @@ def lambdify_columns(Y: sp.Matrix) -> Callable:
 
 
 # -- base parameters ----------------------------------------------------------------------------------
-_C = {n: sp.Symbol(f"C_{n}", real=True) for n in ("phi", "psi", "alpha")}
-_S = {n: sp.Symbol(f"S_{n}", real=True) for n in ("phi", "psi", "alpha")}
+_ANGLES = ("phi", "psi", "alpha")
+_C = {n: sp.Symbol(f"C_{n}", real=True) for n in _ANGLES}
+_S = {n: sp.Symbol(f"S_{n}", real=True) for n in _ANGLES}
+#: ``cos``, ``sin`` of the angles and the polynomial symbols that stand for them.
+_TRIG = {**{sp.cos(SYMBOLS[n]): _C[n] for n in _ANGLES}, **{sp.sin(SYMBOLS[n]): _S[n] for n in _ANGLES}}
 
 
 def _to_poly_symbols(expr: sp.Expr) -> sp.Expr:
-    S = SYMBOLS
-    rep = {}
-    for n in ("phi", "psi", "alpha"):
-        rep[sp.cos(S[n])] = _C[n]
-        rep[sp.sin(S[n])] = _S[n]
-    return expr.xreplace(rep)
+    return expr.xreplace(_TRIG)
 
 
-def _relations():
-    return [_S[n] ** 2 + _C[n] ** 2 - 1 for n in ("phi", "psi", "alpha")]
-
-
-def _reduce(expr: sp.Expr, gens: Sequence[sp.Symbol] = ()) -> sp.Expr:
+def _reduce(expr: sp.Expr) -> sp.Expr:
     """Canonical form modulo ``sin^2 + cos^2 = 1`` for ``phi, psi, alpha`` (in the symbols
     ``S_x, C_x``): every even power of a sine replaced, so each sine has degree at most 1."""
     expr = sp.expand(expr)
     if expr == 0:
         return sp.S.Zero
-    for n in ("phi", "psi", "alpha"):
+    for n in _ANGLES:
         s, c = _S[n], _C[n]
         if not expr.has(s):
             continue
@@ -290,32 +281,21 @@ def _chop_matrix(M: sp.Matrix, scale: Optional[float] = None, rel: float = 1e-12
 
 def _canonical(expr: sp.Expr) -> sp.Expr:
     """``expr`` (in ``cos``, ``sin``) reduced as :func:`_reduce` does, back in ``cos``, ``sin``."""
-    S = SYMBOLS
-    back = {}
-    for n in ("phi", "psi", "alpha"):
-        back[_C[n]] = sp.cos(S[n])
-        back[_S[n]] = sp.sin(S[n])
-    return _chop(_reduce(_to_poly_symbols(expr))).xreplace(back)
+    return _chop(_reduce(_to_poly_symbols(expr))).xreplace({v: k for k, v in _TRIG.items()})
 
 
 _STATE_GENS = [_S["phi"], _C["phi"], _S["psi"], _C["psi"], SYMBOLS["dphi"], SYMBOLS["dpsi"], SYMBOLS["ddphi"],
                SYMBOLS["ddpsi"]]
 
 
-def _all_gens():
-    S = SYMBOLS
-    return _STATE_GENS + [_S["alpha"], _C["alpha"], S["a"], S["g"]]
-
-
 @lru_cache(maxsize=8)
 def _coefficients(axes: Tuple) -> Tuple[sp.Matrix, Tuple]:
     """``Y`` as coefficients of reduced trigonometric monomials of the state: rows (equation, monomial)."""
     reg = _regressor(axes)
-    gens = _all_gens()
     table: Dict[Tuple[int, Tuple[int, ...]], Dict[int, sp.Expr]] = {}
     for i in range(2):
         for j in range(reg.Y.shape[1]):
-            e = _reduce(_to_poly_symbols(reg.Y[i, j]), gens)
+            e = _reduce(_to_poly_symbols(reg.Y[i, j]))
             if e == 0:
                 continue
             for monom, coeff in sp.Poly(e, *_STATE_GENS).terms():
@@ -406,10 +386,6 @@ class BaseParameters:
     @property
     def rank(self) -> int:
         return len(self.names)
-
-    @property
-    def pivot_names(self) -> Tuple[str, ...]:
-        return tuple(PI_NAMES[j] for j in self.pivots)
 
     @property
     def unidentifiable(self) -> Tuple[str, ...]:
@@ -571,12 +547,8 @@ def _solve(A: sp.Matrix, B: sp.Matrix) -> sp.Matrix:
     """``A X = B`` exactly (entries polynomials in a few symbols): fraction-free over their field."""
     from sympy.polys.matrices import DomainMatrix
 
-    dA = DomainMatrix.from_Matrix(A)
-    dB = DomainMatrix.from_Matrix(B)
-    dA, dB = dA.unify(dB)
-    dA, dB = dA.to_field(), dB.to_field()
-    X = dA.lu_solve(dB)
-    return X.to_Matrix()
+    dA, dB = DomainMatrix.from_Matrix(A).unify(DomainMatrix.from_Matrix(B))
+    return dA.to_field().lu_solve(dB.to_field()).to_Matrix()
 
 
 # -- the first estimate --------------------------------------------------------------------------------

@@ -45,14 +45,6 @@ PIECE_COLORS = ("#4c9a2a", "#8e44ad", "#e08a00", "#1b9e9e", "#6b6b6b", "#b5651d"
 
 
 # -- predictions -----------------------------------------------------------------------------------------
-def _predicted(params, piece, smoothing: float) -> Optional[np.ndarray]:
-    """The angles (n, 2) [rad] of ``params`` simulated from the piece's first measured state, or
-    None where the simulation failed (the same prediction as the held-out RMS)."""
-    from ...analysis.identify import predict_piece
-
-    return predict_piece(params, piece, smoothing)
-
-
 def _smoothing(result) -> float:
     from ...analysis.identify import SMOOTHING
 
@@ -76,7 +68,10 @@ def identification_predictions(result, measurements, validation=None, *, fit_pie
                                heldout_pieces: Optional[int] = HELDOUT_PIECES_SHOWN):
     """The predictions the figure draws: a list of ``(piece, kind, predicted, predicted0)`` with
     ``kind`` ``"fit"`` or ``"held out"`` and the angles (n, 2) [rad] of the fitted model and of
-    ``params0`` (None where a simulation failed); pieces with measured torques are left out."""
+    ``params0`` (None where a simulation failed: the same prediction as the held-out RMS, by
+    :func:`~skewpend.analysis.identify.predict_piece`); pieces with measured torques are left out."""
+    from ...analysis.identify import predict_piece
+
     s = _smoothing(result)
     chosen: List[Tuple[object, str]] = []
     fit = [p for p in (measurements or ()) if p.u is None]
@@ -86,10 +81,8 @@ def identification_predictions(result, measurements, validation=None, *, fit_pie
     if heldout_pieces is not None:
         held = held[:heldout_pieces]
     chosen += [(p, "held out") for p in held]
-    out = []
-    for piece, kind in chosen:
-        out.append((piece, kind, _predicted(result.params, piece, s), _predicted(result.params0, piece, s)))
-    return out
+    return [(piece, kind, predict_piece(result.params, piece, s), predict_piece(result.params0, piece, s))
+            for piece, kind in chosen]
 
 
 # -- the panels ----------------------------------------------------------------------------------------
@@ -214,20 +207,18 @@ def _panel_residuals(ax, result, predictions) -> None:
 def _precision_rows(result):
     """``(label, value, half-width, note)`` for panel (c): ratios for a free swing, else the base
     parameters the fit freed (the reference and the held ones are left out)."""
-    rows = []
     if result.ratios:
-        for name, v in result.ratios.items():
-            lo, hi = result.ratio_intervals.get(name, (math.nan, math.nan))
-            rows.append((name, float(v), 0.5 * (float(hi) - float(lo))))
+        items = [(name, v, result.ratio_intervals.get(name, (math.nan, math.nan))) for name, v in result.ratios.items()]
     else:
-        for name, v, (lo, hi) in zip(result.names, np.asarray(result.values, float), np.asarray(result.intervals, float)):
-            if name == result.reference or name not in result.free:
-                continue
-            rows.append((name, float(v), 0.5 * (float(hi) - float(lo))))
-    return rows
+        items = [(name, v, iv) for name, v, iv in zip(result.names, np.asarray(result.values, float),
+                                                       np.asarray(result.intervals, float))
+                 if name != result.reference and name in result.free]
+    return [(name, float(v), 0.5 * (float(hi) - float(lo))) for name, v, (lo, hi) in items]
 
 
 def _panel_precision(ax, result) -> None:
+    from matplotlib.ticker import FuncFormatter
+
     rows = _precision_rows(result)
     ratios = bool(result.ratios)
     title = "(c) Precision: 95 % half-width / |estimate|"
@@ -256,27 +247,21 @@ def _panel_precision(ax, result) -> None:
     ax.set_yticks(y, [name for name, _, _ in rows], fontsize=7.5)
     ax.set_ylim(-0.7, len(rows) - 0.3)
     ax.grid(axis="y", visible=False)
-    ax.xaxis.set_major_formatter(_percent_formatter())
-
-
-def _percent_formatter():
-    from matplotlib.ticker import FuncFormatter
-
-    return FuncFormatter(lambda x, _pos: f"{x:g}")
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
 
 
 def _panel_correlation(fig, ax, result) -> None:
     ax.set_title("(d) Correlation matrix", loc="left")
     C = np.asarray(result.correlation, float)
     names = [str(n) for n in result.settings.get("free", [])] if isinstance(result.settings, dict) else []
+    ax.grid(False)
+    for s in ax.spines.values():
+        s.set_visible(False)
     if C.ndim != 2 or C.size == 0:
         ax.text(0.5, 0.5, "no correlation matrix\n(the output-error fit computes it;\nthe linear estimate has none)",
                 ha="center", va="center", transform=ax.transAxes, color="0.4", fontsize=8.5)
         ax.set_xticks([])
         ax.set_yticks([])
-        ax.grid(False)
-        for sp in ax.spines.values():
-            sp.set_visible(False)
         return
     n = C.shape[0]
     if len(names) != n:
@@ -284,9 +269,6 @@ def _panel_correlation(fig, ax, result) -> None:
     im = ax.imshow(C, cmap="RdBu_r", vmin=-1, vmax=1, interpolation="nearest")
     ax.set_xticks(range(n), names, rotation=55, ha="right", rotation_mode="anchor", fontsize=7.5)
     ax.set_yticks(range(n), names, fontsize=7.5)
-    ax.grid(False)
-    for s in ax.spines.values():
-        s.set_visible(False)
     if n <= 10:  # the coefficients written in the cells (more would overlap: the colours alone)
         for i in range(n):
             for j in range(n):
