@@ -20,55 +20,25 @@ __all__ = [
 
 #: The rcParams every figure is built and saved with (applied by :func:`style`).
 RC: Dict[str, Any] = {
-    "font.size": 9.5,
-    "axes.titlesize": 10.5,
-    "axes.titleweight": "normal",
-    "axes.labelsize": 9.5,
-    "xtick.labelsize": 8.5,
-    "ytick.labelsize": 8.5,
-    "legend.fontsize": 8.5,
-    "legend.framealpha": 0.85,
-    "legend.edgecolor": "0.8",
-    "figure.titlesize": 10,
-    "lines.linewidth": 1.1,
-    "lines.markersize": 5,
-    "axes.grid": True,
-    "grid.alpha": 0.3,
-    "grid.linewidth": 0.6,
-    "axes.spines.top": False,
-    "axes.spines.right": False,
-    "axes.formatter.limits": (-4, 5),
-    "axes.formatter.use_mathtext": True,
-    "mathtext.fontset": "dejavusans",
-    "figure.facecolor": "white",
-    "savefig.facecolor": "white",
+    "font.size": 9.5, "axes.titlesize": 10.5, "axes.titleweight": "normal", "axes.labelsize": 9.5,
+    "xtick.labelsize": 8.5, "ytick.labelsize": 8.5, "legend.fontsize": 8.5, "legend.framealpha": 0.85,
+    "legend.edgecolor": "0.8", "figure.titlesize": 10, "lines.linewidth": 1.1, "lines.markersize": 5,
+    "axes.grid": True, "grid.alpha": 0.3, "grid.linewidth": 0.6, "axes.spines.top": False, "axes.spines.right": False,
+    "axes.formatter.limits": (-4, 5), "axes.formatter.use_mathtext": True, "mathtext.fontset": "dejavusans",
+    "figure.facecolor": "white", "savefig.facecolor": "white", "path.simplify": True,
     "pdf.fonttype": 42,  # TrueType: text stays text in PDF
     "svg.fonttype": "path",  # SVG looks the same without the fonts installed
-    "path.simplify": True,
 }
 
 #: Colours: phi (hinge 1, end of rod 1, mode 1) blue, psi (hinge 2, end of rod 2, mode 2) red.
-COLORS: Dict[str, str] = {
-    "phi": "#1f63a8",
-    "psi": "#c8312b",
-    "path": "#3b3b4f",
-    "energy": "#2b2b2b",
-    "reference": "0.45",
-    "rods": "0.35",
-    "start": "#2a9d4b",
-    "end": "#222222",
-}
+COLORS: Dict[str, str] = {"phi": "#1f63a8", "psi": "#c8312b", "path": "#3b3b4f", "energy": "#2b2b2b",
+                          "reference": "0.45", "rods": "0.35", "start": "#2a9d4b", "end": "#222222"}
 
 #: Resolution of raster output [dots per inch].
 DPI = 150
 
 # Symbols in labels (matplotlib mathtext; rendered with the same DejaVu Sans as the text).
-SYMBOL = {
-    "phi": r"$\varphi$",
-    "psi": r"$\psi$",
-    "dphi": r"$\dot\varphi$",
-    "dpsi": r"$\dot\psi$",
-}
+SYMBOL = {"phi": r"$\varphi$", "psi": r"$\psi$", "dphi": r"$\dot\varphi$", "dpsi": r"$\dot\psi$"}
 
 
 @contextlib.contextmanager
@@ -152,14 +122,9 @@ def parameter_text(params, *, skip: tuple = (), symbols: bool = False, sep: str 
 def settings_text(method: str, settings: Mapping[str, Any]) -> str:
     """``dop853, rtol = 1e-10, atol = 1e-10, t_end = 5 s, rows every 0.01 s``."""
     parts = [str(method)]
-    if settings.get("rtol") is not None:
-        parts.append(f"rtol = {fmt(settings['rtol'])}")
-    if settings.get("atol") is not None:
-        parts.append(f"atol = {fmt(settings['atol'])}")
-    if settings.get("dt") is not None:
-        parts.append(f"dt = {fmt(settings['dt'])} s")
-    if settings.get("t_end") is not None:
-        parts.append(f"t_end = {fmt(settings['t_end'])} s")
+    for key, unit in (("rtol", ""), ("atol", ""), ("dt", " s"), ("t_end", " s")):
+        if settings.get(key) is not None:
+            parts.append(f"{key} = {fmt(settings[key])}{unit}")
     if settings.get("dt_out") is not None:
         parts.append(f"rows every {fmt(settings['dt_out'])} s")
     else:
@@ -192,10 +157,8 @@ def initial_text(y0) -> str:
         return (f"q0 = ({', '.join(fmt(math.degrees(float(v))) for v in y0[:n])})°, "
                 f"dq0 = ({', '.join(fmt(float(v)) for v in y0[n:])}) rad/s")
     phi, psi, dphi, dpsi = (float(v) for v in y0)
-    return (
-        f"phi0 = {fmt(math.degrees(phi))}°, psi0 = {fmt(math.degrees(psi))}°, "
-        f"dphi0 = {fmt(dphi)} rad/s, dpsi0 = {fmt(dpsi)} rad/s"
-    )
+    return (f"phi0 = {fmt(math.degrees(phi))}°, psi0 = {fmt(math.degrees(psi))}°, "
+            f"dphi0 = {fmt(dphi)} rad/s, dpsi0 = {fmt(dpsi)} rad/s")
 
 
 def caption(tr) -> str:
@@ -274,9 +237,7 @@ def flipmap_caption(fm) -> str:
     if t_end is not None:
         grid += f", t_end = {fmt(t_end)} s"
     parts = [str(st.get("method", "dop853"))]
-    for key in ("rtol", "atol"):
-        if st.get(key) is not None:
-            parts.append(f"{key} = {fmt(st[key])}")
+    parts += [f"{k} = {fmt(st[k])}" for k in ("rtol", "atol") if st.get(k) is not None]
     cells = n0 * n1
     flipped = stats.get("flipped")
     if flipped is None:

@@ -77,6 +77,11 @@ def chain_slider_values(chain) -> dict:
     return {"g": float(chain.g), **{f"c{link.index}": float(link.damping) for link in chain.links}}
 
 
+def _zeroed(chain):
+    """``chain`` with its sliders at a fixed reference (no damping, g = 9.81): its bodies and axes alone."""
+    return chain_with(chain, {k: 0.0 for k in chain_slider_values(chain)} | {"g": 9.81})
+
+
 def chain_with(chain, values: dict):
     """``chain`` with the sliders' ``values`` (``g``, ``c<k>``) applied, validated by the chain itself."""
     from dataclasses import replace
@@ -117,7 +122,6 @@ class PendulumWidget(anywidget.AnyWidget):
         from .. import checks
         from ..config import reference_parameters, reference_state
         from ..numeric.conventions import geometry_of
-
         from ..numeric.explorer_source import page_form
 
         height = checks.whole("height", height, 160, 4000, what="the view's height in pixels")
@@ -131,8 +135,7 @@ class PendulumWidget(anywidget.AnyWidget):
             from ..config import CHAIN_Q0
 
             params = self._chain
-            shape = chain_with(params, {k: 0.0 for k in chain_slider_values(params)} | {"g": 9.81})
-            self._geometry = shape
+            shape = self._geometry = _zeroed(params)
             self._esm, self._css = _front_end(shape)
             n = params.n
             specs = page_sliders(params)
@@ -146,12 +149,10 @@ class PendulumWidget(anywidget.AnyWidget):
         self._geometry = geometry
         self._esm, self._css = _front_end(geometry)
         names = [n for n in SCALAR_NAMES if n != "alpha" or geometry.uses_alpha]
-        super().__init__(
-            values={n: float(getattr(params, n)) for n in names},
-            y0=self._start(reference_state() if y0 is None else y0),
-            sliders=[n for n in SLIDERS if n in names or n in ("phi0", "psi0")], specs=page_sliders(geometry),
-            height=height,
-        )
+        super().__init__(values={n: float(getattr(params, n)) for n in names},
+                         y0=self._start(reference_state() if y0 is None else y0),
+                         sliders=[n for n in SLIDERS if n in names or n in ("phi0", "psi0")],
+                         specs=page_sliders(geometry), height=height)
 
     # -- validation of every change (from Python or from the view) ----------------------------------
     @traitlets.validate("values")
@@ -307,11 +308,9 @@ class PendulumWidget(anywidget.AnyWidget):
                                  "simulate with dt_out (e.g. 1/30 s)")
         if not trajectory.kept:
             raise ParameterError("widget.show: the trajectory kept only its first and last rows (keep=False)")
-        data = {
-            **replay_data(trajectory),
-            "label": f"skewpend.simulate ({trajectory.method}), t = 0 .. {trajectory.t[-1]:g} s",
-            "message": "" if trajectory.ok else f"The run stopped early: {trajectory.message}",
-        }
+        data = {**replay_data(trajectory),
+                "label": f"skewpend.simulate ({trajectory.method}), t = 0 .. {trajectory.t[-1]:g} s",
+                "message": "" if trajectory.ok else f"The run stopped early: {trajectory.message}"}
         with self.hold_sync():
             self.params = trajectory.params
             self.y0 = list(trajectory.y[0])
@@ -324,9 +323,7 @@ class PendulumWidget(anywidget.AnyWidget):
         if not hasattr(model, "as_chain"):  # not a model
             return None
         chain = model.as_chain()
-        same = chain.n == self._chain.n and chain_with(chain, {k: 0.0 for k in chain_slider_values(chain)}
-                                                       | {"g": 9.81}) == self._geometry
-        return chain if same else None
+        return chain if chain.n == self._chain.n and _zeroed(chain) == self._geometry else None
 
     def _start(self, y0: Sequence[float]) -> list:
         from ..parsing import initial_state

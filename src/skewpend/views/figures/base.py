@@ -5,6 +5,7 @@ written: tick labels as plain text, the layout computed once for a PNG) and :fun
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from pathlib import Path
 from typing import Optional
 
@@ -79,29 +80,24 @@ def wrap_angle(x):
     return math.pi - np.mod(math.pi - np.asarray(x, dtype=float), TWO_PI)
 
 
-_PLAIN_FORMATTER = None
-
-
+@lru_cache(maxsize=1)
 def _plain_formatter():
     """Matplotlib's ScalarFormatter whose tick labels are plain text rather than mathtext (made once)."""
-    global _PLAIN_FORMATTER
-    if _PLAIN_FORMATTER is None:
-        from matplotlib.ticker import ScalarFormatter
+    from matplotlib.ticker import ScalarFormatter
 
-        class PlainTickFormatter(ScalarFormatter):
-            """A ScalarFormatter writing ``0.5`` where it wrote ``$\\mathdefault{0.5}$``: the same digits in the
-            same DejaVu Sans (and the same minus sign, U+2212), without a mathtext parse of every label;
-            the offset or the power of ten above the axis (``×10⁻⁵``), when there is one, stays mathtext."""
+    class PlainTickFormatter(ScalarFormatter):
+        """A ScalarFormatter writing ``0.5`` where it wrote ``$\\mathdefault{0.5}$``: the same digits in the
+        same DejaVu Sans (and the same minus sign, U+2212), without a mathtext parse of every label;
+        the offset or the power of ten above the axis (``×10⁻⁵``), when there is one, stays mathtext."""
 
-            def __call__(self, x, pos=None):
-                s = super().__call__(x, pos)
-                head, tail = "$\\mathdefault{", "}$"
-                if s.startswith(head) and s.endswith(tail) and not any(c in s[len(head):-len(tail)] for c in "\\{}$^_"):
-                    return s[len(head):-len(tail)]
-                return s
+        def __call__(self, x, pos=None):
+            s = super().__call__(x, pos)
+            head, tail = "$\\mathdefault{", "}$"
+            if s.startswith(head) and s.endswith(tail) and not any(c in s[len(head):-len(tail)] for c in "\\{}$^_"):
+                return s[len(head):-len(tail)]
+            return s
 
-        _PLAIN_FORMATTER = PlainTickFormatter
-    return _PLAIN_FORMATTER
+    return PlainTickFormatter
 
 
 def plain_tick_labels(fig) -> None:
@@ -131,11 +127,11 @@ def print_figure(fig, fh, fmt_name: str, dpi: float, metadata: dict, pil_kwargs:
     from matplotlib.backend_bases import FigureCanvasBase
 
     plain_tick_labels(fig)
+    png = {"pil_kwargs": pil_kwargs} if pil_kwargs and fmt_name == "png" else {}
     with style():
         engine = fig.get_layout_engine()
         if fmt_name != "png" or engine is None or type(fig.canvas) is not FigureCanvasBase:
-            fig.savefig(fh, format=fmt_name, dpi=dpi, metadata=metadata,
-                        **({"pil_kwargs": pil_kwargs} if pil_kwargs and fmt_name == "png" else {}))
+            fig.savefig(fh, format=fmt_name, dpi=dpi, metadata=metadata, **png)
             return
         from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -145,7 +141,7 @@ def print_figure(fig, fh, fmt_name: str, dpi: float, metadata: dict, pil_kwargs:
             fig.set_dpi(dpi)
             engine.execute(fig)
             fig.set_layout_engine("none")
-            fig.savefig(fh, format=fmt_name, dpi=dpi, metadata=metadata, **({"pil_kwargs": pil_kwargs} if pil_kwargs else {}))
+            fig.savefig(fh, format=fmt_name, dpi=dpi, metadata=metadata, **png)
         finally:
             fig.set_layout_engine(engine)
             fig.set_dpi(old_dpi)
@@ -173,11 +169,8 @@ def save_figure(fig, path) -> Path:
 def coordinate_label(name: str) -> str:
     """An axis label of a state coordinate's offset from a target: ``φ − φ* [deg]``, ``q₃′ − q₃′* [deg/s]``."""
     speed = name.startswith("d")
-    unit = "deg/s" if speed else "deg"
     base = name[1:] if speed else name
-    if base in ("phi", "psi"):
-        sym = SYMBOL[base]
-    else:  # a chain's q<k>
-        sym = "q" + base[1:].translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
-    sym += chr(0x2032) if speed else ""
-    return f"{sym} − {sym}* [{unit}]"
+    # a chain's q<k> with its index as subscript digits
+    sym = SYMBOL.get(base) or "q" + base[1:].translate(str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉"))
+    sym += "′" if speed else ""
+    return f"{sym} − {sym}* [{'deg/s' if speed else 'deg'}]"

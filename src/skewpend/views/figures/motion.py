@@ -124,16 +124,12 @@ def coordinate_styles(coordinates: Sequence[str]) -> List[tuple]:
             for k, c in enumerate(coordinates)]
 
 
-def _coordinates(tr) -> Sequence[str]:
-    """The trajectory's coordinates: its model's names (``phi, psi``; ``q1 ... qn``)."""
-    return tr.params.coordinates
-
-
 def _labels(tr) -> List[tuple]:
     """Per coordinate: (colour, angle label, speed label); a name that does not number itself (phi, psi)
     says its hinge in the angle's label."""
+    names = tr.params.coordinates  # the model's: phi, psi; q1 ... qn
     return [(color, angle if c[-1].isdigit() else f"{angle} (hinge {k + 1})", speed)
-            for k, (c, (color, angle, speed)) in enumerate(zip(_coordinates(tr), coordinate_styles(_coordinates(tr))))]
+            for k, (c, (color, angle, speed)) in enumerate(zip(names, coordinate_styles(names)))]
 
 
 def _draw_angles(ax, tr) -> None:
@@ -193,7 +189,7 @@ def _draw_energy(ax, tr) -> None:
 
 def _angle_name(tr, k: int) -> str:
     """Joint k's angle as an axis label: its symbol (the double pendulum's phi and psi, a chain's q1 ... qn)."""
-    return coordinate_styles(_coordinates(tr))[k][1]
+    return coordinate_styles(tr.params.coordinates)[k][1]
 
 
 def _draw_phase(ax, tr, k: int) -> None:
@@ -307,40 +303,32 @@ def phase_figure(tr):
     return fig
 
 
+def _one_panel(tr, figsize, draw, projection=None):
+    """A figure of ``tr`` with one panel, drawn by ``draw(ax, tr)``, and the trajectory's heading."""
+    _check(tr)
+    with style():
+        fig = new_figure(figsize)
+        draw(fig.add_subplot(projection=projection), tr)
+        heading(fig, caption(tr))
+    return fig
+
+
 def energy_figure(tr):
     """The energy error ``|E - W - E0| / max|E|`` on a log scale against t, the reported
     ``energy_drift`` as a dashed line; values below :data:`ENERGY_FLOOR` drawn at it (said so)."""
-    _check(tr)
-    with style():
-        fig = new_figure((8.0, 4.4))
-        ax = fig.subplots()
-        _draw_energy(ax, tr)
-        heading(fig, caption(tr))
-    return fig
+    return _one_panel(tr, (8.0, 4.4), _draw_energy)
 
 
 def torus_figure(tr):
     """The path in configuration space: (phi, psi) wrapped to (-180, 180] [deg] on the square
     whose opposite edges are identified (a torus), cut where it wraps."""
-    _check(tr)
-    with style():
-        fig = new_figure((6.4, 6.9))
-        ax = fig.subplots()
-        _draw_torus(ax, tr)
-        heading(fig, caption(tr))
-    return fig
+    return _one_panel(tr, (6.4, 6.9), _draw_torus)
 
 
 def tips_figure(tr):
     """The paths of both rod ends in 3D [m], the rods at t = 0 and the pivot; world ``(x, y, z)``
     drawn at ``(x, z, -y)`` (see :func:`tips_view`) so the pendulum hangs down; equal scales."""
-    _check(tr)
-    with style():
-        fig = new_figure((7.0, 7.3))
-        ax = fig.add_subplot(projection="3d")
-        _draw_tips(ax, tr)
-        heading(fig, caption(tr))
-    return fig
+    return _one_panel(tr, (7.0, 7.3), _draw_tips, "3d")
 
 
 def simulation_figure(tr):
