@@ -22,7 +22,7 @@ The inputs act inside the compiled integrators (:mod:`skewpend.numeric.control`)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
@@ -412,10 +412,7 @@ def lqr(params, equilibrium=EVERY_LINK_UP, actuated="both", Q=None, R=None, *, u
         raise EquilibriumError("the Riccati solution does not stabilise the linearisation (extreme parameters or weights)")
     P = 0.5 * (P + P.T)
     result = LQR(K, P, eig, lin, Qm, Rm, math.inf, limits, params)
-    if estimate:
-        rho = _rho_estimate(params, lin, result.gain, P, limits)
-        result = LQR(K, P, eig, lin, Qm, Rm, rho, limits, params)
-    return result
+    return replace(result, rho=_rho_estimate(params, lin, result.gain, P, limits)) if estimate else result
 
 
 @dataclass(frozen=True)
@@ -488,10 +485,8 @@ def swingup(params, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, energy_
     tr = simulate(params, start, t_end, dt_out=dt_out, controller=ctl, progress=progress)
     inside = design.inside(tr.y)
     if tr.ok and inside.size and inside[-1]:
-        k = len(inside) - 1
-        while k > 0 and inside[k - 1]:
-            k -= 1
-        captured, when = True, float(tr.t[k])
+        outside = np.flatnonzero(~inside)  # captured from the row after the last one outside
+        captured, when = True, float(tr.t[outside[-1] + 1 if outside.size else 0])
     else:
         captured, when = False, math.nan
     return SwingUp(tr, captured, when, design, ctl)

@@ -465,21 +465,6 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
     )
 
 
-def _modes_about(params: Parameters, about, coulomb: str = DEFAULT_COULOMB) -> Modes:
-    from .equilibria import find_equilibrium
-
-    eq = find_equilibrium(params, about, "about", coulomb=coulomb)
-    try:
-        return _modes_from_matrices(eq.M, eq.C, eq.K, params, equilibrium=eq.q, coulomb=coulomb)
-    except NotFinite as exc:
-        raise ParameterError(_not_finite_message(exc, params)) from None
-
-
-def _modes(params: Parameters, coulomb: str = DEFAULT_COULOMB) -> Modes:
-    M, C, K = _matrices(params, coulomb)
-    return _modes_from_matrices(M, C, K, params, coulomb=coulomb)
-
-
 def _scaled(z: complex, M: np.ndarray, C: np.ndarray, K: np.ndarray):
     """``Q(z) = z^2 M + z C + K`` and ``dQ/dz``, both divided by ``z^2`` when ``|z| > 1`` (nothing overflows);
     with the power of ``z`` taken out (0 or 2)."""
@@ -699,9 +684,13 @@ def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB)
         raise ParameterError(f"params must be a skewpend.Parameters or a Chain, got {type(params).__name__}")
     coulomb = check_coulomb(coulomb)
     if about is not None:
-        return _modes_about(params, about, coulomb)
+        from .equilibria import find_equilibrium
+
+        eq = find_equilibrium(params, about, "about", coulomb=coulomb)
     try:
-        return _modes(params, coulomb)
+        if about is not None:
+            return _modes_from_matrices(eq.M, eq.C, eq.K, params, equilibrium=eq.q, coulomb=coulomb)
+        return _modes_from_matrices(*_matrices(params, coulomb), params, coulomb=coulomb)
     except NotFinite as exc:
         raise ParameterError(_not_finite_message(exc, params)) from None
 
@@ -786,13 +775,6 @@ def parse_sweep(spec: str, model=None) -> Tuple[str, np.ndarray]:
     if name not in _facade_names(model) and _link_name(name, model.n) is None:
         raise _refuse(name, model, "--sweep: ")
     return name, parse_range(rng, f"--sweep {name}", angle=name == "alpha" or name.startswith("tilt"))
-
-
-def parse_chain_sweep(spec: str, n: int) -> Tuple[str, np.ndarray]:
-    """A chain's ``"tilt2=0:90deg:31"``: :func:`parse_sweep` for a chain of ``n`` links."""
-    from ..symbolic.chain import Chain
-
-    return parse_sweep(spec, Chain.from_lists(n))
 
 
 def _changer(model, name: str) -> Callable[[float], Any]:
@@ -1033,7 +1015,7 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
         try:
             p = change(float(v))
             p.require_numeric("a sweep")
-            m = _modes(p)
+            m = _modes_from_matrices(*_matrices(p), p)
         except NotNumericError:
             raise
         except NotFinite as exc:
@@ -1047,7 +1029,7 @@ def sweep(params: Parameters, name: str, values: Sequence[float], *, tolerance: 
     with np.errstate(all="ignore"):
         neighbours = freqs[:, 1:] / freqs[:, :-1]
     bad = ~(np.all(np.isfinite(freqs), axis=1) & np.all(np.isfinite(shapes), axis=(1, 2)) & np.all(np.isfinite(neighbours), axis=1))
-    if np.any(bad):  # pragma: no cover - every point was checked by _modes
+    if np.any(bad):  # pragma: no cover - every point was checked by _modes_from_matrices
         raise ParameterError(_failure_message(name, [(float(v), "results not finite") for v in grid[bad]], grid.size))
     resonances: List[Resonance] = []
     for k in range(n - 1):

@@ -90,11 +90,6 @@ def _torques(params) -> np.ndarray:
     return np.array([link.torque for link in params.as_chain().links], dtype=float)
 
 
-def _require_conservative(params: Parameters, what: str) -> None:
-    """Periodic orbits keep ``H = T + Pi - tau . q``: constant torques are allowed, losses are not."""
-    params.require_lossless(what)
-
-
 def energy_function(params: Parameters) -> Callable[[np.ndarray], np.ndarray]:
     """``H(y) = T + Pi - tau . q`` of states ``y`` (n, 4), the energy an orbit keeps, from the
     model's kernel."""
@@ -273,10 +268,6 @@ def _multipliers(stm: np.ndarray) -> Tuple[np.ndarray, float]:
     return mu, float(np.trace(stm) - 2.0)
 
 
-def _stable(sigma: float) -> bool:
-    return abs(sigma) <= 2.0 + STABILITY_MARGIN
-
-
 def _stable_multipliers(mu: np.ndarray) -> bool:
     """Linear stability for any number of degrees of freedom: every Floquet multiplier on or inside the
     unit circle (a Hamiltonian flow's come in pairs mu, 1/mu: on it), within :data:`STABILITY_MARGIN`."""
@@ -331,7 +322,7 @@ class PeriodicOrbit(Result):
     def stable(self) -> bool:
         if np.size(self.state) != 4:  # a chain: every multiplier on the unit circle
             return bool(self.ok and _stable_multipliers(self.multipliers))
-        return bool(self.ok and _stable(self.sigma))
+        return bool(self.ok and abs(self.sigma) <= 2.0 + STABILITY_MARGIN)
 
     def trajectory(self, rows: int = 400, *, rtol: float = 1e-12, atol: float = 1e-12):
         """The orbit over one period, integrated anew by :func:`skewpend.simulate` (``rows + 1`` rows)."""
@@ -346,25 +337,21 @@ class PeriodicOrbit(Result):
             return f"no periodic orbit: {self.message}"
         mu = ", ".join(f"{abs(m):.6g}" + (f" (arg {math.degrees(np.angle(m)):.3g} deg)" if abs(m.imag) > 1e-12 else "")
                        for m in self.multipliers)
-        if np.size(self.state) != 4:
-            n = np.size(self.state) // 2
-            return "\n".join([
-                "start      q = (" + ", ".join(f"{x:.9g}" for x in self.state[:n]) + ") rad, q' = ("
-                + ", ".join(f"{x:.9g}" for x in self.state[n:]) + ") rad/s",
-                f"period     {self.period:.12g} s (frequency {self.frequency:.9g} rad/s)",
-                f"energy     {self.energy:.9g} J" + (f"; rotation {self.rotation}" if any(self.rotation) else ""),
-                f"Floquet    |mu| = {mu}",
-                f"stability  {'stable' if self.stable else 'unstable'} (largest |mu| = {np.max(np.abs(self.multipliers)):.9g}; "
-                "stable when every |mu| <= 1)",
-            ])
+        n = np.size(self.state) // 2
+        if n != 2:  # a chain: every multiplier on the unit circle
+            start = ("q = (" + ", ".join(f"{x:.9g}" for x in self.state[:n]) + ") rad, q' = ("
+                     + ", ".join(f"{x:.9g}" for x in self.state[n:]) + ") rad/s")
+            why = f"largest |mu| = {np.max(np.abs(self.multipliers)):.9g}; stable when every |mu| <= 1"
+        else:
+            start = (f"phi = {self.state[0]:.9g}, psi = {self.state[1]:.9g} rad, "
+                     f"phi' = {self.state[2]:.9g}, psi' = {self.state[3]:.9g} rad/s")
+            why = f"sigma = trace - 2 = {self.sigma:.9g}; stable when |sigma| <= 2"
         return "\n".join([
-            f"start      phi = {self.state[0]:.9g}, psi = {self.state[1]:.9g} rad, "
-            f"phi' = {self.state[2]:.9g}, psi' = {self.state[3]:.9g} rad/s",
+            f"start      {start}",
             f"period     {self.period:.12g} s (frequency {self.frequency:.9g} rad/s)",
             f"energy     {self.energy:.9g} J" + (f"; rotation {self.rotation}" if any(self.rotation) else ""),
             f"Floquet    |mu| = {mu}",
-            f"stability  {'stable' if self.stable else 'unstable'} (sigma = trace - 2 = {self.sigma:.9g}; "
-            f"stable when |sigma| <= 2)",
+            f"stability  {'stable' if self.stable else 'unstable'} ({why})",
         ])
 
     def _dataset(self) -> DatasetSpec:
@@ -515,7 +502,7 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
     from ..interrupts import Interrupts
 
     params = numeric_model(params, "periodic orbits")
-    _require_conservative(params, "a periodic orbit")
+    params.require_lossless("a periodic orbit")  # H = T + Pi - tau . q is kept: torques allowed
     nq = params.n
     rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
     tol, max_iterations = _newton_settings(tol, max_iterations)
@@ -736,7 +723,6 @@ class NNMFamily(_Orbits, Result):
             return np.abs(self.sigma) <= 2.0 + STABILITY_MARGIN
         return np.array([_stable_multipliers(mu) for mu in self.multipliers], dtype=bool)
 
-
     def __len__(self) -> int:
         return len(self.energies)
 
@@ -846,11 +832,6 @@ def _family_events(energies, frequencies, sigma, folds: Sequence[int], multiplie
     return sorted(out, key=lambda e: (e.index, e.kind == "fold"))
 
 
-def _events(energies, frequencies, sigma, tangents_E, multipliers=None) -> List[BranchEvent]:
-    return _family_events(energies, frequencies, sigma,
-                          [k for k in range(len(energies) - 1) if tangents_E[k] * tangents_E[k + 1] < 0], multipliers)
-
-
 @netcdf_reader(NNMFamily.result_kind)
 def read_nnm(path, variables, attrs) -> NNMFamily:
     """A :class:`NNMFamily` from its ``*.nc`` file (``read_nnm(path)``, for
@@ -954,7 +935,7 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     from ..interrupts import Interrupts
 
     params = numeric_model(params, "nonlinear normal modes")
-    _require_conservative(params, "a nonlinear normal mode")
+    params.require_lossless("a nonlinear normal mode")
     if np.any(_torques(params)):
         raise EquilibriumError("nonlinear normal modes start from the modes about the hanging equilibrium; "
                                "with torques use skewpend.periodic_orbit about skewpend.equilibria(params)")
@@ -1055,7 +1036,8 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
     energies_a = np.array(energies)
     family_freq = 2 * np.pi / np.array(periods)
     sig = np.array([np.trace(m) - 2 if n2 == 4 else math.nan for m in monos])
-    events = _events(energies_a, family_freq, sig, np.array(tangE), np.array([_multipliers(m)[0] for m in monos]))
+    folds = [k for k in range(len(energies) - 1) if tangE[k] * tangE[k + 1] < 0]  # the energy turns back
+    events = _family_events(energies_a, family_freq, sig, folds, np.array([_multipliers(m)[0] for m in monos]))
     if status == Status.SUCCESS:
         message = (f"{len(energies)} orbits from E = {energies[0]:.3g} J to {energies[-1]:.6g} J"
                    + (" (the lowest energy at which a joint can flip)" if energy_max is None else ""))
@@ -1156,7 +1138,6 @@ class AlphaFamily(_Orbits, Result):
             object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float))
         object.__setattr__(self, "states", np.asarray(self.states, dtype=float).reshape(-1, 4))
 
-
     def table(self) -> str:
         lines = [f"{'alpha [deg]':>11}  {'frequency [rad/s]':>17}  {'sigma':>10}  stability"]
         step = max(1, len(self.alphas) // 12)
@@ -1224,7 +1205,7 @@ def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Seque
     params = numeric_params(params, "nonlinear normal modes")
     if not params.uses_alpha:
         raise ParameterError("continuation in alpha needs the skew angle alpha (not a general axis2)")
-    _require_conservative(params, "a nonlinear normal mode")
+    params.require_lossless("a nonlinear normal mode")
     mode = whole("mode", mode, 1, 2, what="1: the lower linear frequency, 2: the higher")
     try:
         grid = np.array([a.item() if hasattr(a, "item") else a for a in list(alphas)], dtype=float)

@@ -196,21 +196,14 @@ def robustness(law, *, actuated=(2,), alpha: float = 0.0, values: Optional[Dict[
             progress(stage, count[0], total)
         return r.ok and at_goal(r.final, settings)
 
-    def seed_of() -> int:
-        return int(rng.integers(2**63 - 1))
-
     model_runs: Dict[str, np.ndarray] = {}
     for name in LAB_VARIATIONS:
         model_runs[name] = np.array([run("model", dfki_model(alpha, v), over)
                                      for _, v, over in model_variations(name, nominal, settings)])
     runs: Dict[str, np.ndarray] = {"model": np.concatenate(list(model_runs.values()))}
-    for key, top, kind in (("velocity_noise", settings.velocity_noise_max, "velocity_noise"),
-                           ("torque_noise", settings.torque_noise_max, "torque_noise")):
-        rows = []
-        for sigma in np.linspace(0.0, top, settings.values):
-            rows.append([run(key, disturbance=Disturbance(**{kind: float(sigma)}, seed=seed_of()))
-                         for _ in range(settings.repetitions)])
-        runs[key] = np.array(rows)
+    for key, top in (("velocity_noise", settings.velocity_noise_max), ("torque_noise", settings.torque_noise_max)):
+        runs[key] = np.array([[run(key, disturbance=Disturbance(**{key: float(sigma)}, seed=int(rng.integers(2**63 - 1))))
+                               for _ in range(settings.repetitions)] for sigma in np.linspace(0.0, top, settings.values)])
     runs["torque_response"] = np.array([run("torque_response", disturbance=Disturbance(responsiveness=float(k)))
                                         for k in np.linspace(*settings.responsiveness, settings.values)])
     delays = np.rint(np.linspace(0.0, settings.delay_max, settings.values) / dt).astype(int)

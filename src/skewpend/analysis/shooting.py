@@ -338,6 +338,13 @@ def _simulate(model: _Model, seg: Segments, y0, beta, alpha):
     return model.shoot(seg, y0, p)[0]
 
 
+def _cost(model: _Model, seg: Segments, q, frame=None) -> float:
+    """The sum of squared residuals [rad^2] of the simulated angles ``q`` (S, L+1, nq), in the angles of
+    ``frame`` (:func:`angle_frame`)."""
+    e = (q - seg.q) * seg.mask[:, :, None]
+    return float(np.sum((e if frame is None else e @ np.asarray(frame).T) ** 2))
+
+
 def start_cost(terms, params0: Parameters, beta, alpha: float, seg: Segments, frame=None) -> float:
     """The cost (sum of squared angle residuals [rad^2]) of the segments simulated from their start states
     with the base parameters ``beta`` at ``alpha``: how well a start of the fit explains the data before any
@@ -345,11 +352,7 @@ def start_cost(terms, params0: Parameters, beta, alpha: float, seg: Segments, fr
     try:
         model = _Model(terms, params0)
         with np.errstate(all="ignore"):
-            q = _simulate(model, seg, seg.y0, np.asarray(beta, float), float(alpha))
-            e = (q - seg.q) * seg.mask[:, :, None]
-            if frame is not None:
-                e = e @ np.asarray(frame).T
-            cost = float(np.sum(e**2))
+            cost = _cost(model, seg, _simulate(model, seg, seg.y0, np.asarray(beta, float), float(alpha)), frame)
     except (ParameterError, FloatingPointError, ZeroDivisionError, ValueError, np.linalg.LinAlgError):
         return math.inf
     return cost if math.isfinite(cost) else math.inf
@@ -528,9 +531,7 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
             if alpha_free:
                 new_theta[-1] = min(max(new_theta[-1], alpha_bounds[0]), alpha_bounds[1])
             new_y0 = y0 + dl
-            q_new = _simulate(model, seg, new_y0, *unpack(new_theta))
-            resid = (q_new - seg.q) * seg.mask[:, :, None]
-            new_cost = float(np.sum((resid if frame is None else resid @ frame.T) ** 2))
+            new_cost = _cost(model, seg, _simulate(model, seg, new_y0, *unpack(new_theta)), frame)
             if math.isfinite(new_cost) and new_cost < cost:
                 accepted = True
                 break
@@ -807,13 +808,6 @@ def fit_physical(terms, params0, pi0: np.ndarray, alpha0: float, alpha_free: boo
             dr[:, -1] = (dTx @ pi)[held]
         return w_pen * r, w_pen[:, None] * dr
 
-    def data_cost(th, y):
-        p, _, _, _ = phys.point(th, alpha)
-        with np.errstate(all="ignore"):
-            q = model.shoot(seg, y, p)[0]
-        resid = (q - seg.q) * seg.mask[:, :, None]
-        return float(np.sum((resid if frame is None else resid @ np.asarray(frame).T) ** 2))
-
     theta = rescale(theta)
     p, G, _, _ = phys.point(theta, alpha)
     e, Hll, Hlg, Hgg, gl, gg = _linearise_at(model, seg, y0, p, G, frame)
@@ -838,7 +832,8 @@ def fit_physical(terms, params0, pi0: np.ndarray, alpha0: float, alpha_free: boo
             dg, dl = step
             new_theta = rescale(np.clip(theta + dg, lower, upper))
             new_y0 = y0 + dl
-            new_cost = data_cost(new_theta, new_y0)
+            with np.errstate(all="ignore"):
+                new_cost = _cost(model, seg, model.shoot(seg, new_y0, phys.point(new_theta, alpha)[0])[0], frame)
             rp_new, _ = penalty(new_theta)
             new_total = new_cost + float(rp_new @ rp_new)
             if math.isfinite(new_total) and new_total < total:

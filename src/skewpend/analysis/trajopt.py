@@ -326,14 +326,8 @@ def _iteration_callback(ca, nx: int, ng: int):
             return "stop"
 
         def get_sparsity_in(self, i):
-            name = ca.nlpsol_out(i)
-            if name == "f":
-                return ca.Sparsity.scalar()
-            if name in ("x", "lam_x"):
-                return ca.Sparsity.dense(nx)
-            if name in ("g", "lam_g"):
-                return ca.Sparsity.dense(ng)
-            return ca.Sparsity(0, 0)
+            size = {"f": 1, "x": nx, "lam_x": nx, "g": ng, "lam_g": ng}.get(ca.nlpsol_out(i))
+            return ca.Sparsity(0, 0) if size is None else ca.Sparsity.dense(size)
 
         def eval(self, arg):
             return [_TICK[0]() if _TICK else 0]
@@ -341,11 +335,21 @@ def _iteration_callback(ca, nx: int, ng: int):
     return Iterations()
 
 
+def _solve(solver, z0, bounds, tick):
+    """IPOPT from ``z0`` with ``tick`` told of each iteration (its answer 1 stops IPOPT): IPOPT's status and the
+    solution."""
+    _TICK[:] = [tick]
+    try:
+        sol = solver(x0=z0, **bounds)
+    finally:
+        _TICK.clear()
+    return solver.stats()["return_status"], np.array(sol["x"]).ravel()
+
+
 def _solve_one(job):
     """One start ``(k, z0, bounds)`` solved by the inherited solver, its iterations counted in the shared
     memory: IPOPT's status and the solution."""
     k, z0, bounds = job
-    solver = _SOLVER[0]
     counts, finished = _SHARED
 
     def tick() -> int:
@@ -353,13 +357,10 @@ def _solve_one(job):
         return 0
 
     counts[k] = 0
-    _TICK[:] = [tick]
     try:
-        sol = solver(x0=z0, **bounds)
+        return _solve(_SOLVER[0], z0, bounds, tick)
     finally:
-        _TICK.clear()
         finished[k] = 1
-    return solver.stats()["return_status"], np.array(sol["x"]).ravel()
 
 
 def _solve_starts(solver, starts, bounds, workers, progress, iterations):
@@ -394,15 +395,11 @@ def _solve_starts(solver, starts, bounds, workers, progress, iterations):
                             failed.append(exc)
                     return 1 if failed else 0
 
-                _TICK[:] = [tick]
-                try:
-                    sol = solver(x0=z0, **bounds)
-                finally:
-                    _TICK.clear()
+                result = _solve(solver, z0, bounds, tick)
                 if failed:
                     raise failed[0]
-                _interrupted(solver.stats()["return_status"])
-                out.append((solver.stats()["return_status"], np.array(sol["x"]).ravel()))
+                _interrupted(result[0])
+                out.append(result)
                 if progress is not None:
                     progress(k + 1, count)
         return out
@@ -677,15 +674,10 @@ class Tracking:
         x = np.asarray(x, dtype=float)
         n = x.size // 2
         s = t / self.dt
-        k = math.floor(s)
-        if k >= len(self.K):
-            v = self._law(len(self.K), x)
-        elif k < 0:
-            v = self._law(0, x)
-        else:
-            v = self._law(k, x)
-            if s > k:
-                v = v + (s - k) * (self._law(k + 1, x) - v)
+        k = min(max(math.floor(s), 0), len(self.K))
+        v = self._law(k, x)
+        if k < len(self.K) and s > k:
+            v = v + (s - k) * (self._law(k + 1, x) - v)
         out = np.zeros(n)
         idx = [j - 1 for j in self.actuated]
         out[idx] = np.clip(v, -self.umax, self.umax)
@@ -796,17 +788,13 @@ def _save_directory(save_dir):
     return directory
 
 
-def _yaml_value(v) -> str:
+def _write_yaml(path, entries: Dict[str, Any]):
     import json
 
-    return json.dumps(v)  # JSON's scalars, strings and lists are YAML's flow style
-
-
-def _write_yaml(path, entries: Dict[str, Any]):
     from ..io import atomic_path
 
-    with atomic_path(path) as tmp:
-        tmp.write_text("".join(f"{k}: {_yaml_value(v)}\n" for k, v in entries.items()))
+    with atomic_path(path) as tmp:  # JSON's scalars, strings and lists are YAML's flow style
+        tmp.write_text("".join(f"{k}: {json.dumps(v)}\n" for k, v in entries.items()))
     return path
 
 
@@ -843,11 +831,10 @@ class SpeedObserver:
             x[n:] = (self._seen[1] - self._seen[0]) / self.dt
         return self.law(t, x)
 
-    def init(self) -> None:
-        self._seen = []
-
     def reset(self) -> None:
         self._seen = []
+
+    init = reset
 
     def save(self, save_dir):
         """The DFKI interface's ``save(save_dir)``: the observer's settings as

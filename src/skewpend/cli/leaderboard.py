@@ -97,17 +97,13 @@ def _robustness_lines(robot: str, joints, alpha: float, limit: float, tracking) 
 
     r = rb.robustness(tracking, actuated=joints, alpha=alpha, umax=limit, speeds="positions", progress=progress)
     name, published, best = rb.PUBLISHED_ROBUSTNESS[robot]
-    if alpha:
-        lines = [f"{'robustness (v2)':<22} {'skewpend':>12}"]
-        lines += [f"{labels[key]:<22} {r.criteria[key]:12.3f}" for key in rb.CRITERIA]
-        lines.append(f"{'robustness score':<22} {r.score:12.4f}   {r.simulations} runs, seed 0; not compared: "
-                     f"{PLANAR_NOTE}, best {best:.3f} ({name})")
-        return lines
-    lines = [f"{'robustness (v2)':<22} {'skewpend':>12}   {name}"]
-    for key, theirs in zip(rb.CRITERIA, published):
-        lines.append(f"{labels[key]:<22} {r.criteria[key]:12.3f}   {theirs:.3f}")
-    lines.append(f"{'robustness score':<22} {r.score:12.4f}   best published: {best:.3f} ({name}); "
-                 f"{r.simulations} runs, seed 0")
+    # a skewed rig's criteria without the published ones beside them (those are the planar rig's)
+    lines = [f"{'robustness (v2)':<22} {'skewpend':>12}" + ("" if alpha else f"   {name}")]
+    lines += [f"{labels[key]:<22} {r.criteria[key]:12.3f}" + ("" if alpha else f"   {theirs:.3f}")
+              for key, theirs in zip(rb.CRITERIA, published)]
+    lines.append(f"{'robustness score':<22} {r.score:12.4f}   " + (
+        f"{r.simulations} runs, seed 0; not compared: {PLANAR_NOTE}, best {best:.3f} ({name})" if alpha else
+        f"best published: {best:.3f} ({name}); {r.simulations} runs, seed 0"))
     return lines
 
 
@@ -116,8 +112,6 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
     """Optimise, track, run by the protocol, score; print the criteria beside the best published entry (and,
     with ``robustness``, the robustness board's six criteria and score beside its best entry's).  Exit
     status 0 on success, 1 when the optimisation fails or the run does not stay up."""
-    import numpy as np
-
     from ..analysis import leaderboard as lb
     from ..analysis.trajopt import optimal_swingup, tvlqr
 
@@ -179,5 +173,4 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
         figures.save_figure(figures.leaderboard_figure(run, tracking, title), plot)
         lines.append(f"plot         {plot}")
     sys.stdout.write("\n".join(lines) + "\n")
-    del np
     return 0 if c.success else 1

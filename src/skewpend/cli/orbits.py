@@ -170,12 +170,8 @@ def nnm(
         from ..views import figures
 
         energies = list(orbits_at) if orbits_at is not None else [0.2 * fams[0].energy_max, 0.9 * fams[0].energy_max]
-        drawn = []
-        for f in fams:
-            for E in energies:
-                if f.ok or E <= f.energies.max():
-                    if E <= f.energies.max():
-                        drawn.append((f.mode, float(E), f.at_energy(E).trajectory()))
+        drawn = [(f.mode, float(E), f.at_energy(E).trajectory()) for f in fams for E in energies
+                 if E <= f.energies.max()]
         figures.save_figure(figures.fep_figure(fams, orbits=drawn[:4], resonances=resonances), plot)
         lines.append(f"plot          {plot}")
     sys.stdout.write("\n".join(lines).rstrip() + "\n")

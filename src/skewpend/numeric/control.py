@@ -168,6 +168,17 @@ def _finite(name: str, value, shape) -> np.ndarray:
     return a
 
 
+def _feedback(K, target, u_target, n: int) -> Dict[str, np.ndarray]:
+    """A feedback's gain ``K`` (n, 2 n), target state and input there (default zeros), checked."""
+    return dict(K=_finite("K", K, (n, 2 * n)), target=_finite("target", target, (2 * n,)),
+                u_target=_finite("u_target", np.zeros(n) if u_target is None else u_target, (n,)))
+
+
+def _no_feedback(n: int) -> Dict[str, np.ndarray]:
+    """The feedback arrays of a law without one (a table, a Python law): zeros of ``n`` joints."""
+    return dict(K=np.zeros((n, 2 * n)), target=np.zeros(2 * n), u_target=np.zeros(n), P=np.zeros((2 * n, 2 * n)))
+
+
 def _joints(nq) -> int:
     """A number of coordinates (the double pendulum's 2, a chain's n), checked."""
     try:
@@ -221,10 +232,8 @@ class Controller:
         ``u_target`` the input there (default zeros)."""
         n = _gain_joints(K)
         actuation_mask(actuated, n)
-        return cls("feedback", _actuated_setting(actuated), torque_limits(umax, n), _finite("K", K, (n, 2 * n)),
-                   _finite("target", target, (2 * n,)),
-                   _finite("u_target", np.zeros(n) if u_target is None else u_target, (n,)), P=np.zeros((2 * n, 2 * n)),
-                   nq=n)
+        return cls("feedback", _actuated_setting(actuated), torque_limits(umax, n), **_feedback(K, target, u_target, n),
+                   P=np.zeros((2 * n, 2 * n)), nq=n)
 
     @classmethod
     def swingup(cls, energy_gain: float, target_energy: float, K, target, P, rho: float, u_target=None, *,
@@ -245,11 +254,9 @@ class Controller:
         gains = _finite("elbow_gains", elbow_gains, (2,))
         if np.any(gains < 0):
             raise ParameterError(f"elbow_gains (kp, kd) must not be negative, got {elbow_gains!r}")
-        return cls("swingup", _actuated_setting(actuated), torque_limits(umax, n), _finite("K", K, (n, 2 * n)),
-                   _finite("target", target, (2 * n,)),
-                   _finite("u_target", np.zeros(n) if u_target is None else u_target, (n,)), float(energy_gain),
-                   (float(gains[0]), float(gains[1])), float(target_energy), _finite("P", P, (2 * n, 2 * n)),
-                   float(rho), nq=n)
+        return cls("swingup", _actuated_setting(actuated), torque_limits(umax, n), **_feedback(K, target, u_target, n),
+                   energy_gain=float(energy_gain), elbow_gains=(float(gains[0]), float(gains[1])),
+                   target_energy=float(target_energy), P=_finite("P", P, (2 * n, 2 * n)), rho=float(rho), nq=n)
 
     @classmethod
     def table(cls, times: Sequence[float], torques, *, actuated="both", umax=None, nq: Optional[int] = None
@@ -275,7 +282,7 @@ class Controller:
         if t.size > 1 and np.any(np.diff(t) <= 0):
             raise ParameterError("a torque table's times must increase strictly")
         return cls("table", _actuated_setting(actuated), torque_limits(umax, n), times=t, torques=u, nq=n,
-                   K=np.zeros((n, 2 * n)), target=np.zeros(2 * n), u_target=np.zeros(n), P=np.zeros((2 * n, 2 * n)))
+                   **_no_feedback(n))
 
     @classmethod
     def tracking(cls, dt: float, states, inputs, gains, K, target, u_target=None, *, actuated="both", umax=None
@@ -300,10 +307,8 @@ class Controller:
         if not np.all(np.isfinite(x)):
             raise ParameterError("states must be finite")
         reference = np.ascontiguousarray(np.column_stack([x, u, g.reshape(k, -1)]), dtype=float)
-        return cls("tracking", _actuated_setting(actuated), torque_limits(umax, n), _finite("K", K, (n, 2 * n)),
-                   _finite("target", target, (2 * n,)),
-                   _finite("u_target", np.zeros(n) if u_target is None else u_target, (n,)), P=np.zeros((2 * n, 2 * n)),
-                   nq=n, reference=reference, dt=dt)
+        return cls("tracking", _actuated_setting(actuated), torque_limits(umax, n), **_feedback(K, target, u_target, n),
+                   P=np.zeros((2 * n, 2 * n)), nq=n, reference=reference, dt=dt)
 
     @classmethod
     def function(cls, f, *, actuated="both", umax=None, nq: int = 2) -> "Controller":
@@ -321,8 +326,7 @@ class Controller:
             raise ParameterError(f"the law must take two arguments, f(t, x) -> (u1, ..., u{n}); {f!r} does not") from None
         except ValueError:  # no signature to read (some built-ins): its first call says
             pass
-        return cls("function", _actuated_setting(actuated), torque_limits(umax, n), law=f, nq=n,
-                   K=np.zeros((n, 2 * n)), target=np.zeros(2 * n), u_target=np.zeros(n), P=np.zeros((2 * n, 2 * n)))
+        return cls("function", _actuated_setting(actuated), torque_limits(umax, n), law=f, nq=n, **_no_feedback(n))
 
     def check_model(self, nq: int) -> None:
         """Refuse (one ParameterError) running this controller on a model of ``nq`` coordinates when it
@@ -371,38 +375,30 @@ class Controller:
             c.callback = ctypes.cast(c._keep, ctypes.c_void_p)
         return c
 
-    def _rows(self, t: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """States and times as the compiled row functions read them: (k, 2 n + 2), the time last."""
+    def _many(self, name: str, width: int, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The compiled row function ``name`` (k, ``width``) of the states ``y`` (k, 2 n) and times ``t`` (k,),
+        read as rows (k, 2 n + 2), the time last."""
+        self.check_model(kernel.nq)
         nx = 2 * self.nq
         rows = np.zeros((len(t), nx + 2))
         rows[:, :nx] = np.asarray(y, dtype=float)[:, :nx]
         rows[:, nx + 1] = t
-        return rows
-
-    def inputs(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """The inputs ``u`` (k, n) [N m] at the states ``y`` (k, 2 n) and times ``t`` (k,)."""
-        self.check_model(kernel.nq)
-        rows = self._rows(t, y)
-        out = np.empty((len(t), self.nq))
+        out = np.empty((len(t), width))
         dp = ctypes.POINTER(ctypes.c_double)
         c = self.struct()
-        kernel.lib.sp_inputs_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), rows.shape[1],
+        getattr(kernel.lib, name)(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), rows.shape[1],
                                   np.ascontiguousarray(p, dtype=float).ctypes.data_as(dp), out.ctypes.data_as(dp))
         raise_law_error(c)
         return out
 
+    def inputs(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The inputs ``u`` (k, n) [N m] at the states ``y`` (k, 2 n) and times ``t`` (k,)."""
+        return self._many("sp_inputs_many", self.nq, kernel, p, t, y)
+
     def closed_loop(self, kernel, p: np.ndarray, t: np.ndarray, y: np.ndarray) -> np.ndarray:
         """The closed loop's ``y'`` (k, 2 n) at the states ``y`` (k, 2 n) and times ``t`` (k,): the
         generated right-hand side with these inputs added to the torques (``sp_rhs_ctl_many``)."""
-        self.check_model(kernel.nq)
-        rows = self._rows(t, y)
-        out = np.empty_like(rows)
-        dp = ctypes.POINTER(ctypes.c_double)
-        c = self.struct()
-        kernel.lib.sp_rhs_ctl_many(ctypes.byref(c), rows.ctypes.data_as(dp), len(t), rows.shape[1],
-                                   np.ascontiguousarray(p, dtype=float).ctypes.data_as(dp), out.ctypes.data_as(dp))
-        raise_law_error(c)
-        return out[:, :2 * self.nq]
+        return self._many("sp_rhs_ctl_many", 2 * self.nq + 2, kernel, p, t, y)[:, :2 * self.nq]
 
     def closed_loop_function(self, kernel, p: np.ndarray):
         """:meth:`closed_loop` as a function ``f(y) -> y'`` of states ``y`` (k, 2 n) at t = 0, the
