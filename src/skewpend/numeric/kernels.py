@@ -427,8 +427,7 @@ class Kernel:
     ``flip_potential_many``).
 
     ``origin`` says where it came from: ``"compiled"`` (built in this process, taking
-    ``build_time`` seconds) or ``"cache"``; ``compiler`` which compiler built it (None for a
-    library cached before that was recorded).
+    ``build_time`` seconds) or ``"cache"``; ``compiler`` which compiler built it (None if not recorded).
     """
 
     def __init__(self, path: Path, origin: str, build_time: float, *, flip: bool = False, chaos: bool = False,
@@ -455,12 +454,10 @@ class Kernel:
             getattr(lib, name).argtypes = [dp, dp, dp]
             getattr(lib, name).restype = None
         lib.sp_energy.argtypes, lib.sp_energy.restype = [dp, dp], ctypes.c_double
-        lib.sp_energies.argtypes, lib.sp_energies.restype = [dp, i64, i64, dp, dp], None
+        for name in ("sp_energies", "sp_tips_many", "sp_momenta_many", "sp_axes_many"):
+            getattr(lib, name).argtypes, getattr(lib, name).restype = [dp, i64, i64, dp, dp], None
         vp = ctypes.c_void_p  # addresses: the quickest ctypes call (simulate's per-chunk account)
         lib.sp_energy_account.argtypes, lib.sp_energy_account.restype = [vp, i64, i64, vp, vp, vp], None
-        lib.sp_tips_many.argtypes, lib.sp_tips_many.restype = [dp, i64, i64, dp, dp], None
-        lib.sp_momenta_many.argtypes, lib.sp_momenta_many.restype = [dp, i64, i64, dp, dp], None
-        lib.sp_axes_many.argtypes, lib.sp_axes_many.restype = [dp, i64, i64, dp, dp], None
         lib.sp_speeds_many.argtypes, lib.sp_speeds_many.restype = [dp, i64, i64, dp], None
         lib.sp_state_size.argtypes, lib.sp_state_size.restype = [], i64
         d, ip = ctypes.c_double, ctypes.POINTER(i64)
@@ -638,10 +635,10 @@ _KEY_LOCKS: Dict[str, threading.Lock] = {}
 
 class _LibraryLock:
     """A library's lock across threads and processes: the thread lock of this process, then an
-    exclusive ``flock`` on ``.skewpend_KEY.lock`` in the cache's folder, so two processes (pytest-xdist's
-    workers, two commands started together) wanting the same library build it once -- the second
-    waits and loads what the first built.  Where the folder is not writable or ``fcntl`` is missing
-    (Windows) the process lock alone holds, as before (the atomic rename keeps either build whole)."""
+    exclusive ``flock`` on ``.skewpend_KEY.lock`` in the cache's folder, so two processes wanting the
+    same library build it once -- the second waits and loads what the first built.  Where the folder is
+    not writable or ``fcntl`` is missing (Windows) the process lock alone holds (the atomic rename keeps
+    either build whole)."""
 
     def __init__(self, key: str, thread_lock: threading.Lock) -> None:
         self.key, self.thread_lock, self.fd = key, thread_lock, None
@@ -675,8 +672,7 @@ class _LibraryLock:
 
 def _key_lock(key: str) -> _LibraryLock:
     """One lock per library: two threads or processes wanting the same library build it once, while
-    different libraries (the model's, the flip map's, the chaos kernel) compile at the same time (a
-    report starts its builds together: issue 28's cold report)."""
+    different libraries (the model's, the flip map's, the chaos kernel) compile at the same time."""
     with _LOCK:
         return _LibraryLock(key, _KEY_LOCKS.setdefault(key, threading.Lock()))
 _LOADED: Dict[str, Kernel] = {}
@@ -715,26 +711,22 @@ def _writable_directory() -> Path:
         probe.close()
         return directory
     except OSError as exc:
-        with _LOCK:  # one private directory, whichever thread gets here first
-            return _fallback_directory(directory, exc)
+        global _FALLBACK_DIR
+        with _LOCK:  # one private directory for this run's libraries, whichever thread gets here first
+            if _FALLBACK_DIR is None:
+                _FALLBACK_DIR = _fallback_directory(directory, exc)
+        return _FALLBACK_DIR
 
 
 def _fallback_directory(directory: Path, exc: OSError) -> Path:
-    """A private temporary directory for this run's libraries (made once, with a warning)."""
-    global _FALLBACK_DIR
-    if _FALLBACK_DIR is None:
-        import atexit
+    """A private temporary directory (with a warning), removed at exit (the loaded libraries stay mapped)."""
+    import atexit
 
-        _FALLBACK_DIR = Path(tempfile.mkdtemp(prefix="skewpend-kernels-"))
-        # a private directory for this run only: removed at exit (the loaded libraries stay mapped)
-        atexit.register(shutil.rmtree, _FALLBACK_DIR, ignore_errors=True)
-        warnings.warn(
-            f"cannot write the kernel cache {directory} ({exc.strerror or exc}); using {_FALLBACK_DIR} "
-            "for this run (set SKEWPEND_CACHE_DIR to a writable directory to keep compiled kernels)",
-            RuntimeWarning,
-            stacklevel=4,
-        )
-    return _FALLBACK_DIR
+    fallback = Path(tempfile.mkdtemp(prefix="skewpend-kernels-"))
+    atexit.register(shutil.rmtree, fallback, ignore_errors=True)
+    warnings.warn(f"cannot write the kernel cache {directory} ({exc.strerror or exc}); using {fallback} for this run "
+                  "(set SKEWPEND_CACHE_DIR to a writable directory to keep compiled kernels)", RuntimeWarning, stacklevel=4)
+    return fallback
 
 
 def _intact(path: Path) -> bool:
@@ -758,8 +750,7 @@ def _remove_stale_temporaries(directory: Path, age: float = 3600.0) -> None:
 
 
 def _announce(kind: str, cached: bool, which: str = "") -> None:
-    """One line on stderr before a build (seconds with the packaged compiler; silent otherwise, a new
-    user waited 16 s for a first simulate without a word), in a terminal and in a pipe;
+    """One line on stderr before a build (seconds with the packaged compiler), in a terminal and in a pipe;
     ``SKEWPEND_QUIET=1`` silences it.  A compiler that cannot be run is said first, alone."""
     cc = find_compiler()
     if os.path.sep not in cc[0] and shutil.which(cc[0]) is None or os.path.sep in cc[0] and not os.access(cc[0], os.X_OK):
@@ -832,10 +823,8 @@ def _bodies_words(geometry) -> str:
 
 
 def kernel_module(params: Parameters, *, flip: bool = False, chaos: bool = False, shooting: bool = False) -> Kernel:
-    """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs).
-
-    Loaded from the cache when there; otherwise generated from the derivation, compiled
-    and cached (atomically: a killed build leaves no partial library behind).  ``flip=True``:
+    """The compiled kernel for the bodies and axes of ``params`` (scalars are runtime inputs), by
+    :func:`_library`.  ``flip=True``:
     the larger library that also holds the flip-time ensembles (``sp_flip``), built on the
     first flip map so that simulations never wait for it.  ``chaos=True``: the library that also
     holds the Lyapunov and Poincare-section routines (``chaos.c``), built on first use.
@@ -909,8 +898,7 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool =
     return kernel
 
 
-#: The forms of a model's generated code (issue 52: the form an argument of one pipeline, not the model's
-#: type): ``exact``, the specification's derivation (SymPy; two links the double pendulum's parameters hold:
+#: The forms of a model's generated code (an argument of one pipeline, not the model's type): ``exact``, the specification's derivation (SymPy; two links the double pendulum's parameters hold:
 #: there the fastest -- a 20 s DOP853 run at 1e-10 takes 9.58e6 instructions, the straight form 1.53x, the
 #: compact 2.70x); ``straight`` and ``compact``, the recursive algorithms (any chain; ``recursive.chain_form``
 #: picks by the length).
@@ -958,15 +946,12 @@ def model_kernel(model, form: str = "", *, flip: bool = False, chaos: bool = Fal
     """The one door to a model's compiled library: the model's own, ``flip=True`` with the flip map's SIMD
     lanes (exact form only), ``chaos=True`` with the Lyapunov routines and the state-transition flow,
     ``shooting=True`` identification's.  ``form``: the generated code's form (:data:`FORMS`; default the
-    fastest that prints the model, :func:`model_form`).  The kernel says its ``form`` and the names of its
-    run-time vector (``parameter_names``; :func:`model_vector` fills it)."""
+    fastest that prints the model, :func:`model_form`); the kernel says its ``form``."""
     kind = "flip" if flip else ("chaos" if chaos else ("shooting" if shooting else ""))
     form, printed = model_form(model, form, kind)
     if form == "exact":
-        kernel = kernel_module(printed, flip=flip, chaos=chaos, shooting=shooting)
-    else:
-        kernel = chain_kernel(printed, form, chaos=chaos, shooting=shooting)
-    return kernel
+        return kernel_module(printed, flip=flip, chaos=chaos, shooting=shooting)
+    return chain_kernel(printed, form, chaos=chaos, shooting=shooting)
 
 
 def model_vector_names(model, form: str = "") -> tuple:
@@ -1123,7 +1108,6 @@ def build_taylor_in_background(params: Parameters, order: int, form: str = "") -
     first), unless one is building it already (a marker file beside the library, under
     :data:`_BUILD_MARK_AGE` s old) or the cache is not writable.  True if a build was started or runs."""
     import json
-    import subprocess
 
     key = taylor_library_key(params, order, form)
     directory = cache_dir() / "kernels"

@@ -189,8 +189,7 @@ class _Graph:
             e = axis_of(structure.patterns[i], L)
             a = ca.mtimes(R, ca.vertcat(*e))
             R = ca.mtimes(R, _rotation(ca, ca.cos(self.q[i]), ca.sin(self.q[i]), e))
-            Ib = ca.vertcat(ca.horzcat(L["Ixx"], L["Ixy"], L["Ixz"]), ca.horzcat(L["Ixy"], L["Iyy"], L["Iyz"]),
-                            ca.horzcat(L["Ixz"], L["Iyz"], L["Izz"]))
+            Ib = _sym6(ca, [L[f"I{t}"] for t in ("xx", "xy", "xz", "yy", "yz", "zz")])
             self.R.append(R)
             self.o.append(o)
             self.a.append(a)
@@ -241,9 +240,7 @@ class _Graph:
 
     def _rotor_row(self, i):
         """d(spin of rotor i)/dq': the parent's axes projected on a_i, and gr_i at i (None: 0)."""
-        ca = self.ca
-        row = [ca.dot(self.a[k], self.a[i]) for k in range(i)] + [self.link[i]["gr"]] + [None] * (self.n - i - 1)
-        return row
+        return [self.ca.dot(self.a[k], self.a[i]) for k in range(i)] + [self.link[i]["gr"]] + [None] * (self.n - i - 1)
 
     def rotor_energy(self):
         ca = self.ca
@@ -826,6 +823,12 @@ def _entries6(ca, M):
     return ca.vertcat(M[0, 0], M[0, 1], M[0, 2], M[1, 1], M[1, 2], M[2, 2])
 
 
+def _twist_momentum(ca, mC, hC, JC, a, oa):
+    """``(lin, ang)``: the momentum of a composite (mass ``mC``, first moment ``hC``, inertia entries ``JC``
+    about the origin) under the unit twist ``(a, oa)``: a column of the mass matrix."""
+    return mC * oa + _cross(ca, a, hC), ca.mtimes(_sym6(ca, [JC[i] for i in range(6)]), a) + _cross(ca, hC, oa)
+
+
 @lru_cache(maxsize=4)
 def compact_functions(friction: bool) -> Dict[str, object]:
     """The forward and backward steps of the recursions for one link with its axis as an input (CasADi
@@ -843,13 +846,7 @@ def compact_functions(friction: bool) -> Dict[str, object]:
     Rp = ca.reshape(s["R"], 3, 3).T  # row-major
     o = s["o"] + ca.mtimes(Rp, ca.vertcat(L["hx"], L["hy"], L["hz"]))
     a = ca.mtimes(Rp, e)
-    c_, s_ = ca.cos(q), ca.sin(q)
-    k = 1 - c_
-    x, y, z = e[0], e[1], e[2]
-    P = ca.vertcat(ca.horzcat(c_ + k * x * x, k * x * y - s_ * z, k * x * z + s_ * y),
-                   ca.horzcat(k * y * x + s_ * z, c_ + k * y * y, k * y * z - s_ * x),
-                   ca.horzcat(k * z * x - s_ * y, k * z * y + s_ * x, c_ + k * z * z))
-    R = ca.mtimes(Rp, P)
+    R = ca.mtimes(Rp, _rotation(ca, ca.cos(q), ca.sin(q), (e[0], e[1], e[2])))
     r = ca.mtimes(R, ca.vertcat(L["rx"], L["ry"], L["rz"]))
     c = o + r
     Iw = ca.mtimes(ca.mtimes(R, _sym6(ca, [L[f"I{t}"] for t in ("xx", "xy", "xz", "yy", "yz", "zz")])), R.T)
@@ -874,14 +871,12 @@ def compact_functions(friction: bool) -> Dict[str, object]:
     oa = _cross(ca, o, a)
     v0p = s["vo"] - _cross(ca, wp, s["o"])  # the parent's twist at the origin: (wp, v0p)
     state = ca.vertcat(R.T.reshape((9, 1)), o, w, vo, al, ao, y0)
-    body = ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c, _entries6(ca, Iw + m * (ca.dot(c, c) * ca.SX.eye(3) - ca.mtimes(c, c.T))),
-                      pl, _cross(ca, c, pl) + Iww, (m * ca.dot(vc, vc) + ca.dot(w, Iww)) / 2,
+    JO = _entries6(ca, Iw + m * (ca.dot(c, c) * ca.SX.eye(3) - ca.mtimes(c, c.T)))  # the inertia about the origin
+    body = ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c, JO, pl, _cross(ca, c, pl) + Iww, (m * ca.dot(vc, vc) + ca.dot(w, Iww)) / 2,
                       -g * m * (c[1] - (y0 + L["ry"])), Q, _cross(ca, wp, a), _cross(ca, wp, oa) + _cross(ca, v0p, a), o,
                       o + R[:, 1] * L["l"])
     fwd = ca.Function("fwd", [S, Lp, e, q, dq, g, cfs], [state, body])
-    body_r = ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c,
-                        _entries6(ca, Iw + m * (ca.dot(c, c) * ca.SX.eye(3) - ca.mtimes(c, c.T))), Q)
-    fwd_r = ca.Function("fwd_r", [S, Lp, e, q, dq, g, cfs], [state, body_r])
+    fwd_r = ca.Function("fwd_r", [S, Lp, e, q, dq, g, cfs], [state, ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c, JO, Q)])
     C = ca.SX.sym("C", _size(_COMPOSITE))
     B = ca.SX.sym("B", _size(_BODY))
     cc, b = _split(ca, C, _COMPOSITE), _split(ca, B, _BODY)
@@ -890,8 +885,7 @@ def compact_functions(friction: bool) -> Dict[str, object]:
     f, nO = cc["f"] + b["F"], cc["n"] + b["NO"]
     plC, paC = cc["pl"] + b["pl"], cc["pa"] + b["pa"]
     a, oa = b["a"], b["oa"]
-    lin = mC * oa + _cross(ca, a, hC)
-    ang = ca.mtimes(_sym6(ca, [JC[i] for i in range(6)]), a) + _cross(ca, hC, oa)
+    lin, ang = _twist_momentum(ca, mC, hC, JC, a, oa)
     dT = ca.dot(b["dSa"], paC) + ca.dot(b["dSl"], plC)
     dPi = -g * _cross(ca, a, hC - mC * b["o"])[1]
     composite = ca.vertcat(mC, hC, JC, f, nO, plC, paC)
@@ -901,8 +895,7 @@ def compact_functions(friction: bool) -> Dict[str, object]:
     cr, br = _split(ca, Cr, _COMPOSITE_R), _split(ca, Br, _BODY_R)
     mC, hC, JC = cr["m"] + br["m"], cr["h"] + br["mc"], cr["J"] + br["JO"]
     f, nO, a, oa = cr["f"] + br["F"], cr["n"] + br["NO"], br["a"], br["oa"]
-    lin = mC * oa + _cross(ca, a, hC)
-    ang = ca.mtimes(_sym6(ca, [JC[i] for i in range(6)]), a) + _cross(ca, hC, oa)
+    lin, ang = _twist_momentum(ca, mC, hC, JC, a, oa)
     bwd_r = ca.Function("bwd_r", [Cr, Br, g], [ca.vertcat(mC, hC, JC, f, nO),
                                                ca.vertcat(ca.dot(a, nO) + ca.dot(oa, f), ang, lin)])
     return {"fwd": fwd, "bwd": bwd, "fwd_r": fwd_r, "bwd_r": bwd_r}

@@ -60,22 +60,16 @@ AUTO = "auto"
 #: * equations with a function that has no series recurrence -> dop853 (no model of skewpend has one
 #:   today: sin, cos and Coulomb friction's atan all have theirs);
 #: * a chain of more than :data:`~skewpend.numeric.conventions.SERIES_MAX_LINKS` links -> dop853 (its model
-#:   as polynomials, the form its series are printed from, grows too many terms); a chain of three takes
-#:   taylor at 0.24-0.28x heyoka.py's time at equal error (its dop853 0.41-0.45x; ``benchmarks/bench_chain_heyoka.py``)
-#:   and 0.6-1.0x its own dop853's at equal error (three general links 0.64x, the skewed example triple 0.96x;
-#:   100x smaller error at the same tolerance), its library built in 15-35 s (once, in the background);
+#:   as polynomials, the form its series are printed from, grows too many terms); up to that, taylor takes
+#:   0.6-1.0x its own dop853's time at equal error (``benchmarks/bench_chain_heyoka.py``);
 #: * otherwise -> taylor, at every tolerance, own steps or a dense grid (``dt_out``), kept or streamed:
 #:   the adaptive Taylor method takes 2-4x less time than dop853 at the same tolerance and reaches a
-#:   smaller error (docs/benchmarks.md, work-precision: 0.085 against 0.18 ms at 1e-3, 0.20 against
-#:   0.60 ms at 1e-10, 0.41 against 1.46 ms at 1e-14), and 0.6-0.7x heyoka.py's time at tol 1e-10
-#:   (benchmarks/bench_simulate.py).  Its one cost: the first run at a new order (one per tolerance
-#:   band, see :func:`skewpend.numeric.kernels.taylor_rule`) builds that order's small library, about
-#:   1-3 s once, cached on disk like the model's kernel.
-#:
+#:   smaller error (docs/benchmarks.md, work-precision).  Its one cost: the first run at a new order (one
+#:   per tolerance band, :func:`skewpend.numeric.kernels.taylor_rule`) builds that order's small library,
+#:   cached on disk like the model's kernel;
 #: * the first run of a model's structure at a tolerance band, before taylor's library of that order is
-#:   built -> dop853, while a detached process builds the library for later runs (``"building"``; a
-#:   first ``skewpend simulate`` took 7-8 s building both libraries; ``SKEWPEND_TAYLOR_BUILD=foreground``
-#:   waits for it instead, one choice whatever the cache holds).
+#:   built -> dop853, while a detached process builds the library for later runs (``"building"``;
+#:   ``SKEWPEND_TAYLOR_BUILD=foreground`` waits for it instead, one choice whatever the cache holds).
 #:
 #: A fixed step ``dt`` is refused with ``auto`` (it is a setting of rk4 and gauss: name the method).
 AUTO_RULE = {
@@ -385,10 +379,6 @@ class _Accumulator:
         return table[:, 0].copy(), table[:, 1:s].copy(), table[:, s + 1].copy(), table[:, s].copy()
 
 
-def _progress_noop(t: float, t_end: float) -> None:
-    pass
-
-
 class _Prepared:
     """What ``simulate`` needs of one :class:`Parameters` object, computed on its first run and
     kept (a Parameters is immutable): its model kernel, parameter array (read-only) and Taylor
@@ -500,11 +490,8 @@ def simulate(
     heyoka's ``taylor_adaptive``, with skewpend's step factor): order ``p = ceil(-ln(rtol)/L) + 1``,
     step ``h = rho exp(-L) exp(-0.7/(p-1))`` with ``rho = min over m = p-1, p of
     (s / max_i |y_i[m]|)^(1/m)``, ``y_i[m]`` the Taylor coefficients and ``s = max(atol/rtol,
-    max_i |y_i|)``: the series' last terms estimate a local error ``exp(-L (p-1)) <= rtol``.  heyoka
-    takes ``L = 2`` (the optimum when a step's cost grows as ``p^2``); skewpend's steps cost nearly
-    linearly in ``p`` up to order 16, so it takes larger steps at a higher order there: ``L = 1.5``
-    for ``rtol >= 1e-9``, ``1.75`` down to ``1e-11``, ``2`` below (orders 8 at 1e-4, 15 at 1e-9
-    and at 1e-10, 19 at 1e-15; :func:`skewpend.numeric.kernels.taylor_rule`).  With
+    max_i |y_i|)``: the series' last terms estimate a local error ``exp(-L (p-1)) <= rtol``; ``L`` by
+    tolerance band (:func:`skewpend.numeric.kernels.taylor_rule`).  With
     ``rtol = atol = tol`` the scale is heyoka's for its ``tol`` (absolute error control while the
     state's largest component is below 1, relative above); ``atol`` enters only through that floor
     of the scale.  Every step is accepted (``stats["rejected"]`` is 0; ``stats["nfev"]`` counts
@@ -752,14 +739,8 @@ def _taylor_result(params, method, settings, buf, k, code, wall, kernel, tk, ste
     status = _STATUS_OF.get(code)
     if status is None:
         status = Status.of(code)
-    state, acc_arr = buf.state, buf.acc
-    stats = {"nfev": state.nfev, "steps": state.naccept, "rejected": state.nreject, "wall_time": wall,
-             "kernel": kernel.origin, "kernel_build_time": kernel.build_time, "compiler": kernel.compiler, "rows": k,
-             "order": state.order, "step_exponent": step_l}
-    if tk.origin == "compiled":
-        stats["kernel"] = "compiled"
-        stats["kernel_build_time"] = kernel.build_time + tk.build_time
-    err, scale = float(acc_arr[0]), float(acc_arr[1])
+    stats = _stats(buf.state, wall, kernel, k, tk, step_l)
+    err, scale = float(buf.acc[0]), float(buf.acc[1])
     # every field set at once (what the dataclass's __init__ does one object.__setattr__ at a time,
     # and __post_init__'s Status: status is one already): test_taylor checks the fields are all here
     traj = object.__new__(Trajectory)
@@ -808,7 +789,6 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
     else:
         rows = np.empty((_CHUNK_ROWS, n + 1))
         m = ctypes.c_int64(0)
-
     if first is not None:
         pass
     elif method == "taylor":
@@ -868,11 +848,9 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
                 progress(state.t, t_end)
 
         budget = _first_budget(max_steps)
-        # The first bounded call (at most 2000 steps: a few ms) runs without Interrupts' signal
-        # handlers (installing and restoring them costs more than a short run takes): a Ctrl-C
-        # during it raises as Python's handler does, when the call returns.  A run that goes on
-        # continues in drive(), inside Interrupts, as drive() would have (its budget adapted to
-        # ~0.05 s a call after drive's first call; results do not depend on the chunks).
+        # The first bounded call (a few ms) runs without Interrupts' signal handlers (installing and
+        # restoring them costs more than a short run takes): a Ctrl-C during it raises when the call
+        # returns.  A run that goes on continues in drive(), inside Interrupts.
         if first is None:
             start = time.perf_counter()
             code = int(call(budget))
@@ -898,42 +876,13 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
             from .control import raise_law_error
 
             raise_law_error(cstruct)  # a Python law's exception, not a non-finite state
-        wall = time.perf_counter() - start
-        stats = {
-            "nfev": int(state.nfev),
-            "steps": int(state.naccept),
-            "rejected": int(state.nreject),
-            "wall_time": wall,
-            "kernel": kernel.origin,
-            "kernel_build_time": kernel.build_time,
-            "compiler": kernel.compiler,
-            "rows": acc.rows,
-        }
-        if method == "taylor":
-            stats["order"], stats["step_exponent"] = int(state.order), step_l
-            if tk.origin == "compiled":  # this process built the Taylor library of this order
-                stats["kernel"] = "compiled"
-                stats["kernel_build_time"] = kernel.build_time + tk.build_time
+        stats = _stats(state, time.perf_counter() - start, kernel, acc.rows, tk if method == "taylor" else None, step_l)
         err, scale = float(acc.acc[0]), float(acc.acc[1])
-        drift = err / scale if scale > 0 else err
         message = status.message
         t_col, y_col, e_col, w_col = acc.columns()
-        traj = Trajectory(
-            t=t_col,
-            y=y_col,
-            energy=e_col,
-            work=w_col,
-            params=params,
-            method=method,
-            settings=settings,
-            stats=stats,
-            status=status,
-            message=message,
-            energy_drift=drift,
-            kept=keep,
-            _kernel=kernel,
-            controller=controller,
-        )
+        traj = Trajectory(t=t_col, y=y_col, energy=e_col, work=w_col, params=params, method=method, settings=settings,
+                          stats=stats, status=status, message=message, energy_drift=err / scale if scale > 0 else err,
+                          kept=keep, _kernel=kernel, controller=controller)
         if writer is not None:
             metadata = trajectory_metadata(traj)
             metadata["t_reached"] = float(state.t)
@@ -943,6 +892,19 @@ def _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max
     if traj.status != 0 and throw:
         raise IntegrationError(f"{method}: {message} at t = {state.t:.6g} s")
     return traj
+
+
+def _stats(state, wall: float, kernel, rows: int, tk, step_l: float) -> Dict[str, Any]:
+    """A run's ``stats``: its integrator's counts, the kernel's origin, and a Taylor run's (``tk``: its library)
+    order and step exponent -- ``"compiled"`` when this process built the library of that order."""
+    stats = {"nfev": int(state.nfev), "steps": int(state.naccept), "rejected": int(state.nreject), "wall_time": wall,
+             "kernel": kernel.origin, "kernel_build_time": kernel.build_time, "compiler": kernel.compiler, "rows": rows}
+    if tk is not None:
+        stats["order"], stats["step_exponent"] = int(state.order), step_l
+        if tk.origin == "compiled":
+            stats["kernel"] = "compiled"
+            stats["kernel_build_time"] = kernel.build_time + tk.build_time
+    return stats
 
 
 def _first_budget(max_steps: int) -> int:

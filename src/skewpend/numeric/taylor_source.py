@@ -28,8 +28,8 @@ truncated power series:
 Several algebraic forms of the equations are tried -- the derivation's own; the entries expanded as
 polynomials in ``sin``/``cos`` of the angles and the speeds, and collected in one of them; and nested
 (greedy multivariate Horner) forms with monic factors, so that a factor two entries share is one
-series -- and the one with fewest series products is printed (issue 3's rods: 10.5 an order, was
-11.5; the solve of ``M q'' = f`` adds 3).  Nothing here is an equation of motion typed by hand.
+series -- and the one with fewest series products is printed.  Nothing here is an equation of motion
+typed by hand.
 """
 
 from __future__ import annotations
@@ -199,6 +199,11 @@ class _Graph:
                     return key, a
         return None
 
+    def _split(self, e: sp.Expr):
+        """The constant arguments of a sum or product, and its series arguments in SymPy's sort order."""
+        return ([a for a in e.args if self.is_const(a)],
+                sorted((a for a in e.args if not self.is_const(a)), key=sp.default_sort_key))
+
     def node(self, e: sp.Expr) -> Tuple[str, str]:
         e = sp.sympify(e)
         if e in self.memo:
@@ -208,8 +213,7 @@ class _Graph:
         elif e in self.state:
             out = self.state[e]
         elif e.is_Add:
-            consts = [a for a in e.args if self.is_const(a)]
-            series = sorted((a for a in e.args if not self.is_const(a)), key=sp.default_sort_key)
+            consts, series = self._split(e)
             if _short_path:  # the terms known first added first (the latest one last)
                 def late(a):
                     coeff, rest = a.as_coeff_Mul()
@@ -228,8 +232,7 @@ class _Graph:
         elif e.is_Mul and len([a for a in e.args if not self.is_const(a)]) > 1 and any(self.is_const(a) for a in e.args):
             # c * (the product of the series): the product a node of its own, shared with every other
             # multiple of it
-            consts = [a for a in e.args if self.is_const(a)]
-            series = sorted((a for a in e.args if not self.is_const(a)), key=sp.default_sort_key)
+            consts, series = self._split(e)
             c = sp.Mul(*consts)
             ds = [self.dep(self.node(a)) for a in series] if _short_path else [0]
             if min(ds) < max(ds):
@@ -244,8 +247,7 @@ class _Graph:
             key, a = self._reuse(e)
             out = self.new("mul", self.memo[key], self.node(a.base ** (a.exp - 1)), cost=1.0)
         elif e.is_Mul:
-            consts = [a for a in e.args if self.is_const(a)]
-            series = sorted((a for a in e.args if not self.is_const(a)), key=sp.default_sort_key)
+            consts, series = self._split(e)
             if _short_path and len(series) > 2:  # the factors known first multiplied first
                 series = sorted(series, key=lambda a: self.dep(self.node(a.base if a.is_Pow and a.exp == -1 else a)))
             acc = self.node(series[0])
@@ -306,22 +308,25 @@ def _build(system: SeriesSystem, main):
 
 def _forms(system: SeriesSystem):
     """Algebraic forms of M and f to try: the model's own; expanded as polynomials in the
-    sines, cosines and speeds; that polynomial collected in each one of them (for issue 3's rods,
-    collected in sin(psi): 11.5 series products an order against 13.5 and 16.5); and its nested
-    forms (:func:`_horner_forms`: 10.5 for issue 3's rods, 14 against 17.5 for a skewed second
-    axis with an offset centre of mass)."""
+    sines, cosines and speeds; that polynomial collected in each one of them; and its nested
+    forms (:func:`_horner_forms`)."""
     angles = set(system.q)
     main = [*system.M, *system.f]
     yield main
     expanded = [sp.expand(sp.expand_trig(e)) if e.free_symbols & angles else sp.expand(e) for e in main]
     yield expanded
-    gens = set()
-    for e in expanded:
-        gens |= {a for a in e.atoms(sp.sin, sp.cos) if a.free_symbols & angles}
-    gens |= set(system.dq)
-    for gen in sorted(gens, key=sp.default_sort_key):
+    gens = _generators(system, expanded)
+    for gen in gens:
         yield [sp.collect(e, gen) for e in expanded]
-    yield from _horner_forms(expanded, sorted(gens, key=sp.default_sort_key))
+    yield from _horner_forms(expanded, gens)
+
+
+def _generators(system: SeriesSystem, expanded) -> list:
+    """The sines and cosines of the angles in ``expanded``, and the speeds, in SymPy's sort order."""
+    gens = set(system.dq)
+    for e in expanded:
+        gens |= {a for a in e.atoms(sp.sin, sp.cos) if a.free_symbols & set(system.q)}
+    return sorted(gens, key=sp.default_sort_key)
 
 
 def _large_forms(system: SeriesSystem):
@@ -329,12 +334,8 @@ def _large_forms(system: SeriesSystem):
     forms = _forms(system)
     yield next(forms)
     expanded = next(forms)
-    gens = set()
-    for e in expanded:
-        gens |= {a for a in e.atoms(sp.sin, sp.cos) if a.free_symbols & set(system.q)}
-    gens |= set(system.dq)
     try:
-        yield _horner(expanded, sorted(gens, key=sp.default_sort_key))
+        yield _horner(expanded, _generators(system, expanded))
     except sp.PolynomialError:
         return
 
@@ -442,10 +443,8 @@ def _horner_forms(expanded, gens):
 #: derivation's form and the plain nested one (:func:`_horner`, nothing protected) are tried: each form
 #: costs a common-subexpression pass of seconds at that size, and for bodies whose values are symbols
 #: (a general rigid body: 6,434 operations) the collected forms cost 7-26x the series products of the
-#: nested one and the protected nested forms 1.0-1.4x (measured on tests/golden's skewed rigid body:
-#: the derivation's 67.5, expanded 369.5, collected 109.5-382.5, nested 14.5, protected 16.5-20; the
-#: search took 90 s of its kernel's 100 s, now 10 s).  Thin rods, tilted axes, friction and an offset centre
-#: of mass (130-520 operations) search every form as before.
+#: nested one and the protected nested forms 1.0-1.4x (measured on tests/golden's skewed rigid body).
+#: Thin rods, tilted axes, friction and an offset centre of mass (130-520 operations) search every form.
 SEARCH_OPS = 3000
 
 
@@ -486,15 +485,11 @@ INLINE_TERMS = 8
 #: 0.413 / 0.376, 17 0.572 / 0.519, 20 0.727 / 0.624; three or four chains were slower than two).  A
 #: fixed order written in the C: the same bits on every machine.
 LANES = 2
-#: Whether the terms with this order's coefficients are added last (:func:`_reduce`).
-LATE = True
-#: Whether the two partial sums of a long sum are the two lanes of a vector of two doubles (GNU C
-#: vector extensions: SSE2 on x86-64; the same additions in the same order as two scalar chains, so the
-#: same bits, with half the loads and arithmetic instructions).
-VECTOR = True
-#: ... also for sums of 2-3 terms (a vector product and its two lanes added): with fused multiply-adds a
-#: chain of scalar ones is quicker (bare C call, A/B of 1,500 pairs: 0.983-0.997x at orders 9-15).
-VECTOR_SHORT = False
+#: The two partial sums of a long sum are the two lanes of a vector of two doubles (GNU C vector
+#: extensions: SSE2 on x86-64; the same additions in the same order as two scalar chains, so the same
+#: bits, with half the loads and arithmetic instructions); sums of 2-3 terms stay scalar (with fused
+#: multiply-adds a chain of scalar ones is quicker).  The terms with this order's coefficients are added
+#: last (:func:`_reduce`).
 #: Whether the series operations are arranged for a short dependency chain an order (the terms of a
 #: sum known first added first; a constant factor put on the factor of a product known first; the
 #: factors known first multiplied first): the evaluation at low orders is bound by that chain.
@@ -508,7 +503,7 @@ _short_path = SHORT_PATH
 _inline_terms = INLINE_TERMS
 
 
-#: The vector of two doubles of the long sums (:data:`VECTOR`): a load of ``p[0], p[1]`` and one
+#: The vector of two doubles of the long sums (:data:`LANES`): a load of ``p[0], p[1]`` and one
 #: reversed, ``p[1], p[0]`` (the second factor of a Cauchy product runs backwards), and the fused
 #: multiply-adds ``SP_FMA`` and ``sp_fma2`` (two lanes).  Every product of the series is fused with the
 #: addition that follows it (:func:`_chain`): about 10 % less time a step than a product and a sum
@@ -581,20 +576,18 @@ def _sub(k: int, j) -> str:
     return str(k - j) if isinstance(j, int) else f"{k} - j"
 
 
-def _chain(pairs, acc: str = "") -> str:
+def _chain(pairs, acc: str = "", fma: str = "SP_FMA") -> str:
     """``acc + A1 B1 + A2 B2 + ...`` for the factor pairs ``(A, B)`` as fused multiply-adds, each
     rounded once (``fma``: correctly rounded on every machine, so the same bits everywhere);
     ``acc`` empty: the first pair a product."""
     for a, b in pairs:
-        acc = f"SP_FMA({a}, {b}, {acc})" if acc else f"{a} * {b}"
+        acc = f"{fma}({a}, {b}, {acc})" if acc else f"{a} * {b}"
     return acc
 
 
 def _vchain(pairs, acc: str = "") -> str:
     """:func:`_chain` for vectors of two lanes (``sp_fma2``)."""
-    for a, b in pairs:
-        acc = f"sp_fma2({a}, {b}, {acc})" if acc else f"{a} * {b}"
-    return acc
+    return _chain(pairs, acc, "sp_fma2")
 
 
 def _lanes(terms) -> str:
@@ -622,7 +615,7 @@ def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+", late=(), vter
     same operations in the same order, the same bits)."""
     if hi < lo:
         return init or "0.0"
-    late_in = [j for j in dict.fromkeys(late if LATE else ()) if lo <= j <= hi]  # added in this order
+    late_in = [j for j in dict.fromkeys(late) if lo <= j <= hi]  # added in this order
     late = sorted(late_in)
     a, b = lo, hi  # the range of the early terms
     while a in late:
@@ -633,16 +626,12 @@ def _reduce(term, lo: int, hi: int, init: str = "", op: str = "+", late=(), vter
     tail = [p for j in late_in for p in term(j)]
     if b < a:
         early = ""
-    elif vterm is not None and VECTOR and LANES == 2 and VECTOR_SHORT and 2 <= b - a + 1 <= 3:
-        # left to right as _lanes: (t_a + t_a+1) (+ t_b)
-        sum2 = "(v_[0] + v_[1])"
-        early = f"({{ sp_v2 v_ = {_vchain(vterm(a))}; {_chain(term(b), sum2) if (b - a + 1) % 2 else sum2}; }})"
-    elif vterm is not None and VECTOR and LANES == 2 and 4 <= b - a + 1 <= _inline_terms:
+    elif vterm is not None and LANES == 2 and 4 <= b - a + 1 <= _inline_terms:
         # the two partial sums of _lanes as the two lanes of one vector (the same operations in the same order)
         steps = "".join(f" v_ = {_vchain(vterm(j), 'v_')};" for j in range(a + 2, b, 2))
         lane0 = _chain(term(b), "v_[0]") if (b - a + 1) % 2 else "v_[0]"
         early = f"({{ sp_v2 v_ = {_vchain(vterm(a))};{steps} ({lane0}) + v_[1]; }})"
-    elif vterm is not None and VECTOR and LANES == 2 and b - a + 1 > _inline_terms:  # as the loop below
+    elif vterm is not None and LANES == 2 and b - a + 1 > _inline_terms:  # as the loop below
         early = (f"({{ sp_v2 v_ = {{0.0, 0.0}}; int j0_ = {a}; for (; j0_ + 1 <= {b}; j0_ += 2) {{ "
                  f"const int j = j0_; v_ = {_vchain(vterm('j'), 'v_')}; }} double a0_ = v_[0]; "
                  f"if (j0_ <= {b}) {{ const int j = j0_; a0_ = {_chain(term('j'), 'a0_')}; }} a0_ + v_[1]; }})")
@@ -707,13 +696,11 @@ def _op_lines(op, k: int, I: str) -> List[str]:
         return [f"{I}{t}[{k}] = {b[1]} * {at(a)};"]
     if kind == "mul":
         return [f"{I}{t}[{k}] = {_dot(a[1], b[1], k)};"]
-    if kind == "sqr":  # twice the products below the middle, plus the middle square
+    if kind == "sqr":
         x = a[1]
         if k == 0:
             return [f"{I}{t}[0] = {x}[0] * {x}[0];"]
-        half = _dot(x, x, k, 0, (k + 1) // 2 - 1)
-        value = _chain([(f"{x}[{k // 2}]", f"{x}[{k // 2}]")], "h + h") if k % 2 == 0 else "h + h"
-        return [f"{I}{{ const double h = {half}; {t}[{k}] = {value}; }}"]
+        return [_square(I, f"{t}[{k}]", x, k)]
     if kind in ("div", "rdiv"):  # t = a / b: t[k] = (a[k] - sum_{j=1..k} b[j] t[k-j]) / b[0]
         if k == 0:
             return [f"{I}r{t} = 1.0 / {at(b)};", f"{I}{t}[0] = {at(a)} * r{t};"]
@@ -737,29 +724,32 @@ def _op_lines(op, k: int, I: str) -> List[str]:
         if k == 0:
             return [f"{I}{d}[0] = 1.0 + {at(a)} * {at(a)};", f"{I}r{t} = 1.0 / {d}[0];",
                     f"{I}{t}[0] = atan({at(a)});"]
-        half = _dot(x, x, k, 0, (k + 1) // 2 - 1)
-        value = _chain([(f"{x}[{k // 2}]", f"{x}[{k // 2}]")], "h + h") if k % 2 == 0 else "h + h"
         acc = _reduce(lambda j: [(f"({d}[{j}] * (double)({_sub(k, j)}))", f"{t}[{_sub(k, j)}]")], 1, k - 1,
                       _derivative_of(a)(k), "-")
-        return [f"{I}{{ const double h = {half}; {d}[{k}] = {value}; }}",
-                f"{I}{t}[{k}] = ({acc}) * r{t} * inv[{k}];"]
+        return [_square(I, f"{d}[{k}]", x, k), f"{I}{t}[{k}] = ({acc}) * r{t} * inv[{k}];"]
     raise AssertionError(kind)
+
+
+def _square(I: str, target: str, x: str, k: int) -> str:
+    """``target`` = coefficient ``k`` (>= 1) of the square of the series ``x``: twice the products below the
+    middle, plus the middle square."""
+    half = _dot(x, x, k, 0, (k + 1) // 2 - 1)
+    value = _chain([(f"{x}[{k // 2}]", f"{x}[{k // 2}]")], "h + h") if k % 2 == 0 else "h + h"
+    return f"{I}{{ const double h = {half}; {target} = {value}; }}"
 
 
 def _vderivative_of(a):
     """:func:`_derivative_of` for the lanes ``j, j + 1`` (a vector)."""
-    deriv = _DERIV
-    if a[1] in deriv:
-        return lambda j: f"sp_ld(&{deriv[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}])"
+    if a[1] in _DERIV:
+        return lambda j: f"sp_ld(&{_derivative_of(a)(j)})"
     return lambda j: f"(sp_ld(&sp_jd[{j}]) * sp_ld(&{a[1]}[{j}]))"
 
 
 def _derivative_of(a):
     """``j u[j]`` as C for the series ``u``: a state variable's derivative series where there is
     one (``j phi[j] = dphi[j-1]``, exact), else the product."""
-    deriv = _DERIV
-    if a[1] in deriv:
-        return lambda j: f"{deriv[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}]"
+    if a[1] in _DERIV:
+        return lambda j: f"{_DERIV[a[1]]}[{j - 1 if isinstance(j, int) else 'j - 1'}]"
     return lambda j: f"((double)({j}) * {a[1]}[{j}])"
 
 
@@ -827,10 +817,8 @@ def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str
     integrating), ``taylor_prepare(p, pc)`` (the constants), ``taylor_jet(x, pc, work, e_out)``
     (the coefficients 1 .. order of the state ``x[SP_TN][SP_TPMAX + 2]`` from its coefficients 0,
     and the energy at them into ``*e_out`` when asked, written out order by order: straight-line
-    code up to :data:`INLINE_ORDER`, each long sum as :data:`LANES` partial sums in a fixed order
-    -- measured 0.61 against 0.94 us a step at order 15 for loops whose trip counts change with the
-    order and defeat branch prediction), then the driver
-    ``taylor.c``.  ``fused``: each product fused with its addition (``SP_FMA``, ``sp_fma2``: for a
+    code up to :data:`INLINE_ORDER`, each long sum as :data:`LANES` partial sums in a fixed order),
+    then the driver ``taylor.c``.  ``fused``: each product fused with its addition (``SP_FMA``, ``sp_fma2``: for a
     processor with fused multiply-add, :func:`skewpend.numeric.kernels.fused_multiply_add`), else a product
     and a sum.  Raises ValueError for a function without a recurrence here."""
     from .kernel_source import status_defines
