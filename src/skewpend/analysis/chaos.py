@@ -11,10 +11,8 @@ chaotic ones of order the inverse of the swing time; the default threshold sits 
 ``max(0.1 omega_low, 4 ln(t_end)/t_end)``, with ``omega_low`` the lower small-oscillation
 frequency at ``alpha = 0`` (from the generated Jacobian at rest).
 
-The work is cut into rows (one ``alpha`` each) on the ensemble engine: local threads, or tasks
-on a Dask cluster (``scheduler=``), with a resumable Zarr store (``store=``, ``resume=``) written
-row chunk by row chunk -- the same machinery and guarantees as the flip map: bitwise the same
-result whatever the workers, the chunking or the cluster.
+The work is cut into rows (one ``alpha`` each) on the grid driver, with the flip map's options and
+guarantees (``store=``, ``resume=``, ``scheduler=``: bitwise the same whatever the workers or the chunking).
 """
 
 from __future__ import annotations
@@ -318,8 +316,6 @@ def chaos_diagram(
     """
     from .. import __version__
     from ..numeric.grid import check_run_options, run_grid
-    from .poincare import require_conservative
-
     exact = params.exact_model() if hasattr(params, "exact_model") else None  # a chain of two is the double pendulum
     if exact is None:
         raise ParameterError(not_parameters(params, "a chaos diagram"))
@@ -330,7 +326,7 @@ def chaos_diagram(
     if not params.uses_alpha:
         raise ParameterError("a chaos diagram varies alpha, but params fix the second hinge axis (axis2) directly; "
                              "leave axis2 at its default to use alpha")
-    require_conservative(params, "a chaos diagram")
+    params.require_conservative("a chaos diagram")
     alphas = _grid("alpha", alpha, n_alpha, 0.0, math.pi / 2, lo_open=False)
     if np.any(np.abs(alphas) > 2 * math.pi):
         raise ParameterError("alpha values must be angles in radians within [-2 pi, 2 pi]")

@@ -563,7 +563,7 @@ def equilibria(params, *, starts: int = DEFAULT_STARTS, coulomb: str = DEFAULT_C
         roots = wrap(roots[conv])
         if len(roots):  # the residual where each ended
             g, _ = search.land.grad_hess(roots)
-            roots = roots[np.all(np.abs(g - search.tau) <= 1e-9 * max(search.gscale, np.abs(search.tau).max()), axis=1)]
+            roots = roots[np.all(np.abs(g - search.tau) <= RESIDUAL * search.gscale, axis=1)]  # gscale has the torques
         found, k = np.empty_like(roots), 0
         for r in roots:
             if not k or np.min(np.max(np.abs(wrap(r - found[:k])), axis=1)) > SAME_ROOT:

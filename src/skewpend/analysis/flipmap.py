@@ -1,12 +1,9 @@
 """Flip-time maps: how long a start at rest takes until a joint flips over, on a grid of starts.
 
 ``flip_map(model, n)`` releases the model at rest from the centres of an ``n x n`` grid of cells over a
-``plane`` of two of its angles (default its first two: the double pendulum's ``(phi, psi)``, a chain's
-``(q1, q2)``), each over its range (default ``(-pi, pi)``), the other angles at ``held`` (default 0:
-hanging), and records, for each cell, the *flip time*: the first time any joint angle leaves
-``(-pi, pi)`` -- NaN when that does not happen by ``t_end`` -- and ``which`` angle it was (its index in
-``model.coordinates``: 0 phi, 1 psi for the double pendulum).  For the planar double pendulum this is the
-well-known fractal picture; here it is computed for any skew, any bodies and any chain of links.
+plane of two of its angles and records, for each cell, the *flip time* -- the first time any joint angle
+leaves ``(-pi, pi)`` -- and which angle it was.  For the planar double pendulum this is the well-known
+fractal picture; here it is computed for any skew, any bodies and any chain of links.
 
 One job on the grid driver (:class:`FlipJob`, a :class:`~skewpend.numeric.grid.PlaneJob` as the region of
 attraction's): every cell integrated by DOP853 (as ``simulate``'s default method) in compiled code, stopped
@@ -542,7 +539,6 @@ def _plane(coordinates: Tuple[str, ...], plane, ranges, held, **named):
             q = np.zeros(0)
         if q.shape != (nq,) or not np.all(np.isfinite(q)) or np.any(np.abs(q) >= math.pi):
             raise ParameterError(f"held must be the chain's {nq} angles, each within (-pi, pi) [rad], got {held!r}")
-        q = q.copy()
     q[[coordinates.index(a), coordinates.index(b)]] = 0.0
     return (str(a), str(b)), (out[0], out[1]), q
 

@@ -1,4 +1,4 @@
-"""Hints that point at the data when an identification goes wrong (issue 36).
+"""Hints that point at the data when an identification goes wrong.
 
 Data can pass every reader's check (:mod:`skewpend.analysis.measurements`) and still be wrong in a
 way the fit only shows as "the estimate is not physical" or a poor prediction.  The likely
@@ -61,10 +61,8 @@ def spell_convention(convention: Convention, interface: str = "python") -> str:
     changed = [f.name for f in fields(Convention) if (any(s != 1 for s in convention.sign) if f.name == "sign" else
                                                        getattr(convention, f.name) != getattr(SKEWPEND, f.name))]
     if interface == "cli":
-        parts = []
-        for k in changed:
-            v = getattr(convention, k)
-            parts.append(f"{k}={':'.join(str(s) for s in v)}" if k == "sign" else f"{k}={'yes' if v is True else v}")
+        parts = [f"{k}={':'.join(str(s) for s in v)}" if k == "sign" else f"{k}={'yes' if v is True else v}"
+                 for k, v in ((k, getattr(convention, k)) for k in changed)]
         return "--convention " + (",".join(parts) if parts else "second=relative")
     return "Convention(" + ", ".join(f"{k}={getattr(convention, k)!r}" for k in changed) + ")"
 
@@ -180,13 +178,8 @@ def _first_seconds(measurements: Measurements, seconds: float) -> Measurements:
     """The first pieces making up about ``seconds`` (a longer piece cut first)."""
     if any(p.duration > 1.5 * seconds for p in measurements):
         measurements = measurements.cut(seconds)
-    keep, total = [], 0.0
-    for i, p in enumerate(measurements):
-        keep.append(i)
-        total += p.duration
-        if total >= seconds:
-            break
-    return measurements if len(keep) == len(measurements) else measurements.select(keep)
+    k = int(np.searchsorted(np.cumsum([p.duration for p in measurements]), seconds)) + 1  # until the total reaches it
+    return measurements if k >= len(measurements) else measurements.select(list(range(k)))
 
 
 def _residual(measurements: Measurements, params0, free, window: float) -> float:

@@ -15,13 +15,9 @@ two zeros), so its sum is ~0; with damping the sum is the time average of the tr
 ``J`` (phase-space volume contracts at that rate); near the stable equilibrium every exponent
 tends to 0; the mirror start ``-y0`` has the same spectrum when the equations are odd.
 
-Error bars are batch means: the measured time is cut into ``windows`` equal blocks, the
-standard error is the spread of the block exponents over sqrt(windows), and the interval is
-that times Student's t quantile (95 %).  They mean something only if the blocks are long enough
-to be nearly independent and the estimate has stopped drifting, which :func:`settle_check`
-tests (the two halves agree; the block exponents are not serially correlated); a run that
-fails it has status :attr:`~skewpend.status.Status.NOT_SETTLED`, keeps its numbers and says
-how much longer to run.
+Error bars are batch means over ``windows`` equal blocks of the measured time (Student's t, 95 %),
+meaningful only once :func:`settle_check` finds the blocks independent and the estimate no longer
+drifting; a run that fails it is :attr:`~skewpend.status.Status.NOT_SETTLED` and says how much longer to run.
 
 ``lyapunov_map(params, n, ...)`` is the largest exponent over a grid of starts at rest, like
 :func:`~skewpend.analysis.flipmap.flip_map`, on every core.
@@ -39,7 +35,7 @@ import numpy as np
 
 from ..errors import IntegrationError, ParameterError
 from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numeric_model, numeric_params, tolerances
-from ..checks import progress_callable, whole
+from ..checks import finite_seconds, progress_callable, whole
 from ..interrupts import Interrupts
 from ..numeric.driver import check_step_estimate, drive
 from ..numeric.grid import GridJob
@@ -304,12 +300,7 @@ def check_times(t_end, renorm_every, transient):
     """``(t_end, renorm_every, transient)`` of a Lyapunov computation, checked together."""
     t_end = positive_number("t_end", t_end)
     renorm_every = positive_number("renorm_every", renorm_every)
-    try:
-        transient = float(transient)
-    except (TypeError, ValueError):
-        raise ParameterError(f"transient must be a number of seconds >= 0, got {transient!r}") from None
-    if not (math.isfinite(transient) and transient >= 0):
-        raise ParameterError(f"transient must be a number of seconds >= 0, got {transient!r}")
+    transient = finite_seconds("transient", transient)
     if renorm_every > t_end:
         raise ParameterError(f"renorm_every ({renorm_every:g} s) must not exceed t_end ({t_end:g} s)")
     if transient + renorm_every > t_end:
@@ -374,16 +365,11 @@ def lyapunov(
     y = initial_state(y0, params.coordinates)
     n2 = y.size
     t_end, renorm_every, transient = check_times(t_end, renorm_every, transient)
-    if n_exponents is None:
-        n_exponents = n2
-    if isinstance(n_exponents, bool) or n_exponents not in range(1, n2 + 1):
-        raise ParameterError(f"n_exponents must be a whole number from 1 to {n2} (the state's components), "
-                             f"got {n_exponents!r}")
+    k = n2 if n_exponents is None else whole("n_exponents", n_exponents, 1, n2, what="the state's components")
     rtol, atol = tolerances(rtol, atol)
     max_steps = check_max_steps(max_steps)
     windows = whole("windows", windows, 1, 1000)
     progress_callable(progress, "progress(t, t_end)")
-    k = int(n_exponents)
 
     kernel = model_kernel(params, chaos=True)
     p = model_vector(params)
@@ -500,22 +486,18 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
 
     starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 4)
     m = starts.shape[0]
-    lam = np.full(m, np.nan)
-    status = np.zeros(m, dtype=np.int32)
-    steps = np.zeros(m, dtype=np.int64)
-    rejected = np.zeros(m, dtype=np.int64)
-    dp = ctypes.POINTER(ctypes.c_double)
+    lam, status = np.full(m, np.nan), np.zeros(m, dtype=np.int32)
+    steps, rejected = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
     pp = np.ascontiguousarray(p, dtype=np.float64)
-    fn = kernel.lib.sp_lyap1_many
+    dp, i32p, i64p = (ctypes.POINTER(t) for t in (ctypes.c_double, ctypes.c_int32, ctypes.c_int64))
     for a in range(0, m, group):
         if cancel is not None and cancel.is_set():
             raise Cancelled()
         b = min(m, a + group)
-        fn(pp.ctypes.data_as(dp), starts[a:b].ctypes.data_as(dp), b - a, t_end, renorm_every,
-           skipped_renormalisations(transient, renorm_every), rtol, atol,
-           max_steps, lam[a:].ctypes.data_as(dp), status[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-           steps[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
-           rejected[a:].ctypes.data_as(ctypes.POINTER(ctypes.c_int64)))
+        kernel.lib.sp_lyap1_many(pp.ctypes.data_as(dp), starts[a:b].ctypes.data_as(dp), b - a, t_end, renorm_every,
+                                 skipped_renormalisations(transient, renorm_every), rtol, atol, max_steps,
+                                 *(x[a:].ctypes.data_as(t) for x, t in zip((lam, status, steps, rejected),
+                                                                           (dp, i32p, i64p, i64p))))
     return lam, status, steps, rejected
 
 

@@ -35,7 +35,7 @@ from ..status import Status
 from ..parsing import positive_number
 from ..schema import LENGTH_NAMES
 from ..symbolic.model import Parameters
-from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, tolerances
+from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, progress_callable, tolerances
 
 __all__ = ["poincare", "PoincareSection", "parse_section", "energy_minimum", "section_seeds", "EnergySurface",
            "LOCATE_METHODS"]
@@ -95,26 +95,14 @@ def parse_section(section) -> Tuple[str, float]:
     m = re.fullmatch(r"\s*(phi|psi)\s*=\s*(\S+)\s*", section)
     if not m:
         raise ParameterError(f"section must be 'phi=VALUE' or 'psi=VALUE' (radians, or with a deg suffix), got {section!r}")
-    text = m.group(2).lower()
-    pi = re.fullmatch(r"([+-]?(?:\d+(?:\.\d*)?|\.\d+)?)\*?pi(?:/(\d+(?:\.\d*)?))?", text)
-    if pi:  # pi, -pi, pi/2, 2pi, 0.5*pi
-        factor = pi.group(1)
-        factor = -1.0 if factor == "-" else (1.0 if factor in ("", "+") else float(factor))
-        return m.group(1), factor * math.pi / (float(pi.group(2)) if pi.group(2) else 1.0)
-    try:
-        value = parse_scalar(text, f"section {m.group(1)}", angle=True)
+    try:  # radians, a deg suffix or a multiple of pi (pi, -pi, pi/2, 2pi, 0.5*pi)
+        value = parse_scalar(m.group(2).lower(), f"section {m.group(1)}", angle=True)
     except ParameterError:
         value = None
     if value is None:
         raise ParameterError(f"section {m.group(1)}: the value must be a number in radians, with a deg suffix, or a "
                              f"multiple of pi (e.g. phi=0, psi=30deg, phi=pi/2), got {m.group(2)!r}")
     return m.group(1), float(value)
-
-
-def require_conservative(params: Parameters, what: str) -> None:
-    """The section's energy surface needs ``E = T + Pi`` constant: :attr:`Parameters.conservative`
-    (no damping, no Coulomb friction, no torques)."""
-    params.require_conservative(what)
 
 
 def mass_matrices(kernel, p, q: np.ndarray) -> np.ndarray:
@@ -175,13 +163,16 @@ class EnergySurface:
         q[:, self.other] = x
         return q
 
-    def reach(self, x, p_other) -> np.ndarray:
+    def _at(self, x, p_other):
+        """``(x, p_other, q, M(q), E - Pi(q))`` of seeds on the section."""
         x = np.atleast_1d(np.asarray(x, dtype=float))
-        p_other = np.atleast_1d(np.asarray(p_other, dtype=float))
         q = self._q(x)
-        M = mass_matrices(self.kernel, self.p, q)
-        Moo = M[:, self.other, self.other]
-        return self.energy - potential(self.kernel, self.p, q) - p_other**2 / (2.0 * Moo)
+        return (x, np.atleast_1d(np.asarray(p_other, dtype=float)), q, mass_matrices(self.kernel, self.p, q),
+                self.energy - potential(self.kernel, self.p, q))
+
+    def reach(self, x, p_other) -> np.ndarray:
+        _, p_other, _, M, K = self._at(x, p_other)
+        return K - p_other**2 / (2.0 * M[:, self.other, self.other])
 
     def bounds(self, samples: int = 721) -> Tuple[float, float]:
         """(least potential on the section, the largest |p_q| reachable) over a fine grid."""
@@ -195,13 +186,9 @@ class EnergySurface:
     def states(self, x, p_other, direction: int) -> np.ndarray:
         """The states (phi, psi, dphi, dpsi) of reachable seeds: the section joint's speed from
         the energy, its sign from ``direction`` (0 counts as +1)."""
-        x = np.atleast_1d(np.asarray(x, dtype=float))
-        p_other = np.atleast_1d(np.asarray(p_other, dtype=float))
-        q = self._q(x)
-        M = mass_matrices(self.kernel, self.p, q)
+        x, p_other, q, M, K = self._at(x, p_other)
         c, o = self.coord, self.other
         det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] ** 2
-        K = self.energy - potential(self.kernel, self.p, q)
         disc = (2.0 * K * M[:, o, o] - p_other**2) / det
         speed_c = (1.0 if direction >= 0 else -1.0) * np.sqrt(np.clip(disc, 0.0, None))
         speed_o = (p_other - M[:, o, c] * speed_c) / M[:, o, o]
@@ -472,7 +459,7 @@ def poincare(
     from ..numeric.grid import check_workers
 
     params = numeric_params(params, "a Poincare section")
-    require_conservative(params, "a Poincare section")
+    params.require_conservative("a Poincare section")  # the energy surface needs E = T + Pi constant
     if isinstance(energy, bool):
         raise ParameterError(f"energy must be a number of joules, got {energy!r}")
     try:
@@ -498,8 +485,7 @@ def poincare(
     rtol, atol = tolerances(rtol, atol)
     max_steps = check_max_steps(max_steps)
     workers = check_workers(workers)
-    if progress is not None and not callable(progress):
-        raise ParameterError("progress must be a callable progress(done, total)")
+    progress_callable(progress)
 
     coord = _COORDS[name]
     surface = _surface(params, energy, coord, value)

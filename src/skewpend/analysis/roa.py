@@ -14,10 +14,8 @@ the saturated nonlinear loop, so a start that gets there is captured) -- its *ca
 or until ``t_end``.  A start entering the estimate is captured (the estimate is an inner bound);
 one that does not by ``t_end`` is counted as not captured (it may be captured later, or never).
 
-The map is a :class:`RoaJob` on the grid driver (:func:`skewpend.numeric.grid.run_grid`): rows
-of cells on every core, or as tasks on a Dask cluster (``scheduler=``), written chunk by chunk to
-a resumable Zarr store (``store=``, ``resume=``) -- bitwise the same result whatever the
-chunking, the workers or a resume after kill -9 (each start's arithmetic is its own).
+The map is a :class:`RoaJob` on the grid driver (:func:`skewpend.numeric.grid.run_grid`), as the flip
+map: bitwise the same result whatever the chunking, the workers or a resume (each start's arithmetic is its own).
 
 The feedback wraps the angle errors to (-pi, pi]: the law jumps where an angle is opposite its
 target (the hanging position, for an upright target).  A trajectory that lingers there can chatter
@@ -138,8 +136,7 @@ class RegionOfAttraction(Result):
     def inner_fraction(self) -> float:
         """The fraction of the cells inside the LQR's estimate at the start (all captured at t = 0)."""
         dx, dy = self.deviations()
-        i, j = (self._index[c] for c in self.plane)
-        S = self.P[np.ix_([i, j], [i, j])]
+        S = self._slice()
         X, Y = np.meshgrid(dx, dy, indexing="ij")
         v = S[0, 0] * X * X + 2 * S[0, 1] * X * Y + S[1, 1] * Y * Y
         return float(np.count_nonzero(v < self.rho)) / v.size
@@ -147,12 +144,15 @@ class RegionOfAttraction(Result):
     def ellipse(self, points: int = 361) -> np.ndarray:
         """The boundary of the estimate's slice ``dx^T P dx = rho`` in ``plane`` (other offsets 0),
         as offsets from the target: an array (points, 2)."""
-        i, j = (self._index[c] for c in self.plane)
-        S = self.P[np.ix_([i, j], [i, j])]
-        L = np.linalg.cholesky(S)
+        L = np.linalg.cholesky(self._slice())
         s = np.linspace(0.0, 2 * np.pi, points)
         unit = np.vstack([np.cos(s), np.sin(s)]) * math.sqrt(self.rho)
         return np.linalg.solve(L.T, unit).T
+
+    def _slice(self) -> np.ndarray:
+        """``P`` restricted to the plane's two coordinates."""
+        i, j = (self._index[c] for c in self.plane)
+        return self.P[np.ix_([i, j], [i, j])]
 
     def _dataset(self) -> DatasetSpec:
         a, b = (f"{c}0" for c in self.plane)
@@ -162,8 +162,8 @@ class RegionOfAttraction(Result):
         return DatasetSpec(
             variables={"capture_time": ((a, b), self.capture_time, dict(_VARIABLES["capture_time"])),
                        "outcome": ((a, b), self.outcome, dict(_VARIABLES["outcome"]))},
-            coords={a: ((a,), np.asarray(self.x0, dtype=float).copy(), plane_attrs(self.plane[0], len(self.target) // 2)),
-                    b: ((b,), np.asarray(self.y0, dtype=float).copy(), plane_attrs(self.plane[1], len(self.target) // 2))},
+            coords={d: ((d,), np.asarray(v, dtype=float).copy(), plane_attrs(c, len(self.target) // 2))
+                    for d, c, v in zip((a, b), self.plane, (self.x0, self.y0))},
             attrs=attrs,
         )
 
@@ -252,8 +252,7 @@ class RoaJob(PlaneJob):
         n = self.n
         totals = run.totals(CHUNK_STATS)
         settings = {k: v for k, v in self.settings().items() if k not in ("kind", "params", "skewpend_version")}
-        stats = {"cells": n * n, "captured": int(totals["captured"]), "failed": int(totals["failed"]),
-                 "steps": int(totals["steps"]), "rejected": int(totals["rejected"]), **run.info}
+        stats = {"cells": n * n, **{k: int(totals[k]) for k in CHUNK_STATS[1:]}, **run.info}
         status, message = grid_status(stats["failed"], n * n, "cells")
         if stats["failed"]:
             message += " (a start that chatters where the wrapped feedback jumps, at the angle opposite the target)"
@@ -310,9 +309,8 @@ def region_of_attraction(
     ``store`` (``*.zarr``), ``resume`` and ``scheduler`` as for :func:`skewpend.flip_map`."""
     from .. import __version__
     from ..numeric.control import torque_limits
-    from ..numeric.grid import check_run_options, run_grid
+    from ..numeric.grid import check_n, check_run_options, run_grid
     from .control import LQR, equilibrium_argument, lqr
-    from ..numeric.grid import check_n
 
     params = numeric_model(params, "a region of attraction")
     nq = params.n
