@@ -17,20 +17,12 @@ the machine):
 * ``POST /api/modes`` -- the normal modes (frequencies, shapes);
 * ``POST /api/flipmap`` -- a small flip-time map (compiled DOP853).
 
-Safety: the server binds 127.0.0.1 unless told otherwise; every request is validated (bad input
--> HTTP 422 with a message naming the field); the work a request may ask for is bounded (grid
-size, duration, output points: :data:`LIMITS`) and larger requests are refused at once with 422;
-heavy work runs in worker threads, at most :data:`HEAVY_SLOTS` at a time, each with a time limit
-(:data:`TIME_LIMIT` s, then HTTP 503).  Bad parameters found by the library (e.g. an inertia that
-is not physical) are 422 too, with the library's one-line message.
-
-The server (:func:`serve`) also bounds what a client can hold: a request body is counted as it is
-read (chunked or not) and refused with 422 as soon as it passes :data:`MAX_BODY`; a connection
-that has not sent complete request headers within :data:`HEADER_TIMEOUT` s is closed, and one
-whose body does not arrive within :data:`BODY_TIMEOUT` s is answered 408; at most
-:data:`MAX_CONNECTIONS` requests are handled at once (the others get 503); the ``Host`` header
-must name the server (DNS rebinding), else 400; on Ctrl-C or SIGTERM in-flight work is cancelled
-and the server stops within about a second.
+Safety: the server binds 127.0.0.1 unless told otherwise; every request is validated (bad input, and bad
+parameters the library finds, -> HTTP 422 with a message naming the field); what a request and a client may
+ask for and hold is bounded (the constants below: larger requests are refused at once, slow ones timed
+out); heavy work runs in at most :data:`HEAVY_SLOTS` worker threads, each within :data:`TIME_LIMIT` s (then
+503); the ``Host`` header must name the server (DNS rebinding), else 400; on Ctrl-C or SIGTERM in-flight
+work is cancelled and the server stops within about a second.
 """
 
 import asyncio
@@ -131,10 +123,8 @@ async def _answer(send, status: int, message: str, close: bool = False) -> None:
     """A JSON error answer (``close``: and the connection is closed, the rest of the body unread)."""
     import json
 
-    if status == 422:
-        content = {"detail": [{"loc": ["body"], "msg": message, "type": "value_error"}]}
-    else:
-        content = {"detail": message}
+    content = ({"detail": [{"loc": ["body"], "msg": message, "type": "value_error"}]} if status == 422
+               else {"detail": message})
     data = json.dumps(content).encode()
     headers = [(b"content-type", b"application/json"), (b"content-length", str(len(data)).encode())]
     if close:
@@ -629,19 +619,14 @@ def _protocol():
 
 def serve(host: str = "127.0.0.1", port: int = 8000, *, open_browser: bool = False, log_level: str = "warning",
           ready=None, stop=None, physics_params=None) -> None:
-    """Run the explorer with uvicorn on ``host:port`` until Ctrl-C or SIGTERM.
+    """Run the explorer with uvicorn on ``host:port`` (:func:`check_address`; port 0: any free port) until
+    Ctrl-C or SIGTERM; a bad or unbindable address is one :class:`ParameterError`, raised before anything starts.
 
-    ``host``: an IP address (``::1`` or ``[::1]``) or a host name (see :func:`check_host`);
-    ``port``: 1 to 65535, or 0 for any free port.  Bad input or an address that cannot be bound
-    is one :class:`ParameterError` naming ``host`` or ``port``, raised before anything starts.
-    ``ready``: called with the :class:`Address` once listening (the front end announces it);
-    ``open_browser``: open the page then.  ``stop``: a :class:`threading.Event` that stops the
-    server as Ctrl-C does when set (for a server run in a thread).  ``physics_params``: the bodies
-    and axes of the page's physics (:func:`create_app`; default the thin rods).  Requests whose ``Host`` header does not name this
-    server get 400 (for a loopback address: also ``localhost``, ``127.0.0.1``, ``[::1]``).  At
-    the signal, in-flight computations are cancelled (answered 503) and the server stops within
-    about :data:`SHUTDOWN_GRACE` s; the signal is then raised again by uvicorn (a
-    :class:`KeyboardInterrupt` for Ctrl-C)."""
+    ``ready``: called with the :class:`Address` once listening; ``open_browser``: open the page then.
+    ``stop``: a :class:`threading.Event` that stops the server as Ctrl-C does (for a server run in a thread).
+    ``physics_params``: as for :func:`create_app`.  At the signal, in-flight computations are cancelled
+    (answered 503) and the server stops within about :data:`SHUTDOWN_GRACE` s; the signal is then raised
+    again by uvicorn (a :class:`KeyboardInterrupt` for Ctrl-C)."""
     require_web()
     import uvicorn
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from contextlib import suppress
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
@@ -459,12 +460,9 @@ def _walk(top: Path) -> List[Path]:
     """Everything below ``top`` (not following symbolic links)."""
     import os
 
-    if not top.is_dir() or top.is_symlink():
+    if top.is_symlink():
         return []
-    out: List[Path] = []
-    for root, dirs, files in os.walk(top, followlinks=False):
-        out += [Path(root, n) for n in dirs + files]
-    return out
+    return [Path(root, n) for root, dirs, files in os.walk(top) for n in dirs + files]
 
 
 def _swap_in(target: Path, staging: Path, site: Path, replaced: List[str], what: str) -> None:
@@ -489,10 +487,8 @@ def _swap_in(target: Path, staging: Path, site: Path, replaced: List[str], what:
                 done.append((target / name, site / name))
         except OSError as exc:
             for moved, back in reversed(done):
-                try:
+                with suppress(OSError):
                     os.rename(moved, back)
-                except OSError:
-                    pass
             raise SkewpendError(f"{what}: cannot write {target}: {exc.strerror or exc}") from None
 
 

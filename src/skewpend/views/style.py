@@ -68,13 +68,6 @@ def _vec(v) -> str:
     return "(" + ", ".join(fmt(c, 3) for c in v) + ")"
 
 
-def _unit_text(name: str) -> str:
-    from .. import schema
-
-    unit = schema.unit(name)
-    return "" if unit in ("", "1") else f" {unit}"
-
-
 def answers_names(model) -> bool:
     """Whether ``model`` answers the schema's scalar names (``a``, ``b``, ``m1``, ..., ``alpha``: the double
     pendulum's facade of the chain of two) -- what the texts and sections that read those names ask, never
@@ -109,7 +102,8 @@ def parameter_text(params, *, skip: tuple = (), symbols: bool = False, sep: str 
         elif schema.field(name).bound == "angle":
             parts.append(f"{label} = {fmt(math.degrees(value))}°")
         else:
-            parts.append(f"{label} = {fmt(value)}{_unit_text(name)}")
+            unit = schema.unit(name)
+            parts.append(f"{label} = {fmt(value)}" + ("" if unit in ("", "1") else f" {unit}"))
     for name in schema.AXIS_NAMES:
         if d.get(name) is not None and name not in skip:
             parts.append(f"{name} = {_vec(d[name])}")
@@ -170,11 +164,6 @@ def caption(tr) -> str:
     return "\n".join(lines)
 
 
-def _ratio_skip(name: str) -> tuple:
-    # a ratio sweep scales its numerator; a plain sweep replaces the parameter
-    return (name.split("/")[0],) if "/" in name else (name,)
-
-
 def sweep_caption(sw) -> str:
     """The swept range and the parameters held fixed."""
     values = sw.values
@@ -184,7 +173,8 @@ def sweep_caption(sw) -> str:
         u = sw.units().get(sw.name, "")
         lo, hi, unit = fmt(values[0]), fmt(values[-1]), ("" if u in ("", "1") else f" {u}")
     swept = f"{sw.name} from {lo}{unit} to {hi}{unit} ({len(values)} points)"
-    fixed = parameter_text(sw.params, skip=_ratio_skip(sw.name))
+    # a ratio sweep scales its numerator; a plain sweep replaces the parameter
+    fixed = parameter_text(sw.params, skip=(sw.name.split("/")[0],) if "/" in sw.name else (sw.name,))
     return f"{swept}; {fixed}" if fixed else swept
 
 

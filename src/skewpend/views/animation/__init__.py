@@ -14,16 +14,13 @@ Coordinates: the world basis ``i, j, k`` has ``j`` pointing down.  The plot show
 ``(X, Y, Z) = (x, z, -y)`` (a proper rotation: the pendulum hangs down the screen, the first
 hinge axis ``k`` is the plot's horizontal ``Y``); see :func:`world_to_plot`.
 
-Rendering is Matplotlib 3-D on an Agg canvas (object-oriented, no pyplot).  The static parts
-(title, legend, floor grid, roof, the i, j, k triad) are drawn once; each frame restores that
-background and draws only the moving artists.  The view limits are a cube fixed by the reach
-``a + b`` about the pivot; the framing shows the sphere of that radius below and beside the
-pivot, the floor, and upwards as far as this run's rods and axes go.  MP4 goes through the ffmpeg executable that the ``imageio-ffmpeg``
-wheel ships, GIF through Pillow.  The file appears complete or not at all.
+Rendering is Matplotlib 3-D on an Agg canvas (object-oriented, no pyplot): the static parts are drawn
+once, each frame restores that background and draws only the moving artists (:class:`FrameRenderer`).
 """
 
 from __future__ import annotations
 
+from contextlib import suppress
 from pathlib import Path
 from typing import Callable, Optional, Sequence, Tuple
 
@@ -94,22 +91,18 @@ def _write_mp4(tmp: Path, frames, size: Tuple[int, int], fps: float) -> None:
         except OSError as exc:
             raise SkewpendError(f"cannot run ffmpeg ({exe}): {exc.strerror or exc}") from None
         try:
-            try:
+            with suppress(BrokenPipeError):  # ffmpeg stopped: its status and messages say why
                 for frame in frames:
                     proc.stdin.write(np.ascontiguousarray(frame, dtype=np.uint8).tobytes())
                 proc.stdin.close()
-            except BrokenPipeError:  # ffmpeg stopped: its status and messages say why
-                pass
             status = proc.wait()
         finally:
             if proc.poll() is None:  # an error or Ctrl-C while writing: stop it at once
                 proc.kill()
                 proc.wait()
             if proc.stdin is not None and not proc.stdin.closed:
-                try:
+                with suppress(OSError):
                     proc.stdin.close()
-                except OSError:
-                    pass
         log.seek(0)
         messages = log.read().decode("utf-8", "replace")
     if status != 0 or not tmp.exists() or tmp.stat().st_size == 0:

@@ -20,16 +20,6 @@ _SUB = str.maketrans("0123456789", "₀₁₂₃₄₅₆₇₈₉")
 READOUT_NAMES = {"phi": "φ", "psi": "ψ"}
 
 
-def _figure_module():
-    try:
-        import matplotlib  # noqa: F401
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError:  # pragma: no cover - depends on the installation
-        raise SkewpendError("animations need matplotlib (a dependency of skewpend): pip install matplotlib") from None
-    return Figure, FigureCanvasAgg
-
-
 def _deg_wrapped(angle: float) -> float:
     d = math.degrees(angle) % 360.0
     return d - 360.0 if d > 180.0 else d
@@ -96,7 +86,11 @@ class FrameRenderer:
     def __init__(self, tr, *, size: Sequence[int] = DEFAULT_SIZE, dpi: float = DEFAULT_DPI,
                  trail: float = DEFAULT_TRAIL, speed: float = 1.0,
                  view: Optional[Tuple[float, float]] = None) -> None:
-        Figure, FigureCanvasAgg = _figure_module()
+        try:
+            from matplotlib.backends.backend_agg import FigureCanvasAgg
+            from matplotlib.figure import Figure
+        except ImportError:  # pragma: no cover - depends on the installation
+            raise SkewpendError("animations need matplotlib (a dependency of skewpend): pip install matplotlib") from None
         from matplotlib.lines import Line2D
         from matplotlib.ticker import MaxNLocator
         import mpl_toolkits.mplot3d  # noqa: F401  (registers the 3d projection)
@@ -221,9 +215,8 @@ class FrameRenderer:
         mid_r, mid_u = 0.5 * (sr.max() + sr.min()), 0.5 * (su.max() + su.min())
         centre = mid_r * right + (mid_u / screen_up[2]) * up if abs(screen_up[2]) > 1e-6 else mid_r * right + mid_u * screen_up
         lim = 1.08 * R
-        ax.set_xlim(centre[0] - lim, centre[0] + lim)
-        ax.set_ylim(centre[1] - lim, centre[1] + lim)
-        ax.set_zlim(centre[2] - lim, centre[2] + lim)
+        for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):
+            set_lim(c - lim, c + lim)
         ax.set_box_aspect((1.0, 1.0, 1.0), zoom=1.0)
         self.canvas.draw()
         px = self._pixels_per_metre(right, screen_up)
@@ -263,13 +256,12 @@ class FrameRenderer:
         self.ref_names = ["axis1_ref"] + [f"axis{i}_ref" for i in range(2, n)]
         self.arc_names = ["skew_arc"] + [f"skew_arc{i + 1}" for i in range(2, n)]
         self.arc_label_names = ["skew_label"] + [f"skew_label{i + 1}" for i in range(2, n)]
-        for i, name in enumerate(self.axis_names):
-            (self.artists[name],) = ax.plot([0, 0], [0, 0], [0, 0], color=hinge_color(i), lw=2.0, solid_capstyle="butt", animated=True)
-        self.artists["heads"] = Poly3DCollection(np.zeros((1, 4, 3)), linewidths=0.4, animated=True)
-        ax.add_collection3d(self.artists["heads"])
         label_kw = dict(fontsize=small + 1, fontweight="bold", ha="center", va="center", animated=True)
         for i, name in enumerate(self.axis_names):
+            (self.artists[name],) = ax.plot([0, 0], [0, 0], [0, 0], color=hinge_color(i), lw=2.0, solid_capstyle="butt", animated=True)
             self.artists[f"{name}_label"] = ax.text(0, 0, 0, self.axis_labels[i], color=hinge_color(i), **label_kw)
+        self.artists["heads"] = Poly3DCollection(np.zeros((1, 4, 3)), linewidths=0.4, animated=True)
+        ax.add_collection3d(self.artists["heads"])
         for i in range(1, n):
             (self.artists[self.ref_names[i - 1]],) = ax.plot([0, 0], [0, 0], [0, 0], color=hinge_color(i - 1), lw=1.2, ls=(0, (2, 2)), alpha=0.9, animated=True)
             (self.artists[self.arc_names[i - 1]],) = ax.plot([0, 0], [0, 0], [0, 0], color="0.15", lw=1.1, animated=True)
@@ -306,10 +298,7 @@ class FrameRenderer:
         lam = np.clip(normals @ self.light, 0.0, None)
         spec = np.clip(normals @ self.half_vector, 0.0, None) ** 24
         rgb = base * (0.38 + 0.62 * lam)[:, None] + 0.35 * spec[:, None]
-        rgba = np.empty((normals.shape[0], 4))
-        rgba[:, :3] = np.clip(rgb, 0.0, 1.0)
-        rgba[:, 3] = 1.0
-        return rgba
+        return np.column_stack([np.clip(rgb, 0.0, 1.0), np.ones(normals.shape[0])])
 
     def _visible(self, quads: np.ndarray, normals: np.ndarray, base) -> Tuple[np.ndarray, np.ndarray]:
         keep = normals @ self.eye > -0.02  # orthographic camera: back faces point away from eye
@@ -360,10 +349,7 @@ class FrameRenderer:
         tp = world_to_plot(sc.trail)
         if tp.shape[0] > 1:
             trail.set_segments(np.stack([tp[:-1], tp[1:]], axis=1))
-            rgba = np.empty((tp.shape[0] - 1, 4))
-            rgba[:, :3] = SCENE_COLORS["trail"]
-            rgba[:, 3] = sc.trail_alpha
-            trail.set_color(rgba)
+            trail.set_color(np.column_stack([np.tile(SCENE_COLORS["trail"], (tp.shape[0] - 1, 1)), sc.trail_alpha]))
             trail.set_visible(True)
         else:
             trail.set_visible(False)

@@ -227,11 +227,8 @@ def _arc_points(centre: np.ndarray, n1: np.ndarray, e: np.ndarray, radius: float
 
 
 def frame_scene(tr, k: int, *, trail: float = DEFAULT_TRAIL) -> FrameScene:
-    """The 3-D geometry of frame ``k`` (row ``k`` of ``tr``) in world coordinates, as drawn.
-
-    ``trail``: seconds of motion the tip's trail covers.  The hinge axes are ``tr.axes()[k]``
-    (``n1`` at the origin, ``e = P1 . e0`` at the end of rod 1), the rod ends ``tr.tips()[k]``.
-    """
+    """The :class:`FrameScene` of frame ``k`` (row ``k`` of ``tr``); ``trail``: seconds of motion the tip's
+    trail covers."""
     return Geometry(tr, trail).scene(k)
 
 

@@ -56,8 +56,8 @@ def _refusing_wrong_types(fn, what: str):
 
 
 _TRAJECTORY = "a skewpend.Trajectory (from skewpend.simulate)"
-for _fn, _what in ((angles_figure, _TRAJECTORY), (phase_figure, _TRAJECTORY), (energy_figure, _TRAJECTORY),
-                   (torus_figure, _TRAJECTORY), (tips_figure, _TRAJECTORY), (simulation_figure, _TRAJECTORY),
+for _fn, _what in (*((f, _TRAJECTORY) for f in (angles_figure, phase_figure, energy_figure, torus_figure, tips_figure,
+                                                 simulation_figure)),
                    (plot_sweep, "a skewpend.modes.Sweep"), (flipmap_figure, "a skewpend.FlipMap"),
                    (lyapunov_figure, "a skewpend.LyapunovSpectrum"), (poincare_figure, "a skewpend.PoincareSection"),
                    (chaos_diagram_figure, "a skewpend.ChaosDiagram"), (lyapunov_map_figure, "a skewpend.LyapunovMap"),

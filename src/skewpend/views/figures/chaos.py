@@ -397,12 +397,9 @@ def _lyapunov_map_caption(m) -> str:
 
 def lyapunov_map_figure(m):
     """The largest Lyapunov exponent of starts at rest, a :class:`skewpend.LyapunovMap`, drawn like
-    :func:`flipmap_figure`: the image is ``m.exponent`` **transposed** with ``origin="lower"``
-    (``phi0`` across, ``psi0`` up, in degrees over the map's window, equal aspect), a linear
-    colour scale from ``min(0, smallest)`` to the largest exponent with a colour bar "largest
-    Lyapunov exponent [1/s]" exactly as tall as the map; cells whose integration failed (NaN)
-    in a flat colour, with a legend entry.  The heading states the parameters, the grid,
-    ``t_end``, the renormalisation interval and the tolerances."""
+    :func:`flipmap_figure` (``phi0`` across, ``psi0`` up, degrees) on a linear colour scale from
+    ``min(0, smallest)`` to the largest exponent; cells whose integration failed (NaN) in a flat colour,
+    with a legend entry.  The heading states the parameters, the grid and the run's settings."""
     import matplotlib
     from matplotlib.colors import Normalize
     from matplotlib.patches import Patch

@@ -153,14 +153,10 @@ def _draw_speeds(ax, tr) -> None:
     ax.set_xlim(tr.t[0], tr.t[-1])
 
 
-def _energy_error(tr):
-    scale = float(np.max(np.abs(tr.energy)))
-    err = np.abs(tr.energy - tr.work - tr.energy[0])
-    return (err / scale, True) if scale > 0 else (err, False)
-
-
 def _draw_energy(ax, tr) -> None:
-    err, relative = _energy_error(tr)
+    scale = float(np.max(np.abs(tr.energy)))
+    relative = scale > 0
+    err = np.abs(tr.energy - tr.work - tr.energy[0]) / (scale if relative else 1.0)
     shown = np.maximum(err, ENERGY_FLOOR)
     ax.plot(tr.t, shown, color=COLORS["energy"], lw=0.9, label="error at each row")
     ax.set_yscale("log")
@@ -253,9 +249,8 @@ def _draw_tips(ax, tr, zoom: float = 1.0) -> None:
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2 * 1.05, 1e-9)
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_zlim(centre[2] - half, centre[2] + half)
+    for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):
+        set_lim(c - half, c + half)
     ax.set_box_aspect((1, 1, 1), zoom=zoom)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
