@@ -55,7 +55,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..numeric.conventions import TENSOR_ENTRIES, TENSOR_INDICES
-from ..results import DatasetSpec, Result, agree, json_attr, netcdf_reader, protocol_fields
+from ..results import DatasetSpec, Result, agree, canonical_json, json_attr, netcdf_reader, protocol_fields
 from ..status import Status
 from ..config import parameters_toml
 from ..schema import (CORE_NAMES, DAMPING_NAMES, FRICTION_NAMES, GEOMETRY_NAMES, MASS_NAMES, ROTOR_NAMES, TORQUE_NAMES,
@@ -133,10 +133,6 @@ class _Terms:
             if any(str(x) in self.extra for x in Yx.free_symbols):
                 raise AssertionError("the equations are not linear in the friction and rotor terms")
             self._fx = lambdify_columns(Yx)
-
-    @property
-    def rank(self) -> int:
-        return len(self.names)
 
     def regressor(self, q, dq, ddq, a, alpha, g):
         Y = self.B.regressor(q, dq, ddq, a, alpha, g)
@@ -323,7 +319,7 @@ class Identification(Result):
                  "ratio_upper": [self.ratio_intervals[k][1] for k in ratio_names],
                  "undetermined": text(self.undetermined), "not_entering": text(self.not_entering),
                  "pieces": text(self.pieces), "validation": text(self.validation),
-                 "heldout_kind": text(self.heldout_kind), "params0": _json(self.params0.to_dict()),
+                 "heldout_kind": text(self.heldout_kind), "params0": canonical_json(self.params0.to_dict()),
                  "method": self.method, "alpha": float(self.alpha),
                  "alpha_interval": [float(x) for x in self.alpha_interval], "alpha_note": self.alpha_note,
                  **self._base_attrs()}
@@ -429,12 +425,6 @@ def _expression_text(expr) -> str:
     text = str(expr)
     text = re.sub(r"(\d+)\*(\w+)/(\d+)", lambda m: f"{int(m[1]) / int(m[3]):.6g}*{m[2]}", text)
     return re.sub(r"(?<![\w.])(\d+)/(\d+)", lambda m: f"{int(m[1]) / int(m[2]):.6g}", text)
-
-
-def _json(d) -> str:
-    from ..results import canonical_json
-
-    return canonical_json(d)
 
 
 # -- signals ------------------------------------------------------------------------------------------
@@ -905,10 +895,6 @@ class ChainTerms:
         self.names, self.expressions = tuple(out_names), tuple(texts)
         self.extra: Tuple[str, ...] = ()
 
-    @property
-    def rank(self) -> int:
-        return len(self.names)
-
     def _at(self, angle: float) -> np.ndarray:
         p = self._p.copy()
         if self.tilt:
@@ -961,11 +947,10 @@ class ChainTerms:
     def values(self, pi, angle: Optional[float] = None) -> np.ndarray:
         return (self.matrix if angle is None else self.T(angle)) @ np.asarray(pi, dtype=float)
 
-    def representative(self, beta, pi_ref, angle: Optional[float] = None) -> np.ndarray:
+    def representative(self, beta, pi_ref) -> np.ndarray:
         """The standard vector of ``beta`` with the dependent entries held at ``pi_ref``'s."""
-        T = self.matrix if angle is None else self.T(angle)
         pi = np.array(pi_ref, dtype=float)
-        pi[list(self.pivots)] = np.asarray(beta, float) - T[:, self.dep] @ pi[self.dep]
+        pi[list(self.pivots)] = np.asarray(beta, float) - self.matrix[:, self.dep] @ pi[self.dep]
         return pi
 
     def at(self, angle: float) -> "ChainTerms":
@@ -1033,8 +1018,7 @@ def _chain_of(chain0, terms: ChainTerms, pi: np.ndarray, project: bool = False, 
                 Ic[r, c] = Ic[c, r] = I0[r, c]
         for e, other, k in (("xx", "zz", 0), ("zz", "xx", 2)):  # across the rod: the held one moves with the other
             if e in held and other not in held:
-                j = 2 - k
-                Ic[k, k] = I0[k, k] + (Ic[j, j] - I0[j, j])
+                Ic[k, k] = I0[k, k] + (Ic[2 - k, 2 - k] - I0[2 - k, 2 - k])
         if project:
             w, V = np.linalg.eigh((Ic + Ic.T) / 2)
             w = np.maximum(w, 0.0)
@@ -1075,12 +1059,15 @@ def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray,
     grid = np.geomspace(1.0 / MASS_FACTORS[-1], MASS_FACTORS[-1], 81)
     factors = [float(x) for x in grid[np.argsort(np.abs(np.log(grid)))] if abs(math.log(x)) > 1e-12]
     trials = [(1.0, masses)] + [(k, loose) for k in factors if loose] + [(k, masses) for k in factors]
-    first, last = "", ""
-    for k, which in trials:
+    def scaled(k, which):  # the standard vector of beta, the masses ``which`` scaled by k
         ref = pi0.copy()
         ref[which] *= k
+        return terms.representative(beta, ref)
+
+    first, last = "", ""
+    for k, which in trials:
         try:
-            chain = _chain_of(chain0, terms, terms.representative(beta, ref))
+            chain = _chain_of(chain0, terms, scaled(k, which))
         except ParameterError as exc:
             first, last = first or str(exc), str(exc)
             continue
@@ -1092,9 +1079,7 @@ def _realise_chain(chain0, terms: ChainTerms, beta: np.ndarray, pi0: np.ndarray,
     half = np.full(len(beta), np.inf) if halves is None else np.where(np.isfinite(halves), halves, np.inf)
     best = None
     for k, which in trials:
-        ref = pi0.copy()
-        ref[which] *= k
-        chain = _chain_of(chain0, terms, terms.representative(beta, ref), project=True)
+        chain = _chain_of(chain0, terms, scaled(k, which), project=True)
         moved = terms.values(terms.standard(chain)) - np.asarray(beta, float)
         rel = np.abs(moved) / np.maximum(np.abs(beta), big)
         if best is None or rel.max() < best[1].max():
@@ -1113,7 +1098,7 @@ class _Exact:
     model that keeps its symbolic form (the double pendulum's facade): ``generic`` -- the skew angle alpha a
     parameter (every skew's base parameters).  The interface :func:`identify` asks (:class:`_Recursive` is the
     other): ``names``, ``expressions``, ``unidentifiable``, ``terms`` (for the shooting), ``angle`` (the freed
-    angle's name, or None) and ``angle0``; ``standard``, ``beta``, ``rows``, ``with_angle``, ``angle_of``,
+    angle's name, or None) and ``angle0``; ``beta``, ``pi_ext``, ``rows``, ``with_angle``, ``angle_of``,
     ``zeroed``, ``realise``, ``nearest``, ``model_of``."""
 
     def __init__(self, params, generic: bool = False):
@@ -1128,10 +1113,6 @@ class _Exact:
     @staticmethod
     def angle_of(model) -> float:
         return float(model.alpha) if model.alpha is not None else 0.0
-
-    @staticmethod
-    def standard(model) -> np.ndarray:
-        return standard_vector(model)
 
     def beta(self, pi, angle: float) -> np.ndarray:
         return self.terms.values(pi, self.a, angle, self.g)
@@ -1752,9 +1733,10 @@ def _heldout(fitted, params0, validation, smoothing, frame=None):
         vnames.append(p.name)
         kinds.append("angle")  # driven pieces too: simulated with their measured torques
         for k, (model, rms) in enumerate(((params0, hr0), (fitted, hr))):
-            e = None if model is None else _predict(model, p, smoothing)
-            if e is not None and frame is not None:
-                e = e @ frame.T
+            e = None if model is None else predict_piece(model, p, smoothing)
+            if e is not None:
+                e = e - np.asarray(p.q, float)  # the errors (in the frame's angles)
+                e = e if frame is None else e @ frame.T
             rms.append(math.nan if e is None else float(np.sqrt(np.mean(e**2))))
             if e is not None:
                 sq[k], count[k] = sq[k] + float(np.sum(e**2)), count[k] + e.size
@@ -1770,9 +1752,7 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
     other parameter re-fitted at each grid angle), then, where its minimum is away from alpha0's neighbourhood,
     a fit with it free.  Returns (fit, angle, (lo, hi), note, grid, costs)."""
     start = f"{name}0" if name == "alpha" else f"{name}(params0)"  # the angle's start, in words
-    probe = run(sf0.beta, alpha0, True, sf0.y0, iterations=0)
-    flat = name in probe.flat
-    if not flat:  # alpha is determined to first order at alpha0: a regular fit with alpha free
+    if name not in run(sf0.beta, alpha0, True, sf0.y0, iterations=0).flat:  # alpha is determined to first order at alpha0: a regular fit with alpha free
         sf = run(sf0.beta, alpha0, True, sf0.y0, boot=bootstrap)
         if sf.converged and name not in sf.flat:
             h = float(sf.half[-1])
@@ -1793,11 +1773,8 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
     even = abs(up.cost - down.cost) <= 1e-6 * up.cost
     sides = (1,) if even else (1, -1)
     for side in sides:
-        prev = sf0
-        d_list = list(steps)
-        i = 0
-        while i < len(d_list):
-            d = d_list[i]
+        prev, d_list = sf0, list(steps)
+        for i, d in enumerate(d_list):  # (the list grows while the cost falls)
             alpha = alpha0 + side * d
             if abs(alpha) > math.radians(89):
                 break
@@ -1806,12 +1783,9 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
             if i == len(d_list) - 1 and f.cost < prev.cost:  # still falling: extend
                 d_list.append(2 * d)
             prev = f
-            i += 1
     if even:  # mirror
         grid += [2 * alpha0 - x for x in grid if x != alpha0]
-        for x in list(grid):
-            if x not in fits:
-                fits[x] = fits[2 * alpha0 - x]
+        fits.update({x: fits[2 * alpha0 - x] for x in grid if x not in fits})
     grid = sorted(set(grid))
     costs = np.array([fits[x].cost for x in grid])
     ssr = np.array([fits[x].ssr_cluster for x in grid])  # (grid, clusters of the intervals)
@@ -1858,12 +1832,8 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
     # near alpha0: the interval from the profile, re-minimised on pieces resampled with replacement
     x = np.array(grid)
     est = _vertex(x, costs)
-    rng = np.random.default_rng(seed)
-    draws = []
-    n = ssr.shape[1]
-    for _ in range(int(bootstrap) or 200):
-        w = np.bincount(rng.integers(0, n, n), minlength=n)
-        draws.append(_vertex(x, ssr @ w))
+    rng, n = np.random.default_rng(seed), ssr.shape[1]
+    draws = [_vertex(x, ssr @ np.bincount(rng.integers(0, n, n), minlength=n)) for _ in range(int(bootstrap) or 200)]
     lo, hi = np.percentile(draws, [2.5, 97.5]) if n >= MIN_CLUSTERS else (math.nan, math.nan)
     note = "95 % interval from the profile of the cost, re-minimised on resampled clusters"
     if even:
@@ -1895,9 +1865,11 @@ def _vertex(x: np.ndarray, c: np.ndarray) -> float:
     return float(min(max(-Bq / (2 * A), x0), x2))
 
 
-def _predict(params, piece: Piece, smoothing: float) -> Optional[np.ndarray]:
-    """Angle errors (n, nq) of ``params`` (the double pendulum's or a chain) simulated from the piece's
-    first measured state."""
+def predict_piece(params: Parameters, piece: Piece, smoothing: float = SMOOTHING) -> Optional[np.ndarray]:
+    """The angles (n, nq) [rad] of ``params`` (the double pendulum's or a chain) simulated from ``piece``'s first
+    measured state (``q[0]``, and ``dq[0]`` where measured, else its Savitzky-Golay estimate with window
+    ``smoothing`` [s]) at the piece's times: the prediction whose error the held-out RMS measures; None where the
+    simulation failed.  (Used by the identification's figure.)"""
     from ..numeric.simulation import simulate
 
     t = np.asarray(piece.t, float) - float(piece.t[0])
@@ -1921,8 +1893,7 @@ def _predict(params, piece: Piece, smoothing: float) -> Optional[np.ndarray]:
     ts, ys = np.asarray(tr.t, float), np.asarray(tr.y, float)
     if not tr.ok or ts[-1] < t[-1] - 1e-9 or not np.all(np.isfinite(ys)):
         return None
-    sim = np.column_stack([np.interp(t, ts, ys[:, k]) for k in range(piece.nq)])
-    return sim - np.asarray(piece.q, float)
+    return np.column_stack([np.interp(t, ts, ys[:, k]) for k in range(piece.nq)])
 
 
 #: A body's principal moment below zero (or over the sum of the others) by at most this fraction of its
@@ -2095,7 +2066,6 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
 
 
 # -- the run file (Identification.to_run_file) ----------------------------------------------------------
-#: The [parameters] keys of a run file, in the order written.
 def _count(n: int, noun: str) -> str:
     """``1 piece``, ``2 pieces``."""
     return f"{n} {noun}" + ("" if n == 1 else "s")
@@ -2158,12 +2128,3 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
     with atomic_path(path) as tmp:  # (it refuses a path that is not one, in one line)
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
-
-
-def predict_piece(params: Parameters, piece: Piece, smoothing: float = SMOOTHING) -> Optional[np.ndarray]:
-    """The angles (n, 2) [rad] of ``params`` simulated from ``piece``'s first measured state (``q[0]``,
-    and ``dq[0]`` where measured, else its Savitzky-Golay estimate with window ``smoothing`` [s]) at
-    the piece's times: the prediction whose error the held-out RMS measures; None where the
-    simulation failed.  (Used by the identification's figure.)"""
-    err = _predict(params, piece, smoothing)
-    return None if err is None else err + np.asarray(piece.q, float)

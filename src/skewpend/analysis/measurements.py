@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import csv
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -105,14 +106,10 @@ class Convention:
     time: str = "s"
 
     def __post_init__(self):
-        if self.second not in ("relative", "absolute"):
-            raise ParameterError(f"Convention second must be 'relative' or 'absolute', got {self.second!r}",
-                                 parameter="convention")
-        if self.zero not in ("hanging", "upright"):
-            raise ParameterError(f"Convention zero must be 'hanging' or 'upright', got {self.zero!r}",
-                                 parameter="convention")
-        if self.unit not in ("rad", "deg"):
-            raise ParameterError(f"Convention unit must be 'rad' or 'deg', got {self.unit!r}", parameter="convention")
+        for key, (a, b) in (("second", ("relative", "absolute")), ("zero", ("hanging", "upright")), ("unit", ("rad", "deg"))):
+            if getattr(self, key) not in (a, b):
+                raise ParameterError(f"Convention {key} must be {a!r} or {b!r}, got {getattr(self, key)!r}",
+                                     parameter="convention")
         if self.time not in TIME_UNITS:
             raise ParameterError(f"Convention time must be one of {', '.join(map(repr, TIME_UNITS))}, got {self.time!r}",
                                  parameter="convention")
@@ -661,10 +658,7 @@ class Measurements:
         return all(p.u is not None for p in self.pieces)
 
     def _groups(self) -> str:
-        counts: Dict[str, int] = {}
-        for p in self.pieces:
-            if p.group:
-                counts[p.group] = counts.get(p.group, 0) + 1
+        counts = Counter(p.group for p in self.pieces if p.group)
         return f" ({', '.join(f'{g} {n}' for g, n in counts.items())})" if counts else ""
 
     def __repr__(self) -> str:
@@ -1050,20 +1044,18 @@ def _read_csv_piece(path: Path, columns: Mapping[str, Any], delimiter: str) -> D
     use = sorted(set(index.values()))
     import warnings
 
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # a header and no rows: said below, in one line
-            table = np.loadtxt(path, delimiter=delimiter, skiprows=1, usecols=use, ndmin=2)
-    except ValueError:
-        # say which line and column is not a number, or too short; empty fields are NaN (then counted and
-        # dropped or refused by the checks)
-        _scan_csv(path, delimiter, use, header)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a header and no rows: said below, in one line
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
+            table = np.loadtxt(path, delimiter=delimiter, skiprows=1, usecols=use, ndmin=2)
+        except ValueError:
+            # say which line and column is not a number, or too short; empty fields are NaN (then counted and
+            # dropped or refused by the checks)
+            _scan_csv(path, delimiter, use, header)
+            try:
                 table = np.genfromtxt(path, delimiter=delimiter, skip_header=1, usecols=use, ndmin=2)
-        except ValueError as exc:
-            raise ParameterError(f"{path}: not a table of numbers ({_first_line(exc)})") from None
+            except ValueError as exc:
+                raise ParameterError(f"{path}: not a table of numbers ({_first_line(exc)})") from None
     if table.size == 0:
         raise ParameterError(f"{path}: a header line and no rows of data")
     col = {k: table[:, use.index(i)] for k, i in index.items()}

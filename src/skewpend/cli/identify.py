@@ -89,8 +89,6 @@ def _start_model(func):
     return run
 
 
-
-
 _SECONDS = T.Positive("number of seconds")
 _HORIZON = T.Positive("number of seconds", at_most=1e6)
 _HORIZON.metavar = "SECONDS"
@@ -188,12 +186,7 @@ def identify(
         _say_actions("held-out data", validation)
 
     kw: Dict[str, Any] = {"free": free_names, "validation": validation, "method": method.value}
-    if angles is not None:
-        kw["angles"] = angles
-    if segment is not None:
-        kw["segment"] = segment
-    if smoothing is not None:
-        kw["smoothing"] = smoothing
+    kw.update({k: v for k, v in (("angles", angles), ("segment", segment), ("smoothing", smoothing)) if v is not None})
     with progress("identify", "%", quiet) as bar, Interrupts(escalate_after=0.3) as intr:
         def say(stage: str, fraction: float) -> None:
             intr.check()  # Ctrl-C between the stages too (the signal is raised within 0.3 s anyway)
@@ -217,40 +210,30 @@ def identify(
     if why is not None:  # a fit that succeeded gets a line only when a mistake is found
         for line in hints.report(found, checked=kind in ("csv", "mat", "dfki") and not result.ok):
             sys.stderr.write(f"skewpend: {line}\n")
-    note = ""
-    written = []
-    lab_error = None
+    note = f"; {out} not written (the fit did not succeed)" if out is not None and not result.ok else ""
+    written, lab_error, views = [], None, (result, measurements, validation)
     # the files, under Ctrl-C's protection to the end: a signal in their last moments is raised at the
     # next check (exit 130, one line), and every file this run wrote is removed again (each is written
     # atomically: the one being written is never left either)
+    files = [("result", netcdf, result.to_netcdf),
+             ("lab model" if lab_out else "run file", out if result.ok else None,
+              functools.partial(_write_lab_file, result) if lab_out else result.to_run_file),
+             ("plot", plot, plot_fn and functools.partial(plot_fn, *views)),
+             ("report", report, report_fn and functools.partial(report_fn, *views))]
     try:
         with Interrupts(escalate_after=0.3) as intr:
             intr.check()
-            if netcdf is not None:
-                result.to_netcdf(netcdf)
-                written.append(("result", netcdf))
+            for what, path, write in files:
+                if path is None or not write:
+                    continue
+                try:
+                    write(path)
+                    written.append((what, path))
+                except ParameterError as exc:
+                    if what != "lab model":
+                        raise
+                    lab_error = f"--out {out}: not written: {exc}"
                 intr.check()
-            if out is not None:
-                if not result.ok:
-                    note = f"; {out} not written (the fit did not succeed)"
-                elif lab_out:
-                    try:
-                        _write_lab_file(result, out)
-                        written.append(("lab model", out))
-                    except ParameterError as exc:
-                        lab_error = f"--out {out}: not written: {exc}"
-                else:
-                    result.to_run_file(out)
-                    written.append(("run file", out))
-                intr.check()
-            if plot_fn is not None:
-                plot_fn(result, measurements, validation, plot)
-                written.append(("plot", plot))
-                intr.check()
-            if report_fn is not None:
-                report_fn(result, measurements, validation, report)
-                written.append(("report", report))
-            intr.check()
     except KeyboardInterrupt:
         for _, path in written:
             Path(path).unlink(missing_ok=True)
