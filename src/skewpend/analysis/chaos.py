@@ -246,10 +246,7 @@ class ChaosJob(GridJob):
                 kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every, transient=self.transient,
                 rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, cancel=cancel)
             out[j, : lam.size] = lam
-            stats[0] += lam.size
-            stats[1] += int(np.count_nonzero(status != 0))
-            stats[3] += int(steps.sum())
-            stats[4] += int(rejected.sum())
+            stats[[0, 1, 3, 4]] += (lam.size, np.count_nonzero(status != 0), steps.sum(), rejected.sum())
         stats[5] = time.perf_counter() - start
         return out, stats
 

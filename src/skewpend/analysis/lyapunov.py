@@ -589,27 +589,24 @@ class LyapunovMapJob(GridJob):
     def compute(self, state, rows, cancel=None):
         kernel, p = state
         phi, psi = (values for values, _ in self.coords().values())
-        exponent = np.full((rows.size, self.n), np.nan)
-        stats = np.zeros((rows.size, len(MAP_STATS)))
-        for r, i in enumerate(rows.tolist()):
-            starts = np.column_stack([np.full(self.n, phi[i]), psi, np.zeros(self.n), np.zeros(self.n)])
-            lam, status, steps, rejected = largest_exponents(
-                kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every, transient=self.transient,
-                rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, cancel=cancel)
-            exponent[r] = lam
-            stats[r] = (self.n, np.count_nonzero(status != 0), steps.sum(), rejected.sum())
-        return {"exponent": exponent}, stats
+        shape = (rows.size, self.n)
+        starts = np.zeros((rows.size * self.n, 4))
+        starts[:, 0], starts[:, 1] = np.repeat(phi[rows], self.n), np.tile(psi, rows.size)
+        lam, status, steps, rejected = largest_exponents(
+            kernel, p, starts, t_end=self.t_end, renorm_every=self.renorm_every, transient=self.transient,
+            rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, cancel=cancel)
+        stats = np.column_stack([np.full(rows.size, self.n), (status != 0).reshape(shape).sum(1),
+                                 steps.reshape(shape).sum(1), rejected.reshape(shape).sum(1)]).astype(float)
+        return {"exponent": lam.reshape(shape)}, stats
 
     def result(self, run) -> LyapunovMap:
         from ..results import grid_status
 
         n = self.n
         totals = run.totals(MAP_STATS)
-        settings = {"n": n, "t_end": self.t_end, "renorm_every": self.renorm_every, "transient": self.transient,
-                    "phi_range": tuple(self.phi_range), "psi_range": tuple(self.psi_range), "rtol": self.rtol,
-                    "atol": self.atol, "max_steps": self.max_steps}
-        stats = {"cells": n * n, "failed": int(totals["failed"]), "steps": int(totals["steps"]),
-                 "rejected": int(totals["rejected"]), **run.info}
+        settings = {k: tuple(v) if isinstance(v, list) else v for k, v in self.settings().items()
+                    if k not in ("kind", "params", "skewpend_version")}  # the ranges as tuples
+        stats = {"cells": n * n, **{k: int(totals[k]) for k in MAP_STATS[1:]}, **run.info}
         status, message = grid_status(stats["failed"], n * n, "cells")
         phi, psi = (values for values, _ in self.coords().values())
         return LyapunovMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),

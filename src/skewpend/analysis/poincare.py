@@ -533,7 +533,6 @@ def poincare(
                         time_name=f"{want} crossings at about one swing ({period:.3g} s) each: t",
                         advice="ask for fewer crossings, or a larger max_steps")
     method = LOCATE_METHODS.index(locate)
-    period_wrap = _TWO_PI
     value_wrapped = math.remainder(value, _TWO_PI)
     done = [0]
     start = time.perf_counter()
@@ -550,7 +549,7 @@ def poincare(
                 raise Cancelled()
 
         rc = drive(lambda budget: kernel.lib.sp_section(
-                       ctypes.byref(state), p.ctypes.data_as(dp), coord, value_wrapped, period_wrap, int(direction),
+                       ctypes.byref(state), p.ctypes.data_as(dp), coord, value_wrapped, _TWO_PI, int(direction),
                        method, want, t_max, rtol, atol, max_steps, budget, rows.ctypes.data_as(dp), rows.shape[0],
                        ctypes.byref(m)),
                    budget=_BUDGET, take=lambda: got.append(rows[: m.value].copy()) if m.value else None,
@@ -560,9 +559,7 @@ def poincare(
 
     tables: list = [None] * n
     status = np.zeros(n, dtype=np.int32)
-    steps = np.zeros(n, dtype=np.int64)
-    rejected = np.zeros(n, dtype=np.int64)
-    fallbacks = np.zeros(n, dtype=np.int64)
+    steps, rejected, fallbacks = np.zeros((3, n), dtype=np.int64)
 
     def on_done(k, result):
         tables[k], status[k], steps[k], rejected[k], fallbacks[k] = result
