@@ -4,6 +4,8 @@ reference case fills them in), and the default it shows is the one the command u
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 
 import pytest
 
@@ -57,3 +59,24 @@ def test_the_shown_model_defaults_are_the_ones_used():
     drop = lambda text: [line for line in text.splitlines() if not line.startswith("wall time")]
     assert plain.code == explicit.code == 0 and "final state" in plain.out
     assert drop(plain.out) == drop(explicit.out)
+
+
+def test_the_command_table_is_the_modules_commands_in_the_helps_order():
+    import importlib
+
+    from skewpend import cli
+
+    for module in set(cli._MODULES.values()):
+        commands = importlib.import_module(f"skewpend.cli.{module}").COMMANDS
+        assert {name for name, m in cli._MODULES.items() if m == module} == set(commands), module
+    assert list(cli._group().commands) == list(cli.COMMAND_NAMES)
+
+
+def test_a_run_builds_and_imports_only_the_command_it_names():
+    """`skewpend simulate` parses one command's signature, not seventeen (the start of every run)."""
+    code = ("import sys\nfrom skewpend import cli\ntry:\n    cli.main(['simulate', '--help'])\nexcept SystemExit:\n    pass\n"
+            "print(sorted(m for m in sys.modules if m.startswith('skewpend.cli.')))\n"
+            "print(sorted(cli._GROUPS['simulate'].commands))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[-2] == "['skewpend.cli.options', 'skewpend.cli.simulate', 'skewpend.cli.types']"
+    assert out[-1] == "['simulate']"

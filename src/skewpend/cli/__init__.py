@@ -42,13 +42,16 @@ from ..errors import SkewpendError  # noqa: E402
 
 __all__ = ["app", "main", "build_parameters"]
 
-app = typer.Typer(
-    name="skewpend",
-    help="The double pendulum with skewed hinge axes: a self-contained HTML report (skewpend report), the equations of motion, simulation, animation, flip-time maps, normal modes, validation against MuJoCo.",
-    add_completion=False,
-    pretty_exceptions_enable=False,
-    rich_markup_mode=None,
-)
+#: The commands in the help's order, each with the module that defines it (its ``COMMANDS``).  A run
+#: builds only the command it names: typer's parsing of one command's signature costs what importing
+#: NumPy does, and seventeen of them were the larger part of a warm ``skewpend simulate``'s start.
+_MODULES = {
+    "derive": "equations", "simulate": "simulate", "animate": "simulate", "flipmap": "analyses",
+    "lyapunov": "analyses", "poincare": "analyses", "chaos_diagram": "analyses", "serve": "serve",
+    "report": "simulate", "export": "equations", "validate": "equations", "modes": "modes",
+    "equilibria": "orbits", "orbit": "orbits", "nnm": "orbits", "control": "control", "identify": "identify",
+}
+COMMAND_NAMES = tuple(name.replace("_", "-") for name in _MODULES)
 
 
 def _version(value: bool) -> None:
@@ -59,7 +62,6 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
-@app.callback(invoke_without_command=True)
 def _root(
     ctx: typer.Context,
     version: Annotated[
@@ -72,19 +74,23 @@ def _root(
         raise typer.Exit()
 
 
-def _register() -> None:
-    """Each command module holds plain functions; they become commands here (no import cycle)."""
-    from . import analyses, control, equations, identify, modes, orbits, serve, simulate
+def _app(names) -> typer.Typer:
+    """The Typer app with the commands ``names`` (the command modules hold plain functions; they
+    become commands here, so there is no import cycle)."""
+    import importlib
 
-    order = ("derive", "simulate", "animate", "flipmap", "lyapunov", "poincare", "chaos_diagram", "serve", "report",
-             "export", "validate", "modes", "equilibria", "orbit", "nnm", "control", "identify")
-    found = {name: getattr(module, name)
-             for module in (equations, simulate, analyses, modes, orbits, control, identify, serve) for name in module.COMMANDS}
-    for name in order:
-        app.command(name.replace("_", "-"))(found[name])
-
-
-_register()
+    app = typer.Typer(
+        name="skewpend",
+        help="The double pendulum with skewed hinge axes: a self-contained HTML report (skewpend report), the equations of motion, simulation, animation, flip-time maps, normal modes, validation against MuJoCo.",
+        add_completion=False,
+        pretty_exceptions_enable=False,
+        rich_markup_mode=None,
+    )
+    app.callback(invoke_without_command=True)(_root)
+    for name in names:
+        module = importlib.import_module(f".{_MODULES[name]}", __name__)
+        app.command(name.replace("_", "-"))(getattr(module, name))
+    return app
 
 
 def build_parameters(a, b, m1, m2, alpha, g, c1, c2, tau1, tau2, com1, com2, inertia1, inertia2, axis1, axis2,
@@ -103,7 +109,15 @@ _MOVED = {"DEFAULT_RUN": ("..config", "DEFAULT_RUN"), "MODEL_OPTIONS": (".option
           "INITIAL_OPTIONS": (".options", "INITIAL"), "Method": (".options", "Method")}
 
 
+_APP: Any = None
+
+
 def __getattr__(name: str):
+    global _APP
+    if name == "app":  # every command: for the docs and typer's test runner
+        if _APP is None:
+            _APP = _app(_MODULES)
+        return _APP
     if name in _MOVED:
         import importlib
 
@@ -214,19 +228,20 @@ def _check_repeats(command, args: List[str]) -> None:
         i += 2 if takes_value else 1
 
 
-_GROUP: Any = None
+_GROUPS: dict = {}
 
 
-def _group():
-    """The click group of :data:`app`, built once per process (building it takes ~40 ms; a test
-    suite or a server calling :func:`main` many times would rebuild it each time). The group holds no
-    state of a run: its options' values live in each call's context, the run file's in ``LOCATIONS``."""
-    global _GROUP
-    if _GROUP is None:
+def _group(name: Optional[str] = None):
+    """The click group of the app, with every command (``name`` None) or only the command ``name``,
+    built once per process (a test suite or a server calling :func:`main` many times would rebuild it
+    each time).  The group holds no state of a run: its options' values live in each call's context,
+    the run file's in ``LOCATIONS``."""
+    if name not in _GROUPS:
         from .options import show_defaults
 
-        _GROUP = show_defaults(typer.main.get_command(app))
-    return _GROUP
+        app = __getattr__("app") if name is None else _app([name.replace("-", "_")])
+        _GROUPS[name] = show_defaults(typer.main.get_command(app))
+    return _GROUPS[name]
 
 
 def _quick_exit(status: int) -> None:
@@ -277,7 +292,7 @@ def main(argv: Optional[List[str]] = None) -> None:
         os.environ.setdefault("MUJOCO_GL", "disable")
     args = sys.argv[1:] if argv is None else list(argv)
     name = next((a for a in args if not a.startswith("-")), None)
-    group = _group()
+    group = _group(name if name in COMMAND_NAMES else None)
     try:
         with terminate_like_interrupt(), warnings.catch_warnings():  # the warning settings are restored on leaving
             warnings.showwarning = _warning_line
