@@ -154,13 +154,6 @@ def _js_printer():
     return JavascriptCodePrinter().doprint
 
 
-def _inputs(lang: Lang, indent: str, state: str, names: Sequence[str]) -> List[str]:
-    lines = []
-    for i, n in enumerate(names):
-        lines.append(f"{indent}{lang.declare}{n} = {state}[{i}]{lang.end}")
-    return lines
-
-
 def cse_block(
     lang: Lang, exprs: Sequence[sp.Expr], targets: Sequence[str], indent: str, prefix: str = "x"
 ) -> List[str]:
@@ -176,6 +169,15 @@ def param_lines(lang: Lang, indent: str, used: set) -> List[str]:
     return [
         f"{indent}{lang.declare}{n} = p[{i}]{lang.end}" for i, n in enumerate(KERNEL_ORDER) if n in used
     ]
+
+
+def evaluation_lines(lang: Lang, exprs: Sequence[sp.Expr], targets: Sequence[str], indent: str, state: str = "y",
+                     names: Sequence[str] = STATE_ORDER) -> List[str]:
+    """``targets = exprs`` (:func:`cse_block`) after the state entries (``state[i]``, named ``names``) and the
+    parameters they use."""
+    used = used_names(exprs)
+    lines = [f"{indent}{lang.declare}{n} = {state}[{i}]{lang.end}" for i, n in enumerate(names) if n in used]
+    return lines + param_lines(lang, indent, used) + cse_block(lang, exprs, targets, indent)
 
 
 def used_names(exprs: Sequence[sp.Expr]) -> set:
@@ -281,18 +283,10 @@ def _doc_lines(geometry: Parameters, values=None) -> List[str]:
 
 
 def _body(lang: Lang, ex: _Expressions, indent: str) -> Tuple[List[str], List[str]]:
-    M = [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1]]
-    f = [ex.f[0], ex.f[1]]
-    used = used_names(M + f)
-    rhs_lines = [f"{indent}{lang.declare}{n} = y[{i}]{lang.end}" for i, n in enumerate(STATE_ORDER) if n in used]
-    rhs_lines += param_lines(lang, indent, used)
-    rhs_lines += cse_block(lang, M + f, ["M11", "M12", "M22", "f1", "f2"], indent)
+    rhs_lines = evaluation_lines(lang, [ex.M[0, 0], ex.M[0, 1], ex.M[1, 1], ex.f[0], ex.f[1]],
+                                 ["M11", "M12", "M22", "f1", "f2"], indent)
     rhs_lines += solve_lines(lang, ["M11", "M12", "M22"], ["f1", "f2"], ["ddphi", "ddpsi"], indent)
-    used = used_names([ex.T, ex.Pi])
-    en_lines = [f"{indent}{lang.declare}{n} = y[{i}]{lang.end}" for i, n in enumerate(STATE_ORDER) if n in used]
-    en_lines += param_lines(lang, indent, used)
-    en_lines += cse_block(lang, [ex.T + ex.Pi], ["E"], indent)
-    return rhs_lines, en_lines
+    return rhs_lines, evaluation_lines(lang, [ex.T + ex.Pi], ["E"], indent)
 
 
 # -- the one linear solve ----------------------------------------------------------------------------
@@ -512,10 +506,7 @@ def exact_explorer_js(printed: Parameters, values: Sequence[float]) -> str:
                                   ("axes", list(ex.axes), "hinge axes [n1x, n1y, n1z, ex, ey, ez]: n1 fixed, e = P1 . e0"),
                                   ("linear", linear, "the linearisation at rest (phi = psi = 0): [M0, K0], M0 = M(0), "
                                    "K0 = the Hessian of Pi (y is not read)")):
-        used = used_names(exprs)
-        body = [f"  const {n} = y[{i}];" for i, n in enumerate(STATE_ORDER) if n in used]
-        body += param_lines(lang, "  ", used)
-        body += cse_block(lang, exprs, [f"r{i}" for i in range(len(exprs))], "  ")
+        body = evaluation_lines(lang, exprs, [f"r{i}" for i in range(len(exprs))], "  ")
         ret = (f"[{js_rows(2, lambda i, j: f'r{2 * i + j}')}, {js_rows(2, lambda i, j: f'r{4 + 2 * i + j}')}]" if name == "linear"
                else "[" + ", ".join(f"r{i}" for i in range(len(exprs))) + "]")
         out += [f"/** {doc_line} */", f"export function {name}(y, p = P) {{", *body, f"  return {ret};", "}", ""]
@@ -547,14 +538,11 @@ def odd_under_reflection(ex) -> bool:
     s = SYMBOLS
     mirror = {s[n]: -s[n] for n in STATE_ORDER}
     no_torque = {s["tau1"]: 0, s["tau2"]: 0}
-    for e in ex.M:
-        e = sp.sympify(e).subs(no_torque)
-        if sp.expand(e.xreplace(mirror) - e) != 0:
-            return False
-    for e in ex.f:
-        e = sp.sympify(e).subs(no_torque)
-        if sp.expand(e.xreplace(mirror) + e) != 0:
-            return False
+    for sign, entries in ((-1, ex.M), (1, ex.f)):  # M even, f odd
+        for e in entries:
+            e = sp.sympify(e).subs(no_torque)
+            if sp.expand(e.xreplace(mirror) + sign * e) != 0:
+                return False
     return True
 
 

@@ -92,6 +92,13 @@ def run_chunks(
     if n_chunks == 0:
         return []
     cancel = threading.Event()
+
+    def deliver(i: int, result) -> None:
+        if on_done is not None:
+            on_done(i, result)
+        if keep:
+            results[i] = result
+
     # Ctrl-C sets `cancel` at once (the workers stop at their next bounded call into C) and is
     # raised here as KeyboardInterrupt, whatever the workers raise on the way out
     with Interrupts(on_signal=cancel.set) as intr:
@@ -100,10 +107,7 @@ def run_chunks(
                 for i in range(n_chunks):
                     result = work(i, cancel)
                     intr.check()
-                    if on_done is not None:
-                        on_done(i, result)
-                    if keep:
-                        results[i] = result
+                    deliver(i, result)
                     del result
                 return results  # type: ignore[return-value]
             pool = cf.ThreadPoolExecutor(max_workers=min(workers, n_chunks), thread_name_prefix="skewpend-ensemble")
@@ -115,13 +119,8 @@ def run_chunks(
                     done, pending = cf.wait(pending, timeout=0.1, return_when=cf.FIRST_COMPLETED)
                     intr.check()
                     for fut in done:
-                        i = futures.pop(fut)
-                        result = fut.result()  # re-raises a worker's exception
-                        if on_done is not None:
-                            on_done(i, result)
-                        if keep:
-                            results[i] = result
-                        del fut, result
+                        deliver(futures.pop(fut), fut.result())  # re-raises a worker's exception
+                        del fut
             except BaseException:
                 cancel.set()
                 for fut in futures:
@@ -161,10 +160,6 @@ class FlipIntegrator:
         self.p = np.ascontiguousarray(p, dtype=np.float64)
         self.t_end, self.rtol, self.atol = float(t_end), float(rtol), float(atol)
         self.max_steps, self.budget = int(max_steps), int(budget)
-
-    @property
-    def lanes(self) -> int:
-        return self.kernel.flip_lanes
 
     def run(self, cells: np.ndarray, cancel: Optional[threading.Event] = None) -> FlipChunk:
         cells = np.ascontiguousarray(cells, dtype=np.float64).reshape(-1, 2)

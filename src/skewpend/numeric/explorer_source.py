@@ -1,4 +1,4 @@
-"""The explorer's physics, one contract for every model and form (issue 52: one physics printer for the page):
+"""The explorer's physics, one contract for every model and form (one physics printer for the page):
 :func:`explorer_js` prints it in :func:`page_form`'s form -- the derivation's expressions for the double pendulum's
 parameters (:func:`skewpend.numeric.codegen.exact_explorer_js`), the recursive algorithms' CasADi graphs otherwise
 (:func:`skewpend.numeric.recursive.chain_code`'s module, its ``linear`` by CasADi's differentiation).  Above both

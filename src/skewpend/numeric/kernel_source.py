@@ -21,7 +21,8 @@ from typing import List
 import sympy as sp
 
 from .. import __version__
-from .codegen import c_printer, cse_block, expressions, Lang, odd_under_reflection, param_lines, spd_c_lines, used_names
+from .codegen import (c_printer, cse_block, evaluation_lines, expressions, Lang, odd_under_reflection, param_lines,
+                      spd_c_lines, used_names)
 from .conventions import PARAMETER_ORDER
 from ..schema import TORQUE_NAMES
 from ..symbolic.derivation import SYMBOLS
@@ -67,33 +68,19 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
                   "#define SP_NMAX 8  /* the integrators' largest state: 5, 6 with a controller's clock */",
                   f"#define SP_TAU_INDEX {{{', '.join(str(PARAMETER_ORDER.index(n)) for n in TORQUE_NAMES)}}}  /* p's torques, a coordinate each */"]
 
-    def header(signature: str, doc: str, used_exprs, state: str = "y", names=_STATE) -> List[str]:
-        lines = [f"/* {doc} */", f"static {signature}", "{"]
-        used = used_names(used_exprs)
-        lines += [f"{I}const double {n} = {state}[{i}];" for i, n in enumerate(names) if n in used]
-        lines += param_lines(c, I, used)
-        return lines
+    def header(signature: str, doc: str, exprs, targets, state: str = "y", names=_STATE) -> List[str]:
+        return [f"/* {doc} */", f"static {signature}", "{"] + evaluation_lines(c, exprs, targets, I, state, names)
 
     # M q'' = f (LDL^T, codegen.spd_c_lines), M's factors kept as sp_m_*
     solve = spd_c_lines(I, ["f1", "f2"], ["ddphi", "ddpsi"], M=["M11", "M12", "M22"])
 
     # rhs: M q'' = f solved numerically (no symbolic inverse); W' = Q . q'
-    exprs = M + f + Q
-    out += header("void rhs(const double *y, const double *p, double *out)", "dy/dt into out[5]", exprs)
-    out += cse_block(c, exprs, ["M11", "M12", "M22", "f1", "f2", "Q1", "Q2"], I)
-    out += solve
-    out += [
-        f"{I}out[0] = y[2];",
-        f"{I}out[1] = y[3];",
-        f"{I}out[2] = ddphi;",
-        f"{I}out[3] = ddpsi;",
-        f"{I}out[4] = Q1 * y[2] + Q2 * y[3];",
-        "}",
-        "",
-    ]
-    # energy
-    out += header("double energy(const double *y, const double *p)", "mechanical energy T + Pi [J]", [ex.T, ex.Pi])
-    out += cse_block(c, [ex.T + ex.Pi], ["E"], I)
+    rates = ["y[2]", "y[3]", "ddphi", "ddpsi", "Q1 * y[2] + Q2 * y[3]"]
+    out += header("void rhs(const double *y, const double *p, double *out)", "dy/dt into out[5]", M + f + Q,
+                  ["M11", "M12", "M22", "f1", "f2", "Q1", "Q2"])
+    out += solve + [f"{I}out[{i}] = {v};" for i, v in enumerate(rates)] + ["}", ""]
+    out += header("double energy(const double *y, const double *p)", "mechanical energy T + Pi [J]", [ex.T + ex.Pi],
+                  ["E"])
     out += [f"{I}return E;", "}", ""]
     # Jacobian of rhs (5x5, row-major): d(q'')/dy = M^-1 (df/dy - dM/dq q'')
     dM = [[d[0, 0], d[0, 1], d[1, 1]] for d in ex.dM_dq]
@@ -102,8 +89,8 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
     df_names = [f"df{i}{j}" for i in range(2) for j in range(4)]
     dM_names = [f"dM{k}_{n}" for k in range(2) for n in ("11", "12", "22")]
     out += header("void rhs_jac(const double *y, const double *p, double *dy, double *out)",
-                  "dy/dt into dy[5] and its Jacobian d(dy/dt)/dy into out[25], row-major", jac_exprs)
-    out += cse_block(c, jac_exprs, ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + ["dQ1_1", "dQ1_2", "dQ2_1", "dQ2_2", "Q1", "Q2"], I)
+                  "dy/dt into dy[5] and its Jacobian d(dy/dt)/dy into out[25], row-major", jac_exprs,
+                  ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + ["dQ1_1", "dQ1_2", "dQ2_1", "dQ2_2", "Q1", "Q2"])
     out += solve
     out += [
         f"{I}const double dMs[2][3] = {{{{dM0_11, dM0_12, dM0_22}}, {{dM1_11, dM1_12, dM1_22}}}};",
@@ -123,11 +110,7 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
         f"{I}}}",
         f"{I}out[4 * 5 + 2] = Q1 + dQ1_1 * y[2] + dQ2_1 * y[3];",
         f"{I}out[4 * 5 + 3] = Q2 + dQ1_2 * y[2] + dQ2_2 * y[3];",
-        f"{I}dy[0] = y[2];",
-        f"{I}dy[1] = y[3];",
-        f"{I}dy[2] = ddphi;",
-        f"{I}dy[3] = ddpsi;",
-        f"{I}dy[4] = Q1 * y[2] + Q2 * y[3];",
+        *(f"{I}dy[{i}] = {v};" for i, v in enumerate(rates)),
         "}",
         "",
         "/* Jacobian d(dy/dt)/dy into out[25], row-major */",
@@ -139,21 +122,21 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
         "",
     ]
     # canonical momenta and the speeds back from them
-    out += header("void momenta(const double *y, const double *p, double *out)", "p_q = M(q) q' [J s] into out[2]", M)
-    out += cse_block(c, M, ["M11", "M12", "M22"], I)
+    out += header("void momenta(const double *y, const double *p, double *out)", "p_q = M(q) q' [J s] into out[2]", M,
+                  ["M11", "M12", "M22"])
     out += [f"{I}out[0] = M11 * y[2] + M12 * y[3];", f"{I}out[1] = M12 * y[2] + M22 * y[3];", "}", ""]
-    out += header("void velocities(const double *z, const double *p, double *out)", "q' = M(q)^-1 p_q into out[2]", M, state="z", names=_STATE[:2])
-    out += cse_block(c, M, ["M11", "M12", "M22"], I)
+    out += header("void velocities(const double *z, const double *p, double *out)", "q' = M(q)^-1 p_q into out[2]", M,
+                  ["M11", "M12", "M22"], state="z", names=_STATE[:2])
     out += spd_c_lines(I, ["z[2]", "z[3]"], ["sp_v1", "sp_v2"], M=["M11", "M12", "M22"])
     out += [f"{I}out[0] = sp_v1;", f"{I}out[1] = sp_v2;", "}", ""]
     # Hamilton's equations: q' = M^-1 p; p' = dT/dq(q, q') - dPi/dq + Q(q'); W' = Q . q'
     ham = M + list(ex.dPi_dq)
-    out += header("void ham_rhs(const double *z, const double *p, double *out)", "dz/dt of z = (phi, psi, p_phi, p_psi, W) into out[5]", ham, state="z", names=_STATE[:2])
-    used = used_names(ham)
-    out += cse_block(c, ham, ["M11", "M12", "M22", "dPi1", "dPi2"], I)
+    out += header("void ham_rhs(const double *z, const double *p, double *out)",
+                  "dz/dt of z = (phi, psi, p_phi, p_psi, W) into out[5]", ham, ["M11", "M12", "M22", "dPi1", "dPi2"],
+                  state="z", names=_STATE[:2])
     out += spd_c_lines(I, ["z[2]", "z[3]"], ["dphi", "dpsi"], M=["M11", "M12", "M22"])
     more = list(ex.dT_dq) + Q
-    out += param_lines(c, I, used_names(more) - used - set(_STATE))
+    out += param_lines(c, I, used_names(more) - used_names(ham) - set(_STATE))
     out += cse_block(c, more, ["dT1", "dT2", "Q1", "Q2"], I, prefix="u")
     out += [
         f"{I}out[0] = dphi;",
@@ -164,16 +147,12 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
         "}",
         "",
     ]
-    # rod ends
-    tips = list(ex.tips)
-    out += header("void tips(const double *y, const double *p, double *out)", "rod ends (x1, y1, z1, x2, y2, z2) [m] into out[6]", tips)
-    out += cse_block(c, tips, [f"r{i}" for i in range(6)], I)
-    out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
-    # hinge axes in the world frame: n1 (fixed) and the second hinge's current axis e = P1 . e0
-    axes = list(ex.axes)
-    out += header("void axes(const double *y, const double *p, double *out)", "hinge axes (n1, e = P1 . e0) into out[6]", axes)
-    out += cse_block(c, axes, [f"r{i}" for i in range(6)], I)
-    out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
+    # rod ends; hinge axes in the world frame: n1 (fixed) and the second hinge's current axis e = P1 . e0
+    for name, doc, exprs in (("tips", "rod ends (x1, y1, z1, x2, y2, z2) [m] into out[6]", ex.tips),
+                             ("axes", "hinge axes (n1, e = P1 . e0) into out[6]", ex.axes)):
+        out += header(f"void {name}(const double *y, const double *p, double *out)", doc, list(exprs),
+                      [f"r{i}" for i in range(6)])
+        out += [f"{I}out[{i}] = r{i};" for i in range(6)] + ["}", ""]
     if shooting:
         out += sensitivity_c_source(ex, c)
     if flip:
@@ -211,12 +190,10 @@ def sensitivity_c_source(ex, c: Lang) -> List[str]:
     dM_names = [f"dM{k}_{n}" for k in range(2) for n in ("11", "12", "22")]
     dMp_names = [f"dMp{k}_{n}" for k in range(len(used)) for n in ("11", "12", "22")]
     dfp_names = [f"dfp{k}_{i}" for k in range(len(used)) for i in (1, 2)]
-    names = used_names(exprs)
     out = ["/* q'' into acc[2], d q''/d y into A[2 x 4] and d q''/d p into B[2 x SP_NPARAM] (row-major) */",
            "static void rhs_sens(const double *y, const double *p, double *acc, double *A, double *B)", "{"]
-    out += [f"{I}const double {n} = y[{i}];" for i, n in enumerate(_STATE) if n in names]
-    out += param_lines(c, I, names)
-    out += cse_block(c, exprs, ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + dMp_names + dfp_names, I)
+    out += evaluation_lines(c, exprs, ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + dMp_names + dfp_names, I,
+                            names=_STATE)
     out += spd_c_lines(I, ["f1", "f2"], ["ddphi", "ddpsi"], M=["M11", "M12", "M22"])
     out += [f"{I}acc[0] = ddphi;", f"{I}acc[1] = ddpsi;"]
     for col in range(4):  # A: one solve a column, with the factors of M
@@ -501,15 +478,12 @@ def flip_c_source(ex, geometry: Parameters) -> List[str]:
     at_rest = {s["dphi"]: 0, s["dpsi"]: 0}
     Q0 = [sp.sympify(x).subs(at_rest) for x in ex.Q]
     V = ex.Pi - Q0[0] * q["phi"] - Q0[1] * q["psi"]
-    used = used_names([V])
     out += [
         "/* V = Pi - Q(q' = 0) . q = Pi - tau . q at the angles q[2] [J]: with constant torques, E - tau . q",
         " * (T + V) never increases (damping only removes energy) */",
         "static double flip_potential(const double *q, const double *p)",
         "{",
-        *[f"{I}const double {n} = q[{i}];" for i, n in enumerate(("phi", "psi")) if n in used],
-        *param_lines(c, I, used),
-        *cse_block(c, [V], ["V"], I),
+        *evaluation_lines(c, [V], ["V"], I, "q", ("phi", "psi")),
         f"{I}return V;",
         "}",
         "",

@@ -436,8 +436,7 @@ class Kernel:
 
         self.path, self.origin, self.build_time = path, origin, build_time
         self.compiler = built_by(path)
-        lib = ctypes.CDLL(str(path))
-        self.lib = lib
+        lib = self.lib = ctypes.CDLL(str(path))
         dp = ctypes.POINTER(ctypes.c_double)
         i64 = ctypes.c_int64
         layout = (i64 * 3)()
@@ -449,10 +448,8 @@ class Kernel:
         self.State = state_type(self.nmax)
         sp = ctypes.POINTER(self.State)
         for name in ("sp_rhs", "sp_ham_rhs", "sp_jac", "sp_momenta", "sp_velocities", "sp_tips"):
-            if not hasattr(lib, name):  # a chain's library has no Jacobian (yet)
-                continue
-            getattr(lib, name).argtypes = [dp, dp, dp]
-            getattr(lib, name).restype = None
+            if hasattr(lib, name):  # a chain's library has no Jacobian (yet)
+                getattr(lib, name).argtypes, getattr(lib, name).restype = [dp, dp, dp], None
         lib.sp_energy.argtypes, lib.sp_energy.restype = [dp, dp], ctypes.c_double
         for name in ("sp_energies", "sp_tips_many", "sp_momenta_many", "sp_axes_many"):
             getattr(lib, name).argtypes, getattr(lib, name).restype = [dp, i64, i64, dp, dp], None

@@ -137,10 +137,8 @@ class _Lifter:
         ca = self.ca
         if op == ca.OP_ASSIGN:
             return a
-        if op == ca.OP_NEG:
-            return self.cscale(a, -1.0)
-        if op == ca.OP_TWICE:
-            return self.cscale(a, 2.0)
+        if op in (ca.OP_NEG, ca.OP_TWICE):
+            return self.cscale(a, -1.0 if op == ca.OP_NEG else 2.0)
         if op == ca.OP_SQ:
             return self.cmul(a, a)
         f = {ca.OP_SIN: ("sin", math.sin), ca.OP_COS: ("cos", math.cos), ca.OP_ATAN: ("atan", math.atan),
@@ -234,7 +232,7 @@ class _Lifter:
         return {((self.gen(e), 1),): self.number(1.0)}
 
     # -- back to SymPy ------------------------------------------------------------------------------------------
-    def walk(self, fn, y_is_input0: bool = True) -> Dict[Tuple[int, int], Dict]:
+    def walk(self, fn) -> Dict[Tuple[int, int], Dict]:
         """Each output entry of ``fn`` (inputs ``y = (q, q')`` and ``p``) as a polynomial."""
         ca = self.ca
         reg: Dict[int, Dict] = {}
@@ -270,18 +268,12 @@ class _Lifter:
                     c = self.cunary(op, consts[0])
                 reg[outs[0]] = {} if self._zero(c) else {(): c}
                 continue
-            if op == ca.OP_ADD:
-                reg[outs[0]] = self.add(args[0], args[1])
-            elif op == ca.OP_SUB:
-                reg[outs[0]] = self.add(args[0], args[1], -1.0)
-            elif op == ca.OP_MUL:
-                reg[outs[0]] = self.mul(args[0], args[1])
-            elif op == ca.OP_NEG:
-                reg[outs[0]] = {m: self.cscale(c, -1.0) for m, c in args[0].items()}
-            elif op == ca.OP_TWICE:
-                reg[outs[0]] = {m: self.cscale(c, 2.0) for m, c in args[0].items()}
-            elif op == ca.OP_SQ:
-                reg[outs[0]] = self.mul(args[0], args[0])
+            if op in (ca.OP_ADD, ca.OP_SUB):
+                reg[outs[0]] = self.add(args[0], args[1], 1.0 if op == ca.OP_ADD else -1.0)
+            elif op in (ca.OP_MUL, ca.OP_SQ):  # a square's one argument twice
+                reg[outs[0]] = self.mul(args[0], args[-1])
+            elif op in (ca.OP_NEG, ca.OP_TWICE):
+                reg[outs[0]] = {m: self.cscale(c, -1.0 if op == ca.OP_NEG else 2.0) for m, c in args[0].items()}
             elif op == ca.OP_ASSIGN:
                 reg[outs[0]] = args[0]
             elif op == ca.OP_DIV and consts[1] is not None:

@@ -273,16 +273,8 @@ def check_start(kernel, p, y, names) -> None:
     """Refuse an initial state ``y`` (2 n) whose energy or acceleration is not finite (overflow:
     huge speeds or parameters) -- before any integration, for every computation from a start; the
     message names ``p``'s non-zero entries by ``names`` (the model's, ``kernels.model_vector_names``)."""
-    # ctypes arrays straight into the C functions (NumPy's wrappers cost more than the calls: this
-    # runs once per simulate)
-    ns = 2 * kernel.nq + 1
-    y5 = (ctypes.c_double * ns)(*[float(v) for v in y][:ns - 1], 0.0)
-    deriv = (ctypes.c_double * ns)()
     pa = np.ascontiguousarray(p, dtype=np.float64)
-    pp = ctypes.cast(pa.ctypes.data, ctypes.POINTER(ctypes.c_double))
-    kernel.lib.sp_rhs(y5, pp, deriv)
-    energy = kernel.lib.sp_energy(y5, pp)
-    if not (all(math.isfinite(v) for v in deriv) and math.isfinite(energy)):
+    if not _finite_start(kernel, ctypes.cast(pa.ctypes.data, _DP), [float(v) for v in y]):
         values = ", ".join(f"{n} = {v:g}" for n, v in zip(names, p) if v != 0)
         raise ParameterError(
             f"the energy or acceleration at the initial state {np.asarray(y).tolist()} is not finite (overflow) for "
@@ -369,9 +361,8 @@ class _Accumulator:
                 rows, energy = np.concatenate(self.blocks), np.concatenate(self.eblocks)
             else:
                 rows, energy = np.empty((0, s + 1)), np.empty(0)
-            if len(self.blocks) == 1:  # the energies are an array of their own already
-                return rows[:, 0].copy(), rows[:, 1:s].copy(), energy, rows[:, s].copy()
-            return rows[:, 0].copy(), rows[:, 1:s].copy(), energy.copy(), rows[:, s].copy()
+            energy = energy if len(self.blocks) == 1 else energy.copy()  # one block's: an array of its own already
+            return rows[:, 0].copy(), rows[:, 1:s].copy(), energy, rows[:, s].copy()
         parts = [b for b in (self.first, self.last) if b is not None]
         if len(parts) == 2 and parts[0][0] == parts[1][0]:
             parts = parts[:1]
@@ -429,14 +420,19 @@ def _initial_state(y0, coordinates) -> List[float]:
     return initial_state(y0, coordinates).tolist()
 
 
-def _check_start(kernel, entry: _Prepared, y: List[float]) -> None:
-    """:func:`check_start` with the prepared parameter pointer (the same test, a few times quicker)."""
+def _finite_start(kernel, pp, y: List[float]) -> bool:
+    """Whether the energy and the acceleration at ``y`` are finite (ctypes arrays straight into the C
+    functions: NumPy's wrappers cost more than the calls)."""
     ns = 2 * kernel.nq + 1
     y5 = (ctypes.c_double * ns)(*y[:ns - 1], 0.0)
     deriv = (ctypes.c_double * ns)()
-    kernel.lib.sp_rhs(y5, entry.p_ptr, deriv)
-    energy = kernel.lib.sp_energy(y5, entry.p_ptr)
-    if not (math.isfinite(energy) and all(math.isfinite(v) for v in deriv)):
+    kernel.lib.sp_rhs(y5, pp, deriv)
+    return math.isfinite(kernel.lib.sp_energy(y5, pp)) and all(math.isfinite(v) for v in deriv)
+
+
+def _check_start(kernel, entry: _Prepared, y: List[float]) -> None:
+    """:func:`check_start` with the prepared parameter pointer (the same test, a few times quicker)."""
+    if not _finite_start(kernel, entry.p_ptr, y):
         from .kernels import model_vector_names
 
         check_start(kernel, entry.p, y, model_vector_names(entry.params))  # raises, with the message

@@ -215,15 +215,13 @@ class RowStore:
         try:
             group = zarr.open_group(str(tmp), mode="w-")
             for name, (dtype, fill, a, *has_extra) in arrays.items():
+                more: Tuple[int, ...] = ()
                 if has_extra and has_extra[0]:
                     if extra is None:
                         raise ValueError(f"array {name} has the extra dimension, but none is given")
-                    size = len(extra[1])
-                    _create_array(zarr, group, name, shape=(rows, cols, size), chunks=(chunk_rows, cols, size),
-                                  dtype=dtype, fill_value=fill, dims=(*dims, extra[0]), attrs=a)
-                else:
-                    _create_array(zarr, group, name, shape=(rows, cols), chunks=(chunk_rows, cols), dtype=dtype,
-                                  fill_value=fill, dims=dims, attrs=a)
+                    more = (len(extra[1]),)
+                _create_array(zarr, group, name, shape=(rows, cols, *more), chunks=(chunk_rows, cols, *more), dtype=dtype,
+                              fill_value=fill, dims=(*dims, extra[0]) if more else dims, attrs=a)
             if extra is not None:
                 values = np.asarray(extra[1], dtype=np.float64)
                 _create_array(zarr, group, extra[0], shape=values.shape, chunks=values.shape, dtype="float64",
