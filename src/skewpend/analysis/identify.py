@@ -46,6 +46,7 @@ is not physical; :attr:`~skewpend.Status.NONFINITE` when a held-out simulation f
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -382,8 +383,7 @@ def read_identification(path, variables, attrs) -> Identification:
         raise ParameterError(f"{path}: its starting parameters cannot be read back ({exc})") from None
 
     def names(key):
-        text = str(attrs.get(key, ""))
-        return tuple(x for x in text.split("; ") if x) if text else ()
+        return tuple(x for x in str(attrs.get(key, "")).split("; ") if x)
 
     def numbers(key):
         return [float(x) for x in np.atleast_1d(np.asarray(attrs.get(key, []), dtype=float))]
@@ -790,8 +790,7 @@ def identify(measurements: Measurements, params0, *, free: Optional[Sequence[str
 
     angle_frame(2, angles)  # one line for a wrong name, before any work
     smoothing = _check_input(measurements, params0, validation, smoothing)
-    names_free = None
-    angle = None
+    names_free, angle = None, None
     if free is not None:
         names_free = _name_list(free)
         found = [(f, freed_angle(f, params0)) for f in names_free]
@@ -1392,7 +1391,7 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
     except FloatingPointError as exc:
         return _oe_failed(lin, f"the output-error fit failed: {exc}", settings, t_start)
     alpha_hat, a_lo, a_hi, note = math.nan, math.nan, math.nan, ""
-    prof_a: List[float] = []
+    prof_a: List[float] = []  # the profile: angles, costs
     prof_c: List[float] = []
     if angle_free:
         sf, alpha_hat, (a_lo, a_hi), note, prof_a, prof_c = _skew_search(run, sf, alpha0, bootstrap, seed, say, refree,
@@ -1486,9 +1485,9 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
         if np.abs(check[keep] - values[keep]).max() > tol:
             return _oe_failed(lin, "the fitted model does not reproduce the estimated base parameters", settings,
                               t_start)
-    status, message = Status.SUCCESS, "identified (output error, multiple shooting)" + (f"; {realised}" if realised else "")
-    if fitted is None:  # the estimate and its intervals are reported; the model stays params0
-        status, message = Status.NO_CONVERGENCE, unphysical
+    # no model: the estimate and its intervals are reported; the model stays params0
+    status, message = ((Status.NO_CONVERGENCE, unphysical) if fitted is None else
+                       (Status.SUCCESS, "identified (output error, multiple shooting)" + (f"; {realised}" if realised else "")))
     status, message = _fit_status(sf, status, message)
     # the claim: the model returned explains the data to their noise, or to a model error small beside the
     # motion (see consistency) -- its own output error; a model constrained to the physical bodies besides
@@ -1511,11 +1510,10 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
                                  f"the estimate is at {angle} = {math.degrees(sf.alpha):.6g} deg, the mirror image of "
                                  "the side reported")
         verdict.stats.update(excess.stats)
-        if status is Status.SUCCESS:
-            if excess.ok:
-                message += f"; {excess.text}"
-            else:
-                status, message = Status.NO_CONVERGENCE, excess.text
+        if status is Status.SUCCESS and excess.ok:
+            message += f"; {excess.text}"
+        elif status is Status.SUCCESS:
+            status, message = Status.NO_CONVERGENCE, excess.text
     if bounded and status is Status.SUCCESS:
         message += (f"; held at 0, the bound their estimates crossed within their 95 % intervals (no physical joint "
                     f"has a negative one): {', '.join(bounded)}")
@@ -1960,18 +1958,17 @@ def _realise_free_entries(params0: Parameters, W, values: np.ndarray, a: float, 
         for k, p in ((1, "yy"), (0, "xx"), (2, "zz")):
             if f"J{i}{p}" not in free_names:
                 continue
-            for frac in _FREE_ENTRY_STEPS:
-                for sign in (1.0, -1.0):
-                    I = I0.copy()
-                    I[k, k] += sign * frac * scale
-                    try:
-                        start = params0.replace(**{f"inertia{i}": tuple(tuple(float(x) for x in row) for row in I)})
-                        fitted = _realise(start, W, values, a, alpha, g, held=held)
-                    except ParameterError:
-                        continue
-                    return fitted, (f"J{i}{p} about the centre of mass, which the data do not determine, set to "
-                                    f"{I[k, k]:.4g} (params0's {I0[k, k]:.4g} gives no physical body with these "
-                                    "base parameters)")
+            for frac, sign in itertools.product(_FREE_ENTRY_STEPS, (1.0, -1.0)):
+                I = I0.copy()
+                I[k, k] += sign * frac * scale
+                try:
+                    start = params0.replace(**{f"inertia{i}": tuple(tuple(float(x) for x in row) for row in I)})
+                    fitted = _realise(start, W, values, a, alpha, g, held=held)
+                except ParameterError:
+                    continue
+                return fitted, (f"J{i}{p} about the centre of mass, which the data do not determine, set to "
+                                f"{I[k, k]:.4g} (params0's {I0[k, k]:.4g} gives no physical body with these "
+                                "base parameters)")
     return None
 
 

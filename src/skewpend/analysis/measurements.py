@@ -380,9 +380,7 @@ class _Builder:
             if bad > self.nonfinite * n:
                 raise ParameterError(f"{label}: {bad} of {n} rows hold NaN or inf ({bad / n:.1%}), more than "
                                      f"nonfinite={self.nonfinite:g} allows: clean the data or raise nonfinite")
-            t, q = t[good], q[good]
-            dq = None if dq is None else dq[good]
-            u = None if u is None else u[good]
+            t, q, dq, u = (None if x is None else x[good] for x in (t, q, dq, u))
             self.actions.append(f"{label}: dropped {bad} of {n} rows holding NaN or inf")
         if len(t) < MIN_SAMPLES:
             raise ParameterError(f"{label}: {len(t)} samples; a piece needs at least {MIN_SAMPLES}")
