@@ -31,7 +31,7 @@ from __future__ import annotations
 import csv
 import ctypes
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Optional, Tuple
 
@@ -98,9 +98,7 @@ class Criteria:
         return score(self)
 
     def to_dict(self) -> Dict[str, Any]:
-        return {"success": bool(self.success), "swingup_time": self.swingup_time, "energy": self.energy,
-                "max_tau": self.max_tau, "integ_tau": self.integ_tau, "tau_cost": self.tau_cost,
-                "tau_smoothness": self.tau_smoothness, "velocity_cost": self.velocity_cost, "score": self.score}
+        return {**asdict(self), "success": bool(self.success), "score": self.score}
 
 
 def _rows(name: str, value, width: Optional[int] = None) -> np.ndarray:
@@ -271,12 +269,8 @@ def _compiled_law(law, joints, umax: float, n: int):
     from ..numeric.control import Controller, torque_limits
 
     limits = torque_limits(umax, n)
-    if isinstance(law, Controller):
-        law.check_model(n)
-        _same_actuation(law.actuated, joints, n)
-        return replace(law, actuated=tuple(joints), umax=limits)
-    if callable(getattr(law, "controller", None)):
-        compiled = law.controller()
+    if isinstance(law, Controller) or callable(getattr(law, "controller", None)):
+        compiled = law if isinstance(law, Controller) else law.controller()
         compiled.check_model(n)
         _same_actuation(getattr(law, "actuated", compiled.actuated), joints, n)
         return replace(compiled, actuated=tuple(joints), umax=limits)

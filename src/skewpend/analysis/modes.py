@@ -327,7 +327,7 @@ class Modes(ResultProtocol):
         ``damped_frequencies`` and ``damping_ratios`` (see :class:`Modes`)."""
         d = {
             "frequencies": self.frequencies.tolist(),
-            "periods": self.periods.tolist(),
+            "periods": [None if not np.isfinite(x) else float(x) for x in self.periods],
             "mode_shapes": self.shapes.T.tolist(),
             f"amplitude_ratios_{self.params.coordinates[-1]}_over_{self.params.coordinates[0]}": [None if not np.isfinite(r) else float(r) for r in self.ratios],
             "beat_period": None if not np.isfinite(self.beat_period) else float(self.beat_period),
@@ -340,7 +340,6 @@ class Modes(ResultProtocol):
         if self.coulomb_note:
             d["coulomb"] = self.coulomb
             d["coulomb_note"] = self.coulomb_note
-        d["periods"] = [None if not np.isfinite(x) else float(x) for x in self.periods]
         if self.damped:
             d["C0"] = self.C.tolist()
             d["eigenvalues"] = [[float(z.real), float(z.imag)] for z in self.eigenvalues]

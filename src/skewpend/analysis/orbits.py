@@ -393,7 +393,7 @@ def read_periodic_orbit(path, variables, attrs) -> PeriodicOrbit:
 
 def _scales_for(params: Parameters, T: float, E: float) -> _Scales:
     w = 2 * math.pi / T
-    return _Scales(angle=1.0, speed=w, period=T, energy=max(abs(E), 1e-300))
+    return _Scales(angle=1.0, speed=w, period=T, energy=max(abs(E), 1e-300), nq=params.n)
 
 
 def _names(params) -> list:
@@ -538,7 +538,6 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
         raise ParameterError(f"y0: the energy of the guess is not finite ({E!r}); give a slower start")
     shift = np.array([2 * math.pi * r for r in rotation] + [0.0] * nq)
     scales = _scales_for(params, period, E if E != 0 else 1.0)
-    scales.nq = nq
     with Interrupts() as intr:
         out = _newton(model, x0, period, E, shift, x0, scales, tol=tol, max_iterations=max_iterations,
                       check=intr.check, progress=progress)

@@ -617,14 +617,9 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
                 jack = z * np.sqrt((n_cl - 1) / n_cl * np.sum((L - L.mean(0)) ** 2, axis=0))
         half = np.fmax(np.fmax(sand, boot), jack)
     res = (e**2).sum(axis=(1, 2))
-    npts = seg.mask.sum(1) * 2
-    sq = np.zeros(pieces)
-    cnt = np.zeros(pieces)
-    np.add.at(sq, seg.piece, res)
-    np.add.at(cnt, seg.piece, npts)
-    rms = np.sqrt(sq / np.maximum(cnt, 1))
-    sq_cl = np.zeros(n_cl)
-    np.add.at(sq_cl, owner, res)
+    sq = np.bincount(seg.piece, res, pieces)
+    rms = np.sqrt(sq / np.maximum(np.bincount(seg.piece, seg.mask.sum(1) * 2, pieces), 1))
+    sq_cl = np.bincount(owner, res, n_cl)
     b, al = unpack(theta)
     return ShootingFit(beta=b, alpha=al, y0=y0, theta_names=theta_names, theta=theta, half=half, flat=flat, cost=cost,
                        rms_piece=rms, ssr_piece=sq, iterations=it, converged=converged, message=message,
@@ -754,6 +749,8 @@ def fit_physical(terms, params0, pi0: np.ndarray, alpha0: float, alpha_free: boo
     redundant (more entries than base parameters): the damping keeps the step finite along the
     directions the equations do not see, and any point of them is a physical model.  It stops when an
     iteration lowers the cost by less than ``tol`` of it or by at most ``tol_cost`` [rad^2]."""
+    from scipy.linalg import block_diag
+
     t_start = time.perf_counter()
     model = _Model(terms, params0)
     phys = _Physical(model, alpha_free)
@@ -795,17 +792,13 @@ def fit_physical(terms, params0, pi0: np.ndarray, alpha0: float, alpha_free: boo
         if not held:
             return np.zeros(0), np.zeros((0, phys.n))
         pi, al, Dpi = phys.pi_of(th, alpha)
-        T = model.T(al)
-        Tx = np.zeros((len(target), len(pi)))
-        Tx[:model.r0, :model.n_pi] = T
-        Tx[model.r0:, model.n_pi:] = np.eye(len(pi) - model.n_pi)
+        extra = len(pi) - model.n_pi  # the joint terms: beta's own entries
+        Tx = block_diag(model.T(al), np.eye(extra))
         r = (Tx @ pi - target)[held]
         dr = (Tx @ Dpi)[held]
         if phys.alpha_free and model._dT is not None:
             dT = np.array(model._dT(model.a, al, model.g), float).reshape(model.r0, model.n_pi)
-            dTx = np.zeros_like(Tx)
-            dTx[:model.r0, :model.n_pi] = dT
-            dr[:, -1] = (dTx @ pi)[held]
+            dr[:, -1] = (block_diag(dT, np.zeros((extra, extra))) @ pi)[held]
         return w_pen * r, w_pen[:, None] * dr
 
     theta = rescale(theta)

@@ -591,7 +591,7 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     bounds = dict(lbx=lbz, ubx=ubz, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     t0 = _time.perf_counter()
     best = None
-    for attempt, (status, zs) in enumerate(_solve_starts(solver, starts, bounds, workers, progress, iterations)):
+    for status, zs in _solve_starts(solver, starts, bounds, workers, progress, iterations):
         ok = status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
         crit, obj = evaluate(zs)
         obj = float(obj)
@@ -605,7 +605,6 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     full[:, [j - 1 for j in joints]] = u
     predicted = {k: float(v) for k, v in zip(COST_TERMS, crit)}
     if ok:
-        # the discretisation's own check: the optimised torques replayed by RK4 reach the goal
         message = f"optimal ({status}, objective {obj:.4g})"
     else:
         message = (f"no optimal swing-up found: IPOPT ended with {status} in each of {attempts} starts (a horizon "

@@ -11,6 +11,7 @@ import typer
 
 from ..parsing import UsageError
 from . import types as T
+from .equations import Coulomb
 from .options import CONFIG, MODEL_NO_TORQUE, command, option, resolve
 
 COMMANDS = ("modes",)
@@ -20,11 +21,6 @@ class ModesFormat(str, Enum):
     text = "text"
     json = "json"
     latex = "latex"
-
-
-class Coulomb(str, Enum):
-    exclude = "exclude"
-    smoothed = "smoothed"
 
 
 @command(MODEL_NO_TORQUE)

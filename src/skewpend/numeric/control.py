@@ -34,6 +34,7 @@ Every law has the same shape for ``n`` joints (``Controller.nq``): a gain of sha
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import inspect
 import math
@@ -543,7 +544,7 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
     otherwise one by one (``sp_capture_many``), ``group`` starts per compiled call.  ``cancel`` (a
     ``threading.Event``) is checked between calls; each start's result does not depend on the
     grouping, the lane or the other starts; a cancel stops a compiled call within a step (see
-    :class:`_stopped_on_cancel`)."""
+    :func:`_stopped_on_cancel`)."""
     controller.check_model(kernel.nq)
     nx = 2 * kernel.nq
     starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, nx)
@@ -564,39 +565,33 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
 CANCEL_POLL = 0.05
 
 
-class _stopped_on_cancel:
+@contextlib.contextmanager
+def _stopped_on_cancel(struct, cancel, nq: int):
     """While a compiled capture runs, a watcher thread that, once ``cancel`` is set, makes the law's torques NaN
     in the ``sp_control`` the compiled code reads at every stage (its ``us``): the integration of the current
     start stops at its next step as non-finite and every later start at its first, so the compiled call returns
     within a step of the cancel -- a chain's start can take seconds (thousands of steps where the wrapped feedback
     chatters), and a call holds a group of them.  The caller discards what the call returned (Cancelled)."""
+    import threading
 
-    def __init__(self, struct, cancel, nq: int):
-        self.struct, self.cancel, self.nq = struct, cancel, nq
-        self.done = None
+    if cancel is None:
+        yield
+        return
+    done = threading.Event()
 
-    def __enter__(self):
-        import threading
+    def watch():
+        while not done.is_set():
+            if cancel.wait(CANCEL_POLL):
+                if not done.is_set():
+                    for r in range(nq):
+                        struct.us[r] = math.nan
+                return
 
-        if self.cancel is None:
-            return self
-        self.done = threading.Event()
-        done, cancel, struct, nq = self.done, self.cancel, self.struct, self.nq
-
-        def watch():
-            while not done.is_set():
-                if cancel.wait(CANCEL_POLL):
-                    if not done.is_set():
-                        for r in range(nq):
-                            struct.us[r] = math.nan
-                    return
-
-        threading.Thread(target=watch, name="skewpend-capture-cancel", daemon=True).start()
-        return self
-
-    def __exit__(self, *exc):
-        if self.done is not None:
-            self.done.set()
+    threading.Thread(target=watch, name="skewpend-capture-cancel", daemon=True).start()
+    try:
+        yield
+    finally:
+        done.set()
 
 
 def _capture(kernel, controller, c, pp, starts, m, t_end, rtol, atol, max_steps, region, rho, cancel, group, time,
