@@ -126,6 +126,9 @@ TOGGLE = "ffi_call"
 def _env(tree: Path, cache: Path, **extra) -> dict:
     env = dict(os.environ, PYTHONPATH=str(tree / "src"), SKEWPEND_CACHE_DIR=str(cache), **extra)
     env.pop("SKEWPEND_PROGRESS", None)
+    # a user's install keeps the compiled bytecode (__pycache__); without it every process compiles every
+    # module it imports from source, and a whole-process case counts the compiler (more code, more instructions)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     return env
 
 
