@@ -664,12 +664,8 @@ def _linear(measurements: Measurements, params0, basis, *, free: Optional[Sequen
         settings["intervals"] = _no_intervals(n_cl, cl_text, seconds)
     elif bootstrap:
         rows_cl = np.repeat(cl, params0.n)  # one equation a joint and sample
-        G = np.zeros((n_cl, len(fi), len(fi)))
-        bv = np.zeros((n_cl, len(fi)))
-        for c in range(n_cl):
-            A = Ys[rows_cl == c]
-            G[c] = A.T @ A
-            bv[c] = A.T @ T[rows_cl == c]
+        G = np.array([Ys[rows_cl == c].T @ Ys[rows_cl == c] for c in range(n_cl)])  # each cluster's normal equations
+        bv = np.array([Ys[rows_cl == c].T @ T[rows_cl == c] for c in range(n_cl)])
         rng = np.random.default_rng(seed)
         draws = []
         for _ in range(int(bootstrap)):

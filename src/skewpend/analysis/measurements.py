@@ -822,8 +822,7 @@ class Measurements:
             built.extend(builder.build(raw))
         if not built:
             raise ParameterError(f"{source or 'the data'}: no piece is left after the checks (see short=)")
-        counts = sorted({p.nq for p in built})
-        if len(counts) > 1:
+        if len({p.nq for p in built}) > 1:
             odd = next(p for p in built if p.nq != built[0].nq)
             raise ParameterError(f"{source or 'the data'}: pieces with different numbers of angles ({built[0].name}: "
                                  f"{built[0].nq}, {odd.name}: {odd.nq}); one recording is of one pendulum")

@@ -178,12 +178,9 @@ def _panel_residuals(ax, result, predictions) -> None:
         c = PIECE_COLORS[i % len(PIECE_COLORS)]
         t = np.asarray(piece.t, float) - float(piece.t[0])
         q = np.asarray(piece.q, float)
-        if pred0 is not None:
-            e0 = np.sqrt(np.mean((pred0 - q) ** 2, axis=1))
-            ax.plot(t, 1e3 * e0, color=c, lw=0.7, ls=(0, (3, 2)), alpha=0.8)
-        if pred is not None:
-            e = np.sqrt(np.mean((pred - q) ** 2, axis=1))
-            ax.plot(t, 1e3 * e, color=c, lw=1.0)
+        for p, kw in ((pred0, {"lw": 0.7, "ls": (0, (3, 2)), "alpha": 0.8}), (pred, {"lw": 1.0})):  # params0 dashed
+            if p is not None:
+                ax.plot(t, 1e3 * np.sqrt(np.mean((p - q) ** 2, axis=1)), color=c, **kw)
         r, r0 = _heldout_rms(result, piece.name)
         handles.append(Line2D([], [], color=c, lw=1.4))
         labels.append(f"{_short(piece.name)}: {_mrad(r)} ({_mrad(r0)})")
@@ -205,7 +202,7 @@ def _panel_residuals(ax, result, predictions) -> None:
 
 
 def _precision_rows(result):
-    """``(label, value, half-width, note)`` for panel (c): ratios for a free swing, else the base
+    """``(label, value, half-width)`` for panel (c): ratios for a free swing, else the base
     parameters the fit freed (the reference and the held ones are left out)."""
     if result.ratios:
         items = [(name, v, result.ratio_intervals.get(name, (math.nan, math.nan))) for name, v in result.ratios.items()]
