@@ -51,11 +51,9 @@ class ChaosDiagram(Result):
       failed);
     * ``threshold`` [1/s]: exponents above it count as chaotic;
     * ``fraction`` -- shape ``(na, ne)``: the chaotic fraction of the valid samples;
-    * ``params`` (alpha replaced row by row), ``settings``, ``stats`` (``trajectories``,
-      ``failed``, ``unreachable``, ``steps`` accepted, ``rejected``, the run's rows, store and
-      cluster);
-    * ``status`` (PARTIAL when trajectories failed), ``message``, ``ok``; ``to_xarray()``,
-      ``to_netcdf(path)``, ``summary()`` (the result protocol).
+    * the result protocol's fields: ``params`` (alpha replaced row by row), ``stats`` (``trajectories``,
+      ``failed``, ``unreachable``, ``steps``, ``rejected``; the run's rows, store and cluster), ``status``
+      (PARTIAL when trajectories failed).
     """
 
     alpha: np.ndarray

@@ -96,9 +96,7 @@ class FlipMap(Result):
       tolerances, which shortcuts were used; ``plane`` and ``held`` when not the defaults), ``stats``
       (cells integrated / skipped by the energy bound / mirrored, ``failed``, ``steps`` (accepted),
       ``rejected``, ``energy_barrier`` [J], wall time, the run's chunks, store and cluster);
-    * ``status`` (:class:`~skewpend.status.Status`: PARTIAL when cells failed), ``message``,
-      ``ok``; ``flipped``, ``flipped_fraction``, ``to_xarray()``, ``to_netcdf(path)``, ``summary()``
-      (the result protocol).
+    * the result protocol's ``status`` (PARTIAL when cells failed) and the rest; ``flipped``, ``flipped_fraction``.
     """
 
     plane: Tuple[str, str]
@@ -418,9 +416,7 @@ def flip_map(
     angles at ``held`` (every angle [rad], each within ``(-pi, pi)``, the plane's own entries ignored;
     default 0: hanging), released at rest.
 
-    ``flip_time[i, j]``: the first time [s] any joint angle leaves ``(-pi, pi)`` starting from
-    ``x0[i]``, ``y0[j]`` (the double pendulum's ``(phi0[i, j], psi0[i, j], 0, 0)``), NaN if not by
-    ``t_end``; ``which``: the angle's index in ``params.coordinates`` (0 phi, 1 psi), -1 none.
+    ``flip_time[i, j]`` and ``which[i, j]`` are those of the start ``x0[i]``, ``y0[j]`` (:class:`FlipMap`).
     DOP853 with ``rtol``/``atol`` (default 1e-10 each); the crossing is located on the dense
     output.  ``workers`` threads (default: the cores this process may use) integrate units of
     whole rows (with their mirror rows); the result does not depend on their number.

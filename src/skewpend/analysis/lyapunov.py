@@ -505,10 +505,8 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
 class LyapunovMap(Result):
     """The result of :func:`lyapunov_map`: the largest exponent [1/s] for starts at rest from the
     cell centres ``phi0`` (axis 0) x ``psi0`` (axis 1) [rad], shape ``(n, n)`` (NaN where the
-    integration failed), with ``params``, ``settings``, ``stats`` (``cells``, ``failed``,
-    ``steps`` accepted, ``rejected``, the run's chunks, store and cluster) and the result protocol's
-    ``status`` (PARTIAL when cells failed), ``message``, ``ok``, ``to_xarray()``,
-    ``to_netcdf()``, ``summary()``."""
+    integration failed), with the result protocol's fields: ``stats`` (``cells``, ``failed``, ``steps``,
+    ``rejected``; the run's chunks, store and cluster), ``status`` (PARTIAL when cells failed)."""
 
     phi0: np.ndarray
     psi0: np.ndarray

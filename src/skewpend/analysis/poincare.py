@@ -176,8 +176,7 @@ class EnergySurface:
 
     def bounds(self, samples: int = 721) -> Tuple[float, float]:
         """(least potential on the section, the largest |p_q| reachable) over a fine grid."""
-        x = np.linspace(-math.pi, math.pi, samples)
-        q = self._q(x)
+        q = self._q(np.linspace(-math.pi, math.pi, samples))
         V = potential(self.kernel, self.p, q)
         Moo = mass_matrices(self.kernel, self.p, q)[:, self.other, self.other]
         k = np.clip(self.energy - V, 0.0, None)
@@ -311,16 +310,11 @@ class PoincareSection(Result):
         ``M_qq q'^2 / 2`` (section joint at rest) when not -- so the edge is lopsided."""
         from ..numeric.kernels import kernel_module, parameter_vector
 
-        kernel = kernel_module(self.params, chaos=True)
-        p = parameter_vector(self.params)
         c = 0 if self.settings["coordinate"] == "phi" else 1
         o = 1 - c
-        x = np.linspace(-math.pi, math.pi, samples)
-        q = np.empty((samples, 2))
-        q[:, c] = float(self.settings["value"])
-        q[:, o] = x
-        M = mass_matrices(kernel, p, q)
-        room = float(self.settings["energy"]) - potential(kernel, p, q)
+        surface = EnergySurface(kernel_module(self.params, chaos=True), parameter_vector(self.params),
+                                float(self.settings["energy"]), c, float(self.settings["value"]), math.nan)
+        x, _, _, M, room = surface._at(np.linspace(-math.pi, math.pi, samples), 0.0)
         room = np.where(room >= 0, room, np.nan)
         if canonical:
             upper = np.sqrt(2.0 * room * M[:, o, o])

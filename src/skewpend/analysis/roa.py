@@ -88,9 +88,8 @@ class RegionOfAttraction(Result):
     * ``target`` (the equilibrium's state), ``K`` (2 x 4; a chain's n x 2 n), ``P``, ``rho`` -- the feedback and its
       estimate ``dx^T P dx < rho``; :meth:`ellipse` is its slice in ``plane``;
     * ``captured_fraction``, ``inner_fraction`` (cells inside the estimate at the start);
-    * ``params``, ``settings``, ``stats`` (``cells``, ``captured``, ``failed``, ``steps`` -- accepted
-      steps, ``rejected`` -- rejected ones, as in every result; the run's chunks, store and cluster), ``status`` (PARTIAL when cells failed), ``message``, ``ok``,
-      ``to_xarray()``, ``to_netcdf()``, ``summary()``.
+    * the result protocol's fields: ``stats`` (``cells``, ``captured``, ``failed``, ``steps``, ``rejected``; the
+      run's chunks, store and cluster), ``status`` (PARTIAL when cells failed).
     """
 
     plane: Tuple[str, str]
