@@ -170,8 +170,6 @@ class Geometry:
         if t.ndim != 1 or t.size < 1:
             raise ParameterError("the trajectory has no rows to animate")
         trail = checks.finite_seconds("trail", trail)
-        p = tr.params
-        self.tr = tr
         self.t = t
         self.y = np.asarray(tr.y, dtype=float)
         self.energy = np.asarray(tr.energy, dtype=float)
@@ -181,7 +179,7 @@ class Geometry:
         self.axes = np.asarray(tr.axes(), dtype=float).reshape(-1, 3 * n)
         if self.tips.shape[0] != t.size or self.axes.shape[0] != t.size:
             raise SkewpendError("the trajectory's rod ends or axes do not match its rows")
-        links = p.as_chain().links  # each hinge drawn at the end of the rod before
+        links = tr.params.as_chain().links  # each hinge drawn at the end of the rod before
         for i in range(1, n):
             offset, parent = links[i].offset, links[i - 1].length
             if np.abs(np.subtract(offset, (0.0, parent, 0.0))).max() > 1e-12 * max(parent, 1.0):

@@ -219,9 +219,9 @@ def poincare_figure(section, *, canonical: bool = True, max_points: Optional[int
     y = np.asarray(section.p if canonical else section.dq, dtype=float)
     orbit = np.asarray(section.orbit)
     total = q.size
-    if max_points is not None:
-        if isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer)) or max_points < 1:
-            raise ParameterError(f"max_points must be a whole number >= 1 or None, got {max_points!r}")
+    if max_points is not None and (isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer))
+                                   or max_points < 1):
+        raise ParameterError(f"max_points must be a whole number >= 1 or None, got {max_points!r}")
     stride = 1 if max_points is None or total <= max_points else int(math.ceil(total / int(max_points)))
     keep = np.zeros(total, dtype=bool)
     for k in np.unique(orbit):
@@ -321,15 +321,12 @@ def chaos_diagram_figure(diagram):
         mesh = ax.pcolormesh(_edges(alpha), _edges(energy), np.ma.masked_invalid(frac.T), cmap=cmap, norm=norm,
                              edgecolors="white" if small else "face", linewidth=0.6 if small else 0.0)
         if small:
-            for i in range(na):
-                for j in range(ne):
-                    f = frac[i, j]
-                    if not math.isfinite(f):
-                        continue
-                    r, g, b, _ = cmap(norm(f))
-                    dark = 0.299 * r + 0.587 * g + 0.114 * b < 0.5
-                    ax.text(alpha[i], energy[j], f"{f:.2f}", ha="center", va="center", fontsize=8.5,
-                            color="white" if dark else "0.1")
+            for i, j in zip(*np.nonzero(np.isfinite(frac))):  # each cell with a value, labelled
+                f = frac[i, j]
+                r, g, b, _ = cmap(norm(f))
+                dark = 0.299 * r + 0.587 * g + 0.114 * b < 0.5
+                ax.text(alpha[i], energy[j], f"{f:.2f}", ha="center", va="center", fontsize=8.5,
+                        color="white" if dark else "0.1")
         for axis, values, unit in ((ax.xaxis, alpha, "°"), (ax.yaxis, energy, "")):
             if values.size <= 12:
                 axis.set_major_locator(FixedLocator(values))

@@ -49,10 +49,9 @@ def control_figure(run):
         ax3.set_ylabel("energy [J]")
         ax3.set_xlabel("t [s]")
         ax3.set_title("Energy: pumped towards E*, then held by the LQR", loc="left")
-        for ax in (ax1, ax2, ax3):
-            if run.captured:
-                ax.axvline(run.capture_time, color="0.3", lw=0.8, ls=":")
         if run.captured:
+            for ax in (ax1, ax2, ax3):
+                ax.axvline(run.capture_time, color="0.3", lw=0.8, ls=":")
             ax3.annotate(f"captured at {run.capture_time:.3g} s", (run.capture_time, 0.05), xycoords=ax3.get_xaxis_transform(),
                          textcoords="offset points", xytext=(4, 0), fontsize=8, color="0.3")
         ax3.legend(loc="best", fontsize=8)
@@ -92,11 +91,10 @@ def roa_figure(roa):
     with style():
         fig = new_figure((7.6, 6.6))
         ax = fig.subplots()
-        grey = np.where(outcome == 0, 0.0, np.nan)
-        ax.pcolormesh(x, y, grey.T, cmap=ListedColormap([ROA_COLORS["not_captured"]]), shading="nearest")
-        if np.any(outcome == -1):
-            red = np.where(outcome == -1, 0.0, np.nan)
-            ax.pcolormesh(x, y, red.T, cmap=ListedColormap([ROA_COLORS["failed"]]), shading="nearest")
+        for value, color in ((0, "not_captured"), (-1, "failed")):  # flat patches: not captured (always drawn), failed
+            if value == 0 or np.any(outcome == value):
+                ax.pcolormesh(x, y, np.where(outcome == value, 0.0, np.nan).T, cmap=ListedColormap([ROA_COLORS[color]]),
+                              shading="nearest")
         mesh = ax.pcolormesh(x, y, t.T, cmap=ROA_COLORS["cmap"], shading="nearest", vmin=0.0,
                              vmax=max(float(np.nanmax(t)) if np.any(np.isfinite(t)) else 1.0, 1e-9))
         cbar = fig.colorbar(mesh, ax=ax, pad=0.02)

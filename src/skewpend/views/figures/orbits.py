@@ -27,6 +27,22 @@ def _runs(mask: np.ndarray):
     return [(int(a), int(min(b + 1, len(mask))), bool(mask[a])) for a, b in zip(starts, stops)]
 
 
+def _draw_family(ax, x, fam, label: str, events_at, seen: set) -> None:
+    """A family's frequencies against ``x``: solid where its orbits are stable, dashed where not, and its events
+    (at ``events_at(event)`` on the x axis) marked; each legend entry once (``seen``)."""
+    color = FAMILY_COLORS.get(fam.mode, "0.3")
+    for a, b, stable in _runs(fam.stable):
+        text = label + ("" if stable else " (unstable)")
+        ax.plot(x[a:b], fam.frequencies[a:b], color=color, lw=1.8 if stable else 1.4, ls="-" if stable else "--",
+                label=None if text in seen else text)
+        seen.add(text)
+    for ev in fam.events:
+        marker, text = _EVENT_MARKERS.get(ev.kind, ("x", ev.kind))
+        ax.plot([events_at(ev)], [ev.frequency], marker=marker, color="k", mfc="white", ms=7, ls="none",
+                label=None if text in seen else text, zorder=5)
+        seen.add(text)
+
+
 def fep_figure(families, *, orbits: Optional[Sequence] = None, resonances: Sequence = ()):
     """The frequency-energy plot: each family's frequency [rad/s] against its energy [J], solid
     where its orbits are stable and dashed where unstable, its branch points, period doublings and
@@ -52,19 +68,9 @@ def fep_figure(families, *, orbits: Optional[Sequence] = None, resonances: Seque
             ax, small = fig.add_subplot(1, 1, 1), []
         seen = set()
         for fam in families:
-            color = FAMILY_COLORS.get(fam.mode, "0.3")
-            E, w = fam.energies, fam.frequencies
-            for a, b, stable in _runs(fam.stable):
-                label = f"mode {fam.mode}" + ("" if stable else " (unstable)")
-                ax.plot(E[a:b], w[a:b], color=color, lw=1.8 if stable else 1.4, ls="-" if stable else "--",
-                        label=None if label in seen else label)
-                seen.add(label)
-            ax.plot([0.0], [fam.linear_frequency], marker="<", color=color, ms=6, clip_on=False)
-            for ev in fam.events:
-                marker, text = _EVENT_MARKERS.get(ev.kind, ("x", ev.kind))
-                ax.plot([ev.energy], [ev.frequency], marker=marker, color="k", mfc="white", ms=7, ls="none",
-                        label=None if text in seen else text, zorder=5)
-                seen.add(text)
+            _draw_family(ax, fam.energies, fam, f"mode {fam.mode}", lambda ev: ev.energy, seen)
+            ax.plot([0.0], [fam.linear_frequency], marker="<", color=FAMILY_COLORS.get(fam.mode, "0.3"), ms=6,
+                    clip_on=False)
         for ev in resonances:
             marker, text = _EVENT_MARKERS["resonance"]
             ax.axvline(ev.energy, color="0.55", lw=0.8, ls=":")
@@ -119,20 +125,9 @@ def alpha_family_figure(families):
         fig = new_figure((7.5, 4.8))
         ax = fig.add_subplot(1, 1, 1)
         seen = set()
-        for fam in families:
-            color = FAMILY_COLORS.get(fam.mode, "0.3")
-            a, w = np.degrees(fam.alphas), fam.frequencies
-            for lo, hi, stable in _runs(fam.stable):
-                label = f"mode {fam.mode}, E = {fam.energy:.3g} J" + ("" if stable else " (unstable)")
-                ax.plot(a[lo:hi], w[lo:hi], color=color, lw=1.8 if stable else 1.4, ls="-" if stable else "--",
-                        label=None if label in seen else label)
-                seen.add(label)
-            for j, ev in enumerate(fam.events):
-                marker, text = _EVENT_MARKERS.get(ev.kind, ("x", ev.kind))
-                al = float(ev.detail.split("=")[1].split("deg")[0])
-                ax.plot([al], [ev.frequency], marker=marker, color="k", mfc="white", ms=7, ls="none",
-                        label=None if text in seen else text, zorder=5)
-                seen.add(text)
+        for fam in families:  # an event's alpha is in its detail ("alpha = 12.5 deg ...")
+            _draw_family(ax, np.degrees(fam.alphas), fam, f"mode {fam.mode}, E = {fam.energy:.3g} J",
+                         lambda ev: float(ev.detail.split("=")[1].split("deg")[0]), seen)
         ax.set_xlabel("skew angle α [deg]")
         ax.set_ylabel("frequency 2π/T [rad/s]")
         ax.set_title("Nonlinear normal modes at fixed energy along the skew angle", loc="left")
