@@ -578,7 +578,6 @@ def read_grid_result(path, *, store_kind: str, result_kind: str, what: str, stor
     return arrays, attrs, settings, stats
 
 
-
 # -- the cells of a map over a window of starts (flip maps, regions of attraction, Lyapunov maps) ---------------
 #: Largest grid: n x n cells (16384^2 = 2.7e8 cells, about 4 GB of results).
 MAX_N = 16384

@@ -313,6 +313,7 @@ def compiler_name(cc: list) -> str:
     return " ".join(cc)
 
 
+@lru_cache(maxsize=None)
 def fused_multiply_add() -> Tuple[bool, Tuple[str, ...]]:
     """Whether this processor has fused multiply-add instructions, and the compiler flags that use
     them: ``(True, ("-mfma",))`` on x86-64 with them (Linux: the ``fma`` flag of /proc/cpuinfo),
@@ -323,27 +324,18 @@ def fused_multiply_add() -> Tuple[bool, Tuple[str, ...]]:
     library's exact ``fma`` would take ~100x the time, so those kernels round each product and sum
     separately (other bits, the same accuracy).  Part of the Taylor kernels' cache key: a library
     built for one is never loaded on the other."""
-    global _FMA
-    if _FMA is None:
-        machine = platform.machine().lower()
-        fma: Tuple[bool, Tuple[str, ...]] = (False, ())
-        if machine in ("aarch64", "arm64"):
-            fma = (True, ())
-        elif machine in ("x86_64", "amd64"):
-            try:
-                text = Path("/proc/cpuinfo").read_text(errors="replace")
-            except OSError:
-                text = ""
-            for line in text.splitlines():
-                if line.startswith("flags"):
-                    if "fma" in line.split(":", 1)[-1].split():
-                        fma = (True, ("-mfma",))
-                    break
-        _FMA = fma
-    return _FMA
-
-
-_FMA: Optional[Tuple[bool, Tuple[str, ...]]] = None
+    machine = platform.machine().lower()
+    if machine in ("aarch64", "arm64"):
+        return True, ()
+    if machine in ("x86_64", "amd64"):
+        try:
+            text = Path("/proc/cpuinfo").read_text(errors="replace")
+        except OSError:
+            text = ""
+        for line in text.splitlines():
+            if line.startswith("flags"):
+                return (True, ("-mfma",)) if "fma" in line.split(":", 1)[-1].split() else (False, ())
+    return False, ()
 
 
 def _compile(source: str, target: Path, flags: Tuple[str, ...] = ()) -> str:
@@ -674,23 +666,18 @@ def _key_lock(key: str) -> _LibraryLock:
         return _LibraryLock(key, _KEY_LOCKS.setdefault(key, threading.Lock()))
 _LOADED: Dict[str, Kernel] = {}
 _BYGEOMETRY: Dict[str, Kernel] = {}
-_SOURCE_DIGEST: Optional[str] = None
 _FALLBACK_DIR: Optional[Path] = None
 
 
+@lru_cache(maxsize=None)
 def _source_digest() -> str:
     """Hash of everything that shapes the generated library but the geometry (once per process)."""
-    global _SOURCE_DIGEST
-    if _SOURCE_DIGEST is None:
-        h = hashlib.sha256()
-        h.update(__version__.encode())
-        h.update(" ".join(CFLAGS).encode())
-        h.update(platform.machine().encode())
-        h.update(sys.platform.encode())
-        for name in _SOURCES:
-            h.update((_PACKAGE / name).read_bytes())
-        _SOURCE_DIGEST = h.hexdigest()
-    return _SOURCE_DIGEST
+    h = hashlib.sha256()
+    for text in (__version__, " ".join(CFLAGS), platform.machine(), sys.platform):
+        h.update(text.encode())
+    for name in _SOURCES:
+        h.update((_PACKAGE / name).read_bytes())
+    return h.hexdigest()
 
 
 def _key(geometry_repr: str) -> str:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from itertools import accumulate
 from typing import Any, Dict, List, Sequence, Tuple
 
 from ..errors import require
@@ -531,9 +532,8 @@ def chain_c_source(structure: ChainStructure) -> str:
     out += [f"{I}{I}out[{i}] = {v[i]};" for i in range(n)]
     out += [f"{I}{I}out[{n + i}] = dL{i} + Q{i};" for i in range(n)]
     out += [f"{I}{I}out[{2 * n}] = " + " + ".join(f"Q{i} * {v[i]}" for i in range(n)) + ";", f"{I}}}", "}", ""]
-    for name, doc in (("ends", "the rods' ends (x, y, z per link) [m] into out[3 n]"),
-                      ("axes", "the hinge axes in the world frame into out[3 n]")):
-        c_name = "tips" if name == "ends" else "axes"
+    for name, c_name, doc in (("ends", "tips", "the rods' ends (x, y, z per link) [m] into out[3 n]"),
+                              ("axes", "axes", "the hinge axes in the world frame into out[3 n]")):
         out += [f"/* {doc} */", f"static void {c_name}(const double *y, const double *p, double *out)", "{"]
         out += c_function_lines(fns[name], ["y", "p"], [[f"out[{k}]" for k in range(3 * n)]], I, declare=False)
         out += ["}", ""]
@@ -806,12 +806,13 @@ def _size(layout) -> int:
     return sum(k for _, k in layout)
 
 
+def _offsets(layout) -> Dict[str, int]:
+    """Where each entry of ``layout`` starts."""
+    return dict(zip((name for name, _ in layout), accumulate((size for _, size in layout), initial=0)))
+
+
 def _split(ca, x, layout):
-    out, k = {}, 0
-    for name, size in layout:
-        out[name] = x[k:k + size]
-        k += size
-    return out
+    return {name: x[k:k + size] for (name, size), k in zip(layout, _offsets(layout).values())}
 
 
 def _sym6(ca, v):
@@ -929,12 +930,8 @@ def compact_c_source(structure: ChainStructure) -> str:
     w = len(PER_LINK)
     I = "    "
     NS = _size(_STATE)
-    at = {}
-    for layout, tag in ((_BODY, "B"), (_OUT, "O"), (_BODY_R, "Br"), (_OUT_R, "Or")):
-        k = 0
-        for nm, size in layout:
-            at[(tag, nm)] = k
-            k += size
+    at = {(tag, nm): k for layout, tag in ((_BODY, "B"), (_OUT, "O"), (_BODY_R, "Br"), (_OUT_R, "Or"))
+          for nm, k in _offsets(layout).items()}
     Mn = [f"sp_Mk[{k}]" for k in range(n * (n + 1) // 2)]
     f = [f"sp_f[{i}]" for i in range(n)]
     acc = [f"acc{i}" for i in range(n)]

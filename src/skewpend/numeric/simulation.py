@@ -566,12 +566,9 @@ def simulate(
             raise ParameterError(f"controller must be a skewpend Controller (feedback, swing-up, a table or a Python "
                                  f"function: Controller.function), got {controller!r}")
         controller.check_model(len(coordinates))
-        if method == "gauss":
-            raise ParameterError("inputs that vary need dop853 or rk4 (gauss integrates Hamilton's equations of the "
-                                 "model with constant torques)")
-        if method == "taylor":
-            raise ParameterError("inputs that vary need dop853 or rk4 (taylor's series are generated for the model "
-                                 "with constant torques)")
+        why = {"gauss": "gauss integrates Hamilton's equations of", "taylor": "taylor's series are generated for"}.get(method)
+        if why is not None:
+            raise ParameterError(f"inputs that vary need dop853 or rk4 ({why} the model with constant torques)")
     if progress is not None:
         checks.progress_callable(progress, "progress(t, t_end)")
     if out is not None:
@@ -652,6 +649,7 @@ def simulate(
         else:
             tk, step_l = rule
     state: Any
+    first = None
     if method == "taylor" and dt_out is None and entry.form == "exact":
         # the integrator's own steps: sp_taylor_rows (each row's energy and the account in C, the state
         # reset from y there), buffers from a pool; a run done in its first call returns at once
@@ -677,13 +675,12 @@ def simulate(
             if code != 0 and throw:
                 raise IntegrationError(f"{method}: {traj.message} at t = {state.t:.6g} s")
             return traj
-        return _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max_steps, throw, out, keep,
-                                progress, controller, kernel, p, entry, tk, K, 0, 0, 0, n_grid,
-                                first=(buf, code, start))
-    _check_start(kernel, entry, y)
+        first = (buf, code, start)  # the run goes on in chunks
+    else:
+        _check_start(kernel, entry, y)
     return _simulate_chunks(params, method, settings, y, t_end, dt_out, rtol, atol, max_steps, throw, out, keep,
                             progress, controller, kernel, p, entry, tk, K, nsteps, stride, step if method not in ADAPTIVE
-                            else None, n_grid)
+                            else None, n_grid, first)
 
 
 class _TaylorBuffers:
