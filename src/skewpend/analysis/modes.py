@@ -432,8 +432,7 @@ def _modes_from_matrices(M: np.ndarray, C: np.ndarray, K: np.ndarray, params: Pa
             # a growing mode's pair is real with opposite signs: its rate is the positive one, and
             # zeta uses |l1 l2| (for one degree of freedom m x'' + c x' - k x = 0: c / (2 sqrt(k m)))
             grows = prod < 0
-            pairs[grows] = np.sort(pairs[grows].real, axis=1)[:, ::-1] + 0j
-            eig = pairs[:, 0]
+            pairs[grows] = np.sort(pairs[grows].real, axis=1)[:, ::-1] + 0j  # eig: a view of pairs[:, 0]
             damped_w = np.where(grows, 0.0, damped_w)
             growth = np.where(grows, pairs[:, 0].real, 0.0)
             # C0 >= 0 makes zeta >= 0; clip the round-off of an undamped mode

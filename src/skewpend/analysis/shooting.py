@@ -294,30 +294,24 @@ def segments(filtered: Sequence[Tuple], names: Sequence[str], segment: float = S
         raise ParameterError("no piece is long enough for one shooting segment")
     Lmax = max(s1 - s0 for _, s0, s1 in cuts)
     nq = np.shape(filtered[0][1])[1]
-    qs, masks, taus, y0s, owner, t0s = [], [], [], [], [], []
-    for k, s0, s1 in cuts:
+    S = len(cuts)
+    Q, M, T = np.zeros((S, Lmax + 1, nq)), np.zeros((S, Lmax + 1)), np.zeros((S, 2 * Lmax + 1, nq))
+    y0, t0 = np.empty((S, 2 * nq)), np.empty(S)
+    for c, (k, s0, s1) in enumerate(cuts):
         t, q, qf, dqf, u = filtered[k]
         idx = np.arange(s0, s1 + 1) * every
-        m = len(idx)
-        Q = np.zeros((Lmax + 1, nq))
-        Q[:m] = q[idx]
-        M = np.zeros(Lmax + 1)
-        M[:m] = 1.0
-        T = np.zeros((2 * Lmax + 1, nq))
+        Q[c, :len(idx)] = q[idx]
+        M[c, :len(idx)] = 1.0
         if u is not None:
             half = np.arange(s0 * 2, s1 * 2 + 1) * every / 2.0  # sample index of the steps and half steps
             lo = np.floor(half).astype(int)
             hi = np.minimum(lo + 1, len(t) - 1)
             f = (half - lo)[:, None]
-            T[:len(half)] = (1 - f) * u[lo] + f * u[hi]
-        qs.append(Q)
-        masks.append(M)
-        taus.append(T)
-        y0s.append(np.concatenate([qf[idx[0]], dqf[idx[0]]]))
-        owner.append(k)
-        t0s.append(float(t[idx[0]]))
-    return Segments(q=np.array(qs), mask=np.array(masks), tau=np.array(taus),
-                    y0=np.array(y0s), piece=np.array(owner), t0=np.array(t0s), h=h, every=every, names=tuple(names))
+            T[c, :len(half)] = (1 - f) * u[lo] + f * u[hi]
+        y0[c] = np.concatenate([qf[idx[0]], dqf[idx[0]]])
+        t0[c] = t[idx[0]]
+    return Segments(q=Q, mask=M, tau=T, y0=y0, piece=np.array([k for k, _, _ in cuts]), t0=t0, h=h, every=every,
+                    names=tuple(names))
 
 
 def angle_frame(nq: int, angles: str = "relative") -> Optional[np.ndarray]:

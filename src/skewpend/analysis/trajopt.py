@@ -122,11 +122,8 @@ def _dynamics(chain, actuated: Tuple[int, ...]):
         p[i] = p[i] + u[r]
     Mp, f, _ = fns["model"](y, p)
     M = ca.SX(n, n)
-    k = 0
-    for i in range(n):
-        for j in range(i + 1):
-            M[i, j] = M[j, i] = Mp[k]
-            k += 1
+    for k, (i, j) in enumerate(zip(*np.tril_indices(n))):  # the lower triangle, row by row
+        M[int(i), int(j)] = M[int(j), int(i)] = Mp[k]
     qdd = ca.solve(M, f)
     rhs = ca.Function("f", [y, u], [ca.vertcat(y[n:], qdd)])
     u1 = ca.SX.sym("u1", len(actuated))
