@@ -874,11 +874,10 @@ class ChainTerms:
         prefer += [x for x in names if x not in prefer]
         greedy = independent_columns(W, [names.index(x) for x in prefer])
         self._order = sorted(range(len(greedy)), key=lambda k: greedy[k])  # the base parameters in pi's order
-        pivots = [greedy[k] for k in self._order]
+        self.pivots = pivots = tuple(greedy[k] for k in self._order)
         self._greedy = greedy  # (the least squares in the order found: the same bits as before the tilt)
         scale = np.linalg.norm(W, axis=0)
         self.unidentifiable = tuple(names[j] for j in np.flatnonzero(scale <= 1e-10 * scale.max()))
-        self.pivots = tuple(pivots)
         self.dep = [j for j in range(len(names)) if j not in pivots]
         self._cache: Dict[float, np.ndarray] = {}
         self.matrix = self.T(self.angle0)
@@ -2021,13 +2020,11 @@ def _realise(params0: Parameters, W, values: np.ndarray, a: float, alpha: float,
     for k in rows:
         pi[piv[k]] = values[k] - T[k, dep] @ pi[dep]
     changes: Dict[str, Any] = {n: float(pi[idx[n]]) for n in DAMPING_NAMES}
-    if project:  # damping, friction and rotor inertia >= 0
-        changes = {k: max(v, 0.0) for k, v in changes.items()}
-        extra = {k: max(v, 0.0) for k, v in extra.items()}
-    else:  # below zero by round-off (relative to the base parameters' scale): on the bound
-        tiny = 0.1 * ROUND_OFF * max(float(np.abs(values).max()), 1e-300)
-        changes = {k: (0.0 if -tiny <= v < 0 else v) for k, v in changes.items()}
-        extra = {k: (0.0 if -tiny <= v < 0 else v) for k, v in extra.items()}
+    # damping, friction and rotor inertia >= 0 (project), else below zero by round-off (relative to the base
+    # parameters' scale) on the bound
+    tiny = 0.1 * ROUND_OFF * max(float(np.abs(values).max()), 1e-300)
+    clip = (lambda v: max(v, 0.0)) if project else (lambda v: 0.0 if -tiny <= v < 0 else v)
+    changes, extra = {k: clip(v) for k, v in changes.items()}, {k: clip(v) for k, v in extra.items()}
     for i in (1, 2):
         m = pi[idx[f"m{i}"]]
         c, J, ic = _body(pi, i, m)
