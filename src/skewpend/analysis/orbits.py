@@ -1046,14 +1046,14 @@ def nnm(params: Parameters, mode: int = 1, *, energy_max: Optional[float] = None
                      status=status, message=message)
 
 
+@dataclass(repr=False, eq=False)
 class Backbones:
     """Both nonlinear normal modes (``families[0]``: mode 1, ``families[1]``: mode 2) and the
     internal resonances between them: energies where ``w_i(E) / w_j(E)`` crosses a ratio ``p/q``
     with ``p, q <= max_order`` (``resonances``: :class:`BranchEvent` of kind ``"resonance"``)."""
 
-    def __init__(self, families: List[NNMFamily], resonances: List[BranchEvent]):
-        self.families = families
-        self.resonances = resonances
+    families: List[NNMFamily]
+    resonances: List[BranchEvent]
 
     @property
     def ok(self) -> bool:
@@ -1224,7 +1224,6 @@ def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Seque
     x, T = start.states[-1].copy(), float(start.periods[-1])
     alphas_done, periods, states, sigma = [float(grid[0])], [T], [x.copy()], [float(np.trace(start.monodromies[-1]) - 2)]
     status, message = Status.SUCCESS, ""
-    model_cache: Dict[float, _Model] = {}
     calls = 0
     with Interrupts() as intr:
         k = 1
@@ -1233,7 +1232,7 @@ def nnm_alpha(params: Parameters, mode: int = 1, *, energy: float, alphas: Seque
         while k < len(grid):
             a = target
             q = replace(params, alpha=a)
-            model = model_cache.setdefault(a, _Model(q, rtol, atol))
+            model = _Model(q, rtol, atol)  # each angle is met once
             scales = _scales_for(q, T, energy)
             out = _newton(model, x, T, energy, np.zeros(4), x, scales, check=intr.check,
                           progress=lambda it, _n, a=a: _say(f"alpha = {math.degrees(a):.4g} deg: Newton iteration {it}"))

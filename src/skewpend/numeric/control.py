@@ -557,8 +557,39 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
     pp = np.ascontiguousarray(p, dtype=np.float64)
     c = controller.struct()
     with _stopped_on_cancel(c, cancel, kernel.nq):
-        return _capture(kernel, controller, c, pp, starts, m, t_end, rtol, atol, max_steps, region, rho, cancel, group,
-                        time, steps, rejected, status)
+        from .ensemble import Cancelled
+
+        dp = ctypes.POINTER(ctypes.c_double)
+        i64p, i8p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int8)
+        if capture_lanes_available(kernel, controller):
+            lib = kernel.lib
+            _bind_capture_lanes(lib)
+            ws = ctypes.create_string_buffer(int(lib.sp_capture_ws_size()))
+            while True:
+                if cancel is not None and cancel.is_set():
+                    raise Cancelled()
+                rc = lib.sp_capture_lanes(ws, ctypes.byref(c), pp.ctypes.data_as(dp), starts.ctypes.data_as(dp), m,
+                                          float(t_end), float(rtol), float(atol), int(max_steps),
+                                          region.ctypes.data_as(dp), float(rho), LANE_BUDGET, time.ctypes.data_as(dp),
+                                          steps.ctypes.data_as(i64p), rejected.ctypes.data_as(i64p),
+                                          status.ctypes.data_as(i8p))
+                if cancel is not None and cancel.is_set():
+                    raise Cancelled()
+                if rc == 0:
+                    return time, steps, rejected, status
+                if rc != -1:
+                    raise RuntimeError(f"sp_capture_lanes refused its arguments (code {rc})")
+        fn = kernel.lib.sp_capture_many
+        for a in range(0, m, group):
+            if cancel is not None and cancel.is_set():
+                raise Cancelled()
+            b = min(m, a + group)
+            fn(ctypes.byref(c), pp.ctypes.data_as(dp), starts[a:].ctypes.data_as(dp), b - a, float(t_end), float(rtol),
+               float(atol), int(max_steps), region.ctypes.data_as(dp), float(rho), time[a:].ctypes.data_as(dp),
+               steps[a:].ctypes.data_as(i64p), rejected[a:].ctypes.data_as(i64p), status[a:].ctypes.data_as(i8p))
+            if cancel is not None and cancel.is_set():  # the call may have been stopped by the watcher: not a result
+                raise Cancelled()
+        return time, steps, rejected, status
 
 
 #: How often [s] a compiled capture's watcher looks at the cancel event (:func:`capture_many`).
@@ -592,41 +623,3 @@ def _stopped_on_cancel(struct, cancel, nq: int):
         yield
     finally:
         done.set()
-
-
-def _capture(kernel, controller, c, pp, starts, m, t_end, rtol, atol, max_steps, region, rho, cancel, group, time,
-             steps, rejected, status):
-    """:func:`capture_many`'s compiled calls (``cancel`` checked before and after each)."""
-    from .ensemble import Cancelled
-
-    dp = ctypes.POINTER(ctypes.c_double)
-    i64p, i8p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int8)
-    if capture_lanes_available(kernel, controller):
-        lib = kernel.lib
-        _bind_capture_lanes(lib)
-        ws = ctypes.create_string_buffer(int(lib.sp_capture_ws_size()))
-        while True:
-            if cancel is not None and cancel.is_set():
-                raise Cancelled()
-            rc = lib.sp_capture_lanes(ws, ctypes.byref(c), pp.ctypes.data_as(dp), starts.ctypes.data_as(dp), m,
-                                      float(t_end), float(rtol), float(atol), int(max_steps),
-                                      region.ctypes.data_as(dp), float(rho), LANE_BUDGET, time.ctypes.data_as(dp),
-                                      steps.ctypes.data_as(i64p), rejected.ctypes.data_as(i64p),
-                                      status.ctypes.data_as(i8p))
-            if cancel is not None and cancel.is_set():
-                raise Cancelled()
-            if rc == 0:
-                return time, steps, rejected, status
-            if rc != -1:
-                raise RuntimeError(f"sp_capture_lanes refused its arguments (code {rc})")
-    fn = kernel.lib.sp_capture_many
-    for a in range(0, m, group):
-        if cancel is not None and cancel.is_set():
-            raise Cancelled()
-        b = min(m, a + group)
-        fn(ctypes.byref(c), pp.ctypes.data_as(dp), starts[a:].ctypes.data_as(dp), b - a, float(t_end), float(rtol),
-           float(atol), int(max_steps), region.ctypes.data_as(dp), float(rho), time[a:].ctypes.data_as(dp),
-           steps[a:].ctypes.data_as(i64p), rejected[a:].ctypes.data_as(i64p), status[a:].ctypes.data_as(i8p))
-        if cancel is not None and cancel.is_set():  # the call may have been stopped by the watcher: not a result
-            raise Cancelled()
-    return time, steps, rejected, status
