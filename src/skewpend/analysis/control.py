@@ -211,17 +211,12 @@ class LQR:
 
     def inside(self, x) -> np.ndarray:
         """Whether states ``x`` (..., 4; a chain's ..., 2 n) lie inside the estimate ``dx^T P dx < rho`` (angles wrapped)."""
-        dx = _deviation(np.asarray(x, dtype=float), self.linearization.target)
+        from .equilibria import wrap
+
+        dx = np.asarray(x, dtype=float) - self.linearization.target
+        n = dx.shape[-1] // 2
+        dx[..., :n] = wrap(dx[..., :n])
         return np.einsum("...i,ij,...j->...", dx, self.P, dx) < self.rho
-
-
-def _deviation(x: np.ndarray, target: np.ndarray) -> np.ndarray:
-    from .equilibria import wrap
-
-    dx = x - target
-    n = dx.shape[-1] // 2
-    dx[..., :n] = wrap(dx[..., :n])
-    return dx
 
 
 #: rho is this fraction of the smallest level V at which the search found V' >= 0 (see _rho_estimate).

@@ -793,12 +793,6 @@ def _changer(model, name: str) -> Callable[[float], Any]:
     return lambda v: chain.replace_link(i, **{stem: float(v)})
 
 
-def _show(name: str, value: float) -> str:
-    if name == "alpha" or name.startswith("tilt"):
-        return f"{value:.6g} rad ({math.degrees(value):.6g} deg)"
-    return f"{value:.6g}"
-
-
 @dataclass(frozen=True)
 class Resonance:
     """An internal resonance ``w2/w1 ~ n`` along a sweep: where it is closest (or crossed); a chain's
@@ -980,8 +974,10 @@ def _failure_message(name: str, failures: List[Tuple[float, str]], total: int) -
     for value, why in failures:
         groups.setdefault(why, []).append(value)
     parts = []
+    angle = name == "alpha" or name.startswith("tilt")
     for why, vals in groups.items():
-        shown = ", ".join(_show(name, v) for v in vals[:3]) + (f" (and {len(vals) - 3} more)" if len(vals) > 3 else "")
+        shown = ", ".join(f"{v:.6g} rad ({math.degrees(v):.6g} deg)" if angle else f"{v:.6g}" for v in vals[:3]) + (
+            f" (and {len(vals) - 3} more)" if len(vals) > 3 else "")
         parts.append(f"{name} = {shown}: {why}")
     return (
         f"sweep of {name}: {len(failures)} of {total} values failed, so nothing is reported: " + "; ".join(parts)
@@ -1080,13 +1076,6 @@ class NonlinearCheck:
         return self.measured / self.linear - 1
 
 
-def _upward_crossings(t: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Times of the upward zero crossings of ``x(t)``, linearly interpolated."""
-    up = np.nonzero((x[:-1] < 0) & (x[1:] >= 0))[0]
-    # cubic refinement would need derivatives; the grid is fine enough (dt = T/400)
-    return t[up] - x[up] * (t[up + 1] - t[up]) / (x[up + 1] - x[up])
-
-
 def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -> NonlinearCheck:
     """Start the nonlinear equations from each mode shape scaled so its largest angle is
     ``amplitude`` [rad], at rest; measure the frequency of the modal coordinate by upward
@@ -1132,7 +1121,10 @@ def check_nonlinear(params: Parameters, amplitude: float, *, cycles: int = 40) -
                 f"at {deg:.4g} deg the motion started from mode {k + 1} goes over the top (a hinge angle reaches 180 deg), "
                 f"so it is not an oscillation about the hanging position; {allowed}"
             )
-        tc = _upward_crossings(tr.t, modes.modal_coordinates(q)[:, k])
+        # the upward zero crossings of the modal coordinate, linearly interpolated (the grid, T/400, is fine enough)
+        x, t = modes.modal_coordinates(q)[:, k], tr.t
+        up = np.nonzero((x[:-1] < 0) & (x[1:] >= 0))[0]
+        tc = t[up] - x[up] * (t[up + 1] - t[up]) / (x[up + 1] - x[up])
         if tc.size < max(3, cycles // 2 + 1):
             raise ParameterError(
                 f"at {deg:.4g} deg the motion started from mode {k + 1} is not an oscillation of that mode "

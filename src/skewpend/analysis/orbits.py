@@ -447,14 +447,6 @@ def _modes_text(nq: int) -> str:
     return "1: the lowest linear frequency, " + ("" if nq < 3 else "..., ") + f"{nq}: the highest"
 
 
-def _newton_settings(tol, max_iterations) -> Tuple[float, int]:
-    tol = positive("tol", tol)
-    if not TOL_RANGE[0] <= tol <= TOL_RANGE[1]:
-        raise ParameterError(f"tol must be from {TOL_RANGE[0]:g} to {TOL_RANGE[1]:g} (Newton's tolerance on the scaled "
-                             f"residual), got {tol:g}")
-    return tol, whole("max_iterations", max_iterations, 1, MAX_ITERATIONS_LIMIT)
-
-
 def _trivial(model: "_Model", x: np.ndarray, T: float, tol: float) -> Optional[str]:
     """Why the solution ``(x, T)`` is an equilibrium, not an orbit (None when it moves): its
     amplitude is below :data:`TRIVIAL_AMPLITUDE` (or 100 x the Newton tolerance)."""
@@ -505,7 +497,11 @@ def periodic_orbit(params: Parameters, y0: Optional[Sequence[float]] = None, per
     params.require_lossless("a periodic orbit")  # H = T + Pi - tau . q is kept: torques allowed
     nq = params.n
     rtol, atol = tolerances(rtol, atol, default=ORBIT_TOL)
-    tol, max_iterations = _newton_settings(tol, max_iterations)
+    tol = positive("tol", tol)
+    if not TOL_RANGE[0] <= tol <= TOL_RANGE[1]:
+        raise ParameterError(f"tol must be from {TOL_RANGE[0]:g} to {TOL_RANGE[1]:g} (Newton's tolerance on the scaled "
+                             f"residual), got {tol:g}")
+    max_iterations = whole("max_iterations", max_iterations, 1, MAX_ITERATIONS_LIMIT)
     if throw not in (True, False):
         raise ParameterError(f"throw must be True or False, got {throw!r}")
     progress = progress_callable(progress, "progress(done, total)")

@@ -455,25 +455,6 @@ def _state(name: str, value, n: int) -> np.ndarray:
     return x
 
 
-def _goal_state(chain, goal) -> Tuple[np.ndarray, str]:
-    """The goal's state and label: a label with a word per link, an ``Equilibrium`` or angles near one."""
-    from .control import equilibrium_argument
-    from .equilibria import find_equilibrium
-
-    eq = find_equilibrium(chain, equilibrium_argument(goal, chain, "goal"), "goal")
-    return _state("goal's state", eq.state, chain.n), eq.label
-
-
-def _check_controllable(chain, label: str, actuated: Tuple[int, ...]) -> None:
-    from .control import controllability, linearization
-
-    lin = linearization(chain, label, actuated, coulomb="smoothed")
-    c = controllability(lin.A, lin.B)
-    if not c["controllable"] or c["distance"] < 1e-10:
-        raise EquilibriumError(f"the goal {label} cannot be held with the joints {', '.join(map(str, actuated))} actuated: "
-                               f"the linearisation is not controllable (rank {c['rank']} of {lin.A.shape[0]})")
-
-
 def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP, start=None,
                     cost: Cost = Cost(), horizon: Tuple[float, float] = (0.5, 4.0), guess: float = 1.5,
                     knots: int = 150, hold: float = 0.8, height: float = PROTOCOL.height, attempts: int = 4,
@@ -499,6 +480,8 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     import time as _time
 
     from ..numeric.control import actuated_joints
+    from .control import controllability, equilibrium_argument, linearization
+    from .equilibria import find_equilibrium
 
     chain = _as_chain(model)
     n = chain.n
@@ -533,8 +516,14 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     from ..progress import stage
 
     stage("optimal swing-up: the goal's equilibrium and its controllability")
-    x_goal, label = _goal_state(chain, goal)
-    _check_controllable(chain, label, joints)
+    # the goal: a label with a word per link, an Equilibrium or angles near one; held by the actuated joints
+    eq = find_equilibrium(chain, equilibrium_argument(goal, chain, "goal"), "goal")
+    x_goal, label = _state("goal's state", eq.state, n), eq.label
+    lin = linearization(chain, label, joints, coulomb="smoothed")
+    c = controllability(lin.A, lin.B)
+    if not c["controllable"] or c["distance"] < 1e-10:
+        raise EquilibriumError(f"the goal {label} cannot be held with the joints {', '.join(map(str, joints))} actuated: "
+                               f"the linearisation is not controllable (rank {c['rank']} of {lin.A.shape[0]})")
     stage(f"optimal swing-up: building IPOPT's problem and its derivatives (CasADi, {knots} knots)")
     ca, rhs, step, tip = _dynamics(chain, joints)
     m = len(joints)

@@ -15,6 +15,7 @@ from . import types as T
 from .analyses import ATOL_E8, RTOL_E8, RESUME, draw_figure, ensemble_outputs
 from ..progress import stage
 from .options import CONFIG, ENSEMBLE, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
+from .simulate import check_plot
 
 COMMANDS = ("control",)
 
@@ -105,10 +106,7 @@ def control(
         from ..io import check_output_path
 
         check_output_path(out, (".csv", ".nc"), option="--out")
-    if plot is not None:
-        from .simulate import check_plot
-
-        check_plot(plot)
+    check_plot(plot)
     from ..errors import EquilibriumError, ParameterError
     from ..numeric.control import actuated_joints
 

@@ -9,6 +9,7 @@ from typing import Optional
 
 from ..parsing import UsageError
 from ..progress import stage
+from .simulate import check_plot
 
 __all__ = ["run_leaderboard", "ROBOT_NAMES"]
 
@@ -122,10 +123,7 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
         from ..io import check_output_path
 
         check_output_path(out, (".csv",), option="--out")
-    if plot is not None:
-        from .simulate import check_plot
-
-        check_plot(plot)
+    check_plot(plot)
     limit = lb.PROTOCOL.umax if umax is None else float(umax)
     model = lb.dfki_model(alpha)
     joints = lb.ROBOTS[robot]

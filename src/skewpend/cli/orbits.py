@@ -14,6 +14,7 @@ from ..parsing import UsageError
 from . import types as T
 from ..progress import stage
 from .options import CONFIG, INITIAL, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
+from .simulate import check_plot
 
 COMMANDS = ("equilibria", "orbit", "nnm")
 _ENERGY = T.Positive("number of joules")
@@ -90,10 +91,7 @@ def orbit(
         raise UsageError("--mode needs --energy (the energy of the orbit wanted) [J]")
     if mode is None and period is None:
         raise UsageError(f"an orbit needs a guess ({start} and --period) or --mode and --energy")
-    if plot is not None:
-        from .simulate import check_plot
-
-        check_plot(plot)
+    check_plot(plot)
     params = run.parameters()
     if mode is not None:
         with progress(f"continuing nonlinear normal mode {mode} up to {energy:g} J", "J", quiet) as bar:
@@ -144,10 +142,7 @@ def nnm(
         raise UsageError("--orbits-at chooses the orbits drawn by --plot; give --plot FILE")
     if orbits_at is not None and any(not e > 0 for e in orbits_at):
         raise UsageError(f"--orbits-at: expected at most four positive energies E1,E2,... [J], got {orbits_at!r}")
-    if plot is not None:
-        from .simulate import check_plot
-
-        check_plot(plot)
+    check_plot(plot)
     params = resolve("nnm", config, parameters=model).parameters()
     kw = {} if resolution is None else {"resolution": resolution}
     with progress("continuing the nonlinear normal modes" if mode is None else f"continuing nonlinear normal mode {mode}", "J", quiet) as bar:
@@ -189,10 +184,7 @@ def _along_alpha(model, mode, alphas, energy, energy_max, resolution, orbits_at,
         raise UsageError(f"{', '.join(extra)} go with the continuation in energy, not with --alphas")
     if model.get("alpha") is not None:
         raise UsageError("--alpha: the continuation varies alpha itself; give the angles with --alphas START:STOP:COUNT")
-    if plot is not None:
-        from .simulate import check_plot
-
-        check_plot(plot)
+    check_plot(plot)
     params = resolve("nnm", config, parameters={**model, "alpha": float(alphas[0])}).parameters()
     with progress(f"following nonlinear normal mode {mode} along alpha", "angles", quiet) as bar:
         fam = nnm_alpha(params, mode, energy=energy, alphas=alphas, progress=bar)
