@@ -374,10 +374,7 @@ def linear_point(q, down, potential: float, M, C, K, lam, V, coulomb: str) -> Eq
     ev = ev[np.lexsort((-ev.imag, -ev.real))]
     scale = max(np.abs(lam).max(), np.finfo(float).tiny)
     index = int(np.sum(lam < -DEGENERATE * scale))
-    for k in range(V.shape[1]):
-        col = V[:, k]
-        if col[np.argmax(np.abs(col))] < 0:
-            V[:, k] = -col
+    V *= np.where(V[np.argmax(np.abs(V), axis=0), np.arange(V.shape[1])] < 0, -1.0, 1.0)  # largest entry positive
     osc = lam > DEGENERATE * scale
     unstable = lam < -DEGENERATE * scale
     if np.any(C != 0):
