@@ -9,30 +9,17 @@ figures are PNG ``data:`` URIs, and the motion is replayed in 3D by three.js (bu
 explorer's scene: :mod:`skewpend.views.frontend`), turnable, from the states the library
 computed.  Nothing is fetched: the file has no reference to anything outside itself.
 
-Sections:
-
-1. the system -- a picture of the pendulum with both hinge axes (reference configuration and
-   initial state), the parameters with their units, the initial state;
-2. the equations of motion, step by step as the specification derives them (``P1``, ``e``,
-   ``P``, ``omega2``, the velocity of rod 2's centre of mass, its inertia tensor, ``T``, ``Pi``,
-   Lagrange's equations), nonlinear and linearised, then with the values of section 1;
-   intermediate results in display form (:mod:`skewpend.symbolic.display`: e.g. ``cos(phi + psi)``
-   at ``alpha = 0``; proved equal to the derivation's, which the numeric code uses unchanged);
-3. the check at ``alpha = 0``: the planar formulas and linear equations of the specification
-   (:mod:`skewpend.symbolic.specification`, typed from its text) against the derivation, with
-   the differences computed by ``sympy.simplify`` when the report is made
-   (:func:`~skewpend.symbolic.specification.check_planar`);
-4. normal modes: frequencies, periods, shapes; the frequencies against ``alpha`` with the
-   internal resonances;
-5. a simulation: figures, energy drift, the motion replayed live in 3D;
-6. which starts flip: a small flip-time map (:func:`skewpend.flip_map`, released at rest), the
-   simulation's start marked on it;
-7. how chaotic: the Lyapunov spectrum of the simulation's start, Poincare sections at two
-   energies, a largest-exponent map, and the chaotic fraction over (alpha, energy);
-8. beyond small oscillations: every equilibrium with its stability, and the nonlinear normal
-   modes (frequency against energy, stability, bifurcations, internal resonances);
-9. the validation against MuJoCo (or how to install it);
-10. how the report was made: versions, settings, timings.
+Sections (:func:`~skewpend.views.report.common.sections`): 1. the system (pictures of the reference
+configuration and the initial state with the hinge axes, the parameters, the initial state); 2. the
+equations of motion step by step as the specification derives them, nonlinear and linearised, in display
+form (:mod:`skewpend.symbolic.display`: proved equal to the derivation's, which the numeric code uses
+unchanged); 3. the check at ``alpha = 0`` against the specification's planar formulas
+(:func:`~skewpend.symbolic.specification.check_planar`, differences by ``sympy.simplify`` when the report
+is made); 4. normal modes and their frequencies against ``alpha`` with the internal resonances; 5. a
+simulation: figures, energy drift, the motion replayed live in 3D; 6. a flip-time map of starts at rest;
+7. the Lyapunov spectrum, Poincare sections, a largest-exponent map and the chaotic fraction over
+(alpha, energy); 8. equilibria and nonlinear normal modes; 9. the validation against MuJoCo; 10. how the
+report was made: versions, settings, timings.
 
 Every section takes the model and asks it -- its coordinates, its links, the names it answers: a chain
 of links gets the same ten sections from the same library calls.  What reads the specification's names
@@ -52,6 +39,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from contextlib import suppress
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence, Union
 
@@ -70,16 +58,8 @@ from .derivation import section_check, section_derivation
 from .system import LIVE_SLOT, live_figure, section_modes, section_simulation, section_system
 from ..frontend import inline_page_scripts
 
-__all__ = [
-    "build_report",
-    "DEFAULT_PARAMETERS",
-    "DEFAULT_INITIAL_STATE",
-    "DEFAULT_T_END",
-    "REPORT_SUFFIXES",
-    "SECTIONS",
-    "MAX_T_END",
-    "katex_assets",
-]
+__all__ = ["build_report", "DEFAULT_PARAMETERS", "DEFAULT_INITIAL_STATE", "DEFAULT_T_END", "REPORT_SUFFIXES", "SECTIONS",
+           "MAX_T_END", "katex_assets"]
 
 
 def _require_libraries() -> None:
@@ -261,11 +241,9 @@ def _build_ahead(params) -> None:
     from ...numeric.kernels import model_kernel
 
     def build() -> None:
-        try:
+        with suppress(Exception):  # a failure is reported by the section that needs the kernel
             model_kernel(params)
             flip_kernel(params)
-        except Exception:  # noqa: BLE001 - reported by the section that needs the kernel
-            pass
 
     threading.Thread(target=build, name="skewpend-report-kernels", daemon=True).start()
 
@@ -346,13 +324,12 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     # the second process is stopped at the signal.
     from ...interrupts import Interrupts
 
-    running: Dict[str, "_Background"] = {}
+    background: Optional[_Background] = None  # the second process, once started
 
     def stop_background() -> None:
         ctx.prefetch.cancel()
-        child = running.get("child")
-        if child is not None and child.proc.poll() is None:
-            child.proc.kill()
+        if background is not None and background.proc.poll() is None:
+            background.proc.kill()
 
     numeric = {
         "simulation": section_simulation,  # first: section 1's pictures and the animation use its runs
@@ -365,6 +342,12 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     }
     total = len(numeric) + 3  # the numeric sections, sections 2 and 3, the live view with section 10, the page
     done = 0
+
+    def finished() -> None:  # one more part done
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total)
     bodies: Dict[str, str] = {}
     from . import cache
 
@@ -375,8 +358,6 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     # drawing and SymPy run seconds between checks: a signal no check took within 0.3 s is raised where it is
     with Interrupts(on_signal=stop_background, escalate_after=0.3) as intr:
         background = _Background.start(params) if cached is None and PARALLEL and (os.cpu_count() or 1) > 1 else None
-        if background is not None:
-            running["child"] = background
         try:
             _build_ahead(params)  # the model's and the flip map's kernels: compiled now if not in the cache
             # section 7's ensembles run from now on, while sections 1 to 6 draw
@@ -388,9 +369,7 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
                 bodies[key] = build(ctx)
                 ctx.timings[key] = time.perf_counter() - t0
                 note_compiled(key)
-                done += 1
-                if progress is not None:
-                    progress(done, total)
+                finished()
             intr.check()
             stage(PARTS["cached" if cached is not None else "parallel" if background is not None else "symbolic"],
                   done + 1, total)
@@ -415,16 +394,12 @@ def _build_report(params, y0, t_end, method, rtol, atol, dt, max_steps, out, pro
     bodies.update(symbolic["bodies"])
     ctx.notes.update(symbolic["notes"])
     ctx.timings.update(symbolic["timings"])
-    done += 1
-    if progress is not None:
-        progress(done, total)
+    finished()
     stage(PARTS["live"], done + 1, total)
     bodies["simulation"] = bodies["simulation"].replace(LIVE_SLOT, live_figure(ctx))
     ctx.timings["total"] = time.perf_counter() - start
     bodies["provenance"] = section_provenance(ctx)
-    done += 1
-    if progress is not None:
-        progress(done, total)
+    finished()
     stage(f"writing {Path(out).name}" if out is not None else "assembling the page", done + 1, total)
     return _write(_assemble(ctx, bodies), out, progress, total)
 
@@ -450,17 +425,14 @@ def _assemble(ctx: Context, bodies: Dict[str, str]) -> str:
     css, js, _ = katex_assets()
     p = ctx.params
     toc = "\n".join(f'    <li><a href="#{key}">{esc(title)}</a></li>' for key, title in sections(p))
-    parts = []
-    for n, (key, title) in enumerate(sections(p), 1):
-        parts.append(
-            f'<section class="report-section" id="{key}" aria-labelledby="{key}-title">\n'
-            f'<h2 id="{key}-title"><span class="num">{n}</span>{esc(title)}</h2>\n{bodies[key]}\n</section>'
-        )
+    parts = [f'<section class="report-section" id="{key}" aria-labelledby="{key}-title">\n'
+             f'<h2 id="{key}-title"><span class="num">{n}</span>{esc(title)}</h2>\n{bodies[key]}\n</section>'
+             for n, (key, title) in enumerate(sections(p), 1)]
     if answers_names(p) and p.uses_alpha and p.is_thin_rods:
         bodies_text = f"Two thin rods whose hinge axes are skewed by α = {fmt_deg(p.alpha)}"
     else:
         bodies_text = f"{schema.count_text(p.n, 'rigid bodies').capitalize()} on skewed hinges"
-    page = Template(template("report.html")).substitute(
+    return Template(template("report.html")).substitute(
         title=f"{p.title.replace('skewed ', '').capitalize()} with skewed hinge axes",
         subtitle=bodies_text + ": the equations of motion derived step by step, checked, analysed and simulated",
         version=esc(__version__),
@@ -475,4 +447,3 @@ def _assemble(ctx: Context, bodies: Dict[str, str]) -> str:
         render_js=template("render.js"),
         live_js=inline_page_scripts(),
     )
-    return page

@@ -18,7 +18,7 @@ from .common import (CHAOS_DIAGRAM, CHAOS_DIAGRAM_LEVELS, CHAOS_LYAPUNOV_T_END, 
                      FLIPMAP_N, FLIPMAP_N_BY_LINKS, FLIPMAP_T_END, LONG_FLIPMAP_N, LONG_LYAPUNOV_T_END, VALIDATION_DT,
                      VALIDATION_T_END, VALIDATION_TOL, Context, answers_names, by_links, detail, esc, facts_html, fig_png,
                      figure_html, fmt_deg, fmt_num, inline_math, katex_assets, prose, sections, table_html, telling)
-from .system import TEXT, label, start_tex, tex
+from .system import TEXT, label, rate_tex, start_tex, tex
 
 
 def nonconservative_text(p) -> str:
@@ -325,19 +325,11 @@ def section_validation(ctx: Context) -> str:
         return f'<p class="callout warn">The comparison with MuJoCo could not be made: {esc(exc)}</p>'
     ok = rep.max_difference <= VALIDATION_TOL
     ctx.notes["validation"] = f"{'AGREE' if ok else 'DISAGREE'}, largest difference {rep.max_difference:.2e}"
-    labels = {"phi": r"\varphi", "psi": r"\psi", "dphi": r"\dot\varphi", "dpsi": r"\dot\psi"}
-
-    def label(k: str) -> str:  # a chain's q_k and its rate
-        return labels.get(k) or (rf"\dot q_{{{k[2:]}}}" if k.startswith("d") else f"q_{{{k[1:]}}}")
-
-    rows = [[inline_math(label(k)), fmt_num(v, 3), "rad/s" if k.startswith("d") else "rad"]
+    rows = [[inline_math(rate_tex(k[1:]) if k.startswith("d") else tex(k)), fmt_num(v, 3), "rad/s" if k.startswith("d") else "rad"]
             for k, v in rep.max_abs_diff.items()]
-    if ok:
-        verdict = (f'<p class="callout good"><span class="verdict ok">AGREE</span> — the largest difference, '
-                   f"{fmt_num(rep.max_difference, 3)}, is within the tolerance {fmt_num(VALIDATION_TOL)}.</p>")
-    else:
-        verdict = (f'<p class="callout warn"><span class="verdict bad">DISAGREE</span> — the largest difference, '
-                   f"{fmt_num(rep.max_difference, 3)}, exceeds the tolerance {fmt_num(VALIDATION_TOL)}.</p>")
+    callout, mark, word, how = ("good", "ok", "AGREE", "is within") if ok else ("warn", "bad", "DISAGREE", "exceeds")
+    verdict = (f'<p class="callout {callout}"><span class="verdict {mark}">{word}</span> — the largest difference, '
+               f"{fmt_num(rep.max_difference, 3)}, {how} the tolerance {fmt_num(VALIDATION_TOL)}.</p>")
     return (
         "<p>An independent engine: the model exported as MuJoCo MJCF (full inertia tensors, hinge axes, damping and "
         "torques; a chain's bodies nested link by link; thin rods get the tiny axial inertia MuJoCo needs, in both "

@@ -15,6 +15,7 @@ import hashlib
 import json
 import os
 import tempfile
+from contextlib import suppress
 from functools import lru_cache
 from pathlib import Path
 from typing import Dict, Optional
@@ -59,10 +60,8 @@ def load(params) -> Optional[Dict]:
             and all(isinstance(data["bodies"].get(k), str) for k in ("derivation", "check"))
             and isinstance(data.get("notes"), dict) and isinstance(data.get("timings"), dict)):
         return None
-    try:
+    with suppress(OSError):
         os.utime(path)  # recently used: kept longest
-    except OSError:
-        pass
     return data
 
 

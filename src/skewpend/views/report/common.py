@@ -18,6 +18,7 @@ import numpy as np
 from ... import __version__
 from ...config import DEFAULT_RUN, reference_state
 from ...errors import SkewpendError
+from ...progress import detail
 from ...symbolic.model import Parameters
 from ..style import answers_names
 
@@ -109,21 +110,12 @@ def by_links(n: int, first: float, table: Dict[int, float], long: float):
 def telling(what: str, unit: str = "") -> Callable[[float, float], None]:
     """A ``progress(done, total)`` for a library call inside a section: its progress said as the section's
     sub-step on the live line (``what: 40 of 128 unit``; issue 51: no silence over 2 s on a terminal)."""
-    from ...progress import detail
-
     suffix = f" {unit}" if unit else ""
 
     def told(done, total, label=None):
         detail(f"{what}: {float(done):.4g} of {float(total):.4g}{suffix}" if label is None else f"{what}: {label}")
 
     return told
-
-
-def detail(text: str) -> None:
-    """A section's sub-step, said on the live line (:func:`skewpend.progress.detail`)."""
-    from ...progress import detail as say
-
-    say(text)
 
 
 def esc(text) -> str:
@@ -240,14 +232,8 @@ def live_view_html(data: dict, caption: str, poster: Optional[bytes], size: Tupl
 
 
 def number_figures(page: str) -> str:
-    count = 0
-    out = []
-    for i, part in enumerate(page.split(FIGURE_SLOT)):
-        if i:
-            out.append(str((count // 2) + 1))  # two marks per figure: its id and its caption
-            count += 1
-        out.append(part)
-    return "".join(out)
+    first, *rest = page.split(FIGURE_SLOT)
+    return first + "".join(f"{i // 2 + 1}{part}" for i, part in enumerate(rest))  # two marks a figure: id, caption
 
 
 def table_html(head: Sequence[str], rows: Sequence[Sequence[str]], *, numeric: Sequence[int] = (), caption: str = "",

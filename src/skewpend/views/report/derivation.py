@@ -75,20 +75,10 @@ def forces_text(p: Parameters) -> str:
     return f"$Q_i = {terms}$ ({' and '.join(_ROLE_TEXT[r][0] for r in forcing)})"
 
 
-def _symbolic_model(p: Parameters) -> Tuple[Parameters, bool]:
-    """The model the derivation is shown for, and whether it is symbolic: the specification's
-    thin rods with every scalar symbolic (the optional terms -- damping, torques, Coulomb friction,
-    the rotors -- symbolic where the report's are on, else at their defaults); general bodies and
-    axes with the report's values."""
-    if p.is_thin_rods:
-        return Parameters(**_optional_symbolic(p)), True
-    return p, False
-
-
 _P1, _P = r"\underline{\underline{P}}_1", r"\underline{\underline{P}}"
 
 
-def _step_items(p: Parameters, symbolic: bool, steps: Dict) -> List[Tuple[str, str]]:
+def _step_items(p: Parameters, steps: Dict) -> List[Tuple[str, str]]:
     """(title, html) of each step of the derivation, in the specification's order."""
     from ...symbolic.render import LATEX_LABELS as L
 
@@ -189,7 +179,10 @@ def section_derivation(ctx: Context) -> str:
     from ...symbolic.display import display_steps
 
     p = ctx.params
-    model, symbolic = _symbolic_model(p)
+    # the specification's thin rods are shown with every scalar symbolic (the optional terms symbolic where the
+    # report's are on, else at their defaults); general bodies and axes with the report's values
+    symbolic = p.is_thin_rods
+    model = Parameters(**_optional_symbolic(p)) if symbolic else p
     eom = derive(model)
     if symbolic:
         steps = display_steps(eom.steps)
@@ -211,16 +204,15 @@ def section_derivation(ctx: Context) -> str:
             "<p>The derivation follows the specification (rotation tensors by Rodrigues' formula, Lagrange's equations) "
             "for the bodies and axes of section 1, with their values; numbers are rounded to 4 significant digits.</p>"
         ))
-    items = _step_items(model, symbolic, steps)
+    items = _step_items(model, steps)
     out.append('<ol class="steps">' + "".join(
         f'<li><p class="step-title">{esc(title)}</p>{body}</li>' for title, body in items) + "</ol>")
-    tex = tex_of  # the steps are in display form (symbolic) or rounded (numbers) already
     out.append("<h3>The equations of motion</h3>")
     if equations_fit(steps["M"]):
         out.append("<p>Written out, the nonlinear equations of motion are</p>")
     else:
         out.append(prose(r"<p>The nonlinear equations of motion, with the entries $M_{mn}$ and $f_m$ of step 9, are</p>"))
-    out.append(display_math(equations_tex(steps["M"], steps["f"], tex)))
+    out.append(display_math(equations_tex(steps["M"], steps["f"], tex_of)))  # in display form or rounded already
     try:
         lin = eom.linearize()
     except SkewpendError as exc:
@@ -229,7 +221,7 @@ def section_derivation(ctx: Context) -> str:
         out.append(prose(
             r"<p>Linearised about the hanging position ($\varphi, \psi$ and their speeds small, first-order terms "
             r"kept), $M_0\,\ddot q + C_0\,\dot q + K_0\,q = 0$:</p>"))
-        out.append(display_math(linear_tex(lin if symbolic else rounded_linear(lin, 4), tex)))
+        out.append(display_math(linear_tex(lin if symbolic else rounded_linear(lin, 4), tex_of)))
     if symbolic:
         eom_n = derive(p)
         out.append("<h3>With the values of section 1</h3>")

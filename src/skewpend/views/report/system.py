@@ -47,24 +47,19 @@ def table_scalars(p: Parameters) -> List[str]:
 def _parameter_rows(p: Parameters) -> List[List[str]]:
     """The table's rows of a model that answers the schema's names: each name's symbol, meaning, value and unit."""
     rows = []
-    for name in table_scalars(p):
-        value = getattr(p, name)
-        unit = schema.unit(name)
-        if value is not None and schema.field(name).bound == "angle":
-            shown, unit = f"{fmt_deg(value)} = {fmt_num(value)} rad", ""
-        else:
+    for name in table_scalars(p) + list(schema.GEOMETRY_NAMES):
+        value, unit, field = getattr(p, name), schema.unit(name), schema.field(name)
+        if name not in schema.GEOMETRY_NAMES:
             shown = fmt_num(value)
-        rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown, _unit(unit)])
-    for name in schema.GEOMETRY_NAMES:
-        value = getattr(p, name)
-        if value is None:
+            if value is not None and field.bound == "angle":
+                shown, unit = f"{fmt_deg(value)} = {fmt_num(value)} rad", ""
+        elif value is None:
             shown = f'<span class="note">default: {esc(schema.default_text(name))}</span>'
-        elif schema.field(name).kind == "inertia":
+        elif field.kind == "inertia":
             shown = "<br>".join(_vec_text(r) for r in value)
         else:
             shown = _vec_text(value) + (" (unit vector)" if name in schema.AXIS_NAMES else "")
-        rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown,
-                     _unit(schema.unit(name))])
+        rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown, _unit(unit)])
     return rows
 
 
@@ -123,11 +118,16 @@ def still_png(tr) -> bytes:
         r.close()
 
 
+def rate_tex(c: str) -> str:
+    r"""A coordinate's rate in TeX: ``\dot\varphi``, ``\dot q_{3}``."""
+    t = tex(c)
+    return r"\dot" + ("" if t.startswith("\\") else " ") + t
+
+
 def start_tex(c: str, dot: bool = False) -> str:
     r"""A coordinate's value (``dot``: its rate's) at the start, in TeX: ``\varphi_0``, ``\dot\varphi_0``,
     ``q_{3}(0)``, ``\dot q_{3}(0)``."""
-    t = tex(c)
-    return ((r"\dot" + ("" if t.startswith("\\") else " ")) if dot else "") + t + ("(0)" if "_" in t else "_0")
+    return (rate_tex(c) if dot else tex(c)) + ("(0)" if "_" in tex(c) else "_0")
 
 
 def section_system(ctx: Context) -> str:
@@ -174,10 +174,9 @@ def section_system(ctx: Context) -> str:
                  "each hinge's axis is given in the frame of the link that carries it, with the chain hanging — the "
                  "specification's two skewed hinges generalised to a chain of any length. Find the equations of motion — "
                  "and what they predict.</p>")
-    if n <= 3:
+    if n <= 3:  # (a report draws two links or more)
         names = [f"${s}$ (hinge {k})" for k, s in enumerate(sym, 1)]
-        coords = (" and ".join(names) if n <= 2 else ", ".join(names[:-1]) + " and " + names[-1])
-        coords += f", {'all' if n > 2 else 'both'} zero with the rods hanging"
+        coords = ", ".join(names[:-1]) + " and " + names[-1] + f", {'all' if n > 2 else 'both'} zero with the rods hanging"
     else:
         coords = (r"$q_1, \dots, q_n$ — $q_i$ the turn of link $i$ relative to link $i - 1$ — all zero with the chain "
                   "hanging")
@@ -341,9 +340,8 @@ def section_simulation(ctx: Context) -> str:
     coords = p.coordinates  # the double pendulum's phi, psi; a chain's q1 … qn (its report: views.report.chain)
     sym = [tex(c) for c in coords]
     dt_out = max(FIGURE_DT, ctx.t_end / FIGURE_MAX_ROWS)
-    kw: Dict[str, object] = dict(method=ctx.method, rtol=ctx.rtol, atol=ctx.atol, dt=ctx.dt)
-    if ctx.max_steps is not None:
-        kw["max_steps"] = int(ctx.max_steps)
+    steps_kw = {"max_steps": int(ctx.max_steps)} if ctx.max_steps is not None else {}
+    kw: Dict[str, object] = dict(method=ctx.method, rtol=ctx.rtol, atol=ctx.atol, dt=ctx.dt, **steps_kw)
     if ctx.method in ("rk4", "gauss"):  # rows on the integrator's fixed step grid
         step = ctx.dt if ctx.dt is not None else 1e-3
         dt_out = max(step, round(dt_out / step) * step)
@@ -402,9 +400,8 @@ def section_simulation(ctx: Context) -> str:
     t0 = time.perf_counter()
     frame = 1.0 / ctx.fps
     clip_t = max(frame, math.floor(ctx.clip_seconds / frame + 1e-9) * frame)
-    clip_kw = {"max_steps": int(ctx.max_steps)} if ctx.max_steps is not None else {}
     detail("the live view's frames")
-    ctx.clip = clip = simulate(p, y0, clip_t, dt_out=frame, method="dop853", **clip_kw)
+    ctx.clip = clip = simulate(p, y0, clip_t, dt_out=frame, method="dop853", **steps_kw)
     ctx.live = replay_data(clip)
     ctx.timings["simulation: live view"] = time.perf_counter() - t0
     ctx.notes["clip"] = (f"{fmt_num(clip.t[-1])} s of motion, {clip.t.size} frames at {ctx.fps:g} per second, "
