@@ -690,7 +690,15 @@ class Tracking:
         """The torques at the DFKI state ``x = (q1, q2, q1', q2')`` (a chain's ``2 n`` entries) and time ``t``
         [s] (their convention is skewpend's: q2 relative to rod 1, zero hanging).  ``t`` is required: the law
         varies along the motion (the lab's ``Simulator`` passes it)."""
-        return self(_time_argument(t), _state_argument(x, len(self.goal)))
+        t, size = _time_argument(t), len(self.goal)
+        try:
+            a = np.array(x, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            a = None
+        if a is None or a.shape != (size,) or not np.all(np.isfinite(a)):
+            raise ParameterError(f"x must be the state, {size} finite numbers (angles [rad], then speeds [rad/s]), got "
+                                 f"{x!r}")
+        return self(t, a)
 
     def init(self) -> None:
         """The DFKI interface's initialisation: nothing to set up (the law keeps no state between calls)."""
@@ -704,7 +712,9 @@ class Tracking:
         ``controller_tvlqr_reference.csv`` (a row per sample ``k``: ``time = k dt``, the state, the actuated
         joints' torques, the gain's entries ``K<row>_<column>``), written atomically into ``save_dir`` (made if
         missing); the two paths."""
-        directory = _save_directory(save_dir)
+        from ..io import atomic_path
+
+        directory, rows_file = _save_directory(save_dir), "controller_tvlqr_reference.csv"
         steps, n2 = self.x_ref.shape
         n = n2 // 2
         m = len(self.actuated)
@@ -720,14 +730,16 @@ class Tracking:
                           "torques [N m]",
             "law": "u = u_k - K_k (x - x_k) at t = k dt, blended linearly between samples, the goal's LQR "
                    "-K_goal (x - goal) after the last; angle errors wrapped; clipped to the torque limit",
-            "reference": "controller_tvlqr_reference.csv",
+            "reference": rows_file,
         }
         header = (["time"] + [f"pos{j}" for j in range(1, n + 1)] + [f"vel{j}" for j in range(1, n + 1)]
                   + [f"tau{j}" for j in self.actuated]
                   + [f"K{self.actuated[r]}_{c + 1}" for r in range(m) for c in range(n2)])
         rows = np.column_stack([np.arange(steps) * self.dt, self.x_ref, self.u_ref, self.K.reshape(steps, -1)])
-        return _write_yaml(directory / "controller_tvlqr_parameters.yml", entries), _write_table(
-            directory / "controller_tvlqr_reference.csv", header, rows)
+        parameters, table = _write_yaml(directory / "controller_tvlqr_parameters.yml", entries), directory / rows_file
+        with atomic_path(table) as tmp:
+            np.savetxt(tmp, rows, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+        return parameters, table
 
 
 def _time_argument(t) -> float:
@@ -744,18 +756,6 @@ def _time_argument(t) -> float:
     if not math.isfinite(value):
         raise ParameterError(f"t must be a finite time [s], got {t!r}")
     return value
-
-
-def _state_argument(x, size: int) -> np.ndarray:
-    """A state of the DFKI interface: ``size`` finite numbers."""
-    try:
-        a = np.array(x, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        a = None
-    if a is None or a.shape != (size,) or not np.all(np.isfinite(a)):
-        raise ParameterError(f"x must be the state, {size} finite numbers (angles [rad], then speeds [rad/s]), got "
-                             f"{x!r}")
-    return a
 
 
 def _save_directory(save_dir):
@@ -780,14 +780,6 @@ def _write_yaml(path, entries: Dict[str, Any]):
 
     with atomic_path(path) as tmp:  # JSON's scalars, strings and lists are YAML's flow style
         tmp.write_text("".join(f"{k}: {json.dumps(v)}\n" for k, v in entries.items()))
-    return path
-
-
-def _write_table(path, header, rows: np.ndarray):
-    from ..io import atomic_path
-
-    with atomic_path(path) as tmp:
-        np.savetxt(tmp, rows, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
     return path
 
 

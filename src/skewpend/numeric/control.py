@@ -446,22 +446,13 @@ class Controller:
         return d
 
 
-def _interrupt_pending() -> Optional[type]:
-    """The signal an :class:`~skewpend.interrupts.Interrupts` of this process recorded and has not
-    raised yet (its class), if any: a slow Python law must not hold Ctrl-C until the compiled call
-    returns (the check between calls would come only after the whole budget of steps)."""
-    from ..interrupts import Interrupts
-
-    owner = getattr(signal.getsignal(signal.SIGINT), "__self__", None)
-    return owner.pending if isinstance(owner, Interrupts) else None
-
-
 def _python_law(f, errors: list, nq: int = 2):
     """The C callback around ``f(t, x)``: the torques, or NaN (which stops the integration) with
     the exception kept in ``errors`` -- an exception must not cross the C frames.  A Ctrl-C (or
     SIGTERM) recorded by the caller's :class:`~skewpend.interrupts.Interrupts` stops it the same
     way at the next call of the law; the caller's check then raises it."""
     nan = float("nan")
+    from ..interrupts import Interrupts
     from ..schema import count_text
 
     what = f"{count_text(nq, 'torques')} ({', '.join(f'u{r}' for r in range(1, nq + 1))})"
@@ -474,7 +465,10 @@ def _python_law(f, errors: list, nq: int = 2):
         if errors:
             stop(u)
             return
-        pending = _interrupt_pending()
+        # the signal an Interrupts of this process recorded and has not raised yet: a slow Python law must not
+        # hold Ctrl-C until the compiled call returns (the check between calls would come after all its steps)
+        owner = getattr(signal.getsignal(signal.SIGINT), "__self__", None)
+        pending = owner.pending if isinstance(owner, Interrupts) else None
         if pending is not None:
             errors.append(pending())
             stop(u)
