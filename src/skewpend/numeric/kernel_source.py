@@ -90,7 +90,8 @@ def kernel_c_source(geometry: Parameters, *, flip: bool = False, shooting: bool 
     dM_names = [f"dM{k}_{n}" for k in range(2) for n in ("11", "12", "22")]
     out += header("void rhs_jac(const double *y, const double *p, double *dy, double *out)",
                   "dy/dt into dy[5] and its Jacobian d(dy/dt)/dy into out[25], row-major", jac_exprs,
-                  ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + ["dQ1_1", "dQ1_2", "dQ2_1", "dQ2_2", "Q1", "Q2"])
+                  ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names
+                  + ["dQ1_1", "dQ1_2", "dQ2_1", "dQ2_2", "Q1", "Q2"])
     out += solve
     out += [
         f"{I}const double dMs[2][3] = {{{{dM0_11, dM0_12, dM0_22}}, {{dM1_11, dM1_12, dM1_22}}}};",
@@ -192,8 +193,8 @@ def sensitivity_c_source(ex, c: Lang) -> List[str]:
     dfp_names = [f"dfp{k}_{i}" for k in range(len(used)) for i in (1, 2)]
     out = ["/* q'' into acc[2], d q''/d y into A[2 x 4] and d q''/d p into B[2 x SP_NPARAM] (row-major) */",
            "static void rhs_sens(const double *y, const double *p, double *acc, double *A, double *B)", "{"]
-    out += evaluation_lines(c, exprs, ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + dMp_names + dfp_names, I,
-                            names=_STATE)
+    targets = ["M11", "M12", "M22", "f1", "f2"] + df_names + dM_names + dMp_names + dfp_names
+    out += evaluation_lines(c, exprs, targets, I, names=_STATE)
     out += spd_c_lines(I, ["f1", "f2"], ["ddphi", "ddpsi"], M=["M11", "M12", "M22"])
     out += [f"{I}acc[0] = ddphi;", f"{I}acc[1] = ddpsi;"]
     for col in range(4):  # A: one solve a column, with the factors of M

@@ -459,11 +459,10 @@ class Kernel:
         lib.sp_rk4_ctl.argtypes = [cp, sp, ctypes.c_int, dp, d, d, i64, i64, i64, dp, i64, ip]
         lib.sp_inputs_many.argtypes, lib.sp_inputs_many.restype = [cp, dp, i64, i64, dp, dp], None
         lib.sp_control_size.argtypes, lib.sp_control_size.restype = [], i64
-        lib.sp_capture_many.argtypes = [cp, dp, dp, i64, d, d, d, i64, dp, d, dp, ip, ip, ctypes.POINTER(ctypes.c_int8)]
+        i8p, i32p = ctypes.POINTER(ctypes.c_int8), ctypes.POINTER(ctypes.c_int32)
+        lib.sp_capture_many.argtypes = [cp, dp, dp, i64, d, d, d, i64, dp, d, dp, ip, ip, i8p]
         lib.sp_capture_many.restype = None
-        lib.sp_flip_many.argtypes = [dp, dp, i64, d, d, d, i64, dp, ctypes.POINTER(ctypes.c_int32), ip, ip,
-                                     ctypes.POINTER(ctypes.c_int8)]
-        lib.sp_flip_many.restype = None
+        lib.sp_flip_many.argtypes, lib.sp_flip_many.restype = [dp, dp, i64, d, d, d, i64, dp, i32p, ip, ip, i8p], None
         lib.sp_rhs_ctl_many.argtypes, lib.sp_rhs_ctl_many.restype = [cp, dp, i64, i64, dp, dp], None
         lib.sp_rk4_hold.argtypes, lib.sp_rk4_hold.restype = [dp, dp, dp, d, dp], None
         lib.sp_protocol.argtypes, lib.sp_protocol.restype = [cp, dp, dp, i64, d, i64, d, dp, dp, dp, ctypes.c_int32, dp, dp, dp], i64
@@ -474,11 +473,12 @@ class Kernel:
                                 f"{ctypes.sizeof(self.ControlStruct)} bytes)")
         #: the form of the generated code (:data:`FORMS`), said by the loader
         self.form = ""
-        self.flip = flip
+        self.flip, self.chaos, self.shooting = flip, chaos, shooting
+        for on, kind, fn in ((flip, "flip", "sp_flip"), (chaos, "chaos", "sp_lyap"),
+                             (shooting, "shooting", "sp_shoot")):
+            if on and not hasattr(lib, fn):
+                raise CompilerError(f"{path}: not a {kind} kernel (no {fn})")
         if flip:  # the flip kernel: sp_flip, many starts at rest side by side (integrators.c)
-            if not hasattr(lib, "sp_flip"):
-                raise CompilerError(f"{path}: not a flip kernel (no sp_flip)")
-            i32p = ctypes.POINTER(ctypes.c_int32)
             lib.sp_flip.argtypes = [ctypes.c_void_p, dp, dp, i64, d, d, d, i64, i64, dp, i32p, ip, ip]
             lib.sp_flip.restype = ctypes.c_int
             lib.sp_flip_layout.argtypes, lib.sp_flip_layout.restype = [ctypes.POINTER(i64)], None
@@ -488,17 +488,12 @@ class Kernel:
             layout = (i64 * 3)()
             lib.sp_flip_layout(layout)
             self.flip_ws_size, self.flip_lanes, self.flip_odd = int(layout[0]), int(layout[1]), bool(layout[2])
-        self.chaos = chaos
         if chaos:  # the chaos kernel: Lyapunov exponents and Poincare sections (chaos.c)
-            if not hasattr(lib, "sp_lyap"):
-                raise CompilerError(f"{path}: not a chaos kernel (no sp_lyap)")
             #: the resumable Benettin run's mirror for this model's state (2 nq components)
             self.LyapState = lyap_state_type(2 * self.nq)
-            i32p = ctypes.POINTER(ctypes.c_int32)
-            lib.sp_lyap.argtypes = [ctypes.POINTER(self.LyapState), dp, d, d, d, i64, i64, dp, i64, ip]
-            lib.sp_lyap.restype = ctypes.c_int
-            lib.sp_flow.argtypes = [ctypes.POINTER(self.LyapState), dp, d, d, d, i64, i64]
-            lib.sp_flow.restype = ctypes.c_int
+            lp = ctypes.POINTER(self.LyapState)
+            lib.sp_lyap.argtypes, lib.sp_lyap.restype = [lp, dp, d, d, d, i64, i64, dp, i64, ip], ctypes.c_int
+            lib.sp_flow.argtypes, lib.sp_flow.restype = [lp, dp, d, d, d, i64, i64], ctypes.c_int
             lib.sp_lyap1_many.argtypes = [dp, dp, i64, d, d, i64, d, d, i64, dp, i32p, ip, ip]
             lib.sp_lyap1_many.restype = None
             if hasattr(lib, "sp_section"):  # Poincare sections: the double pendulum's only (two-dimensional)
@@ -508,12 +503,8 @@ class Kernel:
             lib.sp_lyap_state_size.argtypes, lib.sp_lyap_state_size.restype = [], i64
             if lib.sp_lyap_state_size() != ctypes.sizeof(self.LyapState):
                 raise CompilerError(f"{path}: Lyapunov state layout mismatch")
-        self.shooting = shooting
         if shooting:  # multiple shooting: RK4 with parameter sensitivities (shooting.c)
-            if not hasattr(lib, "sp_shoot"):
-                raise CompilerError(f"{path}: not a shooting kernel (no sp_shoot)")
-            lib.sp_shoot.argtypes = [dp, dp, i64, i64, i64, d, dp, dp, dp, dp]
-            lib.sp_shoot.restype = ctypes.c_int
+            lib.sp_shoot.argtypes, lib.sp_shoot.restype = [dp, dp, i64, i64, i64, d, dp, dp, dp, dp], ctypes.c_int
             lib.sp_rhs_sens.argtypes, lib.sp_rhs_sens.restype = [dp, dp, dp, dp, dp], None
         if lib.sp_state_size() != ctypes.sizeof(self.State):
             raise CompilerError(f"{path}: integrator state layout mismatch ({lib.sp_state_size()} != "
@@ -709,7 +700,8 @@ def _fallback_directory(directory: Path, exc: OSError) -> Path:
     fallback = Path(tempfile.mkdtemp(prefix="skewpend-kernels-"))
     atexit.register(shutil.rmtree, fallback, ignore_errors=True)
     warnings.warn(f"cannot write the kernel cache {directory} ({exc.strerror or exc}); using {fallback} for this run "
-                  "(set SKEWPEND_CACHE_DIR to a writable directory to keep compiled kernels)", RuntimeWarning, stacklevel=4)
+                  "(set SKEWPEND_CACHE_DIR to a writable directory to keep compiled kernels)", RuntimeWarning,
+                  stacklevel=4)
     return fallback
 
 
@@ -882,10 +874,10 @@ def chain_kernel(chain, form: str = "", *, shooting: bool = False, chaos: bool =
     return kernel
 
 
-#: The forms of a model's generated code (an argument of one pipeline, not the model's type): ``exact``, the specification's derivation (SymPy; two links the double pendulum's parameters hold:
-#: there the fastest -- a 20 s DOP853 run at 1e-10 takes 9.58e6 instructions, the straight form 1.53x, the
-#: compact 2.70x); ``straight`` and ``compact``, the recursive algorithms (any chain; ``recursive.chain_form``
-#: picks by the length).
+#: The forms of a model's generated code (an argument of one pipeline, not the model's type): ``exact``, the
+#: specification's derivation (SymPy; two links the double pendulum's parameters hold: there the fastest -- a
+#: 20 s DOP853 run at 1e-10 takes 9.58e6 instructions, the straight form 1.53x, the compact 2.70x); ``straight``
+#: and ``compact``, the recursive algorithms (any chain; ``recursive.chain_form`` picks by the length).
 FORMS = ("exact", "straight", "compact")
 
 

@@ -209,6 +209,10 @@ class _Graph:
             self.v.append(v_o + _cross(ca, omega, self.c[i] - self.o[i]))
             o_prev = self.o[i]
 
+    def equations(self):
+        """``(M, Q, bias)``: ``M(q) q'' = Q - bias`` (:meth:`mass_matrix`, :meth:`joint_forces`, :meth:`bias`)."""
+        return self.mass_matrix(), self.joint_forces(), self.bias()
+
     # -- the mass matrix: composite rigid bodies ----------------------------------------------------------
     def mass_matrix(self):
         ca, n = self.ca, self.n
@@ -378,9 +382,7 @@ def chain_functions(structure: ChainStructure) -> Dict[str, object]:
     G = _Graph(structure)
     n = G.n
     y = ca.vertcat(G.q, G.dq)
-    M = G.mass_matrix()
-    Q = G.joint_forces()
-    b = G.bias()
+    M, Q, b = G.equations()
     f = [Q[i] - b[i] for i in range(n)]
     T, Pi = G.kinetic_energy(), G.potential_energy()
     fns = {
@@ -620,9 +622,7 @@ def _sensitivity_functions(structure: ChainStructure):
     n = G.n
     y = ca.vertcat(G.q, G.dq)
     a = ca.SX.sym("a", n)
-    M = G.mass_matrix()
-    Q = G.joint_forces()
-    b = G.bias()
+    M, Q, b = G.equations()
     r = ca.vertcat(*[Q[i] - b[i] - sum((M[i][j] * a[j] for j in range(n)), ca.SX(0)) for i in range(n)])
     return (ca.Function("sens_y", [y, a, G.p], [ca.densify(ca.jacobian(r, y))]),
             ca.Function("sens_p", [y, a, G.p], [ca.densify(ca.jacobian(r, G.p))]))
@@ -773,9 +773,7 @@ def regressor_function(structure: ChainStructure):
         for stem in ("c", "cf", "Ir"):
             if f"{stem}{i}" in at:
                 new[pnames.index(f"{stem}{i}")] = at[f"{stem}{i}"]
-    M = G.mass_matrix()
-    Q = G.joint_forces()
-    b = G.bias()
+    M, Q, b = G.equations()
     r = ca.vertcat(*[sum((M[i][j] * a[j] for j in range(n)), ca.SX(0)) + b[i] - Q[i] for i in range(n)])
     r = ca.substitute(r, G.p, ca.vertcat(*new))
     return ca.Function("regressor", [y, a, G.p, pi], [ca.densify(ca.jacobian(r, pi))])
@@ -873,11 +871,12 @@ def compact_functions(friction: bool) -> Dict[str, object]:
     v0p = s["vo"] - _cross(ca, wp, s["o"])  # the parent's twist at the origin: (wp, v0p)
     state = ca.vertcat(R.T.reshape((9, 1)), o, w, vo, al, ao, y0)
     JO = _entries6(ca, Iw + m * (ca.dot(c, c) * ca.SX.eye(3) - ca.mtimes(c, c.T)))  # the inertia about the origin
-    body = ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c, JO, pl, _cross(ca, c, pl) + Iww, (m * ca.dot(vc, vc) + ca.dot(w, Iww)) / 2,
-                      -g * m * (c[1] - (y0 + L["ry"])), Q, _cross(ca, wp, a), _cross(ca, wp, oa) + _cross(ca, v0p, a), o,
-                      o + R[:, 1] * L["l"])
+    body = ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c, JO, pl, _cross(ca, c, pl) + Iww,
+                      (m * ca.dot(vc, vc) + ca.dot(w, Iww)) / 2, -g * m * (c[1] - (y0 + L["ry"])), Q, _cross(ca, wp, a),
+                      _cross(ca, wp, oa) + _cross(ca, v0p, a), o, o + R[:, 1] * L["l"])
     fwd = ca.Function("fwd", [S, Lp, e, q, dq, g, cfs], [state, body])
-    fwd_r = ca.Function("fwd_r", [S, Lp, e, q, dq, g, cfs], [state, ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c, JO, Q)])
+    body_r = ca.vertcat(a, oa, F, N + _cross(ca, c, F), m, m * c, JO, Q)
+    fwd_r = ca.Function("fwd_r", [S, Lp, e, q, dq, g, cfs], [state, body_r])
     C = ca.SX.sym("C", _size(_COMPOSITE))
     B = ca.SX.sym("B", _size(_BODY))
     cc, b = _split(ca, C, _COMPOSITE), _split(ca, B, _BODY)
@@ -1045,10 +1044,8 @@ def _linear_function(structure: ChainStructure):
     ca = _ca()
     G = _Graph(structure)
     n = G.n
-    M = G.mass_matrix()
-    b = ca.vertcat(*G.bias())
-    Q = ca.vertcat(*G.joint_forces())
-    f = Q - b
+    M, Q, b = G.equations()
+    f = ca.vertcat(*Q) - ca.vertcat(*b)
     Mm = ca.vertcat(*[ca.horzcat(*row) for row in M])
     outs = [Mm, ca.jacobian(f, G.q), ca.jacobian(f, G.dq), f]
     outs = [ca.substitute(x, ca.vertcat(G.q, G.dq), ca.DM.zeros(2 * n)) for x in outs]

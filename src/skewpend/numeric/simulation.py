@@ -566,7 +566,8 @@ def simulate(
             raise ParameterError(f"controller must be a skewpend Controller (feedback, swing-up, a table or a Python "
                                  f"function: Controller.function), got {controller!r}")
         controller.check_model(len(coordinates))
-        why = {"gauss": "gauss integrates Hamilton's equations of", "taylor": "taylor's series are generated for"}.get(method)
+        why = {"gauss": "gauss integrates Hamilton's equations of",
+               "taylor": "taylor's series are generated for"}.get(method)
         if why is not None:
             raise ParameterError(f"inputs that vary need dop853 or rk4 ({why} the model with constant torques)")
     if progress is not None:

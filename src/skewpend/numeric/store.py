@@ -220,8 +220,8 @@ class RowStore:
                     if extra is None:
                         raise ValueError(f"array {name} has the extra dimension, but none is given")
                     more = (len(extra[1]),)
-                _create_array(zarr, group, name, shape=(rows, cols, *more), chunks=(chunk_rows, cols, *more), dtype=dtype,
-                              fill_value=fill, dims=(*dims, extra[0]) if more else dims, attrs=a)
+                _create_array(zarr, group, name, shape=(rows, cols, *more), chunks=(chunk_rows, cols, *more),
+                              dtype=dtype, fill_value=fill, dims=(*dims, extra[0]) if more else dims, attrs=a)
             if extra is not None:
                 values = np.asarray(extra[1], dtype=np.float64)
                 _create_array(zarr, group, extra[0], shape=values.shape, chunks=values.shape, dtype="float64",

@@ -345,7 +345,7 @@ def _horner(exprs, gens, protect=()):
     split greedily as ``g * Q + R`` by the generator ``g`` in the most of its terms (then ``Q`` and
     ``R`` so), every factor ``Q`` made monic (its constant term, else its first term, 1: a constant
     times it outside), so that the same factor in two expressions is one series (``phi' (1 + r cos
-    psi)`` in both f's of issue 3's rods).  ``protect``: monomials (exponent tuples over ``gens``)
+    psi)`` in both f's of thin rods).  ``protect``: monomials (exponent tuples over ``gens``)
     taken as one generator of their own first, e.g. ``sin(phi) cos(psi)`` when two expressions have
     it.  Raises sympy's PolynomialError for an expression that is not such a polynomial."""
     syms = [sp.Dummy(f"g{i}") for i in range(len(gens))]
@@ -475,29 +475,24 @@ def _val(v, k: int) -> str:
 
 #: Up to this order every sum is written out; above it, sums of more than :data:`INLINE_TERMS`
 #: terms are loops with fixed bounds: a taylor_jet written out entirely outgrows the instruction
-#: cache from order 17 (measured, us a step written out / with loops: order 15 0.60 / 0.78, order 17
-#: 1.52 / 0.94, order 19 2.05 / 1.26).
+#: cache from order 17 (measured: 1.52 against 0.94 us a step at order 17).
 INLINE_ORDER = 16
 INLINE_TERMS = 8
 #: Partial sums per long sum: its terms j = lo, lo + 2, ... and lo + 1, lo + 3, ... added in two chains,
-#: then the two together -- two additions in flight instead of one long dependent chain (measured, ms
-#: for issue 3's 20 s, one chain / two: order 6 0.119 / 0.115, 10 0.193 / 0.178, 13 0.302 / 0.278, 16
-#: 0.413 / 0.376, 17 0.572 / 0.519, 20 0.727 / 0.624; three or four chains were slower than two).  A
-#: fixed order written in the C: the same bits on every machine.
-LANES = 2
-#: The two partial sums of a long sum are the two lanes of a vector of two doubles (GNU C vector
-#: extensions: SSE2 on x86-64; the same additions in the same order as two scalar chains, so the same
-#: bits, with half the loads and arithmetic instructions); sums of 2-3 terms stay scalar (with fused
+#: then the two together -- two additions in flight instead of one long dependent chain (measured 3-14 %
+#: quicker at orders 6-20; three or four chains were slower than two).  A fixed order written in the C:
+#: the same bits on every machine.  The two partial sums are the two lanes of a vector of two doubles (GNU
+#: C vector extensions: SSE2 on x86-64; the same additions in the same order as two scalar chains, so the
+#: same bits, with half the loads and arithmetic instructions); sums of 2-3 terms stay scalar (with fused
 #: multiply-adds a chain of scalar ones is quicker).  The terms with this order's coefficients are added
 #: last (:func:`_reduce`).
+LANES = 2
 #: Whether the series operations are arranged for a short dependency chain an order (the terms of a
 #: sum known first added first; a constant factor put on the factor of a product known first; the
 #: factors known first multiplied first): the evaluation at low orders is bound by that chain.
 SHORT_PATH = True
-#: ... up to this order (above it the series products dominate: the form with fewest is taken; measured,
-#: ms for issue 3's 20 s without / with: order 7 0.111 / 0.106, 10 0.149 / 0.147, 11 0.167 / 0.164,
-#: 12 0.174 / 0.169, 13 0.197 / 0.209, 16 0.282 / 0.295); with fused multiply-adds the fewest products
-#: win from order 11 on (bare C call, A/B of 1,500 pairs, to 10 from 12: 0.989x at order 11, 0.985x at 12).
+#: ... up to this order: above it the series products dominate, and the form with fewest is taken (with
+#: fused multiply-adds the fewest products win from order 11 on, measured).
 SHORT_PATH_MAX_ORDER = 10
 _short_path = SHORT_PATH
 _inline_terms = INLINE_TERMS
@@ -507,7 +502,7 @@ _inline_terms = INLINE_TERMS
 #: reversed, ``p[1], p[0]`` (the second factor of a Cauchy product runs backwards), and the fused
 #: multiply-adds ``SP_FMA`` and ``sp_fma2`` (two lanes).  Every product of the series is fused with the
 #: addition that follows it (:func:`_chain`): about 10 % less time a step than a product and a sum
-#: (measured at orders 8-15 on issue 3's case), written as ``fma`` calls, never left to the compiler's
+#: (measured at orders 8-15), written as ``fma`` calls, never left to the compiler's
 #: contraction (which differs between compilers).  ``fma`` is correctly rounded, so the processor's
 #: instruction (-mfma, :func:`skewpend.numeric.kernels.fused_multiply_add`) and the C library's routine
 #: give the same bits; a processor without the instruction gets a product and a sum (``SP_FUSED`` 0).
@@ -836,10 +831,6 @@ def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str
     _RANK.clear()
     _RANK.update(_depths(g.ops))
     Mp, fs = main[:nM], main[nM:]
-
-    def m_at(i: int, j: int):
-        return Mp[max(i, j) * (max(i, j) + 1) // 2 + min(i, j)]
-
     cost = g.cost
     # the energy T + Pi at order 0 only (the rows' energy account: sin/cos of the angles shared with
     # the series), its operations after those of the main block and of W
@@ -900,7 +891,7 @@ def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str
         else:
             lines = []
         for i in range(n):
-            series = [(m_at(i, j), acc[j]) for j in range(n) if m_at(i, j)[0] == "s"]
+            series = [(_m_at(Mp, i, j), acc[j]) for j in range(n) if _m_at(Mp, i, j)[0] == "s"]
 
             def term(j, series=series):
                 return [(f"{m[1]}[{j}]", f"{q}[{_sub(k, j)}]") for m, q in series]
@@ -958,12 +949,14 @@ def taylor_c_source(system: SeriesSystem, order: int, fused: bool = True) -> str
     return "\n".join(out) + "\n" + driver
 
 
+def _m_at(Mp, i: int, j: int):
+    """Entry ``(i, j)`` of the symmetric M from its packed lower triangle ``Mp``."""
+    return Mp[max(i, j) * (max(i, j) + 1) // 2 + min(i, j)]
+
+
 def _looped_jet(g, n: int, n_main: int, n_work: int, Mp, fs, work, energy, inv_names, acc, I: str) -> List[str]:
     """The body of ``taylor_jet`` as one loop over the orders ``k`` (:data:`LOOP_FROM_OPS`); the declarations
     before it are :func:`taylor_c_source`'s."""
-    def m_at(i: int, j: int):
-        return Mp[max(i, j) * (max(i, j) + 1) // 2 + min(i, j)]
-
     lines = [f"{I}double {', '.join(inv_names)};", f"{I}for (int k = 0; k < SP_TORDER; k++) {{"]
     J = I + "    "
     for op in g.ops[:n_main]:
@@ -980,7 +973,7 @@ def _looped_jet(g, n: int, n_main: int, n_work: int, Mp, fs, work, energy, inv_n
     r = [f"r{i + 1}" for i in range(n)]
     lines.append(f"{J}double {', '.join(r)};")
     for i in range(n):
-        pairs = [(f"{m_at(i, l)[1]}[j]", f"{acc[l]}[k - j]") for l in range(n) if m_at(i, l)[0] == "s"]
+        pairs = [(f"{_m_at(Mp, i, l)[1]}[j]", f"{acc[l]}[k - j]") for l in range(n) if _m_at(Mp, i, l)[0] == "s"]
         lines += ([J + ln for ln in _loop_sum(r[i], pairs, "1", "k", _loop_val(fs[i], "k"), "-")]
                   if pairs else [f"{J}{r[i]} = {_loop_val(fs[i], 'k')};"])
     lines += [f"{J}{t} = {e};" for t, e in spd_mul_steps(inv_names, r, [f"{a}[k]" for a in acc], fused=True)]

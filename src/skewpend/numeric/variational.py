@@ -54,12 +54,8 @@ class FlowIntegrator:
         n2 = 2 * self.kernel.nq
         state = self.kernel.LyapState()
         state.k, state.every, state.t0 = n2, 1.0, 0.0
-        y0 = np.asarray(y0, dtype=float)
-        for i in range(n2):
-            state.y[i] = float(y0[i])
-        for j in range(n2):
-            for r in range(n2):
-                state.y[n2 + n2 * j + r] = 1.0 if r == j else 0.0
+        # the state, then V(0) = I (column j at n2 + n2 j)
+        state.y[:n2 * (n2 + 1)] = [*np.asarray(y0, dtype=float)[:n2].tolist(), *np.eye(n2).ravel().tolist()]
         dp = ctypes.POINTER(ctypes.c_double)
         args = (ctypes.byref(state), self.p.ctypes.data_as(dp), float(t), self.rtol, self.atol, self.max_steps)
         status = drive(lambda budget: self.kernel.lib.sp_flow(*args, budget), budget=_BUDGET, check=check,
