@@ -703,8 +703,7 @@ class FlipJob(PlaneJob):
         kernel, p, integrator = state
         n = self.n
         total = n * n
-        xs = cell_centres(*self.x_range, n)
-        ys = cell_centres(*self.y_range, n)
+        xs, ys = (values for values, _ in self.coords().values())
         rows = np.asarray(rows, dtype=np.int64)
         ids = (rows[:, None] * n + np.arange(n, dtype=np.int64)[None, :]).ravel()
         reps = ids[ids <= total - 1 - ids] if self.symmetric else ids

@@ -438,10 +438,8 @@ def lyapunov(
     filled = win_time > 0
     win_exp = np.where(filled[:, None], win_sum / np.where(filled, win_time, 1.0)[:, None], np.nan)
     n_filled = int(np.count_nonzero(filled))
-    if n_filled >= 2:
-        uncertainty = np.nanstd(win_exp[filled], axis=0, ddof=1) / math.sqrt(n_filled)
-    else:
-        uncertainty = np.full(k, np.nan)
+    uncertainty = (np.nanstd(win_exp[filled], axis=0, ddof=1) / math.sqrt(n_filled) if n_filled >= 2
+                   else np.full(k, np.nan))
     message = "reached t_end" if status == 0 else f"stopped at t = {t_reached:.6g} s: {_STATUS.get(status, f'status {status}')}"
     check = {"halves_sigma": math.nan, "von_neumann_sigma": math.nan}
     if status == 0 and span > 0 and n_filled >= MIN_WINDOWS and np.all(np.isfinite(win_exp)):

@@ -380,10 +380,7 @@ def read_poincare_section(path, variables, attrs) -> PoincareSection:
     c = 0 if name == "phi" else 1
     o = 1 - c
     other = ("psi", "phi")[c]
-    q = np.asarray(variables[other], dtype=float)
-    p = np.asarray(variables[f"p_{other}"], dtype=float)
-    dq = np.asarray(variables[f"d{other}"], dtype=float)
-    error = np.asarray(variables["energy_error"], dtype=float)
+    q, p, dq, error = (np.asarray(variables[k], dtype=float) for k in (other, f"p_{other}", f"d{other}", "energy_error"))
     # the full states: the section joint at the section (its angle wrapped), its speed from the
     # other joint's momentum p = M_oc q_c' + M_oo q_o' (or, where M_oc vanishes, from the energy)
     kernel = kernel_module(params, chaos=True)
