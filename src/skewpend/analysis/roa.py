@@ -14,8 +14,9 @@ the saturated nonlinear loop, so a start that gets there is captured) -- its *ca
 or until ``t_end``.  A start entering the estimate is captured (the estimate is an inner bound);
 one that does not by ``t_end`` is counted as not captured (it may be captured later, or never).
 
-The map is a :class:`RoaJob` on the grid driver (:func:`skewpend.numeric.grid.run_grid`), as the flip
-map: bitwise the same result whatever the chunking, the workers or a resume (each start's arithmetic is its own).
+The map is a :class:`RoaJob` on the grid driver (:func:`skewpend.numeric.grid.run_grid`), as the flip map:
+bitwise the same result whatever the chunking, the workers or a resume after kill -9 (each start's arithmetic
+is its own).
 
 The feedback wraps the angle errors to (-pi, pi]: the law jumps where an angle is opposite its
 target (the hanging position, for an upright target).  A trajectory that lingers there can chatter
