@@ -246,33 +246,25 @@ class Disturbance:
             raise ParameterError(f"responsiveness must be a positive number (1: the motor follows at once), got {r!r}")
 
 
-def _same_actuation(designed, joints, n: int) -> None:
-    """Refuse running a law designed for other motors than the protocol's ``actuated`` (an acrobot's law scored
-    as a pendubot's would be scored for torques its design never planned)."""
-    from ..numeric.control import actuation_mask
-
-    mask = actuation_mask(designed if isinstance(designed, str) else tuple(designed), n)
-    if mask != actuation_mask(tuple(joints), n):
-        def named(bits):
-            return ", ".join(str(j + 1) for j in range(n) if bits >> j & 1)
-
-        raise ParameterError(f"actuated ({named(actuation_mask(tuple(joints), n))}) must be the joints the law was "
-                             f"designed for ({named(mask)}): a law for other motors is not this robot's")
-
-
 def _compiled_law(law, joints, umax: float, n: int):
     """``law`` as a compiled :class:`~skewpend.Controller` with the protocol's actuated joints and limit: a
     :class:`~skewpend.analysis.trajopt.Tracking` (or anything with ``controller()``) compiled, a
     Controller as given, a Python ``law(t, x)`` on the slow path."""
     from dataclasses import replace
 
-    from ..numeric.control import Controller, torque_limits
+    from ..numeric.control import Controller, actuated_joints, torque_limits
 
     limits = torque_limits(umax, n)
     if isinstance(law, Controller) or callable(getattr(law, "controller", None)):
         compiled = law if isinstance(law, Controller) else law.controller()
         compiled.check_model(n)
-        _same_actuation(getattr(law, "actuated", compiled.actuated), joints, n)
+        # a law designed for other motors than the protocol's is refused (an acrobot's law scored as a pendubot's
+        # would be scored for torques its design never planned)
+        designed = getattr(law, "actuated", compiled.actuated)
+        designed = actuated_joints(designed if isinstance(designed, str) else tuple(designed), n)
+        if designed != tuple(joints):
+            raise ParameterError(f"actuated ({', '.join(map(str, joints))}) must be the joints the law was designed "
+                                 f"for ({', '.join(map(str, designed))}): a law for other motors is not this robot's")
         return replace(compiled, actuated=tuple(joints), umax=limits)
     if not callable(law):
         raise ParameterError(f"the law must be a callable law(t, x) -> torques, a Tracking or a Controller, got {law!r}")

@@ -505,19 +505,6 @@ def capture_lanes_available(kernel, controller: Controller) -> bool:
     return controller.kind == "feedback" and hasattr(kernel.lib, "sp_capture_lanes")
 
 
-def _bind_capture_lanes(lib) -> None:
-    if getattr(lib, "_sp_capture_lanes_bound", False):
-        return
-    dp, i64 = ctypes.POINTER(ctypes.c_double), ctypes.c_int64
-    d = ctypes.c_double
-    lib.sp_capture_lanes.argtypes = [ctypes.c_void_p, ctypes.c_void_p, dp, dp, i64, d, d, d, i64, dp, d, i64, dp,
-                                     ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int64),
-                                     ctypes.POINTER(ctypes.c_int8)]
-    lib.sp_capture_lanes.restype = ctypes.c_int
-    lib.sp_capture_ws_size.argtypes, lib.sp_capture_ws_size.restype = [], ctypes.c_int64
-    lib._sp_capture_lanes_bound = True
-
-
 #: Steps (of all lanes at once) per call of ``sp_capture_lanes`` between two checks of ``cancel``.
 LANE_BUDGET = 20_000
 
@@ -557,7 +544,13 @@ def capture_many(kernel, p: np.ndarray, controller: Controller, starts: np.ndarr
         i64p, i8p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int8)
         if capture_lanes_available(kernel, controller):
             lib = kernel.lib
-            _bind_capture_lanes(lib)
+            if not getattr(lib, "_sp_capture_lanes_bound", False):
+                d, i64 = ctypes.c_double, ctypes.c_int64
+                lib.sp_capture_lanes.argtypes = [ctypes.c_void_p, ctypes.c_void_p, dp, dp, i64, d, d, d, i64, dp, d,
+                                                 i64, dp, i64p, i64p, i8p]
+                lib.sp_capture_lanes.restype = ctypes.c_int
+                lib.sp_capture_ws_size.argtypes, lib.sp_capture_ws_size.restype = [], ctypes.c_int64
+                lib._sp_capture_lanes_bound = True
             ws = ctypes.create_string_buffer(int(lib.sp_capture_ws_size()))
             while True:
                 if cancel is not None and cancel.is_set():
