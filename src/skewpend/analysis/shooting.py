@@ -416,6 +416,15 @@ STEP_HALF = 0.02
 STALLED = 3
 
 
+def _sandwich(Sred, gred, owner: np.ndarray, n_cl: int):
+    """The undamped Gauss-Newton step, each cluster's reduced gradient (``owner``: each segment's cluster, ``n_cl``
+    of them) and the cluster-robust sandwich covariance ``S^-1 (sum_c g_c g_c^T) S^-1`` (see the module)."""
+    Sinv = np.linalg.inv(Sred.sum(0))
+    gc = np.zeros((n_cl, Sred.shape[1]))
+    np.add.at(gc, owner, gred)
+    return -Sinv @ gred.sum(0), gc, Sinv @ (gc.T @ gc * n_cl / max(n_cl - 1, 1)) @ Sinv
+
+
 def _halves(Hll, Hlg, Hgg, gl, gg, owner: np.ndarray, pieces: int):
     """The undamped Gauss-Newton step from here and the 95 % half-widths of the sandwich over clusters
     (``owner``: each segment's cluster, ``pieces`` of them: the pieces, or blocks of them)
@@ -430,17 +439,12 @@ def _halves(Hll, Hlg, Hgg, gl, gg, owner: np.ndarray, pieces: int):
     if p == 0 or pieces < 2:
         return None
     try:
-        Sred, gred, _, _ = _reduce(Hll, Hlg, Hgg, gl, gg, 0.0)
-        Sinv = np.linalg.inv(Sred.sum(0))
+        step, _, cov = _sandwich(*_reduce(Hll, Hlg, Hgg, gl, gg, 0.0)[:2], owner, pieces)
     except np.linalg.LinAlgError:
         return None
-    step = -Sinv @ gred.sum(0)
-    gc = np.zeros((pieces, p))
-    np.add.at(gc, owner, gred)
-    var = np.diag(Sinv @ (gc.T @ gc * pieces / (pieces - 1)) @ Sinv)
     from ..results import t_quantile
 
-    half = t_quantile(0.975, pieces - 1) * np.sqrt(np.maximum(var, 0.0))
+    half = t_quantile(0.975, pieces - 1) * np.sqrt(np.maximum(np.diag(cov), 0.0))
     if not (np.all(np.isfinite(step)) and np.all(np.isfinite(half)) and np.all(half > 0)):
         return None
     return step, half
@@ -572,14 +576,9 @@ def fit(terms, params0: Parameters, beta0: np.ndarray, free: Sequence[str], alph
     corr = np.full((p, p), np.nan)
     step = np.full(p, np.nan)
     if not flat:
-        Sinv = np.linalg.inv(Ssum)
-        step = -Sinv @ gred.sum(0)
-        gc = np.zeros((n_cl, p))
+        step, gc, cov = _sandwich(Sred, gred, owner, n_cl)
         Sc = np.zeros((n_cl, p, p))
-        np.add.at(gc, owner, gred)
         np.add.at(Sc, owner, Sred)
-        meat = gc.T @ gc * n_cl / max(n_cl - 1, 1)
-        cov = Sinv @ meat @ Sinv
         sand = z * np.sqrt(np.maximum(np.diag(cov), 0))
         d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
         corr = cov / np.outer(d, d)
