@@ -452,10 +452,9 @@ def _check_combinations(kind, which, columns, variables, channels, convention) -
     """Every option takes effect or is refused, before any work."""
     own = {"--which": ("kaheman",), "--columns": ("csv",), "--variables": ("mat",), "--channels": ("mat",),
            "--convention": ("csv", "mat", "dfki")}
-    for flag, value in (("--which", which), ("--columns", columns), ("--variables", variables),
-                        ("--channels", channels), ("--convention", convention)):
-        if value is not None and kind not in own[flag]:
-            raise UsageError(f"{flag} goes with --format {' or '.join(own[flag])}, not {kind}")
+    for (flag, kinds), value in zip(own.items(), (which, columns, variables, channels, convention)):
+        if value is not None and kind not in kinds:
+            raise UsageError(f"{flag} goes with --format {' or '.join(kinds)}, not {kind}")
     if kind == "csv" and columns is None:
         raise UsageError("a CSV file (--format csv) needs --columns t=COLUMN,phi=COLUMN,psi=COLUMN[,dphi=..,dpsi=..][,tau1=..,tau2=..]: "
                          "the columns holding time and the two angles")

@@ -100,9 +100,7 @@ def _describe(m) -> str:
         sources = list(m.metadata.get("sources", ()))
     except AttributeError:
         sources = []
-    src = ""
-    if sources:
-        src = Path(str(sources[0])).name + (f" and {len(sources) - 1} more" if len(sources) > 1 else "")
+    src = Path(str(sources[0])).name + (f" and {len(sources) - 1} more" if len(sources) > 1 else "") if sources else ""
     speeds = "speeds measured" if m.has_velocities else "speeds estimated from the angles"
     torques = "joint torques measured" if m.has_torques else "no torques (a free swing)"
     return (f"{len(m)} piece{'s' if len(m) != 1 else ''}, {m.samples} samples over {m.duration:.4g} s; "
@@ -321,8 +319,7 @@ def _section_use(r) -> str:
     p = r.params
     fitted = esc(parameter_text(p))
     com = ", ".join(f"com{link.index} = ({', '.join(f'{c:.4g}' for c in link.com)}) m" for link in p.as_chain().links)
-    ok = r.ok
-    warn = "" if ok else ('<p class="callout warn">The identification did not succeed, so the model below is the start '
+    warn = "" if r.ok else ('<p class="callout warn">The identification did not succeed, so the model below is the start '
                           "(params0), not a fit.</p>")
     names = list(p.coordinates)
     start = [f"{c}0" for c in names] + [f"d{c}0" for c in names]
