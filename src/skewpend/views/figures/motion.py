@@ -18,10 +18,8 @@ __all__ = ["angles_figure", "phase_figure", "energy_figure", "torus_figure", "ti
 
 def _check(tr) -> None:
     if not getattr(tr, "kept", True):
-        raise ParameterError(
-            "this trajectory kept only its first and last rows (simulate(..., keep=False)); figures need "
-            "every row: simulate with keep=True (the default) to plot it"
-        )
+        raise ParameterError("this trajectory kept only its first and last rows (simulate(..., keep=False)); figures "
+                             "need every row: simulate with keep=True (the default) to plot it")
     if len(tr.t) < 2:
         raise ParameterError(f"a figure needs at least two rows of the trajectory, it has {len(tr.t)}")
 
