@@ -199,8 +199,7 @@ class LQR:
         """``K`` as a 2 x 4 matrix (a chain's: n x 2 n; a row of zeros for a joint without a motor)."""
         n2 = self.linearization.A.shape[0]
         G = np.zeros((n2 // 2, n2))
-        for row, j in enumerate(self.linearization.joints):
-            G[j] = self.K[row]
+        G[list(self.linearization.joints)] = self.K
         return G
 
     def controller(self, umax=None):
