@@ -269,8 +269,7 @@ class Identification(Result):
             lines.append(f"95 % intervals: cluster-robust over {self.intervals_note[len('clusters: '):]}")
         elif self.intervals_note:
             lines.append(self.intervals_note)
-        for u in self.undetermined:
-            lines.append(f"undetermined: {u}")
+        lines += [f"undetermined: {u}" for u in self.undetermined]
         if len(self.fit_rms):
             lines.append(f"output error per fitting piece (angles): median {np.median(self.fit_rms):.4g} rad, "
                          f"max {np.max(self.fit_rms):.4g} rad")
@@ -2103,8 +2102,7 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
             lines.append(f"#   ({_one_line(result.alpha_note)})")
     lines.append(f"# status: {status.name.lower()}: {_one_line(result.message)}"
                  + ("" if status is Status.SUCCESS else " -- written with force=True: NOT a fitted model"))
-    for u in result.undetermined:
-        lines.append(f"# undetermined: {_one_line(u)}")
+    lines += [f"# undetermined: {_one_line(u)}" for u in result.undetermined]
     if "links" in result.params.to_dict():  # the model's own plain data: a chain of links
         from ..config import chain_toml
 
