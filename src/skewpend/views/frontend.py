@@ -490,5 +490,3 @@ def _swap_in(target: Path, staging: Path, site: Path, replaced: List[str], what:
                 with suppress(OSError):
                     os.rename(moved, back)
             raise SkewpendError(f"{what}: cannot write {target}: {exc.strerror or exc}") from None
-
-

@@ -35,8 +35,8 @@ from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, DEFAULT_VIEW, MIN_
                     check_frame_size, check_view, choose_view, eye, frame_scene, plot_to_world, world_to_plot)
 
 __all__ = ["animate", "frame_scene", "FrameScene", "FrameRenderer", "world_to_plot", "plot_to_world", "choose_view",
-           "check_frame_times", "check_output", "SUFFIXES", "DEFAULT_SIZE", "DEFAULT_DPI", "DEFAULT_TRAIL", "DEFAULT_VIEW",
-           "eye"]
+           "check_frame_times", "check_output", "SUFFIXES", "DEFAULT_SIZE", "DEFAULT_DPI", "DEFAULT_TRAIL",
+           "DEFAULT_VIEW", "eye"]
 
 
 def check_frame_times(t, fps: float, speed: float) -> None:
@@ -48,8 +48,9 @@ def check_frame_times(t, fps: float, speed: float) -> None:
     bad = np.nonzero(~(np.abs(t - grid) <= tol))[0]
     if bad.size:
         k = int(bad[0])
-        raise ParameterError(f"the trajectory's rows are not the frame times k*speed/fps = k*{step:.6g} s (fps={fps:g}, "
-                             f"speed={speed:g}): t[{k}] = {t[k]:.9g} s, expected {grid[k]:.9g} s; simulate with dt_out=speed/fps")
+        raise ParameterError(f"the trajectory's rows are not the frame times k*speed/fps = k*{step:.6g} s "
+                             f"(fps={fps:g}, speed={speed:g}): t[{k}] = {t[k]:.9g} s, expected {grid[k]:.9g} s; "
+                             "simulate with dt_out=speed/fps")
 
 
 def check_output(out) -> Path:
@@ -63,8 +64,8 @@ def _ffmpeg():
     try:
         import imageio_ffmpeg
     except ImportError:
-        raise SkewpendError("MP4 output needs the ffmpeg that the imageio-ffmpeg wheel ships: pip install imageio-ffmpeg "
-                            "(a dependency of skewpend); or write a .gif") from None
+        raise SkewpendError("MP4 output needs the ffmpeg that the imageio-ffmpeg wheel ships: pip install "
+                            "imageio-ffmpeg (a dependency of skewpend); or write a .gif") from None
     return imageio_ffmpeg
 
 

@@ -90,7 +90,8 @@ class FrameRenderer:
             from matplotlib.backends.backend_agg import FigureCanvasAgg
             from matplotlib.figure import Figure
         except ImportError:  # pragma: no cover - depends on the installation
-            raise SkewpendError("animations need matplotlib (a dependency of skewpend): pip install matplotlib") from None
+            raise SkewpendError("animations need matplotlib (a dependency of skewpend): "
+                                "pip install matplotlib") from None
         from matplotlib.lines import Line2D
         from matplotlib.ticker import MaxNLocator
         import mpl_toolkits.mplot3d  # noqa: F401  (registers the 3d projection)
@@ -320,7 +321,8 @@ class FrameRenderer:
         pin = 2.6 * r
         parts += [self._visible(*cylinder(C[i] - pin * D[i], C[i] + pin * D[i], 1.45 * r, P[i + 1] - P[i], 1), SCENE_COLORS["pin"])
                   for i in range(n)]
-        _set_facets(self.artists["solids"], np.concatenate([q for q, _ in parts]), np.concatenate([c for _, c in parts]))
+        _set_facets(self.artists["solids"], np.concatenate([q for q, _ in parts]),
+                    np.concatenate([c for _, c in parts]))
 
         # hinge axes: lines through the hinges, arrow heads at the + ends, labels beyond
         heads, head_colors = [], []

@@ -422,4 +422,3 @@ def lyapunov_map_figure(m):
                       loc="upper center", bbox_to_anchor=(0.5, -0.1), frameon=False, borderaxespad=0.0)
         heading(fig, _lyapunov_map_caption(m))
     return fig
-

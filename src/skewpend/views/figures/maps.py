@@ -16,7 +16,8 @@ __all__ = ["FLIPMAP_COLORS", "flipmap_figure", "flipmap_forbidden", "flipmap_ene
 
 #: Colours of the flip-time map: the colour map of the flip times (log scale), the cells that do not
 #: flip by t_end, the cells that energy forbids to flip and the line around them.
-FLIPMAP_COLORS = {"cmap": "viridis_r", "no_flip": "#ffffff", "forbidden": "#d4d4d4", "boundary": "0.35", "mark": "#e4572e"}
+FLIPMAP_COLORS = {"cmap": "viridis_r", "no_flip": "#ffffff", "forbidden": "#d4d4d4", "boundary": "0.35",
+                  "mark": "#e4572e"}
 
 
 def flipmap_energy_margin(fm) -> Optional[np.ndarray]:
