@@ -11,10 +11,7 @@ from ..parsing import UsageError
 from ..progress import stage
 from .simulate import check_plot
 
-__all__ = ["run_leaderboard", "ROBOT_NAMES"]
-
-#: The leaderboard's robots (``--robot``).
-ROBOT_NAMES = ("acrobot", "pendubot")
+__all__ = ["run_leaderboard"]
 
 
 def check_model_options(model: dict, config: Optional[str]) -> float:
