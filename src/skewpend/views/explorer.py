@@ -28,6 +28,7 @@ work is cancelled and the server stops within about a second.
 import asyncio
 import math
 import threading
+from contextlib import suppress
 from functools import lru_cache
 from pathlib import Path
 from typing import Any, Dict, List
@@ -157,11 +158,9 @@ def _host_allowed(value, hosts, port) -> bool:
     if name in hosts and name != "*ip":
         return True
     if "*ip" in hosts:
-        try:
+        with suppress(ValueError):
             ipaddress.ip_address(name)
             return True
-        except ValueError:
-            return False
     return False
 
 
@@ -469,10 +468,8 @@ def check_host(host) -> str:
 
     name = host.strip() if isinstance(host, str) else ""
     bare = name[1:-1] if name.startswith("[") and name.endswith("]") else name
-    try:
+    with suppress(ValueError):
         return str(ipaddress.ip_address(bare))
-    except ValueError:
-        pass
     if not (name and name.isascii() and re.fullmatch(r"[A-Za-z0-9](?:[A-Za-z0-9.-]{0,251}[A-Za-z0-9])?", name)):
         raise ParameterError(f"host: expected an IP address or a host name, got {host!r}", parameter="host")
     return name.lower()
