@@ -1479,10 +1479,16 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
         if np.abs(check[keep] - values[keep]).max() > tol:
             return _oe_failed(lin, "the fitted model does not reproduce the estimated base parameters", settings,
                               t_start)
-    # no model: the estimate and its intervals are reported; the model stays params0
-    status, message = ((Status.NO_CONVERGENCE, unphysical) if fitted is None else
-                       (Status.SUCCESS, "identified (output error, multiple shooting)" + (f"; {realised}" if realised else "")))
-    status, message = _fit_status(sf, status, message)
+    # the realisation's status, unless the fit did not converge or left a direction undetermined; no model: the
+    # estimate and its intervals are reported, the model stays params0
+    status, message = Status.SUCCESS, "identified (output error, multiple shooting)" + (f"; {realised}" if realised else "")
+    if not sf.converged:
+        status, message = Status.NO_CONVERGENCE, f"the output-error fit did not converge: {sf.message}"
+    elif sf.flat:
+        status, message = Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer "
+                                                  "parameters or add excitation")
+    elif fitted is None:
+        status, message = Status.NO_CONVERGENCE, unphysical
     # the claim: the model returned explains the data to their noise, or to a model error small beside the
     # motion (see consistency) -- its own output error; a model constrained to the physical bodies besides
     # misses the angles by no more than the estimate does plus the noise's chi-square allowance
@@ -1697,17 +1703,6 @@ def _ratios(names, values, intervals, ref: str, freed) -> Tuple[Dict[str, float]
     return ratios, iv
 
 
-def _fit_status(sf, status: Status, message: str) -> Tuple[Status, str]:
-    """The status of an output-error fit: the realisation's, unless the fit did not converge or left a
-    direction undetermined."""
-    if not sf.converged:
-        return Status.NO_CONVERGENCE, f"the output-error fit did not converge: {sf.message}"
-    if sf.flat:
-        return Status.NO_CONVERGENCE, (f"the data do not determine {', '.join(sf.flat)}: free fewer parameters or add "
-                                       "excitation")
-    return status, message
-
-
 def _oe_failed(lin: Identification, message: str, settings, t_start) -> Identification:
     stats = dict(lin.stats)
     stats["seconds"] = time.perf_counter() - t_start
@@ -1744,7 +1739,8 @@ def _skew_search(run, sf0, alpha0, bootstrap, seed, say, refree, name: str = "al
     other parameter re-fitted at each grid angle), then, where its minimum is away from alpha0's neighbourhood,
     a fit with it free.  Returns (fit, angle, (lo, hi), note, grid, costs)."""
     start = f"{name}0" if name == "alpha" else f"{name}(params0)"  # the angle's start, in words
-    if name not in run(sf0.beta, alpha0, True, sf0.y0, iterations=0).flat:  # alpha is determined to first order at alpha0: a regular fit with alpha free
+    # alpha determined to first order at alpha0: a regular fit with alpha free
+    if name not in run(sf0.beta, alpha0, True, sf0.y0, iterations=0).flat:
         sf = run(sf0.beta, alpha0, True, sf0.y0, boot=bootstrap)
         if sf.converged and name not in sf.flat:
             h = float(sf.half[-1])

@@ -106,7 +106,8 @@ class Convention:
     time: str = "s"
 
     def __post_init__(self):
-        for key, (a, b) in (("second", ("relative", "absolute")), ("zero", ("hanging", "upright")), ("unit", ("rad", "deg"))):
+        for key, (a, b) in (("second", ("relative", "absolute")), ("zero", ("hanging", "upright")),
+                            ("unit", ("rad", "deg"))):
             if getattr(self, key) not in (a, b):
                 raise ParameterError(f"Convention {key} must be {a!r} or {b!r}, got {getattr(self, key)!r}",
                                      parameter="convention")

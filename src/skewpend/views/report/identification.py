@@ -319,8 +319,8 @@ def _section_use(r) -> str:
     p = r.params
     fitted = esc(parameter_text(p))
     com = ", ".join(f"com{link.index} = ({', '.join(f'{c:.4g}' for c in link.com)}) m" for link in p.as_chain().links)
-    warn = "" if r.ok else ('<p class="callout warn">The identification did not succeed, so the model below is the start '
-                          "(params0), not a fit.</p>")
+    warn = "" if r.ok else ('<p class="callout warn">The identification did not succeed, so the model below is the '
+                            "start (params0), not a fit.</p>")
     names = list(p.coordinates)
     start = [f"{c}0" for c in names] + [f"d{c}0" for c in names]
     start = f"[{', '.join(start)}]" if len(names) <= 2 else "y0"  # a chain's 2 n numbers: y0
