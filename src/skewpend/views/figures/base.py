@@ -69,9 +69,7 @@ def _wrap_items(line: str, width: int) -> list:
 def heading(fig, text: str) -> None:
     """The figure's heading, each line longer than the figure is wide wrapped after a comma or semicolon."""
     width = max(40, int(fig.get_figwidth() * HEADING_CHARS_PER_INCH))
-    lines = []
-    for line in text.split("\n"):
-        lines += _wrap_items(line, width) if len(line) > width else [line]
+    lines = [part for line in text.split("\n") for part in _wrap_items(line, width)]  # a short line stays whole
     fig.suptitle("\n".join(lines), fontsize=8.5, color="0.25", linespacing=1.45)
 
 
