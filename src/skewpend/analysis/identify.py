@@ -142,10 +142,12 @@ class _Terms:
         return np.concatenate([Y, self._fx(q, dq, ddq, a, alpha, g)], axis=2)
 
     def values(self, pi_ext, a: float, alpha: float = 0.0, g: float = 9.81) -> np.ndarray:
-        """The base parameters and the terms of an extended standard vector (:func:`standard_vector`)."""
+        """The base parameters and the terms of an extended standard vector: the standard parameters then
+        cf1, cf2, Ir (:func:`standard_vector`), or then only the terms this model has (the shooting's)."""
         pi_ext = np.asarray(pi_ext, dtype=float)
         n = len(PI_NAMES)
-        return np.concatenate([self.B.values(pi_ext[:n], a, alpha, g), [pi_ext[n + EXTRA.index(x)] for x in self.extra]])
+        extra = pi_ext[n:] if len(pi_ext) == n + len(self.extra) else pi_ext[n + np.array([EXTRA.index(x) for x in self.extra], int)]
+        return np.concatenate([self.B.values(pi_ext[:n], a, alpha, g), extra])
 
 
 def model_terms(params: Parameters) -> _Terms:
