@@ -109,12 +109,11 @@ def _modes_of(md, params, about, coulomb: str, fallback: bool):
     down-down."""
     from ..errors import EquilibriumError, SkewpendError
 
-    if about is not None or not fallback:
-        return md.normal_modes(params, about=about, coulomb=coulomb), ""
     try:
-        return md.normal_modes(params, coulomb=coulomb), ""
+        return md.normal_modes(params, about=about, coulomb=coulomb), ""
     except EquilibriumError as exc:
-        if any(link.torque for link in params.as_chain().links) or "not an equilibrium" not in str(exc):
+        if about is not None or not fallback or any(link.torque for link in params.as_chain().links) \
+                or "not an equilibrium" not in str(exc):
             raise
         rest = "-".join(["down"] * params.n)
         try:
