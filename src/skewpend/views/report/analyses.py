@@ -375,6 +375,8 @@ def section_provenance(ctx: Context) -> str:
         ("derivation shown for", esc(ctx.notes.get("derivation", ""))),
         ("check at α = 0" if named else "check", esc(ctx.notes.get("check", ""))),
         ("model code", esc(ctx.notes.get("kernel", ""))),
+        ("platform", esc(f"{platform.system()} {platform.machine()}, {platform.python_implementation()} "
+                         f"{platform.python_version()}")),
     ]
     labels = [
         ("system", "1 · the system: pictures"),
@@ -393,8 +395,6 @@ def section_provenance(ctx: Context) -> str:
     ]
     _, _, katex_version = katex_assets()
     rows = [[esc(k), esc(v)] for k, v in _versions() + [("KaTeX (bundled)", katex_version)]]
-    settings += [
-        ("platform", esc(f"{platform.system()} {platform.machine()}, {platform.python_implementation()} {platform.python_version()}"))]
     if ctx.command:
         settings.insert(0, ("command", f"<code>{esc(ctx.command)}</code>"))
     trows = [[esc(label), f"{ctx.timings[key]:.2f}"] for key, label in labels if key in ctx.timings]

@@ -8,6 +8,7 @@ import base64
 import html
 import io
 import math
+import threading
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -342,8 +343,6 @@ class Prefetch:
         pass
 
     def __init__(self) -> None:
-        import threading
-
         self._done: Dict[str, threading.Event] = {}
         self._out: Dict[str, Tuple[bool, object]] = {}
         self._stop = threading.Event()
@@ -353,8 +352,6 @@ class Prefetch:
             raise Prefetch.Cancelled()
 
     def start(self, jobs: Dict[str, Callable]) -> None:
-        import threading
-
         for name in jobs:
             self._done[name] = threading.Event()
 

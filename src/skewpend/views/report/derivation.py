@@ -186,24 +186,19 @@ def section_derivation(ctx: Context) -> str:
     eom = derive(model)
     if symbolic:
         steps = display_steps(eom.steps)
-    else:  # numbers to 4 significant digits
-        steps = {k: numeric(v, 4) for k, v in eom.steps.items()}
-    out = []
-    if symbolic:
-        out.append(prose(
+        out = [prose(
             "<p>The derivation follows the specification: rotation tensors by Rodrigues' formula for the kinematics, "
             "Lagrange's equations for the dynamics. It is written with every parameter symbolic, "
             "$" + ", ".join(schema.tex(n) for n in schema.CORE_NAMES) + "$"
             + (f", and the {' and '.join(_ROLE_TEXT[r][0] for r in _roles_on(model))} of section 1" if _roles_on(model) else "")
             + ", so that each step can be read against the specification; the values of section 1 are put in at the end. "
             "Each intermediate result is shown in the simplest form found, proved equal to the derivation's own "
-            "(which the simulation uses).</p>"
-        ))
-    else:
-        out.append(prose(
+            "(which the simulation uses).</p>")]
+    else:  # numbers to 4 significant digits
+        steps = {k: numeric(v, 4) for k, v in eom.steps.items()}
+        out = [prose(
             "<p>The derivation follows the specification (rotation tensors by Rodrigues' formula, Lagrange's equations) "
-            "for the bodies and axes of section 1, with their values; numbers are rounded to 4 significant digits.</p>"
-        ))
+            "for the bodies and axes of section 1, with their values; numbers are rounded to 4 significant digits.</p>")]
     items = _step_items(model, steps)
     out.append('<ol class="steps">' + "".join(
         f'<li><p class="step-title">{esc(title)}</p>{body}</li>' for title, body in items) + "</ol>")
