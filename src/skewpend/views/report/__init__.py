@@ -92,10 +92,8 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
     y = initial_state(y0, params.coordinates)
     t_end = positive_number("t_end", t_end)
     if t_end > MAX_T_END:
-        raise ParameterError(
-            f"t_end = {t_end:g} s is longer than a report draws (at most {MAX_T_END:g} s); "
-            "use skewpend simulate --out for long runs"
-        )
+        raise ParameterError(f"t_end = {t_end:g} s is longer than a report draws (at most {MAX_T_END:g} s); "
+                             "use skewpend simulate --out for long runs")
     if method not in METHODS:
         raise ParameterError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
     if method == "dop853" and dt is not None:
