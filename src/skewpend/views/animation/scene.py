@@ -206,8 +206,9 @@ class Geometry:
         alpha = np.linspace(0.0, 0.9, count)[1:] if count > 1 else np.zeros(0)
         arcs = tuple(_arc_points(centers[i], dirs[i - 1], dirs[i], ARC_RADIUS * self.half) for i in range(1, m))
         return FrameScene(k=k, t=float(self.t[k]), phi=float(self.y[k, 0]),
-                          psi=float(self.y[k, 1]) if m >= 2 else math.nan, energy=float(self.energy[k]), work=float(self.work[k]), rods=rods, axis_centers=centers,
-                          axis_directions=dirs, axis_half_length=self.half, trail=trail, trail_alpha=alpha,
+                          psi=float(self.y[k, 1]) if m >= 2 else math.nan, energy=float(self.energy[k]),
+                          work=float(self.work[k]), rods=rods, axis_centers=centers, axis_directions=dirs,
+                          axis_half_length=self.half, trail=trail, trail_alpha=alpha,
                           skew_arc=arcs[0] if arcs else np.zeros((0, 3)), skew_arcs=arcs,
                           q=tuple(float(x) for x in self.y[k, :m]))
 

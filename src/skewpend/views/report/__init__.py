@@ -58,8 +58,8 @@ from .derivation import section_check, section_derivation
 from .system import LIVE_SLOT, live_figure, section_modes, section_simulation, section_system
 from ..frontend import inline_page_scripts
 
-__all__ = ["build_report", "DEFAULT_PARAMETERS", "DEFAULT_INITIAL_STATE", "DEFAULT_T_END", "REPORT_SUFFIXES", "SECTIONS",
-           "MAX_T_END", "katex_assets"]
+__all__ = ["build_report", "DEFAULT_PARAMETERS", "DEFAULT_INITIAL_STATE", "DEFAULT_T_END", "REPORT_SUFFIXES",
+           "SECTIONS", "MAX_T_END", "katex_assets"]
 
 
 def _require_libraries() -> None:

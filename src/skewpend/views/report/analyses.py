@@ -325,8 +325,8 @@ def section_validation(ctx: Context) -> str:
         return f'<p class="callout warn">The comparison with MuJoCo could not be made: {esc(exc)}</p>'
     ok = rep.max_difference <= VALIDATION_TOL
     ctx.notes["validation"] = f"{'AGREE' if ok else 'DISAGREE'}, largest difference {rep.max_difference:.2e}"
-    rows = [[inline_math(rate_tex(k[1:]) if k.startswith("d") else tex(k)), fmt_num(v, 3), "rad/s" if k.startswith("d") else "rad"]
-            for k, v in rep.max_abs_diff.items()]
+    rows = [[inline_math(rate_tex(k[1:]) if k.startswith("d") else tex(k)), fmt_num(v, 3),
+             "rad/s" if k.startswith("d") else "rad"] for k, v in rep.max_abs_diff.items()]
     callout, mark, word, how = ("good", "ok", "AGREE", "is within") if ok else ("warn", "bad", "DISAGREE", "exceeds")
     verdict = (f'<p class="callout {callout}"><span class="verdict {mark}">{word}</span> — the largest difference, '
                f"{fmt_num(rep.max_difference, 3)}, {how} the tolerance {fmt_num(VALIDATION_TOL)}.</p>")

@@ -198,7 +198,8 @@ def section_derivation(ctx: Context) -> str:
         steps = {k: numeric(v, 4) for k, v in eom.steps.items()}
         out = [prose(
             "<p>The derivation follows the specification (rotation tensors by Rodrigues' formula, Lagrange's equations) "
-            "for the bodies and axes of section 1, with their values; numbers are rounded to 4 significant digits.</p>")]
+            "for the bodies and axes of section 1, with their values; numbers are rounded to 4 significant "
+            "digits.</p>")]
     items = _step_items(model, steps)
     out.append('<ol class="steps">' + "".join(
         f'<li><p class="step-title">{esc(title)}</p>{body}</li>' for title, body in items) + "</ol>")

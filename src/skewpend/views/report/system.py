@@ -17,6 +17,7 @@ from .common import (FIGURE_DT, FIGURE_MAX_ROWS, LONG_SWEEP_POINTS, PICTURE_SIZE
                      Context, answers_names, array_tex, by_links, detail, display_math, esc, facts_html, fig_png,
                      figure_html, fmt_deg, fmt_num, inline_math, live_view_html, prose, rgb_png, table_html, telling)
 
+
 # -- section 1: the system ------------------------------------------------------------------------
 def _unit(unit: str) -> str:
     return f'<span class="unit">{unit}</span>' if unit and unit != "1" else ""
@@ -59,7 +60,8 @@ def _parameter_rows(p: Parameters) -> List[List[str]]:
             shown = "<br>".join(_vec_text(r) for r in value)
         else:
             shown = _vec_text(value) + (" (unit vector)" if name in schema.AXIS_NAMES else "")
-        rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown, _unit(unit)])
+        rows.append([inline_math(schema.tex(name)), f"<code>{name}</code>", esc(schema.meaning(name)), shown,
+                     _unit(unit)])
     return rows
 
 
@@ -176,7 +178,8 @@ def section_system(ctx: Context) -> str:
                  "and what they predict.</p>")
     if n <= 3:  # (a report draws two links or more)
         names = [f"${s}$ (hinge {k})" for k, s in enumerate(sym, 1)]
-        coords = ", ".join(names[:-1]) + " and " + names[-1] + f", {'all' if n > 2 else 'both'} zero with the rods hanging"
+        coords = (", ".join(names[:-1]) + " and " + names[-1]
+                  + f", {'all' if n > 2 else 'both'} zero with the rods hanging")
     else:
         coords = (r"$q_1, \dots, q_n$ — $q_i$ the turn of link $i$ relative to link $i - 1$ — all zero with the chain "
                   "hanging")
