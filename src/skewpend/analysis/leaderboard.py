@@ -119,10 +119,7 @@ def criteria(t, x, u, heights, reach: float, *, t_final: float = PROTOCOL.t_fina
     torques ``u`` (k, n) held from each row to the next, and the end effector's heights ``heights``
     (k,) [m] above the roof hinge; ``reach`` the sum of the rods' lengths [m] (the success line is
     ``height * reach``).  Non-finite rows are refused."""
-    t = _rows("t", t)
-    x = _rows("x", x)
-    u = _rows("u", u)
-    h = _rows("heights", heights)
+    t, x, u, h = (_rows(name, v) for name, v in (("t", t), ("x", x), ("u", u), ("heights", heights)))
     k = t.size
     if t.ndim != 1 or k < 3 or x.ndim != 2 or x.shape[0] != k or x.shape[1] % 2 or u.ndim != 2 or u.shape[0] != k \
             or u.shape[1] != x.shape[1] // 2 or h.shape != (k,):

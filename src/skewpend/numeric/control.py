@@ -360,16 +360,11 @@ class Controller:
         c.kp, c.kd = self.elbow_gains
         c.P[:] = np.ravel(self.P).tolist()
         c.rho = self.rho
-        if self.kind == "table":
-            table = np.ascontiguousarray(np.column_stack([self.times, self.torques]), dtype=float)
-            c.n_table = len(table)
+        if self.kind in ("table", "tracking"):  # the rows, kept alive as long as the struct
+            table = (self.reference if self.kind == "tracking" else
+                     np.ascontiguousarray(np.column_stack([self.times, self.torques]), dtype=float))
+            c.n_table, c.dt_table, c._keep = len(table), self.dt, table
             c.table = table.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-            c._keep = table  # the array lives as long as the struct
-        if self.kind == "tracking":
-            c.n_table = len(self.reference)
-            c.table = self.reference.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-            c.dt_table = self.dt
-            c._keep = self.reference
         if self.kind == "function":
             c.errors = []
             c._keep = CALLBACK(_python_law(self.law, c.errors, self.nq))
