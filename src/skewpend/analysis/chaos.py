@@ -414,16 +414,14 @@ def open_chaos_diagram(path) -> ChaosDiagram:
     from ..numeric.grid import read_grid_result
     from ..results import grid_status
 
-    arrays, attrs, settings, stats = read_grid_result(path, store_kind=STORE_KIND, result_kind=ChaosDiagram.result_kind,
-                                                      what="a chaos diagram", store_keys=("settings", "chaos_diagram_stats"))
-    try:
+    def build(arrays, attrs, settings, stats):
         given = attrs.get("chaos_diagram_params") or attrs.get("params")  # the store's, the file's
         params = Parameters.from_mapping(json.loads(given) if given else settings["params"])
         exponent = np.asarray(arrays["exponent"], dtype=float)
-        threshold = float(settings["threshold"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ParameterError(f"{path} is not a chaos diagram made by skewpend (missing or bad attribute: {exc})") from None
-    status, message = grid_status(int(stats.get("failed", 0)), int(stats.get("trajectories", exponent.size)))
-    return ChaosDiagram(alpha=np.asarray(settings["alpha"]), energy=np.asarray(settings["energy"]), exponent=exponent,
-                        threshold=threshold, params=params, settings=settings, stats=stats, status=status,
-                        message=message)
+        status, message = grid_status(int(stats.get("failed", 0)), int(stats.get("trajectories", exponent.size)))
+        return ChaosDiagram(alpha=np.asarray(settings["alpha"]), energy=np.asarray(settings["energy"]), exponent=exponent,
+                            threshold=float(settings["threshold"]), params=params, settings=settings, stats=stats,
+                            status=status, message=message)
+
+    return read_grid_result(path, build, store_kind=STORE_KIND, result_kind=ChaosDiagram.result_kind,
+                            what="a chaos diagram", store_keys=("settings", "chaos_diagram_stats"))

@@ -60,8 +60,8 @@ import numpy as np
 from ..checks import DEFAULT_TOL, MAX_STEPS  # noqa: F401 - the module's documented defaults
 from ..checks import max_steps as check_max_steps, not_parameters, numeric_params, positive, tolerances
 from ..errors import NotNumericError, ParameterError
-from ..numeric.grid import MAX_N, PlaneJob, cell_centres, check_n, check_range, plane_attrs  # noqa: F401 - MAX_N, check_n: this module's API
-from ..results import DatasetSpec, Result, canonical_json, fingerprint
+from ..numeric.grid import MAX_N, PlaneJob, PlaneMap, cell_centres, check_n, check_range  # noqa: F401 - MAX_N, check_n: this module's API
+from ..results import DatasetSpec, canonical_json, fingerprint
 from ..status import Status
 from ..symbolic.model import Parameters
 
@@ -82,7 +82,7 @@ CHUNK_STATS = ("integrated", "skipped_energy", "mirrored", "failed", "steps", "r
 
 
 @dataclass(frozen=True)
-class FlipMap(Result):
+class FlipMap(PlaneMap):
     """The result of :func:`flip_map`.
 
     * ``plane`` -- the two angles varied (the double pendulum's ``("phi", "psi")``, a chain's e.g.
@@ -99,18 +99,11 @@ class FlipMap(Result):
     * the result protocol's ``status`` (PARTIAL when cells failed) and the rest; ``flipped``, ``flipped_fraction``.
     """
 
-    plane: Tuple[str, str]
-    x0: np.ndarray
-    y0: np.ndarray
     held: np.ndarray
     flip_time: np.ndarray
     which: np.ndarray
 
     result_kind: ClassVar[str] = "flip map"
-
-    @property
-    def n(self) -> int:
-        return int(self.flip_time.shape[0])
 
     @property
     def flipped(self) -> np.ndarray:
@@ -191,14 +184,8 @@ class FlipMap(Result):
         attrs["flip_map_settings"] = canonical_json(self.settings)
         attrs["flip_map_stats"] = canonical_json(self.stats)
         names = tuple(self.params.coordinates)
-        dims = tuple(f"{c}0" for c in self.plane)
-        return DatasetSpec(
-            variables={"flip_time": (dims, self.flip_time, _flip_time_attrs()),
-                       "which": (dims, self.which, _which_attrs(names))},
-            coords={d: ((d,), np.asarray(v, dtype=float).copy(), plane_attrs(c, len(names)))
-                    for d, c, v in zip(dims, self.plane, (self.x0, self.y0))},
-            attrs=attrs,
-        )
+        return self._plane_dataset(len(names), {"flip_time": (self.flip_time, _flip_time_attrs()),
+                                                "which": (self.which, _which_attrs(names))}, attrs)
 
 
 def _flip_time_attrs() -> Dict[str, str]:
@@ -218,7 +205,7 @@ def open_flip_map(path) -> FlipMap:
     from pathlib import Path
 
     from ..numeric.grid import read_grid_result
-    from ..results import grid_status, netcdf_kind, zarr_store_kind
+    from ..results import netcdf_kind, zarr_store_kind
     from ..symbolic.model import model_from_mapping
 
     path = Path(path)
@@ -228,33 +215,29 @@ def open_flip_map(path) -> FlipMap:
                   or (suffix == ".nc" and path.is_file() and netcdf_kind(path) == FORMER_KIND))
     except ParameterError:
         former = False
-    arrays, attrs, settings, stats = read_grid_result(
-        path, store_kind=FORMER_STORE_KIND if former else STORE_KIND,
-        result_kind=FORMER_KIND if former else FlipMap.result_kind, what="a flip map",
-        store_keys=("flip_settings", "flip_stats") if former else ("flip_map_settings", "flip_map_stats"))
-    try:
+
+    def build(arrays, attrs, settings, stats):
         params = model_from_mapping(json.loads(attrs["params"]))
         coordinates = tuple(params.coordinates)
         plane = tuple(settings.get("plane") or coordinates[:2])
+        which = np.asarray(arrays["which"]).astype(np.int8)
         if former:  # x_range, y_range -> the plane's names; which 1 .. n (0 none) -> the angle's index
             for name, key in zip(plane, ("x_range", "y_range")):
                 settings[f"{name}_range"] = settings.pop(key)
             settings = {"shortcuts": True, "energy_bound": False, "symmetry": False, **settings}
             stats = {"integrated": stats.get("cells"), "skipped_energy": 0, "mirrored": 0, **stats}
-        x0, y0 = (np.asarray(arrays[f"{c}0"], dtype=np.float64) for c in plane)
-        flip_time = np.asarray(arrays["flip_time"], dtype=np.float64)
-        which = np.asarray(arrays["which"]).astype(np.int8)
-        held = np.asarray(settings.get("held") or np.zeros(len(coordinates)), dtype=np.float64)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ParameterError(f"{path} is not a flip map made by skewpend (missing or bad attribute: {exc})") from None
-    if former:
-        which = np.where(which > 0, which - 1, -1).astype(np.int8)
-    for key in ("plane", "held", *(f"{c}_range" for c in plane)):
-        if key in settings:
-            settings[key] = tuple(settings[key])
-    status, message = grid_status(int(stats.get("failed", 0)), flip_time.size, "cells")
-    return FlipMap(plane=(str(plane[0]), str(plane[1])), x0=x0, y0=y0, held=held, flip_time=flip_time, which=which,
-                   params=params, settings=settings, stats=stats, status=status, message=message)
+            which = np.where(which > 0, which - 1, -1).astype(np.int8)
+        for key in ("plane", "held", *(f"{c}_range" for c in plane)):
+            if key in settings:
+                settings[key] = tuple(settings[key])
+        return FlipMap.made(plane, [arrays[f"{c}0"] for c in plane], params=params, settings=settings, stats=stats,
+                            held=np.asarray(settings.get("held") or np.zeros(len(coordinates)), dtype=np.float64),
+                            flip_time=np.asarray(arrays["flip_time"], dtype=np.float64), which=which)
+
+    return read_grid_result(
+        path, build, store_kind=FORMER_STORE_KIND if former else STORE_KIND,
+        result_kind=FORMER_KIND if former else FlipMap.result_kind, what="a flip map",
+        store_keys=("flip_settings", "flip_stats") if former else ("flip_map_settings", "flip_map_stats"))
 
 
 @dataclass(frozen=True)
@@ -542,21 +525,19 @@ def _plane(coordinates: Tuple[str, ...], plane, ranges, held, **named):
 def _check_feasible(job: "FlipJob", state) -> None:
     """Refuse a map whose cells could not finish within ``max_steps`` (a trial run of the map's own
     integrator from energetic starts of the window: the ones that flip last the longest)."""
-    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, refused_already, steps_per_second
+    from ..numeric.grid import PROBE_STEPS, check_feasible, steps_per_second
 
     kernel, p, _ = state
     cx, cy = max(map(abs, job.x_range)), max(map(abs, job.y_range))
     cells = job.positions(np.array([0.9 * cx, 0.9 * cx, 0.5 * cx]), np.array([0.9 * cy, -0.9 * cy, 0.0]))
-    rate, ok = 0.0, False
-    for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
+
+    def trial(t):
         out = _integrator(kernel, p, t_end=t, rtol=job.rtol, atol=job.atol, max_steps=PROBE_STEPS).run(cells)
         lived = np.where(np.isfinite(out.time), out.time, t)  # a failed trial: a lower bound of the rate
-        rate = steps_per_second(out.steps + out.rejected, lived)
-        ok = not np.any(out.which == -2)
-        if ok or refused_already(rate, job.t_end, job.max_steps):
-            break
-    check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps, what="this flip map",
-                   lower_bound=not ok)
+        return steps_per_second(out.steps + out.rejected, lived), not np.any(out.which == -2)
+
+    check_feasible(trial, params=job.params, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps,
+                   what="this flip map")
 
 
 #: Bytes per cell while a map is computed (results, energies, indices, sort).
@@ -750,8 +731,6 @@ class FlipJob(PlaneJob):
         return {"flip_time": time_, "which": which}, stats
 
     def result(self, run) -> FlipMap:
-        from ..results import grid_status
-
         n = self.n
         totals = run.totals(CHUNK_STATS)
         flip_time, which = run.data["flip_time"], run.data["which"]
@@ -774,11 +753,9 @@ class FlipJob(PlaneJob):
             "kernel_build_time": None if kernel is None else kernel.build_time,
             **run.info,
         }
-        status, message = grid_status(stats["failed"], n * n, "cells")
-        xs, ys = (values for values, _ in self.coords().values())
-        return FlipMap(plane=self.plane, x0=xs, y0=ys, held=np.asarray(self.held, dtype=float),
-                       flip_time=flip_time, which=which, params=self.params, settings=settings, stats=stats,
-                       status=status, message=message)
+        return FlipMap.made(self.plane, [values for values, _ in self.coords().values()], params=self.params,
+                            settings=settings, stats=stats, held=np.asarray(self.held, dtype=float),
+                            flip_time=flip_time, which=which)
 
     def result_attrs(self, result: FlipMap) -> Dict[str, Any]:
         return {"flip_map_settings": canonical_json(result.settings), "flip_map_stats": canonical_json(result.stats)}

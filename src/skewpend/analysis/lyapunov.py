@@ -672,21 +672,19 @@ def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol
                         what: str, time_name: str = "t_end", advice: Optional[str] = None) -> None:
     """Refuse up front work of largest exponents that cannot finish within ``max_steps`` per
     trajectory: a trial run of the chaos kernel (``state`` = (kernel, p)) from ``probe``."""
-    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, refused_already, steps_per_second
+    from ..numeric.grid import PROBE_STEPS, check_feasible, steps_per_second
 
     kernel, p = state
-    rate, ok = 0.0, False
-    for t in probe_durations(t_end, params):  # a trial that fails (too stiff for its steps) is tried over a shorter time
+
+    def trial(t):
         _, status, steps, rejected = largest_exponents(kernel, p, np.asarray(probe, dtype=float), t_end=t,
                                                        renorm_every=t, transient=0.0, rtol=rtol, atol=atol,
                                                        max_steps=PROBE_STEPS)
         # a trial that stopped early made at most its steps in t: a lower bound of the rate
-        rate = steps_per_second(steps + rejected, np.full(steps.shape, t))
-        ok = bool(np.all(status == 0))
-        if ok or refused_already(rate, t_end, max_steps):
-            break
-    check_feasible(rate, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps, what=what, time_name=time_name,
-                   advice=advice, lower_bound=not ok)
+        return steps_per_second(steps + rejected, np.full(steps.shape, t)), bool(np.all(status == 0))
+
+    check_feasible(trial, params=params, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps, what=what,
+                   time_name=time_name, advice=advice)
 
 
 def open_lyapunov_map(path) -> LyapunovMap:
@@ -696,18 +694,17 @@ def open_lyapunov_map(path) -> LyapunovMap:
     from ..numeric.grid import read_grid_result
     from ..results import grid_status
 
-    arrays, attrs, settings, stats = read_grid_result(path, store_kind=LyapunovMapJob.kind, result_kind=LyapunovMap.result_kind,
-                                                      what="a Lyapunov map", store_keys=("lyapunov_map_settings", "lyapunov_map_stats"))
-    try:
+    def build(arrays, attrs, settings, stats):
         params = Parameters.from_mapping(json.loads(attrs["params"]) if "params" in attrs
                                          else json.loads(attrs["settings"])["params"])
         phi, psi = (np.asarray(arrays[k], dtype=float) for k in ("phi0", "psi0"))
-        exponent = np.asarray(arrays["exponent"], dtype=float)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ParameterError(f"{path} is not a Lyapunov map made by skewpend (missing or bad attribute: {exc})") from None
-    for key in ("phi_range", "psi_range"):
-        settings[key] = tuple(settings[key])
-    n = phi.size
-    status, message = grid_status(int(stats.get("failed", 0)), n * n, "cells")
-    return LyapunovMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
-                       exponent=exponent, params=params, settings=settings, stats=stats, status=status, message=message)
+        for key in ("phi_range", "psi_range"):
+            settings[key] = tuple(settings[key])
+        n = phi.size
+        status, message = grid_status(int(stats.get("failed", 0)), n * n, "cells")
+        return LyapunovMap(phi0=np.broadcast_to(phi[:, None], (n, n)), psi0=np.broadcast_to(psi[None, :], (n, n)),
+                           exponent=np.asarray(arrays["exponent"], dtype=float), params=params, settings=settings,
+                           stats=stats, status=status, message=message)
+
+    return read_grid_result(path, build, store_kind=LyapunovMapJob.kind, result_kind=LyapunovMap.result_kind,
+                            what="a Lyapunov map", store_keys=("lyapunov_map_settings", "lyapunov_map_stats"))

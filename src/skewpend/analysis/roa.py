@@ -36,8 +36,8 @@ import numpy as np
 
 from ..checks import max_steps as check_max_steps, numeric_model, positive, tolerances
 from ..errors import EquilibriumError, ParameterError
-from ..numeric.grid import PlaneJob, plane_attrs
-from ..results import DatasetSpec, Result, canonical_json
+from ..numeric.grid import PlaneJob, PlaneMap
+from ..results import DatasetSpec, canonical_json
 from ..schema import state_coordinates
 from .control import EVERY_LINK_UP
 
@@ -78,7 +78,7 @@ def _window(name: str, value, angle: bool) -> Tuple[float, float]:
 
 
 @dataclass(frozen=True)
-class RegionOfAttraction(Result):
+class RegionOfAttraction(PlaneMap):
     """The result of :func:`region_of_attraction`.
 
     * ``plane`` -- the two coordinates varied (of ``phi, psi, dphi, dpsi``; a chain's ``q1 … dqn``); ``x0``, ``y0`` -- their
@@ -93,9 +93,6 @@ class RegionOfAttraction(Result):
       run's chunks, store and cluster), ``status`` (PARTIAL when cells failed).
     """
 
-    plane: Tuple[str, str]
-    x0: np.ndarray
-    y0: np.ndarray
     capture_time: np.ndarray
     outcome: np.ndarray
     target: np.ndarray
@@ -104,10 +101,6 @@ class RegionOfAttraction(Result):
     rho: float
 
     result_kind: ClassVar[str] = "region of attraction"
-
-    @property
-    def n(self) -> int:
-        return int(self.capture_time.shape[0])
 
     @property
     def captured(self) -> np.ndarray:
@@ -155,17 +148,11 @@ class RegionOfAttraction(Result):
         return self.P[np.ix_([i, j], [i, j])]
 
     def _dataset(self) -> DatasetSpec:
-        a, b = (f"{c}0" for c in self.plane)
         attrs = {"title": RoaJob.title, "plane": ",".join(self.plane), "target": self.target.tolist(),
                  "K": self.K.ravel().tolist(), "P": self.P.ravel().tolist(), "rho": self.rho,
                  "captured_fraction": self.captured_fraction, **self._base_attrs()}
-        return DatasetSpec(
-            variables={"capture_time": ((a, b), self.capture_time, dict(_VARIABLES["capture_time"])),
-                       "outcome": ((a, b), self.outcome, dict(_VARIABLES["outcome"]))},
-            coords={d: ((d,), np.asarray(v, dtype=float).copy(), plane_attrs(c, len(self.target) // 2))
-                    for d, c, v in zip((a, b), self.plane, (self.x0, self.y0))},
-            attrs=attrs,
-        )
+        return self._plane_dataset(len(self.target) // 2, {name: (getattr(self, name), attrs_)
+                                                           for name, attrs_ in _VARIABLES.items()}, attrs)
 
 
 _VARIABLES = {
@@ -247,20 +234,14 @@ class RoaJob(PlaneJob):
         return {"capture_time": time_.reshape(shape), "outcome": outcome}, stats
 
     def result(self, run) -> RegionOfAttraction:
-        from ..results import grid_status
-
-        n = self.n
         totals = run.totals(CHUNK_STATS)
         settings = {k: v for k, v in self.settings().items() if k not in ("kind", "params", "skewpend_version")}
-        stats = {"cells": n * n, **{k: int(totals[k]) for k in CHUNK_STATS[1:]}, **run.info}
-        status, message = grid_status(stats["failed"], n * n, "cells")
-        if stats["failed"]:
-            message += " (a start that chatters where the wrapped feedback jumps, at the angle opposite the target)"
-        xs, ys = (values for values, _ in self.coords().values())
-        return RegionOfAttraction(plane=tuple(self.plane), x0=xs, y0=ys, capture_time=run.data["capture_time"],
-                                  outcome=run.data["outcome"], target=np.asarray(self.target, dtype=float),
-                                  K=np.reshape(self.K, (self.nq, 2 * self.nq)), P=self._P, rho=self.rho,
-                                  params=self.params, settings=settings, stats=stats, status=status, message=message)
+        stats = {"cells": self.n * self.n, **{k: int(totals[k]) for k in CHUNK_STATS[1:]}, **run.info}
+        return RegionOfAttraction.made(
+            self.plane, [values for values, _ in self.coords().values()], params=self.params, settings=settings,
+            stats=stats, note=" (a start that chatters where the wrapped feedback jumps, at the angle opposite the target)",
+            capture_time=run.data["capture_time"], outcome=run.data["outcome"], target=np.asarray(self.target, dtype=float),
+            K=np.reshape(self.K, (self.nq, 2 * self.nq)), P=self._P, rho=self.rho)
 
     @property
     def _P(self) -> np.ndarray:
@@ -378,7 +359,7 @@ def _check_feasible(job: RoaJob, state) -> None:
     more than :data:`~skewpend.numeric.grid.FEASIBILITY_FACTOR` x ``max_steps`` at that rate is
     refused with the estimate (as for every grid: starts that settle step more slowly)."""
     from ..numeric.control import capture_many
-    from ..numeric.grid import PROBE_STEPS, check_feasible, probe_durations, refused_already, steps_per_second
+    from ..numeric.grid import PROBE_STEPS, check_feasible, steps_per_second
 
     kernel, p, ctl = state
     xs, ys = (values for values, _ in job.coords().values())
@@ -386,42 +367,33 @@ def _check_feasible(job: RoaJob, state) -> None:
     ia, ib = (state_coordinates(job.nq)[c] for c in job.plane)
     starts = np.tile(np.asarray(job.target, dtype=float), (len(corners), 1))
     starts[:, ia], starts[:, ib] = zip(*corners)
-    rate, ok = 0.0, False
-    for t in probe_durations(job.t_end, job.params):  # a trial that fails (too stiff) is tried over a shorter time
+
+    def trial(t):
         time_, steps, rejected, status = capture_many(kernel, p, ctl, starts, t_end=t, rtol=job.rtol, atol=job.atol,
                                                       max_steps=PROBE_STEPS, P=job._P, rho=job.rho)
         moved = ~(time_ == 0)  # a start inside the estimate is captured at once: no steps, no rate
         lived = np.where(np.isfinite(time_), time_, t)[moved]  # a captured start stops early: its rate until then
-        rate = steps_per_second((steps + rejected)[moved], lived)  # attempted steps: what max_steps bounds
-        ok = not np.any(status != 0)
-        if ok or refused_already(rate, job.t_end, job.max_steps):
-            break
-    check_feasible(rate, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps,
-                   what="this region of attraction", lower_bound=not ok)
+        return steps_per_second((steps + rejected)[moved], lived), not np.any(status != 0)  # attempted steps
+
+    check_feasible(trial, params=job.params, t_end=job.t_end, rtol=job.rtol, atol=job.atol, max_steps=job.max_steps,
+                   what="this region of attraction")
 
 
 def open_region_of_attraction(path) -> RegionOfAttraction:
     """A :class:`RegionOfAttraction` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
     from ..numeric.grid import read_grid_result
-    from ..results import grid_status
     from ..symbolic.model import model_from_mapping
 
-    arrays, attrs, settings, stats = read_grid_result(path, store_kind=STORE_KIND, result_kind=RegionOfAttraction.result_kind,
-                                                      what="a region-of-attraction map", store_keys=("roa_settings", "roa_stats"))
-    try:
-        params = model_from_mapping(json.loads(attrs["params"]))
+    def build(arrays, attrs, settings, stats):
         a, b = settings["plane"]
-        x0, y0 = (np.asarray(arrays[f"{c}0"], dtype=float) for c in (a, b))
-        capture_time = np.asarray(arrays["capture_time"], dtype=float)
-        outcome = np.asarray(arrays["outcome"]).astype(np.int8)
         target = np.asarray(settings["target"], dtype=float)
         nq = len(target) // 2
-        K = np.reshape(np.asarray(settings["K"], dtype=float), (nq, 2 * nq))
-        P = np.reshape(np.asarray(settings["P"], dtype=float), (2 * nq, 2 * nq))
-        rho = float(settings["rho"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ParameterError(f"{path} is not a region of attraction made by skewpend (missing or bad attribute: {exc})") from None
-    status, message = grid_status(int(stats.get("failed", 0)), capture_time.size, "cells")
-    return RegionOfAttraction(plane=(a, b), x0=x0, y0=y0, capture_time=capture_time, outcome=outcome, target=target,
-                              K=K, P=P, rho=rho, params=params, settings=settings, stats=stats, status=status,
-                              message=message)
+        return RegionOfAttraction.made(
+            (a, b), [arrays[f"{c}0"] for c in (a, b)], params=model_from_mapping(json.loads(attrs["params"])),
+            settings=settings, stats=stats, capture_time=np.asarray(arrays["capture_time"], dtype=float),
+            outcome=np.asarray(arrays["outcome"]).astype(np.int8), target=target,
+            K=np.reshape(np.asarray(settings["K"], dtype=float), (nq, 2 * nq)),
+            P=np.reshape(np.asarray(settings["P"], dtype=float), (2 * nq, 2 * nq)), rho=float(settings["rho"]))
+
+    return read_grid_result(path, build, store_kind=STORE_KIND, result_kind=RegionOfAttraction.result_kind,
+                            what="a region of attraction", store_keys=("roa_settings", "roa_stats"))

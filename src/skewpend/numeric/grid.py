@@ -38,10 +38,11 @@ from typing import Any, Callable, ClassVar, Dict, List, Mapping, Optional, Seque
 import numpy as np
 
 from ..errors import ParameterError
+from ..results import DatasetSpec, Result
 
 __all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "read_grid_result", "open_store_for", "chunk_rows", "work_units", "check_workers",
            "check_run_options", "check_feasible", "steps_per_second", "probe_time", "UNITS_PER_WORKER", "MAX_N", "check_n",
-           "check_range", "cell_centres", "PlaneJob", "plane_attrs"]
+           "check_range", "cell_centres", "PlaneJob", "PlaneMap", "plane_attrs"]
 
 #: Default store chunk: at most this many cells (whole rows) ...
 CHUNK_CELLS = 65536
@@ -207,6 +208,46 @@ class PlaneJob(GridJob):
         return out
 
 
+@dataclass(frozen=True)
+class PlaneMap(Result):
+    """The result of a :class:`PlaneJob`: ``plane``, the two state coordinates varied; ``x0``, ``y0``,
+    their starting values, the cell centres (``x0`` along axis 0, ``y0`` along axis 1)."""
+
+    plane: Tuple[str, str]
+    x0: np.ndarray
+    y0: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(np.size(self.x0))
+
+    @classmethod
+    def made(cls, plane, axes, *, params, settings, stats, note: str = "", **data):
+        """The map of the cell centres ``axes`` (two arrays) on ``plane`` with its ``data``, its status by the
+        cells that failed (``note`` added to the message then)."""
+        from ..results import grid_status
+
+        x0, y0 = (np.asarray(v, dtype=np.float64) for v in axes)
+        failed = int(stats.get("failed", 0))
+        status, message = grid_status(failed, x0.size * y0.size, "cells")
+        if failed > 0:
+            message += note
+        return cls(plane=(str(plane[0]), str(plane[1])), x0=x0, y0=y0, **data, params=params, settings=settings,
+                   stats=stats, status=status, message=message)
+
+    def _plane_dataset(self, nq: int, variables: Mapping[str, Tuple[np.ndarray, Mapping[str, Any]]],
+                       attrs: Dict[str, Any]) -> DatasetSpec:
+        """``variables`` (name -> values, attributes) over the plane's two coordinates, named ``phi0``, ``dq30``...
+        (of a state of ``nq`` joints)."""
+        dims = tuple(f"{c}0" for c in self.plane)
+        return DatasetSpec(
+            variables={name: (dims, values, dict(a)) for name, (values, a) in variables.items()},
+            coords={d: ((d,), np.asarray(v, dtype=float).copy(), plane_attrs(c, nq))
+                    for d, c, v in zip(dims, self.plane, (self.x0, self.y0))},
+            attrs=attrs,
+        )
+
+
 # -- shared checks of the run options -------------------------------------------------------------
 def check_workers(workers) -> int:
     """``workers`` as a whole number >= 1 (None: the cores this process may use)."""
@@ -281,22 +322,24 @@ def steps_per_second(steps, durations) -> float:
 FEASIBILITY_FACTOR = 100.0
 
 
-def refused_already(rate: float, t_end: float, max_steps: int, factor: float = FEASIBILITY_FACTOR) -> bool:
-    """Whether a failed trial's rate (a lower bound: it stopped at its step cap) already refuses the
-    work, so that no shorter trial is needed (a stiff system's trials of PROBE_STEPS steps each
-    took seconds of variational work only to raise the bound)."""
-    return rate * t_end > factor * max_steps
-
-
-def check_feasible(rate: float, *, t_end: float, rtol: float, atol: float, max_steps: int, what: str,
-                   factor: float = FEASIBILITY_FACTOR, time_name: str = "t_end",
-                   advice: Optional[str] = None, lower_bound: bool = False) -> float:
+def check_feasible(trial: Callable[[float], Tuple[float, bool]], *, params, t_end: float, rtol: float, atol: float,
+                   max_steps: int, what: str, factor: float = FEASIBILITY_FACTOR, time_name: str = "t_end",
+                   advice: Optional[str] = None) -> float:
     """Refuse, before any work, a computation whose trajectories of ``t_end`` seconds would each
-    need more than ``factor x max_steps`` steps at ``rate`` steps per simulated second (measured
-    by a trial run of the computation's own kernel: :func:`probe_time`,
-    :func:`steps_per_second`), with the estimate in the message.  Returns the estimated steps
-    per trajectory.  ``lower_bound``: the rate is that of a trial stopped at its step cap (the
-    message says "at least")."""
+    need more than ``factor x max_steps`` steps, with the estimate in the message.  Returns the
+    estimated steps per trajectory.  ``trial(t)`` runs the computation's own kernel over ``t``
+    seconds (at most :data:`PROBE_STEPS` steps each) and returns ``(rate, ok)``: the steps per
+    simulated second (:func:`steps_per_second`) and whether every trajectory finished.  A failed
+    trial is tried again over the next of :func:`probe_durations`, unless its rate -- a lower
+    bound, as it stopped at its step cap (the message then says "at least") -- already refuses the
+    work (a stiff system's trials of PROBE_STEPS steps each took seconds of variational work only
+    to raise the bound)."""
+    rate, ok = 0.0, False
+    for t in probe_durations(t_end, params):
+        rate, ok = trial(t)
+        if ok or rate * t_end > factor * max_steps:
+            break
+    lower_bound = not ok
     need = rate * t_end
     if need > factor * max_steps:
         about = ("at least" if lower_bound else "about") + f" {need:.3g}" if math.isfinite(need) else "more than 1e308"
@@ -552,10 +595,12 @@ def read_store(job_kind: str, path, *, what: str) -> Tuple[Dict[str, np.ndarray]
     return arrays, attrs
 
 
-def read_grid_result(path, *, store_kind: str, result_kind: str, what: str, store_keys: Tuple[str, str]):
-    """``(arrays, attrs, settings, stats)`` of a grid result written whole: a complete store
+def read_grid_result(path, build: Callable[..., Any], *, store_kind: str, result_kind: str, what: str,
+                     store_keys: Tuple[str, str]):
+    """``build(arrays, attrs, settings, stats)`` of a grid result written whole: a complete store
     ``*.zarr`` (its settings and statistics in the attributes ``store_keys``) or a file ``*.nc``
-    (the result protocol's ``settings`` and ``stats``); anything else is refused in one line."""
+    (the result protocol's ``settings`` and ``stats``); anything else, or a missing or bad part
+    (``build``'s :class:`KeyError`, :class:`TypeError`, :class:`ValueError`), is refused in one line."""
     import json
     from pathlib import Path
 
@@ -573,9 +618,9 @@ def read_grid_result(path, *, store_kind: str, result_kind: str, what: str, stor
         raise ParameterError(f"expected a store ending in .zarr or a file ending in .nc, got {str(path)!r}")
     try:
         settings, stats = (json.loads(attrs[k]) for k in keys)
+        return build(arrays, attrs, settings, stats)
     except (KeyError, TypeError, ValueError) as exc:
         raise ParameterError(f"{path} is not {what} made by skewpend (missing or bad attribute: {exc})") from None
-    return arrays, attrs, settings, stats
 
 
 # -- the cells of a map over a window of starts (flip maps, regions of attraction, Lyapunov maps) ---------------
