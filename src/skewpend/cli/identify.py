@@ -11,7 +11,6 @@ A fit whose status is not success exits 1 (:func:`skewpend.cli.main`) and writes
 from __future__ import annotations
 
 import functools
-import inspect
 import re
 import sys
 from contextlib import contextmanager
@@ -73,22 +72,6 @@ def _start_options() -> Dict[str, Any]:
 MODEL_START = _start_options()
 
 
-def _start_model(func):
-    """Give ``func`` the options of :data:`MODEL_START` and collect them into its ``model`` argument
-    (as :func:`~skewpend.cli.options.command` does for the shared groups; typed values are parsed by it)."""
-    sig = inspect.signature(func, eval_str=True)
-    extra = [inspect.Parameter(k, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=None, annotation=ann)
-             for k, ann in MODEL_START.items()]
-
-    @functools.wraps(func)
-    def run(**kwargs):
-        model = {k: kwargs.pop(k, None) for k in MODEL_START}
-        return func(model=model, **kwargs)
-
-    run.__signature__ = sig.replace(parameters=extra + [p for p in sig.parameters.values() if p.name != "model"])
-    return run
-
-
 _SECONDS = T.Positive("number of seconds")
 _HORIZON = T.Positive("number of seconds", at_most=1e6)
 _HORIZON.metavar = "SECONDS"
@@ -99,8 +82,7 @@ _DATA_HELP = ("measured motion: files or folders, combined (kaheman: the folder 
               "MATLAB files, see --variables; trajectory: skewpend's own .nc/.csv runs)")
 
 
-@command()
-@_start_model
+@command(model=MODEL_START)
 def identify(
     model: dict,
     data: Annotated[List[str], typer.Argument(metavar="DATA", help=_DATA_HELP, show_default=False)] = ...,

@@ -164,19 +164,20 @@ LINES_ONLY = frozenset({"serve"})
 PROGRAM_STARTED: Optional[float] = None
 
 
-def command(*groups: Dict[str, Any]):
-    """Give a command the option ``groups`` and parse every typed value (see the module); a command
+def command(*groups: Dict[str, Any], **named: Dict[str, Any]):
+    """Give a command the option ``groups`` (and a group of its own as ``name=group``: collected into its
+    argument ``name``) and parse every typed value (see the module); a command
     without ``--quiet`` of its own gets it here.  The command runs inside its
     :class:`~skewpend.progress.Stages` (started before any heavy import: within a second of its
     start, the command says what it does; ``--quiet`` silences it)."""
 
     def decorate(func):
         sig = inspect.signature(func, eval_str=True)
-        names = {_GROUPS[id(g)]: g for g in groups}
+        names = {**{_GROUPS[id(g)]: g for g in groups}, **named}
         own = [p for name, p in sig.parameters.items() if name not in names]
         extra = [
             inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=None, annotation=ann)
-            for group in groups for name, ann in group.items()
+            for group in names.values() for name, ann in group.items()
         ]
         takes_quiet = "quiet" in sig.parameters
         if not takes_quiet:
