@@ -144,10 +144,8 @@ def _orbit_colors(n: int):
     (the cyclic hsv map, darkened a little so that yellow stays visible on white)."""
     import matplotlib
 
-    if n <= 10:
-        return [matplotlib.colormaps["tab10"](i) for i in range(n)]
     if n <= 20:
-        return [matplotlib.colormaps["tab20"](i) for i in range(n)]
+        return [matplotlib.colormaps["tab10" if n <= 10 else "tab20"](i) for i in range(n)]
     hsv = matplotlib.colormaps["hsv"]
     return [tuple(0.82 * np.asarray(hsv(i / n))[:3]) + (1.0,) for i in range(n)]
 
