@@ -26,11 +26,11 @@ from typing import Callable, ClassVar, Optional, Sequence, Tuple
 import numpy as np
 
 from ..errors import ParameterError
-from ..numeric.grid import GridJob
-from ..results import DatasetSpec, Result, canonical_json
+from ..numeric.grid import ArraySpec, GridJob, check_run_options, read_grid_result, run_grid
+from ..results import DatasetSpec, Result, canonical_json, grid_status
 from ..symbolic.model import Parameters
 from ..checks import MAX_STEPS, max_steps as check_max_steps, not_parameters, numeric_params, tolerances, whole
-from .lyapunov import check_times, largest_exponents
+from .lyapunov import check_exponent_work, check_times, largest_exponents
 
 __all__ = ["chaos_diagram", "ChaosDiagram", "ChaosJob", "open_chaos_diagram", "default_threshold", "STORE_KIND"]
 
@@ -174,8 +174,6 @@ class ChaosJob(GridJob):
         return len(self.alpha), len(self.energy)
 
     def arrays(self):
-        from ..numeric.grid import ArraySpec
-
         return {"exponent": ArraySpec("float64", np.nan, _VARIABLES["exponent"], trailing=True),
                 "fraction": ArraySpec("float64", np.nan, _VARIABLES["fraction"])}
 
@@ -249,8 +247,6 @@ class ChaosJob(GridJob):
         return out, stats
 
     def result(self, run) -> "ChaosDiagram":
-        from ..results import grid_status
-
         totals = run.totals(CHUNK_STATS)
         info = run.info
         stats = {
@@ -310,7 +306,6 @@ def chaos_diagram(
     ``status`` PARTIAL.
     """
     from .. import __version__
-    from ..numeric.grid import check_run_options, run_grid
     exact = params.exact_model() if hasattr(params, "exact_model") else None  # a chain of two is the double pendulum
     if exact is None:
         raise ParameterError(not_parameters(params, "a chaos diagram"))
@@ -369,7 +364,6 @@ def _check_feasible(params: Parameters, energy: float, *, t_end: float, rtol: fl
     """Refuse up front a diagram whose trajectories cannot finish within ``max_steps``: the trial
     runs start at rest high up and from the bottom with the top energy as kinetic energy."""
     from ..numeric.kernels import kernel_module, parameter_vector
-    from .lyapunov import check_exponent_work
     from .poincare import energy_minimum, mass_matrices
 
     kernel = kernel_module(params, chaos=True)
@@ -411,9 +405,6 @@ def _grid(name, values, n, lo, hi, *, lo_open: bool) -> np.ndarray:
 def open_chaos_diagram(path) -> ChaosDiagram:
     """A :class:`ChaosDiagram` read back from a complete store ``*.zarr`` or a file ``*.nc``
     (:meth:`ChaosDiagram.to_netcdf`)."""
-    from ..numeric.grid import read_grid_result
-    from ..results import grid_status
-
     def build(arrays, attrs, settings, stats):
         given = attrs.get("chaos_diagram_params") or attrs.get("params")  # the store's, the file's
         params = Parameters.from_mapping(json.loads(given) if given else settings["params"])

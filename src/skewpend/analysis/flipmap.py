@@ -58,10 +58,11 @@ from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tupl
 import numpy as np
 
 from ..checks import DEFAULT_TOL, MAX_STEPS  # noqa: F401 - the module's documented defaults
-from ..checks import max_steps as check_max_steps, not_parameters, numeric_params, positive, tolerances
-from ..errors import NotNumericError, ParameterError
-from ..numeric.grid import MAX_N, PlaneJob, PlaneMap, cell_centres, check_n, check_range  # noqa: F401 - MAX_N, check_n: this module's API
-from ..results import DatasetSpec, canonical_json, fingerprint
+from ..checks import max_steps as check_max_steps, numeric_model, numeric_params, positive, tolerances
+from ..errors import ParameterError
+from ..numeric.grid import MAX_N, PROBE_STEPS, ArraySpec, PlaneJob, PlaneMap, cell_centres, check_feasible, check_n  # noqa: F401 - MAX_N, check_n: this module's API
+from ..numeric.grid import check_range, check_run_options, read_grid_result, run_grid, steps_per_second
+from ..results import DatasetSpec, canonical_json, fingerprint, netcdf_kind, zarr_store_kind
 from ..status import Status
 from ..symbolic.model import Parameters
 
@@ -204,8 +205,6 @@ def open_flip_map(path) -> FlipMap:
     store whose run has not finished, or that is damaged, is refused (resume it first)."""
     from pathlib import Path
 
-    from ..numeric.grid import read_grid_result
-    from ..results import netcdf_kind, zarr_store_kind
     from ..symbolic.model import model_from_mapping
 
     path = Path(path)
@@ -425,10 +424,9 @@ def flip_map(
     :func:`skewpend.numeric.grid.run_grid`.
     """
     from .. import __version__
-    from ..numeric.grid import check_run_options, run_grid
     from ..numeric.kernels import model_vector, model_vector_names
 
-    params = _numeric_model(params, "a flip map")
+    params = numeric_model(params, "a flip map")
     n = check_n(n)
     t_end = positive("t_end", t_end)
     (a, b), (ra, rb), q = _plane(tuple(params.coordinates), plane, ranges, held, phi_range=phi_range, psi_range=psi_range)
@@ -462,21 +460,6 @@ def flip_map(
 
 #: The run-time vector's constant joint torques (``tau1``, ``tau2``, ...: the link field ``torque``).
 _TORQUE = re.compile(r"tau\d+")
-
-
-def _numeric_model(params, what: str):
-    """``params`` if it is a model (it answers with its coordinates) whose values are numbers."""
-    try:
-        params.coordinates
-        numeric = getattr(params, "is_numeric", True)  # a model that may hold symbols says so
-    except AttributeError:
-        raise ParameterError(not_parameters(params, what)) from None
-    if not numeric:
-        try:
-            params.require_numeric(what)
-        except NotNumericError as exc:
-            raise ParameterError(str(exc)) from None
-    return params
 
 
 def _plane(coordinates: Tuple[str, ...], plane, ranges, held, **named):
@@ -525,8 +508,6 @@ def _plane(coordinates: Tuple[str, ...], plane, ranges, held, **named):
 def _check_feasible(job: "FlipJob", state) -> None:
     """Refuse a map whose cells could not finish within ``max_steps`` (a trial run of the map's own
     integrator from energetic starts of the window: the ones that flip last the longest)."""
-    from ..numeric.grid import PROBE_STEPS, check_feasible, steps_per_second
-
     kernel, p, _ = state
     cx, cy = max(map(abs, job.x_range)), max(map(abs, job.y_range))
     cells = job.positions(np.array([0.9 * cx, 0.9 * cx, 0.5 * cx]), np.array([0.9 * cy, -0.9 * cy, 0.0]))
@@ -640,8 +621,6 @@ class FlipJob(PlaneJob):
         return np.r_[np.asarray(self.held, dtype=float), np.zeros(len(self.held))]
 
     def arrays(self):
-        from ..numeric.grid import ArraySpec
-
         return {"flip_time": ArraySpec("float64", np.nan, _flip_time_attrs()),
                 "which": ArraySpec("int8", -1, _which_attrs(self.params.coordinates))}
 

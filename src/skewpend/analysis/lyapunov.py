@@ -38,8 +38,10 @@ from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numer
 from ..checks import finite_seconds, progress_callable, whole
 from ..interrupts import Interrupts
 from ..numeric.driver import check_step_estimate, drive
-from ..numeric.grid import GridJob
-from ..results import DatasetSpec, Result, canonical_json, netcdf_reader, normal_quantile, protocol_fields, t_quantile
+from ..numeric.grid import PROBE_STEPS, ArraySpec, GridJob, cell_centres, check_feasible, check_n, check_range
+from ..numeric.grid import check_run_options, read_grid_result, run_grid, steps_per_second
+from ..results import DatasetSpec, Result, canonical_json, grid_status, netcdf_reader, normal_quantile, plain
+from ..results import protocol_fields, t_quantile
 from ..schema import state_coordinates
 from ..status import Status
 from ..parsing import initial_state, positive_number
@@ -200,8 +202,6 @@ class LyapunovSpectrum(Result):
 
     def to_dict(self) -> Dict[str, Any]:
         """Plain data (JSON-ready): exponents, uncertainties, settings, statistics, parameters."""
-        from ..results import plain
-
         return plain({  # strict JSON: a non-finite value is null
             "exponents": self.exponents,
             "uncertainty": self.uncertainty,
@@ -559,13 +559,9 @@ class LyapunovMapJob(GridJob):
         return self.n, self.n
 
     def arrays(self):
-        from ..numeric.grid import ArraySpec
-
         return {"exponent": ArraySpec("float64", np.nan, _MAP_VARIABLES["exponent"])}
 
     def coords(self):
-        from ..numeric.grid import cell_centres
-
         return {"phi0": (cell_centres(*self.phi_range, self.n), _MAP_VARIABLES["phi0"]),
                 "psi0": (cell_centres(*self.psi_range, self.n), _MAP_VARIABLES["psi0"])}
 
@@ -596,8 +592,6 @@ class LyapunovMapJob(GridJob):
         return {"exponent": lam.reshape(shape)}, stats
 
     def result(self, run) -> LyapunovMap:
-        from ..results import grid_status
-
         n = self.n
         totals = run.totals(MAP_STATS)
         settings = {k: tuple(v) if isinstance(v, list) else v for k, v in self.settings().items()
@@ -642,8 +636,6 @@ def lyapunov_map(
     :func:`skewpend.numeric.grid.run_grid`).  Bitwise the same whatever the number of workers,
     the chunking or the cluster."""
     from .. import __version__
-    from ..numeric.grid import check_run_options, run_grid
-    from ..numeric.grid import check_n, check_range
 
     params = numeric_params(params, "a Lyapunov map")
     n = check_n(n)
@@ -672,8 +664,6 @@ def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol
                         what: str, time_name: str = "t_end", advice: Optional[str] = None) -> None:
     """Refuse up front work of largest exponents that cannot finish within ``max_steps`` per
     trajectory: a trial run of the chaos kernel (``state`` = (kernel, p)) from ``probe``."""
-    from ..numeric.grid import PROBE_STEPS, check_feasible, steps_per_second
-
     kernel, p = state
 
     def trial(t):
@@ -690,9 +680,6 @@ def check_exponent_work(state, probe, *, params, t_end: float, rtol: float, atol
 def open_lyapunov_map(path) -> LyapunovMap:
     """A :class:`LyapunovMap` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
     import json
-
-    from ..numeric.grid import read_grid_result
-    from ..results import grid_status
 
     def build(arrays, attrs, settings, stats):
         params = Parameters.from_mapping(json.loads(attrs["params"]) if "params" in attrs

@@ -36,7 +36,8 @@ import numpy as np
 
 from ..checks import max_steps as check_max_steps, numeric_model, positive, tolerances
 from ..errors import EquilibriumError, ParameterError
-from ..numeric.grid import PlaneJob, PlaneMap
+from ..numeric.grid import PROBE_STEPS, ArraySpec, PlaneJob, PlaneMap, check_feasible, check_n, check_run_options
+from ..numeric.grid import read_grid_result, run_grid, steps_per_second
 from ..results import DatasetSpec, canonical_json
 from ..schema import state_coordinates
 from .control import EVERY_LINK_UP
@@ -193,8 +194,6 @@ class RoaJob(PlaneJob):
         return np.asarray(self.target, dtype=float)
 
     def arrays(self):
-        from ..numeric.grid import ArraySpec
-
         return {"capture_time": ArraySpec("float64", np.nan, _VARIABLES["capture_time"]),
                 "outcome": ArraySpec("int8", -1, _VARIABLES["outcome"])}
 
@@ -290,7 +289,6 @@ def region_of_attraction(
     ``store`` (``*.zarr``), ``resume`` and ``scheduler`` as for :func:`skewpend.flip_map`."""
     from .. import __version__
     from ..numeric.control import torque_limits
-    from ..numeric.grid import check_n, check_run_options, run_grid
     from .control import LQR, equilibrium_argument, lqr
 
     params = numeric_model(params, "a region of attraction")
@@ -359,7 +357,6 @@ def _check_feasible(job: RoaJob, state) -> None:
     more than :data:`~skewpend.numeric.grid.FEASIBILITY_FACTOR` x ``max_steps`` at that rate is
     refused with the estimate (as for every grid: starts that settle step more slowly)."""
     from ..numeric.control import capture_many
-    from ..numeric.grid import PROBE_STEPS, check_feasible, steps_per_second
 
     kernel, p, ctl = state
     xs, ys = (values for values, _ in job.coords().values())
@@ -381,7 +378,6 @@ def _check_feasible(job: RoaJob, state) -> None:
 
 def open_region_of_attraction(path) -> RegionOfAttraction:
     """A :class:`RegionOfAttraction` read back from a complete store ``*.zarr`` or a file ``*.nc``."""
-    from ..numeric.grid import read_grid_result
     from ..symbolic.model import model_from_mapping
 
     def build(arrays, attrs, settings, stats):

@@ -21,7 +21,7 @@ from typing import Annotated, Any, Dict, List, Optional
 import typer
 
 from .. import schema
-from ..parsing import UsageError
+from ..parsing import UsageError, _number
 from . import types as T
 from .options import CONFIG, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
 
@@ -453,13 +453,6 @@ def _free_names(text: Optional[str]) -> Optional[List[str]]:
         raise UsageError(f"--free: expected base-parameter names and/or alpha or a hinge's tiltK, comma-separated, "
                          f"got {text!r}")
     return names
-
-
-def _number(text: str) -> float:
-    """A plain number (ASCII digits: Python's float reads other scripts' digits too)."""
-    if not text.isascii():
-        raise ValueError(text)
-    return float(text)
 
 
 def _columns(text: str) -> Dict[str, Any]:
