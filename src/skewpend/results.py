@@ -31,6 +31,7 @@ and :func:`agree` (what a file stores against what its parameters give, to :data
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -42,7 +43,7 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar, Dict, Mapping, Tuple
 
 import numpy as np
 
-from .errors import ParameterError, SkewpendError
+from .errors import ParameterError, SkewpendError, require
 from .status import Status
 
 __all__ = ["Result", "ResultProtocol", "DatasetSpec", "canonical_json", "fingerprint", "plain", "grid_status",
@@ -113,8 +114,6 @@ class DatasetSpec:
     attrs: Dict[str, Any] = field(default_factory=dict)
 
     def to_xarray(self):
-        from .errors import require
-
         xr = require("xarray", "to_xarray()")
         return xr.Dataset({k: (d, v, dict(a)) for k, (d, v, a) in self.variables.items()},
                           coords={k: (d, v, dict(a)) for k, (d, v, a) in self.coords.items()},
@@ -148,8 +147,6 @@ class ResultProtocol:
     def __repr__(self) -> str:
         """``<Trajectory success: the message; t float64[124], y float64[124x4], ...>``: the
         status, the message and each data field by its shape (a few numbers shown whole)."""
-        import dataclasses
-
         status = Status.of(getattr(self, "status", Status.SUCCESS))
         names: list = [f.name for f in dataclasses.fields(self)] if dataclasses.is_dataclass(self) else []  # type: ignore[arg-type]
         shown = [f"{name} {_brief(getattr(self, name, None))}" for name in names
@@ -270,8 +267,6 @@ def result_container(path: Path) -> str:
 
 def netcdf_kind(path: Path) -> Any:
     """The attribute ``kind`` of the NetCDF file ``path`` (None without one)."""
-    from .errors import require
-
     netCDF4 = require("netCDF4", "reading .nc")
     try:
         with netCDF4.Dataset(path) as ds:
@@ -283,8 +278,6 @@ def netcdf_kind(path: Path) -> Any:
 
 def zarr_store_kind(path: Path) -> Any:
     """The store kind (attribute ``kind``) of a Zarr store skewpend made; another store is refused."""
-    from .errors import require
-
     zarr = require("zarr", "a Zarr store")
     try:
         attrs = dict(zarr.open_group(str(path), mode="r").attrs)

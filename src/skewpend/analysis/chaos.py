@@ -31,6 +31,7 @@ from ..results import DatasetSpec, Result, canonical_json, grid_status
 from ..symbolic.model import Parameters
 from ..checks import MAX_STEPS, max_steps as check_max_steps, not_parameters, numeric_params, tolerances, whole
 from .lyapunov import check_exponent_work, check_times, largest_exponents
+from .poincare import ENERGY_LIMIT, EnergySurface, energy_minimum, mass_matrices, potential, section_seeds
 
 __all__ = ["chaos_diagram", "ChaosDiagram", "ChaosJob", "open_chaos_diagram", "default_threshold", "STORE_KIND"]
 
@@ -139,7 +140,6 @@ def default_threshold(params: Parameters, t_end: float) -> float:
 def potential_range(params: Parameters) -> float:
     """The potential energy's span [J] over the torus (at ``params``' alpha): a natural top energy."""
     from ..numeric.kernels import kernel_module, parameter_vector
-    from .poincare import potential
 
     kernel = kernel_module(params, chaos=True)
     u = np.linspace(-math.pi, math.pi, 181)
@@ -217,7 +217,6 @@ class ChaosJob(GridJob):
     def _row(self, i: int, cancel=None):
         """Row ``i`` (one alpha): exponents ``(ne, samples)`` and statistics."""
         from ..numeric.kernels import kernel_module, parameter_vector
-        from .poincare import EnergySurface, energy_minimum, section_seeds
 
         start = time.perf_counter()
         params = self.params.replace(alpha=float(self.alpha[i]))
@@ -335,8 +334,6 @@ def chaos_diagram(
     energies = _grid("energy", energy, n_energy, 0.0, top, lo_open=True)
     if np.any(energies <= 0):
         raise ParameterError("energy values must be positive (joules above the minimum of the potential)")
-    from .poincare import ENERGY_LIMIT
-
     if np.any(energies > ENERGY_LIMIT):
         raise ParameterError(f"energy values must be at most {ENERGY_LIMIT:g} J, got {float(energies.max()):g}")
     n_cells = alphas.size * energies.size * int(samples)
@@ -364,7 +361,6 @@ def _check_feasible(params: Parameters, energy: float, *, t_end: float, rtol: fl
     """Refuse up front a diagram whose trajectories cannot finish within ``max_steps``: the trial
     runs start at rest high up and from the bottom with the top energy as kinetic energy."""
     from ..numeric.kernels import kernel_module, parameter_vector
-    from .poincare import energy_minimum, mass_matrices
 
     kernel = kernel_module(params, chaos=True)
     p = parameter_vector(params)

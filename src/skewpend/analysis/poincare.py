@@ -32,10 +32,12 @@ import numpy as np
 from ..errors import IntegrationError, ParameterError
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..status import Status
-from ..parsing import positive_number
+from ..numeric.grid import check_workers
+from ..parsing import parse_scalar, positive_number
 from ..schema import LENGTH_NAMES
 from ..symbolic.model import Parameters
 from ..checks import MAX_STEPS, max_steps as check_max_steps, numeric_params, progress_callable, tolerances
+from .lyapunov import check_exponent_work
 
 __all__ = ["poincare", "PoincareSection", "parse_section", "energy_minimum", "section_seeds", "EnergySurface",
            "LOCATE_METHODS"]
@@ -88,8 +90,6 @@ def section_status(orbit_status: np.ndarray, stats: Dict[str, Any], room: float)
 def parse_section(section) -> Tuple[str, float]:
     """``"phi=0"``, ``"psi=0.5"``, ``"psi=30deg"`` -> ``("phi", 0.0)``: the joint whose angle is
     fixed on the section and its value [rad] (taken modulo 2 pi)."""
-    from ..parsing import parse_scalar
-
     if not isinstance(section, str):
         raise ParameterError(f"section must be a string like 'phi=0' or 'psi=30deg', got {section!r}")
     m = re.fullmatch(r"\s*(phi|psi)\s*=\s*(\S+)\s*", section)
@@ -447,7 +447,6 @@ def poincare(
     from ..numeric.driver import drive
     from ..numeric.ensemble import Cancelled, run_chunks
     from ..numeric.kernels import State
-    from ..numeric.grid import check_workers
 
     params = numeric_params(params, "a Poincare section")
     params.require_conservative("a Poincare section")  # the energy surface needs E = T + Pi constant
@@ -515,8 +514,6 @@ def poincare(
     period = 2.0 * math.pi * math.sqrt(reach / max(float(params.g), 1e-12))  # a swing, roughly
     t_max = 200.0 * period * want if t_max is None else t_max
     kernel, p = surface.kernel, surface.p
-    from .lyapunov import check_exponent_work
-
     # an orbit takes about one swing per crossing (t_max only bounds it): refuse what cannot finish
     expected = min(t_max, want * period)
     check_exponent_work((kernel, p), starts[:3], params=params, t_end=expected, rtol=rtol, atol=atol,

@@ -10,6 +10,7 @@ A fit whose status is not success exits 1 (:func:`skewpend.cli.main`) and writes
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import re
 import sys
@@ -21,6 +22,7 @@ from typing import Annotated, Any, Dict, List, Optional
 import typer
 
 from .. import schema
+from ..errors import ParameterError
 from ..parsing import UsageError, _number
 from . import types as T
 from .options import CONFIG, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
@@ -119,8 +121,6 @@ def identify(
     pieces of the same file predicted.  From a --config run file it takes [parameters] (params0).
     Exit status 1 when the fit does not succeed (no run file is written then).
     """
-    from ..errors import ParameterError
-
     paths = [_data_path(str(p), "DATA") for p in data]
     if validate is not None:
         validate = ",".join(_data_path(p, "--validate") for p in _split_paths(validate))
@@ -231,8 +231,6 @@ def identify(
 def _cut(measurements, seconds: float, flag: str):
     """Pieces cut into pieces of about ``seconds`` (:meth:`Measurements.cut`); a length that
     leaves no piece is refused naming the option."""
-    from ..errors import ParameterError
-
     try:
         return measurements.cut(seconds)
     except ParameterError as exc:
@@ -248,8 +246,6 @@ def _say_actions(what: str, measurements) -> None:
 
 # -- the command line's spelling in the library's messages ----------------------------------------------
 def _spell(conv, **change) -> str:
-    import dataclasses
-
     from ..analysis.hints import spell_convention
 
     try:
@@ -298,8 +294,6 @@ def cli_message(text: str, conv=None) -> str:
 @contextmanager
 def _cli_messages(conv):
     """Re-raise the library's errors with the command line's spellings."""
-    from ..errors import ParameterError
-
     try:
         yield
     except ParameterError as exc:
@@ -336,7 +330,6 @@ def _checks(skip: Optional[str], nonfinite: Optional[float], short: Optional[str
 def _check_lab_out(out: str, params0, free_names) -> None:
     """--out FILE.yml is refused before the fit when its model cannot be one of the lab's."""
     from ..analysis.measurements import dfki_lab_values
-    from ..errors import ParameterError
 
     try:
         dfki_lab_values(params0)
@@ -368,7 +361,6 @@ def _data_path(text: str, where: str) -> str:
     """A path of measured data, or the name of a data set shipped with skewpend (``kaheman2023``,
     ``dfki-design-C.0/trajectory_00.csv``: :func:`skewpend.example_data`), said on stderr."""
     from ..datasets import EXAMPLE_DATA, example_data
-    from ..errors import ParameterError
 
     if Path(text).exists():
         return text
@@ -497,8 +489,6 @@ def _convention(text: Optional[str]):
             kw[key] = value.lower() in ("yes", "true", "1")
         else:
             kw[key] = value
-    from ..errors import ParameterError
-
     try:
         return Convention(**kw)
     except ParameterError as exc:  # "Convention time must be one of 's', 'ms', 'us', got 'h'"
@@ -540,8 +530,6 @@ def _reader(kind, columns, variables, channels, conv, checks):
 def _combine(parts):
     """One :class:`~skewpend.Measurements` of several files' pieces (a name that repeats is led by
     its file's number, ``2:Y_id[0]``)."""
-    import dataclasses
-
     from ..analysis.measurements import Measurements
 
     if len(parts) == 1:
@@ -600,8 +588,6 @@ def _params0(kind: str, paths: List[str], model: dict, config: Optional[str], la
 def _view(module: str, name: str, flag: str):
     """A figure or page function of the views, imported when asked for (before any work)."""
     import importlib
-
-    from ..errors import ParameterError
 
     try:
         return getattr(importlib.import_module(module, __package__), name)

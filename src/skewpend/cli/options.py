@@ -10,9 +10,11 @@ argument (only the values given; None for the others).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import re
 import inspect
+import sys
 from enum import Enum
 from typing import Annotated, Any, Dict, Optional
 
@@ -51,8 +53,6 @@ _L = "A chain of links (each value one for every link, or one a link; a run file
 
 def _link_default(key: str) -> str:
     """What a link's ``key`` is when not given (the Link's own default; None: the thin rod's)."""
-    import dataclasses
-
     from ..symbolic.chain import Link
 
     value = next(f.default for f in dataclasses.fields(Link) if f.name == key)
@@ -218,8 +218,6 @@ def resolve(command_name: str, config: Optional[str] = None, *, defaults: bool =
     """The :class:`~skewpend.config.Run` of a command (defaults, run file, options); its
     locations are remembered for the messages, its notes (the run file's sections the command leaves
     aside) said once on stderr."""
-    import sys
-
     from ..config import Run
 
     run = Run(command_name, config, sections, defaults=defaults, flags=flags)

@@ -28,17 +28,20 @@ data cannot be read or no longer match their digests is computed again.
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import os
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable, ClassVar, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..errors import ParameterError
-from ..results import DatasetSpec, Result
+from ..errors import ParameterError, SkewpendError
+from ..results import DatasetSpec, Result, canonical_json, fingerprint, grid_status
+from ..schema import state_coordinates
 
 __all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "read_grid_result", "open_store_for", "chunk_rows", "work_units", "check_workers",
            "check_run_options", "check_feasible", "steps_per_second", "probe_time", "UNITS_PER_WORKER", "MAX_N", "check_n",
@@ -151,8 +154,6 @@ class GridJob:
 def plane_attrs(name: str, nq: int) -> Dict[str, str]:
     """The attributes of a plane's coordinate ``name`` of a state of ``nq`` joints (``phi``, ``dq3``): its
     units and what it is."""
-    from ..schema import state_coordinates
-
     i = state_coordinates(nq)[name]
     speed = i >= nq
     return {"units": "rad/s" if speed else "rad",
@@ -182,14 +183,10 @@ class PlaneJob(GridJob):
                 f"{b}0": (cell_centres(*self.y_range, self.n), plane_attrs(b, self.nq))}
 
     def store_attrs(self):
-        import json
-
         return {"params": json.dumps(self.params.to_dict())}
 
     def checked_kernel(self, kernel):
         """``kernel`` if it is the one this run generated, else an error (a worker with another skewpend)."""
-        from ..errors import SkewpendError
-
         if kernel.path.name != self.kernel_name:
             raise SkewpendError(f"a worker generates another kernel ({kernel.path.name}, this run {self.kernel_name}): "
                                 "install the same skewpend on every worker")
@@ -197,8 +194,6 @@ class PlaneJob(GridJob):
 
     def starts(self, rows: np.ndarray) -> np.ndarray:
         """The starts of whole rows of cells, (rows * n, 2 nq): the base state, the plane's two coordinates set."""
-        from ..schema import state_coordinates
-
         xs, ys = (values for values, _ in self.coords().values())
         i, j = (state_coordinates(self.nq)[c] for c in self.plane)
         rows = np.asarray(rows, dtype=np.int64)
@@ -225,8 +220,6 @@ class PlaneMap(Result):
     def made(cls, plane, axes, *, params, settings, stats, note: str = "", **data):
         """The map of the cell centres ``axes`` (two arrays) on ``plane`` with its ``data``, its status by the
         cells that failed (``note`` added to the message then)."""
-        from ..results import grid_status
-
         x0, y0 = (np.asarray(v, dtype=np.float64) for v in axes)
         failed = int(stats.get("failed", 0))
         status, message = grid_status(failed, x0.size * y0.size, "cells")
@@ -385,7 +378,6 @@ def cluster_task(job: GridJob, units: Sequence[Sequence[int]]) -> list:
     """A cluster task: the rows of ``units``, computed on a worker (which sets the job up
     itself: compiles or loads the kernel from its own cache), one thread."""
     from .. import __version__
-    from ..errors import SkewpendError
 
     if __version__ != job.version:
         raise SkewpendError(f"a worker has skewpend {__version__}, this run {job.version}: install the same skewpend on "
@@ -434,7 +426,6 @@ class _Assembler:
 
 
 def _template(job: GridJob, path, fp: str, rows_per_chunk: int):
-    from ..results import canonical_json
     from .store import RowStore
 
     settings = job.settings()
@@ -473,7 +464,6 @@ def run_grid(job: GridJob, *, workers: int, scheduler=None, store=None, resume: 
     Ctrl-C: :class:`KeyboardInterrupt` within a few milliseconds, the store keeping every
     complete chunk.
     """
-    from ..results import fingerprint
     from .ensemble import cluster_threads, connect_scheduler, require_distributed, run_chunks
 
     fp = fingerprint(job.settings())
@@ -601,9 +591,6 @@ def read_grid_result(path, build: Callable[..., Any], *, store_kind: str, result
     ``*.zarr`` (its settings and statistics in the attributes ``store_keys``) or a file ``*.nc``
     (the result protocol's ``settings`` and ``stats``); anything else, or a missing or bad part
     (``build``'s :class:`KeyError`, :class:`TypeError`, :class:`ValueError`), is refused in one line."""
-    import json
-    from pathlib import Path
-
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".zarr":
