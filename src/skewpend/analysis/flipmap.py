@@ -47,6 +47,7 @@ NetCDF file back -- also the chain flip maps that skewpend wrote before the two 
 
 from __future__ import annotations
 
+import ctypes
 import json
 import math
 import os
@@ -60,6 +61,7 @@ import numpy as np
 from ..checks import DEFAULT_TOL, MAX_STEPS  # noqa: F401 - the module's documented defaults
 from ..checks import max_steps as check_max_steps, numeric_model, numeric_params, positive, tolerances
 from ..errors import ParameterError
+from ..numeric.ensemble import Cancelled, FlipChunk, FlipIntegrator
 from ..numeric.grid import MAX_N, PROBE_STEPS, ArraySpec, PlaneJob, PlaneMap, cell_centres, check_feasible, check_n  # noqa: F401 - MAX_N, check_n: this module's API
 from ..numeric.grid import check_range, check_run_options, read_grid_result, run_grid, steps_per_second
 from ..results import DatasetSpec, canonical_json, fingerprint, netcdf_kind, zarr_store_kind
@@ -256,7 +258,6 @@ def flip_time(params: Parameters, phi0: float, psi0: float, *, t_end: float = 10
     """The flip time of one start ``(phi0, psi0)`` at rest [rad], exactly as a cell of
     :func:`flip_map` with the same settings computes it (the energy bound, the flip kernel,
     DOP853 with the flip located on the dense output)."""
-    from ..numeric.ensemble import FlipIntegrator
     from ..numeric.kernels import kernel_module, parameter_vector
 
     params = numeric_params(params, "a flip time")
@@ -332,8 +333,6 @@ def flip_kernel(model):
 def _integrator(kernel, p, **settings):
     """The integrator of the kernel's strategy, ``run(starts, cancel) -> FlipChunk``: the flip kernel's SIMD
     lanes (:class:`~skewpend.numeric.ensemble.FlipIntegrator`), or the model kernel's one start after the other."""
-    from ..numeric.ensemble import FlipIntegrator
-
     return (FlipIntegrator if kernel.flip else _OneByOne)(kernel, p, **settings)
 
 
@@ -346,10 +345,6 @@ class _OneByOne:
         self.t_end, self.rtol, self.atol, self.max_steps, self.row = float(t_end), float(rtol), float(atol), int(max_steps), row
 
     def run(self, q: np.ndarray, cancel=None):
-        import ctypes
-
-        from ..numeric.ensemble import Cancelled, FlipChunk
-
         m, nq = q.shape
         starts = np.ascontiguousarray(np.hstack([q, np.zeros((m, nq))]), dtype=np.float64)
         time_, which = np.full(m, np.nan), np.full(m, -1, dtype=np.int32)

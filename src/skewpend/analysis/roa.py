@@ -36,11 +36,14 @@ import numpy as np
 
 from ..checks import max_steps as check_max_steps, numeric_model, positive, tolerances
 from ..errors import EquilibriumError, ParameterError
+from ..numeric.control import Controller, capture_many, torque_limits
 from ..numeric.grid import PROBE_STEPS, ArraySpec, PlaneJob, PlaneMap, check_feasible, check_n, check_run_options
 from ..numeric.grid import read_grid_result, run_grid, steps_per_second
 from ..results import DatasetSpec, canonical_json
 from ..schema import state_coordinates
-from .control import EVERY_LINK_UP
+from .control import EVERY_LINK_UP, LQR, equilibrium_argument, lqr
+from .equilibria import wrap
+from .flipmap import flip_kernel
 
 __all__ = ["region_of_attraction", "RegionOfAttraction", "RoaJob", "open_region_of_attraction",
            "STORE_KIND", "MAX_STEPS_ROA"]
@@ -118,8 +121,6 @@ class RegionOfAttraction(PlaneMap):
 
     def deviations(self) -> Tuple[np.ndarray, np.ndarray]:
         """The axes as offsets from the target (angles wrapped to (-pi, pi])."""
-        from .equilibria import wrap
-
         out, index, nq = [], self._index, len(self.target) // 2
         for name, values in zip(self.plane, (self.x0, self.y0)):
             d = np.asarray(values, dtype=float) - self.target[index[name]]
@@ -206,8 +207,6 @@ class RoaJob(PlaneJob):
                 "atol": self.atol, "max_steps": self.max_steps, "method": "dop853", "skewpend_version": self.version}
 
     def controller(self):
-        from ..numeric.control import Controller
-
         return Controller.feedback(np.reshape(self.K, (self.nq, 2 * self.nq)), np.asarray(self.target),
                                    actuated=self.actuated, umax=self.umax)
 
@@ -217,8 +216,6 @@ class RoaJob(PlaneJob):
         return self.checked_kernel(roa_kernel(self.params)), model_vector(self.params), self.controller()
 
     def compute(self, state, rows, cancel=None):
-        from ..numeric.control import capture_many
-
         kernel, p, ctl = state
         rows = np.asarray(rows, dtype=np.int64)
         time_, steps, rejected, status = capture_many(kernel, p, ctl, self.starts(rows), t_end=self.t_end, rtol=self.rtol,
@@ -288,8 +285,6 @@ def region_of_attraction(
     ``max_steps`` steps per start.  ``workers``, ``progress(done_cells, total)``, ``chunk_size``,
     ``store`` (``*.zarr``), ``resume`` and ``scheduler`` as for :func:`skewpend.flip_map`."""
     from .. import __version__
-    from ..numeric.control import torque_limits
-    from .control import LQR, equilibrium_argument, lqr
 
     params = numeric_model(params, "a region of attraction")
     nq = params.n
@@ -344,7 +339,6 @@ def roa_kernel(model):
     lanes can take it (not Coulomb friction: not polynomial in the speeds), else the model's own kernel
     (``sp_capture_many``, one start at a time)."""
     from ..numeric.kernels import model_kernel
-    from .flipmap import flip_kernel
 
     kernel = model_kernel(model) if model.has_friction else flip_kernel(model)
     return kernel if hasattr(kernel.lib, "sp_capture_lanes") else model_kernel(model)
@@ -356,8 +350,6 @@ def _check_feasible(job: RoaJob, state) -> None:
     simulated second; a start not captured is followed to ``t_end``, so a ``t_end`` that would need
     more than :data:`~skewpend.numeric.grid.FEASIBILITY_FACTOR` x ``max_steps`` at that rate is
     refused with the estimate (as for every grid: starts that settle step more slowly)."""
-    from ..numeric.control import capture_many
-
     kernel, p, ctl = state
     xs, ys = (values for values, _ in job.coords().values())
     corners = [(xs[i], ys[j]) for i in (0, -1, len(xs) // 2) for j in (0, -1, len(ys) // 2) if (i, j) != (len(xs) // 2,) * 2]
