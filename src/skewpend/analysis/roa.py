@@ -38,12 +38,11 @@ from ..checks import max_steps as check_max_steps, numeric_model, positive, tole
 from ..errors import EquilibriumError, ParameterError
 from ..numeric.control import Controller, capture_many, torque_limits
 from ..numeric.grid import PROBE_STEPS, ArraySpec, PlaneJob, PlaneMap, check_feasible, check_n, check_run_options
-from ..numeric.grid import read_grid_result, run_grid, steps_per_second
+from ..numeric.grid import read_grid_result, steps_per_second
 from ..results import DatasetSpec, canonical_json
 from ..schema import state_coordinates
-from .control import EVERY_LINK_UP, LQR, equilibrium_argument, lqr
+from .control import EVERY_LINK_UP
 from .equilibria import wrap
-from .flipmap import flip_kernel
 
 __all__ = ["region_of_attraction", "RegionOfAttraction", "RoaJob", "open_region_of_attraction",
            "STORE_KIND", "MAX_STEPS_ROA"]
@@ -285,6 +284,8 @@ def region_of_attraction(
     ``max_steps`` steps per start.  ``workers``, ``progress(done_cells, total)``, ``chunk_size``,
     ``store`` (``*.zarr``), ``resume`` and ``scheduler`` as for :func:`skewpend.flip_map`."""
     from .. import __version__
+    from ..numeric.grid import run_grid  # looked up here: a test's stand-in for the driver is called
+    from .control import LQR, equilibrium_argument, lqr
 
     params = numeric_model(params, "a region of attraction")
     nq = params.n
@@ -339,6 +340,7 @@ def roa_kernel(model):
     lanes can take it (not Coulomb friction: not polynomial in the speeds), else the model's own kernel
     (``sp_capture_many``, one start at a time)."""
     from ..numeric.kernels import model_kernel
+    from .flipmap import flip_kernel
 
     kernel = model_kernel(model) if model.has_friction else flip_kernel(model)
     return kernel if hasattr(kernel.lib, "sp_capture_lanes") else model_kernel(model)

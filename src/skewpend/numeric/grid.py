@@ -42,6 +42,9 @@ import numpy as np
 from ..errors import ParameterError, SkewpendError
 from ..results import DatasetSpec, Result, canonical_json, fingerprint, grid_status
 from ..schema import state_coordinates
+from .ensemble import (batches, check_scheduler, cluster_threads, connect_scheduler, default_workers,
+                       require_distributed, run_chunks, run_on_cluster)
+from .store import RowStore, store_target
 
 __all__ = ["GridJob", "GridRun", "ArraySpec", "run_grid", "cluster_task", "read_store", "read_grid_result", "open_store_for", "chunk_rows", "work_units", "check_workers",
            "check_run_options", "check_feasible", "steps_per_second", "probe_time", "UNITS_PER_WORKER", "MAX_N", "check_n",
@@ -244,8 +247,6 @@ class PlaneMap(Result):
 # -- shared checks of the run options -------------------------------------------------------------
 def check_workers(workers) -> int:
     """``workers`` as a whole number >= 1 (None: the cores this process may use)."""
-    from .ensemble import default_workers
-
     if workers is None:
         return default_workers()
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
@@ -367,8 +368,6 @@ def chunk_rows(rows: int, cols: Optional[int] = None, *, chunk_size: Optional[in
 def work_units(groups: Sequence[Sequence[int]], threads: int) -> list:
     """``groups`` in order, joined into about :data:`UNITS_PER_WORKER` units per thread (lists
     of rows): small enough for balance, large enough for few calls and tasks."""
-    from .ensemble import batches
-
     units = batches(list(groups), max(1, UNITS_PER_WORKER * max(1, threads)))
     return [sorted(r for g in unit for r in g) for unit in units]
 
@@ -426,8 +425,6 @@ class _Assembler:
 
 
 def _template(job: GridJob, path, fp: str, rows_per_chunk: int):
-    from .store import RowStore
-
     settings = job.settings()
     dims = tuple(job.coords())
     arrays = {name: (spec.dtype, spec.fill, dict(spec.attrs), spec.trailing) for name, spec in job.arrays().items()}
@@ -439,8 +436,6 @@ def _template(job: GridJob, path, fp: str, rows_per_chunk: int):
 
 def open_store_for(job: GridJob, path, fp: str, *, writable: bool):
     """The existing store at ``path`` for ``job``: the same kind, settings (fingerprint) and layout."""
-    from .store import RowStore
-
     st = RowStore.open_matching(path, kind=job.kind, fingerprint=fp, settings=job.settings(), writable=writable)
     try:
         if st.shape != tuple(job.shape()) or set(st.arrays) != set(job.arrays()):
@@ -464,19 +459,13 @@ def run_grid(job: GridJob, *, workers: int, scheduler=None, store=None, resume: 
     Ctrl-C: :class:`KeyboardInterrupt` within a few milliseconds, the store keeping every
     complete chunk.
     """
-    from .ensemble import cluster_threads, connect_scheduler, require_distributed, run_chunks
-
     fp = fingerprint(job.settings())
     store_path = None
     if store is not None:
-        from .store import store_target
-
         store_path, exists = store_target(store, resume=resume, what=f"{job.what} store")
         if exists:
             open_store_for(job, store_path, fp, writable=False).close()  # refuse early, before any work
     if scheduler is not None:
-        from .ensemble import check_scheduler
-
         check_scheduler(scheduler)
         require_distributed()
 
@@ -525,8 +514,6 @@ def run_grid(job: GridJob, *, workers: int, scheduler=None, store=None, resume: 
 
             run_chunks(len(units), work, workers=workers, on_done=lambda i, result: collect(result), keep=False)
         else:
-            from .ensemble import batches, run_on_cluster
-
             batched = batches(units)
             tasks = len(batched)
 
@@ -567,8 +554,6 @@ def run_grid(job: GridJob, *, workers: int, scheduler=None, store=None, resume: 
 def read_store(job_kind: str, path, *, what: str) -> Tuple[Dict[str, np.ndarray], Dict[str, Any]]:
     """``(arrays, attrs)`` of a complete, undamaged store of ``job_kind`` (every array and
     coordinate by name): the reading half of the driver, for the ``open_*`` functions."""
-    from .store import RowStore
-
     with RowStore.open(path, kind=job_kind) as st:
         attrs = st.attrs
         done = st.done()
