@@ -647,10 +647,7 @@ class FlipJob(PlaneJob):
 
     def positions(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Starts as angles ``(m, nq)``: the held angles, the plane's two ``x`` and ``y``."""
-        i, j = (tuple(self.params.coordinates).index(c) for c in self.plane)
-        q = np.tile(np.asarray(self.held, dtype=float), (len(x), 1))
-        q[:, i], q[:, j] = x, y
-        return q
+        return np.ascontiguousarray(self.states(x, y)[:, :self.nq])
 
     def compute(self, state, rows, cancel=None):
         """The cells of whole ``rows`` (closed under the mirror when the map is symmetric): the

@@ -355,9 +355,7 @@ def _check_feasible(job: RoaJob, state) -> None:
     kernel, p, ctl = state
     xs, ys = (values for values, _ in job.coords().values())
     corners = [(xs[i], ys[j]) for i in (0, -1, len(xs) // 2) for j in (0, -1, len(ys) // 2) if (i, j) != (len(xs) // 2,) * 2]
-    ia, ib = (state_coordinates(job.nq)[c] for c in job.plane)
-    starts = np.tile(np.asarray(job.target, dtype=float), (len(corners), 1))
-    starts[:, ia], starts[:, ib] = zip(*corners)
+    starts = job.states(*zip(*corners))
 
     def trial(t):
         time_, steps, rejected, status = capture_many(kernel, p, ctl, starts, t_end=t, rtol=job.rtol, atol=job.atol,

@@ -195,15 +195,18 @@ class PlaneJob(GridJob):
                                 "install the same skewpend on every worker")
         return kernel
 
-    def starts(self, rows: np.ndarray) -> np.ndarray:
-        """The starts of whole rows of cells, (rows * n, 2 nq): the base state, the plane's two coordinates set."""
-        xs, ys = (values for values, _ in self.coords().values())
+    def states(self, x, y) -> np.ndarray:
+        """Starts ``(len(x), 2 nq)``: the base state, the plane's two coordinates set to ``x`` and ``y``."""
         i, j = (state_coordinates(self.nq)[c] for c in self.plane)
-        rows = np.asarray(rows, dtype=np.int64)
-        out = np.tile(self.base_state(), (rows.size * self.n, 1))
-        out[:, i] = np.repeat(xs[rows], self.n)
-        out[:, j] = np.tile(ys, rows.size)
+        out = np.tile(self.base_state(), (len(x), 1))
+        out[:, i], out[:, j] = x, y
         return out
+
+    def starts(self, rows: np.ndarray) -> np.ndarray:
+        """The starts of whole rows of cells, (rows * n, 2 nq)."""
+        xs, ys = (values for values, _ in self.coords().values())
+        rows = np.asarray(rows, dtype=np.int64)
+        return self.states(np.repeat(xs[rows], self.n), np.tile(ys, rows.size))
 
 
 @dataclass(frozen=True)
