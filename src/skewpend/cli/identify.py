@@ -23,7 +23,7 @@ import typer
 
 from .. import schema
 from ..errors import ParameterError
-from ..parsing import UsageError, _number
+from ..parsing import UsageError
 from . import types as T
 from .options import CONFIG, MODEL, QUIET, RUN, command, option, plot_option, progress, resolve
 
@@ -445,6 +445,13 @@ def _free_names(text: Optional[str]) -> Optional[List[str]]:
         raise UsageError(f"--free: expected base-parameter names and/or alpha or a hinge's tiltK, comma-separated, "
                          f"got {text!r}")
     return names
+
+
+def _number(text: str) -> float:
+    """A plain number (ASCII digits: Python's float reads other scripts' digits too)."""
+    if not text.isascii():
+        raise ValueError(text)
+    return float(text)
 
 
 def _columns(text: str) -> Dict[str, Any]:
