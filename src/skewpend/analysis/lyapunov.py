@@ -39,6 +39,7 @@ from ..checks import DEFAULT_TOL, MAX_STEPS, max_steps as check_max_steps, numer
 from ..checks import finite_seconds, progress_callable, whole
 from ..interrupts import Interrupts
 from ..numeric.driver import check_step_estimate, drive
+from ..numeric.ensemble import Cancelled
 from ..numeric.grid import PROBE_STEPS, ArraySpec, GridJob, cell_centres, check_feasible, check_n, check_range
 from ..numeric.grid import check_run_options, read_grid_result, steps_per_second
 from ..results import DatasetSpec, Result, canonical_json, grid_status, netcdf_reader, normal_quantile, plain
@@ -481,8 +482,6 @@ def largest_exponents(kernel, p, starts, *, t_end: float, renorm_every: float, t
     (one tangent vector from ``(1, 1, 1, 1)/2``), ``group`` trajectories per call into C (``cancel``
     is checked between calls).  Returns ``(lambda, status, steps, rejected)``: the accepted and
     the rejected steps of each; ``lambda`` is NaN where a trajectory failed."""
-    from ..numeric.ensemble import Cancelled
-
     starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 4)
     m = starts.shape[0]
     lam, status = np.full(m, np.nan), np.zeros(m, dtype=np.int32)

@@ -30,6 +30,7 @@ from typing import Any, Callable, ClassVar, Dict, List, Optional, Tuple
 import numpy as np
 
 from ..errors import IntegrationError, ParameterError
+from ..io import atomic_path
 from ..results import DatasetSpec, Result, agree, netcdf_reader, protocol_fields
 from ..status import Status
 from ..numeric.grid import check_workers
@@ -355,8 +356,6 @@ class PoincareSection(Result):
 
     def to_csv(self, path) -> None:
         """The points as CSV (orbit, t, q, p_q, q', energy_error), written atomically."""
-        from ..io import atomic_path
-
         _, other = self.coord_names
         header = f"orbit,t,{other},p_{other},d{other},energy_error"
         table = np.column_stack([self.orbit, self.t, self.q, self.p, self.dq, self.energy_error])

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 import re
 import sys
 from contextlib import contextmanager
@@ -594,8 +595,6 @@ def _params0(kind: str, paths: List[str], model: dict, config: Optional[str], la
 
 def _view(module: str, name: str, flag: str):
     """A figure or page function of the views, imported when asked for (before any work)."""
-    import importlib
-
     try:
         return getattr(importlib.import_module(module, __package__), name)
     except (ImportError, AttributeError):
