@@ -185,8 +185,6 @@ class ChaosJob(GridJob):
         return "sample", np.arange(self.samples, dtype=float), _VARIABLES["sample"]
 
     def settings(self):
-        from .. import __version__
-
         params = self.params
         return {
             "params": params.replace(alpha=0.0).to_dict() if params.uses_alpha else params.to_dict(),
@@ -194,7 +192,7 @@ class ChaosJob(GridJob):
             "samples": int(self.samples), "t_end": self.t_end, "renorm_every": self.renorm_every,
             "transient": self.transient, "threshold": self.threshold, "rtol": self.rtol, "atol": self.atol,
             "max_steps": int(self.max_steps), "section": "phi=0", "direction": 1, "seeds": "halton",
-            "skewpend_version": __version__,
+            "skewpend_version": self.version,
         }
 
     def store_attrs(self):

@@ -566,12 +566,10 @@ class LyapunovMapJob(GridJob):
                 "psi0": (cell_centres(*self.psi_range, self.n), _MAP_VARIABLES["psi0"])}
 
     def settings(self):
-        from .. import __version__
-
         return {"kind": "lyapunov_map", "params": self.params.to_dict(), "n": self.n, "t_end": self.t_end,
                 "renorm_every": self.renorm_every, "transient": self.transient, "phi_range": list(self.phi_range),
                 "psi_range": list(self.psi_range), "rtol": self.rtol, "atol": self.atol,
-                "max_steps": self.max_steps, "skewpend_version": __version__}
+                "max_steps": self.max_steps, "skewpend_version": self.version}
 
     def setup(self):
         from ..numeric.kernels import kernel_module, parameter_vector
