@@ -199,15 +199,6 @@ class EnergySurface:
         return y
 
 
-def _surface(params, energy, coord, value):
-    from ..numeric.kernels import kernel_module, parameter_vector
-
-    kernel = kernel_module(params, chaos=True)
-    p = parameter_vector(params)
-    e_min, _ = energy_minimum(kernel, p)
-    return EnergySurface(kernel, p, float(energy), coord, value, e_min)
-
-
 def _van_der_corput(index: np.ndarray, base: int) -> np.ndarray:
     """The radical inverse of each whole number in ``index`` in ``base``: its digits mirrored about
     the point (6 = 110 in base 2 -> 0.011 = 0.375), digit by digit in the order and the arithmetic
@@ -445,7 +436,7 @@ def poincare(
     """
     from ..numeric.driver import drive
     from ..numeric.ensemble import Cancelled, run_chunks
-    from ..numeric.kernels import State
+    from ..numeric.kernels import State, kernel_module, parameter_vector
 
     params = numeric_params(params, "a Poincare section")
     params.require_conservative("a Poincare section")  # the energy surface needs E = T + Pi constant
@@ -477,7 +468,9 @@ def poincare(
     progress_callable(progress)
 
     coord = _COORDS[name]
-    surface = _surface(params, energy, coord, value)
+    kernel = kernel_module(params, chaos=True)
+    p = parameter_vector(params)
+    surface = EnergySurface(kernel, p, energy, coord, value, energy_minimum(kernel, p)[0])
     scale = max(abs(surface.e_min), abs(energy), 1e-300)
     if energy < surface.e_min - 1e-12 * scale:
         raise ParameterError(f"energy {energy:.6g} J is below the minimum of the potential energy, {surface.e_min:.6g} J; "
@@ -512,7 +505,6 @@ def poincare(
     reach = sum(float(getattr(params, k)) for k in LENGTH_NAMES)  # numeric: checked above
     period = 2.0 * math.pi * math.sqrt(reach / max(float(params.g), 1e-12))  # a swing, roughly
     t_max = 200.0 * period * want if t_max is None else t_max
-    kernel, p = surface.kernel, surface.p
     # an orbit takes about one swing per crossing (t_max only bounds it): refuse what cannot finish
     expected = min(t_max, want * period)
     check_exponent_work((kernel, p), starts[:3], params=params, t_end=expected, rtol=rtol, atol=atol,

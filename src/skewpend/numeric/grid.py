@@ -350,11 +350,7 @@ def check_feasible(trial: Callable[[float], Tuple[float, bool]], *, params, t_en
 
 def _divisor_at_most(n: int, target: int) -> int:
     """The largest divisor of ``n`` that is at most ``target`` (at least 1)."""
-    target = max(1, min(int(target), n))
-    for r in range(target, 0, -1):
-        if n % r == 0:
-            return r
-    return 1  # pragma: no cover
+    return max(r for r in range(1, max(1, min(int(target), n)) + 1) if n % r == 0)
 
 
 def chunk_rows(rows: int, cols: Optional[int] = None, *, chunk_size: Optional[int] = None) -> int:
