@@ -547,6 +547,89 @@ def _check_input(measurements, params0, validation, smoothing):
     return positive("smoothing", smoothing, cap=60.0)  # a window in seconds
 
 
+#: The declared unit of the angles is doubted where the free swings' kinetic and potential energies, read as
+#: declared, exchange amounts more than this factor apart (log10; a motion of the model exchanges them equally:
+#: measured within 1.004 on Kaheman et al.'s rigs; a unit wrong by 180/pi puts them 25-270 times apart) ...
+UNIT_IMBALANCE = 1.0
+#: ... and read in the other unit, within this one (3.2 times; 1.3 measured there, the angles' offsets unknown).
+UNIT_BALANCE = 0.5
+
+
+def _energy_imbalance(model, pieces, q_of, smoothing: float, centre: bool = False) -> float:
+    """How far the free-swing ``pieces`` are from a motion of the model, by its energy: the median over pieces of
+    ``log10`` of the spread (5-95 % percentiles) of the kinetic energy over that of the potential energy along
+    the piece -- 0 for a free swing, which exchanges the two (damping takes a few % of either), far from it for
+    numbers that are no motion of the model.  ``q_of(q, dq) -> (q, dq)`` gives the angles and speeds (speeds
+    None: their Savitzky-Golay estimate); ``centre``: each rod's angle from the vertical taken about its median
+    (a free swing's is about the hanging rest; a reader's whole-turn shifts in one unit are no whole turns of
+    the other).  NaN where there is no free swing."""
+    from scipy.signal import savgol_filter
+
+    from ..numeric.kernels import model_kernel, model_vector
+
+    kernel, p = model_kernel(model), model_vector(model)
+
+    def spread(x):
+        lo, hi = np.percentile(x, [5.0, 95.0])
+        return float(hi - lo)
+
+    logs = []
+    for piece in pieces:
+        if piece.u is not None and np.any(np.asarray(piece.u, float) != 0.0):
+            continue  # driven: the torques' work enters the balance
+        w = min(_window(piece.dt, smoothing), len(piece.t) - (len(piece.t) + 1) % 2)
+        if w <= ORDER:
+            continue
+        q, dq = q_of(np.asarray(piece.q, float), None if piece.dq is None else np.asarray(piece.dq, float))
+        if centre:
+            a = np.cumsum(q, axis=1)
+            a -= np.median(a, axis=0)
+            q = np.column_stack([a[:, :1], np.diff(a, axis=1)])
+        if dq is None:
+            dq = savgol_filter(q, w, ORDER, deriv=1, delta=piece.dt, axis=0)
+        with np.errstate(all="ignore"):
+            e = kernel.energies(np.column_stack([q, dq]), p)
+            v = kernel.energies(np.column_stack([q, np.zeros_like(dq)]), p)
+        if np.all(np.isfinite(e)) and np.all(np.isfinite(v)) and spread(v) > 0 and spread(e - v) > 0:
+            logs.append(math.log10(spread(e - v) / spread(v)))
+    return float(np.median(logs)) if logs else math.nan
+
+
+def unit_check(measurements: Measurements, params0, smoothing: float = SMOOTHING) -> Optional[str]:
+    """One line where the unit the measurements declare for their angles (``unit=rad`` or ``unit=deg`` of their
+    reader's convention) makes the motion implausible for ``params0`` and the other unit does not: read as
+    declared, the free swings' kinetic and potential energies do not exchange (:func:`_energy_imbalance`,
+    :data:`UNIT_IMBALANCE`), read in the other unit they do (:data:`UNIT_BALANCE`).  Radians read as degrees
+    shrink a large swing into a few degrees whose speeds are far too small for its rises and falls; degrees read
+    as radians make it whirl faster than any fall explains.  None where the declared unit is plausible or nothing
+    can tell (driven pieces only; a small swing, linear in either unit)."""
+    from .measurements import Convention, convert, convert_back
+
+    stated = measurements.metadata.get("convention")
+    if not stated or stated.get("unit") not in ("rad", "deg"):
+        return None
+    declared = Convention(**{**stated, "sign": tuple(stated.get("sign", (1, 1)))})
+    other = replace(declared, unit="deg" if declared.unit == "rad" else "rad")
+
+    def reread(q, dq):
+        raw, raw_dq, _ = convert_back(q, dq, convention=declared)
+        q2, dq2, _ = convert(raw, raw_dq, convention=other)
+        return q2, dq2
+
+    try:
+        as_declared = _energy_imbalance(params0, measurements, lambda q, dq: (q, dq), smoothing)
+        as_other = _energy_imbalance(params0, measurements, reread, smoothing, centre=True)
+    except (ParameterError, ValueError, ArithmeticError):
+        return None
+    if abs(as_declared) > UNIT_IMBALANCE and abs(as_other) <= UNIT_BALANCE:
+        names = {"rad": "radians", "deg": "degrees"}
+        return (f"the angles look like {names[other.unit]}, not {names[declared.unit]} (unit={declared.unit} declared): "
+                f"read so, the free swings' kinetic energy varies {10 ** abs(as_declared):.3g} times "
+                f"{'more' if as_declared > 0 else 'less'} than their potential energy, which a swing exchanges it with "
+                f"(read as {names[other.unit]}: {10 ** abs(as_other):.2g} times); give unit={other.unit}")
+    return None
+
+
 def _name_list(free) -> List[str]:
     """``free`` as a list of names (one name alone is a list of one); else one ParameterError."""
     if isinstance(free, str):
@@ -833,6 +916,11 @@ def identify(measurements: Measurements, params0, *, free: Optional[Sequence[str
     from ..checks import positive
 
     smoothing = _check_input(measurements, params0, validation, smoothing)
+    doubt = unit_check(measurements, params0, smoothing)
+    if doubt:
+        import warnings
+
+        warnings.warn(doubt, UserWarning, stacklevel=2)
     angles = measured_angles(measurements) if angles is None else angles
     angle_frame(2, angles)  # one line for a wrong name, before any work
     names_free, angle = None, None

@@ -33,7 +33,7 @@ from __future__ import annotations
 import csv
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
@@ -507,6 +507,15 @@ class _Builder:
             if abs(m) <= math.pi / 2:
                 continue
             if k == 0:
+                raw = convert_back(q, convention=c)[0]
+                if c.unit == "deg" and np.all(np.abs(raw) <= 2 * math.pi):  # numbers within one radian's turn ...
+                    q_rad = convert(raw, convention=replace(c, unit="rad"))[0]
+                    if np.all(np.abs(np.mean(q_rad, axis=0)) <= math.pi / 2):  # ... that swing about hanging as radians
+                        raise ParameterError(
+                            f"{label}: a free swing's phi has mean {m:.3g} rad, near the upright, not the hanging rest "
+                            f"it swings about, as degrees; its numbers stay within one radian's turn and, read as "
+                            "radians, swing about the hanging rest: the angles look like radians; state "
+                            "Convention(unit='rad')")
                 other = "upright" if c.zero == "hanging" else "hanging"
                 raise ParameterError(
                     f"{label}: a free swing's phi has mean {m:.3g} rad, near the upright, not the hanging rest "
