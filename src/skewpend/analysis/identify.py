@@ -273,7 +273,8 @@ class Identification(Result):
             lines.append(self.intervals_note)
         lines += [f"undetermined: {u}" for u in self.undetermined]
         if len(self.fit_rms):
-            lines.append(f"output error per fitting piece (angles): median {np.median(self.fit_rms):.4g} rad, "
+            which = "absolute angles" if self.settings.get("angles") == "absolute" else "angles"
+            lines.append(f"output error per fitting piece ({which}): median {np.median(self.fit_rms):.4g} rad, "
                          f"max {np.max(self.fit_rms):.4g} rad")
         if len(self.pieces) and self.method == "linear":
             lines.append(f"residual RMS per fitting piece: median {np.median(self.residual_rms):.3g}, "
@@ -2230,7 +2231,11 @@ def _write_run_file(result: "Identification", path, *, force: bool = False):
         if any(k == "angle" for k in result.heldout_kind):
             lines.append(f"# held-out angle RMS: median over pieces {result.heldout_median:.4g} rad "
                          f"(params0: {result.heldout_median0:.4g}), overall {result.heldout_overall:.4g} rad "
-                         f"(params0: {result.heldout_overall0:.4g})")
+                         f"(params0: {result.heldout_overall0:.4g}), in the {result._angle_words}")
+            if "heldout_median_joint" in result.stats:
+                lines.append(f"# held-out angle RMS in the joint angles: median over pieces "
+                             f"{result.stats['heldout_median_joint']:.4g} rad (params0: "
+                             f"{result.stats['heldout_median0_joint']:.4g})")
     else:
         lines.append("# held out: none (no validation data)")
     if math.isfinite(result.alpha):

@@ -272,16 +272,20 @@ def _section_heldout(r) -> str:
             change = f'<span class="{cls}">{d:+.1f} %</span>'.replace("-", "−")
         rows.append([f"<code>{esc(n)}</code>", esc(k), _rms(x, k), _rms(x0, k), change])
     which = "both angles" if r.params0.n < 3 else f"all {r.params0.n} angles"
+    absolute = r.settings.get("angles") == "absolute"
+    frame = ("in the absolute angles the data measured (each rod's from the vertical)" if absolute else
+             "in the joint angles")
     body = ("<p>Each held-out piece simulated from its first measured state (angles, and speeds as measured or "
             f"estimated) with the fitted model and with params0; the RMS of the angle error over {which} and all "
-            "samples (pieces with measured torques: the RMS of the torque prediction).</p>"
+            f"samples, {frame} (pieces with measured torques: the RMS of the torque prediction).</p>"
             + table_html(["held-out piece", "kind", "RMS, fitted model", "RMS, params0", "change"], rows,
                          numeric=(2, 3, 4)))
     if math.isfinite(r.heldout_median):
         body += facts_html([
             ("median over pieces", f"{r.heldout_median:.4g} rad (params0: {r.heldout_median0:.4g} rad)"),
             ("over every sample", f"{r.heldout_overall:.4g} rad (params0: {r.heldout_overall0:.4g} rad)"),
-        ])
+        ] + ([("median over pieces, joint angles", f"{r.stats['heldout_median_joint']:.4g} rad (params0: "
+               f"{r.stats['heldout_median0_joint']:.4g} rad)")] if "heldout_median_joint" in r.stats else []))
     return body
 
 
