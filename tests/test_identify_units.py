@@ -69,3 +69,12 @@ def test_the_reader_names_the_unit_where_the_other_one_swings_about_the_hanging_
     fit, _ = _rig("kaheman2023-triple")
     with pytest.raises(ParameterError, match=r"the angles look like radians; state Convention\(unit='rad'\)$"):
         _written(fit, 1.0, "deg", skip=())
+
+
+def test_a_fit_of_the_implausible_reading_ends_with_its_status_not_an_exception():
+    """Radians declared as degrees, the readers' checks skipped, fitted anyway: the warning, then a result (the
+    fit's normal equations could not be solved on this reading: a status and a message, never LinAlgError)."""
+    fit, model = _rig("kaheman2023")
+    with pytest.warns(UserWarning, match="give unit=rad"):
+        result = skewpend.identify(_written(fit.select(range(1)), 1.0, "deg"), model, bootstrap=0)
+    assert isinstance(result.message, str) and "\n" not in result.message

@@ -196,8 +196,12 @@ def _residual(measurements: Measurements, params0, free, window: float) -> float
                 return True
 
         free = [f for f in ([free] if isinstance(free, str) else list(free)) if not angle(f)] or None
+    import warnings
+
     try:
-        r = identify(measurements, params0, free=free, method="linear", smoothing=window, bootstrap=0)
+        with warnings.catch_warnings():  # the data's own fit has said its warnings; a variant's are no news
+            warnings.simplefilter("ignore", UserWarning)
+            r = identify(measurements, params0, free=free, method="linear", smoothing=window, bootstrap=0)
     except (SkewpendError, ValueError, np.linalg.LinAlgError):  # a check never stops the run: no answer
         return math.nan
     rms = np.asarray(r.residual_rms, dtype=float)

@@ -626,8 +626,8 @@ def unit_check(measurements: Measurements, params0, smoothing: float = SMOOTHING
         names = {"rad": "radians", "deg": "degrees"}
         return (f"the angles look like {names[other.unit]}, not {names[declared.unit]} (unit={declared.unit} declared): "
                 f"read so, the free swings' kinetic energy varies {10 ** abs(as_declared):.3g} times "
-                f"{'more' if as_declared > 0 else 'less'} than their potential energy, which a swing exchanges it with "
-                f"(read as {names[other.unit]}: {10 ** abs(as_other):.2g} times); give unit={other.unit}")
+                f"{'more' if as_declared > 0 else 'less'} than the potential energy a swing exchanges it with (read as "
+                f"{names[other.unit]}: within a factor {10 ** abs(as_other):.2g}); give unit={other.unit}")
     return None
 
 
@@ -917,11 +917,6 @@ def identify(measurements: Measurements, params0, *, free: Optional[Sequence[str
     from ..checks import positive
 
     smoothing = _check_input(measurements, params0, validation, smoothing)
-    doubt = unit_check(measurements, params0, smoothing)
-    if doubt:
-        import warnings
-
-        warnings.warn(doubt, UserWarning, stacklevel=2)
     angles = measured_angles(measurements) if angles is None else angles
     angle_frame(2, angles)  # one line for a wrong name, before any work
     names_free, angle = None, None
@@ -940,6 +935,12 @@ def identify(measurements: Measurements, params0, *, free: Optional[Sequence[str
     seg_len = default_segment(measurements) if segment is None else positive("segment", segment, cap=60.0)
     t_start = time.perf_counter()
     say = progress if callable(progress) else (lambda stage, fraction: None)
+    say("checking the angles' unit against params0", 0.0)
+    doubt = unit_check(measurements, params0, smoothing)
+    if doubt:
+        import warnings
+
+        warnings.warn(doubt, UserWarning, stacklevel=2)
     say("linear estimate", 0.0)
     basis = _basis(params0)
     lin = _linear(measurements, params0, basis, free=names_free, validation=validation if method == "linear" else None,
@@ -1512,9 +1513,12 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
 
     def run(beta, alpha, free_alpha, y0, iterations=60, boot=0, tol=1e-10):
         seg.y0[:] = y0
-        sf = shooting.fit(B.terms, params0, beta, free, alpha, free_alpha, seg, pieces=n_pieces,
-                          max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol, cluster=cl, frame=frame,
-                          angle_name=angle or "alpha")
+        try:
+            sf = shooting.fit(B.terms, params0, beta, free, alpha, free_alpha, seg, pieces=n_pieces,
+                              max_iterations=iterations, bootstrap=boot, seed=seed, tol=tol, cluster=cl, frame=frame,
+                              angle_name=angle or "alpha")
+        except np.linalg.LinAlgError as exc:  # a normal matrix LAPACK cannot take (no information, or not finite)
+            raise FloatingPointError(f"its normal equations cannot be solved ({str(exc).lower()})") from None
         if n_cl < MIN_CLUSTERS:  # too few clusters for an interval: none (the reason is in settings)
             sf.half = np.full_like(sf.half, np.nan)
         return sf
@@ -1527,33 +1531,36 @@ def _output_error(lin: Identification, measurements, params0, basis, angle, vali
     alpha_hat, a_lo, a_hi, note = math.nan, math.nan, math.nan, ""
     prof_a: List[float] = []  # the profile: angles, costs
     prof_c: List[float] = []
-    if angle_free:
-        sf, alpha_hat, (a_lo, a_hi), note, prof_a, prof_c = _skew_search(run, sf, alpha0, bootstrap, seed, say, refree,
-                                                                          angle)
-    # a joint term (damping, friction, rotor inertia) estimated below zero with 0 inside its interval: no
-    # physical joint has it, so it is held at the bound 0 and the rest re-fitted -- the model is then that
-    # fit's estimate, not the estimate with one entry clipped (which misses the data by more)
-    bounded: List[str] = []
-    if sf.converged and not sf.flat:
-        th, hw = dict(zip(sf.theta_names, sf.theta)), dict(zip(sf.theta_names, sf.half))
-        neg = [n for n in free if _stem(n).rstrip("0123456789") in ("c", "cf", "Ir") and th.get(n, 0.0) < 0]
-        if neg and all(math.isfinite(hw.get(n, math.nan)) and th[n] + hw[n] >= 0 for n in neg):
-            b = np.array(sf.beta, float)
-            b[[names.index(n) for n in neg]] = 0.0
-            kept = list(free)
-            free[:] = [n for n in free if n not in neg]
-            refit = run(b, sf.alpha, angle in sf.theta_names, sf.y0, boot=bootstrap)
-            if refit.converged and not refit.flat:
-                bounded = [f"{n} (estimate {th[n]:.3g} +- {hw[n]:.2g})" for n in neg]
-                sf = refit
-                if angle in sf.theta_names and math.isfinite(float(sf.half[-1])):
-                    h = float(sf.half[-1])
-                    est = float(sf.alpha)
-                    if "mirror" in note:  # reported on alpha0's side, as the skew search does
-                        est = _start_side(est, alpha0)
-                    alpha_hat, a_lo, a_hi = est, est - h, est + h
-            else:
-                free[:] = kept
+    try:  # a later fit (the angle's profile, a refit at a bound) can fail as the first can
+        if angle_free:
+            sf, alpha_hat, (a_lo, a_hi), note, prof_a, prof_c = _skew_search(run, sf, alpha0, bootstrap, seed, say, refree,
+                                                                              angle)
+        # a joint term (damping, friction, rotor inertia) estimated below zero with 0 inside its interval: no
+        # physical joint has it, so it is held at the bound 0 and the rest re-fitted -- the model is then that
+        # fit's estimate, not the estimate with one entry clipped (which misses the data by more)
+        bounded: List[str] = []
+        if sf.converged and not sf.flat:
+            th, hw = dict(zip(sf.theta_names, sf.theta)), dict(zip(sf.theta_names, sf.half))
+            neg = [n for n in free if _stem(n).rstrip("0123456789") in ("c", "cf", "Ir") and th.get(n, 0.0) < 0]
+            if neg and all(math.isfinite(hw.get(n, math.nan)) and th[n] + hw[n] >= 0 for n in neg):
+                b = np.array(sf.beta, float)
+                b[[names.index(n) for n in neg]] = 0.0
+                kept = list(free)
+                free[:] = [n for n in free if n not in neg]
+                refit = run(b, sf.alpha, angle in sf.theta_names, sf.y0, boot=bootstrap)
+                if refit.converged and not refit.flat:
+                    bounded = [f"{n} (estimate {th[n]:.3g} +- {hw[n]:.2g})" for n in neg]
+                    sf = refit
+                    if angle in sf.theta_names and math.isfinite(float(sf.half[-1])):
+                        h = float(sf.half[-1])
+                        est = float(sf.alpha)
+                        if "mirror" in note:  # reported on alpha0's side, as the skew search does
+                            est = _start_side(est, alpha0)
+                        alpha_hat, a_lo, a_hi = est, est - h, est + h
+                else:
+                    free[:] = kept
+    except FloatingPointError as exc:
+        return _oe_failed(lin, f"the output-error fit failed: {exc}", settings, t_start)
     at_bound = {b.split(" ")[0] for b in bounded}
     held = [n for n in names if n not in free and n != ref]
     beta = sf.beta
