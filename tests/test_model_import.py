@@ -386,5 +386,7 @@ def test_dm_control_acrobot_equals_mujoco():
         pytest.skip("the acrobot's MJCF is not in tests/data")
     model = read_mjcf(path)
     assert model.chain.n == 2 and model.actuated == (2,) and model.gear == (2.0,) and model.torque_limits == (2.0,)
+    assert model.chain.links[1].offset == pytest.approx((0.0, -1.0, 0.0), abs=1e-15) and model.chain.links[0].damping == 0.05
+    assert not any("contacts" in note for note in model.notes)  # constraints disabled in the file
     worst_M, worst_f = worst_disagreement(mujoco, path.read_text(), model, np.random.default_rng(9), states=20)
     assert worst_M <= 1e-12 and worst_f <= 1e-12

@@ -348,7 +348,8 @@ def _from_mujoco(mujoco, model, source: str) -> ImportedModel:
         notes.append(f"frame: gravity along ({d[0]:.6g}, {d[1]:.6g}, {d[2]:.6g}) turned to skewpend's +y (y down)"
                      + (": (x, y, z) -> (x, -z, y)" if d == (0.0, 0.0, -1.0) else ""))
     damper = not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_DAMPER)
-    friction = not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
+    constraint = not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)  # no limits, contacts, friction
+    friction = constraint and not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
     Rt = np.array(R)
     links, anchors, reaches = [], [], []
     jnt_of = {int(model.jnt_bodyid[j]): j for j in range(model.njnt)}
@@ -386,7 +387,7 @@ def _from_mujoco(mujoco, model, source: str) -> ImportedModel:
             notes.append(f"joint {k} frictionloss {frictionloss:g} N m as Coulomb friction coulomb = 2 f / pi = "
                          f"{2.0 * frictionloss / math.pi:.6g} (the same largest torque; MuJoCo's dry friction sticks "
                          "exactly, skewpend's -coulomb atan(cfs q') is smooth)")
-        if model.jnt_limited[j]:
+        if model.jnt_limited[j] and constraint and not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_LIMIT):
             lo, hi = model.jnt_range[j]
             notes.append(f"joint {k} ({joint(j)}): its limits [{lo:g}, {hi:g}] are ignored (skewpend's joints turn freely)")
     for k in range(1, len(links) + 1):
@@ -440,7 +441,7 @@ def _from_mujoco(mujoco, model, source: str) -> ImportedModel:
             links[k - 1]["torque"] = tau
     contacts = [i for i in range(model.ngeom)
                 if (model.geom_contype[i] or model.geom_conaffinity[i]) and model.geom_bodyid[i] in link_of]
-    if contacts and not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT):
+    if contacts and constraint and not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT):
         notes.append(f"contacts ignored: {len(contacts)} geom(s) of the chain's bodies may collide in MuJoCo "
                      "(contype/conaffinity), a chain has no contacts")
     ordered = sorted(range(len(actuated)), key=lambda i: actuated[i])
