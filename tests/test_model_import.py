@@ -390,3 +390,25 @@ def test_dm_control_acrobot_equals_mujoco():
     assert not any("contacts" in note for note in model.notes)  # constraints disabled in the file
     worst_M, worst_f = worst_disagreement(mujoco, path.read_text(), model, np.random.default_rng(9), states=20)
     assert worst_M <= 1e-12 and worst_f <= 1e-12
+
+
+def test_without_mujoco_read_mjcf_says_what_to_install(tmp_path, monkeypatch):
+    import sys
+
+    from skewpend.errors import MissingExtraError
+
+    path = _write(tmp_path, "arm.xml", ACTUATED)
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # import mujoco raises ImportError
+    with pytest.raises(MissingExtraError, match=r'pip install "skewpend\[validate\]"') as info:
+        read_mjcf(path)
+    assert "\n" not in str(info.value)
+    assert read_urdf(_write(tmp_path, "arm.urdf", URDF_ARM)).chain.n == 2  # URDF needs no MuJoCo
+
+
+def test_a_joint_ref_and_a_tilted_gravity_are_said(tmp_path):
+    pytest.importorskip("mujoco")
+    xml = _chain_xml('<joint name="j2" axis="0 1 0" ref="0.5"/>').replace("<mujoco>", '<mujoco><compiler angle="radian"/><option gravity="3 0 -4"/>')
+    model = read_mjcf(_write(tmp_path, "ref.xml", xml))
+    assert model.chain.g == pytest.approx(5.0, rel=1e-15)
+    text = "\n".join(model.notes)
+    assert "ref (qpos0) 0.5" in text and "gravity along (0.6, 0, -0.8)" in text

@@ -37,11 +37,14 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import List, Optional, Sequence, Tuple
+from typing import TYPE_CHECKING, List, Optional, Sequence, Tuple
 
 from ..errors import MissingExtraError, ParameterError
 
-__all__ = ["ImportedModel", "read_mjcf", "read_urdf", "ARMATURE_GEAR"]
+if TYPE_CHECKING:  # pragma: no cover
+    from ..symbolic.chain import Chain
+
+__all__ = ["ImportedModel", "read_mjcf", "read_urdf", "gravity_rotation", "ARMATURE_GEAR"]
 
 #: The gear of the rotor that holds a MuJoCo ``armature`` on a joint after the first (see :func:`read_mjcf`).
 ARMATURE_GEAR = 1e6
@@ -57,7 +60,7 @@ class ImportedModel:
     and/or ``forcerange`` x gear, the smaller; URDF: ``effort``), None where unlimited; ``notes`` -- one line
     per mapping that is not one-to-one; ``source`` -- the file read."""
 
-    chain: object
+    chain: "Chain"
     actuated: Tuple[int, ...] = ()
     gear: Tuple[float, ...] = ()
     torque_limits: Tuple[Optional[float], ...] = ()
@@ -387,6 +390,9 @@ def _from_mujoco(mujoco, model, source: str) -> ImportedModel:
             notes.append(f"joint {k} frictionloss {frictionloss:g} N m as Coulomb friction coulomb = 2 f / pi = "
                          f"{2.0 * frictionloss / math.pi:.6g} (the same largest torque; MuJoCo's dry friction sticks "
                          "exactly, skewpend's -coulomb atan(cfs q') is smooth)")
+        if model.qpos0[model.jnt_qposadr[j]] != 0:
+            notes.append(f"joint {k} ({joint(j)}): its ref (qpos0) {model.qpos0[model.jnt_qposadr[j]]:g} is not skewpend's "
+                         "zero; q is MuJoCo's qpos, zero in the model as written")
         if model.jnt_limited[j] and constraint and not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_LIMIT):
             lo, hi = model.jnt_range[j]
             notes.append(f"joint {k} ({joint(j)}): its limits [{lo:g}, {hi:g}] are ignored (skewpend's joints turn freely)")
