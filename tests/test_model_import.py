@@ -412,3 +412,12 @@ def test_a_joint_ref_and_a_tilted_gravity_are_said(tmp_path):
     assert model.chain.g == pytest.approx(5.0, rel=1e-15)
     text = "\n".join(model.notes)
     assert "ref (qpos0) 0.5" in text and "gravity along (0.6, 0, -0.8)" in text
+
+
+def test_a_link_without_mass_is_one_line(tmp_path):
+    mesh_only = """<robot name="mesh"><link name="base"/>
+      <link name="arm"><visual><geometry><mesh filename="arm.stl"/></geometry></visual></link>
+      <joint name="j" type="continuous"><parent link="base"/><child link="arm"/><axis xyz="0 1 0"/></joint></robot>"""
+    with pytest.raises(ParameterError, match="link 1 \\(link 'arm'\\) has no mass \\(URDF: no <inertial>") as info:
+        read_urdf(_write(tmp_path, "mesh.urdf", mesh_only))
+    assert "\n" not in str(info.value)

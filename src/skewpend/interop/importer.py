@@ -207,7 +207,8 @@ def _finish(links: list, g: float, notes: list, source: str, actuated, gear, lim
     out = []
     for k, (link, length) in enumerate(zip(links, lengths), start=1):
         if not link["mass"] > 0:
-            raise ParameterError(f"link {k} ({link['name']}) has no mass; a chain's link needs a mass > 0")
+            raise ParameterError(f"link {k} ({link['name']}) has no mass (URDF: no <inertial>, whose inertia no mesh "
+                                 "gives; MJCF: no inertial and no geom with mass); a chain's link needs a mass > 0")
         fields = {key: value for key, value in link.items() if key != "name"}
         out.append(Link(length=length or fallback, index=k, **fields))
     chain = Chain(links=tuple(out), g=g)
@@ -437,6 +438,9 @@ def _from_mujoco(mujoco, model, source: str) -> ImportedModel:
         limit = math.inf
         if model.actuator_ctrllimited[a]:
             limit = min(limit, abs(gear * gain) * float(np.max(np.abs(model.actuator_ctrlrange[a]))))
+            lo, hi = model.actuator_ctrlrange[a]
+            if lo != -hi:
+                notes.append(f"{name}: its ctrlrange [{lo:g}, {hi:g}] is not symmetric; the torque limit is the larger side's")
         if model.actuator_forcelimited[a]:
             limit = min(limit, abs(gear) * float(np.max(np.abs(model.actuator_forcerange[a]))))
         actuated.append(k)
