@@ -359,6 +359,10 @@ def test_files_that_are_not_models_are_one_line(tmp_path):
                               '<joint name="mount" type="continuous"><parent link="upper"/>')
     with pytest.raises(ParameterError, match="a branch: link 'upper' carries joints") as info:
         read_urdf(_write(tmp_path, "branch.urdf", branch))
+    loop = URDF_ARM.replace('</robot>', '<joint name="back" type="continuous"><parent link="tool"/><child link="upper"/>'
+                                        '</joint></robot>')
+    with pytest.raises(ParameterError, match="link 'upper' is the child of joints 'shoulder' and 'back'"):
+        read_urdf(_write(tmp_path, "loop.urdf", loop))
     prismatic = URDF_ARM.replace('type="revolute"', 'type="prismatic"')
     with pytest.raises(ParameterError, match="joint 'elbow' is 'prismatic'"):
         read_urdf(_write(tmp_path, "slide.urdf", prismatic))

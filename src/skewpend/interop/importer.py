@@ -566,6 +566,9 @@ def read_urdf(path, g: Optional[float] = None, up: Optional[Sequence[float]] = N
         par, ch = jel.find("parent"), jel.find("child")
         if par is None or ch is None or par.get("link") not in links or ch.get("link") not in links:
             raise ParameterError(f"{where}: joint {jname!r} needs <parent link> and <child link> naming links of the file")
+        if ch.get("link") in child_of:
+            raise ParameterError(f"{where}: link {ch.get('link')!r} is the child of joints "
+                                 f"{child_of[ch.get('link')].get('name')!r} and {jname!r}; a chain is a tree without loops")
         child_of[ch.get("link")] = jel
         kids.setdefault(par.get("link"), []).append(jel)
     roots = [name for name in links if name not in child_of]
@@ -614,9 +617,7 @@ def read_urdf(path, g: Optional[float] = None, up: Optional[Sequence[float]] = N
                 if k and moving_below(child):
                     raise ParameterError(f"{where}: fixed joint {jname!r} between hinges; merge link {child!r} into "
                                          f"{name!r} or give it a hinge")
-                if not k:
-                    pass  # part of the roof
-                elif links[child].find("inertial") is not None:
+                if k and links[child].find("inertial") is not None:  # before the first hinge: the roof
                     notes.append(f"link {k}: link {child!r} fixed (joint {jname!r}) to it, merged")
                 stack.append((child, Wc, _add(x, _matvec(W, xyz)), k))
                 continue
