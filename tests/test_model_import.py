@@ -3,7 +3,7 @@
 * random serial hinge chains written as MJCF here (not by skewpend's exporter: geoms of every shape, fromto,
   densities, explicit inertials, body quat/euler rotations, tilted joint axes at joint positions, damping,
   armature): the chain's mass matrix and bias forces equal MuJoCo's (mj_fullM, qfrc_bias) to 1e-12 relative;
-* skewpend's own exports read back: MJCF to ~1e-15 (MuJoCo's compiler rounds), URDF bit for bit;
+* skewpend's own exports read back: MJCF to 1e-14 relative (MuJoCo's compiler rounds), URDF bit for bit;
 * what a chain cannot hold: one line each.
 """
 
