@@ -74,6 +74,8 @@ _LAZY = {
     "Convention": "analysis.measurements",
     "example_data": "datasets",
     "example_run_file": "datasets",
+    "read_mjcf": "interop.importer",
+    "read_urdf": "interop.importer",
     "widget": "views.widget",
     "PendulumWidget": "views.widget",
 }
@@ -137,6 +139,8 @@ __all__ = [
     "Convention",
     "identify",
     "Identification",
+    "read_mjcf",
+    "read_urdf",
     "widget",
     "PendulumWidget",
     "SkewpendError",
@@ -166,6 +170,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .analysis.readback import open_result
     from .analysis.measurements import Convention, Measurements
     from .analysis.identify import Identification, identify
+    from .interop.importer import read_mjcf, read_urdf
     from .views.widget import PendulumWidget, widget
     from .datasets import example_data, example_run_file
 
