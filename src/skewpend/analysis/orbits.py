@@ -338,7 +338,7 @@ class PeriodicOrbit(Result):
         mu = ", ".join(f"{abs(m):.6g}" + (f" (arg {math.degrees(np.angle(m)):.3g} deg)" if abs(m.imag) > 1e-12 else "")
                        for m in self.multipliers)
         n = np.size(self.state) // 2
-        if n != 2:  # a chain: every multiplier on the unit circle
+        if math.isnan(self.sigma):  # no criterion of two degrees of freedom: every multiplier on the unit circle
             start = ("q = (" + ", ".join(f"{x:.9g}" for x in self.state[:n]) + ") rad, q' = ("
                      + ", ".join(f"{x:.9g}" for x in self.state[n:]) + ") rad/s")
             why = f"largest |mu| = {np.max(np.abs(self.multipliers)):.9g}; stable when every |mu| <= 1"
