@@ -425,3 +425,43 @@ def test_a_link_without_mass_is_one_line(tmp_path):
     with pytest.raises(ParameterError, match="link 1 \\(link 'arm'\\) has no mass \\(URDF: no <inertial>") as info:
         read_urdf(_write(tmp_path, "mesh.urdf", mesh_only))
     assert "\n" not in str(info.value)
+
+
+# -- every command's --config reads a model file ------------------------------------------------------------
+@pytest.mark.slow
+def test_a_model_file_is_a_run_file_of_every_command_that_takes_a_chain(tmp_path):
+    """``--config acrobot.xml`` (dm_control's, read by MuJoCo): simulate runs the chain its reader makes (its end
+    state equals the library's run of ``read_mjcf(...).chain`` from the same default start to 1e-9), the
+    importer's notes and the actuators said once on stderr; ``export`` writes it as URDF and ``--config x.urdf``
+    reads that back; a file that is no chain (a ball joint) is one line, exit 2."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from helpers import run_cli
+
+    import skewpend
+    from skewpend.config import CHAIN_Q0
+
+    acrobot = DATA / "dm_control_acrobot.xml"
+    ran = run_cli(["simulate", "--config", str(acrobot), "--t-end", "1", "--method", "dop853"], cwd=tmp_path)
+    assert ran.code == 0, ran.report()
+    assert ran.err.count("skewpend: note:") == 2 and "actuators on joint 2 |u| <= 2 N m" in ran.err, ran.err
+    chain = read_mjcf(acrobot).chain
+    tr = skewpend.simulate(chain, [CHAIN_Q0] * chain.n + [0.0] * chain.n, 1.0, method="dop853")
+    import re
+
+    line = ran.out.split("final state")[1].splitlines()[0]
+    end = [float(v) for k, v in re.findall(r"(\S+)=(\S+)", line) if k != "t"]
+    assert np.allclose(end, np.asarray(tr.y)[-1, : 2 * chain.n], atol=1e-9), (end, tr.y[-1])
+    out = tmp_path / "acrobot.urdf"
+    ran = run_cli(["export", "--config", str(acrobot), "--out", str(out)], cwd=tmp_path)
+    assert ran.code == 0 and out.exists(), ran.report()
+    from skewpend.interop.export import mujoco_compatible
+
+    assert read_urdf(out).chain == mujoco_compatible(chain)  # the written chain, read back exactly
+    ran = run_cli(["simulate", "--config", str(out), "--t-end", "0.5"], cwd=tmp_path)
+    assert ran.code == 0, ran.report()
+    ball = _write(tmp_path, "ball.xml", '<mujoco><worldbody><body><joint type="ball"/><geom size=".1"/></body>'
+                                        '</worldbody></mujoco>')
+    ran = run_cli(["simulate", "--config", str(ball)], cwd=tmp_path)
+    assert ran.code == 2 and "ball joint" in ran.err and "Traceback" not in ran.err, ran.report()

@@ -20,7 +20,7 @@ user spelled them (numbers, ``"30deg"``, ``"pi/2"``, ``"sym"``, vectors, matrice
 from __future__ import annotations
 
 import math
-from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
+from typing import Any, Callable, Dict, Iterable, Mapping, Optional, Sequence, Tuple
 
 from .errors import ParameterError
 from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
@@ -206,7 +206,10 @@ class Run:
     """
 
     def __init__(self, command: str, config: Optional[str] = None, given: Optional[Mapping[str, Mapping[str, Any]]] = None,
-                 *, defaults: bool = True, flags: Optional[Mapping[str, str]] = None) -> None:
+                 *, defaults: bool = True, flags: Optional[Mapping[str, str]] = None,
+                 read: Optional[Callable[[str], Tuple[Dict[str, Any], Sequence[str]]]] = None) -> None:
+        """``read``: how ``config`` is read, ``path -> (sections, notes)`` (default: a TOML run file; the command
+        line reads a MuJoCo or URDF model file into a chain's sections this way)."""
         from .io import read_config
 
         self.command = command
@@ -226,7 +229,11 @@ class Run:
         if config is not None:
             _check_run_file(config)
             reads = READS.get(command, {})
-            sections = read_config(config)
+            if read is None:
+                sections = read_config(config)
+            else:
+                sections, said = read(config)
+                self.notes.extend(f"{config}: {note}" for note in said)
             if ("links" in sections or sections.get("chain")) and "links" not in reads:
                 takers = ", ".join(c for c, r in READS.items() if "links" in r)
                 what = "[[links]]" if "links" in sections else "[chain]"

@@ -220,13 +220,38 @@ def resolve(command_name: str, config: Optional[str] = None, *, defaults: bool =
     aside) said once on stderr."""
     from ..config import Run
 
-    run = Run(command_name, config, sections, defaults=defaults, flags=flags)
+    run = Run(command_name, config, sections, defaults=defaults, flags=flags, read=_model_file(config))
     LOCATIONS.update(run.locations())
     for note in run.notes:
         if note not in _NOTED:
             _NOTED.add(note)
             sys.stderr.write(f"skewpend: note: {note}\n")
     return run
+
+
+def _model_file(config: Optional[str]):
+    """How a MuJoCo (``.xml``, ``.mjcf``) or URDF (``.urdf``) ``--config`` is read: into a chain's run-file sections,
+    with the importer's notes and the model's actuators said once (None: a TOML run file)."""
+    from pathlib import Path
+
+    from ..interop.importer import MODEL_SUFFIXES
+
+    if config is None or Path(config).suffix.lower() not in MODEL_SUFFIXES:
+        return None
+
+    def read(path):
+        from ..interop.importer import read_model, run_sections
+
+        model = read_model(path)
+        notes = list(model.notes)
+        if model.actuated:
+            limits = ", ".join(f"joint {k}" + (f" |u| <= {u:g} N m" if u is not None else "")
+                               for k, u in zip(model.actuated, model.torque_limits))
+            notes.append(f"actuators on {limits} (skewpend control takes them as --actuated "
+                         f"{','.join(map(str, model.actuated))} and --umax)")
+        return run_sections(model), notes
+
+    return read
 
 
 #: The notes said by the running command (one resolving its run twice says each once).

@@ -44,7 +44,7 @@ from ..errors import MissingExtraError, ParameterError
 if TYPE_CHECKING:  # pragma: no cover
     from ..symbolic.chain import Chain
 
-__all__ = ["ImportedModel", "read_mjcf", "read_urdf", "gravity_rotation", "ARMATURE_GEAR"]
+__all__ = ["MODEL_SUFFIXES", "read_model", "run_sections", "ImportedModel", "read_mjcf", "read_urdf", "gravity_rotation", "ARMATURE_GEAR"]
 
 #: The gear of the rotor that holds a MuJoCo ``armature`` on a joint after the first (see :func:`read_mjcf`).
 ARMATURE_GEAR = 1e6
@@ -658,3 +658,25 @@ def read_urdf(path, g: Optional[float] = None, up: Optional[Sequence[float]] = N
                     inertia=_sandwich(R, inertia) if R is not _IDENTITY else inertia)
     spans = [_norm(chain[k]["offset"]) for k in range(1, len(chain))] + [0.0]
     return _finish(chain, gm, notes, str(p), actuated, gears, limits, reaches, spans)
+
+
+#: The suffixes of the model files :func:`read_model` reads, and their readers.
+MODEL_SUFFIXES = {".xml": "mjcf", ".mjcf": "mjcf", ".urdf": "urdf"}
+
+
+def read_model(path) -> ImportedModel:
+    """An MJCF (``.xml``, ``.mjcf``) or URDF (``.urdf``) file, by its suffix (:func:`read_mjcf`,
+    :func:`read_urdf` with the file's gravity, else 9.81 with +z up)."""
+    kind = MODEL_SUFFIXES.get(Path(path).suffix.lower())
+    if kind is None:
+        raise ParameterError(f"{path}: a model file is MJCF ({', '.join(k for k, v in MODEL_SUFFIXES.items() if v == 'mjcf')}) "
+                             "or URDF (.urdf)")
+    return read_mjcf(path) if kind == "mjcf" else read_urdf(path)
+
+
+def run_sections(model: ImportedModel) -> dict:
+    """The run file's sections of an imported model -- ``chain`` (g, cfs) and ``links`` (one table a link, as
+    ``[[links]]`` tables hold them) -- so that every command that reads a chain's run file reads the model."""
+    data = model.chain.to_dict()
+    links = data.pop("links")
+    return {"chain": data, "links": links}
