@@ -132,15 +132,22 @@ def _angle_styles(coordinates) -> List[Tuple[str, str]]:
 
 
 def _panel_angles(axes, result, predictions) -> None:
+    # the angles the fit measured: each rod's from the vertical (sums of the joint angles) where they are absolute
+    absolute = getattr(result, "settings", {}).get("angles") == "absolute"
+
+    def shown(x):
+        x = np.degrees(np.asarray(x, float))
+        return np.cumsum(x, axis=1) if absolute else x
+
     for ax, (piece, kind, pred, pred0) in zip(axes, predictions):
         t = np.asarray(piece.t, float) - float(piece.t[0])
-        q = np.degrees(np.asarray(piece.q, float))
+        q = shown(piece.q)
         for j, (c, _) in enumerate(_angle_styles(result.params0.coordinates)):
             ax.plot(t, q[:, j], color=c, lw=3.2, alpha=0.28, solid_capstyle="butt")
             if pred0 is not None:
-                ax.plot(t, np.degrees(pred0[:, j]), color="0.15", lw=0.8, ls=(0, (3, 2)))
+                ax.plot(t, shown(pred0)[:, j], color="0.15", lw=0.8, ls=(0, (3, 2)))
             if pred is not None:
-                ax.plot(t, np.degrees(pred[:, j]), color=c, lw=0.9)
+                ax.plot(t, shown(pred)[:, j], color=c, lw=0.9)
         title = f"{_short(piece.name)} {'fitting' if kind == 'fit' else 'held out'}"
         if kind == "held out":
             r, _ = _heldout_rms(result, piece.name)
@@ -155,10 +162,12 @@ def _panel_angles(axes, result, predictions) -> None:
         ax.tick_params(labelsize=7.5)
 
 
-def _angle_legend(subfig, coordinates) -> None:
+def _angle_legend(subfig, coordinates, absolute: bool = False) -> None:
     from matplotlib.lines import Line2D
 
     styles = _angle_styles(coordinates)
+    if absolute:  # each rod's angle from the vertical, not a joint's
+        styles = [(c, f"rod {k}") for k, (c, _) in enumerate(styles, start=1)]
     nq = len(styles)
     handles = [Line2D([], [], color=c, lw=3.2, alpha=0.28) for c, _ in styles]
     handles += [Line2D([], [], color=c, lw=0.9) for c, _ in styles]
@@ -173,6 +182,7 @@ def _panel_residuals(ax, result, predictions) -> None:
     held = [(p, pr, pr0) for p, kind, pr, pr0 in predictions if kind == "held out"]
     from matplotlib.lines import Line2D
 
+    absolute = getattr(result, "settings", {}).get("angles") == "absolute"
     handles, labels = [], []
     for i, (piece, pred, pred0) in enumerate(held):
         c = PIECE_COLORS[i % len(PIECE_COLORS)]
@@ -180,7 +190,9 @@ def _panel_residuals(ax, result, predictions) -> None:
         q = np.asarray(piece.q, float)
         for p, kw in ((pred0, {"lw": 0.7, "ls": (0, (3, 2)), "alpha": 0.8}), (pred, {"lw": 1.0})):  # params0 dashed
             if p is not None:
-                ax.plot(t, 1e3 * np.sqrt(np.mean((p - q) ** 2, axis=1)), color=c, **kw)
+                e = p - q
+                e = np.cumsum(e, axis=1) if absolute else e  # in the angles the fit measured
+                ax.plot(t, 1e3 * np.sqrt(np.mean(e ** 2, axis=1)), color=c, **kw)
         r, r0 = _heldout_rms(result, piece.name)
         handles.append(Line2D([], [], color=c, lw=1.4))
         labels.append(f"{_short(piece.name)}: {_mrad(r)} ({_mrad(r0)})")
@@ -198,7 +210,8 @@ def _panel_residuals(ax, result, predictions) -> None:
     ax.set_title("(b) Held-out prediction error", loc="left")
     ax.set_xlabel("time from the piece's start [s]")
     names = [name for _, name in _angle_styles(result.params0.coordinates)]
-    ax.set_ylabel(f"angle error, RMS of ({', '.join(names)}) [mrad]")
+    ax.set_ylabel("rods' angle error, RMS [mrad]" if absolute else
+                  f"angle error, RMS of ({', '.join(names)}) [mrad]")
 
 
 def _precision_rows(result):
@@ -374,9 +387,10 @@ def plot_identification(result, measurements, validation=None, path=None):
             axes_a[0].set_title("(a) no predictions", loc="left")
             axes_a[0].set_xlabel("time from the piece's start [s]")
             axes_a[0].set_ylabel("angle [deg]")
-        top.suptitle("(a) Measured and predicted angles, each piece simulated from its first measured state",
+        top.suptitle("(a) Measured and predicted angles" + (" from the vertical" if getattr(result, "settings", {}).get(
+            "angles") == "absolute" else "") + ", each piece simulated from its first measured state",
                      x=0.01, ha="left", fontsize=10.5)
-        _angle_legend(top, result.params0.coordinates)
+        _angle_legend(top, result.params0.coordinates, getattr(result, "settings", {}).get("angles") == "absolute")
         _panel_correlation(corner, corner.subplots(), result)
         axes = lower.subplots(1, 3 if profile else 2, width_ratios=(1.1, 1.0, 0.9) if profile else (1.2, 1.0))
         _panel_residuals(axes[0], result, predictions)

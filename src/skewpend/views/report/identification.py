@@ -273,7 +273,7 @@ def _section_heldout(r) -> str:
         rows.append([f"<code>{esc(n)}</code>", esc(k), _rms(x, k), _rms(x0, k), change])
     which = "both angles" if r.params0.n < 3 else f"all {r.params0.n} angles"
     absolute = r.settings.get("angles") == "absolute"
-    frame = ("in the absolute angles the data measured (each rod's from the vertical)" if absolute else
+    frame = ("in the absolute angles the data measured, each rod's from the vertical," if absolute else
              "in the joint angles")
     body = ("<p>Each held-out piece simulated from its first measured state (angles, and speeds as measured or "
             f"estimated) with the fitted model and with params0; the RMS of the angle error over {which} and all "
