@@ -283,7 +283,8 @@ def test_the_cli_identifies_the_triple_pendulum(tmp_path):
 
 
 def test_a_chains_identification_is_drawn(triple_fit, tmp_path):
-    """The identification figure takes a chain's angles: q1 .. q3 measured and predicted, the held-out error."""
+    """The identification figure takes a chain's angles: rods 1 .. 3 measured and predicted (the data's absolute
+    angles, which the fit measured), the held-out error."""
     from skewpend.views.figures.identification import plot_identification
 
     fit, val, result = triple_fit
@@ -294,7 +295,7 @@ def test_a_chains_identification_is_drawn(triple_fit, tmp_path):
         out = [t.get_text() for leg in figure.legends for t in leg.get_texts()]
         return out + [x for sub in figure.subfigs for x in labels(sub)]
 
-    assert {"q₁ measured", "q₃ fitted model"} <= set(labels(fig))
+    assert {"rod 1 measured", "rod 3 fitted model"} <= set(labels(fig))
 
 
 def test_a_chains_joint_terms_that_the_data_want_negative_are_named():
