@@ -356,7 +356,11 @@ def test_a_non_finite_motion_stops_with_a_message(harness):
 
 
 def test_two_widgets_keep_their_own_bodies(harness):
-    general = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, g=9.81, axis2=(0.3, 0.2, 1.0), com2=(0.05, 0.4, 0.0))
+    """The reference model beside a general body on a tilted hinge: each page draws its own bodies where the
+    library puts them.  The general body is examples/general_body.toml's (its kernels, keyed by structure, are
+    the ones the docs' and the README's runs of that file compile: no compile of its own)."""
+    general = Parameters(a=1.0, b=0.6, m1=1.2, m2=0.8, g=9.81, axis2=(1.0, 0.2, 1.0), com2=(0.05, 0.3, 0.0),
+                         inertia2=((0.03, 0.002, 0.0), (0.002, 0.006, 0.0), (0.0, 0.0, 0.03)))
     w1, w2 = skewpend.widget(), skewpend.widget(general, y0=(0.7, -0.3, 0.0, 0.0))
     assert w1._esm != w2._esm  # each carries the physics generated for its bodies
     harness.mount(w1, "w1")
