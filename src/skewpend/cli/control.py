@@ -32,9 +32,14 @@ class Robot(str, Enum):
     pendubot = "pendubot"
 
 
+class Board(str, Enum):
+    v2 = "v2"
+    v3 = "v3"
+
+
 #: The options that belong to some actions only (the others refuse them with one line).
 ONLY = {
-    "--robot": ("leaderboard",), "--robustness": ("leaderboard",), "--target": ("lqr", "swingup", "roa"), "--actuated": ("lqr", "swingup", "roa"),
+    "--robot": ("leaderboard",), "--robustness": ("leaderboard",), "--version": ("leaderboard",), "--target": ("lqr", "swingup", "roa"), "--actuated": ("lqr", "swingup", "roa"),
     "--q": ("lqr", "swingup", "roa"), "--r": ("lqr", "swingup", "roa"),
     "--t-end": ("swingup", "roa"), "--energy-gain": ("swingup",), "--elbow-gains": ("swingup",), "--out": ("swingup", "roa", "leaderboard"),
     "--plot": ("swingup", "roa", "leaderboard"), "--animate": ("swingup",), "--n": ("roa",), "--plane": ("roa",), "--window": ("roa",),
@@ -49,6 +54,7 @@ def control(
     action: Annotated[Optional[Action], typer.Argument(help="lqr: the gain at the target, its closed-loop eigenvalues and region estimate; swingup: from hanging to the target and capture by the LQR; roa: the LQR's region of attraction on a grid of starts; leaderboard: an optimal swing-up of the RealAIGym leaderboard's plant, tracked by time-varying LQR, run and scored by the leaderboard's protocol", show_default=False)] = None,
     robot: Annotated[Optional[Robot], typer.Option("--robot", help="leaderboard: acrobot (the motor on the elbow) or pendubot (on the shoulder); required", show_default=False)] = None,
     robustness: Annotated[bool, typer.Option("--robustness", help="leaderboard: also the robustness board's evaluation (v2: 722 runs with model errors, speed noise, torque noise, torque response, delay and perturbations); default off")] = False,
+    version: Annotated[Optional[Board], typer.Option("--version", help="leaderboard: the simulation board's protocol and score, v2 (one swing-up from hanging, 10 s; the default) or v3 (a global policy: 60 s, 15 resets to random states, scored by the time up)", show_default=False)] = None,
     target: option("--target", T.EquilibriumChoice(), "the equilibrium to balance at: a label (default up-up) or PHI,PSI near one") = None,
     actuated: option("--actuated", T.Actuation(), "the joints with a motor: both or all (default: every joint), the joints' numbers, e.g. 2 or 1,3; for two links acrobot (the elbow only) or pendubot (the shoulder only)") = None,
     q: option("--q", T.Numbers(most=64, metavar="Q1,Q2,..."), "LQR state weights: the diagonal of Q, one per coordinate and rate, (phi, psi, phi', psi') for the double pendulum (default all 1)") = None,
@@ -81,7 +87,7 @@ def control(
     if action is None:
         raise UsageError("control: give what to do, lqr, swingup, roa or leaderboard (e.g. skewpend control lqr "
                          "--actuated acrobot)")
-    given = {"--robot": robot, "--robustness": robustness or None, "--target": target, "--actuated": actuated, "--q": q, "--r": r, "--t-end": t_end, "--energy-gain": energy_gain, "--elbow-gains": elbow_gains, "--out": out, "--plot": plot,
+    given = {"--robot": robot, "--robustness": robustness or None, "--version": version, "--target": target, "--actuated": actuated, "--q": q, "--r": r, "--t-end": t_end, "--energy-gain": energy_gain, "--elbow-gains": elbow_gains, "--out": out, "--plot": plot,
              "--animate": animate, "--n": n, "--plane": plane, "--window": window, "--rtol": rtol, "--atol": atol,
              "--resume": resume or None, "--workers": ensemble.get("workers"), "--scheduler": ensemble.get("scheduler")}
     used = [flag for flag, value in given.items() if value is not None and action.value not in ONLY[flag]]
@@ -94,7 +100,7 @@ def control(
 
         alpha = check_model_options(model, config)
         code = run_leaderboard(robot.value if robot is not None else None, alpha, umax, out, plot, quiet,
-                               robustness=robustness)
+                               robustness=robustness, version="v2" if version is None else version.value)
         if code:
             raise typer.Exit(code)
         return None

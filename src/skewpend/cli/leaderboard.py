@@ -105,17 +105,45 @@ def _robustness_lines(robot: str, joints, alpha: float, limit: float, tracking) 
     return lines
 
 
+def _v3_lines(robot: str, run, alpha: float) -> list:
+    """The simulation v3 board's criteria of ``run`` as report lines, the published best beside the score only
+    for the planar rig."""
+    from ..analysis import leaderboard as lb
+
+    c = run.criteria
+    r = run.protocol.resets
+    name, best = lb.PUBLISHED[robot]["simulation_v3"]
+    lines = [f"protocol     simulation v3: {run.protocol.t_final:g} s, {r.count} resets to random states (a PID and "
+             f"gravity compensation for {r.length:g} s each; seed {r.seed}); the law is time-indexed, so after a reset "
+             "it only holds the goal by its final LQR",
+             f"{'criterion':<22} {'skewpend':>12}",
+             f"{'uptime [s]':<22} {c.uptime:12.4f}",
+             f"{'swing-ups':<22} {c.swingups:12d}"]
+    if alpha:
+        lines.append(f"{'score (v3)':<22} {c.score:12.4f}   not compared: {PLANAR_NOTE}, best {best:.3f} ({name})")
+    else:
+        lines.append(f"{'score (v3)':<22} {c.score:12.4f}   best published: {best:.3f} ({name})")
+    return lines
+
+
 def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], out: Optional[str],
-                    plot: Optional[str], quiet: bool, robustness: bool = False) -> int:
+                    plot: Optional[str], quiet: bool, robustness: bool = False, version: str = "v2") -> int:
     """Optimise, track, run by the protocol, score; print the criteria beside the best published entry (and,
-    with ``robustness``, the robustness board's six criteria and score beside its best entry's).  Exit
-    status 0 on success, 1 when the optimisation fails or the run does not stay up."""
+    with ``robustness``, the robustness board's six criteria and score beside its best entry's).  ``version``:
+    the simulation board, ``"v2"`` (one swing-up from hanging) or ``"v3"`` (the tracking run as a global policy
+    through the v3 board's resets, scored by its uptime).  Exit status 0 on success (v3: a run that completed),
+    1 when the optimisation fails or the v2 run does not stay up."""
     from ..analysis import leaderboard as lb
     from ..analysis.trajopt import optimal_swingup, tvlqr
 
+    if version not in ("v2", "v3"):
+        raise UsageError(f"--version: the simulation board is v2 or v3, got {version!r}")
     if robot is None:
         raise UsageError("control leaderboard: give --robot acrobot or --robot pendubot (the joint with the motor: "
                          "the elbow, the shoulder)")
+    if version == "v3" and plot is not None:
+        raise UsageError("--plot: control leaderboard draws the v2 swing-up's figure; with --version v3 write the run "
+                         "with --out instead")
     if out is not None:
         from ..io import check_output_path
 
@@ -133,8 +161,15 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
         return 1
     stage("designing the time-varying LQR along it")
     tracking = tvlqr(traj)
-    stage(f"running the leaderboard's protocol ({lb.PROTOCOL.steps} RK4 steps of {lb.PROTOCOL.dt:g} s)")
-    protocol = lb.Protocol(umax=limit)
+    if version == "v3":
+        from dataclasses import replace
+
+        protocol = replace(lb.PROTOCOL_V3, umax=limit)
+        stage(f"running the v3 board's protocol ({protocol.steps} RK4 steps of {protocol.dt:g} s, "
+              f"{protocol.resets.count} resets)")
+    else:
+        protocol = lb.Protocol(umax=limit)
+        stage(f"running the leaderboard's protocol ({protocol.steps} RK4 steps of {protocol.dt:g} s)")
     run = lb.run_protocol(model, tracking, actuated=joints, umax=limit, protocol=protocol)
     if not run.ok:
         sys.stderr.write(f"skewpend: the tracked swing-up failed by the leaderboard's protocol: {run.message}\n")
@@ -145,8 +180,17 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
         f"robot        {robot} (motor on joint {joints[0]}), the DFKI lab's design C.1, model 1.1{skew}; |u| <= {limit:g} N m",
         f"optimised    {traj.message}; the motion takes {traj.duration:.4g} s to the goal; solved in "
         f"{traj.solve_time:.3g} s ({traj.attempts} seeded starts)",
-        f"{'criterion':<22} {'skewpend':>12}",
     ]
+    if version == "v3":
+        lines += _v3_lines(robot, run, alpha)
+        if robustness:
+            lines += _robustness_lines(robot, joints, alpha, limit, tracking)
+        if out is not None:
+            lb.write_csv(out, run.t, run.x, run.u)
+            lines.append(f"written      {out} (the leaderboard's columns)")
+        sys.stdout.write("\n".join(lines) + "\n")
+        return 0
+    lines.append(f"{'criterion':<22} {'skewpend':>12}")
     for key, label in (("swingup_time", "swing-up time [s]"), ("energy", "energy [J]"), ("tau_cost", "torque cost"),
                        ("tau_smoothness", "torque smoothness"), ("velocity_cost", "velocity cost")):
         lines.append(f"{label:<22} {getattr(c, key):12.5g}")
