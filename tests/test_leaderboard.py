@@ -169,7 +169,7 @@ def test_the_protocol_steps_as_the_optimiser_does():
     """One model optimised and scored (issue 52): every step of run_protocol is the optimiser's own RK4 step
     (trajopt's CasADi graph of the chain, the torque held) to rounding, on the planar and a skewed rig, the
     double pendulum's facade and its chain alike -- 0.2 s of a hard swing, each row from the run's previous one."""
-    from skewpend.analysis.trajopt import _dynamics
+    from skewpend.analysis.trajopt import casadi_dynamics
 
     def law(t, x):
         return np.array([0.0, 5.0 * math.sin(7.0 * t) - 0.5 * x[3]])
@@ -177,7 +177,7 @@ def test_the_protocol_steps_as_the_optimiser_does():
     protocol = lb.Protocol(t_final=0.2)
     for model in (lb.dfki_model(), lb.dfki_model(0.4).as_chain()):
         run = lb.run_protocol(model, law, actuated=(2,), protocol=protocol)
-        _, _, step, _ = _dynamics(model.as_chain(), (2,))
+        _, _, step, _ = casadi_dynamics(model.as_chain(), (2,))
         ends = np.vstack([run.x[1:], run.final])
         for k in range(protocol.steps):
             u = run.u[k, 1:]

@@ -89,7 +89,7 @@ def test_the_leaderboards_optimiser_builds_on_a_plain_install(plain_env, tmp_pat
     dynamics (CasADi) build for the acrobot with nothing but the default dependencies."""
     code = ("from skewpend.analysis import leaderboard, trajopt\n"
             "chain = trajopt._as_chain(leaderboard.dfki_model())\n"
-            "f = trajopt._dynamics(chain, (1,))\n"
+            "f = trajopt.casadi_dynamics(chain, (1,))\n"
             "print('built', chain.n)\n")
     ran = _run([sys.executable, "-c", code], plain_env, tmp_path)
     assert ran.returncode == 0 and "built 2" in ran.stdout, ran.stderr

@@ -60,7 +60,7 @@ def test_the_structured_derivatives_are_casadis_own(alpha_deg, joints, hold):
     from skewpend.analysis import trajopt
 
     chain = trajopt._as_chain(lb.dfki_model(math.radians(alpha_deg)))
-    ca, _, step, tip = trajopt._dynamics(chain, joints)
+    ca, _, step, tip = trajopt.casadi_dynamics(chain, joints)
     N = 20
     N1 = 16 if hold < 1 else N
     nlp, derivatives, _ = trajopt._transcription(ca, step, tip, n=2, m=len(joints), N=N, N1=N1, joints=joints,

@@ -41,7 +41,8 @@ from ..errors import EquilibriumError, ParameterError, require
 from .control import EVERY_LINK_UP
 from .leaderboard import NORMALISATION, PROTOCOL
 
-__all__ = ["Cost", "OptimalTrajectory", "optimal_swingup", "Tracking", "tvlqr", "COST_TERMS", "SpeedObserver"]
+__all__ = ["Cost", "OptimalTrajectory", "optimal_swingup", "Tracking", "tvlqr", "COST_TERMS", "SpeedObserver",
+           "casadi_dynamics", "time_argument", "save_directory", "write_yaml"]
 
 #: The cost's terms, in order: the leaderboard's criteria (their normalisation: ``leaderboard.NORMALISATION``).
 COST_TERMS = ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_cost")
@@ -103,7 +104,7 @@ class OptimalTrajectory:
         return float(self.t[-1])
 
 
-def _dynamics(chain, actuated: Tuple[int, ...]):
+def casadi_dynamics(chain, actuated: Tuple[int, ...]):
     """CasADi functions of the chain: ``f(y, u) -> y'`` (u: the actuated joints' torques) and the RK4
     step ``step(y, u0, u1, h)`` with the torque linear from u0 to u1 over the step; ``tip(q)`` the end
     effector's height."""
@@ -525,7 +526,7 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
         raise EquilibriumError(f"the goal {label} cannot be held with the joints {', '.join(map(str, joints))} actuated: "
                                f"the linearisation is not controllable (rank {c['rank']} of {lin.A.shape[0]})")
     stage(f"optimal swing-up: building IPOPT's problem and its derivatives (CasADi, {knots} knots)")
-    ca, rhs, step, tip = _dynamics(chain, joints)
+    ca, rhs, step, tip = casadi_dynamics(chain, joints)
     m = len(joints)
     N = knots
     up_line = height * float(tip(x_goal[:n]))
@@ -690,7 +691,7 @@ class Tracking:
         """The torques at the DFKI state ``x = (q1, q2, q1', q2')`` (a chain's ``2 n`` entries) and time ``t``
         [s] (their convention is skewpend's: q2 relative to rod 1, zero hanging).  ``t`` is required: the law
         varies along the motion (the lab's ``Simulator`` passes it)."""
-        t, size = _time_argument(t), len(self.goal)
+        t, size = time_argument(t), len(self.goal)
         try:
             a = np.array(x, dtype=float).reshape(-1)
         except (TypeError, ValueError):
@@ -714,7 +715,7 @@ class Tracking:
         missing); the two paths."""
         from ..io import atomic_path
 
-        directory, rows_file = _save_directory(save_dir), "controller_tvlqr_reference.csv"
+        directory, rows_file = save_directory(save_dir), "controller_tvlqr_reference.csv"
         steps, n2 = self.x_ref.shape
         n = n2 // 2
         m = len(self.actuated)
@@ -736,13 +737,13 @@ class Tracking:
                   + [f"tau{j}" for j in self.actuated]
                   + [f"K{self.actuated[r]}_{c + 1}" for r in range(m) for c in range(n2)])
         rows = np.column_stack([np.arange(steps) * self.dt, self.x_ref, self.u_ref, self.K.reshape(steps, -1)])
-        parameters, table = _write_yaml(directory / "controller_tvlqr_parameters.yml", entries), directory / rows_file
+        parameters, table = write_yaml(directory / "controller_tvlqr_parameters.yml", entries), directory / rows_file
         with atomic_path(table) as tmp:
             np.savetxt(tmp, rows, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
         return parameters, table
 
 
-def _time_argument(t) -> float:
+def time_argument(t) -> float:
     """The time of a call of the DFKI interface, required (a law that varies along the motion)."""
     if t is None:
         raise ParameterError("t must be given: get_control_output(x, t) of this law depends on the time [s] (the "
@@ -758,7 +759,7 @@ def _time_argument(t) -> float:
     return value
 
 
-def _save_directory(save_dir):
+def save_directory(save_dir):
     from pathlib import Path
 
     if not isinstance(save_dir, (str, bytes)) and not hasattr(save_dir, "__fspath__"):
@@ -773,7 +774,7 @@ def _save_directory(save_dir):
     return directory
 
 
-def _write_yaml(path, entries: Dict[str, Any]):
+def write_yaml(path, entries: Dict[str, Any]):
     import json
 
     from ..io import atomic_path
@@ -797,7 +798,7 @@ class SpeedObserver:
     def get_control_output(self, x, t=None):
         """The law's torques at the state ``x`` with the speeds from the positions seen, at the time ``t`` [s]
         (required: the law it wraps may vary with time)."""
-        t = _time_argument(t)
+        t = time_argument(t)
         x = np.array(x, dtype=float)
         n = x.size // 2
         self._seen = (self._seen + [x[:n].copy()])[-3:]
@@ -816,8 +817,8 @@ class SpeedObserver:
     def save(self, save_dir):
         """The DFKI interface's ``save(save_dir)``: the observer's settings as
         ``controller_observer_parameters.yml``, and the law's own files when it saves (a :class:`Tracking`)."""
-        directory = _save_directory(save_dir)
-        paths = [_write_yaml(directory / "controller_observer_parameters.yml", {
+        directory = save_directory(save_dir)
+        paths = [write_yaml(directory / "controller_observer_parameters.yml", {
             "observer": "skewpend.analysis.trajopt.SpeedObserver: the speeds from the positions, (3 q_k - 4 q_k-1 + "
                         "q_k-2) / (2 dt)", "dt": self.dt,
             "law": getattr(type(self.law), "__qualname__", repr(self.law))})]
@@ -861,7 +862,7 @@ def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=N
     Qm, Rm = check_weights(np.diag([10.0] * n + [3.0] * n) if Q is None else Q, 20.0 * np.eye(m) if R is None else R,
                            m, 2 * n)
     Qfm = Qm if Qf is None else check_weights(Qf, None, m, 2 * n, q_name="Qf")[0]
-    ca, rhs, step, _ = _dynamics(chain, joints)
+    ca, rhs, step, _ = casadi_dynamics(chain, joints)
     idx = [j - 1 for j in joints]
     t_knots, xk, uk = trajectory.t, trajectory.x, trajectory.u[:, idx]
     K_steps = int(math.ceil(trajectory.duration / dt - 1e-9))

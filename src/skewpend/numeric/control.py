@@ -224,6 +224,8 @@ class Controller:
     #: tracking: the rows (x_k, u_k, K_k) of the reference, sampled every ``dt`` [s]
     reference: Optional[np.ndarray] = field(default=None, repr=False)
     dt: float = 0.0
+    #: a sampled law (:meth:`function`'s ``hold``): its period [s], the law held between samples (0: continuous)
+    hold: float = 0.0
 
     # -- constructors ------------------------------------------------------------------------
     @classmethod
@@ -312,11 +314,14 @@ class Controller:
                    P=np.zeros((2 * n, 2 * n)), nq=n, reference=reference, dt=dt)
 
     @classmethod
-    def function(cls, f, *, actuated="both", umax=None, nq: int = 2) -> "Controller":
+    def function(cls, f, *, actuated="both", umax=None, nq: int = 2, hold: Optional[float] = None) -> "Controller":
         """``u = f(t, x)``: a Python callable of the time [s] and the state ``x = (phi, psi, phi',
         psi')`` (a chain's ``(q1 … qn, q1' … qn')``, ``nq`` = n; a NumPy array) returning the joints'
         torques [N m] (the joints not actuated get 0, then the limits apply).  The slow path (see the
-        module): for laws the built-in ones cannot express."""
+        module): for laws the built-in ones cannot express.  ``hold`` [s]: a sampled law (a digital
+        controller's, e.g. a model-predictive one): called once every ``hold`` seconds at the state
+        reached and held in between -- :func:`skewpend.simulate` runs it with ``method="rk4"`` and ``dt =
+        hold`` (its step's start is the sample; "auto" takes them)."""
         n = _joints(nq)
         actuation_mask(actuated, n)
         if not callable(f):
@@ -327,7 +332,13 @@ class Controller:
             raise ParameterError(f"the law must take two arguments, f(t, x) -> (u1, ..., u{n}); {f!r} does not") from None
         except ValueError:  # no signature to read (some built-ins): its first call says
             pass
-        return cls("function", _actuated_setting(actuated), torque_limits(umax, n), law=f, nq=n, **_no_feedback(n))
+        period = 0.0
+        if hold is not None:
+            period = _real("hold", hold)
+            if not (math.isfinite(period) and period > 0):
+                raise ParameterError(f"hold must be a positive sampling period [s], got {hold!r}")
+        return cls("function", _actuated_setting(actuated), torque_limits(umax, n), law=f, nq=n, hold=period,
+                   **_no_feedback(n))
 
     def check_model(self, nq: int) -> None:
         """Refuse (one ParameterError) running this controller on a model of ``nq`` coordinates when it
@@ -360,6 +371,7 @@ class Controller:
         c.kp, c.kd = self.elbow_gains
         c.P[:] = np.ravel(self.P).tolist()
         c.rho = self.rho
+        c.hold = self.hold
         if self.kind in ("table", "tracking"):  # the rows, kept alive as long as the struct
             table = (self.reference if self.kind == "tracking" else
                      np.ascontiguousarray(np.column_stack([self.times, self.torques]), dtype=float))
@@ -422,6 +434,8 @@ class Controller:
         d: Dict[str, Any] = {"kind": self.kind, "nq": self.nq,
                              "actuated": self.actuated if isinstance(self.actuated, str) else list(self.actuated),
                              "umax": [x if math.isfinite(x) else None for x in self.umax]}
+        if self.hold:
+            d["hold"] = self.hold
         if self.kind in ("feedback", "swingup", "tracking"):
             d.update(K=np.asarray(self.K).tolist(), target=np.asarray(self.target).tolist(),
                      u_target=np.asarray(self.u_target).tolist())

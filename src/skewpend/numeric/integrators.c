@@ -192,13 +192,19 @@ static inline double dop_dense_value(double y, const double *F, ptrdiff_t fs, do
  *                    (the angles of x - x_k wrapped; table row k: x_k[SP_NX], u_k[SP_NQ], K_k[SP_NQ x
  *                    SP_NX] row-major), the sample n_table's the goal's feedback u* - K (x - x*); at time
  *                    t the laws of the samples floor(t / dt_table) and the next blended linearly (sample 0
- *                    before it, the goal's from n_table dt_table on); the time is a state too.
+ *                    before it, the goal's from n_table dt_table on); the time is a state too;
+ *   SP_CTL_HELD      u = us: a sampled law held over a step (a digital controller's zero-order hold).  A
+ *                    control whose hold is > 0 (a callback sampled every hold seconds) runs with sp_rk4_ctl
+ *                    only, its step dt = hold: rk4_run evaluates the law once at each step's start, at the
+ *                    accepted state, and holds that input over the step's four stages (Python refuses it
+ *                    with the adaptive methods, whose trial stages are no samples).
  * Then the joints not actuated get u = 0 and every u_j is clipped to [-umax_j, umax_j]. */
 #define SP_CTL_FEEDBACK 1
 #define SP_CTL_SWINGUP 2
 #define SP_CTL_TABLE 3
 #define SP_CTL_CALLBACK 4
 #define SP_CTL_TRACK 5
+#define SP_CTL_HELD 6
 #define SP_TRACK_W (SP_NX + SP_NQ + SP_NQ * SP_NX) /* a tracking table's row */
 typedef struct {
     int32_t kind;              /* SP_CTL_* */
@@ -216,6 +222,7 @@ typedef struct {
     const double *table;
     void (*callback)(double t, const double *y, double *u); /* callback: u[SP_NQ] at time t and state y[SP_NX] */
     double dt_table;           /* tracking: the reference's sampling step [s] */
+    double hold;               /* > 0: the law is sampled every hold seconds and held (rk4's step) */
 } sp_control;
 
 /* the active control of this thread (a run with inputs sets it for the duration of a call); the
@@ -286,6 +293,8 @@ static void sp_input(const sp_control *c, const double *y, const double *p, doub
         }
     } else if (c->kind == SP_CTL_CALLBACK) {
         c->callback(y[SP_NT], y, u);
+    } else if (c->kind == SP_CTL_HELD) {
+        for (int r = 0; r < SP_NQ; r++) u[r] = c->us[r];
     } else if (c->kind == SP_CTL_TRACK) {
         /* the laws of the samples k and k + 1 around t blended linearly (sample n_table: the goal's) */
         const double tk = y[SP_NT] / c->dt_table;
@@ -473,9 +482,15 @@ static int rk4_run(sp_state *s, int n, const double *p, double t0, double dt, in
         if (!all_finite(s->y, n)) return SP_STATUS_NONFINITE;
         put_row(rows, m++, n, t0, s->y);
     }
+    /* a sampled law (hold > 0): evaluated once a step at its start, held over the stages (SP_CTL_HELD) */
+    const sp_control *law = sp_ctl;
+    sp_control held;
+    const int holding = law != 0 && law->hold > 0.0;
+    if (holding) { held = *law; held.kind = SP_CTL_HELD; }
     while (s->step < nsteps) {
         if (done >= budget) { *m_out = m; return SP_CALL_BUDGET; }
         if (m >= cap - 1) { *m_out = m; return SP_CALL_BUFFER_FULL; }
+        if (holding) { sp_ctl = law; sp_input(law, s->y, p, held.us); sp_ctl = &held; }
         model_rhs(s->y, p, k1);
         for (int i = 0; i < n; i++) tmp[i] = s->y[i] + half * k1[i];
         model_rhs(tmp, p, k2);

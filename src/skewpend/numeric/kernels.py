@@ -226,6 +226,7 @@ def control_struct_type(nq: int):
             ("table", ctypes.POINTER(ctypes.c_double)),
             ("callback", ctypes.c_void_p),
             ("dt_table", ctypes.c_double),
+            ("hold", ctypes.c_double),
         ]
 
     _Control.__name__ = _Control.__qualname__ = "ControlStruct" if nq == 2 else f"ControlStruct{nq}"
@@ -338,10 +339,10 @@ def fused_multiply_add() -> Tuple[bool, Tuple[str, ...]]:
     return False, ()
 
 
-def _compile(source: str, target: Path, flags: Tuple[str, ...] = ()) -> str:
+def _compile(source: str, target: Path, flags: Tuple[str, ...] = (), archives: Tuple[str, ...] = ()) -> str:
     """Compile ``source`` into the shared library ``target`` (written atomically, with the
-    records ``.sha256`` and ``.compiler`` beside it), ``flags`` added to :data:`CFLAGS`; returns the
-    compiler's name."""
+    records ``.sha256`` and ``.compiler`` beside it), ``flags`` added to :data:`CFLAGS`, linked with the static
+    ``archives``; returns the compiler's name."""
     cc = find_compiler()
     name = compiler_name(cc)
     directory = target.parent
@@ -354,7 +355,8 @@ def _compile(source: str, target: Path, flags: Tuple[str, ...] = ()) -> str:
         # the packaged zig cc builds its compiler runtime (compiler_rt) on its first use, 4-7 s, for
         # builtins no kernel calls (double and 64-bit integer arithmetic are instructions; only libm is used)
         extra = ["-rtlib=none"] if tuple(cc[1:]) == PACKAGED_COMPILER else []
-        cmd = [*cc, *CFLAGS, *flags, *extra, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp, "-lm"]
+        cmd = [*cc, *CFLAGS, *flags, *extra, "-I", str(_PACKAGE / "numeric"), "-o", so_tmp, "-x", "c", c_tmp,
+               *(("-x", "none", *archives) if archives else ()), "-lm"]
         # the compiler's own temporary files (gcc's .s) go to a directory of ours, removed even when
         # Ctrl-C kills the compiler mid-way (it could not clean up after itself)
         scratch = tempfile.mkdtemp(dir=directory, prefix=f".{target.stem}.", suffix=".cc-tmp")
@@ -735,7 +737,8 @@ def _announce(kind: str, cached: bool, which: str = "") -> None:
     if os.environ.get("SKEWPEND_QUIET", "") not in ("", "0"):
         return
     what = {"flip": "the flip-map kernels", "chaos": "the chaos kernels", "taylor": "the Taylor kernel",
-            "shooting": "the identification's shooting kernels", "chain": "the chain's kernels"}.get(kind, "the model's kernels")
+            "shooting": "the identification's shooting kernels", "chain": "the chain's kernels",
+            "mpc": "the model-predictive controller"}.get(kind, "the model's kernels")
     when = "first use only; cached for later runs" if cached else "for this run: the cache is not writable"
     try:  # ``which``: what tells two builds of one kind apart (a report builds the rig's and MuJoCo's bodies)
         sys.stderr.write(f"skewpend: compiling {what}{which} ({when})...\n")
@@ -761,7 +764,8 @@ def announce_background(what: str, meanwhile: str, key: str = "") -> None:
 _ANNOUNCED: set = set()
 
 
-def _library(key: str, make, source, *, kind: str, which: str = "", flags: Tuple[str, ...] = ()):
+def _library(key: str, make, source, *, kind: str, which: str = "", flags: Tuple[str, ...] = (),
+             archives: Tuple[str, ...] = ()):
     """The one loader of every compiled library (a model's, its flip, chaos and shooting libraries, the Taylor
     integrator's, of any form): under the key's lock, from this process, else from the cache (checked
     against its recorded hash; a damaged file is rebuilt), else ``source()`` announced (:func:`_announce`
@@ -784,10 +788,26 @@ def _library(key: str, make, source, *, kind: str, which: str = "", flags: Tuple
             path = directory / f"skewpend_{key}{LIB_SUFFIX}"
             _remove_stale_temporaries(directory)
             _announce(kind, cached=directory == cache_dir() / "kernels", which=which)
-            _compile(source(), path, flags)  # a model without what the source needs is refused here
+            _compile(source(), path, flags, archives)  # a model without what the source needs is refused here
             loaded = make(path, "compiled", time.perf_counter() - start)
         _LOADED[key] = loaded
         return loaded
+
+
+def casadi_library(fn, *, kind: str, which: str = "", flags: Tuple[str, ...] = (), archives: Tuple[str, ...] = ()):
+    """The CasADi function ``fn`` as C (CasADi's code generator: its graph's operations, and the code of the
+    solvers it calls where CasADi generates them) compiled through the one loader (:func:`_library`: the
+    cache, its lock, the announcement of ``kind``) with ``flags`` and linked with ``archives``: the loaded
+    ``ctypes.CDLL`` (its entry points are ``fn``'s name, ``<name>_work``, ``<name>_checkout`` as CasADi's
+    generated C declares them)."""
+    import casadi as ca
+
+    gen = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False, "verbose": False})
+    gen.add(fn)
+    text = gen.dump()
+    key = _key("casadi\0" + " ".join(flags) + "\0" + " ".join(Path(a).name for a in archives) + "\0" + text)
+    return _library(key, lambda path, origin, seconds: ctypes.CDLL(str(path)), lambda: text, kind=kind, which=which,
+                    flags=flags, archives=archives)
 
 
 def _bodies_words(geometry) -> str:

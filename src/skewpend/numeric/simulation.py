@@ -73,6 +73,7 @@ AUTO = "auto"
 #:
 #: A fixed step ``dt`` is refused with ``auto`` (it is a setting of rk4 and gauss: name the method).
 AUTO_RULE = {
+    "sampled": "rk4: a sampled law, each step of its period one sample (the law held over the step)",
     "controller": "dop853: inputs that vary (taylor's series are generated for constant torques)",
     "no series": "dop853: {reason}",
     "recursive": f"dop853: a chain of more than {SERIES_MAX_LINKS} links (its Taylor series, of the model as polynomials, "
@@ -546,7 +547,9 @@ def simulate(
             raise ParameterError("dt is the step of rk4 and gauss; the default method 'auto' chooses its own steps (set "
                                  "rtol/atol), or name method='rk4' or 'gauss' with dt")
         K.taylor_build_in_foreground()  # a bad SKEWPEND_TAYLOR_BUILD refused before any build
-        if not K.series_form(params, entry.form if entry is not None else form):
+        if getattr(controller, "hold", 0.0):
+            method, choice, dt = "rk4", AUTO_RULE["sampled"], controller.hold
+        elif not K.series_form(params, entry.form if entry is not None else form):
             method, choice = "dop853", AUTO_RULE["recursive"]
         elif controller is None:
             exact = (entry.form if entry is not None else K.model_form(params, form)[0]) == "exact"
@@ -570,6 +573,10 @@ def simulate(
                "taylor": "taylor's series are generated for"}.get(method)
         if why is not None:
             raise ParameterError(f"inputs that vary need dop853 or rk4 ({why} the model with constant torques)")
+        if controller.hold and (method != "rk4" or dt is None or abs(dt - controller.hold) > 1e-12 * controller.hold):
+            raise ParameterError(f"a sampled law (held every {controller.hold:g} s) runs with method='rk4' and dt="
+                                 f"{controller.hold:g} (each step's start its sample), or method='auto'; got method="
+                                 f"{method!r}" + ("" if dt is None else f", dt={dt:g}"))
     if progress is not None:
         checks.progress_callable(progress, "progress(t, t_end)")
     if out is not None:

@@ -1,0 +1,358 @@
+"""Model-predictive control on the generated dynamics: a real-time iteration, compiled, for any model.
+
+:class:`MPC` is a controller: at each call it takes the state, solves one quadratic programme and returns
+the torques of the actuated joints.  The optimal control problem over the next ``horizon`` seconds:
+
+* the model (the double pendulum as the chain of two, any chain, any skew) from the recursive algorithms
+  (:func:`skewpend.numeric.recursive.chain_functions`, CasADi's graph, as the optimal swing-ups use it),
+  ``nodes`` intervals of one classical RK4 step each, the torques held over an interval and bounded by the
+  motors' limits;
+* the cost of a node's state ``x``: ``energy ((E(x) - E*) / (E* - E0))^2`` (the mechanical energy's distance
+  to the goal's ``E*``, in units of the goal's height in energy above hanging ``E0``: what swings the rods up
+  from anywhere) plus ``angle |q - q*|^2 + speed |q' - q*'|^2`` (the goal's angles taken nearest the present
+  ones: a turn more or less is the same goal) and ``torque |u|^2``; at the horizon's end the goal's discrete LQR
+  cost-to-go (the Riccati solution of the same RK4 step about the goal, weights ``terminal``), so that near
+  the goal the controller is that LQR;
+* solved by a **real-time iteration** (Diehl et al. 2005; acados' SQP-RTI, the 2025 competition winner's
+  method): one Gauss-Newton step a call from the previous call's torques (shifted by the time passed),
+  single shooting condensed onto the torques (the states' exact derivatives by CasADi's automatic
+  differentiation of the RK4 step), the box-constrained quadratic programme solved by DAQP (Arnström et al.
+  2022, the active-set solver CasADi ships and generates code for);
+* all of it one C function, CasADi's code generator's output compiled through skewpend's cache (a second
+  to build, then loaded): one call a control step, no Python in the solve.
+
+A step whose programme fails (non-finite data, a solver status) applies the previous plan's next torque,
+shifted (never a silent zero), and counts it (:attr:`MPC.fallbacks`, :attr:`MPC.message`).  Each solve's
+wall time is kept (:attr:`MPC.solve_times`, bounded: the last :data:`TIMES_KEPT`).
+
+The DFKI lab's controller interface (``get_control_output(x, t)``, ``init()``, ``reset()``, ``save(dir)``)
+makes it a controller of their ``Simulator`` and benchmark code unchanged; :meth:`MPC.controller` makes it a
+:class:`skewpend.Controller` for :func:`skewpend.simulate` (a Python law: the slow path, sampled every
+``period``).  A call at an earlier time than the last one starts a new run (the plan forgotten, as
+:meth:`MPC.reset`); :class:`~skewpend.analysis.trajopt.SpeedObserver` gives it speeds from positions.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Optional, Tuple
+
+import numpy as np
+
+from ..errors import ParameterError, require
+from .control import EVERY_LINK_UP
+
+__all__ = ["MPC", "MPCSettings", "TIMES_KEPT", "PERIOD"]
+
+#: How many solve times an :class:`MPC` keeps (its last ones): memory stays bounded over any run.
+TIMES_KEPT = 1_000_000
+#: The default sampling of :meth:`MPC.controller` [s]: the leaderboard's step (a solve each step of its protocol;
+#: the 2025 competition's winner solved at 400 Hz).
+PERIOD = 0.002
+
+
+@dataclass(frozen=True)
+class MPCSettings:
+    """The optimal control problem of an :class:`MPC` (see the module): ``horizon`` [s] over ``nodes`` RK4
+    intervals; the weights of the energy's distance (dimensionless, per node), the angles' [1/rad^2], the
+    speeds' [s^2/rad^2] and the torques' [1/(N m)^2]; ``terminal``: the goal LQR's weights (angle, speed,
+    torque) whose cost-to-go ends the horizon; ``iterations``: Gauss-Newton steps a call (1: the real-time
+    iteration), ``first``: steps at the first call (from zero torques, the warm start)."""
+
+    horizon: float = 0.5
+    nodes: int = 20
+    energy: float = 60.0
+    angle: float = 10.0
+    speed: float = 1.0
+    torque: float = 1e-3
+    terminal: Tuple[float, float, float] = (10.0, 1.0, 1e-2)
+    iterations: int = 1
+    first: int = 10
+
+    def check(self) -> None:
+        def positive(name, v, zero=False):
+            ok = isinstance(v, (int, float, np.floating)) and not isinstance(v, bool) and math.isfinite(v) and (
+                v >= 0 if zero else v > 0)
+            if not ok:
+                raise ParameterError(f"{name} must be a {'non-negative' if zero else 'positive'} number, got {v!r}")
+
+        positive("horizon", self.horizon)
+        for name in ("energy", "angle", "speed"):
+            positive(name, getattr(self, name), zero=True)
+        positive("torque", self.torque)
+        for name, lo, hi in (("nodes", 2, 200), ("iterations", 1, 50), ("first", 1, 500)):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lo <= v <= hi):
+                raise ParameterError(f"{name} must be a whole number from {lo} to {hi}, got {v!r}")
+        if len(tuple(self.terminal)) != 3:
+            raise ParameterError(f"terminal must be the goal LQR's three weights (angle, speed, torque), got "
+                                 f"{self.terminal!r}")
+        for name, v in zip(("terminal angle", "terminal speed", "terminal torque"), self.terminal):
+            positive(name, v)
+
+
+def _daqp_archive() -> Tuple[str, str]:
+    """CasADi's DAQP: its headers' folder and static library (the generated C calls it)."""
+    ca = require("casadi", "model-predictive control (CasADi)")
+    root = Path(ca.__file__).resolve().parent
+    archive = root / "libdaqpstat.a"
+    if not (archive.is_file() and (root / "include" / "daqp" / "api.h").is_file() and ca.has_conic("daqp")):
+        raise ParameterError(f"model-predictive control needs CasADi's DAQP solver (CasADi 3.7 or later; this is "
+                             f"{ca.__version__}): pip install -U casadi")
+    return str(root / "include"), str(archive)
+
+
+def _step_functions(chain, joints: Tuple[int, ...], h: float):
+    """CasADi: the RK4 step ``F(x, u)`` over ``h`` with its Jacobians, the energy ``E(x)``."""
+    import casadi as ca
+
+    from ..numeric.recursive import chain_functions, parameter_vector, structure_of_chain
+    from .trajopt import casadi_dynamics
+
+    _, _, step, _ = casadi_dynamics(chain, joints)
+    nx, m = 2 * chain.n, len(joints)
+    x, u = ca.SX.sym("x", nx), ca.SX.sym("u", m)
+    nxt = step(x, u, u, h)
+    J = ca.Function("J", [x, u], [ca.jacobian(nxt, x), ca.jacobian(nxt, u), nxt])
+    energy = chain_functions(structure_of_chain(chain))["energy"]
+    E = ca.Function("E", [x], [energy(x, ca.DM(parameter_vector(chain)))])
+    return J, E
+
+
+def _rti_function(J, E, goal: np.ndarray, settings: MPCSettings, P: np.ndarray, scale: float, e_goal: float,
+                  m: int, umax: np.ndarray):
+    """One real-time iteration as a CasADi function ``sp_mpc(x0, U, goal) -> U'`` (see the module)."""
+    import casadi as ca
+
+    nx, N, n = goal.size, settings.nodes, goal.size // 2
+    x, g = ca.SX.sym("x", nx), ca.SX.sym("g", nx)
+    w = np.sqrt(np.r_[[settings.angle] * n, [settings.speed] * n])
+    stage = ca.vertcat(math.sqrt(settings.energy) * (E(x) - e_goal) / scale, ca.DM(w) * (x - g))
+    end = ca.DM(np.linalg.cholesky(P).T) @ (x - g)
+    rs = ca.Function("rs", [x, g], [stage, ca.jacobian(stage, x)])
+    rt = ca.Function("rt", [x, g], [end, ca.jacobian(end, x)])
+    x0, U, gm = ca.MX.sym("x0", nx), ca.MX.sym("U", m, N), ca.MX.sym("goal", nx)
+    X, G = x0, ca.MX.zeros(nx, 0)
+    H, grad = ca.MX.zeros(N * m, N * m), ca.MX.zeros(N * m)
+    for k in range(N):  # the states' sensitivities to the torques, node by node (single shooting, condensed)
+        A, B, X = J(X, U[:, k])
+        G = ca.horzcat(A @ G, B)
+        r, Jr = (rs if k < N - 1 else rt)(X, gm)
+        JG = ca.horzcat(Jr @ G, ca.MX.zeros(Jr.shape[0], (N - k - 1) * m))
+        H += JG.T @ JG
+        grad += JG.T @ r
+    R = settings.torque * np.eye(N * m)
+    Uv = ca.reshape(U, N * m, 1)
+    H += ca.DM(R)
+    grad += ca.DM(R) @ Uv
+    qp = ca.conic("qp", "daqp", {"h": ca.Sparsity.dense(N * m, N * m)}, {"error_on_fail": False})
+    lim = ca.DM(np.tile(umax, N))
+    sol = qp(h=H, g=grad, lbx=-lim - Uv, ubx=lim - Uv)
+    return ca.Function("sp_mpc", [x0, U, gm], [U + ca.reshape(sol["x"], m, N)])
+
+
+class MPC:
+    """Model-predictive control of ``model`` (see the module) towards ``goal`` (an equilibrium: the default
+    every link up; a label, an ``Equilibrium`` or angles near one), the ``actuated`` joints' torques within
+    ``umax`` [N m] (one limit, or one per actuated joint; finite), the problem ``settings``
+    (:class:`MPCSettings`).  ``period`` [s]: :meth:`controller`'s sampling (the law held between samples;
+    default :data:`PERIOD`, the leaderboard's step: a solve each step of its protocol).  Building it compiles
+    its C function (seconds, once: cached).  Call it as ``mpc(t, x)`` -> every joint's torques."""
+
+    def __init__(self, model, *, actuated=(2,), umax=6.0, goal=EVERY_LINK_UP, settings: MPCSettings = MPCSettings(),
+                 period: float = PERIOD):
+        import scipy.linalg as sl
+
+        from ..numeric.kernels import casadi_library
+        from .control import linearization
+
+        if not isinstance(settings, MPCSettings):
+            raise ParameterError(f"settings must be an MPCSettings, got {settings!r}")
+        settings.check()
+        lin = linearization(model, goal, actuated)
+        chain = lin.params.as_chain()
+        self.model, self.settings, self.n = lin.params, settings, chain.n
+        self.joints = tuple(j + 1 for j in lin.joints)
+        m = len(self.joints)
+        try:
+            limits = np.broadcast_to(np.asarray(umax, dtype=float), (m,))
+        except (TypeError, ValueError):
+            limits = np.full(m, np.nan)
+        if isinstance(umax, (bool, str, bytes)) or not np.all(np.isfinite(limits)) or np.any(limits <= 0):
+            raise ParameterError(f"umax must be {'a finite positive torque' if m == 1 else f'one finite positive torque or {m}'}"
+                                 f" [N m] (the MPC bounds every actuated joint's torque), got {umax!r}")
+        self.umax = np.array(limits, dtype=float)
+        self.goal = np.asarray(lin.target, dtype=float).copy()
+        self.dt = settings.horizon / settings.nodes
+        try:
+            self.period = float(period)
+        except (TypeError, ValueError):
+            self.period = math.nan
+        if isinstance(period, bool) or not (math.isfinite(self.period) and self.period > 0):
+            raise ParameterError(f"period must be a positive sampling time [s], got {period!r}")
+        include, archive = _daqp_archive()
+        J, E = _step_functions(chain, self.joints, self.dt)
+        A, B, _ = (np.array(v, dtype=float) for v in J(self.goal, np.zeros(m)))
+        ta, ts, tu = settings.terminal
+        P = sl.solve_discrete_are(A, B, np.diag([ta] * self.n + [ts] * self.n), tu * np.eye(m))
+        hanging = np.zeros_like(self.goal)
+        self.e_goal, e0 = float(E(self.goal)), float(E(hanging))
+        scale = abs(self.e_goal - e0) or 1.0  # a goal at the hanging energy (the hanging rest): the weights stand
+        fn = _rti_function(J, E, self.goal, settings, P, scale, self.e_goal, m, self.umax)
+        self._lib = casadi_library(fn, kind="mpc", flags=("-I", include), archives=(archive,))
+        self._bind()
+        self.reset()
+
+    # -- the compiled call ---------------------------------------------------------------------------------
+    def _bind(self) -> None:
+        lib, LL, dp = self._lib, ctypes.c_longlong, ctypes.POINTER(ctypes.c_double)
+        sizes = [LL() for _ in range(4)]
+        lib.sp_mpc_work(*[ctypes.byref(s) for s in sizes])
+        n_arg, n_res, n_iw, n_w = (max(int(s.value), 1) for s in sizes)
+        self._iw = (LL * n_iw)()
+        self._w = np.zeros(n_w)
+        self._x0 = np.zeros(2 * self.n)
+        self._U = np.zeros((self.settings.nodes, len(self.joints)))  # row per node: CasADi's column-major (m, N)
+        self._g = np.zeros(2 * self.n)
+        self._out = np.zeros_like(self._U)
+        self._arg = (dp * n_arg)(*[a.ctypes.data_as(dp) for a in (self._x0, self._U, self._g)])
+        self._res = (dp * n_res)(self._out.ctypes.data_as(dp))
+        lib.sp_mpc.restype = ctypes.c_int
+        self._mem = lib.sp_mpc_checkout()
+
+    def _iterate(self, x: np.ndarray, goal: np.ndarray, steps: int) -> bool:
+        """``steps`` Gauss-Newton steps from the plan in ``_U``; False (``_U`` kept) when one fails."""
+        self._x0[:] = x
+        self._g[:] = goal
+        for _ in range(steps):
+            status = self._lib.sp_mpc(self._arg, self._res, self._iw, self._w.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
+                                      self._mem)
+            out = self._out
+            if status != 0 or not np.all(np.isfinite(out)) or np.any(np.abs(out) > self.umax * (1 + 1e-9) + 1e-12):
+                return False
+            self._U[:] = np.clip(out, -self.umax, self.umax)
+        return True
+
+    # -- the law -----------------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the plan, the time and the statistics (a new run)."""
+        self._U = getattr(self, "_U", np.zeros((self.settings.nodes, len(self.joints))))
+        self._U[:] = 0.0
+        self._t: Optional[float] = None
+        self._held: Optional[Tuple[int, np.ndarray]] = None
+        self._times = np.zeros(min(TIMES_KEPT, 1024))
+        self._count = 0
+        self.fallbacks = 0
+        self.message = ""
+
+    init = reset
+
+    @property
+    def solve_times(self) -> np.ndarray:
+        """The wall times [s] of the solves so far (the last :data:`TIMES_KEPT`), in order."""
+        k = self._count
+        if k <= self._times.size:
+            return self._times[:k].copy()
+        i = k % self._times.size
+        return np.concatenate([self._times[i:], self._times[:i]])
+
+    def _record(self, seconds: float) -> None:
+        k = self._count
+        if k >= self._times.size and self._times.size < TIMES_KEPT:
+            self._times = np.concatenate([self._times, np.zeros(min(self._times.size, TIMES_KEPT - self._times.size))])
+        self._times[k % self._times.size] = seconds
+        self._count = k + 1
+
+    def _shift(self, dt: float) -> None:
+        """The plan moved on by ``dt`` [s] (interpolated between its nodes, the last held)."""
+        if dt <= 0:
+            return
+        N = self.settings.nodes
+        s = np.arange(N) + dt / self.dt
+        for j in range(self._U.shape[1]):
+            self._U[:, j] = np.interp(s, np.arange(N), self._U[:, j])
+
+    def plan(self) -> np.ndarray:
+        """The present plan: the actuated joints' torques over the horizon's nodes, a row per node."""
+        return self._U.copy()
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        x = np.asarray(x, dtype=float).reshape(-1)
+        if x.shape != (2 * self.n,) or not np.all(np.isfinite(x)):
+            raise ParameterError(f"x must be the state, {2 * self.n} finite numbers (angles [rad], then speeds [rad/s]), "
+                                 f"got {x!r}")
+        start = time.perf_counter()
+        if self._t is not None and t < self._t:  # an earlier time than the last call's: a new run
+            self._U[:] = 0.0
+            self._t = None
+        first = self._t is None
+        if not first:
+            self._shift(float(t) - self._t)
+        self._t = float(t)
+        n = self.n
+        goal = self.goal.copy()  # the goal's angles taken nearest the present ones
+        goal[:n] = x[:n] + (np.mod(goal[:n] - x[:n] + np.pi, 2 * np.pi) - np.pi)
+        before = self._U.copy()
+        if not self._iterate(x, goal, self.settings.first if first else self.settings.iterations):
+            self._U[:] = before
+            self.fallbacks += 1
+            self.message = (f"{self.fallbacks} step(s) whose programme failed applied the previous plan's torque "
+                            f"(first at t = {t:.4g} s)" if self.fallbacks == 1 else
+                            self.message.replace(f"{self.fallbacks - 1} step(s)", f"{self.fallbacks} step(s)", 1))
+        self._record(time.perf_counter() - start)
+        out = np.zeros(n)
+        out[[j - 1 for j in self.joints]] = self._U[0]
+        return out
+
+    # -- skewpend's and the DFKI lab's interfaces ----------------------------------------------------------------
+    def controller(self):
+        """This MPC as a :class:`skewpend.Controller` for :func:`skewpend.simulate`: a law sampled every
+        :attr:`period` (``Controller.function(..., hold=period)``: simulate runs it by RK4 with that step, the
+        MPC solved at each step's start from the state reached and its torques held over the step, as a
+        digital controller's)."""
+        from ..numeric.control import Controller
+
+        held: dict = {}  # sample -> its torques (the trajectory's torques read them back)
+
+        def law(t, x):
+            k = math.floor(t / self.period + 0.5)  # the integrator's step k starts at k period
+            if k not in held:
+                held[k] = self(k * self.period, x)
+            return held[k]
+
+        self.reset()
+        return Controller.function(law, actuated=self.joints, umax=tuple(self._limits_per_joint()), nq=self.n,
+                                   hold=self.period)
+
+    def _limits_per_joint(self):
+        limits = [math.inf] * self.n
+        for j, u in zip(self.joints, self.umax):
+            limits[j - 1] = float(u)
+        return limits
+
+    def get_control_output(self, x, t=None):
+        """The torques at the DFKI state ``x = (q1, q2, q1', q2')`` (a chain's ``2 n`` entries; q2 relative, zero
+        hanging: skewpend's own) at the time ``t`` [s] (required: the plan moves on with it)."""
+        from .trajopt import time_argument
+
+        return self(time_argument(t), x)
+
+    def save(self, save_dir):
+        """The DFKI interface's ``save(save_dir)``: the controller's settings as ``controller_mpc_parameters.yml``
+        (written atomically into ``save_dir``, made if missing); its path."""
+        from .trajopt import save_directory, write_yaml
+
+        entries = {"controller": "skewpend.analysis.mpc.MPC (real-time iteration, DAQP, compiled)",
+                   "actuated_joints": list(self.joints), "torque_limits": self.umax.tolist(),
+                   "goal": self.goal.tolist(), "goal_energy": self.e_goal, "period": self.period,
+                   **{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.settings).items()}}
+        return write_yaml(save_directory(save_dir) / "controller_mpc_parameters.yml", entries)
+
+    def __repr__(self) -> str:
+        s = self.settings
+        return (f"MPC({self.model.title}, joints {','.join(map(str, self.joints))}, |u| <= "
+                f"{', '.join(f'{u:g}' for u in self.umax)} N m, {s.nodes} nodes over {s.horizon:g} s)")

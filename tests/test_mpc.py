@@ -1,0 +1,273 @@
+"""Model-predictive control (skewpend.analysis.mpc): its one step is the Gauss-Newton step of its stated problem
+(computed here independently: the specification's SymPy equations, finite differences, SciPy's Riccati and bounded
+least squares), it swings the DFKI rig up as acrobot and pendubot, it refuses bad input in one line, says what it
+applied when a step fails, and speaks the DFKI lab's controller interface."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg as sl
+from scipy.optimize import lsq_linear
+
+from skewpend.errors import ParameterError
+
+pytest.importorskip("casadi")
+
+
+@pytest.fixture(scope="module")
+def rig():
+    from skewpend.analysis.leaderboard import dfki_model
+
+    return dfki_model()
+
+
+@pytest.fixture(scope="module")
+def acrobot_mpc(rig):
+    from skewpend.analysis.mpc import MPC
+
+    return MPC(rig, actuated=(2,), umax=6.0)
+
+
+def _exact_step(rig, joints, h):
+    """The RK4 step over ``h`` of the exact (SymPy) equations, the actuated joints' torques held, and the energy."""
+    from skewpend.numeric.kernels import model_kernel, model_vector, model_vector_names
+
+    kernel = model_kernel(rig, "exact")
+    p0 = np.array(model_vector(rig, "exact"), dtype=float)
+    names = model_vector_names(rig, "exact")
+
+    def f(y, u):
+        p = p0.copy()
+        for j, uj in zip(joints, u):
+            p[names.index(f"tau{j}")] += uj
+        out = np.zeros(5)  # the state and the energy the forces do (the kernels' layout)
+        kernel.rhs(np.append(np.asarray(y, dtype=float), 0.0), p, out)
+        return out[:4]
+
+    def step(y, u):
+        k1 = f(y, u)
+        k2 = f(y + h / 2 * k1, u)
+        k3 = f(y + h / 2 * k2, u)
+        k4 = f(y + h * k3, u)
+        return y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    return step, (lambda y: kernel.energy(np.asarray(y, dtype=float), p0))
+
+
+def _jacobian(fn, x, eps=1e-6):
+    x = np.asarray(x, dtype=float)
+    cols = []
+    for i in range(x.size):
+        d = np.zeros_like(x)
+        d[i] = eps
+        cols.append((np.atleast_1d(fn(x + d)) - np.atleast_1d(fn(x - d))) / (2 * eps))
+    return np.column_stack(cols)
+
+
+@pytest.mark.parametrize("robot,joints", [("acrobot", (2,)), ("pendubot", (1,))])
+def test_one_step_is_the_gauss_newton_step_of_the_stated_problem(rig, robot, joints):
+    """From zero torques at a state, one iteration's plan equals the bounded linear least-squares step of the
+    module's problem built here from the exact SymPy equations by finite differences (its error ~1e-8 in the
+    Jacobians, amplified by the step's conditioning: 1e-4 N m allowed against torques of order 1-6 N m)."""
+    from skewpend.analysis.mpc import MPC, MPCSettings
+
+    s = MPCSettings(first=1)
+    mpc = MPC(rig, actuated=joints, umax=6.0, settings=s)
+    h, N, n, m = s.horizon / s.nodes, s.nodes, 2, 1
+    step, energy = _exact_step(rig, joints, h)
+    goal = np.array([math.pi, 0.0, 0.0, 0.0])
+    A = _jacobian(lambda y: step(y, [0.0]), goal)
+    B = _jacobian(lambda u: step(goal, u), np.zeros(1))
+    ta, ts, tu = s.terminal
+    P = sl.solve_discrete_are(A, B, np.diag([ta, ta, ts, ts]), tu * np.eye(1))
+    L = np.linalg.cholesky(P).T
+    e_goal, e_hang = energy(goal), energy(np.zeros(4))
+    x0 = np.array([0.4, -0.7, 1.1, -0.5])
+    g = goal.copy()
+    g[:n] = x0[:n] + (np.mod(goal[:n] - x0[:n] + np.pi, 2 * np.pi) - np.pi)
+    w = np.sqrt([s.angle, s.angle, s.speed, s.speed])
+
+    def residual(U):
+        x, r = x0, []
+        for k in range(N):
+            x = step(x, [U[k]])
+            if k < N - 1:
+                r += [math.sqrt(s.energy) * (energy(x) - e_goal) / (e_goal - e_hang), *(w * (x - g))]
+            else:
+                r += list(L @ (x - g))
+        return np.array(r + list(math.sqrt(s.torque) * np.asarray(U)))
+
+    U0 = np.zeros(N)
+    r0, J = residual(U0), _jacobian(residual, U0)
+    expected = lsq_linear(J, -r0, bounds=(-6.0, 6.0), method="bvls", tol=1e-14).x
+    got = mpc(0.0, x0)
+    assert np.max(np.abs(mpc.plan()[:, 0] - expected)) < 1e-4, (mpc.plan()[:, 0], expected)
+    assert got[joints[0] - 1] == mpc.plan()[0, 0] and got[2 - joints[0]] == 0.0
+    assert np.any(np.abs(expected) > 1.0)  # a step that moves: the comparison is not of zeros
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("joints", [(2,), (1,)], ids=["acrobot", "pendubot"])
+def test_it_swings_the_rig_up_and_holds_it_by_the_leaderboards_protocol(rig, joints):
+    """Hanging at rest, the leaderboard's protocol (RK4, 2 ms, 10 s, |u| <= 6 N m): the rig swings up and ends at
+    the goal (within 0.35 rad and 1 rad/s, the robustness board's test), no step fell back."""
+    from skewpend.analysis.leaderboard import criteria, run_protocol
+    from skewpend.analysis.mpc import MPC
+    from skewpend.analysis.robustness import at_goal
+
+    mpc = MPC(rig, actuated=joints, umax=6.0)
+    run = run_protocol(rig, mpc, actuated=joints, umax=6.0)
+    c = criteria(run.t, run.x, run.u, run.heights, run.reach)
+    assert run.ok and c.success and c.swingup_time < 5.0, c
+    assert at_goal(run.final)
+    assert mpc.fallbacks == 0 and mpc.message == ""
+    assert np.max(np.abs(run.u[:, joints[0] - 1])) <= 6.0 and np.all(run.u[:, 2 - joints[0]] == 0.0)
+    assert mpc.solve_times.size == run.t.size and np.all(mpc.solve_times > 0)
+
+
+def test_a_failed_step_applies_the_previous_plan_and_says_so(acrobot_mpc, monkeypatch):
+    mpc = acrobot_mpc
+    mpc.reset()
+    x = np.array([0.3, 0.2, 0.0, 0.0])
+    u0 = mpc(0.0, x)
+    plan = mpc.plan()
+    monkeypatch.setattr(mpc, "_iterate", lambda *a: False)
+    u1 = mpc(mpc.dt, x)  # one node later: the plan's second torque
+    assert u1[1] == pytest.approx(plan[1, 0], abs=1e-12) and u1[0] == 0.0
+    assert mpc.fallbacks == 1 and "previous plan" in mpc.message and "t = 0.025" in mpc.message
+    mpc(2 * mpc.dt, x)
+    assert mpc.fallbacks == 2 and mpc.message.startswith("2 step(s)")
+    monkeypatch.undo()
+    mpc.reset()
+    assert mpc.fallbacks == 0 and mpc.message == "" and np.all(mpc.plan() == 0.0)
+    assert np.isfinite(u0).all()
+
+
+def test_an_earlier_time_starts_a_new_run(acrobot_mpc):
+    mpc = acrobot_mpc
+    mpc.reset()
+    x = np.array([0.3, 0.2, 0.0, 0.0])
+    first = mpc(0.0, x).copy()
+    for k in range(1, 5):
+        mpc(k * 0.002, x)
+    assert np.array_equal(mpc(0.0, x), first)  # the same start, the same torques: nothing kept from the run
+
+
+@pytest.mark.parametrize("kwargs,words", [
+    ({"umax": math.inf}, "umax must be a finite positive torque"),
+    ({"umax": None}, "umax must be"),
+    ({"umax": -1.0}, "umax must be"),
+    ({"umax": (1.0, 2.0)}, "umax must be"),
+    ({"umax": True}, "umax must be"),
+    ({"actuated": (3,)}, "joint"),
+    ({"settings": "fast"}, "settings must be an MPCSettings"),
+    ({"period": 0.0}, "period must be a positive"),
+])
+def test_bad_input_is_one_line(rig, kwargs, words):
+    from skewpend.analysis.mpc import MPC
+
+    with pytest.raises(ParameterError) as err:
+        MPC(rig, **{"actuated": (2,), "umax": 6.0, **kwargs})
+    assert words in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("field,value,words", [
+    ("horizon", 0.0, "horizon must be a positive"), ("nodes", 1, "nodes must be a whole number from 2"),
+    ("nodes", 2.5, "nodes must be"), ("torque", 0.0, "torque must be a positive"), ("energy", -1.0, "energy must be"),
+    ("iterations", 0, "iterations must be"), ("terminal", (1.0, 1.0), "terminal must be"),
+    ("terminal", (1.0, 0.0, 1.0), "terminal speed must be"),
+])
+def test_bad_settings_are_one_line(field, value, words):
+    from dataclasses import replace
+
+    from skewpend.analysis.mpc import MPCSettings
+
+    with pytest.raises(ParameterError) as err:
+        replace(MPCSettings(), **{field: value}).check()
+    assert words in str(err.value)
+
+
+def test_bad_states_and_times_are_refused(acrobot_mpc):
+    with pytest.raises(ParameterError, match="x must be the state, 4 finite numbers"):
+        acrobot_mpc(0.0, [0.0, 0.0, np.nan, 0.0])
+    with pytest.raises(ParameterError, match="x must be the state"):
+        acrobot_mpc(0.0, [0.0, 0.0])
+    with pytest.raises(ParameterError, match="t must be given"):
+        acrobot_mpc.get_control_output([0.0] * 4)
+
+
+def test_the_dfki_interface(acrobot_mpc, tmp_path):
+    """``init``/``reset`` forget the run, ``get_control_output(x, t)`` is the call, ``save(dir)`` writes the
+    settings (the lab's benchmark code calls all of them)."""
+    import yaml
+
+    mpc = acrobot_mpc
+    mpc.init()
+    x = [0.2, -0.1, 0.0, 0.3]
+    u = mpc.get_control_output(x, 0.0)
+    mpc.reset()
+    assert np.array_equal(mpc(0.0, np.array(x)), u)
+    path = mpc.save(tmp_path / "ctl")
+    data = yaml.safe_load(path.read_text())
+    assert data["actuated_joints"] == [2] and data["torque_limits"] == [6.0] and data["nodes"] == 20
+    assert data["goal"] == pytest.approx([math.pi, 0, 0, 0])
+
+
+@pytest.mark.slow
+def test_it_runs_in_simulate_sampled_and_held(rig):
+    """``controller()`` in :func:`skewpend.simulate`: "auto" runs the sampled law by RK4 at its period, one solve a
+    step at the step's start, the torques held over the step (the trajectory's torques are those held); a pendubot
+    near the top is brought to it.  An adaptive method is refused in one line."""
+    import skewpend
+    from skewpend.analysis.mpc import MPC
+
+    mpc = MPC(rig, actuated=(1,), umax=6.0, period=0.01)
+    res = skewpend.simulate(rig, (math.pi - 0.2, 0.3, 0.0, 0.0), t_end=3.0, controller=mpc.controller())
+    assert res.method == "rk4" and "sampled" in res.settings["method_choice"]
+    end = res.y[-1]
+    assert abs(math.remainder(end[0] - math.pi, 2 * math.pi)) < 1e-2 and abs(math.remainder(end[1], 2 * math.pi)) < 1e-2
+    assert np.all(np.abs(end[2:]) < 5e-2)
+    assert mpc.solve_times.size == 300 and mpc.fallbacks == 0  # one solve a step of 0.01 s
+    u = res.inputs()[:-1, 0]  # the rows are the steps' starts: the torques held from each
+    assert np.max(np.abs(u)) <= 6.0 and np.std(u) > 0
+    # the held torques reproduce the run: RK4 steps with each row's torque, on the exact form's equations
+    from skewpend.numeric.kernels import model_kernel, model_vector, model_vector_names
+
+    kernel, p0 = model_kernel(rig), np.array(model_vector(rig), dtype=float)
+    k_tau = model_vector_names(rig).index("tau1")
+
+    def f(y, tau):
+        p = p0.copy()
+        p[k_tau] += tau
+        out = np.zeros(5)
+        kernel.rhs(np.append(y, 0.0), p, out)
+        return out[:4]
+
+    y, h = res.y[0].copy(), 0.01
+    for k in range(50):
+        k1 = f(y, u[k]); k2 = f(y + h / 2 * k1, u[k]); k3 = f(y + h / 2 * k2, u[k]); k4 = f(y + h * k3, u[k])
+        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        assert np.allclose(y, res.y[k + 1], rtol=0, atol=1e-9), k
+    with pytest.raises(ParameterError, match="a sampled law .* runs with method='rk4' and dt=0.01"):
+        skewpend.simulate(rig, (3.0, 0.0, 0.0, 0.0), t_end=1.0, controller=mpc.controller(), method="dop853")
+    with pytest.raises(ParameterError, match="dt=0.01"):
+        skewpend.simulate(rig, (3.0, 0.0, 0.0, 0.0), t_end=1.0, controller=mpc.controller(), method="rk4", dt=0.005)
+
+
+@pytest.mark.slow
+def test_a_chain_of_three_is_held_up():
+    """Any model: a triple pendulum with motors on joints 1 and 3, started near every link up, ends there."""
+    from skewpend.analysis.leaderboard import Protocol, run_protocol
+    from skewpend.analysis.mpc import MPC
+    from skewpend.symbolic.chain import Chain
+
+    chain = Chain.from_lists(3, length=0.3, mass=0.5)
+    mpc = MPC(chain, actuated=(1, 3), umax=(8.0, 8.0))
+    run = run_protocol(chain, mpc, actuated=(1, 3), umax=8.0, protocol=Protocol(t_final=3.0),
+                       x0=[math.pi - 0.15, 0.1, -0.1, 0.0, 0.0, 0.0])
+    assert run.ok
+    err = np.abs(np.remainder(run.final[:3] - np.array([math.pi, 0.0, 0.0]) + math.pi, 2 * math.pi) - math.pi)
+    assert np.all(err < 1e-2) and np.all(np.abs(run.final[3:]) < 5e-2), run.final
