@@ -300,3 +300,17 @@ def example_model(name: str = "skewed_triple.toml") -> str:
     ``[[links]]``), for a test's own run file to add its start and settings to."""
     text = (Path(__file__).resolve().parent.parent / "examples" / name).read_text(encoding="utf-8")
     return text.split("\n[initial]", 1)[0].rstrip() + "\n"
+
+
+def general_body(**changes):
+    """examples/general_body.toml's model (a rigid second body: its centre of mass off the rod's line, a product
+    of inertia, its hinge tilted out of the (i, k) plane) with ``changes``: a test that needs some general body
+    takes this one, whose compiled kernels (keyed by structure, not values: damping and torques are values) the
+    README's, the docs' and the report's runs of that file build anyway -- a body of its own would compile its
+    own (the model's, the flip map's, the Taylor series': seconds each, once per CI run)."""
+    from skewpend.config import build_parameters
+    from skewpend.io import read_config
+
+    path = Path(__file__).resolve().parent.parent / "examples" / "general_body.toml"
+    params = build_parameters(read_config(path)["parameters"])
+    return params.replace(**changes) if changes else params
