@@ -128,22 +128,31 @@ def test_it_swings_the_rig_up_and_holds_it_by_the_leaderboards_protocol(rig, joi
     assert mpc.solve_times.size == run.t.size and np.all(mpc.solve_times > 0)
 
 
-def test_a_failed_step_applies_the_previous_plan_and_says_so(acrobot_mpc, monkeypatch):
+def test_a_failed_step_is_solved_again_from_zero_else_brakes_and_says_so(acrobot_mpc, monkeypatch):
     mpc = acrobot_mpc
     mpc.reset()
-    x = np.array([0.3, 0.2, 0.0, 0.0])
-    u0 = mpc(0.0, x)
-    plan = mpc.plan()
+    x = np.array([0.3, 0.2, 0.4, -1.5])
+    mpc(0.0, x)
+    real = mpc._iterate
+    calls = []
+
+    def first_fails(*args):  # the plan's step fails, the restart from zero torques succeeds
+        calls.append(np.array(mpc.plan()))
+        return False if len(calls) == 1 else real(*args)
+
+    monkeypatch.setattr(mpc, "_iterate", first_fails)
+    u = mpc(0.002, x)
+    assert len(calls) == 2 and np.all(calls[1] == 0.0) and mpc.restarts == 1 and mpc.fallbacks == 0
+    assert u[1] == mpc.plan()[0, 0] and mpc.message == ""
     monkeypatch.setattr(mpc, "_iterate", lambda *a: False)
-    u1 = mpc(mpc.dt, x)  # one node later: the plan's second torque
-    assert u1[1] == pytest.approx(plan[1, 0], abs=1e-12) and u1[0] == 0.0
-    assert mpc.fallbacks == 1 and "previous plan" in mpc.message and "t = 0.025" in mpc.message
-    mpc(2 * mpc.dt, x)
-    assert mpc.fallbacks == 2 and mpc.message.startswith("2 step(s)")
+    u = mpc(0.004, x)  # both fail: the motor brakes its joint (q2' = -1.5 rad/s: +umax)
+    assert u[1] == pytest.approx(6.0) and u[0] == 0.0 and mpc.fallbacks == 1 and np.all(mpc.plan() == 0.0)
+    assert "braked the motors' joints" in mpc.message and "t = 0.004" in mpc.message
+    u = mpc(0.006, np.array([0.3, 0.2, 0.0, 0.5]))  # a slow joint: proportional
+    assert u[1] == pytest.approx(-3.0) and mpc.message.startswith("2 step(s)") and "t = 0.004" in mpc.message
     monkeypatch.undo()
     mpc.reset()
-    assert mpc.fallbacks == 0 and mpc.message == "" and np.all(mpc.plan() == 0.0)
-    assert np.isfinite(u0).all()
+    assert mpc.fallbacks == 0 and mpc.restarts == 0 and mpc.message == "" and np.all(mpc.plan() == 0.0)
 
 
 def test_an_earlier_time_starts_a_new_run(acrobot_mpc):

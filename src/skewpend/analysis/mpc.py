@@ -21,8 +21,10 @@ the torques of the actuated joints.  The optimal control problem over the next `
 * all of it one C function, CasADi's code generator's output compiled through skewpend's cache (a second
   to build, then loaded): one call a control step, no Python in the solve.
 
-A step whose programme fails (non-finite data, a solver status) applies the previous plan's next torque,
-shifted (never a silent zero), and counts it (:attr:`MPC.fallbacks`, :attr:`MPC.message`).  Each solve's
+A step whose programme fails (non-finite data -- a rollout that diverges --, a solver status) is solved once more
+from zero torques with the warm start's iterations (:attr:`MPC.restarts` counts those); failing again, the motors
+brake their joints (``-umax q'/max(|q'|, BRAKE_SPEED)``: energy out, never a silent zero) and the next call starts
+from zero -- counted and said (:attr:`MPC.fallbacks`, :attr:`MPC.message`).  Each solve's
 wall time is kept (:attr:`MPC.solve_times`, bounded: the last :data:`TIMES_KEPT`).
 
 The DFKI lab's controller interface (``get_control_output(x, t)``, ``init()``, ``reset()``, ``save(dir)``)
@@ -46,10 +48,13 @@ import numpy as np
 from ..errors import ParameterError, require
 from .control import EVERY_LINK_UP
 
-__all__ = ["MPC", "MPCSettings", "TIMES_KEPT", "PERIOD"]
+__all__ = ["MPC", "MPCSettings", "TIMES_KEPT", "PERIOD", "BRAKE_SPEED"]
 
 #: How many solve times an :class:`MPC` keeps (its last ones): memory stays bounded over any run.
 TIMES_KEPT = 1_000_000
+#: The speed [rad/s] below which a failed step's braking torque is proportional to the joint's speed (above it: -umax
+#: times the speed's sign).
+BRAKE_SPEED = 1.0
 #: The default sampling of :meth:`MPC.controller` [s]: the leaderboard's step (a solve each step of its protocol;
 #: the 2025 competition's winner solved at 400 Hz).
 PERIOD = 0.002
@@ -232,7 +237,8 @@ class MPC:
             status = self._lib.sp_mpc(self._arg, self._res, self._iw, self._w.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
                                       self._mem)
             out = self._out
-            if status != 0 or not np.all(np.isfinite(out)) or np.any(np.abs(out) > self.umax * (1 + 1e-9) + 1e-12):
+            # DAQP's bounds hold to its tolerance (1e-6 relative); beyond: a failed programme
+            if status != 0 or not np.all(np.isfinite(out)) or np.any(np.abs(out) > self.umax * (1 + 1e-6)):
                 return False
             self._U[:] = np.clip(out, -self.umax, self.umax)
         return True
@@ -247,6 +253,8 @@ class MPC:
         self._times = np.zeros(min(TIMES_KEPT, 1024))
         self._count = 0
         self.fallbacks = 0
+        self.restarts = 0
+        self._first_fallback: Optional[float] = None
         self.message = ""
 
     init = reset
@@ -296,13 +304,26 @@ class MPC:
         n = self.n
         goal = self.goal.copy()  # the goal's angles taken nearest the present ones
         goal[:n] = x[:n] + (np.mod(goal[:n] - x[:n] + np.pi, 2 * np.pi) - np.pi)
-        before = self._U.copy()
-        if not self._iterate(x, goal, self.settings.first if first else self.settings.iterations):
-            self._U[:] = before
-            self.fallbacks += 1
-            self.message = (f"{self.fallbacks} step(s) whose programme failed applied the previous plan's torque "
-                            f"(first at t = {t:.4g} s)" if self.fallbacks == 1 else
-                            self.message.replace(f"{self.fallbacks - 1} step(s)", f"{self.fallbacks} step(s)", 1))
+        steps = self.settings.first if first else self.settings.iterations
+        if not self._iterate(x, goal, steps):
+            # a failed programme (a reset's jump, a plan gone stale): once more from zero torques, the warm start's
+            # iterations; failing again, the motors brake their joints and the next call starts from zero
+            self._U[:] = 0.0
+            if self._iterate(x, goal, self.settings.first):
+                self.restarts += 1
+            else:
+                self._U[:] = 0.0
+                self.fallbacks += 1
+                self._first_fallback = self._t if self._first_fallback is None else self._first_fallback
+                self.message = (f"{self.fallbacks} step(s) whose programme failed twice (from the plan, then from zero "
+                                f"torques) braked the motors' joints, -umax q'/max(|q'|, {BRAKE_SPEED:g} rad/s) (first at "
+                                f"t = {self._first_fallback:.4g} s)")
+                speeds = x[n:][[j - 1 for j in self.joints]]
+                brake = -self.umax * speeds / np.maximum(np.abs(speeds), BRAKE_SPEED)
+                self._record(time.perf_counter() - start)
+                out = np.zeros(n)
+                out[[j - 1 for j in self.joints]] = brake
+                return out
         self._record(time.perf_counter() - start)
         out = np.zeros(n)
         out[[j - 1 for j in self.joints]] = self._U[0]
