@@ -280,3 +280,51 @@ def test_a_chain_of_three_is_held_up():
     assert run.ok
     err = np.abs(np.remainder(run.final[:3] - np.array([math.pi, 0.0, 0.0]) + math.pi, 2 * math.pi) - math.pi)
     assert np.all(err < 1e-2) and np.all(np.abs(run.final[3:]) < 5e-2), run.final
+
+
+@pytest.mark.slow
+def test_the_swingup_command_runs_the_mpc_and_says_its_account(tmp_path):
+    """``control swingup --controller mpc``: the reference rig with both motors is captured in the LQR's region and
+    held; the MPC's problem, solves and failures are said; the figure is written (drawn from the run's held torques)."""
+    from helpers import run_cli
+
+    fig = tmp_path / "mpc.png"
+    ran = run_cli(["control", "swingup", "--controller", "mpc", "--actuated", "both", "--t-end", "3", "--plot", fig])
+    assert ran.code == 0, ran.report()
+    assert "captured in the LQR's region at t = " in ran.out
+    assert "controller  model-predictive: 20 RK4 nodes over 0.5 s, sampled every 2 ms; 1501 solves" in ran.out
+    assert "no step failed" in ran.out and fig.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["control", "swingup", "--controller", "tvlqr"], "--controller: control swingup runs energy or mpc, got 'tvlqr'"),
+    (["control", "leaderboard", "--robot", "acrobot", "--controller", "energy"],
+     "--controller: control leaderboard runs tvlqr or mpc, got 'energy'"),
+    (["control", "lqr", "--controller", "mpc"], "--controller goes with 'control swingup' or 'control leaderboard'"),
+    (["control", "swingup", "--controller", "mpc", "--energy-gain", "3"], "--energy-gain is a setting of the energy"),
+    (["control", "swingup", "--controller", "mpc", "--r", "2"], "--r is a setting of the energy"),
+    (["control", "swingup", "--controller", "mpc", "--umax", "0"], "--umax"),
+])
+def test_the_commands_refuse_what_the_mpc_does_not_take(argv, words):
+    from helpers import run_cli
+
+    ran = run_cli(argv)
+    assert ran.code == 2 and words in ran.err and ran.err.count("\n") == 1, ran.report()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("robot,joint", [("acrobot", 2), ("pendubot", 1)])
+def test_the_leaderboard_command_scores_the_mpc_on_both_boards(robot, joint, tmp_path):
+    """``control leaderboard --controller mpc`` (v2) and ``--version v3`` (the MPC by default): the run is scored
+    and its account said; the v2 swing-up succeeds (exit 0), the v3 uptime is a real fraction of the 60 s."""
+    from helpers import run_cli
+
+    ran = run_cli(["control", "leaderboard", "--robot", robot, "--controller", "mpc", "--out", tmp_path / "v2.csv"])
+    assert ran.code == 0, ran.report()
+    assert f"motor on joint {joint}" in ran.out and "controller   model-predictive" in ran.out
+    assert "success                         yes" in ran.out and (tmp_path / "v2.csv").stat().st_size > 100_000
+    ran = run_cli(["control", "leaderboard", "--robot", robot, "--version", "v3"])
+    assert ran.code == 0, ran.report()
+    assert "the MPC swings up from wherever a reset leaves the rods" in ran.out
+    uptime = float(next(line for line in ran.out.splitlines() if line.startswith("uptime [s]")).split()[-1])
+    assert 20.0 < uptime < 60.0  # seed 0: 29.6 s (pendubot) measured; TVLQR's 4-11 s

@@ -30,7 +30,7 @@ import numpy as np
 from ..checks import angles, numeric_model
 from ..errors import EquilibriumError, ParameterError
 
-__all__ = ["Linearization", "linearization", "controllability", "LQR", "lqr", "SwingUp", "swingup"]
+__all__ = ["Linearization", "linearization", "controllability", "LQR", "lqr", "SwingUp", "swingup", "capture"]
 
 
 class EveryLinkUp(str):
@@ -412,14 +412,18 @@ def lqr(params, equilibrium=EVERY_LINK_UP, actuated="both", Q=None, R=None, *, u
 @dataclass(frozen=True)
 class SwingUp:
     """A swing-up run: ``trajectory`` (with ``inputs()``), whether and when the target's region
-    was entered for good (``captured``, ``capture_time`` [s]), the ``lqr`` used and the
-    ``controller``."""
+    was entered for good (``captured``, ``capture_time`` [s]), the ``lqr`` whose region that is and the
+    ``controller``; ``law`` names what swung it up (``"energy shaping"``, :func:`swingup`'s; ``"model-predictive
+    control"``, :func:`skewpend.analysis.mpc.mpc_swingup`'s); ``mpc`` the :class:`~skewpend.analysis.mpc.MPC`
+    when one ran (its solve times and fallbacks)."""
 
     trajectory: Any
     captured: bool
     capture_time: float
     lqr: LQR
     controller: Any
+    law: str = "energy shaping"
+    mpc: Any = None
 
     @property
     def ok(self) -> bool:
@@ -430,8 +434,10 @@ class SwingUp:
         if not getattr(self.trajectory, "ok", True):
             return f"not captured: the run failed ({self.trajectory.message})"
         if self.captured:
-            return f"captured by the LQR at t = {self.capture_time:.4g} s and held to the end"
-        return "not captured: the motion never stayed in the LQR's region (raise the torque limit, the energy gain or t_end)"
+            where = "by the LQR" if self.mpc is None else "in the LQR's region"
+            return f"captured {where} at t = {self.capture_time:.4g} s and held to the end"
+        what = "the energy gain" if self.mpc is None else "the MPC's horizon"
+        return f"not captured: the motion never stayed in the LQR's region (raise the torque limit, {what} or t_end)"
 
 
 #: The longest swing-up run [s]: a swing-up takes seconds; after the capture the run only holds the target.
@@ -477,10 +483,14 @@ def swingup(params, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, energy_
     ctl = Controller.swingup(energy_gain, lin.equilibrium.potential, design.gain, lin.target, design.P, design.rho,
                              elbow_gains=elbow_gains, actuated=actuated, umax=umax)
     tr = simulate(params, start, t_end, dt_out=dt_out, controller=ctl, progress=progress)
+    return SwingUp(tr, *capture(design, tr), design, ctl)
+
+
+def capture(design: LQR, tr) -> Tuple[bool, float]:
+    """Whether the run ``tr`` entered the region of ``design`` for good, and when (the row after the last one
+    outside; NaN if not)."""
     inside = design.inside(tr.y)
     if tr.ok and inside.size and inside[-1]:
-        outside = np.flatnonzero(~inside)  # captured from the row after the last one outside
-        captured, when = True, float(tr.t[outside[-1] + 1 if outside.size else 0])
-    else:
-        captured, when = False, math.nan
-    return SwingUp(tr, captured, when, design, ctl)
+        outside = np.flatnonzero(~inside)
+        return True, float(tr.t[outside[-1] + 1 if outside.size else 0])
+    return False, math.nan

@@ -48,7 +48,7 @@ import numpy as np
 from ..errors import ParameterError, require
 from .control import EVERY_LINK_UP
 
-__all__ = ["MPC", "MPCSettings", "TIMES_KEPT", "PERIOD", "BRAKE_SPEED"]
+__all__ = ["MPC", "MPCSettings", "mpc_swingup", "TIMES_KEPT", "PERIOD", "BRAKE_SPEED"]
 
 #: How many solve times an :class:`MPC` keeps (its last ones): memory stays bounded over any run.
 TIMES_KEPT = 1_000_000
@@ -377,3 +377,46 @@ class MPC:
         s = self.settings
         return (f"MPC({self.model.title}, joints {','.join(map(str, self.joints))}, |u| <= "
                 f"{', '.join(f'{u:g}' for u in self.umax)} N m, {s.nodes} nodes over {s.horizon:g} s)")
+
+
+def mpc_swingup(model, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, t_end: float = 10.0, y0=None,
+                settings: MPCSettings = MPCSettings(), period: float = PERIOD, dt_out: float = 0.01,
+                progress=None):
+    """Swing any model up from ``y0`` (default: hanging, nudged by 0.05 rad at the first joint) to ``target`` by
+    an :class:`MPC` (``umax`` [N m], ``settings``, sampled every ``period`` s) in :func:`skewpend.simulate` (RK4
+    at the period, the torques held over each step), ``t_end`` [s] (at most
+    :data:`~skewpend.analysis.control.SWINGUP_T_MAX`), rows every ``dt_out`` s: a
+    :class:`~skewpend.analysis.control.SwingUp` (``law`` "model-predictive control", ``mpc`` the controller
+    with its solve times) whose capture is the entry, for good, into the region of attraction estimate of the
+    target's LQR (the MPC's own horizon ends in that LQR's cost).  ``progress(t, t_end)`` as the run advances.
+    Every argument is checked before any work."""
+    from dataclasses import replace
+
+    from ..checks import angles, numeric_model, positive, progress_callable
+    from ..numeric.simulation import simulate
+    from .control import SWINGUP_T_MAX, SwingUp, capture, equilibrium_argument, lqr
+
+    params = numeric_model(model, "a swing-up")
+    n = params.n
+    target = equilibrium_argument(target, params, "target")
+    t_end = positive("t_end", t_end, cap=SWINGUP_T_MAX)
+    dt_out = positive("dt_out", dt_out, cap=t_end)
+    progress = progress_callable(progress, "progress(t, t_end)")
+    if y0 is None:
+        start = np.eye(1, 2 * n)[0] * 0.05
+    else:
+        try:
+            start = np.array(y0, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            start = np.full(1, np.nan)
+        if isinstance(y0, (str, bytes)) or start.shape != (2 * n,) or not np.all(np.isfinite(start)):
+            raise ParameterError(f"y0 must be {2 * n} finite numbers (the angles [rad], then the speeds [rad/s]), got "
+                                 f"{y0!r}")
+        angles("y0", start[:n], n)
+    mpc = MPC(params, actuated=actuated, umax=umax, goal=target, settings=settings, period=period)
+    if progress is not None:
+        progress(0.0, t_end)
+    design = lqr(params, target, actuated, umax=tuple(mpc.umax) if len(mpc.umax) > 1 else float(mpc.umax[0]))
+    ctl = replace(mpc.controller(), target_energy=mpc.e_goal)  # the figure's energy line: the goal's
+    tr = simulate(params, start, t_end, dt_out=max(dt_out, period), controller=ctl, progress=progress)
+    return SwingUp(tr, *capture(design, tr), design, ctl, "model-predictive control", mpc)

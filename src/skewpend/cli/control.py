@@ -37,9 +37,20 @@ class Board(str, Enum):
     v3 = "v3"
 
 
+class Law(str, Enum):
+    energy = "energy"
+    tvlqr = "tvlqr"
+    mpc = "mpc"
+
+
+#: Which controllers each action runs (the first its default; leaderboard's default is the board's: see run_leaderboard).
+LAWS = {"swingup": ("energy", "mpc"), "leaderboard": ("tvlqr", "mpc")}
+
+
 #: The options that belong to some actions only (the others refuse them with one line).
 ONLY = {
-    "--robot": ("leaderboard",), "--robustness": ("leaderboard",), "--version": ("leaderboard",), "--target": ("lqr", "swingup", "roa"), "--actuated": ("lqr", "swingup", "roa"),
+    "--robot": ("leaderboard",), "--robustness": ("leaderboard",), "--version": ("leaderboard",),
+    "--controller": ("swingup", "leaderboard"), "--target": ("lqr", "swingup", "roa"), "--actuated": ("lqr", "swingup", "roa"),
     "--q": ("lqr", "swingup", "roa"), "--r": ("lqr", "swingup", "roa"),
     "--t-end": ("swingup", "roa"), "--energy-gain": ("swingup",), "--elbow-gains": ("swingup",), "--out": ("swingup", "roa", "leaderboard"),
     "--plot": ("swingup", "roa", "leaderboard"), "--animate": ("swingup",), "--n": ("roa",), "--plane": ("roa",), "--window": ("roa",),
@@ -55,6 +66,7 @@ def control(
     robot: Annotated[Optional[Robot], typer.Option("--robot", help="leaderboard: acrobot (the motor on the elbow) or pendubot (on the shoulder); required", show_default=False)] = None,
     robustness: Annotated[bool, typer.Option("--robustness", help="leaderboard: also the robustness board's evaluation (v2: 722 runs with model errors, speed noise, torque noise, torque response, delay and perturbations); default off")] = False,
     version: Annotated[Optional[Board], typer.Option("--version", help="leaderboard: the simulation board's protocol and score, v2 (one swing-up from hanging, 10 s; the default) or v3 (a global policy: 60 s, 15 resets to random states, scored by the time up)", show_default=False)] = None,
+    controller: Annotated[Optional[Law], typer.Option("--controller", help="swingup: energy (energy shaping, then the LQR; the default) or mpc (model-predictive control, sampled every 2 ms); leaderboard: tvlqr (the optimal swing-up tracked by time-varying LQR; v2's default) or mpc (a global policy; v3's default)", show_default=False)] = None,
     target: option("--target", T.EquilibriumChoice(), "the equilibrium to balance at: a label (default up-up) or PHI,PSI near one") = None,
     actuated: option("--actuated", T.Actuation(), "the joints with a motor: both or all (default: every joint), the joints' numbers, e.g. 2 or 1,3; for two links acrobot (the elbow only) or pendubot (the shoulder only)") = None,
     q: option("--q", T.Numbers(most=64, metavar="Q1,Q2,..."), "LQR state weights: the diagonal of Q, one per coordinate and rate, (phi, psi, phi', psi') for the double pendulum (default all 1)") = None,
@@ -87,20 +99,30 @@ def control(
     if action is None:
         raise UsageError("control: give what to do, lqr, swingup, roa or leaderboard (e.g. skewpend control lqr "
                          "--actuated acrobot)")
-    given = {"--robot": robot, "--robustness": robustness or None, "--version": version, "--target": target, "--actuated": actuated, "--q": q, "--r": r, "--t-end": t_end, "--energy-gain": energy_gain, "--elbow-gains": elbow_gains, "--out": out, "--plot": plot,
+    given = {"--robot": robot, "--robustness": robustness or None, "--version": version, "--controller": controller, "--target": target, "--actuated": actuated, "--q": q, "--r": r, "--t-end": t_end, "--energy-gain": energy_gain, "--elbow-gains": elbow_gains, "--out": out, "--plot": plot,
              "--animate": animate, "--n": n, "--plane": plane, "--window": window, "--rtol": rtol, "--atol": atol,
              "--resume": resume or None, "--workers": ensemble.get("workers"), "--scheduler": ensemble.get("scheduler")}
     used = [flag for flag, value in given.items() if value is not None and action.value not in ONLY[flag]]
     if used:
         goes = " or ".join(f"'control {a}'" for a in ONLY[used[0]])
         raise UsageError(f"{used[0]} goes with {goes}, not 'control {action.value}'")
+    if controller is not None and controller.value not in LAWS[action.value]:
+        raise UsageError(f"--controller: control {action.value} runs {' or '.join(LAWS[action.value])}, got "
+                         f"{controller.value!r}")
+    law = None if controller is None else controller.value
+    if law == "mpc":
+        for flag in ("--energy-gain", "--elbow-gains", "--q", "--r"):
+            if given[flag] is not None:
+                raise UsageError(f"{flag} is a setting of the energy-shaping swing-up and its LQR; --controller mpc "
+                                 "has its own problem (skewpend.analysis.mpc.MPCSettings)")
     store = None
     if action is Action.leaderboard:
         from .leaderboard import check_model_options, run_leaderboard
 
         alpha = check_model_options(model, config)
         code = run_leaderboard(robot.value if robot is not None else None, alpha, umax, out, plot, quiet,
-                               robustness=robustness, version="v2" if version is None else version.value)
+                               robustness=robustness, version="v2" if version is None else version.value,
+                               controller=law)
         if code:
             raise typer.Exit(code)
         return None
@@ -177,16 +199,26 @@ def control(
             lines.append(lin.coulomb_note)
         sys.stdout.write("\n".join(lines) + "\n")
         return design
-    kw = given_only(umax=umax, t_end=t_end, energy_gain=energy_gain, elbow_gains=elbow_gains)  # else the library's
-    with progress("simulating the swing-up", "s", quiet) as bar:
-        run = swingup(params, goal, actuated, Q=Q, R=R, progress=bar, **kw)
+    if law == "mpc":
+        from ..analysis.mpc import mpc_swingup
+
+        kw = given_only(umax=umax, t_end=t_end)
+        stage("building the model-predictive controller (its C function: compiled once, then cached)")
+        with progress("simulating the swing-up by model-predictive control", "s", quiet) as bar:
+            run = mpc_swingup(params, goal, actuated, progress=bar, **kw)
+    else:
+        kw = given_only(umax=umax, t_end=t_end, energy_gain=energy_gain, elbow_gains=elbow_gains)  # else the library's
+        with progress("simulating the swing-up", "s", quiet) as bar:
+            run = swingup(params, goal, actuated, Q=Q, R=R, progress=bar, **kw)
     tr = run.trajectory
     u = tr.inputs()
     lines = [
-        f"swing-up    {actuated} to {run.lqr.linearization.equilibrium.label}, |u| <= {run.controller.umax[0]:g} N m, "
+        f"swing-up    {actuated} to {run.lqr.linearization.equilibrium.label}, |u| <= {_limits(run.controller.umax)} N m, "
         f"{tr.t[-1] if len(tr.t) else 0.0:g} s",
         f"result      {run.message}",
     ]
+    if run.mpc is not None:
+        lines.append(mpc_line(run.mpc))
     if len(u):
         lines.append(f"largest |u| {np.abs(u).max():.4g} N m; energy balance |E - W - E0|/max|E| = {tr.energy_drift:.2g}")
     if out is not None:
@@ -207,6 +239,17 @@ def control(
         lines.append(f"animation   {animate}")
     sys.stdout.write("\n".join(lines) + "\n")
     return run
+
+
+def mpc_line(mpc) -> str:
+    """The MPC's account, one line: its problem, its solves' wall times, its fallbacks."""
+    import numpy as np
+
+    times = mpc.solve_times * 1e3
+    line = (f"controller  model-predictive: {mpc.settings.nodes} RK4 nodes over {mpc.settings.horizon:g} s, sampled every "
+            f"{mpc.period * 1e3:g} ms; {times.size} solves, median {np.median(times):.3g} ms, max {times.max():.3g} ms"
+            if times.size else "controller  model-predictive: no solve")
+    return line + (f"; {mpc.message}" if mpc.message else "; no step failed")
 
 
 def given_only(**options):

@@ -105,7 +105,7 @@ def _robustness_lines(robot: str, joints, alpha: float, limit: float, tracking) 
     return lines
 
 
-def _v3_lines(robot: str, run, alpha: float) -> list:
+def _v3_lines(robot: str, run, alpha: float, controller: str = "tvlqr") -> list:
     """The simulation v3 board's criteria of ``run`` as report lines, the published best beside the score only
     for the planar rig."""
     from ..analysis import leaderboard as lb
@@ -114,8 +114,9 @@ def _v3_lines(robot: str, run, alpha: float) -> list:
     r = run.protocol.resets
     name, best = lb.PUBLISHED[robot]["simulation_v3"]
     lines = [f"protocol     simulation v3: {run.protocol.t_final:g} s, {r.count} resets to random states (a PID and "
-             f"gravity compensation for {r.length:g} s each; seed {r.seed}); the law is time-indexed, so after a reset "
-             "it only holds the goal by its final LQR",
+             f"gravity compensation for {r.length:g} s each; seed {r.seed})" + (
+                 "; the law is time-indexed, so after a reset it only holds the goal by its final LQR"
+                 if controller == "tvlqr" else "; the MPC swings up from wherever a reset leaves the rods"),
              f"{'criterion':<22} {'skewpend':>12}",
              f"{'uptime [s]':<22} {c.uptime:12.4f}",
              f"{'swing-ups':<22} {c.swingups:12d}"]
@@ -127,12 +128,15 @@ def _v3_lines(robot: str, run, alpha: float) -> list:
 
 
 def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], out: Optional[str],
-                    plot: Optional[str], quiet: bool, robustness: bool = False, version: str = "v2") -> int:
+                    plot: Optional[str], quiet: bool, robustness: bool = False, version: str = "v2",
+                    controller: Optional[str] = None) -> int:
     """Optimise, track, run by the protocol, score; print the criteria beside the best published entry (and,
     with ``robustness``, the robustness board's six criteria and score beside its best entry's).  ``version``:
     the simulation board, ``"v2"`` (one swing-up from hanging) or ``"v3"`` (the tracking run as a global policy
-    through the v3 board's resets, scored by its uptime).  Exit status 0 on success (v3: a run that completed),
-    1 when the optimisation fails or the v2 run does not stay up."""
+    through the v3 board's resets, scored by its uptime).  ``controller``: ``"tvlqr"`` (the optimal swing-up
+    tracked by time-varying LQR; v2's default) or ``"mpc"`` (:class:`~skewpend.analysis.mpc.MPC`, a global
+    policy; v3's default).  Exit status 0 on success (v3: a run that completed), 1 when the optimisation fails
+    or the v2 run does not stay up."""
     from ..analysis import leaderboard as lb
     from ..analysis.trajopt import optimal_swingup, tvlqr
 
@@ -154,13 +158,20 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
     joints = lb.ROBOTS[robot]
     skew = f", alpha = {math.degrees(alpha):.4g} deg" if alpha else ""
     what = f"optimising the {robot}'s swing-up (IPOPT, {limit:g} N m{skew})"
-    stage(what)
-    traj = optimal_swingup(model, actuated=joints, umax=limit, iterations=ipopt_reporter(what))
-    if not traj.ok:
-        sys.stderr.write(f"skewpend: {traj.message}\n")
-        return 1
-    stage("designing the time-varying LQR along it")
-    tracking = tvlqr(traj)
+    controller = controller or ("mpc" if version == "v3" else "tvlqr")
+    if controller == "mpc":
+        from ..analysis.mpc import MPC
+
+        stage("building the model-predictive controller (its C function: compiled once, then cached)")
+        tracking, traj = MPC(model, actuated=joints, umax=limit), None
+    else:
+        stage(what)
+        traj = optimal_swingup(model, actuated=joints, umax=limit, iterations=ipopt_reporter(what))
+        if not traj.ok:
+            sys.stderr.write(f"skewpend: {traj.message}\n")
+            return 1
+        stage("designing the time-varying LQR along it")
+        tracking = tvlqr(traj)
     if version == "v3":
         from dataclasses import replace
 
@@ -177,12 +188,16 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
     c = run.criteria
     name, best = lb.PUBLISHED[robot]["simulation"]
     lines = [
-        f"robot        {robot} (motor on joint {joints[0]}), the DFKI lab's design C.1, model 1.1{skew}; |u| <= {limit:g} N m",
-        f"optimised    {traj.message}; the motion takes {traj.duration:.4g} s to the goal; solved in "
-        f"{traj.solve_time:.3g} s ({traj.attempts} seeded starts)",
-    ]
+        f"robot        {robot} (motor on joint {joints[0]}), the DFKI lab's design C.1, model 1.1{skew}; |u| <= {limit:g} N m"]
+    if traj is None:
+        from .control import mpc_line
+
+        lines.append(mpc_line(tracking).replace("controller  ", "controller   ", 1))
+    else:
+        lines.append(f"optimised    {traj.message}; the motion takes {traj.duration:.4g} s to the goal; solved in "
+                     f"{traj.solve_time:.3g} s ({traj.attempts} seeded starts)")
     if version == "v3":
-        lines += _v3_lines(robot, run, alpha)
+        lines += _v3_lines(robot, run, alpha, controller)
         if robustness:
             lines += _robustness_lines(robot, joints, alpha, limit, tracking)
         if out is not None:
@@ -208,8 +223,9 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
         stage(f"drawing {plot}")
         from ..views import figures
 
-        title = f"The {robot}'s optimal swing-up, tracked by time-varying LQR{skew}"
-        figures.save_figure(figures.leaderboard_figure(run, tracking, title), plot)
+        title = (f"The {robot}'s optimal swing-up, tracked by time-varying LQR{skew}" if traj is not None else
+                 f"The {robot}'s swing-up by model-predictive control{skew}")
+        figures.save_figure(figures.leaderboard_figure(run, tracking if traj is not None else None, title), plot)
         lines.append(f"plot         {plot}")
     sys.stdout.write("\n".join(lines) + "\n")
     return 0 if c.success else 1

@@ -23,6 +23,7 @@ def control_figure(run):
 
     tr = run.trajectory
     ctl = run.controller
+    mpc = getattr(run, "mpc", None)
     u = tr.inputs()
     target = run.lqr.linearization.target
     styles = coordinate_styles(tr.params.coordinates)  # the model's coordinates: phi, psi; q1 ... qn
@@ -42,21 +43,25 @@ def control_figure(run):
                 ax2.axhline(lim, color="0.5", ls="--", lw=0.8)
                 ax2.axhline(-lim, color="0.5", ls="--", lw=0.8)
         ax2.set_ylabel("input torque [N m]")
-        ax2.set_title(f"Motor torques ({ctl.actuated}; dashed: the limits)", loc="left")
+        ax2.set_title(f"Motor torques ({_actuated_text(ctl.actuated, ctl.nq)}; dashed: the limits)", loc="left")
         ax2.legend(loc="best", fontsize=8)
         ax3.plot(tr.t, tr.energy, color=COLORS["path"], label="E = T + Π")
         ax3.axhline(ctl.target_energy, color=COLORS["psi"], ls="--", lw=1.0, label="the target's energy E*")
         ax3.set_ylabel("energy [J]")
         ax3.set_xlabel("t [s]")
-        ax3.set_title("Energy: pumped towards E*, then held by the LQR", loc="left")
+        ax3.set_title("Energy: pumped towards E*, then held by the LQR" if mpc is None else
+                      "Energy: driven towards E* by the MPC's cost, then held at the goal", loc="left")
         if run.captured:
             for ax in (ax1, ax2, ax3):
                 ax.axvline(run.capture_time, color="0.3", lw=0.8, ls=":")
             ax3.annotate(f"captured at {run.capture_time:.3g} s", (run.capture_time, 0.05), xycoords=ax3.get_xaxis_transform(),
                          textcoords="offset points", xytext=(4, 0), fontsize=8, color="0.3")
         ax3.legend(loc="best", fontsize=8)
-        heading(fig, "Swing-up and capture by the LQR\n" + parameter_text(tr.params)
-                + f"\n|u| ≤ {ctl.umax[0]:g} N m; " + run.message)
+        limits = sorted({u for u in ctl.umax if math.isfinite(u)})
+        limit = "no torque limit" if not limits else "|u| ≤ " + ", ".join(f"{u:g}" for u in limits) + " N m"
+        heading(fig, ("Swing-up and capture by the LQR\n" if mpc is None else
+                      "Swing-up by model-predictive control, captured in the LQR's region\n") + parameter_text(tr.params)
+                + f"\n{limit}; " + run.message)
     return fig
 
 
