@@ -473,8 +473,9 @@ def test_report_flipmap_section(default_report):
 def test_flipmap_section_for_general_bodies_with_torques_and_speeds():
     from types import SimpleNamespace
 
-    p = Parameters(a=1.0, b=0.8, m1=1.0, m2=0.7, g=9.81, axis2=(1, 0, 1), com2=(0, 0.4, 0.02), c1=0.05, tau2=0.2,
-                   inertia2=((0.02, 0, 0), (0, 0.001, 0), (0, 0, 0.02)))
+    from helpers import general_body
+
+    p = general_body(c1=0.05, tau2=0.2)  # (its flip kernel is the one the report of examples/general_body.toml builds)
     ctx = SimpleNamespace(params=p, y0=(4.0, -0.8, 0.5, 0.0), notes={})  # phi0 beyond 180 deg: wrapped on the map
     sec = R.section_flipmap(ctx)
     assert sec.count('src="data:image/png;base64,') == 1 and "callout" not in sec
