@@ -20,16 +20,17 @@ user spelled them (numbers, ``"30deg"``, ``"pi/2"``, ``"sym"``, vectors, matrice
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, Callable, Dict, Iterable, Mapping, Optional, Sequence, Tuple
 
 from .errors import ParameterError
 from .parsing import MAX_ANGLE, UsageError, parse_inertia, parse_scalar, parse_vector, parse_whole
-from .schema import (CHAIN_NAMES, link_field_of, CORE_NAMES, GEOMETRY_NAMES, LINK_FIELDS, MAX_LINKS, NAMES, OPTIONAL_DEFAULTS, SCALAR_NAMES,
-                     check_bound, field)
+from .schema import (CHAIN_NAMES, link_field_of, CORE_NAMES, GEOMETRY_NAMES, LINK_FIELDS, MAX_LINKS, MOTOR_KEYS, NAMES,
+                     OPTIONAL_DEFAULTS, SCALAR_NAMES, check_bound, field)
 
 __all__ = [
     "DEFAULT_RUN", "reference_parameters", "reference_state", "COMMAND_DEFAULTS", "READS", "MODEL_KEYS", "INITIAL_KEYS", "Run", "build_parameters", "as_text",
-    "parameters_toml", "toml_value",
+    "parameters_toml", "toml_value", "Motor", "MOTOR_READERS",
 ]
 
 #: The run ``skewpend simulate`` does with no options (the reference case of the README).
@@ -113,6 +114,104 @@ READS: Dict[str, Dict[str, frozenset]] = {
               "links": LINK_KEYS},
 }
 
+#: The commands that read a run file's ``[motor]`` (a voltage-driven DC motor on a chain's joint, :class:`Motor`):
+#: those that compute the chain's motion or its model, where the motor's back-EMF is its joint's damping and the
+#: motor at 0 V is the model (no command here drives the voltage; the limit is the controllers', said in the note).
+#: The others refuse it, saying why (:data:`_MOTOR_WHY_NOT`).
+MOTOR_READERS = ("simulate", "animate", "report", "validate", "lyapunov", "flipmap", "modes", "equilibria", "orbit",
+                 "nnm", "identify", "derive")
+for _command in MOTOR_READERS:
+    READS[_command] = {**READS[_command], "motor": frozenset(MOTOR_KEYS)}
+#: Why a command does not read ``[motor]``.
+_MOTOR_WHY_NOT = {
+    "control": "its controllers take a motor's limit as --umax [N m] and its back-EMF as the joint's damping: give "
+               "--actuated {joint} --umax {umax:.6g} (kt Vmax/R) and add {damping:.6g} N m s (kt km/R) to [[links]] "
+               "{joint} damping",
+    "export": "MJCF and URDF would keep its back-EMF as damping but not its voltage input: add {damping:.6g} N m s "
+              "(kt km/R) to [[links]] {joint} damping to export the motor at 0 V",
+    "serve": "the explorer has no motor input: add {damping:.6g} N m s (kt km/R) to [[links]] {joint} damping for the "
+             "motor at 0 V",
+}
+
+
+@dataclass(frozen=True)
+class Motor:
+    """A voltage-driven DC motor on joint ``joint`` (1-based) of a chain: armature ``resistance`` R [ohm],
+    ``torque_constant`` kt [N m/A], ``back_emf_constant`` km [V s/rad], ``voltage_limit`` Vmax [V] (a run file's
+    ``[motor]``).  Its torque on the joint, ``kt (V - km q') / R``, is the viscous damping ``kt km / R``
+    (:attr:`damping`, added to the joint's by :meth:`apply`) and the input ``kt V / R`` (:attr:`gain` N m per
+    volt), at most :attr:`torque_limit` = ``kt Vmax / R`` in magnitude.  Bad values: one line naming the key."""
+
+    joint: int
+    resistance: float
+    torque_constant: float
+    back_emf_constant: float
+    voltage_limit: float
+
+    def __post_init__(self) -> None:
+        joint = self.joint
+        if isinstance(joint, bool) or not isinstance(joint, int) and not (isinstance(joint, float) and joint.is_integer()):
+            raise ParameterError(f"[motor] joint must be a joint's number (a whole number from 1), got {joint!r}")
+        if not joint >= 1:
+            raise ParameterError(f"[motor] joint must be a joint's number (a whole number from 1), got {joint!r}")
+        object.__setattr__(self, "joint", int(joint))
+        for key in MOTOR_KEYS[1:]:
+            value = getattr(self, key)
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
+            if not ok:
+                raise ParameterError(f"[motor] {key} must be a finite number > 0, got {value!r}")
+            object.__setattr__(self, key, float(value))
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any]) -> "Motor":
+        """A motor from a run file's ``[motor]`` table (every key required; an unknown key refused)."""
+        unknown = sorted(k for k in data if k not in MOTOR_KEYS)
+        if unknown:
+            raise ParameterError(f"[motor]: unknown key {unknown[0]!r}; a motor takes {', '.join(MOTOR_KEYS)}")
+        missing = [k for k in MOTOR_KEYS if data.get(k) is None]
+        if missing:
+            raise ParameterError(f"[motor] needs {', '.join(missing)} (a motor takes {', '.join(MOTOR_KEYS)})")
+        return cls(**{k: data[k] for k in MOTOR_KEYS})
+
+    @property
+    def damping(self) -> float:
+        """The back-EMF's viscous damping ``kt km / R`` [N m s]."""
+        return self.torque_constant * self.back_emf_constant / self.resistance
+
+    @property
+    def gain(self) -> float:
+        """The input's torque per volt ``kt / R`` [N m/V]."""
+        return self.torque_constant / self.resistance
+
+    @property
+    def torque_limit(self) -> float:
+        """The largest input torque ``kt Vmax / R`` [N m] (the controllers' ``umax``)."""
+        return self.gain * self.voltage_limit
+
+    def torque(self, voltage, speed):
+        """The motor's torque on its joint ``kt (V - km q') / R`` [N m] at ``voltage`` [V] and the joint's ``speed``."""
+        return self.gain * (voltage - self.back_emf_constant * speed)
+
+    def voltage(self, torque):
+        """The voltage [V] of an input torque ``u`` [N m] (a controller's, the back-EMF in the joint's damping):
+        ``u R / kt``."""
+        return torque / self.gain
+
+    def apply(self, chain):
+        """``chain`` with the back-EMF's damping added to joint :attr:`joint`'s (a joint it lacks: one line)."""
+        if self.joint > chain.n:
+            raise ParameterError(f"[motor] joint = {self.joint}, but the chain has {chain.n} joint"
+                                 f"{'s' if chain.n != 1 else ''}")
+        link = chain.links[self.joint - 1]
+        return chain.replace_link(self.joint, damping=link.damping + self.damping)
+
+    def describe(self) -> str:
+        """The conversion in one line."""
+        return (f"[motor] on joint {self.joint}: back-EMF kt km/R = {self.damping:.6g} N m s added to joint "
+                f"{self.joint}'s damping; input kt V/R = {self.gain:.6g} N m per volt, |V| <= {self.voltage_limit:g} V "
+                f"is |u| <= {self.torque_limit:.6g} N m")
+
+
 #: The sections a command may leave aside (with one note) when it does not use them: the run's start and
 #: its integration.  The model's sections are never left aside.
 IGNORABLE_SECTIONS = ("initial", "simulation")
@@ -127,6 +226,20 @@ _WHY_NOT = {
     ("report", "dt_out"): "the report draws the integrator's own steps",
     ("poincare", "t_end"): "each orbit runs until its crossings are recorded, or --t-max",
 }
+
+
+def _motor_refusal(config, command: str, table: Mapping[str, Any]) -> str:
+    """The one line refusing a run file's ``[motor]`` in a command that does not read it."""
+    head = f"{config}: [motor] (a voltage-driven DC motor) is not read by skewpend {command}"
+    why = _MOTOR_WHY_NOT.get(command)
+    if why is None:
+        readers = ", ".join(MOTOR_READERS)
+        return f"{head}: it drives a joint of a chain (read by skewpend {readers})"
+    try:
+        motor = Motor.from_mapping(table)
+    except ParameterError as exc:
+        return f"{head}, and {exc}"
+    return f"{head}: {why.format(joint=motor.joint, umax=motor.torque_limit, damping=motor.damping)}"
 
 
 def as_text(value: Any, where: str = "value") -> Optional[str]:
@@ -213,7 +326,7 @@ class Run:
         from .io import read_config
 
         self.command = command
-        sections = (*DEFAULT_RUN, "chain")
+        sections = (*DEFAULT_RUN, "chain", "motor")
         self.values: Dict[str, Dict[str, Any]] = {k: {} for k in sections}
         self.where: Dict[str, Dict[str, str]] = {k: {} for k in sections}
         self.given: Dict[str, set] = {k: set() for k in sections}
@@ -239,6 +352,8 @@ class Run:
                 what = "[[links]]" if "links" in sections else "[chain]"
                 raise UsageError(f"{config}: {what} (a chain of links) is not read by skewpend {command}: it "
                                  f"computes the double pendulum's [parameters] (chains: skewpend {takers})")
+            if sections.get("motor") and "motor" not in reads:
+                raise UsageError(_motor_refusal(config, command, sections["motor"]))
             unused = [s for s in IGNORABLE_SECTIONS if sections.get(s) and s not in reads]
             if unused:
                 self.notes.append(f"{config}: {' and '.join(f'[{s}]' for s in unused)} {'is' if len(unused) == 1 else 'are'} "
@@ -279,9 +394,30 @@ class Run:
             key = sorted(self.given["chain"])[0]
             raise UsageError(f"{self.option('chain', key)} is a chain's value, but the run has no links ([[links]] tables "
                              f"or --links N): give the chain's links, or the double pendulum's {key} as [parameters] {key}")
+        #: the run file's motor (:class:`Motor`), or None; the chain carries its damping (:meth:`chain`)
+        self.motor: Optional[Motor] = None
+        if self.values["motor"]:
+            self.motor = self._motor()
         P = self.values["parameters"]
         if "axis2" in P and "alpha" in P and "alpha" not in self.given["parameters"]:
             del P["alpha"]  # the built-in alpha gives way to a user's axis2
+
+    def _motor(self) -> "Motor":
+        """The run file's ``[motor]``, checked against its links, its conversion said in a note."""
+        where = f"{self.config}: " if self.config else ""
+        if self.links is None:
+            raise UsageError(f"{where}[motor] drives a joint of a chain of links: give the chain's [[links]] tables "
+                             "(the double pendulum's joint damping is [parameters] c1, c2)")
+        try:
+            motor = Motor.from_mapping(self.values["motor"])
+        except ParameterError as exc:
+            raise UsageError(f"{where}{exc}") from None
+        if motor.joint > len(self.links):
+            raise UsageError(f"{where}[motor] joint = {motor.joint}, but the chain has {len(self.links)} joint"
+                             f"{'s' if len(self.links) != 1 else ''}")
+        self.notes.append(f"{where}{motor.describe()} (skewpend {self.command} applies 0 V: the limit is a "
+                          f"controller's, e.g. skewpend.analysis.mpc.MPC(umax={motor.torque_limit:.6g}))")
+        return motor
 
     def _links_from_options(self, per_link: Dict[str, Any]) -> None:
         """A chain from ``--links N`` and ``--link-FIELD`` values (one for every link, or one a link), over a run
@@ -436,7 +572,8 @@ class Run:
                 link[key] = value
             links.append(link)
         try:
-            return Chain.from_mapping({"links": links, **values})
+            chain = Chain.from_mapping({"links": links, **values})
+            return chain if self.motor is None else self.motor.apply(chain)
         except ParameterError as exc:
             where = ", ".join([*([self.config] if self.config else []), *sorted(self.flag("link_" + k) for k in self._cli_link_keys)])
             raise UsageError(f"{where or self.flag('links')}: {exc}") from None

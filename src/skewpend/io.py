@@ -21,7 +21,7 @@ from typing import Any, Dict, Iterator, Optional, Sequence
 import numpy as np
 
 from .errors import ParameterError, SkewpendError
-from .schema import CHAIN_NAMES, GEOMETRY_NAMES, LINK_FIELDS, NAMES, did_you_mean, field, nearest, nearest_link_key, unknown_names_message
+from .schema import CHAIN_NAMES, GEOMETRY_NAMES, LINK_FIELDS, MOTOR_KEYS, NAMES, did_you_mean, field, nearest, nearest_link_key, unknown_names_message
 
 __all__ = [
     "require_netcdf",
@@ -550,6 +550,7 @@ CONFIG_SECTIONS = {
     "initial": {"phi0", "psi0", "dphi0", "dpsi0", "q0", "dq0"},
     "simulation": {"t_end", "dt_out", "method", "rtol", "atol", "dt", "max_steps", "out", "plot"},
     "chain": set(CHAIN_NAMES),
+    "motor": set(MOTOR_KEYS),  # a voltage-driven DC motor on a chain's joint (skewpend.config.Motor)
 }
 #: A chain's links: an array of tables ``[[links]]``, one a link (its keys: the schema's LINK_FIELDS).
 LINKS_SECTION = "links"

@@ -31,7 +31,7 @@ __all__ = [
     "symbol", "tex", "help_text", "default", "nearest", "unknown_names_message", "check_bound", "body_of",
     "name_of", "LINK_FIELDS", "CHAIN_NAMES", "link_bound", "link_field_of", "coordinate_names", "state_coordinates", "count_text",
     "state_text",
-    "MAX_LINKS", "LINK_KEYS", "nearest_link_key", "did_you_mean",
+    "MAX_LINKS", "LINK_KEYS", "nearest_link_key", "did_you_mean", "MOTOR_FIELDS", "MOTOR_KEYS",
 ]
 
 #: The links of today's model: the double pendulum is the chain of two.
@@ -216,6 +216,18 @@ LINK_FIELDS: Tuple[Tuple[str, str, str], ...] = (
 LINK_KEYS: Tuple[str, ...] = tuple(key for key, _, _ in LINK_FIELDS)
 #: The largest chain of links (the generated code is built for it; the command line's --links takes 1 to it).
 MAX_LINKS = 32
+#: A voltage-driven DC motor on one joint of a chain (a run file's ``[motor]``, :class:`skewpend.config.Motor`):
+#: its keys, each with its unit and meaning.  Its torque ``kt (V - km q') / R`` is the joint's viscous damping
+#: ``kt km / R`` (the back-EMF) and an input ``kt V / R`` bounded by ``kt Vmax / R``.
+MOTOR_FIELDS: Tuple[Tuple[str, str, str], ...] = (
+    ("joint", "", "the joint it drives (1 to the number of links)"),
+    ("resistance", "ohm", "the armature's resistance R"),
+    ("torque_constant", "N m/A", "the torque constant kt"),
+    ("back_emf_constant", "V s/rad", "the back-EMF constant km"),
+    ("voltage_limit", "V", "the largest voltage |V| the amplifier applies"),
+)
+#: The motor's keys, in order.
+MOTOR_KEYS: Tuple[str, ...] = tuple(key for key, _, _ in MOTOR_FIELDS)
 #: The chain's own fields (the whole chain's, not a link's): the global scalars that are no axis and no rotor.
 CHAIN_NAMES: Tuple[str, ...] = tuple(f.stem for f in FIELDS if f.kind == "scalar" and not f.per_body
                                      and f.role not in ("axis", "rotor"))

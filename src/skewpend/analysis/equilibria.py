@@ -252,7 +252,9 @@ class _Search:
                 shrink = np.where(step > 0.5, 0.5 / np.maximum(step, 1e-300), 1.0)  # at most 0.5 rad a step
                 q[rows] = wrap(q[rows] + d * shrink[:, None])
                 small = np.max(np.abs(g), axis=1) <= RESIDUAL * self.gscale  # the residual before this (tiny) step
-                done = ok & (step < 1e-13 * (1 + np.pi)) & small
+                # a singular Hessian at a root (a cyclic coordinate: the rotary pendulum's arm turns freely about
+                # the vertical, every arm angle an equilibrium) has no Newton step, and needs none
+                done = (ok & (step < 1e-13 * (1 + np.pi)) | ~ok & np.all(np.isfinite(g), axis=1)) & small
                 converged[rows[done]] = True
                 active[rows[~ok | done]] = False
                 if not active.any():
