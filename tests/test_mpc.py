@@ -31,8 +31,9 @@ def acrobot_mpc(rig):
     return MPC(rig, actuated=(2,), umax=6.0)
 
 
-def _exact_step(rig, joints, h):
-    """The RK4 step over ``h`` of the exact (SymPy) equations, the actuated joints' torques held, and the energy."""
+def _exact_step(rig, joints, h, substeps=1):
+    """``substeps`` RK4 steps over ``h`` of the exact (SymPy) equations, the actuated joints' torques held, and the
+    energy."""
     from skewpend.numeric.kernels import model_kernel, model_vector, model_vector_names
 
     kernel = model_kernel(rig, "exact")
@@ -48,11 +49,14 @@ def _exact_step(rig, joints, h):
         return out[:4]
 
     def step(y, u):
-        k1 = f(y, u)
-        k2 = f(y + h / 2 * k1, u)
-        k3 = f(y + h / 2 * k2, u)
-        k4 = f(y + h * k3, u)
-        return y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        d = h / substeps
+        for _ in range(substeps):
+            k1 = f(y, u)
+            k2 = f(y + d / 2 * k1, u)
+            k3 = f(y + d / 2 * k2, u)
+            k4 = f(y + d * k3, u)
+            y = y + d / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return y
 
     return step, (lambda y: kernel.energy(np.asarray(y, dtype=float), p0))
 
@@ -77,7 +81,7 @@ def test_one_step_is_the_gauss_newton_step_of_the_stated_problem(rig, robot, joi
     s = MPCSettings(first=1)
     mpc = MPC(rig, actuated=joints, umax=6.0, settings=s)
     h, N, n, m = s.horizon / s.nodes, s.nodes, 2, 1
-    step, energy = _exact_step(rig, joints, h)
+    step, energy = _exact_step(rig, joints, h, s.substeps)
     goal = np.array([math.pi, 0.0, 0.0, 0.0])
     A = _jacobian(lambda y: step(y, [0.0]), goal)
     B = _jacobian(lambda u: step(goal, u), np.zeros(1))
@@ -268,18 +272,21 @@ def test_it_runs_in_simulate_sampled_and_held(rig):
 
 @pytest.mark.slow
 def test_a_chain_of_three_is_held_up():
-    """Any model: a triple pendulum with motors on joints 1 and 3, started near every link up, ends there."""
+    """Any model: a triple pendulum with motors on joints 1 and 3, started near every link up, is brought there."""
     from skewpend.analysis.leaderboard import Protocol, run_protocol
     from skewpend.analysis.mpc import MPC
     from skewpend.symbolic.chain import Chain
 
-    chain = Chain.from_lists(3, length=0.3, mass=0.5)
-    mpc = MPC(chain, actuated=(1, 3), umax=(8.0, 8.0))
-    run = run_protocol(chain, mpc, actuated=(1, 3), umax=8.0, protocol=Protocol(t_final=3.0),
+    chain = Chain.from_lists(3, length=0.5, mass=1.0)
+    mpc = MPC(chain, actuated=(1, 3), umax=(10.0, 10.0))
+    run = run_protocol(chain, mpc, actuated=(1, 3), umax=10.0, protocol=Protocol(t_final=3.0),
                        x0=[math.pi - 0.15, 0.1, -0.1, 0.0, 0.0, 0.0])
-    assert run.ok
+    assert run.ok and mpc.fallbacks == 0
+    # every link up (modulo a turn: it may take one on the way), settling: within the robustness board's goal test
+    # by far, and the tip above 0.9 of its reach through the last second
     err = np.abs(np.remainder(run.final[:3] - np.array([math.pi, 0.0, 0.0]) + math.pi, 2 * math.pi) - math.pi)
-    assert np.all(err < 1e-2) and np.all(np.abs(run.final[3:]) < 5e-2), run.final
+    assert np.all(err < 0.05) and np.all(np.abs(run.final[3:]) < 0.2), run.final
+    assert np.all(run.heights[run.t > 2.0] > 0.9 * run.reach)
 
 
 @pytest.mark.slow

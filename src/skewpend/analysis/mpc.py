@@ -66,17 +66,19 @@ class MPCSettings:
     intervals; the weights of the energy's distance (dimensionless, per node), the angles' [1/rad^2], the
     speeds' [s^2/rad^2] and the torques' [1/(N m)^2]; ``terminal``: the goal LQR's weights (angle, speed,
     torque) whose cost-to-go ends the horizon; ``iterations``: Gauss-Newton steps a call (1: the real-time
-    iteration), ``first``: steps at the first call (from zero torques, the warm start)."""
+    iteration), ``first``: steps at the first call (from zero torques, the warm start); ``substeps``: RK4 steps
+    an interval (a fast motion's rollout stays finite with more)."""
 
     horizon: float = 0.5
     nodes: int = 20
-    energy: float = 60.0
+    energy: float = 200.0
     angle: float = 10.0
     speed: float = 1.0
     torque: float = 1e-3
     terminal: Tuple[float, float, float] = (10.0, 1.0, 1e-2)
     iterations: int = 1
     first: int = 10
+    substeps: int = 2
 
     def check(self) -> None:
         def positive(name, v, zero=False):
@@ -89,7 +91,7 @@ class MPCSettings:
         for name in ("energy", "angle", "speed"):
             positive(name, getattr(self, name), zero=True)
         positive("torque", self.torque)
-        for name, lo, hi in (("nodes", 2, 200), ("iterations", 1, 50), ("first", 1, 500)):
+        for name, lo, hi in (("nodes", 2, 200), ("iterations", 1, 50), ("first", 1, 500), ("substeps", 1, 20)):
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lo <= v <= hi):
                 raise ParameterError(f"{name} must be a whole number from {lo} to {hi}, got {v!r}")
@@ -111,8 +113,9 @@ def _daqp_archive() -> Tuple[str, str]:
     return str(root / "include"), str(archive)
 
 
-def _step_functions(chain, joints: Tuple[int, ...], h: float):
-    """CasADi: the RK4 step ``F(x, u)`` over ``h`` with its Jacobians, the energy ``E(x)``."""
+def _step_functions(chain, joints: Tuple[int, ...], h: float, substeps: int = 1):
+    """CasADi: the interval ``F(x, u)`` over ``h`` (``substeps`` RK4 steps, the torque held) with its Jacobians,
+    the energy ``E(x)``."""
     import casadi as ca
 
     from ..numeric.recursive import chain_functions, parameter_vector, structure_of_chain
@@ -121,7 +124,9 @@ def _step_functions(chain, joints: Tuple[int, ...], h: float):
     _, _, step, _ = casadi_dynamics(chain, joints)
     nx, m = 2 * chain.n, len(joints)
     x, u = ca.SX.sym("x", nx), ca.SX.sym("u", m)
-    nxt = step(x, u, u, h)
+    nxt = x
+    for _ in range(substeps):
+        nxt = step(nxt, u, u, h / substeps)
     J = ca.Function("J", [x, u], [ca.jacobian(nxt, x), ca.jacobian(nxt, u), nxt])
     energy = chain_functions(structure_of_chain(chain))["energy"]
     E = ca.Function("E", [x], [energy(x, ca.DM(parameter_vector(chain)))])
@@ -200,7 +205,7 @@ class MPC:
         if isinstance(period, bool) or not (math.isfinite(self.period) and self.period > 0):
             raise ParameterError(f"period must be a positive sampling time [s], got {period!r}")
         include, archive = _daqp_archive()
-        J, E = _step_functions(chain, self.joints, self.dt)
+        J, E = _step_functions(chain, self.joints, self.dt, settings.substeps)
         A, B, _ = (np.array(v, dtype=float) for v in J(self.goal, np.zeros(m)))
         ta, ts, tu = settings.terminal
         P = sl.solve_discrete_are(A, B, np.diag([ta] * self.n + [ts] * self.n), tu * np.eye(m))
@@ -375,8 +380,9 @@ class MPC:
 
     def __repr__(self) -> str:
         s = self.settings
+        limits = sorted(set(self.umax.tolist()))
         return (f"MPC({self.model.title}, joints {','.join(map(str, self.joints))}, |u| <= "
-                f"{', '.join(f'{u:g}' for u in self.umax)} N m, {s.nodes} nodes over {s.horizon:g} s)")
+                f"{', '.join(f'{u:g}' for u in limits)} N m, {s.nodes} nodes over {s.horizon:g} s)")
 
 
 def mpc_swingup(model, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, t_end: float = 10.0, y0=None,

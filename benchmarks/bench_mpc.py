@@ -1,0 +1,78 @@
+"""Model-predictive control (skewpend.analysis.mpc) on the RealAIGym leaderboard's boards, beside the published best.
+
+For the acrobot and the pendubot (the DFKI lab's design C.1, model 1.1, |u| <= 6 N m), one MPC (the default
+``MPCSettings``) runs:
+
+* the simulation board v2 (one swing-up from hanging, 10 s) -- its score, and each solve's wall time (median, 99th
+  percentile, max) against the 2025 competition winner's budget (acados SQP-RTI at 400 Hz: 2.5 ms a cycle);
+* the simulation board v3 (60 s, 15 resets to random states) on the seeds given (``--seeds``; the CLI's and the
+  reported run's is 0; the settings were chosen on seeds 1-4) -- uptime and score beside the best published entry;
+* with ``--robustness``, the robustness board v2 (722 runs; the speeds from the positions, as the CLI's) -- its six
+  criteria and score beside the best published entry (seed ``--robustness-seed``, default 0).
+
+Run: ``python benchmarks/bench_mpc.py [--seeds 0] [--robustness]``.  Timing figures depend on the machine's load;
+run it alone (its solve is one thread).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+
+import numpy as np
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--robots", nargs="+", default=["acrobot", "pendubot"], choices=["acrobot", "pendubot"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0])
+    ap.add_argument("--robustness", action="store_true")
+    ap.add_argument("--robustness-seed", type=int, default=0)
+    args = ap.parse_args()
+
+    from skewpend.analysis import leaderboard as lb
+    from skewpend.analysis import robustness as rb
+    from skewpend.analysis.mpc import MPC
+
+    budget = 2.5  # ms: the 2025 competition winner's cycle (400 Hz)
+    plant = lb.dfki_model()
+    for robot in args.robots:
+        joints = lb.ROBOTS[robot]
+        mpc = MPC(plant, actuated=joints, umax=lb.PROTOCOL.umax)
+        print(f"\n== {robot}: {mpc!r}")
+        run = lb.run_protocol(plant, mpc, actuated=joints)
+        ms = mpc.solve_times * 1e3
+        name, best = lb.PUBLISHED[robot]["simulation"]
+        print(f"v2: score {run.score:.4f} (success {run.criteria.success}, swing-up {run.criteria.swingup_time:.3g} s); "
+              f"best published {best:.3f} ({name})")
+        print(f"    solves {ms.size}: median {np.median(ms):.3f} ms, p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms "
+              f"(the first, from zero torques, {ms[0]:.3f} ms); median / the 400 Hz budget = {np.median(ms) / budget:.3f}, "
+              f"max / budget = {ms.max() / budget:.3f}; fallbacks {mpc.fallbacks}")
+        name3, best3 = lb.PUBLISHED[robot]["simulation_v3"]
+        scores = []
+        for seed in args.seeds:
+            protocol = replace(lb.PROTOCOL_V3, resets=replace(lb.PROTOCOL_V3.resets, seed=seed))
+            start = time.perf_counter()
+            run3 = lb.run_protocol(plant, mpc, actuated=joints, protocol=protocol)
+            c = run3.criteria
+            scores.append(c.score)
+            ms = mpc.solve_times * 1e3
+            print(f"v3 seed {seed}: uptime {c.uptime:.2f} s, score {c.score:.4f}, swing-ups {c.swingups}; solves median "
+                  f"{np.median(ms):.3f} ms, max {ms.max():.3f} ms; fallbacks {mpc.fallbacks}, restarts {mpc.restarts}; "
+                  f"{time.perf_counter() - start:.1f} s")
+        print(f"v3: mean score {np.mean(scores):.4f} over seeds {args.seeds}; best published {best3:.3f} ({name3}); "
+              f"ratio {np.mean(scores) / best3:.3f}")
+        if args.robustness:
+            start = time.perf_counter()
+            r = rb.robustness(mpc, actuated=joints, speeds="positions", seed=args.robustness_seed)
+            pname, published, pbest = rb.PUBLISHED_ROBUSTNESS[robot]
+            print("robustness v2 (seed %d, %d runs, %.0f s):" % (args.robustness_seed, r.simulations,
+                                                               time.perf_counter() - start))
+            for key, theirs in zip(rb.CRITERIA, published):
+                print(f"    {key:<16} {r.criteria[key]:.3f}   {pname} {theirs:.3f}")
+            print(f"    score {r.score:.4f}; best published {pbest:.3f} ({pname}); ratio {r.score / pbest:.3f}")
+
+
+if __name__ == "__main__":
+    main()
