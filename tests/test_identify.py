@@ -305,7 +305,8 @@ def test_synthetic_skew_angle_is_recovered_from_a_planar_start():
     rng = np.random.default_rng(1)
     pieces = []
     for k, pc in enumerate(real):
-        tr = skewpend.simulate(truth, [*pc.q[0], *pc.dq[0]], 2.666, dt_out=1e-3, rtol=1e-11, atol=1e-11)
+        # rtol 1e-12 (Taylor order 15, the library the Kaheman fits load; 1e-11 took order 16, built for this alone)
+        tr = skewpend.simulate(truth, [*pc.q[0], *pc.dq[0]], 2.666, dt_out=1e-3, rtol=1e-12, atol=1e-12)
         pieces.append(Piece(t=np.asarray(tr.t), q=np.asarray(tr.y)[:, :2] + rng.normal(0, 5e-4, (len(tr.t), 2)),
                             name=f"s{k}"))
     r = identify(Measurements(pieces), kaheman_parameters(), free=["alpha"], bootstrap=50)
