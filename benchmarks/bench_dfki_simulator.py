@@ -7,12 +7,13 @@ from ``--dfki DIR`` (its ``src/python``, e.g. from a checkout or a snapshot of t
    ``Simulator`` (its plant, ``plant.py``, with the model 1.1 numbers; its RK4 and clipping) through the
    DFKI interface (``get_control_output``), against skewpend's ``run_protocol``: the largest difference of
    the states over the 10 s, and the leaderboard score of each run;
+   ``--controller mpc``: the model-predictive controller (``skewpend.MPC``) instead, by the same interface;
 2. ``--robustness``: the lab's ``benchmarker`` with the robustness board's settings (v2: 21 values, 10
    repetitions, 50 perturbations; the lab's unseeded noise) running ``SpeedObserver(tracking)`` (the speeds
    from the positions), its six criteria by the lab's ``benchmark_scores``, beside skewpend's
    ``robustness`` (seed 0). The lab's simulator is pure Python: about 5 minutes per robot on 2 cores.
 
-    python benchmarks/bench_dfki_simulator.py --dfki DIR [--robots acrobot pendubot] [--robustness]
+    python benchmarks/bench_dfki_simulator.py --dfki DIR [--robots acrobot pendubot] [--robustness] [--controller mpc]
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ def main() -> None:
     ap.add_argument("--dfki", type=Path, required=True, help="the lab's src/python (holds double_pendulum/)")
     ap.add_argument("--robots", nargs="+", default=["acrobot", "pendubot"])
     ap.add_argument("--robustness", action="store_true")
+    ap.add_argument("--controller", choices=["tvlqr", "mpc"], default="tvlqr",
+                    help="skewpend's controller: the optimal swing-up tracked by TVLQR, or the model-predictive one")
     args = ap.parse_args()
     sys.path.insert(0, str(args.dfki))
     from double_pendulum.model.model_parameters import model_parameters
@@ -50,7 +53,12 @@ def main() -> None:
     model = lb.dfki_model()
     for robot in args.robots:
         joints = lb.ROBOTS[robot]
-        tracking = tvlqr(optimal_swingup(model, actuated=joints))
+        if args.controller == "mpc":
+            from skewpend.analysis.mpc import MPC
+
+            tracking = MPC(model, actuated=joints)
+        else:
+            tracking = tvlqr(optimal_swingup(model, actuated=joints))
         mpar = model_parameters(filepath=str(example_data("dfki-design-C.1/model_1.1_parameters.yml")))
         mpar.set_torque_limit([0.0, 6.0] if joints == (2,) else [6.0, 0.0])
         plant = DoublePendulumPlant(model_pars=mpar)
@@ -60,7 +68,7 @@ def main() -> None:
                                integrator="runge_kutta")
         theirs_s = time.perf_counter() - t0
         X, U = np.asarray(X), np.asarray(U)
-        ours = lb.run_protocol(model, tracking, actuated=joints)
+        ours = lb.run_protocol(model, tracking, actuated=joints)  # (the MPC: a call at t = 0 starts a new run)
         k = min(len(ours.x), len(X))
         diff = float(np.max(np.abs(X[:k] - ours.x[:k])))
         rows = len(U)
