@@ -465,3 +465,20 @@ def test_a_model_file_is_a_run_file_of_every_command_that_takes_a_chain(tmp_path
                                         '</worldbody></mujoco>')
     ran = run_cli(["simulate", "--config", str(ball)], cwd=tmp_path)
     assert ran.code == 2 and "ball joint" in ran.err and "Traceback" not in ran.err, ran.report()
+
+
+def test_control_drives_the_model_files_actuators_within_their_limits():
+    """``control lqr --config acrobot.xml``: the file's actuator (the elbow, gear 2 x ctrlrange 1 = 2 N m) is the
+    design's joint and limit, said in a note; ``--actuated`` given takes over (and the file's limits, which belong
+    to its joints, are not applied to others)."""
+    from helpers import run_cli
+
+    path = DATA / "dm_control_acrobot.xml"
+    ran = run_cli(["control", "lqr", "--config", path, "--target", "0,0"])
+    assert ran.code == 0, ran.report()
+    assert "note: the model file's actuators: --actuated 2 and --umax 2" in ran.err
+    assert "actuated    joint 2;" in ran.out and "|u| <= 2 N m" in ran.out
+    ran = run_cli(["control", "lqr", "--config", path, "--target", "0,0", "--actuated", "1,2"])
+    assert ran.code == 0, ran.report()
+    assert "the model file's actuators" not in ran.err and "actuated    joints 1,2;" in ran.out
+    assert "(no torque limit;" in ran.out

@@ -140,6 +140,7 @@ def control(
 
     params = resolve("control", config, parameters=model).parameters()
     nq = params.n
+    actuated, umax = _file_actuators(config, actuated, umax, law, nq)
     actuated = actuated or "both"
     try:
         joints = len(actuated_joints(actuated, nq))
@@ -239,6 +240,36 @@ def control(
         lines.append(f"animation   {animate}")
     sys.stdout.write("\n".join(lines) + "\n")
     return run
+
+
+def _file_actuators(config, actuated, umax, law, nq: int):
+    """``--actuated`` and ``--umax`` as given, else a MuJoCo or URDF model file's actuators and their limits (said in
+    one line): the joints it drives, each within its limit (one number when they agree; per joint otherwise -- the
+    actuated joints' for the MPC, every joint's for the others, inf where none)."""
+    from .options import model_actuators
+
+    found = model_actuators(config)
+    if found is None:
+        return actuated, umax
+    joints, limits = found
+    said = []
+    if actuated is None:
+        actuated = joints
+        said.append(f"--actuated {','.join(map(str, joints))}")
+    if umax is None and tuple(actuated) == joints and all(u is not None for u in limits):
+        if len(set(limits)) == 1:
+            umax = limits[0]
+        elif law == "mpc":
+            umax = limits
+        else:
+            per = [math.inf] * nq
+            for j, u in zip(joints, limits):
+                per[j - 1] = u
+            umax = tuple(per)
+        said.append(f"--umax {','.join(f'{u:g}' for u in limits)}")
+    if said:
+        sys.stderr.write(f"skewpend: note: the model file's actuators: {' and '.join(said)}\n")
+    return actuated, umax
 
 
 def mpc_line(mpc) -> str:

@@ -243,12 +243,13 @@ def _model_file(config: Optional[str]):
         from ..interop.importer import read_model, run_sections
 
         model = read_model(path)
+        _IMPORTED[str(path)] = model
         notes = list(model.notes)
         if model.actuated:
             limits = ", ".join(f"joint {k}" + (f" |u| <= {u:g} N m" if u is not None else "")
                                for k, u in zip(model.actuated, model.torque_limits))
-            notes.append(f"actuators on {limits} (skewpend control takes them as --actuated "
-                         f"{','.join(map(str, model.actuated))} and --umax)")
+            notes.append(f"actuators on {limits} (skewpend control drives these joints within these limits unless "
+                         "--actuated or --umax is given)")
         return run_sections(model), notes
 
     return read
@@ -256,6 +257,17 @@ def _model_file(config: Optional[str]):
 
 #: The notes said by the running command (one resolving its run twice says each once).
 _NOTED: set = set()
+#: The model files read by the running command (path -> ImportedModel): their actuators, for the commands that drive them.
+_IMPORTED: dict = {}
+
+
+def model_actuators(config: Optional[str]):
+    """The actuated joints (1-based) and their torque limits [N m] (None: unlimited) of the MuJoCo or URDF model file
+    ``config`` the command has read; None for a TOML run file, no file, or a model without actuators."""
+    model = _IMPORTED.get(str(config)) if config is not None else None
+    if model is None or not model.actuated:
+        return None
+    return tuple(model.actuated), tuple(model.torque_limits)
 
 
 def progress(label: str, unit: str, quiet: bool):
