@@ -131,6 +131,7 @@ def test_the_back_emf_of_the_published_simulator_feeds_energy():
         assert tau * theta_dot > 0
 
 
+@pytest.mark.slow
 def test_the_upright_rest_of_a_cyclic_arm_is_an_equilibrium():
     """The arm's angle is cyclic (every q1 an equilibrium: the potential's Hessian is singular everywhere): the
     upright rest given by its angles is found (Newton needs no step at a root), its linearisation has the arm's
@@ -316,15 +317,17 @@ def test_identify_recovers_the_rigs_damping_and_inertias_from_its_recorded_angle
 
 
 # -- swing-up and balance by the model-predictive controller ----------------------------------------------------------
-def _mpc_run(settings, y0, t_end):
+def _mpc_run(settings, y0, t_end, volts=None):
     """The MPC on the run file's rig within its motor's limit (``umax = kt Vmax / R``), sampled every 2 ms and held
     (as :meth:`MPC.controller`), its torques recorded unsaturated by anything but the MPC itself: the states, the
-    torques and the times each torque was applied from."""
+    torques and the times each torque was applied from.  ``volts``: another limit than the run file's."""
     import skewpend
     from skewpend.analysis.mpc import MPC, PERIOD
     from skewpend.numeric.control import Controller
 
     chain, motor = rotary()
+    if volts is not None:
+        motor = Motor(motor.joint, motor.resistance, motor.torque_constant, motor.back_emf_constant, volts)
     mpc = MPC(chain, actuated=(1,), umax=motor.torque_limit, goal=[0.0, np.pi], settings=settings)
     applied = {}
 
@@ -374,3 +377,4 @@ def test_the_mpc_swings_the_pendulum_up_and_holds_it_within_the_voltage_limit():
     t, y, u, motor, _ = _mpc_run(MPCSettings(horizon=0.15, nodes=6), [0.0, 0.05, 0.0, 0.0], 4.0)
     assert np.max(np.abs(u[:, 0])) <= motor.torque_limit * (1 + 1e-9)
     assert np.all(_from_upright(y)[t >= 2.0] < 0.1)
+
