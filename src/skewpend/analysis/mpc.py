@@ -9,7 +9,8 @@ the torques of the actuated joints.  The optimal control problem over the next `
   motors' limits;
 * the cost of a node's state ``x``: ``energy ((E(x) - E*) / (E* - E0))^2`` (the mechanical energy's distance
   to the goal's ``E*``, in units of the goal's height in energy above hanging ``E0``: what swings the rods up
-  from anywhere) plus ``angle |q - q*|^2 + speed |q' - q*'|^2`` (the goal's angles taken nearest the present
+  from anywhere; the speeds of cyclic joints -- whose angle the potential does not depend on, as the rotary
+  pendulum's arm about its vertical hinge -- left out of ``E``, so that turning them buys no energy) plus ``angle |q - q*|^2 + speed |q' - q*'|^2`` (the goal's angles taken nearest the present
   ones: a turn more or less is the same goal) and ``torque |u|^2``; at the horizon's end the goal's discrete LQR
   cost-to-go (the Riccati solution of the same RK4 step about the goal, weights ``terminal``), so that near
   the goal the controller is that LQR;
@@ -39,7 +40,7 @@ from __future__ import annotations
 import ctypes
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Optional, Tuple
 
@@ -48,13 +49,19 @@ import numpy as np
 from ..errors import ParameterError, require
 from .control import EVERY_LINK_UP
 
-__all__ = ["MPC", "MPCSettings", "mpc_swingup", "TIMES_KEPT", "PERIOD", "BRAKE_SPEED"]
+__all__ = ["MPC", "MPCSettings", "mpc_swingup", "cyclic_joints", "TIMES_KEPT", "PERIOD", "BRAKE_SPEED", "HORIZON",
+           "HORIZON_TIME_CONSTANTS"]
 
 #: How many solve times an :class:`MPC` keeps (its last ones): memory stays bounded over any run.
 TIMES_KEPT = 1_000_000
 #: The speed [rad/s] below which a failed step's braking torque is proportional to the joint's speed (above it: -umax
 #: times the speed's sign).
 BRAKE_SPEED = 1.0
+#: The longest default horizon [s] (the 2025 competition winner's, on the DFKI rig) and the time constants of the
+#: goal's fastest unstable mode it spans at most: the DFKI rig's grows at 9.35/s (0.5 s = 4.7 of them); the rotary
+#: pendulum's at 14.6/s takes 0.32 s (held from 0.05 rad off the top; 0.5 s loses it: benchmarks/bench_rotary_mpc.py).
+HORIZON = 0.5
+HORIZON_TIME_CONSTANTS = 4.7
 #: The default sampling of :meth:`MPC.controller` [s]: the leaderboard's step (a solve each step of its protocol;
 #: the 2025 competition's winner solved at 400 Hz).
 PERIOD = 0.002
@@ -63,14 +70,16 @@ PERIOD = 0.002
 @dataclass(frozen=True)
 class MPCSettings:
     """The optimal control problem of an :class:`MPC` (see the module): ``horizon`` [s] over ``nodes`` RK4
-    intervals; the weights of the energy's distance (dimensionless, per node), the angles' [1/rad^2], the
+    intervals (default None: :data:`HORIZON` s, or :data:`HORIZON_TIME_CONSTANTS` time constants of the goal's
+    fastest unstable mode if that is shorter -- a condensed single-shooting step over many of them is
+    ill-conditioned); the weights of the energy's distance (dimensionless, per node), the angles' [1/rad^2], the
     speeds' [s^2/rad^2] and the torques' [1/(N m)^2]; ``terminal``: the goal LQR's weights (angle, speed,
     torque) whose cost-to-go ends the horizon; ``iterations``: Gauss-Newton steps a call (1: the real-time
     iteration), ``first``: steps at the first call and at a restart (from zero torques; five take about 1.3 ms,
     within the 400 Hz budget); ``substeps``: RK4 steps
     an interval (a fast motion's rollout stays finite with more)."""
 
-    horizon: float = 0.5
+    horizon: Optional[float] = None
     nodes: int = 20
     energy: float = 200.0
     angle: float = 10.0
@@ -88,7 +97,8 @@ class MPCSettings:
             if not ok:
                 raise ParameterError(f"{name} must be a {'non-negative' if zero else 'positive'} number, got {v!r}")
 
-        positive("horizon", self.horizon)
+        if self.horizon is not None:
+            positive("horizon", self.horizon)
         for name in ("energy", "angle", "speed"):
             positive(name, getattr(self, name), zero=True)
         positive("torque", self.torque)
@@ -130,8 +140,25 @@ def _step_functions(chain, joints: Tuple[int, ...], h: float, substeps: int = 1)
         nxt = step(nxt, u, u, h / substeps)
     J = ca.Function("J", [x, u], [ca.jacobian(nxt, x), ca.jacobian(nxt, u), nxt])
     energy = chain_functions(structure_of_chain(chain))["energy"]
-    E = ca.Function("E", [x], [energy(x, ca.DM(parameter_vector(chain)))])
+    p = ca.DM(parameter_vector(chain))
+    n = chain.n
+    cyclic = cyclic_joints(ca.Function("V", [x], [energy(ca.vertcat(x[:n], ca.DM.zeros(n)), p)]), n)
+    keep = ca.DM([0.0 if k in cyclic else 1.0 for k in range(n)])
+    E = ca.Function("E", [x], [energy(ca.vertcat(x[:n], keep * x[n:]), p)])
     return J, E
+
+
+def cyclic_joints(V, n: int, samples: int = 8) -> Tuple[int, ...]:
+    """The joints (0-based) whose angle the potential ``V(x)`` (a CasADi function of the state, read at its angles)
+    does not depend on -- a vertical hinge's, as the rotary pendulum's arm -- found at seeded random angles."""
+    import casadi as ca
+
+    x = ca.SX.sym("x", 2 * n)
+    grad = ca.Function("g", [x], [ca.gradient(V(x), x)[:n]])
+    rng = np.random.default_rng(0)
+    G = np.array([np.array(grad(np.r_[rng.uniform(-np.pi, np.pi, n), np.zeros(n)])).ravel() for _ in range(samples)])
+    scale = max(float(np.abs(G).max()), np.finfo(float).tiny)
+    return tuple(int(k) for k in np.flatnonzero(np.abs(G).max(axis=0) <= 1e-12 * scale))
 
 
 def _rti_function(J, E, goal: np.ndarray, settings: MPCSettings, P: np.ndarray, scale: float, e_goal: float,
@@ -198,6 +225,11 @@ class MPC:
                                  f" [N m] (the MPC bounds every actuated joint's torque), got {umax!r}")
         self.umax = np.array(limits, dtype=float)
         self.goal = np.asarray(lin.target, dtype=float).copy()
+        if settings.horizon is None:
+            growth = max(float(np.max(np.linalg.eigvals(lin.A).real)), 0.0)
+            horizon = HORIZON if growth * HORIZON <= HORIZON_TIME_CONSTANTS else HORIZON_TIME_CONSTANTS / growth
+            settings = replace(settings, horizon=horizon)
+            self.settings = settings
         self.dt = settings.horizon / settings.nodes
         try:
             self.period = float(period)
