@@ -378,3 +378,18 @@ def test_the_mpc_swings_the_pendulum_up_and_holds_it_within_the_voltage_limit():
     assert np.max(np.abs(u[:, 0])) <= motor.torque_limit * (1 + 1e-9)
     assert np.all(_from_upright(y)[t >= 2.0] < 0.1)
 
+
+
+@pytest.mark.parametrize("command", ["animate", "report"])
+def test_the_drawings_refuse_the_pendulums_hinge_at_the_arms_side_before_any_work(tmp_path, command):
+    """The animation and the report draw each hinge at the end of the rod before: the rig's pendulum hangs from
+    the arm's side, refused in one line, exit 2, nothing simulated and nothing written."""
+    from helpers import run_cli
+
+    out = tmp_path / ("rig.gif" if command == "animate" else "rig.html")
+    ran = run_cli([command, "--config", RUN_FILE, "--out", out])
+    lines = [line for line in ran.err.strip().splitlines() if not line.startswith("skewpend: note:")]
+    assert ran.code == 2 and len(lines) == 1, ran.report()
+    assert "draws each hinge at the end of the rod before; link 2's hinge sits at (0.085, 0.0, 0.0)" in lines[0]
+    assert not out.exists()
+    assert all("simulating" not in stage and "section" not in stage for stage in ran.stages), ran.stages

@@ -32,11 +32,11 @@ from ...io import atomic_path
 from ...progress import detail as say_detail
 from .renderer import FrameRenderer
 from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, DEFAULT_VIEW, MIN_EDGE, SUFFIXES, FrameScene,  # noqa: F401
-                    check_frame_size, check_view, choose_view, eye, frame_scene, plot_to_world, world_to_plot)
+                    check_drawable, check_frame_size, check_view, choose_view, eye, frame_scene, plot_to_world, world_to_plot)
 
 __all__ = ["animate", "frame_scene", "FrameScene", "FrameRenderer", "world_to_plot", "plot_to_world", "choose_view",
            "check_frame_times", "check_output", "SUFFIXES", "DEFAULT_SIZE", "DEFAULT_DPI", "DEFAULT_TRAIL",
-           "DEFAULT_VIEW", "eye"]
+           "DEFAULT_VIEW", "eye", "check_drawable"]
 
 
 def check_frame_times(t, fps: float, speed: float) -> None:

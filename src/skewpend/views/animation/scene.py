@@ -160,6 +160,18 @@ class FrameScene:
         return np.array([c - h * d, c + h * d])
 
 
+def check_drawable(model):
+    """The model's links, or one line when a hinge is not at the end of the rod before (the drawings put it
+    there: a rotary pendulum's hinge at the arm's side is refused before any work)."""
+    links = model.as_chain().links  # each hinge drawn at the end of the rod before
+    for i in range(1, len(links)):
+        offset, parent = links[i].offset, links[i - 1].length
+        if np.abs(np.subtract(offset, (0.0, parent, 0.0))).max() > 1e-12 * max(parent, 1.0):
+            raise ParameterError(f"the animation draws each hinge at the end of the rod before; link {i + 1}'s "
+                                 f"hinge sits at {tuple(offset)} on link {i} (its end is (0, {parent:g}, 0))")
+    return links
+
+
 class Geometry:
     """Per-row data of a trajectory, computed once: rod ends, hinge axes, reach, trail rows."""
 
@@ -179,12 +191,7 @@ class Geometry:
         self.axes = np.asarray(tr.axes(), dtype=float).reshape(-1, 3 * n)
         if self.tips.shape[0] != t.size or self.axes.shape[0] != t.size:
             raise SkewpendError("the trajectory's rod ends or axes do not match its rows")
-        links = tr.params.as_chain().links  # each hinge drawn at the end of the rod before
-        for i in range(1, n):
-            offset, parent = links[i].offset, links[i - 1].length
-            if np.abs(np.subtract(offset, (0.0, parent, 0.0))).max() > 1e-12 * max(parent, 1.0):
-                raise ParameterError(f"the animation draws each hinge at the end of the rod before; link {i + 1}'s "
-                                     f"hinge sits at {tuple(offset)} on link {i} (its end is (0, {parent:g}, 0))")
+        links = check_drawable(tr.params)
         self.reach = float(sum(link.length for link in links))
         self.half = AXIS_HALF_LENGTH * self.reach
         self.trail = trail
