@@ -131,6 +131,7 @@ def test_it_swings_the_rig_up_and_holds_it_by_the_leaderboards_protocol(rig, joi
     assert mpc.fallbacks == 0 and mpc.message == ""
     assert np.max(np.abs(run.u[:, joints[0] - 1])) <= 6.0 and np.all(run.u[:, 2 - joints[0]] == 0.0)
     assert mpc.solve_times.size == run.t.size and np.all(mpc.solve_times > 0)
+    assert mpc.solve_cpu_times.size == run.t.size and np.all(mpc.solve_cpu_times >= 0)
 
 
 def test_a_failed_step_is_solved_again_from_zero_else_brakes_and_says_so(acrobot_mpc, monkeypatch):

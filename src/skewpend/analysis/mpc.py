@@ -26,7 +26,8 @@ A step whose programme fails (non-finite data -- a rollout that diverges --, a s
 from zero torques with the warm start's iterations (:attr:`MPC.restarts` counts those); failing again, the motors
 brake their joints (``-umax q'/max(|q'|, BRAKE_SPEED)``: energy out, never a silent zero) and the next call starts
 from zero -- counted and said (:attr:`MPC.fallbacks`, :attr:`MPC.message`).  Each solve's
-wall time is kept (:attr:`MPC.solve_times`, bounded: the last :data:`TIMES_KEPT`).
+wall time and CPU time are kept (:attr:`MPC.solve_times`, :attr:`MPC.solve_cpu_times`; bounded: the last
+:data:`TIMES_KEPT`).
 
 The DFKI lab's controller interface (``get_control_output(x, t)``, ``init()``, ``reset()``, ``save(dir)``)
 makes it a controller of their ``Simulator`` and benchmark code unchanged; :meth:`MPC.controller` makes it a
@@ -288,7 +289,7 @@ class MPC:
         self._U[:] = 0.0
         self._t: Optional[float] = None
         self._held: Optional[Tuple[int, np.ndarray]] = None
-        self._times = np.zeros(min(TIMES_KEPT, 1024))
+        self._times = np.zeros((min(TIMES_KEPT, 1024), 2))  # wall, this thread's CPU
         self._count = 0
         self.fallbacks = 0
         self.restarts = 0
@@ -297,20 +298,29 @@ class MPC:
 
     init = reset
 
+    def _kept(self, column: int) -> np.ndarray:
+        k, size = self._count, self._times.shape[0]
+        if k <= size:
+            return self._times[:k, column].copy()
+        i = k % size
+        return np.concatenate([self._times[i:, column], self._times[:i, column]])
+
     @property
     def solve_times(self) -> np.ndarray:
         """The wall times [s] of the solves so far (the last :data:`TIMES_KEPT`), in order."""
-        k = self._count
-        if k <= self._times.size:
-            return self._times[:k].copy()
-        i = k % self._times.size
-        return np.concatenate([self._times[i:], self._times[:i]])
+        return self._kept(0)
 
-    def _record(self, seconds: float) -> None:
-        k = self._count
-        if k >= self._times.size and self._times.size < TIMES_KEPT:
-            self._times = np.concatenate([self._times, np.zeros(min(self._times.size, TIMES_KEPT - self._times.size))])
-        self._times[k % self._times.size] = seconds
+    @property
+    def solve_cpu_times(self) -> np.ndarray:
+        """The CPU times [s] this thread spent in each solve (:attr:`solve_times`' without what other processes
+        took of the core: a loaded machine's measure of the work), in order."""
+        return self._kept(1)
+
+    def _record(self, start: Tuple[float, float]) -> None:
+        k, size = self._count, self._times.shape[0]
+        if k >= size and size < TIMES_KEPT:
+            self._times = np.concatenate([self._times, np.zeros((min(size, TIMES_KEPT - size), 2))])
+        self._times[k % self._times.shape[0]] = (time.perf_counter() - start[0], time.thread_time() - start[1])
         self._count = k + 1
 
     def _shift(self, dt: float) -> None:
@@ -331,7 +341,7 @@ class MPC:
         if x.shape != (2 * self.n,) or not np.all(np.isfinite(x)):
             raise ParameterError(f"x must be the state, {2 * self.n} finite numbers (angles [rad], then speeds [rad/s]), "
                                  f"got {x!r}")
-        start = time.perf_counter()
+        start = (time.perf_counter(), time.thread_time())
         if self._t is not None and t < self._t:  # an earlier time than the last call's: a new run
             self._U[:] = 0.0
             self._t = None
@@ -358,11 +368,11 @@ class MPC:
                                 f"t = {self._first_fallback:.4g} s)")
                 speeds = x[n:][[j - 1 for j in self.joints]]
                 brake = -self.umax * speeds / np.maximum(np.abs(speeds), BRAKE_SPEED)
-                self._record(time.perf_counter() - start)
+                self._record(start)
                 out = np.zeros(n)
                 out[[j - 1 for j in self.joints]] = brake
                 return out
-        self._record(time.perf_counter() - start)
+        self._record(start)
         out = np.zeros(n)
         out[[j - 1 for j in self.joints]] = self._U[0]
         return out
