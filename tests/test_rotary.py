@@ -349,15 +349,17 @@ def _from_upright(y):
 
 
 @pytest.mark.slow
-def test_the_mpc_balances_the_pendulum_within_the_voltage_limit():
-    """From 0.05 rad off upright at rest, the MPC with a 0.1 s horizon (5 nodes, no energy term) holds the pendulum:
-    within 0.02 rad of upright from 0.5 s on, 1e-3 rad at 2 s, the arm back within 0.01 rad of where it started; its
-    every torque within kt Vmax / R (3 V) and no fallback."""
+@pytest.mark.parametrize("settings", [{}, dict(horizon=0.1, nodes=5, energy=0.0)], ids=["defaults", "0.1 s"])
+def test_the_mpc_balances_the_pendulum_within_the_voltage_limit(settings):
+    """From 0.05 rad off upright at rest, the MPC -- its defaults (the horizon 4.7 time constants of the top's
+    unstable mode: 0.32 s here) or a 0.1 s horizon of 5 nodes without the energy term -- holds the pendulum: within
+    0.06 rad of upright from 0.5 s on, 1e-3 rad at 2 s, the arm back within 0.01 rad of where it started; its every
+    torque within kt Vmax / R (3 V) and no fallback."""
     from skewpend.analysis.mpc import MPCSettings
 
-    t, y, u, motor, mpc = _mpc_run(MPCSettings(horizon=0.1, nodes=5, energy=0.0), [0.0, np.pi - 0.05, 0.0, 0.0], 2.0)
+    t, y, u, motor, mpc = _mpc_run(MPCSettings(**settings), [0.0, np.pi - 0.05, 0.0, 0.0], 2.0)
     off = _from_upright(y)
-    assert np.all(off[t >= 0.5] < 0.02) and off[-1] < 1e-3
+    assert np.all(off[t >= 0.5] < 0.06) and off[-1] < 1e-3
     assert abs(y[-1, 0]) < 0.01
     assert np.max(np.abs(u[:, 0])) <= motor.torque_limit * (1 + 1e-9) and np.all(u[:, 1] == 0)
     assert np.max(np.abs(motor.voltage(u[:, 0]))) <= motor.voltage_limit * (1 + 1e-9)
@@ -365,16 +367,16 @@ def test_the_mpc_balances_the_pendulum_within_the_voltage_limit():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the MPC's energy term is the whole chain's energy, and its angle cost takes a "
-                                       "turn of the arm as free: it buys the goal's energy by spinning the arm (55 rad "
-                                       "in 4 s at 3 V, the pendulum never within 2 rad of upright); see "
+@pytest.mark.xfail(strict=True, reason="at the driver's 3 V the MPC does not swing the pendulum up: with its defaults "
+                                       "it swings at most 0.63 rad from hanging, short horizons turn the arm (65-73 rad in "
+                                       "4 s) with the pendulum no closer than 1.3 rad to upright; see "
                                        "docs/guide/rotary-pendulum.md and benchmarks/bench_rotary_mpc.py")
 def test_the_mpc_swings_the_pendulum_up_and_holds_it_within_the_voltage_limit():
     """Issue 54's goal: from hanging (nudged 0.05 rad) up and held within 0.1 rad of upright after at most 2 s of
     motion, every torque within kt Vmax / R.  Not met by the MPC today (xfail, strict: it fails loudly once met)."""
     from skewpend.analysis.mpc import MPCSettings
 
-    t, y, u, motor, _ = _mpc_run(MPCSettings(horizon=0.15, nodes=6), [0.0, 0.05, 0.0, 0.0], 4.0)
+    t, y, u, motor, _ = _mpc_run(MPCSettings(), [0.0, 0.05, 0.0, 0.0], 4.0)
     assert np.max(np.abs(u[:, 0])) <= motor.torque_limit * (1 + 1e-9)
     assert np.all(_from_upright(y)[t >= 2.0] < 0.1)
 
