@@ -219,6 +219,8 @@ def control(
         f"result      {run.message}",
     ]
     if run.mpc is not None:
+        from .leaderboard import mpc_line
+
         lines.append(mpc_line(run.mpc))
     if len(u):
         lines.append(f"largest |u| {np.abs(u).max():.4g} N m; energy balance |E - W - E0|/max|E| = {tr.energy_drift:.2g}")
@@ -270,17 +272,6 @@ def _file_actuators(config, actuated, umax, law, nq: int):
     if said:
         sys.stderr.write(f"skewpend: note: the model file's actuators: {' and '.join(said)}\n")
     return actuated, umax
-
-
-def mpc_line(mpc) -> str:
-    """The MPC's account, one line: its problem, its solves' wall times, its fallbacks."""
-    import numpy as np
-
-    times = mpc.solve_times * 1e3
-    line = (f"controller  model-predictive: {mpc.settings.nodes} RK4 nodes over {mpc.settings.horizon:g} s, sampled every "
-            f"{mpc.period * 1e3:g} ms; {times.size} solves, median {np.median(times):.3g} ms, max {times.max():.3g} ms"
-            if times.size else "controller  model-predictive: no solve")
-    return line + (f"; {mpc.message}" if mpc.message else "; no step failed")
 
 
 def given_only(**options):

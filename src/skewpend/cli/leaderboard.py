@@ -11,7 +11,7 @@ from ..parsing import UsageError
 from ..progress import stage
 from .simulate import check_plot
 
-__all__ = ["run_leaderboard"]
+__all__ = ["run_leaderboard", "mpc_line"]
 
 
 def check_model_options(model: dict, config: Optional[str]) -> float:
@@ -69,6 +69,17 @@ def ipopt_reporter(what: str, stages=None, clock=None):
                          f"({solved} solved)")
 
     return report
+
+
+def mpc_line(mpc) -> str:
+    """The MPC's account, one line: its problem, its solves' wall times, its fallbacks."""
+    import numpy as np
+
+    times = mpc.solve_times * 1e3
+    line = (f"controller  model-predictive: {mpc.settings.nodes} RK4 nodes over {mpc.settings.horizon:g} s, sampled every "
+            f"{mpc.period * 1e3:g} ms; {times.size} solves, median {np.median(times):.3g} ms, max {times.max():.3g} ms"
+            if times.size else "controller  model-predictive: no solve")
+    return line + (f"; {mpc.message}" if mpc.message else "; no step failed")
 
 
 def _robustness_lines(robot: str, joints, alpha: float, limit: float, tracking) -> list:
@@ -190,8 +201,6 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
     lines = [
         f"robot        {robot} (motor on joint {joints[0]}), the DFKI lab's design C.1, model 1.1{skew}; |u| <= {limit:g} N m"]
     if traj is None:
-        from .control import mpc_line
-
         lines.append(mpc_line(tracking).replace("controller  ", "controller   ", 1))
     else:
         lines.append(f"optimised    {traj.message}; the motion takes {traj.duration:.4g} s to the goal; solved in "
