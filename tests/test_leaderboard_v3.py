@@ -261,14 +261,15 @@ def test_cli_leaderboard_v3_bad_input(argv, text, tmp_path):
 
 
 def test_cli_leaderboard_v3_scores_the_tracking_through_the_resets(tmp_path):
-    """The command end to end with --version v3: exit 0, the uptime and score lines beside the best published
-    v3 entry; the CSV (30,000 rows) scored again from its rows gives the printed uptime and score.  The TVLQR's
+    """The command end to end with --version v3 and the TVLQR (``--controller tvlqr``; the MPC, v3's default, is
+    tests/test_mpc.py's): exit 0, the uptime and score lines beside the best published v3 entry; the CSV (30,000 rows) scored again from its rows gives the printed uptime and score.  The TVLQR's
     law is time-indexed: after the first reset it only holds the goal by its final LQR, so it stays far below
     the published best."""
     from helpers import run_cli
     from skewpend.numeric.kernels import model_kernel, model_vector
 
-    ran = run_cli(["control", "leaderboard", "--robot", "acrobot", "--version", "v3", "--out", "run.csv"], cwd=tmp_path)
+    ran = run_cli(["control", "leaderboard", "--robot", "acrobot", "--version", "v3", "--controller", "tvlqr", "--out",
+                   "run.csv"], cwd=tmp_path)
     assert ran.code == 0, ran.report()
     out = ran.out.splitlines()
     line = next(s for s in out if s.startswith("score (v3)"))
