@@ -81,7 +81,7 @@ def test_one_step_is_the_gauss_newton_step_of_the_stated_problem(rig, robot, joi
     s = MPCSettings(first=1)
     mpc = MPC(rig, actuated=joints, umax=6.0, settings=s)
     assert mpc.settings.horizon == 0.5  # the default on this rig: its unstable mode grows at 9.35/s (4.7 / 9.35 > 0.5)
-    h, N, n, m = mpc.settings.horizon / s.nodes, s.nodes, 2, 1
+    h, N, n = mpc.settings.horizon / s.nodes, s.nodes, 2
     step, energy = _exact_step(rig, joints, h, s.substeps)
     goal = np.array([math.pi, 0.0, 0.0, 0.0])
     A = _jacobian(lambda y: step(y, [0.0]), goal)
@@ -263,7 +263,10 @@ def test_it_runs_in_simulate_sampled_and_held(rig):
 
     y, h = res.y[0].copy(), 0.01
     for k in range(50):
-        k1 = f(y, u[k]); k2 = f(y + h / 2 * k1, u[k]); k3 = f(y + h / 2 * k2, u[k]); k4 = f(y + h * k3, u[k])
+        k1 = f(y, u[k])
+        k2 = f(y + h / 2 * k1, u[k])
+        k3 = f(y + h / 2 * k2, u[k])
+        k4 = f(y + h * k3, u[k])
         y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         assert np.allclose(y, res.y[k + 1], rtol=0, atol=1e-9), k
     with pytest.raises(ParameterError, match="a sampled law .* runs with method='rk4' and dt=0.01"):
