@@ -55,3 +55,23 @@ def test_other_steps_are_refused(reference, kwargs, words):
 def test_a_bad_period_is_one_line(hold, words):
     with pytest.raises(ParameterError, match=words):
         Controller.function(lambda t, x: np.zeros(2), hold=hold)
+
+
+def test_an_exception_anywhere_in_the_callback_stops_the_run(reference, monkeypatch):
+    """A signal handler's exception may come at any line of the C callback around a Python law -- here at its
+    first, the check for a pending Ctrl-C: it stops the run and is raised (ctypes would print it and go on)."""
+    import signal
+
+    from skewpend.interrupts import Terminated
+
+    calls = []
+
+    def boom(sig):
+        calls.append(sig)
+        raise Terminated()
+
+    monkeypatch.setattr(signal, "getsignal", boom)
+    ctl = Controller.function(lambda t, x: np.zeros(2), hold=0.01)
+    with pytest.raises(Terminated):
+        skewpend.simulate(reference, (0.4, -0.2, 0.0, 0.0), t_end=100.0, controller=ctl)
+    assert len(calls) == 1  # stopped at the first call, not 10,000 steps later

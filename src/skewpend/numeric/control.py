@@ -471,18 +471,20 @@ def _python_law(f, errors: list, nq: int = 2):
             u[r] = nan
 
     def law(t, y, u):
-        if errors:
-            stop(u)
-            return
-        # the signal an Interrupts of this process recorded and has not raised yet: a slow Python law must not
-        # hold Ctrl-C until the compiled call returns (the check between calls would come after all its steps)
-        owner = getattr(signal.getsignal(signal.SIGINT), "__self__", None)
-        pending = owner.pending if isinstance(owner, Interrupts) else None
-        if pending is not None:
-            errors.append(pending())
-            stop(u)
-            return
+        # everything inside the try: a signal handler's exception (SIGTERM's Terminated, Ctrl-C's
+        # KeyboardInterrupt) raised at any line must not escape into ctypes, which would print it and go on
         try:
+            if errors:
+                stop(u)
+                return
+            # the signal an Interrupts of this process recorded and has not raised yet: a slow Python law must not
+            # hold Ctrl-C until the compiled call returns (the check between calls would come after all its steps)
+            owner = getattr(signal.getsignal(signal.SIGINT), "__self__", None)
+            pending = owner.pending if isinstance(owner, Interrupts) else None
+            if pending is not None:
+                errors.append(pending())
+                stop(u)
+                return
             got = f(t, np.array(y[:2 * nq]))
             try:
                 v = np.asarray(got, dtype=float).reshape(-1)
