@@ -8,7 +8,7 @@ the torques of the actuated joints.  The optimal control problem over the next `
   ``nodes`` intervals of one classical RK4 step each, the torques held over an interval and bounded by the
   motors' limits;
 * the cost of a node's state ``x``: ``energy ((E(x) - E*) / (E* - E0))^2`` (the mechanical energy's distance
-  to the goal's ``E*``, in units of the goal's height in energy above hanging ``E0``: what swings the rods up
+  to the goal's ``E*``, in units of the goal's height in energy above the lowest rest ``E0``, the hanging one: what swings the rods up
   from anywhere; the speeds of cyclic joints -- whose angle the potential does not depend on, as the rotary
   pendulum's arm about its vertical hinge -- left out of ``E``, so that turning them buys no energy) plus ``angle |q - q*|^2 + speed |q' - q*'|^2`` (the goal's angles taken nearest the present
   ones: a turn more or less is the same goal) and ``torque |u|^2``; at the horizon's end the goal's discrete LQR
@@ -162,6 +162,20 @@ def cyclic_joints(V, n: int, samples: int = 8) -> Tuple[int, ...]:
     return tuple(int(k) for k in np.flatnonzero(np.abs(G).max(axis=0) <= 1e-12 * scale))
 
 
+def _lowest_rest(E, n: int) -> float:
+    """The energy of the lowest rest among the joints at 0 or pi each (every combination up to 12 joints, 4,096
+    seeded ones beyond): the hanging rest's energy ``E0`` whatever the model's zero (the DeepMind Control Suite's
+    acrobot is upright at q = 0)."""
+    import itertools
+
+    if n <= 12:
+        angles = np.array(list(itertools.product((0.0, np.pi), repeat=n)))
+    else:
+        angles = np.random.default_rng(0).integers(0, 2, (4096, n)) * np.pi
+    states = np.hstack([angles, np.zeros_like(angles)])
+    return float(np.min(np.array(E.map(len(states))(states.T)).ravel()))
+
+
 def _rti_function(J, E, goal: np.ndarray, settings: MPCSettings, P: np.ndarray, scale: float, e_goal: float,
                   m: int, umax: np.ndarray):
     """One real-time iteration as a CasADi function ``sp_mpc(x0, U, goal) -> U'`` (see the module)."""
@@ -243,9 +257,8 @@ class MPC:
         A, B, _ = (np.array(v, dtype=float) for v in J(self.goal, np.zeros(m)))
         ta, ts, tu = settings.terminal
         P = sl.solve_discrete_are(A, B, np.diag([ta] * self.n + [ts] * self.n), tu * np.eye(m))
-        hanging = np.zeros_like(self.goal)
-        self.e_goal, e0 = float(E(self.goal)), float(E(hanging))
-        scale = abs(self.e_goal - e0) or 1.0  # a goal at the hanging energy (the hanging rest): the weights stand
+        self.e_goal, e0 = float(E(self.goal)), _lowest_rest(E, self.n)
+        scale = abs(self.e_goal - e0) or 1.0  # a goal at the lowest rest's energy (the hanging rest): the weights stand
         fn = _rti_function(J, E, self.goal, settings, P, scale, self.e_goal, m, self.umax)
         self._lib = casadi_library(fn, kind="mpc", flags=("-I", include), archives=(archive,))
         self._bind()
@@ -288,7 +301,6 @@ class MPC:
         self._U = getattr(self, "_U", np.zeros((self.settings.nodes, len(self.joints))))
         self._U[:] = 0.0
         self._t: Optional[float] = None
-        self._held: Optional[Tuple[int, np.ndarray]] = None
         self._times = np.zeros((min(TIMES_KEPT, 1024), 2))  # wall, this thread's CPU
         self._count = 0
         self.fallbacks = 0
