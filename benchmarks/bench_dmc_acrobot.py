@@ -55,12 +55,13 @@ def settings():
     """The two MPCs' settings: the swing-up's (a long horizon, a weak goal LQR at its end) and the balance's."""
     from skewpend.analysis.mpc import MPCSettings
 
-    # The MPC's energy term is divided by E(goal) - E(q = 0), the goal's height in energy above "hanging" at q = 0;
-    # in this model q = 0 is the goal itself, so the MPC falls back to 1 J: the energy weights below are in 1/J^2
-    # (the goal's height above hanging is 39.24 J: 0.13 / J^2 is the MPC's default 200 in its own units).
-    swing = MPCSettings(horizon=2.0, nodes=40, energy=20.0, angle=0.3, speed=0.03, torque=1e-3,
+    # The MPC's energy term is divided by the goal's height in energy above the lowest rest (here 39.24 J, the arms
+    # hanging at q = (pi, 0)). The weights were tuned when the MPC divided by 1 J on this model (it took q = 0 for the
+    # hanging rest): 20 / J^2 and 0.13 / J^2 are the same costs as 20 * 39.24^2 and 0.13 * 39.24^2 (~200, the default).
+    height = 39.24
+    swing = MPCSettings(horizon=2.0, nodes=40, energy=20.0 * height ** 2, angle=0.3, speed=0.03, torque=1e-3,
                         terminal=(0.01, 0.001, 1e-5))
-    balance = MPCSettings(horizon=0.5, nodes=20, energy=0.13, angle=10.0, speed=1.0, torque=1e-3,
+    balance = MPCSettings(horizon=0.5, nodes=20, energy=0.13 * height ** 2, angle=10.0, speed=1.0, torque=1e-3,
                           terminal=(10.0, 1.0, 1e-2))
     return swing, balance
 
