@@ -293,7 +293,10 @@ def test_a_chains_frame_draws_every_rod_and_hinge_axis():
     renderer.close()
 
 
-def test_a_chain_animates_to_a_gif_and_refuses_hinges_off_the_rod_ends(tmp_path):
+def test_a_chain_animates_to_a_gif_and_draws_a_hinge_off_the_rod_end_where_it_is(tmp_path):
+    """A hinge off the end of the rod before is drawn where the model has it: link 2 from its hinge to link 3's
+    hinge at ``o_2 + R_2 (0.05, 0.4, 0)`` (the rotation tensors composed here), link 3 from there to its rod's
+    end; the hinge axis at that hinge."""
     from PIL import Image
 
     chain, clip = _chain_clip()
@@ -302,6 +305,16 @@ def test_a_chain_animates_to_a_gif_and_refuses_hinges_off_the_rod_ends(tmp_path)
         assert im.n_frames == clip.t.size and im.size == SIZE
     moved = chain.replace_link(3, offset=(0.05, 0.4, 0.0))
     clip2 = skewpend.simulate(moved, [1.0, -0.3, 0.2, 0, 0, 0], 1.0, dt_out=1 / FPS)
-    with pytest.raises(skewpend.ParameterError, match="draws each hinge at the end of the rod before; link 3"):
-        animate(clip2, tmp_path / "moved.gif", fps=FPS, speed=SPEED, size=SIZE)
-    assert _files(tmp_path) == ["chain.gif"]
+    k = clip2.t.size - 1
+    sc = frame_scene(clip2, k)
+    R, o = np.eye(3), np.zeros(3)
+    for i, link in enumerate(moved.links):
+        o = o + R @ np.asarray(link.offset, dtype=float)
+        np.testing.assert_allclose(sc.rods[i], o, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(sc.axis_centers[i], o, rtol=0, atol=1e-12)
+        R = R @ _rodrigues(clip2.y[k, i], np.asarray(link.axis))
+    np.testing.assert_allclose(sc.rods[3], o + R @ np.array([0.0, 0.3, 0.0]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sc.rods[3], clip2.tips()[k, 6:9], rtol=0, atol=1e-12)
+    assert np.linalg.norm(sc.rods[2] - clip2.tips()[k, 3:6]) == pytest.approx(0.05, abs=1e-12)  # not rod 2's end
+    animate(clip2, tmp_path / "moved.gif", fps=FPS, speed=SPEED, size=SIZE)
+    assert _files(tmp_path) == ["chain.gif", "moved.gif"]

@@ -382,21 +382,6 @@ def test_the_mpc_swings_the_pendulum_up_and_holds_it_within_the_voltage_limit():
 
 
 
-@pytest.mark.parametrize("command", ["animate", "report"])
-def test_the_drawings_refuse_the_pendulums_hinge_at_the_arms_side_before_any_work(tmp_path, command):
-    """The animation and the report draw each hinge at the end of the rod before: the rig's pendulum hangs from
-    the arm's side, refused in one line, exit 2, nothing simulated and nothing written."""
-    from helpers import run_cli
-
-    out = tmp_path / ("rig.gif" if command == "animate" else "rig.html")
-    ran = run_cli([command, "--config", RUN_FILE, "--out", out])
-    lines = [line for line in ran.err.strip().splitlines() if not line.startswith("skewpend: note:")]
-    assert ran.code == 2 and len(lines) == 1, ran.report()
-    assert "draws each hinge at the end of the rod before; link 2's hinge sits at (0.085, 0.0, 0.0)" in lines[0]
-    assert not out.exists()
-    assert all("simulating" not in stage and "section" not in stage for stage in ran.stages), ran.stages
-
-
 @pytest.mark.slow
 def test_with_10_volts_the_mpc_swings_the_pendulum_up_within_2_s():
     """Not the run file's limit (the driver's 3 V): with 10 V (0.05 N m) ``mpc_swingup`` with a 0.15 s horizon (6

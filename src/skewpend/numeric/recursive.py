@@ -39,7 +39,7 @@ from ..symbolic.chain import Chain
 
 __all__ = ["ChainStructure", "axis_pattern", "axis_of", "structure_of_chain", "parameter_names", "parameter_vector", "PER_LINK",
            "chain_functions", "c_function_lines", "function_lines", "chain_code", "CODE_LANGUAGES", "standard_names",
-           "standard_vector", "regressor_function"]
+           "standard_vector", "regressor_function", "hinge_positions"]
 
 def _per_link() -> Tuple[str, ...]:
     """One link's entries of ``p``, from the schema's link fields in their order: a vector as its three
@@ -368,6 +368,11 @@ class _Graph:
         """The rods' ends ``o_i + R_i (0, l_i, 0)`` (the last one is the chain's tip)."""
         return [self.o[i] + self.R[i][:, 1] * self.link[i]["l"] for i in range(self.n)]
 
+    def hinges(self):
+        """The hinges' positions ``o_i`` (hinge ``i + 1`` at ``o_i + R_i h_{i+1}``, ``h`` its offset): where the
+        drawings join the links (a link drawn from its hinge to the next one, the last to its rod's end)."""
+        return list(self.o)
+
 
 def _packed(M, n):
     return [M[i][j] for i in range(n) for j in range(i + 1)]
@@ -377,7 +382,8 @@ def _packed(M, n):
 def chain_functions(structure: ChainStructure) -> Dict[str, object]:
     """CasADi functions of the chain (``y = (q, q')``, ``p``): ``model`` -> (M packed lower, f = Q - bias),
     ``mass`` -> M packed, ``energy`` -> T + Pi, ``hamilton`` -> (dT/dq - dPi/dq, Q) for Hamilton's
-    equations, ``ends`` -> the rods' ends, ``axes`` -> the hinge axes (3 n each, world frame)."""
+    equations, ``ends`` -> the rods' ends, ``hinges`` -> the hinges' positions, ``axes`` -> the hinge axes (3 n
+    each, world frame)."""
     ca = _ca()
     G = _Graph(structure)
     n = G.n
@@ -391,9 +397,28 @@ def chain_functions(structure: ChainStructure) -> Dict[str, object]:
         "energy": ca.Function("energy", [y, G.p], [T + Pi]),
         "hamilton": ca.Function("hamilton", [y, G.p], [ca.vertcat(*G.lagrangian_gradient()), ca.vertcat(*Q)]),
         "ends": ca.Function("ends", [G.q, G.p], [ca.vertcat(*G.ends())]),
+        "hinges": ca.Function("hinges", [G.q, G.p], [ca.vertcat(*G.hinges())]),
         "axes": ca.Function("axes", [G.q, G.p], [ca.vertcat(*G.a)]),
     }
     return fns
+
+
+def hinge_positions(chain: Chain, q):
+    """The hinges' positions of ``chain`` at the angles ``q`` (one row of n angles, or rows of them: only the
+    first n columns are read, so states do), world frame, j down [m]: shape (rows, n, 3), or (n, 3) for one
+    row -- from the recursive algorithms' graph (:func:`chain_functions`' ``hinges``), evaluated over the rows
+    at once.  With every hinge at the end of the rod before, hinge ``i + 1`` is rod ``i``'s end."""
+    import numpy as np
+
+    q = np.asarray(q, dtype=float)
+    n = chain.n
+    rows = np.atleast_2d(q)[:, :n]
+    if rows.shape[1] != n:
+        raise ValueError(f"q must hold {n} angles a row, got {rows.shape[1]}")
+    fn = chain_functions(structure_of_chain(chain))["hinges"]
+    p = parameter_vector(chain)
+    out = np.asarray(fn.map(rows.shape[0])(rows.T, p)).T.reshape(-1, n, 3) if rows.shape[0] else np.zeros((0, n, 3))
+    return out[0] if q.ndim == 1 else out
 
 
 # -- printing CasADi's instructions as C, JavaScript and Python ---------------------------------------------
@@ -553,7 +578,8 @@ def chain_code(chain: Chain, language: str) -> str:
     same CasADi graphs of the recursive algorithms as the kernels' C: ``P`` (the chain's parameter vector, in
     ``PARAMETER_ORDER``), ``rhs`` (``dy/dt = (q1' … qn', q1'' … qn'')``, ``M q'' = f`` solved by LDL^T),
     ``energy`` (``T + Pi`` [J]), ``ends`` (the rods' ends, 3 n [m], j pointing down) and ``axes`` (the hinge
-    axes in the world frame, 3 n) of the angles ``q``."""
+    axes in the world frame, 3 n) and ``hinges`` (the hinges' positions, 3 n [m]: where the drawings join the
+    links) of the angles ``q``."""
     from .. import __version__
     from .codegen import ldlt_steps
 
@@ -592,7 +618,11 @@ def chain_code(chain: Chain, language: str) -> str:
             + body("ends", "q, p=P" if py else "q, p = P", fns["ends"], ["q", "p"], [[f"r{i}" for i in range(3 * n)]],
                    vec(3 * n), "the rods' ends [x1, y1, z1, ..., zn] [m] at the angles q (j points down)")
             + body("axes", "q, p=P" if py else "q, p = P", fns["axes"], ["q", "p"], [[f"r{i}" for i in range(3 * n)]],
-                   vec(3 * n), "the hinge axes in the world frame [a1x, a1y, a1z, ..., anz] at the angles q"))
+                   vec(3 * n), "the hinge axes in the world frame [a1x, a1y, a1z, ..., anz] at the angles q")
+            + body("hinges", "q, p=P" if py else "q, p = P", fns["hinges"], ["q", "p"],
+                   [[f"r{i}" for i in range(3 * n)]], vec(3 * n),
+                   "the hinges' positions [x1, y1, z1, ..., zn] [m] at the angles q (j points down): each link is "
+                   "drawn from its hinge to the next one, the last to its rod's end"))
     if py:
         head = ['"""' + "\n".join(doc) + '\n"""', "import math", "", "",
                 "#: The parameter vector's entries, in order.",

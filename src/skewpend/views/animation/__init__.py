@@ -4,9 +4,10 @@ Every row of a :class:`skewpend.Trajectory` is one frame, so the frames are exac
 dense-output states at the frame times ``k * speed / fps`` (make the trajectory with
 ``skewpend.simulate(params, y0, duration * speed, dt_out=speed / fps)``).
 
-The geometry of a frame comes from the trajectory only -- the rod ends ``tr.tips()`` and the
-hinge axes ``tr.axes()`` (``n1`` and ``e = P1·e0``), both generated from the symbolic
-derivation; nothing here recomputes the kinematics.  :func:`frame_scene` returns that
+The geometry of a frame comes from the model's generated kinematics only -- the hinges' positions
+(:func:`skewpend.views.drawing.link_points`: each link drawn from its hinge to the next one, the last to its
+rod's end ``tr.tips()``) and the hinge axes ``tr.axes()`` (``n1`` and ``e = P1·e0``); nothing here recomputes
+the kinematics.  :func:`frame_scene` returns that
 geometry in world coordinates exactly as it is drawn, so it can be checked against the
 model and against the projected artists of :class:`FrameRenderer`.
 
@@ -32,11 +33,11 @@ from ...io import atomic_path
 from ...progress import detail as say_detail
 from .renderer import FrameRenderer
 from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, DEFAULT_VIEW, MIN_EDGE, SUFFIXES, FrameScene,  # noqa: F401
-                    check_drawable, check_frame_size, check_view, choose_view, eye, frame_scene, plot_to_world, world_to_plot)
+                    check_frame_size, check_view, choose_view, eye, frame_scene, plot_to_world, world_to_plot)
 
 __all__ = ["animate", "frame_scene", "FrameScene", "FrameRenderer", "world_to_plot", "plot_to_world", "choose_view",
            "check_frame_times", "check_output", "SUFFIXES", "DEFAULT_SIZE", "DEFAULT_DPI", "DEFAULT_TRAIL",
-           "DEFAULT_VIEW", "eye", "check_drawable"]
+           "DEFAULT_VIEW", "eye"]
 
 
 def check_frame_times(t, fps: float, speed: float) -> None:

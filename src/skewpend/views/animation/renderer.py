@@ -185,8 +185,8 @@ class FrameRenderer:
         self.light = unit(0.9 * self.eye + 0.7 * screen_up - 0.5 * right)
         self.half_vector = unit(self.light + self.eye)
 
-        # the floor: a grid with round spacing (the scene's scale), just below the reach
-        self.floor = -1.02 * R
+        # the floor: a grid with round spacing (the scene's scale), just below the deepest the chain reaches
+        self.floor = -1.02 * g.depth
         ticks = self._ticks
         lo, hi = float(ticks[0]), float(ticks[-1])
         corners = [np.array([x, y, self.floor]) for x in (lo, hi) for y in (lo, hi)]
@@ -199,13 +199,15 @@ class FrameRenderer:
         # view limits fixed by the reach R = a + b: everything drawn (the sphere of radius R about
         # the pivot, the floor, the triad) fills the axes; the box centre is put at the centre of
         # that content on screen, the limits form a cube (equal scales), the zoom fits it
-        content = [R * right, -R * right, -R * screen_up] + corners
+        content = [R * right, -R * right, -g.depth * screen_up] + corners
         content += [triad_origin + 1.3 * tl * v for v, _ in triad]
         # upwards only as far as this run's rods and hinge axes (with arrow heads, labels) reach
         reach_axis = g.half + (HEAD_LENGTH + LABEL_GAP) * R
-        tips = world_to_plot(g.tips.reshape(-1, n, 3))
-        moving = [tips.reshape(-1, 3), reach_axis * world_to_plot(g.axes[:, 0:3]), -reach_axis * world_to_plot(g.axes[:, 0:3])]
-        for i in range(1, n):  # hinge i + 1's axis on rod i's end
+        tips = world_to_plot(g.tips.reshape(-1, n, 3))  # the drawn links' ends: the next hinges, the last rod's end
+        first = world_to_plot(g.points[:, 0])  # hinge 1
+        moving = [tips.reshape(-1, 3), first + reach_axis * world_to_plot(g.axes[:, 0:3]),
+                  first - reach_axis * world_to_plot(g.axes[:, 0:3])]
+        for i in range(1, n):  # hinge i + 1's axis at rod i's drawn end
             e = world_to_plot(g.axes[:, 3 * i:3 * i + 3])
             moving += [tips[:, i - 1] + reach_axis * e, tips[:, i - 1] - reach_axis * e]
         moving = np.concatenate(moving)

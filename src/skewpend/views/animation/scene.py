@@ -12,6 +12,7 @@ import numpy as np
 
 from ... import checks
 from ...errors import ParameterError, SkewpendError
+from ..drawing import drawn_depth, drawn_reach, link_points
 
 #: Output formats, chosen by the file name's suffix.
 SUFFIXES = (".mp4", ".gif")
@@ -122,9 +123,10 @@ def choose_view(n1_world, e_world) -> Tuple[float, float]:
 class FrameScene:
     """The 3-D geometry of frame ``k`` in WORLD coordinates (``y`` down), as it is drawn.
 
-    * ``rods`` -- (n + 1, 3): the pivot (origin) and each rod's end (``n = 2`` rods for the double
-      pendulum, a chain's links); rod ``i`` is drawn from ``rods[i]`` to ``rods[i + 1]``;
-    * ``axis_centers`` -- (n, 3): where the hinge axes are drawn: the origin and the rods' ends;
+    * ``rods`` -- (n + 1, 3): the hinges and the last rod's end (``n = 2`` rods for the double pendulum, a
+      chain's links; :func:`skewpend.views.drawing.link_points`); rod ``i`` is drawn from ``rods[i]`` (its
+      hinge) to ``rods[i + 1]`` (the next hinge: the rod's end where the hinge sits there);
+    * ``axis_centers`` -- (n, 3): where the hinge axes are drawn: the hinges;
     * ``axis_directions`` -- (n, 3): unit vectors ``n1`` and ``e = P1 . e0`` (``tr.axes()[k]``; a
       chain's every hinge axis);
     * ``axis_half_length`` -- each axis is drawn from ``centre - h d`` to ``centre + h d``
@@ -160,18 +162,6 @@ class FrameScene:
         return np.array([c - h * d, c + h * d])
 
 
-def check_drawable(model):
-    """The model's links, or one line when a hinge is not at the end of the rod before (the drawings put it
-    there: a rotary pendulum's hinge at the arm's side is refused before any work)."""
-    links = model.as_chain().links  # each hinge drawn at the end of the rod before
-    for i in range(1, len(links)):
-        offset, parent = links[i].offset, links[i - 1].length
-        if np.abs(np.subtract(offset, (0.0, parent, 0.0))).max() > 1e-12 * max(parent, 1.0):
-            raise ParameterError(f"the animation draws each hinge at the end of the rod before; link {i + 1}'s "
-                                 f"hinge sits at {tuple(offset)} on link {i} (its end is (0, {parent:g}, 0))")
-    return links
-
-
 class Geometry:
     """Per-row data of a trajectory, computed once: rod ends, hinge axes, reach, trail rows."""
 
@@ -187,12 +177,16 @@ class Geometry:
         self.energy = np.asarray(tr.energy, dtype=float)
         self.work = np.asarray(tr.work, dtype=float)
         self.n = n = self.y.shape[1] // 2  # rods: 2, or a chain's links
-        self.tips = np.asarray(tr.tips(), dtype=float).reshape(-1, 3 * n)
+        #: the drawn chain a row (rows, n + 1, 3): the hinges and the last rod's end (link i from point i to i + 1)
+        self.points = link_points(tr.params, self.y, tr.tips())
+        #: the drawn links' ends a row (rows, 3 n): the next hinges and the last rod's end
+        self.tips = self.points[:, 1:].reshape(-1, 3 * n)
         self.axes = np.asarray(tr.axes(), dtype=float).reshape(-1, 3 * n)
         if self.tips.shape[0] != t.size or self.axes.shape[0] != t.size:
             raise SkewpendError("the trajectory's rod ends or axes do not match its rows")
-        links = check_drawable(tr.params)
-        self.reach = float(sum(link.length for link in links))
+        self.reach = drawn_reach(tr.params)
+        #: the deepest the drawn chain reaches below the roof (the reach, but for an arm turning horizontally)
+        self.depth = drawn_depth(tr.params)
         self.half = AXIS_HALF_LENGTH * self.reach
         self.trail = trail
         # first row of each frame's trail: the earliest row with t >= t_k - trail
@@ -204,7 +198,7 @@ class Geometry:
             raise ParameterError(f"frame index must be a whole number in 0..{n - 1}, got {k!r}")
         k = int(k) % n
         tips, m = self.tips, self.n
-        rods = np.vstack([np.zeros(3), tips[k].reshape(m, 3)])
+        rods = self.points[k].copy()
         centers = rods[:m].copy()
         dirs = self.axes[k].reshape(m, 3).copy()
         j0 = int(self.trail_start[k])

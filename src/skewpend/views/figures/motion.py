@@ -230,20 +230,24 @@ def tips_view(tips: np.ndarray) -> np.ndarray:
 def _draw_tips(ax, tr, zoom: float = 1.0) -> None:
     from matplotlib.ticker import MaxNLocator
 
-    v = tips_view(tr.tips())
-    n = v.shape[1] // 3
+    from ..drawing import link_points
+
+    n = tr.y.shape[1] // 2
+    # the drawn chain (views.drawing): hinge 1, then each link's drawn end (the next hinge, the last rod's end)
+    every = tips_view(link_points(tr.params, tr.y, tr.tips()).reshape(len(tr.y), 3 * (n + 1)))
+    o, v = every[:, :3], every[:, 3:]
     # up to two rods: each end's path; more: the tip's alone (the inner ones would crowd it)
     drawn = list(enumerate(_labels(tr)))
     drawn = drawn[-1:] if n > 2 else drawn
     for k, (color, _, _) in drawn:
         ax.plot(v[:, 3 * k], v[:, 3 * k + 1], v[:, 3 * k + 2], color=color,
                 label=f"end of rod {k + 1}" if len(drawn) > 1 else f"tip (end of rod {n})", **_thin(len(v)))
-    # the rods at t = 0 and the pivot on the first hinge axis
-    ax.plot([0] + [v[0, 3 * k] for k in range(n)], [0] + [v[0, 3 * k + 1] for k in range(n)],
-            [0] + [v[0, 3 * k + 2] for k in range(n)], color=COLORS["rods"], lw=2.2, marker="o", ms=3, alpha=0.8,
+    # the rods at t = 0 and the pivot (hinge 1) on the first hinge axis
+    ax.plot([o[0, 0]] + [v[0, 3 * k] for k in range(n)], [o[0, 1]] + [v[0, 3 * k + 1] for k in range(n)],
+            [o[0, 2]] + [v[0, 3 * k + 2] for k in range(n)], color=COLORS["rods"], lw=2.2, marker="o", ms=3, alpha=0.8,
             label="rods at t = 0")
-    ax.plot([0], [0], [0], marker="s", color="black", ms=5, ls="none", label="pivot")
-    pts = np.vstack([np.zeros((1, 3))] + [v[:, 3 * k:3 * k + 3] for k in range(n)])
+    ax.plot([o[0, 0]], [o[0, 1]], [o[0, 2]], marker="s", color="black", ms=5, ls="none", label="pivot")
+    pts = np.vstack([o[:1]] + [v[:, 3 * k:3 * k + 3] for k in range(n)])
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2 * 1.05, 1e-9)
@@ -256,7 +260,9 @@ def _draw_tips(ax, tr, zoom: float = 1.0) -> None:
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
     ax.view_init(elev=18, azim=-58)
-    ax.set_title("Rod ends in 3D (z: hinge 1 axis)", loc="left")
+    first = np.asarray(tr.axes(), dtype=float)[0, :3]  # hinge 1's axis (fixed): named where it is the plot's z
+    along_z = abs(abs(float(first[2])) - 1.0) < 1e-9
+    ax.set_title("Rod ends in 3D (z: hinge 1 axis)" if along_z else "Rod ends in 3D", loc="left")
     legend = ax.legend(loc="upper left", fontsize=7.5, bbox_to_anchor=(0.0, 0.98))
     for handle in getattr(legend, "legend_handles", None) or legend.legendHandles:  # paths may be drawn thin
         if handle.get_label() != "pivot":
@@ -320,7 +326,9 @@ def torus_figure(tr):
 
 def tips_figure(tr):
     """The paths of both rod ends in 3D [m], the rods at t = 0 and the pivot; world ``(x, y, z)``
-    drawn at ``(x, z, -y)`` (see :func:`tips_view`) so the pendulum hangs down; equal scales."""
+    drawn at ``(x, z, -y)`` (see :func:`tips_view`) so the pendulum hangs down; equal scales.  The rods as every
+    view draws them (:func:`skewpend.views.drawing.link_points`): a link's end is the next link's hinge (a rotary
+    pendulum's arm ends where its pendulum hangs), the last rod's its tip."""
     return _one_panel(tr, (7.0, 7.3), _draw_tips, "3d")
 
 

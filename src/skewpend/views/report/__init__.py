@@ -82,9 +82,6 @@ def _check_inputs(params, y0, t_end, method, rtol, atol, dt, max_steps, clip_sec
 
     _require_libraries()
     params = checks.numeric_model(Parameters(**DEFAULT_PARAMETERS) if params is None else params, "a report")
-    from ..animation.scene import check_drawable
-
-    check_drawable(params)  # its pictures and animation draw each hinge at the end of the rod before
     if params.n < 2:
         raise ParameterError(f"a report draws models of two links or more (its maps and paths are over two angles); "
                              f"this one has {params.n}", parameter="links")
