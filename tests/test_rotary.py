@@ -213,9 +213,7 @@ def test_a_motor_without_links_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize("command, words", [
-    ("control", "give --actuated 1 --umax 0.015 (kt Vmax/R) and add 0.00021 N m s (kt km/R) to [[links]] 1 damping"),
     ("export", "add 0.00021 N m s (kt km/R) to [[links]] 1 damping"),
-    ("serve", "the explorer has no motor input"),
 ])
 def test_commands_that_cannot_use_the_motor_refuse_it_saying_what_to_give(command, words):
     with pytest.raises(UsageError) as err:

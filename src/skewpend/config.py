@@ -116,21 +116,20 @@ READS: Dict[str, Dict[str, frozenset]] = {
 
 #: The commands that read a run file's ``[motor]`` (a voltage-driven DC motor on a chain's joint, :class:`Motor`):
 #: those that compute the chain's motion or its model, where the motor's back-EMF is its joint's damping and the
-#: motor at 0 V is the model (no command here drives the voltage; the limit is the controllers', said in the note).
-#: The others refuse it, saying why (:data:`_MOTOR_WHY_NOT`).
+#: motor at 0 V is the model (the explorer's too: it has no voltage input), and ``control``, whose controllers
+#: drive it: its joint actuated, its torque limit kt Vmax / R their ``umax`` (unless ``--actuated``/``--umax`` say
+#: otherwise), the back-EMF in the joint's damping.  The others refuse it, saying why (:data:`_MOTOR_WHY_NOT`).
 MOTOR_READERS = ("simulate", "animate", "report", "validate", "lyapunov", "flipmap", "modes", "equilibria", "orbit",
-                 "nnm", "identify", "derive")
+                 "nnm", "identify", "derive", "serve", "control")
+#: The readers that say the motor's note themselves: what they take of it depends on their options
+#: (``control``: :meth:`Motor.control_note`).
+MOTOR_NOTED_BY_COMMAND = ("control",)
 for _command in MOTOR_READERS:
     READS[_command] = {**READS[_command], "motor": frozenset(MOTOR_KEYS)}
 #: Why a command does not read ``[motor]``.
 _MOTOR_WHY_NOT = {
-    "control": "its controllers take a motor's limit as --umax [N m] and its back-EMF as the joint's damping: give "
-               "--actuated {joint} --umax {umax:.6g} (kt Vmax/R) and add {damping:.6g} N m s (kt km/R) to [[links]] "
-               "{joint} damping",
     "export": "MJCF and URDF would keep its back-EMF as damping but not its voltage input: add {damping:.6g} N m s "
               "(kt km/R) to [[links]] {joint} damping to export the motor at 0 V",
-    "serve": "the explorer has no motor input: add {damping:.6g} N m s (kt km/R) to [[links]] {joint} damping for the "
-             "motor at 0 V",
 }
 
 
@@ -210,6 +209,30 @@ class Motor:
         return (f"[motor] on joint {self.joint}: back-EMF kt km/R = {self.damping:.6g} N m s added to joint "
                 f"{self.joint}'s damping; input kt V/R = {self.gain:.6g} N m per volt, |V| <= {self.voltage_limit:g} V "
                 f"is |u| <= {self.torque_limit:.6g} N m")
+
+    def control_actuators(self, actuated, umax):
+        """What ``skewpend control`` drives: ``(actuated, umax, said)`` -- the given ``--actuated`` and ``--umax``
+        where given (they win), else the motor's joint and, where that joint alone is actuated, its
+        :attr:`torque_limit`; ``said`` the note's words on each."""
+        said = []
+        if actuated is None:
+            actuated = (self.joint,)
+            said.append(f"--actuated {self.joint} (its joint)")
+        else:
+            said.append(f"--actuated {actuated if isinstance(actuated, str) else ','.join(map(str, actuated))} as given")
+        if umax is not None:
+            shown = f"{umax:g}" if isinstance(umax, (int, float)) else ",".join(f"{u:g}" for u in umax)
+            said.append(f"--umax {shown} as given")
+        elif not isinstance(actuated, str) and tuple(actuated) == (self.joint,):
+            umax = self.torque_limit
+            said.append(f"--umax {self.torque_limit:.6g} (kt Vmax/R)")
+        else:
+            said.append("no --umax from it (it drives one joint of those actuated)")
+        return actuated, umax, said
+
+    def control_note(self, said) -> str:
+        """``skewpend control``'s note: the conversion and what the controllers take of it (:meth:`control_actuators`)."""
+        return f"{self.describe()} (skewpend control: {', '.join(said)}; the back-EMF in the joint's damping)"
 
 
 #: The sections a command may leave aside (with one note) when it does not use them: the run's start and
@@ -415,8 +438,9 @@ class Run:
         if motor.joint > len(self.links):
             raise UsageError(f"{where}[motor] joint = {motor.joint}, but the chain has {len(self.links)} joint"
                              f"{'s' if len(self.links) != 1 else ''}")
-        self.notes.append(f"{where}{motor.describe()} (skewpend {self.command} applies 0 V: the limit is a "
-                          f"controller's, e.g. skewpend.analysis.mpc.MPC(umax={motor.torque_limit:.6g}))")
+        if self.command not in MOTOR_NOTED_BY_COMMAND:
+            self.notes.append(f"{where}{motor.describe()} (skewpend {self.command} applies 0 V: the limit is a "
+                              f"controller's, e.g. skewpend.analysis.mpc.MPC(umax={motor.torque_limit:.6g}))")
         return motor
 
     def _links_from_options(self, per_link: Dict[str, Any]) -> None:

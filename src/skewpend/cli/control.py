@@ -138,8 +138,12 @@ def control(
     from ..errors import EquilibriumError, ParameterError
     from ..numeric.control import actuated_joints
 
-    params = resolve("control", config, parameters=model).parameters()
+    run_file = resolve("control", config, parameters=model)
+    params = run_file.parameters()  # a [motor]'s back-EMF in its joint's damping (Run.chain)
     nq = params.n
+    if run_file.motor is not None:  # its joint actuated, its limit kt Vmax / R, unless the options say otherwise
+        actuated, umax, said = run_file.motor.control_actuators(actuated, umax)
+        sys.stderr.write(f"skewpend: note: {config}: {run_file.motor.control_note(said)}\n")
     actuated, umax = _file_actuators(config, actuated, umax, law, nq)
     actuated = actuated or "both"
     try:
@@ -160,7 +164,7 @@ def control(
     Q = None if q is None else np.diag(q)
     R = None if r is None else np.diag(r)
     defaults = library_defaults(action)
-    goal = defaults["target"] if target is None else target
+    goal = _highest_rest(params, defaults["target"]) if target is None else target
     if target is not None:
         from ..analysis.control import equilibrium_argument
         from ..analysis.equilibria import find_equilibrium
@@ -214,7 +218,7 @@ def control(
     tr = run.trajectory
     u = tr.inputs()
     lines = [
-        f"swing-up    {actuated} to {run.lqr.linearization.equilibrium.label}, |u| <= {_limits(run.controller.umax)} N m, "
+        f"swing-up    {shown} to {run.lqr.linearization.equilibrium.label}, |u| <= {_limits(run.controller.umax)} N m, "
         f"{tr.t[-1] if len(tr.t) else 0.0:g} s",
         f"result      {run.message}",
     ]
@@ -242,6 +246,22 @@ def control(
         lines.append(f"animation   {animate}")
     sys.stdout.write("\n".join(lines) + "\n")
     return run
+
+
+def _highest_rest(params, goal):
+    """The default target, every link up -- or, where the model has no such rest (a joint turning about the
+    vertical, as the rotary pendulum's arm: its angle moves no weight), its highest rest, said in a note."""
+    from ..analysis.control import equilibrium_argument
+    from ..analysis.equilibria import equilibria
+
+    label = equilibrium_argument(goal, params)
+    points = equilibria(params).points
+    if not points or any(point.label == label for point in points):
+        return goal
+    top = max(points, key=lambda point: point.potential)
+    sys.stderr.write(f"skewpend: note: the model has no {label} rest (a joint's angle moves no weight: it turns about "
+                     f"the vertical); the target is its highest rest, {top.label} (--target chooses another)\n")
+    return top.label
 
 
 def _file_actuators(config, actuated, umax, law, nq: int):
