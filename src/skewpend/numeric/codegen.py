@@ -503,6 +503,9 @@ def exact_explorer_js(printed: Parameters, values: Sequence[float]) -> str:
     hess = sp.hessian(ex.Pi, q)
     linear = [ex.M[i, j].subs(rest) for i in range(2) for j in range(2)] + [hess[i, j].subs(rest) for i in range(2) for j in range(2)]
     for name, exprs, doc_line in (("tips", list(ex.tips), "rod ends [x1, y1, z1, x2, y2, z2] [m] (j points down)"),
+                                  ("hinges", [sp.Integer(0)] * 3 + list(ex.tips)[:3],
+                                   "the hinges' positions [0, 0, 0, x2, y2, z2] [m]: the roof's, and hinge 2 at rod 1's "
+                                   "end (the drawings join the rods there)"),
                                   ("axes", list(ex.axes), "hinge axes [n1x, n1y, n1z, ex, ey, ez]: n1 fixed, e = P1 . e0"),
                                   ("linear", linear, "the linearisation at rest (phi = psi = 0): [M0, K0], M0 = M(0), "
                                    "K0 = the Hessian of Pi (y is not read)")):

@@ -159,11 +159,13 @@ def page_settings(physics_params=None) -> dict:
     """What the explorer's page (web/app.js) needs beside the generated physics, for any model: its ``title``
     and ``lead`` (the header's words), its coordinates' ``names``, the ``sliders`` (:func:`page_sliders`), and
     by their index in the physics' parameter vector its rods' ``lengths`` (the drawn axes' scale, the
-    camera's reach), the terms that make the energy not conserved (``dissipative``: damping, torques,
+    camera's reach), the drawn rig's ``reach`` [m] (:func:`skewpend.views.drawing.drawn_reach`: a small rig is
+    drawn magnified), the terms that make the energy not conserved (``dissipative``: damping, torques,
     friction, from the schema's roles) and the ``torques``."""
     from ..numeric.explorer_source import page_vector
+    from .drawing import drawn_reach
 
-    form, printed, order, _ = page_vector(physics_params)
+    form, printed, order, values = page_vector(physics_params)
     roles = {f.stem: f.role for f in _schema.FIELDS if f.per_body}  # a joint's terms (cfs, the chain's, is none)
     where = lambda *rs: [i for i, k in enumerate(order) if roles.get(_stem(k)) in rs]  # noqa: E731
     title = printed.title
@@ -180,6 +182,7 @@ def page_settings(physics_params=None) -> dict:
             "motion, the equations, the normal modes and the flip map are computed in your browser by JavaScript generated "
             "from it.", "names": [_SYMBOLS.get(c, c) for c in printed.coordinates], "sliders": page_sliders(physics_params),
             "lengths": [i for i, k in enumerate(order) if _stem(k) == "l"],
+            "reach": drawn_reach(printed) if form != "exact" else float(sum(values[order.index(k)] for k in ("a", "b"))),
             "dissipative": where("damping", "torque", "friction"), "torques": where("torque")}
 
 
@@ -206,12 +209,20 @@ def inline_page_scripts(order=REPLAY_ORDER, entry: str = "replay", physics_param
 
 def replay_data(trajectory) -> dict:
     """What a browser view replays of a computed run (``web/replay.js``, the widget): the rows'
-    times ``t`` [s], states ``y``, the library's rod ends ``tips`` and hinge axes ``axes`` at
-    each row (a chain's n rods and axes), and the length scale ``size`` [m] of the drawn axes -- plain
-    lists, written exactly."""
-    lengths = [link.length for link in trajectory.params.as_chain().links]  # the model's n rods
-    return {"t": trajectory.t.tolist(), "y": trajectory.y.tolist(), "tips": trajectory.tips().tolist(),
-            "axes": trajectory.axes().tolist(), "size": max(float(v) for v in lengths)}
+    times ``t`` [s], states ``y``, the library's rod ends ``tips``, the hinges' positions ``hinges``
+    (:func:`skewpend.views.drawing.link_points`: each link drawn from its hinge to the next one) and hinge
+    axes ``axes`` at each row (a chain's n rods and axes), the length scale ``size`` [m] of the drawn axes
+    and the drawn rig's ``reach`` [m] (:func:`~skewpend.views.drawing.drawn_reach`: a small rig is drawn
+    magnified) -- plain lists, written exactly."""
+    from .drawing import drawn_reach, link_points
+
+    model = trajectory.params
+    lengths = [link.length for link in model.as_chain().links]  # the model's n rods
+    tips = trajectory.tips()
+    n = len(lengths)
+    hinges = link_points(model, trajectory.y, tips)[:, :n].reshape(-1, 3 * n)
+    return {"t": trajectory.t.tolist(), "y": trajectory.y.tolist(), "tips": tips.tolist(), "hinges": hinges.tolist(),
+            "axes": trajectory.axes().tolist(), "size": max(float(v) for v in lengths), "reach": drawn_reach(model)}
 
 
 def module_bundle(order=WIDGET_ORDER, entry: str = "widget", physics_params=None) -> str:

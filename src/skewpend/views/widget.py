@@ -116,6 +116,7 @@ class PendulumWidget(anywidget.AnyWidget):
     shown = traitlets.Dict().tag(sync=True)
     specs = traitlets.List().tag(sync=True)  # the sliders (frontend.page_sliders: one definition for every model)
     size = traitlets.Float(0.0).tag(sync=True)  # a chain's length scale [m] (the double pendulum's: from a, b)
+    reach = traitlets.Float(0.0).tag(sync=True)  # a chain's drawn reach [m] (views.drawing.drawn_reach; 0: none)
 
     def __init__(self, params: Optional[Parameters] = None, y0: Optional[Sequence[float]] = None, *,
                  height: int = 420) -> None:
@@ -133,6 +134,7 @@ class PendulumWidget(anywidget.AnyWidget):
         self._chain = printed if form == "recursive" else None
         if self._chain is not None:  # the recursive form: the bodies and axes fixed, g and damping its sliders
             from ..config import CHAIN_Q0
+            from .drawing import drawn_reach
 
             params = self._chain
             shape = self._geometry = _zeroed(params)
@@ -142,7 +144,7 @@ class PendulumWidget(anywidget.AnyWidget):
             super().__init__(values=chain_slider_values(params),
                              y0=self._start((CHAIN_Q0,) * n + (0.0,) * n if y0 is None else y0),
                              sliders=[spec[0] for spec in specs[-n:] + specs[:-n]], specs=specs,  # the starts first
-                             size=max(link.length for link in params.links), height=height)
+                             size=max(link.length for link in params.links), reach=drawn_reach(params), height=height)
             return
         params = reference_parameters() if params is None else checks.numeric_params(params, "the widget")
         geometry = geometry_of(params)

@@ -8,7 +8,7 @@
 // skewpend for the model: skewpend.views.frontend.page_settings) holds its sliders (one definition: the
 // parameters a slider sets alone, then each joint's start), its coordinates' names and, by their index in
 // the parameter vector, its rods' lengths and the joint terms that make the energy not conserved.  The
-// physics (one contract for every model: rhs, energy, tips, axes, linear, TERMS, P) takes the whole
+// physics (one contract for every model: rhs, energy, tips, hinges, axes, linear, TERMS, P) takes the whole
 // parameter vector, the values no slider sets from physics.P; the normal modes are computed here from its
 // M0 and K0 (physics.linear), the equations typeset from its TERMS (the linearised ones where it has none).
 import * as THREE from "three";
@@ -59,17 +59,23 @@ const longest = (pv) => Math.max(...PAGE.lengths.map((i) => pv[i])); // the draw
 // ---- three.js scene (scene.js) ------------------------------------------------------------------------
 const canvas = document.getElementById("scene");
 const view = createScene(canvas, { trail: TRAIL });
+view.setReach(PAGE.reach); // a small rig (the rotary pendulum's 0.214 m) drawn magnified (scene.js)
 const { camera, controls } = view;
 const { joint1, bob } = view.rods;
 { // the whole model in view: the camera's target at half its reach, its distance to the reach (at the start)
-  const reach = Math.max(PAGE.lengths.reduce((sum, i) => sum + physics.P[i], 0), 1.8), r = reach / 1.8;
+  const reach = Math.max(view.scale * PAGE.lengths.reduce((sum, i) => sum + physics.P[i], 0), 1.8), r = reach / 1.8;
   controls.target.set(0, -0.5 * reach, 0);
   camera.position.set(2.6 * r, 0.4 - 0.5 * (reach - 1.8), 4.2 * r);
+  if (view.scale > 1) { // a small rig drawn magnified to MIN_REACH: the default view brought closer to it
+    const small = view.scale * PAGE.reach / 1.8;
+    controls.target.set(0, -0.9 * small, 0);
+    camera.position.set(2.6 * small, 0.4 * small, 4.2 * small);
+  }
   controls.update();
 }
 
 function geometry() {
-  return view.pose(physics.tips(y, p), physics.axes(y, p), longest(p));
+  return view.pose(physics.tips(y, p), physics.axes(y, p), longest(p), physics.hinges(y, p));
 }
 function draw() {
   geometry();
@@ -598,7 +604,7 @@ canvas.addEventListener("pointermove", (ev) => {
   const G = geometry(), k = dragging - 1;
   // model frame -> three: the angles are rotations about the hinge axes (n1, e, ...); turning hinge k by
   // the angle between rod k and the pointer (about the hinge's axis) turns rod k onto the pointer
-  const pivot = k === 0 ? G.o : G.tips[k - 1];
+  const pivot = G.pivots[k];
   const axis = G.axes[k];
   const plane = new THREE.Plane().setFromNormalAndCoplanarPoint(axis, pivot);
   const point = new THREE.Vector3();
@@ -693,7 +699,7 @@ function screenOf(name) {
   const G = geometry();
   const at = { joint: G.t1, tip: G.t2 };
   G.tips.forEach((end, k) => {
-    const pivot = k === 0 ? G.o : G.tips[k - 1];
+    const pivot = G.pivots[k];
     at[`rod${k + 1}`] = pivot.clone().lerp(end, 0.6);
     at[`hinge${k + 1}`] = pivot; // where rod k + 1 hangs from
   });
@@ -707,8 +713,10 @@ window.explorer = {
   flip: () => flip && { ...flip },
   equations: () => ({ terms: physics.TERMS, coefficients: physics.coefficients(paramVector()), latex: equationsLatex(paramVector()) }),
   modes: () => normalModes(paramVector()),
-  // what the 3D view draws now: the rods' ends and the hinge axes, in three.js's coordinates (y up)
-  geometry: () => { const G = view.geometry; return G && { tips: G.tips.map((v) => v.toArray()), axes: G.axes.map((v) => v.toArray()) }; },
+  // what the 3D view draws now: the drawn links' ends (the next hinges, the tip), their hinges and the hinge axes,
+  // in three.js's coordinates (y up; a small rig's magnified: scale scene units a metre)
+  geometry: () => { const G = view.geometry; return G && { tips: G.tips.map((v) => v.toArray()), pivots: G.pivots.map((v) => v.toArray()),
+                                                          axes: G.axes.map((v) => v.toArray()), scale: view.scale }; },
   screenOf,
   physics,
 };

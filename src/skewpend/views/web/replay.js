@@ -1,8 +1,8 @@
 // skewpend's live replay: a computed motion shown in 3D (scene.js), turnable, in real time.  Each
 // <figure class="live-view"> holds a canvas, its controls and the states to replay as JSON
-// (<script type="application/json" class="live-data">: frame times t [s], the rod ends `tips` and
-// the hinge axes `axes` at each frame, computed by the library from the trajectory, and the
-// length scale `size`).  Nothing is integrated here: the frames are the library's.  Used by the
+// (<script type="application/json" class="live-data">: frame times t [s], the rod ends `tips`, the
+// hinges' positions `hinges` and the hinge axes `axes` at each frame, computed by the library from the
+// trajectory, the length scale `size` and the drawn rig's `reach`).  Nothing is integrated here: the frames are the library's.  Used by the
 // report (one HTML file, this module inlined) and by anything else that shows a computed run.
 import { createScene } from "./scene.js";
 import { frameAt } from "./live.js";
@@ -21,6 +21,7 @@ function setup(figure) {
     return null;
   }
   figure.classList.add("live");
+  if (data.reach) view.setReach(data.reach); // a small rig drawn magnified (scene.js)
   const play = figure.querySelector("button.live-play"), scrub = figure.querySelector("input.live-time");
   const label = figure.querySelector("output.live-clock");
   scrub.max = String(n - 1);
@@ -29,7 +30,7 @@ function setup(figure) {
     const next = ((k % n) + n) % n;
     if (next !== frame + 1) view.clearTrail(); // a jump (a new loop, the slider): the trail starts again
     frame = next;
-    view.pose(data.tips[frame], data.axes[frame], data.size);
+    view.pose(data.tips[frame], data.axes[frame], data.size, data.hinges ? data.hinges[frame] : undefined);
     view.pushTrail();
     scrub.value = String(frame);
     label.textContent = `t = ${data.t[frame].toFixed(2)} s`;
@@ -62,14 +63,14 @@ function setup(figure) {
   requestAnimationFrame(tick);
   return {
     figure, view, frames: n,
-    /** show frame k (paused) and return the drawn rod ends and axes (every rod's: two, or a chain's n), in the
-     *  model's frame */
+    /** show frame k (paused) and return the drawn links' ends (the next hinges, the tip), their hinges (`pivots`)
+     *  and the axes (every rod's: two, or a chain's n), in the model's frame [m] */
     show(k) {
       setRunning(false);
       const G = pose(k);
       view.render();
       const back = (v) => [v.x, -v.y, v.z];
-      return { frame, tips: G.tips.flatMap(back), axes: G.axes.flatMap(back) };
+      return { frame, tips: G.tips.flatMap(view.toModel), pivots: G.pivots.flatMap(view.toModel), axes: G.axes.flatMap(back) };
     },
     state: () => ({ frame, running, renders, t: data.t[frame] }),
     play: () => setRunning(true),

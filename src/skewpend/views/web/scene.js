@@ -9,6 +9,10 @@ import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 // model frame (j points down) -> three.js (y up)
 export const world = (x, y, z) => new THREE.Vector3(x, -y, z);
 const UP = new THREE.Vector3(0, 1, 0);
+// the scene's camera, rods and joints are sized for a pendulum of a metre or two (the double pendulum's a + b =
+// 1.8 m): a rig reaching less than MIN_REACH [m] (the rotary pendulum's 0.214 m) is drawn magnified to it
+// (setReach), any other at its size
+export const MIN_REACH = 0.9;
 
 function placeSegment(mesh, from, to) {
   const d = new THREE.Vector3().subVectors(to, from);
@@ -18,9 +22,9 @@ function placeSegment(mesh, from, to) {
   if (len > 0) mesh.quaternion.setFromUnitVectors(UP, d.normalize());
 }
 
-/** The scene on `canvas`: {pose(tips, axes, size), pushTrail(), clearTrail(), render(), resize(),
- *  geometry, camera, controls, renderer, rods: {rod1, rod2, joint1, bob, all}}.  `trail`: points kept.
- *  Any number of rods (a chain of links): the pose's arrays say how many. */
+/** The scene on `canvas`: {pose(tips, axes, size, hinges), setReach(reach), toModel(v), pushTrail(), clearTrail(),
+ *  render(), resize(), geometry, camera, controls, renderer, rods: {rod1, rod2, joint1, bob, all}}.  `trail`:
+ *  points kept.  Any number of rods (a chain of links): the pose's arrays say how many. */
 export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}) {
   const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
   renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
@@ -86,24 +90,40 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
   let stale = true;
   controls.addEventListener("change", () => { stale = true; });
 
+  let scale = 1; // scene units per model metre (setReach)
   const view = {
     renderer, camera, controls, rods: { rod1, rod2, joint1, bob, all: rodList },
-    geometry: null, // the last pose: {o, t1, t2, n1, e, tips, axes} in three.js coordinates (t2: the last rod's end)
+    geometry: null, // the last pose: {o, t1, t2, n1, e, tips, pivots, axes} in three.js coordinates (t2: the tip)
+    /** The drawn rig's reach [m] (how far from the roof its links can be: skewpend.views.drawing.drawn_reach): one
+     *  under MIN_REACH is drawn magnified to it; returns the scale (scene units per metre).  Set it before the
+     *  first pose. */
+    setReach(reach) {
+      scale = reach > 0 && reach < MIN_REACH ? MIN_REACH / reach : 1;
+      return scale;
+    },
+    get scale() { return scale; },
+    /** a point of the scene (three.js coordinates) back in the model's frame [m], j down: [x, y, z] */
+    toModel(v) { return [v.x / scale, -v.y / scale, v.z / scale]; },
     /** Place the pendulum: `tips` = [x1, y1, z1, x2, y2, z2, ...] (the rods' ends), `axes` = [n1, e, ...] (the
-     *  hinge axes, one a rod), both in the model's frame -- the double pendulum's two rods or a chain's n;
-     *  `size`: the length scale of the drawn hinge axes [m]. */
-    pose(tips, axes, size) {
+     *  hinge axes, one a rod), `hinges` = the hinges' positions (optional: without them each hinge is drawn at the
+     *  end of the rod before), all in the model's frame -- the double pendulum's two rods or a chain's n; each
+     *  link is drawn from its hinge to the next one, the last to its rod's end (a rotary pendulum's arm to the
+     *  pendulum's hinge at its side); `size`: the length scale of the drawn hinge axes [m]. */
+    pose(tips, axes, size, hinges) {
       const n = Math.floor(tips.length / 3);
       ensure(n);
-      const at = (v, k) => world(v[3 * k], v[3 * k + 1], v[3 * k + 2]);
-      const ends = Array.from({ length: n }, (_, k) => at(tips, k));
-      const dirs = Array.from({ length: Math.floor(axes.length / 3) }, (_, k) => at(axes, k).normalize());
-      const G = { o: world(0, 0, 0), t1: ends[0], t2: ends[n - 1], n1: dirs[0], e: dirs[1], tips: ends, axes: dirs };
-      const half = 0.35 * Math.max(size, 0.5);
+      const at = (v, k) => world(scale * v[3 * k], scale * v[3 * k + 1], scale * v[3 * k + 2]);
+      const rodEnds = Array.from({ length: n }, (_, k) => at(tips, k));
+      const pivots = Array.from({ length: n }, (_, k) => (hinges ? at(hinges, k) : k === 0 ? world(0, 0, 0) : rodEnds[k - 1]));
+      const ends = Array.from({ length: n }, (_, k) => (k < n - 1 ? pivots[k + 1] : rodEnds[n - 1]));
+      const dirs = Array.from({ length: Math.floor(axes.length / 3) }, (_, k) => world(axes[3 * k], axes[3 * k + 1], axes[3 * k + 2]).normalize());
+      const G = { o: pivots[0], t1: ends[0], t2: ends[n - 1], n1: dirs[0], e: dirs[1], tips: ends, pivots, axes: dirs };
+      const half = 0.35 * Math.max(scale * size, 0.5);
+      joint0.position.copy(G.o);
       for (let k = 0; k < n; k++) {
-        const from = k === 0 ? G.o : ends[k - 1];
+        const from = pivots[k];
         placeSegment(rodList[k], from, ends[k]);
-        if (k > 0) jointList[k - 1].position.copy(ends[k - 1]);
+        if (k > 0) jointList[k - 1].position.copy(from);
         if (dirs[k]) placeSegment(axisList[k], from.clone().addScaledVector(dirs[k], -half), from.clone().addScaledVector(dirs[k], half));
       }
       bob.position.copy(G.t2);

@@ -3,11 +3,12 @@
 //   values  {a, b, m1, m2, alpha, g, c1, c2, tau1, tau2}  SI units, alpha in radians
 //   y0      [phi, psi, dphi, dpsi]                          the start of the live motion [rad, rad/s]
 //   running bool                                            playing or paused
-//   run     {} or {t, tips, axes, y, size, label}           a computed run to replay (Python's simulate)
+//   run     {} or {t, tips, hinges, axes, y, size, reach, label}  a computed run to replay (Python's simulate)
 //   sliders [names]                                         the sliders to show
 //   specs   [[key, label, min, max, step, default, unit, degrees]]  the sliders (skewpend.views.frontend.page_sliders:
 //           the parameters a slider sets alone, then each joint's start)
 //   size    0 or the length scale of the drawn axes [m]     a chain's longest link (else from a, b)
+//   reach   0 or the drawn chain's reach [m]                 a rig under scene.js's MIN_REACH is drawn magnified
 // A chain of links: its physics (the recursive algorithms' module) takes the full parameter vector;
 // `values` holds what its sliders change (g, each joint's damping), the rest comes from physics.P;
 // its start is y0 = [q1 .. qn, dq1 .. dqn], the sliders "q<k>_0" the angles.
@@ -54,6 +55,7 @@ export function render({ model, el }) {
   let view;
   try {
     view = createScene(canvas, { trail: 1200 });
+    view.setReach(+model.get("reach") || 0); // a small rig drawn magnified (scene.js)
   } catch (err) { // no WebGL here: say so, keep the sliders' state readable from Python
     note.textContent = `This browser cannot draw WebGL (${err.message}).`;
     note.hidden = false;
@@ -124,7 +126,7 @@ export function render({ model, el }) {
 
   // ---- the motion -----------------------------------------------------------------------------------
   function pose() {
-    const G = view.pose(physics.tips(y, p), physics.axes(y, p), size());
+    const G = view.pose(physics.tips(y, p), physics.axes(y, p), size(), physics.hinges ? physics.hinges(y, p) : undefined);
     return G;
   }
   function restart() {
@@ -142,7 +144,7 @@ export function render({ model, el }) {
     frame = Math.max(0, Math.min(run.t.length - 1, k));
     t = run.t[frame];
     y = run.y[frame].slice();
-    view.pose(run.tips[frame], run.axes[frame], run.size);
+    view.pose(run.tips[frame], run.axes[frame], run.size, run.hinges ? run.hinges[frame] : undefined);
     view.pushTrail();
     scrub.value = String(frame);
   }
