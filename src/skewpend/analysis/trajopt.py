@@ -32,7 +32,7 @@ Honest status: a solve that does not converge is reported as such (``ok`` False,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
@@ -42,7 +42,8 @@ from .control import EVERY_LINK_UP
 from .leaderboard import NORMALISATION, PROTOCOL
 
 __all__ = ["Cost", "OptimalTrajectory", "optimal_swingup", "Tracking", "tvlqr", "COST_TERMS", "SpeedObserver",
-           "casadi_dynamics", "time_argument", "save_directory", "write_yaml"]
+           "casadi_dynamics", "time_argument", "save_directory", "write_yaml", "timed_swingup",
+           "shortest_swingup", "swingup_tracking"]
 
 #: The cost's terms, in order: the leaderboard's criteria (their normalisation: ``leaderboard.NORMALISATION``).
 COST_TERMS = ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_cost")
@@ -901,3 +902,264 @@ def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=N
         raise EquilibriumError("the time-varying LQR's gains are not finite (extreme weights or a stiff motion: try a "
                                "smaller dt)")
     return Tracking(dt, x_ref, u_ref, Ks, K_goal, goal, trajectory.umax, joints, trajectory, Qm, Rm, Qfm)
+
+
+# -- reaching the goal in a given time; the shortest such time ------------------------------------------
+#: The speeds' weight [s] in the end's error (an angle's error of 1 rad weighs as a speed's of 10 rad/s).
+END_SPEED_SCALE = 0.1
+#: The end's error (angles [rad], speeds times END_SPEED_SCALE) below which a reach counts as arrived.
+END_TOLERANCE = 1e-6
+
+
+def _end_error(ca, x, x_goal, free, n):
+    """The error of the end state ``x`` from ``x_goal``: each angle not ``free`` through its cosine and sine
+    (any number of turns reaches it), every speed scaled by :data:`END_SPEED_SCALE`."""
+    parts = []
+    for j in range(n):
+        if j + 1 not in free:
+            parts += [ca.cos(x[j]) - math.cos(x_goal[j]), ca.sin(x[j]) - math.sin(x_goal[j])]
+    return ca.vertcat(*parts, END_SPEED_SCALE * x[n:])
+
+
+class _Reach:
+    """The fixed-duration reach's NLP, built once for a model, its limits, start, goal and knots: the states at
+    ``knots + 1`` knots over the duration ``T`` (a parameter), the torques linear between them, each interval one
+    RK4 step (:func:`casadi_dynamics`); the end's error ``e`` equals a slack ``s`` bounded by ``+-S`` (``S`` a
+    parameter); the objective ``rho |s|^2`` plus the torques' mean square over ``umax^2``.  ``S`` large: the end
+    as a penalty (a start from anywhere gets near); ``S = 0``: the end exactly, the torques' least effort."""
+
+    RHO = 1e3
+
+    def __init__(self, chain, joints, umax, x_start, x_goal, free, knots, max_iter):
+        ca, rhs, step, _ = casadi_dynamics(chain, joints)
+        n, m, N = chain.n, len(joints), knots
+        self.ca, self.rhs, self.step, self.n, self.m, self.N = ca, rhs, step, n, m, N
+        self.umax, self.x_start, self.x_goal, self.free = umax, x_start, x_goal, free
+        opti = ca.Opti()
+        X, U, T, S = opti.variable(2 * n, N + 1), opti.variable(m, N + 1), opti.parameter(), opti.parameter()
+        e = _end_error(ca, X[:, N], x_goal, free, n)
+        s = opti.variable(e.shape[0])
+        h = T / N
+        opti.subject_to(ca.vec(step.map(N)(X[:, :N], U[:, :N], U[:, 1:], h) - X[:, 1:]) == 0)
+        opti.subject_to(X[:, 0] == ca.DM(x_start))
+        opti.subject_to(opti.bounded(-umax, ca.vec(U), umax))
+        opti.subject_to(U[:, N] == 0)  # the goal held by no torque
+        opti.subject_to(e == s)
+        opti.subject_to(opti.bounded(-S, s, S))
+        effort = ca.sumsqr(U[:, :N] + U[:, 1:]) / (4 * N * m * umax ** 2)
+        opti.minimize(self.RHO * ca.sumsqr(s) + effort)
+        opti.solver("ipopt", {"expand": True, "print_time": False},
+                    {"print_level": 0, "sb": "yes", "max_iter": int(max_iter), "tol": 1e-9})
+        self.opti, self.X, self.U, self.T, self.S, self.e = opti, X, U, T, S, e
+
+    def simulate(self, duration, torques):
+        """The knots' states from the start under the knots' ``torques`` (m, N + 1), by the NLP's own RK4 steps."""
+        h = duration / self.N
+        x = [self.x_start]
+        for k in range(self.N):
+            x.append(np.array(self.step(x[-1], torques[:, k], torques[:, k + 1], h)).ravel())
+        return np.array(x).T
+
+    def solve(self, duration, X0, U0):
+        """From the guess ``(X0, U0)``: the penalty's solve, then the exact end's from it.  ``(arrived, X, U,
+        end's error, IPOPT's status)``."""
+        opti = self.opti
+        opti.set_value(self.T, duration)
+        values = (X0, U0)
+        status = "not solved"
+        for bound in (1e6, 0.0):  # CasADi's parameters are finite: 1e6 leaves the end's error (below 4) free
+            opti.set_value(self.S, bound)
+            opti.set_initial(self.X, values[0])
+            opti.set_initial(self.U, values[1])
+            try:
+                sol = opti.solve()
+            except RuntimeError:
+                sol = opti.debug
+            status = opti.stats()["return_status"]
+            values = (np.array(sol.value(self.X)).reshape(2 * self.n, self.N + 1),
+                      np.array(sol.value(self.U)).reshape(self.m, self.N + 1))
+            error = float(np.max(np.abs(np.array(sol.value(self.e)))))
+            if bound and error > 1e-2:  # the penalty left it far: no exact end from here
+                break
+        arrived = status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") and error <= END_TOLERANCE
+        return arrived, values[0], values[1], error, status
+
+    def guesses(self, duration, attempts, rng):
+        """The starts: the start state held, no torque; then seeded smooth torques (a few sines of random
+        frequencies and phases, up to the limit) simulated from the start."""
+        tau = np.linspace(0.0, 1.0, self.N + 1)
+        out = [(np.repeat(self.x_start[:, None], self.N + 1, axis=1), np.zeros((self.m, self.N + 1)))]
+        for _ in range(int(attempts) - 1):
+            U = np.zeros((self.m, self.N + 1))
+            for r in range(self.m):
+                for _ in range(3):
+                    U[r] += rng.uniform(-1, 1) * np.sin(2 * np.pi * rng.uniform(0.5, 4.0) * tau + rng.uniform(0, 2 * np.pi))
+            U = np.clip(U * self.umax, -self.umax, self.umax)
+            U[:, -1] = 0.0
+            out.append((self.simulate(duration, U), U))
+        return out
+
+
+def _reach_setup(model, actuated, umax, goal, start, free, knots, max_iter, attempts, seed):
+    """The checked arguments of :func:`timed_swingup` and :func:`shortest_swingup`: the chain, the actuated
+    joints, the goal's state and the reach's NLP."""
+    from ..numeric.control import actuated_joints
+    from .control import controllability, equilibrium_argument, linearization
+    from .equilibria import find_equilibrium
+
+    chain = _as_chain(model)
+    n = chain.n
+    joints = actuated_joints(actuated, n)
+    if isinstance(umax, bool) or not (isinstance(umax, (int, float)) and math.isfinite(umax) and umax > 0):
+        raise ParameterError(f"umax must be a positive torque limit [N m], got {umax!r}")
+    if isinstance(free, (str, bytes)) or not hasattr(free, "__iter__") or any(
+            isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 1 <= j <= n for j in free):
+        raise ParameterError(f"free must be joints' numbers (1 .. {n}) whose end angle is free, got {free!r}")
+    free = tuple(sorted(set(int(j) for j in free)))
+    if len(free) == n:
+        raise ParameterError(f"free must leave at least one joint's end angle to reach, got {free!r}")
+    if not (isinstance(knots, int) and not isinstance(knots, bool) and 10 <= knots <= 2000):
+        raise ParameterError(f"knots must be a whole number of intervals, 10 to 2000, got {knots!r}")
+    for name, value, low in (("attempts", attempts, 1), ("max_iter", max_iter, 1), ("seed", seed, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ParameterError(f"{name} must be a whole number >= {low}, got {value!r}")
+    x_start = np.zeros(2 * n) if start is None else _state("start", start, n)
+    eq = find_equilibrium(chain, equilibrium_argument(goal, chain, "goal"), "goal")
+    x_goal = _state("goal's state", eq.state, n)
+    lin = linearization(chain, eq.label, joints, coulomb="smoothed")
+    c = controllability(lin.A, lin.B)
+    if not c["controllable"] or c["distance"] < 1e-10:
+        raise EquilibriumError(f"the goal {eq.label} cannot be held with the joints {', '.join(map(str, joints))} actuated: "
+                               f"the linearisation is not controllable (rank {c['rank']} of {lin.A.shape[0]})")
+    return chain, joints, x_goal, _Reach(chain, joints, float(umax), x_start, x_goal, free, knots, max_iter)
+
+
+def _duration(name: str, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(value) and 0 < value <= 60):
+        raise ParameterError(f"{name} must be a duration in (0, 60] s, got {value!r}")
+    return float(value)
+
+
+def _reached(reach, chain, joints, duration, X, U, arrived, error, status, solve_time, attempts) -> OptimalTrajectory:
+    """The reach's answer as an :class:`OptimalTrajectory` (its goal the end state reached: a free joint's angle
+    where it ended; ``ok`` only if it arrived and that end is a rest, no acceleration without torque)."""
+    n = chain.n
+    x, u = X.T.copy(), np.zeros((reach.N + 1, n))
+    u[:, [j - 1 for j in joints]] = U.T
+    goal = reach.x_goal.copy()
+    goal[:n] = x[-1, :n]  # the angles reached (a turn more or less, a free joint's own)
+    goal[n:] = 0.0
+    if arrived:
+        rest = float(np.max(np.abs(np.array(reach.rhs(goal, np.zeros(len(joints)))).ravel()[n:])))
+        if rest > 1e-6:
+            arrived = False
+            status = f"the end is no rest: accelerations {rest:.3g} rad/s^2 without torque (a free joint not cyclic)"
+    if arrived:
+        message = f"reached the goal at rest in {duration:g} s (IPOPT {status}, end's error {error:.2g})"
+    else:
+        message = (f"the goal is not reached in {duration:g} s within the torque limit {reach.umax:g} N m from "
+                   f"{attempts} starts (closest end's error {error:.3g}; {status})")
+    t = np.linspace(0.0, duration, reach.N + 1)
+    predicted = {"effort": float(np.sum((U[:, :-1] + U[:, 1:]) ** 2) / (4 * reach.N * max(U.shape[0], 1) * reach.umax ** 2)),
+                 "end_error": error}
+    return OptimalTrajectory(t, x, u, chain, joints, goal, reach.umax, bool(arrived), message, predicted, solve_time,
+                             int(attempts))
+
+
+def _reach_from(reach, duration, guesses):
+    """The first guess that arrives, else the closest: ``(arrived, X, U, error, status)``."""
+    best = None
+    for X0, U0 in guesses:
+        result = reach.solve(duration, X0, U0)
+        if result[0]:
+            return result
+        if best is None or result[3] < best[3]:
+            best = result
+    return best
+
+
+def timed_swingup(model, duration: float, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP,
+                  start=None, free=(), knots: int = 100, attempts: int = 4, seed: int = 0,
+                  max_iter: int = 1000) -> OptimalTrajectory:
+    """The swing-up of ``model`` from ``start`` (default: hanging at rest) that reaches ``goal`` (an
+    equilibrium's label, an ``Equilibrium`` or angles near one) at rest in exactly ``duration`` [s] with the
+    ``actuated`` joints' torques within ``umax`` [N m], the torques' mean square least (direct multiple
+    shooting with IPOPT on the chain's equations: ``knots`` intervals, each one RK4 step, the torques linear
+    between knots).  The end's angles are reached modulo a turn; those of the joints in ``free`` (cyclic
+    joints, e.g. a rotary pendulum's arm) may end anywhere -- the returned ``goal`` is the rest reached.
+
+    Each of ``attempts`` starts (the start state held; then seeded smooth torques simulated) is solved with the
+    end as a penalty, then exactly from there; the first that arrives is returned.  None arriving: ``ok`` False
+    and the closest in ``message`` (never returned as a reach).  Track it with :func:`tvlqr`."""
+    import time as _time
+
+    duration = _duration("duration", duration)
+    chain, joints, _, reach = _reach_setup(model, actuated, umax, goal, start, free, knots, max_iter, attempts, seed)
+    t0 = _time.perf_counter()
+    result = _reach_from(reach, duration, reach.guesses(duration, attempts, np.random.default_rng(seed)))
+    return _reached(reach, chain, joints, duration, *result[1:3], result[0], result[3], result[4],
+                    _time.perf_counter() - t0, attempts)
+
+
+def shortest_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP, start=None, free=(),
+                     durations: Tuple[float, float] = (0.1, 4.0), resolution: float = 0.01, knots: int = 100,
+                     attempts: int = 4, seed: int = 0, max_iter: int = 1000) -> OptimalTrajectory:
+    """The shortest swing-up of ``model`` (as :func:`timed_swingup` reaches: from ``start`` to ``goal`` at rest,
+    ``free`` joints' end angles free, torques within ``umax``) with its duration in ``durations`` [s], to
+    ``resolution`` [s]: the longest duration reached first (from :func:`timed_swingup`'s ``attempts`` starts),
+    then bisection -- each trial warm-started from the shortest reach so far (its knots on the new duration),
+    then from the seeded starts.  Returned: the shortest reach found (``ok``), its duration
+    :attr:`OptimalTrajectory.duration`; the longest not reached is in ``message``.  None reached at the longest
+    duration: ``ok`` False.  (A local optimiser's answer: a shorter reach from starts it did not try is not
+    excluded; the bound below is that no trial shorter reached.)"""
+    import time as _time
+
+    lo, hi = (_duration("durations", v) for v in (durations if hasattr(durations, "__len__") and len(durations) == 2
+                                                  else (None, None)))
+    if not lo < hi:
+        raise ParameterError(f"durations must be (shortest, longest) with shortest < longest, got {durations!r}")
+    resolution = _duration("resolution", resolution)
+    chain, joints, _, reach = _reach_setup(model, actuated, umax, goal, start, free, knots, max_iter, attempts, seed)
+    rng = np.random.default_rng(seed)
+    t0 = _time.perf_counter()
+    best = _reach_from(reach, hi, reach.guesses(hi, attempts, rng))
+    if not best[0]:
+        return _reached(reach, chain, joints, hi, *best[1:3], False, best[3], best[4], _time.perf_counter() - t0,
+                        attempts)
+    best_T, failed, tried = hi, lo, False
+    while best_T - failed > resolution:
+        T = 0.5 * (best_T + failed)
+        result = _reach_from(reach, T, [(best[1], best[2])] + reach.guesses(T, attempts, rng)[1:])
+        if result[0]:
+            best, best_T = result, T
+        else:
+            failed, tried = T, True
+    out = _reached(reach, chain, joints, best_T, *best[1:3], True, best[3], best[4], _time.perf_counter() - t0, attempts)
+    return replace(out, message=f"{out.message}; " + (f"not reached in {failed:.4g} s" if tried else
+                                                      f"within {resolution:g} s of the shortest duration tried, {lo:g} s"))
+
+
+def swingup_tracking(model, duration: float, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP,
+                     start=None, free=(), margin: float = 0.9, knots: int = 200, dt: float = PROTOCOL.dt, Q=None,
+                     R=None, attempts: int = 4, seed: int = 0) -> Tracking:
+    """A swing-up controller within a torque limit: :func:`timed_swingup` in ``duration`` [s] with the torques
+    within ``margin`` x ``umax`` (the rest of the limit left to the feedback), tracked by :func:`tvlqr` -- its
+    law clipped to ``umax`` -- which hands over to the goal's LQR at the end (the rest reached: a ``free``
+    joint's angle where the swing-up left it).  Weights scaled by the limit (a radian's error against the whole
+    torque): default ``Q = diag(1, ..., 0.1, ...)`` (angles, speeds), ``R = 1 / umax^2`` per motor.  A reach
+    not found (``duration`` too short for the limit): one :class:`~skewpend.errors.ParameterError` with the
+    optimiser's message."""
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not 0 < margin <= 1:
+        raise ParameterError(f"margin must be the share of the torque limit the swing-up may use, in (0, 1], got "
+                             f"{margin!r}")
+    if isinstance(umax, bool) or not (isinstance(umax, (int, float)) and math.isfinite(umax) and umax > 0):
+        raise ParameterError(f"umax must be a positive torque limit [N m], got {umax!r}")
+    plan = timed_swingup(model, duration, actuated=actuated, umax=margin * umax, goal=goal, start=start, free=free,
+                         knots=knots, attempts=attempts, seed=seed)
+    if not plan.ok:
+        raise ParameterError(f"no swing-up to track: {plan.message}")
+    n, m = plan.chain.n, len(plan.actuated)
+    Q = np.diag([1.0] * n + [0.1] * n) if Q is None else Q
+    R = np.eye(m) / umax ** 2 if R is None else R
+    return tvlqr(replace(plan, umax=float(umax)), dt=dt, Q=Q, R=R)
