@@ -119,3 +119,19 @@ def test_animate_draws_the_rig_from_its_run_file(tmp_path):
     assert sum("[motor] on joint 1" in line for line in ran.err.splitlines()) == 1, ran.report()
     with Image.open(out) as im:
         assert im.n_frames == 5 and im.size == (240, 180)
+
+
+def test_the_widget_and_the_explorer_page_carry_the_rigs_reach_and_hinges():
+    """The browser views get what they draw from: the page's and the widget's reach (the drawn reach, |offset| of
+    the pendulum's hinge + its length: a rig under scene.js's 0.9 m is magnified), the JavaScript physics' hinges
+    (the same graph as :func:`~skewpend.numeric.recursive.hinge_positions`)."""
+    pytest.importorskip("anywidget")
+    from skewpend.numeric.explorer_source import explorer_js
+    from skewpend.views.frontend import page_settings
+    from skewpend.views.widget import PendulumWidget
+
+    chain = Run("serve", str(RUN_FILE)).chain()
+    assert page_settings(chain)["reach"] == pytest.approx(Lr + Lp, rel=1e-15)
+    assert PendulumWidget(chain).reach == pytest.approx(Lr + Lp, rel=1e-15)
+    assert "export function hinges(q, p = P)" in explorer_js(chain)
+    assert page_settings()["reach"] == pytest.approx(1.8, rel=1e-15)  # the double pendulum's a + b: drawn at its size

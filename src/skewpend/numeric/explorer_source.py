@@ -52,8 +52,8 @@ def page_vector(model=None):
 def explorer_js(model=None) -> str:
     """The explorer's physics for ``model`` (an ES module), one contract for every model and form: its
     ``PARAMETER_ORDER``, ``P`` (:func:`page_vector`), ``N`` links, ``rhs(y, p)``, ``energy(y, p)``, the
-    drawing's ``tips(y, p)`` (the rods' ends, 3 n [m]) and ``axes(y, p)`` (the hinge axes in the world frame,
-    3 n), ``linear(y, p)`` (``[M0, K0]`` at rest, n x n: the mass matrix and the Hessian of Pi, for the
+    drawing's ``tips(y, p)`` (the rods' ends, 3 n [m]), ``hinges(y, p)`` (the hinges' positions, 3 n [m]: each
+    link drawn from its hinge to the next one) and ``axes(y, p)`` (the hinge axes in the world frame, 3 n), ``linear(y, p)`` (``[M0, K0]`` at rest, n x n: the mass matrix and the Hessian of Pi, for the
     normal modes computed in the browser), the equations of motion as ``TERMS`` (``[entry, exponents, LaTeX
     of the monomial]``, :func:`~skewpend.numeric.codegen.equation_terms`; none where the form has no symbolic
     equations) with ``coefficients(p)``, and ``FLIP_ODD`` (without torques the equations are odd under ``(q,

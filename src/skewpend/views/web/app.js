@@ -62,15 +62,11 @@ const view = createScene(canvas, { trail: TRAIL });
 view.setReach(PAGE.reach); // a small rig (the rotary pendulum's 0.214 m) drawn magnified (scene.js)
 const { camera, controls } = view;
 const { joint1, bob } = view.rods;
-{ // the whole model in view: the camera's target at half its reach, its distance to the reach (at the start)
-  const reach = Math.max(view.scale * PAGE.lengths.reduce((sum, i) => sum + physics.P[i], 0), 1.8), r = reach / 1.8;
+if (view.scale === 1) { // the whole model in view: the camera's target at half its reach, its distance to the reach
+  // (at the start; a small rig drawn magnified has its view from setReach)
+  const reach = Math.max(PAGE.lengths.reduce((sum, i) => sum + physics.P[i], 0), 1.8), r = reach / 1.8;
   controls.target.set(0, -0.5 * reach, 0);
   camera.position.set(2.6 * r, 0.4 - 0.5 * (reach - 1.8), 4.2 * r);
-  if (view.scale > 1) { // a small rig drawn magnified to MIN_REACH: the default view brought closer to it
-    const small = view.scale * PAGE.reach / 1.8;
-    controls.target.set(0, -0.9 * small, 0);
-    camera.position.set(2.6 * small, 0.4 * small, 4.2 * small);
-  }
   controls.update();
 }
 

@@ -95,10 +95,17 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
     renderer, camera, controls, rods: { rod1, rod2, joint1, bob, all: rodList },
     geometry: null, // the last pose: {o, t1, t2, n1, e, tips, pivots, axes} in three.js coordinates (t2: the tip)
     /** The drawn rig's reach [m] (how far from the roof its links can be: skewpend.views.drawing.drawn_reach): one
-     *  under MIN_REACH is drawn magnified to it; returns the scale (scene units per metre).  Set it before the
-     *  first pose. */
+     *  under MIN_REACH is drawn magnified to it, the camera brought closer; returns the scale (scene units per
+     *  metre).  Set it before the first pose. */
     setReach(reach) {
       scale = reach > 0 && reach < MIN_REACH ? MIN_REACH / reach : 1;
+      if (scale > 1) { // the default view brought to the magnified rig (it reaches MIN_REACH, not 1.8 m)
+        const r = MIN_REACH / 1.8;
+        controls.target.set(0, -0.9 * r, 0);
+        camera.position.set(2.6 * r, 0.4 * r, 4.2 * r);
+        controls.update();
+        stale = true;
+      }
       return scale;
     },
     get scale() { return scale; },
