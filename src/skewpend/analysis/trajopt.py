@@ -949,7 +949,8 @@ class _Reach:
         effort = ca.sumsqr(U[:, :N] + U[:, 1:]) / (4 * N * m * umax ** 2)
         opti.minimize(self.RHO * ca.sumsqr(s) + effort)
         opti.solver("ipopt", {"expand": True, "print_time": False},
-                    {"print_level": 0, "sb": "yes", "max_iter": int(max_iter), "tol": 1e-9})
+                    {"print_level": 0, "sb": "yes", "max_iter": int(max_iter), "tol": 1e-9,
+                     "bound_relax_factor": 0.0})  # the torques within the limit exactly, not IPOPT's 1e-8 beyond
         self.opti, self.X, self.U, self.T, self.S, self.e = opti, X, U, T, S, e
 
     def simulate(self, duration, torques):
