@@ -158,3 +158,22 @@ def test_bad_shortest_and_tracking_arguments_are_one_line():
         shortest_swingup(chain, actuated=(1,), umax=0.015, goal=UP, resolution=-1)
     with pytest.raises(ParameterError, match=r"margin must be the share of the torque limit"):
         swingup_tracking(chain, 1.5, actuated=(1,), umax=0.015, goal=UP, margin=1.5)
+
+
+@pytest.mark.slow
+def test_the_reach_is_any_chains_the_dfki_pendubot_in_2_s():
+    """Nothing in the reach is the rotary pendulum's: the DFKI double pendulum with its shoulder actuated (6 N m)
+    reaches every link up at rest in 2 s (its end angles up modulo turns), its torques within the limit, the
+    elbow's zero, the knots' end an equilibrium of the model (no acceleration without torque)."""
+    from skewpend.analysis import leaderboard as lb
+    from skewpend.analysis.trajopt import casadi_dynamics, timed_swingup
+
+    model = lb.dfki_model()
+    reach = timed_swingup(model, 2.0, actuated=(1,), umax=6.0)
+    assert reach.ok, reach.message
+    assert np.max(np.abs(reach.u[:, 0])) <= 6.0 * (1 + 1e-12) and np.all(reach.u[:, 1] == 0)
+    up = np.array([np.pi, 0.0])  # the first link up, the second along it (relative angles)
+    assert np.max(np.abs(np.angle(np.exp(1j * (reach.x[-1, :2] - up))))) < 1e-6
+    assert np.max(np.abs(reach.x[-1, 2:])) < 1e-5
+    _, rhs, _, _ = casadi_dynamics(reach.chain, (1,))
+    assert np.max(np.abs(np.array(rhs(reach.goal, [0.0])).ravel())) < 1e-6
