@@ -135,3 +135,29 @@ def test_the_widget_and_the_explorer_page_carry_the_rigs_reach_and_hinges():
     assert PendulumWidget(chain).reach == pytest.approx(Lr + Lp, rel=1e-15)
     assert "export function hinges(q, p = P)" in explorer_js(chain)
     assert page_settings()["reach"] == pytest.approx(1.8, rel=1e-15)  # the double pendulum's a + b: drawn at its size
+
+
+@pytest.mark.slow
+def test_the_report_of_the_rig_is_written_with_its_arm_drawn_horizontal(tmp_path):
+    """``skewpend report --config examples/qube_servo2.toml`` (refused before): exit 0, the motor's note once; its
+    live view's frames (the JSON the page replays) put the pendulum's hinge at the arm's end, at hinge 1's height
+    and ``Lr`` from the vertical axis, the tip ``Lp`` from there; its pictures are embedded."""
+    import json
+    import re
+
+    from helpers import run_cli
+
+    out = tmp_path / "qube.html"
+    ran = run_cli(["report", "--config", RUN_FILE, "--out", out])
+    assert ran.code == 0, ran.report()
+    assert sum("[motor] on joint 1" in line for line in ran.err.splitlines()) == 1, ran.report()
+    page = out.read_text(encoding="utf-8")
+    data = json.loads(re.search(r'<script type="application/json" class="live-data">(.*?)</script>', page, re.S).group(1))
+    hinges, tips = np.array(data["hinges"]), np.array(data["tips"])
+    assert hinges.shape == tips.shape and hinges.shape[0] > 100 and data["reach"] == pytest.approx(Lr + Lp)
+    np.testing.assert_allclose(hinges[:, :3], 0.0, atol=1e-15)
+    arm = hinges[:, 3:6]
+    np.testing.assert_allclose(arm[:, 1], 0.0, atol=1e-15)
+    np.testing.assert_allclose(np.hypot(arm[:, 0], arm[:, 2]), Lr, rtol=1e-14)
+    np.testing.assert_allclose(np.linalg.norm(tips[:, 3:6] - arm, axis=1), Lp, rtol=1e-12)
+    assert len(re.findall(r'<img[^>]*src="data:image/png', page)) >= 8
