@@ -98,6 +98,8 @@ def test_the_explorer_draws_the_arm_horizontal_and_the_pendulum_from_its_end(bro
         equations = page.evaluate("() => window.explorer.equations().latex")
         assert "K_0 = \\begin{pmatrix}0 & 0 \\\\ 0 & " in equations
         assert page.evaluate("document.querySelectorAll('.katex-error').length") == 0
+        modes = page.evaluate("() => document.getElementById('modes').textContent")
+        assert "φ moves no weight (K0's row and column of it are zero)" in modes, modes
         assert problems == [] and blocked == []
     finally:
         page.close()

@@ -416,9 +416,13 @@ function shapeText(x) {
 }
 function showModes() {
   const el = document.getElementById("modes"), pv = paramVector(), m = normalModes(pv);
+  // an angle the potential ignores (the rotary pendulum's arm about the vertical): K0's row of it is zero
+  const free = restless(pv) ? -1 : physics.linear(y, pv)[1].findIndex((row) => row.every((v) => v === 0));
   if (!m) {
     el.replaceChildren(Object.assign(document.createElement("span"), {
       className: "note", textContent: restless(pv) ? `no normal modes: ${restless(pv)}`
+        : pv[GRAVITY] > 0 && free >= 0 ? `no normal modes: ${NAMES[free]} moves no weight (K0's row and column of it are ` +
+          `zero), so the hanging position is no isolated rest: every ${NAMES[free]} is one`
         : pv[GRAVITY] > 0 ? "no normal modes: the hanging position is not a stable equilibrium here"
         : "no normal modes for g = 0: without gravity the hanging position is not a stable equilibrium" }));
     return;
