@@ -8,6 +8,7 @@
 * The goal, in closed loop (:func:`skewpend.analysis.trajopt.swingup_tracking`): the 1.5 s reach at 90 % of the
   limit tracked by time-varying LQR, then the top's LQR, sampled every 2 ms and held: up within 0.1 rad for every
   t >= 2 s, every torque within the limit, from nudges of 0.05, -0.05, 0.02 and 0.1 rad.
+* Nothing of it is the rotary pendulum's: the DFKI pendubot reaches its top in 2 s the same way.
 * Bad arguments: one line naming the argument, before any solve.
 """
 

@@ -25,6 +25,12 @@ over to that LQR at the end -- a :class:`Tracking` controller, a law ``u(t, x)``
 t)`` (their state order and angles: the double pendulum's ``(q1, q2, q1', q2')``, ``q2`` relative,
 zero hanging -- skewpend's own) so their ``Simulator`` can run it unchanged.
 
+:func:`timed_swingup` reaches a goal at rest in a given time within the torque limit (the torques' least
+effort; cyclic joints' end angles may be left ``free``), :func:`shortest_swingup` bisects that time to the
+shortest the optimiser reaches -- the physics' bound on a swing-up within a motor's limit -- and
+:func:`swingup_tracking` tracks such a reach (planned within a share of the limit) by :func:`tvlqr` and the
+goal's LQR: the rotary pendulum's swing-up within its driver's 3 V (docs: *The rotary pendulum*).
+
 Honest status: a solve that does not converge is reported as such (``ok`` False, IPOPT's status in
 ``message``) and never returned as an optimum.
 """
