@@ -983,6 +983,7 @@ class _Reach:
             except RuntimeError:
                 sol = opti.debug
             status = opti.stats()["return_status"]
+            _interrupted(status)
             values = (np.array(sol.value(self.X)).reshape(2 * self.n, self.N + 1),
                       np.array(sol.value(self.U)).reshape(self.m, self.N + 1))
             error = float(np.max(np.abs(np.array(sol.value(self.e)))))
@@ -1038,6 +1039,9 @@ def _reach_setup(model, actuated, umax, goal, start, free, knots, max_iter, atte
     if not c["controllable"] or c["distance"] < 1e-10:
         raise EquilibriumError(f"the goal {eq.label} cannot be held with the joints {', '.join(map(str, joints))} actuated: "
                                f"the linearisation is not controllable (rank {c['rank']} of {lin.A.shape[0]})")
+    from ..progress import stage
+
+    stage(f"swing-up in a given time: building IPOPT's problem (CasADi, {knots} knots)")
     return chain, joints, x_goal, _Reach(chain, joints, float(umax), x_start, x_goal, free, knots, max_iter)
 
 
@@ -1076,8 +1080,11 @@ def _reached(reach, chain, joints, duration, X, U, arrived, error, status, solve
 
 def _reach_from(reach, duration, guesses):
     """The first guess that arrives, else the closest: ``(arrived, X, U, error, status)``."""
+    from ..progress import detail
+
     best = None
-    for X0, U0 in guesses:
+    for k, (X0, U0) in enumerate(guesses):
+        detail(f"{duration:.4g} s: start {k + 1} of {len(guesses)}")
         result = reach.solve(duration, X0, U0)
         if result[0]:
             return result
@@ -1086,7 +1093,7 @@ def _reach_from(reach, duration, guesses):
     return best
 
 
-def timed_swingup(model, duration: float, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP,
+def _timed_swingup(model, duration: float, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP,
                   start=None, free=(), knots: int = 100, attempts: int = 4, seed: int = 0,
                   max_iter: int = 1000) -> OptimalTrajectory:
     """The swing-up of ``model`` from ``start`` (default: hanging at rest) that reaches ``goal`` (an
@@ -1103,13 +1110,16 @@ def timed_swingup(model, duration: float, *, actuated=(2,), umax: float = PROTOC
 
     duration = _duration("duration", duration)
     chain, joints, _, reach = _reach_setup(model, actuated, umax, goal, start, free, knots, max_iter, attempts, seed)
+    from ..progress import stage
+
+    stage(f"swing-up in {duration:g} s: IPOPT from {attempts} starts")
     t0 = _time.perf_counter()
     result = _reach_from(reach, duration, reach.guesses(duration, attempts, np.random.default_rng(seed)))
     return _reached(reach, chain, joints, duration, *result[1:3], result[0], result[3], result[4],
                     _time.perf_counter() - t0, attempts)
 
 
-def shortest_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP, start=None, free=(),
+def _shortest_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP, start=None, free=(),
                      durations: Tuple[float, float] = (0.1, 4.0), resolution: float = 0.01, knots: int = 100,
                      attempts: int = 4, seed: int = 0, max_iter: int = 1000) -> OptimalTrajectory:
     """The shortest swing-up of ``model`` (as :func:`timed_swingup` reaches: from ``start`` to ``goal`` at rest,
@@ -1128,6 +1138,9 @@ def shortest_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
         raise ParameterError(f"durations must be (shortest, longest) with shortest < longest, got {durations!r}")
     resolution = _duration("resolution", resolution)
     chain, joints, _, reach = _reach_setup(model, actuated, umax, goal, start, free, knots, max_iter, attempts, seed)
+    from ..progress import stage
+
+    stage(f"the shortest swing-up: bisecting {lo:g}..{hi:g} s to {resolution:g} s")
     rng = np.random.default_rng(seed)
     t0 = _time.perf_counter()
     best = _reach_from(reach, hi, reach.guesses(hi, attempts, rng))
@@ -1147,7 +1160,7 @@ def shortest_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
                                                       f"within {resolution:g} s of the shortest duration tried, {lo:g} s"))
 
 
-def swingup_tracking(model, duration: float, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP,
+def _swingup_tracking(model, duration: float, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP,
                      start=None, free=(), margin: float = 0.9, knots: int = 200, dt: float = PROTOCOL.dt, Q=None,
                      R=None, attempts: int = 4, seed: int = 0) -> Tracking:
     """A swing-up controller within a torque limit: :func:`timed_swingup` in ``duration`` [s] with the torques
@@ -1162,7 +1175,7 @@ def swingup_tracking(model, duration: float, *, actuated=(2,), umax: float = PRO
                              f"{margin!r}")
     if isinstance(umax, bool) or not (isinstance(umax, (int, float)) and math.isfinite(umax) and umax > 0):
         raise ParameterError(f"umax must be a positive torque limit [N m], got {umax!r}")
-    plan = timed_swingup(model, duration, actuated=actuated, umax=margin * umax, goal=goal, start=start, free=free,
+    plan = _timed_swingup(model, duration, actuated=actuated, umax=margin * umax, goal=goal, start=start, free=free,
                          knots=knots, attempts=attempts, seed=seed)
     if not plan.ok:
         raise ParameterError(f"no swing-up to track: {plan.message}")
@@ -1170,3 +1183,8 @@ def swingup_tracking(model, duration: float, *, actuated=(2,), umax: float = PRO
     Q = np.diag([1.0] * n + [0.1] * n) if Q is None else Q
     R = np.eye(m) / umax ** 2 if R is None else R
     return tvlqr(replace(plan, umax=float(umax)), dt=dt, Q=Q, R=R)
+
+
+timed_swingup = _interruptible(_timed_swingup)
+shortest_swingup = _interruptible(_shortest_swingup)
+swingup_tracking = _interruptible(_swingup_tracking)
