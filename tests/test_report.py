@@ -587,6 +587,30 @@ def test_report_orbits_section(default_report):
     assert "nan" not in re.sub(r"<[^>]+>", " ", sec).lower().split()
 
 
+def test_a_report_at_other_values_computes_only_what_the_values_change(tmp_path, monkeypatch):
+    """The check at alpha = 0 and the thin rods' symbolic derivation depend on no value of the report: after one
+    report they are read for another skew and other masses (no SymPy display step runs again) and give the HTML a
+    cache of their own computes afresh; the values' part of section 2 is that report's own."""
+    import json
+
+    from skewpend.symbolic import display
+    from skewpend.views.report import derivation
+
+    p = Parameters(a=0.5, b=0.5, m1=1.0, m2=1.0, alpha=math.radians(30), g=9.81, c1=0.05)
+    q = p.replace(alpha=math.radians(50), m1=2.0, a=0.3, c1=0.02)  # the same terms on, other values
+    monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "warm"))
+    R._symbolic_sections(p)
+    monkeypatch.setattr(display, "display_steps", lambda *a, **k: pytest.fail("a SymPy display step ran again"))
+    monkeypatch.setattr(derivation, "check_planar", lambda *a: pytest.fail("the check ran again"), raising=False)
+    warm = R._symbolic_sections(q)
+    monkeypatch.undo()
+    monkeypatch.setenv("SKEWPEND_CACHE_DIR", str(tmp_path / "cold"))
+    cold = R._symbolic_sections(q)
+    assert json.dumps(warm["bodies"]) == json.dumps(cold["bodies"]) and warm["notes"] == cold["notes"]
+    assert "0.3" in warm["bodies"]["derivation"].split("With the values of section 1")[1]  # q's rod length a
+    assert "every quantity identical" == warm["notes"]["check"]
+
+
 def test_the_symbolic_sections_are_cached_by_parameters_and_code(tmp_path, monkeypatch):
     """Sections 2 and 3 are kept in the cache directory under a key of the parameters, the version
     and skewpend's own code: a second report with the same parameters reads them (the same HTML),

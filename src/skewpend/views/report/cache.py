@@ -1,5 +1,10 @@
 """A disk cache of the report's symbolic sections (2, the derivation, and 3, the check at alpha = 0).
 
+Two levels: whole sections under the report's parameters (:func:`load`, :func:`save`), and the parts
+that depend on no value of theirs (:func:`memo`: the check at alpha = 0 with every parameter symbolic,
+the thin rods' symbolic derivation under which terms are on), so that a report at another skew or other
+masses reads those and computes only what its values change.
+
 They are pure SymPy -- several seconds -- and depend only on the parameters and on skewpend's own
 code, so, like the compiled kernels, they are kept in the cache directory
 (:func:`skewpend.numeric.kernels.cache_dir`, ``$SKEWPEND_CACHE_DIR``) under a key that is the
@@ -20,7 +25,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Dict, Optional
 
-__all__ = ["load", "save", "key", "KEEP"]
+__all__ = ["load", "save", "key", "memo", "KEEP"]
 
 #: Entries kept in the cache (each some 100 kB of HTML).
 KEEP = 64
@@ -36,11 +41,30 @@ def _code_digest() -> str:
     return h.hexdigest()
 
 
-def key(params) -> str:
+def key(params, part: str = "") -> str:
+    """The entry's name: the SHA-256 of the version, the code and ``params`` (a model, or any JSON-able value
+    for a ``part`` of a section)."""
     from ... import __version__
 
-    text = json.dumps({"skewpend": __version__, "code": _code_digest(), "params": params.to_dict()}, sort_keys=True)
+    what = params.to_dict() if hasattr(params, "to_dict") else params
+    text = json.dumps({"skewpend": __version__, "code": _code_digest(), "params": what, **({"part": part} if part else {})},
+                      sort_keys=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def memo(part: str, what, compute):
+    """``compute()`` (a JSON-able value), kept under ``part`` and ``what`` (what it depends on, JSON-able):
+    read back when an entry is there and whole, computed and stored otherwise."""
+    path = _folder() / f"{key(what, part)}.json"
+    with suppress(OSError, ValueError):
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if isinstance(data, dict) and "value" in data:
+            with suppress(OSError):
+                os.utime(path)
+            return data["value"]
+    value = compute()
+    _store(path, {"value": value})
+    return value
 
 
 def _folder() -> Path:
@@ -67,14 +91,17 @@ def load(params) -> Optional[Dict]:
 
 def save(params, sections: Dict) -> None:
     """Store ``sections`` for ``params`` (atomically); silently nothing if the cache is not writable."""
-    folder = _folder()
+    _store(_folder() / f"{key(params)}.json", sections)
+
+
+def _store(path: Path, data) -> None:
+    folder = path.parent
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        path = folder / f"{key(params)}.json"
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")  # exclusive: never a planted link
         try:
             with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(json.dumps(sections))
+                fh.write(json.dumps(data))
             os.replace(tmp, path)
         finally:
             if os.path.lexists(tmp):

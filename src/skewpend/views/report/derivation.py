@@ -172,17 +172,12 @@ def _step_items(p: Parameters, steps: Dict) -> List[Tuple[str, str]]:
     return items
 
 
-def section_derivation(ctx: Context) -> str:
-    if not answers_names(ctx.params):
-        return _links_derivation(ctx)
+def _derivation_body(model: Parameters, symbolic: bool) -> str:
+    """Section 2 up to the values of section 1: the derivation's steps, the equations of motion and their
+    linearisation, of ``model`` -- every scalar symbolic (``symbolic``) or with its values."""
     from ...symbolic.derivation import derive
     from ...symbolic.display import display_steps
 
-    p = ctx.params
-    # the specification's thin rods are shown with every scalar symbolic (the optional terms symbolic where the
-    # report's are on, else at their defaults); general bodies and axes with the report's values
-    symbolic = p.is_thin_rods
-    model = Parameters(**_optional_symbolic(p)) if symbolic else p
     eom = derive(model)
     if symbolic:
         steps = display_steps(eom.steps)
@@ -218,6 +213,25 @@ def section_derivation(ctx: Context) -> str:
             r"<p>Linearised about the hanging position ($\varphi, \psi$ and their speeds small, first-order terms "
             r"kept), $M_0\,\ddot q + C_0\,\dot q + K_0\,q = 0$:</p>"))
         out.append(display_math(linear_tex(lin if symbolic else rounded_linear(lin, 4), tex_of)))
+    return "\n".join(out)
+
+
+def section_derivation(ctx: Context) -> str:
+    if not answers_names(ctx.params):
+        return _links_derivation(ctx)
+    from ...symbolic.derivation import derive
+
+    p = ctx.params
+    # the specification's thin rods are shown with every scalar symbolic (the optional terms symbolic where the
+    # report's are on, else at their defaults); general bodies and axes with the report's values
+    symbolic = p.is_thin_rods
+    if symbolic:  # depends on which terms are on, not on the values: kept in the cache for every report alike
+        from . import cache
+
+        model = Parameters(**_optional_symbolic(p))
+        out = [cache.memo("derivation", model.to_dict(), lambda: _derivation_body(model, True))]
+    else:
+        out = [_derivation_body(p, False)]
     if symbolic:
         eom_n = derive(p)
         out.append("<h3>With the values of section 1</h3>")
@@ -243,6 +257,17 @@ def section_derivation(ctx: Context) -> str:
 def section_check(ctx: Context) -> str:
     if not answers_names(ctx.params):
         return _two_derivations(ctx)
+    from . import cache
+
+    thin = ctx.params.is_thin_rods  # the planar case with every parameter symbolic: no value of the report's
+    body, note = cache.memo("check", {"thin_rods": thin}, lambda: _check_body(thin))
+    ctx.notes["check"] = note
+    return body
+
+
+def _check_body(thin_rods: bool) -> List[str]:
+    """Section 3 and its note: the derivation at alpha = 0 against the specification's planar formulas (said to
+    be the specification's thin rods where the report's bodies are not, ``thin_rods`` False)."""
     import sympy as sp
 
     from ...symbolic.derivation import derive
@@ -287,12 +312,12 @@ def section_check(ctx: Context) -> str:
         + display_math(spec_tex["linear"])
         + '<p class="note">This derivation at α = 0:</p>'
         + display_math(linear_tex(lin0, tex_of))
-        + "<p>The differences of the matrices, computed by <code>sympy.simplify</code> when this report was made:</p>"
+        + "<p>The differences of the matrices, computed by <code>sympy.simplify</code> with this version of skewpend:</p>"
         + display_math(r"M_0 - M_0^{\text{spec}} = " + tex_of(dM) + r",\qquad K_0 - K_0^{\text{spec}} = " + tex_of(dK))
         + ('<p><span class="verdict ok">✓ identical</span></p>' if lin_ok else '<p><span class="verdict bad">✗ differs</span></p>')
         + "</li>"
     )
-    ctx.notes["check"] = "every quantity identical" if all_ok else "A DIFFERENCE WAS FOUND"
+    note = "every quantity identical" if all_ok else "A DIFFERENCE WAS FOUND"
     verdict = (
         '<p class="callout good"><b>Every quantity agrees.</b> At α = 0 the derivation reproduces the specification\'s '
         "planar formulas and its linear equations exactly: each difference simplifies to zero "
@@ -305,10 +330,10 @@ def section_check(ctx: Context) -> str:
         r"\underline{e} = \underline{k}$, both rods turn about $\underline{k}$ and the problem is planar. Each of its "
         "formulas, typed here from its text, stands next to the same quantity from the derivation of section 2 with "
         r"$\alpha = 0$ and the other parameters symbolic"
-        + ("" if ctx.params.is_thin_rods else " (the specification's thin rods, not the bodies of this report)")
+        + ("" if thin_rods else " (the specification's thin rods, not the bodies of this report)")
         + ".</p>"
     )
-    return intro + verdict + '<ol class="steps">' + "".join(blocks) + "</ol>"
+    return [intro + verdict + '<ol class="steps">' + "".join(blocks) + "</ol>", note]
 
 
 # -- a model told by its links: derived link by link, checked against the recursive algorithms -------------
