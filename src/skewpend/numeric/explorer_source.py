@@ -78,10 +78,9 @@ def _recursive_linear(chain) -> List[str]:
     q, p = ca.SX.sym("q", n), ca.SX.sym("p", fns["energy"].size1_in(1))
     hessian = ca.hessian(fns["energy"](ca.vertcat(q, ca.SX.zeros(n)), p), q)[0]
     at_rest = lambda e: ca.substitute(e, q, ca.DM.zeros(n))  # noqa: E731
-    # dense: the printer writes a function's nonzeros, and K0 has structural zeros where V does not depend on an
-    # angle (the rotary pendulum's arm: its row and column), which would leave entries unset
-    linear = ca.Function("linear", [p], [ca.densify(at_rest(fns["mass"](q, p))),
-                                         ca.densify(at_rest(ca.reshape(hessian, n * n, 1)))])
+    # K0 has structural zeros where Pi does not depend on an angle (the rotary pendulum's arm: its row and
+    # column): the printer writes them 0.0 (function_lines writes every entry of every output)
+    linear = ca.Function("linear", [p], [at_rest(fns["mass"](q, p)), at_rest(ca.reshape(hessian, n * n, 1))])
     packed = [f"m{i}_{j}" for i in range(n) for j in range(i + 1)]
     return ["/** the linearisation at rest (every q = 0): [M0, K0], M0 = M(0), K0 = the Hessian of Pi (y is not read) */",
             "export function linear(y, p = P) {",

@@ -435,11 +435,20 @@ def function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], 
                    declare: bool = True, language: str = "c", registers: str = "") -> List[str]:
     """Statements in ``language`` (``"c"``, ``"javascript"``, ``"python"``) evaluating the CasADi SX function
     ``fn``: ``inputs[k]`` is the array expression of its input ``k``, ``outputs[k][j]`` the name that receives
-    entry ``j`` of output ``k`` (declared when ``declare``: C's ``double``, JavaScript's ``let``).  Work
-    registers are locals ``w0, w1, ...`` (or, ``registers`` naming an array, its entries, declared by the
-    caller: one statement a line after the declarations, so that a long function can be cut into several);
-    every language evaluates the same operations in the same order."""
+    entry ``j`` of output ``k`` (declared when ``declare``: C's ``double``, JavaScript's ``let``).  Entries are
+    the dense ones, column-major as CasADi's (``j = row + column * rows``), whatever the sparsity: an output's
+    structural zeros (CasADi keeps no entry where an expression cannot depend on anything, as a Hessian's row
+    of an angle that moves no weight) are written ``0.0`` after the operations, so every name is assigned in
+    every language (an output given no names, ``[]``, is not written).  Work registers are locals ``w0, w1,
+    ...`` (or, ``registers`` naming an array, its entries, declared by the caller: one statement a line after
+    the declarations, so that a long function can be cut into several); every language evaluates the same
+    operations in the same order."""
     ca = _ca()
+    for k, names in enumerate(outputs):
+        if names and len(names) != fn.numel_out(k):
+            raise ValueError(f"{fn.name()}'s output {k} has {fn.numel_out(k)} entries, given {len(names)} names")
+    dense_in = [_dense_entries(fn.sparsity_in(k)) for k in range(fn.n_in())]
+    dense_out = [_dense_entries(fn.sparsity_out(k)) for k in range(fn.n_out())]
     L = _LANGUAGES[language]
     call = L["fn"]
     ops = {ca.OP_ADD: "{0} + {1}", ca.OP_SUB: "{0} - {1}", ca.OP_MUL: "{0} * {1}", ca.OP_DIV: "{0} / {1}",
@@ -459,10 +468,11 @@ def function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], 
     for k in range(fn.n_instructions()):
         op = fn.instruction_id(k)
         ins, outs = fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_INPUT:
-            lines.append(f"{indent}{w.format(outs[0])} = {inputs[ins[0]]}[{ins[1]}]{end}")
+        if op == ca.OP_INPUT:  # (input, its nonzero): the nonzero's dense entry
+            lines.append(f"{indent}{w.format(outs[0])} = {inputs[ins[0]]}[{dense_in[ins[0]][ins[1]]}]{end}")
         elif op == ca.OP_OUTPUT:
-            lines.append(f"{indent}{outputs[outs[0]][outs[1]]} = {w.format(ins[0])}{end}")
+            if outputs[outs[0]]:
+                lines.append(f"{indent}{outputs[outs[0]][dense_out[outs[0]][outs[1]]]} = {w.format(ins[0])}{end}")
         elif op == ca.OP_CONST:
             lines.append(f"{indent}{w.format(outs[0])} = {float(fn.instruction_constant(k))!r}{end}")
         elif op in ops:
@@ -470,7 +480,16 @@ def function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], 
             lines.append(f"{indent}{w.format(outs[0])} = {ops[op].format(*args)}{end}")
         else:
             raise NotImplementedError(f"CasADi operation {op} has no {language} form here")
+    for k, names in enumerate(outputs):
+        stored = set(dense_out[k])
+        lines += [f"{indent}{name} = 0.0{end}" for j, name in enumerate(names) if j not in stored]
     return lines
+
+
+def _dense_entries(sparsity) -> List[int]:
+    """The dense entry (column-major: ``row + column * rows``) of each nonzero of a CasADi sparsity, in order."""
+    rows, cols = sparsity.get_triplet()
+    return [r + c * sparsity.size1() for r, c in zip(rows, cols)]
 
 
 def c_function_lines(fn, inputs: Sequence[str], outputs: Sequence[Sequence[str]], indent: str = "    ",
@@ -934,7 +953,7 @@ def compact_functions(friction: bool) -> Dict[str, object]:
 def _c_static(fn, name: str, args: Sequence[str], outs: Sequence[str], doc: str) -> List[str]:
     """``fn`` as a static C function of arrays: ``static void name(const double *args..., double *outs...)``."""
     sig = ", ".join([f"const double *{a}" for a in args] + [f"double *{o}" for o in outs])
-    n_out = [fn.nnz_out(k) for k in range(fn.n_out())]
+    n_out = [fn.numel_out(k) for k in range(fn.n_out())]
     body = c_function_lines(fn, [f"{a}" for a in args], [[f"{o}[{j}]" for j in range(n_out[k])] for k, o in enumerate(outs)],
                             declare=False)
     return [f"/* {doc} */", f"static inline void {name}({sig})", "{"] + body + ["}", ""]
