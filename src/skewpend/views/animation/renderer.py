@@ -10,7 +10,7 @@ import numpy as np
 from ... import checks
 from ...errors import SkewpendError
 from ...schema import AXIS_NAMES
-from ..style import parameter_text
+from ..style import answers_names, parameter_text
 from .scene import (DEFAULT_DPI, DEFAULT_SIZE, DEFAULT_TRAIL, HEAD_LENGTH, HEAD_RADIUS, LABEL_GAP, ROD_RADIUS,
                     SCENE_COLORS, FrameScene, Geometry, check_frame_size, check_view, choose_view, cone, cylinder, eye,
                     hinge_color, rod_color, unit, world_to_plot)
@@ -42,19 +42,34 @@ def _skews(axes: np.ndarray) -> list:
 
 
 #: The specification's names of the double pendulum's rods and hinge axes, by its coordinates: (rod, axis,
-#: the axis in the legend); any other joint ``i``: rod ``i`` and the axis ``eᵢ`` of hinge ``i`` (on rod ``i - 1``).
+#: the axis in the legend) -- where the model IS the specification's double pendulum (:func:`is_double_pendulum`).
 JOINT_LABELS = {"phi": ("rod 1 (a)", "n₁", "hinge 1 axis n₁ (fixed)"),
                 "psi": ("rod 2 (b)", "e", "hinge 2 axis e = P₁·e₀ (turns with rod 1)")}
-#: The models' names in the title, by their number of links (else a chain of n links).
-MODEL_NAMES = {2: "Double pendulum with skewed hinge axes"}
+#: The title's name of the specification's double pendulum (any other model: a chain of n links).
+DOUBLE_PENDULUM_TITLE = "Double pendulum with skewed hinge axes"
 
 
-def joint_labels(coordinates) -> list:
-    """Per joint (the model's coordinates): its rod's label, its hinge axis's name and the axis's legend entry."""
+def is_double_pendulum(model) -> bool:
+    """Whether ``model`` is the specification's double pendulum -- its rods ``a``, ``b``, hinge 1's axis ``n1``,
+    hinge 2's ``e = P1 e0`` -- asked of the model, never its type: it answers the specification's names
+    (:func:`~skewpend.views.style.answers_names`) or its exact model is the double pendulum's parameters
+    (``model.exact_model()``: a chain of two with the specification's geometry).  A chain of two links of any
+    other geometry (the rotary pendulum's vertical first hinge) is a chain, told by its links."""
+    exact = getattr(model, "exact_model", None)
+    return answers_names(model) or (callable(exact) and exact() is not None)
+
+
+def joint_labels(model) -> list:
+    """Per joint of ``model``: its link's label, its hinge axis's name and the axis's legend entry -- the
+    specification's (``rod 1 (a)``, ``n₁``; ``rod 2 (b)``, ``e = P₁·e₀``) where the model is its double
+    pendulum (:func:`is_double_pendulum`), else a chain's: ``link i``, the axis ``eᵢ`` of hinge ``i``
+    (fixed for hinge 1, turning with link ``i - 1`` after it)."""
+    if is_double_pendulum(model):
+        return [JOINT_LABELS[c] for c in model.coordinates]
     out = []
-    for i, c in enumerate(coordinates):
+    for i in range(model.n):
         e = f"e{str(i + 1).translate(_SUB)}"
-        out.append(JOINT_LABELS.get(c, (f"rod {i + 1}", e, f"hinge {i + 1} axis {e}" + (" (fixed)" if i == 0 else ""))))
+        out.append((f"link {i + 1}", e, f"hinge {i + 1}'s axis {e} " + ("(fixed)" if i == 0 else f"(turns with link {i})")))
     return out
 
 
@@ -62,12 +77,12 @@ def _title(params, axes: np.ndarray) -> Tuple[str, str]:
     """The title's two lines: the model and its hinge axes' angles (its ``alpha`` where that sets them), and its
     parameters."""
     n, alpha = params.n, _named_skew(params)
-    names = [axis for _, axis, _ in joint_labels(params.coordinates)]
+    names = [axis for _, axis, _ in joint_labels(params)]
     if alpha is not None:
         skews = f"α = {math.degrees(alpha):.4g}°"
     else:
         skews = ", ".join(f"∠({a}, {b}) = {math.degrees(x):.4g}°" for a, b, x in zip(names, names[1:], _skews(axes)))
-    line1 = MODEL_NAMES.get(n, f"Chain of {n} links") + (f":  {skews}" if skews else "")
+    line1 = (DOUBLE_PENDULUM_TITLE if is_double_pendulum(params) else f"Chain of {n} links") + (f":  {skews}" if skews else "")
     skip = ("alpha",) if alpha is not None else ()  # then alpha is in the first line
     return line1, parameter_text(params, skip=skip, symbols=True, sep=",  ")
 
@@ -143,7 +158,7 @@ class FrameRenderer:
         self.grid_step = float(ticks[1] - ticks[0])
         self._ticks = ticks[np.abs(ticks) <= R + 1e-12]
         self.n = n = g.n
-        joints = joint_labels(tr.params.coordinates)
+        joints = joint_labels(tr.params)
         handles = [Line2D([], [], color=rod_color(i), lw=5, solid_capstyle="round", label=rod)
                    for i, (rod, _, _) in enumerate(joints)]
         handles += [Line2D([], [], color=hinge_color(i), lw=2, marker=">", ms=5, label=legend)
