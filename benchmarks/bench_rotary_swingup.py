@@ -11,7 +11,9 @@ swing-up the optimiser finds, and the optimal swing-up tracked in closed loop.
    sampled every 2 ms and held: when the pendulum is within 0.1 rad of upright for good, its distance at 4 s, the
    largest torque over the limit, the arm's largest angle.
 
-    python benchmarks/bench_rotary_swingup.py [--volts 3 10] [--duration 1.5] [--resolution 0.01]
+    python benchmarks/bench_rotary_swingup.py [--volts 3 10] [--duration 1.5] [--resolution 0.01] [--variants]
+
+``--variants``: also the shortest at the run file's limit from hanging exactly and with the arm back at 0.
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ def main() -> None:
     parser.add_argument("--resolution", type=float, default=0.01)
     parser.add_argument("--knots", type=int, default=100)
     parser.add_argument("--skip-shortest", action="store_true")
+    parser.add_argument("--variants", action="store_true", help="also at the run file's limit: from hanging exactly, "
+                                                                  "and with the arm back at 0 at the end")
     args = parser.parse_args()
 
     import skewpend
@@ -79,6 +83,14 @@ def main() -> None:
                   f"{np.mean(np.abs(r.u[:, 0]) > 0.999 * umax):.0%} of the knots; open-loop in simulate vs the knots: "
                   f"angles {np.max(gap[:2]):.2g} rad, speeds {np.max(gap[2:]):.2g} rad/s ({N} knots); {took:.0f} s",
                   flush=True)
+    if args.variants:
+        for label, start, free in (("from hanging exactly (q = 0), the arm's end free", [0.0] * 4, (1,)),
+                                   ("nudged 0.05 rad, the arm back at 0", START, ())):
+            t0 = time.perf_counter()
+            r = shortest_swingup(chain, actuated=(1,), umax=motor.torque_limit, goal=[0.0, math.pi], start=start,
+                                 free=free, durations=(0.5, 3.0), resolution=args.resolution, knots=args.knots)
+            print(f"  {motor.voltage_limit:g} V, {label}: shortest {r.duration:.3f} s -- {r.message}; "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
     umax = motor.torque_limit
     t0 = time.perf_counter()
     tracking = swingup_tracking(chain, args.duration, actuated=(1,), umax=umax, goal=[0.0, math.pi], start=START,

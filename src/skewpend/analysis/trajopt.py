@@ -915,6 +915,8 @@ def tvlqr(trajectory: OptimalTrajectory, *, dt: float = PROTOCOL.dt, Q=None, R=N
 END_SPEED_SCALE = 0.1
 #: The end's error (angles [rad], speeds times END_SPEED_SCALE) below which a reach counts as arrived.
 END_TOLERANCE = 1e-6
+#: :func:`shortest_swingup`'s durations tried for a first reach: the longest, then each this share of the one before.
+LADDER = 0.8
 
 
 def _end_error(ca, x, x_goal, free, n):
@@ -1124,11 +1126,12 @@ def _shortest_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal
                      attempts: int = 4, seed: int = 0, max_iter: int = 1000) -> OptimalTrajectory:
     """The shortest swing-up of ``model`` (as :func:`timed_swingup` reaches: from ``start`` to ``goal`` at rest,
     ``free`` joints' end angles free, torques within ``umax``) with its duration in ``durations`` [s], to
-    ``resolution`` [s]: the longest duration reached first (from :func:`timed_swingup`'s ``attempts`` starts),
-    then bisection -- each trial warm-started from the shortest reach so far (its knots on the new duration),
-    then from the seeded starts.  Returned: the shortest reach found (``ok``), its duration
-    :attr:`OptimalTrajectory.duration`; the longest not reached is in ``message``.  None reached at the longest
-    duration: ``ok`` False.  (A local optimiser's answer: a shorter reach from starts it did not try is not
+    ``resolution`` [s]: a first reach at the longest duration (from :func:`timed_swingup`'s ``attempts``
+    starts), else at each :data:`LADDER` of the one before down to the shortest; then bisection below it --
+    each trial warm-started from the shortest reach so far (its knots on the new duration), then from the
+    seeded starts.  Returned: the shortest reach found (``ok``), its duration
+    :attr:`OptimalTrajectory.duration`; the longest tried below it not reached is in ``message``.  None
+    reached: ``ok`` False.  (A local optimiser's answer: a shorter reach from starts it did not try is not
     excluded; the bound below is that no trial shorter reached.)"""
     import time as _time
 
@@ -1143,11 +1146,20 @@ def _shortest_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal
     stage(f"the shortest swing-up: bisecting {lo:g}..{hi:g} s to {resolution:g} s")
     rng = np.random.default_rng(seed)
     t0 = _time.perf_counter()
-    best = _reach_from(reach, hi, reach.guesses(hi, attempts, rng))
+    # the first reach: the longest duration, else shorter ones (a local optimiser may miss a long swing-up of
+    # several swings where a shorter one of fewer is found)
+    best_T = hi
+    while True:
+        best = _reach_from(reach, best_T, reach.guesses(best_T, attempts, rng))
+        if best[0] or best_T * LADDER <= lo:
+            break
+        best_T *= LADDER
     if not best[0]:
-        return _reached(reach, chain, joints, hi, *best[1:3], False, best[3], best[4], _time.perf_counter() - t0,
-                        attempts)
-    best_T, failed, tried = hi, lo, False
+        out = _reached(reach, chain, joints, best_T, *best[1:3], False, best[3], best[4], _time.perf_counter() - t0,
+                       attempts)
+        return replace(out, message=f"{out.message}; nor in any duration tried from {hi:g} s down (each {LADDER:g} of "
+                                    f"the one before)")
+    failed, tried = lo, False
     while best_T - failed > resolution:
         T = 0.5 * (best_T + failed)
         result = _reach_from(reach, T, [(best[1], best[2])] + reach.guesses(T, attempts, rng)[1:])
@@ -1157,7 +1169,7 @@ def _shortest_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal
             failed, tried = T, True
     out = _reached(reach, chain, joints, best_T, *best[1:3], True, best[3], best[4], _time.perf_counter() - t0, attempts)
     return replace(out, message=f"{out.message}; " + (f"not reached in {failed:.4g} s" if tried else
-                                                      f"within {resolution:g} s of the shortest duration tried, {lo:g} s"))
+                                                      f"within {resolution:g} s of the durations' shortest, {lo:g} s"))
 
 
 def _swingup_tracking(model, duration: float, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP,
