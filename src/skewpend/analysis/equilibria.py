@@ -98,8 +98,8 @@ def linearisation_functions(geometry: Parameters) -> Callable:
 
 @lru_cache(maxsize=32)
 def _direction_functions(geometry: Parameters) -> Callable:
-    """``f(*scalars, *q) -> (j . P1 j, j . P j)``: the vertical component of each rod's direction (``j``
-    points down: positive = hanging, negative = pointing up)."""
+    """``f(*scalars, *q) -> (j^T P1, j^T P)``: the rows ``j`` of each rod's rotation (``j`` points down), so that
+    ``j . (P r)`` is how far below its hinge a point ``r`` of the rod's body is (:func:`link_directions`)."""
     from ..numeric.pyfunctions import cached_lambdify
 
     def build():
@@ -107,7 +107,7 @@ def _direction_functions(geometry: Parameters) -> Callable:
 
         steps = derive(geometry).steps
         return ([SYMBOLS[n] for n in SCALAR_NAMES] + [coordinate_symbol(c) for c in geometry.coordinates],
-                [steps["P1"][1, 1], steps["P"][1, 1]])
+                [list(steps["P1"][1, :]), list(steps["P"][1, :])])
 
     return cached_lambdify("directions", "analysis/equilibria.py", geometry, build)
 
@@ -126,10 +126,11 @@ class _Exact:
     """``V``'s derivatives printed by SymPy from the model's exact derivation, its scalars run-time values:
     NumPy evaluates every start at once."""
 
-    def __init__(self, model, geometry: Parameters):
+    def __init__(self, model, geometry: Parameters, chain):
         self.values = _scalars(model)
         self.functions = linearisation_functions(geometry)
         self.geometry = geometry
+        self.chain = chain
 
     def grad_hess(self, Q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         _, g, H, _, _ = self.functions(*self.values, *Q.T)
@@ -139,10 +140,13 @@ class _Exact:
         return np.broadcast_to(np.asarray(self.functions(*self.values, *Q.T)[0], dtype=float), (len(Q),))
 
     def at(self, q: np.ndarray):
-        """``(Pi, Hessian of Pi, M, each rod's downward component)`` at one point."""
+        """``(Pi, Hessian of Pi, M, each link's direction with gravity)`` at one point (:func:`link_directions`)."""
         Pi, _, H, M, _ = self.functions(*self.values, *q)
-        down = _direction_functions(self.geometry)(*self.values, *q)
-        return float(Pi), np.array(H, dtype=float), np.array(M, dtype=float), np.asarray(down, dtype=float)
+        rows = np.array(_direction_functions(self.geometry)(*self.values, *q), dtype=float)  # j^T R_i
+        coms = np.array([link.com for link in self.chain.links], dtype=float)
+        lengths = np.array([link.length for link in self.chain.links], dtype=float)
+        down = _unit_directions(self.chain, np.einsum("ij,ij->i", rows, coms), rows[:, 1] * lengths)
+        return float(Pi), np.array(H, dtype=float), np.array(M, dtype=float), down
 
 
 @lru_cache(maxsize=16)
@@ -174,6 +178,7 @@ class _Recursive:
     def __init__(self, chain):
         from ..numeric.recursive import parameter_vector, potential_terms, structure_of_chain
 
+        self.chain = chain
         self.structure = structure_of_chain(chain)
         self.terms = potential_terms(chain)
         self.p = parameter_vector(chain)
@@ -187,8 +192,56 @@ class _Recursive:
         return np.array(_mapped(self.structure, len(Q))(Q.T, self.p)[0], dtype=float).ravel()
 
     def at(self, q: np.ndarray):
-        Pi, _, H, M, down = self.terms(q)
-        return Pi, H, M, down
+        Pi, _, H, M, _ = self.terms(q)
+        return Pi, H, M, link_directions(self.chain, q)
+
+
+@lru_cache(maxsize=16)
+def _heights_function(structure):
+    """``(q, p) -> (c, r)``: how far below its hinge [m] (``j`` points down) each link's centre of mass is
+    (``c``) and its rod's end (``r``: ``l_i R_i j``), from the recursive algorithms' graph -- a link's centre
+    of mass from its own potential energy (the chain's ``Pi`` with that link's mass alone, 1 kg, and g = 1:
+    ``-(j c_i - j c_i(hanging))``), its hinge from ``hinges``, its rod's end from ``ends``."""
+    import casadi as ca
+
+    from ..numeric.recursive import chain_functions, parameter_names
+
+    fns, n = chain_functions(structure), structure.n
+    names = parameter_names(n)
+    q, p = ca.SX.sym("q", n), ca.SX.sym("p", len(names))
+    y, at = ca.vertcat(q, ca.SX.zeros(n)), {name: k for k, name in enumerate(names)}
+    hinges, ends = fns["hinges"](q, p), fns["ends"](q, p)
+    com, rod = [], []
+    for i in range(1, n + 1):
+        alone = [1.0 if name in ("g", f"m{i}") else 0.0 if name in {f"m{k}" for k in range(1, n + 1)} else p[k]
+                 for k, name in enumerate(names)]
+        hanging = sum(p[at[f"hy{k}"]] for k in range(1, i + 1)) + p[at[f"ry{i}"]]  # j c_i with the chain hanging
+        below = hanging - fns["energy"](y, ca.vertcat(*alone))
+        com.append(below - hinges[3 * i - 2])
+        rod.append(ends[3 * i - 2] - hinges[3 * i - 2])
+    return ca.Function("heights", [q, p], [ca.vertcat(*com), ca.vertcat(*rod)])
+
+
+def link_directions(chain, q) -> np.ndarray:
+    """Each link's direction with gravity at the angles ``q``: the downward component (along ``j``, gravity's
+    direction: a chain's ``g >= 0``) of the unit vector from its hinge to its centre of mass -- positive: the
+    link hangs below its hinge, negative: it stands above it -- what an equilibrium's label reads, from the
+    geometry, never from ``q`` being 0 or pi (an imported model's zero may be upright: the DeepMind acrobot's).  A link whose centre of mass is on its
+    hinge moves no weight of its own: its rod's direction (hinge to the rod's end, ``l_i R_i j``) is read
+    instead (the rotary pendulum's arm on its vertical axis: down, as it hangs)."""
+    from ..numeric.recursive import parameter_vector, structure_of_chain
+
+    com, rod = _heights_function(structure_of_chain(chain))(np.asarray(q, dtype=float), parameter_vector(chain))
+    return _unit_directions(chain, np.array(com, dtype=float).ravel(), np.array(rod, dtype=float).ravel())
+
+
+def _unit_directions(chain, com, rod) -> np.ndarray:
+    """:func:`link_directions` from how far below its hinge each link's centre of mass is (``com`` [m]) and its
+    rod's end (``rod``): ``com / |r_i|``, or ``rod / l_i`` where the centre of mass is on the hinge."""
+    reach = [float(np.linalg.norm(link.com)) for link in chain.links]
+    scale = max([1e-300] + reach + [link.length for link in chain.links] + [np.linalg.norm(link.offset) for link in chain.links])
+    return np.array([c / r if r > 1e-12 * scale else (d / link.length if link.length > 0 else 1.0)
+                     for c, d, r, link in zip(com, rod, reach, chain.links)])
 
 
 def _numeric_model(model, what: str):
@@ -212,7 +265,7 @@ class _Search:
         self.chain = _numeric_model(model, what)
         self.n, self.coordinates = model.n, tuple(model.coordinates)
         exact = model.exact_model()  # the parameters the exact derivation prints, or None: the recursive algorithms
-        self.land = _Exact(exact, _geometry_only(exact)) if exact is not None else _Recursive(self.chain)
+        self.land = _Exact(exact, _geometry_only(exact), self.chain) if exact is not None else _Recursive(self.chain)
         self.tau = np.array([link.torque for link in self.chain.links], dtype=float)
 
     @cached_property
@@ -307,9 +360,11 @@ class Equilibrium:
     """One equilibrium ``q*`` and the linearised motion about it.
 
     * ``q`` -- the model's coordinates [rad] in ``(-pi, pi]`` (``(phi, psi)`` for the double pendulum);
-      ``label`` -- which way each rod points, rod 1 first: ``down``, ``up`` or ``level`` (horizontal)
-      -- ``"down-down"`` is the double pendulum hanging, ``"up-up"`` both rods upright in line,
-      ``"down-up-down"`` a chain of three with its middle rod upright;
+      ``label`` -- where each link's centre of mass is, link 1 first: ``down`` below its hinge (along
+      gravity), ``up`` above it, ``level`` at its height (:func:`link_directions`: from the geometry, not from
+      ``q`` being 0 or pi, so an imported model whose zero is upright -- the DeepMind acrobot -- has its
+      ``"up-up"`` at ``q = 0``) -- ``"down-down"`` is the double pendulum hanging, ``"up-up"`` both rods upright
+      in line, ``"down-up-down"`` a chain of three with its middle link upright;
     * ``potential`` -- ``V(q*) = Pi(q*) - tau . q*`` [J] (Pi = 0 with every rod hanging);
     * ``M``, ``C``, ``K`` -- the linearisation ``M dq'' + C dq' + K dq = 0`` about ``q*``
       (``K`` the Hessian of ``V``); ``A`` -- the ``2n x 2n`` state matrix of ``(dq, dq')``;
@@ -365,8 +420,8 @@ class Equilibrium:
 def linear_point(q, down, potential: float, M, C, K, lam, V, coulomb: str) -> Equilibrium:
     """The :class:`Equilibrium` at ``q`` from its linearisation ``M, C, K`` and ``K v = lam M v``
     (``lam, V`` ascending, any number of coordinates): the state matrix and its eigenvalues, the Morse
-    index, the oscillating and the unstable directions, the label from each rod's downward component
-    ``down`` (``down``, ``up`` or ``level``)."""
+    index, the oscillating and the unstable directions, the label from each link's downward component
+    ``down`` (:func:`link_directions`: ``down``, ``up`` or ``level``)."""
     from scipy.linalg import eig
 
     n = len(q)
