@@ -127,6 +127,35 @@ def equilibrium_argument(which, model, name: str = "equilibrium"):
     return angles(name, which, n)
 
 
+def hanging_rest(model) -> np.ndarray:
+    """The model's hanging rest as a state (its angles, then zero speeds): the equilibrium whose every link's
+    centre of mass is below its hinge, ``"down-...-down"`` (labels from the geometry,
+    :func:`~skewpend.analysis.equilibria.link_directions`), wherever the model's zero is -- ``q = 0`` for the
+    double pendulum and skewpend's chains (returned as exact zeros), ``(pi, 0)`` for the DeepMind Control
+    Suite's acrobot, whose zero is upright; a little off 0 for a fitted model whose centres of mass lie off the
+    rods' lines.  Newton's method from ``q = 0`` first (one linearisation), the equilibria's search only where
+    that lands elsewhere; one :class:`~skewpend.errors.EquilibriumError` line where the model has no such rest."""
+    from .equilibria import equilibrium_at, find_equilibrium
+
+    n = model.n
+    label = "-".join(["down"] * n)
+    try:
+        near = equilibrium_at(model, np.zeros(n))
+    except EquilibriumError:
+        near = None
+    if near is not None and near.label == label:
+        eq = near
+    else:
+        try:
+            eq = find_equilibrium(model, label, "the hanging rest")
+        except (EquilibriumError, ParameterError) as exc:
+            raise EquilibriumError(f"the model has no hanging rest ({label}) to start from: {exc}; give the start") from None
+    q = np.asarray(eq.q, dtype=float)
+    if np.max(np.abs(q)) <= 1e-12:
+        q = np.zeros(n)  # the model's zero hangs: exactly it (the runs from q = 0 unchanged to the bit)
+    return np.r_[q, np.zeros(n)]
+
+
 def _matrix(name: str, value, shape: Optional[Tuple[int, ...]] = None, ndim: int = 2) -> np.ndarray:
     """``value`` (a sequence of numbers, an array, NumPy scalars) as a finite float array of
     ``ndim`` dimensions (and ``shape``), else one :class:`ParameterError` naming ``name``."""
@@ -447,8 +476,9 @@ SWINGUP_T_MAX = 3600.0
 def swingup(params, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, energy_gain: float = 2.0,
             elbow_gains=(20.0, 4.0), t_end: float = 20.0, y0: Optional[Sequence[float]] = None, Q=None, R=None,
             dt_out: float = 0.01, progress: Optional[Callable[[float, float], None]] = None) -> SwingUp:
-    """Swing any model up from ``y0`` (default: hanging, nudged by 0.05 rad at the first joint) to ``target``
-    (a label with a word per link, default every link up, or angles near an equilibrium, reduced modulo 2 pi)
+    """Swing any model up from ``y0`` (default: its hanging rest, :func:`hanging_rest` -- ``q = 0`` for the
+    double pendulum, ``(pi, 0)`` for the DeepMind acrobot whose zero is upright -- nudged by 0.05 rad at the
+    first joint) to ``target`` (a label with a word per link, default every link up, or angles near an equilibrium, reduced modulo 2 pi)
     with the torque limit ``umax`` [N m]: energy shaping towards the target's potential energy (joints 2 ... n
     held in line by ``elbow_gains``), the LQR inside its region of attraction estimate; simulated over ``t_end`` (at most :data:`SWINGUP_T_MAX` s), the states
     every ``dt_out`` s.  ``progress(t, t_end)`` is called as the run advances (first with t = 0,
@@ -470,7 +500,7 @@ def swingup(params, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, energy_
     # the law's own arguments, checked now rather than after the design
     Controller.swingup(energy_gain, 0.0, np.zeros((n, 2 * n)), np.zeros(2 * n), np.eye(2 * n), 0.0,
                        elbow_gains=elbow_gains, actuated=actuated, umax=umax)
-    start = np.eye(1, 2 * n)[0] * 0.05 if y0 is None else _matrix("y0", y0, (2 * n,), ndim=1)
+    start = hanging_rest(params) + np.eye(1, 2 * n)[0] * 0.05 if y0 is None else _matrix("y0", y0, (2 * n,), ndim=1)
     angles("y0", start[:n], n)  # refused beyond 1e6 rad (the run keeps the angles as given)
     if progress is not None:
         progress(0.0, t_end)

@@ -651,8 +651,10 @@ def chain_modes(chain, coulomb: str = DEFAULT_COULOMB) -> Modes:
 
 
 def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB) -> Modes:
-    """Normal modes of the numeric model ``params`` about ``phi = psi = 0``, or about another
-    equilibrium: ``about`` an :class:`~skewpend.analysis.equilibria.Equilibrium`, a label of one
+    """Normal modes of the numeric model ``params`` about its hanging rest -- ``phi = psi = 0`` (``q = 0``), or,
+    where the model's zero is upright (``K0`` not positive semi-definite there: a model read from MJCF, the
+    DeepMind acrobot), its ``"down-...-down"`` equilibrium found from the geometry (the acrobot's ``(pi, 0)``;
+    ``equilibrium`` says where) -- or about another equilibrium: ``about`` an :class:`~skewpend.analysis.equilibria.Equilibrium`, a label of one
     (``"up-up"``, see :func:`skewpend.equilibria`) or a pair ``(phi, psi)`` near one (polished by
     Newton's method).  There M, C, K are ``M(q*)``, the damping and the Hessian of
     ``V = Pi - tau . q``, constant torques are allowed, and a direction along which the
@@ -688,9 +690,33 @@ def normal_modes(params: Parameters, about=None, coulomb: str = DEFAULT_COULOMB)
     try:
         if about is not None:
             return _modes_from_matrices(eq.M, eq.C, eq.K, params, equilibrium=eq.q, coulomb=coulomb)
-        return _modes_from_matrices(*_matrices(params, coulomb), params, coulomb=coulomb)
+        M, C, K = _matrices(params, coulomb)
+        try:
+            return _modes_from_matrices(M, C, K, params, coulomb=coulomb)
+        except EquilibriumError as exc:
+            rest = _hanging_rest(params, K, coulomb)  # q = 0 upright (an imported model's zero): the hanging rest
+            if rest is None:
+                raise exc from None
+            return _modes_from_matrices(rest.M, rest.C, rest.K, params, equilibrium=rest.q, coulomb=coulomb)
     except NotFinite as exc:
         raise ParameterError(_not_finite_message(exc, params)) from None
+
+
+def _hanging_rest(params, K0: np.ndarray, coulomb: str):
+    """The model's hanging rest, every link's centre of mass below its hinge (``"down-...-down"``, found from the
+    geometry by :func:`~skewpend.analysis.equilibria.find_equilibrium`), where ``q = 0`` is not it: ``K0`` has
+    a negative eigenvalue there (a model read from MJCF whose zero is upright -- the DeepMind acrobot's hanging
+    rest is ``(pi, 0)``) and the rest found is stable; else None (the modes' own refusal stands: ``g = 0``, no
+    hanging rest)."""
+    from .equilibria import find_equilibrium
+
+    if not np.all(np.isfinite(K0)) or np.linalg.eigvalsh(0.5 * (K0 + K0.T))[0] >= 0:
+        return None
+    try:
+        eq = find_equilibrium(params, "-".join(["down"] * params.n), "about", coulomb=coulomb)
+    except SkewpendError:
+        return None
+    return eq if eq.stable else None
 
 
 # -- closed form ------------------------------------------------------------------------------------

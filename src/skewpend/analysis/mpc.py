@@ -443,7 +443,9 @@ class MPC:
 def mpc_swingup(model, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, t_end: float = 10.0, y0=None,
                 settings: MPCSettings = MPCSettings(), period: float = PERIOD, dt_out: float = 0.01,
                 progress=None):
-    """Swing any model up from ``y0`` (default: hanging, nudged by 0.05 rad at the first joint) to ``target`` by
+    """Swing any model up from ``y0`` (default: its hanging rest,
+    :func:`~skewpend.analysis.control.hanging_rest` -- ``(pi, 0)`` for the DeepMind acrobot, whose zero is
+    upright -- nudged by 0.05 rad at the first joint) to ``target`` by
     an :class:`MPC` (``umax`` [N m], ``settings``, sampled every ``period`` s) in :func:`skewpend.simulate` (RK4
     at the period, the torques held over each step), ``t_end`` [s] (at most
     :data:`~skewpend.analysis.control.SWINGUP_T_MAX`), rows every ``dt_out`` s: a
@@ -455,7 +457,7 @@ def mpc_swingup(model, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, t_en
 
     from ..checks import angles, numeric_model, positive, progress_callable
     from ..numeric.simulation import simulate
-    from .control import SWINGUP_T_MAX, SwingUp, capture, equilibrium_argument, lqr
+    from .control import SWINGUP_T_MAX, SwingUp, capture, equilibrium_argument, hanging_rest, lqr
 
     params = numeric_model(model, "a swing-up")
     n = params.n
@@ -463,8 +465,8 @@ def mpc_swingup(model, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, t_en
     t_end = positive("t_end", t_end, cap=SWINGUP_T_MAX)
     dt_out = positive("dt_out", dt_out, cap=t_end)
     progress = progress_callable(progress, "progress(t, t_end)")
-    if y0 is None:
-        start = np.eye(1, 2 * n)[0] * 0.05
+    if y0 is None:  # the hanging rest wherever the model's zero is (the DeepMind acrobot's: upright)
+        start = hanging_rest(params) + np.eye(1, 2 * n)[0] * 0.05
     else:
         try:
             start = np.array(y0, dtype=float).reshape(-1)

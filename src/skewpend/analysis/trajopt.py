@@ -469,7 +469,8 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
                     seed: int = 0, dt_score: float = PROTOCOL.dt, steps_score: int = PROTOCOL.steps,
                     max_iter: int = 1500, workers: Optional[int] = None, progress=None,
                     iterations=None) -> OptimalTrajectory:
-    """The swing-up of ``model`` from ``start`` (default: hanging at rest) to ``goal`` (an equilibrium's
+    """The swing-up of ``model`` from ``start`` (default: at rest in the model's hanging rest,
+    :func:`~skewpend.analysis.control.hanging_rest`: ``(pi, 0)`` for the DeepMind acrobot, whose zero is upright) to ``goal`` (an equilibrium's
     label or an ``Equilibrium``) that minimises ``cost`` with the ``actuated`` joints' torques within
     ``umax`` [N m] (see the module).  ``horizon`` bounds the duration [s], ``guess`` starts it;
     ``knots`` intervals; ``hold``: the fraction of the duration after which the end effector stays above
@@ -488,7 +489,7 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
     import time as _time
 
     from ..numeric.control import actuated_joints
-    from .control import controllability, equilibrium_argument, linearization
+    from .control import controllability, equilibrium_argument, hanging_rest, linearization
     from .equilibria import find_equilibrium
 
     chain = _as_chain(model)
@@ -520,7 +521,7 @@ def _optimal_swingup(model, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=
         raise ParameterError(f"knots must be a whole number of intervals, 10 to 5000, got {knots!r}")
     if not (0 < hold <= 1) or not (0 < height <= 1):
         raise ParameterError(f"hold and height must be fractions in (0, 1], got {hold!r} and {height!r}")
-    x_start = np.zeros(2 * n) if start is None else _state("start", start, n)
+    x_start = hanging_rest(chain) if start is None else _state("start", start, n)
     from ..progress import stage
 
     stage("optimal swing-up: the goal's equilibrium and its controllability")
@@ -1014,7 +1015,7 @@ def _reach_setup(model, actuated, umax, goal, start, free, knots, max_iter, atte
     """The checked arguments of :func:`timed_swingup` and :func:`shortest_swingup`: the chain, the actuated
     joints, the goal's state and the reach's NLP."""
     from ..numeric.control import actuated_joints
-    from .control import controllability, equilibrium_argument, linearization
+    from .control import controllability, equilibrium_argument, hanging_rest, linearization
     from .equilibria import find_equilibrium
 
     chain = _as_chain(model)
@@ -1033,7 +1034,7 @@ def _reach_setup(model, actuated, umax, goal, start, free, knots, max_iter, atte
     for name, value, low in (("attempts", attempts, 1), ("max_iter", max_iter, 1), ("seed", seed, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise ParameterError(f"{name} must be a whole number >= {low}, got {value!r}")
-    x_start = np.zeros(2 * n) if start is None else _state("start", start, n)
+    x_start = hanging_rest(chain) if start is None else _state("start", start, n)
     eq = find_equilibrium(chain, equilibrium_argument(goal, chain, "goal"), "goal")
     x_goal = _state("goal's state", eq.state, n)
     lin = linearization(chain, eq.label, joints, coulomb="smoothed")
@@ -1098,7 +1099,8 @@ def _reach_from(reach, duration, guesses):
 def _timed_swingup(model, duration: float, *, actuated=(2,), umax: float = PROTOCOL.umax, goal=EVERY_LINK_UP,
                   start=None, free=(), knots: int = 100, attempts: int = 4, seed: int = 0,
                   max_iter: int = 1000) -> OptimalTrajectory:
-    """The swing-up of ``model`` from ``start`` (default: hanging at rest) that reaches ``goal`` (an
+    """The swing-up of ``model`` from ``start`` (default: at rest in the model's hanging rest,
+    :func:`~skewpend.analysis.control.hanging_rest`: ``(pi, 0)`` for the DeepMind acrobot, whose zero is upright) that reaches ``goal`` (an
     equilibrium's label, an ``Equilibrium`` or angles near one) at rest in exactly ``duration`` [s] with the
     ``actuated`` joints' torques within ``umax`` [N m], the torques' mean square least (direct multiple
     shooting with IPOPT on the chain's equations: ``knots`` intervals, each one RK4 step, the torques linear

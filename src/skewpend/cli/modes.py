@@ -41,7 +41,8 @@ def modes(
 
     A model whose centres of mass lie a little off the rods' lines (a fitted one: skewpend identify
     --out fit.toml) hangs at rest slightly away from phi = psi = 0: its modes are taken about that
-    rest (down-down), and the output says so.
+    rest (down-down), and the output says so; so are a model file's whose zero is upright (the
+    DeepMind acrobot's: its hanging rest is phi = 180 deg).
     """
     given = model
     # every option takes effect or is refused, before any work is done
@@ -81,7 +82,7 @@ def modes(
             f"--check-nonlinear: expected an amplitude between 0 and 180 deg exclusive (radians, or e.g. 10deg), got {amplitude!r}"
         )
     how = "exclude" if coulomb is None else coulomb.value
-    result, rest = _modes_of(md, params, about, how, amplitude is None)
+    result, rest, upright = _modes_of(md, params, about, how, amplitude is None)
     check = md.check_nonlinear(params, amplitude) if amplitude is not None else None
     if fmt is ModesFormat.json:
         import json
@@ -99,18 +100,23 @@ def modes(
             }
         sys.stdout.write(json.dumps(data, indent=2) + "\n")
         return
-    sys.stdout.write(_modes_text(result, check, rest))
+    sys.stdout.write(_modes_text(result, check, rest, upright))
 
 
-def _modes_of(md, params, about, coulomb: str, fallback: bool):
-    """The modes the user meant, and why they are about another point ('' when not): without
-    --about, a model with no torques whose phi = psi = 0 is no equilibrium (its centres of mass a
-    little off the rods' lines, as a fitted model's are) is taken about its hanging rest,
-    down-down."""
+def _modes_of(md, params, about, coulomb: str, fallback: bool):  # -> (modes, rest, upright)
+    """The modes the user meant, the label of the hanging rest they are about when that is not q = 0
+    ('' otherwise) and whether that is because the model's zero is upright: without --about, a model whose zero is upright (a model file's: the DeepMind
+    acrobot) has its modes about its hanging rest (normal_modes finds it from the geometry), and a
+    model with no torques whose phi = psi = 0 is no equilibrium (its centres of mass a little off the
+    rods' lines, as a fitted model's are) is taken about its hanging rest, down-down."""
     from ..errors import EquilibriumError, SkewpendError
 
     try:
-        return md.normal_modes(params, about=about, coulomb=coulomb), ""
+        result = md.normal_modes(params, about=about, coulomb=coulomb)
+        # without --about, modes away from q = 0 are the hanging rest's: the model's zero is upright (the DeepMind
+        # acrobot's; normal_modes finds its down-...-down rest from the geometry)
+        upright = about is None and any(result.equilibrium)
+        return result, ("-".join(["down"] * params.n) if upright else ""), upright
     except EquilibriumError as exc:
         if about is not None or not fallback or any(link.torque for link in params.as_chain().links) \
                 or "not an equilibrium" not in str(exc):
@@ -120,7 +126,7 @@ def _modes_of(md, params, about, coulomb: str, fallback: bool):
             result = md.normal_modes(params, about=rest, coulomb=coulomb)
         except SkewpendError:
             raise exc from None
-    return result, rest
+    return result, rest, False
 
 
 def _coulomb_line(m) -> str:
@@ -130,7 +136,7 @@ def _coulomb_line(m) -> str:
     return coulomb_note(m.params, m.coulomb, option="--coulomb smoothed")
 
 
-def _modes_text(m, check, rest: str = "") -> str:
+def _modes_text(m, check, rest: str = "", upright: bool = False) -> str:
     """The modes as text: a row a mode, its shape over the model's coordinates and the amplitude ratio of the
     last coordinate over the first (the double pendulum's psi/phi); the beat period of the two lowest modes."""
     import numpy as np
@@ -140,9 +146,12 @@ def _modes_text(m, check, rest: str = "") -> str:
     at = ", ".join(f"{c} = {np.degrees(x):.6g} deg" for c, x in zip(coords, m.equilibrium))
     if not any(m.equilibrium):
         lines = [f"Normal modes about the hanging equilibrium ({' = '.join(coords)} = 0)", ""]
-    elif rest:
+    elif rest and not upright:
         lines = [f"Normal modes about the hanging rest ({rest}) at {at}: {' = '.join(coords)} = 0 is no equilibrium of "
                  "this model (its centres of mass lie off the rods' lines)", ""]
+    elif rest:
+        lines = [f"Normal modes about the hanging rest ({rest}) at {at}: the model's zero, {' = '.join(coords)} = 0, "
+                 "is not hanging (a model file's own zero, upright for the DeepMind acrobot)", ""]
     else:
         lines = [f"Modes about the equilibrium {at}", ""]
     head = f"shape ({', '.join(coords)}), M0-normalised"

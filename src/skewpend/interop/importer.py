@@ -29,6 +29,11 @@ geometry from its hinge -- a capsule's or cylinder's axis end, any other geom's 
 compiled geoms of the body and the bodies merged into it; URDF: the visual and collision origins and
 cylinder lengths) -- so skewpend's own exports read back their lengths; without geometry the distance to
 the next hinge, else twice the distance to the centre of mass, else the longest other link's length.
+Only its size is read: a :class:`~skewpend.Link`'s rod runs along its body's ``+j`` and cannot point
+elsewhere without moving the model's zero (the dynamics, equal to MuJoCo's, would change coordinates), so
+where the geometry runs the other way -- the dm_control acrobot's lower arm, up from the elbow at ``q = 0``
+-- the drawings take the side of the centre of mass (:func:`skewpend.views.drawing.last_link_sign`; the
+links before are drawn hinge to hinge).
 """
 
 from __future__ import annotations

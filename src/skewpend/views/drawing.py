@@ -1,6 +1,8 @@
 """Where the drawings put the links, for every view (the animation, the figures, the report and the browser views):
 each link is drawn from its hinge to the next link's hinge, the last link from its hinge to its rod's end
-(``(0, length, 0)`` in its body).  So a chain whose next hinge sits anywhere on the parent -- the rotary pendulum's
+(``(0, length, 0)`` in its body) -- or, where its centre of mass lies on the other side of the hinge (``com . j <
+0``: a model read from MJCF whose zero is upright, the DeepMind acrobot), that rod mirrored through the hinge, to
+where its body is (:func:`last_link_sign`).  So a chain whose next hinge sits anywhere on the parent -- the rotary pendulum's
 pendulum on the hinge at the end of an arm that runs along its body's ``i`` -- is drawn as it is, and a chain
 with every hinge at the end of the rod before is drawn as always (hinge ``i + 1`` is rod ``i``'s end).
 
@@ -12,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["link_points", "drawn_reach", "drawn_depth"]
+__all__ = ["link_points", "last_link_sign", "drawn_reach", "drawn_depth"]
 
 
 def link_points(model, y, tips) -> np.ndarray:
@@ -27,7 +29,20 @@ def link_points(model, y, tips) -> np.ndarray:
     y = np.atleast_2d(np.asarray(y, dtype=float))
     tips = np.asarray(tips, dtype=float).reshape(-1, 3 * n)
     hinges = hinge_positions(chain, y[:, :n]).reshape(-1, n, 3)
-    return np.concatenate([hinges, tips[:, None, 3 * (n - 1):]], axis=1)
+    end = tips[:, None, 3 * (n - 1):]
+    if last_link_sign(chain) < 0:  # the rod on its body's side of the hinge: the model's rod end mirrored there
+        end = 2.0 * hinges[:, n - 1:] - end
+    return np.concatenate([hinges, end], axis=1)
+
+
+def last_link_sign(model) -> float:
+    """Which way along its rod's line (its body's ``j``) the last link is drawn from its hinge: +1 towards the
+    rod's end (``(0, length, 0)``, where a chain's rod runs), -1 the other way where the link's centre of mass
+    lies there (``com . j < 0``: a model read from MJCF whose zero is upright, the DeepMind acrobot's lower arm
+    -- its body runs up from the elbow at ``q = 0`` while a :class:`~skewpend.Link`'s rod runs along ``+j``),
+    so the drawing shows the link where its mass is."""
+    link = model.as_chain().links[-1]
+    return -1.0 if float(link.com[1]) < 0.0 else 1.0
 
 
 def drawn_reach(model) -> float:
