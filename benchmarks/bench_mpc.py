@@ -10,7 +10,11 @@ For the acrobot and the pendubot (the DFKI lab's design C.1, model 1.1, |u| <= 6
 * with ``--robustness``, the robustness board v2 (722 runs; the speeds from the positions, as the CLI's) -- its six
   criteria and score beside the best published entry (seed ``--robustness-seed``, default 0).
 
-Run: ``python benchmarks/bench_mpc.py [--seeds 0] [--robustness]``.  Wall times depend on the machine's load (a
+With ``--tune``: the v3 board's mean score on seeds 1-4 for each of the variants in :data:`VARIANTS` (one setting
+changed or a few together, the others the defaults), then the defaults' and :data:`CANDIDATES`' scores on seeds 0-9
+with their v2 swing-up times (docs/benchmarks.md: the board's score moves by tenths between seeds).
+
+Run: ``python benchmarks/bench_mpc.py [--seeds 0] [--robustness] [--tune]``.  Wall times depend on the machine's load (a
 preempted solve counts the other process's time); the CPU times of the solving thread do not.
 """
 
@@ -23,13 +27,73 @@ from dataclasses import replace
 import numpy as np
 
 
+#: The variants ``--tune`` scores (changes to the default ``MPCSettings``); :data:`CANDIDATES` are scored on every
+#: seed 0-9 beside the defaults.
+VARIANTS = {
+    "defaults": {},
+    "2 steps a call": {"iterations": 2},
+    "horizon 0.7 s, 28 nodes": {"horizon": 0.7, "nodes": 28},
+    "energy 400": {"energy": 400.0},
+    "energy 100": {"energy": 100.0},
+    "angle 30": {"angle": 30.0},
+    "angle 3": {"angle": 3.0},
+    "terminal (100, 10, 0.01)": {"terminal": (100.0, 10.0, 1e-2)},
+    "speed 0.3": {"speed": 0.3},
+    "2 steps, horizon 0.7 s, 28 nodes": {"iterations": 2, "horizon": 0.7, "nodes": 28},
+    "2 steps, angle 30": {"iterations": 2, "angle": 30.0},
+    "2 steps, angle 30, energy 400": {"iterations": 2, "angle": 30.0, "energy": 400.0},
+    "angle 30, speed 0.3": {"angle": 30.0, "speed": 0.3},
+    "2 steps, angle 30, speed 0.3": {"iterations": 2, "angle": 30.0, "speed": 0.3},
+    "angle 30, energy 400": {"angle": 30.0, "energy": 400.0},
+}
+CANDIDATES = ("angle 30", "2 steps, angle 30")
+
+
+def v3_scores(plant, robot: str, settings, seeds) -> list:
+    """The v3 board's scores of one MPC (``settings``) over ``seeds``."""
+    from skewpend.analysis import leaderboard as lb
+    from skewpend.analysis.mpc import MPC
+
+    joints = lb.ROBOTS[robot]
+    mpc = MPC(plant, actuated=joints, umax=lb.PROTOCOL.umax, settings=settings)
+    out = []
+    for seed in seeds:
+        protocol = replace(lb.PROTOCOL_V3, resets=replace(lb.PROTOCOL_V3.resets, seed=seed))
+        out.append(lb.run_protocol(plant, mpc, actuated=joints, protocol=protocol).criteria.score)
+    return out
+
+
+def tune(robots) -> None:
+    from skewpend.analysis import leaderboard as lb
+    from skewpend.analysis.mpc import MPC, MPCSettings
+
+    plant = lb.dfki_model()
+    print("v3 board, mean score over seeds 1-4 (the choice's draws):")
+    for name, changes in VARIANTS.items():
+        means = {robot: np.mean(v3_scores(plant, robot, MPCSettings(**changes), (1, 2, 3, 4))) for robot in robots}
+        print(f"    {name:<45} " + "  ".join(f"{robot} {m:.4f}" for robot, m in means.items()), flush=True)
+    print("over seeds 0-9 (0 the board's; 5-9 held out), and the v2 board's swing-up from hanging:")
+    for name in ("defaults", *CANDIDATES):
+        for robot in robots:
+            sc = v3_scores(plant, robot, MPCSettings(**VARIANTS[name]), range(10))
+            joints = lb.ROBOTS[robot]
+            v2 = lb.run_protocol(plant, MPC(plant, actuated=joints, umax=lb.PROTOCOL.umax,
+                                            settings=MPCSettings(**VARIANTS[name])), actuated=joints)
+            print(f"    {name:<20} {robot:<9} v3 mean {np.mean(sc):.4f} +- {np.std(sc, ddof=1):.4f}; seed 0 {sc[0]:.4f}; "
+                  f"seeds 5-9 {np.mean(sc[5:]):.4f}; v2 swing-up {v2.criteria.swingup_time:.2f} s", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--robots", nargs="+", default=["acrobot", "pendubot"], choices=["acrobot", "pendubot"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0])
     ap.add_argument("--robustness", action="store_true")
     ap.add_argument("--robustness-seed", type=int, default=0)
+    ap.add_argument("--tune", action="store_true", help="how the defaults were chosen (the v3 board's seeds)")
     args = ap.parse_args()
+    if args.tune:
+        tune(args.robots)
+        return
 
     from skewpend.analysis import leaderboard as lb
     from skewpend.analysis import robustness as rb
