@@ -168,6 +168,7 @@ def page_settings(physics_params=None) -> dict:
     form, printed, order, values = page_vector(physics_params)
     roles = {f.stem: f.role for f in _schema.FIELDS if f.per_body}  # a joint's terms (cfs, the chain's, is none)
     where = lambda *rs: [i for i, k in enumerate(order) if roles.get(_stem(k)) in rs]  # noqa: E731
+    lengths = [i for i, k in enumerate(order) if _stem(k) == "l"]
     title = printed.title
     if form == "exact" and printed.uses_alpha:
         whose = "The double pendulum whose second hinge axis is skewed by α"
@@ -181,8 +182,8 @@ def page_settings(physics_params=None) -> dict:
     return {"title": title, "lead": f"{whose} — every number here comes from {source}: the "
             "motion, the equations, the normal modes and the flip map are computed in your browser by JavaScript generated "
             "from it.", "names": [_SYMBOLS.get(c, c) for c in printed.coordinates], "sliders": page_sliders(physics_params),
-            "lengths": [i for i, k in enumerate(order) if _stem(k) == "l"],
-            "reach": drawn_reach(printed) if form != "exact" else float(sum(values[order.index(k)] for k in ("a", "b"))),
+            "lengths": lengths,  # the exact form's drawn reach: its rods' lengths end to end
+            "reach": drawn_reach(printed) if form != "exact" else float(sum(values[i] for i in lengths)),
             "dissipative": where("damping", "torque", "friction"), "torques": where("torque")}
 
 
