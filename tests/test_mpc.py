@@ -193,7 +193,9 @@ def test_bad_input_is_one_line(rig, kwargs, words):
     ("horizon", 0.0, "horizon must be a positive"), ("nodes", 1, "nodes must be a whole number from 2"),
     ("nodes", 2.5, "nodes must be"), ("torque", 0.0, "torque must be a positive"), ("energy", -1.0, "energy must be"),
     ("iterations", 0, "iterations must be"), ("terminal", (1.0, 1.0), "terminal must be"),
-    ("terminal", (1.0, 0.0, 1.0), "terminal speed must be"),
+    ("terminal", (1.0, 0.0, 1.0), "terminal speed must be"), ("delay", -0.01, "delay must be a non-negative"),
+    ("delay", math.nan, "delay must be"), ("delay", True, "delay must be"),
+    ("max_delay", -1.0, "max_delay must be a non-negative"),
 ])
 def test_bad_settings_are_one_line(field, value, words):
     from dataclasses import replace
@@ -203,6 +205,79 @@ def test_bad_settings_are_one_line(field, value, words):
     with pytest.raises(ParameterError) as err:
         replace(MPCSettings(), **{field: value}).check()
     assert words in str(err.value)
+
+
+@pytest.mark.parametrize("name,delay", [("delay", 0.0009), ("delay", 0.5), ("max_delay", 0.0009), ("max_delay", 0.5)])
+def test_a_delay_off_the_periods_is_refused(rig, name, delay):
+    """The predictor carries the state over whole sampling periods, 1 to MAX_DELAY_STEPS of them."""
+    from skewpend.analysis.mpc import MAX_DELAY_STEPS, MPC, MPCSettings
+
+    with pytest.raises(ParameterError) as err:
+        MPC(rig, actuated=(2,), umax=6.0, settings=MPCSettings(**{name: delay}))
+    assert str(err.value) == (f"{name} must be 0 or 0.001 to {MAX_DELAY_STEPS * 0.002:g} s (half a sampling period "
+                              f"to {MAX_DELAY_STEPS} of them; period 0.002 s), got {delay!r}")
+    with pytest.raises(ParameterError, match=r"delay \(the first estimate\) must be at most max_delay, got 0.03 > 0.02"):
+        MPC(rig, actuated=(2,), umax=6.0, settings=MPCSettings(delay=0.03, max_delay=0.02))
+
+
+@pytest.mark.slow
+def test_the_delays_predictor_undoes_a_known_delay(rig):
+    """The pendubot's swing-up by the leaderboard's protocol, the law shown the state 10 steps (0.02 s) old: an MPC
+    told of that delay carries the state over it by the torques it applied, RK4 steps of the period as the protocol's
+    plant takes them, so its run is the undelayed MPC's run to rounding (the start is a rest: the steps before the
+    run change nothing) -- 1e-9 rad over the 10 s; the MPC not told leaves that run by radians."""
+    from skewpend.analysis.leaderboard import Disturbance, run_protocol
+    from skewpend.analysis.mpc import MPC, MPCSettings
+
+    late = Disturbance(delay=10)
+    now = run_protocol(rig, MPC(rig, actuated=(1,), umax=6.0), actuated=(1,))
+    told = MPC(rig, actuated=(1,), umax=6.0, settings=MPCSettings(delay=0.02))
+    assert told.past == 10 and "a delay of 0.02 s" in repr(told)
+    predicted = run_protocol(rig, told, actuated=(1,), disturbance=late)
+    blind = run_protocol(rig, MPC(rig, actuated=(1,), umax=6.0), actuated=(1,), disturbance=late)
+    assert now.ok and predicted.ok and np.abs(predicted.x - now.x).max() < 1e-9
+    assert np.abs(blind.x - now.x).max() > 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("joints,steps", [((1,), 0), ((1,), 7), ((2,), 17), ((1,), 20)])
+def test_the_delay_is_estimated_from_the_positions(rig, joints, steps):
+    """``max_delay``: the law shown the state ``steps`` periods old, speeds from the positions (the robustness board's
+    delay runs), the MPC finds that delay exactly -- the one under which its torques explain the positions' second
+    differences (no noise: the true delay's misfit is the differences' O(dt^2) error, any other's the torques'
+    change) -- and swings the rig up to the goal; the delay unknown to it, 17 or 20 steps lose the goal."""
+    from skewpend.analysis.leaderboard import Disturbance, run_protocol
+    from skewpend.analysis.mpc import MPC, MPCSettings
+    from skewpend.analysis.robustness import at_goal
+
+    mpc = MPC(rig, actuated=joints, umax=6.0, settings=MPCSettings(max_delay=0.04))
+    assert mpc.delay == 0.0 and "the delay estimated from 0 to 0.04 s" in repr(mpc)
+    run = run_protocol(rig, mpc, actuated=joints, disturbance=Disturbance(delay=steps), speeds="positions")
+    assert mpc.delay == pytest.approx(0.002 * steps, abs=1e-12)
+    assert run.ok and at_goal(run.final) and mpc.fallbacks == 0
+    if steps == 0:  # no delay: the estimate stays at none, and the run is the MPC's without a predictor
+        plain = run_protocol(rig, MPC(rig, actuated=joints, umax=6.0), actuated=joints, speeds="positions")
+        assert np.abs(plain.x - run.x).max() < 1e-9
+    if steps >= 17:
+        blind = run_protocol(rig, MPC(rig, actuated=joints, umax=6.0), actuated=joints,
+                             disturbance=Disturbance(delay=steps), speeds="positions")
+        assert not at_goal(blind.final)
+
+
+@pytest.mark.slow
+def test_torque_noise_does_not_fool_the_delays_estimate(rig):
+    """No delay, Gaussian noise of 1.1 N m on the applied torque (the torque-noise criterion's largest): the noise
+    adds the same misfit to every delay, so the estimate stays near none (within 0.01 s, a quarter of the range) and
+    the pendubot still reaches the goal."""
+    from skewpend.analysis.leaderboard import Disturbance, run_protocol
+    from skewpend.analysis.mpc import MPC, MPCSettings
+    from skewpend.analysis.robustness import at_goal
+
+    mpc = MPC(rig, actuated=(1,), umax=6.0, settings=MPCSettings(max_delay=0.04))
+    for seed in range(3):
+        run = run_protocol(rig, mpc, actuated=(1,), disturbance=Disturbance(torque_noise=1.1, seed=seed),
+                           speeds="positions")
+        assert run.ok and at_goal(run.final) and mpc.delay <= 0.01
 
 
 def test_bad_states_and_times_are_refused(acrobot_mpc):

@@ -51,6 +51,7 @@ from ..errors import ParameterError, require
 from .control import EVERY_LINK_UP
 
 __all__ = ["MPC", "MPCSettings", "mpc_swingup", "cyclic_joints", "TIMES_KEPT", "PERIOD", "BRAKE_SPEED", "HORIZON",
+           "MAX_DELAY_STEPS", "DELAY_FORGETTING",
            "HORIZON_TIME_CONSTANTS"]
 
 #: How many solve times an :class:`MPC` keeps (its last ones): memory stays bounded over any run.
@@ -63,6 +64,11 @@ BRAKE_SPEED = 1.0
 #: pendulum's at 14.6/s takes 0.32 s (held from 0.05 rad off the top; 0.5 s loses it: benchmarks/bench_rotary_mpc.py).
 HORIZON = 0.5
 HORIZON_TIME_CONSTANTS = 4.7
+#: The longest delay an :class:`MPC` predicts over, in sampling periods (``MPCSettings.delay``).
+MAX_DELAY_STEPS = 200
+#: The weight of a call's misfit in the delay's estimate at the next call (``MPCSettings.max_delay``): the misfits'
+#: memory is about 1 / (1 - 0.99) = 100 calls (0.2 s at the leaderboard's 2 ms).
+DELAY_FORGETTING = 0.99
 #: The default sampling of :meth:`MPC.controller` [s]: the leaderboard's step (a solve each step of its protocol;
 #: the 2025 competition's winner solved at 400 Hz).
 PERIOD = 0.002
@@ -78,7 +84,14 @@ class MPCSettings:
     torque) whose cost-to-go ends the horizon; ``iterations``: Gauss-Newton steps a call (1: the real-time
     iteration), ``first``: steps at the first call and at a restart (from zero torques; five take about 1.3 ms,
     within the 400 Hz budget); ``substeps``: RK4 steps
-    an interval (a fast motion's rollout stays finite with more)."""
+    an interval (a fast motion's rollout stays finite with more); ``delay`` [s]: the age assumed of the state the
+    controller is given (a measurement's latency): before the programme is solved, the state is carried over it
+    -- rounded to whole sampling periods -- by the torques the controller applied in that time (RK4 steps of the
+    period, in the compiled solve), a predictor as Smith's; 0: the state taken as the present one.
+    ``max_delay`` [s] > 0: the delay is **estimated** at each call, whole periods from 0 to ``max_delay``
+    (``delay`` the first guess): the one under which the torques applied best explain the accelerations the
+    positions show (their second differences against the model's ``a0(x) + B(x) u``, the squared misfits
+    summed with the weight :data:`DELAY_FORGETTING` per call) -- calls every sampling period assumed."""
 
     horizon: Optional[float] = None
     nodes: int = 20
@@ -90,6 +103,8 @@ class MPCSettings:
     iterations: int = 1
     first: int = 5
     substeps: int = 2
+    delay: float = 0.0
+    max_delay: float = 0.0
 
     def check(self) -> None:
         def positive(name, v, zero=False):
@@ -100,7 +115,7 @@ class MPCSettings:
 
         if self.horizon is not None:
             positive("horizon", self.horizon)
-        for name in ("energy", "angle", "speed"):
+        for name in ("energy", "angle", "speed", "delay", "max_delay"):
             positive(name, getattr(self, name), zero=True)
         positive("torque", self.torque)
         for name, lo, hi in (("nodes", 2, 200), ("iterations", 1, 50), ("first", 1, 500), ("substeps", 1, 20)):
@@ -125,15 +140,16 @@ def _daqp_archive() -> Tuple[str, str]:
     return str(root / "include"), str(archive)
 
 
-def _step_functions(chain, joints: Tuple[int, ...], h: float, substeps: int = 1):
+def _step_functions(chain, joints: Tuple[int, ...], h: float, substeps: int = 1, period: Optional[float] = None):
     """CasADi: the interval ``F(x, u)`` over ``h`` (``substeps`` RK4 steps, the torque held) with its Jacobians,
-    the energy ``E(x)``."""
+    the energy ``E(x)`` and (with ``period``) the delay's: ``ahead(x, u)``, one RK4 step over the period, the torque
+    held, and ``accel(x) -> (a0, B)``, the accelerations ``a0 + B u`` (affine in the torques)."""
     import casadi as ca
 
     from ..numeric.recursive import chain_functions, parameter_vector, structure_of_chain
     from .trajopt import casadi_dynamics
 
-    _, _, step, _ = casadi_dynamics(chain, joints)
+    _, rhs, step, _ = casadi_dynamics(chain, joints)
     nx, m = 2 * chain.n, len(joints)
     x, u = ca.SX.sym("x", nx), ca.SX.sym("u", m)
     nxt = x
@@ -146,7 +162,13 @@ def _step_functions(chain, joints: Tuple[int, ...], h: float, substeps: int = 1)
     cyclic = cyclic_joints(ca.Function("V", [x], [energy(ca.vertcat(x[:n], ca.DM.zeros(n)), p)]), n)
     keep = ca.DM([0.0 if k in cyclic else 1.0 for k in range(n)])
     E = ca.Function("E", [x], [energy(ca.vertcat(x[:n], keep * x[n:]), p)])
-    return J, E
+    if period is None:
+        return J, E, None, None
+    acc = rhs(x, u)[n:]
+    ahead = ca.Function("ahead", [x, u], [step(x, u, u, period)])
+    accel = ca.Function("accel", [x], [ca.substitute(acc, u, ca.DM.zeros(m)), ca.substitute(ca.jacobian(acc, u), u,
+                                                                                            ca.DM.zeros(m))])
+    return J, E, ahead, accel
 
 
 def cyclic_joints(V, n: int, samples: int = 8) -> Tuple[int, ...]:
@@ -177,8 +199,11 @@ def _lowest_rest(E, n: int) -> float:
 
 
 def _rti_function(J, E, goal: np.ndarray, settings: MPCSettings, P: np.ndarray, scale: float, e_goal: float,
-                  m: int, umax: np.ndarray):
-    """One real-time iteration as a CasADi function ``sp_mpc(x0, U, goal) -> U'`` (see the module)."""
+                  m: int, umax: np.ndarray, ahead=None, accel=None, past: int = 0):
+    """One real-time iteration as a CasADi function ``sp_mpc(x0, U, goal) -> U'`` (see the module); with ``past``
+    > 0, ``sp_mpc(x0, U, goal, Up, keep) -> (U', a0, B)``: ``x0`` first carried by ``ahead`` (a period's step) under
+    those of the ``past`` torques ``Up`` (m, past; the oldest first) whose ``keep`` is 1 (the delay's predictor), and
+    ``accel`` at the ``x0`` given (the delay's estimate reads it at the next call)."""
     import casadi as ca
 
     nx, N, n = goal.size, settings.nodes, goal.size // 2
@@ -188,8 +213,11 @@ def _rti_function(J, E, goal: np.ndarray, settings: MPCSettings, P: np.ndarray, 
     end = ca.DM(np.linalg.cholesky(P).T) @ (x - g)
     rs = ca.Function("rs", [x, g], [stage, ca.jacobian(stage, x)])
     rt = ca.Function("rt", [x, g], [end, ca.jacobian(end, x)])
-    x0, U, gm = ca.MX.sym("x0", nx), ca.MX.sym("U", m, N), ca.MX.sym("goal", nx)
+    x0, U, gm, Up = ca.MX.sym("x0", nx), ca.MX.sym("U", m, N), ca.MX.sym("goal", nx), ca.MX.sym("Up", m, past)
+    keep = ca.MX.sym("keep", past)
     X, G = x0, ca.MX.zeros(nx, 0)
+    for k in range(past):
+        X = ca.if_else(keep[k], ahead(X, Up[:, k]), X)
     H, grad = ca.MX.zeros(N * m, N * m), ca.MX.zeros(N * m)
     for k in range(N):  # the states' sensitivities to the torques, node by node (single shooting, condensed)
         A, B, X = J(X, U[:, k])
@@ -205,7 +233,10 @@ def _rti_function(J, E, goal: np.ndarray, settings: MPCSettings, P: np.ndarray, 
     qp = ca.conic("qp", "daqp", {"h": ca.Sparsity.dense(N * m, N * m)}, {"error_on_fail": False})
     lim = ca.DM(np.tile(umax, N))
     sol = qp(h=H, g=grad, lbx=-lim - Uv, ubx=lim - Uv)
-    return ca.Function("sp_mpc", [x0, U, gm], [U + ca.reshape(sol["x"], m, N)])
+    out = U + ca.reshape(sol["x"], m, N)
+    if not past:
+        return ca.Function("sp_mpc", [x0, U, gm], [out])
+    return ca.Function("sp_mpc", [x0, U, gm, Up, keep], [out, *accel(x0)])
 
 
 class MPC:
@@ -252,14 +283,28 @@ class MPC:
             self.period = math.nan
         if isinstance(period, bool) or not (math.isfinite(self.period) and self.period > 0):
             raise ParameterError(f"period must be a positive sampling time [s], got {period!r}")
+        # the delay's predictor: the delay assumed (``lag``) and the longest held (``past``), in sampling periods
+        self.lag, self.past = (int(round(v / self.period)) for v in (settings.delay, settings.max_delay))
+        for name, v, k in (("delay", settings.delay, self.lag), ("max_delay", settings.max_delay, self.past)):
+            if v > 0 and not 1 <= k <= MAX_DELAY_STEPS:
+                raise ParameterError(f"{name} must be 0 or {0.5 * self.period:g} to {MAX_DELAY_STEPS * self.period:g} s "
+                                     f"(half a sampling period to {MAX_DELAY_STEPS} of them; period {self.period:g} s), "
+                                     f"got {v!r}")
+        self.estimating = self.past > 0
+        if not self.estimating:
+            self.past = self.lag
+        elif self.lag > self.past:
+            raise ParameterError(f"delay (the first estimate) must be at most max_delay, got {settings.delay!r} > "
+                                 f"{settings.max_delay!r}")
+        self.lag0 = self.lag
         include, archive = _daqp_archive()
-        J, E = _step_functions(chain, self.joints, self.dt, settings.substeps)
+        J, E, ahead, accel = _step_functions(chain, self.joints, self.dt, settings.substeps, self.period)
         A, B, _ = (np.array(v, dtype=float) for v in J(self.goal, np.zeros(m)))
         ta, ts, tu = settings.terminal
         P = sl.solve_discrete_are(A, B, np.diag([ta] * self.n + [ts] * self.n), tu * np.eye(m))
         self.e_goal, e0 = float(E(self.goal)), _lowest_rest(E, self.n)
         scale = abs(self.e_goal - e0) or 1.0  # a goal at the lowest rest's energy (the hanging rest): the weights stand
-        fn = _rti_function(J, E, self.goal, settings, P, scale, self.e_goal, m, self.umax)
+        fn = _rti_function(J, E, self.goal, settings, P, scale, self.e_goal, m, self.umax, ahead, accel, self.past)
         self._lib = casadi_library(fn, kind="mpc", flags=("-I", include), archives=(archive,))
         self._bind()
         self.reset()
@@ -276,8 +321,14 @@ class MPC:
         self._U = np.zeros((self.settings.nodes, len(self.joints)))  # row per node: CasADi's column-major (m, N)
         self._g = np.zeros(2 * self.n)
         self._out = np.zeros_like(self._U)
-        self._arg = (dp * n_arg)(*[a.ctypes.data_as(dp) for a in (self._x0, self._U, self._g)])
-        self._res = (dp * n_res)(self._out.ctypes.data_as(dp))
+        # the torques applied, the newest last: the predictor's are the last ``past``, the estimate's two more
+        self._applied_torques = np.zeros((self.past + 2, len(self.joints)))
+        self._keep = np.zeros(self.past)  # which of the predictor's torques carry the state (the last ``lag``)
+        self._a0, self._B = np.zeros(self.n), np.zeros((len(self.joints), self.n))  # CasADi's column-major (n, m)
+        inputs = (self._x0, self._U, self._g) + ((self._applied_torques[2:], self._keep) if self.past else ())
+        outputs = (self._out,) + ((self._a0, self._B) if self.past else ())
+        self._arg = (dp * n_arg)(*[a.ctypes.data_as(dp) for a in inputs])
+        self._res = (dp * n_res)(*[a.ctypes.data_as(dp) for a in outputs])
         lib.sp_mpc.restype = ctypes.c_int
         self._mem = lib.sp_mpc_checkout()
 
@@ -300,6 +351,7 @@ class MPC:
         """Forget the plan, the time and the statistics (a new run)."""
         self._U = getattr(self, "_U", np.zeros((self.settings.nodes, len(self.joints))))
         self._U[:] = 0.0
+        self._forget_delay()
         self._t: Optional[float] = None
         self._times = np.zeros((min(TIMES_KEPT, 1024), 2))  # wall, this thread's CPU
         self._count = 0
@@ -356,15 +408,19 @@ class MPC:
         start = (time.perf_counter(), time.thread_time())
         if self._t is not None and t < self._t:  # an earlier time than the last call's: a new run
             self._U[:] = 0.0
+            self._forget_delay()
             self._t = None
         first = self._t is None
+        passed = math.nan if first else float(t) - self._t
         if not first:
-            self._shift(float(t) - self._t)
+            self._shift(passed)
         self._t = float(t)
         n = self.n
         goal = self.goal.copy()  # the goal's angles taken nearest the present ones
         goal[:n] = x[:n] + (np.mod(goal[:n] - x[:n] + np.pi, 2 * np.pi) - np.pi)
         steps = self.settings.first if first else self.settings.iterations
+        if self.estimating:
+            self._estimate_delay(x[:n], abs(passed - self.period) <= 1e-9 * self.period)
         if not self._iterate(x, goal, steps):
             # a failed programme (a reset's jump, a plan gone stale): once more from zero torques, the warm start's
             # iterations; failing again, the motors brake their joints and the next call starts from zero
@@ -380,13 +436,53 @@ class MPC:
                                 f"t = {self._first_fallback:.4g} s)")
                 speeds = x[n:][[j - 1 for j in self.joints]]
                 brake = -self.umax * speeds / np.maximum(np.abs(speeds), BRAKE_SPEED)
-                self._record(start)
-                out = np.zeros(n)
-                out[[j - 1 for j in self.joints]] = brake
-                return out
+                return self._applied(brake, start)
+        return self._applied(self._U[0], start)
+
+    def _forget_delay(self) -> None:
+        """A new run: no torque applied before it, the delay back to its first guess, no positions seen."""
+        if hasattr(self, "_applied_torques"):
+            self._applied_torques[:] = 0.0
+            self._a0[:] = np.nan  # no state before the run's first
+            self._set_lag(self.lag0)
+        self._misfits = np.zeros(self.past + 1)
+        self._positions: list = []
+
+    def _set_lag(self, lag: int) -> None:
+        self.lag = int(lag)
+        self._keep[:] = 0.0
+        if lag:
+            self._keep[-lag:] = 1.0
+
+    def _estimate_delay(self, q: np.ndarray, consecutive: bool) -> None:
+        """The delay under which the torques applied best explain the positions' last second difference (see
+        :class:`MPCSettings`), the misfits of every delay to ``past`` periods summed with forgetting.  Positions
+        more than a period apart (the first call, a pause: a reset while the law was not asked) start the
+        differences afresh."""
+        seen = self._positions = (self._positions if consecutive else [])[-2:] + [q.copy()]
+        if len(seen) < 3 or not np.all(np.isfinite(self._a0)):
+            return
+        wrap = lambda d: np.mod(d + np.pi, 2 * np.pi) - np.pi  # noqa: E731  angles given wrapped or not
+        measured = (wrap(seen[2] - seen[1]) - wrap(seen[1] - seen[0])) / self.period ** 2
+        u = self._applied_torques[::-1]  # u[0] the last call's torques, u[1] the one's before, ...
+        held = 0.5 * (u[:-1] + u[1:])  # row D: the torques over the two steps the positions span, D periods old
+        misfit = measured - self._a0 - held @ self._B
+        self._misfits = DELAY_FORGETTING * self._misfits + np.sum(misfit ** 2, axis=1)
+        self._set_lag(int(np.argmin(self._misfits)))
+
+    @property
+    def delay(self) -> float:
+        """The delay [s] the predictor assumes now (``MPCSettings.delay``, or the estimate with ``max_delay``)."""
+        return self.lag * self.period
+
+    def _applied(self, torques: np.ndarray, start) -> np.ndarray:
+        """Every joint's torques, the actuated ones ``torques``, which the delay's predictor remembers."""
+        if self.past:
+            self._applied_torques[:-1] = self._applied_torques[1:]
+            self._applied_torques[-1] = torques
         self._record(start)
-        out = np.zeros(n)
-        out[[j - 1 for j in self.joints]] = self._U[0]
+        out = np.zeros(self.n)
+        out[[j - 1 for j in self.joints]] = torques
         return out
 
     # -- skewpend's and the DFKI lab's interfaces ----------------------------------------------------------------
@@ -437,7 +533,9 @@ class MPC:
         s = self.settings
         limits = sorted(set(self.umax.tolist()))
         return (f"MPC({self.model.title}, joints {','.join(map(str, self.joints))}, |u| <= "
-                f"{', '.join(f'{u:g}' for u in limits)} N m, {s.nodes} nodes over {s.horizon:g} s)")
+                f"{', '.join(f'{u:g}' for u in limits)} N m, {s.nodes} nodes over {s.horizon:g} s"
+                + (f", the delay estimated from 0 to {self.past * self.period:g} s" if self.estimating else
+                   f", the state carried over a delay of {self.past * self.period:g} s" if self.past else "") + ")")
 
 
 def mpc_swingup(model, target=EVERY_LINK_UP, actuated="both", *, umax=10.0, t_end: float = 10.0, y0=None,
