@@ -7,7 +7,8 @@ from ``--dfki DIR`` (its ``src/python``, e.g. from a checkout or a snapshot of t
    ``Simulator`` (its plant, ``plant.py``, with the model 1.1 numbers; its RK4 and clipping) through the
    DFKI interface (``get_control_output``), against skewpend's ``run_protocol``: the largest difference of
    the states over the 10 s, and the leaderboard score of each run;
-   ``--controller mpc``: the model-predictive controller (``skewpend.MPC``) instead, by the same interface;
+   ``--controller mpc``: the model-predictive controller (``skewpend.MPC`` with the boards' settings,
+   ``BOARD_SETTINGS``: the CLI's) instead, by the same interface;
 2. ``--robustness``: the lab's ``benchmarker`` with the robustness board's settings (v2: 21 values, 10
    repetitions, 50 perturbations; the lab's unseeded noise) running ``SpeedObserver(tracking)`` (the speeds
    from the positions), its six criteria by the lab's ``benchmark_scores``, beside skewpend's
@@ -54,9 +55,9 @@ def main() -> None:
     for robot in args.robots:
         joints = lb.ROBOTS[robot]
         if args.controller == "mpc":
-            from skewpend.analysis.mpc import MPC
+            from skewpend.analysis.mpc import BOARD_SETTINGS, MPC
 
-            tracking = MPC(model, actuated=joints)
+            tracking = MPC(model, actuated=joints, settings=BOARD_SETTINGS)
         else:
             tracking = tvlqr(optimal_swingup(model, actuated=joints))
         mpar = model_parameters(filepath=str(example_data("dfki-design-C.1/model_1.1_parameters.yml")))

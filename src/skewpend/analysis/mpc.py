@@ -51,7 +51,7 @@ from ..errors import ParameterError, require
 from .control import EVERY_LINK_UP
 
 __all__ = ["MPC", "MPCSettings", "mpc_swingup", "cyclic_joints", "TIMES_KEPT", "PERIOD", "BRAKE_SPEED", "HORIZON",
-           "MAX_DELAY_STEPS", "DELAY_FORGETTING",
+           "MAX_DELAY_STEPS", "DELAY_FORGETTING", "BOARD_SETTINGS",
            "HORIZON_TIME_CONSTANTS"]
 
 #: How many solve times an :class:`MPC` keeps (its last ones): memory stays bounded over any run.
@@ -127,6 +127,13 @@ class MPCSettings:
                                  f"{self.terminal!r}")
         for name, v in zip(("terminal angle", "terminal speed", "terminal torque"), self.terminal):
             positive(name, v)
+
+
+#: The MPC the RealAIGym boards run (``control leaderboard --controller mpc``, the v3 board's default;
+#: ``benchmarks/bench_mpc.py``), one for every board: two Gauss-Newton steps a call and the angles weighted 30 (chosen
+#: on the v3 board's seeds 1-4, never its reported seed 0), the delay estimated up to the robustness board's longest
+#: (0.04 s, its definition's).
+BOARD_SETTINGS = MPCSettings(iterations=2, angle=30.0, max_delay=0.04)
 
 
 def _daqp_archive() -> Tuple[str, str]:

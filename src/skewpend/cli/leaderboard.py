@@ -79,6 +79,8 @@ def mpc_line(mpc) -> str:
     line = (f"controller  model-predictive: {mpc.settings.nodes} RK4 nodes over {mpc.settings.horizon:g} s, sampled every "
             f"{mpc.period * 1e3:g} ms; {times.size} solves, median {np.median(times):.3g} ms, max {times.max():.3g} ms"
             if times.size else "controller  model-predictive: no solve")
+    if mpc.estimating:
+        line += f"; the measurement's delay estimated (0 to {mpc.past * mpc.period:g} s): {mpc.delay * 1e3:g} ms at the end"
     return line + (f"; {mpc.message}" if mpc.message else "; no step failed")
 
 
@@ -171,10 +173,10 @@ def run_leaderboard(robot: Optional[str], alpha: float, umax: Optional[float], o
     what = f"optimising the {robot}'s swing-up (IPOPT, {limit:g} N m{skew})"
     controller = controller or ("mpc" if version == "v3" else "tvlqr")
     if controller == "mpc":
-        from ..analysis.mpc import MPC
+        from ..analysis.mpc import BOARD_SETTINGS, MPC
 
         stage("building the model-predictive controller (its C function: compiled once, then cached)")
-        tracking, traj = MPC(model, actuated=joints, umax=limit), None
+        tracking, traj = MPC(model, actuated=joints, umax=limit, settings=BOARD_SETTINGS), None
     else:
         stage(what)
         traj = optimal_swingup(model, actuated=joints, umax=limit, iterations=ipopt_reporter(what))
