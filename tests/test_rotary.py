@@ -212,14 +212,48 @@ def test_a_motor_without_links_is_refused(tmp_path):
         Run("simulate", _file(tmp_path, GOOD, links=False))
 
 
-@pytest.mark.parametrize("command, words", [
-    ("export", "add 0.00021 N m s (kt km/R) to [[links]] 1 damping"),
-])
-def test_commands_that_cannot_use_the_motor_refuse_it_saying_what_to_give(command, words):
-    with pytest.raises(UsageError) as err:
-        Run(command, str(RUN_FILE))
-    assert f"[motor] (a voltage-driven DC motor) is not read by skewpend {command}" in str(err.value)
-    assert words in str(err.value)
+def test_the_motor_is_exported_as_a_voltage_actuator_that_mujoco_runs_as_skewpend(tmp_path):
+    """``skewpend export`` of the rig: MJCF with the motor as joint 1's actuator whose control is the voltage (gain
+    kt/R, ctrlrange +-Vmax) and its back-EMF in the joint's damping -- MuJoCo's accelerations at random states and
+    voltages equal skewpend's with the motor's torque kt (V - km q1') / R to 1e-10 relative; read back, the joint is
+    actuated with the torque limit kt Vmax / R (joint 2 its unlimited constant torque). URDF: the joint's effort limit kt Vmax / R (read back as actuated)
+    and its velocity Vmax / km."""
+    mujoco = pytest.importorskip("mujoco")
+    from helpers import run_cli
+
+    from skewpend.interop.importer import read_mjcf, read_urdf
+
+    motor = Run("control", str(RUN_FILE)).motor
+    for suffix in ("xml", "urdf"):
+        r = run_cli(["export", "--config", str(RUN_FILE), "-o", str(tmp_path / f"qube.{suffix}")])
+        assert r.code == 0, r.err
+        assert "skewpend export writes it as joint 1's actuator" in r.err and "Traceback" not in r.err
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "qube.xml"))
+    data = mujoco.MjData(model)
+    from skewpend.interop.export import mujoco_compatible
+
+    params = Run("simulate", str(RUN_FILE)).parameters()  # the back-EMF in joint 1's damping
+    exported = mujoco_compatible(params)  # with the exporter's tiny axial inertias, which MuJoCo needs
+    kernel, p0 = model_kernel(exported), np.array(model_vector(exported), dtype=float)
+    names = model_vector_names(exported)
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        y = np.r_[rng.uniform(-np.pi, np.pi, 2), rng.uniform(-5, 5, 2)]
+        volts = rng.uniform(-motor.voltage_limit, motor.voltage_limit)
+        data.qpos[:], data.qvel[:], data.ctrl[:] = y[:2], y[2:], [volts, 0.0]
+        mujoco.mj_forward(model, data)
+        p = p0.copy()
+        p[names.index("tau1")] += motor.gain * volts  # kt V / R; the back-EMF -kt km q1' / R is the damping
+        out = np.zeros(5)
+        kernel.rhs(np.append(y, 0.0), p, out)
+        np.testing.assert_allclose(data.qacc, out[2:4], rtol=1e-10, atol=1e-10 * np.abs(out[2:4]).max())
+    back = read_mjcf(tmp_path / "qube.xml")  # joint 2 keeps the exporter's unlimited constant-torque actuator
+    assert back.actuated == (1, 2) and back.torque_limits[1] is None
+    assert back.torque_limits[0] == pytest.approx(motor.torque_limit, rel=1e-15)
+    assert back.chain.links[0].damping == pytest.approx(params.as_chain().links[0].damping, rel=1e-15)
+    urdf = read_urdf(tmp_path / "qube.urdf")
+    assert urdf.actuated == (1,) and urdf.torque_limits[0] == pytest.approx(motor.torque_limit, rel=1e-15)
+    assert f'velocity="{motor.voltage_limit / motor.back_emf_constant!r}"' in (tmp_path / "qube.urdf").read_text()
 
 
 def test_the_command_line_refuses_a_bad_motor_in_one_line_exit_2(tmp_path):

@@ -118,19 +118,15 @@ READS: Dict[str, Dict[str, frozenset]] = {
 #: those that compute the chain's motion or its model, where the motor's back-EMF is its joint's damping and the
 #: motor at 0 V is the model (the explorer's too: it has no voltage input), and ``control``, whose controllers
 #: drive it: its joint actuated, its torque limit kt Vmax / R their ``umax`` (unless ``--actuated``/``--umax`` say
-#: otherwise), the back-EMF in the joint's damping.  The others refuse it, saying why (:data:`_MOTOR_WHY_NOT`).
+#: otherwise), the back-EMF in the joint's damping (``export``: its actuator, the voltage its input).  The others
+#: refuse it.
 MOTOR_READERS = ("simulate", "animate", "report", "validate", "lyapunov", "flipmap", "modes", "equilibria", "orbit",
-                 "nnm", "identify", "derive", "serve", "control")
+                 "nnm", "identify", "derive", "serve", "control", "export")
 #: The readers that say the motor's note themselves: what they take of it depends on their options
 #: (``control``: :meth:`Motor.control_note`).
 MOTOR_NOTED_BY_COMMAND = ("control",)
 for _command in MOTOR_READERS:
     READS[_command] = {**READS[_command], "motor": frozenset(MOTOR_KEYS)}
-#: Why a command does not read ``[motor]``.
-_MOTOR_WHY_NOT = {
-    "export": "MJCF and URDF would keep its back-EMF as damping but not its voltage input: add {damping:.6g} N m s "
-              "(kt km/R) to [[links]] {joint} damping to export the motor at 0 V",
-}
 
 
 @dataclass(frozen=True)
@@ -251,18 +247,10 @@ _WHY_NOT = {
 }
 
 
-def _motor_refusal(config, command: str, table: Mapping[str, Any]) -> str:
+def _motor_refusal(config, command: str) -> str:
     """The one line refusing a run file's ``[motor]`` in a command that does not read it."""
-    head = f"{config}: [motor] (a voltage-driven DC motor) is not read by skewpend {command}"
-    why = _MOTOR_WHY_NOT.get(command)
-    if why is None:
-        readers = ", ".join(MOTOR_READERS)
-        return f"{head}: it drives a joint of a chain (read by skewpend {readers})"
-    try:
-        motor = Motor.from_mapping(table)
-    except ParameterError as exc:
-        return f"{head}, and {exc}"
-    return f"{head}: {why.format(joint=motor.joint, umax=motor.torque_limit, damping=motor.damping)}"
+    return (f"{config}: [motor] (a voltage-driven DC motor) is not read by skewpend {command}: it drives a joint of a "
+            f"chain (read by skewpend {', '.join(MOTOR_READERS)})")
 
 
 def as_text(value: Any, where: str = "value") -> Optional[str]:
@@ -376,7 +364,7 @@ class Run:
                 raise UsageError(f"{config}: {what} (a chain of links) is not read by skewpend {command}: it "
                                  f"computes the double pendulum's [parameters] (chains: skewpend {takers})")
             if sections.get("motor") and "motor" not in reads:
-                raise UsageError(_motor_refusal(config, command, sections["motor"]))
+                raise UsageError(_motor_refusal(config, command))
             unused = [s for s in IGNORABLE_SECTIONS if sections.get(s) and s not in reads]
             if unused:
                 self.notes.append(f"{config}: {' and '.join(f'[{s}]' for s in unused)} {'is' if len(unused) == 1 else 'are'} "
@@ -438,7 +426,10 @@ class Run:
         if motor.joint > len(self.links):
             raise UsageError(f"{where}[motor] joint = {motor.joint}, but the chain has {len(self.links)} joint"
                              f"{'s' if len(self.links) != 1 else ''}")
-        if self.command not in MOTOR_NOTED_BY_COMMAND:
+        if self.command == "export":
+            self.notes.append(f"{where}{motor.describe()} (skewpend export writes it as joint {motor.joint}'s actuator "
+                              f"whose control is the voltage (MJCF), its effort limit (URDF))")
+        elif self.command not in MOTOR_NOTED_BY_COMMAND:
             self.notes.append(f"{where}{motor.describe()} (skewpend {self.command} applies 0 V: the limit is a "
                               f"controller's, e.g. skewpend.analysis.mpc.MPC(umax={motor.torque_limit:.6g}))")
         return motor

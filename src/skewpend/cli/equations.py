@@ -153,15 +153,18 @@ def export(
 ) -> None:
     """Export the system as a MuJoCo MJCF model or a URDF (numeric parameters; the defaults of simulate).
 
-    From a --config run file it takes [parameters]; or a chain of links ([[links]], [chain], or --links N).
+    From a --config run file it takes [parameters]; or a chain of links ([[links]], [chain], or --links N); a
+    [motor] becomes its joint's voltage-driven actuator (MJCF) or effort limit (URDF).
     """
     from ..interop import export as ex
 
-    params = resolve("export", config, parameters=model).parameters()
+    run = resolve("export", config, parameters=model)
+    params = run.parameters()  # a [motor]'s back-EMF in its joint's damping; its voltage input the motor's actuator
     if out is None:
-        sys.stdout.write(ex.to_urdf(params) if fmt is ExportFormat.urdf else ex.to_mjcf(params))
+        sys.stdout.write(ex.to_urdf(params, motor=run.motor) if fmt is ExportFormat.urdf else
+                         ex.to_mjcf(params, motor=run.motor))
         return
-    path = ex.write_model(params, out, fmt.value if fmt else None)
+    path = ex.write_model(params, out, fmt.value if fmt else None, motor=run.motor)
     kind = fmt.value if fmt else ("urdf" if path.suffix.lower() == ".urdf" else "mjcf")
     sys.stderr.write(f"skewpend: wrote {kind.upper()} model to {path}\n")
 

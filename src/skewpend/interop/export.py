@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Callable, Optional, Sequence, Union
+from typing import Any, Callable, Optional, Sequence, Union
 
 from ..errors import IntegrationError, MissingExtraError, NotNumericError, ParameterError
 from ..parsing import initial_state, positive_number
@@ -65,7 +65,7 @@ __all__ = ["FORMATS", "INTEGRATORS", "MujocoMissingError", "mujoco_compatible", 
 #: Export formats accepted by :func:`write_model`, and the file suffixes that imply them.
 FORMATS = ("mjcf", "urdf")
 _SUFFIXES = {".xml": "mjcf", ".mjcf": "mjcf", ".urdf": "urdf"}
-_OPTIONS = {"mjcf": ("timestep", "integrator", "axial_inertia"), "urdf": ("axial_inertia", "z_up")}
+_OPTIONS = {"mjcf": ("timestep", "integrator", "axial_inertia", "motor"), "urdf": ("axial_inertia", "z_up", "motor")}
 
 #: MuJoCo integrators accepted by :func:`to_mjcf` and :func:`mujoco_trajectory`.
 INTEGRATORS = ("RK4", "Euler", "implicit", "implicitfast")
@@ -328,7 +328,21 @@ def _header(model, chain, fmt: str) -> str:
     )
 
 
-def to_mjcf(model, *, timestep: float = 1e-4, integrator: str = "RK4", axial_inertia: Optional[float] = None) -> str:
+def _motor_of(motor, c) -> Optional[Any]:
+    """``motor`` checked: None, or a :class:`~skewpend.config.Motor` on a joint of the chain ``c``."""
+    if motor is None:
+        return None
+    from ..config import Motor
+
+    if not isinstance(motor, Motor):
+        raise ParameterError(f"motor must be a skewpend.config.Motor (a run file's [motor]) or None, got {motor!r}")
+    if motor.joint > c.n:
+        raise ParameterError(f"the motor drives joint {motor.joint}, but the model has {c.n} joint(s)")
+    return motor
+
+
+def to_mjcf(model, *, timestep: float = 1e-4, integrator: str = "RK4", axial_inertia: Optional[float] = None,
+            motor=None) -> str:
     """A MuJoCo MJCF model (XML text) of ``model``: the double pendulum's
     :class:`~skewpend.Parameters` (all numeric) or a chain of links.
 
@@ -353,6 +367,11 @@ def to_mjcf(model, *, timestep: float = 1e-4, integrator: str = "RK4", axial_ine
       self-contained: loading it and calling ``mj_step`` reproduces skewpend's model,
       torques included, with nothing to set at run time (``data.ctrl`` stays free for an
       extra torque on top).
+    * A voltage-driven DC motor (``motor``, a run file's ``[motor]``, :class:`~skewpend.config.Motor`; its
+      back-EMF ``kt km / R`` already in its joint's damping, as a run file's model holds it): its joint's
+      actuator is ``motor`` with ``gainprm="kt/R"``, ``ctrlrange="-Vmax Vmax"`` (``ctrl`` is the voltage [V]) and
+      the joint's constant torque as its bias: force ``kt V / R + tau_j``, at most ``kt Vmax / R`` from the input
+      (what :func:`~skewpend.interop.importer.read_mjcf` reads back as the joint's torque limit).
 
     Numbers are written in shortest round-trip form, so MuJoCo reads exactly the doubles
     of :func:`mujoco_compatible`.  Raises :class:`~skewpend.errors.NotNumericError` for
@@ -360,18 +379,22 @@ def to_mjcf(model, *, timestep: float = 1e-4, integrator: str = "RK4", axial_ine
     ``timestep``, ``integrator`` or ``axial_inertia``.
     """
     c, name = _compatible_chain(model, axial_inertia)
+    motor = _motor_of(motor, c)
     _no_friction(c, name, "MJCF")
     header = _header(model, c, "MJCF")
     c, armature = _rotor_split(c, name)
     timestep = positive_number("timestep", timestep)
     integrator = _integrator(integrator)
     radius = sum(0.01 * link.length for link in c.links)
-    actuators = ", ".join(f"tau{link.index}" for link in c.links)
+    actuators = ", ".join(f"tau{link.index}" for link in c.links if motor is None or link.index != motor.joint)
     lines = [
         '<mujoco model="skewpend">',
         f"  <!-- {header} -->",
-        f"  <!-- Constant joint torques: actuators {actuators} with force = ctrl + tau_i "
-        "(affine bias); ctrl defaults to 0. -->",
+        *([f"  <!-- Constant joint torques: actuators {actuators} with force = ctrl + tau_i "
+           "(affine bias); ctrl defaults to 0. -->"] if actuators else []),
+        *([f"  <!-- Motor on hinge{motor.joint}: ctrl is its voltage V [V], |V| <= {_num(motor.voltage_limit)}; force = "
+           f"kt V / R + tau{motor.joint}, kt/R = {_num(motor.gain)} N m/V; its back-EMF kt km/R = "
+           f"{_num(motor.damping)} N m s is in hinge{motor.joint}'s damping. -->"] if motor is not None else []),
         '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
         f'  <option gravity="0 {_num(c.g)} 0" timestep="{_num(timestep)}" integrator="{integrator}">',
         '    <flag contact="disable" energy="enable"/>',
@@ -390,7 +413,11 @@ def to_mjcf(model, *, timestep: float = 1e-4, integrator: str = "RK4", axial_ine
         ]
     lines += ["  " * (k + 1) + "</body>" for k in range(c.n, 0, -1)]
     lines += ["  </worldbody>", "  <actuator>"]
-    lines += [f'    <general name="tau{link.index}" joint="hinge{link.index}" gainprm="1" biastype="affine" '
+    lines += [f'    <general name="motor" joint="hinge{link.index}" gainprm="{_num(motor.gain)}" biastype="affine" '
+              f'biasprm="{_num(link.torque)} 0 0" ctrllimited="true" ctrlrange="{_num(-motor.voltage_limit)} '
+              f'{_num(motor.voltage_limit)}" forcelimited="false"/>'
+              if motor is not None and link.index == motor.joint else
+              f'    <general name="tau{link.index}" joint="hinge{link.index}" gainprm="1" biastype="affine" '
               f'biasprm="{_num(link.torque)} 0 0" ctrllimited="false" forcelimited="false"/>' for link in c.links]
     lines += ["  </actuator>", "</mujoco>", ""]
     return "\n".join(lines)
@@ -417,7 +444,7 @@ def _urdf_visual(length, radius) -> list:
     ]
 
 
-def _urdf_joint(name, parent, child, xyz, axis, damping) -> list:
+def _urdf_joint(name, parent, child, xyz, axis, damping, motor=None) -> list:
     return [
         f'  <joint name="{name}" type="continuous">',
         f'    <parent link="{parent}"/>',
@@ -425,11 +452,13 @@ def _urdf_joint(name, parent, child, xyz, axis, damping) -> list:
         f'    <origin xyz="{xyz}" rpy="0 0 0"/>',
         f'    <axis xyz="{_vec(axis)}"/>',
         f'    <dynamics damping="{_num(damping)}" friction="0"/>',
+        *([f'    <limit effort="{_num(motor.torque_limit)}" velocity="{_num(motor.voltage_limit / motor.back_emf_constant)}"/>']
+          if motor is not None else []),
         "  </joint>",
     ]
 
 
-def to_urdf(model, *, axial_inertia: Optional[float] = None, z_up: bool = False) -> str:
+def to_urdf(model, *, axial_inertia: Optional[float] = None, z_up: bool = False, motor=None) -> str:
     """A URDF model (XML text) of ``model``: the double pendulum's :class:`~skewpend.Parameters`
     (all numeric) or a chain of links.
 
@@ -449,10 +478,14 @@ def to_urdf(model, *, axial_inertia: Optional[float] = None, z_up: bool = False)
     accordingly, with ``RK4``, ``timestep=1e-4`` and contacts disabled.
 
     **Constant torques** have no place in URDF: they are listed in a comment and must be applied by
-    the simulator (e.g. MuJoCo ``data.qfrc_applied``).  Neither have the geared motors' rotors
+    the simulator (e.g. MuJoCo ``data.qfrc_applied``).  A voltage-driven DC motor (``motor``, its back-EMF already
+    in its joint's damping) is its joint's ``<limit effort="kt Vmax / R" velocity="Vmax / km">`` (the torque the
+    voltage limit gives at rest and the speed at which the back-EMF cancels it), its gain in a comment: URDF has
+    no voltage input.  Neither have the geared motors' rotors
     (refused: export MJCF, which holds them exactly) nor Coulomb friction (refused).
     """
     c, name = _compatible_chain(model, axial_inertia)
+    motor = _motor_of(motor, c)
     _no_friction(c, name, "URDF")
     if c.has_rotor:
         rotors = _listed((name(key, link.index), getattr(link, key)) for link in c.links if link.rotor
@@ -476,6 +509,8 @@ def to_urdf(model, *, axial_inertia: Optional[float] = None, z_up: bool = False)
         f"  <!-- {_header(model, c, 'URDF')} -->",
         f"  <!-- {_comment(frame_note)} -->",
         f"  <!-- {_comment(f'Constant joint torques (not representable in URDF; apply them in the simulator): {torques}.')} -->",
+        *([f"  <!-- {_comment(f'Motor on hinge{motor.joint}: voltage input V, |V| <= {_num(motor.voltage_limit)} V, torque kt V / R with kt/R = {_num(motor.gain)} N m/V (apply it in the simulator); its back-EMF kt km/R = {_num(motor.damping)} N m s is in the damping.')} -->"]
+          if motor is not None else []),
         "  <mujoco>",
         '    <compiler angle="radian" discardvisual="true" fusestatic="true"/>',
         f'    <option gravity="{gravity}" timestep="0.0001" integrator="RK4">',
@@ -499,7 +534,7 @@ def to_urdf(model, *, axial_inertia: Optional[float] = None, z_up: bool = False)
     for link in c.links:
         parent = root if link.index == 1 else f"rod{link.index - 1}"
         lines += _urdf_joint(f"hinge{link.index}", parent, f"rod{link.index}", _vec(link.offset), link.axis,
-                             link.damping)
+                             link.damping, motor if motor is not None and link.index == motor.joint else None)
     lines += ["</robot>", ""]
     return "\n".join(lines)
 
@@ -524,7 +559,7 @@ def write_model(model, path: Union[str, os.PathLike], format: Optional[str] = No
 
     ``format``: ``"mjcf"`` or ``"urdf"``; ``None`` infers it from the suffix (``.xml``,
     ``.mjcf`` -> MJCF; ``.urdf`` -> URDF).  ``options`` go to the exporter (``timestep``,
-    ``integrator``, ``axial_inertia`` for MJCF; ``axial_inertia``, ``z_up`` for URDF).
+    ``integrator``, ``axial_inertia``, ``motor`` for MJCF; ``axial_inertia``, ``z_up``, ``motor`` for URDF).
     The text is built first, then written to a temporary file in the same directory and
     moved into place (``os.replace``): an existing file is either replaced whole or left
     untouched.  Errors: :class:`~skewpend.errors.ParameterError` (unknown format, missing
