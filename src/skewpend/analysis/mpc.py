@@ -20,7 +20,9 @@ the torques of the actuated joints.  The optimal control problem over the next `
   differentiation of the RK4 step), the box-constrained quadratic programme solved by DAQP (Arnström et al.
   2022, the active-set solver CasADi ships and generates code for);
 * all of it one C function, CasADi's code generator's output compiled through skewpend's cache (a second
-  to build, then loaded): one call a control step, no Python in the solve.
+  to build, then loaded): one call a control step, no Python in the solve;
+* a late measurement (``MPCSettings.delay``, or ``max_delay`` to estimate it at each call from the positions):
+  the state carried over the delay by the torques applied in it, before the programme (a predictor as Smith's).
 
 A step whose programme fails (non-finite data -- a rollout that diverges --, a solver status) is solved once more
 from zero torques with the warm start's iterations (:attr:`MPC.restarts` counts those); failing again, the motors
