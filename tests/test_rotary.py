@@ -254,6 +254,16 @@ def test_the_motor_is_exported_as_a_voltage_actuator_that_mujoco_runs_as_skewpen
     urdf = read_urdf(tmp_path / "qube.urdf")
     assert urdf.actuated == (1,) and urdf.torque_limits[0] == pytest.approx(motor.torque_limit, rel=1e-15)
     assert f'velocity="{motor.voltage_limit / motor.back_emf_constant!r}"' in (tmp_path / "qube.urdf").read_text()
+    from dataclasses import replace
+
+    from skewpend.errors import ParameterError
+    from skewpend.interop.export import to_mjcf, to_urdf
+
+    for writer in (to_mjcf, to_urdf):
+        with pytest.raises(ParameterError, match=r"^motor must be a skewpend.config.Motor \(a run file's \[motor\]\) or None, got 'x'$"):
+            writer(params, motor="x")
+        with pytest.raises(ParameterError, match=r"^the motor drives joint 3, but the model has 2 joint\(s\)$"):
+            writer(params, motor=replace(motor, joint=3))
 
 
 def test_the_command_line_refuses_a_bad_motor_in_one_line_exit_2(tmp_path):

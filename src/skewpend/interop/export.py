@@ -328,7 +328,7 @@ def _header(model, chain, fmt: str) -> str:
     )
 
 
-def _motor_of(motor, c) -> Optional[Any]:
+def _motor_of(motor, c) -> Optional[Any]:  # a config.Motor (config is a lower layer, imported when asked)
     """``motor`` checked: None, or a :class:`~skewpend.config.Motor` on a joint of the chain ``c``."""
     if motor is None:
         return None
