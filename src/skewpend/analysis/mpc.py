@@ -471,7 +471,8 @@ class MPC:
         seen = self._positions = (self._positions if consecutive else [])[-2:] + [q.copy()]
         if len(seen) < 3 or not np.all(np.isfinite(self._a0)):
             return
-        wrap = lambda d: np.mod(d + np.pi, 2 * np.pi) - np.pi  # noqa: E731  angles given wrapped or not
+        from .equilibria import wrap  # the differences of angles given wrapped or not
+
         measured = (wrap(seen[2] - seen[1]) - wrap(seen[1] - seen[0])) / self.period ** 2
         u = self._applied_torques[::-1]  # u[0] the last call's torques, u[1] the one's before, ...
         held = 0.5 * (u[:-1] + u[1:])  # row D: the torques over the two steps the positions span, D periods old
