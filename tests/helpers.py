@@ -42,12 +42,17 @@ def once_per_session(tmp_path_factory, name: str, make):
         return json.loads(outcome.read_text(encoding="utf-8"))
 
 
-#: Documented commands whose run is shared (docs/getting-started.md): each runs once per session, exactly
-#: as written, in a working directory of its own; tests/test_readme.py checks its outcome as the
-#: example's, and the report tests read the file it wrote (a report is the suite's most expensive run).
+#: Documented commands whose run is shared (docs/getting-started.md, docs/guide/control.md): each runs once per
+#: session, exactly as written, in a working directory of its own; tests/test_readme.py checks its outcome as
+#: the example's, and the tests that need the same run read its output and the file it wrote (a report is the
+#: suite's most expensive run; a leaderboard's run optimises, tracks and scores: 5-10 s each).
 SHARED_COMMANDS = {
     "skewpend report": "report.html",
     "skewpend report --alpha 30deg --c1 0.05 --out damped.html": "damped.html",
+    # tests/test_leaderboard.py (the planar acrobot's CSV and figure), tests/test_mpc.py (v3, the MPC by default)
+    "skewpend control leaderboard --robot acrobot --out acrobot.csv --plot acrobot.png": "acrobot.csv",
+    "skewpend control leaderboard --robot acrobot --version v3 --out acrobot-v3.csv": "acrobot-v3.csv",
+    "skewpend control leaderboard --robot pendubot --version v3": None,
 }
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -303,25 +304,27 @@ def test_cli_leaderboard_bad_input(argv, text, tmp_path):
     assert not list(tmp_path.iterdir())
 
 
-def test_cli_leaderboard_writes_the_leaderboards_file(tmp_path):
-    """The command end to end: exit 0, the score line, the CSV in the leaderboard's columns that the scorer
-    reads back to the same score."""
-    from helpers import run_cli
+def test_cli_leaderboard_writes_the_leaderboards_file(tmp_path_factory):
+    """The command end to end (docs/guide/control.md's, run once per session as a reader runs it: the README
+    test checks the same run, tests/helpers.py's SHARED_COMMANDS): exit 0, the score line, the CSV in the
+    leaderboard's columns that the scorer reads back to the same score, the figure."""
+    from helpers import shared_cli_run
 
-    ran = run_cli(["control", "leaderboard", "--robot", "acrobot", "--out", "run.csv", "--plot", "run.png"], cwd=tmp_path)
-    assert ran.code == 0, ran.report()
-    line = next(s for s in ran.out.splitlines() if s.startswith("score (v2)"))
+    made = shared_cli_run(tmp_path_factory, "skewpend control leaderboard --robot acrobot --out acrobot.csv --plot acrobot.png")
+    out, folder = made["output"].splitlines(), Path(made["dir"])
+    assert made["returncode"] == 0, made["output"][-3000:]
+    line = next(s for s in out if s.startswith("score (v2)"))
     shown = float(line.split()[2])
-    t, x, u = lb.read_csv(tmp_path / "run.csv")
+    t, x, u = lb.read_csv(folder / "acrobot.csv")
     from skewpend.numeric.kernels import model_kernel, model_vector
 
     model = lb.dfki_model()
     c = lb.criteria(t, x, u, lb.tip_heights(model_kernel(model), model_vector(model), x), 0.5)
     assert c.score == pytest.approx(shown, abs=1e-4) and shown >= 0.70
-    assert (tmp_path / "run.png").stat().st_size > 10_000
+    assert (folder / "acrobot.png").stat().st_size > 10_000
     # the planar rig is compared with the published board; every duration is labelled (issue 51)
     assert "best published: 0.655 (History SAC)" in line
-    optimised = next(s for s in ran.out.splitlines() if s.startswith("optimised"))
+    optimised = next(s for s in out if s.startswith("optimised"))
     assert re.search(r"the motion takes [0-9.]+ s to the goal; solved in [0-9.]+ s \(4 seeded starts\)$", optimised)
 
 
