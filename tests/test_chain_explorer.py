@@ -261,3 +261,31 @@ def _drag_rod_3(opened, browser, site):
         assert again.errors() == []
     finally:
         again.page.close()
+
+
+def test_the_deepmind_acrobots_lower_arm_is_drawn_from_the_elbow_where_its_mass_is(browser, tmp_path):
+    """dm_control's acrobot (its zero configuration both arms up, read from its MJCF): the page draws its lower arm
+    from the elbow towards the arm's centre of mass, as :func:`skewpend.views.drawing.link_points` does (whose drawn
+    end is MuJoCo's ``tip`` site: tests/test_upright_zero.py) -- not along the rod's ``+j``, 2 m the wrong way."""
+    from skewpend.interop.importer import read_mjcf
+    from skewpend.views.drawing import link_points
+
+    xml = Path(__file__).resolve().parent / "data" / "dm_control_acrobot.xml"
+    chain = read_mjcf(xml).chain
+    folder = tmp_path / "site"
+    ran = run_cli(["serve", "--config", str(xml), "--export", str(folder)])
+    assert ran.code == 0, ran.report()
+    assert "(open index.html in a browser)" in ran.err  # no start of its own: the page's
+    opened = Page(browser, (folder / "index.html").resolve().as_uri(), "")
+    try:
+        opened.pause()
+        y = np.array(opened.state()["y"])
+        G = opened.page.evaluate("() => window.explorer.geometry()")
+        tips = skewpend.simulate(chain, y, 1e-3, dt_out=1e-3).tips()[0]
+        want = link_points(chain, y, tips)[0]  # hinge 1, hinge 2, the lower arm's drawn end
+        drawn = np.array([_back(v) for v in G["pivots"] + G["tips"][-1:]]) / G["scale"]
+        np.testing.assert_allclose(drawn, want, atol=1e-9)
+        assert np.linalg.norm(drawn[2] - tips[3:]) > 1.0  # the rod's +j end is elsewhere: the mirror was needed
+        assert opened.errors() == [] and opened.blocked == []
+    finally:
+        opened.page.close()

@@ -166,3 +166,20 @@ def test_the_drawn_lower_arm_ends_at_mujocos_tip_site():
         tr = skewpend.simulate(chain, np.r_[q, 0.0, 0.0], 0.01, dt_out=0.01)
         drawn = link_points(chain, tr.y[:1], tr.tips()[:1])[0, 2]
         assert np.allclose(drawn, (x, -z, y), rtol=0, atol=1e-12)  # MuJoCo's z up is skewpend's -y
+
+
+def test_a_replay_in_the_browser_draws_the_lower_arm_where_the_pictures_do():
+    """What the browser's replays draw from (``frontend.replay_data``: the report's live view, the widget's run): the
+    hinges and the last rod's end are :func:`link_points`' -- for this model the lower arm's end mirrored at the
+    elbow (the rod's ``+j`` end is 2 m away from it), for the double pendulum the rod's end, unchanged."""
+    from skewpend.views.frontend import replay_data
+
+    for model, y0, mirrored in ((UPRIGHT, [0.4, -0.7, 1.0, 0.0], True), (DOUBLE, [0.3, -0.4, 0.0, 0.0], False)):
+        tr = skewpend.simulate(model, y0, 0.5, dt_out=0.1)
+        data = replay_data(tr)
+        points = link_points(model, tr.y, tr.tips())
+        np.testing.assert_array_equal(np.array(data["hinges"]), points[:, :2].reshape(-1, 6))
+        np.testing.assert_array_equal(np.array(data["tips"])[:, 3:], points[:, 2])
+        np.testing.assert_array_equal(np.array(data["tips"])[:, :3], tr.tips()[:, :3])
+        apart = np.linalg.norm(np.array(data["tips"])[:, 3:] - tr.tips()[:, 3:], axis=1)
+        assert (apart.min() > 1.0) if mirrored else (apart.max() == 0.0)

@@ -210,7 +210,8 @@ def inline_page_scripts(order=REPLAY_ORDER, entry: str = "replay", physics_param
 
 def replay_data(trajectory) -> dict:
     """What a browser view replays of a computed run (``web/replay.js``, the widget): the rows'
-    times ``t`` [s], states ``y``, the library's rod ends ``tips``, the hinges' positions ``hinges``
+    times ``t`` [s], states ``y``, the library's rod ends ``tips`` (the last as drawn: its body's side of its
+    hinge, :func:`~skewpend.views.drawing.last_link_sign`), the hinges' positions ``hinges``
     (:func:`skewpend.views.drawing.link_points`: each link drawn from its hinge to the next one) and hinge
     axes ``axes`` at each row (a chain's n rods and axes), the length scale ``size`` [m] of the drawn axes
     and the drawn rig's ``reach`` [m] (:func:`~skewpend.views.drawing.drawn_reach`: a small rig is drawn
@@ -221,7 +222,9 @@ def replay_data(trajectory) -> dict:
     lengths = [link.length for link in model.as_chain().links]  # the model's n rods
     tips = trajectory.tips()
     n = len(lengths)
-    hinges = link_points(model, trajectory.y, tips)[:, :n].reshape(-1, 3 * n)
+    points = link_points(model, trajectory.y, tips)
+    hinges = points[:, :n].reshape(-1, 3 * n)
+    tips[:, 3 * (n - 1):] = points[:, n]  # the last link's drawn end (mirrored where its mass lies: last_link_sign)
     return {"t": trajectory.t.tolist(), "y": trajectory.y.tolist(), "tips": tips.tolist(), "hinges": hinges.tolist(),
             "axes": trajectory.axes().tolist(), "size": max(float(v) for v in lengths), "reach": drawn_reach(model)}
 

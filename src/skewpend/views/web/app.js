@@ -12,7 +12,7 @@
 // parameter vector, the values no slider sets from physics.P; the normal modes are computed here from its
 // M0 and K0 (physics.linear), the equations typeset from its TERMS (the linearised ones where it has none).
 import * as THREE from "three";
-import { createScene } from "./scene.js";
+import { createScene, lastRodSign } from "./scene.js";
 import * as physics from "./physics.js";
 import { PAGE } from "./page.js";
 import { advance as advanceBy } from "./live.js";
@@ -71,7 +71,7 @@ if (view.scale === 1) { // the whole model in view: the camera's target at half 
 }
 
 function geometry() {
-  return view.pose(physics.tips(y, p), physics.axes(y, p), longest(p), physics.hinges(y, p));
+  return view.pose(physics.tips(y, p), physics.axes(y, p), longest(p), physics.hinges(y, p), lastRodSign(ORDER, p));
 }
 function draw() {
   geometry();

@@ -22,7 +22,15 @@ function placeSegment(mesh, from, to) {
   if (len > 0) mesh.quaternion.setFromUnitVectors(UP, d.normalize());
 }
 
-/** The scene on `canvas`: {pose(tips, axes, size, hinges), setReach(reach), toModel(v), pushTrail(), clearTrail(),
+/** Which way the last link is drawn from its hinge (skewpend.views.drawing.last_link_sign, the same rule): -1 where
+ *  its centre of mass lies against its rod's direction (the parameter `ry<n>` of `p`, in `order`, below 0: a model
+ *  read from MJCF whose zero is upright, the DeepMind acrobot's lower arm), else +1 (the rod's end, `tips`). */
+export function lastRodSign(order, p) {
+  const k = order ? order.lastIndexOf(`ry${order.filter((name) => /^ry\d+$/.test(name)).length}`) : -1;
+  return k >= 0 && p[k] < 0 ? -1 : 1;
+}
+
+/** The scene on `canvas`: {pose(tips, axes, size, hinges, sign), setReach(reach), toModel(v), pushTrail(), clearTrail(),
  *  render(), resize(), geometry, camera, controls, renderer, rods: {rod1, rod2, joint1, bob, all}}.  `trail`:
  *  points kept.  Any number of rods (a chain of links): the pose's arrays say how many. */
 export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}) {
@@ -115,13 +123,15 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
      *  hinge axes, one a rod), `hinges` = the hinges' positions (optional: without them each hinge is drawn at the
      *  end of the rod before), all in the model's frame -- the double pendulum's two rods or a chain's n; each
      *  link is drawn from its hinge to the next one, the last to its rod's end (a rotary pendulum's arm to the
-     *  pendulum's hinge at its side); `size`: the length scale of the drawn hinge axes [m]. */
-    pose(tips, axes, size, hinges) {
+     *  pendulum's hinge at its side; `sign` -1: the last link drawn the other way from its hinge, lastRodSign);
+     *  `size`: the length scale of the drawn hinge axes [m]. */
+    pose(tips, axes, size, hinges, sign = 1) {
       const n = Math.floor(tips.length / 3);
       ensure(n);
       const at = (v, k) => world(scale * v[3 * k], scale * v[3 * k + 1], scale * v[3 * k + 2]);
       const rodEnds = Array.from({ length: n }, (_, k) => at(tips, k));
       const pivots = Array.from({ length: n }, (_, k) => (hinges ? at(hinges, k) : k === 0 ? world(0, 0, 0) : rodEnds[k - 1]));
+      if (sign < 0) rodEnds[n - 1] = pivots[n - 1].clone().multiplyScalar(2).sub(rodEnds[n - 1]); // mirrored at its hinge
       const ends = Array.from({ length: n }, (_, k) => (k < n - 1 ? pivots[k + 1] : rodEnds[n - 1]));
       const dirs = Array.from({ length: Math.floor(axes.length / 3) }, (_, k) => world(axes[3 * k], axes[3 * k + 1], axes[3 * k + 2]).normalize());
       const G = { o: pivots[0], t1: ends[0], t2: ends[n - 1], n1: dirs[0], e: dirs[1], tips: ends, pivots, axes: dirs };

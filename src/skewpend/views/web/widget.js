@@ -18,7 +18,7 @@
 // changes arrive as change events.  Every change goes through the model, so two views of one widget
 // stay alike.  The live motion is the generated physics (./physics.js) advanced by RK4 (./live.js);
 // a replay shows the library's states frame by frame.  No element ids: many widgets share a page.
-import { createScene } from "./scene.js";
+import { createScene, lastRodSign } from "./scene.js";
 import * as physics from "./physics.js";
 import { advance, frameAt } from "./live.js";
 
@@ -126,7 +126,8 @@ export function render({ model, el }) {
 
   // ---- the motion -----------------------------------------------------------------------------------
   function pose() {
-    const G = view.pose(physics.tips(y, p), physics.axes(y, p), size(), physics.hinges ? physics.hinges(y, p) : undefined);
+    const G = view.pose(physics.tips(y, p), physics.axes(y, p), size(), physics.hinges ? physics.hinges(y, p) : undefined,
+                        lastRodSign(ORDER, p));
     return G;
   }
   function restart() {
