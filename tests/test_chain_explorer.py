@@ -286,6 +286,13 @@ def test_the_deepmind_acrobots_lower_arm_is_drawn_from_the_elbow_where_its_mass_
         drawn = np.array([_back(v) for v in G["pivots"] + G["tips"][-1:]]) / G["scale"]
         np.testing.assert_allclose(drawn, want, atol=1e-9)
         assert np.linalg.norm(drawn[2] - tips[3:]) > 1.0  # the rod's +j end is elsewhere: the mirror was needed
+        # its shoulder is 2 m above the world's origin: the camera looks at the ball the arms move in, so the roof,
+        # both hinges and the tip are on the canvas (the view of a chain hanging from the roof showed none of them)
+        box = opened.page.locator("#scene").bounding_box()
+        for name in ("hinge1", "hinge2", "tip"):
+            at = opened.page.evaluate(f"() => window.explorer.screenOf('{name}')")
+            assert box["x"] < at["x"] < box["x"] + box["width"] and box["y"] < at["y"] < box["y"] + box["height"], name
+        assert opened.page.evaluate("() => window.explorer.page.frame") == [[0.0, -2.0, 0.0], 2.0]
         assert opened.errors() == [] and opened.blocked == []
     finally:
         opened.page.close()

@@ -183,3 +183,32 @@ def test_a_replay_in_the_browser_draws_the_lower_arm_where_the_pictures_do():
         np.testing.assert_array_equal(np.array(data["tips"])[:, :3], tr.tips()[:, :3])
         apart = np.linalg.norm(np.array(data["tips"])[:, 3:] - tr.tips()[:, 3:], axis=1)
         assert (apart.min() > 1.0) if mirrored else (apart.max() == 0.0)
+
+
+def test_the_animation_frames_the_arms_above_their_shoulder_2_m_over_the_roof():
+    """Read from its MJCF, the acrobot's shoulder is 2 m above its world's origin (the roof of skewpend's views):
+    nothing of it hangs below the roof (:func:`drawn_depth` 0, not its 4 m reach), the view looks at the 2 m ball
+    the arms move in about the shoulder (:func:`drawn_frame`), and every drawn point of a frame -- upright and
+    hanging -- is inside the picture (the framing of a chain hanging from the roof put the arms at its top edge)."""
+    from mpl_toolkits.mplot3d import proj3d
+
+    from skewpend.interop.importer import read_mjcf
+    from skewpend.views.animation import FrameRenderer, world_to_plot
+    from skewpend.views.drawing import drawn_depth, drawn_frame
+
+    chain = read_mjcf(DATA / "dm_control_acrobot.xml").chain
+    assert drawn_depth(chain) == 0.0 and drawn_frame(chain) == ([0.0, -2.0, 0.0], 2.0)
+    assert drawn_frame(DOUBLE) is None  # hinge 1 at the roof: the views' framing as before
+    tr = skewpend.simulate(chain, [0.1, 0.2, 0.0, 0.0], 3.0, dt_out=0.25)  # from near upright it falls and swings
+    renderer = FrameRenderer(tr, size=(480, 360))
+    try:
+        assert renderer.floor < 0.0  # below the roof
+        renderer.draw(0)
+        assert 4.0 * renderer.pixels_per_metre > 0.55 * 360  # the 2 m ball about the shoulder fills the picture's height
+        for k in range(tr.t.size):
+            sc = renderer.draw(k)
+            px, py, _ = proj3d.proj_transform(*world_to_plot(sc.rods).T, renderer.ax.get_proj())
+            x, y = renderer.ax.transData.transform(np.column_stack([px, py])).T
+            assert np.all((x > 0) & (x < 480) & (y > 0) & (y < 360)), (k, x, y)
+    finally:
+        renderer.close()

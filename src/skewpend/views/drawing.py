@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["link_points", "last_link_sign", "drawn_reach", "drawn_depth"]
+__all__ = ["link_points", "last_link_sign", "drawn_reach", "drawn_depth", "drawn_frame"]
 
 
 def link_points(model, y, tips) -> np.ndarray:
@@ -59,6 +59,7 @@ def drawn_depth(model) -> float:
     ``|v|``, a vertical one's (a rotary pendulum's arm, turning in the horizontal plane) none of it."""
     links = model.as_chain().links
     norms = [float(np.linalg.norm(np.asarray(link.offset, dtype=float))) for link in links]
+    norms[0] = float(links[0].offset[1])  # hinge 1 stays where it is: only its depth (negative above the roof)
     if len(links) > 1:
         a = np.asarray(links[0].axis, dtype=float)
         a = a / np.linalg.norm(a)
@@ -66,4 +67,17 @@ def drawn_depth(model) -> float:
         along = float(v @ a)
         across = float(np.sqrt(max(float(v @ v) - along * along, 0.0)))
         norms[1] = max(0.0, along * float(a[1]) + across * float(np.sqrt(max(1.0 - float(a[1]) ** 2, 0.0))))
-    return float(sum(norms) + links[-1].length)
+    return max(0.0, float(sum(norms) + links[-1].length))
+
+
+def drawn_frame(model):
+    """Where a view looks when hinge 1 is not at the roof (a model read from MJCF: the DeepMind acrobot's shoulder
+    2 m above its world's origin): ``(centre, radius)`` [m], the model's frame -- hinge 1 and a radius holding every
+    place the drawn chain can reach from there (:func:`drawn_reach` less hinge 1's distance) and the roof; None
+    where hinge 1 is at the roof (the views' framing of a chain hanging from it)."""
+    links = model.as_chain().links
+    o = np.asarray(links[0].offset, dtype=float)
+    d = float(np.linalg.norm(o))
+    if d == 0.0:
+        return None
+    return [float(v) for v in o], max(drawn_reach(model) - d, d)

@@ -160,10 +160,11 @@ def page_settings(physics_params=None) -> dict:
     and ``lead`` (the header's words), its coordinates' ``names``, the ``sliders`` (:func:`page_sliders`), and
     by their index in the physics' parameter vector its rods' ``lengths`` (the drawn axes' scale, the
     camera's reach), the drawn rig's ``reach`` [m] (:func:`skewpend.views.drawing.drawn_reach`: a small rig is
-    drawn magnified), the terms that make the energy not conserved (``dissipative``: damping, torques,
+    drawn magnified), where the camera looks when hinge 1 is away from the roof (``frame``:
+    :func:`skewpend.views.drawing.drawn_frame`, else None), the terms that make the energy not conserved (``dissipative``: damping, torques,
     friction, from the schema's roles) and the ``torques``."""
     from ..numeric.explorer_source import page_vector
-    from .drawing import drawn_reach
+    from .drawing import drawn_frame, drawn_reach
 
     form, printed, order, values = page_vector(physics_params)
     roles = {f.stem: f.role for f in _schema.FIELDS if f.per_body}  # a joint's terms (cfs, the chain's, is none)
@@ -184,6 +185,7 @@ def page_settings(physics_params=None) -> dict:
             "from it.", "names": [_SYMBOLS.get(c, c) for c in printed.coordinates], "sliders": page_sliders(physics_params),
             "lengths": lengths,  # the exact form's drawn reach: its rods' lengths end to end
             "reach": drawn_reach(printed) if form != "exact" else float(sum(values[i] for i in lengths)),
+            "frame": drawn_frame(printed) if form != "exact" else None,
             "dissipative": where("damping", "torque", "friction"), "torques": where("torque")}
 
 

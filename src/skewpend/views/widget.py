@@ -117,6 +117,7 @@ class PendulumWidget(anywidget.AnyWidget):
     specs = traitlets.List().tag(sync=True)  # the sliders (frontend.page_sliders: one definition for every model)
     size = traitlets.Float(0.0).tag(sync=True)  # a chain's length scale [m] (the double pendulum's: from a, b)
     reach = traitlets.Float(0.0).tag(sync=True)  # a chain's drawn reach [m] (views.drawing.drawn_reach; 0: none)
+    frame = traitlets.List().tag(sync=True)  # [centre, radius] where hinge 1 is off the roof (drawing.drawn_frame; []: none)
 
     def __init__(self, params: Optional[Parameters] = None, y0: Optional[Sequence[float]] = None, *,
                  height: int = 420) -> None:
@@ -134,7 +135,7 @@ class PendulumWidget(anywidget.AnyWidget):
         self._chain = printed if form == "recursive" else None
         if self._chain is not None:  # the recursive form: the bodies and axes fixed, g and damping its sliders
             from ..config import CHAIN_Q0
-            from .drawing import drawn_reach
+            from .drawing import drawn_frame, drawn_reach
 
             params = self._chain
             shape = self._geometry = _zeroed(params)
@@ -144,7 +145,8 @@ class PendulumWidget(anywidget.AnyWidget):
             super().__init__(values=chain_slider_values(params),
                              y0=self._start((CHAIN_Q0,) * n + (0.0,) * n if y0 is None else y0),
                              sliders=[spec[0] for spec in specs[-n:] + specs[:-n]], specs=specs,  # the starts first
-                             size=max(link.length for link in params.links), reach=drawn_reach(params), height=height)
+                             size=max(link.length for link in params.links), reach=drawn_reach(params),
+                             frame=list(drawn_frame(params) or []), height=height)
             return
         params = reference_parameters() if params is None else checks.numeric_params(params, "the widget")
         geometry = geometry_of(params)

@@ -201,7 +201,7 @@ class FrameRenderer:
         self.half_vector = unit(self.light + self.eye)
 
         # the floor: a grid with round spacing (the scene's scale), just below the deepest the chain reaches
-        self.floor = -1.02 * g.depth
+        self.floor = -1.02 * max(g.depth, 0.1 * R)  # a chain above its roof: the floor a tenth of the reach below it
         ticks = self._ticks
         lo, hi = float(ticks[0]), float(ticks[-1])
         corners = [np.array([x, y, self.floor]) for x in (lo, hi) for y in (lo, hi)]
@@ -214,7 +214,11 @@ class FrameRenderer:
         # view limits fixed by the reach R = a + b: everything drawn (the sphere of radius R about
         # the pivot, the floor, the triad) fills the axes; the box centre is put at the centre of
         # that content on screen, the limits form a cube (equal scales), the zoom fits it
-        content = [R * right, -R * right, -g.depth * screen_up] + corners
+        if g.frame is None:
+            content = [R * right, -R * right, -g.depth * screen_up] + corners
+        else:  # hinge 1 away from the roof: the sphere about it that the drawn chain stays in, the roof, the floor
+            c, r = world_to_plot(np.asarray(g.frame[0], dtype=float)), g.frame[1]
+            content = [c + r * right, c - r * right, c - r * screen_up, np.zeros(3)] + corners
         content += [triad_origin + 1.3 * tl * v for v, _ in triad]
         # upwards only as far as this run's rods and hinge axes (with arrow heads, labels) reach
         reach_axis = g.half + (HEAD_LENGTH + LABEL_GAP) * R

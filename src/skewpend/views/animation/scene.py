@@ -12,7 +12,7 @@ import numpy as np
 
 from ... import checks
 from ...errors import ParameterError, SkewpendError
-from ..drawing import drawn_depth, drawn_reach, link_points
+from ..drawing import drawn_depth, drawn_frame, drawn_reach, link_points
 
 #: Output formats, chosen by the file name's suffix.
 SUFFIXES = (".mp4", ".gif")
@@ -184,7 +184,10 @@ class Geometry:
         self.axes = np.asarray(tr.axes(), dtype=float).reshape(-1, 3 * n)
         if self.tips.shape[0] != t.size or self.axes.shape[0] != t.size:
             raise SkewpendError("the trajectory's rod ends or axes do not match its rows")
-        self.reach = drawn_reach(tr.params)
+        #: where the view looks when hinge 1 is not at the roof: (centre, radius) [m] (drawing.drawn_frame), else None
+        self.frame = drawn_frame(tr.params)
+        #: the picture's length scale [m]: the drawn reach from the roof, or the radius of the ball about hinge 1
+        self.reach = drawn_reach(tr.params) if self.frame is None else self.frame[1]
         #: the deepest the drawn chain reaches below the roof (the reach, but for an arm turning horizontally)
         self.depth = drawn_depth(tr.params)
         self.half = AXIS_HALF_LENGTH * self.reach

@@ -62,7 +62,9 @@ const view = createScene(canvas, { trail: TRAIL });
 view.setReach(PAGE.reach); // a small rig (the rotary pendulum's 0.214 m) drawn magnified (scene.js)
 const { camera, controls } = view;
 const { joint1, bob } = view.rods;
-if (view.scale === 1) { // the whole model in view: the camera's target at half its reach, its distance to the reach
+if (PAGE.frame) { // hinge 1 away from the roof (a model read from MJCF): the ball the chain moves in, in view
+  view.frame(...PAGE.frame);
+} else if (view.scale === 1) { // the whole model in view: the camera's target at half its reach, its distance to the reach
   // (at the start; a small rig drawn magnified has its view from setReach)
   const reach = Math.max(PAGE.lengths.reduce((sum, i) => sum + physics.P[i], 0), 1.8), r = reach / 1.8;
   controls.target.set(0, -0.5 * reach, 0);

@@ -30,7 +30,7 @@ export function lastRodSign(order, p) {
   return k >= 0 && p[k] < 0 ? -1 : 1;
 }
 
-/** The scene on `canvas`: {pose(tips, axes, size, hinges, sign), setReach(reach), toModel(v), pushTrail(), clearTrail(),
+/** The scene on `canvas`: {pose(tips, axes, size, hinges, sign), setReach(reach), frame(centre, radius), toModel(v), pushTrail(), clearTrail(),
  *  render(), resize(), geometry, camera, controls, renderer, rods: {rod1, rod2, joint1, bob, all}}.  `trail`:
  *  points kept.  Any number of rods (a chain of links): the pose's arrays say how many. */
 export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}) {
@@ -115,6 +115,15 @@ export function createScene(canvas, { trail = 1200, background = 0x0f1722 } = {}
         stale = true;
       }
       return scale;
+    },
+    /** Look at `centre` (the model's frame [m]) from far enough to hold a ball of `radius` [m] around it, the default
+     *  view's direction (a chain whose hinge 1 is away from the roof: skewpend.views.drawing.drawn_frame). */
+    frame(centre, radius) {
+      const k = (1.1 * scale * radius) / 1.8, c = world(scale * centre[0], scale * centre[1], scale * centre[2]);
+      controls.target.copy(c);
+      camera.position.set(c.x + 2.6 * k, c.y + 1.3 * k, c.z + 4.2 * k);
+      controls.update();
+      stale = true;
     },
     get scale() { return scale; },
     /** a point of the scene (three.js coordinates) back in the model's frame [m], j down: [x, y, z] */

@@ -56,6 +56,8 @@ export function render({ model, el }) {
   try {
     view = createScene(canvas, { trail: 1200 });
     view.setReach(+model.get("reach") || 0); // a small rig drawn magnified (scene.js)
+    const frame = model.get("frame");
+    if (frame && frame.length === 2) view.frame(frame[0], frame[1]); // hinge 1 off the roof: its ball in view
   } catch (err) { // no WebGL here: say so, keep the sliders' state readable from Python
     note.textContent = `This browser cannot draw WebGL (${err.message}).`;
     note.hidden = false;
