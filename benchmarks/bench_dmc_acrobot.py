@@ -31,6 +31,9 @@ cost-to-go) within 0.5 rad and 4 rad/s of it (back to the swing-up beyond 1 rad)
 (:func:`settings`) and the switch were tuned on the starts ``random = 1000 ... 1015`` (``--seed 1000 --episodes
 16``), never on the reported 0-99.
 
+With ``--optimise``, the best return IPOPT finds near each episode's run (:func:`optimised_return`): how far the
+controller's own way up is from a locally optimal one.
+
 Run: ``python benchmarks/bench_dmc_acrobot.py --episodes 100 --seed 0 --replay`` (``pip install
 "skewpend[bench]"`` for dm_control).  Timing figures depend on the machine's load (the solve is one thread).
 """
@@ -179,12 +182,44 @@ def closed_loop(seed: int, law, x0: np.ndarray) -> float:
     return total
 
 
+def optimised_return(chain, states: np.ndarray, torques: np.ndarray, max_iter: int = 500):
+    """The best return IPOPT finds near one episode's run: the task's 1,000 RK4 steps of 0.01 s (the torque held over
+    each, within 2 N m) as a multiple-shooting problem in skewpend's model (``trajopt.casadi_dynamics``), the
+    return's sum of rewards its objective, started from the run's own states ``(1001, 4)`` and elbow torques
+    ``(1000,)``.  A local optimum near the controller's way up: how much a better plan of the same swing-up would
+    give.  Returns the return at the optimum (its states, within IPOPT's tolerance) and whether IPOPT converged."""
+    from skewpend.analysis.trajopt import casadi_dynamics
+
+    ca, _, step, _ = casadi_dynamics(chain, (2,))
+    x, u = ca.SX.sym("x", 4), ca.SX.sym("u", 1)
+    F = ca.Function("F", [x, u], [step(x, u, u, DT)]).map(STEPS)
+    d = ca.sqrt((ca.sin(x[0]) + ca.sin(x[0] + x[1])) ** 2 + (ca.cos(x[0]) + ca.cos(x[0] + x[1]) - 2.0) ** 2 + 1e-12)
+    scale = math.sqrt(-2.0 * math.log(0.1))
+    R = ca.Function("R", [x], [ca.exp(-0.5 * (scale * ca.fmax(d - TARGET_RADIUS, 0.0)) ** 2)]).map(STEPS)
+    opti = ca.Opti()
+    X, U = opti.variable(4, STEPS + 1), opti.variable(1, STEPS)
+    opti.subject_to(X[:, 0] == states[0])
+    opti.subject_to(X[:, 1:] == F(X[:, :-1], U))
+    opti.subject_to(opti.bounded(-GEAR, U, GEAR))
+    opti.minimize(-ca.sum2(R(X[:, 1:])))
+    opti.set_initial(X, states.T)
+    opti.set_initial(U, torques[None, :])
+    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "max_iter": max_iter, "tol": 1e-8, "sb": "yes"})
+    try:
+        sol, ok = opti.solve(), True
+    except RuntimeError:  # not converged in max_iter: the last iterate's return (its states nearly feasible)
+        sol, ok = opti.debug, False
+    return -float(sol.value(opti.f)), ok
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--episodes", type=int, default=100)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--replay", action="store_true", help="replay each episode's actions in dm_control's physics")
     ap.add_argument("--quiet", action="store_true", help="no line per episode")
+    ap.add_argument("--optimise", action="store_true",
+                    help="the best return IPOPT finds near each episode's run (optimised_return; about a minute each)")
     args = ap.parse_args()
 
     from skewpend.analysis import leaderboard as lb
@@ -202,7 +237,7 @@ def main() -> None:
         print(f"{mpc!r}; goal {mpc.goal}; {mpc.settings}")
     law = SwingAndBalance(swing, balance)
     protocol = lb.Protocol(dt=DT, t_final=STEPS * DT, umax=umax)
-    returns, replays, times, cpus, fallbacks = [], [], [], [], 0
+    returns, replays, times, cpus, fallbacks, optimised = [], [], [], [], 0, []
     wall = time.perf_counter()
     for i in range(args.episodes):
         seed = args.seed + i
@@ -227,6 +262,10 @@ def main() -> None:
             replays.append((opened, shadowed, closed, rel[0], rel[1], step_diff, STEPS if parted is None else parted))
             line += (f"; dm_control: open-loop {opened:7.2f} ({rel[0]:.1e}, parts at step {parted}), step by step "
                      f"{shadowed:7.2f} ({rel[1]:.1e}, one step {step_diff:.1e}), closed loop {closed:7.2f}")
+        if args.optimise:
+            best, converged = optimised_return(chain, np.vstack([run.x, run.final]), run.u[:, 1])
+            optimised.append(best)
+            line += f"; optimised near it {best:8.2f} ({'converged' if converged else 'not converged'})"
         if not args.quiet:
             print(line, flush=True)
     r = np.array(returns)
@@ -234,6 +273,10 @@ def main() -> None:
     print(f"\n{len(r)} episodes (random = {args.seed} ... {args.seed + len(r) - 1}), {time.perf_counter() - wall:.0f} s")
     print(f"return: mean {r.mean():.2f}, std {r.std(ddof=1) if len(r) > 1 else 0.0:.2f}, min {r.min():.2f}, "
           f"median {np.median(r):.2f}, max {r.max():.2f}; mean / TD-MPC2's {TD_MPC2:g} = {r.mean() / TD_MPC2:.3f}")
+    if optimised:
+        o = np.array(optimised)
+        print(f"optimised near each run (IPOPT, the run as its start): mean {o.mean():.2f} ({o.mean() / r.mean():.3f} x the "
+              f"controller's), median {np.median(o):.2f}, largest gain {np.max(o / np.maximum(r, 1.0)):.3f} x")
     if replays:
         opened, shadowed, closed, rel_open, rel_shadow, step_diff, parted = (np.array(c) for c in zip(*replays))
         k = int(np.argmax(rel_open))
