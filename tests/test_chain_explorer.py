@@ -17,6 +17,7 @@ WebGL by SwiftShader): a skewed, damped triple pendulum (``skewpend serve --conf
 from __future__ import annotations
 
 import io
+import math
 import threading
 import time
 from pathlib import Path
@@ -293,6 +294,12 @@ def test_the_deepmind_acrobots_lower_arm_is_drawn_from_the_elbow_where_its_mass_
             at = opened.page.evaluate(f"() => window.explorer.screenOf('{name}')")
             assert box["x"] < at["x"] < box["x"] + box["width"] and box["y"] < at["y"] < box["y"] + box["height"], name
         assert opened.page.evaluate("() => window.explorer.page.frame") == [[0.0, -2.0, 0.0], 2.0]
+        # its zero is upright: the linearised equations and the normal modes are about its hanging rest (pi, 0), as
+        # normal_modes' (2.666 and 6.879 rad/s; at q = 0 the page said there were none)
+        assert opened.page.evaluate("() => window.explorer.physics.REST") == [math.pi, 0.0]
+        js, lib = opened.page.evaluate("() => window.explorer.modes()"), skewpend.normal_modes(chain)
+        np.testing.assert_allclose(js["frequencies"], lib.frequencies, rtol=1e-9)
+        np.testing.assert_allclose(lib.frequencies, [2.666, 6.879], atol=5e-4)
         assert opened.errors() == [] and opened.blocked == []
     finally:
         opened.page.close()

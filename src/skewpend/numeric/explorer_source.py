@@ -49,7 +49,7 @@ def page_vector(model=None):
     return form, printed, parameter_names(printed.n), [float(v) for v in chain_vector(printed)]
 
 
-def explorer_js(model=None) -> str:
+def explorer_js(model=None, rest=None) -> str:
     """The explorer's physics for ``model`` (an ES module), one contract for every model and form: its
     ``PARAMETER_ORDER``, ``P`` (:func:`page_vector`), ``N`` links, ``rhs(y, p)``, ``energy(y, p)``, the
     drawing's ``tips(y, p)`` (the rods' ends, 3 n [m]), ``hinges(y, p)`` (the hinges' positions, 3 n [m]: each
@@ -58,18 +58,21 @@ def explorer_js(model=None) -> str:
     of the monomial]``, :func:`~skewpend.numeric.codegen.equation_terms`; none where the form has no symbolic
     equations) with ``coefficients(p)``, and ``FLIP_ODD`` (without torques the equations are odd under ``(q,
     q') -> -(q, q')``).  Printed by the model's own code generators in :func:`page_form`'s form; nothing is
-    typed by hand but the LDL^T solve."""
+    typed by hand but the LDL^T solve.  ``rest``: the angles of the hanging rest ``linear`` is taken at and
+    ``REST`` holds (default every q = 0; the DeepMind acrobot's, whose zero is upright, (pi, 0): the views pass
+    :func:`~skewpend.analysis.control.hanging_rest`'s)."""
     form, printed, _, values = page_vector(model)
     if form == "exact":
         return exact_explorer_js(printed, values)
     from .recursive import chain_code
 
-    return chain_code(printed, "javascript") + "\n".join(["", *_recursive_linear(printed), *_no_terms()])
+    return chain_code(printed, "javascript") + "\n".join(["", *_recursive_linear(printed, rest), *_no_terms()])
 
 
-def _recursive_linear(chain) -> List[str]:
-    """``linear(y, p)`` of a chain's page, from its recursive algorithms' graphs: ``[M0, K0]`` at rest (M at
-    q = 0; K0 the Hessian of the energy at rest, Pi, by CasADi's differentiation)."""
+def _recursive_linear(chain, rest=None) -> List[str]:
+    """``linear(y, p)`` of a chain's page, from its recursive algorithms' graphs: ``[M0, K0]`` at the hanging rest
+    ``rest`` (default q = 0; M there, K0 the Hessian of the energy Pi there, by CasADi's differentiation), and
+    ``REST``, its angles."""
     from ..errors import require
     from .recursive import chain_functions, function_lines, structure_of_chain
 
@@ -77,12 +80,15 @@ def _recursive_linear(chain) -> List[str]:
     fns = chain_functions(structure_of_chain(chain))
     q, p = ca.SX.sym("q", n), ca.SX.sym("p", fns["energy"].size1_in(1))
     hessian = ca.hessian(fns["energy"](ca.vertcat(q, ca.SX.zeros(n)), p), q)[0]
-    at_rest = lambda e: ca.substitute(e, q, ca.DM.zeros(n))  # noqa: E731
+    rest = [0.0] * n if rest is None else [float(v) for v in rest]
+    at_rest = lambda e: ca.substitute(e, q, ca.DM(rest))  # noqa: E731
     # K0 has structural zeros where Pi does not depend on an angle (the rotary pendulum's arm: its row and
     # column): the printer writes them 0.0 (function_lines writes every entry of every output)
     linear = ca.Function("linear", [p], [at_rest(fns["mass"](q, p)), at_rest(ca.reshape(hessian, n * n, 1))])
     packed = [f"m{i}_{j}" for i in range(n) for j in range(i + 1)]
-    return ["/** the linearisation at rest (every q = 0): [M0, K0], M0 = M(0), K0 = the Hessian of Pi (y is not read) */",
+    return ["/** the hanging rest's angles [rad]: where linear is taken */",
+            f"export const REST = [{', '.join(repr(v) for v in rest)}];",
+            "/** the linearisation at the hanging rest REST: [M0, K0], M0 = M(REST), K0 = the Hessian of Pi there (y is not read) */",
             "export function linear(y, p = P) {",
             *function_lines(linear, ["p"], [packed, [f"r{i}" for i in range(n * n)]], "  ", True, "javascript"),
             f"  return [{js_rows(n, lambda i, j: f'm{max(i, j)}_{min(i, j)}')}, {js_rows(n, lambda i, j: f'r{i * n + j}')}];", "}", ""]

@@ -92,9 +92,28 @@ def _physics_sources(physics_params) -> tuple:
     from ..numeric.codegen import classic_js
     from ..numeric.explorer_source import explorer_js
 
-    module = explorer_js(physics_params)
+    module = explorer_js(physics_params, _hanging_rest(physics_params))
     return (Source("physics", module), _page_source(page_settings(physics_params)),
             Source("physics-classic", classic_js(module, "physics"), classic=True))
+
+
+def _hanging_rest(physics_params):
+    """The angles of the hanging rest the page linearises at (:func:`skewpend.analysis.control.hanging_rest`: the
+    DeepMind acrobot's (pi, 0), whose zero is upright); None (every q = 0) for the exact form or a model without one
+    (the page then says the position at q = 0 is no stable equilibrium).  The page's sliders (g, the joints'
+    damping) do not move it."""
+    from ..errors import EquilibriumError
+    from ..numeric.explorer_source import page_form
+
+    form, printed = page_form(physics_params)
+    if form == "exact":
+        return None
+    from ..analysis.control import hanging_rest
+
+    try:
+        return [float(v) for v in hanging_rest(printed)[:printed.n]]
+    except EquilibriumError:
+        return None
 
 
 def _page_source(settings: dict) -> Source:

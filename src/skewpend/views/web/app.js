@@ -18,6 +18,9 @@ import { PAGE } from "./page.js";
 import { advance as advanceBy } from "./live.js";
 
 const DEG = Math.PI / 180;
+// the hanging rest's angles [rad] (the generated physics' REST: 0 but where the model's zero is not hanging, as the
+// DeepMind acrobot's (pi, 0)): the linearised equations, the normal modes and their starts are about it
+const REST = physics.REST || new Array(physics.N).fill(0);
 const ORDER = physics.PARAMETER_ORDER; // a, b, m1, m2, alpha, g, c1, c2, tau1, tau2 (a chain's: its links')
 const TRAIL = 1200; // points of the tip trail
 const HISTORY = 20; // seconds shown in the plots
@@ -327,7 +330,7 @@ const SYMBOLIC = physics.TERMS.length > 0; // the equations of motion themselves
 const equationsLatex = (pv) => (SYMBOLIC ? equationsTex(pv) : linearTex(pv));
 // why the hanging position is no equilibrium (an acceleration at rest: torques, a centre of mass off the vertical), or ""
 function restless(pv) {
-  const acc = physics.rhs(new Array(2 * N).fill(0), pv).slice(N), scale = Math.max(1, Math.abs(pv[GRAVITY]));
+  const acc = physics.rhs([...REST, ...new Array(N).fill(0)], pv).slice(N), scale = Math.max(1, Math.abs(pv[GRAVITY]));
   return acc.some((a) => !(Math.abs(a) <= 1e-9 * scale)) ? "the hanging position is not an equilibrium here (the joints' " +
     "torques, or a centre of mass off the vertical)" : "";
 }
@@ -446,7 +449,7 @@ function showModes() {
 function startMode(shape) {
   const peak = Math.max(...shape.map(Math.abs));
   const amp = 10 / peak; // the largest angle 10 deg: small enough to stay linear
-  START_KEYS.forEach((key, k) => setValue(key, shape[k] * amp, false));
+  START_KEYS.forEach((key, k) => setValue(key, REST[k] / DEG + shape[k] * amp, false));
   changed(START_KEYS[0]);
   setRunning(true);
 }
