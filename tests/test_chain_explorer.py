@@ -300,6 +300,13 @@ def test_the_deepmind_acrobots_lower_arm_is_drawn_from_the_elbow_where_its_mass_
         js, lib = opened.page.evaluate("() => window.explorer.modes()"), skewpend.normal_modes(chain)
         np.testing.assert_allclose(js["frequencies"], lib.frequencies, rtol=1e-9)
         np.testing.assert_allclose(lib.frequencies, [2.666, 6.879], atol=5e-4)
+        opened.page.locator("#modes li button").nth(0).click()  # the slow mode's start: about (pi, 0), wrapped
+        s = opened.state()
+        q = np.radians([s["values"]["phi0"], s["values"]["psi0"]])
+        dq = np.mod(q - [math.pi, 0.0] + math.pi, 2 * math.pi) - math.pi
+        shape = lib.shapes[:, 0]
+        np.testing.assert_allclose(dq / np.abs(dq).max(), shape / shape[np.abs(shape).argmax()], atol=1e-12)
+        assert np.abs(dq).max() == pytest.approx(np.radians(10.0), rel=1e-12) and np.all(np.abs(q) <= math.pi)
         assert opened.errors() == [] and opened.blocked == []
     finally:
         opened.page.close()

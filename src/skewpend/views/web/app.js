@@ -449,7 +449,10 @@ function showModes() {
 function startMode(shape) {
   const peak = Math.max(...shape.map(Math.abs));
   const amp = 10 / peak; // the largest angle 10 deg: small enough to stay linear
-  START_KEYS.forEach((key, k) => setValue(key, REST[k] / DEG + shape[k] * amp, false));
+  START_KEYS.forEach((key, k) => { // about the hanging rest, within the sliders' -180 ... 180 degrees
+    const deg = REST[k] / DEG + shape[k] * amp;
+    setValue(key, deg - 360 * Math.round(deg / 360), false);
+  });
   changed(START_KEYS[0]);
   setRunning(true);
 }
